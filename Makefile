@@ -1,0 +1,33 @@
+# Set-up and checks for tanksynth on a fresh Debian machine (Python 3.11, root).
+PYTHON ?= python3
+VENV   := .venv
+PY     := $(VENV)/bin/python
+STAMP  := $(VENV)/.installed
+
+.PHONY: demo test bench tex clean
+
+$(STAMP): pyproject.toml
+	$(PYTHON) -m venv $(VENV)
+	$(PY) -m pip install --quiet --upgrade pip
+	$(PY) -m pip install --quiet -e '.[dev]'
+	touch $(STAMP)
+
+# pdflatex/latexmk/pdftotext for the reports, from Debian packages when missing.
+tex:
+	@if ! command -v pdflatex >/dev/null || ! command -v latexmk >/dev/null || ! command -v pdftotext >/dev/null; then \
+		SUDO=$$( [ "$$(id -u)" = 0 ] || echo sudo ); \
+		$$SUDO apt-get update -qq && DEBIAN_FRONTEND=noninteractive $$SUDO apt-get install -y -qq --no-install-recommends \
+			texlive-latex-base texlive-latex-recommended latexmk poppler-utils >/dev/null; \
+	fi
+
+demo: $(STAMP)
+	$(VENV)/bin/tanksynth run -o tanksynth-demo
+
+test: $(STAMP) tex
+	$(PY) -m pytest -n 2 -q
+
+bench: $(STAMP)
+	@for script in benchmarks/*.py; do echo "== $$script"; $(PY) $$script || exit 1; done
+
+clean:
+	rm -rf $(VENV) tanksynth-demo .pytest_cache

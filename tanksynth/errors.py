@@ -1,0 +1,78 @@
+"""Exception hierarchy of tanksynth.
+
+Every error raised on purpose by the toolbox derives from `TanksynthError` and
+also from the built-in exception a caller would naturally catch, following
+python-control's ``exception.py`` pattern.
+"""
+
+from __future__ import annotations
+
+__all__ = [
+    "TanksynthError",
+    "SpecError",
+    "ParseError",
+    "RegionError",
+    "ArtefactError",
+    "DimensionError",
+    "InfeasibleDesign",
+    "UnobservableError",
+    "UncontrollableError",
+]
+
+
+class TanksynthError(Exception):
+    """Base class of every error raised by tanksynth."""
+
+
+class SpecError(TanksynthError, ValueError):
+    """A spec (file, table, key or value) is malformed or out of range.
+
+    Parameters
+    ----------
+    message : str
+        What is wrong and what was expected.
+    key : str, optional
+        Dotted path of the offending key, e.g. ``plant.parameters.A``.
+    source : str, optional
+        File the spec came from, if any.
+    """
+
+    def __init__(self, message: str, key: str | None = None, source: str | None = None):
+        self.key = key
+        self.source = source
+        self.detail = message
+        where = []
+        if source:
+            where.append(str(source))
+        if key:
+            where.append(f"key '{key}'")
+        prefix = (": ".join(where) + ": ") if where else ""
+        super().__init__(prefix + message)
+
+
+class ParseError(SpecError):
+    """An equation string is outside the whitelisted grammar."""
+
+
+class RegionError(SpecError):
+    """An operating point lies outside the plant's operating region."""
+
+
+class ArtefactError(TanksynthError, ValueError):
+    """An artefact file is missing, malformed, or fails its provenance check."""
+
+
+class DimensionError(TanksynthError, ValueError):
+    """Matrix or vector arguments have incompatible shapes."""
+
+
+class InfeasibleDesign(TanksynthError, RuntimeError):
+    """A design problem has no solution (or its solution fails the re-check)."""
+
+
+class UnobservableError(TanksynthError, ValueError):
+    """A design needs an observable pair and the pair is not observable."""
+
+
+class UncontrollableError(TanksynthError, ValueError):
+    """A design needs a controllable pair and the pair is not controllable."""

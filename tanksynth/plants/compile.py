@@ -1,0 +1,196 @@
+"""Compile a plant's sympy model once into CasADi functions.
+
+`to_casadi` walks a sympy tree and rebuilds it in CasADi SX (no string
+round trip, no lambdify). `compile_plant` builds, once per plant, the
+functions the estimators, the simulator and the rank checks evaluate:
+``f(x, u)``, ``h(x)`` and their Jacobians, with a batch form over many
+points at once.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Mapping, Sequence
+
+import casadi as ca
+import numpy as np
+import sympy as sp
+
+from ..errors import TanksynthError
+
+__all__ = ["to_casadi", "CompiledPlant", "compile_plant", "compile_matrix"]
+
+
+def to_casadi(expr: sp.Expr, symbols: Mapping[sp.Symbol, ca.SX], _cache: dict | None = None) -> ca.SX:
+    """Translate a sympy expression into a CasADi SX expression.
+
+    Parameters
+    ----------
+    expr : sympy.Expr
+        Expression in the symbols of ``symbols`` (parameters substituted).
+    symbols : mapping of sympy.Symbol to casadi.SX
+        The CasADi scalar standing for each free symbol.
+
+    Returns
+    -------
+    casadi.SX
+        Scalar expression. ``DiracDelta`` (from differentiating ``sign``)
+        evaluates to 0: it only differs from 0 on a set of measure zero.
+    """
+    cache = {} if _cache is None else _cache
+    if expr in cache:
+        return cache[expr]
+
+    def rec(e: sp.Expr) -> ca.SX:
+        return to_casadi(e, symbols, cache)
+
+    if expr.is_Symbol:
+        if expr not in symbols:
+            raise TanksynthError(f"cannot compile: free symbol {expr} has no value")
+        out = symbols[expr]
+    elif expr.is_Number or expr is sp.pi or expr is sp.E:
+        out = ca.SX(float(expr))
+    elif expr.is_Add:
+        out = rec(expr.args[0])
+        for a in expr.args[1:]:
+            out = out + rec(a)
+    elif expr.is_Mul:
+        out = rec(expr.args[0])
+        for a in expr.args[1:]:
+            out = out * rec(a)
+    elif expr.is_Pow:
+        base, exponent = expr.args
+        b = rec(base)
+        if exponent == sp.Rational(1, 2):
+            out = ca.sqrt(b)
+        elif exponent == -sp.Rational(1, 2):
+            out = 1 / ca.sqrt(b)
+        elif exponent.is_Integer:
+            k = int(exponent)
+            out = ca.constpow(b, k) if k >= 0 else 1 / ca.constpow(b, -k)
+        elif exponent.is_number:
+            out = ca.power(b, float(exponent))
+        else:
+            out = ca.power(b, rec(exponent))
+    elif isinstance(expr, sp.Abs):
+        out = ca.fabs(rec(expr.args[0]))
+    elif isinstance(expr, sp.sign):
+        out = ca.sign(rec(expr.args[0]))
+    elif isinstance(expr, sp.exp):
+        out = ca.exp(rec(expr.args[0]))
+    elif isinstance(expr, sp.log):
+        out = ca.log(rec(expr.args[0]))
+    elif isinstance(expr, sp.Max):
+        out = rec(expr.args[0])
+        for a in expr.args[1:]:
+            out = ca.fmax(out, rec(a))
+    elif isinstance(expr, sp.Min):
+        out = rec(expr.args[0])
+        for a in expr.args[1:]:
+            out = ca.fmin(out, rec(a))
+    elif isinstance(expr, sp.Heaviside):
+        a = rec(expr.args[0])
+        out = ca.if_else(a > 0, 1, ca.if_else(a < 0, 0, 0.5))
+    elif isinstance(expr, sp.DiracDelta):
+        out = ca.SX(0.0)
+    elif isinstance(expr, sp.Piecewise):
+        out = ca.SX(np.nan)
+        for value, cond in reversed(expr.args):
+            out = ca.if_else(rec(cond), rec(value), out) if cond is not sp.true else rec(value)
+    elif isinstance(expr, (sp.StrictGreaterThan, sp.GreaterThan, sp.StrictLessThan, sp.LessThan)):
+        lhs, rhs = rec(expr.lhs), rec(expr.rhs)
+        out = {sp.StrictGreaterThan: lhs > rhs, sp.GreaterThan: lhs >= rhs,
+               sp.StrictLessThan: lhs < rhs, sp.LessThan: lhs <= rhs}[type(expr)]
+    elif isinstance(expr, (sp.And, sp.Or)):
+        parts = [rec(a) for a in expr.args]
+        out = parts[0]
+        for p in parts[1:]:
+            out = ca.logic_and(out, p) if isinstance(expr, sp.And) else ca.logic_or(out, p)
+    else:
+        raise TanksynthError(f"cannot compile {type(expr).__name__} in {expr}")
+    cache[expr] = out
+    return out
+
+
+def compile_matrix(name: str, matrix: sp.Matrix, inputs: Sequence[Sequence[sp.Symbol]],
+                   input_names: Sequence[str]) -> ca.Function:
+    """Compile a sympy matrix into a CasADi Function of vector arguments."""
+    args = [ca.SX.sym(nm, len(syms)) for nm, syms in zip(input_names, inputs)]
+    symbols = {}
+    for arg, syms in zip(args, inputs):
+        for i, s in enumerate(syms):
+            symbols[s] = arg[i]
+    cache: dict = {}
+    rows, cols = matrix.shape
+    out = ca.SX.zeros(rows, cols)
+    for i in range(rows):
+        for j in range(cols):
+            entry = matrix[i, j]
+            if entry != 0:
+                out[i, j] = to_casadi(entry, symbols, cache)
+    return ca.Function(name, args, [out], list(input_names), ["out"])
+
+
+@dataclass
+class CompiledPlant:
+    """Numeric functions of one plant, compiled once.
+
+    Attributes
+    ----------
+    f : casadi.Function
+        ``f(x, u) -> dx/dt`` (general model, parameters substituted).
+    h : casadi.Function
+        ``h(x) -> y``.
+    jac_x, jac_u : casadi.Function
+        ``df/dx (x, u)`` (n x n) and ``df/du (x, u)`` (n x m), by AD.
+    jac_h : casadi.Function
+        ``dh/dx (x)`` (q x n).
+    """
+
+    n: int
+    m: int
+    q: int
+    f: ca.Function
+    h: ca.Function
+    jac_x: ca.Function
+    jac_u: ca.Function
+    jac_h: ca.Function
+    _maps: dict = field(default_factory=dict, repr=False)
+
+    def _batch(self, fn: ca.Function, *arrays: np.ndarray) -> np.ndarray:
+        arrays = [np.atleast_2d(np.asarray(a, dtype=float)) for a in arrays]
+        count = arrays[0].shape[0]
+        key = (fn.name(), count)
+        if key not in self._maps:
+            self._maps[key] = fn.map(count, "serial")
+        out = np.asarray(self._maps[key](*[a.T for a in arrays]))
+        rows = fn.size1_out(0)
+        cols = fn.size2_out(0)
+        if cols == 1:
+            return out.T.reshape(count, rows)
+        return out.reshape(rows, count, cols).transpose(1, 0, 2)
+
+    def rhs(self, x: np.ndarray, u: np.ndarray) -> np.ndarray:
+        """``f`` at M points: ``x`` (M, n), ``u`` (M, m) -> (M, n)."""
+        return self._batch(self.f, x, u)
+
+    def output(self, x: np.ndarray) -> np.ndarray:
+        """``h`` at M points: (M, n) -> (M, q)."""
+        return self._batch(self.h, x)
+
+    def jacobians(self, x: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``df/dx`` (M, n, n) and ``df/du`` (M, n, m) at M points."""
+        return self._batch(self.jac_x, x, u), self._batch(self.jac_u, x, u)
+
+
+def compile_plant(plant) -> CompiledPlant:
+    """Compile a `Plant` (parameters substituted) into a `CompiledPlant`."""
+    f = compile_matrix("f", plant.f_numeric, [plant.x, plant.u], ["x", "u"])
+    h = compile_matrix("h", plant.h_numeric, [plant.x], ["x"])
+    xs = ca.SX.sym("x", plant.n)
+    us = ca.SX.sym("u", plant.m)
+    fx = f(xs, us)
+    jac_x = ca.Function("jac_x", [xs, us], [ca.jacobian(fx, xs)], ["x", "u"], ["out"])
+    jac_u = ca.Function("jac_u", [xs, us], [ca.jacobian(fx, us)], ["x", "u"], ["out"])
+    jac_h = ca.Function("jac_h", [xs], [ca.jacobian(h(xs), xs)], ["x"], ["out"])
+    return CompiledPlant(plant.n, plant.m, plant.q, f, h, jac_x, jac_u, jac_h)

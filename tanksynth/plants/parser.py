@@ -1,0 +1,278 @@
+"""Whitelist parser: equation text -> sympy expression.
+
+Spec text is never handed to ``eval``, ``sympify`` or ``parse_expr``. This
+module tokenises the text itself and builds the sympy tree by recursive
+descent over a small grammar::
+
+    expr   := term (("+" | "-") term)*
+    term   := unary (("*" | "/") unary)*
+    unary  := ("+" | "-") unary | power
+    power  := atom ("**" unary)?
+    atom   := NUMBER | NAME | FUNC "(" expr ("," expr)* ")" | "(" expr ")"
+
+with ``FUNC`` one of sqrt, abs, sign, exp, log, min, max, and ``NAME`` one of
+the names the caller declares. Anything else is a `ParseError` naming the
+offending token and its column.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from fractions import Fraction
+from typing import Mapping
+
+import sympy as sp
+
+from ..errors import ParseError
+
+__all__ = ["parse_expression", "FUNCTIONS", "validate_name"]
+
+#: Functions accepted in equations, with their arity (None: two or more).
+FUNCTIONS: dict[str, int | None] = {
+    "sqrt": 1, "abs": 1, "sign": 1, "exp": 1, "log": 1, "min": None, "max": None,
+}
+
+_MAX_LENGTH = 20_000          # characters per equation
+_MAX_DEPTH = 200              # nesting of parentheses / unary operators
+_MAX_EXPONENT = 64            # |numeric exponent|; larger powers are refused
+_NAME_RE = re.compile(r"[A-Za-z][A-Za-z0-9_]*\Z")
+_TOKEN_RE = re.compile(
+    r"\s*(?:(?P<num>(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?)"
+    r"|(?P<name>[A-Za-z_][A-Za-z0-9_]*)"
+    r"|(?P<op>\*\*|[-+*/(),]))"
+)
+
+
+def validate_name(name: object, key: str) -> str:
+    """Check that a declared name is a plain identifier usable in equations.
+
+    Parameters
+    ----------
+    name : object
+        Candidate name (must be a str).
+    key : str
+        Spec key that declared it, for the error message.
+
+    Returns
+    -------
+    str
+        The name, unchanged.
+    """
+    if not isinstance(name, str) or not _NAME_RE.match(name):
+        raise ParseError(
+            f"invalid name {name!r}: expected a letter followed by letters, digits or '_'",
+            key=key,
+        )
+    if name in FUNCTIONS:
+        raise ParseError(f"name {name!r} is reserved for a function", key=key)
+    return name
+
+
+def _tokenise(text: str, key: str) -> list[tuple[str, str, int]]:
+    tokens = []
+    pos = 0
+    while pos < len(text):
+        if text[pos:].strip() == "":
+            break
+        m = _TOKEN_RE.match(text, pos)
+        if m is None or m.end() == pos:
+            col = pos + (len(text[pos:]) - len(text[pos:].lstrip()))
+            raise ParseError(
+                f"unexpected character {text[col]!r} at column {col + 1} in {text!r}; "
+                "allowed: numbers, declared names, + - * / **, parentheses and "
+                + ", ".join(FUNCTIONS),
+                key=key,
+            )
+        kind = m.lastgroup
+        tokens.append((kind, m.group(kind), m.start(kind)))
+        pos = m.end()
+    return tokens
+
+
+class _Parser:
+    def __init__(self, text: str, names: Mapping[str, sp.Expr], key: str):
+        self.text = text
+        self.names = names
+        self.key = key
+        self.tokens = _tokenise(text, key)
+        self.i = 0
+        self.depth = 0
+
+    def error(self, message: str) -> ParseError:
+        return ParseError(f"{message} in {self.text!r}", key=self.key)
+
+    def peek(self) -> tuple[str, str, int] | None:
+        return self.tokens[self.i] if self.i < len(self.tokens) else None
+
+    def take(self) -> tuple[str, str, int]:
+        tok = self.peek()
+        if tok is None:
+            raise self.error("unexpected end of expression")
+        self.i += 1
+        return tok
+
+    def expect(self, op: str) -> None:
+        tok = self.take()
+        if tok[1] != op:
+            raise self.error(f"expected {op!r} at column {tok[2] + 1}, found {tok[1]!r}")
+
+    def enter(self) -> None:
+        self.depth += 1
+        if self.depth > _MAX_DEPTH:
+            raise self.error(f"expression nested deeper than {_MAX_DEPTH} levels")
+
+    def parse(self) -> sp.Expr:
+        if not self.tokens:
+            raise self.error("empty expression")
+        expr = self.expr()
+        tok = self.peek()
+        if tok is not None:
+            raise self.error(f"unexpected {tok[1]!r} at column {tok[2] + 1}")
+        return expr
+
+    def expr(self) -> sp.Expr:
+        value = self.term()
+        while (tok := self.peek()) is not None and tok[1] in "+-" and tok[0] == "op":
+            self.take()
+            rhs = self.term()
+            value = value + rhs if tok[1] == "+" else value - rhs
+        return value
+
+    def term(self) -> sp.Expr:
+        value = self.unary()
+        while (tok := self.peek()) is not None and tok[0] == "op" and tok[1] in ("*", "/"):
+            self.take()
+            rhs = self.unary()
+            if tok[1] == "*":
+                value = value * rhs
+            else:
+                if rhs == 0:
+                    raise self.error(f"division by zero at column {tok[2] + 1}")
+                value = value / rhs
+        return value
+
+    def unary(self) -> sp.Expr:
+        tok = self.peek()
+        if tok is not None and tok[0] == "op" and tok[1] in "+-":
+            self.take()
+            self.enter()
+            operand = self.unary()
+            self.depth -= 1
+            return -operand if tok[1] == "-" else operand
+        return self.power()
+
+    def power(self) -> sp.Expr:
+        base = self.atom()
+        tok = self.peek()
+        if tok is not None and tok[1] == "**":
+            self.take()
+            self.enter()
+            exponent = self.unary()
+            self.depth -= 1
+            if exponent.is_number:
+                value = complex(exponent)
+                if not math.isfinite(value.real) or abs(value) > _MAX_EXPONENT:
+                    raise self.error(
+                        f"exponent {exponent} at column {tok[2] + 1} is too large "
+                        f"(|exponent| <= {_MAX_EXPONENT} expected)"
+                    )
+            if base == 0 and exponent.is_number and exponent.is_negative:
+                raise self.error("zero raised to a negative power")
+            return base**exponent
+        return base
+
+    def atom(self) -> sp.Expr:
+        kind, text, col = self.take()
+        if kind == "num":
+            if len(text) > 40:
+                raise self.error(f"number {text[:20]}... at column {col + 1} is too long")
+            value = Fraction(text)
+            as_float = float(value) if abs(value) < 1e300 else math.inf
+            if not math.isfinite(as_float) or (value != 0 and abs(as_float) < 1e-300):
+                raise self.error(f"number {text} at column {col + 1} is out of range")
+            return sp.Rational(value.numerator, value.denominator)
+        if kind == "name":
+            nxt = self.peek()
+            if nxt is not None and nxt[1] == "(":
+                return self.call(text, col)
+            if text in FUNCTIONS:
+                raise self.error(f"function {text!r} at column {col + 1} needs arguments")
+            if text not in self.names:
+                raise self.error(
+                    f"unknown name {text!r} at column {col + 1}; declared names are: "
+                    + ", ".join(sorted(self.names))
+                )
+            return self.names[text]
+        if text == "(":
+            self.enter()
+            value = self.expr()
+            self.depth -= 1
+            self.expect(")")
+            return value
+        raise self.error(f"unexpected {text!r} at column {col + 1}")
+
+    def call(self, name: str, col: int) -> sp.Expr:
+        if name not in FUNCTIONS:
+            raise self.error(
+                f"unknown function {name!r} at column {col + 1}; allowed: " + ", ".join(FUNCTIONS)
+            )
+        self.expect("(")
+        self.enter()
+        args = [self.expr()]
+        while (tok := self.peek()) is not None and tok[1] == ",":
+            self.take()
+            args.append(self.expr())
+        self.depth -= 1
+        self.expect(")")
+        arity = FUNCTIONS[name]
+        if arity is not None and len(args) != arity:
+            raise self.error(f"{name}() takes {arity} argument(s), got {len(args)}")
+        if arity is None and len(args) < 2:
+            raise self.error(f"{name}() takes at least 2 arguments, got {len(args)}")
+        if name == "sqrt":
+            return sp.sqrt(args[0])
+        if name == "abs":
+            return sp.Abs(args[0])
+        if name == "sign":
+            return sp.sign(args[0])
+        if name == "exp":
+            return sp.exp(args[0])
+        if name == "log":
+            return sp.log(args[0])
+        if name == "min":
+            return sp.Min(*args)
+        return sp.Max(*args)
+
+
+def parse_expression(text: object, names: Mapping[str, sp.Expr], key: str) -> sp.Expr:
+    """Parse one equation right-hand side into a sympy expression.
+
+    Parameters
+    ----------
+    text : object
+        Equation text (must be a str), e.g. ``"(q1 - a*sqrt(2*g*h1))/A"``.
+    names : mapping of str to sympy expression
+        The declared names (states, inputs, parameters) and their symbols.
+    key : str
+        Spec key holding the text, used in error messages.
+
+    Returns
+    -------
+    sympy.Expr
+        The parsed expression; numbers are exact rationals.
+
+    Raises
+    ------
+    ParseError
+        On any token or construct outside the grammar, unknown names,
+        exponents larger than 64 in magnitude, or over-long input.
+    """
+    if not isinstance(text, str):
+        raise ParseError(f"expected an equation as a string, got {type(text).__name__}", key=key)
+    if len(text) > _MAX_LENGTH:
+        raise ParseError(f"equation longer than {_MAX_LENGTH} characters", key=key)
+    try:
+        return _Parser(text, names, key).parse()
+    except RecursionError:
+        raise ParseError(f"expression nested too deeply in {text[:40]!r}...", key=key) from None
