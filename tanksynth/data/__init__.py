@@ -1,0 +1,1 @@
+"""Data files shipped with tanksynth (the built-in demo spec)."""

@@ -1,0 +1,17 @@
+"""Design stage: symbolic analysis, linearisation and gain synthesis."""
+
+from __future__ import annotations
+
+from . import methods as _methods  # noqa: F401  (registers the spec methods)
+from .linearize import (Equilibrium, LinearModel, discretize_zoh, equilibrium_input, linearize,
+                        symbolic_jacobians)
+from .result import METHODS, DesignMethod, DesignResult, register
+from .symbolic import (RelativeDegree, control_affine, jacobian, lie_derivative, lie_derivatives,
+                       relative_degree)
+
+__all__ = [
+    "Equilibrium", "LinearModel", "discretize_zoh", "equilibrium_input", "linearize",
+    "symbolic_jacobians", "METHODS", "DesignMethod", "DesignResult", "register",
+    "RelativeDegree", "control_affine", "jacobian", "lie_derivative", "lie_derivatives",
+    "relative_degree",
+]

@@ -1,0 +1,1 @@
+"""Report stage: LaTeX design reports (built by the reports issue)."""

@@ -1,0 +1,1 @@
+"""Verification stage: rank conditions (and, later, simulation and metrics)."""
