@@ -23,7 +23,6 @@ __all__ = ["main", "cli"]
 EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT, EXIT_INFEASIBLE = 0, 1, 2, 3
 
 _out = Console()
-_err = Console(stderr=True)
 
 
 class _Fail(Exception):
@@ -96,9 +95,10 @@ def plants(as_json: bool) -> None:
         for p in s["parameters"]:
             table.add_row(p["name"], f"{p['value']:.6g}", p["unit"], p["description"])
         _out.print(table)
-        _out.print("states: " + ", ".join(f"{v['name']} [{v['unit']}]" for v in s["states"])
+        signals = ("states: " + ", ".join(f"{v['name']} [{v['unit']}]" for v in s["states"])
                    + "; inputs: " + ", ".join(f"{v['name']} [{v['unit']}]" for v in s["inputs"])
                    + "; outputs: " + ", ".join(f"{v['name']} [{v['unit']}]" for v in s["outputs"]))
+        _out.print(signals, markup=False, highlight=False)
 
 
 @cli.command()
@@ -171,19 +171,19 @@ def main(argv: list[str] | None = None) -> int:
     except click.exceptions.Exit as exc:
         return exc.exit_code
     except click.ClickException as exc:
-        _err.print(f"error: {_one_line(exc.format_message())}", markup=False, highlight=False)
+        click.echo(f"error: {_one_line(exc.format_message())}", err=True)
         return EXIT_BAD_INPUT
     except click.exceptions.Abort:
         return EXIT_BAD_INPUT
     except _Fail as exc:
-        _err.print(f"{'infeasible' if exc.code == EXIT_INFEASIBLE else 'failed'}: {_one_line(exc)}",
-                   markup=False, highlight=False)
+        click.echo(f"{'infeasible' if exc.code == EXIT_INFEASIBLE else 'failed'}: {_one_line(exc)}",
+                   err=True)
         return exc.code
     except InfeasibleDesign as exc:
-        _err.print(f"infeasible: {_one_line(exc)}", markup=False, highlight=False)
+        click.echo(f"infeasible: {_one_line(exc)}", err=True)
         return EXIT_INFEASIBLE
     except TanksynthError as exc:
-        _err.print(f"error: {_one_line(exc)}", markup=False, highlight=False)
+        click.echo(f"error: {_one_line(exc)}", err=True)
         return EXIT_BAD_INPUT
     return EXIT_OK
 
