@@ -122,8 +122,7 @@ def equilibrium_input(plant: Plant, x0: Sequence[float], given_u0: Sequence[floa
     residual = comp.rhs(x0[None], u0[None])[0]
     scale = max(np.max(np.abs(f0)), np.max(np.abs(G @ u0)) if u0.size else 0.0)
     tol = float(tolerance) if tolerance is not None else float(max(1e-9 * scale, 1e-15))
-    bounds = plant.input_bounds or tuple((-np.inf, np.inf) for _ in range(plant.m))
-    within = bool(all(lo - 1e-12 <= v <= hi + 1e-12 for v, (lo, hi) in zip(u0, bounds)))
+    within = bool(all(lo - 1e-12 <= v <= hi + 1e-12 for v, (lo, hi) in zip(u0, plant.input_limits)))
     given = given_res = None
     if given_u0 is not None:
         given = _vector(given_u0, plant.m, "given u0")

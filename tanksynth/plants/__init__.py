@@ -15,12 +15,9 @@ from typing import Any, Callable
 
 from .base import Assumption, HybridModes, Parameter, Plant, Quantity, Region, exact
 from .custom import custom_plant
-try:  # DEVTEMP
-    from .hybrid_three_tank import hybrid_three_tank
-    from .hydraulic_fault import hydraulic_fault
-    from .tank_network import tank_network
-except ImportError:  # DEVTEMP
-    hybrid_three_tank = hydraulic_fault = tank_network = None  # DEVTEMP
+from .hybrid_three_tank import hybrid_three_tank
+from .hydraulic_fault import hydraulic_fault
+from .tank_network import tank_network
 from .three_tank import three_tank
 
 __all__ = [

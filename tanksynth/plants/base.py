@@ -63,6 +63,9 @@ class Parameter:
     lower, upper : float or None
         Admissible range (``lower < value <= upper``; ``lower = 0`` means
         strictly positive). Checked by `Plant.with_parameters`.
+    inclusive : bool
+        The lower bound is admissible too (``lower <= value``), e.g. a valve
+        coefficient that may be 0 (closed).
     """
 
     name: str
@@ -71,11 +74,14 @@ class Parameter:
     description: str = ""
     lower: float | None = None
     upper: float | None = None
+    inclusive: bool = False
 
     @property
     def symbol(self) -> sp.Symbol:
-        """The sympy symbol of this parameter (positive when ``lower >= 0``)."""
+        """The sympy symbol (positive or nonnegative when ``lower >= 0``)."""
         if self.lower is not None and self.lower >= 0:
+            if self.inclusive and self.lower == 0:
+                return sp.Symbol(self.name, real=True, nonnegative=True)
             return sp.Symbol(self.name, real=True, positive=True)
         return sp.Symbol(self.name, real=True)
 
@@ -90,9 +96,10 @@ class Parameter:
         value = float(value)
         if not math.isfinite(value):
             raise SpecError(f"parameter '{self.name}' must be finite, got {value}", key=key)
-        if self.lower is not None and not value > self.lower:
+        if self.lower is not None and not (value >= self.lower if self.inclusive else value > self.lower):
+            relation = ">=" if self.inclusive else ">"
             raise SpecError(
-                f"parameter '{self.name}' must be > {self.lower} {self.unit}, got {value}", key=key
+                f"parameter '{self.name}' must be {relation} {self.lower} {self.unit}, got {value}", key=key
             )
         if self.upper is not None and not value <= self.upper:
             raise SpecError(
@@ -210,13 +217,6 @@ class HybridModes:
     names: tuple[str, ...]
     switching: tuple[sp.Expr, ...]
 
-    def mode_of(self, x: Sequence[float], states: Sequence[sp.Symbol],
-                values: Mapping[sp.Symbol, Any]) -> tuple[int, ...]:
-        """The mode bits at the numeric state ``x``."""
-        subs = dict(values)
-        subs.update(zip(states, x))
-        return tuple(int(float(s.subs(subs)) > 0) for s in self.switching)
-
 
 @dataclass(frozen=True)
 class Plant:
@@ -235,8 +235,10 @@ class Plant:
     h : sympy.Matrix, shape (q, 1)
         Output map.
     region : Region
-    input_bounds : tuple of (float, float)
-        Actuator range of each input (saturation).
+    input_bounds : tuple of (float or str, float or str)
+        Actuator range of each input (saturation); an entry may name a
+        parameter (e.g. ``"qmax"``) so that overriding it moves the range.
+        `input_limits` gives the numbers.
     assumptions : tuple of Assumption
     hybrid : HybridModes or None
     source : str
@@ -252,7 +254,7 @@ class Plant:
     f: sp.Matrix
     h: sp.Matrix
     region: Region
-    input_bounds: tuple[tuple[float, float], ...] = ()
+    input_bounds: tuple[tuple[float | str, float | str], ...] = ()
     assumptions: tuple[Assumption, ...] = ()
     hybrid: HybridModes | None = None
     source: str = ""
@@ -266,6 +268,11 @@ class Plant:
             raise DimensionError(f"plant {self.name}: h has shape {self.h.shape}, expected ({q}, 1)")
         if len(self.region.bounds) != n:
             raise DimensionError(f"plant {self.name}: region has {len(self.region.bounds)} bounds, expected {n}")
+        names = {prm.name for prm in self.parameters}
+        for pair in self.input_bounds:
+            for b in pair:
+                if isinstance(b, str) and b not in names:
+                    raise DimensionError(f"plant {self.name}: input bound {b!r} is not a parameter")
         if self.input_bounds and len(self.input_bounds) != m:
             raise DimensionError(f"plant {self.name}: {len(self.input_bounds)} input bounds, expected {m}")
 
@@ -304,6 +311,27 @@ class Plant:
     def parameter_values(self) -> dict[sp.Symbol, sp.Rational]:
         """Parameter symbol -> exact value, for substitution."""
         return {self.p[prm.name]: exact(prm.value) for prm in self.parameters}
+
+    @property
+    def input_limits(self) -> np.ndarray:
+        """Actuator ranges as numbers, shape (m, 2); ``(-inf, inf)`` if unbounded."""
+        values = {prm.name: prm.value for prm in self.parameters}
+        if not self.input_bounds:
+            return np.tile([-np.inf, np.inf], (self.m, 1))
+        return np.array([[values[b] if isinstance(b, str) else float(b) for b in pair]
+                         for pair in self.input_bounds], dtype=float)
+
+    def mode_of(self, x: Sequence[float] | np.ndarray) -> tuple[int, ...] | np.ndarray:
+        """Hybrid mode bits at ``x``: a tuple for one point, (M, k) ints for (M, n).
+
+        Raises
+        ------
+        TanksynthError
+            If the plant has no hybrid modes.
+        """
+        arr = np.asarray(x, dtype=float)
+        bits = self.compiled.modes(np.atleast_2d(arr))
+        return tuple(int(b) for b in bits[0]) if arr.ndim == 1 else bits
 
     def parameter(self, name: str) -> Parameter:
         """The parameter called ``name``."""
@@ -414,7 +442,7 @@ class Plant:
                 "bounds": {s.name: list(b) for s, b in zip(self.states, self.region.bounds)},
                 "orderings": [f"{a} > {b}" for a, b in self.region.orderings],
             },
-            "input_bounds": {s.name: list(b) for s, b in zip(self.inputs, self.input_bounds)},
+            "input_bounds": {s.name: lim.tolist() for s, lim in zip(self.inputs, self.input_limits)},
             "assumptions": [{"kind": a.kind, "text": a.text, "source": a.source} for a in self.assumptions],
             "hybrid": None if self.hybrid is None else {
                 "bits": list(self.hybrid.names), "switching": [str(s) for s in self.hybrid.switching]

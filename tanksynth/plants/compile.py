@@ -101,6 +101,13 @@ def to_casadi(expr: sp.Expr, symbols: Mapping[sp.Symbol, ca.SX], _cache: dict | 
         lhs, rhs = rec(expr.lhs), rec(expr.rhs)
         out = {sp.StrictGreaterThan: lhs > rhs, sp.GreaterThan: lhs >= rhs,
                sp.StrictLessThan: lhs < rhs, sp.LessThan: lhs <= rhs}[type(expr)]
+    elif isinstance(expr, (sp.Eq, sp.Ne)):
+        lhs, rhs = rec(expr.lhs), rec(expr.rhs)
+        out = lhs == rhs if isinstance(expr, sp.Eq) else lhs != rhs
+    elif isinstance(expr, sp.Not):
+        out = ca.logic_not(rec(expr.args[0]))
+    elif expr is sp.true or expr is sp.false:
+        out = ca.SX(1.0 if expr is sp.true else 0.0)
     elif isinstance(expr, (sp.And, sp.Or)):
         parts = [rec(a) for a in expr.args]
         out = parts[0]
@@ -145,6 +152,8 @@ class CompiledPlant:
         ``df/dx (x, u)`` (n x n) and ``df/du (x, u)`` (n x m), by AD.
     jac_h : casadi.Function
         ``dh/dx (x)`` (q x n).
+    switching : casadi.Function or None
+        Hybrid switching functions ``s(x)`` (k), when the plant has modes.
     """
 
     n: int
@@ -155,9 +164,10 @@ class CompiledPlant:
     jac_x: ca.Function
     jac_u: ca.Function
     jac_h: ca.Function
+    switching: ca.Function | None = None
     _maps: dict = field(default_factory=dict, repr=False)
 
-    def _batch(self, fn: ca.Function, *arrays: np.ndarray) -> np.ndarray:
+    def _batch(self, fn: ca.Function, *arrays: np.ndarray, matrix: bool = False) -> np.ndarray:
         arrays = [np.atleast_2d(np.asarray(a, dtype=float)) for a in arrays]
         count = arrays[0].shape[0]
         key = (fn.name(), count)
@@ -166,7 +176,7 @@ class CompiledPlant:
         out = np.asarray(self._maps[key](*[a.T for a in arrays]))
         rows = fn.size1_out(0)
         cols = fn.size2_out(0)
-        if cols == 1:
+        if not matrix:
             return out.T.reshape(count, rows)
         return out.reshape(rows, count, cols).transpose(1, 0, 2)
 
@@ -180,7 +190,14 @@ class CompiledPlant:
 
     def jacobians(self, x: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """``df/dx`` (M, n, n) and ``df/du`` (M, n, m) at M points."""
-        return self._batch(self.jac_x, x, u), self._batch(self.jac_u, x, u)
+        return (self._batch(self.jac_x, x, u, matrix=True),
+                self._batch(self.jac_u, x, u, matrix=True))
+
+    def modes(self, x: np.ndarray) -> np.ndarray:
+        """Hybrid mode bits ``[s_j(x) > 0]`` at M points: (M, n) -> (M, k) ints."""
+        if self.switching is None:
+            raise TanksynthError("the plant has no hybrid modes")
+        return (self._batch(self.switching, x) > 0).astype(int)
 
 
 def compile_plant(plant) -> CompiledPlant:
@@ -193,4 +210,8 @@ def compile_plant(plant) -> CompiledPlant:
     jac_x = ca.Function("jac_x", [xs, us], [ca.jacobian(fx, xs)], ["x", "u"], ["out"])
     jac_u = ca.Function("jac_u", [xs, us], [ca.jacobian(fx, us)], ["x", "u"], ["out"])
     jac_h = ca.Function("jac_h", [xs], [ca.jacobian(h(xs), xs)], ["x"], ["out"])
-    return CompiledPlant(plant.n, plant.m, plant.q, f, h, jac_x, jac_u, jac_h)
+    switching = None
+    if plant.hybrid is not None:
+        s = sp.Matrix(plant.hybrid.switching).xreplace(plant.parameter_values)
+        switching = compile_matrix("switching", s, [plant.x], ["x"])
+    return CompiledPlant(plant.n, plant.m, plant.q, f, h, jac_x, jac_u, jac_h, switching)

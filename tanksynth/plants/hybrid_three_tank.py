@@ -63,18 +63,18 @@ def _parameters() -> tuple[Parameter, ...]:
         Parameter("k4", 3.4316e-5, "m^2", "middle link T2-T3 at h0 (valve 4) discharge coefficient",
                   lower=0),
         Parameter("k5", 0.0, "m^2",
-                  "T1 drain (valve 5) discharge coefficient; 0 = closed (must be >= 0, not enforced)"),
+                  "T1 drain (valve 5) discharge coefficient; 0 = closed", lower=0, inclusive=True),
         Parameter("k6", 2.2538e-5, "m^2", "T3 drain (valve 6) discharge coefficient", lower=0),
         Parameter("k7", 0.0, "m^2",
-                  "T2 drain (valve 7) discharge coefficient; 0 = closed (must be >= 0, not enforced)"),
+                  "T2 drain (valve 7) discharge coefficient; 0 = closed", lower=0, inclusive=True),
         Parameter("h0", 0.30, "m", "height of the middle pipes (switching threshold)",
                   lower=0, upper=_HMAX),
-        Parameter("hd1", 0.0, "m", "height of the T1 drain above the tank bottom (>= 0)",
-                  upper=_HMAX),
-        Parameter("hd2", 0.0, "m", "height of the T2 drain above the tank bottom (>= 0)",
-                  upper=_HMAX),
-        Parameter("hz", 0.0, "m", "height of the T3 drain above the tank bottom (>= 0)",
-                  upper=_HMAX),
+        Parameter("hd1", 0.0, "m", "height of the T1 drain above the tank bottom",
+                  lower=0, inclusive=True, upper=_HMAX),
+        Parameter("hd2", 0.0, "m", "height of the T2 drain above the tank bottom",
+                  lower=0, inclusive=True, upper=_HMAX),
+        Parameter("hz", 0.0, "m", "height of the T3 drain above the tank bottom",
+                  lower=0, inclusive=True, upper=_HMAX),
         Parameter("g", 9.81, "m/s^2", "gravity", lower=0),
         Parameter("hmax", _HMAX, "m", "overflow height (tank height 0.60 m)", lower=0, upper=0.60),
         Parameter("Qmax", _QMAX, "m^3/s", "rated pump flow (240 lph at 5 V)", lower=0),
@@ -142,7 +142,7 @@ def hybrid_three_tank() -> Plant:
         f=f,
         h=sp.Matrix([h3]),
         region=Region(bounds=((0.0, _HMAX),) * 3),
-        input_bounds=((0.0, _QMAX), (0.0, _QMAX)),
+        input_bounds=((0.0, "Qmax"), (0.0, "Qmax")),
         assumptions=(
             Assumption(
                 "equations (1)-(12) of the paper are not in our copy; the model is reconstructed "
@@ -201,7 +201,7 @@ def mode_vector_field(plant: Plant, mode: Sequence[int]) -> sp.Matrix:
         A plant built by `hybrid_three_tank` (possibly with overridden
         parameter values).
     mode : tuple of int
-        Bits ``(a, b, c)`` in {0, 1}, e.g. from ``plant.hybrid.mode_of``.
+        Bits ``(a, b, c)`` in {0, 1}, e.g. from ``plant.mode_of``.
 
     Returns
     -------

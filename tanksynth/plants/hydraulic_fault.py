@@ -44,8 +44,8 @@ def hydraulic_fault() -> Plant:
         Parameter("delta1", 1.0, "1", "outlet coefficient of tank 1 (into tank 2)", lower=0),
         Parameter("delta2", 1.5, "1", "outlet coefficient of tank 2 (into tank 3)", lower=0),
         Parameter("delta3", 1.0, "1", "outlet coefficient of tank 3 (to the sump)", lower=0),
-        Parameter("delta_bar", 0.0, "1",
-                  "leak fault of tank 2 (0 = healthy; physically >= 0, not enforced)"),
+        Parameter("delta_bar", 0.0, "1", "leak fault of tank 2 (0 = healthy)", lower=0,
+                  inclusive=True),
     )
     p = {prm.name: prm.symbol for prm in params}
     x1, x2, x3 = (sp.Symbol(n, real=True) for n in ("x1", "x2", "x3"))
@@ -84,8 +84,7 @@ def hydraulic_fault() -> Plant:
                 "(delta3 = 1), so the two are indistinguishable; x3/psi3 was chosen",
                 kind="reconstructed", source="seed 004 section III"),
             Assumption(
-                "delta_bar >= 0 (a leak) is not enforced: parameter ranges are open at the lower "
-                "end, and 0 (the healthy plant) must stay admissible",
+                "the fault delta_bar is a leak: delta_bar >= 0, with 0 the healthy plant",
                 kind="modelling", source="seed 004 section III"),
             Assumption(
                 "no actuator range is given in seed 004: the input is unbounded (the seed's test "

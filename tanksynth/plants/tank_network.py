@@ -226,7 +226,7 @@ def tank_network(N: int = 4, parameter_set: str = "decenter") -> Plant:
         f=f,
         h=hmap,
         region=Region(bounds=((0.0, hmax),) * N),
-        input_bounds=((0.0, _USAT),) * half,
+        input_bounds=((0.0, "usat"),) * half,
         assumptions=tuple(assumptions),
         source=_SOURCE[parameter_set],
         options=(("N", N), ("parameter_set", parameter_set)),

@@ -76,7 +76,7 @@ def three_tank(outputs: str = "all") -> Plant:
         f=f,
         h=h,
         region=Region(bounds=((0.0, hmax),) * 3, orderings=((h1, h3), (h3, h2))),
-        input_bounds=((0.0, 1.2e-4), (0.0, 1.2e-4)),
+        input_bounds=((0.0, "qmax"), (0.0, "qmax")),
         assumptions=(
             Assumption("flow directions h1 > h3 > h2 on the operating region: sgn/abs resolve and "
                        "the model is smooth there", kind="flow_direction", source="seed 000 II-A"),

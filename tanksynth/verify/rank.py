@@ -298,8 +298,8 @@ def nonlinear_observability(plant: Plant, points: np.ndarray | None = None, coun
         points = plant.region.sample(count, plant.x, seed=seed, margin=0.01)
     points = np.atleast_2d(np.asarray(points, dtype=float))
     if u is None:
-        bounds = plant.input_bounds or ((0.0, 0.0),) * plant.m
-        u = [0.5 * (lo + hi) if np.isfinite(lo) and np.isfinite(hi) else 0.0 for lo, hi in bounds]
+        u = [0.5 * (lo + hi) if np.isfinite(lo) and np.isfinite(hi) else 0.0
+             for lo, hi in plant.input_limits]
     u = np.asarray(u, dtype=float).reshape(plant.m)
     f = plant.f_smooth_numeric
     h = plant.h_numeric

@@ -59,7 +59,7 @@ def test_structure_and_units(plant):
     assert plant.parameter("h0").value == 0.30
     assert plant.region.bounds == ((0.0, 0.55),) * 3
     assert plant.region.orderings == ()
-    assert plant.input_bounds == ((0.0, pytest.approx(6.6667e-5, rel=1e-4)),) * 2
+    assert plant.input_limits.tolist() == [[0.0, pytest.approx(6.6667e-5, rel=1e-4)]] * 2
     kinds = {a.kind for a in plant.assumptions}
     assert {"reconstructed", "omitted"} <= kinds
     text = " ".join(a.text for a in plant.assumptions)
@@ -116,12 +116,12 @@ def test_modes(plant):
     seen = set()
     for bits in np.ndindex(2, 2, 2):
         x = [0.42 if b else 0.17 for b in bits]
-        mode = plant.hybrid.mode_of(x, plant.x, plant.parameter_values)
+        mode = plant.mode_of(x)
         assert mode == bits
         seen.add(mode)
     assert len(seen) == 8
     # exactly at h0 the bit is 0 (strict inequality)
-    assert plant.hybrid.mode_of([0.30, 0.31, 0.29], plant.x, plant.parameter_values) == (0, 1, 0)
+    assert plant.mode_of([0.30, 0.31, 0.29]) == (0, 1, 0)
 
 
 @pytest.mark.parametrize("mode", list(np.ndindex(2, 2, 2)))
@@ -134,7 +134,7 @@ def test_mode_vector_field_agrees_inside_its_mode(plant, mode):
     for _ in range(5):
         x = [rng.uniform(0.31, 0.55) if b else rng.uniform(0.0, 0.29) for b in mode]
         u = rng.uniform(0, 6e-5, size=2)
-        assert plant.hybrid.mode_of(x, plant.x, plant.parameter_values) == mode
+        assert plant.mode_of(x) == mode
         want = plant.compiled.rhs(np.array([x]), np.array([u]))[0]
         got = np.asarray(fn(x, u), dtype=float).ravel()
         np.testing.assert_allclose(got, want, rtol=1e-9, atol=1e-14)
@@ -180,7 +180,7 @@ def test_sanity_steady_states(plant, q_lph, h_expected, mode):
     h = fsolve(lambda x: fn(x[None], u[None])[0] * 1e3, x0=np.array(h_expected) + 0.01, xtol=1e-12)
     assert np.max(np.abs(fn(h[None], u[None]))) < 1e-10
     np.testing.assert_allclose(h, h_expected, atol=2e-3)
-    assert plant.hybrid.mode_of(h, plant.x, plant.parameter_values) == mode
+    assert plant.mode_of(h) == mode
 
 
 def test_sanity_steady_state_by_integration(plant):
