@@ -108,7 +108,10 @@ def parse_spec_text(data: bytes | str, source: str | None = None) -> Spec:
 def _number(value: Any, key: str, positive: bool = False) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float)):
         raise SpecError(f"expected a number, got {type(value).__name__} {value!r}", key=key)
-    value = float(value)
+    try:
+        value = float(value)
+    except OverflowError:  # an int beyond float range (TOML ints are unbounded)
+        value = math.inf if value > 0 else -math.inf
     if not math.isfinite(value):
         raise SpecError(f"expected a finite number, got {value}", key=key)
     if positive and not value > 0:

@@ -99,7 +99,8 @@ def equilibrium_input(plant: Plant, x0: Sequence[float], given_u0: Sequence[floa
         An input to check against the model (its residual is reported).
     tolerance : float, optional
         Absolute tolerance on ``max |f(x0, u0)|`` (state units/s). Default:
-        ``1e-9`` times the largest term ``|f0|, |G u0|`` (at least 1e-15).
+        ``1e-6`` times the largest term ``|f0|, |G u0|`` (at least 1e-15),
+        i.e. levels given to about seven significant digits balance.
 
     Returns
     -------
@@ -112,7 +113,7 @@ def equilibrium_input(plant: Plant, x0: Sequence[float], given_u0: Sequence[floa
     G = comp.jacobians(x0[None], zero)[1][0]
     u0, *_ = np.linalg.lstsq(G, -f0, rcond=None)
     # One Newton refinement in case the model is not affine in u.
-    for _ in range(5):
+    for _ in range(5 if plant.m else 0):  # no inputs (autonomous plant): nothing to solve
         r = comp.rhs(x0[None], u0[None])[0]
         Gk = comp.jacobians(x0[None], u0[None])[1][0]
         step, *_ = np.linalg.lstsq(Gk, -r, rcond=None)
@@ -121,7 +122,7 @@ def equilibrium_input(plant: Plant, x0: Sequence[float], given_u0: Sequence[floa
             break
     residual = comp.rhs(x0[None], u0[None])[0]
     scale = max(np.max(np.abs(f0)), np.max(np.abs(G @ u0)) if u0.size else 0.0)
-    tol = float(tolerance) if tolerance is not None else float(max(1e-9 * scale, 1e-15))
+    tol = float(tolerance) if tolerance is not None else float(max(1e-6 * scale, 1e-15))
     within = bool(all(lo - 1e-12 <= v <= hi + 1e-12 for v, (lo, hi) in zip(u0, plant.input_limits)))
     given = given_res = None
     if given_u0 is not None:

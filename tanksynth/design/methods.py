@@ -5,7 +5,6 @@ from __future__ import annotations
 import numpy as np
 import sympy as sp
 
-from ..verify.rank import controllability_rank, observability_rank, pbh_test
 from .linearize import equilibrium_input, linearize, symbolic_jacobians
 from .result import DesignMethod, DesignResult, register
 
@@ -23,6 +22,11 @@ def run_linearize(spec, design) -> DesignResult:
     ``ts``), ``C``, ``x0``, ``u0`` (the equilibrium input computed from the
     model, not the one written in the spec, whose residual is reported).
     """
+    # Imported here: tanksynth.verify.rank imports tanksynth.design.symbolic, whose
+    # package __init__ imports this module (a top-level import would be circular
+    # when tanksynth.verify.rank is imported first).
+    from ..verify.rank import controllability_rank, observability_rank, pbh_test
+
     plant = spec.plant
     eq = equilibrium_input(plant, spec.x0, spec.given_u0)
     lin = linearize(plant, spec.x0, eq.u0, ts=spec.ts)

@@ -93,7 +93,10 @@ class Parameter:
                 f"got {type(value).__name__} {value!r}",
                 key=key,
             )
-        value = float(value)
+        try:
+            value = float(value)
+        except OverflowError:  # an int beyond float range (TOML ints are unbounded)
+            value = math.inf if value > 0 else -math.inf
         if not math.isfinite(value):
             raise SpecError(f"parameter '{self.name}' must be finite, got {value}", key=key)
         if self.lower is not None and not (value >= self.lower if self.inclusive else value > self.lower):

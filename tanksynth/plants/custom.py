@@ -23,6 +23,7 @@ Every equation goes through the whitelist parser; nothing is evaluated.
 
 from __future__ import annotations
 
+import math
 from typing import Any, Mapping
 
 import sympy as sp
@@ -43,7 +44,10 @@ def _table(value: Any, key: str) -> Mapping[str, Any]:
 def _number(value: Any, key: str) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float)):
         raise SpecError(f"expected a number, got {type(value).__name__} {value!r}", key=key)
-    value = float(value)
+    try:
+        value = float(value)
+    except OverflowError:  # an int beyond float range (TOML ints are unbounded)
+        value = math.inf if value > 0 else -math.inf
     if value != value or value in (float("inf"), float("-inf")):
         raise SpecError(f"expected a finite number, got {value}", key=key)
     return value

@@ -33,9 +33,11 @@ FUNCTIONS: dict[str, int | None] = {
     "sqrt": 1, "abs": 1, "sign": 1, "exp": 1, "log": 1, "min": None, "max": None,
 }
 
-_MAX_LENGTH = 20_000          # characters per equation
+_MAX_LENGTH = 4_000           # characters per equation
 _MAX_DEPTH = 200              # nesting of parentheses / unary operators
 _MAX_EXPONENT = 64            # |numeric exponent|; larger powers are refused
+_MAX_BITS = 4096              # numerator/denominator size of an exact constant
+_MAX_DECIMAL_EXPONENT = 400   # |e| in a literal like 1e-5 (floats end near 1e308)
 _NAME_RE = re.compile(r"[A-Za-z][A-Za-z0-9_]*\Z")
 _TOKEN_RE = re.compile(
     r"\s*(?:(?P<num>(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?)"
@@ -131,12 +133,30 @@ class _Parser:
             raise self.error(f"unexpected {tok[1]!r} at column {tok[2] + 1}")
         return expr
 
+    def check_size(self, value: sp.Expr, col: int) -> sp.Expr:
+        """Refuse exact constants too large to be a model coefficient.
+
+        Looks at the numeric coefficient / constant term only (O(1)), which is
+        where repeated ``*``, ``/``, ``+`` of numbers accumulate.
+        """
+        parts = [value]
+        if value.is_Mul:
+            parts = [value.as_coeff_Mul()[0]]
+        elif value.is_Add:
+            parts = [value.as_coeff_Add()[0]]
+        for part in parts:
+            if part.is_Rational and max(int(part.p).bit_length(), int(part.q).bit_length()) > _MAX_BITS:
+                raise self.error(f"constant at column {col + 1} is too large "
+                                 f"(more than {_MAX_BITS} bits)")
+        return value
+
     def expr(self) -> sp.Expr:
         value = self.term()
         while (tok := self.peek()) is not None and tok[1] in "+-" and tok[0] == "op":
             self.take()
             rhs = self.term()
             value = value + rhs if tok[1] == "+" else value - rhs
+            self.check_size(value, tok[2])
         return value
 
     def term(self) -> sp.Expr:
@@ -150,6 +170,7 @@ class _Parser:
                 if rhs == 0:
                     raise self.error(f"division by zero at column {tok[2] + 1}")
                 value = value / rhs
+            self.check_size(value, tok[2])
         return value
 
     def unary(self) -> sp.Expr:
@@ -179,7 +200,13 @@ class _Parser:
                     )
             if base == 0 and exponent.is_number and exponent.is_negative:
                 raise self.error("zero raised to a negative power")
-            return base**exponent
+            if exponent.is_Rational:
+                bits = max((max(int(r.p).bit_length(), int(r.q).bit_length())
+                            for r in base.atoms(sp.Rational)), default=0)
+                if bits * abs(exponent) > _MAX_BITS:
+                    raise self.error(f"power at column {tok[2] + 1} gives a constant too large "
+                                     f"(more than {_MAX_BITS} bits)")
+            return self.check_size(base**exponent, tok[2])
         return base
 
     def atom(self) -> sp.Expr:
@@ -187,6 +214,9 @@ class _Parser:
         if kind == "num":
             if len(text) > 40:
                 raise self.error(f"number {text[:20]}... at column {col + 1} is too long")
+            exp10 = text.lower().partition("e")[2]
+            if exp10 and abs(int(exp10)) > _MAX_DECIMAL_EXPONENT:
+                raise self.error(f"number {text} at column {col + 1} is out of range")
             value = Fraction(text)
             as_float = float(value) if abs(value) < 1e300 else math.inf
             if not math.isfinite(as_float) or (value != 0 and abs(as_float) < 1e-300):
@@ -273,6 +303,18 @@ def parse_expression(text: object, names: Mapping[str, sp.Expr], key: str) -> sp
     if len(text) > _MAX_LENGTH:
         raise ParseError(f"equation longer than {_MAX_LENGTH} characters", key=key)
     try:
-        return _Parser(text, names, key).parse()
+        expr = _Parser(text, names, key).parse()
     except RecursionError:
         raise ParseError(f"expression nested too deeply in {text[:40]!r}...", key=key) from None
+    except (ValueError, OverflowError) as exc:
+        if isinstance(exc, ParseError):
+            raise
+        # sympy/int arithmetic refusing a constant (e.g. the int-to-str digit limit)
+        raise ParseError(f"expression {text[:40]!r} cannot be evaluated exactly: {exc}",
+                         key=key) from None
+    if expr.has(sp.zoo, sp.oo, sp.S.NegativeInfinity, sp.nan, sp.I) or any(
+            p.base.is_number and p.base.is_negative and not p.exp.is_integer
+            for p in expr.atoms(sp.Pow)):
+        raise ParseError(f"expression {text[:40]!r} is not finite and real ({expr}); e.g. log(0), "
+                         "sqrt of a negative constant", key=key)
+    return expr

@@ -7,6 +7,8 @@ from typing import Any, Sequence
 
 import numpy as np
 
+import sympy as sp
+
 from ..design.linearize import equilibrium_input, linearize, symbolic_jacobians
 from ..plants.base import Plant
 from .rank import (controllability_rank, nonlinear_observability, observability_rank, pbh_test,
@@ -98,8 +100,16 @@ def rank_conditions(plant: Plant, x0: Sequence[float], ts: float | None = None,
     if not nl.full:
         detail += f"; drops at {len(nl.drop_points)} points, e.g. {np.round(nl.drop_points[0], 4).tolist()}"
     checks.append(Check("nonlinear_observability", nl.full, detail, nl.as_dict()))
-    if plant.n <= SYMBOLIC_MAX_STATES:
-        F_sym, _, C_sym = symbolic_jacobians(plant)
+    F_sym, _, C_sym = symbolic_jacobians(plant) if plant.n <= SYMBOLIC_MAX_STATES else (None, None, None)
+    nonsmooth = (sp.Abs, sp.sign, sp.Max, sp.Min, sp.Heaviside, sp.DiracDelta, sp.Piecewise)
+    if F_sym is None:
+        checks.append(Check("symbolic_observability", None,
+                            f"not attempted: n = {plant.n} > {SYMBOLIC_MAX_STATES} states"))
+    elif F_sym.has(*nonsmooth) or C_sym.has(*nonsmooth):
+        checks.append(Check("symbolic_observability", None,
+                            "not attempted: the Jacobian keeps non-smooth terms on the region "
+                            "(hybrid switching or undetermined flow directions)"))
+    else:
         sym = symbolic_observability(F_sym, C_sym, variables=plant.x)
         if sym.degenerate_parameters:
             detail = "rank < n for every state when " + " or ".join(

@@ -336,6 +336,9 @@ class SymbolicRank:
     ----------
     matrix : sympy.Matrix
         ``O = [C; CA; ...; CA^(n-1)]``.
+    blocks_used : int
+        Minors are taken over the first ``blocks_used`` blocks ``C A^k``:
+        the fewest that reach rank n generically (with ``C = I``, one).
     determinant : sympy.Expr
         ``det O`` factored (square case) or the gcd of the non-zero maximal
         minors (rank < n needs every minor to vanish).
@@ -349,6 +352,7 @@ class SymbolicRank:
     """
 
     matrix: sp.Matrix
+    blocks_used: int
     determinant: sp.Expr
     factors: tuple[sp.Expr, ...]
     variables: tuple[sp.Symbol, ...]
@@ -356,7 +360,7 @@ class SymbolicRank:
 
     def as_dict(self) -> dict:
         """JSON-friendly summary (expressions as strings)."""
-        return {"determinant": str(self.determinant), "factors": [str(f) for f in self.factors],
+        return {"determinant": str(self.determinant), "blocks_used": self.blocks_used, "factors": [str(f) for f in self.factors],
                 "variables": [str(v) for v in self.variables],
                 "degenerate_parameters": [{str(k): str(v) for k, v in d.items()}
                                           for d in self.degenerate_parameters]}
@@ -383,7 +387,19 @@ def symbolic_observability(A: sp.Matrix, C: sp.Matrix,
     blocks = [C]
     for _ in range(n - 1):
         blocks.append(blocks[-1] * A)
+    # Only the first blocks that reach rank n generically are needed: with
+    # C = I the observability matrix is decided by C alone (1 minor, not 84).
+    # Generic rank: at random rational values of every symbol.
+    rng = np.random.default_rng(0)
+    symbols = sorted(set().union(*(b.free_symbols for b in blocks)), key=str)
+    point = {s: sp.Rational(int(rng.integers(2, 97)), int(rng.integers(2, 97))) for s in symbols}
+    all_blocks = blocks
+    for k in range(1, n + 1):
+        if sp.Matrix.vstack(*blocks[:k]).xreplace(point).rank() == n:
+            blocks = blocks[:k]
+            break
     O = sp.Matrix.vstack(*blocks).applyfunc(sp.expand)
+    O_full = sp.Matrix.vstack(*all_blocks).applyfunc(sp.expand)
     if O.shape[0] == n:
         det = sp.factor(O.det(method="berkowitz"))
         minors = [sp.expand(det)]
@@ -419,5 +435,8 @@ def symbolic_observability(A: sp.Matrix, C: sp.Matrix,
                 for fac in factors:
                     if not fac.free_symbols & set(variables):
                         sols += sp.solve(fac, sorted(fac.free_symbols, key=str), dict=True)
-        degenerate = [sol for sol in sols if sol]
-    return SymbolicRank(O, det, tuple(factors), variables, tuple(degenerate))
+        # A parameter set that kills the truncated matrix may leave the later
+        # blocks with rank n: keep it only if the full matrix drops rank too.
+        degenerate = [sol for sol in sols if sol and
+                      O_full.xreplace(sol).xreplace(point).rank() < n]
+    return SymbolicRank(O_full, len(blocks), det, tuple(factors), variables, tuple(degenerate))

@@ -1,0 +1,218 @@
+"""The `tanksynth` command: exit codes, JSON output, artefacts, one-line errors."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from tanksynth.artefact import read_artefact
+from tanksynth.cli import main
+
+ROOT = Path(__file__).resolve().parents[1]
+SEED000 = ROOT / "examples" / "seed000_three_tank.toml"
+EXE = Path(sys.executable).parent / "tanksynth"
+
+UNOBSERVABLE = """
+title = "x2 is invisible"
+[plant]
+model = "custom"
+[plant.states]
+x1 = {unit = "m", min = 0.0, max = 1.0}
+x2 = {unit = "m", min = 0.0, max = 1.0}
+[plant.inputs]
+u = {unit = "m/s", min = -1.0, max = 1.0}
+[plant.equations]
+x1 = "-x1 + u"
+x2 = "-2*x2 + u"
+[plant.outputs]
+y = "x1"
+[operating_point]
+x = [0.5, 0.25]
+[sampling]
+ts = 1.0
+[[design]]
+name = "lin"
+method = "linearize"
+"""
+
+
+def run_cli(capsys, *args):
+    code = main([str(a) for a in args])
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def assert_one_line_error(err: str):
+    lines = err.strip("\n").splitlines()
+    assert len(lines) == 1, err
+    assert lines[0].startswith("error:")
+    assert "Traceback" not in err
+
+
+@pytest.fixture(scope="module")
+def check_json():
+    """`check --json` on the seed 000 example, run once (the symbolic check takes seconds)."""
+    import contextlib
+    import io
+
+    buf_out, buf_err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(buf_out), contextlib.redirect_stderr(buf_err):
+        code = main(["check", str(SEED000), "--json"])
+    return code, buf_out.getvalue(), buf_err.getvalue()
+
+
+def test_plants(capsys):
+    code, out, err = run_cli(capsys, "plants")
+    assert code == 0 and err == ""
+    assert "three_tank" in out and "mu13" in out
+
+
+def test_plants_json(capsys):
+    code, out, _ = run_cli(capsys, "plants", "--json")
+    assert code == 0
+    data = json.loads(out)
+    names = [p["name"] for p in data]
+    assert "three_tank" in names and "hydraulic_fault" in names
+    tt = data[names.index("three_tank")]
+    params = {p["name"]: (p["value"], p["unit"]) for p in tt["parameters"]}
+    assert params["A"] == (0.0154, "m^2")
+    assert params["Phi"] == (5e-5, "m^2")
+
+
+def test_check_json(check_json):
+    code, out, err = check_json
+    assert code == 0, err
+    checks = json.loads(out)
+    by_name = {c["check"]: c for c in checks}
+    assert by_name["observability"]["passed"] is True
+    assert by_name["controllability"]["passed"] is True
+    assert by_name["nonlinear_observability"]["passed"] is True
+    assert by_name["observability"]["data"]["rank"] == 3
+    # the printed u0 does not balance: reported, not a failure
+    assert by_name["given_u0_balances"]["passed"] is None
+    assert "does NOT balance" in by_name["given_u0_balances"]["detail"]
+    assert all(c["passed"] in (True, None) for c in checks)
+
+
+def test_design_writes_artefact(tmp_path, capsys):
+    out_dir = tmp_path / "art"
+    code, out, err = run_cli(capsys, "design", SEED000, "-o", out_dir, "--export", "h")
+    assert code == 0, err
+    assert (out_dir / "linear_model.json").exists()
+    assert (out_dir / "linear_model.npz").exists()
+    assert (out_dir / "linear_model.h").exists()
+    doc = read_artefact(out_dir / "linear_model.json")
+    assert doc["method"] == "linearize" and doc["plant"] == "three_tank"
+    assert set(doc["gains"]) == {"F", "B", "Ad", "Bd", "C", "x0", "u0"}
+    np.testing.assert_allclose(doc["gains"]["u0"], [3.501785258978626e-05, 3.183782218805142e-05],
+                               rtol=1e-10)
+    np.testing.assert_allclose(doc["gains"]["F"][0, 0], -0.01136943265902151, rtol=1e-12)
+    import hashlib
+
+    assert doc["provenance"]["spec_sha256"] == hashlib.sha256(SEED000.read_bytes()).hexdigest()
+
+
+def test_design_is_deterministic(tmp_path, capsys):
+    for d in ("a", "b"):
+        assert run_cli(capsys, "design", SEED000, "-o", tmp_path / d)[0] == 0
+    ga = read_artefact(tmp_path / "a" / "linear_model.json")["gains"]
+    gb = read_artefact(tmp_path / "b" / "linear_model.json")["gains"]
+    for k in ga:
+        assert ga[k].tobytes() == gb[k].tobytes()
+
+
+def test_run_default_demo(tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    out_dir = tmp_path / "demo"
+    code, out, err = run_cli(capsys, "run", "-o", out_dir)
+    assert code == 0, err
+    checks = json.loads((out_dir / "checks.json").read_text())
+    assert any(c["check"] == "observability" and c["passed"] is True for c in checks)
+    artefacts = sorted(p.name for p in out_dir.glob("*.json") if p.name != "checks.json")
+    assert artefacts
+    for name in artefacts:
+        assert read_artefact(out_dir / name)["schema"] == "tanksynth.artefact/1"
+    assert "checks.json" in out
+
+
+def test_check_fails_on_unobservable_plant(tmp_path, capsys):
+    spec = tmp_path / "unobs.toml"
+    spec.write_text(UNOBSERVABLE)
+    code, out, err = run_cli(capsys, "check", spec, "--json")
+    assert code == 1
+    checks = {c["check"]: c for c in json.loads(out)}
+    assert checks["observability"]["passed"] is False
+    assert checks["observability"]["data"]["rank"] == 1
+    assert checks["pbh_observability"]["passed"] is False
+    assert checks["pbh_observability"]["data"]["modes"][0]["states"] == ["x2"]
+    assert checks["nonlinear_observability"]["passed"] is False
+    assert checks["controllability"]["passed"] is True
+    assert err.strip().splitlines() == ["failed: some rank conditions fail"]
+
+
+@pytest.mark.parametrize("case", ["missing", "malformed", "outside", "method", "no_design"])
+def test_bad_input_exit_2_one_line(tmp_path, capsys, case):
+    text = SEED000.read_text()
+    spec = tmp_path / "spec.toml"
+    if case == "missing":
+        spec = tmp_path / "does_not_exist.toml"
+    elif case == "malformed":
+        spec.write_text("[plant\nmodel = 1\n")
+    elif case == "outside":
+        spec.write_text(text.replace("h1 = 0.40", "h1 = 0.25"))     # h1 > h3 violated
+    elif case == "method":
+        spec.write_text(text.replace('method = "linearize"', 'method = "magic"'))
+    elif case == "no_design":
+        spec.write_text(text.split("[[design]]")[0])
+    command = "design" if case == "no_design" else "check"
+    args = [command, spec] + (["-o", tmp_path / "o"] if command == "design" else [])
+    code, out, err = run_cli(capsys, *args)
+    assert code == 2
+    assert_one_line_error(err)
+    assert str(spec) in err
+    expected = {"missing": "cannot read", "malformed": "invalid TOML",
+                "outside": "operating_point.x", "method": "design[0].method",
+                "no_design": "design"}[case]
+    assert expected in err
+    assert not (tmp_path / "o").exists()
+
+
+def test_bad_arguments_exit_2(capsys):
+    code, _, err = run_cli(capsys, "frobnicate")
+    assert code == 2
+    assert_one_line_error(err)
+    code, _, err = run_cli(capsys, "design", str(SEED000))            # missing -o
+    assert code == 2
+    assert_one_line_error(err)
+
+
+def test_help_exit_0(capsys):
+    code, out, _ = run_cli(capsys, "--help")
+    assert code == 0
+    for command in ("plants", "check", "design", "run"):
+        assert command in out
+
+
+@pytest.mark.skipif(not EXE.exists(), reason="console script not installed")
+def test_console_script_bad_input(tmp_path):
+    spec = tmp_path / "broken.toml"
+    spec.write_text("[plant\n")
+    proc = subprocess.run([str(EXE), "check", str(spec), "--json"], capture_output=True, text=True,
+                          timeout=120)
+    assert proc.returncode == 2
+    assert proc.stdout == ""
+    assert len(proc.stderr.strip().splitlines()) == 1
+    assert "Traceback" not in proc.stderr
+    assert "broken.toml" in proc.stderr and "invalid TOML" in proc.stderr
+
+
+@pytest.mark.skipif(not EXE.exists(), reason="console script not installed")
+def test_console_script_plants_json():
+    proc = subprocess.run([str(EXE), "plants", "--json"], capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    assert "three_tank" in [p["name"] for p in json.loads(proc.stdout)]
