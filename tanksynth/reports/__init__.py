@@ -1,1 +1,3 @@
 """Report stage: LaTeX design reports (built by the reports issue)."""
+
+__all__: list[str] = []
