@@ -306,25 +306,23 @@ def nonlinear_observability(plant: Plant, points: np.ndarray | None = None, coun
     rows: list[sp.Matrix] = []
     L = h
     M = len(points)
-    ranks = np.zeros(M, dtype=int)
-    smin = np.zeros(M)
     for k in range(plant.n):
-        rows.append(jacobian(L, plant.x))
+        grad = jacobian(L, plant.x)
+        rows.append(grad)
         D = sp.Matrix.vstack(*rows)
         fn = compile_matrix("codist", D, [plant.x, plant.u], ["x", "u"])
         mapped = fn.map(M, "serial")
         vals = np.asarray(mapped(points.T, np.repeat(u[:, None], M, axis=1)))
         vals = vals.reshape(D.shape[0], M, plant.n).transpose(1, 0, 2)
-        for i in range(M):
-            Di = vals[i]
-            norms = np.linalg.norm(Di, axis=1)
-            Di = Di[norms > 0] / norms[norms > 0, None]
-            s = np.linalg.svd(Di, compute_uv=False) if Di.size else np.zeros(1)
-            ranks[i] = int(np.sum(s > rtol * (s[0] if s.size else 0.0)))
-            smin[i] = s[plant.n - 1] if s.size >= plant.n else 0.0
+        # Rows scaled to unit norm (zero rows stay zero): SI models mix 1e-5 and 1e2.
+        norms = np.linalg.norm(vals, axis=2, keepdims=True)
+        scaled = np.divide(vals, norms, out=np.zeros_like(vals), where=norms > 0)
+        s = np.linalg.svd(scaled, compute_uv=False)
+        ranks = np.sum(s > rtol * s[:, :1], axis=1)
+        smin = s[:, plant.n - 1] if s.shape[1] >= plant.n else np.zeros(M)
         if np.all(ranks == plant.n):
             return NonlinearObservability(k + 1, ranks, points, smin, plant.n, u)
-        L = jacobian(L, plant.x) * f
+        L = grad * f
     return NonlinearObservability(plant.n, ranks, points, smin, plant.n, u)
 
 
