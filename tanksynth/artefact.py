@@ -24,10 +24,11 @@ import numpy as np
 from .design.result import DesignResult
 from .errors import ArtefactError, SpecError
 
-__all__ = ["SCHEMA", "EXPORT_FORMATS", "to_jsonable", "gains_digest", "artefact_document",
+__all__ = ["SCHEMA", "PLANT_SCHEMA", "EXPORT_FORMATS", "write_plant_record", "read_plant_record", "to_jsonable", "gains_digest", "artefact_document",
            "write_artefact", "read_artefact", "c_header"]
 
 SCHEMA = "tanksynth.artefact/1"
+PLANT_SCHEMA = "tanksynth.plant/1"
 #: Optional export formats besides .json and .npz.
 EXPORT_FORMATS = ("mat", "h")
 _PACKAGES = ("tanksynth", "numpy", "scipy", "sympy", "casadi")
@@ -240,4 +241,69 @@ def read_artefact(path: str | Path, check_gains: bool = True) -> dict:
         raise ArtefactError(f"{path}: gains do not match their provenance hash "
                             "(edited after design?)")
     doc["gains"] = gains
+    return doc
+
+
+def _atomic_write(target: Path, data: bytes) -> None:
+    fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            fh.write(data)
+        os.replace(tmp, target)
+    finally:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+
+
+def write_plant_record(spec, directory: str | Path) -> Path:
+    """Write ``DIR/plant.json`` and ``DIR/spec.toml``: what reports need of the plant.
+
+    ``plant.json`` (schema ``tanksynth.plant/1``) holds the plant summary
+    (parameters with units, region, assumptions), its equations in LaTeX, the
+    operating point and sampling period, and the spec's sha256; ``spec.toml``
+    is the spec text itself. Both written atomically.
+
+    Parameters
+    ----------
+    spec : tanksynth.spec.Spec
+    directory : str or Path
+    """
+    directory = Path(directory)
+    directory.mkdir(parents=True, exist_ok=True)
+    plant = spec.plant
+    doc = {
+        "schema": PLANT_SCHEMA,
+        "title": spec.title,
+        "spec_sha256": spec.sha256,
+        "spec_source": spec.source,
+        "plant": plant.summary(),
+        "equations": plant.latex_equations(),
+        "operating_point": {"x": spec.x0.tolist(),
+                            "u": None if spec.given_u0 is None else spec.given_u0.tolist()},
+        "ts": spec.ts,
+    }
+    target = directory / "plant.json"
+    if spec.text:
+        _atomic_write(directory / "spec.toml", spec.text.encode("utf-8"))
+    _atomic_write(target, (json.dumps(to_jsonable(doc), indent=2, allow_nan=False) + "\n").encode())
+    return target
+
+
+def read_plant_record(directory: str | Path) -> dict:
+    """Read ``DIR/plant.json`` (see `write_plant_record`).
+
+    Raises
+    ------
+    ArtefactError
+        Missing, unreadable or of the wrong schema.
+    """
+    path = Path(directory) / "plant.json"
+    try:
+        doc = json.loads(path.read_text(encoding="utf-8"))
+    except OSError as exc:
+        raise ArtefactError(f"{path}: cannot read plant record: {exc.strerror}") from None
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise ArtefactError(f"{path}: not a JSON plant record: {exc}") from None
+    if not isinstance(doc, dict) or doc.get("schema") != PLANT_SCHEMA:
+        raise ArtefactError(f"{path}: expected schema {PLANT_SCHEMA!r}")
     return doc

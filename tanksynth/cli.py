@@ -56,9 +56,10 @@ def _print_checks(checks) -> None:
 
 
 def _design_all(spec, outdir: Path, export: tuple[str, ...]) -> tuple[list[Path], list[str]]:
-    from .artefact import write_artefact
+    from .artefact import write_artefact, write_plant_record
     from .design import METHODS
 
+    write_plant_record(spec, outdir)
     written, infeasible = [], []
     for design in spec.designs:
         try:

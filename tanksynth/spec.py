@@ -14,7 +14,7 @@ import inspect
 import math
 import re
 import tomllib
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Mapping
 
@@ -58,6 +58,8 @@ class Spec:
         File the spec was read from.
     sha256 : str
         Hash of the spec text (provenance of every artefact).
+    text : str
+        The spec text itself (copied beside the artefacts).
     """
 
     plant: Plant
@@ -69,6 +71,7 @@ class Spec:
     source: str | None = None
     sha256: str = ""
     raw: Mapping[str, Any] = field(default_factory=dict, repr=False)
+    text: str = field(default="", repr=False)
 
 
 def load_spec(path: str | Path) -> Spec:
@@ -102,7 +105,8 @@ def parse_spec_text(data: bytes | str, source: str | None = None) -> Spec:
         table = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise SpecError(f"invalid TOML: {exc}", source=source) from None
-    return parse_spec(table, source=source, sha256=hashlib.sha256(raw).hexdigest())
+    spec = parse_spec(table, source=source, sha256=hashlib.sha256(raw).hexdigest())
+    return replace(spec, text=text)
 
 
 def _number(value: Any, key: str, positive: bool = False) -> float:

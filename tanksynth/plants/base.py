@@ -429,6 +429,22 @@ class Plant:
 
         return compile_plant(self)
 
+    def latex_equations(self) -> dict[str, list[str]]:
+        """LaTeX of the model: ``general`` and ``smooth`` state equations, ``outputs``.
+
+        Each entry is one equation ``\\dot{x}_i = f_i`` or ``y_j = h_j`` in the
+        parameter symbols (values are listed separately in reports).
+        """
+        def lhs(name: str, dot: bool) -> str:
+            sym = sp.latex(sp.Symbol(name))
+            return rf"\dot{{{sym}}}" if dot else sym
+
+        return {
+            "general": [f"{lhs(s.name, True)} = {sp.latex(e)}" for s, e in zip(self.states, self.f)],
+            "smooth": [f"{lhs(s.name, True)} = {sp.latex(e)}" for s, e in zip(self.states, self.f_smooth)],
+            "outputs": [f"{lhs(o.name, False)} = {sp.latex(e)}" for o, e in zip(self.outputs, self.h)],
+        }
+
     def summary(self) -> dict[str, Any]:
         """A JSON-friendly description (for ``tanksynth plants`` and reports)."""
         return {
