@@ -133,7 +133,8 @@ def test_run_default_demo(tmp_path, capsys, monkeypatch):
     assert code == 0, err
     checks = json.loads((out_dir / "checks.json").read_text())
     assert any(c["check"] == "observability" and c["passed"] is True for c in checks)
-    artefacts = sorted(p.name for p in out_dir.glob("*.json") if p.name != "checks.json")
+    artefacts = sorted(p.name for p in out_dir.glob("*.json") if p.name not in ("checks.json", "plant.json"))
+    assert (out_dir / "plant.json").exists() and (out_dir / "spec.toml").exists()
     assert artefacts
     for name in artefacts:
         assert read_artefact(out_dir / name)["schema"] == "tanksynth.artefact/1"
