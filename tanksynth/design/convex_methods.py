@@ -1,0 +1,683 @@
+"""Spec design methods for convex synthesis and pole placement.
+
+=====================  =========================================================
+``ts_observer``        TS multiple model of the plant (seed 001) + observer LMI
+                       (28); gains ``L``, ``P``, ``Q`` (and ``A0``, ``B``, ``C``)
+``lmi_placement``      state feedback ``K`` or observer ``L`` with eigenvalues in
+                       an LMI region (half-plane, disk, sector, intersections),
+                       continuous or discrete time, optional integral action
+``pole_placement``     exact placement (python-control ``place``/``acker``),
+                       optional integral action (seed 000 eq. 13-16)
+``canonical_observer`` observer gain by the observer canonical form, exact
+                       arithmetic (seed 004 eq. 27-29)
+=====================  =========================================================
+
+Linear designs use the Jacobian linearisation at the spec's operating point
+with the equilibrium input computed from the model (the spec's ``u`` is only
+checked), ZOH-discretised with ``[sampling] ts`` in discrete time.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any, Mapping, Sequence
+
+import numpy as np
+import sympy as sp
+
+from ..errors import InfeasibleDesign, SpecError, UnobservableError
+from ..plants.base import exact
+from .linearize import equilibrium_input, linearize, symbolic_jacobians
+from .lmi import SOLVERS, VARIANTS, maximise_psi, observer_lmi
+from .placement import (LMIRegion, canonical_observer, disk, half_plane, integral_augmentation,
+                        intersect, lmi_observer, lmi_state_feedback, place_observer,
+                        place_state_feedback, pole_errors, sector)
+from .result import DesignMethod, DesignResult, register
+from .takagi_sugeno import (check_exactness, domain_from_plant, lipschitz_bound, quasi_lpv,
+                            search_weightings, selection_rules, ts_model, vertex_observability)
+
+if TYPE_CHECKING:  # pragma: no cover - typing only (spec.py imports the design package)
+    from ..spec import DesignSpec, Spec
+
+__all__ = [
+    "run_ts_observer",
+    "run_lmi_placement",
+    "run_pole_placement",
+    "run_canonical_observer",
+    "parse_region",
+    "parse_poles",
+]
+
+_NUM = (int, float)
+
+
+# ------------------------------------------------------------------- option helpers
+def _key(design, opt: str) -> str:
+    return f"{design.key}.{opt}"
+
+
+def _choice(design, opt: str, default: str, allowed: Sequence[str]) -> str:
+    value = design.options.get(opt, default)
+    if value not in allowed:
+        raise SpecError(f"expected one of {list(allowed)}, got {value!r}", key=_key(design, opt))
+    return value
+
+
+def _positive(design, opt: str, default: float, upper: float | None = None) -> float:
+    value = float(design.options.get(opt, default))
+    if not (np.isfinite(value) and value > 0 and (upper is None or value < upper)):
+        rng = f"in (0, {upper:g})" if upper is not None else "> 0"
+        raise SpecError(f"expected a number {rng}, got {value!r}", key=_key(design, opt))
+    return value
+
+
+def _number(value: Any, key: str) -> float:
+    if isinstance(value, bool) or not isinstance(value, _NUM):
+        raise SpecError(f"expected a number, got {type(value).__name__} {value!r}", key=key)
+    value = float(value)
+    if not np.isfinite(value):
+        raise SpecError(f"expected a finite number, got {value}", key=key)
+    return value
+
+
+def _matrix_option(value: Any, key: str, shape: tuple[int, int] | None = None) -> np.ndarray:
+    if not isinstance(value, list) or not value or not all(isinstance(r, list) for r in value):
+        raise SpecError("expected a matrix as a list of rows (lists of numbers)", key=key)
+    rows = [[_number(v, f"{key}[{i}][{j}]") for j, v in enumerate(r)] for i, r in enumerate(value)]
+    if len({len(r) for r in rows}) != 1:
+        raise SpecError("rows of the matrix have different lengths", key=key)
+    arr = np.array(rows, dtype=float)
+    if shape is not None and arr.shape != shape:
+        raise SpecError(f"expected a {shape[0]} x {shape[1]} matrix, got {arr.shape[0]} x "
+                        f"{arr.shape[1]}", key=key)
+    return arr
+
+
+def parse_poles(value: Any, key: str) -> list[complex]:
+    """Poles from a spec list: numbers, or ``[re, im]`` pairs for complex poles.
+
+    Parameters
+    ----------
+    value : list
+    key : str
+        Spec key for error messages.
+
+    Returns
+    -------
+    list of complex
+    """
+    if not isinstance(value, list) or not value:
+        raise SpecError("expected a non-empty list of poles (numbers or [re, im] pairs)", key=key)
+    out = []
+    for i, v in enumerate(value):
+        if isinstance(v, list):
+            if len(v) != 2:
+                raise SpecError("expected [re, im]", key=f"{key}[{i}]")
+            out.append(complex(_number(v[0], f"{key}[{i}][0]"), _number(v[1], f"{key}[{i}][1]")))
+        else:
+            out.append(complex(_number(v, f"{key}[{i}]")))
+    return out
+
+
+def parse_region(value: Any, key: str) -> LMIRegion:
+    """An LMI region from a spec list of tables (their intersection).
+
+    Each table has a ``type``: ``"half_plane"`` with ``alpha`` (``Re z <
+    -alpha``), ``"disk"`` with ``center`` and ``radius``, ``"sector"`` with
+    ``angle_deg`` (half-angle about the negative real axis).
+
+    Parameters
+    ----------
+    value : list of dict
+    key : str
+
+    Returns
+    -------
+    LMIRegion
+    """
+    if isinstance(value, Mapping):
+        value = [value]
+    if not isinstance(value, list) or not value:
+        raise SpecError("expected a list of region tables, e.g. [{type = \"disk\", center = 0.0, "
+                        "radius = 0.9}]", key=key)
+    parts = []
+    fields = {"half_plane": ("alpha",), "disk": ("center", "radius"), "sector": ("angle_deg",)}
+    for i, item in enumerate(value):
+        k = f"{key}[{i}]"
+        if not isinstance(item, Mapping):
+            raise SpecError("expected a table with a 'type'", key=k)
+        kind = item.get("type")
+        if kind not in fields:
+            raise SpecError(f"unknown region type {kind!r}; expected one of {list(fields)}",
+                            key=f"{k}.type")
+        extra = [f for f in item if f not in ("type", *fields[kind])]
+        missing = [f for f in fields[kind] if f not in item]
+        if extra or missing:
+            raise SpecError(f"region '{kind}' takes {list(fields[kind])}"
+                            + (f"; unknown {extra}" if extra else "")
+                            + (f"; missing {missing}" if missing else ""), key=k)
+        args = [_number(item[f], f"{k}.{f}") for f in fields[kind]]
+        try:
+            if kind == "half_plane":
+                parts.append(half_plane(args[0]))
+            elif kind == "disk":
+                parts.append(disk(args[0], args[1]))
+            else:
+                parts.append(sector(np.radians(args[0])))
+        except SpecError as exc:
+            raise SpecError(exc.detail, key=k) from None
+    return intersect(*parts)
+
+
+def _complex_list(values: Any) -> list[list[float]]:
+    return [[float(v.real), float(v.imag)] for v in np.sort_complex(np.asarray(values, dtype=complex))]
+
+
+def _model(spec, time_domain: str) -> tuple[dict, Any, Any]:
+    """Linear model at the operating point: matrices by name, equilibrium, LinearModel."""
+    plant = spec.plant
+    if time_domain == "discrete" and spec.ts is None:
+        raise SpecError("discrete-time design needs a sampling period: add [sampling] ts = ...",
+                        key="sampling.ts")
+    eq = equilibrium_input(plant, spec.x0, spec.given_u0)
+    lin = linearize(plant, spec.x0, eq.u0, ts=spec.ts if time_domain == "discrete" else None)
+    A, B = (lin.Ad, lin.Bd) if time_domain == "discrete" else (lin.F, lin.B)
+    return {"A": A, "B": B, "C": lin.C}, eq, lin
+
+
+def _tracked(spec, design, C: np.ndarray) -> tuple[np.ndarray, list[str]]:
+    plant = spec.plant
+    names = [s.name for s in plant.outputs]
+    chosen = design.options.get("tracked")
+    if chosen is None:
+        chosen = names[: plant.m]
+    if not isinstance(chosen, list) or not chosen or not all(isinstance(c, str) for c in chosen):
+        raise SpecError("expected a list of output names", key=_key(design, "tracked"))
+    unknown = [c for c in chosen if c not in names]
+    if unknown:
+        raise SpecError(f"unknown output(s) {unknown}; expected some of {names}",
+                        key=_key(design, "tracked"))
+    if len(chosen) > plant.m:
+        raise SpecError(f"{len(chosen)} tracked outputs but only {plant.m} inputs (p <= m)",
+                        key=_key(design, "tracked"))
+    return C[[names.index(c) for c in chosen]], list(chosen)
+
+
+def _augment(model: dict, C1: np.ndarray, time_domain: str, ts: float | None) -> dict:
+    if time_domain == "discrete":
+        aug = integral_augmentation(model["A"], model["B"], C1, ts)
+        return {"A": aug.A, "B": aug.B, "Br": aug.Br}
+    n, p = model["A"].shape[0], C1.shape[0]
+    m = model["B"].shape[1]
+    A = np.block([[model["A"], np.zeros((n, p))], [-C1, np.zeros((p, p))]])
+    B = np.vstack([model["B"], np.zeros((p, m))])
+    Br = np.vstack([np.zeros((n, p)), np.eye(p)])
+    return {"A": A, "B": B, "Br": Br}
+
+
+def _compare(reference: np.ndarray, derived: np.ndarray, closed_loop_of) -> dict:
+    diff = derived - reference
+    out = {"reference": reference.tolist(), "derived": derived.tolist(),
+           "difference": diff.tolist(), "max_abs_difference": float(np.max(np.abs(diff))),
+           "relative_difference": float(np.linalg.norm(diff) / max(np.linalg.norm(reference), 1e-300))}
+    if closed_loop_of is not None:
+        eig = np.linalg.eigvals(closed_loop_of(reference))
+        out["reference_closed_loop_eigenvalues"] = _complex_list(eig)
+    return out
+
+
+def _assumptions(spec) -> list[str]:
+    return [a.text for a in spec.plant.assumptions]
+
+
+# ------------------------------------------------------------------- ts_observer
+def run_ts_observer(spec: "Spec", design: "DesignSpec") -> DesignResult:
+    """TS multiple model + observer LMI (28) (seed 001).
+
+    Gains: ``L`` (observer gain), ``P``, ``Q`` (LMI matrices), ``A0`` (mean
+    vertex matrix), ``B`` and ``C`` of the multiple model. The diagnostics
+    hold the premises, their bounds and the method, the vertices, the
+    exactness test, per-vertex observability, seed 001's selection rules, the
+    Lipschitz analysis, the LMI solution and its re-check, and (with
+    ``search = true``) the weightings searched.
+
+    Parameters
+    ----------
+    spec : Spec
+        The validated spec (plant, operating point, sampling).
+    design : DesignSpec
+        The ``[[design]]`` entry; its options are validated here (values)
+        after `DesignMethod.validate` checked their types.
+
+    Returns
+    -------
+    DesignResult
+
+    Raises
+    ------
+    SpecError
+        An option has a bad value (the key is named).
+    InfeasibleDesign
+        No gain passes the solve and the independent re-check.
+    UnobservableError, UncontrollableError
+        Refused before solving, naming the modes.
+    """
+    o = design.options
+    plant = spec.plant
+    variant = _choice(design, "variant", "qI", VARIANTS)
+    solver = _choice(design, "solver", "CLARABEL", SOLVERS)
+    margin = _positive(design, "margin", 1e-6, upper=1.0)
+    kappa = _positive(design, "kappa", 1e4)
+    if kappa <= 1:
+        raise SpecError("expected kappa > 1", key=_key(design, "kappa"))
+    samples = int(o.get("samples", 5000))
+    if samples < 100:
+        raise SpecError("expected at least 100 samples", key=_key(design, "samples"))
+    seed = int(o.get("seed", 0))
+    psi_given = o.get("psi")
+    psi_source = _choice(design, "psi_source", "given" if psi_given is not None else "maximise",
+                         ("given", "lipschitz", "maximise"))
+    if psi_source == "given":
+        if psi_given is None:
+            raise SpecError("psi_source = 'given' needs psi", key=_key(design, "psi"))
+        psi_given = _number(psi_given, _key(design, "psi"))
+        if psi_given < 0:
+            raise SpecError("psi must be >= 0", key=_key(design, "psi"))
+    lip_form = _choice(design, "lipschitz", "jacobian", ("jacobian", "eq27"))
+    lip_method = _choice(design, "lipschitz_method", "interval", ("interval", "sampling"))
+    bounds_method = _choice(design, "premise_bounds", "interval", ("interval", "sampling"))
+    bounds_margin = float(o.get("premise_margin", 0.01))
+    if not (np.isfinite(bounds_margin) and bounds_margin >= 0):
+        raise SpecError("expected a number >= 0", key=_key(design, "premise_margin"))
+    names = [s.name for s in plant.states]
+    box = list(plant.region.bounds)
+    dom_opt = o.get("domain", {})
+    if not isinstance(dom_opt, Mapping):
+        raise SpecError("expected a table {state = [min, max]}", key=_key(design, "domain"))
+    for nm, b in dom_opt.items():
+        k = _key(design, f"domain.{nm}")
+        if nm not in names:
+            raise SpecError(f"unknown state {nm!r}; expected one of {names}", key=k)
+        if not isinstance(b, list) or len(b) != 2:
+            raise SpecError("expected [min, max]", key=k)
+        box[names.index(nm)] = (_number(b[0], k + "[0]"), _number(b[1], k + "[1]"))
+    gap = float(o.get("ordering_gap", 0.0))
+    try:
+        domain = domain_from_plant(plant, box, bool(o.get("orderings", True)), gap)
+    except SpecError as exc:
+        raise SpecError(exc.detail, key=_key(design, "domain")) from None
+    weights = o.get("weights")
+    if weights is not None and not isinstance(weights, Mapping):
+        raise SpecError("expected a table {z1 = [...], ...}", key=_key(design, "weights"))
+    try:
+        qlpv = quasi_lpv(plant, weights)
+    except SpecError as exc:
+        raise SpecError(exc.detail, key=_key(design, exc.key or "weights")) from None
+    blocks = pattern = None
+    if "blocks" in o:
+        raw = o["blocks"]
+        if not isinstance(raw, list) or not all(isinstance(b, list) for b in raw):
+            raise SpecError("expected a list of lists of state names", key=_key(design, "blocks"))
+        try:
+            blocks = [[names.index(s) for s in b] for b in raw]
+        except ValueError:
+            raise SpecError(f"unknown state name; expected names from {names}",
+                            key=_key(design, "blocks")) from None
+    if "pattern" in o:
+        pattern = _matrix_option(o["pattern"], _key(design, "pattern"), (plant.n, plant.q))
+    diagnostics: dict[str, Any] = {}
+    if bool(o.get("search", False)):
+        values = o.get("search_values", [-1.0, 0.0, 1.0])
+        if not isinstance(values, list) or not values:
+            raise SpecError("expected a list of numbers", key=_key(design, "search_values"))
+        values = [_number(v, _key(design, "search_values")) for v in values]
+        criterion = _choice(design, "search_criterion", "psi_max", ("psi_max", "certified"))
+        found = search_weightings(qlpv, domain, values=values, include=[qlpv.weights], variant=variant,
+                                  margin=margin, kappa=kappa, seed=seed, solver=solver)
+        pick = found.best if criterion == "psi_max" else found.best_certified
+        summary = found.as_dict()
+        summary["criterion"] = criterion
+        diagnostics["search"] = summary
+        if pick is None:
+            raise InfeasibleDesign(f"weighting search: no candidate meets the criterion '{criterion}' "
+                                   f"(outcomes {summary['outcomes']})")
+        qlpv = qlpv.with_weights(np.array(pick["weights"]))
+    try:
+        ts = ts_model(qlpv, domain, method=bounds_method, samples=max(samples, 2000),
+                      margin=bounds_margin, seed=seed)
+    except SpecError as exc:
+        raise SpecError(exc.detail, key=_key(design, exc.key or "weights")) from None
+    exactness = check_exactness(ts, plant, count=samples, seed=seed)
+    if not exactness.passed:
+        raise InfeasibleDesign(f"TS model is not exact on the domain: max relative error "
+                               f"{exactness.max_relative_error:.3g}, min membership "
+                               f"{exactness.min_membership:.3g}")
+    obs = vertex_observability(ts)
+    if not obs.all_observable:
+        raise UnobservableError(f"TS vertices {list(obs.unobservable)} (Table I order) are not "
+                                f"observable with C = {ts.C.tolist()}: choose other weights (seed 001 "
+                                "section II-C)")
+    A0, C = ts.A0, ts.C
+    lip = None
+    if psi_source == "lipschitz":
+        lip = lipschitz_bound(ts, lip_form, lip_method if lip_form == "jacobian" else "sampling",
+                              samples=samples, seed=seed)
+        if not np.isfinite(lip.value):
+            raise InfeasibleDesign(f"psi from the Lipschitz bound: {lip.detail.get('text')}")
+    else:
+        lip = lipschitz_bound(ts, "jacobian", "sampling", samples=samples, seed=seed)
+    struct = dict(blocks=blocks, pattern=pattern, solver=solver)
+    if psi_source == "maximise":
+        search = maximise_psi(A0, C, variant=variant, margin=margin, kappa=kappa, **struct)
+        res = search.result
+        diagnostics["psi_search"] = search.as_dict()
+    else:
+        psi = psi_given if psi_source == "given" else lip.value
+        res = observer_lmi(A0, C, psi, variant=variant, margin=margin, kappa=kappa, **struct)
+    caveats = []
+    if variant == "full":
+        caveats.append("full Q (as printed in seed 001): the step Delta' Q Delta <= psi^2 e' Q e "
+                       "needs a Lipschitz constant in the Q-weighted norm; the Euclidean bound "
+                       "justifies only Q = q I (notes/plants.md 4.2)")
+        try:
+            safe = maximise_psi(A0, C, variant="qI", margin=margin, kappa=kappa, solver=solver)
+            diagnostics["psi_max_qI"] = safe.psi_max
+        except InfeasibleDesign as exc:
+            diagnostics["psi_max_qI"] = f"infeasible: {exc}"
+    if psi_source != "lipschitz":
+        certified = bool(np.isfinite(lip.value) and res.psi >= lip.value)
+        how = "given" if psi_source == "given" else "maximised"
+        caveats.append(f"psi = {res.psi:.4g} 1/s was {how}, "
+                       f"not derived from the region; sampled Lipschitz constant of Delta on the "
+                       f"domain: {lip.value:.4g} 1/s ({'covered' if certified else 'NOT covered'})")
+    diagnostics.update({
+        "psi_source": psi_source,
+        "ts_model": ts.as_dict(),
+        "exactness": exactness.as_dict(),
+        "vertex_observability": obs.as_dict(),
+        "selection_rules": selection_rules(qlpv).as_dict(),
+        "lipschitz": lip.as_dict(),
+        "lmi": res.as_dict(),
+        "solver": res.solver,
+        "status": res.status,
+        "caveats": caveats,
+        "assumptions": _assumptions(spec),
+    })
+    if "reference_L" in o:
+        ref = _matrix_option(o["reference_L"], _key(design, "reference_L"), res.L.shape)
+        diagnostics["reference_L"] = _compare(ref, res.L, lambda Lr: A0 - Lr @ C)
+        diagnostics["reference_L"]["note"] = ("LMI solutions are not unique: the comparison is "
+                                              "informative, the re-check decides")
+    gains = {"L": res.L, "P": res.P, "Q": res.Q, "A0": A0, "B": ts.B0, "C": C}
+    latex = {"L": sp.latex(sp.Matrix(np.round(res.L, 6))), "A0": sp.latex(sp.Matrix(np.round(A0, 8)))}
+    return DesignResult(design.name, "ts_observer", plant.name, gains, diagnostics, latex)
+
+
+# ----------------------------------------------------------------- lmi_placement
+def run_lmi_placement(spec: "Spec", design: "DesignSpec") -> DesignResult:
+    """State feedback ``K`` or observer ``L`` with eigenvalues in an LMI region.
+
+    Gains: ``K`` (state feedback, ``u = -K x``; with integral action also
+    ``K1``, ``K2``) or ``L`` (observer), plus ``P`` (Lyapunov matrix of the
+    closed loop) and the model used (``A``, ``B``, ``C``).
+
+    Parameters
+    ----------
+    spec : Spec
+        The validated spec (plant, operating point, sampling).
+    design : DesignSpec
+        The ``[[design]]`` entry; its options are validated here (values)
+        after `DesignMethod.validate` checked their types.
+
+    Returns
+    -------
+    DesignResult
+
+    Raises
+    ------
+    SpecError
+        An option has a bad value (the key is named).
+    InfeasibleDesign
+        No gain passes the solve and the independent re-check.
+    UnobservableError, UncontrollableError
+        Refused before solving, naming the modes.
+    """
+    o = design.options
+    plant = spec.plant
+    target = _choice(design, "target", "observer", ("observer", "state_feedback"))
+    time_domain = _choice(design, "time_domain", "discrete" if spec.ts is not None else "continuous",
+                          ("continuous", "discrete"))
+    region = parse_region(o.get("region"), _key(design, "region"))
+    margin = _positive(design, "margin", 1e-6, upper=1.0)
+    kappa = _positive(design, "kappa", 1e4)
+    solver = _choice(design, "solver", "CLARABEL", SOLVERS)
+    model, eq, _ = _model(spec, time_domain)
+    names = [s.name for s in plant.states]
+    A, B, C = model["A"], model["B"], model["C"]
+    integral = bool(o.get("integral", False))
+    diagnostics: dict[str, Any] = {"equilibrium": eq.as_dict(), "time_domain": time_domain,
+                                   "ts": spec.ts, "assumptions": _assumptions(spec)}
+    try:
+        if target == "observer":
+            if integral:
+                raise SpecError("integral action applies to state feedback",
+                                key=_key(design, "integral"))
+            res = lmi_observer(A, C, region, domain=time_domain, margin=margin, kappa=kappa,
+                               solver=solver, state_names=names)
+            gains = {"L": res.gain}
+        else:
+            if integral:
+                C1, tracked = _tracked(spec, design, C)
+                aug = _augment(model, C1, time_domain, spec.ts)
+                res = lmi_state_feedback(aug["A"], aug["B"], region, domain=time_domain,
+                                         margin=margin, kappa=kappa, solver=solver,
+                                         state_names=names + [f"z_{t}" for t in tracked])
+                K = res.gain
+                gains = {"K": K, "K1": K[:, :plant.n], "K2": K[:, plant.n:], "Br": aug["Br"]}
+                diagnostics["integral"] = {"tracked": tracked, "C1": C1.tolist(),
+                                           "augmented_A": aug["A"].tolist()}
+            else:
+                res = lmi_state_feedback(A, B, region, domain=time_domain, margin=margin, kappa=kappa,
+                                         solver=solver, state_names=names)
+                gains = {"K": res.gain}
+    except SpecError as exc:
+        if exc.key and exc.key.startswith(design.key):
+            raise
+        raise SpecError(exc.detail, key=_key(design, exc.key or "region")) from None
+    gains.update({"P": res.P, "A": A, "B": B, "C": C})
+    diagnostics.update({"lmi": res.as_dict(), "solver": res.solver, "status": res.status})
+    return DesignResult(design.name, "lmi_placement", plant.name, gains, diagnostics, {})
+
+
+# ---------------------------------------------------------------- pole_placement
+def run_pole_placement(spec: "Spec", design: "DesignSpec") -> DesignResult:
+    """Exact pole placement (python-control), optionally with integral action.
+
+    Gains: ``K`` (``u = -K x_e``; with integral action ``K1``, ``K2`` and the
+    reference input matrix ``Br``) or ``L``, plus the model used. With
+    ``reference_gain`` the diagnostics put the paper's gain beside the
+    derived one and give the eigenvalues the paper's gain produces on the
+    derived model.
+
+    Parameters
+    ----------
+    spec : Spec
+        The validated spec (plant, operating point, sampling).
+    design : DesignSpec
+        The ``[[design]]`` entry; its options are validated here (values)
+        after `DesignMethod.validate` checked their types.
+
+    Returns
+    -------
+    DesignResult
+
+    Raises
+    ------
+    SpecError
+        An option has a bad value (the key is named).
+    InfeasibleDesign
+        No gain passes the solve and the independent re-check.
+    UnobservableError, UncontrollableError
+        Refused before solving, naming the modes.
+    """
+    o = design.options
+    plant = spec.plant
+    target = _choice(design, "target", "state_feedback", ("observer", "state_feedback"))
+    time_domain = _choice(design, "time_domain", "discrete" if spec.ts is not None else "continuous",
+                          ("continuous", "discrete"))
+    method = _choice(design, "method", "auto", ("auto", "place", "acker"))
+    poles = parse_poles(o.get("poles"), _key(design, "poles"))
+    model, eq, _ = _model(spec, time_domain)
+    names = [s.name for s in plant.states]
+    A, B, C = model["A"], model["B"], model["C"]
+    integral = bool(o.get("integral", False))
+    diagnostics: dict[str, Any] = {"equilibrium": eq.as_dict(), "time_domain": time_domain,
+                                   "ts": spec.ts, "assumptions": _assumptions(spec)}
+    ref_key = _key(design, "reference_gain")
+    try:
+        if target == "observer":
+            if integral:
+                raise SpecError("integral action applies to state feedback",
+                                key=_key(design, "integral"))
+            res = place_observer(A, C, poles, method, state_names=names)
+            gains = {"L": res.gain}
+            closed = lambda G: A - G @ C  # noqa: E731
+        else:
+            if integral:
+                C1, tracked = _tracked(spec, design, C)
+                aug = _augment(model, C1, time_domain, spec.ts)
+                Aa, Ba = aug["A"], aug["B"]
+                res = place_state_feedback(Aa, Ba, poles, method,
+                                           state_names=names + [f"z_{t}" for t in tracked])
+                K = res.gain
+                gains = {"K": K, "K1": K[:, :plant.n], "K2": K[:, plant.n:], "Br": aug["Br"]}
+                diagnostics["integral"] = {"tracked": tracked, "C1": C1.tolist(),
+                                           "augmented_A": Aa.tolist(), "augmented_B": Ba.tolist()}
+                closed = lambda G: Aa - Ba @ G  # noqa: E731
+            else:
+                res = place_state_feedback(A, B, poles, method, state_names=names)
+                gains = {"K": res.gain}
+                closed = lambda G: A - B @ G  # noqa: E731
+    except (SpecError,) as exc:
+        if exc.key and exc.key.startswith(design.key):
+            raise
+        raise SpecError(exc.detail, key=_key(design, exc.key or "poles")) from None
+    gain = res.gain
+    diagnostics["placement"] = res.as_dict()
+    if "reference_gain" in o:
+        ref = _matrix_option(o["reference_gain"], ref_key, gain.shape)
+        cmp_ = _compare(ref, gain, closed)
+        ach = np.linalg.eigvals(closed(ref))
+        cmp_["reference_max_pole_error"] = pole_errors(poles, ach)[1]
+        cmp_["note"] = ("with several inputs the gain placing given poles is not unique (place uses "
+                        "Tits-Yang); compare the achieved poles, not the digits")
+        diagnostics["reference_gain"] = cmp_
+    gains.update({"A": A, "B": B, "C": C})
+    return DesignResult(design.name, "pole_placement", plant.name, gains, diagnostics, {})
+
+
+# ------------------------------------------------------------ canonical_observer
+def run_canonical_observer(spec: "Spec", design: "DesignSpec") -> DesignResult:
+    """Observer gain ``L = Psi`` by the observer canonical form (seed 004).
+
+    The continuous-time Jacobians at the operating point are taken in exact
+    arithmetic (parameters as exact rationals), so ``Psi`` comes out exact
+    (reported as strings); it is cross-checked against python-control's
+    placement. ``reference_gain`` (the printed ``Psi``) and
+    ``reference_closed_loop`` (the printed ``Gamma_d``) are compared with the
+    derived values.
+
+    Parameters
+    ----------
+    spec : Spec
+        The validated spec (plant, operating point, sampling).
+    design : DesignSpec
+        The ``[[design]]`` entry; its options are validated here (values)
+        after `DesignMethod.validate` checked their types.
+
+    Returns
+    -------
+    DesignResult
+
+    Raises
+    ------
+    SpecError
+        An option has a bad value (the key is named).
+    InfeasibleDesign
+        No gain passes the solve and the independent re-check.
+    UnobservableError, UncontrollableError
+        Refused before solving, naming the modes.
+    """
+    o = design.options
+    plant = spec.plant
+    if plant.q != 1:
+        raise SpecError(f"the canonical-form route needs a single output, plant '{plant.name}' has "
+                        f"{plant.q}", key=_key(design, "method"))
+    if plant.n > 8:
+        raise SpecError("the canonical-form route is for small plants (n <= 8); use pole_placement",
+                        key=_key(design, "method"))
+    poles = parse_poles(o.get("poles"), _key(design, "poles"))
+    F_sym, _, H_sym = symbolic_jacobians(plant)
+    subs = dict(plant.parameter_values)
+    subs.update({s: exact(v) for s, v in zip(plant.x, spec.x0)})
+    A = sp.Matrix(F_sym.xreplace(subs)).applyfunc(sp.nsimplify)
+    C = sp.Matrix(H_sym.xreplace(subs)).applyfunc(sp.nsimplify)
+    if A.free_symbols or C.free_symbols:
+        raise SpecError("the linearisation depends on the inputs; the canonical-form route needs a "
+                        "model affine in u", key=_key(design, "method"))
+    exact_poles = [exact(p.real) + (sp.I * exact(p.imag) if p.imag else 0) for p in poles]
+    co = canonical_observer(A, C, exact_poles)
+    L = co.gain
+    An, Cn = np.array(A.evalf(), dtype=float), np.array(C.evalf(), dtype=float)
+    pl = place_observer(An, Cn, poles, state_names=[s.name for s in plant.states])
+    ach = np.linalg.eigvals(An - L @ Cn)
+    diagnostics: dict[str, Any] = {
+        "canonical_form": co.as_dict(),
+        "achieved_poles": _complex_list(ach),
+        "max_pole_error": pole_errors(poles, ach)[1],
+        "place_cross_check": {"L_place": pl.gain.tolist(),
+                              "max_abs_difference": float(np.max(np.abs(pl.gain - L))),
+                              "place_report": pl.as_dict()},
+        "assumptions": _assumptions(spec),
+    }
+    if "reference_gain" in o:
+        ref = _matrix_option(o["reference_gain"], _key(design, "reference_gain"), L.shape)
+        diagnostics["reference_gain"] = _compare(ref, L, lambda G: An - G @ Cn)
+    if "reference_closed_loop" in o:
+        ref = _matrix_option(o["reference_closed_loop"], _key(design, "reference_closed_loop"),
+                             An.shape)
+        eig = np.linalg.eigvals(ref)
+        derived = np.array(co.Gamma_d.evalf(), dtype=float)
+        diagnostics["reference_closed_loop"] = {
+            "reference": ref.tolist(), "derived": derived.tolist(),
+            "reference_eigenvalues": _complex_list(eig),
+            "reference_max_pole_error": pole_errors(poles, eig)[1],
+            "max_abs_difference": float(np.max(np.abs(ref - derived)))}
+    latex = {"Psi": sp.latex(co.Psi), "Delta": sp.latex(co.Delta), "Gamma_d": sp.latex(co.Gamma_d)}
+    return DesignResult(design.name, "canonical_observer", plant.name,
+                        {"L": L, "A": An, "C": Cn}, diagnostics, latex)
+
+
+# -------------------------------------------------------------------- registry
+_COMMON_LMI = {"margin": (_NUM, 1e-6), "kappa": (_NUM, 1e4), "solver": (str, "CLARABEL")}
+
+register(DesignMethod("ts_observer", run_ts_observer, options={
+    "weights": (dict, None), "psi": (_NUM, None), "psi_source": (str, None),
+    "variant": (str, "qI"), "lipschitz": (str, "jacobian"), "lipschitz_method": (str, "interval"),
+    "domain": (dict, None), "orderings": (bool, True), "ordering_gap": (_NUM, 0.0),
+    "premise_bounds": (str, "interval"), "premise_margin": (_NUM, 0.01),
+    "samples": (int, 5000), "seed": (int, 0), "search": (bool, False),
+    "search_values": (list, None), "search_criterion": (str, "psi_max"),
+    "blocks": (list, None), "pattern": (list, None), "reference_L": (list, None), **_COMMON_LMI}))
+
+register(DesignMethod("lmi_placement", run_lmi_placement, options={
+    "target": (str, "observer"), "time_domain": (str, None), "region": ((list, dict), None),
+    "integral": (bool, False), "tracked": (list, None), **_COMMON_LMI}, required=("region",)))
+
+register(DesignMethod("pole_placement", run_pole_placement, options={
+    "poles": (list, None), "target": (str, "state_feedback"), "time_domain": (str, None),
+    "method": (str, "auto"), "integral": (bool, False), "tracked": (list, None),
+    "reference_gain": (list, None)}, required=("poles",)))
+
+register(DesignMethod("canonical_observer", run_canonical_observer, options={
+    "poles": (list, None), "reference_gain": (list, None), "reference_closed_loop": (list, None)},
+    required=("poles",)))

@@ -1,0 +1,683 @@
+"""Observer LMI of seed 001 eq. (28), solved with cvxpy + Clarabel and re-checked.
+
+The error ``e = x - xhat`` of the observer ``dxhat/dt = A0 xhat + f(xhat, u) +
+L (y - C xhat)`` obeys ``de/dt = (A0 - L C) e + Delta`` with ``|Delta| <= psi
+|e|``. It converges exponentially if there are ``P = P' > 0``, ``Q = Q' > 0``
+and ``K`` with::
+
+    [ A0' P + P A0 - C' K' - K C + psi^2 Q    P ]
+    [ P                                      -Q ]  <  0,       L = P^-1 K.
+
+Two variants are offered (notes/plants.md section 4.2):
+
+``"qI"`` (default, safe)
+    ``Q = q I``. The Lipschitz step ``Delta' Q Delta <= psi^2 e' Q e``
+    follows from the Euclidean bound ``|Delta| <= psi |e|`` only in this case.
+``"full"`` (as printed in seed 001)
+    ``Q`` a full symmetric matrix. Then ``psi`` must be a Lipschitz constant
+    in the ``Q``-weighted norm, which the Euclidean bound does not give; the
+    diagnostics say so. With ``(A0, C)`` observable this variant is feasible
+    for every ``psi`` once the conditioning bound ``kappa`` is large enough,
+    so "maximise psi" only measures ``kappa``.
+
+Numerics (DESIGN.md): the problem is scaled before solving (time scale
+``omega``: ``A0/omega``, ``psi/omega``; output rows of ``C`` normalised), the
+homogeneous LMI is normalised by ``P >= I``, ``trace P <= kappa n`` and the strict
+inequality is replaced by ``LMI <= -t I`` with ``t`` maximised; the design is
+accepted only if ``t >= margin``. Every returned ``(P, Q, K)`` is then
+re-checked in numpy in the original units (eigenvalues of the LMI blocks,
+``P > 0``, ``Q > 0``, ``Re eig(A0 - L C) < -psi``); a failed check raises
+`InfeasibleDesign` whatever the solver said.
+
+Structured designs for tank networks: ``blocks`` makes ``P`` (and ``Q``)
+block-diagonal and ``pattern`` restricts the non-zero entries of ``L``
+(decentralised observer). Structure makes the LMI more conservative.
+"""
+
+from __future__ import annotations
+
+import time
+import warnings
+from dataclasses import dataclass, field
+from typing import Any, Callable, Sequence
+
+import cvxpy as cp
+import numpy as np
+import scipy.sparse as sps
+
+from ..errors import DimensionError, InfeasibleDesign, SpecError, UnobservableError
+# Module import (not names): tanksynth.verify.rank imports tanksynth.design, so
+# this module may be loaded while verify.rank is still initialising.
+from ..verify import rank as _rank
+
+__all__ = [
+    "SOLVERS",
+    "VARIANTS",
+    "LMICheck",
+    "ObserverLMIResult",
+    "ObserverLMIProblem",
+    "observer_lmi",
+    "check_observer_lmi",
+    "PsiSearch",
+    "maximise_psi",
+    "bisect_feasible",
+]
+
+#: Solvers accepted for the LMIs (Clarabel is the default, SCS for comparisons).
+SOLVERS = ("CLARABEL", "SCS")
+#: Variants of the ``Q`` matrix of eq. (28).
+VARIANTS = ("qI", "full")
+
+_ACCEPTED = ("optimal", "optimal_inaccurate")
+
+
+def _matrix(value: Any, name: str) -> np.ndarray:
+    try:
+        arr = np.atleast_2d(np.asarray(value, dtype=float))
+    except (TypeError, ValueError):
+        raise DimensionError(f"{name} must be a real 2-D array") from None
+    if arr.ndim != 2:
+        raise DimensionError(f"{name} must be 2-D, got {arr.ndim} dimensions")
+    if not np.all(np.isfinite(arr)):
+        raise DimensionError(f"{name} has non-finite entries")
+    return arr
+
+
+def _sym(M: np.ndarray) -> np.ndarray:
+    return 0.5 * (M + M.T)
+
+
+@dataclass(frozen=True)
+class LMICheck:
+    """One item of the independent numpy re-check.
+
+    Attributes
+    ----------
+    name : str
+        What was checked (``"LMI (28) block matrix"``, ``"P > 0"``, ...).
+    value : float
+        The checked quantity (a largest or smallest eigenvalue, or a real
+        part), in the units given by ``unit``.
+    limit : float
+        The bound it had to satisfy.
+    passed : bool
+    unit : str
+        Units/normalisation of ``value``.
+    """
+
+    name: str
+    value: float
+    limit: float
+    passed: bool
+    unit: str = ""
+
+    def as_dict(self) -> dict:
+        """JSON-friendly form."""
+        return {"name": self.name, "value": self.value, "limit": self.limit,
+                "passed": self.passed, "unit": self.unit}
+
+
+@dataclass(frozen=True)
+class ObserverLMIResult:
+    """A solved and re-checked observer LMI (seed 001 eq. 28).
+
+    Attributes
+    ----------
+    L : ndarray, shape (n, q)
+        Observer gain ``P^-1 K`` (1/s per output unit, times state unit).
+    P : ndarray, shape (n, n)
+        Lyapunov matrix (normalised so that ``P >= I``, ``trace P <= kappa n``).
+    Q : ndarray, shape (n, n)
+        ``Q`` of eq. (28), in the original time units (``q I`` for the safe
+        variant).
+    K : ndarray, shape (n, q)
+        LMI variable ``K = P L``.
+    psi : float
+        Lipschitz constant used (1/s).
+    variant : str
+        ``"qI"`` or ``"full"``.
+    margin : float
+        Required strictness margin ``t`` (scaled problem).
+    achieved_margin : float
+        Optimal ``t`` returned by the solver (scaled problem).
+    kappa : float
+        Conditioning bound ``trace P <= kappa n``.
+    solver, status : str
+        Solver name and its final status.
+    solve_time : float
+        Wall time of the solve (s).
+    checks : tuple of LMICheck
+        The independent re-check (all passed, or the design was refused).
+    lmi_eigenvalues : ndarray
+        Eigenvalues of the re-computed block matrix, scaled back to the
+        normalised problem (should all be <= -margin).
+    error_eigenvalues : ndarray
+        Eigenvalues of ``A0 - L C`` (1/s); real parts < ``-psi``.
+    condition_P : float
+        Condition number of ``P``.
+    scaling : dict
+        Time scale ``omega`` (1/s) and output row scales applied before
+        solving.
+    structure : dict
+        ``{"P": "dense"}`` or the block partition and gain pattern used.
+    """
+
+    L: np.ndarray
+    P: np.ndarray
+    Q: np.ndarray
+    K: np.ndarray
+    psi: float
+    variant: str
+    margin: float
+    achieved_margin: float
+    kappa: float
+    solver: str
+    status: str
+    solve_time: float
+    checks: tuple[LMICheck, ...]
+    lmi_eigenvalues: np.ndarray
+    error_eigenvalues: np.ndarray
+    condition_P: float
+    scaling: dict
+    structure: dict = field(default_factory=lambda: {"P": "dense"})
+
+    def as_dict(self) -> dict:
+        """JSON-friendly diagnostics (no gains)."""
+        return {
+            "psi": self.psi, "variant": self.variant,
+            "Q_form": "Q = q I (Euclidean Lipschitz bound valid)" if self.variant == "qI" else
+                      "full Q as printed in seed 001 (psi must be a Q-norm Lipschitz constant)",
+            "margin": self.margin, "achieved_margin": self.achieved_margin, "kappa": self.kappa,
+            "solver": self.solver, "status": self.status, "solve_time_s": self.solve_time,
+            "checks": [c.as_dict() for c in self.checks],
+            "lmi_eigenvalues": self.lmi_eigenvalues.tolist(),
+            "lmi_max_eigenvalue": float(np.max(self.lmi_eigenvalues)),
+            "error_eigenvalues": [[float(v.real), float(v.imag)] for v in self.error_eigenvalues],
+            "error_max_real_part": float(np.max(self.error_eigenvalues.real)),
+            "condition_P": self.condition_P, "scaling": self.scaling, "structure": self.structure,
+        }
+
+
+def _check_variant(variant: str) -> None:
+    if variant not in VARIANTS:
+        raise SpecError(f"unknown LMI variant {variant!r}; expected one of {list(VARIANTS)}",
+                        key="variant")
+
+
+def _check_solver(solver: str) -> None:
+    if solver not in SOLVERS:
+        raise SpecError(f"unknown solver {solver!r}; expected one of {list(SOLVERS)}", key="solver")
+
+
+def _structure(n: int, q: int, blocks: Sequence[Sequence[int]] | None,
+               pattern: Any) -> tuple[list[list[int]] | None, np.ndarray | None]:
+    if blocks is not None:
+        blocks = [sorted(int(i) for i in b) for b in blocks]
+        flat = sorted(i for b in blocks for i in b)
+        if flat != list(range(n)) or any(not b for b in blocks):
+            raise DimensionError(f"blocks must partition the state indices 0..{n - 1}, got {blocks}")
+    mask = None
+    if pattern is not None:
+        mask = np.asarray(pattern, dtype=float)
+        if mask.shape != (n, q) or not np.all(np.isin(mask, (0.0, 1.0))):
+            raise DimensionError(f"pattern must be a 0/1 array of shape ({n}, {q}), got shape "
+                                 f"{mask.shape}")
+        mask = mask.astype(bool)
+        if blocks is not None:
+            for b in blocks:
+                if not np.all(mask[b] == mask[b[0]]):
+                    raise DimensionError(
+                        f"pattern rows differ inside block {b}: with a block-diagonal P, L = P^-1 K "
+                        "mixes the rows of a block, so the allowed outputs must be the same for "
+                        "every state of a block")
+        elif not mask.all():
+            raise DimensionError("a gain pattern needs a block partition of P (blocks=...): with a "
+                                 "dense P, L = P^-1 K is dense whatever the pattern of K")
+    return blocks, mask
+
+
+class ObserverLMIProblem:
+    """The scaled observer LMI compiled once (cvxpy Parameters for ``A0`` and ``psi``).
+
+    Re-solving with another ``A0`` or ``psi`` (bisection on ``psi``, search
+    over weightings) does not recompile the problem.
+
+    Parameters
+    ----------
+    n : int
+        Number of states.
+    C : array_like, shape (q, n)
+        Output matrix (fixed; rows are normalised internally).
+    variant : {"qI", "full"}
+    kappa : float
+        Conditioning bound: ``P >= I``, ``trace P <= kappa n`` (> 1).
+    blocks : sequence of sequence of int, optional
+        Partition of the states: ``P`` and ``Q`` are block-diagonal.
+    pattern : array_like of 0/1, shape (n, q), optional
+        Allowed non-zero entries of ``L`` (needs ``blocks``).
+    solver : {"CLARABEL", "SCS"}
+    """
+
+    def __init__(self, n: int, C: Any, variant: str = "qI", kappa: float = 1e4,
+                 blocks: Sequence[Sequence[int]] | None = None, pattern: Any = None,
+                 solver: str = "CLARABEL"):
+        _check_variant(variant)
+        _check_solver(solver)
+        C = _matrix(C, "C")
+        if C.shape[1] != n:
+            raise DimensionError(f"C has {C.shape[1]} columns, expected n = {n}")
+        if not (np.isfinite(kappa) and kappa > 1):
+            raise SpecError(f"kappa must be a number > 1, got {kappa!r}", key="kappa")
+        q = C.shape[0]
+        row = np.linalg.norm(C, axis=1)
+        if np.any(row == 0):
+            raise DimensionError("C has a zero row (an output that measures nothing)")
+        self.n, self.q, self.variant, self.kappa, self.solver = n, q, variant, float(kappa), solver
+        self.C = C
+        self.output_scale = 1.0 / row
+        Cs = C * self.output_scale[:, None]
+        self.blocks, self.mask = _structure(n, q, blocks, pattern)
+        self.A0s = cp.Parameter((n, n), name="A0_scaled")
+        self.t2 = cp.Parameter(nonneg=True, name="psi2_scaled")
+        I = np.eye(n)
+        if self.blocks is None:
+            self.Pv = cp.Variable((n, n), symmetric=True, name="P")
+            P = self.Pv
+            self._pblocks: list = []
+        else:
+            self._pblocks = [cp.Variable((len(b), len(b)), symmetric=True, name=f"P{k}")
+                             for k, b in enumerate(self.blocks)]
+            P = 0
+            for b, Pb in zip(self.blocks, self._pblocks):
+                E = np.zeros((n, len(b)))
+                E[b, range(len(b))] = 1.0
+                P = P + E @ Pb @ E.T
+            self.Pv = None
+        self.P = P
+        if self.mask is None:
+            self.Kv = cp.Variable((n, q), name="K")
+            K = self.Kv
+        else:
+            idx = np.flatnonzero(self.mask.ravel(order="F"))
+            S = sps.csc_matrix((np.ones(idx.size), (idx, np.arange(idx.size))), shape=(n * q, idx.size))
+            self.Kv = cp.Variable(idx.size, name="K_entries")
+            K = cp.reshape(S @ self.Kv, (n, q), order="F")
+        self.K = K
+        if variant == "qI":
+            self.qv = cp.Variable(name="q")
+            Q = self.qv * I
+        elif self.blocks is None:
+            self.qv = cp.Variable((n, n), symmetric=True, name="Q")
+            Q = self.qv
+        else:
+            self._qblocks = [cp.Variable((len(b), len(b)), symmetric=True, name=f"Q{k}")
+                             for k, b in enumerate(self.blocks)]
+            Q = 0
+            for b, Qb in zip(self.blocks, self._qblocks):
+                E = np.zeros((n, len(b)))
+                E[b, range(len(b))] = 1.0
+                Q = Q + E @ Qb @ E.T
+            self.qv = None
+        self.Q = Q
+        self.t = cp.Variable(name="t")
+        X = self.A0s.T @ P + P @ self.A0s - Cs.T @ K.T - K @ Cs + self.t2 * Q
+        M = cp.bmat([[X, P], [P, -Q]])
+        M = 0.5 * (M + M.T)
+        # Normalisation of the homogeneous LMI: P >= I and trace(P) <= kappa n (a linear
+        # conditioning bound, cond(P) <= kappa n; cheaper than a second PSD cone P <= kappa I).
+        cons = [M << -self.t * np.eye(2 * n), P >> I, cp.trace(P) <= self.kappa * n, self.t <= 1.0]
+        self.problem = cp.Problem(cp.Maximize(self.t), cons)
+        self.Cs = Cs
+
+    def time_scale(self, A0: np.ndarray, psi: float) -> float:
+        """The time scale ``omega`` (1/s) used to normalise ``A0`` and ``psi``."""
+        w = max(float(np.linalg.norm(A0, 2)), 0.0)
+        return w if w > 0 else (psi if psi > 0 else 1.0)
+
+    def solve(self, A0: np.ndarray, psi: float, omega: float | None = None) -> dict:
+        """Solve the scaled problem; return the raw (unchecked) solution.
+
+        Parameters
+        ----------
+        A0 : ndarray, shape (n, n)
+            Mean vertex matrix (1/s).
+        psi : float
+            Lipschitz constant (1/s), >= 0.
+        omega : float, optional
+            Time scale (1/s); default `time_scale`.
+
+        Returns
+        -------
+        dict
+            ``status``, ``t`` (optimal margin, ``-inf`` on failure), and when
+            solved ``P``, ``Q``, ``K``, ``L`` in original units, ``omega``,
+            ``solve_time``.
+        """
+        A0 = _matrix(A0, "A0")
+        if A0.shape != (self.n, self.n):
+            raise DimensionError(f"A0 has shape {A0.shape}, expected ({self.n}, {self.n})")
+        if not (np.isfinite(psi) and psi >= 0):
+            raise SpecError(f"psi must be a finite number >= 0, got {psi!r}", key="psi")
+        w = float(omega) if omega is not None else self.time_scale(A0, psi)
+        self.A0s.value = A0 / w
+        self.t2.value = (psi / w) ** 2
+        start = time.perf_counter()
+        try:
+            with warnings.catch_warnings():
+                # "Solution may be inaccurate": the status says so and the re-check decides.
+                warnings.simplefilter("ignore", UserWarning)
+                self.problem.solve(solver=self.solver)
+            status = str(self.problem.status)
+        except cp.error.SolverError as exc:
+            return {"status": f"solver_error: {exc}", "t": -np.inf, "omega": w,
+                    "solve_time": time.perf_counter() - start}
+        elapsed = time.perf_counter() - start
+        out: dict = {"status": status, "omega": w, "solve_time": elapsed}
+        if status not in _ACCEPTED or self.t.value is None:
+            out["t"] = -np.inf
+            return out
+        P = _sym(np.asarray(self.P.value, dtype=float))
+        Qs = np.asarray(self.Q.value, dtype=float)
+        Qs = _sym(np.atleast_2d(Qs)) if Qs.ndim == 2 else float(Qs) * np.eye(self.n)
+        Ks = np.asarray(self.K.value, dtype=float).reshape(self.n, self.q)
+        # Back to original units: Q = Qs / omega, K = omega Ks S_y (see module notes).
+        K = w * Ks * self.output_scale[None, :]
+        Q = Qs / w
+        L = np.linalg.solve(P, K)
+        out.update({"t": float(self.t.value), "P": P, "Q": Q, "K": K, "L": L})
+        return out
+
+
+def check_observer_lmi(A0: Any, C: Any, psi: float, P: Any, Q: Any, K: Any, margin: float,
+                       omega: float, tolerance: float = 0.5
+                       ) -> tuple[tuple[LMICheck, ...], np.ndarray, np.ndarray]:
+    """Independent numpy re-check of an observer LMI solution.
+
+    Re-computes the block matrix of eq. (28) from ``A0, C, psi, P, Q, K`` in
+    the original units, scales it back to the normalised problem with the
+    congruence ``D = diag(omega^-1/2 I, omega^1/2 I)`` and checks its
+    eigenvalues; also ``P > 0``, ``Q > 0`` and that ``A0 - L C`` has every
+    eigenvalue with real part below ``-psi`` (a consequence of the LMI).
+
+    Parameters
+    ----------
+    A0 : array_like, shape (n, n)
+        1/s.
+    C : array_like, shape (q, n)
+    psi : float
+        1/s.
+    P, Q : array_like, shape (n, n)
+    K : array_like, shape (n, q)
+    margin : float
+        Required margin of the normalised LMI (``<= -margin``).
+    omega : float
+        Time scale (1/s) used when solving.
+    tolerance : float
+        Fraction of ``margin`` granted to solver round-off: the largest
+        normalised eigenvalue must be ``<= -(1 - tolerance) margin``.
+
+    Returns
+    -------
+    checks : tuple of LMICheck
+    lmi_eigenvalues : ndarray, shape (2n,)
+        Of the normalised block matrix.
+    error_eigenvalues : ndarray, shape (n,)
+        Of ``A0 - P^-1 K C`` (1/s).
+    """
+    A0, C, P, Q, K = (_matrix(v, nm) for v, nm in ((A0, "A0"), (C, "C"), (P, "P"), (Q, "Q"), (K, "K")))
+    n = A0.shape[0]
+    if P.shape != (n, n) or Q.shape != (n, n) or K.shape != (n, C.shape[0]) or C.shape[1] != n:
+        raise DimensionError("shapes of A0, C, P, Q, K do not match")
+    X = A0.T @ P + P @ A0 - C.T @ K.T - K @ C + psi ** 2 * Q
+    M = _sym(np.block([[X, P], [P, -Q]]))
+    d = np.concatenate([np.full(n, omega ** -0.5), np.full(n, omega ** 0.5)])
+    Mn = M * d[:, None] * d[None, :]
+    eig = np.linalg.eigvalsh(Mn)
+    eig_raw = float(np.max(np.linalg.eigvalsh(M)))
+    L = np.linalg.solve(P, K)
+    err = np.linalg.eigvals(A0 - L @ C)
+    pmin = float(np.min(np.linalg.eigvalsh(_sym(P))))
+    qmin = float(np.min(np.linalg.eigvalsh(_sym(Q))))
+    need = -(1.0 - tolerance) * margin
+    checks = (
+        LMICheck("LMI (28) block matrix, normalised (max eigenvalue <= -(1-tol) margin)",
+                 float(eig.max()), need, bool(eig.max() <= need), "normalised"),
+        LMICheck("LMI (28) block matrix, original units (max eigenvalue < 0)",
+                 eig_raw, 0.0, bool(eig_raw < 0), "original units"),
+        LMICheck("P > 0 (min eigenvalue)", pmin, 0.0, bool(pmin > 0), ""),
+        LMICheck("Q > 0 (min eigenvalue)", qmin, 0.0, bool(qmin > 0), "s"),
+        LMICheck("A0 - L C decay faster than psi (max real part < -psi)",
+                 float(np.max(err.real)), -psi, bool(np.max(err.real) < -psi), "1/s"),
+    )
+    return checks, eig, err
+
+
+def _refuse_unobservable(A0: np.ndarray, C: np.ndarray) -> None:
+    rank = _rank.observability_rank(A0, C)
+    if not rank.full:
+        pbh = _rank.pbh_test(A0, C=C)
+        modes = "; ".join(f"eigenvalue {m.eigenvalue:.4g} in states {list(m.states)}" for m in pbh.modes)
+        raise UnobservableError(f"(A0, C) is not observable (rank {rank.rank} < {rank.n}); "
+                                f"unobservable modes: {modes or 'not isolated by PBH'}; the "
+                                "observer LMI cannot be solved")
+
+
+def observer_lmi(A0: Any, C: Any, psi: float, *, variant: str = "qI", margin: float = 1e-6,
+                 kappa: float = 1e4, blocks: Sequence[Sequence[int]] | None = None,
+                 pattern: Any = None, solver: str = "CLARABEL",
+                 problem: ObserverLMIProblem | None = None) -> ObserverLMIResult:
+    """Solve the observer LMI (28) for a given ``psi`` and re-check the result.
+
+    Parameters
+    ----------
+    A0 : array_like, shape (n, n)
+        Mean of the TS vertex matrices (1/s).
+    C : array_like, shape (q, n)
+        Output matrix (output unit per state unit).
+    psi : float
+        Lipschitz constant of ``Delta`` (1/s), >= 0.
+    variant : {"qI", "full"}
+        ``Q = q I`` (safe) or a full ``Q`` (as printed in seed 001).
+    margin : float
+        Strictness margin of the normalised problem (> 0).
+    kappa : float
+        Conditioning bound: ``P >= I``, ``trace P <= kappa n``.
+    blocks : sequence of sequence of int, optional
+        Block-diagonal ``P`` (and ``Q``) structure.
+    pattern : array_like, shape (n, q), optional
+        0/1 allowed entries of ``L`` (decentralised gain).
+    solver : {"CLARABEL", "SCS"}
+    problem : ObserverLMIProblem, optional
+        A compiled problem to reuse (must match ``C``, variant, structure).
+
+    Returns
+    -------
+    ObserverLMIResult
+
+    Raises
+    ------
+    UnobservableError
+        ``(A0, C)`` not observable (named modes), before solving.
+    InfeasibleDesign
+        Solver failure, margin not reached, or the independent re-check
+        fails; the message gives the solver status, the achieved margin and
+        the failed check.
+    """
+    A0 = _matrix(A0, "A0")
+    C = _matrix(C, "C")
+    n = A0.shape[0]
+    if A0.shape != (n, n):
+        raise DimensionError(f"A0 must be square, got shape {A0.shape}")
+    if C.shape[1] != n:
+        raise DimensionError(f"C has {C.shape[1]} columns, expected n = {n}")
+    if not (isinstance(margin, (int, float)) and np.isfinite(margin) and 0 < margin < 1):
+        raise SpecError(f"margin must be a number in (0, 1), got {margin!r}", key="margin")
+    _check_variant(variant)
+    _refuse_unobservable(A0, C)
+    prob = problem or ObserverLMIProblem(n, C, variant, kappa, blocks, pattern, solver)
+    raw = prob.solve(A0, float(psi))
+    structure = ({"P": "dense"} if prob.blocks is None else
+                 {"P": "block-diagonal", "blocks": prob.blocks,
+                  "L_pattern": None if prob.mask is None else prob.mask.astype(int).tolist(),
+                  "note": "structured P/L is more conservative than a dense P"})
+    where = (f"solver {prob.solver} status {raw['status']}, achieved margin t = {raw['t']:.3g} "
+             f"(required {margin:.3g}), psi = {psi:.6g} 1/s, variant {variant}, kappa = {prob.kappa:g}")
+    if raw["t"] == -np.inf:
+        raise InfeasibleDesign(f"observer LMI (28) not solved: {where}")
+    if raw["t"] < margin:
+        raise InfeasibleDesign(
+            f"observer LMI (28) infeasible with the required margin: {where}; the optimum of "
+            "max t s.t. LMI <= -t I, P >= I, trace P <= kappa n certifies that no larger margin "
+            "exists")
+    checks, eig, err = check_observer_lmi(A0, C, psi, raw["P"], raw["Q"], raw["K"], margin, raw["omega"])
+    failed = [c for c in checks if not c.passed]
+    if failed:
+        worst = "; ".join(f"{c.name}: {c.value:.4g} vs limit {c.limit:.4g}" for c in failed)
+        raise InfeasibleDesign(f"observer LMI (28) solution fails the independent re-check ({worst}); "
+                               f"{where}")
+    return ObserverLMIResult(
+        L=raw["L"], P=raw["P"], Q=raw["Q"], K=raw["K"], psi=float(psi), variant=variant,
+        margin=float(margin), achieved_margin=raw["t"], kappa=prob.kappa, solver=prob.solver,
+        status=raw["status"], solve_time=raw["solve_time"], checks=checks, lmi_eigenvalues=eig,
+        error_eigenvalues=err, condition_P=float(np.linalg.cond(raw["P"])),
+        scaling={"omega_per_s": raw["omega"], "time_scaling": "A0/omega, psi/omega",
+                 "output_row_scale": prob.output_scale.tolist(),
+                 "normalisation": "P >= I, trace P <= kappa n"},
+        structure=structure)
+
+
+def bisect_feasible(feasible: Callable[[float], bool], start: float, rtol: float = 1e-3,
+                    max_doublings: int = 40, max_steps: int = 60) -> tuple[float, float, list]:
+    """Largest ``x >= 0`` with ``feasible(x)`` for a monotone predicate.
+
+    Feasibility must be monotone (feasible at ``x`` implies feasible below
+    ``x``), which holds for ``psi`` in eq. (28): the ``psi^2 Q`` term only
+    grows. The bracket is found by doubling from ``start``.
+
+    Parameters
+    ----------
+    feasible : callable
+        ``feasible(x) -> bool``.
+    start : float
+        First trial value (> 0).
+    rtol : float
+        Relative width of the final bracket.
+    max_doublings, max_steps : int
+        Limits of the bracketing and of the bisection.
+
+    Returns
+    -------
+    lo : float
+        Largest value found feasible (0.0 if only 0 is).
+    hi : float
+        Smallest value found infeasible (``inf`` if none found).
+    history : list of (float, bool)
+        Every trial.
+    """
+    history: list = []
+
+    def test(x: float) -> bool:
+        ok = bool(feasible(x))
+        history.append((float(x), ok))
+        return ok
+
+    lo, hi = 0.0, float(start)
+    for _ in range(max_doublings):
+        if test(hi):
+            lo, hi = hi, 2.0 * hi
+        else:
+            break
+    else:
+        return lo, float("inf"), history
+    for _ in range(max_steps):
+        if hi - lo <= rtol * hi:
+            break
+        mid = 0.5 * (lo + hi)
+        if test(mid):
+            lo = mid
+        else:
+            hi = mid
+    return lo, hi, history
+
+
+@dataclass(frozen=True)
+class PsiSearch:
+    """Result of "maximise psi" (quasi-convex search by bisection).
+
+    Attributes
+    ----------
+    psi_max : float
+        Largest ``psi`` (1/s) found feasible with the margin and re-check.
+    psi_infeasible : float
+        Smallest ``psi`` found infeasible (``inf`` if never).
+    history : list of (float, bool)
+        Every ``psi`` tried and whether it was feasible.
+    result : ObserverLMIResult
+        The re-checked design at ``psi_max``.
+    bounded_by_kappa : bool
+        True for the full-``Q`` variant: its maximum grows with ``kappa``.
+    """
+
+    psi_max: float
+    psi_infeasible: float
+    history: list
+    result: ObserverLMIResult
+    bounded_by_kappa: bool
+
+    def as_dict(self) -> dict:
+        """JSON-friendly summary."""
+        return {"psi_max": self.psi_max, "psi_infeasible": self.psi_infeasible,
+                "trials": [[p, ok] for p, ok in self.history],
+                "bounded_by_kappa": self.bounded_by_kappa,
+                "method": "bisection on feasibility (LMI margin reached and psi monotone); "
+                          "problem compiled once with cvxpy Parameters"}
+
+
+def maximise_psi(A0: Any, C: Any, *, variant: str = "qI", margin: float = 1e-6, kappa: float = 1e4,
+                 rtol: float = 1e-3, blocks: Sequence[Sequence[int]] | None = None,
+                 pattern: Any = None, solver: str = "CLARABEL",
+                 problem: ObserverLMIProblem | None = None) -> PsiSearch:
+    """Largest ``psi`` for which the observer LMI (28) is feasible.
+
+    Parameters
+    ----------
+    A0 : array_like, shape (n, n)
+        1/s.
+    C : array_like, shape (q, n)
+    variant : {"qI", "full"}
+    margin, kappa : float
+        As in `observer_lmi`.
+    rtol : float
+        Relative accuracy of ``psi_max``.
+    blocks, pattern, solver, problem
+        As in `observer_lmi`.
+
+    Returns
+    -------
+    PsiSearch
+
+    Raises
+    ------
+    UnobservableError
+        ``(A0, C)`` not observable.
+    InfeasibleDesign
+        Not even ``psi = 0`` is feasible, or the final design fails the
+        re-check.
+    """
+    A0 = _matrix(A0, "A0")
+    C = _matrix(C, "C")
+    _check_variant(variant)
+    _refuse_unobservable(A0, C)
+    prob = problem or ObserverLMIProblem(A0.shape[0], C, variant, kappa, blocks, pattern, solver)
+    omega = prob.time_scale(A0, 0.0)
+
+    def feasible(psi: float) -> bool:
+        return prob.solve(A0, psi, omega)["t"] >= margin
+
+    if not feasible(0.0):
+        raw = prob.solve(A0, 0.0, omega)
+        raise InfeasibleDesign(f"observer LMI (28) infeasible even with psi = 0 (status "
+                               f"{raw['status']}, achieved margin {raw['t']:.3g} < {margin:.3g})")
+    lo, hi, history = bisect_feasible(feasible, start=1e-2 * omega, rtol=rtol)
+    result = observer_lmi(A0, C, lo, variant=variant, margin=margin, problem=prob)
+    return PsiSearch(lo, hi, history, result, variant == "full")
