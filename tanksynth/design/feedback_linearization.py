@@ -1,0 +1,810 @@
+"""Exact feedback linearisation with input-output decoupling (seed 000, section II-C).
+
+For a square control-affine plant ``dx/dt = f0(x) + G(x) u``, ``y = h(x)``
+(``q = m``) the relative degrees ``theta_i`` (eq. 19), the decoupling matrix
+``Lambda(x)`` (eq. 22) and ``Lambda_0(x)`` (eq. 23) come from the symbolic
+core (`tanksynth.design.symbolic.relative_degree`) on the plant's smooth form
+(``sgn``/``abs`` resolved on the operating region). The law (eq. 24)::
+
+    u = alpha(x) + beta(x) zeta,   alpha = -Lambda^-1 Lambda_0,   beta = Lambda^-1
+
+gives ``y_i^(theta_i) = zeta_i`` (eq. 25); the outer loop::
+
+    zeta_i = c_i0 (y_r,i - y_i) - c_i1 y_i' - ... - c_i,theta_i-1 y_i^(theta_i - 1)
+
+places the roots of ``s^theta_i + c_i,theta_i-1 s^(theta_i-1) + ... + c_i0``
+(for ``theta_i = 1``: ``zeta_i = K_i (y_r,i - y_i)`` and ``y_i/y_r,i = K_i/(s
++ K_i)``, eq. 27-28), with ``y_i^(k) = L_f^k h_i`` computed from the state.
+
+What the design checks before giving a law:
+
+* ``q = m`` (otherwise `DimensionError`, naming the outputs and inputs);
+* every relative degree exists (`InfeasibleDesign` if an output does not
+  depend on the inputs at any order up to ``n``, or if its row of
+  ``Lambda`` vanishes somewhere on the region, naming the point);
+* ``rank Lambda(x) = m`` on the region (`InfeasibleDesign` naming where it
+  drops: identically, at a grid point, or on a surface where ``det Lambda``
+  changes sign, located by bisection);
+* the zero dynamics (dimension ``n - sum theta_i``) are stable: eigenvalues of
+  their Jacobian on a grid of the region (`InfeasibleDesign` naming the worst
+  point unless the user overrides).
+
+The law is compiled once into a CasADi Function ``(x, y_r) -> (u, zeta)``
+(saturated to the actuator range when asked), which `tanksynth.design.control`
+exports (serialised Function, generated C).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any, Sequence
+
+import casadi as ca
+import numpy as np
+import sympy as sp
+
+from ..errors import DimensionError, InfeasibleDesign, SpecError, TanksynthError
+from ..plants.base import Plant
+from ..plants.compile import compile_matrix
+from .symbolic import RelativeDegree, control_affine, jacobian, lie_derivatives, relative_degree
+
+__all__ = [
+    "region_points",
+    "select_outputs",
+    "ZeroDynamics",
+    "Decoupling",
+    "decoupling_analysis",
+    "OuterLoop",
+    "outer_loop",
+    "FeedbackLinearization",
+    "feedback_linearization",
+]
+
+#: Relative tolerance on ``sigma_min / sigma_max`` below which ``Lambda(x)`` is singular.
+RANK_TOL = 1e-9
+
+
+# --------------------------------------------------------------------- helpers
+def _fmt(x: np.ndarray, names: Sequence[str]) -> str:
+    return "(" + ", ".join(f"{nm} = {v:.6g}" for nm, v in zip(names, np.asarray(x, float))) + ")"
+
+
+def _batch(fn: ca.Function, points: np.ndarray) -> list[np.ndarray]:
+    """Evaluate a one-argument CasADi Function at M points -> per output (M, rows, cols)."""
+    points = np.atleast_2d(np.asarray(points, dtype=float))
+    count = points.shape[0]
+    outs = fn.map(count, "serial")(points.T)
+    outs = outs if isinstance(outs, (list, tuple)) else [outs]
+    res = []
+    for k, out in enumerate(outs):
+        rows, cols = fn.size1_out(k), fn.size2_out(k)
+        res.append(np.asarray(out, dtype=float).reshape(rows, count, cols).transpose(1, 0, 2))
+    return res
+
+
+def _batch2(fn: ca.Function, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Evaluate a two-argument, vector-valued CasADi Function at M points -> (M, rows)."""
+    count = a.shape[0]
+    out = fn.map(count, "serial")(np.asarray(a, float).T, np.asarray(b, float).T)
+    out = out[0] if isinstance(out, (list, tuple)) else out
+    return np.asarray(out, dtype=float).T
+
+
+def region_points(plant: Plant, per_axis: int = 11, samples: int = 400, seed: int = 0,
+                  margin: float = 0.02) -> np.ndarray:
+    """Points of the operating region: a grid (when small enough) plus random samples.
+
+    The grid spans each box interval shrunk by ``margin`` (relative) and
+    keeps the points satisfying the strict orderings; the random points come
+    from `Region.sample` (seeded).
+
+    Parameters
+    ----------
+    plant : Plant
+    per_axis : int
+        Grid points per state (the grid is skipped when ``per_axis ** n >
+        20000``).
+    samples : int
+        Additional random points.
+    seed : int
+        Seed of the random points.
+    margin : float
+        Relative margin from the box faces (keeps ``sqrt`` heads away from 0).
+
+    Returns
+    -------
+    numpy.ndarray, shape (M, n)
+        In the state units.
+    """
+    lo = np.array([b[0] for b in plant.region.bounds], dtype=float)
+    hi = np.array([b[1] for b in plant.region.bounds], dtype=float)
+    span = hi - lo
+    parts = []
+    if per_axis >= 2 and per_axis ** plant.n <= 20000:
+        axes = [np.linspace(a + margin * s, b - margin * s, per_axis) for a, b, s in zip(lo, hi, span)]
+        grid = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, plant.n)
+        keep = np.ones(len(grid), dtype=bool)
+        for a, b in plant.region.orderings:
+            diff = sp.expand(a - b).xreplace(plant.parameter_values)
+            fn = sp.lambdify([list(plant.x)], diff, "numpy")
+            keep &= np.asarray(fn(grid.T), dtype=float) * np.ones(len(grid)) > 0
+        parts.append(grid[keep])
+    if samples > 0:
+        parts.append(plant.region.sample(samples, plant.x, seed=seed, margin=margin))
+    return np.vstack(parts) if parts else np.empty((0, plant.n))
+
+
+def select_outputs(plant: Plant, outputs: Sequence[str] | None) -> tuple[sp.Matrix, tuple[str, ...]]:
+    """Output map of the chosen outputs.
+
+    Parameters
+    ----------
+    plant : Plant
+    outputs : sequence of str or None
+        Names of plant outputs (or, failing that, of states: ``y = x_j``).
+        None: all the plant's outputs.
+
+    Returns
+    -------
+    h : sympy.Matrix, shape (q, 1)
+        In state and parameter symbols.
+    names : tuple of str
+
+    Raises
+    ------
+    SpecError
+        Unknown name.
+    """
+    out_names = [s.name for s in plant.outputs]
+    state_names = [s.name for s in plant.states]
+    if outputs is None:
+        return sp.Matrix(plant.h), tuple(out_names)
+    rows, names = [], []
+    for nm in outputs:
+        if nm in out_names:
+            rows.append(plant.h[out_names.index(nm)])
+        elif nm in state_names:
+            rows.append(plant.x[state_names.index(nm)])
+        else:
+            raise SpecError(f"unknown output {nm!r}; expected outputs {out_names} or states {state_names}",
+                            key="tracked")
+        names.append(nm)
+    if len(set(names)) != len(names):
+        raise SpecError(f"outputs listed twice: {names}", key="tracked")
+    return sp.Matrix(rows), tuple(names)
+
+
+def _tidy(expr: Any, limit: int = 400) -> Any:
+    """``sympy.simplify`` when the expression is small (keeps the analysis fast)."""
+    if sp.count_ops(expr) <= limit:
+        return sp.simplify(expr)
+    return expr
+
+
+# ------------------------------------------------------------------ data types
+@dataclass(frozen=True)
+class ZeroDynamics:
+    """Internal (zero) dynamics of the decoupled plant.
+
+    With ``zeta = 0`` and the outputs held (``y_i^(k) = 0`` for ``1 <= k <
+    theta_i``), the remaining ``d = n - sum theta_i`` coordinates ``eta``
+    (a subset of the states) evolve by ``d eta/dt = E (f0 + G alpha)(x)``.
+
+    Attributes
+    ----------
+    dimension : int
+        ``n - sum theta_i``.
+    coordinates : tuple of str
+        States used as internal coordinates ``eta``.
+    expressions : sympy.Matrix, shape (d, 1)
+        ``d eta/dt`` in state and parameter symbols (outputs frozen).
+    points : ndarray, shape (M, n)
+        Grid points of the region (on the zero-output manifold) where the
+        Jacobian was evaluated.
+    eigenvalues : ndarray, shape (M, d)
+        Eigenvalues of the zero-dynamics Jacobian at each point (1/s).
+    max_real : float
+        Largest real part over the points (1/s); ``-inf`` when ``d = 0``.
+    worst_point : ndarray or None
+        Point of ``max_real``.
+    stable : bool
+        ``max_real < 0`` (every frozen Jacobian Hurwitz on the grid; a local
+        test on the grid, exact for ``d = 1`` along each line of frozen
+        outputs when it holds everywhere).
+    skipped : int
+        Points dropped (non-finite Jacobian or off the manifold).
+    """
+
+    dimension: int
+    coordinates: tuple[str, ...]
+    expressions: sp.Matrix
+    points: np.ndarray
+    eigenvalues: np.ndarray
+    max_real: float
+    worst_point: np.ndarray | None
+    stable: bool
+    skipped: int = 0
+
+    def as_dict(self, state_names: Sequence[str]) -> dict:
+        """JSON-friendly summary (eigenvalue range, worst point)."""
+        ev = self.eigenvalues.reshape(-1) if self.eigenvalues.size else np.array([])
+        out: dict[str, Any] = {
+            "dimension": self.dimension, "coordinates": list(self.coordinates),
+            "expressions": [str(e) for e in self.expressions],
+            "points": int(len(self.points)), "skipped_points": int(self.skipped),
+            "stable": self.stable,
+            "max_real_part": self.max_real if math.isfinite(self.max_real) else None,
+        }
+        if ev.size:
+            out["min_real_part"] = float(np.min(ev.real))
+            out["max_abs_imag"] = float(np.max(np.abs(ev.imag)))
+            out["worst_point"] = dict(zip(state_names, map(float, self.worst_point)))
+        return out
+
+
+@dataclass(frozen=True)
+class Decoupling:
+    """Relative degrees, decoupling matrices and their checks on the region.
+
+    Attributes
+    ----------
+    plant : str
+    outputs : tuple of str
+        Decoupled outputs (``q = m`` of them).
+    degrees : tuple of int
+        ``theta_i``.
+    Lambda, Lambda0 : sympy.Matrix
+        ``Lambda(x)`` (m x m) and ``Lambda_0(x)`` (m x 1), in state and
+        parameter symbols, from the smooth model.
+    alpha, beta : sympy.Matrix
+        ``-Lambda^-1 Lambda_0`` (input units) and ``Lambda^-1``.
+    h : sympy.Matrix
+        Output map of the decoupled outputs.
+    lie : tuple of sympy.Matrix
+        Per output, ``[h_i, L_f h_i, ..., L_f^(theta_i - 1) h_i]`` (smooth
+        model, symbolic parameters).
+    zero_dynamics : ZeroDynamics
+    rank_check : dict
+        Points tested, smallest ``sigma_min/sigma_max`` of ``Lambda`` and
+        where, the sign of ``det Lambda``.
+    """
+
+    plant: str
+    outputs: tuple[str, ...]
+    degrees: tuple[int, ...]
+    Lambda: sp.Matrix
+    Lambda0: sp.Matrix
+    alpha: sp.Matrix
+    beta: sp.Matrix
+    h: sp.Matrix
+    lie: tuple[sp.Matrix, ...]
+    zero_dynamics: ZeroDynamics
+    rank_check: dict = field(default_factory=dict)
+
+    @property
+    def total(self) -> int:
+        """``sum theta_i``."""
+        return sum(self.degrees)
+
+    def latex(self) -> dict[str, str]:
+        """LaTeX fragments of ``Lambda``, ``Lambda_0``, ``alpha``, ``beta`` and the zero dynamics."""
+        out = {"Lambda": sp.latex(self.Lambda), "Lambda0": sp.latex(self.Lambda0),
+               "alpha": sp.latex(self.alpha), "beta": sp.latex(self.beta),
+               "degrees": ", ".join(rf"\vartheta_{{{i + 1}}} = {d}" for i, d in enumerate(self.degrees))}
+        if self.zero_dynamics.dimension:
+            out["zero_dynamics"] = sp.latex(self.zero_dynamics.expressions)
+        return out
+
+
+# ------------------------------------------------------------------- analysis
+def _square_or_raise(plant: Plant, names: Sequence[str]) -> None:
+    q, m = len(names), plant.m
+    inputs = [s.name for s in plant.inputs]
+    if q > m:
+        raise DimensionError(
+            f"more outputs than inputs: {q} outputs {list(names)} but only {m} inputs {inputs}; "
+            f"exact decoupling needs q = m (structural, at every point of the state space): "
+            f"choose {m} outputs to decouple (option 'tracked')")
+    if q < m:
+        raise DimensionError(
+            f"fewer outputs than inputs: {q} outputs {list(names)} for {m} inputs {inputs}; "
+            f"the decoupling matrix would be {q} x {m}, not invertible: choose {m} outputs "
+            "(option 'tracked')")
+
+
+def _relative_degree(plant: Plant, h: sp.Matrix, names: Sequence[str]) -> RelativeDegree:
+    try:
+        return relative_degree(plant.f_smooth, h, plant.x, plant.u)
+    except TanksynthError as exc:
+        text = str(exc)
+        if "relative degree" in text:
+            raise InfeasibleDesign(
+                f"{text}; this holds identically, i.e. everywhere in the state space (the whole "
+                f"operating region of plant '{plant.name}' included): output(s) {list(names)} "
+                "cannot be decoupled") from None
+        raise InfeasibleDesign(f"cannot compute relative degrees of plant '{plant.name}': {text}") from None
+
+
+def _first_sign_change(values: np.ndarray, points: np.ndarray) -> tuple[int, int] | None:
+    pos = np.flatnonzero(values > 0)
+    neg = np.flatnonzero(values < 0)
+    if not len(pos) or not len(neg):
+        return None
+    # Closest pair (one of each sign): the singular surface lies between them.
+    best, pair = np.inf, None
+    for i in pos[:400]:
+        d = np.linalg.norm(points[neg[:400]] - points[i], axis=1)
+        j = int(np.argmin(d))
+        if d[j] < best:
+            best, pair = d[j], (int(i), int(neg[j]))
+    return pair
+
+
+def _check_rank(plant: Plant, dec_num: sp.Matrix, names: Sequence[str], degrees: Sequence[int],
+                Lambda_sym: sp.Matrix, points: np.ndarray) -> dict:
+    """Raise `InfeasibleDesign` where ``rank Lambda < m``; return the evidence otherwise."""
+    m = plant.m
+    states = [s.name for s in plant.states]
+    det_sym = _tidy(Lambda_sym.det()) if m <= 4 else None
+    if det_sym is not None and det_sym == 0:
+        raise InfeasibleDesign(
+            f"not decouplable: det Lambda(x) = 0 identically (rank Lambda < m = {m} everywhere in "
+            f"the state space, the whole operating region included); Lambda = {Lambda_sym.tolist()} "
+            f"for outputs {list(names)}")
+    fn = compile_matrix("Lambda", dec_num, [plant.x], ["x"])
+    L = _batch(fn, points)[0]                               # (M, m, m)
+    finite = np.all(np.isfinite(L), axis=(1, 2))
+    if not np.all(finite):
+        k = int(np.flatnonzero(~finite)[0])
+        raise InfeasibleDesign(f"Lambda(x) is not finite at x = {_fmt(points[k], states)} on the "
+                               f"operating region (outputs {list(names)})")
+    # A row that vanishes: the relative degree of that output is not defined there.
+    row = np.linalg.norm(L, axis=2)                         # (M, m)
+    scale = np.max(row, axis=0)
+    for i in range(m):
+        bad = np.flatnonzero(row[:, i] <= RANK_TOL * scale[i])
+        if len(bad):
+            k = int(bad[0])
+            raise InfeasibleDesign(
+                f"relative degree of output {names[i]} is not defined at x = {_fmt(points[k], states)}: "
+                f"L_g L_f^{degrees[i] - 1} h vanishes there although it is not identically zero "
+                f"({len(bad)} of {len(points)} region points); not decouplable there")
+    sv = np.linalg.svd(L, compute_uv=False)                 # (M, m)
+    ratio = sv[:, -1] / sv[:, 0]
+    k = int(np.argmin(ratio))
+    if ratio[k] <= RANK_TOL:
+        raise InfeasibleDesign(
+            f"not decouplable: rank Lambda(x) < m = {m} at x = {_fmt(points[k], states)} "
+            f"(sigma_min/sigma_max = {ratio[k]:.3g}; {int(np.sum(ratio <= RANK_TOL))} of "
+            f"{len(points)} region points)")
+    det = np.linalg.det(L)
+    pair = _first_sign_change(det, points)
+    if pair is not None:
+        a, b = points[pair[0]], points[pair[1]]
+        detf = lambda x: float(np.linalg.det(np.asarray(fn(x), dtype=float)))  # noqa: E731
+        lo, hi = 0.0, 1.0
+        for _ in range(60):
+            mid = 0.5 * (lo + hi)
+            if np.sign(detf(a + mid * (b - a))) == np.sign(det[pair[0]]):
+                lo = mid
+            else:
+                hi = mid
+        x_star = a + 0.5 * (lo + hi) * (b - a)
+        raise InfeasibleDesign(
+            f"not decouplable on the whole region: det Lambda(x) changes sign, so rank Lambda < "
+            f"m = {m} on a surface through x = {_fmt(x_star, states)} (between region points "
+            f"{_fmt(a, states)} and {_fmt(b, states)})"
+            + (f"; det Lambda = {det_sym}" if det_sym is not None else ""))
+    return {"points": int(len(points)), "min_sigma_ratio": float(ratio[k]),
+            "min_sigma_ratio_at": dict(zip(states, map(float, points[k]))),
+            "det_sign": int(np.sign(det[0])),
+            "det_symbolic": None if det_sym is None else str(det_sym)}
+
+
+def _internal_coordinates(dphi: np.ndarray, count: int) -> list[int]:
+    """States completing the rows of ``dPhi`` to a basis (least involved first)."""
+    n = dphi.shape[1]
+    order = np.argsort(np.linalg.norm(dphi, axis=0), kind="stable")
+    chosen: list[int] = []
+    base = dphi.copy()
+    for j in order:
+        trial = np.vstack([base, np.eye(n)[j]])
+        if np.linalg.matrix_rank(trial, tol=1e-10 * max(1.0, np.abs(trial).max())) == trial.shape[0]:
+            chosen.append(int(j))
+            base = trial
+            if len(chosen) == count:
+                break
+    return chosen
+
+
+def _zero_dynamics(plant: Plant, rd_num: RelativeDegree, lie_num: Sequence[sp.Matrix],
+                   alpha_sym: sp.Matrix, f0_sym: sp.Matrix, G_sym: sp.Matrix,
+                   points: np.ndarray) -> ZeroDynamics:
+    n, r = plant.n, rd_num.total
+    d = n - r
+    if d == 0:
+        return ZeroDynamics(0, (), sp.zeros(0, 1), np.empty((0, n)), np.empty((0, 0)), -math.inf,
+                            None, True, 0)
+    vals = plant.parameter_values
+    f0n, Gn = f0_sym.xreplace(vals), G_sym.xreplace(vals)
+    alpha_n = alpha_sym.xreplace(vals)
+    fcl = f0n + Gn * alpha_n
+    phi = sp.Matrix.vstack(*lie_num)                       # (r, 1)
+    # derivative components (k >= 1) must vanish on the zero-output manifold
+    offsets = np.cumsum([0, *rd_num.degrees])
+    deriv_rows = [int(offsets[i] + k) for i, theta in enumerate(rd_num.degrees) for k in range(1, theta)]
+    xs = ca.SX.sym("x", n)
+    fcl_fn = compile_matrix("fcl", fcl, [plant.x], ["x"])
+    phi_fn = compile_matrix("phi", phi, [plant.x], ["x"])
+    f_x = fcl_fn(xs)
+    p_x = phi_fn(xs)
+    funcs = ca.Function("zd", [xs], [ca.jacobian(f_x, xs), ca.jacobian(p_x, xs), p_x])
+    # Project the points on the manifold {L_f^k h_i = 0, 1 <= k < theta_i} (Gauss-Newton).
+    pts = np.array(points, dtype=float)
+    ok = np.ones(len(pts), dtype=bool)
+    if deriv_rows:
+        lo = np.array([b[0] for b in plant.region.bounds])
+        hi = np.array([b[1] for b in plant.region.bounds])
+        for k in range(len(pts)):
+            x = pts[k].copy()
+            for _ in range(30):
+                _, Jp, pv = (np.asarray(v, dtype=float) for v in funcs(x))
+                res = pv.reshape(-1)[deriv_rows]
+                if np.all(np.abs(res) <= 1e-12 * (1 + np.abs(pv).max())):
+                    break
+                step = np.linalg.lstsq(Jp[deriv_rows], res, rcond=None)[0]
+                x = x - step
+            _, _, pv = (np.asarray(v, dtype=float) for v in funcs(x))
+            res = pv.reshape(-1)[deriv_rows]
+            good = (np.all(np.isfinite(x)) and np.all(np.abs(res) <= 1e-9 * (1 + np.abs(pv).max()))
+                    and np.all(x >= lo) and np.all(x <= hi) and not plant.region.violations(x, plant.x))
+            ok[k] = bool(good)
+            pts[k] = x
+    pts = pts[ok]
+    if not len(pts):
+        raise InfeasibleDesign("zero dynamics: no grid point of the region lies on (or projects onto) "
+                               "the zero-output manifold; cannot check their stability")
+    Jf, Jp, _ = _batch(funcs, pts)
+    coords = _internal_coordinates(Jp[0], d)
+    E = np.eye(n)[coords]
+    eigs, keep = [], []
+    for k in range(len(pts)):
+        M = np.vstack([Jp[k], E])
+        if not (np.all(np.isfinite(M)) and np.all(np.isfinite(Jf[k]))):
+            continue
+        try:
+            T = np.linalg.solve(M, np.vstack([np.zeros((r, d)), np.eye(d)]))
+        except np.linalg.LinAlgError:
+            continue
+        eigs.append(np.linalg.eigvals(E @ Jf[k] @ T))
+        keep.append(k)
+    if not keep:
+        raise InfeasibleDesign("zero dynamics: the Jacobian is not finite at any grid point")
+    ev = np.array(eigs)
+    kept = pts[keep]
+    worst = int(np.argmax(ev.real.max(axis=1)))
+    max_real = float(ev.real.max())
+    closed = f0_sym + G_sym * alpha_sym
+    zd_expr = sp.Matrix([_tidy(closed[j]) for j in coords])
+    return ZeroDynamics(d, tuple(plant.states[j].name for j in coords), zd_expr, kept, ev, max_real,
+                        kept[worst], bool(max_real < 0), int(len(points) - len(kept)))
+
+
+def decoupling_analysis(plant: Plant, outputs: Sequence[str] | None = None, *, per_axis: int = 11,
+                        samples: int = 400, seed: int = 0, margin: float = 0.02) -> Decoupling:
+    """Relative degrees, ``Lambda``, ``Lambda_0``, ``alpha``, ``beta`` and the zero dynamics.
+
+    Parameters
+    ----------
+    plant : Plant
+        Control-affine in its inputs.
+    outputs : sequence of str, optional
+        Outputs to decouple (plant outputs or state names); default all
+        outputs. There must be as many as inputs.
+    per_axis, samples, seed, margin
+        Region points for the rank and zero-dynamics checks (see
+        `region_points`).
+
+    Returns
+    -------
+    Decoupling
+        The zero dynamics are analysed but not judged: `feedback_linearization`
+        refuses unstable ones.
+
+    Raises
+    ------
+    DimensionError
+        More (or fewer) outputs than inputs.
+    InfeasibleDesign
+        Relative degree undefined (identically, or at a point of the
+        region), or ``rank Lambda < m`` somewhere on the region (the message
+        names where).
+    """
+    h, names = select_outputs(plant, outputs)
+    _square_or_raise(plant, names)
+    rd = _relative_degree(plant, h, names)
+    f0, G = control_affine(plant.f_smooth, plant.u)
+    lie = tuple(sp.Matrix(lie_derivatives(sp.Matrix([h[i]]), f0, plant.x, theta))
+                for i, theta in enumerate(rd.degrees))
+    Lambda = rd.decoupling
+    Lambda0 = rd.drift
+    pts = region_points(plant, per_axis, samples, seed, margin)
+    vals = plant.parameter_values
+    rank = _check_rank(plant, Lambda.xreplace(vals), names, rd.degrees, Lambda, pts)
+    beta = Lambda.inv(method="LU").applyfunc(_tidy)
+    alpha = (-beta * Lambda0).applyfunc(_tidy)
+    rd_num = RelativeDegree(rd.degrees, Lambda.xreplace(vals), Lambda0.xreplace(vals))
+    lie_num = [L.xreplace(vals) for L in lie]
+    zd = _zero_dynamics(plant, rd_num, lie_num, alpha, f0, G, pts)
+    return Decoupling(plant.name, names, rd.degrees, Lambda, Lambda0, alpha, beta, h, lie, zd, rank)
+
+
+# ------------------------------------------------------------------ outer loop
+@dataclass(frozen=True)
+class OuterLoop:
+    """Outer-loop gains ``zeta_i = c_i0 (y_r,i - y_i) - sum_k c_ik y_i^(k)``.
+
+    Attributes
+    ----------
+    coefficients : tuple of ndarray
+        Per output ``(c_i0, ..., c_i,theta_i-1)`` (units 1/s^(theta_i - k)).
+    poles : tuple of ndarray
+        Per output the closed-loop poles (1/s), roots of ``s^theta_i + ... + c_i0``.
+    """
+
+    coefficients: tuple[np.ndarray, ...]
+    poles: tuple[np.ndarray, ...]
+
+    @property
+    def matrix(self) -> np.ndarray:
+        """Coefficients as an (m, max theta) array, zero-padded."""
+        width = max(len(c) for c in self.coefficients)
+        out = np.zeros((len(self.coefficients), width))
+        for i, c in enumerate(self.coefficients):
+            out[i, :len(c)] = c
+        return out
+
+    def as_dict(self) -> dict:
+        """JSON-friendly form."""
+        return {"coefficients": [c.tolist() for c in self.coefficients],
+                "poles": [[[float(p.real), float(p.imag)] for p in ps] for ps in self.poles]}
+
+
+def outer_loop(degrees: Sequence[int], poles: Sequence[Any] | None = None,
+               bandwidth: float | Sequence[float] | None = None) -> OuterLoop:
+    """Outer-loop coefficients from poles or a bandwidth.
+
+    Parameters
+    ----------
+    degrees : sequence of int
+        Relative degrees ``theta_i``.
+    poles : sequence of complex, optional
+        ``sum theta_i`` closed-loop poles (1/s, negative real parts), the
+        first ``theta_1`` for output 1 and so on; complex poles in conjugate
+        pairs within one output. For ``theta_i = 1`` the pole ``-K_i`` gives
+        ``zeta_i = K_i (y_r,i - y_i)``.
+    bandwidth : float or sequence of float, optional
+        ``omega_i`` (1/s, > 0): all poles of output ``i`` at ``-omega_i``.
+
+    Returns
+    -------
+    OuterLoop
+
+    Raises
+    ------
+    SpecError
+        Neither or both given, wrong count, unstable or unpaired poles.
+    """
+    if (poles is None) == (bandwidth is None):
+        raise SpecError("give the outer loop either 'poles' or 'bandwidth' (not both)", key="poles")
+    total = sum(degrees)
+    if poles is not None:
+        try:
+            p = np.asarray(poles, dtype=complex).reshape(-1)
+        except (TypeError, ValueError):
+            raise SpecError(f"poles must be numbers, got {poles!r}", key="poles") from None
+        if p.size != total:
+            raise SpecError(f"{p.size} poles given, expected sum of relative degrees = {total} "
+                            f"(degrees {list(degrees)})", key="poles")
+        if not np.all(np.isfinite(p)) or not np.all(p.real < 0):
+            raise SpecError(f"outer-loop poles must be finite with negative real part (1/s), got "
+                            f"{p.tolist()}", key="poles")
+        split = np.split(p, np.cumsum(degrees)[:-1])
+    else:
+        bw = np.atleast_1d(np.asarray(bandwidth, dtype=float))
+        if bw.size == 1:
+            bw = np.repeat(bw, len(degrees))
+        if bw.size != len(degrees) or not np.all(np.isfinite(bw)) or not np.all(bw > 0):
+            raise SpecError(f"bandwidth must be > 0 (1/s), one value or one per output, got "
+                            f"{np.asarray(bandwidth).tolist()}", key="bandwidth")
+        split = [np.full(theta, -w, dtype=complex) for theta, w in zip(degrees, bw)]
+    coeffs = []
+    for i, ps in enumerate(split):
+        c = np.poly(ps)
+        if np.max(np.abs(c.imag)) > 1e-9 * np.max(np.abs(c)):
+            raise SpecError(f"complex poles of output {i + 1} are not in conjugate pairs: {ps.tolist()}",
+                            key="poles")
+        coeffs.append(np.real(c)[1:][::-1].copy())           # c_0 .. c_{theta-1}
+    return OuterLoop(tuple(coeffs), tuple(np.asarray(ps) for ps in split))
+
+
+# ------------------------------------------------------------------------ law
+@dataclass(frozen=True)
+class FeedbackLinearization:
+    """Exact feedback-linearising, decoupling tracking law with its evidence.
+
+    Attributes
+    ----------
+    decoupling : Decoupling
+    outer : OuterLoop
+    law : casadi.Function
+        ``(x[n], y_r[m]) -> (u[m], zeta[m])``: ``u`` in the input units
+        (clipped to the actuator range when ``saturated``), ``zeta`` the
+        outer-loop signal (output units / s^theta).
+    saturated : bool
+    input_limits : ndarray, shape (m, 2)
+    law_expression : sympy.Matrix
+        Unsaturated ``u(x, y_r)`` (parameter values substituted; smooth
+        model), for the report.
+    reference_symbols : tuple of sympy.Symbol
+        ``y_r`` symbols used in ``law_expression``.
+    diagnostics : dict
+        JSON-friendly evidence (degrees, rank check, zero dynamics, outer
+        loop, law/model consistency).
+    """
+
+    decoupling: Decoupling
+    outer: OuterLoop
+    law: ca.Function
+    saturated: bool
+    input_limits: np.ndarray
+    law_expression: sp.Matrix
+    reference_symbols: tuple[sp.Symbol, ...]
+    diagnostics: dict = field(default_factory=dict)
+
+    def latex(self) -> dict[str, str]:
+        """LaTeX of the decoupling quantities and of the law."""
+        dec = self.decoupling
+        out = dec.latex()
+        out["u"] = sp.latex(self.law_expression)
+        zeta = sp.Matrix(sp.symbols(f"zeta_1:{len(dec.degrees) + 1}", real=True))
+        out["law"] = "u = " + sp.latex(dec.alpha + dec.beta * zeta)
+        outer = []
+        for i, (theta, c) in enumerate(zip(dec.degrees, self.outer.coefficients)):
+            y = sp.latex(dec.h[i])
+            terms = [rf"{c[0]:.6g}\,(y_{{r,{i + 1}}} - {y})"]
+            terms += [rf" - {c[k]:.6g}\,{y}^{{({k})}}" for k in range(1, theta)]
+            outer.append(rf"\zeta_{{{i + 1}}} = " + "".join(terms))
+        out["outer_loop"] = r",\quad ".join(outer)
+        return out
+
+
+def _law_general(plant: Plant, h: sp.Matrix, degrees: Sequence[int], outer: OuterLoop,
+                 refs: Sequence[sp.Symbol]) -> tuple[sp.Matrix, sp.Matrix, sp.Matrix]:
+    """``Lambda``, ``Lambda_0`` and ``u`` from the general (sgn/abs) model, parameters substituted."""
+    f0, G = control_affine(plant.f_numeric, plant.u)
+    vals = plant.parameter_values
+    rows, drift, zeta = [], [], []
+    for i, theta in enumerate(degrees):
+        lie = lie_derivatives(sp.Matrix([h[i].xreplace(vals)]), f0, plant.x, theta)
+        grad = jacobian(lie[-1], plant.x)
+        rows.append(grad * G)
+        drift.append((grad * f0)[0])
+        c = outer.coefficients[i]
+        zeta.append(c[0] * refs[i] - sum(c[k] * lie[k][0] for k in range(theta)))
+    Lam = sp.Matrix.vstack(*rows)
+    Lam0 = sp.Matrix(drift)
+    u = Lam.inv(method="LU") * (sp.Matrix(zeta) - Lam0)
+    return Lam, Lam0, u
+
+
+def feedback_linearization(plant: Plant, outputs: Sequence[str] | None = None, *,
+                           poles: Sequence[Any] | None = None,
+                           bandwidth: float | Sequence[float] | None = None,
+                           saturate: bool = True, allow_unstable_zero_dynamics: bool = False,
+                           per_axis: int = 11, samples: int = 400, seed: int = 0,
+                           margin: float = 0.02,
+                           analysis: Decoupling | None = None) -> FeedbackLinearization:
+    """Design the decoupling law ``u = alpha(x) + beta(x) zeta`` with its outer loop.
+
+    Parameters
+    ----------
+    plant : Plant
+    outputs : sequence of str, optional
+        Outputs to decouple (default: all; must be ``m`` of them).
+    poles, bandwidth
+        Outer loop (see `outer_loop`), 1/s.
+    saturate : bool
+        Clip ``u`` to the plant's actuator range in the compiled law.
+    allow_unstable_zero_dynamics : bool
+        Give the law even when the zero dynamics are unstable (recorded in
+        the diagnostics).
+    per_axis, samples, seed, margin
+        Region points for the checks (see `region_points`).
+    analysis : Decoupling, optional
+        A `decoupling_analysis` of the same plant and outputs to reuse (the
+        symbolic analysis is the expensive part); ``outputs`` and the region
+        options are then ignored.
+
+    Returns
+    -------
+    FeedbackLinearization
+
+    Raises
+    ------
+    DimensionError, InfeasibleDesign
+        See `decoupling_analysis`; also unstable zero dynamics (naming the
+        worst point and eigenvalue) unless overridden.
+    SpecError
+        Bad outer-loop options.
+    """
+    if analysis is None:
+        dec = decoupling_analysis(plant, outputs, per_axis=per_axis, samples=samples, seed=seed,
+                                  margin=margin)
+    elif analysis.plant != plant.name:
+        raise SpecError(f"analysis is of plant {analysis.plant!r}, not {plant.name!r}", key="analysis")
+    else:
+        dec = analysis
+    zd = dec.zero_dynamics
+    states = [s.name for s in plant.states]
+    if zd.dimension and not zd.stable and not allow_unstable_zero_dynamics:
+        k = int(np.argmax(zd.eigenvalues.real.max(axis=1)))
+        lam = zd.eigenvalues[k][np.argmax(zd.eigenvalues[k].real)]
+        unstable = int(np.sum(zd.eigenvalues.real.max(axis=1) >= 0))
+        raise InfeasibleDesign(
+            f"zero dynamics of plant '{plant.name}' (internal states {list(zd.coordinates)}, dimension "
+            f"{zd.dimension}) are unstable: Jacobian eigenvalue {complex(lam):.4g} 1/s at x = "
+            f"{_fmt(zd.worst_point, states)} ({unstable} of {len(zd.points)} region points with "
+            "Re >= 0); exact decoupling would make them diverge (non-minimum phase). Set "
+            "allow_unstable_zero_dynamics = true to design anyway")
+    outer = outer_loop(dec.degrees, poles, bandwidth)
+    refs = tuple(sp.Symbol(f"r_{nm}", real=True) for nm in dec.outputs)
+    Lam_g, Lam0_g, u_gen = _law_general(plant, dec.h, dec.degrees, outer, refs)
+    core = compile_matrix("fl_core", u_gen, [plant.x, refs], ["x", "y_r"])
+    xs = ca.SX.sym("x", plant.n)
+    rs = ca.SX.sym("y_r", plant.m)
+    u = core(xs, rs)
+    limits = plant.input_limits
+    if saturate:
+        for i, (lo, hi) in enumerate(limits):
+            if np.isfinite(lo):
+                u[i] = ca.fmax(u[i], lo)
+            if np.isfinite(hi):
+                u[i] = ca.fmin(u[i], hi)
+    # zeta from the same expressions (outer loop only)
+    vals = plant.parameter_values
+    zeta_expr = []
+    for i, theta in enumerate(dec.degrees):
+        c = outer.coefficients[i]
+        lie = dec.lie[i].xreplace(vals)
+        zeta_expr.append(c[0] * refs[i] - sum(c[k] * lie[k] for k in range(theta)))
+    zeta_fn = compile_matrix("fl_zeta", sp.Matrix(zeta_expr), [plant.x, refs], ["x", "y_r"])
+    law = ca.Function("fl_law", [xs, rs], [u, zeta_fn(xs, rs)], ["x", "y_r"], ["u", "zeta"])
+    # Law from the smooth model (analysed) for the report, and consistency on the region.
+    alpha_n = dec.alpha.xreplace(vals)
+    beta_n = dec.beta.xreplace(vals)
+    u_smooth = (alpha_n + beta_n * sp.Matrix(zeta_expr)).applyfunc(lambda e: _tidy(e, 200))
+    smooth_fn = compile_matrix("fl_smooth", u_smooth, [plant.x, refs], ["x", "y_r"])
+    pts = region_points(plant, 0, 200, seed + 1, margin)
+    h_fn = compile_matrix("h_sel", dec.h.xreplace(vals), [plant.x], ["x"])
+    r = _batch(h_fn, pts[::-1])[0][:, :, 0]                # references: outputs elsewhere in the region
+    ug = _batch2(core, pts, r)
+    us = _batch2(smooth_fn, pts, r)
+    consistency = float(np.max(np.abs(ug - us)) / max(np.max(np.abs(us)), 1e-300))
+    diagnostics = {
+        "outputs": list(dec.outputs), "degrees": list(dec.degrees), "sum_degrees": dec.total,
+        "n": plant.n, "m": plant.m,
+        "decouplable": True, "rank_check": dec.rank_check,
+        "zero_dynamics": zd.as_dict(states),
+        "zero_dynamics_override": bool(zd.dimension and not zd.stable),
+        "outer_loop": outer.as_dict(),
+        "Lambda": str(dec.Lambda.tolist()), "Lambda0": str(dec.Lambda0.tolist()),
+        "alpha": str(dec.alpha.tolist()), "beta": str(dec.beta.tolist()),
+        "law_model": "general model (sgn/abs kept): valid when flows reverse; equals the smooth "
+                     "(analysed) law on the region",
+        "law_smooth_vs_general_max_relative_difference": consistency,
+        "saturated": bool(saturate), "input_limits": limits.tolist(),
+        "assumptions": [a.text for a in plant.assumptions],
+    }
+    return FeedbackLinearization(dec, outer, law, bool(saturate), limits, u_smooth, refs, diagnostics)
