@@ -44,8 +44,8 @@ def _load(spec_path: str | None):
     return load_spec(spec_path)
 
 
-def _print_checks(checks) -> None:
-    table = Table(title="Rank conditions")
+def _print_checks(checks, title: str = "Rank conditions") -> None:
+    table = Table(title=title)
     table.add_column("check")
     table.add_column("verdict")
     table.add_column("detail", overflow="fold")
@@ -142,8 +142,9 @@ def design(spec: str, outdir: str, export: tuple[str, ...]) -> None:
 @click.argument("spec", required=False, type=click.Path(dir_okay=False))
 @click.option("-o", "--output", "outdir", default="tanksynth-out", show_default=True,
               type=click.Path(file_okay=False), help="Directory for artefacts and results.")
-def run(spec: str | None, outdir: str) -> None:
-    """Rank checks and every design of SPEC (default: the built-in three-tank demo)."""
+@click.option("--pdf", is_flag=True, help="Also compile the report to DIR/report.pdf (LaTeX).")
+def run(spec: str | None, outdir: str, pdf: bool) -> None:
+    """Rank checks, every design of SPEC and the report (default: the built-in three-tank demo)."""
     from .artefact import to_jsonable
 
     from .verify.checks import rank_conditions
@@ -159,10 +160,91 @@ def run(spec: str | None, outdir: str) -> None:
     for path in written:
         _out.print(f"artefact: {path}")
     _out.print(f"rank verdicts: {checks_path}")
+    if written:
+        _write_report(out, pdf)
+    else:
+        _out.print("no report: no design artefact was written")
     if infeasible:
         raise _Fail(EXIT_INFEASIBLE, "infeasible: " + "; ".join(infeasible))
     if any(c.passed is False for c in checks):
         raise _Fail(EXIT_FAILED, "some rank conditions fail")
+
+
+def _write_report(directory: Path, pdf: bool) -> None:
+    from .reports import write_report
+
+    res = write_report(directory, pdf=pdf)
+    _out.print(f"report: {res.tex}")
+    if res.pdf is not None:
+        _out.print(f"report pdf: {res.pdf} ({res.pages} pages, LaTeX {res.latex_seconds:.1f} s)")
+    for comp in res.comparisons:
+        if comp.errata:
+            _out.print(f"paper vs tool ({comp.title}): {len(comp.errata)} erratum/errata in the "
+                       "printed values", markup=False, highlight=False)
+
+
+@cli.command()
+@click.argument("directory", type=click.Path(file_okay=False))
+@click.option("--pdf", is_flag=True, help="Also compile DIR/report.pdf with latexmk/pdflatex.")
+def report(directory: str, pdf: bool) -> None:
+    """Write DIRECTORY/report.tex (and with --pdf report.pdf) from the files in it."""
+    _write_report(Path(directory), pdf)
+
+
+@cli.command()
+@click.argument("directory", type=click.Path(file_okay=False))
+@click.option("--scheduler", default=None, metavar="ADDR",
+              help="Dask scheduler address (tcp://host:port); default: this machine.")
+@click.option("--json", "as_json", is_flag=True, help="Print JSON instead of tables.")
+@click.option("--runs", default=0, show_default=True, type=click.IntRange(min=0),
+              help="Also run a Monte-Carlo campaign of this many runs per scenario.")
+@click.option("--scenario", "scenarios", multiple=True,
+              help="Campaign scenario (repeatable; default: every one defined for the plant).")
+@click.option("--seed", default=0, show_default=True, type=click.IntRange(min=0), help="Campaign seed.")
+@click.option("--workers", default=2, show_default=True, type=click.IntRange(min=1),
+              help="Worker processes of the local Dask cluster.")
+def verify(directory: str, scheduler: str | None, as_json: bool, runs: int,
+           scenarios: tuple[str, ...], seed: int, workers: int) -> None:
+    """Simulate every artefact of DIRECTORY and record the verdicts in it."""
+    from rich.progress import Progress
+
+    from .artefact import to_jsonable
+    from .verify.campaign import campaign_tasks, run_campaign
+    from .verify.scenarios import SCENARIOS, scenario
+    from .verify.verdicts import load_directory, verify_directory
+
+    for name in scenarios:
+        scenario(name)  # unknown names are bad input (exit 2) before any work
+    quiet = as_json
+    with Progress(console=_out, transient=True, disable=quiet) as bar:
+        task = bar.add_task("verifying artefacts", total=None)
+        verdicts = verify_directory(directory, scheduler=scheduler,
+                                    progress=lambda d, n: bar.update(task, completed=d, total=n))
+    table_path = None
+    if runs:
+        spec, docs = load_directory(directory)
+        names = list(scenarios) or [s for s in SCENARIOS if SCENARIOS[s].applies_to(spec.plant)]
+        tasks = campaign_tasks(spec.text or (Path(directory) / "spec.toml").read_text(encoding="utf-8"),
+                               [d for _, d in docs], names, runs, seed=seed)
+        with Progress(console=_out, transient=True, disable=quiet) as bar:
+            task = bar.add_task("campaign", total=len(tasks))
+            table = run_campaign(tasks, scheduler=scheduler, workers=workers,
+                                 progress=lambda d, n: bar.update(task, completed=d, total=n))
+        table_path = table.to_csv(Path(directory) / "campaign.csv")
+    if as_json:
+        click.echo(json.dumps(to_jsonable({"artefacts": [{"name": v.name, "method": v.method,
+                                                          **v.as_dict()} for v in verdicts],
+                                           "campaign": None if table_path is None else str(table_path)}),
+                              indent=2))
+    else:
+        for v in verdicts:
+            verdict = {True: "pass", False: "FAIL", None: "no verdict"}[v.passed]
+            _print_checks(v.checks, title=f"{v.name} ({v.method}): {verdict}")
+        if table_path is not None:
+            _out.print(f"campaign table: {table_path}", markup=False, highlight=False)
+    if any(v.passed is False for v in verdicts):
+        raise _Fail(EXIT_FAILED, "some verification checks fail: "
+                    + ", ".join(v.name for v in verdicts if v.passed is False))
 
 
 def main(argv: list[str] | None = None) -> int:

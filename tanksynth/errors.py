@@ -17,6 +17,7 @@ __all__ = [
     "InfeasibleDesign",
     "UnobservableError",
     "UncontrollableError",
+    "ReportError",
 ]
 
 
@@ -76,3 +77,19 @@ class UnobservableError(TanksynthError, ValueError):
 
 class UncontrollableError(TanksynthError, ValueError):
     """A design needs a controllable pair and the pair is not controllable."""
+
+
+class ReportError(TanksynthError, RuntimeError):
+    """A report could not be built (LaTeX failed, or undefined references remain).
+
+    Parameters
+    ----------
+    message : str
+        What failed.
+    log_path : str or Path, optional
+        The LaTeX log kept for diagnosis (``DIR/report.log``).
+    """
+
+    def __init__(self, message: str, log_path=None):
+        self.log_path = log_path
+        super().__init__(message)

@@ -1,0 +1,149 @@
+"""What a report reads: the plant record, the spec, the rank verdicts and the artefacts of DIR.
+
+The report stage never designs or simulates; it only reads the files the
+earlier stages wrote (see `tanksynth.artefact`).
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Mapping
+
+import numpy as np
+
+from ..artefact import PLANT_SCHEMA, SCHEMA, read_artefact, read_plant_record
+from ..errors import ArtefactError
+
+__all__ = ["ReportInputs", "read_report_inputs"]
+
+
+@dataclass(frozen=True)
+class ReportInputs:
+    """Everything a report is built from, as read from one directory.
+
+    Attributes
+    ----------
+    directory : Path
+    plant : dict
+        ``plant.json`` (schema ``tanksynth.plant/1``).
+    spec_text : str or None
+        ``spec.toml`` when present.
+    checks : tuple of dict or None
+        ``checks.json`` (rank verdicts) when present.
+    artefacts : tuple of dict
+        Every ``*.json`` of schema ``tanksynth.artefact/1``, sorted by file
+        name, read with `tanksynth.artefact.read_artefact` (gains are numpy
+        arrays). Each carries its file name under ``"_file"``.
+    campaign : tuple of dict or None
+        Rows of ``campaign.csv`` (Monte-Carlo campaign of ``tanksynth verify
+        --runs``) when present, as strings.
+    """
+
+    directory: Path
+    plant: Mapping[str, Any]
+    spec_text: str | None
+    checks: tuple[Mapping[str, Any], ...] | None
+    artefacts: tuple[Mapping[str, Any], ...]
+    campaign: tuple[Mapping[str, str], ...] | None = None
+
+    @property
+    def plant_name(self) -> str:
+        """The plant model name (``three_tank`` ...)."""
+        return str(self.plant.get("plant", {}).get("name", ""))
+
+    @property
+    def x0(self) -> np.ndarray | None:
+        """The operating point of the plant record."""
+        x = (self.plant.get("operating_point") or {}).get("x")
+        return None if x is None else np.asarray(x, dtype=float)
+
+    def parameters(self) -> dict[str, float]:
+        """Parameter values of the plant record by name."""
+        out = {}
+        for p in self.plant.get("plant", {}).get("parameters", []):
+            try:
+                out[str(p["name"])] = float(p["value"])
+            except (KeyError, TypeError, ValueError):
+                continue
+        return out
+
+    def by_method(self, method: str) -> tuple[Mapping[str, Any], ...]:
+        """Artefacts of one design method, in file order."""
+        return tuple(a for a in self.artefacts if a.get("method") == method)
+
+
+def _schema_of(path: Path) -> str | None:
+    try:
+        doc = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError):
+        return None
+    return doc.get("schema") if isinstance(doc, dict) else None
+
+
+def read_report_inputs(directory: str | Path) -> ReportInputs:
+    """Read a result directory written by ``tanksynth run`` / ``tanksynth design``.
+
+    Parameters
+    ----------
+    directory : str or Path
+
+    Returns
+    -------
+    ReportInputs
+
+    Raises
+    ------
+    ArtefactError
+        The directory does not exist, has no ``plant.json``, has no design
+        artefact, or a file of the artefact schema is malformed or fails
+        its provenance check. The message names the file.
+    """
+    d = Path(directory)
+    if not d.is_dir():
+        raise ArtefactError(f"{d}: no such directory (expected the output of `tanksynth run` "
+                            "or `tanksynth design`)")
+    if not (d / "plant.json").exists():
+        raise ArtefactError(f"{d}: no plant.json ({PLANT_SCHEMA}); this is not a tanksynth result "
+                            "directory: run `tanksynth run SPEC -o DIR` or `tanksynth design SPEC "
+                            "-o DIR` first")
+    plant = read_plant_record(d)
+    artefacts = []
+    for path in sorted(d.glob("*.json")):
+        if path.name in ("plant.json", "checks.json") or path.name.startswith("."):
+            continue
+        if _schema_of(path) != SCHEMA:
+            continue
+        doc = read_artefact(path)
+        doc["_file"] = path.name
+        artefacts.append(doc)
+    if not artefacts:
+        raise ArtefactError(f"{d}: no design artefact (*.json of schema {SCHEMA!r}) to report on; "
+                            "the spec needs at least one [[design]] that succeeded")
+    names = [a["name"] for a in artefacts]
+    dupes = sorted({n for n in names if names.count(n) > 1})
+    if dupes:
+        raise ArtefactError(f"{d}: several artefacts are named {dupes}")
+    spec_path = d / "spec.toml"
+    spec_text = spec_path.read_text(encoding="utf-8", errors="replace") if spec_path.exists() else None
+    checks = None
+    checks_path = d / "checks.json"
+    if checks_path.exists():
+        try:
+            raw = json.loads(checks_path.read_text(encoding="utf-8"))
+        except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+            raise ArtefactError(f"{checks_path}: not a JSON list of rank verdicts: {exc}") from None
+        if not isinstance(raw, list) or not all(isinstance(c, dict) and "check" in c for c in raw):
+            raise ArtefactError(f"{checks_path}: expected a list of {{check, passed, detail, data}}")
+        checks = tuple(raw)
+    campaign = None
+    campaign_path = d / "campaign.csv"
+    if campaign_path.exists():
+        try:
+            with campaign_path.open(newline="", encoding="utf-8") as fh:
+                campaign = tuple(dict(r) for r in csv.DictReader(fh))
+        except (OSError, UnicodeDecodeError, csv.Error) as exc:
+            raise ArtefactError(f"{campaign_path}: unreadable campaign table: {exc}") from None
+    return ReportInputs(d, plant, spec_text, checks, tuple(artefacts), campaign)

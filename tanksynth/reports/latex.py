@@ -1,0 +1,820 @@
+"""LaTeX building blocks: escaping, number and matrix formatting, templates, compilation.
+
+Everything that ends up in ``report.tex`` passes through this module. User
+strings (titles, names, assumption texts, solver messages) are escaped with
+`escape_latex`; LaTeX we generate ourselves is marked as `Tex` so that the
+template engine does not escape it a second time. The Jinja2 environment
+escapes every value that is not `Tex`, so forgetting a filter in a template
+gives ugly text, never a LaTeX error.
+
+`compile_pdf` runs latexmk (or pdflatex directly when latexmk is missing)
+in a scratch directory and checks the log for errors and undefined
+references.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import re
+import shutil
+import subprocess
+import unicodedata
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Iterable
+
+import numpy as np
+
+from ..errors import ReportError
+
+__all__ = [
+    "Tex",
+    "escape_latex",
+    "format_number",
+    "format_complex",
+    "format_eigenvalues",
+    "format_unit",
+    "symbol_latex",
+    "expression_latex",
+    "matrix_latex",
+    "gain_latex",
+    "GainDisplay",
+    "split_equation",
+    "visual_length",
+    "environment",
+    "CompileResult",
+    "compile_pdf",
+    "find_latex",
+    "pdf_page_count",
+]
+
+
+class Tex(str):
+    """A string that already is LaTeX: the templates insert it unchanged."""
+
+    __slots__ = ()
+
+
+# ------------------------------------------------------------------ escaping
+_SPECIAL = {
+    "\\": r"\textbackslash{}",
+    "{": r"\{",
+    "}": r"\}",
+    "$": r"\$",
+    "&": r"\&",
+    "#": r"\#",
+    "%": r"\%",
+    "_": r"\_",
+    "~": r"\textasciitilde{}",
+    "^": r"\textasciicircum{}",
+    "<": r"\textless{}",
+    ">": r"\textgreater{}",
+    "|": r"\textbar{}",
+    '"': "''",
+    "`": r"\textasciigrave{}",
+}
+
+# Non-ASCII characters the default (OT1) fonts can show, without extra packages.
+_UNICODE = {
+    "\u2013": "--", "\u2014": "---", "\u2018": "`", "\u2019": "'", "\u201c": "``",
+    "\u201d": "''", "\u2026": r"\ldots{}", "\u00a0": r"\nobreakspace{}", "\u00b0": r"\textdegree{}",
+    "\u00b5": r"\textmu{}", "\u00d7": r"\texttimes{}", "\u00b1": r"\textpm{}",
+    "\u00b2": r"\texttwosuperior{}", "\u00b3": r"\textthreesuperior{}", "\u00a7": r"\S{}",
+    "\u00df": r"\ss{}", "\u00e6": r"\ae{}", "\u00c6": r"\AE{}", "\u00f8": r"\o{}",
+    "\u00d8": r"\O{}", "\u0153": r"\oe{}", "\u0152": r"\OE{}", "\u00e5": r"\aa{}",
+    "\u00c5": r"\AA{}", "\u0142": r"\l{}", "\u0141": r"\L{}", "\u2212": "-{}",
+    "\u2264": r"\ensuremath{\leq}", "\u2265": r"\ensuremath{\geq}",
+    "\u2260": r"\ensuremath{\neq}", "\u2248": r"\ensuremath{\approx}",
+    "\u2192": r"\ensuremath{\rightarrow}", "\u221e": r"\ensuremath{\infty}",
+    "\u221a": r"\ensuremath{\surd}", "\u00b7": r"\ensuremath{\cdot}",
+    "\u2202": r"\ensuremath{\partial}", "\u2211": r"\ensuremath{\sum}",
+    "\u00ac": r"\ensuremath{\neg}", "\u00f7": r"\ensuremath{\div}",
+    "\u20ac": "EUR", "\u00a9": r"\copyright{}", "\u2022": r"\textbullet{}",
+}
+_GREEK = {
+    "alpha": "\u03b1", "beta": "\u03b2", "gamma": "\u03b3", "delta": "\u03b4",
+    "epsilon": "\u03b5", "zeta": "\u03b6", "eta": "\u03b7", "theta": "\u03b8", "iota": "\u03b9",
+    "kappa": "\u03ba", "lambda": "\u03bb", "mu": "\u03bc", "nu": "\u03bd", "xi": "\u03be",
+    "pi": "\u03c0", "rho": "\u03c1", "sigma": "\u03c3", "tau": "\u03c4", "upsilon": "\u03c5",
+    "phi": "\u03c6", "chi": "\u03c7", "psi": "\u03c8", "omega": "\u03c9",
+    "Gamma": "\u0393", "Delta": "\u0394", "Theta": "\u0398", "Lambda": "\u039b", "Xi": "\u039e",
+    "Pi": "\u03a0", "Sigma": "\u03a3", "Phi": "\u03a6", "Psi": "\u03a8", "Omega": "\u03a9",
+}
+for _name, _char in _GREEK.items():
+    _UNICODE[_char] = rf"\ensuremath{{\{_name}}}"
+_ACCENTS = {  # combining mark -> LaTeX accent command
+    "\u0300": "`", "\u0301": "'", "\u0302": "^", "\u0303": "~", "\u0308": '"', "\u0304": "=",
+    "\u0307": ".", "\u0327": "c", "\u030c": "v", "\u0306": "u", "\u030b": "H", "\u030a": "r",
+}
+
+
+def _escape_char(ch: str) -> str:
+    if ch in _SPECIAL:
+        return _SPECIAL[ch]
+    code = ord(ch)
+    if code < 128:
+        if ch in "\n\r\t\f\v":
+            return " "
+        if code < 32 or code == 127:
+            return ""
+        return ch
+    if ch in _UNICODE:
+        return _UNICODE[ch]
+    decomposed = unicodedata.normalize("NFD", ch)
+    base, marks = decomposed[0], decomposed[1:]
+    if len(marks) == 1 and marks in _ACCENTS and base.isascii() and base.isalpha():
+        base_tex = {"i": r"\i", "j": r"\j"}.get(base, base)
+        return rf"\{_ACCENTS[marks]}{{{base_tex}}}"
+    # anything else: name the code point instead of failing the build
+    return rf"\texttt{{[U+{code:04X}]}}"
+
+
+def escape_latex(text: Any, breakable: bool = False) -> Tex:
+    """Escape arbitrary text for LaTeX text mode.
+
+    Parameters
+    ----------
+    text : object
+        Converted with ``str``. ``None`` gives an empty string.
+    breakable : bool
+        Allow line breaks after ``/ _ - . :`` and every 16 characters of an
+        unbroken run (paths, hashes, long identifiers in narrow columns).
+
+    Returns
+    -------
+    Tex
+        Safe to insert in text mode: every LaTeX special character, control
+        character and non-ASCII character is replaced by a command that the
+        default fonts can typeset.
+    """
+    if text is None:
+        return Tex("")
+    s = str(text)
+    out: list[str] = []
+    run = 0
+    for i, ch in enumerate(s):
+        if ch == "-" and i + 1 < len(s) and s[i + 1] == "-":
+            out.append("-{}")  # no en/em-dash ligatures from user text
+        else:
+            out.append(_escape_char(ch))
+        run = 0 if ch.isspace() else run + 1
+        if breakable and i + 1 < len(s) and not s[i + 1].isspace() and (
+                ch in "/_" or (ch in "-.:," and not s[i + 1].isdigit()) or run >= 20):
+            out.append(r"\allowbreak{}")
+            run = 0
+    return Tex("".join(out))
+
+
+# ----------------------------------------------------------------- numbers
+def _exp_form(mantissa: str, exponent: int) -> str:
+    if mantissa in ("1", "1.0"):
+        return f"10^{{{exponent}}}"
+    if mantissa in ("-1", "-1.0"):
+        return f"-10^{{{exponent}}}"
+    return rf"{mantissa} \times 10^{{{exponent}}}"
+
+
+def format_number(value: Any, digits: int = 5) -> Tex:
+    """Math-mode LaTeX (without ``$``) for a number, ``digits`` significant digits.
+
+    Uses fixed notation between 1e-4 and 10**digits, otherwise
+    ``m \\times 10^{e}``. Accepts the strings ``"inf"``, ``"-inf"``, ``"nan"``
+    written by `tanksynth.artefact.to_jsonable`, booleans and ``None``.
+    """
+    if value is None:
+        return Tex(r"\text{--}")
+    if isinstance(value, (bool, np.bool_)):
+        return Tex(r"\text{yes}" if value else r"\text{no}")
+    if isinstance(value, str):
+        low = value.strip().lower()
+        if low in ("inf", "+inf", "infinity"):
+            return Tex(r"\infty")
+        if low in ("-inf", "-infinity"):
+            return Tex(r"-\infty")
+        if low == "nan":
+            return Tex(r"\text{NaN}")
+        return Tex(r"\text{" + escape_latex(value) + "}")
+    if isinstance(value, (int, np.integer)):
+        return Tex(str(int(value)))
+    if isinstance(value, (complex, np.complexfloating)):
+        return format_complex(value.real, value.imag, digits)
+    x = float(value)
+    if math.isnan(x):
+        return Tex(r"\text{NaN}")
+    if math.isinf(x):
+        return Tex(r"\infty" if x > 0 else r"-\infty")
+    if x == 0.0:
+        return Tex("0")
+    s = f"{x:.{digits}g}"
+    if "e" in s:
+        mantissa, exp = s.split("e")
+        return Tex(_exp_form(mantissa, int(exp)))
+    return Tex(s)
+
+
+def format_complex(re_: float, im: float, digits: int = 5) -> Tex:
+    """Math-mode LaTeX of ``re + j im`` (``re`` alone when ``im == 0``)."""
+    re_, im = float(re_), float(im)
+    if im == 0.0:
+        return format_number(re_, digits)
+    mag = format_number(abs(im), digits)
+    sign = "-" if im < 0 else "+"
+    if re_ == 0.0:
+        return Tex(("-" if im < 0 else "") + mag + r"\,\mathrm{j}")
+    return Tex(f"{format_number(re_, digits)} {sign} {mag}" + r"\,\mathrm{j}")
+
+
+def _as_complex_list(values: Any) -> list[complex]:
+    arr = values if isinstance(values, list) else list(np.asarray(values).tolist())
+    out = []
+    for v in arr:
+        if isinstance(v, (list, tuple)) and len(v) == 2:
+            out.append(complex(float(v[0]), float(v[1])))
+        elif isinstance(v, (list, tuple)):
+            raise ValueError("not an eigenvalue list")
+        else:
+            out.append(complex(float(v), 0.0))
+    return out
+
+
+def format_eigenvalues(values: Any, digits: int = 5, limit: int = 24) -> Tex:
+    """Math-mode list of eigenvalues; conjugate pairs are written ``a \\pm b j``.
+
+    ``values`` is a list of numbers or of ``[re, im]`` pairs (the artefact
+    convention for complex numbers). At most ``limit`` entries are shown.
+    """
+    vals = _as_complex_list(values)
+    used = [False] * len(vals)
+    parts: list[str] = []
+    for i, v in enumerate(vals):
+        if used[i]:
+            continue
+        used[i] = True
+        if v.imag != 0.0:
+            for j in range(i + 1, len(vals)):
+                w = vals[j]
+                if not used[j] and abs(w.real - v.real) <= 1e-12 * max(1.0, abs(v.real)) \
+                        and abs(w.imag + v.imag) <= 1e-12 * max(1.0, abs(v.imag)):
+                    used[j] = True
+                    parts.append(f"{format_number(v.real, digits)} \\pm "
+                                 f"{format_number(abs(v.imag), digits)}\\,\\mathrm{{j}}")
+                    break
+            else:
+                parts.append(format_complex(v.real, v.imag, digits))
+        else:
+            parts.append(format_number(v.real, digits))
+    shown = parts[:limit]
+    text = ",\\allowbreak\\; ".join(shown)
+    if len(parts) > limit:
+        text += rf",\;\ldots\ (\text{{{len(parts) - limit} more}})"
+    return Tex(text)
+
+
+_UNIT_TOKEN = re.compile(r"([A-Za-z]+|\d+(?:\.\d+)?)(?:\^(\(?-?\d+(?:\.\d+)?\)?))?")
+
+
+def format_unit(unit: Any) -> Tex:
+    """LaTeX (text mode) for a unit string such as ``m^3/s`` or ``m/s^2``.
+
+    ``"1"`` or ``""`` (dimensionless) gives a dash. Strings outside the
+    simple ``name^exp`` grammar are escaped as plain text.
+    """
+    if unit is None:
+        return Tex("--")
+    u = str(unit).strip()
+    if u in ("", "1", "-"):
+        return Tex("--")
+    if not re.fullmatch(r"[A-Za-z0-9^/*.() \-]+", u):
+        return escape_latex(u)
+    out: list[str] = []
+    pos = 0
+    for m in _UNIT_TOKEN.finditer(u):
+        between = u[pos:m.start()]
+        out.append(_unit_sep(between))
+        base, exp = m.group(1), m.group(2)
+        piece = rf"\mathrm{{{base}}}"
+        if exp:
+            piece += "^{" + exp.strip("()") + "}"
+        out.append(piece)
+        pos = m.end()
+    tail = u[pos:]
+    if tail.strip(" ()"):
+        return escape_latex(u)
+    out.append(_unit_sep(tail))
+    return Tex("$" + "".join(out) + "$")
+
+
+def _unit_sep(text: str) -> str:
+    t = text.strip()
+    if not t:
+        return r"\," if text else ""
+    return {"/": "/", "*": r"\,", ".": r"\,", "(": "(", ")": ")", "-": "-"}.get(t, r"\,")
+
+
+_IDENT = re.compile(r"[A-Za-z][A-Za-z0-9_]*\Z")
+
+
+def symbol_latex(name: Any) -> Tex:
+    """Math-mode LaTeX of a symbol name, as sympy prints it (``mu13`` -> ``\\mu_{13}``).
+
+    Names that are not plain identifiers are escaped and set upright.
+    """
+    s = str(name)
+    if _IDENT.match(s):
+        import sympy as sp
+
+        return Tex(sp.latex(sp.Symbol(s)))
+    return Tex(r"\text{" + escape_latex(s) + "}")
+
+
+def expression_latex(text: Any) -> Tex | None:
+    """Math-mode LaTeX of an expression string written by sympy (``str(expr)``).
+
+    The text goes through the whitelist parser of `tanksynth.plants.parser`
+    (never ``eval``/``sympify``); every identifier becomes a symbol. Returns
+    None when the text is outside that grammar (the caller then shows it
+    verbatim).
+    """
+    if not isinstance(text, str) or not text.strip() or len(text) > 4000:
+        return None
+    import sympy as sp
+
+    from ..errors import ParseError
+    from ..plants.parser import FUNCTIONS, parse_expression
+
+    names = {n: sp.Symbol(n) for n in set(re.findall(r"[A-Za-z_][A-Za-z0-9_]*", text))
+             if n not in FUNCTIONS}
+    try:
+        expr = parse_expression(text, names, key="report")
+    except (ParseError, ValueError, TypeError, RecursionError):
+        return None
+    return Tex(sp.latex(expr))
+
+
+# ----------------------------------------------------------------- matrices
+#: Full display limits: larger gains are summarised.
+MAX_ROWS, MAX_COLS, MAX_VECTOR = 16, 12, 16
+
+
+def _common_exponent(arr: np.ndarray) -> int:
+    finite = np.abs(arr[np.isfinite(arr)])
+    nz = finite[finite > 0]
+    if nz.size == 0:
+        return 0
+    e = int(math.floor(math.log10(float(nz.max()))))
+    return e if (e <= -3 or e >= 5) else 0
+
+
+def matrix_latex(arr: Any, digits: int = 5, factor: bool = True) -> Tex:
+    """Math-mode ``bmatrix`` of a 1-D or 2-D array (1-D shown as a column).
+
+    Parameters
+    ----------
+    arr : array_like
+    digits : int
+        Significant digits per entry.
+    factor : bool
+        Pull a common power of ten out when the largest entry is below 1e-2
+        or at least 1e5 (``10^{-4} [ ... ]``, as papers print gains).
+    """
+    a = np.asarray(arr, dtype=float)
+    if a.ndim == 0:
+        return format_number(float(a), digits)
+    if a.ndim == 1:
+        a = a.reshape(-1, 1)
+    e = _common_exponent(a) if factor else 0
+    scaled = a / 10.0**e if e else a
+    rows = [" & ".join(format_number(v, digits) for v in row) for row in scaled]
+    body = r"\begin{bmatrix}" + r" \\ ".join(rows) + r"\end{bmatrix}"
+    return Tex((f"10^{{{e}}}\\," if e else "") + body)
+
+
+@dataclass(frozen=True)
+class GainDisplay:
+    """How one gain is shown: a full matrix or a summary of a large array.
+
+    Attributes
+    ----------
+    name : str
+        Gain name (raw; escape when typesetting).
+    shape : tuple of int
+    full : bool
+        True when ``latex`` holds every entry.
+    latex : Tex
+        Math-mode matrix when ``full``; otherwise empty.
+    summary : tuple of (str, Tex)
+        Label (plain text) and math-mode value rows for large gains.
+    """
+
+    name: str
+    shape: tuple[int, ...]
+    full: bool
+    latex: Tex
+    summary: tuple[tuple[str, Tex], ...]
+
+    @property
+    def shape_latex(self) -> Tex:
+        """The shape as ``n \\times m`` (math mode)."""
+        if not self.shape:
+            return Tex(r"\text{scalar}")
+        return Tex(r" \times ".join(str(s) for s in self.shape))
+
+
+def _index(idx: tuple[int, ...]) -> str:
+    return "(" + ",".join(str(i + 1) for i in idx) + ")"
+
+
+def gain_latex(name: str, arr: Any, digits: int = 5) -> GainDisplay:
+    """Full matrix for small gains, a summary (shape, norms, first/last entries) for large ones.
+
+    Vectors up to 16 entries and matrices up to 16 x 12 are shown in full;
+    larger arrays and every array of three or more dimensions (gain
+    sequences) are summarised.
+    """
+    a = np.asarray(arr, dtype=float)
+    shape = tuple(int(s) for s in a.shape)
+    small = (a.ndim <= 1 and a.size <= MAX_VECTOR) or \
+        (a.ndim == 2 and shape[0] <= MAX_ROWS and shape[1] <= MAX_COLS)
+    if small:
+        if a.ndim == 1:
+            e = _common_exponent(a)
+            scaled = a / 10.0**e if e else a
+            body = r"\begin{bmatrix}" + " & ".join(format_number(v, digits) for v in scaled) \
+                + r"\end{bmatrix}^{\top}"
+            tex = Tex((f"10^{{{e}}}\\," if e else "") + body)
+        else:
+            tex = matrix_latex(a, digits)
+        return GainDisplay(name, shape, True, tex, ())
+    flat = a.ravel()
+    finite = flat[np.isfinite(flat)]
+    rows: list[tuple[str, Tex]] = [
+        ("Frobenius norm", format_number(float(np.linalg.norm(finite)), digits)),
+        ("largest |entry|", format_number(float(np.max(np.abs(finite))) if finite.size else 0.0,
+                                          digits)),
+        ("nonzero entries", Tex(f"{int(np.count_nonzero(flat))} / {flat.size}")),
+    ]
+    if a.ndim == 2 and shape[0] == shape[1]:
+        try:
+            rho = float(np.max(np.abs(np.linalg.eigvals(a))))
+            rows.append(("spectral radius", format_number(rho, digits)))
+        except np.linalg.LinAlgError:  # pragma: no cover - eigvals of a finite matrix
+            pass
+    if a.ndim >= 3:
+        first, last = a[0], a[-1]
+        rows.append((f"norm of slice 1 (of {shape[0]})", format_number(float(np.linalg.norm(first)),
+                                                                         digits)))
+        rows.append((f"norm of slice {shape[0]}", format_number(float(np.linalg.norm(last)), digits)))
+    k = min(4, flat.size)
+    idx_first = [np.unravel_index(i, shape) for i in range(k)]
+    idx_last = [np.unravel_index(i, shape) for i in range(flat.size - k, flat.size)]
+    rows.append(("first entries", Tex(r",\; ".join(
+        f"{_index(ix)}: {format_number(a[ix], digits)}" for ix in idx_first))))
+    rows.append(("last entries", Tex(r",\; ".join(
+        f"{_index(ix)}: {format_number(a[ix], digits)}" for ix in idx_last))))
+    return GainDisplay(name, shape, False, Tex(""), tuple(rows))
+
+
+# ------------------------------------------------------------ long equations
+def _top_level_splits(s: str) -> list[int]:
+    """Indices of top-level `` + `` / `` - `` in a LaTeX string (outside braces,
+    ``\\left..\\right`` and environments)."""
+    depth = 0
+    out = []
+    i = 0
+    n = len(s)
+    while i < n:
+        c = s[i]
+        if c == "\\":
+            for word, delta in (("\\left", 1), ("\\right", -1), ("\\begin", 1), ("\\end", -1)):
+                if s.startswith(word, i) and not (i + len(word) < n and s[i + len(word)].isalpha()):
+                    depth += delta
+                    i += len(word)
+                    break
+            else:
+                i += 2
+            continue
+        if c == "{":
+            depth += 1
+        elif c == "}":
+            depth -= 1
+        elif depth == 0 and c in "+-" and i > 0 and s[i - 1] == " " and i + 1 < n and s[i + 1] == " ":
+            out.append(i)
+        i += 1
+    return out
+
+
+def _brace_group(s: str, start: int) -> int:
+    """Index just past the brace group opening at ``s[start] == '{'``."""
+    depth = 0
+    for i in range(start, len(s)):
+        if s[i] == "\\":
+            continue
+        if s[i] == "{" and (i == 0 or s[i - 1] != "\\"):
+            depth += 1
+        elif s[i] == "}" and s[i - 1] != "\\":
+            depth -= 1
+            if depth == 0:
+                return i + 1
+    return -1
+
+
+_STRUCTURAL = {"frac", "tfrac", "dfrac", "sqrt", "left", "right", "operatorname", "mathrm", "text",
+               "begin", "end", "dot", "bar", "hat", "tilde", "mathbf", "mathcal", "quad", "qquad"}
+
+
+def visual_length(tex: str) -> int:
+    """Rough typeset width of math LaTeX, in characters.
+
+    Structural commands (``\\frac``, ``\\sqrt``, ``\\left`` ...) and braces count
+    nothing, other commands (Greek letters, operators) one character,
+    subscripts and superscripts half; a fraction counts the wider of its
+    numerator and denominator.
+    """
+    total = 0.0
+    i, n = 0, len(tex)
+    while i < n:
+        c = tex[i]
+        if c == "\\":
+            j = i + 1
+            while j < n and tex[j].isalpha():
+                j += 1
+            word = tex[i + 1:j]
+            if word in ("frac", "tfrac", "dfrac") and j < n and tex[j] == "{":
+                end_num = _brace_group(tex, j)
+                if end_num > 0 and end_num < n and tex[end_num] == "{":
+                    end_den = _brace_group(tex, end_num)
+                    if end_den > 0:
+                        total += max(visual_length(tex[j + 1:end_num - 1]),
+                                     visual_length(tex[end_num + 1:end_den - 1]))
+                        i = end_den
+                        continue
+            if word == "begin" or word == "end":
+                k = _brace_group(tex, j) if j < n and tex[j] == "{" else j
+                i = k if k > 0 else j
+                continue
+            total += 0 if word in _STRUCTURAL else 1
+            i = max(j, i + 2)
+            continue
+        if c in "_^":
+            if i + 1 < n and tex[i + 1] == "{":
+                end = _brace_group(tex, i + 1)
+                if end > 0:
+                    total += 0.6 * visual_length(tex[i + 2:end - 1])
+                    i = end
+                    continue
+            total += 0.6
+            i += 2
+            continue
+        if c not in "{} ":
+            total += 1
+        elif c == " ":
+            total += 0.15
+        i += 1
+    return int(round(total))
+
+
+def split_equation(equation: str, width: int = 75) -> list[Tex]:
+    """Split a long sympy-LaTeX equation ``lhs = rhs`` into display lines.
+
+    The right-hand side is broken at top-level ``+``/``-``; a right-hand
+    side that is one fraction ``\\frac{N}{D}`` is first rewritten as
+    ``\\frac{1}{D}\\bigl(N\\bigr)`` so that its numerator can be broken.
+    ``width`` is a budget per line in the units of `visual_length`. Returns
+    one line when nothing can be split.
+
+    Returns
+    -------
+    list of Tex
+        Lines for an ``aligned`` environment; the first holds ``lhs &= ...``,
+        the others start with ``&\\quad``.
+    """
+    if visual_length(equation) <= width or " = " not in equation:
+        return [Tex(equation.replace(" = ", " &= ", 1))] if " = " in equation else [Tex(equation)]
+    lhs, rhs = equation.split(" = ", 1)
+    rhs = rhs.strip()
+    prefix, suffix = "", ""
+    if rhs.startswith(r"\frac{"):
+        end_num = _brace_group(rhs, len(r"\frac"))
+        if end_num > 0 and end_num < len(rhs) and rhs[end_num] == "{":
+            end_den = _brace_group(rhs, end_num)
+            if end_den == len(rhs):
+                num, den = rhs[len(r"\frac") + 1:end_num - 1], rhs[end_num + 1:end_den - 1]
+                if _top_level_splits(num):
+                    prefix, suffix = rf"\frac{{1}}{{{den}}}\Bigl(", r"\Bigr)"
+                    rhs = num
+    cuts = _top_level_splits(rhs)
+    if not cuts:
+        return [Tex(equation.replace(" = ", " &= ", 1))]
+    terms, last = [], 0
+    for c in cuts:
+        terms.append(rhs[last:c].strip())
+        last = c
+    terms.append(rhs[last:].strip())
+    lines: list[str] = []
+    current = ""
+    for t in terms:
+        if current and visual_length(current) + visual_length(t) > width:
+            lines.append(current)
+            current = t
+        else:
+            current = (current + " " + t).strip()
+    lines.append(current)
+    lines[0] = f"{lhs} &= {prefix}{lines[0]}"
+    lines[1:] = [r"&\quad " + ln for ln in lines[1:]]
+    lines[-1] += suffix
+    return [Tex(ln) for ln in lines]
+
+
+# ------------------------------------------------------------------ Jinja2
+def _finalize(value: Any) -> Any:
+    if isinstance(value, Tex):
+        return value
+    if value is None:
+        return ""
+    if isinstance(value, (bool, np.bool_)):
+        return "yes" if value else "no"
+    if isinstance(value, (int, float, np.integer, np.floating)):
+        return Tex("$" + format_number(value) + "$")
+    return escape_latex(value)
+
+
+def _math(value: Any, digits: int = 5) -> Tex:
+    return Tex("$" + format_number(value, digits) + "$")
+
+
+def _texjoin(items: Iterable[Any], sep: str = ", ") -> Tex:
+    return Tex(sep.join(_finalize(i) for i in items))
+
+
+def environment():
+    """The Jinja2 environment for the report templates.
+
+    Delimiters are chosen not to clash with LaTeX braces: ``((* block *))``,
+    ``((( expression )))``, ``((= comment =))``. Every expression that is not
+    `Tex` is escaped; numbers are formatted with `format_number`.
+    """
+    import jinja2
+
+    env = jinja2.Environment(
+        loader=jinja2.PackageLoader("tanksynth.reports", "templates"),
+        block_start_string="((*", block_end_string="*))",
+        variable_start_string="(((", variable_end_string=")))",
+        comment_start_string="((=", comment_end_string="=))",
+        trim_blocks=True, lstrip_blocks=True, keep_trailing_newline=True,
+        autoescape=False, undefined=jinja2.StrictUndefined, finalize=_finalize,
+    )
+    env.filters.update({
+        "e": escape_latex,
+        "tex": lambda s: Tex(s),
+        "num": _math,
+        "unit": format_unit,
+        "sym": lambda s: Tex("$" + symbol_latex(s) + "$"),
+        "symm": symbol_latex,
+        "texjoin": _texjoin,
+        "breakable": lambda s: escape_latex(s, breakable=True),
+    })
+    return env
+
+
+# -------------------------------------------------------------- compilation
+@dataclass(frozen=True)
+class CompileResult:
+    """Outcome of a successful LaTeX build.
+
+    Attributes
+    ----------
+    pdf : Path
+        The PDF inside the build directory.
+    log : Path
+        The LaTeX log inside the build directory.
+    engine : str
+        ``"latexmk"`` or ``"pdflatex"``.
+    seconds : float
+        Wall time of the build.
+    passes : int
+        pdflatex runs (1 for latexmk: it decides itself).
+    """
+
+    pdf: Path
+    log: Path
+    engine: str
+    seconds: float
+    passes: int
+
+
+def find_latex() -> tuple[str | None, str | None]:
+    """Paths of ``latexmk`` and ``pdflatex`` on PATH (None when missing)."""
+    return shutil.which("latexmk"), shutil.which("pdflatex")
+
+
+_ERROR_LINE = re.compile(r"^(?:! .*|.*:\d+: .*)$", re.M)
+_UNDEFINED = re.compile(r"(?:Reference|Citation) `[^']*' on page \d+ undefined|"
+                        r"There were undefined references", re.M)
+
+
+def _needs_rerun(log: Path) -> bool:
+    text = log.read_text(encoding="latin-1", errors="replace") if log.exists() else ""
+    return "Rerun to get" in text or "Label(s) may have changed" in text or \
+        "Rerun LaTeX" in text
+
+
+def _first_error(log: str) -> str:
+    m = _ERROR_LINE.search(log)
+    return " ".join(m.group(0).split()) if m else ""
+
+
+def compile_pdf(tex_file: Path, timeout: float = 180.0) -> CompileResult:
+    """Build ``tex_file`` into a PDF in its own directory.
+
+    Uses ``latexmk -pdf`` when installed, else pdflatex up to four passes
+    (until no "Rerun" request). Shell escape is off, interaction is
+    non-stop, the first error halts the run.
+
+    Parameters
+    ----------
+    tex_file : Path
+        A ``.tex`` file in a scratch directory (auxiliary files land beside
+        it).
+    timeout : float
+        Seconds before the build is abandoned.
+
+    Returns
+    -------
+    CompileResult
+
+    Raises
+    ------
+    ReportError
+        No LaTeX installed, the build failed or timed out, or the log still
+        reports undefined references. ``log_path`` is the log in the build
+        directory (the caller keeps a copy).
+    """
+    import time
+
+    tex_file = Path(tex_file)
+    workdir = tex_file.parent
+    stem = tex_file.stem
+    log = workdir / f"{stem}.log"
+    latexmk, pdflatex = find_latex()
+    if pdflatex is None:
+        raise ReportError("pdflatex is not installed: run `make tex` (Debian packages "
+                          "texlive-latex-base texlive-latex-recommended latexmk) or omit --pdf")
+    flags = ["-interaction=nonstopmode", "-halt-on-error", "-file-line-error", "-no-shell-escape"]
+    env = dict(os.environ)
+    start = time.perf_counter()
+    passes = 0
+    try:
+        if latexmk is not None:
+            cmd = [latexmk, "-pdf", "-silent", f"-pdflatex=pdflatex {' '.join(flags)} %O %S",
+                   tex_file.name]
+            proc = subprocess.run(cmd, cwd=workdir, env=env, capture_output=True, text=True,
+                                  timeout=timeout, stdin=subprocess.DEVNULL)
+            engine, passes, ok = "latexmk", 1, proc.returncode == 0
+            # latexmk may stop while the log still asks for a rerun (labels moved by
+            # the table of contents): finish with plain pdflatex runs.
+            for _ in range(2):
+                if not ok or not _needs_rerun(log):
+                    break
+                proc = subprocess.run([pdflatex, *flags, tex_file.name], cwd=workdir, env=env,
+                                      capture_output=True, text=True, timeout=timeout,
+                                      stdin=subprocess.DEVNULL)
+                passes += 1
+                ok = proc.returncode == 0
+        else:
+            engine, ok = "pdflatex", True
+            for passes in range(1, 5):
+                proc = subprocess.run([pdflatex, *flags, tex_file.name], cwd=workdir, env=env,
+                                      capture_output=True, text=True, timeout=timeout,
+                                      stdin=subprocess.DEVNULL)
+                if proc.returncode != 0:
+                    ok = False
+                    break
+                if passes >= 2 and not _needs_rerun(log):
+                    break
+    except subprocess.TimeoutExpired:
+        raise ReportError(f"LaTeX did not finish within {timeout:.0f} s", log_path=log) from None
+    seconds = time.perf_counter() - start
+    text = log.read_text(encoding="latin-1", errors="replace") if log.exists() else ""
+    pdf = workdir / f"{stem}.pdf"
+    if not ok or not pdf.exists():
+        first = _first_error(text) or "no PDF produced"
+        raise ReportError(f"LaTeX failed: {first}", log_path=log)
+    if _UNDEFINED.search(text):
+        raise ReportError("LaTeX left undefined references", log_path=log)
+    return CompileResult(pdf, log, engine, seconds, passes)
+
+
+def pdf_page_count(pdf: Path) -> int | None:
+    """Number of pages of a PDF (``pdfinfo`` when installed, else a byte scan)."""
+    pdfinfo = shutil.which("pdfinfo")
+    if pdfinfo:
+        proc = subprocess.run([pdfinfo, str(pdf)], capture_output=True, text=True,
+                              stdin=subprocess.DEVNULL)
+        m = re.search(r"^Pages:\s+(\d+)", proc.stdout, re.M)
+        if m:
+            return int(m.group(1))
+    data = Path(pdf).read_bytes()
+    n = len(re.findall(rb"/Type\s*/Page[^s]", data))
+    return n or None
+

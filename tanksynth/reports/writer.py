@@ -1,0 +1,189 @@
+"""Write ``DIR/report.tex`` (and with ``pdf=True`` ``DIR/report.pdf``) from the files in DIR.
+
+Files are replaced atomically: the figures and ``report.tex`` are written
+to temporary names and renamed when complete; the PDF is built in a scratch
+directory inside DIR and renamed into place only when LaTeX succeeded with
+no error and no undefined reference. A failed build leaves no
+``report.pdf`` (a stale one from an earlier run is removed, since it would
+no longer match ``report.tex``) and keeps the LaTeX log as
+``DIR/report.log``.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import tempfile
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+from ..errors import ReportError
+from .context import build_context
+from .figures import FigureFile, pole_map
+from .inputs import ReportInputs, read_report_inputs
+from .latex import compile_pdf, environment, pdf_page_count
+from .paper import PaperComparison, compare_with_papers
+
+__all__ = ["ReportResult", "render_report", "write_report", "FIGURE_DIR"]
+
+#: Sub-directory of DIR for the report's figures.
+FIGURE_DIR = "report-figures"
+
+
+@dataclass(frozen=True)
+class ReportResult:
+    """What `write_report` produced.
+
+    Attributes
+    ----------
+    tex : Path
+        ``DIR/report.tex``.
+    pdf : Path or None
+        ``DIR/report.pdf`` when built.
+    log : Path or None
+        ``DIR/report.log`` when LaTeX ran.
+    figures : tuple of Path
+    comparisons : tuple of PaperComparison
+        The paper-vs-tool comparisons that applied.
+    pages : int or None
+        PDF page count.
+    seconds : float
+        Wall time of the whole call.
+    latex_seconds : float or None
+        Wall time of the LaTeX build.
+    """
+
+    tex: Path
+    pdf: Path | None
+    log: Path | None
+    figures: tuple[Path, ...]
+    comparisons: tuple[PaperComparison, ...]
+    pages: int | None
+    seconds: float
+    latex_seconds: float | None
+
+
+def _atomic_write_text(target: Path, text: str) -> None:
+    fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as fh:
+            fh.write(text)
+        os.replace(tmp, target)
+    finally:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+
+
+def _figure_stem(index: int, name: str) -> str:
+    safe = "".join(c if (c.isascii() and c.isalnum()) else "-" for c in name).strip("-")[:40]
+    return f"poles-{index:02d}-{safe or 'design'}"
+
+
+def render_report(inputs: ReportInputs, figures: dict[str, FigureFile] | None = None,
+                  comparisons: tuple[PaperComparison, ...] | None = None) -> str:
+    """The LaTeX source of the report (no file is written).
+
+    Parameters
+    ----------
+    inputs : ReportInputs
+    figures : dict of artefact name to FigureFile, optional
+        Figures to include (none when omitted).
+    comparisons : tuple of PaperComparison, optional
+        Computed with `compare_with_papers` when omitted.
+    """
+    if comparisons is None:
+        comparisons = compare_with_papers(inputs)
+    ctx = build_context(inputs, figures or {}, comparisons)
+    return environment().get_template("report.tex.j2").render(**ctx)
+
+
+def write_report(directory: str | Path, pdf: bool = False, timeout: float = 180.0) -> ReportResult:
+    """Write ``DIR/report.tex`` and its figures; with ``pdf`` also ``DIR/report.pdf``.
+
+    Parameters
+    ----------
+    directory : str or Path
+        A result directory (``plant.json``, artefacts, optionally
+        ``checks.json`` and ``spec.toml``).
+    pdf : bool
+        Compile with latexmk/pdflatex.
+    timeout : float
+        Seconds allowed for the LaTeX build.
+
+    Returns
+    -------
+    ReportResult
+
+    Raises
+    ------
+    ArtefactError
+        The directory is not a result directory, has no artefact, or holds
+        a malformed artefact.
+    ReportError
+        LaTeX is missing or failed; the message names ``DIR/report.log``.
+    """
+    start = time.perf_counter()
+    inputs = read_report_inputs(directory)
+    d = inputs.directory
+    comparisons = compare_with_papers(inputs)
+    figdir = d / FIGURE_DIR
+    figures: dict[str, FigureFile] = {}
+    for i, art in enumerate(inputs.artefacts):
+        fig = pole_map(art, figdir, _figure_stem(i, str(art.get("name", ""))))
+        if fig is not None:
+            figures[str(art["name"])] = fig
+    if figdir.is_dir():  # figures of artefacts that are gone
+        keep = {f.path.name for f in figures.values()}
+        for stale in figdir.glob("poles-*.pdf"):
+            if stale.name not in keep:
+                stale.unlink(missing_ok=True)
+    tex = render_report(inputs, figures, comparisons)
+    tex_path = d / "report.tex"
+    pdf_path = d / "report.pdf"
+    log_path = d / "report.log"
+    out_pdf: Path | None = None
+    out_log: Path | None = None
+    pages = None
+    latex_seconds = None
+    if pdf:
+        build = Path(tempfile.mkdtemp(prefix=".report-build-", dir=d))
+        try:
+            (build / "report.tex").write_text(tex, encoding="utf-8")
+            if figures:
+                shutil.copytree(figdir, build / FIGURE_DIR)
+            try:
+                res = compile_pdf(build / "report.tex", timeout=timeout)
+            except ReportError as exc:
+                kept = _keep_log(getattr(exc, "log_path", None), log_path)
+                pdf_path.unlink(missing_ok=True)
+                _atomic_write_text(tex_path, tex)
+                where = f"; see {log_path}" if kept else ""
+                raise ReportError(f"{d}: report.pdf not built: {exc}{where}",
+                                  log_path=log_path if kept else None) from None
+            _keep_log(res.log, log_path)
+            pages = pdf_page_count(res.pdf)
+            latex_seconds = res.seconds
+            _atomic_write_text(tex_path, tex)
+            os.replace(res.pdf, pdf_path)
+            out_pdf, out_log = pdf_path, log_path
+        finally:
+            shutil.rmtree(build, ignore_errors=True)
+    else:
+        _atomic_write_text(tex_path, tex)
+    return ReportResult(tex_path, out_pdf, out_log, tuple(f.path for f in figures.values()),
+                        comparisons, pages, time.perf_counter() - start, latex_seconds)
+
+
+def _keep_log(src: Path | None, target: Path) -> bool:
+    if src is None or not Path(src).exists():
+        return False
+    fd, tmp = tempfile.mkstemp(prefix=".report.log.", suffix=".tmp", dir=target.parent)
+    os.close(fd)
+    try:
+        shutil.copyfile(src, tmp)
+        os.replace(tmp, target)
+    finally:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+    return True

@@ -1,0 +1,393 @@
+"""Per-method verdicts on artefacts, and ``tanksynth verify DIR``.
+
+`VERDICTS` maps a design method name to a function ``verdict(doc, spec)
+-> list[Check]`` that re-checks one artefact against the plant it was
+designed for (rebuilt from ``DIR/spec.toml``), by simulation and by
+independent numerics. Methods without a verdict get one explicit check
+``"no verification defined for method X"`` with ``passed = None``: not a
+pass. Other modules plug their verdicts in with `register_verdict`.
+
+``linearize``
+    * ``jacobian_recheck``: F, B, C recomputed at (x0, u0) from the model;
+    * ``zoh_consistency``: Ad, Bd equal the exact ZOH of (F, B) at ts;
+    * ``equilibrium``: |f(x0, u0)| within the design's tolerance (an
+      artefact designed away from an equilibrium fails it);
+    * ``first_order_agreement``: the nonlinear plant and the discrete
+      linear model, started from perturbations eps (dx0, du) of (x0, u0)
+      for eps = e0, e0/2, e0/4, agree to first order: the relative error
+      of the linear prediction shrinks at least like eps (a Taylor model
+      has an O(eps) relative error);
+    * ``rank_controllability``, ``rank_observability`` (continuous and
+      discrete): Kalman ranks recomputed from the artefact's matrices,
+      compared with the design's record.
+
+`verify_directory` reads every artefact first (a tampered one, or one
+designed from another spec than ``DIR/spec.toml``, is refused with an
+`ArtefactError` before anything is written), runs the verdicts (in
+process, or on a Dask cluster given its scheduler address), and writes
+each artefact's ``verification`` field back atomically; gains are left
+byte for byte as they were, so their provenance hash stays valid.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+from dataclasses import dataclass
+from functools import lru_cache
+from pathlib import Path
+from typing import Any, Callable, Mapping, Sequence
+
+import numpy as np
+
+from ..design.linearize import discretize_zoh, linearize
+from ..errors import ArtefactError, TanksynthError
+from .checks import Check
+from .rank import controllability_rank, observability_rank
+from .simulate import run_seeds, simulate
+
+__all__ = [
+    "Verdict",
+    "VERDICTS",
+    "register_verdict",
+    "verdict_for",
+    "linearize_verdict",
+    "first_order_agreement",
+    "load_directory",
+    "verify_directory",
+]
+
+VerdictFn = Callable[[Mapping[str, Any], Any], list]
+
+
+@dataclass(frozen=True)
+class Verdict:
+    """The verification of one artefact.
+
+    Attributes
+    ----------
+    name, method : str
+    path : Path
+        The artefact JSON.
+    checks : tuple of Check
+    """
+
+    name: str
+    method: str
+    path: Path
+    checks: tuple[Check, ...]
+
+    @property
+    def passed(self) -> bool | None:
+        """False if any check failed; True if every decided check passed; None if none decided."""
+        decided = [c.passed for c in self.checks if c.passed is not None]
+        if any(p is False for p in decided):
+            return False
+        return True if decided else None
+
+    def as_dict(self) -> dict:
+        """The ``verification`` field of the artefact."""
+        from ..artefact import to_jsonable  # lazy: tanksynth.artefact imports the design stage
+
+        return {"passed": self.passed, "checks": [to_jsonable(c.as_dict()) for c in self.checks]}
+
+
+#: Verdict functions by design method name.
+VERDICTS: dict[str, VerdictFn] = {}
+
+
+def register_verdict(method: str, fn: VerdictFn) -> VerdictFn:
+    """Register the verdict of a design method (one per method)."""
+    if method in VERDICTS:
+        raise ValueError(f"verdict for method {method!r} registered twice")
+    VERDICTS[method] = fn
+    return fn
+
+
+def verdict_for(doc: Mapping[str, Any], spec: Any) -> list[Check]:
+    """The checks of one artefact (``doc`` as returned by `read_artefact`)."""
+    method = str(doc["method"])
+    fn = VERDICTS.get(method)
+    if fn is None:
+        return [Check("verification", None, f"no verification defined for method {method}")]
+    try:
+        return list(fn(doc, spec))
+    except TanksynthError as exc:
+        return [Check("verification", False, f"verdict could not run: {' '.join(str(exc).split())}")]
+
+
+# ------------------------------------------------------------------------- linearize
+def _gain(doc: Mapping[str, Any], name: str) -> np.ndarray:
+    gains = doc["gains"]
+    if name not in gains:
+        raise ArtefactError(f"artefact '{doc['name']}' ({doc['method']}) has no gain {name!r}")
+    return np.atleast_1d(np.asarray(gains[name], dtype=float))
+
+
+def _rel(a: np.ndarray, b: np.ndarray) -> float:
+    return float(np.linalg.norm(a - b) / max(np.linalg.norm(b), 1e-300))
+
+
+def first_order_agreement(plant: Any, F: np.ndarray, B: np.ndarray, Ad: np.ndarray, Bd: np.ndarray,
+                          x0: np.ndarray, u0: np.ndarray, ts: float, *, horizon: int = 20,
+                          eps0: float = 5e-3, substeps: int = 10) -> dict[str, Any]:
+    """Compare the nonlinear plant with its discrete linear model near (x0, u0).
+
+    From ``x0 + eps dx`` with input ``u0 + eps du`` (``dx``, ``du`` fixed
+    directions scaled by the region span and the input range), the
+    nonlinear deviation from the unperturbed trajectory is compared with
+    ``Ad^k dx + sum Ad^j Bd du`` over ``horizon`` samples, for ``eps =
+    eps0, eps0/2, eps0/4``.
+
+    Returns
+    -------
+    dict
+        ``eps``, ``relative_errors`` (max over samples of the error norm
+        over the max linear deviation norm), ``orders`` (``log2`` of
+        successive error ratios: 1 for a correct Taylor model) and the
+        directions used.
+    """
+    n, m = plant.n, plant.m
+    span = np.array([hi - lo for lo, hi in plant.region.bounds], dtype=float)
+    span = np.where(np.isfinite(span) & (span > 0), span, np.maximum(np.abs(x0), 1.0))
+    lim = plant.input_limits
+    urange = np.where(np.all(np.isfinite(lim), axis=1), lim[:, 1] - lim[:, 0], np.maximum(np.abs(u0), 1.0))
+    # Fixed directions, alternating signs, unequal sizes (no symmetry hides an error).
+    dx = span * np.array([(1.0 if i % 2 == 0 else -0.7) * (1 - 0.1 * i) for i in range(n)])
+    du = urange * np.array([(0.5 if j % 2 == 0 else -0.35) for j in range(m)])
+    eps_list = [eps0, eps0 / 2, eps0 / 4]
+    starts = [x0] + [x0 + e * dx for e in eps_list]
+    inputs = [u0] + [u0 + e * du for e in eps_list]
+    X = np.array(starts)
+    seeds = run_seeds(0, len(starts))
+    # One batch: the unperturbed run and the three perturbed ones, open loop.
+    res = simulate(plant, ts=ts, steps=horizon, x0=X, seeds=seeds, u_init=np.array(inputs),
+                   substeps=substeps)
+    base = res.x[0]
+    errors = []
+    for i, e in enumerate(eps_list, start=1):
+        d_nl = res.x[i] - base
+        d_lin = np.empty_like(d_nl)
+        z = e * dx
+        for k in range(horizon + 1):
+            d_lin[k] = z
+            z = Ad @ z + Bd @ (e * du)
+        scale = float(np.max(np.linalg.norm(d_lin, axis=1)))
+        errors.append(float(np.max(np.linalg.norm(d_nl - d_lin, axis=1)) / max(scale, 1e-300)))
+    orders = [float(np.log2(errors[i] / errors[i + 1])) if errors[i + 1] > 0 and errors[i] > 0
+              else float("inf") for i in range(len(errors) - 1)]
+    return {"eps": eps_list, "relative_errors": errors, "orders": orders, "horizon": horizon,
+            "ts": ts, "dx": dx.tolist(), "du": du.tolist(), "clipped": res.clipped_low + res.clipped_high}
+
+
+def linearize_verdict(doc: Mapping[str, Any], spec: Any) -> list[Check]:
+    """Verdict of a ``linearize`` artefact (see the module docstring).
+
+    Parameters
+    ----------
+    doc : mapping
+        The artefact (gains as arrays).
+    spec : tanksynth.spec.Spec
+        The spec it was designed from (its plant).
+    """
+    plant = spec.plant
+    F, B, C = (np.atleast_2d(_gain(doc, k)) for k in ("F", "B", "C"))
+    Ad, Bd = np.atleast_2d(_gain(doc, "Ad")), np.atleast_2d(_gain(doc, "Bd"))
+    x0, u0 = _gain(doc, "x0"), _gain(doc, "u0")
+    F, B, Ad, Bd = F.reshape(plant.n, plant.n), B.reshape(plant.n, plant.m), Ad.reshape(plant.n, plant.n), \
+        Bd.reshape(plant.n, plant.m)
+    C = C.reshape(plant.q, plant.n)
+    diag = doc.get("diagnostics") or {}
+    ts = diag.get("ts", spec.ts)
+    if not isinstance(ts, (int, float)) or not ts > 0:
+        raise ArtefactError(f"artefact '{doc['name']}': no sampling period in its diagnostics")
+    ts = float(ts)
+    checks = []
+    lin = linearize(plant, x0, u0, ts=ts)
+    worst = max(_rel(F, lin.F), _rel(B, lin.B), _rel(C, lin.C))
+    checks.append(Check("jacobian_recheck", worst <= 1e-9,
+                        f"F, B, C recomputed from the model at (x0, u0): largest relative difference "
+                        f"{worst:.3g} (tolerance 1e-9)", {"relative_difference": worst}))
+    Ad2, Bd2 = discretize_zoh(F, B, ts)
+    zoh = max(_rel(Ad, Ad2), _rel(Bd, Bd2))
+    checks.append(Check("zoh_consistency", zoh <= 1e-9,
+                        f"Ad, Bd against the exact ZOH of (F, B) at ts = {ts:g} s: relative difference "
+                        f"{zoh:.3g} (tolerance 1e-9)", {"relative_difference": zoh}))
+    residual = plant.compiled.rhs(x0[None], u0[None])[0]
+    eq = diag.get("equilibrium") or {}
+    tol = float(eq.get("tolerance", 1e-12)) if isinstance(eq, Mapping) else 1e-12
+    worst_res = float(np.max(np.abs(residual)))
+    checks.append(Check("equilibrium", worst_res <= tol,
+                        f"max |f(x0, u0)| = {worst_res:.3g} state units/s (tolerance {tol:.3g})",
+                        {"residual": residual.tolist(), "tolerance": tol}))
+    agreement = first_order_agreement(plant, F, B, Ad, Bd, x0, u0, ts)
+    errs, orders = agreement["relative_errors"], agreement["orders"]
+    exact = errs[-1] <= 1e-7  # a linear plant: agreement to rounding
+    ok = exact or (all(o >= 0.7 for o in orders) and errs[-1] <= 0.2)
+    checks.append(Check(
+        "first_order_agreement", bool(ok),
+        f"relative error of the linear model over {agreement['horizon']} samples for eps = "
+        + ", ".join(f"{e:g}" for e in agreement["eps"]) + ": "
+        + ", ".join(f"{e:.3g}" for e in errs)
+        + ("" if exact else "; observed orders " + ", ".join(f"{o:.2f}" for o in orders)
+           + " (>= 0.7 required: the error must shrink with eps)"),
+        agreement))
+    rank = diag.get("rank") or {}
+    for key, result in (("controllability", controllability_rank(F, B)),
+                        ("observability", observability_rank(F, C)),
+                        ("controllability_discrete", controllability_rank(Ad, Bd)),
+                        ("observability_discrete", observability_rank(Ad, C))):
+        recorded = rank.get(key, {}).get("full") if isinstance(rank.get(key), Mapping) else None
+        agrees = recorded is None or bool(recorded) == result.full
+        detail = (f"rank {result.rank}/{result.n} recomputed from the artefact's matrices, condition "
+                  f"number {result.condition_number:.3g}"
+                  + ("" if recorded is None else ("; agrees with the design's record" if agrees
+                                                  else f"; the design recorded full = {recorded}")))
+        checks.append(Check(f"rank_{key}", bool(result.full and agrees), detail,
+                            {**result.as_dict(), "recorded_full": recorded}))
+    return checks
+
+
+register_verdict("linearize", linearize_verdict)
+
+
+# ------------------------------------------------------------------------- directory
+@lru_cache(maxsize=8)
+def _spec_from_text(text: str, source: str):
+    from ..spec import parse_spec_text
+
+    return parse_spec_text(text.encode("utf-8"), source=source)
+
+
+def load_directory(directory: str | Path) -> tuple[Any, list[tuple[Path, dict]]]:
+    """Read ``DIR/spec.toml`` and every artefact of a directory, refusing bad ones.
+
+    Returns
+    -------
+    spec : tanksynth.spec.Spec
+    artefacts : list of (Path, dict)
+        Each artefact's path and document (gains as arrays), sorted by name.
+
+    Raises
+    ------
+    ArtefactError
+        No artefact, no ``spec.toml``, an unreadable or tampered artefact
+        (gains changed after design), or one designed from another spec.
+    """
+    from ..artefact import SCHEMA, read_artefact  # lazy: see Verdict.as_dict
+
+    directory = Path(directory)
+    if not directory.is_dir():
+        raise ArtefactError(f"{directory}: not a directory")
+    docs = []
+    for path in sorted(directory.glob("*.json")):
+        try:
+            head = json.loads(path.read_text(encoding="utf-8"))
+        except (OSError, json.JSONDecodeError, UnicodeDecodeError):
+            head = None
+        if isinstance(head, dict) and isinstance(head.get("schema"), str) \
+                and not head["schema"].startswith("tanksynth.artefact"):
+            continue  # plant record, campaign metadata, ...
+        if not isinstance(head, dict) and path.name in ("checks.json",):
+            continue
+        docs.append((path, read_artefact(path)))
+    if not docs:
+        raise ArtefactError(f"{directory}: no artefact (*.json with schema {SCHEMA!r})")
+    spec_path = directory / "spec.toml"
+    try:
+        raw = spec_path.read_bytes()
+    except OSError:
+        raise ArtefactError(f"{spec_path}: missing; verify needs the spec the artefacts were designed "
+                            "from (written by `tanksynth design`)") from None
+    import hashlib
+
+    sha = hashlib.sha256(raw).hexdigest()
+    for path, doc in docs:
+        if doc["provenance"].get("spec_sha256") != sha:
+            raise ArtefactError(f"{path}: designed from another spec than {spec_path} "
+                                "(spec_sha256 differs)")
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError:
+        raise ArtefactError(f"{spec_path}: not UTF-8 text") from None
+    return _spec_from_text(text, str(spec_path)), docs
+
+
+def _write_verification(path: Path, verification: Mapping[str, Any]) -> None:
+    """Set the ``verification`` field of an artefact JSON, atomically, gains untouched."""
+    raw = json.loads(path.read_text(encoding="utf-8"))
+    raw["verification"] = verification
+    data = (json.dumps(raw, indent=2, allow_nan=False) + "\n").encode("utf-8")
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            fh.write(data)
+        os.replace(tmp, path)
+    finally:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+
+
+def _remote_verdict(method: str, doc: dict, spec_text: str, source: str) -> list[dict]:
+    """Run one verdict on a Dask worker (plain data in, plain data out)."""
+    spec = _spec_from_text(spec_text, source)
+    doc = dict(doc)
+    doc["gains"] = {k: np.asarray(v, dtype=float) for k, v in doc["gains"].items()}
+    return [c.as_dict() for c in verdict_for(doc, spec)]
+
+
+def verify_directory(directory: str | Path, scheduler: str | None = None,
+                     progress: Callable[[int, int], None] | None = None) -> list[Verdict]:
+    """Verify every artefact of a directory and record the verdicts in them.
+
+    Parameters
+    ----------
+    directory : str or Path
+        Holds the artefacts and ``spec.toml``.
+    scheduler : str, optional
+        Address of a Dask scheduler: the verdicts run there (one task per
+        artefact). Default: in this process.
+    progress : callable, optional
+        ``progress(done, total)`` after each artefact.
+
+    Returns
+    -------
+    list of Verdict
+
+    Raises
+    ------
+    ArtefactError
+        See `load_directory`; nothing is written then.
+    """
+    spec, docs = load_directory(directory)
+    total = len(docs)
+    checks: dict[Path, list[Check]] = {}
+    if scheduler is None:
+        for i, (path, doc) in enumerate(docs):
+            checks[path] = verdict_for(doc, spec)
+            if progress is not None:
+                progress(i + 1, total)
+    else:
+        from distributed import Client, as_completed
+
+        text = (Path(directory) / "spec.toml").read_text(encoding="utf-8")
+        source = str(Path(directory) / "spec.toml")
+        with Client(scheduler) as client:
+            futures = {}
+            for path, doc in docs:
+                plain = {**doc, "gains": {k: v.tolist() for k, v in doc["gains"].items()}}
+                fut = client.submit(_remote_verdict, doc["method"], plain, text, source, pure=False,
+                                    retries=2)
+                futures[fut] = path
+            for i, fut in enumerate(as_completed(futures)):
+                checks[futures[fut]] = [Check(c["check"], c["passed"], c["detail"], c["data"])
+                                        for c in fut.result()]
+                if progress is not None:
+                    progress(i + 1, total)
+    verdicts = []
+    for path, doc in docs:
+        v = Verdict(str(doc["name"]), str(doc["method"]), path, tuple(checks[path]))
+        _write_verification(path, v.as_dict())
+        verdicts.append(v)
+    return verdicts

@@ -1,0 +1,39 @@
+"""Helpers for the report tests (not a test module)."""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+import pytest
+
+from tanksynth.artefact import write_artefact, write_plant_record
+from tanksynth.design import METHODS
+from tanksynth.spec import parse_spec_text
+
+HAVE_LATEX = all(shutil.which(t) for t in ("pdflatex", "pdftotext", "pdftoppm"))
+needs_latex = pytest.mark.skipif(not HAVE_LATEX, reason="pdflatex/pdftotext/pdftoppm not installed "
+                                                        "(make tex)")
+
+
+def copy_dir(src: Path, dst: Path) -> Path:
+    """A private copy of a result directory (tests may edit it)."""
+    shutil.copytree(src, dst)
+    return dst
+
+
+def design_dir(directory: Path, spec_text: str) -> Path:
+    """Write the plant record and every design of ``spec_text`` into ``directory`` (no rank checks)."""
+    spec = parse_spec_text(spec_text.encode(), source="<test>")
+    write_plant_record(spec, directory)
+    for design in spec.designs:
+        write_artefact(METHODS[design.method].run(spec, design), directory, spec.sha256)
+    return directory
+
+
+def edit_json(path: Path, **changes) -> None:
+    """Change top-level keys of a JSON file (gains untouched: the provenance hash still holds)."""
+    doc = json.loads(path.read_text(encoding="utf-8"))
+    doc.update(changes)
+    path.write_text(json.dumps(doc, indent=2), encoding="utf-8")

@@ -1,0 +1,84 @@
+"""User strings are escaped: unit tests, a property test, and a real build with hostile text."""
+
+from __future__ import annotations
+
+import json
+import re
+import subprocess
+
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from reports_helpers import copy_dir, edit_json, needs_latex
+from tanksynth.reports import write_report
+from tanksynth.reports.latex import escape_latex, format_number, format_unit
+
+HOSTILE = r"Ti_tle 100% & #1 $x$ {a} ~b ^c \input{/etc/passwd} \\ -- <|> `q` \"µ—é☃"
+
+
+@pytest.mark.parametrize("raw,expected", [
+    ("a_b", r"a\_b"), ("50%", r"50\%"), ("a&b", r"a\&b"), ("#", r"\#"), ("$", r"\$"),
+    ("{}", r"\{\}"), ("~", r"\textasciitilde{}"), ("^", r"\textasciicircum{}"),
+    ("\\", r"\textbackslash{}"), ("a\nb", "a b"), ("--", "-{}-"), ("é", r"\'{e}"),
+])
+def test_escape_table(raw, expected):
+    assert escape_latex(raw) == expected
+
+
+def test_unknown_unicode_is_named_not_fatal():
+    assert escape_latex("☃") == r"\texttt{[U+2603]}"
+    assert escape_latex("\x00\x07") == ""
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.text(max_size=60))
+def test_escaped_text_has_no_active_characters(text):
+    out = escape_latex(text, breakable=True)
+    # every special character is a command argument or follows a backslash
+    stripped = re.sub(r"\\[A-Za-z]+\{\}|\\[A-Za-z]+|\\[^A-Za-z]", "", out)
+    assert not re.search(r"[%#&$_^~\\]", stripped), out
+    depth = 0
+    for ch in re.sub(r"\\[{}]", "", out):
+        depth += ch == "{"
+        depth -= ch == "}"
+        assert depth >= 0
+    assert depth == 0
+
+
+def test_numbers_and_units():
+    assert format_number(0.0) == "0"
+    assert format_number(-0.011369432659021511) == "-0.011369"
+    assert format_number(3.501785258978626e-05) == r"3.5018 \times 10^{-5}"
+    assert format_number(1e-6) == "10^{-6}"
+    assert format_number("inf") == r"\infty"
+    assert format_unit("m^3/s") == r"$\mathrm{m}^{3}/\mathrm{s}$"
+    assert format_unit("1") == "--"
+    assert format_unit("50% & co") == r"50\% \& co"
+
+
+@needs_latex
+def test_hostile_strings_compile(demo_dir, tmp_path):
+    d = copy_dir(demo_dir, tmp_path / "hostile")
+    plant = json.loads((d / "plant.json").read_text(encoding="utf-8"))
+    plant["title"] = HOSTILE
+    plant["spec_source"] = HOSTILE
+    plant["plant"]["description"] = HOSTILE
+    plant["plant"]["assumptions"].append({"kind": "odd_kind", "text": HOSTILE, "source": HOSTILE})
+    plant["plant"]["parameters"][0]["description"] = HOSTILE
+    plant["plant"]["parameters"][0]["unit"] = "m^2 % $"
+    (d / "plant.json").write_text(json.dumps(plant), encoding="utf-8")
+    art = json.loads((d / "linear_model.json").read_text(encoding="utf-8"))
+    art["diagnostics"]["note"] = HOSTILE
+    art["diagnostics"][HOSTILE] = HOSTILE
+    edit_json(d / "linear_model.json", name="lin_%&#$", diagnostics=art["diagnostics"])
+    (d / "spec.toml").write_text("title = '" + HOSTILE + "'\n\\end{document}\n", encoding="utf-8")
+    res = write_report(d, pdf=True)
+    assert res.pdf is not None and res.pdf.exists()
+    log = res.log.read_text(encoding="latin-1")
+    assert not re.search(r"^! ", log, re.M)
+    assert not re.search(r"undefined references|Reference `[^']*' on page \d+ undefined", log)
+    text = subprocess.run(["pdftotext", str(res.pdf), "-"], capture_output=True, text=True,
+                          check=True).stdout
+    for fragment in ("100%", "& #1", "{a}", "input{/etc/passwd}", "[U+2603]"):
+        assert fragment in text, fragment

@@ -1,0 +1,133 @@
+"""Paper vs tool: the seed reproductions flag the known errata and agree elsewhere."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from reports_helpers import copy_dir, design_dir, edit_json
+from tanksynth.reports import compare_with_papers, read_report_inputs
+from tanksynth.reports.paper import (AGREES, DIFFERS, ERRATUM, REPRODUCTIONS, SEED000_TABLE_I,
+                                     printed_F_seed000, reference_rows, seed004_printed)
+
+SEED004 = """
+title = "seed 004 test"
+[plant]
+model = "hydraulic_fault"
+[plant.parameters]
+psi1 = 2.0
+psi2 = 1.0
+psi3 = 2.0
+delta1 = 1.0
+delta2 = 1.5
+delta3 = 1.0
+delta_bar = {delta_bar}
+[operating_point]
+x = {{x1 = 4.0, x2 = 1.3333333333, x3 = 4.0}}
+[sampling]
+ts = 0.01
+[[design]]
+name = "lin"
+method = "linearize"
+"""
+
+
+def _by_key(comparisons):
+    return {c.key: c for c in comparisons}
+
+
+@pytest.fixture(scope="module")
+def seed000(demo_dir):
+    return _by_key(compare_with_papers(read_report_inputs(demo_dir)))["seed000_linearisation"]
+
+
+def test_registry_is_labelled():
+    for r in REPRODUCTIONS:
+        assert r.seed and "eq" in r.source, r.key
+
+
+def test_printed_F_is_eq8_as_printed():
+    P, B = printed_F_seed000(SEED000_TABLE_I, (0.4, 0.2, 0.3))
+    assert P[2, 0] == -P[0, 2] < 0                 # the (3,1) sign typo
+    assert abs(P[2, 2]) < 1e-15                    # -t32 + t13 = 0 at y0
+    np.testing.assert_allclose(B[:2, :2], np.eye(2) / 0.0154)
+
+
+def test_seed000_F_errata_flagged(seed000):
+    numeric = {r.entry for r in seed000.rows if r.quantity.endswith("at $y_0$") and r.entry
+               and r.verdict == ERRATUM}
+    assert numeric == {(3, 1), (3, 3)}
+    formula = {r.entry for r in seed000.rows if "(formula)" in r.quantity}
+    assert formula == {(2, 2), (3, 1), (3, 3)}
+    assert all(r.verdict == ERRATUM for r in seed000.rows if "(formula)" in r.quantity)
+    f22 = next(r for r in seed000.rows if r.quantity == "$F_{22}$ at $y_0$")
+    assert f22.verdict == AGREES and "only" in f22.note     # equal at y0, wrong as a formula
+    f31 = next(r for r in seed000.rows if r.quantity == "$F_{31}$ at $y_0$")
+    assert f31.printed_value == pytest.approx(-0.01136943265902151, rel=1e-12)
+    assert f31.ours_value == pytest.approx(0.01136943265902151, rel=1e-12)
+
+
+def test_seed000_u0_and_eigenvalues(seed000):
+    rows = {r.quantity: r for r in seed000.rows}
+    q1, q2 = rows["$u_{0,1}$ (m$^3$/s)"], rows["$u_{0,2}$ (m$^3$/s)"]
+    assert q1.verdict == AGREES                    # 3.5018e-5 prints as 0.35e-4
+    assert q2.verdict == ERRATUM and "0.000368" in q2.note
+    assert q2.ours_value == pytest.approx(3.183782218805142e-05, rel=1e-10)
+    assert rows["eigenvalues of $F$ at $y_0$"].verdict == ERRATUM
+    assert rows["$B$"].verdict == AGREES
+
+
+def test_seed000_not_applied_elsewhere(demo_dir, tmp_path):
+    d = copy_dir(demo_dir, tmp_path / "other")
+    plant = json.loads((d / "plant.json").read_text())
+    plant["operating_point"]["x"] = [0.5, 0.2, 0.3]
+    (d / "plant.json").write_text(json.dumps(plant))
+    assert "seed000_linearisation" not in _by_key(compare_with_papers(read_report_inputs(d)))
+
+
+@pytest.mark.parametrize("delta_bar", [0.0, 0.3])
+def test_seed004_structure_agrees(tmp_path, delta_bar):
+    d = design_dir(tmp_path / "s4", SEED004.format(delta_bar=delta_bar))
+    comp = _by_key(compare_with_papers(read_report_inputs(d)))["seed004_structure"]
+    assert comp.rows and all(r.verdict == AGREES for r in comp.rows), [
+        (r.quantity, r.note) for r in comp.rows if r.verdict != AGREES]
+    labels = " ".join(r.quantity for r in comp.rows)
+    if delta_bar == 0.0:
+        assert "(21a)" in labels and "(23a)" in labels and "(27)" in labels
+    else:
+        assert "(21b)" in labels and "(23b)" in labels and "(27)" not in labels
+    assert seed004_printed(delta_bar)["QC"][1, 2] == pytest.approx(-1 - 0.5 * delta_bar)
+
+
+def test_seed001_determinant_erratum(demo_dir, tmp_path):
+    # Any ts_observer artefact on the three-tank plant triggers the seed 001 reproduction
+    # (it compares the paper's own formulas; the artefact's gains are not used).
+    d = copy_dir(demo_dir, tmp_path / "s1")
+    edit_json(d / "linear_model.json", method="ts_observer")
+    comp = _by_key(compare_with_papers(read_report_inputs(d)))["seed001_observability"]
+    verdicts = [r.verdict for r in comp.rows]
+    assert verdicts == [AGREES, ERRATUM, ERRATUM, ERRATUM]
+    assert "lambda_{2}" in comp.rows[1].note
+    assert "85 z_{2} - 552 z_{3}" in comp.rows[2].ours       # z1^2 (85 z2 - 552 z3)
+    assert "85 z_{2} + 552 z_{3}" in comp.rows[2].printed    # -z1^2 (85 z2 + 552 z3)
+
+
+def _artefact(ref: dict, poles=None) -> dict:
+    diag = {"reference_gain": ref}
+    if poles is not None:
+        diag["placement"] = {"requested": poles}
+    return {"name": "k", "diagnostics": diag}
+
+
+def test_reference_rows_verdicts():
+    base = {"reference": [[855.0], [169.667], [41.0]], "derived": [[855.0], [509 / 3], [41.0]]}
+    (row,) = reference_rows(_artefact(base))
+    assert row.verdict == AGREES                   # equal to the digits given
+    off = dict(base, reference=[[855.0], [169.6], [41.0]])
+    assert reference_rows(_artefact(off))[0].verdict == DIFFERS
+    wrong = dict(off, reference_max_pole_error=24.3)
+    assert reference_rows(_artefact(wrong, poles=[[-10, 0], [-8, 0], [-5, 0]]))[0].verdict == ERRATUM
+    small = dict(off, reference_max_pole_error=0.0128)
+    assert reference_rows(_artefact(small, poles=[[0.97, 0.0]]))[0].verdict == DIFFERS
