@@ -5,6 +5,7 @@ from __future__ import annotations
 from . import methods as _methods  # noqa: F401  (registers the spec methods)
 from . import convex_methods as _convex_methods  # noqa: F401
 from . import control_methods as _control_methods  # noqa: F401
+from . import decentralized_methods as _decentralized_methods  # noqa: F401
 from .linearize import (Equilibrium, LinearModel, discretize_zoh, equilibrium_input, linearize,
                         symbolic_jacobians)
 from .result import METHODS, DesignMethod, DesignResult, register
@@ -17,4 +18,5 @@ __all__ = [
     "RelativeDegree", "control_affine", "jacobian", "lie_derivative", "lie_derivatives",
     "relative_degree", "lmi", "placement", "takagi_sugeno",
     "control", "feedback_linearization",
+    "decentralized",
 ]
