@@ -67,7 +67,12 @@ def _design_all(spec, outdir: Path, export: tuple[str, ...]) -> tuple[list[Path]
         except InfeasibleDesign as exc:
             infeasible.append(f"{design.name}: {_one_line(exc)}")
             continue
-        written.append(write_artefact(result, outdir, spec.sha256, export=export))
+        formats = list(export)
+        if "law" in formats and "law" not in result.diagnostics:
+            formats.remove("law")
+            _out.print(f"{design.name}: no control law to export (method {design.method})",
+                       markup=False, highlight=False)
+        written.append(write_artefact(result, outdir, spec.sha256, export=formats))
     return written, infeasible
 
 
@@ -124,8 +129,9 @@ def check(spec: str, as_json: bool) -> None:
 @click.argument("spec", type=click.Path(dir_okay=False))
 @click.option("-o", "--output", "outdir", required=True, type=click.Path(file_okay=False),
               help="Directory for the artefacts.")
-@click.option("--export", multiple=True, type=click.Choice(["mat", "h"]),
-              help="Also write .mat files or C headers (repeatable).")
+@click.option("--export", multiple=True, type=click.Choice(["mat", "h", "law"]),
+              help="Also write .mat files, C headers of the gains, or the control law as a "
+                   "CasADi Function and generated C (repeatable).")
 def design(spec: str, outdir: str, export: tuple[str, ...]) -> None:
     """Write one artefact per [[design]] entry of SPEC."""
     s = _load(spec)
@@ -144,10 +150,13 @@ def design(spec: str, outdir: str, export: tuple[str, ...]) -> None:
               type=click.Path(file_okay=False), help="Directory for artefacts and results.")
 @click.option("--pdf", is_flag=True, help="Also compile the report to DIR/report.pdf (LaTeX).")
 def run(spec: str | None, outdir: str, pdf: bool) -> None:
-    """Rank checks, every design of SPEC and the report (default: the built-in three-tank demo)."""
-    from .artefact import to_jsonable
+    """Rank checks, every design of SPEC, their verification and the report.
 
+    With no SPEC, the built-in three-tank demo.
+    """
+    from .artefact import to_jsonable
     from .verify.checks import rank_conditions
+    from .verify.verdicts import verify_directory
 
     s = _load(spec)
     out = Path(outdir)
@@ -158,16 +167,24 @@ def run(spec: str | None, outdir: str, pdf: bool) -> None:
     out.mkdir(parents=True, exist_ok=True)
     checks_path.write_text(json.dumps(to_jsonable([c.as_dict() for c in checks]), indent=2) + "\n")
     for path in written:
-        _out.print(f"artefact: {path}")
-    _out.print(f"rank verdicts: {checks_path}")
+        _out.print(f"artefact: {path}", markup=False, highlight=False)
+    _out.print(f"rank verdicts: {checks_path}", markup=False, highlight=False)
+    verdicts = []
     if written:
+        verdicts = verify_directory(out)
+        for v in verdicts:
+            verdict = {True: "pass", False: "FAIL", None: "no verdict"}[v.passed]
+            _out.print(f"verification of {v.name} ({v.method}): {verdict}", markup=False,
+                       highlight=False)
         _write_report(out, pdf)
     else:
         _out.print("no report: no design artefact was written")
     if infeasible:
         raise _Fail(EXIT_INFEASIBLE, "infeasible: " + "; ".join(infeasible))
-    if any(c.passed is False for c in checks):
-        raise _Fail(EXIT_FAILED, "some rank conditions fail")
+    failed = [c.name for c in checks if c.passed is False]
+    failed += [v.name for v in verdicts if v.passed is False]
+    if failed:
+        raise _Fail(EXIT_FAILED, "some checks fail: " + ", ".join(failed))
 
 
 def _write_report(directory: Path, pdf: bool) -> None:

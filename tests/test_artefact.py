@@ -226,3 +226,48 @@ def test_c_header_compiles_and_values_round_trip(tmp_path, name):
     values = np.array([float(v) for v in out])
     expected = np.concatenate([res.gains["K"].ravel(), res.gains["x0"], [2.0]])
     np.testing.assert_array_equal(values, expected)     # bit-exact through the C compiler
+
+
+def test_c_header_three_dimensional_gain(tmp_path):
+    if shutil.which("gcc") is None:
+        pytest.skip("gcc not available")
+    K = np.arange(24, dtype=float).reshape(2, 3, 4) / 7.0
+    header = c_header("seq", {"K": K})
+    assert "#define SEQ_K_NDIM 3" in header
+    assert "#define SEQ_K_DIM2 4" in header
+    (tmp_path / "seq.h").write_text(header)
+    (tmp_path / "main.c").write_text(
+        '#include <stdio.h>\n#include "seq.h"\nint main(void){int i;'
+        'for(i=0;i<SEQ_K_DIM0*SEQ_K_DIM1*SEQ_K_DIM2;i++) printf("%.17g\\n", seq_K[i]);return 0;}\n')
+    subprocess.run(["gcc", "-o", str(tmp_path / "main"), str(tmp_path / "main.c")], check=True)
+    out = subprocess.run([str(tmp_path / "main")], capture_output=True, text=True, check=True).stdout
+    np.testing.assert_array_equal(np.array(out.split(), dtype=float), K.ravel())
+
+
+def test_written_files_are_world_readable(tmp_path):
+    write_artefact(make_result(), tmp_path, SHA, export=["h"])
+    for path in tmp_path.iterdir():
+        assert path.stat().st_mode & 0o044 == 0o044, path.name
+
+
+def test_law_export_needs_a_law(tmp_path):
+    with pytest.raises(SpecError, match="no control law"):
+        write_artefact(make_result(), tmp_path, SHA, export=["law"])
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_law_export_writes_casadi_and_c(tmp_path):
+    import casadi as ca
+
+    from tanksynth.design.control import law_document, law_from_document
+
+    x = ca.SX.sym("x", 2)
+    law = ca.Function("demo", [x], [2 * x + 1], ["x"], ["u"])
+    result = DesignResult("ctl", "demo", "custom", {"K": np.eye(2)}, {"law": law_document(law)})
+    write_artefact(result, tmp_path, "0" * 64, export=["law"])
+    names = sorted(p.name for p in tmp_path.iterdir())
+    assert names == ["ctl.json", "ctl.npz", "ctl_law.c", "ctl_law.casadi", "ctl_law.h"]
+    loaded = ca.Function.load(str(tmp_path / "ctl_law.casadi"))
+    np.testing.assert_array_equal(np.asarray(loaded([1.0, 2.0])).ravel(), [3.0, 5.0])
+    doc = read_artefact(tmp_path / "ctl.json")
+    assert law_from_document(doc["diagnostics"]["law"]).name() == "demo"
