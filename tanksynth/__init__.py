@@ -17,7 +17,7 @@ from .errors import (ArtefactError, DimensionError, InfeasibleDesign, ParseError
                      SpecError, TanksynthError, UncontrollableError, UnobservableError)
 from .plants import (Plant, builtin_plant, custom_plant, hybrid_three_tank, hydraulic_fault,
                      tank_network, three_tank)
-from .spec import Spec, load_spec, parse_spec
+from .spec import Spec, load_spec, parse_spec, parse_spec_text
 from .verify.rank import (controllability_rank, nonlinear_observability, observability_rank,
                           pbh_test, symbolic_observability)
 
@@ -35,7 +35,7 @@ __all__ = [
     "TanksynthError", "UncontrollableError", "UnobservableError",
     "Plant", "builtin_plant", "custom_plant", "hybrid_three_tank", "hydraulic_fault", "tank_network",
     "three_tank",
-    "Spec", "load_spec", "parse_spec",
+    "Spec", "load_spec", "parse_spec", "parse_spec_text",
     "controllability_rank", "nonlinear_observability", "observability_rank", "pbh_test",
     "symbolic_observability",
 ]

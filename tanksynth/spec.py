@@ -23,7 +23,7 @@ import numpy as np
 from .errors import SpecError, TanksynthError
 from .plants import BUILTIN_PLANTS, Plant, custom_plant
 
-__all__ = ["Spec", "DesignSpec", "load_spec", "parse_spec"]
+__all__ = ["Spec", "DesignSpec", "load_spec", "parse_spec", "parse_spec_text"]
 
 _TOP_KEYS = {"title", "description", "plant", "operating_point", "sampling", "design"}
 _NAME_RE = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]{0,63}\Z")
