@@ -7,18 +7,29 @@ not enumerated and ``A0 = A`` at the premise midpoints) and solves the
 observer LMI at ``psi = 1e-3`` 1/s (variant ``Q = q I``), side by side:
 
 dense
-    full ``P``, free ``K`` (``L = P^-1 K`` dense)
+    full ``P``, free ``K`` (``L = P^-1 K`` dense). ``K`` is eliminated by the
+    projection lemma (the library's default ``form="auto"``): the LMI has
+    size ``2N - rank C`` instead of ``2N`` (with the decenter ``C = I`` it is
+    just ``Q >= t I``, the normalisation ``P >= I`` being the only N x N
+    cone) and the gain is recovered in closed form. ``--full-form`` solves
+    the ``2N x 2N`` LMI with ``K`` as a variable instead, for comparison.
 structured
     block-diagonal ``P`` with one block per tank and the gain restricted to
     the pattern E = own tank (``L[i, j] != 0`` only if output j measures
-    tank i): a decentralised observer
+    tank i): a decentralised observer (always the full form: a gain pattern
+    cannot be eliminated)
+
+Both build the problem as `observer_lmi` does: the ``A0`` Parameter covers
+only the non-zero entries of ``A0`` (``A0_pattern = A0 != 0``), so the LMI
+keeps the network's sparsity for Clarabel's chordal decomposition.
 solver
     cvxpy + Clarabel (interior point, the default) and cvxpy + SCS
     (first-order)
 
 "Designed" time is the wall time of `ObserverLMIProblem` (cvxpy problem
-construction) plus `observer_lmi` (observability test, cvxpy compilation,
-solver, unpacking and the library's re-check), cold, in a freshly forked
+construction) plus `observer_lmi` (observability test, skipped when ``C`` has
+rank N; cvxpy compilation, solver, gain recovery, unpacking and the library's
+re-check), cold, in a freshly forked
 process that is killed after its time budget (shown as "> budget"). The TS
 model build is timed separately. Every returned gain is re-checked here again,
 independently of the library: the block matrix of eq. (28) is rebuilt in
@@ -43,8 +54,9 @@ printed), and no returned gain fails the re-check.
 
 Run from the repository root::
 
-    .venv/bin/python benchmarks/lmi.py            # N = 4 .. 64 (a few minutes)
+    .venv/bin/python benchmarks/lmi.py            # N = 4 .. 64 (about a minute)
     .venv/bin/python benchmarks/lmi.py --quick    # N = 4 .. 16, Clarabel sweeps only
+    .venv/bin/python benchmarks/lmi.py --full-form --sizes 16 32   # dense without elimination
 """
 
 from __future__ import annotations
@@ -110,6 +122,12 @@ def structure_options(structure: str, C: np.ndarray) -> dict[str, Any]:
     return {"blocks": [[i] for i in range(n)], "pattern": (C.T != 0).astype(float)}
 
 
+def problem_options(structure: str, A0: np.ndarray, C: np.ndarray, full_form: bool) -> dict[str, Any]:
+    """`ObserverLMIProblem` keywords: structure, ``A0_pattern`` (as `observer_lmi`), form."""
+    form = "full" if full_form else "auto"
+    return {**structure_options(structure, C), "A0_pattern": A0 != 0, "form": form}
+
+
 # --------------------------------------------------------------- child tasks
 def _cpu() -> float:
     """CPU time of this process, all threads (user + system), s."""
@@ -118,13 +136,14 @@ def _cpu() -> float:
 
 
 def design(send: Send, A0: np.ndarray, C: np.ndarray, structure: str, solver: str,
-           psi: float) -> None:
+           psi: float, full_form: bool = False) -> None:
     """One observer LMI design, timed by stage; sends the returned P, Q, L."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         cpu0 = _cpu()
         start = perf_counter()
-        prob = ObserverLMIProblem(A0.shape[0], C, solver=solver, **structure_options(structure, C))
+        prob = ObserverLMIProblem(A0.shape[0], C, solver=solver,
+                                  **problem_options(structure, A0, C, full_form))
         built = perf_counter() - start
         try:
             res = observer_lmi(A0, C, psi, margin=MARGIN, solver=solver, problem=prob)
@@ -139,13 +158,13 @@ def design(send: Send, A0: np.ndarray, C: np.ndarray, structure: str, solver: st
                    "solver": float(stats.solve_time) if stats.solve_time is not None else float("nan"),
                    "iterations": stats.num_iters, "status": res.status,
                    "omega": res.scaling["omega_per_s"], "P": res.P, "Q": res.Q, "L": res.L,
-                   "achieved_margin": res.achieved_margin}))
+                   "achieved_margin": res.achieved_margin, "form": prob.form}))
 
 
 def sweep(send: Send, A0: np.ndarray, C: np.ndarray, structure: str, solver: str,
-          baseline: bool) -> None:
+          baseline: bool, full_form: bool = False) -> None:
     """maximise_psi with one compiled problem; optionally the recompile-per-trial baseline."""
-    opts = structure_options(structure, C)
+    opts = problem_options(structure, A0, C, full_form)
     calls: list[tuple[float, float]] = []
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
@@ -306,6 +325,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--floor-repeat", type=int, default=3,
                         help="cold runs of each floor cell, best kept (default 3)")
     parser.add_argument("--no-sweep", action="store_true", help="skip the psi bisection sweep")
+    parser.add_argument("--full-form", action="store_true",
+                        help="dense designs with K as an LMI variable (2N x 2N LMI) instead of "
+                             "eliminated by the projection lemma (the library default)")
     args = parser.parse_args(argv)
     sizes = tuple(args.sizes) if args.sizes else (QUICK_SIZES if args.quick else SIZES)
     budget = args.budget if args.budget is not None else (20.0 if args.quick else 60.0)
@@ -320,6 +342,9 @@ def main(argv: list[str] | None = None) -> int:
     print(f"each design runs cold in a freshly forked process (imports shared, "
           f"{IMPORT_SECONDS:.2f} s, not counted), budget {budget:g} s per design; floor cells "
           f"(Clarabel) best of {repeat}; time.perf_counter")
+    print("LMI form: dense " + ("full (K an LMI variable, --full-form)" if args.full_form else
+                                "K eliminated (projection lemma, closed-form gain)")
+          + "; structured full (gain pattern); A0 Parameter over the non-zeros of A0")
     print()
 
     failures: list[str] = []
@@ -342,7 +367,7 @@ def main(argv: list[str] | None = None) -> int:
                 runs = repeat if (key in FLOORS and solver == "CLARABEL") else 1
                 best: dict | None = None
                 for _ in range(runs):
-                    o = run_in_child(design, (A0, C, structure, solver, PSI), budget)
+                    o = run_in_child(design, (A0, C, structure, solver, PSI, args.full_form), budget)
                     d = o["data"]
                     if o["error"]:
                         failures.append(f"{structure} N = {N} {solver}: {o['error']}")
@@ -389,7 +414,7 @@ def main(argv: list[str] | None = None) -> int:
             (ct, cv, cl), (st, sv, sl) = t[(s, "CLARABEL")], t[(s, "SCS")]
             row += [ct, st, _ratio(sv, cv, sl) if not cl else "-"]
         for v in SOLVERS:
-            (dt, dv, dl), (_, sv, sl) = t[("dense", v)], t[("structured", v)]
+            (_, dv, dl), (_, sv, sl) = t[("dense", v)], t[("structured", v)]
             row.append(_ratio(dv, sv, dl) if not sl else "-")
         rows.append(row)
     render(["N", "TS build", "dense CLA", "dense SCS", "SCS/CLA", "struct CLA", "struct SCS",
@@ -419,11 +444,11 @@ def main(argv: list[str] | None = None) -> int:
             if "P" not in c:
                 continue
             rest = c["total"] - c["build"] - c["solve_wall"]
-            rows.append([str(N), s, _fmt(c["total"]), _fmt(c["cpu"]), _fmt(c["build"]),
-                         _fmt(c["compile"]),
+            rows.append([str(N), s, c.get("form", "-"), _fmt(c["total"]), _fmt(c["cpu"]),
+                         _fmt(c["build"]), _fmt(c["compile"]),
                          _fmt(c["solver"]), str(c["iterations"]), _fmt(rest)])
-    render(["N", "structure", "total", "cpu", "cvxpy build", "cvxpy compile", "Clarabel solve", "iters",
-            "obs-rank + re-check"], rows,
+    render(["N", "structure", "form", "total", "cpu", "cvxpy build", "cvxpy compile", "Clarabel solve",
+            "iters", "obs test + re-check"], rows,
            "Where the Clarabel time goes, seconds (compile = problem.compilation_time, solve = "
            "solver_stats.solve_time as reported by Clarabel; cpu = process CPU time, all threads)")
 
@@ -446,7 +471,8 @@ def main(argv: list[str] | None = None) -> int:
         solvers = ("CLARABEL",) if args.quick else SOLVERS
         for s in STRUCTURES if A0s is not None else ():
             for v in solvers:
-                o = run_in_child(sweep, (A0s, Cs, s, v, v == "CLARABEL"), args.sweep_budget)
+                o = run_in_child(sweep, (A0s, Cs, s, v, v == "CLARABEL", args.full_form),
+                                 args.sweep_budget)
                 d = o["data"]
                 if o["error"]:
                     failures.append(f"psi sweep {s} {v}: {o['error']}")
@@ -506,9 +532,9 @@ def main(argv: list[str] | None = None) -> int:
             continue
         c = cells.get((N, structure, "CLARABEL"), {})
         if "P" in c and "check" in c and c["check"]["ok"] and c["total"] < limit:
-            verdicts.append(("PASS", f"{name}: {c['total']:.3f} s"))
+            verdicts.append(("PASS", f"{name}: {c['total']:.3f} s (cpu {c['cpu']:.3f} s)"))
         else:
-            got = (f"{c['total']:.3f} s" if "P" in c else
+            got = (f"{c['total']:.3f} s (cpu {c.get('cpu', float('nan')):.3f} s)" if "P" in c else
                    f"> {budget:g} s" if c.get("over_budget") else
                    "refused" if "refused" in c else "error")
             verdicts.append(("FAIL", f"{name}: {got}"))

@@ -195,8 +195,10 @@ def test_structure_validation():
         observer_lmi(A, C, 0.01, blocks=blocks, pattern=2 * pattern)
 
 
-def test_problem_is_compiled_once_for_many_psi():
-    prob = ObserverLMIProblem(3, C12)
+@pytest.mark.parametrize("form", ["eliminated", "full"])
+def test_problem_is_compiled_once_for_many_psi(form):
+    prob = ObserverLMIProblem(3, C12, form=form, A0_pattern=A0 != 0)
+    assert prob.problem.is_dpp()
     first = prob.problem
     t = [prob.solve(A0, psi)["t"] for psi in (0.0, 0.01, 0.02, 1.0)]
     assert prob.problem is first
@@ -214,3 +216,138 @@ def test_bisect_feasible_on_a_known_predicate():
 def test_module_exports():
     for name in lmi.__all__:
         assert hasattr(lmi, name)
+
+
+# ---------------------------------------------------------------- LMI forms
+def test_eliminated_and_full_forms_have_the_same_optimum():
+    """Projection lemma: eliminating K changes neither the optimal margin nor psi_max."""
+    prob_f = ObserverLMIProblem(3, C12, form="full")
+    prob_e = ObserverLMIProblem(3, C12, form="eliminated")
+    for psi in (0.0, 0.03, 0.05):
+        tf, te = prob_f.solve(A0, psi)["t"], prob_e.solve(A0, psi)["t"]
+        assert te == pytest.approx(tf, abs=1e-6) and te == pytest.approx(1.0, abs=1e-6)
+    # beyond psi_max: the same sign; elimination is never the more conservative (with K
+    # unbounded the full form approaches its supremum only as K grows)
+    tf, te = prob_f.solve(A0, 0.06)["t"], prob_e.solve(A0, 0.06)["t"]
+    assert tf < 0 and te < 0 and te >= tf - 1e-6 and te == pytest.approx(tf, rel=1e-2)
+    for variant in ("qI", "full"):
+        f = maximise_psi(A0, C12, variant=variant, kappa=1e2, rtol=1e-4, form="full")
+        e = maximise_psi(A0, C12, variant=variant, kappa=1e2, rtol=1e-4, form="eliminated")
+        assert e.psi_max == pytest.approx(f.psi_max, rel=2e-4)
+        assert_lmi_solution(e.result, A0, C12)
+        assert e.result.structure["form"] == "eliminated"
+        assert f.result.structure["form"] == "full"
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_recovered_gain_meets_the_margin_it_was_built_for(seed):
+    """The closed-form K gives LMI (28) <= -t_K I with t_K >= the required margin."""
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(3, 8))
+    A = rng.standard_normal((n, n))
+    C = rng.standard_normal((int(rng.integers(1, n)), n))
+    s = maximise_psi(A, C, rtol=1e-3, form="eliminated")
+    res = s.result
+    assert_lmi_solution(res, A, C)
+    t_K = res.structure["gain_margin"]
+    assert res.margin <= t_K <= res.structure["eliminated_lmi_margin"]
+    assert np.max(res.lmi_eigenvalues) <= -t_K * (1 - 1e-6)
+    full = maximise_psi(A, C, rtol=1e-3, form="full")
+    assert s.psi_max == pytest.approx(full.psi_max, rel=3e-3)
+
+
+def test_every_state_measured_reduces_the_lmi():
+    """rank C = n: the eliminated LMI is Q >= t I; the design is still re-checked in full."""
+    A, _, _, _ = _network()
+    C = np.eye(8)
+    prob = ObserverLMIProblem(8, C)
+    assert prob.form == "eliminated" and prob.V2.shape == (8, 0)
+    res = observer_lmi(A, C, 0.1, problem=prob)
+    assert_lmi_solution(res, A, C)
+    assert res.structure["K"].startswith("eliminated")
+
+
+def test_auto_form_keeps_k_as_a_variable_for_a_gain_pattern():
+    A, C, blocks, pattern = _network()
+    assert ObserverLMIProblem(8, C).form == "eliminated"
+    assert ObserverLMIProblem(8, C, blocks=blocks).form == "eliminated"
+    assert ObserverLMIProblem(8, C, blocks=blocks, pattern=pattern).form == "full"
+    with pytest.raises(SpecError, match="free gain"):
+        ObserverLMIProblem(8, C, blocks=blocks, pattern=pattern, form="eliminated")
+    with pytest.raises(SpecError, match="form"):
+        ObserverLMIProblem(8, C, form="projected")
+
+
+def test_block_diagonal_p_with_mixed_block_sizes():
+    A, C, _, _ = _network()
+    blocks = [[0, 1, 2], [3], [4, 5], [6], [7]]
+    res = observer_lmi(A, C, 0.01, blocks=blocks)
+    assert_lmi_solution(res, A, C)
+    inside = np.zeros((8, 8), dtype=bool)
+    for b in blocks:
+        inside[np.ix_(b, b)] = True
+    assert np.all(res.P[~inside] == 0)
+    for b in blocks:                                 # normalisation P >= I per block
+        assert np.min(np.linalg.eigvalsh(res.P[np.ix_(b, b)])) >= 1 - 1e-6
+
+
+# ---------------------------------------------------------- A0 sparsity
+@pytest.mark.parametrize("form", ["full", "eliminated"])
+def test_a0_pattern_parameter(form):
+    """A Parameter over the non-zeros of A0 gives the same optimum; A0 outside it is refused."""
+    A, C, blocks, pattern = _network()
+    struct = {"blocks": blocks, "pattern": pattern} if form == "full" else {}
+    dense = ObserverLMIProblem(8, C, form=form, **struct)
+    sparse = ObserverLMIProblem(8, C, form=form, A0_pattern=A != 0, **struct)
+    for psi in (0.0, 0.05):
+        assert sparse.solve(A, psi)["t"] == pytest.approx(dense.solve(A, psi)["t"], abs=1e-6)
+    B = A.copy()
+    B[0, 7] = 0.3                                    # outside the pattern
+    with pytest.raises(DimensionError, match="outside the A0_pattern"):
+        sparse.solve(B, 0.0)
+    res = observer_lmi(A, C, 0.01, **struct)         # builds A0_pattern = A0 != 0 itself
+    assert "sparse" in res.structure["A0_parameter"]
+    with pytest.raises(DimensionError, match="A0_pattern"):
+        ObserverLMIProblem(8, C, A0_pattern=np.ones((3, 3)))
+
+
+# ------------------------------------------------------- observability test
+def test_observability_test_is_skipped_when_c_has_full_column_rank(monkeypatch):
+    def boom(*args, **kwargs):
+        raise AssertionError("Kalman observability test run although rank C = n")
+
+    monkeypatch.setattr(lmi._rank, "observability_rank", boom)
+    A, _, _, _ = _network()
+    assert_lmi_solution(observer_lmi(A, np.eye(8), 0.01), A, np.eye(8))
+    with pytest.raises(AssertionError, match="Kalman"):
+        observer_lmi(A0, C12, 0.01)                   # rank C < n: the test runs
+
+
+# ------------------------------------------------------------ solver options
+def test_solver_options_apply_per_solve_and_do_not_stick():
+    prob = ObserverLMIProblem(3, C12, form="full")
+    loose = {"tol_gap_abs": 1e-3, "tol_gap_rel": 1e-3, "tol_feas": 1e-3, "tol_ktratio": 1e-2}
+    iters = []
+    for opts in (None, loose, None):
+        prob.solve(A0, 0.03, solver_options=opts)
+        iters.append(prob.problem.solver_stats.num_iters)
+    assert iters[1] < iters[0] and iters[2] == iters[0]
+    assert prob._options(None) == {k: pytest.approx(v) for k, v in {
+        "tol_gap_abs": 1e-8, "tol_gap_rel": 1e-8, "tol_feas": 1e-8, "tol_ktratio": 1e-6}.items()}
+    res = observer_lmi(A0, C12, 0.03, solver_options=loose)
+    assert_lmi_solution(res, A0, C12)
+
+
+def test_maximise_psi_returns_a_checked_design_without_solving_again():
+    prob = ObserverLMIProblem(3, C12)
+    calls = []
+    real = prob.solve
+
+    def counted(*args, **kwargs):
+        calls.append(args[1])
+        return real(*args, **kwargs)
+
+    prob.solve = counted
+    s = maximise_psi(A0, C12, problem=prob, rtol=1e-3)
+    assert len(calls) == len(s.history) + 1            # psi = 0, then every trial
+    assert s.result.psi == s.psi_max and all(c.passed for c in s.result.checks)
