@@ -6,6 +6,7 @@ from . import methods as _methods  # noqa: F401  (registers the spec methods)
 from . import convex_methods as _convex_methods  # noqa: F401
 from . import control_methods as _control_methods  # noqa: F401
 from . import decentralized_methods as _decentralized_methods  # noqa: F401
+from . import estimator_methods as _estimator_methods  # noqa: F401
 from .linearize import (Equilibrium, LinearModel, discretize_zoh, equilibrium_input, linearize,
                         symbolic_jacobians)
 from .result import METHODS, DesignMethod, DesignResult, register
@@ -19,4 +20,5 @@ __all__ = [
     "relative_degree", "lmi", "placement", "takagi_sugeno",
     "control", "feedback_linearization",
     "decentralized",
+    "estimators", "fault",
 ]

@@ -38,7 +38,7 @@ from ..errors import SpecError, TanksynthError
 from ..plants.base import Plant
 from .metrics import compute_metrics
 from .scenarios import SCENARIOS, SEED002_SCENARIOS, run_scenario, scenario
-from .simulate import BatchEstimator, ConstantInput, numpy_model, run_seeds
+from .simulate import BatchEstimator, ConstantInput, run_seeds
 
 __all__ = [
     "ClosedLoop",
@@ -132,15 +132,15 @@ class IntegralStateFeedback:
 
 @dataclass
 class InverseDynamicsLaw:
-    """Inverse-dynamics control, seed 002 eq. (46)-(47), for control-affine plants.
+    """Inverse-dynamics control (seed 002 eq. 46-47) as a batch `ControlLaw`.
 
-    Choosing ``dx_i/dt = c_i (r_i - x_i)`` for each tracked state and
-    inverting ``f(x, u) = a(x) + G(x) u`` on the tracked rows with the
-    estimate: ``u = G_t(x_hat)^-1 (c (r - x_hat_t) - a_t(x_hat))``; for the
-    hybrid three-tank this is ``Q1in = A c1 (h1sp - h1) + Q1 + Q3 + Q5``. The
-    model is evaluated with the nominal parameters (the controller does not
-    see a mismatch or a fault). A stand-in until the control-law module of
-    the design stage lands; the simulator saturates ``u``.
+    The law is `tanksynth.design.control.inverse_dynamics_law` (the one
+    implementation: ``u = G_c(x_hat)^-1 (c (r - x_hat_c) - f0_c(x_hat))``,
+    for the hybrid three-tank ``Q1in = A c1 (h1sp - h1) + Q1 + Q3 + Q5``,
+    nominal parameters, saturated to the pumps' range), evaluated on the M
+    runs at once by `tanksynth.verify.method_verdicts.CasadiControlLaw`.
+    An artefact's serialised law runs the same way
+    (``CasadiControlLaw(law_from_document(doc["diagnostics"]["law"]))``).
 
     Attributes
     ----------
@@ -149,26 +149,29 @@ class InverseDynamicsLaw:
         Controlled states (as many as inputs).
     gains : tuple of float
         ``c_i`` (1/s).
+    saturate : bool
+        Clip to the plant's input range inside the law (the simulator
+        saturates anyway).
     """
 
     plant: Plant
     tracked: tuple[int, ...]
     gains: tuple[float, ...]
+    saturate: bool = True
+    _law: Any = field(init=False, default=None, repr=False)
+
+    def __post_init__(self) -> None:
+        from ..design.control import inverse_dynamics_law
+        from .method_verdicts import CasadiControlLaw
+
+        names = [s.name for s in self.plant.states]
+        law = inverse_dynamics_law(self.plant, np.asarray(self.gains, dtype=float),
+                                   [names[i] for i in self.tracked], saturate=self.saturate)
+        self._law = CasadiControlLaw(law.law)
 
     def __call__(self, x_hat: np.ndarray, reference: np.ndarray, t: float) -> np.ndarray:
         """Input (M, m) from the estimate (M, n) and the set-points (M, m)."""
-        model = numpy_model(self.plant)
-        params = {p.name: p.value for p in self.plant.parameters}
-        M, m = x_hat.shape[0], self.plant.m
-        rows = list(self.tracked)
-        a = model.rhs(x_hat, np.zeros((M, m)), params)[:, rows]
-        G = np.empty((M, len(rows), m))
-        for j in range(m):
-            e = np.zeros((M, m))
-            e[:, j] = 1.0
-            G[:, :, j] = model.rhs(x_hat, e, params)[:, rows] - a
-        rhs = np.asarray(self.gains) * (reference - x_hat[:, rows]) - a
-        return np.linalg.solve(G, rhs[:, :, None])[:, :, 0]
+        return self._law(x_hat, reference, t)
 
 
 def _tracked(spec: Any, doc: Mapping[str, Any]) -> tuple[int, ...]:

@@ -21,6 +21,11 @@ pass. Other modules plug their verdicts in with `register_verdict`.
       discrete): Kalman ranks recomputed from the artefact's matrices,
       compared with the design's record.
 
+Every other method's verdict lives in `tanksynth.verify.method_verdicts`
+(imported at the end of this module, so that the registry is complete
+whenever `verify_directory` can be called): observers, state feedback,
+control laws, decentralised Kalman gains and a default estimator verdict.
+
 `verify_directory` reads every artefact first (a tampered one, or one
 designed from another spec than ``DIR/spec.toml``, is refused with an
 `ArtefactError` before anything is written), runs the verdicts (in
@@ -52,6 +57,7 @@ __all__ = [
     "VERDICTS",
     "register_verdict",
     "verdict_for",
+    "artefact_gain",
     "linearize_verdict",
     "first_order_agreement",
     "load_directory",
@@ -95,13 +101,46 @@ class Verdict:
 
 #: Verdict functions by design method name.
 VERDICTS: dict[str, VerdictFn] = {}
+#: Methods whose verdict is a default (a later `register_verdict` replaces it).
+_DEFAULTS: set[str] = set()
 
 
-def register_verdict(method: str, fn: VerdictFn) -> VerdictFn:
-    """Register the verdict of a design method (one per method)."""
+def register_verdict(method: str, fn: VerdictFn, *, default: bool = False) -> VerdictFn:
+    """Register the verdict of a design method (one per method).
+
+    Parameters
+    ----------
+    method : str
+        Design method name.
+    fn : callable
+        ``fn(doc, spec) -> list[Check]``.
+    default : bool
+        A fallback verdict: it is replaced by a later (non-default)
+        registration for the same method, and ignored when the method
+        already has a verdict. This is how generic verdicts (e.g. the
+        estimator verdict of `tanksynth.verify.method_verdicts`) leave room
+        for a method's own.
+
+    Returns
+    -------
+    callable
+        ``fn`` (usable as a decorator body).
+
+    Raises
+    ------
+    ValueError
+        A second non-default verdict for the same method.
+    """
     if method in VERDICTS:
-        raise ValueError(f"verdict for method {method!r} registered twice")
+        if default:
+            return fn
+        if method not in _DEFAULTS:
+            raise ValueError(f"verdict for method {method!r} registered twice")
     VERDICTS[method] = fn
+    if default:
+        _DEFAULTS.add(method)
+    else:
+        _DEFAULTS.discard(method)
     return fn
 
 
@@ -118,11 +157,21 @@ def verdict_for(doc: Mapping[str, Any], spec: Any) -> list[Check]:
 
 
 # ------------------------------------------------------------------------- linearize
-def _gain(doc: Mapping[str, Any], name: str) -> np.ndarray:
+def artefact_gain(doc: Mapping[str, Any], name: str) -> np.ndarray:
+    """A gain of an artefact as a float array (at least 1-D).
+
+    Raises
+    ------
+    ArtefactError
+        The artefact has no gain of that name.
+    """
     gains = doc["gains"]
     if name not in gains:
         raise ArtefactError(f"artefact '{doc['name']}' ({doc['method']}) has no gain {name!r}")
     return np.atleast_1d(np.asarray(gains[name], dtype=float))
+
+
+_gain = artefact_gain
 
 
 def _rel(a: np.ndarray, b: np.ndarray) -> float:
@@ -391,3 +440,7 @@ def verify_directory(directory: str | Path, scheduler: str | None = None,
         _write_verification(path, v.as_dict())
         verdicts.append(v)
     return verdicts
+
+
+# Registers the verdicts of the other design methods (imported last: it uses this module).
+from . import method_verdicts as _method_verdicts  # noqa: E402,F401
