@@ -18,6 +18,8 @@ __all__ = [
     "UnobservableError",
     "UncontrollableError",
     "ReportError",
+    "CovarianceError",
+    "SimulationError",
 ]
 
 
@@ -93,3 +95,30 @@ class ReportError(TanksynthError, RuntimeError):
     def __init__(self, message: str, log_path=None):
         self.log_path = log_path
         super().__init__(message)
+
+
+class CovarianceError(TanksynthError, ArithmeticError):
+    """A covariance stopped being positive definite (or a state became non-finite).
+
+    Attributes
+    ----------
+    step : int
+        1-based index of the estimator step that failed.
+    run : int or None
+        Index of the failing run in a batch (None for a single run).
+    matrix : str
+        Which quantity failed (``"predicted covariance P(k|k-1)"``, ...).
+    value : float
+        Smallest Cholesky pivot (or the offending value).
+    """
+
+    def __init__(self, message: str, step: int, run: int | None, matrix: str, value: float):
+        self.step = step
+        self.run = run
+        self.matrix = matrix
+        self.value = value
+        super().__init__(message)
+
+
+class SimulationError(TanksynthError, RuntimeError):
+    """A simulation produced a non-finite state or was given inconsistent inputs."""

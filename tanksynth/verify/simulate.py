@@ -47,7 +47,7 @@ from typing import Any, Callable, Mapping, Protocol, Sequence, runtime_checkable
 import numpy as np
 import sympy as sp
 
-from ..errors import DimensionError, TanksynthError
+from ..errors import DimensionError, SimulationError, TanksynthError
 from ..plants.base import Plant
 
 __all__ = [
@@ -65,10 +65,6 @@ __all__ = [
     "run_seeds",
     "simulate",
 ]
-
-
-class SimulationError(TanksynthError, RuntimeError):
-    """A simulation produced a non-finite state or was given inconsistent inputs."""
 
 
 @runtime_checkable

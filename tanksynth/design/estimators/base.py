@@ -50,7 +50,7 @@ import casadi as ca
 import numpy as np
 import sympy as sp
 
-from ...errors import DimensionError, SpecError, TanksynthError
+from ...errors import CovarianceError, DimensionError, SpecError, TanksynthError
 from ...plants.base import Plant
 from ...plants.compile import compile_matrix
 from ..linearize import discretize_zoh, equilibrium_input, linearize
@@ -76,29 +76,6 @@ __all__ = [
 
 #: Kernel evaluation back ends (``"auto"`` = native when a C compiler works).
 BACKENDS = ("auto", "native", "vm")
-
-
-class CovarianceError(TanksynthError, ArithmeticError):
-    """A covariance stopped being positive definite (or a state became non-finite).
-
-    Attributes
-    ----------
-    step : int
-        1-based index of the estimator step that failed.
-    run : int or None
-        Index of the failing run in a batch (None for a single run).
-    matrix : str
-        Which quantity failed (``"predicted covariance P(k|k-1)"``, ...).
-    value : float
-        Smallest Cholesky pivot (or the offending value).
-    """
-
-    def __init__(self, message: str, step: int, run: int | None, matrix: str, value: float):
-        self.step = step
-        self.run = run
-        self.matrix = matrix
-        self.value = value
-        super().__init__(message)
 
 
 # ----------------------------------------------------------------------------- validation
