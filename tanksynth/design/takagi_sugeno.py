@@ -586,7 +586,7 @@ def interval_evaluate(expr: sp.Expr, variables: Sequence[sp.Symbol], lo: np.ndar
         cache[e] = out
         return out
 
-    a, b = rec(sp.sympify(expr))
+    a, b = rec(expr if isinstance(expr, sp.Basic) else sp.Float(float(expr)))
     a = np.where(np.isnan(a), -np.inf, a)
     b = np.where(np.isnan(b), np.inf, b)
     return np.asarray(a, dtype=float) * np.ones(count), np.asarray(b, dtype=float) * np.ones(count)

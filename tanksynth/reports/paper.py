@@ -22,6 +22,7 @@ from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
 
+from ..errors import ReportError
 from .inputs import ReportInputs
 from .latex import Tex, escape_latex, format_eigenvalues, format_number, matrix_latex
 
@@ -280,7 +281,8 @@ def _seed000_applies(inputs: ReportInputs) -> bool:
 
 def _seed000_rows(inputs: ReportInputs) -> tuple[PaperRow, ...]:
     art = _first_linearize(inputs, SEED000_Y0, {"F": (3, 3), "B": (3, 2), "u0": (2,)})
-    assert art is not None
+    if art is None:  # `applies` selected this entry; a missing artefact is a registry bug
+        raise ReportError("seed 000 comparison: no linearize artefact at y0 = (0.40, 0.20, 0.30) m")
     F, B, u0 = _gain(art, "F"), _gain(art, "B"), _gain(art, "u0")
     params = {k: inputs.parameters()[k] for k in SEED000_TABLE_I}
     Fp, Bp = printed_F_seed000(params, SEED000_Y0)
@@ -520,7 +522,8 @@ def _poly_latex(coeffs: Sequence[float], var: str = "s") -> str:
 
 def _seed004_rows(inputs: ReportInputs) -> tuple[PaperRow, ...]:
     art = _first_linearize(inputs, None, {"F": (3, 3), "B": (3, 1), "C": (1, 3)})
-    assert art is not None
+    if art is None:  # `applies` selected this entry; a missing artefact is a registry bug
+        raise ReportError("seed 004 comparison: no three-state linearize artefact")
     F, B, C = _gain(art, "F"), _gain(art, "B"), _gain(art, "C")
     d = inputs.parameters().get("delta_bar", 0.0)
     pr = seed004_printed(d)
