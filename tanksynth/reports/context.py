@@ -9,13 +9,14 @@ when large) and a bounded table of its remaining diagnostics.
 
 from __future__ import annotations
 
+import dataclasses
 import re
 from dataclasses import dataclass, field
 from typing import Any, Mapping, Sequence
 
 import numpy as np
 
-from .figures import FigureFile, eigenvalue_sets, is_pole_key
+from .figures import FigureFile, TraceFigure, eigenvalue_sets, is_pole_key, time_domain_figure
 from .inputs import ReportInputs
 from .latex import (Tex, escape_latex, expression_latex, format_eigenvalues,
                     format_number, format_unit, gain_latex, matrix_latex, split_equation,
@@ -23,7 +24,7 @@ from .latex import (Tex, escape_latex, expression_latex, format_eigenvalues,
 from .paper import PaperComparison
 
 __all__ = ["DesignView", "build_context", "design_view", "diagnostic_rows", "fragment_lines",
-           "METHOD_PROBLEMS"]
+           "trace_figures", "METHOD_PROBLEMS"]
 
 _MAX_DIAG_ROWS = 30
 _MAX_TEXT = 400
@@ -278,6 +279,10 @@ class DesignView:
     verification : dict or None
     figure : FigureFile or None
     provenance : list of (Tex, Tex)
+    trace_figure : TraceFigure or None
+        Time-domain figure of the verdict simulation (`trace_figures`).
+    trace_caption : Tex
+        Its caption, escaped.
     """
 
     name: str
@@ -298,6 +303,8 @@ class DesignView:
     verification: dict | None = None
     figure: FigureFile | None = None
     provenance: list = field(default_factory=list)
+    trace_figure: TraceFigure | None = None
+    trace_caption: Tex = Tex("")
 
 
 _MARGIN_KEYS = ("margin", "achieved_margin", "min_region_margin", "max_pole_error", "condition_P",
@@ -661,6 +668,42 @@ def _campaign_view(rows: Sequence[Mapping[str, str]] | None, limit: int = 60) ->
 
 
 # ------------------------------------------------------------------ context
+#: Sub-directory of DIR holding the report's figures (as in `tanksynth.reports.writer`).
+_FIGURE_DIR = "report-figures"
+
+
+def _trace_stem(index: int, name: str) -> str:
+    safe = "".join(c if (c.isascii() and c.isalnum()) else "-" for c in name).strip("-")[:40]
+    return f"traces-{index:02d}-{safe or 'design'}"
+
+
+def trace_figures(inputs: ReportInputs) -> dict[str, TraceFigure]:
+    """Draw the time-domain figure of every artefact that has a verdict trace.
+
+    Figures go to ``DIR/report-figures/traces-NN-<name>.pdf`` (vector PDF,
+    written atomically); figures of traces that are gone are removed. An
+    artefact without ``DIR/<name>.traces.npz`` simply has none.
+
+    Returns
+    -------
+    dict
+        Artefact name -> TraceFigure.
+    """
+    figdir = inputs.directory / _FIGURE_DIR
+    out: dict[str, TraceFigure] = {}
+    for i, art in enumerate(inputs.artefacts):
+        name = str(art.get("name", ""))
+        fig = time_domain_figure(art, inputs.directory, figdir, _trace_stem(i, name))
+        if fig is not None:
+            out[name] = fig
+    if figdir.is_dir():
+        keep = {f.path.name for f in out.values()}
+        for stale in figdir.glob("traces-*.pdf"):
+            if stale.name not in keep:
+                stale.unlink(missing_ok=True)
+    return out
+
+
 def _code_line(line: str) -> Tex:
     """One line of the spec for a typewriter block (indentation kept, escaped)."""
     stripped = line.lstrip(" ")
@@ -670,20 +713,27 @@ def _code_line(line: str) -> Tex:
 
 
 def build_context(inputs: ReportInputs, figures: Mapping[str, FigureFile],
-                  paper: Sequence[PaperComparison]) -> dict[str, Any]:
-    """Everything the templates need, formatted.
+                  paper: Sequence[PaperComparison],
+                  traces: Mapping[str, TraceFigure] | None = None) -> dict[str, Any]:
+    """Everything the templates need, formatted (no file is written).
 
     Parameters
     ----------
     inputs : ReportInputs
     figures : mapping of artefact name to FigureFile
+        Pole maps.
     paper : sequence of PaperComparison
+    traces : mapping of artefact name to TraceFigure, optional
+        Time-domain figures drawn by `trace_figures` (none when omitted).
     """
     rec = inputs.plant
     title = rec.get("title") or f"Design report: {rec.get('plant', {}).get('name', '')}"
     opv = _operating_view(inputs)
     lin = [_linearization_view(a, opv) for a in inputs.by_method("linearize")]
     designs = [design_view(a, figures.get(str(a.get("name")))) for a in inputs.artefacts]
+    traces = traces or {}
+    designs = [dataclasses.replace(d, trace_figure=traces[d.name], trace_caption=escape_latex(
+        traces[d.name].caption)) if d.name in traces else d for d in designs]
     checks = [_check_view(c) for c in inputs.checks] if inputs.checks is not None else None
     first = inputs.artefacts[0].get("provenance", {}) if inputs.artefacts else {}
     eq_check = None
@@ -724,6 +774,7 @@ def build_context(inputs: ReportInputs, figures: Mapping[str, FigureFile],
         "verified": verified,
         "campaign": _campaign_view(inputs.campaign),
         "figures": [designs_fig for designs_fig in designs if designs_fig.figure is not None],
+        "trace_figures": [d for d in designs if d.trace_figure is not None],
         "paper": paper,
         "n_errata": n_err,
     }

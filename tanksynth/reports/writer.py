@@ -19,8 +19,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from ..errors import ReportError
-from .context import build_context
-from .figures import FigureFile, pole_map
+from .context import build_context, trace_figures
+from .figures import FigureFile, TraceFigure, pole_map
 from .inputs import ReportInputs, read_report_inputs
 from .latex import compile_pdf, environment, pdf_page_count
 from .paper import PaperComparison, compare_with_papers
@@ -81,20 +81,23 @@ def _figure_stem(index: int, name: str) -> str:
 
 
 def render_report(inputs: ReportInputs, figures: dict[str, FigureFile] | None = None,
-                  comparisons: tuple[PaperComparison, ...] | None = None) -> str:
+                  comparisons: tuple[PaperComparison, ...] | None = None,
+                  traces: dict[str, TraceFigure] | None = None) -> str:
     """The LaTeX source of the report (no file is written).
 
     Parameters
     ----------
     inputs : ReportInputs
     figures : dict of artefact name to FigureFile, optional
-        Figures to include (none when omitted).
+        Pole maps to include (none when omitted).
     comparisons : tuple of PaperComparison, optional
         Computed with `compare_with_papers` when omitted.
+    traces : dict of artefact name to TraceFigure, optional
+        Time-domain figures to include (none when omitted).
     """
     if comparisons is None:
         comparisons = compare_with_papers(inputs)
-    ctx = build_context(inputs, figures or {}, comparisons)
+    ctx = build_context(inputs, figures or {}, comparisons, traces)
     return environment().get_template("report.tex.j2").render(**ctx)
 
 
@@ -138,7 +141,8 @@ def write_report(directory: str | Path, pdf: bool = False, timeout: float = 180.
         for stale in figdir.glob("poles-*.pdf"):
             if stale.name not in keep:
                 stale.unlink(missing_ok=True)
-    tex = render_report(inputs, figures, comparisons)
+    traces = trace_figures(inputs)
+    tex = render_report(inputs, figures, comparisons, traces)
     tex_path = d / "report.tex"
     pdf_path = d / "report.pdf"
     log_path = d / "report.log"
@@ -150,7 +154,7 @@ def write_report(directory: str | Path, pdf: bool = False, timeout: float = 180.
         build = Path(tempfile.mkdtemp(prefix=".report-build-", dir=d))
         try:
             (build / "report.tex").write_text(tex, encoding="utf-8")
-            if figures:
+            if figdir.is_dir():
                 shutil.copytree(figdir, build / FIGURE_DIR)
             try:
                 res = compile_pdf(build / "report.tex", timeout=timeout)
@@ -171,7 +175,8 @@ def write_report(directory: str | Path, pdf: bool = False, timeout: float = 180.
             shutil.rmtree(build, ignore_errors=True)
     else:
         _atomic_write_text(tex_path, tex)
-    return ReportResult(tex_path, out_pdf, out_log, tuple(f.path for f in figures.values()),
+    drawn = [f.path for f in figures.values()] + [f.path for f in traces.values()]
+    return ReportResult(tex_path, out_pdf, out_log, tuple(drawn),
                         comparisons, pages, time.perf_counter() - start, latex_seconds)
 
 

@@ -11,6 +11,13 @@ a task that is re-run after a worker died replaces nothing and adds
 nothing: no result is lost (Dask recomputes lost tasks; ``retries`` more
 on errors) and none is duplicated.
 
+Artefacts of ``feedback_linearization``, ``integral_tracking`` and
+``inverse_dynamics`` run their serialised CasADi law (``diagnostics.law``)
+through the public adapters `ArtefactLaw` (``u, zeta = law(x, y_r)``, ``u =
+law(x_hat, h_sp)``) and `ArtefactIntegralLaw` (``u, z_next = law(x, z,
+y_r)``, integrator state kept per run), evaluated on the M runs at once
+with ``Function.map``; the true state is fed back.
+
 The table is tidy, one row per (artefact, scenario, run, metric), with the
 seed that reproduces the run: ``simulate(..., seeds=[seed])`` gives the same
 trajectory bit for bit, whatever chunk it ran in.
@@ -26,6 +33,7 @@ from __future__ import annotations
 import csv
 import importlib
 import math
+import re
 import uuid
 from dataclasses import dataclass, field
 from functools import lru_cache
@@ -47,6 +55,8 @@ __all__ = [
     "closed_loop_for",
     "IntegralStateFeedback",
     "InverseDynamicsLaw",
+    "ArtefactLaw",
+    "ArtefactIntegralLaw",
     "CampaignTask",
     "CampaignTable",
     "COLUMNS",
@@ -174,6 +184,116 @@ class InverseDynamicsLaw:
         return self._law(x_hat, reference, t)
 
 
+class ArtefactLaw:
+    """An artefact's serialised CasADi law as a batch `ControlLaw` (stateless).
+
+    For the laws ``u, zeta = law(x, y_r)`` (``feedback_linearization``) and
+    ``u = law(x_hat, h_sp)`` (``inverse_dynamics``): the Function from
+    ``doc["diagnostics"]["law"]`` (`tanksynth.design.control.law_from_document`,
+    which refuses an edited serialisation) is evaluated on the M runs at
+    once (``Function.map``); its first output is the input.
+
+    Parameters
+    ----------
+    function : casadi.Function
+        Inputs ``(x, reference)``, first output ``u``.
+
+    Attributes
+    ----------
+    signature : str
+        ``doc["diagnostics"]["law_signature"]`` when built by `from_document`.
+    """
+
+    def __init__(self, function: Any, signature: str = ""):
+        from .method_verdicts import CasadiControlLaw
+
+        self.function = function
+        self.signature = signature
+        self._law = CasadiControlLaw(function)
+
+    @classmethod
+    def from_document(cls, doc: Mapping[str, Any]) -> "ArtefactLaw":
+        """The law serialised in an artefact's diagnostics.
+
+        Raises
+        ------
+        ArtefactError
+            No law in the diagnostics, or an altered serialisation.
+        """
+        fn, signature = _law_of(doc)
+        return cls(fn, signature)
+
+    def __call__(self, x_hat: np.ndarray, reference: np.ndarray, t: float) -> np.ndarray:
+        """Input (M, m) from the state (M, n) and the reference (M, r)."""
+        return self._law(np.asarray(x_hat, float), np.asarray(reference, float), t)
+
+
+class ArtefactIntegralLaw(ArtefactLaw):
+    """An artefact's serialised integral-tracking law ``u, z_next = law(x, z, y_r)`` (stateful).
+
+    The integrator state ``z`` is kept per run: `reset` (called by the
+    simulator before the first sample) zeroes it for M runs, each call
+    advances it.
+
+    Parameters
+    ----------
+    function : casadi.Function
+        Inputs ``(x, z, y_r)``, outputs ``(u, z_next)``.
+    signature : str
+    """
+
+    def __init__(self, function: Any, signature: str = ""):
+        from .method_verdicts import CasadiIntegralLaw
+
+        self.function = function
+        self.signature = signature
+        self._law = CasadiIntegralLaw(function)
+
+    @property
+    def z(self) -> np.ndarray:
+        """Integrator states, shape (M, p)."""
+        return self._law.z
+
+    def reset(self, runs: int) -> None:
+        """Zero the integrators of ``runs`` runs."""
+        self._law.reset(runs)
+
+    def __call__(self, x_hat: np.ndarray, reference: np.ndarray, t: float) -> np.ndarray:
+        """Input (M, m); advances the integrator state of every run."""
+        return self._law(np.asarray(x_hat, float), np.asarray(reference, float), t)
+
+
+def _law_of(doc: Mapping[str, Any]) -> tuple[Any, str]:
+    from ..design.control import law_from_document
+    from ..errors import ArtefactError
+
+    diag = doc.get("diagnostics") or {}
+    law = diag.get("law") if isinstance(diag, Mapping) else None
+    if not isinstance(law, Mapping):
+        raise ArtefactError(f"artefact '{doc.get('name', '')}' ({doc.get('method', '')}) has no "
+                            "serialised law in diagnostics.law")
+    signature = diag.get("law_signature", "")
+    return law_from_document(dict(law)), str(signature) if isinstance(signature, str) else ""
+
+
+def _named_states(spec: Any, doc: Mapping[str, Any], keys: Sequence[str]) -> tuple[int, ...] | None:
+    """State indices of the names listed under one of ``keys`` (diagnostics, then design options)."""
+    names = [s.name for s in spec.plant.states]
+    diag = doc.get("diagnostics") or {}
+    sources: list[Mapping[str, Any]] = [diag] if isinstance(diag, Mapping) else []
+    for d in getattr(spec, "designs", ()) or ():
+        if getattr(d, "name", None) == doc.get("name"):
+            opts = getattr(d, "options", None)
+            if isinstance(opts, Mapping):
+                sources.append(opts)
+    for src in sources:
+        for key in keys:
+            listed = src.get(key)
+            if isinstance(listed, (list, tuple)) and listed and all(str(v) in names for v in listed):
+                return tuple(names.index(str(v)) for v in listed)
+    return None
+
+
 def _tracked(spec: Any, doc: Mapping[str, Any]) -> tuple[int, ...]:
     names = [s.name for s in spec.plant.states]
     integ = (doc.get("diagnostics") or {}).get("integral") or {}
@@ -217,11 +337,41 @@ def _integral_loop(doc: Mapping[str, Any], spec: Any) -> ClosedLoop:
                       "state feedback with integral action (seed 000 eq. 13-16), true state")
 
 
+def _serialized_loop(doc: Mapping[str, Any], spec: Any, law: ArtefactLaw, keys: Sequence[str],
+                     what: str) -> ClosedLoop:
+    x0, u0 = _operating_point(spec, doc)
+    tracked = _named_states(spec, doc, keys)
+    p = int(law.function.nnz_in(law.function.n_in() - 1))
+    if tracked is None or len(tracked) != p:
+        tracked = tuple(range(min(p, spec.plant.n)))
+    sig = f" ({re.split(r'[:;]', law.signature)[0].strip()})" if law.signature else ""
+    return ClosedLoop(law, None, x0, u0, tracked, f"{what}, the artefact's serialised CasADi law{sig}, "
+                                                  "true state")
+
+
+def _feedback_linearization_loop(doc: Mapping[str, Any], spec: Any) -> ClosedLoop:
+    return _serialized_loop(doc, spec, ArtefactLaw.from_document(doc), ("outputs", "tracked"),
+                            "input-output feedback linearisation")
+
+
+def _integral_tracking_loop(doc: Mapping[str, Any], spec: Any) -> ClosedLoop:
+    return _serialized_loop(doc, spec, ArtefactIntegralLaw(*_law_of(doc)), ("tracked", "outputs"),
+                            "state feedback with integral action and anti-windup")
+
+
+def _inverse_dynamics_loop(doc: Mapping[str, Any], spec: Any) -> ClosedLoop:
+    return _serialized_loop(doc, spec, ArtefactLaw.from_document(doc), ("controlled", "tracked"),
+                            "inverse-dynamics control (seed 002 eq. 46-47)")
+
+
 #: Closed-loop builders by design method: ``builder(doc, spec) -> ClosedLoop``.
 CLOSED_LOOPS: dict[str, Callable[[Mapping[str, Any], Any], ClosedLoop]] = {
     "linearize": _linearize_loop,
     "pole_placement": _integral_loop,
     "lmi_placement": _integral_loop,
+    "feedback_linearization": _feedback_linearization_loop,
+    "integral_tracking": _integral_tracking_loop,
+    "inverse_dynamics": _inverse_dynamics_loop,
 }
 
 

@@ -91,7 +91,7 @@ from ..errors import ArtefactError, TanksynthError
 from .checks import Check
 from .rank import controllability_rank, observability_rank
 from .simulate import BatchEstimator, EstimatorAdapter, run_seeds, simulate
-from .verdicts import artefact_gain, register_verdict
+from .verdicts import artefact_gain, record_trace, register_verdict
 
 __all__ = [
     "MODEL_TOLERANCE",
@@ -587,6 +587,9 @@ def observer_convergence(plant: Any, estimator: BatchEstimator, x0: np.ndarray, 
     x_start, frac = _perturbed_start(plant, x0, inside)
     res = simulate(plant, ts=ts, steps=steps, x0=x_start, seeds=run_seeds(0, 1), estimator=estimator,
                    x_hat0=x0, u_init=u0, substeps=substeps)
+    record_trace(res, plant, check=name, estimator=True,
+                 scenario="initial-state mismatch: plant from x0 + delta, estimate from x0, "
+                          "equilibrium input held")
     err = np.max(np.abs(res.x_hat[0] - res.x[0]), axis=1)
     e0 = float(err[0])
     tail = float(np.max(err[k_h:]))
@@ -686,6 +689,9 @@ def _servo_check(plant: Any, controller: Callable, x0: np.ndarray, u0: np.ndarra
     ref[k_step:] += step
     res = simulate(plant, ts=ts, steps=steps, x0=x0, seeds=run_seeds(0, 1), controller=controller,
                    reference=ref, u_init=u0, substeps=substeps)
+    record_trace(res, plant, check="servo_tracking",
+                 reference_names=[plant.outputs[i].name for i in out_idx],
+                 scenario=f"set-point step of 5 % at t = {k_step * ts:g} s (servo)")
     y = res.y[0][:, list(out_idx)]
     err = ref - y
     window = max(1, (steps + 1) // 10)
@@ -741,6 +747,8 @@ def _regulation_check(plant: Any, K: np.ndarray, x0: np.ndarray, u0: np.ndarray,
     x_start, frac = _perturbed_start(plant, x0)
     res = simulate(plant, ts=ts, steps=steps, x0=x_start, seeds=run_seeds(0, 1),
                    controller=_StateFeedback(K, x0, u0), u_init=u0)
+    record_trace(res, plant, check="regulation",
+                 scenario="regulation to x0 from x0 + delta, u = u0 - K (x - x0)")
     dev = np.max(np.abs(res.x[0] - x0), axis=1)
     tail = float(np.max(dev[k_h:]))
     tol = OBSERVER_TOLERANCE * float(dev[0])
@@ -1290,6 +1298,9 @@ def feedback_linearization_verdict(doc: Mapping[str, Any], spec: Any) -> list[Ch
             ref[k_step:, j] += step
             res = simulate(plant, ts=ts_sim, steps=steps, x0=x0, seeds=run_seeds(0, 1),
                            controller=law, reference=ref, u_init=u0, substeps=2)
+            record_trace(res, plant, check=f"time_constant_{name}",
+                         reference_names=[plant.outputs[i].name for i in out_idx],
+                         scenario=f"step of 5 % on the set-point of {name} at t = {k_step * ts_sim:g} s")
             y = res.y[0][:, out_idx]
             rise = (y[k_step:, j] - y0[j]) / step
             t = (np.arange(rise.size)) * ts_sim
@@ -1383,6 +1394,9 @@ def inverse_dynamics_verdict(doc: Mapping[str, Any], spec: Any) -> list[Check]:
         setup = sc.setup(plant, x0, u0, tuple(idx), ts=ts)
         res = run_scenario(setup, plant, ts=ts, seeds=run_seeds(0, 2),
                            controller=CasadiControlLaw(built.law), substeps=4)
+        record_trace(res, plant, check="servo_scenario",
+                     reference_names=[states[i] for i in setup.tracked],
+                     scenario=f"seed 002 servo scenario ({sc.description})")
         met = compute_metrics(res, setup, plant)
         ise = np.array([met[f"ise_{states[i]}"].values for i in idx])
         track = met["tracking_time"].values
@@ -1510,6 +1524,9 @@ def decentralized_kalman_verdict(doc: Mapping[str, Any], spec: Any) -> list[Chec
                       u_init=u, process_std=np.sqrt(np.maximum(qdiag, 0) * ts),
                       measurement_std=np.sqrt(np.maximum(rdiag, 0)), substeps=4)
         filt = simulate(plant, estimator=DecentralizedFilter(plant, Ks, ts), **common)
+        record_trace(filt, plant, check="filter_vs_open_loop", estimator=True,
+                     scenario="random initial states, process and measurement noise, decentralised "
+                              "Kalman filter")
         open_loop = simulate(plant, estimator=DecentralizedFilter(plant, [], ts), **common)
         e_f = filt.x_hat[:, 1:] - filt.x[:, 1:]
         e_o = open_loop.x_hat[:, 1:] - open_loop.x[:, 1:]

@@ -32,13 +32,25 @@ designed from another spec than ``DIR/spec.toml``, is refused with an
 process, or on a Dask cluster given its scheduler address), and writes
 each artefact's ``verification`` field back atomically; gains are left
 byte for byte as they were, so their provenance hash stays valid.
+
+Beside each artefact it also stores a compact trace of the verdict's main
+simulation (the first one the verdict runs that calls `record_trace`):
+``DIR/<name>.traces.npz`` with ``t``, ``x`` (plant), ``x_hat`` (estimators
+and observers), ``t_u``/``u`` (inputs), ``reference`` (if any) for the first
+`TRACE_RUNS` runs, decimated to at most `TRACE_MAX_SAMPLES` samples, and a
+JSON header (scenario, check and its verdict, state/input names and units).
+It is written atomically and is not part of the artefact JSON (the
+provenance hash is untouched); the report draws it as a time-domain figure.
+A verdict that simulates nothing leaves no trace (a stale one is removed).
 """
 
 from __future__ import annotations
 
 import json
+import math
 import os
 import tempfile
+from contextvars import ContextVar
 from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
@@ -62,7 +74,25 @@ __all__ = [
     "first_order_agreement",
     "load_directory",
     "verify_directory",
+    "TRACE_SUFFIX",
+    "TRACE_MAX_SAMPLES",
+    "TRACE_RUNS",
+    "record_trace",
+    "verdict_with_trace",
+    "trace_path",
+    "write_trace",
+    "read_trace",
 ]
+
+#: File name suffix of an artefact's verdict trace: ``DIR/<name>.traces.npz``.
+TRACE_SUFFIX = ".traces.npz"
+#: Samples kept in a trace at most (decimated by a constant stride).
+TRACE_MAX_SAMPLES = 2000
+#: Runs of the verdict simulation batch kept in a trace (the first ones).
+TRACE_RUNS = 2
+
+#: The trace slot of the verdict running in this context (None: nothing is recorded).
+_TRACE: ContextVar[dict | None] = ContextVar("tanksynth_verdict_trace", default=None)
 
 VerdictFn = Callable[[Mapping[str, Any], Any], list]
 
@@ -156,6 +186,143 @@ def verdict_for(doc: Mapping[str, Any], spec: Any) -> list[Check]:
         return [Check("verification", False, f"verdict could not run: {' '.join(str(exc).split())}")]
 
 
+# ------------------------------------------------------------------------- traces
+def record_trace(result: Any, plant: Any, *, scenario: str, check: str, estimator: bool = False,
+                 reference_names: Sequence[str] | None = None, runs: int = TRACE_RUNS) -> None:
+    """Keep a compact trace of a verdict simulation (the first one of the verdict only).
+
+    Does nothing unless the verdict runs under `verdict_with_trace`, or when
+    that verdict already recorded a trace: the first simulation a verdict
+    runs is its main one.
+
+    Parameters
+    ----------
+    result : SimulationResult
+    plant : Plant
+        Gives the state, input and output names and units.
+    scenario : str
+        What the simulation does (plain text, for the figure caption).
+    check : str
+        Name of the check this simulation decides.
+    estimator : bool
+        The run has an estimator/observer (``x_hat`` is kept).
+    reference_names : sequence of str, optional
+        Names of the reference columns (states or outputs); default
+        ``r1, r2, ...``.
+    runs : int
+        First runs of the batch kept.
+    """
+    slot = _TRACE.get()
+    if slot is None or "trace" in slot:
+        return
+    t = np.asarray(result.t, dtype=float)
+    stride = max(1, int(math.ceil(t.size / TRACE_MAX_SAMPLES)))
+    keep = slice(None, None, stride)
+    r = max(1, min(int(runs), int(result.x.shape[0])))
+    ref = np.asarray(result.reference, dtype=float)
+    names = [str(v) for v in reference_names] if reference_names is not None else \
+        [f"r{i + 1}" for i in range(ref.shape[1])]
+    arrays: dict[str, np.ndarray] = {
+        "t": t[keep],
+        "x": np.asarray(result.x[:r], dtype=float)[:, keep],
+        "t_u": t[:-1][keep],
+        "u": np.asarray(result.u[:r], dtype=float)[:, keep],
+    }
+    if estimator:
+        arrays["x_hat"] = np.asarray(result.x_hat[:r], dtype=float)[:, keep]
+    if ref.ndim == 2 and ref.shape[1] > 0:
+        arrays["reference"] = ref[keep]
+    header = {
+        "schema": "tanksynth.traces/1",
+        "scenario": str(scenario),
+        "check": str(check),
+        "runs": r,
+        "stride": stride,
+        "ts": float(result.ts),
+        "plant": str(getattr(plant, "name", "")),
+        "state_names": [q.name for q in plant.states],
+        "state_units": [q.unit for q in plant.states],
+        "input_names": [q.name for q in plant.inputs],
+        "input_units": [q.unit for q in plant.inputs],
+        "reference_names": names[:ref.shape[1]] if ref.ndim == 2 else [],
+        "seeds": [int(v) for v in np.asarray(result.seeds)[:r]],
+    }
+    slot["trace"] = {"header": header, "arrays": arrays}
+
+
+def verdict_with_trace(doc: Mapping[str, Any], spec: Any) -> tuple[list[Check], dict | None]:
+    """`verdict_for`, with the trace of the verdict's main simulation.
+
+    Returns
+    -------
+    checks : list of Check
+    trace : dict or None
+        ``{"header": dict, "arrays": dict of ndarray}`` (see `record_trace`),
+        with the verdict of the check it decides (``check_passed``) and of
+        the artefact (``verdict_passed``) added to the header; None when
+        the verdict simulated nothing.
+    """
+    slot: dict = {}
+    token = _TRACE.set(slot)
+    try:
+        checks = verdict_for(doc, spec)
+    finally:
+        _TRACE.reset(token)
+    trace = slot.get("trace")
+    if trace is not None:
+        named = [c for c in checks if c.name == trace["header"]["check"]]
+        decided = [c.passed for c in checks if c.passed is not None]
+        trace["header"]["check_passed"] = named[0].passed if named else None
+        trace["header"]["verdict_passed"] = (False if any(p is False for p in decided)
+                                             else (True if decided else None))
+        trace["header"]["artefact"] = str(doc.get("name", ""))
+        trace["header"]["method"] = str(doc.get("method", ""))
+    return checks, trace
+
+
+def trace_path(artefact_path: str | Path, name: str) -> Path:
+    """``DIR/<name>.traces.npz`` beside the artefact ``DIR/<name>.json``."""
+    return Path(artefact_path).with_name(f"{name}{TRACE_SUFFIX}")
+
+
+def write_trace(path: str | Path, trace: Mapping[str, Any]) -> Path:
+    """Write a trace (`verdict_with_trace`) as ``.npz``, atomically (temp file + os.replace).
+
+    The header is stored as a JSON string (``header``); no pickled object.
+    """
+    path = Path(path)
+    arrays = {k: np.asarray(v, dtype=float) for k, v in trace["arrays"].items()}
+    header = np.array(json.dumps(trace["header"], allow_nan=False, sort_keys=True))
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            np.savez_compressed(fh, header=header, **arrays)
+        os.replace(tmp, path)
+    finally:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+    return path
+
+
+def read_trace(path: str | Path) -> dict | None:
+    """Read a trace file; None when it is missing or unreadable (no time-domain figure then).
+
+    Returns
+    -------
+    dict or None
+        ``{"header": dict, "arrays": dict of ndarray}``.
+    """
+    try:
+        with np.load(Path(path), allow_pickle=False) as data:
+            header = json.loads(str(data["header"][()]))
+            arrays = {k: np.asarray(data[k]) for k in data.files if k != "header"}
+    except (OSError, ValueError, KeyError, json.JSONDecodeError, EOFError):
+        return None
+    if not isinstance(header, dict) or "t" not in arrays or "x" not in arrays:
+        return None
+    return {"header": header, "arrays": arrays}
+
+
 # ------------------------------------------------------------------------- linearize
 def artefact_gain(doc: Mapping[str, Any], name: str) -> np.ndarray:
     """A gain of an artefact as a float array (at least 1-D).
@@ -213,6 +380,9 @@ def first_order_agreement(plant: Any, F: np.ndarray, B: np.ndarray, Ad: np.ndarr
     # One batch: the unperturbed run and the three perturbed ones, open loop.
     res = simulate(plant, ts=ts, steps=horizon, x0=X, seeds=seeds, u_init=np.array(inputs),
                    substeps=substeps)
+    record_trace(res, plant, check="first_order_agreement",
+                 scenario=f"open loop from (x0, u0) and from (x0 + eps dx, u0 + eps du), eps = {eps0:g} "
+                          f"(first-order agreement with the linear model)")
     base = res.x[0]
     errors = []
     for i, e in enumerate(eps_list, start=1):
@@ -378,17 +548,23 @@ def _write_verification(path: Path, verification: Mapping[str, Any]) -> None:
             os.unlink(tmp)
 
 
-def _remote_verdict(method: str, doc: dict, spec_text: str, source: str) -> list[dict]:
-    """Run one verdict on a Dask worker (plain data in, plain data out)."""
+def _remote_verdict(method: str, doc: dict, spec_text: str, source: str) -> tuple[list[dict], dict | None]:
+    """Run one verdict on a Dask worker (plain data in, plain data out), with its trace."""
     spec = _spec_from_text(spec_text, source)
     doc = dict(doc)
     doc["gains"] = {k: np.asarray(v, dtype=float) for k, v in doc["gains"].items()}
-    return [c.as_dict() for c in verdict_for(doc, spec)]
+    checks, trace = verdict_with_trace(doc, spec)
+    return [c.as_dict() for c in checks], trace
 
 
 def verify_directory(directory: str | Path, scheduler: str | None = None,
                      progress: Callable[[int, int], None] | None = None) -> list[Verdict]:
     """Verify every artefact of a directory and record the verdicts in them.
+
+    Beside each artefact ``DIR/<name>.json`` the trace of its verdict's main
+    simulation is written to ``DIR/<name>.traces.npz`` (`write_trace`,
+    atomic); an artefact whose verdict simulates nothing has its stale
+    trace removed. The artefact JSON gets only its ``verification`` field.
 
     Parameters
     ----------
@@ -412,9 +588,10 @@ def verify_directory(directory: str | Path, scheduler: str | None = None,
     spec, docs = load_directory(directory)
     total = len(docs)
     checks: dict[Path, list[Check]] = {}
+    traces: dict[Path, dict | None] = {}
     if scheduler is None:
         for i, (path, doc) in enumerate(docs):
-            checks[path] = verdict_for(doc, spec)
+            checks[path], traces[path] = verdict_with_trace(doc, spec)
             if progress is not None:
                 progress(i + 1, total)
     else:
@@ -430,14 +607,21 @@ def verify_directory(directory: str | Path, scheduler: str | None = None,
                                     retries=2)
                 futures[fut] = path
             for i, fut in enumerate(as_completed(futures)):
+                found, traces[futures[fut]] = fut.result()
                 checks[futures[fut]] = [Check(c["check"], c["passed"], c["detail"], c["data"])
-                                        for c in fut.result()]
+                                        for c in found]
                 if progress is not None:
                     progress(i + 1, total)
     verdicts = []
     for path, doc in docs:
         v = Verdict(str(doc["name"]), str(doc["method"]), path, tuple(checks[path]))
         _write_verification(path, v.as_dict())
+        trace = traces.get(path)
+        target = trace_path(path, str(doc["name"]))
+        if trace is not None:
+            write_trace(target, trace)
+        else:
+            target.unlink(missing_ok=True)  # a stale trace of an earlier verdict
         verdicts.append(v)
     return verdicts
 

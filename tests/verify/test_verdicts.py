@@ -93,3 +93,45 @@ def test_tampered_or_foreign_artefact_is_refused_with_exit_2(designed, tmp_path,
     with pytest.raises(ArtefactError, match="another spec"):
         verify_directory(e)
     assert main(["verify", str(tmp_path / "missing")]) == 2
+
+
+def test_verify_stores_traces_beside_artefacts(designed, tmp_path, monkeypatch):
+    from tanksynth.verify.checks import Check
+    from tanksynth.verify.verdicts import read_trace
+
+    d = _copy(designed, "seed004_fault_detection", tmp_path)
+    before = {p.name: p.read_bytes() for p in d.glob("*.json") if "gains" in json.loads(p.read_bytes())}
+    verify_directory(d)
+    obs = read_trace(d / "luenberger_canonical.traces.npz")
+    assert obs is not None and "x_hat" in obs["arrays"]
+    assert obs["header"]["check"] == "observer_convergence" and obs["header"]["verdict_passed"] is True
+    lin = read_trace(d / "hydraulic_linear_model.traces.npz")
+    assert lin is not None and "x_hat" not in lin["arrays"]
+    for name in before:  # gains and provenance untouched; the trace is not in the JSON
+        after = json.loads((d / name).read_text())
+        assert after["gains"] == json.loads(before[name])["gains"]
+        assert "traces" not in json.dumps(after)
+        read_artefact(d / name)
+    assert not list(d.glob(".*.tmp"))
+    # a verdict that simulates nothing leaves no (stale) trace
+    monkeypatch.setitem(VERDICTS, "canonical_observer", lambda doc, spec: [Check("x", True, "no sim")])
+    verify_directory(d)
+    assert not (d / "luenberger_canonical.traces.npz").exists()
+    assert (d / "hydraulic_linear_model.traces.npz").exists()
+
+
+def test_verify_on_a_scheduler_stores_the_same_traces(designed, tmp_path):
+    distributed = pytest.importorskip("distributed")
+    from tanksynth.verify.verdicts import read_trace
+
+    local = _copy(designed, "seed004_fault_detection", tmp_path / "local")
+    remote = _copy(designed, "seed004_fault_detection", tmp_path / "remote")
+    verify_directory(local)
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=True,
+                                  dashboard_address=":0") as cluster:
+        verify_directory(remote, scheduler=cluster.scheduler_address)
+    for name in ("luenberger_canonical", "hydraulic_linear_model"):
+        a, b = (read_trace(x / f"{name}.traces.npz") for x in (local, remote))
+        assert a["header"] == b["header"]
+        for key in a["arrays"]:
+            np.testing.assert_array_equal(a["arrays"][key], b["arrays"][key])

@@ -1,0 +1,117 @@
+"""Time-domain figures of the verdict simulations (issue 8, section 1)."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+from pathlib import Path
+
+import numpy as np
+
+from tanksynth.artefact import read_artefact
+from tanksynth.cli import main
+from tanksynth.reports.figures import time_domain_figure
+from tanksynth.verify.verdicts import read_trace, trace_path
+
+from reports_helpers import needs_latex
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def _run(tmp: Path, *spec: str) -> Path:
+    assert main(["run", *spec, "-o", str(tmp)]) == 0
+    return tmp
+
+
+def _check_trace(directory: Path, name: str, estimator: bool) -> dict:
+    path = directory / f"{name}.traces.npz"
+    assert path.is_file()
+    assert trace_path(directory / f"{name}.json", name) == path
+    trace = read_trace(path)
+    assert trace is not None
+    head, arr = trace["header"], trace["arrays"]
+    assert head["artefact"] == name and head["scenario"] and head["check"]
+    assert arr["t"].size <= 2000 and arr["x"].shape[1] == arr["t"].size
+    assert 1 <= arr["x"].shape[0] <= 2
+    assert ("x_hat" in arr) is estimator
+    assert len(head["state_names"]) == arr["x"].shape[2]
+    assert len(head["input_names"]) == arr["u"].shape[2]
+    raw = json.loads((directory / f"{name}.json").read_text(encoding="utf-8"))
+    assert "traces" not in json.dumps(raw)  # not part of the artefact JSON
+    read_artefact(directory / f"{name}.json")  # provenance hash still valid
+    return trace
+
+
+def test_default_demo_trace_and_figure(tmp_path):
+    d = _run(tmp_path / "demo")
+    _check_trace(d, "linear_model", estimator=False)
+    tex = (d / "report.tex").read_text(encoding="utf-8")
+    assert "report-figures/traces-00-linear-model.pdf" in tex
+    assert (d / "report-figures" / "traces-00-linear-model.pdf").read_bytes().startswith(b"%PDF")
+    assert "Time-domain figures" in tex
+
+
+@needs_latex
+def test_seed004_observer_trace_and_pdf(tmp_path):
+    d = _run(tmp_path / "s4", str(ROOT / "examples" / "seed004_fault_detection.toml"))
+    trace = _check_trace(d, "luenberger_canonical", estimator=True)
+    assert trace["header"]["check"] == "observer_convergence"
+    assert trace["header"]["check_passed"] is True
+    tex = (d / "report.tex").read_text(encoding="utf-8")
+    assert "traces-01-luenberger-canonical.pdf" in tex
+    assert main(["report", str(d), "--pdf"]) == 0
+    text = subprocess.run(["pdftotext", str(d / "report.pdf"), "-"], capture_output=True, text=True,
+                          check=True).stdout
+    assert "Time-domain figures" in text
+    assert "initial-state mismatch" in text and "observer convergence" in text.replace("_", " ")
+
+
+def test_missing_trace_means_no_figure(tmp_path):
+    d = _run(tmp_path / "demo")
+    (d / "linear_model.traces.npz").unlink()
+    art = {"name": "linear_model", "method": "linearize"}
+    assert time_domain_figure(art, d, d / "report-figures", "x") is None
+    (d / "linear_model.traces.npz").write_bytes(b"not an npz")
+    assert time_domain_figure(art, d, d / "report-figures", "x") is None
+    assert main(["report", str(d)]) == 0
+    tex = (d / "report.tex").read_text(encoding="utf-8")
+    assert "traces-00-linear-model.pdf" not in tex
+    assert not (d / "report-figures" / "traces-00-linear-model.pdf").exists()
+    assert "no time-domain figure" in tex
+
+
+def test_trace_decimated(tmp_path):
+    from tanksynth.verify.verdicts import TRACE_MAX_SAMPLES, _TRACE, record_trace, write_trace
+    from tanksynth.plants import three_tank
+    from tanksynth.verify.simulate import run_seeds, simulate
+
+    plant = three_tank()
+    x0 = np.array([0.4, 0.2, 0.3])
+    res = simulate(plant, ts=0.5, steps=4500, x0=x0, seeds=run_seeds(0, 3), u_init=np.full(plant.m, 1e-5))
+    slot: dict = {}
+    token = _TRACE.set(slot)
+    try:
+        record_trace(res, plant, scenario="s", check="c")
+        record_trace(res, plant, scenario="second", check="c2")  # the first simulation only
+    finally:
+        _TRACE.reset(token)
+    tr = slot["trace"]
+    assert tr["header"]["scenario"] == "s"
+    assert tr["arrays"]["t"].size <= TRACE_MAX_SAMPLES and tr["arrays"]["x"].shape[0] == 2
+    out = write_trace(tmp_path / "a.traces.npz", tr)
+    back = read_trace(out)
+    assert np.array_equal(back["arrays"]["x"], tr["arrays"]["x"])
+    assert not list(tmp_path.glob(".*.tmp"))
+
+
+@needs_latex
+def test_trace_figure_without_pole_map_reaches_pdf(tmp_path):
+    """seed 002 inverse dynamics records no eigenvalues: the time-domain figure alone is typeset."""
+    d = tmp_path / "s2"
+    assert main(["run", str(ROOT / "examples" / "seed002_inverse_dynamics.toml"), "-o", str(d),
+                 "--pdf"]) == 0
+    _check_trace(d, "inverse_dynamics", estimator=False)
+    assert not list((d / "report-figures").glob("poles-*.pdf"))
+    text = subprocess.run(["pdftotext", str(d / "report.pdf"), "-"], capture_output=True, text=True,
+                          check=True).stdout
+    assert "Verdict simulation of design" in text and "servo scenario" in text
