@@ -412,6 +412,65 @@ def run_ts_observer(spec: "Spec", design: "DesignSpec") -> DesignResult:
     return DesignResult(design.name, "ts_observer", plant.name, gains, diagnostics, latex)
 
 
+def _target_and_domain(spec, design, default_target: str) -> tuple[str, str]:
+    """The ``target`` and ``time_domain`` options of a gain design (validated)."""
+    target = _choice(design, "target", default_target, ("observer", "state_feedback"))
+    time_domain = _choice(design, "time_domain", "discrete" if spec.ts is not None else "continuous",
+                          ("continuous", "discrete"))
+    return target, time_domain
+
+
+def _solve_gain(spec, design, target: str, time_domain: str, observer, feedback,
+                fallback_opt: str, augmented_B: bool):
+    """Shared body of `run_lmi_placement` and `run_pole_placement`.
+
+    Builds the model, then calls ``observer(A, C, names)`` or
+    ``feedback(A, B, names)`` (on the integral augmentation when the
+    ``integral`` option is set). A `SpecError` from the solver without this
+    design's key is re-raised under ``<design>.<fallback_opt>``.
+
+    Returns ``(res, gains, diagnostics, (A, B, C), closed)`` where
+    ``closed(G)`` is the closed-loop matrix a gain ``G`` gives.
+    """
+    plant = spec.plant
+    model, eq, _ = _model(spec, time_domain)
+    names = [s.name for s in plant.states]
+    A, B, C = model["A"], model["B"], model["C"]
+    integral = bool(design.options.get("integral", False))
+    diagnostics: dict[str, Any] = {"equilibrium": eq.as_dict(), "time_domain": time_domain,
+                                   "ts": spec.ts, "assumptions": _assumptions(spec)}
+    try:
+        if target == "observer":
+            if integral:
+                raise SpecError("integral action applies to state feedback",
+                                key=_key(design, "integral"))
+            res = observer(A, C, names)
+            gains = {"L": res.gain}
+            closed = lambda G: A - G @ C  # noqa: E731
+        else:
+            if integral:
+                C1, tracked = _tracked(spec, design, C)
+                aug = _augment(model, C1, time_domain, spec.ts)
+                Aa, Ba = aug["A"], aug["B"]
+                res = feedback(Aa, Ba, names + [f"z_{t}" for t in tracked])
+                K = res.gain
+                gains = {"K": K, "K1": K[:, :plant.n], "K2": K[:, plant.n:], "Br": aug["Br"]}
+                diagnostics["integral"] = {"tracked": tracked, "C1": C1.tolist(),
+                                           "augmented_A": Aa.tolist()}
+                if augmented_B:
+                    diagnostics["integral"]["augmented_B"] = Ba.tolist()
+                closed = lambda G: Aa - Ba @ G  # noqa: E731
+            else:
+                res = feedback(A, B, names)
+                gains = {"K": res.gain}
+                closed = lambda G: A - B @ G  # noqa: E731
+    except SpecError as exc:
+        if exc.key and exc.key.startswith(design.key):
+            raise
+        raise SpecError(exc.detail, key=_key(design, exc.key or fallback_opt)) from None
+    return res, gains, diagnostics, (A, B, C), closed
+
+
 # ----------------------------------------------------------------- lmi_placement
 def run_lmi_placement(spec: "Spec", design: "DesignSpec") -> DesignResult:
     """State feedback ``K`` or observer ``L`` with eigenvalues in an LMI region.
@@ -443,46 +502,18 @@ def run_lmi_placement(spec: "Spec", design: "DesignSpec") -> DesignResult:
     """
     o = design.options
     plant = spec.plant
-    target = _choice(design, "target", "observer", ("observer", "state_feedback"))
-    time_domain = _choice(design, "time_domain", "discrete" if spec.ts is not None else "continuous",
-                          ("continuous", "discrete"))
+    target, time_domain = _target_and_domain(spec, design, "observer")
     region = parse_region(o.get("region"), _key(design, "region"))
     margin = _positive(design, "margin", 1e-6, upper=1.0)
     kappa = _positive(design, "kappa", 1e4)
     solver = _choice(design, "solver", "CLARABEL", SOLVERS)
-    model, eq, _ = _model(spec, time_domain)
-    names = [s.name for s in plant.states]
-    A, B, C = model["A"], model["B"], model["C"]
-    integral = bool(o.get("integral", False))
-    diagnostics: dict[str, Any] = {"equilibrium": eq.as_dict(), "time_domain": time_domain,
-                                   "ts": spec.ts, "assumptions": _assumptions(spec)}
-    try:
-        if target == "observer":
-            if integral:
-                raise SpecError("integral action applies to state feedback",
-                                key=_key(design, "integral"))
-            res = lmi_observer(A, C, region, domain=time_domain, margin=margin, kappa=kappa,
-                               solver=solver, state_names=names)
-            gains = {"L": res.gain}
-        else:
-            if integral:
-                C1, tracked = _tracked(spec, design, C)
-                aug = _augment(model, C1, time_domain, spec.ts)
-                res = lmi_state_feedback(aug["A"], aug["B"], region, domain=time_domain,
-                                         margin=margin, kappa=kappa, solver=solver,
-                                         state_names=names + [f"z_{t}" for t in tracked])
-                K = res.gain
-                gains = {"K": K, "K1": K[:, :plant.n], "K2": K[:, plant.n:], "Br": aug["Br"]}
-                diagnostics["integral"] = {"tracked": tracked, "C1": C1.tolist(),
-                                           "augmented_A": aug["A"].tolist()}
-            else:
-                res = lmi_state_feedback(A, B, region, domain=time_domain, margin=margin, kappa=kappa,
-                                         solver=solver, state_names=names)
-                gains = {"K": res.gain}
-    except SpecError as exc:
-        if exc.key and exc.key.startswith(design.key):
-            raise
-        raise SpecError(exc.detail, key=_key(design, exc.key or "region")) from None
+    res, gains, diagnostics, (A, B, C), _ = _solve_gain(
+        spec, design, target, time_domain,
+        lambda A, C, names: lmi_observer(A, C, region, domain=time_domain, margin=margin,
+                                         kappa=kappa, solver=solver, state_names=names),
+        lambda A, B, names: lmi_state_feedback(A, B, region, domain=time_domain, margin=margin,
+                                               kappa=kappa, solver=solver, state_names=names),
+        fallback_opt="region", augmented_B=False)
     gains.update({"P": res.P, "A": A, "B": B, "C": C})
     diagnostics.update({"lmi": res.as_dict(), "solver": res.solver, "status": res.status})
     return DesignResult(design.name, "lmi_placement", plant.name, gains, diagnostics, {})
@@ -521,46 +552,15 @@ def run_pole_placement(spec: "Spec", design: "DesignSpec") -> DesignResult:
     """
     o = design.options
     plant = spec.plant
-    target = _choice(design, "target", "state_feedback", ("observer", "state_feedback"))
-    time_domain = _choice(design, "time_domain", "discrete" if spec.ts is not None else "continuous",
-                          ("continuous", "discrete"))
+    target, time_domain = _target_and_domain(spec, design, "state_feedback")
     method = _choice(design, "method", "auto", ("auto", "place", "acker"))
     poles = parse_poles(o.get("poles"), _key(design, "poles"))
-    model, eq, _ = _model(spec, time_domain)
-    names = [s.name for s in plant.states]
-    A, B, C = model["A"], model["B"], model["C"]
-    integral = bool(o.get("integral", False))
-    diagnostics: dict[str, Any] = {"equilibrium": eq.as_dict(), "time_domain": time_domain,
-                                   "ts": spec.ts, "assumptions": _assumptions(spec)}
     ref_key = _key(design, "reference_gain")
-    try:
-        if target == "observer":
-            if integral:
-                raise SpecError("integral action applies to state feedback",
-                                key=_key(design, "integral"))
-            res = place_observer(A, C, poles, method, state_names=names)
-            gains = {"L": res.gain}
-            closed = lambda G: A - G @ C  # noqa: E731
-        else:
-            if integral:
-                C1, tracked = _tracked(spec, design, C)
-                aug = _augment(model, C1, time_domain, spec.ts)
-                Aa, Ba = aug["A"], aug["B"]
-                res = place_state_feedback(Aa, Ba, poles, method,
-                                           state_names=names + [f"z_{t}" for t in tracked])
-                K = res.gain
-                gains = {"K": K, "K1": K[:, :plant.n], "K2": K[:, plant.n:], "Br": aug["Br"]}
-                diagnostics["integral"] = {"tracked": tracked, "C1": C1.tolist(),
-                                           "augmented_A": Aa.tolist(), "augmented_B": Ba.tolist()}
-                closed = lambda G: Aa - Ba @ G  # noqa: E731
-            else:
-                res = place_state_feedback(A, B, poles, method, state_names=names)
-                gains = {"K": res.gain}
-                closed = lambda G: A - B @ G  # noqa: E731
-    except (SpecError,) as exc:
-        if exc.key and exc.key.startswith(design.key):
-            raise
-        raise SpecError(exc.detail, key=_key(design, exc.key or "poles")) from None
+    res, gains, diagnostics, (A, B, C), closed = _solve_gain(
+        spec, design, target, time_domain,
+        lambda A, C, names: place_observer(A, C, poles, method, state_names=names),
+        lambda A, B, names: place_state_feedback(A, B, poles, method, state_names=names),
+        fallback_opt="poles", augmented_B=True)
     gain = res.gain
     diagnostics["placement"] = res.as_dict()
     if "reference_gain" in o:

@@ -763,10 +763,13 @@ def simulate(plant: Plant, *, ts: float, steps: int, x0: Sequence[float] | np.nd
         controller.reset(M)
     x = integ.clip(x)
     h = ts / int(substeps)
+    # Input limits depend on the parameters only: rebuilt when a change applies.
+    lo, hi = _input_limits(plant, params, M)
     for k in range(N + 1):
         t_k = k * ts
         for values in schedule.get(k, ()):
             params.update({name: _param_arrays(plant, values, M)[name] for name in values})
+            lo, hi = _input_limits(plant, params, M)
         if k in jump_at:
             x = integ.clip(x + jump_at[k])
         if not np.all(np.isfinite(x)):
@@ -798,7 +801,6 @@ def simulate(plant: Plant, *, ts: float, steps: int, x0: Sequence[float] | np.nd
         else:
             u = u_prev
         timing["calls"] += 1
-        lo, hi = _input_limits(plant, params, M)
         u = np.minimum(np.maximum(u, lo), hi)
         U[:, k] = u
         for _ in range(int(substeps)):

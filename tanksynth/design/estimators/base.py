@@ -342,8 +342,29 @@ def _plant_cache(plant: Plant) -> dict:
     return entry[1]
 
 
+class _PlantDimensions:
+    """``n``, ``m``, ``q`` read from ``self.plant`` (states, inputs, outputs)."""
+
+    plant: Plant
+
+    @property
+    def n(self) -> int:
+        """Number of states."""
+        return self.plant.n
+
+    @property
+    def m(self) -> int:
+        """Number of plant inputs."""
+        return self.plant.m
+
+    @property
+    def q(self) -> int:
+        """Number of measured outputs."""
+        return self.plant.q
+
+
 @dataclass(frozen=True, eq=False)
-class DiscreteModel:
+class DiscreteModel(_PlantDimensions):
     """The sampled model an estimator predicts with, built once from a plant.
 
     Either linear affine (``kind == "linear"``) in absolute coordinates::
@@ -397,21 +418,6 @@ class DiscreteModel:
     C: np.ndarray | None = None
     dy: np.ndarray | None = None
     operating_point: tuple[np.ndarray, np.ndarray] | None = None
-
-    @property
-    def n(self) -> int:
-        """Number of states."""
-        return self.plant.n
-
-    @property
-    def m(self) -> int:
-        """Number of inputs."""
-        return self.plant.m
-
-    @property
-    def q(self) -> int:
-        """Number of outputs."""
-        return self.plant.q
 
     @property
     def hybrid(self) -> bool:
@@ -659,7 +665,7 @@ def _native(fn: ca.Function) -> ca.Function | None:
 
 
 # ----------------------------------------------------------------------------- estimators
-class Estimator(abc.ABC):
+class Estimator(_PlantDimensions, abc.ABC):
     """Interface of every estimator (single run or ``runs`` parallel runs).
 
     Subclasses implement `_advance` (one step on the run-stacked state) and
@@ -690,22 +696,7 @@ class Estimator(abc.ABC):
         self._n, self._m, self._q = plant.n, plant.m, plant.q
         self._no_input = np.zeros((1 if runs is None else runs, 0))
 
-    # -- dimensions -------------------------------------------------------------------
-    @property
-    def n(self) -> int:
-        """Number of states."""
-        return self.plant.n
-
-    @property
-    def m(self) -> int:
-        """Number of plant inputs."""
-        return self.plant.m
-
-    @property
-    def q(self) -> int:
-        """Number of measured outputs the estimator takes."""
-        return self.plant.q
-
+    # -- dimensions (n, m, q: from _PlantDimensions) ----------------------------------
     @property
     def _M(self) -> int:
         return 1 if self.runs is None else self.runs
