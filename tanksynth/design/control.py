@@ -863,16 +863,24 @@ def export_law(law: ca.Function, directory: str | Path, name: str | None = None)
     fn = rename_law(law, name or law.name())
     stem = fn.name()
     final = {ext: directory / f"{stem}{ext}" for ext in (".casadi", ".c", ".h")}
-    tmpdir = Path(tempfile.mkdtemp(prefix=f".{stem}.", suffix=".tmp", dir=directory))
+    # CasADi's code generator refuses an output prefix that contains
+    # "<stem>.c" (a guard for its old API); such a target directory is built
+    # in the system temp directory, then copied beside the targets.
+    tmpdir = Path(tempfile.mkdtemp(prefix=".law-build-", suffix=".tmp", dir=directory))
+    build = tmpdir
     renamed: list[Path] = []
     try:
-        fn.save(str(tmpdir / f"{stem}.casadi"))
+        if f"{stem}.c" in str(tmpdir) + os.sep:
+            build = Path(tempfile.mkdtemp(prefix="tanksynth-law-"))
+        fn.save(str(build / f"{stem}.casadi"))
         cg = ca.CodeGenerator(f"{stem}.c", {"with_header": True})
         cg.add(fn)
-        cg.generate(str(tmpdir) + os.sep)
+        cg.generate(str(build) + os.sep)
         for ext, target in final.items():
-            if not (tmpdir / target.name).is_file():
+            if not (build / target.name).is_file():
                 raise ArtefactError(f"export of law '{stem}': {target.name} was not generated")
+            if build != tmpdir:
+                shutil.copyfile(build / target.name, tmpdir / target.name)
         try:
             for ext in (".c", ".h", ".casadi"):
                 os.replace(tmpdir / final[ext].name, final[ext])
@@ -883,6 +891,8 @@ def export_law(law: ca.Function, directory: str | Path, name: str | None = None)
             raise
     finally:
         shutil.rmtree(tmpdir, ignore_errors=True)
+        if build != tmpdir:
+            shutil.rmtree(build, ignore_errors=True)
     digests = {p.name: hashlib.sha256(p.read_bytes()).hexdigest() for p in final.values()}
     return ExportedLaw(stem, final[".casadi"], final[".c"], final[".h"], digests)
 

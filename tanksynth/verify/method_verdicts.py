@@ -3,7 +3,8 @@
 Importing this module registers a verdict (`register_verdict`) for
 ``pole_placement``, ``lmi_placement``, ``canonical_observer``,
 ``ts_observer``, ``integral_tracking``, ``feedback_linearization``,
-``inverse_dynamics`` and ``decentralized_kalman``, and a default verdict
+``inverse_dynamics``, ``decentralized_kalman``, ``fault_detection`` and
+``narx``, and a default verdict
 (replaced by any later registration) for the estimator methods that the
 design stage registers. Every verdict reads the gains of the artefact (the
 part its provenance hash protects) and the spec it was designed from; the
@@ -76,7 +77,17 @@ Simulations on the nonlinear plant (rules stated in each check's detail)
     ``filter_vs_open_loop`` / ``filter_error_bounded``
         decentralised Kalman gains on the nonlinear network over the window.
     ``estimator_convergence``
-        estimators: the initial-state mismatch run of `estimator_verdict`.
+        estimators: the initial-state mismatch run of `estimator_verdict`
+        (``adaptive_scaling_kalman`` and ``consensus_filter`` included, their
+        horizon from the steady-state filter with the spec's ``Q`` and ``R``).
+    ``covariance``
+        adaptive-scaling and consensus filters: the covariance at the end of
+        that run symmetric (to 1e-9 relative) and positive definite.
+    ``training_fit_recheck`` / ``one_step_fit`` / ``closed_loop_bounded``
+        NARX, on fresh EKF data: see `narx_verdict`.
+    ``threshold_recheck`` / ``no_false_alarm`` / ``fault_detected``
+        fault detection, healthy and faulty plant with the stored ``Psi`` and
+        threshold: see `fault_detection_verdict`.
 """
 
 from __future__ import annotations
@@ -116,6 +127,8 @@ __all__ = [
     "inverse_dynamics_verdict",
     "decentralized_kalman_verdict",
     "estimator_verdict",
+    "narx_verdict",
+    "fault_detection_verdict",
     "ESTIMATOR_BUILDERS",
     "luenberger_estimator",
 ]
@@ -1443,19 +1456,44 @@ class DecentralizedFilter:
         self.substeps = int(substeps)
         self._x: np.ndarray | None = None
         self._k = 0
+        # The simulator's own integrator, model, parameters and bounds, built once: one
+        # `predict` is exactly the state `simulate(..., steps=1, u_init=u).x[:, 1]` returns.
+        from .simulate import _Integrator, _param_arrays, clip_bounds, numpy_model
+
+        self._params = _param_arrays(plant, None, 1)
+        lower, upper = clip_bounds(plant, self._params)
+        self._integ = _Integrator(numpy_model(plant), np.asarray(lower, float),
+                                  np.asarray(upper, float), 12, 3)
+        self._u_lo = np.full(plant.m, -np.inf)
+        self._u_hi = np.full(plant.m, np.inf)
+        for j, pair in enumerate(plant.input_bounds):
+            for arr, b in ((self._u_lo, pair[0]), (self._u_hi, pair[1])):
+                arr[j] = self._params[b] if isinstance(b, str) else float(b)
 
     def reset(self, x_hat0: np.ndarray) -> None:
         """Initial estimates (M, n)."""
         self._x = np.asarray(x_hat0, dtype=float).copy()
         self._k = 0
 
+    def predict(self, x: np.ndarray, u: np.ndarray) -> np.ndarray:
+        """One sampling period of the nominal plant from ``x`` (M, n) under the held ``u`` (M, m).
+
+        The simulator's step without noise: states clipped, input saturated,
+        ``substeps`` RK4 steps (switching surfaces located), clipped again.
+        """
+        integ = self._integ
+        x = integ.clip(np.asarray(x, dtype=float))
+        u = np.minimum(np.maximum(np.asarray(u, dtype=float), self._u_lo), self._u_hi)
+        h = self.ts / self.substeps
+        for _ in range(self.substeps):
+            x = integ.step(x, u, self._params, h)
+        return integ.clip(x)
+
     def step(self, y: np.ndarray, u: np.ndarray) -> np.ndarray:
         """Measurement (M, q), previous input (M, m) -> estimate (M, n)."""
         if self._k > 0:
             M = self._x.shape[0]
-            pred = simulate(self.plant, ts=self.ts, steps=1, x0=self._x,
-                            seeds=np.zeros(M, dtype=np.uint64), u_init=u,
-                            substeps=self.substeps).x[:, 1]
+            pred = self.predict(self._x, u)
             if self._k <= len(self.gains):
                 yhat = np.asarray(self.plant.compiled.output(pred), dtype=float).reshape(M, -1)
                 pred = pred + (y - yhat) @ self.gains[self._k - 1].T
@@ -1626,6 +1664,134 @@ def _adaptive_kalman_builder(doc: Mapping[str, Any], spec: Any
         "adaptive-Q Kalman filter (horizon from the steady-state filter with Q0)"
 
 
+def _dare_error(spec: Any, op: tuple[np.ndarray, np.ndarray] | None, Q: np.ndarray,
+                R: np.ndarray, sensors: int = 1) -> np.ndarray:
+    """``(I - K C) Ad`` of the steady-state Kalman filter on the linearisation at ``op``.
+
+    ``Q`` is the process noise covariance in state coordinates (``G Q G'``);
+    with ``sensors = N`` the output matrix is ``C`` stacked N times and ``R``
+    the block-diagonal covariance of the N sensors (the centralised filter
+    the consensus filter reproduces).
+    """
+    import scipy.linalg as sla
+
+    from ..design.linearize import linearize
+
+    x_op, u_op = op if op is not None else _equilibrium(spec)
+    lin = linearize(spec.plant, x_op, u_op, ts=float(spec.ts))
+    Ad, C = lin.Ad, np.vstack([lin.C] * sensors)
+    P = sla.solve_discrete_are(Ad.T, C.T, 0.5 * (Q + Q.T), R)
+    K = P @ C.T @ np.linalg.inv(C @ P @ C.T + R)
+    return (np.eye(spec.plant.n) - K @ C) @ Ad
+
+
+def _spec_design(doc: Mapping[str, Any], spec: Any) -> Any:
+    for d in getattr(spec, "designs", ()):
+        if d.name == doc["name"] and d.method == doc["method"]:
+            return d
+    return None
+
+
+def _claimed(doc: Mapping[str, Any], spec: Any, opt: str, stored: np.ndarray) -> tuple[np.ndarray, str]:
+    """The covariance the spec declares for ``opt`` (the design's claim), else the stored one."""
+    from ..design.estimator_methods import _covariance
+
+    design = _spec_design(doc, spec)
+    if design is None or opt not in design.options:
+        return stored, "stored"
+    value = design.options[opt]
+    size = stored.shape[0]
+    if opt == "R" and doc["method"] == "consensus_filter":
+        import scipy.linalg as sla
+
+        return sla.block_diag(*[_covariance(v, f"{opt}[{i}]", size // len(value))
+                                for i, v in enumerate(value)]), "spec"
+    return _covariance(value, opt, size, semidefinite=(opt == "Q")), "spec"
+
+
+def _adaptive_scaling_builder(doc: Mapping[str, Any], spec: Any
+                              ) -> tuple[BatchEstimator, np.ndarray, str]:
+    from ..design.estimators.adaptive import AdaptiveScalingKalmanFilter, AdaptiveScalingTuning
+
+    plant = spec.plant
+    n, q = plant.n, plant.q
+    Q = np.atleast_2d(artefact_gain(doc, "Q"))
+    r = Q.shape[0]
+    G = _matrix(doc, "G", (n, r))
+    R = _matrix(doc, "R", (q, q))
+    a, b, c = (float(v) for v in np.asarray(artefact_gain(doc, "abc"), float).reshape(3))
+    op = _operating_point_gains(doc)
+    tuning = AdaptiveScalingTuning(Q=Q, R=R, P0=_matrix(doc, "P0", (n, n)),
+                                   x0=artefact_gain(doc, "x0"), ts=float(spec.ts), a=a, b=b, c=c,
+                                   G=G, phi0=float(np.ravel(artefact_gain(doc, "phi0"))[0]),
+                                   operating_point=op)
+    est = AdaptiveScalingKalmanFilter(plant, tuning)
+    Qc, src_q = _claimed(doc, spec, "Q", Q)
+    Rc, src_r = _claimed(doc, spec, "R", R)
+    return EstimatorAdapter(est), _dare_error(spec, op, G @ Qc @ G.T, Rc), \
+        (f"adaptive-scaling Kalman filter (horizon from the steady-state filter with phi = 1, "
+         f"Q of the {src_q}, R of the {src_r})")
+
+
+class _StackedSensors(EstimatorAdapter):
+    """`EstimatorAdapter` feeding the plant's measurement to each of N redundant sensors."""
+
+    def __init__(self, template: Any, sensors: int):
+        super().__init__(template)
+        self.sensors = int(sensors)
+
+    def step(self, y: np.ndarray, u: np.ndarray) -> np.ndarray:
+        return self._est.step(np.tile(y, (1, self.sensors)), u)
+
+
+def _consensus_builder(doc: Mapping[str, Any], spec: Any) -> tuple[BatchEstimator, np.ndarray, str]:
+    from ..design.estimators.consensus import ConsensusFilter, ConsensusTuning
+
+    plant = spec.plant
+    n, q = plant.n, plant.q
+    gains = doc["gains"]
+    N = 0
+    while f"R{N}" in gains:
+        N += 1
+    if N == 0:
+        raise ArtefactError(f"artefact '{doc['name']}' has no sensor covariance R0")
+    if "C0" in gains:
+        raise ArtefactError(f"artefact '{doc['name']}': sensors with their own C_i are not "
+                            "verified on the plant's output")
+    Rs = [_matrix(doc, f"R{i}", (q, q)) for i in range(N)]
+    Q = np.atleast_2d(artefact_gain(doc, "Q"))
+    G = _matrix(doc, "G", (n, Q.shape[0]))
+    op = _operating_point_gains(doc)
+    tuning = ConsensusTuning(Q=Q, R=tuple(Rs), P0=_matrix(doc, "P0", (n, n)),
+                             x0=artefact_gain(doc, "x0"), ts=float(spec.ts), G=G,
+                             operating_point=op)
+    import scipy.linalg as sla
+
+    Qc, src_q = _claimed(doc, spec, "Q", Q)
+    Rc, src_r = _claimed(doc, spec, "R", sla.block_diag(*Rs))
+    err = _dare_error(spec, op, G @ Qc @ G.T, Rc, sensors=N)
+    return _StackedSensors(ConsensusFilter(plant, tuning), N), err, \
+        (f"consensus filter with {N} sensors, each fed the plant's measurement (horizon from the "
+         f"equivalent centralised steady-state filter, Q of the {src_q}, R of the {src_r})")
+
+
+def _covariance_check(est: Any) -> Check:
+    """Final covariance of a filter run: symmetric positive definite (every run)."""
+    inner = getattr(est, "_est", None)
+    P = np.asarray(getattr(inner, "covariance"), dtype=float)
+    P = P.reshape(-1, P.shape[-2], P.shape[-1])
+    scale = max(float(np.max(np.abs(P))), 1e-300)
+    asym = float(np.max(np.abs(P - np.swapaxes(P, -1, -2)))) / scale
+    lam = np.linalg.eigvalsh(0.5 * (P + np.swapaxes(P, -1, -2)))
+    pmin, pmax = float(np.min(lam)), float(np.max(lam))
+    ok = bool(np.all(np.isfinite(P)) and asym <= 1e-9 and pmin > 0)
+    return Check("covariance", ok,
+                 f"filter covariance at the end of the estimator_convergence run: asymmetry "
+                 f"max|P - P'| / max|P| = {asym:.3g} (tolerance 1e-09), eigenvalues in "
+                 f"[{pmin:.3g}, {pmax:.3g}] (smallest must be > 0)",
+                 {"asymmetry": asym, "min_eigenvalue": pmin, "max_eigenvalue": pmax})
+
+
 def _luenberger_error_matrix(spec: Any, L: np.ndarray, form: str,
                              op: tuple[np.ndarray, np.ndarray] | None) -> np.ndarray:
     from ..design.linearize import linearize
@@ -1673,7 +1839,12 @@ ESTIMATOR_BUILDERS: dict[str, Callable[[Mapping[str, Any], Any],
     "ukf": _ukf_builder,
     "luenberger": _luenberger_builder,
     "adaptive_kalman": _adaptive_kalman_builder,
+    "adaptive_scaling_kalman": _adaptive_scaling_builder,
+    "consensus_filter": _consensus_builder,
 }
+
+#: Methods whose filter covariance is checked (symmetric positive definite) after the run.
+_COVARIANCE_METHODS = ("adaptive_scaling_kalman", "consensus_filter")
 
 
 def _kalman_rechecks(doc: Mapping[str, Any], spec: Any) -> list[Check]:
@@ -1762,10 +1933,382 @@ def estimator_verdict(doc: Mapping[str, Any], spec: Any) -> list[Check]:
             form = str(_option(doc, spec, "form", "current"))
             tau, rule = _designed_tau(doc, spec, eigs, "continuous" if form == "continuous"
                                       else "discrete", ts)
-        return [observer_convergence(plant, est, x0, u0, tau, ts, conditioning=_conditioning(err),
-                                     rule=f"{rule}; {what}", name="estimator_convergence")]
+        out = [observer_convergence(plant, est, x0, u0, tau, ts, conditioning=_conditioning(err),
+                                    rule=f"{rule}; {what}", name="estimator_convergence")]
+        if method in _COVARIANCE_METHODS and out[0].passed is not None:
+            out += _guard("covariance", lambda: [_covariance_check(est)])
+        return out
 
     return checks + _guard("estimator_convergence", run)
+
+
+# ============================================================================== NARX
+#: Fresh one-step fit error allowed, as a multiple of the training fit error.
+NARX_FIT_FACTOR = 3.0
+#: Fresh closed-loop RMSE allowed, as a multiple of the validation RMSE claimed by the design.
+NARX_CLOSED_LOOP_FACTOR = 3.0
+#: Seed offset of the fresh verification data (never the training seed).
+NARX_FRESH_SEED = 1_000_003
+
+
+def narx_verdict(doc: Mapping[str, Any], spec: Any) -> list[Check]:
+    """Verdict of a ``narx`` artefact (seed 002 section 3.3).
+
+    The network is rebuilt from the stored weights and normalisation;
+    fresh data come from `generate_ekf_data` with the stored EKF tuning
+    (``ekf_Q``, ``ekf_R``, ``ekf_P0``, ``x0``) and the spec's data options,
+    on a seed the training never used (2 runs, the spec's ``steps``).
+
+    ``training_fit_recheck``
+        the one-step (teacher-forced) MSE of the stored weights on the
+        stored training data equals the training MSE the diagnostics report
+        (relative tolerance 1e-6).
+    ``one_step_fit``
+        on the fresh data, the mean over states of the one-step MSE is at
+        most `NARX_FIT_FACTOR` (3) times the reference: the larger of the
+        mean training MSE and the mean held-out (validation) one-step MSE
+        the design reports.
+    ``closed_loop_bounded``
+        the estimator runs in closed loop on the fresh measurements
+        (`NARXEstimator`, own predictions fed back): every estimate finite
+        and the RMSE against the true states (mean over states) at most
+        `NARX_CLOSED_LOOP_FACTOR` (3) times the larger of the design's
+        validation RMSE against the true states and the EKF's RMSE on the
+        same fresh data.
+    """
+    from ..design.estimators.kalman import KalmanTuning
+    from ..design.estimators.narx import (NARXEstimator, NARXTuning, _features, _forward,
+                                          generate_ekf_data)
+
+    plant = spec.plant
+    n, q = plant.n, plant.q
+    g = lambda k: np.asarray(artefact_gain(doc, k), dtype=float)  # noqa: E731
+    W1 = np.atleast_2d(g("W1"))
+    H = W1.shape[0]
+    delays = int(round(float(np.ravel(g("delays"))[0])))
+    substeps = int(_option(doc, spec, "substeps", 1))
+    clip = bool(_option(doc, spec, "clip", False))
+    tuning = NARXTuning(W1, g("b1").reshape(H), np.atleast_2d(g("W2")).reshape(n, H),
+                        g("b2").reshape(n), g("in_mean").reshape(-1), g("in_scale").reshape(-1),
+                        g("out_mean").reshape(n), g("out_scale").reshape(n), x0=g("x0").reshape(n),
+                        ts=float(spec.ts), delays=delays, substeps=substeps, clip=clip)
+    params = (tuning.W1, tuning.b1, tuning.W2, tuning.b2)
+
+    def predict(X_in: np.ndarray) -> np.ndarray:
+        out, _ = _forward(params, (X_in - tuning.in_mean) / tuning.in_scale)
+        return out * tuning.out_scale + tuning.out_mean
+
+    diag = doc.get("diagnostics", {}) or {}
+    fit = diag.get("fit", {}) or {}
+    claimed = np.asarray(fit.get("mse_train", []), dtype=float).reshape(-1)
+    checks: list[Check] = []
+
+    def recheck() -> list[Check]:
+        Xt, Tt = np.atleast_2d(g("training_inputs")), np.atleast_2d(g("training_targets"))
+        mse = np.mean((predict(Xt) - Tt) ** 2, axis=0)
+        if claimed.size != n:
+            return [Check("training_fit_recheck", None, "the diagnostics report no training MSE")]
+        diff = _rel(mse, claimed)
+        return [Check("training_fit_recheck", bool(diff <= 1e-6),
+                      f"one-step MSE of the stored weights on the {Xt.shape[0]} stored training "
+                      f"samples {_fmt(mse)} against the reported training MSE {_fmt(claimed)}: "
+                      f"relative difference {diff:.3g} (tolerance 1e-06)",
+                      {"mse": mse.tolist(), "reported": claimed.tolist(), "difference": diff})]
+
+    checks += _guard("training_fit_recheck", recheck)
+
+    def fresh() -> list[Check]:
+        train = diag.get("training", {}) or {}
+        seed = int(_option(doc, spec, "seed", train.get("seed", 0))) + NARX_FRESH_SEED
+        steps = int(_option(doc, spec, "steps", train.get("steps", 600)))
+        target = str(_option(doc, spec, "target", train.get("target", "ekf")))
+        input_range = _option(doc, spec, "input_range")
+        hold = tuple(_option(doc, spec, "hold", [30, 150]))
+        noise = _option(doc, spec, "noise_std")
+        ekf = KalmanTuning(Q=np.atleast_2d(g("ekf_Q")).reshape(n, n),
+                           R=np.atleast_2d(g("ekf_R")).reshape(q, q),
+                           P0=np.atleast_2d(g("ekf_P0")).reshape(n, n), x0=tuning.x0,
+                           ts=float(spec.ts), substeps=substeps, clip=clip,
+                           **_spec_kwargs(doc, spec, ("jacobian_eps", "switch_tol")))
+        runs = 2
+        data = generate_ekf_data(plant, ekf, runs=runs, steps=steps, seed=seed,
+                                 input_range=input_range, hold=hold, noise_std=noise,
+                                 sim_substeps=int(_option(doc, spec, "sim_substeps", 10)))
+        X_in, T, _ = _features(data, tuning.x0, delays, target)
+        mse = np.mean((predict(X_in) - T) ** 2, axis=0)
+        out: list[Check] = []
+        if claimed.size == n:
+            held = np.asarray(fit.get("mse_validation_open_loop", []), dtype=float).reshape(-1)
+            ref = max(float(np.mean(claimed)), float(np.mean(held)) if held.size == n else 0.0)
+            ratio = float(np.mean(mse) / max(ref, 1e-300))
+            out.append(Check("one_step_fit", bool(np.all(np.isfinite(mse)) and
+                                                  ratio <= NARX_FIT_FACTOR),
+                             f"one-step (teacher-forced) MSE on fresh EKF data ({runs} runs x {steps} "
+                             f"samples, seed {seed}, target {target}): {_fmt(mse)}, mean "
+                             f"{float(np.mean(mse)):.4g}; reference max(training MSE mean "
+                             f"{float(np.mean(claimed)):.4g}, held-out validation MSE mean "
+                             f"{float(np.mean(held)) if held.size == n else float('nan'):.4g}) = "
+                             f"{ref:.4g}; ratio {ratio:.3g} (must be <= "
+                             f"{NARX_FIT_FACTOR:g})", {"mse": mse.tolist(), "ratio": ratio,
+                                                       "factor": NARX_FIT_FACTOR, "seed": seed}))
+        else:
+            out.append(Check("one_step_fit", None, "the diagnostics report no training MSE"))
+        est = NARXEstimator(plant, tuning, runs=runs, backend="vm")
+        X_hat = np.empty_like(data["x_ekf"])
+        failed = None
+        with np.errstate(all="ignore"):
+            for k in range(steps):
+                try:
+                    X_hat[k] = est.step(data["y"][k], data["u"][k])
+                except _NUMERIC_ERRORS as exc:
+                    X_hat[k:] = np.nan
+                    failed = (k, _one_line(exc))
+                    break
+        truth = data["x"][1:]
+        rmse = float(np.sqrt(np.mean((X_hat - truth) ** 2)))
+        ekf_rmse = float(np.sqrt(np.mean((data["x_ekf"] - truth) ** 2)))
+        val = (diag.get("closed_loop_validation", {}) or {}).get("rmse_vs_true")
+        claim = float(np.sqrt(np.mean(np.square(val)))) if val else 0.0
+        bound = NARX_CLOSED_LOOP_FACTOR * max(claim, ekf_rmse)
+        ok = bool(failed is None and np.all(np.isfinite(X_hat)) and rmse <= bound)
+        out.append(Check("closed_loop_bounded", ok,
+                         f"NARX in closed loop (own estimates fed back) on the fresh measurements: "
+                         f"RMSE against the true states {rmse:.4g}"
+                         + (f" (stopped at step {failed[0]}: {failed[1]})" if failed else "")
+                         + f"; bound {NARX_CLOSED_LOOP_FACTOR:g} x max(design's validation RMSE "
+                           f"{claim:.4g}, EKF RMSE on the same data {ekf_rmse:.4g}) = {bound:.4g} "
+                           "(every estimate must be finite and the RMSE within the bound)",
+                         {"rmse": rmse, "bound": bound, "claimed_rmse": claim,
+                          "ekf_rmse": ekf_rmse}))
+        return out
+
+    checks += _guard("one_step_fit", fresh)
+    return checks
+
+
+# ==================================================================== fault detection
+#: Sampling period of the fault-detection simulations (s), at most (the spec's ts if finer).
+FAULT_TS = 1e-3
+#: Search horizon after the fault onset (s), as in `tanksynth.design.fault.detection_time`.
+FAULT_HORIZON = 3.0
+#: Largest difference between a simulated detection time and the stored one (s).
+FAULT_TIME_TOLERANCE = 2e-3
+#: Healthy residual allowed above the threshold, as a fraction of the threshold after the transient.
+FAULT_SLACK = 1e-6
+
+
+class _ResidualObserver:
+    """Continuous Luenberger observer of the healthy model, as a `BatchEstimator`.
+
+    ``dx_hat/dt = f(x_hat, u) + Psi (y - h(x_hat))`` with the healthy
+    parameters, integrated by RK4 between samples with ``y`` interpolated
+    linearly between the measured samples; records the residual
+    ``y_k - h(x_hat_k)`` of every sample.
+    """
+
+    def __init__(self, plant: Any, Psi: np.ndarray, ts: float, substeps: int = 4):
+        from .simulate import _param_arrays, numpy_model
+
+        healthy = {"delta_bar": 0.0} if "delta_bar" in {p.name for p in plant.parameters} else None
+        self.model = numpy_model(plant)
+        self.params = _param_arrays(plant, healthy, 1)
+        self.Psi = np.asarray(Psi, dtype=float)
+        self.ts = float(ts)
+        self.substeps = int(substeps)
+        self.residuals: list[np.ndarray] = []
+
+    def reset(self, x_hat0: np.ndarray) -> None:
+        self._x = np.asarray(x_hat0, dtype=float).copy()
+        self._y: np.ndarray | None = None
+        self.residuals = []
+
+    def _rhs(self, x: np.ndarray, u: np.ndarray, y: np.ndarray) -> np.ndarray:
+        yh = np.asarray(self.model.output(x, self.params), dtype=float).reshape(x.shape[0], -1)
+        return self.model.rhs(x, u, self.params) + (y - yh) @ self.Psi.T
+
+    def step(self, y: np.ndarray, u: np.ndarray) -> np.ndarray:
+        y = np.asarray(y, dtype=float)
+        if self._y is not None:
+            h = self.ts / self.substeps
+            y0, dy = self._y, (y - self._y) / self.ts
+            x = self._x
+            for j in range(self.substeps):
+                t = j * h
+                k1 = self._rhs(x, u, y0 + dy * t)
+                k2 = self._rhs(x + 0.5 * h * k1, u, y0 + dy * (t + 0.5 * h))
+                k3 = self._rhs(x + 0.5 * h * k2, u, y0 + dy * (t + 0.5 * h))
+                k4 = self._rhs(x + h * k3, u, y0 + dy * (t + h))
+                x = x + (h / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
+            self._x = x
+        self._y = y
+        yh = np.asarray(self.model.output(self._x, self.params), dtype=float).reshape(y.shape)
+        self.residuals.append(y - yh)
+        return self._x
+
+
+class _Schedule:
+    """Open-loop input: piecewise constant ``(t_start, u)``."""
+
+    def __init__(self, pieces: Sequence[tuple[float, float]], m: int):
+        self.pieces = [(float(t), float(v)) for t, v in pieces]
+        self.m = m
+
+    def __call__(self, x_hat: np.ndarray, reference: np.ndarray, t: float) -> np.ndarray:
+        v = [val for start, val in self.pieces if start <= t + 1e-12][-1]
+        return np.full((x_hat.shape[0], self.m), v)
+
+
+def fault_detection_verdict(doc: Mapping[str, Any], spec: Any) -> list[Check]:
+    """Verdict of a ``fault_detection`` artefact (seed 004 section II-F).
+
+    Nothing is re-derived symbolically. ``threshold_recheck``: the stored
+    ``Gamma_d`` equals ``A - Psi C`` (``A, C`` the Jacobians of the healthy
+    plant, ``Psi`` the stored gain), and the stored threshold rates and
+    coefficients equal, in floating point, the eigenvalues of ``A - Psi C``
+    and ``C V diag(V^-1 e_hat)`` (``e_hat = (hi - lo) 1`` from the spec's
+    bounds); relative tolerance 1e-6. Then the plant is simulated
+    (``simulate``, sampling ``min(ts, 1 ms)``, 4 RK4 substeps) from seed
+    004's three initial states (inside the bounds) under seed 004's input
+    (2 on [0, 1 s), then 1), with the observer (stored ``Psi``) started at
+    ``lo``: ``no_false_alarm`` -- the healthy plant's residual stays at or
+    below the stored threshold on ``[0.02 t_f, t_f + horizon]``, up to
+    `FAULT_SLACK` times the threshold at ``0.02 t_f`` (integration error; the
+    first 2 % of ``t_f`` is the initial transient, where the threshold equals
+    the largest possible residual), and so does the faulty plant's before
+    ``t_f``; ``fault_detected`` -- with the declared
+    ``delta_bar`` from ``t_f``, the residual exceeds the threshold at some
+    ``t_d`` in ``(t_f, t_f + horizon]`` for every start (``horizon`` =
+    `FAULT_HORIZON`), and, where the artefact stores detection times,
+    ``|t_d - stored| <= FAULT_TIME_TOLERANCE``.
+    """
+    from ..design.fault import SEED004_INITIAL_STATES, SEED004_INPUT
+    from ..design.linearize import linearize
+    from .simulate import ParameterChange
+
+    plant = spec.plant
+    n, m = plant.n, plant.m
+    Psi = _matrix(doc, "Psi", (n, 1))
+    Gd = _matrix(doc, "Gamma_d", (n, n))
+    coef = np.asarray(artefact_gain(doc, "threshold_coefficients"), dtype=float).reshape(-1)
+    rates = np.asarray(artefact_gain(doc, "threshold_rates"), dtype=float).reshape(-1)
+    if coef.size != rates.size or coef.size == 0:
+        raise ArtefactError(f"artefact '{doc['name']}': threshold has {coef.size} coefficients and "
+                            f"{rates.size} rates")
+    bounds = [float(b) for b in _option(doc, spec, "bounds", [0.25, 4.0])]
+    lo, hi = bounds
+    delta_bar = float(_option(doc, spec, "delta_bar", 1.0))
+    t_f = float(_option(doc, spec, "t_fault", 2.0))
+    conservative = bool(_option(doc, spec, "conservative", True))
+    params = {"delta_bar": 0.0} if "delta_bar" in {p.name for p in plant.parameters} else {}
+    healthy = plant.with_parameters(params) if params else plant
+    x_op = np.asarray(spec.x0, dtype=float)
+    u_op = np.asarray(spec.given_u0 if spec.given_u0 is not None else np.zeros(m), dtype=float)
+    lin = linearize(healthy, x_op, u_op)
+    A, C = np.asarray(lin.F, float), np.asarray(lin.C, float)
+    checks: list[Check] = []
+
+    def recheck() -> list[Check]:
+        G = A - Psi @ C
+        dg = _rel(Gd, G)
+        lam, V = np.linalg.eig(G)
+        w = (C @ V).ravel() * np.linalg.solve(V, np.full(n, hi - lo))
+        order = np.argsort(-lam.real)
+        lam, w = lam[order].real, w[order].real
+        ok_shape = lam.size == rates.size
+        dr = _rel(np.sort(rates), np.sort(lam)) if ok_shape else math.inf
+        dc = math.inf
+        if ok_shape:
+            pairs = sorted(zip(rates, coef))
+            dc = _rel(np.array([c for _, c in pairs]), np.array([c for _, c in sorted(zip(lam, w))]))
+        ok = bool(max(dg, dr, dc) <= 1e-6)
+        return [Check("threshold_recheck", ok,
+                      f"stored Gamma_d against A - Psi C from the stored Psi {_fmt(Psi.ravel())}: "
+                      f"relative difference {dg:.3g}; stored threshold rates {_fmt(rates)} against "
+                      f"eig(A - Psi C) {_fmt(lam)}: {dr:.3g}; coefficients {_fmt(coef)} against "
+                      f"C V diag(V^-1 e_hat) {_fmt(w)} with e_hat = {hi - lo:g}: {dc:.3g} (tolerance "
+                      "1e-06 each)", {"gamma_difference": dg, "rate_difference": dr,
+                                      "coefficient_difference": dc})]
+
+    checks += _guard("threshold_recheck", recheck)
+
+    def simulate_detection() -> list[Check]:
+        if n == 3:
+            starts = np.array(SEED004_INITIAL_STATES, dtype=float)
+        else:
+            starts = np.array([[hi] * n, [0.5 * (lo + hi)] * n])
+        starts = np.clip(starts, np.nextafter(lo, math.inf), hi)
+        R = starts.shape[0]
+        ts = min(float(spec.ts) if spec.ts else FAULT_TS, FAULT_TS)
+        k_f = int(round(t_f / ts))
+        steps = int(math.ceil((t_f + FAULT_HORIZON) / ts))
+        if steps > 10 * MAX_STEPS:
+            return [Check("fault_detected", None, f"not simulated: {steps} samples of {ts:g} s")]
+        x0 = np.vstack([starts, starts])
+        faults = np.concatenate([np.zeros(R), np.full(R, delta_bar)])
+        obs = _ResidualObserver(plant, Psi, ts)
+        change = [ParameterChange(k_f, {"delta_bar": faults})] if params else []
+        res = simulate(plant, ts=ts, steps=steps, x0=x0, seeds=run_seeds(0, 2 * R),
+                       controller=_Schedule(SEED004_INPUT, m), estimator=obs,
+                       x_hat0=np.full((2 * R, n), lo), parameters=params or None,
+                       changes=change, substeps=4)
+        t = res.t
+        r = np.abs(np.array(obs.residuals)[:, :, 0]).T            # (2R, N + 1)
+        tt = t[None, :]
+        if conservative:
+            thr = np.sum(np.abs(coef)[:, None] * np.exp(rates[:, None] * t[None, :]), axis=0)
+        else:
+            thr = np.sum(coef[:, None] * np.exp(rates[:, None] * t[None, :]), axis=0)
+        margin = r - thr[None, :]
+        t_skip = 0.02 * t_f
+        quiet = (tt >= t_skip)
+        worst_h = float(np.max(np.where(quiet, margin[:R], -np.inf)))
+        pre_fault = (tt >= t_skip) & (tt < t_f)
+        worst_pre = float(np.max(np.where(pre_fault, margin[R:], -np.inf)))
+        slack = FAULT_SLACK * float(np.interp(t_skip, t, thr))
+        ok_h = bool(worst_h <= slack and worst_pre <= slack and np.all(np.isfinite(r)))
+        detect = []
+        for i in range(R, 2 * R):
+            idx = np.flatnonzero((t > t_f) & (margin[i] > 0))
+            if idx.size == 0:
+                detect.append(None)
+                continue
+            k = int(idx[0])
+            a, b = margin[i, k - 1], margin[i, k]
+            frac = (-a / (b - a)) if (a < 0 < b) else 1.0
+            detect.append(float(t[k - 1] + frac * ts))
+        stored = None
+        if "detection_times" in doc["gains"] and n == 3:
+            stored = np.asarray(artefact_gain(doc, "detection_times"), dtype=float).reshape(-1)
+        diffs = [None if (d is None or stored is None or i >= stored.size or stored[i] < 0)
+                 else abs(d - float(stored[i])) for i, d in enumerate(detect)]
+        ok_d = all(d is not None and t_f < d <= t_f + FAULT_HORIZON for d in detect) and \
+            all(df is None or df <= FAULT_TIME_TOLERANCE for df in diffs)
+        thr_name = "eq. 55 (conservative)" if conservative else "eq. 54"
+        setup = (f"{R} starts {_fmt(starts)}, observer from x_hat = {lo:g}, input 2 on [0, 1 s) then "
+                 f"1, sampled every {ts:g} s (4 RK4 substeps), stored Psi, threshold {thr_name} from "
+                 "the stored coefficients and rates")
+        td = ", ".join("none" if d is None else f"{d:.5g} s" for d in detect)
+        sd = "" if stored is None else f"; stored {_fmt(stored[:R], 6)} s, differences " + ", ".join(
+            "-" if df is None else f"{df:.3g}" for df in diffs) + \
+            f" s (tolerance {FAULT_TIME_TOLERANCE:g} s)"
+        return [
+            Check("no_false_alarm", ok_h,
+                  f"{setup}: healthy plant, largest |epsilon| - threshold on [{t_skip:g}, "
+                  f"{t[-1]:g}] s = {worst_h:.3g}; faulty plant before t_f = {t_f:g} s: "
+                  f"{worst_pre:.3g} (both must be <= {slack:.3g} = {FAULT_SLACK:g} x the threshold at "
+                  f"{t_skip:g} s, integration error; the first {t_skip:g} s = 2 % of t_f are the "
+                  "initial transient)", {"healthy_margin": worst_h, "pre_fault_margin": worst_pre,
+                                         "slack": slack, "transient_s": t_skip, "ts": ts}),
+            Check("fault_detected", bool(ok_d),
+                  f"{setup}: fault delta_bar = {delta_bar:g} from t_f = {t_f:g} s: detection at "
+                  f"t_d = {td} (must lie in ({t_f:g}, {t_f + FAULT_HORIZON:g}] s){sd}",
+                  {"t_detect": detect, "stored": None if stored is None else stored.tolist(),
+                   "differences": diffs, "t_fault": t_f, "delta_bar": delta_bar,
+                   "horizon_s": FAULT_HORIZON, "tolerance_s": FAULT_TIME_TOLERANCE}),
+        ]
+
+    checks += _guard("fault_detected", simulate_detection)
+    return checks
 
 
 # ====================================================================== registration
@@ -1788,7 +2331,9 @@ for _method, _fn in (("pole_placement", pole_placement_verdict),
                      ("integral_tracking", integral_tracking_verdict),
                      ("feedback_linearization", feedback_linearization_verdict),
                      ("inverse_dynamics", inverse_dynamics_verdict),
-                     ("decentralized_kalman", decentralized_kalman_verdict)):
+                     ("decentralized_kalman", decentralized_kalman_verdict),
+                     ("fault_detection", fault_detection_verdict),
+                     ("narx", narx_verdict)):
     register_verdict(_method, _safe(_fn))
 for _method in ESTIMATOR_BUILDERS:
     register_verdict(_method, _safe(estimator_verdict), default=True)

@@ -291,3 +291,11 @@ def test_compile_errors(tmp_path):
         compile_law(src, compiler="no-such-compiler-xyz")
     with pytest.raises(ArtefactError, match="not found"):
         load_compiled_law(tmp_path / "missing.so", "f")
+
+
+def test_export_into_a_directory_named_like_the_law(tmp_path, id_law):
+    # CasADi refuses an output prefix containing "<name>.c"; the export must not care.
+    target = tmp_path / "idlaw.cases"
+    exp = export_law(id_law.law, target, "idlaw")
+    assert sorted(p.name for p in target.iterdir()) == ["idlaw.c", "idlaw.casadi", "idlaw.h"]
+    assert exp.c_source.read_text().strip()

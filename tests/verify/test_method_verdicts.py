@@ -342,3 +342,164 @@ def test_default_verdicts_give_way_to_a_methods_own():
         from tanksynth.verify import verdicts as _v
 
         _v._DEFAULTS.add("ekf")
+
+
+# ------------------------------------------------------------ seed 004 / seed 002 estimators
+SEED004_FILTERS = """
+title = "verdict tests: adaptive-scaling and consensus filters"
+[plant]
+model = "three_tank"
+outputs = "h1h2"
+[operating_point]
+x = {h1 = 0.40, h2 = 0.20, h3 = 0.30}
+[sampling]
+ts = 1.0
+[[design]]
+name = "askf"
+method = "adaptive_scaling_kalman"
+Q = 1e-8
+R = 1e-6
+P0 = 1e-3
+abc = [0.1, 0.6, 0.3]
+[[design]]
+name = "cf"
+method = "consensus_filter"
+Q = 1e-8
+R = [1e-6, 2e-6]
+P0 = 1e-3
+"""
+
+FAULT = """
+title = "verdict tests: fault detection (seed 004)"
+[plant]
+model = "hydraulic_fault"
+[operating_point]
+x = {x1 = 4.0, x2 = 1.3333333333, x3 = 4.0}
+u = {u = 2.0}
+[sampling]
+ts = 0.01
+[[design]]
+name = "fd"
+method = "fault_detection"
+delta_bar = 1.0
+"""
+
+NARX = """
+title = "verdict tests: a small NARX estimator"
+[plant]
+model = "hybrid_three_tank"
+[operating_point]
+x = {h1 = 0.31918677, h2 = 0.3209075, h3 = 0.30968861}
+u = {Q1in = 2.7777778e-5, Q2in = 2.7777778e-5}
+[sampling]
+ts = 1.0
+[[design]]
+name = "narx"
+method = "narx"
+x0 = [0.2, 0.2, 0.2]
+Q = 1e-7
+R = 1e-6
+P0 = 1e-2
+hidden = 3
+delays = 2
+runs = 2
+validation_runs = 1
+steps = 200
+seed = 0
+restarts = 1
+max_iter = 40
+input_range = [[8.333333e-06, 3.6111111e-05], [8.333333e-06, 3.6111111e-05]]
+"""
+
+#: artefact -> (spec, wrong gain, checks present and passing when good, checks failing when wrong)
+MORE = {
+    "askf": (SEED004_FILTERS, _scale("R", factor=1e4), {"estimator_convergence", "covariance"},
+             {"estimator_convergence"}),
+    "cf": (SEED004_FILTERS, _scale("R0", "R1", factor=1e4), {"estimator_convergence", "covariance"},
+           {"estimator_convergence"}),
+    "fd": (FAULT, _scale("Psi", factor=0.01), {"threshold_recheck", "no_false_alarm",
+                                               "fault_detected"},
+           {"threshold_recheck", "no_false_alarm", "fault_detected"}),
+    "narx": (NARX, _scale("W2", factor=-1.0), {"training_fit_recheck", "one_step_fit",
+                                               "closed_loop_bounded"},
+             {"training_fit_recheck", "one_step_fit"}),
+}
+
+
+@pytest.fixture(scope="module")
+def designed_more(tmp_path_factory):
+    root = tmp_path_factory.mktemp("method_verdicts_more")
+    out = {}
+    for key, text in (("filters", SEED004_FILTERS), ("fault", FAULT), ("narx", NARX)):
+        spec = root / f"{key}.toml"
+        spec.write_text(text, encoding="utf-8")
+        assert main(["design", str(spec), "-o", str(root / key)]) == 0
+        out[key] = root / key
+    return out
+
+
+def _dir_of(name):
+    return {"askf": "filters", "cf": "filters", "fd": "fault", "narx": "narx"}[name]
+
+
+@pytest.mark.parametrize("key", ["filters", "fault", "narx"])
+def test_more_estimator_verdicts_good_and_wrong(designed_more, key, tmp_path, capsys):
+    names = [n for n in MORE if _dir_of(n) == key]
+    good = Path(shutil.copytree(designed_more[key], tmp_path / "good"))
+    code, arts = _verify_json(good, capsys)
+    assert code == 0, {n: [(c["check"], c["detail"]) for c in a["checks"] if c["passed"] is not True]
+                       for n, a in arts.items()}
+    for name in names:
+        checks = {c["check"]: c for c in arts[name]["checks"]}
+        assert MORE[name][2] <= {k for k, c in checks.items() if c["passed"] is True}, \
+            (name, {k: c["detail"] for k, c in checks.items()})
+        for c in checks.values():
+            assert c["detail"] and ("tolerance" in c["detail"] or "must" in c["detail"]), c
+    bad = Path(shutil.copytree(designed_more[key], tmp_path / "bad"))
+    for name in names:
+        _rewrite(bad / f"{name}.json", MORE[name][1])
+    assert main(["verify", str(bad)]) == 1
+    capsys.readouterr()
+    for name in names:
+        doc = read_artefact(bad / f"{name}.json")
+        failed = {c["check"] for c in doc["verification"]["checks"] if c["passed"] is False}
+        assert MORE[name][3] <= failed, (name, sorted(failed))
+        assert doc["verification"]["passed"] is False
+
+
+def test_fault_detection_reports_detection_times(designed_more, tmp_path, capsys):
+    d = Path(shutil.copytree(designed_more["fault"], tmp_path / "fd"))
+    _, arts = _verify_json(d, capsys)
+    det = next(c for c in arts["fd"]["checks"] if c["check"] == "fault_detected")
+    data = det["data"]
+    assert all(data["t_fault"] < t <= data["t_fault"] + data["horizon_s"] for t in data["t_detect"])
+    # the design's exact detection times (matrix exponentials, Brent) within the stated tolerance
+    assert max(data["differences"]) <= data["tolerance_s"]
+    assert "t_d = " in det["detail"]
+
+
+@pytest.mark.parametrize("model, x, u", [
+    ("tank_network", None, None),
+    ("hybrid_three_tank", [0.31918677, 0.3209075, 0.30968861], [2.7777778e-5, 2.7777778e-5]),
+])
+def test_decentralized_filter_prediction_equals_one_simulator_step(model, x, u):
+    """`DecentralizedFilter.predict` (one direct integrator call) equals `simulate(steps=1)`."""
+    from tanksynth.plants import hybrid_three_tank, tank_network
+    from tanksynth.verify.method_verdicts import DecentralizedFilter
+    from tanksynth.verify.simulate import simulate
+
+    plant = tank_network(N=8) if model == "tank_network" else hybrid_three_tank()
+    rng = np.random.default_rng(3)
+    lo = np.array([b[0] for b in plant.region.bounds], float)
+    hi = np.array([b[1] for b in plant.region.bounds], float)
+    hi = np.where(np.isfinite(hi), hi, lo + 30.0)
+    X = lo + (hi - lo) * rng.uniform(0.02, 0.98, (6, plant.n))
+    X[0] = lo                                    # on the lower bound (clipping)
+    if x is not None:
+        X[1] = x
+    U = rng.uniform(0.0, 1.0, (6, plant.m)) * (1e-4 if model != "tank_network" else 2.0)
+    U[2] = -1.0                                  # saturated input
+    filt = DecentralizedFilter(plant, [], ts=1.0, substeps=4)
+    ref = simulate(plant, ts=1.0, steps=1, x0=X, seeds=np.zeros(6, dtype=np.uint64), u_init=U,
+                   substeps=4).x[:, 1]
+    np.testing.assert_allclose(filt.predict(X, U), ref, rtol=0, atol=1e-12)
