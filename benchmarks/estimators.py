@@ -41,7 +41,7 @@ import time
 import casadi as ca
 import numpy as np
 
-from tanksynth.design.estimators import (ExtendedKalmanFilter, KalmanTuning, NARXEstimator,
+from tanksynth.runtime.estimators import (ExtendedKalmanFilter, KalmanTuning, NARXEstimator,
                                          UKFTuning, UnscentedKalmanFilter, discrete_model,
                                          simulate_plant, train_narx)
 from tanksynth.plants import hybrid_three_tank

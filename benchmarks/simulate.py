@@ -21,11 +21,11 @@ import time
 import numpy as np
 from scipy.integrate import solve_ivp
 
-from tanksynth.design.linearize import equilibrium_input
+from tanksynth.analysis.linearize import equilibrium_input
 from tanksynth.plants import three_tank
 from tanksynth.verify.campaign import IntegralStateFeedback
-from tanksynth.verify.scenarios import scenario
-from tanksynth.verify.simulate import run_seeds, simulate
+from tanksynth.sim.scenarios import scenario
+from tanksynth.sim.simulate import run_seeds, simulate
 
 K = 1e-4 * np.array([[21.6, 3.0, -5.0, -0.95, -0.32], [2.9, 19.0, -4.0, -0.30, -0.91]])  # seed 000
 X0 = np.array([0.40, 0.20, 0.30])

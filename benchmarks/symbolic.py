@@ -55,9 +55,9 @@ try:
     import sympy as sp  # noqa: E402
     from scipy.linalg import expm  # noqa: E402
 
-    from tanksynth.design.linearize import equilibrium_input, linearize  # noqa: E402
+    from tanksynth.analysis.linearize import equilibrium_input, linearize  # noqa: E402
     from tanksynth.plants.tank_network import tank_network  # noqa: E402
-    from tanksynth.verify.rank import nonlinear_observability  # noqa: E402
+    from tanksynth.analysis.rank import nonlinear_observability  # noqa: E402
 except ImportError as exc:  # pragma: no cover - only when the package is broken
     sys.exit(f"benchmarks/symbolic.py: cannot import tanksynth ({exc}); run `make bench` "
              "or `.venv/bin/python benchmarks/symbolic.py` from the repository root")

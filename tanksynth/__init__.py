@@ -10,15 +10,16 @@ from __future__ import annotations
 
 from importlib import metadata as _metadata
 
-from .artefact import read_artefact, write_artefact
-from .design import (DesignResult, discretize_zoh, equilibrium_input, lie_derivative, linearize,
-                     relative_degree)
-from .errors import (ArtefactError, DimensionError, InfeasibleDesign, ParseError, RegionError,
+from tanksynth.artefacts.io import read_artefact, write_artefact
+from tanksynth.analysis import (discretize_zoh, equilibrium_input, lie_derivative, linearize,
+                                relative_degree)
+from tanksynth.design.result import DesignResult
+from tanksynth.errors import (ArtefactError, DimensionError, InfeasibleDesign, ParseError, RegionError,
                      SpecError, TanksynthError, UncontrollableError, UnobservableError)
-from .plants import (Plant, builtin_plant, custom_plant, hybrid_three_tank, hydraulic_fault,
+from tanksynth.plants import (Plant, builtin_plant, custom_plant, hybrid_three_tank, hydraulic_fault,
                      tank_network, three_tank)
-from .spec import Spec, load_spec, parse_spec, parse_spec_text
-from .verify.rank import (controllability_rank, nonlinear_observability, observability_rank,
+from tanksynth.spec import Spec, load_spec, parse_spec, parse_spec_text
+from tanksynth.analysis.rank import (controllability_rank, nonlinear_observability, observability_rank,
                           pbh_test, symbolic_observability)
 
 try:

@@ -16,7 +16,7 @@ import click
 from rich.console import Console
 from rich.table import Table
 
-from .errors import InfeasibleDesign, SpecError, TanksynthError
+from tanksynth.errors import InfeasibleDesign, SpecError, TanksynthError
 
 __all__ = ["main", "cli"]
 
@@ -36,7 +36,7 @@ def _one_line(exc: BaseException) -> str:
 
 
 def _load(spec_path: str | None):
-    from .spec import load_spec, parse_spec_text
+    from tanksynth.spec import load_spec, parse_spec_text
 
     if spec_path is None:
         text = resources.files("tanksynth.data").joinpath("demo.toml").read_bytes()
@@ -56,8 +56,8 @@ def _print_checks(checks, title: str = "Rank conditions") -> None:
 
 
 def _design_all(spec, outdir: Path, export: tuple[str, ...]) -> tuple[list[Path], list[str]]:
-    from .artefact import write_artefact, write_plant_record
-    from .design import METHODS
+    from tanksynth.artefacts.io import write_artefact, write_plant_record
+    from tanksynth.design import METHODS
 
     write_plant_record(spec, outdir)
     written, infeasible = [], []
@@ -86,7 +86,7 @@ def cli() -> None:
 @click.option("--json", "as_json", is_flag=True, help="Print JSON instead of tables.")
 def plants(as_json: bool) -> None:
     """List the built-in plants, their parameters and units."""
-    from .plants import BUILTIN_PLANTS
+    from tanksynth.plants import BUILTIN_PLANTS
 
     summaries = [builder().summary() for builder in BUILTIN_PLANTS.values()]
     if as_json:
@@ -112,8 +112,8 @@ def plants(as_json: bool) -> None:
 @click.option("--json", "as_json", is_flag=True, help="Print JSON instead of a table.")
 def check(spec: str, as_json: bool) -> None:
     """Observability/controllability rank conditions of SPEC's plant."""
-    from .artefact import to_jsonable
-    from .verify.checks import rank_conditions
+    from tanksynth.artefacts.io import to_jsonable
+    from tanksynth.analysis.checks import rank_conditions
 
     s = _load(spec)
     checks = rank_conditions(s.plant, s.x0, s.ts, s.given_u0)
@@ -154,9 +154,9 @@ def run(spec: str | None, outdir: str, pdf: bool) -> None:
 
     With no SPEC, the built-in three-tank demo.
     """
-    from .artefact import to_jsonable
-    from .verify.checks import rank_conditions
-    from .verify.verdicts import verify_directory
+    from tanksynth.artefacts.io import to_jsonable
+    from tanksynth.analysis.checks import rank_conditions
+    from tanksynth.verify.verdicts import verify_directory
 
     s = _load(spec)
     out = Path(outdir)
@@ -188,7 +188,7 @@ def run(spec: str | None, outdir: str, pdf: bool) -> None:
 
 
 def _write_report(directory: Path, pdf: bool) -> None:
-    from .reports import write_report
+    from tanksynth.reports import write_report
 
     res = write_report(directory, pdf=pdf)
     _out.print(f"report: {res.tex}")
@@ -225,10 +225,10 @@ def verify(directory: str, scheduler: str | None, as_json: bool, runs: int,
     """Simulate every artefact of DIRECTORY and record the verdicts in it."""
     from rich.progress import Progress
 
-    from .artefact import to_jsonable
-    from .verify.campaign import campaign_tasks, run_campaign
-    from .verify.scenarios import SCENARIOS, scenario
-    from .verify.verdicts import load_directory, verify_directory
+    from tanksynth.artefacts.io import to_jsonable
+    from tanksynth.verify.campaign import campaign_tasks, run_campaign
+    from tanksynth.sim.scenarios import SCENARIOS, scenario
+    from tanksynth.verify.verdicts import load_directory, verify_directory
 
     for name in scenarios:
         scenario(name)  # unknown names are bad input (exit 2) before any work

@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from tanksynth.artefact import read_artefact
+from tanksynth.artefacts import read_artefact
 from tanksynth.cli import main
 
 ROOT = Path(__file__).resolve().parents[1]

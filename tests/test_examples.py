@@ -5,10 +5,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from tanksynth.artefact import read_artefact, write_artefact
+from tanksynth.artefacts import read_artefact, write_artefact
 from tanksynth.design import METHODS
 from tanksynth.spec import load_spec
-from tanksynth.verify.checks import rank_conditions
+from tanksynth.analysis.checks import rank_conditions
 
 EXAMPLES = sorted(Path(__file__).resolve().parents[1].joinpath("examples").glob("*.toml"))
 

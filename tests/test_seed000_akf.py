@@ -15,13 +15,13 @@ import numpy as np
 import pytest
 
 from tanksynth.design import METHODS
-from tanksynth.design.estimators import (AdaptiveKalmanFilter, AdaptiveKalmanTuning,
+from tanksynth.runtime.estimators import (AdaptiveKalmanFilter, AdaptiveKalmanTuning,
                                          AdaptiveScalingKalmanFilter, AdaptiveScalingTuning,
                                          ConsensusFilter, ConsensusTuning, CovarianceError,
                                          ExtendedKalmanFilter, KalmanFilter, KalmanTuning,
                                          LuenbergerObserver, LuenbergerTuning, UKFTuning,
                                          UnscentedKalmanFilter, simulate_plant)
-from tanksynth.design.linearize import equilibrium_input
+from tanksynth.analysis.linearize import equilibrium_input
 from tanksynth.plants import three_tank
 from tanksynth.spec import load_spec
 

@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from tanksynth.artefact import read_artefact, write_artefact
+from tanksynth.artefacts import read_artefact, write_artefact
 from tanksynth.design import METHODS
 from tanksynth.design.control import (_rk4_step, _simulate_sampled, design_integral_tracking,
                                       law_from_document)

@@ -15,8 +15,8 @@ import pytest
 import scipy.integrate
 import sympy as sp
 
-from tanksynth.design.linearize import equilibrium_input, linearize, symbolic_jacobians
-from tanksynth.design.symbolic import relative_degree
+from tanksynth.analysis.linearize import equilibrium_input, linearize, symbolic_jacobians
+from tanksynth.analysis.symbolic import relative_degree
 from tanksynth.plants import three_tank
 
 # Table I

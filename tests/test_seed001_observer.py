@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from tanksynth.artefact import read_artefact, write_artefact
+from tanksynth.artefacts import read_artefact, write_artefact
 from tanksynth.design import METHODS
 from tanksynth.errors import InfeasibleDesign
 from tanksynth.spec import load_spec

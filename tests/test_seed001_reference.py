@@ -13,7 +13,7 @@ import pytest
 import sympy as sp
 
 from tanksynth.plants import three_tank
-from tanksynth.verify.rank import observability_rank, symbolic_observability
+from tanksynth.analysis.rank import observability_rank, symbolic_observability
 
 z1, z2, z3 = sp.symbols("z1 z2 z3")
 l1, l2, l3 = sp.symbols("lambda1 lambda2 lambda3")

@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from tanksynth.design import METHODS
-from tanksynth.design.estimators import (ExtendedKalmanFilter, KalmanTuning, NARXEstimator,
+from tanksynth.runtime.estimators import (ExtendedKalmanFilter, KalmanTuning, NARXEstimator,
                                          UKFTuning, UnscentedKalmanFilter, simulate_plant)
 from tanksynth.plants import hybrid_three_tank
 from tanksynth.plants.hybrid_three_tank import LPH
@@ -74,7 +74,7 @@ def test_example_designs_and_the_narx_estimator(scenario):
     cl = diag["closed_loop_validation"]
     # measured: NARX closed loop RMSE vs truth (0.027, 0.056, 0.0024) m; EKF (0.015, 0.034, 0.0008)
     assert max(cl["rmse_vs_true"]) < 0.07
-    from tanksynth.design.estimators import NARXTuning
+    from tanksynth.runtime.estimators import NARXTuning
 
     g = narx_result.gains
     tun = NARXTuning(W1=g["W1"], b1=g["b1"], W2=g["W2"], b2=g["b2"], in_mean=g["in_mean"],

@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from tanksynth.artefact import read_artefact, write_artefact
+from tanksynth.artefacts import read_artefact, write_artefact
 from tanksynth.design import METHODS
 from tanksynth.design.control import _rk4_step, law_from_document
 from tanksynth.plants.hybrid_three_tank import LPH

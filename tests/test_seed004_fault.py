@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 import sympy as sp
 
-from tanksynth.design.estimators import (AdaptiveScalingKalmanFilter, AdaptiveScalingTuning,
+from tanksynth.runtime.estimators import (AdaptiveScalingKalmanFilter, AdaptiveScalingTuning,
                                          ConsensusFilter, ConsensusTuning, LuenbergerObserver,
                                          LuenbergerTuning, discrete_model)
 from tanksynth.design.fault import (SEED004_DETECTION_TIMES, SEED004_INITIAL_STATES,

@@ -11,9 +11,9 @@ import numpy as np
 import pytest
 import sympy as sp
 
-from tanksynth.design.linearize import linearize, symbolic_jacobians
+from tanksynth.analysis.linearize import linearize, symbolic_jacobians
 from tanksynth.plants import hydraulic_fault
-from tanksynth.verify.rank import (controllability_matrix, controllability_rank,
+from tanksynth.analysis.rank import (controllability_matrix, controllability_rank,
                                    observability_matrix, observability_rank, pbh_test,
                                    symbolic_observability)
 

@@ -56,13 +56,13 @@ import numpy as np
 import sympy as sp
 from scipy.optimize import minimize_scalar
 
-from ..errors import ArtefactError, DimensionError, InfeasibleDesign, SpecError
-from ..plants.base import Plant
-from ..plants.compile import compile_matrix
-from .feedback_linearization import _batch, region_points
-from .linearize import equilibrium_input, linearize
-from .placement import integral_augmentation, place_state_feedback
-from .symbolic import control_affine
+from tanksynth.errors import ArtefactError, DimensionError, InfeasibleDesign, SpecError
+from tanksynth.plants.base import Plant
+from tanksynth.plants.compile import compile_matrix
+from tanksynth.design.feedback_linearization import _batch, region_points
+from tanksynth.analysis.linearize import equilibrium_input, linearize
+from tanksynth.design.placement import integral_augmentation, place_state_feedback
+from tanksynth.analysis.symbolic import control_affine
 
 __all__ = [
     "ANTI_WINDUP",

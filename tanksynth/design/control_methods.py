@@ -25,12 +25,12 @@ from typing import Any
 import numpy as np
 import sympy as sp
 
-from ..errors import SpecError
-from .control import (ServoScenario, design_integral_tracking, inverse_dynamics_law, law_document,
+from tanksynth.errors import SpecError
+from tanksynth.design.control import (ServoScenario, design_integral_tracking, inverse_dynamics_law, law_document,
                       rename_law, tune_inverse_dynamics)
-from .feedback_linearization import feedback_linearization
-from .linearize import equilibrium_input
-from .result import DesignMethod, DesignResult, register
+from tanksynth.design.feedback_linearization import feedback_linearization
+from tanksynth.analysis.linearize import equilibrium_input
+from tanksynth.design.result import DesignMethod, DesignResult, register
 
 __all__ = ["run_feedback_linearization", "run_integral_tracking", "run_inverse_dynamics",
            "seed000_law_erratum"]

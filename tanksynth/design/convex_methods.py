@@ -24,19 +24,19 @@ from typing import TYPE_CHECKING, Any, Mapping, Sequence
 import numpy as np
 import sympy as sp
 
-from ..errors import InfeasibleDesign, SpecError, UnobservableError
-from ..plants.base import exact
-from .linearize import equilibrium_input, linearize, symbolic_jacobians
-from .lmi import SOLVERS, VARIANTS, maximise_psi, observer_lmi
-from .placement import (LMIRegion, canonical_observer, disk, half_plane, integral_augmentation,
+from tanksynth.errors import InfeasibleDesign, SpecError, UnobservableError
+from tanksynth.plants.base import exact
+from tanksynth.analysis.linearize import equilibrium_input, linearize, symbolic_jacobians
+from tanksynth.design.lmi import SOLVERS, VARIANTS, maximise_psi, observer_lmi
+from tanksynth.design.placement import (LMIRegion, canonical_observer, disk, half_plane, integral_augmentation,
                         intersect, lmi_observer, lmi_state_feedback, place_observer,
                         place_state_feedback, pole_errors, sector)
-from .result import DesignMethod, DesignResult, register
-from .takagi_sugeno import (check_exactness, domain_from_plant, lipschitz_bound, quasi_lpv,
+from tanksynth.design.result import DesignMethod, DesignResult, register
+from tanksynth.design.takagi_sugeno import (check_exactness, domain_from_plant, lipschitz_bound, quasi_lpv,
                             search_weightings, selection_rules, ts_model, vertex_observability)
 
 if TYPE_CHECKING:  # pragma: no cover - typing only (spec.py imports the design package)
-    from ..spec import DesignSpec, Spec
+    from tanksynth.spec import DesignSpec, Spec
 
 __all__ = [
     "run_ts_observer",

@@ -49,9 +49,9 @@ from typing import Any
 import numpy as np
 import scipy.linalg as sla
 
-from ..errors import DimensionError, InfeasibleDesign, RegionError, SpecError
-from ..plants.base import Plant
-from .linearize import discretize_zoh
+from tanksynth.errors import DimensionError, InfeasibleDesign, RegionError, SpecError
+from tanksynth.plants.base import Plant
+from tanksynth.analysis.linearize import discretize_zoh
 
 __all__ = [
     "KalmanStep",

@@ -60,11 +60,11 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import DimensionError, InfeasibleDesign, SpecError
-from .decentralized import (centralized_gain, equicorrelated_intensity, finite_horizon_gains,
+from tanksynth.errors import DimensionError, InfeasibleDesign, SpecError
+from tanksynth.design.decentralized import (centralized_gain, equicorrelated_intensity, finite_horizon_gains,
                             one_step_gains, own_tank_pattern, window_models)
-from .linearize import equilibrium_input
-from .result import DesignMethod, DesignResult, register
+from tanksynth.analysis.linearize import equilibrium_input
+from tanksynth.design.result import DesignMethod, DesignResult, register
 
 __all__ = ["run_decentralized_kalman", "DECENTRALIZED_METHODS"]
 

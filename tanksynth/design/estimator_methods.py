@@ -29,19 +29,19 @@ from typing import Any, Mapping
 import numpy as np
 import sympy as sp
 
-from ..errors import SpecError, UnobservableError
-from .estimators.adaptive import (AdaptiveKalmanFilter, AdaptiveKalmanTuning,
+from tanksynth.errors import SpecError, UnobservableError
+from tanksynth.runtime.estimators.adaptive import (AdaptiveKalmanFilter, AdaptiveKalmanTuning,
                                   AdaptiveScalingKalmanFilter, AdaptiveScalingTuning)
-from .estimators.base import DiscreteModel, discrete_model
-from .estimators.consensus import ConsensusFilter, ConsensusTuning
-from .estimators.kalman import (ExtendedKalmanFilter, KalmanFilter, KalmanTuning,
+from tanksynth.runtime.estimators.base import DiscreteModel, discrete_model
+from tanksynth.runtime.estimators.consensus import ConsensusFilter, ConsensusTuning
+from tanksynth.runtime.estimators.kalman import (ExtendedKalmanFilter, KalmanFilter, KalmanTuning,
                                 steady_state_gain)
-from .estimators.luenberger import OBSERVER_FORMS, LuenbergerObserver, LuenbergerTuning
-from .estimators.narx import train_narx
-from .estimators.ukf import UKFTuning, UnscentedKalmanFilter
-from .fault import SEED004_DETECTION_TIMES, fault_threshold, seed004_detection
-from .linearize import equilibrium_input, linearize
-from .result import DesignMethod, DesignResult, register
+from tanksynth.runtime.estimators.luenberger import OBSERVER_FORMS, LuenbergerObserver, LuenbergerTuning
+from tanksynth.runtime.estimators.narx import train_narx
+from tanksynth.runtime.estimators.ukf import UKFTuning, UnscentedKalmanFilter
+from tanksynth.design.fault import SEED004_DETECTION_TIMES, fault_threshold, seed004_detection
+from tanksynth.analysis.linearize import equilibrium_input, linearize
+from tanksynth.design.result import DesignMethod, DesignResult, register
 
 __all__ = [
     "run_kalman", "run_ekf", "run_ukf", "run_adaptive_kalman", "run_adaptive_scaling_kalman",
@@ -211,7 +211,7 @@ def _linear_at_op(spec: Any) -> tuple[Any, np.ndarray, np.ndarray]:
 
 
 def _require_observable(plant: Any, A: np.ndarray, C: np.ndarray, what: str) -> dict:
-    from ..verify.rank import observability_rank, pbh_test
+    from tanksynth.analysis.rank import observability_rank, pbh_test
 
     rank = observability_rank(A, C)
     if not rank.full:
@@ -423,7 +423,7 @@ def run_luenberger(spec: Any, design: Any) -> DesignResult:
     ``nonlinear = true`` runs the continuous form on the plant's own vector
     field instead of the linearisation.
     """
-    from .placement import place_observer
+    from tanksynth.design.placement import place_observer
 
     plant = spec.plant
     n, q = plant.n, plant.q
@@ -438,7 +438,7 @@ def run_luenberger(spec: Any, design: Any) -> DesignResult:
     if has_L:
         L = _matrix_option(design, "L", (n, q))
     else:
-        from .convex_methods import parse_poles
+        from tanksynth.design.convex_methods import parse_poles
 
         poles = parse_poles(design.options["poles"], _key(design, "poles"))
         placement = place_observer(A_design, lin.C, poles)
@@ -469,7 +469,7 @@ def run_fault_detection(spec: Any, design: Any) -> DesignResult:
     ``delta_bar`` (declared fault size, default 1.0), ``t_fault`` (2.0 s),
     ``conservative`` (true: eq. 55).
     """
-    from .convex_methods import parse_poles
+    from tanksynth.design.convex_methods import parse_poles
 
     opts = design.options
     poles = parse_poles(opts.get("poles", [-5.0, -8.0, -10.0]), _key(design, "poles"))

@@ -33,8 +33,8 @@ import scipy.linalg as sla
 import sympy as sp
 from scipy.optimize import brentq
 
-from ..errors import DimensionError, SpecError
-from ..plants.base import Plant, exact
+from tanksynth.errors import DimensionError, SpecError
+from tanksynth.plants.base import Plant, exact
 
 __all__ = [
     "FaultThreshold",
@@ -185,7 +185,7 @@ def fault_threshold(plant: Plant, poles: Sequence[Any] = (-5, -8, -10), *,
             raise SpecError("the threshold is derived for distinct real observer poles, got "
                             f"{list(poles)}", key="poles")
         poles = [p if isinstance(p, sp.Basic) else exact(complex(p).real) for p in poles]
-        from .placement import canonical_observer
+        from tanksynth.design.placement import canonical_observer
 
         Psi = canonical_observer(A, C, list(poles)).Psi
     else:

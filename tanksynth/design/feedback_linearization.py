@@ -3,7 +3,7 @@
 For a square control-affine plant ``dx/dt = f0(x) + G(x) u``, ``y = h(x)``
 (``q = m``) the relative degrees ``theta_i`` (eq. 19), the decoupling matrix
 ``Lambda(x)`` (eq. 22) and ``Lambda_0(x)`` (eq. 23) come from the symbolic
-core (`tanksynth.design.symbolic.relative_degree`) on the plant's smooth form
+core (`tanksynth.analysis.symbolic.relative_degree`) on the plant's smooth form
 (``sgn``/``abs`` resolved on the operating region). The law (eq. 24)::
 
     u = alpha(x) + beta(x) zeta,   alpha = -Lambda^-1 Lambda_0,   beta = Lambda^-1
@@ -44,10 +44,10 @@ import casadi as ca
 import numpy as np
 import sympy as sp
 
-from ..errors import DimensionError, InfeasibleDesign, SpecError, TanksynthError
-from ..plants.base import Plant
-from ..plants.compile import compile_matrix
-from .symbolic import RelativeDegree, control_affine, jacobian, lie_derivatives, relative_degree
+from tanksynth.errors import DimensionError, InfeasibleDesign, SpecError, TanksynthError
+from tanksynth.plants.base import Plant
+from tanksynth.plants.compile import compile_matrix
+from tanksynth.analysis.symbolic import RelativeDegree, control_affine, jacobian, lie_derivatives, relative_degree
 
 __all__ = [
     "region_points",

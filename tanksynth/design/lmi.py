@@ -56,10 +56,10 @@ import numpy as np
 import scipy.linalg as sla
 import scipy.sparse as sps
 
-from ..errors import DimensionError, InfeasibleDesign, SpecError, UnobservableError
-# Module import (not names): tanksynth.verify.rank imports tanksynth.design, so
+from tanksynth.errors import DimensionError, InfeasibleDesign, SpecError, UnobservableError
+# Module import (not names): tanksynth.analysis.rank imports tanksynth.design, so
 # this module may be loaded while verify.rank is still initialising.
-from ..verify import rank as _rank
+from tanksynth.analysis import rank as _rank
 
 __all__ = [
     "SOLVERS",

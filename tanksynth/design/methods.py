@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import sympy as sp
 
-from .linearize import equilibrium_input, linearize, symbolic_jacobians
-from .result import DesignMethod, DesignResult, register
+from tanksynth.analysis.linearize import equilibrium_input, linearize, symbolic_jacobians
+from tanksynth.design.result import DesignMethod, DesignResult, register
 
 __all__ = ["run_linearize"]
 
@@ -22,10 +22,10 @@ def run_linearize(spec, design) -> DesignResult:
     ``ts``), ``C``, ``x0``, ``u0`` (the equilibrium input computed from the
     model, not the one written in the spec, whose residual is reported).
     """
-    # Imported here: tanksynth.verify.rank imports tanksynth.design.symbolic, whose
+    # Imported here: tanksynth.analysis.rank imports tanksynth.analysis.symbolic, whose
     # package __init__ imports this module (a top-level import would be circular
-    # when tanksynth.verify.rank is imported first).
-    from ..verify.rank import controllability_rank, observability_rank, pbh_test
+    # when tanksynth.analysis.rank is imported first).
+    from tanksynth.analysis.rank import controllability_rank, observability_rank, pbh_test
 
     plant = spec.plant
     eq = equilibrium_input(plant, spec.x0, spec.given_u0)

@@ -38,13 +38,13 @@ import scipy.linalg as sla
 import sympy as sp
 from scipy.optimize import linear_sum_assignment
 
-from ..errors import (DimensionError, InfeasibleDesign, SpecError, UncontrollableError,
+from tanksynth.errors import (DimensionError, InfeasibleDesign, SpecError, UncontrollableError,
                       UnobservableError)
-from ..plants.base import exact
-# Module import (not names): tanksynth.verify.rank imports tanksynth.design, so
+from tanksynth.plants.base import exact
+# Module import (not names): tanksynth.analysis.rank imports tanksynth.design, so
 # this module may be loaded while verify.rank is still initialising.
-from ..verify import rank as _rank
-from .lmi import SOLVERS, LMICheck
+from tanksynth.analysis import rank as _rank
+from tanksynth.design.lmi import SOLVERS, LMICheck
 
 __all__ = [
     "LMIRegion",

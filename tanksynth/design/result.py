@@ -7,7 +7,7 @@ from typing import Any, Callable, Mapping
 
 import numpy as np
 
-from ..errors import SpecError
+from tanksynth.errors import SpecError
 
 __all__ = ["DesignResult", "DesignMethod", "METHODS", "register"]
 

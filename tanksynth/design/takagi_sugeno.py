@@ -38,12 +38,12 @@ import numpy as np
 import scipy.optimize as sopt
 import sympy as sp
 
-from ..errors import DimensionError, RegionError, SpecError, TanksynthError
-from ..plants.base import Plant, exact
-# Module import (not names): tanksynth.verify.rank imports tanksynth.design, so
+from tanksynth.errors import DimensionError, RegionError, SpecError, TanksynthError
+from tanksynth.plants.base import Plant, exact
+# Module import (not names): tanksynth.analysis.rank imports tanksynth.design, so
 # this module may be loaded while verify.rank is still initialising.
-from ..verify import rank as _rank
-from .symbolic import jacobian
+from tanksynth.analysis import rank as _rank
+from tanksynth.analysis.symbolic import jacobian
 
 __all__ = [
     "Domain",
@@ -1055,7 +1055,7 @@ class VertexObservability:
 
 def vertex_observability(ts: TSModel, C: np.ndarray | None = None, symbolic: bool = True,
                          sample_vertices: int = 64) -> VertexObservability:
-    """Kalman rank of every vertex (uses `tanksynth.verify.rank`).
+    """Kalman rank of every vertex (uses `tanksynth.analysis.rank`).
 
     Parameters
     ----------
@@ -1475,7 +1475,7 @@ def search_weightings(qlpv: QuasiLPV, domain: Domain, *, values: Sequence[float]
     -------
     WeightSearch
     """
-    from .lmi import ObserverLMIProblem, bisect_feasible
+    from tanksynth.design.lmi import ObserverLMIProblem, bisect_feasible
 
     if premises is None:
         premises = [k for k in range(qlpv.p) if len(qlpv.atom_states[k]) > 1]

@@ -13,12 +13,12 @@ from __future__ import annotations
 
 from typing import Any, Callable
 
-from .base import Assumption, HybridModes, Parameter, Plant, Quantity, Region, exact
-from .custom import custom_plant
-from .hybrid_three_tank import hybrid_three_tank
-from .hydraulic_fault import hydraulic_fault
-from .tank_network import tank_network
-from .three_tank import three_tank
+from tanksynth.plants.base import Assumption, HybridModes, Parameter, Plant, Quantity, Region, exact
+from tanksynth.plants.custom import custom_plant
+from tanksynth.plants.hybrid_three_tank import hybrid_three_tank
+from tanksynth.plants.hydraulic_fault import hydraulic_fault
+from tanksynth.plants.tank_network import tank_network
+from tanksynth.plants.three_tank import three_tank
 
 __all__ = [
     "Assumption", "HybridModes", "Parameter", "Plant", "Quantity", "Region", "exact",
@@ -45,7 +45,7 @@ def builtin_plant(name: str, **options: Any) -> Plant:
     **options
         Family options (e.g. ``N`` and ``parameter_set`` for ``tank_network``).
     """
-    from ..errors import SpecError
+    from tanksynth.errors import SpecError
 
     if name not in BUILTIN_PLANTS:
         raise SpecError(f"unknown plant model {name!r}; expected one of: "

@@ -19,7 +19,7 @@ from typing import Any, Iterable, Mapping, Sequence
 import numpy as np
 import sympy as sp
 
-from ..errors import DimensionError, RegionError, SpecError
+from tanksynth.errors import DimensionError, RegionError, SpecError
 
 __all__ = [
     "Quantity",
@@ -425,7 +425,7 @@ class Plant:
     @cached_property
     def compiled(self):
         """Numeric functions compiled once (see `tanksynth.plants.compile`)."""
-        from .compile import compile_plant
+        from tanksynth.plants.compile import compile_plant
 
         return compile_plant(self)
 

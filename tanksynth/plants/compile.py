@@ -16,7 +16,7 @@ import casadi as ca
 import numpy as np
 import sympy as sp
 
-from ..errors import TanksynthError
+from tanksynth.errors import TanksynthError
 
 __all__ = ["to_casadi", "CompiledPlant", "compile_plant", "compile_matrix"]
 

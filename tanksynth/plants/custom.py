@@ -28,9 +28,9 @@ from typing import Any, Mapping
 
 import sympy as sp
 
-from ..errors import SpecError
-from .base import Assumption, Parameter, Plant, Quantity, Region
-from .parser import parse_expression, validate_name
+from tanksynth.errors import SpecError
+from tanksynth.plants.base import Assumption, Parameter, Plant, Quantity, Region
+from tanksynth.plants.parser import parse_expression, validate_name
 
 __all__ = ["custom_plant"]
 

@@ -37,8 +37,8 @@ from typing import Sequence
 
 import sympy as sp
 
-from ..errors import SpecError
-from .base import Assumption, HybridModes, Parameter, Plant, Quantity, Region
+from tanksynth.errors import SpecError
+from tanksynth.plants.base import Assumption, HybridModes, Parameter, Plant, Quantity, Region
 
 __all__ = ["hybrid_three_tank", "mode_vector_field", "LPH"]
 

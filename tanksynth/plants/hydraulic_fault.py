@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import sympy as sp
 
-from .base import Assumption, Parameter, Plant, Quantity, Region
+from tanksynth.plants.base import Assumption, Parameter, Plant, Quantity, Region
 
 __all__ = ["hydraulic_fault"]
 

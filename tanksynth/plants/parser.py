@@ -24,7 +24,7 @@ from typing import Mapping
 
 import sympy as sp
 
-from ..errors import ParseError
+from tanksynth.errors import ParseError
 
 __all__ = ["parse_expression", "FUNCTIONS", "validate_name"]
 

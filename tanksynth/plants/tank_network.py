@@ -35,8 +35,8 @@ from typing import Any
 
 import sympy as sp
 
-from ..errors import SpecError
-from .base import Assumption, Parameter, Plant, Quantity, Region
+from tanksynth.errors import SpecError
+from tanksynth.plants.base import Assumption, Parameter, Plant, Quantity, Region
 
 __all__ = ["tank_network", "PARAMETER_SETS", "JOHANSSON_OPERATING_POINTS"]
 

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import sympy as sp
 
-from .base import Assumption, Parameter, Plant, Quantity, Region
+from tanksynth.plants.base import Assumption, Parameter, Plant, Quantity, Region
 
 __all__ = ["three_tank"]
 
@@ -39,7 +39,7 @@ def three_tank(outputs: str = "all") -> Plant:
     """
     choices = {"all": ("h1", "h2", "h3"), "h1h2": ("h1", "h2"), "h1": ("h1",)}
     if outputs not in choices:
-        from ..errors import SpecError
+        from tanksynth.errors import SpecError
 
         raise SpecError(f"unknown output set {outputs!r}; expected one of {list(choices)}",
                         key="plant.outputs")

@@ -10,10 +10,10 @@ gains), verification (once run), pole-map figures and the paper-vs-tool
 comparison of `tanksynth.reports.paper`.
 """
 
-from .inputs import ReportInputs, read_report_inputs
-from .latex import escape_latex
-from .paper import PaperComparison, PaperRow, compare_with_papers
-from .writer import ReportResult, render_report, write_report
+from tanksynth.reports.inputs import ReportInputs, read_report_inputs
+from tanksynth.reports.latex import escape_latex
+from tanksynth.reports.paper import PaperComparison, PaperRow, compare_with_papers
+from tanksynth.reports.writer import ReportResult, render_report, write_report
 
 __all__ = [
     "write_report",

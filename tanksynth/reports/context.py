@@ -16,12 +16,12 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
-from .figures import FigureFile, TraceFigure, eigenvalue_sets, is_pole_key, time_domain_figure
-from .inputs import ReportInputs
-from .latex import (Tex, escape_latex, expression_latex, format_eigenvalues,
+from tanksynth.reports.figures import FigureFile, TraceFigure, eigenvalue_sets, is_pole_key, time_domain_figure
+from tanksynth.reports.inputs import ReportInputs
+from tanksynth.reports.latex import (Tex, escape_latex, expression_latex, format_eigenvalues,
                     format_number, format_unit, gain_latex, matrix_latex, split_equation,
                     symbol_latex, visual_length)
-from .paper import PaperComparison
+from tanksynth.reports.paper import PaperComparison
 
 __all__ = ["DesignView", "build_context", "design_view", "diagnostic_rows", "fragment_lines",
            "trace_figures", "METHOD_PROBLEMS"]
@@ -431,7 +431,7 @@ def fragment_lines(name_tex: str, fragment: str, width: int = 75) -> list[Tex]:
 
 
 def _sympy_matrix_entries(tex: str) -> list[list[str]] | None:
-    from .paper import _latex_matrix_entries
+    from tanksynth.reports.paper import _latex_matrix_entries
 
     return _latex_matrix_entries(tex)
 

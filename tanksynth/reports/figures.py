@@ -2,7 +2,7 @@
 
 Eigenvalue lists are found in an artefact's diagnostics by name (any key
 containing ``eigenvalues``, at any depth, in the ``[re, im]`` pair
-convention of `tanksynth.artefact.to_jsonable`). Discrete-time sets (keys
+convention of `tanksynth.artefacts.io.to_jsonable`). Discrete-time sets (keys
 naming ``Ad``, or diagnostics declaring a discrete domain) are drawn in the
 z-plane with the unit circle, continuous ones in the s-plane with the
 imaginary axis.
@@ -146,7 +146,7 @@ def pole_map(artefact: Mapping[str, Any], directory: Path, stem: str) -> FigureF
     Parameters
     ----------
     artefact : mapping
-        As read by `tanksynth.artefact.read_artefact`.
+        As read by `tanksynth.artefacts.io.read_artefact`.
     directory : Path
         Figure directory (created if missing).
     stem : str
@@ -249,7 +249,7 @@ def time_domain_figure(artefact: Mapping[str, Any], artefact_dir: Path, director
     Parameters
     ----------
     artefact : mapping
-        As read by `tanksynth.artefact.read_artefact` (its ``name``).
+        As read by `tanksynth.artefacts.io.read_artefact` (its ``name``).
     artefact_dir : Path
         Directory holding the artefact and its ``<name>.traces.npz``.
     directory : Path
@@ -262,7 +262,7 @@ def time_domain_figure(artefact: Mapping[str, Any], artefact_dir: Path, director
     TraceFigure or None
         None when the artefact has no (readable) trace file.
     """
-    from ..verify.verdicts import read_trace, trace_path
+    from tanksynth.verify.verdicts import read_trace, trace_path
 
     name = str(artefact.get("name", ""))
     trace = read_trace(trace_path(Path(artefact_dir) / f"{name}.json", name))

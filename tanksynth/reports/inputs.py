@@ -1,7 +1,7 @@
 """What a report reads: the plant record, the spec, the rank verdicts and the artefacts of DIR.
 
 The report stage never designs or simulates; it only reads the files the
-earlier stages wrote (see `tanksynth.artefact`).
+earlier stages wrote (see `tanksynth.artefacts.io`).
 """
 
 from __future__ import annotations
@@ -14,8 +14,8 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from ..artefact import PLANT_SCHEMA, SCHEMA, read_artefact, read_plant_record
-from ..errors import ArtefactError
+from tanksynth.artefacts.io import PLANT_SCHEMA, SCHEMA, read_artefact, read_plant_record
+from tanksynth.errors import ArtefactError
 
 __all__ = ["ReportInputs", "read_report_inputs"]
 
@@ -35,7 +35,7 @@ class ReportInputs:
         ``checks.json`` (rank verdicts) when present.
     artefacts : tuple of dict
         Every ``*.json`` of schema ``tanksynth.artefact/1``, sorted by file
-        name, read with `tanksynth.artefact.read_artefact` (gains are numpy
+        name, read with `tanksynth.artefacts.io.read_artefact` (gains are numpy
         arrays). Each carries its file name under ``"_file"``.
     campaign : tuple of dict or None
         Rows of ``campaign.csv`` (Monte-Carlo campaign of ``tanksynth verify

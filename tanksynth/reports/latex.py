@@ -26,7 +26,7 @@ from typing import Any, Iterable
 
 import numpy as np
 
-from ..errors import ReportError
+from tanksynth.errors import ReportError
 
 __all__ = [
     "Tex",
@@ -180,7 +180,7 @@ def format_number(value: Any, digits: int = 5) -> Tex:
 
     Uses fixed notation between 1e-4 and 10**digits, otherwise
     ``m \\times 10^{e}``. Accepts the strings ``"inf"``, ``"-inf"``, ``"nan"``
-    written by `tanksynth.artefact.to_jsonable`, booleans and ``None``.
+    written by `tanksynth.artefacts.io.to_jsonable`, booleans and ``None``.
     """
     if value is None:
         return Tex(r"\text{--}")
@@ -340,8 +340,8 @@ def expression_latex(text: Any) -> Tex | None:
         return None
     import sympy as sp
 
-    from ..errors import ParseError
-    from ..plants.parser import FUNCTIONS, parse_expression
+    from tanksynth.errors import ParseError
+    from tanksynth.plants.parser import FUNCTIONS, parse_expression
 
     names = {n: sp.Symbol(n) for n in set(re.findall(r"[A-Za-z_][A-Za-z0-9_]*", text))
              if n not in FUNCTIONS}

@@ -22,9 +22,9 @@ from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
 
-from ..errors import ReportError
-from .inputs import ReportInputs
-from .latex import Tex, escape_latex, format_eigenvalues, format_number, matrix_latex
+from tanksynth.errors import ReportError
+from tanksynth.reports.inputs import ReportInputs
+from tanksynth.reports.latex import Tex, escape_latex, format_eigenvalues, format_number, matrix_latex
 
 __all__ = [
     "AGREES", "ERRATUM", "DIFFERS",
@@ -418,7 +418,7 @@ def _seed001_applies(inputs: ReportInputs) -> bool:
 def _seed001_rows(inputs: ReportInputs) -> tuple[PaperRow, ...]:
     import sympy as sp
 
-    from ..verify.rank import symbolic_observability
+    from tanksynth.analysis.rank import symbolic_observability
 
     (z1, z2, z3), lam, gam = _seed001_symbols()
     l1, l2, l3 = lam

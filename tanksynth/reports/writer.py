@@ -18,12 +18,12 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-from ..errors import ReportError
-from .context import build_context, trace_figures
-from .figures import FigureFile, TraceFigure, pole_map
-from .inputs import ReportInputs, read_report_inputs
-from .latex import compile_pdf, environment, pdf_page_count
-from .paper import PaperComparison, compare_with_papers
+from tanksynth.errors import ReportError
+from tanksynth.reports.context import build_context, trace_figures
+from tanksynth.reports.figures import FigureFile, TraceFigure, pole_map
+from tanksynth.reports.inputs import ReportInputs, read_report_inputs
+from tanksynth.reports.latex import compile_pdf, environment, pdf_page_count
+from tanksynth.reports.paper import PaperComparison, compare_with_papers
 
 __all__ = ["ReportResult", "render_report", "write_report", "FIGURE_DIR"]
 

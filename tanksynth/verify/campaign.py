@@ -42,11 +42,11 @@ from typing import Any, Callable, Iterable, Mapping, Sequence
 
 import numpy as np
 
-from ..errors import SpecError, TanksynthError
-from ..plants.base import Plant
-from .metrics import compute_metrics
-from .scenarios import SCENARIOS, SEED002_SCENARIOS, run_scenario, scenario
-from .simulate import BatchEstimator, ConstantInput, run_seeds
+from tanksynth.errors import SpecError, TanksynthError
+from tanksynth.plants.base import Plant
+from tanksynth.sim.metrics import compute_metrics
+from tanksynth.sim.scenarios import SCENARIOS, SEED002_SCENARIOS, run_scenario, scenario
+from tanksynth.sim.simulate import BatchEstimator, ConstantInput, run_seeds
 
 __all__ = [
     "ClosedLoop",
@@ -171,8 +171,8 @@ class InverseDynamicsLaw:
     _law: Any = field(init=False, default=None, repr=False)
 
     def __post_init__(self) -> None:
-        from ..design.control import inverse_dynamics_law
-        from .method_verdicts import CasadiControlLaw
+        from tanksynth.design.control import inverse_dynamics_law
+        from tanksynth.verify.method_verdicts import CasadiControlLaw
 
         names = [s.name for s in self.plant.states]
         law = inverse_dynamics_law(self.plant, np.asarray(self.gains, dtype=float),
@@ -205,7 +205,7 @@ class ArtefactLaw:
     """
 
     def __init__(self, function: Any, signature: str = ""):
-        from .method_verdicts import CasadiControlLaw
+        from tanksynth.verify.method_verdicts import CasadiControlLaw
 
         self.function = function
         self.signature = signature
@@ -243,7 +243,7 @@ class ArtefactIntegralLaw(ArtefactLaw):
     """
 
     def __init__(self, function: Any, signature: str = ""):
-        from .method_verdicts import CasadiIntegralLaw
+        from tanksynth.verify.method_verdicts import CasadiIntegralLaw
 
         self.function = function
         self.signature = signature
@@ -264,8 +264,8 @@ class ArtefactIntegralLaw(ArtefactLaw):
 
 
 def _law_of(doc: Mapping[str, Any]) -> tuple[Any, str]:
-    from ..design.control import law_from_document
-    from ..errors import ArtefactError
+    from tanksynth.design.control import law_from_document
+    from tanksynth.errors import ArtefactError
 
     diag = doc.get("diagnostics") or {}
     law = diag.get("law") if isinstance(diag, Mapping) else None
@@ -310,7 +310,7 @@ def _operating_point(spec: Any, doc: Mapping[str, Any]) -> tuple[np.ndarray, np.
     gains = doc["gains"]
     if "x0" in gains and "u0" in gains:
         return np.asarray(gains["x0"], float).reshape(-1), np.asarray(gains["u0"], float).reshape(-1)
-    from ..design.linearize import equilibrium_input
+    from tanksynth.analysis.linearize import equilibrium_input
 
     eq = equilibrium_input(spec.plant, spec.x0, spec.given_u0)
     return np.asarray(spec.x0, float), eq.u0
@@ -422,7 +422,7 @@ class CampaignTask:
 
 @lru_cache(maxsize=8)
 def _spec(text: str):
-    from ..spec import parse_spec_text
+    from tanksynth.spec import parse_spec_text
 
     return parse_spec_text(text.encode("utf-8"), source="<campaign spec>")
 
@@ -649,9 +649,9 @@ PAPER_TABLES: dict[str, dict[str, dict[str, float]]] = {
 #: true state (the baseline every estimator-based controller is compared with).
 SEED002_ESTIMATORS: dict[str, tuple[str | None, str]] = {
     "PERFECT": (None, "true state fed back (perfect estimator baseline)"),
-    "EKFC": ("tanksynth.design.estimators.kalman", "EKF with per-mode Jacobians + inverse dynamics"),
-    "UKFC": ("tanksynth.design.estimators.ukf", "UKF + inverse dynamics"),
-    "ANNC": ("tanksynth.design.estimators.narx", "NARX (ANN) estimator + inverse dynamics"),
+    "EKFC": ("tanksynth.runtime.estimators.kalman", "EKF with per-mode Jacobians + inverse dynamics"),
+    "UKFC": ("tanksynth.runtime.estimators.ukf", "UKF + inverse dynamics"),
+    "ANNC": ("tanksynth.runtime.estimators.narx", "NARX (ANN) estimator + inverse dynamics"),
 }
 
 #: Estimator tuning of the seed 002 table (not published: our choice, declared).
@@ -660,7 +660,7 @@ SEED002_TUNING = {"Q": 1e-9, "R": 2.5e-7, "P0": 1e-2, "substeps": 2, "narx_runs"
 
 
 def _seed002_factory(label: str, mod: Any, plant: Plant, ts: float, x0: np.ndarray) -> Callable[[], BatchEstimator]:
-    from .simulate import EstimatorAdapter
+    from tanksynth.sim.simulate import EstimatorAdapter
 
     t = SEED002_TUNING
     common = dict(Q=t["Q"] * np.eye(plant.n), R=t["R"] * np.eye(plant.q), P0=t["P0"] * np.eye(plant.n),
@@ -670,7 +670,7 @@ def _seed002_factory(label: str, mod: Any, plant: Plant, ts: float, x0: np.ndarr
     elif label == "UKFC":
         template = mod.UnscentedKalmanFilter(plant, mod.UKFTuning(**common))
     else:
-        from ..design.estimators.kalman import KalmanTuning
+        from tanksynth.runtime.estimators.kalman import KalmanTuning
 
         training = mod.train_narx(plant, KalmanTuning(**common), runs=t["narx_runs"],
                                   steps=t["narx_steps"], restarts=t["narx_restarts"],
@@ -773,11 +773,11 @@ def seed002_table(plant: Plant | None = None, *, x_op: Sequence[float] | None = 
     list of Seed002Row
     """
     if plant is None:
-        from ..plants import hybrid_three_tank
+        from tanksynth.plants import hybrid_three_tank
 
         plant = hybrid_three_tank()
     x_op = np.array([0.31918677, 0.3209075, 0.30968861] if x_op is None else x_op, dtype=float)
-    from ..design.linearize import equilibrium_input
+    from tanksynth.analysis.linearize import equilibrium_input
 
     u_op = equilibrium_input(plant, x_op).u0
     tracked = (0, 1)

@@ -98,11 +98,11 @@ from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
 
-from ..errors import ArtefactError, TanksynthError
-from .checks import Check
-from .rank import controllability_rank, observability_rank
-from .simulate import BatchEstimator, EstimatorAdapter, run_seeds, simulate
-from .verdicts import artefact_gain, record_trace, register_verdict
+from tanksynth.errors import ArtefactError, TanksynthError
+from tanksynth.analysis.checks import Check
+from tanksynth.analysis.rank import controllability_rank, observability_rank
+from tanksynth.sim.simulate import BatchEstimator, EstimatorAdapter, run_seeds, simulate
+from tanksynth.verify.verdicts import artefact_gain, record_trace, register_verdict
 
 __all__ = [
     "MODEL_TOLERANCE",
@@ -191,7 +191,7 @@ def _option(doc: Mapping[str, Any], spec: Any, name: str, default: Any = None) -
     opts = design_options(doc, spec)
     if name in opts:
         return opts[name]
-    from ..design.result import METHODS
+    from tanksynth.design.result import METHODS
 
     method = METHODS.get(str(doc["method"]))
     if method is not None and name in method.options and method.options[name][1] is not None:
@@ -210,7 +210,7 @@ def _matrix(doc: Mapping[str, Any], name: str, shape: tuple[int, int] | None = N
 
 
 def _equilibrium(spec: Any) -> tuple[np.ndarray, np.ndarray]:
-    from ..design.linearize import equilibrium_input
+    from tanksynth.analysis.linearize import equilibrium_input
 
     eq = equilibrium_input(spec.plant, spec.x0, spec.given_u0)
     return np.asarray(spec.x0, dtype=float).copy(), np.asarray(eq.u0, dtype=float)
@@ -286,7 +286,7 @@ def _fastest_rate(eigs: np.ndarray, domain: str, ts: float | None) -> float:
 # ------------------------------------------------------------------------- re-checks
 def _model_recheck(plant: Any, x0: np.ndarray, u0: np.ndarray, domain: str, ts: float | None,
                    stored: Mapping[str, np.ndarray]) -> Check:
-    from ..design.linearize import linearize
+    from tanksynth.analysis.linearize import linearize
 
     lin = linearize(plant, x0, u0, ts=ts if domain == "discrete" else None)
     ref = {"A": lin.Ad if domain == "discrete" else lin.F,
@@ -306,7 +306,7 @@ def _model_recheck(plant: Any, x0: np.ndarray, u0: np.ndarray, domain: str, ts: 
 
 
 def _pole_check(achieved: np.ndarray, requested: Sequence[complex], what: str) -> Check:
-    from ..design.placement import pole_errors
+    from tanksynth.design.placement import pole_errors
 
     p = np.asarray(requested, dtype=complex)
     a = np.asarray(achieved, dtype=complex)
@@ -348,7 +348,7 @@ def _region_check(eigs: np.ndarray, region: Any, what: str) -> Check:
 
 def _region_lmi_check(region: Any, Acl: np.ndarray, X: np.ndarray, what: str) -> Check:
     # placement._d_lmi is the design's own block builder (no second implementation here).
-    from ..design.placement import _d_lmi
+    from tanksynth.design.placement import _d_lmi
 
     M = _d_lmi(region, Acl @ X, X, np.kron)
     M = 0.5 * (M + M.T)
@@ -433,7 +433,7 @@ def luenberger_estimator(plant: Any, L: np.ndarray, x0: np.ndarray, u0: np.ndarr
                          form: str) -> EstimatorAdapter:
     """The estimator stage's Luenberger observer on the model linearised at ``(x0, u0)``.
 
-    `tanksynth.design.estimators.luenberger.LuenbergerObserver` (the one
+    `tanksynth.runtime.estimators.luenberger.LuenbergerObserver` (the one
     implementation), wrapped by `EstimatorAdapter`: ``form = "predictor"``
     (error matrix ``Ad - L C``, discrete designs), ``"current"`` (``(I - L
     C) Ad``) or ``"continuous"`` (``F - L C``, integrated exactly over each
@@ -453,7 +453,7 @@ def luenberger_estimator(plant: Any, L: np.ndarray, x0: np.ndarray, u0: np.ndarr
     -------
     EstimatorAdapter
     """
-    from ..design.estimators.luenberger import LuenbergerObserver, LuenbergerTuning
+    from tanksynth.runtime.estimators.luenberger import LuenbergerObserver, LuenbergerTuning
 
     tuning = LuenbergerTuning(L=np.asarray(L, dtype=float), x0=np.asarray(x0, dtype=float),
                               ts=float(ts), form=form, operating_point=(x0, u0))
@@ -463,7 +463,7 @@ def luenberger_estimator(plant: Any, L: np.ndarray, x0: np.ndarray, u0: np.ndarr
 class TSObserver:
     """Multiple observer of seed 001 eq. (20), continuous time (a `BatchEstimator`).
 
-    Same observer as `tanksynth.design.estimators.luenberger.TSMultiObserver`,
+    Same observer as `tanksynth.runtime.estimators.luenberger.TSMultiObserver`,
     integrated differently: that one uses explicit RK4, which is unstable for
     stiff LMI gains (``ts_observer_paper_safe`` has an error eigenvalue of
     about -1.3e5 1/s) unless the step is below ``2.8 / |lambda|``; the
@@ -487,7 +487,7 @@ class TSObserver:
     """
 
     def __init__(self, model: Any, L: np.ndarray, ts: float, substeps: int = 8):
-        from ..design.linearize import discretize_zoh
+        from tanksynth.analysis.linearize import discretize_zoh
 
         self.model = model
         self.L = np.asarray(L, dtype=float)
@@ -657,7 +657,7 @@ def _region_tau(region: Any, domain: str, ts: float | None) -> float:
 def _designed_tau(doc: Mapping[str, Any], spec: Any, eigs: np.ndarray, domain: str,
                   ts: float | None) -> tuple[float, str]:
     """Slowest time constant the DESIGN asks for (spec poles or region), else of the stored gain."""
-    from ..design.convex_methods import parse_poles, parse_region
+    from tanksynth.design.convex_methods import parse_poles, parse_region
 
     poles = _option(doc, spec, "poles")
     if poles is not None:
@@ -807,7 +807,7 @@ def _placement_common(doc: Mapping[str, Any], spec: Any) -> dict:
         C1 = C[rows]
         K = _matrix(doc, "K", (m, n + len(rows)))
         if domain == "discrete":
-            from ..design.placement import integral_augmentation
+            from tanksynth.design.placement import integral_augmentation
 
             aug = integral_augmentation(A, B, C1, ts)
             Aa, Ba = aug.A, aug.B
@@ -833,7 +833,7 @@ def _placement_rank(c: dict) -> list[Check]:
 
 
 def _placement_simulation(doc: Mapping[str, Any], spec: Any, c: dict) -> list[Check]:
-    from .campaign import IntegralStateFeedback
+    from tanksynth.verify.campaign import IntegralStateFeedback
 
     plant, domain, ts = c["plant"], c["domain"], c["ts"]
     tau, rule = _designed_tau(doc, spec, c["eigs"], domain, ts)
@@ -871,7 +871,7 @@ def pole_placement_verdict(doc: Mapping[str, Any], spec: Any) -> list[Check]:
     ``servo_tracking`` + ``bounded_inputs`` (integral action) or
     ``regulation`` on the nonlinear plant.
     """
-    from ..design.convex_methods import parse_poles
+    from tanksynth.design.convex_methods import parse_poles
 
     c = _placement_common(doc, spec)
     checks = [_model_recheck(c["plant"], c["x0"], c["u0"], c["domain"], c["ts"],
@@ -895,7 +895,7 @@ def lmi_placement_verdict(doc: Mapping[str, Any], spec: Any) -> list[Check]:
     ``stability``, ``rank_*`` and the simulation checks of
     `pole_placement_verdict`.
     """
-    from ..design.convex_methods import parse_region
+    from tanksynth.design.convex_methods import parse_region
 
     c = _placement_common(doc, spec)
     size = c["Acl"].shape[0]
@@ -928,7 +928,7 @@ def canonical_observer_verdict(doc: Mapping[str, Any], spec: Any) -> list[Check]
     ``stability``, ``rank_observability`` and ``observer_convergence`` of
     the continuous Luenberger observer on the nonlinear plant.
     """
-    from ..design.convex_methods import parse_poles
+    from tanksynth.design.convex_methods import parse_poles
 
     plant = spec.plant
     n, q = plant.n, plant.q
@@ -964,7 +964,7 @@ def canonical_observer_verdict(doc: Mapping[str, Any], spec: Any) -> list[Check]
 # ---------------------------------------------------------------------- ts_observer
 def _ts_model_from_artefact(doc: Mapping[str, Any], spec: Any) -> tuple[Any, list[Check]]:
     """Rebuild the TS multiple model from the plant and the recorded premises/bounds/domain."""
-    from ..design.takagi_sugeno import Domain, PremiseBounds, quasi_lpv, ts_model
+    from tanksynth.design.takagi_sugeno import Domain, PremiseBounds, quasi_lpv, ts_model
 
     plant = spec.plant
     diag = doc.get("diagnostics") or {}
@@ -1015,7 +1015,7 @@ def _ts_model_from_artefact(doc: Mapping[str, Any], spec: Any) -> tuple[Any, lis
 
 def _local_error_check(spec: Any, L: np.ndarray, C: np.ndarray) -> Check:
     """``eig(F(x0) - L C)``: the observer error dynamics linearised at the operating point."""
-    from ..design.linearize import linearize
+    from tanksynth.analysis.linearize import linearize
 
     x0, u0 = _equilibrium(spec)
     F = linearize(spec.plant, x0, u0).F
@@ -1042,7 +1042,7 @@ def ts_observer_verdict(doc: Mapping[str, Any], spec: Any) -> list[Check]:
     ``observer_convergence`` of the multiple observer (20) on the nonlinear
     plant.
     """
-    from ..design.lmi import check_observer_lmi
+    from tanksynth.design.lmi import check_observer_lmi
 
     plant = spec.plant
     n, q, m = plant.n, plant.q, plant.m
@@ -1132,7 +1132,7 @@ def ts_observer_verdict(doc: Mapping[str, Any], spec: Any) -> list[Check]:
 
 # ===================================================================== control laws
 def _law(doc: Mapping[str, Any]) -> Any:
-    from ..design.control import law_from_document
+    from tanksynth.design.control import law_from_document
 
     diag = doc.get("diagnostics") or {}
     law = diag.get("law") if isinstance(diag, Mapping) else None
@@ -1142,7 +1142,7 @@ def _law(doc: Mapping[str, Any]) -> Any:
 
 
 def _region_samples(plant: Any, count: int = 24, seed: int = 7) -> np.ndarray:
-    from ..design.feedback_linearization import region_points
+    from tanksynth.design.feedback_linearization import region_points
 
     return region_points(plant, 0, count, seed, 0.05)
 
@@ -1158,10 +1158,10 @@ def integral_tracking_verdict(doc: Mapping[str, Any], spec: Any) -> list[Check]:
     ``stability``, ``rank_controllability_augmented``, ``servo_tracking`` and
     ``bounded_inputs`` (the law built from the gains, on the nonlinear plant).
     """
-    from ..design.control import integral_tracking_law
-    from ..design.convex_methods import parse_poles
-    from ..design.linearize import linearize
-    from ..design.placement import integral_augmentation
+    from tanksynth.design.control import integral_tracking_law
+    from tanksynth.design.convex_methods import parse_poles
+    from tanksynth.analysis.linearize import linearize
+    from tanksynth.design.placement import integral_augmentation
 
     plant = spec.plant
     n, m = plant.n, plant.m
@@ -1357,10 +1357,10 @@ def inverse_dynamics_verdict(doc: Mapping[str, Any], spec: Any) -> list[Check]:
     scenario with the law built from the gains, true state fed back: ISE
     finite and the tracking time within the horizon).
     """
-    from ..design.control import inverse_dynamics_law
-    from ..design.linearize import linearize
-    from .metrics import compute_metrics
-    from .scenarios import run_scenario, scenario
+    from tanksynth.design.control import inverse_dynamics_law
+    from tanksynth.analysis.linearize import linearize
+    from tanksynth.sim.metrics import compute_metrics
+    from tanksynth.sim.scenarios import run_scenario, scenario
 
     plant = spec.plant
     n, m = plant.n, plant.m
@@ -1458,7 +1458,7 @@ class DecentralizedFilter:
         self._k = 0
         # The simulator's own integrator, model, parameters and bounds, built once: one
         # `predict` is exactly the state `simulate(..., steps=1, u_init=u).x[:, 1]` returns.
-        from .simulate import _Integrator, _param_arrays, clip_bounds, numpy_model
+        from tanksynth.sim.simulate import _Integrator, _param_arrays, clip_bounds, numpy_model
 
         self._params = _param_arrays(plant, None, 1)
         lower, upper = clip_bounds(plant, self._params)
@@ -1607,8 +1607,8 @@ def _operating_point_gains(doc: Mapping[str, Any]) -> tuple[np.ndarray, np.ndarr
 
 def _steady_kalman_error(spec: Any, Q: np.ndarray, R: np.ndarray) -> np.ndarray:
     """``(I - K C) Ad`` of the steady-state Kalman filter of the linearisation at the operating point."""
-    from ..design.estimators.base import discrete_model
-    from ..design.estimators.kalman import steady_state_gain
+    from tanksynth.runtime.estimators.base import discrete_model
+    from tanksynth.runtime.estimators.kalman import steady_state_gain
 
     x0, u0 = _equilibrium(spec)
     model = discrete_model(spec.plant, float(spec.ts), operating_point=(x0, u0))
@@ -1617,7 +1617,7 @@ def _steady_kalman_error(spec: Any, Q: np.ndarray, R: np.ndarray) -> np.ndarray:
 
 
 def _kalman_builder(doc: Mapping[str, Any], spec: Any) -> tuple[BatchEstimator, np.ndarray, str]:
-    from ..design.estimators.kalman import ExtendedKalmanFilter, KalmanFilter, KalmanTuning
+    from tanksynth.runtime.estimators.kalman import ExtendedKalmanFilter, KalmanFilter, KalmanTuning
 
     plant = spec.plant
     n, q = plant.n, plant.q
@@ -1633,7 +1633,7 @@ def _kalman_builder(doc: Mapping[str, Any], spec: Any) -> tuple[BatchEstimator, 
 
 
 def _ukf_builder(doc: Mapping[str, Any], spec: Any) -> tuple[BatchEstimator, np.ndarray, str]:
-    from ..design.estimators.ukf import UKFTuning, UnscentedKalmanFilter
+    from tanksynth.runtime.estimators.ukf import UKFTuning, UnscentedKalmanFilter
 
     plant = spec.plant
     n, q = plant.n, plant.q
@@ -1648,7 +1648,7 @@ def _ukf_builder(doc: Mapping[str, Any], spec: Any) -> tuple[BatchEstimator, np.
 
 def _adaptive_kalman_builder(doc: Mapping[str, Any], spec: Any
                              ) -> tuple[BatchEstimator, np.ndarray, str]:
-    from ..design.estimators.adaptive import AdaptiveKalmanFilter, AdaptiveKalmanTuning
+    from tanksynth.runtime.estimators.adaptive import AdaptiveKalmanFilter, AdaptiveKalmanTuning
 
     plant = spec.plant
     n, q = plant.n, plant.q
@@ -1675,7 +1675,7 @@ def _dare_error(spec: Any, op: tuple[np.ndarray, np.ndarray] | None, Q: np.ndarr
     """
     import scipy.linalg as sla
 
-    from ..design.linearize import linearize
+    from tanksynth.analysis.linearize import linearize
 
     x_op, u_op = op if op is not None else _equilibrium(spec)
     lin = linearize(spec.plant, x_op, u_op, ts=float(spec.ts))
@@ -1694,7 +1694,7 @@ def _spec_design(doc: Mapping[str, Any], spec: Any) -> Any:
 
 def _claimed(doc: Mapping[str, Any], spec: Any, opt: str, stored: np.ndarray) -> tuple[np.ndarray, str]:
     """The covariance the spec declares for ``opt`` (the design's claim), else the stored one."""
-    from ..design.estimator_methods import _covariance
+    from tanksynth.design.estimator_methods import _covariance
 
     design = _spec_design(doc, spec)
     if design is None or opt not in design.options:
@@ -1711,7 +1711,7 @@ def _claimed(doc: Mapping[str, Any], spec: Any, opt: str, stored: np.ndarray) ->
 
 def _adaptive_scaling_builder(doc: Mapping[str, Any], spec: Any
                               ) -> tuple[BatchEstimator, np.ndarray, str]:
-    from ..design.estimators.adaptive import AdaptiveScalingKalmanFilter, AdaptiveScalingTuning
+    from tanksynth.runtime.estimators.adaptive import AdaptiveScalingKalmanFilter, AdaptiveScalingTuning
 
     plant = spec.plant
     n, q = plant.n, plant.q
@@ -1745,7 +1745,7 @@ class _StackedSensors(EstimatorAdapter):
 
 
 def _consensus_builder(doc: Mapping[str, Any], spec: Any) -> tuple[BatchEstimator, np.ndarray, str]:
-    from ..design.estimators.consensus import ConsensusFilter, ConsensusTuning
+    from tanksynth.runtime.estimators.consensus import ConsensusFilter, ConsensusTuning
 
     plant = spec.plant
     n, q = plant.n, plant.q
@@ -1794,7 +1794,7 @@ def _covariance_check(est: Any) -> Check:
 
 def _luenberger_error_matrix(spec: Any, L: np.ndarray, form: str,
                              op: tuple[np.ndarray, np.ndarray] | None) -> np.ndarray:
-    from ..design.linearize import linearize
+    from tanksynth.analysis.linearize import linearize
 
     x_op, u_op = op if op is not None else _equilibrium(spec)
     lin = linearize(spec.plant, x_op, u_op, ts=spec.ts)
@@ -1806,7 +1806,7 @@ def _luenberger_error_matrix(spec: Any, L: np.ndarray, form: str,
 
 
 def _luenberger_builder(doc: Mapping[str, Any], spec: Any) -> tuple[BatchEstimator, np.ndarray, str]:
-    from ..design.estimators.luenberger import LuenbergerObserver, LuenbergerTuning
+    from tanksynth.runtime.estimators.luenberger import LuenbergerObserver, LuenbergerTuning
 
     plant = spec.plant
     L = _matrix(doc, "L", (plant.n, plant.q))
@@ -1897,7 +1897,7 @@ def estimator_verdict(doc: Mapping[str, Any], spec: Any) -> list[Check]:
     if method == "kalman":
         checks += _guard("riccati_recheck", lambda: _kalman_rechecks(doc, spec))
     if method == "luenberger":
-        from ..design.convex_methods import parse_poles
+        from tanksynth.design.convex_methods import parse_poles
 
         def poles() -> list[Check]:
             plant = spec.plant
@@ -1976,8 +1976,8 @@ def narx_verdict(doc: Mapping[str, Any], spec: Any) -> list[Check]:
         validation RMSE against the true states and the EKF's RMSE on the
         same fresh data.
     """
-    from ..design.estimators.kalman import KalmanTuning
-    from ..design.estimators.narx import (NARXEstimator, NARXTuning, _features, _forward,
+    from tanksynth.runtime.estimators.kalman import KalmanTuning
+    from tanksynth.runtime.estimators.narx import (NARXEstimator, NARXTuning, _features, _forward,
                                           generate_ekf_data)
 
     plant = spec.plant
@@ -2107,7 +2107,7 @@ class _ResidualObserver:
     """
 
     def __init__(self, plant: Any, Psi: np.ndarray, ts: float, substeps: int = 4):
-        from .simulate import _param_arrays, numpy_model
+        from tanksynth.sim.simulate import _param_arrays, numpy_model
 
         healthy = {"delta_bar": 0.0} if "delta_bar" in {p.name for p in plant.parameters} else None
         self.model = numpy_model(plant)
@@ -2181,9 +2181,9 @@ def fault_detection_verdict(doc: Mapping[str, Any], spec: Any) -> list[Check]:
     `FAULT_HORIZON`), and, where the artefact stores detection times,
     ``|t_d - stored| <= FAULT_TIME_TOLERANCE``.
     """
-    from ..design.fault import SEED004_INITIAL_STATES, SEED004_INPUT
-    from ..design.linearize import linearize
-    from .simulate import ParameterChange
+    from tanksynth.design.fault import SEED004_INITIAL_STATES, SEED004_INPUT
+    from tanksynth.analysis.linearize import linearize
+    from tanksynth.sim.simulate import ParameterChange
 
     plant = spec.plant
     n, m = plant.n, plant.m

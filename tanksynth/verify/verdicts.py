@@ -58,11 +58,11 @@ from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
 
-from ..design.linearize import discretize_zoh, linearize
-from ..errors import ArtefactError, TanksynthError
-from .checks import Check
-from .rank import controllability_rank, observability_rank
-from .simulate import run_seeds, simulate
+from tanksynth.analysis.linearize import discretize_zoh, linearize
+from tanksynth.errors import ArtefactError, TanksynthError
+from tanksynth.analysis.checks import Check
+from tanksynth.analysis.rank import controllability_rank, observability_rank
+from tanksynth.sim.simulate import run_seeds, simulate
 
 __all__ = [
     "Verdict",
@@ -124,7 +124,7 @@ class Verdict:
 
     def as_dict(self) -> dict:
         """The ``verification`` field of the artefact."""
-        from ..artefact import to_jsonable  # lazy: tanksynth.artefact imports the design stage
+        from tanksynth.artefacts.io import to_jsonable  # lazy: tanksynth.artefacts.io imports the design stage
 
         return {"passed": self.passed, "checks": [to_jsonable(c.as_dict()) for c in self.checks]}
 
@@ -474,7 +474,7 @@ register_verdict("linearize", linearize_verdict)
 # ------------------------------------------------------------------------- directory
 @lru_cache(maxsize=8)
 def _spec_from_text(text: str, source: str):
-    from ..spec import parse_spec_text
+    from tanksynth.spec import parse_spec_text
 
     return parse_spec_text(text.encode("utf-8"), source=source)
 
@@ -494,7 +494,7 @@ def load_directory(directory: str | Path) -> tuple[Any, list[tuple[Path, dict]]]
         No artefact, no ``spec.toml``, an unreadable or tampered artefact
         (gains changed after design), or one designed from another spec.
     """
-    from ..artefact import SCHEMA, read_artefact  # lazy: see Verdict.as_dict
+    from tanksynth.artefacts.io import SCHEMA, read_artefact  # lazy: see Verdict.as_dict
 
     directory = Path(directory)
     if not directory.is_dir():
@@ -506,7 +506,7 @@ def load_directory(directory: str | Path) -> tuple[Any, list[tuple[Path, dict]]]
         except (OSError, json.JSONDecodeError, UnicodeDecodeError):
             head = None
         if isinstance(head, dict) and isinstance(head.get("schema"), str) \
-                and not head["schema"].startswith("tanksynth.artefact"):
+                and not head["schema"].startswith("tanksynth.artefact/"):
             continue  # plant record, campaign metadata, ...
         if not isinstance(head, dict) and path.name in ("checks.json",):
             continue
@@ -627,4 +627,4 @@ def verify_directory(directory: str | Path, scheduler: str | None = None,
 
 
 # Registers the verdicts of the other design methods (imported last: it uses this module).
-from . import method_verdicts as _method_verdicts  # noqa: E402,F401
+from tanksynth.verify import method_verdicts as _method_verdicts  # noqa: E402,F401

@@ -9,7 +9,7 @@ import pytest
 import scipy.linalg as sla
 from scipy.integrate import quad_vec
 
-from tanksynth.artefact import read_artefact, write_artefact
+from tanksynth.artefacts import read_artefact, write_artefact
 from tanksynth.design import METHODS
 from tanksynth.design.decentralized import (DiscreteModel, KalmanStep, centralized_gain,
                                             covariance_recursion, discretize_noise,

@@ -9,7 +9,7 @@ import pytest
 import sympy as sp
 
 from tanksynth.design import METHODS, placement
-from tanksynth.design.linearize import equilibrium_input, linearize
+from tanksynth.analysis.linearize import equilibrium_input, linearize
 from tanksynth.design.placement import (LMIRegion, canonical_observer, disk, half_plane,
                                         integral_augmentation, intersect, lmi_observer,
                                         lmi_state_feedback, place_observer, place_state_feedback,

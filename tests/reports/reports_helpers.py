@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from tanksynth.artefact import write_artefact, write_plant_record
+from tanksynth.artefacts import write_artefact, write_plant_record
 from tanksynth.design import METHODS
 from tanksynth.spec import parse_spec_text
 

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from reports_helpers import copy_dir, edit_json, needs_latex
-from tanksynth.artefact import write_artefact
+from tanksynth.artefacts import write_artefact
 from tanksynth.cli import main
 from tanksynth.design.result import DesignResult
 from tanksynth.errors import ArtefactError, ReportError

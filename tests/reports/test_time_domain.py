@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from tanksynth.artefact import read_artefact
+from tanksynth.artefacts import read_artefact
 from tanksynth.cli import main
 from tanksynth.reports.figures import time_domain_figure
 from tanksynth.verify.verdicts import read_trace, trace_path
@@ -83,7 +83,7 @@ def test_missing_trace_means_no_figure(tmp_path):
 def test_trace_decimated(tmp_path):
     from tanksynth.verify.verdicts import TRACE_MAX_SAMPLES, _TRACE, record_trace, write_trace
     from tanksynth.plants import three_tank
-    from tanksynth.verify.simulate import run_seeds, simulate
+    from tanksynth.sim.simulate import run_seeds, simulate
 
     plant = three_tank()
     x0 = np.array([0.4, 0.2, 0.3])

@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from tanksynth.artefact import read_artefact
+from tanksynth.artefacts import read_artefact
 from tanksynth.cli import main
 from tanksynth.verify.campaign import campaign_tasks, run_campaign, run_task
 

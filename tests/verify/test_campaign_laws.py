@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from tanksynth.artefact import read_artefact
+from tanksynth.artefacts import read_artefact
 from tanksynth.cli import main
 from tanksynth.errors import ArtefactError
 from tanksynth.verify.campaign import (CLOSED_LOOPS, ArtefactIntegralLaw, ArtefactLaw, campaign_tasks,

@@ -14,10 +14,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from tanksynth.artefact import read_artefact, write_artefact
+from tanksynth.artefacts import read_artefact, write_artefact
 from tanksynth.cli import main
 from tanksynth.design.result import DesignResult
-from tanksynth.verify.checks import Check
+from tanksynth.analysis.checks import Check
 from tanksynth.verify.verdicts import VERDICTS, register_verdict
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
@@ -486,7 +486,7 @@ def test_decentralized_filter_prediction_equals_one_simulator_step(model, x, u):
     """`DecentralizedFilter.predict` (one direct integrator call) equals `simulate(steps=1)`."""
     from tanksynth.plants import hybrid_three_tank, tank_network
     from tanksynth.verify.method_verdicts import DecentralizedFilter
-    from tanksynth.verify.simulate import simulate
+    from tanksynth.sim.simulate import simulate
 
     plant = tank_network(N=8) if model == "tank_network" else hybrid_three_tank()
     rng = np.random.default_rng(3)

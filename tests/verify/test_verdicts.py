@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from tanksynth.artefact import gains_digest, read_artefact
+from tanksynth.artefacts import gains_digest, read_artefact
 from tanksynth.cli import main
 from tanksynth.errors import ArtefactError
 from tanksynth.verify.verdicts import VERDICTS, verify_directory
@@ -67,7 +67,7 @@ def test_wrong_linearisation_fails_with_exit_1(designed, tmp_path, capsys):
     d = _copy(designed, "hybrid_three_tank", tmp_path)
 
     def scale_f(doc):  # F 50 % off, Ad and Bd its consistent ZOH: a wrong but coherent model
-        from tanksynth.design.linearize import discretize_zoh
+        from tanksynth.analysis.linearize import discretize_zoh
 
         F = np.asarray(doc["gains"]["F"]) * 1.5
         Ad, Bd = discretize_zoh(F, np.asarray(doc["gains"]["B"]), 1.0)
@@ -96,7 +96,7 @@ def test_tampered_or_foreign_artefact_is_refused_with_exit_2(designed, tmp_path,
 
 
 def test_verify_stores_traces_beside_artefacts(designed, tmp_path, monkeypatch):
-    from tanksynth.verify.checks import Check
+    from tanksynth.analysis.checks import Check
     from tanksynth.verify.verdicts import read_trace
 
     d = _copy(designed, "seed004_fault_detection", tmp_path)

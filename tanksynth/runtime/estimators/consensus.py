@@ -1,0 +1,206 @@
+"""Consensus (information-form) Kalman filter with N sensors (seed 004 eq. 42-51).
+
+Olfati-Saber's micro-Kalman filter with the average-consensus sums taken as
+exact (all nodes agree; the seed stops at eq. 51 without the consensus
+dynamics). Sensor ``i`` measures ``y_i = C_i x + d_i + noise`` with
+covariance ``R_i``. One step (``u`` held over the interval)::
+
+    x_bar = A x(k-1) + B u + c ,   P = A M(k-1) A' + G Q G'          (50)-(51)
+    H     = 1/N sum C_i' R_i^-1 C_i                                  (43)
+    Pcal  = ((N P)^-1 + H)^-1                                        (44)
+    z     = 1/N sum C_i' R_i^-1 (y_i - d_i)                          (48)
+    x(k)  = x_bar + Pcal (z - H x_bar)                               (49)
+    M(k)  = Pcal / N            (Joseph form of the stacked update, symmetrised)
+
+``x(k)`` equals the centralised Kalman filter on the stacked measurements.
+Erratum: eq. 50 propagates ``Pcal`` itself; with ``N > 1`` that is ``N``
+times the posterior covariance (``Pcal = N (P^-1 + sum H_i)^-1``), so the
+filter would inflate its covariance ``N``-fold every step. The node
+covariance ``N P`` and the central ``P`` are kept apart here; for ``N = 1``
+(Algorithm 1 of the seed) both readings agree.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+import numpy as np
+
+from tanksynth.errors import DimensionError, SpecError
+from tanksynth.plants.base import Plant
+from tanksynth.runtime.estimators.adaptive import _op, _stack, linear_model_for
+from tanksynth.runtime.estimators.base import (ArrayEstimator, _positive_float, _sym, as_matrix, as_spd, as_vector,
+                   joseph_update, mv)
+
+__all__ = ["ConsensusTuning", "ConsensusFilter"]
+
+
+@dataclass(frozen=True, eq=False)
+class ConsensusTuning:
+    """Tuning of the consensus filter: the artefact.
+
+    Attributes
+    ----------
+    Q : ndarray, shape (r, r)
+        Process noise covariance (PSD).
+    R : tuple of ndarray
+        ``R_i`` (q_i x q_i, PD) of each sensor; ``N = len(R)``.
+    P0 : ndarray, shape (n, n)
+        Initial (central) covariance.
+    x0 : ndarray, shape (n,)
+    ts : float
+        Sampling period (s).
+    C : tuple of ndarray or None
+        ``C_i`` (q_i x n) of each sensor, in the linear model's state
+        coordinates (offset ``d_i = 0``). None: every sensor measures the
+        plant output (``C_i = C``, ``d_i = dy`` of the model).
+    G : ndarray, shape (n, r) or None
+        Process noise input matrix; default identity.
+    operating_point : (x0, u0) or None
+    """
+
+    Q: np.ndarray
+    R: tuple
+    P0: np.ndarray
+    x0: np.ndarray
+    ts: float
+    C: tuple | None = None
+    G: np.ndarray | None = None
+    operating_point: tuple[np.ndarray, np.ndarray] | None = None
+
+    def __post_init__(self) -> None:
+        set_ = lambda k, v: object.__setattr__(self, k, v)  # noqa: E731
+        set_("Q", as_spd(self.Q, "Q", semidefinite=True))
+        if isinstance(self.R, np.ndarray) or not isinstance(self.R, (tuple, list)) or not self.R:
+            raise SpecError("R must be a non-empty list of sensor covariances R_i", key="R")
+        set_("R", tuple(as_spd(Ri, f"R[{i}]") for i, Ri in enumerate(self.R)))
+        set_("P0", as_spd(self.P0, "P0"))
+        set_("x0", as_vector(self.x0, "x0"))
+        n = self.x0.size
+        if self.C is not None:
+            if not isinstance(self.C, (tuple, list)) or len(self.C) != len(self.R):
+                raise SpecError(f"C must list one matrix per sensor ({len(self.R)})", key="C")
+            Cs = tuple(as_matrix(Ci, f"C[{i}]") for i, Ci in enumerate(self.C))
+            for i, (Ci, Ri) in enumerate(zip(Cs, self.R)):
+                if Ci.shape != (Ri.shape[0], n):
+                    raise DimensionError(f"C[{i}] must be {Ri.shape[0]} x {n}, got {Ci.shape}")
+            set_("C", Cs)
+        G = np.eye(n) if self.G is None else as_matrix(self.G, "G")
+        if G.shape != (n, self.Q.shape[0]):
+            raise DimensionError(f"G must be {n} x {self.Q.shape[0]}, got {G.shape}")
+        set_("G", G)
+        set_("ts", _positive_float(self.ts, "ts"))
+        set_("operating_point", _op(self.operating_point))
+
+    @property
+    def sensors(self) -> int:
+        """Number of sensors ``N``."""
+        return len(self.R)
+
+    def gains(self) -> dict[str, np.ndarray]:
+        """Tuning arrays for the artefact (``R_i``, ``C_i`` as ``R0, R1, ...``)."""
+        out = {"Q": self.Q, "P0": self.P0, "x0": self.x0, "G": self.G}
+        for i, Ri in enumerate(self.R):
+            out[f"R{i}"] = Ri
+        if self.C is not None:
+            for i, Ci in enumerate(self.C):
+                out[f"C{i}"] = Ci
+        if self.operating_point is not None:
+            out["x_op"], out["u_op"] = self.operating_point
+        return out
+
+
+class ConsensusFilter(ArrayEstimator):
+    """Information-form consensus Kalman filter (seed 004 eq. 42-51).
+
+    ``step(y, u)`` takes the stacked measurements of all sensors
+    (``y`` of size ``sum q_i``, sensor 0 first).
+
+    Parameters
+    ----------
+    plant : Plant
+    tuning : ConsensusTuning
+    runs : int, optional
+
+    Attributes
+    ----------
+    prior : ndarray
+        ``x_bar`` of the last step, (n,) or (M, n) (property).
+    """
+
+    method = "consensus_filter"
+
+    def __init__(self, plant: Plant, tuning: ConsensusTuning, runs: int | None = None):
+        if not isinstance(tuning, ConsensusTuning):
+            raise SpecError(f"ConsensusFilter needs a ConsensusTuning, got {type(tuning).__name__}",
+                            key="tuning")
+        super().__init__(plant, tuning, runs)
+        self.model = linear_model_for(plant, tuning)
+        mdl = self.model
+        if tuning.C is None:
+            Cs = [mdl.C] * tuning.sensors
+            ds = [mdl.dy] * tuning.sensors
+        else:
+            Cs = list(tuning.C)
+            ds = [np.zeros(Ci.shape[0]) for Ci in Cs]
+        for i, (Ci, Ri) in enumerate(zip(Cs, tuning.R)):
+            if Ri.shape[0] != Ci.shape[0] or Ci.shape[1] != plant.n:
+                raise DimensionError(f"sensor {i}: C is {Ci.shape} and R is {Ri.shape} for "
+                                     f"n = {plant.n}")
+        self._C_stack = np.vstack(Cs)
+        self._d_stack = np.concatenate(ds)
+        self._R_stack = np.zeros((len(self._d_stack),) * 2)
+        self._Rinv_stack = np.zeros_like(self._R_stack)
+        i0 = 0
+        for Ri in tuning.R:
+            k = Ri.shape[0]
+            self._R_stack[i0:i0 + k, i0:i0 + k] = Ri
+            self._Rinv_stack[i0:i0 + k, i0:i0 + k] = np.linalg.inv(Ri)
+            i0 += k
+        N = tuning.sensors
+        self._H = self._C_stack.T @ self._Rinv_stack @ self._C_stack / N          # (43)
+        self._Z = self._C_stack.T @ self._Rinv_stack / N                           # (48)
+        self._GQG = tuning.G @ tuning.Q @ tuning.G.T
+        self._qy = self._q = self._C_stack.shape[0]
+        self.reset()
+
+    @property
+    def q(self) -> int:
+        """Size of the stacked measurement ``sum q_i``."""
+        return self._qy
+
+    def _clone_args(self) -> tuple[tuple, dict]:
+        return (self.plant, self.tuning), {}
+
+    def _reset_arrays(self) -> None:
+        self._Mc = _stack(self.tuning.P0, self._M)
+        self._prior = self._x.copy()
+        self._first = True
+
+    @property
+    def covariance(self) -> np.ndarray:
+        """Central posterior covariance ``M(k)`` (a copy)."""
+        return self._Mc[0].copy() if self.runs is None else self._Mc.copy()
+
+    @property
+    def prior(self) -> np.ndarray:
+        """``x_bar`` used by the last step (a copy)."""
+        return self._prior[0].copy() if self.runs is None else self._prior.copy()
+
+    def _advance(self, Y: np.ndarray, U: np.ndarray) -> np.ndarray:
+        mdl = self.model
+        A = mdl.Ad
+        N = self.tuning.sensors
+        xbar = mv(A, self._x) + mv(mdl.Bd, U) + mdl.cd                       # (51)
+        P = _sym(A @ self._Mc @ A.T + self._GQG)                           # (50), central
+        self._check_spd(P, "predicted covariance P(k|k-1)")
+        info = _sym(np.linalg.inv(N * P) + self._H)                        # (44)
+        self._check_spd(info, "information matrix (N P)^-1 + H")
+        Pcal = _sym(np.linalg.inv(info))
+        z = mv(self._Z, Y - self._d_stack)                                # (48)
+        x = xbar + np.einsum("mij,mj->mi", Pcal, z - mv(self._H, xbar))     # (49)
+        K = Pcal @ self._Z                                                 # stacked gain = M C' R^-1
+        Mc = joseph_update(P, K, self._C_stack, self._R_stack)
+        self._check_spd(Mc, "updated covariance M(k)")
+        self._check_state(x)
+        self._x, self._Mc, self._prior = x, Mc, xbar
+        return x

@@ -1,0 +1,286 @@
+"""TOML spec -> validated `Spec` (no eval anywhere).
+
+A spec has one ``[plant]`` table (a built-in ``model`` with parameter
+overrides and family options, or ``model = "custom"`` with equations), an
+``[operating_point]``, a ``[sampling]`` table and one ``[[design]]`` table
+per gain to synthesise. Every error is a `SpecError` naming the file, the
+key and what was expected.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import inspect
+import math
+import re
+import tomllib
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any, Mapping
+
+import numpy as np
+
+from tanksynth.errors import SpecError, TanksynthError
+from tanksynth.plants import BUILTIN_PLANTS, Plant, custom_plant
+
+__all__ = ["Spec", "DesignSpec", "load_spec", "parse_spec", "parse_spec_text"]
+
+_TOP_KEYS = {"title", "description", "plant", "operating_point", "sampling", "design"}
+_NAME_RE = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]{0,63}\Z")
+
+
+@dataclass(frozen=True)
+class DesignSpec:
+    """One ``[[design]]`` entry: a name, a method and its options."""
+
+    name: str
+    method: str
+    options: Mapping[str, Any]
+    key: str
+
+
+@dataclass(frozen=True)
+class Spec:
+    """A validated spec.
+
+    Attributes
+    ----------
+    plant : Plant
+    x0 : ndarray, shape (n,)
+        Operating levels, inside the plant's region.
+    given_u0 : ndarray or None
+        Operating input as written in the spec (checked, not trusted).
+    ts : float or None
+        Sampling period in s.
+    designs : tuple of DesignSpec
+    title : str
+    source : str or None
+        File the spec was read from.
+    sha256 : str
+        Hash of the spec text (provenance of every artefact).
+    text : str
+        The spec text itself (copied beside the artefacts).
+    """
+
+    plant: Plant
+    x0: np.ndarray
+    given_u0: np.ndarray | None
+    ts: float | None
+    designs: tuple[DesignSpec, ...]
+    title: str = ""
+    source: str | None = None
+    sha256: str = ""
+    raw: Mapping[str, Any] = field(default_factory=dict, repr=False)
+    text: str = field(default="", repr=False)
+
+
+def load_spec(path: str | Path) -> Spec:
+    """Read and validate a TOML spec file.
+
+    Parameters
+    ----------
+    path : str or Path
+
+    Raises
+    ------
+    SpecError
+        Unreadable file, invalid TOML or any invalid entry.
+    """
+    path = Path(path)
+    try:
+        data = path.read_bytes()
+    except OSError as exc:
+        raise SpecError(f"cannot read spec: {exc.strerror}", source=str(path)) from None
+    return parse_spec_text(data, source=str(path))
+
+
+def parse_spec_text(data: bytes | str, source: str | None = None) -> Spec:
+    """Validate spec text (TOML) and build the `Spec`."""
+    raw = data.encode("utf-8") if isinstance(data, str) else data
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError:
+        raise SpecError("spec is not valid UTF-8 text", source=source) from None
+    try:
+        table = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise SpecError(f"invalid TOML: {exc}", source=source) from None
+    spec = parse_spec(table, source=source, sha256=hashlib.sha256(raw).hexdigest())
+    return replace(spec, text=text)
+
+
+def _number(value: Any, key: str, positive: bool = False) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise SpecError(f"expected a number, got {type(value).__name__} {value!r}", key=key)
+    try:
+        value = float(value)
+    except OverflowError:  # an int beyond float range (TOML ints are unbounded)
+        value = math.inf if value > 0 else -math.inf
+    if not math.isfinite(value):
+        raise SpecError(f"expected a finite number, got {value}", key=key)
+    if positive and not value > 0:
+        raise SpecError(f"expected a positive number, got {value}", key=key)
+    return value
+
+
+def _vector(value: Any, names: list[str], key: str) -> np.ndarray:
+    """A vector given as a list or as a table keyed by signal names."""
+    if isinstance(value, Mapping):
+        unknown = [k for k in value if k not in names]
+        missing = [k for k in names if k not in value]
+        if unknown or missing:
+            raise SpecError(
+                f"expected values for {names}" + (f"; unknown: {unknown}" if unknown else "")
+                + (f"; missing: {missing}" if missing else ""), key=key)
+        return np.array([_number(value[k], f"{key}.{k}") for k in names])
+    if not isinstance(value, list):
+        raise SpecError(f"expected a list of {len(names)} numbers or a table {{{', '.join(names)}}}",
+                        key=key)
+    if len(value) != len(names):
+        raise SpecError(f"expected {len(names)} values ({', '.join(names)}), got {len(value)}", key=key)
+    return np.array([_number(v, f"{key}[{i}]") for i, v in enumerate(value)])
+
+
+def _table(table: Mapping[str, Any], name: str, required: bool = True) -> Mapping[str, Any]:
+    value = table.get(name)
+    if value is None:
+        if required:
+            raise SpecError(f"missing table [{name}]", key=name)
+        return {}
+    if not isinstance(value, Mapping):
+        raise SpecError(f"expected a table [{name}], got {type(value).__name__}", key=name)
+    return value
+
+
+def _build_plant(table: Mapping[str, Any]) -> Plant:
+    model = table.get("model")
+    if not isinstance(model, str):
+        raise SpecError("expected a model name (string): one of "
+                        + ", ".join([*BUILTIN_PLANTS, "custom"]), key="plant.model")
+    if model == "custom":
+        return custom_plant(table)
+    if model not in BUILTIN_PLANTS:
+        raise SpecError(f"unknown plant model {model!r}; expected one of: "
+                        + ", ".join([*BUILTIN_PLANTS, "custom"]), key="plant.model")
+    builder = BUILTIN_PLANTS[model]
+    signature = inspect.signature(builder)
+    options = {}
+    for key, value in table.items():
+        if key in ("model", "parameters", "region"):
+            continue
+        if key not in signature.parameters:
+            allowed = ["parameters", "region", *signature.parameters]
+            raise SpecError(f"unknown key {key!r} for plant '{model}'; expected one of: "
+                            + ", ".join(allowed), key=f"plant.{key}")
+        default = signature.parameters[key].default
+        if isinstance(default, bool) or type(value) is not type(default):
+            raise SpecError(f"expected a {type(default).__name__} (default {default!r}), "
+                            f"got {type(value).__name__} {value!r}", key=f"plant.{key}")
+        options[key] = value
+    try:
+        plant = builder(**options)
+    except SpecError:
+        raise
+    except (TanksynthError, ValueError, TypeError) as exc:
+        raise SpecError(f"cannot build plant '{model}': {exc}", key="plant") from None
+    overrides = table.get("parameters", {})
+    if not isinstance(overrides, Mapping):
+        raise SpecError("expected a table of parameter values", key="plant.parameters")
+    plant = plant.with_parameters(overrides)
+    region = table.get("region")
+    if region is not None:
+        names = [s.name for s in plant.states]
+        if not isinstance(region, Mapping):
+            raise SpecError("expected a table {state = [min, max]}", key="plant.region")
+        bounds = list(plant.region.bounds)
+        for nm, b in region.items():
+            rkey = f"plant.region.{nm}"
+            if nm not in names:
+                raise SpecError(f"unknown state {nm!r}; expected one of {names}", key=rkey)
+            if not isinstance(b, list) or len(b) != 2:
+                raise SpecError("expected [min, max]", key=rkey)
+            lo, hi = _number(b[0], rkey + "[0]"), _number(b[1], rkey + "[1]")
+            if not lo < hi:
+                raise SpecError(f"min ({lo}) must be smaller than max ({hi})", key=rkey)
+            bounds[names.index(nm)] = (lo, hi)
+        plant = plant.with_region(bounds)
+    return plant
+
+
+def parse_spec(table: Mapping[str, Any], source: str | None = None, sha256: str = "") -> Spec:
+    """Validate a parsed TOML table and build the `Spec`.
+
+    Parameters
+    ----------
+    table : mapping
+        The TOML document as a dict.
+    source : str, optional
+        File name for error messages.
+    sha256 : str
+        Hash of the spec text.
+    """
+    try:
+        return _parse(table, source, sha256)
+    except SpecError as exc:
+        if exc.source is None and source is not None:
+            raise type(exc)(exc.detail, key=exc.key, source=source) from None
+        raise
+
+
+def _parse(table: Mapping[str, Any], source: str | None, sha256: str) -> Spec:
+    from tanksynth.design import METHODS
+
+    if not isinstance(table, Mapping):
+        raise SpecError("expected a TOML document (table)")
+    unknown = [k for k in table if k not in _TOP_KEYS]
+    if unknown:
+        raise SpecError(f"unknown top-level key(s) {unknown}; expected: " + ", ".join(sorted(_TOP_KEYS)),
+                        key=unknown[0])
+    title = table.get("title", "")
+    if not isinstance(title, str):
+        raise SpecError("expected a string", key="title")
+    plant = _build_plant(_table(table, "plant"))
+
+    op = _table(table, "operating_point")
+    extra = [k for k in op if k not in ("x", "u")]
+    if extra:
+        raise SpecError(f"unknown key(s) {extra}; expected x (levels) and optionally u (inputs)",
+                        key=f"operating_point.{extra[0]}")
+    if "x" not in op:
+        raise SpecError("missing operating levels x", key="operating_point.x")
+    x0 = _vector(op["x"], [s.name for s in plant.states], "operating_point.x")
+    plant.check_point(x0, key="operating_point.x")
+    given_u0 = None
+    if "u" in op:
+        given_u0 = _vector(op["u"], [s.name for s in plant.inputs], "operating_point.u")
+
+    sampling = _table(table, "sampling", required=False)
+    extra = [k for k in sampling if k != "ts"]
+    if extra:
+        raise SpecError(f"unknown key(s) {extra}; expected ts (sampling period, s)",
+                        key=f"sampling.{extra[0]}")
+    ts = _number(sampling["ts"], "sampling.ts", positive=True) if "ts" in sampling else None
+
+    raw_designs = table.get("design", [])
+    if not isinstance(raw_designs, list):
+        raise SpecError("expected an array of tables [[design]]", key="design")
+    designs, seen = [], set()
+    for i, entry in enumerate(raw_designs):
+        key = f"design[{i}]"
+        if not isinstance(entry, Mapping):
+            raise SpecError("expected a table", key=key)
+        name = entry.get("name")
+        if not isinstance(name, str) or not _NAME_RE.match(name):
+            raise SpecError(f"expected a name of letters, digits, '_', '-', '.' (max 64), got {name!r}",
+                            key=f"{key}.name")
+        if name in seen:
+            raise SpecError(f"duplicate design name {name!r}", key=f"{key}.name")
+        seen.add(name)
+        method = entry.get("method")
+        if not isinstance(method, str) or method not in METHODS:
+            raise SpecError(f"unknown method {method!r}; expected one of: " + ", ".join(METHODS),
+                            key=f"{key}.method")
+        options = {k: v for k, v in entry.items() if k not in ("name", "method")}
+        METHODS[method].validate(options, key, plant, ts)
+        designs.append(DesignSpec(name, method, options, key))
+    return Spec(plant, x0, given_u0, ts, tuple(designs), title, source, sha256, table)

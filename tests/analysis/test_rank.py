@@ -1,0 +1,221 @@
+"""Rank verification: Kalman ranks, PBH, nonlinear and symbolic observability."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import sympy as sp
+
+from tanksynth.errors import DimensionError
+from tanksynth.plants import custom_plant, three_tank
+from tanksynth.analysis.rank import (controllability_matrix, controllability_rank,
+                                   nonlinear_observability, observability_matrix,
+                                   observability_rank, pbh_test, symbolic_observability)
+
+
+# -------------------------------------------------------------------- Kalman
+def test_matrices_shapes_and_blocks():
+    A = np.array([[0.0, 1.0], [-2.0, -3.0]])
+    B = np.array([[0.0], [1.0]])
+    C = np.array([[1.0, 0.0]])
+    np.testing.assert_array_equal(controllability_matrix(A, B), np.hstack([B, A @ B]))
+    np.testing.assert_array_equal(observability_matrix(A, C), np.vstack([C, C @ A]))
+
+
+def test_controllability_rank_and_condition_number():
+    A = np.diag([1.0, 2.0])
+    B = np.array([[1.0], [1.0]])
+    r = controllability_rank(A, B)
+    assert r.rank == 2 and r.full and r.n == 2
+    # Q = [[1, 1], [1, 2]]: Q Q' = [[2, 3], [3, 5]], eigenvalues (7 +- sqrt 45)/2
+    lam = np.array([(7 + np.sqrt(45)) / 2, (7 - np.sqrt(45)) / 2])
+    np.testing.assert_allclose(r.singular_values, np.sqrt(lam), rtol=1e-12)
+    np.testing.assert_allclose(r.condition_number, np.sqrt(lam[0] / lam[1]), rtol=1e-12)
+    d = r.as_dict()
+    assert d["rank"] == 2 and d["full"] is True and d["kind"] == "controllability"
+
+
+def test_rank_deficient_reports_inf_condition():
+    A = np.diag([-1.0, -2.0, -3.0])
+    B = np.array([[1.0], [1.0], [0.0]])
+    r = controllability_rank(A, B)
+    assert r.rank == 2 and not r.full
+    assert r.condition_number == float("inf")
+    o = observability_rank(A, np.array([[0.0, 0.0, 1.0]]))
+    assert o.rank == 1 and not o.full
+
+
+def test_tolerance_changes_verdict():
+    A = np.diag([-1.0, -1.0 - 1e-7])        # nearly repeated eigenvalue: almost uncontrollable
+    B = np.array([[1.0], [1.0]])
+    assert controllability_rank(A, B).rank == 2
+    weak = controllability_rank(A, B)
+    assert weak.condition_number > 1e6          # fragile verdict is visible
+    assert controllability_rank(A, B, tol=1e-6).rank == 1
+
+
+def test_dimension_errors():
+    with pytest.raises(DimensionError):
+        controllability_rank(np.ones((2, 3)), np.ones((2, 1)))
+    with pytest.raises(DimensionError):
+        observability_rank(np.eye(2), np.ones((1, 3)))
+    with pytest.raises(DimensionError):
+        observability_rank(np.array([[np.nan, 0], [0, 1]]), np.ones((1, 2)))
+
+
+# ----------------------------------------------------------------------- PBH
+def test_pbh_names_unobservable_state():
+    A = np.diag([-1.0, -2.0, -3.0])
+    C = np.array([[1.0, 1.0, 0.0]])
+    res = pbh_test(A, C=C, state_names=["h1", "h2", "h3"])
+    assert not res.passed
+    assert len(res.modes) == 1
+    mode = res.modes[0]
+    assert mode.eigenvalue == pytest.approx(-3.0)
+    assert mode.states == ("h3",)
+    assert mode.smallest_singular_value < 1e-12
+    d = res.as_dict()
+    assert d["modes"][0]["states"] == ["h3"] and d["passed"] is False
+
+
+def test_pbh_names_uncontrollable_state_and_passes():
+    A = np.array([[-1.0, 0.0, 0.0], [0.0, -2.0, 0.0], [1.0, 0.0, -3.0]])
+    B = np.array([[1.0], [0.0], [0.0]])
+    res = pbh_test(A, B=B)
+    assert [m.states for m in res.modes] == [("x2",)]
+    assert res.modes[0].eigenvalue == pytest.approx(-2.0)
+    # coupled chain, fully observable from the last state
+    A2 = np.array([[-1.0, 0, 0], [1.0, -2.0, 0], [0, 1.0, -3.0]])
+    assert pbh_test(A2, C=np.array([[0, 0, 1.0]])).passed
+    assert pbh_test(A2, B=np.array([[1.0], [0], [0]])).passed
+
+
+def test_pbh_complex_mode():
+    # oscillator (+-i) decoupled from an observed first-order state
+    A = np.array([[-1.0, 0, 0], [0, 0, 1.0], [0, -1.0, 0]])
+    res = pbh_test(A, C=np.array([[1.0, 0, 0]]), state_names=["a", "b", "c"])
+    assert sorted(round(m.eigenvalue.imag) for m in res.modes) == [-1, 1]
+    assert all(set(m.states) == {"b", "c"} for m in res.modes)
+
+
+def test_pbh_argument_checks():
+    with pytest.raises(DimensionError):
+        pbh_test(np.eye(2))
+    with pytest.raises(DimensionError):
+        pbh_test(np.eye(2), B=np.ones((2, 1)), C=np.ones((1, 2)))
+
+
+# ---------------------------------------------------------- nonlinear (local)
+def test_nonlinear_observability_three_tank_h1():
+    plant = three_tank(outputs="h1")
+    res = nonlinear_observability(plant, count=50, seed=3)
+    assert res.full
+    assert res.orders == 3                      # needs h1, L_f h1, L_f^2 h1
+    assert len(res.drop_points) == 0
+    assert np.all(res.ranks == 3)
+    assert np.all(res.smallest_singular_values > 0)
+    assert res.as_dict()["min_rank"] == 3
+
+
+def test_nonlinear_observability_three_tank_h1_depends_on_direction():
+    """With only h1 measured, q1 enters L_f^k h1; still full for every input in range."""
+    plant = three_tank(outputs="h1")
+    res = nonlinear_observability(plant, count=30, seed=4, u=[0.0, 0.0])
+    assert res.full
+
+
+def oscillator_squared_output():
+    """x1' = x2, x2' = -x1 + u, y = x1^2: d(y, L_f y) = [[2 x1, 0], [2 x2, 2 x1]], det 4 x1^2."""
+    return custom_plant({
+        "model": "custom", "name": "osc",
+        "states": {"x1": {"unit": "1", "min": -1.0, "max": 1.0},
+                   "x2": {"unit": "1", "min": -1.0, "max": 1.0}},
+        "inputs": {"u": {"unit": "1", "min": -1.0, "max": 1.0}},
+        "equations": {"x1": "x2", "x2": "-x1 + u"},
+        "outputs": {"y": "x1**2"},
+    })
+
+
+def test_nonlinear_observability_drops_where_predicted():
+    plant = oscillator_squared_output()
+    points = np.array([[0.0, 0.5], [0.0, -0.3], [0.5, 0.5], [-0.7, 0.1], [1e-3, 0.9], [0.0, 0.0]])
+    res = nonlinear_observability(plant, points=points)
+    np.testing.assert_array_equal(res.ranks, [1, 1, 2, 2, 2, 0])
+    assert not res.full
+    np.testing.assert_array_equal(res.drop_points, points[[0, 1, 5]])
+    d = res.as_dict()
+    assert d["min_rank"] == 0 and d["full"] is False
+    assert d["drop_points"] == points[[0, 1, 5]].tolist()
+    # random region samples never hit x1 = 0 exactly: full there
+    assert nonlinear_observability(plant, count=40, seed=1).full
+
+
+def test_nonlinear_observability_unobservable_everywhere():
+    plant = custom_plant({
+        "model": "custom",
+        "states": {"x1": {"min": 0.0, "max": 1.0}, "x2": {"min": 0.0, "max": 1.0}},
+        "inputs": {"u": {"min": 0.0, "max": 1.0}},
+        "equations": {"x1": "-x1 + u", "x2": "-x2*x2 + u"},
+        "outputs": {"y": "x1"},
+    })
+    res = nonlinear_observability(plant, count=20)
+    assert res.orders == 2
+    assert np.all(res.ranks == 1)
+    assert len(res.drop_points) == 20
+
+
+def test_nonlinear_observability_without_inputs():
+    plant = custom_plant({
+        "model": "custom",
+        "states": {"x1": {"min": 0.1, "max": 1.0}, "x2": {"min": 0.1, "max": 1.0}},
+        "equations": {"x1": "-sqrt(x1) + sqrt(x2)", "x2": "-sqrt(x2)"},
+        "outputs": {"y": "x1"},
+    })
+    assert plant.m == 0
+    res = nonlinear_observability(plant, count=10)
+    assert res.full
+
+
+# ------------------------------------------------------------------ symbolic
+def test_symbolic_observability_simple():
+    k, c = sp.symbols("k c", real=True)
+    A = sp.Matrix([[0, 1], [-k, -c]])
+    pos = symbolic_observability(A, sp.Matrix([[1, 0]]))
+    assert pos.determinant == 1 and pos.factors == () and pos.degenerate_parameters == ()
+    vel = symbolic_observability(A, sp.Matrix([[0, 1]]))
+    assert sp.expand(vel.determinant - k) == 0
+    assert vel.factors == (k,)
+    assert [dict(d) for d in vel.degenerate_parameters] == [{k: 0}]
+    assert vel.as_dict()["factors"] == ["k"]
+
+
+def test_symbolic_observability_with_varying_premise():
+    a, z = sp.symbols("a z", real=True)
+    A = sp.Matrix([[0, 1], [a * z, 0]])
+    res = symbolic_observability(A, sp.Matrix([[0, 1]]), variables=(z,))
+    assert sp.expand(res.determinant + a * z) == 0
+    assert set(res.factors) == {a, z}
+    # only a = 0 makes it unobservable for every z
+    assert [dict(d) for d in res.degenerate_parameters] == [{a: 0}]
+
+
+def test_symbolic_observability_not_polynomial_in_variables():
+    a = sp.Symbol("a", real=True)
+    z = sp.Symbol("z", positive=True)
+    A = sp.Matrix([[0, 1], [a * sp.sqrt(z), 0]])
+    res = symbolic_observability(A, sp.Matrix([[0, 1]]), variables=(z,))
+    assert sp.simplify(res.determinant + a * sp.sqrt(z)) == 0
+    assert [dict(d) for d in res.degenerate_parameters] == [{a: 0}]
+
+
+def test_symbolic_observability_tall_matrix_gcd():
+    """Two outputs: the condition is the gcd of the maximal minors."""
+    a, b = sp.symbols("a b", real=True)
+    A = sp.Matrix([[a, 0, 0], [0, b, 0], [1, 1, -1]])
+    C = sp.Matrix([[0, 0, 1], [0, 0, 2]])
+    res = symbolic_observability(A, C)
+    assert res.matrix.shape == (6, 3)
+    # O = rows [0 0 1], [1 1 -1], [a-1, b-1, 1] (times 1 or 2): every non-zero minor is +-(a - b)
+    assert sp.expand(res.determinant - (a - b)) == 0 or sp.expand(res.determinant + (a - b)) == 0
+    assert [{str(k): v for k, v in d.items()} for d in res.degenerate_parameters] in (
+        [{"a": b}], [{"b": a}])

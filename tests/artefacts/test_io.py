@@ -1,0 +1,273 @@
+"""Artefacts: JSON + npz (+ .mat, C header), provenance, tamper detection, atomic writes."""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import shutil
+import subprocess
+
+import numpy as np
+import pytest
+
+import tanksynth.artefacts.io as artefact_mod
+from tanksynth.artefacts import SCHEMA, c_header, gains_digest, read_artefact, write_artefact
+from tanksynth.design.result import DesignResult
+from tanksynth.errors import ArtefactError, SpecError
+
+SHA = "ab" * 32
+
+
+def make_result(name: str = "akf", **gains) -> DesignResult:
+    if not gains:
+        gains = {
+            "K": np.array([[1.5, -2.25e-5, 3.0], [0.1, 1e300, -7.0]]),
+            "x0": np.array([0.4, 0.2, 0.3]),
+            "s": np.array(2.0),
+        }
+    diagnostics = {"status": "optimal", "eigenvalues": np.array([-1.0 + 0.5j, -1.0 - 0.5j]),
+                   "margin": np.float64(1e-3), "rank": np.int64(3), "full": np.bool_(True),
+                   "bad": float("inf")}
+    return DesignResult(name, "linearize", "three_tank", gains, diagnostics, {"F": r"\begin{bmatrix}\end{bmatrix}"})
+
+
+def listing(directory):
+    return sorted(p.name for p in directory.iterdir())
+
+
+def test_writes_json_and_npz(tmp_path):
+    res = make_result()
+    path = write_artefact(res, tmp_path / "out", SHA, solver="none")
+    assert path == tmp_path / "out" / "akf.json"
+    assert listing(tmp_path / "out") == ["akf.json", "akf.npz"]
+    doc = json.loads(path.read_text(encoding="utf-8"))
+    assert doc["schema"] == SCHEMA == "tanksynth.artefact/1"
+    assert {"schema", "name", "method", "plant", "gains", "diagnostics", "verification",
+            "provenance"} <= set(doc)
+    assert (doc["name"], doc["method"], doc["plant"]) == ("akf", "linearize", "three_tank")
+    assert doc["verification"] is None
+    prov = doc["provenance"]
+    assert prov["spec_sha256"] == SHA
+    assert prov["solver"] == "none"
+    assert prov["tanksynth_version"] and prov["tanksynth_version"] != "unknown"
+    assert {"numpy", "scipy", "sympy", "casadi", "python"} <= set(prov["packages"])
+    assert prov["gains_sha256"] == gains_digest(res.gains)
+    # gains as nested lists of floats, equal to the npz
+    assert doc["gains"]["K"] == res.gains["K"].tolist()
+    assert doc["gains"]["x0"] == [0.4, 0.2, 0.3]
+    with np.load(tmp_path / "out" / "akf.npz") as npz:
+        assert set(npz.files) == set(res.gains)
+        for k in res.gains:
+            np.testing.assert_array_equal(npz[k], res.gains[k])
+            np.testing.assert_array_equal(np.asarray(doc["gains"][k]), npz[k])
+    # diagnostics are strict JSON (no NaN/Infinity tokens), complex -> [re, im]
+    text = path.read_text()
+    assert "Infinity" not in text and "NaN" not in text
+    assert doc["diagnostics"]["bad"] == "inf"
+    assert doc["diagnostics"]["eigenvalues"] == [[-1.0, 0.5], [-1.0, -0.5]]
+    assert doc["diagnostics"]["rank"] == 3 and doc["diagnostics"]["full"] is True
+
+
+def test_read_round_trip(tmp_path):
+    res = make_result()
+    path = write_artefact(res, tmp_path, SHA)
+    doc = read_artefact(path)
+    assert set(doc["gains"]) == set(res.gains)
+    for k, v in res.gains.items():
+        np.testing.assert_array_equal(doc["gains"][k], v)
+        assert doc["gains"][k].shape == np.shape(v)
+    assert doc["name"] == "akf"
+
+
+def test_tampered_gain_refused(tmp_path):
+    path = write_artefact(make_result(), tmp_path, SHA)
+    doc = json.loads(path.read_text())
+    doc["gains"]["K"][0][0] = 1.5000000001
+    path.write_text(json.dumps(doc))
+    with pytest.raises(ArtefactError, match="provenance hash"):
+        read_artefact(path)
+    # explicitly unchecked read still works
+    assert read_artefact(path, check_gains=False)["gains"]["K"][0, 0] == 1.5000000001
+
+
+def test_tampered_shape_refused(tmp_path):
+    path = write_artefact(make_result(), tmp_path, SHA)
+    doc = json.loads(path.read_text())
+    doc["gains"]["x0"] = [[0.4], [0.2], [0.3]]       # same numbers, other shape
+    path.write_text(json.dumps(doc))
+    with pytest.raises(ArtefactError):
+        read_artefact(path)
+
+
+@pytest.mark.parametrize("content,match", [
+    ("not json", "not a JSON artefact"),
+    ('{"schema": "other/1"}', "schema"),
+    ('[1, 2]', "schema"),
+    ('{"schema": "tanksynth.artefact/1", "name": "a"}', "missing key"),
+    ('{"schema": "tanksynth.artefact/1", "name": "a", "method": "m", "plant": "p", '
+     '"gains": {"K": "abc"}, "provenance": {}}', "nested lists"),
+])
+def test_malformed_artefacts_refused(tmp_path, content, match):
+    path = tmp_path / "x.json"
+    path.write_text(content)
+    with pytest.raises(ArtefactError, match=match):
+        read_artefact(path)
+
+
+def test_missing_artefact(tmp_path):
+    with pytest.raises(ArtefactError, match="cannot read"):
+        read_artefact(tmp_path / "none.json")
+
+
+def test_failing_write_leaves_nothing(tmp_path, monkeypatch):
+    def boom(*args, **kwargs):
+        raise OSError("disk full")
+
+    monkeypatch.setattr(artefact_mod.np, "savez", boom)
+    out = tmp_path / "out"
+    with pytest.raises(OSError, match="disk full"):
+        write_artefact(make_result(), out, SHA, export=("mat", "h"))
+    assert listing(out) == []
+
+
+def test_failing_rename_leaves_no_partial_artefact(tmp_path, monkeypatch):
+    """If a later rename fails, what was renamed before is removed again."""
+    real_replace = os.replace
+    calls = []
+
+    def flaky(src, dst):
+        calls.append(dst)
+        if len(calls) == 2:
+            raise OSError("rename failed")
+        return real_replace(src, dst)
+
+    monkeypatch.setattr(artefact_mod.os, "replace", flaky)
+    with pytest.raises(OSError, match="rename failed"):
+        write_artefact(make_result(), tmp_path, SHA, export=("h",))
+    assert listing(tmp_path) == []
+
+
+def test_failing_write_keeps_previous_json(tmp_path, monkeypatch):
+    first = write_artefact(make_result(), tmp_path, SHA)
+    before = first.read_bytes()
+    monkeypatch.setattr(artefact_mod.np, "savez", lambda *a, **k: (_ for _ in ()).throw(OSError("x")))
+    with pytest.raises(OSError):
+        write_artefact(make_result(K=np.eye(2)), tmp_path, SHA)
+    assert first.read_bytes() == before
+    assert not [n for n in listing(tmp_path) if n.endswith(".tmp")]
+
+
+@pytest.mark.parametrize("bad", [np.nan, np.inf, -np.inf])
+def test_non_finite_gains_refused(tmp_path, bad):
+    res = make_result(K=np.array([[1.0, bad]]))
+    with pytest.raises(ArtefactError, match="non-finite"):
+        write_artefact(res, tmp_path / "o", SHA, export=("mat", "h"))
+    assert not (tmp_path / "o").exists() or listing(tmp_path / "o") == []
+
+
+def test_unknown_export_format(tmp_path):
+    with pytest.raises(SpecError, match="export"):
+        write_artefact(make_result(), tmp_path, SHA, export=("xlsx",))
+    assert listing(tmp_path) == []
+
+
+def test_mat_export(tmp_path):
+    from scipy.io import loadmat
+
+    res = make_result()
+    write_artefact(res, tmp_path, SHA, export=("mat",))
+    assert listing(tmp_path) == ["akf.json", "akf.mat", "akf.npz"]
+    mat = loadmat(tmp_path / "akf.mat")
+    np.testing.assert_array_equal(mat["K"], res.gains["K"])
+    np.testing.assert_array_equal(mat["x0"].ravel(), res.gains["x0"])
+
+
+def _parse_header(text: str) -> dict[str, np.ndarray]:
+    out = {}
+    dims = dict(re.findall(r"#define (\w+) (\d+)", text))
+    for name, body in re.findall(r"static const double (\w+)\[\d+\] = \{([^}]*)\};", text):
+        vals = np.array([float(v) for v in body.split(",")])
+        rows, cols = int(dims[name.upper() + "_ROWS"]), int(dims[name.upper() + "_COLS"])
+        out[name] = vals.reshape(rows, cols)
+    return out
+
+
+def test_c_header_values_round_trip_textually():
+    res = make_result()
+    parsed = _parse_header(c_header("akf", res.gains))
+    np.testing.assert_array_equal(parsed["akf_K"], res.gains["K"])
+    np.testing.assert_array_equal(parsed["akf_x0"], res.gains["x0"].reshape(-1, 1))
+    np.testing.assert_array_equal(parsed["akf_s"], [[2.0]])
+
+
+@pytest.mark.skipif(shutil.which("gcc") is None, reason="gcc not installed")
+@pytest.mark.parametrize("name", ["akf", "2tank-v1.0"])
+def test_c_header_compiles_and_values_round_trip(tmp_path, name):
+    res = make_result(name)
+    write_artefact(res, tmp_path, SHA, export=("h",))
+    header = tmp_path / f"{name}.h"
+    text = header.read_text()
+    ident = re.search(r"static const double (\w+)_K\[", text).group(1)
+    src = tmp_path / "main.c"
+    src.write_text(
+        f'#include <stdio.h>\n#include "{header.name}"\n#include "{header.name}"  /* guard */\n'
+        "int main(void) {\n"
+        f"  for (int i = 0; i < {ident.upper()}_K_ROWS * {ident.upper()}_K_COLS; i++)"
+        f' printf("%.17g\\n", {ident}_K[i]);\n'
+        f'  for (int i = 0; i < 3; i++) printf("%.17g\\n", {ident}_x0[i]);\n'
+        f'  printf("%.17g\\n", {ident}_s[0]);\n'
+        "  return 0;\n}\n")
+    subprocess.run(["gcc", "-std=c99", "-Wall", "-Werror", "-Wno-unused-const-variable",
+                    "-fsyntax-only", str(src)], check=True, cwd=tmp_path)
+    exe = tmp_path / "main"
+    subprocess.run(["gcc", "-std=c99", "-o", str(exe), str(src)], check=True, cwd=tmp_path)
+    out = subprocess.run([str(exe)], check=True, capture_output=True, text=True).stdout.split()
+    values = np.array([float(v) for v in out])
+    expected = np.concatenate([res.gains["K"].ravel(), res.gains["x0"], [2.0]])
+    np.testing.assert_array_equal(values, expected)     # bit-exact through the C compiler
+
+
+def test_c_header_three_dimensional_gain(tmp_path):
+    if shutil.which("gcc") is None:
+        pytest.skip("gcc not available")
+    K = np.arange(24, dtype=float).reshape(2, 3, 4) / 7.0
+    header = c_header("seq", {"K": K})
+    assert "#define SEQ_K_NDIM 3" in header
+    assert "#define SEQ_K_DIM2 4" in header
+    (tmp_path / "seq.h").write_text(header)
+    (tmp_path / "main.c").write_text(
+        '#include <stdio.h>\n#include "seq.h"\nint main(void){int i;'
+        'for(i=0;i<SEQ_K_DIM0*SEQ_K_DIM1*SEQ_K_DIM2;i++) printf("%.17g\\n", seq_K[i]);return 0;}\n')
+    subprocess.run(["gcc", "-o", str(tmp_path / "main"), str(tmp_path / "main.c")], check=True)
+    out = subprocess.run([str(tmp_path / "main")], capture_output=True, text=True, check=True).stdout
+    np.testing.assert_array_equal(np.array(out.split(), dtype=float), K.ravel())
+
+
+def test_written_files_are_world_readable(tmp_path):
+    write_artefact(make_result(), tmp_path, SHA, export=["h"])
+    for path in tmp_path.iterdir():
+        assert path.stat().st_mode & 0o044 == 0o044, path.name
+
+
+def test_law_export_needs_a_law(tmp_path):
+    with pytest.raises(SpecError, match="no control law"):
+        write_artefact(make_result(), tmp_path, SHA, export=["law"])
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_law_export_writes_casadi_and_c(tmp_path):
+    import casadi as ca
+
+    from tanksynth.design.control import law_document, law_from_document
+
+    x = ca.SX.sym("x", 2)
+    law = ca.Function("demo", [x], [2 * x + 1], ["x"], ["u"])
+    result = DesignResult("ctl", "demo", "custom", {"K": np.eye(2)}, {"law": law_document(law)})
+    write_artefact(result, tmp_path, "0" * 64, export=["law"])
+    names = sorted(p.name for p in tmp_path.iterdir())
+    assert names == ["ctl.json", "ctl.npz", "ctl_law.c", "ctl_law.casadi", "ctl_law.h"]
+    loaded = ca.Function.load(str(tmp_path / "ctl_law.casadi"))
+    np.testing.assert_array_equal(np.asarray(loaded([1.0, 2.0])).ravel(), [3.0, 5.0])
+    doc = read_artefact(tmp_path / "ctl.json")
+    assert law_from_document(doc["diagnostics"]["law"]).name() == "demo"
