@@ -80,7 +80,7 @@ try:
     import scs  # noqa: E402
 
     from tanksynth.design.lmi import ObserverLMIProblem, maximise_psi, observer_lmi  # noqa: E402
-    from tanksynth.design.takagi_sugeno import domain_from_plant, quasi_lpv, ts_model  # noqa: E402
+    from tanksynth.analysis.takagi_sugeno import domain_from_plant, quasi_lpv, ts_model  # noqa: E402
     from tanksynth.errors import InfeasibleDesign  # noqa: E402
     from tanksynth.plants.tank_network import tank_network  # noqa: E402
 except ImportError as exc:  # pragma: no cover - only when the package is broken

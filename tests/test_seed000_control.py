@@ -16,8 +16,8 @@ import pytest
 
 from tanksynth.artefacts import read_artefact, write_artefact
 from tanksynth.design import METHODS
-from tanksynth.design.control import (_rk4_step, _simulate_sampled, design_integral_tracking,
-                                      law_from_document)
+from tanksynth.design.control import _rk4_step, _simulate_sampled, design_integral_tracking
+from tanksynth.runtime.laws import law_from_document
 from tanksynth.design.feedback_linearization import feedback_linearization
 from tanksynth.plants import three_tank
 from tanksynth.spec import load_spec

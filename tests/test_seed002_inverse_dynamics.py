@@ -15,7 +15,8 @@ import pytest
 
 from tanksynth.artefacts import read_artefact, write_artefact
 from tanksynth.design import METHODS
-from tanksynth.design.control import _rk4_step, law_from_document
+from tanksynth.design.control import _rk4_step
+from tanksynth.runtime.laws import law_from_document
 from tanksynth.plants.hybrid_three_tank import LPH
 from tanksynth.spec import load_spec
 

@@ -26,8 +26,8 @@ import numpy as np
 import sympy as sp
 
 from tanksynth.errors import SpecError
-from tanksynth.design.control import (ServoScenario, design_integral_tracking, inverse_dynamics_law, law_document,
-                      rename_law, tune_inverse_dynamics)
+from tanksynth.design.control import ServoScenario, design_integral_tracking, tune_inverse_dynamics
+from tanksynth.runtime.laws import inverse_dynamics_law, law_document, rename_law
 from tanksynth.design.feedback_linearization import feedback_linearization
 from tanksynth.analysis.linearize import equilibrium_input
 from tanksynth.design.result import DesignMethod, DesignResult, register

@@ -32,8 +32,9 @@ from tanksynth.design.placement import (LMIRegion, canonical_observer, disk, hal
                         intersect, lmi_observer, lmi_state_feedback, place_observer,
                         place_state_feedback, pole_errors, sector)
 from tanksynth.design.result import DesignMethod, DesignResult, register
-from tanksynth.design.takagi_sugeno import (check_exactness, domain_from_plant, lipschitz_bound, quasi_lpv,
-                            search_weightings, selection_rules, ts_model, vertex_observability)
+from tanksynth.analysis.takagi_sugeno import (check_exactness, domain_from_plant, quasi_lpv,
+                                              ts_model, vertex_observability)
+from tanksynth.design.takagi_sugeno import lipschitz_bound, search_weightings, selection_rules
 
 if TYPE_CHECKING:  # pragma: no cover - typing only (spec.py imports the design package)
     from tanksynth.spec import DesignSpec, Spec

@@ -45,12 +45,12 @@ import numpy as np
 import sympy as sp
 
 from tanksynth.errors import DimensionError, InfeasibleDesign, SpecError, TanksynthError
+from tanksynth.analysis.region import batch_eval, batch_eval2, region_points
 from tanksynth.plants.base import Plant
 from tanksynth.plants.compile import compile_matrix
 from tanksynth.analysis.symbolic import RelativeDegree, control_affine, jacobian, lie_derivatives, relative_degree
 
 __all__ = [
-    "region_points",
     "select_outputs",
     "ZeroDynamics",
     "Decoupling",
@@ -68,71 +68,6 @@ RANK_TOL = 1e-9
 # --------------------------------------------------------------------- helpers
 def _fmt(x: np.ndarray, names: Sequence[str]) -> str:
     return "(" + ", ".join(f"{nm} = {v:.6g}" for nm, v in zip(names, np.asarray(x, float))) + ")"
-
-
-def _batch(fn: ca.Function, points: np.ndarray) -> list[np.ndarray]:
-    """Evaluate a one-argument CasADi Function at M points -> per output (M, rows, cols)."""
-    points = np.atleast_2d(np.asarray(points, dtype=float))
-    count = points.shape[0]
-    outs = fn.map(count, "serial")(points.T)
-    outs = outs if isinstance(outs, (list, tuple)) else [outs]
-    res = []
-    for k, out in enumerate(outs):
-        rows, cols = fn.size1_out(k), fn.size2_out(k)
-        res.append(np.asarray(out, dtype=float).reshape(rows, count, cols).transpose(1, 0, 2))
-    return res
-
-
-def _batch2(fn: ca.Function, a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Evaluate a two-argument, vector-valued CasADi Function at M points -> (M, rows)."""
-    count = a.shape[0]
-    out = fn.map(count, "serial")(np.asarray(a, float).T, np.asarray(b, float).T)
-    out = out[0] if isinstance(out, (list, tuple)) else out
-    return np.asarray(out, dtype=float).T
-
-
-def region_points(plant: Plant, per_axis: int = 11, samples: int = 400, seed: int = 0,
-                  margin: float = 0.02) -> np.ndarray:
-    """Points of the operating region: a grid (when small enough) plus random samples.
-
-    The grid spans each box interval shrunk by ``margin`` (relative) and
-    keeps the points satisfying the strict orderings; the random points come
-    from `Region.sample` (seeded).
-
-    Parameters
-    ----------
-    plant : Plant
-    per_axis : int
-        Grid points per state (the grid is skipped when ``per_axis ** n >
-        20000``).
-    samples : int
-        Additional random points.
-    seed : int
-        Seed of the random points.
-    margin : float
-        Relative margin from the box faces (keeps ``sqrt`` heads away from 0).
-
-    Returns
-    -------
-    numpy.ndarray, shape (M, n)
-        In the state units.
-    """
-    lo = np.array([b[0] for b in plant.region.bounds], dtype=float)
-    hi = np.array([b[1] for b in plant.region.bounds], dtype=float)
-    span = hi - lo
-    parts = []
-    if per_axis >= 2 and per_axis ** plant.n <= 20000:
-        axes = [np.linspace(a + margin * s, b - margin * s, per_axis) for a, b, s in zip(lo, hi, span)]
-        grid = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, plant.n)
-        keep = np.ones(len(grid), dtype=bool)
-        for a, b in plant.region.orderings:
-            diff = sp.expand(a - b).xreplace(plant.parameter_values)
-            fn = sp.lambdify([list(plant.x)], diff, "numpy")
-            keep &= np.asarray(fn(grid.T), dtype=float) * np.ones(len(grid)) > 0
-        parts.append(grid[keep])
-    if samples > 0:
-        parts.append(plant.region.sample(samples, plant.x, seed=seed, margin=margin))
-    return np.vstack(parts) if parts else np.empty((0, plant.n))
 
 
 def select_outputs(plant: Plant, outputs: Sequence[str] | None) -> tuple[sp.Matrix, tuple[str, ...]]:
@@ -353,7 +288,7 @@ def _check_rank(plant: Plant, dec_num: sp.Matrix, names: Sequence[str], degrees:
             f"the state space, the whole operating region included); Lambda = {Lambda_sym.tolist()} "
             f"for outputs {list(names)}")
     fn = compile_matrix("Lambda", dec_num, [plant.x], ["x"])
-    L = _batch(fn, points)[0]                               # (M, m, m)
+    L = batch_eval(fn, points)[0]                               # (M, m, m)
     finite = np.all(np.isfinite(L), axis=(1, 2))
     if not np.all(finite):
         k = int(np.flatnonzero(~finite)[0])
@@ -465,7 +400,7 @@ def _zero_dynamics(plant: Plant, rd_num: RelativeDegree, lie_num: Sequence[sp.Ma
     if not len(pts):
         raise InfeasibleDesign("zero dynamics: no grid point of the region lies on (or projects onto) "
                                "the zero-output manifold; cannot check their stability")
-    Jf, Jp, _ = _batch(funcs, pts)
+    Jf, Jp, _ = batch_eval(funcs, pts)
     coords = _internal_coordinates(Jp[0], d)
     E = np.eye(n)[coords]
     eigs, keep = [], []
@@ -788,9 +723,9 @@ def feedback_linearization(plant: Plant, outputs: Sequence[str] | None = None, *
     smooth_fn = compile_matrix("fl_smooth", u_smooth, [plant.x, refs], ["x", "y_r"])
     pts = region_points(plant, 0, 200, seed + 1, margin)
     h_fn = compile_matrix("h_sel", dec.h.xreplace(vals), [plant.x], ["x"])
-    r = _batch(h_fn, pts[::-1])[0][:, :, 0]                # references: outputs elsewhere in the region
-    ug = _batch2(core, pts, r)
-    us = _batch2(smooth_fn, pts, r)
+    r = batch_eval(h_fn, pts[::-1])[0][:, :, 0]                # references: outputs elsewhere in the region
+    ug = batch_eval2(core, pts, r)
+    us = batch_eval2(smooth_fn, pts, r)
     consistency = float(np.max(np.abs(ug - us)) / max(np.max(np.abs(us)), 1e-300))
     diagnostics = {
         "outputs": list(dec.outputs), "degrees": list(dec.degrees), "sum_degrees": dec.total,

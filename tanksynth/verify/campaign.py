@@ -171,7 +171,7 @@ class InverseDynamicsLaw:
     _law: Any = field(init=False, default=None, repr=False)
 
     def __post_init__(self) -> None:
-        from tanksynth.design.control import inverse_dynamics_law
+        from tanksynth.runtime.laws import inverse_dynamics_law
         from tanksynth.verify.method_verdicts import CasadiControlLaw
 
         names = [s.name for s in self.plant.states]
@@ -264,7 +264,7 @@ class ArtefactIntegralLaw(ArtefactLaw):
 
 
 def _law_of(doc: Mapping[str, Any]) -> tuple[Any, str]:
-    from tanksynth.design.control import law_from_document
+    from tanksynth.runtime.laws import law_from_document
     from tanksynth.errors import ArtefactError
 
     diag = doc.get("diagnostics") or {}

@@ -964,7 +964,7 @@ def canonical_observer_verdict(doc: Mapping[str, Any], spec: Any) -> list[Check]
 # ---------------------------------------------------------------------- ts_observer
 def _ts_model_from_artefact(doc: Mapping[str, Any], spec: Any) -> tuple[Any, list[Check]]:
     """Rebuild the TS multiple model from the plant and the recorded premises/bounds/domain."""
-    from tanksynth.design.takagi_sugeno import Domain, PremiseBounds, quasi_lpv, ts_model
+    from tanksynth.analysis.takagi_sugeno import Domain, PremiseBounds, quasi_lpv, ts_model
 
     plant = spec.plant
     diag = doc.get("diagnostics") or {}
@@ -1132,7 +1132,7 @@ def ts_observer_verdict(doc: Mapping[str, Any], spec: Any) -> list[Check]:
 
 # ===================================================================== control laws
 def _law(doc: Mapping[str, Any]) -> Any:
-    from tanksynth.design.control import law_from_document
+    from tanksynth.runtime.laws import law_from_document
 
     diag = doc.get("diagnostics") or {}
     law = diag.get("law") if isinstance(diag, Mapping) else None
@@ -1142,7 +1142,7 @@ def _law(doc: Mapping[str, Any]) -> Any:
 
 
 def _region_samples(plant: Any, count: int = 24, seed: int = 7) -> np.ndarray:
-    from tanksynth.design.feedback_linearization import region_points
+    from tanksynth.analysis.region import region_points
 
     return region_points(plant, 0, count, seed, 0.05)
 
@@ -1158,7 +1158,7 @@ def integral_tracking_verdict(doc: Mapping[str, Any], spec: Any) -> list[Check]:
     ``stability``, ``rank_controllability_augmented``, ``servo_tracking`` and
     ``bounded_inputs`` (the law built from the gains, on the nonlinear plant).
     """
-    from tanksynth.design.control import integral_tracking_law
+    from tanksynth.runtime.laws import integral_tracking_law
     from tanksynth.design.convex_methods import parse_poles
     from tanksynth.analysis.linearize import linearize
     from tanksynth.design.placement import integral_augmentation
@@ -1357,7 +1357,7 @@ def inverse_dynamics_verdict(doc: Mapping[str, Any], spec: Any) -> list[Check]:
     scenario with the law built from the gains, true state fed back: ISE
     finite and the tracking time within the horizon).
     """
-    from tanksynth.design.control import inverse_dynamics_law
+    from tanksynth.runtime.laws import inverse_dynamics_law
     from tanksynth.analysis.linearize import linearize
     from tanksynth.sim.metrics import compute_metrics
     from tanksynth.sim.scenarios import run_scenario, scenario

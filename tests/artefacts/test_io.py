@@ -259,7 +259,7 @@ def test_law_export_needs_a_law(tmp_path):
 def test_law_export_writes_casadi_and_c(tmp_path):
     import casadi as ca
 
-    from tanksynth.design.control import law_document, law_from_document
+    from tanksynth.runtime.laws import law_document, law_from_document
 
     x = ca.SX.sym("x", 2)
     law = ca.Function("demo", [x], [2 * x + 1], ["x"], ["u"])

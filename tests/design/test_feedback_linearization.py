@@ -9,8 +9,9 @@ import numpy as np
 import pytest
 import sympy as sp
 
+from tanksynth.analysis.region import region_points
 from tanksynth.design.feedback_linearization import (decoupling_analysis, feedback_linearization,
-                                                     outer_loop, region_points, select_outputs)
+                                                     outer_loop, select_outputs)
 from tanksynth.errors import DimensionError, InfeasibleDesign, SpecError
 from tanksynth.plants import three_tank
 from tanksynth.plants.custom import custom_plant

@@ -9,11 +9,12 @@ import pytest
 import sympy as sp
 
 from tanksynth.design import takagi_sugeno as tsmod
-from tanksynth.design.takagi_sugeno import (MAX_ENUMERATED_PREMISES, candidate_weights,
-                                            check_exactness, domain_from_plant, interval_evaluate,
-                                            lipschitz_bound, premise_bounds, quasi_lpv,
-                                            search_weightings, selection_rules, ts_model,
-                                            vertex_observability)
+from tanksynth.analysis.interval import interval_evaluate
+from tanksynth.analysis.takagi_sugeno import (MAX_ENUMERATED_PREMISES, check_exactness,
+                                              domain_from_plant, premise_bounds, quasi_lpv,
+                                              ts_model, vertex_observability)
+from tanksynth.design.takagi_sugeno import (candidate_weights, lipschitz_bound, search_weightings,
+                                            selection_rules)
 from tanksynth.errors import DimensionError, RegionError, SpecError, TanksynthError
 from tanksynth.plants import tank_network, three_tank
 

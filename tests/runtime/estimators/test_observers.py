@@ -81,7 +81,7 @@ def test_discrete_form_needs_a_linear_model(tank_plant):
 
 def test_ts_multi_observer_converges_on_the_nonlinear_three_tank():
     """Seed 001: TS multiple model of the three-tank, observer (20) with the printed L."""
-    from tanksynth.design.takagi_sugeno import domain_from_plant, quasi_lpv, ts_model
+    from tanksynth.analysis.takagi_sugeno import domain_from_plant, quasi_lpv, ts_model
     from tanksynth.plants import three_tank
 
     plant = three_tank("h1h2").with_parameters({"g": 9.82})

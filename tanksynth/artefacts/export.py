@@ -1,0 +1,185 @@
+"""Exports beside an artefact: C header of the gains, control laws as CasADi files and generated C."""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import shutil
+import subprocess
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Mapping, Sequence
+
+import casadi as ca
+import numpy as np
+
+from tanksynth.errors import ArtefactError
+from tanksynth.runtime.laws import rename_law
+
+__all__ = ['c_header', 'ExportedLaw', 'export_law', 'compile_law', 'load_compiled_law']
+
+
+@dataclass(frozen=True)
+class ExportedLaw:
+    """Files of an exported law.
+
+    Attributes
+    ----------
+    function : str
+        C symbol / CasADi Function name.
+    casadi : Path
+        ``<name>.casadi`` (``Function.save``; load with ``casadi.Function.load``).
+    c_source, c_header : Path
+        ``<name>.c`` and ``<name>.h`` (CasADi codegen; ``int <function>(const
+        casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w,
+        int mem)`` plus the work-size helpers).
+    sha256 : dict
+        sha256 of each file.
+    """
+
+    function: str
+    casadi: Path
+    c_source: Path
+    c_header: Path
+    sha256: dict
+
+
+
+def export_law(law: ca.Function, directory: str | Path, name: str | None = None) -> ExportedLaw:
+    """Write the law as ``<name>.casadi``, ``<name>.c`` and ``<name>.h``, atomically.
+
+    Everything is generated in a temporary directory beside the targets and
+    renamed only when all files exist; a failure leaves nothing behind.
+
+    Parameters
+    ----------
+    law : casadi.Function
+        An SX Function (as built by this module).
+    directory : str or Path
+        Created if missing.
+    name : str, optional
+        File stem and C symbol (made a C identifier); default the law's name.
+
+    Returns
+    -------
+    ExportedLaw
+    """
+    directory = Path(directory)
+    directory.mkdir(parents=True, exist_ok=True)
+    fn = rename_law(law, name or law.name())
+    stem = fn.name()
+    final = {ext: directory / f"{stem}{ext}" for ext in (".casadi", ".c", ".h")}
+    # CasADi's code generator refuses an output prefix that contains
+    # "<stem>.c" (a guard for its old API); such a target directory is built
+    # in the system temp directory, then copied beside the targets.
+    tmpdir = Path(tempfile.mkdtemp(prefix=".law-build-", suffix=".tmp", dir=directory))
+    build = tmpdir
+    renamed: list[Path] = []
+    try:
+        if f"{stem}.c" in str(tmpdir) + os.sep:
+            build = Path(tempfile.mkdtemp(prefix="tanksynth-law-"))
+        fn.save(str(build / f"{stem}.casadi"))
+        cg = ca.CodeGenerator(f"{stem}.c", {"with_header": True})
+        cg.add(fn)
+        cg.generate(str(build) + os.sep)
+        for ext, target in final.items():
+            if not (build / target.name).is_file():
+                raise ArtefactError(f"export of law '{stem}': {target.name} was not generated")
+            if build != tmpdir:
+                shutil.copyfile(build / target.name, tmpdir / target.name)
+        try:
+            for ext in (".c", ".h", ".casadi"):
+                os.replace(tmpdir / final[ext].name, final[ext])
+                renamed.append(final[ext])
+        except BaseException:
+            for path in renamed:
+                path.unlink(missing_ok=True)
+            raise
+    finally:
+        shutil.rmtree(tmpdir, ignore_errors=True)
+        if build != tmpdir:
+            shutil.rmtree(build, ignore_errors=True)
+    digests = {p.name: hashlib.sha256(p.read_bytes()).hexdigest() for p in final.values()}
+    return ExportedLaw(stem, final[".casadi"], final[".c"], final[".h"], digests)
+
+
+
+def compile_law(c_source: str | Path, output: str | Path | None = None, *, compiler: str = "gcc",
+                flags: Sequence[str] = ("-O2",)) -> Path:
+    """Compile generated C into a shared library.
+
+    Parameters
+    ----------
+    c_source : str or Path
+        ``<name>.c`` from `export_law`.
+    output : str or Path, optional
+        Library path (default ``<name>.so`` beside the source).
+    compiler : str
+        C compiler command.
+    flags : sequence of str
+        Extra flags (``-shared -fPIC`` are always added).
+
+    Returns
+    -------
+    Path
+
+    Raises
+    ------
+    ArtefactError
+        Compiler missing or compilation failed (with its message).
+    """
+    src = Path(c_source)
+    out = Path(output) if output is not None else src.with_suffix(".so")
+    cmd = [compiler, "-shared", "-fPIC", *flags, "-o", str(out), str(src), "-lm"]
+    try:
+        proc = subprocess.run(cmd, capture_output=True, text=True, check=False)
+    except FileNotFoundError:
+        raise ArtefactError(f"C compiler {compiler!r} not found; cannot compile {src}") from None
+    if proc.returncode != 0:
+        raise ArtefactError(f"compiling {src} failed ({' '.join(cmd)}): {proc.stderr.strip()[:2000]}")
+    return out
+
+
+
+def load_compiled_law(library: str | Path, function: str) -> ca.Function:
+    """Load a compiled law (``casadi.external``) to evaluate the C code from Python."""
+    path = Path(library)
+    if not path.is_file():
+        raise ArtefactError(f"compiled law {path} not found")
+    return ca.external(function, str(path.resolve()))
+
+
+def c_header(name: str, gains: Mapping[str, np.ndarray]) -> str:
+    """A C header with every gain as a ``static const double`` array (row-major).
+
+    Each gain gets ``<NAME>_<GAIN>_NDIM`` and one ``_DIM<k>`` macro per axis
+    (``_ROWS``/``_COLS`` too for 1-D and 2-D gains; a 1-D gain is a column).
+    """
+    def ident(text: str) -> str:
+        out = "".join(c if c.isalnum() else "_" for c in text)
+        return out if out[:1].isalpha() else "d_" + out
+
+    stem = ident(name)
+    guard = "TANKSYNTH_" + stem.upper() + "_H"
+    lines = [f"/* Gains of design '{name}', generated by tanksynth. Row-major. */",
+             f"#ifndef {guard}", f"#define {guard}", ""]
+    for gname, value in gains.items():
+        arr = np.asarray(value, dtype=float)
+        if arr.ndim == 0:
+            arr = arr.reshape(1, 1)
+        elif arr.ndim == 1:
+            arr = arr.reshape(-1, 1)
+        cname = f"{stem}_{ident(gname)}"
+        macro = cname.upper()
+        lines.append(f"#define {macro}_NDIM {arr.ndim}")
+        for k, dim in enumerate(arr.shape):
+            lines.append(f"#define {macro}_DIM{k} {dim}")
+        if arr.ndim == 2:
+            lines.append(f"#define {macro}_ROWS {arr.shape[0]}")
+            lines.append(f"#define {macro}_COLS {arr.shape[1]}")
+        values = ", ".join(repr(float(v)) for v in arr.ravel())
+        lines.append(f"static const double {cname}[{max(arr.size, 1)}] = {{{values or '0.0'}}};")
+        lines.append("")
+    lines.append(f"#endif /* {guard} */")
+    return "\n".join(lines) + "\n"
