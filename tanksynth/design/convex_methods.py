@@ -24,13 +24,15 @@ from typing import TYPE_CHECKING, Any, Mapping, Sequence
 import numpy as np
 import sympy as sp
 
+from tanksynth.analysis.lmi_region import region_from_parts
+from tanksynth.spec.options import parse_matrix, parse_number, parse_poles, parse_region
 from tanksynth.errors import InfeasibleDesign, SpecError, UnobservableError
 from tanksynth.plants.base import exact
 from tanksynth.analysis.linearize import equilibrium_input, linearize, symbolic_jacobians
 from tanksynth.design.lmi import SOLVERS, VARIANTS, maximise_psi, observer_lmi
-from tanksynth.design.placement import (LMIRegion, canonical_observer, disk, half_plane, integral_augmentation,
-                        intersect, lmi_observer, lmi_state_feedback, place_observer,
-                        place_state_feedback, pole_errors, sector)
+from tanksynth.design.placement import (canonical_observer, integral_augmentation,
+                        lmi_observer, lmi_state_feedback, place_observer,
+                        place_state_feedback, pole_errors)
 from tanksynth.design.result import DesignMethod, DesignResult, register
 from tanksynth.analysis.takagi_sugeno import (check_exactness, domain_from_plant, quasi_lpv,
                                               ts_model, vertex_observability)
@@ -44,8 +46,6 @@ __all__ = [
     "run_lmi_placement",
     "run_pole_placement",
     "run_canonical_observer",
-    "parse_region",
-    "parse_poles",
 ]
 
 _NUM = (int, float)
@@ -69,104 +69,6 @@ def _positive(design, opt: str, default: float, upper: float | None = None) -> f
         rng = f"in (0, {upper:g})" if upper is not None else "> 0"
         raise SpecError(f"expected a number {rng}, got {value!r}", key=_key(design, opt))
     return value
-
-
-def _number(value: Any, key: str) -> float:
-    if isinstance(value, bool) or not isinstance(value, _NUM):
-        raise SpecError(f"expected a number, got {type(value).__name__} {value!r}", key=key)
-    value = float(value)
-    if not np.isfinite(value):
-        raise SpecError(f"expected a finite number, got {value}", key=key)
-    return value
-
-
-def _matrix_option(value: Any, key: str, shape: tuple[int, int] | None = None) -> np.ndarray:
-    if not isinstance(value, list) or not value or not all(isinstance(r, list) for r in value):
-        raise SpecError("expected a matrix as a list of rows (lists of numbers)", key=key)
-    rows = [[_number(v, f"{key}[{i}][{j}]") for j, v in enumerate(r)] for i, r in enumerate(value)]
-    if len({len(r) for r in rows}) != 1:
-        raise SpecError("rows of the matrix have different lengths", key=key)
-    arr = np.array(rows, dtype=float)
-    if shape is not None and arr.shape != shape:
-        raise SpecError(f"expected a {shape[0]} x {shape[1]} matrix, got {arr.shape[0]} x "
-                        f"{arr.shape[1]}", key=key)
-    return arr
-
-
-def parse_poles(value: Any, key: str) -> list[complex]:
-    """Poles from a spec list: numbers, or ``[re, im]`` pairs for complex poles.
-
-    Parameters
-    ----------
-    value : list
-    key : str
-        Spec key for error messages.
-
-    Returns
-    -------
-    list of complex
-    """
-    if not isinstance(value, list) or not value:
-        raise SpecError("expected a non-empty list of poles (numbers or [re, im] pairs)", key=key)
-    out = []
-    for i, v in enumerate(value):
-        if isinstance(v, list):
-            if len(v) != 2:
-                raise SpecError("expected [re, im]", key=f"{key}[{i}]")
-            out.append(complex(_number(v[0], f"{key}[{i}][0]"), _number(v[1], f"{key}[{i}][1]")))
-        else:
-            out.append(complex(_number(v, f"{key}[{i}]")))
-    return out
-
-
-def parse_region(value: Any, key: str) -> LMIRegion:
-    """An LMI region from a spec list of tables (their intersection).
-
-    Each table has a ``type``: ``"half_plane"`` with ``alpha`` (``Re z <
-    -alpha``), ``"disk"`` with ``center`` and ``radius``, ``"sector"`` with
-    ``angle_deg`` (half-angle about the negative real axis).
-
-    Parameters
-    ----------
-    value : list of dict
-    key : str
-
-    Returns
-    -------
-    LMIRegion
-    """
-    if isinstance(value, Mapping):
-        value = [value]
-    if not isinstance(value, list) or not value:
-        raise SpecError("expected a list of region tables, e.g. [{type = \"disk\", center = 0.0, "
-                        "radius = 0.9}]", key=key)
-    parts = []
-    fields = {"half_plane": ("alpha",), "disk": ("center", "radius"), "sector": ("angle_deg",)}
-    for i, item in enumerate(value):
-        k = f"{key}[{i}]"
-        if not isinstance(item, Mapping):
-            raise SpecError("expected a table with a 'type'", key=k)
-        kind = item.get("type")
-        if kind not in fields:
-            raise SpecError(f"unknown region type {kind!r}; expected one of {list(fields)}",
-                            key=f"{k}.type")
-        extra = [f for f in item if f not in ("type", *fields[kind])]
-        missing = [f for f in fields[kind] if f not in item]
-        if extra or missing:
-            raise SpecError(f"region '{kind}' takes {list(fields[kind])}"
-                            + (f"; unknown {extra}" if extra else "")
-                            + (f"; missing {missing}" if missing else ""), key=k)
-        args = [_number(item[f], f"{k}.{f}") for f in fields[kind]]
-        try:
-            if kind == "half_plane":
-                parts.append(half_plane(args[0]))
-            elif kind == "disk":
-                parts.append(disk(args[0], args[1]))
-            else:
-                parts.append(sector(np.radians(args[0])))
-        except SpecError as exc:
-            raise SpecError(exc.detail, key=k) from None
-    return intersect(*parts)
 
 
 def _complex_list(values: Any) -> list[list[float]]:
@@ -280,7 +182,7 @@ def run_ts_observer(spec: "Spec", design: "DesignSpec") -> DesignResult:
     if psi_source == "given":
         if psi_given is None:
             raise SpecError("psi_source = 'given' needs psi", key=_key(design, "psi"))
-        psi_given = _number(psi_given, _key(design, "psi"))
+        psi_given = parse_number(psi_given, _key(design, "psi"))
         if psi_given < 0:
             raise SpecError("psi must be >= 0", key=_key(design, "psi"))
     lip_form = _choice(design, "lipschitz", "jacobian", ("jacobian", "eq27"))
@@ -300,7 +202,7 @@ def run_ts_observer(spec: "Spec", design: "DesignSpec") -> DesignResult:
             raise SpecError(f"unknown state {nm!r}; expected one of {names}", key=k)
         if not isinstance(b, list) or len(b) != 2:
             raise SpecError("expected [min, max]", key=k)
-        box[names.index(nm)] = (_number(b[0], k + "[0]"), _number(b[1], k + "[1]"))
+        box[names.index(nm)] = (parse_number(b[0], k + "[0]"), parse_number(b[1], k + "[1]"))
     gap = float(o.get("ordering_gap", 0.0))
     try:
         domain = domain_from_plant(plant, box, bool(o.get("orderings", True)), gap)
@@ -324,13 +226,13 @@ def run_ts_observer(spec: "Spec", design: "DesignSpec") -> DesignResult:
             raise SpecError(f"unknown state name; expected names from {names}",
                             key=_key(design, "blocks")) from None
     if "pattern" in o:
-        pattern = _matrix_option(o["pattern"], _key(design, "pattern"), (plant.n, plant.q))
+        pattern = parse_matrix(o["pattern"], _key(design, "pattern"), (plant.n, plant.q))
     diagnostics: dict[str, Any] = {}
     if bool(o.get("search", False)):
         values = o.get("search_values", [-1.0, 0.0, 1.0])
         if not isinstance(values, list) or not values:
             raise SpecError("expected a list of numbers", key=_key(design, "search_values"))
-        values = [_number(v, _key(design, "search_values")) for v in values]
+        values = [parse_number(v, _key(design, "search_values")) for v in values]
         criterion = _choice(design, "search_criterion", "psi_max", ("psi_max", "certified"))
         found = search_weightings(qlpv, domain, values=values, include=[qlpv.weights], variant=variant,
                                   margin=margin, kappa=kappa, seed=seed, solver=solver)
@@ -404,7 +306,7 @@ def run_ts_observer(spec: "Spec", design: "DesignSpec") -> DesignResult:
         "assumptions": _assumptions(spec),
     })
     if "reference_L" in o:
-        ref = _matrix_option(o["reference_L"], _key(design, "reference_L"), res.L.shape)
+        ref = parse_matrix(o["reference_L"], _key(design, "reference_L"), res.L.shape)
         diagnostics["reference_L"] = _compare(ref, res.L, lambda Lr: A0 - Lr @ C)
         diagnostics["reference_L"]["note"] = ("LMI solutions are not unique: the comparison is "
                                               "informative, the re-check decides")
@@ -504,7 +406,7 @@ def run_lmi_placement(spec: "Spec", design: "DesignSpec") -> DesignResult:
     o = design.options
     plant = spec.plant
     target, time_domain = _target_and_domain(spec, design, "observer")
-    region = parse_region(o.get("region"), _key(design, "region"))
+    region = region_from_parts(parse_region(o.get("region"), _key(design, "region")))
     margin = _positive(design, "margin", 1e-6, upper=1.0)
     kappa = _positive(design, "kappa", 1e4)
     solver = _choice(design, "solver", "CLARABEL", SOLVERS)
@@ -565,7 +467,7 @@ def run_pole_placement(spec: "Spec", design: "DesignSpec") -> DesignResult:
     gain = res.gain
     diagnostics["placement"] = res.as_dict()
     if "reference_gain" in o:
-        ref = _matrix_option(o["reference_gain"], ref_key, gain.shape)
+        ref = parse_matrix(o["reference_gain"], ref_key, gain.shape)
         cmp_ = _compare(ref, gain, closed)
         ach = np.linalg.eigvals(closed(ref))
         cmp_["reference_max_pole_error"] = pole_errors(poles, ach)[1]
@@ -641,10 +543,10 @@ def run_canonical_observer(spec: "Spec", design: "DesignSpec") -> DesignResult:
         "assumptions": _assumptions(spec),
     }
     if "reference_gain" in o:
-        ref = _matrix_option(o["reference_gain"], _key(design, "reference_gain"), L.shape)
+        ref = parse_matrix(o["reference_gain"], _key(design, "reference_gain"), L.shape)
         diagnostics["reference_gain"] = _compare(ref, L, lambda G: An - G @ Cn)
     if "reference_closed_loop" in o:
-        ref = _matrix_option(o["reference_closed_loop"], _key(design, "reference_closed_loop"),
+        ref = parse_matrix(o["reference_closed_loop"], _key(design, "reference_closed_loop"),
                              An.shape)
         eig = np.linalg.eigvals(ref)
         derived = np.array(co.Gamma_d.evalf(), dtype=float)

@@ -29,6 +29,7 @@ from typing import Any, Mapping
 import numpy as np
 import sympy as sp
 
+from tanksynth.spec.options import parse_covariance
 from tanksynth.errors import SpecError, UnobservableError
 from tanksynth.runtime.estimators.adaptive import (AdaptiveKalmanFilter, AdaptiveKalmanTuning,
                                   AdaptiveScalingKalmanFilter, AdaptiveScalingTuning)
@@ -57,37 +58,6 @@ def _key(design: Any, opt: str) -> str:
     return f"{design.key}.{opt}"
 
 
-def _covariance(value: Any, key: str, size: int, semidefinite: bool = False) -> np.ndarray:
-    try:
-        if isinstance(value, bool):
-            raise TypeError
-        if isinstance(value, _NUM):
-            M = float(value) * np.eye(size)
-        elif isinstance(value, list) and value and all(isinstance(v, _NUM) and not isinstance(v, bool)
-                                                       for v in value):
-            if len(value) != size:
-                raise SpecError(f"expected {size} diagonal entries, got {len(value)}", key=key)
-            M = np.diag(np.array(value, dtype=float))
-        elif isinstance(value, list) and value and all(isinstance(r, list) for r in value):
-            M = np.array(value, dtype=float)
-        else:
-            raise TypeError
-    except (TypeError, ValueError):
-        raise SpecError("expected a number (s I), a list (diagonal) or a list of rows",
-                        key=key) from None
-    if M.shape != (size, size):
-        raise SpecError(f"expected a {size} x {size} matrix, got shape {M.shape}", key=key)
-    if not np.all(np.isfinite(M)):
-        raise SpecError("entries must be finite", key=key)
-    if np.max(np.abs(M - M.T), initial=0.0) > 1e-12 * max(np.max(np.abs(M)), 1e-300):
-        raise SpecError("matrix must be symmetric", key=key)
-    w = np.linalg.eigvalsh(0.5 * (M + M.T))
-    if (w[0] < 0) if semidefinite else (w[0] <= 0):
-        kind = "positive semidefinite" if semidefinite else "positive definite"
-        raise SpecError(f"matrix must be {kind}; smallest eigenvalue {w[0]:.3g}", key=key)
-    return 0.5 * (M + M.T)
-
-
 def covariance_option(design: Any, opt: str, size: int, *, semidefinite: bool = False) -> np.ndarray:
     """A covariance from a spec option: number (``s I``), list (diagonal) or list of rows.
 
@@ -99,7 +69,7 @@ def covariance_option(design: Any, opt: str, size: int, *, semidefinite: bool = 
     """
     if opt not in design.options:
         raise SpecError(f"missing covariance {opt!r} ({size} x {size})", key=_key(design, opt))
-    return _covariance(design.options[opt], _key(design, opt), size, semidefinite)
+    return parse_covariance(design.options[opt], _key(design, opt), size, semidefinite)
 
 
 def _vector_option(design: Any, opt: str, size: int, default: Any = None) -> np.ndarray:
@@ -359,7 +329,7 @@ def run_consensus_filter(spec: Any, design: Any) -> DesignResult:
     if not isinstance(Rs, list) or not Rs:
         raise SpecError("expected R = [R_1, ..., R_N]: one covariance per sensor (numbers for "
                         "scalar outputs)", key=_key(design, "R"))
-    R = [_covariance(Ri, f"{_key(design, 'R')}[{i}]", q) for i, Ri in enumerate(Rs)]
+    R = [parse_covariance(Ri, f"{_key(design, 'R')}[{i}]", q) for i, Ri in enumerate(Rs)]
     C_stack = np.vstack([lin.C] * len(R))
     rank = _require_observable(plant, lin.Ad, C_stack, "(Ad, C) at the operating point")
     tuning = _tuning(design, ConsensusTuning,
@@ -438,7 +408,7 @@ def run_luenberger(spec: Any, design: Any) -> DesignResult:
     if has_L:
         L = _matrix_option(design, "L", (n, q))
     else:
-        from tanksynth.design.convex_methods import parse_poles
+        from tanksynth.spec.options import parse_poles
 
         poles = parse_poles(design.options["poles"], _key(design, "poles"))
         placement = place_observer(A_design, lin.C, poles)
@@ -469,7 +439,7 @@ def run_fault_detection(spec: Any, design: Any) -> DesignResult:
     ``delta_bar`` (declared fault size, default 1.0), ``t_fault`` (2.0 s),
     ``conservative`` (true: eq. 55).
     """
-    from tanksynth.design.convex_methods import parse_poles
+    from tanksynth.spec.options import parse_poles
 
     opts = design.options
     poles = parse_poles(opts.get("poles", [-5.0, -8.0, -10.0]), _key(design, "poles"))

@@ -38,6 +38,7 @@ import scipy.linalg as sla
 import sympy as sp
 from scipy.optimize import linear_sum_assignment
 
+from tanksynth.analysis.lmi_region import LMIRegion
 from tanksynth.errors import (DimensionError, InfeasibleDesign, SpecError, UncontrollableError,
                       UnobservableError)
 from tanksynth.plants.base import exact
@@ -47,11 +48,6 @@ from tanksynth.analysis import rank as _rank
 from tanksynth.design.lmi import SOLVERS, LMICheck
 
 __all__ = [
-    "LMIRegion",
-    "half_plane",
-    "disk",
-    "sector",
-    "intersect",
     "LMIPlacementResult",
     "lmi_state_feedback",
     "lmi_observer",
@@ -67,177 +63,6 @@ __all__ = [
 
 
 # ------------------------------------------------------------------------ regions
-@dataclass(frozen=True)
-class LMIRegion:
-    """An LMI region ``{z : L + M z + M' conj(z) < 0}`` (Chilali-Gahinet).
-
-    Attributes
-    ----------
-    L : ndarray, shape (d, d)
-        Real symmetric.
-    M : ndarray, shape (d, d)
-        Real.
-    parts : tuple of tuple
-        The elementary regions intersected, e.g. ``("disk", 0.0, 0.9)``,
-        ``("half_plane", 0.5)``, ``("sector", theta)`` (units of the
-        eigenvalues: 1/s in continuous time, none in discrete time).
-    """
-
-    L: np.ndarray
-    M: np.ndarray
-    parts: tuple[tuple, ...]
-
-    @property
-    def order(self) -> int:
-        """Size ``d`` of the characteristic matrix."""
-        return int(self.L.shape[0])
-
-    def characteristic(self, z: complex) -> np.ndarray:
-        """``f_D(z) = L + M z + M' conj(z)`` (Hermitian)."""
-        return self.L + self.M * z + self.M.T * np.conj(z)
-
-    def margin(self, z: complex) -> float:
-        """``-lambda_max(f_D(z))``: positive inside the region."""
-        return float(-np.max(np.linalg.eigvalsh(self.characteristic(complex(z)))))
-
-    def contains(self, z: complex, margin: float = 0.0) -> bool:
-        """True if ``z`` lies inside with ``-lambda_max(f_D(z)) > margin``."""
-        return self.margin(z) > margin
-
-    def __and__(self, other: "LMIRegion") -> "LMIRegion":
-        return intersect(self, other)
-
-    def scaled(self, omega: float) -> "LMIRegion":
-        """The region for eigenvalues divided by ``omega`` (time scaling)."""
-        return LMIRegion(self.L / omega, self.M, self.parts)
-
-    def describe(self) -> str:
-        """Human-readable description."""
-        words = []
-        for part in self.parts:
-            if part[0] == "half_plane":
-                words.append(f"Re z < {-part[1]:g}")
-            elif part[0] == "disk":
-                words.append(f"|z - ({part[1]:g})| < {part[2]:g}")
-            else:
-                words.append(f"|arg(-z)| < {np.degrees(part[1]):g} deg")
-        return " and ".join(words)
-
-    def stable_in(self, domain: str) -> bool:
-        """True if the region lies in the stability domain.
-
-        Continuous time: a half-plane with ``alpha >= 0``, a disk with
-        ``centre + radius <= 0`` or a sector with half-angle < 90 degrees is
-        part of the intersection. Discrete time: a disk with ``|centre| +
-        radius <= 1`` is.
-        """
-        for part in self.parts:
-            if domain == "continuous":
-                if part[0] == "half_plane" and part[1] >= 0:
-                    return True
-                if part[0] == "disk" and part[1] + part[2] <= 0:
-                    return True
-                if part[0] == "sector" and part[1] < np.pi / 2:
-                    return True
-            elif part[0] == "disk" and abs(part[1]) + part[2] <= 1:
-                return True
-        return False
-
-    def as_dict(self) -> dict:
-        """JSON-friendly form."""
-        return {"description": self.describe(), "parts": [list(p) for p in self.parts],
-                "L": self.L.tolist(), "M": self.M.tolist()}
-
-
-def _finite(value: Any, name: str) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
-        raise SpecError(f"{name} must be a number, got {value!r}", key=name)
-    value = float(value)
-    if not np.isfinite(value):
-        raise SpecError(f"{name} must be finite, got {value}", key=name)
-    return value
-
-
-def half_plane(alpha: float) -> LMIRegion:
-    """Half-plane ``Re z < -alpha`` (decay rate ``alpha``).
-
-    Parameters
-    ----------
-    alpha : float
-        Minimum decay rate (1/s in continuous time); ``alpha >= 0`` makes the
-        region stable in continuous time.
-
-    Returns
-    -------
-    LMIRegion
-        ``L = [2 alpha]``, ``M = [1]``.
-    """
-    alpha = _finite(alpha, "alpha")
-    return LMIRegion(np.array([[2.0 * alpha]]), np.array([[1.0]]), (("half_plane", alpha),))
-
-
-def disk(center: float, radius: float) -> LMIRegion:
-    """Open disk ``|z - center| < radius`` (real centre).
-
-    In discrete time ``disk(0, r)`` with ``r < 1`` bounds the spectral radius.
-
-    Parameters
-    ----------
-    center : float
-        Real centre (1/s in continuous time, dimensionless in discrete time).
-    radius : float
-        Radius (> 0, same unit).
-
-    Returns
-    -------
-    LMIRegion
-        ``L = [[-r, -c], [-c, -r]]``, ``M = [[0, 1], [0, 0]]``.
-    """
-    c = _finite(center, "center")
-    r = _finite(radius, "radius")
-    if not r > 0:
-        raise SpecError(f"radius must be > 0, got {r}", key="radius")
-    return LMIRegion(np.array([[-r, -c], [-c, -r]]), np.array([[0.0, 1.0], [0.0, 0.0]]),
-                     (("disk", c, r),))
-
-
-def sector(theta: float) -> LMIRegion:
-    """Conic sector ``|Im z| < tan(theta) (-Re z)`` (apex 0).
-
-    Bounds the damping ratio from below by ``cos(theta)``.
-
-    Parameters
-    ----------
-    theta : float
-        Half-angle about the negative real axis, rad, in ``(0, pi/2)``.
-
-    Returns
-    -------
-    LMIRegion
-    """
-    th = _finite(theta, "theta")
-    if not 0 < th < np.pi / 2:
-        raise SpecError(f"sector half-angle must be in (0, pi/2) rad, got {th}", key="theta")
-    s, c = np.sin(th), np.cos(th)
-    return LMIRegion(np.zeros((2, 2)), np.array([[s, c], [-c, s]]), (("sector", th),))
-
-
-def intersect(*regions: LMIRegion) -> LMIRegion:
-    """Intersection of LMI regions (block-diagonal ``L``, ``M``).
-
-    Parameters
-    ----------
-    *regions : LMIRegion
-        At least one.
-
-    Returns
-    -------
-    LMIRegion
-    """
-    if not regions:
-        raise SpecError("intersect needs at least one region", key="region")
-    return LMIRegion(sla.block_diag(*[r.L for r in regions]), sla.block_diag(*[r.M for r in regions]),
-                     tuple(p for r in regions for p in r.parts))
 
 
 # -------------------------------------------------------------------- helpers

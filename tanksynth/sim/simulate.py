@@ -47,7 +47,7 @@ from typing import Any, Callable, Mapping, Protocol, Sequence, runtime_checkable
 import numpy as np
 import sympy as sp
 
-from tanksynth.errors import DimensionError, SimulationError, TanksynthError
+from tanksynth.errors import DimensionError, SimulationError
 from tanksynth.plants.base import Plant
 
 __all__ = [

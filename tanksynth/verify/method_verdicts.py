@@ -657,7 +657,8 @@ def _region_tau(region: Any, domain: str, ts: float | None) -> float:
 def _designed_tau(doc: Mapping[str, Any], spec: Any, eigs: np.ndarray, domain: str,
                   ts: float | None) -> tuple[float, str]:
     """Slowest time constant the DESIGN asks for (spec poles or region), else of the stored gain."""
-    from tanksynth.design.convex_methods import parse_poles, parse_region
+    from tanksynth.analysis.lmi_region import region_from_parts
+    from tanksynth.spec.options import parse_poles, parse_region
 
     poles = _option(doc, spec, "poles")
     if poles is not None:
@@ -666,7 +667,7 @@ def _designed_tau(doc: Mapping[str, Any], spec: Any, eigs: np.ndarray, domain: s
         return tau, rule.replace("(", "(of the poles requested in the spec: ", 1)
     raw = _option(doc, spec, "region")
     if raw is not None:
-        region = parse_region(raw, "region")
+        region = region_from_parts(parse_region(raw, "region"))
         tau = _region_tau(region, domain, ts)
         if np.isfinite(tau):
             return tau, f"(the decay guaranteed by the spec's region {region.describe()})"
@@ -871,7 +872,7 @@ def pole_placement_verdict(doc: Mapping[str, Any], spec: Any) -> list[Check]:
     ``servo_tracking`` + ``bounded_inputs`` (integral action) or
     ``regulation`` on the nonlinear plant.
     """
-    from tanksynth.design.convex_methods import parse_poles
+    from tanksynth.spec.options import parse_poles
 
     c = _placement_common(doc, spec)
     checks = [_model_recheck(c["plant"], c["x0"], c["u0"], c["domain"], c["ts"],
@@ -895,7 +896,8 @@ def lmi_placement_verdict(doc: Mapping[str, Any], spec: Any) -> list[Check]:
     ``stability``, ``rank_*`` and the simulation checks of
     `pole_placement_verdict`.
     """
-    from tanksynth.design.convex_methods import parse_region
+    from tanksynth.analysis.lmi_region import region_from_parts
+    from tanksynth.spec.options import parse_region
 
     c = _placement_common(doc, spec)
     size = c["Acl"].shape[0]
@@ -905,7 +907,7 @@ def lmi_placement_verdict(doc: Mapping[str, Any], spec: Any) -> list[Check]:
     if raw is None:
         checks.append(Check("region", None, "the spec entry of this artefact gives no region"))
     else:
-        region = parse_region(raw, "region")
+        region = region_from_parts(parse_region(raw, "region"))
         checks.append(_region_check(c["eigs"], region, c["what"]))
         P = _matrix(doc, "P", (size, size))
         if c["target"] == "observer":
@@ -928,7 +930,7 @@ def canonical_observer_verdict(doc: Mapping[str, Any], spec: Any) -> list[Check]
     ``stability``, ``rank_observability`` and ``observer_convergence`` of
     the continuous Luenberger observer on the nonlinear plant.
     """
-    from tanksynth.design.convex_methods import parse_poles
+    from tanksynth.spec.options import parse_poles
 
     plant = spec.plant
     n, q = plant.n, plant.q
@@ -1159,7 +1161,7 @@ def integral_tracking_verdict(doc: Mapping[str, Any], spec: Any) -> list[Check]:
     ``bounded_inputs`` (the law built from the gains, on the nonlinear plant).
     """
     from tanksynth.runtime.laws import integral_tracking_law
-    from tanksynth.design.convex_methods import parse_poles
+    from tanksynth.spec.options import parse_poles
     from tanksynth.analysis.linearize import linearize
     from tanksynth.design.placement import integral_augmentation
 
@@ -1694,7 +1696,7 @@ def _spec_design(doc: Mapping[str, Any], spec: Any) -> Any:
 
 def _claimed(doc: Mapping[str, Any], spec: Any, opt: str, stored: np.ndarray) -> tuple[np.ndarray, str]:
     """The covariance the spec declares for ``opt`` (the design's claim), else the stored one."""
-    from tanksynth.design.estimator_methods import _covariance
+    from tanksynth.spec.options import parse_covariance as _covariance
 
     design = _spec_design(doc, spec)
     if design is None or opt not in design.options:
@@ -1897,7 +1899,7 @@ def estimator_verdict(doc: Mapping[str, Any], spec: Any) -> list[Check]:
     if method == "kalman":
         checks += _guard("riccati_recheck", lambda: _kalman_rechecks(doc, spec))
     if method == "luenberger":
-        from tanksynth.design.convex_methods import parse_poles
+        from tanksynth.spec.options import parse_poles
 
         def poles() -> list[Check]:
             plant = spec.plant

@@ -10,10 +10,10 @@ import sympy as sp
 
 from tanksynth.design import METHODS, placement
 from tanksynth.analysis.linearize import equilibrium_input, linearize
-from tanksynth.design.placement import (LMIRegion, canonical_observer, disk, half_plane,
-                                        integral_augmentation, intersect, lmi_observer,
+from tanksynth.analysis.lmi_region import LMIRegion, disk, half_plane, intersect, sector
+from tanksynth.design.placement import (canonical_observer, integral_augmentation, lmi_observer,
                                         lmi_state_feedback, place_observer, place_state_feedback,
-                                        pole_errors, sector)
+                                        pole_errors)
 from tanksynth.errors import (DimensionError, InfeasibleDesign, SpecError, UncontrollableError,
                               UnobservableError)
 from tanksynth.spec import load_spec, parse_spec_text

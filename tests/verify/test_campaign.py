@@ -6,7 +6,6 @@ import signal
 import threading
 from pathlib import Path
 
-import numpy as np
 import pytest
 
 from tanksynth.artefacts import read_artefact
