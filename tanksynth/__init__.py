@@ -18,7 +18,8 @@ from tanksynth.errors import (ArtefactError, DimensionError, InfeasibleDesign, P
                      SpecError, TanksynthError, UncontrollableError, UnobservableError)
 from tanksynth.plants import (Plant, builtin_plant, custom_plant, hybrid_three_tank, hydraulic_fault,
                      tank_network, three_tank)
-from tanksynth.spec import Spec, load_spec, parse_spec, parse_spec_text
+from tanksynth.methods import load_spec, parse_spec, parse_spec_text
+from tanksynth.spec import Spec
 from tanksynth.analysis.rank import (controllability_rank, nonlinear_observability, observability_rank,
                           pbh_test, symbolic_observability)
 

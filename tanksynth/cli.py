@@ -36,7 +36,7 @@ def _one_line(exc: BaseException) -> str:
 
 
 def _load(spec_path: str | None):
-    from tanksynth.spec import load_spec, parse_spec_text
+    from tanksynth.methods import load_spec, parse_spec_text
 
     if spec_path is None:
         text = resources.files("tanksynth.data").joinpath("demo.toml").read_bytes()
@@ -57,13 +57,13 @@ def _print_checks(checks, title: str = "Rank conditions") -> None:
 
 def _design_all(spec, outdir: Path, export: tuple[str, ...]) -> tuple[list[Path], list[str]]:
     from tanksynth.artefacts.io import write_artefact, write_plant_record
-    from tanksynth.design import METHODS
+    from tanksynth.methods import METHODS
 
     write_plant_record(spec, outdir)
     written, infeasible = [], []
     for design in spec.designs:
         try:
-            result = METHODS[design.method].run(spec, design)
+            result = METHODS[design.method].design(spec, design)
         except InfeasibleDesign as exc:
             infeasible.append(f"{design.name}: {_one_line(exc)}")
             continue
@@ -156,7 +156,7 @@ def run(spec: str | None, outdir: str, pdf: bool) -> None:
     """
     from tanksynth.artefacts.io import to_jsonable
     from tanksynth.analysis.checks import rank_conditions
-    from tanksynth.verify.verdicts import verify_directory
+    from tanksynth.methods import verify_directory
 
     s = _load(spec)
     out = Path(outdir)
@@ -173,7 +173,7 @@ def run(spec: str | None, outdir: str, pdf: bool) -> None:
     if written:
         verdicts = verify_directory(out)
         for v in verdicts:
-            verdict = {True: "pass", False: "FAIL", None: "no verdict"}[v.passed]
+            verdict = "pass" if v.passed else "FAIL"
             _out.print(f"verification of {v.name} ({v.method}): {verdict}", markup=False,
                        highlight=False)
         _write_report(out, pdf)
@@ -188,7 +188,7 @@ def run(spec: str | None, outdir: str, pdf: bool) -> None:
 
 
 def _write_report(directory: Path, pdf: bool) -> None:
-    from tanksynth.reports import write_report
+    from tanksynth.methods import write_report
 
     res = write_report(directory, pdf=pdf)
     _out.print(f"report: {res.tex}")
@@ -228,7 +228,8 @@ def verify(directory: str, scheduler: str | None, as_json: bool, runs: int,
     from tanksynth.artefacts.io import to_jsonable
     from tanksynth.verify.campaign import campaign_tasks, run_campaign
     from tanksynth.sim.scenarios import SCENARIOS, scenario
-    from tanksynth.verify.verdicts import load_directory, verify_directory
+    from tanksynth.methods import CLOSED_LOOPS, verify_directory
+    from tanksynth.verify.runner import load_directory
 
     for name in scenarios:
         scenario(name)  # unknown names are bad input (exit 2) before any work
@@ -242,7 +243,7 @@ def verify(directory: str, scheduler: str | None, as_json: bool, runs: int,
         spec, docs = load_directory(directory)
         names = list(scenarios) or [s for s in SCENARIOS if SCENARIOS[s].applies_to(spec.plant)]
         tasks = campaign_tasks(spec.text or (Path(directory) / "spec.toml").read_text(encoding="utf-8"),
-                               [d for _, d in docs], names, runs, seed=seed)
+                               [d for _, d in docs], names, runs, seed=seed, loops=CLOSED_LOOPS)
         with Progress(console=_out, transient=True, disable=quiet) as bar:
             task = bar.add_task("campaign", total=len(tasks))
             table = run_campaign(tasks, scheduler=scheduler, workers=workers,
@@ -255,7 +256,7 @@ def verify(directory: str, scheduler: str | None, as_json: bool, runs: int,
                               indent=2))
     else:
         for v in verdicts:
-            verdict = {True: "pass", False: "FAIL", None: "no verdict"}[v.passed]
+            verdict = "pass" if v.passed else "FAIL"
             _print_checks(v.checks, title=f"{v.name} ({v.method}): {verdict}")
         if table_path is not None:
             _out.print(f"campaign table: {table_path}", markup=False, highlight=False)

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from tanksynth.artefacts import read_artefact, write_artefact
-from tanksynth.design import METHODS
-from tanksynth.spec import load_spec
+from tanksynth.methods import METHODS
+from tanksynth.methods import load_spec
 from tanksynth.analysis.checks import rank_conditions
 
 EXAMPLES = sorted(Path(__file__).resolve().parents[1].joinpath("examples").glob("*.toml"))
@@ -30,7 +30,7 @@ def test_example_checks_and_designs(path, tmp_path):
     # The operating point of every example is an equilibrium of its model.
     assert next(c for c in checks if c.name == "equilibrium").passed
     for design in spec.designs:
-        result = METHODS[design.method].run(spec, design)
+        result = METHODS[design.method].design(spec, design)
         json_path = write_artefact(result, tmp_path, spec.sha256)
         doc = read_artefact(json_path)
         assert doc["name"] == design.name

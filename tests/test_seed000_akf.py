@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from tanksynth.design import METHODS
+from tanksynth.methods import METHODS
 from tanksynth.runtime.estimators import (AdaptiveKalmanFilter, AdaptiveKalmanTuning,
                                          AdaptiveScalingKalmanFilter, AdaptiveScalingTuning,
                                          ConsensusFilter, ConsensusTuning, CovarianceError,
@@ -23,7 +23,7 @@ from tanksynth.runtime.estimators import (AdaptiveKalmanFilter, AdaptiveKalmanTu
                                          UnscentedKalmanFilter, simulate_plant)
 from tanksynth.analysis.linearize import equilibrium_input
 from tanksynth.plants import three_tank
-from tanksynth.spec import load_spec
+from tanksynth.methods import load_spec
 
 X_OP = np.array([0.40, 0.20, 0.30])
 X0_HAT = np.array([0.9, 0.55, 0.5])
@@ -124,7 +124,7 @@ def test_example_spec_designs_and_flags_the_odd_values():
     spec = load_spec(EXAMPLE)
     names = [d.name for d in spec.designs]
     assert names == ["akf", "ckf", "ekf", "ukf"]
-    akf = METHODS["adaptive_kalman"].run(spec, spec.designs[0])
+    akf = METHODS["adaptive_kalman"].design(spec, spec.designs[0])
     notes = " ".join(akf.diagnostics["plausibility"])
     assert "h1 = 0.9 outside [0, 0.62]" in notes and "h3 > h2 violated" in notes
     assert "measurement noise standard deviation 5 m" in notes
@@ -132,7 +132,7 @@ def test_example_spec_designs_and_flags_the_odd_values():
     np.testing.assert_array_equal(akf.gains["x0"], X0_HAT)
     np.testing.assert_array_equal(akf.gains["R"], R0)
     np.testing.assert_array_equal(akf.gains["window"], [20.0])
-    ckf = METHODS["kalman"].run(spec, spec.designs[1])
+    ckf = METHODS["kalman"].design(spec, spec.designs[1])
     K = ckf.gains["K_ss"]
     assert K.shape == (3, 3) and np.all(np.isfinite(K))
     # Q = 1e-12 against R = 25: the steady-state gain is tiny

@@ -15,12 +15,12 @@ import numpy as np
 import pytest
 
 from tanksynth.artefacts import read_artefact, write_artefact
-from tanksynth.design import METHODS
+from tanksynth.methods import METHODS
 from tanksynth.design.control import _rk4_step, _simulate_sampled, design_integral_tracking
 from tanksynth.runtime.laws import law_from_document
 from tanksynth.design.feedback_linearization import feedback_linearization
 from tanksynth.plants import three_tank
-from tanksynth.spec import load_spec
+from tanksynth.methods import load_spec
 
 SPEC = Path(__file__).resolve().parents[1] / "examples" / "seed000_feedback_linearization.toml"
 X0 = np.array([0.40, 0.20, 0.30])
@@ -36,7 +36,7 @@ def plant():
 @pytest.fixture(scope="module")
 def results():
     spec = load_spec(SPEC)
-    return spec, {d.name: METHODS[d.method].run(spec, d) for d in spec.designs}
+    return spec, {d.name: METHODS[d.method].design(spec, d) for d in spec.designs}
 
 
 def time_constant(t: np.ndarray, y: np.ndarray) -> float:

@@ -16,9 +16,9 @@ import numpy as np
 import pytest
 
 from tanksynth.artefacts import read_artefact, write_artefact
-from tanksynth.design import METHODS
+from tanksynth.methods import METHODS
 from tanksynth.errors import InfeasibleDesign
-from tanksynth.spec import load_spec
+from tanksynth.methods import load_spec
 
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLE = ROOT / "examples" / "seed001_ts_observer.toml"
@@ -34,7 +34,7 @@ def design(spec, name, **changes):
     d = next(d for d in spec.designs if d.name == name)
     if changes:
         d = replace(d, options={**d.options, **changes})
-    return METHODS[d.method].run(spec, d)
+    return METHODS[d.method].design(spec, d)
 
 
 @pytest.fixture(scope="module")

@@ -14,12 +14,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from tanksynth.design import METHODS
+from tanksynth.methods import METHODS
 from tanksynth.runtime.estimators import (ExtendedKalmanFilter, KalmanTuning, NARXEstimator,
                                          UKFTuning, UnscentedKalmanFilter, simulate_plant)
 from tanksynth.plants import hybrid_three_tank
 from tanksynth.plants.hybrid_three_tank import LPH
-from tanksynth.spec import load_spec
+from tanksynth.methods import load_spec
 
 EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "seed002_estimators.toml"
 TUNING = dict(Q=1e-7 * np.eye(3), R=[[1e-6]], P0=1e-2 * np.eye(3), x0=[0.0, 0.0, 0.23], ts=1.0)
@@ -65,7 +65,7 @@ def test_ekf_and_ukf_recover_from_the_initial_mismatch(scenario):
 def test_example_designs_and_the_narx_estimator(scenario):
     plant, X, Y, U = scenario
     spec = load_spec(EXAMPLE)
-    results = {d.name: METHODS[d.method].run(spec, d) for d in spec.designs}
+    results = {d.name: METHODS[d.method].design(spec, d) for d in spec.designs}
     assert set(results) == {"ekf", "ukf", "narx"}
     narx_result = results["narx"]
     diag = narx_result.diagnostics

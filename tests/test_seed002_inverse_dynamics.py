@@ -14,11 +14,11 @@ import numpy as np
 import pytest
 
 from tanksynth.artefacts import read_artefact, write_artefact
-from tanksynth.design import METHODS
+from tanksynth.methods import METHODS
 from tanksynth.design.control import _rk4_step
 from tanksynth.runtime.laws import law_from_document
 from tanksynth.plants.hybrid_three_tank import LPH
-from tanksynth.spec import load_spec
+from tanksynth.methods import load_spec
 
 SPEC = Path(__file__).resolve().parents[1] / "examples" / "seed002_inverse_dynamics.toml"
 
@@ -27,7 +27,7 @@ SPEC = Path(__file__).resolve().parents[1] / "examples" / "seed002_inverse_dynam
 def design():
     spec = load_spec(SPEC)
     (d,) = spec.designs
-    return spec, METHODS[d.method].run(spec, d)
+    return spec, METHODS[d.method].design(spec, d)
 
 
 def test_tuned_gains_and_ise(design):

@@ -44,7 +44,7 @@ import pytest
 from tanksynth.design.decentralized import (centralized_gain, equicorrelated_intensity,
                                             finite_horizon_gains, linear_model, one_step_gains,
                                             own_tank_pattern, window_models)
-from tanksynth.spec import load_spec
+from tanksynth.methods import load_spec
 
 SPEC = Path(__file__).resolve().parents[1] / "examples" / "seed003_tank_network.toml"
 

@@ -30,7 +30,7 @@ from tanksynth.design.control import ServoScenario, design_integral_tracking, tu
 from tanksynth.runtime.laws import inverse_dynamics_law, law_document, rename_law
 from tanksynth.design.feedback_linearization import feedback_linearization
 from tanksynth.analysis.linearize import equilibrium_input
-from tanksynth.design.result import DesignMethod, DesignResult, register
+from tanksynth.design.result import DesignMethod, DesignResult
 
 __all__ = ["run_feedback_linearization", "run_integral_tracking", "run_inverse_dynamics",
            "seed000_law_erratum"]
@@ -257,18 +257,18 @@ def run_inverse_dynamics(spec, design) -> DesignResult:
 
 
 # -------------------------------------------------------------------- registry
-register(DesignMethod("feedback_linearization", run_feedback_linearization, options={
+FEEDBACK_LINEARIZATION = DesignMethod("feedback_linearization", run_feedback_linearization, options={
     "tracked": (list, None), "poles": (list, None), "bandwidth": ((int, float, list), None),
     "saturate": (bool, True), "allow_unstable_zero_dynamics": (bool, False),
-    "grid": (int, 11), "samples": (int, 400), "seed": (int, 0)}))
+    "grid": (int, 11), "samples": (int, 400), "seed": (int, 0)})
 
-register(DesignMethod("integral_tracking", run_integral_tracking, options={
+INTEGRAL_TRACKING = DesignMethod("integral_tracking", run_integral_tracking, options={
     "poles": (list, None), "tracked": (list, None), "method": (str, "auto"),
     "anti_windup": (str, "back_calculation"), "aw_gain": (_NUM, 1.0),
-    "reference_gain": (list, None)}, required=("poles",), needs_sampling=True))
+    "reference_gain": (list, None)}, required=("poles",), needs_sampling=True)
 
-register(DesignMethod("inverse_dynamics", run_inverse_dynamics, options={
+INVERSE_DYNAMICS = DesignMethod("inverse_dynamics", run_inverse_dynamics, options={
     "controlled": (list, None), "C": ((int, float, list), None), "tune": (bool, None),
     "step": ((int, float, list), 0.04), "step_time": (_NUM, 100.0), "horizon": (_NUM, 300.0),
     "substeps": (int, 10), "grid": (list, None), "bounds": (list, [0.0, 1.0]),
-    "saturate": (bool, True)}, needs_sampling=True))
+    "saturate": (bool, True)}, needs_sampling=True)

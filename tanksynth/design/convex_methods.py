@@ -33,7 +33,7 @@ from tanksynth.design.lmi import SOLVERS, VARIANTS, maximise_psi, observer_lmi
 from tanksynth.design.placement import (canonical_observer, integral_augmentation,
                         lmi_observer, lmi_state_feedback, place_observer,
                         place_state_feedback, pole_errors)
-from tanksynth.design.result import DesignMethod, DesignResult, register
+from tanksynth.design.result import DesignMethod, DesignResult
 from tanksynth.analysis.takagi_sugeno import (check_exactness, domain_from_plant, quasi_lpv,
                                               ts_model, vertex_observability)
 from tanksynth.design.takagi_sugeno import lipschitz_bound, search_weightings, selection_rules
@@ -563,24 +563,24 @@ def run_canonical_observer(spec: "Spec", design: "DesignSpec") -> DesignResult:
 # -------------------------------------------------------------------- registry
 _COMMON_LMI = {"margin": (_NUM, 1e-6), "kappa": (_NUM, 1e4), "solver": (str, "CLARABEL")}
 
-register(DesignMethod("ts_observer", run_ts_observer, options={
+TS_OBSERVER = DesignMethod("ts_observer", run_ts_observer, options={
     "weights": (dict, None), "psi": (_NUM, None), "psi_source": (str, None),
     "variant": (str, "qI"), "lipschitz": (str, "jacobian"), "lipschitz_method": (str, "interval"),
     "domain": (dict, None), "orderings": (bool, True), "ordering_gap": (_NUM, 0.0),
     "premise_bounds": (str, "interval"), "premise_margin": (_NUM, 0.01),
     "samples": (int, 5000), "seed": (int, 0), "search": (bool, False),
     "search_values": (list, None), "search_criterion": (str, "psi_max"),
-    "blocks": (list, None), "pattern": (list, None), "reference_L": (list, None), **_COMMON_LMI}))
+    "blocks": (list, None), "pattern": (list, None), "reference_L": (list, None), **_COMMON_LMI})
 
-register(DesignMethod("lmi_placement", run_lmi_placement, options={
+LMI_PLACEMENT = DesignMethod("lmi_placement", run_lmi_placement, options={
     "target": (str, "observer"), "time_domain": (str, None), "region": ((list, dict), None),
-    "integral": (bool, False), "tracked": (list, None), **_COMMON_LMI}, required=("region",)))
+    "integral": (bool, False), "tracked": (list, None), **_COMMON_LMI}, required=("region",))
 
-register(DesignMethod("pole_placement", run_pole_placement, options={
+POLE_PLACEMENT = DesignMethod("pole_placement", run_pole_placement, options={
     "poles": (list, None), "target": (str, "state_feedback"), "time_domain": (str, None),
     "method": (str, "auto"), "integral": (bool, False), "tracked": (list, None),
-    "reference_gain": (list, None)}, required=("poles",)))
+    "reference_gain": (list, None)}, required=("poles",))
 
-register(DesignMethod("canonical_observer", run_canonical_observer, options={
+CANONICAL_OBSERVER = DesignMethod("canonical_observer", run_canonical_observer, options={
     "poles": (list, None), "reference_gain": (list, None), "reference_closed_loop": (list, None)},
-    required=("poles",)))
+    required=("poles",))

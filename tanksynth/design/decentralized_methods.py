@@ -64,7 +64,7 @@ from tanksynth.errors import DimensionError, InfeasibleDesign, SpecError
 from tanksynth.design.decentralized import (centralized_gain, equicorrelated_intensity, finite_horizon_gains,
                             one_step_gains, own_tank_pattern, window_models)
 from tanksynth.analysis.linearize import equilibrium_input
-from tanksynth.design.result import DesignMethod, DesignResult, register
+from tanksynth.design.result import DesignMethod, DesignResult
 
 __all__ = ["run_decentralized_kalman", "DECENTRALIZED_METHODS"]
 
@@ -304,7 +304,7 @@ def run_decentralized_kalman(spec: Any, design: Any) -> DesignResult:
     return DesignResult(design.name, "decentralized_kalman", plant.name, gains, diagnostics, latex)
 
 
-register(DesignMethod("decentralized_kalman", run_decentralized_kalman, options={
+DECENTRALIZED_KALMAN = DesignMethod("decentralized_kalman", run_decentralized_kalman, options={
     "algorithm": (str, "casadi"),
     "window": (int, 40),
     "E": ((str, list), "own_tank"),
@@ -316,4 +316,4 @@ register(DesignMethod("decentralized_kalman", run_decentralized_kalman, options=
     "initial_covariance": ((int, float, list), 10.0),
     "input": (list, None),
     "relinearize_every": (int, 10),
-}, required=("process_noise",), needs_sampling=True))
+}, required=("process_noise",), needs_sampling=True)

@@ -42,7 +42,7 @@ from tanksynth.runtime.estimators.narx import train_narx
 from tanksynth.runtime.estimators.ukf import UKFTuning, UnscentedKalmanFilter
 from tanksynth.design.fault import SEED004_DETECTION_TIMES, fault_threshold, seed004_detection
 from tanksynth.analysis.linearize import equilibrium_input, linearize
-from tanksynth.design.result import DesignMethod, DesignResult, register
+from tanksynth.design.result import DesignMethod, DesignResult
 
 __all__ = [
     "run_kalman", "run_ekf", "run_ukf", "run_adaptive_kalman", "run_adaptive_scaling_kalman",
@@ -481,28 +481,28 @@ _KALMAN = {"Q": (_COV, None), "R": (_COV, None), "P0": (_COV, None), "x0": (list
            "substeps": (int, None), "clip": (bool, None)}
 _EKF = {**_KALMAN, "jacobian_eps": (_NUM, None), "switch_tol": (_NUM, None)}
 
-register(DesignMethod("kalman", run_kalman, options=_EKF, required=("Q", "R", "P0"),
-                      needs_sampling=True))
-register(DesignMethod("ekf", run_ekf, options=_EKF, required=("Q", "R", "P0"), needs_sampling=True))
-register(DesignMethod("ukf", run_ukf, options={**_KALMAN, "alpha": (_NUM, None),
+KALMAN = DesignMethod("kalman", run_kalman, options=_EKF, required=("Q", "R", "P0"),
+                      needs_sampling=True)
+EKF = DesignMethod("ekf", run_ekf, options=_EKF, required=("Q", "R", "P0"), needs_sampling=True)
+UKF = DesignMethod("ukf", run_ukf, options={**_KALMAN, "alpha": (_NUM, None),
                                                "beta": (_NUM, None), "kappa": (_NUM, None),
                                                "redraw": (bool, None)},
-                      required=("Q", "R", "P0"), needs_sampling=True))
-register(DesignMethod("adaptive_kalman", run_adaptive_kalman,
+                      required=("Q", "R", "P0"), needs_sampling=True)
+ADAPTIVE_KALMAN = DesignMethod("adaptive_kalman", run_adaptive_kalman,
                       options={"Q0": (_COV, None), "R": (_COV, None), "P0": (_COV, None),
                                "x0": (list, None), "window": (int, None), "form": (str, None),
                                "q_floor": (_NUM, None)},
-                      required=("Q0", "R", "P0", "window"), needs_sampling=True))
-register(DesignMethod("adaptive_scaling_kalman", run_adaptive_scaling_kalman,
+                      required=("Q0", "R", "P0", "window"), needs_sampling=True)
+ADAPTIVE_SCALING_KALMAN = DesignMethod("adaptive_scaling_kalman", run_adaptive_scaling_kalman,
                       options={"Q": (_COV, None), "R": (_COV, None), "P0": (_COV, None),
                                "x0": (list, None), "abc": (list, None), "G": (list, None),
                                "phi0": (_NUM, None)},
-                      required=("Q", "R", "P0", "abc"), needs_sampling=True))
-register(DesignMethod("consensus_filter", run_consensus_filter,
+                      required=("Q", "R", "P0", "abc"), needs_sampling=True)
+CONSENSUS_FILTER = DesignMethod("consensus_filter", run_consensus_filter,
                       options={"Q": (_COV, None), "R": (list, None), "P0": (_COV, None),
                                "x0": (list, None)},
-                      required=("Q", "R", "P0"), needs_sampling=True))
-register(DesignMethod("narx", run_narx,
+                      required=("Q", "R", "P0"), needs_sampling=True)
+NARX = DesignMethod("narx", run_narx,
                       options={**_EKF, "hidden": (int, None), "delays": (int, None),
                                "runs": (int, None), "validation_runs": (int, None),
                                "steps": (int, None), "seed": (int, None),
@@ -510,12 +510,12 @@ register(DesignMethod("narx", run_narx,
                                "noise_std": (list, None), "sim_substeps": (int, None),
                                "target": (str, None), "restarts": (int, None),
                                "max_iter": (int, None), "max_fail": (int, None)},
-                      required=("Q", "R", "P0"), needs_sampling=True))
-register(DesignMethod("luenberger", run_luenberger,
+                      required=("Q", "R", "P0"), needs_sampling=True)
+LUENBERGER = DesignMethod("luenberger", run_luenberger,
                       options={"L": (list, None), "poles": (list, None), "form": (str, None),
                                "x0": (list, None), "substeps": (int, None),
-                               "nonlinear": (bool, None)}, needs_sampling=True))
-register(DesignMethod("fault_detection", run_fault_detection,
+                               "nonlinear": (bool, None)}, needs_sampling=True)
+FAULT_DETECTION = DesignMethod("fault_detection", run_fault_detection,
                       options={"poles": (list, None), "bounds": (list, None),
                                "delta_bar": (_NUM, None), "t_fault": (_NUM, None),
-                               "conservative": (bool, None)}))
+                               "conservative": (bool, None)})

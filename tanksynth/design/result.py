@@ -1,4 +1,4 @@
-"""Design results and the registry of spec design methods."""
+"""Design results and the design adapter of a spec method."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ import numpy as np
 
 from tanksynth.errors import SpecError
 
-__all__ = ["DesignResult", "DesignMethod", "METHODS", "register"]
+__all__ = ["DesignResult", "DesignMethod"]
 
 
 @dataclass(frozen=True)
@@ -88,15 +88,3 @@ class DesignMethod:
 def _type_name(kind) -> str:
     kinds = kind if isinstance(kind, tuple) else (kind,)
     return " or ".join(k.__name__ for k in kinds)
-
-
-#: Registered design methods by spec name.
-METHODS: dict[str, DesignMethod] = {}
-
-
-def register(method: DesignMethod) -> DesignMethod:
-    """Add a method to `METHODS` (one name, one method)."""
-    if method.name in METHODS:
-        raise ValueError(f"method {method.name!r} registered twice")
-    METHODS[method.name] = method
-    return method

@@ -12,7 +12,7 @@ from __future__ import annotations
 import dataclasses
 import re
 from dataclasses import dataclass, field
-from typing import Any, Mapping, Sequence
+from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
 
@@ -24,7 +24,7 @@ from tanksynth.reports.latex import (Tex, escape_latex, expression_latex, format
 from tanksynth.reports.paper import PaperComparison
 
 __all__ = ["DesignView", "build_context", "design_view", "diagnostic_rows", "fragment_lines",
-           "trace_figures", "METHOD_PROBLEMS"]
+           "trace_figures"]
 
 _MAX_DIAG_ROWS = 30
 _MAX_TEXT = 400
@@ -147,109 +147,6 @@ def _find(diag: Mapping[str, Any], key: str, max_depth: int = 3) -> list[tuple[s
 
 
 # ------------------------------------------------------------ method problems
-def _problem_linearize(diag: Mapping[str, Any]) -> Tex:
-    return Tex(r"First-order Taylor expansion of the smooth model at the operating point, "
-               r"$F = \partial f/\partial x$, $B = \partial f/\partial u$, $C = \partial h/\partial x$ "
-               r"at $(x_0, u_0)$ with the equilibrium input $u_0$ computed from the model; "
-               r"exact zero-order-hold discretisation $A_d = e^{F t_s}$, "
-               r"$B_d = \int_0^{t_s} e^{F\tau}B\,d\tau$.")
-
-
-def _problem_pole_placement(diag: Mapping[str, Any]) -> Tex:
-    pl = diag.get("placement") or {}
-    kind = pl.get("kind", "state_feedback")
-    if str(kind).startswith("observer"):
-        what = r"the eigenvalues of the error dynamics $A - LC$"
-    else:
-        what = r"the closed-loop eigenvalues of $A - BK$ (control law $u = -Kx$)"
-    text = rf"Place {what} exactly"
-    if "requested" in pl:
-        try:
-            text += r" at $" + format_eigenvalues(pl["requested"], 4) + "$"
-        except (TypeError, ValueError):
-            pass
-    method = pl.get("method")
-    if method:
-        text += r" with \texttt{" + escape_latex(method) + "}"
-    text += "."
-    integ = diag.get("integral")
-    if isinstance(integ, Mapping):
-        tracked = ", ".join(str(t) for t in integ.get("tracked", []))
-        text += (r" Integral action: the model is augmented with $z(k+1) = z(k) + t_s(y_r - C_1 x)$"
-                 r" for the tracked outputs " + escape_latex(tracked)
-                 + r", and $K = [K_1\;K_2]$ acts on $(x, z)$.")
-    return Tex(text)
-
-
-def _problem_lmi_placement(diag: Mapping[str, Any]) -> Tex:
-    lmi = diag.get("lmi") or {}
-    region = (lmi.get("region") or {}).get("description")
-    kind = lmi.get("kind", "state_feedback")
-    if str(kind).startswith("observer"):
-        body = (r"Find $X \succ 0$ and $Y$ with $L_D \otimes X + M_D \otimes (A^\top X - C^\top Y) "
-                r"+ M_D^\top \otimes (A^\top X - C^\top Y)^\top \prec 0$ (dual pair), "
-                r"$L = (Y X^{-1})^\top$: every eigenvalue of $A - LC$ lies in the LMI region $D$")
-    else:
-        body = (r"Find $X \succ 0$ and $Y$ with $L_D \otimes X + M_D \otimes (AX - BY) "
-                r"+ M_D^\top \otimes (AX - BY)^\top \prec 0$, $K = Y X^{-1}$: every eigenvalue of "
-                r"$A - BK$ lies in the LMI region $D = \{z : L_D + M_D z + M_D^\top \bar z \prec 0\}$")
-    text = body + (r" (Chilali--Gahinet)")
-    if region:
-        text += r"; here $D$: " + escape_latex(region)
-    dom = lmi.get("domain") or diag.get("time_domain")
-    if dom:
-        text += f" ({escape_latex(dom)} time)"
-    margin = lmi.get("margin")
-    if _is_number(margin):
-        text += rf". The strict inequality is imposed with margin ${format_number(margin)}$ after scaling"
-    text += "."
-    if isinstance(diag.get("integral"), Mapping):
-        text += r" The plant is augmented with integral action, $K = [K_1\;K_2]$."
-    return Tex(text)
-
-
-def _problem_ts_observer(diag: Mapping[str, Any]) -> Tex:
-    lmi = diag.get("lmi") or {}
-    text = (r"Observer $\dot{\hat x} = A_0\hat x + \Delta(\hat x, u) + L(y - C\hat x)$ for the "
-            r"Takagi--Sugeno model of the plant; the error obeys $\dot e = (A_0 - LC)e + \Delta$ "
-            r"with $\|\Delta\| \le \psi\|e\|$. Find $P \succ 0$, $Q \succ 0$, $K$ with "
-            r"\[\begin{bmatrix} A_0^\top P + P A_0 - C^\top K^\top - K C + \psi^2 Q & P \\ "
-            r"P & -Q \end{bmatrix} \prec 0, \qquad L = P^{-1}K\]"
-            r"(seed 001 LMI (28)).")
-    psi = lmi.get("psi")
-    if _is_number(psi):
-        text += rf" Here $\psi = {format_number(psi)}$"
-        src = diag.get("psi_source")
-        if src:
-            text += " (" + escape_latex(src) + ")"
-        text += "."
-    if lmi.get("Q_form"):
-        text += " " + escape_latex(lmi["Q_form"]) + "."
-    ts = diag.get("ts_model") or {}
-    if isinstance(ts.get("r"), int):
-        text += f" The TS model has {ts['r']} vertices"
-        dom = (ts.get("domain") or {}).get("description")
-        if dom:
-            text += " on the domain " + escape_latex(dom)
-        text += "."
-    return Tex(text)
-
-
-def _problem_canonical_observer(diag: Mapping[str, Any]) -> Tex:
-    return Tex(r"Observer through the observer canonical form (seed 004 eqs.~(25)--(29)): "
-               r"$\Delta = \mathcal{Q}_O^{-1}\bar{\mathcal{Q}}_O$, the canonical gain $\Psi_o$ "
-               r"matches $\det(sI - \Gamma)$ with the desired polynomial, $L = \Delta\Psi_o$, in "
-               r"exact arithmetic; cross-checked against \texttt{place}.")
-
-
-#: Problem statements of the design methods the report knows (others are shown generically).
-METHOD_PROBLEMS = {
-    "linearize": _problem_linearize,
-    "pole_placement": _problem_pole_placement,
-    "lmi_placement": _problem_lmi_placement,
-    "ts_observer": _problem_ts_observer,
-    "canonical_observer": _problem_canonical_observer,
-}
 
 
 # ------------------------------------------------------------------ designs
@@ -358,11 +255,13 @@ def _verification_view(ver: Any) -> dict | None:
     }
 
 
-def design_view(art: Mapping[str, Any], figure: FigureFile | None) -> DesignView:
-    """Build the `DesignView` of one artefact (any method)."""
+def design_view(art: Mapping[str, Any], figure: FigureFile | None,
+                statements: Mapping[str, Callable[[Mapping[str, Any]], Tex]]) -> DesignView:
+    """Build the `DesignView` of one artefact (any method); ``statements`` maps a method to its
+    problem statement (`tanksynth.methods.STATEMENTS`)."""
     diag = art.get("diagnostics") or {}
     method = str(art.get("method", ""))
-    problem_fn = METHOD_PROBLEMS.get(method)
+    problem_fn = statements.get(method)
     problem = problem_fn(diag) if problem_fn else Tex(
         r"Method \texttt{" + escape_latex(method) + r"}: the report has no problem statement for "
         r"this method yet; its diagnostics are listed below.")
@@ -714,7 +613,8 @@ def _code_line(line: str) -> Tex:
 
 def build_context(inputs: ReportInputs, figures: Mapping[str, FigureFile],
                   paper: Sequence[PaperComparison],
-                  traces: Mapping[str, TraceFigure] | None = None) -> dict[str, Any]:
+                  traces: Mapping[str, TraceFigure] | None = None, *,
+                  statements: Mapping[str, Callable[[Mapping[str, Any]], Tex]]) -> dict[str, Any]:
     """Everything the templates need, formatted (no file is written).
 
     Parameters
@@ -725,12 +625,14 @@ def build_context(inputs: ReportInputs, figures: Mapping[str, FigureFile],
     paper : sequence of PaperComparison
     traces : mapping of artefact name to TraceFigure, optional
         Time-domain figures drawn by `trace_figures` (none when omitted).
+    statements : mapping of method name to callable
+        Problem statement of each method (`tanksynth.methods.STATEMENTS`).
     """
     rec = inputs.plant
     title = rec.get("title") or f"Design report: {rec.get('plant', {}).get('name', '')}"
     opv = _operating_view(inputs)
     lin = [_linearization_view(a, opv) for a in inputs.by_method("linearize")]
-    designs = [design_view(a, figures.get(str(a.get("name")))) for a in inputs.artefacts]
+    designs = [design_view(a, figures.get(str(a.get("name"))), statements) for a in inputs.artefacts]
     traces = traces or {}
     designs = [dataclasses.replace(d, trace_figure=traces[d.name], trace_caption=escape_latex(
         traces[d.name].caption)) if d.name in traces else d for d in designs]

@@ -9,7 +9,7 @@ imaginary axis.
 
 Time-domain figures (`time_domain_figure`) draw the trace that ``tanksynth
 verify`` stores beside each artefact (``DIR/<name>.traces.npz``, see
-`tanksynth.verify.verdicts.record_trace`): levels with their references,
+`tanksynth.verify.traces.record_trace`): levels with their references,
 estimates against the true states and the estimation error when the
 artefact is an estimator, and the inputs. An artefact without a trace file
 simply has no time-domain figure.
@@ -262,7 +262,7 @@ def time_domain_figure(artefact: Mapping[str, Any], artefact_dir: Path, director
     TraceFigure or None
         None when the artefact has no (readable) trace file.
     """
-    from tanksynth.verify.verdicts import read_trace, trace_path
+    from tanksynth.artefacts.traces import read_trace, trace_path
 
     name = str(artefact.get("name", ""))
     trace = read_trace(trace_path(Path(artefact_dir) / f"{name}.json", name))

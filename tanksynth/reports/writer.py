@@ -17,12 +17,13 @@ import tempfile
 import time
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any, Callable, Mapping
 
 from tanksynth.errors import ReportError
 from tanksynth.reports.context import build_context, trace_figures
 from tanksynth.reports.figures import FigureFile, TraceFigure, pole_map
 from tanksynth.reports.inputs import ReportInputs, read_report_inputs
-from tanksynth.reports.latex import compile_pdf, environment, pdf_page_count
+from tanksynth.reports.latex import Tex, compile_pdf, environment, pdf_page_count
 from tanksynth.reports.paper import PaperComparison, compare_with_papers
 
 __all__ = ["ReportResult", "render_report", "write_report", "FIGURE_DIR"]
@@ -82,7 +83,8 @@ def _figure_stem(index: int, name: str) -> str:
 
 def render_report(inputs: ReportInputs, figures: dict[str, FigureFile] | None = None,
                   comparisons: tuple[PaperComparison, ...] | None = None,
-                  traces: dict[str, TraceFigure] | None = None) -> str:
+                  traces: dict[str, TraceFigure] | None = None, *,
+                  statements: Mapping[str, Callable[[Mapping[str, Any]], Tex]]) -> str:
     """The LaTeX source of the report (no file is written).
 
     Parameters
@@ -94,14 +96,17 @@ def render_report(inputs: ReportInputs, figures: dict[str, FigureFile] | None = 
         Computed with `compare_with_papers` when omitted.
     traces : dict of artefact name to TraceFigure, optional
         Time-domain figures to include (none when omitted).
+    statements : mapping of method name to callable
+        Problem statement of each design method (`tanksynth.methods.STATEMENTS`).
     """
     if comparisons is None:
         comparisons = compare_with_papers(inputs)
-    ctx = build_context(inputs, figures or {}, comparisons, traces)
+    ctx = build_context(inputs, figures or {}, comparisons, traces, statements=statements)
     return environment().get_template("report.tex.j2").render(**ctx)
 
 
-def write_report(directory: str | Path, pdf: bool = False, timeout: float = 180.0) -> ReportResult:
+def write_report(directory: str | Path, pdf: bool = False, timeout: float = 180.0, *,
+                 statements: Mapping[str, Callable[[Mapping[str, Any]], Tex]]) -> ReportResult:
     """Write ``DIR/report.tex`` and its figures; with ``pdf`` also ``DIR/report.pdf``.
 
     Parameters
@@ -113,6 +118,8 @@ def write_report(directory: str | Path, pdf: bool = False, timeout: float = 180.
         Compile with latexmk/pdflatex.
     timeout : float
         Seconds allowed for the LaTeX build.
+    statements : mapping of method name to callable
+        Problem statement of each design method (`tanksynth.methods.STATEMENTS`).
 
     Returns
     -------
@@ -142,7 +149,7 @@ def write_report(directory: str | Path, pdf: bool = False, timeout: float = 180.
             if stale.name not in keep:
                 stale.unlink(missing_ok=True)
     traces = trace_figures(inputs)
-    tex = render_report(inputs, figures, comparisons, traces)
+    tex = render_report(inputs, figures, comparisons, traces, statements=statements)
     tex_path = d / "report.tex"
     pdf_path = d / "report.pdf"
     log_path = d / "report.log"

@@ -74,12 +74,17 @@ class Spec:
     text: str = field(default="", repr=False)
 
 
-def load_spec(path: str | Path) -> Spec:
+def load_spec(path: str | Path, *, methods: Mapping[str, Any] | None = None) -> Spec:
     """Read and validate a TOML spec file.
 
     Parameters
     ----------
     path : str or Path
+    methods : mapping of method name to design adapter, optional
+        The adapters the ``[[design]]`` options are validated against
+        (`tanksynth.methods.ADAPTERS`; `tanksynth.load_spec` passes them).
+        Without it the method names and options are not checked: only the
+        plant, operating point, sampling and design names are.
 
     Raises
     ------
@@ -91,11 +96,12 @@ def load_spec(path: str | Path) -> Spec:
         data = path.read_bytes()
     except OSError as exc:
         raise SpecError(f"cannot read spec: {exc.strerror}", source=str(path)) from None
-    return parse_spec_text(data, source=str(path))
+    return parse_spec_text(data, source=str(path), methods=methods)
 
 
-def parse_spec_text(data: bytes | str, source: str | None = None) -> Spec:
-    """Validate spec text (TOML) and build the `Spec`."""
+def parse_spec_text(data: bytes | str, source: str | None = None, *,
+                    methods: Mapping[str, Any] | None = None) -> Spec:
+    """Validate spec text (TOML) and build the `Spec` (``methods`` as in `load_spec`)."""
     raw = data.encode("utf-8") if isinstance(data, str) else data
     try:
         text = raw.decode("utf-8")
@@ -105,7 +111,7 @@ def parse_spec_text(data: bytes | str, source: str | None = None) -> Spec:
         table = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise SpecError(f"invalid TOML: {exc}", source=source) from None
-    spec = parse_spec(table, source=source, sha256=hashlib.sha256(raw).hexdigest())
+    spec = parse_spec(table, source=source, sha256=hashlib.sha256(raw).hexdigest(), methods=methods)
     return replace(spec, text=text)
 
 
@@ -207,7 +213,8 @@ def _build_plant(table: Mapping[str, Any]) -> Plant:
     return plant
 
 
-def parse_spec(table: Mapping[str, Any], source: str | None = None, sha256: str = "") -> Spec:
+def parse_spec(table: Mapping[str, Any], source: str | None = None, sha256: str = "", *,
+               methods: Mapping[str, Any] | None = None) -> Spec:
     """Validate a parsed TOML table and build the `Spec`.
 
     Parameters
@@ -218,18 +225,19 @@ def parse_spec(table: Mapping[str, Any], source: str | None = None, sha256: str 
         File name for error messages.
     sha256 : str
         Hash of the spec text.
+    methods : mapping of method name to design adapter, optional
+        See `load_spec`.
     """
     try:
-        return _parse(table, source, sha256)
+        return _parse(table, source, sha256, methods)
     except SpecError as exc:
         if exc.source is None and source is not None:
             raise type(exc)(exc.detail, key=exc.key, source=source) from None
         raise
 
 
-def _parse(table: Mapping[str, Any], source: str | None, sha256: str) -> Spec:
-    from tanksynth.design import METHODS
-
+def _parse(table: Mapping[str, Any], source: str | None, sha256: str,
+           methods: Mapping[str, Any] | None) -> Spec:
     if not isinstance(table, Mapping):
         raise SpecError("expected a TOML document (table)")
     unknown = [k for k in table if k not in _TOP_KEYS]
@@ -277,10 +285,11 @@ def _parse(table: Mapping[str, Any], source: str | None, sha256: str) -> Spec:
             raise SpecError(f"duplicate design name {name!r}", key=f"{key}.name")
         seen.add(name)
         method = entry.get("method")
-        if not isinstance(method, str) or method not in METHODS:
-            raise SpecError(f"unknown method {method!r}; expected one of: " + ", ".join(METHODS),
+        if not isinstance(method, str) or (methods is not None and method not in methods):
+            raise SpecError(f"unknown method {method!r}; expected one of: " + ", ".join(methods or ()),
                             key=f"{key}.method")
         options = {k: v for k, v in entry.items() if k not in ("name", "method")}
-        METHODS[method].validate(options, key, plant, ts)
+        if methods is not None:
+            methods[method].validate(options, key, plant, ts)
         designs.append(DesignSpec(name, method, options, key))
     return Spec(plant, x0, given_u0, ts, tuple(designs), title, source, sha256, table)

@@ -1,12 +1,14 @@
-"""Verification stage: one verdict per design method, the runner, Dask campaigns."""
+"""Verification stage: one verdict module per method family, the runner, Dask campaigns.
+
+A verdict never imports the design stage: it re-derives what it checks from
+the artefact with its own numerics and runs the estimator or law the artefact
+ships (through `tanksynth.runtime`) on the nonlinear plant (`tanksynth.sim`).
+Which verdict belongs to which method is the method table's business
+(`tanksynth.methods`).
+"""
 
 from __future__ import annotations
 
-from tanksynth.verify.campaign import (CLOSED_LOOPS, CampaignTable, CampaignTask, campaign_tasks,
-                                       run_campaign, seed002_table)
-from tanksynth.verify.verdicts import VERDICTS, Verdict, register_verdict, verify_directory
+from tanksynth.verify.runner import Verdict, VerdictFn, load_directory, verify_directory
 
-__all__ = [
-    "VERDICTS", "Verdict", "register_verdict", "verify_directory",
-    "CLOSED_LOOPS", "CampaignTable", "CampaignTask", "campaign_tasks", "run_campaign", "seed002_table",
-]
+__all__ = ["Verdict", "VerdictFn", "load_directory", "verify_directory"]

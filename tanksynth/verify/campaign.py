@@ -2,7 +2,8 @@
 
 A campaign is runs x scenarios x artefacts. It is cut into tasks (one
 artefact, one scenario, a chunk of runs); each task rebuilds the plant from
-the spec text, builds the artefact's closed loop (`CLOSED_LOOPS`), runs the
+the spec text, builds the artefact's closed loop (its method's builder in
+`tanksynth.methods.CLOSED_LOOPS`), runs the
 scenario for its runs in one batch and returns tidy rows. Tasks go to a
 ``dask.distributed`` cluster: a `LocalCluster` started for the campaign by
 default, or an existing cluster given its scheduler address (the same code
@@ -50,8 +51,11 @@ from tanksynth.sim.simulate import BatchEstimator, ConstantInput, run_seeds
 
 __all__ = [
     "ClosedLoop",
-    "CLOSED_LOOPS",
-    "register_closed_loop",
+    "linearize_loop",
+    "integral_loop",
+    "feedback_linearization_loop",
+    "integral_tracking_loop",
+    "inverse_dynamics_loop",
     "closed_loop_for",
     "IntegralStateFeedback",
     "InverseDynamicsLaw",
@@ -148,7 +152,7 @@ class InverseDynamicsLaw:
     implementation: ``u = G_c(x_hat)^-1 (c (r - x_hat_c) - f0_c(x_hat))``,
     for the hybrid three-tank ``Q1in = A c1 (h1sp - h1) + Q1 + Q3 + Q5``,
     nominal parameters, saturated to the pumps' range), evaluated on the M
-    runs at once by `tanksynth.verify.method_verdicts.CasadiControlLaw`.
+    runs at once by `tanksynth.verify.common.CasadiControlLaw`.
     An artefact's serialised law runs the same way
     (``CasadiControlLaw(law_from_document(doc["diagnostics"]["law"]))``).
 
@@ -172,7 +176,7 @@ class InverseDynamicsLaw:
 
     def __post_init__(self) -> None:
         from tanksynth.runtime.laws import inverse_dynamics_law
-        from tanksynth.verify.method_verdicts import CasadiControlLaw
+        from tanksynth.verify.common import CasadiControlLaw
 
         names = [s.name for s in self.plant.states]
         law = inverse_dynamics_law(self.plant, np.asarray(self.gains, dtype=float),
@@ -205,7 +209,7 @@ class ArtefactLaw:
     """
 
     def __init__(self, function: Any, signature: str = ""):
-        from tanksynth.verify.method_verdicts import CasadiControlLaw
+        from tanksynth.verify.common import CasadiControlLaw
 
         self.function = function
         self.signature = signature
@@ -243,7 +247,7 @@ class ArtefactIntegralLaw(ArtefactLaw):
     """
 
     def __init__(self, function: Any, signature: str = ""):
-        from tanksynth.verify.method_verdicts import CasadiIntegralLaw
+        from tanksynth.verify.common import CasadiIntegralLaw
 
         self.function = function
         self.signature = signature
@@ -316,16 +320,18 @@ def _operating_point(spec: Any, doc: Mapping[str, Any]) -> tuple[np.ndarray, np.
     return np.asarray(spec.x0, float), eq.u0
 
 
-def _linearize_loop(doc: Mapping[str, Any], spec: Any) -> ClosedLoop:
+def linearize_loop(doc: Mapping[str, Any], spec: Any) -> ClosedLoop:
+    """Open loop at the operating point (the model artefact has no controller)."""
     x0, u0 = _operating_point(spec, doc)
     return ClosedLoop(ConstantInput(tuple(u0)), None, x0, u0, _tracked(spec, doc),
                       "open loop at the equilibrium input u0 (the artefact has no controller)")
 
 
-def _integral_loop(doc: Mapping[str, Any], spec: Any) -> ClosedLoop:
+def integral_loop(doc: Mapping[str, Any], spec: Any) -> ClosedLoop:
+    """State feedback (with integral action when the artefact has K2) of a placement artefact, true state."""
     gains = doc["gains"]
     if not {"K1", "K2"} <= set(gains):
-        return _linearize_loop(doc, spec)
+        return linearize_loop(doc, spec)
     x0, u0 = _operating_point(spec, doc)
     tracked = _tracked(spec, doc)
     n = spec.plant.n
@@ -349,42 +355,32 @@ def _serialized_loop(doc: Mapping[str, Any], spec: Any, law: ArtefactLaw, keys: 
                                                   "true state")
 
 
-def _feedback_linearization_loop(doc: Mapping[str, Any], spec: Any) -> ClosedLoop:
+def feedback_linearization_loop(doc: Mapping[str, Any], spec: Any) -> ClosedLoop:
+    """The serialised feedback-linearising law of the artefact, true state."""
     return _serialized_loop(doc, spec, ArtefactLaw.from_document(doc), ("outputs", "tracked"),
                             "input-output feedback linearisation")
 
 
-def _integral_tracking_loop(doc: Mapping[str, Any], spec: Any) -> ClosedLoop:
+def integral_tracking_loop(doc: Mapping[str, Any], spec: Any) -> ClosedLoop:
+    """The serialised integral-tracking law with anti-windup, integrator state per run."""
     return _serialized_loop(doc, spec, ArtefactIntegralLaw(*_law_of(doc)), ("tracked", "outputs"),
                             "state feedback with integral action and anti-windup")
 
 
-def _inverse_dynamics_loop(doc: Mapping[str, Any], spec: Any) -> ClosedLoop:
+def inverse_dynamics_loop(doc: Mapping[str, Any], spec: Any) -> ClosedLoop:
+    """The serialised inverse-dynamics law, true state fed back."""
     return _serialized_loop(doc, spec, ArtefactLaw.from_document(doc), ("controlled", "tracked"),
                             "inverse-dynamics control (seed 002 eq. 46-47)")
 
 
-#: Closed-loop builders by design method: ``builder(doc, spec) -> ClosedLoop``.
-CLOSED_LOOPS: dict[str, Callable[[Mapping[str, Any], Any], ClosedLoop]] = {
-    "linearize": _linearize_loop,
-    "pole_placement": _integral_loop,
-    "lmi_placement": _integral_loop,
-    "feedback_linearization": _feedback_linearization_loop,
-    "integral_tracking": _integral_tracking_loop,
-    "inverse_dynamics": _inverse_dynamics_loop,
-}
+def closed_loop_for(doc: Mapping[str, Any], spec: Any,
+                    builder: Callable[[Mapping[str, Any], Any], ClosedLoop] | None) -> ClosedLoop:
+    """The closed loop of an artefact from its method's builder (`tanksynth.methods.CLOSED_LOOPS`).
 
-
-def register_closed_loop(method: str, builder: Callable[[Mapping[str, Any], Any], ClosedLoop]) -> None:
-    """Register how a method's artefact is simulated in closed loop (one per method)."""
-    if method in CLOSED_LOOPS:
-        raise ValueError(f"closed loop for method {method!r} registered twice")
-    CLOSED_LOOPS[method] = builder
-
-
-def closed_loop_for(doc: Mapping[str, Any], spec: Any) -> ClosedLoop:
-    """The closed loop of an artefact; open loop at the operating point if its method has none."""
-    return CLOSED_LOOPS.get(str(doc["method"]), _linearize_loop)(doc, spec)
+    Without a builder (the method has nothing to run in closed loop) the
+    plant runs open loop at the operating point.
+    """
+    return (builder or linearize_loop)(doc, spec)
 
 
 # ------------------------------------------------------------------------- tasks
@@ -418,6 +414,7 @@ class CampaignTask:
     runs: tuple[int, ...]
     seeds: tuple[int, ...]
     substeps: int = 4
+    loop: Callable[[Mapping[str, Any], Any], ClosedLoop] | None = None
 
 
 @lru_cache(maxsize=8)
@@ -433,7 +430,7 @@ def run_task(task: CampaignTask) -> list[dict]:
     plant = spec.plant
     doc = dict(task.doc)
     doc["gains"] = {k: np.asarray(v, dtype=float) for k, v in doc["gains"].items()}
-    loop = closed_loop_for(doc, spec)
+    loop = closed_loop_for(doc, spec, task.loop)
     sc = scenario(task.scenario)
     ts = float(spec.ts) if spec.ts else 1.0
     setup = sc.setup(plant, loop.x_op, loop.u_op, loop.tracked, ts=ts)
@@ -453,7 +450,9 @@ def run_task(task: CampaignTask) -> list[dict]:
 
 
 def campaign_tasks(spec_text: str, artefacts: Sequence[Mapping[str, Any]], scenarios: Sequence[str],
-                   runs: int, seed: int = 0, chunk: int = 16, substeps: int = 4) -> list[CampaignTask]:
+                   runs: int, seed: int = 0, chunk: int = 16, substeps: int = 4, *,
+                   loops: Mapping[str, Callable[[Mapping[str, Any], Any], ClosedLoop]]
+                   ) -> list[CampaignTask]:
     """Cut a campaign into tasks.
 
     Parameters
@@ -472,6 +471,8 @@ def campaign_tasks(spec_text: str, artefacts: Sequence[Mapping[str, Any]], scena
         Runs per task (one simulation batch).
     substeps : int
         RK4 steps per sampling period.
+    loops : mapping of method name to builder
+        Closed-loop builder of each controller method (`tanksynth.methods.CLOSED_LOOPS`).
     """
     if runs < 1 or chunk < 1:
         raise SpecError(f"runs and chunk must be >= 1, got {runs}, {chunk}", key="campaign")
@@ -487,7 +488,8 @@ def campaign_tasks(spec_text: str, artefacts: Sequence[Mapping[str, Any]], scena
                 idx = tuple(range(start, min(start + chunk, runs)))
                 tasks.append(CampaignTask(f"{doc['name']}|{name}|{start}", str(doc["name"]),
                                           str(doc["method"]), spec_text, plain, name, idx,
-                                          tuple(int(seeds[i]) for i in idx), substeps))
+                                          tuple(int(seeds[i]) for i in idx), substeps,
+                                          loops.get(str(doc["method"]))))
     return tasks
 
 

@@ -10,7 +10,7 @@ import scipy.linalg as sla
 from scipy.integrate import quad_vec
 
 from tanksynth.artefacts import read_artefact, write_artefact
-from tanksynth.design import METHODS
+from tanksynth.methods import METHODS
 from tanksynth.design.decentralized import (DiscreteModel, KalmanStep, centralized_gain,
                                             covariance_recursion, discretize_noise,
                                             equicorrelated_intensity, finite_horizon_gains,
@@ -18,7 +18,7 @@ from tanksynth.design.decentralized import (DiscreteModel, KalmanStep, centraliz
                                             own_tank_pattern, window_models)
 from tanksynth.errors import DimensionError, InfeasibleDesign, RegionError, SpecError
 from tanksynth.plants import tank_network, three_tank
-from tanksynth.spec import parse_spec
+from tanksynth.methods import parse_spec
 
 ROUTES = ("iterative", "casadi")
 
@@ -421,7 +421,7 @@ def test_spec_method_artefact(tmp_path, algorithm):
     spec = _spec({"algorithm": algorithm, "window": 12, "input": [6.0] * 4,
                   "process_noise_correlation": 0.5, "measurement_noise": 4.0})
     design = spec.designs[0]
-    result = METHODS["decentralized_kalman"].run(spec, design)
+    result = METHODS["decentralized_kalman"].design(spec, design)
     d = result.diagnostics
     assert [f"K_{j}" for j in range(12)] == [k for k in result.gains if k.startswith("K_")]
     for j in range(12):
@@ -443,7 +443,7 @@ def test_spec_method_explicit_pattern_and_matrices():
     spec = _spec({"algorithm": "iterative", "window": 6, "E": E.astype(int).tolist(),
                   "measurement_noise": (2.0 * np.eye(8)).tolist(),
                   "initial_covariance": (5.0 * np.eye(8)).tolist()})
-    result = METHODS["decentralized_kalman"].run(spec, spec.designs[0])
+    result = METHODS["decentralized_kalman"].design(spec, spec.designs[0])
     assert result.gains["K_0"][4, 0] != 0.0
     assert result.diagnostics["free_entries"] == 9
 
@@ -466,7 +466,7 @@ def test_spec_method_explicit_pattern_and_matrices():
 def test_spec_method_bad_options(design, key):
     spec = _spec(design)
     with pytest.raises(SpecError) as exc:
-        METHODS["decentralized_kalman"].run(spec, spec.designs[0])
+        METHODS["decentralized_kalman"].design(spec, spec.designs[0])
     assert exc.value.key == key
 
 
@@ -485,5 +485,5 @@ def test_spec_requires_process_noise_and_own_measurements():
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         with pytest.raises(SpecError, match="h3, h4") as exc:
-            METHODS["decentralized_kalman"].run(spec, spec.designs[0])
+            METHODS["decentralized_kalman"].design(spec, spec.designs[0])
     assert exc.value.key == "design[0].E"

@@ -15,7 +15,7 @@ from tanksynth.design.feedback_linearization import (decoupling_analysis, feedba
 from tanksynth.errors import DimensionError, InfeasibleDesign, SpecError
 from tanksynth.plants import three_tank
 from tanksynth.plants.custom import custom_plant
-from tanksynth.spec import load_spec
+from tanksynth.methods import load_spec
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
 

@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 import sympy as sp
 
-from tanksynth.design import METHODS, placement
+from tanksynth.design import placement
+from tanksynth.methods import METHODS
 from tanksynth.analysis.linearize import equilibrium_input, linearize
 from tanksynth.analysis.lmi_region import LMIRegion, disk, half_plane, intersect, sector
 from tanksynth.design.placement import (canonical_observer, integral_augmentation, lmi_observer,
@@ -16,7 +17,7 @@ from tanksynth.design.placement import (canonical_observer, integral_augmentatio
                                         pole_errors)
 from tanksynth.errors import (DimensionError, InfeasibleDesign, SpecError, UncontrollableError,
                               UnobservableError)
-from tanksynth.spec import load_spec, parse_spec_text
+from tanksynth.methods import load_spec, parse_spec_text
 
 ROOT = Path(__file__).resolve().parents[2]
 SEED000 = ROOT / "examples" / "seed000_pole_placement.toml"
@@ -93,7 +94,7 @@ def test_observer_in_a_discrete_disk():
 def test_seed000_integral_lmi_disk():
     spec = load_spec(SEED000)
     design = next(d for d in spec.designs if d.method == "lmi_placement")
-    res = METHODS[design.method].run(spec, design)
+    res = METHODS[design.method].design(spec, design)
     A = np.array(res.diagnostics["integral"]["augmented_A"])
     lin = linearize(spec.plant, spec.x0, equilibrium_input(spec.plant, spec.x0).u0, ts=spec.ts)
     B = np.vstack([lin.Bd, np.zeros((2, 2))])
@@ -181,7 +182,7 @@ def test_integral_augmentation_structure():
 def test_seed000_poles_and_gain_beside_the_paper():
     spec = load_spec(SEED000)
     design = next(d for d in spec.designs if d.method == "pole_placement")
-    res = METHODS[design.method].run(spec, design)
+    res = METHODS[design.method].design(spec, design)
     place = res.diagnostics["placement"]
     assert place["max_pole_error"] < 1e-9
     achieved = sorted(z[0] for z in place["achieved"])
@@ -245,7 +246,7 @@ def test_seed004_through_a_spec():
              '[0.0, 1.5, -41.5]]\n')
     spec = parse_spec_text(text)
     design = spec.designs[-1]
-    res = METHODS["canonical_observer"].run(spec, design)
+    res = METHODS["canonical_observer"].design(spec, design)
     d = res.diagnostics
     assert d["canonical_form"]["Psi"] == ["855", "509/3", "41"]
     assert d["max_pole_error"] < 1e-9
@@ -272,7 +273,7 @@ def test_spec_options_are_validated():
     def run(extra):
         spec = parse_spec_text(base + "[[design]]\nname = \"x\"\n" + extra)
         d = spec.designs[0]
-        return METHODS[d.method].run(spec, d)
+        return METHODS[d.method].design(spec, d)
 
     with pytest.raises(SpecError, match=r"design\[0\]\.poles"):
         run('method = "pole_placement"\npoles = ["a", 1.0, 2.0]\n')

@@ -9,8 +9,8 @@ from pathlib import Path
 import pytest
 
 from tanksynth.artefacts import write_artefact, write_plant_record
-from tanksynth.design import METHODS
-from tanksynth.spec import parse_spec_text
+from tanksynth.methods import METHODS
+from tanksynth.methods import parse_spec_text
 
 HAVE_LATEX = all(shutil.which(t) for t in ("pdflatex", "pdftotext", "pdftoppm"))
 needs_latex = pytest.mark.skipif(not HAVE_LATEX, reason="pdflatex/pdftotext/pdftoppm not installed "
@@ -28,7 +28,7 @@ def design_dir(directory: Path, spec_text: str) -> Path:
     spec = parse_spec_text(spec_text.encode(), source="<test>")
     write_plant_record(spec, directory)
     for design in spec.designs:
-        write_artefact(METHODS[design.method].run(spec, design), directory, spec.sha256)
+        write_artefact(METHODS[design.method].design(spec, design), directory, spec.sha256)
     return directory
 
 

@@ -11,7 +11,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from reports_helpers import copy_dir, edit_json, needs_latex
-from tanksynth.reports import write_report
+from tanksynth.methods import write_report
 from tanksynth.reports.latex import escape_latex, format_number, format_unit
 
 HOSTILE = r"Ti_tle 100% & #1 $x$ {a} ~b ^c \input{/etc/passwd} \\ -- <|> `q` \"µ—é☃"

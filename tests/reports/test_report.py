@@ -12,7 +12,8 @@ from tanksynth.artefacts import write_artefact
 from tanksynth.cli import main
 from tanksynth.design.result import DesignResult
 from tanksynth.errors import ArtefactError, ReportError
-from tanksynth.reports import read_report_inputs, render_report, write_report
+from tanksynth.methods import STATEMENTS, write_report
+from tanksynth.reports import read_report_inputs, render_report
 from tanksynth.reports.figures import eigenvalue_sets
 from tanksynth.reports.latex import gain_latex, split_equation, visual_length
 
@@ -69,7 +70,7 @@ def test_any_artefact_renders_large_gains_summarised(demo_dir, tmp_path):
                                       "history": list(range(500))}},
                           {})
     write_artefact(result, d, "0" * 64)
-    tex = render_report(read_report_inputs(d))
+    tex = render_report(read_report_inputs(d), statements=STATEMENTS)
     assert "some\\_future\\_method" in tex
     assert tex.count("too large to print in full") == 2
     assert "64 \\times 64" in tex and "40 \\times 3 \\times 2" in tex

@@ -11,7 +11,7 @@ import numpy as np
 from tanksynth.artefacts import read_artefact
 from tanksynth.cli import main
 from tanksynth.reports.figures import time_domain_figure
-from tanksynth.verify.verdicts import read_trace, trace_path
+from tanksynth.artefacts.traces import read_trace, trace_path
 
 from reports_helpers import needs_latex
 
@@ -81,7 +81,8 @@ def test_missing_trace_means_no_figure(tmp_path):
 
 
 def test_trace_decimated(tmp_path):
-    from tanksynth.verify.verdicts import TRACE_MAX_SAMPLES, _TRACE, record_trace, write_trace
+    from tanksynth.artefacts.traces import TRACE_MAX_SAMPLES, write_trace
+    from tanksynth.verify.traces import _TRACE, record_trace
     from tanksynth.plants import three_tank
     from tanksynth.sim.simulate import run_seeds, simulate
 

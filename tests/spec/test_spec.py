@@ -14,7 +14,7 @@ from hypothesis import strategies as st
 
 from tanksynth.analysis.linearize import equilibrium_input, linearize
 from tanksynth.errors import ParseError, RegionError, SpecError
-from tanksynth.spec import load_spec, parse_spec, parse_spec_text
+from tanksynth.methods import load_spec, parse_spec, parse_spec_text
 
 ROOT = Path(__file__).resolve().parents[2]
 SEED000 = ROOT / "examples" / "seed000_three_tank.toml"

@@ -10,6 +10,7 @@ import pytest
 
 from tanksynth.artefacts import read_artefact
 from tanksynth.cli import main
+from tanksynth.methods import CLOSED_LOOPS
 from tanksynth.verify.campaign import campaign_tasks, run_campaign, run_task
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
@@ -30,7 +31,7 @@ def artefacts(tmp_path_factory):
 
 def test_local_campaign_is_tidy_and_reproducible(artefacts):
     out, text, docs = artefacts
-    tasks = campaign_tasks(text, docs[:1], ["servo", "dynamic_steps"], runs=3, seed=5, chunk=2)
+    tasks = campaign_tasks(text, docs[:1], ["servo", "dynamic_steps"], runs=3, seed=5, chunk=2, loops=CLOSED_LOOPS)
     assert len(tasks) == 4 and len({t.key for t in tasks}) == 4
     table = run_campaign(tasks, local=True)
     keys = {(r["scenario"], r["run"], r["metric"]) for r in table.rows}
@@ -38,7 +39,7 @@ def test_local_campaign_is_tidy_and_reproducible(artefacts):
     seeds = {(r["scenario"], r["run"]): r["seed"] for r in table.rows}
     assert seeds[("servo", 2)] == seeds[("dynamic_steps", 2)]     # same run, same seed
     # A run re-simulated alone (another chunking) gives the same numbers.
-    again = campaign_tasks(text, docs[:1], ["servo"], runs=3, seed=5, chunk=3)
+    again = campaign_tasks(text, docs[:1], ["servo"], runs=3, seed=5, chunk=3, loops=CLOSED_LOOPS)
     rows = {(r["run"], r["metric"]): r["value"] for r in run_task(again[0])}
     for r in table.rows:
         if r["scenario"] == "servo" and r["metric"] not in WALL_CLOCK:
@@ -52,7 +53,7 @@ def test_local_campaign_is_tidy_and_reproducible(artefacts):
 def test_integral_controller_tracks_the_dynamic_steps(artefacts):
     _, text, docs = artefacts
     doc = next(d for d in docs if d["method"] == "pole_placement")
-    rows = run_task(campaign_tasks(text, [doc], ["dynamic_steps"], runs=1)[0])
+    rows = run_task(campaign_tasks(text, [doc], ["dynamic_steps"], runs=1, loops=CLOSED_LOOPS)[0])
     values = {r["metric"]: r["value"] for r in rows}
     assert values["tracking_time"] < 200 and abs(values["offset_h1"]) < 1e-3
     assert "integral action" in rows[0]["loop"]
@@ -62,7 +63,7 @@ def test_dask_cluster_survives_a_killed_worker(artefacts):
     distributed = pytest.importorskip("distributed")
     _, text, docs = artefacts
     tasks = campaign_tasks(text, docs[:1], ["servo", "regulatory"], runs=6, seed=1, chunk=2,
-                           substeps=1)
+                           substeps=1, loops=CLOSED_LOOPS)
     expected = {(t.scenario, r) for t in tasks for r in t.runs}
     with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
                                   dashboard_address=None) as cluster:

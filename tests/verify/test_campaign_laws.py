@@ -10,7 +10,8 @@ import pytest
 from tanksynth.artefacts import read_artefact
 from tanksynth.cli import main
 from tanksynth.errors import ArtefactError
-from tanksynth.verify.campaign import (CLOSED_LOOPS, ArtefactIntegralLaw, ArtefactLaw, campaign_tasks,
+from tanksynth.methods import CLOSED_LOOPS
+from tanksynth.verify.campaign import (ArtefactIntegralLaw, ArtefactLaw, campaign_tasks,
                                        closed_loop_for, run_campaign)
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -42,21 +43,21 @@ def _final_errors(table, artefact):
 def test_feedback_linearization_campaign_tracks(seed000):
     text, docs = seed000
     doc = docs["feedback_linearization"]
-    loop = closed_loop_for(doc, _spec(text))
+    loop = closed_loop_for(doc, _spec(text), CLOSED_LOOPS[doc['method']])
     assert isinstance(loop.controller, ArtefactLaw) and loop.tracked == (0, 1)
     assert "serialised CasADi law" in loop.description
-    closed = run_campaign(campaign_tasks(text, [doc], ["servo"], runs=3, chunk=2), local=True)
+    closed = run_campaign(campaign_tasks(text, [doc], ["servo"], runs=3, chunk=2, loops=CLOSED_LOOPS), local=True)
     assert {r["loop"] for r in closed.rows} == {loop.description}
     assert len({r["run"] for r in closed.rows}) == 3
     opened_doc = {**doc, "method": "no_closed_loop_for_this"}  # the open-loop fallback
-    opened = run_campaign(campaign_tasks(text, [opened_doc], ["servo"], runs=3, chunk=2), local=True)
+    opened = run_campaign(campaign_tasks(text, [opened_doc], ["servo"], runs=3, chunk=2, loops=CLOSED_LOOPS), local=True)
     ours, theirs = _final_errors(closed, doc["name"]), _final_errors(opened, doc["name"])
     assert ours and set(ours) == set(theirs)
     for key in ours:
         assert ours[key] < 1e-3, key  # the 0.04 m step is tracked
         assert theirs[key] > 0.02, key  # open loop does not follow it
     # per-run results do not depend on how runs are chunked (one batch vs several)
-    again = run_campaign(campaign_tasks(text, [doc], ["servo"], runs=3, chunk=3), local=True)
+    again = run_campaign(campaign_tasks(text, [doc], ["servo"], runs=3, chunk=3, loops=CLOSED_LOOPS), local=True)
     a, b = ({k: v for k, v in t.summary().items() if not k[2].endswith("_time") or "tracking" in k[2]}
             for t in (closed, again))
     assert a == pytest.approx(b, rel=1e-9, abs=1e-12)
@@ -65,7 +66,7 @@ def test_feedback_linearization_campaign_tracks(seed000):
 def test_integral_tracking_campaign_stateful(seed000):
     text, docs = seed000
     doc = docs["integral_tracking"]
-    loop = closed_loop_for(doc, _spec(text))
+    loop = closed_loop_for(doc, _spec(text), CLOSED_LOOPS[doc['method']])
     assert isinstance(loop.controller, ArtefactIntegralLaw)
     law = loop.controller
     law.reset(4)
@@ -76,7 +77,7 @@ def test_integral_tracking_campaign_stateful(seed000):
     u = law(x, r, 0.0)
     assert u.shape == (4, len(loop.u_op))
     assert np.allclose(u[0], loop.u_op) and not law.z[0].any() and law.z[1].any()
-    table = run_campaign(campaign_tasks(text, [doc], ["servo"], runs=2, chunk=2), local=True)
+    table = run_campaign(campaign_tasks(text, [doc], ["servo"], runs=2, chunk=2, loops=CLOSED_LOOPS), local=True)
     errors = _final_errors(table, doc["name"])
     assert errors and max(errors.values()) < 2e-3
 
@@ -86,7 +87,7 @@ def test_missing_law_is_refused(seed000):
     doc = dict(docs["feedback_linearization"])
     doc["diagnostics"] = {k: v for k, v in doc["diagnostics"].items() if k != "law"}
     with pytest.raises(ArtefactError):
-        closed_loop_for(doc, _spec(text))
+        closed_loop_for(doc, _spec(text), CLOSED_LOOPS[doc['method']])
 
 
 def test_inverse_dynamics_campaign(tmp_path):
@@ -96,14 +97,14 @@ def test_inverse_dynamics_campaign(tmp_path):
     docs = [d for d in docs if d["method"] == "inverse_dynamics"]
     assert docs
     text = (tmp_path / "spec.toml").read_text(encoding="utf-8")
-    loop = closed_loop_for(docs[0], _spec(text))
+    loop = closed_loop_for(docs[0], _spec(text), CLOSED_LOOPS[docs[0]['method']])
     assert isinstance(loop.controller, ArtefactLaw) and len(loop.tracked) == len(loop.u_op)
-    table = run_campaign(campaign_tasks(text, docs[:1], ["servo"], runs=2, chunk=2), local=True)
+    table = run_campaign(campaign_tasks(text, docs[:1], ["servo"], runs=2, chunk=2, loops=CLOSED_LOOPS), local=True)
     errors = _final_errors(table, docs[0]["name"])
     assert errors and max(errors.values()) < 5e-3
 
 
 def _spec(text):
-    from tanksynth.spec import parse_spec_text
+    from tanksynth.methods import parse_spec_text
 
     return parse_spec_text(text.encode("utf-8"), source="<test>")

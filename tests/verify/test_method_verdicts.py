@@ -17,8 +17,6 @@ import pytest
 from tanksynth.artefacts import read_artefact, write_artefact
 from tanksynth.cli import main
 from tanksynth.design.result import DesignResult
-from tanksynth.analysis.checks import Check
-from tanksynth.verify.verdicts import VERDICTS, register_verdict
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
 
@@ -326,24 +324,6 @@ def test_observer_rule_and_numbers_are_stated(designed, tmp_path, capsys):
     assert data["tau_s"] == pytest.approx(-1.0 / np.log(0.9))
 
 
-def test_default_verdicts_give_way_to_a_methods_own():
-    assert "ekf" in VERDICTS
-    before = VERDICTS["ekf"]
-    mine = lambda doc, spec: [Check("own", True, "registered by the estimator stage")]  # noqa: E731
-    try:
-        register_verdict("ekf", mine)                 # replaces the default estimator verdict
-        assert VERDICTS["ekf"] is mine
-        register_verdict("ekf", before, default=True)  # a default never replaces a real one
-        assert VERDICTS["ekf"] is mine
-        with pytest.raises(ValueError):
-            register_verdict("ekf", mine)
-    finally:
-        VERDICTS["ekf"] = before
-        from tanksynth.verify import verdicts as _v
-
-        _v._DEFAULTS.add("ekf")
-
-
 # ------------------------------------------------------------ seed 004 / seed 002 estimators
 SEED004_FILTERS = """
 title = "verdict tests: adaptive-scaling and consensus filters"
@@ -485,7 +465,7 @@ def test_fault_detection_reports_detection_times(designed_more, tmp_path, capsys
 def test_decentralized_filter_prediction_equals_one_simulator_step(model, x, u):
     """`DecentralizedFilter.predict` (one direct integrator call) equals `simulate(steps=1)`."""
     from tanksynth.plants import hybrid_three_tank, tank_network
-    from tanksynth.verify.method_verdicts import DecentralizedFilter
+    from tanksynth.verify.decentralized import DecentralizedFilter
     from tanksynth.sim.simulate import simulate
 
     plant = tank_network(N=8) if model == "tank_network" else hybrid_three_tank()

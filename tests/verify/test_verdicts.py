@@ -10,7 +10,8 @@ import pytest
 from tanksynth.artefacts import gains_digest, read_artefact
 from tanksynth.cli import main
 from tanksynth.errors import ArtefactError
-from tanksynth.verify.verdicts import VERDICTS, verify_directory
+from tanksynth.methods import VERDICTS, verify_directory
+from tanksynth.verify import runner
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
 
@@ -46,14 +47,29 @@ def test_linearize_verdict_passes_and_is_recorded(designed, tmp_path, capsys):
     assert errs[0] > errs[1] > errs[2] and min(first["data"]["orders"]) > 0.8
 
 
-def test_method_without_verdict_is_not_a_pass(designed, tmp_path):
+def test_every_artefact_gets_a_decided_verdict(designed, tmp_path):
     d = _copy(designed, "seed004_fault_detection", tmp_path)
     verdicts = {v.name: v for v in verify_directory(d)}
     assert verdicts["hydraulic_linear_model"].passed is True      # linear plant: exact agreement
-    canon = verdicts["luenberger_canonical"]
-    if "canonical_observer" not in VERDICTS:
-        assert canon.passed is None
-        assert canon.checks[0].detail == "no verification defined for method canonical_observer"
+    assert all(v.passed in (True, False) for v in verdicts.values())
+
+
+def test_unknown_method_is_refused_and_nothing_written(designed, tmp_path, capsys):
+    d = _copy(designed, "hybrid_three_tank", tmp_path)
+    path = d / "hybrid_linear_model.json"
+    _rehash(path, lambda doc: doc.update(method="evil"))
+    assert main(["verify", str(d)]) == 2
+    assert "unknown design method 'evil'" in capsys.readouterr().err
+    assert json.loads(path.read_text())["verification"] is None
+
+
+def test_a_verdict_that_decides_nothing_fails(designed, tmp_path):
+    from tanksynth.analysis.checks import Check
+
+    d = _copy(designed, "hybrid_three_tank", tmp_path)
+    undecided = {**VERDICTS, "linearize": lambda doc, spec: [Check("x", None, "informational")]}
+    verdicts = runner.verify_directory(d, undecided)
+    assert verdicts and all(v.passed is False for v in verdicts)
 
 
 def _rehash(path, mutate):
@@ -97,7 +113,7 @@ def test_tampered_or_foreign_artefact_is_refused_with_exit_2(designed, tmp_path,
 
 def test_verify_stores_traces_beside_artefacts(designed, tmp_path, monkeypatch):
     from tanksynth.analysis.checks import Check
-    from tanksynth.verify.verdicts import read_trace
+    from tanksynth.artefacts.traces import read_trace
 
     d = _copy(designed, "seed004_fault_detection", tmp_path)
     before = {p.name: p.read_bytes() for p in d.glob("*.json") if "gains" in json.loads(p.read_bytes())}
@@ -114,15 +130,15 @@ def test_verify_stores_traces_beside_artefacts(designed, tmp_path, monkeypatch):
         read_artefact(d / name)
     assert not list(d.glob(".*.tmp"))
     # a verdict that simulates nothing leaves no (stale) trace
-    monkeypatch.setitem(VERDICTS, "canonical_observer", lambda doc, spec: [Check("x", True, "no sim")])
-    verify_directory(d)
+    no_sim = {**VERDICTS, "canonical_observer": lambda doc, spec: [Check("x", True, "no sim")]}
+    runner.verify_directory(d, no_sim)
     assert not (d / "luenberger_canonical.traces.npz").exists()
     assert (d / "hydraulic_linear_model.traces.npz").exists()
 
 
 def test_verify_on_a_scheduler_stores_the_same_traces(designed, tmp_path):
     distributed = pytest.importorskip("distributed")
-    from tanksynth.verify.verdicts import read_trace
+    from tanksynth.artefacts.traces import read_trace
 
     local = _copy(designed, "seed004_fault_detection", tmp_path / "local")
     remote = _copy(designed, "seed004_fault_detection", tmp_path / "remote")

@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 from tanksynth.artefacts import read_artefact, write_artefact
-from tanksynth.design import METHODS
+from tanksynth.methods import METHODS
 from tanksynth.errors import SpecError, UnobservableError
-from tanksynth.spec import parse_spec
+from tanksynth.methods import parse_spec
 
 FAULT_PLANT = {"model": "hydraulic_fault"}
 FAULT_OP = {"x": {"x1": 4.0, "x2": 4.0 / 3.0, "x3": 4.0}}
@@ -23,7 +23,7 @@ def _spec(designs, plant=None, op=None, ts=0.01):
 def _run(spec, tmp_path):
     out = {}
     for d in spec.designs:
-        result = METHODS[d.method].run(spec, d)
+        result = METHODS[d.method].design(spec, d)
         doc = read_artefact(write_artefact(result, tmp_path, spec.sha256))
         assert doc["method"] == d.method
         out[d.name] = result

@@ -6,7 +6,7 @@ import numpy as np
 import sympy as sp
 
 from tanksynth.analysis.linearize import equilibrium_input, linearize, symbolic_jacobians
-from tanksynth.design.result import DesignMethod, DesignResult, register
+from tanksynth.design.result import DesignMethod, DesignResult
 
 __all__ = ["run_linearize"]
 
@@ -58,4 +58,4 @@ def run_linearize(spec, design) -> DesignResult:
     return DesignResult(design.name, "linearize", plant.name, gains, diagnostics, latex)
 
 
-register(DesignMethod("linearize", run_linearize, options={}, needs_sampling=True))
+LINEARIZE = DesignMethod("linearize", run_linearize, options={}, needs_sampling=True)

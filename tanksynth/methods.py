@@ -1,0 +1,229 @@
+"""The one table of design methods: what each spec method is, designs, verifies and states.
+
+Every ``method = "..."`` a spec may name is one row of `TABLE`; nothing is
+registered on import and nothing else maps method names to behaviour. A row
+holds:
+
+``kind``
+    ``"model"``, ``"controller"``, ``"observer"``, ``"estimator"`` or
+    ``"detector"`` (``pole_placement`` and ``lmi_placement`` are controllers
+    or observers, by their ``target`` option: both kinds are listed).
+``adapter``
+    The design adapter (`tanksynth.design.DesignMethod`): its options with
+    their defaults and ``run(spec, design) -> DesignResult``.
+``verdict``
+    ``verdict(doc, spec) -> list[Check]`` of `tanksynth.verify`: re-derives what
+    it checks from the artefact and simulates it on the nonlinear plant.
+``closed_loop``
+    For controllers: ``builder(doc, spec) -> ClosedLoop``, how a campaign runs
+    the artefact in closed loop.
+``statement``
+    ``statement(diagnostics) -> Tex``: the problem solved, for the report.
+
+The table is complete or the package does not import: `_check_table` runs at
+import and raises if a row lacks a part its kind needs.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from types import MappingProxyType
+from typing import Any, Callable, Mapping
+
+from tanksynth.design import control_methods, convex_methods, decentralized_methods, model_methods
+from tanksynth.design import estimator_methods as est
+from tanksynth.design.result import DesignMethod, DesignResult
+from tanksynth.reports import statements as st
+from tanksynth.spec import DesignSpec, Spec, load_spec as _load_spec, parse_spec as _parse_spec
+from tanksynth.spec import parse_spec_text as _parse_spec_text
+from tanksynth.verify import campaign, decentralized, estimators, fault, laws, model, narx, placement
+from tanksynth.verify import ts_observer
+from tanksynth.verify.runner import Verdict, VerdictFn
+from tanksynth.verify.runner import verify_directory as _verify_directory
+
+__all__ = ["KINDS", "Method", "TABLE", "METHODS", "VERDICTS", "CLOSED_LOOPS", "STATEMENTS",
+           "method", "design", "load_spec", "parse_spec", "parse_spec_text", "verify_directory",
+           "write_report"]
+
+#: What a design method produces.
+KINDS = ("model", "controller", "observer", "estimator", "detector")
+
+
+@dataclass(frozen=True)
+class Method:
+    """One row of the method table.
+
+    Attributes
+    ----------
+    name : str
+        The spec's ``method`` value.
+    kinds : tuple of str
+        Some of `KINDS`.
+    summary : str
+        One line: what the method designs.
+    adapter : DesignMethod
+        Options (with defaults) and the design function.
+    verdict : callable
+        ``verdict(doc, spec) -> list[Check]``.
+    statement : callable
+        ``statement(diagnostics) -> Tex`` (report).
+    closed_loop : callable or None
+        ``builder(doc, spec) -> ClosedLoop`` for controllers.
+    """
+
+    name: str
+    kinds: tuple[str, ...]
+    summary: str
+    adapter: DesignMethod
+    verdict: VerdictFn
+    statement: Callable[[Mapping[str, Any]], Any]
+    closed_loop: Callable[..., Any] | None = None
+
+    def design(self, spec: Spec, design: DesignSpec) -> DesignResult:
+        """Run the design of one ``[[design]]`` entry of ``spec``."""
+        return self.adapter.run(spec, design)
+
+
+def _row(name: str, kinds: tuple[str, ...], summary: str, adapter: DesignMethod, verdict: VerdictFn,
+         statement: Callable[[Mapping[str, Any]], Any],
+         closed_loop: Callable[..., Any] | None = None) -> Method:
+    return Method(name, kinds, summary, adapter, verdict, statement, closed_loop)
+
+
+_CONTROLLER_OR_OBSERVER = ("controller", "observer")
+
+#: The design methods, in the order the documentation lists them.
+TABLE: tuple[Method, ...] = (
+    _row("linearize", ("model",), "linearisation at the operating point and exact ZOH discretisation",
+         model_methods.LINEARIZE, model.linearize_verdict, st.linearize_statement,
+         campaign.linearize_loop),
+    _row("pole_placement", _CONTROLLER_OR_OBSERVER,
+         "exact pole placement (python-control place/acker), optional integral action",
+         convex_methods.POLE_PLACEMENT, placement.pole_placement_verdict,
+         st.pole_placement_statement, campaign.integral_loop),
+    _row("lmi_placement", _CONTROLLER_OR_OBSERVER,
+         "pole placement in an LMI region (cvxpy + Clarabel), optional integral action",
+         convex_methods.LMI_PLACEMENT, placement.lmi_placement_verdict, st.lmi_placement_statement,
+         campaign.integral_loop),
+    _row("canonical_observer", ("observer",), "Luenberger observer by the observable canonical form",
+         convex_methods.CANONICAL_OBSERVER, placement.canonical_observer_verdict,
+         st.canonical_observer_statement),
+    _row("ts_observer", ("observer",), "Takagi-Sugeno multiple-model observer by an LMI",
+         convex_methods.TS_OBSERVER, ts_observer.ts_observer_verdict, st.ts_observer_statement),
+    _row("feedback_linearization", ("controller",),
+         "exact input-output feedback linearisation with decoupling",
+         control_methods.FEEDBACK_LINEARIZATION, laws.feedback_linearization_verdict,
+         st.feedback_linearization_statement, campaign.feedback_linearization_loop),
+    _row("integral_tracking", ("controller",),
+         "sampled state feedback with integral action, saturation and anti-windup",
+         control_methods.INTEGRAL_TRACKING, laws.integral_tracking_verdict,
+         st.integral_tracking_statement, campaign.integral_tracking_loop),
+    _row("inverse_dynamics", ("controller",), "estimator-based inverse-dynamics control, ISE-tuned",
+         control_methods.INVERSE_DYNAMICS, laws.inverse_dynamics_verdict,
+         st.inverse_dynamics_statement, campaign.inverse_dynamics_loop),
+    _row("decentralized_kalman", ("estimator",),
+         "decentralised Kalman gains under a sparsity pattern (one-step or finite horizon)",
+         decentralized_methods.DECENTRALIZED_KALMAN, decentralized.decentralized_kalman_verdict,
+         st.decentralized_kalman_statement),
+    _row("kalman", ("estimator",), "Kalman filter on the ZOH linearisation",
+         est.KALMAN, estimators.kalman_verdict, st.kalman_statement),
+    _row("ekf", ("estimator",), "extended Kalman filter on the nonlinear model",
+         est.EKF, estimators.ekf_verdict, st.ekf_statement),
+    _row("ukf", ("estimator",), "unscented Kalman filter", est.UKF, estimators.ukf_verdict,
+         st.ukf_statement),
+    _row("adaptive_kalman", ("estimator",), "Kalman filter with innovation-window adaptive Q",
+         est.ADAPTIVE_KALMAN, estimators.adaptive_kalman_verdict, st.adaptive_kalman_statement),
+    _row("adaptive_scaling_kalman", ("estimator",), "Kalman filter with adaptive process-noise scaling",
+         est.ADAPTIVE_SCALING_KALMAN, estimators.adaptive_scaling_kalman_verdict,
+         st.adaptive_scaling_kalman_statement),
+    _row("consensus_filter", ("estimator",), "information-form consensus filter over redundant sensors",
+         est.CONSENSUS_FILTER, estimators.consensus_filter_verdict, st.consensus_filter_statement),
+    _row("luenberger", ("observer",), "discrete or continuous Luenberger observer",
+         est.LUENBERGER, estimators.luenberger_verdict, st.luenberger_statement),
+    _row("narx", ("estimator",), "NARX neural estimator trained on EKF data",
+         est.NARX, narx.narx_verdict, st.narx_statement),
+    _row("fault_detection", ("detector",), "observer residual with a derived fault-detection threshold",
+         est.FAULT_DETECTION, fault.fault_detection_verdict, st.fault_detection_statement),
+)
+
+
+def _check_table(table: tuple[Method, ...]) -> None:
+    """Raise if a row is incomplete; runs at import, so an incomplete table cannot be used."""
+    seen: set[str] = set()
+    for row in table:
+        problems = []
+        if row.name in seen:
+            problems.append("listed twice")
+        seen.add(row.name)
+        if not row.kinds or any(k not in KINDS for k in row.kinds):
+            problems.append(f"kinds {row.kinds} not among {KINDS}")
+        if row.adapter.name != row.name:
+            problems.append(f"adapter is for method {row.adapter.name!r}")
+        for part in ("verdict", "statement"):
+            if not callable(getattr(row, part)):
+                problems.append(f"no {part}")
+        if "controller" in row.kinds and not callable(row.closed_loop):
+            problems.append("a controller without a closed-loop builder")
+        if not row.summary:
+            problems.append("no summary")
+        if problems:
+            raise TypeError(f"method table row {row.name!r}: " + "; ".join(problems))
+
+
+_check_table(TABLE)
+
+#: Rows by method name.
+METHODS: Mapping[str, Method] = MappingProxyType({row.name: row for row in TABLE})
+#: Verdict of each method (what `verify_directory` runs).
+VERDICTS: Mapping[str, VerdictFn] = MappingProxyType({row.name: row.verdict for row in TABLE})
+#: Closed-loop builder of each method that has one (campaigns).
+CLOSED_LOOPS: Mapping[str, Callable[..., Any]] = MappingProxyType(
+    {row.name: row.closed_loop for row in TABLE if row.closed_loop is not None})
+#: Problem statement of each method (report).
+STATEMENTS: Mapping[str, Callable[[Mapping[str, Any]], Any]] = MappingProxyType(
+    {row.name: row.statement for row in TABLE})
+#: Design adapters by name (what the spec parser validates options against).
+ADAPTERS: Mapping[str, DesignMethod] = MappingProxyType({row.name: row.adapter for row in TABLE})
+
+
+def method(name: str) -> Method:
+    """The row of a method; `SpecError` (listing the methods) for an unknown name."""
+    from tanksynth.errors import SpecError
+
+    if name not in METHODS:
+        raise SpecError(f"unknown method {name!r}; expected one of: " + ", ".join(METHODS))
+    return METHODS[name]
+
+
+def load_spec(path: str | Path) -> Spec:
+    """Read and validate a TOML spec, every design's options included (see `tanksynth.spec`)."""
+    return _load_spec(path, methods=ADAPTERS)
+
+
+def parse_spec(table: Mapping[str, Any], source: str | None = None, sha256: str = "") -> Spec:
+    """Validate a spec given as a mapping, every design's options included."""
+    return _parse_spec(table, source, sha256, methods=ADAPTERS)
+
+
+def parse_spec_text(data: bytes | str, source: str | None = None) -> Spec:
+    """Validate a spec given as TOML text, every design's options included."""
+    return _parse_spec_text(data, source, methods=ADAPTERS)
+
+
+def design(spec: Spec, entry: DesignSpec) -> DesignResult:
+    """Design one ``[[design]]`` entry of a spec with its method's row."""
+    return method(entry.method).design(spec, entry)
+
+
+def verify_directory(directory: str | Path, scheduler: str | None = None,
+                     progress: Callable[[int, int], None] | None = None) -> list[Verdict]:
+    """Run the verdict of every artefact of a result directory (see `tanksynth.verify.runner`)."""
+    return _verify_directory(directory, VERDICTS, scheduler=scheduler, progress=progress)
+
+
+def write_report(directory: str | Path, pdf: bool = False, timeout: float = 180.0) -> Any:
+    """Write the design report of a result directory (see `tanksynth.reports.write_report`)."""
+    from tanksynth.reports import write_report as _write_report
+
+    return _write_report(directory, pdf, timeout, statements=STATEMENTS)

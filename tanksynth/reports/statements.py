@@ -1,0 +1,219 @@
+"""One problem statement per design method: what was solved, in mathematics, for the report.
+
+Each ``<method>_statement(diag) -> Tex`` reads the artefact's diagnostics only.
+The method table (`tanksynth.methods`) holds which statement belongs to which method.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Mapping
+
+from tanksynth.reports.latex import Tex, escape_latex, format_eigenvalues, format_number
+
+
+def _is_number(v: Any) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool)
+
+
+__all__ = ["linearize_statement", "pole_placement_statement", "lmi_placement_statement",
+           "ts_observer_statement", "canonical_observer_statement",
+           "feedback_linearization_statement", "integral_tracking_statement", "inverse_dynamics_statement", "decentralized_kalman_statement", "kalman_statement", "ekf_statement", "ukf_statement", "adaptive_kalman_statement", "adaptive_scaling_kalman_statement", "consensus_filter_statement", "luenberger_statement", "narx_statement", "fault_detection_statement"]
+
+
+def linearize_statement(diag: Mapping[str, Any]) -> Tex:
+    """The problem ``linearize`` solves, in mathematics, from the artefact's diagnostics."""
+    return Tex(r"First-order Taylor expansion of the smooth model at the operating point, "
+               r"$F = \partial f/\partial x$, $B = \partial f/\partial u$, $C = \partial h/\partial x$ "
+               r"at $(x_0, u_0)$ with the equilibrium input $u_0$ computed from the model; "
+               r"exact zero-order-hold discretisation $A_d = e^{F t_s}$, "
+               r"$B_d = \int_0^{t_s} e^{F\tau}B\,d\tau$.")
+
+
+def pole_placement_statement(diag: Mapping[str, Any]) -> Tex:
+    """The problem ``pole_placement`` solves, in mathematics, from the artefact's diagnostics."""
+    pl = diag.get("placement") or {}
+    kind = pl.get("kind", "state_feedback")
+    if str(kind).startswith("observer"):
+        what = r"the eigenvalues of the error dynamics $A - LC$"
+    else:
+        what = r"the closed-loop eigenvalues of $A - BK$ (control law $u = -Kx$)"
+    text = rf"Place {what} exactly"
+    if "requested" in pl:
+        try:
+            text += r" at $" + format_eigenvalues(pl["requested"], 4) + "$"
+        except (TypeError, ValueError):
+            pass
+    method = pl.get("method")
+    if method:
+        text += r" with \texttt{" + escape_latex(method) + "}"
+    text += "."
+    integ = diag.get("integral")
+    if isinstance(integ, Mapping):
+        tracked = ", ".join(str(t) for t in integ.get("tracked", []))
+        text += (r" Integral action: the model is augmented with $z(k+1) = z(k) + t_s(y_r - C_1 x)$"
+                 r" for the tracked outputs " + escape_latex(tracked)
+                 + r", and $K = [K_1\;K_2]$ acts on $(x, z)$.")
+    return Tex(text)
+
+
+def lmi_placement_statement(diag: Mapping[str, Any]) -> Tex:
+    """The problem ``lmi_placement`` solves, in mathematics, from the artefact's diagnostics."""
+    lmi = diag.get("lmi") or {}
+    region = (lmi.get("region") or {}).get("description")
+    kind = lmi.get("kind", "state_feedback")
+    if str(kind).startswith("observer"):
+        body = (r"Find $X \succ 0$ and $Y$ with $L_D \otimes X + M_D \otimes (A^\top X - C^\top Y) "
+                r"+ M_D^\top \otimes (A^\top X - C^\top Y)^\top \prec 0$ (dual pair), "
+                r"$L = (Y X^{-1})^\top$: every eigenvalue of $A - LC$ lies in the LMI region $D$")
+    else:
+        body = (r"Find $X \succ 0$ and $Y$ with $L_D \otimes X + M_D \otimes (AX - BY) "
+                r"+ M_D^\top \otimes (AX - BY)^\top \prec 0$, $K = Y X^{-1}$: every eigenvalue of "
+                r"$A - BK$ lies in the LMI region $D = \{z : L_D + M_D z + M_D^\top \bar z \prec 0\}$")
+    text = body + (r" (Chilali--Gahinet)")
+    if region:
+        text += r"; here $D$: " + escape_latex(region)
+    dom = lmi.get("domain") or diag.get("time_domain")
+    if dom:
+        text += f" ({escape_latex(dom)} time)"
+    margin = lmi.get("margin")
+    if _is_number(margin):
+        text += rf". The strict inequality is imposed with margin ${format_number(margin)}$ after scaling"
+    text += "."
+    if isinstance(diag.get("integral"), Mapping):
+        text += r" The plant is augmented with integral action, $K = [K_1\;K_2]$."
+    return Tex(text)
+
+
+def ts_observer_statement(diag: Mapping[str, Any]) -> Tex:
+    """The problem ``ts_observer`` solves, in mathematics, from the artefact's diagnostics."""
+    lmi = diag.get("lmi") or {}
+    text = (r"Observer $\dot{\hat x} = A_0\hat x + \Delta(\hat x, u) + L(y - C\hat x)$ for the "
+            r"Takagi--Sugeno model of the plant; the error obeys $\dot e = (A_0 - LC)e + \Delta$ "
+            r"with $\|\Delta\| \le \psi\|e\|$. Find $P \succ 0$, $Q \succ 0$, $K$ with "
+            r"\[\begin{bmatrix} A_0^\top P + P A_0 - C^\top K^\top - K C + \psi^2 Q & P \\ "
+            r"P & -Q \end{bmatrix} \prec 0, \qquad L = P^{-1}K\]"
+            r"(seed 001 LMI (28)).")
+    psi = lmi.get("psi")
+    if _is_number(psi):
+        text += rf" Here $\psi = {format_number(psi)}$"
+        src = diag.get("psi_source")
+        if src:
+            text += " (" + escape_latex(src) + ")"
+        text += "."
+    if lmi.get("Q_form"):
+        text += " " + escape_latex(lmi["Q_form"]) + "."
+    ts = diag.get("ts_model") or {}
+    if isinstance(ts.get("r"), int):
+        text += f" The TS model has {ts['r']} vertices"
+        dom = (ts.get("domain") or {}).get("description")
+        if dom:
+            text += " on the domain " + escape_latex(dom)
+        text += "."
+    return Tex(text)
+
+
+def canonical_observer_statement(diag: Mapping[str, Any]) -> Tex:
+    """The problem ``canonical_observer`` solves, in mathematics, from the artefact's diagnostics."""
+    return Tex(r"Observer through the observer canonical form (seed 004 eqs.~(25)--(29)): "
+               r"$\Delta = \mathcal{Q}_O^{-1}\bar{\mathcal{Q}}_O$, the canonical gain $\Psi_o$ "
+               r"matches $\det(sI - \Gamma)$ with the desired polynomial, $L = \Delta\Psi_o$, in "
+               r"exact arithmetic; cross-checked against \texttt{place}.")
+
+
+
+
+def feedback_linearization_statement(diag: Mapping[str, Any]) -> Tex:
+    """The problem ``feedback_linearization`` solves."""
+    return Tex(r"Exact input-output linearisation of $\dot x = f(x) + g(x)u$, $y = h(x)$: with relative "
+               r"degrees $r_i$ and decoupling matrix $D(x) = [L_g L_f^{r_i-1} h_i]$ invertible on the "
+               r"region, $u = D(x)^{-1}\big(v - [L_f^{r_i} h_i(x)]\big)$ gives $y_i^{(r_i)} = v_i$; the "
+               r"outer loop $v$ places the poles of each chain, and the zero dynamics are checked stable.")
+
+
+def integral_tracking_statement(diag: Mapping[str, Any]) -> Tex:
+    """The problem ``integral_tracking`` solves."""
+    return Tex(r"Sampled tracking with integral action about $(x_0, u_0)$: $u(k) = \mathrm{sat}\big(u_0 - "
+               r"K_1 (x(k) - x_0) - K_2 z(k)\big)$, $z(k+1) = z(k) + t_s (y_r(k) - C_1 x(k))$ plus "
+               r"anti-windup, with $[K_1\ K_2]$ placing the eigenvalues of the augmented pair "
+               r"$\left(\begin{smallmatrix} A_d & 0 \\ -t_s C_1 & I\end{smallmatrix}\right)$, "
+               r"$\left(\begin{smallmatrix} B_d \\ 0\end{smallmatrix}\right)$.")
+
+
+def inverse_dynamics_statement(diag: Mapping[str, Any]) -> Tex:
+    """The problem ``inverse_dynamics`` solves."""
+    return Tex(r"Inverse dynamics of the pump-fed states $x_c$: impose $\dot x_{c,i} = C_i (x_{c,i}^{sp} - "
+               r"x_{c,i})$, i.e. $u = G_c(\hat x)^{-1}\big(\mathrm{diag}(C)(x_c^{sp} - \hat x_c) - "
+               r"f_{0,c}(\hat x)\big)$ saturated to the pump range, with the rates $C_i \ge 0$ minimising "
+               r"the integral of squared errors of a servo scenario.")
+
+
+def decentralized_kalman_statement(diag: Mapping[str, Any]) -> Tex:
+    """The problem ``decentralized_kalman`` solves."""
+    return Tex(r"Kalman gains $K(k)$ constrained to a sparsity pattern $E$ (each tank uses its own "
+               r"measurements): minimise $\mathrm{tr}\,P(k|k)$ step by step (one-step) or "
+               r"$\sum_k \mathrm{tr}\,P(k|k)$ over a window (finite horizon), with the covariance "
+               r"recursion $P(k|k) = (I - KC)P(k|k-1)(I - KC)^\top + K R K^\top$ of the linearised network.")
+
+
+def _filter_statement(what: str) -> Tex:
+    return Tex(what + r" State $x(k+1) = F(x(k), u(k)) + w(k)$, $y(k) = h(x(k)) + v(k)$ with "
+               r"$w \sim \mathcal{N}(0, Q)$, $v \sim \mathcal{N}(0, R)$, $x(0) \sim \mathcal{N}(\hat x_0, P_0)$; "
+               r"covariance updates in Joseph form, symmetrised.")
+
+
+def kalman_statement(diag: Mapping[str, Any]) -> Tex:
+    """The problem ``kalman`` solves."""
+    return _filter_statement(r"Kalman filter on the exact ZOH linearisation $(A_d, B_d, C)$ at the "
+                             r"operating point: the minimum-variance linear estimator.")
+
+
+def ekf_statement(diag: Mapping[str, Any]) -> Tex:
+    """The problem ``ekf`` solves."""
+    return _filter_statement(r"Extended Kalman filter: the nonlinear model is propagated and its "
+                             r"Jacobians at the current estimate give the gain.")
+
+
+def ukf_statement(diag: Mapping[str, Any]) -> Tex:
+    """The problem ``ukf`` solves."""
+    return _filter_statement(r"Unscented Kalman filter: $2n+1$ sigma points (weights from "
+                             r"$\alpha, \beta, \kappa$) propagated through the nonlinear model.")
+
+
+def adaptive_kalman_statement(diag: Mapping[str, Any]) -> Tex:
+    """The problem ``adaptive_kalman`` solves."""
+    return _filter_statement(r"Adaptive Kalman filter: $Q$ re-estimated from the innovations "
+                             r"$\nu_k$ over a sliding window of length $\Psi$.")
+
+
+def adaptive_scaling_kalman_statement(diag: Mapping[str, Any]) -> Tex:
+    """The problem ``adaptive_scaling_kalman`` solves."""
+    return _filter_statement(r"Adaptive-scaling Kalman filter: the process noise is scaled by "
+                             r"$\varphi_k$ solved from $\nu_k^\top \nu_k = \mathrm{tr}(\beta) + \varphi_k "
+                             r"\mathrm{tr}(C G Q G^\top C^\top)$.")
+
+
+def consensus_filter_statement(diag: Mapping[str, Any]) -> Tex:
+    """The problem ``consensus_filter`` solves."""
+    return _filter_statement(r"Information-form consensus filter: $N$ redundant sensors fuse "
+                             r"$\sum_i C^\top R_i^{-1} C$ and $\sum_i C^\top R_i^{-1} y_i$.")
+
+
+def luenberger_statement(diag: Mapping[str, Any]) -> Tex:
+    """The problem ``luenberger`` solves."""
+    return Tex(r"Luenberger observer $\hat x(k+1) = A_d \hat x(k) + B_d u(k) + L\big(y(k) - C\hat x(k)\big)$ "
+               r"(or its continuous form), $L$ given or placing the eigenvalues of $A - LC$.")
+
+
+def narx_statement(diag: Mapping[str, Any]) -> Tex:
+    """The problem ``narx`` solves."""
+    return Tex(r"NARX estimator: a one-hidden-layer network maps delayed measurements and inputs to the "
+               r"state, trained by Levenberg-Marquardt on EKF-labelled data to minimise "
+               r"$\sum_k \|\hat x_k - x_k^{\mathrm{EKF}}\|^2$.")
+
+
+def fault_detection_statement(diag: Mapping[str, Any]) -> Tex:
+    """The problem ``fault_detection`` solves."""
+    return Tex(r"Observer-based fault detection: the residual $r(t) = y(t) - C\hat x(t)$ of a Luenberger "
+               r"observer with poles placed by the canonical form is compared with a threshold "
+               r"$J_{th}(t)$ derived from the bounds of the healthy error dynamics; a fault is declared "
+               r"when $|r(t)| > J_{th}(t)$.")

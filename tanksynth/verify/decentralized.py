@@ -1,0 +1,180 @@
+"""Verdict of ``decentralized_kalman`` (decentralised Kalman gains on the nonlinear network)."""
+
+
+from typing import Any, Mapping, Sequence
+
+import numpy as np
+
+from tanksynth.errors import ArtefactError
+from tanksynth.analysis.checks import Check
+from tanksynth.sim.simulate import run_seeds, simulate
+from tanksynth.verify.common import artefact_gain
+from tanksynth.verify.traces import record_trace
+
+
+from tanksynth.verify.common import _equilibrium, _fmt, _guard, _matrix, _option
+
+__all__ = ["DecentralizedFilter", "decentralized_kalman_verdict"]
+
+# ========================================================== decentralised Kalman gains
+class DecentralizedFilter:
+    """The window's decentralised filter with fixed gains (a `BatchEstimator`).
+
+    Prediction by one simulator step of the nominal nonlinear plant
+    (``x_hat(k|k-1)`` from ``x_hat(k-1|k-1)`` and the held input), update
+    ``x_hat(k|k) = x_hat(k|k-1) + K_{k-1} (y_k - h(x_hat(k|k-1)))`` for the
+    window steps ``k = 1..T``; without gains (or after the window) the
+    prediction is returned: the open-loop predictor.
+
+    Parameters
+    ----------
+    plant : Plant
+    gains : sequence of ndarray, shape (n, q)
+        ``K_0 .. K_{T-1}``.
+    ts : float
+        Sampling period (s).
+    substeps : int
+        RK4 steps of the prediction.
+    """
+
+    def __init__(self, plant: Any, gains: Sequence[np.ndarray], ts: float, substeps: int = 4):
+        self.plant = plant
+        self.gains = [np.asarray(K, dtype=float) for K in gains]
+        self.ts = float(ts)
+        self.substeps = int(substeps)
+        self._x: np.ndarray | None = None
+        self._k = 0
+        # The simulator's own integrator, model, parameters and bounds, built once: one
+        # `predict` is exactly the state `simulate(..., steps=1, u_init=u).x[:, 1]` returns.
+        from tanksynth.sim.simulate import _Integrator, _param_arrays, clip_bounds, numpy_model
+
+        self._params = _param_arrays(plant, None, 1)
+        lower, upper = clip_bounds(plant, self._params)
+        self._integ = _Integrator(numpy_model(plant), np.asarray(lower, float),
+                                  np.asarray(upper, float), 12, 3)
+        self._u_lo = np.full(plant.m, -np.inf)
+        self._u_hi = np.full(plant.m, np.inf)
+        for j, pair in enumerate(plant.input_bounds):
+            for arr, b in ((self._u_lo, pair[0]), (self._u_hi, pair[1])):
+                arr[j] = self._params[b] if isinstance(b, str) else float(b)
+
+    def reset(self, x_hat0: np.ndarray) -> None:
+        """Initial estimates (M, n)."""
+        self._x = np.asarray(x_hat0, dtype=float).copy()
+        self._k = 0
+
+    def predict(self, x: np.ndarray, u: np.ndarray) -> np.ndarray:
+        """One sampling period of the nominal plant from ``x`` (M, n) under the held ``u`` (M, m).
+
+        The simulator's step without noise: states clipped, input saturated,
+        ``substeps`` RK4 steps (switching surfaces located), clipped again.
+        """
+        integ = self._integ
+        x = integ.clip(np.asarray(x, dtype=float))
+        u = np.minimum(np.maximum(np.asarray(u, dtype=float), self._u_lo), self._u_hi)
+        h = self.ts / self.substeps
+        for _ in range(self.substeps):
+            x = integ.step(x, u, self._params, h)
+        return integ.clip(x)
+
+    def step(self, y: np.ndarray, u: np.ndarray) -> np.ndarray:
+        """Measurement (M, q), previous input (M, m) -> estimate (M, n)."""
+        if self._k > 0:
+            M = self._x.shape[0]
+            pred = self.predict(self._x, u)
+            if self._k <= len(self.gains):
+                yhat = np.asarray(self.plant.compiled.output(pred), dtype=float).reshape(M, -1)
+                pred = pred + (y - yhat) @ self.gains[self._k - 1].T
+            self._x = pred
+        self._k += 1
+        return self._x
+
+
+def decentralized_kalman_verdict(doc: Mapping[str, Any], spec: Any) -> list[Check]:
+    """Verdict of a ``decentralized_kalman`` artefact (seed 003).
+
+    Checks: ``sparsity`` (every gain entry outside ``E`` exactly 0),
+    ``covariances`` (``P0_pred`` symmetric positive definite, ``P_diag >
+    0``), then on the nonlinear network over the window (8 runs; initial
+    error drawn from ``P0_pred``, process noise ``sqrt(Qc_ii ts)`` per state
+    and sample, measurement noise ``sqrt(R_ii)``, the spec's window input):
+    ``filter_vs_open_loop`` (RMSE of the filter below that of the open-loop
+    predictor from the same start) and ``filter_error_bounded`` (RMS error
+    over the last quarter of the window <= 3 sqrt(mean P_diag) there).
+    """
+    plant = spec.plant
+    n, q, m = plant.n, plant.q, plant.m
+    E = _matrix(doc, "E", (n, q))
+    T = 0
+    while f"K_{T}" in doc["gains"]:
+        T += 1
+    if T == 0:
+        raise ArtefactError(f"artefact '{doc['name']}' has no gain K_0")
+    Ks = [_matrix(doc, f"K_{j}", (n, q)) for j in range(T)]
+    mask = E != 0
+    bad = [(j, int(np.sum(K[~mask] != 0))) for j, K in enumerate(Ks) if np.any(K[~mask] != 0)]
+    checks = [Check("sparsity", not bad,
+                    f"entries of K_0 .. K_{T - 1} outside the pattern E ({int(mask.sum())} free of "
+                    f"{mask.size}) are exactly 0" if not bad else
+                    "nonzero entries outside E in " + ", ".join(f"K_{j} ({c})" for j, c in bad[:5]),
+                    {"violations": bad})]
+    P0 = _matrix(doc, "P0_pred", (n, n))
+    Pd = np.atleast_2d(artefact_gain(doc, "P_diag")).reshape(T, n)
+    sym = float(np.max(np.abs(P0 - P0.T)) / max(float(np.max(np.abs(P0))), 1e-300))
+    pmin = float(np.min(np.linalg.eigvalsh(0.5 * (P0 + P0.T))))
+    checks.append(Check("covariances", bool(sym <= 1e-12 and pmin > 0 and np.all(Pd > 0)),
+                        f"P0_pred symmetric to {sym:.3g} (tolerance 1e-12), smallest eigenvalue "
+                        f"{pmin:.3g} (must be > 0); smallest P_diag entry {float(np.min(Pd)):.3g} "
+                        "(must be > 0)", {"asymmetry": sym, "P0_min_eigenvalue": pmin}))
+
+    def simulate_window() -> list[Check]:
+        ts = float(spec.ts)
+        x0 = np.asarray(spec.x0, dtype=float)
+        opt_u = _option(doc, spec, "input")
+        if isinstance(opt_u, list) and len(opt_u) == m:
+            u = np.asarray(opt_u, dtype=float)
+        else:
+            u = _equilibrium(spec)[1]
+        qn = _option(doc, spec, "process_noise", 0.0)
+        qdiag = np.diag(np.asarray(qn, float)) if isinstance(qn, list) else np.full(n, float(qn))
+        rn = _option(doc, spec, "measurement_noise", 1.0)
+        rdiag = np.diag(np.asarray(rn, float)) if isinstance(rn, list) else np.full(q, float(rn))
+        runs = 8
+        rng = np.random.default_rng(11)
+        chol = np.linalg.cholesky(0.5 * (P0 + P0.T))
+        starts = x0 + rng.standard_normal((runs, n)) @ chol.T
+        lo = np.array([b[0] for b in plant.region.bounds], float)
+        starts = np.maximum(starts, np.where(np.isfinite(lo), lo, -np.inf))
+        seeds = run_seeds(5, runs)
+        common = dict(ts=ts, steps=T, x0=starts, seeds=seeds, x_hat0=np.tile(x0, (runs, 1)),
+                      u_init=u, process_std=np.sqrt(np.maximum(qdiag, 0) * ts),
+                      measurement_std=np.sqrt(np.maximum(rdiag, 0)), substeps=4)
+        filt = simulate(plant, estimator=DecentralizedFilter(plant, Ks, ts), **common)
+        record_trace(filt, plant, check="filter_vs_open_loop", estimator=True,
+                     scenario="random initial states, process and measurement noise, decentralised "
+                              "Kalman filter")
+        open_loop = simulate(plant, estimator=DecentralizedFilter(plant, [], ts), **common)
+        e_f = filt.x_hat[:, 1:] - filt.x[:, 1:]
+        e_o = open_loop.x_hat[:, 1:] - open_loop.x[:, 1:]
+        rmse_f = float(np.sqrt(np.mean(e_f ** 2)))
+        rmse_o = float(np.sqrt(np.mean(e_o ** 2)))
+        tail = slice(T - max(1, T // 4), T)
+        rms_tail = float(np.sqrt(np.mean(e_f[:, tail] ** 2)))
+        bound = 3.0 * float(np.sqrt(np.mean(Pd[tail])))
+        finite = bool(np.all(np.isfinite(e_f)))
+        return [
+            Check("filter_vs_open_loop", bool(finite and rmse_f < rmse_o),
+                  f"{runs} runs of the nonlinear plant over the {T}-step window (input {_fmt(u[:4])}"
+                  f"{' ...' if m > 4 else ''}, initial error drawn from P0_pred, process noise std "
+                  f"sqrt(Qc_ii ts), measurement noise std sqrt(R_ii)): RMSE of the decentralised "
+                  f"filter {rmse_f:.4g} against {rmse_o:.4g} for the open-loop predictor from the "
+                  "same start (must be smaller)",
+                  {"rmse_filter": rmse_f, "rmse_open_loop": rmse_o, "runs": runs}),
+            Check("filter_error_bounded", bool(finite and rms_tail <= bound),
+                  f"RMS estimation error over the last {tail.stop - tail.start} window steps "
+                  f"{rms_tail:.4g} against 3 sqrt(mean P_diag) = {bound:.4g} there (must not exceed)",
+                  {"rms_tail": rms_tail, "bound": bound}),
+        ]
+
+    checks += _guard("filter_simulation", simulate_window)
+    return checks

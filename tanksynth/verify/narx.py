@@ -1,0 +1,158 @@
+"""Verdict of ``narx`` (NARX estimator trained on EKF data)."""
+
+
+from typing import Any, Mapping
+
+import numpy as np
+
+from tanksynth.analysis.checks import Check
+from tanksynth.verify.common import artefact_gain
+
+
+from tanksynth.verify.common import _NUMERIC_ERRORS, _fmt, _guard, _one_line, _option, _rel
+from tanksynth.verify.estimators import _spec_kwargs
+
+__all__ = ["NARX_FIT_FACTOR", "NARX_CLOSED_LOOP_FACTOR", "NARX_FRESH_SEED", "narx_verdict"]
+
+# ============================================================================== NARX
+#: Fresh one-step fit error allowed, as a multiple of the training fit error.
+NARX_FIT_FACTOR = 3.0
+#: Fresh closed-loop RMSE allowed, as a multiple of the validation RMSE claimed by the design.
+NARX_CLOSED_LOOP_FACTOR = 3.0
+#: Seed offset of the fresh verification data (never the training seed).
+NARX_FRESH_SEED = 1_000_003
+
+
+def narx_verdict(doc: Mapping[str, Any], spec: Any) -> list[Check]:
+    """Verdict of a ``narx`` artefact (seed 002 section 3.3).
+
+    The network is rebuilt from the stored weights and normalisation;
+    fresh data come from `generate_ekf_data` with the stored EKF tuning
+    (``ekf_Q``, ``ekf_R``, ``ekf_P0``, ``x0``) and the spec's data options,
+    on a seed the training never used (2 runs, the spec's ``steps``).
+
+    ``training_fit_recheck``
+        the one-step (teacher-forced) MSE of the stored weights on the
+        stored training data equals the training MSE the diagnostics report
+        (relative tolerance 1e-6).
+    ``one_step_fit``
+        on the fresh data, the mean over states of the one-step MSE is at
+        most `NARX_FIT_FACTOR` (3) times the reference: the larger of the
+        mean training MSE and the mean held-out (validation) one-step MSE
+        the design reports.
+    ``closed_loop_bounded``
+        the estimator runs in closed loop on the fresh measurements
+        (`NARXEstimator`, own predictions fed back): every estimate finite
+        and the RMSE against the true states (mean over states) at most
+        `NARX_CLOSED_LOOP_FACTOR` (3) times the larger of the design's
+        validation RMSE against the true states and the EKF's RMSE on the
+        same fresh data.
+    """
+    from tanksynth.runtime.estimators.kalman import KalmanTuning
+    from tanksynth.runtime.estimators.narx import (NARXEstimator, NARXTuning, _features, _forward,
+                                          generate_ekf_data)
+
+    plant = spec.plant
+    n, q = plant.n, plant.q
+    g = lambda k: np.asarray(artefact_gain(doc, k), dtype=float)  # noqa: E731
+    W1 = np.atleast_2d(g("W1"))
+    H = W1.shape[0]
+    delays = int(round(float(np.ravel(g("delays"))[0])))
+    substeps = int(_option(doc, spec, "substeps", 1))
+    clip = bool(_option(doc, spec, "clip", False))
+    tuning = NARXTuning(W1, g("b1").reshape(H), np.atleast_2d(g("W2")).reshape(n, H),
+                        g("b2").reshape(n), g("in_mean").reshape(-1), g("in_scale").reshape(-1),
+                        g("out_mean").reshape(n), g("out_scale").reshape(n), x0=g("x0").reshape(n),
+                        ts=float(spec.ts), delays=delays, substeps=substeps, clip=clip)
+    params = (tuning.W1, tuning.b1, tuning.W2, tuning.b2)
+
+    def predict(X_in: np.ndarray) -> np.ndarray:
+        out, _ = _forward(params, (X_in - tuning.in_mean) / tuning.in_scale)
+        return out * tuning.out_scale + tuning.out_mean
+
+    diag = doc.get("diagnostics", {}) or {}
+    fit = diag.get("fit", {}) or {}
+    claimed = np.asarray(fit.get("mse_train", []), dtype=float).reshape(-1)
+    checks: list[Check] = []
+
+    def recheck() -> list[Check]:
+        Xt, Tt = np.atleast_2d(g("training_inputs")), np.atleast_2d(g("training_targets"))
+        mse = np.mean((predict(Xt) - Tt) ** 2, axis=0)
+        if claimed.size != n:
+            return [Check("training_fit_recheck", None, "the diagnostics report no training MSE")]
+        diff = _rel(mse, claimed)
+        return [Check("training_fit_recheck", bool(diff <= 1e-6),
+                      f"one-step MSE of the stored weights on the {Xt.shape[0]} stored training "
+                      f"samples {_fmt(mse)} against the reported training MSE {_fmt(claimed)}: "
+                      f"relative difference {diff:.3g} (tolerance 1e-06)",
+                      {"mse": mse.tolist(), "reported": claimed.tolist(), "difference": diff})]
+
+    checks += _guard("training_fit_recheck", recheck)
+
+    def fresh() -> list[Check]:
+        train = diag.get("training", {}) or {}
+        seed = int(_option(doc, spec, "seed", train.get("seed", 0))) + NARX_FRESH_SEED
+        steps = int(_option(doc, spec, "steps", train.get("steps", 600)))
+        target = str(_option(doc, spec, "target", train.get("target", "ekf")))
+        input_range = _option(doc, spec, "input_range")
+        hold = tuple(_option(doc, spec, "hold", [30, 150]))
+        noise = _option(doc, spec, "noise_std")
+        ekf = KalmanTuning(Q=np.atleast_2d(g("ekf_Q")).reshape(n, n),
+                           R=np.atleast_2d(g("ekf_R")).reshape(q, q),
+                           P0=np.atleast_2d(g("ekf_P0")).reshape(n, n), x0=tuning.x0,
+                           ts=float(spec.ts), substeps=substeps, clip=clip,
+                           **_spec_kwargs(doc, spec, ("jacobian_eps", "switch_tol")))
+        runs = 2
+        data = generate_ekf_data(plant, ekf, runs=runs, steps=steps, seed=seed,
+                                 input_range=input_range, hold=hold, noise_std=noise,
+                                 sim_substeps=int(_option(doc, spec, "sim_substeps", 10)))
+        X_in, T, _ = _features(data, tuning.x0, delays, target)
+        mse = np.mean((predict(X_in) - T) ** 2, axis=0)
+        out: list[Check] = []
+        if claimed.size == n:
+            held = np.asarray(fit.get("mse_validation_open_loop", []), dtype=float).reshape(-1)
+            ref = max(float(np.mean(claimed)), float(np.mean(held)) if held.size == n else 0.0)
+            ratio = float(np.mean(mse) / max(ref, 1e-300))
+            out.append(Check("one_step_fit", bool(np.all(np.isfinite(mse)) and
+                                                  ratio <= NARX_FIT_FACTOR),
+                             f"one-step (teacher-forced) MSE on fresh EKF data ({runs} runs x {steps} "
+                             f"samples, seed {seed}, target {target}): {_fmt(mse)}, mean "
+                             f"{float(np.mean(mse)):.4g}; reference max(training MSE mean "
+                             f"{float(np.mean(claimed)):.4g}, held-out validation MSE mean "
+                             f"{float(np.mean(held)) if held.size == n else float('nan'):.4g}) = "
+                             f"{ref:.4g}; ratio {ratio:.3g} (must be <= "
+                             f"{NARX_FIT_FACTOR:g})", {"mse": mse.tolist(), "ratio": ratio,
+                                                       "factor": NARX_FIT_FACTOR, "seed": seed}))
+        else:
+            out.append(Check("one_step_fit", None, "the diagnostics report no training MSE"))
+        est = NARXEstimator(plant, tuning, runs=runs, backend="vm")
+        X_hat = np.empty_like(data["x_ekf"])
+        failed = None
+        with np.errstate(all="ignore"):
+            for k in range(steps):
+                try:
+                    X_hat[k] = est.step(data["y"][k], data["u"][k])
+                except _NUMERIC_ERRORS as exc:
+                    X_hat[k:] = np.nan
+                    failed = (k, _one_line(exc))
+                    break
+        truth = data["x"][1:]
+        rmse = float(np.sqrt(np.mean((X_hat - truth) ** 2)))
+        ekf_rmse = float(np.sqrt(np.mean((data["x_ekf"] - truth) ** 2)))
+        val = (diag.get("closed_loop_validation", {}) or {}).get("rmse_vs_true")
+        claim = float(np.sqrt(np.mean(np.square(val)))) if val else 0.0
+        bound = NARX_CLOSED_LOOP_FACTOR * max(claim, ekf_rmse)
+        ok = bool(failed is None and np.all(np.isfinite(X_hat)) and rmse <= bound)
+        out.append(Check("closed_loop_bounded", ok,
+                         f"NARX in closed loop (own estimates fed back) on the fresh measurements: "
+                         f"RMSE against the true states {rmse:.4g}"
+                         + (f" (stopped at step {failed[0]}: {failed[1]})" if failed else "")
+                         + f"; bound {NARX_CLOSED_LOOP_FACTOR:g} x max(design's validation RMSE "
+                           f"{claim:.4g}, EKF RMSE on the same data {ekf_rmse:.4g}) = {bound:.4g} "
+                           "(every estimate must be finite and the RMSE within the bound)",
+                         {"rmse": rmse, "bound": bound, "claimed_rmse": claim,
+                          "ekf_rmse": ekf_rmse}))
+        return out
+
+    checks += _guard("one_step_fit", fresh)
+    return checks

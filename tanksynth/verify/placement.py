@@ -1,0 +1,192 @@
+"""Verdicts of ``pole_placement``, ``lmi_placement`` and ``canonical_observer``."""
+
+
+from typing import Any, Mapping
+
+import numpy as np
+
+from tanksynth.analysis.checks import Check
+from tanksynth.analysis.rank import controllability_rank, observability_rank
+
+
+from tanksynth.verify.common import _augment_continuous, _conditioning, _designed_tau, _equilibrium, _fastest_rate, _guard, _matrix, _model_recheck, _observer_ts, _option, _output_rows, _pole_check, _rank_check, _region_check, _region_lmi_check, _regulation_check, _servo_check, _stability_check, _time_domain, _tracked_outputs, luenberger_estimator, observer_convergence
+
+__all__ = ["pole_placement_verdict", "lmi_placement_verdict", "canonical_observer_verdict"]
+
+# =================================================================== convex designs
+def _placement_common(doc: Mapping[str, Any], spec: Any) -> dict:
+    plant = spec.plant
+    n, m, q = plant.n, plant.m, plant.q
+    domain = _time_domain(doc, spec)
+    ts = spec.ts
+    A = _matrix(doc, "A", (n, n))
+    B = _matrix(doc, "B", (n, m))
+    C = _matrix(doc, "C", (q, n))
+    x0, u0 = _equilibrium(spec)
+    gains = doc["gains"]
+    target = "observer" if "L" in gains else "state_feedback"
+    integral = "K1" in gains and "K2" in gains
+    out = dict(plant=plant, domain=domain, ts=ts, A=A, B=B, C=C, x0=x0, u0=u0, target=target,
+               integral=integral)
+    if target == "observer":
+        L = _matrix(doc, "L", (n, q))
+        out.update(L=L, Acl=A - L @ C, what="the observer error matrix A - L C")
+    elif integral:
+        names = _tracked_outputs(doc, spec)
+        rows = _output_rows(plant, names)
+        C1 = C[rows]
+        K = _matrix(doc, "K", (m, n + len(rows)))
+        if domain == "discrete":
+            from tanksynth.design.placement import integral_augmentation
+
+            aug = integral_augmentation(A, B, C1, ts)
+            Aa, Ba = aug.A, aug.B
+        else:
+            Aa, Ba = _augment_continuous(A, B, C1)
+        out.update(K=K, C1=C1, rows=rows, tracked=names, Aa=Aa, Ba=Ba, Acl=Aa - Ba @ K,
+                   what="the augmented closed loop Aa - Ba K")
+    else:
+        K = _matrix(doc, "K", (m, n))
+        out.update(K=K, Acl=A - B @ K, what="the closed loop A - B K")
+    out["eigs"] = np.linalg.eigvals(out["Acl"])
+    return out
+
+
+def _placement_rank(c: dict) -> list[Check]:
+    if c["target"] == "observer":
+        return [_rank_check("rank_observability", observability_rank(c["A"], c["C"]), "(A, C)")]
+    checks = [_rank_check("rank_controllability", controllability_rank(c["A"], c["B"]), "(A, B)")]
+    if c["integral"]:
+        checks.append(_rank_check("rank_controllability_augmented",
+                                  controllability_rank(c["Aa"], c["Ba"]), "the augmented (Aa, Ba)"))
+    return checks
+
+
+def _placement_simulation(doc: Mapping[str, Any], spec: Any, c: dict) -> list[Check]:
+    from tanksynth.verify.campaign import IntegralStateFeedback
+
+    plant, domain, ts = c["plant"], c["domain"], c["ts"]
+    tau, rule = _designed_tau(doc, spec, c["eigs"], domain, ts)
+    if c["target"] == "observer":
+        if not np.isfinite(tau):
+            return [Check("observer_convergence", False, "the designed error dynamics are not "
+                                                         "stable: nothing to converge")]
+        ts_sim = _observer_ts(domain, ts, tau)
+        form = "predictor" if domain == "discrete" else "continuous"
+        est = luenberger_estimator(plant, c["L"], c["x0"], c["u0"], ts_sim, form)
+        return [observer_convergence(plant, est, c["x0"], c["u0"], tau, ts_sim,
+                                     conditioning=_conditioning(c["Acl"]),
+                                     rule=f"{rule}; Luenberger observer, {form} form (error matrix "
+                                          f"{'A - L C' if form == 'predictor' else 'F - L C'}), on the "
+                                          "plant linearised at the operating point")]
+    if domain == "discrete":
+        ts_sim = float(ts)
+    else:
+        fast = _fastest_rate(c["eigs"], domain, ts)
+        ts_sim = 0.05 / fast if fast > 0 else tau / 20
+        ts_sim = min(ts_sim, ts) if ts else ts_sim
+    if c["integral"]:
+        law = IntegralStateFeedback(c["K"][:, :plant.n], c["K"][:, plant.n:], c["C1"], c["x0"],
+                                    c["u0"], ts_sim)
+        return _servo_check(plant, law, c["x0"], c["u0"], c["rows"], tau, ts_sim, rule=rule)
+    return [_regulation_check(plant, c["K"], c["x0"], c["u0"], tau, ts_sim, _conditioning(c["Acl"]),
+                              rule=rule)]
+
+
+def pole_placement_verdict(doc: Mapping[str, Any], spec: Any) -> list[Check]:
+    """Verdict of a ``pole_placement`` artefact (state feedback, integral action or observer).
+
+    Checks: ``model_recheck``, ``poles`` (vs the spec's ``poles``),
+    ``stability``, ``rank_*``, then ``observer_convergence``,
+    ``servo_tracking`` + ``bounded_inputs`` (integral action) or
+    ``regulation`` on the nonlinear plant.
+    """
+    from tanksynth.spec.options import parse_poles
+
+    c = _placement_common(doc, spec)
+    checks = [_model_recheck(c["plant"], c["x0"], c["u0"], c["domain"], c["ts"],
+                             {"A": c["A"], "B": c["B"], "C": c["C"]})]
+    poles = _option(doc, spec, "poles")
+    if poles is None:
+        checks.append(Check("poles", None, "the spec entry of this artefact gives no poles"))
+    else:
+        checks.append(_pole_check(c["eigs"], parse_poles(poles, "poles"), c["what"]))
+    checks.append(_stability_check(c["eigs"], c["domain"], c["what"]))
+    checks += _placement_rank(c)
+    checks += _guard("simulation", lambda: _placement_simulation(doc, spec, c))
+    return checks
+
+
+def lmi_placement_verdict(doc: Mapping[str, Any], spec: Any) -> list[Check]:
+    """Verdict of an ``lmi_placement`` artefact.
+
+    Checks: ``model_recheck``, ``region`` (eigenvalues in the spec's
+    region), ``lmi_recheck`` (region LMI from the stored ``P``),
+    ``stability``, ``rank_*`` and the simulation checks of
+    `pole_placement_verdict`.
+    """
+    from tanksynth.analysis.lmi_region import region_from_parts
+    from tanksynth.spec.options import parse_region
+
+    c = _placement_common(doc, spec)
+    size = c["Acl"].shape[0]
+    checks = [_model_recheck(c["plant"], c["x0"], c["u0"], c["domain"], c["ts"],
+                             {"A": c["A"], "B": c["B"], "C": c["C"]})]
+    raw = _option(doc, spec, "region")
+    if raw is None:
+        checks.append(Check("region", None, "the spec entry of this artefact gives no region"))
+    else:
+        region = region_from_parts(parse_region(raw, "region"))
+        checks.append(_region_check(c["eigs"], region, c["what"]))
+        P = _matrix(doc, "P", (size, size))
+        if c["target"] == "observer":
+            # dual problem: X = P for (A', C'), closed loop (A - L C)'
+            checks.append(_region_lmi_check(region, c["Acl"].T, P, "(A - L C)' with X = P"))
+        else:
+            checks.append(_region_lmi_check(region, c["Acl"], np.linalg.inv(P),
+                                            c["what"] + " with X = P^-1"))
+    checks.append(_stability_check(c["eigs"], c["domain"], c["what"]))
+    checks += _placement_rank(c)
+    checks += _guard("simulation", lambda: _placement_simulation(doc, spec, c))
+    return checks
+
+
+def canonical_observer_verdict(doc: Mapping[str, Any], spec: Any) -> list[Check]:
+    """Verdict of a ``canonical_observer`` artefact (seed 004 eq. 27-29).
+
+    Checks: ``model_recheck`` (stored ``A``, ``C`` vs the continuous
+    Jacobians), ``poles`` of ``A - L C`` vs the spec's poles,
+    ``stability``, ``rank_observability`` and ``observer_convergence`` of
+    the continuous Luenberger observer on the nonlinear plant.
+    """
+    from tanksynth.spec.options import parse_poles
+
+    plant = spec.plant
+    n, q = plant.n, plant.q
+    A = _matrix(doc, "A", (n, n))
+    C = _matrix(doc, "C", (q, n))
+    L = _matrix(doc, "L", (n, q))
+    x0, u0 = _equilibrium(spec)
+    eigs = np.linalg.eigvals(A - L @ C)
+    what = "the observer error matrix A - L C"
+    checks = [_model_recheck(plant, x0, u0, "continuous", None, {"A": A, "C": C})]
+    poles = _option(doc, spec, "poles")
+    if poles is None:
+        checks.append(Check("poles", None, "the spec entry of this artefact gives no poles"))
+    else:
+        checks.append(_pole_check(eigs, parse_poles(poles, "poles"), what))
+    checks.append(_stability_check(eigs, "continuous", what))
+    checks.append(_rank_check("rank_observability", observability_rank(A, C), "(A, C)"))
+
+    def sim() -> list[Check]:
+        tau, rule = _designed_tau(doc, spec, eigs, "continuous", None)
+        if not np.isfinite(tau):
+            return [Check("observer_convergence", False, "error dynamics not stable")]
+        ts_sim = _observer_ts("continuous", spec.ts, tau)
+        est = luenberger_estimator(plant, L, x0, u0, ts_sim, "continuous")
+        return [observer_convergence(plant, est, x0, u0, tau, ts_sim,
+                                     conditioning=_conditioning(A - L @ C),
+                                     rule=f"{rule}; continuous Luenberger observer on the plant "
+                                          "linearised at the operating point")]
+
+    return checks + _guard("observer_convergence", sim)

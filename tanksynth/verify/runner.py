@@ -1,0 +1,284 @@
+"""``tanksynth verify DIR``: run each artefact's verdict and record it.
+
+The verdict of each method comes from the method table (`tanksynth.methods`), passed in
+as a mapping; an artefact whose method has no verdict is refused (exit 2), never passed.
+
+`verify_directory` reads every artefact first (a tampered one, or one
+designed from another spec than ``DIR/spec.toml``, is refused with an
+`ArtefactError` before anything is written), runs the verdicts (in
+process, or on a Dask cluster given its scheduler address), and writes
+each artefact's ``verification`` field back atomically; gains are left
+byte for byte as they were, so their provenance hash stays valid.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+from dataclasses import dataclass
+from functools import lru_cache
+from pathlib import Path
+from typing import Any, Callable, Mapping
+
+import numpy as np
+
+from tanksynth.analysis.checks import Check
+from tanksynth.artefacts.traces import trace_path, write_trace
+from tanksynth.errors import ArtefactError, TanksynthError
+from tanksynth.verify.traces import _TRACE
+
+__all__ = ["VerdictFn", "Verdict", "verdict_for", "verdict_with_trace", "load_directory", "verify_directory"]
+
+
+#: ``verdict(doc, spec) -> list[Check]``: the verdict of one design method.
+VerdictFn = Callable[[Mapping[str, Any], Any], list]
+
+#: Errors a verdict may raise on bad data or failed numerics; they fail the artefact.
+_VERDICT_ERRORS = (TanksynthError, np.linalg.LinAlgError, ValueError, RuntimeError, ArithmeticError,
+                   KeyError, IndexError, TypeError)
+
+
+
+@dataclass(frozen=True)
+class Verdict:
+    """The verification of one artefact.
+
+    Attributes
+    ----------
+    name, method : str
+    path : Path
+        The artefact JSON.
+    checks : tuple of Check
+    """
+
+    name: str
+    method: str
+    path: Path
+    checks: tuple[Check, ...]
+
+    @property
+    def passed(self) -> bool:
+        """True if at least one check decided and every decided check passed.
+
+        A verdict that decided nothing did not verify the artefact: it fails.
+        """
+        decided = [c.passed for c in self.checks if c.passed is not None]
+        return bool(decided) and all(decided)
+
+    def as_dict(self) -> dict:
+        """The ``verification`` field of the artefact."""
+        from tanksynth.artefacts.io import to_jsonable  # lazy: tanksynth.artefacts.io imports the design stage
+
+        return {"passed": self.passed, "checks": [to_jsonable(c.as_dict()) for c in self.checks]}
+
+
+
+def verdict_for(doc: Mapping[str, Any], spec: Any, verdict: VerdictFn) -> list[Check]:
+    """The checks of one artefact (``doc`` as returned by `read_artefact`).
+
+    A verdict that cannot run (bad artefact data, a numerical failure) gives
+    one failed check ``verification`` with the reason, never a traceback.
+    """
+    try:
+        return list(verdict(doc, spec))
+    except _VERDICT_ERRORS as exc:
+        return [Check("verification", False, f"verdict could not run: {' '.join(str(exc).split())}")]
+
+
+def verdict_with_trace(doc: Mapping[str, Any], spec: Any,
+                       verdict: VerdictFn) -> tuple[list[Check], dict | None]:
+    """`verdict_for`, with the trace of the verdict's main simulation.
+
+    Returns
+    -------
+    checks : list of Check
+    trace : dict or None
+        ``{"header": dict, "arrays": dict of ndarray}`` (see `record_trace`),
+        with the verdict of the check it decides (``check_passed``) and of
+        the artefact (``verdict_passed``) added to the header; None when
+        the verdict simulated nothing.
+    """
+    slot: dict = {}
+    token = _TRACE.set(slot)
+    try:
+        checks = verdict_for(doc, spec, verdict)
+    finally:
+        _TRACE.reset(token)
+    trace = slot.get("trace")
+    if trace is not None:
+        named = [c for c in checks if c.name == trace["header"]["check"]]
+        decided = [c.passed for c in checks if c.passed is not None]
+        trace["header"]["check_passed"] = named[0].passed if named else None
+        trace["header"]["verdict_passed"] = bool(decided) and all(decided)
+        trace["header"]["artefact"] = str(doc.get("name", ""))
+        trace["header"]["method"] = str(doc.get("method", ""))
+    return checks, trace
+
+
+
+@lru_cache(maxsize=8)
+def _spec_from_text(text: str, source: str):
+    from tanksynth.spec import parse_spec_text
+
+    return parse_spec_text(text.encode("utf-8"), source=source)
+
+
+
+def load_directory(directory: str | Path) -> tuple[Any, list[tuple[Path, dict]]]:
+    """Read ``DIR/spec.toml`` and every artefact of a directory, refusing bad ones.
+
+    Returns
+    -------
+    spec : tanksynth.spec.Spec
+    artefacts : list of (Path, dict)
+        Each artefact's path and document (gains as arrays), sorted by name.
+
+    Raises
+    ------
+    ArtefactError
+        No artefact, no ``spec.toml``, an unreadable or tampered artefact
+        (gains changed after design), or one designed from another spec.
+    """
+    from tanksynth.artefacts.io import SCHEMA, read_artefact  # lazy: see Verdict.as_dict
+
+    directory = Path(directory)
+    if not directory.is_dir():
+        raise ArtefactError(f"{directory}: not a directory")
+    docs = []
+    for path in sorted(directory.glob("*.json")):
+        try:
+            head = json.loads(path.read_text(encoding="utf-8"))
+        except (OSError, json.JSONDecodeError, UnicodeDecodeError):
+            head = None
+        if isinstance(head, dict) and isinstance(head.get("schema"), str) \
+                and not head["schema"].startswith("tanksynth.artefact/"):
+            continue  # plant record, campaign metadata, ...
+        if not isinstance(head, dict) and path.name in ("checks.json",):
+            continue
+        docs.append((path, read_artefact(path)))
+    if not docs:
+        raise ArtefactError(f"{directory}: no artefact (*.json with schema {SCHEMA!r})")
+    spec_path = directory / "spec.toml"
+    try:
+        raw = spec_path.read_bytes()
+    except OSError:
+        raise ArtefactError(f"{spec_path}: missing; verify needs the spec the artefacts were designed "
+                            "from (written by `tanksynth design`)") from None
+    import hashlib
+
+    sha = hashlib.sha256(raw).hexdigest()
+    for path, doc in docs:
+        if doc["provenance"].get("spec_sha256") != sha:
+            raise ArtefactError(f"{path}: designed from another spec than {spec_path} "
+                                "(spec_sha256 differs)")
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError:
+        raise ArtefactError(f"{spec_path}: not UTF-8 text") from None
+    return _spec_from_text(text, str(spec_path)), docs
+
+
+
+def _write_verification(path: Path, verification: Mapping[str, Any]) -> None:
+    """Set the ``verification`` field of an artefact JSON, atomically, gains untouched."""
+    raw = json.loads(path.read_text(encoding="utf-8"))
+    raw["verification"] = verification
+    data = (json.dumps(raw, indent=2, allow_nan=False) + "\n").encode("utf-8")
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            fh.write(data)
+        os.replace(tmp, path)
+    finally:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+
+
+
+def _remote_verdict(verdict: VerdictFn, doc: dict, spec_text: str,
+                    source: str) -> tuple[list[dict], dict | None]:
+    """Run one verdict on a Dask worker (plain data in, plain data out), with its trace."""
+    spec = _spec_from_text(spec_text, source)
+    doc = dict(doc)
+    doc["gains"] = {k: np.asarray(v, dtype=float) for k, v in doc["gains"].items()}
+    checks, trace = verdict_with_trace(doc, spec, verdict)
+    return [c.as_dict() for c in checks], trace
+
+
+
+def verify_directory(directory: str | Path, verdicts: Mapping[str, VerdictFn],
+                     scheduler: str | None = None,
+                     progress: Callable[[int, int], None] | None = None) -> list[Verdict]:
+    """Verify every artefact of a directory and record the verdicts in them.
+
+    Beside each artefact ``DIR/<name>.json`` the trace of its verdict's main
+    simulation is written to ``DIR/<name>.traces.npz`` (`write_trace`,
+    atomic); an artefact whose verdict simulates nothing has its stale
+    trace removed. The artefact JSON gets only its ``verification`` field.
+
+    Parameters
+    ----------
+    directory : str or Path
+        Holds the artefacts and ``spec.toml``.
+    verdicts : mapping of str to callable
+        The verdict of each design method (`tanksynth.methods.VERDICTS`).
+    scheduler : str, optional
+        Address of a Dask scheduler: the verdicts run there (one task per
+        artefact). Default: in this process.
+    progress : callable, optional
+        ``progress(done, total)`` after each artefact.
+
+    Returns
+    -------
+    list of Verdict
+
+    Raises
+    ------
+    ArtefactError
+        See `load_directory`; nothing is written then.
+    """
+    spec, docs = load_directory(directory)
+    for path, doc in docs:
+        if str(doc["method"]) not in verdicts:
+            raise ArtefactError(f"{path.name}: unknown design method {doc['method']!r}; expected one of: "
+                                + ", ".join(sorted(verdicts)))
+    total = len(docs)
+    checks: dict[Path, list[Check]] = {}
+    traces: dict[Path, dict | None] = {}
+    if scheduler is None:
+        for i, (path, doc) in enumerate(docs):
+            checks[path], traces[path] = verdict_with_trace(doc, spec, verdicts[str(doc["method"])])
+            if progress is not None:
+                progress(i + 1, total)
+    else:
+        from distributed import Client, as_completed
+
+        text = (Path(directory) / "spec.toml").read_text(encoding="utf-8")
+        source = str(Path(directory) / "spec.toml")
+        with Client(scheduler) as client:
+            futures = {}
+            for path, doc in docs:
+                plain = {**doc, "gains": {k: v.tolist() for k, v in doc["gains"].items()}}
+                fut = client.submit(_remote_verdict, verdicts[str(doc["method"])], plain, text, source,
+                                    pure=False,
+                                    retries=2)
+                futures[fut] = path
+            for i, fut in enumerate(as_completed(futures)):
+                found, traces[futures[fut]] = fut.result()
+                checks[futures[fut]] = [Check(c["check"], c["passed"], c["detail"], c["data"])
+                                        for c in found]
+                if progress is not None:
+                    progress(i + 1, total)
+    verdicts = []
+    for path, doc in docs:
+        v = Verdict(str(doc["name"]), str(doc["method"]), path, tuple(checks[path]))
+        _write_verification(path, v.as_dict())
+        trace = traces.get(path)
+        target = trace_path(path, str(doc["name"]))
+        if trace is not None:
+            write_trace(target, trace)
+        else:
+            target.unlink(missing_ok=True)  # a stale trace of an earlier verdict
+        verdicts.append(v)
+    return verdicts

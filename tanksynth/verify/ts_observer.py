@@ -1,0 +1,182 @@
+"""Verdict of ``ts_observer`` (Takagi-Sugeno observer LMI)."""
+
+
+from typing import Any, Mapping
+
+import numpy as np
+
+from tanksynth.analysis.checks import Check
+from tanksynth.analysis.rank import observability_rank
+
+
+from tanksynth.verify.common import MODEL_TOLERANCE, TSObserver, _complex_list, _conditioning, _equilibrium, _fmt, _guard, _matrix, _observer_tau, _observer_ts, _option, _rank_check, _rel, _stability_check, observer_convergence
+
+__all__ = ["ts_observer_verdict"]
+
+# ---------------------------------------------------------------------- ts_observer
+def _ts_model_from_artefact(doc: Mapping[str, Any], spec: Any) -> tuple[Any, list[Check]]:
+    """Rebuild the TS multiple model from the plant and the recorded premises/bounds/domain."""
+    from tanksynth.analysis.takagi_sugeno import Domain, PremiseBounds, quasi_lpv, ts_model
+
+    plant = spec.plant
+    diag = doc.get("diagnostics") or {}
+    rec = diag.get("ts_model") if isinstance(diag, Mapping) else None
+    missing = []
+    if not isinstance(rec, Mapping):
+        missing.append("diagnostics.ts_model")
+        rec = {}
+    prem = rec.get("premises")
+    bounds = rec.get("bounds")
+    dom = rec.get("domain")
+    if not (isinstance(prem, list) and prem and all(isinstance(p, Mapping) and "weights" in p
+                                                    for p in prem)):
+        missing.append("ts_model.premises[*].weights")
+    if not (isinstance(bounds, Mapping) and "lower" in bounds and "upper" in bounds):
+        missing.append("ts_model.bounds.lower/upper")
+    if not (isinstance(dom, Mapping) and "lower" in dom and "upper" in dom):
+        missing.append("ts_model.domain.lower/upper")
+    if missing:
+        return None, [Check("ts_model_rebuilt", None,
+                            "cannot rebuild the TS observer (eq. 20): the artefact's diagnostics lack "
+                            + ", ".join(missing))]
+    W = np.array([p["weights"] for p in prem], dtype=float)
+    qlpv = quasi_lpv(plant, W)
+    atoms_rec = [str(p.get("atom")) for p in prem]
+    atoms_new = [str(a) for a in qlpv.atoms]
+    inc_rec = np.array([p.get("incidence", [np.nan] * plant.n) for p in prem], dtype=float).T
+    same = atoms_rec == atoms_new and inc_rec.shape == qlpv.incidence.shape and \
+        bool(np.allclose(inc_rec, qlpv.incidence, rtol=0, atol=1e-12))
+    ineq = dom.get("inequalities") or []
+    G = np.array([r["G"] for r in ineq], dtype=float).reshape(len(ineq), plant.n)
+    g = np.array([r["g"] for r in ineq], dtype=float)
+    domain = Domain(np.array(dom["lower"], float), np.array(dom["upper"], float), G, g,
+                    tuple(s.name for s in plant.states), str(dom.get("description", "")))
+    lower, upper = np.array(bounds["lower"], float), np.array(bounds["upper"], float)
+    pb = PremiseBounds(lower, upper, str(bounds.get("method", "recorded")),
+                       float(bounds.get("margin", 0.0)), lower, upper, {})
+    model = ts_model(qlpv, domain, bounds=pb)
+    checks = [Check("ts_model_rebuilt", bool(same),
+                    f"premises re-derived from the plant with the recorded weights {W.tolist()}: atoms "
+                    + ("and incidence agree with the record" if same else
+                       f"{atoms_new} differ from the record {atoms_rec}")
+                    + f"; recorded premise bounds {_fmt(lower)} .. {_fmt(upper)} and domain "
+                      f"({domain.description or 'box'}) used for eq. (20)",
+                    {"weights": W.tolist(), "atoms": atoms_new})]
+    return model, checks
+
+
+def _local_error_check(spec: Any, L: np.ndarray, C: np.ndarray) -> Check:
+    """``eig(F(x0) - L C)``: the observer error dynamics linearised at the operating point."""
+    from tanksynth.analysis.linearize import linearize
+
+    x0, u0 = _equilibrium(spec)
+    F = linearize(spec.plant, x0, u0).F
+    eig = np.linalg.eigvals(F - L @ C)
+    worst = float(np.max(eig.real))
+    return Check("local_error_dynamics", bool(worst < 0),
+                 f"eigenvalues of F(x0) - L C (F the Jacobian of the nonlinear plant at the operating "
+                 f"point: the error dynamics of eq. (20) for small errors there, whatever A0 and psi) "
+                 f"{_fmt(np.sort_complex(eig), 5)}: largest real part {worst:.4g} 1/s (must be < 0, a "
+                 "necessary condition for convergence)",
+                 {"eigenvalues": _complex_list(eig), "max_real_part": worst})
+
+
+def ts_observer_verdict(doc: Mapping[str, Any], spec: Any) -> list[Check]:
+    """Verdict of a ``ts_observer`` artefact (seed 001).
+
+    Checks: ``ts_model_rebuilt`` (premises re-derived, recorded bounds),
+    ``model_recheck`` (stored ``A0``, ``B``, ``C`` vs the rebuilt multiple
+    model), ``lmi_recheck`` (LMI 28 by `check_observer_lmi` from the stored
+    ``P``, ``Q`` and ``K = P L``), ``stability`` of ``A0 - L C``,
+    ``local_error_dynamics`` (``F(x0) - L C`` with the plant's Jacobian:
+    the LMI certifies ``A0 - L C`` plus a Lipschitz bound, which need not
+    hold), ``rank_observability`` of ``(A0, C)`` and of every vertex, and
+    ``observer_convergence`` of the multiple observer (20) on the nonlinear
+    plant.
+    """
+    from tanksynth.design.lmi import check_observer_lmi
+
+    plant = spec.plant
+    n, q, m = plant.n, plant.q, plant.m
+    L = _matrix(doc, "L", (n, q))
+    P = _matrix(doc, "P", (n, n))
+    Q = _matrix(doc, "Q", (n, n))
+    A0 = _matrix(doc, "A0", (n, n))
+    C = _matrix(doc, "C", (q, n))
+    B = _matrix(doc, "B", (n, m))
+    eigs = np.linalg.eigvals(A0 - L @ C)
+    what = "A0 - L C"
+    checks: list[Check] = []
+    model, rebuilt = _ts_model_from_artefact(doc, spec)
+    checks += rebuilt
+    if model is not None:
+        diffs = {"A0": _rel(A0, model.A0), "B": _rel(B, model.B), "C": _rel(C, model.C)}
+        worst = max(diffs.values())
+        checks.append(Check("model_recheck", bool(worst <= MODEL_TOLERANCE),
+                            f"stored A0, B, C against the multiple model rebuilt from the plant "
+                            f"(mean of the {model.r} vertices): largest relative difference "
+                            f"{worst:.3g} (tolerance {MODEL_TOLERANCE:g})", diffs))
+    diag = doc.get("diagnostics") or {}
+    lmi = diag.get("lmi") if isinstance(diag, Mapping) else None
+    psi_spec = _option(doc, spec, "psi")
+    psi_source = _option(doc, spec, "psi_source", "given" if psi_spec is not None else "maximise")
+    psi_rec = lmi.get("psi") if isinstance(lmi, Mapping) else None
+    if psi_source == "given" and psi_spec is not None:
+        psi, origin = float(psi_spec), "given in the spec"
+    elif isinstance(psi_rec, (int, float)):
+        psi, origin = float(psi_rec), f"{psi_source} (value from the diagnostics, re-checked here)"
+    else:
+        psi, origin = None, ""
+    if psi is None:
+        checks.append(Check("lmi_recheck", None, "psi is neither given in the spec nor recorded in "
+                                                 "diagnostics.lmi.psi: LMI (28) cannot be re-checked"))
+    else:
+        margin = float(_option(doc, spec, "margin", 1e-6))
+        omega = float(np.linalg.norm(A0, 2)) or (psi if psi > 0 else 1.0)
+        items, lmi_eig, _ = check_observer_lmi(A0, C, psi, P, Q, P @ L, margin, omega)
+        ok = all(c.passed for c in items)
+        checks.append(Check("lmi_recheck", bool(ok),
+                            f"LMI (28) recomputed in numpy from the stored P, Q and K = P L with psi = "
+                            f"{psi:.6g} 1/s ({origin}), margin {margin:g}, time scale |A0|_2 = "
+                            f"{omega:.4g} 1/s: " + "; ".join(
+                                f"{c.name}: {c.value:.4g} vs {c.limit:.4g} "
+                                f"{'ok' if c.passed else 'FAILS'}" for c in items),
+                            {"items": [c.as_dict() for c in items], "psi": psi,
+                             "lmi_eigenvalues": lmi_eig.tolist()}))
+    checks.append(_stability_check(eigs, "continuous", what))
+    checks += _guard("local_error_dynamics", lambda: [_local_error_check(spec, L, C)])
+    checks.append(_rank_check("rank_observability", observability_rank(A0, C), "(A0, C)"))
+    if model is not None and model.enumerated:
+        ranks = [observability_rank(Ai, C) for Ai in model.A]
+        bad = [i + 1 for i, r in enumerate(ranks) if not r.full]
+        checks.append(Check("rank_observability_vertices", not bad,
+                            f"(A_i, C) observable for {len(ranks) - len(bad)} of {len(ranks)} rebuilt "
+                            "vertices" + (f"; not for vertices {bad} (Table I order)" if bad else ""),
+                            {"ranks": [r.rank for r in ranks]}))
+
+    def sim() -> list[Check]:
+        if model is None:
+            return [Check("observer_convergence", None, "the TS observer (20) cannot be rebuilt: see "
+                                                        "ts_model_rebuilt")]
+        if psi is not None and psi > 0:
+            tau = 1.0 / psi
+            rule = (f"(= 1 / psi: LMI (28) puts every eigenvalue of A0 - L C left of -psi = "
+                    f"{-psi:.4g} 1/s, the decay the design claims)")
+        else:
+            tau, rule = _observer_tau(eigs, "continuous", None)
+            rule = rule.replace("(", "(of the stored A0 - L C: ", 1)
+        if not np.isfinite(tau):
+            return [Check("observer_convergence", False, "A0 - L C is not stable")]
+        # The exponential rule is exact on the (possibly stiff) linear part: the period only
+        # has to resolve the designed decay.
+        ts_sim = _observer_ts("continuous", spec.ts, tau)
+        x0, u0 = _equilibrium(spec)
+        est = TSObserver(model, L, ts_sim)
+        return [observer_convergence(plant, est, x0, u0, tau, ts_sim,
+                                     conditioning=_conditioning(A0 - L @ C),
+                                     inside=lambda x: bool(model.domain.contains(x)[0]),
+                                     outside=lambda X: ~model.domain.contains(X),
+                                     rule=f"{rule}; multiple observer (20) with the premises "
+                                          "evaluated at the estimate")]
+
+    return checks + _guard("observer_convergence", sim)
