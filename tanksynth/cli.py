@@ -228,7 +228,7 @@ def verify(directory: str, scheduler: str | None, as_json: bool, runs: int,
     from tanksynth.artefacts.io import to_jsonable
     from tanksynth.verify.campaign import campaign_tasks, run_campaign
     from tanksynth.sim.scenarios import SCENARIOS, scenario
-    from tanksynth.methods import CLOSED_LOOPS, verify_directory
+    from tanksynth.methods import CLOSED_LOOPS, METHODS, verify_directory
     from tanksynth.verify.runner import load_directory
 
     for name in scenarios:
@@ -240,7 +240,7 @@ def verify(directory: str, scheduler: str | None, as_json: bool, runs: int,
                                     progress=lambda d, n: bar.update(task, completed=d, total=n))
     table_path = None
     if runs:
-        spec, docs = load_directory(directory)
+        spec, docs = load_directory(directory, METHODS)
         names = list(scenarios) or [s for s in SCENARIOS if SCENARIOS[s].applies_to(spec.plant)]
         tasks = campaign_tasks(spec.text or (Path(directory) / "spec.toml").read_text(encoding="utf-8"),
                                [d for _, d in docs], names, runs, seed=seed, loops=CLOSED_LOOPS)

@@ -17,13 +17,15 @@ import platform
 import tempfile
 from importlib import metadata
 from pathlib import Path
-from typing import Any, Iterable, Mapping
+from typing import TYPE_CHECKING, Any, Iterable, Mapping
 
 import numpy as np
 
-from tanksynth.design.result import DesignResult
 from tanksynth.artefacts.export import c_header
 from tanksynth.errors import ArtefactError, SpecError
+
+if TYPE_CHECKING:  # the artefact only reads a result's fields; no import of the design stage
+    from tanksynth.design.result import DesignResult
 
 __all__ = ["SCHEMA", "PLANT_SCHEMA", "EXPORT_FORMATS", "write_plant_record", "read_plant_record", "to_jsonable", "gains_digest", "artefact_document",
            "write_artefact", "read_artefact"]

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from types import MappingProxyType
 from typing import Any, Callable, Mapping
 
 import numpy as np
@@ -65,8 +66,14 @@ class DesignMethod:
     required: tuple[str, ...] = ()
     needs_sampling: bool = False
 
-    def validate(self, options: Mapping[str, Any], key: str, plant, ts: float | None) -> None:
-        """Check a ``[[design]]`` table's options (types, unknown keys)."""
+    def validate(self, options: Mapping[str, Any], key: str, plant, ts: float | None) -> Mapping[str, Any]:
+        """Check a ``[[design]]`` table's options (types, unknown keys).
+
+        Returns
+        -------
+        mapping
+            The options with the defaults filled in (read-only).
+        """
         for opt, value in options.items():
             if opt not in self.options:
                 raise SpecError(f"unknown option {opt!r} for method '{self.name}'; expected: "
@@ -83,6 +90,9 @@ class DesignMethod:
         if self.needs_sampling and ts is None:
             raise SpecError(f"method '{self.name}' needs a sampling period: add [sampling] ts = ...",
                             key="sampling.ts")
+        resolved = {k: d for k, (_, d) in self.options.items() if d is not None}
+        resolved.update(options)
+        return MappingProxyType(resolved)
 
 
 def _type_name(kind) -> str:

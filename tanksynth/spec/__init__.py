@@ -31,12 +31,25 @@ _NAME_RE = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]{0,63}\Z")
 
 @dataclass(frozen=True)
 class DesignSpec:
-    """One ``[[design]]`` entry: a name, a method and its options."""
+    """One ``[[design]]`` entry: a name, a method and its options.
+
+    Attributes
+    ----------
+    name, method : str
+    options : mapping
+        The options as written in the spec.
+    key : str
+        Where the entry is in the spec (``design[i]``), for error messages.
+    config : object or None
+        The validated options with their defaults, as the method's
+        ``validate`` returned them; None when parsed without the methods.
+    """
 
     name: str
     method: str
     options: Mapping[str, Any]
     key: str
+    config: Any = None
 
 
 @dataclass(frozen=True)
@@ -289,7 +302,6 @@ def _parse(table: Mapping[str, Any], source: str | None, sha256: str,
             raise SpecError(f"unknown method {method!r}; expected one of: " + ", ".join(methods or ()),
                             key=f"{key}.method")
         options = {k: v for k, v in entry.items() if k not in ("name", "method")}
-        if methods is not None:
-            methods[method].validate(options, key, plant, ts)
-        designs.append(DesignSpec(name, method, options, key))
+        config = methods[method].validate(options, key, plant, ts) if methods is not None else None
+        designs.append(DesignSpec(name, method, options, key, config))
     return Spec(plant, x0, given_u0, ts, tuple(designs), title, source, sha256, table)

@@ -169,14 +169,12 @@ def design_options(doc: Mapping[str, Any], spec: Any) -> Mapping[str, Any]:
 
 
 def _option(doc: Mapping[str, Any], spec: Any, name: str, default: Any = None) -> Any:
-    opts = design_options(doc, spec)
-    if name in opts:
-        return opts[name]
-    from tanksynth.methods import ADAPTERS  # TODO(layering): defaults must come from the Options
-
-    method = ADAPTERS.get(str(doc["method"]))
-    if method is not None and name in method.options and method.options[name][1] is not None:
-        return method.options[name][1]
+    """An option of the artefact's design as validated (spec value, else the method's default)."""
+    for d in getattr(spec, "designs", ()):
+        if d.name == doc["name"] and d.method == doc["method"]:
+            config = d.config if d.config is not None else d.options
+            value = config.get(name) if hasattr(config, "get") else getattr(config, name, None)
+            return default if value is None else value
     return default
 
 

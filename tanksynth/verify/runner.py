@@ -17,9 +17,8 @@ import json
 import os
 import tempfile
 from dataclasses import dataclass
-from functools import lru_cache
 from pathlib import Path
-from typing import Any, Callable, Mapping
+from typing import Any, Callable, Mapping, Protocol
 
 import numpy as np
 
@@ -117,15 +116,32 @@ def verdict_with_trace(doc: Mapping[str, Any], spec: Any,
 
 
 
-@lru_cache(maxsize=8)
-def _spec_from_text(text: str, source: str):
+class VerifiableMethod(Protocol):
+    """What the runner needs of a method-table row (`tanksynth.methods.Method`)."""
+
+    verdict: VerdictFn
+    adapter: Any  # ``adapter.validate(options, key, plant, ts) -> config``
+
+
+_SPECS: dict[tuple[str, str, tuple[str, ...]], Any] = {}
+
+
+def _spec_from_text(text: str, source: str, table: Mapping[str, VerifiableMethod]):
+    """The spec of a result directory, every design's options validated (cached per process)."""
     from tanksynth.spec import parse_spec_text
 
-    return parse_spec_text(text.encode("utf-8"), source=source)
+    key = (text, source, tuple(sorted(table)))
+    if key not in _SPECS:
+        if len(_SPECS) >= 8:
+            _SPECS.pop(next(iter(_SPECS)))
+        _SPECS[key] = parse_spec_text(text.encode("utf-8"), source=source,
+                                      methods={name: row.adapter for name, row in table.items()})
+    return _SPECS[key]
 
 
 
-def load_directory(directory: str | Path) -> tuple[Any, list[tuple[Path, dict]]]:
+def load_directory(directory: str | Path,
+                   table: Mapping[str, VerifiableMethod]) -> tuple[Any, list[tuple[Path, dict]]]:
     """Read ``DIR/spec.toml`` and every artefact of a directory, refusing bad ones.
 
     Returns
@@ -176,7 +192,7 @@ def load_directory(directory: str | Path) -> tuple[Any, list[tuple[Path, dict]]]
         text = raw.decode("utf-8")
     except UnicodeDecodeError:
         raise ArtefactError(f"{spec_path}: not UTF-8 text") from None
-    return _spec_from_text(text, str(spec_path)), docs
+    return _spec_from_text(text, str(spec_path), table), docs
 
 
 
@@ -196,10 +212,11 @@ def _write_verification(path: Path, verification: Mapping[str, Any]) -> None:
 
 
 
-def _remote_verdict(verdict: VerdictFn, doc: dict, spec_text: str,
+def _remote_verdict(table: Mapping[str, VerifiableMethod], doc: dict, spec_text: str,
                     source: str) -> tuple[list[dict], dict | None]:
     """Run one verdict on a Dask worker (plain data in, plain data out), with its trace."""
-    spec = _spec_from_text(spec_text, source)
+    spec = _spec_from_text(spec_text, source, table)
+    verdict = table[str(doc["method"])].verdict
     doc = dict(doc)
     doc["gains"] = {k: np.asarray(v, dtype=float) for k, v in doc["gains"].items()}
     checks, trace = verdict_with_trace(doc, spec, verdict)
@@ -207,7 +224,7 @@ def _remote_verdict(verdict: VerdictFn, doc: dict, spec_text: str,
 
 
 
-def verify_directory(directory: str | Path, verdicts: Mapping[str, VerdictFn],
+def verify_directory(directory: str | Path, table: Mapping[str, VerifiableMethod],
                      scheduler: str | None = None,
                      progress: Callable[[int, int], None] | None = None) -> list[Verdict]:
     """Verify every artefact of a directory and record the verdicts in them.
@@ -221,8 +238,9 @@ def verify_directory(directory: str | Path, verdicts: Mapping[str, VerdictFn],
     ----------
     directory : str or Path
         Holds the artefacts and ``spec.toml``.
-    verdicts : mapping of str to callable
-        The verdict of each design method (`tanksynth.methods.VERDICTS`).
+    table : mapping of method name to row
+        The method table (`tanksynth.methods.METHODS`): each row's ``verdict``
+        and its ``adapter`` (which validates the spec's options).
     scheduler : str, optional
         Address of a Dask scheduler: the verdicts run there (one task per
         artefact). Default: in this process.
@@ -238,17 +256,17 @@ def verify_directory(directory: str | Path, verdicts: Mapping[str, VerdictFn],
     ArtefactError
         See `load_directory`; nothing is written then.
     """
-    spec, docs = load_directory(directory)
+    spec, docs = load_directory(directory, table)
     for path, doc in docs:
-        if str(doc["method"]) not in verdicts:
+        if str(doc["method"]) not in table:
             raise ArtefactError(f"{path.name}: unknown design method {doc['method']!r}; expected one of: "
-                                + ", ".join(sorted(verdicts)))
+                                + ", ".join(sorted(table)))
     total = len(docs)
     checks: dict[Path, list[Check]] = {}
     traces: dict[Path, dict | None] = {}
     if scheduler is None:
         for i, (path, doc) in enumerate(docs):
-            checks[path], traces[path] = verdict_with_trace(doc, spec, verdicts[str(doc["method"])])
+            checks[path], traces[path] = verdict_with_trace(doc, spec, table[str(doc["method"])].verdict)
             if progress is not None:
                 progress(i + 1, total)
     else:
@@ -260,7 +278,7 @@ def verify_directory(directory: str | Path, verdicts: Mapping[str, VerdictFn],
             futures = {}
             for path, doc in docs:
                 plain = {**doc, "gains": {k: v.tolist() for k, v in doc["gains"].items()}}
-                fut = client.submit(_remote_verdict, verdicts[str(doc["method"])], plain, text, source,
+                fut = client.submit(_remote_verdict, dict(table), plain, text, source,
                                     pure=False,
                                     retries=2)
                 futures[fut] = path

@@ -1,6 +1,7 @@
 """Per-method verdicts and `tanksynth verify DIR`."""
 
 import json
+from dataclasses import replace
 import shutil
 from pathlib import Path
 
@@ -10,7 +11,7 @@ import pytest
 from tanksynth.artefacts import gains_digest, read_artefact
 from tanksynth.cli import main
 from tanksynth.errors import ArtefactError
-from tanksynth.methods import VERDICTS, verify_directory
+from tanksynth.methods import METHODS, verify_directory
 from tanksynth.verify import runner
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
@@ -67,7 +68,8 @@ def test_a_verdict_that_decides_nothing_fails(designed, tmp_path):
     from tanksynth.analysis.checks import Check
 
     d = _copy(designed, "hybrid_three_tank", tmp_path)
-    undecided = {**VERDICTS, "linearize": lambda doc, spec: [Check("x", None, "informational")]}
+    undecided = {**METHODS, "linearize": replace(METHODS["linearize"],
+                                                 verdict=lambda doc, spec: [Check("x", None, "info")])}
     verdicts = runner.verify_directory(d, undecided)
     assert verdicts and all(v.passed is False for v in verdicts)
 
@@ -130,7 +132,8 @@ def test_verify_stores_traces_beside_artefacts(designed, tmp_path, monkeypatch):
         read_artefact(d / name)
     assert not list(d.glob(".*.tmp"))
     # a verdict that simulates nothing leaves no (stale) trace
-    no_sim = {**VERDICTS, "canonical_observer": lambda doc, spec: [Check("x", True, "no sim")]}
+    no_sim = {**METHODS, "canonical_observer": replace(METHODS["canonical_observer"],
+                                                       verdict=lambda doc, spec: [Check("x", True, "")])}
     runner.verify_directory(d, no_sim)
     assert not (d / "luenberger_canonical.traces.npz").exists()
     assert (d / "hydraulic_linear_model.traces.npz").exists()
