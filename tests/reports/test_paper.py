@@ -7,7 +7,7 @@ import json
 import numpy as np
 import pytest
 
-from reports_helpers import copy_dir, design_dir, edit_json
+from reports_helpers import copy_dir, design_dir, edit_json, needs_latex
 from tanksynth.reports import compare_with_papers, read_report_inputs
 from tanksynth.papers import seed000 as paper000
 from tanksynth.papers import seed004 as paper004
@@ -167,6 +167,20 @@ def test_seed004_fault_detection_rows(tmp_path):
     # only the second agrees to the printed digits (2.015 +- 5e-4); the fault size is not printed
     assert [r.verdict for r in times] == [DIFFERS, AGREES, DIFFERS]
     assert "not printed" in times[0].note and r"\bar\delta = 1" in times[0].note
+
+
+@needs_latex
+def test_seed004_fault_detection_rows_typeset(tmp_path):
+    import subprocess
+
+    from tanksynth.methods import write_report
+
+    d = design_dir(tmp_path / "fdpdf", FAULT)
+    res = write_report(d, pdf=True)
+    text = subprocess.run(["pdftotext", "-layout", str(res.pdf), "-"], capture_output=True,
+                          text=True, check=True).stdout
+    assert "observer, threshold and detection times" in text
+    assert "2.0235" in text and "2.01698" in text and "not printed" in text
 
 
 def test_seed004_detection_times_read_defensively(tmp_path):
