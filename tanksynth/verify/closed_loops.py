@@ -81,6 +81,8 @@ class ClosedLoop:
     tracked : tuple of int
         Controlled states.
     description : str
+    kind : str
+        ``"controller"``.
     """
 
     controller: Callable

@@ -108,6 +108,8 @@ class DetectorRun:
     x_op, u_op : ndarray
         Operating point (initial plant state, held input).
     description : str
+    kind : str
+        ``"detector"``.
     """
 
     Psi: np.ndarray

@@ -64,6 +64,8 @@ class EstimatorRun:
     x_hat0 : ndarray or None
         The artefact's designed initial estimate; None: the plant's initial state.
     description : str
+    kind : str
+        ``"estimator"``.
     """
 
     estimator: BatchEstimator

@@ -75,6 +75,8 @@ class ModelRun:
     ts : float
         Its sampling period (s).
     description : str
+    kind : str
+        ``"model"``.
     """
 
     Ad: np.ndarray
@@ -88,6 +90,22 @@ class ModelRun:
     def evaluate(self, sc: Scenario, plant: Plant, *, ts: float, seeds: Sequence[int],
                  substeps: int = 4) -> dict[str, Metric]:
         """Simulate the scenario and compare the model's predictions with it.
+
+        Parameters
+        ----------
+        sc : Scenario
+        plant : Plant
+        ts : float
+            Sampling period (s); must be the model's.
+        seeds : sequence of int
+            One per run (process and measurement noise).
+        substeps : int
+            RK4 steps per period of the nonlinear plant.
+
+        Returns
+        -------
+        dict of str to Metric
+            ``prediction_rmse_<state>`` and ``one_step_rmse_<state>``.
 
         Raises
         ------

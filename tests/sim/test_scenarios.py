@@ -20,7 +20,8 @@ def test_every_scenario_documents_its_source():
 
 def test_servo_and_regulatory():
     servo = scenario("servo").setup(HYBRID, X_OP, tracked=(0, 1))
-    assert np.allclose(servo.reference[99], X_OP[:2]) and np.allclose(servo.reference[100], np.add(X_OP[:2], 0.04))
+    assert np.allclose(servo.reference[99], X_OP[:2])
+    assert np.allclose(servo.reference[100], np.add(X_OP[:2], 0.04))
     assert servo.setpoint_samples == (100,)
     reg = scenario("regulatory").setup(HYBRID, X_OP, tracked=(0, 1))
     assert [(j.sample, j.delta) for j in reg.jumps] == [(50, (0.03, 0.03, 0.0)), (250, (-0.03, -0.03, 0.0))]

@@ -31,7 +31,8 @@ def artefacts(tmp_path_factory):
 
 def test_local_campaign_is_tidy_and_reproducible(artefacts, runners):
     out, text, docs = artefacts
-    tasks = campaign_tasks(text, docs[:1], ["servo", "dynamic_steps"], runs=3, seed=5, chunk=2, runners=runners)
+    tasks = campaign_tasks(text, docs[:1], ["servo", "dynamic_steps"], runs=3, seed=5, chunk=2,
+                           runners=runners)
     assert len(tasks) == 4 and len({t.key for t in tasks}) == 4
     table = run_campaign(tasks, local=True)
     keys = {(r["scenario"], r["run"], r["metric"]) for r in table.rows}

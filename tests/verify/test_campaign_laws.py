@@ -48,7 +48,8 @@ def test_feedback_linearization_campaign_tracks(seed000, runners):
     loop = closed_loop_for(doc, _spec(text), runners[doc['method']])
     assert isinstance(loop.controller, ArtefactLaw) and loop.tracked == (0, 1)
     assert "serialised CasADi law" in loop.description
-    closed = run_campaign(campaign_tasks(text, [doc], ["servo"], runs=3, chunk=2, runners=runners), local=True)
+    closed = run_campaign(campaign_tasks(text, [doc], ["servo"], runs=3, chunk=2, runners=runners),
+                          local=True)
     assert {r["loop"] for r in closed.rows} == {loop.description}
     assert len({r["run"] for r in closed.rows}) == 3
     assert {r["kind"] for r in closed.rows} == {"controller"}
@@ -107,7 +108,8 @@ def test_inverse_dynamics_campaign(tmp_path, runners):
     text = (tmp_path / "spec.toml").read_text(encoding="utf-8")
     loop = closed_loop_for(docs[0], _spec(text), runners[docs[0]['method']])
     assert isinstance(loop.controller, ArtefactLaw) and len(loop.tracked) == len(loop.u_op)
-    table = run_campaign(campaign_tasks(text, docs[:1], ["servo"], runs=2, chunk=2, runners=runners), local=True)
+    table = run_campaign(campaign_tasks(text, docs[:1], ["servo"], runs=2, chunk=2, runners=runners),
+                         local=True)
     errors = _final_errors(table, docs[0]["name"])
     assert errors and max(errors.values()) < 5e-3
 

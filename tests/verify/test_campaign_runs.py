@@ -222,3 +222,29 @@ def test_no_seed_identifiers_in_sim_and_campaign_modules():
                         or "printed" in name.lower():
                     bad.append(f"{path.name}: {name}")
     assert not bad, bad
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("example", ["seed001_ts_observer", "seed003_tank_network", "seed002_estimators"])
+def test_example_estimators_and_observers_run(example, tmp_path, runners):
+    """TS observers, decentralised filters, EKF/UKF/NARX of the examples: their estimate, or why not."""
+    assert main(["design", str(ROOT / "examples" / f"{example}.toml"), "-o", str(tmp_path)]) == 0
+    docs = [read_artefact(p) for p in sorted(tmp_path.glob("*.json"))
+            if p.name not in ("plant.json", "checks.json")]
+    text = (tmp_path / "spec.toml").read_text(encoding="utf-8")
+    plant = load_spec(tmp_path / "spec.toml").plant
+    table = run_campaign(campaign_tasks(text, docs, ["servo"], 1, runners=runners), local=True)
+    expected = {f"rmse_{s.name}" for s in plant.states} | {"estimator_time"}
+    ran = 0
+    for doc in docs:
+        rows = [r for r in table.rows if r["artefact"] == doc["name"]]
+        assert rows and {r["kind"] for r in rows} == {"estimator"}, doc["name"]
+        assert not any("open loop at" in r["loop"] for r in rows)
+        metrics = {r["metric"]: r["value"] for r in rows}
+        if set(metrics) == {"failed"}:                      # a diverging observer says so
+            assert "the simulation failed" in rows[0]["loop"]
+            continue
+        assert set(metrics) == expected, doc["name"]
+        assert all(np.isfinite(metrics[m]) and metrics[m] > 0 for m in expected), doc["name"]
+        ran += 1
+    assert ran >= 2
