@@ -98,11 +98,6 @@ __all__ = [
     "linearize_run",
 ]
 
-#: Former names of two runners, still used by ``tanksynth.methods`` until its ``campaign`` column
-#: lands (then delete): the placement runner and the model runner (no longer an open loop).
-integral_loop = placement_run
-linearize_loop = linearize_run
-
 #: Columns of the tidy campaign table (``loop`` describes what ran).
 COLUMNS = ("artefact", "method", "kind", "plant", "scenario", "run", "seed", "metric", "value", "unit",
            "loop")
