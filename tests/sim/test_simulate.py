@@ -10,8 +10,8 @@ from tanksynth.errors import DimensionError
 from tanksynth.plants import hybrid_three_tank, hydraulic_fault, three_tank
 from tanksynth.plants.hybrid_three_tank import LPH
 from tanksynth.sim.simulate import (ConstantInput, EstimatorAdapter, ParameterChange,
-                                       SimulationError, StateJump, clip_bounds, numpy_model,
-                                       run_seeds, simulate)
+                                    SimulationError, StateJump, run_seeds, simulate)
+from tanksynth.sim.tape import numpy_model
 
 HYBRID = hybrid_three_tank()
 TANK = three_tank()
@@ -79,7 +79,7 @@ def test_determinism_and_batch_independence():
 
 
 def test_levels_clipped_and_pumps_saturated():
-    lo, hi = clip_bounds(HYBRID)
+    lo, hi = HYBRID.state_bounds()
     assert np.all(lo == 0) and np.all(hi == 0.55)
     full = simulate(HYBRID, ts=1.0, steps=400, x0=[0.5, 0.5, 0.5], seeds=[0],
                     controller=ConstantInput((1.0, 1.0)))          # asks for 1 m^3/s
