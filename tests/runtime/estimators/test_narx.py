@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 from scipy.optimize import least_squares
 
-from tanksynth.runtime.estimators import (KalmanTuning, NARXEstimator, NARXTuning, discrete_model,
-                                         levenberg_marquardt, train_narx)
+from tanksynth.design.narx import levenberg_marquardt, train_narx
+from tanksynth.runtime.estimators import KalmanTuning, NARXEstimator, NARXTuning, discrete_model
 from tanksynth.errors import DimensionError
 from tanksynth.plants.hybrid_three_tank import LPH
 
