@@ -158,9 +158,14 @@ class DiscreteModel(_PlantDimensions):
         at ``x(k-1)`` means "on the switching surface": the previous
         Jacobian is kept (seed 002 section 3). 0 = exactly on it.
     clip : bool
-        Clip predicted and corrected states by the plant's clipping rule
-        (`Plant.state_bounds`), stage states of the Runge-Kutta steps
-        included, as the simulator does.
+        Clip the predicted and the corrected states by the plant's clipping
+        rule (`Plant.state_bounds`). Unlike the simulator, the Runge-Kutta
+        stages inside one prediction are not clipped: the states an
+        estimator predicts from (sigma points, linearisation points) are
+        hypotheses about the plant, not levels, and clipping them inside the
+        step would distort the predicted spread (a UKF started with a wide
+        ``P0`` goes from an RMSE of 0.0085 m to 0.065 m on seed 002's
+        mismatch scenario).
     Ad, Bd, cd, C, dy : ndarray or None
         Linear model matrices (kind ``"linear"``).
     operating_point : tuple of ndarray or None
@@ -228,11 +233,9 @@ class DiscreteModel(_PlantDimensions):
             return self.clip_sx(out)
         f = self._funcs()["f"]
         h = self.ts / self.substeps
-        clip = self.clip_sx if self.clip else None
         for _ in range(self.substeps):      # the toolbox's one RK4 step (plants.compile)
-            x = rk4_step(lambda s: f(s, u), x, h, clip)
-            x = self.clip_sx(x)
-        return x
+            x = rk4_step(lambda s: f(s, u), x, h)
+        return self.clip_sx(x)
 
     def transition_jacobian_sx(self, x: ca.SX, u: ca.SX) -> ca.SX:
         """``Phi = dF/dx`` at ``x(k-1)`` (symbolic; constant ``Ad`` when linear)."""
@@ -321,9 +324,8 @@ def discrete_model(plant: Plant, ts: float, *, operating_point: Any = None, subs
         Distance to a switching surface treated as "on it", >= 0.
     clip : bool
         Clip estimates by the plant's clipping rule (`Plant.state_bounds`:
-        levels >= 0, <= ``hmax``) in the prediction (Runge-Kutta stages
-        included) and after the correction (keeps Torricelli square roots
-        real).
+        levels >= 0, <= ``hmax``) after the prediction and after the
+        correction (keeps Torricelli square roots real).
 
     Returns
     -------
