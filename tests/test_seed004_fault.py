@@ -17,15 +17,10 @@ from tanksynth.runtime.estimators import (AdaptiveScalingKalmanFilter, AdaptiveS
                                          ConsensusFilter, ConsensusTuning, LuenbergerObserver,
                                          LuenbergerTuning, discrete_model)
 from tanksynth.design.fault import detection_time, fault_threshold, fit_fault_size
+from tanksynth.papers.seed004 import DETECTION_TIMES as SEED004_DETECTION_TIMES
+from tanksynth.papers.seed004 import INITIAL_STATES as SEED004_INITIAL_STATES
+from tanksynth.papers.seed004 import INPUT as SEED004_INPUT
 from tanksynth.plants import hydraulic_fault
-
-# Seed 004 section IV (kept here until tanksynth.papers.seed004 holds them).
-#: Initial states x0(1), x0(2), x0(3).
-SEED004_INITIAL_STATES = ((0.26, 0.26, 0.26), (4.0, 4.0, 4.0), (2.4, 3.6, 1.8))
-#: Detection times printed for them (s), in the same order.
-SEED004_DETECTION_TIMES = (2.0235, 2.015, 2.0165)
-#: The input: 2 on [0, 1 s), then 1.
-SEED004_INPUT = ((0.0, 2.0), (1.0, 1.0))
 
 DELTA_BAR = 1.0
 #: Derived with delta_bar = 1, threshold (55), fault at t_f = 2 s (seconds); exact propagation
