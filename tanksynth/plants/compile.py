@@ -25,8 +25,8 @@ from tanksynth.errors import TanksynthError
 __all__ = ["to_casadi", "CompiledPlant", "compile_plant", "compile_matrix", "rk4_step"]
 
 
-def rk4_step(rhs: Callable[[Any], Any], x: Any, h: Any,
-             clip: Callable[[Any], Any] | None = None) -> Any:
+def rk4_step(rhs: Callable[..., Any], x: Any, h: Any, clip: Callable[[Any], Any] | None = None,
+             t: Any = None) -> Any:
     """One classical Runge-Kutta (RK4) step of ``dx/dt = rhs(x)``: the toolbox's one scheme.
 
     ``k1 = rhs(c(x))``, ``k2 = rhs(c(x + h/2 k1))``, ``k3 = rhs(c(x + h/2 k2))``,
@@ -50,16 +50,24 @@ def rk4_step(rhs: Callable[[Any], Any], x: Any, h: Any,
         Step (s).
     clip : callable, optional
         Clipping of the stage states (identity when None).
+    t : float, optional
+        Time at the start of the step (s), for a time-varying field: then
+        ``rhs(x, t_stage)`` is called with ``t_stage = t, t + h/2, t + h/2,
+        t + h``.
 
     Returns
     -------
     Same type as ``x``: the state after ``h`` seconds, before clipping.
     """
     c = clip if clip is not None else (lambda v: v)
-    k1 = rhs(c(x))
-    k2 = rhs(c(x + 0.5 * h * k1))
-    k3 = rhs(c(x + 0.5 * h * k2))
-    k4 = rhs(c(x + h * k3))
+    if t is None:
+        f = lambda v, _s: rhs(v)  # noqa: E731
+    else:
+        f = lambda v, s: rhs(v, t + s * h)  # noqa: E731
+    k1 = f(c(x), 0.0)
+    k2 = f(c(x + 0.5 * h * k1), 0.5)
+    k3 = f(c(x + 0.5 * h * k2), 0.5)
+    k4 = f(c(x + h * k3), 1.0)
     return x + (h / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
 
 

@@ -140,3 +140,9 @@ def test_rk4_step_is_generic():
     assert val == rk4_step(lambda v: -2 * v, 1.3, 0.1)
     assert val == pytest.approx(1.3 * sum((-0.2) ** k / math.factorial(k) for k in range(5)),
                                 rel=1e-15)
+
+
+def test_rk4_step_with_a_time_varying_field():
+    """Stages at t, t + h/2, t + h/2, t + h: exact for dx/dt = t^3 (fourth order)."""
+    out = rk4_step(lambda v, t: t ** 3, 0.0, 0.5, t=1.0)
+    assert out == pytest.approx((1.5 ** 4 - 1.0) / 4, rel=1e-15)
