@@ -29,6 +29,8 @@ from tanksynth.sim.metrics import Metric, compute_metrics
 from tanksynth.sim.scenarios import Scenario, run_scenario
 from tanksynth.sim.simulate import BatchEstimator
 
+from tanksynth.verify.simulations import IntegralStateFeedback
+
 __all__ = [
     "CONTINUOUS_TS",
     "sampling_period",
@@ -124,44 +126,6 @@ class ClosedLoop:
                               estimator=estimator, substeps=substeps)
         return compute_metrics(result, setup, plant, estimated=estimator is not None,
                                controlled=True)
-
-
-@dataclass
-class IntegralStateFeedback:
-    """Tracking with integral action, seed 000 eq. (13)-(16), in deviation variables.
-
-    ``u_k = u0 - K1 (x_hat_k - x0) - K2 z_k`` and ``z_{k+1} = z_k + ts (r_k -
-    C1 x_hat_k)`` (a `ControlLaw` with state ``z``, one per run).
-
-    Attributes
-    ----------
-    K1 : ndarray, shape (m, n)
-    K2 : ndarray, shape (m, p)
-    C1 : ndarray, shape (p, n)
-        Selects the tracked outputs.
-    x0, u0 : ndarray
-        Operating point.
-    ts : float
-        Sampling period (s).
-    """
-
-    K1: np.ndarray
-    K2: np.ndarray
-    C1: np.ndarray
-    x0: np.ndarray
-    u0: np.ndarray
-    ts: float
-    z: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
-
-    def reset(self, runs: int) -> None:
-        """Zero the integrators of ``runs`` runs."""
-        self.z = np.zeros((runs, self.C1.shape[0]))
-
-    def __call__(self, x_hat: np.ndarray, reference: np.ndarray, t: float) -> np.ndarray:
-        """Input (M, m) from the estimate (M, n) and the reference (M, p)."""
-        u = self.u0 - (x_hat - self.x0) @ self.K1.T - self.z @ self.K2.T
-        self.z = self.z + self.ts * (reference - x_hat @ self.C1.T)
-        return u
 
 
 @dataclass(frozen=True)

@@ -3,7 +3,7 @@
 A ``fault_detection`` artefact ships an observer gain ``Psi`` and a
 threshold ``sum_i c_i exp(lambda_i t)`` (``|c_i|`` when conservative,
 seed 004 eq. 54-55) on the output residual. In a campaign the residual
-observer `ResidualObserver` (the nominal model, ``Psi`` from the artefact)
+observer `tanksynth.verify.fault.ResidualObserver` (the healthy model, ``Psi`` from the artefact)
 runs on the simulated measurements of each scenario twice with the same
 seeds: as the scenario is (with its faults) and without its parameter
 changes (the fault-free twin). An alarm is raised at a sample when
@@ -26,71 +26,12 @@ from tanksynth.errors import ArtefactError
 from tanksynth.plants.base import Plant
 from tanksynth.sim.metrics import Metric, detection_metrics, timing_metrics
 from tanksynth.sim.scenarios import Scenario, run_scenario
-from tanksynth.sim.tape import numpy_model
 from tanksynth.verify.closed_loops import spec_operating_point
 from tanksynth.verify.common import artefact_gain, design_options
 
-__all__ = ["ResidualObserver", "DetectorRun", "fault_detection_run"]
+from tanksynth.verify.fault import ResidualObserver
 
-
-class ResidualObserver:
-    """Continuous observer of the nominal model, sampled (a `BatchEstimator`).
-
-    ``dx_hat/dt = f(x_hat, u) + Psi (y(t) - h(x_hat))`` with the plant's
-    nominal parameters, integrated by RK4 over each period with ``y``
-    interpolated linearly between the two latest samples (the estimate at
-    sample ``k`` uses ``y_{k-1}`` and ``y_k``: causal) and the held input.
-
-    Parameters
-    ----------
-    plant : Plant
-        Its nominal parameters are the healthy model.
-    Psi : ndarray, shape (n, q)
-        Observer gain (1/s).
-    ts : float
-        Sampling period (s).
-    substeps : int
-        RK4 steps per period.
-    """
-
-    def __init__(self, plant: Plant, Psi: np.ndarray, ts: float, substeps: int = 4):
-        self.model = numpy_model(plant)
-        self.params = {p.name: float(p.value) for p in plant.parameters}
-        self.Psi = np.asarray(Psi, dtype=float)
-        self.ts = float(ts)
-        self.substeps = int(substeps)
-        self._x: np.ndarray | None = None
-        self._y: np.ndarray | None = None
-
-    def reset(self, x_hat0: np.ndarray) -> None:
-        """Initial estimates (M, n)."""
-        self._x = np.asarray(x_hat0, dtype=float).copy()
-        self._y = None
-
-    def output(self, x: np.ndarray) -> np.ndarray:
-        """``h(x)`` of the nominal model, (M, n) -> (M, q)."""
-        return self.model.output(np.asarray(x, dtype=float), self.params)
-
-    def _rhs(self, x: np.ndarray, u: np.ndarray, y: np.ndarray) -> np.ndarray:
-        return self.model.rhs(x, u, self.params) + (y - self.output(x)) @ self.Psi.T
-
-    def step(self, y: np.ndarray, u: np.ndarray) -> np.ndarray:
-        """Measurement (M, q), previous input (M, m) -> estimate (M, n)."""
-        y = np.asarray(y, dtype=float)
-        if self._y is not None:
-            h = self.ts / self.substeps
-            y0, dy = self._y, (y - self._y) / self.ts
-            x = self._x
-            for j in range(self.substeps):
-                t = j * h
-                k1 = self._rhs(x, u, y0 + dy * t)
-                k2 = self._rhs(x + 0.5 * h * k1, u, y0 + dy * (t + 0.5 * h))
-                k3 = self._rhs(x + 0.5 * h * k2, u, y0 + dy * (t + 0.5 * h))
-                k4 = self._rhs(x + h * k3, u, y0 + dy * (t + h))
-                x = x + (h / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
-            self._x = x
-        self._y = y.copy()
-        return self._x
+__all__ = ["DetectorRun", "fault_detection_run"]
 
 
 @dataclass(frozen=True)

@@ -41,7 +41,9 @@ from tanksynth.verify.common import (MAX_STEPS, artefact_gain, artefact_matrix, 
                                      operating_point, option, relative_difference)
 from tanksynth.verify.traces import TraceRecorder
 
-__all__ = ["FAULT_TS", "FAULT_HORIZON", "FAULT_TIME_TOLERANCE", "FAULT_SLACK", "FAULT_START_OFFSET",
+from tanksynth.plants.compile import rk4_step
+
+__all__ = ["ResidualObserver", "FAULT_TS", "FAULT_HORIZON", "FAULT_TIME_TOLERANCE", "FAULT_SLACK", "FAULT_START_OFFSET",
            "FaultScenario", "rule_initial_states", "fault_scenario", "fault_detection_verdict"]
 
 #: Sampling period of the fault-detection simulations (s), at most (the spec's ts if finer).
@@ -56,53 +58,64 @@ FAULT_SLACK = 1e-6
 FAULT_START_OFFSET = 0.25
 
 
-class _ResidualObserver:
+class ResidualObserver:
     """Continuous Luenberger observer of the healthy model, as a `BatchEstimator`.
 
     ``dx_hat/dt = f(x_hat, u) + Psi (y - h(x_hat))`` with the healthy
-    parameters, integrated by RK4 between samples with ``y`` interpolated
-    linearly between the measured samples; records the residual
-    ``y_k - h(x_hat_k)`` of every sample.
+    parameters (``delta_bar = 0`` when the plant has a fault size), integrated
+    by the toolbox's RK4 (`tanksynth.plants.compile.rk4_step`) over each
+    period with ``y`` interpolated linearly between the two latest samples
+    (causal) and the input held; records the residual ``y_k - h(x_hat_k)`` of
+    every sample. Used by the fault-detection verdict and the detector runs
+    of campaigns.
+
+    Parameters
+    ----------
+    plant : Plant
+    Psi : ndarray, shape (n, q)
+        Observer gain (1/s).
+    ts : float
+        Sampling period (s).
+    substeps : int
+        RK4 steps per period.
     """
 
     def __init__(self, plant: Any, Psi: np.ndarray, ts: float, substeps: int = 4):
-        from tanksynth.sim.integrate import param_arrays as _param_arrays
+        from tanksynth.sim.integrate import param_arrays
         from tanksynth.sim.tape import numpy_model
 
         healthy = {"delta_bar": 0.0} if "delta_bar" in {p.name for p in plant.parameters} else None
         self.model = numpy_model(plant)
-        self.params = _param_arrays(plant, healthy, 1)
+        self.params = param_arrays(plant, healthy, 1)
         self.Psi = np.asarray(Psi, dtype=float)
         self.ts = float(ts)
         self.substeps = int(substeps)
         self.residuals: list[np.ndarray] = []
 
     def reset(self, x_hat0: np.ndarray) -> None:
+        """Initial estimates (M, n); forgets the recorded residuals."""
         self._x = np.asarray(x_hat0, dtype=float).copy()
         self._y: np.ndarray | None = None
         self.residuals = []
 
+    def output(self, x: np.ndarray) -> np.ndarray:
+        """``h(x)`` of the healthy model, (M, n) -> (M, q)."""
+        x = np.asarray(x, dtype=float)
+        return np.asarray(self.model.output(x, self.params), dtype=float).reshape(x.shape[0], -1)
+
     def _rhs(self, x: np.ndarray, u: np.ndarray, y: np.ndarray) -> np.ndarray:
-        yh = np.asarray(self.model.output(x, self.params), dtype=float).reshape(x.shape[0], -1)
-        return self.model.rhs(x, u, self.params) + (y - yh) @ self.Psi.T
+        return self.model.rhs(x, u, self.params) + (y - self.output(x)) @ self.Psi.T
 
     def step(self, y: np.ndarray, u: np.ndarray) -> np.ndarray:
+        """Measurement (M, q), held input (M, m) -> estimate (M, n)."""
         y = np.asarray(y, dtype=float)
         if self._y is not None:
             h = self.ts / self.substeps
             y0, dy = self._y, (y - self._y) / self.ts
-            x = self._x
             for j in range(self.substeps):
-                t = j * h
-                k1 = self._rhs(x, u, y0 + dy * t)
-                k2 = self._rhs(x + 0.5 * h * k1, u, y0 + dy * (t + 0.5 * h))
-                k3 = self._rhs(x + 0.5 * h * k2, u, y0 + dy * (t + 0.5 * h))
-                k4 = self._rhs(x + h * k3, u, y0 + dy * (t + h))
-                x = x + (h / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
-            self._x = x
-        self._y = y
-        yh = np.asarray(self.model.output(self._x, self.params), dtype=float).reshape(y.shape)
-        self.residuals.append(y - yh)
+                self._x = rk4_step(lambda x, t: self._rhs(x, u, y0 + dy * t), self._x, h, t=j * h)
+        self._y = y.copy()
+        self.residuals.append(y - self.output(self._x).reshape(y.shape))
         return self._x
 
 
@@ -370,7 +383,7 @@ def fault_detection_verdict(doc: Mapping[str, Any], spec: Any, *,
             return [Check("fault_detected", None, f"not simulated: {steps} samples of {ts:g} s")]
         x0 = np.vstack([starts, starts])
         faults = np.concatenate([np.zeros(R), np.full(R, delta_bar)])
-        obs = _ResidualObserver(plant, Psi, ts)
+        obs = ResidualObserver(plant, Psi, ts)
         change = [ParameterChange(k_f, {"delta_bar": faults})] if params else []
         res = simulate(plant, ts=ts, steps=steps, x0=x0, seeds=run_seeds(0, 2 * R),
                        controller=_Schedule(sc.inputs), estimator=obs,
