@@ -35,6 +35,7 @@ from typing import Any, Callable
 import numpy as np
 
 from tanksynth.errors import DimensionError, SpecError
+from tanksynth.plants.compile import rk4_step
 from tanksynth.plants.base import Plant
 from tanksynth.analysis.linearize import discretize_zoh, linearize
 from tanksynth.runtime.estimators.adaptive import _op
@@ -114,11 +115,7 @@ class _ContinuousBase(ArrayEstimator):
     def _integrate(self, X: np.ndarray, U: np.ndarray, Yh: np.ndarray | None) -> np.ndarray:
         h = self.tuning.ts / self.tuning.substeps
         for _ in range(self.tuning.substeps):
-            k1 = self._field(X, U, Yh)
-            k2 = self._field(X + h / 2 * k1, U, Yh)
-            k3 = self._field(X + h / 2 * k2, U, Yh)
-            k4 = self._field(X + h * k3, U, Yh)
-            X = X + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+            X = rk4_step(lambda x: self._field(x, U, Yh), X, h)
         return X
 
 
