@@ -28,20 +28,13 @@ import sympy as sp
 from tanksynth.analysis.linearize import equilibrium_input
 from tanksynth.design.control import ServoScenario, design_integral_tracking, tune_inverse_dynamics
 from tanksynth.design.feedback_linearization import feedback_linearization
-from tanksynth.design.result import DesignMethod, DesignResult, options_of
+from tanksynth.design.result import DesignMethod, DesignResult, options_of, rekeyed
 from tanksynth.errors import SpecError
 from tanksynth.runtime.laws import inverse_dynamics_law, law_document, rename_law
 from tanksynth.spec.method_options import (FeedbackLinearizationOptions, IntegralTrackingOptions,
                                            InverseDynamicsOptions)
 
 __all__ = ["run_feedback_linearization", "run_integral_tracking", "run_inverse_dynamics"]
-
-
-def _rekey(design, exc: SpecError) -> SpecError:
-    """A design-time `SpecError` about an option, keyed ``design[i].<option>``."""
-    if exc.key and exc.key.startswith(design.key):
-        return exc
-    return SpecError(exc.detail, key=f"{design.key}.{exc.key or 'options'}")
 
 
 # ------------------------------------------------------- feedback_linearization
@@ -62,7 +55,7 @@ def run_feedback_linearization(spec, design) -> DesignResult:
             allow_unstable_zero_dynamics=o.allow_unstable_zero_dynamics,
             per_axis=o.grid, samples=o.samples, seed=o.seed)
     except SpecError as exc:
-        raise _rekey(design, exc) from None
+        raise rekeyed(design, exc) from None
     dec = fl.decoupling
     vals = plant.parameter_values
     subs = dict(zip(plant.x, (sp.Float(v, 17) for v in spec.x0)))
@@ -102,7 +95,7 @@ def run_integral_tracking(spec, design) -> DesignResult:
             plant, spec.x0, list(o.poles), spec.ts, tracked=list(o.tracked), method=o.method,
             anti_windup=o.anti_windup, aw_gain=o.aw_gain, given_u0=spec.given_u0)
     except SpecError as exc:
-        raise _rekey(design, exc) from None
+        raise rekeyed(design, exc) from None
     diagnostics = dict(it.diagnostics)
     if o.reference_gain is not None:
         ref = o.reference_gain
@@ -150,7 +143,7 @@ def run_inverse_dynamics(spec, design) -> DesignResult:
             law = inverse_dynamics_law(plant, np.array(o.C), controlled, saturate=o.saturate,
                                        name=design.name)
     except SpecError as exc:
-        raise _rekey(design, exc) from None
+        raise rekeyed(design, exc) from None
     idx = [[s.name for s in plant.states].index(c) for c in law.controlled]
     u0 = np.asarray(law.law(spec.x0, spec.x0[idx]), dtype=float).reshape(-1)
     eq = equilibrium_input(plant, spec.x0, spec.given_u0)

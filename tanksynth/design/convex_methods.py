@@ -32,7 +32,7 @@ from tanksynth.design.lmi import maximise_psi, observer_lmi
 from tanksynth.design.placement import (canonical_observer, integral_augmentation,
                                         lmi_observer, lmi_state_feedback, place_observer,
                                         place_state_feedback, pole_errors)
-from tanksynth.design.result import DesignMethod, DesignResult, options_of
+from tanksynth.design.result import DesignMethod, DesignResult, options_of, rekeyed
 from tanksynth.design.takagi_sugeno import lipschitz_bound, search_weightings, selection_rules
 from tanksynth.errors import InfeasibleDesign, SpecError, UnobservableError
 from tanksynth.plants.base import exact
@@ -48,10 +48,6 @@ __all__ = [
     "run_pole_placement",
     "run_canonical_observer",
 ]
-
-
-def _key(design, opt: str) -> str:
-    return f"{design.key}.{opt}"
 
 
 def _complex_list(values: Any) -> list[list[float]]:
@@ -137,11 +133,11 @@ def run_ts_observer(spec: "Spec", design: "DesignSpec") -> DesignResult:
     try:
         domain = domain_from_plant(plant, box, o.orderings, o.ordering_gap)
     except SpecError as exc:
-        raise SpecError(exc.detail, key=_key(design, "domain")) from None
+        raise rekeyed(design, exc, "domain") from None
     try:
         qlpv = quasi_lpv(plant, None if o.weights is None else dict(o.weights))
     except SpecError as exc:
-        raise SpecError(exc.detail, key=_key(design, exc.key or "weights")) from None
+        raise rekeyed(design, exc, fallback="weights") from None
     blocks = None if o.blocks is None else [[names.index(s) for s in b] for b in o.blocks]
     pattern = None if o.pattern is None else np.array(o.pattern)
     diagnostics: dict[str, Any] = {}
@@ -162,7 +158,7 @@ def run_ts_observer(spec: "Spec", design: "DesignSpec") -> DesignResult:
         ts = ts_model(qlpv, domain, method=o.premise_bounds, samples=max(samples, 2000),
                       margin=o.premise_margin, seed=seed)
     except SpecError as exc:
-        raise SpecError(exc.detail, key=_key(design, exc.key or "weights")) from None
+        raise rekeyed(design, exc, fallback="weights") from None
     exactness = check_exactness(ts, plant, count=samples, seed=seed)
     if not exactness.passed:
         raise InfeasibleDesign(f"TS model is not exact on the domain: max relative error "
@@ -272,9 +268,7 @@ def _solve_gain(spec, design, o, observer, feedback, fallback_opt: str, augmente
                 gains = {"K": res.gain}
                 closed = lambda G: A - B @ G  # noqa: E731
     except SpecError as exc:
-        if exc.key and exc.key.startswith(design.key):
-            raise
-        raise SpecError(exc.detail, key=_key(design, exc.key or fallback_opt)) from None
+        raise rekeyed(design, exc, fallback=fallback_opt) from None
     return res, gains, diagnostics, (A, B, C), closed
 
 
@@ -418,7 +412,7 @@ def run_canonical_observer(spec: "Spec", design: "DesignSpec") -> DesignResult:
     C = sp.Matrix(H_sym.xreplace(subs)).applyfunc(sp.nsimplify)
     if A.free_symbols or C.free_symbols:
         raise SpecError("the linearisation depends on the inputs; the canonical-form route needs a "
-                        "model affine in u", key=_key(design, "method"))
+                        "model affine in u", key=f"{design.key}.method")
     exact_poles = [exact(p.real) + (sp.I * exact(p.imag) if p.imag else 0) for p in poles]
     co = canonical_observer(A, C, exact_poles)
     L = co.gain

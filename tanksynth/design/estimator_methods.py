@@ -31,7 +31,7 @@ import sympy as sp
 
 from tanksynth.analysis.linearize import equilibrium_input, linearize
 from tanksynth.design.fault import detection_time, fault_threshold
-from tanksynth.design.result import DesignMethod, DesignResult, options_of
+from tanksynth.design.result import DesignMethod, DesignResult, options_of, rekeyed
 from tanksynth.errors import SpecError, UnobservableError
 from tanksynth.runtime.estimators.adaptive import (AdaptiveKalmanFilter, AdaptiveKalmanTuning,
                                                    AdaptiveScalingKalmanFilter, AdaptiveScalingTuning)
@@ -62,8 +62,7 @@ def _tuning(design: Any, cls: Any, **kwargs: Any) -> Any:
         return cls(**kwargs)
     except SpecError as exc:
         if exc.key and not exc.key.startswith("design["):
-            option = _OPTION_OF.get(exc.key, exc.key)
-            raise SpecError(exc.detail, key=f"{design.key}.{option}") from None
+            raise rekeyed(design, exc, _OPTION_OF.get(exc.key, exc.key)) from None
         raise
 
 

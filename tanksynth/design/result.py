@@ -7,9 +7,10 @@ from typing import Any, Callable, Mapping, TypeVar
 
 import numpy as np
 
+from tanksynth.errors import SpecError
 from tanksynth.spec.method_options.base import MethodOptions
 
-__all__ = ["DesignResult", "DesignMethod", "options_of"]
+__all__ = ["DesignResult", "DesignMethod", "options_of", "rekeyed"]
 
 T = TypeVar("T", bound=MethodOptions)
 
@@ -77,15 +78,15 @@ class DesignMethod:
         MethodOptions
             The options with their defaults (an instance of `options`).
         """
-        return self.options.from_table(options, key, plant, ts)
+        return self.options.validated(options, key, plant, ts)
 
 
 def options_of(design: Any, spec: Any, cls: type[T]) -> T:
     """The validated options of a ``[[design]]`` entry (``design.config``).
 
-    A `DesignSpec` parsed without the method table has no ``config``: its
-    raw options are then validated here, against ``spec``'s plant and
-    sampling period.
+    A `DesignSpec` parsed without the method table has no ``config``, and
+    one copied with other ``options`` has a stale one: its raw options are
+    then validated here, against ``spec``'s plant and sampling period.
 
     Raises
     ------
@@ -93,6 +94,31 @@ def options_of(design: Any, spec: Any, cls: type[T]) -> T:
         Invalid options (only when they were not validated at parse time).
     """
     config = getattr(design, "config", None)
-    if isinstance(config, cls):
+    if isinstance(config, cls) and config.read_from(design.options):
         return config
-    return cls.from_table(design.options, design.key, spec.plant, spec.ts)
+    return cls.validated(design.options, design.key, spec.plant, spec.ts)
+
+
+def rekeyed(design: Any, exc: SpecError, option: str | None = None,
+            fallback: str = "options") -> SpecError:
+    """A `SpecError` a design step raised, keyed to the spec option it is about.
+
+    Parameters
+    ----------
+    design : DesignSpec
+    exc : SpecError
+        Raised by an algorithm, keyed by its own argument name (or not at all).
+    option : str, optional
+        The option to name, whatever ``exc.key`` says.
+    fallback : str
+        The option to name when ``exc`` has no key.
+
+    Returns
+    -------
+    SpecError
+        ``exc`` itself when it already names a key of this design, else the
+        same message keyed ``design[i].<option>``.
+    """
+    if option is None and exc.key and exc.key.startswith(design.key):
+        return exc
+    return SpecError(exc.detail, key=f"{design.key}.{option or exc.key or fallback}")

@@ -70,6 +70,28 @@ class MethodOptions:
         raise NotImplementedError(f"{cls.__name__}.from_table")
 
     @classmethod
+    def validated(cls, options: Mapping[str, Any], key: str, plant: Any,
+                  ts: float | None) -> "MethodOptions":
+        """`from_table`, remembering the table the options were read from (`source`)."""
+        out = cls.from_table(options, key, plant, ts)
+        object.__setattr__(out, "_source", dict(options))
+        return out
+
+    def read_from(self, options: Mapping[str, Any]) -> bool:
+        """True if these options were validated from exactly the table ``options``.
+
+        False for options built otherwise, or when the table has changed
+        since (e.g. a `DesignSpec` copied with other options).
+        """
+        source = self.__dict__.get("_source")
+        if source is None or not isinstance(options, Mapping):
+            return False
+        try:
+            return bool(source == dict(options))
+        except (TypeError, ValueError):  # arrays inside: compare as JSON-like values
+            return _same(_jsonable(source), _jsonable(dict(options)))
+
+    @classmethod
     def option_names(cls) -> tuple[str, ...]:
         """The options the method accepts, in declaration order."""
         return tuple(f.name for f in dataclasses.fields(cls))

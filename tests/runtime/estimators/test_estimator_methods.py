@@ -147,3 +147,20 @@ def test_unobservable_plant_is_refused_naming_the_mode(tmp_path):
                  plant=plant, op={"x": {"h1": 0.2, "h2": 0.3}}, ts=1.0)
     with pytest.raises(UnobservableError, match="h2"):
         _run(spec, tmp_path)
+
+
+def test_a_copied_entry_with_other_options_is_validated_again(tmp_path):
+    """`DesignSpec` copied with other options: the design reads those, not the stale config."""
+    from dataclasses import replace
+
+    spec = _spec([{"name": "obs", "method": "luenberger", "poles": [-5.0, -8.0, -10.0],
+                   "form": "continuous"}])
+    d = spec.designs[0]
+    other = replace(d, options={**d.options, "poles": [-2.0, -3.0, -4.0]})
+    res = METHODS["luenberger"].design(spec, other)
+    np.testing.assert_allclose(sorted(np.array(res.diagnostics["error_dynamics_eigenvalues"])[:, 0]),
+                               [-4.0, -3.0, -2.0], atol=1e-9)
+    assert d.config.read_from(d.options) and not d.config.read_from(other.options)
+    with pytest.raises(SpecError, match="2 poles given") as info:
+        METHODS["luenberger"].design(spec, replace(d, options={**d.options, "poles": [-1.0, -2.0]}))
+    assert info.value.key == "design[0].poles"
