@@ -23,7 +23,10 @@ tex:
 demo: $(STAMP)
 	$(VENV)/bin/tanksynth run -o tanksynth-demo
 
+# import-linter contracts (.importlinter: layers, verify never imports design, papers only
+# in reports) first, then the test suite.
 test: $(STAMP) tex
+	$(VENV)/bin/lint-imports --no-logo
 	$(PY) -m pytest -n 2 -q
 
 bench: $(STAMP)

@@ -79,8 +79,10 @@ try:
     import cvxpy as cp  # noqa: E402
     import scs  # noqa: E402
 
-    from tanksynth.design.lmi import ObserverLMIProblem, maximise_psi, observer_lmi  # noqa: E402
-    from tanksynth.analysis.takagi_sugeno import domain_from_plant, quasi_lpv, ts_model  # noqa: E402
+    from tanksynth.design.lmi import maximise_psi, observer_lmi  # noqa: E402
+    from tanksynth.design.lmi_problem import ObserverLMIProblem  # noqa: E402
+    from tanksynth.analysis.quasi_lpv import domain_from_plant, quasi_lpv  # noqa: E402
+    from tanksynth.analysis.takagi_sugeno import ts_model  # noqa: E402
     from tanksynth.errors import InfeasibleDesign  # noqa: E402
     from tanksynth.plants.tank_network import tank_network  # noqa: E402
 except ImportError as exc:  # pragma: no cover - only when the package is broken

@@ -1,43 +1,39 @@
 """tanksynth: observer and controller synthesis for multi-tank hydraulic plants.
 
-The pipeline runs one way: spec (TOML) -> plant (sympy) -> design -> artefacts
--> verify -> report. The most used names are re-exported here; the
-subpackages `tanksynth.plants`, `tanksynth.design`, `tanksynth.verify` hold
-the rest.
+The pipeline runs one way: spec (TOML) -> plant (sympy) -> analysis -> design
+-> artefacts -> verify -> report; `tanksynth.methods` is the one table of the
+design methods. The most used names are re-exported here and load on first
+use (``import tanksynth`` itself loads none of the numerical libraries).
 """
 
 from __future__ import annotations
 
 from importlib import metadata as _metadata
 
-from tanksynth.artefacts.io import read_artefact, write_artefact
-from tanksynth.analysis import (discretize_zoh, equilibrium_input, lie_derivative, linearize,
-                                relative_degree)
-from tanksynth.design.result import DesignResult
-from tanksynth.errors import (ArtefactError, DimensionError, InfeasibleDesign, ParseError, RegionError,
-                     SpecError, TanksynthError, UncontrollableError, UnobservableError)
-from tanksynth.plants import (Plant, builtin_plant, custom_plant, hybrid_three_tank, hydraulic_fault,
-                     tank_network, three_tank)
-from tanksynth.methods import load_spec, parse_spec, parse_spec_text
-from tanksynth.spec import Spec
-from tanksynth.analysis.rank import (controllability_rank, nonlinear_observability, observability_rank,
-                          pbh_test, symbolic_observability)
+from tanksynth._lazy import lazy_exports as _lazy_exports
 
 try:
     __version__ = _metadata.version("tanksynth")
 except _metadata.PackageNotFoundError:  # pragma: no cover - source tree without install
     __version__ = "0+unknown"
 
-__all__ = [
-    "__version__",
-    "read_artefact", "write_artefact",
-    "DesignResult", "discretize_zoh", "equilibrium_input", "lie_derivative", "linearize",
-    "relative_degree",
-    "ArtefactError", "DimensionError", "InfeasibleDesign", "ParseError", "RegionError", "SpecError",
-    "TanksynthError", "UncontrollableError", "UnobservableError",
-    "Plant", "builtin_plant", "custom_plant", "hybrid_three_tank", "hydraulic_fault", "tank_network",
-    "three_tank",
-    "Spec", "load_spec", "parse_spec", "parse_spec_text",
-    "controllability_rank", "nonlinear_observability", "observability_rank", "pbh_test",
-    "symbolic_observability",
-]
+_EXPORTS = {
+    **dict.fromkeys(["read_artefact", "write_artefact"], "tanksynth.artefacts.io"),
+    **dict.fromkeys(["discretize_zoh", "equilibrium_input", "linearize"], "tanksynth.analysis.linearize"),
+    **dict.fromkeys(["lie_derivative", "relative_degree"], "tanksynth.analysis.symbolic"),
+    "DesignResult": "tanksynth.design.result",
+    **dict.fromkeys(["ArtefactError", "DimensionError", "InfeasibleDesign", "ParseError", "RegionError",
+                     "SpecError", "TanksynthError", "UncontrollableError", "UnobservableError"],
+                    "tanksynth.errors"),
+    **dict.fromkeys(["Plant", "builtin_plant", "custom_plant", "hybrid_three_tank", "hydraulic_fault",
+                     "tank_network", "three_tank"], "tanksynth.plants"),
+    **dict.fromkeys(["load_spec", "parse_spec", "parse_spec_text", "verify_directory",
+                     "write_report"], "tanksynth.methods"),
+    "Spec": "tanksynth.spec",
+    **dict.fromkeys(["controllability_rank", "nonlinear_observability", "observability_rank",
+                     "pbh_test", "symbolic_observability"], "tanksynth.analysis.rank"),
+}
+
+__getattr__, __dir__ = _lazy_exports(__name__, _EXPORTS)
+
+__all__ = ["__version__", *_EXPORTS]

@@ -235,7 +235,7 @@ def verify(directory: str, scheduler: str | None, as_json: bool, runs: int,
     from tanksynth.artefacts.io import to_jsonable
     from tanksynth.verify.campaign import campaign_tasks, run_campaign
     from tanksynth.sim.scenarios import SCENARIOS, scenario
-    from tanksynth.methods import CLOSED_LOOPS, METHODS, verify_directory
+    from tanksynth.methods import METHODS, RUNNERS, verify_directory
     from tanksynth.verify.runner import load_directory
 
     for name in scenarios:
@@ -250,7 +250,7 @@ def verify(directory: str, scheduler: str | None, as_json: bool, runs: int,
         spec, docs = load_directory(directory, METHODS)
         names = list(scenarios) or [s for s in SCENARIOS if SCENARIOS[s].applies_to(spec.plant)]
         tasks = campaign_tasks(spec.text or (Path(directory) / "spec.toml").read_text(encoding="utf-8"),
-                               [d for _, d in docs], names, runs, seed=seed, loops=CLOSED_LOOPS)
+                               [d for _, d in docs], names, runs, seed=seed, runners=RUNNERS)
         with Progress(console=_out, transient=True, disable=quiet) as bar:
             task = bar.add_task("campaign", total=len(tasks))
             table = run_campaign(tasks, scheduler=scheduler, workers=workers,

@@ -15,9 +15,10 @@ holds:
 ``verdict``
     ``verdict(doc, spec) -> list[Check]`` of `tanksynth.verify`: re-derives what
     it checks from the artefact and simulates it on the nonlinear plant.
-``closed_loop``
-    For controllers: ``builder(doc, spec) -> ClosedLoop``, how a campaign runs
-    the artefact in closed loop.
+``campaign``
+    ``runner(doc, spec) -> CampaignRun``: what a Monte-Carlo campaign runs for
+    the artefact (a closed loop, an estimator on the noisy measurements, a
+    residual test or a model's prediction; `tanksynth.verify.campaign`).
 ``statement``
     ``statement(diagnostics) -> Tex``: the problem solved, for the report.
 
@@ -44,7 +45,7 @@ from tanksynth.verify import ts_observer
 from tanksynth.verify.runner import Verdict, VerdictFn
 from tanksynth.verify.runner import verify_directory as _verify_directory
 
-__all__ = ["KINDS", "Method", "TABLE", "METHODS", "VERDICTS", "CLOSED_LOOPS", "STATEMENTS",
+__all__ = ["KINDS", "Method", "TABLE", "METHODS", "VERDICTS", "RUNNERS", "STATEMENTS",
            "method", "design", "load_spec", "parse_spec", "parse_spec_text", "verify_directory",
            "write_report"]
 
@@ -70,8 +71,8 @@ class Method:
         ``verdict(doc, spec) -> list[Check]``.
     statement : callable
         ``statement(diagnostics) -> Tex`` (report).
-    closed_loop : callable or None
-        ``builder(doc, spec) -> ClosedLoop`` for controllers.
+    campaign : callable
+        ``runner(doc, spec) -> CampaignRun`` (campaigns).
     """
 
     name: str
@@ -80,7 +81,7 @@ class Method:
     adapter: DesignMethod
     verdict: VerdictFn
     statement: Callable[[Mapping[str, Any]], Any]
-    closed_loop: Callable[..., Any] | None = None
+    campaign: Callable[..., Any]
 
     @property
     def options(self) -> type[MethodOptions]:
@@ -93,9 +94,8 @@ class Method:
 
 
 def _row(name: str, kinds: tuple[str, ...], summary: str, adapter: DesignMethod, verdict: VerdictFn,
-         statement: Callable[[Mapping[str, Any]], Any],
-         closed_loop: Callable[..., Any] | None = None) -> Method:
-    return Method(name, kinds, summary, adapter, verdict, statement, closed_loop)
+         statement: Callable[[Mapping[str, Any]], Any], campaign: Callable[..., Any]) -> Method:
+    return Method(name, kinds, summary, adapter, verdict, statement, campaign)
 
 
 _CONTROLLER_OR_OBSERVER = ("controller", "observer")
@@ -104,20 +104,21 @@ _CONTROLLER_OR_OBSERVER = ("controller", "observer")
 TABLE: tuple[Method, ...] = (
     _row("linearize", ("model",), "linearisation at the operating point and exact ZOH discretisation",
          model_methods.LINEARIZE, model.linearize_verdict, st.linearize_statement,
-         campaign.linearize_loop),
+         campaign.linearize_run),
     _row("pole_placement", _CONTROLLER_OR_OBSERVER,
          "exact pole placement (python-control place/acker), optional integral action",
          convex_methods.POLE_PLACEMENT, placement.pole_placement_verdict,
-         st.pole_placement_statement, campaign.integral_loop),
+         st.pole_placement_statement, campaign.placement_run),
     _row("lmi_placement", _CONTROLLER_OR_OBSERVER,
          "pole placement in an LMI region (cvxpy + Clarabel), optional integral action",
          convex_methods.LMI_PLACEMENT, placement.lmi_placement_verdict, st.lmi_placement_statement,
-         campaign.integral_loop),
+         campaign.placement_run),
     _row("canonical_observer", ("observer",), "Luenberger observer by the observable canonical form",
          convex_methods.CANONICAL_OBSERVER, placement.canonical_observer_verdict,
-         st.canonical_observer_statement),
+         st.canonical_observer_statement, campaign.canonical_observer_run),
     _row("ts_observer", ("observer",), "Takagi-Sugeno multiple-model observer by an LMI",
-         convex_methods.TS_OBSERVER, ts_observer.ts_observer_verdict, st.ts_observer_statement),
+         convex_methods.TS_OBSERVER, ts_observer.ts_observer_verdict, st.ts_observer_statement,
+         campaign.ts_observer_run),
     _row("feedback_linearization", ("controller",),
          "exact input-output feedback linearisation with decoupling",
          control_methods.FEEDBACK_LINEARIZATION, laws.feedback_linearization_verdict,
@@ -132,26 +133,30 @@ TABLE: tuple[Method, ...] = (
     _row("decentralized_kalman", ("estimator",),
          "decentralised Kalman gains under a sparsity pattern (one-step or finite horizon)",
          decentralized_methods.DECENTRALIZED_KALMAN, decentralized.decentralized_kalman_verdict,
-         st.decentralized_kalman_statement),
+         st.decentralized_kalman_statement, campaign.decentralized_kalman_run),
     _row("kalman", ("estimator",), "Kalman filter on the ZOH linearisation",
-         est.KALMAN, estimators.kalman_verdict, st.kalman_statement),
+         est.KALMAN, estimators.kalman_verdict, st.kalman_statement, campaign.estimator_run),
     _row("ekf", ("estimator",), "extended Kalman filter on the nonlinear model",
-         est.EKF, estimators.ekf_verdict, st.ekf_statement),
+         est.EKF, estimators.ekf_verdict, st.ekf_statement, campaign.estimator_run),
     _row("ukf", ("estimator",), "unscented Kalman filter", est.UKF, estimators.ukf_verdict,
-         st.ukf_statement),
+         st.ukf_statement, campaign.estimator_run),
     _row("adaptive_kalman", ("estimator",), "Kalman filter with innovation-window adaptive Q",
-         est.ADAPTIVE_KALMAN, estimators.adaptive_kalman_verdict, st.adaptive_kalman_statement),
+         est.ADAPTIVE_KALMAN, estimators.adaptive_kalman_verdict, st.adaptive_kalman_statement,
+         campaign.estimator_run),
     _row("adaptive_scaling_kalman", ("estimator",), "Kalman filter with adaptive process-noise scaling",
          est.ADAPTIVE_SCALING_KALMAN, estimators.adaptive_scaling_kalman_verdict,
-         st.adaptive_scaling_kalman_statement),
+         st.adaptive_scaling_kalman_statement, campaign.estimator_run),
     _row("consensus_filter", ("estimator",), "information-form consensus filter over redundant sensors",
-         est.CONSENSUS_FILTER, estimators.consensus_filter_verdict, st.consensus_filter_statement),
+         est.CONSENSUS_FILTER, estimators.consensus_filter_verdict, st.consensus_filter_statement,
+         campaign.estimator_run),
     _row("luenberger", ("observer",), "discrete or continuous Luenberger observer",
-         est.LUENBERGER, estimators.luenberger_verdict, st.luenberger_statement),
+         est.LUENBERGER, estimators.luenberger_verdict, st.luenberger_statement,
+         campaign.estimator_run),
     _row("narx", ("estimator",), "NARX neural estimator trained on EKF data",
-         est.NARX, narx.narx_verdict, st.narx_statement),
+         est.NARX, narx.narx_verdict, st.narx_statement, campaign.narx_run),
     _row("fault_detection", ("detector",), "observer residual with a derived fault-detection threshold",
-         est.FAULT_DETECTION, fault.fault_detection_verdict, st.fault_detection_statement),
+         est.FAULT_DETECTION, fault.fault_detection_verdict, st.fault_detection_statement,
+         campaign.fault_detection_run),
 )
 
 
@@ -173,8 +178,8 @@ def _check_table(table: tuple[Method, ...]) -> None:
         for part in ("verdict", "statement"):
             if not callable(getattr(row, part)):
                 problems.append(f"no {part}")
-        if "controller" in row.kinds and not callable(row.closed_loop):
-            problems.append("a controller without a closed-loop builder")
+        if not callable(row.campaign):
+            problems.append("no campaign runner")
         if not row.summary:
             problems.append("no summary")
         if problems:
@@ -187,9 +192,8 @@ _check_table(TABLE)
 METHODS: Mapping[str, Method] = MappingProxyType({row.name: row for row in TABLE})
 #: Verdict of each method (what `verify_directory` runs).
 VERDICTS: Mapping[str, VerdictFn] = MappingProxyType({row.name: row.verdict for row in TABLE})
-#: Closed-loop builder of each method that has one (campaigns).
-CLOSED_LOOPS: Mapping[str, Callable[..., Any]] = MappingProxyType(
-    {row.name: row.closed_loop for row in TABLE if row.closed_loop is not None})
+#: Campaign runner of each method (what `campaign_tasks` runs for its artefacts).
+RUNNERS: Mapping[str, Callable[..., Any]] = MappingProxyType({row.name: row.campaign for row in TABLE})
 #: Problem statement of each method (report).
 STATEMENTS: Mapping[str, Callable[[Mapping[str, Any]], Any]] = MappingProxyType(
     {row.name: row.statement for row in TABLE})

@@ -17,12 +17,13 @@ import sympy as sp
 
 from tanksynth.analysis.linearize import equilibrium_input, linearize, symbolic_jacobians
 from tanksynth.analysis.symbolic import relative_degree
+from tanksynth.papers import seed000 as paper
 from tanksynth.plants import three_tank
 
 # Table I
-A_, PHI, MU13, MU32, MU20, G = 0.0154, 5e-5, 0.5, 0.5, 0.675, 9.81
-Y0 = (0.40, 0.20, 0.30)
-PRINTED_U0 = (0.35e-4, 0.375e-4)
+A_, PHI, MU13, MU32, MU20, G = (paper.TABLE_I[k] for k in ("A", "Phi", "mu13", "mu32", "mu20", "g"))
+Y0 = paper.Y0
+PRINTED_U0 = paper.U0
 
 
 def derived_jacobians(h1: float, h2: float, h3: float) -> tuple[np.ndarray, np.ndarray]:
@@ -113,11 +114,7 @@ def _printed_symbolic_F(plant) -> sp.Matrix:
     t13 = mu13 * Phi * phi / (2 * A * sp.sqrt(h1 - h3))
     t32 = mu32 * Phi * phi / (2 * A * sp.sqrt(h3 - h2))
     t20 = mu20 * Phi * phi / (2 * A * sp.sqrt(h2))
-    return sp.Matrix([
-        [-t13, 0, t13],
-        [0, -t13 - t20, t32],
-        [-t13, t32, -t32 + t13],
-    ])
+    return sp.Matrix(paper.F_in_fractions(t13, t32, t20))
 
 
 def test_symbolic_jacobian_equals_derivation(plant):
@@ -135,7 +132,7 @@ def test_printed_F_errata(plant):
     printed = _printed_symbolic_F(plant)
     diff = (printed - derived).applyfunc(sp.simplify)
     wrong = {(i + 1, j + 1) for i in range(3) for j in range(3) if diff[i, j] != 0}
-    assert wrong == {(2, 2), (3, 1), (3, 3)}
+    assert wrong == {(2, 2), (3, 1), (3, 3)} == set(paper.F_FORMULA_ERRATA) == set(paper.F_PRINTED_LATEX)
     (h1, h2, h3), A, Phi, mu13, mu32, mu20, g = _symbols(plant)
     a13 = mu13 * Phi * sp.sqrt(2 * g) / (2 * A * sp.sqrt(h1 - h3))
     a32 = mu32 * Phi * sp.sqrt(2 * g) / (2 * A * sp.sqrt(h3 - h2))
@@ -151,6 +148,7 @@ def test_printed_F_numeric_errata_at_y0(lin, plant):
     """At y0 the (2,2) typo is invisible (mu13 = mu32, h1-h3 = h3-h2); (3,1), (3,3) are not."""
     printed = _printed_symbolic_F(plant).xreplace(plant.parameter_values).xreplace(dict(zip(plant.x, map(sp.Rational, ("0.4", "0.2", "0.3")))))
     P = np.array(printed.evalf(30), dtype=float)
+    np.testing.assert_allclose(paper.printed_F(paper.TABLE_I, Y0)[0], P, rtol=1e-12, atol=1e-17)
     wrong = {(i + 1, j + 1) for i in range(3) for j in range(3)
              if not np.isclose(P[i, j], lin.F[i, j], rtol=1e-12, atol=0)}
     assert wrong == {(3, 1), (3, 3)}

@@ -12,40 +12,31 @@ import numpy as np
 import pytest
 import sympy as sp
 
-from tanksynth.plants import three_tank
 from tanksynth.analysis.rank import observability_rank, symbolic_observability
+from tanksynth.papers import seed001 as paper
+from tanksynth.plants import three_tank
 
-z1, z2, z3 = sp.symbols("z1 z2 z3")
-l1, l2, l3 = sp.symbols("lambda1 lambda2 lambda3")
-g1, g2, g3 = sp.symbols("gamma1 gamma2 gamma3")
+(z1, z2, z3), (l1, l2, l3), (g1, g2, g3) = paper.symbols()
 LAM = (l1, l2, l3)
 GAM = (g1, g2, g3)
-PAPER = {l1: sp.Rational(-7, 10), l2: 5, l3: 17, g1: 0, g2: -3, g3: -1}
-
-
-def A_eq10() -> sp.Matrix:
-    return sp.Matrix([
-        [-l1 * z1, -l2 * z1, -l3 * z1],
-        [g1 * z3, g2 * z3 - z2, g3 * z3],
-        [l1 * z1 - g1 * z3, l2 * z1 - g2 * z3, l3 * z1 - g3 * z3],
-    ])
-
+PAPER = {**dict(zip(LAM, map(sp.nsimplify, paper.LAMBDA))),
+         **dict(zip(GAM, map(sp.nsimplify, paper.GAMMA)))}
+A_eq10 = paper.A_eq10
 
 C1 = sp.Matrix([[1, 0, 0]])
 C12 = sp.Matrix([[1, 0, 0], [0, 1, 0]])
 
-PRINTED_DET = (l2 * g3 * z1**2 * z3 * (l2 - l3) - l3 * l2 * z1**2 * (g2 * z3 + z2)
-               + l3**2 * g2 * z1**2 * z3)
+PRINTED_DET = paper.det_O1()
 DERIVED_DET = z1**2 * ((l2 - l3) * (g3 * l2 - g2 * l3) * z3 + l2 * l3 * z2)
 
 
 # ------------------------------------------------------ A(z) against the model
 @pytest.mark.parametrize("lam,gam", [
-    ((-0.7, 5.0, 17.0), (0.0, -3.0, -1.0)),       # the paper's simulation choice
+    (paper.LAMBDA, paper.GAMMA),                  # the paper's simulation choice
     ((1.3, -0.4, 2.2), (0.9, 1.7, -0.6)),         # arbitrary
 ])
 def test_quasi_lpv_matrix_reproduces_the_model(lam, gam):
-    S, Sn, a1, a2, a3, g = 0.0154, 5e-5, 0.46, 0.6, 0.48, 9.82
+    S, Sn, a1, a2, a3, g = 0.0154, 5e-5, 0.46, 0.6, 0.48, paper.G
     plant = three_tank().with_parameters({"A": S, "Phi": Sn, "mu13": a1, "mu32": a3, "mu20": a2,
                                            "g": g})
     rng = np.random.default_rng(1)
@@ -79,11 +70,7 @@ def single():
 def test_observability_matrix_rows_match_print(single):
     """The printed O1 (rows C, CA, CA^2 with (*)1..(*)3) is right; only its det is not."""
     O = single.matrix
-    star1 = l1**2 * z1**2 - l3 * z1 * (l1 * z1 - g1 * z3) - l2 * z1 * g1 * z3
-    star2 = l1 * z1**2 * l2 - l2 * z1 * (g2 * z3 - z2) - l3 * z1 * (l2 * z1 - g2 * z3)
-    star3 = l1 * l3 * z1**2 - l3 * z1 * (l3 * z1 - g3 * z3) - l2 * z1 * g3 * z3
-    printed = sp.Matrix([[1, 0, 0], [-l1 * z1, -l2 * z1, -l3 * z1], [star1, star2, star3]])
-    assert (O - printed).applyfunc(sp.expand) == sp.zeros(3, 3)
+    assert (O - paper.O1()).applyfunc(sp.expand) == sp.zeros(3, 3)
 
 
 def test_determinant_single_output(single):
@@ -115,6 +102,9 @@ def test_degenerate_parameter_sets_single_output(single):
 
 def test_paper_claim_rank_iff_lambda2_lambda3_nonzero_is_wrong(single):
     """Paper: rank 3 iff lambda3 != 0 and lambda2 != 0. Counterexample: lambda2 = 0."""
+    claimed = {frozenset((sp.Symbol(k), v) for k, v in d.items()) for d in paper.RANK_CLAIM}
+    found = {frozenset(d.items()) for d in single.degenerate_parameters}
+    assert claimed == {frozenset({(l2, 0)}), frozenset({(l3, 0)})} and not claimed <= found
     values = {l1: 1, l2: 0, l3: 2, g1: 0, g2: 1, g3: -1}
     det = sp.expand(single.determinant.xreplace(values))
     assert det == 4 * z1**2 * z3                       # gamma2 lambda3^2 z1^2 z3: not identically 0
@@ -143,6 +133,7 @@ def double():
 def test_two_outputs_degenerate_set(double):
     """Paper: avoid lambda3 = gamma3 = 0 -- confirmed, and that is the only such set."""
     assert [dict(d) for d in double.degenerate_parameters] == [{l3: 0, g3: 0}]
+    assert [{sp.Symbol(k): v for k, v in d.items()} for d in paper.TWO_OUTPUT_CLAIM] == [{l3: 0, g3: 0}]
     O = double.matrix
     assert O.shape == (6, 3)
     assert O.xreplace({l3: 0, g3: 0}).rank() == 2
@@ -157,22 +148,19 @@ def test_two_outputs_printed_matrix_errata(double):
     """The printed O_{1,2} has typos in rows 3, 5 and 6 (recorded as errata)."""
     O = double.matrix
     derived_rows = [O[i, :] for i in range(6)]
+    printed = paper.O12_entries()
     # row 3 printed as [-l1 z1, -l2 z2, -l3 z1]: the middle entry should be -l2 z1
     assert sp.expand(derived_rows[2][1] + l2 * z1) == 0
-    assert sp.expand(derived_rows[2][1] + l2 * z2) != 0
+    assert sp.expand(derived_rows[2][1] - printed[3, 2]) != 0
     # (5,1) printed l1 z1^2 (l1 - l3) + g1 l3 z1 z3: misses -g1 l2 z1 z3
-    printed_51 = l1 * z1**2 * (l1 - l3) + g1 * l3 * z1 * z3
-    assert sp.expand(derived_rows[4][0] - printed_51 + g1 * l2 * z1 * z3) == 0
+    assert sp.expand(derived_rows[4][0] - printed[5, 1] + g1 * l2 * z1 * z3) == 0
     # (5,2), (5,3) as printed are right
-    assert sp.expand(derived_rows[4][1] - z1 * (l2 * z1 * (l1 - l3) - g2 * z3 * (l2 - l3) + l2 * z2)) == 0
-    assert sp.expand(derived_rows[4][2] - (l3 * z1**2 * (l1 - l3) - g3 * z1 * z3 * (l2 - l3))) == 0
+    assert sp.expand(derived_rows[4][1] - printed[5, 2]) == 0
+    assert sp.expand(derived_rows[4][2] - printed[5, 3]) == 0
     # (6,1) printed l1 z1 z3 (g3 - g1) - g1 z3 [z2 - z3 (g3 - g2)]: sign of (g3 - g2) is wrong
-    printed_61 = l1 * z1 * z3 * (g3 - g1) - g1 * z3 * (z2 - z3 * (g3 - g2))
-    assert sp.expand(derived_rows[5][0] - printed_61) != 0
+    assert sp.expand(derived_rows[5][0] - printed[6, 1]) != 0
     assert sp.expand(derived_rows[5][0] - (l1 * z1 * z3 * (g3 - g1) - g1 * z3 * (z2 - z3 * (g2 - g3)))) == 0
     # (6,2) printed (g2 z3 - z2)^2 - g2 g3 z3^2: misses l2 z1 z3 (g3 - g1)
-    printed_62 = (g2 * z3 - z2)**2 - g2 * g3 * z3**2
-    assert sp.expand(derived_rows[5][1] - printed_62 - l2 * z1 * z3 * (g3 - g1)) == 0
+    assert sp.expand(derived_rows[5][1] - printed[6, 2] - l2 * z1 * z3 * (g3 - g1)) == 0
     # (6,3) as printed is right
-    printed_63 = g3 * z3 * ((g2 - g3) * z3 - z2 + l3 * z1) - l3 * g1 * z1 * z3
-    assert sp.expand(derived_rows[5][2] - printed_63) == 0
+    assert sp.expand(derived_rows[5][2] - printed[6, 3]) == 0

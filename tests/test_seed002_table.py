@@ -1,6 +1,9 @@
-"""Seed 002 section 5 in simulation: EKFC/UKFC/ANNC beside the paper's Tables 4-8.
+"""Seed 002 section 5 in simulation: EKFC/UKFC/ANNC beside the paper's Table 4.
 
-Runs every controller whose estimator module is present, plus the perfect-
+The comparison code is generic (`tanksynth.verify.comparison`); the seed's
+combinations, our declared tuning and the printed values it is compared
+with are held here (until tanksynth.papers holds the printed ones). Every
+combination whose estimator module is present runs, plus the perfect-
 estimator baseline; a row is skipped (with its reason) only when its
 estimator module is absent. Theirs is a real rig, ours a declared
 reconstruction: the checks are on orderings and magnitudes, not digits.
@@ -10,43 +13,59 @@ import math
 
 import pytest
 
-from tanksynth.verify.campaign import PAPER_TABLES, SEED002_ESTIMATORS, seed002_estimators, seed002_table
 from tanksynth.plants import hybrid_three_tank
+from tanksynth.verify.comparison import FilterTuning, comparison_estimators, controller_comparison
 
 PLANT = hybrid_three_tank()
-X_OP = [0.31918677, 0.3209075, 0.30968861]
+X_OP = [0.31918677, 0.3209075, 0.30968861]   # examples/hybrid_three_tank.toml, 100/100 lph
+#: Seed 002's controllers: EKF, UKF and NARX (ANN) estimators with inverse-dynamics control.
+COMBINATIONS = {"PERFECT": None, "EKFC": "ekf", "UKFC": "ukf", "ANNC": "narx"}
+#: Estimator tuning (not published: our declared choice).
+TUNING = FilterTuning(Q=1e-9, R=2.5e-7, P0=1e-2, substeps=2, narx_runs=3, narx_steps=400,
+                      narx_restarts=1, narx_iterations=60)
+#: Table 4 of seed 002 (servo, 0.04 m step), ISE of h1 in m^2 s.
+TABLE4_ISE_H1 = {"EKFC": 0.0149, "UKFC": 0.0160, "ANNC": 0.0172}
 
 
 @pytest.fixture(scope="module")
 def table():
-    estimators = seed002_estimators(PLANT, 1.0, X_OP)
-    return estimators, seed002_table(PLANT, runs=2, scenarios=("servo", "mismatch", "leakage"),
-                                     estimators=estimators)
+    estimators = comparison_estimators(PLANT, 1.0, COMBINATIONS, TUNING, X_OP)
+    return estimators, controller_comparison(PLANT, estimators, x_op=X_OP, gains=(0.05, 0.05),
+                                             ts=1.0, runs=2,
+                                             scenarios=("servo", "mismatch", "leakage"))
 
 
 def test_rows_run_or_say_why_not(table):
     estimators, rows = table
-    assert {r.controller for r in rows} == set(SEED002_ESTIMATORS)
+    assert {r.controller for r in rows} == set(COMBINATIONS)
+    assert len(rows) == 3 * len(COMBINATIONS)
     for r in rows:
-        factory, reason = estimators[r.controller]
         if r.skipped:
             assert "absent" in r.skipped, r.skipped     # skipped only for a missing module
         else:
-            assert r.ours["ise_h1"] >= 0 and math.isfinite(r.ours["ise_h2"])
-            if r.controller != "PERFECT":
-                assert r.paper == PAPER_TABLES[r.scenario][r.controller]
+            assert r.metrics["ise_h1"] >= 0 and math.isfinite(r.metrics["ise_h2"])
+            assert ("rmse_h1" in r.metrics) == (r.controller != "PERFECT")  # RMSE only of an estimator
+            assert r.metrics["offset"] == pytest.approx(
+                (r.metrics["offset_h1"] + r.metrics["offset_h2"]) / 2)
 
 
 def test_magnitudes_against_the_paper(table):
     _, rows = table
-    ran = {(r.scenario, r.controller): r for r in rows if not r.skipped}
-    servo = ran[("servo", "PERFECT")].ours
+    ran = {(r.scenario, r.controller): r.metrics for r in rows if not r.skipped}
+    servo = ran[("servo", "PERFECT")]
     # 0.04 m step: ISE of the same order as Table 4 (0.013-0.017 m^2 s), tracking time tens of s.
-    assert 0.003 < servo["ise_h1"] < 0.08 and 10 < servo["tracking_time"] < 150
+    lo, hi = min(TABLE4_ISE_H1.values()), max(TABLE4_ISE_H1.values())
+    assert 0.2 * lo < servo["ise_h1"] < 5 * hi and 10 < servo["tracking_time"] < 150
     # Leakage (no integral action): offset in h1, as the paper reports for model mismatch.
-    assert ran[("leakage", "PERFECT")].ours["offset_h1"] < -0.005
+    assert ran[("leakage", "PERFECT")]["offset_h1"] < -0.005
     for label in ("EKFC", "UKFC"):
         if ("mismatch", label) in ran:
-            # An estimator started 0.28 m off costs more than the perfect baseline.
-            assert ran[("mismatch", label)].ours["rmse_h1"] > 0.005
-            assert ran[("mismatch", label)].ours["ise_h1"] >= 0.9 * ran[("mismatch", "PERFECT")].ours["ise_h1"]
+            # An estimator started 0.28 m off costs more than the perfect baseline; after the
+            # warm-up (first 10 % of the run) it has converged to within the noise.
+            assert 0 < ran[("mismatch", label)]["rmse_h1"] < 0.005
+            assert ran[("mismatch", label)]["ise_h1"] >= 0.9 * ran[("mismatch", "PERFECT")]["ise_h1"]
+
+
+def test_unknown_estimator_kind_is_refused():
+    with pytest.raises(ValueError, match="unknown estimator kind 'kf'"):
+        comparison_estimators(PLANT, 1.0, {"X": "kf"}, TUNING)

@@ -45,14 +45,15 @@ from tanksynth.design.decentralized import (centralized_gain, equicorrelated_int
                                             finite_horizon_gains, linear_model, one_step_gains,
                                             own_tank_pattern, window_models)
 from tanksynth.methods import load_spec
+from tanksynth.papers import seed003 as paper
 
 SPEC = Path(__file__).resolve().parents[1] / "examples" / "seed003_tank_network.toml"
 
 # Scenario of the seed's script (NTanksNetworkEstimationOSFH), see the TOML header.
-X0_LEVEL = 20.0        # cm, every tank
-U_FIRST, U_SECOND, T_SWITCH = 6.0, 4.0, 400.0   # V, V, s
-DURATION = 800         # steps of dT = 1 s
-SEED = 7
+X0_LEVEL = paper.X0_LEVEL                                             # cm, every tank
+U_FIRST, U_SECOND, T_SWITCH = paper.PUMP_FIRST, paper.PUMP_SECOND, paper.T_SWITCH   # V, V, s
+DURATION = paper.DURATION                                             # steps of dT = 1 s
+SEED = paper.RANDOM_SEED
 
 
 def _rk4_step(plant, ts: float, substeps: int = 4) -> ca.Function:
@@ -165,22 +166,25 @@ def run(spec):
 
 def test_example_constants(spec):
     plant = spec.plant
-    assert plant.name == "tank_network" and plant.n == 40 and plant.m == 20
-    assert spec.ts == 1.0
+    assert plant.name == "tank_network" and plant.n == paper.N and plant.m == paper.N // 2
+    assert spec.ts == paper.TS
     fh, os_ = spec.designs
     o = fh.options
-    assert (o["algorithm"], o["window"], o["tolerance"], o["max_iter"]) == ("casadi", 40, 1e-6, 100)
-    assert o["relinearize_every"] == 10 and o["E"] == "own_tank"
+    assert (o["algorithm"], o["window"], o["tolerance"], o["max_iter"]) == (
+        "casadi", paper.WINDOW, paper.TOLERANCE, paper.MAX_ITERATIONS)
+    assert o["relinearize_every"] == paper.RELINEARIZE_EVERY and o["E"] == "own_tank"
     np.testing.assert_array_equal(own_tank_pattern(plant), np.eye(40))
     kc = plant.parameter("kc").value
     assert o["measurement_noise"] == pytest.approx(1.0 / kc**2)      # R = I V^2 at C = kc I
-    assert o["initial_covariance"] == 10.0
+    assert o["initial_covariance"] == paper.P0
     assert os_.options["algorithm"] == "one_step"
     vals = {p.name: p.value for p in plant.parameters}
-    assert [vals[f"A{i}"] for i in (1, 2)] == [28.0, 32.0]
-    assert [vals[f"a{i}"] for i in (1, 2, 21, 40)] == [0.071, 0.057, 0.040, 0.040]
-    assert [vals[f"gamma{j}"] for j in (1, 2)] == [0.7, 0.6]
-    assert vals["k1"] == 3.33 and vals["g"] == 981.0 and kc == 0.5
+    assert tuple(vals[f"A{i}"] for i in (1, 2)) == paper.TANK_AREAS
+    assert tuple(vals[f"a{i}"] for i in (1, 2)) == paper.OUTLET_AREAS
+    assert vals["a21"] == vals["a40"] == paper.UPPER_OUTLET_AREA
+    assert tuple(vals[f"gamma{j}"] for j in (1, 2)) == paper.VALVE_SPLITS
+    assert vals["k1"] == paper.PUMP_GAIN and vals["g"] == paper.G and kc == paper.SENSOR_GAIN
+    assert spec.x0[:paper.N // 2].tolist() == [paper.X0_LEVEL] * (paper.N // 2)
 
 
 def test_windows_order_centralized_fh_one_step(run):

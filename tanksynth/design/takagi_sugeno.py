@@ -14,12 +14,10 @@ import numpy as np
 import sympy as sp
 
 from tanksynth.errors import SpecError
-# Module import (not names): tanksynth.analysis.rank imports tanksynth.design, so
-# this module may be loaded while verify.rank is still initialising.
 from tanksynth.analysis.interval import _branch_and_bound, interval_evaluate
+from tanksynth.analysis.quasi_lpv import _NUMPY
 from tanksynth.analysis.symbolic import jacobian
-from tanksynth.analysis.takagi_sugeno import (_NUMPY, Domain, QuasiLPV, TSModel, ts_model,
-                                             vertex_observability)
+from tanksynth.analysis.takagi_sugeno import Domain, QuasiLPV, TSModel, ts_model, vertex_observability
 
 __all__ = [
     "SelectionRules",

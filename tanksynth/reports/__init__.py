@@ -7,12 +7,14 @@ latexmk/pdflatex. The report covers the plant (equations, parameters,
 region, assumptions), the linearisation and discretisation, every rank
 condition, each design (problem, solver, re-check, margins, eigenvalues,
 gains), verification (once run), pole-map figures and the paper-vs-tool
-comparison of `tanksynth.reports.paper`.
+comparison of `tanksynth.reports.paper` (the printed values are in
+`tanksynth.papers`).
 """
 
 from tanksynth.reports.inputs import ReportInputs, read_report_inputs
 from tanksynth.reports.latex import escape_latex
-from tanksynth.reports.paper import PaperComparison, PaperRow, compare_with_papers
+from tanksynth.reports.comparison import PaperComparison, PaperRow
+from tanksynth.reports.paper import compare_with_papers
 from tanksynth.reports.writer import ReportResult, render_report, write_report
 
 __all__ = [

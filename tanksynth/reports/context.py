@@ -1,338 +1,37 @@
 """The template context: what each report section shows, formatted as LaTeX.
 
-Every value a template inserts is built here, either escaped user text or
-`Tex` generated from numbers, so the templates only lay things out. Any
-artefact renders: known methods get a problem statement, every artefact
-gets its solver/status, re-checks, margins, eigenvalues, gains (summarised
-when large) and a bounded table of its remaining diagnostics.
+Every value a template inserts is built here (the design sections in
+`tanksynth.reports.designs`), either escaped user text or `Tex` generated from
+numbers, so the templates only lay things out: the plant, the operating point,
+the linearisations, the rank checks, the campaign summary, the figures and the
+paper-vs-tool comparisons.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import re
-from dataclasses import dataclass, field
 from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
 
-from tanksynth.reports.figures import FigureFile, TraceFigure, eigenvalue_sets, is_pole_key, time_domain_figure
+from tanksynth.reports.comparison import PaperComparison
+from tanksynth.reports.designs import design_view, latex_label
+from tanksynth.reports.equations import split_equation
+from tanksynth.reports.figures import FigureFile, TraceFigure, time_domain_figure
 from tanksynth.reports.inputs import ReportInputs
 from tanksynth.reports.latex import (Tex, escape_latex, expression_latex, format_eigenvalues,
-                    format_number, format_unit, gain_latex, matrix_latex, split_equation,
-                    symbol_latex, visual_length)
-from tanksynth.reports.paper import PaperComparison
+                                     format_number, format_unit, gain_latex, symbol_latex)
 
-__all__ = ["DesignView", "build_context", "design_view", "diagnostic_rows", "fragment_lines",
-           "trace_figures"]
-
-_MAX_DIAG_ROWS = 30
-_MAX_TEXT = 400
+__all__ = ["build_context", "trace_figures"]
 
 
 def _m(value: Any, digits: int = 5) -> Tex:
     return Tex("$" + format_number(value, digits) + "$")
 
 
-def _label(prefix: str, name: str) -> str:
-    """A LaTeX label from arbitrary text (ASCII letters, digits, '-')."""
-    safe = re.sub(r"[^A-Za-z0-9]+", "-", name).strip("-") or "x"
-    return f"{prefix}:{safe}"
-
-
 def _is_number(v: Any) -> bool:
     return isinstance(v, (int, float)) and not isinstance(v, bool)
-
-
-def _is_complex_list(v: Any) -> bool:
-    return (isinstance(v, list) and bool(v) and all(isinstance(x, list) and len(x) == 2
-                                                   and all(_is_number(y) for y in x) for x in v))
-
-
-def _is_matrix(v: Any) -> bool:
-    return (isinstance(v, list) and bool(v) and all(isinstance(r, list) and r and
-                                                   all(_is_number(x) for x in r) for r in v)
-            and len({len(r) for r in v}) == 1)
-
-
-def _value_tex(key: str, v: Any) -> Tex:
-    """One diagnostics value as LaTeX (bounded size)."""
-    if v is None:
-        return Tex("--")
-    if isinstance(v, bool) or _is_number(v):
-        return _m(v)
-    if isinstance(v, str):
-        if v.lower() in ("inf", "-inf", "nan"):
-            return _m(v)
-        text = v if len(v) <= _MAX_TEXT else v[:_MAX_TEXT] + " ..."
-        return escape_latex(text, breakable=True)
-    if isinstance(v, list):
-        if not v:
-            return Tex(r"\emph{empty}")
-        if ("eigenvalue" in key or is_pole_key(key)) and \
-                (_is_complex_list(v) or all(_is_number(x) for x in v)):
-            return Tex("$" + format_eigenvalues(v, 4, limit=12) + "$")
-        if all(_is_number(x) for x in v):
-            if len(v) <= 8:
-                return Tex("$(" + ",\\; ".join(format_number(x, 4) for x in v) + ")$")
-            arr = np.asarray(v, dtype=float)
-            return Tex(f"{len(v)} numbers in $[{format_number(arr.min(), 4)},\\ "
-                       f"{format_number(arr.max(), 4)}]$")
-        if _is_matrix(v):
-            r, c = len(v), len(v[0])
-            if r * c <= 25:
-                return Tex(r"$\scriptstyle " + matrix_latex(v, 4) + "$")
-            return Tex(f"${r} \\times {c}$ matrix")
-        if all(isinstance(x, str) for x in v):
-            shown = [escape_latex(x if len(x) <= 120 else x[:120] + " ...", breakable=True)
-                     for x in v[:6]]
-            more = f" (+{len(v) - 6} more)" if len(v) > 6 else ""
-            return Tex("; ".join(shown) + more)
-        return Tex(f"list of {len(v)} entries")
-    if isinstance(v, Mapping):
-        return Tex(f"{len(v)} entries")
-    return escape_latex(str(v)[:_MAX_TEXT])
-
-
-def diagnostic_rows(diag: Mapping[str, Any], skip: Sequence[str] = (), limit: int = _MAX_DIAG_ROWS,
-                    max_depth: int = 3) -> tuple[list[tuple[Tex, Tex]], int]:
-    """Flatten diagnostics into (key path, value) rows, at most ``limit`` of them.
-
-    Nested mappings are walked to ``max_depth``; lists of records and large
-    matrices are summarised. Keys in ``skip`` (top level, or dotted paths)
-    are left out (shown elsewhere).
-
-    Returns
-    -------
-    rows : list of (Tex, Tex)
-    omitted : int
-        Rows not shown because of ``limit``.
-    """
-    rows: list[tuple[Tex, Tex]] = []
-    omitted = 0
-
-    def walk(node: Mapping[str, Any], prefix: str, depth: int) -> None:
-        nonlocal omitted
-        for k, v in node.items():
-            path = f"{prefix}.{k}" if prefix else str(k)
-            if path in skip or str(k).startswith(("_", "reference")):
-                continue
-            if isinstance(v, Mapping) and v and depth < max_depth:
-                walk(v, path, depth + 1)
-                continue
-            if len(rows) >= limit:
-                omitted += 1
-                continue
-            rows.append((escape_latex(path, breakable=True), _value_tex(str(k), v)))
-
-    walk(diag, "", 1)
-    return rows, omitted
-
-
-def _find(diag: Mapping[str, Any], key: str, max_depth: int = 3) -> list[tuple[str, Any]]:
-    """Every (path, value) whose last key is ``key``, breadth first."""
-    out: list[tuple[str, Any]] = []
-    frontier: list[tuple[str, Any, int]] = [("", diag, 0)]
-    while frontier:
-        prefix, node, depth = frontier.pop(0)
-        if not isinstance(node, Mapping) or depth > max_depth:
-            continue
-        for k, v in node.items():
-            path = f"{prefix}.{k}" if prefix else str(k)
-            if k == key:
-                out.append((path, v))
-            if isinstance(v, Mapping):
-                frontier.append((path, v, depth + 1))
-    return out
-
-
-# ------------------------------------------------------------ method problems
-
-
-# ------------------------------------------------------------------ designs
-@dataclass(frozen=True)
-class DesignView:
-    """One artefact as the design section shows it.
-
-    Attributes
-    ----------
-    name, method, file : str
-        Raw strings (escape when typesetting).
-    label : str
-        LaTeX label of its subsection.
-    problem : Tex
-    solver, status : Tex
-    margins : list of (Tex, Tex)
-    checks : list of dict
-        Re-check rows: name, value, limit, passed (Tex each).
-    eigenvalues : list of (Tex, Tex)
-    gains : list of GainDisplay
-    latex : list of (Tex, Tex)
-        Symbolic fragments (name, math).
-    notes : list of Tex
-        Caveats and notes.
-    diagnostics : list of (Tex, Tex)
-    omitted : int
-    verification : dict or None
-    figure : FigureFile or None
-    provenance : list of (Tex, Tex)
-    trace_figure : TraceFigure or None
-        Time-domain figure of the verdict simulation (`trace_figures`).
-    trace_caption : Tex
-        Its caption, escaped.
-    """
-
-    name: str
-    method: str
-    file: str
-    label: str
-    problem: Tex
-    solver: Tex
-    status: Tex
-    margins: list = field(default_factory=list)
-    checks: list = field(default_factory=list)
-    eigenvalues: list = field(default_factory=list)
-    gains: list = field(default_factory=list)
-    latex: list = field(default_factory=list)
-    notes: list = field(default_factory=list)
-    diagnostics: list = field(default_factory=list)
-    omitted: int = 0
-    verification: dict | None = None
-    figure: FigureFile | None = None
-    provenance: list = field(default_factory=list)
-    trace_figure: TraceFigure | None = None
-    trace_caption: Tex = Tex("")
-
-
-_MARGIN_KEYS = ("margin", "achieved_margin", "min_region_margin", "max_pole_error", "condition_P",
-                "gain_norm", "eigenvector_condition", "lmi_max_eigenvalue", "error_max_real_part")
-_SHOWN = ("solver", "status", "checks", "assumptions", "caveats", "equilibrium", "rank")
-
-
-def _verdict_tex(passed: Any, word_pass: str = "pass", word_fail: str = "FAIL") -> Tex:
-    if passed is True:
-        return Tex(r"\textcolor{passgreen}{" + word_pass + "}")
-    if passed is False:
-        return Tex(r"\textcolor{failred}{\textbf{" + word_fail + "}}")
-    return Tex(r"\textcolor{infoblue}{info}")
-
-
-def _checks_rows(value: Any) -> list[dict[str, Tex]]:
-    """Rows of a list of check records (``name``/``check``, ``passed``, and ``value``,
-    ``limit``, ``unit`` or ``detail``)."""
-    rows = []
-    if not isinstance(value, list):
-        return rows
-    for c in value:
-        if not isinstance(c, Mapping):
-            continue
-        detail = c.get("detail")
-        rows.append({
-            "name": escape_latex(c.get("name", c.get("check", "")), breakable=True),
-            "value": _m(c["value"], 4) if "value" in c else Tex("--"),
-            "limit": _m(c["limit"], 4) if "limit" in c else Tex("--"),
-            "unit": escape_latex(c.get("unit", "")),
-            "detail": escape_latex(detail, breakable=True) if isinstance(detail, str) else Tex(""),
-            "passed": _verdict_tex(c.get("passed")),
-        })
-    return rows
-
-
-def _verification_view(ver: Any) -> dict | None:
-    if ver is None:
-        return None
-    if not isinstance(ver, Mapping):
-        return {"passed": Tex("--"), "checks": [], "rows": [(Tex("verification"), _value_tex("", ver))],
-                "omitted": 0}
-    passed = ver.get("passed")
-    rows, omitted = diagnostic_rows(ver, skip=("passed", "checks"), limit=30)
-    return {
-        "passed": _verdict_tex(passed, "passed", "FAILED") if passed is not None
-        else Tex(r"\textcolor{infoblue}{no verdict}"),
-        "checks": _checks_rows(ver.get("checks")),
-        "rows": rows,
-        "omitted": omitted,
-    }
-
-
-def design_view(art: Mapping[str, Any], figure: FigureFile | None,
-                statements: Mapping[str, Callable[[Mapping[str, Any]], Tex]]) -> DesignView:
-    """Build the `DesignView` of one artefact (any method); ``statements`` maps a method to its
-    problem statement (`tanksynth.methods.STATEMENTS`)."""
-    diag = art.get("diagnostics") or {}
-    method = str(art.get("method", ""))
-    problem_fn = statements.get(method)
-    problem = problem_fn(diag) if problem_fn else Tex(
-        r"Method \texttt{" + escape_latex(method) + r"}: the report has no problem statement for "
-        r"this method yet; its diagnostics are listed below.")
-    solver_hits = _find(diag, "solver")
-    status_hits = _find(diag, "status")
-    prov = art.get("provenance") or {}
-    solver = next((v for _, v in solver_hits if isinstance(v, str) and v), None) or prov.get("solver")
-    status = next((v for _, v in status_hits if isinstance(v, str) and v), None)
-    margins = []
-    for key in _MARGIN_KEYS:
-        for path, v in _find(diag, key):
-            if _is_number(v) or (isinstance(v, str) and v.lower() in ("inf", "-inf", "nan")):
-                margins.append((escape_latex(path, breakable=True), _m(v)))
-    checks = []
-    for path, v in _find(diag, "checks"):
-        for row in _checks_rows(v):
-            row = dict(row)
-            row["where"] = escape_latex(path, breakable=True)
-            checks.append(row)
-    eig = []
-    for s in eigenvalue_sets(art):
-        eig.append((escape_latex(s.path, breakable=True),
-                    Tex("$" + format_eigenvalues([[v.real, v.imag] for v in s.values], 5, limit=16)
-                        + "$" + (r" \ ($z$)" if s.discrete else ""))))
-    gains = [gain_latex(k, v) for k, v in (art.get("gains") or {}).items()]
-    latex = [(symbol_latex(k), fragment_lines(symbol_latex(k), v))
-             for k, v in (art.get("latex") or {}).items() if isinstance(v, str) and v.strip()]
-    notes = []
-    for key in ("caveats", "notes", "note", "warnings"):
-        for _, v in _find(diag, key, max_depth=1):
-            for item in (v if isinstance(v, list) else [v]):
-                if isinstance(item, str) and item:
-                    notes.append(escape_latex(item, breakable=True))
-    skip = list(_SHOWN) + [s.path for s in eigenvalue_sets(art)]
-    if method == "linearize":
-        skip += ["eigenvalues_F", "eigenvalues_Ad", "ts", "smooth_form_valid"]
-    rows, omitted = diagnostic_rows(diag, skip=skip)
-    provenance = [(escape_latex(k), escape_latex(str(v), breakable=True))
-                  for k, v in prov.items() if k in ("spec_sha256", "gains_sha256",
-                                                     "tanksynth_version", "solver") and v]
-    return DesignView(
-        name=str(art.get("name", "")), method=method, file=str(art.get("_file", "")),
-        label=_label("design", str(art.get("name", ""))), problem=problem,
-        solver=escape_latex(solver) if solver else Tex("--"),
-        status=escape_latex(status, breakable=True) if status else Tex("--"),
-        margins=margins, checks=checks, eigenvalues=eig, gains=gains, latex=latex, notes=notes,
-        diagnostics=rows, omitted=omitted, verification=_verification_view(art.get("verification")),
-        figure=figure, provenance=provenance)
-
-
-def fragment_lines(name_tex: str, fragment: str, width: int = 75) -> list[Tex]:
-    """Display lines (``aligned`` rows) for a LaTeX fragment ``name = fragment``.
-
-    A long sympy column vector is shown entry by entry (``name_{i} = ...``,
-    each split at top-level sums) instead of one matrix shrunk to nothing;
-    anything else is one line.
-    """
-    entries = _sympy_matrix_entries(fragment)
-    if entries and all(len(r) == 1 for r in entries) and len(entries) > 1 \
-            and visual_length(fragment) > width:
-        lines: list[Tex] = []
-        for i, (e,) in enumerate(entries):
-            lines.extend(split_equation(f"{{{name_tex}}}_{{{i + 1}}} = {e}", width))
-        return lines
-    return [Tex(f"{name_tex} &= {fragment}")]
-
-
-def _sympy_matrix_entries(tex: str) -> list[list[str]] | None:
-    from tanksynth.reports.paper import _latex_matrix_entries
-
-    return _latex_matrix_entries(tex)
 
 
 # ------------------------------------------------------------------- plant
@@ -461,7 +160,7 @@ def _linearization_view(art: Mapping[str, Any], opv: Mapping[str, Any]) -> dict[
     latex = {k: Tex(v) for k, v in (art.get("latex") or {}).items() if isinstance(v, str)}
     return {
         "name": str(art.get("name", "")),
-        "label": _label("lin", str(art.get("name", ""))),
+        "label": latex_label("lin", str(art.get("name", ""))),
         "gains": shown,
         "F_sym": latex.get("F"), "B_sym": latex.get("B"),
         "eig_F": Tex("$" + format_eigenvalues(diag["eigenvalues_F"], 5) + "$")

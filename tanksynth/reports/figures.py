@@ -13,6 +13,9 @@ verify`` stores beside each artefact (``DIR/<name>.traces.npz``, see
 estimates against the true states and the estimation error when the
 artefact is an estimator, and the inputs. An artefact without a trace file
 simply has no time-domain figure.
+
+Figures are drawn on `matplotlib.figure.Figure` objects and saved with
+``Figure.savefig``: no pyplot state, no backend selection (``matplotlib.use``).
 """
 
 from __future__ import annotations
@@ -160,9 +163,6 @@ def pole_map(artefact: Mapping[str, Any], directory: Path, stem: str) -> FigureF
     sets = eigenvalue_sets(artefact)
     if not sets:
         return None
-    import matplotlib
-
-    matplotlib.use("Agg", force=False)
     from matplotlib.figure import Figure
 
     planes = [p for p in (False, True) if any(s.discrete == p for s in sets)]
@@ -279,9 +279,6 @@ def time_domain_figure(artefact: Mapping[str, Any], artefact_dir: Path, director
     snames, sunits = list(head.get("state_names", [])), list(head.get("state_units", []))
     inames, iunits = list(head.get("input_names", [])), list(head.get("input_units", []))
     rnames = list(head.get("reference_names", []))
-    import matplotlib
-
-    matplotlib.use("Agg", force=False)
     from matplotlib.figure import Figure
 
     panels = ["levels"] + (["estimates", "error"] if x_hat is not None else []) \

@@ -1,4 +1,4 @@
-"""LaTeX building blocks: escaping, number and matrix formatting, templates, compilation.
+"""LaTeX building blocks: escaping, number, unit and matrix formatting, the template engine.
 
 Everything that ends up in ``report.tex`` passes through this module. User
 strings (titles, names, assumption texts, solver messages) are escaped with
@@ -7,26 +7,19 @@ template engine does not escape it a second time. The Jinja2 environment
 escapes every value that is not `Tex`, so forgetting a filter in a template
 gives ugly text, never a LaTeX error.
 
-`compile_pdf` runs latexmk (or pdflatex directly when latexmk is missing)
-in a scratch directory and checks the log for errors and undefined
-references.
+Long equations are split by `tanksynth.reports.equations`; the PDF is built by
+`tanksynth.reports.pdf`.
 """
 
 from __future__ import annotations
 
 import math
-import os
 import re
-import shutil
-import subprocess
 import unicodedata
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Any, Iterable
 
 import numpy as np
-
-from tanksynth.errors import ReportError
 
 __all__ = [
     "Tex",
@@ -40,13 +33,7 @@ __all__ = [
     "matrix_latex",
     "gain_latex",
     "GainDisplay",
-    "split_equation",
-    "visual_length",
     "environment",
-    "CompileResult",
-    "compile_pdf",
-    "find_latex",
-    "pdf_page_count",
 ]
 
 
@@ -475,157 +462,6 @@ def gain_latex(name: str, arr: Any, digits: int = 5) -> GainDisplay:
     return GainDisplay(name, shape, False, Tex(""), tuple(rows))
 
 
-# ------------------------------------------------------------ long equations
-def _top_level_splits(s: str) -> list[int]:
-    """Indices of top-level `` + `` / `` - `` in a LaTeX string (outside braces,
-    ``\\left..\\right`` and environments)."""
-    depth = 0
-    out = []
-    i = 0
-    n = len(s)
-    while i < n:
-        c = s[i]
-        if c == "\\":
-            for word, delta in (("\\left", 1), ("\\right", -1), ("\\begin", 1), ("\\end", -1)):
-                if s.startswith(word, i) and not (i + len(word) < n and s[i + len(word)].isalpha()):
-                    depth += delta
-                    i += len(word)
-                    break
-            else:
-                i += 2
-            continue
-        if c == "{":
-            depth += 1
-        elif c == "}":
-            depth -= 1
-        elif depth == 0 and c in "+-" and i > 0 and s[i - 1] == " " and i + 1 < n and s[i + 1] == " ":
-            out.append(i)
-        i += 1
-    return out
-
-
-def _brace_group(s: str, start: int) -> int:
-    """Index just past the brace group opening at ``s[start] == '{'``."""
-    depth = 0
-    for i in range(start, len(s)):
-        if s[i] == "\\":
-            continue
-        if s[i] == "{" and (i == 0 or s[i - 1] != "\\"):
-            depth += 1
-        elif s[i] == "}" and s[i - 1] != "\\":
-            depth -= 1
-            if depth == 0:
-                return i + 1
-    return -1
-
-
-_STRUCTURAL = {"frac", "tfrac", "dfrac", "sqrt", "left", "right", "operatorname", "mathrm", "text",
-               "begin", "end", "dot", "bar", "hat", "tilde", "mathbf", "mathcal", "quad", "qquad"}
-
-
-def visual_length(tex: str) -> int:
-    """Rough typeset width of math LaTeX, in characters.
-
-    Structural commands (``\\frac``, ``\\sqrt``, ``\\left`` ...) and braces count
-    nothing, other commands (Greek letters, operators) one character,
-    subscripts and superscripts half; a fraction counts the wider of its
-    numerator and denominator.
-    """
-    total = 0.0
-    i, n = 0, len(tex)
-    while i < n:
-        c = tex[i]
-        if c == "\\":
-            j = i + 1
-            while j < n and tex[j].isalpha():
-                j += 1
-            word = tex[i + 1:j]
-            if word in ("frac", "tfrac", "dfrac") and j < n and tex[j] == "{":
-                end_num = _brace_group(tex, j)
-                if end_num > 0 and end_num < n and tex[end_num] == "{":
-                    end_den = _brace_group(tex, end_num)
-                    if end_den > 0:
-                        total += max(visual_length(tex[j + 1:end_num - 1]),
-                                     visual_length(tex[end_num + 1:end_den - 1]))
-                        i = end_den
-                        continue
-            if word == "begin" or word == "end":
-                k = _brace_group(tex, j) if j < n and tex[j] == "{" else j
-                i = k if k > 0 else j
-                continue
-            total += 0 if word in _STRUCTURAL else 1
-            i = max(j, i + 2)
-            continue
-        if c in "_^":
-            if i + 1 < n and tex[i + 1] == "{":
-                end = _brace_group(tex, i + 1)
-                if end > 0:
-                    total += 0.6 * visual_length(tex[i + 2:end - 1])
-                    i = end
-                    continue
-            total += 0.6
-            i += 2
-            continue
-        if c not in "{} ":
-            total += 1
-        elif c == " ":
-            total += 0.15
-        i += 1
-    return int(round(total))
-
-
-def split_equation(equation: str, width: int = 75) -> list[Tex]:
-    """Split a long sympy-LaTeX equation ``lhs = rhs`` into display lines.
-
-    The right-hand side is broken at top-level ``+``/``-``; a right-hand
-    side that is one fraction ``\\frac{N}{D}`` is first rewritten as
-    ``\\frac{1}{D}\\bigl(N\\bigr)`` so that its numerator can be broken.
-    ``width`` is a budget per line in the units of `visual_length`. Returns
-    one line when nothing can be split.
-
-    Returns
-    -------
-    list of Tex
-        Lines for an ``aligned`` environment; the first holds ``lhs &= ...``,
-        the others start with ``&\\quad``.
-    """
-    if visual_length(equation) <= width or " = " not in equation:
-        return [Tex(equation.replace(" = ", " &= ", 1))] if " = " in equation else [Tex(equation)]
-    lhs, rhs = equation.split(" = ", 1)
-    rhs = rhs.strip()
-    prefix, suffix = "", ""
-    if rhs.startswith(r"\frac{"):
-        end_num = _brace_group(rhs, len(r"\frac"))
-        if end_num > 0 and end_num < len(rhs) and rhs[end_num] == "{":
-            end_den = _brace_group(rhs, end_num)
-            if end_den == len(rhs):
-                num, den = rhs[len(r"\frac") + 1:end_num - 1], rhs[end_num + 1:end_den - 1]
-                if _top_level_splits(num):
-                    prefix, suffix = rf"\frac{{1}}{{{den}}}\Bigl(", r"\Bigr)"
-                    rhs = num
-    cuts = _top_level_splits(rhs)
-    if not cuts:
-        return [Tex(equation.replace(" = ", " &= ", 1))]
-    terms, last = [], 0
-    for c in cuts:
-        terms.append(rhs[last:c].strip())
-        last = c
-    terms.append(rhs[last:].strip())
-    lines: list[str] = []
-    current = ""
-    for t in terms:
-        if current and visual_length(current) + visual_length(t) > width:
-            lines.append(current)
-            current = t
-        else:
-            current = (current + " " + t).strip()
-    lines.append(current)
-    lines[0] = f"{lhs} &= {prefix}{lines[0]}"
-    lines[1:] = [r"&\quad " + ln for ln in lines[1:]]
-    lines[-1] += suffix
-    return [Tex(ln) for ln in lines]
-
-
 # ------------------------------------------------------------------ Jinja2
 def _finalize(value: Any) -> Any:
     if isinstance(value, Tex):
@@ -675,146 +511,3 @@ def environment():
         "breakable": lambda s: escape_latex(s, breakable=True),
     })
     return env
-
-
-# -------------------------------------------------------------- compilation
-@dataclass(frozen=True)
-class CompileResult:
-    """Outcome of a successful LaTeX build.
-
-    Attributes
-    ----------
-    pdf : Path
-        The PDF inside the build directory.
-    log : Path
-        The LaTeX log inside the build directory.
-    engine : str
-        ``"latexmk"`` or ``"pdflatex"``.
-    seconds : float
-        Wall time of the build.
-    passes : int
-        pdflatex runs (1 for latexmk: it decides itself).
-    """
-
-    pdf: Path
-    log: Path
-    engine: str
-    seconds: float
-    passes: int
-
-
-def find_latex() -> tuple[str | None, str | None]:
-    """Paths of ``latexmk`` and ``pdflatex`` on PATH (None when missing)."""
-    return shutil.which("latexmk"), shutil.which("pdflatex")
-
-
-_ERROR_LINE = re.compile(r"^(?:! .*|.*:\d+: .*)$", re.M)
-_UNDEFINED = re.compile(r"(?:Reference|Citation) `[^']*' on page \d+ undefined|"
-                        r"There were undefined references", re.M)
-
-
-def _needs_rerun(log: Path) -> bool:
-    text = log.read_text(encoding="latin-1", errors="replace") if log.exists() else ""
-    return "Rerun to get" in text or "Label(s) may have changed" in text or \
-        "Rerun LaTeX" in text
-
-
-def _first_error(log: str) -> str:
-    m = _ERROR_LINE.search(log)
-    return " ".join(m.group(0).split()) if m else ""
-
-
-def compile_pdf(tex_file: Path, timeout: float = 180.0) -> CompileResult:
-    """Build ``tex_file`` into a PDF in its own directory.
-
-    Uses ``latexmk -pdf`` when installed, else pdflatex up to four passes
-    (until no "Rerun" request). Shell escape is off, interaction is
-    non-stop, the first error halts the run.
-
-    Parameters
-    ----------
-    tex_file : Path
-        A ``.tex`` file in a scratch directory (auxiliary files land beside
-        it).
-    timeout : float
-        Seconds before the build is abandoned.
-
-    Returns
-    -------
-    CompileResult
-
-    Raises
-    ------
-    ReportError
-        No LaTeX installed, the build failed or timed out, or the log still
-        reports undefined references. ``log_path`` is the log in the build
-        directory (the caller keeps a copy).
-    """
-    import time
-
-    tex_file = Path(tex_file)
-    workdir = tex_file.parent
-    stem = tex_file.stem
-    log = workdir / f"{stem}.log"
-    latexmk, pdflatex = find_latex()
-    if pdflatex is None:
-        raise ReportError("pdflatex is not installed: run `make tex` (Debian packages "
-                          "texlive-latex-base texlive-latex-recommended latexmk) or omit --pdf")
-    flags = ["-interaction=nonstopmode", "-halt-on-error", "-file-line-error", "-no-shell-escape"]
-    env = dict(os.environ)
-    start = time.perf_counter()
-    passes = 0
-    try:
-        if latexmk is not None:
-            cmd = [latexmk, "-pdf", "-silent", f"-pdflatex=pdflatex {' '.join(flags)} %O %S",
-                   tex_file.name]
-            proc = subprocess.run(cmd, cwd=workdir, env=env, capture_output=True, text=True,
-                                  timeout=timeout, stdin=subprocess.DEVNULL)
-            engine, passes, ok = "latexmk", 1, proc.returncode == 0
-            # latexmk may stop while the log still asks for a rerun (labels moved by
-            # the table of contents): finish with plain pdflatex runs.
-            for _ in range(2):
-                if not ok or not _needs_rerun(log):
-                    break
-                proc = subprocess.run([pdflatex, *flags, tex_file.name], cwd=workdir, env=env,
-                                      capture_output=True, text=True, timeout=timeout,
-                                      stdin=subprocess.DEVNULL)
-                passes += 1
-                ok = proc.returncode == 0
-        else:
-            engine, ok = "pdflatex", True
-            for passes in range(1, 5):
-                proc = subprocess.run([pdflatex, *flags, tex_file.name], cwd=workdir, env=env,
-                                      capture_output=True, text=True, timeout=timeout,
-                                      stdin=subprocess.DEVNULL)
-                if proc.returncode != 0:
-                    ok = False
-                    break
-                if passes >= 2 and not _needs_rerun(log):
-                    break
-    except subprocess.TimeoutExpired:
-        raise ReportError(f"LaTeX did not finish within {timeout:.0f} s", log_path=log) from None
-    seconds = time.perf_counter() - start
-    text = log.read_text(encoding="latin-1", errors="replace") if log.exists() else ""
-    pdf = workdir / f"{stem}.pdf"
-    if not ok or not pdf.exists():
-        first = _first_error(text) or "no PDF produced"
-        raise ReportError(f"LaTeX failed: {first}", log_path=log)
-    if _UNDEFINED.search(text):
-        raise ReportError("LaTeX left undefined references", log_path=log)
-    return CompileResult(pdf, log, engine, seconds, passes)
-
-
-def pdf_page_count(pdf: Path) -> int | None:
-    """Number of pages of a PDF (``pdfinfo`` when installed, else a byte scan)."""
-    pdfinfo = shutil.which("pdfinfo")
-    if pdfinfo:
-        proc = subprocess.run([pdfinfo, str(pdf)], capture_output=True, text=True,
-                              stdin=subprocess.DEVNULL)
-        m = re.search(r"^Pages:\s+(\d+)", proc.stdout, re.M)
-        if m:
-            return int(m.group(1))
-    data = Path(pdf).read_bytes()
-    n = len(re.findall(rb"/Type\s*/Page[^s]", data))
-    return n or None
-

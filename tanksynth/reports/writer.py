@@ -23,8 +23,10 @@ from tanksynth.errors import ReportError
 from tanksynth.reports.context import build_context, trace_figures
 from tanksynth.reports.figures import FigureFile, TraceFigure, pole_map
 from tanksynth.reports.inputs import ReportInputs, read_report_inputs
-from tanksynth.reports.latex import Tex, compile_pdf, environment, pdf_page_count
-from tanksynth.reports.paper import PaperComparison, compare_with_papers
+from tanksynth.reports.comparison import PaperComparison
+from tanksynth.reports.latex import Tex, environment
+from tanksynth.reports.paper import compare_with_papers
+from tanksynth.reports.pdf import compile_pdf, pdf_page_count
 
 __all__ = ["ReportResult", "render_report", "write_report", "FIGURE_DIR"]
 

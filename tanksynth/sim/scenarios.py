@@ -26,7 +26,7 @@ noise levels) are our choices, listed in each scenario's ``assumptions``.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
@@ -40,7 +40,7 @@ __all__ = [
     "ScenarioSetup",
     "InputSchedule",
     "SCENARIOS",
-    "SEED002_SCENARIOS",
+    "CONTROL_BENCHMARK_SCENARIOS",
     "scenario",
     "uncertain_parameters",
     "run_scenario",
@@ -107,6 +107,16 @@ class ScenarioSetup:
     disturbance_samples: tuple[int, ...]
     u_init: np.ndarray
     controller: Callable | None = None
+
+    @property
+    def fault_sample(self) -> int | None:
+        """First sample at which a parameter changes (a fault), None without faults."""
+        return min((c.sample for c in self.changes), default=None)
+
+    def without_faults(self) -> "ScenarioSetup":
+        """The same setup with its parameter changes removed (the fault-free twin)."""
+        return replace(self, changes=(),
+                       disturbance_samples=tuple(sorted(s for s, _ in self.scenario.jumps)))
 
 
 @dataclass(frozen=True)
@@ -252,36 +262,36 @@ def uncertain_parameters(plant: Plant) -> tuple[str, ...]:
     return tuple(p.name for p in plant.parameters if p.unit in ("m^2", "cm^2"))
 
 
-_S002 = "seed 002 (Vellayikot & Vaidyan, JEET 2016) section 5"
+_BENCH = "seed 002 (Vellayikot & Vaidyan, JEET 2016) section 5"
 _HYBRID = ("hybrid_three_tank",)
 _NOISE = ("process noise 1e-5 m and measurement noise 5e-4 m (1 sigma, per sample) are our "
           "choice: the paper's rig noise levels are not published",)
 
 #: Built-in scenarios by name.
 SCENARIOS: dict[str, Scenario] = {s.name: s for s in (
-    Scenario("servo", "set-points of the tracked levels step by +0.04 m at sample 100", _S002 + ".1",
+    Scenario("servo", "set-points of the tracked levels step by +0.04 m at sample 100", _BENCH + ".1",
              steps=300, setpoint_steps=((100, 0.04),), process_std=1e-5, measurement_std=5e-4,
              assumptions=_NOISE + ("the initial set-points are the operating levels",)),
     Scenario("regulatory", "water added to the tracked tanks at sample 50, removed at sample 250",
-             _S002 + ".1", steps=400, jumps=((50, 0.03), (250, -0.03)), process_std=1e-5,
+             _BENCH + ".1", steps=400, jumps=((50, 0.03), (250, -0.03)), process_std=1e-5,
              measurement_std=5e-4,
              assumptions=_NOISE + ("the amount of water is not published: +-0.03 m of level in each "
                                    "tracked tank",)),
     Scenario("mismatch", "estimator starts at (0, 0, 0.23) m, plant at (0.28, 0.28, 0.23) m",
-             _S002 + ".2", steps=400, plants=_HYBRID, x0=(0.28, 0.28, 0.23), x_hat0=(0.0, 0.0, 0.23),
+             _BENCH + ".2", steps=400, plants=_HYBRID, x0=(0.28, 0.28, 0.23), x_hat0=(0.0, 0.0, 0.23),
              process_std=1e-5, measurement_std=5e-4, assumptions=_NOISE),
     Scenario("uncertainty_plus", "model areas and valve coefficients 10 % above the plant's",
-             _S002 + ".3", steps=400, parameter_factor=1.1, process_std=1e-5, measurement_std=5e-4,
+             _BENCH + ".3", steps=400, parameter_factor=1.1, process_std=1e-5, measurement_std=5e-4,
              assumptions=_NOISE + ("'+10 %' read as: the model's values are 1.1 times the plant's "
                                    "(the plant's are nominal / 1.1)",)),
     Scenario("uncertainty_minus", "model areas and valve coefficients 10 % below the plant's",
-             _S002 + ".3", steps=400, parameter_factor=0.9, process_std=1e-5, measurement_std=5e-4,
+             _BENCH + ".3", steps=400, parameter_factor=0.9, process_std=1e-5, measurement_std=5e-4,
              assumptions=_NOISE + ("'-10 %' read as: the model's values are 0.9 times the plant's",)),
-    Scenario("leakage", "closed valve 5 leaks from sample 100", _S002 + ".4", steps=400,
+    Scenario("leakage", "closed valve 5 leaks from sample 100", _BENCH + ".4", steps=400,
              plants=_HYBRID, faults=((100, "k5", "times:k1", 0.25),), process_std=1e-5,
              measurement_std=5e-4,
              assumptions=_NOISE + ("leak size not published: k5 = 0.25 k1 from sample 100",)),
-    Scenario("clogging", "valve 6 partly clogged from sample 100", _S002 + ".4", steps=400,
+    Scenario("clogging", "valve 6 partly clogged from sample 100", _BENCH + ".4", steps=400,
              plants=_HYBRID, faults=((100, "k6", "scale", 0.5),), process_std=1e-5,
              measurement_std=5e-4,
              assumptions=_NOISE + ("clogging size not published: k6 halved from sample 100",)),
@@ -299,8 +309,9 @@ SCENARIOS: dict[str, Scenario] = {s.name: s for s in (
                           "horizon 1000 samples (10 s at ts = 0.01 s)")),
 )}
 
-#: The five seed 002 experiments (Tables 4-8), with both signs of the mismatch.
-SEED002_SCENARIOS = ("servo", "regulatory", "mismatch", "uncertainty_plus", "uncertainty_minus",
+#: The controller benchmark of seed 002 section 5 (servo, regulatory, initial mismatch,
+#: +-10 % model uncertainty, leakage, clogging).
+CONTROL_BENCHMARK_SCENARIOS = ("servo", "regulatory", "mismatch", "uncertainty_plus", "uncertainty_minus",
                      "leakage", "clogging")
 
 

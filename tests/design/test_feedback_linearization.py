@@ -1,4 +1,7 @@
-"""Exact feedback linearisation: symbolic pins, outer loop, zero dynamics, bad input."""
+"""Exact feedback linearisation: symbolic pins, outer loop, zero dynamics.
+
+Bad input to the decoupling analysis is tested in test_decoupling.py.
+"""
 
 from __future__ import annotations
 
@@ -10,11 +13,9 @@ import pytest
 import sympy as sp
 
 from tanksynth.analysis.region import region_points
-from tanksynth.design.feedback_linearization import (decoupling_analysis, feedback_linearization,
-                                                     outer_loop, select_outputs)
-from tanksynth.errors import DimensionError, InfeasibleDesign, SpecError
+from tanksynth.design.feedback_linearization import decoupling_analysis, feedback_linearization, outer_loop
+from tanksynth.errors import InfeasibleDesign, SpecError
 from tanksynth.plants import three_tank
-from tanksynth.plants.custom import custom_plant
 from tanksynth.methods import load_spec
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
@@ -178,68 +179,3 @@ def test_quadruple_tank_minimum_phase_accepted_nonminimum_refused():
     assert fl.diagnostics["zero_dynamics"]["stable"] is False
     # (1 - g1)(1 - g2) > g1 g2 (gamma1 + gamma2 < 1): a positive real eigenvalue everywhere
     assert np.all(fl.decoupling.zero_dynamics.eigenvalues.real.max(axis=1) > 0)
-
-
-# ------------------------------------------------------------------ bad input
-def custom(equations, outputs, states=("x1", "x2")):
-    return custom_plant({
-        "model": "custom", "name": "bad",
-        "states": {s: {"unit": "m", "min": 0.0, "max": 0.6} for s in states},
-        "inputs": {u: {"unit": "m^3/s", "min": 0.0, "max": 1e-4} for u in ("u1", "u2")},
-        "parameters": {"A": {"value": 0.0154, "unit": "m^2", "min": 0.0}},
-        "equations": equations,
-        "outputs": {k: {"expr": v, "unit": "m"} for k, v in outputs.items()}})
-
-
-def test_more_outputs_than_inputs(tank):
-    with pytest.raises(DimensionError, match=r"more outputs than inputs: 3 outputs \['h1', 'h2', 'h3'\] "
-                                             r"but only 2 inputs"):
-        decoupling_analysis(tank)
-
-
-def test_fewer_outputs_than_inputs():
-    with pytest.raises(DimensionError, match="fewer outputs than inputs"):
-        decoupling_analysis(three_tank(outputs="h1"))
-
-
-def test_unknown_output(tank):
-    with pytest.raises(SpecError, match="unknown output 'h9'"):
-        select_outputs(tank, ["h1", "h9"])
-
-
-def test_relative_degree_undefined():
-    plant = custom({"x1": "(u1 + u2)/A - x1", "x2": "-x2", "x3": "u2/A - x3"},
-                   {"y1": "x1", "y2": "x2"}, states=("x1", "x2", "x3"))
-    with pytest.raises(InfeasibleDesign, match=r"relative degree of output 2 \(x2\) is undefined: it does "
-                                               r"not depend on the inputs at any order up to n = 3; .*"
-                                               r"everywhere"):
-        decoupling_analysis(plant)
-
-
-def test_not_decouplable_identically():
-    plant = custom({"x1": "(u1 + u2)/A - sqrt(x1)", "x2": "sqrt(x1) - sqrt(x2)"},
-                   {"y1": "x1", "y2": "x2"})
-    with pytest.raises(InfeasibleDesign, match=r"not decouplable: det Lambda\(x\) = 0 identically "
-                                               r"\(rank Lambda < m = 2 everywhere"):
-        decoupling_analysis(plant)
-
-
-def test_not_decouplable_on_a_surface_named():
-    plant = custom({"x1": "u1/A - x1", "x2": "(x1 - 0.31)*u2/A - x2"}, {"y1": "x1", "y2": "x2"})
-    with pytest.raises(InfeasibleDesign, match=r"det Lambda\(x\) changes sign.*surface through "
-                                               r"x = \(x1 = 0\.31, ") as info:
-        decoupling_analysis(plant)
-    assert "(x1 - 31/100)/A**2" in str(info.value)
-
-
-def test_relative_degree_not_defined_at_a_point_named():
-    plant = custom({"x1": "u1/A - x1", "x2": "(x1 - 0.3)**2*u2/A - x2"}, {"y1": "x1", "y2": "x2"})
-    with pytest.raises(InfeasibleDesign, match=r"relative degree of output y2 is not defined at "
-                                               r"x = \(x1 = 0\.3, "):
-        decoupling_analysis(plant)
-
-
-def test_region_points_respect_orderings(tank):
-    pts = region_points(tank, per_axis=7, samples=50, seed=1)
-    assert np.all(pts[:, 0] > pts[:, 2]) and np.all(pts[:, 2] > pts[:, 1])
-    assert np.all(pts >= 0) and np.all(pts <= 0.62)

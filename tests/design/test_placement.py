@@ -1,4 +1,8 @@
-"""Pole placement: LMI regions, exact placement, integral action (seed 000), canonical form (seed 004)."""
+"""Pole placement: integral action (seed 000), canonical form (seed 004), the spec methods.
+
+The LMI-region and exact routes are tested in test_placement_lmi.py and
+test_placement_exact.py, the regions in tests/analysis/test_lmi_region.py.
+"""
 
 from __future__ import annotations
 
@@ -11,12 +15,9 @@ import sympy as sp
 from tanksynth.design import placement
 from tanksynth.methods import METHODS
 from tanksynth.analysis.linearize import equilibrium_input, linearize
-from tanksynth.analysis.lmi_region import LMIRegion, disk, half_plane, intersect, sector
-from tanksynth.design.placement import (canonical_observer, integral_augmentation, lmi_observer,
-                                        lmi_state_feedback, place_observer, place_state_feedback,
+from tanksynth.design.placement import (canonical_observer, integral_augmentation, place_observer,
                                         pole_errors)
-from tanksynth.errors import (DimensionError, InfeasibleDesign, SpecError, UncontrollableError,
-                              UnobservableError)
+from tanksynth.errors import DimensionError, SpecError, UnobservableError
 from tanksynth.methods import load_spec, parse_spec_text
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -31,66 +32,7 @@ C004 = sp.Matrix([[0, 0, sp.Rational(1, 2)]])
 GAMMA_D_PRINTED = np.array([[-0.5, 0.0, -855.0], [0.5, -1.5, -169.667], [0.0, 1.5, -41.5]])
 
 
-def random_system(n=4, m=2, seed=0):
-    rng = np.random.default_rng(seed)
-    return rng.standard_normal((n, n)), rng.standard_normal((n, m))
-
-
-# ---------------------------------------------------------------------- regions
-def test_region_membership():
-    hp, dk, sc = half_plane(1.0), disk(-2.0, 1.5), sector(np.pi / 4)
-    assert hp.contains(-1.5) and not hp.contains(-0.5) and not hp.contains(-1.0)
-    assert dk.contains(-3.0 + 1.0j) and not dk.contains(0.0)
-    assert sc.contains(-1.0 + 0.9j) and not sc.contains(-1.0 + 1.1j)
-    both = hp & sc
-    assert isinstance(both, LMIRegion) and both.order == 3
-    assert both.contains(-2.0 + 1.0j) and not both.contains(-0.5) and not both.contains(-2 + 3j)
-    assert intersect(hp, dk, sc).order == 5
-    assert "Re z < -1" in both.describe()
-
-
-def test_region_stability_domains():
-    assert half_plane(0.0).stable_in("continuous") and not half_plane(-1.0).stable_in("continuous")
-    assert disk(0.0, 0.9).stable_in("discrete") and not disk(0.5, 0.6).stable_in("discrete")
-    assert not half_plane(1.0).stable_in("discrete")
-    assert (half_plane(0.1) & disk(0.0, 0.95)).stable_in("discrete")
-
-
-@pytest.mark.parametrize("make", [lambda: disk(0.0, -1.0), lambda: sector(2.0),
-                                  lambda: half_plane(float("nan")), lambda: disk("a", 1.0),
-                                  lambda: intersect()])
-def test_bad_regions(make):
-    with pytest.raises(SpecError):
-        make()
-
-
-# -------------------------------------------------------------- LMI placement
-def test_state_feedback_in_half_plane_and_sector():
-    A, B = random_system()
-    region = half_plane(0.5) & sector(np.radians(40))
-    res = lmi_state_feedback(A, B, region)
-    lam = np.linalg.eigvals(A - B @ res.gain)
-    assert all(region.contains(z) for z in lam)
-    assert all(c.passed for c in res.checks) and res.achieved_margin >= res.margin
-    # P is a Lyapunov matrix of the closed loop
-    Acl = A - B @ res.gain
-    assert np.max(np.linalg.eigvalsh(Acl.T @ res.P + res.P @ Acl)) < 0
-
-
-def test_observer_in_a_discrete_disk():
-    A, B = random_system(seed=1)
-    Ad = 0.5 * A / np.max(np.abs(np.linalg.eigvals(A)))
-    C = B.T
-    region = disk(0.2, 0.5)
-    res = lmi_observer(Ad, C, region, domain="discrete")
-    lam = np.linalg.eigvals(Ad - res.gain @ C)
-    assert res.kind == "observer" and all(region.contains(z) for z in lam)
-    assert res.as_dict()["scaling"]["formulation"] == "dual (A', C')"
-    # P is a Lyapunov matrix of the discrete error dynamics
-    Acl = Ad - res.gain @ C
-    assert np.max(np.linalg.eigvalsh(Acl.T @ res.P @ Acl - res.P)) < 0
-
-
+# -------------------------------------------------------- seed 000 (integral)
 def test_seed000_integral_lmi_disk():
     spec = load_spec(SEED000)
     design = next(d for d in spec.designs if d.method == "lmi_placement")
@@ -103,70 +45,6 @@ def test_seed000_integral_lmi_disk():
     assert res.gains["K1"].shape == (2, 3) and res.gains["K2"].shape == (2, 2)
 
 
-def test_infeasible_region_raises_with_the_achievable_margin():
-    A, B = random_system()
-    with pytest.raises(InfeasibleDesign, match=r"largest achievable margin t\* = "):
-        lmi_state_feedback(A, B, disk(-100.0, 1e-3), kappa=1.5)
-
-
-def test_region_outside_stability_domain_is_refused():
-    A, B = random_system()
-    with pytest.raises(SpecError, match="stability domain"):
-        lmi_state_feedback(A, B, half_plane(-1.0))
-    with pytest.raises(SpecError, match="stability domain"):
-        lmi_state_feedback(A, B, half_plane(1.0), domain="discrete")
-
-
-def test_uncontrollable_and_unobservable_are_named():
-    A = np.diag([-1.0, -2.0, -3.0])
-    B = np.array([[1.0], [1.0], [0.0]])
-    with pytest.raises(UncontrollableError, match="x3"):
-        lmi_state_feedback(A, B, half_plane(1.0), state_names=None)
-    with pytest.raises(UnobservableError, match="h3"):
-        lmi_observer(A, B.T, half_plane(1.0), state_names=["h1", "h2", "h3"])
-
-
-def test_lmi_placement_bad_inputs():
-    A, B = random_system()
-    with pytest.raises(DimensionError):
-        lmi_state_feedback(A, B[:3], half_plane(1.0))
-    with pytest.raises(SpecError):
-        lmi_state_feedback(A, B, half_plane(1.0), domain="hybrid")
-    with pytest.raises(SpecError):
-        lmi_state_feedback(A, B, half_plane(1.0), margin=2.0)
-    with pytest.raises(SpecError):
-        lmi_state_feedback(A, B, "disk")
-
-
-# ------------------------------------------------------------- exact placement
-def test_mimo_place_and_siso_acker():
-    A, B = random_system()
-    poles = [-1.0, -2.0, -3.0 + 1.0j, -3.0 - 1.0j]
-    r = place_state_feedback(A, B, poles)
-    assert r.method == "place" and r.max_pole_error < 1e-9 and r.eigenvector_condition >= 1
-    r1 = place_state_feedback(A, B[:, :1], poles)
-    assert r1.method == "acker" and r1.max_pole_error < 1e-6
-    o = place_observer(A, B.T, poles)
-    assert o.gain.shape == (4, 2)
-    _, emax = pole_errors(poles, np.linalg.eigvals(A - o.gain @ B.T))
-    assert emax < 1e-9
-
-
-def test_placement_input_errors():
-    A, B = random_system()
-    with pytest.raises(SpecError, match="conjugate"):
-        place_state_feedback(A, B, [-1, -2, -3 + 1j, -3 + 2j])
-    with pytest.raises(DimensionError):
-        place_state_feedback(A, B, [-1, -2])
-    with pytest.raises(SpecError, match="cannot place"):
-        place_state_feedback(A, B, [-1, -1, -1, -2])         # multiplicity 3 > rank(B) = 2
-    with pytest.raises(SpecError):
-        place_state_feedback(A, B, [-1, -2, -3, -4], method="varga")
-    with pytest.raises(DimensionError):
-        place_state_feedback(A, B, [-1, -2, -3, -4], method="acker")
-
-
-# ------------------------------------------------------------ seed 000 (integral)
 def test_integral_augmentation_structure():
     Ad, Bd = np.eye(3) * 0.9, np.ones((3, 2))
     aug = integral_augmentation(Ad, Bd, np.eye(3)[:2], 1.0)

@@ -7,10 +7,11 @@ import json
 import numpy as np
 import pytest
 
-from reports_helpers import copy_dir, design_dir, edit_json
+from reports_helpers import copy_dir, design_dir, edit_json, needs_latex
 from tanksynth.reports import compare_with_papers, read_report_inputs
-from tanksynth.reports.paper import (AGREES, DIFFERS, ERRATUM, REPRODUCTIONS, SEED000_TABLE_I,
-                                     printed_F_seed000, reference_rows, seed004_printed)
+from tanksynth.papers import seed000 as paper000
+from tanksynth.papers import seed004 as paper004
+from tanksynth.reports.paper import AGREES, DIFFERS, ERRATUM, REPRODUCTIONS, reference_rows
 
 SEED004 = """
 title = "seed 004 test"
@@ -49,7 +50,7 @@ def test_registry_is_labelled():
 
 
 def test_printed_F_is_eq8_as_printed():
-    P, B = printed_F_seed000(SEED000_TABLE_I, (0.4, 0.2, 0.3))
+    P, B = paper000.printed_F(paper000.TABLE_I, (0.4, 0.2, 0.3))
     assert P[2, 0] == -P[0, 2] < 0                 # the (3,1) sign typo
     assert abs(P[2, 2]) < 1e-15                    # -t32 + t13 = 0 at y0
     np.testing.assert_allclose(B[:2, :2], np.eye(2) / 0.0154)
@@ -98,7 +99,7 @@ def test_seed004_structure_agrees(tmp_path, delta_bar):
         assert "(21a)" in labels and "(23a)" in labels and "(27)" in labels
     else:
         assert "(21b)" in labels and "(23b)" in labels and "(27)" not in labels
-    assert seed004_printed(delta_bar)["QC"][1, 2] == pytest.approx(-1 - 0.5 * delta_bar)
+    assert paper004.printed_matrices(delta_bar)["QC"][1, 2] == pytest.approx(-1 - 0.5 * delta_bar)
 
 
 def test_seed001_determinant_erratum(demo_dir, tmp_path):
@@ -131,3 +132,82 @@ def test_reference_rows_verdicts():
     assert reference_rows(_artefact(wrong, poles=[[-10, 0], [-8, 0], [-5, 0]]))[0].verdict == ERRATUM
     small = dict(off, reference_max_pole_error=0.0128)
     assert reference_rows(_artefact(small, poles=[[0.97, 0.0]]))[0].verdict == DIFFERS
+
+
+FAULT = """
+title = "seed 004 fault detection"
+[plant]
+model = "hydraulic_fault"
+[operating_point]
+x = {x1 = 4.0, x2 = 1.3333333333, x3 = 4.0}
+u = {u = 2.0}
+[sampling]
+ts = 0.01
+[[design]]
+name = "fd"
+method = "fault_detection"
+delta_bar = 1.0
+"""
+
+
+def test_seed004_fault_detection_rows(tmp_path):
+    d = design_dir(tmp_path / "fd", FAULT)
+    comp = _by_key(compare_with_papers(read_report_inputs(d)))["seed004_fault_detection"]
+    rows = {r.quantity: r for r in comp.rows}
+    assert rows[r"error poles $\mathrm{eig}(\Gamma_d)$ eq.~(27)"].verdict == AGREES
+    assert rows[r"observer gain $\Psi$ eq.~(29)"].verdict == AGREES      # 169.667 = 509/3 rounded
+    gamma = rows[r"$\Gamma_d = A - \Psi C$"]
+    assert gamma.verdict == ERRATUM and "instead of C" in gamma.note and "-34.32" in gamma.note
+    assert rows[r"threshold $\bar\epsilon(t)$ eq.~(54)"].verdict == AGREES
+    times = [r for r in comp.rows if r.quantity.startswith("detection time")]
+    assert [r.printed_value for r in times] == list(paper004.DETECTION_TIMES)
+    # delta_bar = 1 (declared): the exact detection times of the design, beside the printed ones
+    assert [r.ours_value for r in times] == pytest.approx(
+        [2.0169779247665742, 2.01522566408112, 2.012684041049772], abs=1e-6)
+    # only the second agrees to the printed digits (2.015 +- 5e-4); the fault size is not printed
+    assert [r.verdict for r in times] == [DIFFERS, AGREES, DIFFERS]
+    assert "not printed" in times[0].note and r"\bar\delta = 1" in times[0].note
+
+
+@needs_latex
+def test_seed004_fault_detection_rows_typeset(tmp_path):
+    import subprocess
+
+    from tanksynth.methods import write_report
+
+    d = design_dir(tmp_path / "fdpdf", FAULT)
+    res = write_report(d, pdf=True)
+    text = subprocess.run(["pdftotext", "-layout", str(res.pdf), "-"], capture_output=True,
+                          text=True, check=True).stdout
+    assert "observer, threshold and detection times" in text
+    assert "2.0235" in text and "2.01698" in text and "not printed" in text
+
+
+def test_seed004_detection_times_read_defensively(tmp_path):
+    from tanksynth.reports.paper_seed004 import stored_detections
+
+    x0s = [list(x) for x in paper004.INITIAL_STATES]
+    records = {"diagnostics": {"detection": [{"x0": x, "t_detect": t}
+                                             for x, t in zip(x0s, (2.02, None, -1.0))]}}
+    columns = {"diagnostics": {"detection": {"initial_states": x0s, "t_detect": [2.02, 2.03, 2.04]}}}
+    gains = {"gains": {"detection_times": [2.02, -1.0, 2.04]}, "diagnostics": {"initial_states": x0s}}
+    assert [t for _, t in stored_detections(records)] == [2.02, None, None]
+    assert [t for _, t in stored_detections(columns)] == [2.02, 2.03, 2.04]
+    assert [t for _, t in stored_detections(gains)] == [2.02, None, 2.04]
+    # times without the initial states they belong to are not matched by position
+    assert stored_detections({"gains": {"detection_times": [2.02, 2.03, 2.04]}}) == []
+
+
+def test_seed000_control_law_erratum(tmp_path):
+    from pathlib import Path
+
+    spec = Path(__file__).resolve().parents[2] / "examples" / "seed000_feedback_linearization.toml"
+    text = spec.read_text(encoding="utf-8").split("[[design]]")
+    law = next(t for t in text[1:] if "feedback_linearization" in t)
+    d = design_dir(tmp_path / "fl", text[0] + "[[design]]" + law)
+    comp = _by_key(compare_with_papers(read_report_inputs(d)))["seed000_control_law"]
+    verdicts = {r.quantity.split(" ")[0]: r.verdict for r in comp.rows if " at " in r.quantity}
+    assert verdicts == {r"$\Lambda$": AGREES, r"$\Lambda_0$": AGREES, r"$\beta$": AGREES,
+                        r"$\alpha$": ERRATUM}
+    alpha = next(r for r in comp.rows if r.quantity == r"$\alpha$ (formula)")
+    assert alpha.verdict == ERRATUM and r"\Lambda_0" in alpha.note

@@ -15,7 +15,8 @@ from tanksynth.errors import ArtefactError, ReportError
 from tanksynth.methods import STATEMENTS, write_report
 from tanksynth.reports import read_report_inputs, render_report
 from tanksynth.reports.figures import eigenvalue_sets
-from tanksynth.reports.latex import gain_latex, split_equation, visual_length
+from tanksynth.reports.equations import split_equation, visual_length
+from tanksynth.reports.latex import gain_latex
 
 
 def test_run_writes_report_tex(demo_dir):
@@ -128,7 +129,7 @@ def test_latex_failure_is_report_error_exit_2(demo_dir, tmp_path, capsys):
 
 
 def test_missing_latex_is_a_clear_report_error(demo_dir, tmp_path, monkeypatch):
-    import tanksynth.reports.latex as latex
+    import tanksynth.reports.pdf as latex
 
     d = copy_dir(demo_dir, tmp_path / "nolatex")
     monkeypatch.setattr(latex.shutil, "which", lambda name: None)

@@ -5,7 +5,7 @@ import pytest
 
 from tanksynth.errors import SpecError
 from tanksynth.plants import hybrid_three_tank, hydraulic_fault, three_tank
-from tanksynth.sim.scenarios import (SCENARIOS, SEED002_SCENARIOS, InputSchedule, run_scenario,
+from tanksynth.sim.scenarios import (SCENARIOS, CONTROL_BENCHMARK_SCENARIOS, InputSchedule, run_scenario,
                                         scenario, uncertain_parameters)
 
 HYBRID = hybrid_three_tank()
@@ -15,12 +15,13 @@ X_OP = [0.31918677, 0.3209075, 0.30968861]
 def test_every_scenario_documents_its_source():
     for sc in SCENARIOS.values():
         assert sc.source and sc.description and sc.steps > 0
-    assert set(SEED002_SCENARIOS) <= set(SCENARIOS)
+    assert set(CONTROL_BENCHMARK_SCENARIOS) <= set(SCENARIOS)
 
 
 def test_servo_and_regulatory():
     servo = scenario("servo").setup(HYBRID, X_OP, tracked=(0, 1))
-    assert np.allclose(servo.reference[99], X_OP[:2]) and np.allclose(servo.reference[100], np.add(X_OP[:2], 0.04))
+    assert np.allclose(servo.reference[99], X_OP[:2])
+    assert np.allclose(servo.reference[100], np.add(X_OP[:2], 0.04))
     assert servo.setpoint_samples == (100,)
     reg = scenario("regulatory").setup(HYBRID, X_OP, tracked=(0, 1))
     assert [(j.sample, j.delta) for j in reg.jumps] == [(50, (0.03, 0.03, 0.0)), (250, (-0.03, -0.03, 0.0))]
@@ -38,6 +39,10 @@ def test_mismatch_uncertainty_and_faults():
     assert leak.changes[0].values["k5"] == pytest.approx(0.25 * HYBRID.parameter("k1").value)
     clog = scenario("clogging").setup(HYBRID, X_OP)
     assert clog.changes[0].values["k6"] == pytest.approx(0.5 * HYBRID.parameter("k6").value)
+    assert clog.fault_sample == 100 and mm.fault_sample is None
+    healthy = clog.without_faults()
+    assert healthy.changes == () and healthy.disturbance_samples == () and healthy.fault_sample is None
+    assert np.array_equal(healthy.reference, clog.reference) and healthy.steps == clog.steps
     with pytest.raises(SpecError, match="hybrid_three_tank"):
         scenario("leakage").setup(three_tank(), [0.4, 0.2, 0.3])
     with pytest.raises(SpecError, match="unknown scenario"):

@@ -10,7 +10,9 @@ import pytest
 from tanksynth.artefacts import read_artefact
 from tanksynth.cli import main
 from tanksynth.errors import ArtefactError
-from tanksynth.methods import CLOSED_LOOPS
+from tanksynth.sim.metrics import compute_metrics
+from tanksynth.sim.scenarios import run_scenario, scenario
+from tanksynth.sim.simulate import ConstantInput, run_seeds
 from tanksynth.verify.campaign import (ArtefactIntegralLaw, ArtefactLaw, campaign_tasks,
                                        closed_loop_for, run_campaign)
 
@@ -27,9 +29,9 @@ def seed000(tmp_path_factory):
     return (d / "spec.toml").read_text(encoding="utf-8"), docs
 
 
-def test_registered():
+def test_registered(runners):
     for method in ("feedback_linearization", "integral_tracking", "inverse_dynamics"):
-        assert method in CLOSED_LOOPS
+        assert method in runners
 
 
 def _final_errors(table, artefact):
@@ -40,33 +42,40 @@ def _final_errors(table, artefact):
     return out
 
 
-def test_feedback_linearization_campaign_tracks(seed000):
+def test_feedback_linearization_campaign_tracks(seed000, runners):
     text, docs = seed000
     doc = docs["feedback_linearization"]
-    loop = closed_loop_for(doc, _spec(text), CLOSED_LOOPS[doc['method']])
+    loop = closed_loop_for(doc, _spec(text), runners[doc['method']])
     assert isinstance(loop.controller, ArtefactLaw) and loop.tracked == (0, 1)
     assert "serialised CasADi law" in loop.description
-    closed = run_campaign(campaign_tasks(text, [doc], ["servo"], runs=3, chunk=2, loops=CLOSED_LOOPS), local=True)
+    closed = run_campaign(campaign_tasks(text, [doc], ["servo"], runs=3, chunk=2, runners=runners),
+                          local=True)
     assert {r["loop"] for r in closed.rows} == {loop.description}
     assert len({r["run"] for r in closed.rows}) == 3
-    opened_doc = {**doc, "method": "no_closed_loop_for_this"}  # the open-loop fallback
-    opened = run_campaign(campaign_tasks(text, [opened_doc], ["servo"], runs=3, chunk=2, loops=CLOSED_LOOPS), local=True)
-    ours, theirs = _final_errors(closed, doc["name"]), _final_errors(opened, doc["name"])
-    assert ours and set(ours) == set(theirs)
+    assert {r["kind"] for r in closed.rows} == {"controller"}
+    # the same scenario in open loop at the operating input, by hand: the step is not followed
+    spec = _spec(text)
+    setup = scenario("servo").setup(spec.plant, loop.x_op, loop.u_op, loop.tracked, ts=float(spec.ts))
+    opened = run_scenario(setup, spec.plant, ts=float(spec.ts), seeds=run_seeds(0, 3),
+                          controller=ConstantInput(tuple(loop.u_op)), substeps=4)
+    theirs = {("servo", k): float(np.mean(np.abs(m.values)))
+              for k, m in compute_metrics(opened, setup, spec.plant).items() if k.startswith("offset_")}
+    ours = _final_errors(closed, doc["name"])
+    assert ours and set(ours) == set(theirs) == {("servo", "offset_h1"), ("servo", "offset_h2")}
     for key in ours:
         assert ours[key] < 1e-3, key  # the 0.04 m step is tracked
         assert theirs[key] > 0.02, key  # open loop does not follow it
     # per-run results do not depend on how runs are chunked (one batch vs several)
-    again = run_campaign(campaign_tasks(text, [doc], ["servo"], runs=3, chunk=3, loops=CLOSED_LOOPS), local=True)
+    again = run_campaign(campaign_tasks(text, [doc], ["servo"], runs=3, chunk=3, runners=runners), local=True)
     a, b = ({k: v for k, v in t.summary().items() if not k[2].endswith("_time") or "tracking" in k[2]}
             for t in (closed, again))
     assert a == pytest.approx(b, rel=1e-9, abs=1e-12)
 
 
-def test_integral_tracking_campaign_stateful(seed000):
+def test_integral_tracking_campaign_stateful(seed000, runners):
     text, docs = seed000
     doc = docs["integral_tracking"]
-    loop = closed_loop_for(doc, _spec(text), CLOSED_LOOPS[doc['method']])
+    loop = closed_loop_for(doc, _spec(text), runners[doc['method']])
     assert isinstance(loop.controller, ArtefactIntegralLaw)
     law = loop.controller
     law.reset(4)
@@ -77,29 +86,30 @@ def test_integral_tracking_campaign_stateful(seed000):
     u = law(x, r, 0.0)
     assert u.shape == (4, len(loop.u_op))
     assert np.allclose(u[0], loop.u_op) and not law.z[0].any() and law.z[1].any()
-    table = run_campaign(campaign_tasks(text, [doc], ["servo"], runs=2, chunk=2, loops=CLOSED_LOOPS), local=True)
+    table = run_campaign(campaign_tasks(text, [doc], ["servo"], runs=2, chunk=2, runners=runners), local=True)
     errors = _final_errors(table, doc["name"])
     assert errors and max(errors.values()) < 2e-3
 
 
-def test_missing_law_is_refused(seed000):
+def test_missing_law_is_refused(seed000, runners):
     text, docs = seed000
     doc = dict(docs["feedback_linearization"])
     doc["diagnostics"] = {k: v for k, v in doc["diagnostics"].items() if k != "law"}
     with pytest.raises(ArtefactError):
-        closed_loop_for(doc, _spec(text), CLOSED_LOOPS[doc['method']])
+        closed_loop_for(doc, _spec(text), runners[doc['method']])
 
 
-def test_inverse_dynamics_campaign(tmp_path):
+def test_inverse_dynamics_campaign(tmp_path, runners):
     assert main(["design", str(ROOT / "examples" / "seed002_inverse_dynamics.toml"), "-o",
                  str(tmp_path)]) == 0
     docs = [read_artefact(p) for p in sorted(tmp_path.glob("*.json")) if p.name != "plant.json"]
     docs = [d for d in docs if d["method"] == "inverse_dynamics"]
     assert docs
     text = (tmp_path / "spec.toml").read_text(encoding="utf-8")
-    loop = closed_loop_for(docs[0], _spec(text), CLOSED_LOOPS[docs[0]['method']])
+    loop = closed_loop_for(docs[0], _spec(text), runners[docs[0]['method']])
     assert isinstance(loop.controller, ArtefactLaw) and len(loop.tracked) == len(loop.u_op)
-    table = run_campaign(campaign_tasks(text, docs[:1], ["servo"], runs=2, chunk=2, loops=CLOSED_LOOPS), local=True)
+    table = run_campaign(campaign_tasks(text, docs[:1], ["servo"], runs=2, chunk=2, runners=runners),
+                         local=True)
     errors = _final_errors(table, docs[0]["name"])
     assert errors and max(errors.values()) < 5e-3
 

@@ -1,0 +1,449 @@
+"""Operating domain and quasi-LPV form of a plant (seed 001 eq. 9-11).
+
+The plant's vector field (parameters substituted) is split, term by term,
+into::
+
+    f(x, u) = A_lin x + sum_k M[:, k] n_k(x) + B u + d
+
+where the ``n_k`` ("atoms") are the distinct nonlinear functions of the
+state (for the three-tank: the three Torricelli flows divided by the tank
+section) and ``M`` is their constant incidence matrix. Following seed 001
+(eq. 7-8), every atom is divided by a weighted sum of the states,
+``z_k(x) = n_k(x) / (w_k . x)``, which gives the quasi-LPV form (eq. 9-11)::
+
+    dx/dt = A(z) x + B u + d,     A(z) = A_lin + sum_k z_k M[:, k] w_k'.
+
+The premise bounds and the multiple model built on this form are
+`tanksynth.analysis.premise_bounds` and `tanksynth.analysis.takagi_sugeno`.
+"""
+
+from __future__ import annotations
+
+import itertools
+from dataclasses import dataclass, field
+from typing import Any, Callable, Mapping, Sequence
+
+import numpy as np
+import scipy.optimize as sopt
+import sympy as sp
+
+from tanksynth.analysis.symbolic import jacobian
+from tanksynth.errors import DimensionError, RegionError, SpecError
+from tanksynth.plants.base import Plant, exact
+
+#: lambdify modules: the derivative of abs/sign (DiracDelta) is zero away from the kinks.
+_NUMPY = [{"DiracDelta": lambda a: 0 * a}, "numpy"]
+
+__all__ = ["Domain", "domain_from_plant", "QuasiLPV", "quasi_lpv"]
+
+
+@dataclass(frozen=True)
+class Domain:
+    """A convex polytope of states: a box plus linear inequalities ``G x >= g``.
+
+    Attributes
+    ----------
+    lower, upper : ndarray, shape (n,)
+        Box bounds (state units).
+    G : ndarray, shape (k, n)
+    g : ndarray, shape (k,)
+        Inequalities ``G x >= g`` (orderings ``h1 - h3 >= gap``).
+    names : tuple of str
+        State names.
+    description : str
+        How the domain was built (for reports).
+    """
+
+    lower: np.ndarray
+    upper: np.ndarray
+    G: np.ndarray
+    g: np.ndarray
+    names: tuple[str, ...]
+    description: str = ""
+
+    @property
+    def n(self) -> int:
+        """Number of states."""
+        return int(self.lower.size)
+
+    def contains(self, X: np.ndarray) -> np.ndarray:
+        """Boolean mask of the rows of ``X`` (M, n) inside the domain."""
+        X = np.atleast_2d(X)
+        ok = np.all((X >= self.lower) & (X <= self.upper), axis=1)
+        if self.G.size:
+            ok &= np.all(X @ self.G.T >= self.g, axis=1)
+        return ok
+
+    def sample(self, count: int, seed: int = 0) -> np.ndarray:
+        """``count`` uniform points of the domain (seeded rejection sampling).
+
+        Parameters
+        ----------
+        count : int
+            Number of points.
+        seed : int
+            Seed of the numpy generator.
+
+        Returns
+        -------
+        ndarray, shape (count, n)
+            State units.
+
+        Raises
+        ------
+        RegionError
+            If the domain is empty or too thin to sample.
+        """
+        rng = np.random.default_rng(seed)
+        out = np.empty((0, self.n))
+        for _ in range(200):
+            cand = rng.uniform(self.lower, self.upper, size=(max(4 * count, 256), self.n))
+            out = np.vstack([out, cand[self.contains(cand)]])
+            if len(out) >= count:
+                return out[:count]
+        raise RegionError("the TS domain is empty or too thin to sample", key="region")
+
+    def corners(self, limit: int = 4096, seed: int = 0) -> np.ndarray:
+        """Corners of the box that satisfy the inequalities.
+
+        All ``2^n`` corners when ``2^n <= limit``, otherwise ``limit`` seeded
+        random corners.
+        """
+        if self.n <= int(np.log2(max(limit, 1))):
+            pts = np.array(list(itertools.product(*zip(self.lower, self.upper))), dtype=float)
+        else:
+            bits = np.random.default_rng(seed).integers(0, 2, size=(limit, self.n)).astype(bool)
+            pts = np.where(bits, self.upper, self.lower)
+        return pts[self.contains(pts)]
+
+    def linear_range(self, w: np.ndarray) -> tuple[float, float]:
+        """Exact ``(min, max)`` of ``w . x`` over the (closed) domain, by LP.
+
+        Parameters
+        ----------
+        w : array_like, shape (n,)
+            Weights (the seed's ``lambda`` or ``gamma``).
+
+        Returns
+        -------
+        (float, float)
+            In state units times the weights' unit.
+
+        Raises
+        ------
+        RegionError
+            If the domain is empty.
+        """
+        w = np.asarray(w, dtype=float)
+        bounds = list(zip(self.lower, self.upper))
+        kw = dict(A_ub=-self.G, b_ub=-self.g) if self.G.size else {}
+        vals = []
+        for sgn in (1.0, -1.0):
+            res = sopt.linprog(sgn * w, bounds=bounds, method="highs", **kw)
+            if res.status != 0:
+                raise RegionError(f"the TS domain is empty ({res.message})", key="region")
+            vals.append(sgn * res.fun)
+        return float(vals[0]), float(vals[1])
+
+    def as_dict(self) -> dict:
+        """JSON-friendly description."""
+        return {"lower": self.lower.tolist(), "upper": self.upper.tolist(),
+                "inequalities": [{"G": row.tolist(), "g": float(b)} for row, b in zip(self.G, self.g)],
+                "states": list(self.names), "description": self.description}
+
+
+def domain_from_plant(plant: Plant, bounds: Sequence[Sequence[float]] | None = None,
+                      use_orderings: bool = True, gap: float = 0.0) -> Domain:
+    """The TS domain of a plant: its region box, optionally with its orderings.
+
+    Parameters
+    ----------
+    plant : Plant
+    bounds : sequence of (float, float), optional
+        Box ``(lower, upper)`` per state (state units); default the plant's
+        region.
+    use_orderings : bool
+        Keep the region's flow-direction orderings ``a > b`` as ``a - b >=
+        gap`` (they must be linear in the states).
+    gap : float
+        Minimum separation in each ordering (state units, >= 0).
+
+    Returns
+    -------
+    Domain
+    """
+    box = plant.region.bounds if bounds is None else bounds
+    box = [tuple(map(float, b)) for b in box]
+    if len(box) != plant.n:
+        raise DimensionError(f"{len(box)} bounds given, expected {plant.n}")
+    for (lo, hi), s in zip(box, plant.states):
+        if not (np.isfinite(lo) and np.isfinite(hi) and lo < hi):
+            raise SpecError(f"bounds of {s.name} must be finite with min < max, got [{lo}, {hi}]",
+                            key=f"region.{s.name}")
+    if not (np.isfinite(gap) and gap >= 0):
+        raise SpecError(f"ordering gap must be >= 0, got {gap}", key="ordering_gap")
+    rows, rhs, text = [], [], []
+    if use_orderings:
+        for a, b in plant.region.orderings:
+            expr = sp.expand(a - b)
+            poly = sp.Poly(expr, *plant.x)
+            if poly.total_degree() > 1:
+                raise SpecError(f"ordering {a} > {b} is not linear in the states", key="region")
+            row = [float(poly.coeff_monomial(s)) for s in plant.x]
+            const = float(poly.coeff_monomial(1))
+            rows.append(row)
+            rhs.append(gap - const)
+            text.append(f"{a} - {b} >= {gap:g}")
+    names = tuple(s.name for s in plant.states)
+    desc = "box " + ", ".join(f"{nm} in [{lo:g}, {hi:g}]" for nm, (lo, hi) in zip(names, box))
+    desc += ("; " + "; ".join(text)) if text else "; no orderings (all flow directions)"
+    G = np.array(rows, dtype=float).reshape(len(rows), plant.n)
+    return Domain(np.array([b[0] for b in box]), np.array([b[1] for b in box]), G,
+                  np.array(rhs, dtype=float), names, desc)
+
+
+@dataclass(frozen=True)
+class QuasiLPV:
+    """Quasi-LPV form ``dx/dt = A(z) x + B u + d`` with ``z_k = n_k(x)/(w_k . x)``.
+
+    Attributes
+    ----------
+    states, inputs : tuple of sympy.Symbol
+    atoms : tuple of sympy.Expr
+        ``n_k(x)``, scaled so that the smallest ``|M[i, k]|`` is 1 (state
+        units per second).
+    weights : ndarray, shape (p, n)
+        ``w_k`` (the seed's ``lambda``, ``gamma``).
+    incidence : ndarray, shape (n, p)
+        ``M``.
+    A_lin : ndarray, shape (n, n)
+        Linear part (1/s).
+    B : ndarray, shape (n, m)
+    d : ndarray, shape (n,)
+        Constant term.
+    C : ndarray, shape (q, n)
+        Output matrix (the plant's output map must be linear).
+    atom_states : tuple of tuple of int
+        State indices each atom depends on.
+    exact_incidence : sympy.Matrix
+        ``M`` with exact entries (for symbolic work).
+    exact_A_lin : sympy.Matrix
+    input_bounds : tuple of (float, float)
+        Actuator range per input (``[-1, 1]`` when the plant gives none).
+    """
+
+    states: tuple[sp.Symbol, ...]
+    inputs: tuple[sp.Symbol, ...]
+    atoms: tuple[sp.Expr, ...]
+    weights: np.ndarray
+    incidence: np.ndarray
+    A_lin: np.ndarray
+    B: np.ndarray
+    d: np.ndarray
+    C: np.ndarray
+    atom_states: tuple[tuple[int, ...], ...]
+    exact_incidence: sp.Matrix
+    exact_A_lin: sp.Matrix
+    input_bounds: tuple[tuple[float, float], ...] = ()
+    _cache: dict = field(default_factory=dict, repr=False, compare=False)
+
+    @property
+    def n(self) -> int:
+        """Number of states."""
+        return len(self.states)
+
+    @property
+    def p(self) -> int:
+        """Number of premise variables."""
+        return len(self.atoms)
+
+    @property
+    def premise_symbols(self) -> tuple[sp.Symbol, ...]:
+        """``z1, ..., zp``."""
+        return tuple(sp.Symbol(f"z{k + 1}", real=True) for k in range(self.p))
+
+    def premise_expressions(self) -> tuple[sp.Expr, ...]:
+        """``z_k(x) = n_k(x) / (w_k . x)`` with exact (rational) weights."""
+        out = []
+        for k, atom in enumerate(self.atoms):
+            den = sum(exact(w) * s for w, s in zip(self.weights[k], self.states))
+            out.append(atom / den)
+        return tuple(out)
+
+    def A_of(self, z: Sequence[float]) -> np.ndarray:
+        """``A(z)`` for one premise vector (1/s)."""
+        z = np.asarray(z, dtype=float).reshape(self.p)
+        return self.A_lin + np.einsum("k,ik,kj->ij", z, self.incidence, self.weights)
+
+    def A_symbolic(self, symbolic_weights: bool = False) -> sp.Matrix:
+        """``A(z)`` in the premise symbols (eq. 10).
+
+        Parameters
+        ----------
+        symbolic_weights : bool
+            Keep the weights as symbols ``w{k}_{j}`` (for rank conditions in
+            terms of ``lambda``, ``gamma``) instead of their values.
+        """
+        z = self.premise_symbols
+        A = sp.Matrix(self.exact_A_lin)
+        for k in range(self.p):
+            if symbolic_weights:
+                w = sp.Matrix([[sp.Symbol(f"w{k + 1}_{j + 1}", real=True) for j in range(self.n)]])
+            else:
+                w = sp.Matrix([[exact(v) for v in self.weights[k]]])
+            A += z[k] * self.exact_incidence[:, k] * w
+        return A
+
+    def _lambdified(self, name: str, builder: Callable[[], Any]) -> Any:
+        if name not in self._cache:
+            self._cache[name] = builder()
+        return self._cache[name]
+
+    def atom_values(self, X: np.ndarray) -> np.ndarray:
+        """``n_k(x)`` at M points: (M, n) -> (M, p)."""
+        fn = self._lambdified("atoms", lambda: sp.lambdify(
+            [self.states], list(self.atoms), modules=_NUMPY))
+        X = np.atleast_2d(np.asarray(X, dtype=float))
+        vals = fn(X.T)
+        return np.column_stack([np.broadcast_to(np.asarray(v, dtype=float), (X.shape[0],))
+                                for v in vals])
+
+    def premise_values(self, X: np.ndarray) -> np.ndarray:
+        """``z_k(x)`` at M points: (M, n) -> (M, p)."""
+        X = np.atleast_2d(np.asarray(X, dtype=float))
+        return self.atom_values(X) / (X @ self.weights.T)
+
+    def with_weights(self, weights: np.ndarray) -> "QuasiLPV":
+        """Same decomposition with other weights (cache of atoms kept)."""
+        weights = _check_weights(np.asarray(weights, dtype=float), self.p, self.n)
+        new = QuasiLPV(self.states, self.inputs, self.atoms, weights, self.incidence, self.A_lin,
+                       self.B, self.d, self.C, self.atom_states, self.exact_incidence,
+                       self.exact_A_lin, self.input_bounds)
+        if "atoms" in self._cache:
+            new._cache["atoms"] = self._cache["atoms"]
+        return new
+
+    def atoms_as_dict(self) -> list[dict]:
+        """JSON-friendly list of premise definitions."""
+        names = [str(s) for s in self.states]
+        return [{"premise": f"z{k + 1}", "atom": str(self.atoms[k]),
+                 "states": [names[j] for j in self.atom_states[k]],
+                 "weights": self.weights[k].tolist(),
+                 "incidence": self.incidence[:, k].tolist()} for k in range(self.p)]
+
+
+def _check_weights(W: np.ndarray, p: int, n: int) -> np.ndarray:
+    if W.shape != (p, n):
+        raise DimensionError(f"weights must have shape ({p}, {n}), got {W.shape}")
+    if not np.all(np.isfinite(W)):
+        raise SpecError("weights must be finite", key="weights")
+    for k in range(p):
+        if not np.any(W[k]):
+            raise SpecError(f"weights of z{k + 1} are all zero (degenerate case of seed 001)",
+                            key=f"weights.z{k + 1}")
+    return W
+
+
+def quasi_lpv(plant: Plant,
+              weights: Mapping[str, Sequence[float]] | np.ndarray | None = None) -> QuasiLPV:
+    """Split a plant into the quasi-LPV form of seed 001 eq. (9)-(11).
+
+    Parameters
+    ----------
+    plant : Plant
+        Its general ``f`` (with ``sgn``/``abs``) is used, so the rewriting is
+        exact for every flow direction.
+    weights : mapping or ndarray, optional
+        ``{"z1": [...], "z3": [...]}`` (length-n weight vectors by premise
+        name) or a ``(p, n)`` array. Premises not given get the default: the
+        unit vector of the state when the atom depends on one state,
+        otherwise the sum of the states it depends on.
+
+    Returns
+    -------
+    QuasiLPV
+
+    Raises
+    ------
+    SpecError
+        A term is not of the supported form (the input must enter
+        linearly with constant coefficients), or bad weights.
+    """
+    x, u = plant.x, plant.u
+    xs, us = set(x), set(u)
+    n, m = plant.n, plant.m
+    A_lin = sp.zeros(n, n)
+    B = sp.zeros(n, m)
+    d = sp.zeros(n, 1)
+    found: dict[sp.Expr, dict[int, sp.Expr]] = {}
+    for i, fi in enumerate(plant.f_numeric):
+        for term in sp.Add.make_args(sp.expand(fi)):
+            coeff, rest = term.as_independent(*x, *u, as_Add=False)
+            if rest == 1:
+                d[i] += coeff
+            elif rest in xs:
+                A_lin[i, x.index(rest)] += coeff
+            elif rest in us:
+                B[i, u.index(rest)] += coeff
+            elif rest.free_symbols & us:
+                raise SpecError(f"term {term} of equation {i + 1} is not linear in the inputs with a "
+                                "constant coefficient: the TS rewriting supports f = A(z) x + B u + d",
+                                key="plant")
+            else:
+                found.setdefault(rest, {})
+                found[rest][i] = found[rest].get(i, 0) + coeff
+    atoms = [a for a, eqs in found.items() if any(c != 0 for c in eqs.values())]
+
+    def states_of(a: sp.Expr) -> tuple[int, ...]:
+        return tuple(sorted(x.index(s) for s in a.free_symbols if s in xs))
+
+    atoms.sort(key=lambda a: (min(found[a]), len(states_of(a)), states_of(a), str(a)))
+    p = len(atoms)
+    M_exact = sp.zeros(n, p)
+    scaled = []
+    for k, a in enumerate(atoms):
+        scale = min((abs(c) for c in found[a].values() if c != 0), key=lambda c: float(c))
+        scaled.append(scale * a)
+        for i, c in found[a].items():
+            M_exact[i, k] = sp.nsimplify(c / scale)
+    atom_states = tuple(states_of(a) for a in atoms)
+    W = np.zeros((p, n))
+    for k, st in enumerate(atom_states):
+        W[k, list(st)] = 1.0
+    if weights is not None:
+        if isinstance(weights, Mapping):
+            for key, vec in weights.items():
+                if not (isinstance(key, str) and key.startswith("z") and key[1:].isdigit()
+                        and 1 <= int(key[1:]) <= p):
+                    raise SpecError(f"unknown premise {key!r}; expected one of "
+                                    + ", ".join(f"z{k + 1}" for k in range(p)), key=f"weights.{key}")
+                arr = np.asarray(vec, dtype=float).reshape(-1) if _numeric_list(vec) else None
+                if arr is None or arr.size != n:
+                    raise SpecError(f"expected {n} numbers (one weight per state)",
+                                    key=f"weights.{key}")
+                W[int(key[1:]) - 1] = arr
+        else:
+            W = np.asarray(weights, dtype=float)
+    W = _check_weights(W, p, n)
+    C_sym = jacobian(plant.h_numeric, x)
+    if any(e.free_symbols for e in C_sym):
+        raise SpecError("the output map is not linear in the states: the observer LMI needs y = C x",
+                        key="plant.outputs")
+    f64 = lambda Mx: np.array(Mx.evalf(), dtype=float)  # noqa: E731
+    return QuasiLPV(tuple(x), tuple(u), tuple(scaled), W, f64(M_exact).reshape(n, p),
+                    f64(A_lin).reshape(n, n), f64(B).reshape(n, m), f64(d).reshape(n),
+                    f64(C_sym).reshape(plant.q, n), atom_states, M_exact, A_lin,
+                    _input_box(plant))
+
+
+def _input_box(plant: Plant) -> tuple[tuple[float, float], ...]:
+    """Finite actuator box of a plant (``[-1, 1]`` where a limit is infinite)."""
+    lim = np.asarray(plant.input_limits, dtype=float).reshape(plant.m, 2)
+    return tuple((float(lo) if np.isfinite(lo) else -1.0, float(hi) if np.isfinite(hi) else 1.0)
+                 for lo, hi in lim)
+
+
+def _numeric_list(vec: Any) -> bool:
+    return isinstance(vec, (list, tuple, np.ndarray)) and all(
+        isinstance(v, (int, float, np.floating, np.integer)) and not isinstance(v, bool) for v in vec)
+

@@ -1,0 +1,248 @@
+"""Paper-vs-tool rows: the data model and the helpers every seed reproduction uses.
+
+A `Reproduction` says when it applies (plant, operating point, parameters,
+which artefacts) and computes one `PaperRow` per compared quantity from the
+plant record and the artefacts of a result directory. The printed values
+themselves live in `tanksynth.papers`; the verdict of a row is computed here
+by comparing numbers (or symbolic expressions).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any, Callable, Mapping, Sequence
+
+import numpy as np
+
+from tanksynth.reports.inputs import ReportInputs
+from tanksynth.reports.latex import Tex, format_number, matrix_latex
+
+__all__ = [
+    "AGREES", "ERRATUM", "DIFFERS",
+    "PaperRow",
+    "PaperComparison",
+    "Reproduction",
+    "cell_number",
+    "cell_fit",
+    "cell_matrix",
+    "close",
+    "artefact_array",
+    "params_match",
+    "first_artefact",
+    "printed_precision",
+    "latex_matrix_entries",
+    "poly_latex",
+]
+
+AGREES, ERRATUM, DIFFERS = "agrees", "erratum", "differs"
+
+
+@dataclass(frozen=True)
+class PaperRow:
+    """One compared quantity.
+
+    Attributes
+    ----------
+    quantity : Tex
+        What is compared (LaTeX, text mode).
+    printed : Tex
+        The printed value or formula (LaTeX, text mode, math in ``$``).
+    ours : Tex
+        tanksynth's value (LaTeX, text mode).
+    verdict : str
+        `AGREES`, `ERRATUM` (the printed value disagrees with its own
+        equations or with the model) or `DIFFERS` (different, but not a
+        mistake: non-unique gains, rounding beyond the printed digits, a
+        value that depends on something the paper does not print).
+    note : Tex
+        What differs, or why an agreement is only numerical.
+    entry : tuple of int, optional
+        1-based matrix entry, for matrix rows.
+    printed_value, ours_value : float, optional
+        The numbers compared, when scalar.
+    """
+
+    quantity: Tex
+    printed: Tex
+    ours: Tex
+    verdict: str
+    note: Tex = Tex("")
+    entry: tuple[int, ...] | None = None
+    printed_value: float | None = None
+    ours_value: float | None = None
+
+    @property
+    def is_erratum(self) -> bool:
+        """True when the printed value is wrong."""
+        return self.verdict == ERRATUM
+
+
+@dataclass(frozen=True)
+class PaperComparison:
+    """The rows of one reproduction that applied to a result directory.
+
+    Attributes
+    ----------
+    key : str
+        Registry key.
+    seed : str
+        Seed paper number (``"000"``); empty for spec-given references.
+    title : str
+        Plain text.
+    source : str
+        Paper and equation numbers the printed values come from (plain text).
+    rows : tuple of PaperRow
+    """
+
+    key: str
+    seed: str
+    title: str
+    source: str
+    rows: tuple[PaperRow, ...]
+
+    @property
+    def errata(self) -> tuple[PaperRow, ...]:
+        """The rows whose printed value is wrong."""
+        return tuple(r for r in self.rows if r.is_erratum)
+
+
+@dataclass(frozen=True)
+class Reproduction:
+    """A registered seed reproduction.
+
+    Attributes
+    ----------
+    key, seed, title, source : str
+        See `PaperComparison`.
+    applies : callable
+        ``applies(inputs) -> bool``.
+    compute : callable
+        ``compute(inputs) -> tuple of PaperRow``.
+    """
+
+    key: str
+    seed: str
+    title: str
+    source: str
+    applies: Callable[[ReportInputs], bool]
+    compute: Callable[[ReportInputs], tuple[PaperRow, ...]]
+
+
+def cell_number(x: Any, digits: int = 5) -> Tex:
+    """A number as a table cell (inline math)."""
+    return Tex("$" + format_number(x, digits) + "$")
+
+
+def cell_fit(math_tex: str) -> Tex:
+    """Math shrunk to the table column when wider (``\\fitcell`` of the template)."""
+    return Tex(r"\fitcell{$" + math_tex + "$}")
+
+
+def cell_matrix(a: Any, digits: int = 4) -> Tex:
+    """A matrix as a table cell, shrunk to the column when wider."""
+    return cell_fit(matrix_latex(a, digits))
+
+
+def close(a: Any, b: Any, rtol: float = 1e-9) -> bool:
+    """Same shape and every entry within ``rtol`` times the largest |entry| of either."""
+    a, b = np.asarray(a), np.asarray(b)
+    kind = complex if (np.iscomplexobj(a) or np.iscomplexobj(b)) else float
+    a, b = a.astype(kind), b.astype(kind)
+    if a.shape != b.shape:
+        return False
+    scale = max(float(np.max(np.abs(a), initial=0.0)), float(np.max(np.abs(b), initial=0.0)), 1e-300)
+    return bool(np.all(np.abs(a - b) <= rtol * scale))
+
+
+def artefact_array(artefact: Mapping[str, Any], name: str) -> np.ndarray | None:
+    """The gain ``name`` of an artefact as a float array (None when absent or not numeric)."""
+    g = (artefact.get("gains") or {}).get(name)
+    if g is None:
+        return None
+    try:
+        return np.asarray(g, dtype=float)
+    except (TypeError, ValueError):
+        return None
+
+
+def params_match(inputs: ReportInputs, expected: Mapping[str, float], rtol: float = 1e-12) -> bool:
+    """True when the plant has every parameter of ``expected`` with that value."""
+    have = inputs.parameters()
+    return all(k in have and math.isclose(have[k], v, rel_tol=rtol, abs_tol=0.0)
+               for k, v in expected.items())
+
+
+def first_artefact(inputs: ReportInputs, method: str, x0: Sequence[float] | None = None,
+                   shapes: Mapping[str, tuple[int, ...]] | None = None) -> Mapping[str, Any] | None:
+    """The first artefact of ``method`` with gains of the given shapes (and gain ``x0``, if given)."""
+    for a in inputs.by_method(method):
+        if shapes and any(artefact_array(a, k) is None or artefact_array(a, k).shape != s
+                          for k, s in shapes.items()):
+            continue
+        if x0 is not None:
+            ax0 = artefact_array(a, "x0")
+            if ax0 is None or ax0.shape != (len(x0),) or not np.allclose(ax0, x0, rtol=0, atol=1e-9):
+                continue
+        return a
+    return None
+
+
+def printed_precision(text: str) -> float:
+    """Half a unit of the last printed digit of a number written as text."""
+    mant, _, exp = text.lower().partition("e")
+    decimals = len(mant.split(".")[1]) if "." in mant else 0
+    return 0.5 * 10.0 ** (-decimals) * 10.0 ** (int(exp) if exp else 0)
+
+
+def latex_matrix_entries(tex: str) -> list[list[str]] | None:
+    """Entries of a sympy ``\\left[\\begin{matrix}..\\end{matrix}\\right]`` string."""
+    head, tail = r"\left[\begin{matrix}", r"\end{matrix}\right]"
+    if not (isinstance(tex, str) and tex.startswith(head) and tex.endswith(tail)):
+        return None
+    body = tex[len(head):-len(tail)]
+    rows, cur, depth, i = [], [""], 0, 0
+    while i < len(body):
+        c = body[i]
+        if body.startswith("\\\\", i) and depth == 0:
+            rows.append(cur)
+            cur = [""]
+            i += 2
+            continue
+        if body.startswith("\\begin{", i) or body.startswith("\\end{", i):
+            depth += 1 if body.startswith("\\begin{", i) else -1
+            end = body.index("}", i) + 1
+            cur[-1] += body[i:end]
+            i = end
+            continue
+        if c == "\\" and i + 1 < len(body):
+            cur[-1] += body[i:i + 2]
+            i += 2
+            continue
+        if c == "{":
+            depth += 1
+        elif c == "}":
+            depth -= 1
+        if c == "&" and depth == 0:
+            cur.append("")
+        else:
+            cur[-1] += c
+        i += 1
+    rows.append(cur)
+    return [[e.strip() for e in r] for r in rows]
+
+
+def poly_latex(coeffs: Sequence[float], var: str = "s") -> str:
+    """Math-mode LaTeX of a polynomial given by its coefficients, highest power first."""
+    n = len(coeffs) - 1
+    parts = []
+    for k, c in enumerate(coeffs):
+        p = n - k
+        if c == 0 and p < n:
+            continue
+        mag = format_number(abs(c), 5)
+        term = ("" if (abs(c) == 1 and p > 0) else mag) + (f"{var}^{{{p}}}" if p > 1 else
+                                                            (var if p == 1 else ""))
+        parts.append(("-" if c < 0 else "+") + " " + term)
+    text = " ".join(parts).lstrip("+ ").strip()
+    return text if not text.startswith("- ") else "-" + text[2:]

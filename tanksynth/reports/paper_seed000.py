@@ -1,0 +1,181 @@
+"""Seed 000 beside tanksynth: the linearisation of eq. (8) and the control law of Sec. IV.
+
+The printed values come from `tanksynth.papers.seed000`; the rows compare them
+with the ``linearize`` and ``feedback_linearization`` artefacts of a result
+directory on the three-tank plant with the paper's Table I parameters.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from tanksynth.errors import ReportError
+from tanksynth.papers import seed000 as paper
+from tanksynth.reports.comparison import (AGREES, ERRATUM, PaperRow, artefact_array, cell_fit,
+                                          cell_matrix, cell_number, close, first_artefact,
+                                          latex_matrix_entries, params_match, printed_precision)
+from tanksynth.reports.inputs import ReportInputs
+from tanksynth.reports.latex import Tex, escape_latex, format_eigenvalues, format_number
+
+__all__ = ["linearisation_applies", "linearisation_rows", "law_applies", "law_rows"]
+
+_LIN_SHAPES = {"F": (3, 3), "B": (3, 2), "u0": (2,)}
+_LAW_SHAPES = {"Lambda_x0": (2, 2), "Lambda0_x0": (2,), "x0": (3,)}
+
+
+def linearisation_applies(inputs: ReportInputs) -> bool:
+    """Three-tank plant at the paper's y0 with Table I and a ``linearize`` artefact there."""
+    x0 = inputs.x0
+    return (inputs.plant_name == "three_tank" and x0 is not None and x0.shape == (3,)
+            and np.allclose(x0, paper.Y0, rtol=0, atol=1e-9)
+            and params_match(inputs, paper.TABLE_I)
+            and first_artefact(inputs, "linearize", paper.Y0, _LIN_SHAPES) is not None)
+
+
+def linearisation_rows(inputs: ReportInputs) -> tuple[PaperRow, ...]:
+    """Eq. (8) F entry by entry (and as formulas), its eigenvalues, B, and the printed u0."""
+    art = first_artefact(inputs, "linearize", paper.Y0, _LIN_SHAPES)
+    if art is None:  # `applies` selected this entry; a missing artefact is a registry bug
+        raise ReportError("seed 000 comparison: no linearize artefact at y0 = (0.40, 0.20, 0.30) m")
+    F, B, u0 = (artefact_array(art, k) for k in ("F", "B", "u0"))
+    params = {k: inputs.parameters()[k] for k in paper.TABLE_I}
+    Fp, Bp = paper.printed_F(params, paper.Y0)
+    Fp[np.abs(Fp) < 1e-12 * np.max(np.abs(Fp))] = 0.0   # -t32 + t13 cancels exactly at y0
+    name = escape_latex(art["name"])
+    scale = float(np.max(np.abs(F)))
+    errata = paper.F_FORMULA_ERRATA
+    rows: list[PaperRow] = []
+    symbolic = latex_matrix_entries((art.get("latex") or {}).get("F", ""))
+    for i in range(3):
+        for j in range(3):
+            p, o = float(Fp[i, j]), float(F[i, j])
+            same = abs(p - o) <= 1e-9 * scale
+            entry = (i + 1, j + 1)
+            note = ""
+            if same and entry in errata:
+                note = (r"equal at $y_0$ only: in the formula, " + errata[entry]
+                        + r"; the two terms coincide here ($\mu_{13}=\mu_{32}$, "
+                        r"$y_{01}-y_{03}=y_{03}-y_{02}$, "
+                        f"$F_{{13}} = F_{{23}} = {format_number(F[0, 2])}$)")
+            elif not same:
+                rel = abs(p - o) / scale
+                note = (f"differs by ${format_number(p - o, 4)}$ "
+                        f"(${format_number(100 * rel, 3)}\\,\\%$ of $\\max|F|$)")
+                if entry in errata:
+                    note += "; " + errata[entry]
+            rows.append(PaperRow(Tex(f"$F_{{{i + 1}{j + 1}}}$ at $y_0$"), cell_number(p),
+                                 cell_number(o), AGREES if same else ERRATUM, Tex(note), entry, p, o))
+    # formula-level rows for the entries printed wrong
+    for entry, why in errata.items():
+        i, j = entry
+        ours = Tex(r"\emph{see the linearisation section}")
+        if symbolic and len(symbolic) == 3 and all(len(r) == 3 for r in symbolic):
+            ours = cell_fit(symbolic[i - 1][j - 1])
+        rows.append(PaperRow(Tex(f"$F_{{{i}{j}}}$ (formula)"),
+                             cell_fit(paper.F_PRINTED_LATEX[entry]), ours, ERRATUM,
+                             Tex(why + r" (symbolic comparison with the Jacobian of eq.~(6))"),
+                             entry))
+    ev_p = np.linalg.eigvals(Fp)
+    ev_o = np.linalg.eigvals(F)
+    ev_same = close(np.sort_complex(ev_p), np.sort_complex(ev_o), 1e-8)
+    complex_p = int(np.sum(np.abs(ev_p.imag) > 1e-12 * scale))
+    ev_note = "" if ev_same else (
+        f"the printed $F$ is not symmetric and has {complex_p} complex eigenvalues (an oscillating "
+        r"mode the plant does not have); the Jacobian is symmetric with real eigenvalues")
+    rows.append(PaperRow(Tex(r"eigenvalues of $F$ at $y_0$"),
+                         Tex("$" + format_eigenvalues([[v.real, v.imag] for v in np.sort_complex(ev_p)], 4) + "$"),
+                         Tex("$" + format_eigenvalues([[v.real, v.imag] for v in np.sort_complex(ev_o)], 4) + "$"),
+                         AGREES if ev_same else ERRATUM, Tex(ev_note)))
+    b_same = close(Bp, B)
+    rows.append(PaperRow(Tex("$B$"), cell_matrix(Bp), cell_matrix(B), AGREES if b_same else ERRATUM,
+                         Tex("" if b_same else "entries differ")))
+    rows.extend(_u0_rows(art, B, u0, name))
+    return tuple(rows)
+
+
+def _u0_rows(art, B: np.ndarray, u0: np.ndarray, name: str) -> list[PaperRow]:
+    """The printed u0 (Sec. IV) against the exact equilibrium input of the artefact."""
+    up = np.array([float(t) for t in paper.U0_TEXT])
+    eq = (art.get("diagnostics") or {}).get("equilibrium", {}) or {}
+    base_res = np.asarray(eq.get("residual", np.zeros(3)), dtype=float)
+    # the model is affine in u with constant B: f(x0, u) = f(x0, u0) + B (u - u0)
+    res_printed = base_res + B @ (up - u0)
+    rows = []
+    for k, text in enumerate(paper.U0_TEXT):
+        tol = printed_precision(text)
+        diff = up[k] - u0[k]
+        same = abs(diff) <= tol
+        if same:
+            note = r"equal to the printed digits"
+        else:
+            tanks = [f"$\\dot h_{{{i + 1}}} = {format_number(res_printed[i], 3)}$"
+                     for i in range(3) if abs(res_printed[i]) > 1e-12]
+            note = (f"the printed input does not balance the model at $y_0$: off by "
+                    f"${format_number(diff, 3)}$~m$^3$/s "
+                    f"(${format_number(100 * diff / u0[k], 3)}\\,\\%$); with the printed $u_0$, "
+                    + ", ".join(tanks) + " m/s")
+        mant, _, exp = text.partition("e")
+        printed_tex = Tex(f"${mant} \\times 10^{{{int(exp)}}}$")     # as printed
+        rows.append(PaperRow(Tex(f"$u_{{0,{k + 1}}}$ (m$^3$/s)"), printed_tex, cell_number(u0[k]),
+                             AGREES if same else ERRATUM, Tex(note), (k + 1,), float(up[k]),
+                             float(u0[k])))
+    worst = float(np.max(np.abs(res_printed)))
+    rows.append(PaperRow(Tex(r"equilibrium residual $\max|f(y_0,u_0)|$ (m/s)"),
+                         cell_number(worst), cell_number(float(np.max(np.abs(base_res)))),
+                         AGREES if worst <= 1e-9 else ERRATUM,
+                         Tex(f"ours from artefact \\texttt{{{name}}}; the printed $u_0$ is not an "
+                             r"equilibrium input" if worst > 1e-9 else "")))
+    return rows
+
+
+def _law_artefact(inputs: ReportInputs):
+    for a in inputs.by_method("feedback_linearization"):
+        outputs = (a.get("diagnostics") or {}).get("outputs")
+        if outputs is not None and list(outputs) != ["h1", "h2"]:
+            continue
+        if all(artefact_array(a, k) is not None and artefact_array(a, k).shape == s
+               for k, s in _LAW_SHAPES.items()):
+            return a
+    return None
+
+
+def law_applies(inputs: ReportInputs) -> bool:
+    """Three-tank plant with Table I and a decoupling law of (h1, h2)."""
+    return (inputs.plant_name == "three_tank" and params_match(inputs, paper.TABLE_I)
+            and _law_artefact(inputs) is not None)
+
+
+def law_rows(inputs: ReportInputs) -> tuple[PaperRow, ...]:
+    """The printed Lambda, Lambda0, beta and alpha of Sec. IV at the artefact's x0."""
+    art = _law_artefact(inputs)
+    if art is None:  # `applies` selected this entry
+        raise ReportError("seed 000 comparison: no feedback_linearization artefact of (h1, h2)")
+    x0 = artefact_array(art, "x0")
+    lam, lam0 = artefact_array(art, "Lambda_x0"), artefact_array(art, "Lambda0_x0")
+    params = {k: inputs.parameters()[k] for k in paper.TABLE_I}
+    try:
+        printed = paper.printed_law(params, x0)
+        beta = np.linalg.inv(lam)
+    except (ValueError, np.linalg.LinAlgError) as exc:
+        raise ReportError(f"seed 000 comparison: cannot evaluate the law at x0 = {x0.tolist()} "
+                          f"({exc})") from None
+    ours = {"Lambda": lam, "Lambda0": lam0, "beta": beta, "alpha": -beta @ lam0}
+    sym = {k: v for k, v in (art.get("latex") or {}).items() if isinstance(v, str)}
+    labels = {"Lambda": r"$\Lambda$", "Lambda0": r"$\Lambda_0$", "beta": r"$\beta$",
+              "alpha": r"$\alpha$"}
+    at = "at $x_0 = (" + ", ".join(format_number(v, 4) for v in x0) + ")$"
+    rows: list[PaperRow] = []
+    for key in ("Lambda", "Lambda0", "beta", "alpha"):
+        p, o = np.asarray(printed[key]), np.asarray(ours[key])
+        same = close(p, o, 1e-9)
+        rows.append(PaperRow(Tex(labels[key] + " " + at), cell_matrix(p, 5), cell_matrix(o, 5),
+                             AGREES if same else ERRATUM,
+                             Tex("" if same else escape_latex(paper.LAW_NOTE))))
+    same = close(printed["alpha"], ours["alpha"], 1e-9)
+    rows.append(PaperRow(Tex(labels["alpha"] + " (formula)"), cell_fit(paper.LAW_PRINTED_LATEX["alpha"]),
+                         cell_fit(sym["alpha"]) if sym.get("alpha") else
+                         Tex(r"$-\Lambda^{-1}\Lambda_0$"),
+                         AGREES if same else ERRATUM,
+                         Tex("" if same else r"derived: $\alpha = -\Lambda^{-1}\Lambda_0$, an input "
+                             r"in m$^3$/s; the printed $\alpha$ is $\Lambda_0$ (m/s)")))
+    return tuple(rows)

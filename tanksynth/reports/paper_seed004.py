@@ -1,0 +1,288 @@
+"""Seed 004 beside tanksynth: structure (Sec. III) and fault detection (eq. 27-29, 54, Sec. IV).
+
+The printed values come from `tanksynth.papers.seed004`. The structure rows
+compare the printed controllability/observability matrices, transfer function and
+canonical form with a ``linearize`` artefact of the hydraulic plant; the fault
+detection rows compare the printed gain, error dynamics, threshold and detection
+times with a ``fault_detection`` artefact.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from typing import Any, Mapping, Sequence
+
+import numpy as np
+
+from tanksynth.errors import ReportError
+from tanksynth.papers import seed004 as paper
+from tanksynth.reports.comparison import (AGREES, DIFFERS, ERRATUM, PaperRow, artefact_array,
+                                          cell_matrix, cell_number, close, first_artefact,
+                                          params_match, poly_latex, printed_precision)
+from tanksynth.reports.inputs import ReportInputs
+from tanksynth.reports.latex import Tex, escape_latex, format_eigenvalues, format_number
+
+__all__ = ["structure_applies", "structure_rows", "detection_applies", "detection_rows",
+           "stored_detections"]
+
+_LIN_SHAPES = {"F": (3, 3), "B": (3, 1), "C": (1, 3)}
+
+
+def structure_applies(inputs: ReportInputs) -> bool:
+    """Hydraulic plant with the printed parameters and a three-state ``linearize`` artefact."""
+    return (inputs.plant_name == "hydraulic_fault" and params_match(inputs, paper.PARAMETERS)
+            and first_artefact(inputs, "linearize", None, _LIN_SHAPES) is not None)
+
+
+def _matrix_row(label: str, printed: np.ndarray, ours: np.ndarray, eq: str) -> PaperRow:
+    same = close(printed, ours, 1e-9)
+    note = ""
+    if not same:
+        bad = [f"({i + 1},{j + 1})" for i in range(printed.shape[0]) for j in range(printed.shape[1])
+               if not math.isclose(printed[i, j], ours[i, j], rel_tol=1e-9, abs_tol=1e-12)]
+        note = "entries " + ", ".join(bad) + " differ"
+    return PaperRow(Tex(f"{label} {eq}"), cell_matrix(printed), cell_matrix(ours),
+                    AGREES if same else ERRATUM, Tex(note))
+
+
+def structure_rows(inputs: ReportInputs) -> tuple[PaperRow, ...]:
+    """Eq. (13)-(14), (21a)-(21b), (23a)-(23b) and, healthy, the canonical form and eq. (27)."""
+    art = first_artefact(inputs, "linearize", None, _LIN_SHAPES)
+    if art is None:  # `applies` selected this entry; a missing artefact is a registry bug
+        raise ReportError("seed 004 comparison: no three-state linearize artefact")
+    F, B, C = (artefact_array(art, k) for k in ("F", "B", "C"))
+    d = inputs.parameters().get("delta_bar", 0.0)
+    pr = paper.printed_matrices(d)
+    healthy = d == 0.0
+    where = rf"($\bar\delta = {format_number(d)}$)"
+    rows: list[PaperRow] = []
+    QC = np.hstack([B, F @ B, F @ F @ B])
+    QO = np.vstack([C, C @ F, C @ F @ F])
+    rows.append(_matrix_row(r"$\mathcal{Q}_C(\mathcal{H})$" if healthy else
+                            rf"$\mathcal{{Q}}_C(v)$ {where}", pr["QC"], QC,
+                            "eq.~(21a)" if healthy else "eq.~(21b)"))
+    rows.append(_matrix_row(r"$\mathcal{Q}_O(\mathcal{H})$" if healthy else
+                            rf"$\mathcal{{Q}}_O(v)$ {where}", pr["QO"], QO,
+                            "eq.~(23a)" if healthy else "eq.~(23b)"))
+    den = np.poly(F)
+    same = close(pr["den"], den, 1e-9)
+    rows.append(PaperRow(Tex(r"$\det(sI - A)$ " + ("eq.~(13)" if healthy else "eq.~(14)")),
+                         Tex("$" + poly_latex(pr["den"]) + "$"), Tex("$" + poly_latex(den) + "$"),
+                         AGREES if same else ERRATUM, Tex("" if same else "coefficients differ")))
+    if B.shape[1] == 1 and C.shape[0] == 1:
+        # SISO numerator by the matrix determinant lemma: det(sI - F + B C) - det(sI - F)
+        num = np.poly(F - B @ C) - den
+        num = np.trim_zeros(np.where(np.abs(num) < 1e-12, 0.0, num), "f")
+        same = close(pr["num"], num, 1e-9)
+        rows.append(PaperRow(Tex(r"numerator of $\Phi(s)$ " + ("eq.~(13)" if healthy else "eq.~(14)")),
+                             Tex("$" + poly_latex(pr["num"]) + "$"),
+                             Tex("$" + poly_latex(num if num.size else [0.0]) + "$"),
+                             AGREES if same else ERRATUM, Tex("" if same else "numerator differs")))
+    poles = np.sort(np.linalg.eigvals(F).real)
+    same = close(np.sort(pr["poles"]), poles, 1e-9)
+    rows.append(PaperRow(Tex(r"poles (factored $\det(sI-A)$)"),
+                         Tex("$" + format_eigenvalues(np.sort(pr["poles"]).tolist()) + "$"),
+                         Tex("$" + format_eigenvalues(poles.tolist()) + "$"),
+                         AGREES if same else ERRATUM, Tex("" if same else "poles differ")))
+    if healthy and "QO_bar" in pr:
+        a = den[1:]
+        Ao = np.array([[0, 0, -a[2]], [1, 0, -a[1]], [0, 1, -a[0]]])
+        Co = np.array([[0.0, 0.0, 1.0]])
+        QOb = np.vstack([Co, Co @ Ao, Co @ Ao @ Ao])
+        rows.append(_matrix_row(r"$\bar{\mathcal{Q}}_O$ (observer canonical form)", pr["QO_bar"],
+                                QOb, "Sec.~III"))
+        try:
+            Delta = np.linalg.solve(QO, QOb)
+        except np.linalg.LinAlgError:
+            Delta = None
+        if Delta is not None:
+            rows.append(_matrix_row(r"$\Delta = \mathcal{Q}_O(\mathcal{H})^{-1}\bar{\mathcal{Q}}_O$",
+                                    pr["Delta"], Delta, "eq.~(27)"))
+    return tuple(rows)
+
+
+# ------------------------------------------------------------------ fault detection
+def _fault_artefact(inputs: ReportInputs) -> Mapping[str, Any] | None:
+    shapes = {"Psi": (3, 1), "Gamma_d": (3, 3)}
+    for a in inputs.by_method("fault_detection"):
+        if all(artefact_array(a, k) is not None and artefact_array(a, k).shape == s
+               for k, s in shapes.items()):
+            return a
+    return None
+
+
+def detection_applies(inputs: ReportInputs) -> bool:
+    """Hydraulic plant with the printed parameters and a three-state ``fault_detection`` artefact."""
+    return (inputs.plant_name == "hydraulic_fault" and params_match(inputs, paper.PARAMETERS)
+            and _fault_artefact(inputs) is not None)
+
+
+_X0_KEYS = ("x0", "initial_state", "initial_states", "starts", "start")
+_T_KEYS = ("t_detect", "t_d", "detection_time", "detection_times", "time", "times")
+
+
+def _time(v: Any) -> float | None:
+    """A stored detection time; None, negative or non-finite means not detected."""
+    if isinstance(v, bool) or not isinstance(v, (int, float)):
+        return None
+    v = float(v)
+    return v if math.isfinite(v) and v >= 0 else None
+
+
+def _first(node: Mapping[str, Any], keys: Sequence[str]) -> Any:
+    return next((node[k] for k in keys if k in node), None)
+
+
+def _pairs(node: Any) -> list[tuple[np.ndarray, float | None]]:
+    """(initial state, detection time) pairs from a list of records or a table of columns."""
+    out: list[tuple[np.ndarray, float | None]] = []
+    if isinstance(node, list):
+        for rec in node:
+            if isinstance(rec, Mapping):
+                x0, t = _first(rec, _X0_KEYS), _first(rec, _T_KEYS)
+                try:
+                    out.append((np.asarray(x0, dtype=float).reshape(-1), _time(t)))
+                except (TypeError, ValueError):
+                    continue
+        return out
+    if isinstance(node, Mapping):
+        for key in ("records", "runs", "results"):
+            if isinstance(node.get(key), list):
+                return _pairs(node[key])
+        x0s, ts = _first(node, _X0_KEYS), _first(node, _T_KEYS)
+        if isinstance(x0s, list) and isinstance(ts, list) and len(x0s) == len(ts):
+            try:
+                return [(np.asarray(x, dtype=float).reshape(-1), _time(t)) for x, t in zip(x0s, ts)]
+            except (TypeError, ValueError):
+                return []
+    return out
+
+
+def stored_detections(artefact: Mapping[str, Any]) -> list[tuple[np.ndarray, float | None]]:
+    """The (initial state, detection time in s) pairs a ``fault_detection`` artefact stores.
+
+    Read from ``diagnostics["detection"]`` or ``diagnostics["detections"]`` (a list of
+    records with ``x0`` and ``t_detect``, or columns of initial states and times), else
+    from the gain ``detection_times`` beside ``diagnostics["initial_states"]``. A time
+    that is None or negative means not detected. Empty when the artefact does not say
+    which initial state a time belongs to.
+    """
+    diag = artefact.get("diagnostics") or {}
+    for key in ("detection", "detections"):
+        pairs = _pairs(diag.get(key))
+        if pairs:
+            return pairs
+    times = artefact_array(artefact, "detection_times")
+    starts = _first(diag, ("initial_states", "starts"))
+    if times is not None and isinstance(starts, list) and len(starts) == times.size:
+        try:
+            return [(np.asarray(x, dtype=float).reshape(-1), _time(float(t)))
+                    for x, t in zip(starts, times.ravel())]
+        except (TypeError, ValueError):
+            return []
+    return []
+
+
+def _fault_size(artefact: Mapping[str, Any]) -> float | None:
+    diag = artefact.get("diagnostics") or {}
+    for node in (diag, diag.get("detection") if isinstance(diag.get("detection"), Mapping) else {}):
+        v = node.get("delta_bar") if isinstance(node, Mapping) else None
+        if isinstance(v, (int, float)) and not isinstance(v, bool):
+            return float(v)
+    return None
+
+
+def _half_unit(x: float) -> float:
+    return printed_precision(repr(float(x)))
+
+
+def detection_rows(inputs: ReportInputs) -> tuple[PaperRow, ...]:
+    """Observer poles, Psi, Gamma_d, the threshold (54) and the detection times of Sec. IV."""
+    art = _fault_artefact(inputs)
+    if art is None:  # `applies` selected this entry
+        raise ReportError("seed 004 comparison: no three-state fault_detection artefact")
+    Psi, Gd = artefact_array(art, "Psi"), artefact_array(art, "Gamma_d")
+    rows: list[PaperRow] = []
+    poles = np.sort(np.linalg.eigvals(Gd).real)
+    printed_poles = np.sort(np.array(paper.OBSERVER_POLES))
+    same_poles = close(printed_poles, poles, 1e-6)
+    rows.append(PaperRow(Tex(r"error poles $\mathrm{eig}(\Gamma_d)$ eq.~(27)"),
+                         Tex("$" + format_eigenvalues(printed_poles.tolist()) + "$"),
+                         Tex("$" + format_eigenvalues(poles.tolist(), 6) + "$"),
+                         AGREES if same_poles else DIFFERS,
+                         Tex("" if same_poles else "the design places other poles: its gain and "
+                             "threshold are not the paper's")))
+    if same_poles:
+        diff = np.abs(paper.PSI - Psi)
+        tol = np.vectorize(_half_unit)(paper.PSI)
+        same = bool(np.all(diff <= tol + 1e-12 * np.max(np.abs(Psi))))
+        rows.append(PaperRow(Tex(r"observer gain $\Psi$ eq.~(29)"), cell_matrix(paper.PSI, 6),
+                             cell_matrix(Psi, 6), AGREES if same else ERRATUM,
+                             Tex("equal to the printed digits" if same else "entries differ")))
+        same = close(paper.GAMMA_D, Gd, 1e-6)
+        ev_p = np.linalg.eigvals(paper.GAMMA_D)
+        wrong = not same and not close(np.sort_complex(ev_p), np.sort_complex(printed_poles + 0j), 1e-3)
+        note = ""
+        if not same:
+            note = ("the printed matrix has eigenvalues $" + format_eigenvalues(
+                [[v.real, v.imag] for v in np.sort_complex(ev_p)], 4) + "$"
+                + ("; " + escape_latex(paper.GAMMA_D_NOTE) if wrong else ""))
+        rows.append(PaperRow(Tex(r"$\Gamma_d = A - \Psi C$"), cell_matrix(paper.GAMMA_D, 6),
+                             cell_matrix(Gd, 6), AGREES if same else (ERRATUM if wrong else DIFFERS),
+                             Tex(note)))
+        rows.extend(_threshold_rows(art))
+    rows.extend(_detection_time_rows(art))
+    return tuple(rows)
+
+
+def _threshold_rows(art: Mapping[str, Any]) -> list[PaperRow]:
+    coef, rates = artefact_array(art, "threshold_coefficients"), artefact_array(art, "threshold_rates")
+    if coef is None or rates is None or coef.size != rates.size:
+        return []
+    printed = sorted(paper.THRESHOLD_TERMS, key=lambda cr: -cr[1])       # slowest term first
+    ours = sorted(zip(coef.ravel().tolist(), rates.ravel().tolist()), key=lambda cr: -cr[1])
+
+    def tex(terms) -> Tex:
+        parts = []
+        for c, r in terms:
+            parts.append(("-" if c < 0 else "+") + f" {format_number(abs(c), 6)}\\,e^{{{format_number(r, 4)}t}}")
+        return Tex("$" + " ".join(parts).lstrip("+ ") + "$")
+
+    same = len(printed) == len(ours) and close(np.array(printed), np.array(ours), 1e-9)
+    return [PaperRow(Tex(r"threshold $\bar\epsilon(t)$ eq.~(54)"),
+                     Tex("$" + re.sub(r"(\d+)/(\d+) e", r"\\tfrac{\1}{\2}\\,e", paper.THRESHOLD_TEXT)
+                         + "$"),
+                     tex(ours), AGREES if same else DIFFERS,
+                     Tex("" if same else "the threshold scales with the declared bounds of the "
+                         r"initial levels (paper: $1/4 < x_i(0) \leq 4$)"))]
+
+
+def _detection_time_rows(art: Mapping[str, Any]) -> list[PaperRow]:
+    stored = stored_detections(art)
+    size = _fault_size(art)
+    size_note = (r"the fault size $\bar\delta$ is not printed; ours with $\bar\delta = "
+                 + (format_number(size) if size is not None else r"\text{?}") + "$ (declared)")
+    rows = []
+    for k, (x0, printed) in enumerate(zip(paper.INITIAL_STATES, paper.DETECTION_TIMES)):
+        match = [t for x, t in stored if x.shape == (3,) and np.allclose(x, x0, rtol=0, atol=1e-9)]
+        label = Tex(f"detection time $t_d$, $x_0^{{({k + 1})}} = (" + ", ".join(
+            format_number(v, 3) for v in x0) + ")$ (s)")
+        if not match:
+            rows.append(PaperRow(label, cell_number(printed), Tex("--"), DIFFERS,
+                                 Tex("the artefact stores no detection time for this initial "
+                                     "state"), None, float(printed), None))
+            continue
+        t = match[0]
+        if t is None:
+            rows.append(PaperRow(label, cell_number(printed), Tex("not detected"), DIFFERS,
+                                 Tex(size_note), None, float(printed), None))
+            continue
+        diff = t - printed
+        same = abs(diff) <= printed_precision(repr(float(printed)))
+        note = "equal to the printed digits" if same else (
+            f"ours {'later' if diff > 0 else 'earlier'} by ${format_number(abs(diff) * 1e3, 3)}$~ms; "
+            + size_note)
+        rows.append(PaperRow(label, cell_number(printed), cell_number(t, 6),
+                             AGREES if same else DIFFERS, Tex(note), None, float(printed), float(t)))
+    return rows

@@ -1,0 +1,221 @@
+"""Estimator + controller combinations compared over a benchmark of scenarios.
+
+`controller_comparison` runs one control law (default: inverse dynamics,
+`InverseDynamicsLaw`) with each estimator given (``label -> factory``) over
+a list of scenarios, in this process, and returns the mean metrics of each
+(scenario, combination). `comparison_estimators` builds the factories of
+EKF, UKF and NARX estimators from one declared tuning; a combination with
+no estimator (``None``) feeds back the true state (the perfect-estimator
+baseline). Nothing here is specific to a paper: the combinations, tuning,
+gains and operating point are arguments.
+"""
+
+from __future__ import annotations
+
+import importlib
+import math
+from dataclasses import dataclass
+from typing import Any, Callable, Iterable, Mapping, Sequence
+
+import numpy as np
+
+from tanksynth.plants.base import Plant
+from tanksynth.sim.metrics import compute_metrics
+from tanksynth.sim.scenarios import CONTROL_BENCHMARK_SCENARIOS, SCENARIOS, run_scenario
+from tanksynth.sim.simulate import BatchEstimator, run_seeds
+from tanksynth.verify.closed_loops import InverseDynamicsLaw
+
+__all__ = ["ESTIMATOR_MODULES", "FilterTuning", "comparison_estimators", "ComparisonRow",
+           "controller_comparison"]
+
+#: Estimator kinds a comparison can build, and the runtime module of each.
+ESTIMATOR_MODULES: dict[str, str] = {
+    "ekf": "tanksynth.runtime.estimators.kalman",
+    "ukf": "tanksynth.runtime.estimators.ukf",
+    "narx": "tanksynth.runtime.estimators.narx",
+}
+
+EstimatorFactories = Mapping[str, tuple[Callable[[], BatchEstimator] | None, str]]
+
+
+@dataclass(frozen=True)
+class FilterTuning:
+    """One tuning for every estimator of a comparison (declared by the caller).
+
+    Attributes
+    ----------
+    Q : float
+        Process noise variance per state and sample (state units^2); ``Q I``.
+    R : float
+        Measurement noise variance (output units^2); ``R I``.
+    P0 : float
+        Initial covariance (state units^2); ``P0 I``.
+    substeps : int
+        RK4 steps of the filters' prediction per period.
+    narx_runs, narx_steps, narx_restarts, narx_iterations : int
+        NARX training: EKF data runs and samples per run, optimiser
+        restarts and iterations.
+    """
+
+    Q: float
+    R: float
+    P0: float
+    substeps: int = 2
+    narx_runs: int = 3
+    narx_steps: int = 400
+    narx_restarts: int = 1
+    narx_iterations: int = 60
+
+
+def _factory(kind: str, mod: Any, plant: Plant, ts: float, x0: np.ndarray,
+             t: FilterTuning) -> Callable[[], BatchEstimator]:
+    from tanksynth.sim.simulate import EstimatorAdapter
+
+    common = dict(Q=t.Q * np.eye(plant.n), R=t.R * np.eye(plant.q), P0=t.P0 * np.eye(plant.n),
+                  x0=x0, ts=ts, substeps=t.substeps, clip=True)
+    if kind == "ekf":
+        template = mod.ExtendedKalmanFilter(plant, mod.KalmanTuning(**common))
+    elif kind == "ukf":
+        template = mod.UnscentedKalmanFilter(plant, mod.UKFTuning(**common))
+    else:
+        from tanksynth.runtime.estimators.kalman import KalmanTuning
+
+        training = mod.train_narx(plant, KalmanTuning(**common), runs=t.narx_runs,
+                                  steps=t.narx_steps, restarts=t.narx_restarts,
+                                  max_iter=t.narx_iterations, clip=True)
+        template = mod.NARXEstimator(plant, training.tuning)
+    return lambda: EstimatorAdapter(template)
+
+
+def comparison_estimators(plant: Plant, ts: float, combinations: Mapping[str, str | None],
+                          tuning: FilterTuning, x0: Sequence[float] | None = None
+                          ) -> dict[str, tuple[Callable[[], BatchEstimator] | None, str]]:
+    """Estimator factories of the combinations, or the reason one is missing.
+
+    Parameters
+    ----------
+    plant : Plant
+    ts : float
+        Sampling period (s).
+    combinations : mapping of str to str or None
+        Label -> estimator kind (a key of `ESTIMATOR_MODULES`), or None for
+        the true state fed back.
+    tuning : FilterTuning
+    x0 : sequence of float, optional
+        Default initial estimate (state units); the scenarios may override it.
+        Default: 0.3 for every state.
+
+    Returns
+    -------
+    dict
+        label -> ``(factory or None, reason)``: the baseline has factory
+        None and an empty reason; an estimator whose module is absent (or
+        cannot be built) has factory None and the reason it is skipped.
+
+    Raises
+    ------
+    ValueError
+        An unknown estimator kind.
+    """
+    x0 = np.full(plant.n, 0.3) if x0 is None else np.asarray(x0, dtype=float)
+    out: dict[str, tuple[Callable[[], BatchEstimator] | None, str]] = {}
+    for label, kind in combinations.items():
+        if kind is None:
+            out[label] = (None, "")
+            continue
+        if kind not in ESTIMATOR_MODULES:
+            raise ValueError(f"combination {label!r}: unknown estimator kind {kind!r}; expected one "
+                             "of " + ", ".join(ESTIMATOR_MODULES) + " or None")
+        module = ESTIMATOR_MODULES[kind]
+        try:
+            mod = importlib.import_module(module)
+        except ImportError:
+            out[label] = (None, f"estimator module {module} is absent")
+            continue
+        try:
+            out[label] = (_factory(kind, mod, plant, ts, x0, tuning), "")
+        except (AttributeError, TypeError) as exc:
+            out[label] = (None, f"{module} has no usable estimator: {exc}")
+    return out
+
+
+@dataclass(frozen=True)
+class ComparisonRow:
+    """One (scenario, combination) line of a comparison.
+
+    Attributes
+    ----------
+    scenario, controller : str
+    metrics : dict of str to float
+        Mean over the runs of every metric, plus ``offset`` (mean of the
+        controlled variables' offsets) and ``computation_time`` (estimator
+        + controller time per sample, s); empty when skipped.
+    skipped : str
+        Why the row was not run ("" when it ran).
+    """
+
+    scenario: str
+    controller: str
+    metrics: Mapping[str, float]
+    skipped: str = ""
+
+
+def controller_comparison(plant: Plant, estimators: EstimatorFactories, *, x_op: Sequence[float],
+                          gains: Sequence[float], tracked: Sequence[int] = (0, 1), ts: float = 1.0,
+                          runs: int = 4, seed: int = 0,
+                          scenarios: Iterable[str] = CONTROL_BENCHMARK_SCENARIOS, substeps: int = 2,
+                          law: Callable | None = None) -> list[ComparisonRow]:
+    """Each estimator with one control law, over the scenarios (mean of ``runs`` runs).
+
+    Parameters
+    ----------
+    plant : Plant
+    estimators : mapping
+        label -> ``(factory or None, reason)`` (as `comparison_estimators`
+        returns); a non-empty reason skips the row.
+    x_op : sequence of float
+        Operating levels (initial state and set-points), state units.
+    gains : sequence of float
+        Inverse-dynamics rates ``c_i`` (1/s) of the default law.
+    tracked : sequence of int
+        Controlled states (as many as inputs).
+    ts : float
+        Sampling period (s).
+    runs, seed : int
+        Monte-Carlo runs per row and the seed (`run_seeds`).
+    scenarios : iterable of str
+        Names in `tanksynth.sim.scenarios.SCENARIOS`.
+    substeps : int
+        RK4 steps per period.
+    law : ControlLaw, optional
+        Default: `InverseDynamicsLaw` (plant, tracked, gains).
+
+    Returns
+    -------
+    list of ComparisonRow
+    """
+    from tanksynth.analysis.linearize import equilibrium_input
+
+    x_op = np.asarray(x_op, dtype=float)
+    u_op = equilibrium_input(plant, x_op).u0
+    tracked = tuple(int(i) for i in tracked)
+    if law is None:
+        law = InverseDynamicsLaw(plant, tracked, tuple(float(g) for g in gains))
+    seeds = run_seeds(seed, runs)
+    rows = []
+    for name in scenarios:
+        setup = SCENARIOS[name].setup(plant, x_op, u_op, tracked, ts=ts)
+        for label, (factory, reason) in estimators.items():
+            if reason:
+                rows.append(ComparisonRow(name, label, {}, reason))
+                continue
+            est = factory() if factory is not None else None
+            result = run_scenario(setup, plant, ts=ts, seeds=seeds, controller=law, estimator=est,
+                                  substeps=substeps)
+            metrics = compute_metrics(result, setup, plant, estimated=est is not None)
+            ours = {k: float(np.mean(m.values)) for k, m in metrics.items()}
+            offsets = [v for k, v in ours.items() if k.startswith("offset_")]
+            ours["offset"] = float(np.mean(offsets)) if offsets else math.nan
+            ours["computation_time"] = ours.get("estimator_time", 0.0) + ours.get("controller_time", 0.0)
+            rows.append(ComparisonRow(name, label, ours))
+    return rows

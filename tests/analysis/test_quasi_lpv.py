@@ -1,0 +1,89 @@
+"""Quasi-LPV form and operating domain of the Takagi-Sugeno rewriting (seed 001 eq. 7-11)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import sympy as sp
+
+from tanksynth.analysis.quasi_lpv import domain_from_plant, quasi_lpv
+from tanksynth.errors import DimensionError, RegionError, SpecError
+from tanksynth.plants import three_tank
+
+PAPER = {"z1": [-0.7, 5.0, 17.0], "z3": [0.0, -3.0, -1.0]}
+BOX = [(0.05, 0.62)] * 3
+
+
+@pytest.fixture(scope="module")
+def plant():
+    # seed 001: g = 9.82 as printed; S, Sn, alpha_i (not printed) = DTS200 / CRAN values
+    return three_tank("h1h2").with_parameters({"g": 9.82})
+
+
+@pytest.fixture(scope="module")
+def qlpv(plant):
+    return quasi_lpv(plant, PAPER)
+
+
+# --------------------------------------------------------------- decomposition
+def test_atoms_come_out_in_the_paper_order(qlpv):
+    assert qlpv.p == 3
+    assert qlpv.atom_states == ((0, 2), (1,), (1, 2))          # z1: T1-T3, z2: T2 out, z3: T3-T2
+    np.testing.assert_array_equal(qlpv.incidence, [[-1, 0, 0], [0, -1, 1], [1, 0, -1]])
+    np.testing.assert_array_equal(qlpv.A_lin, np.zeros((3, 3)))
+    np.testing.assert_allclose(qlpv.B, [[1 / 0.0154, 0], [0, 1 / 0.0154], [0, 0]])
+    np.testing.assert_array_equal(qlpv.C, [[1, 0, 0], [0, 1, 0]])
+    np.testing.assert_array_equal(qlpv.weights[1], [0, 1, 0])  # default for a one-state atom
+
+
+def test_symbolic_A_is_eq10(qlpv):
+    """A(z) of the rewriting equals seed 001 eq. (10) with lambda, gamma as symbols."""
+    A = qlpv.A_symbolic(symbolic_weights=True)
+    z1, z2, z3 = qlpv.premise_symbols
+    lam = [sp.Symbol(f"w1_{j}", real=True) for j in (1, 2, 3)]
+    gam = [sp.Symbol(f"w3_{j}", real=True) for j in (1, 2, 3)]
+    w2 = [sp.Symbol(f"w2_{j}", real=True) for j in (1, 2, 3)]
+    eq10 = sp.Matrix([
+        [-lam[0] * z1, -lam[1] * z1, -lam[2] * z1],
+        [gam[0] * z3, gam[1] * z3 - z2, gam[2] * z3],
+        [lam[0] * z1 - gam[0] * z3, lam[1] * z1 - gam[1] * z3, lam[2] * z1 - gam[2] * z3],
+    ])
+    A = A.xreplace({w2[0]: 0, w2[1]: 1, w2[2]: 0})
+    assert sp.simplify(A - eq10) == sp.zeros(3, 3)
+
+
+def test_premises_are_eq8(plant, qlpv):
+    """z1 = W13 sqrt(2g|x1-x3|)/(lambda.x) etc. with the declared DTS200 values."""
+    S, Sn, a1, a2, a3, g = 0.0154, 5e-5, 0.5, 0.675, 0.5, 9.82
+    rng = np.random.default_rng(3)
+    X = rng.uniform(0.05, 0.62, size=(200, 3))
+    lam, gam = np.array(PAPER["z1"]), np.array(PAPER["z3"])
+    x1, x2, x3 = X.T
+    z1 = a1 * Sn / S * np.sign(x1 - x3) * np.sqrt(2 * g * abs(x1 - x3)) / (X @ lam)
+    z2 = a2 * Sn / S * np.sqrt(2 * g) / np.sqrt(x2)
+    z3 = a3 * Sn / S * np.sign(x3 - x2) * np.sqrt(2 * g * abs(x3 - x2)) / (X @ gam)
+    np.testing.assert_allclose(qlpv.premise_values(X), np.column_stack([z1, z2, z3]), rtol=1e-12)
+
+
+def test_weights_validation(plant):
+    with pytest.raises(SpecError, match="unknown premise"):
+        quasi_lpv(plant, {"z9": [1, 0, 0]})
+    with pytest.raises(SpecError, match="expected 3 numbers"):
+        quasi_lpv(plant, {"z1": [1, 0]})
+    with pytest.raises(SpecError, match="all zero"):
+        quasi_lpv(plant, {"z1": [0, 0, 0]})
+    with pytest.raises(DimensionError):
+        quasi_lpv(plant, np.ones((2, 3)))
+
+
+# ---------------------------------------------------------------------- domain
+def test_domain_validation(plant):
+    with pytest.raises(SpecError):
+        domain_from_plant(plant, [(0.5, 0.1)] * 3)
+    with pytest.raises(DimensionError):
+        domain_from_plant(plant, [(0.0, 1.0)] * 2)
+    with pytest.raises(SpecError):
+        domain_from_plant(plant, BOX, gap=-1.0)
+    dom = domain_from_plant(plant, [(0.0, 0.1)] * 3, gap=0.2)     # h1 - h3 >= 0.2: empty
+    with pytest.raises(RegionError):
+        dom.sample(10)
