@@ -38,8 +38,8 @@ from tanksynth.design import estimator_methods as est
 from tanksynth.design.result import DesignMethod, DesignResult
 from tanksynth.reports import statements as st
 from tanksynth.spec import DesignSpec, Spec, load_spec as _load_spec, parse_spec as _parse_spec
-from tanksynth.spec.method_options import MethodOptions
 from tanksynth.spec import parse_spec_text as _parse_spec_text
+from tanksynth.spec.method_options import MethodOptions
 from tanksynth.verify import campaign, decentralized, estimators, fault, laws, model, narx, placement
 from tanksynth.verify import ts_observer
 from tanksynth.verify.runner import Verdict, VerdictFn

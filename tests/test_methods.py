@@ -8,6 +8,7 @@ import inspect
 import pkgutil
 import re
 import tomllib
+import typing
 from pathlib import Path
 from typing import Mapping
 
@@ -68,8 +69,13 @@ def test_row_is_complete(row):
     assert callable(row.adapter.run) and callable(row.design)
     assert callable(row.verdict) and callable(row.statement)
     assert row.kinds and set(row.kinds) <= set(KINDS)
-    if "controller" in row.kinds:
-        assert callable(row.closed_loop), f"{row.name}: a controller without closed-loop builder"
+    assert callable(row.campaign), f"{row.name}: no campaign runner"
+    if "controller" in row.kinds:       # a controller's runner builds its closed loop
+        from tanksynth.verify.closed_loops import ClosedLoop
+
+        returns = typing.get_type_hints(row.campaign).get("return")
+        assert ClosedLoop in (returns, *typing.get_args(returns)), \
+            f"{row.name}: campaign runner {row.campaign.__name__} returns {returns}, no ClosedLoop"
     assert row.summary
 
 
@@ -108,7 +114,7 @@ def _modules():
 def test_no_other_map_from_method_names():
     """Only `tanksynth.methods` derives name -> behaviour views (from `TABLE`)."""
     names = set(NAMES)
-    derived = {"METHODS", "VERDICTS", "CLOSED_LOOPS", "STATEMENTS", "ADAPTERS"}
+    derived = {"METHODS", "VERDICTS", "RUNNERS", "STATEMENTS", "ADAPTERS"}
     offenders = []
     for module in _modules():
         for attr, value in vars(module).items():
