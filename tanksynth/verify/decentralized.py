@@ -1,22 +1,21 @@
 """Verdict of ``decentralized_kalman`` (decentralised Kalman gains on the nonlinear network)."""
 
+from __future__ import annotations
 
 from typing import Any, Mapping, Sequence
 
 import numpy as np
 
-from tanksynth.errors import ArtefactError
 from tanksynth.analysis.checks import Check
+from tanksynth.errors import ArtefactError
 from tanksynth.sim.simulate import run_seeds, simulate
-from tanksynth.verify.common import artefact_gain
-from tanksynth.verify.traces import record_trace
-
-
-from tanksynth.verify.common import _equilibrium, _fmt, _guard, _matrix, _option
+from tanksynth.verify.common import (artefact_gain, artefact_matrix, fmt, guard, operating_point,
+                                     option)
+from tanksynth.verify.traces import TraceRecorder
 
 __all__ = ["DecentralizedFilter", "decentralized_kalman_verdict"]
 
-# ========================================================== decentralised Kalman gains
+
 class DecentralizedFilter:
     """The window's decentralised filter with fixed gains (a `BatchEstimator`).
 
@@ -90,7 +89,8 @@ class DecentralizedFilter:
         return self._x
 
 
-def decentralized_kalman_verdict(doc: Mapping[str, Any], spec: Any) -> list[Check]:
+def decentralized_kalman_verdict(doc: Mapping[str, Any], spec: Any, *,
+                                 trace: TraceRecorder | None = None) -> list[Check]:
     """Verdict of a ``decentralized_kalman`` artefact (seed 003).
 
     Checks: ``sparsity`` (every gain entry outside ``E`` exactly 0),
@@ -104,13 +104,13 @@ def decentralized_kalman_verdict(doc: Mapping[str, Any], spec: Any) -> list[Chec
     """
     plant = spec.plant
     n, q, m = plant.n, plant.q, plant.m
-    E = _matrix(doc, "E", (n, q))
+    E = artefact_matrix(doc, "E", (n, q))
     T = 0
     while f"K_{T}" in doc["gains"]:
         T += 1
     if T == 0:
         raise ArtefactError(f"artefact '{doc['name']}' has no gain K_0")
-    Ks = [_matrix(doc, f"K_{j}", (n, q)) for j in range(T)]
+    Ks = [artefact_matrix(doc, f"K_{j}", (n, q)) for j in range(T)]
     mask = E != 0
     bad = [(j, int(np.sum(K[~mask] != 0))) for j, K in enumerate(Ks) if np.any(K[~mask] != 0)]
     checks = [Check("sparsity", not bad,
@@ -118,7 +118,7 @@ def decentralized_kalman_verdict(doc: Mapping[str, Any], spec: Any) -> list[Chec
                     f"{mask.size}) are exactly 0" if not bad else
                     "nonzero entries outside E in " + ", ".join(f"K_{j} ({c})" for j, c in bad[:5]),
                     {"violations": bad})]
-    P0 = _matrix(doc, "P0_pred", (n, n))
+    P0 = artefact_matrix(doc, "P0_pred", (n, n))
     Pd = np.atleast_2d(artefact_gain(doc, "P_diag")).reshape(T, n)
     sym = float(np.max(np.abs(P0 - P0.T)) / max(float(np.max(np.abs(P0))), 1e-300))
     pmin = float(np.min(np.linalg.eigvalsh(0.5 * (P0 + P0.T))))
@@ -130,14 +130,14 @@ def decentralized_kalman_verdict(doc: Mapping[str, Any], spec: Any) -> list[Chec
     def simulate_window() -> list[Check]:
         ts = float(spec.ts)
         x0 = np.asarray(spec.x0, dtype=float)
-        opt_u = _option(doc, spec, "input")
+        opt_u = option(doc, spec, "input")
         if isinstance(opt_u, list) and len(opt_u) == m:
             u = np.asarray(opt_u, dtype=float)
         else:
-            u = _equilibrium(spec)[1]
-        qn = _option(doc, spec, "process_noise", 0.0)
+            u = operating_point(spec)[1]
+        qn = option(doc, spec, "process_noise", 0.0)
         qdiag = np.diag(np.asarray(qn, float)) if isinstance(qn, list) else np.full(n, float(qn))
-        rn = _option(doc, spec, "measurement_noise", 1.0)
+        rn = option(doc, spec, "measurement_noise", 1.0)
         rdiag = np.diag(np.asarray(rn, float)) if isinstance(rn, list) else np.full(q, float(rn))
         runs = 8
         rng = np.random.default_rng(11)
@@ -150,9 +150,10 @@ def decentralized_kalman_verdict(doc: Mapping[str, Any], spec: Any) -> list[Chec
                       u_init=u, process_std=np.sqrt(np.maximum(qdiag, 0) * ts),
                       measurement_std=np.sqrt(np.maximum(rdiag, 0)), substeps=4)
         filt = simulate(plant, estimator=DecentralizedFilter(plant, Ks, ts), **common)
-        record_trace(filt, plant, check="filter_vs_open_loop", estimator=True,
-                     scenario="random initial states, process and measurement noise, decentralised "
-                              "Kalman filter")
+        if trace is not None:
+            trace.record(filt, plant, check="filter_vs_open_loop", estimator=True,
+                         scenario="random initial states, process and measurement noise, "
+                                  "decentralised Kalman filter")
         open_loop = simulate(plant, estimator=DecentralizedFilter(plant, [], ts), **common)
         e_f = filt.x_hat[:, 1:] - filt.x[:, 1:]
         e_o = open_loop.x_hat[:, 1:] - open_loop.x[:, 1:]
@@ -164,7 +165,7 @@ def decentralized_kalman_verdict(doc: Mapping[str, Any], spec: Any) -> list[Chec
         finite = bool(np.all(np.isfinite(e_f)))
         return [
             Check("filter_vs_open_loop", bool(finite and rmse_f < rmse_o),
-                  f"{runs} runs of the nonlinear plant over the {T}-step window (input {_fmt(u[:4])}"
+                  f"{runs} runs of the nonlinear plant over the {T}-step window (input {fmt(u[:4])}"
                   f"{' ...' if m > 4 else ''}, initial error drawn from P0_pred, process noise std "
                   f"sqrt(Qc_ii ts), measurement noise std sqrt(R_ii)): RMSE of the decentralised "
                   f"filter {rmse_f:.4g} against {rmse_o:.4g} for the open-loop predictor from the "
@@ -176,5 +177,5 @@ def decentralized_kalman_verdict(doc: Mapping[str, Any], spec: Any) -> list[Chec
                   {"rms_tail": rms_tail, "bound": bound}),
         ]
 
-    checks += _guard("filter_simulation", simulate_window)
+    checks += guard("filter_simulation", simulate_window)
     return checks

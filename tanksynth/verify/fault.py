@@ -1,30 +1,59 @@
-"""Verdict of ``fault_detection`` (residual threshold and detection times)."""
+"""Verdict of ``fault_detection`` (residual threshold and detection times).
 
+The scenario the verdict simulates is the one the spec and the artefact
+declare, never constants of a particular plant:
+
+initial states
+    the design's option ``initial_states`` (list of state vectors, state
+    units); else the initial states recorded with the stored detection times
+    (``diagnostics.detections[*].x0``); else the rule `rule_initial_states`:
+    the operating point, the operating point moved by a quarter of ``hi -
+    lo`` with alternating signs (towards the middle of the bounds where the
+    move would leave them), and the upper corner ``hi 1`` (the largest
+    initial error, where the threshold is tightest). Every start must lie in
+    the threshold's bounds ``(lo, hi]``.
+input
+    the design's option ``input``: a constant (number or one value per
+    input) or pieces ``[[t_start, u...], ...]`` (s, input units); else the
+    input the design recorded in ``diagnostics.input`` (same forms); else
+    the equilibrium input of the spec's operating point, held.
+bounds, fault size, fault time
+    the design's options ``bounds``, ``delta_bar``, ``t_fault`` and
+    ``conservative``; else the values the design recorded beside the
+    threshold (``diagnostics.threshold.x_hat0`` / ``e_hat``,
+    ``diagnostics.delta_bar``, ...), which `threshold_recheck` ties to the
+    stored coefficients.
+"""
+
+from __future__ import annotations
 
 import math
+from dataclasses import dataclass
+from fractions import Fraction
 from typing import Any, Mapping, Sequence
 
 import numpy as np
 
-from tanksynth.errors import ArtefactError
 from tanksynth.analysis.checks import Check
+from tanksynth.errors import ArtefactError
 from tanksynth.sim.simulate import run_seeds, simulate
-from tanksynth.verify.common import artefact_gain
+from tanksynth.verify.common import (MAX_STEPS, artefact_gain, artefact_matrix, fmt, guard,
+                                     operating_point, option, relative_difference)
+from tanksynth.verify.traces import TraceRecorder
 
+__all__ = ["FAULT_TS", "FAULT_HORIZON", "FAULT_TIME_TOLERANCE", "FAULT_SLACK", "FAULT_START_OFFSET",
+           "FaultScenario", "rule_initial_states", "fault_scenario", "fault_detection_verdict"]
 
-from tanksynth.verify.common import MAX_STEPS, _fmt, _guard, _matrix, _option, _rel
-
-__all__ = ["FAULT_TS", "FAULT_HORIZON", "FAULT_TIME_TOLERANCE", "FAULT_SLACK", "fault_detection_verdict"]
-
-# ==================================================================== fault detection
 #: Sampling period of the fault-detection simulations (s), at most (the spec's ts if finer).
 FAULT_TS = 1e-3
-#: Search horizon after the fault onset (s), as in `tanksynth.design.fault.detection_time`.
+#: Search horizon after the fault onset (s).
 FAULT_HORIZON = 3.0
 #: Largest difference between a simulated detection time and the stored one (s).
 FAULT_TIME_TOLERANCE = 2e-3
 #: Healthy residual allowed above the threshold, as a fraction of the threshold after the transient.
 FAULT_SLACK = 1e-6
+#: Offset of the rule's second initial state from the operating point, as a fraction of ``hi - lo``.
+FAULT_START_OFFSET = 0.25
 
 
 class _ResidualObserver:
@@ -77,96 +106,261 @@ class _ResidualObserver:
 
 
 class _Schedule:
-    """Open-loop input: piecewise constant ``(t_start, u)``."""
+    """Open-loop input: piecewise constant, ``(t_start, u)`` pieces (s, input units)."""
 
-    def __init__(self, pieces: Sequence[tuple[float, float]], m: int):
-        self.pieces = [(float(t), float(v)) for t, v in pieces]
-        self.m = m
+    def __init__(self, pieces: Sequence[tuple[float, np.ndarray]]):
+        self.pieces = [(float(t), np.asarray(v, dtype=float)) for t, v in pieces]
 
     def __call__(self, x_hat: np.ndarray, reference: np.ndarray, t: float) -> np.ndarray:
         v = [val for start, val in self.pieces if start <= t + 1e-12][-1]
-        return np.full((x_hat.shape[0], self.m), v)
+        return np.tile(v, (x_hat.shape[0], 1))
 
 
-def fault_detection_verdict(doc: Mapping[str, Any], spec: Any) -> list[Check]:
+@dataclass(frozen=True, eq=False)
+class FaultScenario:
+    """What the fault-detection verdict simulates.
+
+    Attributes
+    ----------
+    lo, hi : float
+        Bounds of the initial levels ``lo < x_i(0) <= hi`` (state units); the
+        observer starts at ``lo``.
+    starts : ndarray, shape (R, n)
+        Plant initial states (state units).
+    starts_source : str
+        Where they come from (for the detail).
+    inputs : tuple of (float, ndarray)
+        Piecewise-constant input ``(t_start, u)`` (s, input units).
+    inputs_source : str
+    delta_bar : float
+        Fault size (the plant parameter ``delta_bar`` from ``t_fault`` on).
+    t_fault : float
+        Fault onset (s).
+    conservative : bool
+        Threshold with every coefficient taken positive (eq. 55) or as stored
+        (eq. 54).
+    """
+
+    lo: float
+    hi: float
+    starts: np.ndarray
+    starts_source: str
+    inputs: tuple
+    inputs_source: str
+    delta_bar: float
+    t_fault: float
+    conservative: bool
+
+
+def rule_initial_states(x_op: np.ndarray, lo: float, hi: float) -> np.ndarray:
+    """The documented initial states when the design declares none.
+
+    The operating point; the operating point moved by `FAULT_START_OFFSET`
+    ``(hi - lo)`` with alternating signs ``+, -, +, ...`` (a component that
+    would leave ``(lo, hi]`` moves the other way); the upper corner ``hi 1``.
+    Every component is clipped into ``(lo, hi]`` and duplicates are dropped.
+
+    Parameters
+    ----------
+    x_op : ndarray, shape (n,)
+        Operating point (state units).
+    lo, hi : float
+        Bounds of the initial levels (state units).
+
+    Returns
+    -------
+    ndarray, shape (R, n), R <= 3
+    """
+    x_op = np.asarray(x_op, dtype=float).reshape(-1)
+    n = x_op.size
+    inside_lo = np.nextafter(lo, math.inf)
+    step = FAULT_START_OFFSET * (hi - lo)
+    signs = np.array([1.0 if i % 2 == 0 else -1.0 for i in range(n)])
+    moved = x_op + signs * step
+    leaves = (moved <= lo) | (moved > hi)
+    moved = np.where(leaves, x_op - signs * step, moved)
+    out: list[np.ndarray] = []
+    for x in (x_op, moved, np.full(n, hi)):
+        x = np.clip(x, inside_lo, hi)
+        if not any(np.array_equal(x, y) for y in out):
+            out.append(x)
+    return np.array(out)
+
+
+def _recorded(doc: Mapping[str, Any], key: str) -> Any:
+    diag = doc.get("diagnostics") or {}
+    return diag.get(key) if isinstance(diag, Mapping) else None
+
+
+def _bounds(doc: Mapping[str, Any], spec: Any) -> tuple[float, float, str]:
+    raw = option(doc, spec, "bounds")
+    if raw is not None:
+        lo, hi = (float(v) for v in raw)
+        return lo, hi, "the spec's bounds"
+    th = _recorded(doc, "threshold")
+    try:
+        # exact values written as text ("1/4", "15/4")
+        lo = float(Fraction(str(th["x_hat0"][0])))
+        hi = lo + float(Fraction(str(th["e_hat"][0])))
+    except (TypeError, KeyError, IndexError, ValueError, ZeroDivisionError):
+        raise ArtefactError(f"artefact '{doc['name']}': the spec declares no bounds and the "
+                            "diagnostics record no threshold x_hat0/e_hat") from None
+    return lo, hi, "the bounds the design recorded (x_hat0, x_hat0 + e_hat)"
+
+
+def _number(doc: Mapping[str, Any], spec: Any, name: str) -> float:
+    value = option(doc, spec, name)
+    if value is None:
+        value = _recorded(doc, name)
+    if value is None:
+        raise ArtefactError(f"artefact '{doc['name']}': neither the spec nor the diagnostics give "
+                            f"{name}")
+    return float(value)
+
+
+def _inputs(doc: Mapping[str, Any], spec: Any) -> tuple[tuple, str]:
+    m = spec.plant.m
+    raw, whose = option(doc, spec, "input"), "the spec's"
+    if raw is None:
+        raw, whose = _recorded(doc, "input"), "the design's recorded"
+    if raw is None:
+        u0 = operating_point(spec)[1]
+        return ((0.0, u0),), f"the equilibrium input {fmt(u0)} of the operating point, held"
+    if isinstance(raw, (int, float)) or (isinstance(raw, list) and raw
+                                         and all(isinstance(v, (int, float)) for v in raw)):
+        u = np.broadcast_to(np.asarray(raw, dtype=float), (m,)).copy()
+        return ((0.0, u),), f"{whose} input {fmt(u)}, held"
+    pieces = []
+    for piece in raw:
+        arr = np.asarray(piece, dtype=float).reshape(-1)
+        if arr.size != m + 1:
+            raise ArtefactError(f"design '{doc['name']}': input piece {piece!r} must be "
+                                f"[t_start, u...] with {m} input value(s)")
+        pieces.append((float(arr[0]), arr[1:]))
+    pieces.sort(key=lambda p: p[0])
+    if not pieces or pieces[0][0] > 0:
+        raise ArtefactError(f"design '{doc['name']}': the input schedule must start at t = 0")
+    text = ", then ".join(f"{fmt(u)} from t = {t:g} s" for t, u in pieces)
+    return tuple(pieces), f"{whose} input schedule {text}"
+
+
+def fault_scenario(doc: Mapping[str, Any], spec: Any) -> FaultScenario:
+    """The scenario of the fault-detection verdict (see the module docstring).
+
+    Raises
+    ------
+    ArtefactError
+        A declared initial state of the wrong size or outside ``(lo, hi]``,
+        an input schedule that is not ``[[t_start, u...], ...]`` from 0, or no
+        bounds, fault size or fault time declared anywhere.
+    """
+    n = spec.plant.n
+    lo, hi, bounds_source = _bounds(doc, spec)
+    if not lo < hi:
+        raise ArtefactError(f"artefact '{doc['name']}': bounds [{lo:g}, {hi:g}] need lower < upper")
+    declared = option(doc, spec, "initial_states")
+    recorded = [d.get("x0") for d in (_recorded(doc, "detections") or [])
+                if isinstance(d, Mapping)]
+    if declared is not None:
+        starts, source = declared, "the spec's initial_states"
+    elif recorded and all(isinstance(x, list) for x in recorded):
+        starts, source = recorded, "the initial states recorded with the stored detection times"
+    else:
+        starts = rule_initial_states(operating_point(spec)[0], lo, hi)
+        source = (f"the rule: operating point, operating point +- {FAULT_START_OFFSET:g} (hi - lo) "
+                  "alternately, upper corner")
+    try:
+        starts = np.asarray(starts, dtype=float).reshape(-1, n)
+    except ValueError:
+        raise ArtefactError(f"artefact '{doc['name']}': initial states {starts!r} are not vectors "
+                            f"of {n} states") from None
+    bad = [i for i, x in enumerate(starts) if not (np.all(x > lo) and np.all(x <= hi))]
+    if bad:
+        raise ArtefactError(f"artefact '{doc['name']}': initial state(s) {starts[bad].tolist()} "
+                            f"({source}) lie outside the threshold's bounds ({lo:g}, {hi:g}]")
+    inputs, inputs_source = _inputs(doc, spec)
+    conservative = option(doc, spec, "conservative")
+    if conservative is None:
+        conservative = _recorded(doc, "conservative")
+    return FaultScenario(lo, hi, starts, f"{source}; bounds from {bounds_source}", inputs,
+                         inputs_source, _number(doc, spec, "delta_bar"),
+                         _number(doc, spec, "t_fault"),
+                         True if conservative is None else bool(conservative))
+
+
+def _threshold_recheck(Psi: np.ndarray, Gd: np.ndarray, coef: np.ndarray, rates: np.ndarray,
+                       A: np.ndarray, C: np.ndarray, e_hat: float) -> list[Check]:
+    n = A.shape[0]
+    G = A - Psi @ C
+    dg = relative_difference(Gd, G)
+    lam, V = np.linalg.eig(G)
+    w = (C @ V).ravel() * np.linalg.solve(V, np.full(n, e_hat))
+    order = np.argsort(-lam.real)
+    lam, w = lam[order].real, w[order].real
+    ok_shape = lam.size == rates.size
+    dr = relative_difference(np.sort(rates), np.sort(lam)) if ok_shape else math.inf
+    dc = math.inf
+    if ok_shape:
+        pairs = sorted(zip(rates, coef))
+        dc = relative_difference(np.array([c for _, c in pairs]),
+                                 np.array([c for _, c in sorted(zip(lam, w))]))
+    ok = bool(max(dg, dr, dc) <= 1e-6)
+    return [Check("threshold_recheck", ok,
+                  f"stored Gamma_d against A - Psi C from the stored Psi {fmt(Psi.ravel())}: "
+                  f"relative difference {dg:.3g}; stored threshold rates {fmt(rates)} against "
+                  f"eig(A - Psi C) {fmt(lam)}: {dr:.3g}; coefficients {fmt(coef)} against "
+                  f"C V diag(V^-1 e_hat) {fmt(w)} with e_hat = {e_hat:g}: {dc:.3g} (tolerance "
+                  "1e-06 each)", {"gamma_difference": dg, "rate_difference": dr,
+                                  "coefficient_difference": dc})]
+
+
+def fault_detection_verdict(doc: Mapping[str, Any], spec: Any, *,
+                            trace: TraceRecorder | None = None) -> list[Check]:
     """Verdict of a ``fault_detection`` artefact (seed 004 section II-F).
 
     Nothing is re-derived symbolically. ``threshold_recheck``: the stored
     ``Gamma_d`` equals ``A - Psi C`` (``A, C`` the Jacobians of the healthy
     plant, ``Psi`` the stored gain), and the stored threshold rates and
     coefficients equal, in floating point, the eigenvalues of ``A - Psi C``
-    and ``C V diag(V^-1 e_hat)`` (``e_hat = (hi - lo) 1`` from the spec's
-    bounds); relative tolerance 1e-6. Then the plant is simulated
-    (``simulate``, sampling ``min(ts, 1 ms)``, 4 RK4 substeps) from seed
-    004's three initial states (inside the bounds) under seed 004's input
-    (2 on [0, 1 s), then 1), with the observer (stored ``Psi``) started at
-    ``lo``: ``no_false_alarm`` -- the healthy plant's residual stays at or
-    below the stored threshold on ``[0.02 t_f, t_f + horizon]``, up to
-    `FAULT_SLACK` times the threshold at ``0.02 t_f`` (integration error; the
-    first 2 % of ``t_f`` is the initial transient, where the threshold equals
-    the largest possible residual), and so does the faulty plant's before
-    ``t_f``; ``fault_detected`` -- with the declared
+    and ``C V diag(V^-1 e_hat)`` (``e_hat = (hi - lo) 1``); relative
+    tolerance 1e-6. Then the plant is simulated (``simulate``, sampling
+    ``min(ts, 1 ms)``, 4 RK4 substeps) from the scenario's initial states
+    under its input (`fault_scenario`), with the observer (stored ``Psi``)
+    started at ``lo``: ``no_false_alarm`` -- the healthy plant's residual
+    stays at or below the stored threshold on ``[0.02 t_f, t_f + horizon]``,
+    up to `FAULT_SLACK` times the threshold at ``0.02 t_f`` (integration
+    error; the first 2 % of ``t_f`` is the initial transient, where the
+    threshold equals the largest possible residual), and so does the faulty
+    plant's before ``t_f``; ``fault_detected`` -- with the declared
     ``delta_bar`` from ``t_f``, the residual exceeds the threshold at some
     ``t_d`` in ``(t_f, t_f + horizon]`` for every start (``horizon`` =
-    `FAULT_HORIZON`), and, where the artefact stores detection times,
-    ``|t_d - stored| <= FAULT_TIME_TOLERANCE``.
+    `FAULT_HORIZON`), and, where the artefact stores detection times for the
+    same initial states, ``|t_d - stored| <= FAULT_TIME_TOLERANCE``.
     """
-    from tanksynth.design.fault import SEED004_INITIAL_STATES, SEED004_INPUT
     from tanksynth.analysis.linearize import linearize
     from tanksynth.sim.simulate import ParameterChange
 
     plant = spec.plant
-    n, m = plant.n, plant.m
-    Psi = _matrix(doc, "Psi", (n, 1))
-    Gd = _matrix(doc, "Gamma_d", (n, n))
+    n = plant.n
+    Psi = artefact_matrix(doc, "Psi", (n, 1))
+    Gd = artefact_matrix(doc, "Gamma_d", (n, n))
     coef = np.asarray(artefact_gain(doc, "threshold_coefficients"), dtype=float).reshape(-1)
     rates = np.asarray(artefact_gain(doc, "threshold_rates"), dtype=float).reshape(-1)
     if coef.size != rates.size or coef.size == 0:
         raise ArtefactError(f"artefact '{doc['name']}': threshold has {coef.size} coefficients and "
                             f"{rates.size} rates")
-    bounds = [float(b) for b in _option(doc, spec, "bounds", [0.25, 4.0])]
-    lo, hi = bounds
-    delta_bar = float(_option(doc, spec, "delta_bar", 1.0))
-    t_f = float(_option(doc, spec, "t_fault", 2.0))
-    conservative = bool(_option(doc, spec, "conservative", True))
+    sc = fault_scenario(doc, spec)
+    lo, hi, t_f, delta_bar = sc.lo, sc.hi, sc.t_fault, sc.delta_bar
     params = {"delta_bar": 0.0} if "delta_bar" in {p.name for p in plant.parameters} else {}
     healthy = plant.with_parameters(params) if params else plant
-    x_op = np.asarray(spec.x0, dtype=float)
-    u_op = np.asarray(spec.given_u0 if spec.given_u0 is not None else np.zeros(m), dtype=float)
+    x_op, u_op = operating_point(spec)
     lin = linearize(healthy, x_op, u_op)
     A, C = np.asarray(lin.F, float), np.asarray(lin.C, float)
-    checks: list[Check] = []
-
-    def recheck() -> list[Check]:
-        G = A - Psi @ C
-        dg = _rel(Gd, G)
-        lam, V = np.linalg.eig(G)
-        w = (C @ V).ravel() * np.linalg.solve(V, np.full(n, hi - lo))
-        order = np.argsort(-lam.real)
-        lam, w = lam[order].real, w[order].real
-        ok_shape = lam.size == rates.size
-        dr = _rel(np.sort(rates), np.sort(lam)) if ok_shape else math.inf
-        dc = math.inf
-        if ok_shape:
-            pairs = sorted(zip(rates, coef))
-            dc = _rel(np.array([c for _, c in pairs]), np.array([c for _, c in sorted(zip(lam, w))]))
-        ok = bool(max(dg, dr, dc) <= 1e-6)
-        return [Check("threshold_recheck", ok,
-                      f"stored Gamma_d against A - Psi C from the stored Psi {_fmt(Psi.ravel())}: "
-                      f"relative difference {dg:.3g}; stored threshold rates {_fmt(rates)} against "
-                      f"eig(A - Psi C) {_fmt(lam)}: {dr:.3g}; coefficients {_fmt(coef)} against "
-                      f"C V diag(V^-1 e_hat) {_fmt(w)} with e_hat = {hi - lo:g}: {dc:.3g} (tolerance "
-                      "1e-06 each)", {"gamma_difference": dg, "rate_difference": dr,
-                                      "coefficient_difference": dc})]
-
-    checks += _guard("threshold_recheck", recheck)
+    checks = guard("threshold_recheck",
+                   lambda: _threshold_recheck(Psi, Gd, coef, rates, A, C, hi - lo))
 
     def simulate_detection() -> list[Check]:
-        if n == 3:
-            starts = np.array(SEED004_INITIAL_STATES, dtype=float)
-        else:
-            starts = np.array([[hi] * n, [0.5 * (lo + hi)] * n])
-        starts = np.clip(starts, np.nextafter(lo, math.inf), hi)
+        starts = sc.starts
         R = starts.shape[0]
         ts = min(float(spec.ts) if spec.ts else FAULT_TS, FAULT_TS)
         k_f = int(round(t_f / ts))
@@ -178,16 +372,14 @@ def fault_detection_verdict(doc: Mapping[str, Any], spec: Any) -> list[Check]:
         obs = _ResidualObserver(plant, Psi, ts)
         change = [ParameterChange(k_f, {"delta_bar": faults})] if params else []
         res = simulate(plant, ts=ts, steps=steps, x0=x0, seeds=run_seeds(0, 2 * R),
-                       controller=_Schedule(SEED004_INPUT, m), estimator=obs,
+                       controller=_Schedule(sc.inputs), estimator=obs,
                        x_hat0=np.full((2 * R, n), lo), parameters=params or None,
                        changes=change, substeps=4)
         t = res.t
         r = np.abs(np.array(obs.residuals)[:, :, 0]).T            # (2R, N + 1)
         tt = t[None, :]
-        if conservative:
-            thr = np.sum(np.abs(coef)[:, None] * np.exp(rates[:, None] * t[None, :]), axis=0)
-        else:
-            thr = np.sum(coef[:, None] * np.exp(rates[:, None] * t[None, :]), axis=0)
+        weights = np.abs(coef) if sc.conservative else coef
+        thr = np.sum(weights[:, None] * np.exp(rates[:, None] * t[None, :]), axis=0)
         margin = r - thr[None, :]
         t_skip = 0.02 * t_f
         quiet = (tt >= t_skip)
@@ -206,21 +398,21 @@ def fault_detection_verdict(doc: Mapping[str, Any], spec: Any) -> list[Check]:
             a, b = margin[i, k - 1], margin[i, k]
             frac = (-a / (b - a)) if (a < 0 < b) else 1.0
             detect.append(float(t[k - 1] + frac * ts))
-        stored = None
-        if "detection_times" in doc["gains"] and n == 3:
-            stored = np.asarray(artefact_gain(doc, "detection_times"), dtype=float).reshape(-1)
-        diffs = [None if (d is None or stored is None or i >= stored.size or stored[i] < 0)
-                 else abs(d - float(stored[i])) for i, d in enumerate(detect)]
+        stored = _stored_times(doc, starts)
+        diffs = [None if (d is None or s is None) else abs(d - s) for d, s in zip(detect, stored)]
         ok_d = all(d is not None and t_f < d <= t_f + FAULT_HORIZON for d in detect) and \
             all(df is None or df <= FAULT_TIME_TOLERANCE for df in diffs)
-        thr_name = "eq. 55 (conservative)" if conservative else "eq. 54"
-        setup = (f"{R} starts {_fmt(starts)}, observer from x_hat = {lo:g}, input 2 on [0, 1 s) then "
-                 f"1, sampled every {ts:g} s (4 RK4 substeps), stored Psi, threshold {thr_name} from "
-                 "the stored coefficients and rates")
+        thr_name = "eq. 55 (conservative)" if sc.conservative else "eq. 54"
+        setup = (f"{R} starts {fmt(starts)} ({sc.starts_source}), observer from x_hat = {lo:g}, "
+                 f"input: {sc.inputs_source}; sampled every {ts:g} s (4 RK4 substeps), stored Psi, "
+                 f"threshold {thr_name} from the stored coefficients and rates")
         td = ", ".join("none" if d is None else f"{d:.5g} s" for d in detect)
-        sd = "" if stored is None else f"; stored {_fmt(stored[:R], 6)} s, differences " + ", ".join(
-            "-" if df is None else f"{df:.3g}" for df in diffs) + \
-            f" s (tolerance {FAULT_TIME_TOLERANCE:g} s)"
+        compared = [i for i, s in enumerate(stored) if s is not None]
+        sd = "; no stored detection time for these initial states" if not compared else (
+            f"; stored {fmt(np.array([stored[i] for i in compared]), 6)} s for start(s) "
+            f"{[i + 1 for i in compared]}, differences " + ", ".join(
+                f"{diffs[i]:.3g}" if diffs[i] is not None else "-" for i in compared)
+            + f" s (tolerance {FAULT_TIME_TOLERANCE:g} s)")
         return [
             Check("no_false_alarm", ok_h,
                   f"{setup}: healthy plant, largest |epsilon| - threshold on [{t_skip:g}, "
@@ -228,14 +420,37 @@ def fault_detection_verdict(doc: Mapping[str, Any], spec: Any) -> list[Check]:
                   f"{worst_pre:.3g} (both must be <= {slack:.3g} = {FAULT_SLACK:g} x the threshold at "
                   f"{t_skip:g} s, integration error; the first {t_skip:g} s = 2 % of t_f are the "
                   "initial transient)", {"healthy_margin": worst_h, "pre_fault_margin": worst_pre,
-                                         "slack": slack, "transient_s": t_skip, "ts": ts}),
+                                         "slack": slack, "transient_s": t_skip, "ts": ts,
+                                         "starts": starts.tolist()}),
             Check("fault_detected", bool(ok_d),
                   f"{setup}: fault delta_bar = {delta_bar:g} from t_f = {t_f:g} s: detection at "
                   f"t_d = {td} (must lie in ({t_f:g}, {t_f + FAULT_HORIZON:g}] s){sd}",
-                  {"t_detect": detect, "stored": None if stored is None else stored.tolist(),
-                   "differences": diffs, "t_fault": t_f, "delta_bar": delta_bar,
-                   "horizon_s": FAULT_HORIZON, "tolerance_s": FAULT_TIME_TOLERANCE}),
+                  {"t_detect": detect, "stored": stored, "differences": diffs, "t_fault": t_f,
+                   "delta_bar": delta_bar, "horizon_s": FAULT_HORIZON,
+                   "tolerance_s": FAULT_TIME_TOLERANCE, "starts": starts.tolist()}),
         ]
 
-    checks += _guard("fault_detected", simulate_detection)
-    return checks
+    return checks + guard("fault_detected", simulate_detection)
+
+
+def _stored_times(doc: Mapping[str, Any], starts: np.ndarray) -> list[float | None]:
+    """The stored detection time of each start (None where the artefact claims none for it).
+
+    The stored ``detection_times[i]`` belongs to the initial state recorded
+    as ``diagnostics.detections[i].x0`` (a negative time: not detected).
+    """
+    if "detection_times" not in doc["gains"]:
+        return [None] * len(starts)
+    times = np.asarray(artefact_gain(doc, "detection_times"), dtype=float).reshape(-1)
+    recorded = [d.get("x0") if isinstance(d, Mapping) else None
+                for d in (_recorded(doc, "detections") or [])]
+    out: list[float | None] = []
+    for x in starts:
+        found = None
+        for i, r in enumerate(recorded[:times.size]):
+            if r is not None and np.allclose(np.asarray(r, dtype=float).reshape(-1), x,
+                                             rtol=1e-12, atol=1e-12) and times[i] >= 0:
+                found = float(times[i])
+                break
+        out.append(found)
+    return out

@@ -1,24 +1,28 @@
 """Verdicts of the control laws: ``integral_tracking``, ``feedback_linearization``, ``inverse_dynamics``."""
 
+from __future__ import annotations
 
 import math
 from typing import Any, Mapping
 
 import numpy as np
 
-from tanksynth.errors import ArtefactError
 from tanksynth.analysis.checks import Check
 from tanksynth.analysis.rank import controllability_rank
+from tanksynth.errors import ArtefactError
 from tanksynth.sim.simulate import run_seeds, simulate
-from tanksynth.verify.common import artefact_gain
-from tanksynth.verify.traces import record_trace
-
-
-from tanksynth.verify.common import CasadiControlLaw, CasadiIntegralLaw, MAX_STEPS, MODEL_TOLERANCE, PERTURBATION, _designed_tau, _equilibrium, _fmt, _guard, _matrix, _option, _output_at, _output_rows, _pole_check, _rank_check, _rel, _servo_check, _stability_check, _tracked_outputs
+from tanksynth.verify.common import (MAX_STEPS, MODEL_TOLERANCE, PERTURBATION, CasadiControlLaw,
+                                     CasadiIntegralLaw, artefact_gain, artefact_matrix, fmt, guard,
+                                     option, output_at, output_rows, pole_check,
+                                     rank_check, relative_difference, stability_check,
+                                     tracked_outputs)
+from tanksynth.verify.numerics import integral_augmentation
+from tanksynth.verify.simulations import designed_time_constant, servo_check
+from tanksynth.verify.traces import TraceRecorder
 
 __all__ = ["integral_tracking_verdict", "feedback_linearization_verdict", "inverse_dynamics_verdict"]
 
-# ===================================================================== control laws
+
 def _law(doc: Mapping[str, Any]) -> Any:
     from tanksynth.runtime.laws import law_from_document
 
@@ -35,7 +39,8 @@ def _region_samples(plant: Any, count: int = 24, seed: int = 7) -> np.ndarray:
     return region_points(plant, 0, count, seed, 0.05)
 
 
-def integral_tracking_verdict(doc: Mapping[str, Any], spec: Any) -> list[Check]:
+def integral_tracking_verdict(doc: Mapping[str, Any], spec: Any, *,
+                              trace: TraceRecorder | None = None) -> list[Check]:
     """Verdict of an ``integral_tracking`` artefact (seed 000 eq. 13-16 with saturation).
 
     Checks: ``equilibrium`` (``u0`` balances the model at ``x0``),
@@ -49,18 +54,17 @@ def integral_tracking_verdict(doc: Mapping[str, Any], spec: Any) -> list[Check]:
     from tanksynth.runtime.laws import integral_tracking_law
     from tanksynth.spec.options import parse_poles
     from tanksynth.analysis.linearize import linearize
-    from tanksynth.design.placement import integral_augmentation
 
     plant = spec.plant
     n, m = plant.n, plant.m
-    K1 = _matrix(doc, "K1", (m, n))
+    K1 = artefact_matrix(doc, "K1", (m, n))
     K2 = np.atleast_2d(artefact_gain(doc, "K2")).reshape(m, -1)
     p = K2.shape[1]
-    C1 = _matrix(doc, "C1", (p, n))
-    Kaw = _matrix(doc, "Kaw", (p, m))
+    C1 = artefact_matrix(doc, "C1", (p, n))
+    Kaw = artefact_matrix(doc, "Kaw", (p, m))
     x0 = artefact_gain(doc, "x0").reshape(n)
     u0 = artefact_gain(doc, "u0").reshape(m)
-    limits = _matrix(doc, "input_limits", (m, 2))
+    limits = artefact_matrix(doc, "input_limits", (m, 2))
     ts = float(spec.ts)
     checks = []
     residual = plant.compiled.rhs(x0[None], u0[None])[0]
@@ -69,11 +73,11 @@ def integral_tracking_verdict(doc: Mapping[str, Any], spec: Any) -> list[Check]:
     checks.append(Check("equilibrium", bool(worst <= 1e-9 * max(scale, 1.0)),
                         f"max |f(x0, u0)| with the stored x0, u0 = {worst:.3g} state units/s "
                         f"(tolerance {1e-9 * max(scale, 1.0):.3g})", {"residual": residual.tolist()}))
-    scheme = str(_option(doc, spec, "anti_windup", "back_calculation"))
-    gamma = float(_option(doc, spec, "aw_gain", 1.0))
+    scheme = str(option(doc, spec, "anti_windup", "back_calculation"))
+    gamma = float(option(doc, spec, "aw_gain", 1.0))
     built = integral_tracking_law(K1, K2, x0, u0, C1, ts, limits, anti_windup=scheme, aw_gain=gamma,
                                   name="rebuilt")
-    kd = _rel(Kaw, built.Kaw) if np.any(built.Kaw) else float(np.max(np.abs(Kaw)))
+    kd = relative_difference(Kaw, built.Kaw) if np.any(built.Kaw) else float(np.max(np.abs(Kaw)))
     checks.append(Check("anti_windup_gain", bool(kd <= MODEL_TOLERANCE),
                         f"stored Kaw against the {scheme} scheme of the spec (gamma = {gamma:g}) applied "
                         f"to the stored K2: difference {kd:.3g} (tolerance {MODEL_TOLERANCE:g})",
@@ -87,37 +91,39 @@ def integral_tracking_verdict(doc: Mapping[str, Any], spec: Any) -> list[Check]:
         R = (C1 @ X.T).T[::-1]
         ours = CasadiControlLaw(built.law).evaluate(X, Z, R)
         theirs = CasadiControlLaw(law).evaluate(X, Z, R)
-        diff = max(_rel(theirs[0], ours[0]), _rel(theirs[1], ours[1]))
+        diff = max(relative_difference(theirs[0], ours[0]), relative_difference(theirs[1], ours[1]))
         return [Check("law_matches_gains", bool(diff <= 1e-9),
                       f"serialised law (diagnostics.law) against the law built from the gains K1, K2, "
                       f"x0, u0, C1, input_limits at {X.shape[0]} region points: relative difference "
                       f"{diff:.3g} (tolerance 1e-09)", {"relative_difference": diff})]
 
-    checks += _guard("law_matches_gains", law_match)
+    checks += guard("law_matches_gains", law_match)
     lin = linearize(plant, x0, u0, ts=ts)
-    aug = integral_augmentation(lin.Ad, lin.Bd, C1, ts)
+    Aa, Ba = integral_augmentation(lin.Ad, lin.Bd, C1, ts)
     K = np.hstack([K1, K2])
-    eigs = np.linalg.eigvals(aug.A - aug.B @ K)
+    eigs = np.linalg.eigvals(Aa - Ba @ K)
     what = "the augmented closed loop on the model re-linearised at (x0, u0)"
-    poles = _option(doc, spec, "poles")
+    poles = option(doc, spec, "poles")
     if poles is None:
         checks.append(Check("poles", None, "the spec entry of this artefact gives no poles"))
     else:
-        checks.append(_pole_check(eigs, parse_poles(poles, "poles"), what))
-    checks.append(_stability_check(eigs, "discrete", what))
-    checks.append(_rank_check("rank_controllability_augmented", controllability_rank(aug.A, aug.B),
+        checks.append(pole_check(eigs, parse_poles(poles, "poles"), what))
+    checks.append(stability_check(eigs, "discrete", what))
+    checks.append(rank_check("rank_controllability_augmented", controllability_rank(Aa, Ba),
                               "the augmented (Aa, Ba) re-linearised at (x0, u0)"))
     rows = [int(np.argmax(np.abs(r))) for r in C1]
     outputs = [s.name for s in plant.outputs]
     states = [s.name for s in plant.states]
     out_idx = [outputs.index(states[i]) if states[i] in outputs else i for i in rows]
-    tau, rule = _designed_tau(doc, spec, eigs, "discrete", ts)
-    checks += _guard("servo_tracking", lambda: _servo_check(plant, CasadiIntegralLaw(built.law), x0,
-                                                            u0, out_idx, tau, ts, rule=rule))
+    tau, rule = designed_time_constant(doc, spec, eigs, "discrete", ts)
+    checks += guard("servo_tracking", lambda: servo_check(plant, CasadiIntegralLaw(built.law), x0,
+                                                          u0, out_idx, tau, ts, rule=rule,
+                                                          trace=trace))
     return checks
 
 
-def feedback_linearization_verdict(doc: Mapping[str, Any], spec: Any) -> list[Check]:
+def feedback_linearization_verdict(doc: Mapping[str, Any], spec: Any, *,
+                                   trace: TraceRecorder | None = None) -> list[Check]:
     """Verdict of a ``feedback_linearization`` artefact (seed 000 section II-C).
 
     Checks: ``rank_decoupling`` (stored ``Lambda(x0)`` invertible),
@@ -131,12 +137,12 @@ def feedback_linearization_verdict(doc: Mapping[str, Any], spec: Any) -> list[Ch
     plant = spec.plant
     n, m = plant.n, plant.m
     K = np.atleast_2d(artefact_gain(doc, "K")).reshape(m, -1)
-    Lam = _matrix(doc, "Lambda_x0", (m, m))
+    Lam = artefact_matrix(doc, "Lambda_x0", (m, m))
     Lam0 = artefact_gain(doc, "Lambda0_x0").reshape(m)
     u0 = artefact_gain(doc, "u0").reshape(m)
     x0 = artefact_gain(doc, "x0").reshape(n)
-    names = _tracked_outputs(doc, spec)
-    out_idx = _output_rows(plant, names)
+    names = tracked_outputs(doc, spec)
+    out_idx = output_rows(plant, names)
     checks = []
     rk = np.linalg.matrix_rank(Lam)
     cond = float(np.linalg.cond(Lam))
@@ -147,11 +153,11 @@ def feedback_linearization_verdict(doc: Mapping[str, Any], spec: Any) -> list[Ch
 
     def law_match() -> list[Check]:
         law = CasadiControlLaw(_law(doc))
-        y0 = _output_at(plant, x0)[out_idx]
+        y0 = output_at(plant, x0)[out_idx]
         refs = np.vstack([y0, y0 * (1 + PERTURBATION), y0 * (1 - 0.5 * PERTURBATION)])
         X = np.tile(x0, (refs.shape[0], 1))
         u, zeta = law.evaluate(X, refs)[:2]
-        items = [_rel(u[0], u0)]
+        items = [relative_difference(u[0], u0)]
         detail = [f"u(x0, y(x0)) vs stored u0: {items[0]:.3g}"]
         if degree_one:
             z_exp = (refs - y0) * K[:, 0]
@@ -159,7 +165,7 @@ def feedback_linearization_verdict(doc: Mapping[str, Any], spec: Any) -> list[Ch
             u_exp = np.linalg.solve(Lam, (z_exp - Lam0).T).T
             lim = plant.input_limits
             unsat = np.all((u_exp > lim[:, 0]) & (u_exp < lim[:, 1]), axis=1)
-            ud = _rel(u[unsat], u_exp[unsat]) if unsat.any() else 0.0
+            ud = relative_difference(u[unsat], u_exp[unsat]) if unsat.any() else 0.0
             items += [zd, ud]
             detail += [f"zeta vs K (y_r - y) with the stored K: {zd:.3g}",
                        f"u vs Lambda(x0)^-1 (zeta - Lambda_0(x0)) with the stored matrices "
@@ -169,7 +175,7 @@ def feedback_linearization_verdict(doc: Mapping[str, Any], spec: Any) -> list[Ch
                       "serialised law (diagnostics.law) at x0 against the gains: " + "; ".join(detail)
                       + " (relative, tolerance 1e-08)", {"differences": items})]
 
-    checks += _guard("law_matches_gains", law_match)
+    checks += guard("law_matches_gains", law_match)
     if not degree_one:
         checks.append(Check("time_constant", None, "outputs of relative degree > 1: the first-order "
                                                    "time-constant claim does not apply"))
@@ -184,8 +190,7 @@ def feedback_linearization_verdict(doc: Mapping[str, Any], spec: Any) -> list[Ch
         ts_sim = 0.005 / float(np.max(k))
         if spec.ts:
             ts_sim = min(ts_sim, float(spec.ts))
-        _, u_eq = _equilibrium(spec)
-        y0 = _output_at(plant, x0)[out_idx]
+        y0 = output_at(plant, x0)[out_idx]
         out = []
         for j, name in enumerate(names):
             tau = 1.0 / k[j]
@@ -199,9 +204,11 @@ def feedback_linearization_verdict(doc: Mapping[str, Any], spec: Any) -> list[Ch
             ref[k_step:, j] += step
             res = simulate(plant, ts=ts_sim, steps=steps, x0=x0, seeds=run_seeds(0, 1),
                            controller=law, reference=ref, u_init=u0, substeps=2)
-            record_trace(res, plant, check=f"time_constant_{name}",
-                         reference_names=[plant.outputs[i].name for i in out_idx],
-                         scenario=f"step of 5 % on the set-point of {name} at t = {k_step * ts_sim:g} s")
+            if trace is not None:
+                trace.record(res, plant, check=f"time_constant_{name}",
+                             reference_names=[plant.outputs[i].name for i in out_idx],
+                             scenario=f"step of 5 % on the set-point of {name} at "
+                                      f"t = {k_step * ts_sim:g} s")
             y = res.y[0][:, out_idx]
             rise = (y[k_step:, j] - y0[j]) / step
             t = (np.arange(rise.size)) * ts_sim
@@ -231,18 +238,19 @@ def feedback_linearization_verdict(doc: Mapping[str, Any], spec: Any) -> list[Ch
                                  "step (tolerance 1 %)", {"relative_deviation": dev}))
         return out
 
-    checks += _guard("time_constant", responses)
+    checks += guard("time_constant", responses)
     return checks
 
 
-def inverse_dynamics_verdict(doc: Mapping[str, Any], spec: Any) -> list[Check]:
+def inverse_dynamics_verdict(doc: Mapping[str, Any], spec: Any, *,
+                             trace: TraceRecorder | None = None) -> list[Check]:
     """Verdict of an ``inverse_dynamics`` artefact (seed 002 eq. 46-47).
 
     Checks: ``rank_input_matrix`` (the inputs act independently on the
     controlled states at ``x0``), ``law_matches_gains`` (the serialised law
     equals `inverse_dynamics_law` built from the stored rates ``C``, and
-    gives the stored ``u0`` at ``x0``), ``servo_scenario`` (seed 002 servo
-    scenario with the law built from the gains, true state fed back: ISE
+    gives the stored ``u0`` at ``x0``), ``servo_scenario`` (the servo
+    scenario of `tanksynth.sim.scenarios` with the law built from the gains, true state fed back: ISE
     finite and the tracking time within the horizon).
     """
     from tanksynth.runtime.laws import inverse_dynamics_law
@@ -256,13 +264,13 @@ def inverse_dynamics_verdict(doc: Mapping[str, Any], spec: Any) -> list[Check]:
     x0 = artefact_gain(doc, "x0").reshape(n)
     u0 = artefact_gain(doc, "u0").reshape(m)
     states = [s.name for s in plant.states]
-    controlled = _option(doc, spec, "controlled")
+    controlled = option(doc, spec, "controlled")
     if not isinstance(controlled, list):
         diag = doc.get("diagnostics") or {}
         controlled = diag.get("controlled") if isinstance(diag, Mapping) else None
     if not isinstance(controlled, list) or len(controlled) != m:
         controlled = None
-    saturate = bool(_option(doc, spec, "saturate", True))
+    saturate = bool(option(doc, spec, "saturate", True))
     checks = []
     built = inverse_dynamics_law(plant, C, controlled, saturate=saturate, name="rebuilt")
     idx = [states.index(c) for c in built.controlled]
@@ -279,15 +287,15 @@ def inverse_dynamics_verdict(doc: Mapping[str, Any], spec: Any) -> list[Check]:
         X = np.vstack([x0, _region_samples(plant)])
         R = np.vstack([x0[idx], X[::-1][:-1, idx]])
         a, b = law.evaluate(X, R)[0], ours.evaluate(X, R)[0]
-        diff = _rel(a, b)
-        d0 = _rel(a[0], u0)
+        diff = relative_difference(a, b)
+        d0 = relative_difference(a[0], u0)
         return [Check("law_matches_gains", bool(diff <= 1e-9 and d0 <= 1e-9),
                       f"serialised law against inverse_dynamics_law built from the stored C = "
                       f"{C.tolist()} at {X.shape[0]} points: relative difference {diff:.3g}; at x0 "
                       f"with the set-points at x0 it gives the stored u0 to {d0:.3g} (tolerance 1e-09)",
                       {"relative_difference": diff, "u0_difference": d0})]
 
-    checks += _guard("law_matches_gains", law_match)
+    checks += guard("law_matches_gains", law_match)
 
     def servo() -> list[Check]:
         sc = scenario("servo")
@@ -295,22 +303,23 @@ def inverse_dynamics_verdict(doc: Mapping[str, Any], spec: Any) -> list[Check]:
         setup = sc.setup(plant, x0, u0, tuple(idx), ts=ts)
         res = run_scenario(setup, plant, ts=ts, seeds=run_seeds(0, 2),
                            controller=CasadiControlLaw(built.law), substeps=4)
-        record_trace(res, plant, check="servo_scenario",
-                     reference_names=[states[i] for i in setup.tracked],
-                     scenario=f"seed 002 servo scenario ({sc.description})")
+        if trace is not None:
+            trace.record(res, plant, check="servo_scenario",
+                         reference_names=[states[i] for i in setup.tracked],
+                         scenario=f"servo scenario ({sc.description})")
         met = compute_metrics(res, setup, plant)
         ise = np.array([met[f"ise_{states[i]}"].values for i in idx])
         track = met["tracking_time"].values
         horizon = (setup.steps - setup.setpoint_samples[0]) * ts
         ok = bool(np.all(np.isfinite(ise)) and np.all(np.isfinite(track)) and np.all(track < horizon))
         return [Check("servo_scenario", ok,
-                      f"seed 002 servo scenario ({sc.description}; {setup.steps} samples of {ts:g} s, "
+                      f"servo scenario ({sc.description}; {setup.steps} samples of {ts:g} s, "
                       f"noise as declared by the scenario, true state fed back), law built from the "
                       f"stored C, 2 runs: ISE "
                       + ", ".join(f"{states[i]} {np.mean(v):.4g} m^2 s" for i, v in zip(idx, ise))
-                      + f" (must be finite); tracking time {_fmt(track)} s (must be < the "
+                      + f" (must be finite); tracking time {fmt(track)} s (must be < the "
                         f"{horizon:g} s left after the step; band {met['tracking_time'].description})",
                       {"ise": ise.tolist(), "tracking_time": track.tolist(), "horizon_s": horizon})]
 
-    checks += _guard("servo_scenario", servo)
+    checks += guard("servo_scenario", servo)
     return checks

@@ -24,24 +24,18 @@ import numpy as np
 from tanksynth.analysis.checks import Check
 from tanksynth.analysis.linearize import discretize_zoh, linearize
 from tanksynth.analysis.rank import controllability_rank, observability_rank
-from tanksynth.sim.simulate import run_seeds, simulate
 from tanksynth.errors import ArtefactError
-from tanksynth.verify.common import artefact_gain
-from tanksynth.verify.traces import record_trace
-
-_gain = artefact_gain
+from tanksynth.sim.simulate import run_seeds, simulate
+from tanksynth.verify.common import artefact_gain, relative_difference
+from tanksynth.verify.traces import TraceRecorder
 
 __all__ = ["first_order_agreement", "linearize_verdict"]
 
 
-def _rel(a: np.ndarray, b: np.ndarray) -> float:
-    return float(np.linalg.norm(a - b) / max(np.linalg.norm(b), 1e-300))
-
-
-
 def first_order_agreement(plant: Any, F: np.ndarray, B: np.ndarray, Ad: np.ndarray, Bd: np.ndarray,
                           x0: np.ndarray, u0: np.ndarray, ts: float, *, horizon: int = 20,
-                          eps0: float = 5e-3, substeps: int = 10) -> dict[str, Any]:
+                          eps0: float = 5e-3, substeps: int = 10,
+                          trace: TraceRecorder | None = None) -> dict[str, Any]:
     """Compare the nonlinear plant with its discrete linear model near (x0, u0).
 
     From ``x0 + eps dx`` with input ``u0 + eps du`` (``dx``, ``du`` fixed
@@ -74,9 +68,10 @@ def first_order_agreement(plant: Any, F: np.ndarray, B: np.ndarray, Ad: np.ndarr
     # One batch: the unperturbed run and the three perturbed ones, open loop.
     res = simulate(plant, ts=ts, steps=horizon, x0=X, seeds=seeds, u_init=np.array(inputs),
                    substeps=substeps)
-    record_trace(res, plant, check="first_order_agreement",
-                 scenario=f"open loop from (x0, u0) and from (x0 + eps dx, u0 + eps du), eps = {eps0:g} "
-                          f"(first-order agreement with the linear model)")
+    if trace is not None:
+        trace.record(res, plant, check="first_order_agreement",
+                     scenario=f"open loop from (x0, u0) and from (x0 + eps dx, u0 + eps du), "
+                              f"eps = {eps0:g} (first-order agreement with the linear model)")
     base = res.x[0]
     errors = []
     for i, e in enumerate(eps_list, start=1):
@@ -95,7 +90,8 @@ def first_order_agreement(plant: Any, F: np.ndarray, B: np.ndarray, Ad: np.ndarr
 
 
 
-def linearize_verdict(doc: Mapping[str, Any], spec: Any) -> list[Check]:
+def linearize_verdict(doc: Mapping[str, Any], spec: Any, *,
+                      trace: TraceRecorder | None = None) -> list[Check]:
     """Verdict of a ``linearize`` artefact (see the module docstring).
 
     Parameters
@@ -104,11 +100,13 @@ def linearize_verdict(doc: Mapping[str, Any], spec: Any) -> list[Check]:
         The artefact (gains as arrays).
     spec : tanksynth.spec.Spec
         The spec it was designed from (its plant).
+    trace : TraceRecorder, optional
+        Records the first-order agreement simulation.
     """
     plant = spec.plant
-    F, B, C = (np.atleast_2d(_gain(doc, k)) for k in ("F", "B", "C"))
-    Ad, Bd = np.atleast_2d(_gain(doc, "Ad")), np.atleast_2d(_gain(doc, "Bd"))
-    x0, u0 = _gain(doc, "x0"), _gain(doc, "u0")
+    F, B, C = (np.atleast_2d(artefact_gain(doc, k)) for k in ("F", "B", "C"))
+    Ad, Bd = np.atleast_2d(artefact_gain(doc, "Ad")), np.atleast_2d(artefact_gain(doc, "Bd"))
+    x0, u0 = artefact_gain(doc, "x0"), artefact_gain(doc, "u0")
     F, B, Ad, Bd = F.reshape(plant.n, plant.n), B.reshape(plant.n, plant.m), Ad.reshape(plant.n, plant.n), \
         Bd.reshape(plant.n, plant.m)
     C = C.reshape(plant.q, plant.n)
@@ -119,12 +117,12 @@ def linearize_verdict(doc: Mapping[str, Any], spec: Any) -> list[Check]:
     ts = float(ts)
     checks = []
     lin = linearize(plant, x0, u0, ts=ts)
-    worst = max(_rel(F, lin.F), _rel(B, lin.B), _rel(C, lin.C))
+    worst = max(relative_difference(F, lin.F), relative_difference(B, lin.B), relative_difference(C, lin.C))
     checks.append(Check("jacobian_recheck", worst <= 1e-9,
                         f"F, B, C recomputed from the model at (x0, u0): largest relative difference "
                         f"{worst:.3g} (tolerance 1e-9)", {"relative_difference": worst}))
     Ad2, Bd2 = discretize_zoh(F, B, ts)
-    zoh = max(_rel(Ad, Ad2), _rel(Bd, Bd2))
+    zoh = max(relative_difference(Ad, Ad2), relative_difference(Bd, Bd2))
     checks.append(Check("zoh_consistency", zoh <= 1e-9,
                         f"Ad, Bd against the exact ZOH of (F, B) at ts = {ts:g} s: relative difference "
                         f"{zoh:.3g} (tolerance 1e-9)", {"relative_difference": zoh}))
@@ -135,7 +133,7 @@ def linearize_verdict(doc: Mapping[str, Any], spec: Any) -> list[Check]:
     checks.append(Check("equilibrium", worst_res <= tol,
                         f"max |f(x0, u0)| = {worst_res:.3g} state units/s (tolerance {tol:.3g})",
                         {"residual": residual.tolist(), "tolerance": tol}))
-    agreement = first_order_agreement(plant, F, B, Ad, Bd, x0, u0, ts)
+    agreement = first_order_agreement(plant, F, B, Ad, Bd, x0, u0, ts, trace=trace)
     errs, orders = agreement["relative_errors"], agreement["orders"]
     exact = errs[-1] <= 1e-7  # a linear plant: agreement to rounding
     ok = exact or (all(o >= 0.7 for o in orders) and errs[-1] <= 0.2)

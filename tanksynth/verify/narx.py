@@ -1,33 +1,95 @@
 """Verdict of ``narx`` (NARX estimator trained on EKF data)."""
 
+from __future__ import annotations
 
 from typing import Any, Mapping
 
 import numpy as np
 
 from tanksynth.analysis.checks import Check
-from tanksynth.verify.common import artefact_gain
+from tanksynth.verify.common import (NUMERIC_ERRORS, artefact_gain, design_options, fmt, guard,
+                                     one_line, option, relative_difference)
+from tanksynth.verify.traces import TraceRecorder
+
+__all__ = ["NARX_FIT_FACTOR", "NARX_CLOSED_LOOP_FACTOR", "NARX_FRESH_DRAW", "narx_network",
+           "teacher_forced_inputs", "narx_verdict"]
 
 
-from tanksynth.verify.common import _NUMERIC_ERRORS, _fmt, _guard, _one_line, _option, _rel
-from tanksynth.verify.estimators import _spec_kwargs
-
-__all__ = ["NARX_FIT_FACTOR", "NARX_CLOSED_LOOP_FACTOR", "NARX_FRESH_SEED", "narx_verdict"]
-
-# ============================================================================== NARX
 #: Fresh one-step fit error allowed, as a multiple of the training fit error.
 NARX_FIT_FACTOR = 3.0
 #: Fresh closed-loop RMSE allowed, as a multiple of the validation RMSE claimed by the design.
 NARX_CLOSED_LOOP_FACTOR = 3.0
-#: Seed offset of the fresh verification data (never the training seed).
-NARX_FRESH_SEED = 1_000_003
+#: Offset added to the training's random-generator seed for the fresh verification data (so the
+#: verdict never draws the training data again).
+NARX_FRESH_DRAW = 1_000_003
 
 
-def narx_verdict(doc: Mapping[str, Any], spec: Any) -> list[Check]:
+def narx_network(weights: Mapping[str, np.ndarray], inputs: np.ndarray) -> np.ndarray:
+    """One-step prediction of the stored NARX network (seed 002 eq. 42-45).
+
+    ``x = out_mean + out_scale * (W2 tanh(W1 z + b1) + b2)`` with the
+    normalised input ``z = (inputs - in_mean) / in_scale``.
+
+    Parameters
+    ----------
+    weights : mapping
+        ``W1`` (H, k), ``b1`` (H,), ``W2`` (n, H), ``b2`` (n,), ``in_mean``,
+        ``in_scale`` (k,), ``out_mean``, ``out_scale`` (n,).
+    inputs : ndarray, shape (N, k)
+        Network inputs (state and output units; see `teacher_forced_inputs`).
+
+    Returns
+    -------
+    ndarray, shape (N, n)
+        Estimated states (state units).
+    """
+    z = (np.asarray(inputs, dtype=float) - weights["in_mean"]) / weights["in_scale"]
+    hidden = np.tanh(np.einsum("hk,nk->nh", weights["W1"], z) + weights["b1"])
+    out = np.einsum("jh,nh->nj", weights["W2"], hidden) + weights["b2"]
+    return weights["out_mean"] + weights["out_scale"] * out
+
+
+def teacher_forced_inputs(data: Mapping[str, np.ndarray], x0: np.ndarray, delays: int,
+                          target: str) -> tuple[np.ndarray, np.ndarray]:
+    """Network inputs and targets of recorded data, past estimates taken from the data.
+
+    The input at step ``k`` is ``[x(k|k-1), gamma(k), x(k-1), ..., x(k-d)]``
+    (EKF prior, innovation, the ``d`` previous targets; before the first
+    sample the past is ``x0``); the target is ``x(k)``: the EKF estimate
+    (``target = "ekf"``) or the true state.
+
+    Parameters
+    ----------
+    data : mapping
+        `generate_ekf_data` output: ``x`` (steps + 1, runs, n), ``x_ekf``,
+        ``prior`` (steps, runs, n), ``innovation`` (steps, runs, q).
+    x0 : ndarray, shape (n,)
+        Initial estimate (state units).
+    delays : int
+        ``d``.
+    target : {"ekf", "true"}
+
+    Returns
+    -------
+    inputs : ndarray, shape (steps runs, n + q + d n)
+    targets : ndarray, shape (steps runs, n)
+    """
+    est = np.asarray(data["x_ekf"] if target == "ekf" else data["x"][1:], dtype=float)
+    steps, runs, n = est.shape
+    padded = np.concatenate([np.broadcast_to(np.asarray(x0, dtype=float), (delays, runs, n)), est])
+    columns = [np.asarray(data["prior"], dtype=float), np.asarray(data["innovation"], dtype=float)]
+    columns += [padded[delays - 1 - j: delays - 1 - j + steps] for j in range(delays)]
+    inputs = np.concatenate(columns, axis=2)
+    return inputs.reshape(steps * runs, -1), est.reshape(steps * runs, n)
+
+
+def narx_verdict(doc: Mapping[str, Any], spec: Any, *,
+                 trace: TraceRecorder | None = None) -> list[Check]:
     """Verdict of a ``narx`` artefact (seed 002 section 3.3).
 
-    The network is rebuilt from the stored weights and normalisation;
-    fresh data come from `generate_ekf_data` with the stored EKF tuning
+    The network is evaluated from the stored weights and normalisation by
+    the verdict's own `narx_network` (the shipped `NARXEstimator` runs the
+    closed loop); fresh data come from `generate_ekf_data` with the stored EKF tuning
     (``ekf_Q``, ``ekf_R``, ``ekf_P0``, ``x0``) and the spec's data options,
     on a seed the training never used (2 runs, the spec's ``steps``).
 
@@ -49,26 +111,29 @@ def narx_verdict(doc: Mapping[str, Any], spec: Any) -> list[Check]:
         same fresh data.
     """
     from tanksynth.runtime.estimators.kalman import KalmanTuning
-    from tanksynth.runtime.estimators.narx import (NARXEstimator, NARXTuning, _features, _forward,
-                                          generate_ekf_data)
+    from tanksynth.runtime.estimators.narx import NARXEstimator, NARXTuning, generate_ekf_data
 
     plant = spec.plant
     n, q = plant.n, plant.q
-    g = lambda k: np.asarray(artefact_gain(doc, k), dtype=float)  # noqa: E731
+
+    def g(key: str) -> np.ndarray:
+        return np.asarray(artefact_gain(doc, key), dtype=float)
+
     W1 = np.atleast_2d(g("W1"))
     H = W1.shape[0]
     delays = int(round(float(np.ravel(g("delays"))[0])))
-    substeps = int(_option(doc, spec, "substeps", 1))
-    clip = bool(_option(doc, spec, "clip", False))
+    substeps = int(option(doc, spec, "substeps", 1))
+    clip = bool(option(doc, spec, "clip", False))
     tuning = NARXTuning(W1, g("b1").reshape(H), np.atleast_2d(g("W2")).reshape(n, H),
                         g("b2").reshape(n), g("in_mean").reshape(-1), g("in_scale").reshape(-1),
                         g("out_mean").reshape(n), g("out_scale").reshape(n), x0=g("x0").reshape(n),
                         ts=float(spec.ts), delays=delays, substeps=substeps, clip=clip)
-    params = (tuning.W1, tuning.b1, tuning.W2, tuning.b2)
+    weights = {"W1": tuning.W1, "b1": tuning.b1, "W2": tuning.W2, "b2": tuning.b2,
+               "in_mean": tuning.in_mean, "in_scale": tuning.in_scale,
+               "out_mean": tuning.out_mean, "out_scale": tuning.out_scale}
 
     def predict(X_in: np.ndarray) -> np.ndarray:
-        out, _ = _forward(params, (X_in - tuning.in_mean) / tuning.in_scale)
-        return out * tuning.out_scale + tuning.out_mean
+        return narx_network(weights, X_in)
 
     diag = doc.get("diagnostics", {}) or {}
     fit = diag.get("fit", {}) or {}
@@ -80,33 +145,34 @@ def narx_verdict(doc: Mapping[str, Any], spec: Any) -> list[Check]:
         mse = np.mean((predict(Xt) - Tt) ** 2, axis=0)
         if claimed.size != n:
             return [Check("training_fit_recheck", None, "the diagnostics report no training MSE")]
-        diff = _rel(mse, claimed)
+        diff = relative_difference(mse, claimed)
         return [Check("training_fit_recheck", bool(diff <= 1e-6),
                       f"one-step MSE of the stored weights on the {Xt.shape[0]} stored training "
-                      f"samples {_fmt(mse)} against the reported training MSE {_fmt(claimed)}: "
+                      f"samples {fmt(mse)} against the reported training MSE {fmt(claimed)}: "
                       f"relative difference {diff:.3g} (tolerance 1e-06)",
                       {"mse": mse.tolist(), "reported": claimed.tolist(), "difference": diff})]
 
-    checks += _guard("training_fit_recheck", recheck)
+    checks += guard("training_fit_recheck", recheck)
 
     def fresh() -> list[Check]:
         train = diag.get("training", {}) or {}
-        seed = int(_option(doc, spec, "seed", train.get("seed", 0))) + NARX_FRESH_SEED
-        steps = int(_option(doc, spec, "steps", train.get("steps", 600)))
-        target = str(_option(doc, spec, "target", train.get("target", "ekf")))
-        input_range = _option(doc, spec, "input_range")
-        hold = tuple(_option(doc, spec, "hold", [30, 150]))
-        noise = _option(doc, spec, "noise_std")
+        seed = int(option(doc, spec, "seed", train.get("seed", 0))) + NARX_FRESH_DRAW
+        steps = int(option(doc, spec, "steps", train.get("steps", 600)))
+        target = str(option(doc, spec, "target", train.get("target", "ekf")))
+        input_range = option(doc, spec, "input_range")
+        hold = tuple(option(doc, spec, "hold", [30, 150]))
+        noise = option(doc, spec, "noise_std")
         ekf = KalmanTuning(Q=np.atleast_2d(g("ekf_Q")).reshape(n, n),
                            R=np.atleast_2d(g("ekf_R")).reshape(q, q),
                            P0=np.atleast_2d(g("ekf_P0")).reshape(n, n), x0=tuning.x0,
                            ts=float(spec.ts), substeps=substeps, clip=clip,
-                           **_spec_kwargs(doc, spec, ("jacobian_eps", "switch_tol")))
+                           **{k: v for k, v in design_options(doc, spec).items()
+                              if k in ("jacobian_eps", "switch_tol")})
         runs = 2
         data = generate_ekf_data(plant, ekf, runs=runs, steps=steps, seed=seed,
                                  input_range=input_range, hold=hold, noise_std=noise,
-                                 sim_substeps=int(_option(doc, spec, "sim_substeps", 10)))
-        X_in, T, _ = _features(data, tuning.x0, delays, target)
+                                 sim_substeps=int(option(doc, spec, "sim_substeps", 10)))
+        X_in, T = teacher_forced_inputs(data, tuning.x0, delays, target)
         mse = np.mean((predict(X_in) - T) ** 2, axis=0)
         out: list[Check] = []
         if claimed.size == n:
@@ -116,7 +182,7 @@ def narx_verdict(doc: Mapping[str, Any], spec: Any) -> list[Check]:
             out.append(Check("one_step_fit", bool(np.all(np.isfinite(mse)) and
                                                   ratio <= NARX_FIT_FACTOR),
                              f"one-step (teacher-forced) MSE on fresh EKF data ({runs} runs x {steps} "
-                             f"samples, seed {seed}, target {target}): {_fmt(mse)}, mean "
+                             f"samples, seed {seed}, target {target}): {fmt(mse)}, mean "
                              f"{float(np.mean(mse)):.4g}; reference max(training MSE mean "
                              f"{float(np.mean(claimed)):.4g}, held-out validation MSE mean "
                              f"{float(np.mean(held)) if held.size == n else float('nan'):.4g}) = "
@@ -132,9 +198,9 @@ def narx_verdict(doc: Mapping[str, Any], spec: Any) -> list[Check]:
             for k in range(steps):
                 try:
                     X_hat[k] = est.step(data["y"][k], data["u"][k])
-                except _NUMERIC_ERRORS as exc:
+                except NUMERIC_ERRORS as exc:
                     X_hat[k:] = np.nan
-                    failed = (k, _one_line(exc))
+                    failed = (k, one_line(exc))
                     break
         truth = data["x"][1:]
         rmse = float(np.sqrt(np.mean((X_hat - truth) ** 2)))
@@ -154,5 +220,5 @@ def narx_verdict(doc: Mapping[str, Any], spec: Any) -> list[Check]:
                           "ekf_rmse": ekf_rmse}))
         return out
 
-    checks += _guard("one_step_fit", fresh)
+    checks += guard("one_step_fit", fresh)
     return checks

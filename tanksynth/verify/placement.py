@@ -1,5 +1,6 @@
 """Verdicts of ``pole_placement``, ``lmi_placement`` and ``canonical_observer``."""
 
+from __future__ import annotations
 
 from typing import Any, Mapping
 
@@ -7,9 +8,16 @@ import numpy as np
 
 from tanksynth.analysis.checks import Check
 from tanksynth.analysis.rank import controllability_rank, observability_rank
-
-
-from tanksynth.verify.common import _augment_continuous, _conditioning, _designed_tau, _equilibrium, _fastest_rate, _guard, _matrix, _model_recheck, _observer_ts, _option, _output_rows, _pole_check, _rank_check, _region_check, _region_lmi_check, _regulation_check, _servo_check, _stability_check, _time_domain, _tracked_outputs, luenberger_estimator, observer_convergence
+from tanksynth.verify.common import (artefact_matrix, guard, model_recheck, operating_point, option,
+                                     output_rows, pole_check, rank_check, region_check,
+                                     region_lmi_check, stability_check, time_domain,
+                                     tracked_outputs)
+from tanksynth.verify.numerics import integral_augmentation
+from tanksynth.verify.simulations import (IntegralStateFeedback, designed_time_constant,
+                                          eigenvector_conditioning, fastest_rate,
+                                          luenberger_estimator, observer_convergence,
+                                          observer_period, regulation_check, servo_check)
+from tanksynth.verify.traces import TraceRecorder
 
 __all__ = ["pole_placement_verdict", "lmi_placement_verdict", "canonical_observer_verdict"]
 
@@ -17,36 +25,30 @@ __all__ = ["pole_placement_verdict", "lmi_placement_verdict", "canonical_observe
 def _placement_common(doc: Mapping[str, Any], spec: Any) -> dict:
     plant = spec.plant
     n, m, q = plant.n, plant.m, plant.q
-    domain = _time_domain(doc, spec)
+    domain = time_domain(doc, spec)
     ts = spec.ts
-    A = _matrix(doc, "A", (n, n))
-    B = _matrix(doc, "B", (n, m))
-    C = _matrix(doc, "C", (q, n))
-    x0, u0 = _equilibrium(spec)
+    A = artefact_matrix(doc, "A", (n, n))
+    B = artefact_matrix(doc, "B", (n, m))
+    C = artefact_matrix(doc, "C", (q, n))
+    x0, u0 = operating_point(spec)
     gains = doc["gains"]
     target = "observer" if "L" in gains else "state_feedback"
     integral = "K1" in gains and "K2" in gains
     out = dict(plant=plant, domain=domain, ts=ts, A=A, B=B, C=C, x0=x0, u0=u0, target=target,
                integral=integral)
     if target == "observer":
-        L = _matrix(doc, "L", (n, q))
+        L = artefact_matrix(doc, "L", (n, q))
         out.update(L=L, Acl=A - L @ C, what="the observer error matrix A - L C")
     elif integral:
-        names = _tracked_outputs(doc, spec)
-        rows = _output_rows(plant, names)
+        names = tracked_outputs(doc, spec)
+        rows = output_rows(plant, names)
         C1 = C[rows]
-        K = _matrix(doc, "K", (m, n + len(rows)))
-        if domain == "discrete":
-            from tanksynth.design.placement import integral_augmentation
-
-            aug = integral_augmentation(A, B, C1, ts)
-            Aa, Ba = aug.A, aug.B
-        else:
-            Aa, Ba = _augment_continuous(A, B, C1)
+        K = artefact_matrix(doc, "K", (m, n + len(rows)))
+        Aa, Ba = integral_augmentation(A, B, C1, float(ts) if domain == "discrete" else None)
         out.update(K=K, C1=C1, rows=rows, tracked=names, Aa=Aa, Ba=Ba, Acl=Aa - Ba @ K,
                    what="the augmented closed loop Aa - Ba K")
     else:
-        K = _matrix(doc, "K", (m, n))
+        K = artefact_matrix(doc, "K", (m, n))
         out.update(K=K, Acl=A - B @ K, what="the closed loop A - B K")
     out["eigs"] = np.linalg.eigvals(out["Acl"])
     return out
@@ -54,46 +56,48 @@ def _placement_common(doc: Mapping[str, Any], spec: Any) -> dict:
 
 def _placement_rank(c: dict) -> list[Check]:
     if c["target"] == "observer":
-        return [_rank_check("rank_observability", observability_rank(c["A"], c["C"]), "(A, C)")]
-    checks = [_rank_check("rank_controllability", controllability_rank(c["A"], c["B"]), "(A, B)")]
+        return [rank_check("rank_observability", observability_rank(c["A"], c["C"]), "(A, C)")]
+    checks = [rank_check("rank_controllability", controllability_rank(c["A"], c["B"]), "(A, B)")]
     if c["integral"]:
-        checks.append(_rank_check("rank_controllability_augmented",
-                                  controllability_rank(c["Aa"], c["Ba"]), "the augmented (Aa, Ba)"))
+        checks.append(rank_check("rank_controllability_augmented",
+                                 controllability_rank(c["Aa"], c["Ba"]), "the augmented (Aa, Ba)"))
     return checks
 
 
-def _placement_simulation(doc: Mapping[str, Any], spec: Any, c: dict) -> list[Check]:
-    from tanksynth.verify.campaign import IntegralStateFeedback
-
+def _placement_simulation(doc: Mapping[str, Any], spec: Any, c: dict,
+                          trace: TraceRecorder | None) -> list[Check]:
     plant, domain, ts = c["plant"], c["domain"], c["ts"]
-    tau, rule = _designed_tau(doc, spec, c["eigs"], domain, ts)
+    tau, rule = designed_time_constant(doc, spec, c["eigs"], domain, ts)
     if c["target"] == "observer":
         if not np.isfinite(tau):
             return [Check("observer_convergence", False, "the designed error dynamics are not "
                                                          "stable: nothing to converge")]
-        ts_sim = _observer_ts(domain, ts, tau)
+        ts_sim = observer_period(domain, ts, tau)
         form = "predictor" if domain == "discrete" else "continuous"
         est = luenberger_estimator(plant, c["L"], c["x0"], c["u0"], ts_sim, form)
         return [observer_convergence(plant, est, c["x0"], c["u0"], tau, ts_sim,
-                                     conditioning=_conditioning(c["Acl"]),
+                                     conditioning=eigenvector_conditioning(c["Acl"]),
                                      rule=f"{rule}; Luenberger observer, {form} form (error matrix "
                                           f"{'A - L C' if form == 'predictor' else 'F - L C'}), on the "
-                                          "plant linearised at the operating point")]
+                                          "plant linearised at the operating point",
+                                     trace=trace)]
     if domain == "discrete":
         ts_sim = float(ts)
     else:
-        fast = _fastest_rate(c["eigs"], domain, ts)
+        fast = fastest_rate(c["eigs"], domain, ts)
         ts_sim = 0.05 / fast if fast > 0 else tau / 20
         ts_sim = min(ts_sim, ts) if ts else ts_sim
     if c["integral"]:
         law = IntegralStateFeedback(c["K"][:, :plant.n], c["K"][:, plant.n:], c["C1"], c["x0"],
                                     c["u0"], ts_sim)
-        return _servo_check(plant, law, c["x0"], c["u0"], c["rows"], tau, ts_sim, rule=rule)
-    return [_regulation_check(plant, c["K"], c["x0"], c["u0"], tau, ts_sim, _conditioning(c["Acl"]),
-                              rule=rule)]
+        return servo_check(plant, law, c["x0"], c["u0"], c["rows"], tau, ts_sim, rule=rule,
+                           trace=trace)
+    return [regulation_check(plant, c["K"], c["x0"], c["u0"], tau, ts_sim,
+                             eigenvector_conditioning(c["Acl"]), rule=rule, trace=trace)]
 
 
-def pole_placement_verdict(doc: Mapping[str, Any], spec: Any) -> list[Check]:
+def pole_placement_verdict(doc: Mapping[str, Any], spec: Any, *,
+                           trace: TraceRecorder | None = None) -> list[Check]:
     """Verdict of a ``pole_placement`` artefact (state feedback, integral action or observer).
 
     Checks: ``model_recheck``, ``poles`` (vs the spec's ``poles``),
@@ -104,20 +108,21 @@ def pole_placement_verdict(doc: Mapping[str, Any], spec: Any) -> list[Check]:
     from tanksynth.spec.options import parse_poles
 
     c = _placement_common(doc, spec)
-    checks = [_model_recheck(c["plant"], c["x0"], c["u0"], c["domain"], c["ts"],
-                             {"A": c["A"], "B": c["B"], "C": c["C"]})]
-    poles = _option(doc, spec, "poles")
+    checks = [model_recheck(c["plant"], c["x0"], c["u0"], c["domain"], c["ts"],
+                            {"A": c["A"], "B": c["B"], "C": c["C"]})]
+    poles = option(doc, spec, "poles")
     if poles is None:
         checks.append(Check("poles", None, "the spec entry of this artefact gives no poles"))
     else:
-        checks.append(_pole_check(c["eigs"], parse_poles(poles, "poles"), c["what"]))
-    checks.append(_stability_check(c["eigs"], c["domain"], c["what"]))
+        checks.append(pole_check(c["eigs"], parse_poles(poles, "poles"), c["what"]))
+    checks.append(stability_check(c["eigs"], c["domain"], c["what"]))
     checks += _placement_rank(c)
-    checks += _guard("simulation", lambda: _placement_simulation(doc, spec, c))
+    checks += guard("simulation", lambda: _placement_simulation(doc, spec, c, trace))
     return checks
 
 
-def lmi_placement_verdict(doc: Mapping[str, Any], spec: Any) -> list[Check]:
+def lmi_placement_verdict(doc: Mapping[str, Any], spec: Any, *,
+                          trace: TraceRecorder | None = None) -> list[Check]:
     """Verdict of an ``lmi_placement`` artefact.
 
     Checks: ``model_recheck``, ``region`` (eigenvalues in the spec's
@@ -130,28 +135,29 @@ def lmi_placement_verdict(doc: Mapping[str, Any], spec: Any) -> list[Check]:
 
     c = _placement_common(doc, spec)
     size = c["Acl"].shape[0]
-    checks = [_model_recheck(c["plant"], c["x0"], c["u0"], c["domain"], c["ts"],
-                             {"A": c["A"], "B": c["B"], "C": c["C"]})]
-    raw = _option(doc, spec, "region")
+    checks = [model_recheck(c["plant"], c["x0"], c["u0"], c["domain"], c["ts"],
+                            {"A": c["A"], "B": c["B"], "C": c["C"]})]
+    raw = option(doc, spec, "region")
     if raw is None:
         checks.append(Check("region", None, "the spec entry of this artefact gives no region"))
     else:
         region = region_from_parts(parse_region(raw, "region"))
-        checks.append(_region_check(c["eigs"], region, c["what"]))
-        P = _matrix(doc, "P", (size, size))
+        checks.append(region_check(c["eigs"], region, c["what"]))
+        P = artefact_matrix(doc, "P", (size, size))
         if c["target"] == "observer":
             # dual problem: X = P for (A', C'), closed loop (A - L C)'
-            checks.append(_region_lmi_check(region, c["Acl"].T, P, "(A - L C)' with X = P"))
+            checks.append(region_lmi_check(region, c["Acl"].T, P, "(A - L C)' with X = P"))
         else:
-            checks.append(_region_lmi_check(region, c["Acl"], np.linalg.inv(P),
-                                            c["what"] + " with X = P^-1"))
-    checks.append(_stability_check(c["eigs"], c["domain"], c["what"]))
+            checks.append(region_lmi_check(region, c["Acl"], np.linalg.inv(P),
+                                           c["what"] + " with X = P^-1"))
+    checks.append(stability_check(c["eigs"], c["domain"], c["what"]))
     checks += _placement_rank(c)
-    checks += _guard("simulation", lambda: _placement_simulation(doc, spec, c))
+    checks += guard("simulation", lambda: _placement_simulation(doc, spec, c, trace))
     return checks
 
 
-def canonical_observer_verdict(doc: Mapping[str, Any], spec: Any) -> list[Check]:
+def canonical_observer_verdict(doc: Mapping[str, Any], spec: Any, *,
+                               trace: TraceRecorder | None = None) -> list[Check]:
     """Verdict of a ``canonical_observer`` artefact (seed 004 eq. 27-29).
 
     Checks: ``model_recheck`` (stored ``A``, ``C`` vs the continuous
@@ -163,30 +169,31 @@ def canonical_observer_verdict(doc: Mapping[str, Any], spec: Any) -> list[Check]
 
     plant = spec.plant
     n, q = plant.n, plant.q
-    A = _matrix(doc, "A", (n, n))
-    C = _matrix(doc, "C", (q, n))
-    L = _matrix(doc, "L", (n, q))
-    x0, u0 = _equilibrium(spec)
+    A = artefact_matrix(doc, "A", (n, n))
+    C = artefact_matrix(doc, "C", (q, n))
+    L = artefact_matrix(doc, "L", (n, q))
+    x0, u0 = operating_point(spec)
     eigs = np.linalg.eigvals(A - L @ C)
     what = "the observer error matrix A - L C"
-    checks = [_model_recheck(plant, x0, u0, "continuous", None, {"A": A, "C": C})]
-    poles = _option(doc, spec, "poles")
+    checks = [model_recheck(plant, x0, u0, "continuous", None, {"A": A, "C": C})]
+    poles = option(doc, spec, "poles")
     if poles is None:
         checks.append(Check("poles", None, "the spec entry of this artefact gives no poles"))
     else:
-        checks.append(_pole_check(eigs, parse_poles(poles, "poles"), what))
-    checks.append(_stability_check(eigs, "continuous", what))
-    checks.append(_rank_check("rank_observability", observability_rank(A, C), "(A, C)"))
+        checks.append(pole_check(eigs, parse_poles(poles, "poles"), what))
+    checks.append(stability_check(eigs, "continuous", what))
+    checks.append(rank_check("rank_observability", observability_rank(A, C), "(A, C)"))
 
     def sim() -> list[Check]:
-        tau, rule = _designed_tau(doc, spec, eigs, "continuous", None)
+        tau, rule = designed_time_constant(doc, spec, eigs, "continuous", None)
         if not np.isfinite(tau):
             return [Check("observer_convergence", False, "error dynamics not stable")]
-        ts_sim = _observer_ts("continuous", spec.ts, tau)
+        ts_sim = observer_period("continuous", spec.ts, tau)
         est = luenberger_estimator(plant, L, x0, u0, ts_sim, "continuous")
         return [observer_convergence(plant, est, x0, u0, tau, ts_sim,
-                                     conditioning=_conditioning(A - L @ C),
+                                     conditioning=eigenvector_conditioning(A - L @ C),
                                      rule=f"{rule}; continuous Luenberger observer on the plant "
-                                          "linearised at the operating point")]
+                                          "linearised at the operating point",
+                                     trace=trace)]
 
-    return checks + _guard("observer_convergence", sim)
+    return checks + guard("observer_convergence", sim)

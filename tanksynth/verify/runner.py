@@ -13,6 +13,7 @@ byte for byte as they were, so their provenance hash stays valid.
 
 from __future__ import annotations
 
+import inspect
 import json
 import os
 import tempfile
@@ -25,13 +26,14 @@ import numpy as np
 from tanksynth.analysis.checks import Check
 from tanksynth.artefacts.traces import trace_path, write_trace
 from tanksynth.errors import ArtefactError, TanksynthError
-from tanksynth.verify.traces import _TRACE
+from tanksynth.verify.traces import TraceRecorder
 
 __all__ = ["VerdictFn", "Verdict", "verdict_for", "verdict_with_trace", "load_directory", "verify_directory"]
 
 
-#: ``verdict(doc, spec) -> list[Check]``: the verdict of one design method.
-VerdictFn = Callable[[Mapping[str, Any], Any], list]
+#: ``verdict(doc, spec, *, trace=None) -> list[Check]``: the verdict of one design method. The
+#: keyword ``trace`` (a `TraceRecorder`) is optional: a verdict without it records no trace.
+VerdictFn = Callable[..., list]
 
 #: Errors a verdict may raise on bad data or failed numerics; they fail the artefact.
 _VERDICT_ERRORS = (TanksynthError, np.linalg.LinAlgError, ValueError, RuntimeError, ArithmeticError,
@@ -73,13 +75,35 @@ class Verdict:
 
 
 
-def verdict_for(doc: Mapping[str, Any], spec: Any, verdict: VerdictFn) -> list[Check]:
+def _takes_trace(verdict: VerdictFn) -> bool:
+    """True if ``verdict`` accepts the keyword ``trace``."""
+    try:
+        params = inspect.signature(verdict).parameters
+    except (TypeError, ValueError):
+        return False
+    return "trace" in params or any(p.kind is inspect.Parameter.VAR_KEYWORD for p in params.values())
+
+
+def verdict_for(doc: Mapping[str, Any], spec: Any, verdict: VerdictFn,
+                trace: TraceRecorder | None = None) -> list[Check]:
     """The checks of one artefact (``doc`` as returned by `read_artefact`).
 
     A verdict that cannot run (bad artefact data, a numerical failure) gives
     one failed check ``verification`` with the reason, never a traceback.
+
+    Parameters
+    ----------
+    doc : mapping
+        The artefact.
+    spec : tanksynth.spec.Spec
+    verdict : callable
+        ``verdict(doc, spec)``, with the keyword ``trace`` if it records.
+    trace : TraceRecorder, optional
+        Passed to the verdict when it accepts ``trace``.
     """
     try:
+        if trace is not None and _takes_trace(verdict):
+            return list(verdict(doc, spec, trace=trace))
         return list(verdict(doc, spec))
     except _VERDICT_ERRORS as exc:
         return [Check("verification", False, f"verdict could not run: {' '.join(str(exc).split())}")]
@@ -87,24 +111,20 @@ def verdict_for(doc: Mapping[str, Any], spec: Any, verdict: VerdictFn) -> list[C
 
 def verdict_with_trace(doc: Mapping[str, Any], spec: Any,
                        verdict: VerdictFn) -> tuple[list[Check], dict | None]:
-    """`verdict_for`, with the trace of the verdict's main simulation.
+    """`verdict_for` with a fresh `TraceRecorder`: the checks and the main simulation's trace.
 
     Returns
     -------
     checks : list of Check
     trace : dict or None
-        ``{"header": dict, "arrays": dict of ndarray}`` (see `record_trace`),
+        ``{"header": dict, "arrays": dict of ndarray}`` (see `trace_of`),
         with the verdict of the check it decides (``check_passed``) and of
         the artefact (``verdict_passed``) added to the header; None when
-        the verdict simulated nothing.
+        the verdict recorded no simulation.
     """
-    slot: dict = {}
-    token = _TRACE.set(slot)
-    try:
-        checks = verdict_for(doc, spec, verdict)
-    finally:
-        _TRACE.reset(token)
-    trace = slot.get("trace")
+    recorder = TraceRecorder()
+    checks = verdict_for(doc, spec, verdict, trace=recorder)
+    trace = recorder.trace
     if trace is not None:
         named = [c for c in checks if c.name == trace["header"]["check"]]
         decided = [c.passed for c in checks if c.passed is not None]

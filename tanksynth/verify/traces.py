@@ -1,30 +1,26 @@
-"""Recording the main simulation of a running verdict (see `tanksynth.artefacts.traces`)."""
+"""Recording the main simulation of a verdict (see `tanksynth.artefacts.traces`).
+
+Recording is explicit: the runner hands a `TraceRecorder` to the verdict
+(keyword ``trace``), the verdict hands it to the simulations it runs, and each
+simulation calls `TraceRecorder.record` with its result. A verdict called
+without a recorder (``trace=None``, the default) records nothing.
+"""
 
 from __future__ import annotations
 
 import math
-from contextvars import ContextVar
 from typing import Any, Sequence
 
 import numpy as np
 
 from tanksynth.artefacts.traces import TRACE_MAX_SAMPLES, TRACE_RUNS
 
-__all__ = ["record_trace"]
+__all__ = ["TraceRecorder", "trace_of"]
 
 
-#: The trace slot of the verdict running in this context (None: nothing is recorded).
-_TRACE: ContextVar[dict | None] = ContextVar("tanksynth_verdict_trace", default=None)
-
-
-
-def record_trace(result: Any, plant: Any, *, scenario: str, check: str, estimator: bool = False,
-                 reference_names: Sequence[str] | None = None, runs: int = TRACE_RUNS) -> None:
-    """Keep a compact trace of a verdict simulation (the first one of the verdict only).
-
-    Does nothing unless the verdict runs under `verdict_with_trace`, or when
-    that verdict already recorded a trace: the first simulation a verdict
-    runs is its main one.
+def trace_of(result: Any, plant: Any, *, scenario: str, check: str, estimator: bool = False,
+             reference_names: Sequence[str] | None = None, runs: int = TRACE_RUNS) -> dict:
+    """A compact trace of a simulation: ``{"header": dict, "arrays": dict of ndarray}``.
 
     Parameters
     ----------
@@ -42,17 +38,21 @@ def record_trace(result: Any, plant: Any, *, scenario: str, check: str, estimato
         ``r1, r2, ...``.
     runs : int
         First runs of the batch kept.
+
+    Returns
+    -------
+    dict
+        Arrays ``t`` (s), ``x`` (state units), ``t_u`` (s), ``u`` (input
+        units), ``x_hat`` and ``reference`` when present, decimated to at most
+        `TRACE_MAX_SAMPLES` samples; the header names them.
     """
-    slot = _TRACE.get()
-    if slot is None or "trace" in slot:
-        return
     t = np.asarray(result.t, dtype=float)
     stride = max(1, int(math.ceil(t.size / TRACE_MAX_SAMPLES)))
     keep = slice(None, None, stride)
     r = max(1, min(int(runs), int(result.x.shape[0])))
     ref = np.asarray(result.reference, dtype=float)
     names = [str(v) for v in reference_names] if reference_names is not None else \
-        [f"r{i + 1}" for i in range(ref.shape[1])]
+        [f"r{i + 1}" for i in range(ref.shape[1] if ref.ndim == 2 else 0)]
     arrays: dict[str, np.ndarray] = {
         "t": t[keep],
         "x": np.asarray(result.x[:r], dtype=float)[:, keep],
@@ -78,4 +78,25 @@ def record_trace(result: Any, plant: Any, *, scenario: str, check: str, estimato
         "reference_names": names[:ref.shape[1]] if ref.ndim == 2 else [],
         "seeds": [int(v) for v in np.asarray(result.seeds)[:r]],
     }
-    slot["trace"] = {"header": header, "arrays": arrays}
+    return {"header": header, "arrays": arrays}
+
+
+class TraceRecorder:
+    """Keeps the trace of the first simulation a verdict records: its main one.
+
+    Attributes
+    ----------
+    trace : dict or None
+        `trace_of` the first recorded simulation; None while nothing was
+        recorded.
+    """
+
+    def __init__(self) -> None:
+        self.trace: dict | None = None
+
+    def record(self, result: Any, plant: Any, *, scenario: str, check: str, estimator: bool = False,
+               reference_names: Sequence[str] | None = None, runs: int = TRACE_RUNS) -> None:
+        """Keep the trace of ``result`` (see `trace_of`) unless one is already kept."""
+        if self.trace is None:
+            self.trace = trace_of(result, plant, scenario=scenario, check=check, estimator=estimator,
+                                  reference_names=reference_names, runs=runs)

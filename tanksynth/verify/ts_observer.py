@@ -1,5 +1,6 @@
 """Verdict of ``ts_observer`` (Takagi-Sugeno observer LMI)."""
 
+from __future__ import annotations
 
 from typing import Any, Mapping
 
@@ -7,13 +8,77 @@ import numpy as np
 
 from tanksynth.analysis.checks import Check
 from tanksynth.analysis.rank import observability_rank
+from tanksynth.errors import TanksynthError
+from tanksynth.verify.common import (MODEL_TOLERANCE, artefact_matrix, complex_list, fmt, guard,
+                                     operating_point, option, rank_check, relative_difference,
+                                     stability_check)
+from tanksynth.verify.numerics import observer_lmi_recheck
+from tanksynth.verify.simulations import (eigen_time_constant, eigenvector_conditioning,
+                                          observer_convergence, observer_period)
+from tanksynth.verify.traces import TraceRecorder
+
+__all__ = ["TSObserver", "ts_observer_verdict"]
 
 
-from tanksynth.verify.common import MODEL_TOLERANCE, TSObserver, _complex_list, _conditioning, _equilibrium, _fmt, _guard, _matrix, _observer_tau, _observer_ts, _option, _rank_check, _rel, _stability_check, observer_convergence
+class TSObserver:
+    """Multiple observer of seed 001 eq. (20), continuous time (a `BatchEstimator`).
 
-__all__ = ["ts_observer_verdict"]
+    Same observer as `tanksynth.runtime.estimators.luenberger.TSMultiObserver`,
+    integrated differently: that one uses explicit RK4, which is unstable for
+    stiff LMI gains (an error eigenvalue near -1.3e5 1/s is met in practice)
+    unless the step is below ``2.8 / |lambda|``; the exponential rule here is
+    exact on the linear part at any step.
 
-# ---------------------------------------------------------------------- ts_observer
+    ``dx_hat/dt = sum_i mu_i(x_hat) (A_i x_hat + B u) + d + L (y - C x_hat)``
+    (the TS model `TSModel.rhs` at the estimate, premises unmeasured),
+    integrated by the exponential Euler rule on the split ``(A0 - L C) x_hat
+    + g(x_hat, u, y)``: exact for the (possibly very stiff) linear part,
+    first order in the Lipschitz remainder; the measurement is held over
+    each period.
+
+    Parameters
+    ----------
+    model : tanksynth.analysis.takagi_sugeno.TSModel
+    L : ndarray, shape (n, q)
+    ts : float
+        Sampling period (s).
+    substeps : int
+        Exponential-Euler steps per period.
+    """
+
+    def __init__(self, model: Any, L: np.ndarray, ts: float, substeps: int = 8):
+        from tanksynth.analysis.linearize import discretize_zoh
+
+        self.model = model
+        self.L = np.asarray(L, dtype=float)
+        self.A0 = np.asarray(model.A0, dtype=float)
+        self.C = np.asarray(model.C, dtype=float)
+        self.substeps = int(substeps)
+        n = self.A0.shape[0]
+        self._phi, self._gamma = discretize_zoh(self.A0 - self.L @ self.C, np.eye(n),
+                                                float(ts) / self.substeps)
+        self._x: np.ndarray | None = None
+        self._y: np.ndarray | None = None
+
+    def reset(self, x_hat0: np.ndarray) -> None:
+        """Initial estimates (M, n)."""
+        self._x = np.asarray(x_hat0, dtype=float).copy()
+        self._y = None
+
+    def step(self, y: np.ndarray, u: np.ndarray) -> np.ndarray:
+        """Measurement (M, q), previous input (M, m) -> estimate (M, n)."""
+        if self._y is not None:
+            x = self._x
+            for _ in range(self.substeps):
+                g = self.model.rhs(x, u) - x @ self.A0.T + self._y @ self.L.T
+                x = x @ self._phi.T + g @ self._gamma.T
+            if not np.all(np.isfinite(x)):
+                raise TanksynthError("the TS observer's estimate became non-finite (premise "
+                                     "denominator w . x_hat = 0?)")
+            self._x = x
+        self._y = np.array(y, dtype=float)
+        return self._x
+
 def _ts_model_from_artefact(doc: Mapping[str, Any], spec: Any) -> tuple[Any, list[Check]]:
     """Rebuild the TS multiple model from the plant and the recorded premises/bounds/domain."""
     from tanksynth.analysis.takagi_sugeno import Domain, PremiseBounds, quasi_lpv, ts_model
@@ -59,7 +124,7 @@ def _ts_model_from_artefact(doc: Mapping[str, Any], spec: Any) -> tuple[Any, lis
                     f"premises re-derived from the plant with the recorded weights {W.tolist()}: atoms "
                     + ("and incidence agree with the record" if same else
                        f"{atoms_new} differ from the record {atoms_rec}")
-                    + f"; recorded premise bounds {_fmt(lower)} .. {_fmt(upper)} and domain "
+                    + f"; recorded premise bounds {fmt(lower)} .. {fmt(upper)} and domain "
                       f"({domain.description or 'box'}) used for eq. (20)",
                     {"weights": W.tolist(), "atoms": atoms_new})]
     return model, checks
@@ -69,48 +134,48 @@ def _local_error_check(spec: Any, L: np.ndarray, C: np.ndarray) -> Check:
     """``eig(F(x0) - L C)``: the observer error dynamics linearised at the operating point."""
     from tanksynth.analysis.linearize import linearize
 
-    x0, u0 = _equilibrium(spec)
+    x0, u0 = operating_point(spec)
     F = linearize(spec.plant, x0, u0).F
     eig = np.linalg.eigvals(F - L @ C)
     worst = float(np.max(eig.real))
     return Check("local_error_dynamics", bool(worst < 0),
                  f"eigenvalues of F(x0) - L C (F the Jacobian of the nonlinear plant at the operating "
                  f"point: the error dynamics of eq. (20) for small errors there, whatever A0 and psi) "
-                 f"{_fmt(np.sort_complex(eig), 5)}: largest real part {worst:.4g} 1/s (must be < 0, a "
+                 f"{fmt(np.sort_complex(eig), 5)}: largest real part {worst:.4g} 1/s (must be < 0, a "
                  "necessary condition for convergence)",
-                 {"eigenvalues": _complex_list(eig), "max_real_part": worst})
+                 {"eigenvalues": complex_list(eig), "max_real_part": worst})
 
 
-def ts_observer_verdict(doc: Mapping[str, Any], spec: Any) -> list[Check]:
+def ts_observer_verdict(doc: Mapping[str, Any], spec: Any, *,
+                        trace: TraceRecorder | None = None) -> list[Check]:
     """Verdict of a ``ts_observer`` artefact (seed 001).
 
     Checks: ``ts_model_rebuilt`` (premises re-derived, recorded bounds),
     ``model_recheck`` (stored ``A0``, ``B``, ``C`` vs the rebuilt multiple
-    model), ``lmi_recheck`` (LMI 28 by `check_observer_lmi` from the stored
-    ``P``, ``Q`` and ``K = P L``), ``stability`` of ``A0 - L C``,
+    model), ``lmi_recheck`` (LMI 28 by `observer_lmi_recheck` from the
+    stored ``P``, ``Q``, ``L`` and ``psi``), ``stability`` of ``A0 - L C``,
     ``local_error_dynamics`` (``F(x0) - L C`` with the plant's Jacobian:
     the LMI certifies ``A0 - L C`` plus a Lipschitz bound, which need not
     hold), ``rank_observability`` of ``(A0, C)`` and of every vertex, and
     ``observer_convergence`` of the multiple observer (20) on the nonlinear
     plant.
     """
-    from tanksynth.design.lmi import check_observer_lmi
-
     plant = spec.plant
     n, q, m = plant.n, plant.q, plant.m
-    L = _matrix(doc, "L", (n, q))
-    P = _matrix(doc, "P", (n, n))
-    Q = _matrix(doc, "Q", (n, n))
-    A0 = _matrix(doc, "A0", (n, n))
-    C = _matrix(doc, "C", (q, n))
-    B = _matrix(doc, "B", (n, m))
+    L = artefact_matrix(doc, "L", (n, q))
+    P = artefact_matrix(doc, "P", (n, n))
+    Q = artefact_matrix(doc, "Q", (n, n))
+    A0 = artefact_matrix(doc, "A0", (n, n))
+    C = artefact_matrix(doc, "C", (q, n))
+    B = artefact_matrix(doc, "B", (n, m))
     eigs = np.linalg.eigvals(A0 - L @ C)
     what = "A0 - L C"
     checks: list[Check] = []
     model, rebuilt = _ts_model_from_artefact(doc, spec)
     checks += rebuilt
     if model is not None:
-        diffs = {"A0": _rel(A0, model.A0), "B": _rel(B, model.B), "C": _rel(C, model.C)}
+        diffs = {"A0": relative_difference(A0, model.A0), "B": relative_difference(B, model.B),
+                 "C": relative_difference(C, model.C)}
         worst = max(diffs.values())
         checks.append(Check("model_recheck", bool(worst <= MODEL_TOLERANCE),
                             f"stored A0, B, C against the multiple model rebuilt from the plant "
@@ -118,8 +183,8 @@ def ts_observer_verdict(doc: Mapping[str, Any], spec: Any) -> list[Check]:
                             f"{worst:.3g} (tolerance {MODEL_TOLERANCE:g})", diffs))
     diag = doc.get("diagnostics") or {}
     lmi = diag.get("lmi") if isinstance(diag, Mapping) else None
-    psi_spec = _option(doc, spec, "psi")
-    psi_source = _option(doc, spec, "psi_source", "given" if psi_spec is not None else "maximise")
+    psi_spec = option(doc, spec, "psi")
+    psi_source = option(doc, spec, "psi_source", "given" if psi_spec is not None else "maximise")
     psi_rec = lmi.get("psi") if isinstance(lmi, Mapping) else None
     if psi_source == "given" and psi_spec is not None:
         psi, origin = float(psi_spec), "given in the spec"
@@ -131,21 +196,21 @@ def ts_observer_verdict(doc: Mapping[str, Any], spec: Any) -> list[Check]:
         checks.append(Check("lmi_recheck", None, "psi is neither given in the spec nor recorded in "
                                                  "diagnostics.lmi.psi: LMI (28) cannot be re-checked"))
     else:
-        margin = float(_option(doc, spec, "margin", 1e-6))
+        margin = float(option(doc, spec, "margin", 1e-6))
         omega = float(np.linalg.norm(A0, 2)) or (psi if psi > 0 else 1.0)
-        items, lmi_eig, _ = check_observer_lmi(A0, C, psi, P, Q, P @ L, margin, omega)
-        ok = all(c.passed for c in items)
-        checks.append(Check("lmi_recheck", bool(ok),
-                            f"LMI (28) recomputed in numpy from the stored P, Q and K = P L with psi = "
+        rc = observer_lmi_recheck(A0, C, L, P, Q, psi, margin=margin, omega=omega)
+        checks.append(Check("lmi_recheck", rc.passed,
+                            f"LMI (28) [[G' P + P G + psi^2 Q, P], [P, -Q]] < 0 with G = A0 - L C "
+                            f"(K = P L) recomputed in numpy from the stored P, Q and L with psi = "
                             f"{psi:.6g} 1/s ({origin}), margin {margin:g}, time scale |A0|_2 = "
                             f"{omega:.4g} 1/s: " + "; ".join(
                                 f"{c.name}: {c.value:.4g} vs {c.limit:.4g} "
-                                f"{'ok' if c.passed else 'FAILS'}" for c in items),
-                            {"items": [c.as_dict() for c in items], "psi": psi,
-                             "lmi_eigenvalues": lmi_eig.tolist()}))
-    checks.append(_stability_check(eigs, "continuous", what))
-    checks += _guard("local_error_dynamics", lambda: [_local_error_check(spec, L, C)])
-    checks.append(_rank_check("rank_observability", observability_rank(A0, C), "(A0, C)"))
+                                f"{'ok' if c.passed else 'FAILS'}" for c in rc.items),
+                            {"items": [c.as_dict() for c in rc.items], "psi": psi,
+                             "lmi_eigenvalues": rc.lmi_eigenvalues.tolist()}))
+    checks.append(stability_check(eigs, "continuous", what))
+    checks += guard("local_error_dynamics", lambda: [_local_error_check(spec, L, C)])
+    checks.append(rank_check("rank_observability", observability_rank(A0, C), "(A0, C)"))
     if model is not None and model.enumerated:
         ranks = [observability_rank(Ai, C) for Ai in model.A]
         bad = [i + 1 for i, r in enumerate(ranks) if not r.full]
@@ -163,20 +228,21 @@ def ts_observer_verdict(doc: Mapping[str, Any], spec: Any) -> list[Check]:
             rule = (f"(= 1 / psi: LMI (28) puts every eigenvalue of A0 - L C left of -psi = "
                     f"{-psi:.4g} 1/s, the decay the design claims)")
         else:
-            tau, rule = _observer_tau(eigs, "continuous", None)
+            tau, rule = eigen_time_constant(eigs, "continuous", None)
             rule = rule.replace("(", "(of the stored A0 - L C: ", 1)
         if not np.isfinite(tau):
             return [Check("observer_convergence", False, "A0 - L C is not stable")]
         # The exponential rule is exact on the (possibly stiff) linear part: the period only
         # has to resolve the designed decay.
-        ts_sim = _observer_ts("continuous", spec.ts, tau)
-        x0, u0 = _equilibrium(spec)
+        ts_sim = observer_period("continuous", spec.ts, tau)
+        x0, u0 = operating_point(spec)
         est = TSObserver(model, L, ts_sim)
         return [observer_convergence(plant, est, x0, u0, tau, ts_sim,
-                                     conditioning=_conditioning(A0 - L @ C),
+                                     conditioning=eigenvector_conditioning(A0 - L @ C),
                                      inside=lambda x: bool(model.domain.contains(x)[0]),
                                      outside=lambda X: ~model.domain.contains(X),
                                      rule=f"{rule}; multiple observer (20) with the premises "
-                                          "evaluated at the estimate")]
+                                          "evaluated at the estimate",
+                                     trace=trace)]
 
-    return checks + _guard("observer_convergence", sim)
+    return checks + guard("observer_convergence", sim)

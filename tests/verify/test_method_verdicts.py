@@ -1,4 +1,4 @@
-"""Verdicts of the observer, controller and filter methods (`tanksynth.verify.method_verdicts`).
+"""Verdicts of the observer, controller and filter methods (the `tanksynth.verify` verdict modules).
 
 For every method: the artefact as designed passes ``tanksynth verify DIR`` (exit 0), and the
 same artefact with a wrong gain, rewritten with `write_artefact` so that its provenance hash is
