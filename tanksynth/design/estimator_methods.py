@@ -307,7 +307,8 @@ def run_fault_detection(spec: Any, design: Any) -> DesignResult:
     initial level in ``(lower, upper]`` (`tanksynth.design.fault.fault_threshold`);
     the detection times of the declared fault ``delta_bar`` from ``t_fault``
     are computed for each of ``initial_states`` (default: the operating
-    point) and stored in the diagnostics. Options:
+    point) under ``input`` (default: the equilibrium input, held) and stored
+    in the diagnostics (single-input plants). Options:
     `tanksynth.spec.method_options.FaultDetectionOptions`.
 
     Gains: ``Psi`` (observer gain), ``Gamma_d`` (``A - Psi C``, 1/s) and the
@@ -323,19 +324,28 @@ def run_fault_detection(spec: Any, design: Any) -> DesignResult:
              "Gamma_d": np.array(th.Gamma_d.evalf(17), dtype=float),
              "threshold_coefficients": np.array([float(c) for c, _ in th.terms]),
              "threshold_rates": np.array([float(sp.re(lam)) for _, lam in th.terms])}
-    starts = [np.array(spec.x0, dtype=float)] if o.initial_states is None else \
-        [np.array(x, dtype=float) for x in o.initial_states]
-    detections = [_tuning(design, detection_time, th=th, x0=x, delta_bar=o.delta_bar,
-                          t_fault=o.t_fault, conservative=o.conservative) for x in starts]
-    diag = {"threshold": th.as_dict(), "delta_bar": o.delta_bar, "t_fault": o.t_fault,
-            "conservative": o.conservative,
+    diag: dict[str, Any] = {"threshold": th.as_dict(), "delta_bar": o.delta_bar,
+                            "t_fault": o.t_fault, "conservative": o.conservative,
+                            "notes": ["delta_bar is declared in the spec (fault size)"]}
+    if plant.m == 1:
+        starts = [np.array(spec.x0, dtype=float)] if o.initial_states is None else \
+            [np.array(x, dtype=float) for x in o.initial_states]
+        pieces = [[float(v) for v in p] for p in o.input] if o.input is not None else \
+            [[0.0, *equilibrium_input(healthy, spec.x0, spec.given_u0).u0.tolist()]]
+        detections = [_tuning(design, detection_time, th=th, x0=x, delta_bar=o.delta_bar,
+                              t_fault=o.t_fault, conservative=o.conservative,
+                              inputs=[(p[0], p[1]) for p in pieces]) for x in starts]
+        diag.update({
+            "input": pieces,
             "initial_states": [x.tolist() for x in starts],
             "detection_times": [r.t_detect for r in detections],
             "detections": [{"x0": r.x0.tolist(), "t_detect": r.t_detect,
-                            "false_alarm_before_fault": r.false_alarm} for r in detections],
-            "notes": ["delta_bar is declared in the spec (fault size)",
-                      "detection_times[i] is None when the fault is not detected within 3 s "
-                      "of its onset from initial_states[i]"]}
+                            "false_alarm_before_fault": r.false_alarm} for r in detections]})
+        diag["notes"].append("detection_times[i] is None when the fault is not detected within "
+                             "3 s of its onset from initial_states[i] under the input pieces "
+                             "[t_start, u]")
+    else:
+        diag["notes"].append("no detection times: they are simulated for single-input plants")
     latex = {"threshold": sp.latex(th.expression),
              "threshold_conservative": sp.latex(th.conservative)}
     return DesignResult(design.name, "fault_detection", plant.name, gains, diag, latex)

@@ -33,6 +33,23 @@ def _states(value: Any, key: str, names: list[str]) -> tuple[np.ndarray, ...]:
     return tuple(parse_vector(v, f"{key}[{i}]", names=names) for i, v in enumerate(value))
 
 
+def _schedule(value: Any, key: str, m: int) -> tuple[np.ndarray, ...]:
+    """Input held from t = 0: one number (every input), m values, or pieces
+    ``[[t_start, u_1 .. u_m], ...]`` (s, input units) from 0 with increasing starts."""
+    if not isinstance(value, (list, tuple)) or not value or \
+            not all(isinstance(p, (list, tuple)) for p in value):
+        u = parse_vector(value, key, m, broadcast=True)
+        return (np.concatenate([[0.0], u]),)
+    pieces = tuple(parse_vector(p, f"{key}[{i}]", m + 1) for i, p in enumerate(value))
+    starts = [float(p[0]) for p in pieces]
+    if starts[0] != 0.0 or any(b <= a for a, b in zip(starts, starts[1:])):
+        raise SpecError(f"expected pieces [t_start, u...] starting at t = 0 with increasing "
+                        f"starts, got starts {starts}", key=key)
+    for p in pieces:
+        p.flags.writeable = False
+    return pieces
+
+
 @dataclass(frozen=True, eq=False)
 class FaultDetectionOptions(MethodOptions):
     """Options of ``fault_detection``: a Luenberger observer (canonical-form gain) of the healthy
@@ -59,6 +76,10 @@ class FaultDetectionOptions(MethodOptions):
         Plant initial states (n values each, state units, inside ``(lower,
         upper]``) whose detection times are computed; default None: the
         operating point alone.
+    input : tuple of ndarray or None
+        Input of the detection-time runs, as pieces ``[t_start, u_1 .. u_m]``
+        (s, input units) from t = 0 (one number or m values: held from 0);
+        default None: the equilibrium input of the operating point, held.
     """
 
     method_name: ClassVar[str] = "fault_detection"
@@ -69,6 +90,7 @@ class FaultDetectionOptions(MethodOptions):
     t_fault: float = 2.0
     conservative: bool = True
     initial_states: tuple[np.ndarray, ...] | None = None
+    input: tuple[np.ndarray, ...] | None = None
 
     @classmethod
     def from_table(cls, options: Mapping[str, Any], key: str, plant: Any,
@@ -84,8 +106,14 @@ class FaultDetectionOptions(MethodOptions):
             if not np.all((x > lo) & (x <= hi)):
                 raise r.fail("initial_states", f"initial state {i} = {x.tolist()} is not inside the "
                                                f"bounds ({lo:g}, {hi:g}] of the threshold")
+        schedule = r.read("input", _schedule, plant.m)
+        if plant.m != 1 and (starts is not None or schedule is not None):
+            raise r.fail("initial_states" if starts is not None else "input",
+                         f"detection times are simulated for a single-input plant; plant "
+                         f"'{plant.name}' has {plant.m} inputs")
         return cls(poles=r.read("poles", parse_poles, count=plant.n, real=True, distinct=True,
                                 parse_default=True),
                    bounds=(lo, hi), delta_bar=r.read("delta_bar", parse_number, above=0.0),
                    t_fault=r.read("t_fault", parse_number, above=0.0),
-                   conservative=r.read("conservative", parse_bool), initial_states=starts)
+                   conservative=r.read("conservative", parse_bool), initial_states=starts,
+                   input=schedule)

@@ -40,7 +40,7 @@ def test_seed004_methods_design_and_write_artefacts(tmp_path):
         {"name": "obs_d", "method": "luenberger", "poles": [0.9, 0.92, 0.95]},
         {"name": "fd", "method": "fault_detection", "delta_bar": 1.0,
          "initial_states": [[0.26, 0.26, 0.26], {"x1": 4.0, "x2": 4.0, "x3": 4.0},
-                            [2.4, 3.6, 1.8]]},
+                            [2.4, 3.6, 1.8]], "input": [[0.0, 2.0], [1.0, 1.0]]},
         {"name": "fd_op", "method": "fault_detection"},
         {"name": "kf", "method": "kalman", "Q": 1e-4, "R": 1e-4, "P0": 1.0},
     ])
@@ -58,8 +58,10 @@ def test_seed004_methods_design_and_write_artefacts(tmp_path):
     assert [d["x0"] for d in fd.diagnostics["detections"]] == fd.diagnostics["initial_states"]
     assert all(d["false_alarm_before_fault"] is None for d in fd.diagnostics["detections"])
     # default: the operating point alone
+    assert fd.diagnostics["input"] == [[0.0, 2.0], [1.0, 1.0]]
     op = res["fd_op"].diagnostics
     assert op["initial_states"] == [[4.0, 4.0 / 3.0, 4.0]] and len(op["detection_times"]) == 1
+    assert op["input"] == [[0.0, pytest.approx(2.0, rel=1e-9)]]     # equilibrium input, held
     assert 2.0 <= op["detection_times"][0] <= 5.0
     assert not any("paper" in k for k in {**fd.diagnostics, **fd.gains})
     assert "78" in fd.latex["threshold"] or "39" in fd.latex["threshold"]
@@ -95,6 +97,10 @@ def test_seed004_methods_design_and_write_artefacts(tmp_path):
     ({"method": "fault_detection", "initial_states": [[1.0, 1.0]]}, "design[0].initial_states[0]",
      "expected 3 values"),
     ({"method": "fault_detection", "bounds": [4.0, 0.25]}, "design[0].bounds", "lower < upper"),
+    ({"method": "fault_detection", "input": [[1.0, 2.0], [2.0, 1.0]]}, "design[0].input",
+     "starting at t = 0"),
+    ({"method": "fault_detection", "input": [[0.0, 2.0, 1.0]]}, "design[0].input[0]",
+     "expected a list of 2 numbers"),
     ({"method": "adaptive_scaling_kalman", "Q": 1e-4, "R": 1e-4, "P0": 1.0,
       "abc": [0.5, 0.5, 0.5]}, "design[0].abc", "a \\+ b \\+ c must equal 1"),
     ({"method": "adaptive_kalman", "Q0": 1e-4, "R": 1e-4, "P0": 1.0, "window": 0},
