@@ -1,7 +1,7 @@
 """Verdict traces beside the artefacts: ``DIR/<name>.traces.npz``.
 
 `tanksynth verify` stores beside each artefact a compact trace of the verdict's main
-simulation (the first one the verdict runs that calls `record_trace`):
+simulation (the first one the verdict runs that calls `tanksynth.verify.traces.TraceRecorder.record`):
 ``DIR/<name>.traces.npz`` with ``t``, ``x`` (plant), ``x_hat`` (estimators
 and observers), ``t_u``/``u`` (inputs), ``reference`` (if any) for the first
 `TRACE_RUNS` runs, decimated to at most `TRACE_MAX_SAMPLES` samples, and a

@@ -9,7 +9,7 @@ imaginary axis.
 
 Time-domain figures (`time_domain_figure`) draw the trace that ``tanksynth
 verify`` stores beside each artefact (``DIR/<name>.traces.npz``, see
-`tanksynth.verify.traces.record_trace`): levels with their references,
+`tanksynth.verify.traces.TraceRecorder.record`): levels with their references,
 estimates against the true states and the estimation error when the
 artefact is an estimator, and the inputs. An artefact without a trace file
 simply has no time-domain figure.

@@ -168,7 +168,7 @@ def _observer_gain(doc: Mapping[str, Any], spec: Any) -> np.ndarray:
 
 
 def _luenberger_run(doc: Mapping[str, Any], spec: Any, form: str, what: str) -> EstimatorRun:
-    from tanksynth.verify.common import luenberger_estimator
+    from tanksynth.verify.simulations import luenberger_estimator
 
     x_op, u_op = spec_operating_point(spec)
     est = luenberger_estimator(spec.plant, _observer_gain(doc, spec), x_op, u_op, sampling_period(spec),
@@ -230,7 +230,7 @@ def ts_observer_run(doc: Mapping[str, Any], spec: Any) -> EstimatorRun:
     stiff linear part) with the stored ``L`` on the TS model rebuilt from
     the plant and the recorded premises, premise bounds and domain.
     """
-    from tanksynth.verify.common import TSObserver
+    from tanksynth.verify.ts_observer import TSObserver
 
     model = _ts_model(doc, spec)
     x_op, u_op = spec_operating_point(spec)

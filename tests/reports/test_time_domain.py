@@ -82,21 +82,17 @@ def test_missing_trace_means_no_figure(tmp_path):
 
 def test_trace_decimated(tmp_path):
     from tanksynth.artefacts.traces import TRACE_MAX_SAMPLES, write_trace
-    from tanksynth.verify.traces import _TRACE, record_trace
+    from tanksynth.verify.traces import TraceRecorder
     from tanksynth.plants import three_tank
     from tanksynth.sim.simulate import run_seeds, simulate
 
     plant = three_tank()
     x0 = np.array([0.4, 0.2, 0.3])
     res = simulate(plant, ts=0.5, steps=4500, x0=x0, seeds=run_seeds(0, 3), u_init=np.full(plant.m, 1e-5))
-    slot: dict = {}
-    token = _TRACE.set(slot)
-    try:
-        record_trace(res, plant, scenario="s", check="c")
-        record_trace(res, plant, scenario="second", check="c2")  # the first simulation only
-    finally:
-        _TRACE.reset(token)
-    tr = slot["trace"]
+    rec = TraceRecorder()
+    rec.record(res, plant, scenario="s", check="c")
+    rec.record(res, plant, scenario="second", check="c2")  # the first simulation only
+    tr = rec.trace
     assert tr["header"]["scenario"] == "s"
     assert tr["arrays"]["t"].size <= TRACE_MAX_SAMPLES and tr["arrays"]["x"].shape[0] == 2
     out = write_trace(tmp_path / "a.traces.npz", tr)
