@@ -42,8 +42,9 @@ import casadi as ca
 import numpy as np
 
 from tanksynth.runtime.estimators import (ExtendedKalmanFilter, KalmanTuning, NARXEstimator,
-                                         UKFTuning, UnscentedKalmanFilter, discrete_model,
-                                         simulate_plant, train_narx)
+                                         UKFTuning, UnscentedKalmanFilter, discrete_model)
+from tanksynth.design.narx import train_narx
+from tanksynth.sim.simulate import simulate_inputs
 from tanksynth.plants import hybrid_three_tank
 from tanksynth.plants.hybrid_three_tank import LPH
 
@@ -67,7 +68,7 @@ def scenario(steps: int) -> tuple:
     U = np.full((steps, 2), 100 * LPH)
     U[steps // 2:, 0] = 120 * LPH
     U[steps // 2:, 1] = 80 * LPH
-    X = simulate_plant(plant, np.array([[0.28, 0.28, 0.23]]), U[:, None, :], 1.0, 10)[1:, 0]
+    X = simulate_inputs(plant, [0.28, 0.28, 0.23], U, 1.0, substeps=10).x[0, 1:]
     rng = np.random.default_rng(0)
     Y = X[:, 2:] + rng.normal(0, 1e-3, (steps, 1))
     return plant, X, Y, U

@@ -20,7 +20,8 @@ from tanksynth.runtime.estimators import (AdaptiveKalmanFilter, AdaptiveKalmanTu
                                          ConsensusFilter, ConsensusTuning, CovarianceError,
                                          ExtendedKalmanFilter, KalmanFilter, KalmanTuning,
                                          LuenbergerObserver, LuenbergerTuning, UKFTuning,
-                                         UnscentedKalmanFilter, simulate_plant)
+                                         UnscentedKalmanFilter)
+from tanksynth.sim.simulate import simulate_inputs
 from tanksynth.analysis.linearize import equilibrium_input
 from tanksynth.plants import three_tank
 from tanksynth.methods import load_spec
@@ -42,7 +43,7 @@ def scenario():
     u_op = equilibrium_input(plant, X_OP).u0
     U = np.tile(u_op, (STEPS, 1))
     U[200:400, 0] *= 1.1
-    X = simulate_plant(plant, X_OP[None], U[:, None, :], 1.0, 10)[1:, 0]
+    X = simulate_inputs(plant, X_OP, U, 1.0, substeps=10).x[0, 1:]
     rng = np.random.default_rng(1)
     Y = X + rng.normal(0, 5e-3, X.shape)
     return plant, u_op, X, Y, U

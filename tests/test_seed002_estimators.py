@@ -16,7 +16,8 @@ import pytest
 
 from tanksynth.methods import METHODS
 from tanksynth.runtime.estimators import (ExtendedKalmanFilter, KalmanTuning, NARXEstimator,
-                                         UKFTuning, UnscentedKalmanFilter, simulate_plant)
+                                         UKFTuning, UnscentedKalmanFilter)
+from tanksynth.sim.simulate import simulate_inputs
 from tanksynth.plants import hybrid_three_tank
 from tanksynth.plants.hybrid_three_tank import LPH
 from tanksynth.methods import load_spec
@@ -32,7 +33,7 @@ def scenario():
     U = np.full((STEPS, 2), 100 * LPH)
     U[450:, 0] = 120 * LPH
     U[450:, 1] = 80 * LPH
-    X = simulate_plant(plant, np.array([[0.28, 0.28, 0.23]]), U[:, None, :], 1.0, 10)[1:, 0]
+    X = simulate_inputs(plant, [0.28, 0.28, 0.23], U, 1.0, substeps=10).x[0, 1:]
     rng = np.random.default_rng(2)
     Y = X[:, 2:] + rng.normal(0, 1e-3, (STEPS, 1))
     return plant, X, Y, U

@@ -1,6 +1,6 @@
 """Seed 002 section 5 in simulation: EKFC/UKFC/ANNC beside the paper's Table 4.
 
-The comparison code is generic (`tanksynth.verify.comparison`); the seed's
+The comparison code is generic (`tanksynth.comparison`); the seed's
 combinations, our declared tuning and the printed values it is compared
 with are held here (until tanksynth.papers holds the printed ones). Every
 combination whose estimator module is present runs, plus the perfect-
@@ -14,7 +14,7 @@ import math
 import pytest
 
 from tanksynth.plants import hybrid_three_tank
-from tanksynth.verify.comparison import FilterTuning, comparison_estimators, controller_comparison
+from tanksynth.comparison import FilterTuning, comparison_estimators, controller_comparison
 
 PLANT = hybrid_three_tank()
 X_OP = [0.31918677, 0.3209075, 0.30968861]   # examples/hybrid_three_tank.toml, 100/100 lph

@@ -14,6 +14,7 @@ from typing import Mapping, Sequence
 import casadi as ca
 import numpy as np
 
+from tanksynth.artefacts.atomic import commit
 from tanksynth.errors import ArtefactError
 from tanksynth.runtime.laws import rename_law
 
@@ -90,8 +91,7 @@ def export_law(law: ca.Function, directory: str | Path, name: str | None = None)
                 shutil.copyfile(build / target.name, tmpdir / target.name)
         try:
             for ext in (".c", ".h", ".casadi"):
-                os.replace(tmpdir / final[ext].name, final[ext])
-                renamed.append(final[ext])
+                renamed.append(commit(tmpdir / final[ext].name, final[ext]))
         except BaseException:
             for path in renamed:
                 path.unlink(missing_ok=True)

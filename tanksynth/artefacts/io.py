@@ -12,15 +12,14 @@ from __future__ import annotations
 import hashlib
 import json
 import math
-import os
 import platform
-import tempfile
 from importlib import metadata
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Iterable, Mapping
 
 import numpy as np
 
+from tanksynth.artefacts.atomic import atomic_write, commit, discard, stage
 from tanksynth.artefacts.export import c_header
 from tanksynth.errors import ArtefactError, SpecError
 
@@ -160,21 +159,17 @@ def write_artefact(result: DesignResult, directory: str | Path, spec_sha256: str
     temps: dict[str, Path] = {}
     try:
         for ext, target in final.items():
-            fd, tmp = tempfile.mkstemp(prefix=f".{result.name}.", suffix=ext + ".tmp", dir=directory)
-            temps[ext] = Path(tmp)
-            with os.fdopen(fd, "wb") as fh:
-                if ext in payloads:
-                    fh.write(payloads[ext])
-                elif ext == ".npz":
-                    np.savez(fh, **gains)
-                elif ext == ".mat":
-                    from scipy.io import savemat
+            if ext in payloads:
+                payload = payloads[ext]
+            elif ext == ".npz":
+                payload = lambda fh: np.savez(fh, **gains)  # noqa: E731
+            elif ext == ".mat":
+                from scipy.io import savemat
 
-                    savemat(fh, gains)
-                elif ext == ".h":
-                    fh.write(c_header(result.name, gains).encode("utf-8"))
-            # mkstemp creates owner-only files; artefacts are ordinary files.
-            os.chmod(tmp, 0o644)
+                payload = lambda fh: savemat(fh, gains)  # noqa: E731
+            else:
+                payload = c_header(result.name, gains)
+            temps[ext] = stage(target, payload)
         # The JSON (the artefact proper) is renamed last, and whatever was
         # renamed is removed again if a later rename fails: no partial artefact.
         renamed: list[Path] = []
@@ -187,16 +182,14 @@ def write_artefact(result: DesignResult, directory: str | Path, spec_sha256: str
                                       name=f"{result.name}_law")
                 renamed += [exported.casadi, exported.c_source, exported.c_header]
             for ext in sorted(temps, key=lambda e: e == ".json"):
-                os.replace(temps[ext], final[ext])
-                renamed.append(final[ext])
+                renamed.append(commit(temps[ext], final[ext]))
         except BaseException:
             for path in renamed:
                 path.unlink(missing_ok=True)
             raise
     finally:
         for tmp in temps.values():
-            if tmp.exists():
-                tmp.unlink()
+            discard(tmp)
     return final[".json"]
 
 
@@ -237,18 +230,6 @@ def read_artefact(path: str | Path, check_gains: bool = True) -> dict:
     return doc
 
 
-def _atomic_write(target: Path, data: bytes) -> None:
-    fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(data)
-        os.chmod(tmp, 0o644)
-        os.replace(tmp, target)
-    finally:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-
-
 def write_plant_record(spec, directory: str | Path) -> Path:
     """Write ``DIR/plant.json`` and ``DIR/spec.toml``: what reports need of the plant.
 
@@ -278,8 +259,8 @@ def write_plant_record(spec, directory: str | Path) -> Path:
     }
     target = directory / "plant.json"
     if spec.text:
-        _atomic_write(directory / "spec.toml", spec.text.encode("utf-8"))
-    _atomic_write(target, (json.dumps(to_jsonable(doc), indent=2, allow_nan=False) + "\n").encode())
+        atomic_write(directory / "spec.toml", spec.text.encode("utf-8"))
+    atomic_write(target, (json.dumps(to_jsonable(doc), indent=2, allow_nan=False) + "\n").encode())
     return target
 
 

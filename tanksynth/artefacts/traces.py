@@ -14,12 +14,12 @@ A verdict that simulates nothing leaves no trace (a stale one is removed).
 from __future__ import annotations
 
 import json
-import os
-import tempfile
 from pathlib import Path
 from typing import Any, Mapping
 
 import numpy as np
+
+from tanksynth.artefacts.atomic import atomic_write
 
 
 __all__ = ["TRACE_SUFFIX", "TRACE_MAX_SAMPLES", "TRACE_RUNS", "trace_path", "write_trace", "read_trace"]
@@ -54,15 +54,7 @@ def write_trace(path: str | Path, trace: Mapping[str, Any]) -> Path:
     path = Path(path)
     arrays = {k: np.asarray(v, dtype=float) for k, v in trace["arrays"].items()}
     header = np.array(json.dumps(trace["header"], allow_nan=False, sort_keys=True))
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            np.savez_compressed(fh, header=header, **arrays)
-        os.replace(tmp, path)
-    finally:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-    return path
+    return atomic_write(path, lambda fh: np.savez_compressed(fh, header=header, **arrays))
 
 
 

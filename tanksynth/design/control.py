@@ -35,9 +35,11 @@ Export
     `law_document` / `law_from_document` carry the serialised law inside
     artefact diagnostics.
 
-The fixed-step RK4 helpers here (`_rk4_step`, `_simulate_sampled`) exist only
-for the ISE tuning and the tests; the simulator proper lives in
-``tanksynth.verify``.
+The ISE tuning simulates through the toolbox's one integrator
+(`tanksynth.sim.integrate`): the servo step is its symbolic form
+(`symbolic_rk4`: same RK4, same clipping, same saturation), mapped over the
+candidate gains; a run whose step crosses a hybrid switching surface is
+simulated again by the numeric batch simulator, which locates the crossing.
 """
 
 from __future__ import annotations
@@ -49,12 +51,14 @@ import casadi as ca
 import numpy as np
 from scipy.optimize import minimize_scalar
 
-from tanksynth.errors import DimensionError, InfeasibleDesign, SpecError
+from tanksynth.analysis.linearize import equilibrium_input, linearize
+from tanksynth.design.placement import integral_augmentation, place_state_feedback
+from tanksynth.errors import DimensionError, InfeasibleDesign, SimulationError, SpecError
 from tanksynth.plants.base import Plant
 from tanksynth.runtime.laws import (IntegralTracking, InverseDynamicsLaw, integral_tracking_law,
                                     inverse_dynamics_law)
-from tanksynth.analysis.linearize import equilibrium_input, linearize
-from tanksynth.design.placement import integral_augmentation, place_state_feedback
+from tanksynth.sim.integrate import symbolic_rk4
+from tanksynth.sim.simulate import simulate
 
 __all__ = [
     "design_integral_tracking",
@@ -63,67 +67,6 @@ __all__ = [
     "servo_ise",
     "tune_inverse_dynamics",
 ]
-
-
-# ======================================================================= helpers
-
-
-def _level_bounds(plant: Plant) -> tuple[np.ndarray, np.ndarray]:
-    """Clipping bounds of the private RK4: levels >= 0, <= hmax when the plant has one."""
-    lo = np.zeros(plant.n)
-    hmax = next((p.value for p in plant.parameters if p.name == "hmax"), np.inf)
-    hi = np.full(plant.n, float(hmax))
-    return lo, hi
-
-
-def _rk4_step(plant: Plant, dt: float, law: ca.Function | None = None,
-              substeps: int = 1) -> ca.Function:
-    """One fixed step of RK4 on the plant (private helper of the tuning and the tests).
-
-    Parameters
-    ----------
-    plant : Plant
-        Its general model ``plant.compiled.f`` is integrated.
-    dt : float
-        Step (s); split in ``substeps`` RK4 steps.
-    law : casadi.Function, optional
-        ``(x, r) -> u, ...``: evaluated at every RK4 stage (continuous-time
-        law). Without it the input is held over the step (ZOH).
-    substeps : int
-
-    Returns
-    -------
-    casadi.Function
-        ``(x, u) -> x_next`` or ``(x, r) -> x_next``; levels clipped to
-        ``[0, hmax]`` after each substep.
-    """
-    f = plant.compiled.f
-    x = ca.SX.sym("x", plant.n)
-    lo, hi = _level_bounds(plant)
-    if law is None:
-        v = ca.SX.sym("u", plant.m)
-        rhs = lambda s: f(s, v)  # noqa: E731
-    else:
-        v = ca.SX.sym("r", law.size1_in(1))
-        rhs = lambda s: f(s, law(s, v)[0] if law.n_out() > 1 else law(s, v))  # noqa: E731
-    h = float(dt) / substeps
-    s = x
-    for _ in range(substeps):
-        k1 = rhs(s)
-        k2 = rhs(s + h / 2 * k1)
-        k3 = rhs(s + h / 2 * k2)
-        k4 = rhs(s + h * k3)
-        s = s + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
-        s = ca.fmin(ca.fmax(s, lo), hi)
-    return ca.Function("rk4_step", [x, v], [s], ["x", "u" if law is None else "r"], ["x_next"])
-
-
-def _simulate_sampled(step: ca.Function, x0: np.ndarray, signal: np.ndarray) -> np.ndarray:
-    """Iterate ``x(k+1) = step(x(k), signal[k])``; returns (N+1, n)."""
-    xs = [np.asarray(x0, dtype=float)]
-    for s in signal:
-        xs.append(np.asarray(step(xs[-1], s), dtype=float).reshape(-1))
-    return np.array(xs)
 
 
 # ====================================================== linear integral tracking
@@ -242,31 +185,75 @@ class ServoScenario:
 
 
 def _servo_step(plant: Plant, law: InverseDynamicsLaw, scenario: ServoScenario) -> ca.Function:
-    """``(x, h_sp, C) -> (x_next, ise_increment)`` over one control period (ZOH, RK4)."""
-    f = plant.compiled.f
-    lo, hi = _level_bounds(plant)
+    """``(x, h_sp, C) -> (x_next, ise_increment, crossed)`` over one control period (ZOH).
+
+    The integrator's symbolic step (`tanksynth.sim.integrate.symbolic_rk4`)
+    with the law evaluated once at the start of the period, the true state
+    as the estimate, and the squared errors of the controlled levels
+    integrated by the trapezoid rule on the RK4 grid.
+    """
     idx = [[s.name for s in plant.states].index(c) for c in law.controlled]
     x = ca.SX.sym("x", plant.n)
     r = ca.SX.sym("h_sp", plant.m)
     c = ca.SX.sym("C", plant.m)
     u = law.parametric(x, r, c)                 # x_hat = x (true state as the estimate)
-    h = scenario.ts / scenario.substeps
-    s = x
-    ise = ca.SX.zeros(plant.m)
     err = lambda v: ca.vertcat(*[(r[i] - v[j]) ** 2 for i, j in enumerate(idx)])  # noqa: E731
-    for _ in range(scenario.substeps):
-        e0 = err(s)
-        k1 = f(s, u)
-        k2 = f(s + h / 2 * k1, u)
-        k3 = f(s + h / 2 * k2, u)
-        k4 = f(s + h * k3, u)
-        s = ca.fmin(ca.fmax(s + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4), lo), hi)
-        ise = ise + h / 2 * (e0 + err(s))       # trapezoid on the RK4 grid
-    return ca.Function("servo_step", [x, r, c], [s, ise], ["x", "h_sp", "C"], ["x_next", "ise"])
+    out = symbolic_rk4(plant, x, u, scenario.ts, scenario.substeps, integrand=err)
+    return ca.Function("servo_step", [x, r, c], [out.x, out.integral, out.crossed],
+                       ["x", "h_sp", "C"], ["x_next", "ise", "crossed"])
+
+
+class _HeldLaw:
+    """The parametric law with per-run gains, evaluated every ``every`` samples and held."""
+
+    def __init__(self, law: InverseDynamicsLaw, C: np.ndarray, every: int):
+        self.fn = law.parametric
+        self.C = C
+        self.every = every
+
+    def reset(self, runs: int) -> None:
+        self.k = 0
+        self.u: np.ndarray | None = None
+        self.map = self.fn.map(runs, "serial")
+
+    def __call__(self, x_hat: np.ndarray, reference: np.ndarray, t: float) -> np.ndarray:
+        if self.k % self.every == 0 or self.u is None:
+            self.u = np.asarray(self.map(x_hat.T, reference.T, self.C.T), dtype=float).T.copy()
+        self.k += 1
+        return self.u
+
+
+def _servo_ise_numeric(plant: Plant, law: InverseDynamicsLaw, scenario: ServoScenario,
+                       C: np.ndarray) -> np.ndarray:
+    """`servo_ise` through the numeric batch simulator (switching surfaces located)."""
+    S = int(scenario.substeps)
+    h = scenario.ts / S
+    idx = [[s.name for s in plant.states].index(c) for c in law.controlled]
+    ref = np.repeat(scenario.setpoints(), S, axis=0)              # set point of each RK4 step
+    M = C.shape[0]
+
+    def run(rows: np.ndarray) -> np.ndarray:
+        res = simulate(plant, ts=h, steps=ref.shape[0], x0=scenario.x0,
+                       seeds=np.zeros(rows.size, dtype=np.uint64), controller=_HeldLaw(law, C[rows], S),
+                       reference=np.vstack([ref, ref[-1:]]), substeps=1)
+        X = res.x[:, :, idx]
+        e = (ref[None] - X[:, :-1]) ** 2 + (ref[None] - X[:, 1:]) ** 2
+        return h / 2 * e.sum(axis=1)
+
+    try:
+        return run(np.arange(M))
+    except SimulationError:                      # a diverging run: the others still count
+        out = np.full((M, len(idx)), np.inf)
+        for i in range(M):
+            try:
+                out[i] = run(np.array([i]))[0]
+            except SimulationError:
+                pass
+        return out
 
 
 def servo_ise(plant: Plant, law: InverseDynamicsLaw, scenario: ServoScenario,
-              gains: Any, _step: ca.Function | None = None) -> np.ndarray:
+              gains: Any, _step: ca.Function | None = None, *, numeric: bool = False) -> np.ndarray:
     """ISE of each controlled level on the servo scenario, for a batch of gains.
 
     Parameters
@@ -278,23 +265,35 @@ def servo_ise(plant: Plant, law: InverseDynamicsLaw, scenario: ServoScenario,
     scenario : ServoScenario
     gains : array_like, shape (M, m)
         Candidate rates ``C`` (1/s).
+    numeric : bool
+        Simulate every run with the numeric batch simulator
+        (`tanksynth.sim.simulate`) instead of the symbolic step; the
+        symbolic path does so only for runs that cross a switching surface.
+        Both give the same numbers (to rounding).
 
     Returns
     -------
     ndarray, shape (M, m)
-        ``int_0^T (h_i,sp - h_i)^2 dt`` (m^2 s), trapezoid on the RK4 grid.
+        ``int_0^T (h_i,sp - h_i)^2 dt`` (m^2 s), trapezoid on the RK4 grid;
+        ``inf`` for a run whose state is not finite.
     """
     C = np.atleast_2d(np.asarray(gains, dtype=float))
+    if numeric:
+        return _servo_ise_numeric(plant, law, scenario, C)
     M = C.shape[0]
     step = (_step or _servo_step(plant, law, scenario)).map(M, "serial")
     x = np.tile(scenario.x0[:, None], (1, M))
-    ise = np.zeros((plant.m, M))
+    ise = np.zeros((len(law.controlled), M))
+    crossed = np.zeros(M, dtype=bool)
     for sp_k in scenario.setpoints():
-        x, inc = step(x, np.tile(sp_k[:, None], (1, M)), C.T)
+        x, inc, cr = step(x, np.tile(sp_k[:, None], (1, M)), C.T)
         ise += np.asarray(inc, dtype=float)
+        crossed |= np.asarray(cr, dtype=float).reshape(-1) > 0
     x = np.asarray(x, dtype=float)
     out = ise.T
     out[~np.all(np.isfinite(x), axis=0)] = np.inf
+    if crossed.any():
+        out[crossed] = _servo_ise_numeric(plant, law, scenario, C[crossed])
     return out
 
 
@@ -408,8 +407,3 @@ def tune_inverse_dynamics(plant: Plant, scenario: ServoScenario, *,
     tuning = ISETuning(best, float(per.sum()), per, g, ise_grid.reshape([g.size] * plant.m),
                        tuple(refinement), evaluations, scenario)
     return tuned, tuning
-
-
-# ======================================================================== export
-
-

@@ -31,6 +31,7 @@ import sympy as sp
 
 from tanksynth.analysis.linearize import equilibrium_input, linearize
 from tanksynth.design.fault import detection_time, fault_threshold
+from tanksynth.design.narx import train_narx
 from tanksynth.design.result import DesignMethod, DesignResult, options_of, rekeyed
 from tanksynth.errors import SpecError, UnobservableError
 from tanksynth.runtime.estimators.adaptive import (AdaptiveKalmanFilter, AdaptiveKalmanTuning,
@@ -40,7 +41,6 @@ from tanksynth.runtime.estimators.consensus import ConsensusFilter, ConsensusTun
 from tanksynth.runtime.estimators.kalman import (ExtendedKalmanFilter, KalmanFilter, KalmanTuning,
                                                  steady_state_gain)
 from tanksynth.runtime.estimators.luenberger import LuenbergerObserver, LuenbergerTuning
-from tanksynth.runtime.estimators.narx import train_narx
 from tanksynth.runtime.estimators.ukf import UKFTuning, UnscentedKalmanFilter
 from tanksynth.spec.method_options import (AdaptiveKalmanOptions, AdaptiveScalingKalmanOptions,
                                            ConsensusFilterOptions, EkfOptions,
@@ -53,7 +53,7 @@ __all__ = [
 ]
 
 #: Option named in a `SpecError` a tuning or design step raises, by the key it uses.
-_OPTION_OF = {"a": "abc", "b": "abc", "c": "abc", "gain": "poles"}
+_OPTION_OF = {"a": "abc", "b": "abc", "c": "abc", "gain": "poles", "input_schedule": "input"}
 
 
 def _tuning(design: Any, cls: Any, **kwargs: Any) -> Any:
@@ -308,7 +308,7 @@ def run_fault_detection(spec: Any, design: Any) -> DesignResult:
     the detection times of the declared fault ``delta_bar`` from ``t_fault``
     are computed for each of ``initial_states`` (default: the operating
     point) under ``input`` (default: the equilibrium input, held) and stored
-    in the diagnostics (single-input plants). Options:
+    in the diagnostics. Options:
     `tanksynth.spec.method_options.FaultDetectionOptions`.
 
     Gains: ``Psi`` (observer gain), ``Gamma_d`` (``A - Psi C``, 1/s) and the
@@ -324,28 +324,22 @@ def run_fault_detection(spec: Any, design: Any) -> DesignResult:
              "Gamma_d": np.array(th.Gamma_d.evalf(17), dtype=float),
              "threshold_coefficients": np.array([float(c) for c, _ in th.terms]),
              "threshold_rates": np.array([float(sp.re(lam)) for _, lam in th.terms])}
-    diag: dict[str, Any] = {"threshold": th.as_dict(), "delta_bar": o.delta_bar,
-                            "t_fault": o.t_fault, "conservative": o.conservative,
-                            "notes": ["delta_bar is declared in the spec (fault size)"]}
-    if plant.m == 1:
-        starts = [np.array(spec.x0, dtype=float)] if o.initial_states is None else \
-            [np.array(x, dtype=float) for x in o.initial_states]
-        pieces = [[float(v) for v in p] for p in o.input] if o.input is not None else \
-            [[0.0, *equilibrium_input(healthy, spec.x0, spec.given_u0).u0.tolist()]]
-        detections = [_tuning(design, detection_time, th=th, x0=x, delta_bar=o.delta_bar,
-                              t_fault=o.t_fault, conservative=o.conservative,
-                              inputs=[(p[0], p[1]) for p in pieces]) for x in starts]
-        diag.update({
-            "input": pieces,
+    starts = [np.array(spec.x0, dtype=float)] if o.initial_states is None else \
+        [np.array(x, dtype=float) for x in o.initial_states]
+    pieces = [[float(v) for v in p] for p in o.input] if o.input is not None else \
+        [[0.0, *equilibrium_input(healthy, spec.x0, spec.given_u0).u0.tolist()]]
+    detections = [_tuning(design, detection_time, th=th, x0=x, delta_bar=o.delta_bar,
+                          t_fault=o.t_fault, conservative=o.conservative, plant=healthy,
+                          input_schedule=[(p[0], p[1:]) for p in pieces]) for x in starts]
+    diag = {"threshold": th.as_dict(), "delta_bar": o.delta_bar, "t_fault": o.t_fault,
+            "conservative": o.conservative, "input": pieces,
             "initial_states": [x.tolist() for x in starts],
             "detection_times": [r.t_detect for r in detections],
             "detections": [{"x0": r.x0.tolist(), "t_detect": r.t_detect,
-                            "false_alarm_before_fault": r.false_alarm} for r in detections]})
-        diag["notes"].append("detection_times[i] is None when the fault is not detected within "
-                             "3 s of its onset from initial_states[i] under the input pieces "
-                             "[t_start, u]")
-    else:
-        diag["notes"].append("no detection times: they are simulated for single-input plants")
+                            "false_alarm_before_fault": r.false_alarm} for r in detections],
+            "notes": ["delta_bar is declared in the spec (fault size)",
+                      "detection_times[i] is None when the fault is not detected within 3 s of "
+                      "its onset from initial_states[i] under the input pieces [t_start, u...]"]}
     latex = {"threshold": sp.latex(th.expression),
              "threshold_conservative": sp.latex(th.conservative)}
     return DesignResult(design.name, "fault_detection", plant.name, gains, diag, latex)

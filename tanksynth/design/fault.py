@@ -17,10 +17,18 @@ plant). With seed 004's numbers (``Psi = (855, 509/3, 41)``, poles
 conservative threshold takes every term positive (eq. 55). A fault is
 detected at the first ``t_d > t_f`` with ``|epsilon(t_d)| > epsilon_bar(t_d)``.
 
-Residuals are computed exactly for the linear plant: the plant and observer
-are one linear system with piecewise-constant input and fault, propagated by
-matrix exponentials (no integration error), and the crossing is refined by
-Brent's method.
+Residuals are simulated by the toolbox's one integrator: the plant and the
+observer are one linear system with piecewise-constant input and fault, and
+on a linear system the simulator's RK4 step is a matrix
+(`tanksynth.sim.integrate.rk4_matrix`, fourth order: with the default step
+of 0.1 ms the residual agrees with the matrix exponential to ~1e-13 of the
+threshold), applied to the plant-and-observer state (the plant's levels are
+checked against its clipping rule, `Plant.state_bounds`). The scan grid is
+the integration grid; a crossing is refined by Brent's method on the RK4
+interpolant (a partial step from the last grid point).
+
+The input schedule, the initial states and the fault are arguments: nothing
+here belongs to one particular study.
 """
 
 from __future__ import annotations
@@ -29,12 +37,12 @@ from dataclasses import dataclass, field
 from typing import Any, Iterator, Sequence
 
 import numpy as np
-import scipy.linalg as sla
 import sympy as sp
 from scipy.optimize import brentq
 
-from tanksynth.errors import DimensionError, SpecError
+from tanksynth.errors import DimensionError, SimulationError, SpecError
 from tanksynth.plants.base import Plant, exact
+from tanksynth.sim.integrate import rk4_matrix
 
 __all__ = [
     "FaultThreshold",
@@ -42,18 +50,8 @@ __all__ = [
     "DetectionResult",
     "residual",
     "detection_time",
-    "SEED004_INITIAL_STATES",
-    "SEED004_DETECTION_TIMES",
-    "seed004_detection",
     "fit_fault_size",
 ]
-
-#: Initial states x0(1), x0(2), x0(3) of seed 004 section IV.
-SEED004_INITIAL_STATES = ((0.26, 0.26, 0.26), (4.0, 4.0, 4.0), (2.4, 3.6, 1.8))
-#: Detection times printed in seed 004 section IV (s), in the same order.
-SEED004_DETECTION_TIMES = (2.0235, 2.015, 2.0165)
-#: Seed 004's input: 2 on [0, 1), then 1 (section IV).
-SEED004_INPUT = ((0.0, 2.0), (1.0, 1.0))
 
 
 def _linear_matrices(plant: Plant) -> tuple[sp.Matrix, sp.Matrix, sp.Matrix]:
@@ -236,8 +234,9 @@ class DetectionResult:
         Threshold eq. 55 (True) or eq. 54.
     false_alarm : float or None
         First time before ``t_fault`` the residual exceeds the threshold.
-    paper : float or None
-        The seed's printed detection time for this initial state.
+    reference : float or None
+        A detection time to compare with (s), e.g. one published for this
+        initial state; carried through, never used in the computation.
     """
 
     x0: np.ndarray
@@ -246,21 +245,28 @@ class DetectionResult:
     t_detect: float | None
     conservative: bool
     false_alarm: float | None
-    paper: float | None = None
+    reference: float | None = None
 
     def as_dict(self) -> dict:
         """JSON-friendly record."""
         return {"x0": list(map(float, self.x0)), "delta_bar": self.delta_bar,
                 "t_fault": self.t_fault, "t_detect": self.t_detect,
                 "threshold": "eq. 55 (conservative)" if self.conservative else "eq. 54",
-                "false_alarm_before_fault": self.false_alarm, "paper_t_detect": self.paper,
-                "difference_to_paper": (None if self.paper is None or self.t_detect is None
-                                        else self.t_detect - self.paper)}
+                "false_alarm_before_fault": self.false_alarm, "reference_t_detect": self.reference,
+                "difference_to_reference": (None if self.reference is None or self.t_detect is None
+                                            else self.t_detect - self.reference)}
 
 
 @dataclass
-class _Simulator:
-    """Plant + observer as one linear system with piecewise-constant input and fault."""
+class _LinearRun:
+    """Plant + observer as one linear system with piecewise-constant input and fault.
+
+    The state ``z = (x, x_hat, 1)`` obeys ``dz/dt = M_i z`` on segment ``i``
+    (between consecutive breaks: 0, input changes, fault onset) and is
+    advanced by the simulator's RK4 step of ``h`` seconds written as a
+    matrix, ``R_i = rk4_matrix(M_i, h)``, from the segment's start; a time
+    off the grid is reached by a last partial step.
+    """
 
     A: np.ndarray
     B: np.ndarray
@@ -271,85 +277,136 @@ class _Simulator:
     x_hat0: np.ndarray
     inputs: tuple
     t_fault: float
+    h: float
+    lower: np.ndarray
+    upper: np.ndarray
     _cache: dict = field(default_factory=dict)
 
     def __post_init__(self) -> None:
-        n = self.A.shape[0]
+        self.n = self.A.shape[0]
         breaks = sorted({0.0, self.t_fault, *(float(t) for t, _ in self.inputs)})
         self.breaks = [b for b in breaks if b >= 0.0]
-        z = np.concatenate([self.x0, self.x_hat0])
+        z = np.concatenate([self.x0, self.x_hat0, [1.0]])
+        self._check(z[None], 0.0)
         self.states = [z]
-        for a, b in zip(self.breaks[:-1], self.breaks[1:]):
-            z = self._propagate(a, z, b - a)
+        for i, (a, b) in enumerate(zip(self.breaks[:-1], self.breaks[1:])):
+            z = self._advance(i, z, b - a)
+            self._check(z[None], b)
             self.states.append(z)
-        self.n = n
 
-    def _segment(self, t0: float) -> np.ndarray:
-        if t0 in self._cache:
-            return self._cache[t0]
-        n = self.A.shape[0]
+    def _segment(self, i: int) -> tuple[np.ndarray, np.ndarray]:
+        """``(M_i, R_i)`` of segment ``i``."""
+        if i in self._cache:
+            return self._cache[i]
+        n = self.n
+        t0 = self.breaks[i]
         Af = self.A + (self.fault if t0 >= self.t_fault else 0.0)
         u = [v for s, v in self.inputs if s <= t0][-1]
         M = np.zeros((2 * n + 1, 2 * n + 1))
         M[:n, :n] = Af
         M[n:2 * n, :n] = self.Psi @ self.C
         M[n:2 * n, n:2 * n] = self.A - self.Psi @ self.C
-        M[:n, -1] = (self.B * u).ravel()
-        M[n:2 * n, -1] = (self.B * u).ravel()
-        self._cache[t0] = M
-        return M
+        M[:n, -1] = self.B @ u
+        M[n:2 * n, -1] = self.B @ u
+        self._cache[i] = (M, rk4_matrix(M, self.h))
+        return self._cache[i]
 
-    def _propagate(self, t0: float, z: np.ndarray, dt: float) -> np.ndarray:
-        E = sla.expm(self._segment(t0) * dt)
-        return (E @ np.append(z, 1.0))[:-1]
+    def _advance(self, i: int, z: np.ndarray, dt: float) -> np.ndarray:
+        """``z`` advanced by ``dt`` >= 0 seconds from the start of segment ``i``."""
+        M, R = self._segment(i)
+        k = int(np.floor(dt / self.h + 1e-9))
+        rest = dt - k * self.h
+        z = np.linalg.matrix_power(R, k) @ z
+        return rk4_matrix(M, rest) @ z if rest > 1e-9 * self.h else z
+
+    def _check(self, Z: np.ndarray, t: float) -> None:
+        X = Z[:, :self.n]
+        if np.any(X < self.lower) or np.any(X > self.upper):
+            raise SimulationError(f"the plant's levels leave its state bounds near t = {t:.6g} s "
+                                  f"(lower {self.lower.tolist()}, upper {self.upper.tolist()}); the "
+                                  "linear residual model no longer holds there")
+
+    def _index(self, t: float) -> int:
+        return max(j for j, b in enumerate(self.breaks) if b <= t)
 
     def residual(self, t: float) -> float:
         """``epsilon(t) = C (x(t) - x_hat(t))``."""
-        i = max(j for j, b in enumerate(self.breaks) if b <= t)
-        z = self._propagate(self.breaks[i], self.states[i], t - self.breaks[i])
+        i = self._index(t)
+        z = self._advance(i, self.states[i], t - self.breaks[i])
         n = self.n
-        return float((self.C @ (z[:n] - z[n:]))[0])
+        return float((self.C @ (z[:n] - z[n:2 * n]))[0])
 
-    def residuals(self, t0: float, t1: float, dt: float,
-                  chunk: int = 512) -> Iterator[tuple[np.ndarray, np.ndarray]]:
-        """Residual on a uniform grid inside one segment, in chunks (exact propagation)."""
-        i = max(j for j, b in enumerate(self.breaks) if b <= t0)
-        z = self._propagate(self.breaks[i], self.states[i], t0 - self.breaks[i])
-        E = sla.expm(self._segment(self.breaks[i]) * dt)
+    def residuals(self, t0: float, t1: float, chunk: int = 512) -> Iterator[tuple[np.ndarray, np.ndarray]]:
+        """Residual on the integration grid from ``t0`` (a break) to ``t1``, in chunks."""
+        i = self._index(t0)
+        if t0 != self.breaks[i]:
+            raise SimulationError(f"a residual scan starts at a break, got t0 = {t0}")
+        _, E = self._segment(i)
         powers = np.empty((chunk, *E.shape))
         powers[0] = np.eye(E.shape[0])
         for k in range(1, chunk):
             powers[k] = E @ powers[k - 1]
         step = E @ powers[-1]
-        count = int(np.floor((t1 - t0) / dt + 1e-9)) + 1
-        za = np.append(z, 1.0)
+        count = int(np.floor((t1 - t0) / self.h + 1e-9)) + 1
+        za = self.states[i]
         D = np.concatenate([self.C[0], -self.C[0], [0.0]])
         for start in range(0, count, chunk):
             k = min(chunk, count - start)
             Z = powers[:k] @ za
-            yield t0 + dt * (start + np.arange(k)), Z @ D
+            ts = t0 + self.h * (start + np.arange(k))
+            self._check(Z, float(ts[0]))
+            yield ts, Z @ D
             za = step @ za
 
 
-def _simulator(th: FaultThreshold, x0: Any, delta_bar: float, t_fault: float,
-               inputs: Sequence[tuple[float, float]], fault_matrix: Any) -> _Simulator:
+def _schedule(input_schedule: Any, m: int) -> tuple[tuple[float, np.ndarray], ...]:
+    """Validated ``((t_start, u), ...)``: starts increasing from 0, ``u`` of m values."""
+    if input_schedule is None:
+        return ((0.0, np.zeros(m)),)
+    pieces = []
+    for piece in input_schedule:
+        try:
+            start, value = piece
+            u = np.asarray(value, dtype=float).reshape(-1)
+            start = float(start)
+        except (TypeError, ValueError):
+            raise SpecError(f"input_schedule entries must be (t_start, u) pairs, got {piece!r}",
+                            key="input_schedule") from None
+        if u.size != m or not np.all(np.isfinite(u)) or not np.isfinite(start):
+            raise SpecError(f"input_schedule: u must have {m} finite values, got {value!r} at "
+                            f"t = {start}", key="input_schedule")
+        pieces.append((start, u))
+    starts = [t for t, _ in pieces]
+    if not pieces or starts[0] > 0.0 or any(b <= a for a, b in zip(starts[:-1], starts[1:])):
+        raise SpecError(f"input_schedule must start at t <= 0 and increase, got starts {starts}",
+                        key="input_schedule")
+    return tuple(pieces)
+
+
+def _linear_run(th: FaultThreshold, x0: Any, delta_bar: float, t_fault: float,
+                input_schedule: Any, fault_matrix: Any, dt: float,
+                bounds: tuple[np.ndarray, np.ndarray] | None) -> _LinearRun:
     n = th.A.rows
     x0 = np.asarray(x0, dtype=float).reshape(-1)
     if x0.size != n:
         raise DimensionError(f"x0 must have {n} entries, got {x0.size}")
+    if not (np.isfinite(dt) and dt > 0):
+        raise SpecError(f"dt must be a positive step (s), got {dt!r}", key="dt")
     f = lambda M: np.array(M.evalf(17), dtype=float)  # noqa: E731
     if fault_matrix is None:
         fault_matrix = np.zeros((n, n))
         fault_matrix[1, 1] = -1.0
     F = np.asarray(fault_matrix, dtype=float) * float(delta_bar)
-    return _Simulator(f(th.A), f(th.B), f(th.C), f(th.Psi), F, x0, f(th.x_hat0).ravel(),
-                      tuple((float(t), float(v)) for t, v in inputs), float(t_fault))
+    lower, upper = bounds if bounds is not None else (np.full(n, -np.inf), np.full(n, np.inf))
+    return _LinearRun(f(th.A), f(th.B), f(th.C), f(th.Psi), F, x0, f(th.x_hat0).ravel(),
+                      _schedule(input_schedule, th.B.cols), float(t_fault), float(dt),
+                      np.asarray(lower, dtype=float), np.asarray(upper, dtype=float))
 
 
 def residual(th: FaultThreshold, x0: Any, t: Any, *, delta_bar: float = 0.0, t_fault: float = 2.0,
-             inputs: Sequence[tuple[float, float]] = SEED004_INPUT,
-             fault_matrix: Any = None) -> np.ndarray:
-    """Exact output residual ``epsilon(t) = C (x - x_hat)`` of plant and observer.
+             input_schedule: Sequence[tuple[float, Any]] | None = None, fault_matrix: Any = None,
+             dt: float = 1e-4, plant: Plant | None = None) -> np.ndarray:
+    """Output residual ``epsilon(t) = C (x - x_hat)`` of plant and observer (simulated).
 
     Parameters
     ----------
@@ -364,27 +421,35 @@ def residual(th: FaultThreshold, x0: Any, t: Any, *, delta_bar: float = 0.0, t_f
         ``A + delta_bar * fault_matrix``.
     t_fault : float
         Fault onset (s).
-    inputs : sequence of (t_start, u)
-        Piecewise-constant input (seed 004: 2 on [0, 1), then 1).
+    input_schedule : sequence of (t_start, u), optional
+        Piecewise-constant input: ``u`` (a number, or ``m`` numbers, input
+        units) from ``t_start`` (s) on; starts increasing, the first at 0.
+        Default: zero input throughout.
     fault_matrix : array_like, shape (n, n), optional
         Direction of the fault; default the leak of tank 2 (``-1`` at (2, 2),
         the ``-delta_bar x2`` term of ``hydraulic_fault``).
+    dt : float
+        RK4 step of the simulation (s).
+    plant : Plant, optional
+        The plant whose clipping rule (`Plant.state_bounds`) the levels must
+        respect (a `SimulationError` otherwise); default no bounds.
 
     Returns
     -------
     ndarray
         ``epsilon`` at ``t`` (output units).
     """
-    sim = _simulator(th, x0, delta_bar, t_fault, inputs, fault_matrix)
+    run = _linear_run(th, x0, delta_bar, t_fault, input_schedule, fault_matrix, dt,
+                      None if plant is None else plant.state_bounds())
     ts = np.atleast_1d(np.asarray(t, dtype=float))
-    return np.array([sim.residual(v) for v in ts]).reshape(np.shape(t))
+    return np.array([run.residual(v) for v in ts]).reshape(np.shape(t))
 
 
 def detection_time(th: FaultThreshold, x0: Any, delta_bar: float, *, t_fault: float = 2.0,
                    conservative: bool = True, horizon: float = 3.0, dt: float = 1e-4,
-                   inputs: Sequence[tuple[float, float]] = SEED004_INPUT,
-                   fault_matrix: Any = None, paper: float | None = None,
-                   check_false_alarm: bool = True) -> DetectionResult:
+                   input_schedule: Sequence[tuple[float, Any]] | None = None,
+                   fault_matrix: Any = None, reference: float | None = None,
+                   check_false_alarm: bool = True, plant: Plant | None = None) -> DetectionResult:
     """First time after the fault at which ``|epsilon| > epsilon_bar``.
 
     Parameters
@@ -401,11 +466,12 @@ def detection_time(th: FaultThreshold, x0: Any, delta_bar: float, *, t_fault: fl
     horizon : float
         Search until ``t_fault + horizon`` (s).
     dt : float
-        Scan step (s); crossings are refined by Brent's method to 1e-12 s.
-    inputs, fault_matrix
+        RK4 step of the simulation and scan step (s); crossings are refined
+        by Brent's method to 1e-12 s.
+    input_schedule, fault_matrix, plant
         See `residual`.
-    paper : float, optional
-        Printed detection time, carried into the result.
+    reference : float, optional
+        A detection time to compare with (s), carried into the result.
     check_false_alarm : bool
         Also scan ``[0, t_fault)`` for a residual above the threshold.
 
@@ -415,19 +481,20 @@ def detection_time(th: FaultThreshold, x0: Any, delta_bar: float, *, t_fault: fl
     """
     if not (isinstance(delta_bar, (int, float)) and np.isfinite(delta_bar) and delta_bar > 0):
         raise SpecError(f"delta_bar must be a positive number, got {delta_bar!r}", key="delta_bar")
-    sim = _simulator(th, x0, delta_bar, t_fault, inputs, fault_matrix)
+    run = _linear_run(th, x0, delta_bar, t_fault, input_schedule, fault_matrix, dt,
+                      None if plant is None else plant.state_bounds())
 
     rtol = 1e-9   # |epsilon| equal to the threshold up to rounding is not a crossing
 
     def margin(t: float) -> float:
         bar = float(th.evaluate(t, conservative))
-        return abs(sim.residual(t)) - bar - rtol * abs(bar)
+        return abs(run.residual(t)) - bar - rtol * abs(bar)
 
     def first_crossing(t0: float, t1: float) -> float | None:
-        edges = [b for b in sim.breaks if t0 < b < t1]
+        edges = [b for b in run.breaks if t0 < b < t1]
         previous = None
         for a, b in zip([t0, *edges], [*edges, t1]):
-            for ts, eps in sim.residuals(a, b, dt):
+            for ts, eps in run.residuals(a, b):
                 bar = th.evaluate(ts, conservative)
                 idx = np.flatnonzero(np.abs(eps) - bar - rtol * np.abs(bar) > 0)
                 if idx.size:
@@ -442,27 +509,23 @@ def detection_time(th: FaultThreshold, x0: Any, delta_bar: float, *, t_fault: fl
     false_alarm = first_crossing(0.0, t_fault) if check_false_alarm else None
     t_detect = first_crossing(t_fault, t_fault + horizon)
     return DetectionResult(np.asarray(x0, dtype=float), float(delta_bar), float(t_fault), t_detect,
-                           conservative, false_alarm, paper)
-
-
-def seed004_detection(th: FaultThreshold, delta_bar: float, *, conservative: bool = True,
-                      t_fault: float = 2.0) -> tuple[DetectionResult, ...]:
-    """Detection times for the three initial states of seed 004, beside the printed ones."""
-    return tuple(detection_time(th, x0, delta_bar, t_fault=t_fault, conservative=conservative,
-                                paper=paper)
-                 for x0, paper in zip(SEED004_INITIAL_STATES, SEED004_DETECTION_TIMES))
+                           conservative, false_alarm, reference)
 
 
 def fit_fault_size(th: FaultThreshold, x0: Any, t_detect: float, *, t_fault: float = 2.0,
-                   conservative: bool = True, bracket: tuple[float, float] = (1e-3, 1e3)) -> float | None:
+                   conservative: bool = True, bracket: tuple[float, float] = (1e-3, 1e3),
+                   input_schedule: Sequence[tuple[float, Any]] | None = None,
+                   fault_matrix: Any = None, dt: float = 1e-4) -> float | None:
     """Fault size whose detection time equals ``t_detect`` (None if outside ``bracket``).
 
-    Used to ask which ``delta_bar`` the seed's printed times would need.
+    Used to ask which ``delta_bar`` a given (e.g. published) detection time
+    would need; the other arguments are those of `detection_time`.
     """
     def gap(log_d: float) -> float:
         res = detection_time(th, x0, float(np.exp(log_d)), t_fault=t_fault,
                              conservative=conservative, horizon=max(1.0, 2 * (t_detect - t_fault)),
-                             check_false_alarm=False)
+                             check_false_alarm=False, input_schedule=input_schedule,
+                             fault_matrix=fault_matrix, dt=dt)
         return (res.t_detect if res.t_detect is not None else np.inf) - t_detect
 
     lo, hi = np.log(bracket[0]), np.log(bracket[1])

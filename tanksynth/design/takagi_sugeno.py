@@ -292,7 +292,7 @@ def lipschitz_bound(ts: TSModel, form: str = "jacobian", method: str = "interval
     else:
         phi = float(input_bound)
     tau, omega = np.zeros(ts.r), np.zeros(ts.r)
-    terms, printed = 0.0, 0.0
+    terms, with_full_B = 0.0, 0.0
     for i, sig in enumerate(ts.sigmas):
         mu = np.ones(len(X))
         grad = np.zeros((len(X), q.n))
@@ -314,17 +314,17 @@ def lipschitz_bound(ts: TSModel, form: str = "jacobian", method: str = "interval
             omega[i] = np.max(np.linalg.norm(Mi, 2, axis=(1, 2))) * (1 + margin)
         terms += _prod(np.linalg.norm(Abar[i], 2), omega[i]) + _prod(np.linalg.norm(Bbar[i], 2) * phi,
                                                                       tau[i])
-        printed += _prod(np.linalg.norm(Abar[i], 2), omega[i]) + _prod(np.linalg.norm(ts.B, 2) * phi,
+        with_full_B += _prod(np.linalg.norm(Abar[i], 2), omega[i]) + _prod(np.linalg.norm(ts.B, 2) * phi,
                                                                         tau[i])
     value = float(terms) if np.isfinite(terms) else np.inf
     return LipschitzBound(value, form, "sampling", sampled,
                           {"tau": tau.tolist(), "omega": omega.tolist(), "phi": phi,
                            "margin": margin, "samples": int(len(X)),
-                           "value_with_printed_B_term": float(printed),
+                           "value_with_full_B_term": float(with_full_B),
                            "text": "seed 001 eq. (27) with tau_i, omega_i from sampled gradient norms "
                                    f"times (1 + {margin:g}); the input term uses Bbar_i = B_i - B0 "
                                    "(sum_i (mu_i(x) - mu_i(xhat)) = 0), the printed form with B_i "
-                                   "is in value_with_printed_B_term"})
+                                   "is in value_with_full_B_term"})
 
 
 # ------------------------------------------------------------------------ search

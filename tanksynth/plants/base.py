@@ -324,6 +324,44 @@ class Plant:
         return np.array([[values[b] if isinstance(b, str) else float(b) for b in pair]
                          for pair in self.input_bounds], dtype=float)
 
+    def state_bounds(self, params: Mapping[str, Any] | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """The clipping rule: bounds every simulation of this plant keeps its states in.
+
+        The one rule of the toolbox (the batch simulator, the symbolic steps
+        used in design, the training-data and residual simulations, and the
+        estimators' optional clamping all use it): lower bound 0 for every
+        state whose operating region starts at or above 0 (a level cannot be
+        negative, Torricelli's square root stays real), ``-inf`` for a state
+        whose region extends below 0; upper bound the plant's ``hmax``
+        parameter (overflow height) when it has one, ``+inf`` otherwise.
+
+        Parameters
+        ----------
+        params : mapping of str to float, optional
+            Parameter values to use instead of the plant's (only ``hmax``
+            matters; it must be one number, not a per-run array).
+
+        Returns
+        -------
+        lower, upper : ndarray, shape (n,)
+            In state units.
+
+        Raises
+        ------
+        DimensionError
+            ``hmax`` given as an array (one overflow height per run).
+        """
+        lower = np.array([0.0 if lo >= 0 else -np.inf for lo, _ in self.region.bounds])
+        values: dict[str, Any] = {prm.name: prm.value for prm in self.parameters}
+        values.update(params or {})
+        upper = np.full(self.n, np.inf)
+        if "hmax" in values:
+            if np.ndim(values["hmax"]) != 0:
+                raise DimensionError(f"plant {self.name}: the overflow height hmax must be one "
+                                     f"value for all runs, got shape {np.shape(values['hmax'])}")
+            upper[:] = float(values["hmax"])
+        return lower, upper
+
     def mode_of(self, x: Sequence[float] | np.ndarray) -> tuple[int, ...] | np.ndarray:
         """Hybrid mode bits at ``x``: a tuple for one point, (M, k) ints for (M, n).
 

@@ -4,13 +4,17 @@
 round trip, no lambdify). `compile_plant` builds, once per plant, the
 functions the estimators, the simulator and the rank checks evaluate:
 ``f(x, u)``, ``h(x)`` and their Jacobians, with a batch form over many
-points at once.
+points at once. `rk4_step` is the toolbox's one Runge-Kutta step, written
+once for numpy arrays and CasADi expressions alike: the simulator
+(`tanksynth.sim`) and the estimators' prediction models
+(`tanksynth.runtime.estimators`) both discretise the plant with it (it lives
+here, below both, because those two layers must not import each other).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Mapping, Sequence
+from typing import Any, Callable, Mapping, Sequence
 
 import casadi as ca
 import numpy as np
@@ -18,7 +22,53 @@ import sympy as sp
 
 from tanksynth.errors import TanksynthError
 
-__all__ = ["to_casadi", "CompiledPlant", "compile_plant", "compile_matrix"]
+__all__ = ["to_casadi", "CompiledPlant", "compile_plant", "compile_matrix", "rk4_step"]
+
+
+def rk4_step(rhs: Callable[..., Any], x: Any, h: Any, clip: Callable[[Any], Any] | None = None,
+             t: Any = None) -> Any:
+    """One classical Runge-Kutta (RK4) step of ``dx/dt = rhs(x)``: the toolbox's one scheme.
+
+    ``k1 = rhs(c(x))``, ``k2 = rhs(c(x + h/2 k1))``, ``k3 = rhs(c(x + h/2 k2))``,
+    ``k4 = rhs(c(x + h k3))``, ``x + h/6 (k1 + 2 k2 + 2 k3 + k4)``, with every
+    stage state passed through ``c = clip`` before the vector field is
+    evaluated (so that Torricelli's square root never sees a level below
+    the plant's bounds, `Plant.state_bounds`). The end state is returned
+    unclipped: the caller clips it (after locating switching surfaces, in
+    `tanksynth.sim`). Written with ``+``, ``*`` only, so it runs on numpy
+    arrays (a batch, shape (M, n), with ``h`` a float or an (M, 1) column)
+    and on CasADi SX/MX expressions alike.
+
+    Parameters
+    ----------
+    rhs : callable
+        ``x -> dx/dt`` (the input is bound by the caller: held, or a law
+        evaluated at every stage).
+    x : ndarray or casadi.SX
+        State at the start of the step (state units).
+    h : float or ndarray
+        Step (s).
+    clip : callable, optional
+        Clipping of the stage states (identity when None).
+    t : float, optional
+        Time at the start of the step (s), for a time-varying field: then
+        ``rhs(x, t_stage)`` is called with ``t_stage = t, t + h/2, t + h/2,
+        t + h``.
+
+    Returns
+    -------
+    Same type as ``x``: the state after ``h`` seconds, before clipping.
+    """
+    c = clip if clip is not None else (lambda v: v)
+    if t is None:
+        f = lambda v, _s: rhs(v)  # noqa: E731
+    else:
+        f = lambda v, s: rhs(v, t + s * h)  # noqa: E731
+    k1 = f(c(x), 0.0)
+    k2 = f(c(x + 0.5 * h * k1), 0.5)
+    k3 = f(c(x + 0.5 * h * k2), 0.5)
+    k4 = f(c(x + h * k3), 1.0)
+    return x + (h / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
 
 
 def to_casadi(expr: sp.Expr, symbols: Mapping[sp.Symbol, ca.SX], _cache: dict | None = None) -> ca.SX:

@@ -20,13 +20,13 @@ Figures are drawn on `matplotlib.figure.Figure` objects and saved with
 
 from __future__ import annotations
 
-import os
-import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Iterator, Mapping
 
 import numpy as np
+
+from tanksynth.artefacts.atomic import atomic_write
 
 __all__ = ["EigenvalueSet", "eigenvalue_sets", "is_pole_key", "FigureFile", "pole_map", "TraceFigure",
            "time_domain_figure"]
@@ -130,14 +130,8 @@ class FigureFile:
 
 
 def _atomic_savefig(fig, target: Path) -> None:
-    fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            fig.savefig(fh, format="pdf", metadata={"CreationDate": None, "Creator": "tanksynth"})
-        os.replace(tmp, target)
-    finally:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
+    atomic_write(target, lambda fh: fig.savefig(fh, format="pdf",
+                                                 metadata={"CreationDate": None, "Creator": "tanksynth"}))
 
 
 _MARKERS = ("x", "o", "s", "^", "D", "v", "P", "*")

@@ -11,7 +11,6 @@ no longer match ``report.tex``) and keeps the LaTeX log as
 
 from __future__ import annotations
 
-import os
 import shutil
 import tempfile
 import time
@@ -19,6 +18,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable, Mapping
 
+from tanksynth.artefacts.atomic import atomic_write, commit
 from tanksynth.errors import ReportError
 from tanksynth.reports.context import build_context, trace_figures
 from tanksynth.reports.figures import FigureFile, TraceFigure, pole_map
@@ -68,14 +68,7 @@ class ReportResult:
 
 
 def _atomic_write_text(target: Path, text: str) -> None:
-    fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as fh:
-            fh.write(text)
-        os.replace(tmp, target)
-    finally:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
+    atomic_write(target, text)
 
 
 def _figure_stem(index: int, name: str) -> str:
@@ -178,7 +171,7 @@ def write_report(directory: str | Path, pdf: bool = False, timeout: float = 180.
             pages = pdf_page_count(res.pdf)
             latex_seconds = res.seconds
             _atomic_write_text(tex_path, tex)
-            os.replace(res.pdf, pdf_path)
+            commit(res.pdf, pdf_path)
             out_pdf, out_log = pdf_path, log_path
         finally:
             shutil.rmtree(build, ignore_errors=True)
@@ -192,12 +185,5 @@ def write_report(directory: str | Path, pdf: bool = False, timeout: float = 180.
 def _keep_log(src: Path | None, target: Path) -> bool:
     if src is None or not Path(src).exists():
         return False
-    fd, tmp = tempfile.mkstemp(prefix=".report.log.", suffix=".tmp", dir=target.parent)
-    os.close(fd)
-    try:
-        shutil.copyfile(src, tmp)
-        os.replace(tmp, target)
-    finally:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
+    atomic_write(target, Path(src).read_bytes())
     return True

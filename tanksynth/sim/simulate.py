@@ -6,16 +6,14 @@ independent runs at once:
 
 * sampled at ``ts`` (s); inputs are held (zero-order hold) over each period
   and saturated to the actuators' range (pump saturation);
-* fixed-step RK4 with ``substeps`` steps per period, vectorised over the
-  runs; stage states are clipped to the level bounds before the vector field
-  is evaluated, and every step's end state is clipped (levels never go below
-  zero, nor above the overflow height ``hmax`` where the plant has one);
-* hybrid switching is handled explicitly: after each RK4 step the mode bits
-  ``[s_j(x) > 0]`` are compared; a run whose mode changed inside the step is
-  re-integrated up to the crossing (located by bisection on the step
-  fraction, to ``2**-event_iterations`` of the step), then from just past the
-  surface to the end of the step, so RK4 never straddles a switching surface
-  and never chatters at ``h0``;
+* the one integrator of the toolbox (`tanksynth.sim.integrate.Integrator`):
+  fixed-step RK4 with ``substeps`` steps per period, vectorised over the
+  runs, stage and end states clipped by the plant's one clipping rule
+  (`Plant.state_bounds`: levels never below zero, nor above the overflow
+  height ``hmax`` where the plant has one), hybrid switching surfaces
+  located inside a step (bisection on the step fraction, to
+  ``2**-event_iterations`` of the step) so RK4 never straddles one and never
+  chatters at ``h0``;
 * process noise (added to the state at each sample, state units) and
   measurement noise (added to ``h(x)``, output units) are drawn from one
   ``numpy.random.Generator`` per run, seeded explicitly: run ``r`` with
@@ -24,46 +22,45 @@ independent runs at once:
 * parameter changes (faults: a valve leak or clogging from a given sample)
   and state jumps (water added or removed) at given samples.
 
-The vector field is compiled once per plant structure from the sympy model
-into a numpy "tape" with the parameters as inputs (so each run can carry
-its own parameter values, e.g. a +-10 % uncertainty draw, and faults switch
-values mid-run). It agrees with the CasADi `CompiledPlant.rhs` to rounding
-(tested); it is about 20x faster per point at M = 1000, which is what makes
-the batch simulator fast (see ``benchmarks/simulate.py``).
+The vector field is the plant's numpy tape (`tanksynth.sim.tape`), with the
+parameters as inputs (each run may carry its own values, e.g. a +-10 %
+uncertainty draw, and faults switch values mid-run).
 
 Sample-time convention, for estimators and control laws: at sample ``k``
 (time ``t_k = k ts``) the plant is measured, ``y_k = h(x_k) + v_k``; the
 estimator is called with ``(y_k, u_{k-1})`` and returns ``x_hat_k``; the
 control law maps ``(x_hat_k, r_k, t_k)`` to ``u_k``, which is saturated and
 held over ``[t_k, t_{k+1})``. At ``k = 0``, ``u_{-1}`` is ``u_init``.
+
+`simulate_inputs` is the open-loop special case (a given input sequence per
+run, no noise): training and test data for estimators.
 """
 
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any, Callable, Mapping, Protocol, Sequence, runtime_checkable
 
 import numpy as np
-import sympy as sp
 
 from tanksynth.errors import DimensionError, SimulationError
 from tanksynth.plants.base import Plant
+from tanksynth.sim.integrate import Integrator, input_limits, param_arrays
 
 __all__ = [
     "BatchEstimator",
     "ControlLaw",
     "SimulationError",
-    "NumpyModel",
-    "numpy_model",
     "StateJump",
     "ParameterChange",
     "SimulationResult",
     "ConstantInput",
+    "InputSequence",
     "EstimatorAdapter",
-    "clip_bounds",
     "run_seeds",
     "simulate",
+    "simulate_inputs",
 ]
 
 
@@ -100,231 +97,6 @@ class ControlLaw(Protocol):
         """Input (M, m) for estimate (M, n) and reference (M, r) at time t (s)."""
 
 
-# ----------------------------------------------------------------------------- numpy tape
-_Node = Callable[[dict], Any]
-
-
-def _relational(op: Callable, a: _Node, b: _Node) -> _Node:
-    return lambda env: op(a(env), b(env))
-
-
-def _node(expr: sp.Basic, cache: dict) -> _Node:
-    """Closure evaluating ``expr`` on an environment (list) of numpy arrays."""
-    slots = cache["__slots__"]
-    if expr in cache:
-        return cache[expr]
-    out: _Node
-    if expr.is_Symbol:
-        if expr not in slots:
-            raise SimulationError(f"cannot simulate: free symbol {expr} has no value")
-        slot = slots[expr]
-        out = lambda env: env[slot]  # noqa: E731
-    elif expr is sp.true or expr is sp.false:
-        value = expr is sp.true
-        out = lambda env: value  # noqa: E731
-    elif expr.is_Number or expr.is_NumberSymbol:
-        value = float(expr)
-        out = lambda env: value  # noqa: E731
-    elif expr.is_Add or expr.is_Mul:
-        parts = [_node(a, cache) for a in expr.args]
-        add = expr.is_Add
-
-        def out(env, parts=parts, add=add):
-            acc = parts[0](env)
-            for p in parts[1:]:
-                acc = acc + p(env) if add else acc * p(env)
-            return acc
-    elif expr.is_Pow:
-        base = _node(expr.args[0], cache)
-        e = expr.args[1]
-        if e == sp.Rational(1, 2):
-            out = lambda env: np.sqrt(base(env))  # noqa: E731
-        elif e == -sp.Rational(1, 2):
-            out = lambda env: 1.0 / np.sqrt(base(env))  # noqa: E731
-        elif e == -1:
-            out = lambda env: 1.0 / base(env)  # noqa: E731
-        elif e.is_Integer and int(e) > 0:
-            k = int(e)
-            out = lambda env: base(env) ** k  # noqa: E731
-        else:
-            expo = _node(e, cache)
-            out = lambda env: np.power(base(env), expo(env))  # noqa: E731
-    elif isinstance(expr, sp.Abs):
-        a = _node(expr.args[0], cache)
-        out = lambda env: np.abs(a(env))  # noqa: E731
-    elif isinstance(expr, sp.sign):
-        a = _node(expr.args[0], cache)
-        out = lambda env: np.sign(a(env))  # noqa: E731
-    elif isinstance(expr, sp.exp):
-        a = _node(expr.args[0], cache)
-        out = lambda env: np.exp(a(env))  # noqa: E731
-    elif isinstance(expr, sp.log):
-        a = _node(expr.args[0], cache)
-        out = lambda env: np.log(a(env))  # noqa: E731
-    elif isinstance(expr, (sp.Max, sp.Min)):
-        parts = [_node(a, cache) for a in expr.args]
-        fn = np.maximum if isinstance(expr, sp.Max) else np.minimum
-
-        def out(env, parts=parts, fn=fn):
-            acc = parts[0](env)
-            for p in parts[1:]:
-                acc = fn(acc, p(env))
-            return acc
-    elif isinstance(expr, sp.Heaviside):
-        a = _node(expr.args[0], cache)
-        out = lambda env: np.heaviside(a(env), 0.5)  # noqa: E731
-    elif isinstance(expr, sp.DiracDelta):
-        out = lambda env: 0.0  # noqa: E731
-    elif isinstance(expr, sp.Piecewise):
-        pieces = [(_node(v, cache), _node(c, cache)) for v, c in expr.args]
-
-        def out(env, pieces=pieces):
-            acc = np.nan
-            for value, cond in reversed(pieces):
-                acc = np.where(cond(env), value(env), acc)
-            return acc
-    elif isinstance(expr, sp.StrictGreaterThan):
-        out = _relational(np.greater, _node(expr.lhs, cache), _node(expr.rhs, cache))
-    elif isinstance(expr, sp.GreaterThan):
-        out = _relational(np.greater_equal, _node(expr.lhs, cache), _node(expr.rhs, cache))
-    elif isinstance(expr, sp.StrictLessThan):
-        out = _relational(np.less, _node(expr.lhs, cache), _node(expr.rhs, cache))
-    elif isinstance(expr, sp.LessThan):
-        out = _relational(np.less_equal, _node(expr.lhs, cache), _node(expr.rhs, cache))
-    elif isinstance(expr, sp.Eq):
-        out = _relational(np.equal, _node(expr.lhs, cache), _node(expr.rhs, cache))
-    elif isinstance(expr, sp.Ne):
-        out = _relational(np.not_equal, _node(expr.lhs, cache), _node(expr.rhs, cache))
-    elif isinstance(expr, (sp.And, sp.Or)):
-        parts = [_node(a, cache) for a in expr.args]
-        fn = np.logical_and if isinstance(expr, sp.And) else np.logical_or
-
-        def out(env, parts=parts, fn=fn):
-            acc = parts[0](env)
-            for p in parts[1:]:
-                acc = fn(acc, p(env))
-            return acc
-    elif isinstance(expr, sp.Not):
-        a = _node(expr.args[0], cache)
-        out = lambda env: np.logical_not(a(env))  # noqa: E731
-    else:
-        raise SimulationError(f"cannot compile {type(expr).__name__} in {expr} for simulation")
-    cache[expr] = out
-    return out
-
-
-def _tape(exprs: Sequence[sp.Expr], inputs: Sequence[sp.Symbol]) -> Callable[[list], list]:
-    """Compile expressions (after common-subexpression elimination) to a tape.
-
-    The tape takes a list holding the values of ``inputs`` (in order) and
-    returns the list of the expressions' values.
-    """
-    replacements, reduced = sp.cse(list(exprs), symbols=sp.numbered_symbols("_cse"))
-    slots = {s: i for i, s in enumerate(inputs)}
-    cache: dict = {"__slots__": slots}
-    steps = []
-    for sym, e in replacements:
-        steps.append(_node(e, cache))
-        slots[sym] = len(slots)
-    outs = [_node(e, cache) for e in reduced]
-
-    def run(env: list) -> list:
-        for fn in steps:
-            env.append(fn(env))
-        return [fn(env) for fn in outs]
-
-    return run
-
-
-@dataclass(frozen=True)
-class NumpyModel:
-    """A plant's vector field, output map and switching functions as numpy tapes.
-
-    Parameters are inputs: each run may carry its own values.
-
-    Attributes
-    ----------
-    n, m, q, k : int
-        States, inputs, outputs and switching functions (0 if not hybrid).
-    parameter_names : tuple of str
-    """
-
-    n: int
-    m: int
-    q: int
-    k: int
-    parameter_names: tuple[str, ...]
-    _f: Callable = field(repr=False)
-    _h: Callable = field(repr=False)
-    _s: Callable | None = field(repr=False)
-
-    def _env(self, x: np.ndarray, u: np.ndarray | None, params: Mapping[str, Any]) -> list:
-        env = [x[:, i] for i in range(self.n)]
-        if u is not None:
-            env.extend(u[:, i] for i in range(self.m))
-        env.extend(params[name] for name in self.parameter_names)
-        return env
-
-    def _stack(self, values: list, count: int) -> np.ndarray:
-        out = np.empty((count, len(values)))
-        for i, v in enumerate(values):
-            out[:, i] = v
-        return out
-
-    def rhs(self, x: np.ndarray, u: np.ndarray, params: Mapping[str, Any]) -> np.ndarray:
-        """``f(x, u)`` at M points: (M, n), (M, m), parameters (scalars or (M,)) -> (M, n)."""
-        with np.errstate(invalid="ignore", divide="ignore"):
-            return self._stack(self._f(self._env(x, u, params)), x.shape[0])
-
-    def output(self, x: np.ndarray, params: Mapping[str, Any]) -> np.ndarray:
-        """``h(x)`` at M points: (M, n) -> (M, q)."""
-        with np.errstate(invalid="ignore", divide="ignore"):
-            return self._stack(self._h(self._env(x, None, params)), x.shape[0])
-
-    def switching(self, x: np.ndarray, params: Mapping[str, Any]) -> np.ndarray:
-        """Switching functions ``s(x)`` at M points: (M, n) -> (M, k); (M, 0) if not hybrid."""
-        if self._s is None:
-            return np.zeros((x.shape[0], 0))
-        return self._stack(self._s(self._env(x, None, params)), x.shape[0])
-
-
-_MODELS: dict[tuple, NumpyModel] = {}
-_BY_ID: dict[int, tuple[Plant, NumpyModel]] = {}
-
-
-def numpy_model(plant: Plant) -> NumpyModel:
-    """Compile (once per plant structure) the numpy tapes of a plant.
-
-    Parameters
-    ----------
-    plant : Plant
-
-    Returns
-    -------
-    NumpyModel
-        Cached by the model's equations and parameter names, so plants that
-        differ only in parameter values share one model.
-    """
-    hit = _BY_ID.get(id(plant))
-    if hit is not None and hit[0] is plant:
-        return hit[1]
-    names = tuple(prm.name for prm in plant.parameters)
-    switching = tuple(plant.hybrid.switching) if plant.hybrid is not None else ()
-    key = (plant.name, tuple(map(sp.srepr, plant.f)), tuple(map(sp.srepr, plant.h)),
-           tuple(map(sp.srepr, switching)), names)
-    model = _MODELS.get(key)
-    if model is None:
-        params = [plant.p[nm] for nm in names]
-        model = NumpyModel(
-            plant.n, plant.m, plant.q, len(switching), names,
-            _tape(list(plant.f), [*plant.x, *plant.u, *params]),
-            _tape(list(plant.h), [*plant.x, *params]),
-            _tape(list(switching), [*plant.x, *params]) if switching else None)
-        _MODELS[key] = model
-    if len(_BY_ID) > 256:
-        _BY_ID.clear()
-    _BY_ID[id(plant)] = (plant, model)
-    return model
 
 
 # ----------------------------------------------------------------------------- inputs
@@ -375,6 +147,41 @@ class ConstantInput:
     def __call__(self, x_hat: np.ndarray, reference: np.ndarray, t: float) -> np.ndarray:
         """The constant input broadcast to (M, m)."""
         return np.broadcast_to(np.asarray(self.u, dtype=float), (x_hat.shape[0], len(self.u))).copy()
+
+
+class InputSequence:
+    """Open-loop control law replaying a given input sequence (one per run).
+
+    Parameters
+    ----------
+    inputs : array_like, shape (N, m) or (N, M, m)
+        Input held over period ``k`` (input units): the same sequence for
+        every run, or one per run. The ``k``-th call returns row ``k``;
+        `reset` (called by `simulate` before the first sample) rewinds.
+    """
+
+    def __init__(self, inputs: Any):
+        arr = np.asarray(inputs, dtype=float)
+        if arr.ndim not in (2, 3):
+            raise DimensionError(f"inputs must have shape (N, m) or (N, M, m), got {arr.shape}")
+        self.inputs = arr
+        self._k = 0
+
+    def reset(self, runs: int) -> None:
+        """Back to the first period (``runs`` must match a per-run sequence)."""
+        if self.inputs.ndim == 3 and self.inputs.shape[1] != runs:
+            raise DimensionError(f"the input sequence has {self.inputs.shape[1]} runs, the "
+                                 f"simulation {runs}")
+        self._k = 0
+
+    def __call__(self, x_hat: np.ndarray, reference: np.ndarray, t: float) -> np.ndarray:
+        """Input of the current period, (M, m)."""
+        if self._k >= self.inputs.shape[0]:
+            raise DimensionError(f"the input sequence has {self.inputs.shape[0]} periods; period "
+                                 f"{self._k} was asked for")
+        row = self.inputs[self._k]
+        self._k += 1
+        return np.broadcast_to(row, (x_hat.shape[0], row.shape[-1])).copy()
 
 
 class EstimatorAdapter:
@@ -476,32 +283,6 @@ class SimulationResult:
         return np.sum(np.any(np.diff(self.modes, axis=1) != 0, axis=2), axis=1)
 
 
-def clip_bounds(plant: Plant, params: Mapping[str, Any] | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """Level bounds enforced by the simulator.
-
-    Lower bound 0 for every state whose region starts at or above 0 (a
-    level cannot be negative), ``-inf`` otherwise; upper bound the plant's
-    ``hmax`` parameter (overflow height) when it has one, ``+inf``
-    otherwise.
-
-    Parameters
-    ----------
-    plant : Plant
-    params : mapping, optional
-        Parameter values to use instead of the plant's.
-
-    Returns
-    -------
-    lower, upper : ndarray, shape (n,)
-    """
-    lower = np.array([0.0 if lo >= 0 else -np.inf for lo, _ in plant.region.bounds])
-    values = {prm.name: prm.value for prm in plant.parameters}
-    if params:
-        values.update({k: v for k, v in params.items() if np.ndim(v) == 0})
-    upper = np.full(plant.n, float(values["hmax"]) if "hmax" in values else np.inf)
-    return lower, upper
-
-
 def run_seeds(base_seed: int, runs: int | Sequence[int]) -> np.ndarray:
     """Seeds of runs derived from one base seed (independent streams).
 
@@ -524,83 +305,6 @@ def run_seeds(base_seed: int, runs: int | Sequence[int]) -> np.ndarray:
                      for r in indices], dtype=np.uint64)
 
 
-# ----------------------------------------------------------------------------- integrator
-class _Integrator:
-    """RK4 with clipping and explicit switching-surface location."""
-
-    def __init__(self, model: NumpyModel, lower: np.ndarray, upper: np.ndarray,
-                 event_iterations: int, max_splits: int):
-        self.model = model
-        self.lower = lower
-        self.upper = upper
-        self.iterations = event_iterations
-        self.max_splits = max_splits
-        self.events = 0
-        self.clipped_low = 0
-        self.clipped_high = 0
-
-    def clip(self, x: np.ndarray) -> np.ndarray:
-        return np.minimum(np.maximum(x, self.lower), self.upper)
-
-    def rk4(self, x: np.ndarray, u: np.ndarray, p: Mapping[str, Any], h: np.ndarray | float) -> np.ndarray:
-        f, c = self.model.rhs, self.clip
-        h = h if np.ndim(h) == 0 else np.asarray(h)[:, None]
-        k1 = f(c(x), u, p)
-        k2 = f(c(x + 0.5 * h * k1), u, p)
-        k3 = f(c(x + 0.5 * h * k2), u, p)
-        k4 = f(c(x + h * k3), u, p)
-        return x + (h / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
-
-    def bits(self, x: np.ndarray, p: Mapping[str, Any]) -> np.ndarray:
-        return self.model.switching(x, p) > 0
-
-    def step(self, x: np.ndarray, u: np.ndarray, p: Mapping[str, Any], h: float) -> np.ndarray:
-        """Advance every run by ``h`` seconds (one RK4 substep, split at crossings)."""
-        x1 = self.rk4(x, u, p, h)
-        if self.model.k:
-            x1 = self._split(x, x1, u, p, h)
-        return self.clip_counted(x1)
-
-    def clip_counted(self, x: np.ndarray) -> np.ndarray:
-        """Clip, counting the clipping events (the step or noise overshot a bound)."""
-        self.clipped_low += int(np.any(x < self.lower))
-        self.clipped_high += int(np.any(x > self.upper))
-        return self.clip(x)
-
-    def _split(self, x: np.ndarray, x1: np.ndarray, u: np.ndarray, p: Mapping[str, Any],
-               h: float) -> np.ndarray:
-        crossed = np.any(self.bits(x, p) != self.bits(x1, p), axis=1)
-        if not crossed.any():
-            return x1
-        idx = np.flatnonzero(crossed)
-        sub = lambda q, i: {k: (v[i] if np.ndim(v) else v) for k, v in q.items()}  # noqa: E731
-        cur, uc, pc = x[idx], u[idx], sub(p, idx)
-        left = np.full(idx.size, float(h))
-        for split in range(self.max_splits):
-            b0 = self.bits(cur, pc)
-            lo = np.zeros(idx.size)
-            hi = np.ones(idx.size)
-            for _ in range(self.iterations):
-                mid = 0.5 * (lo + hi)
-                changed = np.any(self.bits(self.rk4(cur, uc, pc, mid * left), pc) != b0, axis=1)
-                hi = np.where(changed, mid, hi)
-                lo = np.where(changed, lo, mid)
-            self.events += idx.size
-            # Just past the first crossing, then the rest of the step from there.
-            cur = self.clip(self.rk4(cur, uc, pc, hi * left))
-            left = (1.0 - hi) * left
-            end = self.rk4(cur, uc, pc, left)
-            again = np.any(self.bits(cur, pc) != self.bits(end, pc), axis=1)
-            if split == self.max_splits - 1 or not again.any():
-                x1[idx] = end
-                break
-            done = ~again
-            x1[idx[done]] = end[done]
-            idx, cur, uc, left = idx[again], cur[again], uc[again], left[again]
-            pc = sub(pc, again)
-        return x1
-
-
 def _per_run(value: Any, count: int, width: int, name: str) -> np.ndarray:
     arr = np.asarray(value, dtype=float)
     if arr.ndim == 0:
@@ -610,30 +314,6 @@ def _per_run(value: Any, count: int, width: int, name: str) -> np.ndarray:
     if arr.shape == (count, width):
         return arr.copy()
     raise DimensionError(f"{name} has shape {arr.shape}: expected ({width},) or ({count}, {width})")
-
-
-def _param_arrays(plant: Plant, overrides: Mapping[str, Any] | None, count: int) -> dict[str, Any]:
-    values: dict[str, Any] = {prm.name: float(prm.value) for prm in plant.parameters}
-    for name, v in (overrides or {}).items():
-        if name not in values:
-            raise DimensionError(f"unknown parameter {name!r} of plant '{plant.name}'")
-        arr = np.asarray(v, dtype=float)
-        if arr.ndim == 0:
-            values[name] = float(arr)
-        elif arr.shape == (count,):
-            values[name] = arr.copy()
-        else:
-            raise DimensionError(f"parameter {name} has shape {arr.shape}: expected () or ({count},)")
-    return values
-
-
-def _input_limits(plant: Plant, params: Mapping[str, Any], count: int) -> tuple[np.ndarray, np.ndarray]:
-    lo = np.full((count, plant.m), -np.inf)
-    hi = np.full((count, plant.m), np.inf)
-    for j, pair in enumerate(plant.input_bounds):
-        for arr, b in ((lo, pair[0]), (hi, pair[1])):
-            arr[:, j] = params[b] if isinstance(b, str) else float(b)
-    return lo, hi
 
 
 def simulate(plant: Plant, *, ts: float, steps: int, x0: Sequence[float] | np.ndarray,
@@ -691,7 +371,7 @@ def simulate(plant: Plant, *, ts: float, steps: int, x0: Sequence[float] | np.nd
     max_splits : int
         Crossings handled inside one RK4 step (more are integrated across).
     bounds : (lower, upper), optional
-        Level bounds (default `clip_bounds`).
+        State bounds (default: the plant's clipping rule, `Plant.state_bounds`).
 
     Returns
     -------
@@ -725,11 +405,10 @@ def simulate(plant: Plant, *, ts: float, steps: int, x0: Sequence[float] | np.nd
             raise DimensionError(f"reference has {ref.shape[0]} samples, expected N + 1 = {N + 1}")
     wstd = _per_run(process_std, 1, n, "process_std")[0]
     vstd = _per_run(measurement_std, 1, q, "measurement_std")[0]
-    model = numpy_model(plant)
-    params = _param_arrays(plant, parameters, M)
+    params = param_arrays(plant, parameters, M)
     schedule: dict[int, list[Mapping[str, float]]] = {}
     for ch in changes:
-        _param_arrays(plant, ch.values, M)  # validates names and shapes
+        param_arrays(plant, ch.values, M)  # validates names and shapes
         schedule.setdefault(int(ch.sample), []).append(ch.values)
     jump_at: dict[int, np.ndarray] = {}
     for j in jumps:
@@ -737,9 +416,9 @@ def simulate(plant: Plant, *, ts: float, steps: int, x0: Sequence[float] | np.nd
         if delta.size != n:
             raise DimensionError(f"state jump at sample {j.sample} has {delta.size} entries, expected {n}")
         jump_at[int(j.sample)] = jump_at.get(int(j.sample), np.zeros(n)) + delta
-    lower, upper = bounds if bounds is not None else clip_bounds(plant, params)
-    integ = _Integrator(model, np.asarray(lower, float), np.asarray(upper, float),
-                        int(event_iterations), max(int(max_splits), 1))
+    integ = Integrator.for_plant(plant, params, bounds=bounds, event_iterations=event_iterations,
+                                 max_splits=max_splits)
+    model = integ.model
 
     # Noise: one generator per run, drawn in a fixed order (process, then measurement).
     w = np.empty((M, N, n))
@@ -762,14 +441,13 @@ def simulate(plant: Plant, *, ts: float, steps: int, x0: Sequence[float] | np.nd
     if controller is not None and hasattr(controller, "reset"):
         controller.reset(M)
     x = integ.clip(x)
-    h = ts / int(substeps)
     # Input limits depend on the parameters only: rebuilt when a change applies.
-    lo, hi = _input_limits(plant, params, M)
+    lo, hi = input_limits(plant, params, M)
     for k in range(N + 1):
         t_k = k * ts
         for values in schedule.get(k, ()):
-            params.update({name: _param_arrays(plant, values, M)[name] for name in values})
-            lo, hi = _input_limits(plant, params, M)
+            params.update({name: param_arrays(plant, values, M)[name] for name in values})
+            lo, hi = input_limits(plant, params, M)
         if k in jump_at:
             x = integ.clip(x + jump_at[k])
         if not np.all(np.isfinite(x)):
@@ -803,8 +481,7 @@ def simulate(plant: Plant, *, ts: float, steps: int, x0: Sequence[float] | np.nd
         timing["calls"] += 1
         u = np.minimum(np.maximum(u, lo), hi)
         U[:, k] = u
-        for _ in range(int(substeps)):
-            x = integ.step(x, u, params, h)
+        x = integ.advance(x, u, params, ts, int(substeps))
         x = integ.clip_counted(x + w[:, k])
         u_prev = u
     arrays = dict(t=np.arange(N + 1) * float(ts), x=X, y=Y, u=U, x_hat=XH, reference=ref,
@@ -814,3 +491,41 @@ def simulate(plant: Plant, *, ts: float, steps: int, x0: Sequence[float] | np.nd
     return SimulationResult(**arrays, ts=float(ts), substeps=int(substeps), events=integ.events,
                             clipped_low=integ.clipped_low, clipped_high=integ.clipped_high,
                             timing=timing, plant=plant.name)
+
+
+def simulate_inputs(plant: Plant, x0: Any, inputs: Any, ts: float, *, substeps: int = 10,
+                    parameters: Mapping[str, Any] | None = None) -> SimulationResult:
+    """Open-loop runs of the plant under given input sequences, without noise.
+
+    `simulate` with an `InputSequence`: the data behind estimator tests and
+    the NARX training data (one integrator, one clipping rule).
+
+    Parameters
+    ----------
+    plant : Plant
+    x0 : array_like, shape (n,) or (M, n)
+        Initial states (state units).
+    inputs : array_like, shape (N, m) or (N, M, m)
+        Input held over each period (input units; saturated to the
+        actuators' range like every simulated input).
+    ts : float
+        Sampling period (s).
+    substeps : int
+        RK4 steps per period.
+    parameters : mapping, optional
+        Plant parameter values (see `simulate`).
+
+    Returns
+    -------
+    SimulationResult
+        ``x`` has shape (M, N + 1, n): the states at ``t_0 .. t_N``.
+    """
+    U = np.asarray(inputs, dtype=float)
+    if U.ndim not in (2, 3) or U.shape[-1] != plant.m:
+        raise DimensionError(f"inputs must have shape (N, {plant.m}) or (N, M, {plant.m}), got "
+                             f"{U.shape}")
+    X0 = np.asarray(x0, dtype=float)
+    runs = U.shape[1] if U.ndim == 3 else (X0.shape[0] if X0.ndim == 2 else 1)
+    return simulate(plant, ts=ts, steps=U.shape[0], x0=X0, seeds=np.zeros(runs, dtype=np.uint64),
+                    controller=InputSequence(U), u_init=U[0], parameters=parameters,
+                    substeps=substeps)

@@ -45,12 +45,10 @@ class DecentralizedFilter:
         self._k = 0
         # The simulator's own integrator, model, parameters and bounds, built once: one
         # `predict` is exactly the state `simulate(..., steps=1, u_init=u).x[:, 1]` returns.
-        from tanksynth.sim.simulate import _Integrator, _param_arrays, clip_bounds, numpy_model
+        from tanksynth.sim.integrate import Integrator, param_arrays
 
-        self._params = _param_arrays(plant, None, 1)
-        lower, upper = clip_bounds(plant, self._params)
-        self._integ = _Integrator(numpy_model(plant), np.asarray(lower, float),
-                                  np.asarray(upper, float), 12, 3)
+        self._params = param_arrays(plant, None, 1)
+        self._integ = Integrator.for_plant(plant, self._params)
         self._u_lo = np.full(plant.m, -np.inf)
         self._u_hi = np.full(plant.m, np.inf)
         for j, pair in enumerate(plant.input_bounds):

@@ -26,7 +26,7 @@ from tanksynth.errors import ArtefactError
 from tanksynth.plants.base import Plant
 from tanksynth.sim.metrics import Metric, detection_metrics, timing_metrics
 from tanksynth.sim.scenarios import Scenario, run_scenario
-from tanksynth.sim.simulate import numpy_model
+from tanksynth.sim.tape import numpy_model
 from tanksynth.verify.closed_loops import spec_operating_point
 from tanksynth.verify.common import artefact_gain, design_options
 

@@ -66,7 +66,8 @@ class _ResidualObserver:
     """
 
     def __init__(self, plant: Any, Psi: np.ndarray, ts: float, substeps: int = 4):
-        from tanksynth.sim.simulate import _param_arrays, numpy_model
+        from tanksynth.sim.integrate import param_arrays as _param_arrays
+        from tanksynth.sim.tape import numpy_model
 
         healthy = {"delta_bar": 0.0} if "delta_bar" in {p.name for p in plant.parameters} else None
         self.model = numpy_model(plant)

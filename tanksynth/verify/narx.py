@@ -11,7 +11,7 @@ from tanksynth.verify.common import (NUMERIC_ERRORS, artefact_gain, design_optio
                                      one_line, option, relative_difference)
 from tanksynth.verify.traces import TraceRecorder
 
-__all__ = ["NARX_FIT_FACTOR", "NARX_CLOSED_LOOP_FACTOR", "NARX_FRESH_DRAW", "narx_network",
+__all__ = ["fresh_ekf_data", "NARX_FIT_FACTOR", "NARX_CLOSED_LOOP_FACTOR", "NARX_FRESH_DRAW", "narx_network",
            "teacher_forced_inputs", "narx_verdict"]
 
 
@@ -61,7 +61,7 @@ def teacher_forced_inputs(data: Mapping[str, np.ndarray], x0: np.ndarray, delays
     Parameters
     ----------
     data : mapping
-        `generate_ekf_data` output: ``x`` (steps + 1, runs, n), ``x_ekf``,
+        `fresh_ekf_data` output: ``x`` (steps + 1, runs, n), ``x_ekf``,
         ``prior`` (steps, runs, n), ``innovation`` (steps, runs, q).
     x0 : ndarray, shape (n,)
         Initial estimate (state units).
@@ -83,13 +83,62 @@ def teacher_forced_inputs(data: Mapping[str, np.ndarray], x0: np.ndarray, delays
     return inputs.reshape(steps * runs, -1), est.reshape(steps * runs, n)
 
 
+def fresh_ekf_data(plant: Any, ekf_tuning: Any, *, runs: int, steps: int, seed: int,
+                   input_range: Any = None, hold: Any = (30, 150), noise_std: Any = None,
+                   sim_substeps: int = 10) -> dict[str, np.ndarray]:
+    """Fresh EKF data for the NARX verdict, drawn by the verdict itself (not by the design code).
+
+    Random piecewise-constant inputs (levels uniform in ``input_range``, default the
+    actuator range, held ``hold`` samples), initial states sampled in the region,
+    the plant simulated by `tanksynth.sim.simulate_inputs`, measurements with
+    Gaussian noise (``noise_std``, default ``sqrt(diag(R))``), and the runtime EKF
+    run on them.
+
+    Returns
+    -------
+    dict
+        ``x`` (steps + 1, runs, n), ``u`` (steps, runs, m), ``y`` (steps, runs, q),
+        ``x_ekf`` and ``prior`` (steps, runs, n), ``innovation`` (steps, runs, q).
+    """
+    from tanksynth.runtime.estimators.kalman import ExtendedKalmanFilter
+    from tanksynth.sim.simulate import simulate_inputs
+
+    rng = np.random.default_rng(seed)
+    ranges = np.asarray(plant.input_limits if input_range is None else input_range,
+                        dtype=float).reshape(plant.m, 2)
+    low, high = int(hold[0]), int(hold[1])
+    U = np.empty((steps, runs, plant.m))
+    for r in range(runs):
+        k = 0
+        while k < steps:
+            length = int(rng.integers(low, high + 1))
+            U[k:k + length, r] = rng.uniform(ranges[:, 0], ranges[:, 1])
+            k += length
+    X0 = plant.region.sample(runs, plant.x, seed=seed, margin=0.1)
+    sim = simulate_inputs(plant, X0, U, ekf_tuning.ts, substeps=sim_substeps)
+    X = np.ascontiguousarray(sim.x.transpose(1, 0, 2))
+    U = np.ascontiguousarray(sim.u.transpose(1, 0, 2))
+    std = np.sqrt(np.diag(ekf_tuning.R)) if noise_std is None else np.asarray(noise_std, dtype=float)
+    Y = np.stack([np.asarray(plant.compiled.output(X[k + 1])) for k in range(steps)])
+    Y = Y + rng.normal(size=Y.shape) * std
+    ekf = ExtendedKalmanFilter(plant, ekf_tuning, runs=runs, backend="vm")
+    x_ekf = np.empty((steps, runs, plant.n))
+    prior = np.empty((steps, runs, plant.n))
+    innovation = np.empty((steps, runs, plant.q))
+    for k in range(steps):
+        x_ekf[k] = ekf.step(Y[k], U[k])
+        prior[k] = ekf.prediction
+        innovation[k] = ekf.innovation
+    return {"x": X, "u": U, "y": Y, "x_ekf": x_ekf, "prior": prior, "innovation": innovation}
+
+
 def narx_verdict(doc: Mapping[str, Any], spec: Any, *,
                  trace: TraceRecorder | None = None) -> list[Check]:
     """Verdict of a ``narx`` artefact (seed 002 section 3.3).
 
     The network is evaluated from the stored weights and normalisation by
     the verdict's own `narx_network` (the shipped `NARXEstimator` runs the
-    closed loop); fresh data come from `generate_ekf_data` with the stored EKF tuning
+    closed loop); fresh data come from `fresh_ekf_data` with the stored EKF tuning
     (``ekf_Q``, ``ekf_R``, ``ekf_P0``, ``x0``) and the spec's data options,
     on a seed the training never used (2 runs, the spec's ``steps``).
 
@@ -111,7 +160,7 @@ def narx_verdict(doc: Mapping[str, Any], spec: Any, *,
         same fresh data.
     """
     from tanksynth.runtime.estimators.kalman import KalmanTuning
-    from tanksynth.runtime.estimators.narx import NARXEstimator, NARXTuning, generate_ekf_data
+    from tanksynth.runtime.estimators.narx import NARXEstimator, NARXTuning
 
     plant = spec.plant
     n, q = plant.n, plant.q
@@ -169,7 +218,7 @@ def narx_verdict(doc: Mapping[str, Any], spec: Any, *,
                            **{k: v for k, v in design_options(doc, spec).items()
                               if k in ("jacobian_eps", "switch_tol")})
         runs = 2
-        data = generate_ekf_data(plant, ekf, runs=runs, steps=steps, seed=seed,
+        data = fresh_ekf_data(plant, ekf, runs=runs, steps=steps, seed=seed,
                                  input_range=input_range, hold=hold, noise_std=noise,
                                  sim_substeps=int(option(doc, spec, "sim_substeps", 10)))
         X_in, T = teacher_forced_inputs(data, tuning.x0, delays, target)

@@ -15,14 +15,13 @@ from __future__ import annotations
 
 import inspect
 import json
-import os
-import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable, Mapping, Protocol
 
 import numpy as np
 
+from tanksynth.artefacts.atomic import atomic_write
 from tanksynth.analysis.checks import Check
 from tanksynth.artefacts.traces import trace_path, write_trace
 from tanksynth.errors import ArtefactError, TanksynthError
@@ -220,15 +219,7 @@ def _write_verification(path: Path, verification: Mapping[str, Any]) -> None:
     """Set the ``verification`` field of an artefact JSON, atomically, gains untouched."""
     raw = json.loads(path.read_text(encoding="utf-8"))
     raw["verification"] = verification
-    data = (json.dumps(raw, indent=2, allow_nan=False) + "\n").encode("utf-8")
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(data)
-        os.replace(tmp, path)
-    finally:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
+    atomic_write(path, json.dumps(raw, indent=2, allow_nan=False) + "\n")
 
 
 

@@ -11,6 +11,7 @@ import subprocess
 import numpy as np
 import pytest
 
+import tanksynth.artefacts.atomic as atomic_mod
 import tanksynth.artefacts.io as artefact_mod
 from tanksynth.artefacts import SCHEMA, c_header, gains_digest, read_artefact, write_artefact
 from tanksynth.design.result import DesignResult
@@ -142,7 +143,7 @@ def test_failing_rename_leaves_no_partial_artefact(tmp_path, monkeypatch):
             raise OSError("rename failed")
         return real_replace(src, dst)
 
-    monkeypatch.setattr(artefact_mod.os, "replace", flaky)
+    monkeypatch.setattr(atomic_mod.os, "replace", flaky)
     with pytest.raises(OSError, match="rename failed"):
         write_artefact(make_result(), tmp_path, SHA, export=("h",))
     assert listing(tmp_path) == []
@@ -271,3 +272,21 @@ def test_law_export_writes_casadi_and_c(tmp_path):
     np.testing.assert_array_equal(np.asarray(loaded([1.0, 2.0])).ravel(), [3.0, 5.0])
     doc = read_artefact(tmp_path / "ctl.json")
     assert law_from_document(doc["diagnostics"]["law"]).name() == "demo"
+
+
+def test_atomic_write_payloads_and_failure(tmp_path):
+    """bytes, text and writer callables; a failing writer leaves the old file and no temp file."""
+    target = tmp_path / "x.bin"
+    assert atomic_mod.atomic_write(target, b"\x00\x01").read_bytes() == b"\x00\x01"
+    atomic_mod.atomic_write(target, "h\u00e9")
+    assert target.read_bytes() == "h\u00e9".encode("utf-8")
+    assert (target.stat().st_mode & 0o777) == 0o644
+
+    def broken(fh):
+        fh.write(b"partial")
+        raise OSError("disk full")
+
+    with pytest.raises(OSError, match="disk full"):
+        atomic_mod.atomic_write(target, broken)
+    assert target.read_bytes() == "h\u00e9".encode("utf-8")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["x.bin"]

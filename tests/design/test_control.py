@@ -11,13 +11,14 @@ import pytest
 import sympy as sp
 
 from tanksynth.artefacts.export import compile_law, export_law, load_compiled_law
-from tanksynth.design.control import ServoScenario, _rk4_step, servo_ise, tune_inverse_dynamics
+from tanksynth.design.control import ServoScenario, _servo_step, servo_ise, tune_inverse_dynamics
 from tanksynth.runtime.laws import (integral_tracking_law, inverse_dynamics_law, law_document,
                                     law_from_document, rename_law)
 from tanksynth.design.feedback_linearization import feedback_linearization
 from tanksynth.errors import ArtefactError, DimensionError, SpecError
 from tanksynth.plants import hybrid_three_tank, three_tank
 from tanksynth.plants.hybrid_three_tank import LPH
+from tanksynth.sim.integrate import casadi_step
 
 X0_HYB = np.array([0.31918677, 0.3209075, 0.30968861])      # 100/100 lph equilibrium
 needs_gcc = pytest.mark.skipif(shutil.which("gcc") is None, reason="gcc not available")
@@ -158,13 +159,15 @@ def test_inverse_dynamics_first_order_loop(hybrid):
     """Continuous law, unsaturated step: h1 follows C1/(s + C1) (time constant within 2%)."""
     C = 0.05
     law = inverse_dynamics_law(hybrid, [C, C])
-    step = _rk4_step(hybrid, 0.5, law.law)
+    step = casadi_step(hybrid, 0.5, law.law)                 # law evaluated at every RK4 stage
     r = X0_HYB[:2] + np.array([0.01, 0.0])
     x = X0_HYB.copy()
     ts = [0.0]
     xs = [x]
     for k in range(200):
-        x = np.asarray(step(x, r), dtype=float).reshape(-1)
+        x, crossed = step(x, r)
+        assert float(crossed) == 0.0                          # stays in mode (1, 1, 1)
+        x = np.asarray(x, dtype=float).reshape(-1)
         xs.append(x)
         ts.append(0.5 * (k + 1))
     xs, ts = np.array(xs), np.array(ts)
@@ -196,6 +199,33 @@ def test_servo_ise_batch_equals_single(hybrid, id_law):
     assert np.all(batch > 0)
     zero = servo_ise(hybrid, id_law, sc, [[0.0, 0.0]])           # no feedback: error stays 0.04 m
     np.testing.assert_allclose(zero[0], 0.04 ** 2 * 40.0, rtol=1e-3)
+
+
+def test_servo_ise_symbolic_step_agrees_with_the_numeric_simulator(hybrid, id_law):
+    """Same scheme, same clipping, same saturation: the CasADi step and the batch simulator."""
+    sc = ServoScenario(X0_HYB, X0_HYB[:2].copy(), np.array([0.04, 0.04]), 20.0, 60.0, 1.0, 5)
+    gains = [[0.2, 0.3], [0.8, 0.9], [1.0, 1.0], [0.0, 0.0]]
+    symbolic = servo_ise(hybrid, id_law, sc, gains)
+    numeric = servo_ise(hybrid, id_law, sc, gains, numeric=True)
+    np.testing.assert_allclose(symbolic, numeric, rtol=1e-13)      # measured: 2.3e-15
+    assert not np.array_equal(symbolic, numeric)                   # two evaluations, not one
+
+
+def test_servo_ise_hands_switching_runs_to_the_numeric_integrator(hybrid, id_law):
+    """A set-point step down through h0 = 0.30 m: the symbolic step flags the crossing and the
+    flagged runs are simulated by the batch simulator, which locates it."""
+    sc = ServoScenario(X0_HYB, X0_HYB[:2].copy(), np.array([-0.06, -0.06]), 20.0, 80.0, 1.0, 5)
+    gains = np.array([[0.2, 0.3], [0.8, 0.9], [0.0, 0.0]])
+    step = _servo_step(hybrid, id_law, sc).map(3, "serial")
+    x, crossed = np.tile(X0_HYB[:, None], (1, 3)), np.zeros(3, dtype=bool)
+    for sp_k in sc.setpoints():
+        x, _, c = step(x, np.tile(sp_k[:, None], (1, 3)), gains.T)
+        crossed |= np.asarray(c).reshape(-1) > 0
+    assert crossed.tolist() == [True, True, False]                 # no feedback: no crossing
+    got = servo_ise(hybrid, id_law, sc, gains)
+    numeric = servo_ise(hybrid, id_law, sc, gains, numeric=True)
+    np.testing.assert_array_equal(got[crossed], numeric[crossed])
+    np.testing.assert_allclose(got[~crossed], numeric[~crossed], rtol=1e-13)
 
 
 def test_tuning_small_scenario(hybrid):

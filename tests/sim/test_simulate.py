@@ -9,9 +9,10 @@ from scipy.integrate import solve_ivp
 from tanksynth.errors import DimensionError
 from tanksynth.plants import hybrid_three_tank, hydraulic_fault, three_tank
 from tanksynth.plants.hybrid_three_tank import LPH
-from tanksynth.sim.simulate import (ConstantInput, EstimatorAdapter, ParameterChange,
-                                       SimulationError, StateJump, clip_bounds, numpy_model,
-                                       run_seeds, simulate)
+from tanksynth.sim.simulate import (ConstantInput, EstimatorAdapter, InputSequence, ParameterChange,
+                                    SimulationError, StateJump, run_seeds, simulate,
+                                    simulate_inputs)
+from tanksynth.sim.tape import numpy_model
 
 HYBRID = hybrid_three_tank()
 TANK = three_tank()
@@ -79,7 +80,7 @@ def test_determinism_and_batch_independence():
 
 
 def test_levels_clipped_and_pumps_saturated():
-    lo, hi = clip_bounds(HYBRID)
+    lo, hi = HYBRID.state_bounds()
     assert np.all(lo == 0) and np.all(hi == 0.55)
     full = simulate(HYBRID, ts=1.0, steps=400, x0=[0.5, 0.5, 0.5], seeds=[0],
                     controller=ConstantInput((1.0, 1.0)))          # asks for 1 m^3/s
@@ -153,3 +154,23 @@ def test_estimator_adapter_wraps_design_estimators():
 def test_non_finite_state_is_an_error():
     with pytest.raises(SimulationError, match="run 0"):
         simulate(TANK, ts=1.0, steps=3, x0=[np.nan, 0.1, 0.1], seeds=[5])
+
+
+def test_open_loop_input_sequences():
+    """`simulate_inputs`: one sequence per run, saturated, noise-free, the simulator's states."""
+    rng = np.random.default_rng(5)
+    U = rng.uniform(50 * LPH, 300 * LPH, (80, 3, 2))               # above Qmax at times
+    x0 = np.array([[0.297, 0.29, 0.25], [0.31, 0.32, 0.305], [0.1, 0.2, 0.15]])
+    res = simulate_inputs(HYBRID, x0, U, 1.0, substeps=4)
+    assert res.x.shape == (3, 81, 3) and np.array_equal(res.x[:, 0], x0)
+    np.testing.assert_array_equal(res.u, np.minimum(U.transpose(1, 0, 2), 240 * LPH))
+    for r in range(3):                                             # each run alone: same states
+        alone = simulate(HYBRID, ts=1.0, steps=80, x0=x0[r], seeds=[0], substeps=4,
+                         controller=InputSequence(U[:, r]))
+        assert np.array_equal(alone.x[0], res.x[r])
+    same = simulate_inputs(HYBRID, x0[0], U[:, 0], 1.0, substeps=4)   # (N, m): all runs
+    assert np.array_equal(same.x[0], res.x[0])
+    with pytest.raises(DimensionError, match="runs"):
+        simulate(HYBRID, ts=1.0, steps=5, x0=x0[0], seeds=[0, 1], controller=InputSequence(U))
+    with pytest.raises(DimensionError, match="periods"):
+        simulate(HYBRID, ts=1.0, steps=90, x0=x0[0], seeds=[0], controller=InputSequence(U[:, 0]))

@@ -11,6 +11,9 @@
 `LuenbergerObserver`            discrete or continuous Luenberger observer
 `TSMultiObserver`               Takagi-Sugeno multi-observer (seed 001 eq. 20)
 ==============================  =====================================================
+
+Training the NARX network (data through the simulator, Levenberg-Marquardt)
+is design work: `tanksynth.design.narx`. Caches: `tanksynth.runtime.cache`.
 """
 
 from __future__ import annotations
@@ -23,8 +26,7 @@ from tanksynth.runtime.estimators.consensus import ConsensusFilter, ConsensusTun
 from tanksynth.runtime.estimators.kalman import (ExtendedKalmanFilter, KalmanFilter, KalmanTuning, model_from_tuning,
                      steady_state_gain)
 from tanksynth.runtime.estimators.luenberger import OBSERVER_FORMS, LuenbergerObserver, LuenbergerTuning, TSMultiObserver
-from tanksynth.runtime.estimators.narx import (LMResult, NARXEstimator, NARXTraining, NARXTuning, generate_ekf_data,
-                   levenberg_marquardt, simulate_plant, train_narx)
+from tanksynth.runtime.estimators.narx import NARXEstimator, NARXTuning
 from tanksynth.runtime.estimators.ukf import UKFTuning, UnscentedKalmanFilter, ukf_weights
 
 __all__ = [
@@ -36,7 +38,6 @@ __all__ = [
     "AdaptiveKalmanTuning", "AdaptiveKalmanFilter", "AdaptiveScalingTuning",
     "AdaptiveScalingKalmanFilter", "linear_model_for",
     "ConsensusTuning", "ConsensusFilter",
-    "NARXTuning", "NARXEstimator", "NARXTraining", "train_narx", "generate_ekf_data",
-    "simulate_plant", "levenberg_marquardt", "LMResult",
+    "NARXTuning", "NARXEstimator",
     "LuenbergerTuning", "LuenbergerObserver", "TSMultiObserver", "OBSERVER_FORMS",
 ]

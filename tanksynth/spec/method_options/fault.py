@@ -107,10 +107,6 @@ class FaultDetectionOptions(MethodOptions):
                 raise r.fail("initial_states", f"initial state {i} = {x.tolist()} is not inside the "
                                                f"bounds ({lo:g}, {hi:g}] of the threshold")
         schedule = r.read("input", _schedule, plant.m)
-        if plant.m != 1 and (starts is not None or schedule is not None):
-            raise r.fail("initial_states" if starts is not None else "input",
-                         f"detection times are simulated for a single-input plant; plant "
-                         f"'{plant.name}' has {plant.m} inputs")
         return cls(poles=r.read("poles", parse_poles, count=plant.n, real=True, distinct=True,
                                 parse_default=True),
                    bounds=(lo, hi), delta_bar=r.read("delta_bar", parse_number, above=0.0),

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 import scipy.linalg as sla
 
-from tanksynth.runtime.estimators import (LuenbergerObserver, LuenbergerTuning, TSMultiObserver,
-                                         simulate_plant)
+from tanksynth.runtime.estimators import LuenbergerObserver, LuenbergerTuning, TSMultiObserver
+from tanksynth.sim.simulate import simulate_inputs
 from tanksynth.errors import SpecError
 
 PSI = np.array([[855.0], [509 / 3], [41.0]])        # seed 004, poles -5, -8, -10
@@ -92,7 +92,7 @@ def test_ts_multi_observer_converges_on_the_nonlinear_three_tank():
                                                       form="continuous", substeps=4))
     x0 = np.array([0.45, 0.15, 0.30])
     u = np.array([3.5e-5, 3.2e-5])
-    X = simulate_plant(plant, x0[None], np.tile(u, (120, 1, 1)), 1.0, 10)[1:, 0]
+    X = simulate_inputs(plant, x0, np.tile(u, (120, 1)), 1.0, substeps=10).x[0, 1:]
     Xh = obs.run(X[:, :2], np.tile(u, (120, 1)))
     err = np.abs(Xh - X)
     assert err[0].max() > 0.1 and err[-1].max() < 2e-3

@@ -1,4 +1,7 @@
-"""Estimator + controller combinations compared over a benchmark of scenarios.
+"""Estimator + controller combinations compared over a benchmark of scenarios (a study).
+
+It designs (trains the NARX estimator), builds estimators and simulates, so it
+sits above the pipeline's stages, beside the method table.
 
 `controller_comparison` runs one control law (default: inverse dynamics,
 `InverseDynamicsLaw`) with each estimator given (``label -> factory``) over
@@ -12,28 +15,24 @@ gains and operating point are arguments.
 
 from __future__ import annotations
 
-import importlib
 import math
 from dataclasses import dataclass
-from typing import Any, Callable, Iterable, Mapping, Sequence
+from typing import Callable, Iterable, Mapping, Sequence
 
 import numpy as np
 
+from tanksynth.errors import TanksynthError
 from tanksynth.plants.base import Plant
 from tanksynth.sim.metrics import compute_metrics
 from tanksynth.sim.scenarios import CONTROL_BENCHMARK_SCENARIOS, SCENARIOS, run_scenario
 from tanksynth.sim.simulate import BatchEstimator, run_seeds
 from tanksynth.verify.closed_loops import InverseDynamicsLaw
 
-__all__ = ["ESTIMATOR_MODULES", "FilterTuning", "comparison_estimators", "ComparisonRow",
+__all__ = ["ESTIMATOR_KINDS", "FilterTuning", "comparison_estimators", "ComparisonRow",
            "controller_comparison"]
 
-#: Estimator kinds a comparison can build, and the runtime module of each.
-ESTIMATOR_MODULES: dict[str, str] = {
-    "ekf": "tanksynth.runtime.estimators.kalman",
-    "ukf": "tanksynth.runtime.estimators.ukf",
-    "narx": "tanksynth.runtime.estimators.narx",
-}
+#: Estimator kinds a comparison can build.
+ESTIMATOR_KINDS = ("ekf", "ukf", "narx")
 
 EstimatorFactories = Mapping[str, tuple[Callable[[], BatchEstimator] | None, str]]
 
@@ -67,23 +66,25 @@ class FilterTuning:
     narx_iterations: int = 60
 
 
-def _factory(kind: str, mod: Any, plant: Plant, ts: float, x0: np.ndarray,
+def _factory(kind: str, plant: Plant, ts: float, x0: np.ndarray,
              t: FilterTuning) -> Callable[[], BatchEstimator]:
+    from tanksynth.runtime.estimators.kalman import ExtendedKalmanFilter, KalmanTuning
+    from tanksynth.runtime.estimators.narx import NARXEstimator
+    from tanksynth.runtime.estimators.ukf import UKFTuning, UnscentedKalmanFilter
     from tanksynth.sim.simulate import EstimatorAdapter
 
     common = dict(Q=t.Q * np.eye(plant.n), R=t.R * np.eye(plant.q), P0=t.P0 * np.eye(plant.n),
                   x0=x0, ts=ts, substeps=t.substeps, clip=True)
     if kind == "ekf":
-        template = mod.ExtendedKalmanFilter(plant, mod.KalmanTuning(**common))
+        template = ExtendedKalmanFilter(plant, KalmanTuning(**common))
     elif kind == "ukf":
-        template = mod.UnscentedKalmanFilter(plant, mod.UKFTuning(**common))
+        template = UnscentedKalmanFilter(plant, UKFTuning(**common))
     else:
-        from tanksynth.runtime.estimators.kalman import KalmanTuning
+        from tanksynth.design.narx import train_narx
 
-        training = mod.train_narx(plant, KalmanTuning(**common), runs=t.narx_runs,
-                                  steps=t.narx_steps, restarts=t.narx_restarts,
-                                  max_iter=t.narx_iterations, clip=True)
-        template = mod.NARXEstimator(plant, training.tuning)
+        training = train_narx(plant, KalmanTuning(**common), runs=t.narx_runs, steps=t.narx_steps,
+                              restarts=t.narx_restarts, max_iter=t.narx_iterations, clip=True)
+        template = NARXEstimator(plant, training.tuning)
     return lambda: EstimatorAdapter(template)
 
 
@@ -98,7 +99,7 @@ def comparison_estimators(plant: Plant, ts: float, combinations: Mapping[str, st
     ts : float
         Sampling period (s).
     combinations : mapping of str to str or None
-        Label -> estimator kind (a key of `ESTIMATOR_MODULES`), or None for
+        Label -> estimator kind (one of `ESTIMATOR_KINDS`), or None for
         the true state fed back.
     tuning : FilterTuning
     x0 : sequence of float, optional
@@ -109,8 +110,8 @@ def comparison_estimators(plant: Plant, ts: float, combinations: Mapping[str, st
     -------
     dict
         label -> ``(factory or None, reason)``: the baseline has factory
-        None and an empty reason; an estimator whose module is absent (or
-        cannot be built) has factory None and the reason it is skipped.
+        None and an empty reason; an estimator that cannot be built has
+        factory None and the reason it is skipped.
 
     Raises
     ------
@@ -123,19 +124,13 @@ def comparison_estimators(plant: Plant, ts: float, combinations: Mapping[str, st
         if kind is None:
             out[label] = (None, "")
             continue
-        if kind not in ESTIMATOR_MODULES:
+        if kind not in ESTIMATOR_KINDS:
             raise ValueError(f"combination {label!r}: unknown estimator kind {kind!r}; expected one "
-                             "of " + ", ".join(ESTIMATOR_MODULES) + " or None")
-        module = ESTIMATOR_MODULES[kind]
+                             "of " + ", ".join(ESTIMATOR_KINDS) + " or None")
         try:
-            mod = importlib.import_module(module)
-        except ImportError:
-            out[label] = (None, f"estimator module {module} is absent")
-            continue
-        try:
-            out[label] = (_factory(kind, mod, plant, ts, x0, tuning), "")
-        except (AttributeError, TypeError) as exc:
-            out[label] = (None, f"{module} has no usable estimator: {exc}")
+            out[label] = (_factory(kind, plant, ts, x0, tuning), "")
+        except (TanksynthError, np.linalg.LinAlgError) as exc:
+            out[label] = (None, f"{kind} estimator could not be built: {' '.join(str(exc).split())}")
     return out
 
 

@@ -1,0 +1,388 @@
+"""The one integrator of the plant: RK4, one clipping rule, explicit hybrid switching.
+
+Every simulation of a plant in the toolbox goes through this module:
+
+* the batch simulator (`tanksynth.sim.simulate`) and any verdict that needs
+  one sampling period of the nominal plant use `Integrator` (numpy, M runs
+  at once, per-run parameters);
+* design code that needs the step as a CasADi expression (the ISE tuning of
+  the inverse-dynamics gains, laws evaluated at every Runge-Kutta stage)
+  builds it with `symbolic_rk4` / `casadi_step`;
+* a linear system (the fault-detection residual of plant and observer) is
+  advanced by `rk4_matrix`, the same step written as a matrix.
+
+The scheme, identical in all three: classical RK4 (`tanksynth.plants.compile.rk4_step`,
+the one formula, shared with the estimators' prediction models), stage
+states clipped to the plant's bounds before the vector field is evaluated,
+the end state of every step clipped (`Plant.state_bounds`: levels never
+below zero nor above the overflow height ``hmax`` where the plant has one),
+inputs saturated to the actuators' range. Hybrid switching is explicit: after
+each step the mode bits ``[s_j(x) > 0]`` at its start and end are compared;
+the numeric integrator re-integrates a run whose mode changed up to the
+crossing (bisection on the step fraction, to ``2**-event_iterations`` of the
+step), then from just past the surface to the end of the step, so RK4 never
+straddles a switching surface. The symbolic step cannot branch per run: it
+returns a ``crossed`` flag instead, and its users hand the flagged runs to
+the numeric integrator (so both give the same numbers, tested to rounding).
+"""
+
+from __future__ import annotations
+
+from typing import Any, Callable, Mapping, NamedTuple
+
+import numpy as np
+
+from tanksynth.errors import DimensionError
+from tanksynth.plants.base import Plant
+from tanksynth.plants.compile import rk4_step
+from tanksynth.sim.tape import NumpyModel, numpy_model
+
+__all__ = [
+    "Integrator",
+    "param_arrays",
+    "input_limits",
+    "SymbolicStep",
+    "symbolic_rk4",
+    "casadi_step",
+    "rk4_matrix",
+]
+
+
+# ----------------------------------------------------------------------------- parameters
+def param_arrays(plant: Plant, overrides: Mapping[str, Any] | None, count: int) -> dict[str, Any]:
+    """The plant's parameter values for a batch, with overrides.
+
+    Parameters
+    ----------
+    plant : Plant
+    overrides : mapping, optional
+        Parameter name -> a float (all runs) or an array of ``count`` values
+        (one per run), in the parameter's unit.
+    count : int
+        Number of runs M.
+
+    Returns
+    -------
+    dict
+        Every parameter name -> float or ndarray (M,).
+
+    Raises
+    ------
+    DimensionError
+        Unknown parameter name or an array of the wrong shape.
+    """
+    values: dict[str, Any] = {prm.name: float(prm.value) for prm in plant.parameters}
+    for name, v in (overrides or {}).items():
+        if name not in values:
+            raise DimensionError(f"unknown parameter {name!r} of plant '{plant.name}'")
+        arr = np.asarray(v, dtype=float)
+        if arr.ndim == 0:
+            values[name] = float(arr)
+        elif arr.shape == (count,):
+            values[name] = arr.copy()
+        else:
+            raise DimensionError(f"parameter {name} has shape {arr.shape}: expected () or ({count},)")
+    return values
+
+
+def input_limits(plant: Plant, params: Mapping[str, Any], count: int) -> tuple[np.ndarray, np.ndarray]:
+    """Actuator range of each run, ``(lower, upper)`` each (M, m), input units.
+
+    Bounds naming a parameter (e.g. ``"Qmax"``) take its value in ``params``
+    (per run when it is an array).
+    """
+    lo = np.full((count, plant.m), -np.inf)
+    hi = np.full((count, plant.m), np.inf)
+    for j, pair in enumerate(plant.input_bounds):
+        for arr, b in ((lo, pair[0]), (hi, pair[1])):
+            arr[:, j] = params[b] if isinstance(b, str) else float(b)
+    return lo, hi
+
+
+# ----------------------------------------------------------------------------- numeric
+class Integrator:
+    """RK4 of a plant over M runs, with clipping and explicit switching-surface location.
+
+    Parameters
+    ----------
+    model : NumpyModel
+        The plant's numpy tapes (`tanksynth.sim.tape.numpy_model`).
+    lower, upper : ndarray, shape (n,)
+        State bounds (the plant's `Plant.state_bounds`).
+    event_iterations : int
+        Bisection iterations locating a crossing (0: no location).
+    max_splits : int
+        Crossings handled inside one step (more are integrated across).
+
+    Attributes
+    ----------
+    events : int
+        Crossings located so far (all runs).
+    clipped_low, clipped_high : int
+        Clipping operations after which some state sat on its lower/upper bound
+        because it had passed it.
+    """
+
+    def __init__(self, model: NumpyModel, lower: np.ndarray, upper: np.ndarray,
+                 event_iterations: int = 12, max_splits: int = 3):
+        self.model = model
+        self.lower = np.asarray(lower, dtype=float)
+        self.upper = np.asarray(upper, dtype=float)
+        self.iterations = int(event_iterations)
+        self.max_splits = max(int(max_splits), 1)
+        self.events = 0
+        self.clipped_low = 0
+        self.clipped_high = 0
+
+    @classmethod
+    def for_plant(cls, plant: Plant, params: Mapping[str, Any] | None = None, *,
+                  bounds: tuple[np.ndarray, np.ndarray] | None = None, event_iterations: int = 12,
+                  max_splits: int = 3) -> "Integrator":
+        """The integrator of ``plant``: its numpy model and its `Plant.state_bounds`.
+
+        Parameters
+        ----------
+        plant : Plant
+        params : mapping, optional
+            Parameter values (only ``hmax`` enters the bounds).
+        bounds : (lower, upper), optional
+            Other state bounds (state units), instead of the plant's rule.
+        event_iterations, max_splits : int
+            See the class.
+        """
+        lower, upper = bounds if bounds is not None else plant.state_bounds(
+            {k: v for k, v in (params or {}).items() if k == "hmax"})
+        return cls(numpy_model(plant), lower, upper, event_iterations, max_splits)
+
+    def clip(self, x: np.ndarray) -> np.ndarray:
+        """States clipped to the bounds (the one clipping rule)."""
+        return np.minimum(np.maximum(x, self.lower), self.upper)
+
+    def rk4(self, x: np.ndarray, u: np.ndarray, p: Mapping[str, Any], h: np.ndarray | float) -> np.ndarray:
+        """One RK4 step of ``h`` s (a float, or one per run, shape (M,)), stages clipped."""
+        h = h if np.ndim(h) == 0 else np.asarray(h)[:, None]
+        return rk4_step(lambda s: self.model.rhs(s, u, p), x, h, self.clip)
+
+    def bits(self, x: np.ndarray, p: Mapping[str, Any]) -> np.ndarray:
+        """Mode bits ``s_j(x) > 0``, shape (M, k)."""
+        return self.model.switching(x, p) > 0
+
+    def step(self, x: np.ndarray, u: np.ndarray, p: Mapping[str, Any], h: float) -> np.ndarray:
+        """Advance every run by ``h`` seconds (one RK4 step, split at crossings), clipped."""
+        x1 = self.rk4(x, u, p, h)
+        if self.model.k:
+            x1 = self._split(x, x1, u, p, h)
+        return self.clip_counted(x1)
+
+    def advance(self, x: np.ndarray, u: np.ndarray, p: Mapping[str, Any], ts: float,
+                substeps: int) -> np.ndarray:
+        """One sampling period ``ts`` (s) under the held input ``u``: ``substeps`` steps.
+
+        ``u`` is used as given (saturate it first, see `input_limits`).
+        """
+        h = ts / int(substeps)
+        for _ in range(int(substeps)):
+            x = self.step(x, u, p, h)
+        return x
+
+    def clip_counted(self, x: np.ndarray) -> np.ndarray:
+        """Clip, counting the clipping events (the step or noise overshot a bound)."""
+        self.clipped_low += int(np.any(x < self.lower))
+        self.clipped_high += int(np.any(x > self.upper))
+        return self.clip(x)
+
+    def _split(self, x: np.ndarray, x1: np.ndarray, u: np.ndarray, p: Mapping[str, Any],
+               h: float) -> np.ndarray:
+        crossed = np.any(self.bits(x, p) != self.bits(x1, p), axis=1)
+        if not crossed.any():
+            return x1
+        idx = np.flatnonzero(crossed)
+        sub = lambda q, i: {k: (v[i] if np.ndim(v) else v) for k, v in q.items()}  # noqa: E731
+        cur, uc, pc = x[idx], u[idx], sub(p, idx)
+        left = np.full(idx.size, float(h))
+        for split in range(self.max_splits):
+            b0 = self.bits(cur, pc)
+            lo = np.zeros(idx.size)
+            hi = np.ones(idx.size)
+            for _ in range(self.iterations):
+                mid = 0.5 * (lo + hi)
+                changed = np.any(self.bits(self.rk4(cur, uc, pc, mid * left), pc) != b0, axis=1)
+                hi = np.where(changed, mid, hi)
+                lo = np.where(changed, lo, mid)
+            self.events += idx.size
+            # Just past the first crossing, then the rest of the step from there.
+            cur = self.clip(self.rk4(cur, uc, pc, hi * left))
+            left = (1.0 - hi) * left
+            end = self.rk4(cur, uc, pc, left)
+            again = np.any(self.bits(cur, pc) != self.bits(end, pc), axis=1)
+            if split == self.max_splits - 1 or not again.any():
+                x1[idx] = end
+                break
+            done = ~again
+            x1[idx[done]] = end[done]
+            idx, cur, uc, left = idx[again], cur[again], uc[again], left[again]
+            pc = sub(pc, again)
+        return x1
+
+
+# ----------------------------------------------------------------------------- symbolic
+class SymbolicStep(NamedTuple):
+    """CasADi expressions of `symbolic_rk4`.
+
+    Attributes
+    ----------
+    x : casadi.SX, shape (n, 1)
+        State after the step (clipped).
+    integral : casadi.SX or None
+        Trapezoid integral of the integrand over the RK4 grid.
+    crossed : casadi.SX, scalar
+        1 when a substep changed the hybrid mode (the numeric `Integrator`
+        would have located the crossing: hand that run to it), else 0.
+    """
+
+    x: Any
+    integral: Any
+    crossed: Any
+
+
+def _saturation(plant: Plant) -> Callable[[Any], Any]:
+    import casadi as ca
+
+    limits = plant.input_limits
+
+    def sat(u: Any) -> Any:
+        out = ca.SX(u) if not isinstance(u, ca.MX) else u
+        parts = []
+        for i, (lo, hi) in enumerate(limits):
+            v = out[i]
+            if np.isfinite(lo):
+                v = ca.fmax(v, lo)
+            if np.isfinite(hi):
+                v = ca.fmin(v, hi)
+            parts.append(v)
+        return ca.vertcat(*parts) if parts else out
+
+    return sat
+
+
+def symbolic_rk4(plant: Plant, x: Any, u: Any, dt: float, substeps: int = 1, *,
+                 integrand: Callable[[Any], Any] | None = None) -> SymbolicStep:
+    """The integrator's step as CasADi expressions (same scheme as `Integrator`).
+
+    ``substeps`` RK4 steps of ``dt / substeps`` on the compiled plant
+    ``plant.compiled.f`` (parameters at the plant's values): stage states and
+    every end state clipped to `Plant.state_bounds`, inputs saturated to the
+    actuators' range. The mode bits are compared across every substep;
+    a change sets ``crossed`` (no location here: the caller must hand such
+    runs to the numeric `Integrator`).
+
+    Parameters
+    ----------
+    plant : Plant
+    x : casadi.SX, shape (n, 1)
+        State at the start (state units).
+    u : casadi.SX or callable
+        Input (input units) held over ``dt``, or ``s -> u(s)`` evaluated at
+        every RK4 stage (a continuous-time law).
+    dt : float
+        Length of the step (s).
+    substeps : int
+        RK4 steps inside ``dt``.
+    integrand : callable, optional
+        ``s -> g(s)`` (casadi column): its integral over the step by the
+        trapezoid rule on the RK4 grid, at the clipped grid states.
+
+    Returns
+    -------
+    SymbolicStep
+    """
+    import casadi as ca
+
+    f = plant.compiled.f
+    lo, hi = plant.state_bounds()
+    lo_dm, hi_dm = ca.DM(lo), ca.DM(hi)
+    clip = lambda v: ca.fmin(ca.fmax(v, lo_dm), hi_dm)  # noqa: E731
+    sat = _saturation(plant)
+    if callable(u):
+        rhs = lambda s: f(s, sat(u(s)))  # noqa: E731
+    else:
+        held = sat(u)
+        rhs = lambda s: f(s, held)  # noqa: E731
+    switching = plant.compiled.switching
+    h = float(dt) / int(substeps)
+    s = x
+    crossed = ca.SX(0)
+    integral = None
+    for _ in range(int(substeps)):
+        g0 = integrand(s) if integrand is not None else None
+        end = rk4_step(rhs, s, h, clip)
+        if switching is not None:
+            b0, b1 = switching(s) > 0, switching(end) > 0
+            for j in range(b0.numel()):
+                crossed = ca.logic_or(crossed, b0[j] != b1[j])
+        s = clip(end)
+        if integrand is not None:
+            inc = h / 2 * (g0 + integrand(s))
+            integral = inc if integral is None else integral + inc
+    return SymbolicStep(s, integral, crossed)
+
+
+def casadi_step(plant: Plant, dt: float, law: Any = None, substeps: int = 1) -> Any:
+    """One step of the integrator as a CasADi Function (`symbolic_rk4`).
+
+    Parameters
+    ----------
+    plant : Plant
+    dt : float
+        Step (s), split into ``substeps`` RK4 steps.
+    law : casadi.Function, optional
+        ``(x, r) -> u, ...``: evaluated at every RK4 stage (a continuous-time
+        law). Without it the input is held over the step (zero-order hold).
+    substeps : int
+
+    Returns
+    -------
+    casadi.Function
+        ``(x, u) -> (x_next, crossed)`` or ``(x, r) -> (x_next, crossed)``;
+        ``crossed`` is 1 when the step changed the hybrid mode (see
+        `SymbolicStep`).
+    """
+    import casadi as ca
+
+    x = ca.SX.sym("x", plant.n)
+    if law is None:
+        v = ca.SX.sym("u", plant.m)
+        u: Any = v
+    else:
+        v = ca.SX.sym("r", law.size1_in(1))
+        u = lambda s: law(s, v)[0] if law.n_out() > 1 else law(s, v)  # noqa: E731
+    out = symbolic_rk4(plant, x, u, dt, substeps)
+    return ca.Function("rk4_step", [x, v], [out.x, out.crossed],
+                       ["x", "u" if law is None else "r"], ["x_next", "crossed"])
+
+
+# ----------------------------------------------------------------------------- linear
+def rk4_matrix(M: Any, h: float) -> np.ndarray:
+    """The integrator's RK4 step of a linear system ``dz/dt = M z``, as a matrix.
+
+    `rk4_step` applied to the columns of the identity: ``z(t + h) = R z(t)``
+    with ``R = I + hM + (hM)^2/2 + (hM)^3/6 + (hM)^4/24`` (RK4 is exact to
+    fourth order). An affine system is written with a constant state
+    ``z[-1] = 1``. No clipping: the caller checks that the states stay
+    within the plant's bounds.
+
+    Parameters
+    ----------
+    M : array_like, shape (k, k)
+        System matrix (1/s).
+    h : float
+        Step (s), >= 0.
+
+    Returns
+    -------
+    ndarray, shape (k, k)
+    """
+    M = np.asarray(M, dtype=float)
+    if M.ndim != 2 or M.shape[0] != M.shape[1]:
+        raise DimensionError(f"M must be a square matrix, got shape {M.shape}")
+    return rk4_step(lambda Z: M @ Z, np.eye(M.shape[0]), float(h))
