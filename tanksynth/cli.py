@@ -56,17 +56,24 @@ def _print_checks(checks, title: str = "Rank conditions") -> None:
 
 
 def _design_all(spec, outdir: Path, export: tuple[str, ...]) -> tuple[list[Path], list[str]]:
+    """Design every entry, then write the artefacts.
+
+    The spec's options were all validated when it was parsed; a design that
+    still fails on bad input raises before anything is written. An
+    infeasible design is listed (no artefact for it), the others are written.
+    """
     from tanksynth.artefacts.io import write_artefact, write_plant_record
     from tanksynth.methods import METHODS
 
-    write_plant_record(spec, outdir)
-    written, infeasible = [], []
+    results, infeasible = [], []
     for design in spec.designs:
         try:
-            result = METHODS[design.method].design(spec, design)
+            results.append((design, METHODS[design.method].design(spec, design)))
         except InfeasibleDesign as exc:
             infeasible.append(f"{design.name}: {_one_line(exc)}")
-            continue
+    write_plant_record(spec, outdir)
+    written = []
+    for design, result in results:
         formats = list(export)
         if "law" in formats and "law" not in result.diagnostics:
             formats.remove("law")

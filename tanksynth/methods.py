@@ -9,8 +9,9 @@ holds:
     ``"detector"`` (``pole_placement`` and ``lmi_placement`` are controllers
     or observers, by their ``target`` option: both kinds are listed).
 ``adapter``
-    The design adapter (`tanksynth.design.DesignMethod`): its options with
-    their defaults and ``run(spec, design) -> DesignResult``.
+    The design adapter (`tanksynth.design.DesignMethod`): the method's
+    Options dataclass (``Method.options``: options, defaults, units,
+    validation at parse time) and ``run(spec, design) -> DesignResult``.
 ``verdict``
     ``verdict(doc, spec) -> list[Check]`` of `tanksynth.verify`: re-derives what
     it checks from the artefact and simulates it on the nonlinear plant.
@@ -38,6 +39,7 @@ from tanksynth.design.result import DesignMethod, DesignResult
 from tanksynth.reports import statements as st
 from tanksynth.spec import DesignSpec, Spec, load_spec as _load_spec, parse_spec as _parse_spec
 from tanksynth.spec import parse_spec_text as _parse_spec_text
+from tanksynth.spec.method_options import MethodOptions
 from tanksynth.verify import campaign, decentralized, estimators, fault, laws, model, narx, placement
 from tanksynth.verify import ts_observer
 from tanksynth.verify.runner import Verdict, VerdictFn
@@ -64,7 +66,7 @@ class Method:
     summary : str
         One line: what the method designs.
     adapter : DesignMethod
-        Options (with defaults) and the design function.
+        The Options class and the design function.
     verdict : callable
         ``verdict(doc, spec) -> list[Check]``.
     statement : callable
@@ -80,6 +82,11 @@ class Method:
     verdict: VerdictFn
     statement: Callable[[Mapping[str, Any]], Any]
     campaign: Callable[..., Any]
+
+    @property
+    def options(self) -> type[MethodOptions]:
+        """The method's Options dataclass (`tanksynth.spec.method_options`)."""
+        return self.adapter.options
 
     def design(self, spec: Spec, design: DesignSpec) -> DesignResult:
         """Run the design of one ``[[design]]`` entry of ``spec``."""
@@ -163,8 +170,11 @@ def _check_table(table: tuple[Method, ...]) -> None:
         seen.add(row.name)
         if not row.kinds or any(k not in KINDS for k in row.kinds):
             problems.append(f"kinds {row.kinds} not among {KINDS}")
-        if row.adapter.name != row.name:
-            problems.append(f"adapter is for method {row.adapter.name!r}")
+        if row.adapter.name != row.name or row.options.method_name != row.name:
+            problems.append(f"adapter is for method {row.adapter.name!r}, options for "
+                            f"{row.options.method_name!r}")
+        if not (isinstance(row.options, type) and issubclass(row.options, MethodOptions)):
+            problems.append("no Options class")
         for part in ("verdict", "statement"):
             if not callable(getattr(row, part)):
                 problems.append(f"no {part}")
@@ -187,7 +197,7 @@ RUNNERS: Mapping[str, Callable[..., Any]] = MappingProxyType({row.name: row.camp
 #: Problem statement of each method (report).
 STATEMENTS: Mapping[str, Callable[[Mapping[str, Any]], Any]] = MappingProxyType(
     {row.name: row.statement for row in TABLE})
-#: Design adapters by name (what the spec parser validates options against).
+#: Design adapters by name (``adapter.validate`` gives the Options the spec parser stores).
 ADAPTERS: Mapping[str, DesignMethod] = MappingProxyType({row.name: row.adapter for row in TABLE})
 
 

@@ -217,3 +217,63 @@ def test_console_script_plants_json():
     proc = subprocess.run([str(EXE), "plants", "--json"], capture_output=True, text=True, timeout=120)
     assert proc.returncode == 0, proc.stderr
     assert "three_tank" in [p["name"] for p in json.loads(proc.stdout)]
+
+
+THREE_DESIGNS = """
+[[design]]
+name = "a_pp"
+method = "pole_placement"
+poles = [0.90, 0.91, 0.92]
+[[design]]
+name = "b_kf"
+method = "kalman"
+Q = 1e-8
+R = 1e-6
+P0 = 1e-3
+[[design]]
+name = "c_bad"
+"""
+
+# Third design: a value only the design used to catch (two artefacts were written before).
+BAD_THIRD = {
+    "pole_count": ('method = "pole_placement"\npoles = [0.9, 0.8]\n', "design[2].poles",
+                   "2 poles given, expected 3"),
+    "not_psd": ('method = "ekf"\nQ = [[1e-8, 2e-8, 0.0], [2e-8, 1e-8, 0.0], [0.0, 0.0, 1e-8]]\n'
+                'R = 1e-6\nP0 = 1e-3\n', "design[2].Q", "positive semidefinite"),
+    "region": ('method = "lmi_placement"\nregion = [{type = "half_plane", alpha = 0.1}]\n',
+               "design[2].region", "not inside the discrete-time stability domain"),
+    "typo": ('method = "ukf"\nQ = 1e-8\nR = 1e-6\nP0 = 1e-3\nsubstep = 2\n', "design[2].substep",
+             "did you mean 'substeps'"),
+}
+
+
+@pytest.mark.parametrize("command", ["design", "run"])
+@pytest.mark.parametrize("case", sorted(BAD_THIRD))
+def test_bad_third_design_exits_2_with_nothing_written(tmp_path, capsys, command, case):
+    body, key, message = BAD_THIRD[case]
+    spec = tmp_path / "spec.toml"
+    head = SEED000.read_text().split("[[design]]")[0]
+    spec.write_text(head + THREE_DESIGNS + body)
+    out_dir = tmp_path / "out"
+    code, out, err = run_cli(capsys, command, spec, "-o", out_dir)
+    assert code == 2, err
+    assert_one_line_error(err)
+    assert key in err and message in err and str(spec) in err
+    assert not out_dir.exists()
+    # the same spec with a good third design writes all three
+    spec.write_text(head + THREE_DESIGNS + 'method = "linearize"\n')
+    assert run_cli(capsys, "design", spec, "-o", out_dir)[0] == 0
+    assert {"a_pp.json", "b_kf.json", "c_bad.json"} <= {p.name for p in out_dir.glob("*.json")}
+
+
+def test_design_time_refusal_writes_nothing(tmp_path, capsys):
+    """Bad input found only by a design (an unobservable pair) still leaves no artefact."""
+    spec = tmp_path / "unobs.toml"
+    spec.write_text(UNOBSERVABLE + '[[design]]\nname = "obs"\nmethod = "pole_placement"\n'
+                    'target = "observer"\npoles = [0.5, 0.6]\n')
+    out_dir = tmp_path / "out"
+    code, _, err = run_cli(capsys, "design", spec, "-o", out_dir)
+    assert code == 2, err
+    assert_one_line_error(err)
+    assert "not observable" in err
+    assert not out_dir.exists()

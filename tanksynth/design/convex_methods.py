@@ -19,26 +19,27 @@ checked), ZOH-discretised with ``[sampling] ts`` in discrete time.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any, Mapping, Sequence
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import sympy as sp
 
-from tanksynth.analysis.lmi_region import region_from_parts
-from tanksynth.spec.options import parse_matrix, parse_number, parse_poles, parse_region
-from tanksynth.errors import InfeasibleDesign, SpecError, UnobservableError
-from tanksynth.plants.base import exact
 from tanksynth.analysis.linearize import equilibrium_input, linearize, symbolic_jacobians
-from tanksynth.design.lmi import SOLVERS, VARIANTS, maximise_psi, observer_lmi
-from tanksynth.design.placement import (canonical_observer, integral_augmentation,
-                        lmi_observer, lmi_state_feedback, place_observer,
-                        place_state_feedback, pole_errors)
-from tanksynth.design.result import DesignMethod, DesignResult
+from tanksynth.analysis.lmi_region import region_from_parts
 from tanksynth.analysis.takagi_sugeno import (check_exactness, domain_from_plant, quasi_lpv,
                                               ts_model, vertex_observability)
+from tanksynth.design.lmi import maximise_psi, observer_lmi
+from tanksynth.design.placement import (canonical_observer, integral_augmentation,
+                                        lmi_observer, lmi_state_feedback, place_observer,
+                                        place_state_feedback, pole_errors)
+from tanksynth.design.result import DesignMethod, DesignResult, options_of, rekeyed
 from tanksynth.design.takagi_sugeno import lipschitz_bound, search_weightings, selection_rules
+from tanksynth.errors import InfeasibleDesign, SpecError, UnobservableError
+from tanksynth.plants.base import exact
+from tanksynth.spec.method_options import (CanonicalObserverOptions, LmiPlacementOptions,
+                                           PolePlacementOptions, TsObserverOptions)
 
-if TYPE_CHECKING:  # pragma: no cover - typing only (spec.py imports the design package)
+if TYPE_CHECKING:  # pragma: no cover - typing only
     from tanksynth.spec import DesignSpec, Spec
 
 __all__ = [
@@ -48,28 +49,6 @@ __all__ = [
     "run_canonical_observer",
 ]
 
-_NUM = (int, float)
-
-
-# ------------------------------------------------------------------- option helpers
-def _key(design, opt: str) -> str:
-    return f"{design.key}.{opt}"
-
-
-def _choice(design, opt: str, default: str, allowed: Sequence[str]) -> str:
-    value = design.options.get(opt, default)
-    if value not in allowed:
-        raise SpecError(f"expected one of {list(allowed)}, got {value!r}", key=_key(design, opt))
-    return value
-
-
-def _positive(design, opt: str, default: float, upper: float | None = None) -> float:
-    value = float(design.options.get(opt, default))
-    if not (np.isfinite(value) and value > 0 and (upper is None or value < upper)):
-        rng = f"in (0, {upper:g})" if upper is not None else "> 0"
-        raise SpecError(f"expected a number {rng}, got {value!r}", key=_key(design, opt))
-    return value
-
 
 def _complex_list(values: Any) -> list[list[float]]:
     return [[float(v.real), float(v.imag)] for v in np.sort_complex(np.asarray(values, dtype=complex))]
@@ -78,31 +57,10 @@ def _complex_list(values: Any) -> list[list[float]]:
 def _model(spec, time_domain: str) -> tuple[dict, Any, Any]:
     """Linear model at the operating point: matrices by name, equilibrium, LinearModel."""
     plant = spec.plant
-    if time_domain == "discrete" and spec.ts is None:
-        raise SpecError("discrete-time design needs a sampling period: add [sampling] ts = ...",
-                        key="sampling.ts")
     eq = equilibrium_input(plant, spec.x0, spec.given_u0)
     lin = linearize(plant, spec.x0, eq.u0, ts=spec.ts if time_domain == "discrete" else None)
     A, B = (lin.Ad, lin.Bd) if time_domain == "discrete" else (lin.F, lin.B)
     return {"A": A, "B": B, "C": lin.C}, eq, lin
-
-
-def _tracked(spec, design, C: np.ndarray) -> tuple[np.ndarray, list[str]]:
-    plant = spec.plant
-    names = [s.name for s in plant.outputs]
-    chosen = design.options.get("tracked")
-    if chosen is None:
-        chosen = names[: plant.m]
-    if not isinstance(chosen, list) or not chosen or not all(isinstance(c, str) for c in chosen):
-        raise SpecError("expected a list of output names", key=_key(design, "tracked"))
-    unknown = [c for c in chosen if c not in names]
-    if unknown:
-        raise SpecError(f"unknown output(s) {unknown}; expected some of {names}",
-                        key=_key(design, "tracked"))
-    if len(chosen) > plant.m:
-        raise SpecError(f"{len(chosen)} tracked outputs but only {plant.m} inputs (p <= m)",
-                        key=_key(design, "tracked"))
-    return C[[names.index(c) for c in chosen]], list(chosen)
 
 
 def _augment(model: dict, C1: np.ndarray, time_domain: str, ts: float | None) -> dict:
@@ -148,8 +106,8 @@ def run_ts_observer(spec: "Spec", design: "DesignSpec") -> DesignResult:
     spec : Spec
         The validated spec (plant, operating point, sampling).
     design : DesignSpec
-        The ``[[design]]`` entry; its options are validated here (values)
-        after `DesignMethod.validate` checked their types.
+        The ``[[design]]`` entry; its options (``design.config``) were
+        validated when the spec was parsed.
 
     Returns
     -------
@@ -158,84 +116,36 @@ def run_ts_observer(spec: "Spec", design: "DesignSpec") -> DesignResult:
     Raises
     ------
     SpecError
-        An option has a bad value (the key is named).
+        A value the design itself refuses (the key is named).
     InfeasibleDesign
         No gain passes the solve and the independent re-check.
     UnobservableError, UncontrollableError
         Refused before solving, naming the modes.
     """
-    o = design.options
+    o = options_of(design, spec, TsObserverOptions)
     plant = spec.plant
-    variant = _choice(design, "variant", "qI", VARIANTS)
-    solver = _choice(design, "solver", "CLARABEL", SOLVERS)
-    margin = _positive(design, "margin", 1e-6, upper=1.0)
-    kappa = _positive(design, "kappa", 1e4)
-    if kappa <= 1:
-        raise SpecError("expected kappa > 1", key=_key(design, "kappa"))
-    samples = int(o.get("samples", 5000))
-    if samples < 100:
-        raise SpecError("expected at least 100 samples", key=_key(design, "samples"))
-    seed = int(o.get("seed", 0))
-    psi_given = o.get("psi")
-    psi_source = _choice(design, "psi_source", "given" if psi_given is not None else "maximise",
-                         ("given", "lipschitz", "maximise"))
-    if psi_source == "given":
-        if psi_given is None:
-            raise SpecError("psi_source = 'given' needs psi", key=_key(design, "psi"))
-        psi_given = parse_number(psi_given, _key(design, "psi"))
-        if psi_given < 0:
-            raise SpecError("psi must be >= 0", key=_key(design, "psi"))
-    lip_form = _choice(design, "lipschitz", "jacobian", ("jacobian", "eq27"))
-    lip_method = _choice(design, "lipschitz_method", "interval", ("interval", "sampling"))
-    bounds_method = _choice(design, "premise_bounds", "interval", ("interval", "sampling"))
-    bounds_margin = float(o.get("premise_margin", 0.01))
-    if not (np.isfinite(bounds_margin) and bounds_margin >= 0):
-        raise SpecError("expected a number >= 0", key=_key(design, "premise_margin"))
+    variant, solver, margin, kappa = o.variant, o.solver, o.margin, o.kappa
+    samples, seed, psi_source = o.samples, o.seed, o.psi_source
     names = [s.name for s in plant.states]
     box = list(plant.region.bounds)
-    dom_opt = o.get("domain", {})
-    if not isinstance(dom_opt, Mapping):
-        raise SpecError("expected a table {state = [min, max]}", key=_key(design, "domain"))
-    for nm, b in dom_opt.items():
-        k = _key(design, f"domain.{nm}")
-        if nm not in names:
-            raise SpecError(f"unknown state {nm!r}; expected one of {names}", key=k)
-        if not isinstance(b, list) or len(b) != 2:
-            raise SpecError("expected [min, max]", key=k)
-        box[names.index(nm)] = (parse_number(b[0], k + "[0]"), parse_number(b[1], k + "[1]"))
-    gap = float(o.get("ordering_gap", 0.0))
+    for nm, b in (o.domain or {}).items():
+        box[names.index(nm)] = b
     try:
-        domain = domain_from_plant(plant, box, bool(o.get("orderings", True)), gap)
+        domain = domain_from_plant(plant, box, o.orderings, o.ordering_gap)
     except SpecError as exc:
-        raise SpecError(exc.detail, key=_key(design, "domain")) from None
-    weights = o.get("weights")
-    if weights is not None and not isinstance(weights, Mapping):
-        raise SpecError("expected a table {z1 = [...], ...}", key=_key(design, "weights"))
+        raise rekeyed(design, exc, "domain") from None
     try:
-        qlpv = quasi_lpv(plant, weights)
+        qlpv = quasi_lpv(plant, None if o.weights is None else dict(o.weights))
     except SpecError as exc:
-        raise SpecError(exc.detail, key=_key(design, exc.key or "weights")) from None
-    blocks = pattern = None
-    if "blocks" in o:
-        raw = o["blocks"]
-        if not isinstance(raw, list) or not all(isinstance(b, list) for b in raw):
-            raise SpecError("expected a list of lists of state names", key=_key(design, "blocks"))
-        try:
-            blocks = [[names.index(s) for s in b] for b in raw]
-        except ValueError:
-            raise SpecError(f"unknown state name; expected names from {names}",
-                            key=_key(design, "blocks")) from None
-    if "pattern" in o:
-        pattern = parse_matrix(o["pattern"], _key(design, "pattern"), (plant.n, plant.q))
+        raise rekeyed(design, exc, fallback="weights") from None
+    blocks = None if o.blocks is None else [[names.index(s) for s in b] for b in o.blocks]
+    pattern = None if o.pattern is None else np.array(o.pattern)
     diagnostics: dict[str, Any] = {}
-    if bool(o.get("search", False)):
-        values = o.get("search_values", [-1.0, 0.0, 1.0])
-        if not isinstance(values, list) or not values:
-            raise SpecError("expected a list of numbers", key=_key(design, "search_values"))
-        values = [parse_number(v, _key(design, "search_values")) for v in values]
-        criterion = _choice(design, "search_criterion", "psi_max", ("psi_max", "certified"))
-        found = search_weightings(qlpv, domain, values=values, include=[qlpv.weights], variant=variant,
-                                  margin=margin, kappa=kappa, seed=seed, solver=solver)
+    if o.search:
+        criterion = o.search_criterion
+        found = search_weightings(qlpv, domain, values=list(o.search_values), include=[qlpv.weights],
+                                  variant=variant, margin=margin, kappa=kappa, seed=seed,
+                                  solver=solver)
         pick = found.best if criterion == "psi_max" else found.best_certified
         summary = found.as_dict()
         summary["criterion"] = criterion
@@ -245,10 +155,10 @@ def run_ts_observer(spec: "Spec", design: "DesignSpec") -> DesignResult:
                                    f"(outcomes {summary['outcomes']})")
         qlpv = qlpv.with_weights(np.array(pick["weights"]))
     try:
-        ts = ts_model(qlpv, domain, method=bounds_method, samples=max(samples, 2000),
-                      margin=bounds_margin, seed=seed)
+        ts = ts_model(qlpv, domain, method=o.premise_bounds, samples=max(samples, 2000),
+                      margin=o.premise_margin, seed=seed)
     except SpecError as exc:
-        raise SpecError(exc.detail, key=_key(design, exc.key or "weights")) from None
+        raise rekeyed(design, exc, fallback="weights") from None
     exactness = check_exactness(ts, plant, count=samples, seed=seed)
     if not exactness.passed:
         raise InfeasibleDesign(f"TS model is not exact on the domain: max relative error "
@@ -262,7 +172,8 @@ def run_ts_observer(spec: "Spec", design: "DesignSpec") -> DesignResult:
     A0, C = ts.A0, ts.C
     lip = None
     if psi_source == "lipschitz":
-        lip = lipschitz_bound(ts, lip_form, lip_method if lip_form == "jacobian" else "sampling",
+        lip = lipschitz_bound(ts, o.lipschitz,
+                              o.lipschitz_method if o.lipschitz == "jacobian" else "sampling",
                               samples=samples, seed=seed)
         if not np.isfinite(lip.value):
             raise InfeasibleDesign(f"psi from the Lipschitz bound: {lip.detail.get('text')}")
@@ -274,7 +185,7 @@ def run_ts_observer(spec: "Spec", design: "DesignSpec") -> DesignResult:
         res = search.result
         diagnostics["psi_search"] = search.as_dict()
     else:
-        psi = psi_given if psi_source == "given" else lip.value
+        psi = o.psi if psi_source == "given" else lip.value
         res = observer_lmi(A0, C, psi, variant=variant, margin=margin, kappa=kappa, **struct)
     caveats = []
     if variant == "full":
@@ -305,9 +216,8 @@ def run_ts_observer(spec: "Spec", design: "DesignSpec") -> DesignResult:
         "caveats": caveats,
         "assumptions": _assumptions(spec),
     })
-    if "reference_L" in o:
-        ref = parse_matrix(o["reference_L"], _key(design, "reference_L"), res.L.shape)
-        diagnostics["reference_L"] = _compare(ref, res.L, lambda Lr: A0 - Lr @ C)
+    if o.reference_L is not None:
+        diagnostics["reference_L"] = _compare(o.reference_L, res.L, lambda Lr: A0 - Lr @ C)
         diagnostics["reference_L"]["note"] = ("LMI solutions are not unique: the comparison is "
                                               "informative, the re-check decides")
     gains = {"L": res.L, "P": res.P, "Q": res.Q, "A0": A0, "B": ts.B0, "C": C}
@@ -315,44 +225,34 @@ def run_ts_observer(spec: "Spec", design: "DesignSpec") -> DesignResult:
     return DesignResult(design.name, "ts_observer", plant.name, gains, diagnostics, latex)
 
 
-def _target_and_domain(spec, design, default_target: str) -> tuple[str, str]:
-    """The ``target`` and ``time_domain`` options of a gain design (validated)."""
-    target = _choice(design, "target", default_target, ("observer", "state_feedback"))
-    time_domain = _choice(design, "time_domain", "discrete" if spec.ts is not None else "continuous",
-                          ("continuous", "discrete"))
-    return target, time_domain
-
-
-def _solve_gain(spec, design, target: str, time_domain: str, observer, feedback,
-                fallback_opt: str, augmented_B: bool):
+def _solve_gain(spec, design, o, observer, feedback, fallback_opt: str, augmented_B: bool):
     """Shared body of `run_lmi_placement` and `run_pole_placement`.
 
     Builds the model, then calls ``observer(A, C, names)`` or
     ``feedback(A, B, names)`` (on the integral augmentation when the
-    ``integral`` option is set). A `SpecError` from the solver without this
+    ``integral`` option ``o.integral`` is set). A `SpecError` from the solver without this
     design's key is re-raised under ``<design>.<fallback_opt>``.
 
     Returns ``(res, gains, diagnostics, (A, B, C), closed)`` where
     ``closed(G)`` is the closed-loop matrix a gain ``G`` gives.
     """
     plant = spec.plant
+    time_domain = o.time_domain
     model, eq, _ = _model(spec, time_domain)
     names = [s.name for s in plant.states]
     A, B, C = model["A"], model["B"], model["C"]
-    integral = bool(design.options.get("integral", False))
     diagnostics: dict[str, Any] = {"equilibrium": eq.as_dict(), "time_domain": time_domain,
                                    "ts": spec.ts, "assumptions": _assumptions(spec)}
     try:
-        if target == "observer":
-            if integral:
-                raise SpecError("integral action applies to state feedback",
-                                key=_key(design, "integral"))
+        if o.target == "observer":
             res = observer(A, C, names)
             gains = {"L": res.gain}
             closed = lambda G: A - G @ C  # noqa: E731
         else:
-            if integral:
-                C1, tracked = _tracked(spec, design, C)
+            if o.integral:
+                outputs = [s.name for s in plant.outputs]
+                tracked = list(o.tracked)
+                C1 = C[[outputs.index(t) for t in tracked]]
                 aug = _augment(model, C1, time_domain, spec.ts)
                 Aa, Ba = aug["A"], aug["B"]
                 res = feedback(Aa, Ba, names + [f"z_{t}" for t in tracked])
@@ -368,9 +268,7 @@ def _solve_gain(spec, design, target: str, time_domain: str, observer, feedback,
                 gains = {"K": res.gain}
                 closed = lambda G: A - B @ G  # noqa: E731
     except SpecError as exc:
-        if exc.key and exc.key.startswith(design.key):
-            raise
-        raise SpecError(exc.detail, key=_key(design, exc.key or fallback_opt)) from None
+        raise rekeyed(design, exc, fallback=fallback_opt) from None
     return res, gains, diagnostics, (A, B, C), closed
 
 
@@ -387,8 +285,8 @@ def run_lmi_placement(spec: "Spec", design: "DesignSpec") -> DesignResult:
     spec : Spec
         The validated spec (plant, operating point, sampling).
     design : DesignSpec
-        The ``[[design]]`` entry; its options are validated here (values)
-        after `DesignMethod.validate` checked their types.
+        The ``[[design]]`` entry; its options (``design.config``) were
+        validated when the spec was parsed.
 
     Returns
     -------
@@ -397,21 +295,18 @@ def run_lmi_placement(spec: "Spec", design: "DesignSpec") -> DesignResult:
     Raises
     ------
     SpecError
-        An option has a bad value (the key is named).
+        A value the design itself refuses (the key is named).
     InfeasibleDesign
         No gain passes the solve and the independent re-check.
     UnobservableError, UncontrollableError
         Refused before solving, naming the modes.
     """
-    o = design.options
+    o = options_of(design, spec, LmiPlacementOptions)
     plant = spec.plant
-    target, time_domain = _target_and_domain(spec, design, "observer")
-    region = region_from_parts(parse_region(o.get("region"), _key(design, "region")))
-    margin = _positive(design, "margin", 1e-6, upper=1.0)
-    kappa = _positive(design, "kappa", 1e4)
-    solver = _choice(design, "solver", "CLARABEL", SOLVERS)
+    region = region_from_parts(o.region)
+    time_domain, margin, kappa, solver = o.time_domain, o.margin, o.kappa, o.solver
     res, gains, diagnostics, (A, B, C), _ = _solve_gain(
-        spec, design, target, time_domain,
+        spec, design, o,
         lambda A, C, names: lmi_observer(A, C, region, domain=time_domain, margin=margin,
                                          kappa=kappa, solver=solver, state_names=names),
         lambda A, B, names: lmi_state_feedback(A, B, region, domain=time_domain, margin=margin,
@@ -437,8 +332,8 @@ def run_pole_placement(spec: "Spec", design: "DesignSpec") -> DesignResult:
     spec : Spec
         The validated spec (plant, operating point, sampling).
     design : DesignSpec
-        The ``[[design]]`` entry; its options are validated here (values)
-        after `DesignMethod.validate` checked their types.
+        The ``[[design]]`` entry; its options (``design.config``) were
+        validated when the spec was parsed.
 
     Returns
     -------
@@ -447,27 +342,24 @@ def run_pole_placement(spec: "Spec", design: "DesignSpec") -> DesignResult:
     Raises
     ------
     SpecError
-        An option has a bad value (the key is named).
+        A value the design itself refuses (the key is named).
     InfeasibleDesign
         No gain passes the solve and the independent re-check.
     UnobservableError, UncontrollableError
         Refused before solving, naming the modes.
     """
-    o = design.options
+    o = options_of(design, spec, PolePlacementOptions)
     plant = spec.plant
-    target, time_domain = _target_and_domain(spec, design, "state_feedback")
-    method = _choice(design, "method", "auto", ("auto", "place", "acker"))
-    poles = parse_poles(o.get("poles"), _key(design, "poles"))
-    ref_key = _key(design, "reference_gain")
+    poles, method = list(o.poles), o.method
     res, gains, diagnostics, (A, B, C), closed = _solve_gain(
-        spec, design, target, time_domain,
+        spec, design, o,
         lambda A, C, names: place_observer(A, C, poles, method, state_names=names),
         lambda A, B, names: place_state_feedback(A, B, poles, method, state_names=names),
         fallback_opt="poles", augmented_B=True)
     gain = res.gain
     diagnostics["placement"] = res.as_dict()
-    if "reference_gain" in o:
-        ref = parse_matrix(o["reference_gain"], ref_key, gain.shape)
+    if o.reference_gain is not None:
+        ref = o.reference_gain
         cmp_ = _compare(ref, gain, closed)
         ach = np.linalg.eigvals(closed(ref))
         cmp_["reference_max_pole_error"] = pole_errors(poles, ach)[1]
@@ -494,8 +386,8 @@ def run_canonical_observer(spec: "Spec", design: "DesignSpec") -> DesignResult:
     spec : Spec
         The validated spec (plant, operating point, sampling).
     design : DesignSpec
-        The ``[[design]]`` entry; its options are validated here (values)
-        after `DesignMethod.validate` checked their types.
+        The ``[[design]]`` entry; its options (``design.config``) were
+        validated when the spec was parsed.
 
     Returns
     -------
@@ -504,21 +396,15 @@ def run_canonical_observer(spec: "Spec", design: "DesignSpec") -> DesignResult:
     Raises
     ------
     SpecError
-        An option has a bad value (the key is named).
+        A value the design itself refuses (the key is named).
     InfeasibleDesign
         No gain passes the solve and the independent re-check.
     UnobservableError, UncontrollableError
         Refused before solving, naming the modes.
     """
-    o = design.options
+    o = options_of(design, spec, CanonicalObserverOptions)
     plant = spec.plant
-    if plant.q != 1:
-        raise SpecError(f"the canonical-form route needs a single output, plant '{plant.name}' has "
-                        f"{plant.q}", key=_key(design, "method"))
-    if plant.n > 8:
-        raise SpecError("the canonical-form route is for small plants (n <= 8); use pole_placement",
-                        key=_key(design, "method"))
-    poles = parse_poles(o.get("poles"), _key(design, "poles"))
+    poles = list(o.poles)
     F_sym, _, H_sym = symbolic_jacobians(plant)
     subs = dict(plant.parameter_values)
     subs.update({s: exact(v) for s, v in zip(plant.x, spec.x0)})
@@ -526,7 +412,7 @@ def run_canonical_observer(spec: "Spec", design: "DesignSpec") -> DesignResult:
     C = sp.Matrix(H_sym.xreplace(subs)).applyfunc(sp.nsimplify)
     if A.free_symbols or C.free_symbols:
         raise SpecError("the linearisation depends on the inputs; the canonical-form route needs a "
-                        "model affine in u", key=_key(design, "method"))
+                        "model affine in u", key=f"{design.key}.method")
     exact_poles = [exact(p.real) + (sp.I * exact(p.imag) if p.imag else 0) for p in poles]
     co = canonical_observer(A, C, exact_poles)
     L = co.gain
@@ -542,12 +428,10 @@ def run_canonical_observer(spec: "Spec", design: "DesignSpec") -> DesignResult:
                               "place_report": pl.as_dict()},
         "assumptions": _assumptions(spec),
     }
-    if "reference_gain" in o:
-        ref = parse_matrix(o["reference_gain"], _key(design, "reference_gain"), L.shape)
-        diagnostics["reference_gain"] = _compare(ref, L, lambda G: An - G @ Cn)
-    if "reference_closed_loop" in o:
-        ref = parse_matrix(o["reference_closed_loop"], _key(design, "reference_closed_loop"),
-                             An.shape)
+    if o.reference_gain is not None:
+        diagnostics["reference_gain"] = _compare(o.reference_gain, L, lambda G: An - G @ Cn)
+    if o.reference_closed_loop is not None:
+        ref = o.reference_closed_loop
         eig = np.linalg.eigvals(ref)
         derived = np.array(co.Gamma_d.evalf(), dtype=float)
         diagnostics["reference_closed_loop"] = {
@@ -560,27 +444,9 @@ def run_canonical_observer(spec: "Spec", design: "DesignSpec") -> DesignResult:
                         {"L": L, "A": An, "C": Cn}, diagnostics, latex)
 
 
-# -------------------------------------------------------------------- registry
-_COMMON_LMI = {"margin": (_NUM, 1e-6), "kappa": (_NUM, 1e4), "solver": (str, "CLARABEL")}
-
-TS_OBSERVER = DesignMethod("ts_observer", run_ts_observer, options={
-    "weights": (dict, None), "psi": (_NUM, None), "psi_source": (str, None),
-    "variant": (str, "qI"), "lipschitz": (str, "jacobian"), "lipschitz_method": (str, "interval"),
-    "domain": (dict, None), "orderings": (bool, True), "ordering_gap": (_NUM, 0.0),
-    "premise_bounds": (str, "interval"), "premise_margin": (_NUM, 0.01),
-    "samples": (int, 5000), "seed": (int, 0), "search": (bool, False),
-    "search_values": (list, None), "search_criterion": (str, "psi_max"),
-    "blocks": (list, None), "pattern": (list, None), "reference_L": (list, None), **_COMMON_LMI})
-
-LMI_PLACEMENT = DesignMethod("lmi_placement", run_lmi_placement, options={
-    "target": (str, "observer"), "time_domain": (str, None), "region": ((list, dict), None),
-    "integral": (bool, False), "tracked": (list, None), **_COMMON_LMI}, required=("region",))
-
-POLE_PLACEMENT = DesignMethod("pole_placement", run_pole_placement, options={
-    "poles": (list, None), "target": (str, "state_feedback"), "time_domain": (str, None),
-    "method": (str, "auto"), "integral": (bool, False), "tracked": (list, None),
-    "reference_gain": (list, None)}, required=("poles",))
-
-CANONICAL_OBSERVER = DesignMethod("canonical_observer", run_canonical_observer, options={
-    "poles": (list, None), "reference_gain": (list, None), "reference_closed_loop": (list, None)},
-    required=("poles",))
+# ------------------------------------------------------------------ design methods
+TS_OBSERVER = DesignMethod("ts_observer", run_ts_observer, TsObserverOptions)
+LMI_PLACEMENT = DesignMethod("lmi_placement", run_lmi_placement, LmiPlacementOptions)
+POLE_PLACEMENT = DesignMethod("pole_placement", run_pole_placement, PolePlacementOptions)
+CANONICAL_OBSERVER = DesignMethod("canonical_observer", run_canonical_observer,
+                                  CanonicalObserverOptions)

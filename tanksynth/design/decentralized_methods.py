@@ -16,31 +16,8 @@ spec's operating point:
   (``algorithm = "one_step"``).
 
 The route is chosen by ``algorithm`` (the ``[[design]]`` table's ``method``
-key already names the design method).
-
-Options
--------
-=============================  ===============================================
-``algorithm``                  ``"casadi"`` (default), ``"iterative"``,
-                               ``"one_step"``
-``window``                     steps ``T >= 1`` (default 40)
-``E``                          ``"own_tank"`` (default: each state uses the
-                               outputs measuring it alone) or an explicit
-                               n x q matrix of 0/1
-``tolerance``                  relative tolerance (default 1e-6)
-``max_iter``                   iteration limit (default 100)
-``process_noise``              required: intensity ``Qc`` (squared state unit
-                               per s), a number ``q`` or an n x n matrix
-``process_noise_correlation``  ``rho`` in [0, 1) for a number ``q``: ``Qc = q
-                               ((1 - rho) I + rho 1 1')`` (default 0)
-``measurement_noise``          ``R`` (squared output unit), a number (times
-                               I) or a q x q matrix (default 1)
-``initial_covariance``         ``P(0|0)`` (squared state unit), a number
-                               (times I) or an n x n matrix (default 10)
-``input``                      input held over the window (input units),
-                               default the equilibrium input
-``relinearize_every``          steps between linearisations (default 10)
-=============================  ===============================================
+key already names the design method). The options, their defaults and units
+are those of `tanksynth.spec.method_options.DecentralizedKalmanOptions`.
 
 Artefact gains (every one a 1-D or 2-D float array, so that the JSON, .npz,
 .mat and C-header exports all take them):
@@ -60,87 +37,20 @@ from typing import Any
 
 import numpy as np
 
-from tanksynth.errors import DimensionError, InfeasibleDesign, SpecError
-from tanksynth.design.decentralized import (centralized_gain, equicorrelated_intensity, finite_horizon_gains,
-                            one_step_gains, own_tank_pattern, window_models)
 from tanksynth.analysis.linearize import equilibrium_input
-from tanksynth.design.result import DesignMethod, DesignResult
+from tanksynth.design.decentralized import (centralized_gain, equicorrelated_intensity,
+                                            finite_horizon_gains, one_step_gains, own_tank_pattern,
+                                            window_models)
+from tanksynth.design.result import DesignMethod, DesignResult, options_of
+from tanksynth.errors import DimensionError, InfeasibleDesign, SpecError
+from tanksynth.spec.method_options import DecentralizedKalmanOptions
 
-__all__ = ["run_decentralized_kalman", "DECENTRALIZED_METHODS"]
-
-#: Values of the ``algorithm`` option.
-DECENTRALIZED_METHODS = ("casadi", "iterative", "one_step")
-
-_NUM = (int, float)
-
-
-def _key(design: Any, opt: str) -> str:
-    return f"{design.key}.{opt}"
+__all__ = ["run_decentralized_kalman"]
 
 
-def _number(value: Any, key: str) -> float:
-    if isinstance(value, bool) or not isinstance(value, _NUM):
-        raise SpecError(f"expected a number, got {type(value).__name__} {value!r}", key=key)
-    out = float(value)
-    if not np.isfinite(out):
-        raise SpecError(f"expected a finite number, got {value!r}", key=key)
-    return out
-
-
-def _matrix(value: Any, key: str, shape: tuple[int, int]) -> np.ndarray:
-    if not isinstance(value, list) or not value or not all(isinstance(r, list) for r in value):
-        raise SpecError(f"expected a number or a {shape[0]} x {shape[1]} matrix (a list of rows)",
-                        key=key)
-    rows = [[_number(v, f"{key}[{i}][{j}]") for j, v in enumerate(r)] for i, r in enumerate(value)]
-    if len(rows) != shape[0] or any(len(r) != shape[1] for r in rows):
-        raise SpecError(f"expected a {shape[0]} x {shape[1]} matrix, got {len(rows)} rows of "
-                        f"lengths {sorted({len(r) for r in rows})}", key=key)
-    return np.array(rows, dtype=float)
-
-
-def _covariance(design: Any, opt: str, default: float | None, size: int, *, allow_zero: bool,
-                what: str) -> np.ndarray:
-    key = _key(design, opt)
-    value = design.options.get(opt, default)
-    if isinstance(value, list):
-        M = _matrix(value, key, (size, size))
-        if np.max(np.abs(M - M.T)) > 1e-12 * max(1.0, np.max(np.abs(M))):
-            raise SpecError(f"{what} must be symmetric", key=key)
-        low = float(np.linalg.eigvalsh(0.5 * (M + M.T))[0])
-        if low < 0 or (not allow_zero and low <= 0):
-            raise SpecError(f"{what} must be positive {'semi' if allow_zero else ''}definite "
-                            f"(smallest eigenvalue {low:.3g})", key=key)
-        return 0.5 * (M + M.T)
-    v = _number(value, key)
-    if v < 0 or (not allow_zero and v <= 0):
-        raise SpecError(f"{what} must be {'>= 0' if allow_zero else '> 0'}, got {v}", key=key)
-    return v * np.eye(size)
-
-
-def _positive_int(design: Any, opt: str, default: int) -> int:
-    value = design.options.get(opt, default)
-    if isinstance(value, bool) or not isinstance(value, int) or value < 1:
-        raise SpecError(f"expected an integer >= 1, got {value!r}", key=_key(design, opt))
-    return value
-
-
-def _pattern(design: Any, plant: Any) -> np.ndarray:
-    key = _key(design, "E")
-    value = design.options.get("E", "own_tank")
-    if isinstance(value, str):
-        if value not in ("own_tank", "own tank"):
-            raise SpecError(f"expected \"own_tank\" or an explicit {plant.n} x {plant.q} matrix of "
-                            f"0/1, got {value!r}", key=key)
-        try:
-            return own_tank_pattern(plant)
-        except DimensionError as exc:
-            raise SpecError(str(exc), key=key) from None
-    E = _matrix(value, key, (plant.n, plant.q))
-    if not np.all((E == 0) | (E == 1)):
-        raise SpecError("E entries must be 0 (gain entry fixed at 0) or 1 (free)", key=key)
-    if not E.any():
-        raise SpecError("E has no free entry: every gain would be 0", key=key)
-    return E
+def _covariance(value: float | np.ndarray, size: int) -> np.ndarray:
+    """A validated noise option as a matrix (a number is times the identity)."""
+    return np.array(value, dtype=float) if isinstance(value, np.ndarray) else value * np.eye(size)
 
 
 def run_decentralized_kalman(spec: Any, design: Any) -> DesignResult:
@@ -152,7 +62,9 @@ def run_decentralized_kalman(spec: Any, design: Any) -> DesignResult:
         Validated spec: plant, operating point ``x0`` (state units) and
         ``[sampling] ts`` (s).
     design : DesignSpec
-        The ``[[design]]`` entry (options in the module docstring).
+        The ``[[design]]`` entry; its options
+        (`tanksynth.spec.method_options.DecentralizedKalmanOptions`) were
+        validated when the spec was parsed.
 
     Returns
     -------
@@ -171,50 +83,26 @@ def run_decentralized_kalman(spec: Any, design: Any) -> DesignResult:
     """
     plant = spec.plant
     ts = spec.ts
-    o = design.options
-    method = o.get("algorithm", "casadi")
-    if method not in DECENTRALIZED_METHODS:
-        raise SpecError(f"expected one of {list(DECENTRALIZED_METHODS)}, got {method!r}",
-                        key=_key(design, "algorithm"))
-    T = _positive_int(design, "window", 40)
-    max_iter = _positive_int(design, "max_iter", 100)
-    relin = _positive_int(design, "relinearize_every", 10)
-    tol = _number(o.get("tolerance", 1e-6), _key(design, "tolerance"))
-    if not tol > 0:
-        raise SpecError(f"expected a number > 0, got {tol}", key=_key(design, "tolerance"))
-    E = _pattern(design, plant)
-
-    qkey = _key(design, "process_noise")
-    rho = _number(o.get("process_noise_correlation", 0.0), _key(design, "process_noise_correlation"))
-    if isinstance(o.get("process_noise"), list):
-        if "process_noise_correlation" in o:
-            raise SpecError("process_noise_correlation only applies to a scalar process_noise",
-                            key=_key(design, "process_noise_correlation"))
-        Qc = _covariance(design, "process_noise", None, plant.n, allow_zero=True,
-                         what="process_noise")
+    o = options_of(design, spec, DecentralizedKalmanOptions)
+    method, T, max_iter, relin, tol = (o.algorithm, o.window, o.max_iter, o.relinearize_every,
+                                       o.tolerance)
+    if isinstance(o.E, str):
+        try:
+            E = own_tank_pattern(plant)
+        except DimensionError as exc:
+            raise SpecError(str(exc), key=f"{design.key}.E") from None
     else:
-        q = _number(o.get("process_noise"), qkey)
-        if q < 0:
-            raise SpecError(f"process_noise must be >= 0, got {q}", key=qkey)
-        if not 0 <= rho < 1:
-            raise SpecError(f"expected a correlation in [0, 1), got {rho}",
-                            key=_key(design, "process_noise_correlation"))
-        Qc = equicorrelated_intensity(plant.n, q, rho)
-    R = _covariance(design, "measurement_noise", 1.0, plant.q, allow_zero=False,
-                    what="measurement_noise")
-    P00 = _covariance(design, "initial_covariance", 10.0, plant.n, allow_zero=False,
-                      what="initial_covariance")
+        E = np.array(o.E)
+    rho = o.process_noise_correlation
+    if isinstance(o.process_noise, np.ndarray):
+        Qc = np.array(o.process_noise)
+    else:
+        Qc = equicorrelated_intensity(plant.n, o.process_noise, rho)
+    R = _covariance(o.measurement_noise, plant.q)
+    P00 = _covariance(o.initial_covariance, plant.n)
 
     eq = equilibrium_input(plant, spec.x0, spec.given_u0)
-    if "input" in o:
-        ukey = _key(design, "input")
-        raw = o["input"]
-        if not isinstance(raw, list) or len(raw) != plant.m:
-            raise SpecError(f"expected a list of {plant.m} inputs "
-                            f"({', '.join(s.name for s in plant.inputs)})", key=ukey)
-        u = np.array([_number(v, f"{ukey}[{i}]") for i, v in enumerate(raw)])
-    else:
-        u = eq.u0
+    u = eq.u0 if o.input is None else np.array(o.input)
     models, x_pred = window_models(plant, spec.x0, np.tile(u, (T + 1, 1)), ts, Qc, R,
                                    relinearize_every=relin)
     A = [m.A for m in models[1:]]
@@ -304,16 +192,5 @@ def run_decentralized_kalman(spec: Any, design: Any) -> DesignResult:
     return DesignResult(design.name, "decentralized_kalman", plant.name, gains, diagnostics, latex)
 
 
-DECENTRALIZED_KALMAN = DesignMethod("decentralized_kalman", run_decentralized_kalman, options={
-    "algorithm": (str, "casadi"),
-    "window": (int, 40),
-    "E": ((str, list), "own_tank"),
-    "tolerance": (_NUM, 1e-6),
-    "max_iter": (int, 100),
-    "process_noise": ((int, float, list), None),
-    "process_noise_correlation": (_NUM, 0.0),
-    "measurement_noise": ((int, float, list), 1.0),
-    "initial_covariance": ((int, float, list), 10.0),
-    "input": (list, None),
-    "relinearize_every": (int, 10),
-}, required=("process_noise",), needs_sampling=True)
+DECENTRALIZED_KALMAN = DesignMethod("decentralized_kalman", run_decentralized_kalman,
+                                    DecentralizedKalmanOptions)

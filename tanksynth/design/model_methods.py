@@ -6,7 +6,8 @@ import numpy as np
 import sympy as sp
 
 from tanksynth.analysis.linearize import equilibrium_input, linearize, symbolic_jacobians
-from tanksynth.design.result import DesignMethod, DesignResult
+from tanksynth.design.result import DesignMethod, DesignResult, options_of
+from tanksynth.spec.method_options import LinearizeOptions
 
 __all__ = ["run_linearize"]
 
@@ -27,6 +28,7 @@ def run_linearize(spec, design) -> DesignResult:
     # when tanksynth.analysis.rank is imported first).
     from tanksynth.analysis.rank import controllability_rank, observability_rank, pbh_test
 
+    options_of(design, spec, LinearizeOptions)  # no option; refuses a spec without ts
     plant = spec.plant
     eq = equilibrium_input(plant, spec.x0, spec.given_u0)
     lin = linearize(plant, spec.x0, eq.u0, ts=spec.ts)
@@ -58,4 +60,4 @@ def run_linearize(spec, design) -> DesignResult:
     return DesignResult(design.name, "linearize", plant.name, gains, diagnostics, latex)
 
 
-LINEARIZE = DesignMethod("linearize", run_linearize, options={}, needs_sampling=True)
+LINEARIZE = DesignMethod("linearize", run_linearize, LinearizeOptions)

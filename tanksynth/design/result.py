@@ -3,14 +3,16 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from types import MappingProxyType
-from typing import Any, Callable, Mapping
+from typing import Any, Callable, Mapping, TypeVar
 
 import numpy as np
 
 from tanksynth.errors import SpecError
+from tanksynth.spec.method_options.base import MethodOptions
 
-__all__ = ["DesignResult", "DesignMethod"]
+__all__ = ["DesignResult", "DesignMethod", "options_of", "rekeyed"]
+
+T = TypeVar("T", bound=MethodOptions)
 
 
 @dataclass(frozen=True)
@@ -44,57 +46,79 @@ class DesignResult:
 
 @dataclass(frozen=True)
 class DesignMethod:
-    """A spec design method.
+    """The design side of a spec method: its options and its design function.
 
     Attributes
     ----------
     name : str
+        The spec's ``method`` value.
     run : callable
-        ``run(spec, design_spec) -> DesignResult``.
-    options : mapping of str to (type, default)
-        Accepted options; ``default`` None means required... unless the
-        type is optional (see ``required``).
-    required : tuple of str
-        Options that must be present.
-    needs_sampling : bool
-        The method needs ``[sampling] ts``.
+        ``run(spec, design_spec) -> DesignResult``; reads the validated
+        options from ``design_spec.config`` (see `options_of`).
+    options : type of MethodOptions
+        The method's Options dataclass (options, defaults, units,
+        validation).
     """
 
     name: str
     run: Callable[..., DesignResult]
-    options: Mapping[str, tuple[type | tuple[type, ...], Any]] = field(default_factory=dict)
-    required: tuple[str, ...] = ()
-    needs_sampling: bool = False
+    options: type[MethodOptions]
 
-    def validate(self, options: Mapping[str, Any], key: str, plant, ts: float | None) -> Mapping[str, Any]:
-        """Check a ``[[design]]`` table's options (types, unknown keys).
+    def __post_init__(self) -> None:
+        if self.options.method_name != self.name:
+            raise TypeError(f"design method {self.name!r} has the options of "
+                            f"{self.options.method_name!r}")
+
+    def validate(self, options: Mapping[str, Any], key: str, plant: Any,
+                 ts: float | None) -> MethodOptions:
+        """Validate a ``[[design]]`` table's options: `MethodOptions.from_table` of `options`.
 
         Returns
         -------
-        mapping
-            The options with the defaults filled in (read-only).
+        MethodOptions
+            The options with their defaults (an instance of `options`).
         """
-        for opt, value in options.items():
-            if opt not in self.options:
-                raise SpecError(f"unknown option {opt!r} for method '{self.name}'; expected: "
-                                + (", ".join(self.options) or "no options"), key=f"{key}.{opt}")
-            kind = self.options[opt][0]
-            if isinstance(value, bool) and kind is not bool:
-                raise SpecError(f"expected {_type_name(kind)}, got a boolean", key=f"{key}.{opt}")
-            if not isinstance(value, kind):
-                raise SpecError(f"expected {_type_name(kind)}, got {type(value).__name__} {value!r}",
-                                key=f"{key}.{opt}")
-        for opt in self.required:
-            if opt not in options:
-                raise SpecError(f"missing option {opt!r} for method '{self.name}'", key=f"{key}.{opt}")
-        if self.needs_sampling and ts is None:
-            raise SpecError(f"method '{self.name}' needs a sampling period: add [sampling] ts = ...",
-                            key="sampling.ts")
-        resolved = {k: d for k, (_, d) in self.options.items() if d is not None}
-        resolved.update(options)
-        return MappingProxyType(resolved)
+        return self.options.validated(options, key, plant, ts)
 
 
-def _type_name(kind) -> str:
-    kinds = kind if isinstance(kind, tuple) else (kind,)
-    return " or ".join(k.__name__ for k in kinds)
+def options_of(design: Any, spec: Any, cls: type[T]) -> T:
+    """The validated options of a ``[[design]]`` entry (``design.config``).
+
+    A `DesignSpec` parsed without the method table has no ``config``, and
+    one copied with other ``options`` has a stale one: its raw options are
+    then validated here, against ``spec``'s plant and sampling period.
+
+    Raises
+    ------
+    SpecError
+        Invalid options (only when they were not validated at parse time).
+    """
+    config = getattr(design, "config", None)
+    if isinstance(config, cls) and config.read_from(design.options):
+        return config
+    return cls.validated(design.options, design.key, spec.plant, spec.ts)
+
+
+def rekeyed(design: Any, exc: SpecError, option: str | None = None,
+            fallback: str = "options") -> SpecError:
+    """A `SpecError` a design step raised, keyed to the spec option it is about.
+
+    Parameters
+    ----------
+    design : DesignSpec
+    exc : SpecError
+        Raised by an algorithm, keyed by its own argument name (or not at all).
+    option : str, optional
+        The option to name, whatever ``exc.key`` says.
+    fallback : str
+        The option to name when ``exc`` has no key.
+
+    Returns
+    -------
+    SpecError
+        ``exc`` itself when it already names a key of this design, else the
+        same message keyed ``design[i].<option>``.
+    """
+    if option is None and exc.key and exc.key.startswith(design.key):
+        return exc
+    return SpecError(exc.detail, key=f"{design.key}.{option or exc.key or fallback}")

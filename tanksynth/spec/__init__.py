@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import hashlib
 import inspect
-import math
 import re
 import tomllib
 from dataclasses import dataclass, field, replace
@@ -22,6 +21,7 @@ import numpy as np
 
 from tanksynth.errors import SpecError, TanksynthError
 from tanksynth.plants import BUILTIN_PLANTS, Plant, custom_plant
+from tanksynth.spec.options import did_you_mean, parse_box, parse_number, parse_vector
 
 __all__ = ["Spec", "DesignSpec", "load_spec", "parse_spec", "parse_spec_text"]
 
@@ -40,9 +40,10 @@ class DesignSpec:
         The options as written in the spec.
     key : str
         Where the entry is in the spec (``design[i]``), for error messages.
-    config : object or None
-        The validated options with their defaults, as the method's
-        ``validate`` returned them; None when parsed without the methods.
+    config : MethodOptions or None
+        The validated options with their defaults: the method's Options
+        dataclass (`tanksynth.spec.method_options`), as its adapter's
+        ``validate`` returned it; None when parsed without the methods.
     """
 
     name: str
@@ -95,9 +96,12 @@ def load_spec(path: str | Path, *, methods: Mapping[str, Any] | None = None) -> 
     path : str or Path
     methods : mapping of method name to design adapter, optional
         The adapters the ``[[design]]`` options are validated against
-        (`tanksynth.methods.ADAPTERS`; `tanksynth.load_spec` passes them).
-        Without it the method names and options are not checked: only the
-        plant, operating point, sampling and design names are.
+        (`tanksynth.methods.ADAPTERS`; `tanksynth.load_spec` passes them):
+        ``adapter.validate(options, key, plant, ts)`` returns the method's
+        Options (stored as `DesignSpec.config`). Every design's options are
+        validated here, before any design runs. Without it the method names
+        and options are not checked: only the plant, operating point,
+        sampling and design names are.
 
     Raises
     ------
@@ -126,38 +130,6 @@ def parse_spec_text(data: bytes | str, source: str | None = None, *,
         raise SpecError(f"invalid TOML: {exc}", source=source) from None
     spec = parse_spec(table, source=source, sha256=hashlib.sha256(raw).hexdigest(), methods=methods)
     return replace(spec, text=text)
-
-
-def _number(value: Any, key: str, positive: bool = False) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise SpecError(f"expected a number, got {type(value).__name__} {value!r}", key=key)
-    try:
-        value = float(value)
-    except OverflowError:  # an int beyond float range (TOML ints are unbounded)
-        value = math.inf if value > 0 else -math.inf
-    if not math.isfinite(value):
-        raise SpecError(f"expected a finite number, got {value}", key=key)
-    if positive and not value > 0:
-        raise SpecError(f"expected a positive number, got {value}", key=key)
-    return value
-
-
-def _vector(value: Any, names: list[str], key: str) -> np.ndarray:
-    """A vector given as a list or as a table keyed by signal names."""
-    if isinstance(value, Mapping):
-        unknown = [k for k in value if k not in names]
-        missing = [k for k in names if k not in value]
-        if unknown or missing:
-            raise SpecError(
-                f"expected values for {names}" + (f"; unknown: {unknown}" if unknown else "")
-                + (f"; missing: {missing}" if missing else ""), key=key)
-        return np.array([_number(value[k], f"{key}.{k}") for k in names])
-    if not isinstance(value, list):
-        raise SpecError(f"expected a list of {len(names)} numbers or a table {{{', '.join(names)}}}",
-                        key=key)
-    if len(value) != len(names):
-        raise SpecError(f"expected {len(names)} values ({', '.join(names)}), got {len(value)}", key=key)
-    return np.array([_number(v, f"{key}[{i}]") for i, v in enumerate(value)])
 
 
 def _table(table: Mapping[str, Any], name: str, required: bool = True) -> Mapping[str, Any]:
@@ -209,19 +181,9 @@ def _build_plant(table: Mapping[str, Any]) -> Plant:
     region = table.get("region")
     if region is not None:
         names = [s.name for s in plant.states]
-        if not isinstance(region, Mapping):
-            raise SpecError("expected a table {state = [min, max]}", key="plant.region")
         bounds = list(plant.region.bounds)
-        for nm, b in region.items():
-            rkey = f"plant.region.{nm}"
-            if nm not in names:
-                raise SpecError(f"unknown state {nm!r}; expected one of {names}", key=rkey)
-            if not isinstance(b, list) or len(b) != 2:
-                raise SpecError("expected [min, max]", key=rkey)
-            lo, hi = _number(b[0], rkey + "[0]"), _number(b[1], rkey + "[1]")
-            if not lo < hi:
-                raise SpecError(f"min ({lo}) must be smaller than max ({hi})", key=rkey)
-            bounds[names.index(nm)] = (lo, hi)
+        for nm, b in parse_box(region, "plant.region", names).items():
+            bounds[names.index(nm)] = b
         plant = plant.with_region(bounds)
     return plant
 
@@ -269,18 +231,19 @@ def _parse(table: Mapping[str, Any], source: str | None, sha256: str,
                         key=f"operating_point.{extra[0]}")
     if "x" not in op:
         raise SpecError("missing operating levels x", key="operating_point.x")
-    x0 = _vector(op["x"], [s.name for s in plant.states], "operating_point.x")
+    x0 = np.array(parse_vector(op["x"], "operating_point.x", names=[s.name for s in plant.states]))
     plant.check_point(x0, key="operating_point.x")
     given_u0 = None
     if "u" in op:
-        given_u0 = _vector(op["u"], [s.name for s in plant.inputs], "operating_point.u")
+        given_u0 = np.array(parse_vector(op["u"], "operating_point.u",
+                                         names=[s.name for s in plant.inputs]))
 
     sampling = _table(table, "sampling", required=False)
     extra = [k for k in sampling if k != "ts"]
     if extra:
         raise SpecError(f"unknown key(s) {extra}; expected ts (sampling period, s)",
                         key=f"sampling.{extra[0]}")
-    ts = _number(sampling["ts"], "sampling.ts", positive=True) if "ts" in sampling else None
+    ts = parse_number(sampling["ts"], "sampling.ts", above=0.0) if "ts" in sampling else None
 
     raw_designs = table.get("design", [])
     if not isinstance(raw_designs, list):
@@ -299,8 +262,8 @@ def _parse(table: Mapping[str, Any], source: str | None, sha256: str,
         seen.add(name)
         method = entry.get("method")
         if not isinstance(method, str) or (methods is not None and method not in methods):
-            raise SpecError(f"unknown method {method!r}; expected one of: " + ", ".join(methods or ()),
-                            key=f"{key}.method")
+            raise SpecError(f"unknown method {method!r}" + did_you_mean(method, list(methods or ()))
+                            + "; expected one of: " + ", ".join(methods or ()), key=f"{key}.method")
         options = {k: v for k, v in entry.items() if k not in ("name", "method")}
         config = methods[method].validate(options, key, plant, ts) if methods is not None else None
         designs.append(DesignSpec(name, method, options, key, config))

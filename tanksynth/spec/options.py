@@ -1,49 +1,261 @@
-"""The option toolkit: every spec value (number, vector, matrix, covariance, poles, region) is read here.
+"""The option toolkit: every spec value is read here.
 
 Each reader takes the raw TOML value and the spec key it came from, and
-raises `SpecError` naming that key and what was expected.
+raises `SpecError` naming that key and what was expected:
+
+=====================  =====================================================
+`parse_number`         finite real, optionally bounded (``above``,
+                       ``at_least``, ``below``, ``at_most``)
+`parse_integer`        integer, optionally bounded
+`parse_choice`         one of a few values ("did you mean" for strings)
+`parse_bool`           true or false
+`parse_vector`         numbers of a given length (a list, a table keyed by
+                       names, or one number for all)
+`parse_matrix`         list of rows, optionally of a given shape
+`parse_covariance`     symmetric positive (semi)definite matrix
+`parse_poles`          numbers or ``[re, im]`` pairs
+`parse_region`         LMI region: list of half-plane/disk/sector tables
+`parse_names`          names among known ones (states, outputs)
+`parse_box`            ``{name = [min, max]}`` bounds of named signals
+=====================  =====================================================
+
+Every reader also accepts the value it returns (a reader applied to its own
+result gives it back), so code holding validated options (`MethodOptions`)
+can pass them through the same reader.
 """
 
 from __future__ import annotations
 
-from typing import Any, Mapping
+import difflib
+import math
+import numbers
+from typing import Any, Mapping, Sequence
 
 import numpy as np
 
 from tanksynth.errors import SpecError
 
-__all__ = ["parse_number", "parse_matrix", "parse_poles", "parse_region", "parse_covariance"]
+__all__ = ["parse_number", "parse_integer", "parse_choice", "parse_bool", "parse_vector",
+           "parse_matrix", "parse_covariance", "parse_poles", "parse_region", "region_is_stable",
+           "parse_names", "parse_box", "did_you_mean"]
 
-_NUM = (int, float)
-
-
-def parse_number(value: Any, key: str) -> float:
-    """A finite real number (booleans refused); ``key`` names it in the error."""
-    if isinstance(value, bool) or not isinstance(value, _NUM):
-        raise SpecError(f"expected a number, got {type(value).__name__} {value!r}", key=key)
-    value = float(value)
-    if not np.isfinite(value):
-        raise SpecError(f"expected a finite number, got {value}", key=key)
-    return value
+#: Fields of each elementary LMI region, in the order of its parts tuple.
+_REGION_FIELDS = {"half_plane": ("alpha",), "disk": ("center", "radius"), "sector": ("angle_deg",)}
 
 
+def _is_number(value: Any) -> bool:
+    return isinstance(value, numbers.Real) and not isinstance(value, (bool, np.bool_))
 
-def parse_matrix(value: Any, key: str, shape: tuple[int, int] | None = None) -> np.ndarray:
-    """A real matrix given as a list of rows, optionally of a given shape."""
-    if not isinstance(value, list) or not value or not all(isinstance(r, list) for r in value):
-        raise SpecError("expected a matrix as a list of rows (lists of numbers)", key=key)
-    rows = [[parse_number(v, f"{key}[{i}][{j}]") for j, v in enumerate(r)] for i, r in enumerate(value)]
-    if len({len(r) for r in rows}) != 1:
-        raise SpecError("rows of the matrix have different lengths", key=key)
-    arr = np.array(rows, dtype=float)
-    if shape is not None and arr.shape != shape:
-        raise SpecError(f"expected a {shape[0]} x {shape[1]} matrix, got {arr.shape[0]} x "
-                        f"{arr.shape[1]}", key=key)
+
+def _type(value: Any) -> str:
+    return f"{type(value).__name__} {value!r}"
+
+
+def did_you_mean(word: Any, candidates: Sequence[str]) -> str:
+    """``"; did you mean 'x'?"`` for the closest candidate of a string, else ``""``."""
+    if not isinstance(word, str):
+        return ""
+    by_lower = {str(c).lower(): str(c) for c in candidates}
+    close = difflib.get_close_matches(word.lower(), list(by_lower), n=1, cutoff=0.6)
+    return f"; did you mean {by_lower[close[0]]!r}?" if close else ""
+
+
+def _bounds_text(above: float | None, at_least: float | None, below: float | None,
+                 at_most: float | None) -> str:
+    lo = (f"({above:g}" if above is not None else f"[{at_least:g}" if at_least is not None else None)
+    hi = (f"{below:g})" if below is not None else f"{at_most:g}]" if at_most is not None else None)
+    if lo and hi:
+        return f" in {lo}, {hi}"
+    if lo:
+        return f" > {above:g}" if above is not None else f" >= {at_least:g}"
+    if hi:
+        return f" < {below:g}" if below is not None else f" <= {at_most:g}"
+    return ""
+
+
+def _check_bounds(value: float, key: str, what: str, above: float | None, at_least: float | None,
+                  below: float | None, at_most: float | None) -> None:
+    if ((above is not None and not value > above) or (at_least is not None and not value >= at_least)
+            or (below is not None and not value < below) or (at_most is not None and not value <= at_most)):
+        raise SpecError(f"expected {what}{_bounds_text(above, at_least, below, at_most)}, got {value:g}",
+                        key=key)
+
+
+def parse_number(value: Any, key: str, *, above: float | None = None, at_least: float | None = None,
+                 below: float | None = None, at_most: float | None = None) -> float:
+    """A finite real number (booleans refused), optionally bounded.
+
+    Parameters
+    ----------
+    value : Any
+        The raw value.
+    key : str
+        Spec key, for the error.
+    above, at_least, below, at_most : float, optional
+        Strict (``above``, ``below``) and inclusive bounds.
+
+    Returns
+    -------
+    float
+    """
+    if not _is_number(value):
+        raise SpecError(f"expected a number{_bounds_text(above, at_least, below, at_most)}, got "
+                        f"{_type(value)}", key=key)
+    try:
+        out = float(value)
+    except OverflowError:  # an int beyond float range (TOML ints are unbounded)
+        out = math.inf if value > 0 else -math.inf
+    if not math.isfinite(out):
+        raise SpecError(f"expected a finite number, got {out}", key=key)
+    _check_bounds(out, key, "a number", above, at_least, below, at_most)
+    return out
+
+
+def parse_integer(value: Any, key: str, *, at_least: int | None = None,
+                  at_most: int | None = None) -> int:
+    """An integer (booleans and floats refused), optionally bounded (inclusive)."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Integral):
+        raise SpecError(f"expected an integer{_bounds_text(None, at_least, None, at_most)}, got "
+                        f"{_type(value)}", key=key)
+    out = int(value)
+    if (at_least is not None and out < at_least) or (at_most is not None and out > at_most):
+        raise SpecError(f"expected an integer{_bounds_text(None, at_least, None, at_most)}, got {out}",
+                        key=key)
+    return out
+
+
+def parse_choice(value: Any, key: str, allowed: Sequence[Any]) -> Any:
+    """One of ``allowed``; for a misspelt string the error suggests the closest choice."""
+    for choice in allowed:
+        if type(choice) is type(value) and choice == value:
+            return choice
+    raise SpecError(f"expected one of {list(allowed)}, got {value!r}"
+                    + did_you_mean(value, [str(a) for a in allowed]), key=key)
+
+
+def parse_bool(value: Any, key: str) -> bool:
+    """``true`` or ``false``."""
+    if not isinstance(value, (bool, np.bool_)):
+        raise SpecError(f"expected true or false, got {_type(value)}", key=key)
+    return bool(value)
+
+
+def _frozen(arr: np.ndarray) -> np.ndarray:
+    arr.flags.writeable = False
     return arr
 
 
+def parse_vector(value: Any, key: str, size: int | None = None, *,
+                 names: Sequence[str] | None = None, broadcast: bool = False,
+                 above: float | None = None, at_least: float | None = None,
+                 below: float | None = None, at_most: float | None = None) -> np.ndarray:
+    """Numbers of a given length, as a read-only float array.
 
-def parse_poles(value: Any, key: str) -> list[complex]:
+    Parameters
+    ----------
+    value : list, mapping or number
+        A list of numbers; with ``names``, also a table keyed by them; with
+        ``broadcast``, also one number for every entry.
+    key : str
+    size : int, optional
+        Required length (``len(names)`` when names are given).
+    names : sequence of str, optional
+        Entry names (signals), for a table and for the errors.
+    broadcast : bool
+        Accept one number for all ``size`` entries.
+    above, at_least, below, at_most : float, optional
+        Bounds of every entry (see `parse_number`).
+
+    Returns
+    -------
+    ndarray, shape (size,)
+    """
+    bounds = dict(above=above, at_least=at_least, below=below, at_most=at_most)
+    if names is not None:
+        size = len(names)
+    what = f" ({', '.join(names)})" if names is not None else ""
+    if isinstance(value, Mapping) and names is not None:
+        unknown = [k for k in value if k not in names]
+        missing = [k for k in names if k not in value]
+        if unknown or missing:
+            raise SpecError(f"expected values for {list(names)}"
+                            + (f"; unknown: {unknown}" if unknown else "")
+                            + (f"; missing: {missing}" if missing else ""), key=key)
+        return _frozen(np.array([parse_number(value[k], f"{key}.{k}", **bounds) for k in names]))
+    if broadcast and _is_number(value):
+        return _frozen(np.full(size if size is not None else 1, parse_number(value, key, **bounds)))
+    if isinstance(value, np.ndarray):
+        value = value.tolist()
+    if not isinstance(value, (list, tuple)) or (size is None and not value):
+        table = f" or a table {{{', '.join(names)}}}" if isinstance(names, Sequence) and names else ""
+        one = " (or one number for all)" if broadcast else ""
+        count = f"{size} " if size is not None else ""
+        raise SpecError(f"expected a list of {count}numbers{what}{one}{table}, got {_type(value)}",
+                        key=key)
+    if size is not None and len(value) != size:
+        if names is not None:
+            raise SpecError(f"expected {size} values{what}, got {len(value)}", key=key)
+        raise SpecError(f"expected a list of {size} numbers, got {len(value)}", key=key)
+    return _frozen(np.array([parse_number(v, f"{key}[{i}]", **bounds) for i, v in enumerate(value)],
+                            dtype=float))
+
+
+def parse_matrix(value: Any, key: str, shape: tuple[int | None, int | None] | None = None
+                 ) -> np.ndarray:
+    """A real matrix given as a list of rows (read-only float array).
+
+    ``shape`` fixes the rows and/or columns (None: any count).
+    """
+    if isinstance(value, np.ndarray):
+        value = value.tolist()
+    if not isinstance(value, (list, tuple)) or not value or \
+            not all(isinstance(r, (list, tuple)) for r in value):
+        want = "" if shape is None else f"a {shape[0] or 'r'} x {shape[1] or 'c'} matrix: "
+        raise SpecError(f"expected {want}a matrix as a list of rows (lists of numbers), got "
+                        f"{_type(value)}", key=key)
+    rows = [[parse_number(v, f"{key}[{i}][{j}]") for j, v in enumerate(r)] for i, r in enumerate(value)]
+    if len({len(r) for r in rows}) != 1 or not rows[0]:
+        raise SpecError("rows of the matrix have different lengths (or none)", key=key)
+    arr = np.array(rows, dtype=float)
+    if shape is not None and any(want is not None and got != want for want, got in zip(shape, arr.shape)):
+        raise SpecError(f"expected a {shape[0] or 'r'} x {shape[1] or 'c'} matrix, got "
+                        f"{arr.shape[0]} x {arr.shape[1]}", key=key)
+    return _frozen(arr)
+
+
+def parse_covariance(value: Any, key: str, size: int, semidefinite: bool = False) -> np.ndarray:
+    """A symmetric positive (semi)definite ``size x size`` matrix.
+
+    Given as a number (``s I``), a list (the diagonal) or a list of rows, in
+    the squared units of the state or output.
+    """
+    if isinstance(value, np.ndarray):
+        value = value.tolist()
+    if _is_number(value):
+        M = parse_number(value, key) * np.eye(size)
+    elif isinstance(value, (list, tuple)) and value and all(_is_number(v) for v in value):
+        if len(value) != size:
+            raise SpecError(f"expected {size} diagonal entries, got {len(value)}", key=key)
+        M = np.diag([parse_number(v, f"{key}[{i}]") for i, v in enumerate(value)])
+    elif isinstance(value, (list, tuple)) and value and all(isinstance(r, (list, tuple)) for r in value):
+        M = np.array(parse_matrix(value, key))
+    else:
+        raise SpecError("expected a number (s I), a list (diagonal) or a list of rows, got "
+                        f"{_type(value)}", key=key)
+    if M.shape != (size, size):
+        raise SpecError(f"expected a {size} x {size} matrix, got {M.shape[0]} x {M.shape[1]}", key=key)
+    if np.max(np.abs(M - M.T), initial=0.0) > 1e-12 * max(np.max(np.abs(M)), 1e-300):
+        raise SpecError("matrix must be symmetric", key=key)
+    w = np.linalg.eigvalsh(0.5 * (M + M.T))
+    if (w[0] < 0) if semidefinite else (w[0] <= 0):
+        kind = "positive semidefinite" if semidefinite else "positive definite"
+        raise SpecError(f"matrix must be {kind}; smallest eigenvalue {w[0]:.3g}", key=key)
+    return _frozen(0.5 * (M + M.T))
+
+
+def parse_poles(value: Any, key: str, *, count: int | None = None, conjugate: bool = True,
+                real: bool = False, distinct: bool = False,
+                negative_real: bool = False) -> tuple[complex, ...]:
     """Poles from a spec list: numbers, or ``[re, im]`` pairs for complex poles.
 
     Parameters
@@ -51,23 +263,53 @@ def parse_poles(value: Any, key: str) -> list[complex]:
     value : list
     key : str
         Spec key for error messages.
+    count : int, optional
+        Required number of poles.
+    conjugate : bool
+        Complex poles must come in conjugate pairs (a real gain).
+    real, distinct : bool
+        Every pole real; no pole repeated.
+    negative_real : bool
+        Every pole with negative real part (continuous-time stable, 1/s).
 
     Returns
     -------
-    list of complex
+    tuple of complex
     """
-    if not isinstance(value, list) or not value:
-        raise SpecError("expected a non-empty list of poles (numbers or [re, im] pairs)", key=key)
+    if not isinstance(value, (list, tuple)) or not value:
+        raise SpecError(f"expected a non-empty list of poles (numbers or [re, im] pairs), got "
+                        f"{_type(value)}", key=key)
     out = []
     for i, v in enumerate(value):
-        if isinstance(v, list):
+        if isinstance(v, (list, tuple)):
             if len(v) != 2:
-                raise SpecError("expected [re, im]", key=f"{key}[{i}]")
+                raise SpecError(f"expected [re, im], got {v!r}", key=f"{key}[{i}]")
             out.append(complex(parse_number(v[0], f"{key}[{i}][0]"), parse_number(v[1], f"{key}[{i}][1]")))
+        elif isinstance(v, complex):
+            out.append(complex(parse_number(v.real, f"{key}[{i}]"), parse_number(v.imag, f"{key}[{i}]")))
         else:
             out.append(complex(parse_number(v, f"{key}[{i}]")))
-    return out
+    if count is not None and len(out) != count:
+        raise SpecError(f"{len(out)} poles given, expected {count}", key=key)
+    scale = max(1.0, max(abs(p) for p in out))
+    if real and any(p.imag != 0 for p in out):
+        raise SpecError(f"expected real poles, got {[_pole_text(p) for p in out]}", key=key)
+    if conjugate:
+        a, b = np.sort_complex(np.array(out)), np.sort_complex(np.conj(np.array(out)))
+        if not np.allclose(a, b, rtol=0, atol=1e-12 * scale):
+            raise SpecError("complex poles must come in conjugate pairs, got "
+                            f"{[_pole_text(p) for p in out]}", key=key)
+    if distinct and len(set(out)) != len(out):
+        raise SpecError(f"expected distinct{' real' if real else ''} poles, got "
+                        f"{[_pole_text(p) for p in out]}", key=key)
+    if negative_real and not all(p.real < 0 for p in out):
+        raise SpecError(f"expected poles with negative real part (1/s), got "
+                        f"{[_pole_text(p) for p in out]}", key=key)
+    return tuple(out)
 
+
+def _pole_text(p: complex) -> str:
+    return f"{p.real:g}" if p.imag == 0 else f"{p.real:g}{p.imag:+g}j"
 
 
 def parse_region(value: Any, key: str) -> tuple[tuple, ...]:
@@ -80,6 +322,8 @@ def parse_region(value: Any, key: str) -> tuple[tuple, ...]:
     Parameters
     ----------
     value : list of dict
+        One table alone is also accepted; so are the parts this function
+        returns.
     key : str
 
     Returns
@@ -90,26 +334,34 @@ def parse_region(value: Any, key: str) -> tuple[tuple, ...]:
     """
     if isinstance(value, Mapping):
         value = [value]
-    if not isinstance(value, list) or not value:
+    if not isinstance(value, (list, tuple)) or not value:
         raise SpecError("expected a list of region tables, e.g. [{type = \"disk\", center = 0.0, "
                         "radius = 0.9}]", key=key)
     parts = []
-    fields = {"half_plane": ("alpha",), "disk": ("center", "radius"), "sector": ("angle_deg",)}
     for i, item in enumerate(value):
         k = f"{key}[{i}]"
+        if isinstance(item, tuple) and item and item[0] in _REGION_FIELDS:  # already parsed
+            fields = _REGION_FIELDS[item[0]]
+            if len(item) != 1 + len(fields):
+                raise SpecError(f"region part {item!r} takes {list(fields)}", key=k)
+            args = [parse_number(a, f"{k}.{f}") for a, f in zip(item[1:], fields)]
+            if item[0] == "sector":
+                args = [float(np.degrees(args[0]))]
+            item = {"type": item[0], **dict(zip(fields, args))}
         if not isinstance(item, Mapping):
             raise SpecError("expected a table with a 'type'", key=k)
         kind = item.get("type")
-        if kind not in fields:
-            raise SpecError(f"unknown region type {kind!r}; expected one of {list(fields)}",
-                            key=f"{k}.type")
-        extra = [f for f in item if f not in ("type", *fields[kind])]
-        missing = [f for f in fields[kind] if f not in item]
+        if kind not in _REGION_FIELDS:
+            raise SpecError(f"unknown region type {kind!r}; expected one of {list(_REGION_FIELDS)}"
+                            + did_you_mean(kind, list(_REGION_FIELDS)), key=f"{k}.type")
+        fields = _REGION_FIELDS[kind]
+        extra = [f for f in item if f not in ("type", *fields)]
+        missing = [f for f in fields if f not in item]
         if extra or missing:
-            raise SpecError(f"region '{kind}' takes {list(fields[kind])}"
+            raise SpecError(f"region '{kind}' takes {list(fields)}"
                             + (f"; unknown {extra}" if extra else "")
                             + (f"; missing {missing}" if missing else ""), key=k)
-        args = [parse_number(item[f], f"{k}.{f}") for f in fields[kind]]
+        args = [parse_number(item[f], f"{k}.{f}") for f in fields]
         if kind == "disk" and not args[1] > 0:
             raise SpecError(f"disk radius must be > 0, got {args[1]:g}", key=f"{k}.radius")
         if kind == "sector" and not 0 < args[0] < 90:
@@ -119,34 +371,74 @@ def parse_region(value: Any, key: str) -> tuple[tuple, ...]:
     return tuple(parts)
 
 
-def parse_covariance(value: Any, key: str, size: int, semidefinite: bool = False) -> np.ndarray:
-    """A symmetric positive (semi)definite ``size x size`` matrix: a number (``s I``), a list
-    (diagonal) or a list of rows (squared units of the state or output)."""
-    try:
-        if isinstance(value, bool):
-            raise TypeError
-        if isinstance(value, _NUM):
-            M = float(value) * np.eye(size)
-        elif isinstance(value, list) and value and all(isinstance(v, _NUM) and not isinstance(v, bool)
-                                                       for v in value):
-            if len(value) != size:
-                raise SpecError(f"expected {size} diagonal entries, got {len(value)}", key=key)
-            M = np.diag(np.array(value, dtype=float))
-        elif isinstance(value, list) and value and all(isinstance(r, list) for r in value):
-            M = np.array(value, dtype=float)
-        else:
-            raise TypeError
-    except (TypeError, ValueError):
-        raise SpecError("expected a number (s I), a list (diagonal) or a list of rows",
-                        key=key) from None
-    if M.shape != (size, size):
-        raise SpecError(f"expected a {size} x {size} matrix, got shape {M.shape}", key=key)
-    if not np.all(np.isfinite(M)):
-        raise SpecError("entries must be finite", key=key)
-    if np.max(np.abs(M - M.T), initial=0.0) > 1e-12 * max(np.max(np.abs(M)), 1e-300):
-        raise SpecError("matrix must be symmetric", key=key)
-    w = np.linalg.eigvalsh(0.5 * (M + M.T))
-    if (w[0] < 0) if semidefinite else (w[0] <= 0):
-        kind = "positive semidefinite" if semidefinite else "positive definite"
-        raise SpecError(f"matrix must be {kind}; smallest eigenvalue {w[0]:.3g}", key=key)
-    return 0.5 * (M + M.T)
+def region_is_stable(parts: Sequence[tuple], domain: str) -> bool:
+    """True if one part of a region (as `parse_region` returns it) lies in the stability domain.
+
+    Continuous time: a half-plane with ``alpha >= 0``, a disk with ``center +
+    radius <= 0`` or a sector; discrete time: a disk with ``|center| + radius
+    <= 1``. The intersection lies inside each of its parts.
+    """
+    if domain == "discrete":
+        return any(p[0] == "disk" and abs(p[1]) + p[2] <= 1 for p in parts)
+    return any((p[0] == "half_plane" and p[1] >= 0) or (p[0] == "disk" and p[1] + p[2] <= 0)
+               or (p[0] == "sector" and p[1] < np.pi / 2) for p in parts)
+
+
+def parse_names(value: Any, key: str, known: Sequence[str], *, what: str = "name",
+                at_least: int = 1, at_most: int | None = None, count: int | None = None,
+                unique: bool = True) -> tuple[str, ...]:
+    """A list of names, each one of ``known`` (e.g. the plant's outputs or states).
+
+    Parameters
+    ----------
+    value : list of str
+    key : str
+    known : sequence of str
+        The accepted names.
+    what : str
+        What a name is, for the errors (``"output"``, ``"state"``).
+    at_least, at_most, count : int, optional
+        How many names.
+    unique : bool
+        Refuse a name listed twice.
+
+    Returns
+    -------
+    tuple of str
+    """
+    if not isinstance(value, (list, tuple)) or not all(isinstance(v, str) for v in value):
+        raise SpecError(f"expected a list of {what} names (some of {list(known)}), got "
+                        f"{_type(value)}", key=key)
+    for v in value:
+        if v not in known:
+            raise SpecError(f"unknown {what} {v!r}; expected some of {list(known)}"
+                            + did_you_mean(v, known), key=key)
+    if unique and len(set(value)) != len(value):
+        raise SpecError(f"{what}s listed twice: {list(value)}", key=key)
+    n = len(value)
+    if count is not None and n != count:
+        raise SpecError(f"expected {count} {what} name(s), got {n}: {list(value)}", key=key)
+    if n < at_least or (at_most is not None and n > at_most):
+        most = f" and at most {at_most}" if at_most is not None else ""
+        raise SpecError(f"expected at least {at_least}{most} {what} name(s), got {n}", key=key)
+    return tuple(value)
+
+
+def parse_box(value: Any, key: str, names: Sequence[str], *, what: str = "state"
+              ) -> dict[str, tuple[float, float]]:
+    """Bounds ``{name = [min, max]}`` of some named signals (``min < max``)."""
+    if not isinstance(value, Mapping):
+        raise SpecError(f"expected a table {{{what} = [min, max]}}, got {_type(value)}", key=key)
+    out = {}
+    for nm, b in value.items():
+        k = f"{key}.{nm}"
+        if nm not in names:
+            raise SpecError(f"unknown {what} {nm!r}; expected one of {list(names)}"
+                            + did_you_mean(nm, names), key=k)
+        if not isinstance(b, (list, tuple)) or len(b) != 2:
+            raise SpecError(f"expected [min, max], got {_type(b)}", key=k)
+        lo, hi = parse_number(b[0], k + "[0]"), parse_number(b[1], k + "[1]")
+        if not lo < hi:
+            raise SpecError(f"min ({lo:g}) must be smaller than max ({hi:g})", key=k)
+        out[str(nm)] = (lo, hi)
+    return out

@@ -1,0 +1,218 @@
+"""The base of every method's Options and the reader of one ``[[design]]`` table.
+
+A method's options are a frozen dataclass (a `MethodOptions` subclass):
+its fields are the options, their defaults are the field defaults (written
+once, there), and its ``from_table`` classmethod reads the raw ``[[design]]``
+table with `OptionReader` and the readers of `tanksynth.spec.options`,
+doing every check that needs no design computation.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import MISSING, dataclass
+from typing import Any, Callable, ClassVar, Mapping
+
+import numpy as np
+
+from tanksynth.errors import SpecError
+from tanksynth.spec.options import did_you_mean
+
+__all__ = ["MethodOptions", "OptionReader", "time_domain_of"]
+
+
+@dataclass(frozen=True, eq=False)
+class MethodOptions:
+    """Base of the Options dataclass of a design method.
+
+    Subclasses declare one field per option (the default is the field's
+    default; a field without one is a required option), document each in
+    their docstring (numpydoc ``Attributes``, with units) and implement
+    `from_table`. Instances are immutable; arrays in them are read-only.
+
+    Attributes
+    ----------
+    method_name : str
+        (class attribute) The spec's ``method`` value.
+    needs_sampling : bool
+        (class attribute) The method needs ``[sampling] ts``.
+    """
+
+    method_name: ClassVar[str] = ""
+    needs_sampling: ClassVar[bool] = False
+
+    @classmethod
+    def from_table(cls, options: Mapping[str, Any], key: str, plant: Any,
+                   ts: float | None) -> "MethodOptions":
+        """Validate a ``[[design]]`` table's options (without ``name`` and ``method``).
+
+        Parameters
+        ----------
+        options : mapping
+            The raw options.
+        key : str
+            Where the table is in the spec (``design[i]``).
+        plant : Plant
+            The spec's plant (sizes, state and output names, region).
+        ts : float or None
+            Sampling period (s).
+
+        Returns
+        -------
+        MethodOptions
+            The options with their defaults.
+
+        Raises
+        ------
+        SpecError
+            Naming the option (``design[i].<option>``) and what was expected.
+        """
+        raise NotImplementedError(f"{cls.__name__}.from_table")
+
+    @classmethod
+    def validated(cls, options: Mapping[str, Any], key: str, plant: Any,
+                  ts: float | None) -> "MethodOptions":
+        """`from_table`, remembering the table the options were read from (`source`)."""
+        out = cls.from_table(options, key, plant, ts)
+        object.__setattr__(out, "_source", dict(options))
+        return out
+
+    def read_from(self, options: Mapping[str, Any]) -> bool:
+        """True if these options were validated from exactly the table ``options``.
+
+        False for options built otherwise, or when the table has changed
+        since (e.g. a `DesignSpec` copied with other options).
+        """
+        source = self.__dict__.get("_source")
+        if source is None or not isinstance(options, Mapping):
+            return False
+        try:
+            return bool(source == dict(options))
+        except (TypeError, ValueError):  # arrays inside: compare as JSON-like values
+            return _same(_jsonable(source), _jsonable(dict(options)))
+
+    @classmethod
+    def option_names(cls) -> tuple[str, ...]:
+        """The options the method accepts, in declaration order."""
+        return tuple(f.name for f in dataclasses.fields(cls))
+
+    @classmethod
+    def default(cls, name: str) -> Any:
+        """The default of option ``name``; `SpecError` if the option is required."""
+        f = cls.__dataclass_fields__[name]
+        if f.default is not MISSING:
+            return f.default
+        if f.default_factory is not MISSING:
+            return f.default_factory()
+        raise SpecError(f"option {name!r} of method '{cls.method_name}' has no default (required)",
+                        key=name)
+
+    @classmethod
+    def required(cls) -> tuple[str, ...]:
+        """The options without a default."""
+        return tuple(f.name for f in dataclasses.fields(cls)
+                     if f.default is MISSING and f.default_factory is MISSING)
+
+    def as_dict(self) -> dict[str, Any]:
+        """JSON-friendly values (arrays as nested lists, complex poles as ``[re, im]``)."""
+        return {f.name: _jsonable(getattr(self, f.name)) for f in dataclasses.fields(self)}
+
+    def __eq__(self, other: object) -> bool:
+        if type(other) is not type(self):
+            return NotImplemented
+        return all(_same(getattr(self, f.name), getattr(other, f.name))
+                   for f in dataclasses.fields(self))
+
+    __hash__ = None  # type: ignore[assignment]  # arrays inside
+
+
+def _same(a: Any, b: Any) -> bool:
+    if isinstance(a, np.ndarray) or isinstance(b, np.ndarray):
+        return bool(np.array_equal(np.asarray(a), np.asarray(b)))
+    if isinstance(a, (tuple, list)) and isinstance(b, (tuple, list)):
+        return len(a) == len(b) and all(_same(x, y) for x, y in zip(a, b))
+    return bool(a == b)
+
+
+def _jsonable(value: Any) -> Any:
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, complex):
+        return [value.real, value.imag]
+    if isinstance(value, Mapping):
+        return {str(k): _jsonable(v) for k, v in value.items()}
+    if isinstance(value, (tuple, list)):
+        return [_jsonable(v) for v in value]
+    return value
+
+
+def time_domain_of(ts: float | None) -> str:
+    """Default time domain of a linear design: ``"discrete"`` with a sampling period."""
+    return "discrete" if ts is not None else "continuous"
+
+
+class OptionReader:
+    """Reads the options of one ``[[design]]`` table for an Options class.
+
+    On construction it refuses a non-table, an unknown option (with a "did
+    you mean") and a missing sampling period when the method needs one.
+
+    Parameters
+    ----------
+    cls : type of MethodOptions
+    options : mapping
+        The raw options (without ``name`` and ``method``).
+    key : str
+        Where the table is (``design[i]``).
+    ts : float or None
+        Sampling period (s).
+    """
+
+    def __init__(self, cls: type[MethodOptions], options: Any, key: str, ts: float | None):
+        if not isinstance(options, Mapping):
+            raise SpecError(f"expected a table of options, got {type(options).__name__}", key=key)
+        allowed = cls.option_names()
+        for opt in options:
+            if opt not in allowed:
+                raise SpecError(f"unknown option {opt!r} for method '{cls.method_name}'"
+                                + did_you_mean(opt, allowed) + "; expected: "
+                                + (", ".join(allowed) or "no options"), key=f"{key}.{opt}")
+        if cls.needs_sampling and ts is None:
+            raise SpecError(f"method '{cls.method_name}' needs a sampling period: add [sampling] ts = ...",
+                            key="sampling.ts")
+        self.cls = cls
+        self.options = options
+        self.base = key
+
+    def key(self, name: str) -> str:
+        """The spec key of option ``name`` (``design[i].name``)."""
+        return f"{self.base}.{name}"
+
+    def given(self, name: str) -> bool:
+        """True if the table sets option ``name``."""
+        return name in self.options
+
+    def read(self, name: str, reader: Callable[..., Any], *args: Any, parse_default: bool = False,
+             **kwargs: Any) -> Any:
+        """``reader(value, key, *args, **kwargs)`` of the given value, else the option's default.
+
+        With ``parse_default`` the default goes through the reader too (a
+        default written in the spec's own form, e.g. one number for a vector).
+
+        Raises
+        ------
+        SpecError
+            The reader refused the value, or a required option is missing.
+        """
+        if name in self.options:
+            return reader(self.options[name], self.key(name), *args, **kwargs)
+        f = self.cls.__dataclass_fields__[name]
+        if f.default is MISSING and f.default_factory is MISSING:
+            raise SpecError(f"missing option {name!r} for method '{self.cls.method_name}'",
+                            key=self.key(name))
+        value = self.cls.default(name)
+        return reader(value, self.key(name), *args, **kwargs) if parse_default else value
+
+    def fail(self, name: str, message: str) -> SpecError:
+        """A `SpecError` about option ``name`` (to raise)."""
+        return SpecError(message, key=self.key(name))

@@ -1,0 +1,121 @@
+"""Options of ``decentralized_kalman``: sparse Kalman gains over one window (seed 003)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, ClassVar, Mapping
+
+import numpy as np
+
+from tanksynth.errors import SpecError
+from tanksynth.spec.method_options.base import MethodOptions, OptionReader
+from tanksynth.spec.options import (parse_choice, parse_covariance, parse_integer, parse_matrix,
+                                    parse_number, parse_vector)
+
+__all__ = ["DECENTRALIZED_ALGORITHMS", "DecentralizedKalmanOptions"]
+
+#: Values of the ``algorithm`` option.
+DECENTRALIZED_ALGORITHMS = ("casadi", "iterative", "one_step")
+
+
+def _noise(value: Any, key: str, size: int, *, semidefinite: bool) -> float | np.ndarray:
+    """A number (kept: times the identity) or a covariance matrix (list of rows, or diagonal)."""
+    if isinstance(value, (int, float)) and not isinstance(value, bool):
+        if semidefinite:
+            return parse_number(value, key, at_least=0.0)
+        return parse_number(value, key, above=0.0)
+    return parse_covariance(value, key, size, semidefinite)
+
+
+def _pattern(value: Any, key: str, shape: tuple[int, int]) -> str | np.ndarray:
+    """``"own_tank"`` or an explicit 0/1 matrix with at least one free entry."""
+    if isinstance(value, str):
+        if value not in ("own_tank", "own tank"):
+            raise SpecError(f"expected \"own_tank\" or an explicit {shape[0]} x {shape[1]} matrix of "
+                            f"0/1, got {value!r}", key=key)
+        return "own_tank"
+    E = parse_matrix(value, key, shape)
+    if not np.all((E == 0) | (E == 1)):
+        raise SpecError("E entries must be 0 (gain entry fixed at 0) or 1 (free)", key=key)
+    if not E.any():
+        raise SpecError("E has no free entry: every gain would be 0", key=key)
+    return E
+
+
+@dataclass(frozen=True, eq=False)
+class DecentralizedKalmanOptions(MethodOptions):
+    """Options of ``decentralized_kalman``: the decentralised Kalman gains ``K(1) .. K(T)`` of
+    one window from the operating point, under a sparsity pattern ``E`` (seed 003, DECENTER).
+
+    Attributes
+    ----------
+    process_noise : float or ndarray
+        Required. Process-noise intensity ``Qc`` (squared state unit per s): a
+        number ``q`` (>= 0; ``Qc = q ((1 - rho) I + rho 1 1')``) or an n x n
+        positive semidefinite matrix; discretised exactly (Van Loan).
+    algorithm : str
+        ``"casadi"`` (default), ``"iterative"`` (finite horizon) or
+        ``"one_step"`` (step-by-step optimal gains).
+    window : int
+        Steps ``T`` of the window (>= 1); default 40.
+    E : str or ndarray
+        Sparsity pattern: ``"own_tank"`` (default: each state uses the outputs
+        measuring it alone) or an explicit n x q matrix of 0 (fixed at 0) and
+        1 (free).
+    tolerance : float
+        Relative tolerance of the finite-horizon iteration (> 0); default 1e-6.
+    max_iter : int
+        Iteration limit (>= 1); default 100.
+    process_noise_correlation : float
+        ``rho`` in [0, 1) for a number ``process_noise``; default 0.
+    measurement_noise : float or ndarray
+        ``R`` (squared output unit): a number (> 0, times I) or a q x q positive
+        definite matrix; default 1.
+    initial_covariance : float or ndarray
+        ``P(0|0)`` (squared state unit): a number (> 0, times I) or an n x n
+        positive definite matrix; default 10.
+    input : ndarray or None
+        Input held over the window (m values, input units); default None: the
+        equilibrium input of the operating point.
+    relinearize_every : int
+        Steps between linearisations along the predicted trajectory (>= 1);
+        default 10.
+    """
+
+    method_name: ClassVar[str] = "decentralized_kalman"
+    needs_sampling: ClassVar[bool] = True
+
+    process_noise: float | np.ndarray
+    algorithm: str = "casadi"
+    window: int = 40
+    E: str | np.ndarray = "own_tank"
+    tolerance: float = 1e-6
+    max_iter: int = 100
+    process_noise_correlation: float = 0.0
+    measurement_noise: float | np.ndarray = 1.0
+    initial_covariance: float | np.ndarray = 10.0
+    input: np.ndarray | None = None
+    relinearize_every: int = 10
+
+    @classmethod
+    def from_table(cls, options: Mapping[str, Any], key: str, plant: Any,
+                   ts: float | None) -> "DecentralizedKalmanOptions":
+        """See `MethodOptions.from_table`; the correlation applies to a number ``process_noise``."""
+        r = OptionReader(cls, options, key, ts)
+        n, q = plant.n, plant.q
+        Qc = r.read("process_noise", _noise, n, semidefinite=True)
+        rho = r.read("process_noise_correlation", parse_number, at_least=0.0, below=1.0)
+        if isinstance(Qc, np.ndarray) and r.given("process_noise_correlation"):
+            raise r.fail("process_noise_correlation",
+                         "process_noise_correlation only applies to a scalar process_noise")
+        return cls(
+            process_noise=Qc, algorithm=r.read("algorithm", parse_choice, DECENTRALIZED_ALGORITHMS),
+            window=r.read("window", parse_integer, at_least=1),
+            E=r.read("E", _pattern, (n, q)),
+            tolerance=r.read("tolerance", parse_number, above=0.0),
+            max_iter=r.read("max_iter", parse_integer, at_least=1),
+            process_noise_correlation=rho,
+            measurement_noise=r.read("measurement_noise", _noise, q, semidefinite=False),
+            initial_covariance=r.read("initial_covariance", _noise, n, semidefinite=False),
+            input=r.read("input", parse_vector, names=[s.name for s in plant.inputs]),
+            relinearize_every=r.read("relinearize_every", parse_integer, at_least=1))

@@ -1,0 +1,226 @@
+"""Options of the linear gain designs: ``linearize``, ``pole_placement``, ``lmi_placement``,
+``canonical_observer``.
+
+Linear designs use the Jacobian linearisation at the spec's operating point,
+ZOH-discretised with ``[sampling] ts`` in discrete time.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, ClassVar, Mapping
+
+import numpy as np
+
+from tanksynth.spec.method_options.base import MethodOptions, OptionReader, time_domain_of
+from tanksynth.spec.options import (parse_bool, parse_choice, parse_matrix, parse_names, parse_number,
+                                    parse_poles, parse_region, region_is_stable)
+
+__all__ = ["LMI_SOLVERS", "PLACE_METHODS", "TARGETS", "TIME_DOMAINS", "LinearizeOptions", "PolePlacementOptions", "LmiPlacementOptions",
+           "CanonicalObserverOptions"]
+
+#: Conic solvers of the LMI designs (cvxpy names).
+LMI_SOLVERS = ("CLARABEL", "SCS")
+#: What a linear gain design computes.
+TARGETS = ("observer", "state_feedback")
+#: Routines of exact pole placement (python-control).
+PLACE_METHODS = ("auto", "place", "acker")
+#: Time domains of a linear design.
+TIME_DOMAINS = ("continuous", "discrete")
+
+
+@dataclass(frozen=True, eq=False)
+class LinearizeOptions(MethodOptions):
+    """Options of ``linearize`` (none): the Jacobian linearisation at the operating point and its
+    exact ZOH discretisation with ``[sampling] ts`` (required).
+
+    Attributes
+    ----------
+    (none)
+        The method takes no option.
+    """
+
+    method_name: ClassVar[str] = "linearize"
+    needs_sampling: ClassVar[bool] = True
+
+    @classmethod
+    def from_table(cls, options: Mapping[str, Any], key: str, plant: Any,
+                   ts: float | None) -> "LinearizeOptions":
+        """Refuse any option and a spec without a sampling period (see `MethodOptions.from_table`)."""
+        OptionReader(cls, options, key, ts)
+        return cls()
+
+
+def _gain_setup(r: OptionReader, plant: Any, ts: float | None) -> dict[str, Any]:
+    """``target``, ``time_domain``, ``integral`` and ``tracked`` of a linear gain design."""
+    target = r.read("target", parse_choice, TARGETS)
+    time_domain = r.read("time_domain", parse_choice, TIME_DOMAINS) or time_domain_of(ts)
+    if time_domain == "discrete" and ts is None:
+        raise r.fail("time_domain", "a discrete-time design needs a sampling period: add "
+                                    "[sampling] ts = ... (or time_domain = \"continuous\")")
+    integral = r.read("integral", parse_bool)
+    if integral and target == "observer":
+        raise r.fail("integral", "integral action applies to state feedback (target = "
+                                 "\"state_feedback\"), not to an observer")
+    outputs = [s.name for s in plant.outputs]
+    tracked = r.read("tracked", parse_names, outputs, what="output", at_most=plant.m)
+    if integral and tracked is None:
+        tracked = tuple(outputs[: plant.m])
+    return {"target": target, "time_domain": time_domain, "integral": integral, "tracked": tracked}
+
+
+def _gain_shape(setup: Mapping[str, Any], plant: Any) -> tuple[int, int]:
+    """Shape of ``K`` (m x n, or m x (n + p) with integral action) or ``L`` (n x q)."""
+    if setup["target"] == "observer":
+        return plant.n, plant.q
+    p = len(setup["tracked"]) if setup["integral"] else 0
+    return plant.m, plant.n + p
+
+
+_GAIN_DOC = """
+    target : str
+        ``"state_feedback"`` (gain ``K``, ``u = -K x``) or ``"observer"`` (gain
+        ``L``); default {target!r}.
+    time_domain : str
+        ``"discrete"`` (the ZOH model at ``[sampling] ts``; the default when the
+        spec has a sampling period) or ``"continuous"`` (the default without).
+    integral : bool
+        Integral action on the tracked outputs (state feedback only); default
+        false.
+    tracked : tuple of str or None
+        Outputs with integral action (at most m, named as the plant's
+        outputs); default the first m outputs when ``integral`` is set, None
+        without integral action."""
+
+
+@dataclass(frozen=True, eq=False)
+class PolePlacementOptions(MethodOptions):
+    __doc__ = f"""Options of ``pole_placement``: exact pole placement (python-control ``place`` /
+    ``acker``) on the linearisation at the operating point.
+
+    Attributes
+    ----------
+    poles : tuple of complex
+        Required. Eigenvalues to place, of ``A - B K`` (n; with integral
+        action n + p, of the augmented system) or of ``A - L C`` (n): 1/s in
+        continuous time, dimensionless (z-plane) in discrete time. Complex
+        poles come in conjugate pairs, written ``[re, im]``.{_GAIN_DOC.format(target="state_feedback")}
+    method : str
+        ``"auto"`` (default), ``"place"`` (Tits-Yang) or ``"acker"``.
+    reference_gain : ndarray or None
+        A gain to compare with the derived one (the shape of ``K`` or ``L``,
+        in its units), e.g. a published one; default None.
+    """
+
+    method_name: ClassVar[str] = "pole_placement"
+
+    poles: tuple[complex, ...]
+    target: str = "state_feedback"
+    time_domain: str | None = None
+    integral: bool = False
+    tracked: tuple[str, ...] | None = None
+    method: str = "auto"
+    reference_gain: np.ndarray | None = None
+
+    @classmethod
+    def from_table(cls, options: Mapping[str, Any], key: str, plant: Any,
+                   ts: float | None) -> "PolePlacementOptions":
+        """See `MethodOptions.from_table`; the pole count follows ``target`` and ``integral``."""
+        r = OptionReader(cls, options, key, ts)
+        setup = _gain_setup(r, plant, ts)
+        shape = _gain_shape(setup, plant)
+        count = shape[1] if setup["target"] == "state_feedback" else plant.n
+        return cls(poles=r.read("poles", parse_poles, count=count), **setup,
+                   method=r.read("method", parse_choice, PLACE_METHODS),
+                   reference_gain=r.read("reference_gain", parse_matrix, shape))
+
+
+@dataclass(frozen=True, eq=False)
+class LmiPlacementOptions(MethodOptions):
+    __doc__ = f"""Options of ``lmi_placement``: a gain whose closed-loop eigenvalues lie in an LMI
+    region (cvxpy + Clarabel), on the linearisation at the operating point.
+
+    Attributes
+    ----------
+    region : tuple of tuple
+        Required. The region, an intersection of ``("half_plane", alpha)``
+        (``Re z < -alpha``, 1/s), ``("disk", center, radius)`` and ``("sector",
+        theta)`` (half-angle in rad about the negative real axis; written in
+        degrees as ``angle_deg``); one part must lie in the stability domain
+        of ``time_domain``.{_GAIN_DOC.format(target="observer")}
+    margin : float
+        Strictness margin of the LMIs, in (0, 1); default 1e-6.
+    kappa : float
+        Bound ``I <= X <= kappa I`` of the Lyapunov matrix (> 1); default 1e4.
+    solver : str
+        Conic solver, ``"CLARABEL"`` (default) or ``"SCS"``.
+    """
+
+    method_name: ClassVar[str] = "lmi_placement"
+
+    region: tuple[tuple, ...]
+    target: str = "observer"
+    time_domain: str | None = None
+    integral: bool = False
+    tracked: tuple[str, ...] | None = None
+    margin: float = 1e-6
+    kappa: float = 1e4
+    solver: str = "CLARABEL"
+
+    @classmethod
+    def from_table(cls, options: Mapping[str, Any], key: str, plant: Any,
+                   ts: float | None) -> "LmiPlacementOptions":
+        """See `MethodOptions.from_table`; the region must be stable in the time domain."""
+        r = OptionReader(cls, options, key, ts)
+        setup = _gain_setup(r, plant, ts)
+        region = r.read("region", parse_region)
+        if not region_is_stable(region, setup["time_domain"]):
+            raise r.fail("region", f"the region is not inside the {setup['time_domain']}-time "
+                                   "stability domain (continuous: add a half-plane alpha >= 0, a disk "
+                                   "left of 0 or a sector; discrete: add a disk with |center| + "
+                                   "radius <= 1)")
+        return cls(region=region, **setup,
+                   margin=r.read("margin", parse_number, above=0.0, below=1.0),
+                   kappa=r.read("kappa", parse_number, above=1.0),
+                   solver=r.read("solver", parse_choice, LMI_SOLVERS))
+
+
+@dataclass(frozen=True, eq=False)
+class CanonicalObserverOptions(MethodOptions):
+    """Options of ``canonical_observer``: the observer gain by the observer canonical form, in
+    exact arithmetic (single-output plants with n <= 8, continuous time).
+
+    Attributes
+    ----------
+    poles : tuple of complex
+        Required. Eigenvalues of ``F - L C`` (n of them, 1/s); complex poles in
+        conjugate pairs, written ``[re, im]``.
+    reference_gain : ndarray or None
+        An n x 1 gain to compare with the derived one (output to state
+        units per s), e.g. a published one; default None.
+    reference_closed_loop : ndarray or None
+        An n x n matrix to compare with the derived ``F - L C`` (1/s);
+        default None.
+    """
+
+    method_name: ClassVar[str] = "canonical_observer"
+
+    poles: tuple[complex, ...]
+    reference_gain: np.ndarray | None = None
+    reference_closed_loop: np.ndarray | None = None
+
+    @classmethod
+    def from_table(cls, options: Mapping[str, Any], key: str, plant: Any,
+                   ts: float | None) -> "CanonicalObserverOptions":
+        """See `MethodOptions.from_table`; the plant must have one output and n <= 8."""
+        r = OptionReader(cls, options, key, ts)
+        if plant.q != 1:
+            raise r.fail("method", f"the canonical-form route needs a single output, plant "
+                                   f"'{plant.name}' has {plant.q}")
+        if plant.n > 8:
+            raise r.fail("method", "the canonical-form route is for small plants (n <= 8); use "
+                                   "pole_placement")
+        n = plant.n
+        return cls(poles=r.read("poles", parse_poles, count=n),
+                   reference_gain=r.read("reference_gain", parse_matrix, (n, plant.q)),
+                   reference_closed_loop=r.read("reference_closed_loop", parse_matrix, (n, n)))

@@ -1,0 +1,172 @@
+"""Options of ``ts_observer``: Takagi-Sugeno multiple model of the plant and the observer LMI."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from types import MappingProxyType
+from typing import Any, ClassVar, Mapping
+
+import numpy as np
+
+from tanksynth.errors import SpecError
+from tanksynth.spec.method_options.base import MethodOptions, OptionReader
+from tanksynth.spec.method_options.placement import LMI_SOLVERS
+from tanksynth.spec.options import (parse_bool, parse_box, parse_choice, parse_integer, parse_matrix,
+                                    parse_names, parse_number, parse_vector)
+
+__all__ = ["LMI_VARIANTS", "TsObserverOptions"]
+
+#: Variants of the ``Q`` matrix of the observer LMI (seed 001 eq. 28).
+LMI_VARIANTS = ("qI", "full")
+
+
+def _weights(value: Any, key: str, n: int) -> Mapping[str, tuple[float, ...]]:
+    """``{z1 = [w_1, ..., w_n], ...}``: premise weights, one per state, not all zero."""
+    if not isinstance(value, Mapping):
+        raise SpecError("expected a table {z1 = [...], ...} (one weight per state for each premise)",
+                        key=key)
+    out = {}
+    for name, vec in value.items():
+        k = f"{key}.{name}"
+        if not (isinstance(name, str) and name.startswith("z") and name[1:].isdigit()
+                and int(name[1:]) >= 1):
+            raise SpecError(f"unknown premise {name!r}; expected z1, z2, ...", key=k)
+        w = parse_vector(vec, k, n)
+        if not np.any(w):
+            raise SpecError(f"weights of {name} are all zero", key=k)
+        out[name] = tuple(float(v) for v in w)
+    return MappingProxyType(out)
+
+
+def _blocks(value: Any, key: str, names: list[str]) -> tuple[tuple[str, ...], ...]:
+    """A list of lists of state names (blocks of the Lyapunov matrix)."""
+    if not isinstance(value, (list, tuple)) or not value:
+        raise SpecError("expected a list of lists of state names", key=key)
+    return tuple(parse_names(b, f"{key}[{i}]", names, what="state") for i, b in enumerate(value))
+
+
+@dataclass(frozen=True, eq=False)
+class TsObserverOptions(MethodOptions):
+    """Options of ``ts_observer``: TS multiple model (sector nonlinearity on the premises) and
+    the observer LMI (28) of seed 001, continuous time.
+
+    Attributes
+    ----------
+    weights : mapping of str to tuple of float, or None
+        Premise weightings ``{z1 = [w_1 .. w_n], ...}`` (one dimensionless
+        weight per state, not all zero); default None: each premise weighs
+        the states it depends on by 1.
+    psi : float or None
+        Lipschitz constant of the nonlinear remainder (1/s, >= 0), used when
+        ``psi_source = "given"``; default None.
+    psi_source : str
+        ``"given"`` (``psi``), ``"lipschitz"`` (bound of the remainder on the
+        domain) or ``"maximise"`` (largest feasible psi); default ``"given"``
+        with ``psi``, else ``"maximise"``.
+    variant : str
+        ``Q`` of the LMI: ``"qI"`` (default, ``Q = q I``) or ``"full"``.
+    lipschitz : str
+        Form of the Lipschitz bound: ``"jacobian"`` (default) or ``"eq27"``.
+    lipschitz_method : str
+        How the Jacobian bound is taken: ``"interval"`` (default, interval
+        arithmetic) or ``"sampling"``.
+    domain : mapping of str to (float, float), or None
+        Box ``{state = [min, max]}`` (state units) replacing the plant's
+        region bounds of those states; default None (the plant's region).
+    orderings : bool
+        Keep the region's flow-direction orderings in the domain; default true.
+    ordering_gap : float
+        Minimum separation kept in each ordering (state units, >= 0); default 0.
+    premise_bounds : str
+        Bounds of the premises: ``"interval"`` (default) or ``"sampling"``.
+    premise_margin : float
+        Relative widening of the premise bounds (>= 0); default 0.01.
+    samples : int
+        Points sampled on the domain for the checks (>= 100); default 5000.
+    seed : int
+        Seed of the sampling (>= 0); default 0.
+    search : bool
+        Search the weightings (every direction of ``search_values``); default
+        false.
+    search_values : tuple of float
+        Weight values tried by the search (dimensionless); default (-1, 0, 1).
+    search_criterion : str
+        Pick the weighting with the largest psi (``"psi_max"``, default) or the
+        best certified one (``"certified"``).
+    blocks : tuple of tuple of str, or None
+        Block-diagonal structure of the Lyapunov matrix, as groups of state
+        names; default None (full).
+    pattern : ndarray or None
+        n x q 0/1 sparsity pattern of the gain ``L``; default None (full).
+    reference_L : ndarray or None
+        An n x q gain to compare with the derived one (1/s), e.g. a published
+        one; default None.
+    margin : float
+        Strictness margin of the LMIs, in (0, 1); default 1e-6.
+    kappa : float
+        Bound ``I <= P <= kappa I`` (> 1); default 1e4.
+    solver : str
+        Conic solver, ``"CLARABEL"`` (default) or ``"SCS"``.
+    """
+
+    method_name: ClassVar[str] = "ts_observer"
+
+    weights: Mapping[str, tuple[float, ...]] | None = None
+    psi: float | None = None
+    psi_source: str | None = None
+    variant: str = "qI"
+    lipschitz: str = "jacobian"
+    lipschitz_method: str = "interval"
+    domain: Mapping[str, tuple[float, float]] | None = None
+    orderings: bool = True
+    ordering_gap: float = 0.0
+    premise_bounds: str = "interval"
+    premise_margin: float = 0.01
+    samples: int = 5000
+    seed: int = 0
+    search: bool = False
+    search_values: tuple[float, ...] = (-1.0, 0.0, 1.0)
+    search_criterion: str = "psi_max"
+    blocks: tuple[tuple[str, ...], ...] | None = None
+    pattern: np.ndarray | None = None
+    reference_L: np.ndarray | None = None
+    margin: float = 1e-6
+    kappa: float = 1e4
+    solver: str = "CLARABEL"
+
+    @classmethod
+    def from_table(cls, options: Mapping[str, Any], key: str, plant: Any,
+                   ts: float | None) -> "TsObserverOptions":
+        """See `MethodOptions.from_table`."""
+        r = OptionReader(cls, options, key, ts)
+        names = [s.name for s in plant.states]
+        n, q = plant.n, plant.q
+        psi = r.read("psi", parse_number, at_least=0.0)
+        psi_source = r.read("psi_source", parse_choice, ("given", "lipschitz", "maximise"))
+        if psi_source is None:
+            psi_source = "given" if psi is not None else "maximise"
+        if psi_source == "given" and psi is None:
+            raise r.fail("psi", "psi_source = 'given' needs psi (1/s)")
+        domain = r.read("domain", parse_box, names)
+        values = r.read("search_values", parse_vector)
+        return cls(
+            weights=r.read("weights", _weights, n), psi=psi, psi_source=psi_source,
+            variant=r.read("variant", parse_choice, LMI_VARIANTS),
+            lipschitz=r.read("lipschitz", parse_choice, ("jacobian", "eq27")),
+            lipschitz_method=r.read("lipschitz_method", parse_choice, ("interval", "sampling")),
+            domain=None if domain is None else MappingProxyType(domain),
+            orderings=r.read("orderings", parse_bool),
+            ordering_gap=r.read("ordering_gap", parse_number, at_least=0.0),
+            premise_bounds=r.read("premise_bounds", parse_choice, ("interval", "sampling")),
+            premise_margin=r.read("premise_margin", parse_number, at_least=0.0),
+            samples=r.read("samples", parse_integer, at_least=100),
+            seed=r.read("seed", parse_integer, at_least=0),
+            search=r.read("search", parse_bool),
+            search_values=tuple(float(v) for v in values),
+            search_criterion=r.read("search_criterion", parse_choice, ("psi_max", "certified")),
+            blocks=r.read("blocks", _blocks, names),
+            pattern=r.read("pattern", parse_matrix, (n, q)),
+            reference_L=r.read("reference_L", parse_matrix, (n, q)),
+            margin=r.read("margin", parse_number, above=0.0, below=1.0),
+            kappa=r.read("kappa", parse_number, above=1.0),
+            solver=r.read("solver", parse_choice, LMI_SOLVERS))
