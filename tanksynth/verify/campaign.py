@@ -61,6 +61,7 @@ from tanksynth.verify.closed_loops import (ArtefactIntegralLaw, ArtefactLaw, Clo
 from tanksynth.verify.detector_runs import DetectorRun, fault_detection_run
 from tanksynth.verify.estimation_runs import (EstimatorRun, canonical_observer_run,
                                               decentralized_kalman_run, estimator_run, narx_run,
+                                              kalman_run, ekf_run, ukf_run, adaptive_kalman_run, adaptive_scaling_kalman_run, consensus_filter_run, luenberger_run,
                                               placement_run, ts_observer_run)
 from tanksynth.verify.model_runs import ModelRun, linearize_run
 
@@ -90,6 +91,13 @@ __all__ = [
     "inverse_dynamics_loop",
     "placement_run",
     "estimator_run",
+    "kalman_run",
+    "ekf_run",
+    "ukf_run",
+    "adaptive_kalman_run",
+    "adaptive_scaling_kalman_run",
+    "consensus_filter_run",
+    "luenberger_run",
     "canonical_observer_run",
     "ts_observer_run",
     "narx_run",

@@ -16,9 +16,9 @@ one (``mismatch``), else at the artefact's designed initial estimate (gain
 Runners (``runner(doc, spec) -> EstimatorRun``):
 
 =========================  =================================================================
-`estimator_run`            kalman, ekf, ukf, luenberger, adaptive_kalman,
-                           adaptive_scaling_kalman, consensus_filter (rebuilt by
-                           `tanksynth.verify.estimators.ESTIMATOR_BUILDERS`)
+`kalman_run`, ...         kalman, ekf, ukf, luenberger, adaptive_kalman,
+                           adaptive_scaling_kalman, consensus_filter (`estimator_run` with the
+                           method's `tanksynth.verify.estimators.EstimatorRebuild`)
 `placement_run`            pole_placement, lmi_placement: the observer gain ``L`` (predictor
                            form when designed in discrete time, continuous form otherwise), or
                            the state feedback in closed loop (`state_feedback_loop`)
@@ -47,7 +47,9 @@ from tanksynth.verify.closed_loops import (ClosedLoop, sampling_period, spec_ope
                                            state_feedback_loop)
 from tanksynth.verify.common import artefact_gain, design_options
 
-__all__ = ["EstimatorRun", "estimator_run", "placement_run", "canonical_observer_run",
+from tanksynth.verify import estimators as est
+
+__all__ = ["EstimatorRun", "estimator_run", "kalman_run", "ekf_run", "ukf_run", "adaptive_kalman_run", "adaptive_scaling_kalman_run", "consensus_filter_run", "luenberger_run", "placement_run", "canonical_observer_run",
            "ts_observer_run", "narx_run", "decentralized_kalman_run"]
 
 
@@ -126,26 +128,57 @@ def _initial_estimate(doc: Mapping[str, Any], n: int) -> np.ndarray | None:
     return x0 if x0.size == n else None
 
 
-def estimator_run(doc: Mapping[str, Any], spec: Any) -> EstimatorRun:
-    """The estimator rebuilt by `tanksynth.verify.estimators.ESTIMATOR_BUILDERS` from its artefact.
+def estimator_run(doc: Mapping[str, Any], spec: Any, rebuild: Any) -> EstimatorRun:
+    """The estimator an artefact ships, rebuilt by its method's `EstimatorRebuild`.
 
-    Raises
-    ------
-    ArtefactError
-        No builder for the artefact's method.
+    Parameters
+    ----------
+    doc : mapping
+        The artefact.
+    spec : Spec
+    rebuild : tanksynth.verify.estimators.EstimatorRebuild
+        ``rebuild.build(doc, spec) -> (BatchEstimator, x0_hat, description)``.
     """
-    from tanksynth.verify.estimators import ESTIMATOR_BUILDERS
-
-    method = str(doc["method"])
-    builder = ESTIMATOR_BUILDERS.get(method)
-    if builder is None:
-        raise ArtefactError(f"artefact '{doc.get('name', '')}': no estimator builder for method "
-                            f"{method!r}")
-    est, _, what = builder(doc, spec)
+    est, _, what = rebuild.build(doc, spec)
     x_op, u_op = spec_operating_point(spec)
     x_hat0 = _initial_estimate(doc, spec.plant.n)
     return EstimatorRun(est, x_op, u_op, x_hat0, f"{what} (the artefact's gains), "
                                                  + _context(spec, x_hat0))
+
+
+def kalman_run(doc: Mapping[str, Any], spec: Any) -> EstimatorRun:
+    """Campaign runner of ``kalman`` artefacts (see `estimator_run`)."""
+    return estimator_run(doc, spec, est.KALMAN)
+
+
+def ekf_run(doc: Mapping[str, Any], spec: Any) -> EstimatorRun:
+    """Campaign runner of ``ekf`` artefacts (see `estimator_run`)."""
+    return estimator_run(doc, spec, est.EKF)
+
+
+def ukf_run(doc: Mapping[str, Any], spec: Any) -> EstimatorRun:
+    """Campaign runner of ``ukf`` artefacts (see `estimator_run`)."""
+    return estimator_run(doc, spec, est.UKF)
+
+
+def adaptive_kalman_run(doc: Mapping[str, Any], spec: Any) -> EstimatorRun:
+    """Campaign runner of ``adaptive_kalman`` artefacts (see `estimator_run`)."""
+    return estimator_run(doc, spec, est.ADAPTIVE_KALMAN)
+
+
+def adaptive_scaling_kalman_run(doc: Mapping[str, Any], spec: Any) -> EstimatorRun:
+    """Campaign runner of ``adaptive_scaling_kalman`` artefacts (see `estimator_run`)."""
+    return estimator_run(doc, spec, est.ADAPTIVE_SCALING_KALMAN)
+
+
+def consensus_filter_run(doc: Mapping[str, Any], spec: Any) -> EstimatorRun:
+    """Campaign runner of ``consensus_filter`` artefacts (see `estimator_run`)."""
+    return estimator_run(doc, spec, est.CONSENSUS_FILTER)
+
+
+def luenberger_run(doc: Mapping[str, Any], spec: Any) -> EstimatorRun:
+    """Campaign runner of ``luenberger`` artefacts (see `estimator_run`)."""
+    return estimator_run(doc, spec, est.LUENBERGER)
 
 
 def _time_domain(doc: Mapping[str, Any], spec: Any) -> str:

@@ -1,8 +1,9 @@
 """Verdicts of the estimators: kalman, ekf, ukf, adaptive_kalman, adaptive_scaling_kalman,
-consensus_filter, luenberger; `ESTIMATOR_BUILDERS` rebuilds each from its artefact."""
+consensus_filter, luenberger; an `EstimatorRebuild` per method rebuilds each from its artefact."""
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
@@ -18,7 +19,8 @@ from tanksynth.verify.simulations import (designed_time_constant, eigen_time_con
                                           eigenvector_conditioning, observer_convergence)
 from tanksynth.verify.traces import TraceRecorder
 
-__all__ = ["ESTIMATOR_BUILDERS", "estimator_verdict", "kalman_verdict", "ekf_verdict", "ukf_verdict",
+__all__ = ["EstimatorRebuild", "KALMAN", "EKF", "UKF", "LUENBERGER", "ADAPTIVE_KALMAN",
+           "ADAPTIVE_SCALING_KALMAN", "CONSENSUS_FILTER", "estimator_verdict", "kalman_verdict", "ekf_verdict", "ukf_verdict",
            "adaptive_kalman_verdict", "adaptive_scaling_kalman_verdict", "consensus_filter_verdict",
            "luenberger_verdict"]
 
@@ -284,36 +286,40 @@ def _luenberger_error(doc: Mapping[str, Any], spec: Any) -> tuple[np.ndarray, st
     return err, f"error matrix of the stored L, {form} form"
 
 
-#: Builders of batch estimators from estimator artefacts: method -> ``builder(doc, spec)``
-#: returning ``(BatchEstimator, x0_hat, description)``: the estimator the artefact ships (run
-#: through `tanksynth.runtime`, wrapped for the batch simulator), the initial estimate the
-#: artefact ships (gain ``x0``, state units, shape (n,)) and a one-line description.
-ESTIMATOR_BUILDERS: dict[str, Callable[[Mapping[str, Any], Any],
-                                       tuple[BatchEstimator, np.ndarray, str]]] = {
-    "kalman": _kalman_builder,
-    "ekf": _kalman_builder,
-    "ukf": _ukf_builder,
-    "luenberger": _luenberger_builder,
-    "adaptive_kalman": _adaptive_kalman_builder,
-    "adaptive_scaling_kalman": _adaptive_scaling_builder,
-    "consensus_filter": _consensus_builder,
-}
+@dataclass(frozen=True)
+class EstimatorRebuild:
+    """How the verify stage rebuilds one estimator method's artefact, and the horizon of its run.
 
-#: The discrete error matrix whose eigenvalues set the verdict's horizon, per method:
-#: ``error(doc, spec) -> (E, how it was obtained)`` (steady-state gain at the operating point,
-#: or the observer's error matrix).
-_ERROR_MATRICES: dict[str, Callable[[Mapping[str, Any], Any], tuple[np.ndarray, str]]] = {
-    "kalman": _kalman_error,
-    "ekf": _kalman_error,
-    "ukf": _kalman_error,
-    "luenberger": _luenberger_error,
-    "adaptive_kalman": _adaptive_kalman_error,
-    "adaptive_scaling_kalman": _adaptive_scaling_error,
-    "consensus_filter": _consensus_error,
-}
+    Attributes
+    ----------
+    method : str
+        The design method.
+    build : callable
+        ``build(doc, spec) -> (BatchEstimator, x0_hat, description)``: the estimator the
+        artefact ships (through `tanksynth.runtime`, wrapped for the batch simulator), the
+        initial estimate it ships (state units, shape (n,)) and a one-line description.
+    error : callable
+        ``error(doc, spec) -> (E, how)``: the discrete error matrix whose eigenvalues set the
+        convergence horizon (steady-state gain at the operating point, or the observer's).
+    covariance : bool
+        The filter's covariance is checked symmetric positive definite after the run.
+    """
 
-#: Methods whose filter covariance is checked (symmetric positive definite) after the run.
-_COVARIANCE_METHODS = ("adaptive_scaling_kalman", "consensus_filter")
+    method: str
+    build: Callable[[Mapping[str, Any], Any], tuple[BatchEstimator, np.ndarray, str]]
+    error: Callable[[Mapping[str, Any], Any], tuple[np.ndarray, str]]
+    covariance: bool = False
+
+
+KALMAN = EstimatorRebuild("kalman", _kalman_builder, _kalman_error)
+EKF = EstimatorRebuild("ekf", _kalman_builder, _kalman_error)
+UKF = EstimatorRebuild("ukf", _ukf_builder, _kalman_error)
+LUENBERGER = EstimatorRebuild("luenberger", _luenberger_builder, _luenberger_error)
+ADAPTIVE_KALMAN = EstimatorRebuild("adaptive_kalman", _adaptive_kalman_builder, _adaptive_kalman_error)
+ADAPTIVE_SCALING_KALMAN = EstimatorRebuild("adaptive_scaling_kalman", _adaptive_scaling_builder,
+                                           _adaptive_scaling_error, covariance=True)
+CONSENSUS_FILTER = EstimatorRebuild("consensus_filter", _consensus_builder, _consensus_error,
+                                    covariance=True)
 
 
 def _kalman_rechecks(doc: Mapping[str, Any], spec: Any) -> list[Check]:
@@ -345,25 +351,24 @@ def _kalman_rechecks(doc: Mapping[str, Any], spec: Any) -> list[Check]:
     return checks
 
 
-def estimator_verdict(doc: Mapping[str, Any], spec: Any, *,
+def estimator_verdict(doc: Mapping[str, Any], spec: Any, rebuild: EstimatorRebuild, *,
                       trace: TraceRecorder | None = None) -> list[Check]:
     """Default verdict of an estimator artefact.
 
     ``kalman`` artefacts first get `_kalman_rechecks` (stored model, Riccati
     residual of ``P_ss``, ``K_ss``, stability, rank). Then the estimator
-    built by ``ESTIMATOR_BUILDERS[method]`` from the gains (and the spec's
+    built by ``rebuild.build`` from the gains (and the spec's
     options) runs through `EstimatorAdapter` in `observer_convergence`: the
     nonlinear plant starts at ``x0 + delta``, the estimate at ``x0``, no
     noise; the horizon comes from the method's discrete error matrix (the
     steady-state Kalman error dynamics at the operating point, or the
-    observer's error matrix). Methods without a builder get one undecided
-    check. ``trace`` (a `TraceRecorder`) records the convergence run.
+    observer's error matrix, ``rebuild.error``). ``trace`` (a `TraceRecorder`) records the
+    convergence run.
     """
     method = str(doc["method"])
-    builder = ESTIMATOR_BUILDERS.get(method)
-    if builder is None:
-        return [Check("verification", None, f"no estimator builder for method {method}: the verify "
-                                            "stage cannot rebuild it from the artefact")]
+    if method != rebuild.method:
+        raise ArtefactError(f"artefact '{doc['name']}' is a {method!r} artefact, not {rebuild.method!r}")
+    builder, error_matrix = rebuild.build, rebuild.error
     checks: list[Check] = []
     if method == "kalman":
         checks += guard("riccati_recheck", lambda: _kalman_rechecks(doc, spec))
@@ -385,11 +390,6 @@ def estimator_verdict(doc: Mapping[str, Any], spec: Any, *,
             return out
 
         checks += guard("poles", poles)
-    error_matrix = _ERROR_MATRICES.get(method)
-    if error_matrix is None:
-        return checks + [Check("estimator_convergence", None,
-                               f"no error matrix for method {method}: the horizon of the "
-                               "convergence run cannot be set")]
     try:
         est, _, what = builder(doc, spec)
         err, horizon = error_matrix(doc, spec)
@@ -416,30 +416,27 @@ def estimator_verdict(doc: Mapping[str, Any], spec: Any, *,
                                     rule=f"{rule}; {what}, horizon from the {horizon}",
                                     name="estimator_convergence",
                                     trace=trace)]
-        if method in _COVARIANCE_METHODS and out[0].passed is not None:
+        if rebuild.covariance and out[0].passed is not None:
             out += guard("covariance", lambda: [_covariance_check(est)])
         return out
 
     return checks + guard("estimator_convergence", run)
 
 
-def _estimator_verdict_for(method: str) -> Callable[..., list[Check]]:
+def _estimator_verdict_for(rebuild: EstimatorRebuild) -> Callable[..., list[Check]]:
     def verdict(doc: Mapping[str, Any], spec: Any, *,
                 trace: TraceRecorder | None = None) -> list[Check]:
-        if str(doc["method"]) != method:
-            raise ArtefactError(f"artefact '{doc['name']}' is a {doc['method']!r} artefact, "
-                                f"not {method!r}")
-        return estimator_verdict(doc, spec, trace=trace)
+        return estimator_verdict(doc, spec, rebuild, trace=trace)
 
-    verdict.__name__ = verdict.__qualname__ = f"{method}_verdict"
-    verdict.__doc__ = f"Verdict of ``{method}`` artefacts (see `estimator_verdict`)."
+    verdict.__name__ = verdict.__qualname__ = f"{rebuild.method}_verdict"
+    verdict.__doc__ = f"Verdict of ``{rebuild.method}`` artefacts (see `estimator_verdict`)."
     return verdict
 
 
-kalman_verdict = _estimator_verdict_for("kalman")
-ekf_verdict = _estimator_verdict_for("ekf")
-ukf_verdict = _estimator_verdict_for("ukf")
-adaptive_kalman_verdict = _estimator_verdict_for("adaptive_kalman")
-adaptive_scaling_kalman_verdict = _estimator_verdict_for("adaptive_scaling_kalman")
-consensus_filter_verdict = _estimator_verdict_for("consensus_filter")
-luenberger_verdict = _estimator_verdict_for("luenberger")
+kalman_verdict = _estimator_verdict_for(KALMAN)
+ekf_verdict = _estimator_verdict_for(EKF)
+ukf_verdict = _estimator_verdict_for(UKF)
+adaptive_kalman_verdict = _estimator_verdict_for(ADAPTIVE_KALMAN)
+adaptive_scaling_kalman_verdict = _estimator_verdict_for(ADAPTIVE_SCALING_KALMAN)
+consensus_filter_verdict = _estimator_verdict_for(CONSENSUS_FILTER)
+luenberger_verdict = _estimator_verdict_for(LUENBERGER)

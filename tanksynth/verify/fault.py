@@ -448,23 +448,22 @@ def fault_detection_verdict(doc: Mapping[str, Any], spec: Any, *,
 
 
 def _stored_times(doc: Mapping[str, Any], starts: np.ndarray) -> list[float | None]:
-    """The stored detection time of each start (None where the artefact claims none for it).
+    """The design's detection time of each start (None where the artefact records none for it).
 
-    The stored ``detection_times[i]`` belongs to the initial state recorded
-    as ``diagnostics.detections[i].x0`` (a negative time: not detected).
+    Read from ``diagnostics.detections``: records ``{"x0": [...], "t_detect": s or None}``,
+    matched to the starts by initial state (never by position).
     """
-    if "detection_times" not in doc["gains"]:
-        return [None] * len(starts)
-    times = np.asarray(artefact_gain(doc, "detection_times"), dtype=float).reshape(-1)
-    recorded = [d.get("x0") if isinstance(d, Mapping) else None
-                for d in (_recorded(doc, "detections") or [])]
+    records = [d for d in (_recorded(doc, "detections") or []) if isinstance(d, Mapping)]
     out: list[float | None] = []
     for x in starts:
         found = None
-        for i, r in enumerate(recorded[:times.size]):
-            if r is not None and np.allclose(np.asarray(r, dtype=float).reshape(-1), x,
-                                             rtol=1e-12, atol=1e-12) and times[i] >= 0:
-                found = float(times[i])
+        for r in records:
+            x0, td = r.get("x0"), r.get("t_detect")
+            if x0 is None or not isinstance(td, (int, float)) or isinstance(td, bool) or td < 0:
+                continue
+            x0 = np.asarray(x0, dtype=float).reshape(-1)
+            if x0.shape == x.shape and np.allclose(x0, x, rtol=1e-12, atol=1e-12):
+                found = float(td)
                 break
         out.append(found)
     return out

@@ -147,6 +147,8 @@ ts = 0.01
 name = "fd"
 method = "fault_detection"
 delta_bar = 1.0
+initial_states = [[0.26, 0.26, 0.26], [4.0, 4.0, 4.0], [2.4, 3.6, 1.8]]
+input = [[0.0, 2.0], [1.0, 1.0]]
 """
 
 

@@ -1,4 +1,4 @@
-"""`ESTIMATOR_BUILDERS`: ``builder(doc, spec) -> (BatchEstimator, x0_hat, description)``."""
+"""`EstimatorRebuild.build`: ``build(doc, spec) -> (BatchEstimator, x0_hat, description)``."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import pytest
 
 from tanksynth.cli import main
 from tanksynth.methods import METHODS
-from tanksynth.verify.estimators import ESTIMATOR_BUILDERS
+from tanksynth.verify import estimators
 from tanksynth.verify.runner import load_directory
 
 SPEC = """
@@ -45,7 +45,8 @@ def loaded(tmp_path_factory):
 def test_builder_returns_the_estimator_and_the_initial_estimate_it_ships(loaded, name):
     spec, docs = loaded
     doc = next(doc for _, doc in docs if doc["name"] == name)
-    est, x0_hat, description = ESTIMATOR_BUILDERS[doc["method"]](doc, spec)
+    rebuild = {"kalman": estimators.KALMAN, "luenberger": estimators.LUENBERGER}[doc["method"]]
+    est, x0_hat, description = rebuild.build(doc, spec)
     n = spec.plant.n
     assert x0_hat.shape == (n,) and isinstance(description, str) and description
     np.testing.assert_array_equal(x0_hat, np.asarray(doc["gains"]["x0"], dtype=float).reshape(n))

@@ -22,22 +22,26 @@ from tanksynth.design.result import DesignResult
 from tanksynth.errors import ArtefactError
 from tanksynth.methods import verify_directory
 from tanksynth.plants import hydraulic_fault
+from tanksynth.papers import seed004
 from tanksynth.verify.fault import (FAULT_START_OFFSET, fault_detection_verdict, fault_scenario,
                                     rule_initial_states)
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
 
-#: appended to examples/seed004_fault_detection.toml: the example's plant and operating point
-FAULT_DESIGN = """
+#: seed 004 section IV: its three initial states and its input (2, then 1)
+PAPER_STARTS = [list(x) for x in seed004.INITIAL_STATES]
+PAPER_INPUT = [[t, u] for t, u in seed004.INPUT]
+
+#: appended to examples/seed004_fault_detection.toml: the example's plant and operating point,
+#: the scenario of seed 004 section IV declared as the design's options
+FAULT_DESIGN = f"""
 [[design]]
 name = "fd"
 method = "fault_detection"
 delta_bar = 1.0
+initial_states = {PAPER_STARTS}
+input = {PAPER_INPUT}
 """
-
-#: seed 004 section IV, in the test only: its three initial states and its input (2, then 1)
-PAPER_STARTS = [[0.26, 0.26, 0.26], [4.0, 4.0, 4.0], [2.4, 3.6, 1.8]]
-PAPER_INPUT = [[0.0, 2.0], [1.0, 1.0]]
 
 
 @pytest.fixture(scope="module")
@@ -180,18 +184,21 @@ def test_without_recorded_starts_the_rule_is_simulated(designed, tmp_path):
     starts in the box (the operating point among them) the healthy residual need not stay below
     it: the verdict must say so exactly when the exact residual exceeds it.
     """
-    d = Path(shutil.copytree(designed, tmp_path / "rule"))
+    from tanksynth.methods import METHODS
+    from tanksynth.verify.runner import load_directory
 
-    def drop(g):
-        g.pop("detection_times")
-        g.pop("paper_detection_times", None)
-    _rewrite(d / "fd.json", gains=drop, diagnostics=lambda diag: diag.pop("detections"))
-    _, checks = _checks(d)
+    d = Path(shutil.copytree(designed, tmp_path / "rule"))
+    _rewrite(d / "fd.json", diagnostics=lambda diag: diag.pop("detections"))
+    spec, docs = load_directory(d, METHODS)
+    doc = next(doc for _, doc in docs if doc["name"] == "fd")
+    entry = next(e for e in spec.designs if e.name == "fd")
+    undeclared = replace(entry, options={k: v for k, v in entry.options.items()
+                                         if k not in ("initial_states", "input")}, config=None)
+    checks = {c.name: c for c in fault_detection_verdict(doc, replace(spec, designs=(undeclared,)))}
     det, quiet = checks["fault_detected"], checks["no_false_alarm"]
     starts = rule_initial_states(np.array([4.0, 1.3333333333, 4.0]), 0.25, 4.0)
     np.testing.assert_allclose(det.data["starts"], starts)
     assert all(x is None for x in det.data["differences"]) and "rule" in det.detail
-    doc = read_artefact(d / "fd.json")
     exact = _exact_healthy_margin(doc, starts, 0.25, np.arange(0.04, 5.0, 1e-3))
     assert quiet.passed is bool(exact <= quiet.data["slack"])
     assert quiet.data["healthy_margin"] == pytest.approx(exact, rel=0.05, abs=1e-6)
