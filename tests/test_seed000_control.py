@@ -17,6 +17,7 @@ import pytest
 from tanksynth.artefacts import read_artefact, write_artefact
 from tanksynth.methods import METHODS
 from tanksynth.design.control import design_integral_tracking
+from tanksynth.papers import seed000
 from tanksynth.runtime.laws import law_from_document
 from tanksynth.design.feedback_linearization import feedback_linearization
 from tanksynth.plants import three_tank
@@ -96,10 +97,11 @@ def test_spec_artefact_feedback_linearization(results, tmp_path):
     assert d["zero_dynamics"]["stable"] and d["zero_dynamics"]["coordinates"] == ["h3"]
     assert d["law_input_at_x0_matches_equilibrium"]
     np.testing.assert_allclose(r.gains["u0"], [3.501785e-05, 3.183782e-05], rtol=1e-6)
-    erratum = d["errata"][0]
-    assert "q13" in erratum["derived"]
-    np.testing.assert_allclose(erratum["derived_alpha_at_x0"], r.gains["u0"], rtol=1e-12)
-    np.testing.assert_allclose(erratum["printed_alpha_at_x0"], -r.gains["u0"] / 0.0154, rtol=1e-12)
+    # seed 000 Sec. IV prints alpha = Lambda_0 (1/A, opposite sign): the derived alpha(x0) is u0
+    np.testing.assert_allclose(d["alpha_at_x0"], r.gains["u0"], rtol=1e-12)
+    params = {q.name: q.value for q in spec.plant.parameters}
+    printed = seed000.printed_law(params, spec.x0)["alpha"]
+    np.testing.assert_allclose(printed, -r.gains["u0"] / params["A"], rtol=1e-12)
     doc = read_artefact(write_artefact(r, tmp_path, spec.sha256))
     law = law_from_document(doc["diagnostics"]["law"])
     assert law.name() == "nonlinear_decoupling"
