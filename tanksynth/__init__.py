@@ -36,4 +36,31 @@ _EXPORTS = {
 
 __getattr__, __dir__ = _lazy_exports(__name__, _EXPORTS)
 
-__all__ = ["__version__", *_EXPORTS]
+
+def clear_cache(disk: bool = False) -> dict[str, int]:
+    """Empty every cache tanksynth keeps in this process (and, with ``disk``, on disk).
+
+    The caches are: compiled numpy models of plants (`tanksynth.sim.tape`), loaded
+    native estimator kernels and per-plant model pieces (`tanksynth.runtime.cache`;
+    the compiled kernels live in ``$TANKSYNTH_CACHE``, else ``~/.cache/tanksynth/kernels``,
+    deleted with ``disk=True``), parsed specs of result directories
+    (`tanksynth.verify.runner`) and of campaign tasks (`tanksynth.verify.campaign`).
+    Everything is rebuilt on demand; results do not change.
+
+    Returns
+    -------
+    dict
+        What was dropped, by cache.
+    """
+    from tanksynth.runtime.cache import clear_cache as _runtime
+    from tanksynth.sim.tape import clear_cache as _sim
+    from tanksynth.verify import campaign, runner
+
+    dropped = {"sim_models": _sim(), "result_specs": runner.clear_cache()}
+    dropped.update(_runtime(disk=disk))
+    dropped["campaign_specs"] = campaign._spec.cache_info().currsize
+    campaign._spec.cache_clear()
+    return dropped
+
+
+__all__ = ["__version__", "clear_cache", *_EXPORTS]

@@ -161,8 +161,9 @@ def run(spec: str | None, outdir: str, pdf: bool) -> None:
 
     With no SPEC, the built-in three-tank demo.
     """
-    from tanksynth.artefacts.io import to_jsonable
     from tanksynth.analysis.checks import rank_conditions
+    from tanksynth.artefacts.atomic import atomic_write
+    from tanksynth.artefacts.io import to_jsonable
     from tanksynth.methods import verify_directory
 
     s = _load(spec)
@@ -172,7 +173,7 @@ def run(spec: str | None, outdir: str, pdf: bool) -> None:
     written, infeasible = _design_all(s, out, ())
     checks_path = out / "checks.json"
     out.mkdir(parents=True, exist_ok=True)
-    checks_path.write_text(json.dumps(to_jsonable([c.as_dict() for c in checks]), indent=2) + "\n")
+    atomic_write(checks_path, json.dumps(to_jsonable([c.as_dict() for c in checks]), indent=2) + "\n")
     for path in written:
         _out.print(f"artefact: {path}", markup=False, highlight=False)
     _out.print(f"rank verdicts: {checks_path}", markup=False, highlight=False)

@@ -40,3 +40,18 @@ def test_errors_subclass_builtins():
     assert issubclass(errors.ParseError, errors.SpecError)
     for item in errors.__all__:
         assert issubclass(getattr(errors, item), errors.TanksynthError)
+
+
+def test_clear_cache_empties_every_cache_and_results_do_not_change():
+    from tanksynth.plants import three_tank
+    from tanksynth.sim import run_seeds, simulate
+    from tanksynth.sim.tape import cache_info
+
+    plant = three_tank()
+    kwargs = dict(ts=1.0, steps=20, x0=[0.4, 0.2, 0.3], seeds=run_seeds(0, 2), u_init=[3e-5, 3e-5])
+    before = simulate(plant, **kwargs).x
+    assert cache_info()["models"] >= 1
+    dropped = tanksynth.clear_cache()
+    assert dropped["sim_models"] >= 1 and cache_info()["models"] == 0
+    assert set(dropped) >= {"sim_models", "result_specs", "campaign_specs"}
+    assert (simulate(plant, **kwargs).x == before).all()          # rebuilt on demand, same numbers

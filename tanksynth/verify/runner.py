@@ -27,7 +27,7 @@ from tanksynth.artefacts.traces import trace_path, write_trace
 from tanksynth.errors import ArtefactError, TanksynthError
 from tanksynth.verify.traces import TraceRecorder
 
-__all__ = ["VerdictFn", "Verdict", "verdict_for", "verdict_with_trace", "load_directory", "verify_directory"]
+__all__ = ["clear_cache", "VerdictFn", "Verdict", "verdict_for", "verdict_with_trace", "load_directory", "verify_directory"]
 
 
 #: ``verdict(doc, spec, *, trace=None) -> list[Check]``: the verdict of one design method. The
@@ -142,7 +142,15 @@ class VerifiableMethod(Protocol):
     adapter: Any  # ``adapter.validate(options, key, plant, ts) -> config``
 
 
+#: Specs of result directories parsed in this process (at most 8; `clear_cache` empties it).
 _SPECS: dict[tuple[str, str, tuple[str, ...]], Any] = {}
+
+
+def clear_cache() -> int:
+    """Forget the specs of result directories parsed in this process; returns how many."""
+    count = len(_SPECS)
+    _SPECS.clear()
+    return count
 
 
 def _spec_from_text(text: str, source: str, table: Mapping[str, VerifiableMethod]):
