@@ -8,6 +8,7 @@ written for it).
 from __future__ import annotations
 
 import json
+import shutil
 import sys
 from importlib import resources
 from pathlib import Path
@@ -155,11 +156,14 @@ def design(spec: str, outdir: str, export: tuple[str, ...]) -> None:
 @click.argument("spec", required=False, type=click.Path(dir_okay=False))
 @click.option("-o", "--output", "outdir", default="tanksynth-out", show_default=True,
               type=click.Path(file_okay=False), help="Directory for artefacts and results.")
-@click.option("--pdf", is_flag=True, help="Also compile the report to DIR/report.pdf (LaTeX).")
-def run(spec: str | None, outdir: str, pdf: bool) -> None:
+@click.option("--pdf/--no-pdf", default=None,
+              help="Also compile the report to DIR/report.pdf (LaTeX). Default: on for the built-in "
+                   "demo when pdflatex and latexmk are installed, off otherwise.")
+def run(spec: str | None, outdir: str, pdf: bool | None) -> None:
     """Rank checks, every design of SPEC, their verification and the report.
 
-    With no SPEC, the built-in three-tank demo.
+    With no SPEC, the built-in demo: LMI-region and exact pole placement with integral
+    action, a certified Takagi-Sugeno observer and an EKF on the DTS200 three-tank.
     """
     from tanksynth.analysis.checks import rank_conditions
     from tanksynth.artefacts.atomic import atomic_write
@@ -168,8 +172,15 @@ def run(spec: str | None, outdir: str, pdf: bool) -> None:
 
     s = _load(spec)
     out = Path(outdir)
+    have_tex = all(shutil.which(tool) for tool in ("pdflatex", "latexmk"))
+    if pdf is None:
+        pdf = spec is None and have_tex
     checks = rank_conditions(s.plant, s.x0, s.ts, s.given_u0)
     _print_checks(checks)
+    if s.designs:
+        _out.print(f"designing {len(s.designs)} gain(s): "
+                   + ", ".join(f"{d.name} ({d.method})" for d in s.designs), markup=False,
+                   highlight=False)
     written, infeasible = _design_all(s, out, ())
     checks_path = out / "checks.json"
     out.mkdir(parents=True, exist_ok=True)
@@ -179,12 +190,13 @@ def run(spec: str | None, outdir: str, pdf: bool) -> None:
     _out.print(f"rank verdicts: {checks_path}", markup=False, highlight=False)
     verdicts = []
     if written:
+        _out.print("verifying every artefact on the nonlinear plant", markup=False, highlight=False)
         verdicts = verify_directory(out)
-        for v in verdicts:
-            verdict = "pass" if v.passed else "FAIL"
-            _out.print(f"verification of {v.name} ({v.method}): {verdict}", markup=False,
-                       highlight=False)
-        _write_report(out, pdf)
+        report = _write_report(out, pdf)
+        _print_summary(written)
+        if spec is None and not have_tex:
+            _out.print("no PDF: install pdflatex and latexmk (Debian: make tex) and run "
+                       f"'tanksynth report {out} --pdf'", markup=False, highlight=False)
     else:
         _out.print("no report: no design artefact was written")
     if infeasible:
@@ -195,7 +207,29 @@ def run(spec: str | None, outdir: str, pdf: bool) -> None:
         raise _Fail(EXIT_FAILED, "some checks fail: " + ", ".join(failed))
 
 
-def _write_report(directory: Path, pdf: bool) -> None:
+def _print_summary(paths: list[Path]) -> None:
+    from tanksynth.artefacts.io import read_artefact
+    from tanksynth.summary import summary_row
+
+    table = Table(title="Designs, verified on the nonlinear plant")
+    for col in ("design", "method", "key figure", "verdict"):
+        table.add_column(col, overflow="fold")
+    failures = []
+    for path in paths:
+        doc = read_artefact(path)
+        row = summary_row(doc)
+        table.add_row(row.name, row.method, row.figure, "[green]pass[/]" if row.passed else "[red]FAIL[/]")
+        failures += [(row.name, c) for c in (doc.get("verification") or {}).get("checks", [])
+                     if c.get("passed") is False]
+    _out.print(table)
+    for name, c in failures:  # why, without opening the artefact
+        _out.print(f"{name}: {c['check']} FAILED: {_one_line(c.get('detail', ''))}", markup=False,
+                   highlight=False)
+    _out.print(f"artefacts: {paths[0].parent}/<design>.json (.npz beside)", markup=False,
+               highlight=False)
+
+
+def _write_report(directory: Path, pdf: bool):
     from tanksynth.methods import write_report
 
     res = write_report(directory, pdf=pdf)
@@ -206,6 +240,7 @@ def _write_report(directory: Path, pdf: bool) -> None:
         if comp.errata:
             _out.print(f"paper vs tool ({comp.title}): {len(comp.errata)} erratum/errata in the "
                        "printed values", markup=False, highlight=False)
+    return res
 
 
 @cli.command()

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -127,18 +128,35 @@ def test_design_is_deterministic(tmp_path, capsys):
 
 
 def test_run_default_demo(tmp_path, capsys, monkeypatch):
+    """`make demo` as a user runs it: the built-in demo designs two controllers and two observers,
+    verifies every one on the nonlinear plant, writes the report and prints the summary."""
     monkeypatch.chdir(tmp_path)
     out_dir = tmp_path / "demo"
     code, out, err = run_cli(capsys, "run", "-o", out_dir)
     assert code == 0, err
     checks = json.loads((out_dir / "checks.json").read_text())
     assert any(c["check"] == "observability" and c["passed"] is True for c in checks)
-    artefacts = sorted(p.name for p in out_dir.glob("*.json") if p.name not in ("checks.json", "plant.json"))
+    assert any(c["check"] == "nonlinear_observability" and c["passed"] is True for c in checks)
     assert (out_dir / "plant.json").exists() and (out_dir / "spec.toml").exists()
-    assert artefacts
-    for name in artefacts:
-        assert read_artefact(out_dir / name)["schema"] == "tanksynth.artefact/1"
-    assert "checks.json" in out
+    docs = {p.stem: read_artefact(p) for p in out_dir.glob("*.json")
+            if p.name not in ("checks.json", "plant.json")}
+    assert {d["method"] for d in docs.values()} == {"lmi_placement", "pole_placement", "ts_observer",
+                                                    "ekf"}
+    for name, doc in docs.items():
+        assert doc["verification"]["passed"] is True, (name, doc["verification"])
+    assert (out_dir / "report.tex").exists()
+    have_tex = all(shutil.which(t) for t in ("pdflatex", "latexmk"))
+    assert (out_dir / "report.pdf").exists() == have_tex          # PDF by default when TeX is there
+    summary = out[out.index("Designs, verified on the nonlinear plant"):]
+    for name in docs:
+        assert name[:12] in summary
+    assert "FAIL" not in summary.replace(str(tmp_path), ""), summary
+    from tanksynth.summary import key_figure
+
+    assert key_figure(docs["integral_pole_placement"]) == "poles 0.9, 0.92, 0.94, 0.95, 0.97"
+    assert key_figure(docs["ts_observer_certified"]).startswith("psi = ")
+    assert key_figure(docs["ekf"]).startswith("|e|inf ")
+    assert key_figure(docs["integral_lmi_disk"]).startswith("spectral radius 0.9")
 
 
 def test_check_fails_on_unobservable_plant(tmp_path, capsys):

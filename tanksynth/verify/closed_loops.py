@@ -333,8 +333,8 @@ def state_feedback_loop(doc: Mapping[str, Any], spec: Any) -> ClosedLoop:
         law = IntegralStateFeedback(np.atleast_2d(gains["K1"]), np.atleast_2d(gains["K2"]), C1, x0,
                                     u0, sampling_period(spec))
         return ClosedLoop(law, None, x0, u0, tracked,
-                          "the artefact's state feedback K1, K2 with integral action (seed 000 eq. "
-                          "13-16), true state fed back")
+                          "the artefact's state feedback K1, K2 with integral action "
+                          "(u = u0 - K1 (x - x0) - K2 z), true state fed back")
     if "K" in gains:
         K = np.atleast_2d(np.asarray(gains["K"], dtype=float)).reshape(spec.plant.m, n)
         return ClosedLoop(StateFeedback(K, x0, u0), None, x0, u0, tuple(range(min(spec.plant.m, n))),
@@ -371,7 +371,7 @@ def integral_tracking_loop(doc: Mapping[str, Any], spec: Any) -> ClosedLoop:
 def inverse_dynamics_loop(doc: Mapping[str, Any], spec: Any) -> ClosedLoop:
     """The serialised inverse-dynamics law, true state fed back."""
     return _serialized_loop(doc, spec, ArtefactLaw.from_document(doc), ("controlled", "tracked"),
-                            "inverse-dynamics control (seed 002 eq. 46-47)")
+                            "inverse-dynamics control (u = G_c(x)^-1 (diag(C) (x_sp - x_c) - f0_c(x)))")
 
 
 def closed_loop_for(doc: Mapping[str, Any], spec: Any,

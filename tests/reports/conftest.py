@@ -11,7 +11,8 @@ from tanksynth.cli import main
 
 @pytest.fixture(scope="session")
 def demo_dir(tmp_path_factory) -> Path:
-    """`tanksynth run -o DIR` on the built-in demo (seed 000 linearisation): report.tex, no PDF."""
+    """`tanksynth run` on the seed 000 linearisation (examples/seed000_three_tank.toml): report.tex."""
     d = tmp_path_factory.mktemp("demo")
-    assert main(["run", "-o", str(d)]) == 0
+    spec = Path(__file__).resolve().parents[2] / "examples" / "seed000_three_tank.toml"
+    assert main(["run", str(spec), "-o", str(d), "--no-pdf"]) == 0
     return d

@@ -42,8 +42,8 @@ def _check_trace(directory: Path, name: str, estimator: bool) -> dict:
     return trace
 
 
-def test_default_demo_trace_and_figure(tmp_path):
-    d = _run(tmp_path / "demo")
+def test_linearisation_trace_and_figure(tmp_path):
+    d = _run(tmp_path / "demo", str(ROOT / "examples" / "seed000_three_tank.toml"))
     _check_trace(d, "linear_model", estimator=False)
     tex = (d / "report.tex").read_text(encoding="utf-8")
     assert "report-figures/traces-00-linear-model.pdf" in tex
@@ -67,7 +67,7 @@ def test_seed004_observer_trace_and_pdf(tmp_path):
 
 
 def test_missing_trace_means_no_figure(tmp_path):
-    d = _run(tmp_path / "demo")
+    d = _run(tmp_path / "demo", str(ROOT / "examples" / "seed000_three_tank.toml"))
     (d / "linear_model.traces.npz").unlink()
     art = {"name": "linear_model", "method": "linearize"}
     assert time_domain_figure(art, d, d / "report-figures", "x") is None

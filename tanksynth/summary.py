@@ -1,0 +1,84 @@
+"""One line per verified artefact: its key figure and verdict (the end of ``tanksynth run``).
+
+The key figure is read from the artefact's recorded verification (never
+recomputed here): the achieved poles when the verdict matched them, the
+observer LMI's ``psi``, the decay of an observer's or estimator's error on the
+nonlinear plant, or the spectral radius / largest real part of the checked
+closed loop.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Mapping
+
+__all__ = ["SummaryRow", "key_figure", "summary_row"]
+
+
+@dataclass(frozen=True)
+class SummaryRow:
+    """What the run summary shows of one artefact.
+
+    Attributes
+    ----------
+    name, method : str
+    figure : str
+        The key figure, in words with units.
+    passed : bool
+        The artefact's verdict.
+    """
+
+    name: str
+    method: str
+    figure: str
+    passed: bool
+
+
+def _checks(doc: Mapping[str, Any]) -> dict[str, Mapping[str, Any]]:
+    ver = doc.get("verification") or {}
+    return {str(c.get("check")): c for c in ver.get("checks") or [] if isinstance(c, Mapping)}
+
+
+def _complex(v: Any) -> complex:
+    return complex(v[0], v[1]) if isinstance(v, (list, tuple)) and len(v) == 2 else complex(v)
+
+
+def _poles(values: Any) -> str:
+    parts = []
+    for z in sorted((_complex(v) for v in values), key=lambda z: (z.real, z.imag)):
+        if abs(z.imag) < 1e-12:
+            parts.append(f"{z.real:.4g}")
+        elif z.imag > 0:
+            parts.append(f"{z.real:.4g} ± {z.imag:.3g}j")
+    return ", ".join(parts)
+
+
+def key_figure(doc: Mapping[str, Any]) -> str:
+    """The key figure of one verified artefact (``doc`` as read from its JSON), or ``"-"``."""
+    checks = _checks(doc)
+    data = {name: (c.get("data") or {}) for name, c in checks.items()}
+    if "achieved" in data.get("poles", {}):
+        return "poles " + _poles(data["poles"]["achieved"])
+    if "psi" in data.get("lmi_recheck", {}):
+        text = f"psi = {float(data['lmi_recheck']['psi']):.4g} 1/s"
+        conv = data.get("observer_convergence", {})
+        if "e0" in conv and "tail_max" in conv:
+            text += f"; |e| {float(conv['e0']):.2g} -> {float(conv['tail_max']):.2g}"
+        return text
+    for name in ("estimator_convergence", "observer_convergence"):
+        conv = data.get(name, {})
+        if "e0" in conv and "tail_max" in conv:
+            return (f"|e|inf {float(conv['e0']):.2g} -> {float(conv['tail_max']):.2g} "
+                    f"in {float(conv.get('horizon_s', 0.0)):.0f} s (nonlinear plant)")
+    stab = data.get("stability", {})
+    if "value" in stab:
+        what = "spectral radius" if stab.get("domain") == "discrete" else "max Re(pole)"
+        return f"{what} {float(stab['value']):.4g}"
+    return "-"
+
+
+def summary_row(doc: Mapping[str, Any]) -> SummaryRow:
+    """`SummaryRow` of one verified artefact."""
+    ver = doc.get("verification") or {}
+    return SummaryRow(str(doc.get("name", "")), str(doc.get("method", "")), key_figure(doc),
+                      bool(ver.get("passed")))
