@@ -192,7 +192,7 @@ def run(spec: str | None, outdir: str, pdf: bool | None) -> None:
     if written:
         _out.print("verifying every artefact on the nonlinear plant", markup=False, highlight=False)
         verdicts = verify_directory(out)
-        report = _write_report(out, pdf)
+        _write_report(out, pdf)
         _print_summary(written)
         if spec is None and not have_tex:
             _out.print("no PDF: install pdflatex and latexmk (Debian: make tex) and run "
