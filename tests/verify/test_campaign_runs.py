@@ -248,3 +248,34 @@ def test_example_estimators_and_observers_run(example, tmp_path, runners):
         assert all(np.isfinite(metrics[m]) and metrics[m] > 0 for m in expected), doc["name"]
         ran += 1
     assert ran >= 2
+
+
+EXACT_START_EKF = """
+title = "an EKF on the three-tank starting at the true state"
+[plant]
+model = "three_tank"
+outputs = "h1h2"
+[operating_point]
+x = {h1 = 0.40, h2 = 0.20, h3 = 0.30}
+[sampling]
+ts = 1.0
+[[design]]
+name = "ekf"
+method = "ekf"
+Q = 1e-9
+R = 1e-6
+P0 = 1e-3
+"""
+
+
+def test_noise_free_scenario_gives_no_rmse_for_an_exact_start(tmp_path_factory, runners):
+    """dynamic_steps (no noise, no disturbance for an estimator) with the estimate at the true state:
+    the error is zero by construction, so the row says not_applicable instead of rmse = 0.0;
+    the noisy servo scenario gives real (non-zero) RMSEs."""
+    text, docs, _ = _design(tmp_path_factory, "exact_ekf", EXACT_START_EKF)
+    table = run_campaign(campaign_tasks(text, [docs["ekf"]], ["dynamic_steps", "servo"], 1,
+                                        runners=runners), local=True)
+    quiet = [r for r in table.rows if r["scenario"] == "dynamic_steps"]
+    assert [r["metric"] for r in quiet] == ["not_applicable"] and quiet[0]["value"] == 1.0
+    noisy = {r["metric"]: r["value"] for r in table.rows if r["scenario"] == "servo"}
+    assert all(noisy[f"rmse_{s}"] > 1e-7 for s in ("h1", "h2", "h3"))
