@@ -223,6 +223,13 @@ def read_artefact(path: str | Path, check_gains: bool = True) -> dict:
         gains = {k: np.asarray(v, dtype=float) for k, v in doc["gains"].items()}
     except (TypeError, ValueError, AttributeError):
         raise ArtefactError(f"{path}: gains must be nested lists of numbers") from None
+    bad = sorted(k for k, v in gains.items() if np.isnan(v).any())
+    if bad:
+        raise ArtefactError(f"{path}: gain(s) {', '.join(bad)} hold NaN entries; a designed gain is a "
+                            "number (infinite entries only mark unbounded limits)")
+    if not isinstance(doc["name"], str) or doc["name"] != path.stem:
+        raise ArtefactError(f"{path}: the artefact's name {doc['name']!r} does not match its file "
+                            f"name (expected {path.stem!r}); artefacts are written as <name>.json")
     if check_gains and gains_digest(gains) != doc["provenance"].get("gains_sha256"):
         raise ArtefactError(f"{path}: gains do not match their provenance hash "
                             "(edited after design?)")

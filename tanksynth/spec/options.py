@@ -254,8 +254,8 @@ def parse_covariance(value: Any, key: str, size: int, semidefinite: bool = False
 
 
 def parse_poles(value: Any, key: str, *, count: int | None = None, conjugate: bool = True,
-                real: bool = False, distinct: bool = False,
-                negative_real: bool = False) -> tuple[complex, ...]:
+                real: bool = False, distinct: bool = False, negative_real: bool = False,
+                stable_in: str | None = None, count_note: str = "") -> tuple[complex, ...]:
     """Poles from a spec list: numbers, or ``[re, im]`` pairs for complex poles.
 
     Parameters
@@ -271,6 +271,11 @@ def parse_poles(value: Any, key: str, *, count: int | None = None, conjugate: bo
         Every pole real; no pole repeated.
     negative_real : bool
         Every pole with negative real part (continuous-time stable, 1/s).
+    stable_in : {"continuous", "discrete"}, optional
+        Every pole stable in that domain (``Re p < 0``, or ``|p| < 1``); the
+        error says when the poles look written for the other domain.
+    count_note : str
+        Why ``count`` poles are expected (added to the error).
 
     Returns
     -------
@@ -290,7 +295,8 @@ def parse_poles(value: Any, key: str, *, count: int | None = None, conjugate: bo
         else:
             out.append(complex(parse_number(v, f"{key}[{i}]")))
     if count is not None and len(out) != count:
-        raise SpecError(f"{len(out)} poles given, expected {count}", key=key)
+        raise SpecError(f"{len(out)} poles given, expected {count}" + (f" ({count_note})" if count_note
+                                                                      else ""), key=key)
     scale = max(1.0, max(abs(p) for p in out))
     if real and any(p.imag != 0 for p in out):
         raise SpecError(f"expected real poles, got {[_pole_text(p) for p in out]}", key=key)
@@ -305,6 +311,17 @@ def parse_poles(value: Any, key: str, *, count: int | None = None, conjugate: bo
     if negative_real and not all(p.real < 0 for p in out):
         raise SpecError(f"expected poles with negative real part (1/s), got "
                         f"{[_pole_text(p) for p in out]}", key=key)
+    if stable_in == "continuous" and not all(p.real < 0 for p in out):
+        hint = ("; these look like z-plane poles: set time_domain = \"discrete\" (with [sampling] ts)"
+                if all(abs(p) < 1 for p in out) else "")
+        raise SpecError(f"continuous-time poles must have negative real part (1/s), got "
+                        f"{[_pole_text(p) for p in out]}{hint}", key=key)
+    if stable_in == "discrete" and not all(abs(p) < 1 for p in out):
+        hint = ("; these look like s-plane poles (1/s): a discrete design needs |p| < 1, e.g. "
+                "exp(p ts), or set time_domain = \"continuous\""
+                if all(p.real < 0 for p in out) else "")
+        raise SpecError(f"discrete-time poles must lie inside the unit circle, got "
+                        f"{[_pole_text(p) for p in out]}{hint}", key=key)
     return tuple(out)
 
 

@@ -116,6 +116,14 @@ class ModelRun:
             raise ArtefactError(f"the model is discretised at ts = {self.ts:g} s; the campaign "
                                 f"samples at {ts:g} s")
         setup = sc.setup(plant, self.x0, self.u0, ts=ts)
+        at_rest = np.array_equal(np.asarray(setup.x0, dtype=float), np.asarray(self.x0, dtype=float))
+        if (at_rest and sc.process_std == 0 and not sc.jumps and not sc.faults
+                and sc.parameter_factor == 1.0 and sc.input_schedule is None):
+            return {"not_applicable": Metric(
+                "not_applicable", np.ones(len(seeds)), "1",
+                f"scenario {sc.name!r} leaves the plant at rest at the operating point (no input "
+                "change, no noise, no disturbance): the model's error is zero by construction, so "
+                "no RMSE is reported")}
         res = run_scenario(setup, plant, ts=ts, seeds=list(seeds), substeps=substeps)
         jumps = np.zeros((setup.steps + 1, plant.n))
         for j in setup.jumps:

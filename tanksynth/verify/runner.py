@@ -278,7 +278,7 @@ def verify_directory(directory: str | Path, table: Mapping[str, VerifiableMethod
     spec, docs = load_directory(directory, table)
     for path, doc in docs:
         if str(doc["method"]) not in table:
-            raise ArtefactError(f"{path.name}: unknown design method {doc['method']!r}; expected one of: "
+            raise ArtefactError(f"{path}: unknown design method {doc['method']!r}; expected one of: "
                                 + ", ".join(sorted(table)))
     total = len(docs)
     checks: dict[Path, list[Check]] = {}

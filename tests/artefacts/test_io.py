@@ -290,3 +290,22 @@ def test_atomic_write_payloads_and_failure(tmp_path):
         atomic_mod.atomic_write(target, broken)
     assert target.read_bytes() == "h\u00e9".encode("utf-8")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["x.bin"]
+
+
+def test_nan_gain_and_foreign_name_are_refused(tmp_path):
+    """A NaN gain (even with a re-computed hash) and a name that is not the file's are bad input."""
+    import json
+
+    path = write_artefact(make_result(), tmp_path, SHA)
+    doc = json.loads(path.read_text())
+    doc["gains"]["K"][0][0] = float("nan")
+    doc["provenance"]["gains_sha256"] = gains_digest({k: np.asarray(v, dtype=float)
+                                                      for k, v in doc["gains"].items()})
+    path.write_text(json.dumps(doc))
+    with pytest.raises(ArtefactError, match="NaN"):
+        read_artefact(path)
+    good = write_artefact(make_result(), tmp_path / "b", SHA)
+    other = good.with_name("someone_else.json")
+    good.rename(other)
+    with pytest.raises(ArtefactError, match="does not match its file name"):
+        read_artefact(other)

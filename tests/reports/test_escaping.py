@@ -72,6 +72,8 @@ def test_hostile_strings_compile(demo_dir, tmp_path):
     art["diagnostics"]["note"] = HOSTILE
     art["diagnostics"][HOSTILE] = HOSTILE
     edit_json(d / "linear_model.json", name="lin_%&#$", diagnostics=art["diagnostics"])
+    for ext in (".json", ".npz"):          # an artefact's file is named after it
+        (d / f"linear_model{ext}").rename(d / f"lin_%&#${ext}")
     (d / "spec.toml").write_text("title = '" + HOSTILE + "'\n\\end{document}\n", encoding="utf-8")
     res = write_report(d, pdf=True)
     assert res.pdf is not None and res.pdf.exists()

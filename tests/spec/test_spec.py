@@ -405,3 +405,23 @@ def test_fuzzed_spec_text_only_raises_spec_errors(data):
         parse_spec_text(text, source="fuzz.toml")
     except SpecError as exc:
         assert (exc.key not in (None, "")) or "fuzz.toml" in str(exc)
+
+
+@pytest.mark.parametrize("design, match", [
+    ('method = "pole_placement"\npoles = [-0.5, -1.0, -2.0]', "look like s-plane poles"),
+    ('method = "pole_placement"\npoles = [1.5, 0.6, 0.7]', "inside the unit circle"),
+    ('method = "pole_placement"\ntime_domain = "continuous"\npoles = [0.5, 0.6, 0.7]',
+     "look like z-plane poles"),
+    ('method = "pole_placement"\nintegral = true\npoles = [0.5, 0.6, 0.7]',
+     r"expected 5 \(3 states \+ 2 integrators"),
+    ('method = "ekf"\nQ = 1e-9\nR = 1e-6\nP0 = 1e-3\nsubsteps = 1000000000000', r"in \[1, 1000\]"),
+    ('method = "narx"\nQ = 1e-9\nR = 1e-6\nP0 = 1e-3\nhidden = 99999999999', r"in \[1, 1000\]"),
+])
+def test_poles_and_sizes_refused_when_the_spec_is_read(design, match):
+    """Unstable poles for the design's domain, a wrong count (with why) and absurd sizes: exit-2
+    material, caught before any design runs."""
+    text = ('[plant]\nmodel = "three_tank"\noutputs = "all"\n[operating_point]\n'
+            'x = {h1 = 0.40, h2 = 0.20, h3 = 0.30}\n[sampling]\nts = 1.0\n'
+            f'[[design]]\nname = "d"\n{design}\n')
+    with pytest.raises(SpecError, match=match):
+        parse_spec_text(text)

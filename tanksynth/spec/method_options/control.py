@@ -43,7 +43,7 @@ class FeedbackLinearizationOptions(MethodOptions):
         Give the law even when the zero dynamics are unstable (recorded);
         default false.
     grid : int
-        Grid points per state of the region checks (>= 1); default 11.
+        Grid points per state of the region checks (1 to 101); default 11.
     samples : int
         Random region points of the checks (>= 0); default 400.
     seed : int
@@ -82,8 +82,8 @@ class FeedbackLinearizationOptions(MethodOptions):
         return cls(tracked=tracked, poles=r.read("poles", parse_poles, negative_real=True),
                    bandwidth=bandwidth, saturate=r.read("saturate", parse_bool),
                    allow_unstable_zero_dynamics=r.read("allow_unstable_zero_dynamics", parse_bool),
-                   grid=r.read("grid", parse_integer, at_least=1),
-                   samples=r.read("samples", parse_integer, at_least=0),
+                   grid=r.read("grid", parse_integer, at_least=1, at_most=101),
+                   samples=r.read("samples", parse_integer, at_least=0, at_most=1_000_000),
                    seed=r.read("seed", parse_integer, at_least=0))
 
 
@@ -130,7 +130,9 @@ class IntegralTrackingOptions(MethodOptions):
         tracked = r.read("tracked", parse_names, outputs, what="output", at_most=plant.m)
         tracked = tuple(outputs[: plant.m]) if tracked is None else tracked
         size = plant.n + len(tracked)
-        return cls(poles=r.read("poles", parse_poles, count=size), tracked=tracked,
+        note = f"{plant.n} states + {len(tracked)} integrators of the tracked outputs {list(tracked)}"
+        return cls(poles=r.read("poles", parse_poles, count=size, count_note=note,
+                                stable_in="discrete"), tracked=tracked,
                    method=r.read("method", parse_choice, PLACE_METHODS),
                    anti_windup=r.read("anti_windup", parse_choice, ANTI_WINDUP_SCHEMES),
                    aw_gain=r.read("aw_gain", parse_number, above=0.0, at_most=1.0),
@@ -160,7 +162,7 @@ class InverseDynamicsOptions(MethodOptions):
     horizon : float
         Length of the servo scenario (s, > step_time); default 300.
     substeps : int
-        RK4 substeps per control period of the scenario (>= 1); default 10.
+        RK4 substeps per control period of the scenario (1 to 1000); default 10.
     grid : ndarray
         Coarse values of each ``C_i`` tried by the tuning (1/s, >= 2 values
         inside ``bounds``); default 0.1, 0.2, ..., 1.0.
@@ -213,5 +215,5 @@ class InverseDynamicsOptions(MethodOptions):
         return cls(controlled=controlled, C=C, tune=tune,
                    step=r.read("step", parse_vector, m, broadcast=True, parse_default=True),
                    step_time=step_time, horizon=horizon,
-                   substeps=r.read("substeps", parse_integer, at_least=1), grid=grid,
+                   substeps=r.read("substeps", parse_integer, at_least=1, at_most=1000), grid=grid,
                    bounds=bounds, saturate=r.read("saturate", parse_bool))

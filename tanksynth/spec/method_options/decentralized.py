@@ -110,10 +110,10 @@ class DecentralizedKalmanOptions(MethodOptions):
                          "process_noise_correlation only applies to a scalar process_noise")
         return cls(
             process_noise=Qc, algorithm=r.read("algorithm", parse_choice, DECENTRALIZED_ALGORITHMS),
-            window=r.read("window", parse_integer, at_least=1),
+            window=r.read("window", parse_integer, at_least=1, at_most=100_000),
             E=r.read("E", _pattern, (n, q)),
             tolerance=r.read("tolerance", parse_number, above=0.0),
-            max_iter=r.read("max_iter", parse_integer, at_least=1),
+            max_iter=r.read("max_iter", parse_integer, at_least=1, at_most=100_000),
             process_noise_correlation=rho,
             measurement_noise=r.read("measurement_noise", _noise, q, semidefinite=False),
             initial_covariance=r.read("initial_covariance", _noise, n, semidefinite=False),

@@ -22,6 +22,16 @@ __all__ = ["OBSERVER_FORMS", "KalmanOptions", "EkfOptions", "UkfOptions", "Adapt
            "AdaptiveScalingKalmanOptions", "ConsensusFilterOptions", "LuenbergerOptions",
            "NarxOptions"]
 
+#: Largest RK4 substeps per sample: beyond it the model step is a huge expression and no
+#: accuracy is gained (an RK4 error of ts^5 / substeps^4 is below rounding far earlier).
+MAX_SUBSTEPS = 1000
+#: Largest window or sample count an option may ask for (memory and time stay reasonable).
+MAX_SAMPLES = 1_000_000
+#: Largest NARX sizes: hidden neurons, delays, data runs and samples, substeps, optimiser budget.
+NARX_LIMITS = {"hidden": 1000, "delays": 100, "runs": 1000, "validation_runs": 1000,
+               "steps": MAX_SAMPLES, "sim_substeps": MAX_SUBSTEPS, "restarts": 100,
+               "max_iter": 100_000, "max_fail": 1000}
+
 #: Forms of the Luenberger observer.
 OBSERVER_FORMS = ("current", "predictor", "continuous")
 
@@ -41,7 +51,7 @@ _NOISE_DOC = """
         Required. Process-noise covariance per sample (n x n, squared state
         units, positive semidefinite).""" + _LINEAR_DOC + """
     substeps : int
-        RK4 substeps of the prediction per sample (>= 1); default 1.
+        RK4 substeps of the prediction per sample (1 to 1000); default 1.
     clip : bool
         Clip the predicted levels at 0 (the plant's rule); default false."""
 
@@ -66,7 +76,7 @@ def _filter_fields(r: OptionReader, plant: Any, Q: str = "Q", q_size: int | None
            "R": r.read("R", parse_covariance, q),
            "P0": r.read("P0", parse_covariance, n), "x0": _x0(r, plant)}
     if "substeps" in r.cls.option_names():
-        out["substeps"] = r.read("substeps", parse_integer, at_least=1)
+        out["substeps"] = r.read("substeps", parse_integer, at_least=1, at_most=MAX_SUBSTEPS)
         out["clip"] = r.read("clip", parse_bool)
     return out
 
@@ -194,7 +204,7 @@ class AdaptiveKalmanOptions(MethodOptions):
         """See `MethodOptions.from_table`."""
         r = OptionReader(cls, options, key, ts)
         return cls(**_filter_fields(r, plant, Q="Q0"),
-                   window=r.read("window", parse_integer, at_least=1),
+                   window=r.read("window", parse_integer, at_least=1, at_most=MAX_SAMPLES),
                    form=r.read("form", parse_choice, ("full", "steady_state")),
                    q_floor=r.read("q_floor", parse_number, at_least=0.0))
 
@@ -317,7 +327,7 @@ class LuenbergerOptions(MethodOptions):
         Initial estimate (n values, state units); default None: the operating
         point.
     substeps : int
-        RK4 substeps per sample of the continuous form (>= 1); default 10.
+        RK4 substeps per sample of the continuous form (1 to 1000); default 10.
     nonlinear : bool
         Run the continuous form on the plant's own vector field instead of
         the linearisation (needs ``form = "continuous"``); default false.
@@ -345,8 +355,11 @@ class LuenbergerOptions(MethodOptions):
         if nonlinear and form != "continuous":
             raise r.fail("nonlinear", "nonlinear = true needs form = 'continuous'")
         return cls(L=r.read("L", parse_matrix, (plant.n, plant.q)),
-                   poles=r.read("poles", parse_poles, count=plant.n), form=form, x0=_x0(r, plant),
-                   substeps=r.read("substeps", parse_integer, at_least=1), nonlinear=nonlinear)
+                   poles=r.read("poles", parse_poles, count=plant.n,
+                                stable_in="continuous" if form == "continuous" else "discrete"),
+                   form=form, x0=_x0(r, plant),
+                   substeps=r.read("substeps", parse_integer, at_least=1, at_most=MAX_SUBSTEPS),
+                   nonlinear=nonlinear)
 
 
 def _hold(value: Any, key: str) -> tuple[int, int]:
@@ -375,7 +388,7 @@ class NarxOptions(KalmanOptions):
     Attributes
     ----------{_NOISE_DOC}{_JACOBIAN_DOC}
     hidden : int
-        Hidden neurons (>= 1); default 5.
+        Hidden neurons (1 to 1000); default 5.
     delays : int
         Delayed estimates fed back (>= 1); default 2.
     runs : int
@@ -396,7 +409,7 @@ class NarxOptions(KalmanOptions):
         Measurement-noise standard deviation (q values, output units, >= 0);
         default None: ``sqrt(diag R)``.
     sim_substeps : int
-        RK4 substeps per sample of the data simulation (>= 1); default 10.
+        RK4 substeps per sample of the data simulation (1 to 1000); default 10.
     target : str
         Training target: ``"ekf"`` (default, the EKF estimate) or ``"true"``.
     restarts : int
@@ -429,7 +442,7 @@ class NarxOptions(KalmanOptions):
                    ts: float | None) -> "NarxOptions":
         """See `MethodOptions.from_table`."""
         r = OptionReader(cls, options, key, ts)
-        counts = {name: r.read(name, parse_integer, at_least=1)
+        counts = {name: r.read(name, parse_integer, at_least=1, at_most=NARX_LIMITS[name])
                   for name in ("hidden", "delays", "runs", "validation_runs", "steps", "sim_substeps",
                                "restarts", "max_iter", "max_fail")}
         return cls(**_filter_fields(r, plant), **_jacobian_fields(r), **counts,

@@ -130,7 +130,10 @@ class PolePlacementOptions(MethodOptions):
         setup = _gain_setup(r, plant, ts)
         shape = _gain_shape(setup, plant)
         count = shape[1] if setup["target"] == "state_feedback" else plant.n
-        return cls(poles=r.read("poles", parse_poles, count=count), **setup,
+        note = (f"{plant.n} states + {count - plant.n} integrators of the tracked outputs "
+                f"{list(setup['tracked'])}" if count > plant.n else f"{plant.n} states")
+        return cls(poles=r.read("poles", parse_poles, count=count, count_note=note,
+                                stable_in=setup["time_domain"]), **setup,
                    method=r.read("method", parse_choice, PLACE_METHODS),
                    reference_gain=r.read("reference_gain", parse_matrix, shape))
 
@@ -221,6 +224,6 @@ class CanonicalObserverOptions(MethodOptions):
             raise r.fail("method", "the canonical-form route is for small plants (n <= 8); use "
                                    "pole_placement")
         n = plant.n
-        return cls(poles=r.read("poles", parse_poles, count=n),
+        return cls(poles=r.read("poles", parse_poles, count=n, stable_in="continuous"),
                    reference_gain=r.read("reference_gain", parse_matrix, (n, plant.q)),
                    reference_closed_loop=r.read("reference_closed_loop", parse_matrix, (n, n)))

@@ -159,7 +159,7 @@ class TsObserverOptions(MethodOptions):
             ordering_gap=r.read("ordering_gap", parse_number, at_least=0.0),
             premise_bounds=r.read("premise_bounds", parse_choice, ("interval", "sampling")),
             premise_margin=r.read("premise_margin", parse_number, at_least=0.0),
-            samples=r.read("samples", parse_integer, at_least=100),
+            samples=r.read("samples", parse_integer, at_least=100, at_most=10_000_000),
             seed=r.read("seed", parse_integer, at_least=0),
             search=r.read("search", parse_bool),
             search_values=tuple(float(v) for v in values),
