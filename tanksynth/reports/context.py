@@ -18,6 +18,7 @@ import numpy as np
 from tanksynth.reports.comparison import PaperComparison
 from tanksynth.reports.designs import design_view, latex_label
 from tanksynth.reports.equations import split_equation
+from tanksynth.reports.trusted import math_or_text
 from tanksynth.reports.figures import FigureFile, TraceFigure, time_domain_figure
 from tanksynth.reports.inputs import ReportInputs
 from tanksynth.reports.latex import (Tex, escape_latex, expression_latex, format_eigenvalues,
@@ -43,7 +44,11 @@ def _signal_rows(items: Sequence[Mapping[str, Any]]) -> list[dict[str, Tex]]:
 
 
 def _equation_blocks(lines: Sequence[str] | None) -> list[list[Tex]]:
-    return [split_equation(str(e)) for e in (lines or [])]
+    out = []
+    for e in lines or []:
+        tex, trusted = math_or_text(str(e))
+        out.append(split_equation(str(e)) if trusted else [tex])
+    return out
 
 
 def _plant_view(inputs: ReportInputs) -> dict[str, Any]:
@@ -157,7 +162,7 @@ def _linearization_view(art: Mapping[str, Any], opv: Mapping[str, Any]) -> dict[
         return [{"sym": Tex(r"$\dot{" + symbol_latex(snames[i] if i < len(snames) else f"x{i+1}")
                             + "}$"), "value": _m(v, 4)} for i, v in enumerate(vec)]
 
-    latex = {k: Tex(v) for k, v in (art.get("latex") or {}).items() if isinstance(v, str)}
+    latex = {k: math_or_text(v)[0] for k, v in (art.get("latex") or {}).items() if isinstance(v, str)}
     return {
         "name": str(art.get("name", "")),
         "label": latex_label("lin", str(art.get("name", ""))),

@@ -16,6 +16,7 @@ import numpy as np
 
 from tanksynth.reports.comparison import latex_matrix_entries
 from tanksynth.reports.equations import split_equation, visual_length
+from tanksynth.reports.trusted import is_trusted_math, math_or_text
 from tanksynth.reports.figures import FigureFile, TraceFigure, eigenvalue_sets, is_pole_key
 from tanksynth.reports.latex import (Tex, escape_latex, format_eigenvalues, format_number,
                                      gain_latex, matrix_latex, symbol_latex)
@@ -279,7 +280,8 @@ def design_view(art: Mapping[str, Any], figure: FigureFile | None,
                     Tex("$" + format_eigenvalues([[v.real, v.imag] for v in s.values], 5, limit=16)
                         + "$" + (r" \ ($z$)" if s.discrete else ""))))
     gains = [gain_latex(k, v) for k, v in (art.get("gains") or {}).items()]
-    latex = [(symbol_latex(k), fragment_lines(symbol_latex(k), v))
+    latex = [(symbol_latex(k), fragment_lines(symbol_latex(k), v) if is_trusted_math(v)
+              else [Tex(symbol_latex(k) + " &= " + math_or_text(v)[0])])
              for k, v in (art.get("latex") or {}).items() if isinstance(v, str) and v.strip()]
     notes = []
     for key in ("caveats", "notes", "note", "warnings"):

@@ -102,7 +102,9 @@ def compile_pdf(tex_file: Path, timeout: float = 180.0) -> CompileResult:
         raise ReportError("pdflatex is not installed: run `make tex` (Debian packages "
                           "texlive-latex-base texlive-latex-recommended latexmk) or omit --pdf")
     flags = ["-interaction=nonstopmode", "-halt-on-error", "-file-line-error", "-no-shell-escape"]
-    env = dict(os.environ)
+    # Paranoid file access for this run only: no absolute paths, no parent directories, no
+    # dot files (kpathsea's openin_any/openout_any), and no shell escape (flags above).
+    env = {**os.environ, "openin_any": "p", "openout_any": "p"}
     start = time.perf_counter()
     passes = 0
     try:

@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import re
 import subprocess
+from pathlib import Path
 
 import pytest
 from hypothesis import given, settings
@@ -84,3 +85,33 @@ def test_hostile_strings_compile(demo_dir, tmp_path):
                           check=True).stdout
     for fragment in ("100%", "& #1", "{a}", "input{/etc/passwd}", "[U+2603]"):
         assert fragment in text, fragment
+
+
+INJECT = r"\input{/etc/passwd}"
+
+
+def test_trusted_math_allow_list():
+    from tanksynth.reports.trusted import is_trusted_math
+
+    assert is_trusted_math(r"\left[\begin{matrix}- \frac{\mu_{13} \Phi}{A} & 0\\0 & \sqrt{h_{2}}\end{matrix}\right]")
+    for bad in (INJECT, r"\read16 to \x", r"\catcode`\^=7", "^^5cinput{x}", r"a % comment",
+                r"\begin{verbatim}x\end{verbatim}", r"\immediate\write18{ls}", r"\csname input\endcsname"):
+        assert not is_trusted_math(bad), bad
+
+
+@needs_latex
+def test_no_file_leaks_through_a_report(demo_dir, tmp_path):
+    """LaTeX planted in an artefact's `latex` field and in plant.json's equations is shown as text,
+    and pdflatex cannot read absolute paths anyway (openin_any = p): /etc/passwd never reaches the PDF."""
+    d = copy_dir(demo_dir, tmp_path / "inject")
+    plant = json.loads((d / "plant.json").read_text(encoding="utf-8"))
+    plant["equations"]["general"] = [INJECT] + list(plant["equations"]["general"])
+    (d / "plant.json").write_text(json.dumps(plant), encoding="utf-8")
+    art = json.loads((d / "linear_model.json").read_text(encoding="utf-8"))
+    edit_json(d / "linear_model.json", latex={**art["latex"], "F": INJECT})
+    res = write_report(d, pdf=True)
+    text = subprocess.run(["pdftotext", str(res.pdf), "-"], capture_output=True, text=True,
+                          check=True).stdout
+    secret = Path("/etc/passwd").read_text(encoding="utf-8").splitlines()[0]
+    assert secret and secret not in text
+    assert "input{/etc/passwd}" in text and "not typeset" in text
