@@ -27,6 +27,13 @@ __all__ = ["Spec", "DesignSpec", "load_spec", "parse_spec", "parse_spec_text"]
 
 _TOP_KEYS = {"title", "description", "plant", "operating_point", "sampling", "design"}
 _NAME_RE = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]{0,63}\Z")
+#: Design names whose files would overwrite the tool's own files in a result directory.
+RESERVED_NAMES = {"plant": "plant.json (the plant record)", "checks": "checks.json (the rank verdicts)",
+                  "campaign": "campaign.json/.csv (the campaign table)",
+                  "report": "report.tex/.pdf/.log (the design report)"}
+#: Name endings that collide with files written beside another design's artefact.
+RESERVED_SUFFIXES = {".traces": "<name>.traces.npz (a verdict trace)",
+                     "_law": "<name>_law.c/.h/.casadi (an exported control law)"}
 
 
 @dataclass(frozen=True)
@@ -257,9 +264,15 @@ def _parse(table: Mapping[str, Any], source: str | None, sha256: str,
         if not isinstance(name, str) or not _NAME_RE.match(name):
             raise SpecError(f"expected a name of letters, digits, '_', '-', '.' (max 64), got {name!r}",
                             key=f"{key}.name")
-        if name in seen:
-            raise SpecError(f"duplicate design name {name!r}", key=f"{key}.name")
-        seen.add(name)
+        reserved = RESERVED_NAMES.get(name.lower()) or next(
+            (what for end, what in RESERVED_SUFFIXES.items() if name.lower().endswith(end)), None)
+        if reserved:
+            raise SpecError(f"design name {name!r} is reserved: its files would collide with "
+                            f"{reserved}; choose another name", key=f"{key}.name")
+        if name.lower() in seen:
+            raise SpecError(f"duplicate design name {name!r} (names differing only in case collide "
+                            "on some file systems)", key=f"{key}.name")
+        seen.add(name.lower())
         method = entry.get("method")
         if not isinstance(method, str) or (methods is not None and method not in methods):
             raise SpecError(f"unknown method {method!r}" + did_you_mean(method, list(methods or ()))

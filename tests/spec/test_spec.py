@@ -425,3 +425,17 @@ def test_poles_and_sizes_refused_when_the_spec_is_read(design, match):
             f'[[design]]\nname = "d"\n{design}\n')
     with pytest.raises(SpecError, match=match):
         parse_spec_text(text)
+
+
+@pytest.mark.parametrize("names, match", [
+    (["plant"], "plant.json"), (["Checks"], "checks.json"), (["report"], "report.tex"),
+    (["lin", "lin.traces"], "traces.npz"), (["ctl_law"], "exported control law"),
+    (["lin", "LIN"], "differing only in case"),
+])
+def test_design_names_that_collide_with_files_are_refused(names, match):
+    """A design whose files would overwrite the tool's own (or another design's) files: exit-2."""
+    designs = "".join(f'[[design]]\nname = "{n}"\nmethod = "linearize"\n' for n in names)
+    text = ('[plant]\nmodel = "three_tank"\n[operating_point]\nx = {h1 = 0.40, h2 = 0.20, h3 = 0.30}\n'
+            f'[sampling]\nts = 1.0\n{designs}')
+    with pytest.raises(SpecError, match=match):
+        parse_spec_text(text)
