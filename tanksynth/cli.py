@@ -256,7 +256,7 @@ def report(directory: str, pdf: bool) -> None:
 @click.option("--scheduler", default=None, metavar="ADDR",
               help="Dask scheduler address (tcp://host:port); default: this machine.")
 @click.option("--json", "as_json", is_flag=True, help="Print JSON instead of tables.")
-@click.option("--runs", default=0, show_default=True, type=click.IntRange(min=0),
+@click.option("--runs", default=0, show_default=True, type=click.IntRange(min=0, max=100_000),
               help="Also run a Monte-Carlo campaign of this many runs per scenario.")
 @click.option("--scenario", "scenarios", multiple=True,
               help="Campaign scenario (repeatable; default: every one defined for the plant).")

@@ -16,6 +16,9 @@ from tanksynth.spec.options import (parse_bool, parse_choice, parse_integer, par
 __all__ = ["ANTI_WINDUP_SCHEMES", "FeedbackLinearizationOptions", "IntegralTrackingOptions",
            "InverseDynamicsOptions"]
 
+#: Largest number of control periods of the inverse-dynamics tuning scenario.
+MAX_SERVO_SAMPLES = 1_000_000
+
 #: Anti-windup schemes of the integral tracking law.
 ANTI_WINDUP_SCHEMES = ("back_calculation", "clamping", "none")
 
@@ -160,7 +163,7 @@ class InverseDynamicsOptions(MethodOptions):
     step_time : float
         Time of the step (s, >= 0); default 100.
     horizon : float
-        Length of the servo scenario (s, > step_time); default 300.
+        Length of the servo scenario (s, > step_time, at most 10^6 periods ts); default 300.
     substeps : int
         RK4 substeps per control period of the scenario (1 to 1000); default 10.
     grid : ndarray
@@ -205,6 +208,9 @@ class InverseDynamicsOptions(MethodOptions):
             raise r.fail("C", "tune = false needs the rates C (1/s)")
         step_time = r.read("step_time", parse_number, at_least=0.0)
         horizon = r.read("horizon", parse_number, above=step_time)
+        if ts is not None and horizon / ts > MAX_SERVO_SAMPLES:
+            raise r.fail("horizon", f"{horizon:g} s is {horizon / ts:.3g} control periods of ts = "
+                                    f"{ts:g} s; at most {MAX_SERVO_SAMPLES:,} are simulated")
         bounds = r.read("bounds", parse_vector, 2, at_least=0.0, parse_default=True)
         if not bounds[0] < bounds[1]:
             raise r.fail("bounds", f"expected [min, max] with min < max, got {bounds.tolist()}")
