@@ -263,8 +263,11 @@ def report(directory: str, pdf: bool) -> None:
 @click.option("--seed", default=0, show_default=True, type=click.IntRange(min=0), help="Campaign seed.")
 @click.option("--workers", default=2, show_default=True, type=click.IntRange(min=1),
               help="Worker processes of the local Dask cluster.")
+@click.option("--connect-timeout", default=10.0, show_default=True,
+              type=click.FloatRange(min=0.1, max=600.0),
+              help="Seconds to wait for the Dask scheduler given with --scheduler.")
 def verify(directory: str, scheduler: str | None, as_json: bool, runs: int,
-           scenarios: tuple[str, ...], seed: int, workers: int) -> None:
+           scenarios: tuple[str, ...], seed: int, workers: int, connect_timeout: float) -> None:
     """Simulate every artefact of DIRECTORY and record the verdicts in it."""
     from rich.progress import Progress
 
@@ -280,7 +283,8 @@ def verify(directory: str, scheduler: str | None, as_json: bool, runs: int,
     with Progress(console=_out, transient=True, disable=quiet) as bar:
         task = bar.add_task("verifying artefacts", total=None)
         verdicts = verify_directory(directory, scheduler=scheduler,
-                                    progress=lambda d, n: bar.update(task, completed=d, total=n))
+                                    progress=lambda d, n: bar.update(task, completed=d, total=n),
+                                    connect_timeout=connect_timeout)
     table_path = None
     if runs:
         spec, docs = load_directory(directory, METHODS)
@@ -290,7 +294,8 @@ def verify(directory: str, scheduler: str | None, as_json: bool, runs: int,
         with Progress(console=_out, transient=True, disable=quiet) as bar:
             task = bar.add_task("campaign", total=len(tasks))
             table = run_campaign(tasks, scheduler=scheduler, workers=workers,
-                                 progress=lambda d, n: bar.update(task, completed=d, total=n))
+                                 progress=lambda d, n: bar.update(task, completed=d, total=n),
+                                 connect_timeout=connect_timeout)
         table_path = table.to_csv(Path(directory) / "campaign.csv")
     if as_json:
         click.echo(json.dumps(to_jsonable({"artefacts": [{"name": v.name, "method": v.method,

@@ -13,6 +13,7 @@ __all__ = [
     "ParseError",
     "RegionError",
     "ArtefactError",
+    "SchedulerError",
     "DimensionError",
     "InfeasibleDesign",
     "UnobservableError",
@@ -63,6 +64,10 @@ class RegionError(SpecError):
 
 class ArtefactError(TanksynthError, ValueError):
     """An artefact file is missing, malformed, or fails its provenance check."""
+
+
+class SchedulerError(TanksynthError, ConnectionError):
+    """A Dask scheduler address is malformed, unreachable, or does not answer in time."""
 
 
 class DimensionError(TanksynthError, ValueError):

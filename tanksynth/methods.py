@@ -231,9 +231,11 @@ def design(spec: Spec, entry: DesignSpec) -> DesignResult:
 
 
 def verify_directory(directory: str | Path, scheduler: str | None = None,
-                     progress: Callable[[int, int], None] | None = None) -> list[Verdict]:
+                     progress: Callable[[int, int], None] | None = None,
+                     connect_timeout: float = 10.0) -> list[Verdict]:
     """Run the verdict of every artefact of a result directory (see `tanksynth.verify.runner`)."""
-    return _verify_directory(directory, METHODS, scheduler=scheduler, progress=progress)
+    return _verify_directory(directory, METHODS, scheduler=scheduler, progress=progress,
+                             connect_timeout=connect_timeout)
 
 
 def write_report(directory: str | Path, pdf: bool = False, timeout: float = 180.0) -> Any:

@@ -65,6 +65,8 @@ from tanksynth.verify.estimation_runs import (EstimatorRun, canonical_observer_r
                                               placement_run, ts_observer_run)
 from tanksynth.verify.model_runs import ModelRun, linearize_run
 
+from tanksynth.verify.cluster import CONNECT_TIMEOUT, connect
+
 __all__ = [
     "CampaignRun",
     "Runner",
@@ -315,7 +317,8 @@ def _collect(results: Mapping[str, list[dict]], tasks: int) -> CampaignTable:
 
 def run_campaign(tasks: Sequence[CampaignTask], *, scheduler: str | None = None, workers: int = 2,
                  local: bool = False, retries: int = 2,
-                 progress: Callable[[int, int], None] | None = None) -> CampaignTable:
+                 progress: Callable[[int, int], None] | None = None,
+                 connect_timeout: float = CONNECT_TIMEOUT) -> CampaignTable:
     """Run campaign tasks on Dask (or in this process) and gather a tidy table.
 
     Parameters
@@ -334,6 +337,8 @@ def run_campaign(tasks: Sequence[CampaignTask], *, scheduler: str | None = None,
         is recomputed by the scheduler regardless).
     progress : callable, optional
         ``progress(done, total)`` after each task (the CLI draws a bar).
+    connect_timeout : float
+        Seconds to wait for the scheduler (`tanksynth.verify.cluster.connect`).
 
     Returns
     -------
@@ -355,7 +360,7 @@ def run_campaign(tasks: Sequence[CampaignTask], *, scheduler: str | None = None,
             if progress is not None:
                 progress(i + 1, total)
         return _collect(results, total)
-    from distributed import Client, LocalCluster, as_completed
+    from distributed import LocalCluster, as_completed
 
     cluster = None
     if scheduler is None:
@@ -364,7 +369,7 @@ def run_campaign(tasks: Sequence[CampaignTask], *, scheduler: str | None = None,
         scheduler = cluster.scheduler_address
     prefix = f"tanksynth-{uuid.uuid4().hex[:12]}-"
     try:
-        with Client(scheduler) as client:
+        with connect(scheduler, connect_timeout) as client:
             futures = {client.submit(run_task, task, key=prefix + task.key, pure=False,
                                      retries=retries): task.key for task in tasks}
             done = 0

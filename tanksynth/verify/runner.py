@@ -27,6 +27,8 @@ from tanksynth.artefacts.traces import trace_path, write_trace
 from tanksynth.errors import ArtefactError, TanksynthError
 from tanksynth.verify.traces import TraceRecorder
 
+from tanksynth.verify.cluster import CONNECT_TIMEOUT, connect
+
 __all__ = ["clear_cache", "VerdictFn", "Verdict", "verdict_for", "verdict_with_trace", "load_directory", "verify_directory"]
 
 
@@ -245,7 +247,8 @@ def _remote_verdict(table: Mapping[str, VerifiableMethod], doc: dict, spec_text:
 
 def verify_directory(directory: str | Path, table: Mapping[str, VerifiableMethod],
                      scheduler: str | None = None,
-                     progress: Callable[[int, int], None] | None = None) -> list[Verdict]:
+                     progress: Callable[[int, int], None] | None = None,
+                     connect_timeout: float = CONNECT_TIMEOUT) -> list[Verdict]:
     """Verify every artefact of a directory and record the verdicts in them.
 
     Beside each artefact ``DIR/<name>.json`` the trace of its verdict's main
@@ -265,6 +268,8 @@ def verify_directory(directory: str | Path, table: Mapping[str, VerifiableMethod
         artefact). Default: in this process.
     progress : callable, optional
         ``progress(done, total)`` after each artefact.
+    connect_timeout : float
+        Seconds to wait for the scheduler (`tanksynth.verify.cluster.connect`).
 
     Returns
     -------
@@ -289,11 +294,11 @@ def verify_directory(directory: str | Path, table: Mapping[str, VerifiableMethod
             if progress is not None:
                 progress(i + 1, total)
     else:
-        from distributed import Client, as_completed
+        from distributed import as_completed
 
         text = (Path(directory) / "spec.toml").read_text(encoding="utf-8")
         source = str(Path(directory) / "spec.toml")
-        with Client(scheduler) as client:
+        with connect(scheduler, connect_timeout) as client:
             futures = {}
             for path, doc in docs:
                 plain = {**doc, "gains": {k: v.tolist() for k, v in doc["gains"].items()}}
