@@ -8,6 +8,7 @@ references.
 from __future__ import annotations
 
 import os
+import signal
 import re
 import shutil
 import subprocess
@@ -65,6 +66,26 @@ def _first_error(log: str) -> str:
     return " ".join(m.group(0).split()) if m else ""
 
 
+def _run_group(cmd: list[str], cwd: Path, env: dict, timeout: float) -> subprocess.CompletedProcess:
+    """Run a LaTeX command in its own process group; on timeout end the whole group.
+
+    latexmk starts pdflatex as a child: killing latexmk alone would leave pdflatex running
+    after tanksynth has given up.
+    """
+    proc = subprocess.Popen(cmd, cwd=cwd, env=env, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True, start_new_session=True)
+    try:
+        out, err = proc.communicate(timeout=timeout)
+    except subprocess.TimeoutExpired:
+        try:
+            os.killpg(proc.pid, signal.SIGKILL)
+        except ProcessLookupError:
+            pass
+        proc.communicate()
+        raise
+    return subprocess.CompletedProcess(cmd, proc.returncode, out, err)
+
+
 def compile_pdf(tex_file: Path, timeout: float = 180.0) -> CompileResult:
     """Build ``tex_file`` into a PDF in its own directory.
 
@@ -111,25 +132,20 @@ def compile_pdf(tex_file: Path, timeout: float = 180.0) -> CompileResult:
         if latexmk is not None:
             cmd = [latexmk, "-pdf", "-silent", f"-pdflatex=pdflatex {' '.join(flags)} %O %S",
                    tex_file.name]
-            proc = subprocess.run(cmd, cwd=workdir, env=env, capture_output=True, text=True,
-                                  timeout=timeout, stdin=subprocess.DEVNULL)
+            proc = _run_group(cmd, workdir, env, timeout)
             engine, passes, ok = "latexmk", 1, proc.returncode == 0
             # latexmk may stop while the log still asks for a rerun (labels moved by
             # the table of contents): finish with plain pdflatex runs.
             for _ in range(2):
                 if not ok or not _needs_rerun(log):
                     break
-                proc = subprocess.run([pdflatex, *flags, tex_file.name], cwd=workdir, env=env,
-                                      capture_output=True, text=True, timeout=timeout,
-                                      stdin=subprocess.DEVNULL)
+                proc = _run_group([pdflatex, *flags, tex_file.name], workdir, env, timeout)
                 passes += 1
                 ok = proc.returncode == 0
         else:
             engine, ok = "pdflatex", True
             for passes in range(1, 5):
-                proc = subprocess.run([pdflatex, *flags, tex_file.name], cwd=workdir, env=env,
-                                      capture_output=True, text=True, timeout=timeout,
-                                      stdin=subprocess.DEVNULL)
+                proc = _run_group([pdflatex, *flags, tex_file.name], workdir, env, timeout)
                 if proc.returncode != 0:
                     ok = False
                     break

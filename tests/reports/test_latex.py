@@ -76,3 +76,23 @@ def test_page_one_is_not_blank(built, tmp_path):
     dark, total = sum(hist[:200]), sum(hist)
     assert img.size[0] > 200 and img.size[1] > 200
     assert dark / total > 0.01, f"page 1 looks blank ({dark} dark pixels of {total})"
+
+
+@needs_latex
+def test_latex_timeout_ends_the_whole_process_group(tmp_path):
+    """A build that never ends is stopped at the timeout and leaves no pdflatex behind."""
+    import subprocess
+    import time
+
+    from tanksynth.errors import ReportError
+    from tanksynth.reports.pdf import compile_pdf
+
+    tex = tmp_path / "forever_loop_doc.tex"
+    tex.write_text("\\documentclass{article}\\begin{document}\\def\\x{\\x}\\x\\end{document}\n")
+    start = time.perf_counter()
+    with pytest.raises(ReportError, match="did not finish"):
+        compile_pdf(tex, timeout=3)
+    assert time.perf_counter() - start < 20
+    time.sleep(0.5)
+    left = subprocess.run(["pgrep", "-f", "forever_loop_doc"], capture_output=True, text=True).stdout
+    assert left.strip() == ""
