@@ -1,13 +1,15 @@
 """The ``tanksynth`` command.
 
 Exit codes: 0 success, 1 a verification (rank) check failed, 2 bad input
-(one line on stderr, no traceback), 3 a design was infeasible (no artefact
-written for it).
+(one line on stderr, no traceback; also an operating-system error on a named
+path), 3 a design was infeasible (no artefact written for it), 4 an internal
+error (a bug: one line on stderr naming a log file that holds the traceback).
 """
 
 from __future__ import annotations
 
 import json
+import os
 import shutil
 import sys
 from importlib import resources
@@ -21,7 +23,7 @@ from tanksynth.errors import InfeasibleDesign, SpecError, TanksynthError
 
 __all__ = ["main", "cli"]
 
-EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT, EXIT_INFEASIBLE = 0, 1, 2, 3
+EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT, EXIT_INFEASIBLE, EXIT_INTERNAL = 0, 1, 2, 3, 4
 
 _out = Console()
 
@@ -334,7 +336,27 @@ def main(argv: list[str] | None = None) -> int:
     except TanksynthError as exc:
         click.echo(f"error: {_one_line(exc)}", err=True)
         return EXIT_BAD_INPUT
+    except OSError as exc:  # a path the user gave: unwritable, missing, full disk ...
+        where = f"{exc.filename}: " if exc.filename else ""
+        click.echo(f"error: {where}{exc.strerror or _one_line(exc)}", err=True)
+        return EXIT_BAD_INPUT
+    except Exception as exc:  # a bug: one line here, the traceback in a log file
+        log = _internal_error_log()
+        click.echo(f"internal error: {type(exc).__name__}: {_one_line(exc)[:200]} (traceback in {log}; "
+                   "please report it)", err=True)
+        return EXIT_INTERNAL
     return EXIT_OK
+
+
+def _internal_error_log() -> str:
+    """Write the current exception's traceback to a temporary log file; return its path."""
+    import tempfile
+    import traceback
+
+    fd, path = tempfile.mkstemp(prefix="tanksynth-internal-error-", suffix=".log")
+    with os.fdopen(fd, "w", encoding="utf-8") as fh:
+        fh.write(traceback.format_exc())
+    return path
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -295,3 +295,20 @@ def test_design_time_refusal_writes_nothing(tmp_path, capsys):
     assert_one_line_error(err)
     assert "not observable" in err
     assert not out_dir.exists()
+
+
+def test_os_errors_and_internal_errors_keep_the_exit_code_contract(tmp_path, capsys, monkeypatch):
+    """An unwritable output path is bad input (2, one line naming it); an unexpected exception
+    is an internal error (4, one line naming the log that holds the traceback)."""
+    blocker = tmp_path / "file"
+    blocker.write_text("x")
+    code, out, err = run_cli(capsys, "design", SEED000, "-o", blocker / "sub")
+    assert code == 2 and len(err.strip().splitlines()) == 1 and "file" in err, err
+
+    def boom(*args, **kwargs):
+        raise ZeroDivisionError("a bug")
+    monkeypatch.setattr("tanksynth.analysis.checks.rank_conditions", boom)
+    code, out, err = run_cli(capsys, "check", SEED000)
+    assert code == 4 and len(err.strip().splitlines()) == 1, err
+    log = err.split("traceback in ")[1].split(";")[0]
+    assert "ZeroDivisionError: a bug" in Path(log).read_text()
