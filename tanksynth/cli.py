@@ -65,7 +65,7 @@ def _design_all(spec, outdir: Path, export: tuple[str, ...]) -> tuple[list[Path]
     still fails on bad input raises before anything is written. An
     infeasible design is listed (no artefact for it), the others are written.
     """
-    from tanksynth.artefacts.io import write_artefact, write_plant_record
+    from tanksynth.artefacts.io import file_sha256, write_artefact, write_plant_record
     from tanksynth.methods import METHODS
 
     results, infeasible = [], []
@@ -74,7 +74,7 @@ def _design_all(spec, outdir: Path, export: tuple[str, ...]) -> tuple[list[Path]
             results.append((design, METHODS[design.method].design(spec, design)))
         except InfeasibleDesign as exc:
             infeasible.append(f"{design.name}: {_one_line(exc)}")
-    write_plant_record(spec, outdir)
+    plant_sha = file_sha256(write_plant_record(spec, outdir))
     written = []
     for design, result in results:
         formats = list(export)
@@ -82,7 +82,8 @@ def _design_all(spec, outdir: Path, export: tuple[str, ...]) -> tuple[list[Path]
             formats.remove("law")
             _out.print(f"{design.name}: no control law to export (method {design.method})",
                        markup=False, highlight=False)
-        written.append(write_artefact(result, outdir, spec.sha256, export=formats))
+        written.append(write_artefact(result, outdir, spec.sha256, export=formats,
+                                      plant_record_sha256=plant_sha))
     return written, infeasible
 
 

@@ -2,14 +2,20 @@
 
 ``DIR/<name>.json`` (schema ``tanksynth.artefact/1``) holds the gains as
 nested lists, the diagnostics, the verification (once ``verify`` ran) and the
-provenance: the spec's sha256, the package versions and a sha256 of the
-gains, so that gains edited after design are detected. Beside it,
-``<name>.npz`` holds the same gains; ``.mat`` and a C header on request.
+provenance: the spec's sha256, the package versions, a sha256 of the
+gains (``gains_sha256``), of the ``.npz`` bytes as written (``npz_sha256``),
+of the plant record written in the same run (``plant_record_sha256``, when
+there is one) and of the whole content (``content_sha256``: name, method,
+plant, gains, diagnostics, LaTeX and the provenance itself; not the
+``verification``, which ``verify`` writes later), so that any file of an
+artefact edited after design is detected. Beside it, ``<name>.npz`` holds
+the same gains; ``.mat`` and a C header on request.
 """
 
 from __future__ import annotations
 
 import hashlib
+import io
 import json
 import math
 import platform
@@ -27,7 +33,8 @@ if TYPE_CHECKING:  # the artefact only reads a result's fields; no import of the
     from tanksynth.design.result import DesignResult
 
 __all__ = ["SCHEMA", "PLANT_SCHEMA", "EXPORT_FORMATS", "write_plant_record", "read_plant_record", "to_jsonable", "gains_digest", "artefact_document",
-           "write_artefact", "read_artefact"]
+           "write_artefact", "read_artefact", "content_digest", "file_sha256", "check_npz",
+           "check_orphan_npz", "check_plant_record", "rehash"]
 
 SCHEMA = "tanksynth.artefact/1"
 PLANT_SCHEMA = "tanksynth.plant/1"
@@ -73,6 +80,61 @@ def gains_digest(gains: Mapping[str, Any]) -> str:
     return h.hexdigest()
 
 
+def file_sha256(path: str | Path) -> str:
+    """sha256 (hex) of a file's bytes.
+
+    Raises
+    ------
+    ArtefactError
+        The file cannot be read.
+    """
+    path = Path(path)
+    try:
+        return hashlib.sha256(path.read_bytes()).hexdigest()
+    except OSError as exc:
+        raise ArtefactError(f"{path}: cannot read: {exc.strerror}") from None
+
+
+def content_digest(doc: Mapping[str, Any]) -> str:
+    """sha256 over everything design wrote into an artefact that verify and report read.
+
+    A canonical JSON serialisation (sorted keys, no whitespace, no NaN) of
+    the name, method, plant, the gains (as `gains_digest`), the diagnostics,
+    the LaTeX fragments and the provenance without ``content_sha256``; the
+    ``verification`` field (written later by ``verify``) is not covered.
+
+    Parameters
+    ----------
+    doc : mapping
+        The artefact document (gains as nested lists or arrays).
+
+    Raises
+    ------
+    ArtefactError
+        Content that has no canonical JSON form (NaN, non-string keys, ...).
+    """
+    prov = doc.get("provenance")
+    prov = {k: v for k, v in prov.items() if k != "content_sha256"} if isinstance(prov, Mapping) else prov
+    try:
+        gains = {k: np.asarray(v, dtype=float) for k, v in doc["gains"].items()}
+        canonical = json.dumps({"name": doc.get("name"), "method": doc.get("method"),
+                                "plant": doc.get("plant"), "gains_sha256": gains_digest(gains),
+                                "diagnostics": doc.get("diagnostics"), "latex": doc.get("latex"),
+                                "provenance": prov},
+                               sort_keys=True, separators=(",", ":"), allow_nan=False)
+    except (TypeError, ValueError, AttributeError, KeyError) as exc:
+        raise ArtefactError(f"artefact {doc.get('name')!r}: content has no canonical JSON form "
+                            f"({' '.join(str(exc).split())[:120]})") from None
+    return hashlib.sha256(canonical.encode("utf-8")).hexdigest()
+
+
+def _npz_bytes(gains: Mapping[str, np.ndarray]) -> bytes:
+    """The ``.npz`` file of the gains, in memory (zip timestamps make it differ run to run)."""
+    buf = io.BytesIO()
+    np.savez(buf, **gains)
+    return buf.getvalue()
+
+
 def _versions() -> dict[str, str]:
     out = {}
     for pkg in _PACKAGES:
@@ -84,15 +146,30 @@ def _versions() -> dict[str, str]:
     return out
 
 
-def artefact_document(result: DesignResult, spec_sha256: str, solver: str = "") -> dict:
-    """The JSON document of an artefact (before verification)."""
+def artefact_document(result: DesignResult, spec_sha256: str, solver: str = "",
+                      npz_sha256: str | None = None, plant_record_sha256: str | None = None) -> dict:
+    """The JSON document of an artefact (before verification).
+
+    Parameters
+    ----------
+    result : DesignResult
+    spec_sha256 : str
+    solver : str
+    npz_sha256 : str, optional
+        sha256 of the ``.npz`` bytes written beside it; computed from a fresh
+        ``.npz`` of the gains when omitted.
+    plant_record_sha256 : str, optional
+        sha256 of ``plant.json`` written in the same run (`file_sha256`).
+    """
     gains = {k: np.asarray(v, dtype=float) for k, v in result.gains.items()}
     for name, arr in gains.items():
         if not np.all(np.isfinite(arr)):
             raise ArtefactError(f"design '{result.name}': gain {name} has non-finite entries; "
                                 "refusing to write it")
     versions = _versions()
-    return {
+    if npz_sha256 is None:
+        npz_sha256 = hashlib.sha256(_npz_bytes(gains)).hexdigest()
+    doc = {
         "schema": SCHEMA,
         "name": result.name,
         "method": result.method,
@@ -107,12 +184,17 @@ def artefact_document(result: DesignResult, spec_sha256: str, solver: str = "") 
             "tanksynth_version": versions.pop("tanksynth"),
             "packages": versions,
             "solver": solver,
+            "npz_sha256": npz_sha256,
+            "plant_record_sha256": plant_record_sha256,
         },
     }
+    doc["provenance"]["content_sha256"] = content_digest(doc)
+    return doc
 
 
 def write_artefact(result: DesignResult, directory: str | Path, spec_sha256: str,
-                   export: Iterable[str] = (), solver: str = "") -> Path:
+                   export: Iterable[str] = (), solver: str = "",
+                   plant_record_sha256: str | None = None) -> Path:
     """Write ``<name>.json`` and ``<name>.npz`` (and exports) atomically.
 
     All files are first written to temporary names in ``directory`` and
@@ -132,6 +214,9 @@ def write_artefact(result: DesignResult, directory: str | Path, spec_sha256: str
         ``<name>_law.casadi`` plus generated ``<name>_law.c``/``.h``).
     solver : str
         Solver used, for provenance.
+    plant_record_sha256 : str, optional
+        sha256 of the ``plant.json`` written in the same run (`file_sha256` of
+        `write_plant_record`'s path); ``verify`` then refuses another plant record.
 
     Returns
     -------
@@ -149,10 +234,13 @@ def write_artefact(result: DesignResult, directory: str | Path, spec_sha256: str
                         "to export", key="export")
     directory = Path(directory)
     directory.mkdir(parents=True, exist_ok=True)
-    doc = artefact_document(result, spec_sha256, solver)
     gains = {k: np.asarray(v, dtype=float) for k, v in result.gains.items()}
+    npz = _npz_bytes(gains)
+    doc = artefact_document(result, spec_sha256, solver, npz_sha256=hashlib.sha256(npz).hexdigest(),
+                            plant_record_sha256=plant_record_sha256)
     payloads: dict[str, bytes] = {
         ".json": (json.dumps(doc, indent=2, allow_nan=False) + "\n").encode("utf-8"),
+        ".npz": npz,
     }
     extensions = (".json", ".npz", *(f".{e}" for e in export if e != "law"))
     final = {ext: directory / f"{result.name}{ext}" for ext in extensions}
@@ -161,8 +249,6 @@ def write_artefact(result: DesignResult, directory: str | Path, spec_sha256: str
         for ext, target in final.items():
             if ext in payloads:
                 payload = payloads[ext]
-            elif ext == ".npz":
-                payload = lambda fh: np.savez(fh, **gains)  # noqa: E731
             elif ext == ".mat":
                 from scipy.io import savemat
 
@@ -200,7 +286,8 @@ def read_artefact(path: str | Path, check_gains: bool = True) -> dict:
     ----------
     path : str or Path
     check_gains : bool
-        Recompute the gains' sha256 and refuse a mismatch (tampering).
+        Recompute the gains' sha256 and the content's sha256 (`content_digest`)
+        and refuse a mismatch (tampering).
 
     Raises
     ------
@@ -230,9 +317,23 @@ def read_artefact(path: str | Path, check_gains: bool = True) -> dict:
     if not isinstance(doc["name"], str) or doc["name"] != path.stem:
         raise ArtefactError(f"{path}: the artefact's name {doc['name']!r} does not match its file "
                             f"name (expected {path.stem!r}); artefacts are written as <name>.json")
+    if not isinstance(doc["provenance"], dict):
+        raise ArtefactError(f"{path}: provenance must be a table")
     if check_gains and gains_digest(gains) != doc["provenance"].get("gains_sha256"):
         raise ArtefactError(f"{path}: gains do not match their provenance hash "
                             "(edited after design?)")
+    if check_gains:
+        stored = doc["provenance"].get("content_sha256")
+        if not isinstance(stored, str):
+            raise ArtefactError(f"{path}: provenance has no content_sha256; name, method, plant, "
+                                "diagnostics and LaTeX are not covered (rewrite it with `tanksynth design`)")
+        try:
+            actual = content_digest(doc)
+        except ArtefactError as exc:
+            raise ArtefactError(f"{path}: {exc}") from None
+        if actual != stored:
+            raise ArtefactError(f"{path}: name, method, plant, diagnostics, LaTeX or provenance do not "
+                                "match content_sha256 (content edited after design)")
     doc["gains"] = gains
     return doc
 
@@ -289,3 +390,130 @@ def read_plant_record(directory: str | Path) -> dict:
     if not isinstance(doc, dict) or doc.get("schema") != PLANT_SCHEMA:
         raise ArtefactError(f"{path}: expected schema {PLANT_SCHEMA!r}")
     return doc
+
+
+def check_npz(path: str | Path, doc: Mapping[str, Any]) -> Path:
+    """Refuse an artefact whose ``<name>.npz`` is missing or not the one design wrote.
+
+    Parameters
+    ----------
+    path : str or Path
+        The artefact JSON (``DIR/<name>.json``).
+    doc : mapping
+        Its document (`read_artefact`), whose provenance holds ``npz_sha256``.
+
+    Returns
+    -------
+    Path
+        The checked ``.npz``.
+
+    Raises
+    ------
+    ArtefactError
+        Naming the ``.npz``: missing, unreadable, or its bytes differ from
+        ``npz_sha256`` (edited, replaced or swapped after design).
+    """
+    npz = Path(path).with_suffix(".npz")
+    if not npz.is_file():
+        raise ArtefactError(f"{npz}: missing; every artefact's gains are written as <name>.json "
+                            "and <name>.npz")
+    stored = doc["provenance"].get("npz_sha256")
+    if not isinstance(stored, str):
+        raise ArtefactError(f"{path}: provenance has no npz_sha256; {npz} is not covered")
+    if file_sha256(npz) != stored:
+        raise ArtefactError(f"{npz}: does not match npz_sha256 in {Path(path).name} "
+                            "(gains edited, replaced or swapped after design)")
+    return npz
+
+
+def check_orphan_npz(directory: str | Path, names: Iterable[str]) -> None:
+    """Refuse a ``<name>.npz`` in ``directory`` with no artefact ``<name>.json``.
+
+    Verdict traces (``<name>.traces.npz``) are not gains files and are skipped.
+
+    Parameters
+    ----------
+    directory : str or Path
+    names : iterable of str
+        The names of the artefacts read from ``directory``.
+
+    Raises
+    ------
+    ArtefactError
+        Naming the orphan ``.npz``.
+    """
+    from tanksynth.artefacts.traces import TRACE_SUFFIX
+
+    known = set(names)
+    for npz in sorted(Path(directory).glob("*.npz")):
+        if npz.name.endswith(TRACE_SUFFIX) or npz.stem in known:
+            continue
+        raise ArtefactError(f"{npz}: gains file with no artefact {npz.stem}.json beside it "
+                            "(artefact deleted after design?)")
+
+
+def check_plant_record(directory: str | Path, artefacts: Iterable[tuple[Path, Mapping[str, Any]]]) -> None:
+    """Refuse a ``plant.json`` other than the one written with the artefacts.
+
+    Artefacts whose provenance records a ``plant_record_sha256`` (written by
+    ``tanksynth design``) need ``DIR/plant.json`` with exactly that sha256.
+
+    Parameters
+    ----------
+    directory : str or Path
+    artefacts : iterable of (Path, mapping)
+        The artefacts read (`read_artefact`).
+
+    Raises
+    ------
+    ArtefactError
+        Naming ``plant.json``: missing or edited after design.
+    """
+    record = Path(directory) / "plant.json"
+    actual: str | None = None
+    for path, doc in artefacts:
+        stored = doc["provenance"].get("plant_record_sha256")
+        if stored is None:
+            continue
+        if not record.is_file():
+            raise ArtefactError(f"{record}: missing; {path.name} was designed with a plant record")
+        if actual is None:
+            actual = file_sha256(record)
+        if actual != stored:
+            raise ArtefactError(f"{record}: does not match plant_record_sha256 in {path.name} "
+                                "(plant record edited after design)")
+
+
+def rehash(path: str | Path) -> Path:
+    """Make an artefact consistent again after its JSON was edited (tests, tools).
+
+    Rewrites ``<name>.npz`` from the JSON's gains and recomputes every digest
+    of the provenance (``gains_sha256``, ``npz_sha256``, ``plant_record_sha256``
+    from the ``plant.json`` beside it when the field is set, ``content_sha256``):
+    the result reads as a (possibly wrong) design written consistently, not as
+    tampering.
+
+    Parameters
+    ----------
+    path : str or Path
+        The artefact JSON.
+
+    Returns
+    -------
+    Path
+        The JSON file.
+    """
+    path = Path(path)
+    doc = json.loads(path.read_text(encoding="utf-8"))
+    gains = {k: np.asarray(v, dtype=float) for k, v in doc["gains"].items()}
+    npz = _npz_bytes(gains)
+    prov = doc.setdefault("provenance", {})
+    prov["gains_sha256"] = gains_digest(gains)
+    prov["npz_sha256"] = hashlib.sha256(npz).hexdigest()
+    record = path.parent / "plant.json"
+    if prov.get("plant_record_sha256") is not None and record.is_file():
+        prov["plant_record_sha256"] = file_sha256(record)
+    prov["content_sha256"] = content_digest(doc)
+    atomic_write(path.with_suffix(".npz"), npz)
+    atomic_write(path, json.dumps(doc, indent=2, allow_nan=False) + "\n")
+    return path

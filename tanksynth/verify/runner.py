@@ -183,9 +183,12 @@ def load_directory(directory: str | Path,
     ------
     ArtefactError
         No artefact, no ``spec.toml``, an unreadable or tampered artefact
-        (gains changed after design), or one designed from another spec.
+        (any of its content changed after design), a missing, edited or
+        swapped ``<name>.npz``, an ``.npz`` with no artefact, a ``plant.json``
+        other than the one designed with, or an artefact designed from another spec.
     """
-    from tanksynth.artefacts.io import SCHEMA, read_artefact  # lazy: see Verdict.as_dict
+    from tanksynth.artefacts.io import (SCHEMA, check_npz, check_orphan_npz,  # lazy: see Verdict.as_dict
+                                        check_plant_record, read_artefact)
 
     directory = Path(directory)
     if not directory.is_dir():
@@ -201,9 +204,13 @@ def load_directory(directory: str | Path,
             continue  # plant record, campaign metadata, ...
         if not isinstance(head, dict) and path.name in ("checks.json",):
             continue
-        docs.append((path, read_artefact(path)))
+        doc = read_artefact(path)
+        check_npz(path, doc)
+        docs.append((path, doc))
+    check_orphan_npz(directory, (path.stem for path, _ in docs))
     if not docs:
         raise ArtefactError(f"{directory}: no artefact (*.json with schema {SCHEMA!r})")
+    check_plant_record(directory, docs)
     spec_path = directory / "spec.toml"
     try:
         raw = spec_path.read_bytes()

@@ -54,6 +54,9 @@ def test_writes_json_and_npz(tmp_path):
     assert prov["tanksynth_version"] and prov["tanksynth_version"] != "unknown"
     assert {"numpy", "scipy", "sympy", "casadi", "python"} <= set(prov["packages"])
     assert prov["gains_sha256"] == gains_digest(res.gains)
+    assert prov["npz_sha256"] == artefact_mod.file_sha256(tmp_path / "out" / "akf.npz")
+    assert prov["plant_record_sha256"] is None
+    assert prov["content_sha256"] == artefact_mod.content_digest(doc)
     # gains as nested lists of floats, equal to the npz
     assert doc["gains"]["K"] == res.gains["K"].tolist()
     assert doc["gains"]["x0"] == [0.4, 0.2, 0.3]
@@ -309,3 +312,59 @@ def test_nan_gain_and_foreign_name_are_refused(tmp_path):
     good.rename(other)
     with pytest.raises(ArtefactError, match="does not match its file name"):
         read_artefact(other)
+
+
+@pytest.mark.parametrize("key, value", [
+    ("method", "kalman"), ("plant", "quadruple_tank"), ("latex", {"F": r"\input{/etc/passwd}"}),
+    ("diagnostics", {"status": "edited"}),
+])
+def test_content_edited_after_design_is_refused(tmp_path, key, value):
+    """Anything design wrote (not only the gains) is covered by content_sha256."""
+    path = write_artefact(make_result(), tmp_path, SHA)
+    doc = json.loads(path.read_text())
+    doc[key] = value
+    path.write_text(json.dumps(doc))
+    with pytest.raises(ArtefactError, match=r"akf\.json: .*content edited after design"):
+        read_artefact(path)
+    read_artefact(path, check_gains=False)                  # the explicit opt-out still reads
+    artefact_mod.rehash(path)                               # consistently re-written: accepted
+    assert read_artefact(path)[key] == value
+
+
+def test_verification_field_is_not_covered(tmp_path):
+    path = write_artefact(make_result(), tmp_path, SHA)
+    doc = json.loads(path.read_text())
+    doc["verification"] = {"passed": True, "checks": []}
+    path.write_text(json.dumps(doc))
+    assert read_artefact(path)["verification"]["passed"] is True
+
+
+def test_missing_content_hash_and_nan_diagnostics_are_refused(tmp_path):
+    path = write_artefact(make_result(), tmp_path, SHA)
+    doc = json.loads(path.read_text())
+    del doc["provenance"]["content_sha256"]
+    path.write_text(json.dumps(doc))
+    with pytest.raises(ArtefactError, match="no content_sha256"):
+        read_artefact(path)
+    doc["diagnostics"]["margin"] = float("nan")               # JSON with a NaN token
+    doc["provenance"]["content_sha256"] = "0" * 64
+    path.write_text(json.dumps(doc))
+    with pytest.raises(ArtefactError, match="canonical JSON"):
+        read_artefact(path)
+
+
+def test_npz_and_plant_record_checks(tmp_path):
+    path = write_artefact(make_result(), tmp_path, SHA, plant_record_sha256="cd" * 32)
+    doc = read_artefact(path)
+    assert artefact_mod.check_npz(path, doc) == tmp_path / "akf.npz"
+    (tmp_path / "plant.json").write_text("{}")
+    with pytest.raises(ArtefactError, match=r"plant\.json: does not match plant_record_sha256"):
+        artefact_mod.check_plant_record(tmp_path, [(path, doc)])
+    np.savez(tmp_path / "akf.npz", K=np.zeros((2, 3)))
+    with pytest.raises(ArtefactError, match=r"akf\.npz: does not match npz_sha256"):
+        artefact_mod.check_npz(path, doc)
+    np.savez(tmp_path / "other.npz", K=np.zeros(1))
+    with pytest.raises(ArtefactError, match=r"other\.npz: gains file with no artefact"):
+        artefact_mod.check_orphan_npz(tmp_path, ["akf"])
+    (tmp_path / "other.npz").rename(tmp_path / "other.traces.npz")
+    artefact_mod.check_orphan_npz(tmp_path, ["akf"])        # a verdict trace is not a gains file

@@ -33,7 +33,10 @@ def design_dir(directory: Path, spec_text: str) -> Path:
 
 
 def edit_json(path: Path, **changes) -> None:
-    """Change top-level keys of a JSON file (gains untouched: the provenance hash still holds)."""
+    """Change top-level keys of an artefact JSON and re-hash it (a consistently written design)."""
+    from tanksynth.artefacts.io import rehash
+
     doc = json.loads(path.read_text(encoding="utf-8"))
     doc.update(changes)
     path.write_text(json.dumps(doc, indent=2), encoding="utf-8")
+    rehash(path)
