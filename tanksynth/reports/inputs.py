@@ -14,7 +14,8 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from tanksynth.artefacts.io import PLANT_SCHEMA, SCHEMA, read_artefact, read_plant_record
+from tanksynth.artefacts.io import (PLANT_SCHEMA, SCHEMA, check_npz, check_orphan_npz,
+                                    check_plant_record, read_artefact, read_plant_record)
 from tanksynth.errors import ArtefactError
 
 __all__ = ["ReportInputs", "read_report_inputs"]
@@ -126,6 +127,11 @@ def read_report_inputs(directory: str | Path) -> ReportInputs:
     dupes = sorted({n for n in names if names.count(n) > 1})
     if dupes:
         raise ArtefactError(f"{d}: several artefacts are named {dupes}")
+    # the same integrity checks as `verify`: every byte the report reads is covered
+    for doc in artefacts:
+        check_npz(d / doc["_file"], doc)
+    check_orphan_npz(d, names)
+    check_plant_record(d, [(d / doc["_file"], doc) for doc in artefacts])
     spec_path = d / "spec.toml"
     spec_text = spec_path.read_text(encoding="utf-8", errors="replace") if spec_path.exists() else None
     checks = None

@@ -19,7 +19,7 @@ from pathlib import Path
 from typing import Any, Callable, Mapping
 
 from tanksynth.artefacts.atomic import atomic_write, commit
-from tanksynth.errors import ReportError
+from tanksynth.errors import ArtefactError, ReportError
 from tanksynth.reports.context import build_context, trace_figures
 from tanksynth.reports.figures import FigureFile, TraceFigure, pole_map
 from tanksynth.reports.inputs import ReportInputs, read_report_inputs
@@ -130,6 +130,10 @@ def write_report(directory: str | Path, pdf: bool = False, timeout: float = 180.
     """
     start = time.perf_counter()
     inputs = read_report_inputs(directory)
+    unknown = sorted({str(a.get("method")) for a in inputs.artefacts} - set(statements))
+    if unknown:
+        raise ArtefactError(f"{inputs.directory}: unknown design method(s) {unknown} in the artefacts; "
+                            "expected one of: " + ", ".join(sorted(statements)))
     d = inputs.directory
     comparisons = compare_with_papers(inputs)
     figdir = d / FIGURE_DIR

@@ -40,3 +40,13 @@ def edit_json(path: Path, **changes) -> None:
     doc.update(changes)
     path.write_text(json.dumps(doc, indent=2), encoding="utf-8")
     rehash(path)
+
+
+def replace_plant_record(directory: Path, record: dict) -> None:
+    """Replace ``plant.json`` and re-hash every artefact against it (an edit, not tampering)."""
+    from tanksynth.artefacts.io import rehash
+
+    (directory / "plant.json").write_text(json.dumps(record), encoding="utf-8")
+    for path in directory.glob("*.json"):
+        if path.name not in ("plant.json", "checks.json") and "gains" in json.loads(path.read_text()):
+            rehash(path)

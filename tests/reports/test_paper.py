@@ -7,7 +7,7 @@ import json
 import numpy as np
 import pytest
 
-from reports_helpers import copy_dir, design_dir, edit_json, needs_latex
+from reports_helpers import copy_dir, design_dir, edit_json, needs_latex, replace_plant_record
 from tanksynth.reports import compare_with_papers, read_report_inputs
 from tanksynth.papers import seed000 as paper000
 from tanksynth.papers import seed004 as paper004
@@ -84,7 +84,7 @@ def test_seed000_not_applied_elsewhere(demo_dir, tmp_path):
     d = copy_dir(demo_dir, tmp_path / "other")
     plant = json.loads((d / "plant.json").read_text())
     plant["operating_point"]["x"] = [0.5, 0.2, 0.3]
-    (d / "plant.json").write_text(json.dumps(plant))
+    replace_plant_record(d, plant)
     assert "seed000_linearisation" not in _by_key(compare_with_papers(read_report_inputs(d)))
 
 

@@ -136,3 +136,25 @@ def test_missing_latex_is_a_clear_report_error(demo_dir, tmp_path, monkeypatch):
     with pytest.raises(ReportError, match="pdflatex is not installed"):
         write_report(d, pdf=True)
     assert not (d / "report.pdf").exists() and (d / "report.tex").exists()
+
+
+def test_report_refuses_what_verify_refuses(demo_dir, tmp_path):
+    """An edited plant record, a deleted NPZ and an unknown method: `report` says so (exit 2),
+    as `verify` does, instead of rendering them."""
+    from tanksynth.artefacts.io import rehash
+
+    d = copy_dir(demo_dir, tmp_path / "edited_plant")
+    plant = json.loads((d / "plant.json").read_text(encoding="utf-8"))
+    plant["title"] = "edited"
+    (d / "plant.json").write_text(json.dumps(plant), encoding="utf-8")
+    with pytest.raises(ArtefactError, match="plant.json"):
+        write_report(d)
+    d = copy_dir(demo_dir, tmp_path / "no_npz")
+    (d / "linear_model.npz").unlink()
+    with pytest.raises(ArtefactError, match="linear_model.npz"):
+        write_report(d)
+    d = copy_dir(demo_dir, tmp_path / "evil")
+    edit_json(d / "linear_model.json", method="evil")
+    rehash(d / "linear_model.json")
+    with pytest.raises(ArtefactError, match="unknown design method"):
+        write_report(d)
