@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from tanksynth.papers import seed001
 from tanksynth.artefacts import read_artefact, write_artefact
 from tanksynth.methods import METHODS
 from tanksynth.errors import InfeasibleDesign
@@ -130,7 +131,7 @@ def test_certified_design_on_an_ordered_region(spec):
     # the paper's weights cannot be certified on the same region
     with pytest.raises(InfeasibleDesign):
         design(spec, "ts_observer_certified", search=False,
-               weights={"z1": [-0.7, 5.0, 17.0], "z3": [0.0, -3.0, -1.0]})
+               weights={"z1": list(seed001.LAMBDA), "z3": list(seed001.GAMMA)})
 
 
 def test_artefact_round_trip(paper, tmp_path, spec):

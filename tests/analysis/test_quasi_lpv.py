@@ -6,11 +6,12 @@ import numpy as np
 import pytest
 import sympy as sp
 
+from tanksynth.papers import seed001
 from tanksynth.analysis.quasi_lpv import domain_from_plant, quasi_lpv
 from tanksynth.errors import DimensionError, RegionError, SpecError
 from tanksynth.plants import three_tank
 
-PAPER = {"z1": [-0.7, 5.0, 17.0], "z3": [0.0, -3.0, -1.0]}
+PAPER = {"z1": list(seed001.LAMBDA), "z3": list(seed001.GAMMA)}
 BOX = [(0.05, 0.62)] * 3
 
 

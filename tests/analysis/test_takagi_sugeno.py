@@ -7,6 +7,7 @@ import itertools
 import numpy as np
 import pytest
 
+from tanksynth.papers import seed001
 from tanksynth.analysis import takagi_sugeno as tsmod
 from tanksynth.analysis.takagi_sugeno import (MAX_ENUMERATED_PREMISES, check_exactness,
                                               domain_from_plant, quasi_lpv, ts_model,
@@ -14,7 +15,7 @@ from tanksynth.analysis.takagi_sugeno import (MAX_ENUMERATED_PREMISES, check_exa
 from tanksynth.errors import TanksynthError
 from tanksynth.plants import tank_network, three_tank
 
-PAPER = {"z1": [-0.7, 5.0, 17.0], "z3": [0.0, -3.0, -1.0]}
+PAPER = {"z1": list(seed001.LAMBDA), "z3": list(seed001.GAMMA)}
 BOX = [(0.05, 0.62)] * 3
 
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from tanksynth.papers import seed001
 from tanksynth.design import takagi_sugeno as tsmod
 from tanksynth.analysis.takagi_sugeno import domain_from_plant, quasi_lpv, ts_model
 from tanksynth.design.takagi_sugeno import (candidate_weights, lipschitz_bound, search_weightings,
@@ -12,7 +13,7 @@ from tanksynth.design.takagi_sugeno import (candidate_weights, lipschitz_bound, 
 from tanksynth.errors import SpecError
 from tanksynth.plants import tank_network, three_tank
 
-PAPER = {"z1": [-0.7, 5.0, 17.0], "z3": [0.0, -3.0, -1.0]}
+PAPER = {"z1": list(seed001.LAMBDA), "z3": list(seed001.GAMMA)}
 BOX = [(0.05, 0.62)] * 3
 
 
