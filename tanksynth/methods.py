@@ -35,12 +35,14 @@ from typing import Any, Callable, Mapping
 
 from tanksynth.design import control_methods, convex_methods, decentralized_methods, model_methods
 from tanksynth.design import estimator_methods as est
+from tanksynth.design import robust_methods
 from tanksynth.design.result import DesignMethod, DesignResult
 from tanksynth.reports import statements as st
 from tanksynth.spec import DesignSpec, Spec, load_spec as _load_spec, parse_spec as _parse_spec
 from tanksynth.spec import parse_spec_text as _parse_spec_text
 from tanksynth.spec.method_options import MethodOptions
 from tanksynth.verify import campaign, decentralized, estimators, fault, laws, model, narx, placement
+from tanksynth.verify import robust as robust_verdicts
 from tanksynth.verify import ts_observer
 from tanksynth.verify.runner import Verdict, VerdictFn
 from tanksynth.verify.runner import verify_directory as _verify_directory
@@ -157,6 +159,15 @@ TABLE: tuple[Method, ...] = (
     _row("fault_detection", ("detector",), "observer residual with a derived fault-detection threshold",
          est.FAULT_DETECTION, fault.fault_detection_verdict, st.fault_detection_statement,
          campaign.fault_detection_run),
+    _row("robust_state_feedback", ("controller",),
+         "one state feedback for every vertex of a parameter box: LMI region, optional H-infinity "
+         "bound, saturation-aware invariant ellipsoid, optional integral action",
+         robust_methods.ROBUST_STATE_FEEDBACK, robust_verdicts.robust_state_feedback_verdict,
+         st.robust_state_feedback_statement, robust_verdicts.robust_run),
+    _row("robust_observer", ("observer",),
+         "one observer gain for every vertex of a parameter box: LMI region, optional H-infinity bound",
+         robust_methods.ROBUST_OBSERVER, robust_verdicts.robust_observer_verdict,
+         st.robust_observer_statement, robust_verdicts.robust_run),
 )
 
 

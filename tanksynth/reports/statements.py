@@ -17,7 +17,8 @@ def _is_number(v: Any) -> bool:
 
 __all__ = ["linearize_statement", "pole_placement_statement", "lmi_placement_statement",
            "ts_observer_statement", "canonical_observer_statement",
-           "feedback_linearization_statement", "integral_tracking_statement", "inverse_dynamics_statement", "decentralized_kalman_statement", "kalman_statement", "ekf_statement", "ukf_statement", "adaptive_kalman_statement", "adaptive_scaling_kalman_statement", "consensus_filter_statement", "luenberger_statement", "narx_statement", "fault_detection_statement"]
+           "feedback_linearization_statement", "integral_tracking_statement", "inverse_dynamics_statement", "decentralized_kalman_statement", "kalman_statement", "ekf_statement", "ukf_statement", "adaptive_kalman_statement", "adaptive_scaling_kalman_statement", "consensus_filter_statement", "luenberger_statement", "narx_statement", "fault_detection_statement",
+           "robust_state_feedback_statement", "robust_observer_statement"]
 
 
 def linearize_statement(diag: Mapping[str, Any]) -> Tex:
@@ -217,3 +218,63 @@ def fault_detection_statement(diag: Mapping[str, Any]) -> Tex:
                r"observer with poles placed by the canonical form is compared with a threshold "
                r"$J_{th}(t)$ derived from the bounds of the healthy error dynamics; a fault is declared "
                r"when $|r(t)| > J_{th}(t)$.")
+
+
+def _robust_common(diag: Mapping[str, Any]) -> str:
+    rob = diag.get("robust") or {}
+    region = (rob.get("region") or {}).get("description")
+    unc = diag.get("uncertain") or []
+    if unc:
+        box = ", ".join(rf"{escape_latex(str(u[0]))} \in [{format_number(u[1])}, {format_number(u[2])}]"
+                        for u in unc if len(u) == 3)
+        text = (rf" for every model of the polytope spanned by the $2^{{{len(unc)}}}$ corners of the "
+                rf"parameter box ${box}$ and the nominal model (linearised at the operating levels, "
+                r"each with its own equilibrium input), with one common Lyapunov matrix")
+    else:
+        text = " for the nominal model (no uncertain parameter)"
+    if region:
+        text += r"; here $D$: " + escape_latex(region)
+    dom = rob.get("domain") or diag.get("time_domain")
+    if dom:
+        text += f" ({escape_latex(dom)} time)"
+    hinf = rob.get("hinf")
+    if isinstance(hinf, Mapping) and _is_number(hinf.get("gamma")):
+        text += (rf". At every vertex the bounded real lemma certifies $\|T_{{zw}}\|_\infty < "
+                 rf"{format_number(hinf['gamma'])}$")
+    margin = rob.get("margin")
+    if _is_number(margin):
+        text += rf". Strict inequalities carry the margin ${format_number(margin)}$ after scaling"
+    return text + "."
+
+
+def robust_state_feedback_statement(diag: Mapping[str, Any]) -> Tex:
+    """The problem ``robust_state_feedback`` solves, in mathematics, from the artefact's diagnostics."""
+    text = (r"Find $X \succ 0$ and $Y$ with $L_D \otimes X + M_D \otimes (A_i X - B_i Y) + M_D^\top "
+            r"\otimes (A_i X - B_i Y)^\top \prec 0$, $K = Y X^{-1}$: every eigenvalue of $A_i - B_i K$ "
+            r"lies in the LMI region $D$" + _robust_common(diag))
+    if isinstance(diag.get("integral"), Mapping):
+        text += r" The plant is augmented with integral action, $K = [K_1\;K_2]$ (no offset on the tracked outputs)."
+    elif diag.get("offsets"):
+        off = diag["offsets"].get("max_abs_deviation")
+        if _is_number(off):
+            text += (rf" Without integral action the law applies the nominal $u_0$: a plant at a vertex "
+                     rf"settles up to ${format_number(off)}$ (state units) away from $x_0$.")
+    sat = diag.get("saturation")
+    if isinstance(sat, Mapping):
+        text += (r" Saturation: the ellipsoid $\{x : x^\top P x \le 1\}$, $P = X^{-1}$, is invariant at "
+                 r"every vertex and $\begin{bmatrix} u_{\max,j}^2 & Y_j \\ Y_j^\top & X\end{bmatrix} "
+                 r"\succeq 0$ gives $|u_j - u_{0,j}| \le u_{\max,j}$ on it")
+        axes = (sat.get("ellipsoid_axes") or {}).get("lengths")
+        if isinstance(axes, list) and axes:
+            text += "; semi-axes $" + ", ".join(format_number(a) for a in axes) + "$ (state units)"
+        text += "."
+    return Tex(text)
+
+
+def robust_observer_statement(diag: Mapping[str, Any]) -> Tex:
+    """The problem ``robust_observer`` solves, in mathematics, from the artefact's diagnostics."""
+    return Tex(r"Find $X \succ 0$ and $Y$ with $L_D \otimes X + M_D \otimes (A_i^\top X - C_i^\top Y) + "
+               r"M_D^\top \otimes (A_i^\top X - C_i^\top Y)^\top \prec 0$ (dual pairs), $L = (Y X^{-1})^\top$: "
+               r"every eigenvalue of $A_i - L C_i$ lies in the LMI region $D$" + _robust_common(diag)
+               + r" An observer running on the nominal model keeps a bias when the plant's parameters "
+                 r"differ; the certificate is about the error dynamics.")

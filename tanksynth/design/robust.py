@@ -1,0 +1,740 @@
+"""Polytopic robust state feedback and observers (LMI regions, H-infinity, saturation).
+
+Vertex models
+    `vertex_models` linearises the plant at the operating LEVELS ``x0`` at
+    every corner of a box of uncertain parameters (2^k corners), each corner
+    with its own equilibrium input ``u0(p)`` (the input that holds that plant
+    at ``x0``: the operating point is re-trimmed per vertex; the levels are
+    kept). For a model affine in ``u`` (the tank plants) the Jacobians do not
+    depend on ``u0``, so re-trimming changes no matrix; it records how far the
+    pumps' operating flow moves (a state feedback without integral action,
+    which applies the nominal ``u0``, settles with an offset there).
+    `polytope_check` measures whether the models of the box lie in the convex
+    hull of the vertex models (exact for models multi-affine in the
+    parameters, e.g. the outflow coefficients in continuous time; an
+    approximation for a tank area, which enters as ``1/A``, and for ZOH
+    models): the verdict samples the box independently.
+
+Synthesis (one gain, one common Lyapunov matrix ``X``)
+    region at every vertex ``i`` (Chilali-Gahinet):
+    ``L (x) X + M (x) (A_i X - B_i Y) + M' (x) (.)' < 0``, ``K = Y X^-1``;
+    optional H-infinity bound (bounded real lemma at every vertex, continuous
+    ``[[He(A_i X - B_i Y), Bw_i, (Cz X - Dzu Y)'], [Bw_i', -g I, 0], [Cz X -
+    Dzu Y, 0, -g I]] < 0``, discrete ``[[X, A_cl X, Bw, 0], [., X, 0, (C_cl
+    X)'], [., ., g I, 0], [., ., ., g I]] > 0``); optional saturation bound
+    (`SaturationBound`): the ellipsoid ``x' X^-1 x <= 1`` (deviation
+    coordinates) is invariant at every vertex (implied by the region LMI with
+    the same ``X``, imposed explicitly as the Lyapunov LMI too) and
+    ``[[umax_j^2, Y_j], [Y_j', X]] >= 0`` gives ``|K_j x| <= umax_j`` on it;
+    it contains the corners ``v`` of a box, ``[[tau, v'], [v, X]] >= 0``.
+    Observers solve the dual (``A_i'``, ``C_i'``; ``L = K'``).
+
+Solved with cvxpy + Clarabel on a scaled problem (diagonal balancing of the
+states, inputs normalised by ``umax`` or by the columns of ``B``, time
+scaling in continuous time), phase 1 the largest margin (its optimum below
+``margin`` is the certificate of infeasibility), phase 2 the smallest gain
+(or the largest ellipsoid), then re-checked in numpy in the plant's units.
+"""
+
+from __future__ import annotations
+
+import itertools
+import time
+import warnings
+from dataclasses import dataclass, field
+from typing import Any, Sequence
+
+import cvxpy as cp
+import numpy as np
+import scipy.linalg as sla
+
+from tanksynth.analysis.linearize import discretize_zoh, equilibrium_input, linearize
+from tanksynth.analysis.lmi_region import LMIRegion
+from tanksynth.errors import DimensionError, InfeasibleDesign, SpecError
+
+__all__ = ["VertexModels", "vertex_models", "box_corners", "polytope_check", "augment_integral",
+           "HinfBound", "SaturationBound", "RobustResult", "robust_state_feedback",
+           "robust_observer", "ellipsoid_axes"]
+
+
+# ================================================================ vertex models
+def box_corners(box: Sequence[tuple[str, float, float]]) -> np.ndarray:
+    """The 2^k corners of a parameter box, shape (2^k, k) (first parameter varying slowest).
+
+    Parameters
+    ----------
+    box : sequence of (name, low, high)
+        In each parameter's unit.
+    """
+    if not box:
+        return np.zeros((1, 0))
+    return np.array(list(itertools.product(*[(lo, hi) for _, lo, hi in box])), dtype=float)
+
+
+@dataclass(frozen=True)
+class VertexModels:
+    """Linearisations at the operating levels for parameter values (vertices or samples).
+
+    Attributes
+    ----------
+    names : tuple of str
+        Uncertain parameters.
+    values : ndarray, shape (V, k)
+        Their values at each model (parameter units).
+    A, B, C : ndarray, shapes (V, n, n), (V, n, m), (V, q, n)
+        Continuous (1/s, ...) or ZOH (dimensionless) matrices.
+    Bw : ndarray, shape (V, n, nw)
+        Disturbance input matrix, discretised with ``B`` in discrete time.
+    u0 : ndarray, shape (V, m)
+        Each model's equilibrium input at ``x0`` (input units).
+    balanced : ndarray of bool, shape (V,)
+        Whether ``u0`` balances the model exactly.
+    x0 : ndarray, shape (n,)
+        Operating levels (state units).
+    domain : str
+    ts : float or None
+        s.
+    """
+
+    names: tuple[str, ...]
+    values: np.ndarray
+    A: np.ndarray
+    B: np.ndarray
+    C: np.ndarray
+    Bw: np.ndarray
+    u0: np.ndarray
+    balanced: np.ndarray
+    x0: np.ndarray
+    domain: str
+    ts: float | None
+
+    @property
+    def count(self) -> int:
+        """Number of models V."""
+        return int(self.A.shape[0])
+
+    def as_dict(self) -> dict:
+        """JSON-friendly form (parameter values, equilibrium inputs, matrices)."""
+        return {"parameters": list(self.names), "values": self.values.tolist(),
+                "u0": self.u0.tolist(), "balanced": self.balanced.tolist(),
+                "A": self.A.tolist(), "B": self.B.tolist(), "C": self.C.tolist(),
+                "operating_point": "levels x0 kept; equilibrium input re-trimmed per vertex",
+                "domain": self.domain, "ts": self.ts}
+
+
+def vertex_models(plant: Any, x0: Sequence[float], box: Sequence[tuple[str, float, float]],
+                  domain: str, ts: float | None = None, *, values: np.ndarray | None = None,
+                  Bw: np.ndarray | str = "inputs") -> VertexModels:
+    """Linearise ``plant`` at the levels ``x0`` at every corner of ``box`` (or at ``values``).
+
+    Parameters
+    ----------
+    plant : Plant
+        With its nominal parameters (the spec's overrides applied).
+    x0 : sequence of float, length n
+        Operating levels (state units), kept at every vertex.
+    box : sequence of (name, low, high)
+        Uncertain parameters; empty: the nominal model only.
+    domain : {"continuous", "discrete"}
+    ts : float, optional
+        Sampling period (s), required in discrete time.
+    values : ndarray, shape (V, k), optional
+        Parameter values to linearise at instead of the corners.
+    Bw : ndarray (n, nw), "inputs" or "identity"
+        Continuous-time disturbance input matrix (state units per s per
+        disturbance unit): given, each model's ``B``, or the identity.
+
+    Returns
+    -------
+    VertexModels
+
+    Raises
+    ------
+    SpecError
+        A parameter value the plant refuses (named), a discrete domain without ``ts``.
+    """
+    if domain not in ("continuous", "discrete"):
+        raise SpecError(f"domain must be 'continuous' or 'discrete', got {domain!r}", key="time_domain")
+    if domain == "discrete" and ts is None:
+        raise SpecError("a discrete-time design needs a sampling period", key="sampling.ts")
+    names = tuple(b[0] for b in box)
+    vals = box_corners(box) if values is None else np.atleast_2d(np.asarray(values, dtype=float))
+    x0 = np.asarray(x0, dtype=float).reshape(-1)
+    As, Bs, Cs, Ws, U, ok = [], [], [], [], [], []
+    for row in vals:
+        pl = plant.with_parameters(dict(zip(names, map(float, row))), key="uncertain") if names else plant
+        eq = equilibrium_input(pl, x0)
+        lin = linearize(pl, x0, eq.u0)
+        W = lin.B if isinstance(Bw, str) and Bw == "inputs" else (
+            np.eye(plant.n) if isinstance(Bw, str) else np.asarray(Bw, dtype=float))
+        A, B = lin.F, lin.B
+        if domain == "discrete":
+            Ad, BB = discretize_zoh(lin.F, np.hstack([lin.B, W]), float(ts))
+            A, B, W = Ad, BB[:, :plant.m], BB[:, plant.m:]
+        As.append(A)
+        Bs.append(B)
+        Cs.append(lin.C)
+        Ws.append(W)
+        U.append(eq.u0)
+        ok.append(eq.is_equilibrium)
+    return VertexModels(names, vals, np.array(As), np.array(Bs), np.array(Cs), np.array(Ws),
+                        np.array(U), np.array(ok, dtype=bool), x0, domain,
+                        None if ts is None else float(ts))
+
+
+def polytope_check(plant: Any, x0: Sequence[float], box: Sequence[tuple[str, float, float]],
+                   vertices: VertexModels, samples: int = 32, seed: int = 0) -> dict:
+    """How far the models inside the box are from the multilinear interpolation of the vertices.
+
+    A model multi-affine in the parameters equals the multilinear
+    interpolation of its vertex models (then every model of the box lies in
+    their convex hull and the vertex certificate covers the box); the
+    largest relative difference over ``samples`` uniform draws measures
+    how far from that the plant is.
+
+    Returns
+    -------
+    dict
+        ``max_relative_interpolation_error``, ``samples``, ``exact`` (below 1e-9).
+    """
+    if not box:
+        return {"samples": 0, "max_relative_interpolation_error": 0.0, "exact": True,
+                "note": "no uncertain parameter: the nominal model only"}
+    rng = np.random.default_rng(seed)
+    lo = np.array([b[1] for b in box])
+    hi = np.array([b[2] for b in box])
+    frac = rng.random((samples, len(box)))
+    pts = lo + frac * (hi - lo)
+    inside = vertex_models(plant, x0, box, vertices.domain, vertices.ts, values=pts)
+    corners = itertools.product(*[(0, 1)] * len(box))
+    weights = np.ones((samples, vertices.count))
+    for j, bits in enumerate(corners):
+        for i, b in enumerate(bits):
+            weights[:, j] *= frac[:, i] if b else 1 - frac[:, i]
+    worst = 0.0
+    for name in ("A", "B"):
+        true = getattr(inside, name)
+        interp = np.einsum("sv,vij->sij", weights, getattr(vertices, name))
+        scale = max(float(np.max(np.abs(getattr(vertices, name)))), 1e-300)
+        worst = max(worst, float(np.max(np.abs(true - interp))) / scale)
+    return {"samples": int(samples), "seed": int(seed), "max_relative_interpolation_error": worst,
+            "exact": bool(worst < 1e-9),
+            "note": ("the models are multi-affine in the parameters: the vertex polytope contains "
+                     "every model of the box" if worst < 1e-9 else
+                     "the models are not multi-affine in the parameters (e.g. 1/A, or a ZOH "
+                     "model): the vertex polytope approximates the box; the verdict samples it")}
+
+
+def augment_integral(A: np.ndarray, B: np.ndarray, C1: np.ndarray, domain: str,
+                     ts: float | None) -> tuple[np.ndarray, np.ndarray]:
+    """Integral action on ``y1 = C1 x``: ``z' = r - C1 x`` or ``z+ = z + ts (r - C1 x)``.
+
+    Returns the augmented ``(Aa, Ba)`` (states ``(x, z)``; ``z`` in output units times s).
+    """
+    n, m = B.shape
+    p = C1.shape[0]
+    if domain == "discrete":
+        Aa = np.block([[A, np.zeros((n, p))], [-float(ts) * C1, np.eye(p)]])
+    else:
+        Aa = np.block([[A, np.zeros((n, p))], [-C1, np.zeros((p, p))]])
+    return Aa, np.vstack([B, np.zeros((p, m))])
+
+
+# ====================================================================== bounds
+@dataclass(frozen=True)
+class HinfBound:
+    """An H-infinity bound ``||T_zw||_inf < gamma`` imposed at every vertex.
+
+    Attributes
+    ----------
+    gamma : float
+        Units of ``z`` per unit of ``w``.
+    Bw : ndarray, shape (V, n, nw)
+        Disturbance input matrix of each vertex (same time domain as ``A``).
+    Cz : ndarray, shape (nz, n) or (V, nz, n)
+    Dzu : ndarray, shape (nz, m)
+    """
+
+    gamma: float
+    Bw: np.ndarray
+    Cz: np.ndarray
+    Dzu: np.ndarray
+
+
+@dataclass(frozen=True)
+class SaturationBound:
+    """Input limits ``|u_j - u0_j| <= umax_j`` on an invariant ellipsoid (usable with any design
+    of this module's state feedback).
+
+    Attributes
+    ----------
+    umax : ndarray, shape (m,)
+        Input units.
+    box : ndarray, shape (n_box,) or None
+        Half-widths of the box of initial deviations to contain (state
+        units; the first ``n_box`` states, the others, e.g. integrators,
+        start at 0). None: the cube of unit half-width is scaled as large
+        as possible.
+    n_box : int
+        Number of leading states the box and the half-spaces are about (0: all).
+    halfspaces : ndarray, shape (h, n_box), optional
+        Rows ``c`` of half-spaces ``c' x <= b`` the ellipsoid must lie in
+        (e.g. the operating region where the model holds), ``c' X c <= b^2``.
+    limits : ndarray, shape (h,), optional
+        The ``b`` of the half-spaces (> 0, units of ``c' x``).
+    """
+
+    umax: np.ndarray
+    box: np.ndarray | None = None
+    n_box: int = 0
+    halfspaces: np.ndarray | None = None
+    limits: np.ndarray | None = None
+
+
+@dataclass(frozen=True)
+class RobustResult:
+    """One gain meeting the region (and bounds) at every vertex, with its evidence.
+
+    Attributes
+    ----------
+    gain : ndarray
+        ``K`` (m, n) for ``u = -K x`` or ``L`` (n, q).
+    P, X : ndarray, shape (n, n)
+        Common Lyapunov matrix (state feedback ``P = X^-1``; observer ``P = X``).
+    kind : str
+    region : LMIRegion
+    domain : str
+    margin, achieved_margin, largest_margin : float
+        Requested, achieved (normalised LMIs) and phase-1 optimum.
+    solver, status : str
+    solve_time : float
+        s.
+    vertex_eigenvalues : ndarray, shape (V, n)
+    vertex_margins : ndarray, shape (V,)
+        ``min_i -lambda_max f_D(lambda_i)`` per vertex (> 0 inside).
+    worst_vertex : int
+    checks : tuple of dict
+        The numpy re-check (name, value, limit, passed).
+    hinf : dict or None
+    saturation : dict or None
+    scaling : dict
+    """
+
+    gain: np.ndarray
+    P: np.ndarray
+    X: np.ndarray
+    kind: str
+    region: LMIRegion
+    domain: str
+    margin: float
+    achieved_margin: float
+    largest_margin: float
+    solver: str
+    status: str
+    solve_time: float
+    vertex_eigenvalues: np.ndarray
+    vertex_margins: np.ndarray
+    worst_vertex: int
+    checks: tuple[dict, ...]
+    hinf: dict | None = None
+    saturation: dict | None = None
+    scaling: dict = field(default_factory=dict)
+
+    def as_dict(self) -> dict:
+        """JSON-friendly diagnostics (no gains)."""
+        return {"kind": self.kind, "region": self.region.as_dict(), "domain": self.domain,
+                "vertices": int(self.vertex_margins.size), "margin": self.margin,
+                "achieved_margin": self.achieved_margin, "largest_margin_t": self.largest_margin,
+                "solver": self.solver, "status": self.status, "solve_time_s": self.solve_time,
+                "vertex_eigenvalues": [[[float(z.real), float(z.imag)] for z in np.sort_complex(e)]
+                                       for e in self.vertex_eigenvalues],
+                "vertex_region_margins": self.vertex_margins.tolist(),
+                "worst_vertex": self.worst_vertex,
+                "min_region_margin": float(np.min(self.vertex_margins)),
+                "checks": list(self.checks), "hinf": self.hinf, "saturation": self.saturation,
+                "condition_P": float(np.linalg.cond(self.P)),
+                "gain_norm": float(np.linalg.norm(self.gain, 2)), "scaling": self.scaling}
+
+
+def ellipsoid_axes(P: np.ndarray, names: Sequence[str]) -> dict:
+    """Semi-axes of ``{x : x' P x <= 1}`` (lengths in the states' units, unit directions).
+
+    Parameters
+    ----------
+    P : ndarray, shape (k, k)
+        The ellipsoid's matrix restricted to the states named (e.g. the
+        section ``z = 0`` of an augmented ellipsoid).
+    names : sequence of str
+        State names.
+
+    Returns
+    -------
+    dict
+        ``lengths`` (ascending), ``directions`` (columns), ``extent`` (largest
+        ``|x_i|`` on the ellipsoid, per state) and ``names``.
+    """
+    w, V = np.linalg.eigh(0.5 * (P + P.T))
+    lengths = 1.0 / np.sqrt(w)
+    order = np.argsort(lengths)
+    extent = np.sqrt(np.diag(np.linalg.inv(P)))
+    return {"names": list(names), "lengths": lengths[order].tolist(),
+            "directions": V[:, order].tolist(), "extent": extent.tolist()}
+
+
+# ================================================================== synthesis
+def _solve(problem: cp.Problem, solver: str) -> str:
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", UserWarning)
+            problem.solve(solver=solver)
+    except cp.error.SolverError as exc:
+        return f"solver_error ({exc})"
+    return str(problem.status)
+
+
+def _region_block(reg: LMIRegion, AX: Any, X: Any, kron) -> Any:
+    out = kron(reg.L, X) + kron(reg.M, AX) + kron(reg.M.T, AX.T)
+    return 0.5 * (out + out.T)
+
+
+def _hinf_block(domain: str, AclX: Any, X: Any, Bw: np.ndarray, CclX: Any, gamma: float, lib) -> Any:
+    """Bounded real lemma block: ``< 0`` (continuous) or ``> 0`` (discrete) certifies ``gamma``."""
+    n, nw = Bw.shape
+    nz = CclX.shape[0]
+    Zw, Zz, Zwz = np.zeros((n, nw)), np.zeros((nw, nz)), np.zeros((n, nz))
+    if domain == "continuous":
+        blocks = [[AclX + AclX.T, Bw, CclX.T], [Bw.T, -gamma * np.eye(nw), Zz],
+                  [CclX, Zz.T, -gamma * np.eye(nz)]]
+    else:
+        blocks = [[X, AclX, Bw, Zwz], [AclX.T, X, Zw, CclX.T], [Bw.T, Zw.T, gamma * np.eye(nw), Zz],
+                  [Zwz.T, CclX, Zz.T, gamma * np.eye(nz)]]
+    M = lib(blocks)
+    return 0.5 * (M + M.T)
+
+
+def _lyapunov_block(domain: str, AclX: Any, X: Any, lib) -> Any:
+    """``He(A_cl X) <= 0`` (continuous) or ``[[X, A_cl X], [., X]] >= 0`` (discrete), as ``<= 0``."""
+    if domain == "continuous":
+        return 0.5 * (AclX + AclX.T) * 2
+    M = lib([[X, AclX], [AclX.T, X]])
+    return -0.5 * (M + M.T)
+
+
+def robust_state_feedback(A: Any, B: Any, region: LMIRegion, *, domain: str = "continuous",
+                          hinf: HinfBound | None = None, saturation: SaturationBound | None = None,
+                          margin: float = 1e-6, kappa: float = 1e4, solver: str = "CLARABEL",
+                          nominal: int | None = None, _dual: bool = False) -> RobustResult:
+    """One state feedback ``u = -K x`` putting ``eig(A_i - B_i K)`` in ``region`` at every vertex.
+
+    Parameters
+    ----------
+    A : array_like, shape (V, n, n)
+        Vertex matrices (1/s, or dimensionless in discrete time).
+    B : array_like, shape (V, n, m)
+    region : LMIRegion
+        Must lie in the stability domain of ``domain``.
+    domain : {"continuous", "discrete"}
+    hinf : HinfBound, optional
+    saturation : SaturationBound, optional
+    margin : float
+        Strictness margin of the normalised LMIs, in (0, 1).
+    kappa : float
+        ``X`` is kept within ``[1/kappa, kappa]`` (normalised; ``[1, kappa]``
+        for the homogeneous region-only problem).
+    solver : {"CLARABEL", "SCS"}
+    nominal : int, optional
+        Index of the nominal vertex (for the infeasibility diagnosis).
+
+    Returns
+    -------
+    RobustResult
+
+    Raises
+    ------
+    SpecError
+        Bad shapes or options, a region outside the stability domain.
+    InfeasibleDesign
+        The phase-1 optimum is below ``margin`` (with the optimum, and the
+        optimum of the region alone and of the nominal model as the reason),
+        or the numpy re-check fails.
+    """
+    A = np.asarray(A, dtype=float)
+    B = np.asarray(B, dtype=float)
+    if A.ndim == 2:
+        A, B = A[None], B[None]
+    if A.ndim != 3 or B.ndim != 3 or A.shape[1] != A.shape[2] or B.shape[:2] != A.shape[:2]:
+        raise DimensionError(f"vertex matrices A {A.shape} and B {B.shape} do not fit (V, n, n), (V, n, m)")
+    if domain not in ("continuous", "discrete"):
+        raise SpecError(f"domain must be 'continuous' or 'discrete', got {domain!r}", key="time_domain")
+    if not region.stable_in(domain):
+        raise SpecError(f"region {region.describe()} is not inside the {domain}-time stability domain",
+                        key="region")
+    if not (0 < margin < 1) or kappa <= 1:
+        raise SpecError(f"margin must be in (0, 1) and kappa > 1, got {margin!r}, {kappa!r}", key="margin")
+    V, n, m = B.shape
+    # ---- scaling
+    Amean = A.mean(axis=0)
+    _, (s, _p) = sla.matrix_balance(Amean, permute=False, separate=True)
+    s = np.asarray(s, dtype=float)
+    Ab = A * (1.0 / s)[None, :, None] * s[None, None, :]
+    Bb = B / s[None, :, None]
+    if saturation is not None:
+        su = np.asarray(saturation.umax, dtype=float).reshape(m)
+    else:
+        su = 1.0 / np.maximum(np.max(np.linalg.norm(Bb, axis=1), axis=0), 1e-300)
+    Bb = Bb * su[None, None, :]
+    omega = float(np.linalg.norm(Ab.mean(axis=0), 2)) if domain == "continuous" else 1.0
+    omega = omega if omega > 0 else 1.0
+    As, Bs, reg = Ab / omega, Bb / omega, region.scaled(omega)
+    I = np.eye(n)
+    X = cp.Variable((n, n), symmetric=True)
+    Y = cp.Variable((m, n))
+    d = reg.order * n
+    homogeneous = hinf is None and saturation is None
+    hs = None
+    if hinf is not None:
+        Bw = np.asarray(hinf.Bw, dtype=float)
+        Bws = Bw / s[None, :, None] / omega
+        Cz = np.asarray(hinf.Cz, dtype=float)
+        Czs = (np.broadcast_to(Cz, (V,) + Cz.shape[-2:]) if Cz.ndim == 3 else
+               np.repeat(Cz[None], V, axis=0)) * s[None, None, :]
+        Dzs = np.asarray(hinf.Dzu, dtype=float) * su[None, :]
+        cw = 1.0 / max(float(np.max(np.linalg.norm(Bws, axis=1))), 1e-300)
+        rz = 1.0 / max(float(np.max(np.linalg.norm(Czs, axis=2))),
+                       float(np.max(np.linalg.norm(Dzs, axis=1))) if Dzs.size else 0.0, 1e-300)
+        hs = (Bws * cw, Czs * rz, Dzs * rz, float(hinf.gamma) * cw * rz)
+    corners = None
+    if saturation is not None:
+        nb = saturation.n_box or n
+        half = np.ones(nb) if saturation.box is None else np.asarray(saturation.box, dtype=float)
+        corners = []
+        for signs in itertools.product((-1.0, 1.0), repeat=nb):
+            v = np.zeros(n)
+            v[:nb] = np.asarray(signs) * half
+            corners.append(v / s)
+    tau = cp.Variable(nonneg=True)
+
+    def constraints(t: Any, regions_only: bool = False, vertices: Sequence[int] | None = None) -> list:
+        out = []
+        for i in (range(V) if vertices is None else vertices):
+            AclX = As[i] @ X - Bs[i] @ Y
+            out.append(_region_block(reg, AclX, X, cp.kron) << -t * np.eye(d))
+            if regions_only:
+                continue
+            if hs is not None:
+                CclX = hs[1][i] @ X - hs[2] @ Y
+                blk = _hinf_block(domain, AclX, X, hs[0][i], CclX, hs[3], cp.bmat)
+                size = blk.shape[0]
+                out.append(blk << -t * np.eye(size) if domain == "continuous" else blk >> t * np.eye(size))
+            if saturation is not None:
+                out.append(_lyapunov_block(domain, AclX, X, cp.bmat) << 0)
+        if saturation is not None and not regions_only:
+            if saturation.halfspaces is not None:
+                for c, b in zip(np.asarray(saturation.halfspaces, float), saturation.limits):
+                    cc = np.zeros(n)
+                    cc[:c.size] = c
+                    cs = cc * s
+                    out.append(cs @ X @ cs <= float(b) ** 2)
+            for j in range(m):
+                out.append(cp.bmat([[np.ones((1, 1)), Y[j:j + 1, :]], [Y[j:j + 1, :].T, X]]) >> 0)
+        if homogeneous or regions_only:
+            out += [X >> I, X << kappa * I]
+        else:
+            out += [X >> I / kappa, X << kappa * I]
+        return out
+
+    def box_constraints(bound: Any) -> list:
+        corner = np.ones((1, 1)) * bound if isinstance(bound, float) else cp.reshape(bound, (1, 1), order="F")
+        return [cp.bmat([[corner, v[None, :]], [v[:, None], X]]) >> 0 for v in corners]
+
+    t = cp.Variable()
+    base = constraints(t)
+    if saturation is not None and saturation.box is not None:
+        base += box_constraints(1.0)
+    start = time.perf_counter()
+    status = _solve(cp.Problem(cp.Maximize(t), base + [t <= 1.0]), solver)
+    tstar = float(t.value) if status in ("optimal", "optimal_inaccurate") and t.value is not None else -np.inf
+    if tstar < margin:
+        raise InfeasibleDesign(_infeasible_reason(region, V, margin, tstar, status, solver, hinf,
+                                                  saturation, constraints, t, nominal))
+    Xv, Yv, status1 = X.value.copy(), Y.value.copy(), status
+    bound = max(margin, 0.5 * tstar)
+    phase2 = constraints(bound)
+    if saturation is not None and saturation.box is not None:
+        phase2 += box_constraints(1.0)
+        objective = cp.Minimize(cp.norm(Y, "fro"))
+    elif saturation is not None:
+        phase2 += box_constraints(tau)
+        objective = cp.Minimize(tau)
+    else:
+        objective = cp.Minimize(cp.norm(Y, "fro"))
+    status2 = _solve(cp.Problem(objective, phase2), solver)
+    if status2 in ("optimal", "optimal_inaccurate") and X.value is not None:
+        Xv, Yv = X.value, Y.value
+        status = f"{status1} (phase 1), {status2} (phase 2)"
+    else:
+        status = f"{status1} (phase 1), {status2} (phase 2 failed: phase-1 solution kept)"
+    elapsed = time.perf_counter() - start
+    Xs = 0.5 * (Xv + Xv.T)
+    Ks = np.linalg.solve(Xs, np.asarray(Yv).T).T
+    K = (su[:, None] * Ks) / s[None, :]
+    Xo = (s[:, None] * Xs) * s[None, :]
+    return _recheck(A, B, K, Xs, Xo, Ks, As, Bs, reg, region, domain, margin, tstar, solver, status,
+                    elapsed, hinf, hs, saturation, corners, s, su, omega, kappa, _dual)
+
+
+def _infeasible_reason(region, V, margin, tstar, status, solver, hinf, saturation, constraints, t,
+                       nominal) -> str:
+    extra = []
+    parts = ("region" + (", H-infinity bound" if hinf is not None else "")
+             + (", saturation bound" if saturation is not None else ""))
+    if hinf is not None or saturation is not None:
+        st = _solve(cp.Problem(cp.Maximize(t), constraints(t, regions_only=True) + [t <= 1.0]), solver)
+        tr = float(t.value) if t.value is not None and st.startswith("optimal") else -np.inf
+        extra.append(f"the region alone at the {V} vertices: t* = {tr:.3g}")
+    if nominal is not None and V > 1:
+        st = _solve(cp.Problem(cp.Maximize(t), constraints(t, True, [nominal]) + [t <= 1.0]), solver)
+        tn = float(t.value) if t.value is not None and st.startswith("optimal") else -np.inf
+        extra.append(f"the nominal model alone: t* = {tn:.3g}"
+                     + (" (feasible: the uncertainty makes the request infeasible)" if tn >= margin
+                        else " (infeasible even without uncertainty)"))
+    return (f"no single gain meets the {parts} at all {V} vertex model(s) with margin {margin:g} "
+            f"(region {region.describe()}): largest achievable margin t* = {tstar:.3g} (solver {solver} "
+            f"status {status}; max t s.t. every vertex LMI <= -t I with a common Lyapunov matrix, the "
+            "optimum certifies that no larger margin exists)" + ("; " + "; ".join(extra) if extra else ""))
+
+
+def _recheck(A, B, K, Xs, Xo, Ks, As, Bs, reg, region, domain, margin, tstar, solver, status, elapsed,
+             hinf, hs, saturation, corners, s, su, omega, kappa, dual) -> RobustResult:
+    V, n, m = B.shape
+    checks = []
+
+    def add(name: str, value: float, limit: float, ok: bool) -> None:
+        checks.append({"name": name, "value": float(value), "limit": float(limit), "passed": bool(ok)})
+
+    worst_n, worst_o = -np.inf, -np.inf
+    eigs, margins = [], []
+    for i in range(V):
+        Mn = _region_block(reg, (As[i] - Bs[i] @ Ks) @ Xs, Xs, np.kron)
+        worst_n = max(worst_n, float(np.max(np.linalg.eigvalsh(Mn))))
+        Mo = _region_block(region, (A[i] - B[i] @ K) @ Xo, Xo, np.kron)
+        worst_o = max(worst_o, float(np.max(np.linalg.eigvalsh(Mo))))
+        lam = np.linalg.eigvals(A[i] - B[i] @ K)
+        eigs.append(lam)
+        margins.append(min(region.margin(z) for z in lam))
+    margins_arr = np.array(margins)
+    add("region LMI at every vertex, normalised (max eigenvalue <= -margin/2)", worst_n, -0.5 * margin,
+        worst_n <= -0.5 * margin)
+    add("region LMI at every vertex, original units (max eigenvalue < 0)", worst_o, 0.0, worst_o < 0)
+    xmin = float(np.min(np.linalg.eigvalsh(Xs)))
+    add("X > 0 (min eigenvalue, normalised)", xmin, 0.0, xmin > 0)
+    add("eigenvalues of every vertex closed loop inside the region (min margin)", margins_arr.min(), 0.0,
+        margins_arr.min() > 0)
+    hinf_out = None
+    if hinf is not None:
+        worst_h = -np.inf
+        for i in range(V):
+            AclX = (As[i] - Bs[i] @ Ks) @ Xs
+            CclX = (hs[1][i] - hs[2] @ Ks) @ Xs
+            blk = _hinf_block(domain, AclX, Xs, hs[0][i], CclX, hs[3], np.block)
+            ev = np.linalg.eigvalsh(blk)
+            worst_h = max(worst_h, float(ev.max()) if domain == "continuous" else float(-ev.min()))
+        add("bounded real lemma at every vertex, normalised (<= -margin/2)", worst_h, -0.5 * margin,
+            worst_h <= -0.5 * margin)
+        hinf_out = {"gamma": float(hinf.gamma), "vertices": V, "worst_lmi_eigenvalue": worst_h}
+    sat_out = None
+    if saturation is not None:
+        umax = np.asarray(saturation.umax, dtype=float)
+        peak = np.sqrt(np.maximum(np.einsum("ij,jk,ik->i", K, Xo, K), 0.0))
+        ratio = float(np.max(peak / umax))
+        add("max over the ellipsoid of |K_j x| / umax_j (<= 1)", ratio, 1.0, ratio <= 1.0 + 1e-6)
+        P = np.linalg.inv(Xo)
+        lyap = -np.inf
+        for i in range(V):
+            Acl = A[i] - B[i] @ K
+            Lm = Acl.T @ P + P @ Acl if domain == "continuous" else Acl.T @ P @ Acl - P
+            lyap = max(lyap, float(np.max(np.linalg.eigvalsh(0.5 * (Lm + Lm.T)))) / float(np.linalg.norm(P, 2)))
+        if saturation.halfspaces is not None:
+            Xp = Xo[:saturation.halfspaces.shape[1], :saturation.halfspaces.shape[1]]
+            reach = np.sqrt(np.einsum("ij,jk,ik->i", saturation.halfspaces, Xp, saturation.halfspaces))
+            worst_h = float(np.max(reach / np.asarray(saturation.limits, dtype=float)))
+            add("ellipsoid inside the half-spaces c' x <= b (max sqrt(c' X c) / b)", worst_h, 1.0,
+                worst_h <= 1.0 + 1e-6)
+        add("ellipsoid invariant at every vertex (max eigenvalue of the Lyapunov form, relative)",
+            lyap, 0.0, lyap <= 1e-9)
+        vs = [v * s for v in corners]
+        tau_val = max(float(v @ P @ v) for v in vs)
+        scale = 1.0 / np.sqrt(tau_val)
+        if saturation.box is not None:
+            add("requested box inside the ellipsoid (max v' P v over its corners)", tau_val, 1.0,
+                tau_val <= 1.0 + 1e-6)
+        nb = saturation.n_box or n
+        half = np.ones(nb) if saturation.box is None else np.asarray(saturation.box, dtype=float)
+        sat_out = {"umax": umax.tolist(), "peak_input_deviation": peak.tolist(),
+                   "box": None if saturation.box is None else half.tolist(),
+                   "box_scale": float(scale), "certified_box": (scale * half).tolist(),
+                   "n_box": nb, "P": P.tolist()}
+    failed = [c for c in checks if not c["passed"]]
+    if failed:
+        worst = "; ".join(f"{c['name']}: {c['value']:.4g} vs {c['limit']:.4g}" for c in failed)
+        raise InfeasibleDesign(f"robust LMI design fails the independent re-check ({worst}); solver "
+                               f"{solver} status {status}")
+    P = Xo if dual else np.linalg.inv(Xo)
+    wv = int(np.argmin(margins_arr))
+    return RobustResult(
+        gain=K.T if dual else K, P=0.5 * (P + P.T), X=Xo, kind="observer" if dual else "state_feedback",
+        region=region, domain=domain, margin=float(margin), achieved_margin=float(-worst_n),
+        largest_margin=float(tstar), solver=solver, status=status, solve_time=elapsed,
+        vertex_eigenvalues=np.array(eigs), vertex_margins=margins_arr, worst_vertex=wv,
+        checks=tuple(checks), hinf=hinf_out, saturation=sat_out,
+        scaling={"state_balance": s.tolist(), "input_scale": su.tolist(), "time_scale": omega,
+                 "kappa": kappa, "formulation": "dual (A_i', C_i')" if dual else "primal",
+                 "objective": ("phase 1: max margin t; phase 2: "
+                               + ("largest ellipsoid (min tau, box scale 1/sqrt(tau))"
+                                  if saturation is not None and saturation.box is None
+                                  else "min ||Y||_F")
+                               + " with every LMI <= -max(margin, t*/2) I")})
+
+
+def robust_observer(A: Any, C: Any, region: LMIRegion, *, domain: str = "continuous",
+                    hinf: HinfBound | None = None, margin: float = 1e-6, kappa: float = 1e4,
+                    solver: str = "CLARABEL", nominal: int | None = None) -> RobustResult:
+    """One observer gain ``L`` putting ``eig(A_i - L C_i)`` in ``region`` at every vertex (dual).
+
+    Parameters
+    ----------
+    A : array_like, shape (V, n, n)
+    C : array_like, shape (V, q, n)
+    region : LMIRegion
+    domain : {"continuous", "discrete"}
+    hinf : HinfBound, optional
+        For the error ``e' = (A - L C) e + Bw w``, ``z = Cz e``: ``Bw`` (V, n,
+        nw), ``Cz`` (nz, n); ``Dzu`` is ignored.
+    margin, kappa : float
+    solver : {"CLARABEL", "SCS"}
+    nominal : int, optional
+
+    Returns
+    -------
+    RobustResult
+        ``gain`` is ``L`` (n, q), ``P`` the Lyapunov matrix of ``A_i - L C_i``.
+
+    Raises
+    ------
+    InfeasibleDesign
+    """
+    A = np.asarray(A, dtype=float)
+    C = np.asarray(C, dtype=float)
+    if A.ndim == 2:
+        A, C = A[None], C[None]
+    At = np.transpose(A, (0, 2, 1))
+    Ct = np.transpose(C, (0, 2, 1))
+    dual = None
+    if hinf is not None:
+        Cz = np.asarray(hinf.Cz, dtype=float)
+        Bw = np.asarray(hinf.Bw, dtype=float)
+        dual = HinfBound(hinf.gamma, np.repeat(Cz.T[None], A.shape[0], axis=0),
+                         np.transpose(Bw, (0, 2, 1)), np.zeros((Bw.shape[2], C.shape[1])))
+    return robust_state_feedback(At, Ct, region, domain=domain, hinf=dual, margin=margin, kappa=kappa,
+                                 solver=solver, nominal=nominal, _dual=True)
+

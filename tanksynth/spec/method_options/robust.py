@@ -1,0 +1,302 @@
+"""Options of the polytopic robust designs ``robust_state_feedback`` and ``robust_observer``.
+
+Both designs take uncertain plant parameters as intervals (option
+``uncertain``): the linearisation at the spec's operating levels is taken at
+every corner of the parameter box (2^k vertex models) and one gain must put
+the eigenvalues of every vertex's closed loop (or observer error matrix) in
+an LMI region, with one common Lyapunov matrix, optionally with an
+H-infinity bound at every vertex and (state feedback) a saturation-aware
+invariant ellipsoid on which the pumps never leave ``|u - u0| <= umax``.
+
+Spec forms of ``uncertain`` (one entry per parameter, named as the plant's
+parameters): ``mu13 = [0.6, 0.75]`` (an interval in the parameter's unit),
+``mu20 = "15%"`` / ``"+-15%"`` / ``"±15%"`` (nominal times 1 -+ 0.15) or
+``A = {relative = 0.1}``.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+from typing import Any, ClassVar, Mapping
+
+import numpy as np
+
+from tanksynth.errors import SpecError
+from tanksynth.spec.method_options.base import MethodOptions, OptionReader, time_domain_of
+from tanksynth.spec.options import (did_you_mean, parse_bool, parse_choice, parse_integer,
+                                    parse_matrix, parse_names, parse_number, parse_region,
+                                    parse_vector, region_is_stable)
+
+__all__ = ["MAX_UNCERTAIN", "ROBUST_SOLVERS", "parse_uncertain", "RobustStateFeedbackOptions",
+           "RobustObserverOptions"]
+
+#: Most uncertain parameters of a design (2^k vertex models).
+MAX_UNCERTAIN = 10
+#: Conic solvers (cvxpy names).
+ROBUST_SOLVERS = ("CLARABEL", "SCS")
+_TIME_DOMAINS = ("continuous", "discrete")
+_RELATIVE = re.compile(r"^\s*(?:\+-|\+/-|±)?\s*([0-9]*\.?[0-9]+(?:[eE][-+]?[0-9]+)?)\s*%\s*$")
+
+
+def parse_uncertain(value: Any, key: str, plant: Any) -> tuple[tuple[str, float, float], ...]:
+    """Intervals of uncertain plant parameters, ``((name, low, high), ...)`` in spec order.
+
+    Parameters
+    ----------
+    value : mapping
+        ``{name = [low, high]}``, ``{name = "15%"}`` (also ``"+-15%"``,
+        ``"±15%"``) or ``{name = {relative = 0.15}}``; the parsed tuple is
+        accepted too.
+    key : str
+        Spec key (``design[i].uncertain``).
+    plant : Plant
+        Names and admissible ranges of the parameters.
+
+    Returns
+    -------
+    tuple of (str, float, float)
+        Parameter name, lower and upper value (the parameter's unit), ``low <= high``.
+
+    Raises
+    ------
+    SpecError
+        Unknown parameter (named, with a suggestion), a malformed interval, a
+        bound outside the parameter's admissible range, more than
+        `MAX_UNCERTAIN` parameters.
+    """
+    if isinstance(value, tuple):
+        value = {name: [lo, hi] for name, lo, hi in value}
+    if not isinstance(value, Mapping):
+        raise SpecError("expected a table {parameter = [low, high]} (or \"15%\", or {relative = "
+                        f"0.15}}), got {type(value).__name__}", key=key)
+    known = {prm.name: prm for prm in plant.parameters}
+    out = []
+    for name, item in value.items():
+        k = f"{key}.{name}"
+        if name not in known:
+            raise SpecError(f"unknown parameter {name!r} of plant '{plant.name}'"
+                            + did_you_mean(name, list(known)) + "; expected some of: "
+                            + ", ".join(known), key=k)
+        prm = known[name]
+        nominal = float(prm.value)
+        if isinstance(item, str):
+            m = _RELATIVE.match(item)
+            if not m:
+                raise SpecError(f"expected a relative interval such as \"15%\" or \"+-15%\", got "
+                                f"{item!r}", key=k)
+            rel = float(m.group(1)) / 100.0
+            if not 0 < rel < 1:
+                raise SpecError(f"relative uncertainty must be in (0 %, 100 %), got {item!r}", key=k)
+            lo, hi = nominal * (1 - rel), nominal * (1 + rel)
+        elif isinstance(item, Mapping):
+            if set(item) != {"relative"}:
+                raise SpecError(f"expected {{relative = r}} with 0 < r < 1, got keys {list(item)}",
+                                key=k)
+            rel = parse_number(item["relative"], f"{k}.relative", above=0.0, below=1.0)
+            lo, hi = nominal * (1 - rel), nominal * (1 + rel)
+        elif isinstance(item, (list, tuple)) and len(item) == 2:
+            lo, hi = parse_number(item[0], f"{k}[0]"), parse_number(item[1], f"{k}[1]")
+            if not lo <= hi:
+                raise SpecError(f"low ({lo:g}) must not exceed high ({hi:g})", key=k)
+        else:
+            raise SpecError(f"expected [low, high], \"15%\" or {{relative = 0.15}} ({prm.unit}), "
+                            f"got {item!r}", key=k)
+        lo, hi = sorted((lo, hi))
+        prm.check(lo, k)
+        prm.check(hi, k)
+        out.append((str(name), float(lo), float(hi)))
+    if len(out) > MAX_UNCERTAIN:
+        raise SpecError(f"{len(out)} uncertain parameters give 2^{len(out)} vertex models; at most "
+                        f"{MAX_UNCERTAIN} are accepted", key=key)
+    return tuple(out)
+
+
+def _common(r: OptionReader, plant: Any, ts: float | None) -> dict[str, Any]:
+    """Options shared by both robust designs."""
+    time_domain = r.read("time_domain", parse_choice, _TIME_DOMAINS) or time_domain_of(ts)
+    if time_domain == "discrete" and ts is None:
+        raise r.fail("time_domain", "a discrete-time design needs a sampling period: add "
+                                    "[sampling] ts = ... (or time_domain = \"continuous\")")
+    region = r.read("region", parse_region)
+    if not region_is_stable(region, time_domain):
+        raise r.fail("region", f"the region is not inside the {time_domain}-time stability domain "
+                               "(continuous: add a half-plane alpha >= 0, a disk left of 0 or a "
+                               "sector; discrete: add a disk with |center| + radius <= 1)")
+    uncertain = r.read("uncertain", parse_uncertain, plant, parse_default=True)
+    gamma = r.read("gamma", parse_number, above=0.0) if r.given("gamma") else None
+    for opt in ("Bw", "Cz", "Dzu"):
+        if r.given(opt) and gamma is None:
+            raise r.fail(opt, f"{opt} declares an H-infinity channel: give its bound gamma too")
+    return {"region": region, "uncertain": uncertain, "time_domain": time_domain, "gamma": gamma,
+            "margin": r.read("margin", parse_number, above=0.0, below=1.0),
+            "kappa": r.read("kappa", parse_number, above=1.0),
+            "solver": r.read("solver", parse_choice, ROBUST_SOLVERS),
+            "samples": r.read("samples", parse_integer, at_least=1, at_most=100000),
+            "mc_runs": r.read("mc_runs", parse_integer, at_least=1, at_most=10000),
+            "seed": r.read("seed", parse_integer, at_least=0)}
+
+
+_COMMON_DOC = """
+    region : tuple of tuple
+        Required. The LMI region every vertex's eigenvalues must lie in: an
+        intersection of ``("half_plane", alpha)`` (``Re z < -alpha``, 1/s),
+        ``("disk", center, radius)`` and ``("sector", theta)`` (rad; written
+        ``angle_deg`` in the spec); one part must lie in the stability
+        domain of ``time_domain``.
+    uncertain : tuple of (str, float, float)
+        Uncertain parameters as intervals ``(name, low, high)`` in the
+        parameter's unit (spec: ``{{mu13 = [0.6, 0.75]}}``, ``{{mu20 =
+        "15%"}}`` or ``{{A = {{relative = 0.1}}}}``); default none (a nominal
+        design). The linearisation at the spec's operating levels is taken
+        at all 2^k corners with each corner's own equilibrium input.
+    time_domain : str
+        ``"discrete"`` (ZOH vertex models at ``[sampling] ts``; the default
+        with a sampling period) or ``"continuous"``.
+    gamma : float or None
+        H-infinity bound at every vertex (units of ``z`` per unit of ``w``);
+        default None (no H-infinity constraint).
+    Bw : ndarray or None
+        Continuous-time disturbance input matrix (n x nw, state units per s
+        per disturbance unit); default {bw}.
+    Cz : ndarray or None
+        Performance output matrix on the plant states (nz x n); default the
+        identity (every state, state units).{dzu}
+    margin : float
+        Strictness margin of the normalised LMIs, in (0, 1); default 1e-6.
+    kappa : float
+        Conditioning bound of the Lyapunov variable (> 1); default 1e4.
+    solver : str
+        ``"CLARABEL"`` (default) or ``"SCS"``.
+    samples : int
+        Verdict: parameter values sampled uniformly in the box whose
+        linearisations must keep their eigenvalues in the region; default 200.
+    mc_runs : int
+        Verdict: Monte-Carlo runs on the nonlinear plant with sampled
+        parameter values; default 16.
+    seed : int
+        Seed of the verdict's samples; default 0."""
+
+
+@dataclass(frozen=True, eq=False)
+class RobustStateFeedbackOptions(MethodOptions):
+    __doc__ = f"""Options of ``robust_state_feedback``: one state feedback ``u = u0 - K (x - x0)``
+    (optionally with integral action) whose closed loop has its eigenvalues in an LMI region at
+    every vertex of the parameter box, with a common Lyapunov matrix.
+
+    Attributes
+    ----------{_COMMON_DOC.format(bw="the input matrix B of each vertex (disturbances entering "
+                                     "like the pumps' flows)",
+                                  dzu='''
+    Dzu : ndarray or None
+        Feedthrough of the inputs to ``z`` (nz x m, z units per input unit);
+        default zeros.''')}
+    integral : bool
+        Integral action on the tracked outputs (removes the offset the
+        parameter mismatch leaves); default false.
+    tracked : tuple of str or None
+        Outputs with integral action (at most m); default the first m
+        outputs when ``integral`` is set.
+    saturation : bool
+        Saturation-aware design: an ellipsoid ``x' P x <= 1`` (deviation
+        coordinates) invariant at every vertex on which ``|K_j x| <=
+        umax_j``; default false.
+    umax : ndarray or None
+        Largest input deviation ``|u_j - u0_j|`` per input (input units);
+        default the distance from the nominal equilibrium input to the
+        nearest actuator limit.
+    box : ndarray or None
+        Half-widths of the box of initial level deviations the ellipsoid
+        must contain (state units, one per plant state, ``{{h1 = 0.02,
+        ...}}``); default None: the largest cube (in state units) is sought.
+        With ``box`` the ellipsoid is as large a multiple of the box as the
+        constraints allow (at least 1).
+    """
+
+    method_name: ClassVar[str] = "robust_state_feedback"
+
+    region: tuple[tuple, ...]
+    uncertain: tuple[tuple[str, float, float], ...] = ()
+    time_domain: str | None = None
+    integral: bool = False
+    tracked: tuple[str, ...] | None = None
+    gamma: float | None = None
+    Bw: np.ndarray | None = None
+    Cz: np.ndarray | None = None
+    Dzu: np.ndarray | None = None
+    saturation: bool = False
+    umax: np.ndarray | None = None
+    box: np.ndarray | None = None
+    margin: float = 1e-6
+    kappa: float = 1e4
+    solver: str = "CLARABEL"
+    samples: int = 200
+    mc_runs: int = 16
+    seed: int = 0
+
+    @classmethod
+    def from_table(cls, options: Mapping[str, Any], key: str, plant: Any,
+                   ts: float | None) -> "RobustStateFeedbackOptions":
+        """See `MethodOptions.from_table`."""
+        r = OptionReader(cls, options, key, ts)
+        common = _common(r, plant, ts)
+        n, m = plant.n, plant.m
+        integral = r.read("integral", parse_bool)
+        outputs = [s.name for s in plant.outputs]
+        tracked = r.read("tracked", parse_names, outputs, what="output", at_most=m)
+        if tracked is not None and not integral:
+            raise r.fail("tracked", "tracked outputs need integral = true")
+        if integral and tracked is None:
+            tracked = tuple(outputs[:m])
+        Bw = r.read("Bw", parse_matrix, (n, None))
+        Cz = r.read("Cz", parse_matrix, (None, n))
+        nz = Cz.shape[0] if Cz is not None else n
+        Dzu = r.read("Dzu", parse_matrix, (nz, m))
+        saturation = r.read("saturation", parse_bool)
+        names = [s.name for s in plant.states]
+        umax = r.read("umax", parse_vector, m, names=None, above=0.0)
+        box = r.read("box", parse_vector, n, names=names, above=0.0)
+        for opt in ("umax", "box"):
+            if r.given(opt) and not saturation:
+                raise r.fail(opt, f"{opt} belongs to the saturation-aware design: set saturation = true")
+        if saturation and n > 12:
+            raise r.fail("saturation", f"the box containment uses the 2^n corners of the box; n = {n} "
+                                       "> 12 states is too many")
+        return cls(**common, integral=integral, tracked=tracked, Bw=Bw, Cz=Cz, Dzu=Dzu,
+                   saturation=saturation, umax=umax, box=box)
+
+
+@dataclass(frozen=True, eq=False)
+class RobustObserverOptions(MethodOptions):
+    __doc__ = f"""Options of ``robust_observer``: one observer gain ``L`` whose error matrix ``A(p)
+    - L C(p)`` has its eigenvalues in an LMI region at every vertex of the parameter box, with a
+    common Lyapunov matrix (dual of `RobustStateFeedbackOptions`).
+
+    Attributes
+    ----------{_COMMON_DOC.format(bw="the identity (a disturbance flow into every state)", dzu="")}
+    """
+
+    method_name: ClassVar[str] = "robust_observer"
+
+    region: tuple[tuple, ...]
+    uncertain: tuple[tuple[str, float, float], ...] = ()
+    time_domain: str | None = None
+    gamma: float | None = None
+    Bw: np.ndarray | None = None
+    Cz: np.ndarray | None = None
+    margin: float = 1e-6
+    kappa: float = 1e4
+    solver: str = "CLARABEL"
+    samples: int = 200
+    mc_runs: int = 16
+    seed: int = 0
+
+    @classmethod
+    def from_table(cls, options: Mapping[str, Any], key: str, plant: Any,
+                   ts: float | None) -> "RobustObserverOptions":
+        """See `MethodOptions.from_table`."""
+        r = OptionReader(cls, options, key, ts)
+        common = _common(r, plant, ts)
+        n = plant.n
+        return cls(**common, Bw=r.read("Bw", parse_matrix, (n, None)),
+                   Cz=r.read("Cz", parse_matrix, (None, n)))
