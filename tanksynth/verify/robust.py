@@ -46,7 +46,6 @@ from dataclasses import dataclass, field, replace
 from typing import Any, Mapping, Sequence
 
 import numpy as np
-import scipy.linalg as sla
 
 from tanksynth.analysis.checks import Check
 from tanksynth.analysis.linearize import discretize_zoh, equilibrium_input, linearize
