@@ -163,11 +163,11 @@ TABLE: tuple[Method, ...] = (
          "one state feedback for every vertex of a parameter box: LMI region, optional H-infinity "
          "bound, saturation-aware invariant ellipsoid, optional integral action",
          robust_methods.ROBUST_STATE_FEEDBACK, robust_verdicts.robust_state_feedback_verdict,
-         st.robust_state_feedback_statement, robust_verdicts.robust_run),
+         st.robust_state_feedback_statement, robust_verdicts.robust_state_feedback_run),
     _row("robust_observer", ("observer",),
          "one observer gain for every vertex of a parameter box: LMI region, optional H-infinity bound",
          robust_methods.ROBUST_OBSERVER, robust_verdicts.robust_observer_verdict,
-         st.robust_observer_statement, robust_verdicts.robust_run),
+         st.robust_observer_statement, robust_verdicts.robust_observer_run),
 )
 
 

@@ -42,7 +42,7 @@ spec's options (region, uncertain box, H-infinity bound, saturation):
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 from typing import Any, Mapping, Sequence
 
 import numpy as np
@@ -53,6 +53,8 @@ from tanksynth.errors import ArtefactError
 from tanksynth.sim.metrics import Metric, compute_metrics, estimation_metrics, timing_metrics
 from tanksynth.sim.scenarios import Scenario, run_scenario
 from tanksynth.sim.simulate import run_seeds, simulate
+from tanksynth.verify.closed_loops import ClosedLoop
+from tanksynth.verify.estimation_runs import EstimatorRun
 from tanksynth.verify.common import (OBSERVER_TOLERANCE, artefact_matrix, fmt, guard, model_recheck,
                                      option, stability_check, time_domain)
 from tanksynth.verify.numerics import integral_augmentation, region_lmi_matrix
@@ -60,7 +62,8 @@ from tanksynth.verify.simulations import (IntegralStateFeedback, StateFeedback, 
                                           eigenvector_conditioning, observer_period, perturbed_start)
 
 __all__ = ["SATURATION_TOLERANCE", "hinf_norm", "robust_state_feedback_verdict",
-           "robust_observer_verdict", "RobustRun", "robust_run"]
+           "robust_observer_verdict", "RobustClosedLoop", "RobustObserverRun",
+           "robust_state_feedback_run", "robust_observer_run"]
 
 #: Relative excess of ``|u - u0|`` over ``umax`` tolerated on the nonlinear plant.
 SATURATION_TOLERANCE = 0.02
@@ -595,98 +598,120 @@ def robust_observer_verdict(doc: Mapping[str, Any], spec: Any, *, trace: Any = N
 
 
 # ================================================================= campaign
+def _draws(box: Sequence[tuple[str, float, float]], seeds: Sequence[int]) -> np.ndarray:
+    """Run ``r``'s parameters: uniform in the box from ``default_rng([seed_r, 1])`` (shape (M, k))."""
+    out = np.zeros((len(seeds), len(box)))
+    for r, s in enumerate(seeds):
+        u = np.random.default_rng([int(s), 1]).random(len(box))
+        out[r] = [lo + u[j] * (hi - lo) for j, (_, lo, hi) in enumerate(box)]
+    return out
+
+
+def _sampled_setup(sc: Scenario, setup: Any, box: Sequence[tuple[str, float, float]],
+                   seeds: Sequence[int]) -> tuple[Any, np.ndarray]:
+    draws = _draws(box, seeds)
+    params = {**dict(setup.parameters), **{b[0]: draws[:, j] for j, b in enumerate(box)}}
+    return replace(setup, parameters=params), draws
+
+
+def _param_metrics(plant: Any, box: Sequence[tuple[str, float, float]], draws: np.ndarray
+                   ) -> dict[str, Metric]:
+    units = {p.name: p.unit for p in plant.parameters}
+    return {f"param_{name}": Metric(f"param_{name}", draws[:, j], units[name],
+                                    f"sampled value of {name} in this run")
+            for j, (name, _, _) in enumerate(box)}
+
+
 @dataclass(frozen=True)
-class RobustRun:
-    """A robust artefact in a campaign, each run on a plant with its own sampled parameters.
+class RobustClosedLoop(ClosedLoop):
+    """A robust state feedback in closed loop, each run on a plant with sampled parameters.
 
     The parameters of run ``r`` are drawn uniformly in the design's box from
     ``default_rng([seed_r, 1])`` (reproducible from the row's seed) and
-    override the scenario's values of the same names. State feedback runs in
-    closed loop (nominal ``u0``); an observer runs on the NOMINAL model (as
-    deployed: the parameters are unknown), so its RMSE includes the bias the
-    mismatch causes.
+    override the scenario's values of the same names; the law applies the
+    nominal ``u0`` (the parameters are unknown to it).
 
     Attributes
     ----------
-    controller : callable or None
-    estimator : object or None
-    x_op, u_op : ndarray
-    tracked : tuple of int
     box : tuple of (str, float, float)
-    description : str
-    kind : str
+        Uncertain parameters and their intervals (parameter units).
     """
 
-    controller: Any
-    estimator: Any
-    x_op: np.ndarray
-    u_op: np.ndarray
-    tracked: tuple[int, ...]
-    box: tuple[tuple[str, float, float], ...]
-    description: str
-    kind: str = field(default="controller")
+    box: tuple[tuple[str, float, float], ...] = ()
 
     def evaluate(self, sc: Scenario, plant: Any, *, ts: float, seeds: Sequence[int],
                  substeps: int = 4) -> dict[str, Metric]:
-        """Simulate the scenario for the runs of ``seeds`` and return the metrics.
-
-        Returns
-        -------
-        dict of str to Metric
-            The closed-loop (or estimation) metrics and ``param_<name>`` per run.
-        """
-        setup = sc.setup(plant, self.x_op, self.u_op, self.tracked, ts=ts)
-        draws = np.array([[lo + np.random.default_rng([int(s), 1]).random(len(self.box))[j] * (hi - lo)
-                           for j, (_, lo, hi) in enumerate(self.box)] for s in seeds]).reshape(len(seeds), -1)
-        params = {**dict(setup.parameters), **{b[0]: draws[:, j] for j, b in enumerate(self.box)}}
-        setup = replace(setup, parameters=params)
-        if self.kind == "controller":
-            result = run_scenario(setup, plant, ts=ts, seeds=list(seeds), controller=self.controller,
-                                  substeps=substeps)
-            metrics = compute_metrics(result, setup, plant, estimated=False, controlled=True)
-        else:
-            result = run_scenario(setup, plant, ts=ts, seeds=list(seeds), estimator=self.estimator,
-                                  substeps=substeps)
-            metrics = {**estimation_metrics(result, plant),
-                       **timing_metrics(result, estimator=True, controller=False)}
-        units = {p.name: p.unit for p in plant.parameters}
-        for j, (name, _, _) in enumerate(self.box):
-            metrics[f"param_{name}"] = Metric(f"param_{name}", draws[:, j], units[name],
-                                              f"sampled value of {name} in this run")
-        return metrics
+        """The closed-loop metrics of `ClosedLoop.evaluate` and ``param_<name>`` per run."""
+        setup, draws = _sampled_setup(sc, sc.setup(plant, self.x_op, self.u_op, self.tracked, ts=ts),
+                                      self.box, seeds)
+        result = run_scenario(setup, plant, ts=ts, seeds=list(seeds), controller=self.controller,
+                              substeps=substeps)
+        return {**compute_metrics(result, setup, plant, estimated=False, controlled=True),
+                **_param_metrics(plant, self.box, draws)}
 
 
-def robust_run(doc: Mapping[str, Any], spec: Any) -> RobustRun:
-    """Campaign runner of ``robust_state_feedback`` and ``robust_observer``."""
+@dataclass(frozen=True)
+class RobustObserverRun(EstimatorRun):
+    """A robust observer on the NOMINAL model (as deployed), plants with sampled parameters.
+
+    Its RMSE includes the bias the parameter mismatch causes (the
+    certificate is about the error dynamics ``A(p) - L C``).
+
+    Attributes
+    ----------
+    box : tuple of (str, float, float)
+    """
+
+    box: tuple[tuple[str, float, float], ...] = ()
+
+    def evaluate(self, sc: Scenario, plant: Any, *, ts: float, seeds: Sequence[int],
+                 substeps: int = 4) -> dict[str, Metric]:
+        """The estimation metrics and ``param_<name>`` per run."""
+        setup, draws = _sampled_setup(sc, sc.setup(plant, self.x_op, self.u_op, ts=ts), self.box, seeds)
+        result = run_scenario(setup, plant, ts=ts, seeds=list(seeds), estimator=self.estimator,
+                              substeps=substeps)
+        return {**estimation_metrics(result, plant),
+                **timing_metrics(result, estimator=True, controller=False),
+                **_param_metrics(plant, self.box, draws)}
+
+
+def robust_state_feedback_run(doc: Mapping[str, Any], spec: Any) -> ClosedLoop:
+    """Campaign runner of ``robust_state_feedback``: a `RobustClosedLoop` (true state fed back)."""
     from tanksynth.verify.closed_loops import sampling_period
-    from tanksynth.verify.simulations import luenberger_estimator
 
     plant = spec.plant
-    box = tuple(_box(doc, spec))
+    gains = doc["gains"]
     x0 = np.asarray(spec.x0, dtype=float)
     u0 = equilibrium_input(plant, spec.x0, spec.given_u0).u0
-    gains = doc["gains"]
-    if "L" in gains:
-        domain = time_domain(doc, spec)
-        form = "predictor" if domain == "discrete" else "continuous"
-        L = np.asarray(gains["L"], dtype=float).reshape(plant.n, plant.q)
-        est = luenberger_estimator(plant, L, x0, u0, sampling_period(spec), form)
-        return RobustRun(None, est, x0, u0, tuple(range(min(plant.m, plant.n))), box,
-                         f"robust observer L ({form} form) on the nominal model, plants with parameters "
-                         f"sampled in the box", kind="estimator")
     c = {"integral": "K1" in gains and "K2" in gains, "n": plant.n, "x0": x0, "u0": u0,
          "C": np.asarray(gains["C"], dtype=float).reshape(plant.q, plant.n)}
+    p = 0
     if c["integral"]:
         outputs = [s.name for s in plant.outputs]
         tracked = list(option(doc, spec, "tracked") or outputs[:plant.m])
         c["rows"] = [outputs.index(t) for t in tracked]
         p = len(tracked)
-    else:
-        p = 0
     c["K"] = np.asarray(gains["K"], dtype=float).reshape(plant.m, plant.n + p)
-    law = _law(c, sampling_period(spec))
-    tracked_states = tuple(int(np.argmax(np.abs(c["C"][r]))) for r in c["rows"]) if c["integral"] \
+    states = tuple(int(np.argmax(np.abs(c["C"][r]))) for r in c["rows"]) if c["integral"] \
         else tuple(range(min(plant.m, plant.n)))
-    return RobustRun(law, None, x0, u0, tracked_states, box,
-                     "robust state feedback u = u0 - K (x - x0)" + (" - K2 z" if c["integral"] else "")
-                     + ", true state fed back, plants with parameters sampled in the box")
+    return RobustClosedLoop(_law(c, sampling_period(spec)), None, x0, u0, states,
+                            "robust state feedback u = u0 - K (x - x0)"
+                            + (" - K2 z" if c["integral"] else "")
+                            + ", true state fed back, plants with parameters sampled in the box",
+                            box=tuple(_box(doc, spec)))
+
+
+def robust_observer_run(doc: Mapping[str, Any], spec: Any) -> EstimatorRun:
+    """Campaign runner of ``robust_observer``: a `RobustObserverRun` on the nominal model."""
+    from tanksynth.verify.closed_loops import sampling_period
+    from tanksynth.verify.simulations import luenberger_estimator
+
+    plant = spec.plant
+    x0 = np.asarray(spec.x0, dtype=float)
+    u0 = equilibrium_input(plant, spec.x0, spec.given_u0).u0
+    form = "predictor" if time_domain(doc, spec) == "discrete" else "continuous"
+    L = artefact_matrix(doc, "L", (plant.n, plant.q))
+    est = luenberger_estimator(plant, L, x0, u0, sampling_period(spec), form)
+    return RobustObserverRun(est, x0, u0, None,
+                             f"robust observer L ({form} form) on the nominal model, plants with "
+                             "parameters sampled in the box", box=tuple(_box(doc, spec)))

@@ -9,7 +9,8 @@ import pytest
 from tanksynth.artefacts.io import read_artefact, write_artefact
 from tanksynth.methods import METHODS, load_spec
 from tanksynth.sim.scenarios import scenario
-from tanksynth.verify.robust import hinf_norm, robust_run
+from tanksynth.verify.closed_loops import ClosedLoop
+from tanksynth.verify.robust import hinf_norm, robust_state_feedback_run
 
 EXAMPLE = "examples/three_tank_robust.toml"
 
@@ -75,8 +76,8 @@ def test_hinf_norm_matches_a_frequency_sweep(discrete):
 def test_campaign_runner_samples_the_box(example, tmp_path):
     spec, _ = example
     doc = _doc(example, "robust_integral", tmp_path)
-    run = robust_run(doc, spec)
-    assert run.kind == "controller"
+    run = robust_state_feedback_run(doc, spec)
+    assert isinstance(run, ClosedLoop) and run.kind == "controller"
     metrics = run.evaluate(scenario("servo"), spec.plant, ts=1.0, seeds=[11, 12], substeps=2)
     for name in ("mu13", "mu32", "mu20"):
         vals = metrics[f"param_{name}"].values
