@@ -19,6 +19,7 @@ from tanksynth.spec.method_options.fault import FaultDetectionOptions
 from tanksynth.spec.method_options.placement import (CanonicalObserverOptions, LinearizeOptions,
                                                      LmiPlacementOptions, PolePlacementOptions)
 from tanksynth.spec.method_options.ts_observer import TsObserverOptions
+from tanksynth.spec.method_options.ts_control import TsOutputFeedbackOptions, TsStateFeedbackOptions
 
 __all__ = [
     "MethodOptions", "OptionReader",
@@ -29,4 +30,5 @@ __all__ = [
     "KalmanOptions", "EkfOptions", "UkfOptions", "AdaptiveKalmanOptions",
     "AdaptiveScalingKalmanOptions", "ConsensusFilterOptions", "LuenbergerOptions", "NarxOptions",
     "FaultDetectionOptions",
+    "TsStateFeedbackOptions", "TsOutputFeedbackOptions",
 ]
