@@ -264,7 +264,8 @@ def deviation_ts_model(qlpv: QuasiLPV, domain: Domain, x0: Sequence[float], u0: 
         t0 = float(a @ x0)
         grid = np.unique(np.concatenate([np.linspace(tmin, tmax, samples), [tmin, tmax]]))
         X = x0 + np.outer(grid - t0, a / (a @ a))
-        vals = qlpv.atom_values(X)[:, k]
+        with np.errstate(invalid="ignore"):    # other atoms may leave their domain on this line
+            vals = qlpv.atom_values(X)[:, k]
         at0 = qlpv.atom_values(x0[None, :])[0, k]
         dt = grid - t0
         ok = np.abs(dt) > 1e-9 * max(1.0, abs(t0))
@@ -404,7 +405,7 @@ class PDCResult:
 def pdc_lmi(A: Any, B: Any, *, alpha: float = 0.0, relaxation: str = "tuan",
             faces: tuple[np.ndarray, np.ndarray] | None = None,
             input_margins: Sequence[float] | None = None, margin: float = 1e-6,
-            kappa: float = 1e4, solver: str = "CLARABEL") -> PDCResult:
+            kappa: float = 1e4, solver: str = "CLARABEL", inner_radius: float = 0.0) -> PDCResult:
     """Solve the PDC LMIs and re-check the result in numpy.
 
     Parameters
@@ -426,6 +427,10 @@ def pdc_lmi(A: Any, B: Any, *, alpha: float = 0.0, relaxation: str = "tuan",
     kappa : float
         ``X <= kappa I`` (scaled) when no face or input margin bounds the problem.
     solver : str
+    inner_radius : float
+        The ellipsoid must contain the ball of this radius (``X >= r^2 I``,
+        state units): without it a high decay rate is bought with a vanishing
+        region.
 
     Returns
     -------
@@ -471,6 +476,8 @@ def pdc_lmi(A: Any, B: Any, *, alpha: float = 0.0, relaxation: str = "tuan",
     Ms = [cp.Variable((m, n)) for _ in range(r)]
     t = cp.Variable()
     cons = [X >> margin * np.eye(n)]
+    if inner_radius > 0:
+        cons.append(X >> inner_radius ** 2 * np.diag(dist ** -2.0))
     Y = {}
     for cond in conds:
         S = 0
@@ -529,9 +536,19 @@ def pdc_lmi(A: Any, B: Any, *, alpha: float = 0.0, relaxation: str = "tuan",
     return PDCResult(P, K, relaxation, float(alpha), decay, tval, status, worst, scaling)
 
 
-def max_decay_rate(A: Any, B: Any, relaxation: str, *, start: float, rtol: float = 0.02,
-                   **kwargs: Any) -> tuple[float, list]:
+def max_decay_rate(A: Any, B: Any, relaxation: str, *, start: float | None = None,
+                   rtol: float = 0.05, **kwargs: Any) -> tuple[float, list]:
     """Largest decay rate ``alpha`` (1/s) for which `pdc_lmi` is feasible (bisection).
+
+    Parameters
+    ----------
+    A, B, relaxation, **kwargs
+        As `pdc_lmi`.
+    start : float, optional
+        First trial (1/s); default the decay rate certified by the solution at
+        ``alpha = 0``.
+    rtol : float
+        Relative width of the final bracket.
 
     Returns
     -------
@@ -548,10 +565,14 @@ def max_decay_rate(A: Any, B: Any, relaxation: str, *, start: float, rtol: float
         except InfeasibleDesign:
             return False
 
-    if not feasible(0.0):
+    try:
+        first = pdc_lmi(A, B, alpha=0.0, relaxation=relaxation, **kwargs)
+    except InfeasibleDesign:
         return -1.0, [(0.0, False)]
+    if start is None:
+        start = max(first.decay, 1e-9)
     lo, _, hist = bisect_feasible(feasible, start=start, rtol=rtol, max_doublings=30)
-    return lo, hist
+    return lo, [(0.0, True)] + hist
 
 
 # ---------------------------------------------------------------------------- region

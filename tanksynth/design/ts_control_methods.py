@@ -107,8 +107,14 @@ def _setup(spec: "Spec", design: "DesignSpec", o: Any) -> dict:
 def _controller(s: dict, o: Any, relaxations: list[str]) -> tuple[Any, list[dict]]:
     """Solve the PDC LMIs with the first feasible relaxation; exit 3 with the largest alpha."""
     model = s["model"]
+    G, g = s["faces"]
+    room = float(np.min(g / np.linalg.norm(G, axis=1)))
+    if o.region_margin >= room:
+        raise InfeasibleDesign(f"region_margin = {o.region_margin:g} is not below the distance "
+                               f"{room:.4g} from the operating point to the nearest face of the TS "
+                               "domain: no certified region can contain that ball")
     kw = dict(faces=s["faces"], input_margins=s["margins"], margin=o.margin, kappa=o.kappa,
-              solver=o.solver)
+              solver=o.solver, inner_radius=o.region_margin)
     tried = []
     for rel in relaxations:
         try:
@@ -120,7 +126,7 @@ def _controller(s: dict, o: Any, relaxations: list[str]) -> tuple[Any, list[dict
     last = relaxations[-1]
     text = "; ".join(f"{t['relaxation']}: {t['reason']}" for t in tried)
     if o.decay_rate > 0:
-        best, hist = max_decay_rate(model.A, model.B, last, start=o.decay_rate / 2, **kw)
+        best, hist = max_decay_rate(model.A, model.B, last, **kw)
         what = ("no decay rate is feasible" if best < 0 else
                 f"the largest feasible decay rate is {best:.4g} 1/s (bisection, {len(hist)} solves, "
                 f"relaxation {last})")

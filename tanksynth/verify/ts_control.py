@@ -475,9 +475,10 @@ def _observer_checks(doc: Mapping[str, Any], s: dict) -> list[Check]:
 
 def ts_control_run(doc: Mapping[str, Any], spec: Any) -> Any:
     """Campaign runner: the PDC law (and its observer) in closed loop (`ClosedLoop`)."""
-    from tanksynth.verify.closed_loops import ClosedLoop
+    from tanksynth.verify.closed_loops import ClosedLoop, sampling_period
 
     s = _sim_setup(doc, spec)
+    ts = sampling_period(spec)
     model = s["model"]
     n = spec.plant.n
     factory = None
@@ -485,16 +486,17 @@ def ts_control_run(doc: Mapping[str, Any], spec: Any) -> Any:
     if doc["method"] == "ts_output_feedback":
         L = artefact_gain(doc, "L")
         if L.ndim == 3:
-            raise_measured = MeasuredPremiseObserver(model, L, 1.0, 64)
-            law = PDCLaw(model, s["K"], raise_measured)
-            factory = lambda: raise_measured  # noqa: E731
+            shared = MeasuredPremiseObserver(model, L, ts, 64)
+            law = PDCLaw(model, s["K"], shared)     # the law reads the observer's measured premises
+            factory = lambda: shared  # noqa: E731
         else:
             from tanksynth.verify.ts_observer import TSObserver
 
             A0 = artefact_gain(doc, "A0").reshape(n, n)
-            factory = lambda: TSObserver(_PlantModel(spec.plant, A0, model.C), L, 1.0)  # noqa: E731
+            factory = lambda: TSObserver(_PlantModel(spec.plant, A0, model.C), L, ts)  # noqa: E731
     outputs = [s_.name for s_ in spec.plant.outputs]
     states = [s_.name for s_ in spec.plant.states]
     tracked = tuple(states.index(o) for o in outputs if o in states)
     return ClosedLoop(law, factory, model.x0.copy(), model.u0.copy(), tracked,
-                      f"Takagi-Sugeno PDC ({doc['method']}) about x0 = {fmt(model.x0)}")
+                      f"Takagi-Sugeno PDC ({doc['method']}) regulating to x0 = {fmt(model.x0)} "
+                      "(set-point changes are ignored: the PDC is designed for one operating point)")
