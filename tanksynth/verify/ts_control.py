@@ -33,6 +33,7 @@ import numpy as np
 
 from tanksynth.analysis.checks import Check
 from tanksynth.analysis.takagi_sugeno import quasi_lpv
+from tanksynth.verify.closed_loops import ClosedLoop, sampling_period
 from tanksynth.verify.common import artefact_gain, fmt, guard, option
 from tanksynth.verify.traces import TraceRecorder
 
@@ -473,10 +474,8 @@ def _observer_checks(doc: Mapping[str, Any], s: dict) -> list[Check]:
                   {"max_eigenvalue": lam, "psi": psi})]
 
 
-def ts_control_run(doc: Mapping[str, Any], spec: Any) -> Any:
+def ts_control_run(doc: Mapping[str, Any], spec: Any) -> ClosedLoop:
     """Campaign runner: the PDC law (and its observer) in closed loop (`ClosedLoop`)."""
-    from tanksynth.verify.closed_loops import ClosedLoop, sampling_period
-
     s = _sim_setup(doc, spec)
     ts = sampling_period(spec)
     model = s["model"]

@@ -113,7 +113,8 @@ class TsStateFeedbackOptions(MethodOptions):
 class TsOutputFeedbackOptions(TsStateFeedbackOptions):
     """Options of ``ts_output_feedback``: the PDC of ``ts_state_feedback`` on an estimate.
 
-    Every option of ``ts_state_feedback``, plus:
+    Every option of ``ts_state_feedback`` (listed first below), plus ``premises``,
+    ``observer_decay``, ``lipschitz_method`` and ``coupling_factor``.
 
     Attributes
     ----------
@@ -150,3 +151,15 @@ class TsOutputFeedbackOptions(TsStateFeedbackOptions):
                    observer_decay=r.read("observer_decay", parse_number, above=0.0),
                    lipschitz_method=r.read("lipschitz_method", parse_choice, ("interval", "sampling")),
                    coupling_factor=r.read("coupling_factor", parse_number, above=1.0))
+
+
+def _with_shared_attributes() -> None:
+    """Put the shared options' documentation into ``TsOutputFeedbackOptions.__doc__``."""
+    base = TsStateFeedbackOptions.__doc__ or ""
+    shared = base[base.index("    relaxation : str"):].rstrip() + "\n"
+    doc = TsOutputFeedbackOptions.__doc__ or ""
+    head = "    Attributes\n    ----------\n"
+    TsOutputFeedbackOptions.__doc__ = doc.replace(head, head + shared, 1)
+
+
+_with_shared_attributes()
