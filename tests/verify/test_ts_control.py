@@ -106,3 +106,19 @@ def test_campaign_runner_is_a_closed_loop(designed):
     x = np.asarray(docs["pdc"]["gains"]["x0"])[None, :]
     u = loop.controller(x, np.zeros((1, 2)), 0.0)
     assert np.allclose(u, np.asarray(docs["pdc"]["gains"]["u0"]))
+
+
+def test_measured_premises_verdict_passes(tmp_path):
+    """Every level measured: the PDC observer path (separation), re-checked and simulated."""
+    text = EXAMPLE.read_text(encoding="utf-8").replace('outputs = "h1h2"', 'outputs = "all"')
+    path = tmp_path / "all.toml"
+    path.write_text(text, encoding="utf-8")
+    spec = load_spec(path)
+    entry = next(e for e in spec.designs if e.name == "pdc_output")
+    doc = _doc(METHODS[entry.method].design(spec, entry))
+    assert doc["diagnostics"]["premises"] == "measured"
+    checks = _by_name(ts_control_verdict(doc, spec))
+    assert all(c.passed for c in checks.values()), [(c.name, c.detail) for c in checks.values()]
+    bad = copy.deepcopy(doc)
+    bad["gains"]["L"] = (-np.asarray(doc["gains"]["L"])).tolist()
+    assert _by_name(ts_control_verdict(bad, spec))["observer_lmi_recheck"].passed is False
