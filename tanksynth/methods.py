@@ -36,6 +36,7 @@ from typing import Any, Callable, Mapping
 from tanksynth.design import control_methods, convex_methods, decentralized_methods, model_methods
 from tanksynth.design import estimator_methods as est
 from tanksynth.design import robust_methods
+from tanksynth.design import ts_control_methods
 from tanksynth.design.result import DesignMethod, DesignResult
 from tanksynth.reports import statements as st
 from tanksynth.spec import DesignSpec, Spec, load_spec as _load_spec, parse_spec as _parse_spec
@@ -44,6 +45,7 @@ from tanksynth.spec.method_options import MethodOptions
 from tanksynth.verify import campaign, decentralized, estimators, fault, laws, model, narx, placement
 from tanksynth.verify import robust as robust_verdicts
 from tanksynth.verify import ts_observer
+from tanksynth.verify import ts_control
 from tanksynth.verify.runner import Verdict, VerdictFn
 from tanksynth.verify.runner import verify_directory as _verify_directory
 
@@ -168,6 +170,14 @@ TABLE: tuple[Method, ...] = (
          "one observer gain for every vertex of a parameter box: LMI region, optional H-infinity bound",
          robust_methods.ROBUST_OBSERVER, robust_verdicts.robust_observer_verdict,
          st.robust_observer_statement, robust_verdicts.robust_observer_run),
+    _row("ts_state_feedback", ("controller",),
+         "Takagi-Sugeno PDC state feedback by LMIs (vertex/Tuan relaxations), certified region",
+         ts_control_methods.TS_STATE_FEEDBACK, ts_control.ts_control_verdict,
+         st.ts_state_feedback_statement, ts_control.ts_control_run),
+    _row("ts_output_feedback", ("controller",),
+         "Takagi-Sugeno PDC on a TS observer (measured or estimated premises), certified region",
+         ts_control_methods.TS_OUTPUT_FEEDBACK, ts_control.ts_control_verdict,
+         st.ts_output_feedback_statement, ts_control.ts_control_run),
 )
 
 

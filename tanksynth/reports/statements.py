@@ -18,7 +18,8 @@ def _is_number(v: Any) -> bool:
 __all__ = ["linearize_statement", "pole_placement_statement", "lmi_placement_statement",
            "ts_observer_statement", "canonical_observer_statement",
            "feedback_linearization_statement", "integral_tracking_statement", "inverse_dynamics_statement", "decentralized_kalman_statement", "kalman_statement", "ekf_statement", "ukf_statement", "adaptive_kalman_statement", "adaptive_scaling_kalman_statement", "consensus_filter_statement", "luenberger_statement", "narx_statement", "fault_detection_statement",
-           "robust_state_feedback_statement", "robust_observer_statement"]
+           "robust_state_feedback_statement", "robust_observer_statement",
+           "ts_state_feedback_statement", "ts_output_feedback_statement"]
 
 
 def linearize_statement(diag: Mapping[str, Any]) -> Tex:
@@ -278,3 +279,68 @@ def robust_observer_statement(diag: Mapping[str, Any]) -> Tex:
                r"every eigenvalue of $A_i - L C_i$ lies in the LMI region $D$" + _robust_common(diag)
                + r" An observer running on the nominal model keeps a bias when the plant's parameters "
                  r"differ; the certificate is about the error dynamics.")
+def _ts_region_text(diag: Mapping[str, Any]) -> str:
+    reg = diag.get("region") or {}
+    text = ""
+    c = reg.get("c")
+    if _is_number(c):
+        text += (rf" Certified region $\{{x : (x - x_0)^\top P (x - x_0) \le {format_number(c)}\}}$"
+                 r" (inside the TS domain, pumps unsaturated)")
+        binding = reg.get("binding")
+        if binding:
+            text += ", bound by " + escape_latex(str(binding))
+        ext = reg.get("extents")
+        states = reg.get("states") or []
+        if isinstance(ext, list) and len(ext) == len(states):
+            text += "; largest deviations " + ", ".join(
+                f"${escape_latex(str(s))}$: {format_number(v)} m" for s, v in zip(states, ext))
+        axes = reg.get("semi_axes")
+        if isinstance(axes, list) and axes:
+            text += "; semi-axes " + ", ".join(format_number(v) for v in axes) + " m"
+        text += "."
+    return text
+
+
+def ts_state_feedback_statement(diag: Mapping[str, Any]) -> Tex:
+    """The problem ``ts_state_feedback`` solves, in mathematics, from the artefact's diagnostics."""
+    rel = diag.get("relaxation", "")
+    text = (r"Parallel distributed compensation $u = u_0 - \sum_j \mu_j(x) K_j (x - x_0)$ on the exact "
+            r"Takagi--Sugeno model of the deviations, $\dot e = \sum_i \mu_i(x)(A_i e + B v)$, with "
+            r"premises $z_k = (n_k(x) - n_k(x_0))/(a_k^\top (x - x_0))$ (sector rewriting of the "
+            r"increments). With $X = P^{-1}$, $M_j = K_j X$ and "
+            r"$\Upsilon_{ij} = A_i X + X A_i^\top - B M_j - M_j^\top B^\top + 2\alpha X$: ")
+    if rel == "tuan":
+        text += (r"$\Upsilon_{ii} \prec 0$, $\tfrac{2}{r-1}\Upsilon_{ii} + \Upsilon_{ij} + \Upsilon_{ji} "
+                 r"\prec 0$ ($i \ne j$; Tuan et al.\ 2001)")
+    elif rel == "all_pairs":
+        text += r"$\Upsilon_{ij} \prec 0$ for every $(i, j)$ (premises of the controller estimated)"
+    else:
+        text += r"$\Upsilon_{ii} \prec 0$, $\Upsilon_{ij} + \Upsilon_{ji} \prec 0$ ($i < j$; basic vertex conditions)"
+    text += (r"; the ellipsoid $e^\top P e \le 1$ inside the domain ($a_l^\top X a_l \le b_l^2$) and "
+             r"within the pump margins ($\left[\begin{smallmatrix} \bar u_j^2 & m_{ij} \\ m_{ij}^\top & "
+             r"X\end{smallmatrix}\right] \succeq 0$), enlarged. Continuous time.")
+    dec = diag.get("decay_rate")
+    if _is_number(dec):
+        text += rf" Relaxation used: {escape_latex(str(rel))}; certified decay rate ${format_number(dec)}$ 1/s."
+    return Tex(text + _ts_region_text(diag))
+
+
+def ts_output_feedback_statement(diag: Mapping[str, Any]) -> Tex:
+    """The problem ``ts_output_feedback`` solves, in mathematics, from the artefact's diagnostics."""
+    base = str(ts_state_feedback_statement({k: v for k, v in diag.items() if k != "region"}))
+    obs = diag.get("observer") or {}
+    if diag.get("premises") == "measured":
+        text = (r" Measured premises: PDC observer $\dot{\hat x} = \sum_i \mu_i(y)(A_i \hat e + B v) + "
+                r"\sum_j \mu_j(y) L_j (y - C\hat x)$ designed separately (separation holds: "
+                r"$\dot\varepsilon = \sum_{ij}\mu_i\mu_j (A_i - L_j C)\varepsilon$).")
+    else:
+        text = (r" Estimated premises: observer of seed 001 (premises at the estimate) with LMI (28) "
+                r"for $\psi$ the Lipschitz bound of the remainder; the controller uses the all-pairs "
+                r"conditions (two-step design).")
+        if _is_number(obs.get("psi")):
+            text += rf" Here $\psi = {format_number(obs['psi'])}$ 1/s."
+    comp = diag.get("composite") or {}
+    if _is_number(comp.get("beta")):
+        text += (r" Composite certificate $V = e^\top P e + \beta \varepsilon^\top P_o \varepsilon$ with "
+                 rf"$\beta = {format_number(comp['beta'])}$.")
+    return Tex(base + text + _ts_region_text(diag))

@@ -20,6 +20,7 @@ from tanksynth.spec.method_options.placement import (CanonicalObserverOptions, L
                                                      LmiPlacementOptions, PolePlacementOptions)
 from tanksynth.spec.method_options.ts_observer import TsObserverOptions
 from tanksynth.spec.method_options.robust import RobustObserverOptions, RobustStateFeedbackOptions
+from tanksynth.spec.method_options.ts_control import TsOutputFeedbackOptions, TsStateFeedbackOptions
 
 __all__ = [
     "MethodOptions", "OptionReader",
@@ -31,4 +32,5 @@ __all__ = [
     "AdaptiveScalingKalmanOptions", "ConsensusFilterOptions", "LuenbergerOptions", "NarxOptions",
     "FaultDetectionOptions",
     "RobustStateFeedbackOptions", "RobustObserverOptions",
+    "TsStateFeedbackOptions", "TsOutputFeedbackOptions",
 ]

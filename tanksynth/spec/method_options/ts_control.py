@@ -1,0 +1,165 @@
+"""Options of ``ts_state_feedback`` and ``ts_output_feedback`` (Takagi-Sugeno PDC controllers)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from types import MappingProxyType
+from typing import Any, ClassVar, Mapping
+
+from tanksynth.spec.method_options.base import MethodOptions, OptionReader
+from tanksynth.spec.method_options.placement import LMI_SOLVERS
+from tanksynth.spec.options import parse_bool, parse_box, parse_choice, parse_integer, parse_number
+
+__all__ = ["PDC_RELAXATIONS", "TsStateFeedbackOptions", "TsOutputFeedbackOptions"]
+
+#: Values of the ``relaxation`` option.
+PDC_RELAXATIONS = ("auto", "vertex", "tuan")
+
+
+@dataclass(frozen=True, eq=False)
+class TsStateFeedbackOptions(MethodOptions):
+    """Options of ``ts_state_feedback``: PDC ``u = u0 - sum_i mu_i(x) K_i (x - x0)`` on the exact
+    TS model of the deviations from the operating point, continuous time, common quadratic
+    Lyapunov function, certified region.
+
+    Attributes
+    ----------
+    relaxation : str
+        LMI conditions: ``"vertex"`` (basic: ``Y_ii < 0``, ``Y_ij + Y_ji < 0``),
+        ``"tuan"`` (Tuan et al. 2001) or ``"auto"`` (default: vertex, then
+        tuan if vertex is infeasible; the one used is reported).
+    decay_rate : float
+        Decay rate ``alpha`` with ``dV/dt <= -2 alpha V`` (1/s, >= 0); default 0.
+        Infeasible: exit 3 with the largest feasible rate (bisection).
+    pump_limits : bool
+        Keep the pumps inside their range on the certified region (LMIs);
+        default true.
+    region_margin : float
+        The certified region must contain the ball of this radius around the
+        operating point (state units, m; >= 0), else the design is refused;
+        default 0.01.
+    domain : mapping of str to (float, float), or None
+        Box ``{state = [min, max]}`` (state units) replacing the plant's
+        region bounds of those states; default None (the plant's region).
+    orderings : bool
+        Add the region's flow-direction orderings to the domain; default false
+        (the deviation TS model is exact across flow reversals).
+    ordering_gap : float
+        Minimum separation kept in each ordering (state units, >= 0); default 0.
+    premise_samples : int
+        Grid points of each 1-D premise secant (>= 101); default 20001.
+    premise_margin : float
+        Relative widening of the sampled premise ranges (>= 0); default 1e-3.
+    verify_points : int
+        Initial points the verdict samples on and inside the region boundary
+        (>= 2); default 24.
+    seed : int
+        Seed of the verdict's sampling (>= 0); default 0.
+    margin : float
+        Strictness margin of the scaled LMIs, in (0, 1); default 1e-6.
+    kappa : float
+        ``X <= kappa I`` (scaled) when nothing else bounds the LMIs (> 1); default 1e4.
+    solver : str
+        ``"CLARABEL"`` (default) or ``"SCS"``.
+    """
+
+    method_name: ClassVar[str] = "ts_state_feedback"
+
+    relaxation: str = "auto"
+    decay_rate: float = 0.0
+    pump_limits: bool = True
+    region_margin: float = 0.01
+    domain: Mapping[str, tuple[float, float]] | None = None
+    orderings: bool = False
+    ordering_gap: float = 0.0
+    premise_samples: int = 20001
+    premise_margin: float = 1e-3
+    verify_points: int = 24
+    seed: int = 0
+    margin: float = 1e-6
+    kappa: float = 1e4
+    solver: str = "CLARABEL"
+
+    @classmethod
+    def _common(cls, r: OptionReader, plant: Any) -> dict:
+        names = [s.name for s in plant.states]
+        domain = r.read("domain", parse_box, names)
+        return dict(
+            relaxation=r.read("relaxation", parse_choice, PDC_RELAXATIONS),
+            decay_rate=r.read("decay_rate", parse_number, at_least=0.0),
+            pump_limits=r.read("pump_limits", parse_bool),
+            region_margin=r.read("region_margin", parse_number, at_least=0.0),
+            domain=None if domain is None else MappingProxyType(domain),
+            orderings=r.read("orderings", parse_bool),
+            ordering_gap=r.read("ordering_gap", parse_number, at_least=0.0),
+            premise_samples=r.read("premise_samples", parse_integer, at_least=101,
+                                   at_most=10_000_000),
+            premise_margin=r.read("premise_margin", parse_number, at_least=0.0),
+            verify_points=r.read("verify_points", parse_integer, at_least=2, at_most=100_000),
+            seed=r.read("seed", parse_integer, at_least=0),
+            margin=r.read("margin", parse_number, above=0.0, below=1.0),
+            kappa=r.read("kappa", parse_number, above=1.0),
+            solver=r.read("solver", parse_choice, LMI_SOLVERS))
+
+    @classmethod
+    def from_table(cls, options: Mapping[str, Any], key: str, plant: Any,
+                   ts: float | None) -> "TsStateFeedbackOptions":
+        """See `MethodOptions.from_table`."""
+        r = OptionReader(cls, options, key, ts)
+        return cls(**cls._common(r, plant))
+
+
+@dataclass(frozen=True, eq=False)
+class TsOutputFeedbackOptions(TsStateFeedbackOptions):
+    """Options of ``ts_output_feedback``: the PDC of ``ts_state_feedback`` on an estimate.
+
+    Every option of ``ts_state_feedback`` (listed first below), plus ``premises``,
+    ``observer_decay``, ``lipschitz_method`` and ``coupling_factor``.
+
+    Attributes
+    ----------
+    premises : str
+        ``"auto"`` (default: ``"measured"`` when every premise depends on
+        measured states only), ``"measured"`` (PDC observer with the measured
+        premises, separation) or ``"estimated"`` (seed 001 observer with the
+        premises at the estimate, the Lipschitz bound ``psi`` of the remainder
+        and the all-pairs PDC conditions; two-step design).
+    observer_decay : float
+        Decay rate of the PDC observer, measured premises (1/s, > 0); default 0.02.
+    lipschitz_method : str
+        Estimated premises: ``"interval"`` (default, guaranteed) or
+        ``"sampling"`` bound of the remainder's Lipschitz constant.
+    coupling_factor : float
+        Safety factor on the weight ``beta`` of the composite Lyapunov function
+        (> 1); default 2.
+    """
+
+    method_name: ClassVar[str] = "ts_output_feedback"
+
+    premises: str = "auto"
+    observer_decay: float = 0.02
+    lipschitz_method: str = "interval"
+    coupling_factor: float = 2.0
+
+    @classmethod
+    def from_table(cls, options: Mapping[str, Any], key: str, plant: Any,
+                   ts: float | None) -> "TsOutputFeedbackOptions":
+        """See `MethodOptions.from_table`."""
+        r = OptionReader(cls, options, key, ts)
+        return cls(**cls._common(r, plant),
+                   premises=r.read("premises", parse_choice, ("auto", "measured", "estimated")),
+                   observer_decay=r.read("observer_decay", parse_number, above=0.0),
+                   lipschitz_method=r.read("lipschitz_method", parse_choice, ("interval", "sampling")),
+                   coupling_factor=r.read("coupling_factor", parse_number, above=1.0))
+
+
+def _with_shared_attributes() -> None:
+    """Put the shared options' documentation into ``TsOutputFeedbackOptions.__doc__``."""
+    base = TsStateFeedbackOptions.__doc__ or ""
+    shared = base[base.index("    relaxation : str"):].rstrip() + "\n"
+    doc = TsOutputFeedbackOptions.__doc__ or ""
+    head = "    Attributes\n    ----------\n"
+    TsOutputFeedbackOptions.__doc__ = doc.replace(head, head + shared, 1)
+
+
+_with_shared_attributes()

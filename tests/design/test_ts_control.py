@@ -1,0 +1,231 @@
+"""Takagi-Sugeno PDC design (tanksynth.design.ts_control and its adapters)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import sympy as sp
+
+from tanksynth.analysis.linearize import equilibrium_input
+from tanksynth.analysis.takagi_sugeno import domain_from_plant, quasi_lpv
+from tanksynth.design.ts_control import (certified_region, condition_weights, deviation_ts_model,
+                                         linear_argument, max_decay_rate, pdc_lmi)
+from tanksynth.errors import InfeasibleDesign, SpecError
+from tanksynth.methods import METHODS, parse_spec_text
+
+SPEC = """
+title = "ts control"
+[plant]
+model = "three_tank"
+outputs = "{outputs}"
+[plant.parameters]
+A = 0.0154
+Phi = 5e-5
+mu13 = 0.5
+mu32 = 0.5
+mu20 = 0.675
+g = 9.82
+[operating_point]
+x = {{h1 = 0.40, h2 = 0.20, h3 = 0.30}}
+[[design]]
+name = "d"
+method = "{method}"
+domain = {{h1 = [0.05, 0.62], h2 = [0.05, 0.62], h3 = [0.05, 0.62]}}
+{extra}
+"""
+
+
+def _spec(method="ts_state_feedback", outputs="h1h2", extra=""):
+    return parse_spec_text(SPEC.format(method=method, outputs=outputs, extra=extra))
+
+
+def _design(**kw):
+    spec = _spec(**kw)
+    entry = spec.designs[0]
+    return spec, METHODS[entry.method].design(spec, entry)
+
+
+@pytest.fixture(scope="module")
+def seed001_model():
+    spec = _spec()
+    plant = spec.plant
+    dom = domain_from_plant(plant, [(0.05, 0.62)] * 3, use_orderings=False)
+    eq = equilibrium_input(plant, spec.x0)
+    return plant, deviation_ts_model(quasi_lpv(plant), dom, spec.x0, eq.u0), eq
+
+
+# ------------------------------------------------------------------------ model
+def test_deviation_model_is_exact_and_premises_secant(seed001_model):
+    plant, model, eq = seed001_model
+    X = model.domain.sample(3000, seed=5)
+    U = np.random.default_rng(2).uniform(0, 1.2e-4, size=(len(X), 2))
+    f = plant.compiled.rhs(X, U)
+    assert np.max(np.abs(model.rhs(X, U) - f)) <= 1e-12 * np.max(np.abs(f))
+    mu = model.memberships(X)
+    assert mu.min() >= 0 and np.allclose(mu.sum(axis=1), 1.0)
+    # premise z2 = (sqrt-flow(h2) - sqrt-flow(h2_0)) / (h2 - h2_0), by hand
+    c2 = 27 * np.sqrt(491) / 61600
+    h2 = X[:, 1]
+    z2 = c2 * (np.sqrt(h2) - np.sqrt(0.2)) / (h2 - 0.2)
+    assert np.allclose(model.premises(X)[:, 1], z2, rtol=1e-9)
+    # bounds: the secant of sqrt is decreasing in h2, so its extremes are at the box ends
+    assert model.upper[1] >= c2 / (np.sqrt(0.05) + np.sqrt(0.2))
+    assert model.lower[1] <= c2 / (np.sqrt(0.62) + np.sqrt(0.2))
+    assert model.upper[1] <= c2 / (np.sqrt(0.05) + np.sqrt(0.2)) * 1.01
+
+
+def test_linear_argument_finds_and_refuses():
+    h1, h2, h3 = sp.symbols("h1 h2 h3", real=True)
+    a = linear_argument(sp.sqrt(sp.Abs(h1 - h3)) * sp.sign(h1 - h3), [h1, h2, h3])
+    assert np.allclose(a, [1, 0, -1])
+    with pytest.raises(SpecError, match="one linear combination"):
+        linear_argument(sp.sqrt(sp.Abs(h1 - h3)) * h2, [h1, h2, h3])
+
+
+def test_condition_counts():
+    assert len(condition_weights("vertex", 4)) == 4 + 6
+    assert len(condition_weights("tuan", 4)) == 4 + 12
+    assert len(condition_weights("all_pairs", 4)) == 16
+
+
+# -------------------------------------------------------------- textbook case
+def test_scalar_two_rule_decay_rate_known_in_closed_form():
+    """dx/dt = a_i x + u, a = (1, -1), |x| <= d, |u| <= ubar on the ellipsoid.
+
+    The region (the whole interval, inner_radius = d) forces X = d^2 and |K_i| <= ubar / d;
+    the vertex conditions give alpha < K_1 - 1 and alpha < (K_1 + K_2) / 2, so the largest decay
+    rate is ubar / d - 1 (by hand).
+    """
+    A = np.array([[[1.0]], [[-1.0]]])
+    B = np.array([[1.0]])
+    d, ubar = 1.0, 3.0
+    faces = (np.array([[1.0], [-1.0]]), np.array([d, d]))
+    kw = dict(faces=faces, input_margins=[ubar], inner_radius=d)
+    best, _ = max_decay_rate(A, B, "vertex", start=0.5, rtol=0.005, **kw)
+    assert best == pytest.approx(ubar / d - 1, rel=0.02)
+    with pytest.raises(InfeasibleDesign):
+        pdc_lmi(A, B, alpha=1.05 * (ubar / d - 1), relaxation="vertex", **kw)
+    res = pdc_lmi(A, B, alpha=0.9 * (ubar / d - 1), relaxation="vertex", **kw)
+    assert res.P[0, 0] == pytest.approx(1 / d ** 2, rel=1e-4)
+    assert np.all(np.abs(res.K) <= ubar / d * (1 + 1e-6))
+    assert res.K[0, 0, 0] - 1 > 0.9 * (ubar / d - 1) - 1e-9
+
+
+def test_pdc_result_rechecked_by_numpy_and_against_cvxpy(seed001_model):
+    """The returned P, K_j satisfy the Tuan conditions (numpy), and a hand-built cvxpy LMI in
+    (X, M_j) with the same conditions is feasible with those matrices fixed."""
+    import cvxpy as cp
+
+    _, model, eq = seed001_model
+    res = pdc_lmi(model.A, model.B, alpha=0.005, relaxation="tuan")
+    r = model.r
+    P, K = res.P, res.K
+    for i in range(r):
+        G = P @ (model.A[i] - model.B @ K[i])
+        assert np.linalg.eigvalsh(G + G.T + 0.01 * P)[-1] < 0
+    for i in range(r):
+        for j in range(r):
+            if i == j:
+                continue
+            S = 0
+            for a, b in ((i, j), (j, i)):
+                G = P @ (model.A[a] - model.B @ K[b])
+                S = S + G + G.T + 0.01 * P
+            Gi = P @ (model.A[i] - model.B @ K[i])
+            S = S + 2 / (r - 1) * (Gi + Gi.T + 0.01 * P)
+            assert np.linalg.eigvalsh(S)[-1] < 0
+    # hand-built: X = P^-1 fixed, M_j = K_j X, the LMIs of Tuan et al. evaluated by cvxpy
+    X = np.linalg.inv(P)
+    Ms = [Kj @ X for Kj in K]
+    Y = [[model.A[i] @ X - model.B @ Ms[j] for j in range(r)] for i in range(r)]
+    t = cp.Variable()
+    cons = []
+    for i in range(r):
+        cons.append(Y[i][i] + Y[i][i].T + 0.01 * X << t * np.eye(3))
+    prob = cp.Problem(cp.Minimize(t), cons)
+    prob.solve(solver="CLARABEL")
+    assert t.value < 0
+
+
+def test_tuan_is_no_more_conservative_than_vertex():
+    """Two rules whose pair condition binds: a = (1, -3), b = (1, 1); Tuan adds 2 Y_ii to it."""
+    A = np.array([[[1.0]], [[-3.0]]])
+    B = np.array([[1.0]])
+    kw = dict(faces=(np.array([[1.0], [-1.0]]), np.array([1.0, 1.0])), input_margins=[3.0],
+              inner_radius=1.0)
+    a_v, _ = max_decay_rate(A, B, "vertex", rtol=0.01, **kw)
+    a_t, _ = max_decay_rate(A, B, "tuan", rtol=0.01, **kw)
+    assert a_t >= a_v * (1 - 0.02)
+
+
+def test_region_closed_form_touches_binding_face(seed001_model):
+    _, model, eq = seed001_model
+    x0 = model.x0
+    G = np.vstack([np.eye(3), -np.eye(3)])
+    g = np.concatenate([model.domain.upper - x0, x0 - model.domain.lower])
+    margins = np.minimum(eq.u0, 1.2e-4 - eq.u0)
+    res = pdc_lmi(model.A, model.B, relaxation="tuan", faces=(G, g), input_margins=margins)
+    reg = certified_region(res.P, res.K, (G, g), margins)
+    # points on the boundary: max of G_l e over the ellipsoid is sqrt(c G_l P^-1 G_l')
+    rng = np.random.default_rng(0)
+    U = rng.normal(size=(20000, 3))
+    U /= np.linalg.norm(U, axis=1, keepdims=True)
+    E = np.linalg.solve(np.linalg.cholesky(res.P).T, U.T).T * np.sqrt(reg.c)
+    assert np.all(E @ G.T <= g * (1 + 1e-9))
+    assert np.max(E @ G.T / g) > 0.99
+    V = np.abs(np.einsum("jan,mn->mja", res.K, E))
+    assert np.all(V <= margins * (1 + 1e-9))
+    assert np.allclose(np.sort(reg.semi_axes), np.sort(np.sqrt(reg.c / np.linalg.eigvalsh(res.P))))
+
+
+# ------------------------------------------------------------------ adapters
+def test_state_feedback_design_reports_relaxation_decay_and_region():
+    spec, res = _design(extra="decay_rate = 0.008")
+    d = res.diagnostics
+    assert d["relaxation"] in ("vertex", "tuan")
+    assert d["relaxations_tried"][-1]["feasible"]
+    assert d["decay_rate"] >= 0.008
+    assert res.gains["K"].shape == (8, 2, 3)
+    reg = d["region"]
+    assert reg["inner_radius"] >= 0.01
+    assert len(reg["extents"]) == 3
+
+
+def test_too_high_decay_rate_exits_3_with_largest_feasible_rate():
+    spec = _spec(extra="decay_rate = 0.1\nrelaxation = \"tuan\"")
+    entry = spec.designs[0]
+    with pytest.raises(InfeasibleDesign, match="largest feasible decay rate is") as info:
+        METHODS[entry.method].design(spec, entry)
+    import re
+    best = float(re.search(r"largest feasible decay rate is ([0-9.eE+-]+)", str(info.value)).group(1))
+    assert 0 < best < 0.1
+    ok = _spec(extra=f"decay_rate = {best * 0.98:.6g}\nrelaxation = \"tuan\"")
+    res = METHODS["ts_state_feedback"].design(ok, ok.designs[0])
+    assert res.diagnostics["decay_rate"] >= best * 0.98
+
+
+def test_region_margin_refuses_small_region():
+    spec = _spec(extra="region_margin = 0.2")
+    with pytest.raises(InfeasibleDesign, match="region_margin"):
+        METHODS["ts_state_feedback"].design(spec, spec.designs[0])
+
+
+def test_output_feedback_estimated_premises_needs_orderings():
+    spec = _spec(method="ts_output_feedback")
+    with pytest.raises(InfeasibleDesign, match="Lipschitz"):
+        METHODS["ts_output_feedback"].design(spec, spec.designs[0])
+
+
+def test_output_feedback_estimated_and_measured_premises():
+    extra = "orderings = true\nordering_gap = 0.07\nregion_margin = 0.002"
+    _, est = _design(method="ts_output_feedback", extra=extra)
+    assert est.diagnostics["premises"] == "estimated"
+    assert est.diagnostics["relaxation"] == "all_pairs"
+    assert est.gains["L"].shape == (3, 2)
+    comp = est.diagnostics["composite"]
+    assert comp["beta"] > 0 and comp["observer_decay"] > 0
+    _, mea = _design(method="ts_output_feedback", outputs="all", extra=extra)
+    assert mea.diagnostics["premises"] == "measured"
+    assert mea.gains["L"].shape == (8, 3, 3)
+    with pytest.raises(SpecError, match="premises"):
+        _design(method="ts_output_feedback", extra=extra + "\npremises = \"measured\"")
