@@ -222,9 +222,15 @@ def _print_summary(paths: list[Path]) -> None:
     for col in ("design", "method", "key figure", "verdict"):
         table.add_column(col, overflow="fold")
     failures = []
+    try:
+        from tanksynth.artefacts.io import read_plant_record
+
+        units = [s.get("unit", "") for s in read_plant_record(paths[0].parent)["plant"]["states"]]
+    except (TanksynthError, KeyError, TypeError, OSError):
+        units = None
     for path in paths:
         doc = read_artefact(path)
-        row = summary_row(doc)
+        row = summary_row(doc, units)
         table.add_row(row.name, row.method, row.figure, "[green]pass[/]" if row.passed else "[red]FAIL[/]")
         failures += [(row.name, c) for c in (doc.get("verification") or {}).get("checks", [])
                      if c.get("passed") is False]

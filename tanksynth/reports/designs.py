@@ -228,8 +228,8 @@ def words(key: str) -> str:
 def _margin_label(path: str) -> Tex:
     parts = path.split(".")
     key = parts[-1]
-    label = _MARGIN_WORDS.get(key)
     where = " ".join(words(p) for p in parts[:-1] if p not in ("lmi", "placement"))
+    label = None if where else _MARGIN_WORDS.get(key)
     text = Tex(label) if label else prose_latex(words(key))
     return Tex(text + (f" ({escape_latex(where)})" if where else ""))
 _SHOWN = ("solver", "status", "checks", "assumptions", "caveats", "equilibrium", "rank")

@@ -229,6 +229,7 @@ def pole_map(artefact: Mapping[str, Any], directory: Path, stem: str) -> FigureF
         return None
     from matplotlib.figure import Figure
     from matplotlib.patches import Patch
+    from matplotlib.ticker import MaxNLocator
 
     planes = [p for p in (False, True) if any(s.discrete == p for s in sets)]
     region = _region_matrices(artefact)
@@ -272,6 +273,8 @@ def pole_map(artefact: Mapping[str, Any], directory: Path, stem: str) -> FigureF
         ax.set_ylabel("imaginary part" + (" [1/s]" if not disc else ""), fontsize=8)
         ax.tick_params(labelsize=7)
         ax.ticklabel_format(useOffset=False)
+        ax.xaxis.set_major_locator(MaxNLocator(5))
+        ax.yaxis.set_major_locator(MaxNLocator(5))
         ax.grid(True, linewidth=0.3, color="0.9")
         ax.legend(handles=handles, fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.2),
                   ncol=1, frameon=False)

@@ -52,7 +52,7 @@ def pole_placement_statement(diag: Mapping[str, Any]) -> Tex:
     if isinstance(integ, Mapping):
         tracked = ", ".join(str(t) for t in integ.get("tracked", []))
         text += (r" Integral action: the model is augmented with $z(k+1) = z(k) + t_s(y_r - C_1 x)$"
-                 r" for the tracked outputs " + escape_latex(tracked)
+                 r" for the tracked outputs " + prose_latex(tracked)
                  + r", and $K = [K_1\;K_2]$ acts on $(x, z)$.")
     return Tex(text)
 
