@@ -14,7 +14,6 @@ import textwrap
 import tomllib
 from pathlib import Path
 
-import pytest
 
 from reports_helpers import needs_latex
 from tanksynth.cli import main
