@@ -364,6 +364,12 @@ def _plain_axis(ax) -> None:
     fmt = ScalarFormatter(useOffset=False)
     fmt.set_scientific(False)
     ax.yaxis.set_major_formatter(fmt)
+    lo, hi = ax.dataLim.y0, ax.dataLim.y1
+    if np.isfinite(lo) and np.isfinite(hi):
+        mid = 0.5 * (lo + hi)
+        if hi - lo <= 1e-6 * max(abs(mid), 1e-300):   # a constant signal (round-off only)
+            half = 0.05 * abs(mid) if mid != 0 else 1.0
+            ax.set_ylim(mid - half, mid + half)
 
 
 def _unit_label(names: list, units: list, i: int) -> str:
