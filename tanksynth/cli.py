@@ -68,13 +68,17 @@ def _design_all(spec, outdir: Path, export: tuple[str, ...]) -> tuple[list[Path]
     from tanksynth.artefacts.io import file_sha256, write_artefact, write_plant_record
     from tanksynth.methods import METHODS
 
-    results, infeasible = [], []
+    from tanksynth.reports.refused import refusal, write_refused
+
+    results, infeasible, refused = [], [], []
     for design in spec.designs:
         try:
             results.append((design, METHODS[design.method].design(spec, design)))
         except InfeasibleDesign as exc:
             infeasible.append(f"{design.name}: {_one_line(exc)}")
+            refused.append(refusal(design.name, design.method, exc))
     plant_sha = file_sha256(write_plant_record(spec, outdir))
+    write_refused(outdir, refused)
     written = []
     for design, result in results:
         formats = list(export)
@@ -218,9 +222,15 @@ def _print_summary(paths: list[Path]) -> None:
     for col in ("design", "method", "key figure", "verdict"):
         table.add_column(col, overflow="fold")
     failures = []
+    try:
+        from tanksynth.artefacts.io import read_plant_record
+
+        units = [s.get("unit", "") for s in read_plant_record(paths[0].parent)["plant"]["states"]]
+    except (TanksynthError, KeyError, TypeError, OSError):
+        units = None
     for path in paths:
         doc = read_artefact(path)
-        row = summary_row(doc)
+        row = summary_row(doc, units)
         table.add_row(row.name, row.method, row.figure, "[green]pass[/]" if row.passed else "[red]FAIL[/]")
         failures += [(row.name, c) for c in (doc.get("verification") or {}).get("checks", [])
                      if c.get("passed") is False]
@@ -236,9 +246,11 @@ def _write_report(directory: Path, pdf: bool):
     from tanksynth.methods import write_report
 
     res = write_report(directory, pdf=pdf)
-    _out.print(f"report: {res.tex}")
     if res.pdf is not None:
-        _out.print(f"report pdf: {res.pdf} ({res.pages} pages, LaTeX {res.latex_seconds:.1f} s)")
+        _out.print(f"report: {res.tex}, {res.pdf.name} ({res.pages} pages, LaTeX "
+                   f"{res.latex_seconds:.1f} s)", markup=False, highlight=False)
+    else:
+        _out.print(f"report: {res.tex}", markup=False, highlight=False)
     for comp in res.comparisons:
         if comp.errata:
             _out.print(f"paper vs tool ({comp.title}): {len(comp.errata)} erratum/errata in the "

@@ -10,7 +10,7 @@ closed loop.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, Mapping
+from typing import Any, Mapping, Sequence
 
 __all__ = ["SummaryRow", "key_figure", "summary_row"]
 
@@ -53,8 +53,18 @@ def _poles(values: Any) -> str:
     return ", ".join(parts)
 
 
-def key_figure(doc: Mapping[str, Any]) -> str:
-    """The key figure of one verified artefact (``doc`` as read from its JSON), or ``"-"``."""
+def _common_unit(units: Sequence[str] | None) -> str:
+    """The unit shared by every state (``m`` for tank levels); empty when unknown or mixed."""
+    if units and all(str(u) == str(units[0]) for u in units) and str(units[0]) not in ("", "1"):
+        return str(units[0])
+    return ""
+
+
+def key_figure(doc: Mapping[str, Any], state_units: Sequence[str] | None = None) -> str:
+    """The key figure of one verified artefact (``doc`` as read from its JSON), or ``"-"``.
+
+    ``state_units`` (the plant record's state units) give the error figures their unit.
+    """
     checks = _checks(doc)
     data = {name: (c.get("data") or {}) for name, c in checks.items()}
     if "achieved" in data.get("poles", {}):
@@ -63,22 +73,25 @@ def key_figure(doc: Mapping[str, Any]) -> str:
         text = f"psi = {float(data['lmi_recheck']['psi']):.4g} 1/s"
         conv = data.get("observer_convergence", {})
         if "e0" in conv and "tail_max" in conv:
-            text += f"; |e| {float(conv['e0']):.2g} -> {float(conv['tail_max']):.2g}"
+            unit = _common_unit(state_units)
+            text += (f"; |e| {float(conv['e0']):.2g} {unit} -> {float(conv['tail_max']):.2g} "
+                     f"{unit}").replace("  ", " ").rstrip()
         return text
     for name in ("estimator_convergence", "observer_convergence"):
         conv = data.get(name, {})
         if "e0" in conv and "tail_max" in conv:
-            return (f"|e|inf {float(conv['e0']):.2g} -> {float(conv['tail_max']):.2g} "
-                    f"in {float(conv.get('horizon_s', 0.0)):.0f} s (nonlinear plant)")
+            unit = _common_unit(state_units)
+            return (f"|e|inf {float(conv['e0']):.2g} {unit} -> {float(conv['tail_max']):.2g} {unit} "
+                    f"in {float(conv.get('horizon_s', 0.0)):.0f} s (nonlinear plant)").replace("  ", " ")
     stab = data.get("stability", {})
     if "value" in stab:
         what = "spectral radius" if stab.get("domain") == "discrete" else "max Re(pole)"
-        return f"{what} {float(stab['value']):.4g}"
+        return f"{what} {float(stab['value']):.4g}" + ("" if stab.get("domain") == "discrete" else " 1/s")
     return "-"
 
 
-def summary_row(doc: Mapping[str, Any]) -> SummaryRow:
-    """`SummaryRow` of one verified artefact."""
+def summary_row(doc: Mapping[str, Any], state_units: Sequence[str] | None = None) -> SummaryRow:
+    """`SummaryRow` of one verified artefact (``state_units``: see `key_figure`)."""
     ver = doc.get("verification") or {}
-    return SummaryRow(str(doc.get("name", "")), str(doc.get("method", "")), key_figure(doc),
+    return SummaryRow(str(doc.get("name", "")), str(doc.get("method", "")), key_figure(doc, state_units),
                       bool(ver.get("passed")))

@@ -26,6 +26,7 @@ __all__ = [
     "cell_number",
     "cell_fit",
     "cell_matrix",
+    "cell_terms",
     "close",
     "artefact_array",
     "params_match",
@@ -137,6 +138,38 @@ def cell_number(x: Any, digits: int = 5) -> Tex:
 def cell_fit(math_tex: str) -> Tex:
     """Math shrunk to the table column when wider (``\\fitcell`` of the template)."""
     return Tex(r"\fitcell{$" + math_tex + "$}")
+
+
+def cell_terms(expr: Any, per_line: int = 2) -> Tex:
+    """A long sympy sum as a table cell broken over lines, ``per_line`` terms per line.
+
+    A common factor is kept in front (``z_1^2 (...)``) when the factored form has one;
+    the lines are typeset at text size and shrunk only if one is still wider than the column.
+    """
+    import sympy as sp
+
+    expr = sp.factor(expr)
+    head, body = sp.Integer(1), expr
+    if isinstance(expr, sp.Mul):
+        sums = [f for f in expr.args if isinstance(sp.expand(f), sp.Add)]
+        if len(sums) == 1:
+            body = sp.expand(sums[0])
+            head = sp.Mul(*[f for f in expr.args if f is not sums[0]])
+    terms = list(sp.Add.make_args(sp.expand(body)))
+    if len(terms) <= per_line:
+        return cell_fit(sp.latex(expr))
+    lines = []
+    for k in range(0, len(terms), per_line):
+        chunk = sp.latex(sp.Add(*terms[k:k + per_line], evaluate=False))
+        if k and not chunk.startswith("-"):
+            chunk = "+ " + chunk
+        lines.append(chunk)
+    pre = "" if head == 1 else ("-" if head == -1 else sp.latex(head)) + r"\,\bigl("
+    post = "" if head == 1 else r"\bigr)"
+    rows = [(pre if i == 0 else r"\quad ") + line + (post if i == len(lines) - 1 else "")
+            for i, line in enumerate(lines)]
+    return Tex(r"\fitcell{$\begin{aligned}[t]" + r" \\ ".join("&" + r for r in rows)
+               + r"\end{aligned}$}")
 
 
 def cell_matrix(a: Any, digits: int = 4) -> Tex:

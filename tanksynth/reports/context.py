@@ -18,6 +18,7 @@ import numpy as np
 from tanksynth.reports.comparison import PaperComparison
 from tanksynth.reports.designs import design_view, latex_label
 from tanksynth.reports.equations import split_equation
+from tanksynth.reports.prose import prose_latex
 from tanksynth.reports.trusted import math_or_text
 from tanksynth.reports.figures import FigureFile, TraceFigure, time_domain_figure
 from tanksynth.reports.inputs import ReportInputs
@@ -60,7 +61,7 @@ def _plant_view(inputs: ReportInputs) -> dict[str, Any]:
                "name": escape_latex(q.get("name", "")),
                "value": _m(q.get("value")),
                "unit": format_unit(q.get("unit")),
-               "desc": escape_latex(q.get("description", ""))} for q in p.get("parameters", [])]
+               "desc": prose_latex(q.get("description", ""))} for q in p.get("parameters", [])]
     region = p.get("region", {}) or {}
     bounds = [{"sym": Tex("$" + symbol_latex(k) + "$"), "lo": _m(v[0]), "hi": _m(v[1]),
                "unit": format_unit(units.get(k))}
@@ -82,7 +83,7 @@ def _plant_view(inputs: ReportInputs) -> dict[str, Any]:
         hyb = {"bits": Tex(", ".join(escape_latex(b) for b in hybrid.get("bits") or [])),
                "switching": sw}
     assumptions = [{"kind": escape_latex(a.get("kind", "")),
-                    "text": escape_latex(a.get("text", ""), breakable=True),
+                    "text": prose_latex(a.get("text", "")),
                     "source": escape_latex(a.get("source", ""), breakable=True)}
                    for a in p.get("assumptions", []) if isinstance(a, Mapping)]
     eqs = rec.get("equations", {}) or {}
@@ -103,8 +104,18 @@ def _plant_view(inputs: ReportInputs) -> dict[str, Any]:
         "assumptions": assumptions,
         "general": _equation_blocks(general),
         "smooth": _equation_blocks(smooth) if smooth and smooth != general else [],
-        "outputs_eq": _equation_blocks(eqs.get("outputs")),
+        "outputs_eq": _outputs_blocks(eqs.get("outputs"), p.get("outputs", [])),
     }
+
+
+def _outputs_blocks(lines: Sequence[str] | None, outputs: Sequence[Mapping[str, Any]]) -> list[list[Tex]]:
+    """The output equations; measured states (``h_{1} = h_{1}``) as one vector ``y = [h_1, h_2]^T``."""
+    lines = [str(e) for e in lines or []]
+    sides = [[part.strip() for part in e.split("=", 1)] for e in lines]
+    if lines and all(len(sd) == 2 and sd[0] == sd[1] for sd in sides):
+        return [[Tex(r"y &= \begin{bmatrix}" + r" & ".join(sd[0] for sd in sides)
+                     + r"\end{bmatrix}^{\top}")]]
+    return _equation_blocks(lines)
 
 
 def _ordering_tex(text: str) -> Tex:
@@ -226,12 +237,12 @@ def _check_view(c: Mapping[str, Any]) -> dict[str, Any]:
             "blocks": data.get("blocks_used"),
         }
     return {
-        "name": escape_latex(c.get("check", ""), breakable=True),
+        "name": prose_latex(str(c.get("check", "")).replace("_", " ")),
         "passed": passed,
         "verdict": Tex(r"\textcolor{passgreen}{pass}" if passed is True else
                        r"\textcolor{failred}{\textbf{FAIL}}" if passed is False else
                        r"\textcolor{infoblue}{info}"),
-        "detail": escape_latex(c.get("detail", ""), breakable=True),
+        "detail": prose_latex(c.get("detail", "")),
         "facts": Tex("; ".join(facts)),
         "symbolic": symbolic,
     }
@@ -315,6 +326,44 @@ def _code_line(line: str) -> Tex:
     return Tex((rf"\hspace*{{{indent * 0.5:.1f}em}}" if indent else "") + (body or r"\mbox{}"))
 
 
+def _refused_view(rec: Mapping[str, Any],
+                  statements: Mapping[str, Callable[[Mapping[str, Any]], Tex]]) -> dict[str, Any]:
+    """A design refused as infeasible (``refused.json``): problem, reason, certificate."""
+    method = str(rec.get("method", ""))
+    fn = statements.get(method)
+    try:
+        problem = fn({}) if fn else escape_latex(f"method {method}")
+    except (KeyError, TypeError, ValueError, AttributeError):
+        problem = escape_latex(f"method {method}")
+    cert = rec.get("certificate")
+    cert_rows = []
+    if isinstance(cert, Mapping):
+        for k, v in cert.items():
+            value = _m(v) if _is_number(v) else prose_latex(v if isinstance(v, str) else str(v))
+            cert_rows.append((prose_latex(str(k).replace("_", " ")), value))
+    elif cert:
+        cert_rows.append((Tex("certificate"), prose_latex(str(cert))))
+    name = str(rec.get("name", ""))
+    return {"name": name, "method": method, "label": latex_label("refused", name),
+            "problem": problem, "reason": prose_latex(rec.get("reason", "")), "certificate": cert_rows}
+
+
+def _spec_verbatim(text: str | None, limit: int = 600) -> Tex:
+    """The spec for a ``verbatim`` environment: ASCII only (others named), no ``\\end{verbatim}``."""
+    out = []
+    for line in (text or "").splitlines()[:limit]:
+        line = line.expandtabs(4).rstrip()
+        line = "".join(c if (32 <= ord(c) < 127) else f"[U+{ord(c):04X}]" for c in line)
+        out.append(line.replace("\\end{verbatim}", "\\end {verbatim}"))
+    return Tex("\n".join(out))
+
+
+def _is_builtin(name: str) -> bool:
+    from tanksynth.plants import BUILTIN_PLANTS
+
+    return name in BUILTIN_PLANTS
+
+
 def build_context(inputs: ReportInputs, figures: Mapping[str, FigureFile],
                   paper: Sequence[PaperComparison],
                   traces: Mapping[str, TraceFigure] | None = None, *,
@@ -338,7 +387,7 @@ def build_context(inputs: ReportInputs, figures: Mapping[str, FigureFile],
     lin = [_linearization_view(a, opv) for a in inputs.by_method("linearize")]
     designs = [design_view(a, figures.get(str(a.get("name"))), statements) for a in inputs.artefacts]
     traces = traces or {}
-    designs = [dataclasses.replace(d, trace_figure=traces[d.name], trace_caption=escape_latex(
+    designs = [dataclasses.replace(d, trace_figure=traces[d.name], trace_caption=prose_latex(
         traces[d.name].caption)) if d.name in traces else d for d in designs]
     checks = [_check_view(c) for c in inputs.checks] if inputs.checks is not None else None
     first = inputs.artefacts[0].get("provenance", {}) if inputs.artefacts else {}
@@ -359,6 +408,8 @@ def build_context(inputs: ReportInputs, figures: Mapping[str, FigureFile],
     verified = [d for d in designs if d.verification is not None]
     pdf_title = re.sub(r"[^A-Za-z0-9 .,:;()=+-]", " ", str(title))
     spec_lines = [_code_line(line) for line in (inputs.spec_text or "").splitlines()[:400]]
+    refused = [_refused_view(r, statements) for r in inputs.refused]
+    show_paper = _is_builtin(inputs.plant_name)
     return {
         "title": escape_latex(title),
         "pdf_title": escape_latex(" ".join(pdf_title.split())),
@@ -366,6 +417,9 @@ def build_context(inputs: ReportInputs, figures: Mapping[str, FigureFile],
         "spec_source": escape_latex(rec.get("spec_source", ""), breakable=True),
         "spec_sha": escape_latex(rec.get("spec_sha256", ""), breakable=True),
         "spec_lines": spec_lines,
+        "spec_verbatim": _spec_verbatim(inputs.spec_text),
+        "refused": refused,
+        "show_paper": show_paper,
         "version": escape_latex(first.get("tanksynth_version", "")),
         "plant": _plant_view(inputs),
         "op": opv,

@@ -17,9 +17,11 @@ import numpy as np
 from tanksynth.reports.comparison import latex_matrix_entries
 from tanksynth.reports.equations import split_equation, visual_length
 from tanksynth.reports.trusted import is_trusted_math, math_or_text
-from tanksynth.reports.figures import FigureFile, TraceFigure, eigenvalue_sets, is_pole_key
+from tanksynth.reports.figures import (FigureFile, TraceFigure, eigen_label, eigenvalue_sets,
+                                       is_pole_key)
 from tanksynth.reports.latex import (Tex, escape_latex, format_eigenvalues, format_number,
                                      gain_latex, matrix_latex, symbol_latex)
+from tanksynth.reports.prose import prose_latex
 
 __all__ = ["DesignView", "design_view", "diagnostic_rows", "fragment_lines", "latex_label"]
 
@@ -196,9 +198,40 @@ class DesignView:
     trace_figure: TraceFigure | None = None
     trace_caption: Tex = Tex("")
 
+    @property
+    def figure_caption(self) -> Tex:
+        """The pole map's caption, typeset."""
+        return prose_latex(self.figure.caption) if self.figure is not None else Tex("")
+
 
 _MARGIN_KEYS = ("margin", "achieved_margin", "min_region_margin", "max_pole_error", "condition_P",
                 "gain_norm", "eigenvector_condition", "lmi_max_eigenvalue", "error_max_real_part")
+#: What each margin key means, in words (keys not listed are shown with their name in words).
+_MARGIN_WORDS = {
+    "margin": "margin imposed on the strict LMI",
+    "achieved_margin": "margin achieved by the LMI solution",
+    "min_region_margin": r"smallest margin of the poles inside the region, $\min -\lambda_{\max}(f_D(z))$",
+    "max_pole_error": "largest error of the placed poles",
+    "condition_P": r"condition number of the Lyapunov matrix $P$",
+    "gain_norm": "norm of the gain",
+    "eigenvector_condition": "condition number of the closed-loop eigenvectors",
+    "lmi_max_eigenvalue": "largest eigenvalue of the LMI (must be negative)",
+    "error_max_real_part": "largest real part of the error eigenvalues",
+}
+
+
+def words(key: str) -> str:
+    """A diagnostics key in words (``min_region_margin`` -> ``min region margin``)."""
+    return str(key).replace("_", " ").strip()
+
+
+def _margin_label(path: str) -> Tex:
+    parts = path.split(".")
+    key = parts[-1]
+    where = " ".join(words(p) for p in parts[:-1] if p not in ("lmi", "placement"))
+    label = None if where else _MARGIN_WORDS.get(key)
+    text = Tex(label) if label else prose_latex(words(key))
+    return Tex(text + (f" ({escape_latex(where)})" if where else ""))
 _SHOWN = ("solver", "status", "checks", "assumptions", "caveats", "equilibrium", "rank")
 
 
@@ -221,11 +254,11 @@ def _checks_rows(value: Any) -> list[dict[str, Tex]]:
             continue
         detail = c.get("detail")
         rows.append({
-            "name": escape_latex(c.get("name", c.get("check", "")), breakable=True),
+            "name": prose_latex(c["name"] if c.get("name") else words(c.get("check", ""))),
             "value": _m(c["value"], 4) if "value" in c else Tex("--"),
             "limit": _m(c["limit"], 4) if "limit" in c else Tex("--"),
-            "unit": escape_latex(c.get("unit", "")),
-            "detail": escape_latex(detail, breakable=True) if isinstance(detail, str) else Tex(""),
+            "unit": prose_latex(c.get("unit", "")),
+            "detail": prose_latex(detail) if isinstance(detail, str) else Tex(""),
             "passed": _verdict_tex(c.get("passed")),
         })
     return rows
@@ -267,7 +300,7 @@ def design_view(art: Mapping[str, Any], figure: FigureFile | None,
     for key in _MARGIN_KEYS:
         for path, v in _find(diag, key):
             if _is_number(v) or (isinstance(v, str) and v.lower() in ("inf", "-inf", "nan")):
-                margins.append((escape_latex(path, breakable=True), _m(v)))
+                margins.append((_margin_label(path), _m(v)))
     checks = []
     for path, v in _find(diag, "checks"):
         for row in _checks_rows(v):
@@ -276,19 +309,20 @@ def design_view(art: Mapping[str, Any], figure: FigureFile | None,
             checks.append(row)
     eig = []
     for s in eigenvalue_sets(art):
-        eig.append((escape_latex(s.path, breakable=True),
+        eig.append((escape_latex(eigen_label(s.path)),
                     Tex("$" + format_eigenvalues([[v.real, v.imag] for v in s.values], 5, limit=16)
                         + "$" + (r" \ ($z$)" if s.discrete else ""))))
     gains = [gain_latex(k, v) for k, v in (art.get("gains") or {}).items()]
     latex = [(symbol_latex(k), fragment_lines(symbol_latex(k), v) if is_trusted_math(v)
               else [Tex(symbol_latex(k) + " &= " + math_or_text(v)[0])])
-             for k, v in (art.get("latex") or {}).items() if isinstance(v, str) and v.strip()]
+             for k, v in (art.get("latex") or {}).items() if isinstance(v, str) and v.strip()
+             and not (k in (art.get("gains") or {}) and _is_numeric_fragment(v))]
     notes = []
     for key in ("caveats", "notes", "note", "warnings"):
         for _, v in _find(diag, key, max_depth=1):
             for item in (v if isinstance(v, list) else [v]):
                 if isinstance(item, str) and item:
-                    notes.append(escape_latex(item, breakable=True))
+                    notes.append(prose_latex(item))
     skip = list(_SHOWN) + [s.path for s in eigenvalue_sets(art)]
     if method == "linearize":
         skip += ["eigenvalues_F", "eigenvalues_Ad", "ts", "smooth_form_valid"]
@@ -304,6 +338,12 @@ def design_view(art: Mapping[str, Any], figure: FigureFile | None,
         margins=margins, checks=checks, eigenvalues=eig, gains=gains, latex=latex, notes=notes,
         diagnostics=rows, omitted=omitted, verification=_verification_view(art.get("verification")),
         figure=figure, provenance=provenance)
+
+
+def _is_numeric_fragment(fragment: str) -> bool:
+    """True for a LaTeX matrix/number holding numbers only (the gain printed again)."""
+    body = re.sub(r"\\(begin|end)\{[a-z]*matrix\}|\\left|\\right|\\\\|&|[\[\]()\s]", " ", fragment)
+    return bool(re.fullmatch(r"[\s0-9.eE+\-]*", body))
 
 
 def fragment_lines(name_tex: str, fragment: str, width: int = 75) -> list[Tex]:

@@ -28,8 +28,8 @@ import numpy as np
 
 from tanksynth.artefacts.atomic import atomic_write
 
-__all__ = ["EigenvalueSet", "eigenvalue_sets", "is_pole_key", "FigureFile", "pole_map", "TraceFigure",
-           "time_domain_figure"]
+__all__ = ["EigenvalueSet", "eigenvalue_sets", "eigen_label", "is_pole_key", "FigureFile", "pole_map",
+           "TraceFigure", "time_domain_figure", "ordinal"]
 
 #: Keys whose eigenvalues are not poles of a dynamic system (LMI blocks, matrices P, Q, X ...).
 _NOT_POLES = ("lmi", "residual", "covariance", "_P", "_Q", "_X", "hessian")
@@ -102,6 +102,32 @@ def _walk(node: Any, path: str, discrete: bool | None) -> Iterator[EigenvalueSet
             yield from _walk(value, sub, discrete)
 
 
+def eigen_label(path: str) -> str:
+    """An eigenvalue set's key path in words, for legends and tables.
+
+    ``placement.requested`` -> ``requested``; ``lmi.closed_loop_eigenvalues`` ->
+    ``achieved: closed loop``; a set computed with a reference (printed) gain ->
+    ``with the gain printed in the paper``; ``eigenvalues_Ad`` -> ``eigenvalues of Ad``.
+    """
+    parts = [p for p in str(path).split(".") if p]
+    last = parts[-1] if parts else str(path)
+    if any("reference" in p for p in parts):
+        return "with the gain printed in the paper"
+    if last in ("requested", "achieved"):
+        return last
+    if last.startswith("eigenvalues_"):
+        return "eigenvalues of " + last[len("eigenvalues_"):]
+    core = last.replace("eigenvalues", "").replace("poles", "").replace("_", " ").strip()
+    return ("achieved: " + core) if core else "achieved"
+
+
+def ordinal(k: int) -> str:
+    """``2`` -> ``2nd``, ``11`` -> ``11th``, ``23`` -> ``23rd``."""
+    k = int(k)
+    suffix = "th" if 10 <= k % 100 <= 20 else {1: "st", 2: "nd", 3: "rd"}.get(k % 10, "th")
+    return f"{k}{suffix}"
+
+
 def eigenvalue_sets(artefact: Mapping[str, Any]) -> tuple[EigenvalueSet, ...]:
     """Every eigenvalue list in an artefact's diagnostics (see module docstring)."""
     diag = artefact.get("diagnostics") or {}
@@ -137,8 +163,52 @@ def _atomic_savefig(fig, target: Path) -> None:
 _MARKERS = ("x", "o", "s", "^", "D", "v", "P", "*")
 
 
+def _region_matrices(artefact: Mapping[str, Any]) -> tuple[np.ndarray, np.ndarray, str] | None:
+    """The LMI region ``L + M z + M' conj(z) < 0`` requested for this design, if any."""
+    frontier = [artefact.get("diagnostics") or {}]
+    while frontier:
+        node = frontier.pop(0)
+        if not isinstance(node, Mapping):
+            continue
+        reg = node.get("region")
+        if isinstance(reg, Mapping) and "L" in reg and "M" in reg:
+            try:
+                L, M = np.asarray(reg["L"], dtype=float), np.asarray(reg["M"], dtype=float)
+            except (TypeError, ValueError):
+                return None
+            if L.ndim == 2 and L.shape == M.shape and L.shape[0] == L.shape[1]:
+                return L, M, str(reg.get("description", ""))
+        frontier.extend(v for v in node.values() if isinstance(v, Mapping))
+    return None
+
+
+def _region_margin(L: np.ndarray, M: np.ndarray, Z: np.ndarray) -> np.ndarray:
+    """``-lambda_max(L + M z + M' conj(z))`` on a grid of complex points (positive inside)."""
+    z = Z.ravel()
+    F = L[None, :, :] + M[None, :, :] * z[:, None, None] + M.T[None, :, :] * np.conj(z)[:, None, None]
+    F = 0.5 * (F + np.conj(np.transpose(F, (0, 2, 1))))
+    return -np.linalg.eigvalsh(F)[:, -1].reshape(Z.shape)
+
+
+def _view(points: np.ndarray, disc: bool) -> tuple[float, float, float, float]:
+    """Square axis limits around the poles (not the whole unit circle)."""
+    re_, im = points.real, points.imag
+    span = max(float(np.ptp(re_)), 2 * float(np.max(np.abs(im))),
+               0.02 * max(1.0, float(np.max(np.abs(points)))))
+    side = 1.5 * span
+    cx = 0.5 * (float(re_.min()) + float(re_.max()))
+    if not disc and float(re_.max()) < 0 and abs(float(re_.max())) <= span:
+        side = max(side, 1.15 * abs(float(re_.min())))   # show the imaginary axis when near
+        cx = float(re_.min()) / 2
+    return cx - side / 2, cx + side / 2, -side / 2, side / 2
+
+
 def pole_map(artefact: Mapping[str, Any], directory: Path, stem: str) -> FigureFile | None:
     """Draw the eigenvalues of one artefact (s- and/or z-plane) to ``directory/stem.pdf``.
+
+    Each plane is zoomed to its eigenvalues; the LMI region requested for
+    the design (when the diagnostics record one) is shaded; the legend,
+    with the sets named in words (`eigen_label`), sits below the axes.
 
     Parameters
     ----------
@@ -158,36 +228,89 @@ def pole_map(artefact: Mapping[str, Any], directory: Path, stem: str) -> FigureF
     if not sets:
         return None
     from matplotlib.figure import Figure
+    from matplotlib.patches import Patch
+    from matplotlib.ticker import MaxNLocator
 
     planes = [p for p in (False, True) if any(s.discrete == p for s in sets)]
-    fig = Figure(figsize=(3.4 * len(planes) + 0.4, 3.4))
+    region = _region_matrices(artefact)
+    fig = Figure(figsize=(3.6 * len(planes) + 0.4, 4.1))
     for k, disc in enumerate(planes):
         ax = fig.add_subplot(1, len(planes), k + 1)
         chosen = [s for s in sets if s.discrete == disc]
+        pts = np.concatenate([np.array(s.values) for s in chosen])
+        x0, x1, y0, y1 = _view(pts, disc)
+        handles = []
+        if region is not None:
+            dom = str((artefact.get("diagnostics") or {}).get("time_domain", "")) or \
+                str(((artefact.get("diagnostics") or {}).get("lmi") or {}).get("domain", ""))
+            if (dom == "discrete") == disc:
+                L, M, desc = region
+                X, Y = np.meshgrid(np.linspace(x0, x1, 240), np.linspace(y0, y1, 240))
+                marg = _region_margin(L, M, X + 1j * Y)
+                ax.contourf(X, Y, marg, levels=[0.0, np.inf], colors=["#cfe3f5"], alpha=0.8)
+                ax.contour(X, Y, marg, levels=[0.0], colors=["#2a6db0"], linewidths=0.8)
+                handles.append(Patch(facecolor="#cfe3f5", edgecolor="#2a6db0",
+                                     label="requested region" + (f": {desc}" if desc and len(desc) < 50
+                                                                 else "")))
         for m, s in enumerate(chosen):
             v = np.array(s.values)
-            ax.plot(v.real, v.imag, linestyle="none", marker=_MARKERS[m % len(_MARKERS)],
-                    markersize=6, fillstyle="none", label=s.path.replace("_", " "))
+            (line,) = ax.plot(v.real, v.imag, linestyle="none", marker=_MARKERS[m % len(_MARKERS)],
+                              markersize=7 - m, fillstyle="none", markeredgewidth=1.1,
+                              label=eigen_label(s.path))
+            handles.append(line)
         if disc:
-            t = np.linspace(0, 2 * np.pi, 400)
-            ax.plot(np.cos(t), np.sin(t), color="0.6", linewidth=0.8)
+            t = np.linspace(0, 2 * np.pi, 2000)
+            ax.plot(np.cos(t), np.sin(t), color="0.45", linewidth=0.8, label="_unit circle")
             ax.set_title("z-plane (discrete time)", fontsize=9)
-            ax.set_aspect("equal", adjustable="datalim")
         else:
-            ax.axvline(0.0, color="0.6", linewidth=0.8)
+            ax.axvline(0.0, color="0.45", linewidth=0.8)
             ax.set_title("s-plane (continuous time)", fontsize=9)
+        ax.set_xlim(x0, x1)
+        ax.set_ylim(y0, y1)
+        ax.set_aspect("equal", adjustable="box")
         ax.axhline(0.0, color="0.85", linewidth=0.6)
-        ax.set_xlabel("Re", fontsize=8)
-        ax.set_ylabel("Im", fontsize=8)
+        ax.set_xlabel("real part" + (" [1/s]" if not disc else ""), fontsize=8)
+        ax.set_ylabel("imaginary part" + (" [1/s]" if not disc else ""), fontsize=8)
         ax.tick_params(labelsize=7)
+        ax.ticklabel_format(useOffset=False)
+        ax.xaxis.set_major_locator(MaxNLocator(5))
+        ax.yaxis.set_major_locator(MaxNLocator(5))
         ax.grid(True, linewidth=0.3, color="0.9")
-        ax.legend(fontsize=6, loc="best")
+        ax.legend(handles=handles, fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.2),
+                  ncol=1, frameon=False)
     fig.tight_layout()
     directory.mkdir(parents=True, exist_ok=True)
     target = directory / f"{stem}.pdf"
     _atomic_savefig(fig, target)
-    caption = f"Eigenvalues of design {artefact.get('name', '')} ({artefact.get('method', '')})."
+    caption = (f"Eigenvalues of design {artefact.get('name', '')} ({artefact.get('method', '')}), "
+               "zoomed to the eigenvalues" + ("; shaded: the LMI region requested in the spec"
+                                                if region is not None else "") + ".")
     return FigureFile(target, f"{directory.name}/{stem}.pdf", caption, sets)
+
+
+def _linear_prediction(artefact: Mapping[str, Any], head: Mapping[str, Any], t: np.ndarray,
+                       x: np.ndarray, u: np.ndarray) -> dict | None:
+    """For a linearisation's verdict trace (first-order agreement): the deviation the stored
+    linear model ``(F, B)`` predicts for the perturbed run (run 2 minus run 1), exact ZOH."""
+    gains = artefact.get("gains") or {}
+    if head.get("check") != "first_order_agreement" or "F" not in gains or "B" not in gains:
+        return None
+    if x.shape[0] < 2 or u.ndim != 3 or u.shape[0] < 2 or u.shape[1] < 1:
+        return None
+    from scipy.linalg import expm
+
+    F, B = np.asarray(gains["F"], float), np.asarray(gains["B"], float)
+    n, m = F.shape[0], B.shape[1]
+    if x.shape[2] != n or u.shape[2] != m:
+        return None
+    dx0 = x[1, 0] - x[0, 0]
+    du = u[1, 0] - u[0, 0]
+    aug = np.zeros((n + m, n + m))
+    aug[:n, :n], aug[:n, n:] = F, B
+    pred = np.array([(expm(aug * (tk - t[0])) @ np.concatenate([dx0, du]))[:n] for tk in t])
+    nl = x[1] - x[0]
+    return {"prediction": pred, "gap": float(np.max(np.abs(nl - pred))),
+            "scale": float(np.max(np.abs(nl)))}
 
 
 @dataclass(frozen=True)
@@ -224,6 +347,29 @@ def _word(passed: Any) -> str:
     if passed is True:
         return "pass"
     return "FAIL" if passed is False else "undecided"
+
+
+#: Display units of the time-domain figures: SI unit -> (factor, shown unit).
+_DISPLAY_UNITS = {"m^3/s": (1e3, "l/s"), "m3/s": (1e3, "l/s")}
+
+
+def _display(unit: str) -> tuple[float, str]:
+    return _DISPLAY_UNITS.get(str(unit).replace(" ", ""), (1.0, str(unit)))
+
+
+def _plain_axis(ax) -> None:
+    """No offset/multiplier text on the y axis (a constant signal reads 0.0278, not 1e-12+2.78e-5)."""
+    from matplotlib.ticker import ScalarFormatter
+
+    fmt = ScalarFormatter(useOffset=False)
+    fmt.set_scientific(False)
+    ax.yaxis.set_major_formatter(fmt)
+    lo, hi = ax.dataLim.y0, ax.dataLim.y1
+    if np.isfinite(lo) and np.isfinite(hi):
+        mid = 0.5 * (lo + hi)
+        if hi - lo <= 1e-6 * max(abs(mid), 1e-300):   # a constant signal (round-off only)
+            half = 0.05 * abs(mid) if mid != 0 else 1.0
+            ax.set_ylim(mid - half, mid + half)
 
 
 def _unit_label(names: list, units: list, i: int) -> str:
@@ -277,13 +423,27 @@ def time_domain_figure(artefact: Mapping[str, Any], artefact_dir: Path, director
 
     panels = ["levels"] + (["estimates", "error"] if x_hat is not None else []) \
         + (["inputs"] if u.ndim == 3 and u.shape[2] > 0 and u.shape[1] == t_u.size else [])
-    fig = Figure(figsize=(6.4, 1.9 * len(panels) + 0.4))
+    lin = _linear_prediction(artefact, head, t, x, u)
+    if lin is not None:
+        panels = ["linear"] + [p for p in panels if p == "inputs"]
+    fig = Figure(figsize=(7.2, 1.9 * len(panels) + 0.4))
     axes = [fig.add_subplot(len(panels), 1, k + 1) for k in range(len(panels))]
     colors = [f"C{i % 10}" for i in range(max(x.shape[2], u.shape[2] if u.ndim == 3 else 0, 1))]
     n = x.shape[2]
     state_unit = sunits[0] if sunits and all(v == sunits[0] for v in sunits) else ""
     for ax, panel in zip(axes, panels):
-        if panel == "levels":
+        if panel == "linear":
+            scale = float(lin["scale"])
+            for i in range(n):
+                ax.plot(t, x[1, :, i] - x[0, :, i], color=colors[i], linewidth=1.1,
+                        label=f"{snames[i] if i < len(snames) else i + 1} nonlinear")
+                ax.plot(t, lin["prediction"][:, i], color=colors[i], linewidth=1.0, linestyle="--",
+                        label=f"{snames[i] if i < len(snames) else i + 1} linear model")
+            ax.set_ylabel(f"deviation from x0 [{state_unit}]" if state_unit else "deviation from x0",
+                          fontsize=8)
+            ax.set_title("response to a small step: nonlinear plant (solid) and linear model (dashed); "
+                         f"largest gap {100 * float(lin['gap']) / max(scale, 1e-300):.2g} %", fontsize=8)
+        elif panel == "levels":
             for r in range(x.shape[0]):
                 for i in range(n):
                     ax.plot(t, x[r, :, i], color=colors[i], linewidth=1.0 if r == 0 else 0.5,
@@ -302,7 +462,8 @@ def time_domain_figure(artefact: Mapping[str, Any], artefact_dir: Path, director
                 ax.plot(t, x[0, :, i], color=colors[i], linewidth=1.0, label=f"{snames[i] if i < len(snames) else i + 1}")
                 ax.plot(t, xh[0, :, i], color=colors[i], linewidth=0.9, linestyle="--",
                         label=f"{snames[i] if i < len(snames) else i + 1} estimate")
-            ax.set_ylabel(f"x, x_hat [{state_unit}]" if state_unit else "x, x_hat", fontsize=8)
+            ax.set_ylabel(f"state and estimate [{state_unit}]" if state_unit else "state and estimate",
+                          fontsize=8)
             ax.set_title("estimates (dashed) against the true states", fontsize=9)
         elif panel == "error":
             err = np.asarray(x_hat, float) - x
@@ -312,20 +473,26 @@ def time_domain_figure(artefact: Mapping[str, Any], artefact_dir: Path, director
                             alpha=1.0 if r == 0 else 0.45,
                             label=f"{snames[i] if i < len(snames) else i + 1}" if r == 0 else None)
             ax.axhline(0.0, color="0.6", linewidth=0.6)
-            ax.set_ylabel(f"x_hat - x [{state_unit}]" if state_unit else "x_hat - x", fontsize=8)
+            ax.set_ylabel(f"estimate - state [{state_unit}]" if state_unit else "estimate - state",
+                          fontsize=8)
             ax.set_title("estimation error", fontsize=9)
         else:
+            shown = [_display(iunits[j] if j < len(iunits) else "") for j in range(u.shape[2])]
             for r in range(u.shape[0]):
                 for j in range(u.shape[2]):
-                    ax.step(t_u, u[r, :, j], where="post", color=colors[j % len(colors)],
+                    ax.step(t_u, shown[j][0] * u[r, :, j], where="post", color=colors[j % len(colors)],
                             linewidth=1.0 if r == 0 else 0.5, alpha=1.0 if r == 0 else 0.45,
-                            label=_unit_label(inames, iunits, j) if r == 0 else None)
-            ax.set_ylabel("inputs", fontsize=8)
+                            label=(inames[j] if j < len(inames) else f"#{j + 1}") if r == 0 else None)
+            same = {sh[1] for sh in shown}
+            unit = same.pop() if len(same) == 1 else ""
+            what = "flow" if unit == "l/s" else "input"
+            ax.set_ylabel(f"{what} [{unit}]" if unit else what, fontsize=8)
             ax.set_title("inputs (zero-order hold)", fontsize=9)
         ax.tick_params(labelsize=7)
+        _plain_axis(ax)
         ax.grid(True, linewidth=0.3, color="0.9")
-        ax.legend(fontsize=6, loc="best", ncol=2)
-    axes[-1].set_xlabel("t [s]", fontsize=8)
+        ax.legend(fontsize=6, loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False)
+    axes[-1].set_xlabel("time t [s]", fontsize=8)
     fig.tight_layout()
     directory.mkdir(parents=True, exist_ok=True)
     target = directory / f"{stem}.pdf"
@@ -338,7 +505,7 @@ def time_domain_figure(artefact: Mapping[str, Any], artefact_dir: Path, director
     caption = (f"Verdict simulation of design {name} ({artefact.get('method', '')}) on the nonlinear "
                f"plant: {scenario}. Check {check}: {_word(passed)}; artefact verdict: {_word(verdict)}. "
                f"{runs} run{'s' if runs != 1 else ''} shown"
-               + (f", every {int(head['stride'])}th sample" if int(head.get("stride", 1)) > 1 else "")
-               + ".")
+               + (f", every {ordinal(int(head['stride']))} sample" if int(head.get("stride", 1)) > 1
+                  else "") + ".")
     return TraceFigure(target, f"{directory.name}/{stem}.pdf", caption, scenario, check,
                        passed if isinstance(passed, bool) else None, x_hat is not None)

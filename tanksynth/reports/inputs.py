@@ -17,6 +17,7 @@ import numpy as np
 from tanksynth.artefacts.io import (PLANT_SCHEMA, SCHEMA, check_npz, check_orphan_npz,
                                     check_plant_record, read_artefact, read_plant_record)
 from tanksynth.errors import ArtefactError
+from tanksynth.reports.refused import REFUSED_FILE, read_refused
 
 __all__ = ["ReportInputs", "read_report_inputs"]
 
@@ -41,6 +42,9 @@ class ReportInputs:
     campaign : tuple of dict or None
         Rows of ``campaign.csv`` (Monte-Carlo campaign of ``tanksynth verify
         --runs``) when present, as strings.
+    refused : tuple of dict
+        Designs refused as infeasible (``refused.json``, see
+        `tanksynth.reports.refused`).
     """
 
     directory: Path
@@ -49,6 +53,7 @@ class ReportInputs:
     checks: tuple[Mapping[str, Any], ...] | None
     artefacts: tuple[Mapping[str, Any], ...]
     campaign: tuple[Mapping[str, str], ...] | None = None
+    refused: tuple[Mapping[str, Any], ...] = ()
 
     @property
     def plant_name(self) -> str:
@@ -113,7 +118,7 @@ def read_report_inputs(directory: str | Path) -> ReportInputs:
     plant = read_plant_record(d)
     artefacts = []
     for path in sorted(d.glob("*.json")):
-        if path.name in ("plant.json", "checks.json") or path.name.startswith("."):
+        if path.name in ("plant.json", "checks.json", REFUSED_FILE) or path.name.startswith("."):
             continue
         if _schema_of(path) != SCHEMA:
             continue
@@ -152,4 +157,4 @@ def read_report_inputs(directory: str | Path) -> ReportInputs:
                 campaign = tuple(dict(r) for r in csv.DictReader(fh))
         except (OSError, UnicodeDecodeError, csv.Error) as exc:
             raise ArtefactError(f"{campaign_path}: unreadable campaign table: {exc}") from None
-    return ReportInputs(d, plant, spec_text, checks, tuple(artefacts), campaign)
+    return ReportInputs(d, plant, spec_text, checks, tuple(artefacts), campaign, read_refused(d))

@@ -29,6 +29,7 @@ __all__ = [
     "format_eigenvalues",
     "format_unit",
     "symbol_latex",
+    "gain_symbol",
     "expression_latex",
     "matrix_latex",
     "gain_latex",
@@ -315,6 +316,20 @@ def symbol_latex(name: Any) -> Tex:
     return Tex(r"\text{" + escape_latex(s) + "}")
 
 
+_GREEK_NAMES = {"alpha", "beta", "gamma", "delta", "epsilon", "kappa", "lambda", "mu", "nu", "rho",
+                "sigma", "tau", "phi", "psi", "omega", "Gamma", "Delta", "Lambda", "Phi", "Psi", "Omega"}
+
+
+def gain_symbol(name: Any) -> Tex:
+    """Math-mode LaTeX of a gain name: short symbols as symbols (``K1`` -> ``K_{1}``, ``alpha``),
+    longer identifiers upright and whole (``training_inputs``, ``ekf_P0``)."""
+    s = str(name)
+    short = re.fullmatch(r"[A-Za-z]{1,2}\d{0,2}|[A-Za-z][A-Za-z0-9]?_[A-Za-z0-9]{1,3}", s)
+    if short or s in _GREEK_NAMES or re.fullmatch(r"(%s)\d{0,2}" % "|".join(_GREEK_NAMES), s):
+        return symbol_latex(s)
+    return Tex(r"\mathrm{" + escape_latex(s).replace(r"\_", r"\_") + "}")
+
+
 def expression_latex(text: Any) -> Tex | None:
     """Math-mode LaTeX of an expression string written by sympy (``str(expr)``).
 
@@ -423,6 +438,8 @@ def gain_latex(name: str, arr: Any, digits: int = 5) -> GainDisplay:
     shape = tuple(int(s) for s in a.shape)
     small = (a.ndim <= 1 and a.size <= MAX_VECTOR) or \
         (a.ndim == 2 and shape[0] <= MAX_ROWS and shape[1] <= MAX_COLS)
+    if a.size == 1:  # a scalar is a scalar, not [20]^T
+        return GainDisplay(name, shape, True, format_number(float(a.ravel()[0]), digits), ())
     if small:
         if a.ndim == 1:
             e = _common_exponent(a)
@@ -507,6 +524,7 @@ def environment():
         "unit": format_unit,
         "sym": lambda s: Tex("$" + symbol_latex(s) + "$"),
         "symm": symbol_latex,
+        "gsym": gain_symbol,
         "texjoin": _texjoin,
         "breakable": lambda s: escape_latex(s, breakable=True),
     })

@@ -172,5 +172,5 @@ def compare_with_papers(inputs: ReportInputs) -> tuple[PaperComparison, ...]:
     refs = tuple(row for a in inputs.artefacts for row in reference_rows(a))
     if refs:
         out.append(PaperComparison("spec_references", "", "Printed gains given in the spec",
-                                   "reference values in the spec's [[design]] tables", refs))
+                                   "reference values in the spec's design tables", refs))
     return tuple(out)

@@ -9,7 +9,7 @@ three-tank plant brings it into the report.
 from __future__ import annotations
 
 from tanksynth.papers import seed001 as paper
-from tanksynth.reports.comparison import AGREES, ERRATUM, PaperRow, cell_fit
+from tanksynth.reports.comparison import AGREES, ERRATUM, PaperRow, cell_terms
 from tanksynth.reports.inputs import ReportInputs
 from tanksynth.reports.latex import Tex
 
@@ -56,8 +56,7 @@ def observability_rows(inputs: ReportInputs) -> tuple[PaperRow, ...]:
     printed = paper.det_O1()
     derived = sp.expand(res.determinant)
     diff = sp.expand(derived - printed)
-    rows.append(PaperRow(Tex(r"$\det O_1$"), cell_fit(sp.latex(sp.factor(printed))),
-                         cell_fit(sp.latex(sp.factor(derived))),
+    rows.append(PaperRow(Tex(r"$\det O_1$"), cell_terms(printed), cell_terms(derived),
                          AGREES if diff == 0 else ERRATUM,
                          Tex("" if diff == 0 else
                              "printed minus derived is $" + sp.latex(sp.factor(-diff))

@@ -9,6 +9,7 @@ from __future__ import annotations
 from typing import Any, Mapping
 
 from tanksynth.reports.latex import Tex, escape_latex, format_eigenvalues, format_number
+from tanksynth.reports.prose import prose_latex
 
 
 def _is_number(v: Any) -> bool:
@@ -53,7 +54,7 @@ def pole_placement_statement(diag: Mapping[str, Any]) -> Tex:
     if isinstance(integ, Mapping):
         tracked = ", ".join(str(t) for t in integ.get("tracked", []))
         text += (r" Integral action: the model is augmented with $z(k+1) = z(k) + t_s(y_r - C_1 x)$"
-                 r" for the tracked outputs " + escape_latex(tracked)
+                 r" for the tracked outputs " + prose_latex(tracked)
                  + r", and $K = [K_1\;K_2]$ acts on $(x, z)$.")
     return Tex(text)
 
@@ -73,7 +74,7 @@ def lmi_placement_statement(diag: Mapping[str, Any]) -> Tex:
                 r"$A - BK$ lies in the LMI region $D = \{z : L_D + M_D z + M_D^\top \bar z \prec 0\}$")
     text = body + (r" (Chilali--Gahinet)")
     if region:
-        text += r"; here $D$: " + escape_latex(region)
+        text += r"; here $D$: " + prose_latex(region)
     dom = lmi.get("domain") or diag.get("time_domain")
     if dom:
         text += f" ({escape_latex(dom)} time)"
@@ -100,16 +101,16 @@ def ts_observer_statement(diag: Mapping[str, Any]) -> Tex:
         text += rf" Here $\psi = {format_number(psi)}$"
         src = diag.get("psi_source")
         if src:
-            text += " (" + escape_latex(src) + ")"
+            text += " (" + prose_latex(src) + ")"
         text += "."
     if lmi.get("Q_form"):
-        text += " " + escape_latex(lmi["Q_form"]) + "."
+        text += " " + prose_latex(lmi["Q_form"]) + "."
     ts = diag.get("ts_model") or {}
     if isinstance(ts.get("r"), int):
         text += f" The TS model has {ts['r']} vertices"
         dom = (ts.get("domain") or {}).get("description")
         if dom:
-            text += " on the domain " + escape_latex(dom)
+            text += " on the domain " + prose_latex(dom)
         text += "."
     return Tex(text)
 

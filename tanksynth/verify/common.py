@@ -102,7 +102,7 @@ __all__ = [
     "SERVO_TIME_CONSTANTS", "SERVO_TOLERANCE", "PERTURBATION", "MAX_STEPS", "NUMERIC_ERRORS",
     "artefact_gain", "artefact_matrix", "design_options", "option", "operating_point",
     "time_domain", "tracked_outputs", "output_rows", "output_at",
-    "one_line", "guard", "fmt", "complex_list", "relative_difference",
+    "one_line", "guard", "fmt", "fmt_signals", "complex_list", "relative_difference",
     "model_recheck", "pole_check", "stability_check", "region_check", "region_lmi_check",
     "rank_check", "CasadiControlLaw", "CasadiIntegralLaw",
 ]
@@ -277,7 +277,27 @@ def fmt(values: Any, digits: int = 4) -> str:
                                for v in arr.ravel()) + "]"
     if arr.ndim > 1:
         return "[" + ", ".join(fmt(row, digits) for row in arr) + "]"
-    return np.array2string(arr, precision=digits, separator=", ", max_line_width=10_000)
+    # significant digits, never fixed-point (array2string(precision=4) prints 1.2e-4 as 0.0001)
+    return "[" + ", ".join(f"{float(v):.{digits}g}" for v in np.atleast_1d(arr).ravel()) + "]"
+
+
+def fmt_signals(values: Any, signals: Sequence[Any], digits: int = 4) -> str:
+    """``name = value unit`` per signal (``q1 = 3.5e-05 m^3/s, ...``); ranges as ``[lo, hi]``.
+
+    ``values`` is a vector (one number per signal) or an ``(n, 2)`` array of
+    ranges; ``signals`` have ``name`` and ``unit`` (plant states, inputs, outputs).
+    """
+    arr = np.asarray(values, dtype=float)
+    parts = []
+    for i, sig in enumerate(signals):
+        if i >= arr.shape[0]:
+            break
+        name, unit = str(getattr(sig, "name", f"#{i + 1}")), str(getattr(sig, "unit", "") or "")
+        v = arr[i]
+        text = (f"{name} in [{float(v[0]):.{digits}g}, {float(v[1]):.{digits}g}]" if np.ndim(v) == 1
+                else f"{name} = {float(v):.{digits}g}")
+        parts.append(text + (f" {unit}" if unit and unit != "1" else ""))
+    return ", ".join(parts)
 
 
 def complex_list(values: Any) -> list[list[float]]:

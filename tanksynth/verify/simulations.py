@@ -18,7 +18,8 @@ from tanksynth.analysis.checks import Check
 from tanksynth.errors import TanksynthError
 from tanksynth.sim.simulate import BatchEstimator, EstimatorAdapter, run_seeds, simulate
 from tanksynth.verify.common import (MAX_STEPS, OBSERVER_TIME_CONSTANTS, OBSERVER_TOLERANCE,
-                                     PERTURBATION, SERVO_TIME_CONSTANTS, SERVO_TOLERANCE, fmt,
+                                     PERTURBATION, SERVO_TIME_CONSTANTS, SERVO_TOLERANCE,
+                                     fmt_signals,
                                      option, output_at)
 from tanksynth.verify.traces import TraceRecorder
 
@@ -384,7 +385,8 @@ def servo_check(plant: Any, controller: Callable, x0: np.ndarray, u0: np.ndarray
     names = [plant.outputs[i].name for i in out_idx]
     ok = bool(np.all(np.isfinite(err)) and final <= SERVO_TOLERANCE)
     return [Check("servo_tracking", ok,
-                  f"set-points of {names} step by {fmt(step)} (5 % of their operating values) at "
+                  f"set-points of {', '.join(names)} step by {fmt_signals(step, [plant.outputs[i] for i in out_idx])} "
+                  f"(5 % of their operating values) at "
                   f"t = {k_step * ts:g} s, nonlinear plant with pump saturation, sampled every "
                   f"{ts:g} s; largest tracking error over the last {window} samples "
                   f"{100 * final:.3g} % of the step (tolerance {100 * SERVO_TOLERANCE:g} %); "
@@ -394,8 +396,8 @@ def servo_check(plant: Any, controller: Callable, x0: np.ndarray, u0: np.ndarray
                    "steps": steps, "tolerance": SERVO_TOLERANCE}),
             Check("bounded_inputs", inside,
                   f"inputs finite, {saturated} of {steps} samples at an actuator limit, and strictly "
-                  f"inside the range {fmt(lim)} over the last {window} samples "
-                  f"(final input {fmt(u[-1])})",
+                  f"inside the actuator range {fmt_signals(lim, plant.inputs)} over the last {window} "
+                  f"samples (final input {fmt_signals(u[-1], plant.inputs)})",
                   {"saturated_samples": saturated, "final_input": u[-1].tolist()})]
 
 

@@ -213,3 +213,25 @@ def test_seed000_control_law_erratum(tmp_path):
                         r"$\alpha$": ERRATUM}
     alpha = next(r for r in comp.rows if r.quantity == r"$\alpha$ (formula)")
     assert alpha.verdict == ERRATUM and r"\Lambda_0" in alpha.note
+
+
+def test_seed000_formula_verdicts_are_computed_from_the_model(demo_dir, monkeypatch):
+    """The eq. (8) formula rows compare the printed formulas with the Jacobian of the recorded
+    plant: printed as in the paper they are errata; a corrected printed F agrees."""
+    from tanksynth.papers import seed000 as paper
+    from tanksynth.reports import read_report_inputs
+    from tanksynth.reports.paper_seed000 import _formula_gaps, linearisation_rows
+
+    inputs = read_report_inputs(demo_dir)
+    gaps = _formula_gaps(inputs)
+    for (i, j) in paper.F_FORMULA_ERRATA:
+        assert gaps[i - 1, j - 1] > 1e-3
+    assert gaps[0, 0] < 1e-12 and gaps[0, 2] < 1e-12       # printed right
+
+    def corrected(t13, t32, t20):   # the Jacobian of the smooth model, independently written
+        return [[-t13, 0, t13], [0, -t32 - t20, t32], [t13, t32, -t32 - t13]]
+
+    monkeypatch.setattr(paper, "F_in_fractions", corrected)
+    assert float(abs(_formula_gaps(inputs)).max()) < 1e-12
+    rows = [r for r in linearisation_rows(inputs) if "(formula)" in r.quantity]
+    assert rows and all(r.verdict == "agrees" for r in rows)

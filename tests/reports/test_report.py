@@ -78,8 +78,9 @@ def test_any_artefact_renders_large_gains_summarised(demo_dir, tmp_path):
     assert len(tex) < 200_000                    # no 4096-entry dump
     assert "10^{-5}" in tex                      # common factor of the small L
     assert "CLARABEL" in tex and "optimal" in tex
-    assert "P \\textgreater{} 0" in tex        # the re-check row, escaped
-    assert "500 numbers in" in tex
+    assert "P $>$ 0" in tex                      # the re-check row, its relation typeset
+    assert "500 numbers in" not in tex           # no diagnostics dump: the JSON file has them
+    assert "key \\texttt{diagnostics}" in tex
 
 
 def test_gain_display_rules():

@@ -48,7 +48,19 @@ def test_linearisation_trace_and_figure(tmp_path):
     tex = (d / "report.tex").read_text(encoding="utf-8")
     assert "report-figures/traces-00-linear-model.pdf" in tex
     assert (d / "report-figures" / "traces-00-linear-model.pdf").read_bytes().startswith(b"%PDF")
-    assert "Time-domain figures" in tex
+    assert "time-domain figures" in tex
+    # the linearisation's figure is the linear model's prediction against the nonlinear response
+    from tanksynth.artefacts.traces import read_trace, trace_path
+    from tanksynth.reports import read_report_inputs
+    from tanksynth.reports.figures import _linear_prediction
+
+    art = read_report_inputs(d).by_method("linearize")[0]
+    tr = read_trace(trace_path(d / "linear_model.json", "linear_model"))
+    arr = tr["arrays"]
+    lin = _linear_prediction(art, tr["header"], arr["t"], arr["x"], arr["u"])
+    assert lin is not None
+    assert lin["scale"] > 0                        # the perturbed run moves: no flat lines
+    assert lin["gap"] < 0.05 * lin["scale"]        # first-order agreement near x0
 
 
 @needs_latex
@@ -62,7 +74,7 @@ def test_seed004_observer_trace_and_pdf(tmp_path):
     assert main(["report", str(d), "--pdf"]) == 0
     text = subprocess.run(["pdftotext", str(d / "report.pdf"), "-"], capture_output=True, text=True,
                           check=True).stdout
-    assert "Time-domain figures" in text
+    assert "time-domain figures" in text
     assert "initial-state mismatch" in text and "observer convergence" in text.replace("_", " ")
 
 
