@@ -35,6 +35,7 @@ from typing import Any, Callable, Mapping
 
 from tanksynth.design import control_methods, convex_methods, decentralized_methods, model_methods
 from tanksynth.design import estimator_methods as est
+from tanksynth.design import synthesis_methods as syn
 from tanksynth.design.result import DesignMethod, DesignResult
 from tanksynth.reports import statements as st
 from tanksynth.spec import DesignSpec, Spec, load_spec as _load_spec, parse_spec as _parse_spec
@@ -42,6 +43,7 @@ from tanksynth.spec import parse_spec_text as _parse_spec_text
 from tanksynth.spec.method_options import MethodOptions
 from tanksynth.verify import campaign, decentralized, estimators, fault, laws, model, narx, placement
 from tanksynth.verify import ts_observer
+from tanksynth.verify import synthesis as syn_verdict
 from tanksynth.verify.runner import Verdict, VerdictFn
 from tanksynth.verify.runner import verify_directory as _verify_directory
 
@@ -157,6 +159,22 @@ TABLE: tuple[Method, ...] = (
     _row("fault_detection", ("detector",), "observer residual with a derived fault-detection threshold",
          est.FAULT_DETECTION, fault.fault_detection_verdict, st.fault_detection_statement,
          campaign.fault_detection_run),
+    _row("h2_state_feedback", ("controller",), "state feedback minimising the H2 norm by an LMI (= LQR)",
+         syn.H2_STATE_FEEDBACK, syn_verdict.synthesis_verdict, st.h2_state_feedback_statement,
+         syn_verdict.synthesis_run),
+    _row("h2_observer", ("observer",), "observer minimising the H2 norm by an LMI (= steady Kalman)",
+         syn.H2_OBSERVER, syn_verdict.synthesis_verdict, st.h2_observer_statement,
+         syn_verdict.synthesis_run),
+    _row("hinf_state_feedback", ("controller",), "state feedback minimising the H-infinity norm (LMI)",
+         syn.HINF_STATE_FEEDBACK, syn_verdict.synthesis_verdict, st.hinf_state_feedback_statement,
+         syn_verdict.synthesis_run),
+    _row("hinf_observer", ("observer",), "observer minimising the H-infinity norm of the error (LMI)",
+         syn.HINF_OBSERVER, syn_verdict.synthesis_verdict, st.hinf_observer_statement,
+         syn_verdict.synthesis_run),
+    _row("multiobjective", _CONTROLLER_OR_OBSERVER,
+         "H2/H-infinity objective and bounds with an LMI pole region, common Lyapunov matrix",
+         syn.MULTIOBJECTIVE, syn_verdict.synthesis_verdict, st.multiobjective_statement,
+         syn_verdict.synthesis_run),
 )
 
 

@@ -19,6 +19,9 @@ from tanksynth.spec.method_options.fault import FaultDetectionOptions
 from tanksynth.spec.method_options.placement import (CanonicalObserverOptions, LinearizeOptions,
                                                      LmiPlacementOptions, PolePlacementOptions)
 from tanksynth.spec.method_options.ts_observer import TsObserverOptions
+from tanksynth.spec.method_options.synthesis import (H2ObserverOptions, H2StateFeedbackOptions,
+                                                     HinfObserverOptions, HinfStateFeedbackOptions,
+                                                     MultiobjectiveOptions)
 
 __all__ = [
     "MethodOptions", "OptionReader",
@@ -29,4 +32,6 @@ __all__ = [
     "KalmanOptions", "EkfOptions", "UkfOptions", "AdaptiveKalmanOptions",
     "AdaptiveScalingKalmanOptions", "ConsensusFilterOptions", "LuenbergerOptions", "NarxOptions",
     "FaultDetectionOptions",
+    "H2StateFeedbackOptions", "H2ObserverOptions", "HinfStateFeedbackOptions", "HinfObserverOptions",
+    "MultiobjectiveOptions",
 ]
