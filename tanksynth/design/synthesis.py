@@ -54,13 +54,13 @@ from tanksynth.analysis.lmi_region import LMIRegion
 from tanksynth.analysis.statespace import h2_norm, hinf_below, hinf_norm, statespace_matrices
 from tanksynth.design.lmi import LMICheck
 from tanksynth.design.synthesis_lmis import (DOMAINS, GeneralizedPlant, generalized_plant, h2_lmis,
-                                            hinf_lmis, observer_plant, region_lmi)
+                                            hinf_lmis, hinf_lmis_reduced, observer_plant, region_lmi)
 from tanksynth.errors import DimensionError, InfeasibleDesign, SpecError
 
 __all__ = [
     "DOMAINS", "OBJECTIVES", "SOLVERS", "NORM_RTOL",
     "GeneralizedPlant", "generalized_plant", "observer_plant", "statespace_matrices",
-    "h2_lmis", "hinf_lmis", "region_lmi",
+    "h2_lmis", "hinf_lmis", "hinf_lmis_reduced", "region_lmi",
     "h2_norm", "hinf_norm", "hinf_below",
     "SynthesisResult", "synthesize_state_feedback", "synthesize_observer",
 ]
@@ -306,6 +306,8 @@ def synthesize_state_feedback(plants: GeneralizedPlant | Sequence[GeneralizedPla
     Y = cp.Variable((m, n))
     W = cp.Variable((nz, nz), symmetric=True) if use_h2 else None
     g = cp.Variable(nonneg=True) if use_hinf else None
+    # without an H2 LMI in the same X, the smaller bounded real lemma in (gamma X, mu = gamma^2)
+    reduced = use_hinf and not use_h2
 
     def lmis(t: Any) -> list:
         cons = [X >> t * np.eye(n)]
@@ -314,7 +316,7 @@ def synthesize_state_feedback(plants: GeneralizedPlant | Sequence[GeneralizedPla
             if use_h2:
                 blocks += h2_lmis(P, X, Y, W)
             if use_hinf:
-                blocks += hinf_lmis(P, X, Y, g)
+                blocks += hinf_lmis_reduced(P, X, Y, g) if reduced else hinf_lmis(P, X, Y, g)
             if reg_s is not None:
                 blocks.append(region_lmi(reg_s, P, X, Y))
             cons += [B << -t * np.eye(B.shape[0]) for B in blocks]
@@ -324,14 +326,14 @@ def synthesize_state_feedback(plants: GeneralizedPlant | Sequence[GeneralizedPla
     if h2_bound is not None:
         bounds.append(cp.trace(W) <= (h2_bound / f2) ** 2)
     if hinf_bound is not None:
-        bounds.append(g <= hinf_bound / finf)
+        bounds.append(g <= (hinf_bound / finf) ** 2 if reduced else g <= hinf_bound / finf)
     goal = {"h2": cp.trace(W) if use_h2 else None, "hinf": g, "none": None}[objective]
     start = time.perf_counter()
     phase1 = cp.Problem(cp.Minimize(goal if goal is not None else 0), lmis(margin) + bounds)
     status = _solve(phase1, solver)
     if not _ok(status) or X.value is None:
         raise InfeasibleDesign(_infeasible_reason(status, solver, lmis, margin, W, g, f2, finf,
-                                                  h2_bound, hinf_bound, region, len(models)))
+                                                  h2_bound, hinf_bound, region, len(models), reduced))
     opt = None if goal is None else float(goal.value)
     values = (X.value.copy(), Y.value.copy(), None if W is None else W.value.copy(),
               None if g is None else float(g.value))
@@ -342,7 +344,7 @@ def synthesize_state_feedback(plants: GeneralizedPlant | Sequence[GeneralizedPla
         if objective == "h2":
             extra.append(cp.trace(W) <= (1.0 + backoff) ** 2 * opt)
         elif objective == "hinf":
-            extra.append(g <= (1.0 + backoff) * opt)
+            extra.append(g <= (1.0 + backoff) ** (2 if reduced else 1) * opt)
         phase2 = cp.Problem(cp.Maximize(t), lmis(t) + bounds + extra)
         status2 = _solve(phase2, solver)
         if _ok(status2) and X.value is not None and t.value is not None and t.value >= margin:
@@ -357,9 +359,12 @@ def synthesize_state_feedback(plants: GeneralizedPlant | Sequence[GeneralizedPla
     Ks = np.linalg.solve(Xs.T, Ys.T).T
     K = (sc.su[:, None] * Ks) / sc.s[None, :]
     h2_claim = None if Wv is None else float(np.sqrt(max(np.trace(Wv), 0.0)) * f2)
-    g_claim = None if gv is None else float(gv * finf)
+    gamma_s = None if gv is None else (float(np.sqrt(max(gv, 0.0))) if reduced else gv)
+    g_claim = None if gamma_s is None else float(gamma_s * finf)
+    if reduced and opt is not None and objective == "hinf":
+        opt = float(np.sqrt(max(opt, 0.0)))
     checks, eigs, margins, a_h2, a_hinf = _recheck(models, scaled, K, Xs, Ys, Wv, gv, region, reg_s,
-                                                    h2_claim, g_claim, margin)
+                                                    h2_claim, g_claim, margin, reduced)
     failed = [c for c in checks if not c.passed]
     if failed:
         worst = "; ".join(f"{c.name}: {c.value:.4g} vs {c.limit:.4g}" for c in failed)
@@ -380,7 +385,7 @@ def synthesize_state_feedback(plants: GeneralizedPlant | Sequence[GeneralizedPla
 
 
 def _infeasible_reason(status, solver, lmis, margin, W, g, f2, finf, h2_bound, hinf_bound, region,
-                       count) -> str:
+                       count, reduced=False) -> str:
     what = []
     if h2_bound is not None:
         what.append(f"||T_zw||_2 <= {h2_bound:.6g}")
@@ -394,10 +399,10 @@ def _infeasible_reason(status, solver, lmis, margin, W, g, f2, finf, h2_bound, h
     # certificate: the best the LMIs admit without the bounds (same region, same models)
     cert = []
     for name, var, factor, bound, sq in (("H2", W, f2, h2_bound, True),
-                                          ("H-infinity", g, finf, hinf_bound, False)):
+                                          ("H-infinity", g, finf, hinf_bound, reduced)):
         if bound is None or var is None:
             continue
-        goal = cp.trace(var) if sq else var
+        goal = cp.trace(var) if name == "H2" else var
         prob = cp.Problem(cp.Minimize(goal), lmis(margin))
         st = _solve(prob, solver)
         if _ok(st) and goal.value is not None:
@@ -408,7 +413,7 @@ def _infeasible_reason(status, solver, lmis, margin, W, g, f2, finf, h2_bound, h
     return text + ("; " + "; ".join(cert) if cert else "")
 
 
-def _recheck(models, scaled, K, Xs, Ys, Wv, gv, region, reg_s, h2_claim, g_claim, margin):
+def _recheck(models, scaled, K, Xs, Ys, Wv, gv, region, reg_s, h2_claim, g_claim, margin, reduced):
     checks: list[LMICheck] = []
     eigs, margins, a_h2, a_hinf = [], [], [], []
     xmin = float(np.min(np.linalg.eigvalsh(Xs)))
@@ -444,7 +449,7 @@ def _recheck(models, scaled, K, Xs, Ys, Wv, gv, region, reg_s, h2_claim, g_claim
         if Wv is not None:
             blocks += h2_lmis(Ps, Xs, Ys, Wv)
         if gv is not None:
-            blocks += hinf_lmis(Ps, Xs, Ys, gv)
+            blocks += hinf_lmis_reduced(Ps, Xs, Ys, gv) if reduced else hinf_lmis(Ps, Xs, Ys, gv)
         if reg_s is not None:
             blocks.append(region_lmi(reg_s, Ps, Xs, Ys))
         for B in blocks:

@@ -52,7 +52,7 @@ from tanksynth.analysis.statespace import statespace_matrices
 from tanksynth.errors import DimensionError, SpecError
 
 __all__ = ["DOMAINS", "GeneralizedPlant", "generalized_plant", "observer_plant",
-           "h2_lmis", "hinf_lmis", "region_lmi"]
+           "h2_lmis", "hinf_lmis", "hinf_lmis_reduced", "region_lmi"]
 
 #: Time domains.
 DOMAINS = ("continuous", "discrete")
@@ -285,6 +285,41 @@ def hinf_lmis(plant: GeneralizedPlant, X: Any, Y: Any, gamma: Any) -> list[Any]:
                    [AX.T, -X, Znw, CX.T],
                    [Bw.T, Znw.T, -_eye_times(gamma, nw), Zwz],
                    [Znz.T, CX, Zzw, -_eye_times(gamma, nz)]])
+    return [_sym(M)]
+
+
+def hinf_lmis_reduced(plant: GeneralizedPlant, X: Any, Y: Any, mu: Any) -> list[Any]:
+    """Bounded real lemma with the disturbance block eliminated (must be negative definite).
+
+    Scaling ``X`` by ``gamma`` and taking the Schur complement of the ``w``
+    block gives an LMI in ``(X, Y, mu = gamma^2)`` smaller by ``nw`` rows:
+    continuous ``[[He(AX - BY) + Bw Bw', (CzX - DzuY)'], [., -mu I]] < 0``;
+    discrete ``[[-X + Bw Bw', AX - BY, 0], [., -X, (CzX - DzuY)'], [0, ., -mu I]] < 0``.
+    ``||T_zw||_inf < sqrt(mu)``. Not homogeneous like `hinf_lmis` in the same
+    ``X``: combine it with region LMIs only (not with `h2_lmis`).
+
+    Parameters
+    ----------
+    plant : GeneralizedPlant
+    X, Y : cvxpy expressions or ndarrays
+    mu : cvxpy scalar expression or float
+        ``gamma^2``.
+
+    Returns
+    -------
+    list
+        One symmetric matrix.
+    """
+    A, B, Bw, Cz, Dzu = plant.A, plant.B, plant.Bw, plant.Cz, plant.Dzu
+    n, nz = plant.n, Cz.shape[0]
+    AX = A @ X - B @ Y
+    CX = Cz @ X - Dzu @ Y
+    gram = Bw @ Bw.T
+    if plant.domain == "continuous":
+        M = _bmat([[AX + AX.T + gram, CX.T], [CX, -_eye_times(mu, nz)]])
+    else:
+        Znz = np.zeros((n, nz))
+        M = _bmat([[-X + gram, AX, Znz], [AX.T, -X, CX.T], [Znz.T, CX, -_eye_times(mu, nz)]])
     return [_sym(M)]
 
 

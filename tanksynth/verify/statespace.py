@@ -90,7 +90,7 @@ def artefact_statespace(doc: Mapping[str, Any], system: str = "performance",
     dt = _dt(doc)
     plant = getattr(spec, "plant", None)
     states = [s.name for s in plant.states] if plant is not None else None
-    kw: dict[str, Any] = {"name": f"{name}.{system}"}
+    kw: dict[str, Any] = {"name": f"{name}_{system}".replace(".", "_")}
     if K is not None:
         if K.shape[1] != n:
             raise ArtefactError(f"artefact '{name}': K has {K.shape[1]} columns, the model {n} states "

@@ -16,6 +16,7 @@ import scipy.linalg as sla
 
 from tanksynth.analysis.lmi_region import disk, half_plane
 from tanksynth.design.synthesis import (GeneralizedPlant, generalized_plant, h2_lmis, hinf_lmis,
+                                        hinf_lmis_reduced,
                                         observer_plant, region_lmi, synthesize_observer,
                                         synthesize_state_feedback)
 from tanksynth.errors import InfeasibleDesign, SpecError
@@ -253,11 +254,13 @@ def test_statespace_input_and_lmi_blocks_in_numpy():
     assert hinf_lmis(Pm, X, K @ X, g)[0].shape == (3 + 3 + 5,) * 2
     # bounded real lemma at the solver's optimum, recomputed in numpy in original units
     res = synthesize_state_feedback(Pm, objective="hinf", backoff=1e-2)
-    # X = T Xs T' is the scaled problem's; the bounded real lemma in original units (w = cw ws,
-    # zs = cz z, tau = omega t) holds for omega cz / cw times it
-    Xh = res.X * res.scaling["time_scale"] * res.scaling["performance_scale"] \
-        / res.scaling["disturbance_scale"]
-    M = hinf_lmis(Pm, Xh, res.gain @ Xh, res.gamma)[0]
+    # X = T Xs T' of the scaled problem's reduced lemma (variable gamma X, mu = gamma^2); in
+    # original units (w = cw ws, zs = cz z, tau = omega t) it holds for omega / cw^2 times it
+    Xh = res.X * res.scaling["time_scale"] / res.scaling["disturbance_scale"] ** 2
+    M = hinf_lmis_reduced(Pm, Xh, res.gain @ Xh, res.gamma ** 2)[0]
+    assert np.linalg.eigvalsh(M).max() < 0
+    # and the full lemma in X = (gamma X) / gamma
+    M = hinf_lmis(Pm, Xh / res.gamma, res.gain @ Xh / res.gamma, res.gamma)[0]
     assert np.linalg.eigvalsh(M).max() < 0
 
 
