@@ -45,10 +45,12 @@ from tanksynth.analysis.checks import Check
 from tanksynth.analysis.rank import controllability_rank, observability_rank
 from tanksynth.plants.base import Quantity
 from tanksynth.sim.simulate import run_seeds, simulate
+from tanksynth.verify.closed_loops import ClosedLoop
 from tanksynth.verify.common import (MAX_STEPS, artefact_matrix, fmt, guard, model_recheck,
                                      operating_point, option, rank_check, region_check,
                                      region_lmi_check, relative_difference, stability_check,
                                      time_domain)
+from tanksynth.verify.estimation_runs import EstimatorRun, placement_run
 from tanksynth.verify.simulations import (eigenvector_conditioning, luenberger_estimator,
                                           observer_convergence, observer_period, regulation_check,
                                           slowest_time_constant)
@@ -488,12 +490,10 @@ def synthesis_verdict(doc: Mapping[str, Any], spec: Any, *,
     return checks
 
 
-def synthesis_run(doc: Mapping[str, Any], spec: Any) -> Any:
+def synthesis_run(doc: Mapping[str, Any], spec: Any) -> "EstimatorRun | ClosedLoop":
     """Campaign runner: the observer ``L`` on the noisy measurements, or ``K`` in closed loop.
 
     The same runs as ``lmi_placement`` artefacts
     (`tanksynth.verify.estimation_runs.placement_run`).
     """
-    from tanksynth.verify.estimation_runs import placement_run
-
     return placement_run(doc, spec)
