@@ -37,6 +37,7 @@ from tanksynth.design import control_methods, convex_methods, decentralized_meth
 from tanksynth.design import estimator_methods as est
 from tanksynth.design import robust_methods
 from tanksynth.design import ts_control_methods
+from tanksynth.design import synthesis_methods as syn
 from tanksynth.design.result import DesignMethod, DesignResult
 from tanksynth.reports import statements as st
 from tanksynth.spec import DesignSpec, Spec, load_spec as _load_spec, parse_spec as _parse_spec
@@ -46,6 +47,7 @@ from tanksynth.verify import campaign, decentralized, estimators, fault, laws, m
 from tanksynth.verify import robust as robust_verdicts
 from tanksynth.verify import ts_observer
 from tanksynth.verify import ts_control
+from tanksynth.verify import synthesis as syn_verdict
 from tanksynth.verify.runner import Verdict, VerdictFn
 from tanksynth.verify.runner import verify_directory as _verify_directory
 
@@ -178,6 +180,22 @@ TABLE: tuple[Method, ...] = (
          "Takagi-Sugeno PDC on a TS observer (measured or estimated premises), certified region",
          ts_control_methods.TS_OUTPUT_FEEDBACK, ts_control.ts_control_verdict,
          st.ts_output_feedback_statement, ts_control.ts_control_run),
+    _row("h2_state_feedback", ("controller",), "state feedback minimising the H2 norm by an LMI (= LQR)",
+         syn.H2_STATE_FEEDBACK, syn_verdict.synthesis_verdict, st.h2_state_feedback_statement,
+         syn_verdict.synthesis_run),
+    _row("h2_observer", ("observer",), "observer minimising the H2 norm by an LMI (= steady Kalman)",
+         syn.H2_OBSERVER, syn_verdict.synthesis_verdict, st.h2_observer_statement,
+         syn_verdict.synthesis_run),
+    _row("hinf_state_feedback", ("controller",), "state feedback minimising the H-infinity norm (LMI)",
+         syn.HINF_STATE_FEEDBACK, syn_verdict.synthesis_verdict, st.hinf_state_feedback_statement,
+         syn_verdict.synthesis_run),
+    _row("hinf_observer", ("observer",), "observer minimising the H-infinity norm of the error (LMI)",
+         syn.HINF_OBSERVER, syn_verdict.synthesis_verdict, st.hinf_observer_statement,
+         syn_verdict.synthesis_run),
+    _row("multiobjective", _CONTROLLER_OR_OBSERVER,
+         "H2/H-infinity objective and bounds with an LMI pole region, common Lyapunov matrix",
+         syn.MULTIOBJECTIVE, syn_verdict.synthesis_verdict, st.multiobjective_statement,
+         syn_verdict.synthesis_run),
 )
 
 

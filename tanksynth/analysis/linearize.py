@@ -8,7 +8,7 @@ and errata) come from `symbolic_jacobians`.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Sequence
+from typing import Any, Sequence
 
 import numpy as np
 import scipy.linalg as sla
@@ -148,6 +148,8 @@ class LinearModel:
         Sampling period (s) when discretised.
     Ad, Bd : ndarray or None
         Exact ZOH discretisation with period ``ts``.
+    state_names, input_names, output_names : tuple of str
+        Signal names (the plant's), used by `to_statespace`.
     """
 
     F: np.ndarray
@@ -159,11 +161,52 @@ class LinearModel:
     ts: float | None = None
     Ad: np.ndarray | None = None
     Bd: np.ndarray | None = None
+    state_names: tuple[str, ...] = ()
+    input_names: tuple[str, ...] = ()
+    output_names: tuple[str, ...] = ()
 
     @property
     def eigenvalues(self) -> np.ndarray:
         """Eigenvalues of ``F`` (1/s)."""
         return np.linalg.eigvals(self.F)
+
+    def to_statespace(self, discrete: bool | None = None) -> Any:
+        """The deviation model as a python-control `StateSpace` (names, ``dt``).
+
+        Parameters
+        ----------
+        discrete : bool, optional
+            ``True``: the ZOH model ``(Ad, Bd, C, 0)`` with ``dt = ts`` (s);
+            ``False``: ``(F, B, C, 0)`` in continuous time; default: discrete
+            when the model was discretised.
+
+        Returns
+        -------
+        control.StateSpace
+            States, inputs and outputs named as the plant's (deviations from
+            ``x0``, ``u0``).
+
+        Raises
+        ------
+        SpecError
+            ``discrete=True`` for a model without a sampling period.
+        """
+        import control
+
+        if discrete is None:
+            discrete = self.Ad is not None
+        if discrete and (self.Ad is None or self.ts is None):
+            raise SpecError("the linear model was not discretised: linearize(..., ts=...) first",
+                            key="sampling.ts")
+        A, B = (self.Ad, self.Bd) if discrete else (self.F, self.B)
+        D = np.zeros((self.C.shape[0], B.shape[1]))
+        kw: dict[str, Any] = {}
+        for key, names, size in (("states", self.state_names, A.shape[0]),
+                                 ("inputs", self.input_names, B.shape[1]),
+                                 ("outputs", self.output_names, self.C.shape[0])):
+            if len(names) == size:
+                kw[key] = list(names)
+        return control.ss(A, B, self.C, D, float(self.ts) if discrete else 0, **kw)
 
 
 def linearize(plant: Plant, x0: Sequence[float], u0: Sequence[float], ts: float | None = None) -> LinearModel:
@@ -190,7 +233,9 @@ def linearize(plant: Plant, x0: Sequence[float], u0: Sequence[float], ts: float 
     Ad = Bd = None
     if ts is not None:
         Ad, Bd = discretize_zoh(F[0], B[0], ts)
-    return LinearModel(F[0], B[0], C, x0, u0, offset, ts, Ad, Bd)
+    return LinearModel(F[0], B[0], C, x0, u0, offset, ts, Ad, Bd,
+                       tuple(s.name for s in plant.states), tuple(s.name for s in plant.inputs),
+                       tuple(s.name for s in plant.outputs))
 
 
 def discretize_zoh(F: np.ndarray, B: np.ndarray, ts: float) -> tuple[np.ndarray, np.ndarray]:

@@ -345,3 +345,95 @@ def ts_output_feedback_statement(diag: Mapping[str, Any]) -> Tex:
         text += (r" Composite certificate $V = e^\top P e + \beta \varepsilon^\top P_o \varepsilon$ with "
                  rf"$\beta = {format_number(comp['beta'])}$.")
     return Tex(base + text + _ts_region_text(diag))
+# ------------------------------------------------------------ optimal convex synthesis
+def _synthesis_plant(diag: Mapping[str, Any], observer: bool) -> str:
+    dom = diag.get("time_domain") or (diag.get("synthesis") or {}).get("domain") or "continuous"
+    lhs = r"x(k+1)" if dom == "discrete" else r"\dot x"
+    if observer:
+        return (rf"For ${lhs} = A x + B u + B_w w$, $y = C x + D_v v$ and the observer error "
+                r"$e = x - \hat x$ with gain $L$ (error matrix $A - LC$, performance $z = C_z e$)")
+    return (rf"For ${lhs} = A x + B_w w + B u$, $z = C_z x + D_{{zu}} u$ and the state feedback "
+            r"$u = -Kx$")
+
+
+def _synthesis_numbers(diag: Mapping[str, Any]) -> str:
+    syn = diag.get("synthesis") or {}
+    parts = []
+    for key, label in (("h2_bound", r"\|T_{zw}\|_2 \le"), ("gamma", r"\|T_{zw}\|_\infty \le")):
+        v = syn.get(key)
+        if _is_number(v):
+            parts.append(rf"${label} {format_number(v)}$")
+    for key, label in (("achieved_h2", r"\|T_{zw}\|_2"), ("achieved_hinf", r"\|T_{zw}\|_\infty")):
+        v = syn.get(key)
+        if isinstance(v, list) and v and _is_number(v[0]):
+            parts.append(rf"recomputed ${label} = {format_number(v[0])}$")
+    dom = diag.get("time_domain")
+    text = (" (" + escape_latex(str(dom)) + " time)") if dom else ""
+    return text + (": " + ", ".join(parts) if parts else "") + "."
+
+
+def _h2_statement(diag: Mapping[str, Any], observer: bool) -> Tex:
+    g = "L^\\top" if observer else "K"
+    text = (_synthesis_plant(diag, observer)
+            + rf", minimise $\operatorname{{tr}} W$ over $X \succ 0$, $Y = {g} X$, $W$ with the H2 LMIs "
+            r"(Gramian bound $X$, $\|T_{zw}\|_2^2 < \operatorname{tr} W$)"
+            + (r" of the dual pair $(A^\top, C^\top)$" if observer else "")
+            + r"; the optimum equals the " + ("steady Kalman filter" if observer else "LQR")
+            + r" Riccati solution for the same weights" + _synthesis_numbers(diag))
+    return Tex(text)
+
+
+def _hinf_statement(diag: Mapping[str, Any], observer: bool) -> Tex:
+    g = "L^\\top" if observer else "K"
+    text = (_synthesis_plant(diag, observer)
+            + rf", minimise $\gamma$ over $X \succ 0$, $Y = {g} X$ with the bounded-real-lemma LMI "
+            r"($\|T_{zw}\|_\infty < \gamma$: the $L_2$ gain from the disturbances to $z$)"
+            + (r" of the dual pair $(A^\top, C^\top)$" if observer else ""))
+    backoff = (diag.get("synthesis") or {}).get("scaling", {}).get("backoff")
+    if _is_number(backoff) and backoff > 0:
+        text += rf", then keep $\gamma \le (1 + {format_number(backoff)})\gamma^\star$ and maximise the LMI margin"
+    return Tex(text + _synthesis_numbers(diag))
+
+
+def h2_state_feedback_statement(diag: Mapping[str, Any]) -> Tex:
+    """The problem ``h2_state_feedback`` solves, from the artefact's diagnostics."""
+    return _h2_statement(diag, observer=False)
+
+
+def h2_observer_statement(diag: Mapping[str, Any]) -> Tex:
+    """The problem ``h2_observer`` solves, from the artefact's diagnostics."""
+    return _h2_statement(diag, observer=True)
+
+
+def hinf_state_feedback_statement(diag: Mapping[str, Any]) -> Tex:
+    """The problem ``hinf_state_feedback`` solves, from the artefact's diagnostics."""
+    return _hinf_statement(diag, observer=False)
+
+
+def hinf_observer_statement(diag: Mapping[str, Any]) -> Tex:
+    """The problem ``hinf_observer`` solves, from the artefact's diagnostics."""
+    return _hinf_statement(diag, observer=True)
+
+
+def multiobjective_statement(diag: Mapping[str, Any]) -> Tex:
+    """The problem ``multiobjective`` solves, with its declared conservatism."""
+    observer = diag.get("target") == "observer"
+    syn = diag.get("synthesis") or {}
+    objective = syn.get("objective", "hinf")
+    goal = r"\gamma" if objective == "hinf" else r"\operatorname{tr} W"
+    text = (_synthesis_plant(diag, observer)
+            + rf", minimise ${goal}$ subject to the H2 and/or bounded-real-lemma LMIs and the "
+            r"Chilali--Gahinet region LMI $L_D \otimes X + M_D \otimes (AX - BY) + M_D^\top \otimes "
+            r"(AX - BY)^\top \prec 0$, all with ONE Lyapunov matrix $X$ (msfsyn-style)")
+    region = (syn.get("region") or {}).get("description")
+    if region:
+        text += r"; region $D$: " + escape_latex(region)
+    text += _synthesis_numbers(diag)
+    text += (r" Conservatism: the common $X$ makes the bounds guaranteed but possibly pessimistic "
+             r"(each objective alone may need another matrix); the achieved norms are recomputed "
+             r"from the closed loop.")
+    return Tex(text)
+
+
+__all__ += ["h2_state_feedback_statement", "h2_observer_statement", "hinf_state_feedback_statement",
+            "hinf_observer_statement", "multiobjective_statement"]

@@ -21,6 +21,9 @@ from tanksynth.spec.method_options.placement import (CanonicalObserverOptions, L
 from tanksynth.spec.method_options.ts_observer import TsObserverOptions
 from tanksynth.spec.method_options.robust import RobustObserverOptions, RobustStateFeedbackOptions
 from tanksynth.spec.method_options.ts_control import TsOutputFeedbackOptions, TsStateFeedbackOptions
+from tanksynth.spec.method_options.synthesis import (H2ObserverOptions, H2StateFeedbackOptions,
+                                                     HinfObserverOptions, HinfStateFeedbackOptions,
+                                                     MultiobjectiveOptions)
 
 __all__ = [
     "MethodOptions", "OptionReader",
@@ -33,4 +36,6 @@ __all__ = [
     "FaultDetectionOptions",
     "RobustStateFeedbackOptions", "RobustObserverOptions",
     "TsStateFeedbackOptions", "TsOutputFeedbackOptions",
+    "H2StateFeedbackOptions", "H2ObserverOptions", "HinfStateFeedbackOptions", "HinfObserverOptions",
+    "MultiobjectiveOptions",
 ]

@@ -1,0 +1,217 @@
+"""State-space interop and system norms: python-control ``StateSpace`` in, numpy out.
+
+`statespace_matrices`
+    ``(A, B, C, D, dt)`` from a `control.StateSpace` or from matrices: every
+    matrix-level function of the synthesis designs accepts either.
+`h2_norm`
+    from the controllability Gramian (Lyapunov or Stein equation).
+`hinf_norm`, `hinf_below`
+    H-infinity norm by bisection on the Hamiltonian test (discrete-time
+    systems through the bilinear map ``z = (1 + s) / (1 - s)``, which keeps
+    the norm).
+`to_statespace`
+    a `control.StateSpace` with names and ``dt`` from matrices.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Sequence
+
+import numpy as np
+import scipy.linalg as sla
+
+from tanksynth.errors import DimensionError
+
+__all__ = ["statespace_matrices", "to_statespace", "h2_norm", "hinf_norm", "hinf_below"]
+
+
+def _mat(value: Any, name: str, rows: int | None = None, cols: int | None = None) -> np.ndarray:
+    try:
+        arr = np.atleast_2d(np.asarray(value, dtype=float))
+    except (TypeError, ValueError):
+        raise DimensionError(f"{name} must be a real matrix") from None
+    if arr.ndim != 2 or not np.all(np.isfinite(arr)):
+        raise DimensionError(f"{name} must be a finite 2-D matrix")
+    if (rows is not None and arr.shape[0] != rows) or (cols is not None and arr.shape[1] != cols):
+        raise DimensionError(f"{name} has shape {arr.shape}, expected ({rows if rows is not None else '*'}, "
+                             f"{cols if cols is not None else '*'})")
+    return arr
+
+
+def to_statespace(A: Any, B: Any, C: Any, D: Any = None, dt: float | None = None, *,
+                  states: Sequence[str] | None = None, inputs: Sequence[str] | None = None,
+                  outputs: Sequence[str] | None = None, name: str | None = None) -> Any:
+    """A `control.StateSpace` from matrices, with signal names and sampling period.
+
+    Parameters
+    ----------
+    A, B, C : array_like
+    D : array_like, optional
+        Zeros by default.
+    dt : float, optional
+        Sampling period (s); None (or 0) for continuous time.
+    states, inputs, outputs : sequence of str, optional
+        Signal names (python-control ``states``, ``inputs``, ``outputs``).
+    name : str, optional
+        System name.
+
+    Returns
+    -------
+    control.StateSpace
+    """
+    import control
+
+    A, B, C, D, _ = statespace_matrices(A, B, C, D)
+    kw: dict[str, Any] = {}
+    for key, value in (("states", states), ("inputs", inputs), ("outputs", outputs), ("name", name)):
+        if value is not None:
+            kw[key] = list(value) if key != "name" else str(value)
+    return control.ss(A, B, C, D, 0 if dt is None else float(dt), **kw)
+
+
+def statespace_matrices(sys_or_A: Any, B: Any = None, C: Any = None, D: Any = None,
+                        dt: float | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray,
+                                                          np.ndarray, float | None]:
+    """``(A, B, C, D, dt)`` from a `control.StateSpace` or from matrices.
+
+    Parameters
+    ----------
+    sys_or_A : control.StateSpace or array_like
+        A python-control state-space system (its ``dt``: 0 or None for
+        continuous time, the period in s otherwise), or ``A``.
+    B, C, D : array_like, optional
+        With matrices: ``D`` defaults to zeros.
+    dt : float, optional
+        Sampling period (s) with matrices; None for continuous time.
+
+    Returns
+    -------
+    tuple
+        ``A, B, C, D`` as float arrays and ``dt`` (None in continuous time).
+    """
+    if hasattr(sys_or_A, "A") and hasattr(sys_or_A, "B") and hasattr(sys_or_A, "dt"):
+        s = sys_or_A
+        sdt = s.dt if s.dt not in (0, None) else None
+        sdt = None if sdt is True else sdt
+        return (np.asarray(s.A, float), np.asarray(s.B, float), np.asarray(s.C, float),
+                np.asarray(s.D, float), None if sdt is None else float(sdt))
+    A = _mat(sys_or_A, "A")
+    Bm = _mat(B, "B", A.shape[0])
+    Cm = _mat(C, "C", None, A.shape[0])
+    Dm = np.zeros((Cm.shape[0], Bm.shape[1])) if D is None else _mat(D, "D", Cm.shape[0], Bm.shape[1])
+    return A, Bm, Cm, Dm, dt
+
+
+def h2_norm(sys_or_A: Any, B: Any = None, C: Any = None, D: Any = None,
+            dt: float | None = None) -> float:
+    """H2 norm from the controllability Gramian (inf if unstable or, continuous, ``D != 0``).
+
+    Parameters
+    ----------
+    sys_or_A : control.StateSpace or array_like
+        See `statespace_matrices`.
+    B, C, D : array_like, optional
+    dt : float, optional
+        Sampling period (s); None for continuous time.
+
+    Returns
+    -------
+    float
+        Output unit per input unit (times s^-1/2 in continuous time).
+    """
+    A, B, C, D, dt = statespace_matrices(sys_or_A, B, C, D, dt)
+    eig = np.linalg.eigvals(A)
+    if dt is None:
+        if np.max(eig.real) >= 0 or np.any(D != 0):
+            return float("inf")
+        G = sla.solve_continuous_lyapunov(A, -B @ B.T)
+        return float(np.sqrt(max(np.trace(C @ G @ C.T), 0.0)))
+    if np.max(np.abs(eig)) >= 1:
+        return float("inf")
+    G = sla.solve_discrete_lyapunov(A, B @ B.T)
+    return float(np.sqrt(max(np.trace(C @ G @ C.T) + np.trace(D @ D.T), 0.0)))
+
+
+def _to_continuous(A: np.ndarray, B: np.ndarray, C: np.ndarray, D: np.ndarray):
+    """Bilinear map z = (1 + s)/(1 - s): same H-infinity norm, stable iff stable."""
+    n = A.shape[0]
+    Minv = np.linalg.inv(np.eye(n) + A)
+    return (Minv @ (A - np.eye(n)), np.sqrt(2.0) * Minv @ B, np.sqrt(2.0) * C @ Minv,
+            D - C @ Minv @ B)
+
+
+def _imaginary_eigenvalue(A, B, C, D, gamma: float) -> bool:
+    """True if the Hamiltonian at ``gamma`` has an eigenvalue on the imaginary axis (norm >= gamma)."""
+    R = gamma ** 2 * np.eye(D.shape[1]) - D.T @ D
+    if np.min(np.linalg.eigvalsh(R)) <= 0:
+        return True
+    Ri = np.linalg.inv(R)
+    Ab = A + B @ Ri @ D.T @ C
+    H = np.block([[Ab, B @ Ri @ B.T],
+                  [-C.T @ (np.eye(C.shape[0]) + D @ Ri @ D.T) @ C, -Ab.T]])
+    lam = np.linalg.eigvals(H)
+    return bool(np.any(np.abs(lam.real) <= 1e-9 * np.maximum(1.0, np.abs(lam))))
+
+
+def _continuous_form(sys_or_A, B, C, D, dt):
+    A, B, C, D, dt = statespace_matrices(sys_or_A, B, C, D, dt)
+    eig = np.linalg.eigvals(A)
+    stable = bool(np.max(np.abs(eig)) < 1) if dt is not None else bool(np.max(eig.real) < 0)
+    if dt is not None and stable:
+        A, B, C, D = _to_continuous(A, B, C, D)
+    return A, B, C, D, stable
+
+
+def hinf_below(gamma: float, sys_or_A: Any, B: Any = None, C: Any = None, D: Any = None,
+               dt: float | None = None) -> bool:
+    """True if the system is stable and its H-infinity norm is below ``gamma`` (Hamiltonian test).
+
+    Discrete-time systems are mapped by the bilinear transform (same norm).
+    """
+    A, B, C, D, stable = _continuous_form(sys_or_A, B, C, D, dt)
+    return stable and not _imaginary_eigenvalue(A, B, C, D, float(gamma))
+
+
+def hinf_norm(sys_or_A: Any, B: Any = None, C: Any = None, D: Any = None,
+              dt: float | None = None, rtol: float = 1e-9) -> float:
+    """H-infinity norm by bisection on the Hamiltonian test (inf if unstable).
+
+    Parameters
+    ----------
+    sys_or_A : control.StateSpace or array_like
+        See `statespace_matrices`.
+    B, C, D : array_like, optional
+    dt : float, optional
+        Sampling period (s); None for continuous time.
+    rtol : float
+        Relative width of the final bracket.
+
+    Returns
+    -------
+    float
+        The upper end of the bracket (output unit per input unit).
+    """
+    A, B, C, D, stable = _continuous_form(sys_or_A, B, C, D, dt)
+    if not stable:
+        return float("inf")
+    lo = float(np.linalg.norm(D, 2))
+    g0 = C @ np.linalg.solve(-A, B) + D
+    lo = max(lo, float(np.linalg.norm(g0, 2)))
+    hi = max(2.0 * lo, 1e-300)
+    if hi <= 1e-300:
+        hi = 1.0
+    while _imaginary_eigenvalue(A, B, C, D, hi):
+        lo, hi = hi, 2.0 * hi
+        if not np.isfinite(hi):
+            return float("inf")
+    for _ in range(200):
+        if hi - lo <= rtol * hi:
+            break
+        mid = 0.5 * (lo + hi)
+        if _imaginary_eigenvalue(A, B, C, D, mid):
+            lo = mid
+        else:
+            hi = mid
+    return float(hi)
+
+

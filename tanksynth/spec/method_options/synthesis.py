@@ -1,0 +1,367 @@
+"""Options of the optimal convex syntheses: ``h2_state_feedback``, ``h2_observer``,
+``hinf_state_feedback``, ``hinf_observer`` and ``multiobjective``.
+
+All use the Jacobian linearisation at the operating point (ZOH-discretised with
+``[sampling] ts`` in discrete time) and the generalised plant::
+
+    dx/dt = A x + Bw diag(disturbance_std) w + B u,   z = Cz x + Dzu u   (state feedback)
+    y = C x + diag(measurement_std) v,                 z = Cz e           (observers, e = x - xhat)
+
+``w`` and ``v`` are normalised (unit intensity); ``Bw`` is given in continuous
+time (the physical disturbance) and ZOH-discretised with the plant in discrete
+time. Defaults follow Bryson's rule, so ``z`` is dimensionless:
+``Q = diag(1 / span_i^2)`` over the operating region's box and ``R = diag(1 /
+range_j^2)`` over the actuators' ranges; ``Cz = [Q^1/2; 0]``, ``Dzu = [0;
+R^1/2]`` for state feedback and ``Cz = Q^1/2`` for observers.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, ClassVar, Mapping
+
+import numpy as np
+
+from tanksynth.spec.method_options.base import MethodOptions, OptionReader, time_domain_of
+from tanksynth.spec.options import (parse_choice, parse_covariance, parse_matrix, parse_number,
+                                    parse_region, parse_vector, region_is_stable)
+
+__all__ = ["DISTURBANCE_SHORTCUTS", "SYNTHESIS_OBJECTIVES", "SYNTHESIS_SOLVERS", "SYNTHESIS_TARGETS",
+           "inflow_matrix", "bryson_state_weight", "bryson_input_weight",
+           "H2StateFeedbackOptions", "H2ObserverOptions", "HinfStateFeedbackOptions",
+           "HinfObserverOptions", "MultiobjectiveOptions"]
+
+#: Shortcuts for ``Bw``.
+DISTURBANCE_SHORTCUTS = ("inflows",)
+#: What ``multiobjective`` minimises.
+SYNTHESIS_OBJECTIVES = ("hinf", "h2")
+#: Conic solvers (cvxpy names).
+SYNTHESIS_SOLVERS = ("CLARABEL", "SCS")
+#: What ``multiobjective`` designs.
+SYNTHESIS_TARGETS = ("state_feedback", "observer")
+
+
+def inflow_matrix(plant: Any, key: str = "Bw") -> np.ndarray:
+    """``Bw`` of the ``"inflows"`` shortcut: a unit inflow into each tank, ``diag(1 / A_i)``.
+
+    The tank areas are the plant's parameters ``A1 .. An`` (one per tank), else
+    its common cross-section ``A``; the state ``i`` must be the level of tank
+    ``i`` (level unit per s per inflow unit: m/s per m^3/s with SI parameters).
+
+    Raises
+    ------
+    SpecError
+        The plant has no tank-area parameter.
+    """
+    from tanksynth.errors import SpecError
+
+    values = {p.name: float(p.value) for p in plant.parameters}
+    n = plant.n
+    if all(f"A{i}" in values for i in range(1, n + 1)):
+        areas = np.array([values[f"A{i}"] for i in range(1, n + 1)])
+    elif "A" in values:
+        areas = np.full(n, values["A"])
+    else:
+        raise SpecError(f"Bw = \"inflows\" needs the tank areas (parameters A1..A{n} or A) of plant "
+                        f"'{plant.name}', which has none: give Bw as an {n} x nw matrix", key=key)
+    if np.any(areas <= 0):
+        raise SpecError(f"tank areas must be > 0, got {areas.tolist()}", key=key)
+    return np.diag(1.0 / areas)
+
+
+def _span(bounds: Any, size: int) -> np.ndarray:
+    arr = np.array([[float(a), float(b)] for a, b in bounds], dtype=float).reshape(size, 2)
+    span = arr[:, 1] - arr[:, 0]
+    return np.where(np.isfinite(span) & (span > 0), span, 1.0)
+
+
+def bryson_state_weight(plant: Any) -> np.ndarray:
+    """Bryson's ``Q = diag(1 / span_i^2)`` over the operating region's box (1 / state unit^2)."""
+    return np.diag(1.0 / _span(plant.region.bounds, plant.n) ** 2)
+
+
+def bryson_input_weight(plant: Any) -> np.ndarray:
+    """Bryson's ``R = diag(1 / range_j^2)`` over the actuators' ranges (1 / input unit^2)."""
+    return np.diag(1.0 / _span(plant.input_limits, plant.m) ** 2)
+
+
+def _output_span(plant: Any) -> np.ndarray:
+    """``|h(x_max) - h(x_min)|`` over the region box (output units; 1 where zero or undefined)."""
+    lo = np.array([b[0] for b in plant.region.bounds], dtype=float)
+    hi = np.array([b[1] for b in plant.region.bounds], dtype=float)
+    try:
+        out = plant.compiled.output(np.vstack([lo, hi]))
+        span = np.abs(np.asarray(out, float)[1] - np.asarray(out, float)[0]).reshape(-1)
+    except Exception:  # noqa: BLE001 - an output map that cannot be evaluated on the box
+        span = np.ones(plant.q)
+    return np.where(np.isfinite(span) & (span > 0), span, 1.0)
+
+
+def _sqrtm_psd(M: np.ndarray) -> np.ndarray:
+    w, V = np.linalg.eigh(0.5 * (M + M.T))
+    return (V * np.sqrt(np.maximum(w, 0.0))) @ V.T
+
+
+_COMMON_DOC = """
+    time_domain : str
+        ``"discrete"`` (ZOH model at ``[sampling] ts``; the default when the
+        spec has a sampling period) or ``"continuous"``.
+    Bw : ndarray
+        Disturbance input matrix in continuous time, n x nw (state unit per s
+        per disturbance unit), or ``"inflows"`` (default): a unit inflow into
+        each tank, ``diag(1 / A_i)`` from the plant's tank areas.
+    disturbance_std : ndarray
+        Size of each disturbance (disturbance units; with ``"inflows"``
+        m^3/s for SI plants): one number for all or nw numbers; default 1.
+    Q : ndarray
+        State weight (n x n, symmetric positive semidefinite, 1 / state unit^2);
+        default Bryson's ``diag(1 / span_i^2)`` over the region box.
+    Cz : ndarray or None
+        Performance output matrix (nz x n); default ``[Q^1/2; 0]`` (state
+        feedback) or ``Q^1/2`` (observers: weight of the estimation error).
+    margin : float
+        Strictness margin of the scaled LMIs, in (0, 0.01); default 1e-9.
+    solver : str
+        ``"CLARABEL"`` (default) or ``"SCS"``."""
+
+_SF_DOC = """
+    R : ndarray
+        Input weight (m x m, positive definite, 1 / input unit^2); default
+        Bryson's ``diag(1 / range_j^2)`` over the actuator ranges.
+    Dzu : ndarray or None
+        Performance feedthrough (nz x m); default ``[0; R^1/2]``; given
+        together with ``Cz``."""
+
+_OBS_DOC = """
+    measurement_std : ndarray
+        Measurement noise size of each output (output units): one number or
+        q numbers; default 1 % of ``|h(x_max) - h(x_min)|`` over the region box."""
+
+
+def _common(r: OptionReader, plant: Any, ts: float | None, observer: bool) -> dict[str, Any]:
+    time_domain = r.read("time_domain", parse_choice, ("continuous", "discrete")) or time_domain_of(ts)
+    if time_domain == "discrete" and ts is None:
+        raise r.fail("time_domain", "a discrete-time design needs a sampling period: add "
+                                    "[sampling] ts = ... (or time_domain = \"continuous\")")
+    n, m = plant.n, plant.m
+    raw = r.options.get("Bw", "inflows")
+    if isinstance(raw, str):
+        parse_choice(raw, r.key("Bw"), DISTURBANCE_SHORTCUTS)
+        Bw = inflow_matrix(plant, r.key("Bw"))
+    else:
+        Bw = np.array(parse_matrix(raw, r.key("Bw"), (n, None)))
+    nw = Bw.shape[1]
+    raw_w = r.options.get("disturbance_std", 1.0)
+    if _is_scalar(raw_w):
+        std = np.full(nw, parse_number(raw_w, r.key("disturbance_std"), above=0.0))
+    else:
+        std = parse_vector(raw_w, r.key("disturbance_std"), nw)
+    std = np.asarray(std, dtype=float)
+    if np.any(std <= 0):
+        raise r.fail("disturbance_std", f"must be > 0, got {std.tolist()}")
+    Q = r.read("Q", parse_covariance, n, semidefinite=True) if r.given("Q") else \
+        bryson_state_weight(plant)
+    out: dict[str, Any] = {"time_domain": time_domain, "Bw": _ro(Bw), "disturbance_std": _ro(std),
+                           "Q": _ro(np.asarray(Q, float))}
+    if observer:
+        Cz = np.array(r.read("Cz", parse_matrix, (None, n))) if r.given("Cz") else _sqrtm_psd(Q)
+        raw_v = r.options.get("measurement_std")
+        if raw_v is None:
+            vstd = 0.01 * _output_span(plant)
+        elif _is_scalar(raw_v):
+            vstd = np.full(plant.q, r.read("measurement_std", parse_number, above=0.0))
+        else:
+            vstd = np.asarray(r.read("measurement_std", parse_vector, plant.q), float)
+            if np.any(vstd <= 0):
+                raise r.fail("measurement_std", f"must be > 0, got {vstd.tolist()}")
+        out.update({"Cz": _ro(Cz), "measurement_std": _ro(np.asarray(vstd, float))})
+    else:
+        if r.given("Cz") != r.given("Dzu"):
+            raise r.fail("Cz" if r.given("Cz") else "Dzu", "give Cz and Dzu together (or neither: "
+                                                            "[Q^1/2; 0] and [0; R^1/2])")
+        R = r.read("R", parse_covariance, m) if r.given("R") else bryson_input_weight(plant)
+        if r.given("Cz"):
+            Cz = np.array(r.read("Cz", parse_matrix, (None, n)))
+            Dzu = np.array(r.read("Dzu", parse_matrix, (Cz.shape[0], m)))
+        else:
+            Cz = np.vstack([_sqrtm_psd(Q), np.zeros((m, n))])
+            Dzu = np.vstack([np.zeros((n, m)), _sqrtm_psd(R)])
+        out.update({"R": _ro(np.asarray(R, float)), "Cz": _ro(Cz), "Dzu": _ro(Dzu)})
+    out["margin"] = r.read("margin", parse_number, above=0.0, below=1e-2)
+    out["solver"] = r.read("solver", parse_choice, SYNTHESIS_SOLVERS)
+    return out
+
+
+def _is_scalar(value: Any) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool)
+
+
+def _ro(arr: np.ndarray) -> np.ndarray:
+    arr = np.array(arr, dtype=float)
+    arr.flags.writeable = False
+    return arr
+
+
+@dataclass(frozen=True, eq=False)
+class _SynthesisOptions(MethodOptions):
+    """Shared fields (see the subclasses)."""
+
+    time_domain: str | None = None
+    Bw: Any = "inflows"
+    disturbance_std: Any = 1.0
+    Q: Any = None
+    Cz: Any = None
+    margin: float = 1e-9
+    solver: str = "CLARABEL"
+
+
+@dataclass(frozen=True, eq=False)
+class _StateFeedbackOptions(_SynthesisOptions):
+    R: Any = None
+    Dzu: Any = None
+
+
+@dataclass(frozen=True, eq=False)
+class H2StateFeedbackOptions(_StateFeedbackOptions):
+    __doc__ = f"""Options of ``h2_state_feedback``: ``u = -K x`` minimising the H2 norm from ``w`` to
+    ``z`` by an LMI (the LQR optimum for ``Q = Cz' Cz``, ``R = Dzu' Dzu``).
+
+    Attributes
+    ----------{_COMMON_DOC}{_SF_DOC}
+    """
+
+    method_name: ClassVar[str] = "h2_state_feedback"
+
+    @classmethod
+    def from_table(cls, options: Mapping[str, Any], key: str, plant: Any,
+                   ts: float | None) -> "H2StateFeedbackOptions":
+        """See `MethodOptions.from_table`."""
+        r = OptionReader(cls, options, key, ts)
+        return cls(**_common(r, plant, ts, observer=False))
+
+
+@dataclass(frozen=True, eq=False)
+class H2ObserverOptions(_SynthesisOptions):
+    __doc__ = f"""Options of ``h2_observer``: observer gain ``L`` minimising the H2 norm from ``(w, v)``
+    to the weighted estimation error (the steady Kalman filter, predictor form in discrete time).
+
+    Attributes
+    ----------{_COMMON_DOC}{_OBS_DOC}
+    """
+
+    method_name: ClassVar[str] = "h2_observer"
+    measurement_std: Any = None
+
+    @classmethod
+    def from_table(cls, options: Mapping[str, Any], key: str, plant: Any,
+                   ts: float | None) -> "H2ObserverOptions":
+        """See `MethodOptions.from_table`."""
+        r = OptionReader(cls, options, key, ts)
+        return cls(**_common(r, plant, ts, observer=True))
+
+
+_BACKOFF_DOC = """
+    backoff : float
+        Relative back-off from the LMI optimum (>= 0; default 1e-3): the gain
+        keeps the bound within ``(1 + backoff)`` of the optimum and maximises
+        the LMIs' margin (a moderate gain instead of the boundary)."""
+
+
+@dataclass(frozen=True, eq=False)
+class HinfStateFeedbackOptions(_StateFeedbackOptions):
+    __doc__ = f"""Options of ``hinf_state_feedback``: ``u = -K x`` minimising the H-infinity norm
+    (L2 gain) from ``w`` to ``z`` by the bounded-real-lemma LMI.
+
+    Attributes
+    ----------{_COMMON_DOC}{_SF_DOC}{_BACKOFF_DOC}
+    """
+
+    method_name: ClassVar[str] = "hinf_state_feedback"
+    backoff: float = 1e-3
+
+    @classmethod
+    def from_table(cls, options: Mapping[str, Any], key: str, plant: Any,
+                   ts: float | None) -> "HinfStateFeedbackOptions":
+        """See `MethodOptions.from_table`."""
+        r = OptionReader(cls, options, key, ts)
+        return cls(**_common(r, plant, ts, observer=False),
+                   backoff=r.read("backoff", parse_number, at_least=0.0))
+
+
+@dataclass(frozen=True, eq=False)
+class HinfObserverOptions(_SynthesisOptions):
+    __doc__ = f"""Options of ``hinf_observer``: observer gain ``L`` minimising the H-infinity norm
+    from ``(w, v)`` to the weighted estimation error.
+
+    Attributes
+    ----------{_COMMON_DOC}{_OBS_DOC}{_BACKOFF_DOC}
+    """
+
+    method_name: ClassVar[str] = "hinf_observer"
+    measurement_std: Any = None
+    backoff: float = 1e-3
+
+    @classmethod
+    def from_table(cls, options: Mapping[str, Any], key: str, plant: Any,
+                   ts: float | None) -> "HinfObserverOptions":
+        """See `MethodOptions.from_table`."""
+        r = OptionReader(cls, options, key, ts)
+        return cls(**_common(r, plant, ts, observer=True),
+                   backoff=r.read("backoff", parse_number, at_least=0.0))
+
+
+@dataclass(frozen=True, eq=False)
+class MultiobjectiveOptions(_StateFeedbackOptions):
+    __doc__ = f"""Options of ``multiobjective``: H2 and/or H-infinity objective and bounds with the
+    closed-loop eigenvalues in an LMI region, one common Lyapunov matrix (msfsyn-style;
+    conservative: the bounds hold, the achieved norms are recomputed).
+
+    Attributes
+    ----------
+    region : tuple of tuple
+        Required. LMI region (as for ``lmi_placement``); one part must lie in
+        the stability domain of ``time_domain``.
+    target : str
+        ``"state_feedback"`` (default, gain ``K``) or ``"observer"`` (gain ``L``).
+    objective : str
+        ``"hinf"`` (default) or ``"h2"``: the norm minimised.
+    h2_bound : float or None
+        Required bound on the H2 norm (its units); default None.
+    hinf_bound : float or None
+        Required bound on the H-infinity norm (z unit per w unit); default None.{_COMMON_DOC}{_SF_DOC}
+        (state feedback only){_OBS_DOC} (observer only){_BACKOFF_DOC}
+    """
+
+    method_name: ClassVar[str] = "multiobjective"
+    region: tuple = ()
+    target: str = "state_feedback"
+    objective: str = "hinf"
+    h2_bound: float | None = None
+    hinf_bound: float | None = None
+    measurement_std: Any = None
+    backoff: float = 1e-3
+
+    @classmethod
+    def from_table(cls, options: Mapping[str, Any], key: str, plant: Any,
+                   ts: float | None) -> "MultiobjectiveOptions":
+        """See `MethodOptions.from_table`; the region must be stable in the time domain."""
+        r = OptionReader(cls, options, key, ts)
+        if not r.given("region"):
+            raise r.fail("region", "missing option 'region' for method 'multiobjective'")
+        target = r.read("target", parse_choice, SYNTHESIS_TARGETS)
+        observer = target == "observer"
+        for opt in (("R", "Dzu") if observer else ("measurement_std",)):
+            if r.given(opt):
+                raise r.fail(opt, f"option {opt!r} does not apply to target = {target!r}")
+        common = _common(r, plant, ts, observer=observer)
+        region = r.read("region", parse_region)
+        if not region_is_stable(region, common["time_domain"]):
+            raise r.fail("region", f"the region is not inside the {common['time_domain']}-time "
+                                   "stability domain (continuous: add a half-plane alpha >= 0, a disk "
+                                   "left of 0 or a sector; discrete: add a disk with |center| + "
+                                   "radius <= 1)")
+        bounds = {name: (r.read(name, parse_number, above=0.0) if r.given(name) else None)
+                  for name in ("h2_bound", "hinf_bound")}
+        return cls(**common, region=region, target=target,
+                   objective=r.read("objective", parse_choice, SYNTHESIS_OBJECTIVES), **bounds,
+                   backoff=r.read("backoff", parse_number, at_least=0.0))

@@ -1,0 +1,288 @@
+"""H2 / H-infinity / multi-objective LMI synthesis against independent references.
+
+References are computed here: python-control ``lqr``/``dlqr``/``lqe``/``dlqe`` (Riccati),
+python-control ``norm(..., method="scipy")``, an H-infinity state-feedback Riccati
+bisection written in this file, and python-control ``hinfsyn`` where slycot is installed.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+
+import control
+import numpy as np
+import pytest
+import scipy.linalg as sla
+
+from tanksynth.analysis.lmi_region import disk, half_plane
+from tanksynth.design.synthesis import (GeneralizedPlant, generalized_plant, h2_lmis, hinf_lmis,
+                                        hinf_lmis_reduced,
+                                        observer_plant, region_lmi, synthesize_observer,
+                                        synthesize_state_feedback)
+from tanksynth.errors import InfeasibleDesign, SpecError
+
+RTOL = 1e-6
+
+
+def pc_hinf(sys):
+    """python-control's H-infinity norm (scipy method). Its Hamiltonian in 0.10.2 needs as many
+    inputs as outputs, so the system is padded with zero inputs or outputs (same norm)."""
+    A, B, C = sys.A, sys.B, sys.C
+    p, m = C.shape[0], B.shape[1]
+    if m < p:
+        B = np.hstack([B, np.zeros((A.shape[0], p - m))])
+    elif p < m:
+        C = np.vstack([C, np.zeros((m - p, A.shape[0]))])
+    k = max(p, m)
+    return control.norm(control.ss(A, B, C, np.zeros((k, k)), sys.dt), "inf", tol=1e-10,
+                        method="scipy", print_warning=False)
+
+
+def _three_tank(discrete: bool):
+    """Seed 000's three-tank linearised at (0.40, 0.20, 0.30) m, SI units, inflow disturbances."""
+    from tanksynth.analysis.linearize import equilibrium_input, linearize
+    from tanksynth.plants import three_tank
+
+    plant = three_tank("h1h2")
+    x0 = [0.40, 0.20, 0.30]
+    eq = equilibrium_input(plant, x0)
+    lin = linearize(plant, x0, eq.u0, ts=1.0 if discrete else None)
+    A, B = (lin.Ad, lin.Bd) if discrete else (lin.F, lin.B)
+    Bw_c = np.eye(3) / 0.0154 * 5e-6
+    Bw = sla.expm(np.block([[lin.F, Bw_c], [np.zeros((3, 6))]]))[:3, 3:] if discrete else Bw_c
+    Q = np.diag([1 / 0.62 ** 2] * 3)
+    R = np.diag([1 / 1.2e-4 ** 2] * 2)
+    return A, B, lin.C, Bw, Q, R
+
+
+def _weights(Q, R):
+    n, m = Q.shape[0], R.shape[0]
+    Cz = np.vstack([sla.sqrtm(Q).real, np.zeros((m, n))])
+    Dzu = np.vstack([np.zeros((n, m)), sla.sqrtm(R).real])
+    return Cz, Dzu
+
+
+@pytest.mark.parametrize("discrete", [False, True])
+def test_h2_state_feedback_equals_lqr(discrete):
+    A, B, _, Bw, Q, R = _three_tank(discrete)
+    Cz, Dzu = _weights(Q, R)
+    P = GeneralizedPlant(A, B, Bw, Cz, Dzu, "discrete" if discrete else "continuous",
+                         1.0 if discrete else None)
+    res = synthesize_state_feedback(P, objective="h2")
+    K_ref, S, _ = (control.dlqr if discrete else control.lqr)(A, B, Q, R)
+    h2_ref = np.sqrt(np.trace(Bw.T @ S @ Bw))
+    assert res.h2 == pytest.approx(h2_ref, rel=RTOL)
+    assert res.achieved_h2[0] == pytest.approx(h2_ref, rel=RTOL)
+    # the cost matrix: the closed loop's observability Gramian of z is the Riccati solution
+    Acl, Ccl = A - B @ res.gain, Cz - Dzu @ res.gain
+    Wo = (sla.solve_discrete_lyapunov(Acl.T, Ccl.T @ Ccl) if discrete
+          else sla.solve_continuous_lyapunov(Acl.T, -Ccl.T @ Ccl))
+    assert np.linalg.norm(Wo - S) / np.linalg.norm(S) < 1e-4
+    np.testing.assert_allclose(res.gain, K_ref, rtol=1e-3, atol=1e-3 * np.abs(K_ref).max())
+    sysd = control.ss(Acl, Bw, Ccl, np.zeros((Ccl.shape[0], Bw.shape[1])), 1.0 if discrete else 0)
+    assert control.norm(sysd, 2) == pytest.approx(h2_ref, rel=1e-5)
+
+
+@pytest.mark.parametrize("discrete", [False, True])
+def test_h2_observer_equals_kalman(discrete):
+    A, _, C, Bw, Q, _ = _three_tank(discrete)
+    Dv = np.diag([1e-3, 1e-3])
+    Cz = sla.sqrtm(Q).real
+    res = synthesize_observer(A, C, Bw, Dv, Cz, domain="discrete" if discrete else "continuous",
+                              dt=1.0 if discrete else None, objective="h2")
+    Qn, Rn = np.eye(3), Dv @ Dv
+    if discrete:
+        L_ref, P, _ = control.dlqe(A, Bw, C, Qn, Rn)
+        # python-control's dlqe gives the predictor gain A P C' (C P C' + R)^-1, P the one-step
+        # prediction covariance: the same observer form as the LMI's
+        np.testing.assert_allclose(L_ref, A @ P @ C.T @ np.linalg.inv(C @ P @ C.T + Rn), rtol=1e-9)
+    else:
+        L_ref, P, _ = control.lqe(A, Bw, C, Qn, Rn)
+    h2_ref = np.sqrt(np.trace(Cz @ P @ Cz.T))
+    assert res.h2 == pytest.approx(h2_ref, rel=RTOL)
+    assert res.achieved_h2[0] == pytest.approx(h2_ref, rel=RTOL)
+    np.testing.assert_allclose(res.gain, L_ref, rtol=1e-3, atol=1e-3 * np.abs(L_ref).max())
+
+
+def _hinf_riccati_optimum(A, B, Bw, Q, R, lo, hi, rtol=1e-7):
+    """Smallest gamma with a stabilising X >= 0 of the H-infinity state-feedback ARE (bisection).
+
+    A'X + XA + X (Bw Bw'/g^2 - B R^-1 B') X + Q = 0 (continuous, Cz'Dzu = 0).
+    """
+    n = A.shape[0]
+
+    def ok(g):
+        G = B @ np.linalg.solve(R, B.T) - Bw @ Bw.T / g ** 2
+        H = np.block([[A, -G], [-Q, -A.T]])
+        lam, V = np.linalg.eig(H)
+        if np.any(np.abs(lam.real) < 1e-10 * np.maximum(1, np.abs(lam))):
+            return False
+        stable = V[:, lam.real < 0]
+        if stable.shape[1] != n:
+            return False
+        X1, X2 = stable[:n], stable[n:]
+        if np.linalg.cond(X1) > 1e12:
+            return False
+        X = np.real(X2 @ np.linalg.inv(X1))
+        X = 0.5 * (X + X.T)
+        return bool(np.linalg.eigvalsh(X)[0] >= -1e-9 * np.abs(X).max())
+
+    assert ok(hi) and not ok(lo)
+    while hi - lo > rtol * hi:
+        mid = 0.5 * (lo + hi)
+        lo, hi = (lo, mid) if ok(mid) else (mid, hi)
+    return hi
+
+
+def test_hinf_state_feedback_gamma_against_norm_and_riccati_optimum():
+    A, B, _, Bw, Q, R = _three_tank(False)
+    Cz, Dzu = _weights(Q, R)
+    res = synthesize_state_feedback(GeneralizedPlant(A, B, Bw, Cz, Dzu), objective="hinf",
+                                    backoff=1e-3)
+    K = res.gain
+    sys_cl = control.ss(A - B @ K, Bw, Cz - Dzu @ K, np.zeros((Cz.shape[0], 3)))
+    norm = pc_hinf(sys_cl)
+    assert norm == pytest.approx(res.achieved_hinf[0], rel=1e-6)
+    assert norm <= res.gamma * (1 + 1e-6)
+    assert res.gamma <= res.gamma_optimum * (1 + 1e-3) * (1 + 1e-9)
+    opt = _hinf_riccati_optimum(A, B, Bw, Q, R, 0.3 * res.gamma_optimum, 3 * res.gamma_optimum)
+    assert res.gamma_optimum == pytest.approx(opt, rel=1e-4)
+    assert norm == pytest.approx(opt, rel=2e-3)
+
+
+@pytest.mark.parametrize("discrete", [False, True])
+def test_hinf_observer_norm_agrees_with_python_control(discrete):
+    A, _, C, Bw, Q, _ = _three_tank(discrete)
+    Dv = np.diag([1e-3, 1e-3])
+    Cz = sla.sqrtm(Q).real
+    res = synthesize_observer(A, C, Bw, Dv, Cz, domain="discrete" if discrete else "continuous",
+                              dt=1.0 if discrete else None, objective="hinf", backoff=1e-3)
+    L = res.gain
+    Bcl = np.hstack([Bw, -L @ Dv])
+    err = control.ss(A - L @ C, Bcl, Cz, np.zeros((3, 5)), 1.0 if discrete else 0)
+    norm = pc_hinf(err)
+    assert norm == pytest.approx(res.achieved_hinf[0], rel=1e-6)
+    assert norm <= res.gamma * (1 + 1e-6)
+    # H-infinity optimal is not H2 optimal, and vice versa
+    h2 = synthesize_observer(A, C, Bw, Dv, Cz, domain=err.isdtime() and "discrete" or "continuous",
+                             dt=1.0 if discrete else None, objective="h2")
+    assert h2.achieved_hinf[0] >= norm * (1 - 1e-6)
+    assert res.achieved_h2[0] >= h2.h2 * (1 - 1e-6)
+
+
+@pytest.mark.skipif(importlib.util.find_spec("slycot") is None, reason="python-control hinfsyn needs slycot")
+def test_hinf_state_feedback_optimum_against_hinfsyn():  # pragma: no cover - needs slycot
+    A, B, _, Bw, Q, R = _three_tank(False)
+    Cz, Dzu = _weights(Q, R)
+    res = synthesize_state_feedback(GeneralizedPlant(A, B, Bw, Cz, Dzu), objective="hinf")
+    # state feedback as output feedback with y = x plus a tiny measurement noise channel
+    n, m, nw = 3, 2, 3
+    eps = 1e-6
+    Bfull = np.hstack([Bw, np.zeros((n, n)), B])
+    Cfull = np.vstack([Cz, np.eye(n)])
+    D = np.zeros((Cz.shape[0] + n, nw + n + m))
+    D[:Cz.shape[0], nw + n:] = Dzu
+    D[Cz.shape[0]:, nw:nw + n] = eps * np.eye(n)
+    P = control.ss(A, Bfull, Cfull, D)
+    _, _, gam, _ = control.hinfsyn(P, n, m)
+    assert res.gamma_optimum <= gam * (1 + 1e-3)
+    assert res.gamma_optimum == pytest.approx(gam, rel=1e-2)
+
+
+def test_multiobjective_region_and_common_lyapunov_conservatism():
+    A, B, _, Bw, Q, R = _three_tank(True)
+    Cz, Dzu = _weights(Q, R)
+    P = GeneralizedPlant(A, B, Bw, Cz, Dzu, "discrete", 1.0)
+    free = synthesize_state_feedback(P, objective="hinf")
+    region = disk(0.85, 0.1)           # forces faster poles than the H-infinity optimum has
+    assert any(region.margin(z) <= 0 for z in free.closed_loop_eigenvalues[0])
+    res = synthesize_state_feedback(P, objective="hinf", region=region, backoff=1e-3)
+    eig = np.linalg.eigvals(A - B @ res.gain)
+    assert all(region.margin(z) > 0 for z in eig)
+    assert res.gamma >= free.gamma_optimum
+    assert res.achieved_hinf[0] <= res.gamma * (1 + 1e-6)
+    # the returned X certifies the region in numpy
+    M = region_lmi(region, P, res.X, res.gain @ res.X)
+    assert np.linalg.eigvalsh(M).max() < 0
+    # H2 bound together with the region
+    both = synthesize_state_feedback(P, objective="h2", region=region, hinf_bound=2 * res.gamma)
+    assert both.achieved_hinf[0] <= 2 * res.gamma * (1 + 1e-6)
+    assert both.achieved_h2[0] <= both.h2 * (1 + 1e-6)
+
+
+def test_infeasible_bound_is_refused_with_the_achievable_optimum():
+    A, B, _, Bw, Q, R = _three_tank(True)
+    Cz, Dzu = _weights(Q, R)
+    P = GeneralizedPlant(A, B, Bw, Cz, Dzu, "discrete", 1.0)
+    best = synthesize_state_feedback(P, objective="hinf").gamma_optimum
+    with pytest.raises(InfeasibleDesign, match="smallest H-infinity bound the LMIs admit") as exc:
+        synthesize_state_feedback(P, objective="h2", hinf_bound=0.5 * best, region=disk(0.9, 0.08))
+    assert "||T_zw||_inf <=" in str(exc.value)
+
+
+def test_common_lyapunov_over_vertices_meets_the_bound_at_every_vertex():
+    A, B, _, Bw, Q, R = _three_tank(False)
+    Cz, Dzu = _weights(Q, R)
+    models = [GeneralizedPlant(A * s, B, Bw, Cz, Dzu) for s in (0.85, 1.15)]
+    res = synthesize_state_feedback(models, objective="hinf", region=half_plane(0.005), backoff=1e-3)
+    assert len(res.achieved_hinf) == 2
+    for Pm in models:
+        Acl, Bcl, Ccl = Pm.closed_loop(res.gain)
+        sysm = control.ss(Acl, Bcl, Ccl, np.zeros((Ccl.shape[0], 3)))
+        assert pc_hinf(sysm) \
+            <= res.gamma * (1 + 1e-6)
+        assert np.max(np.linalg.eigvals(Acl).real) < -0.005
+
+
+def test_statespace_input_and_lmi_blocks_in_numpy():
+    A, B, _, Bw, Q, R = _three_tank(False)
+    Cz, Dzu = _weights(Q, R)
+    sysP = control.ss(A, np.hstack([Bw, B]), Cz, np.hstack([np.zeros((5, 3)), Dzu]))
+    Pss = generalized_plant(sysP, ncon=2)
+    Pm = GeneralizedPlant(A, B, Bw, Cz, Dzu)
+    a = synthesize_state_feedback(Pss, objective="h2")
+    b = synthesize_state_feedback(Pm, objective="h2")
+    np.testing.assert_array_equal(a.gain, b.gain)
+    # the numpy evaluation of the blocks: the LQR closed loop's Gramian with a little slack
+    K, _, _ = control.lqr(A, B, Q, R)
+    Acl = A - B @ K
+    X = sla.solve_continuous_lyapunov(Acl, -Bw @ Bw.T) * 1.01
+    Ccl = Cz - Dzu @ K
+    W = Ccl @ X @ Ccl.T + 1e-6 * np.eye(5)
+    assert all(np.linalg.eigvalsh(M).max() < 0 for M in h2_lmis(Pm, X, K @ X, W))
+    g = 1.5 * pc_hinf(control.ss(Acl, Bw, Ccl, np.zeros((5, 3))))
+    assert hinf_lmis(Pm, X, K @ X, g)[0].shape == (3 + 3 + 5,) * 2
+    # bounded real lemma at the solver's optimum, recomputed in numpy in original units
+    res = synthesize_state_feedback(Pm, objective="hinf", backoff=1e-2)
+    # X = T Xs T' of the scaled problem's reduced lemma (variable gamma X, mu = gamma^2); in
+    # original units (w = cw ws, zs = cz z, tau = omega t) it holds for omega / cw^2 times it
+    Xh = res.X * res.scaling["time_scale"] / res.scaling["disturbance_scale"] ** 2
+    M = hinf_lmis_reduced(Pm, Xh, res.gain @ Xh, res.gamma ** 2)[0]
+    assert np.linalg.eigvalsh(M).max() < 0
+    # and the full lemma in X = (gamma X) / gamma
+    M = hinf_lmis(Pm, Xh / res.gamma, res.gain @ Xh / res.gamma, res.gamma)[0]
+    assert np.linalg.eigvalsh(M).max() < 0
+
+
+def test_observer_dual_has_the_error_system_norms():
+    A, _, C, Bw, Q, _ = _three_tank(True)
+    Dv = np.diag([1e-3, 2e-3])
+    Cz = np.eye(3)
+    D = observer_plant(A, C, Bw, Dv, Cz, "discrete", 1.0)
+    L = np.array([[0.3, 0.0], [0.0, 0.3], [0.1, 0.1]])
+    Acl, Bcl, Ccl = D.closed_loop(L.T)
+    err = control.ss(A - L @ C, np.hstack([Bw, -L @ Dv]), Cz, 0 * np.zeros((3, 5)), 1.0)
+    dual = control.ss(Acl, Bcl, Ccl, np.zeros((Ccl.shape[0], Bcl.shape[1])), 1.0)
+    assert control.norm(dual, 2) == pytest.approx(control.norm(err, 2), rel=1e-9)
+
+
+def test_bad_options_are_named():
+    A, B, _, Bw, Q, R = _three_tank(False)
+    Cz, Dzu = _weights(Q, R)
+    P = GeneralizedPlant(A, B, Bw, Cz, Dzu)
+    with pytest.raises(SpecError) as exc:
+        synthesize_state_feedback(P, objective="h3")
+    assert exc.value.key == "objective"
+    with pytest.raises(SpecError) as exc:
+        synthesize_state_feedback(P, objective="hinf", region=disk(0.9, 0.08))
+    assert exc.value.key == "region"

@@ -1,0 +1,98 @@
+"""Verdict of the H2 / H-infinity / multi-objective artefacts, its own norms, StateSpace interop."""
+
+from __future__ import annotations
+
+import copy
+from pathlib import Path
+
+import control
+import numpy as np
+import pytest
+
+from tanksynth.artefacts.io import artefact_document
+from tanksynth.methods import design, load_spec
+from tanksynth.verify.statespace import artefact_statespace
+from tanksynth.verify.synthesis import disturbance_plant, h2_norm, hinf_norm, synthesis_verdict
+
+EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "three_tank_hinf.toml"
+
+
+@pytest.fixture(scope="module")
+def designed():
+    spec = load_spec(EXAMPLE)
+    docs = {d.name: artefact_document(design(spec, d), spec.sha256) for d in spec.designs}
+    return spec, docs
+
+
+def _checks(doc, spec):
+    return {c.name: c for c in synthesis_verdict(doc, spec)}
+
+
+@pytest.mark.parametrize("name", ["hinf_controller", "h2_observer", "multiobjective_disk"])
+def test_example_artefacts_pass_their_verdict(designed, name):
+    spec, docs = designed
+    checks = _checks(docs[name], spec)
+    failed = {k: c.detail for k, c in checks.items() if c.passed is not True}
+    assert not failed
+    assert {"model_recheck", "synthesis_data", "stability", "hinf_norm", "h2_norm",
+            "disturbance_step"} <= set(checks)
+    if name == "multiobjective_disk":
+        assert {"region", "lmi_recheck"} <= set(checks)
+    if name == "h2_observer":
+        assert "h2_optimality" in checks
+
+
+def test_a_wrong_gain_fails_the_norm_checks(designed):
+    spec, docs = designed
+    doc = copy.deepcopy(docs["h2_controller"])
+    doc["gains"]["K"] = (0.5 * np.asarray(doc["gains"]["K"])).tolist()
+    checks = _checks(doc, spec)
+    assert checks["h2_norm"].passed is False and checks["h2_optimality"].passed is False
+    doc = copy.deepcopy(docs["hinf_controller"])
+    doc["gains"]["K"] = (1.5 * np.asarray(doc["gains"]["K"])).tolist()
+    checks = _checks(doc, spec)
+    assert checks["hinf_norm"].passed is False
+    doc = copy.deepcopy(docs["hinf_controller"])
+    doc["diagnostics"]["synthesis"]["gamma"] *= 0.99   # a claim the gain does not meet
+    assert _checks(doc, spec)["hinf_norm"].passed is False
+
+
+def test_own_norms_against_python_control():
+    rng = np.random.default_rng(7)
+    A = rng.standard_normal((5, 5))
+    A = 0.95 * A / np.max(np.abs(np.linalg.eigvals(A)))
+    B, C = rng.standard_normal((5, 2)), rng.standard_normal((2, 5))
+    sys = control.ss(A, B, C, np.zeros((2, 2)), 1.0)
+    lo, hi = hinf_norm(A, B, C, 1.0)
+    ref = control.norm(sys, "inf", tol=1e-10, method="scipy", print_warning=False)
+    assert lo <= ref * (1 + 1e-8) and hi >= ref * (1 - 1e-8)
+    assert h2_norm(A, B, C, 1.0) == pytest.approx(control.norm(sys, 2), rel=1e-8)
+
+
+def test_disturbance_plant_adds_bw_w():
+    spec = load_spec(EXAMPLE)
+    Bw = np.eye(3) / 0.0154
+    dp = disturbance_plant(spec.plant, Bw)
+    assert dp.m == spec.plant.m + 3
+    x, u = np.array([[0.4, 0.2, 0.3]]), np.array([[3e-5, 3e-5]])
+    w = np.array([[1e-5, -2e-5, 3e-5]])
+    diff = dp.compiled.rhs(x, np.hstack([u, w]))[0] - spec.plant.compiled.rhs(x, u)[0]
+    np.testing.assert_allclose(diff, Bw @ w[0], rtol=1e-12)
+
+
+def test_artefact_statespace_for_python_control_users(designed):
+    spec, docs = designed
+    perf = artefact_statespace(docs["hinf_controller"], spec=spec)
+    assert perf.dt == 1.0 and perf.state_labels == ["h1", "h2", "h3"]
+    gamma = docs["hinf_controller"]["diagnostics"]["synthesis"]["gamma"]
+    assert hinf_norm(perf.A, perf.B, perf.C, 1.0)[1] <= gamma * (1 + 1e-6)
+    ref = artefact_statespace(docs["hinf_controller"], "reference", spec)
+    resp = control.step_response(ref, T=np.arange(0, 400.0))
+    assert np.all(np.isfinite(resp.outputs))
+    loop = artefact_statespace(docs["hinf_controller"], "loop")
+    assert loop.ninputs == 2 and loop.noutputs == 2
+    err = artefact_statespace(docs["h2_observer"], spec=spec)
+    h2 = docs["h2_observer"]["diagnostics"]["synthesis"]["h2_bound"]
+    assert control.norm(err, 2) == pytest.approx(h2, rel=1e-6)
+    obs = artefact_statespace(docs["h2_observer"], "observer", spec)
+    assert obs.ninputs == 2 + 2 and obs.output_labels == ["h1_hat", "h2_hat", "h3_hat"]
