@@ -45,6 +45,7 @@ from tanksynth.spec import parse_spec_text as _parse_spec_text
 from tanksynth.spec.method_options import MethodOptions
 from tanksynth.verify import campaign, decentralized, estimators, fault, laws, model, narx, placement
 from tanksynth.verify import robust as robust_verdicts
+from tanksynth.verify import robust_runs
 from tanksynth.verify import ts_observer
 from tanksynth.verify import ts_control
 from tanksynth.verify import synthesis as syn_verdict
@@ -167,11 +168,11 @@ TABLE: tuple[Method, ...] = (
          "one state feedback for every vertex of a parameter box: LMI region, optional H-infinity "
          "bound, saturation-aware invariant ellipsoid, optional integral action",
          robust_methods.ROBUST_STATE_FEEDBACK, robust_verdicts.robust_state_feedback_verdict,
-         st.robust_state_feedback_statement, robust_verdicts.robust_state_feedback_run),
+         st.robust_state_feedback_statement, robust_runs.robust_state_feedback_run),
     _row("robust_observer", ("observer",),
          "one observer gain for every vertex of a parameter box: LMI region, optional H-infinity bound",
          robust_methods.ROBUST_OBSERVER, robust_verdicts.robust_observer_verdict,
-         st.robust_observer_statement, robust_verdicts.robust_observer_run),
+         st.robust_observer_statement, robust_runs.robust_observer_run),
     _row("ts_state_feedback", ("controller",),
          "Takagi-Sugeno PDC state feedback by LMIs (vertex/Tuan relaxations), certified region",
          ts_control_methods.TS_STATE_FEEDBACK, ts_control.ts_control_verdict,

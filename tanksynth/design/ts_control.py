@@ -54,8 +54,7 @@ from tanksynth.errors import DimensionError, InfeasibleDesign, SpecError
 
 __all__ = ["RELAXATIONS", "DeviationTSModel", "deviation_ts_model", "linear_argument",
            "condition_weights", "PDCResult", "pdc_lmi", "relaxed_conditions", "certified_decay",
-           "Region", "certified_region", "max_decay_rate", "coupling_weight", "lyapunov_decay",
-           "observer_decay_lmi"]
+           "max_decay_rate"]
 
 #: LMI relaxations of the PDC conditions.
 RELAXATIONS = ("vertex", "tuan", "all_pairs")
@@ -576,140 +575,8 @@ def max_decay_rate(A: Any, B: Any, relaxation: str, *, start: float | None = Non
 
 
 # ---------------------------------------------------------------------------- region
-@dataclass(frozen=True)
-class Region:
-    """Certified level set ``{x : (x - x0)' P (x - x0) <= c}``.
-
-    Attributes
-    ----------
-    c : float
-    limits : dict
-        ``c`` allowed by each constraint (domain faces, pump margins).
-    binding : str
-        The constraint that fixes ``c``.
-    semi_axes : ndarray, shape (n,)
-        Semi-axes of the ellipsoid (state units, ascending).
-    axes : ndarray, shape (n, n)
-        Their directions (columns).
-    extents : ndarray, shape (n,)
-        Largest deviation of each state on the region (state units).
-    """
-
-    c: float
-    limits: dict
-    binding: str
-    semi_axes: np.ndarray
-    axes: np.ndarray
-    extents: np.ndarray
-
-    def as_dict(self) -> dict:
-        """JSON-friendly form."""
-        return {"c": self.c, "limits": self.limits, "binding": self.binding,
-                "semi_axes": self.semi_axes.tolist(), "axes": self.axes.tolist(),
-                "extents": self.extents.tolist()}
-
-
-def certified_region(P: np.ndarray, K: np.ndarray, faces: tuple[np.ndarray, np.ndarray],
-                     input_margins: Sequence[float] | None, names: Sequence[str] = (),
-                     extra_inverse: np.ndarray | None = None) -> Region:
-    """Largest ``c`` with ``{e' P e <= c}`` inside the faces and the pumps unsaturated.
-
-    ``c = min(min_l g_l^2 / (G_l P^-1 G_l'), min_ij margin_j^2 / (k_ij P^-1 k_ij'))``.
-    ``extra_inverse`` (output feedback) adds ``P_o^-1 / beta`` to the inverse
-    seen by the controller (the estimate ``x_hat = x - eps``).
-    """
-    P = 0.5 * (P + P.T)
-    Pi = np.linalg.inv(P)
-    G, g = faces
-    limits = {}
-    names = list(names) or [f"face{l}" for l in range(len(g))]
-    for l in range(len(g)):
-        limits[f"face {names[l] if l < len(names) else l}"] = float(g[l] ** 2 / (G[l] @ Pi @ G[l]))
-    if input_margins is not None:
-        Pk = Pi if extra_inverse is None else Pi + extra_inverse
-        for i in range(K.shape[0]):
-            for j, um in enumerate(input_margins):
-                k = K[i, j]
-                den = float(k @ Pk @ k)
-                limits[f"pump {j + 1} at vertex {i + 1}"] = float(um ** 2 / den) if den > 0 else np.inf
-    binding = min(limits, key=limits.get)
-    c = float(limits[binding])
-    lam, V = np.linalg.eigh(P)
-    return Region(c, limits, binding, np.sqrt(c / lam)[::-1], V[:, ::-1],
-                  np.sqrt(c * np.diag(Pi)))
 
 
 # -------------------------------------------------------------------- output feedback
-def lyapunov_decay(P: np.ndarray, W: np.ndarray) -> float:
-    """Largest ``a`` with ``W >= 2 a P`` (``dV/dt <= -e' W e`` gives ``dV/dt <= -2 a V``), 1/s."""
-    Lc = np.linalg.cholesky(0.5 * (P + P.T))
-    Li = np.linalg.inv(Lc)
-    return float(np.linalg.eigvalsh(Li @ (0.5 * (W + W.T)) @ Li.T)[0] / 2.0)
 
 
-def coupling_weight(Pc: np.ndarray, K: np.ndarray, B: np.ndarray, alpha_c: float, Po: np.ndarray,
-                    alpha_o: float, factor: float = 2.0) -> float:
-    """Weight ``beta`` of the composite ``V = e' Pc e + beta eps' Po eps`` (separation by cascade).
-
-    With ``dV_c/dt <= -2 alpha_c V_c + 2 e' Pc B K(.) eps`` and ``dV_o/dt <=
-    -2 alpha_o V_o``, ``dV/dt < 0`` for every convex ``K(.)`` when ``beta >
-    max_j lambda_max(Po^-1/2 K_j' B' Pc B K_j Po^-1/2) / (4 alpha_c alpha_o)``
-    (Schur complement of the 2x2 block condition); ``factor`` times that.
-    """
-    if not (alpha_c > 0 and alpha_o > 0):
-        raise InfeasibleDesign(f"composite certificate needs positive decay rates (controller "
-                               f"{alpha_c:.3g} 1/s, observer {alpha_o:.3g} 1/s)")
-    lam, V = np.linalg.eigh(0.5 * (Po + Po.T))
-    R = V @ np.diag(lam ** -0.5) @ V.T
-    worst = max(float(np.linalg.eigvalsh(R @ Kj.T @ B.T @ Pc @ B @ Kj @ R)[-1]) for Kj in K)
-    return factor * worst / (4.0 * alpha_c * alpha_o)
-
-
-def observer_decay_lmi(A0: Any, C: Any, psi: float, alpha: float, *, margin: float = 1e-6,
-                       kappa: float = 1e4, solver: str = "CLARABEL") -> tuple[np.ndarray, ...]:
-    """Seed 001 LMI (28) with ``Q = q I`` and a decay rate (1/s), re-checked in numpy.
-
-    ``[[He(P A0 - N C) + 2 alpha P + psi^2 q I, P], [P, -q I]] < 0``, ``L = P^-1 N``:
-    ``d(eps' P eps)/dt <= -2 alpha eps' P eps`` for ``|Delta| <= psi |eps|``.
-    Scaled by ``omega = |A0|_2``; ``I <= P``, ``trace P <= kappa n``.
-
-    Returns
-    -------
-    (L, P, Q)
-        Gain (state units per output unit / s), Lyapunov matrix and ``Q = q I``.
-
-    Raises
-    ------
-    InfeasibleDesign
-        Infeasible, or the re-check fails.
-    """
-    import cvxpy as cp
-
-    A0 = np.asarray(A0, dtype=float)
-    C = np.atleast_2d(np.asarray(C, dtype=float))
-    n, q = A0.shape[0], C.shape[0]
-    om = max(float(np.linalg.norm(A0, 2)), psi, alpha, 1e-12)
-    As, ps, al = A0 / om, psi / om, alpha / om
-    P = cp.Variable((n, n), symmetric=True)
-    N = cp.Variable((n, q))
-    qv = cp.Variable()
-    H = P @ As - N @ C
-    blk = cp.bmat([[H + H.T + 2 * al * P + ps ** 2 * qv * np.eye(n), P], [P, -qv * np.eye(n)]])
-    cons = [0.5 * (blk + blk.T) << -margin * np.eye(2 * n), P >> np.eye(n),
-            cp.trace(P) <= kappa * n, qv >= margin]
-    prob = cp.Problem(cp.Minimize(0), cons)
-    try:
-        prob.solve(solver=solver)
-    except cp.error.SolverError as exc:
-        raise InfeasibleDesign(f"observer LMI (28) with decay: solver failed: {exc}") from None
-    if prob.status not in ("optimal", "optimal_inaccurate") or P.value is None:
-        raise InfeasibleDesign(f"observer LMI (28) with decay {alpha:g} 1/s and psi = {psi:.4g} 1/s: "
-                               f"solver status {prob.status}")
-    Pv = 0.5 * (P.value + P.value.T)
-    L = np.linalg.solve(Pv, N.value) * om
-    Q = float(qv.value) * np.eye(n) / om      # Q in original time units: psi^2 Q = (psi/om)^2 q om
-    G = Pv @ (A0 - L @ C)
-    full = np.block([[G + G.T + 2 * alpha * Pv + psi ** 2 * Q, Pv], [Pv, -Q]])
-    if not (np.linalg.eigvalsh(0.5 * (full + full.T))[-1] < 0 and np.linalg.eigvalsh(Pv)[0] > 0):
-        raise InfeasibleDesign(f"observer LMI (28) with decay {alpha:g} 1/s: the re-check fails")
-    return L, Pv, Q

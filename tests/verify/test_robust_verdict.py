@@ -10,7 +10,8 @@ from tanksynth.artefacts.io import read_artefact, write_artefact
 from tanksynth.methods import METHODS, load_spec
 from tanksynth.sim.scenarios import scenario
 from tanksynth.verify.closed_loops import ClosedLoop
-from tanksynth.verify.robust import hinf_norm, robust_state_feedback_run
+from tanksynth.verify.robust import hinf_norm
+from tanksynth.verify.robust_runs import robust_state_feedback_run
 
 EXAMPLE = "examples/three_tank_robust.toml"
 
