@@ -406,7 +406,9 @@ def observability_determinant_zeros(plant: Plant, result: NonlinearObservability
     orders = n``) its determinant is evaluated at the points of ``result``;
     every segment between consecutive points and from each point to the
     centroid whose end values differ in sign holds a zero, located by
-    `scipy.optimize.brentq` (kept if it lies in the region).
+    `scipy.optimize.brentq` (kept if it lies in the region and the
+    determinant is small there, not a singularity). Only for smooth models:
+    with non-smooth terms left on the region the search is not done.
 
     Parameters
     ----------
@@ -421,6 +423,11 @@ def observability_determinant_zeros(plant: Plant, result: NonlinearObservability
     DeterminantZeros
     """
     orders, n = result.orders, plant.n
+    nonsmooth = (sp.Abs, sp.sign, sp.Max, sp.Min, sp.Heaviside, sp.DiracDelta, sp.Piecewise)
+    if plant.f_smooth.has(*nonsmooth) or plant.h.has(*nonsmooth):
+        return DeterminantZeros(False, 0, np.zeros((0, n)),
+                                "the model keeps non-smooth terms on the region (hybrid switching or "
+                                "undetermined flow directions): the determinant is not analytic")
     fn, D = _codistribution(plant, orders)
     if D.shape[0] != n:
         return DeterminantZeros(False, 0, np.zeros((0, n)),
@@ -446,6 +453,10 @@ def observability_determinant_zeros(plant: Plant, result: NonlinearObservability
         g = lambda t: float(det_at(a + t * (b - a))[0])  # noqa: E731
         t0 = brentq(g, 0.0, 1.0, xtol=1e-12)
         z = a + t0 * (b - a)
+        # a sign change through a singularity (a square root at an equal-level boundary) is
+        # not a zero: keep the point only if the determinant is small there
+        if abs(g(t0)) > 1e-6 * max(abs(da), abs(db)):
+            continue
         if not plant.region.violations(z, plant.x):
             zeros.append(z)
     return DeterminantZeros(True, len(pairs), np.array(zeros).reshape(-1, n),

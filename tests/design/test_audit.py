@@ -56,12 +56,12 @@ def test_non_equilibrium_operating_point_warns_naming_the_equation():
 
 
 def test_equilibrium_input_outside_actuator_range_warns():
-    # high levels need more than qmax = 1.2e-4 m^3/s; the inflow needed for h2 is
-    # q20 - q32 with Torricelli flows (computed here independently)
+    # at equilibrium q1 = q13 (Torricelli, computed here independently): 1.1e-5 m^3/s, more than
+    # a pump limited to qmax = 1e-5 m^3/s delivers
     h1, h2, h3 = 0.60, 0.58, 0.59
-    g, A, Phi = 9.81, 0.0154, 5e-5
+    g, Phi = 9.81, 5e-5
     q13 = 0.5 * Phi * np.sqrt(2 * g * (h1 - h3))
-    assert q13 < 1.2e-4                                  # q1 = q13 is fine ...
+    assert q13 > 1e-5
     text = HEAD.format(params="[plant.parameters]\nqmax = 1e-5", h1=h1, h2=h2, h3=h3)
     _, lines = _design(text)
     line = next(s for s in lines if "actuator range" in s)
