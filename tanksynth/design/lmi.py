@@ -600,7 +600,8 @@ def maximise_psi(A0: Any, C: Any, *, variant: str = "qI", margin: float = 1e-6, 
         return True
 
     if not feasible(0.0):
-        raise InfeasibleDesign(f"observer LMI (28) infeasible even with psi = 0: {refused[-1]}")
+        reason = refused[-1].removeprefix("observer LMI (28) ")
+        raise InfeasibleDesign(f"observer LMI (28) infeasible even with psi = 0: {reason}")
     lo, hi, history = bisect_feasible(feasible, start=1e-2 * omega, rtol=rtol)
     best = designs[lo]
     active = kappa_active(best.P, prob.kappa)
