@@ -62,21 +62,42 @@ def _design_all(spec, outdir: Path, export: tuple[str, ...]) -> tuple[list[Path]
     """Design every entry, then write the artefacts.
 
     The spec's options were all validated when it was parsed; a design that
-    still fails on bad input raises before anything is written. An
-    infeasible design is listed (no artefact for it), the others are written.
+    still fails on bad input raises before anything is written. A refused
+    design (`InfeasibleDesign`: infeasible, uncontrollable, unobservable,
+    fragile) is listed with its reason (no artefact for it) and the remaining
+    designs are still attempted and written. Each distinct `DesignWarning` is
+    printed once on stderr (``warning: <designs>: <text>``); the artefacts
+    record theirs in ``diagnostics["warnings"]``.
     """
+    import warnings
+
     from tanksynth.artefacts.io import file_sha256, write_artefact, write_plant_record
+    from tanksynth.errors import DesignWarning
     from tanksynth.methods import METHODS
 
     from tanksynth.reports.refused import refusal, write_refused
 
     results, infeasible, refused = [], [], []
+    seen: dict[str, list[str]] = {}
     for design in spec.designs:
-        try:
-            results.append((design, METHODS[design.method].design(spec, design)))
-        except InfeasibleDesign as exc:
-            infeasible.append(f"{design.name}: {_one_line(exc)}")
-            refused.append(refusal(design.name, design.method, exc))
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always", DesignWarning)
+            try:
+                results.append((design, METHODS[design.method].design(spec, design)))
+            except InfeasibleDesign as exc:
+                infeasible.append(f"{design.name}: {_one_line(exc)}")
+                refused.append(refusal(design.name, design.method, exc))
+        for w in caught:
+            if issubclass(w.category, DesignWarning):
+                names = seen.setdefault(_one_line(w.message), [])
+                if design.name not in names:
+                    names.append(design.name)
+            else:
+                warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+    for text, names in seen.items():
+        click.echo(f"warning: {', '.join(names)}: {text}", err=True)
+    for line in infeasible:
+        click.echo(f"refused {line}")
     plant_sha = file_sha256(write_plant_record(spec, outdir))
     write_refused(outdir, refused)
     written = []
@@ -156,7 +177,13 @@ def design(spec: str, outdir: str, export: tuple[str, ...]) -> None:
     for path in written:
         _out.print(f"wrote {path}")
     if infeasible:
-        raise _Fail(EXIT_INFEASIBLE, "infeasible: " + "; ".join(infeasible))
+        raise _Fail(EXIT_INFEASIBLE, _refused_summary(infeasible, len(s.designs)))
+
+
+def _refused_summary(infeasible: list[str], total: int) -> str:
+    """``k of n design(s) refused: a, b`` (the reasons were printed one per line)."""
+    names = [line.split(":", 1)[0] for line in infeasible]
+    return f"{len(names)} of {total} design(s) refused (no artefact): {', '.join(names)}"
 
 
 @cli.command()
@@ -207,7 +234,7 @@ def run(spec: str | None, outdir: str, pdf: bool | None) -> None:
     else:
         _out.print("no report: no design artefact was written")
     if infeasible:
-        raise _Fail(EXIT_INFEASIBLE, "infeasible: " + "; ".join(infeasible))
+        raise _Fail(EXIT_INFEASIBLE, _refused_summary(infeasible, len(s.designs)))
     failed = [c.name for c in checks if c.passed is False]
     failed += [v.name for v in verdicts if v.passed is False]
     if failed:

@@ -21,6 +21,8 @@ __all__ = [
     "ReportError",
     "CovarianceError",
     "SimulationError",
+    "TanksynthWarning",
+    "DesignWarning",
 ]
 
 
@@ -78,12 +80,20 @@ class InfeasibleDesign(TanksynthError, RuntimeError):
     """A design problem has no solution (or its solution fails the re-check)."""
 
 
-class UnobservableError(TanksynthError, ValueError):
-    """A design needs an observable pair and the pair is not observable."""
+class UnobservableError(InfeasibleDesign, ValueError):
+    """A design needs an observable (detectable) pair and the pair is not.
+
+    A design refusal (`InfeasibleDesign`, exit code 3): the plant at this
+    operating point admits no such gain. Also a `ValueError` for callers
+    that catch it as bad input.
+    """
 
 
-class UncontrollableError(TanksynthError, ValueError):
-    """A design needs a controllable pair and the pair is not controllable."""
+class UncontrollableError(InfeasibleDesign, ValueError):
+    """A design needs a controllable (stabilisable) pair and the pair is not.
+
+    A design refusal (`InfeasibleDesign`, exit code 3), also a `ValueError`.
+    """
 
 
 class ReportError(TanksynthError, RuntimeError):
@@ -127,3 +137,17 @@ class CovarianceError(TanksynthError, ArithmeticError):
 
 class SimulationError(TanksynthError, RuntimeError):
     """A simulation produced a non-finite state or was given inconsistent inputs."""
+
+
+class TanksynthWarning(Warning):
+    """Base class of every warning issued by tanksynth."""
+
+
+class DesignWarning(TanksynthWarning, UserWarning):
+    """A design was produced but something about it (or its input) looks wrong.
+
+    Issued with `warnings.warn` (e.g. an operating point that is not an
+    equilibrium, an implausible plant parameter, poles that look written for
+    the other time domain); ``tanksynth design`` prints each as one line and
+    records it in the artefact's ``diagnostics["warnings"]``.
+    """

@@ -38,6 +38,7 @@ from tanksynth.design import estimator_methods as est
 from tanksynth.design import robust_methods
 from tanksynth.design import ts_control_methods
 from tanksynth.design import synthesis_methods as syn
+from tanksynth.design.audit import designed
 from tanksynth.design.result import DesignMethod, DesignResult
 from tanksynth.reports import statements as st
 from tanksynth.spec import DesignSpec, Spec, load_spec as _load_spec, parse_spec as _parse_spec
@@ -96,8 +97,13 @@ class Method:
         return self.adapter.options
 
     def design(self, spec: Spec, design: DesignSpec) -> DesignResult:
-        """Run the design of one ``[[design]]`` entry of ``spec``."""
-        return self.adapter.run(spec, design)
+        """Run the design of one ``[[design]]`` entry of ``spec``.
+
+        Every `DesignWarning` (operating point, actuator range, implausible
+        parameters, unstable result, the method's own) is issued and listed in
+        ``diagnostics["warnings"]`` (`tanksynth.design.audit.designed`).
+        """
+        return designed(self.adapter.run, spec, design)
 
 
 def _row(name: str, kinds: tuple[str, ...], summary: str, adapter: DesignMethod, verdict: VerdictFn,

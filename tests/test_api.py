@@ -38,8 +38,14 @@ def test_errors_subclass_builtins():
     assert issubclass(errors.SpecError, ValueError)
     assert issubclass(errors.InfeasibleDesign, RuntimeError)
     assert issubclass(errors.ParseError, errors.SpecError)
+    # refusals of a design (exit 3) that are also ValueErrors for callers catching bad input
+    assert issubclass(errors.UnobservableError, errors.InfeasibleDesign)
+    assert issubclass(errors.UncontrollableError, ValueError)
+    assert issubclass(errors.DesignWarning, UserWarning)
     for item in errors.__all__:
-        assert issubclass(getattr(errors, item), errors.TanksynthError)
+        cls = getattr(errors, item)
+        base = errors.TanksynthWarning if issubclass(cls, Warning) else errors.TanksynthError
+        assert issubclass(cls, base)
 
 
 def test_clear_cache_empties_every_cache_and_results_do_not_change():

@@ -284,17 +284,41 @@ def test_bad_third_design_exits_2_with_nothing_written(tmp_path, capsys, command
     assert {"a_pp.json", "b_kf.json", "c_bad.json"} <= {p.name for p in out_dir.glob("*.json")}
 
 
-def test_design_time_refusal_writes_nothing(tmp_path, capsys):
-    """Bad input found only by a design (an unobservable pair) still leaves no artefact."""
+def test_design_time_refusal_is_infeasible_and_the_others_are_written(tmp_path, capsys):
+    """Issue 12 item 8: an unobservable pair is a design refusal (exit 3, not 2); the remaining
+    designs are still written and the summary lists the refused one with its reason."""
     spec = tmp_path / "unobs.toml"
     spec.write_text(UNOBSERVABLE + '[[design]]\nname = "obs"\nmethod = "pole_placement"\n'
-                    'target = "observer"\npoles = [0.5, 0.6]\n')
+                    'target = "observer"\npoles = [0.5, 0.6]\n'
+                    '[[design]]\nname = "sf"\nmethod = "pole_placement"\n'
+                    'target = "state_feedback"\npoles = [0.5, 0.6]\n')
     out_dir = tmp_path / "out"
-    code, _, err = run_cli(capsys, "design", spec, "-o", out_dir)
-    assert code == 2, err
-    assert_one_line_error(err)
-    assert "not observable" in err
-    assert not out_dir.exists()
+    code, out, err = run_cli(capsys, "design", spec, "-o", out_dir)
+    assert code == 3, err
+    assert "refused obs: " in out and "not observable" in out and "x2" in out
+    assert {p.name for p in out_dir.glob("*.json")} >= {"lin.json", "sf.json"}
+    assert not (out_dir / "obs.json").exists()
+    last = err.strip().splitlines()[-1]
+    assert last.startswith("infeasible: ") and "1 of 3 design(s) refused" in last and "obs" in last
+    # item 12: no message repeats its prefix
+    assert "infeasible: infeasible" not in err and "error: error" not in err
+
+
+def test_design_warnings_are_single_lines_and_recorded(tmp_path, capsys):
+    """Issue 12 items 5-7: one line per problem on stderr, recorded in the artefact."""
+    spec = tmp_path / "warn.toml"
+    head = SEED000.read_text().split("[[design]]")[0].replace("A = 0.0154", "A = 154.0")
+    spec.write_text(head + '[[design]]\nname = "pp"\nmethod = "pole_placement"\n'
+                    'poles = [-0.05, -0.06, -0.07]\n')
+    out_dir = tmp_path / "out"
+    code, out, err = run_cli(capsys, "design", spec, "-o", out_dir)
+    assert code == 0, err
+    lines = [ln for ln in err.splitlines() if ln.startswith("warning: ")]
+    assert any("A = 154 m^2" in ln and "plausible range" in ln for ln in lines)
+    assert any("s-plane" in ln for ln in lines)
+    assert "Traceback" not in err and "warnings.warn" not in err
+    doc = read_artefact(out_dir / "pp.json")
+    assert any("plausible range" in w for w in doc["diagnostics"]["warnings"])
 
 
 def test_os_errors_and_internal_errors_keep_the_exit_code_contract(tmp_path, capsys, monkeypatch):

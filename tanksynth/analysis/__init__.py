@@ -5,6 +5,7 @@
 `tanksynth.analysis.linearize`  equilibrium input, linearisation, exact ZOH discretisation
 `tanksynth.analysis.rank`       Kalman, PBH, nonlinear and symbolic rank conditions
 `tanksynth.analysis.checks`     the rank conditions of a spec (``tanksynth check``)
+`tanksynth.analysis.trim`       levels that given inputs hold still (root finding on f)
 ==========================  ===============================================================
 """
 
@@ -17,6 +18,7 @@ from tanksynth.analysis.rank import (NonlinearObservability, PBHMode, PBHResult,
                                      SymbolicRank, controllability_matrix, controllability_rank,
                                      nonlinear_observability, observability_matrix,
                                      observability_rank, pbh_test, symbolic_observability)
+from tanksynth.analysis.trim import Trim, trim
 from tanksynth.analysis.symbolic import (RelativeDegree, control_affine, jacobian, lie_derivative,
                                          lie_derivatives, relative_degree)
 
@@ -29,4 +31,5 @@ __all__ = [
     "observability_matrix", "observability_rank", "pbh_test", "symbolic_observability",
     "RelativeDegree", "control_affine", "jacobian", "lie_derivative", "lie_derivatives",
     "relative_degree",
+    "Trim", "trim",
 ]

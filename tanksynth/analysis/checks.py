@@ -11,10 +11,11 @@ import sympy as sp
 
 from tanksynth.analysis.linearize import equilibrium_input, linearize, symbolic_jacobians
 from tanksynth.plants.base import Plant
-from tanksynth.analysis.rank import (controllability_rank, nonlinear_observability, observability_rank, pbh_test,
-                   symbolic_observability)
+from tanksynth.analysis.rank import (controllability_rank, nonlinear_observability,
+                                     observability_determinant_zeros, observability_rank, pbh_test,
+                                     symbolic_observability)
 
-__all__ = ["Check", "rank_conditions"]
+__all__ = ["Check", "rank_conditions", "equilibrium_checks"]
 
 #: Largest state dimension for which the symbolic determinant is attempted.
 SYMBOLIC_MAX_STATES = 4
@@ -40,6 +41,35 @@ def _kalman(name: str, result) -> Check:
               f"{(s[result.n - 1] if s.size >= result.n else 0.0):.3g}, condition number "
               f"{result.condition_number:.3g}")
     return Check(name, result.full, detail, result.as_dict())
+
+
+def equilibrium_checks(plant: Plant, eq) -> list[Check]:
+    """``equilibrium`` (residual against its tolerance, the unbalanced equation) and
+    ``equilibrium_input_bounds`` (u0 within the actuator range).
+
+    Parameters
+    ----------
+    plant : Plant
+    eq : tanksynth.analysis.linearize.Equilibrium
+    """
+    res = np.abs(eq.residual)
+    i = int(np.argmax(res))
+    st = plant.states[i]
+    detail = (f"max |f(x0, u0)| = {res[i]:.3g} {st.unit}/s (tolerance {eq.tolerance:.3g}) with "
+              f"least-squares u0 = {np.array2string(eq.u0, precision=4)}")
+    if not eq.is_equilibrium:
+        bad = [plant.states[j].name for j in np.flatnonzero(res > eq.tolerance)]
+        detail += (f"; unbalanced: d{st.name}/dt = {eq.residual[i]:.3g} {st.unit}/s (equation(s) of "
+                   f"{', '.join(bad)}): no input holds the plant at x0")
+    out = [Check("equilibrium", eq.is_equilibrium, detail, eq.as_dict())]
+    lim = plant.input_limits
+    parts = [f"{q.name} = {v:.4g} {q.unit} in [{lo:g}, {hi:g}]"
+             + ("" if lo - 1e-12 <= v <= hi + 1e-12 else " VIOLATED")
+             for q, v, (lo, hi) in zip(plant.inputs, eq.u0, lim)]
+    out.append(Check("equilibrium_input_bounds", eq.within_bounds,
+                     "equilibrium input within the actuator range: " + "; ".join(parts)
+                     if parts else "no inputs", {"u0": eq.u0.tolist(), "limits": lim.tolist()}))
+    return out
 
 
 def rank_conditions(plant: Plant, x0: Sequence[float], ts: float | None = None,
@@ -72,9 +102,7 @@ def rank_conditions(plant: Plant, x0: Sequence[float], ts: float | None = None,
     """
     names = [s.name for s in plant.states]
     eq = equilibrium_input(plant, x0, given_u0)
-    checks = [Check("equilibrium", eq.is_equilibrium,
-                    f"max |f(x0, u0)| = {np.max(np.abs(eq.residual)):.3g} with least-squares u0 = "
-                    f"{np.array2string(eq.u0, precision=4)}", eq.as_dict())]
+    checks = equilibrium_checks(plant, eq)
     if given_u0 is not None:
         bal = float(np.max(np.abs(eq.given_residual)))
         verdict = "balances the model" if bal <= eq.tolerance else "does NOT balance the model"
@@ -95,11 +123,30 @@ def rank_conditions(plant: Plant, x0: Sequence[float], ts: float | None = None,
         checks.append(_kalman("controllability_discrete", controllability_rank(lin.Ad, lin.Bd)))
         checks.append(_kalman("observability_discrete", observability_rank(lin.Ad, lin.C)))
     nl = nonlinear_observability(plant, count=samples, seed=seed)
-    detail = (f"rank {int(nl.ranks.min())}/{plant.n} (minimum over {len(nl.ranks)} region points) "
-              f"with L_f^k h, k < {nl.orders}")
-    if not nl.full:
-        detail += f"; drops at {len(nl.drop_points)} points, e.g. {np.round(nl.drop_points[0], 4).tolist()}"
-    checks.append(Check("nonlinear_observability", nl.full, detail, nl.as_dict()))
+    data = nl.as_dict()
+    if nl.full:
+        detail = (f"rank {plant.n} at {len(nl.ranks)} sampled points of the region (every one) with "
+                  f"d(L_f^k h), k < {nl.orders}")
+        zeros = observability_determinant_zeros(plant, nl)
+        data["determinant_zeros"] = zeros.as_dict()
+        if not zeros.searched:
+            detail += f"; between the points not searched ({zeros.reason})"
+        elif zeros.meets_region:
+            detail += (f"; but its determinant changes sign between them: it vanishes inside the "
+                       f"region, e.g. at {np.round(zeros.zeros[0], 4).tolist()} (rank < {plant.n} on "
+                       f"a surface the samples miss; {len(zeros.zeros)} zero(s) found along "
+                       f"{zeros.segments} segments)")
+        else:
+            detail += (f"; no zero of its determinant found along {zeros.segments} segments "
+                       "between them (sign changes searched)")
+        ok = nl.full and not zeros.meets_region
+    else:
+        detail = (f"rank {int(nl.ranks.min())}/{plant.n} (minimum over {len(nl.ranks)} sampled "
+                  f"points) with d(L_f^k h), k < {nl.orders}; drops at {len(nl.drop_points)} of "
+                  f"them, e.g. {np.round(nl.drop_points[0], 4).tolist()}; unobservable direction "
+                  f"there in {', '.join(nl.unobservable_states())}")
+        ok = False
+    checks.append(Check("nonlinear_observability", ok, detail, data))
     F_sym, _, C_sym = symbolic_jacobians(plant) if plant.n <= SYMBOLIC_MAX_STATES else (None, None, None)
     nonsmooth = (sp.Abs, sp.sign, sp.Max, sp.Min, sp.Heaviside, sp.DiracDelta, sp.Piecewise)
     if F_sym is None:
@@ -110,8 +157,13 @@ def rank_conditions(plant: Plant, x0: Sequence[float], ts: float | None = None,
                             "not attempted: the Jacobian keeps non-smooth terms on the region "
                             "(hybrid switching or undetermined flow directions)"))
     else:
-        sym = symbolic_observability(F_sym, C_sym, variables=plant.x)
-        if sym.degenerate_parameters:
+        sym = symbolic_observability(F_sym, C_sym, variables=plant.x, state_names=names)
+        if sym.identically_zero:
+            detail = ("det O is identically zero: the linearisation is unobservable for every "
+                      "parameter value and operating point"
+                      + (f"; unobservable direction in {', '.join(sym.null_direction)}"
+                         if sym.null_direction else ""))
+        elif sym.degenerate_parameters:
             detail = "rank < n for every state when " + " or ".join(
                 "(" + ", ".join(f"{k} = {v}" for k, v in d.items()) + ")" for d in sym.degenerate_parameters)
         else:

@@ -13,6 +13,8 @@ from typing import Sequence
 import numpy as np
 import sympy as sp
 
+from scipy.optimize import brentq
+
 from tanksynth.errors import DimensionError
 from tanksynth.plants.base import Plant
 from tanksynth.plants.compile import compile_matrix
@@ -29,6 +31,8 @@ __all__ = [
     "pbh_test",
     "NonlinearObservability",
     "nonlinear_observability",
+    "DeterminantZeros",
+    "observability_determinant_zeros",
     "SymbolicRank",
     "symbolic_observability",
 ]
@@ -244,6 +248,11 @@ class NonlinearObservability:
     n : int
     input_value : ndarray
         Constant input at which ``f`` was evaluated.
+    drop_directions : ndarray, shape (k, n)
+        At each of the first (at most 10) drop points, the unit state
+        direction the codistribution does not see (right singular vector of
+        the smallest singular value): the unobservable direction there.
+    state_names : tuple of str
     """
 
     orders: int
@@ -252,6 +261,16 @@ class NonlinearObservability:
     smallest_singular_values: np.ndarray
     n: int
     input_value: np.ndarray
+    drop_directions: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
+    state_names: tuple[str, ...] = ()
+
+    def unobservable_states(self) -> list[str]:
+        """States carrying at least 10% of the first drop point's unobservable direction."""
+        if not self.drop_directions.size:
+            return []
+        v = np.abs(self.drop_directions[0])
+        names = self.state_names or tuple(f"x{i + 1}" for i in range(self.n))
+        return [nm for nm, x in zip(names, v) if x >= 0.1 * v.max()]
 
     @property
     def full(self) -> bool:
@@ -268,7 +287,9 @@ class NonlinearObservability:
         return {"full": self.full, "n": self.n, "orders": self.orders, "points": int(len(self.ranks)),
                 "min_rank": int(self.ranks.min()), "input": self.input_value.tolist(),
                 "min_smallest_singular_value": float(self.smallest_singular_values.min()),
-                "drop_points": self.drop_points[:10].tolist()}
+                "drop_points": self.drop_points[:10].tolist(),
+                "drop_directions": self.drop_directions.tolist(),
+                "unobservable_states": self.unobservable_states()}
 
 
 def nonlinear_observability(plant: Plant, points: np.ndarray | None = None, count: int = 200,
@@ -301,19 +322,11 @@ def nonlinear_observability(plant: Plant, points: np.ndarray | None = None, coun
         u = [0.5 * (lo + hi) if np.isfinite(lo) and np.isfinite(hi) else 0.0
              for lo, hi in plant.input_limits]
     u = np.asarray(u, dtype=float).reshape(plant.m)
-    f = plant.f_smooth_numeric
-    h = plant.h_numeric
-    rows: list[sp.Matrix] = []
-    L = h
     M = len(points)
+    names = tuple(st.name for st in plant.states)
     for k in range(plant.n):
-        grad = jacobian(L, plant.x)
-        rows.append(grad)
-        D = sp.Matrix.vstack(*rows)
-        fn = compile_matrix("codist", D, [plant.x, plant.u], ["x", "u"])
-        mapped = fn.map(M, "serial")
-        vals = np.asarray(mapped(points.T, np.repeat(u[:, None], M, axis=1)))
-        vals = vals.reshape(D.shape[0], M, plant.n).transpose(1, 0, 2)
+        fn, D = _codistribution(plant, k + 1)
+        vals = _evaluate(fn, D.shape[0], plant.n, points, u)
         # Rows scaled to unit norm (zero rows stay zero): SI models mix 1e-5 and 1e2.
         norms = np.linalg.norm(vals, axis=2, keepdims=True)
         scaled = np.divide(vals, norms, out=np.zeros_like(vals), where=norms > 0)
@@ -321,9 +334,134 @@ def nonlinear_observability(plant: Plant, points: np.ndarray | None = None, coun
         ranks = np.sum(s > rtol * s[:, :1], axis=1)
         smin = s[:, plant.n - 1] if s.shape[1] >= plant.n else np.zeros(M)
         if np.all(ranks == plant.n):
-            return NonlinearObservability(k + 1, ranks, points, smin, plant.n, u)
-        L = grad * f
-    return NonlinearObservability(plant.n, ranks, points, smin, plant.n, u)
+            return NonlinearObservability(k + 1, ranks, points, smin, plant.n, u,
+                                          np.zeros((0, plant.n)), names)
+    drops = np.flatnonzero(ranks < plant.n)[:10]
+    dirs = np.array([np.linalg.svd(scaled[i])[2][-1] for i in drops]).reshape(-1, plant.n)
+    return NonlinearObservability(plant.n, ranks, points, smin, plant.n, u, dirs, names)
+
+
+def _codistribution(plant: Plant, orders: int):
+    """Compiled ``d(L_f^k h), k < orders`` (rows stacked) and its symbolic matrix."""
+    f = plant.f_smooth_numeric
+    L = plant.h_numeric
+    rows: list[sp.Matrix] = []
+    for k in range(orders):
+        grad = jacobian(L, plant.x)
+        rows.append(grad)
+        if k + 1 < orders:
+            L = grad * f
+    D = sp.Matrix.vstack(*rows)
+    return compile_matrix("codist", D, [plant.x, plant.u], ["x", "u"]), D
+
+
+def _evaluate(fn, rows: int, n: int, points: np.ndarray, u: np.ndarray) -> np.ndarray:
+    """Codistribution at every point, shape (M, rows, n)."""
+    M = len(points)
+    mapped = fn.map(M, "serial")
+    vals = np.asarray(mapped(points.T, np.repeat(u[:, None], M, axis=1)))
+    return vals.reshape(rows, M, n).transpose(1, 0, 2)
+
+
+@dataclass(frozen=True)
+class DeterminantZeros:
+    """Where the square observability codistribution's determinant vanishes in the region.
+
+    Attributes
+    ----------
+    searched : bool
+        False when the codistribution is not square (no scalar determinant).
+    segments : int
+        Segments between sampled points searched for a sign change.
+    zeros : ndarray, shape (k, n)
+        Points of the region (found by root finding along the segments) where
+        the determinant is zero: the rank drops there.
+    reason : str
+        Why not searched, or how.
+    """
+
+    searched: bool
+    segments: int
+    zeros: np.ndarray
+    reason: str
+
+    @property
+    def meets_region(self) -> bool:
+        """True when a zero of the determinant was found inside the region."""
+        return bool(self.zeros.size)
+
+    def as_dict(self) -> dict:
+        """JSON-friendly summary (at most 10 zeros)."""
+        return {"searched": self.searched, "segments": self.segments,
+                "meets_region": self.meets_region, "zeros": self.zeros[:10].tolist(),
+                "reason": self.reason}
+
+
+def observability_determinant_zeros(plant: Plant, result: NonlinearObservability,
+                                    max_zeros: int = 10) -> DeterminantZeros:
+    """Search the zero set of ``det d(L_f^k h)`` in the region along sampled segments.
+
+    Sampled points can all have full rank while the (analytic) determinant
+    vanishes on a surface between them. For a square codistribution (``q
+    orders = n``) its determinant is evaluated at the points of ``result``;
+    every segment between consecutive points and from each point to the
+    centroid whose end values differ in sign holds a zero, located by
+    `scipy.optimize.brentq` (kept if it lies in the region and the
+    determinant is small there, not a singularity). Only for smooth models:
+    with non-smooth terms left on the region the search is not done.
+
+    Parameters
+    ----------
+    plant : Plant
+    result : NonlinearObservability
+        The sampled check (its points, orders and input).
+    max_zeros : int
+        Stop after this many zeros.
+
+    Returns
+    -------
+    DeterminantZeros
+    """
+    orders, n = result.orders, plant.n
+    nonsmooth = (sp.Abs, sp.sign, sp.Max, sp.Min, sp.Heaviside, sp.DiracDelta, sp.Piecewise)
+    if plant.f_smooth.has(*nonsmooth) or plant.h.has(*nonsmooth):
+        return DeterminantZeros(False, 0, np.zeros((0, n)),
+                                "the model keeps non-smooth terms on the region (hybrid switching or "
+                                "undetermined flow directions): the determinant is not analytic")
+    fn, D = _codistribution(plant, orders)
+    if D.shape[0] != n:
+        return DeterminantZeros(False, 0, np.zeros((0, n)),
+                                f"the codistribution is {D.shape[0]} x {n} (not square): no scalar "
+                                "determinant to search")
+    pts = result.points
+    u = result.input_value
+
+    def det_at(X: np.ndarray) -> np.ndarray:
+        return np.linalg.det(_evaluate(fn, n, n, np.atleast_2d(X), u))
+
+    d = det_at(pts)
+    centre = pts.mean(axis=0)
+    pairs = [(pts[i], pts[i + 1], d[i], d[i + 1]) for i in range(len(pts) - 1)]
+    dc = float(det_at(centre)[0])
+    pairs += [(pts[i], centre, d[i], dc) for i in range(len(pts))]
+    zeros = []
+    for a, b, da, db in pairs:
+        if len(zeros) >= max_zeros:
+            break
+        if not (np.isfinite(da) and np.isfinite(db)) or da * db >= 0:
+            continue
+        g = lambda t: float(det_at(a + t * (b - a))[0])  # noqa: E731
+        t0 = brentq(g, 0.0, 1.0, xtol=1e-12)
+        z = a + t0 * (b - a)
+        # a sign change through a singularity (a square root at an equal-level boundary) is
+        # not a zero: keep the point only if the determinant is small there
+        if abs(g(t0)) > 1e-6 * max(abs(da), abs(db)):
+            continue
+        if not plant.region.violations(z, plant.x):
+            zeros.append(z)
+    return DeterminantZeros(True, len(pairs), np.array(zeros).reshape(-1, n),
+                            f"sign changes of det along {len(pairs)} segments (consecutive sampled "
+                            "points and each point to the centroid), zeros located by brentq")
 
 
 @dataclass(frozen=True)
@@ -347,6 +485,10 @@ class SymbolicRank:
     degenerate_parameters : tuple of dict
         Parameter values for which ``det O`` vanishes identically in the
         variables (the structure is unobservable whatever they are).
+    null_direction : tuple of str
+        When the determinant is identically zero: the states carrying (at
+        least 10% of) the kernel of ``O`` at a generic point, i.e. the
+        unobservable direction.
     """
 
     matrix: sp.Matrix
@@ -355,17 +497,26 @@ class SymbolicRank:
     factors: tuple[sp.Expr, ...]
     variables: tuple[sp.Symbol, ...]
     degenerate_parameters: tuple[dict, ...] = field(default=())
+    null_direction: tuple[str, ...] = field(default=())
+
+    @property
+    def identically_zero(self) -> bool:
+        """``det O`` (every maximal minor) is zero for every parameter and variable value."""
+        return bool(sp.simplify(self.determinant) == 0)
 
     def as_dict(self) -> dict:
         """JSON-friendly summary (expressions as strings)."""
         return {"determinant": str(self.determinant), "blocks_used": self.blocks_used, "factors": [str(f) for f in self.factors],
                 "variables": [str(v) for v in self.variables],
                 "degenerate_parameters": [{str(k): str(v) for k, v in d.items()}
-                                          for d in self.degenerate_parameters]}
+                                          for d in self.degenerate_parameters],
+                "identically_zero": self.identically_zero,
+                "null_direction": list(self.null_direction)}
 
 
 def symbolic_observability(A: sp.Matrix, C: sp.Matrix,
-                           variables: Sequence[sp.Symbol] = ()) -> SymbolicRank:
+                           variables: Sequence[sp.Symbol] = (),
+                           state_names: Sequence[str] | None = None) -> SymbolicRank:
     """Factored determinant of the observability matrix and its conditions.
 
     Parameters
@@ -379,6 +530,9 @@ def symbolic_observability(A: sp.Matrix, C: sp.Matrix,
         ``degenerate_parameters`` lists the parameter sets on which the
         determinant (every maximal minor) vanishes for every value of the
         variables.
+    state_names : sequence of str, optional
+        Names of the columns, for the unobservable direction of an
+        identically singular ``O``.
     """
     A, C = sp.Matrix(A), sp.Matrix(C)
     n = A.shape[0]
@@ -437,4 +591,12 @@ def symbolic_observability(A: sp.Matrix, C: sp.Matrix,
         # blocks with rank n: keep it only if the full matrix drops rank too.
         degenerate = [sol for sol in sols if sol and
                       O_full.xreplace(sol).xreplace(point).rank() < n]
-    return SymbolicRank(O_full, len(blocks), det, tuple(factors), variables, tuple(degenerate))
+    null: tuple[str, ...] = ()
+    if det == 0:
+        names = list(state_names) if state_names is not None else [f"x{i + 1}" for i in range(n)]
+        kernel = O_full.xreplace(point).nullspace()
+        if kernel:
+            v = np.abs(np.array([float(sp.N(x)) for x in kernel[0]]))
+            null = tuple(nm for nm, x in zip(names, v) if x >= 0.1 * v.max())
+    return SymbolicRank(O_full, len(blocks), det, tuple(factors), variables, tuple(degenerate),
+                        null)

@@ -20,16 +20,19 @@ Function (`tanksynth.design.control.law_document`); `export_law` writes it as
 
 from __future__ import annotations
 
+import warnings
 from typing import Any
 
 import numpy as np
 import sympy as sp
 
-from tanksynth.analysis.linearize import equilibrium_input
+from tanksynth.analysis.linearize import equilibrium_input, linearize
 from tanksynth.design.control import ServoScenario, design_integral_tracking, tune_inverse_dynamics
 from tanksynth.design.feedback_linearization import feedback_linearization
 from tanksynth.design.result import DesignMethod, DesignResult, options_of, rekeyed
-from tanksynth.errors import SpecError
+from tanksynth.design.placement import integral_augmentation
+from tanksynth.design.placement_exact import robustness_report
+from tanksynth.errors import DesignWarning, SpecError
 from tanksynth.runtime.laws import inverse_dynamics_law, law_document, rename_law
 from tanksynth.spec.method_options import (FeedbackLinearizationOptions, IntegralTrackingOptions,
                                            InverseDynamicsOptions)
@@ -90,6 +93,12 @@ def run_integral_tracking(spec, design) -> DesignResult:
     """
     o = options_of(design, spec, IntegralTrackingOptions)
     plant = spec.plant
+    if all(complex(p).imag == 0 and complex(p).real < 0 for p in o.poles):
+        warnings.warn(f"every requested discrete pole is real and negative "
+                      f"({[complex(p).real for p in o.poles]}): they are placed as z-plane poles (an "
+                      "oscillating, near-deadbeat loop), but they look like s-plane poles (1/s); "
+                      "z = exp(p ts) is the discrete pole of an s-plane pole p", DesignWarning,
+                      stacklevel=2)
     try:
         it = design_integral_tracking(
             plant, spec.x0, list(o.poles), spec.ts, tracked=list(o.tracked), method=o.method,
@@ -97,6 +106,14 @@ def run_integral_tracking(spec, design) -> DesignResult:
     except SpecError as exc:
         raise rekeyed(design, exc) from None
     diagnostics = dict(it.diagnostics)
+    lin = linearize(plant, it.x0, it.u0, ts=spec.ts)
+    aug = integral_augmentation(lin.Ad, lin.Bd, it.C1, spec.ts)
+    rob = robustness_report(aug.A, aug.A - aug.B @ it.K, it.K, "discrete")
+    diagnostics["robustness"] = rob
+    if rob["fragile"]:
+        warnings.warn(f"fragile design: a relative change of A of {rob['relative_stability_radius']:.3g} "
+                      "destabilises the augmented closed loop (gain norm "
+                      f"{rob['gain_norm']:.3g})", DesignWarning, stacklevel=2)
     if o.reference_gain is not None:
         ref = o.reference_gain
         diff = it.K - ref

@@ -19,6 +19,7 @@ checked), ZOH-discretised with ``[sampling] ts`` in discrete time.
 
 from __future__ import annotations
 
+import warnings
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -32,9 +33,10 @@ from tanksynth.design.lmi import maximise_psi, observer_lmi
 from tanksynth.design.placement import (canonical_observer, integral_augmentation,
                                         lmi_observer, lmi_state_feedback, place_observer,
                                         place_state_feedback, pole_errors)
+from tanksynth.design.placement_exact import placement_accuracy, refuse_fragile, robustness_report
 from tanksynth.design.result import DesignMethod, DesignResult, options_of, rekeyed
 from tanksynth.design.takagi_sugeno import lipschitz_bound, search_weightings, selection_rules
-from tanksynth.errors import InfeasibleDesign, SpecError, UnobservableError
+from tanksynth.errors import DesignWarning, InfeasibleDesign, SpecError, UnobservableError
 from tanksynth.plants.base import exact
 from tanksynth.spec.method_options import (CanonicalObserverOptions, LmiPlacementOptions,
                                            PolePlacementOptions, TsObserverOptions)
@@ -88,6 +90,44 @@ def _compare(reference: np.ndarray, derived: np.ndarray, closed_loop_of) -> dict
 
 def _assumptions(spec) -> list[str]:
     return [a.text for a in spec.plant.assumptions]
+
+
+def _robust(A: np.ndarray, closed: np.ndarray, gain: np.ndarray, domain: str, allow: bool,
+            what: str) -> dict:
+    """Robustness figures of a loop; refuse a fragile one unless ``allow_fragile``."""
+    rob = robustness_report(A, closed, gain, domain)
+    if rob["fragile"]:
+        if not allow:
+            refuse_fragile(rob, what)
+        rob["accepted_because"] = "allow_fragile = true"
+        warnings.warn(f"fragile design accepted (allow_fragile = true): a relative change of A of "
+                      f"{rob['relative_stability_radius']:.3g} destabilises {what}", DesignWarning,
+                      stacklevel=3)
+    return rob
+
+
+def _plane_of_poles(o, ts: float | None) -> tuple[list[complex], dict | None]:
+    """The poles in the design's plane, and a note when they were converted or look mixed up.
+
+    s-plane poles of a discrete design (``poles = {values, domain = "s"}``)
+    are placed at ``z = exp(p ts)``. Without a plane, a discrete design whose
+    poles are all real and negative warns: they look like s-plane poles
+    (1/s) placed as z-plane ones (a near-deadbeat, oscillating gain).
+    """
+    poles = [complex(p) for p in o.poles]
+    plane = getattr(o, "pole_domain", None)
+    if o.time_domain == "discrete" and plane == "s":
+        z = [complex(np.exp(p * ts)) for p in poles]
+        return z, {"given": _complex_list(poles), "domain": "s", "placed": _complex_list(z),
+                   "conversion": f"z = exp(p ts), ts = {ts:g} s"}
+    if o.time_domain == "discrete" and plane is None and all(p.imag == 0 and p.real < 0 for p in poles):
+        warnings.warn(
+            f"every requested discrete pole is real and negative ({[p.real for p in poles]}): they "
+            "are placed as z-plane poles (an oscillating, near-deadbeat loop), but they look like "
+            "s-plane poles (1/s); if so write poles = {values = [...], domain = \"s\"} "
+            "(placed at z = exp(p ts)), else domain = \"z\" to silence this", DesignWarning,
+            stacklevel=3)
+    return poles, None
 
 
 # ------------------------------------------------------------------- ts_observer
@@ -184,9 +224,14 @@ def run_ts_observer(spec: "Spec", design: "DesignSpec") -> DesignResult:
         search = maximise_psi(A0, C, variant=variant, margin=margin, kappa=kappa, **struct)
         res = search.result
         diagnostics["psi_search"] = search.as_dict()
+        if search.kappa_active:
+            warnings.warn(f"psi_max = {search.psi_max:.4g} 1/s is limited by the conditioning bound "
+                          f"trace P <= kappa n (active at the optimum, kappa = {kappa:g}): a larger "
+                          "kappa gives a larger psi", DesignWarning, stacklevel=2)
     else:
         psi = o.psi if psi_source == "given" else lip.value
-        res = observer_lmi(A0, C, psi, variant=variant, margin=margin, kappa=kappa, **struct)
+        res = observer_lmi(A0, C, psi, variant=variant, margin=margin, kappa=kappa,
+                           kappa_max=o.kappa_max, **struct)
     caveats = []
     if variant == "full":
         caveats.append("full Q (as printed in seed 001): the step Delta' Q Delta <= psi^2 e' Q e "
@@ -196,7 +241,7 @@ def run_ts_observer(spec: "Spec", design: "DesignSpec") -> DesignResult:
             safe = maximise_psi(A0, C, variant="qI", margin=margin, kappa=kappa, solver=solver)
             diagnostics["psi_max_qI"] = safe.psi_max
         except InfeasibleDesign as exc:
-            diagnostics["psi_max_qI"] = f"infeasible: {exc}"
+            diagnostics["psi_max_qI"] = f"refused: {exc}"
     if psi_source != "lipschitz":
         certified = bool(np.isfinite(lip.value) and res.psi >= lip.value)
         how = "given" if psi_source == "given" else "maximised"
@@ -213,6 +258,8 @@ def run_ts_observer(spec: "Spec", design: "DesignSpec") -> DesignResult:
         "lmi": res.as_dict(),
         "solver": res.solver,
         "status": res.status,
+        "robustness": _robust(A0, A0 - res.L @ C, res.L, "continuous", o.allow_fragile,
+                              "the observer error matrix A0 - L C"),
         "caveats": caveats,
         "assumptions": _assumptions(spec),
     })
@@ -272,6 +319,12 @@ def _solve_gain(spec, design, o, observer, feedback, fallback_opt: str, augmente
     return res, gains, diagnostics, (A, B, C), closed
 
 
+def _loop_name(o) -> str:
+    if o.target == "observer":
+        return "the observer error matrix A - L C"
+    return "the augmented closed loop Aa - Ba K" if o.integral else "the closed loop A - B K"
+
+
 # ----------------------------------------------------------------- lmi_placement
 def run_lmi_placement(spec: "Spec", design: "DesignSpec") -> DesignResult:
     """State feedback ``K`` or observer ``L`` with eigenvalues in an LMI region.
@@ -305,13 +358,25 @@ def run_lmi_placement(spec: "Spec", design: "DesignSpec") -> DesignResult:
     plant = spec.plant
     region = region_from_parts(o.region)
     time_domain, margin, kappa, solver = o.time_domain, o.margin, o.kappa, o.solver
-    res, gains, diagnostics, (A, B, C), _ = _solve_gain(
+    kmax = o.kappa_max
+    res, gains, diagnostics, (A, B, C), closed = _solve_gain(
         spec, design, o,
         lambda A, C, names: lmi_observer(A, C, region, domain=time_domain, margin=margin,
-                                         kappa=kappa, solver=solver, state_names=names),
+                                         kappa=kappa, solver=solver, state_names=names,
+                                         kappa_max=kmax),
         lambda A, B, names: lmi_state_feedback(A, B, region, domain=time_domain, margin=margin,
-                                               kappa=kappa, solver=solver, state_names=names),
+                                               kappa=kappa, solver=solver, state_names=names,
+                                               kappa_max=kmax),
         fallback_opt="region", augmented_B=False)
+    gain = gains.get("L", gains.get("K"))
+    open_loop = A if o.target == "observer" or not o.integral else \
+        diagnostics["integral"]["augmented_A"]
+    diagnostics["robustness"] = _robust(np.asarray(open_loop, dtype=float), closed(gain), gain,
+                                        time_domain, o.allow_fragile, _loop_name(o))
+    if res.scaling.get("kappa_relaxed"):
+        warnings.warn(f"the conditioning bound was active: kappa relaxed from {kappa:g} to "
+                      f"{res.scaling['kappa']:g} (ceiling kappa_max = {kmax:g})", DesignWarning,
+                      stacklevel=2)
     gains.update({"P": res.P, "A": A, "B": B, "C": C})
     diagnostics.update({"lmi": res.as_dict(), "solver": res.solver, "status": res.status})
     return DesignResult(design.name, "lmi_placement", plant.name, gains, diagnostics, {})
@@ -350,7 +415,8 @@ def run_pole_placement(spec: "Spec", design: "DesignSpec") -> DesignResult:
     """
     o = options_of(design, spec, PolePlacementOptions)
     plant = spec.plant
-    poles, method = list(o.poles), o.method
+    method = o.method
+    poles, converted = _plane_of_poles(o, spec.ts)
     res, gains, diagnostics, (A, B, C), closed = _solve_gain(
         spec, design, o,
         lambda A, C, names: place_observer(A, C, poles, method, state_names=names),
@@ -358,6 +424,12 @@ def run_pole_placement(spec: "Spec", design: "DesignSpec") -> DesignResult:
         fallback_opt="poles", augmented_B=True)
     gain = res.gain
     diagnostics["placement"] = res.as_dict()
+    if converted is not None:
+        diagnostics["poles_converted"] = converted
+    open_loop = A if o.target == "observer" or not o.integral else \
+        np.asarray(diagnostics["integral"]["augmented_A"], dtype=float)
+    diagnostics["robustness"] = _robust(open_loop, closed(gain), gain, o.time_domain,
+                                        o.allow_fragile, _loop_name(o))
     if o.reference_gain is not None:
         ref = o.reference_gain
         cmp_ = _compare(ref, gain, closed)
@@ -415,14 +487,22 @@ def run_canonical_observer(spec: "Spec", design: "DesignSpec") -> DesignResult:
                         "model affine in u", key=f"{design.key}.method")
     exact_poles = [exact(p.real) + (sp.I * exact(p.imag) if p.imag else 0) for p in poles]
     co = canonical_observer(A, C, exact_poles)
+    if not co.exact:
+        raise InfeasibleDesign("canonical observer: det(sI - (A - Psi C)) differs from the requested "
+                               "polynomial in exact arithmetic")
     L = co.gain
     An, Cn = np.array(A.evalf(), dtype=float), np.array(C.evalf(), dtype=float)
     pl = place_observer(An, Cn, poles, state_names=[s.name for s in plant.states])
     ach = np.linalg.eigvals(An - L @ Cn)
+    acc = placement_accuracy(poles, An - L @ Cn)
     diagnostics: dict[str, Any] = {
         "canonical_form": co.as_dict(),
         "achieved_poles": _complex_list(ach),
         "max_pole_error": pole_errors(poles, ach)[1],
+        "accuracy": {"measure": "characteristic polynomial in exact arithmetic (sympy)",
+                     "exact": co.exact, "float_gain": acc},
+        "robustness": _robust(An, An - L @ Cn, L, "continuous", o.allow_fragile,
+                              "the observer error matrix F - L C"),
         "place_cross_check": {"L_place": pl.gain.tolist(),
                               "max_abs_difference": float(np.max(np.abs(pl.gain - L))),
                               "place_report": pl.as_dict()},

@@ -20,6 +20,13 @@ Two variants are offered (notes/plants.md section 4.2):
     for every ``psi`` once the conditioning bound ``kappa`` is large enough,
     so "maximise psi" only measures ``kappa``.
 
+Conditioning bound: when a refused LMI has ``trace P`` at ``kappa n`` the
+bound, not the plant, limits the margin; `observer_lmi` then retries with
+``kappa`` times `KAPPA_STEP` up to ``kappa_max`` and, if still refused, says
+the bound is active and names the option. `maximise_psi` reports
+``bounded_by_kappa`` whenever the bound is active at ``psi_max`` (both
+variants).
+
 Numerics (DESIGN.md): the problem is scaled before solving (time scale
 ``omega``: ``A0/omega``, ``psi/omega``; output rows of ``C`` normalised), the
 homogeneous LMI is normalised by ``P >= I``, ``trace P <= kappa n`` and the strict
@@ -62,7 +69,27 @@ __all__ = [
     "PsiSearch",
     "maximise_psi",
     "bisect_feasible",
+    "KAPPA_STEP",
+    "kappa_active",
 ]
+
+#: Factor by which ``kappa`` is relaxed on each retry of `observer_lmi` (up to ``kappa_max``).
+KAPPA_STEP = 100.0
+#: The bound ``trace P <= kappa n`` is active when ``trace P >= (1 - 1e-3) kappa n``.
+_ACTIVE = 1.0 - 1e-3
+
+
+def kappa_active(P: Any, kappa: float) -> bool:
+    """True when ``trace P`` sits at the conditioning bound ``kappa n`` (to 0.1%).
+
+    Parameters
+    ----------
+    P : array_like, shape (n, n)
+        Lyapunov matrix of the normalised problem (``P >= I``).
+    kappa : float
+    """
+    P = np.atleast_2d(np.asarray(P, dtype=float))
+    return bool(np.trace(P) >= _ACTIVE * kappa * P.shape[0])
 
 
 @dataclass(frozen=True)
@@ -270,7 +297,8 @@ def observer_lmi(A0: Any, C: Any, psi: float, *, variant: str = "qI", margin: fl
                  kappa: float = 1e4, blocks: Sequence[Sequence[int]] | None = None,
                  pattern: Any = None, solver: str = "CLARABEL",
                  problem: ObserverLMIProblem | None = None, form: str = "auto",
-                 solver_options: dict | None = None) -> ObserverLMIResult:
+                 solver_options: dict | None = None,
+                 kappa_max: float | None = None) -> ObserverLMIResult:
     """Solve the observer LMI (28) for a given ``psi`` and re-check the result.
 
     Parameters
@@ -300,6 +328,9 @@ def observer_lmi(A0: Any, C: Any, psi: float, *, variant: str = "qI", margin: fl
         a gain pattern is given. Ignored when ``problem`` is given.
     solver_options : mapping, optional
         Solver options (e.g. Clarabel tolerances) for this solve.
+    kappa_max : float, optional
+        When the margin is missed with ``trace P`` at ``kappa n``, retry with
+        ``kappa`` times `KAPPA_STEP` up to ``kappa_max`` (default: no retry).
 
     Returns
     -------
@@ -328,13 +359,25 @@ def observer_lmi(A0: Any, C: Any, psi: float, *, variant: str = "qI", margin: fl
     prob = problem or ObserverLMIProblem(n, C, variant, kappa, blocks, pattern, solver,
                                          A0_pattern=A0 != 0, form=form, margin=margin)
     prob.margin = float(margin)
-    raw = prob.solve(A0, float(psi)) if solver_options is None else \
-        prob.solve(A0, float(psi), solver_options=solver_options)
-    return _accept(A0, C, float(psi), raw, prob, float(margin), variant)
+    ceiling = prob.kappa if kappa_max is None else max(float(kappa_max), prob.kappa)
+    tries: list[dict] = []
+    while True:
+        raw = prob.solve(A0, float(psi)) if solver_options is None else \
+            prob.solve(A0, float(psi), solver_options=solver_options)
+        active = kappa_active(raw["P"], prob.kappa) if "P" in raw else None
+        tries.append({"kappa": prob.kappa, "t": raw["t"], "status": raw["status"],
+                      "bound_active": active})
+        if raw["t"] >= margin or active is False or prob.kappa >= ceiling:
+            break
+        prob = ObserverLMIProblem(n, C, variant, min(prob.kappa * KAPPA_STEP, ceiling),
+                                  prob.blocks, prob.mask, prob.solver, A0_pattern=prob.A0_pattern,
+                                  form=prob.form, margin=margin, solver_options=prob.solver_options)
+    res = _accept(A0, C, float(psi), raw, prob, float(margin), variant, tries)
+    return res
 
 
 def _accept(A0: np.ndarray, C: np.ndarray, psi: float, raw: dict, prob: ObserverLMIProblem,
-            margin: float, variant: str) -> ObserverLMIResult:
+            margin: float, variant: str, tries: list | None = None) -> ObserverLMIResult:
     """Margin test and independent re-check of a raw solution; the result or `InfeasibleDesign`."""
     n = A0.shape[0]
     structure = ({"P": "dense"} if prob.blocks is None else
@@ -358,10 +401,17 @@ def _accept(A0: np.ndarray, C: np.ndarray, psi: float, raw: dict, prob: Observer
     if raw["t"] == -np.inf:
         raise InfeasibleDesign(f"observer LMI (28) not solved: {where}")
     if raw["t"] < margin:
+        if "P" in raw and kappa_active(raw["P"], prob.kappa):
+            tried = ", ".join(f"{tr['kappa']:g}" for tr in (tries or [{"kappa": prob.kappa}]))
+            raise InfeasibleDesign(
+                f"observer LMI (28) infeasible with the required margin within the conditioning "
+                f"bound: {where}; the bound trace P <= kappa n is active at the optimum (trace P = "
+                f"{float(np.trace(raw['P'])):.4g}, tried kappa = {tried}): raise the option "
+                "'kappa_max' (or 'kappa') to allow a worse-conditioned P")
         raise InfeasibleDesign(
             f"observer LMI (28) infeasible with the required margin: {where}; the optimum of "
             "max t s.t. LMI <= -t I, P >= I, trace P <= kappa n certifies that no larger margin "
-            "exists")
+            "exists (the bound on P is not active)")
     checks, eig, err = check_observer_lmi(A0, C, psi, raw["P"], raw["Q"], raw["K"], margin, raw["omega"])
     failed = [c for c in checks if not c.passed]
     if failed:
@@ -375,7 +425,10 @@ def _accept(A0: np.ndarray, C: np.ndarray, psi: float, raw: dict, prob: Observer
         error_eigenvalues=err, condition_P=float(np.linalg.cond(raw["P"])),
         scaling={"omega_per_s": raw["omega"], "time_scaling": "A0/omega, psi/omega",
                  "output_row_scale": prob.output_scale.tolist(),
-                 "normalisation": "P >= I, trace P <= kappa n"},
+                 "normalisation": "P >= I, trace P <= kappa n",
+                 "kappa_active": kappa_active(raw["P"], prob.kappa),
+                 "trace_P_over_kappa_n": float(np.trace(raw["P"]) / (prob.kappa * n)),
+                 "kappa_tries": list(tries or [])},
         structure=structure)
 
 
@@ -448,7 +501,11 @@ class PsiSearch:
     result : ObserverLMIResult
         The re-checked design at ``psi_max``.
     bounded_by_kappa : bool
-        True for the full-``Q`` variant: its maximum grows with ``kappa``.
+        True when ``psi_max`` is limited by the conditioning bound: the
+        full-``Q`` variant (its maximum always grows with ``kappa``) or, for
+        either variant, ``trace P = kappa n`` at ``psi_max`` (`kappa_active`).
+    kappa_active : bool
+        The bound ``trace P <= kappa n`` is active at ``psi_max``.
     """
 
     psi_max: float
@@ -456,12 +513,17 @@ class PsiSearch:
     history: list
     result: ObserverLMIResult
     bounded_by_kappa: bool
+    kappa_active: bool = False
 
     def as_dict(self) -> dict:
         """JSON-friendly summary."""
         return {"psi_max": self.psi_max, "psi_infeasible": self.psi_infeasible,
                 "trials": [[p, ok] for p, ok in self.history],
-                "bounded_by_kappa": self.bounded_by_kappa,
+                "bounded_by_kappa": self.bounded_by_kappa, "kappa_active": self.kappa_active,
+                "kappa": self.result.kappa,
+                "note": ("psi_max grows with kappa: raise the option 'kappa' for a larger psi "
+                         "(with a worse-conditioned P)") if self.bounded_by_kappa else
+                        "the bound trace P <= kappa n is not active at psi_max",
                 "method": "bisection on feasibility (LMI margin reached and independent re-check "
                           "passed; psi monotone); problem compiled once with cvxpy Parameters"}
 
@@ -538,6 +600,9 @@ def maximise_psi(A0: Any, C: Any, *, variant: str = "qI", margin: float = 1e-6, 
         return True
 
     if not feasible(0.0):
-        raise InfeasibleDesign(f"observer LMI (28) infeasible even with psi = 0: {refused[-1]}")
+        reason = refused[-1].removeprefix("observer LMI (28) ")
+        raise InfeasibleDesign(f"observer LMI (28) infeasible even with psi = 0: {reason}")
     lo, hi, history = bisect_feasible(feasible, start=1e-2 * omega, rtol=rtol)
-    return PsiSearch(lo, hi, history, designs[lo], variant == "full")
+    best = designs[lo]
+    active = kappa_active(best.P, prob.kappa)
+    return PsiSearch(lo, hi, history, best, variant == "full" or active, active)

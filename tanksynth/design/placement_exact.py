@@ -5,16 +5,35 @@ poles, largest pole error, condition number of the closed-loop eigenvector
 matrix. Uncontrollable (unobservable) pairs are refused before placing,
 naming the modes (PBH). The routes are collected in
 `tanksynth.design.placement`.
+
+Accuracy (`placement_accuracy`)
+    The eigenvalues of a k-fold pole are only computable to about
+    ``eps^(1/k)`` (a Jordan block), so a fixed pole-error test refuses
+    correct gains. Requested poles are grouped in clusters (poles closer than
+    ``CLUSTER_RADIUS max(1, |p|)``); a simple pole must be met to ``tol
+    max(1, |p|)``, a pole of a k-cluster to ``tol^(1/k) max(1, |p|)``, and
+    then the characteristic polynomial of the closed loop (well conditioned
+    for repeated roots) must match ``prod (s - p_i)`` coefficient by
+    coefficient to ``tol`` relative to the coefficients of ``prod (s + r_i)``,
+    ``r_i = max(|p_i|, 0.01 max(1, |p|))``. The measure used and its value
+    are reported.
+Robustness (`robustness_report`)
+    The complex stability radius of the closed loop, ``min over the stability
+    boundary of sigma_min(z I - A_cl)``, relative to ``||A||_2``: the
+    smallest relative (unstructured) perturbation of ``A`` that puts a
+    closed-loop pole on the stability boundary. Below
+    `FRAGILITY_THRESHOLD` the design adapters refuse the gain unless the
+    spec says ``allow_fragile = true``.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any, Sequence
 
 import control
 import numpy as np
-from scipy.optimize import linear_sum_assignment
+from scipy.optimize import linear_sum_assignment, minimize_scalar
 
 from tanksynth.errors import (DimensionError, InfeasibleDesign, SpecError, UncontrollableError,
                       UnobservableError)
@@ -26,7 +45,21 @@ __all__ = [
     "place_state_feedback",
     "place_observer",
     "pole_errors",
+    "pole_clusters",
+    "placement_accuracy",
+    "stability_radius",
+    "robustness_report",
+    "refuse_fragile",
+    "CLUSTER_RADIUS",
+    "FRAGILITY_THRESHOLD",
 ]
+
+#: Requested poles closer than this (relative to ``max(1, |p|)``) form one cluster.
+CLUSTER_RADIUS = 1e-3
+#: Smallest accepted relative stability radius ``r / ||A||_2`` of a closed loop
+#: (dimensionless): a loop that a relative change of ``A`` smaller than this
+#: destabilises is refused unless ``allow_fragile = true``.
+FRAGILITY_THRESHOLD = 1e-6
 
 
 # -------------------------------------------------------------------- helpers
@@ -102,6 +135,212 @@ def pole_errors(requested: Any, achieved: Any) -> tuple[np.ndarray, float]:
     return err, float(err.max()) if err.size else 0.0
 
 
+def pole_clusters(poles: Any, radius: float = CLUSTER_RADIUS) -> np.ndarray:
+    """Multiplicity of each pole: the size of its cluster of (nearly) repeated poles.
+
+    Parameters
+    ----------
+    poles : array_like of complex
+    radius : float
+        Poles closer than ``radius max(1, |p|)`` are linked (single linkage).
+
+    Returns
+    -------
+    ndarray of int
+        ``k_i`` for each pole, in the order given (1 for a simple pole).
+    """
+    p = np.asarray(poles, dtype=complex).reshape(-1)
+    label = np.arange(p.size)
+    scale = np.maximum(1.0, np.abs(p))
+    for i in range(p.size):
+        for j in range(i + 1, p.size):
+            if abs(p[i] - p[j]) <= radius * max(scale[i], scale[j]):
+                old, new = label[j], label[i]
+                label[label == old] = new
+    return np.array([int(np.sum(label == lab)) for lab in label])
+
+
+def placement_accuracy(requested: Any, closed_loop: Any, tol: float = 1e-6) -> dict:
+    """How well ``eig(closed_loop)`` meets the requested poles, judged by what is well conditioned.
+
+    Simple poles: matched pole error ``<= tol max(1, |p|)``. Poles of a
+    k-cluster (repeated or nearly repeated): pole error ``<= tol^(1/k)
+    max(1, |p|)`` (a k-fold eigenvalue is only computable to ``eps^(1/k)``)
+    *and* the characteristic polynomial of the closed loop within ``tol`` of
+    ``prod (s - p_i)``, coefficient by coefficient, relative to the
+    coefficients of ``prod (s + r_i)``, ``r_i = max(|p_i|, 0.01 max(1,
+    max |p|))``.
+
+    Parameters
+    ----------
+    requested : array_like of complex, length n
+        Poles (1/s or dimensionless).
+    closed_loop : array_like, shape (n, n)
+    tol : float
+        Relative tolerance (dimensionless).
+
+    Returns
+    -------
+    dict
+        ``passed``, ``measure`` (which test decided), ``max_pole_error``,
+        ``max_relative_pole_error``, ``pole_tolerances`` (per pole),
+        ``multiplicity`` (per pole), ``characteristic_polynomial_relative_error``,
+        ``tolerance``.
+    """
+    p = np.asarray(requested, dtype=complex).reshape(-1)
+    Acl = np.asarray(closed_loop, dtype=float)
+    ach = np.linalg.eigvals(Acl)
+    r = p.copy()
+    a = np.asarray(ach, dtype=complex)
+    cost = np.abs(r[:, None] - a[None, :])
+    rows, cols = linear_sum_assignment(cost)
+    err = np.empty(p.size)
+    err[rows] = cost[rows, cols]
+    mult = pole_clusters(p)
+    scale = np.maximum(1.0, np.abs(p))
+    allowed = scale * tol ** (1.0 / mult)
+    rel = err / scale
+    floor = 0.01 * max(1.0, float(np.max(np.abs(p)))) if p.size else 1.0
+    weights = np.abs(np.poly(np.maximum(np.abs(p), floor)))[1:]
+    want = np.real_if_close(np.poly(p))[1:]
+    got = np.poly(Acl)[1:]
+    coef = float(np.max(np.abs(got - want) / weights)) if p.size else 0.0
+    repeated = bool(np.any(mult > 1))
+    poles_ok = bool(np.all(err <= allowed))
+    passed = poles_ok and (coef <= tol if repeated else True)
+    measure = ("characteristic polynomial coefficients (relative) and multiplicity-scaled pole error "
+               "tol^(1/k)" if repeated else "pole error relative to max(1, |p|)")
+    return {"passed": passed, "measure": measure, "tolerance": float(tol),
+            "max_pole_error": float(err.max()) if err.size else 0.0,
+            "max_relative_pole_error": float(rel.max()) if rel.size else 0.0,
+            "pole_tolerances": (allowed / scale).tolist(), "multiplicity": mult.tolist(),
+            "characteristic_polynomial_relative_error": coef,
+            "value": coef if repeated else (float(rel.max()) if rel.size else 0.0)}
+
+
+def stability_radius(closed_loop: Any, domain: str) -> tuple[float, complex]:
+    """Complex stability radius ``min_{z on the stability boundary} sigma_min(z I - A_cl)``.
+
+    The smallest 2-norm of a complex perturbation ``E`` such that ``A_cl + E``
+    has an eigenvalue on the boundary (imaginary axis, or unit circle in
+    discrete time). Computed on a grid of the boundary (dense near the
+    eigenvalues' frequencies) refined by bounded scalar minimisation, so the
+    value is an upper estimate of the exact radius.
+
+    Parameters
+    ----------
+    closed_loop : array_like, shape (n, n)
+        1/s (continuous) or dimensionless (discrete).
+    domain : {"continuous", "discrete"}
+
+    Returns
+    -------
+    radius : float
+        Units of ``closed_loop``; 0 when a pole is already outside.
+    where : complex
+        The boundary point of the minimum.
+    """
+    Acl = np.asarray(closed_loop, dtype=float)
+    n = Acl.shape[0]
+    lam = np.linalg.eigvals(Acl)
+    unstable = (np.abs(lam) >= 1.0) if domain == "discrete" else (lam.real >= 0.0)
+    if np.any(unstable):
+        return 0.0, complex(lam[np.argmax(np.abs(lam) if domain == "discrete" else lam.real)])
+    eye = np.eye(n)
+    if domain == "discrete":
+        point = lambda w: np.exp(1j * w)  # noqa: E731
+        grid = np.concatenate([np.linspace(0.0, np.pi, 721), np.abs(np.angle(lam))])
+        lo_b, hi_b = 0.0, np.pi
+    else:
+        point = lambda w: 1j * w  # noqa: E731
+        size = max(float(np.max(np.abs(lam))), float(np.linalg.norm(Acl, 2)), 1e-300)
+        grid = np.concatenate([[0.0], np.logspace(np.log10(size) - 4, np.log10(size) + 3, 561),
+                               np.abs(lam.imag)])
+        lo_b, hi_b = 0.0, 1e3 * size
+    grid = np.unique(grid)
+
+    def smin(w: float) -> float:
+        return float(np.linalg.svd(point(w) * eye - Acl, compute_uv=False)[-1])
+
+    vals = np.array([smin(w) for w in grid])
+    best_w, best = float(grid[np.argmin(vals)]), float(vals.min())
+    for i in np.argsort(vals)[:3]:
+        a = grid[max(i - 1, 0)]
+        b = grid[min(i + 1, grid.size - 1)]
+        if b > a:
+            res = minimize_scalar(smin, bounds=(max(a, lo_b), min(b, hi_b)), method="bounded",
+                                  options={"xatol": 1e-12 * max(1.0, abs(b))})
+            if res.fun < best:
+                best, best_w = float(res.fun), float(res.x)
+    return best, complex(point(best_w))
+
+
+def robustness_report(A: Any, closed_loop: Any, gain: Any, domain: str,
+                      threshold: float = FRAGILITY_THRESHOLD) -> dict:
+    """Robustness figures of a closed loop (or observer error matrix) and the fragility verdict.
+
+    Parameters
+    ----------
+    A : array_like, shape (n, n)
+        The open-loop matrix a model error would perturb.
+    closed_loop : array_like, shape (n, n)
+        ``A - B K`` or ``A - L C``.
+    gain : array_like
+        ``K`` or ``L``.
+    domain : {"continuous", "discrete"}
+    threshold : float
+        Smallest accepted relative stability radius (dimensionless).
+
+    Returns
+    -------
+    dict
+        ``relative_stability_radius`` (``r / ||A||_2``; the smallest relative
+        change of ``A`` that destabilises the loop), ``stability_radius``,
+        ``boundary_point``, ``eigenvector_condition``, ``gain_norm``,
+        ``condition_times_gain`` (eigenvector condition times ``||gain||_2``),
+        ``threshold`` and ``fragile``.
+    """
+    A = np.asarray(A, dtype=float)
+    Acl = np.asarray(closed_loop, dtype=float)
+    r, z = stability_radius(Acl, domain)
+    normA = float(np.linalg.norm(A, 2)) or 1.0
+    _, V = np.linalg.eig(Acl)
+    with np.errstate(all="ignore"):
+        cond = float(np.linalg.cond(V))
+    cond = cond if np.isfinite(cond) else float("inf")
+    gnorm = float(np.linalg.norm(np.asarray(gain, dtype=float), 2))
+    rel = r / normA
+    return {"relative_stability_radius": rel, "stability_radius": r,
+            "boundary_point": [z.real, z.imag], "norm_A": normA,
+            "eigenvector_condition": cond, "gain_norm": gnorm,
+            "condition_times_gain": cond * gnorm, "threshold": threshold,
+            "fragile": bool(rel < threshold),
+            "measure": "smallest relative complex perturbation ||E||/||A|| putting a pole of the "
+                       "closed loop on the stability boundary (stability radius)"}
+
+
+def refuse_fragile(report: dict, what: str, option: str = "allow_fragile") -> None:
+    """Raise `InfeasibleDesign` for a fragile loop (``report["fragile"]``), naming the option.
+
+    Parameters
+    ----------
+    report : dict
+        From `robustness_report`.
+    what : str
+        The loop, for the message (``"A - B K"``).
+    option : str
+        The spec option that accepts a fragile design.
+    """
+    if not report["fragile"]:
+        return
+    raise InfeasibleDesign(
+        f"fragile design: a relative change of A of {report['relative_stability_radius']:.3g} "
+        f"(smaller than the threshold {report['threshold']:g}) puts a pole of {what} on the "
+        f"stability boundary; gain norm {report['gain_norm']:.3g}, eigenvector condition "
+        f"{report['eigenvector_condition']:.3g} (nearly uncontrollable/unobservable modes?); set "
+        f"{option} = true to accept it")
+
+
 def _complex_list(values: np.ndarray) -> list[list[float]]:
     return [[float(v.real), float(v.imag)] for v in np.sort_complex(np.asarray(values, dtype=complex))]
 
@@ -129,6 +368,10 @@ class PlacementResult:
         (large: poles sensitive to perturbations of the gain).
     closed_loop : ndarray, shape (n, n)
         ``A - B K`` or ``A - L C``.
+    accuracy : dict
+        `placement_accuracy` of the closed loop: the measure that decided
+        (pole error, or characteristic polynomial with multiplicity-scaled
+        pole tolerances for repeated poles) and its value.
     """
 
     gain: np.ndarray
@@ -140,6 +383,7 @@ class PlacementResult:
     max_pole_error: float
     eigenvector_condition: float
     closed_loop: np.ndarray
+    accuracy: dict = field(default_factory=dict)
 
     def as_dict(self) -> dict:
         """JSON-friendly accuracy report."""
@@ -147,7 +391,8 @@ class PlacementResult:
                 "requested": _complex_list(self.requested), "achieved": _complex_list(self.achieved),
                 "max_pole_error": self.max_pole_error,
                 "eigenvector_condition": self.eigenvector_condition,
-                "gain_norm": float(np.linalg.norm(self.gain, 2))}
+                "gain_norm": float(np.linalg.norm(self.gain, 2)),
+                "accuracy": self.accuracy}
 
 
 def place_state_feedback(A: Any, B: Any, poles: Any, method: str = "auto", tol: float = 1e-6,
@@ -164,7 +409,9 @@ def place_state_feedback(A: Any, B: Any, poles: Any, method: str = "auto", tol: 
     method : {"auto", "place", "acker"}
         ``auto``: ``acker`` for one input, ``place`` (Tits-Yang) otherwise.
     tol : float
-        Largest accepted pole error relative to ``max(1, |pole|)``.
+        Largest accepted pole error relative to ``max(1, |pole|)`` for a
+        simple pole; repeated poles are judged by `placement_accuracy`
+        (characteristic polynomial to ``tol``, pole error to ``tol^(1/k)``).
     state_names : sequence of str, optional
 
     Returns
@@ -201,16 +448,19 @@ def place_state_feedback(A: Any, B: Any, poles: Any, method: str = "auto", tol: 
     Acl = A - B @ K
     ach, V = np.linalg.eig(Acl)
     err, emax = pole_errors(p, ach)
-    rel = float(np.max(err / np.maximum(1.0, np.abs(p))))
-    if rel > tol:
-        raise InfeasibleDesign(f"pole placement inaccurate: largest pole error {emax:.3g} "
-                               f"(relative {rel:.3g} > {tol:g}); eigenvector condition "
-                               f"{np.linalg.cond(V):.3g}")
+    acc = placement_accuracy(p, Acl, tol)
+    if not acc["passed"]:
+        raise InfeasibleDesign(
+            f"pole placement inaccurate: largest pole error {emax:.3g} (relative "
+            f"{acc['max_relative_pole_error']:.3g}, allowed {min(acc['pole_tolerances']):.3g} and "
+            f"up, multiplicities {acc['multiplicity']}); characteristic polynomial relative error "
+            f"{acc['characteristic_polynomial_relative_error']:.3g} (tolerance {tol:g}); "
+            f"eigenvector condition {np.linalg.cond(V):.3g}")
     kind = "observer" if _dual else "state_feedback"
     gain = K.T if _dual else K
     cl = Acl.T if _dual else Acl
     return PlacementResult(gain, kind, method, p, np.linalg.eigvals(cl), err, emax,
-                           float(np.linalg.cond(V)), cl)
+                           float(np.linalg.cond(V)), cl, acc)
 
 
 def place_observer(A: Any, C: Any, poles: Any, method: str = "auto", tol: float = 1e-6,

@@ -10,6 +10,17 @@
     margin, and re-checked in numpy (LMI eigenvalues, closed-loop
     eigenvalues inside the region).
 
+Stabilisability relative to the region: an uncontrollable (unobservable)
+mode cannot be moved, so the design is refused only when such a mode lies
+outside the region (named with the states its PBH direction lives in); modes
+already inside are kept and listed in the diagnostics.
+
+The conditioning bound ``I <= X <= kappa I``: when a refused LMI has ``X``
+at the bound (``lambda_max(X) >= (1 - 1e-3) kappa``), the bound, not the
+region, limits the margin; the LMI is retried with ``kappa`` multiplied by
+`KAPPA_STEP` up to ``kappa_max`` before refusing, and a refusal says the
+bound is active and names the option.
+
 The routes are collected in `tanksynth.design.placement`.
 """
 
@@ -25,15 +36,80 @@ import numpy as np
 import scipy.linalg as sla
 
 from tanksynth.analysis.lmi_region import LMIRegion
-from tanksynth.errors import DimensionError, InfeasibleDesign, SpecError
+from tanksynth.errors import (DimensionError, InfeasibleDesign, SpecError, UncontrollableError,
+                              UnobservableError)
 from tanksynth.design.lmi import SOLVERS, LMICheck
-from tanksynth.design.placement_exact import _complex_list, _matrix, _pair, _refuse_uncontrollable
+from tanksynth.design.placement_exact import _complex_list, _matrix, _pair
+# Module import (not names), so that a test may replace the rank functions.
+from tanksynth.analysis import rank as _rank
 
 __all__ = [
     "LMIPlacementResult",
     "lmi_state_feedback",
     "lmi_observer",
+    "fixed_modes",
+    "KAPPA_STEP",
+    "KAPPA_ACTIVE",
 ]
+
+#: Factor by which ``kappa`` is relaxed on each retry (up to ``kappa_max``).
+KAPPA_STEP = 100.0
+#: ``X`` is at the conditioning bound when ``lambda_max(X) >= KAPPA_ACTIVE kappa``.
+KAPPA_ACTIVE = 1.0 - 1e-3
+
+
+def fixed_modes(A: Any, B: Any, state_names: Sequence[str] | None = None
+                ) -> list[tuple[complex, tuple[str, ...]]]:
+    """Uncontrollable modes of ``(A, B)`` and the states they live in (Kalman decomposition).
+
+    With ``U = [U_c, U_n]`` from the SVD of the controllability matrix
+    (``U_c`` spans the controllable subspace), the modes no gain moves are the
+    eigenvalues of ``U_n' A U_n``; for each, ``U_n w`` (``w`` a left
+    eigenvector) is a PBH direction (``v' A = lambda v'``, ``v' B = 0``), and
+    the states carrying at least 10% of its largest entry are named. For an
+    observer pass ``(A', C')``: the modes are the unobservable ones.
+
+    Parameters
+    ----------
+    A : array_like, shape (n, n)
+    B : array_like, shape (n, m)
+    state_names : sequence of str, optional
+
+    Returns
+    -------
+    list of (complex, tuple of str)
+        Empty when the pair is controllable.
+    """
+    A, B = _pair(A, B)
+    n = A.shape[0]
+    names = list(state_names) if state_names is not None else [f"x{i + 1}" for i in range(n)]
+    rank = _rank.controllability_rank(A, B)
+    if rank.full:
+        return []
+    U, _, _ = np.linalg.svd(rank.matrix)
+    Un = U[:, rank.rank:]
+    lam, W = sla.eig(Un.T @ A @ Un, left=True, right=False)
+    out = []
+    for k, z in enumerate(lam):
+        v = np.abs(Un @ W[:, k])
+        out.append((complex(z), tuple(nm for nm, x in zip(names, v) if x >= 0.1 * v.max())))
+    return out
+
+
+def _refuse_outside_region(A: np.ndarray, B: np.ndarray, region: LMIRegion,
+                           names: Sequence[str] | None, dual: bool) -> list[dict]:
+    """Refuse an uncontrollable (unobservable) mode outside the region; list those inside."""
+    modes = fixed_modes(A, B, names)
+    outside = [(z, st) for z, st in modes if not region.margin(z) > 0]
+    what = "unobservable" if dual else "uncontrollable"
+    text = lambda ms: "; ".join(f"eigenvalue {z:.4g} in states {list(st)}" for z, st in ms)  # noqa: E731
+    if outside:
+        cls = UnobservableError if dual else UncontrollableError
+        pair = "(A, C) is not detectable" if dual else "(A, B) is not stabilisable"
+        raise cls(f"{pair} relative to the region {region.describe()}: {what} mode(s) outside it "
+                  f"({text(outside)}) cannot be moved by any gain")
+    return [{"eigenvalue": [z.real, z.imag], "states": list(st), "region_margin": region.margin(z),
+             "note": f"{what} mode already inside the region: kept, not moved"} for z, st in modes]
 
 
 # ---------------------------------------------------------------- LMI placement
@@ -67,7 +143,10 @@ class LMIPlacementResult:
     region_margins : ndarray
         ``-lambda_max(f_D(lambda_i))`` of each closed-loop eigenvalue (> 0).
     scaling : dict
-        State balancing, input normalisation and time scale applied.
+        State balancing, input normalisation and time scale applied; the
+        ``kappa`` used and every try of the relaxation (``kappa_tries``).
+    fixed_modes : tuple of dict
+        Uncontrollable (unobservable) modes already inside the region.
     """
 
     gain: np.ndarray
@@ -85,6 +164,7 @@ class LMIPlacementResult:
     closed_loop_eigenvalues: np.ndarray
     region_margins: np.ndarray
     scaling: dict
+    fixed_modes: tuple = ()
 
     def as_dict(self) -> dict:
         """JSON-friendly diagnostics (no gains)."""
@@ -96,7 +176,7 @@ class LMIPlacementResult:
                 "min_region_margin": float(np.min(self.region_margins)),
                 "condition_P": float(np.linalg.cond(self.P)),
                 "gain_norm": float(np.linalg.norm(self.gain, 2)),
-                "scaling": self.scaling}
+                "scaling": self.scaling, "fixed_modes": list(self.fixed_modes)}
 
 
 def _d_lmi(region: LMIRegion, Acl_X: Any, X: Any, kron) -> Any:
@@ -105,7 +185,7 @@ def _d_lmi(region: LMIRegion, Acl_X: Any, X: Any, kron) -> Any:
 
 def lmi_state_feedback(A: Any, B: Any, region: LMIRegion, *, domain: str = "continuous",
                        margin: float = 1e-6, kappa: float = 1e4, solver: str = "CLARABEL",
-                       state_names: Sequence[str] | None = None,
+                       state_names: Sequence[str] | None = None, kappa_max: float | None = None,
                        _dual: bool = False) -> LMIPlacementResult:
     """State feedback ``u = -K x`` placing ``eig(A - B K)`` in an LMI region.
 
@@ -130,6 +210,10 @@ def lmi_state_feedback(A: Any, B: Any, region: LMIRegion, *, domain: str = "cont
     solver : {"CLARABEL", "SCS"}
     state_names : sequence of str, optional
         For naming uncontrollable modes.
+    kappa_max : float, optional
+        When phase 1 misses the margin with ``X`` at the bound ``kappa I``,
+        retry with ``kappa`` times `KAPPA_STEP` up to ``kappa_max``
+        (default: ``kappa``, no retry).
 
     Returns
     -------
@@ -140,9 +224,11 @@ def lmi_state_feedback(A: Any, B: Any, region: LMIRegion, *, domain: str = "cont
     SpecError
         Region not inside the stability domain, bad options.
     UncontrollableError
-        Before solving, naming the modes.
+        Before solving: an uncontrollable mode outside the region (named,
+        with its states); modes inside the region are kept.
     InfeasibleDesign
-        Solver infeasible/failed or re-check failed.
+        Solver infeasible/failed or re-check failed; says when the
+        conditioning bound was active.
     """
     A, B = _pair(A, B, "C'" if _dual else "B")
     n, m = B.shape[0], B.shape[1]
@@ -158,7 +244,8 @@ def lmi_state_feedback(A: Any, B: Any, region: LMIRegion, *, domain: str = "cont
         raise SpecError(f"margin must be in (0, 1), got {margin!r}", key="margin")
     if solver not in SOLVERS:
         raise SpecError(f"unknown solver {solver!r}; expected one of {list(SOLVERS)}", key="solver")
-    _refuse_uncontrollable(A, B, state_names, _dual)
+    kappa_max = float(kappa if kappa_max is None else max(kappa_max, kappa))
+    fixed = _refuse_outside_region(A, B, region, state_names, _dual)
     # scaling: diagonal balancing of A, unit input columns, time scale (continuous)
     _, (s, _perm) = sla.matrix_balance(A, permute=False, separate=True)
     s = np.asarray(s, dtype=float)
@@ -169,28 +256,33 @@ def lmi_state_feedback(A: Any, B: Any, region: LMIRegion, *, domain: str = "cont
     omega = float(np.linalg.norm(Ab, 2)) if domain == "continuous" else 1.0
     omega = omega if omega > 0 else 1.0
     As, Bs, reg = Ab / omega, Bb / omega, region.scaled(omega)
-    I = np.eye(n)
-    X = cp.Variable((n, n), symmetric=True)
-    Y = cp.Variable((m, n))
-    t = cp.Variable()
-    bound = cp.Parameter(nonneg=True)
-    lmi = _d_lmi(reg, As @ X - Bs @ Y, X, cp.kron)
-    lmi = 0.5 * (lmi + lmi.T)
-    d = reg.order * n
-    box = [X >> I, X << kappa * I]
-    # Phase 1: largest margin t (certifies infeasibility when t* < margin).
-    phase1 = cp.Problem(cp.Maximize(t), [lmi << -t * np.eye(d), t <= 1.0, *box])
-    # Phase 2: smallest ||Y||_F keeping half of the achievable margin (moderate gains).
-    phase2 = cp.Problem(cp.Minimize(cp.norm(Y, "fro")), [lmi << -bound * np.eye(d), *box])
     start = time.perf_counter()
-    status = _solve(phase1, solver)
-    tstar = float(t.value) if status in ("optimal", "optimal_inaccurate") and t.value is not None \
-        else -np.inf
-    if tstar < margin:
+    tries: list[dict] = []
+    kap = float(kappa)
+    while True:
+        X, Y, phase2, bound, tstar, status, active = _phase1(As, Bs, reg, n, m, kap, solver)
+        tries.append({"kappa": kap, "largest_margin_t": tstar, "status": status,
+                      "bound_active": active})
+        if tstar >= margin:
+            break
+        if active is not False and kap < kappa_max:
+            kap = min(kap * KAPPA_STEP, kappa_max)
+            continue
+        if active:
+            tried = ", ".join(f"{tr['kappa']:g}" for tr in tries)
+            raise InfeasibleDesign(
+                f"no gain places the eigenvalues in {region.describe()} with margin {margin:g} "
+                f"within the conditioning bound I <= X <= kappa I: the bound is active at the "
+                f"optimum (lambda_max(X) = kappa = {kap:g}; tried kappa = "
+                f"{tried}), largest margin t* = {tstar:.3g}; "
+                f"raise the option 'kappa_max' (or 'kappa') to allow a worse-conditioned Lyapunov "
+                f"matrix (and larger gains)")
         raise InfeasibleDesign(
             f"no gain places the eigenvalues in {region.describe()} with margin {margin:g}: solver "
             f"{solver} status {status}, largest achievable margin t* = {tstar:.3g} (max t s.t. region "
-            f"LMI <= -t I, I <= X <= {kappa:g} I; the optimum certifies that no larger margin exists)")
+            f"LMI <= -t I, I <= X <= {kap:g} I"
+            + ("; the conditioning bound is not active, so the optimum certifies that no larger "
+               "margin exists)" if active is False else "; the solver returned no point)"))
     Xv, Yv = X.value.copy(), Y.value.copy()
     bound.value = max(margin, 0.5 * tstar)
     status2 = _solve(phase2, solver)
@@ -235,10 +327,42 @@ def lmi_state_feedback(A: Any, B: Any, region: LMIRegion, *, domain: str = "cont
         margin=float(margin), achieved_margin=float(-eig_n.max()), solver=solver, status=status,
         solve_time=elapsed, checks=checks, closed_loop_eigenvalues=lam, region_margins=margins,
         scaling={"state_balance": s.tolist(), "input_scale": su.tolist(), "time_scale": omega,
-                 "normalisation": "I <= X <= kappa I", "kappa": kappa,
-                 "largest_margin_t": tstar,
+                 "normalisation": "I <= X <= kappa I", "kappa": kap, "kappa_requested": kappa,
+                 "kappa_max": kappa_max, "kappa_tries": tries,
+                 "kappa_relaxed": bool(kap > kappa), "largest_margin_t": tstar,
                  "objective": "phase 1: max margin t; phase 2: min ||Y||_F with LMI <= -max(margin, "
-                              "t/2) I", "formulation": "dual (A', C')" if _dual else "primal"})
+                              "t/2) I", "formulation": "dual (A', C')" if _dual else "primal"},
+        fixed_modes=tuple(fixed))
+
+
+
+def _phase1(As: np.ndarray, Bs: np.ndarray, reg: LMIRegion, n: int, m: int, kappa: float,
+            solver: str):
+    """Build both phases for one ``kappa`` and solve phase 1.
+
+    Returns ``(X, Y, phase2, bound, t*, status, active)``; ``active`` is
+    whether ``X`` sits at ``kappa I`` (None when the solver returned no point).
+    """
+    I = np.eye(n)
+    X = cp.Variable((n, n), symmetric=True)
+    Y = cp.Variable((m, n))
+    t = cp.Variable()
+    bound = cp.Parameter(nonneg=True)
+    lmi = _d_lmi(reg, As @ X - Bs @ Y, X, cp.kron)
+    lmi = 0.5 * (lmi + lmi.T)
+    d = reg.order * n
+    box = [X >> I, X << kappa * I]
+    # Phase 1: largest margin t (certifies infeasibility when t* < margin and the box is slack).
+    phase1 = cp.Problem(cp.Maximize(t), [lmi << -t * np.eye(d), t <= 1.0, *box])
+    # Phase 2: smallest ||Y||_F keeping half of the achievable margin (moderate gains).
+    phase2 = cp.Problem(cp.Minimize(cp.norm(Y, "fro")), [lmi << -bound * np.eye(d), *box])
+    status = _solve(phase1, solver)
+    solved = status in ("optimal", "optimal_inaccurate") and t.value is not None
+    tstar = float(t.value) if solved else -np.inf
+    active = None
+    if solved and X.value is not None:
+        active = bool(np.max(np.linalg.eigvalsh(_sym_np(X.value))) >= KAPPA_ACTIVE * kappa)
+    return X, Y, phase2, bound, tstar, status, active
 
 
 def _solve(problem: cp.Problem, solver: str) -> str:
@@ -257,7 +381,8 @@ def _sym_np(M: np.ndarray) -> np.ndarray:
 
 def lmi_observer(A: Any, C: Any, region: LMIRegion, *, domain: str = "continuous",
                  margin: float = 1e-6, kappa: float = 1e4, solver: str = "CLARABEL",
-                 state_names: Sequence[str] | None = None) -> LMIPlacementResult:
+                 state_names: Sequence[str] | None = None,
+                 kappa_max: float | None = None) -> LMIPlacementResult:
     """Observer gain ``L`` placing ``eig(A - L C)`` in an LMI region (dual problem).
 
     Parameters
@@ -269,6 +394,8 @@ def lmi_observer(A: Any, C: Any, region: LMIRegion, *, domain: str = "continuous
     margin, kappa : float
     solver : {"CLARABEL", "SCS"}
     state_names : sequence of str, optional
+    kappa_max : float, optional
+        Ceiling of the relaxation of ``kappa`` (see `lmi_state_feedback`).
 
     Returns
     -------
@@ -278,7 +405,8 @@ def lmi_observer(A: Any, C: Any, region: LMIRegion, *, domain: str = "continuous
     Raises
     ------
     UnobservableError
-        Before solving, naming the unobservable modes.
+        Before solving: an unobservable mode outside the region (named);
+        modes inside it are kept.
     InfeasibleDesign
     """
     A = _matrix(A, "A")
@@ -286,6 +414,7 @@ def lmi_observer(A: Any, C: Any, region: LMIRegion, *, domain: str = "continuous
     if C.shape[1] != A.shape[0]:
         raise DimensionError(f"C has {C.shape[1]} columns, expected n = {A.shape[0]}")
     return lmi_state_feedback(A.T, C.T, region, domain=domain, margin=margin, kappa=kappa,
-                              solver=solver, state_names=state_names, _dual=True)
+                              solver=solver, state_names=state_names, kappa_max=kappa_max,
+                              _dual=True)
 
 

@@ -66,6 +66,10 @@ class Parameter:
     inclusive : bool
         The lower bound is admissible too (``lower <= value``), e.g. a valve
         coefficient that may be 0 (closed).
+    plausible : (float, float) or None
+        Range (in ``unit``) of values a real plant of this family has; a
+        value outside it is admissible but draws a `DesignWarning` (a unit
+        slip such as cm^2 written as m^2). None: no such range.
     """
 
     name: str
@@ -75,6 +79,17 @@ class Parameter:
     lower: float | None = None
     upper: float | None = None
     inclusive: bool = False
+    plausible: tuple[float, float] | None = None
+
+    def implausible(self) -> str | None:
+        """A one-line warning when ``value`` lies outside ``plausible``, else None."""
+        if self.plausible is None:
+            return None
+        lo, hi = self.plausible
+        if lo <= self.value <= hi:
+            return None
+        return (f"parameter {self.name} = {self.value:g} {self.unit} is outside the plausible range "
+                f"[{lo:g}, {hi:g}] {self.unit} ({self.description}): check its unit")
 
     @property
     def symbol(self) -> sp.Symbol:
@@ -381,6 +396,10 @@ class Plant:
                 return prm
         raise KeyError(name)
 
+    def implausible_parameters(self) -> list[str]:
+        """One warning line per parameter outside its plausible range (see `Parameter.plausible`)."""
+        return [w for w in (prm.implausible() for prm in self.parameters) if w]
+
     def option(self, name: str, default: Any = None) -> Any:
         """A construction option of the plant family (e.g. ``N``)."""
         return dict(self.options).get(name, default)
@@ -492,7 +511,8 @@ class Plant:
             "inputs": [{"name": s.name, "unit": s.unit, "description": s.description} for s in self.inputs],
             "outputs": [{"name": s.name, "unit": s.unit, "description": s.description} for s in self.outputs],
             "parameters": [
-                {"name": p.name, "value": p.value, "unit": p.unit, "description": p.description}
+                {"name": p.name, "value": p.value, "unit": p.unit, "description": p.description,
+                 **({} if p.plausible is None else {"plausible": list(p.plausible)})}
                 for p in self.parameters
             ],
             "region": {

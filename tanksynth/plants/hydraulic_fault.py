@@ -38,14 +38,20 @@ def hydraulic_fault() -> Plant:
         Region: the box ``[0, 10]^3``.
     """
     params = (
-        Parameter("psi1", 2.0, "1", "capacity (section) of tank 1", lower=0),
-        Parameter("psi2", 1.0, "1", "capacity (section) of tank 2", lower=0),
-        Parameter("psi3", 2.0, "1", "capacity (section) of tank 3", lower=0),
-        Parameter("delta1", 1.0, "1", "outlet coefficient of tank 1 (into tank 2)", lower=0),
-        Parameter("delta2", 1.5, "1", "outlet coefficient of tank 2 (into tank 3)", lower=0),
-        Parameter("delta3", 1.0, "1", "outlet coefficient of tank 3 (to the sump)", lower=0),
+        Parameter("psi1", 2.0, "1", "capacity (section) of tank 1", lower=0,
+                  plausible=(1e-3, 1e3)),
+        Parameter("psi2", 1.0, "1", "capacity (section) of tank 2", lower=0,
+                  plausible=(1e-3, 1e3)),
+        Parameter("psi3", 2.0, "1", "capacity (section) of tank 3", lower=0,
+                  plausible=(1e-3, 1e3)),
+        Parameter("delta1", 1.0, "1", "outlet coefficient of tank 1 (into tank 2)", lower=0,
+                  plausible=(1e-3, 1e3)),
+        Parameter("delta2", 1.5, "1", "outlet coefficient of tank 2 (into tank 3)", lower=0,
+                  plausible=(1e-3, 1e3)),
+        Parameter("delta3", 1.0, "1", "outlet coefficient of tank 3 (to the sump)", lower=0,
+                  plausible=(1e-3, 1e3)),
         Parameter("delta_bar", 0.0, "1", "leak fault of tank 2 (0 = healthy)", lower=0,
-                  inclusive=True),
+                  inclusive=True, plausible=(0.0, 100.0)),
     )
     p = {prm.name: prm.symbol for prm in params}
     x1, x2, x3 = (sp.Symbol(n, real=True) for n in ("x1", "x2", "x3"))

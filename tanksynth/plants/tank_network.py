@@ -130,18 +130,20 @@ def tank_network(N: int = 4, parameter_set: str = "decenter") -> Plant:
     params: list[Parameter] = []
     for i in range(1, N + 1):
         params.append(Parameter(f"A{i}", A_v[i - 1], "cm^2", f"cross-section of tank {i}",
-                                lower=0))
+                                lower=0, plausible=(1.0, 1e4)))
     for i in range(1, N + 1):
         where = "lower" if i <= half else "upper"
         params.append(Parameter(f"a{i}", a_v[i - 1], "cm^2",
-                                f"outlet hole section of tank {i} ({where})", lower=0))
+                                f"outlet hole section of tank {i} ({where})", lower=0,
+                                plausible=(1e-4, 10.0)))
     for j in range(1, half + 1):
         params.append(Parameter(f"gamma{j}", gamma_v[j - 1], "1",
                                 f"fraction of pump {j} flow to lower tank {j}", lower=0, upper=1))
     for j in range(1, half + 1):
-        params.append(Parameter(f"k{j}", k_v[j - 1], "cm^3/(V s)", f"gain of pump {j}", lower=0))
+        params.append(Parameter(f"k{j}", k_v[j - 1], "cm^3/(V s)", f"gain of pump {j}", lower=0,
+                                plausible=(0.01, 100.0)))
     params += [
-        Parameter("g", _G, "cm/s^2", "gravity", lower=0),
+        Parameter("g", _G, "cm/s^2", "gravity", lower=0, plausible=(970.0, 990.0)),
         Parameter("kc", _KC, "V/cm", "level sensor gain", lower=0),
         Parameter("usat", _USAT, "V", "pump command saturation", lower=0),
     ]

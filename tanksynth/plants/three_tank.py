@@ -46,14 +46,18 @@ def three_tank(outputs: str = "all") -> Plant:
     h1, h2, h3 = (sp.Symbol(n, real=True) for n in ("h1", "h2", "h3"))
     q1, q2 = (sp.Symbol(n, real=True) for n in ("q1", "q2"))
     params = (
-        Parameter("A", 0.0154, "m^2", "tank cross-section", lower=0),
-        Parameter("Phi", 5e-5, "m^2", "pipe cross-section", lower=0),
-        Parameter("mu13", 0.5, "1", "outflow coefficient T1-T3", lower=0, upper=1),
-        Parameter("mu32", 0.5, "1", "outflow coefficient T3-T2", lower=0, upper=1),
-        Parameter("mu20", 0.675, "1", "outflow coefficient T2 outlet", lower=0, upper=1),
-        Parameter("g", 9.81, "m/s^2", "gravity", lower=0),
-        Parameter("qmax", 1.2e-4, "m^3/s", "pump capacity", lower=0),
-        Parameter("hmax", 0.62, "m", "tank height", lower=0),
+        # plausible: laboratory three-tank rigs (DTS200-like), a unit slip leaves these ranges
+        Parameter("A", 0.0154, "m^2", "tank cross-section", lower=0, plausible=(1e-4, 1.0)),
+        Parameter("Phi", 5e-5, "m^2", "pipe cross-section", lower=0, plausible=(1e-7, 1e-2)),
+        Parameter("mu13", 0.5, "1", "outflow coefficient T1-T3", lower=0, upper=1,
+                  plausible=(0.05, 1.0)),
+        Parameter("mu32", 0.5, "1", "outflow coefficient T3-T2", lower=0, upper=1,
+                  plausible=(0.05, 1.0)),
+        Parameter("mu20", 0.675, "1", "outflow coefficient T2 outlet", lower=0, upper=1,
+                  plausible=(0.05, 1.0)),
+        Parameter("g", 9.81, "m/s^2", "gravity", lower=0, plausible=(9.7, 9.9)),
+        Parameter("qmax", 1.2e-4, "m^3/s", "pump capacity", lower=0, plausible=(1e-6, 1e-2)),
+        Parameter("hmax", 0.62, "m", "tank height", lower=0, plausible=(0.05, 5.0)),
     )
     sym = {prm.name: prm.symbol for prm in params}
     A, Phi, mu13, mu32, mu20, g = (sym[n] for n in ("A", "Phi", "mu13", "mu32", "mu20", "g"))

@@ -4,7 +4,8 @@
     * ``jacobian_recheck``: F, B, C recomputed at (x0, u0) from the model;
     * ``zoh_consistency``: Ad, Bd equal the exact ZOH of (F, B) at ts;
     * ``equilibrium``: |f(x0, u0)| within the design's tolerance (an
-      artefact designed away from an equilibrium fails it);
+      artefact designed away from an equilibrium fails it), naming the
+      unbalanced equation; and u0 within the actuator range;
     * ``first_order_agreement``: the nonlinear plant and the discrete
       linear model, started from perturbations eps (dx0, du) of (x0, u0)
       for eps = e0, e0/2, e0/4, agree to first order: the relative error
@@ -130,9 +131,21 @@ def linearize_verdict(doc: Mapping[str, Any], spec: Any, *,
     eq = diag.get("equilibrium") or {}
     tol = float(eq.get("tolerance", 1e-12)) if isinstance(eq, Mapping) else 1e-12
     worst_res = float(np.max(np.abs(residual)))
-    checks.append(Check("equilibrium", worst_res <= tol,
-                        f"max |f(x0, u0)| = {worst_res:.3g} state units/s (tolerance {tol:.3g})",
-                        {"residual": residual.tolist(), "tolerance": tol}))
+    i = int(np.argmax(np.abs(residual)))
+    st = plant.states[i]
+    lim = plant.input_limits
+    inside = [bool(lo - 1e-12 <= v <= hi + 1e-12) for v, (lo, hi) in zip(u0, lim)]
+    balanced = worst_res <= tol
+    detail = (f"max |f(x0, u0)| = {worst_res:.3g} {st.unit}/s (tolerance {tol:.3g})"
+              + ("" if balanced else f"; unbalanced equation: d{st.name}/dt = {residual[i]:.3g} "
+                                     f"{st.unit}/s")
+              + "; u0 " + ", ".join(f"{q.name} = {v:.4g} {q.unit} "
+                                    + ("in" if ok else "OUTSIDE") + f" [{lo:g}, {hi:g}]"
+                                    for q, v, (lo, hi), ok in zip(plant.inputs, u0, lim, inside)))
+    checks.append(Check("equilibrium", bool(balanced and all(inside)), detail,
+                        {"residual": residual.tolist(), "tolerance": tol,
+                         "unbalanced_state": None if balanced else st.name,
+                         "u0_within_bounds": bool(all(inside))}))
     agreement = first_order_agreement(plant, F, B, Ad, Bd, x0, u0, ts, trace=trace)
     errs, orders = agreement["relative_errors"], agreement["orders"]
     exact = errs[-1] <= 1e-7  # a linear plant: agreement to rounding

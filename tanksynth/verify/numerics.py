@@ -8,6 +8,11 @@ block builder cannot hide behind the same builder in its verdict.
     optimal one-to-one matching of achieved eigenvalues to requested poles
     (assignment problem on the relative distances ``|q_j - p_i| / max(1,
     |p_i|)``).
+``pole_agreement``
+    multiplicity-aware: a pole of a k-cluster (repeated or nearly repeated
+    poles) is met to ``tol^(1/k)`` (a k-fold eigenvalue is computable only to
+    ``eps^(1/k)``) and the characteristic polynomial of the matrix must match
+    ``prod (s - p_i)`` to ``tol`` relative to the coefficient sizes.
 ``region_lmi_matrix``
     the Chilali-Gahinet matrix ``L (x) X + M (x) (A X) + M' (x) (A X)'`` of
     an LMI region ``{z : L + M z + M' conj(z) < 0}``; negative definite
@@ -31,7 +36,7 @@ from scipy.optimize import linear_sum_assignment
 
 from tanksynth.errors import DimensionError
 
-__all__ = ["PoleMatch", "match_poles", "symmetric", "region_lmi_matrix", "LMIItem",
+__all__ = ["PoleMatch", "match_poles", "PoleAgreement", "pole_agreement", "symmetric", "region_lmi_matrix", "LMIItem",
            "ObserverLMIRecheck", "observer_lmi_recheck", "integral_augmentation"]
 
 
@@ -100,6 +105,93 @@ def match_poles(requested: Sequence[complex], achieved: Sequence[complex]) -> Po
     matched[rows] = q[cols]
     errors = np.abs(matched - p)
     return PoleMatch(p, matched, errors, errors / scale)
+
+
+@dataclass(frozen=True, eq=False)
+class PoleAgreement:
+    """Requested poles against the eigenvalues of a matrix, repeated poles judged fairly.
+
+    Attributes
+    ----------
+    match : PoleMatch
+        One-to-one matching of the eigenvalues to the poles.
+    multiplicity : ndarray of int
+        Size of each pole's cluster (1 for a simple pole).
+    allowed : ndarray
+        Accepted relative error of each pole: ``tol^(1/k)``.
+    polynomial_error : float
+        Largest ``|c_k(matrix) - c_k(poles)| / w_k`` over the coefficients of
+        the characteristic polynomial, ``w_k`` the coefficients of ``prod (s
+        + r_i)`` with ``r_i = max(|p_i|, 0.01 max(1, max |p|))``.
+    tolerance : float
+    passed : bool
+    measure : str
+        Which test decided.
+    """
+
+    match: PoleMatch
+    multiplicity: np.ndarray
+    allowed: np.ndarray
+    polynomial_error: float
+    tolerance: float
+    passed: bool
+    measure: str
+
+
+def pole_agreement(requested: Sequence[complex], matrix: Any, tol: float = 1e-6,
+                   cluster: float = 1e-3) -> PoleAgreement:
+    """Do the eigenvalues of ``matrix`` meet the requested poles, with multiplicity in mind?
+
+    Simple poles: relative error (to ``max(1, |p|)``) at most ``tol``.
+    Poles in a cluster of ``k`` (closer than ``cluster max(1, |p|)``):
+    relative error at most ``tol^(1/k)`` and the characteristic polynomial of
+    ``matrix`` within ``tol`` of ``prod (s - p_i)`` (relative to the
+    coefficient sizes), which is well conditioned where the eigenvalues of a
+    Jordan block are not.
+
+    Parameters
+    ----------
+    requested : sequence of complex
+        Poles (1/s or dimensionless).
+    matrix : array_like, shape (n, n)
+    tol : float
+        Relative tolerance (dimensionless).
+    cluster : float
+        Relative radius grouping nearly repeated poles.
+
+    Returns
+    -------
+    PoleAgreement
+    """
+    p = np.asarray(requested, dtype=complex).reshape(-1)
+    M = np.atleast_2d(np.asarray(matrix, dtype=float))
+    match = match_poles(p, np.linalg.eigvals(M))
+    scale = np.maximum(1.0, np.abs(p))
+    near = np.abs(p[:, None] - p[None, :]) <= cluster * np.maximum(scale[:, None], scale[None, :])
+    # transitive closure of "near" (single linkage)
+    reach = near.copy()
+    for _ in range(p.size):
+        nxt = (reach.astype(int) @ near.astype(int)) > 0
+        if np.array_equal(nxt, reach):
+            break
+        reach = nxt
+    mult = reach.sum(axis=1).astype(int)
+    allowed = tol ** (1.0 / mult)
+    floor = 0.01 * max(1.0, float(np.abs(p).max())) if p.size else 1.0
+    r = np.maximum(np.abs(p), floor)
+    weights = np.ones(1)
+    for ri in r:  # coefficients of prod (s + r_i)
+        weights = np.convolve(weights, [1.0, ri])
+    target = np.ones(1, dtype=complex)
+    for pi in p:
+        target = np.convolve(target, [1.0, -pi])
+    actual = np.poly(M)
+    poly_err = float(np.max(np.abs(actual[1:] - target[1:].real) / weights[1:])) if p.size else 0.0
+    repeated = bool(np.any(mult > 1))
+    ok = bool(np.all(match.relative_errors <= allowed)) and (poly_err <= tol or not repeated)
+    measure = ("characteristic polynomial (relative coefficient error) and pole errors within "
+               "tol^(1/k) for k-fold poles" if repeated else "pole error relative to max(1, |p|)")
+    return PoleAgreement(match, mult, allowed, poly_err, float(tol), ok, measure)
 
 
 def symmetric(M: Any) -> np.ndarray:

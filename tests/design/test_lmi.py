@@ -72,7 +72,11 @@ def test_maximise_psi_brackets_the_boundary():
     assert_lmi_solution(s.result, A0, C12)
     with pytest.raises(InfeasibleDesign):
         observer_lmi(A0, C12, s.psi_infeasible * 1.01, variant="qI")
-    assert not s.bounded_by_kappa
+    # trace P sits at kappa n at psi_max: the conditioning bound, not the plant, limits psi
+    # (issue 12 item 3); a larger kappa gives a larger psi_max, so the flag is deserved.
+    assert s.kappa_active and s.bounded_by_kappa
+    assert np.trace(s.result.P) >= 0.999 * s.result.kappa * 3
+    assert maximise_psi(A0, C12, variant="qI", kappa=1e6, rtol=1e-3).psi_max > s.psi_max * 1.005
     trials = s.as_dict()["trials"]
     assert trials and all(isinstance(ok, bool) for _, ok in trials)
 
@@ -351,3 +355,17 @@ def test_maximise_psi_returns_a_checked_design_without_solving_again():
     s = maximise_psi(A0, C12, problem=prob, rtol=1e-3)
     assert len(calls) == len(s.history) + 1            # psi = 0, then every trial
     assert s.result.psi == s.psi_max and all(c.passed for c in s.result.checks)
+
+
+def test_observer_lmi_relaxes_an_active_kappa_bound():
+    """Issue 12 item 3 (ts_observer): psi just above psi_max(kappa = 1e4) is refused because
+    trace P <= kappa n is active, not because no observer exists; relaxing kappa finds one."""
+    psi = 0.0572                      # psi_max is 0.0570 at kappa = 1e4 and 0.0575 at 1e6
+    with pytest.raises(InfeasibleDesign, match=r"bound trace P <= kappa n is active.*kappa_max"):
+        observer_lmi(A0, C12, psi, variant="qI", kappa=1e4)
+    res = observer_lmi(A0, C12, psi, variant="qI", kappa=1e4, kappa_max=1e6)
+    assert_lmi_solution(res, A0, C12)
+    tries = res.scaling["kappa_tries"]
+    assert tries[0]["kappa"] == 1e4 and tries[0]["bound_active"] and res.kappa > 1e4
+    # independent: the error dynamics decay faster than psi
+    assert np.max(np.linalg.eigvals(A0 - res.L @ C12).real) < -psi

@@ -40,3 +40,102 @@ def test_placement_input_errors():
         place_state_feedback(A, B, [-1, -2, -3, -4], method="varga")
     with pytest.raises(DimensionError):
         place_state_feedback(A, B, [-1, -2, -3, -4], method="acker")
+
+
+# ------------------------------------------------- issue 12: repeated poles, fragile gains
+# seed 004's hydraulic cascade: A = [[-1/2, 0, 0], [1/2, -3/2, 0], [0, 3/2, -1/2]], B = e1,
+# C = [0, 0, 1/2] (tanksynth.plants.hydraulic_fault at its defaults).
+HF_A = np.array([[-0.5, 0.0, 0.0], [0.5, -1.5, 0.0], [0.0, 1.5, -0.5]])
+HF_B = np.array([[1.0], [0.0], [0.0]])
+HF_C = np.array([[0.0, 0.0, 0.5]])
+
+
+def _exact_gain_for_triple_pole(observer: bool):
+    """The gain giving det(sI - Acl) = (s + 2)^3 exactly, solved in sympy."""
+    import sympy as sp
+
+    s = sp.Symbol("s")
+    k = sp.symbols("k1:4")
+    A = sp.Matrix([[sp.Rational(-1, 2), 0, 0], [sp.Rational(1, 2), sp.Rational(-3, 2), 0],
+                   [0, sp.Rational(3, 2), sp.Rational(-1, 2)]])
+    if observer:
+        Acl = A - sp.Matrix(3, 1, k) * sp.Matrix([[0, 0, sp.Rational(1, 2)]])
+    else:
+        Acl = A - sp.Matrix([[1], [0], [0]]) * sp.Matrix(1, 3, k)
+    eqs = sp.Poly(Acl.charpoly(s).as_expr() - (s + 2) ** 3, s).all_coeffs()
+    sol = sp.solve(eqs, k, dict=True)[0]
+    return np.array([float(sol[v]) for v in k])
+
+
+def test_triple_pole_is_accepted_with_the_exact_gain():
+    """Issue 12 item 1: (-2, -2, -2) used to be refused (eig of a Jordan block is off by eps^(1/3))."""
+    ref = _exact_gain_for_triple_pole(observer=False)
+    assert np.allclose(ref, [3.5, 6.5, 4.5])
+    r = place_state_feedback(HF_A, HF_B, [-2, -2, -2])
+    assert np.allclose(r.gain.ravel(), ref, rtol=1e-12)
+    # the naive test would refuse: the computed eigenvalues miss -2 by ~eps^(1/3)
+    assert r.max_pole_error > 1e-6
+    acc = r.accuracy
+    assert acc["passed"] and acc["multiplicity"] == [3, 3, 3]
+    assert "characteristic polynomial" in acc["measure"]
+    assert acc["characteristic_polynomial_relative_error"] < 1e-12
+    # independent: numpy.poly of the closed loop is (s + 2)^3 = s^3 + 6 s^2 + 12 s + 8
+    assert np.allclose(np.poly(HF_A - HF_B @ ref[None, :]), [1, 6, 12, 8], rtol=1e-12)
+    o = place_observer(HF_A, HF_C, [-2, -2, -2])
+    assert np.allclose(o.gain.ravel(), _exact_gain_for_triple_pole(observer=True), rtol=1e-10)
+
+
+def test_wrong_gain_for_a_repeated_pole_is_still_refused():
+    from tanksynth.design.placement_exact import placement_accuracy
+
+    K = np.array([[3.5, 6.5, 4.5 + 1e-3]])              # characteristic polynomial off by 1e-3
+    acc = placement_accuracy([-2, -2, -2], HF_A - HF_B @ K)
+    assert not acc["passed"] and acc["characteristic_polynomial_relative_error"] > 1e-5
+    # simple poles keep the plain test
+    acc = placement_accuracy([-1, -2, -3], np.diag([-1, -2, -3 + 1e-5]))
+    assert not acc["passed"] and acc["measure"].startswith("pole error")
+
+
+def _nearly_uncontrollable(eps):
+    A = np.array([[-1.0, 0.0], [0.0, -2.0]])
+    B = np.array([[1.0], [eps]])
+    return A, B
+
+
+def test_nearly_uncontrollable_pair_is_flagged_fragile():
+    """Issue 12 item 4: at eps = 1e-10 the placing gain has norm ~1e10 and a tiny change of A
+    destabilises the loop; the robustness figure says so (and the adapters refuse it)."""
+    import control
+
+    from tanksynth.design.placement_exact import refuse_fragile, robustness_report
+    from tanksynth.errors import InfeasibleDesign
+
+    A, B = _nearly_uncontrollable(1e-10)
+    K = np.asarray(control.acker(A, B, [-3.0, -4.0]), dtype=float).reshape(1, 2)      # reference gain
+    assert np.linalg.norm(K) > 1e9
+    rep = robustness_report(A, A - B @ K, K, "continuous")
+    assert rep["fragile"] and rep["relative_stability_radius"] < 1e-8
+    # independent: a perturbation of A of that relative size destabilises the loop. The
+    # smallest destabilising E = -r u v^H from the SVD of (j w I - Acl) at the boundary point.
+    w = rep["boundary_point"][1]
+    U, s, Vh = np.linalg.svd(1j * w * np.eye(2) - (A - B @ K))
+    E = s[-1] * np.outer(U[:, -1], Vh[-1])
+    lam = np.linalg.eigvals(A - B @ K + E)
+    assert np.min(np.abs(lam.real)) < 1e-6 * np.linalg.norm(A - B @ K, 2)
+    assert np.linalg.norm(E, 2) / np.linalg.norm(A, 2) == pytest.approx(
+        rep["relative_stability_radius"], rel=1e-6)
+    with pytest.raises(InfeasibleDesign, match="allow_fragile"):
+        refuse_fragile(rep, "A - B K")
+    # a well-conditioned pair is not fragile
+    A, B = _nearly_uncontrollable(1.0)
+    K = np.asarray(control.acker(A, B, [-3.0, -4.0]), dtype=float).reshape(1, 2)
+    assert not robustness_report(A, A - B @ K, K, "continuous")["fragile"]
+
+
+def test_stability_radius_of_a_normal_matrix_is_the_distance_to_the_boundary():
+    from tanksynth.design.placement_exact import stability_radius
+
+    r, _ = stability_radius(np.diag([-0.5, -2.0]), "continuous")
+    assert r == pytest.approx(0.5, rel=1e-6)
+    r, _ = stability_radius(np.diag([0.9, -0.3]), "discrete")
+    assert r == pytest.approx(0.1, rel=1e-6)

@@ -59,10 +59,12 @@ def test_region_outside_stability_domain_is_refused():
 def test_uncontrollable_and_unobservable_are_named():
     A = np.diag([-1.0, -2.0, -3.0])
     B = np.array([[1.0], [1.0], [0.0]])
+    # the fixed mode -3 lies outside Re z < -4: refused, named (inside Re z < -1 it is kept,
+    # see test_fixed_mode_inside_region_is_kept)
     with pytest.raises(UncontrollableError, match="x3"):
-        lmi_state_feedback(A, B, half_plane(1.0), state_names=None)
+        lmi_state_feedback(A, B, half_plane(4.0), state_names=None)
     with pytest.raises(UnobservableError, match="h3"):
-        lmi_observer(A, B.T, half_plane(1.0), state_names=["h1", "h2", "h3"])
+        lmi_observer(A, B.T, half_plane(4.0), state_names=["h1", "h2", "h3"])
 
 
 def test_lmi_placement_bad_inputs():
@@ -75,3 +77,71 @@ def test_lmi_placement_bad_inputs():
         lmi_state_feedback(A, B, half_plane(1.0), margin=2.0)
     with pytest.raises(SpecError):
         lmi_state_feedback(A, B, "disk")
+
+
+# --------------------------------------------- issue 12: stabilisability relative to the region
+def test_fixed_mode_inside_region_is_kept():
+    """Issue 12 item 2: an uncontrollable mode at -5 with region Re s < -1 used to be refused."""
+    import control
+
+    A = np.array([[0.0, 1.0, 0.0], [2.0, 1.0, 0.0], [0.0, 0.0, -5.0]])
+    B = np.array([[0.0], [1.0], [0.0]])
+    # independent reference: place the controllable part (python-control), leave x3 alone
+    K1 = np.asarray(control.place(A[:2, :2], B[:2], [-2.0, -3.0]), dtype=float)
+    Kref = np.hstack([K1, [[0.0]]])
+    assert np.allclose(np.sort(np.linalg.eigvals(A - B @ Kref).real), [-5, -3, -2])
+    region = half_plane(1.0)
+    res = lmi_state_feedback(A, B, region, state_names=["x1", "x2", "x3"])
+    lam = np.linalg.eigvals(A - B @ res.gain)
+    assert all(region.contains(z) for z in lam)
+    assert np.min(np.abs(lam - (-5.0))) < 1e-9                  # the fixed mode stays
+    assert res.fixed_modes[0]["states"] == ["x3"]
+    obs = lmi_observer(A.T, B.T, region, state_names=["x1", "x2", "x3"])
+    assert all(region.contains(z) for z in np.linalg.eigvals(A.T - obs.gain @ B.T))
+    # the same mode at -0.5 lies outside the region: refused, naming the mode and the state
+    A[2, 2] = -0.5
+    with pytest.raises(UncontrollableError, match=r"outside.*-0\.5.*x3"):
+        lmi_state_feedback(A, B, region, state_names=["x1", "x2", "x3"])
+    with pytest.raises(InfeasibleDesign):                      # a design refusal (exit 3)
+        lmi_observer(A.T, B.T, region)
+
+
+# ------------------------------------------------- issue 12: an active conditioning bound
+def _slow_cascade():
+    import scipy.linalg as sla
+
+    a1, a2, a3 = 0.01, 0.012, 0.015           # 1/s: a slow three-tank cascade, y = h3
+    A = np.array([[-a1, 0, 0], [a1, -a2, 0], [0, a2, -a3]])
+    return sla.expm(A * 1.0), np.array([[0.0, 0.0, 1.0]])
+
+
+def test_active_kappa_bound_is_relaxed_then_named():
+    """Issue 12 item 3: |z - 0.5| < 0.3 for an observer of h3 was 'certified infeasible'."""
+    import control
+    import cvxpy as cp
+
+    Ad, C = _slow_cascade()
+    region = disk(0.5, 0.3)
+    # python-control places (0.5, 0.6, 0.7), inside the disk: the region is reachable
+    Lref = np.asarray(control.place(Ad.T, C.T, [0.5, 0.6, 0.7]), dtype=float).T
+    assert all(region.contains(z) for z in np.linalg.eigvals(Ad - Lref @ C))
+    # hand-built dual LMI (disk: [[-r X, (A'X - C'Y)' - c X]; [., -r X]] < 0) is feasible with
+    # X <= 1e8 I
+    n = 3
+    X = cp.Variable((n, n), symmetric=True)
+    Y = cp.Variable((1, n))
+    M = Ad.T @ X - C.T @ Y - 0.5 * X
+    lmi = cp.bmat([[-0.3 * X, M.T], [M, -0.3 * X]])
+    prob = cp.Problem(cp.Minimize(0), [0.5 * (lmi + lmi.T) << -1e-6 * np.eye(2 * n),
+                                       X >> np.eye(n), X << 1e8 * np.eye(n)])
+    prob.solve(solver="CLARABEL")
+    assert prob.status == "optimal"
+    # with kappa = 1e4 and no relaxation the refusal says the bound is active and names the option
+    with pytest.raises(InfeasibleDesign, match=r"bound is active.*kappa_max"):
+        lmi_observer(Ad, C, region, domain="discrete", kappa=1e4, kappa_max=1e4)
+    # with the relaxation up to 1e8 the design is found and the tries are reported
+    res = lmi_observer(Ad, C, region, domain="discrete", kappa=1e4, kappa_max=1e8)
+    assert all(region.contains(z) for z in np.linalg.eigvals(Ad - res.gain @ C))
+    tries = res.scaling["kappa_tries"]
+    assert tries[0]["bound_active"] and tries[0]["largest_margin_t"] < 0
+    assert res.scaling["kappa"] > 1e4 and res.scaling["kappa_relaxed"]

@@ -135,3 +135,23 @@ def test_integral_closed_loop_poles_by_hand():
     K = np.array([[2.0, -2.0]])
     m = match_poles([-1.0, -2.0], np.linalg.eigvals(Aa - Ba @ K))
     assert m.max_error < 1e-12
+
+
+# ---------------------------------------------------- issue 12: repeated poles in the verdicts
+def test_pole_agreement_accepts_a_jordan_block_with_the_right_polynomial():
+    from tanksynth.verify.numerics import pole_agreement
+
+    # A - B K of seed 004's cascade with K = [7/2, 13/2, 9/2]: (s + 2)^3, one Jordan block
+    M = np.array([[-4.0, -6.5, -4.5], [0.5, -1.5, 0.0], [0.0, 1.5, -0.5]])
+    assert np.allclose(np.poly(M), [1, 6, 12, 8])
+    naive = match_poles([-2, -2, -2], np.linalg.eigvals(M))
+    assert naive.max_relative_error > 1e-6               # the old test refused it
+    ag = pole_agreement([-2, -2, -2], M)
+    assert ag.passed and list(ag.multiplicity) == [3, 3, 3] and ag.polynomial_error < 1e-12
+    # a wrong gain: the polynomial is off, refused although the poles are within 1e-2
+    M2 = M.copy()
+    M2[0, 2] -= 1e-4
+    assert not pole_agreement([-2, -2, -2], M2).passed
+    # simple poles: unchanged
+    assert pole_agreement([-1, -2, -3], np.diag([-1.0, -2.0, -3.0])).passed
+    assert not pole_agreement([-1, -2, -3], np.diag([-1.0, -2.0, -3.0 + 1e-5])).passed

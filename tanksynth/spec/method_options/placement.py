@@ -12,11 +12,13 @@ from typing import Any, ClassVar, Mapping
 
 import numpy as np
 
+from tanksynth.errors import SpecError
 from tanksynth.spec.method_options.base import MethodOptions, OptionReader, time_domain_of
 from tanksynth.spec.options import (parse_bool, parse_choice, parse_matrix, parse_names, parse_number,
                                     parse_poles, parse_region, region_is_stable)
 
-__all__ = ["LMI_SOLVERS", "PLACE_METHODS", "TARGETS", "TIME_DOMAINS", "LinearizeOptions", "PolePlacementOptions", "LmiPlacementOptions",
+__all__ = ["LMI_SOLVERS", "PLACE_METHODS", "TARGETS", "TIME_DOMAINS", "POLE_DOMAINS",
+           "LinearizeOptions", "PolePlacementOptions", "LmiPlacementOptions",
            "CanonicalObserverOptions"]
 
 #: Conic solvers of the LMI designs (cvxpy names).
@@ -27,6 +29,41 @@ TARGETS = ("observer", "state_feedback")
 PLACE_METHODS = ("auto", "place", "acker")
 #: Time domains of a linear design.
 TIME_DOMAINS = ("continuous", "discrete")
+#: Planes requested poles may be written in (``poles = {values = [...], domain = "s"}``).
+POLE_DOMAINS = ("s", "z")
+
+_FRAGILE_DOC = """
+    allow_fragile : bool
+        Accept a gain whose closed loop a relative change of ``A`` smaller than
+        1e-6 destabilises (stability radius, see the diagnostics'
+        ``robustness``); default false (such a design is refused, exit 3)."""
+
+
+def _poles_in_plane(value: Any, key: str, *, count: int, count_note: str, time_domain: str
+                    ) -> tuple[tuple[complex, ...], str | None]:
+    """``poles = [...]`` or ``poles = {values = [...], domain = "s" | "z"}``.
+
+    Returns the poles as written and their plane (None when not said). s-plane
+    poles (1/s) of a discrete design are converted by the design (``z = exp(p
+    ts)``); z-plane poles need a discrete design.
+    """
+    if not isinstance(value, Mapping):
+        return parse_poles(value, key, count=count, count_note=count_note,
+                           stable_in=time_domain), None
+    unknown = set(value) - {"values", "domain"}
+    if unknown:
+        raise SpecError(f"unknown key(s) {sorted(unknown)} in the poles table; expected "
+                        "{values = [...], domain = \"s\" | \"z\"}", key=key)
+    if "values" not in value:
+        raise SpecError("the poles table needs values = [...]", key=f"{key}.values")
+    plane = parse_choice(value.get("domain"), f"{key}.domain", POLE_DOMAINS) \
+        if "domain" in value else None
+    if plane == "z" and time_domain == "continuous":
+        raise SpecError("z-plane poles need a discrete design: set time_domain = \"discrete\" "
+                        "(with [sampling] ts) or give s-plane poles", key=f"{key}.domain")
+    stable = time_domain if plane is None else ("continuous" if plane == "s" else "discrete")
+    return parse_poles(value["values"], f"{key}.values", count=count, count_note=count_note,
+                       stable_in=stable), plane
 
 
 @dataclass(frozen=True, eq=False)
@@ -104,12 +141,20 @@ class PolePlacementOptions(MethodOptions):
         Required. Eigenvalues to place, of ``A - B K`` (n; with integral
         action n + p, of the augmented system) or of ``A - L C`` (n): 1/s in
         continuous time, dimensionless (z-plane) in discrete time. Complex
-        poles come in conjugate pairs, written ``[re, im]``.{_GAIN_DOC.format(target="state_feedback")}
+        poles come in conjugate pairs, written ``[re, im]``. Written as a
+        table ``{{values = [...], domain = "s"}}`` the plane is explicit:
+        s-plane poles (1/s) of a discrete design are placed at ``z = exp(p
+        ts)``; ``domain = "z"`` needs a discrete design. Without it, a
+        discrete design whose poles are all real and negative warns (they
+        look like s-plane poles).{_GAIN_DOC.format(target="state_feedback")}
+    pole_domain : str or None
+        The plane the poles are written in (``"s"`` or ``"z"``), from the
+        poles table; default None (the plane of ``time_domain``).
     method : str
         ``"auto"`` (default), ``"place"`` (Tits-Yang) or ``"acker"``.
     reference_gain : ndarray or None
         A gain to compare with the derived one (the shape of ``K`` or ``L``,
-        in its units), e.g. a published one; default None.
+        in its units), e.g. a published one; default None.{_FRAGILE_DOC}
     """
 
     method_name: ClassVar[str] = "pole_placement"
@@ -121,6 +166,8 @@ class PolePlacementOptions(MethodOptions):
     tracked: tuple[str, ...] | None = None
     method: str = "auto"
     reference_gain: np.ndarray | None = None
+    pole_domain: str | None = None
+    allow_fragile: bool = False
 
     @classmethod
     def from_table(cls, options: Mapping[str, Any], key: str, plant: Any,
@@ -132,10 +179,15 @@ class PolePlacementOptions(MethodOptions):
         count = shape[1] if setup["target"] == "state_feedback" else plant.n
         note = (f"{plant.n} states + {count - plant.n} integrators of the tracked outputs "
                 f"{list(setup['tracked'])}" if count > plant.n else f"{plant.n} states")
-        return cls(poles=r.read("poles", parse_poles, count=count, count_note=note,
-                                stable_in=setup["time_domain"]), **setup,
+        if r.given("pole_domain"):
+            raise r.fail("pole_domain", "write the plane with the poles: poles = {values = [...], "
+                                        "domain = \"s\" | \"z\"}")
+        poles, plane = r.read("poles", _poles_in_plane, count=count, count_note=note,
+                              time_domain=setup["time_domain"])
+        return cls(poles=poles, pole_domain=plane, **setup,
                    method=r.read("method", parse_choice, PLACE_METHODS),
-                   reference_gain=r.read("reference_gain", parse_matrix, shape))
+                   reference_gain=r.read("reference_gain", parse_matrix, shape),
+                   allow_fragile=r.read("allow_fragile", parse_bool))
 
 
 @dataclass(frozen=True, eq=False)
@@ -155,8 +207,13 @@ class LmiPlacementOptions(MethodOptions):
         Strictness margin of the LMIs, in (0, 1); default 1e-6.
     kappa : float
         Bound ``I <= X <= kappa I`` of the Lyapunov matrix (> 1); default 1e4.
+    kappa_max : float
+        Ceiling of the automatic relaxation of ``kappa``: when the bound is
+        active at the optimum of a refused LMI, it is retried with ``kappa``
+        multiplied by 100 up to ``kappa_max`` (>= kappa; equal to ``kappa``
+        disables the retry); default 1e8.
     solver : str
-        Conic solver, ``"CLARABEL"`` (default) or ``"SCS"``.
+        Conic solver, ``"CLARABEL"`` (default) or ``"SCS"``.{_FRAGILE_DOC}
     """
 
     method_name: ClassVar[str] = "lmi_placement"
@@ -169,6 +226,8 @@ class LmiPlacementOptions(MethodOptions):
     margin: float = 1e-6
     kappa: float = 1e4
     solver: str = "CLARABEL"
+    kappa_max: float = 1e8
+    allow_fragile: bool = False
 
     @classmethod
     def from_table(cls, options: Mapping[str, Any], key: str, plant: Any,
@@ -182,10 +241,15 @@ class LmiPlacementOptions(MethodOptions):
                                    "stability domain (continuous: add a half-plane alpha >= 0, a disk "
                                    "left of 0 or a sector; discrete: add a disk with |center| + "
                                    "radius <= 1)")
+        kappa = r.read("kappa", parse_number, above=1.0)
+        kappa_max = r.read("kappa_max", parse_number, above=1.0)
+        if kappa_max < kappa:
+            raise r.fail("kappa_max", f"kappa_max = {kappa_max:g} is below kappa = {kappa:g}")
         return cls(region=region, **setup,
                    margin=r.read("margin", parse_number, above=0.0, below=1.0),
-                   kappa=r.read("kappa", parse_number, above=1.0),
-                   solver=r.read("solver", parse_choice, LMI_SOLVERS))
+                   kappa=kappa, kappa_max=kappa_max,
+                   solver=r.read("solver", parse_choice, LMI_SOLVERS),
+                   allow_fragile=r.read("allow_fragile", parse_bool))
 
 
 @dataclass(frozen=True, eq=False)
@@ -204,6 +268,10 @@ class CanonicalObserverOptions(MethodOptions):
     reference_closed_loop : ndarray or None
         An n x n matrix to compare with the derived ``F - L C`` (1/s);
         default None.
+    allow_fragile : bool
+        Accept an error matrix ``F - L C`` that a relative change of ``F``
+        smaller than 1e-6 destabilises (stability radius); default false
+        (refused, exit 3).
     """
 
     method_name: ClassVar[str] = "canonical_observer"
@@ -211,6 +279,7 @@ class CanonicalObserverOptions(MethodOptions):
     poles: tuple[complex, ...]
     reference_gain: np.ndarray | None = None
     reference_closed_loop: np.ndarray | None = None
+    allow_fragile: bool = False
 
     @classmethod
     def from_table(cls, options: Mapping[str, Any], key: str, plant: Any,
@@ -226,4 +295,5 @@ class CanonicalObserverOptions(MethodOptions):
         n = plant.n
         return cls(poles=r.read("poles", parse_poles, count=n, stable_in="continuous"),
                    reference_gain=r.read("reference_gain", parse_matrix, (n, plant.q)),
-                   reference_closed_loop=r.read("reference_closed_loop", parse_matrix, (n, n)))
+                   reference_closed_loop=r.read("reference_closed_loop", parse_matrix, (n, n)),
+                   allow_fragile=r.read("allow_fragile", parse_bool))

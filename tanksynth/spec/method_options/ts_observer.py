@@ -105,8 +105,17 @@ class TsObserverOptions(MethodOptions):
         Strictness margin of the LMIs, in (0, 1); default 1e-6.
     kappa : float
         Bound ``I <= P <= kappa I`` (> 1); default 1e4.
+    kappa_max : float
+        Ceiling of the automatic relaxation of ``kappa``: when the bound is
+        active at the optimum of a refused LMI, it is retried with ``kappa``
+        multiplied by 100 up to ``kappa_max`` (>= kappa; equal to ``kappa``
+        disables the retry); default 1e8.
     solver : str
         Conic solver, ``"CLARABEL"`` (default) or ``"SCS"``.
+    allow_fragile : bool
+        Accept an observer error matrix ``A0 - L C`` that a relative change of
+        ``A0`` smaller than 1e-6 destabilises (stability radius); default false
+        (refused, exit 3).
     """
 
     method_name: ClassVar[str] = "ts_observer"
@@ -133,6 +142,8 @@ class TsObserverOptions(MethodOptions):
     margin: float = 1e-6
     kappa: float = 1e4
     solver: str = "CLARABEL"
+    kappa_max: float = 1e8
+    allow_fragile: bool = False
 
     @classmethod
     def from_table(cls, options: Mapping[str, Any], key: str, plant: Any,
@@ -149,6 +160,10 @@ class TsObserverOptions(MethodOptions):
             raise r.fail("psi", "psi_source = 'given' needs psi (1/s)")
         domain = r.read("domain", parse_box, names)
         values = r.read("search_values", parse_vector)
+        kappa = r.read("kappa", parse_number, above=1.0)
+        kappa_max = r.read("kappa_max", parse_number, above=1.0)
+        if kappa_max < kappa:
+            raise r.fail("kappa_max", f"kappa_max = {kappa_max:g} is below kappa = {kappa:g}")
         return cls(
             weights=r.read("weights", _weights, n), psi=psi, psi_source=psi_source,
             variant=r.read("variant", parse_choice, LMI_VARIANTS),
@@ -168,5 +183,6 @@ class TsObserverOptions(MethodOptions):
             pattern=r.read("pattern", parse_matrix, (n, q)),
             reference_L=r.read("reference_L", parse_matrix, (n, q)),
             margin=r.read("margin", parse_number, above=0.0, below=1.0),
-            kappa=r.read("kappa", parse_number, above=1.0),
-            solver=r.read("solver", parse_choice, LMI_SOLVERS))
+            kappa=kappa, kappa_max=kappa_max,
+            solver=r.read("solver", parse_choice, LMI_SOLVERS),
+            allow_fragile=r.read("allow_fragile", parse_bool))

@@ -1,0 +1,141 @@
+"""Trim: the levels at which given pump flows hold the plant still.
+
+`tanksynth.analysis.linearize.equilibrium_input` answers "which input holds
+these levels?"; tank users usually know the other side: "the pumps run at
+these flows, where do the levels settle?". `trim` solves ``f(x, u) = 0`` for
+``x`` with ``u`` given, by `scipy.optimize.root` (hybrid Powell with the
+model's Jacobian ``df/dx``) from several starting points of the operating
+region, and keeps the solution inside the region with the smallest residual.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Sequence
+
+import numpy as np
+from scipy.optimize import root
+
+from tanksynth.errors import DimensionError
+from tanksynth.plants.base import Plant
+
+__all__ = ["Trim", "trim"]
+
+
+@dataclass(frozen=True)
+class Trim:
+    """Levels that balance given inputs, with the evidence.
+
+    Attributes
+    ----------
+    x : ndarray, shape (n,)
+        Levels (state units) with ``f(x, u) = 0``.
+    u : ndarray, shape (m,)
+        The given inputs (input units).
+    residual : ndarray, shape (n,)
+        ``f(x, u)`` (state units per s) at the solution.
+    converged : bool
+        ``max |residual| <= tolerance`` and ``x`` inside the operating region.
+    tolerance : float
+        Absolute tolerance on ``max |f|`` (state units/s).
+    in_region : bool
+        ``x`` satisfies the region's bounds and orderings.
+    violations : tuple of str
+        Region conditions ``x`` violates (empty when inside).
+    starts : int
+        Starting points tried.
+    """
+
+    x: np.ndarray
+    u: np.ndarray
+    residual: np.ndarray
+    converged: bool
+    tolerance: float
+    in_region: bool
+    violations: tuple[str, ...]
+    starts: int
+
+    def as_dict(self) -> dict:
+        """JSON-friendly form."""
+        return {"x": self.x.tolist(), "u": self.u.tolist(), "residual": self.residual.tolist(),
+                "max_abs_residual": float(np.max(np.abs(self.residual))),
+                "converged": self.converged, "tolerance": self.tolerance,
+                "in_region": self.in_region, "violations": list(self.violations),
+                "starts": self.starts}
+
+
+def trim(plant: Plant, u: Sequence[float], x_guess: Sequence[float] | None = None,
+         starts: int = 20, seed: int = 0, tolerance: float | None = None) -> Trim:
+    """Levels ``x`` with ``f(x, u) = 0`` for given inputs ``u`` (root finding on the model).
+
+    Parameters
+    ----------
+    plant : Plant
+    u : sequence of float, length m
+        Inputs (pump flows) in the input units.
+    x_guess : sequence of float, optional
+        First starting point (state units); then the region's centre and
+        ``starts`` seeded samples of the region.
+    starts : int
+        Sampled starting points (>= 0).
+    seed : int
+        Seed of the sampling.
+    tolerance : float, optional
+        Absolute tolerance on ``max |f(x, u)|`` (state units/s); default
+        ``1e-9`` times the largest input term ``max |df/du u|`` (at least 1e-15).
+
+    Returns
+    -------
+    Trim
+        The best solution found (``converged`` False when no start reached
+        the tolerance inside the region: the inputs cannot hold the plant in
+        its region, e.g. more inflow than the outlets can drain).
+    """
+    u = np.asarray(u, dtype=float).reshape(-1)
+    if u.size != plant.m or not np.all(np.isfinite(u)):
+        raise DimensionError(f"u must have {plant.m} finite entries, got {u.tolist()}")
+    comp = plant.compiled
+    lo = np.array([b[0] for b in plant.region.bounds], dtype=float)
+    hi = np.array([b[1] for b in plant.region.bounds], dtype=float)
+    points = []
+    if x_guess is not None:
+        g = np.asarray(x_guess, dtype=float).reshape(-1)
+        if g.size != plant.n:
+            raise DimensionError(f"x_guess has {g.size} entries, expected {plant.n}")
+        points.append(g)
+    try:
+        points += list(plant.region.sample(max(int(starts), 1), plant.x, seed=seed, margin=0.01))
+    except Exception:  # a region too thin to sample: the box centre only
+        pass
+    points.append(0.5 * (lo + hi))
+    G = comp.jacobians(points[-1][None], u[None])[1][0]
+    scale = float(np.max(np.abs(G @ u))) if u.size else 0.0
+    tol = float(tolerance) if tolerance is not None else max(1e-9 * scale, 1e-15)
+
+    def fun(x):
+        return comp.rhs(x[None], u[None])[0]
+
+    def jac(x):
+        return comp.jacobians(x[None], u[None])[0][0]
+
+    best = None
+    for x0 in points:
+        with np.errstate(all="ignore"):
+            sol = root(fun, x0, jac=jac, method="hybr", options={"xtol": 1e-14})
+        x = np.asarray(sol.x, dtype=float)
+        if not np.all(np.isfinite(x)):
+            continue
+        r = fun(x)
+        if not np.all(np.isfinite(r)):
+            continue
+        bad = tuple(plant.region.violations(x, plant.x))
+        key = (len(bad) > 0, float(np.max(np.abs(r))))
+        if best is None or key < best[0]:
+            best = (key, x, r, bad)
+        if not bad and key[1] <= tol:
+            break
+    if best is None:
+        x = points[-1]
+        return Trim(x, u, fun(x), False, tol, False, ("no start converged",), len(points))
+    (_, worst), x, r, bad = best
+    return Trim(x, u, r, bool(not bad and worst <= tol), tol, not bad, bad, len(points))

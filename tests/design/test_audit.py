@@ -1,0 +1,105 @@
+"""Issue 12 items 6-7: `design` looks at its input and its result and warns (DesignWarning)."""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pytest
+
+from tanksynth.errors import DesignWarning
+from tanksynth.methods import METHODS, parse_spec_text
+from tanksynth.plants import three_tank
+
+HEAD = """
+title = "audit"
+[plant]
+model = "three_tank"
+outputs = "all"
+{params}
+[operating_point]
+x = {{h1 = {h1}, h2 = {h2}, h3 = {h3}}}
+[sampling]
+ts = 1.0
+[[design]]
+name = "lin"
+method = "linearize"
+"""
+
+
+def _design(text):
+    spec = parse_spec_text(text)
+    entry = spec.designs[0]
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", DesignWarning)
+        res = METHODS[entry.method].design(spec, entry)
+    lines = [str(w.message) for w in caught if issubclass(w.category, DesignWarning)]
+    return res, lines
+
+
+def test_clean_spec_has_no_warning():
+    res, lines = _design(HEAD.format(params="", h1=0.40, h2=0.20, h3=0.30))
+    assert lines == [] and res.diagnostics["warnings"] == []
+
+
+def test_non_equilibrium_operating_point_warns_naming_the_equation():
+    # tank 3 is balanced only when q13 = q32, i.e. h1 - h3 = h3 - h2; (0.40, 0.20, 0.25) is not
+    res, lines = _design(HEAD.format(params="", h1=0.40, h2=0.20, h3=0.25))
+    # independent: the h3 equation at this point, no input enters it
+    p = three_tank()
+    g, A, Phi, mu = 9.81, 0.0154, 5e-5, 0.5
+    dh3 = (mu * Phi * np.sqrt(2 * g * 0.15) - mu * Phi * np.sqrt(2 * g * 0.05)) / A
+    assert dh3 > 1e-4 and p.n == 3
+    line = next(s for s in lines if "not an equilibrium" in s)
+    assert "dh3/dt" in line and "tolerance" in line and f"{dh3:.3g}" in line
+    assert line in res.diagnostics["warnings"]
+
+
+def test_equilibrium_input_outside_actuator_range_warns():
+    # at equilibrium q1 = q13 (Torricelli, computed here independently): 1.1e-5 m^3/s, more than
+    # a pump limited to qmax = 1e-5 m^3/s delivers
+    h1, h2, h3 = 0.60, 0.58, 0.59
+    g, Phi = 9.81, 5e-5
+    q13 = 0.5 * Phi * np.sqrt(2 * g * (h1 - h3))
+    assert q13 > 1e-5
+    text = HEAD.format(params="[plant.parameters]\nqmax = 1e-5", h1=h1, h2=h2, h3=h3)
+    _, lines = _design(text)
+    line = next(s for s in lines if "actuator range" in s)
+    assert "q1" in line and "[0, 1e-05]" in line
+
+
+def test_implausible_parameter_warns_with_unit_and_range():
+    text = HEAD.format(params="[plant.parameters]\nA = 154.0", h1=0.40, h2=0.20, h3=0.30)
+    res, lines = _design(text)
+    line = next(s for s in lines if "plausible" in s)
+    assert "A = 154 m^2" in line and "[0.0001, 1] m^2" in line
+    assert three_tank().parameter("A").plausible == (1e-4, 1.0)
+
+
+def test_unstable_designed_observer_warns():
+    """A Luenberger gain given by hand (no pole check at parse time) that destabilises A - L C."""
+    text = HEAD.format(params="", h1=0.40, h2=0.20, h3=0.30).split("[[design]]")[0] + """
+[[design]]
+name = "bad_observer"
+method = "luenberger"
+form = "predictor"
+L = [[-2.0, 0.0, 0.0], [0.0, 0.0, 0.0], [0.0, 0.0, 0.0]]
+"""
+    res, lines = _design(text)
+    eig = np.array([complex(a, b) for a, b in res.diagnostics["error_dynamics_eigenvalues"]])
+    assert np.max(np.abs(eig)) > 1                      # independent of the warning text
+    assert any("error dynamics are not stable" in s for s in lines)
+
+
+def test_pole_placement_refuses_an_unstable_request_at_parse_time():
+    """A pole at 1.5 in a discrete spec: refused with the key (exit 2), never placed silently."""
+    from tanksynth.errors import SpecError
+
+    text = HEAD.format(params="", h1=0.40, h2=0.20, h3=0.30).split("[[design]]")[0] + """
+[[design]]
+name = "pp"
+method = "pole_placement"
+poles = [1.5, 0.9, 0.8]
+"""
+    with pytest.raises(SpecError, match="unit circle"):
+        parse_spec_text(text)
