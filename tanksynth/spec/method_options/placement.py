@@ -12,7 +12,7 @@ from typing import Any, ClassVar, Mapping
 
 import numpy as np
 
-from tanksynth.spec.method_options.base import MethodOptions, OptionReader, time_domain_of
+from tanksynth.spec.method_options.base import MethodOptions, OptionReader, option, time_domain_of
 from tanksynth.spec.options import (parse_bool, parse_choice, parse_matrix, parse_names, parse_number,
                                     parse_poles, parse_region, region_is_stable)
 
@@ -114,13 +114,13 @@ class PolePlacementOptions(MethodOptions):
 
     method_name: ClassVar[str] = "pole_placement"
 
-    poles: tuple[complex, ...]
-    target: str = "state_feedback"
-    time_domain: str | None = None
-    integral: bool = False
-    tracked: tuple[str, ...] | None = None
-    method: str = "auto"
-    reference_gain: np.ndarray | None = None
+    poles: tuple[complex, ...] = option(unit="1/s (continuous) or - (discrete, z-plane)")
+    target: str = option("state_feedback", unit="-")
+    time_domain: str | None = option(None, unit="-")
+    integral: bool = option(False, unit="-")
+    tracked: tuple[str, ...] | None = option(None, unit="-")
+    method: str = option("auto", unit="-")
+    reference_gain: np.ndarray | None = option(None, unit="units of K or L")
 
     @classmethod
     def from_table(cls, options: Mapping[str, Any], key: str, plant: Any,
@@ -161,14 +161,14 @@ class LmiPlacementOptions(MethodOptions):
 
     method_name: ClassVar[str] = "lmi_placement"
 
-    region: tuple[tuple, ...]
-    target: str = "observer"
-    time_domain: str | None = None
-    integral: bool = False
-    tracked: tuple[str, ...] | None = None
-    margin: float = 1e-6
-    kappa: float = 1e4
-    solver: str = "CLARABEL"
+    region: tuple[tuple, ...] = option(unit="1/s (continuous) or - (discrete, z-plane)")
+    target: str = option("observer", unit="-")
+    time_domain: str | None = option(None, unit="-")
+    integral: bool = option(False, unit="-")
+    tracked: tuple[str, ...] | None = option(None, unit="-")
+    margin: float = option(1e-6, unit="-")
+    kappa: float = option(1e4, unit="-")
+    solver: str = option("CLARABEL", unit="-")
 
     @classmethod
     def from_table(cls, options: Mapping[str, Any], key: str, plant: Any,
@@ -208,9 +208,9 @@ class CanonicalObserverOptions(MethodOptions):
 
     method_name: ClassVar[str] = "canonical_observer"
 
-    poles: tuple[complex, ...]
-    reference_gain: np.ndarray | None = None
-    reference_closed_loop: np.ndarray | None = None
+    poles: tuple[complex, ...] = option(unit="1/s")
+    reference_gain: np.ndarray | None = option(None, unit="(state units)/(output units)/s")
+    reference_closed_loop: np.ndarray | None = option(None, unit="1/s")
 
     @classmethod
     def from_table(cls, options: Mapping[str, Any], key: str, plant: Any,
