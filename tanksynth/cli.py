@@ -95,13 +95,21 @@ def cli() -> None:
 
 @cli.command()
 @click.option("--json", "as_json", is_flag=True, help="Print JSON instead of tables.")
-def plants(as_json: bool) -> None:
-    """List the built-in plants, their parameters and units."""
+@click.option("--markdown", is_flag=True, help="Print the families, their options and the custom "
+                                               "plant as Markdown (the README's text).")
+def plants(as_json: bool, markdown: bool) -> None:
+    """List the plant families: their options, parameters and units, and the custom plant."""
+    from tanksynth.docgen import custom_plant_markdown, plant_families, plants_markdown
     from tanksynth.plants import BUILTIN_PLANTS
 
+    if markdown:
+        click.echo(plants_markdown(), nl=False)
+        return
     summaries = [builder().summary() for builder in BUILTIN_PLANTS.values()]
+    families = {f["name"]: f for f in plant_families()}
     if as_json:
-        click.echo(json.dumps(summaries, indent=2))
+        click.echo(json.dumps([{**s, "options": families[s["name"]]["options"]} for s in summaries],
+                              indent=2))
         return
     for s in summaries:
         table = Table(title=f"{s['name']}: {s['description']}")
@@ -116,22 +124,81 @@ def plants(as_json: bool) -> None:
                    + "; inputs: " + ", ".join(f"{v['name']} [{v['unit']}]" for v in s["inputs"])
                    + "; outputs: " + ", ".join(f"{v['name']} [{v['unit']}]" for v in s["outputs"]))
         _out.print(signals, markup=False, highlight=False)
+        options = families[s["name"]]["options"]
+        _out.print("options ([plant] keys): " + ("; ".join(
+            f"{o['name']} = {o['default']} ({o['type']}): {o['meaning']}" for o in options)
+            if options else "none"), markup=False, highlight=False)
+        _out.print()
+    _out.print(custom_plant_markdown(level=2), markup=False, highlight=False)
+
+
+@cli.command()
+@click.argument("name", required=False)
+@click.option("--json", "as_json", is_flag=True, help="Print JSON instead of tables.")
+@click.option("--markdown", is_flag=True, help="Print Markdown (the README's text).")
+def methods(name: str | None, as_json: bool, markdown: bool) -> None:
+    """List the design methods; with NAME, each of its options (type, default, unit, meaning)."""
+    from tanksynth.docgen import method_catalogue, method_markdown, method_options, methods_markdown
+
+    if markdown:
+        click.echo(method_markdown(name) if name else methods_markdown(), nl=False)
+        return
+    if name is None:
+        cat = method_catalogue()
+        if as_json:
+            click.echo(json.dumps(cat, indent=2))
+            return
+        table = Table(title="Design methods (tanksynth methods NAME: its options)")
+        for col in ("method", "kind", "designs"):
+            table.add_column(col, overflow="fold")
+        for m in cat:
+            table.add_row(m["name"], " / ".join(m["kinds"]), m["summary"])
+        _out.print(table)
+        return
+    from tanksynth.methods import method
+
+    row = method(name)  # SpecError (exit 2) naming the methods for an unknown name
+    docs = method_options(name)
+    if as_json:
+        click.echo(json.dumps({"name": row.name, "kinds": list(row.kinds), "summary": row.summary,
+                               "options": docs}, indent=2))
+        return
+    from rich.markup import escape
+
+    table = Table(title=escape(f"{row.name} ({' / '.join(row.kinds)}): {row.summary}"))
+    for col in ("option", "type", "default", "unit", "meaning"):
+        table.add_column(col, overflow="fold")
+    for d in docs:
+        table.add_row(*(escape(d[k].replace("``", "")) for k in ("name", "type")),
+                      "[bold]required[/]" if d["required"] else escape(d["default"]),
+                      *(escape(d[k].replace("``", "")) for k in ("unit", "meaning")))
+    _out.print(table if docs else f"{row.name}: no options")
 
 
 @cli.command()
 @click.argument("spec", type=click.Path(dir_okay=False))
 @click.option("--json", "as_json", is_flag=True, help="Print JSON instead of a table.")
-def check(spec: str, as_json: bool) -> None:
+@click.option("-o", "--output", "outdir", default=None, type=click.Path(file_okay=False),
+              help="Also write the verdicts to DIR/checks.json (the file the report reads).")
+def check(spec: str, as_json: bool, outdir: str | None) -> None:
     """Observability/controllability rank conditions of SPEC's plant."""
     from tanksynth.artefacts.io import to_jsonable
     from tanksynth.analysis.checks import rank_conditions
 
     s = _load(spec)
     checks = rank_conditions(s.plant, s.x0, s.ts, s.given_u0)
+    text = json.dumps(to_jsonable([c.as_dict() for c in checks]), indent=2)
+    if outdir is not None:
+        from tanksynth.artefacts.atomic import atomic_write
+
+        Path(outdir).mkdir(parents=True, exist_ok=True)
+        atomic_write(Path(outdir) / "checks.json", text + "\n")
     if as_json:
-        click.echo(json.dumps(to_jsonable([c.as_dict() for c in checks]), indent=2))
+        click.echo(text)
     else:
         _print_checks(checks)
+        if outdir is not None:
+            _out.print(f"rank verdicts: {Path(outdir) / 'checks.json'}", markup=False, highlight=False)
     if any(c.passed is False for c in checks):
         raise _Fail(EXIT_FAILED, "some rank conditions fail")
 
