@@ -30,6 +30,7 @@ _EXPORTS = {
     **dict.fromkeys(["load_spec", "parse_spec", "parse_spec_text", "verify_directory",
                      "write_report"], "tanksynth.methods"),
     "Spec": "tanksynth.spec",
+    **dict.fromkeys(["load", "Design", "Results"], "tanksynth.loading"),
     **dict.fromkeys(["controllability_rank", "nonlinear_observability", "observability_rank",
                      "pbh_test", "symbolic_observability"], "tanksynth.analysis.rank"),
 }

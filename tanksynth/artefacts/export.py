@@ -1,4 +1,12 @@
-"""Exports beside an artefact: C header of the gains, control laws as CasADi files and generated C."""
+"""Exports beside an artefact: C header of the gains, control laws as CasADi files and generated C,
+and the contents of the ``.mat`` file.
+
+The ``.mat`` file and the C header carry what is needed to implement the design
+elsewhere, besides the gains: the sampling period ``ts``, the operating point
+``x_op``/``u_op`` (also as ``x0``/``u0`` unless a gain has that name, e.g. an
+estimator's initial estimate) and the state, input and output names and units
+(`implementation_data`). Vectors are columns in both (MATLAB's orientation).
+"""
 
 from __future__ import annotations
 
@@ -9,7 +17,7 @@ import subprocess
 import tempfile
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Mapping, Sequence
+from typing import Any, Mapping, Sequence
 
 import casadi as ca
 import numpy as np
@@ -18,7 +26,8 @@ from tanksynth.artefacts.atomic import commit
 from tanksynth.errors import ArtefactError
 from tanksynth.runtime.laws import rename_law
 
-__all__ = ['c_header', 'ExportedLaw', 'export_law', 'compile_law', 'load_compiled_law']
+__all__ = ['c_header', 'ExportedLaw', 'export_law', 'compile_law', 'load_compiled_law',
+           'implementation_data', 'mat_contents']
 
 
 @dataclass(frozen=True)
@@ -150,11 +159,103 @@ def load_compiled_law(library: str | Path, function: str) -> ca.Function:
     return ca.external(function, str(path.resolve()))
 
 
-def c_header(name: str, gains: Mapping[str, np.ndarray]) -> str:
+def implementation_data(diagnostics: Mapping[str, Any], plant_record: Mapping[str, Any] | None
+                        ) -> dict[str, Any]:
+    """Sampling period, operating point and signal names/units of a design, for exports.
+
+    Parameters
+    ----------
+    diagnostics : mapping
+        The design's diagnostics (``equilibrium`` gives ``x0``/``u0`` when the
+        design computed it; ``ts`` or ``sampling_period`` the period).
+    plant_record : mapping or None
+        ``plant.json`` of the result directory (`tanksynth.artefacts.io.write_plant_record`):
+        operating point, sampling period, signal names and units.
+
+    Returns
+    -------
+    dict
+        ``ts`` (s, NaN without sampling), ``x_op`` (state units), ``u_op`` (input
+        units, NaN entries when unknown), and ``state_names``, ``state_units``,
+        ``input_names``, ``input_units``, ``output_names``, ``output_units``
+        (lists of str, empty when unknown).
+    """
+    record = plant_record or {}
+    eq = diagnostics.get("equilibrium") if isinstance(diagnostics, Mapping) else None
+    eq = eq if isinstance(eq, Mapping) else {}
+    op = record.get("operating_point") or {}
+    ts = record.get("ts", diagnostics.get("ts", diagnostics.get("sampling_period")))
+    summary = record.get("plant") or {}
+    out: dict[str, Any] = {"ts": float("nan") if ts is None else float(ts)}
+    x_op = eq.get("x0", op.get("x"))
+    u_op = eq.get("u0", op.get("u"))
+    n_inputs = len(summary.get("inputs", ()))
+    out["x_op"] = np.asarray(x_op if x_op is not None else [], dtype=float).reshape(-1)
+    out["u_op"] = (np.asarray(u_op, dtype=float).reshape(-1) if u_op is not None
+                   else np.full(n_inputs, np.nan))
+    for what in ("state", "input", "output"):
+        signals = summary.get(f"{what}s", ())
+        out[f"{what}_names"] = [str(v["name"]) for v in signals]
+        out[f"{what}_units"] = [str(v["unit"]) for v in signals]
+    return out
+
+
+def mat_contents(gains: Mapping[str, np.ndarray], data: Mapping[str, Any]) -> dict[str, Any]:
+    """The variables of ``<name>.mat``: the gains and `implementation_data`, vectors as columns.
+
+    Parameters
+    ----------
+    gains : mapping of str to ndarray
+        The design's gains (a 1-D gain becomes an n x 1 column).
+    data : mapping
+        `implementation_data` of the design.
+
+    Returns
+    -------
+    dict
+        For ``scipy.io.savemat``: arrays as columns or matrices, names and
+        units as n x 1 cell arrays of strings, ``ts`` a 1 x 1 double; ``x0``
+        and ``u0`` the operating point unless a gain has that name.
+    """
+    def column(value: Any) -> np.ndarray:
+        arr = np.asarray(value, dtype=float)
+        return arr.reshape(-1, 1) if arr.ndim <= 1 else arr
+
+    out: dict[str, Any] = {k: column(v) for k, v in gains.items()}
+    out["ts"] = np.array([[float(data["ts"])]])
+    out["x_op"], out["u_op"] = column(data["x_op"]), column(data["u_op"])
+    out.setdefault("x0", out["x_op"])
+    out.setdefault("u0", out["u_op"])
+    for key in ("state_names", "state_units", "input_names", "input_units", "output_names",
+                "output_units"):
+        cells = np.empty((len(data[key]), 1), dtype=object)
+        for i, text in enumerate(data[key]):
+            cells[i, 0] = text
+        out[key] = cells
+    return out
+
+
+def c_header(name: str, gains: Mapping[str, np.ndarray], data: Mapping[str, Any] | None = None) -> str:
     """A C header with every gain as a ``static const double`` array (row-major).
 
     Each gain gets ``<NAME>_<GAIN>_NDIM`` and one ``_DIM<k>`` macro per axis
     (``_ROWS``/``_COLS`` too for 1-D and 2-D gains; a 1-D gain is a column).
+
+    Parameters
+    ----------
+    name : str
+        The design's name (prefix of every symbol).
+    gains : mapping of str to ndarray
+        The gains.
+    data : mapping, optional
+        `implementation_data`: adds ``<NAME>_TS`` (s), the arrays ``x_op`` and
+        ``u_op`` (columns, as in the ``.mat`` file) and a comment listing the
+        states, inputs and outputs with their units.
+
+    Returns
+    -------
+    str
+        The header text.
     """
     def ident(text: str) -> str:
         out = "".join(c if c.isalnum() else "_" for c in text)
@@ -164,7 +265,18 @@ def c_header(name: str, gains: Mapping[str, np.ndarray]) -> str:
     guard = "TANKSYNTH_" + stem.upper() + "_H"
     lines = [f"/* Gains of design '{name}', generated by tanksynth. Row-major. */",
              f"#ifndef {guard}", f"#define {guard}", ""]
-    for gname, value in gains.items():
+    arrays = dict(gains)
+    if data is not None:
+        lines += ["#include <math.h> /* NAN: an entry of the operating point that is unknown */", ""]
+        for what in ("state", "input", "output"):
+            listed = ", ".join(f"{n} [{u}]" for n, u in zip(data[f"{what}_names"], data[f"{what}_units"]))
+            lines.append(f"/* {what}s: {listed or 'unknown'} */")
+        if np.isfinite(data["ts"]):
+            lines.append(f"#define {stem.upper()}_TS {float(data['ts'])!r} /* sampling period, s */")
+        lines.append("")
+        arrays.setdefault("x_op", data["x_op"])
+        arrays.setdefault("u_op", data["u_op"])
+    for gname, value in arrays.items():
         arr = np.asarray(value, dtype=float)
         if arr.ndim == 0:
             arr = arr.reshape(1, 1)
@@ -178,7 +290,7 @@ def c_header(name: str, gains: Mapping[str, np.ndarray]) -> str:
         if arr.ndim == 2:
             lines.append(f"#define {macro}_ROWS {arr.shape[0]}")
             lines.append(f"#define {macro}_COLS {arr.shape[1]}")
-        values = ", ".join(repr(float(v)) for v in arr.ravel())
+        values = ", ".join(repr(float(v)) if np.isfinite(v) else "NAN" for v in arr.ravel())
         lines.append(f"static const double {cname}[{max(arr.size, 1)}] = {{{values or '0.0'}}};")
         lines.append("")
     lines.append(f"#endif /* {guard} */")
