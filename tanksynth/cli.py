@@ -78,13 +78,29 @@ def _design_all(spec, outdir: Path, export: tuple[str, ...]) -> tuple[list[Path]
     written = []
     for design, result in results:
         formats = list(export)
+        derived = None
         if "law" in formats and "law" not in result.diagnostics:
             formats.remove("law")
-            _out.print(f"{design.name}: no control law to export (method {design.method})",
-                       markup=False, highlight=False)
+            derived = _derived_law(spec, design, result)
         written.append(write_artefact(result, outdir, spec.sha256, export=formats,
                                       plant_record_sha256=plant_sha))
+        if derived is not None:  # the law (or estimator step) built from the written gains
+            from tanksynth.artefacts.export import export_law
+
+            export_law(derived, outdir, name=f"{design.name}_law")
     return written, infeasible
+
+
+def _derived_law(spec, design, result):
+    """The law / estimator step of a design without one in its diagnostics (None: says so)."""
+    from tanksynth.artefacts.export import derived_law
+
+    law = derived_law(result.gains, result.diagnostics, design.method, spec, design.config,
+                      f"{design.name}_law")
+    if law is None:
+        _out.print(f"{design.name}: no control law or estimator step to export (method "
+                   f"{design.method})", markup=False, highlight=False)
+    return law
 
 
 @click.group(context_settings={"help_option_names": ["-h", "--help"]})

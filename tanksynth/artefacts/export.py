@@ -27,7 +27,8 @@ from tanksynth.errors import ArtefactError
 from tanksynth.runtime.laws import rename_law
 
 __all__ = ['c_header', 'ExportedLaw', 'export_law', 'compile_law', 'load_compiled_law',
-           'implementation_data', 'mat_contents']
+           'implementation_data', 'mat_contents', 'DERIVED_LAW_METHODS', 'state_feedback_law',
+           'observer_law', 'kalman_step', 'derived_law']
 
 
 @dataclass(frozen=True)
@@ -295,3 +296,207 @@ def c_header(name: str, gains: Mapping[str, np.ndarray], data: Mapping[str, Any]
         lines.append("")
     lines.append(f"#endif /* {guard} */")
     return "\n".join(lines) + "\n"
+
+
+# ------------------------------------------------------------------ laws derived from gains
+#: Methods whose law `derived_law` builds from the artefact's gains (the others either carry
+#: their law in the diagnostics or have none to export).
+DERIVED_LAW_METHODS = ("pole_placement", "lmi_placement", "canonical_observer", "luenberger",
+                       "kalman", "ekf")
+
+
+def _output_at(plant: Any, x: np.ndarray) -> np.ndarray:
+    values = dict(zip(plant.x, (float(v) for v in x)))
+    return np.array(plant.h_numeric.subs(values), dtype=float).reshape(-1)
+
+
+def state_feedback_law(name: str, K: np.ndarray, x_op: np.ndarray, u_op: np.ndarray,
+                       integral: Mapping[str, Any] | None = None, Br: np.ndarray | None = None,
+                       continuous: bool = False) -> ca.Function:
+    """The state feedback ``u = u_op - K (x - x_op)`` of a linear design, with integral action.
+
+    Parameters
+    ----------
+    name : str
+        Function name (a C identifier).
+    K : ndarray
+        The gain, m x n, or m x (n + p) with integral action (input units per
+        state unit).
+    x_op, u_op : ndarray
+        Operating point (state and input units).
+    integral : mapping, optional
+        The design's ``integral`` diagnostics (``C1``, ``augmented_A``) when
+        the gain has integral action.
+    Br : ndarray, optional
+        Reference input matrix of the augmented system ((n + p) x p).
+    continuous : bool
+        Continuous-time design: the integrator output is ``z_dot``, not ``z_next``.
+
+    Returns
+    -------
+    casadi.Function
+        ``u = law(x)``; with integral action ``u, z_next = law(x, z, y_r)``
+        (``z_dot`` in continuous time), ``u = u_op - K1 (x - x_op) - K2 z`` and
+        the integrators as designed (``z_next = z + (y_r - C1 x)`` on the ZOH
+        model; ``y_r`` the references of the tracked outputs).
+    """
+    K = np.asarray(K, dtype=float)
+    x_op, u_op = np.asarray(x_op, dtype=float), np.asarray(u_op, dtype=float)
+    n = x_op.size
+    x = ca.SX.sym("x", n)
+    if integral is None:
+        u = ca.DM(u_op) - ca.DM(K) @ (x - ca.DM(x_op))
+        return ca.Function(name, [x], [u], ["x"], ["u"])
+    Aa, C1 = np.asarray(integral["augmented_A"], dtype=float), np.asarray(integral["C1"], dtype=float)
+    p = C1.shape[0]
+    Br = np.vstack([np.zeros((n, p)), np.eye(p)]) if Br is None else np.asarray(Br, dtype=float)
+    z, r = ca.SX.sym("z", p), ca.SX.sym("y_r", p)
+    dx = x - ca.DM(x_op)
+    u = ca.DM(u_op) - ca.DM(K[:, :n]) @ dx - ca.DM(K[:, n:]) @ z
+    z_new = ca.DM(Aa[n:, :n]) @ dx + ca.DM(Aa[n:, n:]) @ z + ca.DM(Br[n:]) @ (r - ca.DM(C1 @ x_op))
+    out = "z_dot" if continuous else "z_next"
+    return ca.Function(name, [x, z, r], [u, z_new], ["x", "z", "y_r"], ["u", out])
+
+
+def observer_law(name: str, A: np.ndarray, B: np.ndarray, C: np.ndarray, L: np.ndarray,
+                 x_op: np.ndarray, u_op: np.ndarray, y_op: np.ndarray, form: str = "predictor"
+                 ) -> ca.Function:
+    """One step of a linear (Luenberger) observer about the operating point.
+
+    Parameters
+    ----------
+    name : str
+        Function name (a C identifier).
+    A, B, C : ndarray
+        The model (``Ad, Bd`` in discrete time, ``F, B`` in continuous time).
+    L : ndarray
+        Observer gain (n x q, state per output units).
+    x_op, u_op, y_op : ndarray
+        Operating point and the output there (state, input, output units).
+    form : str
+        ``"predictor"``: ``x_next = x_op + A dx + B du + L (dy - C dx)``;
+        ``"current"``: predict with ``A, B``, then correct with the new ``y``;
+        ``"continuous"``: ``x_hat_dot = A dx + B du + L (dy - C dx)``.
+
+    Returns
+    -------
+    casadi.Function
+        ``x_hat_next = step(x_hat, u, y)`` (``x_hat_dot`` in continuous time):
+        in the current form ``u`` is the input applied over the last period
+        and ``y`` the new measurement.
+    """
+    A, B, C, L = (np.asarray(v, dtype=float) for v in (A, B, C, L))
+    x_op, u_op, y_op = (np.asarray(v, dtype=float) for v in (x_op, u_op, y_op))
+    xh, u, y = ca.SX.sym("x_hat", A.shape[0]), ca.SX.sym("u", B.shape[1]), ca.SX.sym("y", C.shape[0])
+    dx, du, dy = xh - ca.DM(x_op), u - ca.DM(u_op), y - ca.DM(y_op)
+    if form == "current":
+        xp = ca.DM(A) @ dx + ca.DM(B) @ du
+        new = ca.DM(x_op) + xp + ca.DM(L) @ (dy - ca.DM(C) @ xp)
+    else:
+        new = ca.DM(A) @ dx + ca.DM(B) @ du + ca.DM(L) @ (dy - ca.DM(C) @ dx)
+        new = new if form == "continuous" else ca.DM(x_op) + new
+    out = "x_hat_dot" if form == "continuous" else "x_hat_next"
+    return ca.Function(name, [xh, u, y], [new], ["x_hat", "u", "y"], [out])
+
+
+def kalman_step(name: str, plant: Any, tuning: Any, linear: bool) -> ca.Function:
+    """The (extended) Kalman filter step the runtime runs, as a standalone Function.
+
+    Parameters
+    ----------
+    name : str
+        Function name (a C identifier).
+    plant : Plant
+        The spec's plant.
+    tuning : KalmanTuning
+        ``Q, R, P0, x0``, sampling and model options (`tanksynth.runtime.estimators.kalman`).
+    linear : bool
+        Kalman filter on the ZOH linearisation (``tuning.operating_point``) instead of the EKF.
+
+    Returns
+    -------
+    casadi.Function
+        ``x_next, P_next = step(x, P, y, u)``: from ``x(k-1|k-1)``, ``P(k-1|k-1)``,
+        the input held over the period and the new measurement, ``x(k|k)`` and
+        ``P(k|k)`` (``Q`` and ``R`` built in). A hybrid plant adds the input
+        and output ``memory`` (the kept Jacobian across a switching surface;
+        start with zeros).
+    """
+    from tanksynth.runtime.estimators.kalman import ExtendedKalmanFilter, KalmanFilter
+
+    est = (KalmanFilter if linear else ExtendedKalmanFilter)(plant, tuning, backend="vm")
+    kernel = est._shared["sx"]
+    n = plant.n
+    x, P = ca.SX.sym("x", n), ca.SX.sym("P", n, n)
+    y, u = ca.SX.sym("y", plant.q), ca.SX.sym("u", plant.m)
+    extra = kernel.size1_in(0) - n - n * n
+    mem = ca.SX.sym("memory", extra)
+    params = ca.DM(np.asarray(est._params(), dtype=float))
+    state = ca.vertcat(x, ca.reshape(P, n * n, 1), mem)
+    new = kernel(state, y, u, params)[0]
+    outs = [new[:n], ca.reshape(new[n:n + n * n], n, n)]
+    ins, names_in, names_out = [x, P, y, u], ["x", "P", "y", "u"], ["x_next", "P_next"]
+    if extra:
+        ins.append(mem)
+        names_in.append("memory")
+        outs.append(new[n + n * n:])
+        names_out.append("memory_next")
+    return ca.Function(name, ins, outs, names_in, names_out)
+
+
+def derived_law(gains: Mapping[str, np.ndarray], diagnostics: Mapping[str, Any], method: str,
+                spec: Any, options: Any, name: str) -> ca.Function | None:
+    """The law or estimator step of a design whose artefact does not carry one, from its gains.
+
+    Parameters
+    ----------
+    gains : mapping of str to ndarray
+        The design's gains.
+    diagnostics : mapping
+        Its diagnostics (equilibrium, time domain, integral action, form).
+    method : str
+        Its method.
+    spec : Spec
+        The spec it was designed from (plant, operating point, sampling).
+    options : MethodOptions
+        Its validated options.
+    name : str
+        Function name (a C identifier).
+
+    Returns
+    -------
+    casadi.Function or None
+        `state_feedback_law`, `observer_law` or `kalman_step`; None for a
+        method not in `DERIVED_LAW_METHODS` (or a linear design without a gain).
+    """
+    if method not in DERIVED_LAW_METHODS or getattr(options, "nonlinear", False):
+        return None
+    from tanksynth.analysis.linearize import equilibrium_input, linearize
+
+    plant = spec.plant
+    eq = equilibrium_input(plant, spec.x0, spec.given_u0)
+    x_op, u_op = np.asarray(spec.x0, dtype=float), np.asarray(eq.u0, dtype=float)
+    if method in ("kalman", "ekf"):
+        from tanksynth.runtime.estimators.kalman import KalmanTuning
+
+        tuning = KalmanTuning(Q=gains["Q"], R=gains["R"], P0=gains["P0"], x0=gains["x0"], ts=spec.ts,
+                              substeps=options.substeps, jacobian_eps=options.jacobian_eps,
+                              switch_tol=options.switch_tol, clip=options.clip,
+                              operating_point=(x_op, u_op) if method == "kalman" else None)
+        return kalman_step(name, plant, tuning, linear=method == "kalman")
+    lin = linearize(plant, x_op, u_op, ts=spec.ts)
+    time_domain = diagnostics.get("time_domain", "continuous" if method == "canonical_observer"
+                                  else "discrete")
+    if method == "luenberger":
+        time_domain = "continuous" if diagnostics.get("form") == "continuous" else "discrete"
+    continuous = time_domain == "continuous"
+    A, B = (lin.F, lin.B) if continuous else (lin.Ad, lin.Bd)
+    if "K" in gains:
+        integral = diagnostics.get("integral")
+        return state_feedback_law(name, gains["K"], x_op, u_op,
+                                  integral if isinstance(integral, Mapping) else None,
+                                  gains.get("Br"), continuous)
+    if "L" not in gains:
+        return None
+    form = "continuous" if continuous else (diagnostics.get("form") or "predictor")
+    return observer_law(name, A, B, lin.C, gains["L"], x_op, u_op, _output_at(plant, x_op), form)
