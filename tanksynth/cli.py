@@ -12,6 +12,8 @@ import json
 import os
 import shutil
 import sys
+import warnings
+from contextlib import contextmanager
 from importlib import resources
 from pathlib import Path
 
@@ -36,6 +38,52 @@ class _Fail(Exception):
 
 def _one_line(exc: BaseException) -> str:
     return " ".join(str(exc).split())
+
+
+def _live() -> bool:
+    """Live displays (spinner, bars) work here: not in a notebook without ipywidgets.
+
+    rich needs ipywidgets to animate in Jupyter and otherwise warns (``install
+    "ipywidgets"``); the stage lines are printed either way.
+    """
+    if not _out.is_jupyter:
+        return True
+    import importlib.util
+
+    return importlib.util.find_spec("ipywidgets") is not None
+
+
+@contextmanager
+def _stage(text: str):
+    """Print a line as a stage starts, and a spinner while it runs (on a terminal only)."""
+    _out.print(f"- {text}", markup=False, highlight=False)
+    if not _live():
+        yield
+        return
+    with _out.status(text, spinner="dots"):
+        yield
+
+
+_shown_warnings: set[str] = set()
+
+
+def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:
+    """One line per distinct warning, naming where a library warning came from and what it means."""
+    from tanksynth.errors import TanksynthWarning
+
+    text = _one_line(message)
+    if issubclass(category, TanksynthWarning):
+        out = f"warning: {text}"
+    elif issubclass(category, RuntimeWarning) and ("lambdify" in str(filename) or "numpy" in str(filename)
+                                                   or "scipy" in str(filename)):
+        where = "generated model code" if "lambdify" in str(filename) else Path(str(filename)).name
+        out = (f"warning: numerical: {text} (in {where}): a model or premise was evaluated outside "
+               "its domain (e.g. a negative level), giving NaN there")
+    else:
+        out = f"warning: {category.__name__}: {text} ({Path(str(filename)).name}:{lineno})"
+    if out not in _shown_warnings:
+        _shown_warnings.add(out)
+        click.echo(out, err=True)
 
 
 def _load(spec_path: str | None):
@@ -69,9 +117,10 @@ def _design_all(spec, outdir: Path, export: tuple[str, ...]) -> tuple[list[Path]
     from tanksynth.methods import METHODS
 
     results, infeasible = [], []
-    for design in spec.designs:
+    for k, design in enumerate(spec.designs, 1):
         try:
-            results.append((design, METHODS[design.method].design(spec, design)))
+            with _stage(f"designing {design.name} ({design.method}) [{k}/{len(spec.designs)}]"):
+                results.append((design, METHODS[design.method].design(spec, design)))
         except InfeasibleDesign as exc:
             infeasible.append(f"{design.name}: {_one_line(exc)}")
     plant_sha = file_sha256(write_plant_record(spec, outdir))
@@ -261,7 +310,8 @@ def run(spec: str | None, outdir: str, pdf: bool | None) -> None:
     have_tex = all(shutil.which(tool) for tool in ("pdflatex", "latexmk"))
     if pdf is None:
         pdf = spec is None and have_tex
-    checks = rank_conditions(s.plant, s.x0, s.ts, s.given_u0)
+    with _stage("rank conditions (Kalman, PBH, nonlinear observability)"):
+        checks = rank_conditions(s.plant, s.x0, s.ts, s.given_u0)
     _print_checks(checks)
     if s.designs:
         _out.print(f"designing {len(s.designs)} gain(s): "
@@ -276,8 +326,12 @@ def run(spec: str | None, outdir: str, pdf: bool | None) -> None:
     _out.print(f"rank verdicts: {checks_path}", markup=False, highlight=False)
     verdicts = []
     if written:
-        _out.print("verifying every artefact on the nonlinear plant", markup=False, highlight=False)
-        verdicts = verify_directory(out)
+        from rich.progress import Progress
+
+        _out.print("- verifying every artefact on the nonlinear plant", markup=False, highlight=False)
+        with Progress(console=_out, transient=True, disable=not _live()) as bar:
+            task = bar.add_task("verifying artefacts", total=None)
+            verdicts = verify_directory(out, progress=lambda d, n: bar.update(task, completed=d, total=n))
         _write_report(out, pdf)
         _print_summary(written)
         if spec is None and not have_tex:
@@ -318,7 +372,8 @@ def _print_summary(paths: list[Path]) -> None:
 def _write_report(directory: Path, pdf: bool):
     from tanksynth.methods import write_report
 
-    res = write_report(directory, pdf=pdf)
+    with _stage("writing the report (figures, LaTeX" + (", PDF with latexmk)" if pdf else ")")):
+        res = write_report(directory, pdf=pdf)
     _out.print(f"report: {res.tex}")
     if res.pdf is not None:
         _out.print(f"report pdf: {res.pdf} ({res.pages} pages, LaTeX {res.latex_seconds:.1f} s)")
@@ -366,7 +421,7 @@ def verify(directory: str, scheduler: str | None, as_json: bool, runs: int,
     for name in scenarios:
         scenario(name)  # unknown names are bad input (exit 2) before any work
     quiet = as_json
-    with Progress(console=_out, transient=True, disable=quiet) as bar:
+    with Progress(console=_out, transient=True, disable=quiet or not _live()) as bar:
         task = bar.add_task("verifying artefacts", total=None)
         verdicts = verify_directory(directory, scheduler=scheduler,
                                     progress=lambda d, n: bar.update(task, completed=d, total=n),
@@ -377,7 +432,7 @@ def verify(directory: str, scheduler: str | None, as_json: bool, runs: int,
         names = list(scenarios) or [s for s in SCENARIOS if SCENARIOS[s].applies_to(spec.plant)]
         tasks = campaign_tasks(spec.text or (Path(directory) / "spec.toml").read_text(encoding="utf-8"),
                                [d for _, d in docs], names, runs, seed=seed, runners=RUNNERS)
-        with Progress(console=_out, transient=True, disable=quiet) as bar:
+        with Progress(console=_out, transient=True, disable=quiet or not _live()) as bar:
             task = bar.add_task("campaign", total=len(tasks))
             table = run_campaign(tasks, scheduler=scheduler, workers=workers,
                                  progress=lambda d, n: bar.update(task, completed=d, total=n),
@@ -402,7 +457,10 @@ def verify(directory: str, scheduler: str | None, as_json: bool, runs: int,
 def main(argv: list[str] | None = None) -> int:
     """Run the CLI; return the exit code (bad input: 2, one line, no traceback)."""
     try:
-        cli.main(args=argv, prog_name="tanksynth", standalone_mode=False)
+        with warnings.catch_warnings():
+            warnings.showwarning = _show_warning  # one meaningful line, not a library's source line
+            _shown_warnings.clear()
+            cli.main(args=argv, prog_name="tanksynth", standalone_mode=False)
     except click.exceptions.Exit as exc:
         return exc.exit_code
     except click.ClickException as exc:

@@ -21,6 +21,7 @@ __all__ = [
     "ReportError",
     "CovarianceError",
     "SimulationError",
+    "TanksynthWarning",
 ]
 
 
@@ -127,3 +128,7 @@ class CovarianceError(TanksynthError, ArithmeticError):
 
 class SimulationError(TanksynthError, RuntimeError):
     """A simulation produced a non-finite state or was given inconsistent inputs."""
+
+
+class TanksynthWarning(UserWarning):
+    """A warning with a meaning for the user (a numerical library's raw warning, explained)."""
