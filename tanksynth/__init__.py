@@ -48,6 +48,11 @@ def clear_cache(disk: bool = False) -> dict[str, int]:
     (`tanksynth.verify.runner`) and of campaign tasks (`tanksynth.verify.campaign`).
     Everything is rebuilt on demand; results do not change.
 
+    Parameters
+    ----------
+    disk : bool
+        Also delete the compiled kernels on disk.
+
     Returns
     -------
     dict

@@ -455,7 +455,13 @@ def verify(directory: str, scheduler: str | None, as_json: bool, runs: int,
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Run the CLI; return the exit code (bad input: 2, one line, no traceback)."""
+    """Run the CLI; return the exit code (bad input: 2, one line, no traceback).
+
+    Parameters
+    ----------
+    argv : list of str, optional
+        Arguments after ``tanksynth`` (default ``sys.argv[1:]``).
+    """
     try:
         with warnings.catch_warnings():
             warnings.showwarning = _show_warning  # one meaningful line, not a library's source line

@@ -231,6 +231,17 @@ def _linearisation(design: Design) -> Any:
 class Results(Mapping[str, Design]):
     """The artefacts of a result directory, by design name (a read-only mapping).
 
+    Parameters
+    ----------
+    directory : Path
+        The result directory.
+    designs : mapping of str to Design
+        Its artefacts by design name.
+    checks : list of dict
+        The rank verdicts of ``checks.json``.
+    plant_record : mapping or None
+        ``plant.json``.
+
     Attributes
     ----------
     directory : Path

@@ -153,7 +153,15 @@ def compile_law(c_source: str | Path, output: str | Path | None = None, *, compi
 
 
 def load_compiled_law(library: str | Path, function: str) -> ca.Function:
-    """Load a compiled law (``casadi.external``) to evaluate the C code from Python."""
+    """Load a compiled law (``casadi.external``) to evaluate the C code from Python.
+
+    Parameters
+    ----------
+    library : str or Path
+        The shared library of `compile_law`.
+    function : str
+        The C symbol (the law's name).
+    """
     path = Path(library)
     if not path.is_file():
         raise ArtefactError(f"compiled law {path} not found")
