@@ -84,3 +84,44 @@ def _api_pages() -> None:
 
 
 _api_pages()
+
+
+# -- known warnings -------------------------------------------------------------------------------
+KNOWN_WARNINGS = [line.strip() for line in (HERE / "known_warnings.txt").read_text(encoding="utf-8")
+                  .splitlines() if line.strip() and not line.startswith("#")]
+_seen_known: set[str] = set()
+
+
+class _KnownWarnings:
+    """A logging filter dropping the warnings of ``known_warnings.txt`` (and noting them)."""
+
+    def filter(self, record) -> bool:
+        import re
+
+        text = record.getMessage()
+        location = getattr(record, "location", None)
+        if location is not None and not isinstance(location, str):
+            from sphinx.util.logging import get_node_location
+
+            location = get_node_location(location)
+        full = f"{location or ''}: {text}"
+        for known in KNOWN_WARNINGS:
+            parts = re.split(r": (?:ERROR|WARNING|CRITICAL): ", known, maxsplit=1)
+            where, message = parts if len(parts) == 2 else ("", known)
+            if message in text and where in full:
+                _seen_known.add(known)
+                return False
+        return True
+
+
+def _write_seen(app, exception) -> None:
+    (Path(app.outdir) / "known_warnings_seen.txt").write_text(
+        "".join(f"{k}\n" for k in sorted(_seen_known)), encoding="utf-8")
+
+
+def setup(app):
+    import logging
+
+    for handler in logging.getLogger("sphinx").handlers:
+        handler.filters.insert(0, _KnownWarnings())
+    app.connect("build-finished", _write_seen)
