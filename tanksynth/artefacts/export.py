@@ -28,7 +28,7 @@ from tanksynth.runtime.laws import rename_law
 
 __all__ = ['c_header', 'ExportedLaw', 'export_law', 'compile_law', 'load_compiled_law',
            'implementation_data', 'mat_contents', 'DERIVED_LAW_METHODS', 'state_feedback_law',
-           'observer_law', 'kalman_step', 'derived_law']
+           'observer_law', 'kalman_step', 'estimator_step', 'derived_law']
 
 
 @dataclass(frozen=True)
@@ -310,7 +310,7 @@ def c_header(name: str, gains: Mapping[str, np.ndarray], data: Mapping[str, Any]
 #: Methods whose law `derived_law` builds from the artefact's gains (the others either carry
 #: their law in the diagnostics or have none to export).
 DERIVED_LAW_METHODS = ("pole_placement", "lmi_placement", "canonical_observer", "luenberger",
-                       "kalman", "ekf")
+                       "kalman", "ekf", "ukf")
 
 
 def _output_at(plant: Any, x: np.ndarray) -> np.ndarray:
@@ -432,7 +432,28 @@ def kalman_step(name: str, plant: Any, tuning: Any, linear: bool) -> ca.Function
     """
     from tanksynth.runtime.estimators.kalman import ExtendedKalmanFilter, KalmanFilter
 
-    est = (KalmanFilter if linear else ExtendedKalmanFilter)(plant, tuning, backend="vm")
+    return estimator_step(name, (KalmanFilter if linear else ExtendedKalmanFilter)(plant, tuning,
+                                                                                   backend="vm"))
+
+
+def estimator_step(name: str, est: Any) -> ca.Function:
+    """The step of a kernel estimator whose state is ``x`` then ``P`` (KF, EKF, UKF), standalone.
+
+    Parameters
+    ----------
+    name : str
+        Function name (a C identifier).
+    est : KernelEstimator
+        The runtime estimator (`tanksynth.runtime.estimators`): its CasADi kernel
+        and its tuning vector (``Q``, ``R``) are built into the Function.
+
+    Returns
+    -------
+    casadi.Function
+        ``x_next, P_next = step(x, P, y, u)`` (``memory`` in and out too when the
+        kernel keeps more state, e.g. on a hybrid plant), as in `kalman_step`.
+    """
+    plant = est.plant
     kernel = est._shared["sx"]
     n = plant.n
     x, P = ca.SX.sym("x", n), ca.SX.sym("P", n, n)
@@ -474,7 +495,7 @@ def derived_law(gains: Mapping[str, np.ndarray], diagnostics: Mapping[str, Any],
     Returns
     -------
     casadi.Function or None
-        `state_feedback_law`, `observer_law` or `kalman_step`; None for a
+        `state_feedback_law`, `observer_law`, `kalman_step` or `estimator_step`; None for a
         method not in `DERIVED_LAW_METHODS` (or a linear design without a gain).
     """
     if method not in DERIVED_LAW_METHODS or getattr(options, "nonlinear", False):
@@ -492,6 +513,13 @@ def derived_law(gains: Mapping[str, np.ndarray], diagnostics: Mapping[str, Any],
                               switch_tol=options.switch_tol, clip=options.clip,
                               operating_point=(x_op, u_op) if method == "kalman" else None)
         return kalman_step(name, plant, tuning, linear=method == "kalman")
+    if method == "ukf":
+        from tanksynth.runtime.estimators.ukf import UKFTuning, UnscentedKalmanFilter
+
+        tuning = UKFTuning(Q=gains["Q"], R=gains["R"], P0=gains["P0"], x0=gains["x0"], ts=spec.ts,
+                           alpha=options.alpha, beta=options.beta, kappa=options.kappa,
+                           redraw=options.redraw, substeps=options.substeps, clip=options.clip)
+        return estimator_step(name, UnscentedKalmanFilter(plant, tuning, backend="vm"))
     lin = linearize(plant, x_op, u_op, ts=spec.ts)
     time_domain = diagnostics.get("time_domain", "continuous" if method == "canonical_observer"
                                   else "discrete")

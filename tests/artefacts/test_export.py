@@ -71,6 +71,14 @@ Q = 1e-9
 R = 1e-6
 P0 = 1e-3
 x0 = [0.38, 0.21, 0.29]
+[[design]]
+name = "ukf"
+method = "ukf"
+Q = 1e-9
+R = 1e-6
+P0 = 1e-4
+alpha = 1.0
+x0 = [0.38, 0.21, 0.29]
 """
 
 X = np.array([0.41, 0.195, 0.305])
@@ -99,7 +107,7 @@ def _np(v) -> np.ndarray:
 
 
 def test_every_linear_design_exports_a_law(out):
-    for name in ("sf", "sfi", "lmi", "obs", "lue", "kf", "ekf"):
+    for name in ("sf", "sfi", "lmi", "obs", "lue", "kf", "ekf", "ukf"):
         for ext in (".casadi", ".c", ".h"):
             assert (out / f"{name}_law{ext}").is_file(), (name, ext)
 
@@ -174,6 +182,22 @@ def test_ekf_step_compiled_matches_the_runtime_filter(out):
     np.testing.assert_allclose(_np(x_next), expected, rtol=1e-12, atol=1e-15)
     np.testing.assert_allclose(np.asarray(P_next), ekf.covariance, rtol=1e-10, atol=1e-18)
     assert np.allclose(np.asarray(P_next), np.asarray(P_next).T)
+
+
+def test_ukf_step_compiled_matches_the_runtime_filter(out):
+    from tanksynth.methods import load_spec
+    from tanksynth.runtime.estimators.ukf import UKFTuning, UnscentedKalmanFilter
+
+    spec = load_spec(out / "spec.toml")
+    g = {k: np.asarray(v) for k, v in read_artefact(out / "ukf.json")["gains"].items()}
+    ukf = UnscentedKalmanFilter(spec.plant, UKFTuning(Q=g["Q"], R=g["R"], P0=g["P0"], x0=g["x0"],
+                                                      ts=1.0, alpha=1.0), backend="vm")
+    x_next, P_next = _compiled(out, "ukf")(g["x0"], g["P0"], Y, U)
+    expected = ukf.step(Y, U)
+    np.testing.assert_allclose(_np(x_next), expected, rtol=1e-12, atol=1e-15)
+    np.testing.assert_allclose(np.asarray(P_next), ukf.covariance, rtol=1e-10, atol=1e-18)
+    # the estimate moved toward the measurement: the correction acted
+    assert np.linalg.norm(_np(x_next)[:2] - Y) < np.linalg.norm(g["x0"][:2] - Y)
 
 
 def test_header_and_mat_agree_in_orientation(out, tmp_path):
