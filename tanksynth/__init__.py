@@ -30,6 +30,7 @@ _EXPORTS = {
     **dict.fromkeys(["load_spec", "parse_spec", "parse_spec_text", "verify_directory",
                      "write_report"], "tanksynth.methods"),
     "Spec": "tanksynth.spec",
+    **dict.fromkeys(["load", "Design", "Results"], "tanksynth.loading"),
     **dict.fromkeys(["controllability_rank", "nonlinear_observability", "observability_rank",
                      "pbh_test", "symbolic_observability"], "tanksynth.analysis.rank"),
 }
@@ -46,6 +47,11 @@ def clear_cache(disk: bool = False) -> dict[str, int]:
     deleted with ``disk=True``), parsed specs of result directories
     (`tanksynth.verify.runner`) and of campaign tasks (`tanksynth.verify.campaign`).
     Everything is rebuilt on demand; results do not change.
+
+    Parameters
+    ----------
+    disk : bool
+        Also delete the compiled kernels on disk.
 
     Returns
     -------

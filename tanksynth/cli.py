@@ -12,6 +12,8 @@ import json
 import os
 import shutil
 import sys
+import warnings
+from contextlib import contextmanager
 from importlib import resources
 from pathlib import Path
 
@@ -36,6 +38,52 @@ class _Fail(Exception):
 
 def _one_line(exc: BaseException) -> str:
     return " ".join(str(exc).split())
+
+
+def _live() -> bool:
+    """Live displays (spinner, bars) work here: not in a notebook without ipywidgets.
+
+    rich needs ipywidgets to animate in Jupyter and otherwise warns (``install
+    "ipywidgets"``); the stage lines are printed either way.
+    """
+    if not _out.is_jupyter:
+        return True
+    import importlib.util
+
+    return importlib.util.find_spec("ipywidgets") is not None
+
+
+@contextmanager
+def _stage(text: str):
+    """Print a line as a stage starts, and a spinner while it runs (on a terminal only)."""
+    _out.print(f"- {text}", markup=False, highlight=False)
+    if not _live():
+        yield
+        return
+    with _out.status(text, spinner="dots"):
+        yield
+
+
+_shown_warnings: set[str] = set()
+
+
+def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:
+    """One line per distinct warning, naming where a library warning came from and what it means."""
+    from tanksynth.errors import TanksynthWarning
+
+    text = _one_line(message)
+    if issubclass(category, TanksynthWarning):
+        out = f"warning: {text}"
+    elif issubclass(category, RuntimeWarning) and ("lambdify" in str(filename) or "numpy" in str(filename)
+                                                   or "scipy" in str(filename)):
+        where = "generated model code" if "lambdify" in str(filename) else Path(str(filename)).name
+        out = (f"warning: numerical: {text} (in {where}): a model or premise was evaluated outside "
+               "its domain (e.g. a negative level), giving NaN there")
+    else:
+        out = f"warning: {category.__name__}: {text} ({Path(str(filename)).name}:{lineno})"
+    if out not in _shown_warnings:
+        _shown_warnings.add(out)
+        click.echo(out, err=True)
 
 
 def _load(spec_path: str | None):
@@ -79,11 +127,12 @@ def _design_all(spec, outdir: Path, export: tuple[str, ...]) -> tuple[list[Path]
 
     results, infeasible, refused = [], [], []
     seen: dict[str, list[str]] = {}
-    for design in spec.designs:
+    for k, design in enumerate(spec.designs, 1):
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always", DesignWarning)
             try:
-                results.append((design, METHODS[design.method].design(spec, design)))
+                with _stage(f"designing {design.name} ({design.method}) [{k}/{len(spec.designs)}]"):
+                    results.append((design, METHODS[design.method].design(spec, design)))
             except InfeasibleDesign as exc:
                 infeasible.append(f"{design.name}: {_one_line(exc)}")
                 refused.append(refusal(design.name, design.method, exc))
@@ -103,13 +152,29 @@ def _design_all(spec, outdir: Path, export: tuple[str, ...]) -> tuple[list[Path]
     written = []
     for design, result in results:
         formats = list(export)
+        derived = None
         if "law" in formats and "law" not in result.diagnostics:
             formats.remove("law")
-            _out.print(f"{design.name}: no control law to export (method {design.method})",
-                       markup=False, highlight=False)
+            derived = _derived_law(spec, design, result)
         written.append(write_artefact(result, outdir, spec.sha256, export=formats,
                                       plant_record_sha256=plant_sha))
+        if derived is not None:  # the law (or estimator step) built from the written gains
+            from tanksynth.artefacts.export import export_law
+
+            export_law(derived, outdir, name=f"{design.name}_law")
     return written, infeasible
+
+
+def _derived_law(spec, design, result):
+    """The law / estimator step of a design without one in its diagnostics (None: says so)."""
+    from tanksynth.artefacts.export import derived_law
+
+    law = derived_law(result.gains, result.diagnostics, design.method, spec, design.config,
+                      f"{design.name}_law")
+    if law is None:
+        _out.print(f"{design.name}: no control law or estimator step to export (method "
+                   f"{design.method})", markup=False, highlight=False)
+    return law
 
 
 @click.group(context_settings={"help_option_names": ["-h", "--help"]})
@@ -120,13 +185,21 @@ def cli() -> None:
 
 @cli.command()
 @click.option("--json", "as_json", is_flag=True, help="Print JSON instead of tables.")
-def plants(as_json: bool) -> None:
-    """List the built-in plants, their parameters and units."""
+@click.option("--markdown", is_flag=True, help="Print the families, their options and the custom "
+                                               "plant as Markdown (the README's text).")
+def plants(as_json: bool, markdown: bool) -> None:
+    """List the plant families: their options, parameters and units, and the custom plant."""
+    from tanksynth.docgen import custom_plant_markdown, plant_families, plants_markdown
     from tanksynth.plants import BUILTIN_PLANTS
 
+    if markdown:
+        click.echo(plants_markdown(), nl=False)
+        return
     summaries = [builder().summary() for builder in BUILTIN_PLANTS.values()]
+    families = {f["name"]: f for f in plant_families()}
     if as_json:
-        click.echo(json.dumps(summaries, indent=2))
+        click.echo(json.dumps([{**s, "options": families[s["name"]]["options"]} for s in summaries],
+                              indent=2))
         return
     for s in summaries:
         table = Table(title=f"{s['name']}: {s['description']}")
@@ -141,22 +214,81 @@ def plants(as_json: bool) -> None:
                    + "; inputs: " + ", ".join(f"{v['name']} [{v['unit']}]" for v in s["inputs"])
                    + "; outputs: " + ", ".join(f"{v['name']} [{v['unit']}]" for v in s["outputs"]))
         _out.print(signals, markup=False, highlight=False)
+        options = families[s["name"]]["options"]
+        _out.print("options ([plant] keys): " + ("; ".join(
+            f"{o['name']} = {o['default']} ({o['type']}): {o['meaning']}" for o in options)
+            if options else "none"), markup=False, highlight=False)
+        _out.print()
+    _out.print(custom_plant_markdown(level=2), markup=False, highlight=False)
+
+
+@cli.command()
+@click.argument("name", required=False)
+@click.option("--json", "as_json", is_flag=True, help="Print JSON instead of tables.")
+@click.option("--markdown", is_flag=True, help="Print Markdown (the README's text).")
+def methods(name: str | None, as_json: bool, markdown: bool) -> None:
+    """List the design methods; with NAME, each of its options (type, default, unit, meaning)."""
+    from tanksynth.docgen import method_catalogue, method_markdown, method_options, methods_markdown
+
+    if markdown:
+        click.echo(method_markdown(name) if name else methods_markdown(), nl=False)
+        return
+    if name is None:
+        cat = method_catalogue()
+        if as_json:
+            click.echo(json.dumps(cat, indent=2))
+            return
+        table = Table(title="Design methods (tanksynth methods NAME: its options)")
+        for col in ("method", "kind", "designs"):
+            table.add_column(col, overflow="fold")
+        for m in cat:
+            table.add_row(m["name"], " / ".join(m["kinds"]), m["summary"])
+        _out.print(table)
+        return
+    from tanksynth.methods import method
+
+    row = method(name)  # SpecError (exit 2) naming the methods for an unknown name
+    docs = method_options(name)
+    if as_json:
+        click.echo(json.dumps({"name": row.name, "kinds": list(row.kinds), "summary": row.summary,
+                               "options": docs}, indent=2))
+        return
+    from rich.markup import escape
+
+    table = Table(title=escape(f"{row.name} ({' / '.join(row.kinds)}): {row.summary}"))
+    for col in ("option", "type", "default", "unit", "meaning"):
+        table.add_column(col, overflow="fold")
+    for d in docs:
+        table.add_row(*(escape(d[k].replace("``", "")) for k in ("name", "type")),
+                      "[bold]required[/]" if d["required"] else escape(d["default"]),
+                      *(escape(d[k].replace("``", "")) for k in ("unit", "meaning")))
+    _out.print(table if docs else f"{row.name}: no options")
 
 
 @cli.command()
 @click.argument("spec", type=click.Path(dir_okay=False))
 @click.option("--json", "as_json", is_flag=True, help="Print JSON instead of a table.")
-def check(spec: str, as_json: bool) -> None:
+@click.option("-o", "--output", "outdir", default=None, type=click.Path(file_okay=False),
+              help="Also write the verdicts to DIR/checks.json (the file the report reads).")
+def check(spec: str, as_json: bool, outdir: str | None) -> None:
     """Observability/controllability rank conditions of SPEC's plant."""
     from tanksynth.artefacts.io import to_jsonable
     from tanksynth.analysis.checks import rank_conditions
 
     s = _load(spec)
     checks = rank_conditions(s.plant, s.x0, s.ts, s.given_u0)
+    text = json.dumps(to_jsonable([c.as_dict() for c in checks]), indent=2)
+    if outdir is not None:
+        from tanksynth.artefacts.atomic import atomic_write
+
+        Path(outdir).mkdir(parents=True, exist_ok=True)
+        atomic_write(Path(outdir) / "checks.json", text + "\n")
     if as_json:
-        click.echo(json.dumps(to_jsonable([c.as_dict() for c in checks]), indent=2))
+        click.echo(text)
     else:
         _print_checks(checks)
+        if outdir is not None:
+            _out.print(f"rank verdicts: {Path(outdir) / 'checks.json'}", markup=False, highlight=False)
     if any(c.passed is False for c in checks):
         raise _Fail(EXIT_FAILED, "some rank conditions fail")
 
@@ -209,7 +341,8 @@ def run(spec: str | None, outdir: str, pdf: bool | None) -> None:
     have_tex = all(shutil.which(tool) for tool in ("pdflatex", "latexmk"))
     if pdf is None:
         pdf = spec is None and have_tex
-    checks = rank_conditions(s.plant, s.x0, s.ts, s.given_u0)
+    with _stage("rank conditions (Kalman, PBH, nonlinear observability)"):
+        checks = rank_conditions(s.plant, s.x0, s.ts, s.given_u0)
     _print_checks(checks)
     if s.designs:
         _out.print(f"designing {len(s.designs)} gain(s): "
@@ -224,8 +357,12 @@ def run(spec: str | None, outdir: str, pdf: bool | None) -> None:
     _out.print(f"rank verdicts: {checks_path}", markup=False, highlight=False)
     verdicts = []
     if written:
-        _out.print("verifying every artefact on the nonlinear plant", markup=False, highlight=False)
-        verdicts = verify_directory(out)
+        from rich.progress import Progress
+
+        _out.print("- verifying every artefact on the nonlinear plant", markup=False, highlight=False)
+        with Progress(console=_out, transient=True, disable=not _live()) as bar:
+            task = bar.add_task("verifying artefacts", total=None)
+            verdicts = verify_directory(out, progress=lambda d, n: bar.update(task, completed=d, total=n))
         _write_report(out, pdf)
         _print_summary(written)
         if spec is None and not have_tex:
@@ -272,7 +409,8 @@ def _print_summary(paths: list[Path]) -> None:
 def _write_report(directory: Path, pdf: bool):
     from tanksynth.methods import write_report
 
-    res = write_report(directory, pdf=pdf)
+    with _stage("writing the report (figures, LaTeX" + (", PDF with latexmk)" if pdf else ")")):
+        res = write_report(directory, pdf=pdf)
     if res.pdf is not None:
         _out.print(f"report: {res.tex}, {res.pdf.name} ({res.pages} pages, LaTeX "
                    f"{res.latex_seconds:.1f} s)", markup=False, highlight=False)
@@ -322,7 +460,7 @@ def verify(directory: str, scheduler: str | None, as_json: bool, runs: int,
     for name in scenarios:
         scenario(name)  # unknown names are bad input (exit 2) before any work
     quiet = as_json
-    with Progress(console=_out, transient=True, disable=quiet) as bar:
+    with Progress(console=_out, transient=True, disable=quiet or not _live()) as bar:
         task = bar.add_task("verifying artefacts", total=None)
         verdicts = verify_directory(directory, scheduler=scheduler,
                                     progress=lambda d, n: bar.update(task, completed=d, total=n),
@@ -333,7 +471,7 @@ def verify(directory: str, scheduler: str | None, as_json: bool, runs: int,
         names = list(scenarios) or [s for s in SCENARIOS if SCENARIOS[s].applies_to(spec.plant)]
         tasks = campaign_tasks(spec.text or (Path(directory) / "spec.toml").read_text(encoding="utf-8"),
                                [d for _, d in docs], names, runs, seed=seed, runners=RUNNERS)
-        with Progress(console=_out, transient=True, disable=quiet) as bar:
+        with Progress(console=_out, transient=True, disable=quiet or not _live()) as bar:
             task = bar.add_task("campaign", total=len(tasks))
             table = run_campaign(tasks, scheduler=scheduler, workers=workers,
                                  progress=lambda d, n: bar.update(task, completed=d, total=n),
@@ -356,9 +494,18 @@ def verify(directory: str, scheduler: str | None, as_json: bool, runs: int,
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Run the CLI; return the exit code (bad input: 2, one line, no traceback)."""
+    """Run the CLI; return the exit code (bad input: 2, one line, no traceback).
+
+    Parameters
+    ----------
+    argv : list of str, optional
+        Arguments after ``tanksynth`` (default ``sys.argv[1:]``).
+    """
     try:
-        cli.main(args=argv, prog_name="tanksynth", standalone_mode=False)
+        with warnings.catch_warnings():
+            warnings.showwarning = _show_warning  # one meaningful line, not a library's source line
+            _shown_warnings.clear()
+            cli.main(args=argv, prog_name="tanksynth", standalone_mode=False)
     except click.exceptions.Exit as exc:
         return exc.exit_code
     except click.ClickException as exc:

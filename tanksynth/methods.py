@@ -102,6 +102,13 @@ class Method:
         Every `DesignWarning` (operating point, actuator range, implausible
         parameters, unstable result, the method's own) is issued and listed in
         ``diagnostics["warnings"]`` (`tanksynth.design.audit.designed`).
+
+        Parameters
+        ----------
+        spec : Spec
+            The validated spec.
+        design : DesignSpec
+            One of its ``[[design]]`` entries (of this method).
         """
         return designed(self.adapter.run, spec, design)
 
@@ -248,7 +255,13 @@ ADAPTERS: Mapping[str, DesignMethod] = MappingProxyType({row.name: row.adapter f
 
 
 def method(name: str) -> Method:
-    """The row of a method; `SpecError` (listing the methods) for an unknown name."""
+    """The row of a method; `SpecError` (listing the methods) for an unknown name.
+
+    Parameters
+    ----------
+    name : str
+        A spec's ``method`` value.
+    """
     from tanksynth.errors import SpecError
 
     if name not in METHODS:
@@ -257,35 +270,89 @@ def method(name: str) -> Method:
 
 
 def load_spec(path: str | Path) -> Spec:
-    """Read and validate a TOML spec, every design's options included (see `tanksynth.spec`)."""
+    """Read and validate a TOML spec, every design's options included (see `tanksynth.spec`).
+
+    Parameters
+    ----------
+    path : str or Path
+        The TOML spec.
+    """
     return _load_spec(path, methods=ADAPTERS)
 
 
 def parse_spec(table: Mapping[str, Any], source: str | None = None, sha256: str = "") -> Spec:
-    """Validate a spec given as a mapping, every design's options included."""
+    """Validate a spec given as a mapping, every design's options included.
+
+    Parameters
+    ----------
+    table : mapping
+        The spec as parsed TOML.
+    source : str, optional
+        Where it came from (for messages).
+    sha256 : str
+        sha256 of the spec text (provenance).
+    """
     return _parse_spec(table, source, sha256, methods=ADAPTERS)
 
 
 def parse_spec_text(data: bytes | str, source: str | None = None) -> Spec:
-    """Validate a spec given as TOML text, every design's options included."""
+    """Validate a spec given as TOML text, every design's options included.
+
+    Parameters
+    ----------
+    data : bytes or str
+        TOML text.
+    source : str, optional
+        Where it came from (for messages).
+    """
     return _parse_spec_text(data, source, methods=ADAPTERS)
 
 
 def design(spec: Spec, entry: DesignSpec) -> DesignResult:
-    """Design one ``[[design]]`` entry of a spec with its method's row."""
+    """Design one ``[[design]]`` entry of a spec with its method's row.
+
+    Parameters
+    ----------
+    spec : Spec
+        The validated spec.
+    entry : DesignSpec
+        One of its ``[[design]]`` entries.
+    """
     return method(entry.method).design(spec, entry)
 
 
 def verify_directory(directory: str | Path, scheduler: str | None = None,
                      progress: Callable[[int, int], None] | None = None,
                      connect_timeout: float = 10.0) -> list[Verdict]:
-    """Run the verdict of every artefact of a result directory (see `tanksynth.verify.runner`)."""
+    """Run the verdict of every artefact of a result directory (see `tanksynth.verify.runner`).
+
+    Parameters
+    ----------
+    directory : str or Path
+        A result directory.
+    scheduler : str, optional
+        Dask scheduler address (``tcp://host:port``); default this machine.
+    progress : callable, optional
+        ``progress(done, total)`` after each artefact.
+    connect_timeout : float
+        Seconds to wait for the scheduler (s).
+    """
     return _verify_directory(directory, METHODS, scheduler=scheduler, progress=progress,
                              connect_timeout=connect_timeout)
 
 
 def write_report(directory: str | Path, pdf: bool = False, timeout: float = 180.0) -> Any:
-    """Write the design report of a result directory (see `tanksynth.reports.write_report`)."""
+    """Write the design report of a result directory (see `tanksynth.reports.write_report`).
+
+    Parameters
+    ----------
+    directory : str or Path
+        A result directory.
+    pdf : bool
+        Also compile ``report.pdf`` (latexmk/pdflatex).
+    timeout : float
+        LaTeX time limit (s).
+    """
     from tanksynth.reports import write_report as _write_report
 
     return _write_report(directory, pdf, timeout, statements=STATEMENTS)

@@ -20,6 +20,7 @@ The premise bounds and the multiple model built on this form are
 from __future__ import annotations
 
 import itertools
+import warnings
 from dataclasses import dataclass, field
 from typing import Any, Callable, Mapping, Sequence
 
@@ -304,9 +305,21 @@ class QuasiLPV:
         fn = self._lambdified("atoms", lambda: sp.lambdify(
             [self.states], list(self.atoms), modules=_NUMPY))
         X = np.atleast_2d(np.asarray(X, dtype=float))
-        vals = fn(X.T)
-        return np.column_stack([np.broadcast_to(np.asarray(v, dtype=float), (X.shape[0],))
-                                for v in vals])
+        with np.errstate(invalid="ignore", divide="ignore"):
+            vals = fn(X.T)
+        out = np.column_stack([np.broadcast_to(np.asarray(v, dtype=float), (X.shape[0],))
+                               for v in vals])
+        bad = ~np.all(np.isfinite(out), axis=1) & np.all(np.isfinite(X), axis=1)
+        if bad.any():
+            from tanksynth.errors import TanksynthWarning
+
+            k = int(np.flatnonzero(bad)[0])
+            point = ", ".join(f"{s} = {v:.4g}" for s, v in zip(self.states, X[k]))
+            warnings.warn(TanksynthWarning(
+                f"Takagi-Sugeno premises undefined (NaN) at {int(bad.sum())} of {X.shape[0]} "
+                f"point(s), first at {point}: the state left the domain where the premises are "
+                "defined (e.g. a negative level under a square root)"), stacklevel=2)
+        return out
 
     def premise_values(self, X: np.ndarray) -> np.ndarray:
         """``z_k(x)`` at M points: (M, n) -> (M, p)."""

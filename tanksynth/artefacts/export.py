@@ -1,4 +1,12 @@
-"""Exports beside an artefact: C header of the gains, control laws as CasADi files and generated C."""
+"""Exports beside an artefact: C header of the gains, control laws as CasADi files and generated C,
+and the contents of the ``.mat`` file.
+
+The ``.mat`` file and the C header carry what is needed to implement the design
+elsewhere, besides the gains: the sampling period ``ts``, the operating point
+``x_op``/``u_op`` (also as ``x0``/``u0`` unless a gain has that name, e.g. an
+estimator's initial estimate) and the state, input and output names and units
+(`implementation_data`). Vectors are columns in both (MATLAB's orientation).
+"""
 
 from __future__ import annotations
 
@@ -9,7 +17,7 @@ import subprocess
 import tempfile
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Mapping, Sequence
+from typing import Any, Mapping, Sequence
 
 import casadi as ca
 import numpy as np
@@ -18,7 +26,9 @@ from tanksynth.artefacts.atomic import commit
 from tanksynth.errors import ArtefactError
 from tanksynth.runtime.laws import rename_law
 
-__all__ = ['c_header', 'ExportedLaw', 'export_law', 'compile_law', 'load_compiled_law']
+__all__ = ['c_header', 'ExportedLaw', 'export_law', 'compile_law', 'load_compiled_law',
+           'implementation_data', 'mat_contents', 'DERIVED_LAW_METHODS', 'state_feedback_law',
+           'observer_law', 'kalman_step', 'estimator_step', 'derived_law']
 
 
 @dataclass(frozen=True)
@@ -143,18 +153,118 @@ def compile_law(c_source: str | Path, output: str | Path | None = None, *, compi
 
 
 def load_compiled_law(library: str | Path, function: str) -> ca.Function:
-    """Load a compiled law (``casadi.external``) to evaluate the C code from Python."""
+    """Load a compiled law (``casadi.external``) to evaluate the C code from Python.
+
+    Parameters
+    ----------
+    library : str or Path
+        The shared library of `compile_law`.
+    function : str
+        The C symbol (the law's name).
+    """
     path = Path(library)
     if not path.is_file():
         raise ArtefactError(f"compiled law {path} not found")
     return ca.external(function, str(path.resolve()))
 
 
-def c_header(name: str, gains: Mapping[str, np.ndarray]) -> str:
+def implementation_data(diagnostics: Mapping[str, Any], plant_record: Mapping[str, Any] | None
+                        ) -> dict[str, Any]:
+    """Sampling period, operating point and signal names/units of a design, for exports.
+
+    Parameters
+    ----------
+    diagnostics : mapping
+        The design's diagnostics (``equilibrium`` gives ``x0``/``u0`` when the
+        design computed it; ``ts`` or ``sampling_period`` the period).
+    plant_record : mapping or None
+        ``plant.json`` of the result directory (`tanksynth.artefacts.io.write_plant_record`):
+        operating point, sampling period, signal names and units.
+
+    Returns
+    -------
+    dict
+        ``ts`` (s, NaN without sampling), ``x_op`` (state units), ``u_op`` (input
+        units, NaN entries when unknown), and ``state_names``, ``state_units``,
+        ``input_names``, ``input_units``, ``output_names``, ``output_units``
+        (lists of str, empty when unknown).
+    """
+    record = plant_record or {}
+    eq = diagnostics.get("equilibrium") if isinstance(diagnostics, Mapping) else None
+    eq = eq if isinstance(eq, Mapping) else {}
+    op = record.get("operating_point") or {}
+    ts = record.get("ts", diagnostics.get("ts", diagnostics.get("sampling_period")))
+    summary = record.get("plant") or {}
+    out: dict[str, Any] = {"ts": float("nan") if ts is None else float(ts)}
+    x_op = eq.get("x0", op.get("x"))
+    u_op = eq.get("u0", op.get("u"))
+    n_inputs = len(summary.get("inputs", ()))
+    out["x_op"] = np.asarray(x_op if x_op is not None else [], dtype=float).reshape(-1)
+    out["u_op"] = (np.asarray(u_op, dtype=float).reshape(-1) if u_op is not None
+                   else np.full(n_inputs, np.nan))
+    for what in ("state", "input", "output"):
+        signals = summary.get(f"{what}s", ())
+        out[f"{what}_names"] = [str(v["name"]) for v in signals]
+        out[f"{what}_units"] = [str(v["unit"]) for v in signals]
+    return out
+
+
+def mat_contents(gains: Mapping[str, np.ndarray], data: Mapping[str, Any]) -> dict[str, Any]:
+    """The variables of ``<name>.mat``: the gains and `implementation_data`, vectors as columns.
+
+    Parameters
+    ----------
+    gains : mapping of str to ndarray
+        The design's gains (a 1-D gain becomes an n x 1 column).
+    data : mapping
+        `implementation_data` of the design.
+
+    Returns
+    -------
+    dict
+        For ``scipy.io.savemat``: arrays as columns or matrices, names and
+        units as n x 1 cell arrays of strings, ``ts`` a 1 x 1 double; ``x0``
+        and ``u0`` the operating point unless a gain has that name.
+    """
+    def column(value: Any) -> np.ndarray:
+        arr = np.asarray(value, dtype=float)
+        return arr.reshape(-1, 1) if arr.ndim <= 1 else arr
+
+    out: dict[str, Any] = {k: column(v) for k, v in gains.items()}
+    out["ts"] = np.array([[float(data["ts"])]])
+    out["x_op"], out["u_op"] = column(data["x_op"]), column(data["u_op"])
+    out.setdefault("x0", out["x_op"])
+    out.setdefault("u0", out["u_op"])
+    for key in ("state_names", "state_units", "input_names", "input_units", "output_names",
+                "output_units"):
+        cells = np.empty((len(data[key]), 1), dtype=object)
+        for i, text in enumerate(data[key]):
+            cells[i, 0] = text
+        out[key] = cells
+    return out
+
+
+def c_header(name: str, gains: Mapping[str, np.ndarray], data: Mapping[str, Any] | None = None) -> str:
     """A C header with every gain as a ``static const double`` array (row-major).
 
     Each gain gets ``<NAME>_<GAIN>_NDIM`` and one ``_DIM<k>`` macro per axis
     (``_ROWS``/``_COLS`` too for 1-D and 2-D gains; a 1-D gain is a column).
+
+    Parameters
+    ----------
+    name : str
+        The design's name (prefix of every symbol).
+    gains : mapping of str to ndarray
+        The gains.
+    data : mapping, optional
+        `implementation_data`: adds ``<NAME>_TS`` (s), the arrays ``x_op`` and
+        ``u_op`` (columns, as in the ``.mat`` file) and a comment listing the
+        states, inputs and outputs with their units.
+
+    Returns
+    -------
+    str
+        The header text.
     """
     def ident(text: str) -> str:
         out = "".join(c if c.isalnum() else "_" for c in text)
@@ -164,7 +274,18 @@ def c_header(name: str, gains: Mapping[str, np.ndarray]) -> str:
     guard = "TANKSYNTH_" + stem.upper() + "_H"
     lines = [f"/* Gains of design '{name}', generated by tanksynth. Row-major. */",
              f"#ifndef {guard}", f"#define {guard}", ""]
-    for gname, value in gains.items():
+    arrays = dict(gains)
+    if data is not None:
+        lines += ["#include <math.h> /* NAN: an entry of the operating point that is unknown */", ""]
+        for what in ("state", "input", "output"):
+            listed = ", ".join(f"{n} [{u}]" for n, u in zip(data[f"{what}_names"], data[f"{what}_units"]))
+            lines.append(f"/* {what}s: {listed or 'unknown'} */")
+        if np.isfinite(data["ts"]):
+            lines.append(f"#define {stem.upper()}_TS {float(data['ts'])!r} /* sampling period, s */")
+        lines.append("")
+        arrays.setdefault("x_op", data["x_op"])
+        arrays.setdefault("u_op", data["u_op"])
+    for gname, value in arrays.items():
         arr = np.asarray(value, dtype=float)
         if arr.ndim == 0:
             arr = arr.reshape(1, 1)
@@ -178,8 +299,240 @@ def c_header(name: str, gains: Mapping[str, np.ndarray]) -> str:
         if arr.ndim == 2:
             lines.append(f"#define {macro}_ROWS {arr.shape[0]}")
             lines.append(f"#define {macro}_COLS {arr.shape[1]}")
-        values = ", ".join(repr(float(v)) for v in arr.ravel())
+        values = ", ".join(repr(float(v)) if np.isfinite(v) else "NAN" for v in arr.ravel())
         lines.append(f"static const double {cname}[{max(arr.size, 1)}] = {{{values or '0.0'}}};")
         lines.append("")
     lines.append(f"#endif /* {guard} */")
     return "\n".join(lines) + "\n"
+
+
+# ------------------------------------------------------------------ laws derived from gains
+#: Methods whose law `derived_law` builds from the artefact's gains (the others either carry
+#: their law in the diagnostics or have none to export).
+DERIVED_LAW_METHODS = ("pole_placement", "lmi_placement", "canonical_observer", "luenberger",
+                       "kalman", "ekf", "ukf")
+
+
+def _output_at(plant: Any, x: np.ndarray) -> np.ndarray:
+    values = dict(zip(plant.x, (float(v) for v in x)))
+    return np.array(plant.h_numeric.subs(values), dtype=float).reshape(-1)
+
+
+def state_feedback_law(name: str, K: np.ndarray, x_op: np.ndarray, u_op: np.ndarray,
+                       integral: Mapping[str, Any] | None = None, Br: np.ndarray | None = None,
+                       continuous: bool = False) -> ca.Function:
+    """The state feedback ``u = u_op - K (x - x_op)`` of a linear design, with integral action.
+
+    Parameters
+    ----------
+    name : str
+        Function name (a C identifier).
+    K : ndarray
+        The gain, m x n, or m x (n + p) with integral action (input units per
+        state unit).
+    x_op, u_op : ndarray
+        Operating point (state and input units).
+    integral : mapping, optional
+        The design's ``integral`` diagnostics (``C1``, ``augmented_A``) when
+        the gain has integral action.
+    Br : ndarray, optional
+        Reference input matrix of the augmented system ((n + p) x p).
+    continuous : bool
+        Continuous-time design: the integrator output is ``z_dot``, not ``z_next``.
+
+    Returns
+    -------
+    casadi.Function
+        ``u = law(x)``; with integral action ``u, z_next = law(x, z, y_r)``
+        (``z_dot`` in continuous time), ``u = u_op - K1 (x - x_op) - K2 z`` and
+        the integrators as designed (``z_next = z + (y_r - C1 x)`` on the ZOH
+        model; ``y_r`` the references of the tracked outputs).
+    """
+    K = np.asarray(K, dtype=float)
+    x_op, u_op = np.asarray(x_op, dtype=float), np.asarray(u_op, dtype=float)
+    n = x_op.size
+    x = ca.SX.sym("x", n)
+    if integral is None:
+        u = ca.DM(u_op) - ca.DM(K) @ (x - ca.DM(x_op))
+        return ca.Function(name, [x], [u], ["x"], ["u"])
+    Aa, C1 = np.asarray(integral["augmented_A"], dtype=float), np.asarray(integral["C1"], dtype=float)
+    p = C1.shape[0]
+    Br = np.vstack([np.zeros((n, p)), np.eye(p)]) if Br is None else np.asarray(Br, dtype=float)
+    z, r = ca.SX.sym("z", p), ca.SX.sym("y_r", p)
+    dx = x - ca.DM(x_op)
+    u = ca.DM(u_op) - ca.DM(K[:, :n]) @ dx - ca.DM(K[:, n:]) @ z
+    z_new = ca.DM(Aa[n:, :n]) @ dx + ca.DM(Aa[n:, n:]) @ z + ca.DM(Br[n:]) @ (r - ca.DM(C1 @ x_op))
+    out = "z_dot" if continuous else "z_next"
+    return ca.Function(name, [x, z, r], [u, z_new], ["x", "z", "y_r"], ["u", out])
+
+
+def observer_law(name: str, A: np.ndarray, B: np.ndarray, C: np.ndarray, L: np.ndarray,
+                 x_op: np.ndarray, u_op: np.ndarray, y_op: np.ndarray, form: str = "predictor"
+                 ) -> ca.Function:
+    """One step of a linear (Luenberger) observer about the operating point.
+
+    Parameters
+    ----------
+    name : str
+        Function name (a C identifier).
+    A, B, C : ndarray
+        The model (``Ad, Bd`` in discrete time, ``F, B`` in continuous time).
+    L : ndarray
+        Observer gain (n x q, state per output units).
+    x_op, u_op, y_op : ndarray
+        Operating point and the output there (state, input, output units).
+    form : str
+        ``"predictor"``: ``x_next = x_op + A dx + B du + L (dy - C dx)``;
+        ``"current"``: predict with ``A, B``, then correct with the new ``y``;
+        ``"continuous"``: ``x_hat_dot = A dx + B du + L (dy - C dx)``.
+
+    Returns
+    -------
+    casadi.Function
+        ``x_hat_next = step(x_hat, u, y)`` (``x_hat_dot`` in continuous time):
+        in the current form ``u`` is the input applied over the last period
+        and ``y`` the new measurement.
+    """
+    A, B, C, L = (np.asarray(v, dtype=float) for v in (A, B, C, L))
+    x_op, u_op, y_op = (np.asarray(v, dtype=float) for v in (x_op, u_op, y_op))
+    xh, u, y = ca.SX.sym("x_hat", A.shape[0]), ca.SX.sym("u", B.shape[1]), ca.SX.sym("y", C.shape[0])
+    dx, du, dy = xh - ca.DM(x_op), u - ca.DM(u_op), y - ca.DM(y_op)
+    if form == "current":
+        xp = ca.DM(A) @ dx + ca.DM(B) @ du
+        new = ca.DM(x_op) + xp + ca.DM(L) @ (dy - ca.DM(C) @ xp)
+    else:
+        new = ca.DM(A) @ dx + ca.DM(B) @ du + ca.DM(L) @ (dy - ca.DM(C) @ dx)
+        new = new if form == "continuous" else ca.DM(x_op) + new
+    out = "x_hat_dot" if form == "continuous" else "x_hat_next"
+    return ca.Function(name, [xh, u, y], [new], ["x_hat", "u", "y"], [out])
+
+
+def kalman_step(name: str, plant: Any, tuning: Any, linear: bool) -> ca.Function:
+    """The (extended) Kalman filter step the runtime runs, as a standalone Function.
+
+    Parameters
+    ----------
+    name : str
+        Function name (a C identifier).
+    plant : Plant
+        The spec's plant.
+    tuning : KalmanTuning
+        ``Q, R, P0, x0``, sampling and model options (`tanksynth.runtime.estimators.kalman`).
+    linear : bool
+        Kalman filter on the ZOH linearisation (``tuning.operating_point``) instead of the EKF.
+
+    Returns
+    -------
+    casadi.Function
+        ``x_next, P_next = step(x, P, y, u)``: from ``x(k-1|k-1)``, ``P(k-1|k-1)``,
+        the input held over the period and the new measurement, ``x(k|k)`` and
+        ``P(k|k)`` (``Q`` and ``R`` built in). A hybrid plant adds the input
+        and output ``memory`` (the kept Jacobian across a switching surface;
+        start with zeros).
+    """
+    from tanksynth.runtime.estimators.kalman import ExtendedKalmanFilter, KalmanFilter
+
+    return estimator_step(name, (KalmanFilter if linear else ExtendedKalmanFilter)(plant, tuning,
+                                                                                   backend="vm"))
+
+
+def estimator_step(name: str, est: Any) -> ca.Function:
+    """The step of a kernel estimator whose state is ``x`` then ``P`` (KF, EKF, UKF), standalone.
+
+    Parameters
+    ----------
+    name : str
+        Function name (a C identifier).
+    est : KernelEstimator
+        The runtime estimator (`tanksynth.runtime.estimators`): its CasADi kernel
+        and its tuning vector (``Q``, ``R``) are built into the Function.
+
+    Returns
+    -------
+    casadi.Function
+        ``x_next, P_next = step(x, P, y, u)`` (``memory`` in and out too when the
+        kernel keeps more state, e.g. on a hybrid plant), as in `kalman_step`.
+    """
+    plant = est.plant
+    kernel = est._shared["sx"]
+    n = plant.n
+    x, P = ca.SX.sym("x", n), ca.SX.sym("P", n, n)
+    y, u = ca.SX.sym("y", plant.q), ca.SX.sym("u", plant.m)
+    extra = kernel.size1_in(0) - n - n * n
+    mem = ca.SX.sym("memory", extra)
+    params = ca.DM(np.asarray(est._params(), dtype=float))
+    state = ca.vertcat(x, ca.reshape(P, n * n, 1), mem)
+    new = kernel(state, y, u, params)[0]
+    outs = [new[:n], ca.reshape(new[n:n + n * n], n, n)]
+    ins, names_in, names_out = [x, P, y, u], ["x", "P", "y", "u"], ["x_next", "P_next"]
+    if extra:
+        ins.append(mem)
+        names_in.append("memory")
+        outs.append(new[n + n * n:])
+        names_out.append("memory_next")
+    return ca.Function(name, ins, outs, names_in, names_out)
+
+
+def derived_law(gains: Mapping[str, np.ndarray], diagnostics: Mapping[str, Any], method: str,
+                spec: Any, options: Any, name: str) -> ca.Function | None:
+    """The law or estimator step of a design whose artefact does not carry one, from its gains.
+
+    Parameters
+    ----------
+    gains : mapping of str to ndarray
+        The design's gains.
+    diagnostics : mapping
+        Its diagnostics (equilibrium, time domain, integral action, form).
+    method : str
+        Its method.
+    spec : Spec
+        The spec it was designed from (plant, operating point, sampling).
+    options : MethodOptions
+        Its validated options.
+    name : str
+        Function name (a C identifier).
+
+    Returns
+    -------
+    casadi.Function or None
+        `state_feedback_law`, `observer_law`, `kalman_step` or `estimator_step`; None for a
+        method not in `DERIVED_LAW_METHODS` (or a linear design without a gain).
+    """
+    if method not in DERIVED_LAW_METHODS or getattr(options, "nonlinear", False):
+        return None
+    from tanksynth.analysis.linearize import equilibrium_input, linearize
+
+    plant = spec.plant
+    eq = equilibrium_input(plant, spec.x0, spec.given_u0)
+    x_op, u_op = np.asarray(spec.x0, dtype=float), np.asarray(eq.u0, dtype=float)
+    if method in ("kalman", "ekf"):
+        from tanksynth.runtime.estimators.kalman import KalmanTuning
+
+        tuning = KalmanTuning(Q=gains["Q"], R=gains["R"], P0=gains["P0"], x0=gains["x0"], ts=spec.ts,
+                              substeps=options.substeps, jacobian_eps=options.jacobian_eps,
+                              switch_tol=options.switch_tol, clip=options.clip,
+                              operating_point=(x_op, u_op) if method == "kalman" else None)
+        return kalman_step(name, plant, tuning, linear=method == "kalman")
+    if method == "ukf":
+        from tanksynth.runtime.estimators.ukf import UKFTuning, UnscentedKalmanFilter
+
+        tuning = UKFTuning(Q=gains["Q"], R=gains["R"], P0=gains["P0"], x0=gains["x0"], ts=spec.ts,
+                           alpha=options.alpha, beta=options.beta, kappa=options.kappa,
+                           redraw=options.redraw, substeps=options.substeps, clip=options.clip)
+        return estimator_step(name, UnscentedKalmanFilter(plant, tuning, backend="vm"))
+    lin = linearize(plant, x_op, u_op, ts=spec.ts)
+    time_domain = diagnostics.get("time_domain", "continuous" if method == "canonical_observer"
+                                  else "discrete")
+    if method == "luenberger":
+        time_domain = "continuous" if diagnostics.get("form") == "continuous" else "discrete"
+    continuous = time_domain == "continuous"
+    A, B = (lin.F, lin.B) if continuous else (lin.Ad, lin.Bd)
+    if "K" in gains:
+        integral = diagnostics.get("integral")
+        return state_feedback_law(name, gains["K"], x_op, u_op,
+                                  integral if isinstance(integral, Mapping) else None,
+                                  gains.get("Br"), continuous)
+    if "L" not in gains:
+        return None
+    form = "continuous" if continuous else (diagnostics.get("form") or "predictor")
+    return observer_law(name, A, B, lin.C, gains["L"], x_op, u_op, _output_at(plant, x_op), form)

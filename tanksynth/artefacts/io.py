@@ -245,6 +245,11 @@ def write_artefact(result: DesignResult, directory: str | Path, spec_sha256: str
     extensions = (".json", ".npz", *(f".{e}" for e in export if e != "law"))
     final = {ext: directory / f"{result.name}{ext}" for ext in extensions}
     temps: dict[str, Path] = {}
+    if ".mat" in final or ".h" in final:  # ts, operating point, names and units beside the gains
+        from tanksynth.artefacts.export import implementation_data, mat_contents
+
+        record = read_plant_record(directory) if (directory / "plant.json").is_file() else None
+        data = implementation_data(result.diagnostics, record)
     try:
         for ext, target in final.items():
             if ext in payloads:
@@ -252,9 +257,10 @@ def write_artefact(result: DesignResult, directory: str | Path, spec_sha256: str
             elif ext == ".mat":
                 from scipy.io import savemat
 
-                payload = lambda fh: savemat(fh, gains)  # noqa: E731
+                contents = mat_contents(gains, data)
+                payload = lambda fh: savemat(fh, contents, oned_as="column")  # noqa: E731
             else:
-                payload = c_header(result.name, gains)
+                payload = c_header(result.name, gains, data)
             temps[ext] = stage(target, payload)
         # The JSON (the artefact proper) is renamed last, and whatever was
         # renamed is removed again if a later rename fails: no partial artefact.

@@ -41,7 +41,15 @@ TRACE_RUNS = 2
 
 
 def trace_path(artefact_path: str | Path, name: str) -> Path:
-    """``DIR/<name>.traces.npz`` beside the artefact ``DIR/<name>.json``."""
+    """``DIR/<name>.traces.npz`` beside the artefact ``DIR/<name>.json``.
+
+    Parameters
+    ----------
+    artefact_path : str or Path
+        The artefact ``DIR/<name>.json``.
+    name : str
+        The design's name.
+    """
     return Path(artefact_path).with_name(f"{name}{TRACE_SUFFIX}")
 
 
@@ -50,6 +58,14 @@ def write_trace(path: str | Path, trace: Mapping[str, Any]) -> Path:
     """Write a trace (`verdict_with_trace`) as ``.npz``, atomically (temp file + os.replace).
 
     The header is stored as a JSON string (``header``); no pickled object.
+
+    Parameters
+    ----------
+    path : str or Path
+        Target ``.traces.npz``.
+    trace : mapping
+        ``header`` (a JSON-friendly mapping) and ``arrays`` (time in s, signals in the
+        plant's units).
     """
     path = Path(path)
     arrays = {k: np.asarray(v, dtype=float) for k, v in trace["arrays"].items()}
@@ -60,6 +76,11 @@ def write_trace(path: str | Path, trace: Mapping[str, Any]) -> Path:
 
 def read_trace(path: str | Path) -> dict | None:
     """Read a trace file; None when it is missing or unreadable (no time-domain figure then).
+
+    Parameters
+    ----------
+    path : str or Path
+        A ``.traces.npz`` file.
 
     Returns
     -------

@@ -253,7 +253,13 @@ class InverseDynamicsLaw:
         return {"law": sp.latex(self.expression), "C": sp.latex(sp.Matrix(self.C).evalf(6).T)}
 
     def with_gains(self, C: Any) -> "InverseDynamicsLaw":
-        """The same law with other rates ``C`` (1/s)."""
+        """The same law with other rates ``C`` (1/s).
+
+        Parameters
+        ----------
+        C : array_like
+            Rates ``C_i`` (1/s), one per controlled state.
+        """
         C = _gains(C, len(self.controlled))
         law = _fix_gains(self.parametric, C, self.law.name())
         diag = dict(self.diagnostics, C=C.tolist())
@@ -380,6 +386,11 @@ def inverse_dynamics_law(plant: Plant, C: Any, controlled: Sequence[str] | None 
 def law_document(law: ca.Function) -> dict:
     """The law as a JSON-friendly document (serialised CasADi Function).
 
+    Parameters
+    ----------
+    law : casadi.Function
+        The law (an SX Function).
+
     Returns
     -------
     dict
@@ -398,6 +409,11 @@ def law_document(law: ca.Function) -> dict:
 
 def law_from_document(doc: dict) -> ca.Function:
     """Rebuild the CasADi Function from `law_document` output (checks the sha256).
+
+    Parameters
+    ----------
+    doc : dict
+        The output of `law_document` (from an artefact's diagnostics).
 
     Raises
     ------
@@ -423,7 +439,15 @@ def _c_ident(text: str) -> str:
 
 
 def rename_law(law: ca.Function, name: str) -> ca.Function:
-    """The same SX law under another (C-identifier) name."""
+    """The same SX law under another (C-identifier) name.
+
+    Parameters
+    ----------
+    law : casadi.Function
+        The law.
+    name : str
+        New name (made a C identifier).
+    """
     ins = [ca.SX.sym(law.name_in(i), law.sparsity_in(i)) for i in range(law.n_in())]
     outs = law.call(ins)
     return ca.Function(_c_ident(name), ins, outs, law.name_in(), law.name_out())

@@ -56,6 +56,13 @@ _AKF_FORMS = ("full", "steady_state")
 def linear_model_for(plant: Plant, tuning: Any) -> DiscreteModel:
     """The linear `DiscreteModel` of a linear-filter tuning (ts, operating point), checked.
 
+    Parameters
+    ----------
+    plant : Plant
+        The plant (its linearisation at the tuning's operating point when nonlinear).
+    tuning : object
+        A linear-filter tuning with ``ts`` (s), ``x0``, ``P0`` and optionally ``operating_point``.
+
     Raises
     ------
     SpecError

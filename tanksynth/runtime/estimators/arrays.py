@@ -52,6 +52,15 @@ def as_matrix(value: Any, name: str, shape: tuple[int, int] | None = None) -> np
 def as_vector(value: Any, name: str, size: int | None = None) -> np.ndarray:
     """A finite float vector (any 1-D-compatible input; scalars allowed when size is 1).
 
+    Parameters
+    ----------
+    value : array_like or float
+        The values (any 1-D-compatible input).
+    name : str
+        Its name, for messages.
+    size : int, optional
+        Expected length.
+
     Raises
     ------
     DimensionError
@@ -81,6 +90,19 @@ def as_spd(value: Any, name: str, size: int | None = None, semidefinite: bool = 
     A scalar ``s`` with ``size`` given is accepted as ``s I``; a vector of
     length ``size`` as a diagonal matrix. Asymmetry up to ``rtol`` (relative
     to the largest entry) is symmetrised away; more is an error.
+
+    Parameters
+    ----------
+    value : array_like or float
+        The matrix, a diagonal (vector) or a scalar ``s`` (``s I``), in squared units.
+    name : str
+        Its name, for messages (and the spec key).
+    size : int, optional
+        Expected size n (n x n); needed for a scalar or a vector.
+    semidefinite : bool
+        Accept positive semidefinite (default: definite).
+    rtol : float
+        Asymmetry symmetrised away, relative to the largest entry (dimensionless).
 
     Raises
     ------

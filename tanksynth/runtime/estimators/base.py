@@ -207,11 +207,23 @@ class Estimator(_PlantDimensions, abc.ABC):
 
     @abc.abstractmethod
     def reset(self, x0: Any = None) -> None:
-        """Back to the initial state (``x0`` overrides the tuning's initial estimate)."""
+        """Back to the initial state (``x0`` overrides the tuning's initial estimate).
+
+        Parameters
+        ----------
+        x0 : array_like, optional
+            Initial estimate, (n,) or (M, n) (state units); default the tuning's.
+        """
 
     @abc.abstractmethod
     def batch(self, runs: int) -> "Estimator":
-        """A fresh estimator of the same design for ``runs`` parallel runs."""
+        """A fresh estimator of the same design for ``runs`` parallel runs.
+
+        Parameters
+        ----------
+        runs : int
+            Number of parallel runs (>= 1).
+        """
 
     @abc.abstractmethod
     def _advance(self, Y: np.ndarray, U: np.ndarray) -> np.ndarray:
@@ -248,6 +260,21 @@ class KernelEstimator(Estimator):
     ``(state, y, u, params) -> (state_new, checks, extra)`` with
     ``checks = [pivots..., sum(x_new)]`` (all pivots must be > 0 and all
     finite), `_params` (the numeric tuning vector) and `_initial_state`.
+
+    Parameters
+    ----------
+    plant : Plant
+        The plant.
+    tuning : object
+        The estimator's tuning (its artefact).
+    model : DiscreteModel
+        The sampled model the kernel predicts with.
+    runs : int or None
+        Number of parallel runs (None: a single run).
+    backend : {"auto", "native", "vm"}
+        Compiled C kernel, CasADi's virtual machine, or native when a compiler works.
+    _shared : dict, optional
+        Internal: the kernel of another instance (`batch`).
     """
 
     #: Names of the matrices whose minimum Cholesky pivot is in ``checks``.
@@ -380,7 +407,13 @@ class KernelEstimator(Estimator):
                     None if self.runs is None else run, "state estimate", float(chk[run, npiv]))
 
     def batch(self, runs: int) -> "KernelEstimator":
-        """A fresh estimator of the same design for ``runs`` parallel runs (shares the kernel)."""
+        """A fresh estimator of the same design for ``runs`` parallel runs (shares the kernel).
+
+        Parameters
+        ----------
+        runs : int
+            Number of parallel runs (>= 1).
+        """
         clone = object.__new__(type(self))
         clone._clone_from(self, runs)
         return clone
@@ -400,6 +433,15 @@ class ArrayEstimator(Estimator):
 
     Subclasses keep their state in arrays with a leading run axis and
     implement `_advance`, `_reset_arrays` and `_clone_args`.
+
+    Parameters
+    ----------
+    plant : Plant
+        The plant.
+    tuning : object
+        The estimator's tuning (its artefact).
+    runs : int or None
+        Number of parallel runs (None: a single run).
     """
 
     def __init__(self, plant: Plant, tuning: Any, runs: int | None):
@@ -411,7 +453,13 @@ class ArrayEstimator(Estimator):
         return self._x[0].copy() if self.runs is None else self._x.copy()
 
     def reset(self, x0: Any = None) -> None:
-        """Back to the initial state (``x0``: (n,) or (M, n) overrides the tuning's)."""
+        """Back to the initial state (``x0``: (n,) or (M, n) overrides the tuning's).
+
+        Parameters
+        ----------
+        x0 : array_like, optional
+            Initial estimate, (n,) or (M, n) (state units); default the tuning's.
+        """
         self._x = self._x0_rows(x0, self.tuning.x0)
         self._reset_arrays()
         self.k = 0
@@ -425,7 +473,13 @@ class ArrayEstimator(Estimator):
         """Positional and keyword arguments rebuilding this estimator (without ``runs``)."""
 
     def batch(self, runs: int) -> "ArrayEstimator":
-        """A fresh estimator of the same design for ``runs`` parallel runs."""
+        """A fresh estimator of the same design for ``runs`` parallel runs.
+
+        Parameters
+        ----------
+        runs : int
+            Number of parallel runs (>= 1).
+        """
         args, kwargs = self._clone_args()
         return type(self)(*args, runs=runs, **kwargs)
 
@@ -462,6 +516,13 @@ def mv(A: np.ndarray, X: np.ndarray) -> np.ndarray:
     An ``einsum`` loop rather than ``X @ A.T``: a 2-D matrix product goes to
     BLAS, whose blocking depends on ``M``, so a batch would not equal its
     single runs bit for bit.
+
+    Parameters
+    ----------
+    A : ndarray, shape (n, k)
+        The matrix.
+    X : ndarray, shape (M, k)
+        One vector per row.
     """
     return np.einsum("ij,mj->mi", A, X)
 
@@ -475,6 +536,17 @@ def joseph_update(P: np.ndarray, K: np.ndarray, H: np.ndarray, R: np.ndarray) ->
 
     ``(I - K H) P (I - K H)' + K R K'`` for ``P`` (M, n, n), ``K`` (M, n, q),
     ``H`` (q, n) or (M, q, n), ``R`` (q, q).
+
+    Parameters
+    ----------
+    P : ndarray, shape (M, n, n)
+        Predicted covariances (squared state units).
+    K : ndarray, shape (M, n, q)
+        Gains (state per output units).
+    H : ndarray, shape (q, n) or (M, q, n)
+        Output Jacobians (output per state units).
+    R : ndarray, shape (q, q)
+        Measurement-noise covariance (squared output units).
     """
     n = P.shape[-1]
     IKH = np.eye(n) - K @ H

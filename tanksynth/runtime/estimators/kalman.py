@@ -110,6 +110,15 @@ class KalmanTuning:
 def model_from_tuning(plant: Plant, tuning: Any, operating_point: Any = None) -> DiscreteModel:
     """The `DiscreteModel` a Kalman-type tuning asks for, with shapes checked against the plant.
 
+    Parameters
+    ----------
+    plant : Plant
+        The plant.
+    tuning : object
+        A Kalman-type tuning (``Q``, ``R``, ``P0``, ``x0``, ``ts`` in s, model options).
+    operating_point : tuple of ndarray, optional
+        ``(x0, u0)`` (state, input units): the ZOH linearisation there; default the tuning's.
+
     Raises
     ------
     DimensionError
@@ -289,6 +298,19 @@ class KalmanFilter(ExtendedKalmanFilter):
     linearisation at ``tuning.operating_point`` (absolute coordinates: it
     takes and returns levels, not deviations). Same interface and kernel as
     `ExtendedKalmanFilter`.
+
+    Parameters
+    ----------
+    plant : Plant
+        The plant.
+    tuning : KalmanTuning
+        ``Q``, ``R``, ``P0``, ``x0``, ``ts`` and the operating point.
+    runs : int, optional
+        Number of parallel runs (None: a single run).
+    backend : {"auto", "native", "vm"}
+        Kernel backend.
+    model : DiscreteModel, optional
+        A model to use instead of the tuning's.
 
     Raises
     ------

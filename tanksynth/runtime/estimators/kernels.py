@@ -30,7 +30,13 @@ __all__ = ["sx_symmetrize", "sx_cholesky", "sx_spd_inverse", "cache_dir", "clear
 
 
 def sx_symmetrize(A: ca.SX) -> ca.SX:
-    """``(A + A') / 2``."""
+    """``(A + A') / 2``.
+
+    Parameters
+    ----------
+    A : casadi.SX
+        A square matrix.
+    """
     return 0.5 * (A + A.T)
 
 
@@ -83,6 +89,11 @@ def _sx_lower_inverse(L: ca.SX) -> ca.SX:
 
 def sx_spd_inverse(A: ca.SX) -> tuple[ca.SX, ca.SX]:
     """Inverse of a symmetric positive definite matrix by Cholesky, with pivots.
+
+    Parameters
+    ----------
+    A : casadi.SX
+        A symmetric positive definite matrix.
 
     Returns
     -------

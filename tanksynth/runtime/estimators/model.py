@@ -218,14 +218,28 @@ class DiscreteModel(_PlantDimensions):
         return cache
 
     def clip_sx(self, x: ca.SX) -> ca.SX:
-        """Clip to the plant's state bounds when ``clip`` is set (symbolic)."""
+        """Clip to the plant's state bounds when ``clip`` is set (symbolic).
+
+        Parameters
+        ----------
+        x : casadi.SX
+            State (state units).
+        """
         if not self.clip:
             return x
         lo, hi = self.bounds
         return ca.fmin(ca.fmax(x, ca.DM(lo)), ca.DM(hi))
 
     def predict_sx(self, x: ca.SX, u: ca.SX) -> ca.SX:
-        """``x(k)`` from ``x(k-1)`` and ``u(k)`` (symbolic)."""
+        """``x(k)`` from ``x(k-1)`` and ``u(k)`` (symbolic).
+
+        Parameters
+        ----------
+        x : casadi.SX
+            State ``x(k-1)`` (state units).
+        u : casadi.SX
+            Input held over the period (input units).
+        """
         if self.kind == "linear":
             out = ca.DM(self.Ad) @ x + ca.DM(self.cd)
             if self.m:
@@ -238,7 +252,15 @@ class DiscreteModel(_PlantDimensions):
         return self.clip_sx(x)
 
     def transition_jacobian_sx(self, x: ca.SX, u: ca.SX) -> ca.SX:
-        """``Phi = dF/dx`` at ``x(k-1)`` (symbolic; constant ``Ad`` when linear)."""
+        """``Phi = dF/dx`` at ``x(k-1)`` (symbolic; constant ``Ad`` when linear).
+
+        Parameters
+        ----------
+        x : casadi.SX
+            State ``x(k-1)`` (state units).
+        u : casadi.SX
+            Input held over the period (input units).
+        """
         n = self.n
         if self.kind == "linear":
             return ca.SX(ca.DM(self.Ad))
@@ -256,19 +278,37 @@ class DiscreteModel(_PlantDimensions):
         return Phi
 
     def output_sx(self, x: ca.SX) -> ca.SX:
-        """``y = h(x)`` (symbolic)."""
+        """``y = h(x)`` (symbolic).
+
+        Parameters
+        ----------
+        x : casadi.SX
+            State (state units).
+        """
         if self.kind == "linear":
             return ca.DM(self.C) @ x + ca.DM(self.dy)
         return self._funcs()["h"](x)
 
     def output_jacobian_sx(self, x: ca.SX) -> ca.SX:
-        """``H = dh/dx`` (symbolic; constant ``C`` when linear)."""
+        """``H = dh/dx`` (symbolic; constant ``C`` when linear).
+
+        Parameters
+        ----------
+        x : casadi.SX
+            State (state units).
+        """
         if self.kind == "linear":
             return ca.SX(ca.DM(self.C))
         return self._funcs()["H"](x)
 
     def on_surface_sx(self, x: ca.SX) -> ca.SX | None:
-        """1 when ``x`` lies on a switching surface (hybrid plants), else None."""
+        """1 when ``x`` lies on a switching surface (hybrid plants), else None.
+
+        Parameters
+        ----------
+        x : casadi.SX
+            State (state units).
+        """
         if not self.hybrid:
             return None
         s = self._funcs()["s"](x)

@@ -137,6 +137,8 @@ class NARXEstimator(KernelEstimator):
     tuning : NARXTuning
     runs : int, optional
     backend : {"auto", "native", "vm"}
+    model : DiscreteModel, optional
+        A model to use instead of the tuning's.
 
     Notes
     -----

@@ -106,6 +106,17 @@ class UKFTuning:
 def ukf_weights(n: int, alpha: float, beta: float, kappa: float) -> tuple[np.ndarray, np.ndarray, float]:
     """Sigma-point weights of seed 002 eq. 25 and 32-34.
 
+    Parameters
+    ----------
+    n : int
+        State dimension.
+    alpha : float
+        Spread of the sigma points, in (0, 1] (dimensionless).
+    beta : float
+        Prior-distribution weight (>= 0, dimensionless).
+    kappa : float
+        Secondary scaling (dimensionless), n + kappa > 0.
+
     Returns
     -------
     Wm, Wc : ndarray, shape (2 n + 1,)
@@ -131,6 +142,8 @@ class UnscentedKalmanFilter(KernelEstimator):
     runs : int, optional
         Number of parallel runs (None: a single run).
     backend : {"auto", "native", "vm"}
+    model : DiscreteModel, optional
+        A model to use instead of the tuning's.
 
     Notes
     -----

@@ -10,6 +10,8 @@ doing every check that needs no design computation.
 from __future__ import annotations
 
 import dataclasses
+import inspect
+import re
 from dataclasses import MISSING, dataclass
 from typing import Any, Callable, ClassVar, Mapping
 
@@ -18,7 +20,131 @@ import numpy as np
 from tanksynth.errors import SpecError
 from tanksynth.spec.options import did_you_mean
 
-__all__ = ["MethodOptions", "OptionReader", "time_domain_of"]
+__all__ = ["MethodOptions", "OptionReader", "OptionDoc", "option", "numpydoc_section", "time_domain_of"]
+
+
+def option(default: Any = MISSING, *, unit: str, doc: str = "") -> Any:
+    """A field of an Options dataclass that declares its unit (and, optionally, its meaning).
+
+    Use it as the field's default: ``margin: float = option(1e-6, unit="-")``;
+    a required option omits the default: ``poles: tuple = option(unit="1/s")``.
+
+    Parameters
+    ----------
+    default : object, optional
+        The option's default (immutable); omitted for a required option.
+    unit : str
+        The unit of the value as a user writes it (``"s"``, ``"m^2"``, ``"1/s"``,
+        ``"(state units)^2"``); ``"-"`` for a dimensionless number, a name, a
+        flag or a count.
+    doc : str, optional
+        One line of meaning; default the first sentence of the option's entry
+        in the class docstring's ``Attributes`` section.
+
+    Returns
+    -------
+    dataclasses.Field
+        The field, its ``metadata`` holding ``unit`` and ``doc``.
+    """
+    if not isinstance(unit, str) or not unit:
+        raise TypeError("option(): unit must be a non-empty string ('-' when dimensionless)")
+    return dataclasses.field(default=default, metadata={"unit": unit, "doc": doc})
+
+
+@dataclass(frozen=True)
+class OptionDoc:
+    """What the documentation says of one option (see `MethodOptions.describe`).
+
+    Attributes
+    ----------
+    name : str
+        The option's key in a ``[[design]]`` table.
+    type : str
+        Its type, as the class docstring gives it (else the annotation).
+    default : str
+        The default as written in Python (``repr``), or ``"required"``.
+    required : bool
+        The option has no default.
+    unit : str
+        Its unit (``"-"`` dimensionless); ``""`` when the field declares none.
+    meaning : str
+        One line (the field's ``doc``, else the first sentence of its docstring entry).
+    description : str
+        The whole docstring entry (one paragraph), ``""`` if undocumented.
+    """
+
+    name: str
+    type: str
+    default: str
+    required: bool
+    unit: str
+    meaning: str
+    description: str
+
+    def as_dict(self) -> dict[str, Any]:
+        """JSON-friendly fields."""
+        return dataclasses.asdict(self)
+
+
+def numpydoc_section(doc: str | None, section: str) -> dict[str, tuple[str, str]]:
+    """The entries of one numpydoc section (``Parameters``, ``Attributes``...) of a docstring.
+
+    Parameters
+    ----------
+    doc : str or None
+        The docstring (raw or cleaned; it is dedented here).
+    section : str
+        The section title.
+
+    Returns
+    -------
+    dict of str to (str, str)
+        ``name -> (type, description)``, the description's lines joined by
+        single spaces; ``a, b : float`` gives two entries and ``**kwargs``
+        the name ``kwargs``.
+    """
+    text = inspect.cleandoc(doc or "")
+    match = re.search(rf"^{re.escape(section)}\n-+\n(.*?)(?=^\S[^\n]*\n-+\n|\Z)", text, re.S | re.M)
+    if not match:
+        return {}
+    out: dict[str, tuple[str, str]] = {}
+    names: list[str] = []
+    typ = ""
+    lines: list[str] = []
+
+    def flush() -> None:
+        for name in names:
+            out[name] = (typ, " ".join(" ".join(lines).split()))
+
+    for line in match.group(1).splitlines():
+        if line and not line[0].isspace():
+            flush()
+            head, _, typ = line.partition(" : ")
+            names = [n.strip().lstrip("*") for n in head.split(",") if n.strip()]
+            typ, lines = typ.strip(), []
+        elif names:
+            lines.append(line.strip())
+    flush()
+    return out
+
+
+def _first_sentence(text: str) -> str:
+    """Up to the first ``.`` or ``;`` outside brackets and quotes (``e.g.`` does not end it)."""
+    text = re.sub(r"^Required\.\s*", "", text)
+    depth, quoted = 0, False
+    for i, ch in enumerate(text):
+        if ch == "`":
+            quoted = not quoted
+        elif quoted:
+            continue
+        elif ch in "([{":
+            depth += 1
+        elif ch in ")]}":
+            depth = max(depth - 1, 0)
+        elif ch in ".;" and depth == 0 and (i + 1 == len(text) or text[i + 1] == " "):
+            if not re.search(r"(\be\.g|\bi\.e|\bcf|\bvs|\bet al)$", text[:i]):
+                return text[:i]
+    return text.rstrip(".;")
 
 
 @dataclass(frozen=True, eq=False)
@@ -95,6 +221,28 @@ class MethodOptions:
     def option_names(cls) -> tuple[str, ...]:
         """The options the method accepts, in declaration order."""
         return tuple(f.name for f in dataclasses.fields(cls))
+
+    @classmethod
+    def describe(cls) -> tuple[OptionDoc, ...]:
+        """Every option's type, default, unit and meaning, in declaration order.
+
+        Read from the fields (defaults, `option` metadata) and the class
+        docstring's ``Attributes`` section: nothing is written twice.
+
+        Returns
+        -------
+        tuple of OptionDoc
+        """
+        documented = numpydoc_section(cls.__doc__, "Attributes")
+        out = []
+        for f in dataclasses.fields(cls):
+            typ, text = documented.get(f.name, ("", ""))
+            required = f.default is MISSING and f.default_factory is MISSING
+            default = "required" if required else repr(cls.default(f.name))
+            meaning = f.metadata.get("doc") or _first_sentence(text)
+            out.append(OptionDoc(f.name, typ or str(f.type), default, required,
+                                 f.metadata.get("unit", ""), meaning, text))
+        return tuple(out)
 
     @classmethod
     def default(cls, name: str) -> Any:

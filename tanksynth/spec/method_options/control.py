@@ -8,7 +8,7 @@ from typing import Any, ClassVar, Mapping
 
 import numpy as np
 
-from tanksynth.spec.method_options.base import MethodOptions, OptionReader
+from tanksynth.spec.method_options.base import MethodOptions, OptionReader, option
 from tanksynth.spec.method_options.placement import PLACE_METHODS
 from tanksynth.spec.options import (parse_bool, parse_choice, parse_integer, parse_matrix, parse_names,
                                     parse_number, parse_poles, parse_vector)
@@ -55,14 +55,14 @@ class FeedbackLinearizationOptions(MethodOptions):
 
     method_name: ClassVar[str] = "feedback_linearization"
 
-    tracked: tuple[str, ...] | None = None
-    poles: tuple[complex, ...] | None = None
-    bandwidth: np.ndarray | None = None
-    saturate: bool = True
-    allow_unstable_zero_dynamics: bool = False
-    grid: int = 11
-    samples: int = 400
-    seed: int = 0
+    tracked: tuple[str, ...] | None = option(None, unit="-")
+    poles: tuple[complex, ...] | None = option(None, unit="1/s")
+    bandwidth: np.ndarray | None = option(None, unit="1/s")
+    saturate: bool = option(True, unit="-")
+    allow_unstable_zero_dynamics: bool = option(False, unit="-")
+    grid: int = option(11, unit="-")
+    samples: int = option(400, unit="-")
+    seed: int = option(0, unit="-")
 
     @classmethod
     def from_table(cls, options: Mapping[str, Any], key: str, plant: Any,
@@ -117,12 +117,12 @@ class IntegralTrackingOptions(MethodOptions):
     method_name: ClassVar[str] = "integral_tracking"
     needs_sampling: ClassVar[bool] = True
 
-    poles: tuple[complex, ...]
-    tracked: tuple[str, ...] | None = None
-    method: str = "auto"
-    anti_windup: str = "back_calculation"
-    aw_gain: float = 1.0
-    reference_gain: np.ndarray | None = None
+    poles: tuple[complex, ...] = option(unit="- (z-plane)")
+    tracked: tuple[str, ...] | None = option(None, unit="-")
+    method: str = option("auto", unit="-")
+    anti_windup: str = option("back_calculation", unit="-")
+    aw_gain: float = option(1.0, unit="-")
+    reference_gain: np.ndarray | None = option(None, unit="units of K")
 
     @classmethod
     def from_table(cls, options: Mapping[str, Any], key: str, plant: Any,
@@ -179,16 +179,17 @@ class InverseDynamicsOptions(MethodOptions):
     method_name: ClassVar[str] = "inverse_dynamics"
     needs_sampling: ClassVar[bool] = True
 
-    controlled: tuple[str, ...] | None = None
-    C: np.ndarray | None = None
-    tune: bool | None = None
-    step: np.ndarray | float = 0.04
-    step_time: float = 100.0
-    horizon: float = 300.0
-    substeps: int = 10
-    grid: np.ndarray | tuple[float, ...] = (0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9, 1.0)
-    bounds: np.ndarray | tuple[float, float] = (0.0, 1.0)
-    saturate: bool = True
+    controlled: tuple[str, ...] | None = option(None, unit="-")
+    C: np.ndarray | None = option(None, unit="1/s")
+    tune: bool | None = option(None, unit="-")
+    step: np.ndarray | float = option(0.04, unit="state units")
+    step_time: float = option(100.0, unit="s")
+    horizon: float = option(300.0, unit="s")
+    substeps: int = option(10, unit="-")
+    grid: np.ndarray | tuple[float, ...] = option((0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9, 1.0),
+                                                  unit="1/s")
+    bounds: np.ndarray | tuple[float, float] = option((0.0, 1.0), unit="1/s")
+    saturate: bool = option(True, unit="-")
 
     @classmethod
     def from_table(cls, options: Mapping[str, Any], key: str, plant: Any,

@@ -8,7 +8,7 @@ from typing import Any, ClassVar, Mapping
 import numpy as np
 
 from tanksynth.errors import SpecError
-from tanksynth.spec.method_options.base import MethodOptions, OptionReader
+from tanksynth.spec.method_options.base import MethodOptions, OptionReader, option
 from tanksynth.spec.options import (parse_choice, parse_covariance, parse_integer, parse_matrix,
                                     parse_number, parse_vector)
 
@@ -85,17 +85,17 @@ class DecentralizedKalmanOptions(MethodOptions):
     method_name: ClassVar[str] = "decentralized_kalman"
     needs_sampling: ClassVar[bool] = True
 
-    process_noise: float | np.ndarray
-    algorithm: str = "casadi"
-    window: int = 40
-    E: str | np.ndarray = "own_tank"
-    tolerance: float = 1e-6
-    max_iter: int = 100
-    process_noise_correlation: float = 0.0
-    measurement_noise: float | np.ndarray = 1.0
-    initial_covariance: float | np.ndarray = 10.0
-    input: np.ndarray | None = None
-    relinearize_every: int = 10
+    process_noise: float | np.ndarray = option(unit="(state units)^2/s")
+    algorithm: str = option("casadi", unit="-")
+    window: int = option(40, unit="samples")
+    E: str | np.ndarray = option("own_tank", unit="-")
+    tolerance: float = option(1e-6, unit="-")
+    max_iter: int = option(100, unit="-")
+    process_noise_correlation: float = option(0.0, unit="-")
+    measurement_noise: float | np.ndarray = option(1.0, unit="(output units)^2")
+    initial_covariance: float | np.ndarray = option(10.0, unit="(state units)^2")
+    input: np.ndarray | None = option(None, unit="input units")
+    relinearize_every: int = option(10, unit="samples")
 
     @classmethod
     def from_table(cls, options: Mapping[str, Any], key: str, plant: Any,

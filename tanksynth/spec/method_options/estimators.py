@@ -14,7 +14,7 @@ from typing import Any, ClassVar, Mapping
 import numpy as np
 
 from tanksynth.errors import SpecError
-from tanksynth.spec.method_options.base import MethodOptions, OptionReader
+from tanksynth.spec.method_options.base import MethodOptions, OptionReader, option
 from tanksynth.spec.options import (parse_bool, parse_choice, parse_covariance, parse_integer,
                                     parse_matrix, parse_number, parse_poles, parse_vector)
 
@@ -87,12 +87,12 @@ class _FilterOptions(MethodOptions):
 
     needs_sampling: ClassVar[bool] = True
 
-    Q: np.ndarray
-    R: np.ndarray
-    P0: np.ndarray
-    x0: np.ndarray | None = None
-    substeps: int = 1
-    clip: bool = False
+    Q: np.ndarray = option(unit="(state units)^2")
+    R: np.ndarray = option(unit="(output units)^2")
+    P0: np.ndarray = option(unit="(state units)^2")
+    x0: np.ndarray | None = option(None, unit="state units")
+    substeps: int = option(1, unit="-")
+    clip: bool = option(False, unit="-")
 
 
 @dataclass(frozen=True, eq=False)
@@ -106,8 +106,8 @@ class KalmanOptions(_FilterOptions):
 
     method_name: ClassVar[str] = "kalman"
 
-    jacobian_eps: float = 1e-6
-    switch_tol: float = 0.0
+    jacobian_eps: float = option(1e-6, unit="-")
+    switch_tol: float = option(0.0, unit="state units")
 
     @classmethod
     def from_table(cls, options: Mapping[str, Any], key: str, plant: Any,
@@ -151,10 +151,10 @@ class UkfOptions(_FilterOptions):
 
     method_name: ClassVar[str] = "ukf"
 
-    alpha: float = 1e-3
-    beta: float = 2.0
-    kappa: float = 0.0
-    redraw: bool = True
+    alpha: float = option(1e-3, unit="-")
+    beta: float = option(2.0, unit="-")
+    kappa: float = option(0.0, unit="-")
+    redraw: bool = option(True, unit="-")
 
     @classmethod
     def from_table(cls, options: Mapping[str, Any], key: str, plant: Any,
@@ -190,13 +190,13 @@ class AdaptiveKalmanOptions(MethodOptions):
     method_name: ClassVar[str] = "adaptive_kalman"
     needs_sampling: ClassVar[bool] = True
 
-    Q0: np.ndarray
-    R: np.ndarray
-    P0: np.ndarray
-    window: int
-    x0: np.ndarray | None = None
-    form: str = "full"
-    q_floor: float = 0.0
+    Q0: np.ndarray = option(unit="(state units)^2")
+    R: np.ndarray = option(unit="(output units)^2")
+    P0: np.ndarray = option(unit="(state units)^2")
+    window: int = option(unit="samples")
+    x0: np.ndarray | None = option(None, unit="state units")
+    form: str = option("full", unit="-")
+    q_floor: float = option(0.0, unit="(state units)^2")
 
     @classmethod
     def from_table(cls, options: Mapping[str, Any], key: str, plant: Any,
@@ -241,13 +241,13 @@ class AdaptiveScalingKalmanOptions(MethodOptions):
     method_name: ClassVar[str] = "adaptive_scaling_kalman"
     needs_sampling: ClassVar[bool] = True
 
-    Q: np.ndarray
-    R: np.ndarray
-    P0: np.ndarray
-    abc: tuple[float, float, float]
-    x0: np.ndarray | None = None
-    G: np.ndarray | None = None
-    phi0: float = 1.0
+    Q: np.ndarray = option(unit="(state units)^2")
+    R: np.ndarray = option(unit="(output units)^2")
+    P0: np.ndarray = option(unit="(state units)^2")
+    abc: tuple[float, float, float] = option(unit="-")
+    x0: np.ndarray | None = option(None, unit="state units")
+    G: np.ndarray | None = option(None, unit="-")
+    phi0: float = option(1.0, unit="-")
 
     @classmethod
     def from_table(cls, options: Mapping[str, Any], key: str, plant: Any,
@@ -292,10 +292,10 @@ class ConsensusFilterOptions(MethodOptions):
     method_name: ClassVar[str] = "consensus_filter"
     needs_sampling: ClassVar[bool] = True
 
-    Q: np.ndarray
-    R: tuple[np.ndarray, ...]
-    P0: np.ndarray
-    x0: np.ndarray | None = None
+    Q: np.ndarray = option(unit="(state units)^2")
+    R: tuple[np.ndarray, ...] = option(unit="(output units)^2")
+    P0: np.ndarray = option(unit="(state units)^2")
+    x0: np.ndarray | None = option(None, unit="state units")
 
     @classmethod
     def from_table(cls, options: Mapping[str, Any], key: str, plant: Any,
@@ -336,12 +336,12 @@ class LuenbergerOptions(MethodOptions):
     method_name: ClassVar[str] = "luenberger"
     needs_sampling: ClassVar[bool] = True
 
-    L: np.ndarray | None = None
-    poles: tuple[complex, ...] | None = None
-    form: str = "current"
-    x0: np.ndarray | None = None
-    substeps: int = 10
-    nonlinear: bool = False
+    L: np.ndarray | None = option(None, unit="(state units)/(output units)")
+    poles: tuple[complex, ...] | None = option(None, unit="1/s (continuous) or - (discrete, z-plane)")
+    form: str = option("current", unit="-")
+    x0: np.ndarray | None = option(None, unit="state units")
+    substeps: int = option(10, unit="-")
+    nonlinear: bool = option(False, unit="-")
 
     @classmethod
     def from_table(cls, options: Mapping[str, Any], key: str, plant: Any,
@@ -422,20 +422,20 @@ class NarxOptions(KalmanOptions):
 
     method_name: ClassVar[str] = "narx"
 
-    hidden: int = 5
-    delays: int = 2
-    runs: int = 4
-    validation_runs: int = 1
-    steps: int = 600
-    seed: int = 0
-    input_range: np.ndarray | None = None
-    hold: tuple[int, int] = (30, 150)
-    noise_std: np.ndarray | None = None
-    sim_substeps: int = 10
-    target: str = "ekf"
-    restarts: int = 3
-    max_iter: int = 200
-    max_fail: int = 6
+    hidden: int = option(5, unit="-")
+    delays: int = option(2, unit="-")
+    runs: int = option(4, unit="-")
+    validation_runs: int = option(1, unit="-")
+    steps: int = option(600, unit="samples")
+    seed: int = option(0, unit="-")
+    input_range: np.ndarray | None = option(None, unit="input units")
+    hold: tuple[int, int] = option((30, 150), unit="samples")
+    noise_std: np.ndarray | None = option(None, unit="output units")
+    sim_substeps: int = option(10, unit="-")
+    target: str = option("ekf", unit="-")
+    restarts: int = option(3, unit="-")
+    max_iter: int = option(200, unit="-")
+    max_fail: int = option(6, unit="-")
 
     @classmethod
     def from_table(cls, options: Mapping[str, Any], key: str, plant: Any,

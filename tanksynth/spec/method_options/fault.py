@@ -8,7 +8,7 @@ from typing import Any, ClassVar, Mapping
 import numpy as np
 
 from tanksynth.errors import SpecError
-from tanksynth.spec.method_options.base import MethodOptions, OptionReader
+from tanksynth.spec.method_options.base import MethodOptions, OptionReader, option
 from tanksynth.spec.options import parse_bool, parse_number, parse_poles, parse_vector
 
 __all__ = ["FaultDetectionOptions"]
@@ -84,13 +84,13 @@ class FaultDetectionOptions(MethodOptions):
 
     method_name: ClassVar[str] = "fault_detection"
 
-    poles: tuple[complex, ...] = (-5.0, -8.0, -10.0)
-    bounds: tuple[float, float] = (0.25, 4.0)
-    delta_bar: float = 1.0
-    t_fault: float = 2.0
-    conservative: bool = True
-    initial_states: tuple[np.ndarray, ...] | None = None
-    input: tuple[np.ndarray, ...] | None = None
+    poles: tuple[complex, ...] = option((-5.0, -8.0, -10.0), unit="1/s")
+    bounds: tuple[float, float] = option((0.25, 4.0), unit="state units")
+    delta_bar: float = option(1.0, unit="unit of the fault parameter (1/s for a leak)")
+    t_fault: float = option(2.0, unit="s")
+    conservative: bool = option(True, unit="-")
+    initial_states: tuple[np.ndarray, ...] | None = option(None, unit="state units")
+    input: tuple[np.ndarray, ...] | None = option(None, unit="s, input units")
 
     @classmethod
     def from_table(cls, options: Mapping[str, Any], key: str, plant: Any,

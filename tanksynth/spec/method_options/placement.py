@@ -13,7 +13,7 @@ from typing import Any, ClassVar, Mapping
 import numpy as np
 
 from tanksynth.errors import SpecError
-from tanksynth.spec.method_options.base import MethodOptions, OptionReader, time_domain_of
+from tanksynth.spec.method_options.base import MethodOptions, OptionReader, option, time_domain_of
 from tanksynth.spec.options import (parse_bool, parse_choice, parse_matrix, parse_names, parse_number,
                                     parse_poles, parse_region, region_is_stable)
 
@@ -159,15 +159,15 @@ class PolePlacementOptions(MethodOptions):
 
     method_name: ClassVar[str] = "pole_placement"
 
-    poles: tuple[complex, ...]
-    target: str = "state_feedback"
-    time_domain: str | None = None
-    integral: bool = False
-    tracked: tuple[str, ...] | None = None
-    method: str = "auto"
-    reference_gain: np.ndarray | None = None
-    pole_domain: str | None = None
-    allow_fragile: bool = False
+    poles: tuple[complex, ...] = option(unit="1/s (continuous) or - (discrete, z-plane)")
+    target: str = option("state_feedback", unit="-")
+    time_domain: str | None = option(None, unit="-")
+    integral: bool = option(False, unit="-")
+    tracked: tuple[str, ...] | None = option(None, unit="-")
+    method: str = option("auto", unit="-")
+    reference_gain: np.ndarray | None = option(None, unit="units of K or L")
+    pole_domain: str | None = option(None, unit="-")
+    allow_fragile: bool = option(False, unit="-")
 
     @classmethod
     def from_table(cls, options: Mapping[str, Any], key: str, plant: Any,
@@ -218,16 +218,16 @@ class LmiPlacementOptions(MethodOptions):
 
     method_name: ClassVar[str] = "lmi_placement"
 
-    region: tuple[tuple, ...]
-    target: str = "observer"
-    time_domain: str | None = None
-    integral: bool = False
-    tracked: tuple[str, ...] | None = None
-    margin: float = 1e-6
-    kappa: float = 1e4
-    solver: str = "CLARABEL"
-    kappa_max: float = 1e8
-    allow_fragile: bool = False
+    region: tuple[tuple, ...] = option(unit="1/s (continuous) or - (discrete, z-plane)")
+    target: str = option("observer", unit="-")
+    time_domain: str | None = option(None, unit="-")
+    integral: bool = option(False, unit="-")
+    tracked: tuple[str, ...] | None = option(None, unit="-")
+    margin: float = option(1e-6, unit="-")
+    kappa: float = option(1e4, unit="-")
+    solver: str = option("CLARABEL", unit="-")
+    kappa_max: float = option(1e8, unit="-")
+    allow_fragile: bool = option(False, unit="-")
 
     @classmethod
     def from_table(cls, options: Mapping[str, Any], key: str, plant: Any,
@@ -276,10 +276,10 @@ class CanonicalObserverOptions(MethodOptions):
 
     method_name: ClassVar[str] = "canonical_observer"
 
-    poles: tuple[complex, ...]
-    reference_gain: np.ndarray | None = None
-    reference_closed_loop: np.ndarray | None = None
-    allow_fragile: bool = False
+    poles: tuple[complex, ...] = option(unit="1/s")
+    reference_gain: np.ndarray | None = option(None, unit="(state units)/(output units)/s")
+    reference_closed_loop: np.ndarray | None = option(None, unit="1/s")
+    allow_fragile: bool = option(False, unit="-")
 
     @classmethod
     def from_table(cls, options: Mapping[str, Any], key: str, plant: Any,

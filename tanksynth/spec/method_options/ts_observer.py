@@ -9,7 +9,7 @@ from typing import Any, ClassVar, Mapping
 import numpy as np
 
 from tanksynth.errors import SpecError
-from tanksynth.spec.method_options.base import MethodOptions, OptionReader
+from tanksynth.spec.method_options.base import MethodOptions, OptionReader, option
 from tanksynth.spec.method_options.placement import LMI_SOLVERS
 from tanksynth.spec.options import (parse_bool, parse_box, parse_choice, parse_integer, parse_matrix,
                                     parse_names, parse_number, parse_vector)
@@ -120,30 +120,30 @@ class TsObserverOptions(MethodOptions):
 
     method_name: ClassVar[str] = "ts_observer"
 
-    weights: Mapping[str, tuple[float, ...]] | None = None
-    psi: float | None = None
-    psi_source: str | None = None
-    variant: str = "qI"
-    lipschitz: str = "jacobian"
-    lipschitz_method: str = "interval"
-    domain: Mapping[str, tuple[float, float]] | None = None
-    orderings: bool = True
-    ordering_gap: float = 0.0
-    premise_bounds: str = "interval"
-    premise_margin: float = 0.01
-    samples: int = 5000
-    seed: int = 0
-    search: bool = False
-    search_values: tuple[float, ...] = (-1.0, 0.0, 1.0)
-    search_criterion: str = "psi_max"
-    blocks: tuple[tuple[str, ...], ...] | None = None
-    pattern: np.ndarray | None = None
-    reference_L: np.ndarray | None = None
-    margin: float = 1e-6
-    kappa: float = 1e4
-    solver: str = "CLARABEL"
-    kappa_max: float = 1e8
-    allow_fragile: bool = False
+    weights: Mapping[str, tuple[float, ...]] | None = option(None, unit="-")
+    psi: float | None = option(None, unit="1/s")
+    psi_source: str | None = option(None, unit="-")
+    variant: str = option("qI", unit="-")
+    lipschitz: str = option("jacobian", unit="-")
+    lipschitz_method: str = option("interval", unit="-")
+    domain: Mapping[str, tuple[float, float]] | None = option(None, unit="state units")
+    orderings: bool = option(True, unit="-")
+    ordering_gap: float = option(0.0, unit="state units")
+    premise_bounds: str = option("interval", unit="-")
+    premise_margin: float = option(0.01, unit="-")
+    samples: int = option(5000, unit="-")
+    seed: int = option(0, unit="-")
+    search: bool = option(False, unit="-")
+    search_values: tuple[float, ...] = option((-1.0, 0.0, 1.0), unit="-")
+    search_criterion: str = option("psi_max", unit="-")
+    blocks: tuple[tuple[str, ...], ...] | None = option(None, unit="-")
+    pattern: np.ndarray | None = option(None, unit="-")
+    reference_L: np.ndarray | None = option(None, unit="1/s")
+    margin: float = option(1e-6, unit="-")
+    kappa: float = option(1e4, unit="-")
+    solver: str = option("CLARABEL", unit="-")
+    kappa_max: float = option(1e8, unit="-")
+    allow_fragile: bool = option(False, unit="-")
 
     @classmethod
     def from_table(cls, options: Mapping[str, Any], key: str, plant: Any,

@@ -1,0 +1,232 @@
+"""Exports usable elsewhere: ``--export law`` for every linear controller, observer and the
+KF/EKF step (generated C compiled with gcc and evaluated), and ``.h`` / ``.mat`` in one
+orientation.
+
+Each compiled law is compared with the same law written out here in numpy from the
+artefact's gains (and, for the Kalman filter, a textbook predict/correct step).
+"""
+
+from __future__ import annotations
+
+import re
+import shutil
+import subprocess
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from tanksynth.artefacts.export import compile_law, load_compiled_law
+from tanksynth.artefacts.io import read_artefact
+from tanksynth.cli import main
+
+pytestmark = pytest.mark.skipif(shutil.which("gcc") is None, reason="gcc is needed to compile laws")
+
+SPEC = """
+title = "law exports"
+[plant]
+model = "three_tank"
+outputs = "h1h2"
+[operating_point]
+x = {h1 = 0.40, h2 = 0.20, h3 = 0.30}
+[sampling]
+ts = 1.0
+[[design]]
+name = "sf"
+method = "pole_placement"
+poles = [0.90, 0.92, 0.94]
+[[design]]
+name = "sfi"
+method = "pole_placement"
+integral = true
+tracked = ["h1", "h2"]
+poles = [0.92, 0.97, 0.90, 0.95, 0.94]
+[[design]]
+name = "lmi"
+method = "lmi_placement"
+target = "state_feedback"
+integral = true
+tracked = ["h1", "h2"]
+region = [{type = "disk", center = 0.0, radius = 0.97}]
+[[design]]
+name = "obs"
+method = "pole_placement"
+target = "observer"
+poles = [0.5, 0.6, 0.7]
+[[design]]
+name = "lue"
+method = "luenberger"
+form = "current"
+poles = [0.5, 0.6, 0.7]
+[[design]]
+name = "kf"
+method = "kalman"
+Q = 1e-9
+R = 1e-6
+P0 = 1e-3
+[[design]]
+name = "ekf"
+method = "ekf"
+Q = 1e-9
+R = 1e-6
+P0 = 1e-3
+x0 = [0.38, 0.21, 0.29]
+[[design]]
+name = "ukf"
+method = "ukf"
+Q = 1e-9
+R = 1e-6
+P0 = 1e-4
+alpha = 1.0
+x0 = [0.38, 0.21, 0.29]
+"""
+
+X = np.array([0.41, 0.195, 0.305])
+Z = np.array([0.01, -0.02])
+YR = np.array([0.42, 0.21])
+U = np.array([3.6e-5, 3.1e-5])
+Y = np.array([0.405, 0.198])
+
+
+@pytest.fixture(scope="module")
+def out(tmp_path_factory) -> Path:
+    d = tmp_path_factory.mktemp("laws")
+    (d / "spec.toml").write_text(SPEC, encoding="utf-8")
+    assert main(["design", str(d / "spec.toml"), "-o", str(d / "out"), "--export", "law",
+                 "--export", "h", "--export", "mat"]) == 0
+    return d / "out"
+
+
+def _compiled(out: Path, name: str):
+    lib = compile_law(out / f"{name}_law.c", out / f"{name}_law.so")
+    return load_compiled_law(lib, f"{name}_law")
+
+
+def _np(v) -> np.ndarray:
+    return np.asarray(v, dtype=float).reshape(-1)
+
+
+def test_every_linear_design_exports_a_law(out):
+    for name in ("sf", "sfi", "lmi", "obs", "lue", "kf", "ekf", "ukf"):
+        for ext in (".casadi", ".c", ".h"):
+            assert (out / f"{name}_law{ext}").is_file(), (name, ext)
+
+
+@pytest.mark.parametrize("name", ["sf", "sfi", "lmi"])
+def test_state_feedback_law_compiled(out, name):
+    doc = read_artefact(out / f"{name}.json")
+    g = {k: np.asarray(v) for k, v in doc["gains"].items()}
+    x_op, u_op = np.array([0.40, 0.20, 0.30]), np.array(doc["diagnostics"]["equilibrium"]["u0"])
+    law = _compiled(out, name)
+    if name == "sf":
+        np.testing.assert_allclose(_np(law(X)), u_op - g["K"] @ (X - x_op), rtol=1e-12, atol=1e-15)
+        return
+    u, z_next = law(X, Z, YR)
+    expected_u = u_op - g["K"][:, :3] @ (X - x_op) - g["K"][:, 3:] @ Z
+    np.testing.assert_allclose(_np(u), expected_u, rtol=1e-12, atol=1e-15)
+    # discrete integrators of the design: z(k+1) = z(k) + (y_r - y), y = (h1, h2)
+    np.testing.assert_allclose(_np(z_next), Z + (YR - X[:2]), rtol=1e-12, atol=1e-15)
+
+
+def test_observer_steps_compiled(out):
+    doc = read_artefact(out / "obs.json")
+    L = np.asarray(doc["gains"]["L"])
+    A, B, C = (np.asarray(doc["gains"][k]) for k in ("A", "B", "C"))
+    step = _compiled(out, "obs")
+    x_op = np.array([0.40, 0.20, 0.30])
+    u_op = np.array(doc["diagnostics"]["equilibrium"]["u0"])
+    got = _np(step(X, U, Y))
+    dx = X - x_op
+    expected = x_op + A @ dx + B @ (U - u_op) + L @ (Y - x_op[:2] - C @ dx)
+    np.testing.assert_allclose(got, expected, rtol=1e-10, atol=1e-14)
+    # a fixed point: at the operating point with matching measurements the estimate stays
+    np.testing.assert_allclose(_np(step(x_op, u_op, x_op[:2])), x_op, atol=1e-12)
+    lue = _compiled(out, "lue")
+    np.testing.assert_allclose(_np(lue(x_op, u_op, x_op[:2])), x_op, atol=1e-12)
+    # the current form's error dynamics: e+ = (I - L C) Ad e, from the linear model of kf.json
+    kf = read_artefact(out / "kf.json")
+    Ad, C = np.asarray(kf["gains"]["Ad"]), np.asarray(kf["gains"]["C"])
+    Llue = np.asarray(read_artefact(out / "lue.json")["gains"]["L"])
+    e = np.array([0.01, -0.005, 0.002])
+    got = _np(lue(x_op + e, u_op, x_op[:2])) - x_op
+    np.testing.assert_allclose(got, (np.eye(3) - Llue @ C) @ Ad @ e, rtol=1e-6, atol=1e-13)
+
+
+def test_kalman_step_compiled_is_the_textbook_filter(out):
+    doc = read_artefact(out / "kf.json")
+    g = {k: np.asarray(v) for k, v in doc["gains"].items()}
+    Ad, Bd, C, Q, R = g["Ad"], g["Bd"], g["C"], g["Q"], g["R"]
+    x_op, u_op = g["x_op"], g["u_op"]
+    P = np.diag([1e-4, 2e-4, 3e-4])
+    step = _compiled(out, "kf")
+    x_next, P_next = step(X, P, Y, U)
+    xp = x_op + Ad @ (X - x_op) + Bd @ (U - u_op)
+    Pp = Ad @ P @ Ad.T + Q
+    K = Pp @ C.T @ np.linalg.inv(C @ Pp @ C.T + R)
+    y_pred = C @ xp          # outputs h1, h2 are states
+    np.testing.assert_allclose(_np(x_next), xp + K @ (Y - y_pred), rtol=1e-9, atol=1e-13)
+    np.testing.assert_allclose(np.asarray(P_next), (np.eye(3) - K @ C) @ Pp, rtol=1e-8, atol=1e-15)
+
+
+def test_ekf_step_compiled_matches_the_runtime_filter(out):
+    from tanksynth.methods import load_spec
+    from tanksynth.runtime.estimators.kalman import ExtendedKalmanFilter, KalmanTuning
+
+    spec = load_spec(out / "spec.toml")
+    doc = read_artefact(out / "ekf.json")
+    g = {k: np.asarray(v) for k, v in doc["gains"].items()}
+    ekf = ExtendedKalmanFilter(spec.plant, KalmanTuning(Q=g["Q"], R=g["R"], P0=g["P0"], x0=g["x0"],
+                                                        ts=1.0), backend="vm")
+    expected = ekf.step(Y, U)
+    x_next, P_next = _compiled(out, "ekf")(g["x0"], g["P0"], Y, U)
+    np.testing.assert_allclose(_np(x_next), expected, rtol=1e-12, atol=1e-15)
+    np.testing.assert_allclose(np.asarray(P_next), ekf.covariance, rtol=1e-10, atol=1e-18)
+    assert np.allclose(np.asarray(P_next), np.asarray(P_next).T)
+
+
+def test_ukf_step_compiled_matches_the_runtime_filter(out):
+    from tanksynth.methods import load_spec
+    from tanksynth.runtime.estimators.ukf import UKFTuning, UnscentedKalmanFilter
+
+    spec = load_spec(out / "spec.toml")
+    g = {k: np.asarray(v) for k, v in read_artefact(out / "ukf.json")["gains"].items()}
+    ukf = UnscentedKalmanFilter(spec.plant, UKFTuning(Q=g["Q"], R=g["R"], P0=g["P0"], x0=g["x0"],
+                                                      ts=1.0, alpha=1.0), backend="vm")
+    x_next, P_next = _compiled(out, "ukf")(g["x0"], g["P0"], Y, U)
+    expected = ukf.step(Y, U)
+    np.testing.assert_allclose(_np(x_next), expected, rtol=1e-12, atol=1e-15)
+    np.testing.assert_allclose(np.asarray(P_next), ukf.covariance, rtol=1e-10, atol=1e-18)
+    # the estimate moved toward the measurement: the correction acted
+    assert np.linalg.norm(_np(x_next)[:2] - Y) < np.linalg.norm(g["x0"][:2] - Y)
+
+
+def test_header_and_mat_agree_in_orientation(out, tmp_path):
+    from scipy.io import loadmat
+
+    header = (out / "ekf.h").read_text(encoding="utf-8")
+    assert "#define EKF_X0_ROWS 3" in header and "#define EKF_X0_COLS 1" in header
+    assert "#define EKF_TS 1.0" in header and "states: h1 [m], h2 [m], h3 [m]" in header
+    mat = loadmat(out / "ekf.mat")
+    assert mat["x0"].shape == (3, 1) and mat["x_op"].shape == (3, 1)
+    values = re.search(r"ekf_x_op\[3\] = \{([^}]*)\}", header).group(1)
+    np.testing.assert_allclose([float(v) for v in values.split(",")], mat["x_op"][:, 0])
+    # the header compiles, and its arrays hold the .mat values
+    src = tmp_path / "main.c"
+    src.write_text(f'#include "{out / "sfi.h"}"\n#include <stdio.h>\nint main(void) {{\n'
+                   "  for (int i = 0; i < SFI_K_ROWS * SFI_K_COLS; ++i) printf(\"%.17g\\n\", sfi_K[i]);\n"
+                   "  printf(\"%.17g\\n\", SFI_TS);\n  return 0;\n}\n", encoding="utf-8")
+    subprocess.run(["gcc", "-Wall", "-Werror", "-o", str(tmp_path / "main"), str(src), "-lm"], check=True)
+    printed = np.array(subprocess.run([str(tmp_path / "main")], capture_output=True, text=True,
+                                      check=True).stdout.split(), dtype=float)
+    sfi = loadmat(out / "sfi.mat")
+    np.testing.assert_array_equal(printed[:-1], sfi["K"].ravel())   # row-major, as in MATLAB rows
+    assert printed[-1] == 1.0
+
+
+def test_design_without_a_law_says_so(tmp_path, capsys):
+    spec = tmp_path / "s.toml"
+    spec.write_text(SPEC.split("[[design]]")[0] + '[[design]]\nname = "lin"\nmethod = "linearize"\n',
+                    encoding="utf-8")
+    assert main(["design", str(spec), "-o", str(tmp_path / "o"), "--export", "law"]) == 0
+    assert "lin: no control law or estimator step to export" in capsys.readouterr().out
+    assert not list((tmp_path / "o").glob("*_law.*"))

@@ -1,0 +1,140 @@
+"""Discoverable options: ``tanksynth methods``, ``tanksynth plants``, ``check -o`` and the
+README's generated sections."""
+
+from __future__ import annotations
+
+import dataclasses
+import inspect
+import json
+import re
+from pathlib import Path
+
+import pytest
+
+from tanksynth import docgen
+from tanksynth.cli import main
+from tanksynth.methods import TABLE
+from tanksynth.plants import BUILTIN_PLANTS
+
+ROOT = Path(__file__).resolve().parents[1]
+SEED000 = ROOT / "examples" / "seed000_three_tank.toml"
+
+
+def run_cli(capsys, *args: str) -> tuple[int, str, str]:
+    code = main(list(args))
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def test_methods_lists_every_row_with_its_kind(capsys):
+    code, out, err = run_cli(capsys, "methods", "--json")
+    assert code == 0 and err == ""
+    listed = {m["name"]: m for m in json.loads(out)}
+    assert list(listed) == [row.name for row in TABLE]
+    for row in TABLE:
+        assert listed[row.name]["kinds"] == list(row.kinds)
+        assert listed[row.name]["summary"] == row.summary
+    code, out, _ = run_cli(capsys, "methods")
+    assert code == 0
+    for name in ("luenberger", "consensus_filter", "fault_detection", "adaptive_scaling_kalman"):
+        assert name in out
+
+
+@pytest.mark.parametrize("row", TABLE, ids=lambda r: r.name)
+def test_methods_name_gives_every_option_with_default_unit_and_meaning(capsys, row):
+    code, out, err = run_cli(capsys, "methods", row.name, "--json")
+    assert code == 0 and err == ""
+    options = json.loads(out)["options"]
+    fields = dataclasses.fields(row.options)
+    assert [o["name"] for o in options] == [f.name for f in fields]
+    for o, f in zip(options, fields):
+        required = f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING
+        assert o["required"] is required
+        assert o["default"] == ("required" if required else repr(f.default))
+        assert o["unit"], f"{row.name}.{f.name}: no unit (declare it with option(..., unit=...))"
+        assert len(o["meaning"]) > 10, f"{row.name}.{f.name}: no meaning in the Attributes docstring"
+        assert o["type"] and "\n" not in o["meaning"]
+
+
+def test_methods_name_table_and_known_values(capsys):
+    code, out, _ = run_cli(capsys, "methods", "lmi_placement", "--json")
+    by_name = {o["name"]: o for o in json.loads(out)["options"]}
+    assert by_name["margin"]["default"] == "1e-06" and by_name["margin"]["unit"] == "-"
+    assert "Strictness margin" in by_name["margin"]["meaning"]
+    assert by_name["region"]["required"] and "1/s" in by_name["region"]["unit"]
+    code, out, _ = run_cli(capsys, "methods", "ekf", "--json")
+    by_name = {o["name"]: o for o in json.loads(out)["options"]}
+    assert by_name["Q"]["unit"] == "(state units)^2" and by_name["Q"]["required"]
+    code, out, _ = run_cli(capsys, "methods", "ekf")
+    assert code == 0 and "jacobian_eps" in out and "(state units)^2" in out and "required" in out
+
+
+def test_methods_unknown_name_is_bad_input(capsys):
+    code, out, err = run_cli(capsys, "methods", "pole_placment")
+    assert code == 2 and "pole_placement" in err and len(err.strip().splitlines()) == 1
+
+
+def test_methods_markdown_is_the_generated_text(capsys):
+    code, out, _ = run_cli(capsys, "methods", "--markdown")
+    assert code == 0 and out == docgen.methods_markdown()
+    code, out, _ = run_cli(capsys, "methods", "kalman", "--markdown")
+    assert out == docgen.method_markdown("kalman")
+    assert "| `Q` | ndarray | **required** | (state units)^2 |" in out
+
+
+def test_plants_shows_family_options_and_the_custom_plant(capsys):
+    code, out, err = run_cli(capsys, "plants")
+    assert code == 0 and err == ""
+    assert "outputs = 'all'" in out and "parameter_set = 'decenter'" in out and "N = 4" in out
+    assert 'model = "custom"' in out and "[plant.equations]" in out
+    code, out, _ = run_cli(capsys, "plants", "--json")
+    data = {p["name"]: p for p in json.loads(out)}
+    for name, builder in BUILTIN_PLANTS.items():
+        params = inspect.signature(builder).parameters
+        assert [o["name"] for o in data[name]["options"]] == list(params)
+        for o in data[name]["options"]:
+            assert o["default"] == repr(params[o["name"]].default) and o["meaning"]
+    code, out, _ = run_cli(capsys, "plants", "--markdown")
+    assert out == docgen.plants_markdown()
+
+
+def test_custom_plant_example_of_the_guide_parses():
+    from tanksynth.methods import parse_spec_text
+
+    text = docgen.custom_plant_markdown()
+    example = re.search(r"```toml\n(.*?)```", text, re.S).group(1)
+    spec = parse_spec_text(example + '\n[operating_point]\nx = {h = 0.3}\n', source="guide")
+    assert spec.plant.n == 1 and [s.name for s in spec.plant.states] == ["h"]
+
+
+def test_readme_generated_sections_are_up_to_date():
+    stale = docgen.update_readme(ROOT / "README.md", check=True)
+    assert stale == [], f"README sections {stale} are stale: run python -m tanksynth.docgen"
+    text = (ROOT / "README.md").read_text(encoding="utf-8")
+    section = docgen.generated_section(text, "methods")
+    for row in TABLE:
+        assert f"### `{row.name}`" in section
+        for name in row.options.option_names():
+            assert f"| `{name}` |" in section, (row.name, name)
+    plants = docgen.generated_section(text, "plants")
+    for name in [*BUILTIN_PLANTS, "custom"]:
+        assert f'`model = "{name}"`' in plants
+
+
+def test_docgen_check_reports_a_stale_readme(tmp_path):
+    readme = tmp_path / "README.md"
+    readme.write_text((ROOT / "README.md").read_text(encoding="utf-8").replace(
+        "| `margin` |", "| `margin_old` |", 1), encoding="utf-8")
+    assert docgen.main(["--check", str(readme)]) == 1
+    assert docgen.main([str(readme)]) == 0
+    assert docgen.main(["--check", str(readme)]) == 0
+    assert readme.read_text(encoding="utf-8") == (ROOT / "README.md").read_text(encoding="utf-8")
+
+
+def test_check_output_writes_checks_json(tmp_path, capsys):
+    code, out, err = run_cli(capsys, "check", str(SEED000), "-o", str(tmp_path / "res"), "--json")
+    assert code == 0, err
+    written = json.loads((tmp_path / "res" / "checks.json").read_text(encoding="utf-8"))
+    assert written == json.loads(out)
+    by_name = {c["check"]: c for c in written}
+    assert by_name["observability"]["data"]["rank"] == 3

@@ -1,0 +1,205 @@
+"""`tanksynth.load`: gains, diagnostics, verdict and the linear system of a designed artefact.
+
+Reference values are computed here independently: the poles requested in the spec text,
+numpy eigenvalues of hand-built matrices and the Kalman gain of a Riccati recursion
+iterated to convergence (not scipy's DARE, which the loader uses).
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import control
+import numpy as np
+import pytest
+
+import tanksynth
+from tanksynth.cli import main
+from tanksynth.errors import ArtefactError
+
+SPEC = """
+title = "load() test: three-tank, every linear kind"
+[plant]
+model = "three_tank"
+outputs = "h1h2"
+[operating_point]
+x = {h1 = 0.40, h2 = 0.20, h3 = 0.30}
+[sampling]
+ts = 1.0
+
+[[design]]
+name = "sf_integral"
+method = "pole_placement"
+integral = true
+tracked = ["h1", "h2"]
+poles = [0.92, 0.97, 0.90, 0.95, 0.94]
+
+[[design]]
+name = "sf_lmi"
+method = "lmi_placement"
+target = "state_feedback"
+region = [{type = "disk", center = 0.0, radius = 0.97}]
+
+[[design]]
+name = "obs"
+method = "pole_placement"
+target = "observer"
+poles = [0.5, 0.6, 0.7]
+
+[[design]]
+name = "kf"
+method = "kalman"
+Q = 1e-9
+R = 1e-6
+P0 = 1e-3
+
+[[design]]
+name = "ekf"
+method = "ekf"
+Q = 1e-9
+R = 1e-6
+P0 = 1e-3
+
+[[design]]
+name = "lue"
+method = "luenberger"
+form = "current"
+poles = [0.5, 0.6, 0.7]
+
+[[design]]
+name = "it"
+method = "integral_tracking"
+tracked = ["h1", "h2"]
+poles = [0.92, 0.97, 0.90, 0.95, 0.94]
+
+[[design]]
+name = "lin"
+method = "linearize"
+"""
+
+
+@pytest.fixture(scope="module")
+def results(tmp_path_factory) -> Path:
+    d = tmp_path_factory.mktemp("load")
+    (d / "spec.toml").write_text(SPEC, encoding="utf-8")
+    out = d / "out"
+    assert main(["design", str(d / "spec.toml"), "-o", str(out), "--export", "mat"]) == 0
+    return out
+
+
+def _sorted(values) -> np.ndarray:
+    return np.sort_complex(np.asarray(values, dtype=complex))
+
+
+def test_load_directory_and_file(results):
+    res = tanksynth.load(results)
+    assert set(res) == {"sf_integral", "sf_lmi", "obs", "kf", "ekf", "lue", "it", "lin"}
+    assert res.verdict is None and all(d.verdict is None for d in res.values())
+    one = tanksynth.load(results / "obs.json")
+    assert isinstance(one, tanksynth.Design) and one.method == "pole_placement"
+    doc = json.loads((results / "obs.json").read_text(encoding="utf-8"))
+    np.testing.assert_array_equal(one.gains["L"], np.array(doc["gains"]["L"]))
+    assert one.diagnostics["time_domain"] == "discrete" and one.ts == 1.0
+    with pytest.raises(ValueError):
+        one.gains["L"][0, 0] = 1.0   # read-only
+
+
+def test_state_feedback_closed_loop_has_the_requested_poles(results):
+    sys = tanksynth.load(results / "sf_integral.json").to_statespace()
+    assert isinstance(sys, control.StateSpace) and sys.dt == 1.0
+    assert sys.nstates == 5 and sys.ninputs == 2 and sys.noutputs == 2
+    np.testing.assert_allclose(_sorted(sys.poles()), _sorted([0.90, 0.92, 0.94, 0.95, 0.97]), atol=1e-8)
+    # integral action: unit DC gain from the references to the tracked outputs
+    np.testing.assert_allclose(control.dcgain(sys), np.eye(2), atol=1e-8)
+    lmi = tanksynth.load(results / "sf_lmi.json").to_statespace()
+    assert np.all(np.abs(lmi.poles()) < 0.97)
+
+
+def test_observer_error_system(results):
+    d = tanksynth.load(results / "obs.json")
+    sys = d.to_statespace()
+    A, C = d.gains.get("A"), d.gains.get("C")
+    np.testing.assert_allclose(_sorted(sys.poles()), _sorted([0.5, 0.6, 0.7]), atol=1e-8)
+    if A is not None:
+        np.testing.assert_allclose(sys.A, A - d.gains["L"] @ C)
+    lue = tanksynth.load(results / "lue.json").to_statespace()
+    np.testing.assert_allclose(_sorted(lue.poles()), _sorted([0.5, 0.6, 0.7]), atol=1e-8)
+
+
+def _riccati_by_iteration(Ad, C, Q, R) -> np.ndarray:
+    P = np.eye(Ad.shape[0]) * 1e-3
+    for _ in range(200_000):
+        S = C @ P @ C.T + R
+        Pn = Ad @ (P - P @ C.T @ np.linalg.solve(S, C @ P)) @ Ad.T + Q
+        if np.max(np.abs(Pn - P)) < 1e-22:
+            break
+        P = Pn
+    return P @ C.T @ np.linalg.inv(C @ P @ C.T + R)
+
+
+def test_kalman_error_system_is_the_steady_state_filter(results):
+    kf = tanksynth.load(results / "kf.json")
+    Ad, C = kf.gains["Ad"], kf.gains["C"]
+    K = _riccati_by_iteration(Ad, C, kf.gains["Q"], kf.gains["R"])
+    expected = np.linalg.eigvals((np.eye(3) - K @ C) @ Ad)
+    np.testing.assert_allclose(_sorted(kf.to_statespace().poles()), _sorted(expected), atol=1e-7)
+    # the EKF (no linear model in its artefact) is linearised from spec.toml: same system
+    ekf = tanksynth.load(results / "ekf.json").to_statespace()
+    np.testing.assert_allclose(_sorted(ekf.poles()), _sorted(expected), atol=1e-7)
+
+
+def test_integral_tracking_and_linearize(results):
+    it = tanksynth.load(results / "it.json").to_statespace()
+    np.testing.assert_allclose(_sorted(it.poles()), _sorted([0.90, 0.92, 0.94, 0.95, 0.97]), atol=1e-8)
+    np.testing.assert_allclose(control.dcgain(it), np.eye(2), atol=1e-8)
+    lin = tanksynth.load(results / "lin.json")
+    sys = lin.to_statespace()
+    np.testing.assert_allclose(sys.A, lin.gains["Ad"])
+    assert sys.dt == 1.0 and sys.state_labels == ["h1", "h2", "h3"]
+
+
+def test_verdict_after_verify(tmp_path):
+    spec = tmp_path / "spec.toml"
+    spec.write_text(SPEC.split("[[design]]")[0] + "[[design]]" + SPEC.split("[[design]]")[3],
+                    encoding="utf-8")
+    assert main(["design", str(spec), "-o", str(tmp_path / "out")]) == 0
+    assert main(["verify", str(tmp_path / "out"), "--json"]) == 0
+    res = tanksynth.load(tmp_path / "out")
+    assert list(res) == ["obs"] and res.verdict is True
+    assert res["obs"].verdict is True and res["obs"].checks and all("check" in c for c in res["obs"].checks)
+
+
+def test_refusals(results, tmp_path):
+    with pytest.raises(ArtefactError):
+        tanksynth.load(tmp_path / "missing")
+    (tmp_path / "empty").mkdir()
+    with pytest.raises(ArtefactError, match="no design artefact"):
+        tanksynth.load(tmp_path / "empty")
+    edited = tmp_path / "obs.json"
+    doc = json.loads((results / "obs.json").read_text(encoding="utf-8"))
+    doc["gains"]["L"][0][0] += 1.0
+    edited.write_text(json.dumps(doc), encoding="utf-8")
+    with pytest.raises(ArtefactError):
+        tanksynth.load(edited)
+
+
+def test_mat_export_matlab_orientation(results):
+    from scipy.io import loadmat
+
+    mat = loadmat(results / "ekf.mat")
+    doc = json.loads((results / "ekf.json").read_text(encoding="utf-8"))
+    assert mat["x0"].shape == (3, 1)   # the initial estimate, a column
+    np.testing.assert_allclose(mat["x0"][:, 0], doc["gains"]["x0"])
+    np.testing.assert_allclose(mat["x_op"][:, 0], [0.40, 0.20, 0.30])
+    assert mat["ts"].shape == (1, 1) and mat["ts"][0, 0] == 1.0
+    assert [str(c[0]) for c in mat["state_names"][:, 0]] == ["h1", "h2", "h3"]
+    assert [str(c[0]) for c in mat["state_units"][:, 0]] == ["m", "m", "m"]
+    assert [str(c[0]) for c in mat["input_names"][:, 0]] == ["q1", "q2"]
+    assert [str(c[0]) for c in mat["input_units"][:, 0]] == ["m^3/s", "m^3/s"]
+    assert [str(c[0]) for c in mat["output_names"][:, 0]] == ["h1", "h2"]
+    sf = loadmat(results / "sf_integral.mat")
+    doc = json.loads((results / "sf_integral.json").read_text(encoding="utf-8"))
+    np.testing.assert_allclose(sf["K"], doc["gains"]["K"])
+    assert sf["x0"].shape == (3, 1) and sf["u0"].shape == (2, 1)
+    np.testing.assert_allclose(sf["u0"][:, 0], doc["diagnostics"]["equilibrium"]["u0"])
