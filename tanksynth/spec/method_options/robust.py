@@ -23,7 +23,7 @@ from typing import Any, ClassVar, Mapping
 import numpy as np
 
 from tanksynth.errors import SpecError
-from tanksynth.spec.method_options.base import MethodOptions, OptionReader, time_domain_of
+from tanksynth.spec.method_options.base import MethodOptions, OptionReader, option, time_domain_of
 from tanksynth.spec.options import (did_you_mean, parse_bool, parse_choice, parse_integer,
                                     parse_matrix, parse_names, parse_number, parse_region,
                                     parse_vector, region_is_stable)
@@ -215,24 +215,24 @@ class RobustStateFeedbackOptions(MethodOptions):
 
     method_name: ClassVar[str] = "robust_state_feedback"
 
-    region: tuple[tuple, ...]
-    uncertain: tuple[tuple[str, float, float], ...] = ()
-    time_domain: str | None = None
-    integral: bool = False
-    tracked: tuple[str, ...] | None = None
-    gamma: float | None = None
-    Bw: np.ndarray | None = None
-    Cz: np.ndarray | None = None
-    Dzu: np.ndarray | None = None
-    saturation: bool = False
-    umax: np.ndarray | None = None
-    box: np.ndarray | None = None
-    margin: float = 1e-6
-    kappa: float = 1e4
-    solver: str = "CLARABEL"
-    samples: int = 200
-    mc_runs: int = 16
-    seed: int = 0
+    region: tuple[tuple, ...] = option(unit="1/s (continuous) or - (discrete, z-plane)")
+    uncertain: tuple[tuple[str, float, float], ...] = option((), unit="units of each parameter")
+    time_domain: str | None = option(None, unit="-")
+    integral: bool = option(False, unit="-")
+    tracked: tuple[str, ...] | None = option(None, unit="-")
+    gamma: float | None = option(None, unit="-")
+    Bw: np.ndarray | None = option(None, unit="state units/s per disturbance unit")
+    Cz: np.ndarray | None = option(None, unit="performance units per state unit")
+    Dzu: np.ndarray | None = option(None, unit="performance units per input unit")
+    saturation: bool = option(False, unit="-")
+    umax: np.ndarray | None = option(None, unit="input units (m^3/s)")
+    box: np.ndarray | None = option(None, unit="state units (m)")
+    margin: float = option(1e-6, unit="-")
+    kappa: float = option(1e4, unit="-")
+    solver: str = option("CLARABEL", unit="-")
+    samples: int = option(200, unit="-")
+    mc_runs: int = option(16, unit="-")
+    seed: int = option(0, unit="-")
 
     @classmethod
     def from_table(cls, options: Mapping[str, Any], key: str, plant: Any,
@@ -278,18 +278,18 @@ class RobustObserverOptions(MethodOptions):
 
     method_name: ClassVar[str] = "robust_observer"
 
-    region: tuple[tuple, ...]
-    uncertain: tuple[tuple[str, float, float], ...] = ()
-    time_domain: str | None = None
-    gamma: float | None = None
-    Bw: np.ndarray | None = None
-    Cz: np.ndarray | None = None
-    margin: float = 1e-6
-    kappa: float = 1e4
-    solver: str = "CLARABEL"
-    samples: int = 200
-    mc_runs: int = 16
-    seed: int = 0
+    region: tuple[tuple, ...] = option(unit="1/s (continuous) or - (discrete, z-plane)")
+    uncertain: tuple[tuple[str, float, float], ...] = option((), unit="units of each parameter")
+    time_domain: str | None = option(None, unit="-")
+    gamma: float | None = option(None, unit="-")
+    Bw: np.ndarray | None = option(None, unit="state units/s per disturbance unit")
+    Cz: np.ndarray | None = option(None, unit="performance units per state unit")
+    margin: float = option(1e-6, unit="-")
+    kappa: float = option(1e4, unit="-")
+    solver: str = option("CLARABEL", unit="-")
+    samples: int = option(200, unit="-")
+    mc_runs: int = option(16, unit="-")
+    seed: int = option(0, unit="-")
 
     @classmethod
     def from_table(cls, options: Mapping[str, Any], key: str, plant: Any,

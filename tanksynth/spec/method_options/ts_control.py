@@ -6,7 +6,7 @@ from dataclasses import dataclass
 from types import MappingProxyType
 from typing import Any, ClassVar, Mapping
 
-from tanksynth.spec.method_options.base import MethodOptions, OptionReader
+from tanksynth.spec.method_options.base import MethodOptions, OptionReader, option
 from tanksynth.spec.method_options.placement import LMI_SOLVERS
 from tanksynth.spec.options import parse_bool, parse_box, parse_choice, parse_integer, parse_number
 
@@ -65,20 +65,20 @@ class TsStateFeedbackOptions(MethodOptions):
 
     method_name: ClassVar[str] = "ts_state_feedback"
 
-    relaxation: str = "auto"
-    decay_rate: float = 0.0
-    pump_limits: bool = True
-    region_margin: float = 0.01
-    domain: Mapping[str, tuple[float, float]] | None = None
-    orderings: bool = False
-    ordering_gap: float = 0.0
-    premise_samples: int = 20001
-    premise_margin: float = 1e-3
-    verify_points: int = 24
-    seed: int = 0
-    margin: float = 1e-6
-    kappa: float = 1e4
-    solver: str = "CLARABEL"
+    relaxation: str = option("auto", unit="-")
+    decay_rate: float = option(0.0, unit="1/s")
+    pump_limits: bool = option(True, unit="-")
+    region_margin: float = option(0.01, unit="state units (m)")
+    domain: Mapping[str, tuple[float, float]] | None = option(None, unit="state units (m)")
+    orderings: bool = option(False, unit="-")
+    ordering_gap: float = option(0.0, unit="state units (m)")
+    premise_samples: int = option(20001, unit="-")
+    premise_margin: float = option(1e-3, unit="-")
+    verify_points: int = option(24, unit="-")
+    seed: int = option(0, unit="-")
+    margin: float = option(1e-6, unit="-")
+    kappa: float = option(1e4, unit="-")
+    solver: str = option("CLARABEL", unit="-")
 
     @classmethod
     def _common(cls, r: OptionReader, plant: Any) -> dict:
@@ -136,10 +136,10 @@ class TsOutputFeedbackOptions(TsStateFeedbackOptions):
 
     method_name: ClassVar[str] = "ts_output_feedback"
 
-    premises: str = "auto"
-    observer_decay: float = 0.02
-    lipschitz_method: str = "interval"
-    coupling_factor: float = 2.0
+    premises: str = option("auto", unit="-")
+    observer_decay: float = option(0.02, unit="1/s")
+    lipschitz_method: str = option("interval", unit="-")
+    coupling_factor: float = option(2.0, unit="-")
 
     @classmethod
     def from_table(cls, options: Mapping[str, Any], key: str, plant: Any,
