@@ -35,7 +35,7 @@ import numpy as np
 from tanksynth.errors import DimensionError
 from tanksynth.plants.base import Plant
 from tanksynth.plants.compile import rk4_step
-from tanksynth.sim.tape import NumpyModel, numpy_model
+from tanksynth.sim.tape import CASADI_MAX_RUNS, NumpyModel, numpy_model
 
 __all__ = [
     "Integrator",
@@ -133,6 +133,9 @@ class Integrator:
         self.events = 0
         self.clipped_low = 0
         self.clipped_high = 0
+        self._cache_key: tuple | None = None
+        self._cache: tuple = ((), ())
+        self._buffers: dict[tuple[int, int], list] = {}
 
     @classmethod
     def for_plant(cls, plant: Plant, params: Mapping[str, Any] | None = None, *,
@@ -169,21 +172,142 @@ class Integrator:
 
     def step(self, x: np.ndarray, u: np.ndarray, p: Mapping[str, Any], h: float) -> np.ndarray:
         """Advance every run by ``h`` seconds (one RK4 step, split at crossings), clipped."""
-        x1 = self.rk4(x, u, p, h)
-        if self.model.k:
-            x1 = self._split(x, x1, u, p, h)
-        return self.clip_counted(x1)
+        return self.advance(x, u, p, h, 1)
 
     def advance(self, x: np.ndarray, u: np.ndarray, p: Mapping[str, Any], ts: float,
                 substeps: int) -> np.ndarray:
         """One sampling period ``ts`` (s) under the held input ``u``: ``substeps`` steps.
 
-        ``u`` is used as given (saturate it first, see `input_limits`).
+        ``u`` is used as given (saturate it first, see `input_limits`). Up to
+        `CASADI_MAX_RUNS` runs the period is one call of the plant's CasADi
+        period function (runs whose mode changed are re-integrated by the
+        numpy code, which locates the crossing); above, the generated numpy
+        code on the row layout (n, M). Both give the same numbers to rounding.
+
+        Parameters
+        ----------
+        x : ndarray, shape (M, n)
+            States at the start (state units).
+        u : ndarray, shape (M, m)
+            Held inputs (input units).
+        p : mapping
+            Parameter values (floats or (M,) arrays).
+        ts : float
+            Length of the period (s).
+        substeps : int
+            RK4 steps in the period.
+
+        Returns
+        -------
+        ndarray, shape (M, n)
+            States at the end of the period, clipped.
         """
-        h = ts / int(substeps)
-        for _ in range(int(substeps)):
-            x = self.step(x, u, p, h)
-        return x
+        substeps = int(substeps)
+        h = float(ts) / substeps
+        x = np.asarray(x, dtype=float)
+        u = np.asarray(u, dtype=float)
+        if (0 < x.shape[0] <= CASADI_MAX_RUNS and self.model.n and self.lower.ndim == 1
+                and self.upper.ndim == 1):
+            x1, low, high = self._period_casadi(x, u, p, h, substeps)
+        else:
+            x1, low, high = self._period_rows(x, u, p, h, substeps)
+        self.clipped_low += int(np.count_nonzero(low))
+        self.clipped_high += int(np.count_nonzero(high))
+        return x1
+
+    def _values(self, p: Mapping[str, Any]) -> tuple[list, tuple]:
+        """Parameter values in the model's order and their constants (cached by identity)."""
+        pv = self.model.parameter_values(p)
+        key = tuple(map(id, pv))
+        if self._cache_key != key:
+            self._cache_key, self._cache = key, (pv, self.model.constants(pv))
+        return self._cache
+
+    def _period_rows(self, x: np.ndarray, u: np.ndarray, p: Mapping[str, Any], h: float,
+                     substeps: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The period on the row layout: end states (M, n), clipping flags per step."""
+        model = self.model
+        pv, c = self._values(p)
+        n, count = model.n, x.shape[0]
+        lo = self.lower[:, None] if self.lower.ndim == 1 else self.lower.T
+        hi = self.upper[:, None] if self.upper.ndim == 1 else self.upper.T
+        xt = np.array(x.T, order="C")
+        stage = np.empty((n, count))
+        k1, k2, k3, k4 = (np.empty((n, count)) for _ in range(4))
+        rows = [*stage, *np.array(u.T, order="C")]
+        f = model.rhs_rows
+        low = np.zeros(substeps, dtype=bool)
+        high = np.zeros(substeps, dtype=bool)
+        half = 0.5 * h
+        with np.errstate(invalid="ignore"):
+            for i in range(substeps):
+                np.minimum(np.maximum(xt, lo, out=stage), hi, out=stage)
+                f(rows, c, pv, k1)
+                for k_in, k_out, w in ((k1, k2, half), (k2, k3, half), (k3, k4, h)):
+                    np.multiply(k_in, w, out=stage)
+                    stage += xt
+                    np.minimum(np.maximum(stage, lo, out=stage), hi, out=stage)
+                    f(rows, c, pv, k_out)
+                # x + h/6 (k1 + 2 k2 + 2 k3 + k4), summed in this order (the one RK4 formula)
+                acc = np.multiply(k2, 2.0, out=k2)
+                acc += k1
+                acc += np.multiply(k3, 2.0, out=k3)
+                acc += k4
+                acc *= h / 6.0
+                x1 = xt + acc
+                if model.k:
+                    crossed = np.any((model.switching_rows(xt, c, pv) > 0)
+                                     != (model.switching_rows(x1, c, pv) > 0), axis=0)
+                    if crossed.any():
+                        x1 = np.array(self._split(xt.T, np.array(x1.T), u, p, h).T, order="C")
+                low[i] = np.any(x1 < lo)
+                high[i] = np.any(x1 > hi)
+                xt = np.minimum(np.maximum(x1, lo, out=x1), hi, out=x1)
+        return np.array(xt.T, order="C"), low, high
+
+    def _period_casadi(self, x: np.ndarray, u: np.ndarray, p: Mapping[str, Any], h: float,
+                       substeps: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The period through the CasADi period function (in place, `casadi.FunctionBuffer`)."""
+        model = self.model
+        count = x.shape[0]
+        pv, _ = self._values(p)
+        slot = self._buffers.get((substeps, count))
+        if slot is None:
+            args = [np.empty((count, model.n)), np.empty((count, model.m)),
+                    np.empty((count, len(pv))), np.empty((count, 1)),
+                    np.broadcast_to(self.lower, (count, model.n)).copy(),
+                    np.broadcast_to(self.upper, (count, model.n)).copy()]
+            res = [np.empty((count, model.n)), np.empty((count, 1)), np.empty((count, substeps)),
+                   np.empty((count, substeps))]
+            buf, run = model.casadi_advance(substeps, count).buffer()
+            for j, a in enumerate(args):
+                buf.set_arg(j, memoryview(a))
+            for j, r in enumerate(res):
+                buf.set_res(j, memoryview(r))
+            slot = self._buffers[(substeps, count)] = [args, res, buf, run, None]
+        args, res, _, run, filled = slot
+        args[0][...] = x
+        args[1][...] = u
+        args[3][...] = h
+        if filled is not self._cache_key:
+            for j, v in enumerate(pv):
+                args[2][:, j] = v
+            slot[4] = self._cache_key
+        run()
+        x1, crossed, low, high = res[0].copy(), res[1], res[2], res[3]
+        low, high = low > 0.5, high > 0.5
+        hit = np.flatnonzero(crossed[:, 0] > 0.5)
+        if hit.size:
+            sub = {k: (v[hit] if np.ndim(v) else v) for k, v in p.items()}
+            x1[hit], low_hit, high_hit = self._period_rows(x[hit], u[hit], sub, h, substeps)
+            self._cache_key = None
+            rest = np.ones(count, dtype=bool)
+            rest[hit] = False
+            low = np.any(low[rest], axis=0) | low_hit
+            high = np.any(high[rest], axis=0) | high_hit
+        else:
+            low, high = np.any(low, axis=0), np.any(high, axis=0)
+        return x1, low, high
 
     def clip_counted(self, x: np.ndarray) -> np.ndarray:
         """Clip, counting the clipping events (the step or noise overshot a bound)."""
