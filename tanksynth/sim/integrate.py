@@ -35,7 +35,10 @@ import numpy as np
 from tanksynth.errors import DimensionError
 from tanksynth.plants.base import Plant
 from tanksynth.plants.compile import rk4_step
-from tanksynth.sim.tape import CASADI_MAX_RUNS, NumpyModel, numpy_model
+from tanksynth.sim.tape import CASADI_MAX_RUNS, CASADI_MAX_RUNS_HYBRID, NumpyModel, numpy_model
+
+# numpy's element-wise clip ufunc (one call instead of maximum + minimum; same NaN rule)
+_clip = getattr(getattr(getattr(np, "_core", None), "umath", None), "clip", None) or np.clip
 
 __all__ = [
     "Integrator",
@@ -136,6 +139,7 @@ class Integrator:
         self._cache_key: tuple | None = None
         self._cache: tuple = ((), ())
         self._buffers: dict[tuple[int, int], list] = {}
+        self._rows: tuple | None = None
 
     @classmethod
     def for_plant(cls, plant: Plant, params: Mapping[str, Any] | None = None, *,
@@ -168,7 +172,13 @@ class Integrator:
 
     def bits(self, x: np.ndarray, p: Mapping[str, Any]) -> np.ndarray:
         """Mode bits ``s_j(x) > 0``, shape (M, k)."""
-        return self.model.switching(x, p) > 0
+        pv, c = self._values(p)
+        return (self.model.switching_rows(np.asarray(x, dtype=float).T, c, pv) > 0).T
+
+    def output(self, x: np.ndarray, p: Mapping[str, Any]) -> np.ndarray:
+        """The plant's output ``h(x)`` at M states (M, n) -> (M, q), output units."""
+        pv, c = self._values(p)
+        return self.model.output_rows(np.asarray(x, dtype=float).T, c, pv).T
 
     def step(self, x: np.ndarray, u: np.ndarray, p: Mapping[str, Any], h: float) -> np.ndarray:
         """Advance every run by ``h`` seconds (one RK4 step, split at crossings), clipped."""
@@ -182,7 +192,7 @@ class Integrator:
         `CASADI_MAX_RUNS` runs the period is one call of the plant's CasADi
         period function (runs whose mode changed are re-integrated by the
         numpy code, which locates the crossing); above, the generated numpy
-        code on the row layout (n, M). Both give the same numbers to rounding.
+        code on the row layout (n, M). Both give the same numbers bit for bit.
 
         Parameters
         ----------
@@ -206,8 +216,8 @@ class Integrator:
         h = float(ts) / substeps
         x = np.asarray(x, dtype=float)
         u = np.asarray(u, dtype=float)
-        if (0 < x.shape[0] <= CASADI_MAX_RUNS and self.model.n and self.lower.ndim == 1
-                and self.upper.ndim == 1):
+        limit = CASADI_MAX_RUNS_HYBRID if self.model.k else CASADI_MAX_RUNS
+        if 0 < x.shape[0] <= limit and self.model.n and self.lower.ndim == 1 and self.upper.ndim == 1:
             x1, low, high = self._period_casadi(x, u, p, h, substeps)
         else:
             x1, low, high = self._period_rows(x, u, p, h, substeps)
@@ -223,14 +233,48 @@ class Integrator:
             self._cache_key, self._cache = key, (pv, self.model.constants(pv))
         return self._cache
 
+    def _row_bounds(self) -> tuple[Callable, Callable, Callable]:
+        """Clipping ``clip(src, dst)`` on the row layout and the tests ``below``/``above``.
+
+        Scalar bounds when every state has the same (one numpy call on all
+        rows), else one call per row; NaN propagates as in `clip`.
+        """
+        if self._rows is not None:
+            return self._rows
+        lo, hi = self.lower, self.upper
+        if lo.ndim == 1 and hi.ndim == 1 and lo.size and np.all(lo == lo[0]) and np.all(hi == hi[0]):
+            a, b = float(lo[0]), float(hi[0])
+
+            def clip(src: np.ndarray, dst: np.ndarray) -> None:
+                _clip(src, a, b, out=dst)
+
+            def below(v: np.ndarray) -> bool:
+                return bool(v.min() < a) if v.size else False
+
+            def above(v: np.ndarray) -> bool:
+                return bool(v.max() > b) if v.size else False
+        else:
+            lo_t = lo[:, None] if lo.ndim == 1 else lo.T
+            hi_t = hi[:, None] if hi.ndim == 1 else hi.T
+
+            def clip(src: np.ndarray, dst: np.ndarray) -> None:
+                np.minimum(np.maximum(src, lo_t, out=dst), hi_t, out=dst)
+
+            def below(v: np.ndarray) -> bool:
+                return bool(np.any(v < lo_t))
+
+            def above(v: np.ndarray) -> bool:
+                return bool(np.any(v > hi_t))
+        self._rows = (clip, below, above)
+        return self._rows
+
     def _period_rows(self, x: np.ndarray, u: np.ndarray, p: Mapping[str, Any], h: float,
                      substeps: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """The period on the row layout: end states (M, n), clipping flags per step."""
         model = self.model
         pv, c = self._values(p)
         n, count = model.n, x.shape[0]
-        lo = self.lower[:, None] if self.lower.ndim == 1 else self.lower.T
-        hi = self.upper[:, None] if self.upper.ndim == 1 else self.upper.T
+        clip, below, above = self._row_bounds()
         xt = np.array(x.T, order="C")
         stage = np.empty((n, count))
         k1, k2, k3, k4 = (np.empty((n, count)) for _ in range(4))
@@ -241,12 +285,12 @@ class Integrator:
         half = 0.5 * h
         with np.errstate(invalid="ignore"):
             for i in range(substeps):
-                np.minimum(np.maximum(xt, lo, out=stage), hi, out=stage)
+                clip(xt, stage)
                 f(rows, c, pv, k1)
                 for k_in, k_out, w in ((k1, k2, half), (k2, k3, half), (k3, k4, h)):
                     np.multiply(k_in, w, out=stage)
                     stage += xt
-                    np.minimum(np.maximum(stage, lo, out=stage), hi, out=stage)
+                    clip(stage, stage)
                     f(rows, c, pv, k_out)
                 # x + h/6 (k1 + 2 k2 + 2 k3 + k4), summed in this order (the one RK4 formula)
                 acc = np.multiply(k2, 2.0, out=k2)
@@ -260,9 +304,10 @@ class Integrator:
                                      != (model.switching_rows(x1, c, pv) > 0), axis=0)
                     if crossed.any():
                         x1 = np.array(self._split(xt.T, np.array(x1.T), u, p, h).T, order="C")
-                low[i] = np.any(x1 < lo)
-                high[i] = np.any(x1 > hi)
-                xt = np.minimum(np.maximum(x1, lo, out=x1), hi, out=x1)
+                low[i] = below(x1)
+                high[i] = above(x1)
+                clip(x1, x1)
+                xt = x1
         return np.array(xt.T, order="C"), low, high
 
     def _period_casadi(self, x: np.ndarray, u: np.ndarray, p: Mapping[str, Any], h: float,
@@ -270,11 +315,12 @@ class Integrator:
         """The period through the CasADi period function (in place, `casadi.FunctionBuffer`)."""
         model = self.model
         count = x.shape[0]
-        pv, _ = self._values(p)
+        pv, c = self._values(p)
         slot = self._buffers.get((substeps, count))
         if slot is None:
             args = [np.empty((count, model.n)), np.empty((count, model.m)),
-                    np.empty((count, len(pv))), np.empty((count, 1)),
+                    np.empty((count, model.n_constants)), np.empty((count, len(pv))),
+                    np.empty((count, 1)),
                     np.broadcast_to(self.lower, (count, model.n)).copy(),
                     np.broadcast_to(self.upper, (count, model.n)).copy()]
             res = [np.empty((count, model.n)), np.empty((count, 1)), np.empty((count, substeps)),
@@ -288,10 +334,12 @@ class Integrator:
         args, res, _, run, filled = slot
         args[0][...] = x
         args[1][...] = u
-        args[3][...] = h
+        args[4][...] = h
         if filled is not self._cache_key:
-            for j, v in enumerate(pv):
+            for j, v in enumerate(c):
                 args[2][:, j] = v
+            for j, v in enumerate(pv):
+                args[3][:, j] = v
             slot[4] = self._cache_key
         run()
         x1, crossed, low, high = res[0].copy(), res[1], res[2], res[3]
@@ -306,13 +354,13 @@ class Integrator:
             low = np.any(low[rest], axis=0) | low_hit
             high = np.any(high[rest], axis=0) | high_hit
         else:
-            low, high = np.any(low, axis=0), np.any(high, axis=0)
+            low, high = low.any(axis=0), high.any(axis=0)
         return x1, low, high
 
     def clip_counted(self, x: np.ndarray) -> np.ndarray:
         """Clip, counting the clipping events (the step or noise overshot a bound)."""
-        self.clipped_low += int(np.any(x < self.lower))
-        self.clipped_high += int(np.any(x > self.upper))
+        self.clipped_low += int((x < self.lower).any())
+        self.clipped_high += int((x > self.upper).any())
         return self.clip(x)
 
     def _split(self, x: np.ndarray, x1: np.ndarray, u: np.ndarray, p: Mapping[str, Any],

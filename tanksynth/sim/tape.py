@@ -18,8 +18,11 @@ dominates, so `NumpyModel.casadi_advance` builds the whole sampling period
 (RK4 substeps, clipping, the mode-change flag and the clipping flags) as one
 CasADi SX function of ``(x, u, p, h, lower, upper)``, evaluated in place
 through a CasADi `FunctionBuffer` (`tanksynth.sim.integrate` picks it for
-M up to `CASADI_MAX_RUNS`). Both agree with the CasADi `CompiledPlant.rhs`
-to rounding (tested).
+M up to `CASADI_MAX_RUNS`). That CasADi function is built by running the
+generated source itself with CasADi operations in place of numpy's, in the
+same order, so the two forms give the same numbers bit for bit (tested): a
+run's trajectory does not depend on the batch it is simulated in. Both agree
+with the CasADi `CompiledPlant.rhs` to rounding (tested).
 
 Cache (no hidden state): compiled models live in this module, in
 ``_MODELS`` (keyed by the plant's name, equations, switching functions and
@@ -40,10 +43,15 @@ import sympy as sp
 from tanksynth.errors import SimulationError
 from tanksynth.plants.base import Plant
 
-__all__ = ["NumpyModel", "numpy_model", "clear_cache", "cache_info", "CASADI_MAX_RUNS"]
+__all__ = ["NumpyModel", "numpy_model", "clear_cache", "cache_info", "CASADI_MAX_RUNS",
+           "CASADI_MAX_RUNS_HYBRID"]
 
-#: Largest batch integrated by the CasADi period function (above it: the numpy code).
-CASADI_MAX_RUNS = 64
+#: Largest batch integrated by the CasADi period function (above it: the numpy code); both
+#: give the same numbers bit for bit, the choice is speed only (measured crossover on the
+#: 2-core machine: about 100 runs for the three-tank and tank networks).
+CASADI_MAX_RUNS = 96
+#: The same for hybrid plants, whose numpy form evaluates ``numpy.select`` per pipe and stage.
+CASADI_MAX_RUNS_HYBRID = 512
 
 
 def _printer() -> Any:
@@ -67,6 +75,10 @@ def _printer() -> Any:
         def _print_DiracDelta(self, expr: sp.Expr) -> str:
             return "0.0"
 
+        def _print__SignedSqrt(self, expr: sp.Expr) -> str:
+            a = self._print(expr.args[0])
+            return f"numpy.copysign(numpy.sqrt(abs({a})), {a})"
+
         def _print_Heaviside(self, expr: sp.Expr) -> str:
             return f"numpy.heaviside({self._print(expr.args[0])}, 0.5)"
 
@@ -87,6 +99,24 @@ def _check(exprs: Sequence[sp.Expr], known: set) -> None:
                 raise SimulationError(f"cannot compile {type(node).__name__} in {e} for simulation")
             if isinstance(node, sp.Symbol) and node not in known:
                 raise SimulationError(f"cannot simulate: free symbol {node} has no value")
+
+
+class _SignedSqrt(sp.Function):
+    """``sign(a) sqrt(|a|)``, printed as ``copysign(sqrt(|a|), a)`` (one numpy call less)."""
+
+    nargs = 1
+
+
+def _signed_sqrt(args: Sequence[sp.Expr]) -> list[sp.Expr]:
+    """Mul arguments with every pair ``sign(a)``, ``sqrt(Abs(a))`` fused into `_SignedSqrt`."""
+    args = list(args)
+    for s in [a for a in args if isinstance(a, sp.sign)]:
+        root = sp.sqrt(sp.Abs(s.args[0]))
+        if root in args and s in args:
+            args.remove(s)
+            args.remove(root)
+            args.append(_SignedSqrt(s.args[0]))
+    return args
 
 
 class _Hoister:
@@ -122,8 +152,9 @@ class _Hoister:
         if self.is_const(expr):
             return self.constant(expr)
         if isinstance(expr, (sp.Add, sp.Mul)):
-            fixed = [a for a in expr.args if self.is_const(a)]
-            rest = [self.hoist(a) for a in expr.args if not self.is_const(a)]
+            args = _signed_sqrt(expr.args) if isinstance(expr, sp.Mul) else expr.args
+            fixed = [a for a in args if self.is_const(a)]
+            rest = [self.hoist(a) for a in args if not self.is_const(a)]
             if len(fixed) > 1 or (len(fixed) == 1 and not fixed[0].is_Atom):
                 fixed = [self.constant(expr.func(*fixed))]
             # constants first: one scalar (or per-run) factor times the arrays
@@ -175,7 +206,9 @@ def _generate(groups: Mapping[str, tuple[list[sp.Expr], list[sp.Symbol]]],
     source = "\n".join(src) + "\n"
     namespace: dict[str, Any] = {"numpy": np}
     exec(compile(source, "<tanksynth.sim.tape>", "exec"), namespace)  # noqa: S102 - generated from sympy
-    return source, {name: namespace[name] for name in ("constants", *groups)}
+    fns = {name: namespace[name] for name in ("constants", *groups)}
+    fns["n_constants"] = len(hoister.consts)
+    return source, fns
 
 
 @dataclass(frozen=True)
@@ -201,8 +234,8 @@ class NumpyModel:
     k: int
     parameter_names: tuple[str, ...]
     source: str = field(repr=False)
+    n_constants: int = field(repr=False)
     _fns: Mapping[str, Callable] = field(repr=False)
-    _exprs: tuple = field(repr=False)
     _casadi: dict = field(default_factory=dict, repr=False, compare=False)
 
     def parameter_values(self, params: Mapping[str, Any]) -> list:
@@ -228,6 +261,12 @@ class NumpyModel:
                 self._fns["s"](x, c, pv, out)
         return out
 
+    def output_rows(self, x: np.ndarray, c: tuple, pv: Sequence[Any]) -> np.ndarray:
+        """Output map on the row layout: (n, M) -> (q, M)."""
+        out = np.empty((self.q, x.shape[1]))
+        with np.errstate(invalid="ignore", divide="ignore"):
+            return self._fns["h"](x, c, pv, out)
+
     def rhs(self, x: np.ndarray, u: np.ndarray, params: Mapping[str, Any]) -> np.ndarray:
         """``f(x, u)`` at M points: (M, n), (M, m), parameters (scalars or (M,)) -> (M, n)."""
         pv = self.parameter_values(params)
@@ -238,9 +277,7 @@ class NumpyModel:
     def output(self, x: np.ndarray, params: Mapping[str, Any]) -> np.ndarray:
         """``h(x)`` at M points: (M, n) -> (M, q)."""
         pv = self.parameter_values(params)
-        out = np.empty((self.q, x.shape[0]))
-        with np.errstate(invalid="ignore", divide="ignore"):
-            return self._fns["h"](np.asarray(x, dtype=float).T, self.constants(pv), pv, out).T
+        return self.output_rows(np.asarray(x, dtype=float).T, self.constants(pv), pv).T
 
     def switching(self, x: np.ndarray, params: Mapping[str, Any]) -> np.ndarray:
         """Switching functions ``s(x)`` at M points: (M, n) -> (M, k); (M, 0) if not hybrid."""
@@ -250,7 +287,7 @@ class NumpyModel:
     def casadi_advance(self, substeps: int, runs: int) -> Any:
         """The sampling period as one CasADi function mapped over ``runs`` runs (cached).
 
-        ``(x (n), u (m), p (parameters), h, lower (n), upper (n)) -> (x_next
+        ``(x (n), u (m), c (constants), p (parameters), h, lower (n), upper (n)) -> (x_next
         (n), crossed (1), low (substeps), high (substeps))``: ``substeps``
         RK4 steps of ``h`` s under the held input, stage states clipped,
         every end state clipped; ``crossed`` is 1 when some step changed the
@@ -270,43 +307,108 @@ class NumpyModel:
         return fn
 
 
-def _casadi_period(model: NumpyModel, substeps: int) -> Any:
+class _Reduce:
+    """``numpy.logical_and``/``logical_or`` stand-ins with ``.reduce`` (CasADi)."""
+
+    def __init__(self, fn: Callable):
+        self.fn = fn
+
+    def __call__(self, a: Any, b: Any) -> Any:
+        return self.fn(a, b)
+
+    def reduce(self, parts: Sequence[Any]) -> Any:
+        out = parts[0]
+        for q in parts[1:]:
+            out = self.fn(out, q)
+        return out
+
+
+def _casadi_namespace() -> dict[str, Any]:
+    """The generated source's ``numpy`` calls, as CasADi SX operations (same order)."""
+    import types
+
     import casadi as ca
 
-    from tanksynth.plants.compile import rk4_step, to_casadi
+    def select(conds: Sequence[Any], values: Sequence[Any], default: float = np.nan) -> Any:
+        out = ca.SX(default)
+        for cond, value in reversed(list(zip(conds, values))):
+            out = value if cond is True else ca.if_else(cond, value, out)
+        return out
 
-    f_exprs, s_exprs, xs_sym, us_sym, ps_sym = model._exprs
-    x = ca.SX.sym("x", model.n)
-    u = ca.SX.sym("u", model.m)
-    p = ca.SX.sym("p", len(ps_sym))
+    def heaviside(a: Any, h0: float) -> Any:
+        return ca.if_else(a > 0, 1.0, ca.if_else(a < 0, 0.0, h0))
+
+    shim = types.SimpleNamespace(
+        sqrt=ca.sqrt, copysign=ca.copysign, sign=ca.sign, exp=ca.exp, log=ca.log,
+        maximum=ca.fmax, minimum=ca.fmin, heaviside=heaviside, select=select,
+        less=lambda a, b: a < b, less_equal=lambda a, b: a <= b, greater=lambda a, b: a > b,
+        greater_equal=lambda a, b: a >= b, equal=lambda a, b: a == b,
+        not_equal=lambda a, b: a != b, logical_not=ca.logic_not,
+        logical_and=_Reduce(ca.logic_and), logical_or=_Reduce(ca.logic_or),
+        pi=np.pi, e=np.e, nan=np.nan, inf=np.inf)
+    return {"numpy": shim}
+
+
+def _casadi_period(model: NumpyModel, substeps: int) -> Any:
+    """The period of `Integrator` as CasADi SX, built from the generated source itself.
+
+    The same source runs with CasADi operations in place of numpy's, in the
+    same order (the constants come in computed by numpy), so both forms give
+    the same floating-point numbers (tested bit for bit on the built-in
+    plants).
+    """
+    import casadi as ca
+
+    ns = _casadi_namespace()
+    exec(compile(model.source, "<tanksynth.sim.tape casadi>", "exec"), ns)  # noqa: S102
+    n, m, k = model.n, model.m, model.k
+    nc = model.n_constants
+    x = ca.SX.sym("x", n)
+    u = ca.SX.sym("u", m)
+    c = ca.SX.sym("c", nc)
+    p = ca.SX.sym("p", len(model.parameter_names))
     h = ca.SX.sym("h")
-    lo = ca.SX.sym("lower", model.n)
-    hi = ca.SX.sym("upper", model.n)
-    symbols = {**{s: x[i] for i, s in enumerate(xs_sym)}, **{s: u[i] for i, s in enumerate(us_sym)},
-               **{s: p[i] for i, s in enumerate(ps_sym)}}
-    cache: dict = {}
-    xv = ca.SX.sym("xv", model.n)
-    subs = {**symbols, **{s: xv[i] for i, s in enumerate(xs_sym)}}
-    f = ca.Function("f", [xv, u, p], [ca.vertcat(*[to_casadi(e, subs, cache) for e in f_exprs])])
-    cache = {}
-    s_fn = (ca.Function("s", [xv, p], [ca.vertcat(*[to_casadi(e, subs, cache) for e in s_exprs])])
-            if s_exprs else None)
+    lo = ca.SX.sym("lower", n)
+    hi = ca.SX.sym("upper", n)
+    cs = [c[i] for i in range(nc)]
+    ps = [p[i] for i in range(p.numel())]
+    us = [u[i] for i in range(m)]
+
+    def rows(v: Any) -> list:
+        return [v[i] for i in range(n)]
+
+    def f(v: Any) -> Any:
+        out = [None] * n
+        ns["f"]([*rows(v), *us], cs, ps, out)
+        return ca.vertcat(*[ca.SX(o) for o in out])
+
+    def switching(v: Any) -> list:
+        out = [None] * k
+        ns["s"](rows(v), cs, ps, out)
+        return [ca.SX(o) for o in out]
+
     clip = lambda v: ca.fmin(ca.fmax(v, lo), hi)  # noqa: E731
-    state = x
+    half = 0.5 * h
+    xt = x
     crossed = ca.SX(0)
     low, high = [], []
     for _ in range(substeps):
-        end = rk4_step(lambda v: f(v, u, p), state, h, clip)
-        if s_fn is not None:
-            b0, b1 = s_fn(state, p) > 0, s_fn(end, p) > 0
-            for j in range(len(s_exprs)):
-                crossed = ca.logic_or(crossed, b0[j] != b1[j])
-        low.append(ca.mmax(end < lo) if model.n else ca.SX(0))
-        high.append(ca.mmax(end > hi) if model.n else ca.SX(0))
-        state = clip(end)
-    return ca.Function("period", [x, u, p, h, lo, hi],
-                       [state, crossed, ca.vertcat(*low), ca.vertcat(*high)],
-                       ["x", "u", "p", "h", "lower", "upper"], ["x_next", "crossed", "low", "high"])
+        k1 = f(clip(xt))
+        k2 = f(clip(k1 * half + xt))
+        k3 = f(clip(k2 * half + xt))
+        k4 = f(clip(k3 * h + xt))
+        acc = ((k2 * 2.0 + k1) + k3 * 2.0 + k4) * (h / 6.0)
+        x1 = xt + acc
+        if k:
+            for a, b in zip(switching(xt), switching(x1)):
+                crossed = ca.logic_or(crossed, (a > 0) != (b > 0))
+        low.append(ca.mmax(x1 < lo) if n else ca.SX(0))
+        high.append(ca.mmax(x1 > hi) if n else ca.SX(0))
+        xt = clip(x1)
+    return ca.Function("period", [x, u, c, p, h, lo, hi],
+                       [xt, crossed, ca.vertcat(*low), ca.vertcat(*high)],
+                       ["x", "u", "c", "p", "h", "lower", "upper"],
+                       ["x_next", "crossed", "low", "high"])
 
 
 #: Compiled models by plant structure (name, equations, switching functions, parameter names).
@@ -372,8 +474,8 @@ def numpy_model(plant: Plant) -> NumpyModel:
         if s:
             groups["s"] = (s, xs)
         source, fns = _generate(groups, params)
-        model = NumpyModel(plant.n, plant.m, plant.q, len(switching), names, source, fns,
-                           (tuple(f), tuple(s), tuple(xs), tuple(us), tuple(params)))
+        model = NumpyModel(plant.n, plant.m, plant.q, len(switching), names, source,
+                           fns["n_constants"], fns)
         _MODELS[key] = model
     if len(_BY_ID) > 256:
         _BY_ID.clear()
