@@ -365,7 +365,7 @@ def covariance_recursion(A_seq: Any, C_seq: Any, Q_seq: Any, R_seq: Any, K_seq: 
 
 
 def finite_horizon_gains(A_seq: Any, C_seq: Any, Q_seq: Any, R_seq: Any, E: Any, P0_pred: Any, *,
-                         method: str = "casadi", tol: float = 1e-6,
+                         method: str = "iterative", tol: float = 1e-6,
                          max_iter: int = 100) -> FiniteHorizonResult:
     """Finite-horizon decentralised gains: minimise ``sum_k tr P(k|k)``.
 
@@ -411,7 +411,9 @@ def finite_horizon_gains(A_seq: Any, C_seq: Any, Q_seq: Any, R_seq: Any, E: Any,
         Sparsity pattern (nonzero = free entry).
     P0_pred : array_like, shape (n, n)
         The predicted covariance ``P(1|0)``, positive definite.
-    method : {"casadi", "iterative"}
+    method : {"iterative", "casadi"}
+        Default ``"iterative"``: the same cost as ``"casadi"`` (to 1e-15
+        relative at N = 64 in the benchmark), an order of magnitude faster.
     tol : float
         Relative tolerance (> 0).
     max_iter : int
