@@ -16,7 +16,7 @@ import sympy as sp
 from tanksynth.errors import SpecError
 from tanksynth.analysis.interval import _branch_and_bound, interval_evaluate
 from tanksynth.analysis import blas as _blas
-from tanksynth.analysis.quasi_lpv import _NUMPY
+from tanksynth.analysis.quasi_lpv import lambdify_cached
 from tanksynth.analysis.symbolic import jacobian
 from tanksynth.analysis.takagi_sugeno import Domain, QuasiLPV, TSModel, ts_model, vertex_observability
 
@@ -172,7 +172,7 @@ def _jacobian_function(q: QuasiLPV, J: sp.Matrix) -> Callable[[np.ndarray], np.n
                 exprs.append(e)
             elif e != 0:
                 base[i, j] = float(e)
-    fn = sp.lambdify([q.states], exprs, modules=_NUMPY, cse=True) if exprs else None
+    fn = lambdify_cached([q.states], exprs, cse=True) if exprs else None
     rows = np.array([w[0] for w in where], dtype=int)
     cols = np.array([w[1] for w in where], dtype=int)
 
@@ -308,7 +308,7 @@ def lipschitz_bound(ts: TSModel, form: str = "jacobian", method: str = "interval
         row = []
         for s in q.states:
             de = sp.diff(e, s)
-            fn = sp.lambdify([q.states], de, modules=_NUMPY)
+            fn = lambdify_cached([q.states], de)
             with np.errstate(divide="ignore", invalid="ignore"):
                 row.append(np.broadcast_to(np.asarray(fn(X.T), dtype=float), (len(X),)))
         grads.append(np.column_stack(row))
