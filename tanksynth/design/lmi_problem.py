@@ -28,6 +28,7 @@ import numpy as np
 import scipy.linalg as sla
 import scipy.sparse as sps
 
+from tanksynth.analysis.blas import small_dense
 from tanksynth.errors import DimensionError, SpecError
 
 __all__ = [
@@ -182,6 +183,11 @@ def _output_split(Cs: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     are columns of the identity (the eliminated LMI keeps the sparsity);
     otherwise they come from the SVD of ``Cs``.
     """
+    with small_dense():
+        return _split(Cs)
+
+
+def _split(Cs: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     q, n = Cs.shape
     nz = Cs != 0
     eye = np.eye(n)
