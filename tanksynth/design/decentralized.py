@@ -232,9 +232,18 @@ def _window(A_seq: Any, C_seq: Any, Q_seq: Any, R_seq: Any, E: Any, P0_pred: Any
     o = C0.shape[0]
     A = [_array2(a, f"A_seq[{k}]", (n, n)) for k, a in enumerate(seqs["A_seq"])]
     C = [_array2(c, f"C_seq[{k}]", (o, n)) for k, c in enumerate(seqs["C_seq"])]
-    Q = [_check_psd(_array2(q, f"Q_seq[{k}]", (n, n)), f"Q_seq[{k}]")
+    # a window relinearised every few steps repeats its matrices: each distinct one is checked once
+    seen: dict[tuple, np.ndarray] = {}
+
+    def once(check: Any, M: np.ndarray, name: str) -> np.ndarray:
+        key = (check.__name__, M.shape, M.tobytes())
+        if key not in seen:
+            seen[key] = check(M, name)
+        return seen[key]
+
+    Q = [once(_check_psd, _array2(q, f"Q_seq[{k}]", (n, n)), f"Q_seq[{k}]")
          for k, q in enumerate(seqs["Q_seq"])]
-    R = [_check_pd(_array2(r, f"R_seq[{k}]", (o, o)), f"R_seq[{k}]")
+    R = [once(_check_pd, _array2(r, f"R_seq[{k}]", (o, o)), f"R_seq[{k}]")
          for k, r in enumerate(seqs["R_seq"])]
     mask = np.ones((n, o), dtype=bool) if E is None else _mask(E, n, o)
     P0 = _check_pd(_array2(P0_pred, "P0_pred", (n, n)), "P0_pred")
@@ -456,7 +465,8 @@ def finite_horizon_gains(A_seq: Any, C_seq: Any, Q_seq: Any, R_seq: Any, E: Any,
     for k in range(len(A)):
         P_pred.append(Pp)
         K, Pf, Pp = _one_step(A[k], C[k], Q[k], R[k], pat, Pp)
-        _require_pd(Pf, f"P({k + 1}|{k + 1}) at window step {k + 1}")
+        if method != "iterative":   # the iterative route checks the trajectory of its gains
+            _require_pd(Pf, f"P({k + 1}|{k + 1}) at window step {k + 1}")
         K0.append(K)
         P_filt.append(Pf)
     traces = np.array([np.trace(P) for P in P_filt])
