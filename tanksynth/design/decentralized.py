@@ -470,6 +470,9 @@ def finite_horizon_gains(A_seq: Any, C_seq: Any, Q_seq: Any, R_seq: Any, E: Any,
         K0.append(K)
         P_filt.append(Pf)
     traces = np.array([np.trace(P) for P in P_filt])
+    if not (np.isfinite(traces).all() and (traces > 0).all()):
+        for k, Pf in enumerate(P_filt):              # names the step where it broke down
+            _require_pd(Pf, f"P({k + 1}|{k + 1}) at window step {k + 1}")
     init = CovarianceTrajectory(P_filt, P_pred, Pp, traces, float(traces.sum()))
     if method == "iterative":
         K, traj, iters, converged, status, history = _fh_iterative(A, C, Q, R, pat, P0, K0, init,
