@@ -96,8 +96,13 @@ def main() -> int:
         order = args.sizes if rep % 2 == 0 else list(reversed(args.sizes))
         for N in order:
             t0 = time.perf_counter()
-            proc = subprocess.run([sys.executable, "-c", CHILD, str(specs[N])], capture_output=True,
-                                  text=True, timeout=args.timeout)
+            try:
+                proc = subprocess.run([sys.executable, "-c", CHILD, str(specs[N])],
+                                      capture_output=True, text=True, timeout=args.timeout)
+            except subprocess.TimeoutExpired:
+                failed.append(N)
+                print(f"N = {N}: > {args.timeout:g} s (timed out)")
+                continue
             wall = time.perf_counter() - t0
             if proc.returncode != 0:
                 failed.append(N)
