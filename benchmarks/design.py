@@ -136,7 +136,9 @@ def main() -> int:
     if 64 in args.sizes and rows[64]["design_total"]:
         # a ratio >= 1 means under the 5 s budget
         floors.check("N=64 three designs under 5 s (5 s / median)", 5.0 / statistics.median(rows[64]["design_total"]), 1.0)
-    path = write_record("design", {"reps": reps, "rows": {str(k): v for k, v in rows.items()},
+    name = "design" if args.sizes == [16, 32, 64, 128, 256] else \
+        "design_N" + "-".join(map(str, args.sizes))
+    path = write_record(name, {"reps": reps, "rows": {str(k): v for k, v in rows.items()},
                                    "growth_exponent_16_64": exponent, "failed": failed,
                                    "floors": floors.rows}, before)
     print(f"record: {path}")
