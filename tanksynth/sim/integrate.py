@@ -279,11 +279,11 @@ class Integrator:
         stage = np.empty((n, count))
         k1, k2, k3, k4 = (np.empty((n, count)) for _ in range(4))
         rows = [*stage, *np.array(u.T, order="C")]
-        f = model.rhs_rows
+        f = model.rhs_rows_unguarded     # under the errstate of the whole period, below
         low = np.zeros(substeps, dtype=bool)
         high = np.zeros(substeps, dtype=bool)
         half = 0.5 * h
-        with np.errstate(invalid="ignore"):
+        with np.errstate(invalid="ignore", divide="ignore"):
             for i in range(substeps):
                 clip(xt, stage)
                 f(rows, c, pv, k1)

@@ -253,6 +253,11 @@ class NumpyModel:
         with np.errstate(invalid="ignore", divide="ignore"):
             return self._fns["f"](rows, c, pv, out)
 
+    @property
+    def rhs_rows_unguarded(self) -> Callable:
+        """`rhs_rows` without its ``numpy.errstate`` (for a caller that holds one)."""
+        return self._fns["f"]
+
     def switching_rows(self, x: np.ndarray, c: tuple, pv: Sequence[Any]) -> np.ndarray:
         """Switching functions on the row layout: (n, M) -> (k, M)."""
         out = np.empty((self.k, x.shape[1]))
