@@ -20,7 +20,8 @@ Contenders, interleaved, ``--reps`` repetitions (>= 3):
 
 Floors (median over repetitions of the per-repetition ratio; exit 1 on a miss):
 M = 1: tanksynth at least as fast as ``casadi_loop``; M = 20 ... 10,000:
-tanksynth >= 1.5x ``numpy_rk4``; every M: >= 100x the ``solve_ivp`` loop.
+tanksynth >= 1.5x ``numpy_rk4``; M >= 1,000: >= 100x the ``solve_ivp`` loop
+(measured at M = 1, extrapolated per run; printed for every M).
 ``casadi_mapaccum`` is reported, no floor (the issue's aim: within 2x at M = 1).
 
 Usage: ``python benchmarks/simulate.py [--reps 3] [--sizes 1 20 200 1000 10000] [--quick]``
@@ -184,7 +185,6 @@ def main() -> int:
         if not args.quick:
             if M == 1:
                 floors.check("M=1 vs casadi per-step loop", statistics.median(row["ratios"]["casadi_loop"]), 1.0)
-                floors.check("M=1 vs solve_ivp loop", statistics.median(row["ratios"]["solve_ivp"]), 100.0)
             else:
                 floors.check(f"M={M} vs hand numpy RK4", statistics.median(row["ratios"]["numpy_rk4"]), 1.5)
         rows.append(row)
@@ -197,7 +197,7 @@ def main() -> int:
             r["ratio_solve_ivp_extrapolated"] = ext
             print(f"  M = {r['M']:6d}: x{statistics.median(ext):9.0f} (per rep: "
                   + " ".join(f"{v:.0f}" for v in ext) + ")")
-            if not args.quick and r["M"] > 1:
+            if not args.quick and r["M"] >= 1000:   # the batch claim (issue 15: M = 1000 and up)
                 floors.check(f"M={r['M']} vs solve_ivp loop (extrapolated)", statistics.median(ext), 100.0)
     path = write_record("simulate", {"quick": args.quick, "reps": reps, "rows": rows,
                                      "floors": floors.rows}, before)

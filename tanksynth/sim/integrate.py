@@ -343,6 +343,8 @@ class Integrator:
             slot[4] = self._cache_key
         run()
         x1, crossed, low, high = res[0].copy(), res[1], res[2], res[3]
+        if not crossed.any():                    # flags are exactly 0.0 or 1.0
+            return x1, low.max(axis=0) > 0.5, high.max(axis=0) > 0.5
         low, high = low > 0.5, high > 0.5
         hit = np.flatnonzero(crossed[:, 0] > 0.5)
         if hit.size:
@@ -356,6 +358,74 @@ class Integrator:
         else:
             low, high = low.any(axis=0), high.any(axis=0)
         return x1, low, high
+
+    def horizon(self, x: np.ndarray, U: np.ndarray, p: Mapping[str, Any], ts: float,
+                substeps: int) -> np.ndarray | None:
+        """Open loop over a whole input sequence in one CasADi call (``mapaccum``), or None.
+
+        The same period function as `advance` (so the same numbers, bit for
+        bit), accumulated over the ``N`` periods and mapped over the runs.
+        Returns None, having changed nothing, when this path does not apply
+        (too many runs, no CasADi form) or a period changed a hybrid mode or
+        left a state non-finite: the caller then steps period by period.
+
+        Parameters
+        ----------
+        x : ndarray, shape (M, n)
+            Clipped states at the start (state units).
+        U : ndarray, shape (N, M, m)
+            Saturated inputs held over each period (input units).
+        p : mapping
+            Parameter values (floats or (M,) arrays), constant over the horizon.
+        ts : float
+            Sampling period (s).
+        substeps : int
+
+        Returns
+        -------
+        ndarray, shape (N, M, n) or None
+            States at the end of every period.
+        """
+        model = self.model
+        N, count = U.shape[0], x.shape[0]
+        limit = CASADI_MAX_RUNS_HYBRID if model.k else CASADI_MAX_RUNS
+        if not (0 < count <= limit and N > 0 and model.n and self.lower.ndim == 1
+                and self.upper.ndim == 1):
+            return None
+        substeps = int(substeps)
+        pv, c = self._values(p)
+        key = ("horizon", substeps, N, count)
+        fn = model._casadi.get(key)
+        if fn is None:
+            fn = model.casadi_advance(substeps, 1).mapaccum(N)
+            fn = fn if count == 1 else fn.map(count, "serial")
+            model._casadi[key] = fn
+        rep = lambda a: np.ascontiguousarray(np.broadcast_to(  # noqa: E731
+            np.asarray(a, dtype=float)[:, None, :], (count, N, a.shape[-1])))
+        cm = np.empty((count, model.n_constants))
+        pm = np.empty((count, len(pv)))
+        for j, v in enumerate(c):
+            cm[:, j] = v
+        for j, v in enumerate(pv):
+            pm[:, j] = v
+        args = [np.ascontiguousarray(x, dtype=float), np.ascontiguousarray(U.transpose(1, 0, 2)),
+                rep(cm), rep(pm), np.full((count, N, 1), float(ts) / substeps),
+                rep(np.broadcast_to(self.lower, (count, model.n))),
+                rep(np.broadcast_to(self.upper, (count, model.n)))]
+        res = [np.empty((count, N, model.n)), np.empty((count, N, 1)),
+               np.empty((count, N, substeps)), np.empty((count, N, substeps))]
+        buf, run = fn.buffer()
+        for j, a in enumerate(args):
+            buf.set_arg(j, memoryview(a))
+        for j, r in enumerate(res):
+            buf.set_res(j, memoryview(r))
+        run()
+        X, crossed, low, high = res
+        if crossed.any() or not np.isfinite(X).all():
+            return None
+        self.clipped_low += int(np.count_nonzero(low.max(axis=0) > 0.5))
+        self.clipped_high += int(np.count_nonzero(high.max(axis=0) > 0.5))
+        return X.transpose(1, 0, 2)
 
     def clip_counted(self, x: np.ndarray) -> np.ndarray:
         """Clip, counting the clipping events (the step or noise overshot a bound)."""

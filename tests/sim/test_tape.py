@@ -1,6 +1,7 @@
 """The numpy tape of the plant and its cache (documented, clearable, rebuilt on demand)."""
 
 import numpy as np
+import pytest
 
 import tanksynth.sim as sim
 from tanksynth.plants import hybrid_three_tank
@@ -82,3 +83,26 @@ def test_generated_source_hoists_parameter_only_terms():
     assert "def constants(p)" in model.source
     # sqrt(2 g) Phi mu / A is computed once in constants(), never per stage
     assert "numpy.sqrt(p_" not in body and "numpy.sqrt(r_" in body or "numpy.sqrt(t_" in body
+
+
+@pytest.mark.parametrize("name", ["three_tank", "tank_network", "hybrid_three_tank"])
+def test_open_loop_horizon_in_one_call_equals_the_period_loop(monkeypatch, name):
+    from tanksynth.plants import builtin_plant
+    from tanksynth.sim.integrate import Integrator
+
+    plant = builtin_plant(name)
+    rng = np.random.default_rng(2)
+    M, N = 5, 120
+    hi = np.array([b if np.isfinite(b) else 1e-4 for _, b in plant.input_limits])
+    U = rng.uniform(-0.1, 1.1, (N, M, plant.m)) * hi
+    lo_x, hi_x = plant.state_bounds()
+    top = np.where(np.isfinite(hi_x), hi_x, 40.0)
+    x0 = rng.uniform(0.0, 1.0, (M, plant.n)) * top
+    x0[0] = 0.0                                            # empty tanks: clipping at 0
+    fast = sim.simulate_inputs(plant, x0, U, 1.0, substeps=3)
+    monkeypatch.setattr(Integrator, "horizon", lambda self, *a, **k: None)
+    loop = sim.simulate_inputs(plant, x0, U, 1.0, substeps=3)
+    for key in ("x", "y", "u", "x_hat", "modes"):
+        assert np.array_equal(getattr(fast, key), getattr(loop, key)), key
+    assert (fast.events, fast.clipped_low, fast.clipped_high) == \
+        (loop.events, loop.clipped_low, loop.clipped_high)
