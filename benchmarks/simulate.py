@@ -1,116 +1,212 @@
-"""Batch closed-loop simulator vs a per-run scipy solve_ivp loop (what a user writes).
+"""Simulator side by side with what a capable user writes instead (issue 15).
 
-Closed loop: DTS200 three-tank (seed 000) + the seed 000 tracking controller
-with integral action (printed gains), true state fed back, dynamic step
-references, process and measurement noise, pump saturation. M runs x N
-samples. The solve_ivp loop integrates each sampling period of each run with
-RK45 (rtol 1e-6, atol 1e-9) on a hand-written numpy right-hand side; it is
-timed on a subset of runs and extrapolated. Both are checked against a tight
-(rtol 1e-12) solve_ivp run, so the comparison is at (at least) the same
-accuracy.
+Open loop, DTS200 three-tank (seed 000 parameters), M runs x N samples of
+1 s, a random piecewise-constant pump input per run and sample (saturated to
+[0, qmax]), 4 RK4 steps per sample, levels clipped to [0, hmax]: the same
+scheme on every side, so the trajectories agree to rounding (checked, 1e-12 m).
 
-Usage: ``python benchmarks/simulate.py [--runs M] [--steps N] [--baseline-runs K]``
+Contenders, interleaved, ``--reps`` repetitions (>= 3):
+
+* ``tanksynth``: `simulate_inputs` (the plant compiled once; CasADi period
+  function for M <= 64, generated numpy code above);
+* ``numpy_rk4``: a hand-vectorised numpy RK4 over the runs (one 1-D array per
+  tank, constants folded by hand, ``np.minimum``/``np.maximum`` clipping);
+* ``casadi_mapaccum``: the plant's CasADi RK4 step (`casadi_step`) accumulated
+  over the horizon with ``mapaccum`` and mapped over the runs (one call);
+* M = 1 only: ``casadi_loop`` (the same CasADi step called once per sample
+  from Python) and ``solve_ivp`` (RK45, rtol 1e-6, one call per sample, on a
+  hand-written scalar right-hand side), extrapolated to M runs for the
+  ratio at larger M.
+
+Floors (median over repetitions of the per-repetition ratio; exit 1 on a miss):
+M = 1: tanksynth at least as fast as ``casadi_loop``; M = 20 ... 10,000:
+tanksynth >= 1.5x ``numpy_rk4``; M >= 1,000: >= 100x the ``solve_ivp`` loop
+(measured at M = 1, extrapolated per run; printed for every M).
+``casadi_mapaccum`` is reported, no floor (the issue's aim: within 2x at M = 1).
+
+Usage: ``python benchmarks/simulate.py [--reps 3] [--sizes 1 20 200 1000 10000] [--quick]``
 """
 
 from __future__ import annotations
 
 import argparse
 import math
-import time
+import statistics
+import sys
+from pathlib import Path
 
+import casadi as ca
 import numpy as np
-from scipy.integrate import solve_ivp
 
-from tanksynth.analysis.linearize import equilibrium_input
-from tanksynth.plants import three_tank
-from tanksynth.verify.campaign import IntegralStateFeedback
-from tanksynth.sim.scenarios import scenario
-from tanksynth.sim.simulate import run_seeds, simulate
+sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-K = 1e-4 * np.array([[21.6, 3.0, -5.0, -0.95, -0.32], [2.9, 19.0, -4.0, -0.30, -0.91]])  # seed 000
-X0 = np.array([0.40, 0.20, 0.30])
-PROCESS, MEASURE = 1e-5, 1e-4
+from harness import Floors, interleave, machine, ratios, summary, write_record  # noqa: E402
 
+from tanksynth.plants import three_tank  # noqa: E402
+from tanksynth.sim.integrate import casadi_step  # noqa: E402
+from tanksynth.sim.simulate import simulate_inputs  # noqa: E402
 
-def _law(u0):
-    C1 = np.array([[1.0, 0, 0], [0, 1.0, 0]])
-    return IntegralStateFeedback(K[:, :3], K[:, 3:], C1, X0, u0, 1.0)
+SUBSTEPS = 4
+TS = 1.0
 
 
-def _user_loop(plant, ref, u0, steps, seed, rtol=1e-6, atol=1e-9, noise=True):
-    """One run as a user writes it: a solve_ivp call per sampling period."""
-    p = {q.name: q.value for q in plant.parameters}
-    A, Phi, g = p["A"], p["Phi"], p["g"]
-    c13, c32, c20 = p["mu13"] * Phi, p["mu32"] * Phi, p["mu20"] * Phi
+def _steps(M: int, quick: bool) -> int:
+    n = 400 if M == 1 else 200 if M <= 200 else 100 if M <= 1000 else 20
+    return max(n // 4, 5) if quick else n
+
+
+def numpy_rk4(p: dict, X0: np.ndarray, U: np.ndarray, substeps: int = SUBSTEPS) -> np.ndarray:
+    """Hand-vectorised RK4 of the three-tank over M runs: X0 (M, 3), U (N, M, 2) -> (M, N+1, 3)."""
+    A, r2g = p["A"], math.sqrt(2 * p["g"])
+    c13, c32, c20 = p["mu13"] * p["Phi"] * r2g / A, p["mu32"] * p["Phi"] * r2g / A, p["mu20"] * p["Phi"] * r2g / A
+    hmax, qmax = p["hmax"], p["qmax"]
+    N, M = U.shape[0], U.shape[1]
+    out = np.empty((M, N + 1, 3))
+    h1, h2, h3 = (np.ascontiguousarray(X0[:, i]) for i in range(3))
+    out[:, 0] = X0
+    dt = TS / substeps
+    clip = lambda v: np.minimum(np.maximum(v, 0.0), hmax)  # noqa: E731
+
+    def f(a, b, c, q1, q2):
+        a, b, c = clip(a), clip(b), clip(c)
+        d13, d32 = a - c, c - b
+        f13 = c13 * np.copysign(np.sqrt(np.abs(d13)), d13)
+        f32 = c32 * np.copysign(np.sqrt(np.abs(d32)), d32)
+        return q1 - f13, q2 + f32 - c20 * np.sqrt(b), f13 - f32
+
+    for k in range(N):
+        u = np.minimum(np.maximum(U[k], 0.0), qmax)
+        q1, q2 = u[:, 0] / A, u[:, 1] / A
+        for _ in range(substeps):
+            k1 = f(h1, h2, h3, q1, q2)
+            k2 = f(h1 + 0.5 * dt * k1[0], h2 + 0.5 * dt * k1[1], h3 + 0.5 * dt * k1[2], q1, q2)
+            k3 = f(h1 + 0.5 * dt * k2[0], h2 + 0.5 * dt * k2[1], h3 + 0.5 * dt * k2[2], q1, q2)
+            k4 = f(h1 + dt * k3[0], h2 + dt * k3[1], h3 + dt * k3[2], q1, q2)
+            h1 = clip(h1 + dt / 6 * (k1[0] + 2 * k2[0] + 2 * k3[0] + k4[0]))
+            h2 = clip(h2 + dt / 6 * (k1[1] + 2 * k2[1] + 2 * k3[1] + k4[1]))
+            h3 = clip(h3 + dt / 6 * (k1[2] + 2 * k2[2] + 2 * k3[2] + k4[2]))
+        out[:, k + 1, 0], out[:, k + 1, 1], out[:, k + 1, 2] = h1, h2, h3
+    return out
+
+
+def solve_ivp_loop(p: dict, x0: np.ndarray, U: np.ndarray) -> np.ndarray:
+    """One run as a user writes it with scipy: a solve_ivp (RK45, rtol 1e-6) call per sample."""
+    from scipy.integrate import solve_ivp
+
+    A, r2g = p["A"], math.sqrt(2 * p["g"])
+    c13, c32, c20 = p["mu13"] * p["Phi"] * r2g, p["mu32"] * p["Phi"] * r2g, p["mu20"] * p["Phi"] * r2g
 
     def rhs(t, h, q1, q2):
         h1, h2, h3 = max(h[0], 0.0), max(h[1], 0.0), max(h[2], 0.0)
-        q13 = c13 * math.copysign(math.sqrt(2 * g * abs(h1 - h3)), h1 - h3)
-        q32 = c32 * math.copysign(math.sqrt(2 * g * abs(h3 - h2)), h3 - h2)
-        q20 = c20 * math.sqrt(2 * g * h2)
-        return [(q1 - q13) / A, (q2 + q32 - q20) / A, (q13 - q32) / A]
+        q13 = c13 * math.copysign(math.sqrt(abs(h1 - h3)), h1 - h3)
+        q32 = c32 * math.copysign(math.sqrt(abs(h3 - h2)), h3 - h2)
+        return [(q1 - q13) / A, (q2 + q32 - c20 * math.sqrt(h2)) / A, (q13 - q32) / A]
 
-    rng = np.random.default_rng(seed)
-    w = rng.standard_normal((steps, 3)) * (PROCESS if noise else 0.0)
-    law = _law(u0)
-    law.reset(1)
-    x = X0.copy()
+    x = x0.copy()
     xs = [x]
-    for k in range(steps):
-        u = np.clip(law(x[None], ref[k][None], float(k))[0], 0.0, p["qmax"])
-        x = solve_ivp(rhs, (k, k + 1), x, args=tuple(u), rtol=rtol, atol=atol).y[:, -1]
-        x = np.clip(x + w[k], 0.0, p["hmax"])
+    for k in range(U.shape[0]):
+        u = np.clip(U[k], 0.0, p["qmax"])
+        x = solve_ivp(rhs, (0.0, TS), x, args=tuple(u), rtol=1e-6, atol=1e-9).y[:, -1]
+        x = np.clip(x, 0.0, p["hmax"])
         xs.append(x)
     return np.array(xs)
 
 
-def main() -> None:
-    """Run the benchmark and print throughputs and the ratio."""
+def main() -> int:
+    """Run the benchmark; exit status 1 when a floor is missed or trajectories disagree."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--runs", type=int, default=1000)
-    ap.add_argument("--steps", type=int, default=1000)
-    ap.add_argument("--baseline-runs", type=int, default=10)
-    ap.add_argument("--substeps", type=int, default=2)
+    ap.add_argument("--reps", type=int, default=5)
+    ap.add_argument("--sizes", type=int, nargs="+", default=[1, 20, 200, 1000, 10000])
+    ap.add_argument("--quick", action="store_true", help="shorter horizons, floors not checked")
     args = ap.parse_args()
+    reps = max(args.reps, 3)
+    before = machine()
     plant = three_tank()
-    u0 = equilibrium_input(plant, X0).u0
-    setup = scenario("dynamic_steps").setup(plant, X0, u0, (0, 1))
-    ref = setup.reference
-    if args.steps + 1 > ref.shape[0]:
-        ref = np.vstack([ref, np.tile(ref[-1], (args.steps + 1 - ref.shape[0], 1))])
-    ref = ref[: args.steps + 1]
+    p = {q.name: float(q.value) for q in plant.parameters}
+    step = casadi_step(plant, TS, substeps=SUBSTEPS)
+    floors = Floors()
+    rows = []
+    rng = np.random.default_rng(0)
+    print(f"three_tank open loop, {SUBSTEPS} RK4 steps per 1 s sample; {reps} interleaved reps; "
+          f"load {before['loadavg']}")
+    for M in args.sizes:
+        N = _steps(M, args.quick)
+        X0 = rng.uniform(0.05, 0.6, (M, 3))
+        U = rng.uniform(-0.1, 1.1, (N, M, 2)) * p["qmax"]
+        acc = step.mapaccum(N)
+        runs = acc if M == 1 else acc.map(M, "serial")
+        Ucat = np.concatenate([U[:, r, :].T for r in range(M)], axis=1)   # (m, N M), run-major
 
-    # Accuracy on one noise-free run against a tight (rtol 1e-12) loop.
-    tight = _user_loop(plant, ref, u0, 300, 0, rtol=1e-12, atol=1e-14, noise=False)
-    user = _user_loop(plant, ref, u0, 300, 0, noise=False)
-    ours = simulate(plant, ts=1.0, steps=300, x0=X0, seeds=[0], controller=_law(u0), reference=ref[:301],
-                    u_init=u0, substeps=args.substeps)
-    err_user = float(np.max(np.abs(user - tight)))
-    err_ours = float(np.max(np.abs(ours.x[0] - tight)))
+        def ours():
+            return simulate_inputs(plant, X0, U, TS, substeps=SUBSTEPS).x
 
-    seeds = run_seeds(0, args.runs)
-    simulate(plant, ts=1.0, steps=5, x0=X0, seeds=seeds[:2], u_init=u0)   # compile outside the timing
-    t0 = time.perf_counter()
-    res = simulate(plant, ts=1.0, steps=args.steps, x0=X0, seeds=seeds, controller=_law(u0),
-                   reference=ref, u_init=u0, process_std=PROCESS, measurement_std=MEASURE,
-                   substeps=args.substeps)
-    t_batch = time.perf_counter() - t0
-    assert np.all(np.isfinite(res.x))
-    t0 = time.perf_counter()
-    for r in range(args.baseline_runs):
-        _user_loop(plant, ref, u0, args.steps, int(seeds[r]))
-    t_user = (time.perf_counter() - t0) / args.baseline_runs * args.runs
+        def mapaccum():
+            xs = np.asarray(runs(X0.T, Ucat)[0])                         # (n, N M)
+            return np.concatenate([X0[:, None, :], xs.T.reshape(M, N, 3)], axis=1)
 
-    rate_b = args.runs * args.steps / t_batch
-    rate_u = args.runs * args.steps / t_user
-    print(f"closed loop: three_tank + seed 000 integral tracking, {args.runs} runs x {args.steps} samples")
-    print(f"max level error vs RK45 at rtol 1e-12, 300 s: batch RK4 x{args.substeps} {err_ours:.2e} m, "
-          f"solve_ivp RK45 (rtol 1e-6) {err_user:.2e} m")
-    print(f"batch simulator      : {t_batch:8.2f} s   {rate_b:12.0f} run-steps/s")
-    print(f"solve_ivp per run    : {t_user:8.2f} s   {rate_u:12.0f} run-steps/s "
-          f"(timed on {args.baseline_runs} runs, extrapolated)")
-    print(f"ratio                : {t_user / t_batch:8.1f}x")
+        contenders = {"tanksynth": ours, "numpy_rk4": lambda: numpy_rk4(p, X0, U),
+                      "casadi_mapaccum": mapaccum}
+        if M == 1:
+            def loop():
+                x = ca.DM(X0[0])
+                xs = [x]
+                for k in range(N):
+                    x = step(x, U[k, 0])[0]
+                    xs.append(x)
+                return np.asarray(ca.horzcat(*xs)).T[None]
+            contenders["casadi_loop"] = loop
+            contenders["solve_ivp"] = lambda: solve_ivp_loop(p, X0[0], U[:, 0])[None]
+        ref = ours()                                                       # also warms the caches
+        errors = {}
+        for name, fn in contenders.items():
+            if name != "tanksynth":
+                errors[name] = float(np.max(np.abs(np.asarray(fn()) - ref)))
+        times = interleave(contenders, reps)
+        row = {"M": M, "N": N, "times": times, "errors_m": errors,
+               "summary": {k: summary(v) for k, v in times.items()}}
+        print(f"\nM = {M}, N = {N} (run-steps {M * N}):")
+        for name, t in times.items():
+            s = summary(t)
+            extra = f"   max |x - tanksynth| {errors[name]:.1e} m" if name in errors else ""
+            print(f"  {name:16s} min {s['min'] * 1e3:9.2f} ms  median {s['median'] * 1e3:9.2f} ms{extra}")
+        for name in times:
+            if name == "tanksynth":
+                continue
+            r = ratios(times[name], times["tanksynth"])
+            row.setdefault("ratios", {})[name] = r
+            print(f"  {name:16s} / tanksynth per rep: " + " ".join(f"{v:.2f}" for v in r)
+                  + f"   median {statistics.median(r):.2f}")
+        if M == 1:
+            row["solve_ivp_per_run_s"] = summary(times["solve_ivp"])["median"]
+        for name, e in errors.items():
+            if name != "solve_ivp" and e > 1e-12:
+                print(f"  DISAGREE: {name} differs by {e:.2e} m")
+                floors.rows.append({"what": f"agreement {name} M={M}", "ok": False})
+        if not args.quick:
+            if M == 1:
+                floors.check("M=1 vs casadi per-step loop", statistics.median(row["ratios"]["casadi_loop"]), 1.0)
+            else:
+                floors.check(f"M={M} vs hand numpy RK4", statistics.median(row["ratios"]["numpy_rk4"]), 1.5)
+        rows.append(row)
+    base = next((r for r in rows if r["M"] == 1), None)
+    if base is not None:
+        per_step = base["solve_ivp_per_run_s"] / base["N"]
+        print("\nsolve_ivp loop extrapolated (per run-step of M = 1):")
+        for r in rows:
+            ext = [per_step * r["M"] * r["N"] / t for t in r["times"]["tanksynth"]]
+            r["ratio_solve_ivp_extrapolated"] = ext
+            print(f"  M = {r['M']:6d}: x{statistics.median(ext):9.0f} (per rep: "
+                  + " ".join(f"{v:.0f}" for v in ext) + ")")
+            if not args.quick and r["M"] >= 1000:   # the batch claim (issue 15: M = 1000 and up)
+                floors.check(f"M={r['M']} vs solve_ivp loop (extrapolated)", statistics.median(ext), 100.0)
+    path = write_record("simulate", {"quick": args.quick, "reps": reps, "rows": rows,
+                                     "floors": floors.rows}, before)
+    print(f"\nrecord: {path}")
+    if floors.failed:
+        print("FLOORS MISSED: " + "; ".join(r["what"] for r in floors.failed))
+        return 1
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())

@@ -44,7 +44,8 @@ def clear_cache(disk: bool = False) -> dict[str, int]:
     The caches are: compiled numpy models of plants (`tanksynth.sim.tape`), loaded
     native estimator kernels and per-plant model pieces (`tanksynth.runtime.cache`;
     the compiled kernels live in ``$TANKSYNTH_CACHE``, else ``~/.cache/tanksynth/kernels``,
-    deleted with ``disk=True``), parsed specs of result directories
+    deleted with ``disk=True``), domain samples, LP ranges, premise bounds and lambdified
+    functions of the TS analysis (`tanksynth.analysis.quasi_lpv`), parsed specs of result directories
     (`tanksynth.verify.runner`) and of campaign tasks (`tanksynth.verify.campaign`).
     Everything is rebuilt on demand; results do not change.
 
@@ -62,7 +63,10 @@ def clear_cache(disk: bool = False) -> dict[str, int]:
     from tanksynth.sim.tape import clear_cache as _sim
     from tanksynth.verify import campaign, runner
 
-    dropped = {"sim_models": _sim(), "result_specs": runner.clear_cache()}
+    from tanksynth.analysis.quasi_lpv import clear_cache as _analysis
+
+    dropped = {"sim_models": _sim(), "result_specs": runner.clear_cache(),
+               "analysis_samples": _analysis()}
     dropped.update(_runtime(disk=disk))
     dropped["campaign_specs"] = campaign._spec.cache_info().currsize
     campaign._spec.cache_clear()

@@ -13,10 +13,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-import sympy as sp
 
 from tanksynth.analysis.interval import _branch_and_bound, interval_evaluate
-from tanksynth.analysis.quasi_lpv import _NUMPY, Domain, QuasiLPV
+from tanksynth.analysis.quasi_lpv import _CACHE, Domain, QuasiLPV, _remember, lambdify_cached
 from tanksynth.errors import SpecError
 
 __all__ = ["PremiseBounds", "premise_bounds"]
@@ -115,6 +114,22 @@ def premise_bounds(qlpv: QuasiLPV, domain: Domain, method: str = "interval", sam
     if not (np.isfinite(margin) and margin >= 0):
         raise SpecError(f"bounds margin must be >= 0, got {margin}", key="bounds_margin")
     dens = _denominator_ranges(qlpv, domain)
+    # the weighting search asks for the same bounds over and over (cached with the domain's
+    # samples and LP ranges, `tanksynth.analysis.quasi_lpv.clear_cache`)
+    key = ("premise_bounds", tuple(qlpv.premise_expressions()), qlpv.weights.tobytes(),
+           tuple(qlpv.states), domain._key(),
+           method, int(samples), float(margin), int(seed), float(rtol), int(max_boxes),
+           int(max_rounds))
+    hit = _CACHE.get(key)
+    if hit is not None:
+        return hit
+    return _remember(key, _premise_bounds(qlpv, domain, dens, method, samples, margin, seed, rtol,
+                                          max_boxes, max_rounds))
+
+
+def _premise_bounds(qlpv: QuasiLPV, domain: Domain, dens: list, method: str, samples: int,
+                    margin: float, seed: int, rtol: float, max_boxes: int,
+                    max_rounds: int) -> PremiseBounds:
     pts = np.vstack([domain.sample(samples, seed), domain.corners()])
     Z = qlpv.premise_values(pts)
     smin, smax = Z.min(axis=0), Z.max(axis=0)
@@ -128,7 +143,7 @@ def premise_bounds(qlpv: QuasiLPV, domain: Domain, method: str = "interval", sam
     lower, upper = np.empty(qlpv.p), np.empty(qlpv.p)
     info = []
     for k, e in enumerate(exprs):
-        fn = sp.lambdify([qlpv.states], e, modules=_NUMPY)
+        fn = lambdify_cached([qlpv.states], e)
 
         def point(X, fn=fn, sign=1.0):
             return sign * np.broadcast_to(np.asarray(fn(X.T), dtype=float), (len(X),))

@@ -35,7 +35,65 @@ from tanksynth.plants.base import Plant, exact
 #: lambdify modules: the derivative of abs/sign (DiracDelta) is zero away from the kinks.
 _NUMPY = [{"DiracDelta": lambda a: 0 * a}, "numpy"]
 
-__all__ = ["Domain", "domain_from_plant", "QuasiLPV", "quasi_lpv"]
+
+#: Results of `Domain.sample`, `Domain.linear_range` and `lambdify_cached`, keyed by the
+#: domain's numbers (and the sample size and seed, the weights, the expression): the TS
+#: weighting search asks for the same ones over and over. `clear_cache` empties it; at most
+#: `_CACHE_SIZE` entries (then emptied).
+_CACHE: dict[tuple, Any] = {}
+_CACHE_SIZE = 1024
+
+
+def _remember(key: tuple, value: Any) -> Any:
+    if len(_CACHE) >= _CACHE_SIZE:
+        _CACHE.clear()
+    _CACHE[key] = value
+    return value
+
+
+def clear_cache() -> int:
+    """Forget the cached domain samples, LP ranges and lambdified functions.
+
+    Returns
+    -------
+    int
+        Number of entries dropped.
+    """
+    count = len(_CACHE)
+    _CACHE.clear()
+    return count
+
+
+def lambdify_cached(args: Sequence[Any], expr: Any, **kw: Any) -> Callable:
+    """`sympy.lambdify` of ``expr`` in ``args`` (modules `_NUMPY`), compiled once per expression.
+
+    Parameters
+    ----------
+    args : sequence
+        The lambdified function's arguments (as for `sympy.lambdify`).
+    expr : sympy expression or sequence of them
+    **kw
+        Other `sympy.lambdify` options (hashable values).
+
+    Returns
+    -------
+    callable
+    """
+    key = ("lambdify", _freeze(args), _freeze(expr), tuple(sorted(kw.items())))
+    fn = _CACHE.get(key)
+    if fn is None:
+        fn = _remember(key, sp.lambdify(args, expr, modules=_NUMPY, **kw))
+    return fn
+
+
+def _freeze(value: Any) -> Any:
+    if isinstance(value, (list, tuple)):
+        return tuple(_freeze(v) for v in value)
+    if isinstance(value, sp.MatrixBase):
+        return ("matrix", value.shape, tuple(value))
+    return value
+
+__all__ = ["Domain", "domain_from_plant", "QuasiLPV", "quasi_lpv", "clear_cache", "lambdify_cached"]
 
 
 @dataclass(frozen=True)
@@ -95,14 +153,24 @@ class Domain:
         RegionError
             If the domain is empty or too thin to sample.
         """
+        key = ("sample", self._key(), int(count), int(seed))
+        hit = _CACHE.get(key)
+        if hit is not None:
+            return hit.copy()
         rng = np.random.default_rng(seed)
         out = np.empty((0, self.n))
         for _ in range(200):
             cand = rng.uniform(self.lower, self.upper, size=(max(4 * count, 256), self.n))
             out = np.vstack([out, cand[self.contains(cand)]])
             if len(out) >= count:
+                _remember(key, out[:count].copy())
                 return out[:count]
         raise RegionError("the TS domain is empty or too thin to sample", key="region")
+
+    def _key(self) -> tuple:
+        """The domain's numbers, as a hashable key of the caches (`clear_cache`)."""
+        return (self.lower.tobytes(), self.upper.tobytes(), self.G.shape, self.G.tobytes(),
+                self.g.tobytes())
 
     def corners(self, limit: int = 4096, seed: int = 0) -> np.ndarray:
         """Corners of the box that satisfy the inequalities.
@@ -136,6 +204,10 @@ class Domain:
             If the domain is empty.
         """
         w = np.asarray(w, dtype=float)
+        key = ("linear_range", self._key(), w.tobytes())
+        hit = _CACHE.get(key)
+        if hit is not None:
+            return hit
         bounds = list(zip(self.lower, self.upper))
         kw = dict(A_ub=-self.G, b_ub=-self.g) if self.G.size else {}
         vals = []
@@ -144,7 +216,7 @@ class Domain:
             if res.status != 0:
                 raise RegionError(f"the TS domain is empty ({res.message})", key="region")
             vals.append(sgn * res.fun)
-        return float(vals[0]), float(vals[1])
+        return _remember(key, (float(vals[0]), float(vals[1])))
 
     def as_dict(self) -> dict:
         """JSON-friendly description."""
@@ -302,8 +374,7 @@ class QuasiLPV:
 
     def atom_values(self, X: np.ndarray) -> np.ndarray:
         """``n_k(x)`` at M points: (M, n) -> (M, p)."""
-        fn = self._lambdified("atoms", lambda: sp.lambdify(
-            [self.states], list(self.atoms), modules=_NUMPY))
+        fn = self._lambdified("atoms", lambda: lambdify_cached([self.states], list(self.atoms)))
         X = np.atleast_2d(np.asarray(X, dtype=float))
         with np.errstate(invalid="ignore", divide="ignore"):
             vals = fn(X.T)

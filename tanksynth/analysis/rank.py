@@ -18,6 +18,7 @@ from scipy.optimize import brentq
 from tanksynth.errors import DimensionError
 from tanksynth.plants.base import Plant
 from tanksynth.plants.compile import compile_matrix
+from tanksynth.analysis.blas import small_dense
 from tanksynth.analysis.symbolic import jacobian
 
 __all__ = [
@@ -109,7 +110,8 @@ class RankResult:
 
 
 def _rank(kind: str, M: np.ndarray, n: int, tol: float | None) -> RankResult:
-    s = np.linalg.svd(M, compute_uv=False)
+    with small_dense():    # a threaded BLAS makes this SVD ~100x slower on a loaded small machine
+        s = np.linalg.svd(M, compute_uv=False)
     if tol is None:
         tol = max(M.shape) * np.finfo(float).eps * (s[0] if s.size else 0.0)
     rank = int(np.sum(s > tol))

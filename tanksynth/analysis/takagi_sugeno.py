@@ -41,6 +41,7 @@ from typing import Any, Sequence
 import numpy as np
 import sympy as sp
 
+from tanksynth.analysis import blas as _blas
 from tanksynth.analysis import rank as _rank
 from tanksynth.analysis.premise_bounds import PremiseBounds, premise_bounds
 from tanksynth.analysis.quasi_lpv import Domain, QuasiLPV, _input_box, domain_from_plant, quasi_lpv
@@ -302,12 +303,17 @@ class VertexObservability:
     symbolic : dict or None
         Factored determinant of the symbolic observability matrix of
         ``A(z)`` (n <= 4 only).
+    reason : str or None
+        Why the Kalman ranks were not computed, when the answer is known
+        without them (``C`` of full column rank: observable whatever ``A``);
+        ``conditions`` is then empty.
     """
 
     ranks: tuple[int, ...]
     conditions: tuple[float, ...]
     unobservable: tuple[int, ...]
     symbolic: dict | None = None
+    reason: str | None = None
 
     @property
     def all_observable(self) -> bool:
@@ -318,7 +324,8 @@ class VertexObservability:
         """JSON-friendly form."""
         return {"ranks": list(self.ranks), "conditions": list(self.conditions),
                 "unobservable_vertices": list(self.unobservable),
-                "all_observable": self.all_observable, "symbolic": self.symbolic}
+                "all_observable": self.all_observable, "symbolic": self.symbolic,
+                "reason": self.reason}
 
 
 def vertex_observability(ts: TSModel, C: np.ndarray | None = None, symbolic: bool = True,
@@ -337,6 +344,16 @@ def vertex_observability(ts: TSModel, C: np.ndarray | None = None, symbolic: boo
         checked; ``unobservable`` then indexes that sample.
     """
     C = ts.C if C is None else np.atleast_2d(np.asarray(C, dtype=float))
+    n = ts.qlpv.n
+    count = len(ts.A) if ts.enumerated else int(sample_vertices)
+    sv = np.linalg.svd(C, compute_uv=False) if C.size else np.zeros(0)
+    tol = max(C.shape) * np.finfo(float).eps * (sv[0] if sv.size else 0.0)
+    if C.shape[1] == n and int(np.sum(sv > tol)) == n:
+        # C x = 0 only for x = 0: the first block of the Kalman matrix already has rank n.
+        return VertexObservability((n,) * count, (), (), None,
+                                   f"C has full column rank {n}: (A_i, C) is observable whatever "
+                                   f"A_i is; the Kalman ranks of the {count} vertices were not "
+                                   f"computed")
     ranks, conds, bad = [], [], []
     if ts.enumerated:
         vertices = ts.A
@@ -344,12 +361,13 @@ def vertex_observability(ts: TSModel, C: np.ndarray | None = None, symbolic: boo
         rng = np.random.default_rng(0)
         vertices = np.array([ts.vertex(rng.integers(1, 3, ts.qlpv.p))
                              for _ in range(sample_vertices)])
-    for i, Ai in enumerate(vertices):
-        res = _rank.observability_rank(Ai, C)
-        ranks.append(res.rank)
-        conds.append(res.condition_number)
-        if not res.full:
-            bad.append(i + 1)
+    with _blas.small_dense():
+        for i, Ai in enumerate(vertices):
+            res = _rank.observability_rank(Ai, C)
+            ranks.append(res.rank)
+            conds.append(res.condition_number)
+            if not res.full:
+                bad.append(i + 1)
     sym = None
     if symbolic and ts.qlpv.n <= 4:
         C_exact = sp.Matrix([[exact(v) for v in row] for row in C])

@@ -48,7 +48,8 @@ class CovarianceTrajectory:
 
 # ====================================================================== kernels
 def _joseph(K: np.ndarray, C: np.ndarray, R: np.ndarray, P_pred: np.ndarray) -> np.ndarray:
-    IKC = np.eye(K.shape[0]) - K @ C
+    IKC = -(K @ C)
+    IKC[np.diag_indices_from(IKC)] += 1.0                 # I - K C without building I
     return _sym(IKC @ P_pred @ IKC.T + K @ R @ K.T)
 
 
@@ -143,16 +144,22 @@ def _fh_iterative(A, C, Q, R, pat: _Pattern, P0, K0, init: CovarianceTrajectory,
             Pp = traj.P_pred[k]
             S = _sym(C[k] @ Pp @ C[k].T + R[k])
             K[k] = pat.solve(L, S, L @ Pp @ C[k].T)
-        if not all(np.all(np.isfinite(k_)) for k_ in K):
+        if not np.isfinite(np.stack(K)).all():
             raise InfeasibleDesign(f"the finite-horizon iteration produced non-finite gains "
                                    f"(outer iteration {it})")
-        new = _forward(A, C, Q, R, K, P0)
+        new = _forward(A, C, Q, R, K, P0, check=False)   # checked once, below
+        if not np.isfinite(new.traces).all():
+            traj = new                                   # broke down: the check below names the step
+            break
         rel = float(np.max(np.abs(new.traces - traj.traces) / np.abs(traj.traces)))
         traj = new
         history.append(new.cost)
         if rel < tol:
             converged = True
             break
+    # the covariances the gains give, positive definite (one Cholesky per step, at the end only)
+    for k, Pf in enumerate(traj.P_filt):
+        _require_pd(Pf, f"P({k + 1}|{k + 1}) at window step {k + 1}")
     status = "converged" if converged else "max_iter"
     return K, traj, it, converged, status, history
 

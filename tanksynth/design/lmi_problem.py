@@ -28,6 +28,7 @@ import numpy as np
 import scipy.linalg as sla
 import scipy.sparse as sps
 
+from tanksynth.analysis.blas import small_dense
 from tanksynth.errors import DimensionError, SpecError
 
 __all__ = [
@@ -182,6 +183,11 @@ def _output_split(Cs: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     are columns of the identity (the eliminated LMI keeps the sparsity);
     otherwise they come from the SVD of ``Cs``.
     """
+    with small_dense():
+        return _split(Cs)
+
+
+def _split(Cs: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     q, n = Cs.shape
     nz = Cs != 0
     eye = np.eye(n)
@@ -297,7 +303,13 @@ class ObserverLMIProblem:
         self.t2 = cp.Parameter(nonneg=True, name="psi2_scaled")
         self.t = cp.Variable(name="t")
         I = np.eye(n)
-        P, p_cons, p_trace = _symmetric(n, self.blocks, "P")
+        # With C of full column rank the eliminated LMI does not contain P (it is Q >= t I):
+        # any P >= I with trace P <= kappa n will do, P = I, and no n x n cone is built for it.
+        self.fixed_P = form == "eliminated" and _output_split(Cs)[1].shape[1] == 0
+        if self.fixed_P:
+            P, p_cons, p_trace = None, [], None
+        else:
+            P, p_cons, p_trace = _symmetric(n, self.blocks, "P")
         self.P = P
         if variant == "qI":
             self.qv = cp.Variable(name="q")
@@ -339,7 +351,8 @@ class ObserverLMIProblem:
                 lmi = [0.5 * (M + M.T) << -self.t * np.eye(n + V2.shape[1])]
         # Normalisation of the homogeneous LMI: P >= I and trace(P) <= kappa n (a linear
         # conditioning bound, cond(P) <= kappa n; cheaper than a second PSD cone P <= kappa I).
-        cons = lmi + p_cons + [p_trace <= self.kappa * n, self.t <= 1.0]
+        cons = lmi + p_cons + ([] if p_trace is None else [p_trace <= self.kappa * n])
+        cons.append(self.t <= 1.0)
         self.problem = cp.Problem(cp.Maximize(self.t), cons)
 
     def time_scale(self, A0: np.ndarray, psi: float) -> float:
@@ -426,7 +439,7 @@ class ObserverLMIProblem:
             out["t"] = -np.inf
             out["solve_time"] = time.perf_counter() - start
             return out
-        P = _sym(np.asarray(self.P.value, dtype=float))
+        P = np.eye(self.n) if self.P is None else _sym(np.asarray(self.P.value, dtype=float))
         Qs = np.asarray(self.Q.value, dtype=float)
         Qs = _sym(np.atleast_2d(Qs)) if Qs.ndim == 2 else float(Qs) * np.eye(self.n)
         if self.form == "full":

@@ -71,10 +71,10 @@ def _check_options(N: Any, parameter_set: Any) -> int:
         raise SpecError(f"unknown parameter_set {parameter_set!r}; expected one of: "
                         + ", ".join(PARAMETER_SETS), key="plant.parameter_set")
     if isinstance(N, bool) or not isinstance(N, int):
-        raise SpecError(f"N must be an even integer in [4, 64], got {type(N).__name__} {N!r}",
+        raise SpecError(f"N must be an even integer in [4, 256], got {type(N).__name__} {N!r}",
                         key="plant.N")
-    if N % 2 or not 4 <= N <= 64:
-        raise SpecError(f"N must be an even integer in [4, 64], got {N}", key="plant.N")
+    if N % 2 or not 4 <= N <= 256:
+        raise SpecError(f"N must be an even integer in [4, 256], got {N}", key="plant.N")
     if parameter_set != "decenter" and N != 4:
         raise SpecError(f"parameter_set {parameter_set!r} is the quadruple tank: N must be 4, "
                         f"got {N}", key="plant.N")
@@ -102,7 +102,7 @@ def tank_network(N: int = 4, parameter_set: str = "decenter") -> Plant:
     Parameters
     ----------
     N : int
-        Number of tanks, even, ``4 <= N <= 64``; ``N/2`` pumps.
+        Number of tanks, even, ``4 <= N <= 256``; ``N/2`` pumps.
     parameter_set : {"decenter", "johansson_min_phase", "johansson_nonmin_phase"}
         Parameter values and output map (see the module docstring). The
         Johansson sets need ``N = 4``.
@@ -118,7 +118,7 @@ def tank_network(N: int = 4, parameter_set: str = "decenter") -> Plant:
     Raises
     ------
     SpecError
-        ``N`` not an even integer in [4, 64] (key ``plant.N``), a Johansson
+        ``N`` not an even integer in [4, 256] (key ``plant.N``), a Johansson
         set with ``N != 4`` (key ``plant.N``) or an unknown parameter set
         (key ``plant.parameter_set``).
     """

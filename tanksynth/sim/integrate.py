@@ -35,7 +35,10 @@ import numpy as np
 from tanksynth.errors import DimensionError
 from tanksynth.plants.base import Plant
 from tanksynth.plants.compile import rk4_step
-from tanksynth.sim.tape import NumpyModel, numpy_model
+from tanksynth.sim.tape import CASADI_MAX_RUNS, CASADI_MAX_RUNS_HYBRID, NumpyModel, numpy_model
+
+# numpy's element-wise clip ufunc (one call instead of maximum + minimum; same NaN rule)
+_clip = getattr(getattr(getattr(np, "_core", None), "umath", None), "clip", None) or np.clip
 
 __all__ = [
     "Integrator",
@@ -133,6 +136,10 @@ class Integrator:
         self.events = 0
         self.clipped_low = 0
         self.clipped_high = 0
+        self._cache_key: tuple | None = None
+        self._cache: tuple = ((), ())
+        self._buffers: dict[tuple[int, int], list] = {}
+        self._rows: tuple | None = None
 
     @classmethod
     def for_plant(cls, plant: Plant, params: Mapping[str, Any] | None = None, *,
@@ -165,30 +172,265 @@ class Integrator:
 
     def bits(self, x: np.ndarray, p: Mapping[str, Any]) -> np.ndarray:
         """Mode bits ``s_j(x) > 0``, shape (M, k)."""
-        return self.model.switching(x, p) > 0
+        pv, c = self._values(p)
+        return (self.model.switching_rows(np.asarray(x, dtype=float).T, c, pv) > 0).T
+
+    def output(self, x: np.ndarray, p: Mapping[str, Any]) -> np.ndarray:
+        """The plant's output ``h(x)`` at M states (M, n) -> (M, q), output units."""
+        pv, c = self._values(p)
+        return self.model.output_rows(np.asarray(x, dtype=float).T, c, pv).T
 
     def step(self, x: np.ndarray, u: np.ndarray, p: Mapping[str, Any], h: float) -> np.ndarray:
         """Advance every run by ``h`` seconds (one RK4 step, split at crossings), clipped."""
-        x1 = self.rk4(x, u, p, h)
-        if self.model.k:
-            x1 = self._split(x, x1, u, p, h)
-        return self.clip_counted(x1)
+        return self.advance(x, u, p, h, 1)
 
     def advance(self, x: np.ndarray, u: np.ndarray, p: Mapping[str, Any], ts: float,
                 substeps: int) -> np.ndarray:
         """One sampling period ``ts`` (s) under the held input ``u``: ``substeps`` steps.
 
-        ``u`` is used as given (saturate it first, see `input_limits`).
+        ``u`` is used as given (saturate it first, see `input_limits`). Up to
+        `CASADI_MAX_RUNS` runs the period is one call of the plant's CasADi
+        period function (runs whose mode changed are re-integrated by the
+        numpy code, which locates the crossing); above, the generated numpy
+        code on the row layout (n, M). Both give the same numbers bit for bit.
+
+        Parameters
+        ----------
+        x : ndarray, shape (M, n)
+            States at the start (state units).
+        u : ndarray, shape (M, m)
+            Held inputs (input units).
+        p : mapping
+            Parameter values (floats or (M,) arrays).
+        ts : float
+            Length of the period (s).
+        substeps : int
+            RK4 steps in the period.
+
+        Returns
+        -------
+        ndarray, shape (M, n)
+            States at the end of the period, clipped.
         """
-        h = ts / int(substeps)
-        for _ in range(int(substeps)):
-            x = self.step(x, u, p, h)
-        return x
+        substeps = int(substeps)
+        h = float(ts) / substeps
+        x = np.asarray(x, dtype=float)
+        u = np.asarray(u, dtype=float)
+        limit = CASADI_MAX_RUNS_HYBRID if self.model.k else CASADI_MAX_RUNS
+        if 0 < x.shape[0] <= limit and self.model.n and self.lower.ndim == 1 and self.upper.ndim == 1:
+            x1, low, high = self._period_casadi(x, u, p, h, substeps)
+        else:
+            x1, low, high = self._period_rows(x, u, p, h, substeps)
+        self.clipped_low += int(np.count_nonzero(low))
+        self.clipped_high += int(np.count_nonzero(high))
+        return x1
+
+    def _values(self, p: Mapping[str, Any]) -> tuple[list, tuple]:
+        """Parameter values in the model's order and their constants (cached by identity)."""
+        pv = self.model.parameter_values(p)
+        key = tuple(map(id, pv))
+        if self._cache_key != key:
+            self._cache_key, self._cache = key, (pv, self.model.constants(pv))
+        return self._cache
+
+    def _row_bounds(self) -> tuple[Callable, Callable, Callable]:
+        """Clipping ``clip(src, dst)`` on the row layout and the tests ``below``/``above``.
+
+        Scalar bounds when every state has the same (one numpy call on all
+        rows), else one call per row; NaN propagates as in `clip`.
+        """
+        if self._rows is not None:
+            return self._rows
+        lo, hi = self.lower, self.upper
+        if lo.ndim == 1 and hi.ndim == 1 and lo.size and np.all(lo == lo[0]) and np.all(hi == hi[0]):
+            a, b = float(lo[0]), float(hi[0])
+
+            def clip(src: np.ndarray, dst: np.ndarray) -> None:
+                _clip(src, a, b, out=dst)
+
+            def below(v: np.ndarray) -> bool:
+                return bool(v.min() < a) if v.size else False
+
+            def above(v: np.ndarray) -> bool:
+                return bool(v.max() > b) if v.size else False
+        else:
+            lo_t = lo[:, None] if lo.ndim == 1 else lo.T
+            hi_t = hi[:, None] if hi.ndim == 1 else hi.T
+
+            def clip(src: np.ndarray, dst: np.ndarray) -> None:
+                np.minimum(np.maximum(src, lo_t, out=dst), hi_t, out=dst)
+
+            def below(v: np.ndarray) -> bool:
+                return bool(np.any(v < lo_t))
+
+            def above(v: np.ndarray) -> bool:
+                return bool(np.any(v > hi_t))
+        self._rows = (clip, below, above)
+        return self._rows
+
+    def _period_rows(self, x: np.ndarray, u: np.ndarray, p: Mapping[str, Any], h: float,
+                     substeps: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The period on the row layout: end states (M, n), clipping flags per step."""
+        model = self.model
+        pv, c = self._values(p)
+        n, count = model.n, x.shape[0]
+        clip, below, above = self._row_bounds()
+        xt = np.array(x.T, order="C")
+        stage = np.empty((n, count))
+        k1, k2, k3, k4 = (np.empty((n, count)) for _ in range(4))
+        rows = [*stage, *np.array(u.T, order="C")]
+        f = model.rhs_rows_unguarded     # under the errstate of the whole period, below
+        low = np.zeros(substeps, dtype=bool)
+        high = np.zeros(substeps, dtype=bool)
+        half = 0.5 * h
+        with np.errstate(invalid="ignore", divide="ignore"):
+            for i in range(substeps):
+                clip(xt, stage)
+                f(rows, c, pv, k1)
+                for k_in, k_out, w in ((k1, k2, half), (k2, k3, half), (k3, k4, h)):
+                    np.multiply(k_in, w, out=stage)
+                    stage += xt
+                    clip(stage, stage)
+                    f(rows, c, pv, k_out)
+                # x + h/6 (k1 + 2 k2 + 2 k3 + k4), summed in this order (the one RK4 formula)
+                acc = np.multiply(k2, 2.0, out=k2)
+                acc += k1
+                acc += np.multiply(k3, 2.0, out=k3)
+                acc += k4
+                acc *= h / 6.0
+                x1 = xt + acc
+                if model.k:
+                    crossed = np.any((model.switching_rows(xt, c, pv) > 0)
+                                     != (model.switching_rows(x1, c, pv) > 0), axis=0)
+                    if crossed.any():
+                        x1 = np.array(self._split(xt.T, np.array(x1.T), u, p, h).T, order="C")
+                low[i] = below(x1)
+                high[i] = above(x1)
+                clip(x1, x1)
+                xt = x1
+        return np.array(xt.T, order="C"), low, high
+
+    def _period_casadi(self, x: np.ndarray, u: np.ndarray, p: Mapping[str, Any], h: float,
+                       substeps: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The period through the CasADi period function (in place, `casadi.FunctionBuffer`)."""
+        model = self.model
+        count = x.shape[0]
+        pv, c = self._values(p)
+        slot = self._buffers.get((substeps, count))
+        if slot is None:
+            args = [np.empty((count, model.n)), np.empty((count, model.m)),
+                    np.empty((count, model.n_constants)), np.empty((count, len(pv))),
+                    np.empty((count, 1)),
+                    np.broadcast_to(self.lower, (count, model.n)).copy(),
+                    np.broadcast_to(self.upper, (count, model.n)).copy()]
+            res = [np.empty((count, model.n)), np.empty((count, 1)), np.empty((count, substeps)),
+                   np.empty((count, substeps))]
+            buf, run = model.casadi_advance(substeps, count).buffer()
+            for j, a in enumerate(args):
+                buf.set_arg(j, memoryview(a))
+            for j, r in enumerate(res):
+                buf.set_res(j, memoryview(r))
+            slot = self._buffers[(substeps, count)] = [args, res, buf, run, None]
+        args, res, _, run, filled = slot
+        args[0][...] = x
+        args[1][...] = u
+        args[4][...] = h
+        if filled is not self._cache_key:
+            for j, v in enumerate(c):
+                args[2][:, j] = v
+            for j, v in enumerate(pv):
+                args[3][:, j] = v
+            slot[4] = self._cache_key
+        run()
+        x1, crossed, low, high = res[0].copy(), res[1], res[2], res[3]
+        if not crossed.any():                    # flags are exactly 0.0 or 1.0
+            return x1, low.max(axis=0) > 0.5, high.max(axis=0) > 0.5
+        low, high = low > 0.5, high > 0.5
+        hit = np.flatnonzero(crossed[:, 0] > 0.5)
+        if hit.size:
+            sub = {k: (v[hit] if np.ndim(v) else v) for k, v in p.items()}
+            x1[hit], low_hit, high_hit = self._period_rows(x[hit], u[hit], sub, h, substeps)
+            self._cache_key = None
+            rest = np.ones(count, dtype=bool)
+            rest[hit] = False
+            low = np.any(low[rest], axis=0) | low_hit
+            high = np.any(high[rest], axis=0) | high_hit
+        else:
+            low, high = low.any(axis=0), high.any(axis=0)
+        return x1, low, high
+
+    def horizon(self, x: np.ndarray, U: np.ndarray, p: Mapping[str, Any], ts: float,
+                substeps: int) -> np.ndarray | None:
+        """Open loop over a whole input sequence in one CasADi call (``mapaccum``), or None.
+
+        The same period function as `advance` (so the same numbers, bit for
+        bit), accumulated over the ``N`` periods and mapped over the runs.
+        Returns None, having changed nothing, when this path does not apply
+        (too many runs, no CasADi form) or a period changed a hybrid mode or
+        left a state non-finite: the caller then steps period by period.
+
+        Parameters
+        ----------
+        x : ndarray, shape (M, n)
+            Clipped states at the start (state units).
+        U : ndarray, shape (N, M, m)
+            Saturated inputs held over each period (input units).
+        p : mapping
+            Parameter values (floats or (M,) arrays), constant over the horizon.
+        ts : float
+            Sampling period (s).
+        substeps : int
+
+        Returns
+        -------
+        ndarray, shape (N, M, n) or None
+            States at the end of every period.
+        """
+        model = self.model
+        N, count = U.shape[0], x.shape[0]
+        limit = CASADI_MAX_RUNS_HYBRID if model.k else CASADI_MAX_RUNS
+        if not (0 < count <= limit and N > 0 and model.n and self.lower.ndim == 1
+                and self.upper.ndim == 1):
+            return None
+        substeps = int(substeps)
+        pv, c = self._values(p)
+        key = ("horizon", substeps, N, count)
+        fn = model._casadi.get(key)
+        if fn is None:
+            fn = model.casadi_advance(substeps, 1).mapaccum(N)
+            fn = fn if count == 1 else fn.map(count, "serial")
+            model._casadi[key] = fn
+        rep = lambda a: np.ascontiguousarray(np.broadcast_to(  # noqa: E731
+            np.asarray(a, dtype=float)[:, None, :], (count, N, a.shape[-1])))
+        cm = np.empty((count, model.n_constants))
+        pm = np.empty((count, len(pv)))
+        for j, v in enumerate(c):
+            cm[:, j] = v
+        for j, v in enumerate(pv):
+            pm[:, j] = v
+        args = [np.ascontiguousarray(x, dtype=float), np.ascontiguousarray(U.transpose(1, 0, 2)),
+                rep(cm), rep(pm), np.full((count, N, 1), float(ts) / substeps),
+                rep(np.broadcast_to(self.lower, (count, model.n))),
+                rep(np.broadcast_to(self.upper, (count, model.n)))]
+        res = [np.empty((count, N, model.n)), np.empty((count, N, 1)),
+               np.empty((count, N, substeps)), np.empty((count, N, substeps))]
+        buf, run = fn.buffer()
+        for j, a in enumerate(args):
+            buf.set_arg(j, memoryview(a))
+        for j, r in enumerate(res):
+            buf.set_res(j, memoryview(r))
+        run()
+        X, crossed, low, high = res
+        if crossed.any() or not np.isfinite(X).all():
+            return None
+        self.clipped_low += int(np.count_nonzero(low.max(axis=0) > 0.5))
+        self.clipped_high += int(np.count_nonzero(high.max(axis=0) > 0.5))
+        return X.transpose(1, 0, 2)
 
     def clip_counted(self, x: np.ndarray) -> np.ndarray:
         """Clip, counting the clipping events (the step or noise overshot a bound)."""
-        self.clipped_low += int(np.any(x < self.lower))
-        self.clipped_high += int(np.any(x > self.upper))
+        self.clipped_low += int((x < self.lower).any())
+        self.clipped_high += int((x > self.upper).any())
         return self.clip(x)
 
     def _split(self, x: np.ndarray, x1: np.ndarray, u: np.ndarray, p: Mapping[str, Any],

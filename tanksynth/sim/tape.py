@@ -1,13 +1,28 @@
-"""The plant's vector field as a numpy "tape": sympy expressions -> vectorised numpy closures.
+"""The plant's vector field compiled once to numpy code (and, for small batches, CasADi).
 
-`numpy_model` compiles, once per plant structure, ``f(x, u)``, ``h(x)`` and
-the hybrid switching functions ``s(x)`` into closures over numpy arrays
-(after common-subexpression elimination), with the plant's parameters as
-inputs: each run of a batch can carry its own parameter values (an
-uncertainty draw) and faults can switch values mid-run. No string is
-evaluated: the closures are built by walking the sympy tree. It agrees with
-the CasADi `CompiledPlant.rhs` to rounding (tested) and is about 20x faster
-per point at M = 1000.
+`numpy_model` generates, once per plant structure, Python source code that
+evaluates ``f(x, u)``, ``h(x)`` and the hybrid switching functions ``s(x)``
+on numpy arrays laid out one row per state, shape (n, M) (M runs), and
+compiles it with `compile`/`exec`: the expression trees are walked once, at
+build time, never per step. The plant's parameters stay inputs (each run may
+carry its own values, an uncertainty draw, and faults switch values
+mid-run); every sub-expression that depends on the parameters only (e.g.
+``sqrt(2 g) mu13 Phi / A``) is hoisted into a separate ``constants``
+function evaluated once per call of the integrator instead of once per
+Runge-Kutta stage. Code generation: common-subexpression elimination
+(`sympy.cse`), then sympy's `NumPyPrinter` for every assignment; the
+generated source is kept in `NumpyModel.source` (readable, for debugging).
+
+For small batches (a verification run, M = 1) numpy's per-call overhead
+dominates, so `NumpyModel.casadi_advance` builds the whole sampling period
+(RK4 substeps, clipping, the mode-change flag and the clipping flags) as one
+CasADi SX function of ``(x, u, p, h, lower, upper)``, evaluated in place
+through a CasADi `FunctionBuffer` (`tanksynth.sim.integrate` picks it for
+M up to `CASADI_MAX_RUNS`). That CasADi function is built by running the
+generated source itself with CasADi operations in place of numpy's, in the
+same order, so the two forms give the same numbers bit for bit (tested): a
+run's trajectory does not depend on the batch it is simulated in. Both agree
+with the CasADi `CompiledPlant.rhs` to rounding (tested).
 
 Cache (no hidden state): compiled models live in this module, in
 ``_MODELS`` (keyed by the plant's name, equations, switching functions and
@@ -18,6 +33,7 @@ model) and ``_BY_ID`` (an identity fast path). `clear_cache` (also
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass, field
 from typing import Any, Callable, Mapping, Sequence
 
@@ -27,154 +43,189 @@ import sympy as sp
 from tanksynth.errors import SimulationError
 from tanksynth.plants.base import Plant
 
-__all__ = ["NumpyModel", "numpy_model", "clear_cache", "cache_info"]
+__all__ = ["NumpyModel", "numpy_model", "clear_cache", "cache_info", "CASADI_MAX_RUNS",
+           "CASADI_MAX_RUNS_HYBRID"]
 
-_Node = Callable[[dict], Any]
-
-
-def _relational(op: Callable, a: _Node, b: _Node) -> _Node:
-    return lambda env: op(a(env), b(env))
-
-
-def _node(expr: sp.Basic, cache: dict) -> _Node:
-    """Closure evaluating ``expr`` on an environment (list) of numpy arrays."""
-    slots = cache["__slots__"]
-    if expr in cache:
-        return cache[expr]
-    out: _Node
-    if expr.is_Symbol:
-        if expr not in slots:
-            raise SimulationError(f"cannot simulate: free symbol {expr} has no value")
-        slot = slots[expr]
-        out = lambda env: env[slot]  # noqa: E731
-    elif expr is sp.true or expr is sp.false:
-        value = expr is sp.true
-        out = lambda env: value  # noqa: E731
-    elif expr.is_Number or expr.is_NumberSymbol:
-        value = float(expr)
-        out = lambda env: value  # noqa: E731
-    elif expr.is_Add or expr.is_Mul:
-        parts = [_node(a, cache) for a in expr.args]
-        add = expr.is_Add
-
-        def out(env, parts=parts, add=add):
-            acc = parts[0](env)
-            for p in parts[1:]:
-                acc = acc + p(env) if add else acc * p(env)
-            return acc
-    elif expr.is_Pow:
-        base = _node(expr.args[0], cache)
-        e = expr.args[1]
-        if e == sp.Rational(1, 2):
-            out = lambda env: np.sqrt(base(env))  # noqa: E731
-        elif e == -sp.Rational(1, 2):
-            out = lambda env: 1.0 / np.sqrt(base(env))  # noqa: E731
-        elif e == -1:
-            out = lambda env: 1.0 / base(env)  # noqa: E731
-        elif e.is_Integer and int(e) > 0:
-            k = int(e)
-            out = lambda env: base(env) ** k  # noqa: E731
-        else:
-            expo = _node(e, cache)
-            out = lambda env: np.power(base(env), expo(env))  # noqa: E731
-    elif isinstance(expr, sp.Abs):
-        a = _node(expr.args[0], cache)
-        out = lambda env: np.abs(a(env))  # noqa: E731
-    elif isinstance(expr, sp.sign):
-        a = _node(expr.args[0], cache)
-        out = lambda env: np.sign(a(env))  # noqa: E731
-    elif isinstance(expr, sp.exp):
-        a = _node(expr.args[0], cache)
-        out = lambda env: np.exp(a(env))  # noqa: E731
-    elif isinstance(expr, sp.log):
-        a = _node(expr.args[0], cache)
-        out = lambda env: np.log(a(env))  # noqa: E731
-    elif isinstance(expr, (sp.Max, sp.Min)):
-        parts = [_node(a, cache) for a in expr.args]
-        fn = np.maximum if isinstance(expr, sp.Max) else np.minimum
-
-        def out(env, parts=parts, fn=fn):
-            acc = parts[0](env)
-            for p in parts[1:]:
-                acc = fn(acc, p(env))
-            return acc
-    elif isinstance(expr, sp.Heaviside):
-        a = _node(expr.args[0], cache)
-        out = lambda env: np.heaviside(a(env), 0.5)  # noqa: E731
-    elif isinstance(expr, sp.DiracDelta):
-        out = lambda env: 0.0  # noqa: E731
-    elif isinstance(expr, sp.Piecewise):
-        pieces = [(_node(v, cache), _node(c, cache)) for v, c in expr.args]
-
-        def out(env, pieces=pieces):
-            acc = np.nan
-            for value, cond in reversed(pieces):
-                acc = np.where(cond(env), value(env), acc)
-            return acc
-    elif isinstance(expr, sp.StrictGreaterThan):
-        out = _relational(np.greater, _node(expr.lhs, cache), _node(expr.rhs, cache))
-    elif isinstance(expr, sp.GreaterThan):
-        out = _relational(np.greater_equal, _node(expr.lhs, cache), _node(expr.rhs, cache))
-    elif isinstance(expr, sp.StrictLessThan):
-        out = _relational(np.less, _node(expr.lhs, cache), _node(expr.rhs, cache))
-    elif isinstance(expr, sp.LessThan):
-        out = _relational(np.less_equal, _node(expr.lhs, cache), _node(expr.rhs, cache))
-    elif isinstance(expr, sp.Eq):
-        out = _relational(np.equal, _node(expr.lhs, cache), _node(expr.rhs, cache))
-    elif isinstance(expr, sp.Ne):
-        out = _relational(np.not_equal, _node(expr.lhs, cache), _node(expr.rhs, cache))
-    elif isinstance(expr, (sp.And, sp.Or)):
-        parts = [_node(a, cache) for a in expr.args]
-        fn = np.logical_and if isinstance(expr, sp.And) else np.logical_or
-
-        def out(env, parts=parts, fn=fn):
-            acc = parts[0](env)
-            for p in parts[1:]:
-                acc = fn(acc, p(env))
-            return acc
-    elif isinstance(expr, sp.Not):
-        a = _node(expr.args[0], cache)
-        out = lambda env: np.logical_not(a(env))  # noqa: E731
-    else:
-        raise SimulationError(f"cannot compile {type(expr).__name__} in {expr} for simulation")
-    cache[expr] = out
-    return out
+#: Largest batch integrated by the CasADi period function (above it: the numpy code); both
+#: give the same numbers bit for bit, the choice is speed only (measured crossover on the
+#: 2-core machine: about 100 runs for the three-tank and tank networks).
+CASADI_MAX_RUNS = 96
+#: The same for hybrid plants, whose numpy form evaluates ``numpy.select`` per pipe and stage.
+CASADI_MAX_RUNS_HYBRID = 512
 
 
-def _tape(exprs: Sequence[sp.Expr], inputs: Sequence[sp.Symbol]) -> Callable[[list], list]:
-    """Compile expressions (after common-subexpression elimination) to a tape.
+def _printer() -> Any:
+    from sympy.printing.numpy import NumPyPrinter
 
-    The tape takes a list holding the values of ``inputs`` (in order) and
-    returns the list of the expressions' values.
+    class _Printer(NumPyPrinter):
+        """numpy printer with element-wise Max/Min and DiracDelta = 0."""
+
+        def _nested(self, fn: str, args: Sequence[sp.Expr]) -> str:
+            out = self._print(args[0])
+            for a in args[1:]:
+                out = f"numpy.{fn}({out}, {self._print(a)})"
+            return out
+
+        def _print_Max(self, expr: sp.Expr) -> str:
+            return self._nested("maximum", expr.args)
+
+        def _print_Min(self, expr: sp.Expr) -> str:
+            return self._nested("minimum", expr.args)
+
+        def _print_DiracDelta(self, expr: sp.Expr) -> str:
+            return "0.0"
+
+        def _print__SignedSqrt(self, expr: sp.Expr) -> str:
+            a = self._print(expr.args[0])
+            return f"numpy.copysign(numpy.sqrt(abs({a})), {a})"
+
+        def _print_Heaviside(self, expr: sp.Expr) -> str:
+            return f"numpy.heaviside({self._print(expr.args[0])}, 0.5)"
+
+    return _Printer({"fully_qualified_modules": True, "inline": True})
+
+
+_SUPPORTED = (sp.Symbol, sp.Number, sp.NumberSymbol, sp.Add, sp.Mul, sp.Pow, sp.Abs, sp.sign,
+              sp.exp, sp.log, sp.Max, sp.Min, sp.Heaviside, sp.DiracDelta, sp.Piecewise,
+              sp.StrictGreaterThan, sp.GreaterThan, sp.StrictLessThan, sp.LessThan, sp.Eq, sp.Ne,
+              sp.And, sp.Or, sp.Not, sp.logic.boolalg.BooleanAtom, sp.core.numbers.ImaginaryUnit,
+              sp.functions.elementary.piecewise.ExprCondPair)
+
+
+def _check(exprs: Sequence[sp.Expr], known: set) -> None:
+    for e in exprs:
+        for node in sp.preorder_traversal(e):
+            if not isinstance(node, _SUPPORTED) or isinstance(node, sp.core.numbers.ImaginaryUnit):
+                raise SimulationError(f"cannot compile {type(node).__name__} in {e} for simulation")
+            if isinstance(node, sp.Symbol) and node not in known:
+                raise SimulationError(f"cannot simulate: free symbol {node} has no value")
+
+
+class _SignedSqrt(sp.Function):
+    """``sign(a) sqrt(|a|)``, printed as ``copysign(sqrt(|a|), a)`` (one numpy call less)."""
+
+    nargs = 1
+
+
+def _signed_sqrt(args: Sequence[sp.Expr]) -> list[sp.Expr]:
+    """Mul arguments with every pair ``sign(a)``, ``sqrt(Abs(a))`` fused into `_SignedSqrt`."""
+    args = list(args)
+    for s in [a for a in args if isinstance(a, sp.sign)]:
+        root = sp.sqrt(sp.Abs(s.args[0]))
+        if root in args and s in args:
+            args.remove(s)
+            args.remove(root)
+            args.append(_SignedSqrt(s.args[0]))
+    return args
+
+
+class _Hoister:
+    """Split expressions into parameter-only constants and state-dependent code."""
+
+    def __init__(self, params: set, prefix: str):
+        self.params = params
+        self.consts: list[tuple[sp.Symbol, sp.Expr]] = []
+        self.const_syms: set = set()
+        self._by_expr: dict[sp.Expr, sp.Symbol] = {}
+        self.prefix = prefix
+
+    def constant(self, expr: sp.Expr) -> sp.Expr:
+        if expr.is_Atom:
+            return expr
+        sym = self._by_expr.get(expr)
+        if sym is None:
+            sym = sp.Symbol(f"{self.prefix}{len(self.consts)}")
+            self.consts.append((sym, expr))
+            self.const_syms.add(sym)
+            self._by_expr[expr] = sym
+        return sym
+
+    def is_const(self, expr: sp.Expr) -> bool:
+        return expr.free_symbols <= (self.params | self.const_syms)
+
+    def hoist(self, expr: sp.Expr) -> sp.Expr:
+        """``expr`` with its parameter-only sub-expressions replaced by constants."""
+        if expr.is_Atom:
+            return expr
+        if isinstance(expr, sp.functions.elementary.piecewise.ExprCondPair):
+            return expr.func(self.hoist(expr.expr), self.hoist(expr.cond))
+        if self.is_const(expr):
+            return self.constant(expr)
+        if isinstance(expr, (sp.Add, sp.Mul)):
+            args = _signed_sqrt(expr.args) if isinstance(expr, sp.Mul) else expr.args
+            fixed = [a for a in args if self.is_const(a)]
+            rest = [self.hoist(a) for a in args if not self.is_const(a)]
+            if len(fixed) > 1 or (len(fixed) == 1 and not fixed[0].is_Atom):
+                fixed = [self.constant(expr.func(*fixed))]
+            # constants first: one scalar (or per-run) factor times the arrays
+            return expr.func(*fixed, *rest, evaluate=False)
+        return expr.func(*[self.hoist(a) for a in expr.args])
+
+
+def _generate(groups: Mapping[str, tuple[list[sp.Expr], list[sp.Symbol]]],
+              params: Sequence[sp.Symbol]) -> tuple[str, dict[str, Callable]]:
+    """Source code and compiled functions: ``constants(p)`` and one function per group.
+
+    Each group ``name -> (expressions, row symbols)`` becomes
+    ``name(rows, c, p, out)``: ``rows`` a sequence of the row arrays (states
+    then inputs), ``c`` the tuple returned by ``constants(p)``, ``p`` the
+    parameter values (scalars or (M,) arrays), ``out`` an (len(exprs), M)
+    array written in place and returned.
     """
-    replacements, reduced = sp.cse(list(exprs), symbols=sp.numbered_symbols("_cse"))
-    slots = {s: i for i, s in enumerate(inputs)}
-    cache: dict = {"__slots__": slots}
-    steps = []
-    for sym, e in replacements:
-        steps.append(_node(e, cache))
-        slots[sym] = len(slots)
-    outs = [_node(e, cache) for e in reduced]
-
-    def run(env: list) -> list:
-        for fn in steps:
-            env.append(fn(env))
-        return [fn(env) for fn in outs]
-
-    return run
+    printer = _printer()
+    pnames = {s: sp.Symbol(f"p_{i}") for i, s in enumerate(params)}
+    hoister = _Hoister(set(pnames.values()), "c_")
+    bodies = {}
+    for name, (exprs, rows) in groups.items():
+        rnames = {s: sp.Symbol(f"r_{i}") for i, s in enumerate(rows)}
+        renamed = [sp.sympify(e).xreplace({**pnames, **rnames}) for e in exprs]
+        repl, reduced = sp.cse(renamed, symbols=sp.numbered_symbols(f"t_{name}_"), order="none")
+        lines = []
+        for sym, e in repl:
+            if hoister.is_const(e):          # parameter-only: computed in constants()
+                hoister.consts.append((sym, e))
+                hoister.const_syms.add(sym)
+            else:
+                lines.append(f"    {sym} = {printer.doprint(hoister.hoist(e))}")
+        for i, e in enumerate(reduced):
+            lines.append(f"    out[{i}] = {printer.doprint(hoister.hoist(e))}")
+        bodies[name] = ([f"    r_{i} = rows[{i}]" for i in range(len(rows))], lines)
+    src = ["def constants(p):"]
+    src += [f"    p_{i} = p[{i}]" for i in range(len(params))]
+    src += [f"    {sym} = {printer.doprint(e)}" for sym, e in hoister.consts]
+    src.append("    return (" + "".join(f"{sym}, " for sym, _ in hoister.consts) + ")")
+    for name, (head, lines) in bodies.items():
+        used = set(re.findall(r"\b[a-z]\w*", "\n".join(lines)))
+        src.append("")
+        src.append(f"def {name}(rows, c, p, out):")
+        src += [f"    {sym} = c[{k}]" for k, (sym, _) in enumerate(hoister.consts) if str(sym) in used]
+        src += [f"    p_{i} = p[{i}]" for i in range(len(params)) if f"p_{i}" in used]
+        src += [line for i, line in enumerate(head) if f"r_{i}" in used]
+        src += lines
+        src.append("    return out")
+    source = "\n".join(src) + "\n"
+    namespace: dict[str, Any] = {"numpy": np}
+    exec(compile(source, "<tanksynth.sim.tape>", "exec"), namespace)  # noqa: S102 - generated from sympy
+    fns = {name: namespace[name] for name in ("constants", *groups)}
+    fns["n_constants"] = len(hoister.consts)
+    return source, fns
 
 
 @dataclass(frozen=True)
 class NumpyModel:
-    """A plant's vector field, output map and switching functions as numpy tapes.
+    """A plant's vector field, output map and switching functions as generated numpy code.
 
-    Parameters are inputs: each run may carry its own values.
+    Parameters are inputs: each run may carry its own values. The ``*_rows``
+    methods work on the row layout (n, M) the integrator uses; `rhs`,
+    `output` and `switching` take and return the batch layout (M, n).
 
     Attributes
     ----------
     n, m, q, k : int
         States, inputs, outputs and switching functions (0 if not hybrid).
     parameter_names : tuple of str
+    source : str
+        The generated Python source.
     """
 
     n: int
@@ -182,38 +233,187 @@ class NumpyModel:
     q: int
     k: int
     parameter_names: tuple[str, ...]
-    _f: Callable = field(repr=False)
-    _h: Callable = field(repr=False)
-    _s: Callable | None = field(repr=False)
+    source: str = field(repr=False)
+    n_constants: int = field(repr=False)
+    _fns: Mapping[str, Callable] = field(repr=False)
+    _casadi: dict = field(default_factory=dict, repr=False, compare=False)
 
-    def _env(self, x: np.ndarray, u: np.ndarray | None, params: Mapping[str, Any]) -> list:
-        env = [x[:, i] for i in range(self.n)]
-        if u is not None:
-            env.extend(u[:, i] for i in range(self.m))
-        env.extend(params[name] for name in self.parameter_names)
-        return env
+    def parameter_values(self, params: Mapping[str, Any]) -> list:
+        """Parameter values in the model's order (scalars or (M,) arrays)."""
+        return [params[name] for name in self.parameter_names]
 
-    def _stack(self, values: list, count: int) -> np.ndarray:
-        out = np.empty((count, len(values)))
-        for i, v in enumerate(values):
-            out[:, i] = v
+    def constants(self, pv: Sequence[Any]) -> tuple:
+        """The parameter-only sub-expressions for the values ``pv`` (`parameter_values`)."""
+        with np.errstate(invalid="ignore", divide="ignore"):
+            return self._fns["constants"](pv)
+
+    def rhs_rows(self, rows: Sequence[np.ndarray], c: tuple, pv: Sequence[Any],
+                 out: np.ndarray) -> np.ndarray:
+        """``f`` on rows: state rows then input rows (each (M,)) -> ``out`` (n, M)."""
+        with np.errstate(invalid="ignore", divide="ignore"):
+            return self._fns["f"](rows, c, pv, out)
+
+    @property
+    def rhs_rows_unguarded(self) -> Callable:
+        """`rhs_rows` without its ``numpy.errstate`` (for a caller that holds one)."""
+        return self._fns["f"]
+
+    def switching_rows(self, x: np.ndarray, c: tuple, pv: Sequence[Any]) -> np.ndarray:
+        """Switching functions on the row layout: (n, M) -> (k, M)."""
+        out = np.empty((self.k, x.shape[1]))
+        if self.k:
+            with np.errstate(invalid="ignore", divide="ignore"):
+                self._fns["s"](x, c, pv, out)
         return out
+
+    def output_rows(self, x: np.ndarray, c: tuple, pv: Sequence[Any]) -> np.ndarray:
+        """Output map on the row layout: (n, M) -> (q, M)."""
+        out = np.empty((self.q, x.shape[1]))
+        with np.errstate(invalid="ignore", divide="ignore"):
+            return self._fns["h"](x, c, pv, out)
 
     def rhs(self, x: np.ndarray, u: np.ndarray, params: Mapping[str, Any]) -> np.ndarray:
         """``f(x, u)`` at M points: (M, n), (M, m), parameters (scalars or (M,)) -> (M, n)."""
-        with np.errstate(invalid="ignore", divide="ignore"):
-            return self._stack(self._f(self._env(x, u, params)), x.shape[0])
+        pv = self.parameter_values(params)
+        rows = [*np.asarray(x, dtype=float).T, *np.asarray(u, dtype=float).T]
+        out = np.empty((self.n, x.shape[0]))
+        return self.rhs_rows(rows, self.constants(pv), pv, out).T
 
     def output(self, x: np.ndarray, params: Mapping[str, Any]) -> np.ndarray:
         """``h(x)`` at M points: (M, n) -> (M, q)."""
-        with np.errstate(invalid="ignore", divide="ignore"):
-            return self._stack(self._h(self._env(x, None, params)), x.shape[0])
+        pv = self.parameter_values(params)
+        return self.output_rows(np.asarray(x, dtype=float).T, self.constants(pv), pv).T
 
     def switching(self, x: np.ndarray, params: Mapping[str, Any]) -> np.ndarray:
         """Switching functions ``s(x)`` at M points: (M, n) -> (M, k); (M, 0) if not hybrid."""
-        if self._s is None:
-            return np.zeros((x.shape[0], 0))
-        return self._stack(self._s(self._env(x, None, params)), x.shape[0])
+        pv = self.parameter_values(params)
+        return self.switching_rows(np.asarray(x, dtype=float).T, self.constants(pv), pv).T
+
+    def casadi_advance(self, substeps: int, runs: int) -> Any:
+        """The sampling period as one CasADi function mapped over ``runs`` runs (cached).
+
+        ``(x (n), u (m), c (constants), p (parameters), h, lower (n), upper (n)) -> (x_next
+        (n), crossed (1), low (substeps), high (substeps))``: ``substeps``
+        RK4 steps of ``h`` s under the held input, stage states clipped,
+        every end state clipped; ``crossed`` is 1 when some step changed the
+        hybrid mode (the caller re-integrates that run with the numeric
+        switching-surface location), ``low``/``high`` flag the steps whose
+        end state passed a bound (before clipping).
+        """
+        key = (int(substeps), int(runs))
+        fn = self._casadi.get(key)
+        if fn is None:
+            base = self._casadi.get((int(substeps), 1))
+            if base is None:
+                base = _casadi_period(self, int(substeps))
+                self._casadi[(int(substeps), 1)] = base
+            fn = base if runs == 1 else base.map(int(runs), "serial")
+            self._casadi[key] = fn
+        return fn
+
+
+class _Reduce:
+    """``numpy.logical_and``/``logical_or`` stand-ins with ``.reduce`` (CasADi)."""
+
+    def __init__(self, fn: Callable):
+        self.fn = fn
+
+    def __call__(self, a: Any, b: Any) -> Any:
+        return self.fn(a, b)
+
+    def reduce(self, parts: Sequence[Any]) -> Any:
+        out = parts[0]
+        for q in parts[1:]:
+            out = self.fn(out, q)
+        return out
+
+
+def _casadi_namespace() -> dict[str, Any]:
+    """The generated source's ``numpy`` calls, as CasADi SX operations (same order)."""
+    import types
+
+    import casadi as ca
+
+    def select(conds: Sequence[Any], values: Sequence[Any], default: float = np.nan) -> Any:
+        out = ca.SX(default)
+        for cond, value in reversed(list(zip(conds, values))):
+            out = value if cond is True else ca.if_else(cond, value, out)
+        return out
+
+    def heaviside(a: Any, h0: float) -> Any:
+        return ca.if_else(a > 0, 1.0, ca.if_else(a < 0, 0.0, h0))
+
+    shim = types.SimpleNamespace(
+        sqrt=ca.sqrt, copysign=ca.copysign, sign=ca.sign, exp=ca.exp, log=ca.log,
+        maximum=ca.fmax, minimum=ca.fmin, heaviside=heaviside, select=select,
+        less=lambda a, b: a < b, less_equal=lambda a, b: a <= b, greater=lambda a, b: a > b,
+        greater_equal=lambda a, b: a >= b, equal=lambda a, b: a == b,
+        not_equal=lambda a, b: a != b, logical_not=ca.logic_not,
+        logical_and=_Reduce(ca.logic_and), logical_or=_Reduce(ca.logic_or),
+        pi=np.pi, e=np.e, nan=np.nan, inf=np.inf)
+    return {"numpy": shim}
+
+
+def _casadi_period(model: NumpyModel, substeps: int) -> Any:
+    """The period of `Integrator` as CasADi SX, built from the generated source itself.
+
+    The same source runs with CasADi operations in place of numpy's, in the
+    same order (the constants come in computed by numpy), so both forms give
+    the same floating-point numbers (tested bit for bit on the built-in
+    plants).
+    """
+    import casadi as ca
+
+    ns = _casadi_namespace()
+    exec(compile(model.source, "<tanksynth.sim.tape casadi>", "exec"), ns)  # noqa: S102
+    n, m, k = model.n, model.m, model.k
+    nc = model.n_constants
+    x = ca.SX.sym("x", n)
+    u = ca.SX.sym("u", m)
+    c = ca.SX.sym("c", nc)
+    p = ca.SX.sym("p", len(model.parameter_names))
+    h = ca.SX.sym("h")
+    lo = ca.SX.sym("lower", n)
+    hi = ca.SX.sym("upper", n)
+    cs = [c[i] for i in range(nc)]
+    ps = [p[i] for i in range(p.numel())]
+    us = [u[i] for i in range(m)]
+
+    def rows(v: Any) -> list:
+        return [v[i] for i in range(n)]
+
+    def f(v: Any) -> Any:
+        out = [None] * n
+        ns["f"]([*rows(v), *us], cs, ps, out)
+        return ca.vertcat(*[ca.SX(o) for o in out])
+
+    def switching(v: Any) -> list:
+        out = [None] * k
+        ns["s"](rows(v), cs, ps, out)
+        return [ca.SX(o) for o in out]
+
+    clip = lambda v: ca.fmin(ca.fmax(v, lo), hi)  # noqa: E731
+    half = 0.5 * h
+    xt = x
+    crossed = ca.SX(0)
+    low, high = [], []
+    for _ in range(substeps):
+        k1 = f(clip(xt))
+        k2 = f(clip(k1 * half + xt))
+        k3 = f(clip(k2 * half + xt))
+        k4 = f(clip(k3 * h + xt))
+        acc = ((k2 * 2.0 + k1) + k3 * 2.0 + k4) * (h / 6.0)
+        x1 = xt + acc
+        if k:
+            for a, b in zip(switching(xt), switching(x1)):
+                crossed = ca.logic_or(crossed, (a > 0) != (b > 0))
+        low.append(ca.mmax(x1 < lo) if n else ca.SX(0))
+        high.append(ca.mmax(x1 > hi) if n else ca.SX(0))
+        xt = clip(x1)
+    return ca.Function("period", [x, u, c, p, h, lo, hi],
+                       [xt, crossed, ca.vertcat(*low), ca.vertcat(*high)],
+                       ["x", "u", "c", "p", "h", "lower", "upper"],
+                       ["x_next", "crossed", "low", "high"])
 
 
 #: Compiled models by plant structure (name, equations, switching functions, parameter names).
@@ -243,7 +443,7 @@ def cache_info() -> dict[str, int]:
 
 
 def numpy_model(plant: Plant) -> NumpyModel:
-    """Compile (once per plant structure) the numpy tapes of a plant.
+    """Generate and compile (once per plant structure) the numpy code of a plant.
 
     Parameters
     ----------
@@ -254,6 +454,12 @@ def numpy_model(plant: Plant) -> NumpyModel:
     NumpyModel
         Cached by the model's equations and parameter names, so plants that
         differ only in parameter values share one model.
+
+    Raises
+    ------
+    SimulationError
+        A free symbol without a value, or a function the code generator does
+        not support.
     """
     hit = _BY_ID.get(id(plant))
     if hit is not None and hit[0] is plant:
@@ -265,11 +471,16 @@ def numpy_model(plant: Plant) -> NumpyModel:
     model = _MODELS.get(key)
     if model is None:
         params = [plant.p[nm] for nm in names]
-        model = NumpyModel(
-            plant.n, plant.m, plant.q, len(switching), names,
-            _tape(list(plant.f), [*plant.x, *plant.u, *params]),
-            _tape(list(plant.h), [*plant.x, *params]),
-            _tape(list(switching), [*plant.x, *params]) if switching else None)
+        xs, us = list(plant.x), list(plant.u)
+        f, h, s = list(plant.f), list(plant.h), list(switching)
+        _check(f, set(xs) | set(us) | set(params))
+        _check(h + s, set(xs) | set(params))
+        groups = {"f": (f, xs + us), "h": (h, xs)}
+        if s:
+            groups["s"] = (s, xs)
+        source, fns = _generate(groups, params)
+        model = NumpyModel(plant.n, plant.m, plant.q, len(switching), names, source,
+                           fns["n_constants"], fns)
         _MODELS[key] = model
     if len(_BY_ID) > 256:
         _BY_ID.clear()

@@ -88,3 +88,24 @@ def test_domain_validation(plant):
     dom = domain_from_plant(plant, [(0.0, 0.1)] * 3, gap=0.2)     # h1 - h3 >= 0.2: empty
     with pytest.raises(RegionError):
         dom.sample(10)
+
+
+def test_domain_samples_and_lp_ranges_are_cached_and_clearable():
+    import numpy as np
+
+    from tanksynth.analysis import quasi_lpv as ql
+
+    dom = ql.Domain(np.array([0.0, 1.0]), np.array([1.0, 3.0]), np.array([[1.0, -1.0]]),
+                    np.array([-2.5]), ("a", "b"))
+    ql.clear_cache()
+    first = dom.sample(500, seed=3)
+    first[:] = -1.0                                   # the caller's copy, not the cache
+    again = dom.sample(500, seed=3)
+    assert np.all(dom.contains(again)) and not np.any(again == -1.0)
+    assert again.shape == (500, 2)
+    lo, hi = dom.linear_range([1.0, 1.0])
+    # a - b >= -2.5 on [0, 1] x [1, 3]: a + b spans [1, 4] (the LP answer, checked by hand)
+    assert abs(lo - 1.0) < 1e-9 and abs(hi - 4.0) < 1e-9
+    assert dom.linear_range(np.array([1.0, 1.0])) == (lo, hi)
+    assert ql.clear_cache() >= 2
+    assert np.array_equal(dom.sample(500, seed=3), again)   # recomputed: same seeded draw

@@ -106,3 +106,18 @@ def test_module_exports():
     """The quasi-LPV form and the premise bounds stay importable from this module."""
     for name in tsmod.__all__:
         assert hasattr(tsmod, name)
+
+
+
+def test_full_column_rank_C_skips_the_kalman_ranks_with_a_reason(ts_all):
+    obs = vertex_observability(ts_all, C=np.eye(3))
+    assert obs.all_observable and obs.reason and "full column rank" in obs.reason
+    assert obs.ranks == (3,) * 8 and obs.conditions == ()
+    assert obs.as_dict()["reason"] == obs.reason
+    # a rank-deficient C still gets the Kalman test, checked with numpy's matrix_rank here
+    C = np.array([[1.0, 0.0, 0.0]])
+    obs2 = vertex_observability(ts_all, C=C, symbolic=False)
+    assert obs2.reason is None and len(obs2.conditions) == 8
+    for Ai, r in zip(ts_all.A, obs2.ranks):
+        O = np.vstack([C @ np.linalg.matrix_power(Ai, k) for k in range(3)])
+        assert r == np.linalg.matrix_rank(O)

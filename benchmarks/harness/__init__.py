@@ -1,0 +1,95 @@
+"""Shared helpers of the benchmarks: interleaved repetitions, summaries, JSON records.
+
+Every benchmark times its contenders interleaved (A B C, A B C, ...), so a
+change of machine load hits all of them alike, repeats at least three times,
+prints min and median and the ratio of every repetition, checks its floors on
+the median ratio (never on one shot) and writes a JSON record to
+``benchmarks/results/<name>.json`` with the machine, the versions of the
+libraries and the load average before and after.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import platform
+import statistics
+import time
+from importlib import metadata
+from pathlib import Path
+from typing import Any, Callable, Mapping
+
+__all__ = ["interleave", "summary", "ratios", "machine", "write_record", "Floors"]
+
+RESULTS = Path(__file__).resolve().parents[1] / "results"
+
+
+def interleave(contenders: Mapping[str, Callable[[], Any]], reps: int = 3,
+               number: int = 1) -> dict[str, list[float]]:
+    """Wall times (s, per call) of each contender, interleaved over ``reps`` repetitions.
+
+    ``number`` calls are timed together and divided (for calls of a few microseconds).
+    """
+    times: dict[str, list[float]] = {name: [] for name in contenders}
+    for _ in range(int(reps)):
+        for name, fn in contenders.items():
+            t0 = time.perf_counter()
+            for _ in range(int(number)):
+                fn()
+            times[name].append((time.perf_counter() - t0) / int(number))
+    return times
+
+
+def summary(values: list[float]) -> dict[str, float]:
+    """``min`` and ``median`` of a list of times."""
+    return {"min": min(values), "median": statistics.median(values)}
+
+
+def ratios(slow: list[float], fast: list[float]) -> list[float]:
+    """Per-repetition ratio ``slow / fast`` (> 1: ``fast`` is faster)."""
+    return [a / b for a, b in zip(slow, fast)]
+
+
+def _version(pkg: str) -> str | None:
+    try:
+        return metadata.version(pkg)
+    except metadata.PackageNotFoundError:
+        return None
+
+
+def machine() -> dict[str, Any]:
+    """Machine, interpreter, library versions and load average."""
+    pkgs = ("numpy", "scipy", "sympy", "casadi", "cvxpy", "clarabel", "control", "threadpoolctl",
+            "filterpy", "tanksynth")
+    return {"platform": platform.platform(), "processor": platform.processor() or platform.machine(),
+            "cpus": os.cpu_count(), "python": platform.python_version(),
+            "versions": {p: _version(p) for p in pkgs},
+            "loadavg": list(os.getloadavg()), "time": time.strftime("%Y-%m-%dT%H:%M:%S%z")}
+
+
+def write_record(name: str, payload: Mapping[str, Any], before: Mapping[str, Any]) -> Path:
+    """Write ``benchmarks/results/<name>.json``: ``payload`` plus the machine before and after."""
+    RESULTS.mkdir(parents=True, exist_ok=True)
+    path = RESULTS / f"{name}.json"
+    record = {"benchmark": name, "machine": before, "loadavg_after": list(os.getloadavg()),
+              **payload}
+    path.write_text(json.dumps(record, indent=1, default=float) + "\n")
+    return path
+
+
+class Floors:
+    """Floors checked on median ratios; `failed` lists the misses."""
+
+    def __init__(self) -> None:
+        self.rows: list[dict[str, Any]] = []
+
+    def check(self, what: str, median_ratio: float, floor: float) -> bool:
+        ok = median_ratio >= floor
+        self.rows.append({"what": what, "median_ratio": median_ratio, "floor": floor, "ok": ok})
+        print(f"  floor {'ok  ' if ok else 'MISS'} {what}: median ratio {median_ratio:.2f} "
+              f"(floor {floor:g})")
+        return ok
+
+    @property
+    def failed(self) -> list[dict[str, Any]]:
+        return [r for r in self.rows if not r["ok"]]
