@@ -77,6 +77,16 @@ def key_figure(doc: Mapping[str, Any], state_units: Sequence[str] | None = None)
             text += (f"; |e| {float(conv['e0']):.2g} {unit} -> {float(conv['tail_max']):.2g} "
                      f"{unit}").replace("  ", " ").rstrip()
         return text
+    for name, label in (("hinf_norm", "||T_zw||inf"), ("h2_norm", "||T_zw||2")):
+        if "value" in data.get(name, {}):
+            return f"{label} = {float(data[name]['value']):.4g} (recomputed)"
+    if "margins" in data.get("vertex_region", {}):
+        margins = data["vertex_region"]["margins"]
+        return f"region margin {min(float(m) for m in margins):.3g} at the worst of {len(margins)} models"
+    if "inner_radius" in data.get("region_recheck", {}):
+        unit = _common_unit(state_units)
+        return (f"certified region: ball of radius {float(data['region_recheck']['inner_radius']):.3g} "
+                f"{unit} around x0").replace("  ", " ")
     for name in ("estimator_convergence", "observer_convergence"):
         conv = data.get(name, {})
         if "e0" in conv and "tail_max" in conv:

@@ -1,0 +1,23 @@
+"""Key figures of the run summary for the convex-synthesis, robust and TS-control methods."""
+
+from tanksynth.summary import key_figure
+
+
+def _doc(*checks):
+    return {"verification": {"checks": [{"check": name, "data": data} for name, data in checks]}}
+
+
+def test_hinf_key_figure_is_the_recomputed_norm():
+    doc = _doc(("h2_norm", {"value": 0.5}), ("hinf_norm", {"value": 0.123456}))
+    assert key_figure(doc) == "||T_zw||inf = 0.1235 (recomputed)"
+    assert key_figure(_doc(("h2_norm", {"value": 0.5}))) == "||T_zw||2 = 0.5 (recomputed)"
+
+
+def test_robust_key_figure_is_the_worst_vertex_margin():
+    doc = _doc(("vertex_region", {"margins": [0.3, 0.0027, 0.1]}))
+    assert key_figure(doc) == "region margin 0.0027 at the worst of 3 models"
+
+
+def test_ts_control_key_figure_is_the_certified_radius_with_its_unit():
+    doc = _doc(("region_recheck", {"inner_radius": 0.0412, "c": 1.0}))
+    assert key_figure(doc, ["m", "m", "m"]) == "certified region: ball of radius 0.0412 m around x0"
