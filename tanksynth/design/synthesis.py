@@ -37,6 +37,12 @@ unit input columns, scalar scaling of ``w`` and ``z``, time scaling by
 is re-checked in numpy in the original units (closed-loop eigenvalues,
 region, H2 norm from the Gramian, H-infinity norm by a Hamiltonian test and
 bisection) and refused (`InfeasibleDesign`) when a claim fails.
+
+Route: a pure H2 / H-infinity design (one model, no region, no bounds) is
+solved by default with its Riccati equation (`tanksynth.design.synthesis_riccati`),
+which has the same optimum and scales (N = 64 tanks in about a second, where
+Clarabel's dense factorisation of the LMI takes minutes); ``route = "lmi"``
+forces the LMIs. Both routes' gains get the same re-check.
 """
 
 from __future__ import annotations
@@ -104,7 +110,9 @@ class SynthesisResult:
     gamma : float or None
         Guaranteed bound on the H-infinity norm (z unit per w unit).
     h2_optimum, gamma_optimum : float or None
-        The LMI optimum of phase 1 (before the back-off).
+        The optimum before the back-off: LMI phase 1, or (Riccati route) the
+        LQR's H2 norm / the upper end of the gamma bisection's final bracket
+        (``as_dict`` keeps the keys ``h2_lmi_optimum``, ``gamma_lmi_optimum``).
     achieved_h2, achieved_hinf : tuple of float
         Norms of each model's closed loop recomputed in numpy (Gramian;
         Hamiltonian bisection), whether or not they were part of the problem.

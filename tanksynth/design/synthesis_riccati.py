@@ -130,7 +130,7 @@ def riccati_h2(P: GeneralizedPlant) -> RiccatiSolution:
 def _hinf_gain(P: GeneralizedPlant, gamma: float) -> tuple[np.ndarray, np.ndarray] | None:
     """Central gain at ``gamma`` if the game Riccati equation's conditions hold and it reaches gamma."""
     Q, R, S = _weights(P)
-    n, m, nw = P.n, P.m, P.Bw.shape[1]
+    n, nw = P.n, P.Bw.shape[1]
     Bt = np.hstack([P.B, P.Bw])
     Rt = sla.block_diag(R, -gamma ** 2 * np.eye(nw))
     St = np.hstack([S, np.zeros((n, nw))])

@@ -376,3 +376,22 @@ def test_route_choice_and_refusal():
     res = synthesize_state_feedback(GeneralizedPlant(A, B, Bw, Cz, Dzu1, "discrete", 1.0),
                                     objective="h2", hinf_bound=None, route="auto")
     assert res.route == "lmi" and "singular" in res.scaling["route_note"]
+
+
+def test_spec_route_option_reaches_the_design():
+    """The example's hinf_state_feedback entry: route "auto" (Riccati) and "lmi" agree; bad route named."""
+    import dataclasses
+    from pathlib import Path
+
+    from tanksynth.errors import TanksynthError
+    from tanksynth.methods import design, load_spec
+
+    spec = load_spec(Path(__file__).resolve().parents[2] / "examples" / "three_tank_hinf.toml")
+    entry = next(d for d in spec.designs if d.method == "hinf_state_feedback")
+    auto = design(spec, entry)
+    lmi = design(spec, dataclasses.replace(entry, options={**entry.options, "route": "lmi"}))
+    assert (auto.diagnostics["route"], lmi.diagnostics["route"]) == ("riccati", "lmi")
+    a, b = auto.diagnostics["synthesis"], lmi.diagnostics["synthesis"]
+    assert a["gamma_lmi_optimum"] == pytest.approx(b["gamma_lmi_optimum"], rel=1e-5)
+    with pytest.raises(TanksynthError, match="route"):
+        design(spec, dataclasses.replace(entry, options={**entry.options, "route": "newton"}))
