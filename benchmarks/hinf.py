@@ -23,6 +23,12 @@ lqr_python_control
     python-control ``lqr`` (Riccati, scipy) with the same weights, and the
     H2 and H-infinity norms of its closed loop (tanksynth.analysis.statespace).
 
+BLAS threads: the Riccati route limits BLAS to one thread inside the library
+(threadpoolctl; on this loaded 2-core machine OpenBLAS's pool made the N = 64
+bisection 48 s instead of 1.2 s); the LMI route and python-control run with the
+process's default. ``--blas-threads 1`` limits every method to one thread
+(same conditions for all).
+
 Same problem for every method; runs are interleaved (every size and method in
 turn, ``--reps`` rounds, default 3); minimum and median wall times reported.
 Floor: ``hinf_riccati`` (the default route) at N = 32 under 10 s (minimum over
@@ -161,6 +167,7 @@ def main(argv=None) -> int:
         print(f"floor: hinf_state_feedback (route auto) N = {FLOOR_N} in {best:.3f} s (< {FLOOR_S:g} s): "
               f"{'PASS' if floor['passed'] else 'FAIL'}")
     record = {"benchmark": "hinf", "sizes": args.sizes, "reps": args.reps, "lmi_max": args.lmi_max,
+              "blas_threads": args.blas_threads or "process default (Riccati route: 1, in the library)",
               "rows": rows, "routes_agree": agree, "floor": floor, "equilibrium_residuals": {N: problems[N][3] for N in args.sizes},
               "python": platform.python_version(), "machine": platform.machine(),
               "when": time.strftime("%Y-%m-%dT%H:%M:%S")}

@@ -61,7 +61,8 @@ from tanksynth.analysis.statespace import h2_norm, hinf_below, hinf_norm, states
 from tanksynth.design.lmi import LMICheck
 from tanksynth.design.synthesis_lmis import (DOMAINS, GeneralizedPlant, generalized_plant, h2_lmis,
                                             hinf_lmis, hinf_lmis_reduced, observer_plant, region_lmi)
-from tanksynth.design.synthesis_riccati import riccati_applicable, riccati_h2, riccati_hinf
+from tanksynth.design.synthesis_riccati import (riccati_applicable, riccati_h2, riccati_hinf,
+                                                single_threaded_blas)
 from tanksynth.errors import DimensionError, InfeasibleDesign, SpecError
 
 __all__ = [
@@ -331,7 +332,8 @@ def synthesize_state_feedback(plants: GeneralizedPlant | Sequence[GeneralizedPla
         why = _riccati_refusal(models, objective, h2_bound, hinf_bound, region)
         if why is None:
             try:
-                return _riccati_design(models[0], objective, backoff, dual)
+                with single_threaded_blas():
+                    return _riccati_design(models[0], objective, backoff, dual)
             except np.linalg.LinAlgError as exc:
                 why = f"scipy's Riccati solver failed ({exc})"
         if route == "riccati":
