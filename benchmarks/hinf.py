@@ -127,7 +127,12 @@ def main(argv=None) -> int:
     ap.add_argument("--reps", type=int, default=3)
     ap.add_argument("--lmi-max", type=int, default=32, help="largest N for the LMI route")
     ap.add_argument("--out", default=str(Path(__file__).parent / "results" / "hinf.json"))
+    ap.add_argument("--blas-threads", type=int, default=None, help="limit BLAS threads for every method")
     args = ap.parse_args(argv)
+    if args.blas_threads is not None:
+        from threadpoolctl import threadpool_limits
+
+        threadpool_limits(limits=args.blas_threads, user_api="blas")
     problems = {N: _problem(N) for N in args.sizes}
     times: dict[tuple[int, str], list[float]] = {}
     info: dict[tuple[int, str], dict] = {}
