@@ -1,32 +1,44 @@
-"""H-infinity state feedback by LMI on the N-tank network, beside python-control's Riccati LQR.
+"""H-infinity state feedback on the N-tank network: Riccati and LMI routes beside python-control's LQR.
 
 Issue 14. For ``tank_network(N)`` (DECENTER constants, N = 8, 16, 32, 64, N/2
 pumps) linearised at the equilibrium with every pump at 4 V, with an unknown
 inflow into each tank (``Bw = diag(1 / A_i)``, the ``"inflows"`` shortcut) and
-Bryson's weights (``z = [Q^1/2 x; R^1/2 u]``), it times:
+Bryson's weights (``z = [Q^1/2 x; R^1/2 u]``), it times (every design includes
+the library's independent re-check: Gramian H2, Hamiltonian H-infinity bisection):
 
-hinf_lmi
+hinf_riccati
     `tanksynth.design.synthesis.synthesize_state_feedback` with
-    ``objective="hinf"`` and the default back-off 1e-3 (two Clarabel solves:
-    optimum, then the margin-maximising point) including problem construction
-    and the library's re-check (Gramian H2, Hamiltonian H-infinity bisection);
-    the gamma it certifies and the recomputed norm are recorded.
-h2_lmi
-    the H2 LMI (one solve), whose optimum is the LQR's.
-lqr_riccati
-    python-control ``lqr`` (Riccati, scipy) with the same weights: the
-    H-infinity norm its closed loop reaches is recorded (the price of
-    optimising H2 instead of H-infinity); it designs no H-infinity gain.
+    ``objective="hinf"``, ``backoff=1e-3`` and the default ``route="auto"``:
+    gamma bisection on the game Riccati equation (scipy ARE), the central gain
+    at ``1.001 gamma_optimum``. This is what ``hinf_state_feedback`` runs.
+hinf_lmi
+    the same problem with ``route="lmi"`` and ``backoff=0`` (ONE Clarabel solve
+    of the reduced bounded-real LMI; the default back-off would add a second
+    solve): only for N <= ``--lmi-max`` (default 32; at N = 64 one solve takes
+    tens of minutes: Clarabel factorises a dense block of size s(s+1)/2 for the
+    LMI of size s = n + nz = 160).
+h2_riccati, h2_lmi
+    ``objective="h2"`` by the two routes (the LMI only up to ``--lmi-max``).
+lqr_python_control
+    python-control ``lqr`` (Riccati, scipy) with the same weights, and the
+    H2 and H-infinity norms of its closed loop (tanksynth.analysis.statespace).
 
-Runs are interleaved (every method and size in turn, ``--reps`` rounds,
-default 3) and the minimum and median wall times are reported. Floor:
-``hinf_lmi`` at N = 32 under 10 s (minimum over the rounds); exit status 1
-when it fails. A JSON record is written to ``benchmarks/results/hinf.json``.
+BLAS threads: the Riccati route limits BLAS to one thread inside the library
+(threadpoolctl; on this loaded 2-core machine OpenBLAS's pool made the N = 64
+bisection 48 s instead of 1.2 s); the LMI route and python-control run with the
+process's default. ``--blas-threads 1`` limits every method to one thread
+(same conditions for all).
+
+Same problem for every method; runs are interleaved (every size and method in
+turn, ``--reps`` rounds, default 3); minimum and median wall times reported.
+Floor: ``hinf_riccati`` (the default route) at N = 32 under 10 s (minimum over
+the rounds); exit status 1 when it fails. A JSON record is written to
+``benchmarks/results/hinf.json``.
 
 Run from the repository root::
 
     .venv/bin/python benchmarks/hinf.py               # N = 8 .. 64, 3 rounds
-    .venv/bin/python benchmarks/hinf.py --sizes 8 16 --reps 3
+    .venv/bin/python benchmarks/hinf.py --sizes 8 16 --reps 3 --lmi-max 16
 """
 
 from __future__ import annotations
@@ -67,19 +79,21 @@ def _problem(N: int):
     return GeneralizedPlant(lin.F, lin.B, Bw, Cz, Dzu), Q, R, float(np.max(np.abs(rhs(x0[None], u0[None]))))
 
 
-def _hinf(P):
+def _hinf(P, route):
     from tanksynth.design.synthesis import synthesize_state_feedback
 
-    res = synthesize_state_feedback(P, objective="hinf", backoff=1e-3)
-    return {"gamma": res.gamma, "gamma_lmi_optimum": res.gamma_optimum,
-            "achieved_hinf": res.achieved_hinf[0], "status": res.status}
+    res = synthesize_state_feedback(P, objective="hinf", route=route,
+                                    backoff=1e-3 if route == "auto" else 0.0)
+    return {"gamma": res.gamma, "gamma_optimum": res.gamma_optimum,
+            "achieved_hinf": res.achieved_hinf[0], "route": res.route, "status": res.status}
 
 
-def _h2(P):
+def _h2(P, route):
     from tanksynth.design.synthesis import synthesize_state_feedback
 
-    res = synthesize_state_feedback(P, objective="h2")
-    return {"h2": res.h2, "achieved_hinf": res.achieved_hinf[0]}
+    res = synthesize_state_feedback(P, objective="h2", route=route)
+    return {"h2": res.h2, "achieved_h2": res.achieved_h2[0], "achieved_hinf": res.achieved_hinf[0],
+            "route": res.route}
 
 
 def _lqr(P, Q, R):
@@ -93,43 +107,73 @@ def _lqr(P, Q, R):
             "h2_riccati": float(np.sqrt(np.trace(P.Bw.T @ S @ P.Bw)))}
 
 
+METHODS = ("hinf_riccati", "hinf_lmi", "h2_riccati", "h2_lmi", "lqr_python_control")
+
+
+def _methods(P, Q, R, lmi: bool):
+    out = [("hinf_riccati", lambda: _hinf(P, "auto"))]
+    if lmi:
+        out.append(("hinf_lmi", lambda: _hinf(P, "lmi")))
+    out.append(("h2_riccati", lambda: _h2(P, "auto")))
+    if lmi:
+        out.append(("h2_lmi", lambda: _h2(P, "lmi")))
+    out.append(("lqr_python_control", lambda: _lqr(P, Q, R)))
+    return out
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--sizes", type=int, nargs="+", default=[8, 16, 32, 64])
     ap.add_argument("--reps", type=int, default=3)
+    ap.add_argument("--lmi-max", type=int, default=32, help="largest N for the LMI route")
     ap.add_argument("--out", default=str(Path(__file__).parent / "results" / "hinf.json"))
+    ap.add_argument("--blas-threads", type=int, default=None, help="limit BLAS threads for every method")
     args = ap.parse_args(argv)
+    if args.blas_threads is not None:
+        from threadpoolctl import threadpool_limits
+
+        threadpool_limits(limits=args.blas_threads, user_api="blas")
     problems = {N: _problem(N) for N in args.sizes}
     times: dict[tuple[int, str], list[float]] = {}
     info: dict[tuple[int, str], dict] = {}
     for rep in range(max(args.reps, 1)):
         for N in args.sizes:
             P, Q, R, _ = problems[N]
-            for name, fn in (("hinf_lmi", lambda: _hinf(P)), ("h2_lmi", lambda: _h2(P)),
-                             ("lqr_riccati", lambda: _lqr(P, Q, R))):
+            for name, fn in _methods(P, Q, R, N <= args.lmi_max):
                 t0 = time.perf_counter()
                 out = fn()
                 times.setdefault((N, name), []).append(time.perf_counter() - t0)
                 info[(N, name)] = out
-        print(f"round {rep + 1}/{args.reps} done", file=sys.stderr)
-    rows = []
-    print(f"{'N':>4} {'method':<12} {'min s':>9} {'median s':>9}  result")
+        print(f"round {rep + 1}/{args.reps} done", file=sys.stderr, flush=True)
+    rows, agree = [], {}
+    print(f"{'N':>4} {'method':<19} {'min s':>9} {'median s':>9}  result")
     for N in args.sizes:
-        for name in ("hinf_lmi", "h2_lmi", "lqr_riccati"):
+        for name in METHODS:
+            if (N, name) not in times:
+                print(f"{N:>4} {name:<19} {'-':>9} {'-':>9}  not run (N > --lmi-max {args.lmi_max})")
+                continue
             t = times[(N, name)]
             r = info[(N, name)]
             rows.append({"N": N, "method": name, "times_s": t, "min_s": min(t),
                          "median_s": statistics.median(t), **r})
             desc = ", ".join(f"{k} {v:.6g}" for k, v in r.items() if isinstance(v, float))
-            print(f"{N:>4} {name:<12} {min(t):9.3f} {statistics.median(t):9.3f}  {desc}")
+            print(f"{N:>4} {name:<19} {min(t):9.3f} {statistics.median(t):9.3f}  {desc}")
+        if (N, "hinf_lmi") in info:
+            a, b = info[(N, "hinf_riccati")]["gamma_optimum"], info[(N, "hinf_lmi")]["gamma_optimum"]
+            c, d = info[(N, "h2_riccati")]["h2"], info[(N, "h2_lmi")]["h2"]
+            agree[N] = {"gamma_optimum_rel_diff": (a - b) / b, "h2_rel_diff": (c - d) / d}
+            print(f"{N:>4} routes agree: gamma_optimum Riccati - LMI {(a - b) / b:+.2e} relative, "
+                  f"H2 {(c - d) / d:+.2e} relative")
     floor = None
     if FLOOR_N in args.sizes:
-        best = min(times[(FLOOR_N, "hinf_lmi")])
-        floor = {"N": FLOOR_N, "limit_s": FLOOR_S, "min_s": best, "passed": best < FLOOR_S}
-        print(f"floor: hinf_lmi N = {FLOOR_N} in {best:.3f} s (< {FLOOR_S:g} s): "
+        best = min(times[(FLOOR_N, "hinf_riccati")])
+        floor = {"N": FLOOR_N, "method": "hinf_riccati (route auto)", "limit_s": FLOOR_S,
+                 "min_s": best, "passed": best < FLOOR_S}
+        print(f"floor: hinf_state_feedback (route auto) N = {FLOOR_N} in {best:.3f} s (< {FLOOR_S:g} s): "
               f"{'PASS' if floor['passed'] else 'FAIL'}")
-    record = {"benchmark": "hinf", "sizes": args.sizes, "reps": args.reps, "rows": rows,
-              "floor": floor, "equilibrium_residuals": {N: problems[N][3] for N in args.sizes},
+    record = {"benchmark": "hinf", "sizes": args.sizes, "reps": args.reps, "lmi_max": args.lmi_max,
+              "blas_threads": args.blas_threads or "process default (Riccati route: 1, in the library)",
+              "rows": rows, "routes_agree": agree, "floor": floor, "equilibrium_residuals": {N: problems[N][3] for N in args.sizes},
               "python": platform.python_version(), "machine": platform.machine(),
               "when": time.strftime("%Y-%m-%dT%H:%M:%S")}
     out = Path(args.out)

@@ -37,6 +37,12 @@ unit input columns, scalar scaling of ``w`` and ``z``, time scaling by
 is re-checked in numpy in the original units (closed-loop eigenvalues,
 region, H2 norm from the Gramian, H-infinity norm by a Hamiltonian test and
 bisection) and refused (`InfeasibleDesign`) when a claim fails.
+
+Route: a pure H2 / H-infinity design (one model, no region, no bounds) is
+solved by default with its Riccati equation (`tanksynth.design.synthesis_riccati`),
+which has the same optimum and scales (N = 64 tanks in about a second, where
+Clarabel's dense factorisation of the LMI takes minutes); ``route = "lmi"``
+forces the LMIs. Both routes' gains get the same re-check.
 """
 
 from __future__ import annotations
@@ -55,10 +61,12 @@ from tanksynth.analysis.statespace import h2_norm, hinf_below, hinf_norm, states
 from tanksynth.design.lmi import LMICheck
 from tanksynth.design.synthesis_lmis import (DOMAINS, GeneralizedPlant, generalized_plant, h2_lmis,
                                             hinf_lmis, hinf_lmis_reduced, observer_plant, region_lmi)
+from tanksynth.design.synthesis_riccati import (riccati_applicable, riccati_h2, riccati_hinf,
+                                                single_threaded_blas)
 from tanksynth.errors import DimensionError, InfeasibleDesign, SpecError
 
 __all__ = [
-    "DOMAINS", "OBJECTIVES", "SOLVERS", "NORM_RTOL",
+    "DOMAINS", "OBJECTIVES", "SOLVERS", "ROUTES", "NORM_RTOL",
     "GeneralizedPlant", "generalized_plant", "observer_plant", "statespace_matrices",
     "h2_lmis", "hinf_lmis", "hinf_lmis_reduced", "region_lmi",
     "h2_norm", "hinf_norm", "hinf_below",
@@ -69,6 +77,9 @@ __all__ = [
 OBJECTIVES = ("h2", "hinf", "none")
 #: Conic solvers (cvxpy names).
 SOLVERS = ("CLARABEL", "SCS")
+#: How a pure H2 / H-infinity design is solved: ``"auto"`` (Riccati when it applies, else LMI),
+#: ``"riccati"`` (required; refused when it does not apply) or ``"lmi"``.
+ROUTES = ("auto", "riccati", "lmi")
 #: Relative tolerance of the re-check: achieved norm <= claimed bound (1 + NORM_RTOL).
 NORM_RTOL = 1e-6
 #: Clarabel settings (tighter than the defaults: the H2 optimum is compared with Riccati to 1e-6).
@@ -100,7 +111,9 @@ class SynthesisResult:
     gamma : float or None
         Guaranteed bound on the H-infinity norm (z unit per w unit).
     h2_optimum, gamma_optimum : float or None
-        The LMI optimum of phase 1 (before the back-off).
+        The optimum before the back-off: LMI phase 1, or (Riccati route) the
+        LQR's H2 norm / the upper end of the gamma bisection's final bracket
+        (``as_dict`` keeps the keys ``h2_lmi_optimum``, ``gamma_lmi_optimum``).
     achieved_h2, achieved_hinf : tuple of float
         Norms of each model's closed loop recomputed in numpy (Gramian;
         Hamiltonian bisection), whether or not they were part of the problem.
@@ -115,6 +128,9 @@ class SynthesisResult:
     checks : tuple of LMICheck
         The independent re-check (all passed, or the design was refused).
     scaling : dict
+    route : str
+        ``"lmi"`` (cvxpy) or ``"riccati"`` (scipy ARE; one model, no region or
+        bounds): see `synthesize_state_feedback`.
     """
 
     gain: np.ndarray
@@ -136,6 +152,7 @@ class SynthesisResult:
     solve_time: float
     checks: tuple[LMICheck, ...]
     scaling: dict = field(default_factory=dict)
+    route: str = "lmi"
 
     def as_dict(self) -> dict:
         """JSON-friendly diagnostics (no gains)."""
@@ -152,6 +169,7 @@ class SynthesisResult:
                 "region": None if self.region is None else self.region.as_dict(),
                 "region_margins": [float(v) for v in self.region_margins],
                 "models": len(self.closed_loop_eigenvalues),
+                "route": self.route,
                 "solver": self.solver, "status": self.status, "solve_time_s": self.solve_time,
                 "checks": [c.as_dict() for c in self.checks],
                 "condition_X": float(np.linalg.cond(self.X)),
@@ -231,7 +249,7 @@ def synthesize_state_feedback(plants: GeneralizedPlant | Sequence[GeneralizedPla
                               objective: str = "hinf", h2_bound: float | None = None,
                               hinf_bound: float | None = None, region: LMIRegion | None = None,
                               margin: float = 1e-9, backoff: float = 0.0, solver: str = "CLARABEL",
-                              dual: bool = False) -> SynthesisResult:
+                              dual: bool = False, route: str = "auto") -> SynthesisResult:
     """State feedback ``u = -K x`` by LMIs: H2 / H-infinity objective or bounds, LMI region.
 
     One ``X`` and ``Y = K X`` serve every LMI and every model: with several
@@ -244,6 +262,15 @@ def synthesize_state_feedback(plants: GeneralizedPlant | Sequence[GeneralizedPla
     keeps the objective within ``(1 + backoff)`` of the phase-1 optimum and
     maximises the strictness margin of every LMI (a well-conditioned,
     moderate gain instead of the boundary of the feasible set).
+
+    Route: a pure H2 or H-infinity objective for ONE model, with no region
+    and no bounds, has a Riccati solution with the same optimum
+    (`tanksynth.design.synthesis_riccati`: the LQR; gamma bisection on the
+    game Riccati equation, the gain the central one at ``gamma_optimum (1 +
+    backoff)``). ``route = "auto"`` takes it when it applies (``Dzu' Dzu``
+    invertible) and falls back to the LMIs if scipy's ARE solver fails; the
+    LMIs are used for regions, bounds and several models. Either way the
+    gain goes through the same independent re-check.
 
     Parameters
     ----------
@@ -264,6 +291,8 @@ def synthesize_state_feedback(plants: GeneralizedPlant | Sequence[GeneralizedPla
     dual : bool
         The plants are observer duals (`observer_plant`): the gain returned is
         ``L = K'`` and the kind ``"observer"``.
+    route : {"auto", "riccati", "lmi"}
+        See above; ``"riccati"`` is refused (`SpecError`) where it does not apply.
 
     Returns
     -------
@@ -297,6 +326,19 @@ def synthesize_state_feedback(plants: GeneralizedPlant | Sequence[GeneralizedPla
         raise SpecError(f"backoff must be >= 0, got {backoff!r}", key="backoff")
     if solver not in SOLVERS:
         raise SpecError(f"unknown solver {solver!r}; expected one of {list(SOLVERS)}", key="solver")
+    if route not in ROUTES:
+        raise SpecError(f"route must be one of {ROUTES}, got {route!r}", key="route")
+    if route != "lmi":
+        why = _riccati_refusal(models, objective, h2_bound, hinf_bound, region)
+        if why is None:
+            try:
+                with single_threaded_blas():
+                    return _riccati_design(models[0], objective, backoff, dual)
+            except np.linalg.LinAlgError as exc:
+                why = f"scipy's Riccati solver failed ({exc})"
+        if route == "riccati":
+            raise SpecError(f"route = \"riccati\" does not apply: {why}; use route = \"lmi\" or "
+                            "\"auto\"", key="route")
     sc = _scaling(models[0])
     scaled = [sc.plant(p) for p in models]
     reg_s = None if region is None else (region.scaled(sc.omega) if domain == "continuous" else region)
@@ -374,6 +416,8 @@ def synthesize_state_feedback(plants: GeneralizedPlant | Sequence[GeneralizedPla
     scaling = sc.as_dict()
     scaling.update({"margin": margin, "backoff": backoff,
                     "formulation": "dual (A', C'), L = K'" if dual else "primal, K = Y X^-1"})
+    if route == "auto":
+        scaling["route_note"] = f"LMI route: the Riccati route does not apply ({why})"
     return SynthesisResult(
         gain=K.T if dual else K, kind="observer" if dual else "state_feedback", objective=objective,
         domain=domain, X=0.5 * (Xo + Xo.T), h2=h2_claim, gamma=g_claim,
@@ -381,7 +425,64 @@ def synthesize_state_feedback(plants: GeneralizedPlant | Sequence[GeneralizedPla
         gamma_optimum=None if (objective != "hinf" or opt is None) else float(opt * finf),
         achieved_h2=tuple(a_h2), achieved_hinf=tuple(a_hinf), closed_loop_eigenvalues=tuple(eigs),
         region=region, region_margins=tuple(margins), solver=solver, status=status,
-        solve_time=elapsed, checks=tuple(checks), scaling=scaling)
+        solve_time=elapsed, checks=tuple(checks), scaling=scaling, route="lmi")
+
+
+def _riccati_refusal(models, objective, h2_bound, hinf_bound, region) -> str | None:
+    """Why the Riccati route does not apply (None if it does)."""
+    if len(models) > 1:
+        return f"{len(models)} models need one common Lyapunov matrix (robust design)"
+    if region is not None:
+        return "a pole region is requested"
+    if h2_bound is not None or hinf_bound is not None:
+        return "norm bounds are requested (multi-objective)"
+    if objective not in ("h2", "hinf"):
+        return f"objective {objective!r} is not h2 or hinf"
+    return riccati_applicable(models[0])
+
+
+def _riccati_design(P: GeneralizedPlant, objective: str, backoff: float, dual: bool) -> SynthesisResult:
+    """The Riccati route (see `synthesize_state_feedback`), re-checked like the LMI route."""
+    start = time.perf_counter()
+    sol = riccati_h2(P) if objective == "h2" else riccati_hinf(P, backoff=backoff)
+    elapsed = time.perf_counter() - start
+    K = sol.K
+    Acl, Bcl, Ccl = P.closed_loop(K)
+    dt = None if P.domain == "continuous" else (P.dt or 1.0)
+    # X: the closed loop's controllability Gramian (the H2 LMI's X at equality), or for
+    # H-infinity gamma^2 P^-1 with P the game Riccati solution (the reduced bounded real lemma
+    # at equality) when P is well conditioned
+    X, certificate = None, "closed-loop controllability Gramian"
+    if objective == "hinf":
+        w = np.linalg.eigvalsh(sol.X)
+        if w[0] > 1e-12 * w[-1] > 0:
+            X, certificate = sol.gamma ** 2 * np.linalg.inv(sol.X), "gamma^2 P^-1 (P: game ARE solution)"
+    if X is None:
+        X = (sla.solve_continuous_lyapunov(Acl, -Bcl @ Bcl.T) if dt is None
+             else sla.solve_discrete_lyapunov(Acl, Bcl @ Bcl.T))
+    X = 0.5 * (X + X.T)
+    checks, eigs, _, a_h2, a_hinf = _recheck([P], [P], K, X, None, None, None, None, None,
+                                             sol.h2, sol.gamma, 0.0, False)
+    failed = [c for c in checks if not c.passed]
+    if failed:
+        worst = "; ".join(f"{c.name}: {c.value:.4g} vs {c.limit:.4g}" for c in failed)
+        raise np.linalg.LinAlgError(f"the Riccati gain fails the independent re-check ({worst})")
+    if objective == "h2":
+        status = "optimal (stabilising ARE solution)"
+        info = {"riccati": "solve_%s_are (LQR)" % P.domain}
+    else:
+        status = (f"optimal (gamma bisection: bracket [{sol.gamma_lower:.10g}, {sol.gamma_optimum:.10g}], "
+                  f"{sol.iterations} Riccati solves)")
+        info = {"riccati": "solve_%s_are (game, [u; w] weight diag(R, -gamma^2 I))" % P.domain,
+                "gamma_bracket": [sol.gamma_lower, sol.gamma_optimum], "riccati_solves": sol.iterations}
+    info.update({"certificate_X": certificate, "backoff": backoff, "route": "riccati",
+                 "formulation": "dual (A', C'), L = K'" if dual else "primal, K from the ARE"})
+    return SynthesisResult(
+        gain=K.T if dual else K, kind="observer" if dual else "state_feedback", objective=objective,
+        domain=P.domain, X=X, h2=sol.h2, gamma=sol.gamma, h2_optimum=sol.h2,
+        gamma_optimum=sol.gamma_optimum, achieved_h2=tuple(a_h2), achieved_hinf=tuple(a_hinf),
+        closed_loop_eigenvalues=tuple(eigs), region=None, region_margins=(), solver="scipy",
+        status=status, solve_time=elapsed, checks=tuple(checks), scaling=info, route="riccati")
 
 
 def _infeasible_reason(status, solver, lmis, margin, W, g, f2, finf, h2_bound, hinf_bound, region,

@@ -253,7 +253,8 @@ def test_statespace_input_and_lmi_blocks_in_numpy():
     g = 1.5 * pc_hinf(control.ss(Acl, Bw, Ccl, np.zeros((5, 3))))
     assert hinf_lmis(Pm, X, K @ X, g)[0].shape == (3 + 3 + 5,) * 2
     # bounded real lemma at the solver's optimum, recomputed in numpy in original units
-    res = synthesize_state_feedback(Pm, objective="hinf", backoff=1e-2)
+    res = synthesize_state_feedback(Pm, objective="hinf", backoff=1e-2, route="lmi")
+    assert res.route == "lmi"
     # X = T Xs T' of the scaled problem's reduced lemma (variable gamma X, mu = gamma^2); in
     # original units (w = cw ws, zs = cz z, tau = omega t) it holds for omega / cw^2 times it
     Xh = res.X * res.scaling["time_scale"] / res.scaling["disturbance_scale"] ** 2
@@ -262,6 +263,13 @@ def test_statespace_input_and_lmi_blocks_in_numpy():
     # and the full lemma in X = (gamma X) / gamma
     M = hinf_lmis(Pm, Xh / res.gamma, res.gain @ Xh / res.gamma, res.gamma)[0]
     assert np.linalg.eigvalsh(M).max() < 0
+    # the Riccati route's X = gamma^2 P^-1 satisfies the reduced lemma in original units with
+    # equality (the central gain): largest eigenvalue zero up to rounding
+    ric = synthesize_state_feedback(Pm, objective="hinf", backoff=1e-2)
+    assert ric.route == "riccati"
+    M = hinf_lmis_reduced(Pm, ric.X, ric.gain @ ric.X, ric.gamma ** 2)[0]
+    e = np.linalg.eigvalsh(M)
+    assert e.max() <= 1e-8 * np.abs(e).max()
 
 
 def test_observer_dual_has_the_error_system_norms():
@@ -286,3 +294,104 @@ def test_bad_options_are_named():
     with pytest.raises(SpecError) as exc:
         synthesize_state_feedback(P, objective="hinf", region=disk(0.9, 0.08))
     assert exc.value.key == "region"
+
+
+def _tank_network_plant(N):
+    """tank_network(N) at every pump 4 V, inflow disturbances, Bryson weights (as the benchmark)."""
+    from scipy.optimize import fsolve
+
+    from tanksynth.analysis.linearize import linearize
+    from tanksynth.plants.tank_network import tank_network
+    from tanksynth.spec.method_options.synthesis import (bryson_input_weight, bryson_state_weight,
+                                                         inflow_matrix)
+
+    plant = tank_network(N)
+    u0 = np.full(plant.m, 4.0)
+    rhs = plant.compiled.rhs
+    guess = np.concatenate([np.full(N // 2, 22.0), np.full(N // 2, 7.0)])
+    x0 = fsolve(lambda x: rhs(np.maximum(x, 1e-6)[None], u0[None])[0], guess, xtol=1e-12)
+    lin = linearize(plant, x0, u0)
+    Q, R = bryson_state_weight(plant), bryson_input_weight(plant)
+    Cz, Dzu = _weights(Q, R)
+    return lin.F, lin.B, lin.C, inflow_matrix(plant), Q, R, Cz, Dzu
+
+
+def _route_cases():
+    A, B, C, Bw, Q, R = _three_tank(False)
+    Cz, Dzu = _weights(Q, R)
+    yield "three_tank", GeneralizedPlant(A, B, Bw, Cz, Dzu)
+    A, B, C, Bw, Q, R = _three_tank(True)
+    yield "three_tank_discrete", GeneralizedPlant(A, B, Bw, Cz, Dzu, "discrete", 1.0)
+    yield "three_tank_observer", observer_plant(A, C, Bw, np.diag([1e-3, 2e-3]), sla.sqrtm(Q).real,
+                                                "discrete", 1.0)
+    A, B, C, Bw, Q, R, Cz, Dzu = _tank_network_plant(8)
+    yield "tank_network_8", GeneralizedPlant(A, B, Bw, Cz, Dzu)
+
+
+@pytest.mark.parametrize("case", ["three_tank", "three_tank_discrete", "three_tank_observer",
+                                  "tank_network_8"])
+def test_riccati_and_lmi_routes_give_the_same_optimum(case):
+    """N = 3 and 8: H2 optimum within 1e-6, H-infinity optimum within 1e-6 (relative)."""
+    P = dict(_route_cases())[case]
+    ric = synthesize_state_feedback(P, objective="hinf", backoff=0.0)
+    lmi = synthesize_state_feedback(P, objective="hinf", backoff=0.0, route="lmi")
+    assert (ric.route, lmi.route) == ("riccati", "lmi")
+    assert ric.gamma_optimum == pytest.approx(lmi.gamma_optimum, rel=1e-6)
+    # each gain reaches its claim (checked here with python-control's norm)
+    dt = P.dt if P.domain == "discrete" else 0
+    for res in (ric, lmi):
+        Acl, Bcl, Ccl = P.closed_loop(res.gain)
+        assert pc_hinf(control.ss(Acl, Bcl, Ccl, np.zeros((Ccl.shape[0], Bcl.shape[1])), dt)) \
+            <= res.gamma * (1 + 1e-6)
+    ric2 = synthesize_state_feedback(P, objective="h2")
+    lmi2 = synthesize_state_feedback(P, objective="h2", route="lmi")
+    assert (ric2.route, lmi2.route) == ("riccati", "lmi")
+    assert ric2.h2 == pytest.approx(lmi2.h2, rel=1e-6)
+    assert ric2.achieved_h2[0] == pytest.approx(lmi2.achieved_h2[0], rel=1e-6)
+
+
+def test_riccati_backoff_gives_the_central_gain_above_the_optimum():
+    P = dict(_route_cases())["three_tank"]
+    res = synthesize_state_feedback(P, objective="hinf", backoff=1e-3)
+    assert res.gamma == pytest.approx(res.gamma_optimum * (1 + 1e-3), rel=1e-12)
+    assert res.gamma_optimum <= res.achieved_hinf[0] * (1 + 1e-6) <= res.gamma * (1 + 2e-6)
+    assert res.scaling["gamma_bracket"][0] <= res.gamma_optimum
+
+
+def test_route_choice_and_refusal():
+    A, B, _, Bw, Q, R = _three_tank(True)
+    Cz, Dzu = _weights(Q, R)
+    P = GeneralizedPlant(A, B, Bw, Cz, Dzu, "discrete", 1.0)
+    with pytest.raises(SpecError) as exc:
+        synthesize_state_feedback(P, objective="hinf", region=disk(0.9, 0.08), route="riccati")
+    assert exc.value.key == "route" and "pole region" in str(exc.value)
+    with pytest.raises(SpecError) as exc:
+        synthesize_state_feedback(P, objective="hinf", route="newton")
+    assert exc.value.key == "route"
+    res = synthesize_state_feedback(P, objective="hinf", region=disk(0.9, 0.08))
+    assert res.route == "lmi" and "pole region" in res.scaling["route_note"]
+    # Dzu' Dzu singular (one input unweighted): auto falls back to the LMIs
+    Dzu1 = Dzu.copy()
+    Dzu1[:, 1] = 0.0
+    res = synthesize_state_feedback(GeneralizedPlant(A, B, Bw, Cz, Dzu1, "discrete", 1.0),
+                                    objective="h2", hinf_bound=None, route="auto")
+    assert res.route == "lmi" and "singular" in res.scaling["route_note"]
+
+
+def test_spec_route_option_reaches_the_design():
+    """The example's hinf_state_feedback entry: route "auto" (Riccati) and "lmi" agree; bad route named."""
+    import dataclasses
+    from pathlib import Path
+
+    from tanksynth.errors import TanksynthError
+    from tanksynth.methods import design, load_spec
+
+    spec = load_spec(Path(__file__).resolve().parents[2] / "examples" / "three_tank_hinf.toml")
+    entry = next(d for d in spec.designs if d.method == "hinf_state_feedback")
+    auto = design(spec, entry)
+    lmi = design(spec, dataclasses.replace(entry, options={**entry.options, "route": "lmi"}))
+    assert (auto.diagnostics["route"], lmi.diagnostics["route"]) == ("riccati", "lmi")
+    a, b = auto.diagnostics["synthesis"], lmi.diagnostics["synthesis"]
+    assert a["gamma_lmi_optimum"] == pytest.approx(b["gamma_lmi_optimum"], rel=1e-5)
+    with pytest.raises(TanksynthError, match="route"):
+        design(spec, dataclasses.replace(entry, options={**entry.options, "route": "newton"}))

@@ -27,6 +27,7 @@ from tanksynth.spec.options import (parse_choice, parse_covariance, parse_matrix
                                     parse_region, parse_vector, region_is_stable)
 
 __all__ = ["DISTURBANCE_SHORTCUTS", "SYNTHESIS_OBJECTIVES", "SYNTHESIS_SOLVERS", "SYNTHESIS_TARGETS",
+           "SYNTHESIS_ROUTES",
            "inflow_matrix", "bryson_state_weight", "bryson_input_weight",
            "H2StateFeedbackOptions", "H2ObserverOptions", "HinfStateFeedbackOptions",
            "HinfObserverOptions", "MultiobjectiveOptions"]
@@ -37,6 +38,8 @@ DISTURBANCE_SHORTCUTS = ("inflows",)
 SYNTHESIS_OBJECTIVES = ("hinf", "h2")
 #: Conic solvers (cvxpy names).
 SYNTHESIS_SOLVERS = ("CLARABEL", "SCS")
+#: How a pure H2 / H-infinity design is solved (``multiobjective`` always uses the LMIs).
+SYNTHESIS_ROUTES = ("auto", "riccati", "lmi")
 #: What ``multiobjective`` designs.
 SYNTHESIS_TARGETS = ("state_feedback", "observer")
 
@@ -124,6 +127,16 @@ _COMMON_DOC = """
     solver : str
         ``"CLARABEL"`` (default) or ``"SCS"``."""
 
+_ROUTE_DOC = """
+    route : str
+        ``"auto"`` (default): the Riccati solution (scipy ARE: the LQR /
+        Kalman filter for H2; gamma bisection on the game Riccati equation for
+        H-infinity, as ``hinfsyn``), which has the LMI's optimum and scales to
+        large plants, falling back to the LMI if it does not apply (``Dzu'Dzu``
+        or ``Dv`` singular) or fails; ``"riccati"`` (refused where it does not
+        apply) or ``"lmi"`` (cvxpy; ``margin`` and ``solver`` apply). Either
+        gain is re-checked by the same independent numerics."""
+
 _SF_DOC = """
     R : ndarray
         Input weight (m x m, positive definite, 1 / input unit^2); default
@@ -192,6 +205,10 @@ def _common(r: OptionReader, plant: Any, ts: float | None, observer: bool) -> di
     return out
 
 
+def _route(r: OptionReader) -> str:
+    return r.read("route", parse_choice, SYNTHESIS_ROUTES)
+
+
 def _is_scalar(value: Any) -> bool:
     return isinstance(value, (int, float)) and not isinstance(value, bool)
 
@@ -227,17 +244,18 @@ class H2StateFeedbackOptions(_StateFeedbackOptions):
     ``z`` by an LMI (the LQR optimum for ``Q = Cz' Cz``, ``R = Dzu' Dzu``).
 
     Attributes
-    ----------{_COMMON_DOC}{_SF_DOC}
+    ----------{_COMMON_DOC}{_SF_DOC}{_ROUTE_DOC}
     """
 
     method_name: ClassVar[str] = "h2_state_feedback"
+    route: str = "auto"
 
     @classmethod
     def from_table(cls, options: Mapping[str, Any], key: str, plant: Any,
                    ts: float | None) -> "H2StateFeedbackOptions":
         """See `MethodOptions.from_table`."""
         r = OptionReader(cls, options, key, ts)
-        return cls(**_common(r, plant, ts, observer=False))
+        return cls(**_common(r, plant, ts, observer=False), route=_route(r))
 
 
 @dataclass(frozen=True, eq=False)
@@ -246,25 +264,28 @@ class H2ObserverOptions(_SynthesisOptions):
     to the weighted estimation error (the steady Kalman filter, predictor form in discrete time).
 
     Attributes
-    ----------{_COMMON_DOC}{_OBS_DOC}
+    ----------{_COMMON_DOC}{_OBS_DOC}{_ROUTE_DOC}
     """
 
     method_name: ClassVar[str] = "h2_observer"
     measurement_std: Any = None
+    route: str = "auto"
 
     @classmethod
     def from_table(cls, options: Mapping[str, Any], key: str, plant: Any,
                    ts: float | None) -> "H2ObserverOptions":
         """See `MethodOptions.from_table`."""
         r = OptionReader(cls, options, key, ts)
-        return cls(**_common(r, plant, ts, observer=True))
+        return cls(**_common(r, plant, ts, observer=True), route=_route(r))
 
 
 _BACKOFF_DOC = """
     backoff : float
-        Relative back-off from the LMI optimum (>= 0; default 1e-3): the gain
-        keeps the bound within ``(1 + backoff)`` of the optimum and maximises
-        the LMIs' margin (a moderate gain instead of the boundary)."""
+        Relative back-off from the optimum (>= 0; default 1e-3): the gain
+        keeps the bound within ``(1 + backoff)`` of the optimum (a moderate
+        gain instead of the boundary). LMI route: a second solve maximises the
+        LMIs' margin under that bound; Riccati route: the central gain at
+        ``gamma = (1 + backoff) gamma_optimum`` (one more Riccati solve)."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -273,11 +294,12 @@ class HinfStateFeedbackOptions(_StateFeedbackOptions):
     (L2 gain) from ``w`` to ``z`` by the bounded-real-lemma LMI.
 
     Attributes
-    ----------{_COMMON_DOC}{_SF_DOC}{_BACKOFF_DOC}
+    ----------{_COMMON_DOC}{_SF_DOC}{_BACKOFF_DOC}{_ROUTE_DOC}
     """
 
     method_name: ClassVar[str] = "hinf_state_feedback"
     backoff: float = 1e-3
+    route: str = "auto"
 
     @classmethod
     def from_table(cls, options: Mapping[str, Any], key: str, plant: Any,
@@ -285,7 +307,7 @@ class HinfStateFeedbackOptions(_StateFeedbackOptions):
         """See `MethodOptions.from_table`."""
         r = OptionReader(cls, options, key, ts)
         return cls(**_common(r, plant, ts, observer=False),
-                   backoff=r.read("backoff", parse_number, at_least=0.0))
+                   backoff=r.read("backoff", parse_number, at_least=0.0), route=_route(r))
 
 
 @dataclass(frozen=True, eq=False)
@@ -294,12 +316,13 @@ class HinfObserverOptions(_SynthesisOptions):
     from ``(w, v)`` to the weighted estimation error.
 
     Attributes
-    ----------{_COMMON_DOC}{_OBS_DOC}{_BACKOFF_DOC}
+    ----------{_COMMON_DOC}{_OBS_DOC}{_BACKOFF_DOC}{_ROUTE_DOC}
     """
 
     method_name: ClassVar[str] = "hinf_observer"
     measurement_std: Any = None
     backoff: float = 1e-3
+    route: str = "auto"
 
     @classmethod
     def from_table(cls, options: Mapping[str, Any], key: str, plant: Any,
@@ -307,7 +330,7 @@ class HinfObserverOptions(_SynthesisOptions):
         """See `MethodOptions.from_table`."""
         r = OptionReader(cls, options, key, ts)
         return cls(**_common(r, plant, ts, observer=True),
-                   backoff=r.read("backoff", parse_number, at_least=0.0))
+                   backoff=r.read("backoff", parse_number, at_least=0.0), route=_route(r))
 
 
 @dataclass(frozen=True, eq=False)
