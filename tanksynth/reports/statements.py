@@ -374,6 +374,12 @@ def _synthesis_numbers(diag: Mapping[str, Any]) -> str:
 
 def _h2_statement(diag: Mapping[str, Any], observer: bool) -> Tex:
     g = "L^\\top" if observer else "K"
+    if diag.get("route") == "riccati":
+        what = "steady Kalman filter" if observer else "LQR"
+        return Tex(_synthesis_plant(diag, observer)
+                   + rf", minimise $\|T_{{zw}}\|_2$: the {what} gain from the algebraic Riccati equation "
+                   r"with the weights $C_z^\top C_z$, $D_{zu}^\top D_{zu}$ (the H2 LMI has the same optimum; "
+                   r"the gain is re-checked by the Gramian)" + _synthesis_numbers(diag))
     text = (_synthesis_plant(diag, observer)
             + rf", minimise $\operatorname{{tr}} W$ over $X \succ 0$, $Y = {g} X$, $W$ with the H2 LMIs "
             r"(Gramian bound $X$, $\|T_{zw}\|_2^2 < \operatorname{tr} W$)"
@@ -385,6 +391,16 @@ def _h2_statement(diag: Mapping[str, Any], observer: bool) -> Tex:
 
 def _hinf_statement(diag: Mapping[str, Any], observer: bool) -> Tex:
     g = "L^\\top" if observer else "K"
+    if diag.get("route") == "riccati":
+        text = (_synthesis_plant(diag, observer)
+                + r", minimise $\gamma = \|T_{zw}\|_\infty$ (the $L_2$ gain from the disturbances to $z$) "
+                r"by bisection on $\gamma$ over the game algebraic Riccati equation"
+                + (r" of the dual pair $(A^\top, C^\top)$" if observer else "")
+                + r"; a $\gamma$ counts as reached only when its gain passes the Hamiltonian norm test")
+        backoff = (diag.get("synthesis") or {}).get("scaling", {}).get("backoff")
+        if _is_number(backoff) and backoff > 0:
+            text += rf"; the gain is the one at $\gamma = (1 + {format_number(backoff)})\gamma^\star$"
+        return Tex(text + _synthesis_numbers(diag))
     text = (_synthesis_plant(diag, observer)
             + rf", minimise $\gamma$ over $X \succ 0$, $Y = {g} X$ with the bounded-real-lemma LMI "
             r"($\|T_{zw}\|_\infty < \gamma$: the $L_2$ gain from the disturbances to $z$)"

@@ -22,7 +22,7 @@ from typing import Any, ClassVar, Mapping
 
 import numpy as np
 
-from tanksynth.spec.method_options.base import MethodOptions, OptionReader, time_domain_of
+from tanksynth.spec.method_options.base import MethodOptions, OptionReader, option, time_domain_of
 from tanksynth.spec.options import (parse_choice, parse_covariance, parse_matrix, parse_number,
                                     parse_region, parse_vector, region_is_stable)
 
@@ -223,19 +223,19 @@ def _ro(arr: np.ndarray) -> np.ndarray:
 class _SynthesisOptions(MethodOptions):
     """Shared fields (see the subclasses)."""
 
-    time_domain: str | None = None
-    Bw: Any = "inflows"
-    disturbance_std: Any = 1.0
-    Q: Any = None
-    Cz: Any = None
-    margin: float = 1e-9
-    solver: str = "CLARABEL"
+    time_domain: str | None = option(None, unit="-")
+    Bw: Any = option("inflows", unit="state units/s per disturbance unit")
+    disturbance_std: Any = option(1.0, unit="disturbance units (m^3/s)")
+    Q: Any = option(None, unit="1/(state units)^2")
+    Cz: Any = option(None, unit="performance units per state unit")
+    margin: float = option(1e-9, unit="-")
+    solver: str = option("CLARABEL", unit="-")
 
 
 @dataclass(frozen=True, eq=False)
 class _StateFeedbackOptions(_SynthesisOptions):
-    R: Any = None
-    Dzu: Any = None
+    R: Any = option(None, unit="1/(input units)^2")
+    Dzu: Any = option(None, unit="performance units per input unit")
 
 
 @dataclass(frozen=True, eq=False)
@@ -248,7 +248,7 @@ class H2StateFeedbackOptions(_StateFeedbackOptions):
     """
 
     method_name: ClassVar[str] = "h2_state_feedback"
-    route: str = "auto"
+    route: str = option("auto", unit="-")
 
     @classmethod
     def from_table(cls, options: Mapping[str, Any], key: str, plant: Any,
@@ -268,8 +268,8 @@ class H2ObserverOptions(_SynthesisOptions):
     """
 
     method_name: ClassVar[str] = "h2_observer"
-    measurement_std: Any = None
-    route: str = "auto"
+    measurement_std: Any = option(None, unit="output units (m)")
+    route: str = option("auto", unit="-")
 
     @classmethod
     def from_table(cls, options: Mapping[str, Any], key: str, plant: Any,
@@ -298,8 +298,8 @@ class HinfStateFeedbackOptions(_StateFeedbackOptions):
     """
 
     method_name: ClassVar[str] = "hinf_state_feedback"
-    backoff: float = 1e-3
-    route: str = "auto"
+    backoff: float = option(1e-3, unit="-")
+    route: str = option("auto", unit="-")
 
     @classmethod
     def from_table(cls, options: Mapping[str, Any], key: str, plant: Any,
@@ -320,9 +320,9 @@ class HinfObserverOptions(_SynthesisOptions):
     """
 
     method_name: ClassVar[str] = "hinf_observer"
-    measurement_std: Any = None
-    backoff: float = 1e-3
-    route: str = "auto"
+    measurement_std: Any = option(None, unit="output units (m)")
+    backoff: float = option(1e-3, unit="-")
+    route: str = option("auto", unit="-")
 
     @classmethod
     def from_table(cls, options: Mapping[str, Any], key: str, plant: Any,
@@ -356,13 +356,13 @@ class MultiobjectiveOptions(_StateFeedbackOptions):
     """
 
     method_name: ClassVar[str] = "multiobjective"
-    region: tuple = ()
-    target: str = "state_feedback"
-    objective: str = "hinf"
-    h2_bound: float | None = None
-    hinf_bound: float | None = None
-    measurement_std: Any = None
-    backoff: float = 1e-3
+    region: tuple = option((), unit="1/s (continuous) or - (discrete, z-plane)")
+    target: str = option("state_feedback", unit="-")
+    objective: str = option("hinf", unit="-")
+    h2_bound: float | None = option(None, unit="-")
+    hinf_bound: float | None = option(None, unit="-")
+    measurement_std: Any = option(None, unit="output units (m)")
+    backoff: float = option(1e-3, unit="-")
 
     @classmethod
     def from_table(cls, options: Mapping[str, Any], key: str, plant: Any,
