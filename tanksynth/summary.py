@@ -77,7 +77,10 @@ def key_figure(doc: Mapping[str, Any], state_units: Sequence[str] | None = None)
             text += (f"; |e| {float(conv['e0']):.2g} {unit} -> {float(conv['tail_max']):.2g} "
                      f"{unit}").replace("  ", " ").rstrip()
         return text
-    for name, label in (("hinf_norm", "||T_zw||inf"), ("h2_norm", "||T_zw||2")):
+    norms = (("hinf_norm", "||T_zw||inf"), ("h2_norm", "||T_zw||2"))
+    if str(doc.get("method", "")).startswith("h2_") or data.get("h2_optimality"):
+        norms = norms[::-1]  # an H2 design is judged by its H2 norm
+    for name, label in norms:
         if "value" in data.get(name, {}):
             return f"{label} = {float(data[name]['value']):.4g} (recomputed)"
     if "margins" in data.get("vertex_region", {}):

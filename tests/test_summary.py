@@ -11,6 +11,8 @@ def test_hinf_key_figure_is_the_recomputed_norm():
     doc = _doc(("h2_norm", {"value": 0.5}), ("hinf_norm", {"value": 0.123456}))
     assert key_figure(doc) == "||T_zw||inf = 0.1235 (recomputed)"
     assert key_figure(_doc(("h2_norm", {"value": 0.5}))) == "||T_zw||2 = 0.5 (recomputed)"
+    h2_design = dict(doc, method="h2_state_feedback")
+    assert key_figure(h2_design) == "||T_zw||2 = 0.5 (recomputed)"
 
 
 def test_robust_key_figure_is_the_worst_vertex_margin():
