@@ -5,7 +5,9 @@ function and each public method of a public class (public: in the module's ``__a
 and defined there), every name of the signature (``*args`` / ``**kwargs`` included, ``self``
 and ``cls`` not) must be an entry of ``Parameters`` (or ``Other Parameters``); a class's
 constructor parameters may be documented in the class's ``Parameters`` or ``Attributes``
-section. A property, or a function without parameters, passes.
+section. A property, or a function without parameters, passes. A parameter whose name starts
+with ``_`` (a dataclass field such as ``_cache``, a private keyword such as ``_dual``) is an
+implementation detail, not part of the public signature: it is not checked.
 
 Known exceptions are listed in ``tests/docstring_exceptions.txt`` (``module.qualname:
 missing, names``): the list may only shrink. An entry that no longer fails is an error too,
@@ -44,7 +46,8 @@ def _parameters(fn) -> list[str]:
         sig = inspect.signature(fn)
     except (TypeError, ValueError):
         return []
-    return [p.name for p in sig.parameters.values() if p.name not in ("self", "cls")]
+    return [p.name for p in sig.parameters.values()
+            if p.name not in ("self", "cls") and not p.name.startswith("_")]
 
 
 def _missing(fn, doc: str | None, sections=("Parameters", "Other Parameters")) -> list[str]:
