@@ -273,13 +273,27 @@ class DiscreteModel:
     scheme: str
 
     def predict(self, x: Any, u: Any) -> np.ndarray:
-        """One-step prediction of the mean (state unit)."""
+        """One-step prediction of the mean (state unit).
+
+        Parameters
+        ----------
+        x : array_like, shape (n,)
+            State (state unit).
+        u : array_like, shape (m,)
+            Input held over the period (input unit).
+        """
         x = np.asarray(x, dtype=float)
         u = np.asarray(u, dtype=float)
         return self.x_lin + self.A @ (x - self.x_lin) + self.B @ (u - self.u_lin) + self.d
 
     def output(self, x: Any) -> np.ndarray:
-        """Predicted output at ``x`` (output unit)."""
+        """Predicted output at ``x`` (output unit).
+
+        Parameters
+        ----------
+        x : array_like, shape (n,)
+            State (state unit).
+        """
         return self.y_lin + self.C @ (np.asarray(x, dtype=float) - self.x_lin)
 
 
