@@ -116,6 +116,15 @@ def ise(result: SimulationResult, tracked: Sequence[int], start: int = 0) -> np.
     """Integral square error of each tracked state, shape (M, r), in (state unit)^2 s.
 
     ``ISE_i = sum_{k >= start} (r_i(k) - x_i(k))^2 ts`` over the samples.
+
+    Parameters
+    ----------
+    result : SimulationResult
+        The simulated runs.
+    tracked : sequence of int
+        Indices of the tracked states.
+    start : int, optional
+        First sample counted.
     """
     e = _errors(result, tracked)[:, start:]
     return np.sum(e * e, axis=1) * result.ts
@@ -158,6 +167,15 @@ def steady_offset(result: SimulationResult, tracked: Sequence[int], window: int 
     """Mean of ``x - r`` over the last ``window`` samples, shape (M, r) (state units).
 
     The default window is the last 10 % of the samples (at least one).
+
+    Parameters
+    ----------
+    result : SimulationResult
+        The simulated runs.
+    tracked : sequence of int
+        Indices of the tracked states.
+    window : int, optional
+        Number of final samples averaged.
     """
     count = result.x.shape[1]
     w = max(1, count // 10) if window is None else max(1, int(window))
@@ -165,7 +183,15 @@ def steady_offset(result: SimulationResult, tracked: Sequence[int], window: int 
 
 
 def estimation_rmse(result: SimulationResult, start: int = 0) -> np.ndarray:
-    """RMSE of the estimate of each state over samples ``k >= start``, shape (M, n) (state units)."""
+    """RMSE of the estimate of each state over samples ``k >= start``, shape (M, n) (state units).
+
+    Parameters
+    ----------
+    result : SimulationResult
+        The simulated runs (with estimates).
+    start : int, optional
+        First sample counted.
+    """
     d = result.x_hat[:, start:] - result.x[:, start:]
     return np.sqrt(np.mean(d * d, axis=1))
 
@@ -250,7 +276,15 @@ def estimation_metrics(result: SimulationResult, plant: Plant, warmup: int | Non
 
 
 def timing_metrics(result: SimulationResult, *, estimator: bool, controller: bool) -> dict[str, Metric]:
-    """Wall-clock time per sample and run of the estimator and/or the control law that ran (s)."""
+    """Wall-clock time per sample and run of the estimator and/or the control law that ran (s).
+
+    Parameters
+    ----------
+    result : SimulationResult
+        The simulated runs (with their timings).
+    estimator, controller : bool
+        Whether an estimator and a control law ran.
+    """
     M = result.runs
     calls = max(int(result.timing.get("calls", 0)), 1)
     out = {}
@@ -369,5 +403,11 @@ def compute_metrics(result: SimulationResult, setup: ScenarioSetup, plant: Plant
 
 
 def metric_table(metrics: Mapping[str, Metric]) -> dict[str, float]:
-    """Mean of each metric over the runs (for summaries)."""
+    """Mean of each metric over the runs (for summaries).
+
+    Parameters
+    ----------
+    metrics : mapping of str to Metric
+        Metrics over the runs (their own units).
+    """
     return {name: float(np.mean(m.values)) for name, m in metrics.items()}
