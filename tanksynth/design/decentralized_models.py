@@ -3,17 +3,17 @@
 The window of `tanksynth.design.decentralized.finite_horizon_gains` needs
 discrete models ``(A_k, C_k, Q_k, R_k)`` and a sparsity pattern:
 
-=========================  ==================================================
-`own_tank_pattern`         pattern "own tank" (each state corrected by the
-                           outputs measuring it alone)
-`equicorrelated_intensity` dense process-noise intensity
-`discretize_noise`         Van Loan: exact ``(A_d, Q_d)`` of ``(F, Qc)``
-`linear_model`             discrete affine model of a plant at a point
-                           (DECENTER's lower-tank-equilibrium scheme for the
-                           N-tank network)
-`window_models`            models along a predicted trajectory, relinearised
-                           every ``relinearize_every`` steps
-=========================  ==================================================
+==========================  ==================================================
+`own_tank_pattern`          pattern "own tank" (each state corrected by the
+                            outputs measuring it alone)
+`equicorrelated_intensity`  dense process-noise intensity
+`discretize_noise`          Van Loan: exact ``(A_d, Q_d)`` of ``(F, Qc)``
+`linear_model`              discrete affine model of a plant at a point
+                            (DECENTER's lower-tank-equilibrium scheme for the
+                            N-tank network)
+`window_models`             models along a predicted trajectory, relinearised
+                            every ``relinearize_every`` steps
+==========================  ==================================================
 
 Also the checks of the covariance matrices given to the gain routines
 (symmetric, positive (semi)definite), shared with

@@ -5,27 +5,27 @@ for what ran: tracking metrics for a controller's controlled variables,
 estimation RMSE for an estimator's estimate, detection metrics for a
 residual and a threshold, prediction errors for a model.
 
-==========================  ======  ===============================================
-``ise_<y>``                 y^2 s   integral square error ``sum_k (r_k - y_k)^2 ts`` of
-                                    each controlled variable ``y`` (seed 002 section 5's
-                                    ISE1, ISE2)
-``offset_<y>``              y       steady offset ``mean(y - r)`` over the last 10 %
-``tracking_time``           s       from a set-point step until every controlled error
-                                    stays within the band
-``rejection_time``          s       the same after water is added/removed or a fault
-``rmse_<state>``            state   estimation RMSE ``sqrt(mean((x_hat - x)^2))`` after
-                                    the warm-up (`ESTIMATION_WARMUP`)
-``estimator_time``          s       batch estimator time per sample, divided by M
-``controller_time``         s       batch control-law time per sample, divided by M
-``detection_delay``         s       first alarm at or after the fault onset, minus the
-                                    onset (``inf``: missed)
-``false_alarm_rate``        1       fraction of the samples of the fault-free run that
-                                    raise an alarm
-``first_false_alarm``       s       time of the first alarm of the fault-free run
-                                    (``inf``: none)
-``prediction_rmse_<state>`` state   RMS error of a model's free-run prediction
-``one_step_rmse_<state>``   state   RMS error of a model's one-step prediction
-==========================  ======  ===============================================
+===========================  ======  ===============================================
+``ise_<y>``                  y^2 s   integral square error ``sum_k (r_k - y_k)^2 ts`` of
+                                     each controlled variable ``y`` (seed 002 section 5's
+                                     ISE1, ISE2)
+``offset_<y>``               y       steady offset ``mean(y - r)`` over the last 10 %
+``tracking_time``            s       from a set-point step until every controlled error
+                                     stays within the band
+``rejection_time``           s       the same after water is added/removed or a fault
+``rmse_<state>``             state   estimation RMSE ``sqrt(mean((x_hat - x)^2))`` after
+                                     the warm-up (`ESTIMATION_WARMUP`)
+``estimator_time``           s       batch estimator time per sample, divided by M
+``controller_time``          s       batch control-law time per sample, divided by M
+``detection_delay``          s       first alarm at or after the fault onset, minus the
+                                     onset (``inf``: missed)
+``false_alarm_rate``         1       fraction of the samples of the fault-free run that
+                                     raise an alarm
+``first_false_alarm``        s       time of the first alarm of the fault-free run
+                                     (``inf``: none)
+``prediction_rmse_<state>``  state   RMS error of a model's free-run prediction
+``one_step_rmse_<state>``    state   RMS error of a model's one-step prediction
+===========================  ======  ===============================================
 
 ``<y>`` is the name of the plant output that equals the controlled state
 when there is one, else the state's name (a law may control a state that

@@ -15,20 +15,20 @@ one (``mismatch``), else at the artefact's designed initial estimate (gain
 
 Runners (``runner(doc, spec) -> EstimatorRun``):
 
-=========================  =================================================================
-`kalman_run`, ...         kalman, ekf, ukf, luenberger, adaptive_kalman,
-                           adaptive_scaling_kalman, consensus_filter (`estimator_run` with the
-                           method's `tanksynth.verify.estimators.EstimatorRebuild`)
-`placement_run`            pole_placement, lmi_placement: the observer gain ``L`` (predictor
-                           form when designed in discrete time, continuous form otherwise), or
-                           the state feedback in closed loop (`state_feedback_loop`)
-`canonical_observer_run`   continuous Luenberger observer with the stored ``L``
-`ts_observer_run`          Takagi-Sugeno multiple observer (seed 001 eq. 20) with the stored
-                           ``L`` on the multiple model rebuilt from the recorded premises
-`narx_run`                 NARX network with the stored weights, own estimates fed back
-`decentralized_kalman_run` decentralised filter with the stored window gains ``K_0..K_{T-1}``
-                           (open-loop prediction after the window)
-=========================  =================================================================
+==========================  =================================================================
+`kalman_run`, ...           kalman, ekf, ukf, luenberger, adaptive_kalman,
+                            adaptive_scaling_kalman, consensus_filter (`estimator_run` with the
+                            method's `tanksynth.verify.estimators.EstimatorRebuild`)
+`placement_run`             pole_placement, lmi_placement: the observer gain ``L`` (predictor
+                            form when designed in discrete time, continuous form otherwise), or
+                            the state feedback in closed loop (`state_feedback_loop`)
+`canonical_observer_run`    continuous Luenberger observer with the stored ``L``
+`ts_observer_run`           Takagi-Sugeno multiple observer (seed 001 eq. 20) with the stored
+                            ``L`` on the multiple model rebuilt from the recorded premises
+`narx_run`                  NARX network with the stored weights, own estimates fed back
+`decentralized_kalman_run`  decentralised filter with the stored window gains ``K_0..K_{T-1}``
+                            (open-loop prediction after the window)
+==========================  =================================================================
 """
 
 from __future__ import annotations

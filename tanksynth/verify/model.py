@@ -3,7 +3,7 @@
 ``linearize``
     * ``jacobian_recheck``: F, B, C recomputed at (x0, u0) from the model;
     * ``zoh_consistency``: Ad, Bd equal the exact ZOH of (F, B) at ts;
-    * ``equilibrium``: |f(x0, u0)| within the design's tolerance (an
+    * ``equilibrium``: ``|f(x0, u0)|`` within the design's tolerance (an
       artefact designed away from an equilibrium fails it), naming the
       unbalanced equation; and u0 within the actuator range;
     * ``first_order_agreement``: the nonlinear plant and the discrete
