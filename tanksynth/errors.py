@@ -57,11 +57,31 @@ class SpecError(TanksynthError, ValueError):
 
 
 class ParseError(SpecError):
-    """An equation string is outside the whitelisted grammar."""
+    """An equation string is outside the whitelisted grammar.
+
+    Parameters
+    ----------
+    message : str
+        What is wrong and what was expected.
+    key : str, optional
+        Dotted path of the offending key.
+    source : str, optional
+        File the spec came from, if any.
+    """
 
 
 class RegionError(SpecError):
-    """An operating point lies outside the plant's operating region."""
+    """An operating point lies outside the plant's operating region.
+
+    Parameters
+    ----------
+    message : str
+        What is wrong and what was expected.
+    key : str, optional
+        Dotted path of the offending key.
+    source : str, optional
+        File the spec came from, if any.
+    """
 
 
 class ArtefactError(TanksynthError, ValueError):
@@ -125,6 +145,8 @@ class CovarianceError(TanksynthError, ArithmeticError):
         Which quantity failed (``"predicted covariance P(k|k-1)"``, ...).
     value : float
         Smallest Cholesky pivot (or the offending value).
+    message : str
+        What failed.
     """
 
     def __init__(self, message: str, step: int, run: int | None, matrix: str, value: float):

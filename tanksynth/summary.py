@@ -64,6 +64,13 @@ def key_figure(doc: Mapping[str, Any], state_units: Sequence[str] | None = None)
     """The key figure of one verified artefact (``doc`` as read from its JSON), or ``"-"``.
 
     ``state_units`` (the plant record's state units) give the error figures their unit.
+
+    Parameters
+    ----------
+    doc : mapping
+        A verified artefact, as read from its JSON.
+    state_units : sequence of str, optional
+        Units of the plant's states (e.g. ``m``); None: figures without a unit.
     """
     checks = _checks(doc)
     data = {name: (c.get("data") or {}) for name, c in checks.items()}
@@ -104,7 +111,15 @@ def key_figure(doc: Mapping[str, Any], state_units: Sequence[str] | None = None)
 
 
 def summary_row(doc: Mapping[str, Any], state_units: Sequence[str] | None = None) -> SummaryRow:
-    """`SummaryRow` of one verified artefact (``state_units``: see `key_figure`)."""
+    """`SummaryRow` of one verified artefact (``state_units``: see `key_figure`).
+
+    Parameters
+    ----------
+    doc : mapping
+        A verified artefact, as read from its JSON.
+    state_units : sequence of str, optional
+        Units of the plant's states (e.g. ``m``); None: figures without a unit.
+    """
     ver = doc.get("verification") or {}
     return SummaryRow(str(doc.get("name", "")), str(doc.get("method", "")), key_figure(doc, state_units),
                       bool(ver.get("passed")))

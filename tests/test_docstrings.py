@@ -5,7 +5,10 @@ function and each public method of a public class (public: in the module's ``__a
 and defined there), every name of the signature (``*args`` / ``**kwargs`` included, ``self``
 and ``cls`` not) must be an entry of ``Parameters`` (or ``Other Parameters``); a class's
 constructor parameters may be documented in the class's ``Parameters`` or ``Attributes``
-section. A property, or a function without parameters, passes.
+section. A property, or a function without parameters, passes. A parameter whose name starts
+with ``_`` (a dataclass field such as ``_cache``, a private keyword such as ``_dual``) is an
+implementation detail, not part of the public signature: it is not checked. Nor is the
+constructor of a ``typing.Protocol`` (an interface that is never instantiated; its methods are).
 
 Known exceptions are listed in ``tests/docstring_exceptions.txt`` (``module.qualname:
 missing, names``): the list may only shrink. An entry that no longer fails is an error too,
@@ -44,7 +47,8 @@ def _parameters(fn) -> list[str]:
         sig = inspect.signature(fn)
     except (TypeError, ValueError):
         return []
-    return [p.name for p in sig.parameters.values() if p.name not in ("self", "cls")]
+    return [p.name for p in sig.parameters.values()
+            if p.name not in ("self", "cls") and not p.name.startswith("_")]
 
 
 def _missing(fn, doc: str | None, sections=("Parameters", "Other Parameters")) -> list[str]:
@@ -78,7 +82,7 @@ def undocumented() -> dict[str, list[str]]:
         for qualname, obj, kind in _public_objects(module_name):
             if kind == "class":
                 init = obj.__init__
-                if not inspect.isfunction(init):
+                if getattr(obj, "_is_protocol", False) or not inspect.isfunction(init):
                     continue   # a builtin constructor (object, Exception): nothing to document
                 missing = _missing(init, obj.__doc__, ("Parameters", "Other Parameters", "Attributes"))
                 missing = [m for m in missing if m not in _documented(init.__doc__, "Parameters")]
@@ -130,3 +134,16 @@ def test_the_checker_catches_an_undocumented_parameter():
         """
 
     assert _missing(f, f.__doc__) == ["kwargs"]
+
+
+def test_the_checker_skips_private_parameters():
+    def g(a, _cache=None):
+        """Do.
+
+        Parameters
+        ----------
+        a : float
+            A length (m).
+        """
+
+    assert _missing(g, g.__doc__) == []

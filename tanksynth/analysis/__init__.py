@@ -1,12 +1,12 @@
 """Analysis used by every stage: symbolic derivatives, linearisation, rank conditions.
 
-==========================  ===============================================================
+==============================  ===============================================================
 `tanksynth.analysis.symbolic`   Jacobians, Lie derivatives, relative degree, decoupling matrix
 `tanksynth.analysis.linearize`  equilibrium input, linearisation, exact ZOH discretisation
 `tanksynth.analysis.rank`       Kalman, PBH, nonlinear and symbolic rank conditions
 `tanksynth.analysis.checks`     the rank conditions of a spec (``tanksynth check``)
 `tanksynth.analysis.trim`       levels that given inputs hold still (root finding on f)
-==========================  ===============================================================
+==============================  ===============================================================
 """
 
 from __future__ import annotations

@@ -39,22 +39,48 @@ class LMIRegion:
         return int(self.L.shape[0])
 
     def characteristic(self, z: complex) -> np.ndarray:
-        """``f_D(z) = L + M z + M' conj(z)`` (Hermitian)."""
+        """``f_D(z) = L + M z + M' conj(z)`` (Hermitian).
+
+        Parameters
+        ----------
+        z : complex
+            A point of the complex plane (1/s in continuous time, dimensionless in discrete time).
+        """
         return self.L + self.M * z + self.M.T * np.conj(z)
 
     def margin(self, z: complex) -> float:
-        """``-lambda_max(f_D(z))``: positive inside the region."""
+        """``-lambda_max(f_D(z))``: positive inside the region.
+
+        Parameters
+        ----------
+        z : complex
+            A point of the complex plane (1/s in continuous time, dimensionless in discrete time).
+        """
         return float(-np.max(np.linalg.eigvalsh(self.characteristic(complex(z)))))
 
     def contains(self, z: complex, margin: float = 0.0) -> bool:
-        """True if ``z`` lies inside with ``-lambda_max(f_D(z)) > margin``."""
+        """True if ``z`` lies inside with ``-lambda_max(f_D(z)) > margin``.
+
+        Parameters
+        ----------
+        z : complex
+            A point of the complex plane (1/s in continuous time, dimensionless in discrete time).
+        margin : float, optional
+            Required margin (same unit as ``z``).
+        """
         return self.margin(z) > margin
 
     def __and__(self, other: "LMIRegion") -> "LMIRegion":
         return intersect(self, other)
 
     def scaled(self, omega: float) -> "LMIRegion":
-        """The region for eigenvalues divided by ``omega`` (time scaling)."""
+        """The region for eigenvalues divided by ``omega`` (time scaling).
+
+        Parameters
+        ----------
+        omega : float
+            Time scale (1/s), > 0.
+        """
         return LMIRegion(self.L / omega, self.M, self.parts)
 
     def describe(self) -> str:
@@ -76,6 +102,11 @@ class LMIRegion:
         ``centre + radius <= 0`` or a sector with half-angle < 90 degrees is
         part of the intersection. Discrete time: a disk with ``|centre| +
         radius <= 1`` is.
+
+        Parameters
+        ----------
+        domain : {"continuous", "discrete"}
+            Time domain.
         """
         for part in self.parts:
             if domain == "continuous":
@@ -195,6 +226,12 @@ def region_from_parts(parts: Sequence[tuple]) -> LMIRegion:
     """The intersection of elementary regions given as ``("half_plane", alpha)``,
     ``("disk", center, radius)`` or ``("sector", theta_rad)`` (as `tanksynth.spec.options.parse_region`
     returns them).
+
+    Parameters
+    ----------
+    parts : sequence of tuple
+        Elementary regions (``alpha`` and ``center``, ``radius`` in 1/s in continuous time; ``theta_rad`` in
+        rad).
 
     Raises
     ------

@@ -126,7 +126,13 @@ class Domain:
         return int(self.lower.size)
 
     def contains(self, X: np.ndarray) -> np.ndarray:
-        """Boolean mask of the rows of ``X`` (M, n) inside the domain."""
+        """Boolean mask of the rows of ``X`` (M, n) inside the domain.
+
+        Parameters
+        ----------
+        X : ndarray, shape (M, n)
+            States (state units, m).
+        """
         X = np.atleast_2d(X)
         ok = np.all((X >= self.lower) & (X <= self.upper), axis=1)
         if self.G.size:
@@ -177,6 +183,13 @@ class Domain:
 
         All ``2^n`` corners when ``2^n <= limit``, otherwise ``limit`` seeded
         random corners.
+
+        Parameters
+        ----------
+        limit : int, optional
+            Largest number of corners returned.
+        seed : int, optional
+            Seed of the random corners.
         """
         if self.n <= int(np.log2(max(limit, 1))):
             pts = np.array(list(itertools.product(*zip(self.lower, self.upper))), dtype=float)
@@ -344,7 +357,13 @@ class QuasiLPV:
         return tuple(out)
 
     def A_of(self, z: Sequence[float]) -> np.ndarray:
-        """``A(z)`` for one premise vector (1/s)."""
+        """``A(z)`` for one premise vector (1/s).
+
+        Parameters
+        ----------
+        z : sequence of float
+            Premise values, one per atom (their own units).
+        """
         z = np.asarray(z, dtype=float).reshape(self.p)
         return self.A_lin + np.einsum("k,ik,kj->ij", z, self.incidence, self.weights)
 
@@ -373,7 +392,13 @@ class QuasiLPV:
         return self._cache[name]
 
     def atom_values(self, X: np.ndarray) -> np.ndarray:
-        """``n_k(x)`` at M points: (M, n) -> (M, p)."""
+        """``n_k(x)`` at M points: (M, n) -> (M, p).
+
+        Parameters
+        ----------
+        X : ndarray, shape (M, n)
+            States (state units, m).
+        """
         fn = self._lambdified("atoms", lambda: lambdify_cached([self.states], list(self.atoms)))
         X = np.atleast_2d(np.asarray(X, dtype=float))
         with np.errstate(invalid="ignore", divide="ignore"):
@@ -393,12 +418,24 @@ class QuasiLPV:
         return out
 
     def premise_values(self, X: np.ndarray) -> np.ndarray:
-        """``z_k(x)`` at M points: (M, n) -> (M, p)."""
+        """``z_k(x)`` at M points: (M, n) -> (M, p).
+
+        Parameters
+        ----------
+        X : ndarray, shape (M, n)
+            States (state units, m).
+        """
         X = np.atleast_2d(np.asarray(X, dtype=float))
         return self.atom_values(X) / (X @ self.weights.T)
 
     def with_weights(self, weights: np.ndarray) -> "QuasiLPV":
-        """Same decomposition with other weights (cache of atoms kept)."""
+        """Same decomposition with other weights (cache of atoms kept).
+
+        Parameters
+        ----------
+        weights : ndarray
+            The new weights of the decomposition (dimensionless).
+        """
         weights = _check_weights(np.asarray(weights, dtype=float), self.p, self.n)
         new = QuasiLPV(self.states, self.inputs, self.atoms, weights, self.incidence, self.A_lin,
                        self.B, self.d, self.C, self.atom_states, self.exact_incidence,

@@ -47,7 +47,15 @@ def _matrix(value, name: str) -> np.ndarray:
 
 
 def controllability_matrix(A: np.ndarray, B: np.ndarray) -> np.ndarray:
-    """``[B, AB, ..., A^(n-1) B]``."""
+    """``[B, AB, ..., A^(n-1) B]``.
+
+    Parameters
+    ----------
+    A : ndarray, shape (n, n)
+        State matrix (continuous [1/s] or discrete [-]).
+    B : ndarray, shape (n, m)
+        Input matrix.
+    """
     A, B = _matrix(A, "A"), _matrix(B, "B")
     n = A.shape[0]
     if A.shape != (n, n) or B.shape[0] != n:
@@ -59,7 +67,15 @@ def controllability_matrix(A: np.ndarray, B: np.ndarray) -> np.ndarray:
 
 
 def observability_matrix(A: np.ndarray, C: np.ndarray) -> np.ndarray:
-    """``[C; CA; ...; C A^(n-1)]``."""
+    """``[C; CA; ...; C A^(n-1)]``.
+
+    Parameters
+    ----------
+    A : ndarray, shape (n, n)
+        State matrix (continuous [1/s] or discrete [-]).
+    C : ndarray, shape (q, n)
+        Output matrix.
+    """
     A, C = _matrix(A, "A"), _matrix(C, "C")
     n = A.shape[0]
     if A.shape != (n, n) or C.shape[1] != n:
@@ -172,7 +188,17 @@ class PBHMode:
 
 @dataclass(frozen=True)
 class PBHResult:
-    """Popov-Belevitch-Hautus test over every eigenvalue of ``A``."""
+    """Popov-Belevitch-Hautus test over every eigenvalue of ``A``.
+
+    Parameters
+    ----------
+    kind : {"controllability", "observability"}
+        Which property was tested.
+    modes : tuple of PBHMode
+        The failing modes (empty when the test passes).
+    tolerance : float
+        Smallest singular value counted as nonzero.
+    """
 
     kind: str
     modes: tuple[PBHMode, ...]

@@ -12,7 +12,15 @@ __all__ = ['batch_eval', 'batch_eval2', 'region_points']
 
 
 def batch_eval(fn: ca.Function, points: np.ndarray) -> list[np.ndarray]:
-    """Evaluate a one-argument CasADi Function at M points -> per output (M, rows, cols)."""
+    """Evaluate a one-argument CasADi Function at M points -> per output (M, rows, cols).
+
+    Parameters
+    ----------
+    fn : casadi.Function
+        A one-argument Function.
+    points : ndarray, shape (M, k)
+        The argument at M points (its units).
+    """
     points = np.atleast_2d(np.asarray(points, dtype=float))
     count = points.shape[0]
     outs = fn.map(count, "serial")(points.T)
@@ -26,7 +34,15 @@ def batch_eval(fn: ca.Function, points: np.ndarray) -> list[np.ndarray]:
 
 
 def batch_eval2(fn: ca.Function, a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Evaluate a two-argument, vector-valued CasADi Function at M points -> (M, rows)."""
+    """Evaluate a two-argument, vector-valued CasADi Function at M points -> (M, rows).
+
+    Parameters
+    ----------
+    fn : casadi.Function
+        A two-argument, vector-valued Function.
+    a, b : ndarray, shape (M, k_a), (M, k_b)
+        The two arguments at M points (their units).
+    """
     count = a.shape[0]
     out = fn.map(count, "serial")(np.asarray(a, float).T, np.asarray(b, float).T)
     out = out[0] if isinstance(out, (list, tuple)) else out

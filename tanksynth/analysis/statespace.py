@@ -167,6 +167,17 @@ def hinf_below(gamma: float, sys_or_A: Any, B: Any = None, C: Any = None, D: Any
     """True if the system is stable and its H-infinity norm is below ``gamma`` (Hamiltonian test).
 
     Discrete-time systems are mapped by the bilinear transform (same norm).
+
+    Parameters
+    ----------
+    gamma : float
+        Bound to test, in output units per disturbance unit.
+    sys_or_A : control.StateSpace or array_like, shape (n, n)
+        The system, or its state matrix (continuous [1/s] or discrete [-]).
+    B, C, D : array_like, optional
+        Input, output and feedthrough matrices when ``sys_or_A`` is a matrix (``D`` defaults to zeros).
+    dt : float or None, optional
+        Sampling period [s] of a discrete system given by matrices; None: continuous time.
     """
     A, B, C, D, stable = _continuous_form(sys_or_A, B, C, D, dt)
     return stable and not _imaginary_eigenvalue(A, B, C, D, float(gamma))

@@ -109,7 +109,13 @@ class TSModel:
         return self.B
 
     def vertex(self, sigma: Sequence[int]) -> np.ndarray:
-        """``A_i`` for one ``sigma`` (1 = max, 2 = min per premise), 1/s."""
+        """``A_i`` for one ``sigma`` (1 = max, 2 = min per premise), 1/s.
+
+        Parameters
+        ----------
+        sigma : sequence of int
+            One index per premise: 1 for its maximum, 2 for its minimum.
+        """
         sigma = tuple(int(v) for v in sigma)
         if len(sigma) != self.qlpv.p or not set(sigma) <= {1, 2}:
             raise DimensionError(f"sigma must have {self.qlpv.p} entries in {{1, 2}}")
@@ -117,7 +123,13 @@ class TSModel:
                                for k, s in enumerate(sigma)])
 
     def partitions(self, X: np.ndarray) -> np.ndarray:
-        """``F_k1(z_k(x))`` at M points: (M, n) -> (M, p) (eq. 12)."""
+        """``F_k1(z_k(x))`` at M points: (M, n) -> (M, p) (eq. 12).
+
+        Parameters
+        ----------
+        X : ndarray, shape (M, n)
+            States (state units, m).
+        """
         Z = self.qlpv.premise_values(X)
         span = self.bounds.upper - self.bounds.lower
         safe = np.where(span > 0, span, 1.0)
@@ -125,6 +137,11 @@ class TSModel:
 
     def memberships(self, X: np.ndarray) -> np.ndarray:
         """``mu_i(x)`` at M points: (M, n) -> (M, r) (eq. 14, Table I order).
+
+        Parameters
+        ----------
+        X : ndarray, shape (M, n)
+            States (state units, m).
 
         Raises
         ------

@@ -75,6 +75,11 @@ def result_warnings(result: DesignResult) -> list[str]:
     an integral design when stored) or ``C`` and ``L`` (``A - L C``) in the
     gains, in the time domain of ``diagnostics["time_domain"]``, and for the
     ``error_dynamics_eigenvalues`` an estimator reports.
+
+    Parameters
+    ----------
+    result : DesignResult
+        The design's result (gains, diagnostics).
     """
     g, d = result.gains, result.diagnostics
     domain = d.get("time_domain", "continuous")

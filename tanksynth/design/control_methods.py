@@ -48,6 +48,13 @@ def run_feedback_linearization(spec, design) -> DesignResult:
     relative degree 1 the ``K_i`` of eq. 27, 1/s), ``Lambda_x0`` and
     ``Lambda0_x0`` (at the operating point), ``u0`` (the law's input at
     ``x0`` with ``y_r = y(x0)``) and ``x0``.
+
+    Parameters
+    ----------
+    spec : Spec
+        The validated spec (plant, operating point, sampling).
+    design : DesignSpec
+        This ``[[design]]`` entry (method and options).
     """
     o = options_of(design, spec, FeedbackLinearizationOptions)
     plant = spec.plant
@@ -90,6 +97,13 @@ def run_integral_tracking(spec, design) -> DesignResult:
 
     Gains: ``K = [K1 K2]``, ``K1``, ``K2``, ``Kaw`` (back-calculation),
     ``C1``, ``x0``, ``u0`` (equilibrium input), ``input_limits``.
+
+    Parameters
+    ----------
+    spec : Spec
+        The validated spec (plant, operating point, sampling).
+    design : DesignSpec
+        This ``[[design]]`` entry (method and options).
     """
     o = options_of(design, spec, IntegralTrackingOptions)
     plant = spec.plant
@@ -140,6 +154,13 @@ def run_inverse_dynamics(spec, design) -> DesignResult:
 
     Gains: ``C`` (1/s), ``x0``, ``u0`` (the law's input at ``x0`` with the
     set points at ``x0``), ``input_limits``.
+
+    Parameters
+    ----------
+    spec : Spec
+        The validated spec (plant, operating point, sampling).
+    design : DesignSpec
+        This ``[[design]]`` entry (method and options).
     """
     o = options_of(design, spec, InverseDynamicsOptions)
     plant = spec.plant

@@ -1,16 +1,16 @@
 """Spec design methods for convex synthesis and pole placement.
 
-=====================  =========================================================
-``ts_observer``        TS multiple model of the plant (seed 001) + observer LMI
-                       (28); gains ``L``, ``P``, ``Q`` (and ``A0``, ``B``, ``C``)
-``lmi_placement``      state feedback ``K`` or observer ``L`` with eigenvalues in
-                       an LMI region (half-plane, disk, sector, intersections),
-                       continuous or discrete time, optional integral action
-``pole_placement``     exact placement (python-control ``place``/``acker``),
-                       optional integral action (seed 000 eq. 13-16)
-``canonical_observer`` observer gain by the observer canonical form, exact
-                       arithmetic (seed 004 eq. 27-29)
-=====================  =========================================================
+======================  =========================================================
+``ts_observer``         TS multiple model of the plant (seed 001) + observer LMI
+                        (28); gains ``L``, ``P``, ``Q`` (and ``A0``, ``B``, ``C``)
+``lmi_placement``       state feedback ``K`` or observer ``L`` with eigenvalues in
+                        an LMI region (half-plane, disk, sector, intersections),
+                        continuous or discrete time, optional integral action
+``pole_placement``      exact placement (python-control ``place``/``acker``),
+                        optional integral action (seed 000 eq. 13-16)
+``canonical_observer``  observer gain by the observer canonical form, exact
+                        arithmetic (seed 004 eq. 27-29)
+======================  =========================================================
 
 Linear designs use the Jacobian linearisation at the spec's operating point
 with the equilibrium input computed from the model (the spec's ``u`` is only

@@ -3,17 +3,17 @@
 The window of `tanksynth.design.decentralized.finite_horizon_gains` needs
 discrete models ``(A_k, C_k, Q_k, R_k)`` and a sparsity pattern:
 
-=========================  ==================================================
-`own_tank_pattern`         pattern "own tank" (each state corrected by the
-                           outputs measuring it alone)
-`equicorrelated_intensity` dense process-noise intensity
-`discretize_noise`         Van Loan: exact ``(A_d, Q_d)`` of ``(F, Qc)``
-`linear_model`             discrete affine model of a plant at a point
-                           (DECENTER's lower-tank-equilibrium scheme for the
-                           N-tank network)
-`window_models`            models along a predicted trajectory, relinearised
-                           every ``relinearize_every`` steps
-=========================  ==================================================
+==========================  ==================================================
+`own_tank_pattern`          pattern "own tank" (each state corrected by the
+                            outputs measuring it alone)
+`equicorrelated_intensity`  dense process-noise intensity
+`discretize_noise`          Van Loan: exact ``(A_d, Q_d)`` of ``(F, Qc)``
+`linear_model`              discrete affine model of a plant at a point
+                            (DECENTER's lower-tank-equilibrium scheme for the
+                            N-tank network)
+`window_models`             models along a predicted trajectory, relinearised
+                            every ``relinearize_every`` steps
+==========================  ==================================================
 
 Also the checks of the covariance matrices given to the gain routines
 (symmetric, positive (semi)definite), shared with
@@ -273,13 +273,27 @@ class DiscreteModel:
     scheme: str
 
     def predict(self, x: Any, u: Any) -> np.ndarray:
-        """One-step prediction of the mean (state unit)."""
+        """One-step prediction of the mean (state unit).
+
+        Parameters
+        ----------
+        x : array_like, shape (n,)
+            State (state unit).
+        u : array_like, shape (m,)
+            Input held over the period (input unit).
+        """
         x = np.asarray(x, dtype=float)
         u = np.asarray(u, dtype=float)
         return self.x_lin + self.A @ (x - self.x_lin) + self.B @ (u - self.u_lin) + self.d
 
     def output(self, x: Any) -> np.ndarray:
-        """Predicted output at ``x`` (output unit)."""
+        """Predicted output at ``x`` (output unit).
+
+        Parameters
+        ----------
+        x : array_like, shape (n,)
+            State (state unit).
+        """
         return self.y_lin + self.C @ (np.asarray(x, dtype=float) - self.x_lin)
 
 

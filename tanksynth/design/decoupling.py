@@ -148,7 +148,13 @@ class ZeroDynamics:
     skipped: int = 0
 
     def as_dict(self, state_names: Sequence[str]) -> dict:
-        """JSON-friendly summary (eigenvalue range, worst point)."""
+        """JSON-friendly summary (eigenvalue range, worst point).
+
+        Parameters
+        ----------
+        state_names : sequence of str
+            Names of the plant's states (to name the worst point).
+        """
         ev = self.eigenvalues.reshape(-1) if self.eigenvalues.size else np.array([])
         out: dict[str, Any] = {
             "dimension": self.dimension, "coordinates": list(self.coordinates),

@@ -79,6 +79,17 @@ def plausibility(plant: Any, x0: np.ndarray, R: np.ndarray | None = None,
     Flags an initial estimate outside the plant's region (box or flow
     orderings), a measurement noise standard deviation or an initial
     estimate spread larger than the span of the region.
+
+    Parameters
+    ----------
+    plant : Plant
+        The plant model (its operating region).
+    x0 : ndarray, shape (n,)
+        Initial estimate (state units, m).
+    R : ndarray, shape (q, q), optional
+        Measurement noise covariance (output units squared).
+    P0 : ndarray, shape (n, n), optional
+        Initial estimate covariance (state units squared).
     """
     notes = [f"initial estimate outside the operating region: {v}"
              for v in plant.region.violations(x0, plant.x)]
@@ -144,7 +155,15 @@ def _common_diag(spec: Any, tuning: Any, R: Any, P0: Any, rank: dict, model: Dis
 
 # ------------------------------------------------------------------------------ methods
 def run_kalman(spec: Any, design: Any) -> DesignResult:
-    """Kalman filter (CKF) on the ZOH linearisation at the operating point (seed 000)."""
+    """Kalman filter (CKF) on the ZOH linearisation at the operating point (seed 000).
+
+    Parameters
+    ----------
+    spec : Spec
+        The validated spec (plant, operating point, sampling).
+    design : DesignSpec
+        This ``[[design]]`` entry (method and options).
+    """
     lin, x_op, u_op = _linear_at_op(spec)
     rank = _require_observable(spec.plant, lin.Ad, lin.C, "(Ad, C) at the operating point")
     tuning = _kalman_tuning(spec, design, options_of(design, spec, KalmanOptions),
@@ -162,7 +181,15 @@ def run_kalman(spec: Any, design: Any) -> DesignResult:
 
 
 def run_ekf(spec: Any, design: Any) -> DesignResult:
-    """Extended Kalman filter on the nonlinear model (seed 002 eq. 13-22)."""
+    """Extended Kalman filter on the nonlinear model (seed 002 eq. 13-22).
+
+    Parameters
+    ----------
+    spec : Spec
+        The validated spec (plant, operating point, sampling).
+    design : DesignSpec
+        This ``[[design]]`` entry (method and options).
+    """
     lin, _, _ = _linear_at_op(spec)
     rank = _require_observable(spec.plant, lin.Ad, lin.C, "the linearisation at the operating point")
     tuning = _kalman_tuning(spec, design, options_of(design, spec, EkfOptions))
@@ -173,7 +200,15 @@ def run_ekf(spec: Any, design: Any) -> DesignResult:
 
 
 def run_ukf(spec: Any, design: Any) -> DesignResult:
-    """Unscented Kalman filter (seed 002 eq. 23-40)."""
+    """Unscented Kalman filter (seed 002 eq. 23-40).
+
+    Parameters
+    ----------
+    spec : Spec
+        The validated spec (plant, operating point, sampling).
+    design : DesignSpec
+        This ``[[design]]`` entry (method and options).
+    """
     lin, _, _ = _linear_at_op(spec)
     rank = _require_observable(spec.plant, lin.Ad, lin.C, "the linearisation at the operating point")
     o = options_of(design, spec, UkfOptions)
@@ -186,7 +221,15 @@ def run_ukf(spec: Any, design: Any) -> DesignResult:
 
 
 def run_adaptive_kalman(spec: Any, design: Any) -> DesignResult:
-    """Adaptive-Q Kalman filter (seed 000 eq. 29-37) on the linearisation."""
+    """Adaptive-Q Kalman filter (seed 000 eq. 29-37) on the linearisation.
+
+    Parameters
+    ----------
+    spec : Spec
+        The validated spec (plant, operating point, sampling).
+    design : DesignSpec
+        This ``[[design]]`` entry (method and options).
+    """
     plant = spec.plant
     lin, x_op, u_op = _linear_at_op(spec)
     rank = _require_observable(plant, lin.Ad, lin.C, "(Ad, C) at the operating point")
@@ -204,7 +247,15 @@ def run_adaptive_kalman(spec: Any, design: Any) -> DesignResult:
 
 
 def run_adaptive_scaling_kalman(spec: Any, design: Any) -> DesignResult:
-    """Adaptive-scaling Kalman filter (seed 004 eq. 30-41)."""
+    """Adaptive-scaling Kalman filter (seed 004 eq. 30-41).
+
+    Parameters
+    ----------
+    spec : Spec
+        The validated spec (plant, operating point, sampling).
+    design : DesignSpec
+        This ``[[design]]`` entry (method and options).
+    """
     plant = spec.plant
     lin, x_op, u_op = _linear_at_op(spec)
     rank = _require_observable(plant, lin.Ad, lin.C, "(Ad, C) at the operating point")
@@ -221,7 +272,15 @@ def run_adaptive_scaling_kalman(spec: Any, design: Any) -> DesignResult:
 
 
 def run_consensus_filter(spec: Any, design: Any) -> DesignResult:
-    """Consensus (information-form) filter with N redundant sensors (seed 004 eq. 42-51)."""
+    """Consensus (information-form) filter with N redundant sensors (seed 004 eq. 42-51).
+
+    Parameters
+    ----------
+    spec : Spec
+        The validated spec (plant, operating point, sampling).
+    design : DesignSpec
+        This ``[[design]]`` entry (method and options).
+    """
     plant = spec.plant
     lin, x_op, u_op = _linear_at_op(spec)
     o = options_of(design, spec, ConsensusFilterOptions)
@@ -239,7 +298,15 @@ def run_consensus_filter(spec: Any, design: Any) -> DesignResult:
 
 
 def run_narx(spec: Any, design: Any) -> DesignResult:
-    """NARX estimator trained by Levenberg-Marquardt on EKF data (seed 002 section 3.3)."""
+    """NARX estimator trained by Levenberg-Marquardt on EKF data (seed 002 section 3.3).
+
+    Parameters
+    ----------
+    spec : Spec
+        The validated spec (plant, operating point, sampling).
+    design : DesignSpec
+        This ``[[design]]`` entry (method and options).
+    """
     plant = spec.plant
     lin, _, _ = _linear_at_op(spec)
     rank = _require_observable(plant, lin.Ad, lin.C, "the linearisation at the operating point")
@@ -270,6 +337,13 @@ def run_luenberger(spec: Any, design: Any) -> DesignResult:
     ``eig(Ad - L C)`` (predictor) or ``eig((I - L C) Ad)`` (current form).
     ``nonlinear = true`` runs the continuous form on the plant's own vector
     field instead of the linearisation.
+
+    Parameters
+    ----------
+    spec : Spec
+        The validated spec (plant, operating point, sampling).
+    design : DesignSpec
+        This ``[[design]]`` entry (method and options).
     """
     from tanksynth.design.placement import place_observer
 
@@ -314,6 +388,13 @@ def run_fault_detection(spec: Any, design: Any) -> DesignResult:
     Gains: ``Psi`` (observer gain), ``Gamma_d`` (``A - Psi C``, 1/s) and the
     threshold's ``threshold_coefficients`` (output units) and
     ``threshold_rates`` (1/s).
+
+    Parameters
+    ----------
+    spec : Spec
+        The validated spec (plant, operating point, sampling).
+    design : DesignSpec
+        This ``[[design]]`` entry (method and options).
     """
     o = options_of(design, spec, FaultDetectionOptions)
     poles = [p.real if p.imag == 0 else p for p in o.poles]

@@ -124,7 +124,15 @@ class FaultThreshold:
     terms: tuple
 
     def evaluate(self, t: Any, conservative: bool = True) -> np.ndarray:
-        """Threshold at times ``t`` (s), eq. 55 (or eq. 54 with ``conservative=False``)."""
+        """Threshold at times ``t`` (s), eq. 55 (or eq. 54 with ``conservative=False``).
+
+        Parameters
+        ----------
+        t : float or array_like
+            Times [s].
+        conservative : bool, optional
+            Eq. 55 (True) or eq. 54 (False).
+        """
         t = np.asarray(t, dtype=float)
         out = np.zeros_like(t)
         for c, lam in self.terms:
@@ -520,6 +528,25 @@ def fit_fault_size(th: FaultThreshold, x0: Any, t_detect: float, *, t_fault: flo
 
     Used to ask which ``delta_bar`` a given (e.g. published) detection time
     would need; the other arguments are those of `detection_time`.
+
+    Parameters
+    ----------
+    th : FaultThreshold
+        The residual threshold.
+    x0 : array_like, shape (n,)
+        Plant initial state (state units, m).
+    t_detect : float
+        Detection time to reach [s].
+    t_fault : float, optional
+        Fault onset [s].
+    conservative : bool, optional
+        Use eq. 55 (default) or eq. 54 as threshold.
+    bracket : (float, float), optional
+        Search interval of the fault size [1/s].
+    input_schedule, fault_matrix
+        See `residual`.
+    dt : float, optional
+        RK4 step of the simulation and scan step [s].
     """
     def gap(log_d: float) -> float:
         res = detection_time(th, x0, float(np.exp(log_d)), t_fault=t_fault,

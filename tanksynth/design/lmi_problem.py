@@ -356,7 +356,15 @@ class ObserverLMIProblem:
         self.problem = cp.Problem(cp.Maximize(self.t), cons)
 
     def time_scale(self, A0: np.ndarray, psi: float) -> float:
-        """The time scale ``omega`` (1/s) used to normalise ``A0`` and ``psi``."""
+        """The time scale ``omega`` (1/s) used to normalise ``A0`` and ``psi``.
+
+        Parameters
+        ----------
+        A0 : ndarray, shape (n, n)
+            Linear part of the observer error dynamics [1/s].
+        psi : float
+            Lipschitz bound of the remainder [1/s].
+        """
         w = max(float(np.linalg.norm(A0, 2)), 0.0)
         return w if w > 0 else (psi if psi > 0 else 1.0)
 
@@ -477,6 +485,17 @@ class ObserverLMIProblem:
         ``t``. So ``K Cs V1 = G = (V2 V2' + V1 V1' / 2) Y V1 + t V1`` and
         ``K = G pinv(Cs V1)``. The gain does not grow as ``t`` approaches
         the margin ``t_P`` of ``(P, Q)`` (only ``Q - t I`` is inverted).
+
+        Parameters
+        ----------
+        As : ndarray, shape (n, n)
+            State matrix in scaled units (``A0 / omega``, dimensionless).
+        t2 : float
+            Slack of the eliminated block (scaled units).
+        P, Qs : ndarray, shape (n, n)
+            Solved Lyapunov matrix and scaled ``Q``.
+        margin : float
+            Strictness margin of the block condition (scaled units).
 
         Returns
         -------

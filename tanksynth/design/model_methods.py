@@ -22,6 +22,13 @@ def run_linearize(spec, design) -> DesignResult:
     Gains: ``F``, ``B`` (continuous), ``Ad``, ``Bd`` (exact ZOH, period
     ``ts``), ``C``, ``x0``, ``u0`` (the equilibrium input computed from the
     model, not the one written in the spec, whose residual is reported).
+
+    Parameters
+    ----------
+    spec : Spec
+        The validated spec (plant, operating point, sampling).
+    design : DesignSpec
+        This ``[[design]]`` entry (method and options).
     """
     # Imported here: tanksynth.analysis.rank imports tanksynth.analysis.symbolic, whose
     # package __init__ imports this module (a top-level import would be circular

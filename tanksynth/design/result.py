@@ -73,6 +73,17 @@ class DesignMethod:
                  ts: float | None) -> MethodOptions:
         """Validate a ``[[design]]`` table's options: `MethodOptions.from_table` of `options`.
 
+        Parameters
+        ----------
+        options : mapping
+            The raw options of the ``[[design]]`` table.
+        key : str
+            Dotted key of the table, for error messages (e.g. ``design[1]``).
+        plant : Plant
+            The spec's plant.
+        ts : float or None
+            The spec's sampling period [s].
+
         Returns
         -------
         MethodOptions
@@ -87,6 +98,15 @@ def options_of(design: Any, spec: Any, cls: type[T]) -> T:
     A `DesignSpec` parsed without the method table has no ``config``, and
     one copied with other ``options`` has a stale one: its raw options are
     then validated here, against ``spec``'s plant and sampling period.
+
+    Parameters
+    ----------
+    design : DesignSpec
+        The ``[[design]]`` entry.
+    spec : Spec
+        The validated spec (its plant and sampling period).
+    cls : type
+        The method's options class.
 
     Raises
     ------

@@ -192,6 +192,21 @@ def polytope_check(plant: Any, x0: Sequence[float], box: Sequence[tuple[str, flo
     largest relative difference over ``samples`` uniform draws measures
     how far from that the plant is.
 
+    Parameters
+    ----------
+    plant : Plant
+        The plant model.
+    x0 : sequence of float
+        Operating levels (state units, m).
+    box : sequence of (str, float, float)
+        Uncertain parameters: name, lower and upper value (parameter units).
+    vertices : VertexModels
+        The vertex models of the box.
+    samples : int, optional
+        Number of uniform draws inside the box.
+    seed : int, optional
+        Seed of the random draws.
+
     Returns
     -------
     dict
@@ -230,6 +245,19 @@ def augment_integral(A: np.ndarray, B: np.ndarray, C1: np.ndarray, domain: str,
     """Integral action on ``y1 = C1 x``: ``z' = r - C1 x`` or ``z+ = z + ts (r - C1 x)``.
 
     Returns the augmented ``(Aa, Ba)`` (states ``(x, z)``; ``z`` in output units times s).
+
+    Parameters
+    ----------
+    A : ndarray, shape (n, n)
+        State matrix (continuous [1/s] or discrete [-]).
+    B : ndarray, shape (n, m)
+        Input matrix.
+    C1 : ndarray, shape (p, n)
+        Rows of the outputs to integrate.
+    domain : {"continuous", "discrete"}
+        Time domain of ``A`` and ``B``.
+    ts : float or None
+        Sampling period [s] (discrete time; None in continuous time).
     """
     n, m = B.shape
     p = C1.shape[0]

@@ -130,7 +130,13 @@ class GeneralizedPlant:
         return int(self.B.shape[1])
 
     def closed_loop(self, K: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """``(A - B K, Bw, Cz - Dzu K)`` of the gain ``K`` (m, n)."""
+        """``(A - B K, Bw, Cz - Dzu K)`` of the gain ``K`` (m, n).
+
+        Parameters
+        ----------
+        K : array_like, shape (m, n)
+            State-feedback gain (input units per state unit).
+        """
         K = _mat(K, "K", self.m, self.n)
         return self.A - self.B @ K, self.Bw, self.Cz - self.Dzu @ K
 

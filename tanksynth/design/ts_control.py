@@ -68,6 +68,15 @@ def linear_argument(atom: sp.Expr, states: Sequence[sp.Symbol], seed: int = 0) -
     ``Abs``/``sign``/``sqrt``, checked numerically (the atom must not change
     along random directions orthogonal to ``a``).
 
+    Parameters
+    ----------
+    atom : sympy.Expr
+        A nonlinear atom of the model.
+    states : sequence of sympy.Symbol
+        The state symbols.
+    seed : int, optional
+        Seed of the random directions of the numerical check.
+
     Raises
     ------
     SpecError
@@ -161,7 +170,13 @@ class DeviationTSModel:
         return self.A.mean(axis=0)
 
     def premises(self, X: np.ndarray) -> np.ndarray:
-        """``z_k(x)`` at M points (M, n) -> (M, p) (secant slopes; tangent at ``t = t0``)."""
+        """``z_k(x)`` at M points (M, n) -> (M, p) (secant slopes; tangent at ``t = t0``).
+
+        Parameters
+        ----------
+        X : ndarray, shape (M, n)
+            States (state units, m).
+        """
         X = np.atleast_2d(np.asarray(X, dtype=float))
         atoms = self.qlpv.atom_values(X)
         at0 = self.qlpv.atom_values(self.x0[None, :])[0]
@@ -182,7 +197,13 @@ class DeviationTSModel:
         return np.array(out)
 
     def memberships(self, X: np.ndarray) -> np.ndarray:
-        """``mu_i(x)`` at M points (M, n) -> (M, r)."""
+        """``mu_i(x)`` at M points (M, n) -> (M, r).
+
+        Parameters
+        ----------
+        X : ndarray, shape (M, n)
+            States (state units, m).
+        """
         Z = self.premises(X)
         span = self.upper - self.lower
         F1 = np.where(span > 0, (Z - self.lower) / np.where(span > 0, span, 1.0), 1.0)
@@ -194,7 +215,15 @@ class DeviationTSModel:
         return mu
 
     def rhs(self, X: np.ndarray, U: np.ndarray) -> np.ndarray:
-        """``dx/dt = sum_i mu_i (A_i e + B v)`` at M points (state units/s)."""
+        """``dx/dt = sum_i mu_i (A_i e + B v)`` at M points (state units/s).
+
+        Parameters
+        ----------
+        X : ndarray, shape (M, n)
+            States (state units, m).
+        U : ndarray, shape (M, m)
+            Inputs (input units).
+        """
         X = np.atleast_2d(np.asarray(X, dtype=float))
         U = np.atleast_2d(np.asarray(U, dtype=float))
         mu = self.memberships(X)
@@ -326,6 +355,21 @@ def relaxed_conditions(P: np.ndarray, A: np.ndarray, B: np.ndarray, K: np.ndarra
 
     Congruent (by ``P``) to the LMIs in ``X = P^-1``, so they are negative
     definite exactly when the design's conditions hold.
+
+    Parameters
+    ----------
+    P : ndarray, shape (n, n)
+        Lyapunov matrix.
+    A : ndarray, shape (r, n, n)
+        Vertex state matrices [1/s].
+    B : ndarray, shape (n, m)
+        Input matrix (state units per input unit and s).
+    K : ndarray, shape (r, m, n)
+        PDC gains (input units per state unit).
+    alpha : float
+        Decay rate [1/s].
+    relaxation : str
+        Relaxation of the PDC conditions: one of ``RELAXATIONS`` (``"vertex"``, ``"tuan"``, ``"all_pairs"``).
     """
     r = A.shape[0]
     N = {}
@@ -347,6 +391,19 @@ def certified_decay(P: np.ndarray, A: np.ndarray, B: np.ndarray, K: np.ndarray,
 
     Each condition is ``N_w + 2 alpha (sum w) P``; the bound is the smallest
     generalised eigenvalue of ``(-N_w, 2 (sum w) P)`` (negative: not stable).
+
+    Parameters
+    ----------
+    P : ndarray, shape (n, n)
+        Lyapunov matrix.
+    A : ndarray, shape (r, n, n)
+        Vertex state matrices [1/s].
+    B : ndarray, shape (n, m)
+        Input matrix (state units per input unit and s).
+    K : ndarray, shape (r, m, n)
+        PDC gains (input units per state unit).
+    relaxation : str
+        Relaxation of the PDC conditions: one of ``RELAXATIONS`` (``"vertex"``, ``"tuan"``, ``"all_pairs"``).
     """
     Lc = np.linalg.cholesky(0.5 * (P + P.T))
     Li = np.linalg.inv(Lc)

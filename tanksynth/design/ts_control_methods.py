@@ -41,7 +41,15 @@ __all__ = ["run_ts_state_feedback", "run_ts_output_feedback", "TS_STATE_FEEDBACK
 
 
 def domain_faces(domain: Any, x0: np.ndarray) -> tuple[np.ndarray, np.ndarray, list[str]]:
-    """Faces ``G e <= g`` of the domain in deviation coordinates, with names."""
+    """Faces ``G e <= g`` of the domain in deviation coordinates, with names.
+
+    Parameters
+    ----------
+    domain : Domain
+        The design domain (box and extra faces, state units).
+    x0 : ndarray, shape (n,)
+        Operating point (state units, m).
+    """
     n = domain.n
     rows, rhs, names = [], [], []
     for i in range(n):
@@ -230,6 +238,13 @@ def run_ts_output_feedback(spec: "Spec", design: "DesignSpec") -> DesignResult:
 
     Gains: those of ``ts_state_feedback`` plus ``L`` ((r, n, q) measured, (n,
     q) estimated), ``Po``, ``Q`` (estimated) and ``beta``.
+
+    Parameters
+    ----------
+    spec : Spec
+        The whole spec (plant, scenario).
+    design : DesignSpec
+        This design's entry (method and options).
 
     Raises
     ------

@@ -60,6 +60,21 @@ def certified_region(P: np.ndarray, K: np.ndarray, faces: tuple[np.ndarray, np.n
     ``c = min(min_l g_l^2 / (G_l P^-1 G_l'), min_ij margin_j^2 / (k_ij P^-1 k_ij'))``.
     ``extra_inverse`` (output feedback) adds ``P_o^-1 / beta`` to the inverse
     seen by the controller (the estimate ``x_hat = x - eps``).
+
+    Parameters
+    ----------
+    P : ndarray, shape (n, n)
+        Lyapunov matrix (per squared state unit).
+    K : ndarray, shape (r, m, n)
+        Vertex gains (input units per state unit).
+    faces : (ndarray, ndarray)
+        ``(G, g)``: faces ``G e <= g`` of the domain in deviation coordinates (state units).
+    input_margins : sequence of float or None
+        Distance of each input's operating value to its nearest bound (input units); None: unbounded.
+    names : sequence of str, optional
+        Names of the faces (default ``face0``, ``face1``, ...).
+    extra_inverse : ndarray, shape (n, n), optional
+        Added to ``P^-1`` for the input limits (output feedback: ``P_o^-1 / beta``).
     """
     P = 0.5 * (P + P.T)
     Pi = np.linalg.inv(P)
@@ -84,7 +99,15 @@ def certified_region(P: np.ndarray, K: np.ndarray, faces: tuple[np.ndarray, np.n
 
 
 def lyapunov_decay(P: np.ndarray, W: np.ndarray) -> float:
-    """Largest ``a`` with ``W >= 2 a P`` (``dV/dt <= -e' W e`` gives ``dV/dt <= -2 a V``), 1/s."""
+    """Largest ``a`` with ``W >= 2 a P`` (``dV/dt <= -e' W e`` gives ``dV/dt <= -2 a V``), 1/s.
+
+    Parameters
+    ----------
+    P : ndarray, shape (n, n)
+        Lyapunov matrix (positive definite).
+    W : ndarray, shape (n, n)
+        Decrease matrix: ``dV/dt <= -e' W e``.
+    """
     Lc = np.linalg.cholesky(0.5 * (P + P.T))
     Li = np.linalg.inv(Lc)
     return float(np.linalg.eigvalsh(Li @ (0.5 * (W + W.T)) @ Li.T)[0] / 2.0)
@@ -99,6 +122,23 @@ def coupling_weight(Pc: np.ndarray, K: np.ndarray, B: np.ndarray, alpha_c: float
     -2 alpha_o V_o``, ``dV/dt < 0`` for every convex ``K(.)`` when ``beta >
     max_j lambda_max(Po^-1/2 K_j' B' Pc B K_j Po^-1/2) / (4 alpha_c alpha_o)``
     (Schur complement of the 2x2 block condition); ``factor`` times that.
+
+    Parameters
+    ----------
+    Pc : ndarray, shape (n, n)
+        Controller Lyapunov matrix.
+    K : ndarray, shape (r, m, n)
+        Vertex gains (input units per state unit).
+    B : ndarray, shape (n, m)
+        Input matrix (state units per input unit and s).
+    alpha_c : float
+        Controller decay rate [1/s].
+    Po : ndarray, shape (n, n)
+        Observer Lyapunov matrix.
+    alpha_o : float
+        Observer decay rate [1/s].
+    factor : float, optional
+        Safety factor on the smallest admissible weight (dimensionless).
     """
     if not (alpha_c > 0 and alpha_o > 0):
         raise InfeasibleDesign(f"composite certificate needs positive decay rates (controller "
@@ -117,6 +157,23 @@ def observer_decay_lmi(A0: Any, C: Any, psi: float, alpha: float, *, margin: flo
     ``[[He(P A0 - N C) + 2 alpha P + psi^2 q I, P], [P, -q I]] < 0``, ``L = P^-1 N``:
     ``d(eps' P eps)/dt <= -2 alpha eps' P eps`` for ``|Delta| <= psi |eps|``.
     Scaled by ``omega = |A0|_2``; ``I <= P``, ``trace P <= kappa n``.
+
+    Parameters
+    ----------
+    A0 : array_like, shape (n, n)
+        State matrix of the observer's linear part [1/s].
+    C : array_like, shape (q, n)
+        Output matrix.
+    psi : float
+        Lipschitz bound of the remainder [1/s].
+    alpha : float
+        Decay rate [1/s].
+    margin : float, optional
+        Strictness margin of the LMIs (dimensionless, scaled problem).
+    kappa : float, optional
+        Bound on ``trace P / n`` (dimensionless).
+    solver : str, optional
+        cvxpy solver name.
 
     Returns
     -------

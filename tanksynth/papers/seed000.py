@@ -75,6 +75,11 @@ def F_in_fractions(t13: Any, t32: Any, t20: Any) -> list[list[Any]]:
     ``t13 = mu13 Phi phi / (2 A sqrt(y01 - y03))``, ``t32 = mu32 Phi phi / (2 A sqrt(y03 -
     y02))``, ``t20 = mu20 Phi phi / (2 A sqrt(y02))`` (1/s), numbers or sympy expressions.
 
+    Parameters
+    ----------
+    t13, t32, t20 : float or sympy.Expr
+        The three printed fractions [1/s].
+
     Returns
     -------
     list of list

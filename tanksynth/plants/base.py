@@ -37,6 +37,11 @@ def exact(value: float) -> sp.Rational:
 
     ``exact(0.0154)`` is ``77/5000``, so symbolic work with parameter values
     stays exact (seed 004's threshold is pinned as fractions).
+
+    Parameters
+    ----------
+    value : float
+        The number (any unit).
     """
     frac = Fraction(repr(float(value)))
     return sp.Rational(frac.numerator, frac.denominator)
@@ -44,7 +49,17 @@ def exact(value: float) -> sp.Rational:
 
 @dataclass(frozen=True)
 class Quantity:
-    """A named signal (state, input or output) with its unit."""
+    """A named signal (state, input or output) with its unit.
+
+    Parameters
+    ----------
+    name : str
+        Signal name (an identifier, e.g. ``h1``).
+    unit : str
+        Its unit (e.g. ``m``, ``m^3/s``).
+    description : str, optional
+        One line of meaning.
+    """
 
     name: str
     unit: str
@@ -101,7 +116,15 @@ class Parameter:
         return sp.Symbol(self.name, real=True)
 
     def check(self, value: Any, key: str) -> float:
-        """Validate a candidate value for this parameter and return it as float."""
+        """Validate a candidate value for this parameter and return it as float.
+
+        Parameters
+        ----------
+        value : float
+            Candidate value (the parameter's unit).
+        key : str
+            Dotted spec key, for error messages.
+        """
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             raise SpecError(
                 f"expected a number for parameter '{self.name}' ({self.unit}), "
@@ -134,6 +157,15 @@ class Assumption:
     region), ``"reconstructed"`` (not in the source paper; our reconstruction),
     ``"omitted"`` (a value the paper does not give; our choice), or
     ``"modelling"`` (a physical simplification).
+
+    Parameters
+    ----------
+    text : str
+        The assumption, one sentence.
+    kind : str, optional
+        ``"flow_direction"``, ``"reconstructed"``, ``"omitted"`` or ``"modelling"``.
+    source : str, optional
+        Where it comes from (paper, section), if anywhere.
     """
 
     text: str
@@ -158,7 +190,15 @@ class Region:
     orderings: tuple[tuple[sp.Expr, sp.Expr], ...] = ()
 
     def violations(self, x: Sequence[float], states: Sequence[sp.Symbol]) -> list[str]:
-        """List the region conditions violated by the numeric state ``x``."""
+        """List the region conditions violated by the numeric state ``x``.
+
+        Parameters
+        ----------
+        x : sequence of float
+            State (state units, m).
+        states : sequence of sympy.Symbol
+            The state symbols.
+        """
         out = []
         for sym, (lo, hi), xi in zip(states, self.bounds, x):
             if not (lo <= xi <= hi):
@@ -172,7 +212,13 @@ class Region:
         return out
 
     def positive_expressions(self, states: Sequence[sp.Symbol]) -> list[sp.Expr]:
-        """Expressions that are >= 0 everywhere on the region."""
+        """Expressions that are >= 0 everywhere on the region.
+
+        Parameters
+        ----------
+        states : sequence of sympy.Symbol
+            The state symbols.
+        """
         facts = [sym for sym, (lo, _) in zip(states, self.bounds) if lo >= 0]
         facts += [sp.expand(a - b) for a, b in self.orderings]
         return facts
@@ -261,6 +307,8 @@ class Plant:
     hybrid : HybridModes or None
     source : str
         Where the model comes from (seed paper, notes).
+    options : tuple of (str, object)
+        Construction options of the plant family (e.g. ``("N", 3)``), see `option`.
     """
 
     name: str
@@ -380,6 +428,11 @@ class Plant:
     def mode_of(self, x: Sequence[float] | np.ndarray) -> tuple[int, ...] | np.ndarray:
         """Hybrid mode bits at ``x``: a tuple for one point, (M, k) ints for (M, n).
 
+        Parameters
+        ----------
+        x : sequence of float or ndarray, shape (M, n)
+            One state or M states (state units, m).
+
         Raises
         ------
         TanksynthError
@@ -390,7 +443,13 @@ class Plant:
         return tuple(int(b) for b in bits[0]) if arr.ndim == 1 else bits
 
     def parameter(self, name: str) -> Parameter:
-        """The parameter called ``name``."""
+        """The parameter called ``name``.
+
+        Parameters
+        ----------
+        name : str
+            Parameter name.
+        """
         for prm in self.parameters:
             if prm.name == name:
                 return prm
@@ -401,7 +460,15 @@ class Plant:
         return [w for w in (prm.implausible() for prm in self.parameters) if w]
 
     def option(self, name: str, default: Any = None) -> Any:
-        """A construction option of the plant family (e.g. ``N``)."""
+        """A construction option of the plant family (e.g. ``N``).
+
+        Parameters
+        ----------
+        name : str
+            Option name.
+        default : object, optional
+            Returned when the family has no such option.
+        """
         return dict(self.options).get(name, default)
 
     # --------------------------------------------------------------- numeric f
@@ -464,13 +531,27 @@ class Plant:
         return replace(self, parameters=tuple(new))
 
     def with_region(self, bounds: Sequence[tuple[float, float]] | None = None) -> "Plant":
-        """A copy with other box bounds (orderings are kept)."""
+        """A copy with other box bounds (orderings are kept).
+
+        Parameters
+        ----------
+        bounds : sequence of (float, float), optional
+            Lower and upper bound of each state (state units, m); None: the current box.
+        """
         if bounds is None:
             return self
         return replace(self, region=replace(self.region, bounds=tuple(tuple(map(float, b)) for b in bounds)))
 
     def check_point(self, x: Sequence[float], key: str = "operating_point") -> None:
-        """Raise `RegionError` if ``x`` is outside the operating region."""
+        """Raise `RegionError` if ``x`` is outside the operating region.
+
+        Parameters
+        ----------
+        x : sequence of float
+            State (state units, m).
+        key : str, optional
+            Spec key named in the error.
+        """
         bad = self.region.violations(x, self.x)
         if bad:
             raise RegionError(

@@ -171,7 +171,19 @@ def to_casadi(expr: sp.Expr, symbols: Mapping[sp.Symbol, ca.SX], _cache: dict | 
 
 def compile_matrix(name: str, matrix: sp.Matrix, inputs: Sequence[Sequence[sp.Symbol]],
                    input_names: Sequence[str]) -> ca.Function:
-    """Compile a sympy matrix into a CasADi Function of vector arguments."""
+    """Compile a sympy matrix into a CasADi Function of vector arguments.
+
+    Parameters
+    ----------
+    name : str
+        Name of the Function.
+    matrix : sympy.Matrix
+        The expression matrix.
+    inputs : sequence of sequence of sympy.Symbol
+        The symbols of each vector argument.
+    input_names : sequence of str
+        Names of the arguments.
+    """
     args = [ca.SX.sym(nm, len(syms)) for nm, syms in zip(input_names, inputs)]
     symbols = {}
     for arg, syms in zip(args, inputs):
@@ -204,6 +216,8 @@ class CompiledPlant:
         ``dh/dx (x)`` (q x n).
     switching : casadi.Function or None
         Hybrid switching functions ``s(x)`` (k), when the plant has modes.
+    n, m, q : int
+        Numbers of states, inputs and outputs.
     """
 
     n: int
@@ -231,27 +245,61 @@ class CompiledPlant:
         return out.reshape(rows, count, cols).transpose(1, 0, 2)
 
     def rhs(self, x: np.ndarray, u: np.ndarray) -> np.ndarray:
-        """``f`` at M points: ``x`` (M, n), ``u`` (M, m) -> (M, n)."""
+        """``f`` at M points: ``x`` (M, n), ``u`` (M, m) -> (M, n).
+
+        Parameters
+        ----------
+        x : ndarray, shape (M, n)
+            States (state units, m).
+        u : ndarray, shape (M, m)
+            Inputs (input units, m^3/s).
+        """
         return self._batch(self.f, x, u)
 
     def output(self, x: np.ndarray) -> np.ndarray:
-        """``h`` at M points: (M, n) -> (M, q)."""
+        """``h`` at M points: (M, n) -> (M, q).
+
+        Parameters
+        ----------
+        x : ndarray, shape (M, n)
+            States (state units, m).
+        """
         return self._batch(self.h, x)
 
     def jacobians(self, x: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """``df/dx`` (M, n, n) and ``df/du`` (M, n, m) at M points."""
+        """``df/dx`` (M, n, n) and ``df/du`` (M, n, m) at M points.
+
+        Parameters
+        ----------
+        x : ndarray, shape (M, n)
+            States (state units, m).
+        u : ndarray, shape (M, m)
+            Inputs (input units, m^3/s).
+        """
         return (self._batch(self.jac_x, x, u, matrix=True),
                 self._batch(self.jac_u, x, u, matrix=True))
 
     def modes(self, x: np.ndarray) -> np.ndarray:
-        """Hybrid mode bits ``[s_j(x) > 0]`` at M points: (M, n) -> (M, k) ints."""
+        """Hybrid mode bits ``[s_j(x) > 0]`` at M points: (M, n) -> (M, k) ints.
+
+        Parameters
+        ----------
+        x : ndarray, shape (M, n)
+            States (state units, m).
+        """
         if self.switching is None:
             raise TanksynthError("the plant has no hybrid modes")
         return (self._batch(self.switching, x) > 0).astype(int)
 
 
 def compile_plant(plant) -> CompiledPlant:
-    """Compile a `Plant` (parameters substituted) into a `CompiledPlant`."""
+    """Compile a `Plant` (parameters substituted) into a `CompiledPlant`.
+
+    Parameters
+    ----------
+    plant : Plant
+        The plant model.
+    """
     f = compile_matrix("f", plant.f_numeric, [plant.x, plant.u], ["x", "u"])
     h = compile_matrix("h", plant.h_numeric, [plant.x], ["x"])
     xs = ca.SX.sym("x", plant.n)

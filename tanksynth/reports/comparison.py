@@ -131,12 +131,26 @@ class Reproduction:
 
 
 def cell_number(x: Any, digits: int = 5) -> Tex:
-    """A number as a table cell (inline math)."""
+    """A number as a table cell (inline math).
+
+    Parameters
+    ----------
+    x : float or str
+        The number (its own unit).
+    digits : int, optional
+        Significant digits.
+    """
     return Tex("$" + format_number(x, digits) + "$")
 
 
 def cell_fit(math_tex: str) -> Tex:
-    """Math shrunk to the table column when wider (``\\fitcell`` of the template)."""
+    """Math shrunk to the table column when wider (``\\fitcell`` of the template).
+
+    Parameters
+    ----------
+    math_tex : str
+        Math-mode LaTeX (without ``$``).
+    """
     return Tex(r"\fitcell{$" + math_tex + "$}")
 
 
@@ -145,6 +159,13 @@ def cell_terms(expr: Any, per_line: int = 2) -> Tex:
 
     A common factor is kept in front (``z_1^2 (...)``) when the factored form has one;
     the lines are typeset at text size and shrunk only if one is still wider than the column.
+
+    Parameters
+    ----------
+    expr : sympy.Expr
+        The sum.
+    per_line : int, optional
+        Terms per line.
     """
     import sympy as sp
 
@@ -173,12 +194,28 @@ def cell_terms(expr: Any, per_line: int = 2) -> Tex:
 
 
 def cell_matrix(a: Any, digits: int = 4) -> Tex:
-    """A matrix as a table cell, shrunk to the column when wider."""
+    """A matrix as a table cell, shrunk to the column when wider.
+
+    Parameters
+    ----------
+    a : array_like
+        The matrix (its own units).
+    digits : int, optional
+        Significant digits.
+    """
     return cell_fit(matrix_latex(a, digits))
 
 
 def close(a: Any, b: Any, rtol: float = 1e-9) -> bool:
-    """Same shape and every entry within ``rtol`` times the largest |entry| of either."""
+    """Same shape and every entry within ``rtol`` times the largest absolute entry of either.
+
+    Parameters
+    ----------
+    a, b : array_like
+        The two arrays (same units).
+    rtol : float, optional
+        Relative tolerance (dimensionless).
+    """
     a, b = np.asarray(a), np.asarray(b)
     kind = complex if (np.iscomplexobj(a) or np.iscomplexobj(b)) else float
     a, b = a.astype(kind), b.astype(kind)
@@ -189,7 +226,15 @@ def close(a: Any, b: Any, rtol: float = 1e-9) -> bool:
 
 
 def artefact_array(artefact: Mapping[str, Any], name: str) -> np.ndarray | None:
-    """The gain ``name`` of an artefact as a float array (None when absent or not numeric)."""
+    """The gain ``name`` of an artefact as a float array (None when absent or not numeric).
+
+    Parameters
+    ----------
+    artefact : mapping
+        A loaded artefact.
+    name : str
+        Name of the gain.
+    """
     g = (artefact.get("gains") or {}).get(name)
     if g is None:
         return None
@@ -200,7 +245,17 @@ def artefact_array(artefact: Mapping[str, Any], name: str) -> np.ndarray | None:
 
 
 def params_match(inputs: ReportInputs, expected: Mapping[str, float], rtol: float = 1e-12) -> bool:
-    """True when the plant has every parameter of ``expected`` with that value."""
+    """True when the plant has every parameter of ``expected`` with that value.
+
+    Parameters
+    ----------
+    inputs : ReportInputs
+        The report's inputs (the plant's parameters).
+    expected : mapping of str to float
+        Parameter values (parameter units, SI).
+    rtol : float, optional
+        Relative tolerance (dimensionless).
+    """
     have = inputs.parameters()
     return all(k in have and math.isclose(have[k], v, rel_tol=rtol, abs_tol=0.0)
                for k, v in expected.items())
@@ -208,7 +263,19 @@ def params_match(inputs: ReportInputs, expected: Mapping[str, float], rtol: floa
 
 def first_artefact(inputs: ReportInputs, method: str, x0: Sequence[float] | None = None,
                    shapes: Mapping[str, tuple[int, ...]] | None = None) -> Mapping[str, Any] | None:
-    """The first artefact of ``method`` with gains of the given shapes (and gain ``x0``, if given)."""
+    """The first artefact of ``method`` with gains of the given shapes (and gain ``x0``, if given).
+
+    Parameters
+    ----------
+    inputs : ReportInputs
+        The report's inputs (artefacts of the output directory).
+    method : str
+        Design method name.
+    x0 : sequence of float, optional
+        Required gain ``x0`` (state units, m); None: any.
+    shapes : mapping of str to tuple of int, optional
+        Required shape of each named gain; None: any.
+    """
     for a in inputs.by_method(method):
         if shapes and any(artefact_array(a, k) is None or artefact_array(a, k).shape != s
                           for k, s in shapes.items()):
@@ -222,14 +289,26 @@ def first_artefact(inputs: ReportInputs, method: str, x0: Sequence[float] | None
 
 
 def printed_precision(text: str) -> float:
-    """Half a unit of the last printed digit of a number written as text."""
+    """Half a unit of the last printed digit of a number written as text.
+
+    Parameters
+    ----------
+    text : str
+        The number as printed.
+    """
     mant, _, exp = text.lower().partition("e")
     decimals = len(mant.split(".")[1]) if "." in mant else 0
     return 0.5 * 10.0 ** (-decimals) * 10.0 ** (int(exp) if exp else 0)
 
 
 def latex_matrix_entries(tex: str) -> list[list[str]] | None:
-    """Entries of a sympy ``\\left[\\begin{matrix}..\\end{matrix}\\right]`` string."""
+    """Entries of a sympy ``\\left[\\begin{matrix}..\\end{matrix}\\right]`` string.
+
+    Parameters
+    ----------
+    tex : str
+        LaTeX written by ``sympy.latex`` for a matrix.
+    """
     head, tail = r"\left[\begin{matrix}", r"\end{matrix}\right]"
     if not (isinstance(tex, str) and tex.startswith(head) and tex.endswith(tail)):
         return None
@@ -266,7 +345,15 @@ def latex_matrix_entries(tex: str) -> list[list[str]] | None:
 
 
 def poly_latex(coeffs: Sequence[float], var: str = "s") -> str:
-    """Math-mode LaTeX of a polynomial given by its coefficients, highest power first."""
+    """Math-mode LaTeX of a polynomial given by its coefficients, highest power first.
+
+    Parameters
+    ----------
+    coeffs : sequence of float
+        Coefficients, highest power first.
+    var : str, optional
+        Name of the variable.
+    """
     n = len(coeffs) - 1
     parts = []
     for k, c in enumerate(coeffs):

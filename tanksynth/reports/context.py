@@ -298,6 +298,11 @@ def trace_figures(inputs: ReportInputs) -> dict[str, TraceFigure]:
     written atomically); figures of traces that are gone are removed. An
     artefact without ``DIR/<name>.traces.npz`` simply has none.
 
+    Parameters
+    ----------
+    inputs : ReportInputs
+        The report's inputs (artefacts of the output directory).
+
     Returns
     -------
     dict

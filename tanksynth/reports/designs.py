@@ -34,7 +34,15 @@ def _m(value: Any, digits: int = 5) -> Tex:
 
 
 def latex_label(prefix: str, name: str) -> str:
-    """A LaTeX label from arbitrary text (ASCII letters, digits, '-')."""
+    """A LaTeX label from arbitrary text (ASCII letters, digits, '-').
+
+    Parameters
+    ----------
+    prefix : str
+        Label prefix (e.g. ``fig``).
+    name : str
+        Arbitrary text.
+    """
     safe = re.sub(r"[^A-Za-z0-9]+", "-", name).strip("-") or "x"
     return f"{prefix}:{safe}"
 
@@ -100,6 +108,17 @@ def diagnostic_rows(diag: Mapping[str, Any], skip: Sequence[str] = (), limit: in
     Nested mappings are walked to ``max_depth``; lists of records and large
     matrices are summarised. Keys in ``skip`` (top level, or dotted paths)
     are left out (shown elsewhere).
+
+    Parameters
+    ----------
+    diag : mapping
+        The artefact's diagnostics.
+    skip : sequence of str, optional
+        Keys left out (top level or dotted paths).
+    limit : int, optional
+        Largest number of rows.
+    max_depth : int, optional
+        Deepest nesting walked.
 
     Returns
     -------
@@ -284,7 +303,17 @@ def _verification_view(ver: Any) -> dict | None:
 def design_view(art: Mapping[str, Any], figure: FigureFile | None,
                 statements: Mapping[str, Callable[[Mapping[str, Any]], Tex]]) -> DesignView:
     """Build the `DesignView` of one artefact (any method); ``statements`` maps a method to its
-    problem statement (`tanksynth.methods.STATEMENTS`)."""
+    problem statement (`tanksynth.methods.STATEMENTS`).
+
+    Parameters
+    ----------
+    art : mapping
+        The artefact.
+    figure : FigureFile or None
+        Its eigenvalue figure, if drawn.
+    statements : mapping of str to callable
+        Method name -> problem statement.
+    """
     diag = art.get("diagnostics") or {}
     method = str(art.get("method", ""))
     problem_fn = statements.get(method)
@@ -352,6 +381,15 @@ def fragment_lines(name_tex: str, fragment: str, width: int = 75) -> list[Tex]:
     A long sympy column vector is shown entry by entry (``name_{i} = ...``,
     each split at top-level sums) instead of one matrix shrunk to nothing;
     anything else is one line.
+
+    Parameters
+    ----------
+    name_tex : str
+        LaTeX of the left-hand side.
+    fragment : str
+        LaTeX of the right-hand side.
+    width : int, optional
+        Budget per line (characters, see `visual_length`).
     """
     entries = latex_matrix_entries(fragment)
     if entries and all(len(r) == 1 for r in entries) and len(entries) > 1 \

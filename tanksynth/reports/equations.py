@@ -65,6 +65,11 @@ def visual_length(tex: str) -> int:
     nothing, other commands (Greek letters, operators) one character,
     subscripts and superscripts half; a fraction counts the wider of its
     numerator and denominator.
+
+    Parameters
+    ----------
+    tex : str
+        Math-mode LaTeX.
     """
     total = 0.0
     i, n = 0, len(tex)
@@ -117,6 +122,13 @@ def split_equation(equation: str, width: int = 75) -> list[Tex]:
     ``\\frac{1}{D}\\bigl(N\\bigr)`` so that its numerator can be broken.
     ``width`` is a budget per line in the units of `visual_length`. Returns
     one line when nothing can be split.
+
+    Parameters
+    ----------
+    equation : str
+        Sympy LaTeX of ``lhs = rhs``.
+    width : int, optional
+        Budget per line (characters, see `visual_length`).
 
     Returns
     -------

@@ -72,6 +72,11 @@ def is_pole_key(key: str) -> bool:
 
     ``*eigenvalue*``, ``poles``, ``*_poles``, ``achieved``, ``requested``;
     not LMI-block or matrix eigenvalues (``lmi_eigenvalues`` ...).
+
+    Parameters
+    ----------
+    key : str
+        A diagnostics key.
     """
     k = str(key)
     if any(bad in k for bad in _NOT_POLES):
@@ -108,6 +113,11 @@ def eigen_label(path: str) -> str:
     ``placement.requested`` -> ``requested``; ``lmi.closed_loop_eigenvalues`` ->
     ``achieved: closed loop``; a set computed with a reference (printed) gain ->
     ``with the gain printed in the paper``; ``eigenvalues_Ad`` -> ``eigenvalues of Ad``.
+
+    Parameters
+    ----------
+    path : str
+        Dotted key path of the eigenvalue set in the diagnostics.
     """
     parts = [p for p in str(path).split(".") if p]
     last = parts[-1] if parts else str(path)
@@ -122,14 +132,26 @@ def eigen_label(path: str) -> str:
 
 
 def ordinal(k: int) -> str:
-    """``2`` -> ``2nd``, ``11`` -> ``11th``, ``23`` -> ``23rd``."""
+    """``2`` -> ``2nd``, ``11`` -> ``11th``, ``23`` -> ``23rd``.
+
+    Parameters
+    ----------
+    k : int
+        The number.
+    """
     k = int(k)
     suffix = "th" if 10 <= k % 100 <= 20 else {1: "st", 2: "nd", 3: "rd"}.get(k % 10, "th")
     return f"{k}{suffix}"
 
 
 def eigenvalue_sets(artefact: Mapping[str, Any]) -> tuple[EigenvalueSet, ...]:
-    """Every eigenvalue list in an artefact's diagnostics (see module docstring)."""
+    """Every eigenvalue list in an artefact's diagnostics (see module docstring).
+
+    Parameters
+    ----------
+    artefact : mapping
+        A loaded artefact.
+    """
     diag = artefact.get("diagnostics") or {}
     return tuple(_walk(diag, "", None))
 

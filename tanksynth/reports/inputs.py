@@ -77,7 +77,13 @@ class ReportInputs:
         return out
 
     def by_method(self, method: str) -> tuple[Mapping[str, Any], ...]:
-        """Artefacts of one design method, in file order."""
+        """Artefacts of one design method, in file order.
+
+        Parameters
+        ----------
+        method : str
+            Design method name.
+        """
         return tuple(a for a in self.artefacts if a.get("method") == method)
 
 

@@ -169,6 +169,13 @@ def format_number(value: Any, digits: int = 5) -> Tex:
     Uses fixed notation between 1e-4 and 10**digits, otherwise
     ``m \\times 10^{e}``. Accepts the strings ``"inf"``, ``"-inf"``, ``"nan"``
     written by `tanksynth.artefacts.io.to_jsonable`, booleans and ``None``.
+
+    Parameters
+    ----------
+    value : float, int, bool, str or None
+        The number (its own unit).
+    digits : int, optional
+        Significant digits.
     """
     if value is None:
         return Tex(r"\text{--}")
@@ -202,7 +209,17 @@ def format_number(value: Any, digits: int = 5) -> Tex:
 
 
 def format_complex(re_: float, im: float, digits: int = 5) -> Tex:
-    """Math-mode LaTeX of ``re + j im`` (``re`` alone when ``im == 0``)."""
+    """Math-mode LaTeX of ``re + j im`` (``re`` alone when ``im == 0``).
+
+    Parameters
+    ----------
+    re_ : float
+        Real part (its own unit, e.g. 1/s for an eigenvalue).
+    im : float
+        Imaginary part (same unit).
+    digits : int, optional
+        Significant digits.
+    """
     re_, im = float(re_), float(im)
     if im == 0.0:
         return format_number(re_, digits)
@@ -231,6 +248,15 @@ def format_eigenvalues(values: Any, digits: int = 5, limit: int = 24) -> Tex:
 
     ``values`` is a list of numbers or of ``[re, im]`` pairs (the artefact
     convention for complex numbers). At most ``limit`` entries are shown.
+
+    Parameters
+    ----------
+    values : sequence
+        Numbers or ``[re, im]`` pairs (1/s in continuous time, dimensionless in discrete time).
+    digits : int, optional
+        Significant digits.
+    limit : int, optional
+        Largest number of entries shown.
     """
     vals = _as_complex_list(values)
     used = [False] * len(vals)
@@ -267,6 +293,11 @@ def format_unit(unit: Any) -> Tex:
 
     ``"1"`` or ``""`` (dimensionless) gives a dash. Strings outside the
     simple ``name^exp`` grammar are escaped as plain text.
+
+    Parameters
+    ----------
+    unit : str
+        The unit, e.g. ``m^3/s``.
     """
     if unit is None:
         return Tex("--")
@@ -307,6 +338,11 @@ def symbol_latex(name: Any) -> Tex:
     """Math-mode LaTeX of a symbol name, as sympy prints it (``mu13`` -> ``\\mu_{13}``).
 
     Names that are not plain identifiers are escaped and set upright.
+
+    Parameters
+    ----------
+    name : str
+        Name of the symbol.
     """
     s = str(name)
     if _IDENT.match(s):
@@ -322,7 +358,13 @@ _GREEK_NAMES = {"alpha", "beta", "gamma", "delta", "epsilon", "kappa", "lambda",
 
 def gain_symbol(name: Any) -> Tex:
     """Math-mode LaTeX of a gain name: short symbols as symbols (``K1`` -> ``K_{1}``, ``alpha``),
-    longer identifiers upright and whole (``training_inputs``, ``ekf_P0``)."""
+    longer identifiers upright and whole (``training_inputs``, ``ekf_P0``).
+
+    Parameters
+    ----------
+    name : str
+        Name of the gain.
+    """
     s = str(name)
     short = re.fullmatch(r"[A-Za-z]{1,2}\d{0,2}|[A-Za-z][A-Za-z0-9]?_[A-Za-z0-9]{1,3}", s)
     if short or s in _GREEK_NAMES or re.fullmatch(r"(%s)\d{0,2}" % "|".join(_GREEK_NAMES), s):
@@ -337,6 +379,11 @@ def expression_latex(text: Any) -> Tex | None:
     (never ``eval``/``sympify``); every identifier becomes a symbol. Returns
     None when the text is outside that grammar (the caller then shows it
     verbatim).
+
+    Parameters
+    ----------
+    text : str
+        The expression as ``str(expr)`` writes it (any other value gives None).
     """
     if not isinstance(text, str) or not text.strip() or len(text) > 4000:
         return None
@@ -433,6 +480,15 @@ def gain_latex(name: str, arr: Any, digits: int = 5) -> GainDisplay:
     Vectors up to 16 entries and matrices up to 16 x 12 are shown in full;
     larger arrays and every array of three or more dimensions (gain
     sequences) are summarised.
+
+    Parameters
+    ----------
+    name : str
+        Name of the gain.
+    arr : array_like
+        Its value (the gain's own units).
+    digits : int, optional
+        Significant digits.
     """
     a = np.asarray(arr, dtype=float)
     shape = tuple(int(s) for s in a.shape)

@@ -101,6 +101,11 @@ def reference_rows(artefact: Mapping[str, Any]) -> tuple[PaperRow, ...]:
       `POLE_ERROR_ERRATUM` of the largest pole (rounding cannot explain it);
     * `DIFFERS` otherwise: gains placing the same poles are not unique with
       several inputs or outputs, and LMI solutions are not unique.
+
+    Parameters
+    ----------
+    artefact : mapping
+        A loaded artefact.
     """
     rows: list[PaperRow] = []
     diag = artefact.get("diagnostics") or {}
@@ -160,6 +165,11 @@ def _is_num(v: Any) -> bool:
 
 def compare_with_papers(inputs: ReportInputs) -> tuple[PaperComparison, ...]:
     """Every registered reproduction that applies to ``inputs``, plus spec references.
+
+    Parameters
+    ----------
+    inputs : ReportInputs
+        The report's inputs (spec, plant, artefacts).
 
     Returns
     -------

@@ -24,7 +24,13 @@ _LAW_SHAPES = {"Lambda_x0": (2, 2), "Lambda0_x0": (2,), "x0": (3,)}
 
 
 def linearisation_applies(inputs: ReportInputs) -> bool:
-    """Three-tank plant at the paper's y0 with Table I and a ``linearize`` artefact there."""
+    """Three-tank plant at the paper's y0 with Table I and a ``linearize`` artefact there.
+
+    Parameters
+    ----------
+    inputs : ReportInputs
+        The report's inputs (spec, plant, artefacts).
+    """
     x0 = inputs.x0
     return (inputs.plant_name == "three_tank" and x0 is not None and x0.shape == (3,)
             and np.allclose(x0, paper.Y0, rtol=0, atol=1e-9)
@@ -33,7 +39,13 @@ def linearisation_applies(inputs: ReportInputs) -> bool:
 
 
 def linearisation_rows(inputs: ReportInputs) -> tuple[PaperRow, ...]:
-    """Eq. (8) F entry by entry (and as formulas), its eigenvalues, B, and the printed u0."""
+    """Eq. (8) F entry by entry (and as formulas), its eigenvalues, B, and the printed u0.
+
+    Parameters
+    ----------
+    inputs : ReportInputs
+        The report's inputs (spec, plant, artefacts).
+    """
     art = first_artefact(inputs, "linearize", paper.Y0, _LIN_SHAPES)
     if art is None:  # `applies` selected this entry; a missing artefact is a registry bug
         raise ReportError("seed 000 comparison: no linearize artefact at y0 = (0.40, 0.20, 0.30) m")
@@ -178,13 +190,25 @@ def _law_artefact(inputs: ReportInputs):
 
 
 def law_applies(inputs: ReportInputs) -> bool:
-    """Three-tank plant with Table I and a decoupling law of (h1, h2)."""
+    """Three-tank plant with Table I and a decoupling law of (h1, h2).
+
+    Parameters
+    ----------
+    inputs : ReportInputs
+        The report's inputs (spec, plant, artefacts).
+    """
     return (inputs.plant_name == "three_tank" and params_match(inputs, paper.TABLE_I)
             and _law_artefact(inputs) is not None)
 
 
 def law_rows(inputs: ReportInputs) -> tuple[PaperRow, ...]:
-    """The printed Lambda, Lambda0, beta and alpha of Sec. IV at the artefact's x0."""
+    """The printed Lambda, Lambda0, beta and alpha of Sec. IV at the artefact's x0.
+
+    Parameters
+    ----------
+    inputs : ReportInputs
+        The report's inputs (spec, plant, artefacts).
+    """
     art = _law_artefact(inputs)
     if art is None:  # `applies` selected this entry
         raise ReportError("seed 000 comparison: no feedback_linearization artefact of (h1, h2)")

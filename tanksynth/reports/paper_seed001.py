@@ -17,7 +17,13 @@ __all__ = ["observability_applies", "observability_rows"]
 
 
 def observability_applies(inputs: ReportInputs) -> bool:
-    """Three-tank plant with at least one ``ts_observer`` artefact."""
+    """Three-tank plant with at least one ``ts_observer`` artefact.
+
+    Parameters
+    ----------
+    inputs : ReportInputs
+        The report's inputs (spec, plant, artefacts).
+    """
     return inputs.plant_name == "three_tank" and bool(inputs.by_method("ts_observer"))
 
 
@@ -36,7 +42,13 @@ def _claimed_sets(lam, gam) -> list[dict]:
 
 
 def observability_rows(inputs: ReportInputs) -> tuple[PaperRow, ...]:
-    """Printed O1, det(O1), det(O1) at the Sec. IV weightings, and the rank claim."""
+    """Printed O1, det(O1), det(O1) at the Sec. IV weightings, and the rank claim.
+
+    Parameters
+    ----------
+    inputs : ReportInputs
+        The report's inputs (spec, plant, artefacts).
+    """
     import sympy as sp
 
     from tanksynth.analysis.rank import symbolic_observability

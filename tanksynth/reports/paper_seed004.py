@@ -30,7 +30,13 @@ _LIN_SHAPES = {"F": (3, 3), "B": (3, 1), "C": (1, 3)}
 
 
 def structure_applies(inputs: ReportInputs) -> bool:
-    """Hydraulic plant with the printed parameters and a three-state ``linearize`` artefact."""
+    """Hydraulic plant with the printed parameters and a three-state ``linearize`` artefact.
+
+    Parameters
+    ----------
+    inputs : ReportInputs
+        The report's inputs (spec, plant, artefacts).
+    """
     return (inputs.plant_name == "hydraulic_fault" and params_match(inputs, paper.PARAMETERS)
             and first_artefact(inputs, "linearize", None, _LIN_SHAPES) is not None)
 
@@ -47,7 +53,13 @@ def _matrix_row(label: str, printed: np.ndarray, ours: np.ndarray, eq: str) -> P
 
 
 def structure_rows(inputs: ReportInputs) -> tuple[PaperRow, ...]:
-    """Eq. (13)-(14), (21a)-(21b), (23a)-(23b) and, healthy, the canonical form and eq. (27)."""
+    """Eq. (13)-(14), (21a)-(21b), (23a)-(23b) and, healthy, the canonical form and eq. (27).
+
+    Parameters
+    ----------
+    inputs : ReportInputs
+        The report's inputs (spec, plant, artefacts).
+    """
     art = first_artefact(inputs, "linearize", None, _LIN_SHAPES)
     if art is None:  # `applies` selected this entry; a missing artefact is a registry bug
         raise ReportError("seed 004 comparison: no three-state linearize artefact")
@@ -113,7 +125,13 @@ def _fault_artefact(inputs: ReportInputs) -> Mapping[str, Any] | None:
 
 
 def detection_applies(inputs: ReportInputs) -> bool:
-    """Hydraulic plant with the printed parameters and a three-state ``fault_detection`` artefact."""
+    """Hydraulic plant with the printed parameters and a three-state ``fault_detection`` artefact.
+
+    Parameters
+    ----------
+    inputs : ReportInputs
+        The report's inputs (spec, plant, artefacts).
+    """
     return (inputs.plant_name == "hydraulic_fault" and params_match(inputs, paper.PARAMETERS)
             and _fault_artefact(inputs) is not None)
 
@@ -167,6 +185,11 @@ def stored_detections(artefact: Mapping[str, Any]) -> list[tuple[np.ndarray, flo
     from the gain ``detection_times`` beside ``diagnostics["initial_states"]``. A time
     that is None or negative means not detected. Empty when the artefact does not say
     which initial state a time belongs to.
+
+    Parameters
+    ----------
+    artefact : mapping
+        A loaded ``fault_detection`` artefact.
     """
     diag = artefact.get("diagnostics") or {}
     for key in ("detection", "detections"):
@@ -198,7 +221,13 @@ def _half_unit(x: float) -> float:
 
 
 def detection_rows(inputs: ReportInputs) -> tuple[PaperRow, ...]:
-    """Observer poles, Psi, Gamma_d, the threshold (54) and the detection times of Sec. IV."""
+    """Observer poles, Psi, Gamma_d, the threshold (54) and the detection times of Sec. IV.
+
+    Parameters
+    ----------
+    inputs : ReportInputs
+        The report's inputs (spec, plant, artefacts).
+    """
     art = _fault_artefact(inputs)
     if art is None:  # `applies` selected this entry
         raise ReportError("seed 004 comparison: no three-state fault_detection artefact")

@@ -165,7 +165,13 @@ def compile_pdf(tex_file: Path, timeout: float = 180.0) -> CompileResult:
 
 
 def pdf_page_count(pdf: Path) -> int | None:
-    """Number of pages of a PDF (``pdfinfo`` when installed, else a byte scan)."""
+    """Number of pages of a PDF (``pdfinfo`` when installed, else a byte scan).
+
+    Parameters
+    ----------
+    pdf : Path
+        The PDF file.
+    """
     pdfinfo = shutil.which("pdfinfo")
     if pdfinfo:
         proc = subprocess.run([pdfinfo, str(pdf)], capture_output=True, text=True,

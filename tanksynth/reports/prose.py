@@ -87,7 +87,15 @@ def _parse_items(body: str) -> list[Any] | None:
 
 
 def list_latex(values: list[Any], digits: int = 4) -> Tex | None:
-    """Math (with ``$``) for a list of numbers (a vector), complex numbers or names; None otherwise."""
+    """Math (with ``$``) for a list of numbers (a vector), complex numbers or names; None otherwise.
+
+    Parameters
+    ----------
+    values : list
+        Numbers, ``[re, im]`` pairs or names.
+    digits : int, optional
+        Significant digits.
+    """
     if not values:
         return Tex(r"$[\,]$")
     if all(isinstance(v, str) for v in values):

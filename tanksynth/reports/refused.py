@@ -44,6 +44,13 @@ def refusal(name: str, method: str, exc: BaseException) -> dict[str, Any]:
 def write_refused(directory: str | Path, records: Iterable[Mapping[str, Any]]) -> Path | None:
     """Write ``DIR/refused.json`` (atomically); with no record, remove a stale one.
 
+    Parameters
+    ----------
+    directory : str or Path
+        The output directory.
+    records : iterable of mapping
+        Refusal records (method, reason, certificate).
+
     Returns
     -------
     Path or None
@@ -62,6 +69,11 @@ def write_refused(directory: str | Path, records: Iterable[Mapping[str, Any]]) -
 
 def read_refused(directory: str | Path) -> tuple[dict[str, Any], ...]:
     """The refusal records of DIR (none when there is no ``refused.json``).
+
+    Parameters
+    ----------
+    directory : str or Path
+        The output directory.
 
     Raises
     ------

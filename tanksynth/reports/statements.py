@@ -24,7 +24,13 @@ __all__ = ["linearize_statement", "pole_placement_statement", "lmi_placement_sta
 
 
 def linearize_statement(diag: Mapping[str, Any]) -> Tex:
-    """The problem ``linearize`` solves, in mathematics, from the artefact's diagnostics."""
+    """The problem ``linearize`` solves, in mathematics, from the artefact's diagnostics.
+
+    Parameters
+    ----------
+    diag : mapping
+        The artefact's diagnostics.
+    """
     return Tex(r"First-order Taylor expansion of the smooth model at the operating point, "
                r"$F = \partial f/\partial x$, $B = \partial f/\partial u$, $C = \partial h/\partial x$ "
                r"at $(x_0, u_0)$ with the equilibrium input $u_0$ computed from the model; "
@@ -33,7 +39,13 @@ def linearize_statement(diag: Mapping[str, Any]) -> Tex:
 
 
 def pole_placement_statement(diag: Mapping[str, Any]) -> Tex:
-    """The problem ``pole_placement`` solves, in mathematics, from the artefact's diagnostics."""
+    """The problem ``pole_placement`` solves, in mathematics, from the artefact's diagnostics.
+
+    Parameters
+    ----------
+    diag : mapping
+        The artefact's diagnostics.
+    """
     pl = diag.get("placement") or {}
     kind = pl.get("kind", "state_feedback")
     if str(kind).startswith("observer"):
@@ -60,7 +72,13 @@ def pole_placement_statement(diag: Mapping[str, Any]) -> Tex:
 
 
 def lmi_placement_statement(diag: Mapping[str, Any]) -> Tex:
-    """The problem ``lmi_placement`` solves, in mathematics, from the artefact's diagnostics."""
+    """The problem ``lmi_placement`` solves, in mathematics, from the artefact's diagnostics.
+
+    Parameters
+    ----------
+    diag : mapping
+        The artefact's diagnostics.
+    """
     lmi = diag.get("lmi") or {}
     region = (lmi.get("region") or {}).get("description")
     kind = lmi.get("kind", "state_feedback")
@@ -88,7 +106,13 @@ def lmi_placement_statement(diag: Mapping[str, Any]) -> Tex:
 
 
 def ts_observer_statement(diag: Mapping[str, Any]) -> Tex:
-    """The problem ``ts_observer`` solves, in mathematics, from the artefact's diagnostics."""
+    """The problem ``ts_observer`` solves, in mathematics, from the artefact's diagnostics.
+
+    Parameters
+    ----------
+    diag : mapping
+        The artefact's diagnostics.
+    """
     lmi = diag.get("lmi") or {}
     text = (r"Observer $\dot{\hat x} = A_0\hat x + \Delta(\hat x, u) + L(y - C\hat x)$ for the "
             r"Takagi--Sugeno model of the plant; the error obeys $\dot e = (A_0 - LC)e + \Delta$ "
@@ -116,7 +140,13 @@ def ts_observer_statement(diag: Mapping[str, Any]) -> Tex:
 
 
 def canonical_observer_statement(diag: Mapping[str, Any]) -> Tex:
-    """The problem ``canonical_observer`` solves, in mathematics, from the artefact's diagnostics."""
+    """The problem ``canonical_observer`` solves, in mathematics, from the artefact's diagnostics.
+
+    Parameters
+    ----------
+    diag : mapping
+        The artefact's diagnostics.
+    """
     return Tex(r"Observer through the observer canonical form (seed 004 eqs.~(25)--(29)): "
                r"$\Delta = \mathcal{Q}_O^{-1}\bar{\mathcal{Q}}_O$, the canonical gain $\Psi_o$ "
                r"matches $\det(sI - \Gamma)$ with the desired polynomial, $L = \Delta\Psi_o$, in "
@@ -126,7 +156,13 @@ def canonical_observer_statement(diag: Mapping[str, Any]) -> Tex:
 
 
 def feedback_linearization_statement(diag: Mapping[str, Any]) -> Tex:
-    """The problem ``feedback_linearization`` solves."""
+    """The problem ``feedback_linearization`` solves.
+
+    Parameters
+    ----------
+    diag : mapping
+        The artefact's diagnostics.
+    """
     return Tex(r"Exact input-output linearisation of $\dot x = f(x) + g(x)u$, $y = h(x)$: with relative "
                r"degrees $r_i$ and decoupling matrix $D(x) = [L_g L_f^{r_i-1} h_i]$ invertible on the "
                r"region, $u = D(x)^{-1}\big(v - [L_f^{r_i} h_i(x)]\big)$ gives $y_i^{(r_i)} = v_i$; the "
@@ -134,7 +170,13 @@ def feedback_linearization_statement(diag: Mapping[str, Any]) -> Tex:
 
 
 def integral_tracking_statement(diag: Mapping[str, Any]) -> Tex:
-    """The problem ``integral_tracking`` solves."""
+    """The problem ``integral_tracking`` solves.
+
+    Parameters
+    ----------
+    diag : mapping
+        The artefact's diagnostics.
+    """
     return Tex(r"Sampled tracking with integral action about $(x_0, u_0)$: $u(k) = \mathrm{sat}\big(u_0 - "
                r"K_1 (x(k) - x_0) - K_2 z(k)\big)$, $z(k+1) = z(k) + t_s (y_r(k) - C_1 x(k))$ plus "
                r"anti-windup, with $[K_1\ K_2]$ placing the eigenvalues of the augmented pair "
@@ -143,7 +185,13 @@ def integral_tracking_statement(diag: Mapping[str, Any]) -> Tex:
 
 
 def inverse_dynamics_statement(diag: Mapping[str, Any]) -> Tex:
-    """The problem ``inverse_dynamics`` solves."""
+    """The problem ``inverse_dynamics`` solves.
+
+    Parameters
+    ----------
+    diag : mapping
+        The artefact's diagnostics.
+    """
     return Tex(r"Inverse dynamics of the pump-fed states $x_c$: impose $\dot x_{c,i} = C_i (x_{c,i}^{sp} - "
                r"x_{c,i})$, i.e. $u = G_c(\hat x)^{-1}\big(\mathrm{diag}(C)(x_c^{sp} - \hat x_c) - "
                r"f_{0,c}(\hat x)\big)$ saturated to the pump range, with the rates $C_i \ge 0$ minimising "
@@ -151,7 +199,13 @@ def inverse_dynamics_statement(diag: Mapping[str, Any]) -> Tex:
 
 
 def decentralized_kalman_statement(diag: Mapping[str, Any]) -> Tex:
-    """The problem ``decentralized_kalman`` solves."""
+    """The problem ``decentralized_kalman`` solves.
+
+    Parameters
+    ----------
+    diag : mapping
+        The artefact's diagnostics.
+    """
     return Tex(r"Kalman gains $K(k)$ constrained to a sparsity pattern $E$ (each tank uses its own "
                r"measurements): minimise $\mathrm{tr}\,P(k|k)$ step by step (one-step) or "
                r"$\sum_k \mathrm{tr}\,P(k|k)$ over a window (finite horizon), with the covariance "
@@ -165,57 +219,111 @@ def _filter_statement(what: str) -> Tex:
 
 
 def kalman_statement(diag: Mapping[str, Any]) -> Tex:
-    """The problem ``kalman`` solves."""
+    """The problem ``kalman`` solves.
+
+    Parameters
+    ----------
+    diag : mapping
+        The artefact's diagnostics.
+    """
     return _filter_statement(r"Kalman filter on the exact ZOH linearisation $(A_d, B_d, C)$ at the "
                              r"operating point: the minimum-variance linear estimator.")
 
 
 def ekf_statement(diag: Mapping[str, Any]) -> Tex:
-    """The problem ``ekf`` solves."""
+    """The problem ``ekf`` solves.
+
+    Parameters
+    ----------
+    diag : mapping
+        The artefact's diagnostics.
+    """
     return _filter_statement(r"Extended Kalman filter: the nonlinear model is propagated and its "
                              r"Jacobians at the current estimate give the gain.")
 
 
 def ukf_statement(diag: Mapping[str, Any]) -> Tex:
-    """The problem ``ukf`` solves."""
+    """The problem ``ukf`` solves.
+
+    Parameters
+    ----------
+    diag : mapping
+        The artefact's diagnostics.
+    """
     return _filter_statement(r"Unscented Kalman filter: $2n+1$ sigma points (weights from "
                              r"$\alpha, \beta, \kappa$) propagated through the nonlinear model.")
 
 
 def adaptive_kalman_statement(diag: Mapping[str, Any]) -> Tex:
-    """The problem ``adaptive_kalman`` solves."""
+    """The problem ``adaptive_kalman`` solves.
+
+    Parameters
+    ----------
+    diag : mapping
+        The artefact's diagnostics.
+    """
     return _filter_statement(r"Adaptive Kalman filter: $Q$ re-estimated from the innovations "
                              r"$\nu_k$ over a sliding window of length $\Psi$.")
 
 
 def adaptive_scaling_kalman_statement(diag: Mapping[str, Any]) -> Tex:
-    """The problem ``adaptive_scaling_kalman`` solves."""
+    """The problem ``adaptive_scaling_kalman`` solves.
+
+    Parameters
+    ----------
+    diag : mapping
+        The artefact's diagnostics.
+    """
     return _filter_statement(r"Adaptive-scaling Kalman filter: the process noise is scaled by "
                              r"$\varphi_k$ solved from $\nu_k^\top \nu_k = \mathrm{tr}(\beta) + \varphi_k "
                              r"\mathrm{tr}(C G Q G^\top C^\top)$.")
 
 
 def consensus_filter_statement(diag: Mapping[str, Any]) -> Tex:
-    """The problem ``consensus_filter`` solves."""
+    """The problem ``consensus_filter`` solves.
+
+    Parameters
+    ----------
+    diag : mapping
+        The artefact's diagnostics.
+    """
     return _filter_statement(r"Information-form consensus filter: $N$ redundant sensors fuse "
                              r"$\sum_i C^\top R_i^{-1} C$ and $\sum_i C^\top R_i^{-1} y_i$.")
 
 
 def luenberger_statement(diag: Mapping[str, Any]) -> Tex:
-    """The problem ``luenberger`` solves."""
+    """The problem ``luenberger`` solves.
+
+    Parameters
+    ----------
+    diag : mapping
+        The artefact's diagnostics.
+    """
     return Tex(r"Luenberger observer $\hat x(k+1) = A_d \hat x(k) + B_d u(k) + L\big(y(k) - C\hat x(k)\big)$ "
                r"(or its continuous form), $L$ given or placing the eigenvalues of $A - LC$.")
 
 
 def narx_statement(diag: Mapping[str, Any]) -> Tex:
-    """The problem ``narx`` solves."""
+    """The problem ``narx`` solves.
+
+    Parameters
+    ----------
+    diag : mapping
+        The artefact's diagnostics.
+    """
     return Tex(r"NARX estimator: a one-hidden-layer network maps delayed measurements and inputs to the "
                r"state, trained by Levenberg-Marquardt on EKF-labelled data to minimise "
                r"$\sum_k \|\hat x_k - x_k^{\mathrm{EKF}}\|^2$.")
 
 
 def fault_detection_statement(diag: Mapping[str, Any]) -> Tex:
-    """The problem ``fault_detection`` solves."""
+    """The problem ``fault_detection`` solves.
+
+    Parameters
+    ----------
+    diag : mapping
+        The artefact's diagnostics.
+    """
     return Tex(r"Observer-based fault detection: the residual $r(t) = y(t) - C\hat x(t)$ of a Luenberger "
                r"observer with poles placed by the canonical form is compared with a threshold "
                r"$J_{th}(t)$ derived from the bounds of the healthy error dynamics; a fault is declared "
@@ -250,7 +358,13 @@ def _robust_common(diag: Mapping[str, Any]) -> str:
 
 
 def robust_state_feedback_statement(diag: Mapping[str, Any]) -> Tex:
-    """The problem ``robust_state_feedback`` solves, in mathematics, from the artefact's diagnostics."""
+    """The problem ``robust_state_feedback`` solves, in mathematics, from the artefact's diagnostics.
+
+    Parameters
+    ----------
+    diag : mapping
+        The artefact's diagnostics.
+    """
     text = (r"Find $X \succ 0$ and $Y$ with $L_D \otimes X + M_D \otimes (A_i X - B_i Y) + M_D^\top "
             r"\otimes (A_i X - B_i Y)^\top \prec 0$, $K = Y X^{-1}$: every eigenvalue of $A_i - B_i K$ "
             r"lies in the LMI region $D$" + _robust_common(diag))
@@ -274,7 +388,13 @@ def robust_state_feedback_statement(diag: Mapping[str, Any]) -> Tex:
 
 
 def robust_observer_statement(diag: Mapping[str, Any]) -> Tex:
-    """The problem ``robust_observer`` solves, in mathematics, from the artefact's diagnostics."""
+    """The problem ``robust_observer`` solves, in mathematics, from the artefact's diagnostics.
+
+    Parameters
+    ----------
+    diag : mapping
+        The artefact's diagnostics.
+    """
     return Tex(r"Find $X \succ 0$ and $Y$ with $L_D \otimes X + M_D \otimes (A_i^\top X - C_i^\top Y) + "
                r"M_D^\top \otimes (A_i^\top X - C_i^\top Y)^\top \prec 0$ (dual pairs), $L = (Y X^{-1})^\top$: "
                r"every eigenvalue of $A_i - L C_i$ lies in the LMI region $D$" + _robust_common(diag)
@@ -303,7 +423,13 @@ def _ts_region_text(diag: Mapping[str, Any]) -> str:
 
 
 def ts_state_feedback_statement(diag: Mapping[str, Any]) -> Tex:
-    """The problem ``ts_state_feedback`` solves, in mathematics, from the artefact's diagnostics."""
+    """The problem ``ts_state_feedback`` solves, in mathematics, from the artefact's diagnostics.
+
+    Parameters
+    ----------
+    diag : mapping
+        The artefact's diagnostics.
+    """
     rel = diag.get("relaxation", "")
     text = (r"Parallel distributed compensation $u = u_0 - \sum_j \mu_j(x) K_j (x - x_0)$ on the exact "
             r"Takagi--Sugeno model of the deviations, $\dot e = \sum_i \mu_i(x)(A_i e + B v)$, with "
@@ -327,7 +453,13 @@ def ts_state_feedback_statement(diag: Mapping[str, Any]) -> Tex:
 
 
 def ts_output_feedback_statement(diag: Mapping[str, Any]) -> Tex:
-    """The problem ``ts_output_feedback`` solves, in mathematics, from the artefact's diagnostics."""
+    """The problem ``ts_output_feedback`` solves, in mathematics, from the artefact's diagnostics.
+
+    Parameters
+    ----------
+    diag : mapping
+        The artefact's diagnostics.
+    """
     base = str(ts_state_feedback_statement({k: v for k, v in diag.items() if k != "region"}))
     obs = diag.get("observer") or {}
     if diag.get("premises") == "measured":
@@ -412,27 +544,57 @@ def _hinf_statement(diag: Mapping[str, Any], observer: bool) -> Tex:
 
 
 def h2_state_feedback_statement(diag: Mapping[str, Any]) -> Tex:
-    """The problem ``h2_state_feedback`` solves, from the artefact's diagnostics."""
+    """The problem ``h2_state_feedback`` solves, from the artefact's diagnostics.
+
+    Parameters
+    ----------
+    diag : mapping
+        The artefact's diagnostics.
+    """
     return _h2_statement(diag, observer=False)
 
 
 def h2_observer_statement(diag: Mapping[str, Any]) -> Tex:
-    """The problem ``h2_observer`` solves, from the artefact's diagnostics."""
+    """The problem ``h2_observer`` solves, from the artefact's diagnostics.
+
+    Parameters
+    ----------
+    diag : mapping
+        The artefact's diagnostics.
+    """
     return _h2_statement(diag, observer=True)
 
 
 def hinf_state_feedback_statement(diag: Mapping[str, Any]) -> Tex:
-    """The problem ``hinf_state_feedback`` solves, from the artefact's diagnostics."""
+    """The problem ``hinf_state_feedback`` solves, from the artefact's diagnostics.
+
+    Parameters
+    ----------
+    diag : mapping
+        The artefact's diagnostics.
+    """
     return _hinf_statement(diag, observer=False)
 
 
 def hinf_observer_statement(diag: Mapping[str, Any]) -> Tex:
-    """The problem ``hinf_observer`` solves, from the artefact's diagnostics."""
+    """The problem ``hinf_observer`` solves, from the artefact's diagnostics.
+
+    Parameters
+    ----------
+    diag : mapping
+        The artefact's diagnostics.
+    """
     return _hinf_statement(diag, observer=True)
 
 
 def multiobjective_statement(diag: Mapping[str, Any]) -> Tex:
-    """The problem ``multiobjective`` solves, with its declared conservatism."""
+    """The problem ``multiobjective`` solves, with its declared conservatism.
+
+    Parameters
+    ----------
+    diag : mapping
+        The artefact's diagnostics.
+    """
     observer = diag.get("target") == "observer"
     syn = diag.get("synthesis") or {}
     objective = syn.get("objective", "hinf")

@@ -39,7 +39,13 @@ _SAFE_SYMBOLS = frozenset("\\,;:! {}|_#&$")
 
 
 def is_trusted_math(fragment: str) -> bool:
-    """True when ``fragment`` uses only allowed math commands and environments."""
+    """True when ``fragment`` uses only allowed math commands and environments.
+
+    Parameters
+    ----------
+    fragment : str
+        Math-mode LaTeX.
+    """
     if not isinstance(fragment, str) or "^^" in fragment or "%" in fragment:
         return False
     for m in _TOKEN.finditer(fragment):
@@ -57,7 +63,13 @@ def is_trusted_math(fragment: str) -> bool:
 
 
 def math_or_text(fragment: str) -> tuple[Tex, bool]:
-    """``(fragment as LaTeX, True)`` when trusted, else ``(its escaped text, False)``."""
+    """``(fragment as LaTeX, True)`` when trusted, else ``(its escaped text, False)``.
+
+    Parameters
+    ----------
+    fragment : str
+        Math-mode LaTeX.
+    """
     if is_trusted_math(fragment):
         return Tex(fragment), True
     return Tex(r"\text{\texttt{" + escape_latex(str(fragment), breakable=True)

@@ -93,6 +93,15 @@ def input_limits(plant: Plant, params: Mapping[str, Any], count: int) -> tuple[n
 
     Bounds naming a parameter (e.g. ``"Qmax"``) take its value in ``params``
     (per run when it is an array).
+
+    Parameters
+    ----------
+    plant : Plant
+        The plant model (its input bounds).
+    params : mapping of str
+        Parameter values (scalars or one per run, SI units).
+    count : int
+        Number of runs M.
     """
     lo = np.full((count, plant.m), -np.inf)
     hi = np.full((count, plant.m), np.inf)
@@ -162,26 +171,72 @@ class Integrator:
         return cls(numpy_model(plant), lower, upper, event_iterations, max_splits)
 
     def clip(self, x: np.ndarray) -> np.ndarray:
-        """States clipped to the bounds (the one clipping rule)."""
+        """States clipped to the bounds (the one clipping rule).
+
+        Parameters
+        ----------
+        x : ndarray, shape (M, n)
+            States (state units, m).
+        """
         return np.minimum(np.maximum(x, self.lower), self.upper)
 
     def rk4(self, x: np.ndarray, u: np.ndarray, p: Mapping[str, Any], h: np.ndarray | float) -> np.ndarray:
-        """One RK4 step of ``h`` s (a float, or one per run, shape (M,)), stages clipped."""
+        """One RK4 step of ``h`` s (a float, or one per run, shape (M,)), stages clipped.
+
+        Parameters
+        ----------
+        x : ndarray, shape (M, n)
+            States (state units, m).
+        u : ndarray, shape (M, m)
+            Inputs held over the step (input units, m^3/s).
+        p : mapping of str
+            Parameter values (scalars or one per run, SI units).
+        h : float or ndarray, shape (M,)
+            Step length [s].
+        """
         h = h if np.ndim(h) == 0 else np.asarray(h)[:, None]
         return rk4_step(lambda s: self.model.rhs(s, u, p), x, h, self.clip)
 
     def bits(self, x: np.ndarray, p: Mapping[str, Any]) -> np.ndarray:
-        """Mode bits ``s_j(x) > 0``, shape (M, k)."""
+        """Mode bits ``s_j(x) > 0``, shape (M, k).
+
+        Parameters
+        ----------
+        x : ndarray, shape (M, n)
+            States (state units, m).
+        p : mapping of str
+            Parameter values (scalars or one per run, SI units).
+        """
         pv, c = self._values(p)
         return (self.model.switching_rows(np.asarray(x, dtype=float).T, c, pv) > 0).T
 
     def output(self, x: np.ndarray, p: Mapping[str, Any]) -> np.ndarray:
-        """The plant's output ``h(x)`` at M states (M, n) -> (M, q), output units."""
+        """The plant's output ``h(x)`` at M states (M, n) -> (M, q), output units.
+
+        Parameters
+        ----------
+        x : ndarray, shape (M, n)
+            States (state units, m).
+        p : mapping of str
+            Parameter values (scalars or one per run, SI units).
+        """
         pv, c = self._values(p)
         return self.model.output_rows(np.asarray(x, dtype=float).T, c, pv).T
 
     def step(self, x: np.ndarray, u: np.ndarray, p: Mapping[str, Any], h: float) -> np.ndarray:
-        """Advance every run by ``h`` seconds (one RK4 step, split at crossings), clipped."""
+        """Advance every run by ``h`` seconds (one RK4 step, split at crossings), clipped.
+
+        Parameters
+        ----------
+        x : ndarray, shape (M, n)
+            States (state units, m).
+        u : ndarray, shape (M, m)
+            Inputs held over the step (input units, m^3/s).
+        p : mapping of str
+            Parameter values (scalars or one per run, SI units).
+        h : float
+            Step length [s].
+        """
         return self.advance(x, u, p, h, 1)
 
     def advance(self, x: np.ndarray, u: np.ndarray, p: Mapping[str, Any], ts: float,
@@ -428,7 +483,13 @@ class Integrator:
         return X.transpose(1, 0, 2)
 
     def clip_counted(self, x: np.ndarray) -> np.ndarray:
-        """Clip, counting the clipping events (the step or noise overshot a bound)."""
+        """Clip, counting the clipping events (the step or noise overshot a bound).
+
+        Parameters
+        ----------
+        x : ndarray, shape (M, n)
+            States (state units, m).
+        """
         self.clipped_low += int((x < self.lower).any())
         self.clipped_high += int((x > self.upper).any())
         return self.clip(x)

@@ -5,27 +5,27 @@ for what ran: tracking metrics for a controller's controlled variables,
 estimation RMSE for an estimator's estimate, detection metrics for a
 residual and a threshold, prediction errors for a model.
 
-==========================  ======  ===============================================
-``ise_<y>``                 y^2 s   integral square error ``sum_k (r_k - y_k)^2 ts`` of
-                                    each controlled variable ``y`` (seed 002 section 5's
-                                    ISE1, ISE2)
-``offset_<y>``              y       steady offset ``mean(y - r)`` over the last 10 %
-``tracking_time``           s       from a set-point step until every controlled error
-                                    stays within the band
-``rejection_time``          s       the same after water is added/removed or a fault
-``rmse_<state>``            state   estimation RMSE ``sqrt(mean((x_hat - x)^2))`` after
-                                    the warm-up (`ESTIMATION_WARMUP`)
-``estimator_time``          s       batch estimator time per sample, divided by M
-``controller_time``         s       batch control-law time per sample, divided by M
-``detection_delay``         s       first alarm at or after the fault onset, minus the
-                                    onset (``inf``: missed)
-``false_alarm_rate``        1       fraction of the samples of the fault-free run that
-                                    raise an alarm
-``first_false_alarm``       s       time of the first alarm of the fault-free run
-                                    (``inf``: none)
-``prediction_rmse_<state>`` state   RMS error of a model's free-run prediction
-``one_step_rmse_<state>``   state   RMS error of a model's one-step prediction
-==========================  ======  ===============================================
+===========================  ======  ===============================================
+``ise_<y>``                  y^2 s   integral square error ``sum_k (r_k - y_k)^2 ts`` of
+                                     each controlled variable ``y`` (seed 002 section 5's
+                                     ISE1, ISE2)
+``offset_<y>``               y       steady offset ``mean(y - r)`` over the last 10 %
+``tracking_time``            s       from a set-point step until every controlled error
+                                     stays within the band
+``rejection_time``           s       the same after water is added/removed or a fault
+``rmse_<state>``             state   estimation RMSE ``sqrt(mean((x_hat - x)^2))`` after
+                                     the warm-up (`ESTIMATION_WARMUP`)
+``estimator_time``           s       batch estimator time per sample, divided by M
+``controller_time``          s       batch control-law time per sample, divided by M
+``detection_delay``          s       first alarm at or after the fault onset, minus the
+                                     onset (``inf``: missed)
+``false_alarm_rate``         1       fraction of the samples of the fault-free run that
+                                     raise an alarm
+``first_false_alarm``        s       time of the first alarm of the fault-free run
+                                     (``inf``: none)
+``prediction_rmse_<state>``  state   RMS error of a model's free-run prediction
+``one_step_rmse_<state>``    state   RMS error of a model's one-step prediction
+===========================  ======  ===============================================
 
 ``<y>`` is the name of the plant output that equals the controlled state
 when there is one, else the state's name (a law may control a state that
@@ -116,6 +116,15 @@ def ise(result: SimulationResult, tracked: Sequence[int], start: int = 0) -> np.
     """Integral square error of each tracked state, shape (M, r), in (state unit)^2 s.
 
     ``ISE_i = sum_{k >= start} (r_i(k) - x_i(k))^2 ts`` over the samples.
+
+    Parameters
+    ----------
+    result : SimulationResult
+        The simulated runs.
+    tracked : sequence of int
+        Indices of the tracked states.
+    start : int, optional
+        First sample counted.
     """
     e = _errors(result, tracked)[:, start:]
     return np.sum(e * e, axis=1) * result.ts
@@ -158,6 +167,15 @@ def steady_offset(result: SimulationResult, tracked: Sequence[int], window: int 
     """Mean of ``x - r`` over the last ``window`` samples, shape (M, r) (state units).
 
     The default window is the last 10 % of the samples (at least one).
+
+    Parameters
+    ----------
+    result : SimulationResult
+        The simulated runs.
+    tracked : sequence of int
+        Indices of the tracked states.
+    window : int, optional
+        Number of final samples averaged.
     """
     count = result.x.shape[1]
     w = max(1, count // 10) if window is None else max(1, int(window))
@@ -165,7 +183,15 @@ def steady_offset(result: SimulationResult, tracked: Sequence[int], window: int 
 
 
 def estimation_rmse(result: SimulationResult, start: int = 0) -> np.ndarray:
-    """RMSE of the estimate of each state over samples ``k >= start``, shape (M, n) (state units)."""
+    """RMSE of the estimate of each state over samples ``k >= start``, shape (M, n) (state units).
+
+    Parameters
+    ----------
+    result : SimulationResult
+        The simulated runs (with estimates).
+    start : int, optional
+        First sample counted.
+    """
     d = result.x_hat[:, start:] - result.x[:, start:]
     return np.sqrt(np.mean(d * d, axis=1))
 
@@ -250,7 +276,15 @@ def estimation_metrics(result: SimulationResult, plant: Plant, warmup: int | Non
 
 
 def timing_metrics(result: SimulationResult, *, estimator: bool, controller: bool) -> dict[str, Metric]:
-    """Wall-clock time per sample and run of the estimator and/or the control law that ran (s)."""
+    """Wall-clock time per sample and run of the estimator and/or the control law that ran (s).
+
+    Parameters
+    ----------
+    result : SimulationResult
+        The simulated runs (with their timings).
+    estimator, controller : bool
+        Whether an estimator and a control law ran.
+    """
     M = result.runs
     calls = max(int(result.timing.get("calls", 0)), 1)
     out = {}
@@ -369,5 +403,11 @@ def compute_metrics(result: SimulationResult, setup: ScenarioSetup, plant: Plant
 
 
 def metric_table(metrics: Mapping[str, Metric]) -> dict[str, float]:
-    """Mean of each metric over the runs (for summaries)."""
+    """Mean of each metric over the runs (for summaries).
+
+    Parameters
+    ----------
+    metrics : mapping of str to Metric
+        Metrics over the runs (their own units).
+    """
     return {name: float(np.mean(m.values)) for name, m in metrics.items()}

@@ -177,7 +177,13 @@ class Scenario:
     assumptions: tuple[str, ...] = field(default=())
 
     def applies_to(self, plant: Plant) -> bool:
-        """Whether the scenario is defined for this plant model."""
+        """Whether the scenario is defined for this plant model.
+
+        Parameters
+        ----------
+        plant : Plant
+            The plant model.
+        """
         return not self.plants or plant.name in self.plants
 
     def setup(self, plant: Plant, x_op: Sequence[float], u_op: Sequence[float] | None = None,
@@ -258,6 +264,11 @@ def uncertain_parameters(plant: Plant) -> tuple[str, ...]:
 
     Every parameter in m^2 (tank cross-sections, valve/pipe discharge
     coefficients) or in cm^2 (tank networks).
+
+    Parameters
+    ----------
+    plant : Plant
+        The plant model.
     """
     return tuple(p.name for p in plant.parameters if p.unit in ("m^2", "cm^2"))
 
@@ -317,6 +328,11 @@ CONTROL_BENCHMARK_SCENARIOS = ("servo", "regulatory", "mismatch", "uncertainty_p
 
 def scenario(name: str) -> Scenario:
     """The built-in scenario called ``name``.
+
+    Parameters
+    ----------
+    name : str
+        Scenario name.
 
     Raises
     ------

@@ -78,10 +78,24 @@ class BatchEstimator(Protocol):
     """
 
     def reset(self, x_hat0: np.ndarray) -> None:
-        """Set the estimate at time 0, shape (M, n)."""
+        """Set the estimate at time 0, shape (M, n).
+
+        Parameters
+        ----------
+        x_hat0 : ndarray, shape (M, n)
+            Initial estimates (state units, m).
+        """
 
     def step(self, y: np.ndarray, u: np.ndarray) -> np.ndarray:
-        """One sample: measurement (M, q) and previous input (M, m) -> estimate (M, n)."""
+        """One sample: measurement (M, q) and previous input (M, m) -> estimate (M, n).
+
+        Parameters
+        ----------
+        y : ndarray, shape (M, q)
+            Measurements (output units, m).
+        u : ndarray, shape (M, m)
+            Inputs held over the previous period (input units, m^3/s).
+        """
 
 
 @runtime_checkable
@@ -170,7 +184,13 @@ class InputSequence:
         self._k = 0
 
     def reset(self, runs: int) -> None:
-        """Back to the first period (``runs`` must match a per-run sequence)."""
+        """Back to the first period (``runs`` must match a per-run sequence).
+
+        Parameters
+        ----------
+        runs : int
+            Number of runs M.
+        """
         if self.inputs.ndim == 3 and self.inputs.shape[1] != runs:
             raise DimensionError(f"the input sequence has {self.inputs.shape[1]} runs, the "
                                  f"simulation {runs}")
@@ -210,12 +230,26 @@ class EstimatorAdapter:
         self._est: Any = None
 
     def reset(self, x_hat0: np.ndarray) -> None:
-        """Fresh estimator for ``x_hat0.shape[0]`` runs, started at ``x_hat0`` (M, n)."""
+        """Fresh estimator for ``x_hat0.shape[0]`` runs, started at ``x_hat0`` (M, n).
+
+        Parameters
+        ----------
+        x_hat0 : ndarray, shape (M, n)
+            Initial estimates (state units, m).
+        """
         self._est = self.template.batch(int(x_hat0.shape[0]))
         self._est.reset(x_hat0)
 
     def step(self, y: np.ndarray, u: np.ndarray) -> np.ndarray:
-        """Measurement (M, q) and previous input (M, m) -> estimate (M, n)."""
+        """Measurement (M, q) and previous input (M, m) -> estimate (M, n).
+
+        Parameters
+        ----------
+        y : ndarray, shape (M, q)
+            Measurements (output units, m).
+        u : ndarray, shape (M, m)
+            Inputs held over the previous period (input units, m^3/s).
+        """
         return self._est.step(y, u)
 
 

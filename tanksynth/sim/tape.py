@@ -226,6 +226,8 @@ class NumpyModel:
     parameter_names : tuple of str
     source : str
         The generated Python source.
+    n_constants : int
+        Number of parameter-only sub-expressions (`constants`).
     """
 
     n: int
@@ -239,17 +241,41 @@ class NumpyModel:
     _casadi: dict = field(default_factory=dict, repr=False, compare=False)
 
     def parameter_values(self, params: Mapping[str, Any]) -> list:
-        """Parameter values in the model's order (scalars or (M,) arrays)."""
+        """Parameter values in the model's order (scalars or (M,) arrays).
+
+        Parameters
+        ----------
+        params : mapping of str
+            Parameter values by name (scalars or (M,) arrays, SI units).
+        """
         return [params[name] for name in self.parameter_names]
 
     def constants(self, pv: Sequence[Any]) -> tuple:
-        """The parameter-only sub-expressions for the values ``pv`` (`parameter_values`)."""
+        """The parameter-only sub-expressions for the values ``pv`` (`parameter_values`).
+
+        Parameters
+        ----------
+        pv : sequence
+            Parameter values in the model's order (`parameter_values`, SI units).
+        """
         with np.errstate(invalid="ignore", divide="ignore"):
             return self._fns["constants"](pv)
 
     def rhs_rows(self, rows: Sequence[np.ndarray], c: tuple, pv: Sequence[Any],
                  out: np.ndarray) -> np.ndarray:
-        """``f`` on rows: state rows then input rows (each (M,)) -> ``out`` (n, M)."""
+        """``f`` on rows: state rows then input rows (each (M,)) -> ``out`` (n, M).
+
+        Parameters
+        ----------
+        rows : sequence of ndarray
+            State rows then input rows, each shape (M,) (state and input units).
+        c : tuple
+            Parameter-only sub-expressions (`constants`).
+        pv : sequence
+            Parameter values in the model's order (`parameter_values`, SI units).
+        out : ndarray, shape (n, M)
+            Written in place with ``f`` (state units per s).
+        """
         with np.errstate(invalid="ignore", divide="ignore"):
             return self._fns["f"](rows, c, pv, out)
 
@@ -259,7 +285,17 @@ class NumpyModel:
         return self._fns["f"]
 
     def switching_rows(self, x: np.ndarray, c: tuple, pv: Sequence[Any]) -> np.ndarray:
-        """Switching functions on the row layout: (n, M) -> (k, M)."""
+        """Switching functions on the row layout: (n, M) -> (k, M).
+
+        Parameters
+        ----------
+        x : ndarray, shape (n, M)
+            States, one row per state (state units, m).
+        c : tuple
+            Parameter-only sub-expressions (`constants`).
+        pv : sequence
+            Parameter values in the model's order (`parameter_values`, SI units).
+        """
         out = np.empty((self.k, x.shape[1]))
         if self.k:
             with np.errstate(invalid="ignore", divide="ignore"):
@@ -267,25 +303,61 @@ class NumpyModel:
         return out
 
     def output_rows(self, x: np.ndarray, c: tuple, pv: Sequence[Any]) -> np.ndarray:
-        """Output map on the row layout: (n, M) -> (q, M)."""
+        """Output map on the row layout: (n, M) -> (q, M).
+
+        Parameters
+        ----------
+        x : ndarray, shape (n, M)
+            States, one row per state (state units, m).
+        c : tuple
+            Parameter-only sub-expressions (`constants`).
+        pv : sequence
+            Parameter values in the model's order (`parameter_values`, SI units).
+        """
         out = np.empty((self.q, x.shape[1]))
         with np.errstate(invalid="ignore", divide="ignore"):
             return self._fns["h"](x, c, pv, out)
 
     def rhs(self, x: np.ndarray, u: np.ndarray, params: Mapping[str, Any]) -> np.ndarray:
-        """``f(x, u)`` at M points: (M, n), (M, m), parameters (scalars or (M,)) -> (M, n)."""
+        """``f(x, u)`` at M points: (M, n), (M, m), parameters (scalars or (M,)) -> (M, n).
+
+        Parameters
+        ----------
+        x : ndarray, shape (M, n)
+            States (state units, m).
+        u : ndarray, shape (M, m)
+            Inputs (input units, m^3/s).
+        params : mapping of str
+            Parameter values (scalars or (M,) arrays, SI units).
+        """
         pv = self.parameter_values(params)
         rows = [*np.asarray(x, dtype=float).T, *np.asarray(u, dtype=float).T]
         out = np.empty((self.n, x.shape[0]))
         return self.rhs_rows(rows, self.constants(pv), pv, out).T
 
     def output(self, x: np.ndarray, params: Mapping[str, Any]) -> np.ndarray:
-        """``h(x)`` at M points: (M, n) -> (M, q)."""
+        """``h(x)`` at M points: (M, n) -> (M, q).
+
+        Parameters
+        ----------
+        x : ndarray, shape (M, n)
+            States (state units, m).
+        params : mapping of str
+            Parameter values (scalars or (M,) arrays, SI units).
+        """
         pv = self.parameter_values(params)
         return self.output_rows(np.asarray(x, dtype=float).T, self.constants(pv), pv).T
 
     def switching(self, x: np.ndarray, params: Mapping[str, Any]) -> np.ndarray:
-        """Switching functions ``s(x)`` at M points: (M, n) -> (M, k); (M, 0) if not hybrid."""
+        """Switching functions ``s(x)`` at M points: (M, n) -> (M, k); (M, 0) if not hybrid.
+
+        Parameters
+        ----------
+        x : ndarray, shape (M, n)
+            States (state units, m).
+        params : mapping of str
+            Parameter values (scalars or (M,) arrays, SI units).
+        """
         pv = self.parameter_values(params)
         return self.switching_rows(np.asarray(x, dtype=float).T, self.constants(pv), pv).T
 
@@ -299,6 +371,13 @@ class NumpyModel:
         hybrid mode (the caller re-integrates that run with the numeric
         switching-surface location), ``low``/``high`` flag the steps whose
         end state passed a bound (before clipping).
+
+        Parameters
+        ----------
+        substeps : int
+            RK4 steps per sampling period.
+        runs : int
+            Number of runs the function is mapped over.
         """
         key = (int(substeps), int(runs))
         fn = self._casadi.get(key)

@@ -129,7 +129,15 @@ class CampaignRun(Protocol):
 
     def evaluate(self, sc: Scenario, plant: Plant, *, ts: float, seeds: Sequence[int],
                  substeps: int = 4) -> dict[str, Metric]:
-        """Simulate ``sc`` for the runs of ``seeds`` and return the metrics (arrays over the runs)."""
+        """Simulate ``sc`` for the runs of ``seeds`` and return the metrics (arrays over the runs).
+
+        Parameters
+        ----------
+        sc, plant : Scenario, Plant
+            The scenario and the plant model.
+        ts, seeds, substeps : float, sequence of int, int
+            Sampling period [s], one seed per run, RK4 steps per period.
+        """
 
 
 #: A method's campaign runner: ``runner(doc, spec) -> CampaignRun`` (a module-level function,
@@ -191,6 +199,11 @@ def run_task(task: CampaignTask) -> list[dict]:
     A run that fails numerically (`TanksynthError`, e.g. a non-finite
     estimate) gives one row per run with metric ``failed`` = 1 and the
     error in the ``loop`` column: a failure is a result, never a blank.
+
+    Parameters
+    ----------
+    task : CampaignTask
+        The task (artefact, scenario, seeds).
 
     Raises
     ------
@@ -292,7 +305,13 @@ class CampaignTable:
     tasks: int
 
     def to_csv(self, path: str | Path) -> Path:
-        """Write the table as CSV (UTF-8, header row, floats to 17 significant digits)."""
+        """Write the table as CSV (UTF-8, header row, floats to 17 significant digits).
+
+        Parameters
+        ----------
+        path : str or Path
+            The CSV file.
+        """
         path = Path(path)
         with path.open("w", newline="", encoding="utf-8") as fh:
             writer = csv.DictWriter(fh, fieldnames=COLUMNS)

@@ -55,12 +55,24 @@ CONTINUOUS_TS = 1.0
 
 
 def sampling_period(spec: Any) -> float:
-    """The campaign's sampling period (s): the spec's ``ts``, else `CONTINUOUS_TS`."""
+    """The campaign's sampling period (s): the spec's ``ts``, else `CONTINUOUS_TS`.
+
+    Parameters
+    ----------
+    spec : Spec
+        The validated spec.
+    """
     return float(spec.ts) if spec.ts else CONTINUOUS_TS
 
 
 def spec_operating_point(spec: Any) -> tuple[np.ndarray, np.ndarray]:
-    """The spec's operating point and its equilibrium input (state units, input units)."""
+    """The spec's operating point and its equilibrium input (state units, input units).
+
+    Parameters
+    ----------
+    spec : Spec
+        The validated spec.
+    """
     from tanksynth.analysis.linearize import equilibrium_input
 
     eq = equilibrium_input(spec.plant, spec.x0, spec.given_u0)
@@ -217,6 +229,11 @@ class ArtefactLaw:
     def from_document(cls, doc: Mapping[str, Any]) -> "ArtefactLaw":
         """The law serialised in an artefact's diagnostics.
 
+        Parameters
+        ----------
+        doc : mapping
+            The artefact.
+
         Raises
         ------
         ArtefactError
@@ -257,7 +274,13 @@ class ArtefactIntegralLaw(ArtefactLaw):
         return self._law.z
 
     def reset(self, runs: int) -> None:
-        """Zero the integrators of ``runs`` runs."""
+        """Zero the integrators of ``runs`` runs.
+
+        Parameters
+        ----------
+        runs : int
+            Number of runs M.
+        """
         self._law.reset(runs)
 
     def __call__(self, x_hat: np.ndarray, reference: np.ndarray, t: float) -> np.ndarray:
@@ -317,6 +340,11 @@ def _operating_point(spec: Any, doc: Mapping[str, Any]) -> tuple[np.ndarray, np.
 def state_feedback_loop(doc: Mapping[str, Any], spec: Any) -> ClosedLoop:
     """State feedback of a placement artefact (integral action when it has ``K1``, ``K2``), true state.
 
+    Parameters
+    ----------
+    doc, spec : mapping, Spec
+        The artefact and the validated spec.
+
     Raises
     ------
     ArtefactError
@@ -357,19 +385,37 @@ def _serialized_loop(doc: Mapping[str, Any], spec: Any, law: ArtefactLaw, keys: 
 
 
 def feedback_linearization_loop(doc: Mapping[str, Any], spec: Any) -> ClosedLoop:
-    """The serialised feedback-linearising law of the artefact, true state."""
+    """The serialised feedback-linearising law of the artefact, true state.
+
+    Parameters
+    ----------
+    doc, spec : mapping, Spec
+        The artefact and the validated spec.
+    """
     return _serialized_loop(doc, spec, ArtefactLaw.from_document(doc), ("outputs", "tracked"),
                             "input-output feedback linearisation")
 
 
 def integral_tracking_loop(doc: Mapping[str, Any], spec: Any) -> ClosedLoop:
-    """The serialised integral-tracking law with anti-windup, integrator state per run."""
+    """The serialised integral-tracking law with anti-windup, integrator state per run.
+
+    Parameters
+    ----------
+    doc, spec : mapping, Spec
+        The artefact and the validated spec.
+    """
     return _serialized_loop(doc, spec, ArtefactIntegralLaw(*_law_of(doc)), ("tracked", "outputs"),
                             "state feedback with integral action and anti-windup")
 
 
 def inverse_dynamics_loop(doc: Mapping[str, Any], spec: Any) -> ClosedLoop:
-    """The serialised inverse-dynamics law, true state fed back."""
+    """The serialised inverse-dynamics law, true state fed back.
+
+    Parameters
+    ----------
+    doc, spec : mapping, Spec
+        The artefact and the validated spec.
+    """
     return _serialized_loop(doc, spec, ArtefactLaw.from_document(doc), ("controlled", "tracked"),
                             "inverse-dynamics control (u = G_c(x)^-1 (diag(C) (x_sp - x_c) - f0_c(x)))")
 
@@ -377,6 +423,13 @@ def inverse_dynamics_loop(doc: Mapping[str, Any], spec: Any) -> ClosedLoop:
 def closed_loop_for(doc: Mapping[str, Any], spec: Any,
                     builder: Callable[[Mapping[str, Any], Any], Any]) -> ClosedLoop:
     """The closed loop of a controller artefact from its method's campaign runner.
+
+    Parameters
+    ----------
+    doc, spec : mapping, Spec
+        The artefact and the validated spec.
+    builder : callable
+        The method's campaign runner ``(doc, spec) -> CampaignRun``.
 
     Raises
     ------

@@ -133,6 +133,11 @@ NUMERIC_ERRORS = (TanksynthError, np.linalg.LinAlgError, ValueError, RuntimeErro
 def artefact_gain(doc: Mapping[str, Any], name: str) -> np.ndarray:
     """A gain of an artefact as a float array (at least 1-D, the gain's units).
 
+    Parameters
+    ----------
+    doc, name : mapping, str
+        The artefact and the gain's name.
+
     Raises
     ------
     ArtefactError
@@ -147,6 +152,11 @@ def artefact_gain(doc: Mapping[str, Any], name: str) -> np.ndarray:
 def artefact_matrix(doc: Mapping[str, Any], name: str,
                     shape: tuple[int, int] | None = None) -> np.ndarray:
     """A gain of an artefact as a 2-D float array, reshaped to ``shape`` if given.
+
+    Parameters
+    ----------
+    doc, name, shape : mapping, str, (int, int) or None
+        The artefact, the gain's name and its expected shape.
 
     Raises
     ------
@@ -210,7 +220,13 @@ def option(doc: Mapping[str, Any], spec: Any, name: str, default: Any = None) ->
 
 
 def operating_point(spec: Any) -> tuple[np.ndarray, np.ndarray]:
-    """The spec's operating point ``x0`` (state units) and its equilibrium input (input units)."""
+    """The spec's operating point ``x0`` (state units) and its equilibrium input (input units).
+
+    Parameters
+    ----------
+    spec : Spec
+        The validated spec.
+    """
     from tanksynth.analysis.linearize import equilibrium_input
 
     eq = equilibrium_input(spec.plant, spec.x0, spec.given_u0)
@@ -218,7 +234,13 @@ def operating_point(spec: Any) -> tuple[np.ndarray, np.ndarray]:
 
 
 def time_domain(doc: Mapping[str, Any], spec: Any) -> str:
-    """``"continuous"`` or ``"discrete"``: the design's option, else discrete iff the spec has ``ts``."""
+    """``"continuous"`` or ``"discrete"``: the design's option, else discrete iff the spec has ``ts``.
+
+    Parameters
+    ----------
+    doc, spec : mapping, Spec
+        The artefact and the validated spec.
+    """
     value = option(doc, spec, "time_domain")
     if value in ("continuous", "discrete"):
         return str(value)
@@ -227,6 +249,11 @@ def time_domain(doc: Mapping[str, Any], spec: Any) -> str:
 
 def output_rows(plant: Any, names: Sequence[str]) -> list[int]:
     """Indices of the named outputs of the plant.
+
+    Parameters
+    ----------
+    plant, names : Plant, sequence of str
+        The plant model and output names.
 
     Raises
     ------
@@ -242,7 +269,13 @@ def output_rows(plant: Any, names: Sequence[str]) -> list[int]:
 
 
 def tracked_outputs(doc: Mapping[str, Any], spec: Any, name: str = "tracked") -> list[str]:
-    """The tracked outputs the design declares (option ``name``), else the first ``m`` outputs."""
+    """The tracked outputs the design declares (option ``name``), else the first ``m`` outputs.
+
+    Parameters
+    ----------
+    doc, spec, name : mapping, Spec, str
+        The artefact, the validated spec and the option naming the tracked outputs.
+    """
     chosen = option(doc, spec, name)
     if isinstance(chosen, list) and chosen:
         return [str(c) for c in chosen]
@@ -250,18 +283,36 @@ def tracked_outputs(doc: Mapping[str, Any], spec: Any, name: str = "tracked") ->
 
 
 def output_at(plant: Any, x: np.ndarray) -> np.ndarray:
-    """The plant's output ``h(x)`` at one state (output units)."""
+    """The plant's output ``h(x)`` at one state (output units).
+
+    Parameters
+    ----------
+    plant, x : Plant, ndarray (n,)
+        The plant model and one state (state units, m).
+    """
     return np.asarray(plant.compiled.output(np.asarray(x, float)[None]), dtype=float).reshape(-1)
 
 
 # ========================================================================= formatting
 def one_line(exc: BaseException) -> str:
-    """``"Type: message"`` of an exception on one line."""
+    """``"Type: message"`` of an exception on one line.
+
+    Parameters
+    ----------
+    exc : BaseException
+        The exception.
+    """
     return " ".join(f"{type(exc).__name__}: {exc}".split())
 
 
 def guard(name: str, fn: Callable[[], list[Check]]) -> list[Check]:
-    """Run a group of checks; a numerical error becomes one failed check ``name`` naming it."""
+    """Run a group of checks; a numerical error becomes one failed check ``name`` naming it.
+
+    Parameters
+    ----------
+    name, fn : str, callable
+        Name of the failed check on an error; runs the group and returns its checks.
+    """
     try:
         return list(fn())
     except NUMERIC_ERRORS as exc:
@@ -269,7 +320,13 @@ def guard(name: str, fn: Callable[[], list[Check]]) -> list[Check]:
 
 
 def fmt(values: Any, digits: int = 4) -> str:
-    """Compact text of a number, vector or matrix (complex entries as ``a+bj``)."""
+    """Compact text of a number, vector or matrix (complex entries as ``a+bj``).
+
+    Parameters
+    ----------
+    values, digits : float or array_like, int
+        Number, vector or matrix (its own units); significant digits.
+    """
     arr = np.asarray(values)
     if np.iscomplexobj(arr):
         return "[" + ", ".join(f"{complex(v).real:.{digits}g}{complex(v).imag:+.{digits}g}j"
@@ -286,6 +343,11 @@ def fmt_signals(values: Any, signals: Sequence[Any], digits: int = 4) -> str:
 
     ``values`` is a vector (one number per signal) or an ``(n, 2)`` array of
     ranges; ``signals`` have ``name`` and ``unit`` (plant states, inputs, outputs).
+
+    Parameters
+    ----------
+    values, signals, digits : array_like (n,) or (n, 2), sequence, int
+        One value or range per signal (its unit); signals with ``name`` and ``unit``; significant digits.
     """
     arr = np.asarray(values, dtype=float)
     parts = []
@@ -301,12 +363,24 @@ def fmt_signals(values: Any, signals: Sequence[Any], digits: int = 4) -> str:
 
 
 def complex_list(values: Any) -> list[list[float]]:
-    """Sorted complex values as ``[[re, im], ...]`` (JSON-friendly)."""
+    """Sorted complex values as ``[[re, im], ...]`` (JSON-friendly).
+
+    Parameters
+    ----------
+    values : array_like of complex
+        The values (their own unit, e.g. 1/s).
+    """
     return [[float(v.real), float(v.imag)] for v in np.sort_complex(np.asarray(values, dtype=complex))]
 
 
 def relative_difference(a: np.ndarray, b: np.ndarray) -> float:
-    """``|a - b| / |b|`` in the Frobenius norm (``|b|`` floored at 1e-300)."""
+    """``|a - b| / |b|`` in the Frobenius norm (``|b|`` floored at 1e-300).
+
+    Parameters
+    ----------
+    a, b : ndarray
+        Arrays of the same shape and units.
+    """
     return float(np.linalg.norm(a - b) / max(np.linalg.norm(b), 1e-300))
 
 
@@ -316,6 +390,13 @@ def model_recheck(plant: Any, x0: np.ndarray, u0: np.ndarray, domain: str, ts: f
     """``model_recheck``: stored ``A``/``B``/``C`` against the plant linearised at ``(x0, u0)``.
 
     ``domain = "discrete"`` compares with the exact ZOH at ``ts`` (s).
+
+    Parameters
+    ----------
+    plant, x0, u0 : Plant, ndarray (n,), ndarray (m,)
+        The plant, operating point (state units, m) and equilibrium input (input units, m^3/s).
+    domain, ts, stored : str, float or None, mapping of str to ndarray
+        ``"continuous"``/``"discrete"``, sampling period [s], the artefact's ``A``, ``B``, ``C``.
     """
     from tanksynth.analysis.linearize import linearize
 
@@ -337,7 +418,13 @@ def model_recheck(plant: Any, x0: np.ndarray, u0: np.ndarray, domain: str, ts: f
 
 
 def pole_check(achieved: np.ndarray, requested: Sequence[complex], what: str) -> Check:
-    """``poles``: eigenvalues matched one to one with the requested poles (`match_poles`)."""
+    """``poles``: eigenvalues matched one to one with the requested poles (`match_poles`).
+
+    Parameters
+    ----------
+    achieved, requested, what : ndarray, sequence of complex, str
+        Rebuilt eigenvalues and requested poles (1/s; discrete: dimensionless); the system's name.
+    """
     p = np.asarray(requested, dtype=complex)
     a = np.asarray(achieved, dtype=complex)
     if p.size != a.size:
@@ -356,7 +443,13 @@ def pole_check(achieved: np.ndarray, requested: Sequence[complex], what: str) ->
 
 
 def stability_check(eigs: np.ndarray, domain: str, what: str) -> Check:
-    """``stability``: every eigenvalue in ``Re < 0`` (continuous) or ``|z| < 1`` (discrete)."""
+    """``stability``: every eigenvalue in ``Re < 0`` (continuous) or ``|z| < 1`` (discrete).
+
+    Parameters
+    ----------
+    eigs, domain, what : ndarray of complex, str, str
+        Eigenvalues (1/s; discrete: dimensionless), ``"continuous"``/``"discrete"``, the system's name.
+    """
     eigs = np.asarray(eigs, dtype=complex)
     if domain == "discrete":
         value = float(np.max(np.abs(eigs)))
@@ -370,7 +463,13 @@ def stability_check(eigs: np.ndarray, domain: str, what: str) -> Check:
 
 
 def region_check(eigs: np.ndarray, region: Any, what: str) -> Check:
-    """``region``: every eigenvalue inside the LMI region (``-lambda_max(f_D(z)) > 0``)."""
+    """``region``: every eigenvalue inside the LMI region (``-lambda_max(f_D(z)) > 0``).
+
+    Parameters
+    ----------
+    eigs, region, what : ndarray of complex, LMIRegion, str
+        Eigenvalues (1/s; discrete: dimensionless), the region, the system's name.
+    """
     margins = np.array([region.margin(complex(z)) for z in np.asarray(eigs, dtype=complex)])
     worst = float(np.min(margins))
     return Check("region", bool(worst > 0),
@@ -380,7 +479,13 @@ def region_check(eigs: np.ndarray, region: Any, what: str) -> Check:
 
 
 def region_lmi_check(region: Any, Acl: np.ndarray, X: np.ndarray, what: str) -> Check:
-    """``lmi_recheck``: the region LMI of ``Acl`` with the stored Lyapunov matrix ``X``."""
+    """``lmi_recheck``: the region LMI of ``Acl`` with the stored Lyapunov matrix ``X``.
+
+    Parameters
+    ----------
+    region, Acl, X, what : LMIRegion, ndarray (n, n), ndarray (n, n), str
+        The region, closed-loop (or error) matrix, stored Lyapunov matrix, the system's name.
+    """
     M = region_lmi_matrix(region.L, region.M, Acl, X)
     eig = np.linalg.eigvalsh(M)
     lam = float(eig.max())
@@ -395,7 +500,13 @@ def region_lmi_check(region: Any, Acl: np.ndarray, X: np.ndarray, what: str) -> 
 
 
 def rank_check(name: str, result: Any, pair: str) -> Check:
-    """A Kalman rank test (`tanksynth.analysis.rank`) as a check: full rank passes."""
+    """A Kalman rank test (`tanksynth.analysis.rank`) as a check: full rank passes.
+
+    Parameters
+    ----------
+    name, result, pair : str, RankResult, str
+        Name of the check, the rank test's result, the pair tested (e.g. ``(A, C)``).
+    """
     return Check(name, bool(result.full),
                  f"rank {result.rank}/{result.n} of {pair} stored in the artefact, condition number "
                  f"{result.condition_number:.3g}", result.as_dict())
@@ -420,7 +531,13 @@ class CasadiControlLaw:
         self._mapped: dict[int, Any] = {}
 
     def evaluate(self, *args: np.ndarray) -> list[np.ndarray]:
-        """Every output of the Function at M points: inputs (M, k_i) -> outputs (M, k_j)."""
+        """Every output of the Function at M points: inputs (M, k_i) -> outputs (M, k_j).
+
+        Parameters
+        ----------
+        *args : ndarray
+            One array per input of the Function, shape (M, k_i) (its units).
+        """
         count = int(args[0].shape[0])
         fn = self._mapped.get(count)
         if fn is None:
@@ -449,7 +566,13 @@ class CasadiIntegralLaw(CasadiControlLaw):
         self.z = np.zeros((0, int(function.nnz_in(1))))
 
     def reset(self, runs: int) -> None:
-        """Zero the integrators of ``runs`` runs."""
+        """Zero the integrators of ``runs`` runs.
+
+        Parameters
+        ----------
+        runs : int
+            Number of runs M.
+        """
         self.z = np.zeros((int(runs), int(self.function.nnz_in(1))))
 
     def __call__(self, x_hat: np.ndarray, reference: np.ndarray, t: float) -> np.ndarray:

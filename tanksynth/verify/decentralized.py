@@ -56,7 +56,13 @@ class DecentralizedFilter:
                 arr[j] = self._params[b] if isinstance(b, str) else float(b)
 
     def reset(self, x_hat0: np.ndarray) -> None:
-        """Initial estimates (M, n)."""
+        """Initial estimates (M, n).
+
+        Parameters
+        ----------
+        x_hat0 : ndarray, shape (M, n)
+            Initial estimates (state units, m).
+        """
         self._x = np.asarray(x_hat0, dtype=float).copy()
         self._k = 0
 
@@ -65,6 +71,11 @@ class DecentralizedFilter:
 
         The simulator's step without noise: states clipped, input saturated,
         ``substeps`` RK4 steps (switching surfaces located), clipped again.
+
+        Parameters
+        ----------
+        x, u : ndarray (M, n), ndarray (M, m)
+            States (state units, m) and held inputs (input units, m^3/s).
         """
         integ = self._integ
         x = integ.clip(np.asarray(x, dtype=float))
@@ -75,7 +86,13 @@ class DecentralizedFilter:
         return integ.clip(x)
 
     def step(self, y: np.ndarray, u: np.ndarray) -> np.ndarray:
-        """Measurement (M, q), previous input (M, m) -> estimate (M, n)."""
+        """Measurement (M, q), previous input (M, m) -> estimate (M, n).
+
+        Parameters
+        ----------
+        y, u : ndarray (M, q), ndarray (M, m)
+            Measurements (output units, m) and previous inputs (input units, m^3/s).
+        """
         if self._k > 0:
             M = self._x.shape[0]
             pred = self.predict(self._x, u)
@@ -99,6 +116,11 @@ def decentralized_kalman_verdict(doc: Mapping[str, Any], spec: Any, *,
     ``filter_vs_open_loop`` (RMSE of the filter below that of the open-loop
     predictor from the same start) and ``filter_error_bounded`` (RMS error
     over the last quarter of the window <= 3 sqrt(mean P_diag) there).
+
+    Parameters
+    ----------
+    doc, spec, trace : mapping, Spec, TraceRecorder or None
+        The artefact, the validated spec and a recorder of the simulated runs.
     """
     plant = spec.plant
     n, q, m = plant.n, plant.q, plant.m

@@ -63,7 +63,13 @@ class DetectorRun:
     kind: str = field(default="detector", init=False)
 
     def threshold(self, t: np.ndarray) -> np.ndarray:
-        """The threshold at times ``t`` (s from the observer's start), output units."""
+        """The threshold at times ``t`` (s from the observer's start), output units.
+
+        Parameters
+        ----------
+        t : ndarray
+            Times from the observer's start [s].
+        """
         c = np.abs(self.coefficients) if self.conservative else self.coefficients
         return np.sum(c[:, None] * np.exp(self.rates[:, None] * np.asarray(t, float)[None, :]), axis=0)
 
@@ -106,6 +112,11 @@ class DetectorRun:
 
 def fault_detection_run(doc: Mapping[str, Any], spec: Any) -> DetectorRun:
     """The residual test of a ``fault_detection`` artefact (stored ``Psi`` and threshold).
+
+    Parameters
+    ----------
+    doc, spec : mapping, Spec
+        The artefact and the validated spec.
 
     Raises
     ------

@@ -15,20 +15,20 @@ one (``mismatch``), else at the artefact's designed initial estimate (gain
 
 Runners (``runner(doc, spec) -> EstimatorRun``):
 
-=========================  =================================================================
-`kalman_run`, ...         kalman, ekf, ukf, luenberger, adaptive_kalman,
-                           adaptive_scaling_kalman, consensus_filter (`estimator_run` with the
-                           method's `tanksynth.verify.estimators.EstimatorRebuild`)
-`placement_run`            pole_placement, lmi_placement: the observer gain ``L`` (predictor
-                           form when designed in discrete time, continuous form otherwise), or
-                           the state feedback in closed loop (`state_feedback_loop`)
-`canonical_observer_run`   continuous Luenberger observer with the stored ``L``
-`ts_observer_run`          Takagi-Sugeno multiple observer (seed 001 eq. 20) with the stored
-                           ``L`` on the multiple model rebuilt from the recorded premises
-`narx_run`                 NARX network with the stored weights, own estimates fed back
-`decentralized_kalman_run` decentralised filter with the stored window gains ``K_0..K_{T-1}``
-                           (open-loop prediction after the window)
-=========================  =================================================================
+==========================  =================================================================
+`kalman_run`, ...           kalman, ekf, ukf, luenberger, adaptive_kalman,
+                            adaptive_scaling_kalman, consensus_filter (`estimator_run` with the
+                            method's `tanksynth.verify.estimators.EstimatorRebuild`)
+`placement_run`             pole_placement, lmi_placement: the observer gain ``L`` (predictor
+                            form when designed in discrete time, continuous form otherwise), or
+                            the state feedback in closed loop (`state_feedback_loop`)
+`canonical_observer_run`    continuous Luenberger observer with the stored ``L``
+`ts_observer_run`           Takagi-Sugeno multiple observer (seed 001 eq. 20) with the stored
+                            ``L`` on the multiple model rebuilt from the recorded premises
+`narx_run`                  NARX network with the stored weights, own estimates fed back
+`decentralized_kalman_run`  decentralised filter with the stored window gains ``K_0..K_{T-1}``
+                            (open-loop prediction after the window)
+==========================  =================================================================
 """
 
 from __future__ import annotations
@@ -160,37 +160,79 @@ def estimator_run(doc: Mapping[str, Any], spec: Any, rebuild: Any) -> EstimatorR
 
 
 def kalman_run(doc: Mapping[str, Any], spec: Any) -> EstimatorRun:
-    """Campaign runner of ``kalman`` artefacts (see `estimator_run`)."""
+    """Campaign runner of ``kalman`` artefacts (see `estimator_run`).
+
+    Parameters
+    ----------
+    doc, spec : mapping, Spec
+        The artefact and the validated spec.
+    """
     return estimator_run(doc, spec, est.KALMAN)
 
 
 def ekf_run(doc: Mapping[str, Any], spec: Any) -> EstimatorRun:
-    """Campaign runner of ``ekf`` artefacts (see `estimator_run`)."""
+    """Campaign runner of ``ekf`` artefacts (see `estimator_run`).
+
+    Parameters
+    ----------
+    doc, spec : mapping, Spec
+        The artefact and the validated spec.
+    """
     return estimator_run(doc, spec, est.EKF)
 
 
 def ukf_run(doc: Mapping[str, Any], spec: Any) -> EstimatorRun:
-    """Campaign runner of ``ukf`` artefacts (see `estimator_run`)."""
+    """Campaign runner of ``ukf`` artefacts (see `estimator_run`).
+
+    Parameters
+    ----------
+    doc, spec : mapping, Spec
+        The artefact and the validated spec.
+    """
     return estimator_run(doc, spec, est.UKF)
 
 
 def adaptive_kalman_run(doc: Mapping[str, Any], spec: Any) -> EstimatorRun:
-    """Campaign runner of ``adaptive_kalman`` artefacts (see `estimator_run`)."""
+    """Campaign runner of ``adaptive_kalman`` artefacts (see `estimator_run`).
+
+    Parameters
+    ----------
+    doc, spec : mapping, Spec
+        The artefact and the validated spec.
+    """
     return estimator_run(doc, spec, est.ADAPTIVE_KALMAN)
 
 
 def adaptive_scaling_kalman_run(doc: Mapping[str, Any], spec: Any) -> EstimatorRun:
-    """Campaign runner of ``adaptive_scaling_kalman`` artefacts (see `estimator_run`)."""
+    """Campaign runner of ``adaptive_scaling_kalman`` artefacts (see `estimator_run`).
+
+    Parameters
+    ----------
+    doc, spec : mapping, Spec
+        The artefact and the validated spec.
+    """
     return estimator_run(doc, spec, est.ADAPTIVE_SCALING_KALMAN)
 
 
 def consensus_filter_run(doc: Mapping[str, Any], spec: Any) -> EstimatorRun:
-    """Campaign runner of ``consensus_filter`` artefacts (see `estimator_run`)."""
+    """Campaign runner of ``consensus_filter`` artefacts (see `estimator_run`).
+
+    Parameters
+    ----------
+    doc, spec : mapping, Spec
+        The artefact and the validated spec.
+    """
     return estimator_run(doc, spec, est.CONSENSUS_FILTER)
 
 
 def luenberger_run(doc: Mapping[str, Any], spec: Any) -> EstimatorRun:
-    """Campaign runner of ``luenberger`` artefacts (see `estimator_run`)."""
+    """Campaign runner of ``luenberger`` artefacts (see `estimator_run`).
+
+    Parameters
+    ----------
+    doc, spec : mapping, Spec
+        The artefact and the validated spec.
+    """
     return estimator_run(doc, spec, est.LUENBERGER)
 
 
@@ -232,6 +274,11 @@ def placement_run(doc: Mapping[str, Any], spec: Any) -> EstimatorRun | ClosedLoo
     discrete design, the continuous form integrated exactly over each
     period otherwise); ``K1``/``K2`` or ``K`` run in closed loop
     (`tanksynth.verify.closed_loops.state_feedback_loop`).
+
+    Parameters
+    ----------
+    doc, spec : mapping, Spec
+        The artefact and the validated spec.
     """
     if "L" in doc["gains"]:
         domain = _time_domain(doc, spec)
@@ -241,7 +288,13 @@ def placement_run(doc: Mapping[str, Any], spec: Any) -> EstimatorRun | ClosedLoo
 
 
 def canonical_observer_run(doc: Mapping[str, Any], spec: Any) -> EstimatorRun:
-    """The continuous Luenberger observer of a ``canonical_observer`` artefact."""
+    """The continuous Luenberger observer of a ``canonical_observer`` artefact.
+
+    Parameters
+    ----------
+    doc, spec : mapping, Spec
+        The artefact and the validated spec.
+    """
     return _luenberger_run(doc, spec, "continuous", "canonical-form observer")
 
 
@@ -275,6 +328,11 @@ def ts_observer_run(doc: Mapping[str, Any], spec: Any) -> EstimatorRun:
     `tanksynth.verify.common.TSObserver` (exponential rule, exact on the
     stiff linear part) with the stored ``L`` on the TS model rebuilt from
     the plant and the recorded premises, premise bounds and domain.
+
+    Parameters
+    ----------
+    doc, spec : mapping, Spec
+        The artefact and the validated spec.
     """
     from tanksynth.verify.ts_observer import TSObserver
 
@@ -288,7 +346,13 @@ def ts_observer_run(doc: Mapping[str, Any], spec: Any) -> EstimatorRun:
 
 
 def narx_run(doc: Mapping[str, Any], spec: Any) -> EstimatorRun:
-    """The NARX estimator of a ``narx`` artefact (stored weights, own estimates fed back)."""
+    """The NARX estimator of a ``narx`` artefact (stored weights, own estimates fed back).
+
+    Parameters
+    ----------
+    doc, spec : mapping, Spec
+        The artefact and the validated spec.
+    """
     from tanksynth.runtime.estimators.narx import NARXEstimator, NARXTuning
 
     plant = spec.plant
@@ -315,6 +379,11 @@ def decentralized_kalman_run(doc: Mapping[str, Any], spec: Any) -> EstimatorRun:
     `tanksynth.verify.decentralized.DecentralizedFilter` with the stored
     gains ``K_0 .. K_{T-1}`` of the design window: after the window it
     predicts in open loop (the artefact ships no gain beyond it).
+
+    Parameters
+    ----------
+    doc, spec : mapping, Spec
+        The artefact and the validated spec.
     """
     from tanksynth.verify.decentralized import DecentralizedFilter
 

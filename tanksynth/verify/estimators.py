@@ -364,6 +364,13 @@ def estimator_verdict(doc: Mapping[str, Any], spec: Any, rebuild: EstimatorRebui
     steady-state Kalman error dynamics at the operating point, or the
     observer's error matrix, ``rebuild.error``). ``trace`` (a `TraceRecorder`) records the
     convergence run.
+
+    Parameters
+    ----------
+    doc, spec, rebuild : mapping, Spec, EstimatorRebuild
+        The artefact, the validated spec and how to rebuild the estimator from its gains.
+    trace : TraceRecorder, optional
+        Recorder of the simulated runs.
     """
     method = str(doc["method"])
     if method != rebuild.method:
@@ -429,7 +436,9 @@ def _estimator_verdict_for(rebuild: EstimatorRebuild) -> Callable[..., list[Chec
         return estimator_verdict(doc, spec, rebuild, trace=trace)
 
     verdict.__name__ = verdict.__qualname__ = f"{rebuild.method}_verdict"
-    verdict.__doc__ = f"Verdict of ``{rebuild.method}`` artefacts (see `estimator_verdict`)."
+    verdict.__doc__ = (f"Verdict of ``{rebuild.method}`` artefacts (see `estimator_verdict`).\n\n"
+                       "Parameters\n----------\ndoc, spec, trace : mapping, Spec, TraceRecorder or None\n"
+                       "    The artefact, the validated spec and a recorder of the simulated runs.\n")
     return verdict
 
 

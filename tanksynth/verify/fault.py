@@ -93,13 +93,25 @@ class ResidualObserver:
         self.residuals: list[np.ndarray] = []
 
     def reset(self, x_hat0: np.ndarray) -> None:
-        """Initial estimates (M, n); forgets the recorded residuals."""
+        """Initial estimates (M, n); forgets the recorded residuals.
+
+        Parameters
+        ----------
+        x_hat0 : ndarray, shape (M, n)
+            Initial estimates (state units, m).
+        """
         self._x = np.asarray(x_hat0, dtype=float).copy()
         self._y: np.ndarray | None = None
         self.residuals = []
 
     def output(self, x: np.ndarray) -> np.ndarray:
-        """``h(x)`` of the healthy model, (M, n) -> (M, q)."""
+        """``h(x)`` of the healthy model, (M, n) -> (M, q).
+
+        Parameters
+        ----------
+        x : ndarray, shape (M, n)
+            States (state units, m).
+        """
         x = np.asarray(x, dtype=float)
         return np.asarray(self.model.output(x, self.params), dtype=float).reshape(x.shape[0], -1)
 
@@ -107,7 +119,13 @@ class ResidualObserver:
         return self.model.rhs(x, u, self.params) + (y - self.output(x)) @ self.Psi.T
 
     def step(self, y: np.ndarray, u: np.ndarray) -> np.ndarray:
-        """Measurement (M, q), held input (M, m) -> estimate (M, n)."""
+        """Measurement (M, q), held input (M, m) -> estimate (M, n).
+
+        Parameters
+        ----------
+        y, u : ndarray (M, q), ndarray (M, m)
+            Measurements (output units, m) and held inputs (input units, m^3/s).
+        """
         y = np.asarray(y, dtype=float)
         if self._y is not None:
             h = self.ts / self.substeps
@@ -261,6 +279,11 @@ def _inputs(doc: Mapping[str, Any], spec: Any) -> tuple[tuple, str]:
 def fault_scenario(doc: Mapping[str, Any], spec: Any) -> FaultScenario:
     """The scenario of the fault-detection verdict (see the module docstring).
 
+    Parameters
+    ----------
+    doc, spec : mapping, Spec
+        The artefact and the validated spec.
+
     Raises
     ------
     ArtefactError
@@ -350,6 +373,11 @@ def fault_detection_verdict(doc: Mapping[str, Any], spec: Any, *,
     ``t_d`` in ``(t_f, t_f + horizon]`` for every start (``horizon`` =
     `FAULT_HORIZON`), and, where the artefact stores detection times for the
     same initial states, ``|t_d - stored| <= FAULT_TIME_TOLERANCE``.
+
+    Parameters
+    ----------
+    doc, spec, trace : mapping, Spec, TraceRecorder or None
+        The artefact, the validated spec and a recorder of the simulated runs.
     """
     from tanksynth.analysis.linearize import linearize
     from tanksynth.sim.simulate import ParameterChange

@@ -50,6 +50,11 @@ def integral_tracking_verdict(doc: Mapping[str, Any], spec: Any, *,
     closed loop on the re-linearised model vs the spec's poles,
     ``stability``, ``rank_controllability_augmented``, ``servo_tracking`` and
     ``bounded_inputs`` (the law built from the gains, on the nonlinear plant).
+
+    Parameters
+    ----------
+    doc, spec, trace : mapping, Spec, TraceRecorder or None
+        The artefact, the validated spec and a recorder of the simulated runs.
     """
     from tanksynth.runtime.laws import integral_tracking_law
     from tanksynth.spec.options import parse_poles
@@ -133,6 +138,11 @@ def feedback_linearization_verdict(doc: Mapping[str, Any], spec: Any, *,
     ``time_constant_<y>`` (the 63.2 % rise time of a 5 % step within 2 %
     of ``1/K_i`` on the nonlinear plant) and ``decoupling_<y>`` (the other
     outputs within 1 % of the step).
+
+    Parameters
+    ----------
+    doc, spec, trace : mapping, Spec, TraceRecorder or None
+        The artefact, the validated spec and a recorder of the simulated runs.
     """
     plant = spec.plant
     n, m = plant.n, plant.m
@@ -252,6 +262,11 @@ def inverse_dynamics_verdict(doc: Mapping[str, Any], spec: Any, *,
     gives the stored ``u0`` at ``x0``), ``servo_scenario`` (the servo
     scenario of `tanksynth.sim.scenarios` with the law built from the gains, true state fed back: ISE
     finite and the tracking time within the horizon).
+
+    Parameters
+    ----------
+    doc, spec, trace : mapping, Spec, TraceRecorder or None
+        The artefact, the validated spec and a recorder of the simulated runs.
     """
     from tanksynth.runtime.laws import inverse_dynamics_law
     from tanksynth.analysis.linearize import linearize

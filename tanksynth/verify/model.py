@@ -3,7 +3,7 @@
 ``linearize``
     * ``jacobian_recheck``: F, B, C recomputed at (x0, u0) from the model;
     * ``zoh_consistency``: Ad, Bd equal the exact ZOH of (F, B) at ts;
-    * ``equilibrium``: |f(x0, u0)| within the design's tolerance (an
+    * ``equilibrium``: ``|f(x0, u0)|`` within the design's tolerance (an
       artefact designed away from an equilibrium fails it), naming the
       unbalanced equation; and u0 within the actuator range;
     * ``first_order_agreement``: the nonlinear plant and the discrete
@@ -44,6 +44,17 @@ def first_order_agreement(plant: Any, F: np.ndarray, B: np.ndarray, Ad: np.ndarr
     nonlinear deviation from the unperturbed trajectory is compared with
     ``Ad^k dx + sum Ad^j Bd du`` over ``horizon`` samples, for ``eps =
     eps0, eps0/2, eps0/4``.
+
+    Parameters
+    ----------
+    plant, F, B : Plant, ndarray (n, n), ndarray (n, m)
+        The plant; continuous Jacobians [1/s] and (state units per input unit and s).
+    Ad, Bd, x0, u0 : ndarray
+        ZOH matrices, operating point (state units, m) and equilibrium input (input units, m^3/s).
+    ts, horizon, eps0, substeps : float, int, float, int
+        Sampling period [s], samples compared, largest perturbation (fraction of the span), RK4 steps.
+    trace : TraceRecorder, optional
+        Recorder of the simulated runs.
 
     Returns
     -------

@@ -134,7 +134,13 @@ class ModelRun:
 
 
 def linearize_run(doc: Mapping[str, Any], spec: Any) -> ModelRun:
-    """The discrete model ``Ad, Bd`` at ``x0, u0`` of a ``linearize`` artefact."""
+    """The discrete model ``Ad, Bd`` at ``x0, u0`` of a ``linearize`` artefact.
+
+    Parameters
+    ----------
+    doc, spec : mapping, Spec
+        The artefact and the validated spec.
+    """
     plant = spec.plant
     n, m = plant.n, plant.m
     Ad, Bd = artefact_gain(doc, "Ad"), artefact_gain(doc, "Bd")

@@ -94,6 +94,17 @@ def fresh_ekf_data(plant: Any, ekf_tuning: Any, *, runs: int, steps: int, seed: 
     Gaussian noise (``noise_std``, default ``sqrt(diag(R))``), and the runtime EKF
     run on them.
 
+    Parameters
+    ----------
+    plant, ekf_tuning : Plant, KalmanTuning
+        The plant model and the stored EKF tuning.
+    runs, steps, seed : int
+        Number of runs, samples per run and random seed.
+    input_range, hold : array_like (m, 2) or None, (int, int)
+        Input levels (input units, m^3/s; None: actuator range), hold lengths (samples).
+    noise_std, sim_substeps : array_like (q,) or None, int
+        Measurement noise standard deviation (output units, m), RK4 steps per sample.
+
     Returns
     -------
     dict
@@ -158,6 +169,11 @@ def narx_verdict(doc: Mapping[str, Any], spec: Any, *,
         `NARX_CLOSED_LOOP_FACTOR` (3) times the larger of the design's
         validation RMSE against the true states and the EKF's RMSE on the
         same fresh data.
+
+    Parameters
+    ----------
+    doc, spec, trace : mapping, Spec, TraceRecorder or None
+        The artefact, the validated spec and a recorder of the simulated runs.
     """
     from tanksynth.runtime.estimators.kalman import KalmanTuning
     from tanksynth.runtime.estimators.narx import NARXEstimator, NARXTuning

@@ -195,7 +195,13 @@ def pole_agreement(requested: Sequence[complex], matrix: Any, tol: float = 1e-6,
 
 
 def symmetric(M: Any) -> np.ndarray:
-    """``(M + M') / 2`` as a float array."""
+    """``(M + M') / 2`` as a float array.
+
+    Parameters
+    ----------
+    M : array_like, shape (n, n)
+        A square matrix.
+    """
     M = np.asarray(M, dtype=float)
     return 0.5 * (M + M.T)
 

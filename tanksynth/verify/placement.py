@@ -150,6 +150,11 @@ def pole_placement_verdict(doc: Mapping[str, Any], spec: Any, *,
     ``stability``, ``rank_*``, then ``observer_convergence``,
     ``servo_tracking`` + ``bounded_inputs`` (integral action) or
     ``regulation`` on the nonlinear plant.
+
+    Parameters
+    ----------
+    doc, spec, trace : mapping, Spec, TraceRecorder or None
+        The artefact, the validated spec and a recorder of the simulated runs.
     """
     c = _placement_common(doc, spec)
     checks = [model_recheck(c["plant"], c["x0"], c["u0"], c["domain"], c["ts"],
@@ -173,6 +178,11 @@ def lmi_placement_verdict(doc: Mapping[str, Any], spec: Any, *,
     region), ``lmi_recheck`` (region LMI from the stored ``P``),
     ``stability``, ``rank_*`` and the simulation checks of
     `pole_placement_verdict`.
+
+    Parameters
+    ----------
+    doc, spec, trace : mapping, Spec, TraceRecorder or None
+        The artefact, the validated spec and a recorder of the simulated runs.
     """
     from tanksynth.analysis.lmi_region import region_from_parts
     from tanksynth.spec.options import parse_region
@@ -208,6 +218,11 @@ def canonical_observer_verdict(doc: Mapping[str, Any], spec: Any, *,
     Jacobians), ``poles`` of ``A - L C`` vs the spec's poles,
     ``stability``, ``rank_observability`` and ``observer_convergence`` of
     the continuous Luenberger observer on the nonlinear plant.
+
+    Parameters
+    ----------
+    doc, spec, trace : mapping, Spec, TraceRecorder or None
+        The artefact, the validated spec and a recorder of the simulated runs.
     """
     plant = spec.plant
     n, q = plant.n, plant.q

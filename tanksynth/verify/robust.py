@@ -7,36 +7,28 @@ spec's options (region, uncertain box, H-infinity bound, saturation):
 ``model_recheck``
     the nominal ``A``, ``B``, ``C`` against the linearisation.
 ``vertex_models``
-    the 2^k corner models and the nominal one re-linearised here (levels
-    ``x0`` kept, each model's own equilibrium input) against the matrices
-    the design recorded in its diagnostics.
+    the 2^k corner models and the nominal one re-linearised here (levels ``x0`` kept, each model's own
+    equilibrium input) against the matrices the design recorded in its diagnostics.
 ``vertex_region`` / ``vertex_lmi``
-    every model's closed loop (augmented with the integrators when the
-    design has integral action) or error matrix ``A_i - L C_i`` has its
-    eigenvalues in the region; the region LMI holds at every model with the
-    ONE stored Lyapunov matrix (``X = P^-1``, observers ``X = P``). The
-    worst vertex and its parameters are named.
+    every model's closed loop (augmented with the integrators when the design has integral action) or error
+    matrix ``A_i - L C_i`` has its eigenvalues in the region; the region LMI holds at every model with the ONE
+    stored Lyapunov matrix (``X = P^-1``, observers ``X = P``). The worst vertex and its parameters are named.
 ``vertex_hinf``
-    (with ``gamma``) the H-infinity norm of every model's closed loop from
-    ``w`` to ``z``, by Hamiltonian bisection (discrete time: through the
-    bilinear transform, which preserves the norm), below ``gamma``.
+    (with ``gamma``) the H-infinity norm of every model's closed loop from ``w`` to ``z``, by Hamiltonian
+    bisection (discrete time: through the bilinear transform, which preserves the norm), below ``gamma``.
 ``sampled_region``
-    ``samples`` parameter values drawn uniformly in the box: their
-    linearisations keep the eigenvalues in the region (the vertex
-    certificate is exact only for models multi-affine in the parameters).
+    ``samples`` parameter values drawn uniformly in the box: their linearisations keep the eigenvalues in the
+    region (the vertex certificate is exact only for models multi-affine in the parameters).
 ``monte_carlo``
-    ``mc_runs`` plants with sampled parameters, NONLINEAR model, one batch
-    (each run its own parameter values): state feedback from ``x0 +
-    delta``, every run settles (tracked outputs back on their set-points
-    with integral action; its own equilibrium otherwise, the offset
-    reported); observers with the run's own linear model and the shared
-    ``L``, every error below 5 % of its initial value on ``[H, 1.2 H]``.
+    ``mc_runs`` plants with sampled parameters, NONLINEAR model, one batch (each run its own parameter
+    values): state feedback from ``x0 + delta``, every run settles (tracked outputs back on their set-points
+    with integral action; its own equilibrium otherwise, the offset reported); observers with the run's own
+    linear model and the shared ``L``, every error below 5 % of its initial value on ``[H, 1.2 H]``.
 ``saturation_*``
-    (with ``saturation``) ``max |K_j x|`` over the ellipsoid ``x' P x <= 1``
-    below ``umax_j``, the requested box inside it, and simulations of the
-    nonlinear nominal plant from points of its boundary (inside the
-    operating region): the law's UNCLIPPED input never leaves ``|u - u0| <=
-    umax`` (tolerance `SATURATION_TOLERANCE` for the nonlinearity).
+    (with ``saturation``) ``max |K_j x|`` over the ellipsoid ``x' P x <= 1`` below ``umax_j``, the requested
+    box inside it, and simulations of the nonlinear nominal plant from points of its boundary (inside the
+    operating region): the law's UNCLIPPED input never leaves ``|u - u0| <= umax`` (tolerance
+    `SATURATION_TOLERANCE` for the nonlinearity).
 """
 
 from __future__ import annotations
@@ -498,7 +490,13 @@ def _saturation_sim(doc: Mapping[str, Any], spec: Any, c: dict, Pxx: np.ndarray,
 
 
 def robust_state_feedback_verdict(doc: Mapping[str, Any], spec: Any, *, trace: Any = None) -> list[Check]:
-    """Verdict of a ``robust_state_feedback`` artefact (see the module docstring)."""
+    """Verdict of a ``robust_state_feedback`` artefact (see the module docstring).
+
+    Parameters
+    ----------
+    doc, spec, trace : mapping, Spec, TraceRecorder or None
+        The artefact, the validated spec and a recorder of the simulated runs.
+    """
     c = _context(doc, spec, observer=False)
     checks = _vertex_checks(doc, spec, c)
     checks += guard("sampled_region", lambda: _sampled_check(doc, spec, c))
@@ -583,7 +581,13 @@ def _mc_observer(doc: Mapping[str, Any], spec: Any, c: dict) -> list[Check]:
 
 
 def robust_observer_verdict(doc: Mapping[str, Any], spec: Any, *, trace: Any = None) -> list[Check]:
-    """Verdict of a ``robust_observer`` artefact (see the module docstring)."""
+    """Verdict of a ``robust_observer`` artefact (see the module docstring).
+
+    Parameters
+    ----------
+    doc, spec, trace : mapping, Spec, TraceRecorder or None
+        The artefact, the validated spec and a recorder of the simulated runs.
+    """
     c = _context(doc, spec, observer=True)
     checks = _vertex_checks(doc, spec, c)
     checks += guard("sampled_region", lambda: _sampled_check(doc, spec, c))

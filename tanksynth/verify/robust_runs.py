@@ -60,13 +60,37 @@ class RobustClosedLoop(ClosedLoop):
     ----------
     box : tuple of (str, float, float)
         Uncertain parameters and their intervals (parameter units).
+    controller : callable
+        The control law (input units, m^3/s).
+    estimator_factory : callable or None
+        Builds the estimator fed back; None: the true state.
+    x_op, u_op : ndarray
+        Operating point (state units) and nominal input (input units).
+    tracked : tuple of int
+        Rows of the tracked outputs.
+    description : str
+        One line for the report.
     """
 
     box: tuple[tuple[str, float, float], ...] = ()
 
     def evaluate(self, sc: Scenario, plant: Any, *, ts: float, seeds: Sequence[int],
                  substeps: int = 4) -> dict[str, Metric]:
-        """The closed-loop metrics of `ClosedLoop.evaluate` and ``param_<name>`` per run."""
+        """The closed-loop metrics of `ClosedLoop.evaluate` and ``param_<name>`` per run.
+
+        Parameters
+        ----------
+        sc : Scenario
+            The scenario.
+        plant : Plant
+            The plant model.
+        ts : float
+            Sampling period [s].
+        seeds : sequence of int
+            One seed per run.
+        substeps : int, optional
+            RK4 steps per period.
+        """
         setup, draws = _sampled_setup(sc, sc.setup(plant, self.x_op, self.u_op, self.tracked, ts=ts),
                                       self.box, seeds)
         result = run_scenario(setup, plant, ts=ts, seeds=list(seeds), controller=self.controller,
@@ -86,13 +110,35 @@ class RobustObserverRun(EstimatorRun):
     Attributes
     ----------
     box : tuple of (str, float, float)
+    estimator : BatchEstimator
+        The observer (nominal model).
+    x_op, u_op : ndarray
+        Operating point (state units) and nominal input (input units).
+    x_hat0 : ndarray or None
+        Initial estimate (state units); None: the operating point.
+    description : str
+        One line for the report.
     """
 
     box: tuple[tuple[str, float, float], ...] = ()
 
     def evaluate(self, sc: Scenario, plant: Any, *, ts: float, seeds: Sequence[int],
                  substeps: int = 4) -> dict[str, Metric]:
-        """The estimation metrics and ``param_<name>`` per run."""
+        """The estimation metrics and ``param_<name>`` per run.
+
+        Parameters
+        ----------
+        sc : Scenario
+            The scenario.
+        plant : Plant
+            The plant model.
+        ts : float
+            Sampling period [s].
+        seeds : sequence of int
+            One seed per run.
+        substeps : int, optional
+            RK4 steps per period.
+        """
         setup, draws = _sampled_setup(sc, sc.setup(plant, self.x_op, self.u_op, ts=ts), self.box, seeds)
         result = run_scenario(setup, plant, ts=ts, seeds=list(seeds), estimator=self.estimator,
                               substeps=substeps)
@@ -103,7 +149,15 @@ class RobustObserverRun(EstimatorRun):
 
 
 def robust_state_feedback_run(doc: Mapping[str, Any], spec: Any) -> ClosedLoop:
-    """Campaign runner of ``robust_state_feedback``: a `RobustClosedLoop` (true state fed back)."""
+    """Campaign runner of ``robust_state_feedback``: a `RobustClosedLoop` (true state fed back).
+
+    Parameters
+    ----------
+    doc : mapping
+        The artefact.
+    spec : Spec
+        The validated spec.
+    """
     from tanksynth.verify.closed_loops import sampling_period
 
     plant = spec.plant
@@ -130,7 +184,15 @@ def robust_state_feedback_run(doc: Mapping[str, Any], spec: Any) -> ClosedLoop:
 
 
 def robust_observer_run(doc: Mapping[str, Any], spec: Any) -> EstimatorRun:
-    """Campaign runner of ``robust_observer``: a `RobustObserverRun` on the nominal model."""
+    """Campaign runner of ``robust_observer``: a `RobustObserverRun` on the nominal model.
+
+    Parameters
+    ----------
+    doc : mapping
+        The artefact.
+    spec : Spec
+        The validated spec.
+    """
     from tanksynth.verify.closed_loops import sampling_period
     from tanksynth.verify.simulations import luenberger_estimator
 

@@ -37,6 +37,11 @@ def slowest_time_constant(eigs: np.ndarray, domain: str, ts: float | None) -> fl
 
     ``1 / min |Re lambda|`` in continuous time, ``-ts / ln max |lambda|`` in
     discrete time (``ts`` in s).
+
+    Parameters
+    ----------
+    eigs, domain, ts : ndarray of complex, str, float or None
+        Eigenvalues (1/s; discrete: dimensionless), time domain, sampling period [s].
     """
     eigs = np.asarray(eigs, dtype=complex)
     if domain == "discrete":
@@ -51,7 +56,13 @@ def slowest_time_constant(eigs: np.ndarray, domain: str, ts: float | None) -> fl
 
 
 def fastest_rate(eigs: np.ndarray, domain: str, ts: float | None) -> float:
-    """Fastest rate (1/s): ``max |lambda|`` in continuous time, ``1 / ts`` in discrete time."""
+    """Fastest rate (1/s): ``max |lambda|`` in continuous time, ``1 / ts`` in discrete time.
+
+    Parameters
+    ----------
+    eigs, domain, ts : ndarray of complex, str, float or None
+        Eigenvalues (1/s; discrete: dimensionless), time domain, sampling period [s].
+    """
     eigs = np.asarray(eigs, dtype=complex)
     if domain == "discrete":
         return 1.0 / float(ts)
@@ -59,7 +70,13 @@ def fastest_rate(eigs: np.ndarray, domain: str, ts: float | None) -> float:
 
 
 def eigen_time_constant(eigs: np.ndarray, domain: str, ts: float | None) -> tuple[float, str]:
-    """`slowest_time_constant` (s) of ``eigs`` and the rule, in words, that gave it."""
+    """`slowest_time_constant` (s) of ``eigs`` and the rule, in words, that gave it.
+
+    Parameters
+    ----------
+    eigs, domain, ts : ndarray of complex, str, float or None
+        Eigenvalues (1/s; discrete: dimensionless), time domain, sampling period [s].
+    """
     tau = slowest_time_constant(eigs, domain, ts)
     if domain == "discrete":
         rule = f"(-ts / ln max|lambda|, max|lambda| = {np.max(np.abs(eigs)):.6g})"
@@ -69,7 +86,13 @@ def eigen_time_constant(eigs: np.ndarray, domain: str, ts: float | None) -> tupl
 
 
 def region_time_constant(region: Any, domain: str, ts: float | None) -> float:
-    """Slowest time constant (s) an LMI region guarantees (inf when it bounds no decay)."""
+    """Slowest time constant (s) an LMI region guarantees (inf when it bounds no decay).
+
+    Parameters
+    ----------
+    region, domain, ts : LMIRegion, str, float or None
+        The LMI region, time domain, sampling period [s].
+    """
     best = math.inf
     for part in region.parts:
         if domain == "continuous":
@@ -90,6 +113,13 @@ def designed_time_constant(doc: Mapping[str, Any], spec: Any, eigs: np.ndarray, 
     Of the poles requested in the spec (option ``poles``), else of the decay
     the spec's LMI region guarantees (option ``region``), else of the
     stored gain's matrix (``eigs``).
+
+    Parameters
+    ----------
+    doc, spec, eigs : mapping, Spec, ndarray of complex
+        The artefact, the validated spec, the stored gain's eigenvalues (1/s; discrete: dimensionless).
+    domain, ts : str, float or None
+        ``"continuous"`` or ``"discrete"``; sampling period [s].
     """
     from tanksynth.analysis.lmi_region import region_from_parts
     from tanksynth.spec.options import parse_poles, parse_region
@@ -110,7 +140,13 @@ def designed_time_constant(doc: Mapping[str, Any], spec: Any, eigs: np.ndarray, 
 
 
 def eigenvector_conditioning(M: np.ndarray) -> float:
-    """Condition number of the eigenvector matrix of ``M`` (inf if defective)."""
+    """Condition number of the eigenvector matrix of ``M`` (inf if defective).
+
+    Parameters
+    ----------
+    M : ndarray, shape (n, n)
+        A square matrix.
+    """
     _, V = np.linalg.eig(M)
     with np.errstate(all="ignore"):
         value = float(np.linalg.cond(V))
@@ -118,7 +154,13 @@ def eigenvector_conditioning(M: np.ndarray) -> float:
 
 
 def observer_period(domain: str, spec_ts: float | None, tau: float) -> float:
-    """Sampling period (s) of an observer simulation: ``ts`` (discrete), else ``min(ts, tau / 20)``."""
+    """Sampling period (s) of an observer simulation: ``ts`` (discrete), else ``min(ts, tau / 20)``.
+
+    Parameters
+    ----------
+    domain, spec_ts, tau : str, float or None, float
+        Time domain, the spec's sampling period [s], the observer's time constant [s].
+    """
     if domain == "discrete":
         return float(spec_ts)
     step = tau / 20.0
@@ -139,6 +181,11 @@ def _horizon(tau: float, ts: float, conditioning: float) -> tuple[float, float, 
 def perturbed_start(plant: Any, x0: np.ndarray, inside: Callable[[np.ndarray], bool] | None = None
                     ) -> tuple[np.ndarray, float]:
     """``x0 + delta`` in the region (and ``inside``), delta = 5 % of the span, alternating signs.
+
+    Parameters
+    ----------
+    plant, x0, inside : Plant, ndarray (n,), callable or None
+        The plant, operating point (state units, m), extra admissibility test of a start.
 
     Returns
     -------
@@ -324,6 +371,8 @@ class IntegralStateFeedback:
         Operating point.
     ts : float
         Sampling period (s).
+    z : ndarray, shape (M, p)
+        Integrator states, one row per run (output units times s; set by `reset`).
     """
 
     K1: np.ndarray
@@ -335,7 +384,13 @@ class IntegralStateFeedback:
     z: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
 
     def reset(self, runs: int) -> None:
-        """Zero the integrators of ``runs`` runs."""
+        """Zero the integrators of ``runs`` runs.
+
+        Parameters
+        ----------
+        runs : int
+            Number of runs M.
+        """
         self.z = np.zeros((int(runs), self.C1.shape[0]))
 
     def __call__(self, x_hat: np.ndarray, reference: np.ndarray, t: float) -> np.ndarray:
@@ -353,6 +408,15 @@ def servo_check(plant: Any, controller: Callable, x0: np.ndarray, u0: np.ndarray
     Horizon `SERVO_TIME_CONSTANTS` ``tau`` (s); the tracking error over the
     last 10 % of the samples must be <= `SERVO_TOLERANCE` of the step and
     the inputs must settle strictly inside the actuator range.
+
+    Parameters
+    ----------
+    plant, controller, x0, u0 : Plant, callable, ndarray (n,), ndarray (m,)
+        The plant, the control law, operating point (m) and input (m^3/s).
+    out_idx, tau, ts, substeps : sequence of int, float, float, int
+        Tracked outputs, time constant [s], sampling period [s], RK4 steps per period.
+    rule, trace : str, TraceRecorder or None
+        The rule that gave ``tau``; recorder of the simulated runs.
     """
     if not np.isfinite(tau) or tau <= 0:
         return [Check("servo_tracking", False, f"the closed loop has no finite time constant "
@@ -408,6 +472,15 @@ def regulation_check(plant: Any, K: np.ndarray, x0: np.ndarray, u0: np.ndarray, 
 
     Passes if ``|x - x0|_inf <= 5 %`` of ``|delta|_inf`` on ``[H, 1.2 H]``
     with ``H = tau (5 + ln kappa)`` (s), as for observers.
+
+    Parameters
+    ----------
+    plant, K, x0, u0 : Plant, ndarray (m, n), ndarray (n,), ndarray (m,)
+        The plant, gain (input per state unit), operating point (m) and input (m^3/s).
+    tau, ts, conditioning, rule : float, float, float, str
+        Time constant [s], sampling period [s], eigenvector conditioning ``kappa``, rule that gave ``tau``.
+    trace : TraceRecorder, optional
+        Recorder of the simulated runs.
     """
     if not np.isfinite(tau) or tau <= 0:
         return Check("regulation", False, f"the closed loop has no finite time constant (tau = {tau})")

@@ -69,7 +69,15 @@ OFFSET_TOLERANCE = 0.25
 
 # ================================================================== own norm numerics
 def h2_norm(A: np.ndarray, B: np.ndarray, C: np.ndarray, dt: float | None) -> float:
-    """H2 norm of ``(A, B, C, 0)`` from the controllability Gramian; inf if not stable."""
+    """H2 norm of ``(A, B, C, 0)`` from the controllability Gramian; inf if not stable.
+
+    Parameters
+    ----------
+    A, B, C : ndarray
+        State, disturbance-input and performance-output matrices.
+    dt : float or None
+        Sampling period [s]; None: continuous time.
+    """
     A, B, C = (np.asarray(M, float) for M in (A, B, C))
     lam = np.linalg.eigvals(A)
     if (dt is None and np.max(lam.real) >= 0) or (dt is not None and np.max(np.abs(lam)) >= 1):
@@ -100,6 +108,15 @@ def hinf_norm(A: np.ndarray, B: np.ndarray, C: np.ndarray, dt: float | None,
 
     Discrete time goes through ``z = (1 + s) / (1 - s)`` (same norm). Returns
     ``(inf, inf)`` for an unstable system.
+
+    Parameters
+    ----------
+    A, B, C : ndarray
+        State, disturbance-input and performance-output matrices.
+    dt : float or None
+        Sampling period [s]; None: continuous time.
+    rtol : float, optional
+        Relative width of the bracket (dimensionless).
     """
     A, B, C = (np.asarray(M, float) for M in (A, B, C))
     n = A.shape[0]
@@ -471,6 +488,15 @@ def synthesis_verdict(doc: Mapping[str, Any], spec: Any, *,
     ``h2_optimality`` (H2 methods), ``region`` + ``lmi_recheck``
     (multi-objective), then ``regulation`` or ``observer_convergence`` and
     ``disturbance_step`` on the nonlinear plant.
+
+    Parameters
+    ----------
+    doc : mapping
+        The artefact.
+    spec : Spec
+        The validated spec.
+    trace : TraceRecorder, optional
+        Records the simulated runs when given.
     """
     c = _read(doc, spec)
     c["method"] = doc["method"]
@@ -495,5 +521,12 @@ def synthesis_run(doc: Mapping[str, Any], spec: Any) -> "EstimatorRun | ClosedLo
 
     The same runs as ``lmi_placement`` artefacts
     (`tanksynth.verify.estimation_runs.placement_run`).
+
+    Parameters
+    ----------
+    doc : mapping
+        The artefact.
+    spec : Spec
+        The validated spec.
     """
     return placement_run(doc, spec)

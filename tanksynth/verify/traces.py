@@ -96,7 +96,17 @@ class TraceRecorder:
 
     def record(self, result: Any, plant: Any, *, scenario: str, check: str, estimator: bool = False,
                reference_names: Sequence[str] | None = None, runs: int = TRACE_RUNS) -> None:
-        """Keep the trace of ``result`` (see `trace_of`) unless one is already kept."""
+        """Keep the trace of ``result`` (see `trace_of`) unless one is already kept.
+
+        Parameters
+        ----------
+        result, plant : SimulationResult, Plant
+            The simulated runs and the plant model.
+        scenario, check : str
+            Names of the scenario and the check the runs belong to.
+        estimator, reference_names, runs : bool, sequence of str or None, int
+            Whether estimates are kept, names of the references, number of runs kept.
+        """
         if self.trace is None:
             self.trace = trace_of(result, plant, scenario=scenario, check=check, estimator=estimator,
                                   reference_names=reference_names, runs=runs)

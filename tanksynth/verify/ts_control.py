@@ -82,7 +82,13 @@ class RebuiltModel:
         self.g = np.array([r["g"] for r in ineq], dtype=float)
 
     def inside(self, X: np.ndarray, tol: float = 0.0) -> np.ndarray:
-        """Rows of ``X`` in the domain (box and orderings), with a tolerance (state units)."""
+        """Rows of ``X`` in the domain (box and orderings), with a tolerance (state units).
+
+        Parameters
+        ----------
+        X, tol : ndarray (M, n), float
+            States and tolerance (state units, m).
+        """
         X = np.atleast_2d(X)
         ok = np.all((X >= self.lo_box - tol) & (X <= self.hi_box + tol), axis=-1)
         if self.G.size:
@@ -97,7 +103,13 @@ class RebuiltModel:
         return G, g
 
     def memberships(self, X: np.ndarray) -> np.ndarray:
-        """``mu_i`` at M points (premises recomputed from the plant's atoms)."""
+        """``mu_i`` at M points (premises recomputed from the plant's atoms).
+
+        Parameters
+        ----------
+        X : ndarray, shape (M, n)
+            States (state units, m).
+        """
         X = np.atleast_2d(np.asarray(X, dtype=float))
         dt = (X - self.x0) @ self.forms.T
         with np.errstate(divide="ignore", invalid="ignore"):
@@ -112,7 +124,13 @@ class RebuiltModel:
 
 
 def rebuild_model(plant: Any, doc: Mapping[str, Any]) -> RebuiltModel:
-    """`RebuiltModel` of an artefact."""
+    """`RebuiltModel` of an artefact.
+
+    Parameters
+    ----------
+    plant, doc : Plant, mapping
+        The plant model and the artefact.
+    """
     return RebuiltModel(plant, doc)
 
 
@@ -134,7 +152,15 @@ def _weights(relaxation: str, r: int) -> list[dict]:
 
 def pdc_conditions(P: np.ndarray, A: np.ndarray, B: np.ndarray, K: np.ndarray, alpha: float,
                    relaxation: str) -> np.ndarray:
-    """Largest eigenvalue of every PDC condition matrix (must all be < 0)."""
+    """Largest eigenvalue of every PDC condition matrix (must all be < 0).
+
+    Parameters
+    ----------
+    P, A, B, K : ndarray (n, n), (r, n, n), (n, m), (r, m, n)
+        Lyapunov matrix, vertex matrices [1/s], input matrix, vertex gains (input per state unit).
+    alpha, relaxation : float, str
+        Decay rate [1/s]; ``"vertex"``, ``"tuan"`` or ``"all_pairs"``.
+    """
     r = A.shape[0]
     He = {}
     out = []
@@ -152,7 +178,15 @@ def pdc_conditions(P: np.ndarray, A: np.ndarray, B: np.ndarray, K: np.ndarray, a
 def region_level(P: np.ndarray, K: np.ndarray, G: np.ndarray, g: np.ndarray,
                  margins: np.ndarray | None, extra: np.ndarray | None = None,
                  estimate_faces: bool = False) -> float:
-    """Closed-form ``c`` of the certified region (see the module docstring)."""
+    """Closed-form ``c`` of the certified region (see the module docstring).
+
+    Parameters
+    ----------
+    P, K, G, g : ndarray
+        Lyapunov matrix, vertex gains (input per state unit), faces ``G e <= g`` (state units).
+    margins, extra, estimate_faces : ndarray or None, ndarray or None, bool
+        Input margins (input units; None: none), added to ``P^-1`` (observer), faces on the estimate too.
+    """
     Pi = np.linalg.inv(0.5 * (P + P.T))
     Pk = Pi if extra is None else Pi + extra
     vals = [g[l] ** 2 / (G[l] @ Pi @ G[l]) for l in range(len(g))]
@@ -169,13 +203,24 @@ class PDCLaw:
 
     ``premise_source`` (optional) is an object whose ``premise_states()``
     gives the states the premises are computed from (measured premises).
+
+    Parameters
+    ----------
+    model, K, premise_source : RebuiltModel, ndarray (r, m, n), object or None
+        Rebuilt TS model; vertex gains (input per state unit); gives ``premise_states()`` (None: estimate).
     """
 
     def __init__(self, model: RebuiltModel, K: np.ndarray, premise_source: Any = None):
         self.model, self.K, self.source = model, K, premise_source
 
     def raw(self, x_hat: np.ndarray, xz: np.ndarray | None = None) -> np.ndarray:
-        """Unsaturated input (M, m)."""
+        """Unsaturated input (M, m).
+
+        Parameters
+        ----------
+        x_hat, xz : ndarray (M, n), ndarray (M, n) or None
+            Estimates and premise states (state units, m; None: ``x_hat``).
+        """
         mu = self.model.memberships(x_hat if xz is None else xz)
         E = x_hat - self.model.x0
         return self.model.u0 - np.einsum("mj,jan,mn->ma", mu, self.K, E)
@@ -191,6 +236,13 @@ class MeasuredPremiseObserver:
 
     ``dx_hat/dt = sum_i mu_i(z) (A_i (x_hat - x0) + B (u - u0)) + sum_j mu_j(z) L_j (y - C x_hat)``
     with ``z`` from the measured states.
+
+    Parameters
+    ----------
+    model, L : RebuiltModel, ndarray (r, n, q)
+        Rebuilt TS model; vertex gains (state units per output unit and s).
+    ts, substeps : float, int
+        Sampling period [s]; RK4 steps per period.
     """
 
     def __init__(self, model: RebuiltModel, L: np.ndarray, ts: float, substeps: int):
@@ -199,7 +251,13 @@ class MeasuredPremiseObserver:
         self._x = self._y = None
 
     def reset(self, x_hat0: np.ndarray) -> None:
-        """Initial estimates (M, n)."""
+        """Initial estimates (M, n).
+
+        Parameters
+        ----------
+        x_hat0 : ndarray, shape (M, n)
+            Initial estimates (state units, m).
+        """
         self._x, self._y = np.array(x_hat0, dtype=float), None
 
     def premise_states(self) -> np.ndarray:
@@ -210,7 +268,13 @@ class MeasuredPremiseObserver:
         return X
 
     def step(self, y: np.ndarray, u: np.ndarray) -> np.ndarray:
-        """Measurement (M, q), previous input (M, m) -> estimate (M, n)."""
+        """Measurement (M, q), previous input (M, m) -> estimate (M, n).
+
+        Parameters
+        ----------
+        y, u : ndarray (M, q), ndarray (M, m)
+            Measurements (output units, m) and previous inputs (input units, m^3/s).
+        """
         if self._y is not None:
             mu = self.m.memberships(self.premise_states())
             Lm = np.einsum("mj,jnq->mnq", mu, self.L)
@@ -245,7 +309,13 @@ class _PlantModel:
 
 def region_points(P: np.ndarray, c: float, count: int, seed: int,
                   scale: float = 1.0) -> np.ndarray:
-    """Seeded deviations: half on ``e' P e = scale^2 c``, half inside (radius uniform in (0, 1))."""
+    """Seeded deviations: half on ``e' P e = scale^2 c``, half inside (radius uniform in (0, 1)).
+
+    Parameters
+    ----------
+    P, c, count, seed, scale : ndarray (n, n), float, int, int, float
+        Lyapunov matrix, level ``c`` of ``e' P e <= c``, points, random seed, boundary radius factor.
+    """
     rng = np.random.default_rng(seed)
     n = P.shape[0]
     U = rng.normal(size=(count, n))
@@ -273,6 +343,13 @@ def simulate_region(doc: Mapping[str, Any], spec: Any, E0: np.ndarray, *, horizo
                     eps0: np.ndarray | None = None, trace: TraceRecorder | None = None,
                     ts: float | None = None) -> dict:
     """Closed-loop runs from ``x0 + E0`` (estimate ``x0 + E0 - eps0``): per-run flags and ``V``.
+
+    Parameters
+    ----------
+    doc, spec, E0, eps0 : mapping, Spec, ndarray (M, n), ndarray (M, n) or None
+        Artefact, spec, initial deviations and estimation errors (state units, m).
+    horizon, ts, trace : float, float or None, TraceRecorder or None
+        Simulated time [s], sampling period [s] (None: the spec's), recorder of the runs.
 
     Returns
     -------
@@ -333,7 +410,13 @@ def simulate_region(doc: Mapping[str, Any], spec: Any, E0: np.ndarray, *, horizo
 
 def ts_control_verdict(doc: Mapping[str, Any], spec: Any, *,
                        trace: TraceRecorder | None = None) -> list[Check]:
-    """Verdict of a ``ts_state_feedback`` / ``ts_output_feedback`` artefact (see the module)."""
+    """Verdict of a ``ts_state_feedback`` / ``ts_output_feedback`` artefact (see the module).
+
+    Parameters
+    ----------
+    doc, spec, trace : mapping, Spec, TraceRecorder or None
+        The artefact, the validated spec and a recorder of the simulated runs.
+    """
     plant = spec.plant
     n, m = plant.n, plant.m
     diag = doc.get("diagnostics") or {}
@@ -475,7 +558,13 @@ def _observer_checks(doc: Mapping[str, Any], s: dict) -> list[Check]:
 
 
 def ts_control_run(doc: Mapping[str, Any], spec: Any) -> ClosedLoop:
-    """Campaign runner: the PDC law (and its observer) in closed loop (`ClosedLoop`)."""
+    """Campaign runner: the PDC law (and its observer) in closed loop (`ClosedLoop`).
+
+    Parameters
+    ----------
+    doc, spec : mapping, Spec
+        The artefact and the validated spec.
+    """
     s = _sim_setup(doc, spec)
     ts = sampling_period(spec)
     model = s["model"]

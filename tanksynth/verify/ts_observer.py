@@ -61,12 +61,24 @@ class TSObserver:
         self._y: np.ndarray | None = None
 
     def reset(self, x_hat0: np.ndarray) -> None:
-        """Initial estimates (M, n)."""
+        """Initial estimates (M, n).
+
+        Parameters
+        ----------
+        x_hat0 : ndarray, shape (M, n)
+            Initial estimates (state units, m).
+        """
         self._x = np.asarray(x_hat0, dtype=float).copy()
         self._y = None
 
     def step(self, y: np.ndarray, u: np.ndarray) -> np.ndarray:
-        """Measurement (M, q), previous input (M, m) -> estimate (M, n)."""
+        """Measurement (M, q), previous input (M, m) -> estimate (M, n).
+
+        Parameters
+        ----------
+        y, u : ndarray (M, q), ndarray (M, m)
+            Measurements (output units, m) and previous inputs (input units, m^3/s).
+        """
         if self._y is not None:
             x = self._x
             for _ in range(self.substeps):
@@ -159,6 +171,11 @@ def ts_observer_verdict(doc: Mapping[str, Any], spec: Any, *,
     hold), ``rank_observability`` of ``(A0, C)`` and of every vertex, and
     ``observer_convergence`` of the multiple observer (20) on the nonlinear
     plant.
+
+    Parameters
+    ----------
+    doc, spec, trace : mapping, Spec, TraceRecorder or None
+        The artefact, the validated spec and a recorder of the simulated runs.
     """
     plant = spec.plant
     n, q, m = plant.n, plant.q, plant.m
