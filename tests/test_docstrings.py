@@ -5,7 +5,9 @@ function and each public method of a public class (public: in the module's ``__a
 and defined there), every name of the signature (``*args`` / ``**kwargs`` included, ``self``
 and ``cls`` not) must be an entry of ``Parameters`` (or ``Other Parameters``); a class's
 constructor parameters may be documented in the class's ``Parameters`` or ``Attributes``
-section. A property, or a function without parameters, passes. A parameter whose name starts
+section. A property, or a function without parameters, passes. An override (``from_table`` of
+each Options class) inherits the Parameters of the nearest base-class method of the same name.
+A parameter whose name starts
 with ``_`` (a dataclass field such as ``_cache``, a private keyword such as ``_dual``) is an
 implementation detail, not part of the public signature: it is not checked. Nor is the
 constructor of a ``typing.Protocol`` (an interface that is never instantiated; its methods are).
@@ -70,9 +72,20 @@ def _public_objects(module_name: str):
                 if isinstance(member, (staticmethod, classmethod)):
                     member = member.__func__
                 if inspect.isfunction(member):
-                    yield f"{module_name}.{name}.{attr}", member, "method"
+                    yield f"{module_name}.{name}.{attr}", member, _inherited_doc(obj, attr)
         elif inspect.isfunction(obj):
             yield f"{module_name}.{name}", obj, "function"
+
+
+def _inherited_doc(cls, attr: str) -> str:
+    """The docstring an override inherits: the nearest base class's method of the same name."""
+    for base in cls.__mro__[1:]:
+        member = vars(base).get(attr)
+        if isinstance(member, (staticmethod, classmethod)):
+            member = member.__func__
+        if inspect.isfunction(member) and member.__doc__:
+            return member.__doc__
+    return ""
 
 
 def undocumented() -> dict[str, list[str]]:
@@ -88,6 +101,10 @@ def undocumented() -> dict[str, list[str]]:
                 missing = [m for m in missing if m not in _documented(init.__doc__, "Parameters")]
             else:
                 missing = _missing(obj, obj.__doc__)
+                if kind not in ("function", "method") and missing:
+                    # an override documents only what differs: the base method's entries count
+                    # when its signature has the same names (``from_table`` of every Options)
+                    missing = [m for m in missing if m not in _documented(kind, "Parameters")]
             if missing:
                 out[qualname] = missing
     return out

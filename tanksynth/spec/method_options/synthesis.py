@@ -51,6 +51,13 @@ def inflow_matrix(plant: Any, key: str = "Bw") -> np.ndarray:
     its common cross-section ``A``; the state ``i`` must be the level of tank
     ``i`` (level unit per s per inflow unit: m/s per m^3/s with SI parameters).
 
+    Parameters
+    ----------
+    plant : Plant
+        The plant (tank areas in m^2, states the tank levels in m).
+    key : str, optional
+        The spec key named in an error (default ``"Bw"``).
+
     Raises
     ------
     SpecError
@@ -79,12 +86,24 @@ def _span(bounds: Any, size: int) -> np.ndarray:
 
 
 def bryson_state_weight(plant: Any) -> np.ndarray:
-    """Bryson's ``Q = diag(1 / span_i^2)`` over the operating region's box (1 / state unit^2)."""
+    """Bryson's ``Q = diag(1 / span_i^2)`` over the operating region's box (1 / state unit^2).
+
+    Parameters
+    ----------
+    plant : Plant
+        The plant; its operating region's box gives each state's span (state units).
+    """
     return np.diag(1.0 / _span(plant.region.bounds, plant.n) ** 2)
 
 
 def bryson_input_weight(plant: Any) -> np.ndarray:
-    """Bryson's ``R = diag(1 / range_j^2)`` over the actuators' ranges (1 / input unit^2)."""
+    """Bryson's ``R = diag(1 / range_j^2)`` over the actuators' ranges (1 / input unit^2).
+
+    Parameters
+    ----------
+    plant : Plant
+        The plant; its input limits give each actuator's range (input units, m^3/s).
+    """
     return np.diag(1.0 / _span(plant.input_limits, plant.m) ** 2)
 
 
