@@ -9,6 +9,7 @@ import numpy as np
 
 import sympy as sp
 
+from tanksynth.analysis.symbolic import TooComplexError, symbolic_budget
 from tanksynth.analysis.linearize import equilibrium_input, linearize, symbolic_jacobians
 from tanksynth.plants.base import Plant
 from tanksynth.analysis.rank import (controllability_rank, nonlinear_observability, observability_rank, pbh_test,
@@ -110,7 +111,12 @@ def rank_conditions(plant: Plant, x0: Sequence[float], ts: float | None = None,
                             "not attempted: the Jacobian keeps non-smooth terms on the region "
                             "(hybrid switching or undetermined flow directions)"))
     else:
-        sym = symbolic_observability(F_sym, C_sym, variables=plant.x)
+        try:
+            with symbolic_budget("the symbolic observability determinant"):
+                sym = symbolic_observability(F_sym, C_sym, variables=plant.x)
+        except TooComplexError as exc:
+            checks.append(Check("symbolic_observability", None, f"not attempted: {exc.detail}"))
+            return checks
         if sym.degenerate_parameters:
             detail = "rank < n for every state when " + " or ".join(
                 "(" + ", ".join(f"{k} = {v}" for k, v in d.items()) + ")" for d in sym.degenerate_parameters)

@@ -34,7 +34,7 @@ if TYPE_CHECKING:  # the artefact only reads a result's fields; no import of the
 
 __all__ = ["SCHEMA", "PLANT_SCHEMA", "EXPORT_FORMATS", "write_plant_record", "read_plant_record", "to_jsonable", "gains_digest", "artefact_document",
            "write_artefact", "read_artefact", "content_digest", "file_sha256", "check_npz",
-           "check_orphan_npz", "check_plant_record", "rehash"]
+           "check_orphan_npz", "check_plant_record", "rehash", "other_spec_files"]
 
 SCHEMA = "tanksynth.artefact/1"
 PLANT_SCHEMA = "tanksynth.plant/1"
@@ -517,3 +517,61 @@ def rehash(path: str | Path) -> Path:
     atomic_write(path.with_suffix(".npz"), npz)
     atomic_write(path, json.dumps(doc, indent=2, allow_nan=False) + "\n")
     return path
+
+
+#: Files of a result directory that belong to the run as a whole (not to one design).
+_RUN_FILES = ("plant.json", "spec.toml", "checks.json", "campaign.csv", "campaign.json", "report.tex",
+              "report.pdf", "report.log")
+#: Files written beside an artefact ``<name>.json``.
+_SIBLING_SUFFIXES = (".npz", ".traces.npz", ".mat", ".h", "_law.c", "_law.h", "_law.casadi")
+
+
+def other_spec_files(directory: str | Path, spec_sha256: str) -> tuple[str, list[Path]]:
+    """What in ``directory`` was written from another spec than ``spec_sha256``.
+
+    Parameters
+    ----------
+    directory : str or Path
+    spec_sha256 : str
+        sha256 of the spec about to be designed into ``directory``.
+
+    Returns
+    -------
+    reason : str
+        Empty when nothing was written from another spec; else which file
+        says so (the plant record or an artefact's provenance).
+    files : list of Path
+        The files of that other run (its artefacts with their ``.npz``,
+        traces and exports, and its checks, campaign and report), which
+        ``design --force`` removes before writing.
+    """
+    directory = Path(directory)
+    if not directory.is_dir():
+        return "", []
+    reason, files = "", []
+    record = directory / "plant.json"
+    if record.is_file():
+        try:
+            other = json.loads(record.read_text(encoding="utf-8")).get("spec_sha256")
+        except (OSError, ValueError, AttributeError):
+            other = None
+        if other != spec_sha256:
+            reason = f"{record} was written from another spec (spec_sha256 {str(other)[:12]}...)"
+            files += [directory / f for f in _RUN_FILES[2:] if (directory / f).is_file()]
+    for path in sorted(directory.glob("*.json")):
+        if path.name in _RUN_FILES:
+            continue
+        try:
+            doc = json.loads(path.read_text(encoding="utf-8"))
+        except (OSError, ValueError):
+            continue
+        if not isinstance(doc, dict) or doc.get("schema") != SCHEMA:
+            continue
+        other = (doc.get("provenance") or {}).get("spec_sha256") if isinstance(
+            doc.get("provenance"), dict) else None
+        if other != spec_sha256:
+            reason = reason or f"{path} was designed from another spec (spec_sha256 {str(other)[:12]}...)"
+            stem = path.name[:-len(".json")]
+            files += [path] + [directory / f"{stem}{sfx}" for sfx in _SIBLING_SUFFIXES
+                               if (directory / f"{stem}{sfx}").is_file()]
+    return reason, files
