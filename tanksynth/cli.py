@@ -50,6 +50,29 @@ def _load(spec_path: str | None):
     return load_spec(spec_path)
 
 
+def _keyed(exc: TanksynthError, key: str, source: str | None) -> SpecError:
+    """A bad-input error raised while working on spec key ``key``, naming the file and key."""
+    if isinstance(exc, SpecError):
+        if exc.key and exc.key.split(".")[0].split("[")[0] in ("design", "plant", "sampling",
+                                                                "operating_point"):
+            full = exc.key
+        else:
+            full = f"{key}.{exc.key}" if exc.key else key
+        return type(exc)(exc.detail, key=full, source=exc.source or source)
+    return SpecError(f"{type(exc).__name__}: {_one_line(exc)}", key=key, source=source)
+
+
+def _rank_conditions(s):
+    from tanksynth.analysis.checks import rank_conditions
+
+    try:
+        return rank_conditions(s.plant, s.x0, s.ts, s.given_u0)
+    except InfeasibleDesign:
+        raise
+    except TanksynthError as exc:
+        raise _keyed(exc, "plant", s.source) from None
+
+
 def _print_checks(checks, title: str = "Rank conditions") -> None:
     table = Table(title=title)
     table.add_column("check")
@@ -100,6 +123,8 @@ def _design_all(spec, outdir: Path, export: tuple[str, ...]) -> tuple[list[Path]
             results.append((design, METHODS[design.method].design(spec, design)))
         except InfeasibleDesign as exc:
             infeasible.append(f"{design.name}: {_one_line(exc)}")
+        except TanksynthError as exc:
+            raise _keyed(exc, design.key, spec.source) from None
     plant_sha = file_sha256(write_plant_record(spec, outdir))
     written = []
     for design, result in results:
@@ -150,10 +175,9 @@ def plants(as_json: bool) -> None:
 def check(spec: str, as_json: bool) -> None:
     """Observability/controllability rank conditions of SPEC's plant."""
     from tanksynth.artefacts.io import to_jsonable
-    from tanksynth.analysis.checks import rank_conditions
 
     s = _load(spec)
-    checks = rank_conditions(s.plant, s.x0, s.ts, s.given_u0)
+    checks = _rank_conditions(s)
     if as_json:
         click.echo(json.dumps(to_jsonable([c.as_dict() for c in checks]), indent=2))
     else:
@@ -208,7 +232,6 @@ def run(spec: str | None, outdir: str, pdf: bool | None, force: bool) -> None:
 
 
 def _run_locked(s, spec: str | None, out: Path, pdf: bool | None) -> None:
-    from tanksynth.analysis.checks import rank_conditions
     from tanksynth.artefacts.atomic import atomic_write
     from tanksynth.artefacts.io import to_jsonable
     from tanksynth.methods import verify_directory
@@ -216,7 +239,7 @@ def _run_locked(s, spec: str | None, out: Path, pdf: bool | None) -> None:
     have_tex = all(shutil.which(tool) for tool in ("pdflatex", "latexmk"))
     if pdf is None:
         pdf = spec is None and have_tex
-    checks = rank_conditions(s.plant, s.x0, s.ts, s.given_u0)
+    checks = _rank_conditions(s)
     _print_checks(checks)
     if s.designs:
         _out.print(f"designing {len(s.designs)} gain(s): "
