@@ -172,11 +172,21 @@ def plants(as_json: bool) -> None:
 @cli.command()
 @click.argument("spec", type=click.Path(dir_okay=False))
 @click.option("--json", "as_json", is_flag=True, help="Print JSON instead of a table.")
-def check(spec: str, as_json: bool) -> None:
+@click.option("--spec-only", is_flag=True,
+              help="Only validate SPEC (plant, operating point, every design's options); no rank checks.")
+def check(spec: str, as_json: bool, spec_only: bool) -> None:
     """Observability/controllability rank conditions of SPEC's plant."""
     from tanksynth.artefacts.io import to_jsonable
 
     s = _load(spec)
+    if spec_only:
+        summary = {"spec": spec, "plant": s.plant.name, "designs": [d.name for d in s.designs]}
+        if as_json:
+            click.echo(json.dumps(summary, indent=2))
+        else:
+            _out.print(f"{spec}: valid; plant {s.plant.name}, {len(s.designs)} design(s)",
+                       markup=False, highlight=False)
+        return
     checks = _rank_conditions(s)
     if as_json:
         click.echo(json.dumps(to_jsonable([c.as_dict() for c in checks]), indent=2))

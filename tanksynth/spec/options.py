@@ -406,7 +406,7 @@ def parse_region(value: Any, key: str) -> tuple[tuple, ...]:
         if not isinstance(item, Mapping):
             raise SpecError("expected a table with a 'type'", key=k)
         kind = item.get("type")
-        if kind not in _REGION_FIELDS:
+        if not isinstance(kind, str) or kind not in _REGION_FIELDS:
             raise SpecError(f"unknown region type {kind!r}; expected one of {list(_REGION_FIELDS)}"
                             + did_you_mean(kind, list(_REGION_FIELDS)), key=f"{k}.type")
         fields = _REGION_FIELDS[kind]
