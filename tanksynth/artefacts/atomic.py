@@ -19,6 +19,7 @@ from __future__ import annotations
 import json
 import os
 import socket
+import stat
 import tempfile
 import threading
 import time
@@ -124,10 +125,16 @@ def _alive(pid: int) -> bool:
 
 
 def _holder(lock: Path) -> dict:
+    """The lock's holder record; {} for anything but a small regular file of JSON (a FIFO or
+    a device in its place must not block or flood the reader)."""
     try:
-        info = json.loads(lock.read_text(encoding="utf-8"))
+        fd = os.open(lock, os.O_RDONLY | os.O_NONBLOCK)
+        with os.fdopen(fd, "rb", buffering=0) as fh:
+            if not stat.S_ISREG(os.fstat(fd).st_mode):
+                return {}
+            info = json.loads(fh.read(65536).decode("utf-8"))
         return info if isinstance(info, dict) else {}
-    except (OSError, ValueError):
+    except (OSError, ValueError, RecursionError):
         return {}
 
 
@@ -185,7 +192,8 @@ def directory_lock(directory: str | Path, command: str = "tanksynth") -> Iterato
             fh.write(json.dumps(me) + "\n")
         break
     else:
-        raise ArtefactError(f"{directory}: could not take the lock {lock}")
+        raise ArtefactError(f"{directory}: could not take the lock {lock} (unreadable, not written "
+                            "by tanksynth); remove it if no run is using the directory")
     try:
         yield lock
     finally:

@@ -5,6 +5,7 @@ bounded time and memory)."""
 from __future__ import annotations
 
 import contextlib
+import faulthandler
 import io
 import json
 import math
@@ -23,6 +24,8 @@ SCALE = max(1, int(os.environ.get("TANKSYNTH_FUZZ_SCALE", "1")))
 #: Time bound of one case (s) and of the process's peak memory (bytes).
 MAX_SECONDS = float(os.environ.get("TANKSYNTH_FUZZ_SECONDS", "20"))
 MAX_RSS = 3 * 1024 ** 3
+#: A case still running after this many seconds is a hang: the process dumps its stacks and exits.
+WATCHDOG_SECONDS = 300
 
 _BARE = re.compile(r"[A-Za-z0-9_-]+\Z")
 
@@ -62,8 +65,14 @@ def run(argv: list[str]) -> tuple[int, str, str, float]:
     """``tanksynth.cli.main(argv)`` in this process: exit code, stdout, stderr, seconds."""
     out, err = io.StringIO(), io.StringIO()
     t0 = time.perf_counter()
-    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
-        code = main([str(a) for a in argv])
+    # A hang (a blocking open, a runaway loop) must fail the run, not stall it: past the
+    # watchdog the worker dumps every stack and exits.
+    faulthandler.dump_traceback_later(WATCHDOG_SECONDS, exit=True)
+    try:
+        with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+            code = main([str(a) for a in argv])
+    finally:
+        faulthandler.cancel_dump_traceback_later()
     return code, out.getvalue(), err.getvalue(), time.perf_counter() - t0
 
 

@@ -287,3 +287,14 @@ def test_a_fifo_or_device_in_a_result_directory_does_not_hang(result_dir, tmp_pa
     (d / "plant.json").symlink_to("/dev/zero")
     code, _, err, _ = run(["verify", d, "--json"])
     assert code == 2 and "not a regular file" in err, err
+
+
+def test_a_fifo_as_the_lock_file_does_not_hang(result_dir, tmp_path):
+    import shutil
+
+    d = tmp_path / "d"
+    shutil.copytree(result_dir, d)
+    os.mkfifo(d / ".tanksynth.lock")
+    t0 = time.perf_counter()
+    code, _, err, _ = run(["verify", d, "--json"])
+    assert code == 2 and ".tanksynth.lock" in err and time.perf_counter() - t0 < 10, err
