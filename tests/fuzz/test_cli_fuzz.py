@@ -128,6 +128,13 @@ _DIR_OPS = ["delete", "truncate", "flip", "json_set", "json_delete", "swap", "or
             "directory", "garbage_json", "symlink", "spec", "fifo"]
 
 
+def _clear_special(path) -> None:
+    """Remove ``path`` if an earlier edit made it a symlink, FIFO or directory (the test never
+    writes through one)."""
+    if path.is_symlink() or (path.exists() and not path.is_file()):
+        path.rmdir() if path.is_dir() and not path.is_symlink() else path.unlink()
+
+
 def _edit_directory(d, data) -> str:
     # Regular files only: an edit never writes through a symlink an earlier edit made.
     files = sorted(p for p in d.iterdir() if p.is_file() and not p.is_symlink())
@@ -176,17 +183,23 @@ def _edit_directory(d, data) -> str:
         orphan = d / data.draw(st.sampled_from(["x.npz", "x.json", "plant.npz", "x.traces.npz"]),
                                label="orphan")
         if orphan != target:
+            _clear_special(orphan)
             shutil.copyfile(target, orphan)
     elif op == "lock":
         info = data.draw(st.one_of(_values, st.fixed_dictionaries(
             {"pid": st.sampled_from([os.getpid(), 1, 2 ** 22 + 12345, -1]),
              "host": st.sampled_from([os.uname().nodename, "elsewhere"])})), label="lock")
-        (d / ".tanksynth.lock").write_text(json.dumps(info), encoding="utf-8")
+        lock = d / ".tanksynth.lock"
+        _clear_special(lock)
+        lock.write_text(json.dumps(info), encoding="utf-8")
     elif op == "directory":
         target.unlink()
         target.mkdir()
     elif op == "garbage_json":
-        (d / "zz.json").write_text(json.dumps(data.draw(_values, label="garbage")), encoding="utf-8")
+        garbage = d / "zz.json"
+        if garbage.exists() or garbage.is_symlink():
+            return "zz.json exists"
+        garbage.write_text(json.dumps(data.draw(_values, label="garbage")), encoding="utf-8")
     elif op == "symlink":
         target.unlink()
         target.symlink_to(data.draw(st.sampled_from(["/etc/passwd", "/nonexistent", "/dev/zero"]),
@@ -195,7 +208,9 @@ def _edit_directory(d, data) -> str:
         target.unlink()
         os.mkfifo(target)
     elif op == "spec":
-        (d / "spec.toml").write_text(data.draw(st.text(max_size=40), label="spec"), encoding="utf-8",
+        spec = d / "spec.toml"
+        _clear_special(spec)
+        spec.write_text(data.draw(st.text(max_size=40), label="spec"), encoding="utf-8",
                                      errors="surrogatepass")
     return f"{op} {target.name}"
 
