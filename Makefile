@@ -4,7 +4,7 @@ VENV   := .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
 
-.PHONY: demo test bench tex clean docs
+.PHONY: demo test fuzz bench tex clean docs
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -28,6 +28,11 @@ demo: $(STAMP)
 test: $(STAMP) tex
 	$(VENV)/bin/lint-imports --no-logo
 	$(PY) -m pytest -n 2 -q
+
+# The adversarial property tests at ten times the scale of `make test` (>= 20,000 generated specs
+# and edited result directories through the CLI entry point), randomised on every run.
+fuzz: $(STAMP)
+	TANKSYNTH_FUZZ_SCALE=10 $(PY) -m pytest -n 2 -q tests/fuzz/test_cli_fuzz.py --hypothesis-show-statistics
 
 bench: $(STAMP)
 	@for script in benchmarks/*.py; do echo "== $$script"; $(PY) $$script || exit 1; done

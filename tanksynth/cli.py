@@ -2,8 +2,11 @@
 
 Exit codes: 0 success, 1 a verification (rank) check failed, 2 bad input
 (one line on stderr, no traceback; also an operating-system error on a named
-path), 3 a design was infeasible (no artefact written for it), 4 an internal
-error (a bug: one line on stderr naming a log file that holds the traceback).
+path, a result directory in use by another run or written from another spec,
+a problem too large for the memory budget), 3 a design was infeasible (no
+artefact written for it), 4 an internal error (a bug: one line on stderr
+naming a log file that holds the traceback). Library warnings never reach
+stderr: they are counted in one note on stdout.
 """
 
 from __future__ import annotations
@@ -95,6 +98,29 @@ def _load(spec_path: str | None):
     return load_spec(spec_path)
 
 
+def _keyed(exc: TanksynthError, key: str, source: str | None) -> SpecError:
+    """A bad-input error raised while working on spec key ``key``, naming the file and key."""
+    if isinstance(exc, SpecError):
+        if exc.key and exc.key.split(".")[0].split("[")[0] in ("design", "plant", "sampling",
+                                                                "operating_point"):
+            full = exc.key
+        else:
+            full = f"{key}.{exc.key}" if exc.key else key
+        return type(exc)(exc.detail, key=full, source=exc.source or source)
+    return SpecError(f"{type(exc).__name__}: {_one_line(exc)}", key=key, source=source)
+
+
+def _rank_conditions(s):
+    from tanksynth.analysis.checks import rank_conditions
+
+    try:
+        return rank_conditions(s.plant, s.x0, s.ts, s.given_u0)
+    except InfeasibleDesign:
+        raise
+    except TanksynthError as exc:
+        raise _keyed(exc, "plant", s.source) from None
+
+
 def _print_checks(checks, title: str = "Rank conditions") -> None:
     table = Table(title=title)
     table.add_column("check")
@@ -104,6 +130,29 @@ def _print_checks(checks, title: str = "Rank conditions") -> None:
         verdict = {True: "[green]pass[/]", False: "[red]FAIL[/]", None: "[blue]info[/]"}[c.passed]
         table.add_row(c.name, verdict, c.detail)
     _out.print(table)
+
+
+def _refuse_other_spec(spec, outdir: Path, force: bool) -> None:
+    """Refuse (exit 2) a directory written from another spec; with ``force``, remove that
+    run's files first."""
+    from tanksynth.artefacts.io import other_spec_files
+
+    reason, files = other_spec_files(outdir, spec.sha256)
+    if not reason:
+        return
+    if not force:
+        raise SpecError(f"{reason}; choose another output directory, or pass --force to replace "
+                        f"its {len(files)} file(s) of that run", source=str(outdir))
+    for path in files:
+        path.unlink(missing_ok=True)
+    _out.print(f"--force: removed {len(files)} file(s) of another spec's run from {outdir}",
+               markup=False, highlight=False)
+
+
+def _locked(directory, command: str):
+    from tanksynth.artefacts.atomic import directory_lock
+
+    return directory_lock(directory, command=command)
 
 
 def _design_all(spec, outdir: Path, export: tuple[str, ...]) -> tuple[list[Path], list[str]]:
@@ -136,6 +185,8 @@ def _design_all(spec, outdir: Path, export: tuple[str, ...]) -> tuple[list[Path]
             except InfeasibleDesign as exc:
                 infeasible.append(f"{design.name}: {_one_line(exc)}")
                 refused.append(refusal(design.name, design.method, exc))
+            except TanksynthError as exc:
+                raise _keyed(exc, design.key, spec.source) from None
         for w in caught:
             if issubclass(w.category, DesignWarning):
                 names = seen.setdefault(_one_line(w.message), [])
@@ -270,13 +321,23 @@ def methods(name: str | None, as_json: bool, markdown: bool) -> None:
 @click.option("--json", "as_json", is_flag=True, help="Print JSON instead of a table.")
 @click.option("-o", "--output", "outdir", default=None, type=click.Path(file_okay=False),
               help="Also write the verdicts to DIR/checks.json (the file the report reads).")
-def check(spec: str, as_json: bool, outdir: str | None) -> None:
+@click.option("--spec-only", is_flag=True,
+              help="Only validate SPEC (plant, operating point, every design's options); no rank checks.")
+def check(spec: str, as_json: bool, outdir: str | None, spec_only: bool) -> None:
     """Observability/controllability rank conditions of SPEC's plant."""
     from tanksynth.artefacts.io import to_jsonable
-    from tanksynth.analysis.checks import rank_conditions
 
     s = _load(spec)
-    checks = rank_conditions(s.plant, s.x0, s.ts, s.given_u0)
+    if spec_only:
+        summary = {"spec": spec, "plant": s.plant.name, "designs": [d.name for d in s.designs]}
+        if as_json:
+            click.echo(json.dumps(summary, indent=2))
+        else:
+            _out.print(f"{spec}: valid; plant {s.plant.name}, {len(s.designs)} design(s)",
+                       markup=False, highlight=False)
+        return
+    with _stage("rank conditions (Kalman, PBH, nonlinear observability)"):
+        checks = _rank_conditions(s)
     text = json.dumps(to_jsonable([c.as_dict() for c in checks]), indent=2)
     if outdir is not None:
         from tanksynth.artefacts.atomic import atomic_write
@@ -300,12 +361,16 @@ def check(spec: str, as_json: bool, outdir: str | None) -> None:
 @click.option("--export", multiple=True, type=click.Choice(["mat", "h", "law"]),
               help="Also write .mat files, C headers of the gains, or the control law as a "
                    "CasADi Function and generated C (repeatable).")
-def design(spec: str, outdir: str, export: tuple[str, ...]) -> None:
+@click.option("--force", is_flag=True,
+              help="Replace the files of a run of ANOTHER spec found in the output directory.")
+def design(spec: str, outdir: str, export: tuple[str, ...], force: bool) -> None:
     """Write one artefact per [[design]] entry of SPEC."""
     s = _load(spec)
     if not s.designs:
         raise SpecError("the spec has no [[design]] entry", key="design", source=spec)
-    written, infeasible = _design_all(s, Path(outdir), export)
+    with _locked(outdir, "design"):
+        _refuse_other_spec(s, Path(outdir), force)
+        written, infeasible = _design_all(s, Path(outdir), export)
     for path in written:
         _out.print(f"wrote {path}")
     if infeasible:
@@ -325,24 +390,31 @@ def _refused_summary(infeasible: list[str], total: int) -> str:
 @click.option("--pdf/--no-pdf", default=None,
               help="Also compile the report to DIR/report.pdf (LaTeX). Default: on for the built-in "
                    "demo when pdflatex and latexmk are installed, off otherwise.")
-def run(spec: str | None, outdir: str, pdf: bool | None) -> None:
+@click.option("--force", is_flag=True,
+              help="Replace the files of a run of ANOTHER spec found in the output directory.")
+def run(spec: str | None, outdir: str, pdf: bool | None, force: bool) -> None:
     """Rank checks, every design of SPEC, their verification and the report.
 
     With no SPEC, the built-in demo: LMI-region and exact pole placement with integral
     action, a certified Takagi-Sugeno observer and an EKF on the DTS200 three-tank.
     """
-    from tanksynth.analysis.checks import rank_conditions
+    s = _load(spec)
+    out = Path(outdir)
+    with _locked(out, "run"):
+        _refuse_other_spec(s, out, force)
+        _run_locked(s, spec, out, pdf)
+
+
+def _run_locked(s, spec: str | None, out: Path, pdf: bool | None) -> None:
     from tanksynth.artefacts.atomic import atomic_write
     from tanksynth.artefacts.io import to_jsonable
     from tanksynth.methods import verify_directory
 
-    s = _load(spec)
-    out = Path(outdir)
     have_tex = all(shutil.which(tool) for tool in ("pdflatex", "latexmk"))
     if pdf is None:
         pdf = spec is None and have_tex
     with _stage("rank conditions (Kalman, PBH, nonlinear observability)"):
-        checks = rank_conditions(s.plant, s.x0, s.ts, s.given_u0)
+        checks = _rank_conditions(s)
     _print_checks(checks)
     if s.designs:
         _out.print(f"designing {len(s.designs)} gain(s): "
@@ -428,7 +500,10 @@ def _write_report(directory: Path, pdf: bool):
 @click.option("--pdf", is_flag=True, help="Also compile DIR/report.pdf with latexmk/pdflatex.")
 def report(directory: str, pdf: bool) -> None:
     """Write DIRECTORY/report.tex (and with --pdf report.pdf) from the files in it."""
-    _write_report(Path(directory), pdf)
+    if not Path(directory).is_dir():
+        raise SpecError("no such result directory", source=directory)
+    with _locked(directory, "report"):
+        _write_report(Path(directory), pdf)
 
 
 @cli.command()
@@ -449,16 +524,26 @@ def report(directory: str, pdf: bool) -> None:
 def verify(directory: str, scheduler: str | None, as_json: bool, runs: int,
            scenarios: tuple[str, ...], seed: int, workers: int, connect_timeout: float) -> None:
     """Simulate every artefact of DIRECTORY and record the verdicts in it."""
+    from tanksynth.sim.scenarios import scenario
+
+    for name in scenarios:
+        scenario(name)  # unknown names are bad input (exit 2) before any work
+    if not Path(directory).is_dir():
+        raise SpecError("no such result directory", source=directory)
+    with _locked(directory, "verify"):
+        _verify_locked(directory, scheduler, as_json, runs, scenarios, seed, workers, connect_timeout)
+
+
+def _verify_locked(directory: str, scheduler: str | None, as_json: bool, runs: int,
+                   scenarios: tuple[str, ...], seed: int, workers: int, connect_timeout: float) -> None:
     from rich.progress import Progress
 
     from tanksynth.artefacts.io import to_jsonable
     from tanksynth.verify.campaign import campaign_tasks, run_campaign
-    from tanksynth.sim.scenarios import SCENARIOS, scenario
+    from tanksynth.sim.scenarios import SCENARIOS
     from tanksynth.methods import METHODS, RUNNERS, verify_directory
     from tanksynth.verify.runner import load_directory
 
-    for name in scenarios:
-        scenario(name)  # unknown names are bad input (exit 2) before any work
     quiet = as_json
     with Progress(console=_out, transient=True, disable=quiet or not _live()) as bar:
         task = bar.add_task("verifying artefacts", total=None)
@@ -496,11 +581,49 @@ def verify(directory: str, scheduler: str | None, as_json: bool, runs: int,
 def main(argv: list[str] | None = None) -> int:
     """Run the CLI; return the exit code (bad input: 2, one line, no traceback).
 
+    Warnings raised by libraries while a command runs (numpy's RuntimeWarning
+    on a NaN handled downstream, ...) do not reach stderr: they are counted in
+    one note on stdout (none with ``--json``). A design's own `DesignWarning`
+    lines go to stderr (``warning: <designs>: <text>``). A file-size limit
+    (``ulimit -f``) is an error on the file being written (exit 2), not a signal.
+
     Parameters
     ----------
     argv : list of str, optional
         Arguments after ``tanksynth`` (default ``sys.argv[1:]``).
     """
+    import warnings
+
+    _ignore_file_size_signal()
+    args = list(sys.argv[1:] if argv is None else argv)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        code = _main(args)
+    _note_warnings(caught, quiet="--json" in args)
+    return code
+
+
+def _ignore_file_size_signal() -> None:
+    import signal
+    import threading
+
+    if hasattr(signal, "SIGXFSZ") and threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+
+
+def _note_warnings(caught: list, quiet: bool) -> None:
+    if not caught or quiet:
+        return
+    kinds = sorted({w.category.__name__ for w in caught})
+    first = _one_line(str(caught[0].message))[:120]
+    try:
+        _out.print(f"note: {len(caught)} library warning(s) ({', '.join(kinds)}) were handled; "
+                   f"first: {first}", markup=False, highlight=False)
+    except OSError:  # stdout closed: nothing more to say
+        pass
+
+
+def _main(argv: list[str]) -> int:
     try:
         with warnings.catch_warnings():
             warnings.showwarning = _show_warning  # one meaningful line, not a library's source line
@@ -525,7 +648,12 @@ def main(argv: list[str] | None = None) -> int:
         return EXIT_BAD_INPUT
     except OSError as exc:  # a path the user gave: unwritable, missing, full disk ...
         where = f"{exc.filename}: " if exc.filename else ""
-        click.echo(f"error: {where}{exc.strerror or _one_line(exc)}", err=True)
+        click.echo(f"error: {where}{exc.strerror or _one_line(exc)[:200]}", err=True)
+        return EXIT_BAD_INPUT
+    except MemoryError:
+        click.echo("error: out of memory: the problem is too large for this machine; reduce the "
+                   "sizes in the spec (samples, windows, grids, steps) or "
+                   "TANKSYNTH_MEMORY_BUDGET_MB", err=True)
         return EXIT_BAD_INPUT
     except Exception as exc:  # a bug: one line here, the traceback in a log file
         log = _internal_error_log()

@@ -1,20 +1,51 @@
 """The one atomic write: every file tanksynth leaves in a result directory goes through here.
 
-A file is written to a temporary file in the target's directory, made an
-ordinary readable file (0644), and renamed over the target (``os.replace``,
-atomic on POSIX): a reader sees the old file or the new one, never a partial
-one, and an interrupted run leaves no partial file. `stage` / `commit` split
-the two steps for writers that must publish several files together.
+A file is written to a temporary file in the target's directory, given the
+mode of the file it replaces (a new file: ``0666`` less the umask, as any
+ordinary file, so every output file of a run shares one mode), and renamed
+over the target (``os.replace``, atomic on POSIX): a reader sees the old file
+or the new one, never a partial one, and an interrupted run leaves no partial
+file. `stage` / `commit` split the two steps for writers that must publish
+several files together.
+
+`directory_lock` makes a result directory written by one run at a time: a
+lock file ``DIR/.tanksynth.lock`` holds the writer's pid, host and start
+time; a second run is refused naming them, and a lock left by a process that
+died (same host, pid gone) is taken over.
 """
 
 from __future__ import annotations
 
+import json
 import os
+import socket
+import stat
 import tempfile
+import threading
+import time
+from contextlib import contextmanager
 from pathlib import Path
-from typing import BinaryIO, Callable
+from typing import BinaryIO, Callable, Iterator
 
-__all__ = ["atomic_write", "stage", "commit", "discard"]
+from tanksynth.errors import ArtefactError
+
+__all__ = ["atomic_write", "stage", "commit", "discard", "file_mode", "directory_lock", "LOCK_NAME"]
+
+#: The lock file of a result directory.
+LOCK_NAME = ".tanksynth.lock"
+_umask_lock = threading.Lock()
+
+
+def file_mode(target: str | Path) -> int:
+    """The mode a file written to ``target`` gets: the existing file's permission bits, else
+    ``0o666`` less the process umask (what ``open(target, "w")`` would create)."""
+    try:
+        return os.stat(target).st_mode & 0o7777
+    except OSError:
+        with _umask_lock:
+            mask = os.umask(0o022)
+            os.umask(mask)
+        return 0o666 & ~mask
 
 #: What to write: bytes, text (UTF-8), or a function writing to a binary file object.
 Payload = bytes | str | Callable[[BinaryIO], None]
@@ -33,10 +64,15 @@ def stage(target: str | Path, payload: Payload) -> Path:
     Returns
     -------
     Path
-        The staged file (mode 0644); `commit` renames it, `discard` removes it.
+        The staged file (mode: `file_mode` of the target); `commit` renames
+        it, `discard` removes it.
     """
     target = Path(target)
-    fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
+    mode = file_mode(target)
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
+    except OSError as exc:  # name the file the user asked for, not the temporary one
+        raise OSError(exc.errno, exc.strerror, str(target)) from None
     try:
         with os.fdopen(fd, "wb") as fh:
             if isinstance(payload, str):
@@ -45,7 +81,12 @@ def stage(target: str | Path, payload: Payload) -> Path:
                 fh.write(payload)
             else:
                 payload(fh)
-        os.chmod(tmp, 0o644)  # mkstemp creates owner-only files; results are ordinary files
+        os.chmod(tmp, mode)  # mkstemp creates owner-only files; keep the target's mode
+    except OSError as exc:
+        discard(Path(tmp))
+        if exc.errno is None:
+            raise
+        raise OSError(exc.errno, exc.strerror, str(target)) from None
     except BaseException:
         discard(Path(tmp))
         raise
@@ -71,3 +112,102 @@ def atomic_write(target: str | Path, payload: Payload) -> Path:
         return commit(staged, target)
     finally:
         discard(staged)
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # exists, owned by someone else
+        return True
+    return True
+
+
+def _holder(lock: Path) -> dict:
+    """The lock's holder record; {} for anything but a small regular file of JSON (a FIFO or
+    a device in its place must not block or flood the reader)."""
+    try:
+        fd = os.open(lock, os.O_RDONLY | os.O_NONBLOCK)
+        with os.fdopen(fd, "rb", buffering=0) as fh:
+            if not stat.S_ISREG(os.fstat(fd).st_mode):
+                return {}
+            info = json.loads(fh.read(65536).decode("utf-8"))
+        return info if isinstance(info, dict) else {}
+    except (OSError, ValueError, RecursionError):
+        return {}
+
+
+@contextmanager
+def directory_lock(directory: str | Path, command: str = "tanksynth") -> Iterator[Path]:
+    """Hold ``DIR/.tanksynth.lock`` while a command writes into ``directory`` (created if missing).
+
+    Parameters
+    ----------
+    directory : str or Path
+        Created if missing (and removed again if the run left it empty).
+    command : str
+        What holds the lock (shown to a second run).
+
+    Yields
+    ------
+    Path
+        The lock file; removed on exit.
+
+    Raises
+    ------
+    ArtefactError
+        Another live process holds the lock (its pid, host, command and
+        start time are named). A lock of a dead process on this host is taken
+        over; a lock from another host is never broken automatically.
+    """
+    directory = Path(directory)
+    created = not directory.exists()
+    directory.mkdir(parents=True, exist_ok=True)
+    lock = directory / LOCK_NAME
+    me = {"pid": os.getpid(), "host": socket.gethostname(), "command": command,
+          "started": time.strftime("%Y-%m-%dT%H:%M:%S%z")}
+    for _ in range(3):
+        try:
+            fd = os.open(lock, os.O_WRONLY | os.O_CREAT | os.O_EXCL, file_mode(lock))
+        except FileExistsError:
+            info = _holder(lock)
+            pid, host = info.get("pid"), info.get("host")
+            if isinstance(pid, int) and host == me["host"] and not _alive(pid):
+                stale = lock.with_name(f"{LOCK_NAME}.stale.{os.getpid()}")
+                try:  # take over atomically: only one run renames the stale lock away
+                    os.replace(lock, stale)
+                    stale.unlink(missing_ok=True)
+                except FileNotFoundError:
+                    pass
+                continue
+            if not info and time.time() - _mtime(lock) < 5:
+                time.sleep(0.2)  # a lock being written right now
+                continue
+            raise ArtefactError(
+                f"{directory}: in use by another run (pid {pid}, host {host}, "
+                f"{info.get('command', '?')} started {info.get('started', '?')}); wait for it to "
+                f"finish, or remove {lock} if that run is gone") from None
+        with os.fdopen(fd, "w", encoding="utf-8") as fh:
+            fh.write(json.dumps(me) + "\n")
+        break
+    else:
+        raise ArtefactError(f"{directory}: could not take the lock {lock} (unreadable, not written "
+                            "by tanksynth); remove it if no run is using the directory")
+    try:
+        yield lock
+    finally:
+        if _holder(lock).get("pid") == me["pid"]:
+            lock.unlink(missing_ok=True)
+        if created:  # a run that wrote nothing leaves no empty directory behind
+            try:
+                directory.rmdir()
+            except OSError:
+                pass
+
+
+def _mtime(path: Path) -> float:
+    try:
+        return path.stat().st_mtime
+    except OSError:
+        return 0.0

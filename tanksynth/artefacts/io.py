@@ -18,7 +18,9 @@ import hashlib
 import io
 import json
 import math
+import os
 import platform
+import stat
 from importlib import metadata
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Iterable, Mapping
@@ -34,7 +36,8 @@ if TYPE_CHECKING:  # the artefact only reads a result's fields; no import of the
 
 __all__ = ["SCHEMA", "PLANT_SCHEMA", "EXPORT_FORMATS", "write_plant_record", "read_plant_record", "to_jsonable", "gains_digest", "artefact_document",
            "write_artefact", "read_artefact", "content_digest", "file_sha256", "check_npz",
-           "check_orphan_npz", "check_plant_record", "rehash"]
+           "check_orphan_npz", "check_plant_record", "rehash", "other_spec_files", "read_limited",
+           "MAX_FILE_BYTES"]
 
 SCHEMA = "tanksynth.artefact/1"
 PLANT_SCHEMA = "tanksynth.plant/1"
@@ -80,19 +83,49 @@ def gains_digest(gains: Mapping[str, Any]) -> str:
     return h.hexdigest()
 
 
+#: Largest file read from a result directory (bytes): artefacts are kilobytes to megabytes.
+MAX_FILE_BYTES = 512 * 1024 ** 2
+
+
+def read_limited(path: str | Path, limit: int = MAX_FILE_BYTES) -> bytes:
+    """The bytes of a regular file of at most ``limit`` bytes.
+
+    A result directory is input: a file replaced by a FIFO, a device such as
+    ``/dev/zero`` or a huge file must not hang or exhaust memory.
+
+    Raises
+    ------
+    ArtefactError
+        Not a regular file, larger than ``limit``, or unreadable (naming it).
+    """
+    path = Path(path)
+    try:
+        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK)  # a FIFO must not block the open
+        with os.fdopen(fd, "rb", buffering=0) as fh:
+            st = os.fstat(fd)
+            if not stat.S_ISREG(st.st_mode):
+                raise ArtefactError(f"{path}: not a regular file")
+            if st.st_size > limit:
+                raise ArtefactError(f"{path}: {st.st_size} bytes, more than the {limit} a result "
+                                    "file may have")
+            os.set_blocking(fd, True)
+            data = fh.read(limit + 1)
+    except OSError as exc:
+        raise ArtefactError(f"{path}: cannot read: {exc.strerror or exc}") from None
+    if len(data) > limit:
+        raise ArtefactError(f"{path}: more than the {limit} bytes a result file may have")
+    return data
+
+
 def file_sha256(path: str | Path) -> str:
     """sha256 (hex) of a file's bytes.
 
     Raises
     ------
     ArtefactError
-        The file cannot be read.
+        The file cannot be read (or is not a regular file, see `read_limited`).
     """
-    path = Path(path)
-    try:
-        return hashlib.sha256(path.read_bytes()).hexdigest()
-    except OSError as exc:
-        raise ArtefactError(f"{path}: cannot read: {exc.strerror}") from None
+    return hashlib.sha256(read_limited(path)).hexdigest()
 
 
 def content_digest(doc: Mapping[str, Any]) -> str:
@@ -301,10 +334,10 @@ def read_artefact(path: str | Path, check_gains: bool = True) -> dict:
     """
     path = Path(path)
     try:
-        doc = json.loads(path.read_text(encoding="utf-8"))
+        doc = json.loads(read_limited(path).decode("utf-8"))
     except OSError as exc:
         raise ArtefactError(f"{path}: cannot read artefact: {exc.strerror}") from None
-    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+    except (json.JSONDecodeError, UnicodeDecodeError, RecursionError) as exc:
         raise ArtefactError(f"{path}: not a JSON artefact: {exc}") from None
     if not isinstance(doc, dict) or doc.get("schema") != SCHEMA:
         raise ArtefactError(f"{path}: expected schema {SCHEMA!r}, got "
@@ -388,10 +421,10 @@ def read_plant_record(directory: str | Path) -> dict:
     """
     path = Path(directory) / "plant.json"
     try:
-        doc = json.loads(path.read_text(encoding="utf-8"))
+        doc = json.loads(read_limited(path).decode("utf-8"))
     except OSError as exc:
         raise ArtefactError(f"{path}: cannot read plant record: {exc.strerror}") from None
-    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+    except (json.JSONDecodeError, UnicodeDecodeError, RecursionError) as exc:
         raise ArtefactError(f"{path}: not a JSON plant record: {exc}") from None
     if not isinstance(doc, dict) or doc.get("schema") != PLANT_SCHEMA:
         raise ArtefactError(f"{path}: expected schema {PLANT_SCHEMA!r}")
@@ -510,7 +543,7 @@ def rehash(path: str | Path) -> Path:
         The JSON file.
     """
     path = Path(path)
-    doc = json.loads(path.read_text(encoding="utf-8"))
+    doc = json.loads(read_limited(path).decode("utf-8"))
     gains = {k: np.asarray(v, dtype=float) for k, v in doc["gains"].items()}
     npz = _npz_bytes(gains)
     prov = doc.setdefault("provenance", {})
@@ -523,3 +556,61 @@ def rehash(path: str | Path) -> Path:
     atomic_write(path.with_suffix(".npz"), npz)
     atomic_write(path, json.dumps(doc, indent=2, allow_nan=False) + "\n")
     return path
+
+
+#: Files of a result directory that belong to the run as a whole (not to one design).
+_RUN_FILES = ("plant.json", "spec.toml", "checks.json", "campaign.csv", "campaign.json", "report.tex",
+              "report.pdf", "report.log")
+#: Files written beside an artefact ``<name>.json``.
+_SIBLING_SUFFIXES = (".npz", ".traces.npz", ".mat", ".h", "_law.c", "_law.h", "_law.casadi")
+
+
+def other_spec_files(directory: str | Path, spec_sha256: str) -> tuple[str, list[Path]]:
+    """What in ``directory`` was written from another spec than ``spec_sha256``.
+
+    Parameters
+    ----------
+    directory : str or Path
+    spec_sha256 : str
+        sha256 of the spec about to be designed into ``directory``.
+
+    Returns
+    -------
+    reason : str
+        Empty when nothing was written from another spec; else which file
+        says so (the plant record or an artefact's provenance).
+    files : list of Path
+        The files of that other run (its artefacts with their ``.npz``,
+        traces and exports, and its checks, campaign and report), which
+        ``design --force`` removes before writing.
+    """
+    directory = Path(directory)
+    if not directory.is_dir():
+        return "", []
+    reason, files = "", []
+    record = directory / "plant.json"
+    if record.is_file():
+        try:
+            other = json.loads(read_limited(record).decode("utf-8")).get("spec_sha256")
+        except (OSError, ValueError, AttributeError):
+            other = None
+        if other != spec_sha256:
+            reason = f"{record} was written from another spec (spec_sha256 {str(other)[:12]}...)"
+            files += [directory / f for f in _RUN_FILES[2:] if (directory / f).is_file()]
+    for path in sorted(directory.glob("*.json")):
+        if path.name in _RUN_FILES:
+            continue
+        try:
+            doc = json.loads(read_limited(path).decode("utf-8"))
+        except (OSError, ValueError):
+            continue
+        if not isinstance(doc, dict) or doc.get("schema") != SCHEMA:
+            continue
+        other = (doc.get("provenance") or {}).get("spec_sha256") if isinstance(
+            doc.get("provenance"), dict) else None
+        if other != spec_sha256:
+            reason = reason or f"{path} was designed from another spec (spec_sha256 {str(other)[:12]}...)"
+            stem = path.name[:-len(".json")]
+            files += [path] + [directory / f"{stem}{sfx}" for sfx in _SIBLING_SUFFIXES
+                               if (directory / f"{stem}{sfx}").is_file()]
+    return reason, files

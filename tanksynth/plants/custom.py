@@ -79,6 +79,23 @@ def _signal(name: str, spec: Any, key: str, need_bounds: bool) -> tuple[Quantity
     return Quantity(name, unit, desc), bounds
 
 
+def _inputs_outside_domain_free(expr: sp.Expr, inputs: set, key: str) -> None:
+    """Refuse an input under ``sqrt``, a fractional power or ``log``: the equilibrium input is
+    found by least squares over all reals and the simulators clip nothing before evaluating,
+    so such a model is undefined for part of its input range (use a state or a parameter)."""
+    for node in sp.preorder_traversal(expr):
+        inside = None
+        if node.is_Pow and not node.exp.is_Integer:
+            inside = node.base
+        elif isinstance(node, sp.log):
+            inside = node.args[0]
+        if inside is not None and inside.free_symbols & inputs:
+            names = ", ".join(sorted(str(u) for u in inside.free_symbols & inputs))
+            raise SpecError(f"input {names} appears under a square root, fractional power or log "
+                            f"({node}); inputs must enter the equations through +, -, *, / and "
+                            "integer powers", key=key)
+
+
 def custom_plant(spec: Mapping[str, Any], key: str = "plant") -> Plant:
     """Build a `Plant` from a ``[plant]`` table with ``model = "custom"``.
 
@@ -170,6 +187,9 @@ def custom_plant(spec: Mapping[str, Any], key: str = "plant") -> Plant:
         )
     f = sp.Matrix([parse_expression(equations[s.name], declared, f"{key}.equations.{s.name}")
                    for s in states])
+    input_symbols = {declared[i.name] for i in inputs}
+    for s, expr in zip(states, f):
+        _inputs_outside_domain_free(expr, input_symbols, f"{key}.equations.{s.name}")
 
     outputs, h = [], []
     for nm, out in _table(spec.get("outputs"), f"{key}.outputs").items():
@@ -198,7 +218,13 @@ def custom_plant(spec: Mapping[str, Any], key: str = "plant") -> Plant:
         if not isinstance(text, str) or text.count(">") != 1 or ">=" in text:
             raise SpecError(f"expected a strict ordering 'a > b', got {text!r}", key=okey)
         lhs, rhs = text.split(">")
-        orderings.append((parse_expression(lhs, declared, okey), parse_expression(rhs, declared, okey)))
+        sides = (parse_expression(lhs, declared, okey), parse_expression(rhs, declared, okey))
+        state_symbols = {declared[s.name] for s in states}
+        other = sorted(str(v) for side in sides for v in side.free_symbols - state_symbols)
+        if other:
+            raise SpecError(f"an ordering compares states only; {text!r} names {', '.join(other)} "
+                            "(a parameter or an input)", key=okey)
+        orderings.append(sides)
 
     raw_assume = spec.get("assumptions", [])
     if not isinstance(raw_assume, list) or not all(isinstance(a, str) for a in raw_assume):

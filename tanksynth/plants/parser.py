@@ -26,7 +26,8 @@ import sympy as sp
 
 from tanksynth.errors import ParseError
 
-__all__ = ["parse_expression", "FUNCTIONS", "validate_name"]
+__all__ = ["parse_expression", "FUNCTIONS", "validate_name", "expression_limits", "MAX_NODES",
+           "MAX_FUNCTION_NESTING", "MAX_DEGREE"]
 
 #: Functions accepted in equations, with their arity (None: two or more).
 FUNCTIONS: dict[str, int | None] = {
@@ -38,6 +39,13 @@ _MAX_DEPTH = 200              # nesting of parentheses / unary operators
 _MAX_EXPONENT = 64            # |numeric exponent|; larger powers are refused
 _MAX_BITS = 4096              # numerator/denominator size of an exact constant
 _MAX_DECIMAL_EXPONENT = 400   # |e| in a literal like 1e-5 (floats end near 1e308)
+#: Largest parsed expression: tree nodes (sympy ``count_ops`` is at most this), nesting of
+#: functions (``sqrt(exp(...))``), and degree bound (``(h1 + h2)**3`` has degree 3, a power
+#: of a power multiplies: ``((h1 + 1)**64 + 1)**64`` has 4096). Beyond these, Jacobians,
+#: Lie derivatives and determinants of the model grow past what symbolic analysis can do.
+MAX_NODES = 2_000
+MAX_FUNCTION_NESTING = 6
+MAX_DEGREE = 64
 _NAME_RE = re.compile(r"[A-Za-z][A-Za-z0-9_]*\Z")
 _TOKEN_RE = re.compile(
     r"\s*(?:(?P<num>(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?)"
@@ -312,9 +320,71 @@ def parse_expression(text: object, names: Mapping[str, sp.Expr], key: str) -> sp
         # sympy/int arithmetic refusing a constant (e.g. the int-to-str digit limit)
         raise ParseError(f"expression {text[:40]!r} cannot be evaluated exactly: {exc}",
                          key=key) from None
+    problem = expression_limits(expr)
+    if problem:
+        raise ParseError(f"expression {text[:40]!r}{'...' if len(text) > 40 else ''} is too complex "
+                         f"for symbolic analysis: {problem}", key=key)
     if expr.has(sp.zoo, sp.oo, sp.S.NegativeInfinity, sp.nan, sp.I) or any(
             p.base.is_number and p.base.is_negative and not p.exp.is_integer
             for p in expr.atoms(sp.Pow)):
         raise ParseError(f"expression {text[:40]!r} is not finite and real ({expr}); e.g. log(0), "
                          "sqrt of a negative constant", key=key)
     return expr
+
+
+def expression_limits(expr: sp.Basic) -> str:
+    """Why ``expr`` is too large for the symbolic analysis, or ``""`` when it is not.
+
+    Measured on the tree as parsed, without expanding anything: at most
+    `MAX_NODES` nodes, functions nested at most `MAX_FUNCTION_NESTING` deep,
+    and a degree bound at most `MAX_DEGREE` (sum over a product, maximum
+    over a sum, times ``|exponent|`` for a power; a function of ``g`` counts
+    as ``g``). Cost: one pass over the tree, stopping at `MAX_NODES`.
+
+    Parameters
+    ----------
+    expr : sympy.Basic
+
+    Returns
+    -------
+    str
+        The first limit exceeded, in words; empty if none.
+    """
+    nodes = 0
+    for _ in sp.preorder_traversal(expr):
+        nodes += 1
+        if nodes > MAX_NODES:
+            return f"more than {MAX_NODES} operations and symbols"
+    nesting = _function_nesting(expr)
+    if nesting > MAX_FUNCTION_NESTING:
+        return f"functions nested {nesting} deep (at most {MAX_FUNCTION_NESTING})"
+    degree = _degree_bound(expr)
+    if degree > MAX_DEGREE:
+        return f"degree bound {degree:g} (at most {MAX_DEGREE}); write the model without " \
+               "powers of powers"
+    return ""
+
+
+def _function_nesting(expr: sp.Basic) -> int:
+    if expr.is_Atom:
+        return 0
+    inner = max((_function_nesting(a) for a in expr.args), default=0)
+    is_function = isinstance(expr, (sp.Function, sp.Abs, sp.sign, sp.exp, sp.log, sp.Min, sp.Max)) or (
+        expr.is_Pow and not expr.exp.is_Integer)
+    return inner + 1 if is_function else inner
+
+
+def _degree_bound(expr: sp.Basic) -> float:
+    if expr.is_Symbol:
+        return 1.0
+    if expr.is_Atom:
+        return 0.0
+    if expr.is_Pow:
+        base = _degree_bound(expr.base)
+        if expr.exp.is_number:
+            return base * max(1.0, abs(float(expr.exp)))
+        return max(1.0, base) * max(1.0, _degree_bound(expr.exp))
+    degrees = [_degree_bound(a) for a in expr.args]
+    if expr.is_Mul:
+        return float(sum(degrees))
+    return float(max(degrees, default=0.0))

@@ -8,6 +8,7 @@ serialised law inside artefact diagnostics.
 from __future__ import annotations
 
 import hashlib
+import re
 from dataclasses import dataclass, field
 from typing import Any, Sequence
 
@@ -200,7 +201,7 @@ def integral_tracking_law(K1: Any, K2: Any, x0: Any, u0: Any, C1: Any, ts: float
         z_next = z + (1 - active) * ts * e
     else:
         z_next = z + ts * e
-    law = ca.Function(name, [x, z, r], [u, z_next], ["x", "z", "y_r"], ["u", "z_next"])
+    law = ca.Function(_c_ident(name), [x, z, r], [u, z_next], ["x", "z", "y_r"], ["u", "z_next"])
     names = tuple(tracked) if tracked is not None else tuple(f"y{i + 1}" for i in range(p))
     diagnostics = {"anti_windup": anti_windup, "aw_gain": float(aw_gain), "ts": float(ts),
                    "input_limits": limits.tolist(), "tracked": list(names),
@@ -280,7 +281,7 @@ def _gains(C: Any, m: int) -> np.ndarray:
 def _fix_gains(parametric: ca.Function, C: np.ndarray, name: str) -> ca.Function:
     x = ca.SX.sym("x_hat", parametric.size1_in(0))
     r = ca.SX.sym("h_sp", parametric.size1_in(1))
-    return ca.Function(name, [x, r], [parametric(x, r, ca.DM(C))], ["x_hat", "h_sp"], ["u"])
+    return ca.Function(_c_ident(name), [x, r], [parametric(x, r, ca.DM(C))], ["x_hat", "h_sp"], ["u"])
 
 
 
@@ -371,7 +372,7 @@ def inverse_dynamics_law(plant: Plant, C: Any, controlled: Sequence[str] | None 
     u = core(x, r, c)
     if saturate:
         u = _saturate(u, limits)
-    parametric = ca.Function(name + "_parametric", [x, r, c], [u], ["x_hat", "h_sp", "C"], ["u"])
+    parametric = ca.Function(_c_ident(name) + "_parametric", [x, r, c], [u], ["x_hat", "h_sp", "C"], ["u"])
     Cv = _gains(C, plant.m)
     law = _fix_gains(parametric, Cv, name)
     diagnostics = {"controlled": chosen, "C": Cv.tolist(), "saturated": bool(saturate),
@@ -433,8 +434,14 @@ def law_from_document(doc: dict) -> ca.Function:
 
 
 def _c_ident(text: str) -> str:
+    """A name CasADi and C accept: a letter, then letters, digits and single underscores,
+    not a CasADi keyword (``null``, ``jac``, ``hess``); a design name such as ``inv-dyn``
+    or ``it--2`` is mapped to one."""
     ident = "".join(c if (c.isascii() and c.isalnum()) else "_" for c in str(text))
-    return ident if ident[:1].isalpha() else "law_" + ident
+    ident = re.sub(r"_+", "_", ident)
+    if not ident[:1].isalpha() or ident in ("null", "jac", "hess"):
+        ident = "law_" + ident.lstrip("_")
+    return ident
 
 
 

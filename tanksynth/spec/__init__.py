@@ -21,9 +21,19 @@ import numpy as np
 
 from tanksynth.errors import SpecError, TanksynthError
 from tanksynth.plants import BUILTIN_PLANTS, Plant, custom_plant
-from tanksynth.spec.options import did_you_mean, parse_box, parse_number, parse_vector
+from tanksynth.spec.options import (parse_box, parse_number, parse_vector,
+                                    unknown_word_hint)
 
-__all__ = ["Spec", "DesignSpec", "load_spec", "parse_spec", "parse_spec_text"]
+__all__ = ["Spec", "DesignSpec", "load_spec", "parse_spec", "parse_spec_text", "MIN_TS", "MAX_TS",
+           "MAX_MODEL_MAGNITUDE"]
+
+#: Sampling periods accepted (s): below MIN_TS a discrete model equals the identity in
+#: floating point; above MAX_TS no tank model is meaningful.
+MIN_TS, MAX_TS = 1e-6, 1e6
+#: Largest magnitude of f, h and their Jacobians at the operating point (SI units); beyond it
+#: the parameters are out of any physical range (e.g. an area of 1e-300 m^2) and the rank tests
+#: would overflow.
+MAX_MODEL_MAGNITUDE = 1e100
 
 _TOP_KEYS = {"title", "description", "plant", "operating_point", "sampling", "design"}
 _NAME_RE = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]{0,63}\Z")
@@ -136,6 +146,8 @@ def parse_spec_text(data: bytes | str, source: str | None = None, *,
         table = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise SpecError(f"invalid TOML: {exc}", source=source) from None
+    except RecursionError:
+        raise SpecError("invalid TOML: arrays or tables nested too deeply", source=source) from None
     spec = parse_spec(table, source=source, sha256=hashlib.sha256(raw).hexdigest(), methods=methods)
     return replace(spec, text=text)
 
@@ -159,8 +171,8 @@ def _build_plant(table: Mapping[str, Any]) -> Plant:
     if model == "custom":
         return custom_plant(table)
     if model not in BUILTIN_PLANTS:
-        raise SpecError(f"unknown plant model {model!r}; expected one of: "
-                        + ", ".join([*BUILTIN_PLANTS, "custom"]), key="plant.model")
+        raise SpecError(f"unknown plant model {model!r}"
+                        + unknown_word_hint(model, [*BUILTIN_PLANTS, "custom"]), key="plant.model")
     builder = BUILTIN_PLANTS[model]
     signature = inspect.signature(builder)
     options = {}
@@ -169,8 +181,8 @@ def _build_plant(table: Mapping[str, Any]) -> Plant:
             continue
         if key not in signature.parameters:
             allowed = ["parameters", "region", *signature.parameters]
-            raise SpecError(f"unknown key {key!r} for plant '{model}'; expected one of: "
-                            + ", ".join(allowed), key=f"plant.{key}")
+            raise SpecError(f"unknown key {key!r} for plant '{model}'"
+                            + unknown_word_hint(key, allowed), key=f"plant.{key}")
         default = signature.parameters[key].default
         if isinstance(default, bool) or type(value) is not type(default):
             raise SpecError(f"expected a {type(default).__name__} (default {default!r}), "
@@ -225,8 +237,8 @@ def _parse(table: Mapping[str, Any], source: str | None, sha256: str,
         raise SpecError("expected a TOML document (table)")
     unknown = [k for k in table if k not in _TOP_KEYS]
     if unknown:
-        raise SpecError(f"unknown top-level key(s) {unknown}; expected: " + ", ".join(sorted(_TOP_KEYS)),
-                        key=unknown[0])
+        raise SpecError(f"unknown top-level key {unknown[0]!r}"
+                        + unknown_word_hint(unknown[0], sorted(_TOP_KEYS)), key=str(unknown[0]))
     title = table.get("title", "")
     if not isinstance(title, str):
         raise SpecError("expected a string", key="title")
@@ -241,6 +253,7 @@ def _parse(table: Mapping[str, Any], source: str | None, sha256: str,
         raise SpecError("missing operating levels x", key="operating_point.x")
     x0 = np.array(parse_vector(op["x"], "operating_point.x", names=[s.name for s in plant.states]))
     plant.check_point(x0, key="operating_point.x")
+    _check_model_numbers(plant, x0)
     given_u0 = None
     if "u" in op:
         given_u0 = np.array(parse_vector(op["u"], "operating_point.u",
@@ -251,12 +264,13 @@ def _parse(table: Mapping[str, Any], source: str | None, sha256: str,
     if extra:
         raise SpecError(f"unknown key(s) {extra}; expected ts (sampling period, s)",
                         key=f"sampling.{extra[0]}")
-    ts = parse_number(sampling["ts"], "sampling.ts", above=0.0) if "ts" in sampling else None
+    ts = (parse_number(sampling["ts"], "sampling.ts", at_least=MIN_TS, at_most=MAX_TS)
+          if "ts" in sampling else None)
 
     raw_designs = table.get("design", [])
     if not isinstance(raw_designs, list):
         raise SpecError("expected an array of tables [[design]]", key="design")
-    designs, seen = [], set()
+    designs, seen = [], {}
     for i, entry in enumerate(raw_designs):
         key = f"design[{i}]"
         if not isinstance(entry, Mapping):
@@ -270,15 +284,56 @@ def _parse(table: Mapping[str, Any], source: str | None, sha256: str,
         if reserved:
             raise SpecError(f"design name {name!r} is reserved: its files would collide with "
                             f"{reserved}; choose another name", key=f"{key}.name")
-        if name.lower() in seen:
-            raise SpecError(f"duplicate design name {name!r} (names differing only in case collide "
-                            "on some file systems)", key=f"{key}.name")
-        seen.add(name.lower())
+        ident = re.sub(r"[^a-z0-9]+", "_", name.lower())  # file and C-identifier form
+        if ident in seen:
+            raise SpecError(f"duplicate design name {name!r}" + ("" if seen[ident] == name else
+                            f" (same as {seen[ident]!r}: names differing only in case or in '-', '.', '_' share "
+                            "file names on some file systems and C identifiers in exported laws)"),
+                            key=f"{key}.name")
+        seen[ident] = name
         method = entry.get("method")
         if not isinstance(method, str) or (methods is not None and method not in methods):
-            raise SpecError(f"unknown method {method!r}" + did_you_mean(method, list(methods or ()))
-                            + "; expected one of: " + ", ".join(methods or ()), key=f"{key}.method")
+            raise SpecError(f"unknown method {method!r}" + unknown_word_hint(method, list(methods or ())),
+                            key=f"{key}.method")
         options = {k: v for k, v in entry.items() if k not in ("name", "method")}
         config = methods[method].validate(options, key, plant, ts) if methods is not None else None
         designs.append(DesignSpec(name, method, options, key, config))
     return Spec(plant, x0, given_u0, ts, tuple(designs), title, source, sha256, table)
+
+
+def _check_model_numbers(plant: Plant, x0: np.ndarray) -> None:
+    """Refuse a model whose value or Jacobian at the operating point is not finite or is
+    beyond `MAX_MODEL_MAGNITUDE` (parameters out of any physical range), naming the
+    equation or output (custom plants) or the parameters (built-in families)."""
+    lo_hi = np.asarray(plant.input_limits, dtype=float).reshape(plant.m, 2)
+    finite = np.isfinite(lo_hi).all(axis=1)
+    u = np.zeros(plant.m)
+    u[finite] = lo_hi[finite].mean(axis=1)
+    custom = plant.source == "spec"
+    with np.errstate(all="ignore"):
+        try:
+            comp = plant.compiled
+            rows = [(np.asarray(comp.f(x0, u), dtype=float).reshape(plant.n, -1), "equations",
+                     [s.name for s in plant.states]),
+                    (np.asarray(comp.jac_x(x0, u), dtype=float).reshape(plant.n, -1), "equations",
+                     [s.name for s in plant.states]),
+                    (np.asarray(comp.jac_u(x0, u), dtype=float).reshape(plant.n, -1), "equations",
+                     [s.name for s in plant.states]),
+                    (np.asarray(comp.h(x0), dtype=float).reshape(plant.q, -1), "outputs",
+                     [s.name for s in plant.outputs]),
+                    (np.asarray(comp.jac_h(x0), dtype=float).reshape(plant.q, -1), "outputs",
+                     [s.name for s in plant.outputs])]
+        except (RuntimeError, ValueError, OverflowError) as exc:
+            raise SpecError(f"the model cannot be evaluated at the operating point: "
+                            f"{' '.join(str(exc).split())[:160]}", key="plant") from None
+    for values, group, names in rows:
+        for i, row in enumerate(values):
+            bad = not np.all(np.isfinite(row))
+            big = not bad and row.size and np.max(np.abs(row)) > MAX_MODEL_MAGNITUDE
+            if bad or big:
+                what = "is not finite" if bad else f"exceeds {MAX_MODEL_MAGNITUDE:.0e} in magnitude"
+                key = f"plant.{group}.{names[i]}" if custom else "plant.parameters"
+                raise SpecError(f"{'equation' if group == 'equations' else 'output'} {names[i]!r} "
+                                f"or its derivative {what} at the operating point "
+                                f"{np.round(x0, 6).tolist()} (inputs {np.round(u, 6).tolist()}): check "
+                                "the parameter values and units", key=key)

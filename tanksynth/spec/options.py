@@ -37,7 +37,12 @@ from tanksynth.errors import SpecError
 
 __all__ = ["parse_number", "parse_integer", "parse_choice", "parse_bool", "parse_vector",
            "parse_matrix", "parse_covariance", "parse_poles", "parse_region", "region_is_stable",
-           "parse_names", "parse_box", "did_you_mean"]
+           "parse_names", "parse_box", "did_you_mean", "unknown_word_hint", "short_repr"]
+
+#: Largest integer any option accepts (a 64-bit signed integer: seeds, counts).
+MAX_INTEGER = 2 ** 63 - 1
+#: Largest magnitude of a covariance entry (squared SI units): beyond it products overflow.
+MAX_COVARIANCE = 1e100
 
 #: Fields of each elementary LMI region, in the order of its parts tuple.
 _REGION_FIELDS = {"half_plane": ("alpha",), "disk": ("center", "radius"), "sector": ("angle_deg",)}
@@ -48,7 +53,7 @@ def _is_number(value: Any) -> bool:
 
 
 def _type(value: Any) -> str:
-    return f"{type(value).__name__} {value!r}"
+    return f"{type(value).__name__} {short_repr(value)}"
 
 
 def did_you_mean(word: Any, candidates: Sequence[str]) -> str:
@@ -58,6 +63,33 @@ def did_you_mean(word: Any, candidates: Sequence[str]) -> str:
     by_lower = {str(c).lower(): str(c) for c in candidates}
     close = difflib.get_close_matches(word.lower(), list(by_lower), n=1, cutoff=0.6)
     return f"; did you mean {by_lower[close[0]]!r}?" if close else ""
+
+
+def unknown_word_hint(word: Any, candidates: Sequence[str]) -> str:
+    """``"; did you mean 'x'?"`` when a candidate is close, else the list of valid values.
+
+    Parameters
+    ----------
+    word : Any
+        What the spec said (an unknown method, option, key or family).
+    candidates : sequence of str
+        The valid values.
+    """
+    hint = did_you_mean(word, candidates)
+    if hint:
+        return hint
+    return "; expected one of: " + (", ".join(str(c) for c in candidates) or "(none)")
+
+
+def short_repr(value: Any, limit: int = 60) -> str:
+    """``repr(value)`` cut to ``limit`` characters (an echoed value stays one short line)."""
+    if isinstance(value, int) and not isinstance(value, bool) and abs(value) > 10 ** 30:
+        return f"an integer of {len(str(abs(value)))} digits"
+    try:
+        text = repr(value)
+    except Exception:  # noqa: BLE001 - a repr that fails is still echoed as its type
+        text = f"<{type(value).__name__}>"
+    return text if len(text) <= limit else text[:limit - 3] + "..."
 
 
 def _bounds_text(above: float | None, at_least: float | None, below: float | None,
@@ -119,8 +151,11 @@ def parse_integer(value: Any, key: str, *, at_least: int | None = None,
                         f"{_type(value)}", key=key)
     out = int(value)
     if (at_least is not None and out < at_least) or (at_most is not None and out > at_most):
-        raise SpecError(f"expected an integer{_bounds_text(None, at_least, None, at_most)}, got {out}",
-                        key=key)
+        raise SpecError(f"expected an integer{_bounds_text(None, at_least, None, at_most)}, got "
+                        f"{short_repr(out)}", key=key)
+    if out > MAX_INTEGER or out < -MAX_INTEGER:
+        raise SpecError(f"expected an integer of at most 64 bits (|n| <= 2**63 - 1), got "
+                        f"{short_repr(out)}", key=key)
     return out
 
 
@@ -129,7 +164,7 @@ def parse_choice(value: Any, key: str, allowed: Sequence[Any]) -> Any:
     for choice in allowed:
         if type(choice) is type(value) and choice == value:
             return choice
-    raise SpecError(f"expected one of {list(allowed)}, got {value!r}"
+    raise SpecError(f"expected one of {list(allowed)}, got {short_repr(value)}"
                     + did_you_mean(value, [str(a) for a in allowed]), key=key)
 
 
@@ -244,6 +279,9 @@ def parse_covariance(value: Any, key: str, size: int, semidefinite: bool = False
                         f"{_type(value)}", key=key)
     if M.shape != (size, size):
         raise SpecError(f"expected a {size} x {size} matrix, got {M.shape[0]} x {M.shape[1]}", key=key)
+    if np.max(np.abs(M), initial=0.0) > MAX_COVARIANCE:
+        raise SpecError(f"entries must be at most {MAX_COVARIANCE:g} in magnitude (squared units), "
+                        f"got {np.max(np.abs(M)):.3g}", key=key)
     if np.max(np.abs(M - M.T), initial=0.0) > 1e-12 * max(np.max(np.abs(M)), 1e-300):
         raise SpecError("matrix must be symmetric", key=key)
     w = np.linalg.eigvalsh(0.5 * (M + M.T))
@@ -368,7 +406,7 @@ def parse_region(value: Any, key: str) -> tuple[tuple, ...]:
         if not isinstance(item, Mapping):
             raise SpecError("expected a table with a 'type'", key=k)
         kind = item.get("type")
-        if kind not in _REGION_FIELDS:
+        if not isinstance(kind, str) or kind not in _REGION_FIELDS:
             raise SpecError(f"unknown region type {kind!r}; expected one of {list(_REGION_FIELDS)}"
                             + did_you_mean(kind, list(_REGION_FIELDS)), key=f"{k}.type")
         fields = _REGION_FIELDS[kind]

@@ -188,7 +188,7 @@ def load_directory(directory: str | Path,
         other than the one designed with, or an artefact designed from another spec.
     """
     from tanksynth.artefacts.io import (SCHEMA, check_npz, check_orphan_npz,  # lazy: see Verdict.as_dict
-                                        check_plant_record, read_artefact)
+                                        check_plant_record, read_artefact, read_limited)
 
     directory = Path(directory)
     if not directory.is_dir():
@@ -196,8 +196,8 @@ def load_directory(directory: str | Path,
     docs = []
     for path in sorted(directory.glob("*.json")):
         try:
-            head = json.loads(path.read_text(encoding="utf-8"))
-        except (OSError, json.JSONDecodeError, UnicodeDecodeError):
+            head = json.loads(read_limited(path).decode("utf-8"))
+        except (OSError, ArtefactError, json.JSONDecodeError, UnicodeDecodeError, RecursionError):
             head = None
         if isinstance(head, dict) and isinstance(head.get("schema"), str) \
                 and not head["schema"].startswith("tanksynth.artefact/"):
@@ -213,8 +213,8 @@ def load_directory(directory: str | Path,
     check_plant_record(directory, docs)
     spec_path = directory / "spec.toml"
     try:
-        raw = spec_path.read_bytes()
-    except OSError:
+        raw = read_limited(spec_path)
+    except ArtefactError:
         raise ArtefactError(f"{spec_path}: missing; verify needs the spec the artefacts were designed "
                             "from (written by `tanksynth design`)") from None
     import hashlib

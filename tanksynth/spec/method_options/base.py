@@ -18,9 +18,10 @@ from typing import Any, Callable, ClassVar, Mapping
 import numpy as np
 
 from tanksynth.errors import SpecError
-from tanksynth.spec.options import did_you_mean
+from tanksynth.spec.options import unknown_word_hint
 
-__all__ = ["MethodOptions", "OptionReader", "OptionDoc", "option", "numpydoc_section", "time_domain_of"]
+__all__ = ["MethodOptions", "OptionReader", "OptionDoc", "option", "numpydoc_section", "time_domain_of",
+           "MEMORY_BUDGET", "memory_budget"]
 
 
 def option(default: Any = MISSING, *, unit: str, doc: str = "") -> Any:
@@ -146,6 +147,24 @@ def _first_sentence(text: str) -> str:
                 return text[:i]
     return text.rstrip(".;")
 
+#: Default memory budget of one design (bytes): a design whose estimated arrays exceed it is
+#: refused at spec validation (exit 2 naming the option that drives the size), before it
+#: allocates. Override with the environment variable TANKSYNTH_MEMORY_BUDGET_MB.
+MEMORY_BUDGET = 2 * 1024 ** 3
+
+
+def memory_budget() -> int:
+    """The memory budget of one design in bytes (`MEMORY_BUDGET`, or the environment's
+    ``TANKSYNTH_MEMORY_BUDGET_MB`` when it is a positive number of MiB)."""
+    import os
+
+    raw = os.environ.get("TANKSYNTH_MEMORY_BUDGET_MB", "")
+    try:
+        value = float(raw)
+    except ValueError:
+        return MEMORY_BUDGET
+    return int(value * 1024 ** 2) if value > 0 and value < 1e12 else MEMORY_BUDGET
+
 
 @dataclass(frozen=True, eq=False)
 class MethodOptions:
@@ -200,8 +219,31 @@ class MethodOptions:
                   ts: float | None) -> "MethodOptions":
         """`from_table`, remembering the table the options were read from (`source`)."""
         out = cls.from_table(options, key, plant, ts)
+        estimate = out.memory_estimate(plant, ts)
+        if estimate is not None:
+            need, option = estimate
+            budget = memory_budget()
+            if need > budget:
+                raise SpecError(f"this design would need about {need / 1024 ** 3:.3g} GiB of memory "
+                                f"(budget {budget / 1024 ** 3:.3g} GiB, TANKSYNTH_MEMORY_BUDGET_MB); "
+                                f"reduce {option!r}", key=f"{key}.{option}")
         object.__setattr__(out, "_source", dict(options))
         return out
+
+    def memory_estimate(self, plant: Any, ts: float | None) -> tuple[float, str] | None:
+        """Estimated peak memory of the design (bytes) and the option that drives it.
+
+        Subclasses whose sizes come from options (samples, windows, network
+        sizes) override it; the estimate counts the largest arrays the
+        design allocates (8 bytes per float). None: no size option.
+
+        Parameters
+        ----------
+        plant : Plant
+        ts : float or None
+            Sampling period (s).
+        """
+        return None
 
     def read_from(self, options: Mapping[str, Any]) -> bool:
         """True if these options were validated from exactly the table ``options``.
@@ -323,8 +365,8 @@ class OptionReader:
         for opt in options:
             if opt not in allowed:
                 raise SpecError(f"unknown option {opt!r} for method '{cls.method_name}'"
-                                + did_you_mean(opt, allowed) + "; expected: "
-                                + (", ".join(allowed) or "no options"), key=f"{key}.{opt}")
+                                + (unknown_word_hint(opt, allowed) if allowed
+                                   else "; the method takes no options"), key=f"{key}.{opt}")
         if cls.needs_sampling and ts is None:
             raise SpecError(f"method '{cls.method_name}' needs a sampling period: add [sampling] ts = ...",
                             key="sampling.ts")

@@ -89,6 +89,11 @@ class FeedbackLinearizationOptions(MethodOptions):
                    samples=r.read("samples", parse_integer, at_least=0, at_most=1_000_000),
                    seed=r.read("seed", parse_integer, at_least=0))
 
+    def memory_estimate(self, plant: Any, ts: float | None) -> tuple[float, str]:
+        """``grid^n`` region points plus ``samples``, each with its n x n Jacobian (bytes)."""
+        points = float(self.grid) ** plant.n + self.samples
+        return 8.0 * 4 * points * (plant.n + plant.n ** 2 + plant.m), "grid"
+
 
 @dataclass(frozen=True, eq=False)
 class IntegralTrackingOptions(MethodOptions):
@@ -224,3 +229,10 @@ class InverseDynamicsOptions(MethodOptions):
                    step_time=step_time, horizon=horizon,
                    substeps=r.read("substeps", parse_integer, at_least=1, at_most=1000), grid=grid,
                    bounds=bounds, saturate=r.read("saturate", parse_bool))
+
+    def memory_estimate(self, plant: Any, ts: float | None) -> tuple[float, str]:
+        """``grid^m`` servo runs of ``horizon / ts`` samples, states and inputs kept (bytes)."""
+        runs = float(np.size(self.grid)) ** plant.m
+        samples = self.horizon / ts if ts else 1.0
+        return 8.0 * 4 * runs * (samples + 1) * (plant.n + plant.m + 1), \
+            ("grid" if runs > samples else "horizon")

@@ -121,3 +121,9 @@ class DecentralizedKalmanOptions(MethodOptions):
             initial_covariance=r.read("initial_covariance", _noise, n, semidefinite=False),
             input=r.read("input", parse_vector, names=[s.name for s in plant.inputs]),
             relinearize_every=r.read("relinearize_every", parse_integer, at_least=1))
+
+    def memory_estimate(self, plant: Any, ts: float | None) -> tuple[float, str]:
+        """``window`` steps of n x n models, covariances and gains; CasADi's graph of the window
+        problem holds some 50 matrices per step (bytes)."""
+        per_step = plant.n ** 2 * 10 + plant.n * plant.q * 4 + plant.q ** 2 * 4
+        return 8.0 * (50 if self.algorithm == "casadi" else 1) * self.window * per_step, "window"

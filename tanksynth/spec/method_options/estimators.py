@@ -451,3 +451,16 @@ class NarxOptions(KalmanOptions):
                    hold=r.read("hold", _hold),
                    noise_std=r.read("noise_std", parse_vector, plant.q, at_least=0.0),
                    target=r.read("target", parse_choice, ("ekf", "true")))
+
+    def memory_estimate(self, plant: Any, ts: float | None) -> tuple[float, str]:
+        """The Levenberg-Marquardt Jacobian (N n x P, built twice) with N = ``steps x runs``
+        samples and P weights, its P x P normal matrix, and the data runs (bytes)."""
+        n, q, m = plant.n, plant.q, plant.m
+        nin = n + q + self.delays * n
+        weights = self.hidden * (nin + 1) + n * (self.hidden + 1)
+        samples = float(self.steps) * (self.runs + self.validation_runs)
+        need = 8.0 * (3 * samples * n * weights + 2 * weights ** 2
+                      + 12 * samples * (n + q + m) + 2 * samples * self.hidden * nin)
+        ratios = {"steps": self.steps / 600, "runs": self.runs / 4, "hidden": self.hidden / 5,
+                  "delays": self.delays / 2, "validation_runs": self.validation_runs}
+        return need, max(ratios, key=ratios.get)

@@ -7,6 +7,7 @@ from types import MappingProxyType
 from typing import Any, ClassVar, Mapping
 
 import numpy as np
+import sympy as sp
 
 from tanksynth.errors import SpecError
 from tanksynth.spec.method_options.base import MethodOptions, OptionReader, option
@@ -152,6 +153,11 @@ class TsObserverOptions(MethodOptions):
         r = OptionReader(cls, options, key, ts)
         names = [s.name for s in plant.states]
         n, q = plant.n, plant.q
+        states = set(plant.x)
+        if not any(sp.diff(e, v).free_symbols & states for e in plant.f for v in e.free_symbols & states):
+            raise SpecError(f"method 'ts_observer' needs a plant with nonlinear dynamics (its premise "
+                            f"variables); plant '{plant.name}' is linear in its states: use "
+                            "luenberger or pole_placement", key=f"{key}.method")
         psi = r.read("psi", parse_number, at_least=0.0)
         psi_source = r.read("psi_source", parse_choice, ("given", "lipschitz", "maximise"))
         if psi_source is None:
@@ -186,3 +192,7 @@ class TsObserverOptions(MethodOptions):
             kappa=kappa, kappa_max=kappa_max,
             solver=r.read("solver", parse_choice, LMI_SOLVERS),
             allow_fragile=r.read("allow_fragile", parse_bool))
+
+    def memory_estimate(self, plant: Any, ts: float | None) -> tuple[float, str]:
+        """``samples`` points of the domain, each with its n x n Jacobian and premises (bytes)."""
+        return 8.0 * 6 * self.samples * (plant.n ** 2 + 4 * plant.n + 8), "samples"
