@@ -25,6 +25,7 @@ Gains: ``K`` or ``L``, the model (``A``, ``B``, ``C``), the synthesis data
 
 from __future__ import annotations
 
+import warnings
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -35,7 +36,7 @@ from tanksynth.analysis.lmi_region import region_from_parts
 from tanksynth.design.result import DesignMethod, DesignResult, options_of, rekeyed
 from tanksynth.design.synthesis import (GeneralizedPlant, SynthesisResult, synthesize_observer,
                                         synthesize_state_feedback)
-from tanksynth.errors import SpecError
+from tanksynth.errors import DesignWarning, SpecError
 from tanksynth.spec.method_options import (H2ObserverOptions, H2StateFeedbackOptions,
                                            HinfObserverOptions, HinfStateFeedbackOptions,
                                            MultiobjectiveOptions)
@@ -83,11 +84,35 @@ def _model(spec: Any, o: Any) -> dict:
     discrete = o.time_domain == "discrete"
     lin = linearize(plant, spec.x0, eq.u0, ts=spec.ts if discrete else None)
     Bw_c = np.asarray(o.Bw, float) * np.asarray(o.disturbance_std, float)[None, :]
+    _warn_disturbance_size(plant, lin.B, Bw_c)
     if discrete:
         A, B, Bw = lin.Ad, lin.Bd, discretize_zoh(lin.F, Bw_c, spec.ts)[1]
     else:
         A, B, Bw = lin.F, lin.B, Bw_c
     return {"A": A, "B": B, "C": lin.C, "Bw": Bw, "eq": eq, "dt": spec.ts if discrete else None}
+
+
+#: Disturbances larger than this multiple of the pumps' full authority get a warning.
+DISTURBANCE_AUTHORITY_RATIO = 10.0
+
+
+def _warn_disturbance_size(plant: Any, B: np.ndarray, Bw: np.ndarray) -> None:
+    """Warn when ``Bw diag(disturbance_std)`` moves the states far faster than the pumps can.
+
+    The H2/H-infinity figures are in the units of ``w``; a default ``disturbance_std = 1``
+    with ``Bw = "inflows"`` means inflows of 1 m^3/s, thousands of times a laboratory pump.
+    """
+    ranges = np.array([float(hi - lo) for lo, hi in plant.input_limits])
+    if not np.all(np.isfinite(ranges)) or not np.any(ranges > 0):
+        return
+    authority = float(np.max(np.abs(np.asarray(B, float)) * ranges[None, :]))
+    effect = float(np.max(np.abs(Bw))) if Bw.size else 0.0
+    if authority > 0 and effect > DISTURBANCE_AUTHORITY_RATIO * authority:
+        warnings.warn(f"the declared disturbances move the states {effect / authority:.3g} times "
+                      f"faster than the pumps at full range (Bw diag(disturbance_std) against "
+                      f"B diag(input range)): H2/H-infinity figures are in those units; set "
+                      f"disturbance_std to a realistic size (with Bw = \"inflows\": an inflow in "
+                      f"the input unit, e.g. m^3/s)", DesignWarning, stacklevel=3)
 
 
 def _base_diagnostics(spec: Any, o: Any, m: dict, res: SynthesisResult) -> dict:

@@ -395,3 +395,38 @@ def test_spec_route_option_reaches_the_design():
     assert a["gamma_lmi_optimum"] == pytest.approx(b["gamma_lmi_optimum"], rel=1e-5)
     with pytest.raises(TanksynthError, match="route"):
         design(spec, dataclasses.replace(entry, options={**entry.options, "route": "newton"}))
+
+
+_WARN_SPEC = """
+[plant]
+model = "three_tank"
+outputs = "h1h2"
+[operating_point]
+x = {h1 = 0.40, h2 = 0.20, h3 = 0.30}
+[sampling]
+ts = 1.0
+[[design]]
+name = "hinf"
+method = "hinf_state_feedback"
+"""
+
+
+@pytest.mark.parametrize("std, warned", [(None, True), (5e-6, False)])
+def test_disturbances_far_beyond_the_pumps_are_warned(std, warned):
+    """Default disturbance_std = 1 m^3/s with Bw = "inflows" is 8,333 x the 1.2e-4 m^3/s pump."""
+    import warnings as _w
+
+    from tanksynth.errors import DesignWarning
+    from tanksynth.methods import METHODS, parse_spec_text
+
+    text = _WARN_SPEC + ("" if std is None else f"disturbance_std = {std}\n")
+    spec = parse_spec_text(text)
+    with _w.catch_warnings(record=True) as caught:
+        _w.simplefilter("always")
+        res = METHODS["hinf_state_feedback"].design(spec, spec.designs[0])
+    lines = [str(w.message) for w in caught if issubclass(w.category, DesignWarning)]
+    hit = [line for line in lines if "faster than the pumps" in line]
+    assert bool(hit) is warned
+    assert bool([line for line in res.diagnostics.get("warnings", []) if "faster than the pumps" in line]) is warned
+    if warned:  # B = 1/A per pump, range 1.2e-4: ratio (1/A) / (1.2e-4/A) = 8333
+        assert "8.33e+03 times" in hit[0]
