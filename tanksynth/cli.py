@@ -487,7 +487,8 @@ def _write_report(directory: Path, pdf: bool):
         _out.print(f"report: {res.tex}, {res.pdf.name} ({res.pages} pages, LaTeX "
                    f"{res.latex_seconds:.1f} s)", markup=False, highlight=False)
     else:
-        _out.print(f"report: {res.tex}", markup=False, highlight=False)
+        _out.print(f"report: {res.tex} (for the PDF: --pdf, needs pdflatex and latexmk)", markup=False,
+                   highlight=False)
     for comp in res.comparisons:
         if comp.errata:
             _out.print(f"paper vs tool ({comp.title}): {len(comp.errata)} erratum/errata in the "

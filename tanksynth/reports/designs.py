@@ -350,8 +350,8 @@ def design_view(art: Mapping[str, Any], figure: FigureFile | None,
     for key in ("caveats", "notes", "note", "warnings"):
         for _, v in _find(diag, key, max_depth=1):
             for item in (v if isinstance(v, list) else [v]):
-                if isinstance(item, str) and item:
-                    notes.append(prose_latex(item))
+                if isinstance(item, str) and item and prose_latex(item) not in notes:
+                    notes.append(prose_latex(item))  # a caveat repeated in a sub-record: once
     skip = list(_SHOWN) + [s.path for s in eigenvalue_sets(art)]
     if method == "linearize":
         skip += ["eigenvalues_F", "eigenvalues_Ad", "ts", "smooth_form_valid"]

@@ -245,7 +245,7 @@ def _vertex_checks(doc: Mapping[str, Any], spec: Any, c: dict) -> list[Check]:
     w = int(np.argmin(margins))
     what = "A_i - L C_i" if "L" in c else ("Aa_i - Ba_i K" if c["integral"] else "A_i - B_i K")
     checks.append(Check("vertex_region", bool(min(margins) > 0),
-                        f"eigenvalues of {what} at all {len(models)} models (2^{len(c['box'])} corners"
+                        f"eigenvalues of {what} at all {len(models)} models ({2 ** len(c['box'])} corners"
                         f"{' + nominal' if c['box'] else ''}) against the region {region.describe()}: "
                         f"smallest margin -lambda_max(f_D) = {min(margins):.3g} at the worst vertex "
                         f"({_label(models[w]['params'])}), eigenvalues {fmt(np.linalg.eigvals(loops[w]), 5)}",
