@@ -57,8 +57,12 @@ def _live() -> bool:
 
 
 @contextmanager
-def _stage(text: str):
-    """Print a line as a stage starts, and a spinner while it runs (on a terminal only)."""
+def _stage(text: str, quiet: bool = False):
+    """Print a line as a stage starts, and a spinner while it runs (on a terminal only);
+    nothing with ``quiet`` (``--json`` output must stay one JSON document)."""
+    if quiet:
+        yield
+        return
     _out.print(f"- {text}", markup=False, highlight=False)
     if not _live():
         yield
@@ -336,7 +340,7 @@ def check(spec: str, as_json: bool, outdir: str | None, spec_only: bool) -> None
             _out.print(f"{spec}: valid; plant {s.plant.name}, {len(s.designs)} design(s)",
                        markup=False, highlight=False)
         return
-    with _stage("rank conditions (Kalman, PBH, nonlinear observability)"):
+    with _stage("rank conditions (Kalman, PBH, nonlinear observability)", quiet=as_json):
         checks = _rank_conditions(s)
     text = json.dumps(to_jsonable([c.as_dict() for c in checks]), indent=2)
     if outdir is not None:

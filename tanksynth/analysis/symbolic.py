@@ -41,7 +41,17 @@ _active = threading.local()
 
 class TooComplexError(SpecError):
     """A symbolic step on the model did not finish within its budget ("too complex for
-    symbolic analysis"): exit 2, naming the plant; checks report it as not attempted."""
+    symbolic analysis"): exit 2, naming the plant; checks report it as not attempted.
+
+    Parameters
+    ----------
+    message : str
+        Which step did not finish and what to do (simplify the expressions, raise the budget).
+    key : str, optional
+        Dotted spec key of the offending expression, e.g. ``plant.outputs``.
+    source : str, optional
+        File the spec came from, if any.
+    """
 
 
 def _budget_seconds(seconds: float | None) -> float:

@@ -38,7 +38,13 @@ _umask_lock = threading.Lock()
 
 def file_mode(target: str | Path) -> int:
     """The mode a file written to ``target`` gets: the existing file's permission bits, else
-    ``0o666`` less the process umask (what ``open(target, "w")`` would create)."""
+    ``0o666`` less the process umask (what ``open(target, "w")`` would create).
+
+    Parameters
+    ----------
+    target : str or Path
+        The file about to be written (it may not exist yet).
+    """
     try:
         return os.stat(target).st_mode & 0o7777
     except OSError:

@@ -93,6 +93,13 @@ def read_limited(path: str | Path, limit: int = MAX_FILE_BYTES) -> bytes:
     A result directory is input: a file replaced by a FIFO, a device such as
     ``/dev/zero`` or a huge file must not hang or exhaust memory.
 
+    Parameters
+    ----------
+    path : str or Path
+        The file to read.
+    limit : int, optional
+        Largest size accepted (bytes; default `MAX_FILE_BYTES`).
+
     Raises
     ------
     ArtefactError

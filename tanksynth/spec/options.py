@@ -82,7 +82,15 @@ def unknown_word_hint(word: Any, candidates: Sequence[str]) -> str:
 
 
 def short_repr(value: Any, limit: int = 60) -> str:
-    """``repr(value)`` cut to ``limit`` characters (an echoed value stays one short line)."""
+    """``repr(value)`` cut to ``limit`` characters (an echoed value stays one short line).
+
+    Parameters
+    ----------
+    value : object
+        The value to echo in a message.
+    limit : int, optional
+        Largest length of the text (characters; default 60).
+    """
     if isinstance(value, int) and not isinstance(value, bool) and abs(value) > 10 ** 30:
         return f"an integer of {len(str(abs(value)))} digits"
     try:
