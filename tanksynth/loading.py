@@ -76,28 +76,52 @@ class Design:
         ts = record.get("ts", self.diagnostics.get("ts", self.diagnostics.get("sampling_period")))
         return None if ts is None else float(ts)
 
-    def to_statespace(self) -> Any:
+    def to_statespace(self, system: str | None = None, *, vertex: int | None = None) -> Any:
         """The design's linear system as a python-control ``StateSpace``.
 
-        ========================  ===================================================
-        controller (``K``)        closed loop ``x+ = (A - B K) x + B r``, ``y = C x``;
-                                  with integral action the augmented loop
-                                  ``(Aa - Ba K)`` driven by the references (``Br``),
-                                  output the tracked outputs
-        observer (``L``)          error ``e+ = (A - L C) e - L v`` (``v`` measurement
-                                  noise), output ``e``
-        ``ts_observer``           the linear part ``(A0 - L C)`` of the error dynamics
-                                  (the nonlinear remainder, bounded by psi, is left out)
-        ``luenberger``            error ``(Ad - L C)``, ``(I - L C) Ad`` or ``(F - L C)``
-                                  by its form, input ``v``, output ``e``
-        Kalman filters            steady state of the filter on the linearisation at the
-                                  operating point: ``e+ = (I - K C) Ad e``, input
-                                  ``v``; ``K`` by the discrete Riccati equation of
-                                  the artefact's ``Q`` (``Q0``; ``G Q G'``) and ``R``
-        ``linearize``             the ZOH model ``(Ad, Bd, C, 0)``
-        ========================  ===================================================
+        One entry point for every method with a linear closed loop or error
+        system; it delegates to `tanksynth.verify.statespace.artefact_statespace`
+        (see there for every system and its matrices):
 
-        Discrete systems have ``dt = ts`` (s); continuous ones ``dt = 0``.
+        ==========================  ==================================================
+        H2 / H-infinity /           ``"performance"`` (default): the closed loop from
+        ``multiobjective``          the disturbances ``w`` to the performance outputs
+                                    ``z``; the systems below on request
+        controllers (``K``)         ``"closed_loop"`` (default): ``(A - B K, B, C, 0)``;
+                                    with integral action (``pole_placement``,
+                                    ``lmi_placement``, ``robust_state_feedback``,
+                                    ``integral_tracking``) the augmented loop from
+                                    the references to the tracked outputs, the
+                                    integrator states named ``z_<output>``;
+                                    ``"loop"``: the
+                                    loop transfer ``(A, B, K, 0)`` for ``margin``
+        observers (``L``)           ``"error"`` (default): ``e+ = (A - L C) e - L v``;
+                                    ``"performance"``: ``(A - L C, [Bw, -L Dv], Cz)``
+                                    (the default of H2 / H-infinity observers);
+                                    ``"observer"``: ``(u, y) -> x_hat``
+        Kalman filters              steady state on the linearisation at the
+                                    operating point: ``e+ = (I - K C) Ad e``
+        robust designs              the nominal model; ``vertex=i`` the i-th stored
+                                    vertex model
+        ``ts_state_feedback``,      NOT LTI: the linearisation of the nonlinear
+        ``ts_output_feedback``      closed loop at ``x0``, ``sum_i mu_i(x0) A_i - B
+                                    sum_j mu_j(x0) K_j`` (output feedback: states
+                                    ``(x, e)``), with a `TanksynthWarning`
+        ``linearize``               the ZOH model ``(Ad, Bd, C, 0)``
+        ==========================  ==================================================
+
+        Discrete systems have ``dt = ts`` (s); continuous ones ``dt = 0``. States,
+        inputs and outputs carry the plant's names.
+
+        Parameters
+        ----------
+        system : {"closed_loop", "reference", "performance", "loop", "error", "observer", "model"}, optional
+            Which system (default: ``w -> z`` of an H2 / H-infinity /
+            multi-objective design, the closed loop of another controller,
+            the error system of another observer or an estimator).
+        vertex : int, optional
+            Robust designs: the stored vertex model ``vertex`` (0-based) instead
+            of the nominal one.
 
         Returns
         -------
@@ -107,125 +131,20 @@ class Design:
         ------
         ArtefactError
             The method has no linear closed loop or error system (nonlinear
-            laws, time-varying or decentralised gains, detectors, NARX).
+            laws, time-varying or decentralised gains, detectors, NARX), or
+            the system asked for does not apply to it.
+
+        Warns
+        -----
+        TanksynthWarning
+            Takagi-Sugeno PDC designs (a local linearisation).
         """
-        import control
+        from tanksynth.verify.statespace import artefact_statespace
 
-        A, B, C, D, dt = _linear_system(self)
-        n = A.shape[0]
-        names = _state_names(self, n)
-        return control.ss(A, B, C, D, dt, states=names, name=self.name)
-
-
-def _state_names(design: Design, n: int) -> list[str]:
-    states = [s["name"] for s in ((design.plant_record or {}).get("plant") or {}).get("states", [])]
-    integral = design.diagnostics.get("integral")
-    if isinstance(integral, Mapping):
-        states = states + [f"z_{t}" for t in integral.get("tracked", [])]
-    return states if len(states) == n else [f"x{i}" for i in range(n)]
-
-
-def _dt(design: Design, discrete: bool) -> float:
-    if not discrete:
-        return 0
-    if design.ts is None:
-        raise ArtefactError(f"{design.path}: a discrete design without a sampling period")
-    return design.ts
-
-
-def _linear_system(design: Design) -> tuple[np.ndarray, ...]:
-    g, diag, method = design.gains, design.diagnostics, design.method
-    discrete = diag.get("time_domain", "discrete") == "discrete"
-    if method in ("pole_placement", "lmi_placement") and "K" in g:
-        integral = diag.get("integral")
-        if isinstance(integral, Mapping) and "augmented_A" in integral:
-            Aa, C1 = np.array(integral["augmented_A"]), np.array(integral["C1"])
-            if "augmented_B" in integral:
-                Ba = np.array(integral["augmented_B"])
-            else:  # the integrators take no input: Ba = [B; 0]
-                B = _model(design)[1]
-                Ba = np.vstack([B, np.zeros((Aa.shape[0] - B.shape[0], B.shape[1]))])
-            Ca = np.hstack([C1, np.zeros((C1.shape[0], Aa.shape[0] - C1.shape[1]))])
-            return Aa - Ba @ g["K"], np.asarray(g["Br"]), Ca, np.zeros((Ca.shape[0], g["Br"].shape[1])), \
-                _dt(design, discrete)
-        A, B, C = _model(design)
-        return A - B @ g["K"], B, C, np.zeros((C.shape[0], B.shape[1])), _dt(design, discrete)
-    if method in ("pole_placement", "lmi_placement", "canonical_observer") and "L" in g:
-        A, _, C = _model(design)
-        discrete = discrete and method != "canonical_observer"
-        return _error_system(A - g["L"] @ C, g["L"], _dt(design, discrete))
-    if method == "ts_observer":
-        return _error_system(g["A0"] - g["L"] @ g["C"], g["L"], 0)
-    if method == "integral_tracking":
-        return _integral_tracking(design)
-    if method == "linearize":
-        return g["Ad"], g["Bd"], g["C"], np.zeros((g["C"].shape[0], g["Bd"].shape[1])), _dt(design, True)
-    if method == "luenberger":
-        lin = _linearisation(design)
-        L, form = g["L"], diag.get("form")
-        if form == "continuous":
-            return _error_system(lin.F - L @ lin.C, L, 0)
-        if form == "predictor":
-            return _error_system(lin.Ad - L @ lin.C, L, _dt(design, True))
-        return _error_system((np.eye(L.shape[0]) - L @ lin.C) @ lin.Ad, lin.Ad @ L, _dt(design, True))
-    if method in ("kalman", "ekf", "ukf", "adaptive_kalman", "adaptive_scaling_kalman"):
-        from scipy.linalg import solve_discrete_are
-
-        if "Ad" in g and "C" in g:
-            Ad, C = g["Ad"], g["C"]
-        else:
-            lin = _linearisation(design)
-            Ad, C = lin.Ad, lin.C
-        Q = g["Q0"] if "Q0" in g else g["Q"]
-        if method == "adaptive_scaling_kalman" and "G" in g:
-            Q = g["G"] @ Q @ g["G"].T
-        P = solve_discrete_are(Ad.T, C.T, Q, g["R"])     # predicted covariance
-        K = P @ C.T @ np.linalg.inv(C @ P @ C.T + g["R"])
-        n = Ad.shape[0]
-        return _error_system((np.eye(n) - K @ C) @ Ad, Ad @ K, _dt(design, True))
-    raise ArtefactError(f"{design.path}: method {method!r} has no linear closed loop or error "
-                        "system to give as a StateSpace (nonlinear law, time-varying or "
-                        "decentralised gains, a detector or a neural estimator)")
-
-
-def _error_system(Ae: np.ndarray, L: np.ndarray, dt: float) -> tuple[np.ndarray, ...]:
-    n = Ae.shape[0]
-    return Ae, -np.asarray(L), np.eye(n), np.zeros((n, L.shape[1])), dt
-
-
-def _model(design: Design) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    g = design.gains
-    if all(k in g for k in ("A", "B", "C")):
-        return g["A"], g["B"], g["C"]
-    lin = _linearisation(design)
-    discrete = design.diagnostics.get("time_domain", "discrete") == "discrete"
-    return (lin.Ad, lin.Bd, lin.C) if discrete else (lin.F, lin.B, lin.C)
-
-
-def _integral_tracking(design: Design) -> tuple[np.ndarray, ...]:
-    g = design.gains
-    lin = _linearisation(design)
-    C1, n, p = g["C1"], lin.Ad.shape[0], g["C1"].shape[0]
-    ts = _dt(design, True)
-    # x+ = Ad x + Bd u, z+ = z + ts (r - C1 x), u = -K1 x - K2 z (deviations, no saturation)
-    Aa = np.block([[lin.Ad, np.zeros((n, p))], [-ts * C1, np.eye(p)]])
-    Ba = np.vstack([lin.Bd, np.zeros((p, lin.Bd.shape[1]))])
-    Br = np.vstack([np.zeros((n, p)), ts * np.eye(p)])
-    Ca = np.hstack([C1, np.zeros((p, p))])
-    return Aa - Ba @ g["K"], Br, Ca, np.zeros((p, p)), ts
-
-
-def _linearisation(design: Design) -> Any:
-    """The ZOH linearisation at the spec's operating point (from ``spec.toml`` beside the artefact)."""
-    from tanksynth.analysis.linearize import equilibrium_input, linearize
-    from tanksynth.spec import parse_spec_text
-
-    path = design.path.parent / "spec.toml"
-    if not path.is_file():
-        raise ArtefactError(f"{design.path}: no spec.toml beside it, needed to linearise the plant")
-    spec = parse_spec_text(path.read_bytes(), source=str(path))
-    eq = equilibrium_input(spec.plant, spec.x0, spec.given_u0)
-    return linearize(spec.plant, spec.x0, eq.u0, ts=spec.ts)
+        doc = {"name": self.name, "method": self.method, "gains": dict(self.gains),
+               "diagnostics": self.diagnostics}
+        return artefact_statespace(doc, system, plant_record=self.plant_record, source=self.path,
+                                   vertex=vertex)
 
 
 class Results(Mapping[str, Design]):
