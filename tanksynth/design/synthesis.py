@@ -8,20 +8,8 @@ Generalised plant (continuous time: ``x' = dx/dt``; discrete time: ``x' = x(k+1)
 State feedback ``u = -K x`` gives ``Acl = A - B K``, ``Bw``, ``Ccl = Cz - Dzu K``.
 The LMIs are written in ``X = X' > 0`` and ``Y = K X`` (``K = Y X^-1``); every
 block builder below returns a matrix that must be NEGATIVE definite and works
-on cvxpy expressions (for solving) and on numpy arrays (for re-checking):
-
-`h2_lmis`
-    continuous: ``He(AX - BY) + Bw Bw' < 0`` and ``[[W, CzX - DzuY], [., X]] > 0``;
-    discrete: ``[[X - Bw Bw', AX - BY], [., X]] > 0`` and the same ``W`` block;
-    ``||T_zw||_2^2 < trace W``.
-`hinf_lmis`
-    bounded-real lemma with ``X = P^-1``; continuous
-    ``[[He(AX - BY), Bw, (CzX - DzuY)'], [Bw', -g I, 0], [CzX - DzuY, 0, -g I]] < 0``,
-    discrete ``[[-X, AX - BY, Bw, 0], [., -X, 0, (CzX - DzuY)'], [Bw', 0, -g I, 0],
-    [0, CzX - DzuY, 0, -g I]] < 0``; ``||T_zw||_inf < g``.
-`region_lmi`
-    Chilali-Gahinet ``L (x) X + M (x) (AX - BY) + M' (x) (AX - BY)' < 0`` for an
-    `tanksynth.analysis.lmi_region.LMIRegion`: every eigenvalue of ``A - BK`` in it.
+on cvxpy expressions (for solving) and on numpy arrays (for re-checking): `h2_lmis`,
+`hinf_lmis`, `region_lmi` (their formulas: `tanksynth.design.synthesis_lmis`).
 
 `synthesize_state_feedback` solves any combination (H2 and/or H-infinity
 objective or bound, LMI region) with ONE ``X`` and ``Y`` shared by every

@@ -23,20 +23,8 @@ on cvxpy expressions (for solving) and on numpy arrays (for re-checking):
     Chilali-Gahinet ``L (x) X + M (x) (AX - BY) + M' (x) (AX - BY)' < 0`` for an
     `tanksynth.analysis.lmi_region.LMIRegion`: every eigenvalue of ``A - BK`` in it.
 
-`synthesize_state_feedback` solves any combination (H2 and/or H-infinity
-objective or bound, LMI region) with ONE ``X`` and ``Y`` shared by every
-objective and by every model given (vertices of a polytope: robust designs),
-which is conservative (the bounds returned are guaranteed, the achieved norms
-are recomputed). Observers are the duals (`observer_plant`): the error
-``e' = (A - L C) e + Bw w - L Dv v``, ``z = Cz e``, has the same norms as its
-transpose, a state-feedback problem in ``(A', C')`` with gain ``L'``.
-
-Numerics: the problem is scaled before solving (diagonal balancing of ``A``,
-unit input columns, scalar scaling of ``w`` and ``z``, time scaling by
-``||A||`` in continuous time); the solver status is never trusted: the gain
-is re-checked in numpy in the original units (closed-loop eigenvalues,
-region, H2 norm from the Gramian, H-infinity norm by a Hamiltonian test and
-bisection) and refused (`InfeasibleDesign`) when a claim fails.
+Solving (one ``X``, ``Y`` shared by every objective and model), scaling and the
+independent re-check of the returned gain: `tanksynth.design.synthesis`.
 """
 
 from __future__ import annotations
