@@ -49,7 +49,7 @@ from typing import Any, Sequence
 import numpy as np
 import sympy as sp
 
-from tanksynth.analysis.quasi_lpv import _NUMPY, Domain, QuasiLPV
+from tanksynth.analysis.quasi_lpv import _NUMPY, Domain, QuasiLPV, lambdify_cached
 from tanksynth.errors import DimensionError, InfeasibleDesign, SpecError
 
 __all__ = ["RELAXATIONS", "DeviationTSModel", "deviation_ts_model", "linear_argument",
@@ -66,7 +66,12 @@ def linear_argument(atom: sp.Expr, states: Sequence[sp.Symbol], seed: int = 0) -
 
     One state: its unit vector. Several: the argument of the atom's
     ``Abs``/``sign``/``sqrt``, checked numerically (the atom must not change
-    along random directions orthogonal to ``a``).
+    along random directions orthogonal to ``a``). The result does not depend
+    on the order sympy keeps its sets in (``PYTHONHASHSEED``): the candidate
+    arguments are tried in `sympy.default_sort_key` order, and the sign is
+    canonical, the first nonzero coefficient positive (``h2 - h3``, never
+    ``h3 - h2``; the premise ``z_k`` and its bounds change sign with ``a``,
+    the vertex matrices ``z_k M_k a'`` do not).
 
     Parameters
     ----------
@@ -89,8 +94,10 @@ def linear_argument(atom: sp.Expr, states: Sequence[sp.Symbol], seed: int = 0) -
         a = np.zeros(n)
         a[states.index(free[0])] = 1.0
         return a
-    args = [f.args[0] for f in atom.atoms(sp.Abs, sp.sign)]
-    args += [p.base for p in atom.atoms(sp.Pow) if p.exp == sp.Rational(1, 2)]
+    # atoms() is a set (hash order): sort, so that the first linear argument is always the same
+    args = sorted((f.args[0] for f in atom.atoms(sp.Abs, sp.sign)), key=sp.default_sort_key)
+    args += sorted((p.base for p in atom.atoms(sp.Pow) if p.exp == sp.Rational(1, 2)),
+                   key=sp.default_sort_key)
     cand = None
     for arg in args:
         try:
@@ -99,6 +106,8 @@ def linear_argument(atom: sp.Expr, states: Sequence[sp.Symbol], seed: int = 0) -
             continue
         if poly.total_degree() == 1 and poly.coeff_monomial(1) == 0:
             cand = np.array([float(poly.coeff_monomial(s)) for s in states])
+            if cand[np.flatnonzero(cand)[0]] < 0:    # canonical sign: first nonzero coefficient > 0
+                cand = -cand + 0.0    # no -0.0 in the artefact
             break
     fail = SpecError(f"atom {atom} is not a function of one linear combination of the states: the "
                      "deviation TS model of ts_state_feedback needs n_k(x) = phi(a . x)", key="plant")
@@ -115,6 +124,20 @@ def linear_argument(atom: sp.Expr, states: Sequence[sp.Symbol], seed: int = 0) -
     if not np.allclose(v1, v2, rtol=1e-9, atol=1e-12, equal_nan=True):
         raise fail
     return cand
+
+
+def _atom_on_points(qlpv: QuasiLPV, k: int, X: np.ndarray) -> np.ndarray:
+    """Atom ``n_k`` alone at M points (M, n) -> (M,), NaN where it is undefined (no warning).
+
+    The design's own lines through ``x0`` may leave the domain where the
+    *other* atoms are defined; `QuasiLPV.atom_values` would warn about a
+    state leaving the domain, which is not what happens there.
+    """
+    fn = lambdify_cached([qlpv.states], qlpv.atoms[k])
+    X = np.atleast_2d(np.asarray(X, dtype=float))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        vals = fn(X.T)
+    return np.broadcast_to(np.asarray(vals, dtype=float), (X.shape[0],)).copy()
 
 
 @dataclass(frozen=True)
@@ -192,7 +215,7 @@ class DeviationTSModel:
         out = []
         for k in range(self.forms.shape[0]):
             d = self.forms[k] / (self.forms[k] @ self.forms[k])
-            vals = self.qlpv.atom_values(np.array([self.x0 + h * d, self.x0 - h * d]))[:, k]
+            vals = _atom_on_points(self.qlpv, k, np.array([self.x0 + h * d, self.x0 - h * d]))
             out.append((vals[0] - vals[1]) / (2 * h))
         return np.array(out)
 
@@ -291,10 +314,11 @@ def deviation_ts_model(qlpv: QuasiLPV, domain: Domain, x0: Sequence[float], u0: 
         tmin, tmax = domain.linear_range(a)
         t0 = float(a @ x0)
         grid = np.unique(np.concatenate([np.linspace(tmin, tmax, samples), [tmin, tmax]]))
+        # the line x0 + s a covers the exact range of a . x but may leave the domain (h2 < 0 on
+        # the line of h3 - h2): atom k depends on a . x only, so it alone is evaluated there
         X = x0 + np.outer(grid - t0, a / (a @ a))
-        with np.errstate(invalid="ignore"):    # other atoms may leave their domain on this line
-            vals = qlpv.atom_values(X)[:, k]
-        at0 = qlpv.atom_values(x0[None, :])[0, k]
+        vals = _atom_on_points(qlpv, k, X)
+        at0 = float(_atom_on_points(qlpv, k, x0[None, :])[0])
         dt = grid - t0
         ok = np.abs(dt) > 1e-9 * max(1.0, abs(t0))
         z = np.concatenate([(vals[ok] - at0) / dt[ok], [slope0[k]]])

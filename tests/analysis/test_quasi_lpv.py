@@ -109,3 +109,20 @@ def test_domain_samples_and_lp_ranges_are_cached_and_clearable():
     assert dom.linear_range(np.array([1.0, 1.0])) == (lo, hi)
     assert ql.clear_cache() >= 2
     assert np.array_equal(dom.sample(500, seed=3), again)   # recomputed: same seeded draw
+
+
+def test_atom_values_warn_when_a_state_leaves_the_premises_domain(qlpv):
+    """A real state with a negative level (the square root undefined) is reported, once per call
+    with the count; inside the domain nothing is said."""
+    import warnings
+
+    from tanksynth.errors import TanksynthWarning
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", TanksynthWarning)
+        vals = qlpv.atom_values(np.array([[0.4, 0.2, 0.3], [0.1, 0.6, 0.05]]))
+    assert np.all(np.isfinite(vals))
+    with pytest.warns(TanksynthWarning, match=r"undefined \(NaN\) at 1 of 2 point\(s\), first at "
+                                              r"h1 = 0.4, h2 = -0.01"):
+        vals = qlpv.atom_values(np.array([[0.4, 0.2, 0.3], [0.4, -0.01, 0.3]]))
+    assert np.all(np.isfinite(vals[0])) and not np.all(np.isfinite(vals[1]))

@@ -22,6 +22,15 @@ class TsStateFeedbackOptions(MethodOptions):
     TS model of the deviations from the operating point, continuous time, common quadratic
     Lyapunov function, certified region.
 
+    The design is continuous-time even when the spec has ``[sampling] ts``: the LMIs certify
+    ``dV/dt <= -2 alpha V`` for the law acting continuously, and ``ts`` changes no gain (the
+    gains are not discretised, no sample-and-hold margin is in the certificate). The verdict's
+    region simulations (``region_simulation``) hold the law over a period of its own, ``min(1 s,
+    0.05 / max |eig(A_i - B K_j)|)``, short enough to resolve the closed loop whatever the
+    spec's ``ts``; the campaign runs the law at the spec's ``ts`` (1 s without one), each input
+    held over a period (zero-order hold), so a ``ts`` that is long against the closed loop
+    degrades the campaign's runs, not the certificate.
+
     Attributes
     ----------
     relaxation : str
@@ -115,6 +124,11 @@ class TsOutputFeedbackOptions(TsStateFeedbackOptions):
 
     Every option of ``ts_state_feedback`` (listed first below), plus ``premises``,
     ``observer_decay``, ``lipschitz_method`` and ``coupling_factor``.
+
+    Continuous-time, controller and observer, even when the spec has ``[sampling] ts`` (see
+    ``ts_state_feedback``): the verdict and the campaign integrate the observer between
+    samples (RK4 substeps, measured premises; exponential Euler, estimated premises) with the
+    measurement and the input held over each period of the simulation.
 
     Attributes
     ----------
