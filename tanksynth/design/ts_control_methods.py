@@ -28,7 +28,8 @@ import numpy as np
 from tanksynth.analysis.linearize import equilibrium_input
 from tanksynth.analysis.takagi_sugeno import domain_from_plant, quasi_lpv, ts_model
 from tanksynth.design.result import DesignMethod, DesignResult, options_of, rekeyed
-from tanksynth.design.ts_control import certified_decay, deviation_ts_model, max_decay_rate, pdc_lmi
+from tanksynth.design.ts_control import certified_decay, max_decay_rate, pdc_lmi
+from tanksynth.design.ts_deviation import deviation_ts_model
 from tanksynth.design.ts_region import certified_region, coupling_weight, lyapunov_decay, observer_decay_lmi
 from tanksynth.errors import InfeasibleDesign, SpecError
 from tanksynth.spec.method_options import TsOutputFeedbackOptions, TsStateFeedbackOptions

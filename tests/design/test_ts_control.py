@@ -8,8 +8,8 @@ import sympy as sp
 
 from tanksynth.analysis.linearize import equilibrium_input
 from tanksynth.analysis.takagi_sugeno import domain_from_plant, quasi_lpv
-from tanksynth.design.ts_control import (condition_weights, deviation_ts_model, linear_argument,
-                                         max_decay_rate, pdc_lmi)
+from tanksynth.design.ts_control import condition_weights, max_decay_rate, pdc_lmi
+from tanksynth.design.ts_deviation import deviation_ts_model, linear_argument
 from tanksynth.design.ts_region import certified_region
 from tanksynth.errors import InfeasibleDesign, SpecError
 from tanksynth.methods import METHODS, parse_spec_text
