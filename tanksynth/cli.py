@@ -71,26 +71,16 @@ def _stage(text: str, quiet: bool = False):
         yield
 
 
-_shown_warnings: set[str] = set()
-
-
-def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:
-    """One line per distinct warning, naming where a library warning came from and what it means."""
-    from tanksynth.errors import TanksynthWarning
-
+def _warning_line(message, category, filename) -> str:
+    """One line for a warning: a tanksynth warning as it is, a numerical library warning with
+    where it came from and what it means."""
     text = _one_line(message)
-    if issubclass(category, TanksynthWarning):
-        out = f"warning: {text}"
-    elif issubclass(category, RuntimeWarning) and ("lambdify" in str(filename) or "numpy" in str(filename)
-                                                   or "scipy" in str(filename)):
-        where = "generated model code" if "lambdify" in str(filename) else Path(str(filename)).name
-        out = (f"warning: numerical: {text} (in {where}): a model or premise was evaluated outside "
-               "its domain (e.g. a negative level), giving NaN there")
-    else:
-        out = f"warning: {category.__name__}: {text} ({Path(str(filename)).name}:{lineno})"
-    if out not in _shown_warnings:
-        _shown_warnings.add(out)
-        click.echo(out, err=True)
+    if issubclass(category, RuntimeWarning) and "lambdify" in str(filename):
+        return (f"numerical: {text} (in generated model code): a model or premise was evaluated "
+                "outside its domain (e.g. a negative level), giving NaN there")
+    if issubclass(category, RuntimeWarning):
+        return f"numerical: {text} (in {Path(str(filename)).name})"
+    return text
 
 
 def _load(spec_path: str | None):
@@ -170,7 +160,6 @@ def _design_all(spec, outdir: Path, export: tuple[str, ...]) -> tuple[list[Path]
     printed once on stderr (``warning: <designs>: <text>``); the artefacts
     record theirs in ``diagnostics["warnings"]``.
     """
-    import warnings
 
     from tanksynth.artefacts.io import file_sha256, write_artefact, write_plant_record
     from tanksynth.errors import DesignWarning
@@ -597,14 +586,13 @@ def main(argv: list[str] | None = None) -> int:
     argv : list of str, optional
         Arguments after ``tanksynth`` (default ``sys.argv[1:]``).
     """
-    import warnings
 
     _ignore_file_size_signal()
     args = list(sys.argv[1:] if argv is None else argv)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         code = _main(args)
-    _note_warnings(caught, quiet="--json" in args)
+    _note_warnings(caught, quiet="--json" in args, code=code)
     return code
 
 
@@ -616,24 +604,33 @@ def _ignore_file_size_signal() -> None:
         signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
 
 
-def _note_warnings(caught: list, quiet: bool) -> None:
+def _note_warnings(caught: list, quiet: bool, code: int = 0) -> None:
+    """Tanksynth warnings (a meaning for the user): one line each on stderr, unless the exit
+    code is 2 or 4 (their contract is one stderr line). Library warnings: one note on stdout.
+    Nothing with ``--json``."""
+    from tanksynth.errors import DesignWarning, TanksynthWarning
+
     if not caught or quiet:
         return
-    kinds = sorted({w.category.__name__ for w in caught})
-    first = _one_line(str(caught[0].message))[:120]
+    ours = [w for w in caught if issubclass(w.category, TanksynthWarning)
+            and not issubclass(w.category, DesignWarning)]  # design warnings: printed per design
+    library = [w for w in caught if not issubclass(w.category, TanksynthWarning)]
     try:
-        _out.print(f"note: {len(caught)} library warning(s) ({', '.join(kinds)}) were handled; "
-                   f"first: {first}", markup=False, highlight=False)
-    except OSError:  # stdout closed: nothing more to say
+        if code not in (2, 4):
+            for line in dict.fromkeys(_warning_line(w.message, w.category, w.filename) for w in ours):
+                click.echo(f"warning: {line}", err=True)
+        if library:
+            kinds = sorted({w.category.__name__ for w in library})
+            first = _warning_line(library[0].message, library[0].category, library[0].filename)
+            _out.print(f"note: {len(library)} library warning(s) ({', '.join(kinds)}) were handled; "
+                       f"first: {first[:160]}", markup=False, highlight=False)
+    except OSError:  # stdout/stderr closed: nothing more to say
         pass
 
 
 def _main(argv: list[str]) -> int:
     try:
-        with warnings.catch_warnings():
-            warnings.showwarning = _show_warning  # one meaningful line, not a library's source line
-            _shown_warnings.clear()
-            cli.main(args=argv, prog_name="tanksynth", standalone_mode=False)
+        cli.main(args=argv, prog_name="tanksynth", standalone_mode=False)
     except click.exceptions.Exit as exc:
         return exc.exit_code
     except click.ClickException as exc:

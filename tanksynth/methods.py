@@ -267,7 +267,9 @@ def method(name: str) -> Method:
     from tanksynth.errors import SpecError
 
     if name not in METHODS:
-        raise SpecError(f"unknown method {name!r}; expected one of: " + ", ".join(METHODS))
+        from tanksynth.spec.options import unknown_word_hint
+
+        raise SpecError(f"unknown method {name!r}" + unknown_word_hint(name, list(METHODS)))
     return METHODS[name]
 
 

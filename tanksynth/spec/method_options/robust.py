@@ -100,8 +100,9 @@ def parse_uncertain(value: Any, key: str, plant: Any) -> tuple[tuple[str, float,
             if not lo <= hi:
                 raise SpecError(f"low ({lo:g}) must not exceed high ({hi:g})", key=k)
         else:
-            raise SpecError(f"expected [low, high], \"15%\" or {{relative = 0.15}} ({prm.unit}), "
-                            f"got {item!r}", key=k)
+            unit = "" if prm.unit in ("", "1", "-") else f" in {prm.unit}"
+            raise SpecError(f"expected an interval [low, high]{unit}, a relative \"15%\" (meaning "
+                            f"+-15 %) or {{relative = 0.15}}, got {item!r}", key=k)
         lo, hi = sorted((lo, hi))
         prm.check(lo, k)
         prm.check(hi, k)
@@ -124,7 +125,7 @@ def _common(r: OptionReader, plant: Any, ts: float | None) -> dict[str, Any]:
                                "(continuous: add a half-plane alpha >= 0, a disk left of 0 or a "
                                "sector; discrete: add a disk with |center| + radius <= 1)")
     uncertain = r.read("uncertain", parse_uncertain, plant, parse_default=True)
-    gamma = r.read("gamma", parse_number, above=0.0) if r.given("gamma") else None
+    gamma = r.read("gamma", parse_number, above=0.0, at_most=1e12) if r.given("gamma") else None
     for opt in ("Bw", "Cz", "Dzu"):
         if r.given(opt) and gamma is None:
             raise r.fail(opt, f"{opt} declares an H-infinity channel: give its bound gamma too")
@@ -154,7 +155,7 @@ _COMMON_DOC = """
         ``"discrete"`` (ZOH vertex models at ``[sampling] ts``; the default
         with a sampling period) or ``"continuous"``.
     gamma : float or None
-        H-infinity bound at every vertex (units of ``z`` per unit of ``w``);
+        H-infinity bound at every vertex (units of ``z`` per unit of ``w``; at most 1e12);
         default None (no H-infinity constraint).
     Bw : ndarray or None
         Continuous-time disturbance input matrix (n x nw, state units per s

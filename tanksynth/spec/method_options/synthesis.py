@@ -34,6 +34,12 @@ __all__ = ["DISTURBANCE_SHORTCUTS", "SYNTHESIS_OBJECTIVES", "SYNTHESIS_SOLVERS",
 
 #: Shortcuts for ``Bw``.
 DISTURBANCE_SHORTCUTS = ("inflows",)
+#: Largest disturbance or measurement standard deviation accepted (in the signal's unit; far
+#: beyond any physical tank signal, and its square keeps the Riccati/LMI data representable).
+MAX_STD = 1e10
+#: Largest norm bound (``gamma``, ``h2_bound``, ``hinf_bound``): beyond it the scaled LMIs lose
+#: all precision and a bound that large constrains nothing a tank plant can show.
+MAX_NORM_BOUND = 1e12
 #: What ``multiobjective`` minimises.
 SYNTHESIS_OBJECTIVES = ("hinf", "h2")
 #: Conic solvers (cvxpy names).
@@ -134,7 +140,7 @@ _COMMON_DOC = """
         each tank, ``diag(1 / A_i)`` from the plant's tank areas.
     disturbance_std : ndarray
         Size of each disturbance (disturbance units; with ``"inflows"``
-        m^3/s for SI plants): one number for all or nw numbers; default 1.
+        m^3/s for SI plants): one number for all or nw numbers, each in (0, 1e10]; default 1.
     Q : ndarray
         State weight (n x n, symmetric positive semidefinite, 1 / state unit^2);
         default Bryson's ``diag(1 / span_i^2)`` over the region box.
@@ -185,12 +191,12 @@ def _common(r: OptionReader, plant: Any, ts: float | None, observer: bool) -> di
     nw = Bw.shape[1]
     raw_w = r.options.get("disturbance_std", 1.0)
     if _is_scalar(raw_w):
-        std = np.full(nw, parse_number(raw_w, r.key("disturbance_std"), above=0.0))
+        std = np.full(nw, parse_number(raw_w, r.key("disturbance_std"), above=0.0, at_most=MAX_STD))
     else:
         std = parse_vector(raw_w, r.key("disturbance_std"), nw)
     std = np.asarray(std, dtype=float)
-    if np.any(std <= 0):
-        raise r.fail("disturbance_std", f"must be > 0, got {std.tolist()}")
+    if np.any(std <= 0) or np.any(std > MAX_STD):
+        raise r.fail("disturbance_std", f"must be > 0 and <= {MAX_STD:g}, got {std.tolist()}")
     Q = r.read("Q", parse_covariance, n, semidefinite=True) if r.given("Q") else \
         bryson_state_weight(plant)
     out: dict[str, Any] = {"time_domain": time_domain, "Bw": _ro(Bw), "disturbance_std": _ro(std),
@@ -201,11 +207,11 @@ def _common(r: OptionReader, plant: Any, ts: float | None, observer: bool) -> di
         if raw_v is None:
             vstd = 0.01 * _output_span(plant)
         elif _is_scalar(raw_v):
-            vstd = np.full(plant.q, r.read("measurement_std", parse_number, above=0.0))
+            vstd = np.full(plant.q, r.read("measurement_std", parse_number, above=0.0, at_most=MAX_STD))
         else:
             vstd = np.asarray(r.read("measurement_std", parse_vector, plant.q), float)
-            if np.any(vstd <= 0):
-                raise r.fail("measurement_std", f"must be > 0, got {vstd.tolist()}")
+            if np.any(vstd <= 0) or np.any(vstd > MAX_STD):
+                raise r.fail("measurement_std", f"must be > 0 and <= {MAX_STD:g}, got {vstd.tolist()}")
         out.update({"Cz": _ro(Cz), "measurement_std": _ro(np.asarray(vstd, float))})
     else:
         if r.given("Cz") != r.given("Dzu"):
@@ -300,7 +306,7 @@ class H2ObserverOptions(_SynthesisOptions):
 
 _BACKOFF_DOC = """
     backoff : float
-        Relative back-off from the optimum (>= 0; default 1e-3): the gain
+        Relative back-off from the optimum (0 to 1; default 1e-3): the gain
         keeps the bound within ``(1 + backoff)`` of the optimum (a moderate
         gain instead of the boundary). LMI route: a second solve maximises the
         LMIs' margin under that bound; Riccati route: the central gain at
@@ -326,7 +332,7 @@ class HinfStateFeedbackOptions(_StateFeedbackOptions):
         """See `MethodOptions.from_table`."""
         r = OptionReader(cls, options, key, ts)
         return cls(**_common(r, plant, ts, observer=False),
-                   backoff=r.read("backoff", parse_number, at_least=0.0), route=_route(r))
+                   backoff=r.read("backoff", parse_number, at_least=0.0, at_most=1.0), route=_route(r))
 
 
 @dataclass(frozen=True, eq=False)
@@ -349,7 +355,7 @@ class HinfObserverOptions(_SynthesisOptions):
         """See `MethodOptions.from_table`."""
         r = OptionReader(cls, options, key, ts)
         return cls(**_common(r, plant, ts, observer=True),
-                   backoff=r.read("backoff", parse_number, at_least=0.0), route=_route(r))
+                   backoff=r.read("backoff", parse_number, at_least=0.0, at_most=1.0), route=_route(r))
 
 
 @dataclass(frozen=True, eq=False)
@@ -402,8 +408,8 @@ class MultiobjectiveOptions(_StateFeedbackOptions):
                                    "stability domain (continuous: add a half-plane alpha >= 0, a disk "
                                    "left of 0 or a sector; discrete: add a disk with |center| + "
                                    "radius <= 1)")
-        bounds = {name: (r.read(name, parse_number, above=0.0) if r.given(name) else None)
+        bounds = {name: (r.read(name, parse_number, above=0.0, at_most=MAX_NORM_BOUND) if r.given(name) else None)
                   for name in ("h2_bound", "hinf_bound")}
         return cls(**common, region=region, target=target,
                    objective=r.read("objective", parse_choice, SYNTHESIS_OBJECTIVES), **bounds,
-                   backoff=r.read("backoff", parse_number, at_least=0.0))
+                   backoff=r.read("backoff", parse_number, at_least=0.0, at_most=1.0))
