@@ -7,27 +7,26 @@ and `Design.to_statespace`: the closed loop of a controller, the estimation
 error system of an observer or estimator, or the model of ``linearize``, as a
 python-control ``StateSpace`` (discrete with ``dt = ts`` when the design is).
 
-Every file is read with its integrity checks (`tanksynth.artefacts.io.read_artefact`):
-an artefact edited after design is refused.
+Every file is read with the integrity checks of ``tanksynth verify`` (one code
+path, `tanksynth.verify.runner.read_directory`): an artefact, its ``.npz``,
+``plant.json`` or ``spec.toml`` edited, swapped or deleted after design, an
+``.npz`` left without its artefact, or a malformed ``checks.json`` is refused
+with an `ArtefactError` naming the file.
 """
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Iterator, Mapping
 
 import numpy as np
 
-from tanksynth.artefacts.io import read_artefact, read_plant_record
+from tanksynth.artefacts.io import read_plant_record
 from tanksynth.errors import ArtefactError
+from tanksynth.verify.runner import read_checks, read_directory
 
 __all__ = ["Design", "Results", "load"]
-
-#: Files of a result directory that are not design artefacts.
-_NOT_ARTEFACTS = {"plant.json", "checks.json"}
-
 
 @dataclass(frozen=True, eq=False)
 class Design:
@@ -201,8 +200,7 @@ class Results(Mapping[str, Design]):
         return f"Results({str(self.directory)!r}, designs={list(self._designs)})"
 
 
-def _design(path: Path, record: Mapping[str, Any] | None) -> Design:
-    doc = read_artefact(path)
+def _design(path: Path, doc: Mapping[str, Any], record: Mapping[str, Any] | None) -> Design:
     gains = {}
     for k, v in doc["gains"].items():
         arr = np.array(v, dtype=float)
@@ -212,8 +210,20 @@ def _design(path: Path, record: Mapping[str, Any] | None) -> Design:
                   doc.get("verification"), record)
 
 
+def _plant_record(directory: Path) -> Mapping[str, Any] | None:
+    """``plant.json`` (its bytes already checked against the artefacts), None when absent."""
+    return read_plant_record(directory) if (directory / "plant.json").is_file() else None
+
+
 def load(path: str | Path) -> Design | Results:
     """Load an artefact (``<name>.json``) or every artefact of a result directory.
+
+    The files are checked exactly as ``tanksynth verify`` checks them
+    (`tanksynth.verify.runner.read_directory`): every artefact's content
+    hash, its ``<name>.npz``, ``plant.json`` and ``spec.toml`` against the
+    hashes recorded at design; for a directory also no orphan ``.npz`` and a
+    well-formed ``checks.json``. One file is checked with its own ``.npz``,
+    the plant record and the spec of its directory.
 
     Parameters
     ----------
@@ -229,24 +239,16 @@ def load(path: str | Path) -> Design | Results:
     Raises
     ------
     ArtefactError
-        Missing path, not an artefact, or a file edited after design.
+        Missing path, not an artefact, or a file edited, swapped or deleted
+        after design (the message names the file).
     """
     path = Path(path)
     if path.is_dir():
-        record = read_plant_record(path) if (path / "plant.json").is_file() else None
-        designs = {}
-        for file in sorted(path.glob("*.json")):
-            if file.name in _NOT_ARTEFACTS or file.name.endswith(".traces.json"):
-                continue
-            d = _design(file, record)
-            designs[d.name] = d
-        if not designs:
-            raise ArtefactError(f"{path}: no design artefact (<name>.json) in it")
-        checks_path = path / "checks.json"
-        checks = json.loads(checks_path.read_text(encoding="utf-8")) if checks_path.is_file() else []
-        return Results(path, designs, checks, record)
+        _, docs = read_directory(path)
+        record = _plant_record(path)
+        designs = {doc["name"]: _design(file, doc, record) for file, doc in docs}  # name == file stem
+        return Results(path, designs, read_checks(path) or [], record)
     if not path.is_file():
         raise ArtefactError(f"{path}: no such artefact or result directory")
-    parent = path.parent
-    record = read_plant_record(parent) if (parent / "plant.json").is_file() else None
-    return _design(path, record)
+    _, docs = read_directory(path.parent, path)
+    return _design(path, docs[0][1], _plant_record(path.parent))

@@ -203,3 +203,136 @@ def test_mat_export_matlab_orientation(results):
     np.testing.assert_allclose(sf["K"], doc["gains"]["K"])
     assert sf["x0"].shape == (3, 1) and sf["u0"].shape == (2, 1)
     np.testing.assert_allclose(sf["u0"][:, 0], doc["diagnostics"]["equilibrium"]["u0"])
+
+
+# ----------------------------------------------------------------- tampering (issue 19)
+# `load` runs the integrity checks of `tanksynth verify` (one code path): every edit below
+# makes both refuse, naming the file.
+def _edit_json(name, fn):
+    def edit(d: Path) -> None:
+        doc = json.loads((d / name).read_text(encoding="utf-8"))
+        fn(doc)
+        (d / name).write_text(json.dumps(doc, indent=2), encoding="utf-8")
+    return edit
+
+
+def _rename_state(record):
+    record["plant"]["states"][0]["name"] = "level1"
+
+
+def _scale_npz(d: Path) -> None:
+    with np.load(d / "obs.npz") as data:
+        gains = {k: data[k] * 1.01 for k in data.files}
+    np.savez(d / "obs.npz", **gains)
+
+
+def _swap(a, b):
+    def edit(d: Path) -> None:
+        (d / a).rename(d / "tmp")
+        (d / b).rename(d / a)
+        (d / "tmp").rename(d / b)
+    return edit
+
+
+def _truncate(name, n):
+    def edit(d: Path) -> None:
+        (d / name).write_bytes((d / name).read_bytes()[:n])
+    return edit
+
+
+def _dir_over(name):
+    def edit(d: Path) -> None:
+        (d / name).unlink()
+        (d / name).mkdir()
+    return edit
+
+
+def _unlink(name):
+    return lambda d: (d / name).unlink()
+
+
+def _write(name, text):
+    return lambda d: (d / name).write_text(text, encoding="utf-8")
+
+
+TAMPERING = {
+    "plant_ts_edited": (_edit_json("plant.json", lambda r: r.__setitem__("ts", 5.0)), "plant.json"),
+    "plant_state_renamed": (_edit_json("plant.json", _rename_state), "plant.json"),
+    "plant_deleted": (_unlink("plant.json"), "plant.json"),
+    "npz_edited": (_scale_npz, "obs.npz"),
+    "npz_swapped": (_swap("obs.npz", "lue.npz"), "lue.npz|obs.npz"),
+    "npz_truncated": (_truncate("obs.npz", 100), "obs.npz"),
+    "npz_emptied": (_truncate("obs.npz", 0), "obs.npz"),
+    "npz_is_a_directory": (_dir_over("obs.npz"), "obs.npz"),
+    "npz_deleted": (_unlink("obs.npz"), "obs.npz"),
+    "json_deleted_npz_orphan": (_unlink("obs.json"), "obs.npz"),
+    "spec_edited": (lambda d: (d / "spec.toml").write_text(SPEC + "\n# edited\n", encoding="utf-8"),
+                    "spec.toml"),
+    "spec_deleted": (_unlink("spec.toml"), "spec.toml"),
+    "checks_not_json": (_write("checks.json", "[{\"check\": "), "checks.json"),
+    "checks_not_a_list": (_write("checks.json", "{\"check\": 1}"), "checks.json"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(TAMPERING))
+def test_load_refuses_what_verify_refuses(results, tmp_path, case):
+    import shutil
+
+    from tanksynth.methods import METHODS
+    from tanksynth.verify.runner import load_directory
+
+    edit, named = TAMPERING[case]
+    d = tmp_path / "d"
+    shutil.copytree(results, d)
+    assert isinstance(tanksynth.load(d), tanksynth.Results)  # the copy loads before the edit
+    edit(d)
+    with pytest.raises(ArtefactError, match=named) as loaded:
+        tanksynth.load(d)
+    with pytest.raises(ArtefactError, match=named):
+        load_directory(d, METHODS)
+    assert len(str(loaded.value).splitlines()) == 1
+
+
+SINGLE = {
+    "own_npz_edited": (_scale_npz, "obs.npz"),
+    "own_npz_deleted": (_unlink("obs.npz"), "obs.npz"),
+    "plant_edited": (_edit_json("plant.json", lambda r: r.__setitem__("ts", 5.0)), "plant.json"),
+    "plant_deleted": (_unlink("plant.json"), "plant.json"),
+    "spec_edited": (lambda d: (d / "spec.toml").write_text(SPEC + "\n# edited\n", encoding="utf-8"),
+                    "spec.toml"),
+    "spec_deleted": (_unlink("spec.toml"), "spec.toml"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(SINGLE))
+def test_load_one_file_checks_its_files(results, tmp_path, case):
+    import shutil
+
+    edit, named = SINGLE[case]
+    d = tmp_path / "d"
+    shutil.copytree(results, d)
+    edit(d)
+    with pytest.raises(ArtefactError, match=named):
+        tanksynth.load(d / "obs.json")
+
+
+def test_load_one_file_ignores_other_artefacts(results, tmp_path):
+    """One artefact loads when only another artefact's files were damaged."""
+    import shutil
+
+    d = tmp_path / "d"
+    shutil.copytree(results, d)
+    _scale_npz(d)
+    (d / "kf.npz").unlink()
+    one = tanksynth.load(d / "lue.json")
+    assert one.name == "lue" and one.plant_record["ts"] == 1.0
+
+
+def test_well_formed_checks_json_is_loaded(results, tmp_path):
+    import shutil
+
+    d = tmp_path / "d"
+    shutil.copytree(results, d)
+    verdicts = [{"check": "observability", "passed": True, "detail": "rank 3", "data": {}}]
+    (d / "checks.json").write_text(json.dumps(verdicts), encoding="utf-8")
+    assert tanksynth.load(d).checks == verdicts

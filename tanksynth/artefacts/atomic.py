@@ -120,13 +120,28 @@ def atomic_write(target: str | Path, payload: Payload) -> Path:
         discard(staged)
 
 
-def _alive(pid: int) -> bool:
+#: Largest pid a lock file may name (``pid_t`` is a signed 32-bit int on POSIX).
+_MAX_PID = 2 ** 31 - 1
+
+
+def _lock_pid(info: dict) -> int | None:
+    """The pid of a lock's holder record; None unless an int in ``[1, _MAX_PID]`` (not a bool)."""
+    pid = info.get("pid")
+    if isinstance(pid, bool) or not isinstance(pid, int) or not 1 <= pid <= _MAX_PID:
+        return None
+    return pid
+
+
+def _alive(pid: int) -> bool | None:
+    """True if process ``pid`` exists, False if not, None if ``os.kill`` rejects the pid."""
     try:
         os.kill(pid, 0)
     except ProcessLookupError:
         return False
     except PermissionError:  # exists, owned by someone else
         return True
+    except (OverflowError, ValueError, OSError):
+        return None
     return True
 
 
@@ -166,6 +181,12 @@ def directory_lock(directory: str | Path, command: str = "tanksynth") -> Iterato
         Another live process holds the lock (its pid, host, command and
         start time are named). A lock of a dead process on this host is taken
         over; a lock from another host is never broken automatically.
+        A lock whose holder cannot be read (not JSON, no ``host``, or a
+        ``pid`` that is not an int in ``[1, 2**31 - 1]``, e.g. 0, -5 or
+        10**20, or one ``os.kill`` rejects) is never taken over, whatever
+        the host: it is refused as an unreadable lock file, to be removed by
+        hand if no tanksynth run is using the directory (a lock being written
+        right now, less than 5 s old and empty, is waited for).
     """
     directory = Path(directory)
     created = not directory.exists()
@@ -178,17 +199,22 @@ def directory_lock(directory: str | Path, command: str = "tanksynth") -> Iterato
             fd = os.open(lock, os.O_WRONLY | os.O_CREAT | os.O_EXCL, file_mode(lock))
         except FileExistsError:
             info = _holder(lock)
-            pid, host = info.get("pid"), info.get("host")
-            if isinstance(pid, int) and host == me["host"] and not _alive(pid):
+            pid, host = _lock_pid(info), info.get("host")
+            alive = None if pid is None else _alive(pid)
+            if not info and time.time() - _mtime(lock) < 5:
+                time.sleep(0.2)  # a lock being written right now
+                continue
+            if alive is None or not isinstance(host, str):
+                raise ArtefactError(f"{directory}: unreadable lock file {lock} (no valid pid and host of "
+                                    "a tanksynth run); remove it if no tanksynth run is using "
+                                    f"{directory}") from None
+            if host == me["host"] and not alive:
                 stale = lock.with_name(f"{LOCK_NAME}.stale.{os.getpid()}")
                 try:  # take over atomically: only one run renames the stale lock away
                     os.replace(lock, stale)
                     stale.unlink(missing_ok=True)
                 except FileNotFoundError:
                     pass
-                continue
-            if not info and time.time() - _mtime(lock) < 5:
-                time.sleep(0.2)  # a lock being written right now
                 continue
             raise ArtefactError(
                 f"{directory}: in use by another run (pid {pid}, host {host}, "

@@ -29,7 +29,8 @@ from tanksynth.verify.traces import TraceRecorder
 
 from tanksynth.verify.cluster import CONNECT_TIMEOUT, connect
 
-__all__ = ["clear_cache", "VerdictFn", "Verdict", "verdict_for", "verdict_with_trace", "load_directory", "verify_directory"]
+__all__ = ["clear_cache", "VerdictFn", "Verdict", "verdict_for", "verdict_with_trace", "read_checks", "read_directory", "load_directory",
+           "verify_directory"]
 
 
 #: ``verdict(doc, spec, *, trace=None) -> list[Check]``: the verdict of one design method. The
@@ -169,9 +170,134 @@ def _spec_from_text(text: str, source: str, table: Mapping[str, VerifiableMethod
 
 
 
+def read_checks(directory: str | Path) -> list[dict] | None:
+    """Read the rank verdicts ``DIR/checks.json`` (written by ``tanksynth check -o DIR``).
+
+    Parameters
+    ----------
+    directory : str or Path
+        The result directory.
+
+    Returns
+    -------
+    list of dict or None
+        The verdicts (``check``, ``passed``, ``detail``, ``data``); None when
+        the directory has no ``checks.json``.
+
+    Raises
+    ------
+    ArtefactError
+        Naming ``checks.json``: unreadable, not JSON, or not a list of
+        verdicts (each an object with a ``check`` key).
+    """
+    from tanksynth.artefacts.io import read_limited  # lazy: see Verdict.as_dict
+
+    path = Path(directory) / "checks.json"
+    if not path.exists() and not path.is_symlink():
+        return None
+    try:
+        raw = json.loads(read_limited(path).decode("utf-8"))
+    except (json.JSONDecodeError, UnicodeDecodeError, RecursionError) as exc:
+        raise ArtefactError(f"{path}: not a JSON list of rank verdicts: {exc}") from None
+    if not isinstance(raw, list) or not all(isinstance(c, dict) and "check" in c for c in raw):
+        raise ArtefactError(f"{path}: expected a list of {{check, passed, detail, data}} (the rank "
+                            "verdicts written by `tanksynth check -o DIR`)")
+    return raw
+
+
+def read_directory(directory: str | Path,
+                   artefact: str | Path | None = None) -> tuple[bytes, list[tuple[Path, dict]]]:
+    """Every integrity check of a result directory, or of one artefact in it.
+
+    THE one code path behind ``tanksynth verify`` (`load_directory`) and
+    ``tanksynth.load``: each artefact JSON is read with its content hash
+    (`read_artefact`), its ``<name>.npz`` checked (`check_npz`), ``plant.json``
+    checked against the artefacts (`check_plant_record`) and ``spec.toml``
+    against their ``spec_sha256``. For a whole directory also: no ``.npz``
+    without its artefact (`check_orphan_npz`) and a well-formed
+    ``checks.json`` when present (`read_checks`). The spec is not parsed.
+
+    Parameters
+    ----------
+    directory : str or Path
+        The result directory (holds the artefacts, ``plant.json``, ``spec.toml``).
+    artefact : str or Path, optional
+        Check only this artefact JSON of ``directory`` (with its ``.npz``, the
+        plant record and the spec) instead of every artefact.
+
+    Returns
+    -------
+    spec_bytes : bytes
+        The bytes of ``DIR/spec.toml`` (their sha256 matches every artefact's).
+    artefacts : list of (Path, dict)
+        Each artefact's path and document (gains as arrays), sorted by name.
+
+    Raises
+    ------
+    ArtefactError
+        Naming the file: no artefact, no ``spec.toml``, an unreadable or
+        tampered artefact (any of its content changed after design), a
+        missing, edited or swapped ``<name>.npz``, an ``.npz`` with no
+        artefact, a ``plant.json`` other than the one designed with, an
+        artefact designed from another spec, a malformed ``checks.json``.
+    """
+    from tanksynth.artefacts.io import (SCHEMA, check_npz, check_orphan_npz,  # lazy: see Verdict.as_dict
+                                        check_plant_record, read_artefact, read_limited)
+
+    directory = Path(directory)
+    if not directory.is_dir():
+        raise ArtefactError(f"{directory}: not a directory")
+    docs = []
+    if artefact is not None:
+        path = Path(artefact)
+        doc = read_artefact(path)
+        check_npz(path, doc)
+        docs.append((path, doc))
+    else:
+        for path in sorted(directory.glob("*.json")):
+            if path.name == "checks.json":
+                read_checks(directory)
+                continue
+            try:
+                head = json.loads(read_limited(path).decode("utf-8"))
+            except (OSError, ArtefactError, json.JSONDecodeError, UnicodeDecodeError, RecursionError):
+                head = None
+            if isinstance(head, dict) and isinstance(head.get("schema"), str) \
+                    and not head["schema"].startswith("tanksynth.artefact/"):
+                continue  # plant record, campaign metadata, ...
+            doc = read_artefact(path)
+            check_npz(path, doc)
+            docs.append((path, doc))
+        check_orphan_npz(directory, (path.stem for path, _ in docs))
+    if not docs:
+        raise ArtefactError(f"{directory}: no design artefact (<name>.json of schema {SCHEMA!r}) in it")
+    check_plant_record(directory, docs)
+    spec_path = directory / "spec.toml"
+    try:
+        raw = read_limited(spec_path)
+    except ArtefactError:
+        raise ArtefactError(f"{spec_path}: missing; the artefacts are checked against the spec they "
+                            "were designed from (written by `tanksynth design`)") from None
+    import hashlib
+
+    sha = hashlib.sha256(raw).hexdigest()
+    for path, doc in docs:
+        if doc["provenance"].get("spec_sha256") != sha:
+            raise ArtefactError(f"{path}: designed from another spec than {spec_path} "
+                                "(spec_sha256 differs)")
+    return raw, docs
+
+
 def load_directory(directory: str | Path,
                    table: Mapping[str, VerifiableMethod]) -> tuple[Any, list[tuple[Path, dict]]]:
     """Read ``DIR/spec.toml`` and every artefact of a directory, refusing bad ones.
+
+    Parameters
+    ----------
+    directory : str or Path
+        The result directory.
+    table : mapping of method name to row
+        The method table: each row's ``adapter`` validates the spec's options.
 
     Returns
     -------
@@ -182,48 +308,11 @@ def load_directory(directory: str | Path,
     Raises
     ------
     ArtefactError
-        No artefact, no ``spec.toml``, an unreadable or tampered artefact
-        (any of its content changed after design), a missing, edited or
-        swapped ``<name>.npz``, an ``.npz`` with no artefact, a ``plant.json``
-        other than the one designed with, or an artefact designed from another spec.
+        Any integrity check of `read_directory` fails, or ``spec.toml`` is
+        not UTF-8 text.
     """
-    from tanksynth.artefacts.io import (SCHEMA, check_npz, check_orphan_npz,  # lazy: see Verdict.as_dict
-                                        check_plant_record, read_artefact, read_limited)
-
-    directory = Path(directory)
-    if not directory.is_dir():
-        raise ArtefactError(f"{directory}: not a directory")
-    docs = []
-    for path in sorted(directory.glob("*.json")):
-        try:
-            head = json.loads(read_limited(path).decode("utf-8"))
-        except (OSError, ArtefactError, json.JSONDecodeError, UnicodeDecodeError, RecursionError):
-            head = None
-        if isinstance(head, dict) and isinstance(head.get("schema"), str) \
-                and not head["schema"].startswith("tanksynth.artefact/"):
-            continue  # plant record, campaign metadata, ...
-        if not isinstance(head, dict) and path.name in ("checks.json",):
-            continue
-        doc = read_artefact(path)
-        check_npz(path, doc)
-        docs.append((path, doc))
-    check_orphan_npz(directory, (path.stem for path, _ in docs))
-    if not docs:
-        raise ArtefactError(f"{directory}: no artefact (*.json with schema {SCHEMA!r})")
-    check_plant_record(directory, docs)
-    spec_path = directory / "spec.toml"
-    try:
-        raw = read_limited(spec_path)
-    except ArtefactError:
-        raise ArtefactError(f"{spec_path}: missing; verify needs the spec the artefacts were designed "
-                            "from (written by `tanksynth design`)") from None
-    import hashlib
-
-    sha = hashlib.sha256(raw).hexdigest()
-    for path, doc in docs:
-        if doc["provenance"].get("spec_sha256") != sha:
-            raise ArtefactError(f"{path}: designed from another spec than {spec_path} "
-                                "(spec_sha256 differs)")
+    raw, docs = read_directory(directory)
+    spec_path = Path(directory) / "spec.toml"
     try:
         text = raw.decode("utf-8")
     except UnicodeDecodeError:

@@ -298,3 +298,45 @@ def test_a_fifo_as_the_lock_file_does_not_hang(result_dir, tmp_path):
     t0 = time.perf_counter()
     code, _, err, _ = run(["verify", d, "--json"])
     assert code == 2 and ".tanksynth.lock" in err and time.perf_counter() - t0 < 10, err
+
+
+# ---------------------------------------------- lock holders that are not a process (item 10)
+@pytest.mark.parametrize("pid", [99999999999999999999, 2 ** 31, 0, -5, True, "123", None, 1.5])
+def test_a_lock_naming_no_valid_pid_is_unreadable_never_a_crash(result_dir, tmp_path, pid):
+    """A pid that cannot be a process is refused as an unreadable lock (exit 2, naming it),
+    never taken over (pid <= 0 included) and never exit 4 (OverflowError in os.kill)."""
+    import shutil
+
+    d = tmp_path / "d"
+    shutil.copytree(result_dir, d)
+    lock = d / ".tanksynth.lock"
+    lock.write_text(json.dumps({"pid": pid, "host": socket.gethostname(), "command": "design",
+                                "started": "2026-12-01T10:00"}))
+    code, _, err, seconds = run(["verify", d, "--json"])
+    assert_contract(code, err, seconds)
+    assert code == 2 and "unreadable lock file" in err and str(lock) in err and "remove it" in err, err
+    assert lock.exists()  # not taken over
+
+
+def test_an_old_empty_lock_is_unreadable(result_dir, tmp_path):
+    import shutil
+
+    d = tmp_path / "d"
+    shutil.copytree(result_dir, d)
+    lock = d / ".tanksynth.lock"
+    lock.write_text("")
+    os.utime(lock, (time.time() - 60, time.time() - 60))
+    code, _, err, seconds = run(["verify", d, "--json"])
+    assert_contract(code, err, seconds)
+    assert code == 2 and "unreadable lock file" in err, err
+
+
+def test_verify_refuses_a_malformed_checks_json(result_dir, tmp_path):
+    import shutil
+
+    d = tmp_path / "d"
+    shutil.copytree(result_dir, d)
+    (d / "checks.json").write_text('[{"check": ', encoding="utf-8")
+    code, _, err, seconds = run(["verify", d, "--json"])
+    assert_contract(code, err, seconds)
+    assert code == 2 and "checks.json" in err, err
