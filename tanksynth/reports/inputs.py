@@ -18,6 +18,7 @@ from tanksynth.artefacts.io import (PLANT_SCHEMA, SCHEMA, check_npz, check_orpha
                                     check_plant_record, read_artefact, read_plant_record)
 from tanksynth.errors import ArtefactError
 from tanksynth.reports.refused import REFUSED_FILE, read_refused
+from tanksynth.verify.runner import read_checks
 
 __all__ = ["ReportInputs", "read_report_inputs"]
 
@@ -145,16 +146,8 @@ def read_report_inputs(directory: str | Path) -> ReportInputs:
     check_plant_record(d, [(d / doc["_file"], doc) for doc in artefacts])
     spec_path = d / "spec.toml"
     spec_text = spec_path.read_text(encoding="utf-8", errors="replace") if spec_path.exists() else None
-    checks = None
-    checks_path = d / "checks.json"
-    if checks_path.exists():
-        try:
-            raw = json.loads(checks_path.read_text(encoding="utf-8"))
-        except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-            raise ArtefactError(f"{checks_path}: not a JSON list of rank verdicts: {exc}") from None
-        if not isinstance(raw, list) or not all(isinstance(c, dict) and "check" in c for c in raw):
-            raise ArtefactError(f"{checks_path}: expected a list of {{check, passed, detail, data}}")
-        checks = tuple(raw)
+    raw_checks = read_checks(d)  # the same reading (and refusal) as verify and load
+    checks = None if raw_checks is None else tuple(raw_checks)
     campaign = None
     campaign_path = d / "campaign.csv"
     if campaign_path.exists():
