@@ -1,11 +1,9 @@
 """Verdicts of ``robust_state_feedback`` and ``robust_observer``.
 
-Own numerics (numpy/scipy), no design import (campaign runners: `tanksynth.verify.robust_runs`). From the artefact's gains
-(``K`` or ``L``, ``P``, nominal ``A``, ``B``, ``C``, ``x0``, ``u0``) and the
-spec's options (region, uncertain box, H-infinity bound, saturation):
+Own numerics, no design import (campaign runners: `tanksynth.verify.robust_runs`). From the gains and
+the options (region, uncertain box, H-infinity bound, saturation):
 
-``model_recheck``
-    the nominal ``A``, ``B``, ``C`` against the linearisation.
+``model_recheck``: the nominal ``A``, ``B``, ``C`` against the linearisation.
 ``vertex_models``
     the 2^k corner models and the nominal one re-linearised here (levels ``x0`` kept, each model's own
     equilibrium input) against the matrices the design recorded in its diagnostics.
@@ -17,8 +15,8 @@ spec's options (region, uncertain box, H-infinity bound, saturation):
     (with ``gamma``) the H-infinity norm of every model's closed loop from ``w`` to ``z``, by Hamiltonian
     bisection (discrete time: through the bilinear transform, which preserves the norm), below ``gamma``.
 ``sampled_region``
-    ``samples`` parameter values drawn uniformly in the box: their linearisations keep the eigenvalues in the
-    region (the vertex certificate is exact only for models multi-affine in the parameters).
+    ``samples`` uniform parameter values: their linearisations keep the eigenvalues in the region (the vertex
+    certificate is exact only for models multi-affine in the parameters).
 ``monte_carlo``
     ``mc_runs`` plants with sampled parameters, NONLINEAR model, one batch (each run its own parameter
     values): state feedback from ``x0 + delta``, every run settles (tracked outputs back on their set-points
@@ -26,9 +24,8 @@ spec's options (region, uncertain box, H-infinity bound, saturation):
     linear model and the shared ``L``, every error below 5 % of its initial value on ``[H, 1.2 H]``.
 ``saturation_*``
     (with ``saturation``) ``max |K_j x|`` over the ellipsoid ``x' P x <= 1`` below ``umax_j``, the requested
-    box inside it, and simulations of the nonlinear nominal plant from points of its boundary (inside the
-    operating region): the law's UNCLIPPED input never leaves ``|u - u0| <= umax`` (tolerance
-    `SATURATION_TOLERANCE` for the nonlinearity).
+    box inside it, and nominal nonlinear runs from its boundary (inside the operating region): the UNCLIPPED
+    input never leaves ``|u - u0| <= umax`` (tolerance `SATURATION_TOLERANCE` for the nonlinearity).
 """
 
 from __future__ import annotations
@@ -42,6 +39,7 @@ from tanksynth.analysis.checks import Check
 from tanksynth.analysis.linearize import discretize_zoh, equilibrium_input, linearize
 from tanksynth.errors import ArtefactError
 from tanksynth.sim.simulate import run_seeds, simulate
+from tanksynth.spec.method_options.robust import parse_uncertain
 from tanksynth.verify.common import (OBSERVER_TOLERANCE, artefact_matrix, fmt, guard, model_recheck,
                                      option, stability_check, time_domain)
 from tanksynth.verify.numerics import integral_augmentation, region_lmi_matrix
@@ -145,6 +143,8 @@ def _corners(box: Sequence[Sequence[Any]]) -> np.ndarray:
 
 def _box(doc: Mapping[str, Any], spec: Any) -> list[tuple[str, float, float]]:
     raw = option(doc, spec, "uncertain", ())
+    if isinstance(raw, Mapping):  # a spec read without its methods (campaign workers): as written
+        raw = parse_uncertain(raw, "uncertain", spec.plant)
     return [(str(b[0]), float(b[1]), float(b[2])) for b in raw]
 
 
