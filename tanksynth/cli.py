@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import shutil
 import sys
 import warnings
@@ -39,8 +40,15 @@ class _Fail(Exception):
         self.code = code
 
 
+#: Longest message line printed (characters): an echoed value in an error is cut, not dumped.
+MAX_MESSAGE = 600
+
+
 def _one_line(exc: BaseException) -> str:
-    return " ".join(str(exc).split())
+    """The message on one line, its long runs of digits and its total length cut."""
+    text = " ".join(str(exc).split())
+    text = re.sub(r"\d{40,}", lambda m: f"<{len(m.group(0))} digits>", text)
+    return text if len(text) <= MAX_MESSAGE else text[:MAX_MESSAGE - 12] + " ... (cut)"
 
 
 def _live() -> bool:

@@ -75,3 +75,16 @@ def test_our_warning_stays_off_stderr_when_the_exit_is_bad_input(monkeypatch, ca
     monkeypatch.setattr(cli, "_main", failing)
     assert cli.main(["check", "x.toml"]) == 2
     assert capsys.readouterr().err.strip().splitlines() == ["error: x.toml: key 'plant': bad"]
+
+
+def test_an_echoed_huge_value_is_cut_in_the_one_error_line(tmp_path, capsys):
+    """Found by make fuzz: plant.N = a nested list of 301-digit integers echoed whole (2,550 chars)."""
+    big = str(10 ** 300)
+    row = "[" + ", ".join([big] * 3) + "]"
+    spec = tmp_path / "s.toml"
+    spec.write_text(f'[plant]\nmodel = "tank_network"\nN = [[0, 0, 0], {row}, {row}]\n'
+                    '[operating_point]\nx = {h1 = 0.1}\n')
+    assert main(["check", str(spec), "--spec-only"]) == 2
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert len(lines) == 1 and "plant.N" in lines[0] and "<301 digits>" in lines[0]
+    assert len(lines[0]) <= 600
