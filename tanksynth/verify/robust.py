@@ -3,10 +3,9 @@
 Own numerics, no design import (campaign runners: `tanksynth.verify.robust_runs`). From the gains and
 the options (region, uncertain box, H-infinity bound, saturation):
 
-``model_recheck``: the nominal ``A``, ``B``, ``C`` against the linearisation.
-``vertex_models``
-    the 2^k corner models and the nominal one re-linearised here (levels ``x0`` kept, each model's own
-    equilibrium input) against the matrices the design recorded in its diagnostics.
+``model_recheck`` / ``vertex_models``
+    the nominal ``A``, ``B``, ``C`` against the linearisation; the 2^k corner models re-linearised here
+    (levels ``x0`` kept, each its own equilibrium input) against those the design recorded.
 ``vertex_region`` / ``vertex_lmi``
     every model's closed loop (augmented with the integrators when the design has integral action) or error
     matrix ``A_i - L C_i`` has its eigenvalues in the region; the region LMI holds at every model with the ONE
