@@ -88,3 +88,14 @@ def test_an_echoed_huge_value_is_cut_in_the_one_error_line(tmp_path, capsys):
     lines = capsys.readouterr().err.strip().splitlines()
     assert len(lines) == 1 and "plant.N" in lines[0] and "<301 digits>" in lines[0]
     assert len(lines[0]) <= 600
+
+
+def test_a_region_written_as_a_list_gets_the_toml_form_in_the_error(tmp_path, capsys):
+    """New-user finding: `tanksynth methods` showed the parsed tuple form, the error no example."""
+    spec = tmp_path / "s.toml"
+    spec.write_text(SPEC.format(method="lmi_placement", extra='region = [["disk", 0.9, 0.08]]'))
+    assert main(["check", str(spec), "--spec-only"]) == 2
+    err = capsys.readouterr().err
+    assert "design[0].region[0]" in err and '{type = "disk", center = 0.9, radius = 0.08}' in err
+    assert main(["methods", "lmi_placement", "--json"]) == 0
+    assert '{type = \\"disk\\", center = c, radius = r}' in capsys.readouterr().out

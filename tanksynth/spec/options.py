@@ -412,7 +412,9 @@ def parse_region(value: Any, key: str) -> tuple[tuple, ...]:
                 args = [float(np.degrees(args[0]))]
             item = {"type": item[0], **dict(zip(fields, args))}
         if not isinstance(item, Mapping):
-            raise SpecError("expected a table with a 'type'", key=k)
+            raise SpecError(f"expected a table such as {{type = \"disk\", center = 0.9, radius = 0.08}} "
+                            f"(types: half_plane {{alpha}}, disk {{center, radius}}, sector {{angle_deg}}), "
+                            f"got {short_repr(item)}", key=k)
         kind = item.get("type")
         if not isinstance(kind, str) or kind not in _REGION_FIELDS:
             raise SpecError(f"unknown region type {kind!r}; expected one of {list(_REGION_FIELDS)}"

@@ -198,11 +198,13 @@ class LmiPlacementOptions(MethodOptions):
     Attributes
     ----------
     region : tuple of tuple
-        Required. The region, an intersection of ``("half_plane", alpha)``
-        (``Re z < -alpha``, 1/s), ``("disk", center, radius)`` and ``("sector",
-        theta)`` (half-angle in rad about the negative real axis; written in
-        degrees as ``angle_deg``); one part must lie in the stability domain
-        of ``time_domain``.{_GAIN_DOC.format(target="observer")}
+        Required. A list of tables whose intersection is the region:
+        ``{{type = "half_plane", alpha = a}}`` (Re s < -a, 1/s), ``{{type = "disk",
+        center = c, radius = r}}``, ``{{type = "sector", angle_deg = t}}`` (half-angle
+        about the negative real axis); e.g. ``region = [{{type = "disk", center =
+        0.9, radius = 0.08}}]``. Parsed to ``("half_plane", alpha)``, ``("disk",
+        center, radius)``, ``("sector", theta)`` (rad); one part must lie in the
+        stability domain of ``time_domain``.{_GAIN_DOC.format(target="observer")}
     margin : float
         Strictness margin of the LMIs, in (0, 1); default 1e-6.
     kappa : float

@@ -140,11 +140,11 @@ def _common(r: OptionReader, plant: Any, ts: float | None) -> dict[str, Any]:
 
 _COMMON_DOC = """
     region : tuple of tuple
-        Required. The LMI region every vertex's eigenvalues must lie in: an
-        intersection of ``("half_plane", alpha)`` (``Re z < -alpha``, 1/s),
-        ``("disk", center, radius)`` and ``("sector", theta)`` (rad; written
-        ``angle_deg`` in the spec); one part must lie in the stability
-        domain of ``time_domain``.
+        Required. The LMI region every vertex's eigenvalues must lie in, a
+        list of tables intersected as for ``lmi_placement``: ``{{type =
+        "half_plane", alpha = a}}``, ``{{type = "disk", center = c, radius =
+        r}}``, ``{{type = "sector", angle_deg = t}}``; one part must lie in the
+        stability domain of ``time_domain``.
     uncertain : tuple of (str, float, float)
         Uncertain parameters as intervals ``(name, low, high)`` in the
         parameter's unit (spec: ``{{mu13 = [0.6, 0.75]}}``, ``{{mu20 =

@@ -367,8 +367,9 @@ class MultiobjectiveOptions(_StateFeedbackOptions):
     Attributes
     ----------
     region : tuple of tuple
-        Required. LMI region (as for ``lmi_placement``); one part must lie in
-        the stability domain of ``time_domain``.
+        Required. LMI region, a list of tables as for ``lmi_placement`` (e.g.
+        ``[{{type = "disk", center = 0.9, radius = 0.08}}]``); one part must lie
+        in the stability domain of ``time_domain``.
     target : str
         ``"state_feedback"`` (default, gain ``K``) or ``"observer"`` (gain ``L``).
     objective : str
