@@ -32,6 +32,7 @@ from tanksynth.analysis.blas import small_dense
 from tanksynth.errors import DimensionError, SpecError
 
 __all__ = [
+    "solve_status",
     "SOLVERS",
     "VARIANTS",
     "FORMS",
@@ -46,6 +47,36 @@ VARIANTS = ("qI", "full")
 FORMS = ("auto", "full", "eliminated")
 
 _ACCEPTED = ("optimal", "optimal_inaccurate")
+
+
+def solve_status(problem: cp.Problem, solver: str, **settings: Any) -> str:
+    """Solve ``problem`` and return cvxpy's status, never raising on a solver failure.
+
+    The status is only a hint: every design re-checks its returned matrices
+    with numpy. cvxpy's UserWarnings ("solution may be inaccurate") are
+    silenced because the status and the re-check say the same.
+
+    Parameters
+    ----------
+    problem : cvxpy.Problem
+        The LMI problem.
+    solver : str
+        A cvxpy solver name (``"CLARABEL"``, ``"SCS"``).
+    **settings
+        Solver settings passed to ``problem.solve``.
+
+    Returns
+    -------
+    str
+        ``problem.status``, or ``"solver_error (<message>)"`` (one line, at most 200 characters).
+    """
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", UserWarning)
+            problem.solve(solver=solver, **settings)
+    except cp.error.SolverError as exc:
+        return f"solver_error ({' '.join(str(exc).split())[:200]})"
+    return str(problem.status)
 
 
 def _matrix(value: Any, name: str) -> np.ndarray:

@@ -27,7 +27,6 @@ The routes are collected in `tanksynth.design.placement`.
 from __future__ import annotations
 
 import time
-import warnings
 from dataclasses import dataclass
 from typing import Any, Sequence
 
@@ -39,6 +38,7 @@ from tanksynth.analysis.lmi_region import LMIRegion
 from tanksynth.errors import (DimensionError, InfeasibleDesign, SpecError, UncontrollableError,
                               UnobservableError)
 from tanksynth.design.lmi import SOLVERS, LMICheck
+from tanksynth.design.lmi_problem import solve_status
 from tanksynth.design.placement_exact import _complex_list, _matrix, _pair
 # Module import (not names), so that a test may replace the rank functions.
 from tanksynth.analysis import rank as _rank
@@ -285,7 +285,7 @@ def lmi_state_feedback(A: Any, B: Any, region: LMIRegion, *, domain: str = "cont
                "margin exists)" if active is False else "; the solver returned no point)"))
     Xv, Yv = X.value.copy(), Y.value.copy()
     bound.value = max(margin, 0.5 * tstar)
-    status2 = _solve(phase2, solver)
+    status2 = solve_status(phase2, solver)
     if status2 in ("optimal", "optimal_inaccurate") and X.value is not None:
         Xv, Yv, status = X.value, Y.value, f"{status} (phase 1), {status2} (phase 2)"
     else:
@@ -356,23 +356,13 @@ def _phase1(As: np.ndarray, Bs: np.ndarray, reg: LMIRegion, n: int, m: int, kapp
     phase1 = cp.Problem(cp.Maximize(t), [lmi << -t * np.eye(d), t <= 1.0, *box])
     # Phase 2: smallest ||Y||_F keeping half of the achievable margin (moderate gains).
     phase2 = cp.Problem(cp.Minimize(cp.norm(Y, "fro")), [lmi << -bound * np.eye(d), *box])
-    status = _solve(phase1, solver)
+    status = solve_status(phase1, solver)
     solved = status in ("optimal", "optimal_inaccurate") and t.value is not None
     tstar = float(t.value) if solved else -np.inf
     active = None
     if solved and X.value is not None:
         active = bool(np.max(np.linalg.eigvalsh(_sym_np(X.value))) >= KAPPA_ACTIVE * kappa)
     return X, Y, phase2, bound, tstar, status, active
-
-
-def _solve(problem: cp.Problem, solver: str) -> str:
-    try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", UserWarning)
-            problem.solve(solver=solver)
-    except cp.error.SolverError as exc:
-        return f"solver_error ({exc})"
-    return str(problem.status)
 
 
 def _sym_np(M: np.ndarray) -> np.ndarray:

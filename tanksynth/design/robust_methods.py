@@ -28,9 +28,9 @@ from tanksynth.analysis.linearize import equilibrium_input
 from tanksynth.analysis.lmi_region import region_from_parts
 from tanksynth.analysis.rank import controllability_rank, observability_rank
 from tanksynth.design.result import DesignMethod, DesignResult, options_of, rekeyed
-from tanksynth.design.robust import (HinfBound, SaturationBound, VertexModels, augment_integral,
-                                     ellipsoid_axes, polytope_check, robust_observer,
-                                     robust_state_feedback, vertex_models)
+from tanksynth.design.robust import (HinfBound, SaturationBound, ellipsoid_axes, robust_observer,
+                                     robust_state_feedback)
+from tanksynth.design.robust_models import VertexModels, augment_integral, polytope_check, vertex_models
 from tanksynth.errors import InfeasibleDesign, SpecError, UncontrollableError, UnobservableError
 from tanksynth.spec.method_options.robust import RobustObserverOptions, RobustStateFeedbackOptions
 

@@ -36,7 +36,6 @@ forces the LMIs. Both routes' gains get the same re-check.
 from __future__ import annotations
 
 import time
-import warnings
 from dataclasses import dataclass, field
 from typing import Any, Sequence
 
@@ -47,6 +46,7 @@ import scipy.linalg as sla
 from tanksynth.analysis.lmi_region import LMIRegion
 from tanksynth.analysis.statespace import h2_norm, hinf_below, hinf_norm, statespace_matrices
 from tanksynth.design.lmi import LMICheck
+from tanksynth.design.lmi_problem import solve_status
 from tanksynth.design.synthesis_lmis import (DOMAINS, GeneralizedPlant, generalized_plant, h2_lmis,
                                             hinf_lmis, hinf_lmis_reduced, observer_plant, region_lmi)
 from tanksynth.design.synthesis_riccati import (riccati_applicable, riccati_h2, riccati_hinf,
@@ -165,16 +165,9 @@ class SynthesisResult:
 
 
 def _solve(problem: cp.Problem, solver: str) -> str:
-    try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", UserWarning)
-            if solver == "CLARABEL":
-                problem.solve(solver=solver, **_CLARABEL)
-            else:
-                problem.solve(solver=solver, eps=1e-9, max_iters=200000)
-    except cp.error.SolverError as exc:
-        return f"solver_error ({' '.join(str(exc).split())[:200]})"
-    return str(problem.status)
+    """`solve_status` with this module's tight tolerances (the Riccati comparison needs them)."""
+    settings = _CLARABEL if solver == "CLARABEL" else {"eps": 1e-9, "max_iters": 200000}
+    return solve_status(problem, solver, **settings)
 
 
 def _ok(status: str) -> bool:

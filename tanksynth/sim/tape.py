@@ -178,7 +178,8 @@ def _generate(groups: Mapping[str, tuple[list[sp.Expr], list[sp.Symbol]]],
     bodies = {}
     for name, (exprs, rows) in groups.items():
         rnames = {s: sp.Symbol(f"r_{i}") for i, s in enumerate(rows)}
-        renamed = [sp.sympify(e).xreplace({**pnames, **rnames}) for e in exprs]
+        # strict: converts numbers to sympy, never parses text (the expressions are the parsed plant's)
+        renamed = [sp.sympify(e, strict=True).xreplace({**pnames, **rnames}) for e in exprs]
         repl, reduced = sp.cse(renamed, symbols=sp.numbered_symbols(f"t_{name}_"), order="none")
         lines = []
         for sym, e in repl:

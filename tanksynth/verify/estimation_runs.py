@@ -34,7 +34,7 @@ Runners (``runner(doc, spec) -> EstimatorRun``):
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
-from typing import Any, Mapping, Sequence
+from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
 
@@ -159,81 +159,25 @@ def estimator_run(doc: Mapping[str, Any], spec: Any, rebuild: Any) -> EstimatorR
                                                  + _context(spec, x_hat0))
 
 
-def kalman_run(doc: Mapping[str, Any], spec: Any) -> EstimatorRun:
-    """Campaign runner of ``kalman`` artefacts (see `estimator_run`).
+def _estimator_run_for(rebuild: Any) -> Callable[[Mapping[str, Any], Any], EstimatorRun]:
+    """The campaign runner of one estimator method: `estimator_run` with its rebuild."""
+    def runner(doc: Mapping[str, Any], spec: Any) -> EstimatorRun:
+        return estimator_run(doc, spec, rebuild)
 
-    Parameters
-    ----------
-    doc, spec : mapping, Spec
-        The artefact and the validated spec.
-    """
-    return estimator_run(doc, spec, est.KALMAN)
-
-
-def ekf_run(doc: Mapping[str, Any], spec: Any) -> EstimatorRun:
-    """Campaign runner of ``ekf`` artefacts (see `estimator_run`).
-
-    Parameters
-    ----------
-    doc, spec : mapping, Spec
-        The artefact and the validated spec.
-    """
-    return estimator_run(doc, spec, est.EKF)
+    runner.__name__ = runner.__qualname__ = f"{rebuild.method}_run"
+    runner.__doc__ = (f"Campaign runner of ``{rebuild.method}`` artefacts (see `estimator_run`).\n\n"
+                      "Parameters\n----------\ndoc, spec : mapping, Spec\n"
+                      "    The artefact and the validated spec.\n")
+    return runner
 
 
-def ukf_run(doc: Mapping[str, Any], spec: Any) -> EstimatorRun:
-    """Campaign runner of ``ukf`` artefacts (see `estimator_run`).
-
-    Parameters
-    ----------
-    doc, spec : mapping, Spec
-        The artefact and the validated spec.
-    """
-    return estimator_run(doc, spec, est.UKF)
-
-
-def adaptive_kalman_run(doc: Mapping[str, Any], spec: Any) -> EstimatorRun:
-    """Campaign runner of ``adaptive_kalman`` artefacts (see `estimator_run`).
-
-    Parameters
-    ----------
-    doc, spec : mapping, Spec
-        The artefact and the validated spec.
-    """
-    return estimator_run(doc, spec, est.ADAPTIVE_KALMAN)
-
-
-def adaptive_scaling_kalman_run(doc: Mapping[str, Any], spec: Any) -> EstimatorRun:
-    """Campaign runner of ``adaptive_scaling_kalman`` artefacts (see `estimator_run`).
-
-    Parameters
-    ----------
-    doc, spec : mapping, Spec
-        The artefact and the validated spec.
-    """
-    return estimator_run(doc, spec, est.ADAPTIVE_SCALING_KALMAN)
-
-
-def consensus_filter_run(doc: Mapping[str, Any], spec: Any) -> EstimatorRun:
-    """Campaign runner of ``consensus_filter`` artefacts (see `estimator_run`).
-
-    Parameters
-    ----------
-    doc, spec : mapping, Spec
-        The artefact and the validated spec.
-    """
-    return estimator_run(doc, spec, est.CONSENSUS_FILTER)
-
-
-def luenberger_run(doc: Mapping[str, Any], spec: Any) -> EstimatorRun:
-    """Campaign runner of ``luenberger`` artefacts (see `estimator_run`).
-
-    Parameters
-    ----------
-    doc, spec : mapping, Spec
-        The artefact and the validated spec.
-    """
-    return estimator_run(doc, spec, est.LUENBERGER)
+kalman_run = _estimator_run_for(est.KALMAN)
+ekf_run = _estimator_run_for(est.EKF)
+ukf_run = _estimator_run_for(est.UKF)
+adaptive_kalman_run = _estimator_run_for(est.ADAPTIVE_KALMAN)
+adaptive_scaling_kalman_run = _estimator_run_for(est.ADAPTIVE_SCALING_KALMAN)
+consensus_filter_run = _estimator_run_for(est.CONSENSUS_FILTER)
+luenberger_run = _estimator_run_for(est.LUENBERGER)
 
 
 def _time_domain(doc: Mapping[str, Any], spec: Any) -> str:

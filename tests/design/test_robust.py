@@ -11,8 +11,8 @@ import pytest
 
 from tanksynth.analysis.lmi_region import disk, half_plane, intersect
 from tanksynth.cli import main
-from tanksynth.design.robust import (HinfBound, SaturationBound, box_corners, robust_observer,
-                                     robust_state_feedback, vertex_models)
+from tanksynth.design.robust import HinfBound, SaturationBound, robust_observer, robust_state_feedback
+from tanksynth.design.robust_models import box_corners, vertex_models
 from tanksynth.errors import InfeasibleDesign, SpecError
 from tanksynth.methods import load_spec, parse_spec_text
 from tanksynth.plants import builtin_plant
