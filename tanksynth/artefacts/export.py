@@ -495,9 +495,14 @@ def derived_law(gains: Mapping[str, np.ndarray], diagnostics: Mapping[str, Any],
     Returns
     -------
     casadi.Function or None
-        `state_feedback_law`, `observer_law`, `kalman_step` or `estimator_step`; None for a
-        method not in `DERIVED_LAW_METHODS` (or a linear design without a gain).
+        `state_feedback_law`, `observer_law`, `kalman_step` or `estimator_step`, or the
+        step of `tanksynth.artefacts.estimator_laws.ESTIMATOR_LAW_METHODS`; None for another
+        method (or a linear design without a gain).
     """
+    from tanksynth.artefacts.estimator_laws import ESTIMATOR_LAW_METHODS, estimator_law
+
+    if method in ESTIMATOR_LAW_METHODS:
+        return estimator_law(gains, diagnostics, method, spec, options, name)
     if method not in DERIVED_LAW_METHODS or getattr(options, "nonlinear", False):
         return None
     from tanksynth.analysis.linearize import equilibrium_input, linearize
