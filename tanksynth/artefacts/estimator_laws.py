@@ -16,7 +16,8 @@ adaptive_scaling_kalman     x, P, phi, y, u                                    x
 consensus_filter            x, M, y (all sensors stacked), u                   x_next, M_next
 narx                        x, x_past, y, u                                    x_next, x_past_next, x_pred,
                                                                                innovation
-ts_observer                 x_hat, u, y (+ z: measured premises)               x_hat_next, z, mu
+ts_observer                 x_hat, u, y (+ z: measured premises)               x_hat_next (x_hat_dot without
+                                                                               ts), z, mu
 decentralized_kalman        x_hat, u, y, k                                     x_hat_next, crossed
 fault_detection             x_hat, u, y_prev, y, t                             x_hat_next, residual,
                                                                                threshold, alarm
@@ -333,7 +334,7 @@ def ts_model_from_record(plant: Any, record: Mapping[str, Any]) -> Any:
     return ts_model(quasi_lpv(plant, W), domain, bounds=bounds)
 
 
-def ts_observer_step(name: str, model: Any, L: np.ndarray, ts: float, substeps: int = 8,
+def ts_observer_step(name: str, model: Any, L: np.ndarray, ts: float | None, substeps: int = 8,
                      premises: str = "estimated") -> ca.Function:
     """One period of the TS multiple observer (seed 001 eq. 20), exponential Euler as verified.
 
@@ -344,7 +345,9 @@ def ts_observer_step(name: str, model: Any, L: np.ndarray, ts: float, substeps: 
     C`` over ``ts / substeps`` and ``g = rhs(x, u) - A0 x + L y``. The
     memberships are CasADi expressions of the premise variables ``z_k =
     n_k(x) / (w_k . x)``: ``F_k1 = (z_k - z_k2) / (z_k1 - z_k2)``, ``mu_i =
-    prod_k F_k,sigma_i(k)`` (Table I order).
+    prod_k F_k,sigma_i(k)`` (Table I order). Without a sampling period
+    (``ts`` None: a spec without ``[sampling]``) the Function is the
+    observer's vector field ``x_hat_dot`` instead, for any integrator.
 
     Parameters
     ----------
@@ -354,8 +357,8 @@ def ts_observer_step(name: str, model: Any, L: np.ndarray, ts: float, substeps: 
         The multiple model (`ts_model_from_record`).
     L : ndarray, shape (n, q)
         Observer gain (1/s).
-    ts : float
-        Period (s).
+    ts : float or None
+        Period (s); None for the continuous-time field.
     substeps : int
         Exponential-Euler steps per period (the verdict's 8).
     premises : {"estimated", "measured"}
@@ -372,7 +375,9 @@ def ts_observer_step(name: str, model: Any, L: np.ndarray, ts: float, substeps: 
         output units) the measurement ``y(k-1)``, both held over
         ``[t_(k-1), t_k)``; ``z`` (p) the premise values at ``x_hat`` (or
         given), ``mu`` (``2^p``, dimensionless, summing to 1) the memberships
-        at ``z`` (empty when the ``2^p`` vertices are not enumerated).
+        at ``z`` (empty when the ``2^p`` vertices are not enumerated). With
+        ``ts`` None the first output is ``x_hat_dot`` (state units/s) at
+        ``x_hat``, ``u`` and ``y``.
     """
     from tanksynth.analysis.linearize import discretize_zoh
     from tanksynth.plants.compile import to_casadi
@@ -382,7 +387,6 @@ def ts_observer_step(name: str, model: Any, L: np.ndarray, ts: float, substeps: 
     qlpv, bounds = model.qlpv, model.bounds
     A0, C, L = (np.asarray(v, dtype=float) for v in (model.A0, model.C, L))
     n, q, m, p = A0.shape[0], C.shape[0], model.B.shape[1], qlpv.p
-    Phi, Gam = discretize_zoh(A0 - L @ C, np.eye(n), float(ts) / int(substeps))
     xh, u, y = ca.SX.sym("x_hat", n), ca.SX.sym("u", m), ca.SX.sym("y", q)
     lo, hi = np.asarray(bounds.lower, float), np.asarray(bounds.upper, float)
     span = hi - lo
@@ -412,16 +416,22 @@ def ts_observer_step(name: str, model: Any, L: np.ndarray, ts: float, substeps: 
 
     z_in = ca.SX.sym("z", p)
     x = xh
-    for _ in range(int(substeps)):
+    if ts is None:
         z = premise(x) if premises == "estimated" else z_in
-        g = rhs(x, z) - ca.DM(A0) @ x + ca.DM(L) @ y
-        x = ca.DM(Phi) @ x + ca.DM(Gam) @ g
+        x, out = rhs(x, z) + ca.DM(L) @ (y - ca.DM(C) @ x), "x_hat_dot"
+    else:
+        Phi, Gam = discretize_zoh(A0 - L @ C, np.eye(n), float(ts) / int(substeps))
+        for _ in range(int(substeps)):
+            z = premise(x) if premises == "estimated" else z_in
+            g = rhs(x, z) - ca.DM(A0) @ x + ca.DM(L) @ y
+            x = ca.DM(Phi) @ x + ca.DM(Gam) @ g
+        out = "x_hat_next"
     if premises == "estimated":
         z0 = premise(xh)
         return ca.Function(name, [xh, u, y], [x, z0, memberships(z0)], ["x_hat", "u", "y"],
-                           ["x_hat_next", "z", "mu"])
+                           [out, "z", "mu"])
     return ca.Function(name, [xh, u, y, z_in], [x, memberships(z_in)], ["x_hat", "u", "y", "z"],
-                       ["x_hat_next", "mu"])
+                       [out, "mu"])
 
 
 def _product(factors: Sequence[Any]) -> Any:
@@ -659,7 +669,8 @@ def estimator_law(gains: Mapping[str, np.ndarray], diagnostics: Mapping[str, Any
     if method == "ts_observer":
         record = diagnostics.get("ts_model") if isinstance(diagnostics, Mapping) else None
         model = ts_model_from_record(spec.plant, record if isinstance(record, Mapping) else {})
-        return ts_observer_step(name, model, _vec(gains, "L").reshape(n, q), float(spec.ts))
+        return ts_observer_step(name, model, _vec(gains, "L").reshape(n, q),
+                                None if spec.ts is None else float(spec.ts))
     if method == "decentralized_kalman":
         Ks = []
         while f"K_{len(Ks)}" in gains:
