@@ -495,9 +495,14 @@ def derived_law(gains: Mapping[str, np.ndarray], diagnostics: Mapping[str, Any],
     Returns
     -------
     casadi.Function or None
-        `state_feedback_law`, `observer_law`, `kalman_step` or `estimator_step`; None for a
-        method not in `DERIVED_LAW_METHODS` (or a linear design without a gain).
+        `state_feedback_law`, `observer_law`, `kalman_step` or `estimator_step`
+        (`tanksynth.artefacts.synthesis_laws.synthesis_law` for its methods); None for a
+        method in neither list (or a linear design without a gain).
     """
+    from tanksynth.artefacts.synthesis_laws import SYNTHESIS_LAW_METHODS, synthesis_law
+
+    if method in SYNTHESIS_LAW_METHODS:
+        return synthesis_law(gains, diagnostics, method, spec, options, name)
     if method not in DERIVED_LAW_METHODS or getattr(options, "nonlinear", False):
         return None
     from tanksynth.analysis.linearize import equilibrium_input, linearize
