@@ -5,30 +5,25 @@ Each law is the one the method's verdict and campaign runner simulate, rebuilt
 from the artefact's gains and the spec, as a CasADi SX Function (generated C
 with `tanksynth.artefacts.export.export_law`):
 
-=========================  =================================================================
-method                     law
-=========================  =================================================================
-``h2_state_feedback``,     ``u = law(x)``: ``u = u_op - K (x - x_op)``
-``hinf_state_feedback``,
-``multiobjective``
-(state feedback)
-``h2_observer``,           Luenberger observer on the model linearised at the operating
-``hinf_observer``,         point: ``x_hat_next = step(x_hat, u, y)`` (predictor form,
-``multiobjective``         discrete designs) or ``x_hat_dot = step(x_hat, u, y)``
-(observer),                (continuous designs); ``robust_observer`` on the NOMINAL model
-``robust_observer``        (as deployed; the plant's parameters are unknown to it)
-``robust_state_feedback``  ``u = u_op - K (x - x_op)`` with the nominal ``u_op``; with
-                           integral action ``u, z_next = law(x, z, y_r)`` (``z_dot`` in
-                           continuous time), ``u = u_op - K1 (x - x_op) - K2 z``,
-                           ``z_next = z + ts (y_r - C1 x)``
-``ts_state_feedback``      PDC ``u = law(x)``: ``u = u_op - sum_i mu_i(x) K_i (x - x_op)``,
-                           memberships from the premises' secant slopes; saturated to the
-                           pumps' range when the design declares ``pump_limits``
-``ts_output_feedback``     ``u, x_hat_dot = law(x_hat, u_applied, y)``: the PDC on the estimate
-                           (premises at the estimate with its measured entries replaced by
-                           ``y`` for measured premises) and the observer's vector field
-                           with the input ``u_applied`` and ``y`` held
-=========================  =================================================================
+``h2_state_feedback``, ``hinf_state_feedback``, ``multiobjective`` (state feedback)
+    ``u = law(x)``: ``u = u_op - K (x - x_op)``.
+``h2_observer``, ``hinf_observer``, ``multiobjective`` (observer), ``robust_observer``
+    the Luenberger observer on the model linearised at the operating point:
+    ``x_hat_next = step(x_hat, u, y)`` (predictor form, discrete designs) or
+    ``x_hat_dot = step(x_hat, u, y)`` (continuous designs); ``robust_observer`` on
+    the NOMINAL model (as deployed; the plant's parameters are unknown to it).
+``robust_state_feedback``
+    ``u = u_op - K (x - x_op)`` with the nominal ``u_op``; with integral action
+    ``u, z_next = law(x, z, y_r)`` (``z_dot`` in continuous time), ``u = u_op - K1
+    (x - x_op) - K2 z``, ``z_next = z + ts (y_r - C1 x)``.
+``ts_state_feedback``
+    PDC ``u = law(x)``: ``u = u_op - sum_i mu_i(x) K_i (x - x_op)``, memberships from
+    the premises' secant slopes; saturated to the pumps' range when the design
+    declares ``pump_limits``.
+``ts_output_feedback``
+    ``u, x_hat_dot = law(x_hat, u_applied, y)``: the PDC on the estimate (premises at
+    the estimate with its measured entries replaced by ``y`` for measured premises)
+    and the observer's vector field with the input ``u_applied`` and ``y`` held.
 
 Gains are read in one small helper per builder (``_*_gains``), which accepts
 today's keys and the renamed ones (``x_op``/``u_op`` for ``x0``/``u0``).
