@@ -496,13 +496,17 @@ def derived_law(gains: Mapping[str, np.ndarray], diagnostics: Mapping[str, Any],
     -------
     casadi.Function or None
         `state_feedback_law`, `observer_law`, `kalman_step` or `estimator_step`, or the
-        step of `tanksynth.artefacts.estimator_laws.ESTIMATOR_LAW_METHODS`; None for another
-        method (or a linear design without a gain).
+        step of `tanksynth.artefacts.estimator_laws.ESTIMATOR_LAW_METHODS`
+        (`tanksynth.artefacts.synthesis_laws.synthesis_law` for its methods); None for
+        another method (or a linear design without a gain).
     """
     from tanksynth.artefacts.estimator_laws import ESTIMATOR_LAW_METHODS, estimator_law
+    from tanksynth.artefacts.synthesis_laws import SYNTHESIS_LAW_METHODS, synthesis_law
 
     if method in ESTIMATOR_LAW_METHODS:
         return estimator_law(gains, diagnostics, method, spec, options, name)
+    if method in SYNTHESIS_LAW_METHODS:
+        return synthesis_law(gains, diagnostics, method, spec, options, name)
     if method not in DERIVED_LAW_METHODS or getattr(options, "nonlinear", False):
         return None
     from tanksynth.analysis.linearize import equilibrium_input, linearize
