@@ -288,7 +288,7 @@ def test_ts_observer_step_compiled_matches_the_verdicts_observer(seed001):
 def test_ts_observer_measured_premises_variant(seed001):
     import casadi as ca
 
-    from tanksynth.artefacts.estimator_laws import ts_model_from_record, ts_observer_step
+    from tanksynth.artefacts.observer_laws import ts_model_from_record, ts_observer_step
 
     out, spec = seed001
     doc = read_artefact(out / "ts_observer_paper.json")
@@ -316,7 +316,7 @@ def test_ts_observer_measured_premises_variant(seed001):
 
 
 def test_ts_observer_without_sampling_is_the_vector_field(seed001):
-    from tanksynth.artefacts.estimator_laws import ts_model_from_record, ts_observer_step
+    from tanksynth.artefacts.observer_laws import ts_model_from_record, ts_observer_step
 
     out, spec = seed001
     doc = read_artefact(out / "ts_observer_paper.json")
