@@ -78,12 +78,14 @@ def _public_objects(module_name: str):
 
 
 def _inherited_doc(cls, attr: str) -> str:
-    """The docstring an override inherits: the nearest base class's method of the same name."""
+    """The docstring an override inherits: the nearest base class's method of the same name whose
+    docstring has a ``Parameters`` section (an intermediate override saying only "See
+    `MethodOptions.from_table`" passes its base's entries on)."""
     for base in cls.__mro__[1:]:
         member = vars(base).get(attr)
         if isinstance(member, (staticmethod, classmethod)):
             member = member.__func__
-        if inspect.isfunction(member) and member.__doc__:
+        if inspect.isfunction(member) and numpydoc_section(member.__doc__, "Parameters"):
             return member.__doc__
     return ""
 

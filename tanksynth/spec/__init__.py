@@ -90,6 +90,8 @@ class Spec:
         File the spec was read from.
     sha256 : str
         Hash of the spec text (provenance of every artefact).
+    raw : mapping
+        The parsed TOML tables as written (values in the spec's units).
     text : str
         The spec text itself (copied beside the artefacts).
     """
@@ -136,7 +138,22 @@ def load_spec(path: str | Path, *, methods: Mapping[str, Any] | None = None) -> 
 
 def parse_spec_text(data: bytes | str, source: str | None = None, *,
                     methods: Mapping[str, Any] | None = None) -> Spec:
-    """Validate spec text (TOML) and build the `Spec` (``methods`` as in `load_spec`)."""
+    """Validate spec text (TOML) and build the `Spec` (``methods`` as in `load_spec`).
+
+    Parameters
+    ----------
+    data : bytes or str
+        The spec text (UTF-8 bytes, or text).
+    source : str, optional
+        The file it came from, named in errors and kept as `Spec.source`.
+    methods : mapping of method name to design adapter, optional
+        As in `load_spec`.
+
+    Raises
+    ------
+    SpecError
+        Invalid UTF-8, invalid TOML or any invalid entry.
+    """
     raw = data.encode("utf-8") if isinstance(data, str) else data
     try:
         text = raw.decode("utf-8")
