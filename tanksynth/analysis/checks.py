@@ -103,7 +103,7 @@ def rank_conditions(plant: Plant, x0: Sequence[float], ts: float | None = None,
     ----------
     plant : Plant
     x0 : sequence of float
-        Operating levels.
+        Operating levels (state units, e.g. m).
     ts : float, optional
         Sampling period (s).
     given_u0 : sequence of float, optional

@@ -79,7 +79,7 @@ class Spec:
     ----------
     plant : Plant
     x0 : ndarray, shape (n,)
-        Operating levels, inside the plant's region.
+        Operating levels (state units), inside the plant's region.
     given_u0 : ndarray or None
         Operating input as written in the spec (checked, not trusted).
     ts : float or None
