@@ -384,9 +384,13 @@ def _check_model_numbers(plant: Plant, x0: np.ndarray) -> None:
                      [s.name for s in plant.outputs]),
                     (np.asarray(comp.jac_h(x0), dtype=float).reshape(plant.q, -1), "outputs",
                      [s.name for s in plant.outputs])]
-        except (RuntimeError, ValueError, OverflowError) as exc:
+        except (RuntimeError, ValueError, OverflowError, TanksynthError) as exc:
+            # TanksynthError: the compiler refuses e.g. ComplexInfinity (a parameter of 0 in a
+            # denominator simplifies the equation to zoo)
+            hint = ("; a division by zero: check the parameter values"
+                    if re.search(r"zoo|ComplexInfinity|division", str(exc)) else "")
             raise SpecError(f"the model cannot be evaluated at the operating point: "
-                            f"{' '.join(str(exc).split())[:160]}", key="plant") from None
+                            f"{' '.join(str(exc).split())[:160]}{hint}", key="plant") from None
     for values, group, names in rows:
         for i, row in enumerate(values):
             bad = not np.all(np.isfinite(row))

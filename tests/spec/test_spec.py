@@ -504,3 +504,14 @@ def test_the_cli_names_every_invalid_design_and_writes_nothing(tmp_path, capsys)
     for label in ("design[0] 'a'", "design[2] 'c'", "design[3] 'd'"):
         assert label in lines[0]
     assert not out_dir.exists() or not any(out_dir.iterdir())
+
+
+def test_a_parameter_of_zero_in_a_denominator_is_a_spec_error():
+    """``A = 0`` makes ``(q - a sqrt(2 g h)) / A`` sympy's ``zoo``, which no compiler takes: a
+    SpecError (exit 2) naming the plant and the likely cause, not a bare TanksynthError (the fuzz
+    test found it)."""
+    table = tomllib.loads(SINGLE_TANK)
+    table["plant"]["parameters"]["A"] = 0
+    with pytest.raises(SpecError, match="division by zero") as info:
+        parse_spec(table)
+    assert info.value.key == "plant"
