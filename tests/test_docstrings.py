@@ -22,6 +22,7 @@ from __future__ import annotations
 import importlib
 import inspect
 import pkgutil
+import re
 from pathlib import Path
 
 import pytest
@@ -78,12 +79,14 @@ def _public_objects(module_name: str):
 
 
 def _inherited_doc(cls, attr: str) -> str:
-    """The docstring an override inherits: the nearest base class's method of the same name."""
+    """The docstring an override inherits: the nearest base class's method of the same name whose
+    docstring has a ``Parameters`` section (an intermediate override saying only "See
+    `MethodOptions.from_table`" passes its base's entries on)."""
     for base in cls.__mro__[1:]:
         member = vars(base).get(attr)
         if isinstance(member, (staticmethod, classmethod)):
             member = member.__func__
-        if inspect.isfunction(member) and member.__doc__:
+        if inspect.isfunction(member) and numpydoc_section(member.__doc__, "Parameters"):
             return member.__doc__
     return ""
 
@@ -164,3 +167,115 @@ def test_the_checker_skips_private_parameters():
         """
 
     assert _missing(g, g.__doc__) == []
+
+
+# --- Units in the text -------------------------------------------------------------------------
+# As python-control asks for units in its docstrings: an entry (Parameters, Other Parameters,
+# Returns, Yields; a class's Attributes) that documents a physical quantity states its unit. The
+# rule is mechanical:
+#   * an entry is PHYSICAL when its name is one of PHYSICAL_NAMES and its type is numeric
+#     (float, int, complex, array, number; or no type given), or its description mentions a
+#     PHYSICAL_WORDS quantity and its type is a real/complex number or array (not int: counts);
+#   * a physical entry must contain a UNIT token in its type or description: a unit in brackets,
+#     after a comma or colon or after "in" (``(s)``, ``(m^3/s)``, ``(1/s in continuous time)``,
+#     ``in s``, ``, m``), a unit word (``seconds``, ``metres``, ``radians``, ``degrees``,
+#     ``samples``, ``steps``, ``bytes``, ``percent``), ``dimensionless`` / ``unitless`` / ``(-)``,
+#     or "unit(s)" naming a frame (``state units``, ``squared output unit``, ``units of ...``;
+#     not "unit circle", "unit disk", "unit vector").
+# No exception list: an entry the rule flags is fixed by stating its unit (``dimensionless``
+# when it has none).
+
+#: Names that denote a physical quantity in this package (times, operating points, noise
+#: covariances and weights, poles, decay rates, bounds...).
+PHYSICAL_NAMES = frozenset({
+    "ts", "t", "dt", "t0", "t_final", "t_end", "tf", "duration", "horizon",
+    "x0", "u0", "x_op", "u_op", "x_hat0", "y0",
+    "Q", "R", "Qc", "P0", "poles", "alpha", "psi", "gamma",
+})
+PHYSICAL_WORDS = re.compile(
+    r"\b(time|time-?steps?|period|levels?|flows?|rate|gains?|covariances?|poles?|frequency|"
+    r"frequencies|eigenvalues?|variance|height|area|volume|duration|horizon|delay|bandwidth|"
+    r"decay|standard deviation|operating point|intensity)\b", re.I)
+_NUMERIC_TYPE = re.compile(r"float|ndarray|array|complex|number|real", re.I)
+_NUMERIC_OR_INT_TYPE = re.compile(r"float|ndarray|array|complex|number|real|\bint\b", re.I)
+_UNIT_ATOM = r"(?:s|ms|min|h|m|cm|mm|V|Hz|rad|deg|kg|Pa|l)(?:\^-?[\d/]+)?"
+#: A unit word: "seconds", "dimensionless", "state units", "units of ..."...
+UNIT_WORD = re.compile(
+    r"(?i:\b(?:dimensionless|unitless|seconds?|metres?|meters?|radians?|degrees?|bytes|samples|"
+    r"steps|percent)\b)"
+    r"|(?i:\bunits?\b)(?!\s*(?:circle|disk|disc|vector|matrix|ball|norm|-norm))"
+    r"|\(-\)")
+#: A unit word, or a unit symbol after a bracket, comma, colon or "in" and not followed by a
+#: dimension's "x" or "+" (``(m x m)``, ``(N + 1, n)`` are sizes, not metres or newtons).
+UNIT_TOKEN = re.compile(
+    UNIT_WORD.pattern
+    + rf"|(?:^|[(\[,:;]|\bin)\s*(?:1/)?{_UNIT_ATOM}(?:\s*[*/]\s*{_UNIT_ATOM})*"
+    r"(?=[)\],;.]|$|\s+(?![x+*-]\s))")
+
+_UNIT_SECTIONS = ("Parameters", "Other Parameters", "Returns", "Yields")
+
+
+def _entries(obj, is_class: bool):
+    """``(section, name, type, description)`` of every documented entry of ``obj``."""
+    for section in _UNIT_SECTIONS + (("Attributes",) if is_class else ()):
+        for name, (typ, text) in numpydoc_section(obj.__doc__, section).items():
+            if section in ("Returns", "Yields") and not typ:   # an unnamed return: "float"
+                name, typ = "", name
+            yield section, name, typ, text
+
+
+def is_physical(name: str, typ: str, text: str) -> bool:
+    """The entry documents a physical quantity (see the rule above)."""
+    if name in PHYSICAL_NAMES and (not typ or _NUMERIC_OR_INT_TYPE.search(typ)):
+        return True
+    return bool(PHYSICAL_WORDS.search(text)) and (not typ or bool(_NUMERIC_TYPE.search(typ)))
+
+
+def has_unit(typ: str, text: str) -> bool:
+    """The type or description states a unit (see the rule above)."""
+    return bool(UNIT_TOKEN.search(text) or UNIT_WORD.search(typ))   # a type's "(m, n)" is a shape
+
+
+def missing_units() -> dict[str, list[str]]:
+    """``qualified name -> ["Section 'name' (type): description", ...]`` of the physical entries
+    without a unit, over the package's public functions, methods and classes."""
+    out: dict[str, list[str]] = {}
+    for module_name in _modules():
+        for qualname, obj, kind in _public_objects(module_name):
+            for section, name, typ, text in _entries(obj, kind == "class"):
+                if is_physical(name, typ, text) and not has_unit(typ, text):
+                    what = f"'{name}' ({typ})" if name else f"({typ})"
+                    out.setdefault(qualname, []).append(f"{section} {what}: {text[:90]!r}")
+    return out
+
+
+def test_every_physical_quantity_states_its_unit():
+    found = missing_units()
+    assert not found, (
+        "documented physical quantities without a unit (write it in the description: (s), (m), "
+        "(m^3/s), (1/s), (state units), (dimensionless)...):\n"
+        + "\n".join(f"  {k}: {entry}" for k, v in sorted(found.items()) for entry in v))
+
+
+@pytest.mark.parametrize("name, typ, text, physical, unit", [
+    ("ts", "float", "Sampling period (s).", True, True),
+    ("ts", "float", "Sampling period.", True, False),
+    ("ts", "float", "Sampling period in s (> 0).", True, True),
+    ("poles", "array_like of complex", "Closed-loop poles (1/s in continuous time).", True, True),
+    ("poles", "array_like of complex", "Discrete-time poles inside the unit circle.", True, False),
+    ("poles", "array_like of complex", "Discrete-time poles (z-plane, dimensionless).", True, True),
+    ("Q", "ndarray", "Process-noise covariance (squared state units).", True, True),
+    ("x0", "ndarray", "Operating point.", True, False),
+    ("level", "int", "Heading level.", False, False),          # an int count: not physical
+    ("name", "str", "The time domain.", False, False),         # a string: not physical
+    ("seconds", "float", "Wall time of the build.", True, False),
+    ("seconds", "float", "Wall time of the build (s).", True, True),
+    ("flow", "float", "Pump flow, m^3/s.", True, True),
+    ("weights", "ndarray", "Mean and covariance weights (dimensionless).", True, True),
+    ("R", "ndarray, shape (m, m)", "Input weight (m x m, positive definite).", True, False),
+    ("jumps", "ndarray, shape (N + 1, n)", "Known level changes at each sample.", True, False),
+])
+def test_the_unit_rule(name, typ, text, physical, unit):
+    """The rule on entries it must flag and must pass."""
+    assert is_physical(name, typ, text) is physical
+    assert has_unit(typ, text) is unit

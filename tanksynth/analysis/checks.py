@@ -24,7 +24,21 @@ SYMBOLIC_MAX_STATES = 4
 
 @dataclass(frozen=True)
 class Check:
-    """One verdict: a named condition, whether it holds, and why."""
+    """One verdict: a named condition, whether it holds, and why.
+
+    Parameters
+    ----------
+    name : str
+        The condition's name (``"observability_rank"``, ``"equilibrium"``...).
+    passed : bool or None
+        Whether it holds; None when it could not be decided (e.g. a symbolic
+        test beyond its budget).
+    detail : str
+        One line saying why, with the numbers in the plant's units.
+    data : dict, optional
+        JSON-friendly numbers behind the verdict (ranks, singular values,
+        residuals in the plant's units); default empty.
+    """
 
     name: str
     passed: bool | None
@@ -89,7 +103,7 @@ def rank_conditions(plant: Plant, x0: Sequence[float], ts: float | None = None,
     ----------
     plant : Plant
     x0 : sequence of float
-        Operating levels.
+        Operating levels (state units, e.g. m).
     ts : float, optional
         Sampling period (s).
     given_u0 : sequence of float, optional

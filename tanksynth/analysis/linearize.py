@@ -37,7 +37,8 @@ class Equilibrium:
     x0 : ndarray, shape (n,)
         Levels (state units).
     u0 : ndarray, shape (m,)
-        Least-squares input (exact when the system is square and solvable).
+        Least-squares input (input units; exact when the system is square and
+        solvable).
     residual : ndarray, shape (n,)
         ``f(x0, u0)`` in state units per second; zero at a true equilibrium.
     is_equilibrium : bool
@@ -141,13 +142,14 @@ class LinearModel:
     F, B, C : ndarray
         Continuous-time matrices (units: 1/s; state unit per input unit per s).
     x0, u0 : ndarray
-        Operating point.
+        Operating point (state and input units).
     offset : ndarray
         ``f(x0, u0)``, zero at an equilibrium (the affine term otherwise).
     ts : float or None
         Sampling period (s) when discretised.
     Ad, Bd : ndarray or None
-        Exact ZOH discretisation with period ``ts``.
+        Exact ZOH discretisation with period ``ts`` (``Ad`` dimensionless,
+        ``Bd`` in state units per input unit).
     state_names, input_names, output_names : tuple of str
         Signal names (the plant's), used by `to_statespace`.
     """
@@ -216,7 +218,9 @@ def linearize(plant: Plant, x0: Sequence[float], u0: Sequence[float], ts: float 
     ----------
     plant : Plant
     x0 : sequence of float, length n
+        Operating state (state units, e.g. m).
     u0 : sequence of float, length m
+        Operating input (input units, e.g. m^3/s).
     ts : float, optional
         Sampling period in s; if given, ``Ad`` and ``Bd`` are filled.
 

@@ -140,6 +140,13 @@ def jacobian(exprs: sp.Matrix, variables: Sequence[sp.Symbol]) -> sp.Matrix:
 def control_affine(f: sp.Matrix, u: Sequence[sp.Symbol]) -> tuple[sp.Matrix, sp.Matrix]:
     """Split ``f(x, u) = f0(x) + G(x) u``.
 
+    Parameters
+    ----------
+    f : sympy.Matrix, shape (n, 1)
+        The vector field ``dx/dt = f(x, u)``.
+    u : sequence of sympy.Symbol, length m
+        The input symbols.
+
     Returns
     -------
     f0 : sympy.Matrix, shape (n, 1)
@@ -180,7 +187,23 @@ def lie_derivative(h: sp.Matrix, field: sp.Matrix, x: Sequence[sp.Symbol], order
 
 
 def lie_derivatives(h: sp.Matrix, field: sp.Matrix, x: Sequence[sp.Symbol], count: int) -> list[sp.Matrix]:
-    """``[L^0 h, L^1 h, ..., L^(count-1) h]`` along ``field``."""
+    """``[L^0 h, L^1 h, ..., L^(count-1) h]`` along ``field``.
+
+    Parameters
+    ----------
+    h : sympy.Matrix, shape (q, 1)
+        The scalar functions (outputs) to differentiate.
+    field : sympy.Matrix, shape (n, 1)
+        The vector field along which they are differentiated.
+    x : sequence of sympy.Symbol, length n
+        The state symbols.
+    count : int
+        How many derivatives, ``L^0 h`` included (>= 1).
+
+    Returns
+    -------
+    list of sympy.Matrix, each shape (q, 1)
+    """
     out = [sp.Matrix(h)]
     for _ in range(count - 1):
         out.append(jacobian(out[-1], x) * field)

@@ -100,19 +100,41 @@ def stage(target: str | Path, payload: Payload) -> Path:
 
 
 def commit(staged: Path, target: str | Path) -> Path:
-    """Rename a staged file over its target (atomic); returns the target."""
+    """Rename a staged file over its target (atomic); returns the target.
+
+    Parameters
+    ----------
+    staged : Path
+        The file `stage` returned.
+    target : str or Path
+        The file it replaces (in the same directory).
+    """
     target = Path(target)
     os.replace(staged, target)
     return target
 
 
 def discard(staged: Path) -> None:
-    """Remove a staged file that will not be committed (no error if it is gone)."""
+    """Remove a staged file that will not be committed (no error if it is gone).
+
+    Parameters
+    ----------
+    staged : Path
+        The file `stage` returned.
+    """
     Path(staged).unlink(missing_ok=True)
 
 
 def atomic_write(target: str | Path, payload: Payload) -> Path:
-    """Write ``payload`` to ``target`` atomically (see the module docstring); returns the target."""
+    """Write ``payload`` to ``target`` atomically (see the module docstring); returns the target.
+
+    Parameters
+    ----------
+    target : str or Path
+        The file to write (its directory must exist).
+    payload : bytes, str or callable
+        Bytes, text (written as UTF-8) or ``write(fh)`` on a binary file.
+    """
     staged = stage(target, payload)
     try:
         return commit(staged, target)

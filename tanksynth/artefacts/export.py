@@ -215,7 +215,7 @@ def mat_contents(gains: Mapping[str, np.ndarray], data: Mapping[str, Any]) -> di
     Parameters
     ----------
     gains : mapping of str to ndarray
-        The design's gains (a 1-D gain becomes an n x 1 column).
+        The design's gains (a 1-D gain becomes an n x 1 column), in the plant's units.
     data : mapping
         `implementation_data` of the design.
 
@@ -255,7 +255,7 @@ def c_header(name: str, gains: Mapping[str, np.ndarray], data: Mapping[str, Any]
     name : str
         The design's name (prefix of every symbol).
     gains : mapping of str to ndarray
-        The gains.
+        The gains (in the plant's units, e.g. input units per state unit).
     data : mapping, optional
         `implementation_data`: adds ``<NAME>_TS`` (s), the arrays ``x_op`` and
         ``u_op`` (columns, as in the ``.mat`` file) and a comment listing the
@@ -376,7 +376,8 @@ def observer_law(name: str, A: np.ndarray, B: np.ndarray, C: np.ndarray, L: np.n
     name : str
         Function name (a C identifier).
     A, B, C : ndarray
-        The model (``Ad, Bd`` in discrete time, ``F, B`` in continuous time).
+        The model (``Ad, Bd`` in discrete time, ``F, B`` in continuous time), in the
+        plant's units (``F`` in 1/s, ``Ad`` dimensionless).
     L : ndarray
         Observer gain (n x q, state per output units).
     x_op, u_op, y_op : ndarray
@@ -480,7 +481,7 @@ def derived_law(gains: Mapping[str, np.ndarray], diagnostics: Mapping[str, Any],
     Parameters
     ----------
     gains : mapping of str to ndarray
-        The design's gains.
+        The design's gains (in the plant's units).
     diagnostics : mapping
         Its diagnostics (equilibrium, time domain, integral action, form).
     method : str

@@ -51,6 +51,12 @@ def to_jsonable(value: Any) -> Any:
 
     Non-finite floats become the strings ``"inf"``, ``"-inf"``, ``"nan"``
     (strict JSON has no such numbers).
+
+    Parameters
+    ----------
+    value : object
+        A mapping, sequence, array, number, string or None (nested); any
+        other object becomes its ``str``.
     """
     if isinstance(value, Mapping):
         return {str(k): to_jsonable(v) for k, v in value.items()}
@@ -73,7 +79,18 @@ def to_jsonable(value: Any) -> Any:
 
 
 def gains_digest(gains: Mapping[str, Any]) -> str:
-    """sha256 over the gains' names, shapes and float64 bytes."""
+    """sha256 over the gains' names, shapes and float64 bytes.
+
+    Parameters
+    ----------
+    gains : mapping of str to array_like
+        The design's gains (in the plant's units).
+
+    Returns
+    -------
+    str
+        The hex digest.
+    """
     h = hashlib.sha256()
     for name in sorted(gains):
         arr = np.ascontiguousarray(np.asarray(gains[name], dtype=float))
@@ -126,6 +143,11 @@ def read_limited(path: str | Path, limit: int = MAX_FILE_BYTES) -> bytes:
 
 def file_sha256(path: str | Path) -> str:
     """sha256 (hex) of a file's bytes.
+
+    Parameters
+    ----------
+    path : str or Path
+        The file.
 
     Raises
     ------
@@ -420,6 +442,11 @@ def write_plant_record(spec, directory: str | Path) -> Path:
 
 def read_plant_record(directory: str | Path) -> dict:
     """Read ``DIR/plant.json`` (see `write_plant_record`).
+
+    Parameters
+    ----------
+    directory : str or Path
+        The result directory.
 
     Raises
     ------

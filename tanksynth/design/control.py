@@ -88,7 +88,8 @@ def design_integral_tracking(plant: Plant, x0: Any, poles: Any, ts: float, *,
     x0 : array_like, shape (n,)
         Operating levels (state units).
     poles : array_like, length n + p
-        Discrete-time closed-loop poles of the augmented system.
+        Discrete-time closed-loop poles of the augmented system (z-plane,
+        dimensionless).
     ts : float
         Sampling period (s).
     tracked : sequence of str, optional
@@ -308,7 +309,7 @@ class ISETuning:
     ise : float
         Total ISE at ``C`` (m^2 s).
     ise_outputs : ndarray, shape (m,)
-        ISE of each controlled level at ``C``.
+        ISE of each controlled level at ``C`` (m^2 s: squared level error times time).
     grid : ndarray, shape (k,)
         Coarse grid of each ``C_i``.
     grid_ise : ndarray, shape (k,) * m

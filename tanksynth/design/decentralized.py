@@ -122,7 +122,8 @@ class FiniteHorizonResult:
     Attributes
     ----------
     K : list of ndarray, each (n, o)
-        Gains ``K(1) .. K(T)``; masked entries exactly 0.
+        Gains ``K(1) .. K(T)`` (state units per output unit); masked entries
+        exactly 0.
     P : list of ndarray, each (n, n)
         ``P(k|k)``, k = 1..T, recomputed in numpy (Joseph form) from ``K``
         whatever the route.
@@ -142,7 +143,7 @@ class FiniteHorizonResult:
         ``P(T+1|T)``: the prediction the next window starts from.
     one_step_cost : float
         ``sum_k tr P(k|k)`` of the one-step gains on the same window (the
-        starting point of both routes).
+        starting point of both routes), in squared state units.
     history : tuple of float
         Cost after each outer iteration (``"iterative"``); for ``"casadi"``
         the warm-start and final costs.
@@ -315,7 +316,8 @@ def one_step_gains(A: Any, C: Any, Q: Any, R: Any, E: Any, P_pred: Any) -> Kalma
     R : array_like, shape (o, o)
         ``R_k`` (squared output unit), positive definite.
     E : array_like, shape (n, o)
-        Sparsity pattern: nonzero = free gain entry, 0 = entry fixed at 0.
+        Sparsity pattern: nonzero = free gain entry, 0 = entry fixed at 0
+        (dimensionless).
     P_pred : array_like, shape (n, n)
         ``P(k|k-1)`` (squared state unit), positive definite.
 
@@ -350,7 +352,8 @@ def covariance_recursion(A_seq: Any, C_seq: Any, Q_seq: Any, R_seq: Any, K_seq: 
         ``A_k`` (n, n), ``C_k`` (o, n), ``Q_k`` (n, n, squared state unit),
         ``R_k`` (o, o, squared output unit), k = 1..T.
     K_seq : sequence of array_like, length T
-        Gains ``K_k`` (n, o), any (not necessarily optimal or sparse).
+        Gains ``K_k`` (n, o), any (not necessarily optimal or sparse), in state
+        units per output unit.
     P0_pred : array_like, shape (n, n)
         ``P(1|0)`` (squared state unit).
 
@@ -419,7 +422,7 @@ def finite_horizon_gains(A_seq: Any, C_seq: Any, Q_seq: Any, R_seq: Any, E: Any,
     E : array_like, shape (n, o)
         Sparsity pattern (nonzero = free entry).
     P0_pred : array_like, shape (n, n)
-        The predicted covariance ``P(1|0)``, positive definite.
+        The predicted covariance ``P(1|0)``, positive definite (squared state units).
     method : {"iterative", "casadi"}
         Default ``"iterative"``: the same cost as ``"casadi"`` (to 1e-15
         relative at N = 64 in the benchmark), an order of magnitude faster.

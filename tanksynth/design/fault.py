@@ -167,7 +167,7 @@ def fault_threshold(plant: Plant, poles: Sequence[Any] = (-5, -8, -10), *,
         Initial levels satisfy ``lower < x_i(0) <= upper``; the observer
         starts at ``lower``, so ``e_hat_i = upper - lower``.
     gain : array_like or sympy.Matrix, shape (n, 1), optional
-        Observer gain ``Psi`` (floats are read as exact decimals).
+        Observer gain ``Psi`` (1/s; floats are read as exact decimals).
 
     Returns
     -------
@@ -230,7 +230,7 @@ class DetectionResult:
     Attributes
     ----------
     x0 : ndarray
-        Plant initial state.
+        Plant initial state (state units, m).
     delta_bar : float
         Fault size (leak coefficient of tank 2, 1/s).
     t_fault : float
@@ -241,7 +241,7 @@ class DetectionResult:
     conservative : bool
         Threshold eq. 55 (True) or eq. 54.
     false_alarm : float or None
-        First time before ``t_fault`` the residual exceeds the threshold.
+        First time before ``t_fault`` the residual exceeds the threshold (s).
     reference : float or None
         A detection time to compare with (s), e.g. one published for this
         initial state; carried through, never used in the computation.
@@ -421,7 +421,7 @@ def residual(th: FaultThreshold, x0: Any, t: Any, *, delta_bar: float = 0.0, t_f
     th : FaultThreshold
         Gives the healthy matrices, the gain and the observer's initial state.
     x0 : array_like, shape (n,)
-        Plant initial state.
+        Plant initial state (state units, m).
     t : array_like
         Times (s), >= 0.
     delta_bar : float
@@ -464,7 +464,7 @@ def detection_time(th: FaultThreshold, x0: Any, delta_bar: float, *, t_fault: fl
     ----------
     th : FaultThreshold
     x0 : array_like, shape (n,)
-        Plant initial state.
+        Plant initial state (state units, m).
     delta_bar : float
         Fault size (1/s), > 0.
     t_fault : float

@@ -148,7 +148,7 @@ class ObserverLMIResult:
         eliminated this is the optimum of the eliminated LMI, equal to that
         of eq. (28); the recovered gain is built for the margin
         ``structure["gain_margin"]`` (``>= margin``), and ``lmi_eigenvalues``
-        show the margin the returned matrices reach.
+        show the margin the returned matrices reach. Dimensionless (normalised).
     kappa : float
         Conditioning bound ``trace P <= kappa n``.
     solver, status : str
@@ -159,7 +159,7 @@ class ObserverLMIResult:
         The independent re-check (all passed, or the design was refused).
     lmi_eigenvalues : ndarray
         Eigenvalues of the re-computed block matrix, scaled back to the
-        normalised problem (should all be <= -margin).
+        normalised problem (should all be <= -margin); dimensionless.
     error_eigenvalues : ndarray
         Eigenvalues of ``A0 - L C`` (1/s); real parts < ``-psi``.
     condition_P : float
@@ -228,6 +228,8 @@ def check_observer_lmi(A0: Any, C: Any, psi: float, P: Any, Q: Any, K: Any, marg
     psi : float
         1/s.
     P, Q : array_like, shape (n, n)
+        The Lyapunov matrix (normalised, ``P >= I``: dimensionless) and ``Q`` of
+        eq. (28) (s: ``psi^2 Q`` has the units of ``A0' P``).
     K : array_like, shape (n, q)
     margin : float
         Required margin of the normalised LMI (``<= -margin``).
@@ -235,7 +237,7 @@ def check_observer_lmi(A0: Any, C: Any, psi: float, P: Any, Q: Any, K: Any, marg
         Time scale (1/s) used when solving.
     tolerance : float
         Fraction of ``margin`` granted to solver round-off: the largest
-        normalised eigenvalue must be ``<= -(1 - tolerance) margin``.
+        normalised eigenvalue must be ``<= -(1 - tolerance) margin`` (dimensionless).
 
     Returns
     -------
@@ -318,7 +320,7 @@ def observer_lmi(A0: Any, C: Any, psi: float, *, variant: str = "qI", margin: fl
     blocks : sequence of sequence of int, optional
         Block-diagonal ``P`` (and ``Q``) structure.
     pattern : array_like, shape (n, q), optional
-        0/1 allowed entries of ``L`` (decentralised gain).
+        0/1 allowed entries of ``L`` (decentralised gain); dimensionless.
     solver : {"CLARABEL", "SCS"}
     problem : ObserverLMIProblem, optional
         A compiled problem to reuse (must match ``C``, variant, structure);

@@ -286,7 +286,7 @@ class ObserverLMIProblem:
     form : {"auto", "full", "eliminated"}
     margin : float
         Margin the recovered gain of the eliminated form is built for
-        (`observer_lmi` sets it to its own ``margin``).
+        (`observer_lmi` sets it to its own ``margin``); dimensionless (normalised LMI).
     solver_options : mapping, optional
         Options passed to the solver at every solve (e.g. Clarabel's
         ``tol_gap_abs``); `solve` may override them per call.
@@ -433,7 +433,7 @@ class ObserverLMIProblem:
             Time scale (1/s); default `time_scale`.
         margin : float, optional
             Margin the recovered gain is built for (eliminated form);
-            default the problem's ``margin``.
+            default the problem's ``margin``. Dimensionless (normalised LMI).
         solver_options : mapping, optional
             Solver options for this solve (over the problem's).
 
@@ -531,14 +531,14 @@ class ObserverLMIProblem:
         Returns
         -------
         K : ndarray, shape (n, q)
-            Scaled gain variable.
+            Scaled gain variable (``P L`` in the scaled units of the problem).
         t_P : float
             Margin of ``(P, Q)`` in the eliminated LMI (``-`` its largest
-            eigenvalue, recomputed here).
+            eigenvalue, recomputed here); scaled units.
         t_K : float
             Margin the gain is built for: ``min(1, t_P - (t_P - margin) / 10)``
             when ``t_P > margin`` (else below ``t_P``; the design is then
-            refused).
+            refused); scaled units.
         """
         V1, V2 = self.V1, self.V2
         X0 = As.T @ P + P @ As + t2 * Qs

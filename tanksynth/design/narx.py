@@ -188,6 +188,8 @@ def levenberg_marquardt(residual: Any, jacobian: Any, x0: np.ndarray, *, max_ite
     jacobian : callable
         ``J(x) -> ndarray`` (N, P).
     x0 : ndarray, shape (P,)
+        Initial parameters, in the units ``residual`` takes (the NARX
+        network's weights: dimensionless).
     max_iter : int
         Budget of trial steps (accepted or rejected).
     mu, mu_dec, mu_inc, mu_max : float

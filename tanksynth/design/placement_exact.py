@@ -141,13 +141,16 @@ def pole_clusters(poles: Any, radius: float = CLUSTER_RADIUS) -> np.ndarray:
     Parameters
     ----------
     poles : array_like of complex
+        The poles (1/s in continuous time, dimensionless in discrete time).
     radius : float
-        Poles closer than ``radius max(1, |p|)`` are linked (single linkage).
+        Poles closer than ``radius max(1, |p|)`` are linked (single linkage);
+        dimensionless (relative).
 
     Returns
     -------
     ndarray of int
-        ``k_i`` for each pole, in the order given (1 for a simple pole).
+        ``k_i`` for each pole, in the order given (1 for a simple pole); a
+        count (dimensionless).
     """
     p = np.asarray(poles, dtype=complex).reshape(-1)
     label = np.arange(p.size)
@@ -236,7 +239,8 @@ def stability_radius(closed_loop: Any, domain: str) -> tuple[float, complex]:
     Returns
     -------
     radius : float
-        Units of ``closed_loop``; 0 when a pole is already outside.
+        In the units of ``closed_loop`` (1/s in continuous time); 0 when a
+        pole is already outside.
     where : complex
         The boundary point of the minimum.
     """
@@ -359,13 +363,14 @@ class PlacementResult:
     method : str
         ``"place"`` (python-control, Tits-Yang) or ``"acker"``.
     requested, achieved : ndarray of complex
-        Requested poles and eigenvalues of the closed loop.
+        Requested poles and eigenvalues of the closed loop (1/s in continuous
+        time, dimensionless in discrete time).
     errors : ndarray
         Matched ``|achieved - requested|``.
     max_pole_error : float
     eigenvector_condition : float
         2-norm condition number of the closed-loop eigenvector matrix
-        (large: poles sensitive to perturbations of the gain).
+        (dimensionless; large: poles sensitive to perturbations of the gain).
     closed_loop : ndarray, shape (n, n)
         ``A - B K`` or ``A - L C``.
     accuracy : dict
@@ -411,7 +416,8 @@ def place_state_feedback(A: Any, B: Any, poles: Any, method: str = "auto", tol: 
     tol : float
         Largest accepted pole error relative to ``max(1, |pole|)`` for a
         simple pole; repeated poles are judged by `placement_accuracy`
-        (characteristic polynomial to ``tol``, pole error to ``tol^(1/k)``).
+        (characteristic polynomial to ``tol``, pole error to ``tol^(1/k)``);
+        dimensionless.
     state_names : sequence of str, optional
 
     Returns
@@ -472,6 +478,7 @@ def place_observer(A: Any, C: Any, poles: Any, method: str = "auto", tol: float 
     A : array_like, shape (n, n)
     C : array_like, shape (q, n)
     poles : array_like of complex, length n
+        Observer poles (1/s in continuous time, dimensionless in discrete time).
     method : {"auto", "place", "acker"}
     tol : float
     state_names : sequence of str, optional

@@ -141,7 +141,8 @@ class LMIPlacementResult:
     checks : tuple of LMICheck
     closed_loop_eigenvalues : ndarray
     region_margins : ndarray
-        ``-lambda_max(f_D(lambda_i))`` of each closed-loop eigenvalue (> 0).
+        ``-lambda_max(f_D(lambda_i))`` of each closed-loop eigenvalue (> 0; 1/s in
+        continuous time, dimensionless in discrete time).
     scaling : dict
         State balancing, input normalisation and time scale applied; the
         ``kappa`` used and every try of the relaxation (``kappa_tries``).

@@ -55,7 +55,8 @@ class HinfBound:
     gamma : float
         Units of ``z`` per unit of ``w``.
     Bw : ndarray, shape (V, n, nw)
-        Disturbance input matrix of each vertex (same time domain as ``A``).
+        Disturbance input matrix of each vertex (same time domain as ``A``; state
+        units per disturbance unit, per s in continuous time).
     Cz : ndarray, shape (nz, n) or (V, nz, n)
     Dzu : ndarray, shape (nz, m)
     """

@@ -57,7 +57,8 @@ class VertexModels:
     A, B, C : ndarray, shapes (V, n, n), (V, n, m), (V, q, n)
         Continuous (1/s, ...) or ZOH (dimensionless) matrices.
     Bw : ndarray, shape (V, n, nw)
-        Disturbance input matrix, discretised with ``B`` in discrete time.
+        Disturbance input matrix, discretised with ``B`` in discrete time (state
+        units per disturbance unit, per s in continuous time).
     u0 : ndarray, shape (V, m)
         Each model's equilibrium input at ``x0`` (input units).
     balanced : ndarray of bool, shape (V,)

@@ -109,7 +109,8 @@ class SynthesisResult:
         Of each model (1/s or z-plane).
     region : LMIRegion or None
     region_margins : tuple of float
-        Smallest ``-lambda_max(f_D(lambda))`` of each model's eigenvalues.
+        Smallest ``-lambda_max(f_D(lambda))`` of each model's eigenvalues (1/s in
+        continuous time, dimensionless in discrete time).
     solver, status : str
     solve_time : float
         s.
@@ -559,6 +560,7 @@ def synthesize_observer(A: Any, C: Any, Bw: Any, Dv: Any, Cz: Any, *, domain: st
         ``A``, ``C`` and ``dt`` are used, ``C`` and ``dt`` arguments ignored).
     domain : {"continuous", "discrete"}
     dt : float, optional
+        Sampling period (s) of a discrete-time model.
     **options
         `synthesize_state_feedback` options (objective, bounds, region, ...).
 

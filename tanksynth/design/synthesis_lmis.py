@@ -178,6 +178,7 @@ def observer_plant(A: Any, C: Any, Bw: Any, Dv: Any, Cz: Any, domain: str = "con
         Weight of the estimation error.
     domain : {"continuous", "discrete"}
     dt : float, optional
+        Sampling period (s) of a discrete-time model.
 
     Returns
     -------

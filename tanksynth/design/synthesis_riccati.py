@@ -79,7 +79,7 @@ class RiccatiSolution:
     gamma_optimum : float or None
         Upper end of the final bisection bracket (smallest certified gamma).
     gamma_lower : float or None
-        Lower end of the final bracket (no gain certified below it).
+        Lower end of the final bracket (no gain certified below it); z unit per w unit.
     iterations : int
         Riccati solves.
     """
@@ -198,7 +198,8 @@ def riccati_hinf(P: GeneralizedPlant, backoff: float = 0.0,
     P : GeneralizedPlant
     backoff : float
         The gain returned is the central gain at ``gamma_optimum (1 + backoff)``
-        (>= 0; a moderate gain instead of the one at the edge of the bracket).
+        (>= 0, dimensionless; a moderate gain instead of the one at the edge of the
+        bracket).
     rtol : float
         Relative width of the final bracket.
 

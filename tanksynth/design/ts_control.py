@@ -158,7 +158,7 @@ class PDCResult:
     decay : float
         Decay rate the returned matrices certify (`certified_decay`), 1/s.
     t : float
-        Size of the ellipsoid achieved (scaled; 0 without constraints).
+        Size of the ellipsoid achieved (scaled, dimensionless; 0 without constraints).
     status : str
     max_condition_eigenvalue : float
         Largest eigenvalue of the condition matrices (original units), < 0.

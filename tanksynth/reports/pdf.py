@@ -33,7 +33,7 @@ class CompileResult:
     engine : str
         ``"latexmk"`` or ``"pdflatex"``.
     seconds : float
-        Wall time of the build.
+        Wall time of the build (s).
     passes : int
         pdflatex runs (1 for latexmk: it decides itself).
     """

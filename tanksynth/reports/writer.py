@@ -52,9 +52,9 @@ class ReportResult:
     pages : int or None
         PDF page count.
     seconds : float
-        Wall time of the whole call.
+        Wall time of the whole call (s).
     latex_seconds : float or None
-        Wall time of the LaTeX build.
+        Wall time of the LaTeX build (s).
     """
 
     tex: Path

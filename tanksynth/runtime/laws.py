@@ -88,7 +88,8 @@ class IntegralTracking:
     K2 : ndarray, shape (m, p)
         Integrator gain (input unit per state unit second).
     Kaw : ndarray, shape (p, m)
-        Back-calculation gain (zero unless ``anti_windup == "back_calculation"``).
+        Back-calculation gain (zero unless ``anti_windup == "back_calculation"``), in
+        integrator-state units per input unit.
     x0, u0 : ndarray
         Operating point (state units, input units).
     C1 : ndarray, shape (p, n)
@@ -140,8 +141,10 @@ def integral_tracking_law(K1: Any, K2: Any, x0: Any, u0: Any, C1: Any, ts: float
     Parameters
     ----------
     K1 : array_like, shape (m, n)
+        State gain (input units per state unit).
     K2 : array_like, shape (m, p)
-        Gains of ``u = -[K1 K2] [x; z]`` in deviation variables.
+        Integrator gain (input units per integrator-state unit); both act in
+        deviation variables, ``u = -[K1 K2] [x; z]``.
     x0 : array_like, shape (n,)
         Operating state (state units).
     u0 : array_like, shape (m,)

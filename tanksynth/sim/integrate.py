@@ -265,7 +265,7 @@ class Integrator:
         Returns
         -------
         ndarray, shape (M, n)
-            States at the end of the period, clipped.
+            States at the end of the period, clipped (state units).
         """
         substeps = int(substeps)
         h = float(ts) / substeps
@@ -439,7 +439,7 @@ class Integrator:
         Returns
         -------
         ndarray, shape (N, M, n) or None
-            States at the end of every period.
+            States at the end of every period (state units).
         """
         model = self.model
         N, count = U.shape[0], x.shape[0]

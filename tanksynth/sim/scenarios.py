@@ -131,8 +131,8 @@ class Scenario:
     plants : tuple of str
         Plant models it applies to (empty: any).
     x0, x_hat0 : tuple of float or None
-        Initial plant state / estimate; None: the operating point (the
-        estimate defaults to the plant state).
+        Initial plant state / estimate (state units); None: the operating
+        point (the estimate defaults to the plant state).
     setpoint_steps : tuple of (int, float)
         ``(sample, step)``: every tracked set-point moves by ``step`` (state
         units) from ``sample`` on.
@@ -194,10 +194,10 @@ class Scenario:
         ----------
         plant : Plant
         x_op : sequence of float, length n
-            Operating levels: initial state (unless the scenario gives one)
-            and initial set-points of the tracked states.
+            Operating levels (state units): initial state (unless the scenario
+            gives one) and initial set-points of the tracked states.
         u_op : sequence of float, length m, optional
-            Operating input (held before t = 0); default zeros.
+            Operating input (input units, held before t = 0); default zeros.
         tracked : sequence of int, optional
             Indices of the controlled states (default: the first ``m``).
         ts : float

@@ -389,7 +389,7 @@ def simulate(plant: Plant, *, ts: float, steps: int, x0: Sequence[float] | np.nd
     reference : array, shape (N + 1, r), optional
         Reference at each sample (e.g. level set-points in m).
     x_hat0 : array, shape (n,) or (M, n), optional
-        Initial estimate (default ``x0``).
+        Initial estimate (state units; default ``x0``).
     u_init : array, shape (m,) or (M, m), optional
         Input held before ``t = 0`` (given to the estimator at ``k = 0``) and
         the open-loop input when there is no controller; default zeros.

@@ -79,7 +79,7 @@ class Spec:
     ----------
     plant : Plant
     x0 : ndarray, shape (n,)
-        Operating levels, inside the plant's region.
+        Operating levels (state units), inside the plant's region.
     given_u0 : ndarray or None
         Operating input as written in the spec (checked, not trusted).
     ts : float or None
@@ -90,6 +90,8 @@ class Spec:
         File the spec was read from.
     sha256 : str
         Hash of the spec text (provenance of every artefact).
+    raw : mapping
+        The parsed TOML tables as written (values in the spec's units).
     text : str
         The spec text itself (copied beside the artefacts).
     """
@@ -136,7 +138,22 @@ def load_spec(path: str | Path, *, methods: Mapping[str, Any] | None = None) -> 
 
 def parse_spec_text(data: bytes | str, source: str | None = None, *,
                     methods: Mapping[str, Any] | None = None) -> Spec:
-    """Validate spec text (TOML) and build the `Spec` (``methods`` as in `load_spec`)."""
+    """Validate spec text (TOML) and build the `Spec` (``methods`` as in `load_spec`).
+
+    Parameters
+    ----------
+    data : bytes or str
+        The spec text (UTF-8 bytes, or text).
+    source : str, optional
+        The file it came from, named in errors and kept as `Spec.source`.
+    methods : mapping of method name to design adapter, optional
+        As in `load_spec`.
+
+    Raises
+    ------
+    SpecError
+        Invalid UTF-8, invalid TOML or any invalid entry.
+    """
     raw = data.encode("utf-8") if isinstance(data, str) else data
     try:
         text = raw.decode("utf-8")
@@ -222,12 +239,24 @@ def parse_spec(table: Mapping[str, Any], source: str | None = None, sha256: str 
         Hash of the spec text.
     methods : mapping of method name to design adapter, optional
         See `load_spec`.
+
+    Raises
+    ------
+    SpecError
+        The first error of the plant, operating point or sampling tables; past them, every
+        ``[[design]]`` table is validated and all the invalid ones are reported: one table's
+        error as it is, several in one `SpecError` (``N invalid designs (design[0] 'a',
+        design[2] 'c'): design[0] 'a': key ...: ...; design[2] 'c': ...``) whose ``errors``
+        attribute holds each table's error.
     """
     try:
         return _parse(table, source, sha256, methods)
     except SpecError as exc:
         if exc.source is None and source is not None:
-            raise type(exc)(exc.detail, key=exc.key, source=source) from None
+            sourced = type(exc)(exc.detail, key=exc.key, source=source)
+            if hasattr(exc, "errors"):  # several invalid [[design]] tables
+                sourced.errors = exc.errors
+            raise sourced from None
         raise
 
 
@@ -270,35 +299,67 @@ def _parse(table: Mapping[str, Any], source: str | None, sha256: str,
     raw_designs = table.get("design", [])
     if not isinstance(raw_designs, list):
         raise SpecError("expected an array of tables [[design]]", key="design")
-    designs, seen = [], {}
+    designs, seen, errors = [], {}, []
     for i, entry in enumerate(raw_designs):
-        key = f"design[{i}]"
-        if not isinstance(entry, Mapping):
-            raise SpecError("expected a table", key=key)
-        name = entry.get("name")
-        if not isinstance(name, str) or not _NAME_RE.match(name):
-            raise SpecError(f"expected a name of letters, digits, '_', '-', '.' (max 64), got {name!r}",
-                            key=f"{key}.name")
-        reserved = RESERVED_NAMES.get(name.lower()) or next(
-            (what for end, what in RESERVED_SUFFIXES.items() if name.lower().endswith(end)), None)
-        if reserved:
-            raise SpecError(f"design name {name!r} is reserved: its files would collide with "
-                            f"{reserved}; choose another name", key=f"{key}.name")
-        ident = re.sub(r"[^a-z0-9]+", "_", name.lower())  # file and C-identifier form
-        if ident in seen:
-            raise SpecError(f"duplicate design name {name!r}" + ("" if seen[ident] == name else
-                            f" (same as {seen[ident]!r}: names differing only in case or in '-', '.', '_' share "
-                            "file names on some file systems and C identifiers in exported laws)"),
-                            key=f"{key}.name")
-        seen[ident] = name
-        method = entry.get("method")
-        if not isinstance(method, str) or (methods is not None and method not in methods):
-            raise SpecError(f"unknown method {method!r}" + unknown_word_hint(method, list(methods or ())),
-                            key=f"{key}.method")
-        options = {k: v for k, v in entry.items() if k not in ("name", "method")}
-        config = methods[method].validate(options, key, plant, ts) if methods is not None else None
-        designs.append(DesignSpec(name, method, options, key, config))
+        try:
+            designs.append(_design(i, entry, seen, plant, ts, methods))
+        except SpecError as exc:  # every design table is checked: all bad ones are reported
+            errors.append((i, exc))
+    if errors:
+        raise _designs_error(raw_designs, errors)
     return Spec(plant, x0, given_u0, ts, tuple(designs), title, source, sha256, table)
+
+
+def _designs_error(raw_designs: list, errors: list[tuple[int, SpecError]]) -> SpecError:
+    """One error for the invalid ``[[design]]`` tables (``(index, error)`` pairs): the error
+    itself when there is one, else a `SpecError` naming every bad table first (so a message cut
+    at the CLI's line limit still names them all), then each table's error with its key; its
+    ``errors`` attribute holds the single errors, in table order."""
+    if len(errors) == 1:
+        return errors[0][1]
+
+    def label(i: int) -> str:
+        name = raw_designs[i].get("name") if isinstance(raw_designs[i], Mapping) else None
+        return f"design[{i}]" + (f" {name!r}" if isinstance(name, str) and _NAME_RE.match(name) else "")
+
+    parts = [f"{label(i)}: " + (f"key '{exc.key}': " if exc.key and exc.key != f"design[{i}]" else "")
+             + exc.detail for i, exc in errors]
+    out = SpecError(f"{len(errors)} invalid designs ({', '.join(label(i) for i, _ in errors)}): "
+                    + "; ".join(parts))
+    out.errors = tuple(exc for _, exc in errors)
+    return out
+
+
+def _design(i: int, entry: Any, seen: dict[str, str], plant: Plant, ts: float | None,
+            methods: Mapping[str, Any] | None) -> DesignSpec:
+    """Validate the ``[[design]]`` table number ``i`` (``seen``: the file-name forms of the
+    names before it, updated here)."""
+    key = f"design[{i}]"
+    if not isinstance(entry, Mapping):
+        raise SpecError("expected a table", key=key)
+    name = entry.get("name")
+    if not isinstance(name, str) or not _NAME_RE.match(name):
+        raise SpecError(f"expected a name of letters, digits, '_', '-', '.' (max 64), got {name!r}",
+                        key=f"{key}.name")
+    reserved = RESERVED_NAMES.get(name.lower()) or next(
+        (what for end, what in RESERVED_SUFFIXES.items() if name.lower().endswith(end)), None)
+    if reserved:
+        raise SpecError(f"design name {name!r} is reserved: its files would collide with "
+                        f"{reserved}; choose another name", key=f"{key}.name")
+    ident = re.sub(r"[^a-z0-9]+", "_", name.lower())  # file and C-identifier form
+    if ident in seen:
+        raise SpecError(f"duplicate design name {name!r}" + ("" if seen[ident] == name else
+                        f" (same as {seen[ident]!r}: names differing only in case or in '-', '.', '_' share "
+                        "file names on some file systems and C identifiers in exported laws)"),
+                        key=f"{key}.name")
+    seen[ident] = name
+    method = entry.get("method")
+    if not isinstance(method, str) or (methods is not None and method not in methods):
+        raise SpecError(f"unknown method {method!r}" + unknown_word_hint(method, list(methods or ())),
+                        key=f"{key}.method")
+    options = {k: v for k, v in entry.items() if k not in ("name", "method")}
+    config = methods[method].validate(options, key, plant, ts) if methods is not None else None
+    return DesignSpec(name, method, options, key, config)
 
 
 def _check_model_numbers(plant: Plant, x0: np.ndarray) -> None:
@@ -323,9 +384,13 @@ def _check_model_numbers(plant: Plant, x0: np.ndarray) -> None:
                      [s.name for s in plant.outputs]),
                     (np.asarray(comp.jac_h(x0), dtype=float).reshape(plant.q, -1), "outputs",
                      [s.name for s in plant.outputs])]
-        except (RuntimeError, ValueError, OverflowError) as exc:
+        except (RuntimeError, ValueError, OverflowError, TanksynthError) as exc:
+            # TanksynthError: the compiler refuses e.g. ComplexInfinity (a parameter of 0 in a
+            # denominator simplifies the equation to zoo)
+            hint = ("; a division by zero: check the parameter values"
+                    if re.search(r"zoo|ComplexInfinity|division", str(exc)) else "")
             raise SpecError(f"the model cannot be evaluated at the operating point: "
-                            f"{' '.join(str(exc).split())[:160]}", key="plant") from None
+                            f"{' '.join(str(exc).split())[:160]}{hint}", key="plant") from None
     for values, group, names in rows:
         for i, row in enumerate(values):
             bad = not np.all(np.isfinite(row))

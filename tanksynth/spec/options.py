@@ -57,7 +57,15 @@ def _type(value: Any) -> str:
 
 
 def did_you_mean(word: Any, candidates: Sequence[str]) -> str:
-    """``"; did you mean 'x'?"`` for the closest candidate of a string, else ``""``."""
+    """``"; did you mean 'x'?"`` for the closest candidate of a string, else ``""``.
+
+    Parameters
+    ----------
+    word : Any
+        What the spec said; only a string gets a suggestion.
+    candidates : sequence of str
+        The valid values (compared case-insensitively, `difflib` cutoff 0.6).
+    """
     if not isinstance(word, str):
         return ""
     by_lower = {str(c).lower(): str(c) for c in candidates}
@@ -153,7 +161,21 @@ def parse_number(value: Any, key: str, *, above: float | None = None, at_least: 
 
 def parse_integer(value: Any, key: str, *, at_least: int | None = None,
                   at_most: int | None = None) -> int:
-    """An integer (booleans and floats refused), optionally bounded (inclusive)."""
+    """An integer (booleans and floats refused), optionally bounded (inclusive).
+
+    Parameters
+    ----------
+    value : Any
+        The raw value.
+    key : str
+        Spec key, for the error.
+    at_least, at_most : int, optional
+        Inclusive bounds (the value is a count or a seed: dimensionless).
+
+    Returns
+    -------
+    int
+    """
     if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Integral):
         raise SpecError(f"expected an integer{_bounds_text(None, at_least, None, at_most)}, got "
                         f"{_type(value)}", key=key)
@@ -168,7 +190,17 @@ def parse_integer(value: Any, key: str, *, at_least: int | None = None,
 
 
 def parse_choice(value: Any, key: str, allowed: Sequence[Any]) -> Any:
-    """One of ``allowed``; for a misspelt string the error suggests the closest choice."""
+    """One of ``allowed``; for a misspelt string the error suggests the closest choice.
+
+    Parameters
+    ----------
+    value : Any
+        The raw value.
+    key : str
+        Spec key, for the error.
+    allowed : sequence
+        The accepted values (a value matches only one of the same type).
+    """
     for choice in allowed:
         if type(choice) is type(value) and choice == value:
             return choice
@@ -177,7 +209,15 @@ def parse_choice(value: Any, key: str, allowed: Sequence[Any]) -> Any:
 
 
 def parse_bool(value: Any, key: str) -> bool:
-    """``true`` or ``false``."""
+    """``true`` or ``false``.
+
+    Parameters
+    ----------
+    value : Any
+        The raw value (a TOML boolean).
+    key : str
+        Spec key, for the error.
+    """
     if not isinstance(value, (bool, np.bool_)):
         raise SpecError(f"expected true or false, got {_type(value)}", key=key)
     return bool(value)
@@ -247,7 +287,19 @@ def parse_matrix(value: Any, key: str, shape: tuple[int | None, int | None] | No
                  ) -> np.ndarray:
     """A real matrix given as a list of rows (read-only float array).
 
-    ``shape`` fixes the rows and/or columns (None: any count).
+    Parameters
+    ----------
+    value : list of list of float
+        The rows (an array is accepted too); entries in the units the option
+        states.
+    key : str
+        Spec key, for the error.
+    shape : (int or None, int or None), optional
+        The required rows and/or columns (None: any count).
+
+    Returns
+    -------
+    ndarray, shape (rows, columns)
     """
     if isinstance(value, np.ndarray):
         value = value.tolist()
@@ -271,6 +323,23 @@ def parse_covariance(value: Any, key: str, size: int, semidefinite: bool = False
 
     Given as a number (``s I``), a list (the diagonal) or a list of rows, in
     the squared units of the state or output.
+
+    Parameters
+    ----------
+    value : float, list of float or list of list of float
+        The raw value (squared units of the state or output).
+    key : str
+        Spec key, for the error.
+    size : int
+        The matrix's order (n or q).
+    semidefinite : bool, optional
+        Accept a singular matrix (positive semidefinite); default False
+        (positive definite).
+
+    Returns
+    -------
+    ndarray, shape (size, size)
+        Symmetric, read-only, in the squared units of the value.
     """
     if isinstance(value, np.ndarray):
         value = value.tolist()
@@ -442,6 +511,15 @@ def region_is_stable(parts: Sequence[tuple], domain: str) -> bool:
     Continuous time: a half-plane with ``alpha >= 0``, a disk with ``center +
     radius <= 0`` or a sector; discrete time: a disk with ``|center| + radius
     <= 1``. The intersection lies inside each of its parts.
+
+    Parameters
+    ----------
+    parts : sequence of tuple
+        The region's parts (`parse_region`): ``alpha``, ``center`` and
+        ``radius`` in 1/s in continuous time (dimensionless in discrete
+        time), sector angles in radians.
+    domain : {"continuous", "discrete"}
+        The time domain of the design.
     """
     if domain == "discrete":
         return any(p[0] == "disk" and abs(p[1]) + p[2] <= 1 for p in parts)
@@ -491,7 +569,24 @@ def parse_names(value: Any, key: str, known: Sequence[str], *, what: str = "name
 
 def parse_box(value: Any, key: str, names: Sequence[str], *, what: str = "state"
               ) -> dict[str, tuple[float, float]]:
-    """Bounds ``{name = [min, max]}`` of some named signals (``min < max``)."""
+    """Bounds ``{name = [min, max]}`` of some named signals (``min < max``).
+
+    Parameters
+    ----------
+    value : mapping of str to [float, float]
+        The raw table; bounds in each signal's own unit (e.g. m for a level).
+    key : str
+        Spec key, for the error.
+    names : sequence of str
+        The signals that may be bounded.
+    what : str, optional
+        What a name is, for the errors (default ``"state"``).
+
+    Returns
+    -------
+    dict of str to (float, float)
+        ``name -> (min, max)`` in the signal's unit.
+    """
     if not isinstance(value, Mapping):
         raise SpecError(f"expected a table {{{what} = [min, max]}}, got {_type(value)}", key=key)
     out = {}

@@ -91,7 +91,8 @@ class ClosedLoop:
         ``factory() -> BatchEstimator`` (a fresh one per simulation); None:
         the true state is fed back.
     x_op, u_op : ndarray
-        Operating point (initial state and set-points; input held before t = 0).
+        Operating point (initial state and set-points; input held before t = 0),
+        in state and input units.
     tracked : tuple of int
         Controlled states.
     description : str
@@ -148,7 +149,7 @@ class StateFeedback:
     ----------
     K : ndarray, shape (m, n)
     x0, u0 : ndarray
-        Operating point.
+        Operating point (state and input units).
     """
 
     K: np.ndarray

@@ -47,7 +47,7 @@ class DetectorRun:
     conservative : bool
         Use ``|c_i|`` (eq. 55).
     x_op, u_op : ndarray
-        Operating point (initial plant state, held input).
+        Operating point (initial plant state, held input), in state and input units.
     description : str
     kind : str
         ``"detector"``.

@@ -62,9 +62,10 @@ class EstimatorRun:
     estimator : BatchEstimator
         Rebuilt from the artefact; `reset` starts it afresh for each simulation.
     x_op, u_op : ndarray
-        Operating point (initial plant state, held input).
+        Operating point (initial plant state, held input), in state and input units.
     x_hat0 : ndarray or None
-        The artefact's designed initial estimate; None: the plant's initial state.
+        The artefact's designed initial estimate (state units); None: the plant's
+        initial state.
     description : str
     kind : str
         ``"estimator"``.

@@ -38,13 +38,13 @@ def linear_predictions(Ad: np.ndarray, Bd: np.ndarray, x0: np.ndarray, u0: np.nd
     ----------
     Ad, Bd : ndarray, shape (n, n), (n, m)
     x0, u0 : ndarray
-        Operating point of the model.
+        Operating point of the model (state and input units).
     x : ndarray, shape (M, N + 1, n)
         Simulated states (the free run starts at ``x[:, 0]``).
     u : ndarray, shape (M, N, m)
         Applied inputs.
     jumps : ndarray, shape (N + 1, n)
-        Known level changes added at each sample.
+        Known level changes added at each sample (state units).
 
     Returns
     -------

@@ -49,7 +49,8 @@ class PoleMatch:
     requested : ndarray of complex, shape (k,)
         In the order given.
     achieved : ndarray of complex, shape (k,)
-        ``achieved[i]`` is the eigenvalue matched with ``requested[i]``.
+        ``achieved[i]`` is the eigenvalue matched with ``requested[i]`` (units of
+        the poles: 1/s in continuous time, dimensionless in discrete time).
     errors : ndarray, shape (k,)
         ``|achieved[i] - requested[i]|`` (units of the poles).
     relative_errors : ndarray, shape (k,)
@@ -116,13 +117,13 @@ class PoleAgreement:
     match : PoleMatch
         One-to-one matching of the eigenvalues to the poles.
     multiplicity : ndarray of int
-        Size of each pole's cluster (1 for a simple pole).
+        Size of each pole's cluster (1 for a simple pole); a count, dimensionless.
     allowed : ndarray
-        Accepted relative error of each pole: ``tol^(1/k)``.
+        Accepted relative error of each pole: ``tol^(1/k)`` (dimensionless).
     polynomial_error : float
         Largest ``|c_k(matrix) - c_k(poles)| / w_k`` over the coefficients of
         the characteristic polynomial, ``w_k`` the coefficients of ``prod (s
-        + r_i)`` with ``r_i = max(|p_i|, 0.01 max(1, max |p|))``.
+        + r_i)`` with ``r_i = max(|p_i|, 0.01 max(1, max |p|))`` (relative, dimensionless).
     tolerance : float
     passed : bool
     measure : str
@@ -157,7 +158,7 @@ def pole_agreement(requested: Sequence[complex], matrix: Any, tol: float = 1e-6,
     tol : float
         Relative tolerance (dimensionless).
     cluster : float
-        Relative radius grouping nearly repeated poles.
+        Relative radius grouping nearly repeated poles (dimensionless).
 
     Returns
     -------

@@ -115,6 +115,15 @@ def verdict_with_trace(doc: Mapping[str, Any], spec: Any,
                        verdict: VerdictFn) -> tuple[list[Check], dict | None]:
     """`verdict_for` with a fresh `TraceRecorder`: the checks and the main simulation's trace.
 
+    Parameters
+    ----------
+    doc : mapping
+        The artefact (as `read_artefact` returns it).
+    spec : tanksynth.spec.Spec
+        The spec the artefact was designed from.
+    verdict : callable
+        ``verdict(doc, spec)``, with the keyword ``trace`` if it records.
+
     Returns
     -------
     checks : list of Check

@@ -316,7 +316,7 @@ def luenberger_estimator(plant: Any, L: np.ndarray, x0: np.ndarray, u0: np.ndarr
     plant : Plant
     L : ndarray, shape (n, q)
     x0, u0 : ndarray
-        Operating point and its equilibrium input.
+        Operating point and its equilibrium input (state and input units).
     ts : float
         Sampling period (s).
     form : {"predictor", "current", "continuous"}
@@ -368,7 +368,7 @@ class IntegralStateFeedback:
     C1 : ndarray, shape (p, n)
         Rows of the tracked outputs.
     x0, u0 : ndarray
-        Operating point.
+        Operating point (state and input units).
     ts : float
         Sampling period (s).
     z : ndarray, shape (M, p)

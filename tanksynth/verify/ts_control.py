@@ -313,8 +313,17 @@ def region_points(P: np.ndarray, c: float, count: int, seed: int,
 
     Parameters
     ----------
-    P, c, count, seed, scale : ndarray (n, n), float, int, int, float
-        Lyapunov matrix, level ``c`` of ``e' P e <= c``, points, random seed, boundary radius factor.
+    P : ndarray, shape (n, n)
+        Lyapunov matrix of the deviation ``e`` (in 1 / (state units)^2 when ``c`` is
+        dimensionless).
+    c : float
+        Level of ``e' P e <= c`` (the units of ``e' P e``).
+    count : int
+        Number of points.
+    seed : int
+        Random seed.
+    scale : float
+        Boundary radius factor (dimensionless).
     """
     rng = np.random.default_rng(seed)
     n = P.shape[0]

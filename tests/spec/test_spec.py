@@ -439,3 +439,79 @@ def test_design_names_that_collide_with_files_are_refused(names, match):
             f'[sampling]\nts = 1.0\n{designs}')
     with pytest.raises(SpecError, match=match):
         parse_spec_text(text)
+
+
+_THREE_TANK = ('[plant]\nmodel = "three_tank"\noutputs = "all"\n[operating_point]\n'
+               'x = {h1 = 0.40, h2 = 0.20, h3 = 0.30}\n[sampling]\nts = 1.0\n')
+#: Four designs, three of them invalid, each for a different reason.
+_BAD_DESIGNS = ('[[design]]\nname = "a"\nmethod = "pole_placment"\n'
+                '[[design]]\nname = "b"\nmethod = "linearize"\n'
+                '[[design]]\nname = "c"\nmethod = "kalman"\nbogus = 3\n'
+                '[[design]]\nname = "d"\nmethod = "pole_placement"\npoles = [0.5, 0.6]\n')
+
+
+def test_every_invalid_design_is_reported_at_once(tmp_path):
+    """Several invalid [[design]] tables: one SpecError naming each (index, name, key, reason),
+    listed first so a message cut at the CLI's line limit still names them all; the valid
+    table is not named; ``errors`` holds each table's own error."""
+    path = tmp_path / "spec.toml"
+    path.write_text(_THREE_TANK + _BAD_DESIGNS)
+    with pytest.raises(SpecError) as info:
+        load_spec(path)
+    exc, text = info.value, str(info.value)
+    assert text.startswith(f"{path}: 3 invalid designs (design[0] 'a', design[2] 'c', design[3] 'd'): "), text
+    for label, key, reason in [("design[0] 'a'", "design[0].method", "did you mean 'pole_placement'"),
+                               ("design[2] 'c'", "design[2].bogus", "unknown option 'bogus'"),
+                               ("design[3] 'd'", "design[3].poles", "2 poles given, expected 3")]:
+        assert f"{label}: key '{key}': " in text and reason in text, (label, text)
+    assert "design[1]" not in text and "'b'" not in text
+    assert [e.key for e in exc.errors] == ["design[0].method", "design[2].bogus", "design[3].poles"]
+    assert exc.source == str(path)
+
+
+def test_one_invalid_design_keeps_its_own_error():
+    """One bad table among good ones: its error unchanged (key and message), no summary."""
+    text = _THREE_TANK + _BAD_DESIGNS.split("[[design]]\nname = \"c\"")[0].replace("pole_placment",
+                                                                                   "linearize")
+    text += '[[design]]\nname = "d"\nmethod = "pole_placement"\npoles = [0.5, 0.6]\n'
+    with pytest.raises(SpecError) as info:
+        parse_spec_text(text)
+    assert info.value.key == "design[2].poles"
+    assert "invalid designs" not in str(info.value)
+
+
+def test_a_plant_or_sampling_error_stops_before_the_designs():
+    """The designs are read against the plant and ts: a bad [sampling] is reported alone."""
+    text = _THREE_TANK.replace("ts = 1.0", "ts = -1.0") + _BAD_DESIGNS
+    with pytest.raises(SpecError) as info:
+        parse_spec_text(text)
+    assert info.value.key == "sampling.ts"
+    assert "design" not in str(info.value)
+
+
+def test_the_cli_names_every_invalid_design_and_writes_nothing(tmp_path, capsys):
+    """`design` on a spec with several bad tables: exit 2, one line naming each, no file."""
+    from tanksynth.cli import main
+
+    spec = tmp_path / "spec.toml"
+    spec.write_text(_THREE_TANK + _BAD_DESIGNS)
+    out_dir = tmp_path / "out"
+    code = main(["design", str(spec), "-o", str(out_dir)])
+    _, err = capsys.readouterr()
+    assert code == 2
+    lines = err.strip("\n").splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error:") and "Traceback" not in err, err
+    for label in ("design[0] 'a'", "design[2] 'c'", "design[3] 'd'"):
+        assert label in lines[0]
+    assert not out_dir.exists() or not any(out_dir.iterdir())
+
+
+def test_a_parameter_of_zero_in_a_denominator_is_a_spec_error():
+    """``A = 0`` makes ``(q - a sqrt(2 g h)) / A`` sympy's ``zoo``, which no compiler takes: a
+    SpecError (exit 2) naming the plant and the likely cause, not a bare TanksynthError (the fuzz
+    test found it)."""
+    table = tomllib.loads(SINGLE_TANK)
+    table["plant"]["parameters"]["A"] = 0
+    with pytest.raises(SpecError, match="division by zero") as info:
+        parse_spec(table)
+    assert info.value.key == "plant"

@@ -171,7 +171,8 @@ class AdaptiveKalmanFilter(ArrayEstimator):
     ----------
     model : DiscreteModel
     Q : ndarray
-        Current process noise covariance, (n, n) or (M, n, n) (property).
+        Current process noise covariance, (n, n) or (M, n, n) (property), in
+        squared units of the noise.
     """
 
     method = "adaptive_kalman"
@@ -251,11 +252,14 @@ class AdaptiveScalingTuning:
     Attributes
     ----------
     Q : ndarray, shape (r, r)
-        Nominal process noise covariance (PSD), scaled by ``phi_k``.
+        Nominal process noise covariance (PSD, squared units of the noise
+        entering through ``G``), scaled by ``phi_k``.
     R : ndarray, shape (q, q)
-        Measurement noise covariance (PD).
+        Measurement noise covariance (PD, squared output units).
     P0 : ndarray, shape (n, n)
+        Initial estimate covariance (squared state units).
     x0 : ndarray, shape (n,)
+        Initial estimate (state units).
     ts : float
         Sampling period (s).
     a, b, c : float

@@ -41,12 +41,14 @@ class ConsensusTuning:
     Attributes
     ----------
     Q : ndarray, shape (r, r)
-        Process noise covariance (PSD).
+        Process noise covariance (PSD, squared units of the noise entering
+        through ``G``).
     R : tuple of ndarray
-        ``R_i`` (q_i x q_i, PD) of each sensor; ``N = len(R)``.
+        ``R_i`` (q_i x q_i, PD, squared output units) of each sensor; ``N = len(R)``.
     P0 : ndarray, shape (n, n)
-        Initial (central) covariance.
+        Initial (central) covariance (squared state units).
     x0 : ndarray, shape (n,)
+        Initial estimate (state units).
     ts : float
         Sampling period (s).
     C : tuple of ndarray or None

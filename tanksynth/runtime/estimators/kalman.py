@@ -335,15 +335,19 @@ def steady_state_gain(model: DiscreteModel, Q: Any, R: Any) -> tuple[np.ndarray,
     model : DiscreteModel
         Linear (``kind == "linear"``).
     Q : array_like, shape (n, n)
+        Process-noise covariance (squared state units).
     R : array_like, shape (q, q)
+        Measurement-noise covariance (squared output units).
 
     Returns
     -------
     K : ndarray, shape (n, q)
-        ``P C' (C P C' + R)^-1`` (filter form, the gain of eq. 32).
+        ``P C' (C P C' + R)^-1`` (filter form, the gain of eq. 32), in state
+        units per output unit.
     P : ndarray, shape (n, n)
         Stabilising solution of ``P = A P A' - A P C' (C P C' + R)^-1 C P A' + Q``
-        (predicted covariance), from ``scipy.linalg.solve_discrete_are``.
+        (predicted covariance, squared state units), from
+        ``scipy.linalg.solve_discrete_are``.
 
     Raises
     ------

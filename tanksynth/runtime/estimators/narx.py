@@ -52,7 +52,7 @@ class NARXTuning:
     out_mean, out_scale : ndarray, shape (n,)
         Output standardisation (state units).
     x0 : ndarray, shape (n,)
-        Initial estimate (also the initial delayed outputs).
+        Initial estimate (also the initial delayed outputs), in state units.
     ts : float
         Sampling period (s).
     delays : int

@@ -46,7 +46,8 @@ class UKFTuning:
     Q, R, P0, x0, ts, substeps, clip, operating_point
         As in `KalmanTuning` (state/output units).
     alpha : float
-        Spread of the sigma points, 0 < alpha <= 1 (seed 002: 0.001 to 1).
+        Spread of the sigma points, 0 < alpha <= 1 (seed 002: 0.001 to 1);
+        dimensionless.
     beta : float
         Prior-distribution parameter, 2 for Gaussian (seed 002).
     kappa : float
@@ -120,9 +121,9 @@ def ukf_weights(n: int, alpha: float, beta: float, kappa: float) -> tuple[np.nda
     Returns
     -------
     Wm, Wc : ndarray, shape (2 n + 1,)
-        Mean and covariance weights.
+        Mean and covariance weights (dimensionless).
     gamma : float
-        ``sqrt(n + lambda)``, the sigma-point spread.
+        ``sqrt(n + lambda)``, the sigma-point spread (dimensionless).
     """
     lam = alpha ** 2 * (n + kappa) - n
     Wm = np.full(2 * n + 1, 1.0 / (2.0 * (n + lam)))

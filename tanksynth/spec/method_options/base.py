@@ -217,7 +217,26 @@ class MethodOptions:
     @classmethod
     def validated(cls, options: Mapping[str, Any], key: str, plant: Any,
                   ts: float | None) -> "MethodOptions":
-        """`from_table`, remembering the table the options were read from (`source`)."""
+        """`from_table`, remembering the table the options were read from (`source`).
+
+        Also refuses a design whose estimated memory (`memory_estimate`)
+        exceeds `memory_budget`.
+
+        Parameters
+        ----------
+        options : mapping
+            The raw options (without ``name`` and ``method``).
+        key : str
+            Where the table is in the spec (``design[i]``).
+        plant : Plant
+            The spec's plant.
+        ts : float or None
+            Sampling period (s).
+
+        Returns
+        -------
+        MethodOptions
+        """
         out = cls.from_table(options, key, plant, ts)
         estimate = out.memory_estimate(plant, ts)
         if estimate is not None:
@@ -250,6 +269,11 @@ class MethodOptions:
 
         False for options built otherwise, or when the table has changed
         since (e.g. a `DesignSpec` copied with other options).
+
+        Parameters
+        ----------
+        options : mapping
+            A raw ``[[design]]`` table's options.
         """
         source = self.__dict__.get("_source")
         if source is None or not isinstance(options, Mapping):
@@ -288,7 +312,13 @@ class MethodOptions:
 
     @classmethod
     def default(cls, name: str) -> Any:
-        """The default of option ``name``; `SpecError` if the option is required."""
+        """The default of option ``name``; `SpecError` if the option is required.
+
+        Parameters
+        ----------
+        name : str
+            The option's name (a field of the Options class).
+        """
         f = cls.__dataclass_fields__[name]
         if f.default is not MISSING:
             return f.default
@@ -337,7 +367,17 @@ def _jsonable(value: Any) -> Any:
 
 
 def time_domain_of(ts: float | None) -> str:
-    """Default time domain of a linear design: ``"discrete"`` with a sampling period."""
+    """Default time domain of a linear design: ``"discrete"`` with a sampling period.
+
+    Parameters
+    ----------
+    ts : float or None
+        Sampling period (s); None for a continuous-time spec.
+
+    Returns
+    -------
+    {"discrete", "continuous"}
+    """
     return "discrete" if ts is not None else "continuous"
 
 
@@ -375,11 +415,23 @@ class OptionReader:
         self.base = key
 
     def key(self, name: str) -> str:
-        """The spec key of option ``name`` (``design[i].name``)."""
+        """The spec key of option ``name`` (``design[i].name``).
+
+        Parameters
+        ----------
+        name : str
+            The option's name (a field of the Options class).
+        """
         return f"{self.base}.{name}"
 
     def given(self, name: str) -> bool:
-        """True if the table sets option ``name``."""
+        """True if the table sets option ``name``.
+
+        Parameters
+        ----------
+        name : str
+            The option's name (a field of the Options class).
+        """
         return name in self.options
 
     def read(self, name: str, reader: Callable[..., Any], *args: Any, parse_default: bool = False,
@@ -388,6 +440,20 @@ class OptionReader:
 
         With ``parse_default`` the default goes through the reader too (a
         default written in the spec's own form, e.g. one number for a vector).
+
+        Parameters
+        ----------
+        name : str
+            The option's name (a field of the Options class).
+        reader : callable
+            A reader of `tanksynth.spec.options` (or one of its form),
+            ``reader(value, key, *args, **kwargs)``.
+        *args
+            Further positional arguments of the reader.
+        parse_default : bool, optional
+            Pass the default through the reader too (default False).
+        **kwargs
+            Further keyword arguments of the reader.
 
         Raises
         ------
@@ -404,5 +470,17 @@ class OptionReader:
         return reader(value, self.key(name), *args, **kwargs) if parse_default else value
 
     def fail(self, name: str, message: str) -> SpecError:
-        """A `SpecError` about option ``name`` (to raise)."""
+        """A `SpecError` about option ``name`` (to raise).
+
+        Parameters
+        ----------
+        name : str
+            The option's name (a field of the Options class).
+        message : str
+            What is wrong and what was expected.
+
+        Returns
+        -------
+        SpecError
+        """
         return SpecError(message, key=self.key(name))

@@ -104,7 +104,7 @@ class IntegralTrackingOptions(MethodOptions):
     ----------
     poles : tuple of complex
         Required. Discrete-time poles (z-plane) of the augmented system, n + p
-        of them (p tracked outputs); complex poles in conjugate pairs.
+        of them (p tracked outputs); complex poles in conjugate pairs. Dimensionless.
     tracked : tuple of str
         Outputs to track (at most m, named as the plant's outputs); default the
         first m outputs.
@@ -116,7 +116,8 @@ class IntegralTrackingOptions(MethodOptions):
         Back-calculation gain, in (0, 1] (dimensionless); default 1.
     reference_gain : ndarray or None
         An m x (n + p) gain to compare with the derived ``K = [K1 K2]``, e.g. a
-        published one; default None.
+        published one; default None. In the units of ``K`` (input units per state
+        unit for ``K1``, per integrated-output unit for ``K2``).
     """
 
     method_name: ClassVar[str] = "integral_tracking"

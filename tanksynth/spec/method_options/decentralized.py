@@ -66,6 +66,7 @@ class DecentralizedKalmanOptions(MethodOptions):
         1 (free).
     tolerance : float
         Relative tolerance of the finite-horizon iteration (> 0); default 1e-6.
+        Dimensionless.
     max_iter : int
         Iteration limit (>= 1); default 100.
     process_noise_correlation : float

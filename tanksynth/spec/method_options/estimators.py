@@ -140,7 +140,7 @@ class UkfOptions(_FilterOptions):
     Attributes
     ----------{_NOISE_DOC}
     alpha : float
-        Spread of the sigma points, in (0, 1]; default 1e-3.
+        Spread of the sigma points, in (0, 1]; default 1e-3. Dimensionless.
     beta : float
         Prior-distribution weight (>= 0; 2 is optimal for a Gaussian); default 2.
     kappa : float

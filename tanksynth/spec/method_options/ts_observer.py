@@ -99,6 +99,7 @@ class TsObserverOptions(MethodOptions):
         names; default None (full).
     pattern : ndarray or None
         n x q 0/1 sparsity pattern of the gain ``L``; default None (full).
+        Dimensionless.
     reference_L : ndarray or None
         An n x q gain to compare with the derived one (1/s), e.g. a published
         one; default None.
