@@ -373,7 +373,7 @@ def estimator_law(gains: Mapping[str, np.ndarray], diagnostics: Mapping[str, Any
     Parameters
     ----------
     gains : mapping of str to ndarray
-        The design's gains.
+        The design's gains (in the plant's units).
     diagnostics : mapping
         Its diagnostics (``ts_model`` of a TS observer).
     method : str

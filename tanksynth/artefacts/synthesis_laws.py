@@ -380,7 +380,7 @@ def synthesis_law(gains: Mapping[str, Any], diagnostics: Mapping[str, Any], meth
     Parameters
     ----------
     gains : mapping of str to ndarray
-        The design's gains.
+        The design's gains (in the plant's units).
     diagnostics : mapping
         Its diagnostics (time domain, integral action, input margins).
     method : str
