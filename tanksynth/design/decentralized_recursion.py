@@ -10,6 +10,7 @@ backward/forward sweeps). Inputs are validated by the callers.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -148,6 +149,16 @@ def _forward(A: list[np.ndarray], C: list[np.ndarray], Q: list[np.ndarray], R: l
 _GATHER_MIN_N = 32   # states from which K C is applied through the selection C (fewer flops)
 
 
+def _rows(X: np.ndarray, idx: Any) -> np.ndarray:
+    """``X[idx]`` (a view for a slice, one gather for indices)."""
+    return X[idx] if isinstance(idx, slice) else X.take(idx, axis=0)
+
+
+def _cols(X: np.ndarray, idx: Any) -> np.ndarray:
+    """``X[:, idx]``."""
+    return X[:, idx] if isinstance(idx, slice) else X.take(idx, axis=1)
+
+
 def _selection(C: np.ndarray) -> tuple[np.ndarray, np.ndarray | None] | None:
     """``(sel, scale)``, ``C[j] = scale[j] e_sel[j]'``, when every output measures one state.
 
@@ -220,6 +231,7 @@ class _Kernels:
         self._rr_flat = rows[:, None] * n + rows[None, :]
         self._cc_flat = cols[:, None] * o + cols[None, :]
         # gathers through C cost more numpy calls than they save flops below this size
+        # (a contiguous selection is a slice: a view, no gather)
         gather = n >= _GATHER_MIN_N
         # column of each row's free entry (0 where none) for the "diag" mode
         self.col_of_row = np.zeros(n, dtype=int)
@@ -236,8 +248,11 @@ class _Kernels:
                     sel, scale = sv
                     diag = one_per_row and bool(np.all(sel[cols] == rows))
                     g_scale = None if scale is None else scale[cols]
-                    mode = "diag" if diag else ("select" if gather else "dense")
-                    cache[key] = (mode, sel, scale, g_scale)
+                    o_ = sel.size
+                    contiguous = bool(np.array_equal(sel, np.arange(sel[0], sel[0] + o_)))
+                    idx = slice(int(sel[0]), int(sel[0]) + o_) if contiguous else sel
+                    mode = "diag" if diag else ("select" if gather or contiguous else "dense")
+                    cache[key] = (mode, idx, scale, g_scale)
             self.step.append(cache[key])
         self._rcc: dict[int, np.ndarray] = {}
         self._ar = np.arange(n)
@@ -249,7 +264,7 @@ class _Kernels:
         mode, sel, scale, _ = self.step[k]
         if mode == "dense":
             return Pp @ C.T
-        PCt = Pp.take(sel, axis=1)
+        PCt = _cols(Pp, sel)
         return PCt if scale is None else PCt * scale[None, :]
 
     def s_matrix(self, k: int, PCt: np.ndarray, C: np.ndarray, R: np.ndarray) -> np.ndarray:
@@ -257,7 +272,7 @@ class _Kernels:
         mode, sel, scale, _ = self.step[k]
         if mode == "dense":
             return C @ PCt + R
-        CPCt = PCt.take(sel, axis=0)
+        CPCt = _rows(PCt, sel)
         return (CPCt if scale is None else CPCt * scale[:, None]) + R
 
     def gain(self, L: np.ndarray | None, S: np.ndarray, PCt: np.ndarray) -> np.ndarray:
@@ -312,7 +327,13 @@ class _Kernels:
 
     def joseph(self, K: np.ndarray, C: np.ndarray, R: np.ndarray, Pp: np.ndarray,
                k: int | None = None) -> np.ndarray:
-        """``(I - K C) P (I - K C)' + K R K'``, symmetric (``k`` the step, None: dense)."""
+        """``(I - K C) P (I - K C)' + K R K'`` (``k`` the step, None: dense).
+
+        Exactly symmetric in the "diag" mode; otherwise symmetric up to
+        round-off: the prediction that carries it on is symmetrised
+        (`_predict`), and so is every ``P(k|k)`` the route returns
+        (`_symmetrised`), so the sweeps skip that step.
+        """
         mode, sel, scale, _ = ("dense", None, None, None) if k is None else self.step[k]
         if mode == "diag":
             d, kr = self._diag(k, K)
@@ -321,13 +342,14 @@ class _Kernels:
                 Rcc = self._rcc[id(R)] = R.take(self.col_of_row, 0).take(self.col_of_row, 1)
             return np.multiply.outer(d, d) * Pp + np.multiply.outer(kr, kr) * Rcc
         if mode == "select":
-            CP = Pp.take(sel, axis=0)
+            CP = _rows(Pp, sel)
             Y = Pp - K @ (CP if scale is None else CP * scale[:, None])
-            YCt = Y.take(sel, axis=1)
+            YCt = _cols(Y, sel)
             Y -= (YCt if scale is None else YCt * scale[None, :]) @ K.T
-            return _sym(Y + K @ R @ K.T)
+            Y += K @ R @ K.T
+            return Y
         IKC = self.eye - K @ C
-        return _sym(IKC @ Pp @ IKC.T + K @ R @ K.T)
+        return IKC @ Pp @ IKC.T + K @ R @ K.T
 
     def ikc_a(self, k: int, K: np.ndarray, C: np.ndarray, A: np.ndarray) -> np.ndarray:
         """``(I - K C_k) A``."""
@@ -335,7 +357,7 @@ class _Kernels:
         if mode == "diag":
             return self._diag(k, K)[0][:, None] * A
         if mode == "select":
-            CA = A.take(sel, axis=0)
+            CA = _rows(A, sel)
             return A - K @ (CA if scale is None else CA * scale[:, None])
         return (self.eye - K @ C) @ A
 
@@ -387,11 +409,18 @@ def _fh_iterative(A, C, Q, R, kern: _Kernels, P0, K0: list[np.ndarray],
         if rel < tol:
             converged = True
             break
+    traj = _symmetrised(traj)
     # the covariances the gains give, positive definite (one Cholesky per step, at the end only)
     for k, Pf in enumerate(traj.P_filt):
         _require_pd(Pf, f"P({k + 1}|{k + 1}) at window step {k + 1}")
     status = "converged" if converged else "max_iter"
     return K, traj, it, converged, status, history
+
+
+def _symmetrised(traj: CovarianceTrajectory) -> CovarianceTrajectory:
+    """The trajectory with every ``P(k|k)`` symmetrised (same traces, same cost)."""
+    return CovarianceTrajectory([_sym(P) for P in traj.P_filt], traj.P_pred, traj.P_pred_next,
+                                traj.traces, traj.cost)
 
 
 def _block_hessians(A, C, R, pat: _Pattern, K, P_pred) -> list[np.ndarray]:
