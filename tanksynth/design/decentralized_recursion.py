@@ -4,7 +4,14 @@ The kernels behind `tanksynth.design.decentralized`: the gain equation on a
 sparsity pattern (`_Pattern`), one Kalman step with a sparse gain, the
 covariance pass over a window for given gains (`CovarianceTrajectory`), and
 the two finite-horizon routes (IPOPT through CasADi, Pedroso & Batista's
-backward/forward sweeps). Inputs are validated by the callers.
+backward/forward sweeps). Inputs are validated by the callers, once.
+
+The sweeps (the default route) run on `_Kernels`: how ``K C`` is applied
+(diagonal, through the selection ``C``, or dense) is decided once per window,
+the gain equation on the free entries is solved by Cholesky (LAPACK
+``posv``), and ``P(k|k)`` is symmetrised once, in the returned trajectory
+(every ``P(k+1|k)`` that carries it on is symmetrised at each step). Issue 15:
+at least as fast as the same iteration written plainly in numpy.
 """
 
 from __future__ import annotations

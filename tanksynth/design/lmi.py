@@ -38,10 +38,11 @@ re-checked in numpy in the original units (eigenvalues of the LMI blocks,
 
 The scaled problem compiled once with cvxpy Parameters (structure, ``K``
 eliminated by the projection lemma, sparse ``A0``) is
-`tanksynth.design.lmi_problem.ObserverLMIProblem`; the Kalman observability
-test is skipped when ``C`` alone has rank ``n``. None of this touches the
-re-check: every gain is checked against the full ``2n x 2n`` block matrix of
-eq. (28).
+`tanksynth.design.lmi_problem.ObserverLMIProblem` (the ``psi`` sweep); a
+full-form LMI solved once by Clarabel is built as conic data directly
+(`tanksynth.design.lmi_conic`); the Kalman observability test is skipped
+when ``C`` alone has rank ``n``. None of this touches the re-check: every gain
+is checked against the full ``2n x 2n`` block matrix of eq. (28).
 """
 
 from __future__ import annotations
@@ -55,7 +56,7 @@ from tanksynth.errors import DimensionError, InfeasibleDesign, SpecError, Unobse
 # Module import (not names), so that a test may replace the rank functions.
 from tanksynth.analysis import rank as _rank
 from tanksynth.analysis.blas import small_dense
-from tanksynth.design.lmi_conic import ConicObserverLMI
+from tanksynth.design.lmi_conic import ConicObserverLMI, one_shot_problem, with_kappa
 from tanksynth.design.lmi_problem import (FORMS, SOLVERS, VARIANTS, ObserverLMIProblem, _check_variant,
                                           _matrix, _sym)
 
@@ -363,15 +364,7 @@ def observer_lmi(A0: Any, C: Any, psi: float, *, variant: str = "qI", margin: fl
         raise SpecError(f"margin must be a number in (0, 1), got {margin!r}", key="margin")
     _check_variant(variant)
     _refuse_unobservable(A0, C)
-    direct = problem is None and solver == "CLARABEL" and (
-        form == "full" or (form == "auto" and pattern is not None))
-    if direct:
-        # Solved once: Clarabel's conic data built directly (cvxpy's compilation of a
-        # Parameter problem costs 10-30 times the solve and pays off only when re-solved).
-        prob = ConicObserverLMI(n, C, variant, kappa, blocks, pattern, margin=margin)
-    else:
-        prob = problem or ObserverLMIProblem(n, C, variant, kappa, blocks, pattern, solver,
-                                             A0_pattern=A0 != 0, form=form, margin=margin)
+    prob = problem or one_shot_problem(A0, C, variant, kappa, blocks, pattern, solver, form, margin)
     prob.margin = float(margin)
     ceiling = prob.kappa if kappa_max is None else max(float(kappa_max), prob.kappa)
     tries: list[dict] = []
@@ -383,14 +376,7 @@ def observer_lmi(A0: Any, C: Any, psi: float, *, variant: str = "qI", margin: fl
                       "bound_active": active})
         if raw["t"] >= margin or active is False or prob.kappa >= ceiling:
             break
-        kappa_next = min(prob.kappa * KAPPA_STEP, ceiling)
-        if isinstance(prob, ConicObserverLMI):
-            prob = ConicObserverLMI(n, C, variant, kappa_next, prob.blocks, prob.mask, margin=margin,
-                                    solver_options=prob.solver_options)
-        else:
-            prob = ObserverLMIProblem(n, C, variant, kappa_next, prob.blocks, prob.mask, prob.solver,
-                                      A0_pattern=prob.A0_pattern, form=prob.form, margin=margin,
-                                      solver_options=prob.solver_options)
+        prob = with_kappa(prob, min(prob.kappa * KAPPA_STEP, ceiling), margin)
     res = _accept(A0, C, float(psi), raw, prob, float(margin), variant, tries)
     return res
 
@@ -413,14 +399,12 @@ def _accept(A0: np.ndarray, C: np.ndarray, psi: float, raw: dict,
             structure["eliminated_lmi_margin"] = raw["t_P"]
     else:
         structure["K"] = "LMI variable"
-    if isinstance(prob, ConicObserverLMI):
-        nnz = int(np.count_nonzero(A0))
-        structure["A0_parameter"] = (f"none: solved once, conic data built directly for Clarabel "
-                                     f"(A0 sparse data, {nnz} of {n * n} entries)")
-    else:
-        nnz = int(np.count_nonzero(prob.A0_pattern))
-        structure["A0_parameter"] = ("dense" if nnz == n * n else
-                                     f"sparse, {nnz} of {n * n} entries (A0_pattern)")
+    conic = isinstance(prob, ConicObserverLMI)
+    nnz = int(np.count_nonzero(A0 if conic else prob.A0_pattern))
+    structure["A0_parameter"] = (
+        f"none: solved once, conic data built directly for Clarabel (A0 sparse data, {nnz} of "
+        f"{n * n} entries)" if conic else
+        "dense" if nnz == n * n else f"sparse, {nnz} of {n * n} entries (A0_pattern)")
     where = (f"solver {prob.solver} status {raw['status']}, achieved margin t = {raw['t']:.3g} "
              f"(required {margin:.3g}), psi = {psi:.6g} 1/s, variant {variant}, kappa = {prob.kappa:g}")
     if raw["t"] == -np.inf:

@@ -30,10 +30,10 @@ import numpy as np
 import scipy.sparse as sps
 
 from tanksynth.analysis.blas import small_dense
-from tanksynth.design.lmi_problem import _check_variant, _matrix, _structure
+from tanksynth.design.lmi_problem import ObserverLMIProblem, _check_variant, _matrix, _structure
 from tanksynth.errors import DimensionError, SpecError
 
-__all__ = ["ConicObserverLMI"]
+__all__ = ["ConicObserverLMI", "one_shot_problem", "with_kappa"]
 
 #: Clarabel status -> cvxpy's status string (the names `ObserverLMIProblem` reports).
 _STATUS = {"Solved": "optimal", "AlmostSolved": "optimal_inaccurate",
@@ -304,3 +304,57 @@ class ConicObserverLMI:
         out.update({"t": float(x[lay["it"]]), "P": P, "Q": Qs / w, "K": K, "L": L,
                     "solve_time": time.perf_counter() - start})
         return out
+
+
+def one_shot_problem(A0: np.ndarray, C: np.ndarray, variant: str, kappa: float,
+                     blocks: Sequence[Sequence[int]] | None, pattern: Any, solver: str, form: str,
+                     margin: float) -> ObserverLMIProblem | ConicObserverLMI:
+    """The problem `observer_lmi` solves once.
+
+    The full form with Clarabel (a gain pattern, or ``form="full"``) is built
+    directly as conic data (`ConicObserverLMI`): cvxpy's compilation of a
+    Parameter problem costs 10-30 times the solve and pays off only when the
+    problem is solved again. The eliminated form (gain recovered in closed
+    form) and SCS keep `ObserverLMIProblem`.
+
+    Parameters
+    ----------
+    A0 : ndarray, shape (n, n)
+        1/s (its non-zeros give ``A0_pattern``).
+    C : ndarray, shape (q, n)
+    variant, kappa, blocks, pattern, solver, form, margin
+        As in `tanksynth.design.lmi.observer_lmi`.
+
+    Returns
+    -------
+    ObserverLMIProblem or ConicObserverLMI
+    """
+    n = A0.shape[0]
+    if solver == "CLARABEL" and (form == "full" or (form == "auto" and pattern is not None)):
+        return ConicObserverLMI(n, C, variant, kappa, blocks, pattern, margin=margin)
+    return ObserverLMIProblem(n, C, variant, kappa, blocks, pattern, solver, A0_pattern=A0 != 0,
+                              form=form, margin=margin)
+
+
+def with_kappa(prob: ObserverLMIProblem | ConicObserverLMI, kappa: float,
+               margin: float) -> ObserverLMIProblem | ConicObserverLMI:
+    """The same problem with another conditioning bound ``kappa`` (the retry of `observer_lmi`).
+
+    Parameters
+    ----------
+    prob : ObserverLMIProblem or ConicObserverLMI
+    kappa : float
+        New bound (> 1).
+    margin : float
+        Margin the recovered gain is built for.
+
+    Returns
+    -------
+    ObserverLMIProblem or ConicObserverLMI
+    """
+    if isinstance(prob, ConicObserverLMI):
+        return ConicObserverLMI(prob.n, prob.C, prob.variant, kappa, prob.blocks, prob.mask,
+                                margin=margin, solver_options=prob.solver_options)
+    return ObserverLMIProblem(prob.n, prob.C, prob.variant, kappa, prob.blocks, prob.mask, prob.solver,
+                              A0_pattern=prob.A0_pattern, form=prob.form, margin=margin,
+                              solver_options=prob.solver_options)
