@@ -9,9 +9,10 @@ backward/forward sweeps). Inputs are validated by the callers, once.
 The sweeps (the default route) run on `_Kernels`: how ``K C`` is applied
 (diagonal, through the selection ``C``, or dense) is decided once per window,
 the gain equation on the free entries is solved by Cholesky (LAPACK
-``posv``), and ``P(k|k)`` is symmetrised once, in the returned trajectory
-(every ``P(k+1|k)`` that carries it on is symmetrised at each step). Issue 15:
-at least as fast as the same iteration written plainly in numpy.
+``posv``; LU if that fails), and the covariances are symmetrised once, in the
+returned trajectory, not at every step (the round-off asymmetry a step adds
+is not amplified: it is carried by congruences). Issue 15: at least as fast
+as the same iteration written plainly in numpy.
 """
 
 from __future__ import annotations
@@ -147,7 +148,7 @@ def _forward(A: list[np.ndarray], C: list[np.ndarray], Q: list[np.ndarray], R: l
         if check:
             _require_pd(Pf, f"P({k + 1}|{k + 1}) at window step {k + 1}")
         P_filt.append(Pf)
-        Pp = _predict(A[k], Pf, Q[k])
+        Pp = _predict(A[k], Pf, Q[k]) if kern is None else A[k] @ Pf @ A[k].T + Q[k]
     traces = np.array([P.trace() for P in P_filt])
     return CovarianceTrajectory(P_filt, P_pred, Pp, traces, float(traces.sum()))
 
@@ -282,8 +283,18 @@ class _Kernels:
         CPCt = _rows(PCt, sel)
         return (CPCt if scale is None else CPCt * scale[:, None]) + R
 
-    def gain(self, L: np.ndarray | None, S: np.ndarray, PCt: np.ndarray) -> np.ndarray:
-        """``K`` on ``E`` solving ``[L K S]_E = [L P C']_E`` (``L = None``: the identity)."""
+    def gain(self, L: np.ndarray | None, S: np.ndarray, PCt: np.ndarray,
+             k: int | None = None) -> np.ndarray:
+        """``K`` on ``E`` solving ``[L K S]_E = [L P C']_E`` (``L = None``: the identity).
+
+        ``k``: the step, so that the "diag" mode keeps ``I - K C`` of the new gain.
+        """
+        K = self._solve_gain(L, S, PCt)
+        if k is not None and self.step[k][0] == "diag":
+            self._diag(k, K)
+        return K
+
+    def _solve_gain(self, L: np.ndarray | None, S: np.ndarray, PCt: np.ndarray) -> np.ndarray:
         pat = self.pat
         if pat.full:                     # every entry free: K S = P C' whatever L
             return _spd_solve(S, PCt.T).T
@@ -337,9 +348,8 @@ class _Kernels:
         """``(I - K C) P (I - K C)' + K R K'`` (``k`` the step, None: dense).
 
         Exactly symmetric in the "diag" mode; otherwise symmetric up to
-        round-off: the prediction that carries it on is symmetrised
-        (`_predict`), and so is every ``P(k|k)`` the route returns
-        (`_symmetrised`), so the sweeps skip that step.
+        round-off, as ``A P(k|k) A' + Q`` in the sweeps: every covariance the
+        route returns is symmetrised once, at the end (`_symmetrised`).
         """
         mode, sel, scale, _ = ("dense", None, None, None) if k is None else self.step[k]
         if mode == "diag":
@@ -347,7 +357,10 @@ class _Kernels:
             Rcc = self._rcc.get(id(R))
             if Rcc is None:
                 Rcc = self._rcc[id(R)] = R.take(self.col_of_row, 0).take(self.col_of_row, 1)
-            return np.multiply.outer(d, d) * Pp + np.multiply.outer(kr, kr) * Rcc
+            Pf = np.multiply.outer(d, d)
+            Pf *= Pp
+            Pf += np.multiply.outer(kr, kr) * Rcc
+            return Pf
         if mode == "select":
             CP = _rows(Pp, sel)
             Y = Pp - K @ (CP if scale is None else CP * scale[:, None])
@@ -376,11 +389,11 @@ def _one_step_start(A, C, Q, R, kern: _Kernels, P0) -> tuple[list[np.ndarray], C
     for k in range(len(A)):
         P_pred.append(Pp)
         PCt = kern.pct(k, Pp, C[k])
-        K = kern.gain(None, kern.s_matrix(k, PCt, C[k], R[k]), PCt)
+        K = kern.gain(None, kern.s_matrix(k, PCt, C[k], R[k]), PCt, k)
         Pf = kern.joseph(K, C[k], R[k], Pp, k)
         K0.append(K)
         P_filt.append(Pf)
-        Pp = _predict(A[k], Pf, Q[k])
+        Pp = A[k] @ Pf @ A[k].T + Q[k]
     traces = np.array([P.trace() for P in P_filt])
     return K0, CovarianceTrajectory(P_filt, P_pred, Pp, traces, float(traces.sum()))
 
@@ -402,7 +415,7 @@ def _fh_iterative(A, C, Q, R, kern: _Kernels, P0, K0: list[np.ndarray],
                 M = kern.ikc_a(k + 1, K[k + 1], C[k + 1], A[k])
                 L = eye + M.T @ L @ M           # symmetric up to round-off; only [L]_rr is used
             PCt = kern.pct(k, traj.P_pred[k], C[k])
-            K[k] = kern.gain(L, kern.s_matrix(k, PCt, C[k], R[k]), PCt)
+            K[k] = kern.gain(L, kern.s_matrix(k, PCt, C[k], R[k]), PCt, k)
         if not np.isfinite(np.stack(K)).all():
             raise InfeasibleDesign(f"the finite-horizon iteration produced non-finite gains "
                                    f"(outer iteration {it})")
@@ -425,9 +438,9 @@ def _fh_iterative(A, C, Q, R, kern: _Kernels, P0, K0: list[np.ndarray],
 
 
 def _symmetrised(traj: CovarianceTrajectory) -> CovarianceTrajectory:
-    """The trajectory with every ``P(k|k)`` symmetrised (same traces, same cost)."""
-    return CovarianceTrajectory([_sym(P) for P in traj.P_filt], traj.P_pred, traj.P_pred_next,
-                                traj.traces, traj.cost)
+    """The trajectory with every covariance symmetrised (same traces, same cost)."""
+    return CovarianceTrajectory([_sym(P) for P in traj.P_filt], [_sym(P) for P in traj.P_pred],
+                                _sym(traj.P_pred_next), traj.traces, traj.cost)
 
 
 def _block_hessians(A, C, R, pat: _Pattern, K, P_pred) -> list[np.ndarray]:
