@@ -23,7 +23,7 @@ contender, the ratio numpy / tanksynth per repetition. Floor (median ratio,
 exit 1 on a miss): tanksynth at least as fast as the plain numpy iteration
 (ratio >= 1) for N >= 16. The window models are built once, outside the timing.
 
-Usage: ``python benchmarks/decentralized_numpy.py [--sizes 16 32 64] [--reps 9]``
+Usage: ``python benchmarks/decentralized_numpy.py [--sizes 16 32 64] [--reps 15]``
 """
 
 from __future__ import annotations
@@ -91,7 +91,7 @@ def main() -> int:
     """Run the benchmark; exit 1 on a floor miss or a cost mismatch."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--sizes", type=int, nargs="+", default=[16, 32, 64])
-    ap.add_argument("--reps", type=int, default=9)
+    ap.add_argument("--reps", type=int, default=15)
     args = ap.parse_args()
     reps = max(args.reps, 3)
     before = machine()

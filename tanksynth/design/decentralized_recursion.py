@@ -264,6 +264,7 @@ class _Kernels:
             self.step.append(cache[key])
         self._rcc: dict[int, np.ndarray] = {}
         self._ar = np.arange(n)
+        self._values = np.zeros(0)     # the free entries of the last gain solved
         self._dk: list = [None] * len(C)
         self._einsum = n >= 48          # below, one small matmul beats einsum's overhead
 
@@ -291,13 +292,15 @@ class _Kernels:
         """
         K = self._solve_gain(L, S, PCt)
         if k is not None and self.step[k][0] == "diag":
-            self._diag(k, K)
+            self._diag(k, K, self._values if self.rows_id else None)
         return K
 
     def _solve_gain(self, L: np.ndarray | None, S: np.ndarray, PCt: np.ndarray) -> np.ndarray:
         pat = self.pat
         if pat.full:                     # every entry free: K S = P C' whatever L
-            return _spd_solve(S, PCt.T).T
+            K = _spd_solve(S, PCt.T).T
+            self._values = K.ravel()
+            return K
         rows, cols = pat.rows, pat.cols
         Scc = S if self.cols_id else S.take(self._cc_flat)
         if L is None:
@@ -306,7 +309,7 @@ class _Kernels:
                 dg = Scc.diagonal()
                 if (dg > 0).all():
                     K = np.zeros(pat.shape)
-                    K[rows, cols] = rhs / dg
+                    K[rows, cols] = self._values = rhs / dg
                     return K
                 M = np.diag(dg)
             else:
@@ -321,18 +324,21 @@ class _Kernels:
                 rhs = (L @ PCt)[rows, cols]
             M = (L if self.rows_id else L.take(self._rr_flat)) * Scc
         K = np.zeros(pat.shape)
-        K[rows, cols] = _spd_solve(M, rhs)
+        K[rows, cols] = self._values = _spd_solve(M, rhs)
         return K
 
-    def _diag(self, k: int, K: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def _diag(self, k: int, K: np.ndarray, values: np.ndarray | None = None
+              ) -> tuple[np.ndarray, np.ndarray]:
         """``d`` with ``I - K C_k = diag(d)`` and each row's gain entry ``kr`` ("diag" mode).
 
         Kept for the last ``K`` of each step (the sweeps use it twice).
+        ``values``: the free entries of ``K`` when there is one per row, in
+        row order (then ``kr``).
         """
         last = self._dk[k]
         if last is not None and last[0] is K:
             return last[1], last[2]
-        kr = K[self._ar, self.col_of_row]
+        kr = K[self._ar, self.col_of_row] if values is None else values
         g_scale = self.step[k][3]
         if self.rows_id:
             d = 1.0 - (kr if g_scale is None else kr * g_scale)

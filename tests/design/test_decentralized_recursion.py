@@ -147,3 +147,19 @@ def test_require_pd_names_the_step():
         _require_pd(np.diag([1.0, -1.0, 2.0]), "P(4|4)")
     with pytest.raises(InfeasibleDesign, match="not positive definite"):
         _require_pd(np.full((2, 2), np.nan), "P(2|2)")
+
+
+def test_one_state_full_pattern_is_the_scalar_kalman_filter():
+    """n = o = 1: the pattern is full and the "diag" mode applies at once (both code paths)."""
+    A = [np.array([[0.9 + 0.01 * k]]) for k in range(6)]
+    C, Q, R = [np.array([[2.0]])] * 6, [np.array([[0.1]])] * 6, [np.array([[1.0]])] * 6
+    assert _Kernels(C, _Pattern(np.ones((1, 1), dtype=bool))).step[0][0] == "diag"
+    res = finite_horizon_gains(A, C, Q, R, np.ones((1, 1)), np.array([[3.0]]))
+    P, cost = 3.0, 0.0
+    for k in range(6):                                 # the scalar Kalman filter by hand
+        K = 2.0 * P / (4.0 * P + 1.0)
+        Pf = (1 - 2 * K) ** 2 * P + K * K
+        assert res.K[k][0, 0] == pytest.approx(K, rel=1e-13)
+        cost += Pf
+        P = A[k][0, 0] ** 2 * Pf + 0.1
+    assert res.cost == pytest.approx(cost, rel=1e-13)
