@@ -58,9 +58,10 @@ from tanksynth.design.decentralized_models import (DiscreteModel, _array2, _chec
                                                    discretize_noise, equicorrelated_intensity,
                                                    linear_model, lower_tank_equilibrium,
                                                    own_tank_pattern, window_models)
+from tanksynth.analysis.blas import small_dense
 from tanksynth.design.decentralized_recursion import (CovarianceTrajectory, _fh_casadi, _fh_iterative,
-                                                      _forward, _joseph, _one_step, _Pattern,
-                                                      _require_pd)
+                                                      _forward, _joseph, _Kernels, _one_step,
+                                                      _one_step_start, _Pattern, _require_pd)
 
 __all__ = [
     "KalmanStep",
@@ -215,6 +216,21 @@ def _sequence(seq: Any, name: str) -> list[np.ndarray]:
     return items
 
 
+def _stacked(items: list, name: str, shape: tuple[int, int]) -> list[np.ndarray]:
+    """The matrices of a sequence as float arrays of ``shape``, finite (checked in one pass).
+
+    The whole sequence is converted and checked at once; only when that
+    fails is every matrix checked on its own, so that the error names it.
+    """
+    try:
+        arr = np.array(items, dtype=float)
+    except (TypeError, ValueError):
+        arr = None
+    if arr is not None and arr.shape == (len(items), *shape) and np.isfinite(arr).all():
+        return list(arr)
+    return [_array2(m, f"{name}[{k}]", shape) for k, m in enumerate(items)]
+
+
 def _window(A_seq: Any, C_seq: Any, Q_seq: Any, R_seq: Any, E: Any, P0_pred: Any
             ) -> tuple[list[np.ndarray], list[np.ndarray], list[np.ndarray], list[np.ndarray],
                        np.ndarray, np.ndarray]:
@@ -231,8 +247,8 @@ def _window(A_seq: Any, C_seq: Any, Q_seq: Any, R_seq: Any, E: Any, P0_pred: Any
     n = A0.shape[0]
     C0 = _array2(seqs["C_seq"][0], "C_seq[0]", (None, n))
     o = C0.shape[0]
-    A = [_array2(a, f"A_seq[{k}]", (n, n)) for k, a in enumerate(seqs["A_seq"])]
-    C = [_array2(c, f"C_seq[{k}]", (o, n)) for k, c in enumerate(seqs["C_seq"])]
+    A = _stacked(seqs["A_seq"], "A_seq", (n, n))
+    C = _stacked(seqs["C_seq"], "C_seq", (o, n))
     # a window relinearised every few steps repeats its matrices: each distinct one is checked once
     seen: dict[tuple, np.ndarray] = {}
 
@@ -242,10 +258,10 @@ def _window(A_seq: Any, C_seq: Any, Q_seq: Any, R_seq: Any, E: Any, P0_pred: Any
             seen[key] = check(M, name)
         return seen[key]
 
-    Q = [once(_check_psd, _array2(q, f"Q_seq[{k}]", (n, n)), f"Q_seq[{k}]")
-         for k, q in enumerate(seqs["Q_seq"])]
-    R = [once(_check_pd, _array2(r, f"R_seq[{k}]", (o, o)), f"R_seq[{k}]")
-         for k, r in enumerate(seqs["R_seq"])]
+    Q = [once(_check_psd, q, f"Q_seq[{k}]")
+         for k, q in enumerate(_stacked(seqs["Q_seq"], "Q_seq", (n, n)))]
+    R = [once(_check_pd, r, f"R_seq[{k}]")
+         for k, r in enumerate(_stacked(seqs["R_seq"], "R_seq", (o, o)))]
     mask = np.ones((n, o), dtype=bool) if E is None else _mask(E, n, o)
     P0 = _check_pd(_array2(P0_pred, "P0_pred", (n, n)), "P0_pred")
     return A, C, Q, R, mask, P0
@@ -376,6 +392,13 @@ def covariance_recursion(A_seq: Any, C_seq: Any, Q_seq: Any, R_seq: Any, K_seq: 
     return _forward(A, C, Q, R, K, P0)
 
 
+def _check_start(init: CovarianceTrajectory) -> None:
+    """The one-step start broke down numerically: name the step (the sweeps check at the end)."""
+    if not (np.isfinite(init.traces).all() and (init.traces > 0).all()):
+        for k, Pf in enumerate(init.P_filt):
+            _require_pd(Pf, f"P({k + 1}|{k + 1}) at window step {k + 1}")
+
+
 def finite_horizon_gains(A_seq: Any, C_seq: Any, Q_seq: Any, R_seq: Any, E: Any, P0_pred: Any, *,
                          method: str = "iterative", tol: float = 1e-6,
                          max_iter: int = 100) -> FiniteHorizonResult:
@@ -463,24 +486,24 @@ def finite_horizon_gains(A_seq: Any, C_seq: Any, Q_seq: Any, R_seq: Any, E: Any,
     start = time.perf_counter()
     A, C, Q, R, mask, P0 = _window(A_seq, C_seq, Q_seq, R_seq, E, P0_pred)
     pat = _Pattern(mask)
-    K0, P_filt, P_pred = [], [], []
-    Pp = P0
-    for k in range(len(A)):
-        P_pred.append(Pp)
-        K, Pf, Pp = _one_step(A[k], C[k], Q[k], R[k], pat, Pp)
-        if method != "iterative":   # the iterative route checks the trajectory of its gains
-            _require_pd(Pf, f"P({k + 1}|{k + 1}) at window step {k + 1}")
-        K0.append(K)
-        P_filt.append(Pf)
-    traces = np.array([np.trace(P) for P in P_filt])
-    if not (np.isfinite(traces).all() and (traces > 0).all()):
-        for k, Pf in enumerate(P_filt):              # names the step where it broke down
-            _require_pd(Pf, f"P({k + 1}|{k + 1}) at window step {k + 1}")
-    init = CovarianceTrajectory(P_filt, P_pred, Pp, traces, float(traces.sum()))
     if method == "iterative":
-        K, traj, iters, converged, status, history = _fh_iterative(A, C, Q, R, pat, P0, K0, init,
-                                                                    float(tol), int(max_iter))
+        with small_dense():
+            kern = _Kernels(C, pat)
+            K0, init = _one_step_start(A, C, Q, R, kern, P0)
+            _check_start(init)
+            K, traj, iters, converged, status, history = _fh_iterative(
+                A, C, Q, R, kern, P0, K0, init, float(tol), int(max_iter))
     else:
+        K0, P_filt, P_pred = [], [], []
+        Pp = P0
+        for k in range(len(A)):
+            P_pred.append(Pp)
+            K, Pf, Pp = _one_step(A[k], C[k], Q[k], R[k], pat, Pp)
+            _require_pd(Pf, f"P({k + 1}|{k + 1}) at window step {k + 1}")
+            K0.append(K)
+            P_filt.append(Pf)
+        traces = np.array([np.trace(P) for P in P_filt])
+        init = CovarianceTrajectory(P_filt, P_pred, Pp, traces, float(traces.sum()))
         K, traj, iters, converged, status, history = _fh_casadi(A, C, Q, R, pat, P0, K0, init,
                                                                  float(tol), int(max_iter))
     if not converged:

@@ -38,10 +38,11 @@ re-checked in numpy in the original units (eigenvalues of the LMI blocks,
 
 The scaled problem compiled once with cvxpy Parameters (structure, ``K``
 eliminated by the projection lemma, sparse ``A0``) is
-`tanksynth.design.lmi_problem.ObserverLMIProblem`; the Kalman observability
-test is skipped when ``C`` alone has rank ``n``. None of this touches the
-re-check: every gain is checked against the full ``2n x 2n`` block matrix of
-eq. (28).
+`tanksynth.design.lmi_problem.ObserverLMIProblem` (the ``psi`` sweep); a
+full-form LMI solved once by Clarabel is built as conic data directly
+(`tanksynth.design.lmi_conic`); the Kalman observability test is skipped
+when ``C`` alone has rank ``n``. None of this touches the re-check: every gain
+is checked against the full ``2n x 2n`` block matrix of eq. (28).
 """
 
 from __future__ import annotations
@@ -54,6 +55,8 @@ import numpy as np
 from tanksynth.errors import DimensionError, InfeasibleDesign, SpecError, UnobservableError
 # Module import (not names), so that a test may replace the rank functions.
 from tanksynth.analysis import rank as _rank
+from tanksynth.analysis.blas import small_dense
+from tanksynth.design.lmi_conic import ConicObserverLMI, one_shot_problem, with_kappa
 from tanksynth.design.lmi_problem import (FORMS, SOLVERS, VARIANTS, ObserverLMIProblem, _check_variant,
                                           _matrix, _sym)
 
@@ -284,8 +287,13 @@ def _refuse_unobservable(A0: np.ndarray, C: np.ndarray) -> None:
     design after the solver) is skipped.
     """
     n = A0.shape[0]
-    if C.shape[0] >= n and np.linalg.matrix_rank(C) == n:
-        return
+    if C.shape[0] >= n:
+        nz = C != 0
+        if np.all(nz.sum(axis=1) == 1) and np.unique(np.argmax(nz, axis=1)).size == n:
+            return                          # every state measured by its own row: rank C = n
+        with small_dense():
+            if np.linalg.matrix_rank(C) == n:
+                return
     rank = _rank.observability_rank(A0, C)
     if not rank.full:
         pbh = _rank.pbh_test(A0, C=C)
@@ -358,8 +366,7 @@ def observer_lmi(A0: Any, C: Any, psi: float, *, variant: str = "qI", margin: fl
         raise SpecError(f"margin must be a number in (0, 1), got {margin!r}", key="margin")
     _check_variant(variant)
     _refuse_unobservable(A0, C)
-    prob = problem or ObserverLMIProblem(n, C, variant, kappa, blocks, pattern, solver,
-                                         A0_pattern=A0 != 0, form=form, margin=margin)
+    prob = problem or one_shot_problem(A0, C, variant, kappa, blocks, pattern, solver, form, margin)
     prob.margin = float(margin)
     ceiling = prob.kappa if kappa_max is None else max(float(kappa_max), prob.kappa)
     tries: list[dict] = []
@@ -371,14 +378,13 @@ def observer_lmi(A0: Any, C: Any, psi: float, *, variant: str = "qI", margin: fl
                       "bound_active": active})
         if raw["t"] >= margin or active is False or prob.kappa >= ceiling:
             break
-        prob = ObserverLMIProblem(n, C, variant, min(prob.kappa * KAPPA_STEP, ceiling),
-                                  prob.blocks, prob.mask, prob.solver, A0_pattern=prob.A0_pattern,
-                                  form=prob.form, margin=margin, solver_options=prob.solver_options)
+        prob = with_kappa(prob, min(prob.kappa * KAPPA_STEP, ceiling), margin)
     res = _accept(A0, C, float(psi), raw, prob, float(margin), variant, tries)
     return res
 
 
-def _accept(A0: np.ndarray, C: np.ndarray, psi: float, raw: dict, prob: ObserverLMIProblem,
+def _accept(A0: np.ndarray, C: np.ndarray, psi: float, raw: dict,
+            prob: ObserverLMIProblem | ConicObserverLMI,
             margin: float, variant: str, tries: list | None = None) -> ObserverLMIResult:
     """Margin test and independent re-check of a raw solution; the result or `InfeasibleDesign`."""
     n = A0.shape[0]
@@ -395,9 +401,12 @@ def _accept(A0: np.ndarray, C: np.ndarray, psi: float, raw: dict, prob: Observer
             structure["eliminated_lmi_margin"] = raw["t_P"]
     else:
         structure["K"] = "LMI variable"
-    nnz = int(np.count_nonzero(prob.A0_pattern))
-    structure["A0_parameter"] = ("dense" if nnz == n * n else
-                                 f"sparse, {nnz} of {n * n} entries (A0_pattern)")
+    conic = isinstance(prob, ConicObserverLMI)
+    nnz = int(np.count_nonzero(A0 if conic else prob.A0_pattern))
+    structure["A0_parameter"] = (
+        f"none: solved once, conic data built directly for Clarabel (A0 sparse data, {nnz} of "
+        f"{n * n} entries)" if conic else
+        "dense" if nnz == n * n else f"sparse, {nnz} of {n * n} entries (A0_pattern)")
     where = (f"solver {prob.solver} status {raw['status']}, achieved margin t = {raw['t']:.3g} "
              f"(required {margin:.3g}), psi = {psi:.6g} 1/s, variant {variant}, kappa = {prob.kappa:g}")
     if raw["t"] == -np.inf:
@@ -414,7 +423,10 @@ def _accept(A0: np.ndarray, C: np.ndarray, psi: float, raw: dict, prob: Observer
             f"observer LMI (28) infeasible with the required margin: {where}; the optimum of "
             "max t s.t. LMI <= -t I, P >= I, trace P <= kappa n certifies that no larger margin "
             "exists (the bound on P is not active)")
-    checks, eig, err = check_observer_lmi(A0, C, psi, raw["P"], raw["Q"], raw["K"], margin, raw["omega"])
+    with small_dense():          # 2n x 2n eigenvalues: one BLAS thread (tanksynth.analysis.blas)
+        checks, eig, err = check_observer_lmi(A0, C, psi, raw["P"], raw["Q"], raw["K"], margin,
+                                              raw["omega"])
+        condition = float(np.linalg.cond(raw["P"]))
     failed = [c for c in checks if not c.passed]
     if failed:
         worst = "; ".join(f"{c.name}: {c.value:.4g} vs limit {c.limit:.4g}" for c in failed)
@@ -424,7 +436,7 @@ def _accept(A0: np.ndarray, C: np.ndarray, psi: float, raw: dict, prob: Observer
         L=raw["L"], P=raw["P"], Q=raw["Q"], K=raw["K"], psi=float(psi), variant=variant,
         margin=float(margin), achieved_margin=raw["t"], kappa=prob.kappa, solver=prob.solver,
         status=raw["status"], solve_time=raw["solve_time"], checks=checks, lmi_eigenvalues=eig,
-        error_eigenvalues=err, condition_P=float(np.linalg.cond(raw["P"])),
+        error_eigenvalues=err, condition_P=condition,
         scaling={"omega_per_s": raw["omega"], "time_scaling": "A0/omega, psi/omega",
                  "output_row_scale": prob.output_scale.tolist(),
                  "normalisation": "P >= I, trace P <= kappa n",

@@ -396,7 +396,8 @@ class ObserverLMIProblem:
         psi : float
             Lipschitz bound of the remainder [1/s].
         """
-        w = max(float(np.linalg.norm(A0, 2)), 0.0)
+        with small_dense():
+            w = max(float(np.linalg.norm(A0, 2)), 0.0)
         return w if w > 0 else (psi if psi > 0 else 1.0)
 
     def _options(self, override: dict | None) -> dict:
@@ -484,8 +485,9 @@ class ObserverLMIProblem:
         if self.form == "full":
             Ks = np.asarray(self.K.value, dtype=float).reshape(self.n, self.q)
         else:
-            Ks, t_P, t_K = self.recover_gain(As, t2, P, Qs,
-                                             self.margin if margin is None else float(margin))
+            with small_dense():
+                Ks, t_P, t_K = self.recover_gain(As, t2, P, Qs,
+                                                 self.margin if margin is None else float(margin))
             out.update({"t_P": t_P, "t_K": t_K})
         # Back to original units: Q = Qs / omega, K = omega Ks S_y (see module notes).
         K = w * Ks * self.output_scale[None, :]
