@@ -120,7 +120,7 @@ class ConicObserverLMI:
     pattern : array_like of 0/1, shape (n, q), optional
         Allowed non-zero entries of ``L`` (needs ``blocks``).
     margin : float
-        Kept for the interface of `ObserverLMIProblem` (the full form has no
+        Kept for the interface of `ObserverLMIProblem` (dimensionless; the full form has no
         gain recovery).
     solver_options : mapping, optional
         Clarabel settings for every solve.
@@ -346,7 +346,7 @@ def with_kappa(prob: ObserverLMIProblem | ConicObserverLMI, kappa: float,
     kappa : float
         New bound (> 1).
     margin : float
-        Margin the recovered gain is built for.
+        Margin the recovered gain is built for (dimensionless, normalised LMI).
 
     Returns
     -------
