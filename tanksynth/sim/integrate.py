@@ -35,6 +35,8 @@ import numpy as np
 from tanksynth.errors import DimensionError
 from tanksynth.plants.base import Plant
 from tanksynth.plants.compile import rk4_step
+from tanksynth.sim.csource import MAX_SUBSTEPS
+from tanksynth.sim.kernel import NativeKernel, native_kernel, per_run_table
 from tanksynth.sim.tape import CASADI_MAX_RUNS, CASADI_MAX_RUNS_HYBRID, NumpyModel, numpy_model
 
 # numpy's element-wise clip ufunc (one call instead of maximum + minimum; same NaN rule)
@@ -133,6 +135,12 @@ class Integrator:
     clipped_low, clipped_high : int
         Clipping operations after which some state sat on its lower/upper bound
         because it had passed it.
+    backends : set of str
+        Routes that integrated periods so far: ``"native"`` (the compiled C
+        kernel, `tanksynth.sim.kernel`), ``"casadi"`` (the CasADi period
+        function) or ``"numpy"`` (the generated numpy code); runs whose hybrid
+        mode changed inside a period are always re-integrated by the numpy
+        code (not listed).
     """
 
     def __init__(self, model: NumpyModel, lower: np.ndarray, upper: np.ndarray,
@@ -149,6 +157,9 @@ class Integrator:
         self._cache: tuple = ((), ())
         self._buffers: dict[tuple[int, int], list] = {}
         self._rows: tuple | None = None
+        self._kernel: NativeKernel | None | bool = False     # False: not asked for yet
+        self._tables: tuple = ((), None, None)
+        self.backends: set[str] = set()
 
     @classmethod
     def for_plant(cls, plant: Plant, params: Mapping[str, Any] | None = None, *,
@@ -243,11 +254,13 @@ class Integrator:
                 substeps: int) -> np.ndarray:
         """One sampling period ``ts`` (s) under the held input ``u``: ``substeps`` steps.
 
-        ``u`` is used as given (saturate it first, see `input_limits`). Up to
-        `CASADI_MAX_RUNS` runs the period is one call of the plant's CasADi
-        period function (runs whose mode changed are re-integrated by the
-        numpy code, which locates the crossing); above, the generated numpy
-        code on the row layout (n, M). Both give the same numbers bit for bit.
+        ``u`` is used as given (saturate it first, see `input_limits`). The
+        period is one call of the plant's compiled C kernel (`native`) when
+        a C compiler works; otherwise, up to `CASADI_MAX_RUNS` runs, one call
+        of the plant's CasADi period function, and above, the generated numpy
+        code on the row layout (n, M). Runs whose mode changed are
+        re-integrated by the numpy code, which locates the crossing. All
+        routes give the same numbers bit for bit.
 
         Parameters
         ----------
@@ -272,13 +285,114 @@ class Integrator:
         x = np.asarray(x, dtype=float)
         u = np.asarray(u, dtype=float)
         limit = CASADI_MAX_RUNS_HYBRID if self.model.k else CASADI_MAX_RUNS
-        if 0 < x.shape[0] <= limit and self.model.n and self.lower.ndim == 1 and self.upper.ndim == 1:
+        kernel = self.native(substeps) if x.shape[0] else None
+        if kernel is not None:
+            x1, low, high = self._period_native(kernel, x, u, p, h, substeps)
+            self.backends.add("native")
+        elif 0 < x.shape[0] <= limit and self.model.n and self.lower.ndim == 1 and self.upper.ndim == 1:
             x1, low, high = self._period_casadi(x, u, p, h, substeps)
+            self.backends.add("casadi")
         else:
             x1, low, high = self._period_rows(x, u, p, h, substeps)
+            self.backends.add("numpy")
         self.clipped_low += int(np.count_nonzero(low))
         self.clipped_high += int(np.count_nonzero(high))
         return x1
+
+    def native(self, substeps: int) -> NativeKernel | None:
+        """The plant's compiled kernel for this integrator, or None (then CasADi/numpy).
+
+        None when the bounds are per run, ``substeps`` exceeds
+        `tanksynth.sim.csource.MAX_SUBSTEPS`, or no kernel could be built
+        (`tanksynth.sim.kernel.kernel_status` says why).
+
+        Parameters
+        ----------
+        substeps : int
+            RK4 steps per period.
+        """
+        if not (self.model.n and self.lower.ndim == 1 and self.upper.ndim == 1
+                and 1 <= int(substeps) <= MAX_SUBSTEPS):
+            return None
+        if self._kernel is False:
+            self._kernel = native_kernel(self.model)
+        return self._kernel  # type: ignore[return-value]
+
+    def _native_tables(self, p: Mapping[str, Any], count: int) -> tuple[np.ndarray, np.ndarray]:
+        """Constants and parameter tables (M, .) of the kernel (cached while ``p`` holds)."""
+        pv, c = self._values(p)
+        held, C, P = self._tables
+        if (C is None or C.shape[0] != count or len(held) != len(pv)
+                or any(a is not b for a, b in zip(held, pv))):
+            C, P = per_run_table(c, count), per_run_table(pv, count)
+            self._tables = (list(pv), C, P)
+        return C, P
+
+    def _period_native(self, kernel: NativeKernel, x: np.ndarray, u: np.ndarray,
+                       p: Mapping[str, Any], h: float,
+                       substeps: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The period through the compiled kernel; crossed runs by the numpy code."""
+        count = x.shape[0]
+        C, P = self._native_tables(p, count)
+        X = np.empty((1, count, self.model.n))
+        x = np.ascontiguousarray(x)
+        u = np.ascontiguousarray(u)
+        stop, low, high = kernel.run(x, u[None], C, P, self.lower, self.upper, h, substeps, X)
+        x1, low, high = X[0], low[0], high[0]
+        hit = np.flatnonzero(stop >= 0)
+        if hit.size:
+            sub = {k: (v[hit] if np.ndim(v) else v) for k, v in p.items()}
+            x1[hit], low_hit, high_hit = self._period_rows(x[hit], u[hit], sub, h, substeps)
+            self._cache_key = None
+            low, high = low | low_hit, high | high_hit
+        return x1, low, high
+
+    def _horizon_native(self, kernel: NativeKernel, x: np.ndarray, U: np.ndarray,
+                        p: Mapping[str, Any], h: float, substeps: int) -> np.ndarray | None:
+        """`horizon` through the compiled kernel (crossed periods by the numpy code)."""
+        N, count, n = U.shape[0], x.shape[0], self.model.n
+        C, P = self._native_tables(p, count)
+        x0 = np.ascontiguousarray(x, dtype=float)
+        if U.shape[2] > 1 and U.strides[2] != U.itemsize or U.dtype != np.float64:
+            U = np.ascontiguousarray(U, dtype=float)
+        X = np.empty((N, count, n))
+        saved = (self.events, self.clipped_low, self.clipped_high)
+        stop, low, high = kernel.run(x0, U, C, P, self.lower, self.upper, h, substeps, X)
+        periods = np.arange(N)[:, None]
+        while True:
+            idx = np.flatnonzero(stop >= 0)
+            if not idx.size:
+                break
+            ks = stop[idx]
+            for k in np.unique(ks):
+                g = idx[ks == k]
+                sub = {name: (v[g] if np.ndim(v) else v) for name, v in p.items()}
+                start = x0[g] if k == 0 else X[k - 1, g]
+                X[k, g], low_k, high_k = self._period_rows(start, U[k, g], sub, h, substeps)
+                low[k] |= low_k
+                high[k] |= high_k
+            self._cache_key = None
+            part = np.empty((N, idx.size, n))
+            stop_r, low_r, high_r = kernel.run(np.ascontiguousarray(X[ks, idx]),
+                                               np.ascontiguousarray(U[:, idx]), C[idx], P[idx],
+                                               self.lower, self.upper, h, substeps, part,
+                                               start=ks + 1)
+            end = np.where(stop_r >= 0, stop_r, N)
+            mask = (periods > ks) & (periods < end)
+            block = X[:, idx]
+            block[mask] = part[mask]
+            X[:, idx] = block
+            low |= low_r
+            high |= high_r
+            stop = np.full(count, -1, dtype=np.int64)
+            stop[idx] = stop_r
+        if not np.isfinite(X).all():
+            self.events, self.clipped_low, self.clipped_high = saved
+            return None
+        self.clipped_low += int(np.count_nonzero(low))
+        self.clipped_high += int(np.count_nonzero(high))
+        self.backends.add("native")
+        return X
 
     def _values(self, p: Mapping[str, Any]) -> tuple[list, tuple]:
         """Parameter values in the model's order and their constants (cached by identity)."""
@@ -416,13 +530,18 @@ class Integrator:
 
     def horizon(self, x: np.ndarray, U: np.ndarray, p: Mapping[str, Any], ts: float,
                 substeps: int) -> np.ndarray | None:
-        """Open loop over a whole input sequence in one CasADi call (``mapaccum``), or None.
+        """Open loop over a whole input sequence in one call, or None.
 
-        The same period function as `advance` (so the same numbers, bit for
-        bit), accumulated over the ``N`` periods and mapped over the runs.
+        With the compiled kernel (`native`): one call for every run and
+        period; a run whose hybrid mode changes in a period stops there, that
+        period is re-integrated by the numpy code (crossing located) and the
+        kernel resumes from the next one. Without it: the CasADi period
+        function accumulated over the ``N`` periods (``mapaccum``) and mapped
+        over the runs. Both give the numbers of `advance`, bit for bit.
         Returns None, having changed nothing, when this path does not apply
-        (too many runs, no CasADi form) or a period changed a hybrid mode or
-        left a state non-finite: the caller then steps period by period.
+        (no kernel and too many runs or no CasADi form, or, on the CasADi
+        route, a period changed a hybrid mode) or a state became non-finite:
+        the caller then steps period by period.
 
         Parameters
         ----------
@@ -443,11 +562,14 @@ class Integrator:
         """
         model = self.model
         N, count = U.shape[0], x.shape[0]
+        substeps = int(substeps)
+        kernel = self.native(substeps) if count and N else None
+        if kernel is not None:
+            return self._horizon_native(kernel, x, U, p, float(ts) / substeps, substeps)
         limit = CASADI_MAX_RUNS_HYBRID if model.k else CASADI_MAX_RUNS
         if not (0 < count <= limit and N > 0 and model.n and self.lower.ndim == 1
                 and self.upper.ndim == 1):
             return None
-        substeps = int(substeps)
         pv, c = self._values(p)
         key = ("horizon", substeps, N, count)
         fn = model._casadi.get(key)
@@ -480,6 +602,7 @@ class Integrator:
             return None
         self.clipped_low += int(np.count_nonzero(low.max(axis=0) > 0.5))
         self.clipped_high += int(np.count_nonzero(high.max(axis=0) > 0.5))
+        self.backends.add("casadi")
         return X.transpose(1, 0, 2)
 
     def clip_counted(self, x: np.ndarray) -> np.ndarray:

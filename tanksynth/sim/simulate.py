@@ -22,9 +22,13 @@ independent runs at once:
 * parameter changes (faults: a valve leak or clogging from a given sample)
   and state jumps (water added or removed) at given samples.
 
-The vector field is the plant compiled once (`tanksynth.sim.tape`: generated
-numpy code on the row layout, and the same code as one CasADi function per
-sampling period for small batches, bit for bit equal), with the
+The vector field is the plant compiled once: the sampling period as C
+compiled with the system compiler (`tanksynth.sim.kernel`, the whole horizon
+of every run in one call when the inputs are known in advance) when a
+compiler works, else generated numpy code on the row layout and the same
+code as one CasADi function per sampling period for small batches
+(`tanksynth.sim.tape`); all bit for bit equal (`SimulationResult.backend`
+names the route), with the
 parameters as inputs (each run may carry its own values, e.g. a +-10 %
 uncertainty draw, and faults switch values mid-run).
 
@@ -289,6 +293,11 @@ class SimulationResult:
         ``timing["controller"] / calls``.
     plant : str
         Plant model name.
+    backend : str
+        Route that integrated the periods (``"native"``: the plant's compiled C
+        kernel, ``"casadi"``, ``"numpy"``; several joined by ``+``), see
+        `tanksynth.sim.integrate.Integrator.backends` and, when it is not
+        ``"native"``, `tanksynth.sim.kernel.kernel_status` for why.
     """
 
     t: np.ndarray
@@ -306,6 +315,7 @@ class SimulationResult:
     clipped_high: int
     timing: Mapping[str, float]
     plant: str
+    backend: str = ""
 
     @property
     def runs(self) -> int:
@@ -570,7 +580,8 @@ def _result(X: np.ndarray, Y: np.ndarray, U: np.ndarray, XH: np.ndarray, ref: np
         arr.flags.writeable = False
     return SimulationResult(**arrays, ts=float(ts), substeps=int(substeps), events=integ.events,
                             clipped_low=integ.clipped_low, clipped_high=integ.clipped_high,
-                            timing=timing, plant=plant.name)
+                            timing=timing, plant=plant.name,
+                            backend="+".join(sorted(integ.backends)))
 
 
 def simulate_inputs(plant: Plant, x0: Any, inputs: Any, ts: float, *, substeps: int = 10,
