@@ -30,7 +30,7 @@ BLOCK = 8
 #: Largest number of RK4 steps per period the kernel handles (per-run flag bits).
 MAX_SUBSTEPS = 64
 #: Bumped whenever the generated C changes meaning (part of the cache key).
-KERNEL_VERSION = "1"
+KERNEL_VERSION = "2"
 
 
 class _Unsupported(Exception):
@@ -248,7 +248,7 @@ static void tk_s_{B}(const double (*restrict xs)[{B}], const double (*restrict c
 /* Runs r0 .. r0+{B}-1 over periods start[r] .. N-1 (see tk_run). */
 static void tk_block_{B}(long r0, long N, int S, double h, const double *x0,
         const double *U, long uN, long uM, const double *C, long cM, const double *P, long pM,
-        const double *lo, const double *hi, const int64_t *start, double *X, long xN,
+        const double *lo, const double *hi, const int64_t *start, double *X, long xN, long xM,
         int64_t *stop, uint8_t *low, uint8_t *high) {
     double x[NX][{B}], xp[NX][{B}], st[NX][{B}], k1[NX][{B}], k2[NX][{B}], k3[NX][{B}],
            k4[NX][{B}], x1[NX][{B}], ub[NUA][{B}], cb[NCA][{B}], pb[NPA][{B}],
@@ -317,7 +317,7 @@ static void tk_block_{B}(long r0, long N, int S, double h, const double *x0,
                 for (int i = 0; i < NX; i++) x[i][j] = xp[i][j];
                 continue;
             }
-            double *out = X + k * xN + (r0 + j) * NX;
+            double *out = X + k * xN + (r0 + j) * xM;
             for (int i = 0; i < NX; i++) out[i] = x[i][j];
             for (int s = 0; s < S; s++) {
                 low[k * S + s] |= (uint8_t)((lowf[j] >> s) & 1u);
@@ -332,19 +332,19 @@ _ENTRY = r"""
 /* M runs over N periods of S RK4 steps of h seconds, inputs held per period.
    x0 (M, NX); input of run r in period k: U[k uN + r uM + 0..NU-1]; constants of run r:
    C[r cM + 0..NC-1]; parameters P[r pM + ...]; bounds lo, hi (NX); start (M) first period of
-   each run (NULL: 0); X: end state of period k of run r at X[k xN + r NX + 0..NX-1];
+   each run (NULL: 0); X: end state of period k of run r at X[k xN + r xM + 0..NX-1];
    stop (M, set to -1 by the caller): first period whose hybrid mode changed (state left at its
    start, not written); low/high (N, S) OR-ed over the runs that completed the period. */
 int tk_run(long M, long N, int S, double h, const double *x0,
            const double *U, long uN, long uM, const double *C, long cM, const double *P, long pM,
-           const double *lo, const double *hi, const int64_t *start, double *X, long xN,
+           const double *lo, const double *hi, const int64_t *start, double *X, long xN, long xM,
            int64_t *stop, uint8_t *low, uint8_t *high) {
     if (S < 1 || S > 64) return 1;
     long r = 0;
     for (; r + {BLOCK} <= M; r += {BLOCK})
-        tk_block_{BLOCK}(r, N, S, h, x0, U, uN, uM, C, cM, P, pM, lo, hi, start, X, xN, stop, low, high);
+        tk_block_{BLOCK}(r, N, S, h, x0, U, uN, uM, C, cM, P, pM, lo, hi, start, X, xN, xM, stop, low, high);
     for (; r < M; r++)
-        tk_block_1(r, N, S, h, x0, U, uN, uM, C, cM, P, pM, lo, hi, start, X, xN, stop, low, high);
+        tk_block_1(r, N, S, h, x0, U, uN, uM, C, cM, P, pM, lo, hi, start, X, xN, xM, stop, low, high);
     return 0;
 }
 """

@@ -348,14 +348,15 @@ class Integrator:
         return x1, low, high
 
     def _horizon_native(self, kernel: NativeKernel, x: np.ndarray, U: np.ndarray,
-                        p: Mapping[str, Any], h: float, substeps: int) -> np.ndarray | None:
+                        p: Mapping[str, Any], h: float, substeps: int,
+                        out: np.ndarray | None = None) -> np.ndarray | None:
         """`horizon` through the compiled kernel (crossed periods by the numpy code)."""
         N, count, n = U.shape[0], x.shape[0], self.model.n
         C, P = self._native_tables(p, count)
         x0 = np.ascontiguousarray(x, dtype=float)
         if U.shape[2] > 1 and U.strides[2] != U.itemsize or U.dtype != np.float64:
             U = np.ascontiguousarray(U, dtype=float)
-        X = np.empty((N, count, n))
+        X = np.empty((N, count, n)) if out is None else out
         saved = (self.events, self.clipped_low, self.clipped_high)
         stop, low, high = kernel.run(x0, U, C, P, self.lower, self.upper, h, substeps, X)
         periods = np.arange(N)[:, None]
@@ -529,7 +530,7 @@ class Integrator:
         return x1, low, high
 
     def horizon(self, x: np.ndarray, U: np.ndarray, p: Mapping[str, Any], ts: float,
-                substeps: int) -> np.ndarray | None:
+                substeps: int, out: np.ndarray | None = None) -> np.ndarray | None:
         """Open loop over a whole input sequence in one call, or None.
 
         With the compiled kernel (`native`): one call for every run and
@@ -554,18 +555,22 @@ class Integrator:
         ts : float
             Sampling period (s).
         substeps : int
+        out : ndarray, shape (N, M, n), optional
+            Buffer for the result (any strides, e.g. ``X[:, 1:].transpose(1, 0,
+            2)`` of a run-major ``X``; last axis contiguous); may be written even
+            when None is returned.
 
         Returns
         -------
         ndarray, shape (N, M, n) or None
-            States at the end of every period.
+            States at the end of every period (``out`` when given).
         """
         model = self.model
         N, count = U.shape[0], x.shape[0]
         substeps = int(substeps)
         kernel = self.native(substeps) if count and N else None
         if kernel is not None:
-            return self._horizon_native(kernel, x, U, p, float(ts) / substeps, substeps)
+            return self._horizon_native(kernel, x, U, p, float(ts) / substeps, substeps, out)
         limit = CASADI_MAX_RUNS_HYBRID if model.k else CASADI_MAX_RUNS
         if not (0 < count <= limit and N > 0 and model.n and self.lower.ndim == 1
                 and self.upper.ndim == 1):
@@ -603,6 +608,9 @@ class Integrator:
         self.clipped_low += int(np.count_nonzero(low.max(axis=0) > 0.5))
         self.clipped_high += int(np.count_nonzero(high.max(axis=0) > 0.5))
         self.backends.add("casadi")
+        if out is not None:
+            out[...] = X.transpose(1, 0, 2)
+            return out
         return X.transpose(1, 0, 2)
 
     def clip_counted(self, x: np.ndarray) -> np.ndarray:

@@ -70,8 +70,11 @@ def per_run_table(values: Any, count: int) -> np.ndarray:
     count : int
         Number of runs M.
     """
-    if all(np.ndim(v) == 0 for v in values):
-        row = np.array([float(v) for v in values], dtype=float)
+    try:
+        row = np.array(values, dtype=float)
+    except ValueError:                  # scalars mixed with per-run arrays
+        row = None
+    if row is not None and row.ndim == 1:
         return np.broadcast_to(row[None, :], (count, row.size))
     out = np.empty((count, len(values)))
     for j, v in enumerate(values):
@@ -116,7 +119,8 @@ _STATE = _State()
 _ARGTYPES = [ctypes.c_long, ctypes.c_long, ctypes.c_int, ctypes.c_double, ctypes.c_void_p,
              ctypes.c_void_p, ctypes.c_long, ctypes.c_long, ctypes.c_void_p, ctypes.c_long,
              ctypes.c_void_p, ctypes.c_long, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_void_p,
-             ctypes.c_void_p, ctypes.c_long, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_void_p]
+             ctypes.c_void_p, ctypes.c_long, ctypes.c_long, ctypes.c_void_p, ctypes.c_void_p,
+             ctypes.c_void_p]
 
 
 class NativeKernel:
@@ -165,8 +169,9 @@ class NativeKernel:
         substeps : int
             RK4 steps per period (1 ... `MAX_SUBSTEPS`).
         X : ndarray, shape (N, M, n)
-            Written: end state of every period (C-contiguous; periods at or after a
-            run's ``stop`` are left untouched).
+            Written: end state of every period (last axis contiguous, any strides
+            of the first two, e.g. a transposed run-major buffer; periods at or
+            after a run's ``stop`` are left untouched).
         start : ndarray of int64, shape (M,), optional
             First period of each run (default 0); states in ``x0`` are at its start.
 
@@ -181,27 +186,31 @@ class NativeKernel:
         M, N = x0.shape[0], U.shape[0]
         S = int(substeps)
         stop = np.full(M, -1, dtype=np.int64)
-        low = np.zeros((N, S), dtype=np.uint8)
-        high = np.zeros((N, S), dtype=np.uint8)
+        low = np.zeros((N, S), dtype=bool)
+        high = np.zeros((N, S), dtype=bool)
         if M == 0 or N == 0:
-            return stop, low.astype(bool), high.astype(bool)
+            return stop, low, high
         item = 8
         lo = np.ascontiguousarray(lower, dtype=float)
         hi = np.ascontiguousarray(upper, dtype=float)
         st = None if start is None else np.ascontiguousarray(start, dtype=np.int64)
-        if U.strides[2] not in (item,) and U.shape[2] > 1 or C.shape[1] > 1 and C.strides[1] != item \
-                or P.shape[1] > 1 and P.strides[1] != item or not X.flags.c_contiguous \
-                or not x0.flags.c_contiguous:
-            raise ValueError("native kernel: unsupported array layout")
+        if not (x0.flags.c_contiguous and x0.shape == (M, self.n) and X.shape == (N, M, self.n)
+                and U.shape == (N, M, self.m) and C.shape[0] == M and P.shape[0] == M
+                and x0.dtype == U.dtype == C.dtype == P.dtype == X.dtype == np.float64
+                and lo.shape == hi.shape == (self.n,) and (st is None or st.shape == (M,))):
+            raise ValueError("native kernel: unsupported array shapes or types")
+        for a in (U, C, P, X):
+            if (a.shape[-1] > 1 and a.strides[-1] != item) or any(s % item for s in a.strides):
+                raise ValueError("native kernel: unsupported array layout")
         status = self._fn(M, N, S, float(h), x0.ctypes.data, U.ctypes.data, U.strides[0] // item,
                           U.strides[1] // item, C.ctypes.data, C.strides[0] // item,
                           P.ctypes.data, P.strides[0] // item, lo.ctypes.data, hi.ctypes.data,
                           None if st is None else st.ctypes.data, X.ctypes.data,
-                          X.strides[0] // item, stop.ctypes.data, low.ctypes.data,
-                          high.ctypes.data)
+                          X.strides[0] // item, X.strides[1] // item, stop.ctypes.data,
+                          low.ctypes.data, high.ctypes.data)
         if status:
             raise ValueError(f"native kernel refused substeps = {S}")
-        return stop, low.astype(bool), high.astype(bool)
+        return stop, low, high
 
 
 def _build(source: str, cc: str, so_path: Path) -> float:
@@ -243,7 +252,13 @@ def native_kernel(model: Any) -> NativeKernel | None:
     -------
     NativeKernel or None
     """
-    backend = os.environ.get("TANKSYNTH_SIM_BACKEND", "auto").strip().lower()
+    env = tuple(os.environ.get(v) for v in ("TANKSYNTH_SIM_BACKEND", "TANKSYNTH_CC", "PATH",
+                                             "TANKSYNTH_CACHE_DIR", "XDG_CACHE_HOME", "HOME"))
+    cached = model._casadi.get(("native", env))
+    if cached is not None:
+        _STATE.last = cached[1]
+        return cached[0]
+    backend = (env[0] or "auto").strip().lower()
     cc = None if backend == "numpy" else _compiler()
     key = ("native", backend, cc, str(cache_dir()))
     cached = model._casadi.get(key)
@@ -251,7 +266,7 @@ def native_kernel(model: Any) -> NativeKernel | None:
         _STATE.last = cached[1]
         return cached[0]
     kernel = _native_kernel(model, backend, cc)
-    model._casadi[key] = (kernel, _STATE.last)
+    model._casadi[key] = model._casadi[("native", env)] = (kernel, _STATE.last)
     return kernel
 
 

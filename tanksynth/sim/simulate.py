@@ -501,21 +501,10 @@ def simulate(plant: Plant, *, ts: float, steps: int, x0: Sequence[float] | np.nd
     if (estimator is None and isinstance(controller, InputSequence) and not noisy and not schedule
             and not jump_at and controller.inputs.shape[0] >= N):
         # Open loop without noise, faults or jumps: the whole horizon in one call (same numbers).
-        seq = controller.inputs[:N]
-        seq = seq[:, None, :] if seq.ndim == 2 else seq
-        if seq.shape[1] in (1, M):
-            Useq = np.minimum(np.maximum(np.broadcast_to(seq, (N, M, m)), lo), hi)
-            ends = integ.horizon(x, Useq, params, ts, int(substeps))
-            if ends is not None:
-                X[0], X[1:] = x, ends
-                flat = X.reshape(-1, n)
-                Y[:] = integ.output(flat, _repeat(params, N + 1)).reshape(N + 1, M, q)
-                if model.k:
-                    modes[:] = integ.bits(flat, _repeat(params, N + 1)).reshape(N + 1, M, model.k)
-                XH[:] = X
-                U[:] = Useq
-                timing["calls"] = N
-                return _result(X, Y, U, XH, ref, seeds, modes, ts, substeps, integ, timing, plant)
+        done = _open_loop(integ, x, controller.inputs[:N], params, lo, hi, ts, int(substeps))
+        if done is not None:
+            timing["calls"] = N
+            return _pack(*done, ref, seeds, ts, substeps, integ, timing, plant)
     refs = np.broadcast_to(ref[:, None, :], (N + 1, M, ref.shape[1]))
     for k in range(N + 1):
         t_k = k * ts
@@ -563,9 +552,42 @@ def simulate(plant: Plant, *, ts: float, steps: int, x0: Sequence[float] | np.nd
     return _result(X, Y, U, XH, ref, seeds, modes, ts, substeps, integ, timing, plant)
 
 
-def _repeat(params: Mapping[str, Any], times: int) -> dict[str, Any]:
-    """Parameter values for ``times`` copies of the batch (time-major rows)."""
-    return {k: (np.tile(v, times) if np.ndim(v) else v) for k, v in params.items()}
+def _open_loop(integ: Integrator, x: np.ndarray, seq: np.ndarray, params: dict[str, Any],
+               lo: np.ndarray, hi: np.ndarray, ts: float, substeps: int) -> tuple | None:
+    """Open loop over a known input sequence in one `Integrator.horizon` call, or None.
+
+    Works on run-major buffers (the result's layout: no transposed copies);
+    returns ``(x, y, u, x_hat, modes)`` run-major, ``x_hat`` a read-only view
+    of ``x``.
+    """
+    N, M = seq.shape[0], x.shape[0]
+    model = integ.model
+    seq = seq[:, None, :] if seq.ndim == 2 else seq
+    if seq.shape[1] not in (1, M):
+        return None
+    Ur = np.empty((M, N, model.m))
+    src = np.broadcast_to(seq, (N, M, model.m)).transpose(1, 0, 2)
+    np.minimum(np.maximum(src, lo[:, None, :]), hi[:, None, :], out=Ur)
+    Xr = np.empty((M, N + 1, model.n))
+    Xr[:, 0] = x
+    if integ.horizon(x, Ur.transpose(1, 0, 2), params, ts, substeps,
+                     out=Xr[:, 1:].transpose(1, 0, 2)) is None:
+        return None
+    Xr.flags.writeable = False
+    flat = Xr.reshape(-1, model.n)
+    rows = params
+    if (model.output_index is None or model.k) and any(np.ndim(v) for v in params.values()):
+        rows = {k: (np.repeat(v, N + 1) if np.ndim(v) else v) for k, v in params.items()}
+    if model.output_index == tuple(range(model.n)):
+        Y = Xr.view()                                   # y = x: the same (read-only) numbers
+    elif model.output_index is not None:
+        Y = Xr[:, :, list(model.output_index)]
+    else:
+        Y = integ.output(flat, rows).reshape(M, N + 1, model.q)
+    modes = np.zeros((M, N + 1, model.k), dtype=np.int8)
+    if model.k:
+        modes[:] = integ.bits(flat, rows).reshape(M, N + 1, model.k)
+    return Xr, Y, Ur, Xr.view(), modes
 
 
 def _result(X: np.ndarray, Y: np.ndarray, U: np.ndarray, XH: np.ndarray, ref: np.ndarray,
@@ -573,9 +595,16 @@ def _result(X: np.ndarray, Y: np.ndarray, U: np.ndarray, XH: np.ndarray, ref: np
             timing: dict, plant: Plant) -> SimulationResult:
     """The read-only, run-major result from the time-major buffers."""
     run_major = lambda a: np.ascontiguousarray(a.transpose(1, 0, 2))  # noqa: E731
-    arrays = dict(t=np.arange(X.shape[0]) * float(ts), x=run_major(X), y=run_major(Y),
-                  u=run_major(U), x_hat=run_major(XH), reference=ref, seeds=seeds.copy(),
-                  modes=run_major(modes))
+    return _pack(run_major(X), run_major(Y), run_major(U), run_major(XH), run_major(modes), ref,
+                 seeds, ts, substeps, integ, timing, plant)
+
+
+def _pack(x: np.ndarray, y: np.ndarray, u: np.ndarray, x_hat: np.ndarray, modes: np.ndarray,
+          ref: np.ndarray, seeds: np.ndarray, ts: float, substeps: int, integ: Integrator,
+          timing: dict, plant: Plant) -> SimulationResult:
+    """The read-only result from run-major arrays."""
+    arrays = dict(t=np.arange(x.shape[1]) * float(ts), x=x, y=y, u=u, x_hat=x_hat, reference=ref,
+                  seeds=seeds.copy(), modes=modes)
     for arr in arrays.values():
         arr.flags.writeable = False
     return SimulationResult(**arrays, ts=float(ts), substeps=int(substeps), events=integ.events,

@@ -229,6 +229,9 @@ class NumpyModel:
         The generated Python source.
     n_constants : int
         Number of parameter-only sub-expressions (`constants`).
+    output_index : tuple of int or None
+        When every output is one state (``h(x) = x[output_index]``), those
+        states' indices (the output is then a selection, no code to run).
     """
 
     n: int
@@ -240,6 +243,7 @@ class NumpyModel:
     n_constants: int = field(repr=False)
     _fns: Mapping[str, Callable] = field(repr=False)
     _casadi: dict = field(default_factory=dict, repr=False, compare=False)
+    output_index: tuple[int, ...] | None = field(default=None, repr=False)
 
     def parameter_values(self, params: Mapping[str, Any]) -> list:
         """Parameter values in the model's order (scalars or (M,) arrays).
@@ -559,8 +563,10 @@ def numpy_model(plant: Plant) -> NumpyModel:
         if s:
             groups["s"] = (s, xs)
         source, fns = _generate(groups, params)
+        index = tuple(xs.index(e) if e in xs else -1 for e in h)
         model = NumpyModel(plant.n, plant.m, plant.q, len(switching), names, source,
-                           fns["n_constants"], fns)
+                           fns["n_constants"], fns,
+                           output_index=None if -1 in index else index)
         _MODELS[key] = model
     if len(_BY_ID) > 256:
         _BY_ID.clear()
