@@ -155,7 +155,7 @@ class Integrator:
         self.clipped_high = 0
         self._cache_key: tuple | None = None
         self._cache: tuple = ((), ())
-        self._buffers: dict[tuple[int, int], list] = {}
+        self._buffers: dict[tuple, Any] = {}
         self._rows: tuple | None = None
         self._kernel: NativeKernel | None | bool = False     # False: not asked for yet
         self._tables: tuple = ((), None, None)
@@ -334,13 +334,13 @@ class Integrator:
         """The period through the compiled kernel; crossed runs by the numpy code."""
         count = x.shape[0]
         C, P = self._native_tables(p, count)
-        X = np.empty((1, count, self.model.n))
-        x = np.ascontiguousarray(x)
-        u = np.ascontiguousarray(u)
-        stop, low, high = kernel.run(x, u[None], C, P, self.lower, self.upper, h, substeps, X)
-        x1, low, high = X[0], low[0], high[0]
-        hit = np.flatnonzero(stop >= 0)
-        if hit.size:
+        call = self._buffers.get(("native", substeps, count))
+        if call is None:
+            call = self._buffers[("native", substeps, count)] = kernel.period(count, substeps)
+        call.bind(C, P, self.lower, self.upper, h)
+        x1, stop, low, high = call(x, u)
+        if stop.max() >= 0:
+            hit = np.flatnonzero(stop >= 0)
             sub = {k: (v[hit] if np.ndim(v) else v) for k, v in p.items()}
             x1[hit], low_hit, high_hit = self._period_rows(x[hit], u[hit], sub, h, substeps)
             self._cache_key = None

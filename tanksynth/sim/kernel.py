@@ -50,7 +50,7 @@ import numpy as np
 
 from tanksynth.sim.csource import KERNEL_VERSION, kernel_source
 
-__all__ = ["NativeKernel", "native_kernel", "kernel_status", "cache_dir", "clear_cache",
+__all__ = ["NativeKernel", "PeriodCall", "native_kernel", "kernel_status", "cache_dir", "clear_cache",
            "cache_info", "per_run_table"]
 
 _LOG = logging.getLogger("tanksynth.sim")
@@ -146,6 +146,18 @@ class NativeKernel:
         self.n, self.m = n, m
         self.compile_seconds = compile_seconds
 
+    def period(self, count: int, substeps: int) -> "PeriodCall":
+        """A reusable one-period call for ``count`` runs (buffers and arguments bound once).
+
+        Parameters
+        ----------
+        count : int
+            Number of runs M.
+        substeps : int
+            RK4 steps per period.
+        """
+        return PeriodCall(self, int(count), int(substeps))
+
     def run(self, x0: np.ndarray, U: np.ndarray, C: np.ndarray, P: np.ndarray, lower: np.ndarray,
             upper: np.ndarray, h: float, substeps: int, X: np.ndarray,
             start: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -211,6 +223,91 @@ class NativeKernel:
         if status:
             raise ValueError(f"native kernel refused substeps = {S}")
         return stop, low, high
+
+
+class PeriodCall:
+    """One sampling period of M runs through the kernel, with persistent buffers.
+
+    The period-by-period loop of the simulator (closed loop, noise) calls the
+    kernel once per sample: its arguments are converted once here
+    (`bind`), each call only copies the state and the input in.
+
+    Parameters
+    ----------
+    kernel : NativeKernel
+    count : int
+        Number of runs M.
+    substeps : int
+        RK4 steps per period (1 ... `tanksynth.sim.csource.MAX_SUBSTEPS`).
+    """
+
+    def __init__(self, kernel: NativeKernel, count: int, substeps: int):
+        n, m = kernel.n, kernel.m
+        self.kernel = kernel
+        self.x = np.empty((count, n))
+        self.u = np.empty((1, count, m))
+        self.out = np.empty((1, count, n))
+        self.stop = np.empty(count, dtype=np.int64)
+        self.low = np.zeros((1, substeps), dtype=bool)
+        self.high = np.zeros((1, substeps), dtype=bool)
+        self.count, self.substeps = count, substeps
+        self._args: tuple | None = None
+        self._held: tuple = ()
+
+    def bind(self, C: np.ndarray, P: np.ndarray, lower: np.ndarray, upper: np.ndarray,
+             h: float) -> None:
+        """Constants and parameters (M, .) per run, state bounds (n,), step ``h`` (s).
+
+        Parameters
+        ----------
+        C, P : ndarray, shape (M, nc) and (M, np)
+            See `NativeKernel.run` (kept alive while bound).
+        lower, upper : ndarray, shape (n,)
+            State bounds (state units).
+        h : float
+            RK4 step (s).
+        """
+        held = (C, P, lower, upper, float(h))
+        if self._args is not None and all(a is b for a, b in zip(held[:4], self._held[:4])) \
+                and held[4] == self._held[4]:
+            return
+        # validates shapes and layout once (zero periods: nothing integrated)
+        self.kernel.run(self.x, self.u[:0], C, P, lower, upper, h, self.substeps,
+                        self.out[:0])
+        lo = np.ascontiguousarray(lower, dtype=float)
+        hi = np.ascontiguousarray(upper, dtype=float)
+        item = 8
+        vp, lg = ctypes.c_void_p, ctypes.c_long
+        self._args = (lg(self.count), lg(1), ctypes.c_int(self.substeps), ctypes.c_double(h),
+                      vp(self.x.ctypes.data), vp(self.u.ctypes.data), lg(0),
+                      lg(self.u.strides[1] // item), vp(C.ctypes.data), lg(C.strides[0] // item),
+                      vp(P.ctypes.data), lg(P.strides[0] // item), vp(lo.ctypes.data),
+                      vp(hi.ctypes.data), None, vp(self.out.ctypes.data), lg(0),
+                      lg(self.out.strides[1] // item), vp(self.stop.ctypes.data),
+                      vp(self.low.ctypes.data), vp(self.high.ctypes.data))
+        self._held = (C, P, lower, upper, float(h), lo, hi)
+
+    def __call__(self, x: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray,
+                                                              np.ndarray, np.ndarray]:
+        """End states (M, n) (a new array), ``stop`` (M,), ``low``/``high`` (substeps,).
+
+        Parameters
+        ----------
+        x : ndarray, shape (M, n)
+            Clipped states at the start of the period (state units).
+        u : ndarray, shape (M, m)
+            Held inputs (input units).
+        """
+        if self._args is None:
+            raise ValueError("PeriodCall.bind must be called first")
+        self.x[...] = x
+        self.u[0] = u
+        self.stop.fill(-1)
+        self.low.fill(False)
+        self.high.fill(False)
+        if self.kernel._fn(*self._args):
+            raise ValueError(f"native kernel refused substeps = {self.substeps}")
+        return self.out[0].copy(), self.stop, self.low[0], self.high[0]
 
 
 def _build(source: str, cc: str, so_path: Path) -> float:
