@@ -6,14 +6,16 @@ functions) and writes the same statements in C: the same operations, in the
 same order, on the same IEEE doubles (numpy's fast paths for ``x**2``,
 ``x**-1``, ``x**0.5`` written as numpy computes them; ``numpy.maximum`` and
 ``numpy.minimum`` propagating NaN like numpy's; ``numpy.select`` as nested
-conditionals). Around it, the RK4 period of `tanksynth.sim.integrate`
+conditionals). Around it, the RK4 step of `tanksynth.sim.integrate`
 (stage states clipped, ``x + ((2 k2 + k1) + 2 k3 + k4) h/6``, the end
 state clipped, the hybrid mode bits compared across every step, the
-clipping flags) over blocks of `BLOCK` runs laid out one row per state,
-so that the C compiler vectorises across runs; remaining runs one at a
-time. Compiled with ``-ffp-contract=off`` (no fused multiply-add) and
-without ``-ffast-math``, the kernel gives the numbers of the numpy code bit
-for bit (tested). Building and loading: `tanksynth.sim.kernel`.
+clipping flags), written out as one straight-line block of C per run (the
+four evaluations of ``f`` inlined, every value a local), in a loop over
+blocks of `BLOCK` runs laid out one row per state, so that the C compiler
+vectorises across runs (with AVX2 where the CPU has it); remaining runs
+one at a time. Compiled with ``-ffp-contract=off`` (no fused multiply-add)
+and without ``-ffast-math``, the kernel gives the numbers of the numpy code
+bit for bit (tested). Building and loading: `tanksynth.sim.kernel`.
 """
 
 from __future__ import annotations
@@ -30,7 +32,7 @@ BLOCK = 8
 #: Largest number of RK4 steps per period the kernel handles (per-run flag bits).
 MAX_SUBSTEPS = 64
 #: Bumped whenever the generated C changes meaning (part of the cache key).
-KERNEL_VERSION = "2"
+KERNEL_VERSION = "3"
 
 
 class _Unsupported(Exception):
@@ -180,8 +182,12 @@ class _Expr:
 
 
 def _function_body(tree: ast.Module, name: str, rows: list[str], consts: str, params: str,
-                   out: str) -> list[str]:
-    """C statements (one lane ``j``) of the generated function ``name``."""
+                   out: list[str], prefix: str) -> list[str]:
+    """C statements (one lane ``j``) of the generated function ``name``.
+
+    ``rows`` are the C names of the function's row inputs, ``out`` those of
+    its outputs (declared here), ``prefix`` makes its locals unique.
+    """
     fn = next((f for f in tree.body if isinstance(f, ast.FunctionDef) and f.name == name), None)
     if fn is None:
         raise _Unsupported(f"no function {name}")
@@ -204,12 +210,12 @@ def _function_body(tree: ast.Module, name: str, rows: list[str], consts: str, pa
                               f"{consts}[{idx}][j]" if src == "c" else f"{params}[{idx}][j]")
             continue
         if isinstance(target, ast.Name):
-            var = f"v_{target.id}"
+            var = f"{prefix}{target.id}"
             lines.append(f"const double {var} = {expr(value)};")
             env[target.id] = var
         elif (isinstance(target, ast.Subscript) and isinstance(target.value, ast.Name)
               and target.value.id == "out" and isinstance(target.slice, ast.Constant)):
-            lines.append(f"{out}[{int(target.slice.value)}][j] = {expr(value)};")
+            lines.append(f"const double {out[int(target.slice.value)]} = {expr(value)};")
         else:
             raise _Unsupported("assignment target")
     return lines
@@ -230,18 +236,18 @@ static inline double tk_heaviside(double a, double h0) {
 """
 
 _BLOCK = r"""
-static void tk_f_{B}(const double (*restrict xs)[{B}], const double (*restrict ub)[{B}],
-                     const double (*restrict cb)[{B}], const double (*restrict pb)[{B}],
-                     double (*restrict out)[{B}]) {
-    for (int j = 0; j < {B}; j++) {
-{F}
-    }
-}
-
-static void tk_s_{B}(const double (*restrict xs)[{B}], const double (*restrict cb)[{B}],
-                     const double (*restrict pb)[{B}], double (*restrict out)[{B}]) {
-    for (int j = 0; j < {B}; j++) {
-{S}
+/* S RK4 steps of the runs r0 .. r0+{B}-1, one straight-line step per run (vectorised
+   across the {B} runs); x, u, c, p one row per state/input/constant/parameter. */
+static void tk_steps_{B}(int S, double h, double (*restrict x)[{B}],
+                         const double (*restrict ub)[{B}], const double (*restrict cb)[{B}],
+                         const double (*restrict pb)[{B}], const double *restrict lo,
+                         const double *restrict hi, uint64_t *restrict lowf,
+                         uint64_t *restrict highf, int *restrict crossed) {
+    const double half = 0.5 * h, h6 = h / 6.0;
+    for (int s = 0; s < S; s++) {
+        for (int j = 0; j < {B}; j++) {
+{STEP}
+        }
     }
 }
 
@@ -250,12 +256,8 @@ static void tk_block_{B}(long r0, long N, int S, double h, const double *x0,
         const double *U, long uN, long uM, const double *C, long cM, const double *P, long pM,
         const double *lo, const double *hi, const int64_t *start, double *X, long xN, long xM,
         int64_t *stop, uint8_t *low, uint8_t *high) {
-    double x[NX][{B}], xp[NX][{B}], st[NX][{B}], k1[NX][{B}], k2[NX][{B}], k3[NX][{B}],
-           k4[NX][{B}], x1[NX][{B}], ub[NUA][{B}], cb[NCA][{B}], pb[NPA][{B}],
-           s0[NSA][{B}], s1[NSA][{B}];
-    const double half = 0.5 * h, h6 = h / 6.0;
+    double x[NX][{B}], xp[NX][{B}], ub[NUA][{B}], cb[NCA][{B}], pb[NPA][{B}];
     long k0[{B}], kmin = N;
-    (void)s0; (void)s1;
     for (int j = 0; j < {B}; j++) {
         long r = r0 + j;
         k0[j] = start ? (long)start[r] : 0;
@@ -266,49 +268,17 @@ static void tk_block_{B}(long r0, long N, int S, double h, const double *x0,
     }
     for (long k = kmin; k < N; k++) {
         uint64_t lowf[{B}], highf[{B}];
-        int crossed[{B}], live[{B}];
+        int crossed[{B}];
         for (int j = 0; j < {B}; j++) {
-            live[j] = k >= k0[j] && stop[r0 + j] < 0;
             lowf[j] = 0; highf[j] = 0; crossed[j] = 0;
             const double *u = U + k * uN + (r0 + j) * uM;
             for (int i = 0; i < NU; i++) ub[i][j] = u[i];
         }
         memcpy(xp, x, sizeof(x));
-        for (int s = 0; s < S; s++) {
-            for (int i = 0; i < NX; i++) for (int j = 0; j < {B}; j++)
-                st[i][j] = tk_min(tk_max(x[i][j], lo[i]), hi[i]);
-            tk_f_{B}((const double (*)[{B}])st, (const double (*)[{B}])ub,
-                     (const double (*)[{B}])cb, (const double (*)[{B}])pb, k1);
-            for (int i = 0; i < NX; i++) for (int j = 0; j < {B}; j++)
-                st[i][j] = tk_min(tk_max(k1[i][j] * half + x[i][j], lo[i]), hi[i]);
-            tk_f_{B}((const double (*)[{B}])st, (const double (*)[{B}])ub,
-                     (const double (*)[{B}])cb, (const double (*)[{B}])pb, k2);
-            for (int i = 0; i < NX; i++) for (int j = 0; j < {B}; j++)
-                st[i][j] = tk_min(tk_max(k2[i][j] * half + x[i][j], lo[i]), hi[i]);
-            tk_f_{B}((const double (*)[{B}])st, (const double (*)[{B}])ub,
-                     (const double (*)[{B}])cb, (const double (*)[{B}])pb, k3);
-            for (int i = 0; i < NX; i++) for (int j = 0; j < {B}; j++)
-                st[i][j] = tk_min(tk_max(k3[i][j] * h + x[i][j], lo[i]), hi[i]);
-            tk_f_{B}((const double (*)[{B}])st, (const double (*)[{B}])ub,
-                     (const double (*)[{B}])cb, (const double (*)[{B}])pb, k4);
-            for (int i = 0; i < NX; i++) for (int j = 0; j < {B}; j++)
-                x1[i][j] = x[i][j] + (((k2[i][j] * 2.0 + k1[i][j]) + k3[i][j] * 2.0) + k4[i][j]) * h6;
-#if NS > 0
-            tk_s_{B}((const double (*)[{B}])x, (const double (*)[{B}])cb,
-                     (const double (*)[{B}])pb, s0);
-            tk_s_{B}((const double (*)[{B}])x1, (const double (*)[{B}])cb,
-                     (const double (*)[{B}])pb, s1);
-            for (int i = 0; i < NS; i++) for (int j = 0; j < {B}; j++)
-                crossed[j] |= (s0[i][j] > 0) != (s1[i][j] > 0);
-#endif
-            for (int i = 0; i < NX; i++) for (int j = 0; j < {B}; j++) {
-                lowf[j] |= (uint64_t)(x1[i][j] < lo[i]) << s;
-                highf[j] |= (uint64_t)(x1[i][j] > hi[i]) << s;
-                x[i][j] = tk_min(tk_max(x1[i][j], lo[i]), hi[i]);
-            }
-        }
+        tk_steps_{B}(S, h, x, (const double (*)[{B}])ub, (const double (*)[{B}])cb,
+                     (const double (*)[{B}])pb, lo, hi, lowf, highf, crossed);
         for (int j = 0; j < {B}; j++) {
-            if (!live[j]) {
+            if (k < k0[j] || stop[r0 + j] >= 0) {        /* not started, or stopped */
                 for (int i = 0; i < NX; i++) x[i][j] = xp[i][j];
                 continue;
             }
@@ -370,23 +340,43 @@ def kernel_source(model: Any) -> str:
         (the caller falls back to the numpy code).
     """
     tree = ast.parse(model.source)
-    n, m = model.n, model.m
-    rows = [f"xs[{i}][j]" for i in range(n)] + [f"ub[{i}][j]" for i in range(m)]
+    n, m, k = model.n, model.m, model.k
+    us = [f"ub[{i}][j]" for i in range(m)]
+    clip = lambda v, i: f"tk_min(tk_max({v}, lo[{i}]), hi[{i}])"  # noqa: E731
+    step = [f"const double x_{i} = x[{i}][j];" for i in range(n)]
     try:
-        f_lines = _function_body(tree, "f", rows, "cb", "pb", "out")
-        s_lines = _function_body(tree, "s", rows[:n], "cb", "pb", "out") if model.k else []
+        # RK4 of the integrator: stages clipped, x + ((2 k2 + k1) + 2 k3 + k4) h/6
+        for st, (prev, w) in enumerate(((None, None), ("k1", "half"), ("k2", "half"),
+                                        ("k3", "h")), start=1):
+            step += [f"const double s{st}_{i} = "
+                     + clip(f"x_{i}" if prev is None else f"{prev}_{i} * {w} + x_{i}", i) + ";"
+                     for i in range(n)]
+            step += _function_body(tree, "f", [f"s{st}_{i}" for i in range(n)] + us, "cb", "pb",
+                                   [f"k{st}_{i}" for i in range(n)], f"f{st}_")
+        step += [f"const double e_{i} = x_{i} + (((k2_{i} * 2.0 + k1_{i}) + k3_{i} * 2.0) + "
+                 f"k4_{i}) * h6;" for i in range(n)]
+        if k:
+            for tag, src in (("a", "x"), ("b", "e")):
+                step += _function_body(tree, "s", [f"{src}_{i}" for i in range(n)], "cb", "pb",
+                                       [f"w{tag}_{i}" for i in range(k)], f"s{tag}_")
+            step.append("crossed[j] |= " + " | ".join(f"((wa_{i} > 0) != (wb_{i} > 0))"
+                                                       for i in range(k)) + ";")
     except _Unsupported as exc:
         raise ValueError(f"cannot translate the plant's code to C: {exc}") from None
-    pad = " " * 8
+    step.append("lowf[j] |= (uint64_t)(" + " | ".join(f"(e_{i} < lo[{i}])" for i in range(n))
+                + ") << s;")
+    step.append("highf[j] |= (uint64_t)(" + " | ".join(f"(e_{i} > hi[{i}])" for i in range(n))
+                + ") << s;")
+    step += [f"x[{i}][j] = " + clip(f"e_{i}", i) + ";" for i in range(n)]
+    pad = " " * 12
     head = [f"/* tanksynth simulation kernel v{KERNEL_VERSION} */",
             f"#define NX {n}", f"#define NU {m}", f"#define NC {model.n_constants}",
-            f"#define NP {len(model.parameter_names)}", f"#define NS {model.k}",
+            f"#define NP {len(model.parameter_names)}", f"#define NS {k}",
             "/* array sizes (at least 1) */",
             f"#define NUA {max(m, 1)}", f"#define NCA {max(model.n_constants, 1)}",
-            f"#define NPA {max(len(model.parameter_names), 1)}", f"#define NSA {max(model.k, 1)}"]
+            f"#define NPA {max(len(model.parameter_names), 1)}"]
     text = "\n".join(head) + _PRELUDE
+    body = "\n".join(pad + ln for ln in step)
     for B in (BLOCK, 1):
-        body = _BLOCK.replace("{F}", "\n".join(pad + ln for ln in f_lines) or pad + ";")
-        body = body.replace("{S}", "\n".join(pad + ln for ln in s_lines) or pad + "(void)out;")
-        text += body.replace("{B}", str(B))
+        text += _BLOCK.replace("{STEP}", body).replace("{B}", str(B))
     return text + _ENTRY.replace("{BLOCK}", str(BLOCK))

@@ -190,7 +190,7 @@ def test_broken_compiler_falls_back_with_a_diagnostic(cache, monkeypatch, caplog
     assert reason in kernel.kernel_status() and reason in caplog.text
     assert np.array_equal(res.x, good.x)
     assert Integrator.for_plant(plant).native(2) is None
-    assert kernel.cache_info()["loaded"] == 0 and kernel.cache_info()["failed"] <= 1
+    assert kernel.cache_info()["loaded"] == 0 and kernel.cache_info()["failed"] >= (cc == "/bin/false")
 
 
 def test_untranslatable_code_is_refused_not_miscompiled(cache):
