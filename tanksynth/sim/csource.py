@@ -25,14 +25,18 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["kernel_source", "BLOCK", "MAX_SUBSTEPS", "KERNEL_VERSION"]
+__all__ = ["kernel_source", "BLOCK", "MAX_SUBSTEPS", "KERNEL_VERSION", "INLINE_LIMIT"]
 
 #: Runs integrated together by the vectorised C loop.
 BLOCK = 8
 #: Largest number of RK4 steps per period the kernel handles (per-run flag bits).
 MAX_SUBSTEPS = 64
 #: Bumped whenever the generated C changes meaning (part of the cache key).
-KERNEL_VERSION = "3"
+KERNEL_VERSION = "4"
+#: Largest ``f`` (generated statements) written out inline in every RK4 stage; larger plants
+#: call ``f`` as a function per stage (the compiler's time grows fast with straight-line code:
+#: tank_network N = 64 took 12.6 s inline, 2.2 s as a function).
+INLINE_LIMIT = 24
 
 
 class _Unsupported(Exception):
@@ -215,7 +219,9 @@ def _function_body(tree: ast.Module, name: str, rows: list[str], consts: str, pa
             env[target.id] = var
         elif (isinstance(target, ast.Subscript) and isinstance(target.value, ast.Name)
               and target.value.id == "out" and isinstance(target.slice, ast.Constant)):
-            lines.append(f"const double {out[int(target.slice.value)]} = {expr(value)};")
+            name = out[int(target.slice.value)]
+            decl = "" if "[" in name else "const double "       # array element or new local
+            lines.append(f"{decl}{name} = {expr(value)};")
         else:
             raise _Unsupported("assignment target")
     return lines
@@ -235,7 +241,7 @@ static inline double tk_heaviside(double a, double h0) {
 }
 """
 
-_BLOCK = r"""
+_STEPS_INLINE = r"""
 /* S RK4 steps of the runs r0 .. r0+{B}-1, one straight-line step per run (vectorised
    across the {B} runs); x, u, c, p one row per state/input/constant/parameter. */
 static void tk_steps_{B}(int S, double h, double (*restrict x)[{B}],
@@ -251,6 +257,67 @@ static void tk_steps_{B}(int S, double h, double (*restrict x)[{B}],
     }
 }
 
+"""
+
+_STEPS_LOOPED = r"""
+static void tk_f_{B}(const double (*restrict xs)[{B}], const double (*restrict ub)[{B}],
+                     const double (*restrict cb)[{B}], const double (*restrict pb)[{B}],
+                     double (*restrict out)[{B}]) {
+    for (int j = 0; j < {B}; j++) {
+{F}
+    }
+}
+
+static void tk_s_{B}(const double (*restrict xs)[{B}], const double (*restrict cb)[{B}],
+                     const double (*restrict pb)[{B}], double (*restrict out)[{B}]) {
+    for (int j = 0; j < {B}; j++) {
+{S}
+    }
+}
+
+/* S RK4 steps of the runs r0 .. r0+{B}-1, stage by stage (f called on {B} runs at a time). */
+static void tk_steps_{B}(int S, double h, double (*restrict x)[{B}],
+                         const double (*restrict ub)[{B}], const double (*restrict cb)[{B}],
+                         const double (*restrict pb)[{B}], const double *restrict lo,
+                         const double *restrict hi, uint64_t *restrict lowf,
+                         uint64_t *restrict highf, int *restrict crossed) {
+    double st[NX][{B}], k1[NX][{B}], k2[NX][{B}], k3[NX][{B}], k4[NX][{B}], x1[NX][{B}],
+           s0[NSA][{B}], s1[NSA][{B}];
+    const double half = 0.5 * h, h6 = h / 6.0;
+    (void)s0; (void)s1; (void)crossed;
+#define TK_F(src, dst) tk_f_{B}((const double (*)[{B}])src, ub, cb, pb, dst)
+    for (int s = 0; s < S; s++) {
+        for (int i = 0; i < NX; i++) for (int j = 0; j < {B}; j++)
+            st[i][j] = tk_min(tk_max(x[i][j], lo[i]), hi[i]);
+        TK_F(st, k1);
+        for (int i = 0; i < NX; i++) for (int j = 0; j < {B}; j++)
+            st[i][j] = tk_min(tk_max(k1[i][j] * half + x[i][j], lo[i]), hi[i]);
+        TK_F(st, k2);
+        for (int i = 0; i < NX; i++) for (int j = 0; j < {B}; j++)
+            st[i][j] = tk_min(tk_max(k2[i][j] * half + x[i][j], lo[i]), hi[i]);
+        TK_F(st, k3);
+        for (int i = 0; i < NX; i++) for (int j = 0; j < {B}; j++)
+            st[i][j] = tk_min(tk_max(k3[i][j] * h + x[i][j], lo[i]), hi[i]);
+        TK_F(st, k4);
+        for (int i = 0; i < NX; i++) for (int j = 0; j < {B}; j++)
+            x1[i][j] = x[i][j] + (((k2[i][j] * 2.0 + k1[i][j]) + k3[i][j] * 2.0) + k4[i][j]) * h6;
+#if NS > 0
+        tk_s_{B}((const double (*)[{B}])x, cb, pb, s0);
+        tk_s_{B}((const double (*)[{B}])x1, cb, pb, s1);
+        for (int i = 0; i < NS; i++) for (int j = 0; j < {B}; j++)
+            crossed[j] |= (s0[i][j] > 0) != (s1[i][j] > 0);
+#endif
+        for (int i = 0; i < NX; i++) for (int j = 0; j < {B}; j++) {
+            lowf[j] |= (uint64_t)(x1[i][j] < lo[i]) << s;
+            highf[j] |= (uint64_t)(x1[i][j] > hi[i]) << s;
+            x[i][j] = tk_min(tk_max(x1[i][j], lo[i]), hi[i]);
+        }
+    }
+#undef TK_F
+}
+"""
+
+_BLOCK = r"""
 /* Runs r0 .. r0+{B}-1 over periods start[r] .. N-1 (see tk_run). */
 static void tk_block_{B}(long r0, long N, int S, double h, const double *x0,
         const double *U, long uN, long uM, const double *C, long cM, const double *P, long pM,
@@ -341,6 +408,29 @@ def kernel_source(model: Any) -> str:
     """
     tree = ast.parse(model.source)
     n, m, k = model.n, model.m, model.k
+    try:
+        rows = [f"xs[{i}][j]" for i in range(n)] + [f"ub[{i}][j]" for i in range(m)]
+        f_lines = _function_body(tree, "f", rows, "cb", "pb", [f"out[{i}][j]" for i in range(n)],
+                                 "v_")
+        s_lines = (_function_body(tree, "s", rows[:n], "cb", "pb",
+                                  [f"out[{i}][j]" for i in range(k)], "v_") if k else [])
+    except _Unsupported as exc:
+        raise ValueError(f"cannot translate the plant's code to C: {exc}") from None
+    head = [f"/* tanksynth simulation kernel v{KERNEL_VERSION} */",
+            f"#define NX {n}", f"#define NU {m}", f"#define NC {model.n_constants}",
+            f"#define NP {len(model.parameter_names)}", f"#define NS {k}",
+            "/* array sizes (at least 1) */",
+            f"#define NUA {max(m, 1)}", f"#define NCA {max(model.n_constants, 1)}",
+            f"#define NPA {max(len(model.parameter_names), 1)}", f"#define NSA {max(k, 1)}"]
+    text = "\n".join(head) + _PRELUDE
+    if len(f_lines) > INLINE_LIMIT:
+        # large plants: f as a function called per stage (compile time grows with the code)
+        pad = " " * 8
+        steps = _STEPS_LOOPED.replace("{F}", "\n".join(pad + ln for ln in f_lines) or pad + ";")
+        steps = steps.replace("{S}", "\n".join(pad + ln for ln in s_lines) or pad + "(void)out;")
+        for B in (BLOCK, 1):
+            text += steps.replace("{B}", str(B)) + _BLOCK.replace("{B}", str(B))
+        return text + _ENTRY.replace("{BLOCK}", str(BLOCK))
     us = [f"ub[{i}][j]" for i in range(m)]
     clip = lambda v, i: f"tk_min(tk_max({v}, lo[{i}]), hi[{i}])"  # noqa: E731
     step = [f"const double x_{i} = x[{i}][j];" for i in range(n)]
@@ -369,14 +459,7 @@ def kernel_source(model: Any) -> str:
                 + ") << s;")
     step += [f"x[{i}][j] = " + clip(f"e_{i}", i) + ";" for i in range(n)]
     pad = " " * 12
-    head = [f"/* tanksynth simulation kernel v{KERNEL_VERSION} */",
-            f"#define NX {n}", f"#define NU {m}", f"#define NC {model.n_constants}",
-            f"#define NP {len(model.parameter_names)}", f"#define NS {k}",
-            "/* array sizes (at least 1) */",
-            f"#define NUA {max(m, 1)}", f"#define NCA {max(model.n_constants, 1)}",
-            f"#define NPA {max(len(model.parameter_names), 1)}"]
-    text = "\n".join(head) + _PRELUDE
     body = "\n".join(pad + ln for ln in step)
     for B in (BLOCK, 1):
-        text += _BLOCK.replace("{STEP}", body).replace("{B}", str(B))
+        text += (_STEPS_INLINE.replace("{STEP}", body) + _BLOCK).replace("{B}", str(B))
     return text + _ENTRY.replace("{BLOCK}", str(BLOCK))

@@ -127,6 +127,11 @@ class Integrator:
         Bisection iterations locating a crossing (0: no location).
     max_splits : int
         Crossings handled inside one step (more are integrated across).
+    work : float, optional
+        RK4 run-steps the caller expects to integrate (runs x periods x steps):
+        decides whether compiling the plant's kernel pays
+        (`tanksynth.sim.kernel.native_kernel`); None: use a kernel only if
+        one is already built.
 
     Attributes
     ----------
@@ -144,8 +149,9 @@ class Integrator:
     """
 
     def __init__(self, model: NumpyModel, lower: np.ndarray, upper: np.ndarray,
-                 event_iterations: int = 12, max_splits: int = 3):
+                 event_iterations: int = 12, max_splits: int = 3, work: float | None = None):
         self.model = model
+        self.work = work
         self.lower = np.asarray(lower, dtype=float)
         self.upper = np.asarray(upper, dtype=float)
         self.iterations = int(event_iterations)
@@ -164,7 +170,7 @@ class Integrator:
     @classmethod
     def for_plant(cls, plant: Plant, params: Mapping[str, Any] | None = None, *,
                   bounds: tuple[np.ndarray, np.ndarray] | None = None, event_iterations: int = 12,
-                  max_splits: int = 3) -> "Integrator":
+                  max_splits: int = 3, work: float | None = None) -> "Integrator":
         """The integrator of ``plant``: its numpy model and its `Plant.state_bounds`.
 
         Parameters
@@ -176,10 +182,12 @@ class Integrator:
             Other state bounds (state units), instead of the plant's rule.
         event_iterations, max_splits : int
             See the class.
+        work : float, optional
+            See the class.
         """
         lower, upper = bounds if bounds is not None else plant.state_bounds(
             {k: v for k, v in (params or {}).items() if k == "hmax"})
-        return cls(numpy_model(plant), lower, upper, event_iterations, max_splits)
+        return cls(numpy_model(plant), lower, upper, event_iterations, max_splits, work)
 
     def clip(self, x: np.ndarray) -> np.ndarray:
         """States clipped to the bounds (the one clipping rule).
@@ -315,7 +323,7 @@ class Integrator:
                 and 1 <= int(substeps) <= MAX_SUBSTEPS):
             return None
         if self._kernel is False:
-            self._kernel = native_kernel(self.model)
+            self._kernel = native_kernel(self.model, self.work)
         return self._kernel  # type: ignore[return-value]
 
     def _native_tables(self, p: Mapping[str, Any], count: int) -> tuple[np.ndarray, np.ndarray]:

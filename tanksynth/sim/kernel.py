@@ -18,9 +18,11 @@ Choice of route (automatic): the native kernel when a C compiler works;
 otherwise the CasADi/numpy routes of `tanksynth.sim.integrate` (no error),
 with the reason in `kernel_status` and in the log (logger
 ``tanksynth.sim``, a warning when a compiler was found but failed).
-Environment: ``TANKSYNTH_SIM_BACKEND`` = ``auto`` (default) or ``numpy``
-(never compile); ``TANKSYNTH_CC`` the compiler (default ``gcc``, else
-``cc``, on the ``PATH``).
+Environment: ``TANKSYNTH_SIM_BACKEND`` = ``auto`` (default: load a kernel
+already built, compile a new one only for a simulation of at least
+`BUILD_WORK` state-steps), ``native`` (always compile) or ``numpy`` (never
+use a kernel); ``TANKSYNTH_CC`` the compiler (default ``gcc``, else ``cc``,
+on the ``PATH``).
 
 Cache (no hidden state): libraries are written to ``<dir>/sim/`` where
 ``<dir>`` is ``$TANKSYNTH_CACHE_DIR``, else ``$XDG_CACHE_HOME/tanksynth``,
@@ -53,9 +55,12 @@ import numpy as np
 from tanksynth.sim.csource import KERNEL_VERSION, kernel_source
 
 __all__ = ["NativeKernel", "PeriodCall", "native_kernel", "kernel_status", "cache_dir", "clear_cache",
-           "cache_info", "per_run_table"]
+           "cache_info", "per_run_table", "BUILD_WORK"]
 
 _LOG = logging.getLogger("tanksynth.sim")
+
+#: Smallest simulation (RK4 run-steps x states) for which ``auto`` compiles a new kernel.
+BUILD_WORK = 1e6
 
 _FLAGS = ("-O3", "-shared", "-fPIC", "-ffp-contract=off", "-fno-math-errno", "-std=c99")
 
@@ -355,17 +360,27 @@ def _build(source: str, cc: str, flags: tuple[str, ...], so_path: Path) -> float
     return seconds
 
 
-def native_kernel(model: Any) -> NativeKernel | None:
+def native_kernel(model: Any, work: float | None = None) -> NativeKernel | None:
     """The compiled period kernel of a plant's numpy model, or None (then use the numpy code).
 
     Built once per plant structure and compiler (cached in memory and on
-    disk, see the module notes). None, with the reason in `kernel_status`
-    and the log, when ``TANKSYNTH_SIM_BACKEND=numpy``, no C compiler is
-    found, the plant's code cannot be translated, or the build or load fails.
+    disk, see the module notes), when it pays: with
+    ``TANKSYNTH_SIM_BACKEND=auto`` (default) a kernel already on disk is
+    always loaded, and a new one is compiled only for a simulation of at
+    least `BUILD_WORK` state-steps (``work`` times the number of states; the
+    compiler takes 0.6-3 s, the CasADi/numpy code a few microseconds per
+    step), so short one-off simulations of many different plants never wait
+    for a compiler; ``native`` always compiles, ``numpy`` never uses a
+    kernel. None, with the reason in `kernel_status` and the log, also when
+    no C compiler is found, the plant's code cannot be translated, or the
+    build or load fails.
 
     Parameters
     ----------
     model : tanksynth.sim.tape.NumpyModel
+    work : float, optional
+        RK4 run-steps of the simulation asking (runs x periods x steps per
+        period); None: unknown (load a built kernel, never compile).
 
     Returns
     -------
@@ -384,12 +399,14 @@ def native_kernel(model: Any) -> NativeKernel | None:
     if cached is not None:
         _STATE.last = cached[1]
         return cached[0]
-    kernel = _native_kernel(model, backend, cc)
-    model._casadi[key] = model._casadi[("native", env)] = (kernel, _STATE.last)
+    build = backend == "native" or (work is not None and work * model.n >= BUILD_WORK)
+    kernel = _native_kernel(model, backend, cc, build)
+    if kernel is not None or build:      # a skipped build is asked again by a larger simulation
+        model._casadi[key] = model._casadi[("native", env)] = (kernel, _STATE.last)
     return kernel
 
 
-def _native_kernel(model: Any, backend: str, cc: str | None) -> NativeKernel | None:
+def _native_kernel(model: Any, backend: str, cc: str | None, build: bool) -> NativeKernel | None:
     if backend == "numpy":
         _STATE.last = "numpy backend requested (TANKSYNTH_SIM_BACKEND=numpy)"
         return None
@@ -413,8 +430,14 @@ def _native_kernel(model: Any, backend: str, cc: str | None) -> NativeKernel | N
     if all(digest in _STATE.failed for digest, _, _ in candidates):
         _STATE.last = _STATE.failed[candidates[-1][0]]
         return None
+    if not build and not any(path.is_file() for _, _, path in candidates):
+        _STATE.last = (f"native kernel not built: a small simulation (below {BUILD_WORK:.0e} "
+                       f"state-steps; TANKSYNTH_SIM_BACKEND=native to build anyway)")
+        return None
     reason = ""
     for digest, flags, so_path in candidates:     # best flags first; next if the build fails
+        if not build and not so_path.is_file():
+            continue
         seconds = 0.0
         try:
             if not so_path.is_file():

@@ -468,7 +468,7 @@ def simulate(plant: Plant, *, ts: float, steps: int, x0: Sequence[float] | np.nd
             raise DimensionError(f"state jump at sample {j.sample} has {delta.size} entries, expected {n}")
         jump_at[int(j.sample)] = jump_at.get(int(j.sample), np.zeros(n)) + delta
     integ = Integrator.for_plant(plant, params, bounds=bounds, event_iterations=event_iterations,
-                                 max_splits=max_splits)
+                                 max_splits=max_splits, work=float(M) * N * int(substeps))
     model = integ.model
 
     # Noise: one generator per run, drawn in a fixed order (process, then measurement).

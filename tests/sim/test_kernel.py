@@ -19,7 +19,7 @@ def cache(tmp_path, monkeypatch):
     """A private kernel cache; compiled models and loaded kernels forgotten before and after."""
     monkeypatch.setenv("TANKSYNTH_CACHE_DIR", str(tmp_path))
     monkeypatch.delenv("TANKSYNTH_CC", raising=False)
-    monkeypatch.delenv("TANKSYNTH_SIM_BACKEND", raising=False)
+    monkeypatch.setenv("TANKSYNTH_SIM_BACKEND", "native")   # compile even for small simulations
     tape.clear_cache()
     kernel.clear_cache()
     yield tmp_path
@@ -33,7 +33,7 @@ def _fallback(monkeypatch, fn):
     try:
         return fn()
     finally:
-        monkeypatch.delenv("TANKSYNTH_SIM_BACKEND")
+        monkeypatch.setenv("TANKSYNTH_SIM_BACKEND", "native")
 
 
 def _inputs(plant, M, N, seed):
@@ -201,3 +201,21 @@ def test_untranslatable_code_is_refused_not_miscompiled(cache):
                   _casadi={})
     assert kernel.native_kernel(odd) is None
     assert "numpy.arcsinh" in kernel.kernel_status()
+
+
+def test_auto_compiles_only_when_it_pays_or_is_already_built(cache, monkeypatch):
+    plant = three_tank()
+    monkeypatch.setenv("TANKSYNTH_SIM_BACKEND", "auto")
+    before = kernel.cache_info()["compiles"]
+    xs, Us = _inputs(plant, 2, 10, 3)
+    small = sim.simulate_inputs(plant, xs, Us, 1.0, substeps=2)          # 40 run-steps
+    assert small.backend != "native" and "not built" in kernel.kernel_status()
+    assert kernel.cache_info()["compiles"] == before
+    xl, Ul = _inputs(plant, 400, 500, 3)                                 # 800,000 run-steps
+    large = sim.simulate_inputs(plant, xl, Ul, 1.0, substeps=4)
+    assert large.backend == "native" and kernel.cache_info()["compiles"] == before + 1
+    tape.clear_cache()
+    kernel.clear_cache()
+    again = sim.simulate_inputs(plant, xs, Us, 1.0, substeps=2)          # small, but built
+    assert again.backend == "native" and kernel.cache_info()["compiles"] == before + 1
+    assert np.array_equal(again.x, small.x)
