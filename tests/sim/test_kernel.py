@@ -7,24 +7,11 @@ import numpy as np
 import pytest
 
 import tanksynth.sim as sim
-from tanksynth.plants import custom_plant, hybrid_three_tank, tank_network, three_tank
+from tanksynth.plants import hybrid_three_tank, tank_network, three_tank
 from tanksynth.plants.hybrid_three_tank import LPH
 from tanksynth.sim import kernel, tape
 from tanksynth.sim.integrate import Integrator
 from tanksynth.sim.simulate import ParameterChange, StateJump
-
-
-@pytest.fixture
-def cache(tmp_path, monkeypatch):
-    """A private kernel cache; compiled models and loaded kernels forgotten before and after."""
-    monkeypatch.setenv("TANKSYNTH_CACHE_DIR", str(tmp_path))
-    monkeypatch.delenv("TANKSYNTH_CC", raising=False)
-    monkeypatch.setenv("TANKSYNTH_SIM_BACKEND", "native")   # compile even for small simulations
-    tape.clear_cache()
-    kernel.clear_cache()
-    yield tmp_path
-    tape.clear_cache()
-    kernel.clear_cache()
 
 
 def _fallback(monkeypatch, fn):
@@ -137,25 +124,6 @@ def test_a_run_does_not_depend_on_its_batch(cache):
         assert np.array_equal(one.x[0], batch.x[r])
 
 
-def test_custom_plant_functions_translate_exactly(cache, monkeypatch):
-    """exp, log, min, max, sign, abs, powers and division: native equals the numpy code."""
-    plant = custom_plant({"model": "custom",
-                          "states": {"a": {"unit": "m", "min": 0.0, "max": 2.0},
-                                     "b": {"unit": "m", "min": 0.0, "max": 2.0}},
-                          "inputs": {"q": {"unit": "m/s", "min": 0.0, "max": 1.0}},
-                          "parameters": {"k": 0.7, "c": 0.3},
-                          "equations": {"a": "q - k*sqrt(a) + c*min(a, b)**2 - exp(-a)*b**3",
-                                        "b": "k*sign(a - b)*abs(a - b) + log(1 + b)/(2 + a)"
-                                             " - max(b, c, 0.5*a)"},
-                          "outputs": {"y": "a"}})
-    x0, U = _inputs(plant, 10, 50, 8)
-    native = sim.simulate_inputs(plant, x0 + 0.1, U, 0.5, substeps=4)
-    fallback = _fallback(monkeypatch, lambda: sim.simulate_inputs(plant, x0 + 0.1, U, 0.5,
-                                                                   substeps=4))
-    assert native.backend == "native"
-    assert np.max(np.abs(native.x - fallback.x)) < 1e-12   # exp/log: libm vs numpy, to rounding
-
-
 def test_kernel_is_built_once_then_reused_from_disk(cache):
     plant = three_tank()
     before = kernel.cache_info()["compiles"]
@@ -191,16 +159,6 @@ def test_broken_compiler_falls_back_with_a_diagnostic(cache, monkeypatch, caplog
     assert np.array_equal(res.x, good.x)
     assert Integrator.for_plant(plant).native(2) is None
     assert kernel.cache_info()["loaded"] == 0 and kernel.cache_info()["failed"] >= (cc == "/bin/false")
-
-
-def test_untranslatable_code_is_refused_not_miscompiled(cache):
-    from dataclasses import replace
-
-    model = tape.numpy_model(three_tank())
-    odd = replace(model, source=model.source.replace("numpy.sqrt(r_1)", "numpy.arcsinh(r_1)"),
-                  _casadi={})
-    assert kernel.native_kernel(odd) is None
-    assert "numpy.arcsinh" in kernel.kernel_status()
 
 
 def test_auto_compiles_only_when_it_pays_or_is_already_built(cache, monkeypatch):
