@@ -153,6 +153,17 @@ _ARGTYPES = [ctypes.c_long, ctypes.c_long, ctypes.c_int, ctypes.c_double, ctypes
 class NativeKernel:
     """A loaded period kernel (`native_kernel`): M runs over N periods per call.
 
+    Parameters
+    ----------
+    lib : ctypes.CDLL
+        The loaded shared library (defines ``tk_run``).
+    path : pathlib.Path
+        Its file.
+    n, m : int
+        States and inputs of the plant.
+    compile_seconds : float
+        Compiler wall time in this process (s; 0 when loaded from the disk cache).
+
     Attributes
     ----------
     n, m : int
