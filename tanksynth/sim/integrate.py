@@ -3,13 +3,17 @@
 Every simulation of a plant in the toolbox goes through this module:
 
 * the batch simulator (`tanksynth.sim.simulate`) and any verdict that needs
-  one sampling period of the nominal plant use `Integrator` (numpy, M runs
-  at once, per-run parameters);
+  one sampling period of the nominal plant use `Integrator` (M runs at
+  once, per-run parameters): the plant's compiled C kernel when available
+  (`tanksynth.sim.kernel`, driven by `tanksynth.sim.native`), else the
+  CasADi period function (small batches) or the generated numpy code
+  (`tanksynth.sim.tape`), all bit for bit equal;
 * design code that needs the step as a CasADi expression (the ISE tuning of
   the inverse-dynamics gains, laws evaluated at every Runge-Kutta stage)
-  builds it with `symbolic_rk4` / `casadi_step`;
+  builds it with `symbolic_rk4` / `casadi_step` (`tanksynth.sim.symbolic`,
+  re-exported here);
 * a linear system (the fault-detection residual of plant and observer) is
-  advanced by `rk4_matrix`, the same step written as a matrix.
+  advanced by `rk4_matrix`, the same step written as a matrix (likewise).
 
 The scheme, identical in all three: classical RK4 (`tanksynth.plants.compile.rk4_step`,
 the one formula, shared with the estimators' prediction models), stage
@@ -28,7 +32,7 @@ the numeric integrator (so both give the same numbers, tested to rounding).
 
 from __future__ import annotations
 
-from typing import Any, Callable, Mapping, NamedTuple
+from typing import Any, Callable, Mapping
 
 import numpy as np
 
@@ -36,7 +40,9 @@ from tanksynth.errors import DimensionError
 from tanksynth.plants.base import Plant
 from tanksynth.plants.compile import rk4_step
 from tanksynth.sim.csource import MAX_SUBSTEPS
-from tanksynth.sim.kernel import NativeKernel, native_kernel, per_run_table
+from tanksynth.sim import native
+from tanksynth.sim.kernel import NativeKernel, native_kernel
+from tanksynth.sim.symbolic import SymbolicStep, casadi_step, rk4_matrix, symbolic_rk4
 from tanksynth.sim.tape import CASADI_MAX_RUNS, CASADI_MAX_RUNS_HYBRID, NumpyModel, numpy_model
 
 # numpy's element-wise clip ufunc (one call instead of maximum + minimum; same NaN rule)
@@ -295,7 +301,7 @@ class Integrator:
         limit = CASADI_MAX_RUNS_HYBRID if self.model.k else CASADI_MAX_RUNS
         kernel = self.native(substeps) if x.shape[0] else None
         if kernel is not None:
-            x1, low, high = self._period_native(kernel, x, u, p, h, substeps)
+            x1, low, high = native.period(self, kernel, x, u, p, h, substeps)
             self.backends.add("native")
         elif 0 < x.shape[0] <= limit and self.model.n and self.lower.ndim == 1 and self.upper.ndim == 1:
             x1, low, high = self._period_casadi(x, u, p, h, substeps)
@@ -325,83 +331,6 @@ class Integrator:
         if self._kernel is False:
             self._kernel = native_kernel(self.model, self.work)
         return self._kernel  # type: ignore[return-value]
-
-    def _native_tables(self, p: Mapping[str, Any], count: int) -> tuple[np.ndarray, np.ndarray]:
-        """Constants and parameter tables (M, .) of the kernel (cached while ``p`` holds)."""
-        pv, c = self._values(p)
-        held, C, P = self._tables
-        if (C is None or C.shape[0] != count or len(held) != len(pv)
-                or any(a is not b for a, b in zip(held, pv))):
-            C, P = per_run_table(c, count), per_run_table(pv, count)
-            self._tables = (list(pv), C, P)
-        return C, P
-
-    def _period_native(self, kernel: NativeKernel, x: np.ndarray, u: np.ndarray,
-                       p: Mapping[str, Any], h: float,
-                       substeps: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """The period through the compiled kernel; crossed runs by the numpy code."""
-        count = x.shape[0]
-        C, P = self._native_tables(p, count)
-        call = self._buffers.get(("native", substeps, count))
-        if call is None:
-            call = self._buffers[("native", substeps, count)] = kernel.period(count, substeps)
-        call.bind(C, P, self.lower, self.upper, h)
-        x1, stop, low, high = call(x, u)
-        if stop.max() >= 0:
-            hit = np.flatnonzero(stop >= 0)
-            sub = {k: (v[hit] if np.ndim(v) else v) for k, v in p.items()}
-            x1[hit], low_hit, high_hit = self._period_rows(x[hit], u[hit], sub, h, substeps)
-            self._cache_key = None
-            low, high = low | low_hit, high | high_hit
-        return x1, low, high
-
-    def _horizon_native(self, kernel: NativeKernel, x: np.ndarray, U: np.ndarray,
-                        p: Mapping[str, Any], h: float, substeps: int,
-                        out: np.ndarray | None = None) -> np.ndarray | None:
-        """`horizon` through the compiled kernel (crossed periods by the numpy code)."""
-        N, count, n = U.shape[0], x.shape[0], self.model.n
-        C, P = self._native_tables(p, count)
-        x0 = np.ascontiguousarray(x, dtype=float)
-        if U.shape[2] > 1 and U.strides[2] != U.itemsize or U.dtype != np.float64:
-            U = np.ascontiguousarray(U, dtype=float)
-        X = np.empty((N, count, n)) if out is None else out
-        saved = (self.events, self.clipped_low, self.clipped_high)
-        stop, low, high = kernel.run(x0, U, C, P, self.lower, self.upper, h, substeps, X)
-        periods = np.arange(N)[:, None]
-        while True:
-            idx = np.flatnonzero(stop >= 0)
-            if not idx.size:
-                break
-            ks = stop[idx]
-            for k in np.unique(ks):
-                g = idx[ks == k]
-                sub = {name: (v[g] if np.ndim(v) else v) for name, v in p.items()}
-                start = x0[g] if k == 0 else X[k - 1, g]
-                X[k, g], low_k, high_k = self._period_rows(start, U[k, g], sub, h, substeps)
-                low[k] |= low_k
-                high[k] |= high_k
-            self._cache_key = None
-            part = np.empty((N, idx.size, n))
-            stop_r, low_r, high_r = kernel.run(np.ascontiguousarray(X[ks, idx]),
-                                               np.ascontiguousarray(U[:, idx]), C[idx], P[idx],
-                                               self.lower, self.upper, h, substeps, part,
-                                               start=ks + 1)
-            end = np.where(stop_r >= 0, stop_r, N)
-            mask = (periods > ks) & (periods < end)
-            block = X[:, idx]
-            block[mask] = part[mask]
-            X[:, idx] = block
-            low |= low_r
-            high |= high_r
-            stop = np.full(count, -1, dtype=np.int64)
-            stop[idx] = stop_r
-        if not np.isfinite(X).all():
-            self.events, self.clipped_low, self.clipped_high = saved
-            return None
-        self.clipped_low += int(np.count_nonzero(low))
-        self.clipped_high += int(np.count_nonzero(high))
-        self.backends.add("native")
-        return X
 
     def _values(self, p: Mapping[str, Any]) -> tuple[list, tuple]:
         """Parameter values in the model's order and their constants (cached by identity)."""
@@ -578,7 +507,7 @@ class Integrator:
         substeps = int(substeps)
         kernel = self.native(substeps) if count and N else None
         if kernel is not None:
-            return self._horizon_native(kernel, x, U, p, float(ts) / substeps, substeps, out)
+            return native.horizon(self, kernel, x, U, p, float(ts) / substeps, substeps, out)
         limit = CASADI_MAX_RUNS_HYBRID if model.k else CASADI_MAX_RUNS
         if not (0 < count <= limit and N > 0 and model.n and self.lower.ndim == 1
                 and self.upper.ndim == 1):
@@ -665,166 +594,3 @@ class Integrator:
             idx, cur, uc, left = idx[again], cur[again], uc[again], left[again]
             pc = sub(pc, again)
         return x1
-
-
-# ----------------------------------------------------------------------------- symbolic
-class SymbolicStep(NamedTuple):
-    """CasADi expressions of `symbolic_rk4`.
-
-    Attributes
-    ----------
-    x : casadi.SX, shape (n, 1)
-        State after the step (clipped).
-    integral : casadi.SX or None
-        Trapezoid integral of the integrand over the RK4 grid.
-    crossed : casadi.SX, scalar
-        1 when a substep changed the hybrid mode (the numeric `Integrator`
-        would have located the crossing: hand that run to it), else 0.
-    """
-
-    x: Any
-    integral: Any
-    crossed: Any
-
-
-def _saturation(plant: Plant) -> Callable[[Any], Any]:
-    import casadi as ca
-
-    limits = plant.input_limits
-
-    def sat(u: Any) -> Any:
-        out = ca.SX(u) if not isinstance(u, ca.MX) else u
-        parts = []
-        for i, (lo, hi) in enumerate(limits):
-            v = out[i]
-            if np.isfinite(lo):
-                v = ca.fmax(v, lo)
-            if np.isfinite(hi):
-                v = ca.fmin(v, hi)
-            parts.append(v)
-        return ca.vertcat(*parts) if parts else out
-
-    return sat
-
-
-def symbolic_rk4(plant: Plant, x: Any, u: Any, dt: float, substeps: int = 1, *,
-                 integrand: Callable[[Any], Any] | None = None) -> SymbolicStep:
-    """The integrator's step as CasADi expressions (same scheme as `Integrator`).
-
-    ``substeps`` RK4 steps of ``dt / substeps`` on the compiled plant
-    ``plant.compiled.f`` (parameters at the plant's values): stage states and
-    every end state clipped to `Plant.state_bounds`, inputs saturated to the
-    actuators' range. The mode bits are compared across every substep;
-    a change sets ``crossed`` (no location here: the caller must hand such
-    runs to the numeric `Integrator`).
-
-    Parameters
-    ----------
-    plant : Plant
-    x : casadi.SX, shape (n, 1)
-        State at the start (state units).
-    u : casadi.SX or callable
-        Input (input units) held over ``dt``, or ``s -> u(s)`` evaluated at
-        every RK4 stage (a continuous-time law).
-    dt : float
-        Length of the step (s).
-    substeps : int
-        RK4 steps inside ``dt``.
-    integrand : callable, optional
-        ``s -> g(s)`` (casadi column): its integral over the step by the
-        trapezoid rule on the RK4 grid, at the clipped grid states.
-
-    Returns
-    -------
-    SymbolicStep
-    """
-    import casadi as ca
-
-    f = plant.compiled.f
-    lo, hi = plant.state_bounds()
-    lo_dm, hi_dm = ca.DM(lo), ca.DM(hi)
-    clip = lambda v: ca.fmin(ca.fmax(v, lo_dm), hi_dm)  # noqa: E731
-    sat = _saturation(plant)
-    if callable(u):
-        rhs = lambda s: f(s, sat(u(s)))  # noqa: E731
-    else:
-        held = sat(u)
-        rhs = lambda s: f(s, held)  # noqa: E731
-    switching = plant.compiled.switching
-    h = float(dt) / int(substeps)
-    s = x
-    crossed = ca.SX(0)
-    integral = None
-    for _ in range(int(substeps)):
-        g0 = integrand(s) if integrand is not None else None
-        end = rk4_step(rhs, s, h, clip)
-        if switching is not None:
-            b0, b1 = switching(s) > 0, switching(end) > 0
-            for j in range(b0.numel()):
-                crossed = ca.logic_or(crossed, b0[j] != b1[j])
-        s = clip(end)
-        if integrand is not None:
-            inc = h / 2 * (g0 + integrand(s))
-            integral = inc if integral is None else integral + inc
-    return SymbolicStep(s, integral, crossed)
-
-
-def casadi_step(plant: Plant, dt: float, law: Any = None, substeps: int = 1) -> Any:
-    """One step of the integrator as a CasADi Function (`symbolic_rk4`).
-
-    Parameters
-    ----------
-    plant : Plant
-    dt : float
-        Step (s), split into ``substeps`` RK4 steps.
-    law : casadi.Function, optional
-        ``(x, r) -> u, ...``: evaluated at every RK4 stage (a continuous-time
-        law). Without it the input is held over the step (zero-order hold).
-    substeps : int
-
-    Returns
-    -------
-    casadi.Function
-        ``(x, u) -> (x_next, crossed)`` or ``(x, r) -> (x_next, crossed)``;
-        ``crossed`` is 1 when the step changed the hybrid mode (see
-        `SymbolicStep`).
-    """
-    import casadi as ca
-
-    x = ca.SX.sym("x", plant.n)
-    if law is None:
-        v = ca.SX.sym("u", plant.m)
-        u: Any = v
-    else:
-        v = ca.SX.sym("r", law.size1_in(1))
-        u = lambda s: law(s, v)[0] if law.n_out() > 1 else law(s, v)  # noqa: E731
-    out = symbolic_rk4(plant, x, u, dt, substeps)
-    return ca.Function("rk4_step", [x, v], [out.x, out.crossed],
-                       ["x", "u" if law is None else "r"], ["x_next", "crossed"])
-
-
-# ----------------------------------------------------------------------------- linear
-def rk4_matrix(M: Any, h: float) -> np.ndarray:
-    """The integrator's RK4 step of a linear system ``dz/dt = M z``, as a matrix.
-
-    `rk4_step` applied to the columns of the identity: ``z(t + h) = R z(t)``
-    with ``R = I + hM + (hM)^2/2 + (hM)^3/6 + (hM)^4/24`` (RK4 is exact to
-    fourth order). An affine system is written with a constant state
-    ``z[-1] = 1``. No clipping: the caller checks that the states stay
-    within the plant's bounds.
-
-    Parameters
-    ----------
-    M : array_like, shape (k, k)
-        System matrix (1/s).
-    h : float
-        Step (s), >= 0.
-
-    Returns
-    -------
-    ndarray, shape (k, k)
-    """
-    M = np.asarray(M, dtype=float)
-    if M.ndim != 2 or M.shape[0] != M.shape[1]:
-        raise DimensionError(f"M must be a square matrix, got shape {M.shape}")
-    return rk4_step(lambda Z: M @ Z, np.eye(M.shape[0]), float(h))
