@@ -177,3 +177,22 @@ def test_auto_compiles_only_when_it_pays_or_is_already_built(cache, monkeypatch)
     again = sim.simulate_inputs(plant, xs, Us, 1.0, substeps=2)          # small, but built
     assert again.backend == "native" and kernel.cache_info()["compiles"] == before + 1
     assert np.array_equal(again.x, small.x)
+
+
+def test_concurrent_processes_build_one_library_safely(cache):
+    """Two interpreters building the same kernel at once: both run, one library, no temporaries."""
+    import subprocess
+    import sys
+
+    code = ("import numpy as np; from tanksynth.plants import tank_network; "
+            "from tanksynth.sim import simulate_inputs; p = tank_network(4); "
+            "r = simulate_inputs(p, np.full((3, 4), 0.2), np.full((30, 2), 1e-5), 1.0); "
+            "print(r.backend, repr(float(r.x.sum())))")
+    env = {**os.environ, "TANKSYNTH_CACHE_DIR": str(cache), "TANKSYNTH_SIM_BACKEND": "native"}
+    procs = [subprocess.Popen([sys.executable, "-c", code], env=env, stdout=subprocess.PIPE,
+                              stderr=subprocess.PIPE, text=True) for _ in range(2)]
+    outs = [p.communicate(timeout=600) for p in procs]
+    assert all(p.returncode == 0 for p in procs), [o[1][-500:] for o in outs]
+    assert outs[0][0] == outs[1][0] and outs[0][0].startswith("native ")
+    assert len(list((cache / "sim").glob("tk_sim_*.so"))) == 1
+    assert not list((cache / "sim").glob(".build-*"))
