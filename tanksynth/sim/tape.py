@@ -18,11 +18,15 @@ dominates, so `NumpyModel.casadi_advance` builds the whole sampling period
 (RK4 substeps, clipping, the mode-change flag and the clipping flags) as one
 CasADi SX function of ``(x, u, p, h, lower, upper)``, evaluated in place
 through a CasADi `FunctionBuffer` (`tanksynth.sim.integrate` picks it for
-M up to `CASADI_MAX_RUNS`). That CasADi function is built by running the
-generated source itself with CasADi operations in place of numpy's, in the
-same order, so the two forms give the same numbers bit for bit (tested): a
-run's trajectory does not depend on the batch it is simulated in. Both agree
-with the CasADi `CompiledPlant.rhs` to rounding (tested).
+M up to `CASADI_MAX_RUNS` when the plant has no native kernel). That CasADi
+function is built by running the generated source itself with CasADi
+operations in place of numpy's, in the same order, so the two forms give the
+same numbers bit for bit (tested): a run's trajectory does not depend on the
+batch it is simulated in. Both agree with the CasADi `CompiledPlant.rhs` to
+rounding (tested). The same source is also translated to C, the plant's
+native kernel (`tanksynth.sim.csource`, `tanksynth.sim.kernel`), which the
+integrator prefers when a C compiler works; again bit for bit (tested).
+Dropping a model (`clear_cache`) drops the kernel it holds.
 
 Cache (no hidden state): compiled models live in this module, in
 ``_MODELS`` (keyed by the plant's name, equations, switching functions and
