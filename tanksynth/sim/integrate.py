@@ -3,13 +3,17 @@
 Every simulation of a plant in the toolbox goes through this module:
 
 * the batch simulator (`tanksynth.sim.simulate`) and any verdict that needs
-  one sampling period of the nominal plant use `Integrator` (numpy, M runs
-  at once, per-run parameters);
+  one sampling period of the nominal plant use `Integrator` (M runs at
+  once, per-run parameters): the plant's compiled C kernel when available
+  (`tanksynth.sim.kernel`, driven by `tanksynth.sim.native`), else the
+  CasADi period function (small batches) or the generated numpy code
+  (`tanksynth.sim.tape`), all bit for bit equal;
 * design code that needs the step as a CasADi expression (the ISE tuning of
   the inverse-dynamics gains, laws evaluated at every Runge-Kutta stage)
-  builds it with `symbolic_rk4` / `casadi_step`;
+  builds it with `symbolic_rk4` / `casadi_step` (`tanksynth.sim.symbolic`,
+  re-exported here);
 * a linear system (the fault-detection residual of plant and observer) is
-  advanced by `rk4_matrix`, the same step written as a matrix.
+  advanced by `rk4_matrix`, the same step written as a matrix (likewise).
 
 The scheme, identical in all three: classical RK4 (`tanksynth.plants.compile.rk4_step`,
 the one formula, shared with the estimators' prediction models), stage
@@ -28,13 +32,17 @@ the numeric integrator (so both give the same numbers, tested to rounding).
 
 from __future__ import annotations
 
-from typing import Any, Callable, Mapping, NamedTuple
+from typing import Any, Callable, Mapping
 
 import numpy as np
 
 from tanksynth.errors import DimensionError
 from tanksynth.plants.base import Plant
 from tanksynth.plants.compile import rk4_step
+from tanksynth.sim.csource import MAX_SUBSTEPS
+from tanksynth.sim import native
+from tanksynth.sim.kernel import NativeKernel, native_kernel
+from tanksynth.sim.symbolic import SymbolicStep, casadi_step, rk4_matrix, symbolic_rk4
 from tanksynth.sim.tape import CASADI_MAX_RUNS, CASADI_MAX_RUNS_HYBRID, NumpyModel, numpy_model
 
 # numpy's element-wise clip ufunc (one call instead of maximum + minimum; same NaN rule)
@@ -125,6 +133,11 @@ class Integrator:
         Bisection iterations locating a crossing (0: no location).
     max_splits : int
         Crossings handled inside one step (more are integrated across).
+    work : float, optional
+        RK4 run-steps the caller expects to integrate (runs x periods x steps):
+        decides whether compiling the plant's kernel pays
+        (`tanksynth.sim.kernel.native_kernel`); None: use a kernel only if
+        one is already built.
 
     Attributes
     ----------
@@ -133,11 +146,18 @@ class Integrator:
     clipped_low, clipped_high : int
         Clipping operations after which some state sat on its lower/upper bound
         because it had passed it.
+    backends : set of str
+        Routes that integrated periods so far: ``"native"`` (the compiled C
+        kernel, `tanksynth.sim.kernel`), ``"casadi"`` (the CasADi period
+        function) or ``"numpy"`` (the generated numpy code); runs whose hybrid
+        mode changed inside a period are always re-integrated by the numpy
+        code (not listed).
     """
 
     def __init__(self, model: NumpyModel, lower: np.ndarray, upper: np.ndarray,
-                 event_iterations: int = 12, max_splits: int = 3):
+                 event_iterations: int = 12, max_splits: int = 3, work: float | None = None):
         self.model = model
+        self.work = work
         self.lower = np.asarray(lower, dtype=float)
         self.upper = np.asarray(upper, dtype=float)
         self.iterations = int(event_iterations)
@@ -147,13 +167,16 @@ class Integrator:
         self.clipped_high = 0
         self._cache_key: tuple | None = None
         self._cache: tuple = ((), ())
-        self._buffers: dict[tuple[int, int], list] = {}
+        self._buffers: dict[tuple, Any] = {}
         self._rows: tuple | None = None
+        self._kernel: NativeKernel | None | bool = False     # False: not asked for yet
+        self._tables: tuple = ((), None, None)
+        self.backends: set[str] = set()
 
     @classmethod
     def for_plant(cls, plant: Plant, params: Mapping[str, Any] | None = None, *,
                   bounds: tuple[np.ndarray, np.ndarray] | None = None, event_iterations: int = 12,
-                  max_splits: int = 3) -> "Integrator":
+                  max_splits: int = 3, work: float | None = None) -> "Integrator":
         """The integrator of ``plant``: its numpy model and its `Plant.state_bounds`.
 
         Parameters
@@ -165,10 +188,12 @@ class Integrator:
             Other state bounds (state units), instead of the plant's rule.
         event_iterations, max_splits : int
             See the class.
+        work : float, optional
+            See the class.
         """
         lower, upper = bounds if bounds is not None else plant.state_bounds(
             {k: v for k, v in (params or {}).items() if k == "hmax"})
-        return cls(numpy_model(plant), lower, upper, event_iterations, max_splits)
+        return cls(numpy_model(plant), lower, upper, event_iterations, max_splits, work)
 
     def clip(self, x: np.ndarray) -> np.ndarray:
         """States clipped to the bounds (the one clipping rule).
@@ -243,11 +268,13 @@ class Integrator:
                 substeps: int) -> np.ndarray:
         """One sampling period ``ts`` (s) under the held input ``u``: ``substeps`` steps.
 
-        ``u`` is used as given (saturate it first, see `input_limits`). Up to
-        `CASADI_MAX_RUNS` runs the period is one call of the plant's CasADi
-        period function (runs whose mode changed are re-integrated by the
-        numpy code, which locates the crossing); above, the generated numpy
-        code on the row layout (n, M). Both give the same numbers bit for bit.
+        ``u`` is used as given (saturate it first, see `input_limits`). The
+        period is one call of the plant's compiled C kernel (`native`) when
+        a C compiler works; otherwise, up to `CASADI_MAX_RUNS` runs, one call
+        of the plant's CasADi period function, and above, the generated numpy
+        code on the row layout (n, M). Runs whose mode changed are
+        re-integrated by the numpy code, which locates the crossing. All
+        routes give the same numbers bit for bit.
 
         Parameters
         ----------
@@ -272,13 +299,38 @@ class Integrator:
         x = np.asarray(x, dtype=float)
         u = np.asarray(u, dtype=float)
         limit = CASADI_MAX_RUNS_HYBRID if self.model.k else CASADI_MAX_RUNS
-        if 0 < x.shape[0] <= limit and self.model.n and self.lower.ndim == 1 and self.upper.ndim == 1:
+        kernel = self.native(substeps) if x.shape[0] else None
+        if kernel is not None:
+            x1, low, high = native.period(self, kernel, x, u, p, h, substeps)
+            self.backends.add("native")
+        elif 0 < x.shape[0] <= limit and self.model.n and self.lower.ndim == 1 and self.upper.ndim == 1:
             x1, low, high = self._period_casadi(x, u, p, h, substeps)
+            self.backends.add("casadi")
         else:
             x1, low, high = self._period_rows(x, u, p, h, substeps)
+            self.backends.add("numpy")
         self.clipped_low += int(np.count_nonzero(low))
         self.clipped_high += int(np.count_nonzero(high))
         return x1
+
+    def native(self, substeps: int) -> NativeKernel | None:
+        """The plant's compiled kernel for this integrator, or None (then CasADi/numpy).
+
+        None when the bounds are per run, ``substeps`` exceeds
+        `tanksynth.sim.csource.MAX_SUBSTEPS`, or no kernel could be built
+        (`tanksynth.sim.kernel.kernel_status` says why).
+
+        Parameters
+        ----------
+        substeps : int
+            RK4 steps per period.
+        """
+        if not (self.model.n and self.lower.ndim == 1 and self.upper.ndim == 1
+                and 1 <= int(substeps) <= MAX_SUBSTEPS):
+            return None
+        if self._kernel is False:
+            self._kernel = native_kernel(self.model, self.work)
+        return self._kernel  # type: ignore[return-value]
 
     def _values(self, p: Mapping[str, Any]) -> tuple[list, tuple]:
         """Parameter values in the model's order and their constants (cached by identity)."""
@@ -415,14 +467,19 @@ class Integrator:
         return x1, low, high
 
     def horizon(self, x: np.ndarray, U: np.ndarray, p: Mapping[str, Any], ts: float,
-                substeps: int) -> np.ndarray | None:
-        """Open loop over a whole input sequence in one CasADi call (``mapaccum``), or None.
+                substeps: int, out: np.ndarray | None = None) -> np.ndarray | None:
+        """Open loop over a whole input sequence in one call, or None.
 
-        The same period function as `advance` (so the same numbers, bit for
-        bit), accumulated over the ``N`` periods and mapped over the runs.
+        With the compiled kernel (`native`): one call for every run and
+        period; a run whose hybrid mode changes in a period stops there, that
+        period is re-integrated by the numpy code (crossing located) and the
+        kernel resumes from the next one. Without it: the CasADi period
+        function accumulated over the ``N`` periods (``mapaccum``) and mapped
+        over the runs. Both give the numbers of `advance`, bit for bit.
         Returns None, having changed nothing, when this path does not apply
-        (too many runs, no CasADi form) or a period changed a hybrid mode or
-        left a state non-finite: the caller then steps period by period.
+        (no kernel and too many runs or no CasADi form, or, on the CasADi
+        route, a period changed a hybrid mode) or a state became non-finite:
+        the caller then steps period by period.
 
         Parameters
         ----------
@@ -435,19 +492,26 @@ class Integrator:
         ts : float
             Sampling period (s).
         substeps : int
+        out : ndarray, shape (N, M, n), optional
+            Buffer for the result (any strides, e.g. ``X[:, 1:].transpose(1, 0,
+            2)`` of a run-major ``X``; last axis contiguous); may be written even
+            when None is returned.
 
         Returns
         -------
         ndarray, shape (N, M, n) or None
-            States at the end of every period (state units).
+            States at the end of every period (state units; ``out`` when given).
         """
         model = self.model
         N, count = U.shape[0], x.shape[0]
+        substeps = int(substeps)
+        kernel = self.native(substeps) if count and N else None
+        if kernel is not None:
+            return native.horizon(self, kernel, x, U, p, float(ts) / substeps, substeps, out)
         limit = CASADI_MAX_RUNS_HYBRID if model.k else CASADI_MAX_RUNS
         if not (0 < count <= limit and N > 0 and model.n and self.lower.ndim == 1
                 and self.upper.ndim == 1):
             return None
-        substeps = int(substeps)
         pv, c = self._values(p)
         key = ("horizon", substeps, N, count)
         fn = model._casadi.get(key)
@@ -480,6 +544,10 @@ class Integrator:
             return None
         self.clipped_low += int(np.count_nonzero(low.max(axis=0) > 0.5))
         self.clipped_high += int(np.count_nonzero(high.max(axis=0) > 0.5))
+        self.backends.add("casadi")
+        if out is not None:
+            out[...] = X.transpose(1, 0, 2)
+            return out
         return X.transpose(1, 0, 2)
 
     def clip_counted(self, x: np.ndarray) -> np.ndarray:
@@ -526,166 +594,3 @@ class Integrator:
             idx, cur, uc, left = idx[again], cur[again], uc[again], left[again]
             pc = sub(pc, again)
         return x1
-
-
-# ----------------------------------------------------------------------------- symbolic
-class SymbolicStep(NamedTuple):
-    """CasADi expressions of `symbolic_rk4`.
-
-    Attributes
-    ----------
-    x : casadi.SX, shape (n, 1)
-        State after the step (clipped).
-    integral : casadi.SX or None
-        Trapezoid integral of the integrand over the RK4 grid.
-    crossed : casadi.SX, scalar
-        1 when a substep changed the hybrid mode (the numeric `Integrator`
-        would have located the crossing: hand that run to it), else 0.
-    """
-
-    x: Any
-    integral: Any
-    crossed: Any
-
-
-def _saturation(plant: Plant) -> Callable[[Any], Any]:
-    import casadi as ca
-
-    limits = plant.input_limits
-
-    def sat(u: Any) -> Any:
-        out = ca.SX(u) if not isinstance(u, ca.MX) else u
-        parts = []
-        for i, (lo, hi) in enumerate(limits):
-            v = out[i]
-            if np.isfinite(lo):
-                v = ca.fmax(v, lo)
-            if np.isfinite(hi):
-                v = ca.fmin(v, hi)
-            parts.append(v)
-        return ca.vertcat(*parts) if parts else out
-
-    return sat
-
-
-def symbolic_rk4(plant: Plant, x: Any, u: Any, dt: float, substeps: int = 1, *,
-                 integrand: Callable[[Any], Any] | None = None) -> SymbolicStep:
-    """The integrator's step as CasADi expressions (same scheme as `Integrator`).
-
-    ``substeps`` RK4 steps of ``dt / substeps`` on the compiled plant
-    ``plant.compiled.f`` (parameters at the plant's values): stage states and
-    every end state clipped to `Plant.state_bounds`, inputs saturated to the
-    actuators' range. The mode bits are compared across every substep;
-    a change sets ``crossed`` (no location here: the caller must hand such
-    runs to the numeric `Integrator`).
-
-    Parameters
-    ----------
-    plant : Plant
-    x : casadi.SX, shape (n, 1)
-        State at the start (state units).
-    u : casadi.SX or callable
-        Input (input units) held over ``dt``, or ``s -> u(s)`` evaluated at
-        every RK4 stage (a continuous-time law).
-    dt : float
-        Length of the step (s).
-    substeps : int
-        RK4 steps inside ``dt``.
-    integrand : callable, optional
-        ``s -> g(s)`` (casadi column): its integral over the step by the
-        trapezoid rule on the RK4 grid, at the clipped grid states.
-
-    Returns
-    -------
-    SymbolicStep
-    """
-    import casadi as ca
-
-    f = plant.compiled.f
-    lo, hi = plant.state_bounds()
-    lo_dm, hi_dm = ca.DM(lo), ca.DM(hi)
-    clip = lambda v: ca.fmin(ca.fmax(v, lo_dm), hi_dm)  # noqa: E731
-    sat = _saturation(plant)
-    if callable(u):
-        rhs = lambda s: f(s, sat(u(s)))  # noqa: E731
-    else:
-        held = sat(u)
-        rhs = lambda s: f(s, held)  # noqa: E731
-    switching = plant.compiled.switching
-    h = float(dt) / int(substeps)
-    s = x
-    crossed = ca.SX(0)
-    integral = None
-    for _ in range(int(substeps)):
-        g0 = integrand(s) if integrand is not None else None
-        end = rk4_step(rhs, s, h, clip)
-        if switching is not None:
-            b0, b1 = switching(s) > 0, switching(end) > 0
-            for j in range(b0.numel()):
-                crossed = ca.logic_or(crossed, b0[j] != b1[j])
-        s = clip(end)
-        if integrand is not None:
-            inc = h / 2 * (g0 + integrand(s))
-            integral = inc if integral is None else integral + inc
-    return SymbolicStep(s, integral, crossed)
-
-
-def casadi_step(plant: Plant, dt: float, law: Any = None, substeps: int = 1) -> Any:
-    """One step of the integrator as a CasADi Function (`symbolic_rk4`).
-
-    Parameters
-    ----------
-    plant : Plant
-    dt : float
-        Step (s), split into ``substeps`` RK4 steps.
-    law : casadi.Function, optional
-        ``(x, r) -> u, ...``: evaluated at every RK4 stage (a continuous-time
-        law). Without it the input is held over the step (zero-order hold).
-    substeps : int
-
-    Returns
-    -------
-    casadi.Function
-        ``(x, u) -> (x_next, crossed)`` or ``(x, r) -> (x_next, crossed)``;
-        ``crossed`` is 1 when the step changed the hybrid mode (see
-        `SymbolicStep`).
-    """
-    import casadi as ca
-
-    x = ca.SX.sym("x", plant.n)
-    if law is None:
-        v = ca.SX.sym("u", plant.m)
-        u: Any = v
-    else:
-        v = ca.SX.sym("r", law.size1_in(1))
-        u = lambda s: law(s, v)[0] if law.n_out() > 1 else law(s, v)  # noqa: E731
-    out = symbolic_rk4(plant, x, u, dt, substeps)
-    return ca.Function("rk4_step", [x, v], [out.x, out.crossed],
-                       ["x", "u" if law is None else "r"], ["x_next", "crossed"])
-
-
-# ----------------------------------------------------------------------------- linear
-def rk4_matrix(M: Any, h: float) -> np.ndarray:
-    """The integrator's RK4 step of a linear system ``dz/dt = M z``, as a matrix.
-
-    `rk4_step` applied to the columns of the identity: ``z(t + h) = R z(t)``
-    with ``R = I + hM + (hM)^2/2 + (hM)^3/6 + (hM)^4/24`` (RK4 is exact to
-    fourth order). An affine system is written with a constant state
-    ``z[-1] = 1``. No clipping: the caller checks that the states stay
-    within the plant's bounds.
-
-    Parameters
-    ----------
-    M : array_like, shape (k, k)
-        System matrix (1/s).
-    h : float
-        Step (s), >= 0.
-
-    Returns
-    -------
-    ndarray, shape (k, k)
-    """
-    M = np.asarray(M, dtype=float)
-    if M.ndim != 2 or M.shape[0] != M.shape[1]:
-        raise DimensionError(f"M must be a square matrix, got shape {M.shape}")
-    return rk4_step(lambda Z: M @ Z, np.eye(M.shape[0]), float(h))

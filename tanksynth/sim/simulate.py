@@ -22,9 +22,13 @@ independent runs at once:
 * parameter changes (faults: a valve leak or clogging from a given sample)
   and state jumps (water added or removed) at given samples.
 
-The vector field is the plant compiled once (`tanksynth.sim.tape`: generated
-numpy code on the row layout, and the same code as one CasADi function per
-sampling period for small batches, bit for bit equal), with the
+The vector field is the plant compiled once: the sampling period as C
+compiled with the system compiler (`tanksynth.sim.kernel`, the whole horizon
+of every run in one call when the inputs are known in advance) when a
+compiler works, else generated numpy code on the row layout and the same
+code as one CasADi function per sampling period for small batches
+(`tanksynth.sim.tape`); all bit for bit equal (`SimulationResult.backend`
+names the route), with the
 parameters as inputs (each run may carry its own values, e.g. a +-10 %
 uncertainty draw, and faults switch values mid-run).
 
@@ -42,12 +46,14 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass
-from typing import Any, Callable, Mapping, Protocol, Sequence, runtime_checkable
+from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
 
 from tanksynth.errors import DimensionError, SimulationError
 from tanksynth.plants.base import Plant
+from tanksynth.sim.inputs import (BatchEstimator, ConstantInput, ControlLaw, EstimatorAdapter,
+                                  InputSequence, ParameterChange, StateJump)
 from tanksynth.sim.integrate import Integrator, input_limits, param_arrays
 
 __all__ = [
@@ -64,193 +70,6 @@ __all__ = [
     "simulate",
     "simulate_inputs",
 ]
-
-
-@runtime_checkable
-class BatchEstimator(Protocol):
-    """What the simulator calls on a state estimator (batch over M runs).
-
-    ``reset(x_hat0)`` sets the initial estimate, shape (M, n), in state
-    units; ``step(y, u)`` takes the measurement ``y_k`` (M, q) and the input
-    ``u_{k-1}`` held over the previous period (M, m) and returns the
-    estimate ``x_hat_k`` (M, n). Estimators with a different interface are
-    wrapped in a thin adapter.
-    """
-
-    def reset(self, x_hat0: np.ndarray) -> None:
-        """Set the estimate at time 0, shape (M, n).
-
-        Parameters
-        ----------
-        x_hat0 : ndarray, shape (M, n)
-            Initial estimates (state units, m).
-        """
-
-    def step(self, y: np.ndarray, u: np.ndarray) -> np.ndarray:
-        """One sample: measurement (M, q) and previous input (M, m) -> estimate (M, n).
-
-        Parameters
-        ----------
-        y : ndarray, shape (M, q)
-            Measurements (output units, m).
-        u : ndarray, shape (M, m)
-            Inputs held over the previous period (input units, m^3/s).
-        """
-
-
-@runtime_checkable
-class ControlLaw(Protocol):
-    """What the simulator calls on a control law (batch over M runs).
-
-    ``law(x_hat, reference, t)`` maps the estimate (M, n), the reference
-    (M, r) and the time ``t`` (s) to the input (M, m), in the plant's input
-    units (saturation is applied by the simulator). A stateful law (integral
-    action) may also define ``reset(M)``, called once before the first
-    sample.
-    """
-
-    def __call__(self, x_hat: np.ndarray, reference: np.ndarray, t: float) -> np.ndarray:
-        """Input (M, m) for estimate (M, n) and reference (M, r) at time t (s)."""
-
-
-
-
-# ----------------------------------------------------------------------------- inputs
-@dataclass(frozen=True)
-class StateJump:
-    """Water added to or removed from the tanks at a sample.
-
-    Attributes
-    ----------
-    sample : int
-        Sample index ``k`` (the state at ``t_k`` jumps before it is measured).
-    delta : tuple of float
-        Change of each state, in state units (e.g. m); the result is clipped.
-    """
-
-    sample: int
-    delta: tuple[float, ...]
-
-
-@dataclass(frozen=True)
-class ParameterChange:
-    """New plant parameter values from a sample on (faults, e.g. a valve leak).
-
-    Attributes
-    ----------
-    sample : int
-        Sample index ``k``: the new values hold from ``t_k`` on.
-    values : mapping of str to float
-        Parameter name -> value in the parameter's unit.
-    """
-
-    sample: int
-    values: Mapping[str, float]
-
-
-@dataclass(frozen=True)
-class ConstantInput:
-    """Open-loop control law holding a constant input (e.g. the equilibrium ``u0``).
-
-    Attributes
-    ----------
-    u : tuple of float
-        Input in the plant's input units.
-    """
-
-    u: tuple[float, ...]
-
-    def __call__(self, x_hat: np.ndarray, reference: np.ndarray, t: float) -> np.ndarray:
-        """The constant input broadcast to (M, m)."""
-        return np.broadcast_to(np.asarray(self.u, dtype=float), (x_hat.shape[0], len(self.u))).copy()
-
-
-class InputSequence:
-    """Open-loop control law replaying a given input sequence (one per run).
-
-    Parameters
-    ----------
-    inputs : array_like, shape (N, m) or (N, M, m)
-        Input held over period ``k`` (input units): the same sequence for
-        every run, or one per run. The ``k``-th call returns row ``k``;
-        `reset` (called by `simulate` before the first sample) rewinds.
-    """
-
-    def __init__(self, inputs: Any):
-        arr = np.asarray(inputs, dtype=float)
-        if arr.ndim not in (2, 3):
-            raise DimensionError(f"inputs must have shape (N, m) or (N, M, m), got {arr.shape}")
-        self.inputs = arr
-        self._k = 0
-
-    def reset(self, runs: int) -> None:
-        """Back to the first period (``runs`` must match a per-run sequence).
-
-        Parameters
-        ----------
-        runs : int
-            Number of runs M.
-        """
-        if self.inputs.ndim == 3 and self.inputs.shape[1] != runs:
-            raise DimensionError(f"the input sequence has {self.inputs.shape[1]} runs, the "
-                                 f"simulation {runs}")
-        self._k = 0
-
-    def __call__(self, x_hat: np.ndarray, reference: np.ndarray, t: float) -> np.ndarray:
-        """Input of the current period, (M, m)."""
-        if self._k >= self.inputs.shape[0]:
-            raise DimensionError(f"the input sequence has {self.inputs.shape[0]} periods; period "
-                                 f"{self._k} was asked for")
-        row = self.inputs[self._k]
-        self._k += 1
-        if row.ndim == 2:
-            if row.shape[0] != x_hat.shape[0]:
-                raise DimensionError(f"the input sequence has {row.shape[0]} runs, the "
-                                     f"simulation {x_hat.shape[0]}")
-            return row.copy()
-        return np.repeat(row[None], x_hat.shape[0], axis=0)
-
-
-class EstimatorAdapter:
-    """A `BatchEstimator` from an estimator of `tanksynth.runtime.estimators`.
-
-    Those estimators are built for a number of runs and offer
-    ``batch(runs)`` (a fresh twin for M runs), ``reset(x0)`` and ``step(y,
-    u)`` with the same sample convention as the simulator. `reset` makes the
-    batch twin for the simulation's M runs and sets its initial estimate.
-
-    Parameters
-    ----------
-    template : object
-        An estimator (single run or batch) of the design stage.
-    """
-
-    def __init__(self, template: Any):
-        self.template = template
-        self._est: Any = None
-
-    def reset(self, x_hat0: np.ndarray) -> None:
-        """Fresh estimator for ``x_hat0.shape[0]`` runs, started at ``x_hat0`` (M, n).
-
-        Parameters
-        ----------
-        x_hat0 : ndarray, shape (M, n)
-            Initial estimates (state units, m).
-        """
-        self._est = self.template.batch(int(x_hat0.shape[0]))
-        self._est.reset(x_hat0)
-
-    def step(self, y: np.ndarray, u: np.ndarray) -> np.ndarray:
-        """Measurement (M, q) and previous input (M, m) -> estimate (M, n).
-
-        Parameters
-        ----------
-        y : ndarray, shape (M, q)
-            Measurements (output units, m).
-        u : ndarray, shape (M, m)
-            Inputs held over the previous period (input units, m^3/s).
-        """
-        return self._est.step(y, u)
 
 
 @dataclass(frozen=True)
@@ -289,6 +108,11 @@ class SimulationResult:
         ``timing["controller"] / calls``.
     plant : str
         Plant model name.
+    backend : str
+        Route that integrated the periods (``"native"``: the plant's compiled C
+        kernel, ``"casadi"``, ``"numpy"``; several joined by ``+``), see
+        `tanksynth.sim.integrate.Integrator.backends` and, when it is not
+        ``"native"``, `tanksynth.sim.kernel.kernel_status` for why.
     """
 
     t: np.ndarray
@@ -306,6 +130,7 @@ class SimulationResult:
     clipped_high: int
     timing: Mapping[str, float]
     plant: str
+    backend: str = ""
 
     @property
     def runs(self) -> int:
@@ -458,7 +283,7 @@ def simulate(plant: Plant, *, ts: float, steps: int, x0: Sequence[float] | np.nd
             raise DimensionError(f"state jump at sample {j.sample} has {delta.size} entries, expected {n}")
         jump_at[int(j.sample)] = jump_at.get(int(j.sample), np.zeros(n)) + delta
     integ = Integrator.for_plant(plant, params, bounds=bounds, event_iterations=event_iterations,
-                                 max_splits=max_splits)
+                                 max_splits=max_splits, work=float(M) * N * int(substeps))
     model = integ.model
 
     # Noise: one generator per run, drawn in a fixed order (process, then measurement).
@@ -491,21 +316,10 @@ def simulate(plant: Plant, *, ts: float, steps: int, x0: Sequence[float] | np.nd
     if (estimator is None and isinstance(controller, InputSequence) and not noisy and not schedule
             and not jump_at and controller.inputs.shape[0] >= N):
         # Open loop without noise, faults or jumps: the whole horizon in one call (same numbers).
-        seq = controller.inputs[:N]
-        seq = seq[:, None, :] if seq.ndim == 2 else seq
-        if seq.shape[1] in (1, M):
-            Useq = np.minimum(np.maximum(np.broadcast_to(seq, (N, M, m)), lo), hi)
-            ends = integ.horizon(x, Useq, params, ts, int(substeps))
-            if ends is not None:
-                X[0], X[1:] = x, ends
-                flat = X.reshape(-1, n)
-                Y[:] = integ.output(flat, _repeat(params, N + 1)).reshape(N + 1, M, q)
-                if model.k:
-                    modes[:] = integ.bits(flat, _repeat(params, N + 1)).reshape(N + 1, M, model.k)
-                XH[:] = X
-                U[:] = Useq
-                timing["calls"] = N
-                return _result(X, Y, U, XH, ref, seeds, modes, ts, substeps, integ, timing, plant)
+        done = _open_loop(integ, x, controller.inputs[:N], params, lo, hi, ts, int(substeps))
+        if done is not None:
+            timing["calls"] = N
+            return _pack(*done, ref, seeds, ts, substeps, integ, timing, plant)
     refs = np.broadcast_to(ref[:, None, :], (N + 1, M, ref.shape[1]))
     for k in range(N + 1):
         t_k = k * ts
@@ -553,9 +367,42 @@ def simulate(plant: Plant, *, ts: float, steps: int, x0: Sequence[float] | np.nd
     return _result(X, Y, U, XH, ref, seeds, modes, ts, substeps, integ, timing, plant)
 
 
-def _repeat(params: Mapping[str, Any], times: int) -> dict[str, Any]:
-    """Parameter values for ``times`` copies of the batch (time-major rows)."""
-    return {k: (np.tile(v, times) if np.ndim(v) else v) for k, v in params.items()}
+def _open_loop(integ: Integrator, x: np.ndarray, seq: np.ndarray, params: dict[str, Any],
+               lo: np.ndarray, hi: np.ndarray, ts: float, substeps: int) -> tuple | None:
+    """Open loop over a known input sequence in one `Integrator.horizon` call, or None.
+
+    Works on run-major buffers (the result's layout: no transposed copies);
+    returns ``(x, y, u, x_hat, modes)`` run-major, ``x_hat`` a read-only view
+    of ``x``.
+    """
+    N, M = seq.shape[0], x.shape[0]
+    model = integ.model
+    seq = seq[:, None, :] if seq.ndim == 2 else seq
+    if seq.shape[1] not in (1, M):
+        return None
+    Ur = np.empty((M, N, model.m))
+    src = np.broadcast_to(seq, (N, M, model.m)).transpose(1, 0, 2)
+    np.minimum(np.maximum(src, lo[:, None, :]), hi[:, None, :], out=Ur)
+    Xr = np.empty((M, N + 1, model.n))
+    Xr[:, 0] = x
+    if integ.horizon(x, Ur.transpose(1, 0, 2), params, ts, substeps,
+                     out=Xr[:, 1:].transpose(1, 0, 2)) is None:
+        return None
+    Xr.flags.writeable = False
+    flat = Xr.reshape(-1, model.n)
+    rows = params
+    if (model.output_index is None or model.k) and any(np.ndim(v) for v in params.values()):
+        rows = {k: (np.repeat(v, N + 1) if np.ndim(v) else v) for k, v in params.items()}
+    if model.output_index == tuple(range(model.n)):
+        Y = Xr.view()                                   # y = x: the same (read-only) numbers
+    elif model.output_index is not None:
+        Y = Xr[:, :, list(model.output_index)]
+    else:
+        Y = integ.output(flat, rows).reshape(M, N + 1, model.q)
+    modes = np.zeros((M, N + 1, model.k), dtype=np.int8)
+    if model.k:
+        modes[:] = integ.bits(flat, rows).reshape(M, N + 1, model.k)
+    return Xr, Y, Ur, Xr.view(), modes
 
 
 def _result(X: np.ndarray, Y: np.ndarray, U: np.ndarray, XH: np.ndarray, ref: np.ndarray,
@@ -563,14 +410,22 @@ def _result(X: np.ndarray, Y: np.ndarray, U: np.ndarray, XH: np.ndarray, ref: np
             timing: dict, plant: Plant) -> SimulationResult:
     """The read-only, run-major result from the time-major buffers."""
     run_major = lambda a: np.ascontiguousarray(a.transpose(1, 0, 2))  # noqa: E731
-    arrays = dict(t=np.arange(X.shape[0]) * float(ts), x=run_major(X), y=run_major(Y),
-                  u=run_major(U), x_hat=run_major(XH), reference=ref, seeds=seeds.copy(),
-                  modes=run_major(modes))
+    return _pack(run_major(X), run_major(Y), run_major(U), run_major(XH), run_major(modes), ref,
+                 seeds, ts, substeps, integ, timing, plant)
+
+
+def _pack(x: np.ndarray, y: np.ndarray, u: np.ndarray, x_hat: np.ndarray, modes: np.ndarray,
+          ref: np.ndarray, seeds: np.ndarray, ts: float, substeps: int, integ: Integrator,
+          timing: dict, plant: Plant) -> SimulationResult:
+    """The read-only result from run-major arrays."""
+    arrays = dict(t=np.arange(x.shape[1]) * float(ts), x=x, y=y, u=u, x_hat=x_hat, reference=ref,
+                  seeds=seeds.copy(), modes=modes)
     for arr in arrays.values():
         arr.flags.writeable = False
     return SimulationResult(**arrays, ts=float(ts), substeps=int(substeps), events=integ.events,
                             clipped_low=integ.clipped_low, clipped_high=integ.clipped_high,
-                            timing=timing, plant=plant.name)
+                            timing=timing, plant=plant.name,
+                            backend="+".join(sorted(integ.backends)))
 
 
 def simulate_inputs(plant: Plant, x0: Any, inputs: Any, ts: float, *, substeps: int = 10,

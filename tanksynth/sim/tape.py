@@ -18,11 +18,15 @@ dominates, so `NumpyModel.casadi_advance` builds the whole sampling period
 (RK4 substeps, clipping, the mode-change flag and the clipping flags) as one
 CasADi SX function of ``(x, u, p, h, lower, upper)``, evaluated in place
 through a CasADi `FunctionBuffer` (`tanksynth.sim.integrate` picks it for
-M up to `CASADI_MAX_RUNS`). That CasADi function is built by running the
-generated source itself with CasADi operations in place of numpy's, in the
-same order, so the two forms give the same numbers bit for bit (tested): a
-run's trajectory does not depend on the batch it is simulated in. Both agree
-with the CasADi `CompiledPlant.rhs` to rounding (tested).
+M up to `CASADI_MAX_RUNS` when the plant has no native kernel). That CasADi
+function is built by running the generated source itself with CasADi
+operations in place of numpy's, in the same order, so the two forms give the
+same numbers bit for bit (tested): a run's trajectory does not depend on the
+batch it is simulated in. Both agree with the CasADi `CompiledPlant.rhs` to
+rounding (tested). The same source is also translated to C, the plant's
+native kernel (`tanksynth.sim.csource`, `tanksynth.sim.kernel`), which the
+integrator prefers when a C compiler works; again bit for bit (tested).
+Dropping a model (`clear_cache`) drops the kernel it holds.
 
 Cache (no hidden state): compiled models live in this module, in
 ``_MODELS`` (keyed by the plant's name, equations, switching functions and
@@ -229,6 +233,9 @@ class NumpyModel:
         The generated Python source.
     n_constants : int
         Number of parameter-only sub-expressions (`constants`).
+    output_index : tuple of int or None
+        When every output is one state (``h(x) = x[output_index]``), those
+        states' indices (the output is then a selection, no code to run).
     """
 
     n: int
@@ -240,6 +247,7 @@ class NumpyModel:
     n_constants: int = field(repr=False)
     _fns: Mapping[str, Callable] = field(repr=False)
     _casadi: dict = field(default_factory=dict, repr=False, compare=False)
+    output_index: tuple[int, ...] | None = field(default=None, repr=False)
 
     def parameter_values(self, params: Mapping[str, Any]) -> list:
         """Parameter values in the model's order (scalars or (M,) arrays).
@@ -559,8 +567,10 @@ def numpy_model(plant: Plant) -> NumpyModel:
         if s:
             groups["s"] = (s, xs)
         source, fns = _generate(groups, params)
+        index = tuple(xs.index(e) if e in xs else -1 for e in h)
         model = NumpyModel(plant.n, plant.m, plant.q, len(switching), names, source,
-                           fns["n_constants"], fns)
+                           fns["n_constants"], fns,
+                           output_index=None if -1 in index else index)
         _MODELS[key] = model
     if len(_BY_ID) > 256:
         _BY_ID.clear()

@@ -29,6 +29,7 @@ def test_clear_cache_then_rebuild_gives_the_same_numbers():
 def _both_paths(monkeypatch, plant, **kw):
     import tanksynth.sim.integrate as integrate
 
+    monkeypatch.setenv("TANKSYNTH_SIM_BACKEND", "numpy")      # no compiled kernel (test_kernel.py)
     small = sim.simulate(plant, **kw)                      # M <= CASADI_MAX_RUNS: CasADi period
     monkeypatch.setattr(integrate, "CASADI_MAX_RUNS", 0)     # force the generated numpy code
     monkeypatch.setattr(integrate, "CASADI_MAX_RUNS_HYBRID", 0)
@@ -46,6 +47,7 @@ def test_casadi_period_and_numpy_rows_give_the_same_runs_bit_for_bit(monkeypatch
               u_init=np.zeros(plant.m), process_std=1e-4, substeps=3,
               parameters={"k1": np.linspace(0.8, 1.2, M) * plant.parameter_values[plant.p["k1"]]})
     small, rows = _both_paths(monkeypatch, plant, **kw)
+    assert (small.backend, rows.backend) == ("casadi", "numpy")
     assert rows.events > 0 and rows.clipped_low > 0          # crossings and clipping exercised
     # one source, two backends, the same operations in the same order: bit for bit
     assert np.array_equal(small.x, rows.x) and np.array_equal(small.y, rows.y)

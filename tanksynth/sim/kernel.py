@@ -1,0 +1,505 @@
+"""The plant's simulation kernel: built once with the C compiler, cached on disk, loaded.
+
+`native_kernel` turns a plant's generated numpy code into its period kernel
+(C source from `tanksynth.sim.csource.kernel_source`), compiles it once per
+plant structure with ``cc -O3 -shared -fPIC -ffp-contract=off
+-fno-math-errno`` (plus ``-mavx2`` on an x86-64 CPU with AVX2; without it if
+that build fails) and loads it (`ctypes`); `NativeKernel.run` integrates M
+runs over N sampling periods in one call (same numbers as the numpy code of
+`tanksynth.sim.integrate`, bit for bit, tested).
+
+A run whose hybrid mode changes inside a period is not located by the
+kernel: it stops that run at the start of that period (``stop``); the
+caller re-integrates the period with the numpy code (bisection on the step
+fraction, `tanksynth.sim.integrate.Integrator`) and resumes the kernel from
+the next period (``start``).
+
+Choice of route (automatic): the native kernel when a C compiler works;
+otherwise the CasADi/numpy routes of `tanksynth.sim.integrate` (no error),
+with the reason in `kernel_status` and in the log (logger
+``tanksynth.sim``, a warning when a compiler was found but failed).
+Environment: ``TANKSYNTH_SIM_BACKEND`` = ``auto`` (default: load a kernel
+already built, compile a new one only for a simulation of at least
+`BUILD_WORK` state-steps), ``native`` (always compile) or ``numpy`` (never
+use a kernel); ``TANKSYNTH_CC`` the compiler (default ``gcc``, else ``cc``,
+on the ``PATH``).
+
+Cache (no hidden state): libraries are written to ``<dir>/sim/`` where
+``<dir>`` is ``$TANKSYNTH_CACHE_DIR``, else ``$XDG_CACHE_HOME/tanksynth``,
+else ``~/.cache/tanksynth`` (`cache_dir`), named by the SHA-256 of the C
+source, the compiler path and its flags, so a library is never used for
+another kernel. A build writes to a temporary directory inside that
+directory and renames the library into place (atomic: concurrent processes
+may build the same kernel, the last rename wins, the files are identical).
+Loaded kernels are kept in memory (``_STATE``); `clear_cache` forgets them
+(and, on request, deletes the files); `cache_info` reports the counts,
+including the compiler runs of this process (``compiles``).
+"""
+
+from __future__ import annotations
+
+import ctypes
+import hashlib
+import logging
+import os
+import platform
+import shutil
+import subprocess
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from tanksynth.sim.csource import KERNEL_VERSION, kernel_source
+
+__all__ = ["NativeKernel", "PeriodCall", "native_kernel", "kernel_status", "cache_dir", "clear_cache",
+           "cache_info", "per_run_table", "BUILD_WORK"]
+
+_LOG = logging.getLogger("tanksynth.sim")
+
+#: Smallest simulation (RK4 run-steps x states) for which ``auto`` compiles a new kernel.
+BUILD_WORK = 1e6
+
+_FLAGS = ("-O3", "-shared", "-fPIC", "-ffp-contract=off", "-fno-math-errno", "-std=c99")
+
+
+def _cpu_flags() -> tuple[tuple[str, ...], ...]:
+    """Compiler flag sets to try, best first: ``-mavx2`` on an x86-64 CPU that has AVX2.
+
+    AVX2 lets the compiler vectorise the kernel's conditionals (clipping,
+    hybrid branches) over 4 runs; the numbers do not change (the same IEEE
+    operations, no fused multiply-add). The flags are part of the cache key,
+    so a library built with them is never loaded for another flag set.
+    """
+    if platform.machine().lower() in ("x86_64", "amd64"):
+        try:
+            info = Path("/proc/cpuinfo").read_text()
+        except OSError:
+            info = ""
+        flags = next((ln.split(":", 1)[1].split() for ln in info.splitlines()
+                      if ln.startswith("flags")), [])
+        if "avx2" in flags:
+            return (_FLAGS + ("-mavx2",), _FLAGS)
+    return (_FLAGS,)
+
+
+def per_run_table(values: Any, count: int) -> np.ndarray:
+    """Values (scalars or (M,) arrays) as a (M, len(values)) table for `NativeKernel.run`.
+
+    All scalars: one row broadcast over the runs (run stride 0, no copy per run).
+
+    Parameters
+    ----------
+    values : sequence
+        Floats or arrays of ``count`` values (e.g. parameter values, SI units).
+    count : int
+        Number of runs M.
+    """
+    try:
+        row = np.array(values, dtype=float)
+    except ValueError:                  # scalars mixed with per-run arrays
+        row = None
+    if row is not None and row.ndim == 1:
+        return np.broadcast_to(row[None, :], (count, row.size))
+    out = np.empty((count, len(values)))
+    for j, v in enumerate(values):
+        out[:, j] = v
+    return out
+
+
+# ----------------------------------------------------------------------------- build + cache
+def cache_dir() -> Path:
+    """Directory of the compiled simulation kernels (not created here).
+
+    Returns
+    -------
+    pathlib.Path
+        ``$TANKSYNTH_CACHE_DIR/sim``, else ``$XDG_CACHE_HOME/tanksynth/sim``,
+        else ``~/.cache/tanksynth/sim``.
+    """
+    base = os.environ.get("TANKSYNTH_CACHE_DIR")
+    if base:
+        return Path(base) / "sim"
+    xdg = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
+    return Path(xdg) / "tanksynth" / "sim"
+
+
+def _compiler() -> str | None:
+    cc = os.environ.get("TANKSYNTH_CC")
+    if cc:
+        return shutil.which(cc) or (cc if os.path.isfile(cc) else None)
+    return shutil.which("gcc") or shutil.which("cc")
+
+
+@dataclass
+class _State:
+    loaded: dict[str, "NativeKernel"] = field(default_factory=dict)
+    failed: dict[str, str] = field(default_factory=dict)
+    compiles: int = 0
+    last: str = "no kernel asked for yet"
+
+
+_STATE = _State()
+
+_ARGTYPES = [ctypes.c_long, ctypes.c_long, ctypes.c_int, ctypes.c_double, ctypes.c_void_p,
+             ctypes.c_void_p, ctypes.c_long, ctypes.c_long, ctypes.c_void_p, ctypes.c_long,
+             ctypes.c_void_p, ctypes.c_long, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_void_p,
+             ctypes.c_void_p, ctypes.c_long, ctypes.c_long, ctypes.c_void_p, ctypes.c_void_p,
+             ctypes.c_void_p]
+
+
+class NativeKernel:
+    """A loaded period kernel (`native_kernel`): M runs over N periods per call.
+
+    Parameters
+    ----------
+    lib : ctypes.CDLL
+        The loaded shared library (defines ``tk_run``).
+    path : pathlib.Path
+        Its file.
+    n, m : int
+        States and inputs of the plant.
+    compile_seconds : float
+        Compiler wall time in this process (s; 0 when loaded from the disk cache).
+
+    Attributes
+    ----------
+    n, m : int
+        States and inputs of the plant.
+    path : pathlib.Path
+        The shared library.
+    compile_seconds : float
+        Wall time of the compiler run that built it in this process (0 when loaded
+        from the disk cache).
+    """
+
+    def __init__(self, lib: ctypes.CDLL, path: Path, n: int, m: int, compile_seconds: float):
+        self._fn = lib.tk_run
+        self._fn.argtypes = _ARGTYPES
+        self._fn.restype = ctypes.c_int
+        self._lib = lib
+        self.path = path
+        self.n, self.m = n, m
+        self.compile_seconds = compile_seconds
+
+    def period(self, count: int, substeps: int) -> "PeriodCall":
+        """A reusable one-period call for ``count`` runs (buffers and arguments bound once).
+
+        Parameters
+        ----------
+        count : int
+            Number of runs M.
+        substeps : int
+            RK4 steps per period.
+        """
+        return PeriodCall(self, int(count), int(substeps))
+
+    def run(self, x0: np.ndarray, U: np.ndarray, C: np.ndarray, P: np.ndarray, lower: np.ndarray,
+            upper: np.ndarray, h: float, substeps: int, X: np.ndarray,
+            start: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Integrate M runs over N periods (arrays must be C-contiguous float64 where noted).
+
+        Parameters
+        ----------
+        x0 : ndarray, shape (M, n)
+            Clipped states at the start (state units), C-contiguous.
+        U : ndarray, shape (N, M, m)
+            Saturated inputs held over each period (input units); strides of the
+            first two axes may be 0 (broadcast), the last axis contiguous.
+        C : ndarray, shape (M, nc)
+            The model's parameter-only constants per run (run stride may be 0).
+        P : ndarray, shape (M, np)
+            Parameter values per run (run stride may be 0).
+        lower, upper : ndarray, shape (n,)
+            State bounds (state units).
+        h : float
+            RK4 step (s).
+        substeps : int
+            RK4 steps per period (1 ... `MAX_SUBSTEPS`).
+        X : ndarray, shape (N, M, n)
+            Written: end state of every period (last axis contiguous, any strides
+            of the first two, e.g. a transposed run-major buffer; periods at or
+            after a run's ``stop`` are left untouched).
+        start : ndarray of int64, shape (M,), optional
+            First period of each run (default 0); states in ``x0`` are at its start.
+
+        Returns
+        -------
+        stop : ndarray of int64, shape (M,)
+            First period whose hybrid mode changed (-1: none); the run's state at
+            its start is ``X[stop - 1]`` (``x0`` when it is ``start``).
+        low, high : ndarray of bool, shape (N, substeps)
+            RK4 steps after which a completed run passed a bound (before clipping).
+        """
+        M, N = x0.shape[0], U.shape[0]
+        S = int(substeps)
+        stop = np.full(M, -1, dtype=np.int64)
+        low = np.zeros((N, S), dtype=bool)
+        high = np.zeros((N, S), dtype=bool)
+        if M == 0 or N == 0:
+            return stop, low, high
+        item = 8
+        lo = np.ascontiguousarray(lower, dtype=float)
+        hi = np.ascontiguousarray(upper, dtype=float)
+        st = None if start is None else np.ascontiguousarray(start, dtype=np.int64)
+        if not (x0.flags.c_contiguous and x0.shape == (M, self.n) and X.shape == (N, M, self.n)
+                and U.shape == (N, M, self.m) and C.shape[0] == M and P.shape[0] == M
+                and x0.dtype == U.dtype == C.dtype == P.dtype == X.dtype == np.float64
+                and lo.shape == hi.shape == (self.n,) and (st is None or st.shape == (M,))):
+            raise ValueError("native kernel: unsupported array shapes or types")
+        for a in (U, C, P, X):
+            if (a.shape[-1] > 1 and a.strides[-1] != item) or any(s % item for s in a.strides):
+                raise ValueError("native kernel: unsupported array layout")
+        status = self._fn(M, N, S, float(h), x0.ctypes.data, U.ctypes.data, U.strides[0] // item,
+                          U.strides[1] // item, C.ctypes.data, C.strides[0] // item,
+                          P.ctypes.data, P.strides[0] // item, lo.ctypes.data, hi.ctypes.data,
+                          None if st is None else st.ctypes.data, X.ctypes.data,
+                          X.strides[0] // item, X.strides[1] // item, stop.ctypes.data,
+                          low.ctypes.data, high.ctypes.data)
+        if status:
+            raise ValueError(f"native kernel refused substeps = {S}")
+        return stop, low, high
+
+
+class PeriodCall:
+    """One sampling period of M runs through the kernel, with persistent buffers.
+
+    The period-by-period loop of the simulator (closed loop, noise) calls the
+    kernel once per sample: its arguments are converted once here
+    (`bind`), each call only copies the state and the input in.
+
+    Parameters
+    ----------
+    kernel : NativeKernel
+    count : int
+        Number of runs M.
+    substeps : int
+        RK4 steps per period (1 ... `tanksynth.sim.csource.MAX_SUBSTEPS`).
+    """
+
+    def __init__(self, kernel: NativeKernel, count: int, substeps: int):
+        n, m = kernel.n, kernel.m
+        self.kernel = kernel
+        self.x = np.empty((count, n))
+        self.u = np.empty((1, count, m))
+        self.out = np.empty((1, count, n))
+        self.stop = np.empty(count, dtype=np.int64)
+        self.low = np.zeros((1, substeps), dtype=bool)
+        self.high = np.zeros((1, substeps), dtype=bool)
+        self.count, self.substeps = count, substeps
+        self._args: tuple | None = None
+        self._held: tuple = ()
+
+    def bind(self, C: np.ndarray, P: np.ndarray, lower: np.ndarray, upper: np.ndarray,
+             h: float) -> None:
+        """Constants and parameters (M, .) per run, state bounds (n,), step ``h`` (s).
+
+        Parameters
+        ----------
+        C, P : ndarray, shape (M, nc) and (M, np)
+            See `NativeKernel.run` (kept alive while bound).
+        lower, upper : ndarray, shape (n,)
+            State bounds (state units).
+        h : float
+            RK4 step (s).
+        """
+        held = (C, P, lower, upper, float(h))
+        if self._args is not None and all(a is b for a, b in zip(held[:4], self._held[:4])) \
+                and held[4] == self._held[4]:
+            return
+        # validates shapes and layout once (zero periods: nothing integrated)
+        self.kernel.run(self.x, self.u[:0], C, P, lower, upper, h, self.substeps,
+                        self.out[:0])
+        lo = np.ascontiguousarray(lower, dtype=float)
+        hi = np.ascontiguousarray(upper, dtype=float)
+        item = 8
+        vp, lg = ctypes.c_void_p, ctypes.c_long
+        self._args = (lg(self.count), lg(1), ctypes.c_int(self.substeps), ctypes.c_double(h),
+                      vp(self.x.ctypes.data), vp(self.u.ctypes.data), lg(0),
+                      lg(self.u.strides[1] // item), vp(C.ctypes.data), lg(C.strides[0] // item),
+                      vp(P.ctypes.data), lg(P.strides[0] // item), vp(lo.ctypes.data),
+                      vp(hi.ctypes.data), None, vp(self.out.ctypes.data), lg(0),
+                      lg(self.out.strides[1] // item), vp(self.stop.ctypes.data),
+                      vp(self.low.ctypes.data), vp(self.high.ctypes.data))
+        self._held = (C, P, lower, upper, float(h), lo, hi)
+
+    def __call__(self, x: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray,
+                                                              np.ndarray, np.ndarray]:
+        """End states (M, n) (a new array), ``stop`` (M,), ``low``/``high`` (substeps,).
+
+        Parameters
+        ----------
+        x : ndarray, shape (M, n)
+            Clipped states at the start of the period (state units).
+        u : ndarray, shape (M, m)
+            Held inputs (input units).
+        """
+        if self._args is None:
+            raise ValueError("PeriodCall.bind must be called first")
+        self.x[...] = x
+        self.u[0] = u
+        self.stop.fill(-1)
+        self.low.fill(False)
+        self.high.fill(False)
+        if self.kernel._fn(*self._args):
+            raise ValueError(f"native kernel refused substeps = {self.substeps}")
+        return self.out[0].copy(), self.stop, self.low[0], self.high[0]
+
+
+def _build(source: str, cc: str, flags: tuple[str, ...], so_path: Path) -> float:
+    """Compile ``source`` to ``so_path`` (atomic rename); returns the compiler's wall time (s)."""
+    import time
+
+    directory = so_path.parent
+    directory.mkdir(parents=True, exist_ok=True)
+    with tempfile.TemporaryDirectory(dir=directory, prefix=".build-") as tmp:
+        src = Path(tmp) / "kernel.c"
+        src.write_text(source)
+        out = Path(tmp) / "kernel.so"
+        t0 = time.perf_counter()
+        proc = subprocess.run([cc, *flags, str(src), "-o", str(out), "-lm"],
+                              capture_output=True, text=True, timeout=600)
+        seconds = time.perf_counter() - t0
+        if proc.returncode != 0 or not out.is_file():
+            msg = (proc.stderr or proc.stdout or "").strip().splitlines()
+            raise OSError(f"{cc} exited with status {proc.returncode}"
+                          + (f": {msg[0][:300]}" if msg else ""))
+        os.replace(out, so_path)
+    _STATE.compiles += 1
+    return seconds
+
+
+def native_kernel(model: Any, work: float | None = None) -> NativeKernel | None:
+    """The compiled period kernel of a plant's numpy model, or None (then use the numpy code).
+
+    Built once per plant structure and compiler (cached in memory and on
+    disk, see the module notes), when it pays: with
+    ``TANKSYNTH_SIM_BACKEND=auto`` (default) a kernel already on disk is
+    always loaded, and a new one is compiled only for a simulation of at
+    least `BUILD_WORK` state-steps (``work`` times the number of states; the
+    compiler takes 0.6-3 s, the CasADi/numpy code a few microseconds per
+    step), so short one-off simulations of many different plants never wait
+    for a compiler; ``native`` always compiles, ``numpy`` never uses a
+    kernel. None, with the reason in `kernel_status` and the log, also when
+    no C compiler is found, the plant's code cannot be translated, or the
+    build or load fails.
+
+    Parameters
+    ----------
+    model : tanksynth.sim.tape.NumpyModel
+    work : float, optional
+        RK4 run-steps of the simulation asking (runs x periods x steps per
+        period); None: unknown (load a built kernel, never compile).
+
+    Returns
+    -------
+    NativeKernel or None
+    """
+    env = tuple(os.environ.get(v) for v in ("TANKSYNTH_SIM_BACKEND", "TANKSYNTH_CC", "PATH",
+                                             "TANKSYNTH_CACHE_DIR", "XDG_CACHE_HOME", "HOME"))
+    cached = model._casadi.get(("native", env))
+    if cached is not None:
+        _STATE.last = cached[1]
+        return cached[0]
+    backend = (env[0] or "auto").strip().lower()
+    cc = None if backend == "numpy" else _compiler()
+    key = ("native", backend, cc, str(cache_dir()))
+    cached = model._casadi.get(key)
+    if cached is not None:
+        _STATE.last = cached[1]
+        return cached[0]
+    build = backend == "native" or (work is not None and work * model.n >= BUILD_WORK)
+    kernel = _native_kernel(model, backend, cc, build)
+    if kernel is not None or build:      # a skipped build is asked again by a larger simulation
+        model._casadi[key] = model._casadi[("native", env)] = (kernel, _STATE.last)
+    return kernel
+
+
+def _native_kernel(model: Any, backend: str, cc: str | None, build: bool) -> NativeKernel | None:
+    if backend == "numpy":
+        _STATE.last = "numpy backend requested (TANKSYNTH_SIM_BACKEND=numpy)"
+        return None
+    if cc is None:
+        _STATE.last = ("no C compiler found (TANKSYNTH_CC or gcc/cc on PATH): simulating with "
+                       "the CasADi/numpy code")
+        _LOG.info(_STATE.last)
+        return None
+    try:
+        source = kernel_source(model)
+    except ValueError as exc:
+        _STATE.last = str(exc)
+        _LOG.info(_STATE.last)
+        return None
+    candidates = []
+    for flags in _cpu_flags():
+        digest = hashlib.sha256("\0".join([source, cc, *flags, KERNEL_VERSION]).encode()).hexdigest()
+        if digest in _STATE.loaded:
+            return _STATE.loaded[digest]
+        candidates.append((digest, flags, cache_dir() / f"tk_sim_{digest[:24]}.so"))
+    if all(digest in _STATE.failed for digest, _, _ in candidates):
+        _STATE.last = _STATE.failed[candidates[-1][0]]
+        return None
+    if not build and not any(path.is_file() for _, _, path in candidates):
+        _STATE.last = (f"native kernel not built: a small simulation (below {BUILD_WORK:.0e} "
+                       f"state-steps; TANKSYNTH_SIM_BACKEND=native to build anyway)")
+        return None
+    reason = ""
+    for digest, flags, so_path in candidates:     # best flags first; next if the build fails
+        if not build and not so_path.is_file():
+            continue
+        seconds = 0.0
+        try:
+            if not so_path.is_file():
+                seconds = _build(source, cc, flags, so_path)
+            lib = ctypes.CDLL(str(so_path))
+            kernel = NativeKernel(lib, so_path, model.n, model.m, seconds)
+        except (OSError, subprocess.SubprocessError, AttributeError) as exc:
+            reason = (f"native simulation kernel unavailable ({exc}); simulating with the "
+                      f"CasADi/numpy code")
+            _STATE.failed[digest] = reason
+            continue
+        _STATE.loaded[digest] = kernel
+        _STATE.last = (f"native kernel {so_path.name} ({' '.join(flags[:1] + flags[6:])})"
+                       + (f", compiled in {seconds:.2f} s" if seconds else ""))
+        return kernel
+    _STATE.last = reason
+    _LOG.warning(reason)
+    return None
+
+
+def kernel_status() -> str:
+    """What the last `native_kernel` request gave: the library used, or why none was."""
+    return _STATE.last
+
+
+def clear_cache(disk: bool = False) -> dict[str, int]:
+    """Forget the loaded kernels (and failures); with ``disk``, delete the libraries too.
+
+    Parameters
+    ----------
+    disk : bool
+        Also delete the ``tk_sim_*.so`` files of `cache_dir`.
+
+    Returns
+    -------
+    dict
+        ``loaded`` (kernels forgotten) and ``files`` (libraries deleted).
+    """
+    loaded = len(_STATE.loaded)
+    _STATE.loaded.clear()
+    _STATE.failed.clear()
+    files = 0
+    directory = cache_dir()
+    if disk and directory.is_dir():
+        for path in directory.glob("tk_sim_*.so"):
+            path.unlink(missing_ok=True)
+            files += 1
+    return {"loaded": loaded, "files": files}
+
+
+def cache_info() -> dict[str, object]:
+    """Kernels loaded, failed builds, compiler runs of this process, and the directory."""
+    return {"loaded": len(_STATE.loaded), "failed": len(_STATE.failed),
+            "compiles": _STATE.compiles, "directory": str(cache_dir())}
