@@ -174,6 +174,7 @@ def run_kalman(spec: Any, design: Any) -> DesignResult:
     gains = {**tuning.gains(), "Ad": kf.model.Ad, "Bd": kf.model.Bd, "C": kf.model.C,
              "K_ss": K, "P_ss": P}
     diag = _common_diag(spec, tuning, tuning.R, tuning.P0, rank, kf.model)
+    diag["time_domain"] = "discrete"   # the model is stored as Ad, Bd (`model_names`)
     diag["steady_state"] = {"error_dynamics_eigenvalues": [[float(v.real), float(v.imag)]
                                                            for v in np.linalg.eigvals(Acl)],
                             "source": "scipy.linalg.solve_discrete_are"}
@@ -239,6 +240,7 @@ def run_adaptive_kalman(spec: Any, design: Any) -> DesignResult:
                      operating_point=(x_op, u_op))
     akf = AdaptiveKalmanFilter(plant, tuning)
     diag = _common_diag(spec, tuning, tuning.R, tuning.P0, rank, akf.model)
+    diag["time_domain"] = "discrete"   # the model is stored as Ad, Bd (`model_names`)
     diag["errata"] = ["seed 000 eq. 35 uses the updated estimate in v_k (a residual); the innovation "
                       "y_k - H x_k^+ (prediction) is used, as in Mohamed & Schwarz (1999)"]
     return DesignResult(design.name, "adaptive_kalman", plant.name,

@@ -63,7 +63,7 @@ def run_linearize(spec, design) -> DesignResult:
         "assumptions": [a.text for a in plant.assumptions],
     }
     gains = {"F": lin.F, "B": lin.B, "Ad": lin.Ad, "Bd": lin.Bd, "C": lin.C,
-             "x0": lin.x0, "u0": lin.u0}
+             "x_op": lin.x0, "u_op": lin.u0}
     return DesignResult(design.name, "linearize", plant.name, gains, diagnostics, latex)
 
 
