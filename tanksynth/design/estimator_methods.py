@@ -2,8 +2,9 @@
 
 ===========================  =========================================================
 ``kalman``                   CKF on the ZOH linearisation at the operating point (seed
-                             000 eq. 29-34); gains ``Q, R, P0, x0``, the steady-state
-                             gain ``K_ss`` and Riccati solution ``P_ss``
+                             000 eq. 29-34); gains ``Q, R, P0, x_hat0``, the model
+                             ``Ad, Bd, C`` at ``x_op, u_op``, the steady-state gain
+                             ``K_ss`` and Riccati solution ``P_ss``
 ``ekf``                      EKF on the nonlinear model (seed 002 eq. 13-22)
 ``ukf``                      UKF (seed 002 eq. 23-40)
 ``adaptive_kalman``          adaptive-Q CKF with window ``Psi`` (seed 000 eq. 35-37)
@@ -16,7 +17,7 @@
 
 Covariance options accept a number (``s I``), a list (diagonal) or a list
 of rows (full matrix), in the squared state or output units. The initial
-estimate ``x0`` defaults to the operating point. Every method refuses an
+estimate (option ``x0``, gain ``x_hat0``) defaults to the operating point. Every method refuses an
 unobservable linearisation (`UnobservableError` naming the modes) and lists
 physically implausible tuning values (initial estimate outside the region,
 noise or initial spread larger than the region) in the diagnostics.

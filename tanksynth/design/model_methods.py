@@ -20,8 +20,9 @@ def run_linearize(spec, design) -> DesignResult:
     """Linearise at the operating point and discretise with ZOH.
 
     Gains: ``F``, ``B`` (continuous), ``Ad``, ``Bd`` (exact ZOH, period
-    ``ts``), ``C``, ``x0``, ``u0`` (the equilibrium input computed from the
-    model, not the one written in the spec, whose residual is reported).
+    ``ts``), ``C``, the operating point ``x_op``, ``u_op`` (the equilibrium
+    input computed from the model, not the one written in the spec, whose
+    residual is reported).
 
     Parameters
     ----------
