@@ -109,8 +109,8 @@ def test_design_writes_artefact(tmp_path, capsys):
     assert (out_dir / "linear_model.h").exists()
     doc = read_artefact(out_dir / "linear_model.json")
     assert doc["method"] == "linearize" and doc["plant"] == "three_tank"
-    assert set(doc["gains"]) == {"F", "B", "Ad", "Bd", "C", "x0", "u0"}
-    np.testing.assert_allclose(doc["gains"]["u0"], [3.501785258978626e-05, 3.183782218805142e-05],
+    assert set(doc["gains"]) == {"F", "B", "Ad", "Bd", "C", "x_op", "u_op"}
+    np.testing.assert_allclose(doc["gains"]["u_op"], [3.501785258978626e-05, 3.183782218805142e-05],
                                rtol=1e-10)
     np.testing.assert_allclose(doc["gains"]["F"][0, 0], -0.01136943265902151, rtol=1e-12)
     import hashlib

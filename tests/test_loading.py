@@ -119,10 +119,10 @@ def test_state_feedback_closed_loop_has_the_requested_poles(results):
 def test_observer_error_system(results):
     d = tanksynth.load(results / "obs.json")
     sys = d.to_statespace()
-    A, C = d.gains.get("A"), d.gains.get("C")
+    A, C = d.gains["Ad"], d.gains["C"]       # a discrete design: Ad (never A; issue 16)
+    assert "A" not in d.gains and "B" not in d.gains
     np.testing.assert_allclose(_sorted(sys.poles()), _sorted([0.5, 0.6, 0.7]), atol=1e-8)
-    if A is not None:
-        np.testing.assert_allclose(sys.A, A - d.gains["L"] @ C)
+    np.testing.assert_allclose(sys.A, A - d.gains["L"] @ C)
     lue = tanksynth.load(results / "lue.json").to_statespace()
     np.testing.assert_allclose(_sorted(lue.poles()), _sorted([0.5, 0.6, 0.7]), atol=1e-8)
 
@@ -189,8 +189,9 @@ def test_mat_export_matlab_orientation(results):
 
     mat = loadmat(results / "ekf.mat")
     doc = json.loads((results / "ekf.json").read_text(encoding="utf-8"))
-    assert mat["x0"].shape == (3, 1)   # the initial estimate, a column
-    np.testing.assert_allclose(mat["x0"][:, 0], doc["gains"]["x0"])
+    assert mat["x_hat0"].shape == (3, 1)   # the initial estimate, a column
+    np.testing.assert_allclose(mat["x_hat0"][:, 0], doc["gains"]["x_hat0"])
+    assert "x0" not in mat and "u0" not in mat
     np.testing.assert_allclose(mat["x_op"][:, 0], [0.40, 0.20, 0.30])
     assert mat["ts"].shape == (1, 1) and mat["ts"][0, 0] == 1.0
     assert [str(c[0]) for c in mat["state_names"][:, 0]] == ["h1", "h2", "h3"]
@@ -201,8 +202,8 @@ def test_mat_export_matlab_orientation(results):
     sf = loadmat(results / "sf_integral.mat")
     doc = json.loads((results / "sf_integral.json").read_text(encoding="utf-8"))
     np.testing.assert_allclose(sf["K"], doc["gains"]["K"])
-    assert sf["x0"].shape == (3, 1) and sf["u0"].shape == (2, 1)
-    np.testing.assert_allclose(sf["u0"][:, 0], doc["diagnostics"]["equilibrium"]["u0"])
+    assert sf["x_op"].shape == (3, 1) and sf["u_op"].shape == (2, 1)
+    np.testing.assert_allclose(sf["u_op"][:, 0], doc["diagnostics"]["equilibrium"]["u0"])
 
 
 # ----------------------------------------------------------------- tampering (issue 19)

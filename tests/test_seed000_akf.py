@@ -130,7 +130,7 @@ def test_example_spec_designs_and_flags_the_odd_values():
     assert "h1 = 0.9 outside [0, 0.62]" in notes and "h3 > h2 violated" in notes
     assert "measurement noise standard deviation 5 m" in notes
     assert "initial estimate standard deviation 3.16228 m" in notes
-    np.testing.assert_array_equal(akf.gains["x0"], X0_HAT)
+    np.testing.assert_array_equal(akf.gains["x_hat0"], X0_HAT)
     np.testing.assert_array_equal(akf.gains["R"], R0)
     np.testing.assert_array_equal(akf.gains["window"], [20.0])
     ckf = METHODS["kalman"].design(spec, spec.designs[1])

@@ -96,17 +96,17 @@ def test_spec_artefact_feedback_linearization(results, tmp_path):
     assert d["degrees"] == [1, 1] and d["sum_degrees"] == 2 and d["n"] == 3
     assert d["zero_dynamics"]["stable"] and d["zero_dynamics"]["coordinates"] == ["h3"]
     assert d["law_input_at_x0_matches_equilibrium"]
-    np.testing.assert_allclose(r.gains["u0"], [3.501785e-05, 3.183782e-05], rtol=1e-6)
+    np.testing.assert_allclose(r.gains["u_op"], [3.501785e-05, 3.183782e-05], rtol=1e-6)
     # seed 000 Sec. IV prints alpha = Lambda_0 (1/A, opposite sign): the derived alpha(x0) is u0
-    np.testing.assert_allclose(d["alpha_at_x0"], r.gains["u0"], rtol=1e-12)
+    np.testing.assert_allclose(d["alpha_at_x0"], r.gains["u_op"], rtol=1e-12)
     params = {q.name: q.value for q in spec.plant.parameters}
     printed = seed000.printed_law(params, spec.x0)["alpha"]
-    np.testing.assert_allclose(printed, -r.gains["u0"] / params["A"], rtol=1e-12)
+    np.testing.assert_allclose(printed, -r.gains["u_op"] / params["A"], rtol=1e-12)
     doc = read_artefact(write_artefact(r, tmp_path, spec.sha256))
     law = law_from_document(doc["diagnostics"]["law"])
     assert law.name() == "nonlinear_decoupling"
     u, _ = law(X0, [0.40, 0.20])
-    np.testing.assert_allclose(np.asarray(u).reshape(-1), r.gains["u0"], rtol=1e-14)
+    np.testing.assert_allclose(np.asarray(u).reshape(-1), r.gains["u_op"], rtol=1e-14)
 
 
 # -------------------------------------------------------- integral tracking (II-B)
@@ -129,7 +129,7 @@ def test_integral_tracking_gain_and_reference(results):
                                     np.array(r.diagnostics["augmented_B"]) @ r.gains["K"]).real)
     np.testing.assert_allclose(ach, np.sort(POLES), atol=1e-9)
     assert r.diagnostics["reference_gain"]["relative_difference"] < 0.05    # printed K: 4.5%
-    np.testing.assert_allclose(r.gains["u0"], [3.501785e-05, 3.183782e-05], rtol=1e-6)
+    np.testing.assert_allclose(r.gains["u_op"], [3.501785e-05, 3.183782e-05], rtol=1e-6)
 
 
 def test_integral_tracking_zero_offset_on_nonlinear_plant(plant):

@@ -138,5 +138,5 @@ def test_artefact_round_trip(paper, tmp_path, spec):
     path = write_artefact(paper, tmp_path, spec.sha256)
     doc = read_artefact(path)
     assert doc["method"] == "ts_observer"
-    assert set(doc["gains"]) == {"L", "P", "Q", "A0", "B", "C"}
+    assert set(doc["gains"]) == {"L", "P", "Q", "A0", "B0", "C"}
     np.testing.assert_allclose(np.array(doc["gains"]["L"]), paper.gains["L"])

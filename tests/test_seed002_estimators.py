@@ -80,7 +80,7 @@ def test_example_designs_and_the_narx_estimator(scenario):
     g = narx_result.gains
     tun = NARXTuning(W1=g["W1"], b1=g["b1"], W2=g["W2"], b2=g["b2"], in_mean=g["in_mean"],
                      in_scale=g["in_scale"], out_mean=g["out_mean"], out_scale=g["out_scale"],
-                     x0=g["x0"], ts=1.0, delays=int(g["delays"][0]))
+                     x0=g["x_hat0"], ts=1.0, delays=int(g["delays"][0]))
     narx = NARXEstimator(plant, tun)
     narx.reset([0.0, 0.0, 0.23])
     e = narx.run(Y, U) - X

@@ -48,12 +48,12 @@ def test_tuned_gains_and_ise(design):
 
 def test_equilibrium_input_and_artefact(design, tmp_path):
     spec, r = design
-    np.testing.assert_allclose(r.gains["u0"] / LPH, [100.0, 100.0], rtol=1e-6)
+    np.testing.assert_allclose(r.gains["u_op"] / LPH, [100.0, 100.0], rtol=1e-6)
     np.testing.assert_allclose(r.gains["input_limits"] / LPH, [[0, 240], [0, 240]])
     doc = read_artefact(write_artefact(r, tmp_path, spec.sha256))
     law = law_from_document(doc["diagnostics"]["law"])
     assert law.name_in() == ["x_hat", "h_sp"]
-    np.testing.assert_allclose(np.asarray(law(spec.x0, spec.x0[:2])).reshape(-1), r.gains["u0"],
+    np.testing.assert_allclose(np.asarray(law(spec.x0, spec.x0[:2])).reshape(-1), r.gains["u_op"],
                                rtol=1e-14)
 
 

@@ -11,6 +11,9 @@
     the norm).
 `to_statespace`
     a `control.StateSpace` with names and ``dt`` from matrices.
+`model_names`
+    the artefact gain names of a linear model's matrices in a time domain
+    (the naming rule: ``F, B, Bw`` continuous, ``Ad, Bd, Bwd`` discrete).
 """
 
 from __future__ import annotations
@@ -22,7 +25,16 @@ import scipy.linalg as sla
 
 from tanksynth.errors import DimensionError
 
-__all__ = ["statespace_matrices", "to_statespace", "h2_norm", "hinf_norm", "hinf_below"]
+__all__ = ["statespace_matrices", "to_statespace", "h2_norm", "hinf_norm", "hinf_below",
+           "MODEL_NAMES", "model_names"]
+
+#: Artefact gain names of a linear model ``x' = A x + B u + Bw w`` (continuous time) or
+#: ``x[k+1] = A x[k] + B u[k] + Bw w[k]`` (discrete time), by time domain. ``C`` is ``C`` in
+#: both. An operating point is ``x_op, u_op``; an estimator's initial estimate ``x_hat0``.
+MODEL_NAMES: dict[str, dict[str, str]] = {
+    "continuous": {"A": "F", "B": "B", "Bw": "Bw", "C": "C"},
+    "discrete": {"A": "Ad", "B": "Bd", "Bw": "Bwd", "C": "C"},
+}
 
 
 def _mat(value: Any, name: str, rows: int | None = None, cols: int | None = None) -> np.ndarray:
@@ -226,3 +238,32 @@ def hinf_norm(sys_or_A: Any, B: Any = None, C: Any = None, D: Any = None,
     return float(hi)
 
 
+
+
+def model_names(time_domain: str) -> dict[str, str]:
+    """Artefact gain names of a linear model's matrices in ``time_domain``.
+
+    The one naming rule of the artefacts: the state matrix is ``F``
+    (continuous time, 1/s) or ``Ad`` (discrete time, dimensionless), the
+    input matrix ``B`` or ``Bd``, the disturbance matrix ``Bw`` or ``Bwd``;
+    the output matrix is ``C`` in both.
+
+    Parameters
+    ----------
+    time_domain : {"continuous", "discrete"}
+        The model's time domain.
+
+    Returns
+    -------
+    dict of str to str
+        Role (``"A"``, ``"B"``, ``"Bw"``, ``"C"``) -> gain name.
+
+    Raises
+    ------
+    ValueError
+        ``time_domain`` is neither ``"continuous"`` nor ``"discrete"``.
+    """
+    try:
+        return dict(MODEL_NAMES[time_domain])
+    except (KeyError, TypeError):
+        raise ValueError(f"time_domain must be 'continuous' or 'discrete', got {time_domain!r}") from None

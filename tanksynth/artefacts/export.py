@@ -223,8 +223,10 @@ def mat_contents(gains: Mapping[str, np.ndarray], data: Mapping[str, Any]) -> di
     -------
     dict
         For ``scipy.io.savemat``: arrays as columns or matrices, names and
-        units as n x 1 cell arrays of strings, ``ts`` a 1 x 1 double; ``x0``
-        and ``u0`` the operating point unless a gain has that name.
+        units as n x 1 cell arrays of strings, ``ts`` a 1 x 1 double; ``x_op``
+        and ``u_op`` the operating point (the gains of that name when the
+        design stores them). No ``x0``: an estimator's initial estimate is the
+        gain ``x_hat0`` (the naming rule, `model_names`).
     """
     def column(value: Any) -> np.ndarray:
         arr = np.asarray(value, dtype=float)
@@ -232,9 +234,8 @@ def mat_contents(gains: Mapping[str, np.ndarray], data: Mapping[str, Any]) -> di
 
     out: dict[str, Any] = {k: column(v) for k, v in gains.items()}
     out["ts"] = np.array([[float(data["ts"])]])
-    out["x_op"], out["u_op"] = column(data["x_op"]), column(data["u_op"])
-    out.setdefault("x0", out["x_op"])
-    out.setdefault("u0", out["u_op"])
+    out.setdefault("x_op", column(data["x_op"]))
+    out.setdefault("u_op", column(data["u_op"]))
     for key in ("state_names", "state_units", "input_names", "input_units", "output_names",
                 "output_units"):
         cells = np.empty((len(data[key]), 1), dtype=object)
@@ -518,7 +519,7 @@ def derived_law(gains: Mapping[str, np.ndarray], diagnostics: Mapping[str, Any],
     if method in ("kalman", "ekf"):
         from tanksynth.runtime.estimators.kalman import KalmanTuning
 
-        tuning = KalmanTuning(Q=gains["Q"], R=gains["R"], P0=gains["P0"], x0=gains["x0"], ts=spec.ts,
+        tuning = KalmanTuning(Q=gains["Q"], R=gains["R"], P0=gains["P0"], x0=gains["x_hat0"], ts=spec.ts,
                               substeps=options.substeps, jacobian_eps=options.jacobian_eps,
                               switch_tol=options.switch_tol, clip=options.clip,
                               operating_point=(x_op, u_op) if method == "kalman" else None)
@@ -526,7 +527,7 @@ def derived_law(gains: Mapping[str, np.ndarray], diagnostics: Mapping[str, Any],
     if method == "ukf":
         from tanksynth.runtime.estimators.ukf import UKFTuning, UnscentedKalmanFilter
 
-        tuning = UKFTuning(Q=gains["Q"], R=gains["R"], P0=gains["P0"], x0=gains["x0"], ts=spec.ts,
+        tuning = UKFTuning(Q=gains["Q"], R=gains["R"], P0=gains["P0"], x0=gains["x_hat0"], ts=spec.ts,
                            alpha=options.alpha, beta=options.beta, kappa=options.kappa,
                            redraw=options.redraw, substeps=options.substeps, clip=options.clip)
         return estimator_step(name, UnscentedKalmanFilter(plant, tuning, backend="vm"))

@@ -27,6 +27,7 @@ from typing import Any, Callable
 import numpy as np
 
 from tanksynth.analysis.linearize import equilibrium_input
+from tanksynth.analysis.statespace import model_names
 from tanksynth.design.result import DesignResult
 from tanksynth.errors import DesignWarning
 
@@ -71,10 +72,12 @@ def _unstable(eigs: np.ndarray, domain: str) -> bool:
 def result_warnings(result: DesignResult) -> list[str]:
     """Warnings about a design's own result: an unstable closed loop or error dynamics.
 
-    Looks for ``A`` with ``B`` and ``K`` (``A - B K``, the augmented matrix of
-    an integral design when stored) or ``C`` and ``L`` (``A - L C``) in the
-    gains, in the time domain of ``diagnostics["time_domain"]``, and for the
-    ``error_dynamics_eigenvalues`` an estimator reports.
+    Looks for the state matrix ``A`` (gain ``F`` in continuous time, ``Ad``
+    in discrete time: `model_names`) with the input matrix and ``K``
+    (``A - B K``, the augmented matrix of an integral design when stored) or
+    ``C`` and ``L`` (``A - L C``) in the gains, in the time domain of
+    ``diagnostics["time_domain"]``, and for the ``error_dynamics_eigenvalues``
+    an estimator reports.
 
     Parameters
     ----------
@@ -86,10 +89,12 @@ def result_warnings(result: DesignResult) -> list[str]:
     out = []
     loops = []
     try:
-        if "A" in g and "L" in g and "C" in g:
-            loops.append(("A - L C", np.asarray(g["A"]) - np.asarray(g["L"]) @ np.asarray(g["C"])))
-        if "A" in g and "K" in g and "B" in g:
-            A, B, K = (np.atleast_2d(np.asarray(g[k], dtype=float)) for k in ("A", "B", "K"))
+        names = model_names(domain)
+        kA, kB = names["A"], names["B"]
+        if kA in g and "L" in g and "C" in g:
+            loops.append(("A - L C", np.asarray(g[kA]) - np.asarray(g["L"]) @ np.asarray(g["C"])))
+        if kA in g and "K" in g and kB in g:
+            A, B, K = (np.atleast_2d(np.asarray(g[k], dtype=float)) for k in (kA, kB, "K"))
             if K.shape[1] == A.shape[0]:
                 loops.append(("A - B K", A - B @ K))
             elif isinstance(d.get("integral"), dict) and "augmented_A" in d["integral"]:

@@ -3,14 +3,14 @@
 ==========================  ===================================================
 ``feedback_linearization``  exact feedback linearisation with decoupling (seed
                             000 II-C); gains ``K`` (outer-loop coefficients),
-                            ``Lambda_x0``, ``Lambda0_x0``, ``u0``, ``x0``; the law
+                            ``Lambda_x0``, ``Lambda0_x0``, ``u_op``, ``x_op``; the law
                             itself serialised in ``diagnostics.law``
 ``integral_tracking``       linear tracking with integral action, pump
                             saturation and anti-windup (seed 000 II-B); gains
-                            ``K``, ``K1``, ``K2``, ``Kaw``, ``C1``, ``x0``, ``u0``
+                            ``K``, ``K1``, ``K2``, ``Kaw``, ``C1``, ``x_op``, ``u_op``
 ``inverse_dynamics``        estimator-based inverse-dynamics law (seed 002 eq.
                             46-47), ``C`` given or tuned by minimum ISE on the
-                            servo scenario; gains ``C``, ``x0``, ``u0``
+                            servo scenario; gains ``C``, ``x_op``, ``u_op``
 ==========================  ===================================================
 
 Every law is stored in the artefact's diagnostics as a serialised CasADi
@@ -46,8 +46,8 @@ def run_feedback_linearization(spec, design) -> DesignResult:
 
     Gains: ``K`` (outer-loop coefficients ``c_ik``, m x max theta; for
     relative degree 1 the ``K_i`` of eq. 27, 1/s), ``Lambda_x0`` and
-    ``Lambda0_x0`` (at the operating point), ``u0`` (the law's input at
-    ``x0`` with ``y_r = y(x0)``) and ``x0``.
+    ``Lambda0_x0`` (at the operating point), ``u_op`` (the law's input at
+    the operating point ``x_op`` with ``y_r = y(x_op)``) and ``x_op``.
 
     Parameters
     ----------
@@ -86,7 +86,8 @@ def run_feedback_linearization(spec, design) -> DesignResult:
                          if fl.saturated else "u, zeta = law(x, y_r) (unsaturated)",
         "alpha_at_x0": alpha.tolist(),
     })
-    gains = {"K": fl.outer.matrix, "Lambda_x0": Lam, "Lambda0_x0": Lam0, "u0": u0, "x0": spec.x0}
+    gains = {"K": fl.outer.matrix, "Lambda_x0": Lam, "Lambda0_x0": Lam0, "u_op": u0,
+             "x_op": spec.x0}
     return DesignResult(design.name, "feedback_linearization", plant.name, gains, diagnostics,
                         fl.latex())
 
@@ -96,7 +97,7 @@ def run_integral_tracking(spec, design) -> DesignResult:
     """Linear tracking with integral action, saturation and anti-windup (seed 000 II-B).
 
     Gains: ``K = [K1 K2]``, ``K1``, ``K2``, ``Kaw`` (back-calculation),
-    ``C1``, ``x0``, ``u0`` (equilibrium input), ``input_limits``.
+    ``C1``, ``x_op``, ``u_op`` (operating point, equilibrium input), ``input_limits``.
 
     Parameters
     ----------
@@ -138,8 +139,8 @@ def run_integral_tracking(spec, design) -> DesignResult:
     diagnostics["law"] = law_document(rename_law(it.law, design.name))
     diagnostics["law_signature"] = ("u, z_next = law(x, z, y_r): levels and references in m, u in "
                                     "the input units, z the integrator state (starts at 0)")
-    gains = {"K": it.K, "K1": it.K1, "K2": it.K2, "Kaw": it.Kaw, "C1": it.C1, "x0": it.x0,
-             "u0": it.u0, "input_limits": it.input_limits}
+    gains = {"K": it.K, "K1": it.K1, "K2": it.K2, "Kaw": it.Kaw, "C1": it.C1, "x_op": it.x0,
+             "u_op": it.u0, "input_limits": it.input_limits}
     return DesignResult(design.name, "integral_tracking", plant.name, gains, diagnostics, it.latex())
 
 
@@ -152,8 +153,8 @@ def run_inverse_dynamics(spec, design) -> DesignResult:
     ``step_time``, from the operating point, control period ``ts``) by a
     coarse grid and a 1-D refinement of each ``C_i`` over ``bounds``.
 
-    Gains: ``C`` (1/s), ``x0``, ``u0`` (the law's input at ``x0`` with the
-    set points at ``x0``), ``input_limits``.
+    Gains: ``C`` (1/s), ``x_op``, ``u_op`` (the law's input at ``x_op`` with
+    the set points at ``x_op``), ``input_limits``.
 
     Parameters
     ----------
@@ -194,7 +195,7 @@ def run_inverse_dynamics(spec, design) -> DesignResult:
         "design_simulates": o.tune,
         "assumptions": [a.text for a in plant.assumptions],
     })
-    gains = {"C": law.C, "x0": spec.x0, "u0": u0, "input_limits": law.input_limits}
+    gains = {"C": law.C, "x_op": spec.x0, "u_op": u0, "input_limits": law.input_limits}
     return DesignResult(design.name, "inverse_dynamics", plant.name, gains, diagnostics, law.latex())
 
 

@@ -2,7 +2,7 @@
 
 ======================  =========================================================
 ``ts_observer``         TS multiple model of the plant (seed 001) + observer LMI
-                        (28); gains ``L``, ``P``, ``Q`` (and ``A0``, ``B``, ``C``)
+                        (28); gains ``L``, ``P``, ``Q`` (and ``A0``, ``B0``, ``C``)
 ``lmi_placement``       state feedback ``K`` or observer ``L`` with eigenvalues in
                         an LMI region (half-plane, disk, sector, intersections),
                         continuous or discrete time, optional integral action
@@ -27,6 +27,7 @@ import sympy as sp
 
 from tanksynth.analysis.linearize import equilibrium_input, linearize, symbolic_jacobians
 from tanksynth.analysis.lmi_region import region_from_parts
+from tanksynth.analysis.statespace import model_names
 from tanksynth.analysis.takagi_sugeno import (check_exactness, domain_from_plant, quasi_lpv,
                                               ts_model, vertex_observability)
 from tanksynth.design.lmi import maximise_psi, observer_lmi
@@ -135,7 +136,7 @@ def run_ts_observer(spec: "Spec", design: "DesignSpec") -> DesignResult:
     """TS multiple model + observer LMI (28) (seed 001).
 
     Gains: ``L`` (observer gain), ``P``, ``Q`` (LMI matrices), ``A0`` (mean
-    vertex matrix), ``B`` and ``C`` of the multiple model. The diagnostics
+    vertex matrix), ``B0`` and ``C`` of the multiple model. The diagnostics
     hold the premises, their bounds and the method, the vertices, the
     exactness test, per-vertex observability, seed 001's selection rules, the
     Lipschitz analysis, the LMI solution and its re-check, and (with
@@ -252,6 +253,7 @@ def run_ts_observer(spec: "Spec", design: "DesignSpec") -> DesignResult:
         "psi_source": psi_source,
         "ts_model": ts.as_dict(),
         "exactness": exactness.as_dict(),
+        "time_domain": "continuous",
         "vertex_observability": obs.as_dict(),
         "selection_rules": selection_rules(qlpv).as_dict(),
         "lipschitz": lip.as_dict(),
@@ -267,7 +269,7 @@ def run_ts_observer(spec: "Spec", design: "DesignSpec") -> DesignResult:
         diagnostics["reference_L"] = _compare(o.reference_L, res.L, lambda Lr: A0 - Lr @ C)
         diagnostics["reference_L"]["note"] = ("LMI solutions are not unique: the comparison is "
                                               "informative, the re-check decides")
-    gains = {"L": res.L, "P": res.P, "Q": res.Q, "A0": A0, "B": ts.B0, "C": C}
+    gains = {"L": res.L, "P": res.P, "Q": res.Q, "A0": A0, "B0": ts.B0, "C": C}
     latex = {"L": sp.latex(sp.Matrix(np.round(res.L, 6))), "A0": sp.latex(sp.Matrix(np.round(A0, 8)))}
     return DesignResult(design.name, "ts_observer", plant.name, gains, diagnostics, latex)
 
@@ -331,7 +333,8 @@ def run_lmi_placement(spec: "Spec", design: "DesignSpec") -> DesignResult:
 
     Gains: ``K`` (state feedback, ``u = -K x``; with integral action also
     ``K1``, ``K2``) or ``L`` (observer), plus ``P`` (Lyapunov matrix of the
-    closed loop) and the model used (``A``, ``B``, ``C``).
+    closed loop) and the model used (``F``, ``B``, ``C`` in continuous time,
+    ``Ad``, ``Bd``, ``C`` in discrete time: `model_names`).
 
     Parameters
     ----------
@@ -377,7 +380,8 @@ def run_lmi_placement(spec: "Spec", design: "DesignSpec") -> DesignResult:
         warnings.warn(f"the conditioning bound was active: kappa relaxed from {kappa:g} to "
                       f"{res.scaling['kappa']:g} (ceiling kappa_max = {kmax:g})", DesignWarning,
                       stacklevel=2)
-    gains.update({"P": res.P, "A": A, "B": B, "C": C})
+    names = model_names(time_domain)
+    gains.update({"P": res.P, names["A"]: A, names["B"]: B, "C": C})
     diagnostics.update({"lmi": res.as_dict(), "solver": res.solver, "status": res.status})
     return DesignResult(design.name, "lmi_placement", plant.name, gains, diagnostics, {})
 
@@ -387,7 +391,8 @@ def run_pole_placement(spec: "Spec", design: "DesignSpec") -> DesignResult:
     """Exact pole placement (python-control), optionally with integral action.
 
     Gains: ``K`` (``u = -K x_e``; with integral action ``K1``, ``K2`` and the
-    reference input matrix ``Br``) or ``L``, plus the model used. With
+    reference input matrix ``Br``) or ``L``, plus the model used (``F, B,
+    C`` or ``Ad, Bd, C``: `model_names`). With
     ``reference_gain`` the diagnostics put the paper's gain beside the
     derived one and give the eigenvalues the paper's gain produces on the
     derived model.
@@ -438,7 +443,8 @@ def run_pole_placement(spec: "Spec", design: "DesignSpec") -> DesignResult:
         cmp_["note"] = ("with several inputs the gain placing given poles is not unique (place uses "
                         "Tits-Yang); compare the achieved poles, not the digits")
         diagnostics["reference_gain"] = cmp_
-    gains.update({"A": A, "B": B, "C": C})
+    names = model_names(o.time_domain)
+    gains.update({names["A"]: A, names["B"]: B, "C": C})
     return DesignResult(design.name, "pole_placement", plant.name, gains, diagnostics, {})
 
 
@@ -496,6 +502,7 @@ def run_canonical_observer(spec: "Spec", design: "DesignSpec") -> DesignResult:
     ach = np.linalg.eigvals(An - L @ Cn)
     acc = placement_accuracy(poles, An - L @ Cn)
     diagnostics: dict[str, Any] = {
+        "time_domain": "continuous",
         "canonical_form": co.as_dict(),
         "achieved_poles": _complex_list(ach),
         "max_pole_error": pole_errors(poles, ach)[1],
@@ -521,7 +528,7 @@ def run_canonical_observer(spec: "Spec", design: "DesignSpec") -> DesignResult:
             "max_abs_difference": float(np.max(np.abs(ref - derived)))}
     latex = {"Psi": sp.latex(co.Psi), "Delta": sp.latex(co.Delta), "Gamma_d": sp.latex(co.Gamma_d)}
     return DesignResult(design.name, "canonical_observer", plant.name,
-                        {"L": L, "A": An, "C": Cn}, diagnostics, latex)
+                        {"L": L, "F": An, "C": Cn}, diagnostics, latex)
 
 
 # ------------------------------------------------------------------ design methods

@@ -2,8 +2,9 @@
 
 ===========================  =========================================================
 ``kalman``                   CKF on the ZOH linearisation at the operating point (seed
-                             000 eq. 29-34); gains ``Q, R, P0, x0``, the steady-state
-                             gain ``K_ss`` and Riccati solution ``P_ss``
+                             000 eq. 29-34); gains ``Q, R, P0, x_hat0``, the model
+                             ``Ad, Bd, C`` at ``x_op, u_op``, the steady-state gain
+                             ``K_ss`` and Riccati solution ``P_ss``
 ``ekf``                      EKF on the nonlinear model (seed 002 eq. 13-22)
 ``ukf``                      UKF (seed 002 eq. 23-40)
 ``adaptive_kalman``          adaptive-Q CKF with window ``Psi`` (seed 000 eq. 35-37)
@@ -16,7 +17,7 @@
 
 Covariance options accept a number (``s I``), a list (diagonal) or a list
 of rows (full matrix), in the squared state or output units. The initial
-estimate ``x0`` defaults to the operating point. Every method refuses an
+estimate (option ``x0``, gain ``x_hat0``) defaults to the operating point. Every method refuses an
 unobservable linearisation (`UnobservableError` naming the modes) and lists
 physically implausible tuning values (initial estimate outside the region,
 noise or initial spread larger than the region) in the diagnostics.
@@ -174,6 +175,7 @@ def run_kalman(spec: Any, design: Any) -> DesignResult:
     gains = {**tuning.gains(), "Ad": kf.model.Ad, "Bd": kf.model.Bd, "C": kf.model.C,
              "K_ss": K, "P_ss": P}
     diag = _common_diag(spec, tuning, tuning.R, tuning.P0, rank, kf.model)
+    diag["time_domain"] = "discrete"   # the model is stored as Ad, Bd (`model_names`)
     diag["steady_state"] = {"error_dynamics_eigenvalues": [[float(v.real), float(v.imag)]
                                                            for v in np.linalg.eigvals(Acl)],
                             "source": "scipy.linalg.solve_discrete_are"}
@@ -239,6 +241,7 @@ def run_adaptive_kalman(spec: Any, design: Any) -> DesignResult:
                      operating_point=(x_op, u_op))
     akf = AdaptiveKalmanFilter(plant, tuning)
     diag = _common_diag(spec, tuning, tuning.R, tuning.P0, rank, akf.model)
+    diag["time_domain"] = "discrete"   # the model is stored as Ad, Bd (`model_names`)
     diag["errata"] = ["seed 000 eq. 35 uses the updated estimate in v_k (a residual); the innovation "
                       "y_k - H x_k^+ (prediction) is used, as in Mohamed & Schwarz (1999)"]
     return DesignResult(design.name, "adaptive_kalman", plant.name,

@@ -20,8 +20,9 @@ def run_linearize(spec, design) -> DesignResult:
     """Linearise at the operating point and discretise with ZOH.
 
     Gains: ``F``, ``B`` (continuous), ``Ad``, ``Bd`` (exact ZOH, period
-    ``ts``), ``C``, ``x0``, ``u0`` (the equilibrium input computed from the
-    model, not the one written in the spec, whose residual is reported).
+    ``ts``), ``C``, the operating point ``x_op``, ``u_op`` (the equilibrium
+    input computed from the model, not the one written in the spec, whose
+    residual is reported).
 
     Parameters
     ----------
@@ -63,7 +64,7 @@ def run_linearize(spec, design) -> DesignResult:
         "assumptions": [a.text for a in plant.assumptions],
     }
     gains = {"F": lin.F, "B": lin.B, "Ad": lin.Ad, "Bd": lin.Bd, "C": lin.C,
-             "x0": lin.x0, "u0": lin.u0}
+             "x_op": lin.x0, "u_op": lin.u0}
     return DesignResult(design.name, "linearize", plant.name, gains, diagnostics, latex)
 
 

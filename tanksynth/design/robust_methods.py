@@ -27,6 +27,7 @@ import numpy as np
 from tanksynth.analysis.linearize import equilibrium_input
 from tanksynth.analysis.lmi_region import region_from_parts
 from tanksynth.analysis.rank import controllability_rank, observability_rank
+from tanksynth.analysis.statespace import model_names
 from tanksynth.design.result import DesignMethod, DesignResult, options_of, rekeyed
 from tanksynth.design.robust import (HinfBound, SaturationBound, ellipsoid_axes, robust_observer,
                                      robust_state_feedback)
@@ -130,10 +131,11 @@ def _offsets(A: np.ndarray, B: np.ndarray, K: np.ndarray, du: np.ndarray, domain
 def run_robust_state_feedback(spec: "Spec", design: "DesignSpec") -> DesignResult:
     """One state feedback meeting an LMI region at every vertex of the parameter box.
 
-    Gains: ``K`` (``u = u0 - K (x - x0)``; with integral action ``K1``,
-    ``K2`` and ``K = [K1 K2]`` on ``(x - x0, z)``), ``P`` (common Lyapunov
+    Gains: ``K`` (``u = u_op - K (x - x_op)``; with integral action ``K1``,
+    ``K2`` and ``K = [K1 K2]`` on ``(x - x_op, z)``), ``P`` (common Lyapunov
     matrix; with ``saturation`` the ellipsoid ``x' P x <= 1``), the nominal
-    model ``A``, ``B``, ``C`` and the operating point ``x0``, ``u0``.
+    model (``F``, ``B``, ``C`` or ``Ad``, ``Bd``, ``C``: `model_names`) and
+    the operating point ``x_op``, ``u_op``.
 
     Parameters
     ----------
@@ -209,8 +211,9 @@ def run_robust_state_feedback(spec: "Spec", design: "DesignSpec") -> DesignResul
     except SpecError as exc:
         raise rekeyed(design, exc, fallback="region") from None
     K = res.gain
-    gains: dict[str, np.ndarray] = {"K": K, "P": res.P, "A": nom.A[0], "B": nom.B[0], "C": C0,
-                                    "x0": np.asarray(spec.x0, dtype=float), "u0": u0}
+    names = model_names(o.time_domain)
+    gains: dict[str, np.ndarray] = {"K": K, "P": res.P, names["A"]: nom.A[0], names["B"]: nom.B[0],
+                                    "C": C0, "x_op": np.asarray(spec.x0, dtype=float), "u_op": u0}
     diagnostics = _common_diagnostics(spec, o, vm, nom, u0, res)
     if o.integral:
         gains.update({"K1": K[:, :n], "K2": K[:, n:]})
@@ -252,7 +255,8 @@ def run_robust_observer(spec: "Spec", design: "DesignSpec") -> DesignResult:
 
     Gains: ``L`` (``x_hat' = ... + L (y - C x_hat)``), ``P`` (common
     Lyapunov matrix of the error dynamics, ``V = e' P e``), the nominal model
-    ``A``, ``B``, ``C`` and ``x0``, ``u0``.
+    (``F``, ``B``, ``C`` or ``Ad``, ``Bd``, ``C``: `model_names`) and the
+    operating point ``x_op``, ``u_op``.
 
     Parameters
     ----------
@@ -289,8 +293,9 @@ def run_robust_observer(spec: "Spec", design: "DesignSpec") -> DesignResult:
                               nominal=A.shape[0] - 1 if vm.names else None)
     except SpecError as exc:
         raise rekeyed(design, exc, fallback="region") from None
-    gains = {"L": res.gain, "P": res.P, "A": nom.A[0], "B": nom.B[0], "C": nom.C[0],
-             "x0": np.asarray(spec.x0, dtype=float), "u0": u0}
+    names = model_names(o.time_domain)
+    gains = {"L": res.gain, "P": res.P, names["A"]: nom.A[0], names["B"]: nom.B[0], "C": nom.C[0],
+             "x_op": np.asarray(spec.x0, dtype=float), "u_op": u0}
     diagnostics = _common_diagnostics(spec, o, vm, nom, u0, res)
     caveats = ["the error matrix A(p) - L C is certified for every model of the polytope; an "
                "observer running on the NOMINAL model with a plant whose parameters differ keeps a "

@@ -19,8 +19,10 @@ second at N = 64 where the LMI takes minutes; ``route = "lmi"`` forces the LMI;
 The model is the Jacobian linearisation at the operating point with the
 equilibrium input computed from the model (ZOH at ``[sampling] ts`` in discrete
 time, the disturbance input ``Bw diag(disturbance_std)`` discretised with it).
-Gains: ``K`` or ``L``, the model (``A``, ``B``, ``C``), the synthesis data
-(``Bw``, ``Cz``, ``Dzu`` or ``Dv``) and the Lyapunov variable ``X``.
+Gains: ``K`` or ``L``, the model (``F``, ``B``, ``C`` and the disturbance
+matrix ``Bw`` in continuous time, ``Ad``, ``Bd``, ``C``, ``Bwd`` in discrete
+time: `model_names`), the synthesis data (``Cz``, ``Dzu`` or ``Dv``) and the
+Lyapunov variable ``X``.
 """
 
 from __future__ import annotations
@@ -33,6 +35,7 @@ import scipy.linalg as sla
 
 from tanksynth.analysis.linearize import discretize_zoh, equilibrium_input, linearize
 from tanksynth.analysis.lmi_region import region_from_parts
+from tanksynth.analysis.statespace import model_names
 from tanksynth.design.result import DesignMethod, DesignResult, options_of, rekeyed
 from tanksynth.design.synthesis import (GeneralizedPlant, SynthesisResult, synthesize_observer,
                                         synthesize_state_feedback)
@@ -90,6 +93,12 @@ def _model(spec: Any, o: Any) -> dict:
     else:
         A, B, Bw = lin.F, lin.B, Bw_c
     return {"A": A, "B": B, "C": lin.C, "Bw": Bw, "eq": eq, "dt": spec.ts if discrete else None}
+
+
+def _model_gains(m: dict, time_domain: str) -> dict:
+    """The model's matrices under their artefact names (`model_names`)."""
+    names = model_names(time_domain)
+    return {names[role]: m[role] for role in ("A", "B", "C", "Bw")}
 
 
 #: Disturbances larger than this multiple of the pumps' full authority get a warning.
@@ -175,7 +184,7 @@ def _state_feedback(spec, design, o, method: str, objective: str, **kw) -> Desig
         if ref["available"] and res.h2 is not None:
             ref["relative_difference"] = abs(res.h2 - ref["h2"]) / max(ref["h2"], 1e-300)
         diag["riccati_reference"] = ref
-    gains = {"K": res.gain, "A": m["A"], "B": m["B"], "C": m["C"], "Bw": m["Bw"],
+    gains = {"K": res.gain, **_model_gains(m, o.time_domain),
              "Cz": np.asarray(o.Cz), "Dzu": np.asarray(o.Dzu), "X": res.X}
     return DesignResult(design.name, method, spec.plant.name, gains, diag, {})
 
@@ -198,7 +207,7 @@ def _observer(spec, design, o, method: str, objective: str, **kw) -> DesignResul
         if ref["available"] and res.h2 is not None:
             ref["relative_difference"] = abs(res.h2 - ref["h2"]) / max(ref["h2"], 1e-300)
         diag["riccati_reference"] = ref
-    gains = {"L": res.gain, "A": m["A"], "B": m["B"], "C": m["C"], "Bw": m["Bw"], "Dv": Dv,
+    gains = {"L": res.gain, **_model_gains(m, o.time_domain), "Dv": Dv,
              "Cz": Cz, "X": res.X}
     return DesignResult(design.name, method, spec.plant.name, gains, diag, {})
 

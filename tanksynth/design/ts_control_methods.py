@@ -172,7 +172,7 @@ def _common_diag(s: dict, res: Any, tried: list, region: Any, inner: float, spec
 
 def _gains(s: dict, res: Any, region: Any) -> dict:
     m = s["model"]
-    return {"K": res.K, "P": res.P, "x0": m.x0, "u0": m.u0, "A": m.A, "B": m.B, "forms": m.forms,
+    return {"K": res.K, "P": res.P, "x_op": m.x0, "u_op": m.u0, "F": m.A, "B": m.B, "forms": m.forms,
             "z_lower": m.lower, "z_upper": m.upper, "region_c": np.array([region.c]),
             "semi_axes": region.semi_axes, "axes": region.axes}
 
@@ -180,8 +180,9 @@ def _gains(s: dict, res: Any, region: Any) -> dict:
 def run_ts_state_feedback(spec: "Spec", design: "DesignSpec") -> DesignResult:
     """PDC state feedback on the exact deviation TS model, certified region.
 
-    Gains: ``K`` (r, m, n: ``u = u0 - sum_i mu_i(x) K_i (x - x0)``), ``P``
-    (Lyapunov matrix), ``x0``, ``u0``, the vertex matrices ``A`` and ``B``,
+    Gains: ``K`` (r, m, n: ``u = u_op - sum_i mu_i(x) K_i (x - x_op)``), ``P``
+    (Lyapunov matrix), ``x_op``, ``u_op``, the vertex matrices ``F`` (r, n, n,
+    continuous time) and ``B``,
     the premises' linear forms and bounds (``forms``, ``z_lower``,
     ``z_upper``), the region level ``region_c`` and its ``semi_axes`` (m)
     and ``axes``.

@@ -263,7 +263,7 @@ def params_match(inputs: ReportInputs, expected: Mapping[str, float], rtol: floa
 
 def first_artefact(inputs: ReportInputs, method: str, x0: Sequence[float] | None = None,
                    shapes: Mapping[str, tuple[int, ...]] | None = None) -> Mapping[str, Any] | None:
-    """The first artefact of ``method`` with gains of the given shapes (and gain ``x0``, if given).
+    """The first artefact of ``method`` with gains of the given shapes (and operating point ``x_op``, if given).
 
     Parameters
     ----------
@@ -272,7 +272,7 @@ def first_artefact(inputs: ReportInputs, method: str, x0: Sequence[float] | None
     method : str
         Design method name.
     x0 : sequence of float, optional
-        Required gain ``x0`` (state units, m); None: any.
+        Required operating point, gain ``x_op`` (state units, m); None: any.
     shapes : mapping of str to tuple of int, optional
         Required shape of each named gain; None: any.
     """
@@ -281,7 +281,7 @@ def first_artefact(inputs: ReportInputs, method: str, x0: Sequence[float] | None
                           for k, s in shapes.items()):
             continue
         if x0 is not None:
-            ax0 = artefact_array(a, "x0")
+            ax0 = artefact_array(a, "x_op")
             if ax0 is None or ax0.shape != (len(x0),) or not np.allclose(ax0, x0, rtol=0, atol=1e-9):
                 continue
         return a

@@ -154,7 +154,7 @@ def _linearization_view(art: Mapping[str, Any], opv: Mapping[str, Any]) -> dict[
     gains = art.get("gains") or {}
     eq = diag.get("equilibrium") or {}
     shown = [gain_latex(k, gains[k]) for k in ("F", "B", "C", "Ad", "Bd") if k in gains]
-    u0 = gains.get("u0")
+    u0 = gains.get("u_op")
     given = eq.get("given_u0")
     rows = []
     names, units = opv["input_names"], opv["input_units"]

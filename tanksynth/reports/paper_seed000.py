@@ -19,8 +19,8 @@ from tanksynth.reports.latex import Tex, escape_latex, format_eigenvalues, forma
 
 __all__ = ["linearisation_applies", "linearisation_rows", "law_applies", "law_rows"]
 
-_LIN_SHAPES = {"F": (3, 3), "B": (3, 2), "u0": (2,)}
-_LAW_SHAPES = {"Lambda_x0": (2, 2), "Lambda0_x0": (2,), "x0": (3,)}
+_LIN_SHAPES = {"F": (3, 3), "B": (3, 2), "u_op": (2,)}
+_LAW_SHAPES = {"Lambda_x0": (2, 2), "Lambda0_x0": (2,), "x_op": (3,)}
 
 
 def linearisation_applies(inputs: ReportInputs) -> bool:
@@ -49,7 +49,7 @@ def linearisation_rows(inputs: ReportInputs) -> tuple[PaperRow, ...]:
     art = first_artefact(inputs, "linearize", paper.Y0, _LIN_SHAPES)
     if art is None:  # `applies` selected this entry; a missing artefact is a registry bug
         raise ReportError("seed 000 comparison: no linearize artefact at y0 = (0.40, 0.20, 0.30) m")
-    F, B, u0 = (artefact_array(art, k) for k in ("F", "B", "u0"))
+    F, B, u0 = (artefact_array(art, k) for k in ("F", "B", "u_op"))
     params = {k: inputs.parameters()[k] for k in paper.TABLE_I}
     Fp, Bp = paper.printed_F(params, paper.Y0)
     Fp[np.abs(Fp) < 1e-12 * np.max(np.abs(Fp))] = 0.0   # -t32 + t13 cancels exactly at y0
@@ -212,7 +212,7 @@ def law_rows(inputs: ReportInputs) -> tuple[PaperRow, ...]:
     art = _law_artefact(inputs)
     if art is None:  # `applies` selected this entry
         raise ReportError("seed 000 comparison: no feedback_linearization artefact of (h1, h2)")
-    x0 = artefact_array(art, "x0")
+    x0 = artefact_array(art, "x_op")
     lam, lam0 = artefact_array(art, "Lambda_x0"), artefact_array(art, "Lambda0_x0")
     params = {k: inputs.parameters()[k] for k in paper.TABLE_I}
     try:

@@ -333,8 +333,8 @@ def _tracked(spec: Any, doc: Mapping[str, Any]) -> tuple[int, ...]:
 
 def _operating_point(spec: Any, doc: Mapping[str, Any]) -> tuple[np.ndarray, np.ndarray]:
     gains = doc["gains"]
-    if "x0" in gains and "u0" in gains:
-        return np.asarray(gains["x0"], float).reshape(-1), np.asarray(gains["u0"], float).reshape(-1)
+    if "x_op" in gains and "u_op" in gains:
+        return np.asarray(gains["x_op"], float).reshape(-1), np.asarray(gains["u_op"], float).reshape(-1)
     return spec_operating_point(spec)
 
 

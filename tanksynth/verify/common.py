@@ -94,6 +94,7 @@ from typing import Any, Callable, Mapping, Sequence
 import numpy as np
 
 from tanksynth.analysis.checks import Check
+from tanksynth.analysis.statespace import model_names
 from tanksynth.errors import ArtefactError, TanksynthError
 from tanksynth.verify.numerics import match_poles, region_lmi_matrix, symmetric
 
@@ -141,28 +142,42 @@ def artefact_gain(doc: Mapping[str, Any], name: str) -> np.ndarray:
     Raises
     ------
     ArtefactError
-        The artefact has no gain of that name.
+        The artefact has no gain of that name (naming the old name when the
+        artefact predates the naming rule, `model_names`).
     """
     gains = doc["gains"]
     if name not in gains:
-        raise ArtefactError(f"artefact '{doc['name']}' ({doc['method']}) has no gain {name!r}")
+        old = _OLD_NAMES.get(name)
+        hint = f" but {old!r}: written before gains were renamed (README); design again" \
+            if old in gains else ""
+        raise ArtefactError(f"artefact '{doc['name']}' ({doc['method']}) has no gain {name!r}{hint}")
     return np.atleast_1d(np.asarray(gains[name], dtype=float))
 
 
-def artefact_matrix(doc: Mapping[str, Any], name: str,
-                    shape: tuple[int, int] | None = None) -> np.ndarray:
+#: New gain name -> the name artefacts written before the naming rule used.
+_OLD_NAMES = {"F": "A", "Ad": "A", "Bd": "B", "Bwd": "Bw", "B0": "B", "x_op": "x0", "u_op": "u0",
+              "x_hat0": "x0"}
+
+
+def artefact_matrix(doc: Mapping[str, Any], name: str, shape: tuple[int, int] | None = None,
+                    domain: str | None = None) -> np.ndarray:
     """A gain of an artefact as a 2-D float array, reshaped to ``shape`` if given.
 
     Parameters
     ----------
     doc, name, shape : mapping, str, (int, int) or None
         The artefact, the gain's name and its expected shape.
+    domain : {"continuous", "discrete"}, optional
+        Given: ``name`` is a model role (``"A"``, ``"B"``, ``"Bw"``, ``"C"``) read under its
+        name in that time domain (``F``/``Ad``, ``B``/``Bd``, ...: `model_names`).
 
     Raises
     ------
     ArtefactError
         No gain of that name, or its size does not fit ``shape``.
     """
+    if domain is not None:
+        name = model_names(domain)[name]
     arr = np.atleast_2d(artefact_gain(doc, name))
     if shape is not None:
         if arr.size != shape[0] * shape[1]:
@@ -396,7 +411,8 @@ def model_recheck(plant: Any, x0: np.ndarray, u0: np.ndarray, domain: str, ts: f
     plant, x0, u0 : Plant, ndarray (n,), ndarray (m,)
         The plant, operating point (state units, m) and equilibrium input (input units, m^3/s).
     domain, ts, stored : str, float or None, mapping of str to ndarray
-        ``"continuous"``/``"discrete"``, sampling period [s], the artefact's ``A``, ``B``, ``C``.
+        ``"continuous"``/``"discrete"``, sampling period [s], the artefact's model by role
+        (``"A"``, ``"B"``, ``"C"``; stored as ``F, B, C`` or ``Ad, Bd, C``: `model_names`).
     """
     from tanksynth.analysis.linearize import linearize
 
@@ -411,7 +427,7 @@ def model_recheck(plant: Any, x0: np.ndarray, u0: np.ndarray, domain: str, ts: f
     ok = bool(worst <= MODEL_TOLERANCE)
     what = f"exact ZOH at ts = {ts:g} s" if domain == "discrete" else "continuous Jacobians"
     return Check("model_recheck", ok,
-                 f"stored {', '.join(stored)} against the plant linearised at the spec's operating "
+                 f"stored {', '.join(model_names(domain).get(k, k) for k in stored)} against the plant linearised at the spec's operating "
                  f"point with the equilibrium input ({what}): largest relative difference "
                  f"{worst:.3g} (tolerance {MODEL_TOLERANCE:g})",
                  {"relative_differences": diffs, "tolerance": MODEL_TOLERANCE, "domain": domain})

@@ -11,7 +11,7 @@ follow them).
 
 The estimate starts at the scenario's initial estimate when it prescribes
 one (``mismatch``), else at the artefact's designed initial estimate (gain
-``x0``) when it ships one, else at the plant's initial state.
+``x_hat0``) when it ships one, else at the plant's initial state.
 
 Runners (``runner(doc, spec) -> EstimatorRun``):
 
@@ -125,7 +125,7 @@ def _measured(spec: Any) -> str:
 
 
 def _context(spec: Any, x_hat0: np.ndarray | None) -> str:
-    start = ("the artefact's initial estimate x0 = [" + ", ".join(f"{v:.4g}" for v in x_hat0) + "]"
+    start = ("the artefact's initial estimate x_hat0 = [" + ", ".join(f"{v:.4g}" for v in x_hat0) + "]"
              if x_hat0 is not None else "the plant's initial state")
     sampled = "" if spec.ts else (f" every {sampling_period(spec):g} s (the spec has no sampling "
                                   "period)")
@@ -135,7 +135,7 @@ def _context(spec: Any, x_hat0: np.ndarray | None) -> str:
 
 
 def _initial_estimate(doc: Mapping[str, Any], n: int) -> np.ndarray | None:
-    x0 = doc["gains"].get("x0")
+    x0 = doc["gains"].get("x_hat0")
     if x0 is None:
         return None
     x0 = np.asarray(x0, dtype=float).reshape(-1)
@@ -308,7 +308,7 @@ def narx_run(doc: Mapping[str, Any], spec: Any) -> EstimatorRun:
     opts = design_options(doc, spec)
     tuning = NARXTuning(W1, g("b1").reshape(H), np.atleast_2d(g("W2")).reshape(n, H),
                         g("b2").reshape(n), g("in_mean").reshape(-1), g("in_scale").reshape(-1),
-                        g("out_mean").reshape(n), g("out_scale").reshape(n), x0=g("x0").reshape(n),
+                        g("out_mean").reshape(n), g("out_scale").reshape(n), x0=g("x_hat0").reshape(n),
                         ts=sampling_period(spec), delays=int(round(float(np.ravel(g("delays"))[0]))),
                         substeps=int(opts.get("substeps", 1)), clip=bool(opts.get("clip", False)))
     est = EstimatorAdapter(NARXEstimator(plant, tuning, backend="vm"))

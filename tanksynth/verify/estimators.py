@@ -49,8 +49,8 @@ def _steady_kalman_error(spec: Any, Q: np.ndarray, R: np.ndarray) -> np.ndarray:
 
 
 def _x0_hat(doc: Mapping[str, Any], spec: Any) -> np.ndarray:
-    """The initial estimate the artefact ships (gain ``x0``, state units)."""
-    return artefact_gain(doc, "x0").reshape(spec.plant.n)
+    """The initial estimate the artefact ships (gain ``x_hat0``, state units)."""
+    return artefact_gain(doc, "x_hat0").reshape(spec.plant.n)
 
 
 def _kalman_builder(doc: Mapping[str, Any], spec: Any) -> tuple[BatchEstimator, np.ndarray, str]:

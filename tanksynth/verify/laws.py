@@ -43,7 +43,7 @@ def integral_tracking_verdict(doc: Mapping[str, Any], spec: Any, *,
                               trace: TraceRecorder | None = None) -> list[Check]:
     """Verdict of an ``integral_tracking`` artefact (seed 000 eq. 13-16 with saturation).
 
-    Checks: ``equilibrium`` (``u0`` balances the model at ``x0``),
+    Checks: ``equilibrium`` (``u_op`` balances the model at ``x_op``),
     ``anti_windup_gain`` (``Kaw`` as the spec's scheme gives it from
     ``K2``), ``law_matches_gains`` (the serialised law equals the law built
     from the gains by `integral_tracking_law`), ``poles`` of the augmented
@@ -67,8 +67,8 @@ def integral_tracking_verdict(doc: Mapping[str, Any], spec: Any, *,
     p = K2.shape[1]
     C1 = artefact_matrix(doc, "C1", (p, n))
     Kaw = artefact_matrix(doc, "Kaw", (p, m))
-    x0 = artefact_gain(doc, "x0").reshape(n)
-    u0 = artefact_gain(doc, "u0").reshape(m)
+    x0 = artefact_gain(doc, "x_op").reshape(n)
+    u0 = artefact_gain(doc, "u_op").reshape(m)
     limits = artefact_matrix(doc, "input_limits", (m, 2))
     ts = float(spec.ts)
     checks = []
@@ -132,7 +132,7 @@ def feedback_linearization_verdict(doc: Mapping[str, Any], spec: Any, *,
     """Verdict of a ``feedback_linearization`` artefact (seed 000 section II-C).
 
     Checks: ``rank_decoupling`` (stored ``Lambda(x0)`` invertible),
-    ``law_matches_gains`` (the serialised law at ``x0``: ``u0`` when the
+    ``law_matches_gains`` (the serialised law at ``x_op``: ``u_op`` when the
     references equal the outputs, ``Lambda^-1 (zeta - Lambda_0)`` and
     ``zeta_i = K_i (y_r,i - y_i)`` for other references), then per output
     ``time_constant_<y>`` (the 63.2 % rise time of a 5 % step within 2 %
@@ -149,8 +149,8 @@ def feedback_linearization_verdict(doc: Mapping[str, Any], spec: Any, *,
     K = np.atleast_2d(artefact_gain(doc, "K")).reshape(m, -1)
     Lam = artefact_matrix(doc, "Lambda_x0", (m, m))
     Lam0 = artefact_gain(doc, "Lambda0_x0").reshape(m)
-    u0 = artefact_gain(doc, "u0").reshape(m)
-    x0 = artefact_gain(doc, "x0").reshape(n)
+    u0 = artefact_gain(doc, "u_op").reshape(m)
+    x0 = artefact_gain(doc, "x_op").reshape(n)
     names = tracked_outputs(doc, spec)
     out_idx = output_rows(plant, names)
     checks = []
@@ -259,7 +259,7 @@ def inverse_dynamics_verdict(doc: Mapping[str, Any], spec: Any, *,
     Checks: ``rank_input_matrix`` (the inputs act independently on the
     controlled states at ``x0``), ``law_matches_gains`` (the serialised law
     equals `inverse_dynamics_law` built from the stored rates ``C``, and
-    gives the stored ``u0`` at ``x0``), ``servo_scenario`` (the servo
+    gives the stored ``u_op`` at ``x_op``), ``servo_scenario`` (the servo
     scenario of `tanksynth.sim.scenarios` with the law built from the gains, true state fed back: ISE
     finite and the tracking time within the horizon).
 
@@ -276,8 +276,8 @@ def inverse_dynamics_verdict(doc: Mapping[str, Any], spec: Any, *,
     plant = spec.plant
     n, m = plant.n, plant.m
     C = artefact_gain(doc, "C").reshape(m)
-    x0 = artefact_gain(doc, "x0").reshape(n)
-    u0 = artefact_gain(doc, "u0").reshape(m)
+    x0 = artefact_gain(doc, "x_op").reshape(n)
+    u0 = artefact_gain(doc, "u_op").reshape(m)
     states = [s.name for s in plant.states]
     controlled = option(doc, spec, "controlled")
     if not isinstance(controlled, list):

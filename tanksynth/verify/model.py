@@ -118,7 +118,7 @@ def linearize_verdict(doc: Mapping[str, Any], spec: Any, *,
     plant = spec.plant
     F, B, C = (np.atleast_2d(artefact_gain(doc, k)) for k in ("F", "B", "C"))
     Ad, Bd = np.atleast_2d(artefact_gain(doc, "Ad")), np.atleast_2d(artefact_gain(doc, "Bd"))
-    x0, u0 = artefact_gain(doc, "x0"), artefact_gain(doc, "u0")
+    x0, u0 = artefact_gain(doc, "x_op"), artefact_gain(doc, "u_op")
     F, B, Ad, Bd = F.reshape(plant.n, plant.n), B.reshape(plant.n, plant.m), Ad.reshape(plant.n, plant.n), \
         Bd.reshape(plant.n, plant.m)
     C = C.reshape(plant.q, plant.n)

@@ -151,7 +151,7 @@ def linearize_run(doc: Mapping[str, Any], spec: Any) -> ModelRun:
     ts = diag.get("ts", spec.ts) if isinstance(diag, Mapping) else spec.ts
     if not isinstance(ts, (int, float)) or not ts > 0:
         raise ArtefactError(f"artefact '{doc['name']}': no sampling period in its diagnostics")
-    x0, u0 = artefact_gain(doc, "x0").reshape(n), artefact_gain(doc, "u0").reshape(m)
+    x0, u0 = artefact_gain(doc, "x_op").reshape(n), artefact_gain(doc, "u_op").reshape(m)
     return ModelRun(Ad.reshape(n, n), Bd.reshape(n, m), x0, u0, float(ts),
                     f"the artefact's discrete linear model (ZOH, ts = {float(ts):g} s) at x0 = ["
                     + ", ".join(f"{v:.4g}" for v in x0) + "] predicting the nonlinear plant from "

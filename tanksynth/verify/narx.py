@@ -150,7 +150,7 @@ def narx_verdict(doc: Mapping[str, Any], spec: Any, *,
     The network is evaluated from the stored weights and normalisation by
     the verdict's own `narx_network` (the shipped `NARXEstimator` runs the
     closed loop); fresh data come from `fresh_ekf_data` with the stored EKF tuning
-    (``ekf_Q``, ``ekf_R``, ``ekf_P0``, ``x0``) and the spec's data options,
+    (``ekf_Q``, ``ekf_R``, ``ekf_P0``, ``x_hat0``) and the spec's data options,
     on a seed the training never used (2 runs, the spec's ``steps``).
 
     ``training_fit_recheck``
@@ -191,7 +191,7 @@ def narx_verdict(doc: Mapping[str, Any], spec: Any, *,
     clip = bool(option(doc, spec, "clip", False))
     tuning = NARXTuning(W1, g("b1").reshape(H), np.atleast_2d(g("W2")).reshape(n, H),
                         g("b2").reshape(n), g("in_mean").reshape(-1), g("in_scale").reshape(-1),
-                        g("out_mean").reshape(n), g("out_scale").reshape(n), x0=g("x0").reshape(n),
+                        g("out_mean").reshape(n), g("out_scale").reshape(n), x0=g("x_hat0").reshape(n),
                         ts=float(spec.ts), delays=delays, substeps=substeps, clip=clip)
     weights = {"W1": tuning.W1, "b1": tuning.b1, "W2": tuning.W2, "b2": tuning.b2,
                "in_mean": tuning.in_mean, "in_scale": tuning.in_scale,

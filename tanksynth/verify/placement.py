@@ -73,8 +73,8 @@ def _placement_common(doc: Mapping[str, Any], spec: Any) -> dict:
     n, m, q = plant.n, plant.m, plant.q
     domain = time_domain(doc, spec)
     ts = spec.ts
-    A = artefact_matrix(doc, "A", (n, n))
-    B = artefact_matrix(doc, "B", (n, m))
+    A = artefact_matrix(doc, "A", (n, n), domain)
+    B = artefact_matrix(doc, "B", (n, m), domain)
     C = artefact_matrix(doc, "C", (q, n))
     x0, u0 = operating_point(spec)
     gains = doc["gains"]
@@ -226,7 +226,7 @@ def canonical_observer_verdict(doc: Mapping[str, Any], spec: Any, *,
     """
     plant = spec.plant
     n, q = plant.n, plant.q
-    A = artefact_matrix(doc, "A", (n, n))
+    A = artefact_matrix(doc, "F", (n, n))
     C = artefact_matrix(doc, "C", (q, n))
     L = artefact_matrix(doc, "L", (n, q))
     x0, u0 = operating_point(spec)

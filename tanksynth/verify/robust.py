@@ -181,7 +181,7 @@ def _context(doc: Mapping[str, Any], spec: Any, observer: bool) -> dict:
     x0 = np.asarray(spec.x0, dtype=float)
     u0 = equilibrium_input(plant, spec.x0, spec.given_u0).u0
     c = dict(plant=plant, n=n, m=m, q=q, domain=domain, region=region, box=box, Bw=Bw, models=models,
-             x0=x0, u0=u0, A=artefact_matrix(doc, "A", (n, n)), B=artefact_matrix(doc, "B", (n, m)),
+             x0=x0, u0=u0, A=artefact_matrix(doc, "A", (n, n), domain), B=artefact_matrix(doc, "B", (n, m), domain),
              C=artefact_matrix(doc, "C", (q, n)))
     integral = "K1" in doc["gains"] and "K2" in doc["gains"]
     c["integral"] = integral

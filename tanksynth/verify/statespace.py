@@ -7,9 +7,11 @@ user can ``step``, ``bode`` or ``margin`` a tanksynth design in one line::
     import control, tanksynth
     control.bode(tanksynth.load("out")["hinf_controller"].to_statespace())
 
-Built from the artefact's gains (the model ``A``, ``B``, ``C`` stored with
-every linear gain, and ``Bw``, ``Cz``, ``Dzu`` / ``Dv`` where the design has
-them), in deviation variables about the operating point. Where the artefact
+Built from the artefact's gains (the model stored with every linear gain:
+``F``, ``B``, ``C`` in continuous time, ``Ad``, ``Bd``, ``C`` in discrete
+time, written ``A``, ``B``, ``C`` below; and ``Bw`` (``Bwd``), ``Cz``,
+``Dzu`` / ``Dv`` where the design has them), in deviation variables about
+the operating point. Where the artefact
 stores no linear model (EKF-type filters, ``luenberger``, ``integral_tracking``,
 the Takagi-Sugeno designs' premises) the plant is rebuilt from ``spec.toml``
 beside the artefact (or the ``spec`` given). The systems (``system``):
@@ -53,6 +55,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
+from tanksynth.analysis.statespace import model_names
 from tanksynth.errors import ArtefactError, TanksynthWarning
 
 __all__ = ["artefact_statespace", "SYSTEMS", "DEFAULT_SYSTEM"]
@@ -91,6 +94,10 @@ class _Artefact:
     @property
     def discrete(self) -> bool:
         return self.diag.get("time_domain", "discrete") == "discrete"
+
+    def model(self, role: str) -> np.ndarray | None:
+        """The model matrix ``role`` (``"A"``, ``"B"``, ``"Bw"``, ``"C"``) under its name (`model_names`)."""
+        return self.g(model_names("discrete" if self.discrete else "continuous")[role])
 
     def dt(self, discrete: bool) -> float:
         if not discrete:
@@ -163,8 +170,9 @@ def _model(a: _Artefact, vertex: int | None) -> tuple[np.ndarray, np.ndarray, np
         if not isinstance(vertex, int) or not 0 <= vertex < count:
             raise ArtefactError(f"{a.label}: vertex must be an integer in [0, {count - 1}], got {vertex!r}")
         return tuple(np.atleast_2d(np.asarray(vm[k][vertex], dtype=float)) for k in ("A", "B", "C"))
-    if all(k in a.gains for k in ("A", "B", "C")) and a.gains["A"].ndim == 2:
-        return a.g("A"), a.g("B"), a.g("C")
+    A, B, C = (a.model(k) for k in ("A", "B", "C"))
+    if A is not None and B is not None and C is not None and A.ndim == 2:
+        return A, B, C
     lin = a.linearisation()
     return (lin.Ad, lin.Bd, lin.C) if a.discrete else (lin.F, lin.B, lin.C)
 
@@ -204,7 +212,7 @@ def _controller(a: _Artefact, system: str, vertex: int | None) -> Any:
     n, dt = A.shape[0], a.dt(a.discrete)
     states, inputs, outputs = a.names("states"), a.names("inputs"), a.names("outputs")
     if system == "performance":
-        Bw, Cz, Dzu = a.g("Bw"), a.g("Cz"), a.g("Dzu")
+        Bw, Cz, Dzu = a.model("Bw"), a.g("Cz"), a.g("Dzu")
         if Bw is None or Cz is None or Dzu is None or K.shape[1] != n:
             raise ArtefactError(f"{a.label}: no Bw, Cz, Dzu with a state feedback on the model "
                                 f"({a.method!r} is not an H2 / H-infinity design): system "
@@ -237,7 +245,7 @@ def _observer(a: _Artefact, system: str, vertex: int | None) -> Any:
     if system == "error":
         return _error(a, system, A - L @ C, L, dt)
     if system == "performance":
-        Bw, Dv, Cz = a.g("Bw"), a.g("Dv"), a.g("Cz")
+        Bw, Dv, Cz = a.model("Bw"), a.g("Dv"), a.g("Cz")
         if Bw is None or Dv is None or Cz is None:
             raise ArtefactError(f"{a.label}: no Bw, Dv, Cz ({a.method!r} is not an H2 / H-infinity "
                                 "design): system 'performance' does not apply")
@@ -268,10 +276,10 @@ def _ts_pdc(a: _Artefact, system: str) -> Any:
         raise ArtefactError(f"{a.label}: a Takagi-Sugeno PDC design gives its linearisation at the "
                             f"operating point, system 'closed_loop' (or 'error' for "
                             f"ts_output_feedback), not {system!r}")
-    Ai, B, Ki = a.gains["A"], a.g("B"), a.gains["K"]
+    Ai, B, Ki = a.gains["F"], a.g("B"), a.gains["K"]
     if Ai.ndim != 3 or Ki.ndim != 3 or Ai.shape[0] != Ki.shape[0]:
-        raise ArtefactError(f"{a.label}: expected vertex matrices A (r, n, n) and PDC gains K "
-                            f"(r, m, n), got A {Ai.shape}, K {Ki.shape}")
+        raise ArtefactError(f"{a.label}: expected vertex matrices F (r, n, n) and PDC gains K "
+                            f"(r, m, n), got F {Ai.shape}, K {Ki.shape}")
     mu, C = _ts_memberships(a)
     A0 = np.einsum("i,ijk->jk", mu, Ai)       # = the plant's Jacobian at x0 (the TS model is exact)
     K0 = np.einsum("i,ijk->jk", mu, Ki)
@@ -398,9 +406,9 @@ def artefact_statespace(doc: Mapping[str, Any], system: str | None = None, spec:
     if method in _TS:
         return _ts_pdc(a, system or "closed_loop")
     if method in _CONTROLLERS and "K" in g and g["K"].ndim <= 2:
-        return _controller(a, system or DEFAULT_SYSTEM["Bw" if "Bw" in g else "K"], vertex)
+        return _controller(a, system or DEFAULT_SYSTEM["Bw" if a.model("Bw") is not None else "K"], vertex)
     if method in _OBSERVERS and "L" in g and g["L"].ndim <= 2:
-        return _observer(a, system or DEFAULT_SYSTEM["Bw" if "Bw" in g else "L"], vertex)
+        return _observer(a, system or DEFAULT_SYSTEM["Bw" if a.model("Bw") is not None else "L"], vertex)
     if method == "ts_observer":
         if system not in (None, "error"):
             raise ArtefactError(f"{a.label}: ts_observer gives its error system ('error'), not {system!r}")

@@ -4,7 +4,8 @@ and ``multiobjective``, with the verdicts' own norm numerics.
 Re-derived from the artefact (its gains) and the spec, never from the design code:
 
 ``model_recheck`` / ``synthesis_data``
-    stored ``A``, ``B``, ``C`` against the linearisation; stored ``Bw`` against
+    stored model (``F``, ``B``, ``C``; discrete time ``Ad``, ``Bd``, ``C``)
+    against the linearisation; stored ``Bw`` (discrete time ``Bwd``) against
     the spec's ``Bw diag(disturbance_std)`` (ZOH at ``ts`` in discrete time,
     recomputed here), stored ``Cz``, ``Dzu`` / ``Dv`` against the options.
 ``stability`` / ``region`` / ``lmi_recheck``
@@ -179,10 +180,10 @@ def _read(doc: Mapping[str, Any], spec: Any) -> dict:
     domain = time_domain(doc, spec)
     dt = float(spec.ts) if domain == "discrete" else None
     gains = doc["gains"]
-    A = artefact_matrix(doc, "A", (n, n))
-    B = artefact_matrix(doc, "B", (n, m))
+    A = artefact_matrix(doc, "A", (n, n), domain)
+    B = artefact_matrix(doc, "B", (n, m), domain)
     C = artefact_matrix(doc, "C", (q, n))
-    Bw = artefact_matrix(doc, "Bw")
+    Bw = artefact_matrix(doc, "Bw", None, domain)
     Bw = Bw.reshape(n, -1) if Bw.size % n == 0 else Bw
     Cz = np.atleast_2d(np.asarray(gains["Cz"], float)) if "Cz" in gains else None
     x0, u0 = operating_point(spec)

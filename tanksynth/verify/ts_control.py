@@ -5,7 +5,7 @@ plant it re-derives:
 
 ``ts_model_recheck``
     the premises ``z_k = (n_k(x) - n_k(x0)) / (a_k . (x - x0))`` recomputed
-    from the plant's atoms, the stored vertices ``A_i`` rebuilt from them
+    from the plant's atoms, the stored vertices ``A_i`` (gain ``F``) rebuilt from them
     and the stored bounds, and ``sum_i mu_i (A_i e + B v)`` compared with
     the plant's ``f(x, u)`` at seeded points of the domain (exactness,
     memberships in ``[0, 1]``);
@@ -56,8 +56,8 @@ class RebuiltModel:
         self.plant = plant
         self.q = quasi_lpv(plant)
         n, m = plant.n, plant.m
-        self.x0 = artefact_gain(doc, "x0").reshape(n)
-        self.u0 = artefact_gain(doc, "u0").reshape(m)
+        self.x0 = artefact_gain(doc, "x_op").reshape(n)
+        self.u0 = artefact_gain(doc, "u_op").reshape(m)
         self.forms = artefact_gain(doc, "forms").reshape(-1, n)
         self.lower = artefact_gain(doc, "z_lower")
         self.upper = artefact_gain(doc, "z_upper")
@@ -434,7 +434,7 @@ def ts_control_verdict(doc: Mapping[str, Any], spec: Any, *,
     def model_checks() -> list[Check]:
         s = _sim_setup(doc, spec)
         model = s["model"]
-        stored = artefact_gain(doc, "A").reshape(model.A.shape)
+        stored = artefact_gain(doc, "F").reshape(model.A.shape)
         d = float(np.max(np.abs(stored - model.A)) / max(np.max(np.abs(model.A)), 1e-300))
         X = np.random.default_rng(int(option(doc, spec, "seed", 0)) + 7).uniform(
             model.lo_box, model.hi_box, size=(4000, n))

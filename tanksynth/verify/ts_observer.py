@@ -184,18 +184,18 @@ def ts_observer_verdict(doc: Mapping[str, Any], spec: Any, *,
     Q = artefact_matrix(doc, "Q", (n, n))
     A0 = artefact_matrix(doc, "A0", (n, n))
     C = artefact_matrix(doc, "C", (q, n))
-    B = artefact_matrix(doc, "B", (n, m))
+    B = artefact_matrix(doc, "B0", (n, m))
     eigs = np.linalg.eigvals(A0 - L @ C)
     what = "A0 - L C"
     checks: list[Check] = []
     model, rebuilt = _ts_model_from_artefact(doc, spec)
     checks += rebuilt
     if model is not None:
-        diffs = {"A0": relative_difference(A0, model.A0), "B": relative_difference(B, model.B),
+        diffs = {"A0": relative_difference(A0, model.A0), "B0": relative_difference(B, model.B),
                  "C": relative_difference(C, model.C)}
         worst = max(diffs.values())
         checks.append(Check("model_recheck", bool(worst <= MODEL_TOLERANCE),
-                            f"stored A0, B, C against the multiple model rebuilt from the plant "
+                            f"stored A0, B0, C against the multiple model rebuilt from the plant "
                             f"(mean of the {model.r} vertices): largest relative difference "
                             f"{worst:.3g} (tolerance {MODEL_TOLERANCE:g})", diffs))
     diag = doc.get("diagnostics") or {}

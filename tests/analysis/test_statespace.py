@@ -58,3 +58,14 @@ def test_norms_against_python_control(dt):
         assert hinf_below(1.001 * g, sys) and not hinf_below(0.999 * g, sys)
     unstable = control.ss([[0.1]], [[1.0]], [[1.0]], [[0.0]])
     assert h2_norm(unstable) == np.inf and hinf_norm(unstable) == np.inf
+
+
+def test_model_names_is_the_naming_rule():
+    from tanksynth.analysis.statespace import model_names
+
+    assert model_names("continuous") == {"A": "F", "B": "B", "Bw": "Bw", "C": "C"}
+    assert model_names("discrete") == {"A": "Ad", "B": "Bd", "Bw": "Bwd", "C": "C"}
+    model_names("discrete")["A"] = "changed"          # a copy: the table stays
+    assert model_names("discrete")["A"] == "Ad"
+    with pytest.raises(ValueError, match="time_domain"):
+        model_names("z")

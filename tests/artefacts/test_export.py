@@ -131,7 +131,7 @@ def test_state_feedback_law_compiled(out, name):
 def test_observer_steps_compiled(out):
     doc = read_artefact(out / "obs.json")
     L = np.asarray(doc["gains"]["L"])
-    A, B, C = (np.asarray(doc["gains"][k]) for k in ("A", "B", "C"))
+    A, B, C = (np.asarray(doc["gains"][k]) for k in ("Ad", "Bd", "C"))
     step = _compiled(out, "obs")
     x_op = np.array([0.40, 0.20, 0.30])
     u_op = np.array(doc["diagnostics"]["equilibrium"]["u0"])
@@ -175,10 +175,10 @@ def test_ekf_step_compiled_matches_the_runtime_filter(out):
     spec = load_spec(out / "spec.toml")
     doc = read_artefact(out / "ekf.json")
     g = {k: np.asarray(v) for k, v in doc["gains"].items()}
-    ekf = ExtendedKalmanFilter(spec.plant, KalmanTuning(Q=g["Q"], R=g["R"], P0=g["P0"], x0=g["x0"],
+    ekf = ExtendedKalmanFilter(spec.plant, KalmanTuning(Q=g["Q"], R=g["R"], P0=g["P0"], x0=g["x_hat0"],
                                                         ts=1.0), backend="vm")
     expected = ekf.step(Y, U)
-    x_next, P_next = _compiled(out, "ekf")(g["x0"], g["P0"], Y, U)
+    x_next, P_next = _compiled(out, "ekf")(g["x_hat0"], g["P0"], Y, U)
     np.testing.assert_allclose(_np(x_next), expected, rtol=1e-12, atol=1e-15)
     np.testing.assert_allclose(np.asarray(P_next), ekf.covariance, rtol=1e-10, atol=1e-18)
     assert np.allclose(np.asarray(P_next), np.asarray(P_next).T)
@@ -190,24 +190,25 @@ def test_ukf_step_compiled_matches_the_runtime_filter(out):
 
     spec = load_spec(out / "spec.toml")
     g = {k: np.asarray(v) for k, v in read_artefact(out / "ukf.json")["gains"].items()}
-    ukf = UnscentedKalmanFilter(spec.plant, UKFTuning(Q=g["Q"], R=g["R"], P0=g["P0"], x0=g["x0"],
+    ukf = UnscentedKalmanFilter(spec.plant, UKFTuning(Q=g["Q"], R=g["R"], P0=g["P0"], x0=g["x_hat0"],
                                                       ts=1.0, alpha=1.0), backend="vm")
-    x_next, P_next = _compiled(out, "ukf")(g["x0"], g["P0"], Y, U)
+    x_next, P_next = _compiled(out, "ukf")(g["x_hat0"], g["P0"], Y, U)
     expected = ukf.step(Y, U)
     np.testing.assert_allclose(_np(x_next), expected, rtol=1e-12, atol=1e-15)
     np.testing.assert_allclose(np.asarray(P_next), ukf.covariance, rtol=1e-10, atol=1e-18)
     # the estimate moved toward the measurement: the correction acted
-    assert np.linalg.norm(_np(x_next)[:2] - Y) < np.linalg.norm(g["x0"][:2] - Y)
+    assert np.linalg.norm(_np(x_next)[:2] - Y) < np.linalg.norm(g["x_hat0"][:2] - Y)
 
 
 def test_header_and_mat_agree_in_orientation(out, tmp_path):
     from scipy.io import loadmat
 
     header = (out / "ekf.h").read_text(encoding="utf-8")
-    assert "#define EKF_X0_ROWS 3" in header and "#define EKF_X0_COLS 1" in header
+    assert "#define EKF_X_HAT0_ROWS 3" in header and "#define EKF_X_HAT0_COLS 1" in header
     assert "#define EKF_TS 1.0" in header and "states: h1 [m], h2 [m], h3 [m]" in header
     mat = loadmat(out / "ekf.mat")
-    assert mat["x0"].shape == (3, 1) and mat["x_op"].shape == (3, 1)
+    assert mat["x_hat0"].shape == (3, 1) and mat["x_op"].shape == (3, 1)
+    assert "x0" not in mat and "u0" not in mat     # the naming rule: x_op, u_op, x_hat0
     values = re.search(r"ekf_x_op\[3\] = \{([^}]*)\}", header).group(1)
     np.testing.assert_allclose([float(v) for v in values.split(",")], mat["x_op"][:, 0])
     # the header compiles, and its arrays hold the .mat values

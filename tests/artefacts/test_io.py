@@ -24,7 +24,7 @@ def make_result(name: str = "akf", **gains) -> DesignResult:
     if not gains:
         gains = {
             "K": np.array([[1.5, -2.25e-5, 3.0], [0.1, 1e300, -7.0]]),
-            "x0": np.array([0.4, 0.2, 0.3]),
+            "x_hat0": np.array([0.4, 0.2, 0.3]),
             "s": np.array(2.0),
         }
     diagnostics = {"status": "optimal", "eigenvalues": np.array([-1.0 + 0.5j, -1.0 - 0.5j]),
@@ -59,7 +59,7 @@ def test_writes_json_and_npz(tmp_path):
     assert prov["content_sha256"] == artefact_mod.content_digest(doc)
     # gains as nested lists of floats, equal to the npz
     assert doc["gains"]["K"] == res.gains["K"].tolist()
-    assert doc["gains"]["x0"] == [0.4, 0.2, 0.3]
+    assert doc["gains"]["x_hat0"] == [0.4, 0.2, 0.3]
     with np.load(tmp_path / "out" / "akf.npz") as npz:
         assert set(npz.files) == set(res.gains)
         for k in res.gains:
@@ -98,7 +98,7 @@ def test_tampered_gain_refused(tmp_path):
 def test_tampered_shape_refused(tmp_path):
     path = write_artefact(make_result(), tmp_path, SHA)
     doc = json.loads(path.read_text())
-    doc["gains"]["x0"] = [[0.4], [0.2], [0.3]]       # same numbers, other shape
+    doc["gains"]["x_hat0"] = [[0.4], [0.2], [0.3]]       # same numbers, other shape
     path.write_text(json.dumps(doc))
     with pytest.raises(ArtefactError):
         read_artefact(path)
@@ -184,7 +184,7 @@ def test_mat_export(tmp_path):
     assert listing(tmp_path) == ["akf.json", "akf.mat", "akf.npz"]
     mat = loadmat(tmp_path / "akf.mat")
     np.testing.assert_array_equal(mat["K"], res.gains["K"])
-    np.testing.assert_array_equal(mat["x0"].ravel(), res.gains["x0"])
+    np.testing.assert_array_equal(mat["x_hat0"].ravel(), res.gains["x_hat0"])
 
 
 def _parse_header(text: str) -> dict[str, np.ndarray]:
@@ -201,7 +201,7 @@ def test_c_header_values_round_trip_textually():
     res = make_result()
     parsed = _parse_header(c_header("akf", res.gains))
     np.testing.assert_array_equal(parsed["akf_K"], res.gains["K"])
-    np.testing.assert_array_equal(parsed["akf_x0"], res.gains["x0"].reshape(-1, 1))
+    np.testing.assert_array_equal(parsed["akf_x_hat0"], res.gains["x_hat0"].reshape(-1, 1))
     np.testing.assert_array_equal(parsed["akf_s"], [[2.0]])
 
 
@@ -219,7 +219,7 @@ def test_c_header_compiles_and_values_round_trip(tmp_path, name):
         "int main(void) {\n"
         f"  for (int i = 0; i < {ident.upper()}_K_ROWS * {ident.upper()}_K_COLS; i++)"
         f' printf("%.17g\\n", {ident}_K[i]);\n'
-        f'  for (int i = 0; i < 3; i++) printf("%.17g\\n", {ident}_x0[i]);\n'
+        f'  for (int i = 0; i < 3; i++) printf("%.17g\\n", {ident}_x_hat0[i]);\n'
         f'  printf("%.17g\\n", {ident}_s[0]);\n'
         "  return 0;\n}\n")
     subprocess.run(["gcc", "-std=c99", "-Wall", "-Werror", "-Wno-unused-const-variable",
@@ -228,7 +228,7 @@ def test_c_header_compiles_and_values_round_trip(tmp_path, name):
     subprocess.run(["gcc", "-std=c99", "-o", str(exe), str(src)], check=True, cwd=tmp_path)
     out = subprocess.run([str(exe)], check=True, capture_output=True, text=True).stdout.split()
     values = np.array([float(v) for v in out])
-    expected = np.concatenate([res.gains["K"].ravel(), res.gains["x0"], [2.0]])
+    expected = np.concatenate([res.gains["K"].ravel(), res.gains["x_hat0"], [2.0]])
     np.testing.assert_array_equal(values, expected)     # bit-exact through the C compiler
 
 

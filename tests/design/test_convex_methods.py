@@ -46,7 +46,7 @@ def test_s_plane_poles_in_a_discrete_spec_warn():
 def test_domain_s_converts_with_exp_p_ts():
     spec, res, lines = _run(TANK + 'poles = {values = [-0.05, -0.06, -0.07], domain = "s"}\n')
     assert not any("s-plane" in s for s in lines)
-    A, B, K = (np.asarray(res.gains[k]) for k in ("A", "B", "K"))
+    A, B, K = (np.asarray(res.gains[k]) for k in ("Ad", "Bd", "K"))
     # independent: z = exp(p ts) with ts = 1 s
     want = np.sort(np.exp(np.array([-0.05, -0.06, -0.07]) * 1.0))
     assert np.allclose(np.sort(np.linalg.eigvals(A - B @ K).real), want, atol=1e-9)
@@ -85,7 +85,7 @@ name = "d"
 def test_triple_pole_designs_are_written(body):
     """Issue 12 item 1 at the spec level (used to exit 3 'pole placement inaccurate')."""
     _, res, _ = _run(HF + body)
-    A = np.asarray(res.gains["A"])
+    A = np.asarray(res.gains["F"])      # no sampling period: continuous time
     if "L" in res.gains:
         M = A - np.asarray(res.gains["L"]) @ np.asarray(res.gains["C"])
     else:
@@ -108,7 +108,7 @@ def test_fragile_spec_is_refused_unless_allowed():
     rob = res.diagnostics["robustness"]
     assert rob["fragile"] and rob["accepted_because"] == "allow_fragile = true"
     # independent: the relative stability radius bounds a destabilising change of A
-    A, L, C = (np.asarray(res.gains[k]) for k in ("A", "L", "C"))
+    A, L, C = (np.asarray(res.gains[k]) for k in ("Ad", "L", "C"))
     M = A - L @ C
     theta = np.linspace(0, np.pi, 2001)
     smin = min(np.linalg.svd(np.exp(1j * t) * np.eye(3) - M, compute_uv=False)[-1] for t in theta)

@@ -49,7 +49,7 @@ def test_builder_returns_the_estimator_and_the_initial_estimate_it_ships(loaded,
     est, x0_hat, description = rebuild.build(doc, spec)
     n = spec.plant.n
     assert x0_hat.shape == (n,) and isinstance(description, str) and description
-    np.testing.assert_array_equal(x0_hat, np.asarray(doc["gains"]["x0"], dtype=float).reshape(n))
+    np.testing.assert_array_equal(x0_hat, np.asarray(doc["gains"]["x_hat0"], dtype=float).reshape(n))
     if name == "ckf":
         np.testing.assert_allclose(x0_hat, [0.38, 0.21, 0.29])
     est.reset(np.tile(x0_hat, (2, 1)))                       # a batch of 2 runs

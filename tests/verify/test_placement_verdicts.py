@@ -39,5 +39,5 @@ def test_triple_pole_artefacts_pass_their_verdicts(tmp_path):
         assert poles.data["polynomial_error"] < 1e-10
     # independent: (s + 2)^3 from the stored gains
     doc = __import__("json").loads((tmp_path / "pp.json").read_text())
-    A, B, K = (np.array(doc["gains"][k]) for k in ("A", "B", "K"))
+    A, B, K = (np.array(doc["gains"][k]) for k in ("F", "B", "K"))   # no ts: continuous
     assert np.allclose(np.poly(A - B @ K), [1, 6, 12, 8], rtol=1e-10)

@@ -52,13 +52,13 @@ def test_synthesis_controllers(designed, name):
     assert isinstance(sys, control.StateSpace) and sys.dt == 1.0
     assert sys.state_labels == NAMES and sys.input_labels == ["q1", "q2"]
     assert sys.output_labels == ["h1", "h2"]
-    np.testing.assert_allclose(_poles(sys), _eig(g["A"] - g["B"] @ g["K"]), atol=1e-10)
+    np.testing.assert_allclose(_poles(sys), _eig(g["Ad"] - g["Bd"] @ g["K"]), atol=1e-10)
     perf = d.to_statespace()     # default of an H2 / H-infinity design: w -> z
-    assert (perf.ninputs, perf.noutputs) == (g["Bw"].shape[1], g["Cz"].shape[0])
-    np.testing.assert_allclose(_poles(perf), _eig(g["A"] - g["B"] @ g["K"]), atol=1e-10)
+    assert (perf.ninputs, perf.noutputs) == (g["Bwd"].shape[1], g["Cz"].shape[0])
+    np.testing.assert_allclose(_poles(perf), _eig(g["Ad"] - g["Bd"] @ g["K"]), atol=1e-10)
     np.testing.assert_allclose(perf.C, g["Cz"] - g["Dzu"] @ g["K"], atol=1e-12)
     loop = d.to_statespace("loop")    # L(z) = K (zI - A)^-1 B: open-loop poles
-    np.testing.assert_allclose(_poles(loop), _eig(g["A"]), atol=1e-10)
+    np.testing.assert_allclose(_poles(loop), _eig(g["Ad"]), atol=1e-10)
     with pytest.raises(ArtefactError, match="state feedback"):
         d.to_statespace("error")
 
@@ -70,11 +70,11 @@ def test_synthesis_observers(designed, name):
     err = d.to_statespace("error")
     assert err.dt == 1.0 and err.state_labels == NAMES
     assert err.input_labels == ["v_h1", "v_h2"] and err.output_labels == ["e_h1", "e_h2", "e_h3"]
-    np.testing.assert_allclose(_poles(err), _eig(g["A"] - g["L"] @ g["C"]), atol=1e-10)
+    np.testing.assert_allclose(_poles(err), _eig(g["Ad"] - g["L"] @ g["C"]), atol=1e-10)
     np.testing.assert_allclose(err.B, -g["L"])
     perf = d.to_statespace()     # default: w, v -> z
-    assert perf.ninputs == g["Bw"].shape[1] + g["Dv"].shape[1]
-    np.testing.assert_allclose(perf.B, np.hstack([g["Bw"], -g["L"] @ g["Dv"]]))
+    assert perf.ninputs == g["Bwd"].shape[1] + g["Dv"].shape[1]
+    np.testing.assert_allclose(perf.B, np.hstack([g["Bwd"], -g["L"] @ g["Dv"]]))
     obs = d.to_statespace("observer")
     assert obs.output_labels == ["h1_hat", "h2_hat", "h3_hat"] and obs.input_labels == ["q1", "q2", "h1", "h2"]
 
@@ -82,7 +82,7 @@ def test_synthesis_observers(designed, name):
 def test_robust_state_feedback_with_integral_action(designed):
     d = designed["robust"]["robust_integral"]
     g = d.gains
-    A, B, K, ts = g["A"], g["B"], g["K"], 1.0
+    A, B, K, ts = g["Ad"], g["Bd"], g["K"], 1.0
     C1 = np.array([[1.0, 0, 0], [0, 1.0, 0]])    # tracked h1, h2
     # z+ = z + ts (r - C1 x), u = -K [x; z]
     Aa = np.block([[A, np.zeros((3, 2))], [-ts * C1, np.eye(2)]])
@@ -112,11 +112,11 @@ def test_robust_regulator_and_observer(designed):
     g = sat.gains
     sys = sat.to_statespace()
     assert sys.state_labels == NAMES and sys.dt == 1.0
-    np.testing.assert_allclose(_poles(sys), _eig(g["A"] - g["B"] @ g["K"]), atol=1e-10)
+    np.testing.assert_allclose(_poles(sys), _eig(g["Ad"] - g["Bd"] @ g["K"]), atol=1e-10)
     obs = designed["robust"]["robust_observer"]
     g = obs.gains
     err = obs.to_statespace()
-    np.testing.assert_allclose(_poles(err), _eig(g["A"] - g["L"] @ g["C"]), atol=1e-10)
+    np.testing.assert_allclose(_poles(err), _eig(g["Ad"] - g["L"] @ g["C"]), atol=1e-10)
     assert np.all(np.abs(_poles(err) - 0.5) < 0.4)
     vm = obs.diagnostics["vertex_models"]
     v = obs.to_statespace(vertex=2)
@@ -152,8 +152,8 @@ def test_ts_pdc_local_linearisation(designed, name):
     d = designed["ts_control"][name]
     g = d.gains
     spec = load_spec(ROOT / "three_tank_ts_control.toml")
-    J = _jacobian(spec.plant, g["x0"], g["u0"])
-    mu = _memberships_from_jacobian(g["A"], J)
+    J = _jacobian(spec.plant, g["x_op"], g["u_op"])
+    mu = _memberships_from_jacobian(g["F"], J)
     K0 = np.einsum("i,ijk->jk", mu, g["K"])
     with pytest.warns(TanksynthWarning, match="linearisation at the operating point"):
         sys = d.to_statespace()

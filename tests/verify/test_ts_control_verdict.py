@@ -70,7 +70,7 @@ def test_region_level_by_hand(designed):
     doc = docs["pdc"]
     P = np.asarray(doc["gains"]["P"])
     K = np.asarray(doc["gains"]["K"])
-    x0 = np.asarray(doc["gains"]["x0"])
+    x0 = np.asarray(doc["gains"]["x_op"])
     Pi = np.linalg.inv(P)
     d = np.minimum(0.62 - x0, x0 - 0.05)
     margins = np.asarray(doc["diagnostics"]["input_margins"])
@@ -92,7 +92,7 @@ def test_inside_stays_outside_may_leave(designed):
     out = simulate_region(doc, spec, inside, horizon=300.0)
     assert not out["left_domain"].any() and not out["saturated"].any()
     # corners of the domain box: outside the region (it is inscribed in the box)
-    x0 = np.asarray(doc["gains"]["x0"])
+    x0 = np.asarray(doc["gains"]["x_op"])
     corners = np.array([[0.6, 0.06, 0.06], [0.06, 0.6, 0.6], [0.6, 0.6, 0.06]]) - x0
     assert np.all(np.einsum("mi,ij,mj->m", corners, P, corners) > c)
     far = simulate_region(doc, spec, corners, horizon=300.0)
@@ -103,9 +103,9 @@ def test_campaign_runner_is_a_closed_loop(designed):
     spec, docs = designed
     loop = ts_control_run(docs["pdc"], spec)
     assert loop.kind == "controller"
-    x = np.asarray(docs["pdc"]["gains"]["x0"])[None, :]
+    x = np.asarray(docs["pdc"]["gains"]["x_op"])[None, :]
     u = loop.controller(x, np.zeros((1, 2)), 0.0)
-    assert np.allclose(u, np.asarray(docs["pdc"]["gains"]["u0"]))
+    assert np.allclose(u, np.asarray(docs["pdc"]["gains"]["u_op"]))
 
 
 def test_measured_premises_verdict_passes(tmp_path):

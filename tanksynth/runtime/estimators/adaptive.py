@@ -149,8 +149,8 @@ class AdaptiveKalmanTuning:
         set_("operating_point", _op(self.operating_point))
 
     def gains(self) -> dict[str, np.ndarray]:
-        """Tuning arrays for the artefact."""
-        out = {"Q0": self.Q0, "R": self.R, "P0": self.P0, "x0": self.x0,
+        """Tuning arrays for the artefact; the initial estimate ``x0`` is stored as ``x_hat0``."""
+        out = {"Q0": self.Q0, "R": self.R, "P0": self.P0, "x_hat0": self.x0,
                "window": np.array([float(self.window)]), "q_floor": np.array([self.q_floor])}
         if self.operating_point is not None:
             out["x_op"], out["u_op"] = self.operating_point
@@ -305,8 +305,8 @@ class AdaptiveScalingTuning:
         set_("operating_point", _op(self.operating_point))
 
     def gains(self) -> dict[str, np.ndarray]:
-        """Tuning arrays for the artefact."""
-        out = {"Q": self.Q, "R": self.R, "P0": self.P0, "x0": self.x0, "G": self.G,
+        """Tuning arrays for the artefact; the initial estimate ``x0`` is stored as ``x_hat0``."""
+        out = {"Q": self.Q, "R": self.R, "P0": self.P0, "x_hat0": self.x0, "G": self.G,
                "abc": np.array([self.a, self.b, self.c]), "phi0": np.array([self.phi0])}
         if self.operating_point is not None:
             out["x_op"], out["u_op"] = self.operating_point

@@ -99,8 +99,9 @@ class ConsensusTuning:
         return len(self.R)
 
     def gains(self) -> dict[str, np.ndarray]:
-        """Tuning arrays for the artefact (``R_i``, ``C_i`` as ``R0, R1, ...``)."""
-        out = {"Q": self.Q, "P0": self.P0, "x0": self.x0, "G": self.G}
+        """Tuning arrays for the artefact (``R_i``, ``C_i`` as ``R0, R1, ...``); the initial
+        estimate ``x0`` is stored as ``x_hat0``."""
+        out = {"Q": self.Q, "P0": self.P0, "x_hat0": self.x0, "G": self.G}
         for i, Ri in enumerate(self.R):
             out[f"R{i}"] = Ri
         if self.C is not None:

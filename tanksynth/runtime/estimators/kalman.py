@@ -100,8 +100,9 @@ class KalmanTuning:
                                      as_vector(u_op, "operating_point u0")))
 
     def gains(self) -> dict[str, np.ndarray]:
-        """The tuning matrices as float arrays (artefact gains)."""
-        out = {"Q": self.Q, "R": self.R, "P0": self.P0, "x0": self.x0}
+        """The tuning matrices as float arrays (artefact gains); the initial
+        estimate ``x0`` is stored as ``x_hat0``."""
+        out = {"Q": self.Q, "R": self.R, "P0": self.P0, "x_hat0": self.x0}
         if self.operating_point is not None:
             out["x_op"], out["u_op"] = self.operating_point
         return out

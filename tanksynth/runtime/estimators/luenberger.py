@@ -88,8 +88,8 @@ class LuenbergerTuning:
         set_("operating_point", _op(self.operating_point))
 
     def gains(self) -> dict[str, np.ndarray]:
-        """Tuning arrays for the artefact."""
-        out = {"L": self.L, "x0": self.x0}
+        """Tuning arrays for the artefact; the initial estimate ``x0`` is stored as ``x_hat0``."""
+        out = {"L": self.L, "x_hat0": self.x0}
         if self.operating_point is not None:
             out["x_op"], out["u_op"] = self.operating_point
         return out

@@ -116,10 +116,11 @@ class NARXTuning:
         return np.concatenate([self.W1.ravel(), self.b1, self.W2.ravel(), self.b2])
 
     def gains(self) -> dict[str, np.ndarray]:
-        """Weights and normalisation for the artefact."""
+        """Weights and normalisation for the artefact; the initial
+        estimate ``x0`` is stored as ``x_hat0``."""
         return {"W1": self.W1, "b1": self.b1, "W2": self.W2, "b2": self.b2,
                 "in_mean": self.in_mean, "in_scale": self.in_scale, "out_mean": self.out_mean,
-                "out_scale": self.out_scale, "x0": self.x0, "delays": np.array([float(self.delays)])}
+                "out_scale": self.out_scale, "x_hat0": self.x0, "delays": np.array([float(self.delays)])}
 
 
 def _forward(params: Sequence[np.ndarray], Z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -95,8 +95,9 @@ class UKFTuning:
                                      as_vector(u_op, "operating_point u0")))
 
     def gains(self) -> dict[str, np.ndarray]:
-        """Tuning arrays for the artefact (``alpha, beta, kappa`` as 1-vectors)."""
-        out = {"Q": self.Q, "R": self.R, "P0": self.P0, "x0": self.x0,
+        """Tuning arrays for the artefact (``alpha, beta, kappa`` as 1-vectors); the initial
+        estimate ``x0`` is stored as ``x_hat0``."""
+        out = {"Q": self.Q, "R": self.R, "P0": self.P0, "x_hat0": self.x0,
                "alpha": np.array([self.alpha]), "beta": np.array([self.beta]),
                "kappa": np.array([self.kappa]), "redraw": np.array([float(self.redraw)])}
         if self.operating_point is not None:

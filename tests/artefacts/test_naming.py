@@ -1,0 +1,150 @@
+"""One naming rule for the gains of every method (issue 16), checked on every example's designs.
+
+The rule (README, Artefacts): continuous-time model ``F, B, C, Bw``; discrete-time ``Ad, Bd,
+C, Bwd``; operating point ``x_op, u_op``; an estimator's initial estimate ``x_hat0``. No gain
+is called ``A``, none ``x0`` or ``u0``; ``B`` appears only beside ``F`` and ``Bd`` beside
+``Ad``; the names agree with the design's ``time_domain`` diagnostic, and the matrices behave
+like their time domain (checked independently: eigenvalues, and ``Ad, Bd`` the exact ZOH of
+``F, B`` computed here with ``scipy.linalg.expm``).
+"""
+
+from __future__ import annotations
+
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pytest
+from scipy.linalg import expm
+
+from tanksynth.artefacts.export import implementation_data, mat_contents
+from tanksynth.errors import ArtefactError
+from tanksynth.methods import METHODS, load_spec
+from tanksynth.verify.common import artefact_gain, artefact_matrix
+
+EXAMPLES = sorted(Path(__file__).resolve().parents[2].joinpath("examples").glob("*.toml"))
+CONTINUOUS = ("F", "B", "Bw")
+DISCRETE = ("Ad", "Bd", "Bwd")
+
+
+@pytest.fixture(scope="module")
+def designed() -> dict:
+    """``(example, design name) -> (spec, DesignResult)`` for every design of every example."""
+    out = {}
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")     # design warnings are other tests' business
+        for path in EXAMPLES:
+            spec = load_spec(path)
+            for entry in spec.designs:
+                out[(path.stem, entry.name)] = (spec, METHODS[entry.method].design(spec, entry))
+    return out
+
+
+def test_every_method_has_an_example_design(designed):
+    assert {r.method for _, r in designed.values()} == set(METHODS)
+
+
+def test_the_rule_holds_for_every_gain(designed):
+    bad = []
+    for (example, name), (_, r) in designed.items():
+        g = set(r.gains)
+        where = f"{example}/{name} ({r.method}): {sorted(g)}"
+        if {"A", "x0", "u0"} & g:
+            bad.append(f"{where}: a gain named A, x0 or u0")
+        if "B" in g and "F" not in g:
+            bad.append(f"{where}: B without F")
+        if "Bw" in g and "F" not in g:
+            bad.append(f"{where}: Bw without F")
+        if ("Bd" in g or "Bwd" in g) and "Ad" not in g:
+            bad.append(f"{where}: Bd/Bwd without Ad")
+        if ("x_op" in g) != ("u_op" in g):
+            bad.append(f"{where}: x_op and u_op come together")
+    assert not bad, "\n".join(bad)
+
+
+def test_names_agree_with_the_time_domain(designed):
+    bad = []
+    checked = 0
+    for (example, name), (_, r) in designed.items():
+        g = set(r.gains)
+        has_c, has_d = bool(g & set(CONTINUOUS)), bool(g & set(DISCRETE))
+        domain = r.diagnostics.get("time_domain")
+        where = f"{example}/{name} ({r.method}, time_domain {domain!r})"
+        if r.method == "linearize":     # both models, by definition
+            if not (g >= {"F", "B", "Ad", "Bd", "C", "x_op", "u_op"}):
+                bad.append(f"{where}: {sorted(g)}")
+            continue
+        if (has_c or has_d) and domain not in ("continuous", "discrete"):
+            bad.append(f"{where}: a model without a time_domain diagnostic")
+        elif domain == "continuous" and has_d or domain == "discrete" and has_c:
+            bad.append(f"{where}: {sorted(g)}")
+        checked += has_c or has_d
+    assert not bad, "\n".join(bad)
+    assert checked >= 15        # pole/LMI placement, synthesis, robust, TS PDC, canonical, Kalman
+
+
+def test_matrices_behave_like_their_time_domain(designed):
+    """Tank plants are open-loop stable: ``F`` has eigenvalues with real part <= 0 (1/s), its
+    ZOH ``Ad = expm(F ts)`` eigenvalues in (0, 1]. A discrete matrix stored as ``F`` (or the
+    reverse) fails one of the two."""
+    bad = []
+    for (example, name), (_, r) in designed.items():
+        for key in ("F", "Ad"):
+            M = np.asarray(r.gains.get(key, np.zeros((0, 0))), dtype=float)
+            if M.ndim != 2 or M.size == 0:
+                continue        # absent, or the Takagi-Sugeno vertex stack
+            eig = np.linalg.eigvals(M)
+            scale = max(1.0, float(np.max(np.abs(eig))))
+            ok = (np.all(eig.real <= 1e-9 * scale) if key == "F"
+                  else np.all(eig.real > 0) and np.all(np.abs(eig) <= 1 + 1e-9))
+            if not ok:
+                bad.append(f"{example}/{name} ({r.method}): {key} eigenvalues {np.round(eig, 6)}")
+    assert not bad, "\n".join(bad)
+
+
+def test_linearize_Ad_Bd_are_the_zoh_of_F_B(designed):
+    n_checked = 0
+    for (example, name), (spec, r) in designed.items():
+        if r.method != "linearize":
+            continue
+        F, B, Ad, Bd = (np.asarray(r.gains[k], dtype=float) for k in ("F", "B", "Ad", "Bd"))
+        n, m = B.shape
+        E = expm(np.block([[F, B], [np.zeros((m, n + m))]]) * float(spec.ts))
+        np.testing.assert_allclose(Ad, E[:n, :n], rtol=1e-9, atol=1e-14, err_msg=example)
+        np.testing.assert_allclose(Bd, E[:n, n:], rtol=1e-9, atol=1e-16, err_msg=example)
+        np.testing.assert_allclose(r.gains["x_op"], spec.x0, rtol=0, atol=0, err_msg=example)
+        n_checked += 1
+    assert n_checked >= 5
+
+
+def test_initial_estimates_are_x_hat0(designed):
+    """Every estimator shipping an initial estimate names it ``x_hat0``: the spec's ``x0`` option."""
+    seen = 0
+    for (example, name), (spec, r) in designed.items():
+        if "x_hat0" not in r.gains:
+            continue
+        assert np.asarray(r.gains["x_hat0"]).shape == (spec.plant.n,), (example, name)
+        seen += 1
+    assert seen >= 8   # ekf, ukf (twice each), kalman, adaptive_kalman, luenberger, narx, ...
+
+
+def test_mat_files_follow_the_rule(designed):
+    for (example, name), (_, r) in designed.items():
+        mat = mat_contents(r.gains, implementation_data(r.diagnostics, None))
+        assert "x0" not in mat and "u0" not in mat and "A" not in mat, (example, name)
+        assert {"x_op", "u_op"} <= set(mat)
+        if "x_op" in r.gains:        # the design's own operating point, as a column
+            np.testing.assert_array_equal(mat["x_op"][:, 0], np.ravel(r.gains["x_op"]))
+
+
+def test_an_artefact_with_the_old_names_is_named():
+    doc = {"name": "old", "method": "pole_placement",
+           "gains": {"A": [[1.0]], "B": [[1.0]], "C": [[1.0]], "x0": [0.1]}}
+    with pytest.raises(ArtefactError, match=r"no gain 'Ad' but 'A'.*design again"):
+        artefact_matrix(doc, "A", (1, 1), "discrete")
+    with pytest.raises(ArtefactError, match=r"no gain 'x_hat0' but 'x0'"):
+        artefact_gain(doc, "x_hat0")
+    with pytest.raises(ArtefactError, match=r"no gain 'K'$"):
+        artefact_gain(doc, "K")
+    np.testing.assert_array_equal(artefact_matrix({**doc, "gains": {"F": [[2.0]]}}, "A", (1, 1),
+                                                  "continuous"), [[2.0]])
