@@ -308,7 +308,7 @@ def _vec(gains: Mapping[str, Any], key: str) -> np.ndarray:
 def _initial_and_op(gains: Mapping[str, Any]) -> tuple[np.ndarray, Any]:
     """Initial estimate and operating point of a linear-filter artefact (the one place for keys)."""
     op = (_vec(gains, "x_op"), _vec(gains, "u_op")) if "x_op" in gains and "u_op" in gains else None
-    return _vec(gains, "x0").reshape(-1), op
+    return _vec(gains, "x_hat0").reshape(-1), op
 
 
 def _adaptive_kalman_data(gains: Mapping[str, Any], spec: Any, options: Any) -> Any:
@@ -359,7 +359,7 @@ def _narx_data(gains: Mapping[str, Any], spec: Any, options: Any) -> Any:
     tuning = NARXTuning(W1, _vec(gains, "b1").reshape(H), _vec(gains, "W2").reshape(n, H),
                         _vec(gains, "b2").reshape(n), _vec(gains, "in_mean").reshape(-1),
                         _vec(gains, "in_scale").reshape(-1), _vec(gains, "out_mean").reshape(n),
-                        _vec(gains, "out_scale").reshape(n), x0=_vec(gains, "x0").reshape(n),
+                        _vec(gains, "out_scale").reshape(n), x0=_vec(gains, "x_hat0").reshape(n),
                         ts=float(spec.ts), delays=int(round(float(_vec(gains, "delays").ravel()[0]))),
                         substeps=int(getattr(options, "substeps", 1)),
                         clip=bool(getattr(options, "clip", False)))

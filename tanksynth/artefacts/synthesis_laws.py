@@ -81,8 +81,8 @@ def _synthesis_gains(gains: Mapping[str, Any], plant: Any) -> dict[str, np.ndarr
 def _robust_gains(gains: Mapping[str, Any], plant: Any) -> dict[str, Any]:
     """``K`` (or ``K1``, ``K2``), the model's ``C`` and the operating point of a robust state feedback."""
     n, m = plant.n, plant.m
-    out: dict[str, Any] = {"x_op": _gain(gains, "x_op", "x0").reshape(n),
-                           "u_op": _gain(gains, "u_op", "u0").reshape(m),
+    out: dict[str, Any] = {"x_op": _gain(gains, "x_op").reshape(n),
+                           "u_op": _gain(gains, "u_op").reshape(m),
                            "C": _gain(gains, "C").reshape(plant.q, n)}
     if "K1" in gains and "K2" in gains:
         out["K1"] = _gain(gains, "K1").reshape(m, n)
@@ -97,8 +97,8 @@ def _ts_gains(gains: Mapping[str, Any], plant: Any) -> dict[str, Any]:
     n, m = plant.n, plant.m
     forms = _gain(gains, "forms").reshape(-1, n)
     r = 2 ** forms.shape[0]
-    out: dict[str, Any] = {"x_op": _gain(gains, "x_op", "x0").reshape(n),
-                           "u_op": _gain(gains, "u_op", "u0").reshape(m),
+    out: dict[str, Any] = {"x_op": _gain(gains, "x_op").reshape(n),
+                           "u_op": _gain(gains, "u_op").reshape(m),
                            "K": _gain(gains, "K").reshape(r, m, n), "forms": forms,
                            "lower": _gain(gains, "z_lower").reshape(-1),
                            "upper": _gain(gains, "z_upper").reshape(-1)}

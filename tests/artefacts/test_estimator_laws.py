@@ -82,11 +82,11 @@ def test_adaptive_scaling_kalman_step_compiled_matches_the_runtime_filter(seed00
     g = _gains(out, "scaling_kalman")
     a, b, c = g["abc"]
     est = AdaptiveScalingKalmanFilter(spec.plant, AdaptiveScalingTuning(
-        Q=g["Q"], R=g["R"], P0=g["P0"], x0=g["x0"], ts=spec.ts, a=a, b=b, c=c, G=g["G"],
+        Q=g["Q"], R=g["R"], P0=g["P0"], x0=g["x_hat0"], ts=spec.ts, a=a, b=b, c=c, G=g["G"],
         phi0=float(g["phi0"][0]), operating_point=(g["x_op"], g["u_op"])))
     law = _compiled(out, "scaling_kalman")
     assert law.name_in() == ["x", "P", "phi", "y", "u"]
-    x, P, phi = g["x0"], g["P0"], float(g["phi0"][0])
+    x, P, phi = g["x_hat0"], g["P0"], float(g["phi0"][0])
     Y, U = _data(np.random.default_rng(1), 25, [2.0], [2.0], 0.05, 0.1)
     phis = []
     for y, u in zip(Y, U):
@@ -105,11 +105,11 @@ def test_consensus_step_compiled_matches_the_runtime_filter(seed004):
     out, spec = seed004
     g = _gains(out, "sensor_consensus")
     est = ConsensusFilter(spec.plant, ConsensusTuning(
-        Q=g["Q"], R=(g["R0"], g["R1"]), P0=g["P0"], x0=g["x0"], ts=spec.ts, G=g["G"],
+        Q=g["Q"], R=(g["R0"], g["R1"]), P0=g["P0"], x0=g["x_hat0"], ts=spec.ts, G=g["G"],
         operating_point=(g["x_op"], g["u_op"])))
     law = _compiled(out, "sensor_consensus")
     assert law.size1_in(2) == 2 and law.name_out() == ["x_next", "M_next"]
-    x, M = g["x0"], g["P0"]
+    x, M = g["x_hat0"], g["P0"]
     Y, U = _data(np.random.default_rng(2), 20, [2.0, 2.0], [2.0], 0.01, 0.1)
     for y, u in zip(Y, U):
         x, M = law(x, M, y, u)
@@ -120,8 +120,8 @@ def test_consensus_step_compiled_matches_the_runtime_filter(seed004):
     C2, R2 = np.vstack([mdl.C, mdl.C]), np.diag([g["R0"].item(), g["R1"].item()])
     Pp = mdl.Ad @ g["P0"] @ mdl.Ad.T + g["G"] @ g["Q"] @ g["G"].T
     K = Pp @ C2.T @ np.linalg.inv(C2 @ Pp @ C2.T + R2)
-    xp = mdl.Ad @ g["x0"] + mdl.Bd @ U[0] + mdl.cd
-    x1, _ = law(g["x0"], g["P0"], Y[0], U[0])
+    xp = mdl.Ad @ g["x_hat0"] + mdl.Bd @ U[0] + mdl.cd
+    x1, _ = law(g["x_hat0"], g["P0"], Y[0], U[0])
     _close(x1, xp + K @ (Y[0] - C2 @ xp - np.concatenate([mdl.dy, mdl.dy])), "centralised update")
 
 
@@ -182,11 +182,11 @@ def test_adaptive_kalman_step_compiled_matches_the_runtime_filter(tmp_path_facto
     g = _gains(out, name)
     W = int(g["window"][0])
     est = AdaptiveKalmanFilter(spec.plant, AdaptiveKalmanTuning(
-        Q0=g["Q0"], R=g["R"], P0=g["P0"], x0=g["x0"], ts=spec.ts, window=W,
+        Q0=g["Q0"], R=g["R"], P0=g["P0"], x0=g["x_hat0"], ts=spec.ts, window=W,
         q_floor=float(g["q_floor"][0]), form=form, operating_point=(g["x_op"], g["u_op"])))
     law = _compiled(out, name)
     assert law.name_in() == ["x", "P", "Q", "V", "DX", "filled", "y", "u"]
-    x, P, Q, V, DX, filled = g["x0"], g["P0"], g["Q0"], np.zeros((W, 3)), np.zeros((W, 3)), 0.0
+    x, P, Q, V, DX, filled = g["x_hat0"], g["P0"], g["Q0"], np.zeros((W, 3)), np.zeros((W, 3)), 0.0
     Y, U = _data(np.random.default_rng(4), W + 8, [0.4, 0.2, 0.3], [3.5e-5, 3.75e-5], 0.01, 3e-6)
     for y, u in zip(Y, U):
         x, P, Q, V, DX, filled = law(x, P, Q, V, DX, filled, y, u)
@@ -231,10 +231,10 @@ def test_narx_step_compiled_matches_the_runtime_estimator(tmp_path_factory):
     assert int(g["delays"][0]) == d
     est = NARXEstimator(spec.plant, NARXTuning(
         g["W1"], g["b1"], g["W2"], g["b2"], g["in_mean"], g["in_scale"], g["out_mean"],
-        g["out_scale"], x0=g["x0"], ts=spec.ts, delays=d, substeps=2, clip=True), backend="vm")
+        g["out_scale"], x0=g["x_hat0"], ts=spec.ts, delays=d, substeps=2, clip=True), backend="vm")
     law = _compiled(out, "narx")
     assert law.name_in() == ["x", "x_past", "y", "u"] and law.size1_in(1) == (d - 1) * n
-    x, past = g["x0"], np.tile(g["x0"], d - 1)
+    x, past = g["x_hat0"], np.tile(g["x_hat0"], d - 1)
     Y, U = _data(np.random.default_rng(6), 12, [0.31], [2.78e-5, 2.78e-5], 0.01, 5e-6)
     for y, u in zip(Y, U):
         x_prev = _np(x).ravel()

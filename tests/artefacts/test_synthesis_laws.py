@@ -226,7 +226,7 @@ def test_robust_state_feedback_is_the_campaigns(rob):
     for x in STATES:
         _close(_np(law(x)), run.controller(x[None], None, 0.0)[0])
     # the nominal equilibrium input at the operating point (the parameters are unknown to the law)
-    np.testing.assert_array_equal(_np(law(X_OP)), doc["gains"]["u0"])
+    np.testing.assert_array_equal(_np(law(X_OP)), doc["gains"]["u_op"])
 
 
 @pytest.mark.parametrize("name", ["rint", "rint_c"])
@@ -338,7 +338,7 @@ def test_pdc_state_feedback_is_the_verdicts_law(ts):
         want = pdc(x[None], None, 0.0)[0]
         assert np.all((want > lim[:, 0]) & (want < lim[:, 1]))
         _close(_np(law(x)), want)
-    np.testing.assert_array_equal(_np(law(X_OP)), g["u0"])
+    np.testing.assert_array_equal(_np(law(X_OP)), g["u_op"])
     # across the domain some inputs saturate: the law gives what the simulator applies
     box = RNG.uniform(0.06, 0.61, size=(40, 3))
     saturated = 0
@@ -363,7 +363,7 @@ def test_pdc_output_feedback_measured_premises(ts):
     M = len(STATES)
     XH = STATES + RNG.uniform(-0.005, 0.005, size=(M, 3))
     Y = _measurements(plant, STATES)
-    U = np.asarray(doc["gains"]["u0"]) + RNG.uniform(-5e-6, 5e-6, size=(M, 2))
+    U = np.asarray(doc["gains"]["u_op"]) + RNG.uniform(-5e-6, 5e-6, size=(M, 2))
     est.reset(XH.copy())
     est.step(Y, U)                                       # stores y (premises from it)
     U_law = _applied(spec, run.controller(XH.copy(), None, 0.0))   # PDC, measured premises
@@ -400,7 +400,7 @@ def test_pdc_output_feedback_estimated_premises(ts):
     M = len(STATES)
     XH = STATES + RNG.uniform(-0.003, 0.003, size=(M, 3))
     Y = _measurements(plant, STATES)
-    U = np.asarray(g["u0"]) + RNG.uniform(-5e-6, 5e-6, size=(M, 2))
+    U = np.asarray(g["u_op"]) + RNG.uniform(-5e-6, 5e-6, size=(M, 2))
     U_law = _applied(spec, run.controller(XH.copy(), None, 0.0))   # premises at the estimate
     for k in range(M):
         _close(_np(law(XH[k], U[k], Y[k])[0]), U_law[k])
