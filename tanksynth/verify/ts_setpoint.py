@@ -37,7 +37,8 @@ from tanksynth.verify.traces import TraceRecorder
 from tanksynth.verify.ts_loops import GROWTH_LIMIT, loop_setup, region_points, simulate_region
 from tanksynth.verify.ts_model import pdc_conditions, region_level
 
-__all__ = ["PREFIX", "max_on_ellipsoid", "setpoint_checks", "switch_runs"]
+__all__ = ["PREFIX", "max_on_ellipsoid", "setpoint_checks", "switch_runs", "setpoint_conditions",
+           "setpoint_settle_time"]
 
 #: Prefix of the set-point design's gain keys.
 PREFIX = "sp_"
@@ -167,7 +168,40 @@ def switch_runs(doc: Mapping[str, Any], spec: Any, count: int, seed: Any) -> dic
             "eps_switch": eps_switch, "dwell": dwell, "gamma": gamma, "c1": c1, "c2": c2}
 
 
-def _conditions(out: Mapping[str, Any], x2: np.ndarray, c2: float, tol: float) -> dict:
+def setpoint_settle_time(doc: Mapping[str, Any], n: int) -> float:
+    """Time [s] after the switch for ``V_2`` to fall from ``c_2`` to ``lambda_min(P_2) tol^2`` at
+    the certified decay (within [100, 8000] s): every state then within ``setpoint_tolerance``.
+
+    Parameters
+    ----------
+    doc, n : mapping, int
+        The artefact and the number of states.
+    """
+    tol = float(((doc.get("diagnostics") or {}).get("setpoint") or {}).get("tolerance", 0.002))
+    P2 = artefact_gain(doc, PREFIX + "P").reshape(n, n)
+    c2 = float(artefact_gain(doc, PREFIX + "region_c")[0])
+    settle = float(np.log(c2 / (np.linalg.eigvalsh(P2)[0] * tol ** 2))
+                   / (2 * max(_decay(doc, n, PREFIX), 1e-9)))
+    return float(min(max(settle, 100.0), 8000.0))
+
+
+def setpoint_conditions(out: Mapping[str, Any], x2: np.ndarray, c2: float, tol: float) -> dict:
+    """Per-run conditions of set-point runs (`simulate_region` with a switch).
+
+    Parameters
+    ----------
+    out : mapping
+        `simulate_region` output (with ``switch``).
+    x2, c2, tol : ndarray (n,), float, float
+        New operating point (state units, m), level of its region, final tolerance (m).
+
+    Returns
+    -------
+    dict of ndarray
+        ``max_growth`` of ``V_2`` after the switch, ``switch_level`` (``V_2 / c_2``
+        at the switch), ``final_error`` (largest state deviation from ``x2`` at
+        the end, m), ``left_domain``, ``saturated``, ``passed``.
+    """
     V, k = out["V"], int(out["switch"])
     after = V[:, k:]
     grow = np.max(np.diff(after, axis=1) / np.maximum(after[:, :-1], 1e-300)
@@ -249,17 +283,13 @@ def setpoint_checks(doc: Mapping[str, Any], spec: Any, *,
         runs = switch_runs(doc, spec, count, int(option(doc, spec, "seed", 0)) + 11)
         x2 = artefact_gain(doc, PREFIX + "x0").reshape(n)
         tol = float(option(doc, spec, "setpoint_tolerance", 0.002))
-        P2 = artefact_gain(doc, PREFIX + "P").reshape(n, n)
-        rate2 = _decay(doc, n, PREFIX)
-        settle = float(np.log(runs["c2"] / (np.linalg.eigvalsh(P2)[0] * tol ** 2))
-                       / (2 * max(rate2, 1e-9)))
-        settle = float(min(max(settle, 100.0), 8000.0))
+        settle = setpoint_settle_time(doc, n)
         dwell = runs["dwell"] if np.isfinite(runs["dwell"]) else settle
         full = simulate_region(doc, spec, runs["E_region"], eps0=runs["eps_region"],
                                horizon=dwell + settle, switch_at=dwell)
         direct = simulate_region(doc, spec, runs["E_switch"], eps0=runs["eps_switch"],
                                  horizon=settle, switch_at=0.0)
-        parts = [_conditions(o, x2, runs["c2"], tol) for o in (full, direct)]
+        parts = [setpoint_conditions(o, x2, runs["c2"], tol) for o in (full, direct)]
         if trace is not None and trace.trace is not None:
             keep = max(1, int(np.ceil(full["t"].size / 2000)))
             trace.trace["arrays"]["setpoint_t"] = full["t"][::keep]
