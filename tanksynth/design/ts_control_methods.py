@@ -16,6 +16,11 @@ fast enough to resolve the closed loop). The certified region ``{(x - x0)' P
 (x - x0) <= c}`` lies in the TS domain and keeps the pumps unsaturated; a
 design whose region does not contain the ball of radius ``region_margin``
 around the operating point is refused (exit 3).
+
+With ``setpoint`` the PDC is designed again about the second operating
+point (`_setpoint_stage`: gain keys ``sp_*``, diagnostics ``setpoint``),
+and the switch to it is certified from a level set of the first design's
+Lyapunov function (`tanksynth.design.ts_region.switch_level`).
 """
 
 from __future__ import annotations

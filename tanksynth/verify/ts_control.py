@@ -22,6 +22,12 @@ plant it re-derives:
     from seeded points on and inside the region's boundary: every run stays
     in the domain, never asks the pumps for more than they give, its
     Lyapunov function does not grow and it converges.
+
+An artefact with a set-point change (gain keys ``sp_*``) adds the checks of
+`tanksynth.verify.ts_setpoint`. The model, the laws and the region runs
+live in `tanksynth.verify.ts_model` and `tanksynth.verify.ts_loops`
+(re-exported here); the campaign runs the same conditions
+(`tanksynth.verify.ts_runs`).
 """
 
 from __future__ import annotations

@@ -17,9 +17,11 @@ artefact and the plant this module re-derives:
     maximised on an ellipsoid: the secular equation of the trust-region
     problem, not the design's S-lemma) at most ``c_2``;
 ``setpoint_simulation``
-    the nonlinear plant from seeded points on and inside the first region:
+    half of ``verify_points`` runs of the nonlinear plant from seeded points
+    on and inside the first region:
     the first law for the dwell time, then the law about ``x_op2``; and
-    runs that switch at once from the boundary of ``{V_1 <= gamma c_1}``.
+    as many runs that switch at once from points on and inside ``{V_1 <=
+    gamma c_1}``.
     Every run stays in the domain, never saturates, has ``V_2 <= c_2`` at
     the switch and non-increasing after it, and ends within
     ``setpoint_tolerance`` of ``x_op2``.
@@ -169,8 +171,11 @@ def switch_runs(doc: Mapping[str, Any], spec: Any, count: int, seed: Any) -> dic
 
 
 def setpoint_settle_time(doc: Mapping[str, Any], n: int) -> float:
-    """Time [s] after the switch for ``V_2`` to fall from ``c_2`` to ``lambda_min(P_2) tol^2`` at
-    the certified decay (within [100, 8000] s): every state then within ``setpoint_tolerance``.
+    """Simulated time [s] after the switch: the time for ``V_2`` to fall from ``c_2`` to
+    ``lambda_min(P_2) tol^2`` at the certified decay (every state then within
+    ``setpoint_tolerance``), kept within [100, 2000] s. The certified decay of
+    an observer cascade is very conservative; the runs must reach the
+    tolerance within this time whatever the bound says.
 
     Parameters
     ----------
@@ -182,7 +187,7 @@ def setpoint_settle_time(doc: Mapping[str, Any], n: int) -> float:
     c2 = float(artefact_gain(doc, PREFIX + "region_c")[0])
     settle = float(np.log(c2 / (np.linalg.eigvalsh(P2)[0] * tol ** 2))
                    / (2 * max(_decay(doc, n, PREFIX), 1e-9)))
-    return float(min(max(settle, 100.0), 8000.0))
+    return float(min(max(settle, 100.0), 2000.0))
 
 
 def setpoint_conditions(out: Mapping[str, Any], x2: np.ndarray, c2: float, tol: float) -> dict:
@@ -279,7 +284,7 @@ def setpoint_checks(doc: Mapping[str, Any], spec: Any, *,
                        "switch_max_level": worst, "gamma": gamma, "inner_radius": inner})]
 
     def sim() -> list[Check]:
-        count = int(option(doc, spec, "verify_points", 24))
+        count = max(2, int(option(doc, spec, "verify_points", 24)) // 2)   # of each kind
         runs = switch_runs(doc, spec, count, int(option(doc, spec, "seed", 0)) + 11)
         x2 = artefact_gain(doc, PREFIX + "x0").reshape(n)
         tol = float(option(doc, spec, "setpoint_tolerance", 0.002))
