@@ -37,6 +37,7 @@ from typing import Any, Mapping
 import numpy as np
 
 from tanksynth.analysis.checks import Check
+from tanksynth.verify.closed_loops import ClosedLoop
 from tanksynth.verify.common import artefact_gain, fmt, guard, option
 from tanksynth.verify.traces import TraceRecorder
 from tanksynth.verify.ts_loops import (FINAL_RATIO, GROWTH_LIMIT, MeasuredPremiseObserver, PDCLaw,
@@ -207,8 +208,9 @@ def _observer_checks(doc: Mapping[str, Any], s: dict) -> list[Check]:
                   {"max_eigenvalue": lam, "psi": psi})]
 
 
-def ts_control_run(doc: Mapping[str, Any], spec: Any) -> Any:
-    """Campaign runner (`tanksynth.verify.ts_runs.ts_region_run`): region-sampled closed loops.
+def ts_control_run(doc: Mapping[str, Any], spec: Any) -> ClosedLoop:
+    """Campaign runner: a `ClosedLoop` that also samples the certified region
+    (`tanksynth.verify.ts_runs.TsRegionRun`).
 
     Parameters
     ----------

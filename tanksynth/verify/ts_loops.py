@@ -330,7 +330,13 @@ def region_sample(doc: Mapping[str, Any], spec: Any, count: int, seed: Any) -> t
 
 
 def region_horizon(doc: Mapping[str, Any]) -> float:
-    """Simulated time of a region run: ``4 / decay`` within [100, 4000] s (the certified decay)."""
+    """Simulated time of a region run: ``4 / decay`` within [100, 4000] s (the certified decay).
+
+    Parameters
+    ----------
+    doc : mapping
+        The artefact.
+    """
     diag = doc.get("diagnostics") or {}
     decay = float(diag.get("decay_rate", 0.0))
     if doc["method"] == "ts_output_feedback":

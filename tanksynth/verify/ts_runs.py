@@ -79,6 +79,9 @@ class TsRegionRun(ClosedLoop):
 
     Attributes
     ----------
+    controller, estimator_factory, x_op, u_op, tracked, description
+        As in `ClosedLoop` (the PDC law, its observer, the operating point
+        (state units, m), its input (input units), the tracked states, one line).
     doc : mapping
         The artefact (gains as arrays).
     spec : Spec
