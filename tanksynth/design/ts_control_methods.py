@@ -16,6 +16,11 @@ fast enough to resolve the closed loop). The certified region ``{(x - x0)' P
 (x - x0) <= c}`` lies in the TS domain and keeps the pumps unsaturated; a
 design whose region does not contain the ball of radius ``region_margin``
 around the operating point is refused (exit 3).
+
+With ``setpoint`` the PDC is designed again about the second operating
+point (`_setpoint_stage`: gain keys ``sp_*``, diagnostics ``setpoint``),
+and the switch to it is certified from a level set of the first design's
+Lyapunov function (`tanksynth.design.ts_region.switch_level`).
 """
 
 from __future__ import annotations
@@ -30,7 +35,8 @@ from tanksynth.analysis.takagi_sugeno import domain_from_plant, quasi_lpv, ts_mo
 from tanksynth.design.result import DesignMethod, DesignResult, options_of, rekeyed
 from tanksynth.design.ts_control import certified_decay, max_decay_rate, pdc_lmi
 from tanksynth.design.ts_deviation import deviation_ts_model
-from tanksynth.design.ts_region import certified_region, coupling_weight, lyapunov_decay, observer_decay_lmi
+from tanksynth.design.ts_region import (certified_region, composite_decay, coupling_weight,
+                                       lyapunov_decay, observer_decay_lmi, switch_level)
 from tanksynth.errors import InfeasibleDesign, SpecError
 from tanksynth.spec.method_options import TsOutputFeedbackOptions, TsStateFeedbackOptions
 
@@ -38,7 +44,7 @@ if TYPE_CHECKING:  # pragma: no cover - typing only
     from tanksynth.spec import DesignSpec, Spec
 
 __all__ = ["run_ts_state_feedback", "run_ts_output_feedback", "TS_STATE_FEEDBACK",
-           "TS_OUTPUT_FEEDBACK", "domain_faces"]
+           "TS_OUTPUT_FEEDBACK", "domain_faces", "SETPOINT_PREFIX"]
 
 
 def domain_faces(domain: Any, x0: np.ndarray) -> tuple[np.ndarray, np.ndarray, list[str]]:
@@ -68,7 +74,7 @@ def domain_faces(domain: Any, x0: np.ndarray) -> tuple[np.ndarray, np.ndarray, l
     return np.array(rows), np.array(rhs), names
 
 
-def _setup(spec: "Spec", design: "DesignSpec", o: Any) -> dict:
+def _setup(spec: "Spec", design: "DesignSpec", o: Any, x_op: Any = None) -> dict:
     plant = spec.plant
     names = [s.name for s in plant.states]
     box = list(plant.region.bounds)
@@ -79,8 +85,17 @@ def _setup(spec: "Spec", design: "DesignSpec", o: Any) -> dict:
         qlpv = quasi_lpv(plant)
     except SpecError as exc:
         raise rekeyed(design, exc, "domain") from None
-    x0 = np.asarray(spec.x0, dtype=float)
-    eq = equilibrium_input(plant, x0, spec.given_u0)
+    if x_op is None:
+        x0 = np.asarray(spec.x0, dtype=float)
+        eq = equilibrium_input(plant, x0, spec.given_u0)
+    else:
+        x0 = np.asarray(x_op, dtype=float)
+        eq = equilibrium_input(plant, x0)
+        if not (eq.is_equilibrium and eq.within_bounds and bool(domain.contains(x0)[0])):
+            raise SpecError(f"setpoint {x0.tolist()} is not an equilibrium inside the domain with "
+                            f"the pumps in range: input {eq.u0.tolist()}, residual "
+                            f"{np.max(np.abs(eq.residual)):.3g} (tolerance {eq.tolerance:.3g}), "
+                            f"domain {domain.description}", key=f"{design.key}.setpoint")
     try:
         model = deviation_ts_model(qlpv, domain, x0, eq.u0, o.premise_samples, o.premise_margin)
     except SpecError as exc:
@@ -209,8 +224,11 @@ def run_ts_state_feedback(spec: "Spec", design: "DesignSpec") -> DesignResult:
     inner = _refuse_small(region, res.P, o)
     diag = _common_diag(s, res, tried, region, inner, spec)
     diag["solver"] = o.solver
-    return DesignResult(design.name, "ts_state_feedback", spec.plant.name, _gains(s, res, region),
-                        diag, {})
+    gains = _gains(s, res, region)
+    if o.setpoint is not None:
+        sp_gains, diag["setpoint"] = _setpoint_stage(spec, design, o, s, res, region, _relaxations(o))
+        gains.update(sp_gains)
+    return DesignResult(design.name, "ts_state_feedback", spec.plant.name, gains, diag, {})
 
 
 def _measured(model: Any) -> bool:
@@ -343,15 +361,7 @@ def run_ts_output_feedback(spec: "Spec", design: "DesignSpec") -> DesignResult:
     region = certified_region(res.P, res.K, s["faces"], s["margins"], s["face_names"],
                               extra_inverse=extra)
     if hat_in_domain:   # x_hat = x - eps must stay in the domain too (Lipschitz bound, memberships)
-        G, g = s["faces"]
-        Pi = np.linalg.inv(res.P)
-        lim = dict(region.limits)
-        for l, nm in enumerate(s["face_names"]):
-            lim[f"estimate face {nm}"] = float(g[l] ** 2 / (G[l] @ (Pi + extra) @ G[l]))
-        binding = min(lim, key=lim.get)
-        region = dataclasses.replace(region, c=lim[binding], limits=lim, binding=binding,
-                                     semi_axes=region.semi_axes * np.sqrt(lim[binding] / region.c),
-                                     extents=region.extents * np.sqrt(lim[binding] / region.c))
+        region = _estimate_faces(region, s, res.P, extra)
     inner = _refuse_small(region, res.P, o)
     diag = _common_diag(s, res, tried, region, inner, spec)
     diag.update(diag_extra)
@@ -362,7 +372,95 @@ def run_ts_output_feedback(spec: "Spec", design: "DesignSpec") -> DesignResult:
     gains = _gains(s, res, region)
     gains.update(gains_extra)
     gains["beta"] = np.array([beta])
+    if o.setpoint is not None:
+        obs = dict(Po=Po, alpha_o=alpha_o, beta=beta, alpha_c=alpha_c, estimate_faces=hat_in_domain)
+        sp_gains, diag["setpoint"] = _setpoint_stage(
+            spec, design, o, s, res, region, ["all_pairs"] if hat_in_domain else _relaxations(o), obs)
+        gains.update(sp_gains)
     return DesignResult(design.name, "ts_output_feedback", spec.plant.name, gains, diag, {})
+
+
+def _estimate_faces(region: Any, s: dict, P: np.ndarray, extra: np.ndarray) -> Any:
+    """The region with the faces seen by the estimate ``x_hat = x - eps`` too (estimated premises)."""
+    G, g = s["faces"]
+    Pi = np.linalg.inv(P)
+    lim = dict(region.limits)
+    for l, nm in enumerate(s["face_names"]):
+        lim[f"estimate face {nm}"] = float(g[l] ** 2 / (G[l] @ (Pi + extra) @ G[l]))
+    binding = min(lim, key=lim.get)
+    k = np.sqrt(lim[binding] / region.c)
+    return dataclasses.replace(region, c=lim[binding], limits=lim, binding=binding,
+                               semi_axes=region.semi_axes * k, extents=region.extents * k)
+
+
+#: Gain keys of the set-point design (prefix ``sp_`` on the first design's keys).
+SETPOINT_PREFIX = "sp_"
+
+
+def _setpoint_stage(spec: "Spec", design: "DesignSpec", o: Any, s1: dict, res1: Any, region1: Any,
+                    relaxations: list[str], obs: dict | None = None) -> tuple[dict, dict]:
+    """The PDC about the set-point ``x_op2`` and the certificate of the switch to it.
+
+    The TS model of the deviations is exact about any point of the domain,
+    but its premises (secant slopes from the point) and so its vertices
+    depend on that point: the law designed about ``x_op`` says nothing about
+    ``x_op2``. The set-point change is therefore a second PDC design on the
+    exact model about ``x_op2`` (same domain, ``u_op2`` balancing it), with
+    its own certified region ``{V_2 <= c_2}``; the observer of the output
+    feedback is kept (its error dynamics do not depend on the set-point).
+    The switch is certified from ``{V_1 <= gamma c_1}`` when that set lies in
+    ``{V_2 <= c_2}`` (`switch_level`, S-lemma); ``V_1`` decays at least at
+    ``2 alpha_1``, so from anywhere in the first region the switch is safe
+    after the dwell time ``ln(1/gamma) / (2 alpha_1)``. Refused (exit 3) when
+    the second region does not contain the first operating point.
+    """
+    names = [st.name for st in spec.plant.states]
+    x2 = np.array([o.setpoint[nm] for nm in names])
+    s2 = _setup(spec, design, o, x_op=x2)
+    res2, tried2 = _controller(s2, o, relaxations)
+    n = x2.size
+    d = x2 - s1["model"].x0
+    if obs is None:
+        region2 = certified_region(res2.P, res2.K, s2["faces"], s2["margins"], s2["face_names"])
+        P1b, P2b, db = res1.P, res2.P, d
+        rate1 = float(res1.decay)
+        extra_gains: dict[str, Any] = {}
+    else:
+        Po = obs["Po"]
+        beta2 = coupling_weight(res2.P, res2.K, s2["model"].B, res2.decay, Po, obs["alpha_o"],
+                                o.coupling_factor)
+        extra = np.linalg.inv(Po) / beta2
+        region2 = certified_region(res2.P, res2.K, s2["faces"], s2["margins"], s2["face_names"],
+                                   extra_inverse=extra)
+        if obs["estimate_faces"]:
+            region2 = _estimate_faces(region2, s2, res2.P, extra)
+        Z = np.zeros((n, n))
+        P1b = np.block([[res1.P, Z], [Z, obs["beta"] * Po]])
+        P2b = np.block([[res2.P, Z], [Z, beta2 * Po]])
+        db = np.concatenate([d, np.zeros(n)])
+        rate1 = composite_decay(res1.P, s1["model"].B, res1.K, obs["alpha_c"], Po, obs["alpha_o"],
+                                obs["beta"])
+        extra_gains = {"beta": np.array([beta2])}
+    inner2 = _refuse_small(region2, res2.P, o)
+    gamma = switch_level(P1b, region1.c, P2b, region2.c, db)
+    v_at = float(d @ res2.P @ d) / region2.c
+    if gamma <= 0.0:
+        raise InfeasibleDesign(f"set-point change to {x2.tolist()} not certified: the first operating "
+                               f"point lies outside the certified region about the set-point "
+                               f"((x_op - x_op2)' P2 (x_op - x_op2) = {v_at:.4g} c2); choose a set-point "
+                               "closer to the operating point")
+    dwell = float(np.log(1.0 / gamma) / (2.0 * rate1)) if rate1 > 0 else float("inf")
+    gains = {SETPOINT_PREFIX + k: v for k, v in {**_gains(s2, res2, region2), **extra_gains}.items()}
+    gains[SETPOINT_PREFIX + "switch_level"] = np.array([gamma])
+    diag = {"x_op2": x2.tolist(), "u_op2": s2["eq"].u0.tolist(), "relaxation": res2.relaxation,
+            "relaxations_tried": tried2, "decay_rate": res2.decay, "lmi": res2.as_dict(),
+            "exactness": s2["exactness"], "ts_model": s2["model"].as_dict(),
+            "region": {**region2.as_dict(), "inner_radius": inner2},
+            "switch_level": gamma, "first_point_level": v_at, "first_decay_rate": rate1,
+            "dwell_time": dwell, "tolerance": o.setpoint_tolerance,
+            "rule": "switch to the law about x_op2 once V1 <= gamma c1 (certain after the dwell "
+                    "time from anywhere in the first region); V2 then decays inside {V2 <= c2}"}
+    return gains, diag
 
 
 TS_STATE_FEEDBACK = DesignMethod("ts_state_feedback", run_ts_state_feedback, TsStateFeedbackOptions)

@@ -15,7 +15,8 @@ import numpy as np
 
 from tanksynth.errors import InfeasibleDesign
 
-__all__ = ["Region", "certified_region", "coupling_weight", "lyapunov_decay", "observer_decay_lmi"]
+__all__ = ["Region", "certified_region", "coupling_weight", "lyapunov_decay", "observer_decay_lmi",
+           "switch_level", "composite_decay"]
 
 
 @dataclass(frozen=True)
@@ -215,3 +216,108 @@ def observer_decay_lmi(A0: Any, C: Any, psi: float, alpha: float, *, margin: flo
     if not (np.linalg.eigvalsh(0.5 * (full + full.T))[-1] < 0 and np.linalg.eigvalsh(Pv)[0] > 0):
         raise InfeasibleDesign(f"observer LMI (28) with decay {alpha:g} 1/s: the re-check fails")
     return L, Pv, Q
+
+
+def _contained(P1: np.ndarray, level1: float, P2: np.ndarray, c2: float, d: np.ndarray) -> bool:
+    """S-lemma: ``{z' P1 z <= level1}`` inside ``{(z - d)' P2 (z - d) <= c2}``."""
+    from scipy.optimize import minimize_scalar
+
+    Lc = np.linalg.cholesky(0.5 * (P1 + P1.T))
+    Li = np.linalg.inv(Lc)
+    Q = Li @ (0.5 * (P2 + P2.T)) @ Li.T / c2        # w = Lc' z: {w' w <= level1}
+    b = Q @ (Lc.T @ d)
+    corner = float((Lc.T @ d) @ b) - 1.0
+    lo = float(np.linalg.eigvalsh(Q)[-1])
+    hi = -corner / level1 if level1 > 0 else np.inf
+    if not hi >= lo:
+        return False
+    n = P1.shape[0]
+
+    def lam(tau: float) -> float:
+        M = np.block([[Q - tau * np.eye(n), -b[:, None]], [-b[None, :],
+                                                            np.array([[corner + tau * level1]])]])
+        return float(np.linalg.eigvalsh(M)[-1])
+
+    if not np.isfinite(hi):
+        return lam(lo) <= 0.0
+    best = minimize_scalar(lam, bounds=(lo, hi), method="bounded",
+                           options={"xatol": 1e-12 * max(hi, 1.0), "maxiter": 500})
+    return min(float(best.fun), lam(lo), lam(hi)) <= -1e-12
+
+
+def switch_level(P1: np.ndarray, c1: float, P2: np.ndarray, c2: float, d: np.ndarray,
+                 rtol: float = 1e-4) -> float:
+    """Largest ``gamma`` in [0, 1] with ``{z' P1 z <= gamma c1}`` inside ``{(z - d)' P2 (z - d) <= c2}``.
+
+    Containment of one ellipsoid in another is decided exactly by the
+    S-lemma (one quadratic constraint, lossless): there is ``tau >= 0`` with
+    ``[[P2 - tau P1, -P2 d], [-d' P2, d' P2 d - c2 + tau gamma c1]] <= 0``;
+    ``lambda_max`` of that matrix is convex in ``tau`` (minimised on the
+    interval where it can be feasible), ``gamma`` is bisected. Used for a
+    set-point change: ``z`` is the deviation from the first operating point,
+    ``d`` the step to the second one.
+
+    Parameters
+    ----------
+    P1 : ndarray, shape (k, k)
+        Lyapunov matrix of the first design (per squared state unit).
+    c1 : float
+        Its certified level.
+    P2 : ndarray, shape (k, k)
+        Lyapunov matrix of the second design.
+    c2 : float
+        Its certified level.
+    d : ndarray, shape (k,)
+        Centre of the second ellipsoid in the first one's coordinates (state units, m).
+    rtol : float, optional
+        Relative accuracy of the bisection on ``gamma`` (dimensionless).
+
+    Returns
+    -------
+    float
+        ``gamma`` (0 when the first centre is not strictly inside the second ellipsoid).
+    """
+    P1, P2, d = np.asarray(P1, float), np.asarray(P2, float), np.asarray(d, float).ravel()
+    if not float(d @ P2 @ d) < c2:
+        return 0.0
+    if _contained(P1, c1, P2, c2, d):
+        return 1.0
+    lo, hi = 0.0, 1.0
+    while hi - lo > rtol * max(lo, 1e-12) and hi > 1e-12:
+        mid = 0.5 * (lo + hi)
+        if _contained(P1, mid * c1, P2, c2, d):
+            lo = mid
+        else:
+            hi = mid
+    return lo
+
+
+
+def composite_decay(Pc: np.ndarray, B: np.ndarray, K: np.ndarray, alpha_c: float, Po: np.ndarray,
+                    alpha_o: float, beta: float) -> float:
+    """Decay rate (1/s) of ``V = e' Pc e + beta eps' Po eps`` for the controller-observer cascade.
+
+    ``dV/dt <= -[e; eps]' W_j [e; eps]`` with ``W_j = [[2 alpha_c Pc, -Pc B
+    K_j], [-K_j' B' Pc, 2 beta alpha_o Po]]`` at every vertex gain (the law
+    is a convex combination of them); the rate is ``min_j`` of the largest
+    ``a`` with ``W_j >= 2 a diag(Pc, beta Po)`` (`lyapunov_decay`).
+
+    Parameters
+    ----------
+    Pc, B, K : ndarray (n, n), (n, m), (r, m, n)
+        Controller Lyapunov matrix, input matrix, vertex gains.
+    alpha_c, alpha_o : float
+        Controller and observer decay rates [1/s].
+    Po : ndarray, shape (n, n)
+        Observer Lyapunov matrix.
+    beta : float
+        Weight of the observer term (dimensionless).
+    """
+    n = Pc.shape[0]
+    D = np.block([[Pc, np.zeros((n, n))], [np.zeros((n, n)), beta * Po]])
+    rates = []
+    for Kj in K:
+        X = -Pc @ B @ Kj
+        W = np.block([[2 * alpha_c * Pc, X], [X.T, 2 * beta * alpha_o * Po]])
+        rates.append(lyapunov_decay(D, W))
+    return float(min(rates))

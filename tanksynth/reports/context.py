@@ -372,7 +372,8 @@ def _is_builtin(name: str) -> bool:
 def build_context(inputs: ReportInputs, figures: Mapping[str, FigureFile],
                   paper: Sequence[PaperComparison],
                   traces: Mapping[str, TraceFigure] | None = None, *,
-                  statements: Mapping[str, Callable[[Mapping[str, Any]], Tex]]) -> dict[str, Any]:
+                  statements: Mapping[str, Callable[[Mapping[str, Any]], Tex]],
+                  regions: Mapping[str, FigureFile] | None = None) -> dict[str, Any]:
     """Everything the templates need, formatted (no file is written).
 
     Parameters
@@ -385,6 +386,8 @@ def build_context(inputs: ReportInputs, figures: Mapping[str, FigureFile],
         Time-domain figures drawn by `trace_figures` (none when omitted).
     statements : mapping of method name to callable
         Problem statement of each method (`tanksynth.methods.STATEMENTS`).
+    regions : mapping of artefact name to FigureFile, optional
+        Certified-region figures (`tanksynth.reports.ts_figures.region_figures`).
     """
     rec = inputs.plant
     title = rec.get("title") or f"Design report: {rec.get('plant', {}).get('name', '')}"
@@ -394,6 +397,8 @@ def build_context(inputs: ReportInputs, figures: Mapping[str, FigureFile],
     traces = traces or {}
     designs = [dataclasses.replace(d, trace_figure=traces[d.name], trace_caption=prose_latex(
         traces[d.name].caption)) if d.name in traces else d for d in designs]
+    designs = [dataclasses.replace(d, region_figure=(regions or {})[d.name])
+               if d.name in (regions or {}) else d for d in designs]
     checks = [_check_view(c) for c in inputs.checks] if inputs.checks is not None else None
     first = inputs.artefacts[0].get("provenance", {}) if inputs.artefacts else {}
     eq_check = None

@@ -194,6 +194,8 @@ class DesignView:
         Time-domain figure of the verdict simulation (`trace_figures`).
     trace_caption : Tex
         Its caption, escaped.
+    region_figure : FigureFile or None
+        Certified-region figure (TS PDC designs, `tanksynth.reports.ts_figures`).
     """
 
     name: str
@@ -216,11 +218,17 @@ class DesignView:
     provenance: list = field(default_factory=list)
     trace_figure: TraceFigure | None = None
     trace_caption: Tex = Tex("")
+    region_figure: FigureFile | None = None
 
     @property
     def figure_caption(self) -> Tex:
         """The pole map's caption, typeset."""
         return prose_latex(self.figure.caption) if self.figure is not None else Tex("")
+
+    @property
+    def region_caption(self) -> Tex:
+        """The certified-region figure's caption, typeset."""
+        return prose_latex(self.region_figure.caption) if self.region_figure is not None else Tex("")
 
 
 _MARGIN_KEYS = ("margin", "achieved_margin", "min_region_margin", "max_pole_error", "condition_P",

@@ -422,6 +422,29 @@ def _ts_region_text(diag: Mapping[str, Any]) -> str:
     return text
 
 
+def _ts_setpoint_text(diag: Mapping[str, Any]) -> str:
+    sp = diag.get("setpoint") or {}
+    x2, gamma = sp.get("x_op2"), sp.get("switch_level")
+    if not (isinstance(x2, list) and _is_number(gamma)):
+        return ""
+    reg = sp.get("region") or {}
+    text = (r" Set-point change to $x_0' = (" + r",\; ".join(format_number(v) for v in x2) + r")$ m: the "
+            r"TS model of the deviations is exact about any point of the domain but its premises "
+            r"(secants from that point) and vertices are not, so a second PDC is designed on the "
+            r"exact model about $x_0'$ ($u_0'$ balancing it), with its own region $V_2 = (x - x_0')^\top "
+            r"P_2 (x - x_0') \le c_2$")
+    if _is_number(reg.get("c")):
+        text += rf" ($c_2 = {format_number(reg['c'])}$)"
+    text += (r"; the switch is certified from $\{V_1 \le \gamma c_1\} \subset \{V_2 \le c_2\}$ "
+             r"(S-lemma), $\gamma = " + format_number(gamma) + "$")
+    if _is_number(sp.get("dwell_time")):
+        text += (r", reached from anywhere in the first region after the dwell time "
+                 rf"$\ln(1/\gamma)/(2\alpha_1) = {format_number(sp['dwell_time'])}$ s ($\alpha_1$ the "
+                 r"certified decay rate of $V_1$)")
+    return text + (", the observer kept (its error does not depend on the set-point)."
+                   if diag.get("composite") else ".")
+
+
 def ts_state_feedback_statement(diag: Mapping[str, Any]) -> Tex:
     """The problem ``ts_state_feedback`` solves, in mathematics, from the artefact's diagnostics.
 
@@ -449,7 +472,7 @@ def ts_state_feedback_statement(diag: Mapping[str, Any]) -> Tex:
     dec = diag.get("decay_rate")
     if _is_number(dec):
         text += rf" Relaxation used: {escape_latex(str(rel))}; certified decay rate ${format_number(dec)}$ 1/s."
-    return Tex(text + _ts_region_text(diag))
+    return Tex(text + _ts_region_text(diag) + _ts_setpoint_text(diag))
 
 
 def ts_output_feedback_statement(diag: Mapping[str, Any]) -> Tex:
@@ -460,7 +483,8 @@ def ts_output_feedback_statement(diag: Mapping[str, Any]) -> Tex:
     diag : mapping
         The artefact's diagnostics.
     """
-    base = str(ts_state_feedback_statement({k: v for k, v in diag.items() if k != "region"}))
+    base = str(ts_state_feedback_statement({k: v for k, v in diag.items()
+                                            if k not in ("region", "setpoint")}))
     obs = diag.get("observer") or {}
     if diag.get("premises") == "measured":
         text = (r" Measured premises: PDC observer $\dot{\hat x} = \sum_i \mu_i(y)(A_i \hat e + B v) + "
@@ -476,7 +500,7 @@ def ts_output_feedback_statement(diag: Mapping[str, Any]) -> Tex:
     if _is_number(comp.get("beta")):
         text += (r" Composite certificate $V = e^\top P e + \beta \varepsilon^\top P_o \varepsilon$ with "
                  rf"$\beta = {format_number(comp['beta'])}$.")
-    return Tex(base + text + _ts_region_text(diag))
+    return Tex(base + text + _ts_region_text(diag) + _ts_setpoint_text(diag))
 # ------------------------------------------------------------ optimal convex synthesis
 def _synthesis_plant(diag: Mapping[str, Any], observer: bool) -> str:
     dom = diag.get("time_domain") or (diag.get("synthesis") or {}).get("domain") or "continuous"

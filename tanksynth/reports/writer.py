@@ -22,6 +22,7 @@ from tanksynth.artefacts.atomic import atomic_write, commit
 from tanksynth.errors import ArtefactError, ReportError
 from tanksynth.reports.context import build_context, trace_figures
 from tanksynth.reports.figures import FigureFile, TraceFigure, pole_map
+from tanksynth.reports.ts_figures import region_figures
 from tanksynth.reports.inputs import ReportInputs, read_report_inputs
 from tanksynth.reports.comparison import PaperComparison
 from tanksynth.reports.latex import Tex, environment
@@ -79,7 +80,8 @@ def _figure_stem(index: int, name: str) -> str:
 def render_report(inputs: ReportInputs, figures: dict[str, FigureFile] | None = None,
                   comparisons: tuple[PaperComparison, ...] | None = None,
                   traces: dict[str, TraceFigure] | None = None, *,
-                  statements: Mapping[str, Callable[[Mapping[str, Any]], Tex]]) -> str:
+                  statements: Mapping[str, Callable[[Mapping[str, Any]], Tex]],
+                  regions: dict[str, FigureFile] | None = None) -> str:
     """The LaTeX source of the report (no file is written).
 
     Parameters
@@ -93,10 +95,13 @@ def render_report(inputs: ReportInputs, figures: dict[str, FigureFile] | None = 
         Time-domain figures to include (none when omitted).
     statements : mapping of method name to callable
         Problem statement of each design method (`tanksynth.methods.STATEMENTS`).
+    regions : dict of artefact name to FigureFile, optional
+        Certified-region figures of the TS PDC designs (none when omitted).
     """
     if comparisons is None:
         comparisons = compare_with_papers(inputs)
-    ctx = build_context(inputs, figures or {}, comparisons, traces, statements=statements)
+    ctx = build_context(inputs, figures or {}, comparisons, traces, statements=statements,
+                        regions=regions)
     return environment().get_template("report.tex.j2").render(**ctx)
 
 
@@ -148,7 +153,8 @@ def write_report(directory: str | Path, pdf: bool = False, timeout: float = 180.
             if stale.name not in keep:
                 stale.unlink(missing_ok=True)
     traces = trace_figures(inputs)
-    tex = render_report(inputs, figures, comparisons, traces, statements=statements)
+    regions = region_figures(inputs)
+    tex = render_report(inputs, figures, comparisons, traces, statements=statements, regions=regions)
     tex_path = d / "report.tex"
     pdf_path = d / "report.pdf"
     log_path = d / "report.log"

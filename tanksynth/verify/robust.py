@@ -38,6 +38,7 @@ from tanksynth.analysis.checks import Check
 from tanksynth.analysis.linearize import discretize_zoh, equilibrium_input, linearize
 from tanksynth.errors import ArtefactError
 from tanksynth.sim.simulate import run_seeds, simulate
+from tanksynth.verify.robust_traces import PeakRecordingLaw, record_monte_carlo
 from tanksynth.spec.method_options.robust import parse_uncertain
 from tanksynth.verify.common import (OBSERVER_TOLERANCE, artefact_matrix, fmt, guard, model_recheck,
                                      option, stability_check, time_domain)
@@ -346,7 +347,7 @@ def _law(c: dict, ts: float) -> Any:
     return StateFeedback(c["K"], c["x0"], c["u0"])
 
 
-def _mc_feedback(doc: Mapping[str, Any], spec: Any, c: dict) -> list[Check]:
+def _mc_feedback(doc: Mapping[str, Any], spec: Any, c: dict, trace: Any = None) -> list[Check]:
     plant = spec.plant
     runs = int(option(doc, spec, "mc_runs", 16))
     seed = int(option(doc, spec, "seed", 0))
@@ -362,6 +363,8 @@ def _mc_feedback(doc: Mapping[str, Any], spec: Any, c: dict) -> list[Check]:
         ref = np.tile(y0, (steps + 1, 1))
     res = simulate(plant, ts=ts, steps=steps, x0=x_start, seeds=run_seeds(seed, runs), controller=law,
                    reference=ref, u_init=c["u0"], parameters=params)
+    record_monte_carlo(trace, res, plant, observer=False,
+                       reference_names=c["tracked"] if ref is not None else None)
     X = res.x
     d0 = float(np.max(np.abs(x_start - c["x0"])))
     tol = OBSERVER_TOLERANCE * d0
@@ -388,25 +391,6 @@ def _mc_feedback(doc: Mapping[str, Any], spec: Any, c: dict) -> list[Check]:
                   f"H = tau (5 + ln kappa) = {H:.4g} s, {rule}",
                   {"failed_runs": int(np.sum(~ok_runs)), "errors": err.tolist(),
                    "offsets": offset.tolist(), "worst_parameters": worst, "horizon_s": H, "ts": ts})]
-
-
-class _Recording:
-    """A control law that remembers its largest unclipped ``|u - u0| / umax`` per run."""
-
-    def __init__(self, law: Any, u0: np.ndarray, umax: np.ndarray):
-        self.law, self.u0, self.umax = law, u0, umax
-        self.peak: np.ndarray | None = None
-
-    def reset(self, runs: int) -> None:
-        if hasattr(self.law, "reset"):
-            self.law.reset(runs)
-        self.peak = np.zeros(runs)
-
-    def __call__(self, x: np.ndarray, reference: np.ndarray, t: float) -> np.ndarray:
-        u = self.law(x, reference, t)
-        ratio = np.max(np.abs(u - self.u0) / self.umax, axis=1)
-        self.peak = ratio if self.peak is None else np.maximum(self.peak, ratio)
-        return u
 
 
 def _saturation_checks(doc: Mapping[str, Any], spec: Any, c: dict) -> list[Check]:
@@ -471,7 +455,7 @@ def _saturation_sim(doc: Mapping[str, Any], spec: Any, c: dict, Pxx: np.ndarray,
     loops = _closed_loops(c, spec, c["models"])
     ts = _sim_period(c, spec, loops)
     H, k_h, steps, rule = _horizon(doc, spec, c, ts)
-    law = _Recording(_law(c, ts), c["u0"], umax)
+    law = PeakRecordingLaw(_law(c, ts), c["u0"], umax)
     ref = None
     if c["integral"]:
         y0 = np.asarray(plant.compiled.output(c["x0"][None]), dtype=float).reshape(-1)[c["rows"]]
@@ -499,7 +483,7 @@ def robust_state_feedback_verdict(doc: Mapping[str, Any], spec: Any, *, trace: A
     c = _context(doc, spec, observer=False)
     checks = _vertex_checks(doc, spec, c)
     checks += guard("sampled_region", lambda: _sampled_check(doc, spec, c))
-    checks += guard("monte_carlo", lambda: _mc_feedback(doc, spec, c))
+    checks += guard("monte_carlo", lambda: _mc_feedback(doc, spec, c, trace))
     if option(doc, spec, "saturation", False):
         checks += guard("saturation", lambda: _saturation_checks(doc, spec, c))
     return checks
@@ -531,7 +515,7 @@ class _InstanceObserver:
         return self.x0 + self.e
 
 
-def _mc_observer(doc: Mapping[str, Any], spec: Any, c: dict) -> list[Check]:
+def _mc_observer(doc: Mapping[str, Any], spec: Any, c: dict, trace: Any = None) -> list[Check]:
     plant = spec.plant
     runs = int(option(doc, spec, "mc_runs", 16))
     seed = int(option(doc, spec, "seed", 0))
@@ -561,6 +545,7 @@ def _mc_observer(doc: Mapping[str, Any], spec: Any, c: dict) -> list[Check]:
     params = {b[0]: values[:, j] for j, b in enumerate(c["box"])}
     res = simulate(plant, ts=ts, steps=steps, x0=x_start, seeds=run_seeds(seed, runs), estimator=est,
                    x_hat0=c["x0"], u_init=U0, parameters=params)
+    record_monte_carlo(trace, res, plant, observer=True)
     err = np.max(np.abs(res.x_hat - res.x), axis=2)
     e0 = err[:, 0]
     tail = np.max(err[:, k_h:], axis=1)
@@ -590,7 +575,7 @@ def robust_observer_verdict(doc: Mapping[str, Any], spec: Any, *, trace: Any = N
     c = _context(doc, spec, observer=True)
     checks = _vertex_checks(doc, spec, c)
     checks += guard("sampled_region", lambda: _sampled_check(doc, spec, c))
-    checks += guard("monte_carlo", lambda: _mc_observer(doc, spec, c))
+    checks += guard("monte_carlo", lambda: _mc_observer(doc, spec, c, trace))
     return checks
 
 

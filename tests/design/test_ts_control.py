@@ -323,3 +323,58 @@ def test_designs_do_not_depend_on_pythonhashseed():
         results[seed] = out.split()
     assert len(results["0"]) == 2
     assert all(r == results["0"] for r in results.values()), results
+
+
+# ------------------------------------------------------------------ set-point change
+def test_setpoint_stage_certifies_the_switch_numpy():
+    """Second PDC about x_op2: its model balances f there, x_op lies inside its region, and the
+    level set {V1 <= gamma c1} lies inside {V2 <= c2} (dense numpy sample of its boundary),
+    tightly (a larger gamma would not fit)."""
+    spec, res = _design(extra="decay_rate = 0.01\nsetpoint = {h1 = 0.46, h2 = 0.26, h3 = 0.36}")
+    g, sp = res.gains, res.diagnostics["setpoint"]
+    x1, x2 = np.asarray(g["x_op"]), np.asarray(g["sp_x_op"])
+    assert np.allclose(x2, [0.46, 0.26, 0.36])
+    f = spec.plant.compiled.rhs(x2[None, :], np.asarray(g["sp_u_op"])[None, :])[0]
+    assert np.max(np.abs(f)) < 1e-12
+    P1, P2 = np.asarray(g["P"]), np.asarray(g["sp_P"])
+    c1, c2 = float(g["region_c"][0]), float(g["sp_region_c"][0])
+    gamma = float(g["sp_switch_level"][0])
+    assert 0 < gamma < 1 and sp["switch_level"] == gamma
+    assert (x1 - x2) @ P2 @ (x1 - x2) < c2
+    U = np.random.default_rng(0).normal(size=(200_000, 3))
+    U /= np.linalg.norm(U, axis=1, keepdims=True)
+    Z = np.linalg.solve(np.linalg.cholesky(P1).T, U.T).T * np.sqrt(gamma * c1)   # z' P1 z = gamma c1
+    V2 = np.einsum("mi,ij,mj->m", Z + x1 - x2, P2, Z + x1 - x2)
+    assert V2.max() <= c2 * (1 + 1e-6)
+    assert V2.max() >= c2 * 0.98                      # tight: the sets touch
+    assert sp["dwell_time"] == pytest.approx(np.log(1 / gamma) / (2 * res.diagnostics["decay_rate"]))
+    # the PDC conditions about x_op2, recomputed here
+    A, B, K = np.asarray(g["sp_F"]), np.asarray(g["sp_B"]), np.asarray(g["sp_K"])
+    for i in range(8):
+        M = P2 @ (A[i] - B @ K[i])
+        assert np.linalg.eigvalsh(M + M.T)[-1] < 0
+
+
+def test_setpoint_outside_the_second_region_exits_3():
+    with pytest.raises(InfeasibleDesign, match="not certified"):
+        _design(extra="region_margin = 0.001\nsetpoint = {h1 = 0.6, h2 = 0.3, h3 = 0.45}")
+
+
+def test_setpoint_must_be_a_full_equilibrium():
+    with pytest.raises(SpecError, match="not an equilibrium") as info:
+        _design(extra="setpoint = {h1 = 0.4, h2 = 0.2, h3 = 0.25}")
+    assert "d.setpoint" in str(info.value) or info.value.key.endswith("setpoint")
+    with pytest.raises(SpecError):
+        _design(extra="setpoint = {h1 = 0.4, h2 = 0.2}")
+    with pytest.raises(SpecError, match="table"):
+        _design(extra="setpoint = 0.4")
+
+
+def test_output_feedback_setpoint_keeps_the_observer():
+    extra = ("orderings = true\nordering_gap = 0.07\nregion_margin = 0.002\n"
+             "setpoint = {h1 = 0.42, h2 = 0.22, h3 = 0.32}")
+    _, res = _design(method="ts_output_feedback", extra=extra)
+    g = res.gains
+    assert "sp_L" not in g and "sp_beta" in g
+    assert res.diagnostics["setpoint"]["relaxation"] == "all_pairs"
+    assert 0 < float(g["sp_switch_level"][0]) <= 1

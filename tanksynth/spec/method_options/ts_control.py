@@ -8,7 +8,9 @@ from typing import Any, ClassVar, Mapping
 
 from tanksynth.spec.method_options.base import MethodOptions, OptionReader, option
 from tanksynth.spec.method_options.placement import LMI_SOLVERS
-from tanksynth.spec.options import parse_bool, parse_box, parse_choice, parse_integer, parse_number
+from tanksynth.errors import SpecError
+from tanksynth.spec.options import (parse_bool, parse_box, parse_choice, parse_integer, parse_number,
+                                     parse_vector)
 
 __all__ = ["PDC_RELAXATIONS", "TsStateFeedbackOptions", "TsOutputFeedbackOptions"]
 
@@ -64,6 +66,19 @@ class TsStateFeedbackOptions(MethodOptions):
         (>= 2); default 24.
     seed : int
         Seed of the verdict's sampling (>= 0); default 0.
+    setpoint : mapping of str to float, or None
+        A second operating point ``{state = level}`` (state units, m; every
+        state, an equilibrium inside the domain) for a set-point change: the
+        PDC is designed again on the exact TS model of the deviations from it
+        (same domain, ``u_op`` balancing it), with its own certified region,
+        which must contain the first operating point; the switch is certified
+        from the level set ``{V_1 <= gamma c_1}`` (``gamma`` reported, with
+        the dwell time that reaches it from anywhere in the first region);
+        default None (regulation only).
+    setpoint_tolerance : float
+        The verdict's set-point runs must end within this distance (largest
+        state deviation) of the new operating point (state units, m; > 0);
+        default 0.002.
     margin : float
         Strictness margin of the scaled LMIs, in (0, 1); default 1e-6.
     kappa : float
@@ -85,6 +100,8 @@ class TsStateFeedbackOptions(MethodOptions):
     premise_margin: float = option(1e-3, unit="-")
     verify_points: int = option(24, unit="-")
     seed: int = option(0, unit="-")
+    setpoint: Mapping[str, float] | None = option(None, unit="state units (m)")
+    setpoint_tolerance: float = option(0.002, unit="state units (m)")
     margin: float = option(1e-6, unit="-")
     kappa: float = option(1e4, unit="-")
     solver: str = option("CLARABEL", unit="-")
@@ -106,6 +123,8 @@ class TsStateFeedbackOptions(MethodOptions):
             premise_margin=r.read("premise_margin", parse_number, at_least=0.0),
             verify_points=r.read("verify_points", parse_integer, at_least=2, at_most=100_000),
             seed=r.read("seed", parse_integer, at_least=0),
+            setpoint=_setpoint(r, names),
+            setpoint_tolerance=r.read("setpoint_tolerance", parse_number, above=0.0),
             margin=r.read("margin", parse_number, above=0.0, below=1.0),
             kappa=r.read("kappa", parse_number, above=1.0),
             solver=r.read("solver", parse_choice, LMI_SOLVERS))
@@ -165,6 +184,19 @@ class TsOutputFeedbackOptions(TsStateFeedbackOptions):
                    observer_decay=r.read("observer_decay", parse_number, above=0.0),
                    lipschitz_method=r.read("lipschitz_method", parse_choice, ("interval", "sampling")),
                    coupling_factor=r.read("coupling_factor", parse_number, above=1.0))
+
+
+def _setpoint(r: OptionReader, names: list[str]) -> Mapping[str, float] | None:
+    """The ``setpoint`` table ``{state = level}`` (every state), or None."""
+    value = r.read("setpoint", lambda v, key: (v, key))
+    if value is None:
+        return None
+    v, key = value
+    if not isinstance(v, Mapping):
+        raise SpecError(f"expected a table {{{', '.join(f'{n} = <level>' for n in names)}}} "
+                        f"(state units, m), got {type(v).__name__}", key=key)
+    vec = parse_vector(v, key, names=names)
+    return MappingProxyType({n: float(x) for n, x in zip(names, vec)})
 
 
 def _with_shared_attributes() -> None:
