@@ -262,11 +262,11 @@ def switch_level(P1: np.ndarray, c1: float, P2: np.ndarray, c2: float, d: np.nda
     P1 : ndarray, shape (k, k)
         Lyapunov matrix of the first design (per squared state unit).
     c1 : float
-        Its certified level.
+        Its certified level (dimensionless: the units of ``e' P e``).
     P2 : ndarray, shape (k, k)
         Lyapunov matrix of the second design.
     c2 : float
-        Its certified level.
+        Its certified level (dimensionless: the units of ``e' P e``).
     d : ndarray, shape (k,)
         Centre of the second ellipsoid in the first one's coordinates (state units, m).
     rtol : float, optional
@@ -304,8 +304,12 @@ def composite_decay(Pc: np.ndarray, B: np.ndarray, K: np.ndarray, alpha_c: float
 
     Parameters
     ----------
-    Pc, B, K : ndarray (n, n), (n, m), (r, m, n)
-        Controller Lyapunov matrix, input matrix, vertex gains.
+    Pc : ndarray, shape (n, n)
+        Controller Lyapunov matrix (1 / (state units)^2).
+    B : ndarray, shape (n, m)
+        Input matrix (state units per s per input unit).
+    K : ndarray, shape (r, m, n)
+        Vertex gains (input units per state unit).
     alpha_c, alpha_o : float
         Controller and observer decay rates [1/s].
     Po : ndarray, shape (n, n)

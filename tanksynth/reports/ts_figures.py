@@ -43,7 +43,7 @@ def ellipse_outline(M: np.ndarray, c: float, centre: np.ndarray, points: int = 2
     M : ndarray, shape (2, 2)
         Positive definite matrix (per squared state unit).
     c : float
-        Level.
+        Level (dimensionless: the units of ``e' P e``).
     centre : ndarray, shape (2,)
         Centre (state units).
     points : int, optional

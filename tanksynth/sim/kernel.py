@@ -171,8 +171,8 @@ class NativeKernel:
     path : pathlib.Path
         The shared library.
     compile_seconds : float
-        Wall time of the compiler run that built it in this process (0 when loaded
-        from the disk cache).
+        Wall time of the compiler run that built it in this process (s; 0 when
+        loaded from the disk cache).
     """
 
     def __init__(self, lib: ctypes.CDLL, path: Path, n: int, m: int, compile_seconds: float):
@@ -219,16 +219,17 @@ class NativeKernel:
         substeps : int
             RK4 steps per period (1 ... `MAX_SUBSTEPS`).
         X : ndarray, shape (N, M, n)
-            Written: end state of every period (last axis contiguous, any strides
+            Written: end state of every period (state units; last axis contiguous, any strides
             of the first two, e.g. a transposed run-major buffer; periods at or
             after a run's ``stop`` are left untouched).
         start : ndarray of int64, shape (M,), optional
-            First period of each run (default 0); states in ``x0`` are at its start.
+            First period of each run (an index, dimensionless; default 0); states in
+            ``x0`` are at its start.
 
         Returns
         -------
         stop : ndarray of int64, shape (M,)
-            First period whose hybrid mode changed (-1: none); the run's state at
+            First period whose hybrid mode changed (an index, dimensionless; -1: none); the run's state at
             its start is ``X[stop - 1]`` (``x0`` when it is ``start``).
         low, high : ndarray of bool, shape (N, substeps)
             RK4 steps after which a completed run passed a bound (before clipping).

@@ -104,8 +104,8 @@ def horizon(integ: Any, kernel: NativeKernel, x: np.ndarray, U: np.ndarray,
     Returns
     -------
     ndarray, shape (N, M, n) or None
-        End states of every period; None (counters unchanged) when a state
-        became non-finite.
+        End states of every period (state units); None (counters unchanged) when
+        a state became non-finite.
     """
     N, count, n = U.shape[0], x.shape[0], integ.model.n
     C, P = tables(integ, p, count)

@@ -137,8 +137,16 @@ def region_points(P: np.ndarray, c: float, count: int, seed: int,
 
     Parameters
     ----------
-    P, c, count, seed, scale : ndarray (n, n), float, int, int, float
-        Lyapunov matrix, level ``c`` of ``e' P e <= c``, points, random seed, boundary radius factor.
+    P : ndarray, shape (n, n)
+        Lyapunov matrix (1 / (state units)^2).
+    c : float
+        Level ``c`` of ``e' P e <= c`` (dimensionless).
+    count : int
+        Number of points.
+    seed : int
+        Random seed.
+    scale : float
+        Boundary radius factor (dimensionless).
     """
     rng = np.random.default_rng(seed)
     n = P.shape[0]
@@ -352,7 +360,7 @@ def region_conditions(out: Mapping[str, Any], c: float) -> dict:
     out : mapping
         `simulate_region` output.
     c : float
-        Level of the certified region.
+        Level of the certified region (dimensionless: the units of ``e' P e``).
 
     Returns
     -------

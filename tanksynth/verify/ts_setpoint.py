@@ -61,7 +61,7 @@ def max_on_ellipsoid(P1: np.ndarray, level: float, P2: np.ndarray, d: np.ndarray
     P1, P2 : ndarray, shape (k, k)
         Positive definite matrices (per squared state unit).
     level : float
-        Level of the first set.
+        Level of the first set (dimensionless: the units of ``e' P e``).
     d : ndarray, shape (k,)
         Centre of the quadratic (state units).
     """
