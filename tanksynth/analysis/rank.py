@@ -17,7 +17,7 @@ from scipy.optimize import brentq
 
 from tanksynth.errors import DimensionError
 from tanksynth.plants.base import Plant
-from tanksynth.plants.compile import compile_matrix
+from tanksynth.plants.compile import compile_matrix, evaluate_points
 from tanksynth.analysis.blas import small_dense
 from tanksynth.analysis.symbolic import jacobian
 
@@ -385,10 +385,7 @@ def _codistribution(plant: Plant, orders: int):
 
 def _evaluate(fn, rows: int, n: int, points: np.ndarray, u: np.ndarray) -> np.ndarray:
     """Codistribution at every point, shape (M, rows, n)."""
-    M = len(points)
-    mapped = fn.map(M, "serial")
-    vals = np.asarray(mapped(points.T, np.repeat(u[:, None], M, axis=1)))
-    return vals.reshape(rows, M, n).transpose(1, 0, 2)
+    return evaluate_points(fn, points, np.repeat(u[None, :], len(points), axis=0))
 
 
 @dataclass(frozen=True)
