@@ -25,7 +25,6 @@ Usage::
 from __future__ import annotations
 
 import argparse
-import cProfile
 import io
 import pstats
 import statistics
@@ -90,10 +89,11 @@ def profile(stem: str, top: int = 25) -> str:
     """Top cumulative costs of one cProfile'd ``tanksynth run`` (in a child process)."""
     with tempfile.TemporaryDirectory(prefix="tanksynth-prof-") as tmp:
         stats = Path(tmp) / "run.prof"
-        code = ("import sys; from tanksynth.cli import main; sys.argv = ['tanksynth', 'run', "
-                f"{str(ROOT / 'examples' / (stem + '.toml'))!r}, '-o', {str(Path(tmp) / 'out')!r}]; "
-                "sys.exit(main())")
-        subprocess.run([PY, "-m", "cProfile", "-o", str(stats), "-c", code], capture_output=True,
+        script = Path(tmp) / "run.py"
+        script.write_text("import sys\nfrom tanksynth.cli import main\n"
+                          f"sys.argv = ['tanksynth', 'run', {str(ROOT / 'examples' / (stem + '.toml'))!r}, "
+                          f"'-o', {str(Path(tmp) / 'out')!r}]\nmain()\n")
+        subprocess.run([PY, "-m", "cProfile", "-o", str(stats), str(script)], capture_output=True,
                        cwd=ROOT)
         buf = io.StringIO()
         pstats.Stats(str(stats), stream=buf).sort_stats("cumulative").print_stats(top)
