@@ -25,9 +25,7 @@ Usage::
 from __future__ import annotations
 
 import argparse
-import io
 import pstats
-import statistics
 import subprocess
 import sys
 import tempfile
@@ -51,8 +49,9 @@ IMPORT_FLOORS = {"import tanksynth": 1.0, "tanksynth --help": 0.5}
 RUN_FLOOR = 3.0                                  # s, median wall of `tanksynth run`
 #: The two search-heavy examples (named from the measurements, see benchmarks/README.md).
 SEARCH_HEAVY = ("seed001_ts_observer", "three_tank_ts_control")
-#: Examples whose `tanksynth run` is expected to exit non-zero (none).
-EXPECTED_EXIT: dict[str, int] = {}
+#: Examples whose `tanksynth run` exits 1 on purpose (README: a paper's printed design that
+#: `verify` fails is the finding).
+EXPECTED_EXIT: dict[str, int] = {"seed000_akf": 1, "seed001_ts_observer": 1}
 
 
 def run_command(stem: str) -> list[str]:
@@ -85,8 +84,13 @@ def importtime(args: list[str], top: int = 8) -> list[tuple[str, float]]:
     return sorted(totals.items(), key=lambda kv: -kv[1])[:top]
 
 
-def profile(stem: str, top: int = 25) -> str:
-    """Top cumulative costs of one cProfile'd ``tanksynth run`` (in a child process)."""
+def profile(stem: str, top: int = 18) -> dict[str, list[list]]:
+    """One cProfile'd ``tanksynth run`` (child process): the tanksynth functions with the largest
+    cumulative time (the CLI and click wrappers left out) and the largest own (tottime) costs.
+
+    Returns ``{"total": s, "cumulative": [[function, calls, cumtime], ...],
+    "own": [[function, calls, tottime], ...]}``.
+    """
     with tempfile.TemporaryDirectory(prefix="tanksynth-prof-") as tmp:
         stats = Path(tmp) / "run.prof"
         script = Path(tmp) / "run.py"
@@ -95,11 +99,29 @@ def profile(stem: str, top: int = 25) -> str:
                           f"'-o', {str(Path(tmp) / 'out')!r}]\nmain()\n")
         subprocess.run([PY, "-m", "cProfile", "-o", str(stats), str(script)], capture_output=True,
                        cwd=ROOT)
-        buf = io.StringIO()
-        pstats.Stats(str(stats), stream=buf).sort_stats("cumulative").print_stats(top)
-    lines = [ln for ln in buf.getvalue().splitlines() if ln.strip()]
-    start = next(i for i, ln in enumerate(lines) if "cumtime" in ln)
-    return "\n".join(lines[start:])
+        st = pstats.Stats(str(stats))
+    rows = []
+    for (path, line, fn), (cc, nc, tt, ct, _) in st.stats.items():
+        short = path.split("site-packages/")[-1].split("/tanksynth/")[-1] if "/" in path else path
+        rows.append((f"{short}:{line}({fn})", nc, tt, ct, "/tanksynth/" in path and "site-packages" not in path))
+    total = max(r[3] for r in rows)
+    skip = ("cli.py", "methods.py:3", "<module>")
+    cumulative = sorted((r for r in rows if r[4] and not any(k in r[0] for k in skip)),
+                        key=lambda r: -r[3])[:top]
+    own = sorted(rows, key=lambda r: -r[2])[:12]
+    return {"total": total, "cumulative": [[r[0], r[1], round(r[3], 3)] for r in cumulative],
+            "own": [[r[0], r[1], round(r[2], 3)] for r in own]}
+
+
+def show_profile(stem: str, prof: dict) -> None:
+    """Print one profile."""
+    print(f"\ncProfile of `tanksynth run examples/{stem}.toml`: {prof['total']:.1f} s under the "
+          "profiler; tanksynth functions by cumulative s:")
+    for name, calls, t in prof["cumulative"]:
+        print(f"  {t:8.2f}  {calls:7d}  {name}")
+    print("  largest own (tottime) costs:")
+    for name, calls, t in prof["own"]:
+        print(f"  {t:8.2f}  {calls:7d}  {name}")
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -165,8 +187,10 @@ def main(argv: list[str] | None = None) -> int:
         targets = [t if isinstance(t, str) else t["command"] for t in targets]
         for stem in targets:
             profiles[stem] = profile(stem)
-            print(f"\ncProfile of `tanksynth run examples/{stem}.toml` (top cumulative):")
-            print(profiles[stem])
+            show_profile(stem, profiles[stem])
+        if not reps:
+            path = write_record("run_examples_profiles", {"profiles": profiles}, before)
+            print(f"\nrecord: {path}")
     if reps:
         path = write_record("run_examples", {"reps": reps, "rows": rows, "importtime": breakdown,
                                              "search_heavy": list(SEARCH_HEAVY),
