@@ -1,153 +1,160 @@
-"""Estimator speed on the hybrid three-tank: tanksynth vs FilterPy, and batch throughput.
+"""Estimators on the three-tank: tanksynth vs FilterPy and a hand-vectorised numpy batch EKF.
 
-Issue 5, section 5. On ``hybrid_three_tank`` (only h3 measured, ts = 1 s, 100/100 lph with a
-switch to 120/80 lph, levels crossing the middle pipes) this times:
+Issue 15. Plant ``three_tank`` (DTS200, every level measured), ts = 1 s, one RK4 step per
+period, Q = 1e-9 I m^2, R = 1e-6 I m^2, P0 = 1e-3 I m^2, x0 = (0.25, 0.15, 0.2) m (the
+plant starts at 0.28 / 0.2 / 0.24 m; pumps 30/20 ml/s, switched to 40/15 ml/s half way).
+The alternatives do NOT use tanksynth's compiled model: the model below (``f``, its
+regularised Jacobian ``d sqrt(|dh|)/dh = 1 / (2 sqrt(|dh| + 1e-6))``, RK4, the transition
+Jacobian as the 4th-order Taylor series of ``expm(h J)``) is written by hand in numpy from the
+plant's physical parameters, the way a user without tanksynth writes it.
 
-single run (time per estimator step, best of ``--repeats``)
-    tanksynth EKF, UKF and NARX (``step(y, u)``, compiled step kernel), beside FilterPy's
-    ``ExtendedKalmanFilter`` and ``UnscentedKalmanFilter`` on the same model: FilterPy gets the
-    same compiled transition, Jacobian and output functions (fast buffer calls, about 2 us
-    each), so the comparison is the filters' own cost; the ratios FilterPy / tanksynth are
-    printed, and so are seed 002's "control signal generation times" (EKF 0.0328 s, UKF
-    0.1849 s, ANN 0.1038 s on their LabVIEW rig, Table 5).
-batch (``--runs`` parallel runs, default 10,000)
-    estimator-steps per second of the EKF, UKF and NARX in batch form.
+single run (``--steps``, default 2000)
+    tanksynth ``ExtendedKalmanFilter.run`` / ``UnscentedKalmanFilter.run`` vs FilterPy's
+    ``ExtendedKalmanFilter`` (``predict_x`` overridden with the hand model, ``F`` set per
+    step, Joseph-form ``update``) and ``UnscentedKalmanFilter`` (``fx`` = the hand RK4,
+    Merwe sigma points, alpha = 1e-3).
+batch (``--runs`` M = 1,000 and 10,000 parallel runs, ``--batch-steps`` steps)
+    tanksynth ``ekf.batch(M).step`` vs a hand-vectorised numpy EKF over (M, 3) states and
+    (M, 3, 3) covariances: the same prediction, Joseph-form correction, symmetrisation and a
+    Cholesky (positive-definite) check of both covariances per step, as tanksynth does.
 
-Floors (asserted): single-run EKF step under 100 us; batch EKF throughput at least 1e6
-estimator-steps/s. The estimates of tanksynth and FilterPy are checked to agree to 1e-9 m:
-the EKF, and the UKF with alpha = 1 (against tanksynth's ``redraw=True`` or ``redraw=False``,
-whichever FilterPy's version does: 2.x redraws the sigma points after the prediction, 1.x
-used the propagated ones as seed 002 eq. 27). With alpha = 1e-3 the two UKFs agree to 1e-10 m
-until the sigma points straddle a kink of the hybrid model (equal heads, a level at h0),
-where rounding differences are amplified by the 1e6 weights: the spread is printed.
+Contenders interleaved, ``--reps`` >= 3 repetitions; min and median and the ratio
+alternative / tanksynth of every repetition; JSON record ``benchmarks/results/estimators.json``.
+Agreement (exit 1 otherwise): every estimate of tanksynth and FilterPy EKF, and of tanksynth and
+the numpy batch EKF, within 1e-9 m; the UKFs with alpha = 1 (the sigma-point scheme FilterPy's
+version implements: 2.x redraws after the prediction) within 1e-9 m; with alpha = 1e-3 (the
+timed setting) the spread is printed (weights of 1e6 amplify rounding).
+Floors (median ratio, exit 1 on a miss): tanksynth at least as fast as FilterPy (EKF and UKF)
+and as the numpy batch EKF at every M (>= 1).
 
-FilterPy is not a dependency of tanksynth; install it into the environment to compare::
+Usage::
 
-    .venv/bin/python -m pip install filterpy
     .venv/bin/python benchmarks/estimators.py
-    .venv/bin/python benchmarks/estimators.py --runs 2000 --steps 500      # quicker
-
-Exit status 1 when a floor fails or the filters disagree.
+    .venv/bin/python benchmarks/estimators.py --steps 500 --runs 1000 --reps 5
 """
 
 from __future__ import annotations
 
 import argparse
-import os
-import platform
+import statistics
 import sys
-import time
+from pathlib import Path
 
-import casadi as ca
 import numpy as np
 
-from tanksynth.runtime.estimators import (ExtendedKalmanFilter, KalmanTuning, NARXEstimator,
-                                         UKFTuning, UnscentedKalmanFilter, discrete_model)
-from tanksynth.design.narx import train_narx
-from tanksynth.sim.simulate import simulate_inputs
-from tanksynth.plants import hybrid_three_tank
-from tanksynth.plants.hybrid_three_tank import LPH
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from harness import Floors, interleave, machine, ratios, summary, write_record  # noqa: E402
+
+from tanksynth.plants import three_tank  # noqa: E402
+from tanksynth.runtime.estimators import (ExtendedKalmanFilter, KalmanTuning,  # noqa: E402
+                                         UKFTuning, UnscentedKalmanFilter)
+from tanksynth.sim.simulate import simulate_inputs  # noqa: E402
 
 try:
     import filterpy
     from filterpy.kalman import ExtendedKalmanFilter as FPExtendedKalmanFilter
     from filterpy.kalman import MerweScaledSigmaPoints
     from filterpy.kalman import UnscentedKalmanFilter as FPUnscentedKalmanFilter
-except ImportError:          # optional comparison
+except ImportError:  # the benchmark says so and fails
     filterpy = None
 
-PAPER_SECONDS = {"EKF": 0.0328, "UKF": 0.1849, "NARX": 0.1038}    # seed 002, Table 5
-FLOOR_SINGLE_EKF_US = 100.0
-FLOOR_BATCH_EKF = 1e6
-TUNING = dict(Q=1e-7 * np.eye(3), R=[[1e-6]], P0=1e-2 * np.eye(3), x0=[0.2, 0.2, 0.2], ts=1.0)
+TS = 1.0
+EPS = 1e-6                      # m, regularisation of the Torricelli derivative (tanksynth default)
+TUNING = dict(Q=1e-9 * np.eye(3), R=1e-6 * np.eye(3), P0=1e-3 * np.eye(3),
+              x0=np.array([0.25, 0.15, 0.2]), ts=TS)
+AGREE = 1e-9                    # m
+BATCH_SIZES = (1000, 10000)
 
 
-def scenario(steps: int) -> tuple:
-    """Measurements and inputs of one run (seed 002 section 5.2 initial mismatch)."""
-    plant = hybrid_three_tank()
-    U = np.full((steps, 2), 100 * LPH)
-    U[steps // 2:, 0] = 120 * LPH
-    U[steps // 2:, 1] = 80 * LPH
-    X = simulate_inputs(plant, [0.28, 0.28, 0.23], U, 1.0, substeps=10).x[0, 1:]
-    rng = np.random.default_rng(0)
-    Y = X[:, 2:] + rng.normal(0, 1e-3, (steps, 1))
-    return plant, X, Y, U
+# ------------------------------------------------------------- hand-written model
+class HandModel:
+    """The three-tank in plain numpy, from its physical parameters (vectorised over rows)."""
+
+    def __init__(self, params: dict[str, float]):
+        c = params["Phi"] * np.sqrt(2.0 * params["g"]) / params["A"]
+        self.k13, self.k32, self.k20 = params["mu13"] * c, params["mu32"] * c, params["mu20"] * c
+        self.b = 1.0 / params["A"]
+
+    def f(self, x: np.ndarray, u: np.ndarray) -> np.ndarray:
+        """dh/dt, x (..., 3), u (..., 2)."""
+        h1, h2, h3 = x[..., 0], x[..., 1], x[..., 2]
+        d13, d32 = h1 - h3, h3 - h2
+        q13 = self.k13 * np.sign(d13) * np.sqrt(np.abs(d13))
+        q32 = self.k32 * np.sign(d32) * np.sqrt(np.abs(d32))
+        q20 = self.k20 * np.sqrt(h2)
+        return np.stack([self.b * u[..., 0] - q13, self.b * u[..., 1] + q32 - q20, q13 - q32],
+                        axis=-1)
+
+    def jac(self, x: np.ndarray) -> np.ndarray:
+        """Regularised df/dx, (..., 3, 3)."""
+        h1, h2, h3 = x[..., 0], x[..., 1], x[..., 2]
+        a13 = 0.5 * self.k13 / np.sqrt(np.abs(h1 - h3) + EPS)
+        a32 = 0.5 * self.k32 / np.sqrt(np.abs(h3 - h2) + EPS)
+        a20 = 0.5 * self.k20 / np.sqrt(h2 + EPS)
+        J = np.zeros(x.shape[:-1] + (3, 3))
+        J[..., 0, 0], J[..., 0, 2] = -a13, a13
+        J[..., 1, 1], J[..., 1, 2] = -a32 - a20, a32
+        J[..., 2, 0], J[..., 2, 1], J[..., 2, 2] = a13, a32, -a13 - a32
+        return J
+
+    def predict(self, x: np.ndarray, u: np.ndarray) -> np.ndarray:
+        """One RK4 step of TS seconds."""
+        h = TS
+        k1 = self.f(x, u)
+        k2 = self.f(x + 0.5 * h * k1, u)
+        k3 = self.f(x + 0.5 * h * k2, u)
+        k4 = self.f(x + h * k3, u)
+        return x + (h / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
+
+    def phi(self, x: np.ndarray) -> np.ndarray:
+        """Transition Jacobian: 4th-order Taylor series of expm(TS J(x))."""
+        hJ = TS * self.jac(x)
+        eye = np.eye(3)
+        T = eye + hJ / 4
+        T = eye + hJ / 3 @ T
+        T = eye + hJ / 2 @ T
+        return eye + hJ @ T
 
 
-class FastModel:
-    """The EKF's own compiled model pieces as plain callables (for FilterPy)."""
-
-    def __init__(self, plant):
-        model = discrete_model(plant, 1.0)
-        x, u = ca.SX.sym("x", 3), ca.SX.sym("u", 2)
-        fn = ca.Function("model", [x, u], [ca.densify(model.predict_sx(x, u)),
-                                           ca.densify(model.transition_jacobian_sx(x, u).T)])
-        self.x, self.u = np.zeros(3), np.zeros(2)
-        self.xn, self.Phi = np.zeros(3), np.zeros((3, 3))
-        fb, self._ev = fn.buffer()
-        fb.set_arg(0, memoryview(self.x))
-        fb.set_arg(1, memoryview(self.u))
-        fb.set_res(0, memoryview(self.xn))
-        fb.set_res(1, memoryview(self.Phi.reshape(-1)))
-        self._fb = fb
-        self.H = np.array([[0.0, 0.0, 1.0]])
-
-    def step(self, x, u):
-        """``F(x, u)`` and ``Phi(x, u)`` (copies)."""
-        self.x[:] = np.ravel(x)
-        self.u[:] = u
-        self._ev()
-        return self.xn.copy(), self.Phi.copy()
-
-    def fx(self, x, dt, u):
-        """FilterPy UKF transition."""
-        return self.step(x, u)[0]
-
-    def hx(self, x):
-        """Output map h(x) = h3."""
-        return np.asarray(x).ravel()[2:3]
-
-    def HJ(self, x):
-        """Output Jacobian."""
-        return self.H
+def scenario(plant, steps: int, runs: int = 1, seed: int = 0):
+    """Levels (steps, 3), noisy measurements (steps, runs, 3) and inputs (steps, 2)."""
+    U = np.tile([30e-6, 20e-6], (steps, 1))
+    U[steps // 2:] = [40e-6, 15e-6]
+    X = simulate_inputs(plant, [0.28, 0.2, 0.24], U, TS, substeps=10).x[0, 1:]
+    rng = np.random.default_rng(seed)
+    Y = X[:, None, :] + 1e-3 * rng.standard_normal((steps, runs, 3))
+    return X, Y, U
 
 
-def best_time(fn, repeats: int) -> float:
-    """Best wall time of ``repeats`` calls after one warm-up call (s)."""
-    fn()
-    best = np.inf
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        fn()
-        best = min(best, time.perf_counter() - t0)
-    return best
+# ------------------------------------------------------------------ FilterPy
+def filterpy_ekf(model: HandModel, Y: np.ndarray, U: np.ndarray) -> np.ndarray:
+    """FilterPy's EKF with the hand model: predict_x overridden, F set every step."""
 
+    class EKF(FPExtendedKalmanFilter):
+        def predict_x(self, u=0):
+            self.x = model.predict(self.x.ravel(), u).reshape(3, 1)
 
-def run_filterpy_ekf(model: FastModel, Y, U):
-    ekf = FPExtendedKalmanFilter(dim_x=3, dim_z=1)
-    ekf.x = np.array(TUNING["x0"], dtype=float).reshape(3, 1)
-    ekf.P = TUNING["P0"].copy()
-    ekf.Q = TUNING["Q"].copy()
-    ekf.R = np.array(TUNING["R"], dtype=float)
+    ekf = EKF(dim_x=3, dim_z=3)
+    ekf.x = TUNING["x0"].reshape(3, 1).copy()
+    ekf.P, ekf.Q, ekf.R = TUNING["P0"].copy(), TUNING["Q"].copy(), TUNING["R"].copy()
+    H = np.eye(3)
     out = np.empty((len(Y), 3))
     for k in range(len(Y)):
-        xn, Phi = model.step(ekf.x, U[k])
-        ekf.F = Phi
-        ekf.x = xn.reshape(3, 1)
-        ekf.P = Phi @ ekf.P @ Phi.T + ekf.Q                 # predict() with the nonlinear x
-        ekf.update(Y[k].reshape(1, 1), lambda x: model.H, lambda x: x[2:3])
+        ekf.F = model.phi(ekf.x.ravel())
+        ekf.predict(u=U[k])
+        ekf.update(Y[k].reshape(3, 1), lambda x: H, lambda x: x)
         out[k] = ekf.x.ravel()
     return out
 
 
-def run_filterpy_ukf(model: FastModel, Y, U, alpha: float = 1e-3):
+def filterpy_ukf(model: HandModel, Y: np.ndarray, U: np.ndarray, alpha: float = 1e-3) -> np.ndarray:
+    """FilterPy's UKF with the hand RK4 as fx."""
     points = MerweScaledSigmaPoints(3, alpha=alpha, beta=2.0, kappa=0.0)
-    ukf = FPUnscentedKalmanFilter(dim_x=3, dim_z=1, dt=1.0, hx=model.hx, fx=model.fx,
-                                  points=points)
-    ukf.x = np.array(TUNING["x0"], dtype=float)
-    ukf.P = TUNING["P0"].copy()
-    ukf.Q = TUNING["Q"].copy()
-    ukf.R = np.array(TUNING["R"], dtype=float)
+    ukf = FPUnscentedKalmanFilter(dim_x=3, dim_z=3, dt=TS, hx=lambda x: x,
+                                  fx=lambda x, dt, u: model.predict(x, u), points=points)
+    ukf.x = TUNING["x0"].copy()
+    ukf.P, ukf.Q, ukf.R = TUNING["P0"].copy(), TUNING["Q"].copy(), TUNING["R"].copy()
     out = np.empty((len(Y), 3))
     for k in range(len(Y)):
         ukf.predict(u=U[k])
@@ -156,98 +163,130 @@ def run_filterpy_ukf(model: FastModel, Y, U, alpha: float = 1e-3):
     return out
 
 
-def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--runs", type=int, default=10000, help="parallel runs (batch)")
-    parser.add_argument("--steps", type=int, default=2000, help="steps of the single run")
-    parser.add_argument("--batch-steps", type=int, default=20, help="steps of the batch run")
-    parser.add_argument("--repeats", type=int, default=3)
-    parser.add_argument("--backend", default="auto", choices=("auto", "native", "vm"))
-    args = parser.parse_args(argv)
+# ----------------------------------------------------------- numpy batch EKF
+def numpy_batch_ekf(model: HandModel, Y: np.ndarray, U: np.ndarray) -> np.ndarray:
+    """Hand-vectorised EKF over M runs: Y (steps, M, 3), U (steps, 2); estimates (steps, M, 3)."""
+    steps, M, _ = Y.shape
+    Q, R = TUNING["Q"], TUNING["R"]
+    x = np.tile(TUNING["x0"], (M, 1))
+    P = np.tile(TUNING["P0"], (M, 1, 1))
+    eye = np.eye(3)
+    out = np.empty((steps, M, 3))
+    for k in range(steps):
+        Phi = model.phi(x)
+        x = model.predict(x, U[k][None, :])
+        Pp = Phi @ P @ Phi.transpose(0, 2, 1) + Q
+        Pp = 0.5 * (Pp + Pp.transpose(0, 2, 1))
+        np.linalg.cholesky(Pp)                                 # positive definite, or raise
+        S = Pp + R                                             # H = I
+        S = 0.5 * (S + S.transpose(0, 2, 1))
+        K = np.linalg.solve(S, Pp).transpose(0, 2, 1)          # Pp H' S^-1 (S, Pp symmetric)
+        x = x + (K @ (Y[k] - x)[:, :, None])[:, :, 0]
+        IKH = eye - K
+        P = IKH @ Pp @ IKH.transpose(0, 2, 1) + K @ R @ K.transpose(0, 2, 1)
+        P = 0.5 * (P + P.transpose(0, 2, 1))
+        np.linalg.cholesky(P)
+        out[k] = x
+    return out
 
-    print(f"# tanksynth estimators on hybrid_three_tank | python {platform.python_version()} | "
-          f"casadi {ca.__version__} | numpy {np.__version__} | {os.cpu_count()} cpus")
-    plant, X, Y, U = scenario(args.steps)
-    ekf = ExtendedKalmanFilter(plant, KalmanTuning(**TUNING), backend=args.backend)
-    ukf = UnscentedKalmanFilter(plant, UKFTuning(**TUNING), backend=args.backend)
-    ukf_lit = UnscentedKalmanFilter(plant, UKFTuning(**TUNING, redraw=False), backend=args.backend)
-    training = train_narx(plant, KalmanTuning(**TUNING), runs=4, steps=500, seed=0,
-                          input_range=[[30 * LPH, 130 * LPH]] * 2, restarts=2, max_iter=150)
-    narx = NARXEstimator(plant, training.tuning, backend=args.backend)
-    print(f"# kernel back end: {ekf.backend}; operations per step: EKF {ekf.instructions}, "
-          f"UKF {ukf.instructions}, NARX {narx.instructions}")
 
-    ok = True
-    single = {}
-    for name, est in (("EKF", ekf), ("UKF", ukf), ("NARX", narx)):
-        def go(est=est):
-            est.reset()
-            est.run(Y, U)
-        single[name] = best_time(go, args.repeats) / args.steps
-    x_ekf = (ekf.reset(), ekf.run(Y, U))[1]
-    x_ukf = (ukf.reset(), ukf.run(Y, U))[1]
-    x_ukf_lit = (ukf_lit.reset(), ukf_lit.run(Y, U))[1]
+def tanksynth_batch(ekf: ExtendedKalmanFilter, Y: np.ndarray, U: np.ndarray) -> np.ndarray:
+    """tanksynth's batch path (as the verification campaigns run it): one step of M runs."""
+    steps, M, _ = Y.shape
+    batch = ekf.batch(M)
+    out = np.empty((steps, M, 3))
+    for k in range(steps):
+        out[k] = batch.step(Y[k], U[k])
+    return out
 
-    fp = {}
+
+def report(name: str, times: dict, alt: str, what: str, floors: Floors) -> dict:
+    """Print min/median and per-rep ratios alt / tanksynth; check the floor (>= 1)."""
+    r = ratios(times[alt], times["tanksynth"])
+    for who in ("tanksynth", alt):
+        sm = summary(times[who])
+        print(f"  {who:12s} min {sm['min'] * 1e3:9.2f} ms  median {sm['median'] * 1e3:9.2f} ms")
+    med = statistics.median(r)
+    print(f"  {alt} / tanksynth per rep: " + " ".join(f"{v:.2f}" for v in r) + f"   median {med:.2f}")
+    floors.check(f"{name}: tanksynth vs {what}", med, 1.0)
+    return {"name": name, "times": times, "ratio": r, "median_ratio": med}
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the benchmark; exit 1 on a floor miss, a disagreement or without FilterPy."""
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--steps", type=int, default=2000, help="steps of the single run")
+    ap.add_argument("--runs", type=int, nargs="+", default=list(BATCH_SIZES), help="batch sizes M")
+    ap.add_argument("--batch-steps", type=int, default=50)
+    ap.add_argument("--reps", type=int, default=3)
+    args = ap.parse_args(argv)
+    reps = max(args.reps, 3)
     if filterpy is None:
-        print("# FilterPy is not installed: `.venv/bin/python -m pip install filterpy` to compare")
-    else:
-        model = FastModel(plant)
-        fp["EKF"] = best_time(lambda: run_filterpy_ekf(model, Y, U), args.repeats) / args.steps
-        fp["UKF"] = best_time(lambda: run_filterpy_ukf(model, Y, U), args.repeats) / args.steps
-        d_ekf = np.abs(run_filterpy_ekf(model, Y, U) - x_ekf).max()
-        x_fp1 = run_filterpy_ukf(model, Y, U, alpha=1.0)
-        d_ukf = np.inf
-        for redraw in (True, False):
-            u1 = UnscentedKalmanFilter(plant, UKFTuning(**TUNING, alpha=1.0, redraw=redraw),
-                                       backend=args.backend)
-            d = np.abs(x_fp1 - u1.run(Y, U)).max()
-            if d < d_ukf:
-                d_ukf, mode = d, "redraw" if redraw else "eq. 27, no redraw"
-        spread = np.abs(run_filterpy_ukf(model, Y, U) - (x_ukf if mode == "redraw"
-                                                         else x_ukf_lit)).max()
-        print(f"# agreement with FilterPy {filterpy.__version__}: EKF max |dx| = {d_ekf:.2e} m; "
-              f"UKF (alpha = 1, {mode}) max |dx| = {d_ukf:.2e} m; UKF alpha = 1e-3: "
-              f"{spread:.2e} m (ill-conditioned at kinks)")
-        if not (d_ekf < 1e-9 and d_ukf < 1e-9):
-            print("FAIL: tanksynth and FilterPy disagree")
+        print("benchmarks/estimators.py: FilterPy is not installed (pip install filterpy; it is in "
+              "the dev extra)", file=sys.stderr)
+        return 1
+    before = machine()
+    floors = Floors()
+    plant = three_tank()
+    model = HandModel({p.name: float(p.value) for p in plant.parameters})
+    X, Y1, U = scenario(plant, args.steps)
+    Y = Y1[:, 0, :]
+    ekf = ExtendedKalmanFilter(plant, KalmanTuning(**TUNING))
+    ukf = UnscentedKalmanFilter(plant, UKFTuning(**TUNING))
+    print(f"three_tank, {args.steps} steps; tanksynth kernel back end {ekf.backend}; "
+          f"FilterPy {filterpy.__version__}; {reps} interleaved reps; load {before['loadavg']}")
+
+    # agreement
+    ok = True
+    x_ts = (ekf.reset(), ekf.run(Y, U))[1]
+    d_ekf = float(np.abs(filterpy_ekf(model, Y, U) - x_ts).max())
+    x_fp1 = filterpy_ukf(model, Y, U, alpha=1.0)
+    u1 = UnscentedKalmanFilter(plant, UKFTuning(**TUNING, alpha=1.0, redraw=True))
+    d_ukf = float(np.abs(x_fp1 - u1.run(Y, U)).max())
+    spread = float(np.abs(filterpy_ukf(model, Y, U) - (ukf.reset(), ukf.run(Y, U))[1]).max())
+    print(f"agreement: EKF max |dx| {d_ekf:.1e} m; UKF (alpha = 1, redraw) {d_ukf:.1e} m; "
+          f"UKF alpha = 1e-3 spread {spread:.1e} m; estimate error vs truth "
+          f"{np.abs(x_ts - X).max():.1e} m")
+    if not (d_ekf <= AGREE and d_ukf <= AGREE):
+        print("  ESTIMATES DISAGREE")
+        ok = False
+
+    rows = []
+
+    def run_ts(est):
+        est.reset()
+        est.run(Y, U)
+
+    print(f"\nsingle run, EKF ({args.steps} steps):")
+    t = interleave({"tanksynth": lambda: run_ts(ekf), "FilterPy": lambda: filterpy_ekf(model, Y, U)},
+                   reps)
+    rows.append(report("EKF single run", t, "FilterPy", "FilterPy EKF + numpy model", floors))
+    print(f"\nsingle run, UKF alpha = 1e-3 ({args.steps} steps):")
+    t = interleave({"tanksynth": lambda: run_ts(ukf), "FilterPy": lambda: filterpy_ukf(model, Y, U)},
+                   reps)
+    rows.append(report("UKF single run", t, "FilterPy", "FilterPy UKF + numpy model", floors))
+
+    for M in args.runs:
+        _, YB, UB = scenario(plant, args.batch_steps, runs=M, seed=1)
+        a, b = tanksynth_batch(ekf, YB, UB), numpy_batch_ekf(model, YB, UB)
+        d = float(np.abs(a - b).max())
+        print(f"\nbatch EKF, M = {M} runs x {args.batch_steps} steps: max |dx| {d:.1e} m")
+        if d > AGREE:
+            print("  ESTIMATES DISAGREE")
             ok = False
+        t = interleave({"tanksynth": lambda: tanksynth_batch(ekf, YB, UB),
+                        "numpy": lambda: numpy_batch_ekf(model, YB, UB)}, reps)
+        row = report(f"EKF batch M={M}", t, "numpy", "hand-vectorised numpy EKF", floors)
+        row["max_abs_diff"] = d
+        rows.append(row)
 
-    print("\n## single run: time per step")
-    print(f"{'estimator':10} {'tanksynth':>12} {'FilterPy':>12} {'ratio FP/ts':>12} "
-          f"{'seed 002 rig':>14} {'rig/ts':>10}")
-    for name in ("EKF", "UKF", "NARX"):
-        ours = single[name]
-        theirs = fp.get(name)
-        ratio = f"{theirs / ours:12.1f}" if theirs else f"{'-':>12}"
-        fp_txt = f"{theirs * 1e6:10.1f} us" if theirs else f"{'-':>12}"
-        print(f"{name:10} {ours * 1e6:9.1f} us {fp_txt} {ratio} {PAPER_SECONDS[name]:12.4f} s "
-              f"{PAPER_SECONDS[name] / ours:10.0f}")
-
-    print(f"\n## batch: {args.runs} parallel runs, {args.batch_steps} steps")
-    rng = np.random.default_rng(1)
-    YB = Y[:args.batch_steps, None, :] + 1e-3 * rng.standard_normal((args.batch_steps, args.runs, 1))
-    throughput = {}
-    for name, est in (("EKF", ekf), ("UKF", ukf), ("NARX", narx)):
-        batch = est.batch(args.runs)
-
-        def go(batch=batch):
-            batch.reset()
-            for k in range(args.batch_steps):
-                batch.step(YB[k], U[k])
-        t = best_time(go, args.repeats)
-        throughput[name] = args.runs * args.batch_steps / t
-        print(f"{name:10} {throughput[name]:14,.0f} estimator-steps/s "
-              f"({t / args.batch_steps * 1e3:.2f} ms per step of {args.runs} runs)")
-
-    print("\n## floors")
-    f1 = single["EKF"] * 1e6 < FLOOR_SINGLE_EKF_US
-    f2 = throughput["EKF"] >= FLOOR_BATCH_EKF
-    print(f"single-run EKF step {single['EKF'] * 1e6:.1f} us < {FLOOR_SINGLE_EKF_US:.0f} us: "
-          f"{'PASS' if f1 else 'FAIL'}")
-    print(f"batch EKF {throughput['EKF']:,.0f} steps/s >= {FLOOR_BATCH_EKF:,.0f}: "
-          f"{'PASS' if f2 else 'FAIL'}")
-    return 0 if (ok and f1 and f2) else 1
+    path = write_record("estimators", {"reps": reps, "steps": args.steps,
+                                       "batch_steps": args.batch_steps, "rows": rows,
+                                       "agreement": {"ekf": d_ekf, "ukf_alpha1": d_ukf,
+                                                     "ukf_alpha1e-3_spread": spread},
+                                       "floors": floors.rows}, before)
+    print(f"\nrecord: {path}")
+    return 0 if ok and not floors.failed else 1
 
 
 if __name__ == "__main__":

@@ -596,12 +596,26 @@ def main(argv: list[str] | None = None) -> int:
     """
 
     _ignore_file_size_signal()
+    _one_blas_thread()
     args = list(sys.argv[1:] if argv is None else argv)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         code = _main(args)
     _note_warnings(caught, quiet="--json" in args, code=code)
     return code
+
+
+def _one_blas_thread() -> None:
+    """One BLAS thread for a command, unless the user chose (``OPENBLAS_NUM_THREADS``, ...).
+
+    The command's dense work is small (3-64 states): OpenBLAS's threads make it slower, badly
+    so on a loaded machine (a 5 x 5 ``expm`` 0.4 ms instead of 0.017 ms; ``tanksynth run
+    examples/three_tank_robust.toml`` 43 s instead of 13 s, issue 15). Read by the BLAS when it
+    loads, so only before numpy is imported (a fresh ``tanksynth`` process, not a caller's).
+    """
+    if "numpy" not in sys.modules:
+        for var in ("OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+            os.environ.setdefault(var, "1")
 
 
 def _ignore_file_size_signal() -> None:

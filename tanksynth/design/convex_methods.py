@@ -30,10 +30,8 @@ from tanksynth.analysis.lmi_region import region_from_parts
 from tanksynth.analysis.statespace import model_names
 from tanksynth.analysis.takagi_sugeno import (check_exactness, domain_from_plant, quasi_lpv,
                                               ts_model, vertex_observability)
-from tanksynth.design.lmi import maximise_psi, observer_lmi
 from tanksynth.design.placement import (canonical_observer, integral_augmentation,
-                                        lmi_observer, lmi_state_feedback, place_observer,
-                                        place_state_feedback, pole_errors)
+                                        place_observer, place_state_feedback, pole_errors)
 from tanksynth.design.placement_exact import placement_accuracy, refuse_fragile, robustness_report
 from tanksynth.design.result import DesignMethod, DesignResult, options_of, rekeyed
 from tanksynth.design.takagi_sugeno import lipschitz_bound, search_weightings, selection_rules
@@ -163,6 +161,8 @@ def run_ts_observer(spec: "Spec", design: "DesignSpec") -> DesignResult:
     UnobservableError, UncontrollableError
         Refused before solving, naming the modes.
     """
+    from tanksynth.design.lmi import maximise_psi, observer_lmi  # cvxpy loads on first use
+
     o = options_of(design, spec, TsObserverOptions)
     plant = spec.plant
     variant, solver, margin, kappa = o.variant, o.solver, o.margin, o.kappa
@@ -357,6 +357,8 @@ def run_lmi_placement(spec: "Spec", design: "DesignSpec") -> DesignResult:
     UnobservableError, UncontrollableError
         Refused before solving, naming the modes.
     """
+    from tanksynth.design.placement_lmi import lmi_observer, lmi_state_feedback  # loads cvxpy
+
     o = options_of(design, spec, LmiPlacementOptions)
     plant = spec.plant
     region = region_from_parts(o.region)

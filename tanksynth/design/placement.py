@@ -39,14 +39,18 @@ from tanksynth.errors import DimensionError, SpecError, UnobservableError
 from tanksynth.plants.base import exact
 from tanksynth.design.placement_exact import (PlacementResult, _matrix, _pair, _poles, place_observer,
                                               place_state_feedback, pole_errors)
-from tanksynth.design.placement_lmi import LMIPlacementResult, lmi_observer, lmi_state_feedback
-# The block builder of the LMI regions, used by the verdicts' re-check.
-from tanksynth.design.placement_lmi import _d_lmi as _d_lmi
+from tanksynth._lazy import lazy_exports
+
+# The LMI route (and `_d_lmi`, the block builder of the LMI regions the verdicts' re-check
+# uses) loads on first use: cvxpy's import costs 0.5-1.8 s (it loads scipy.stats).
+__getattr__, __dir__ = lazy_exports(__name__, {
+    name: "tanksynth.design.placement_lmi"
+    for name in ("LMIPlacementResult", "lmi_observer", "lmi_state_feedback", "_d_lmi")})
 
 __all__ = [
-    "LMIPlacementResult",
-    "lmi_state_feedback",
-    "lmi_observer",
+    "LMIPlacementResult",  # noqa: F822 - lazy (module __getattr__)
+    "lmi_state_feedback",  # noqa: F822
+    "lmi_observer",  # noqa: F822
     "PlacementResult",
     "place_state_feedback",
     "place_observer",

@@ -29,8 +29,6 @@ from tanksynth.analysis.lmi_region import region_from_parts
 from tanksynth.analysis.rank import controllability_rank, observability_rank
 from tanksynth.analysis.statespace import model_names
 from tanksynth.design.result import DesignMethod, DesignResult, options_of, rekeyed
-from tanksynth.design.robust import (HinfBound, SaturationBound, ellipsoid_axes, robust_observer,
-                                     robust_state_feedback)
 from tanksynth.design.robust_models import VertexModels, augment_integral, polytope_check, vertex_models
 from tanksynth.errors import InfeasibleDesign, SpecError, UncontrollableError, UnobservableError
 from tanksynth.spec.method_options.robust import RobustObserverOptions, RobustStateFeedbackOptions
@@ -158,6 +156,9 @@ def run_robust_state_feedback(spec: "Spec", design: "DesignSpec") -> DesignResul
         No gain meets the request at every vertex (with the largest
         achievable margin as the certificate), or the re-check fails.
     """
+    from tanksynth.design.robust import (HinfBound, SaturationBound, ellipsoid_axes,  # cvxpy
+                                         robust_state_feedback)
+
     o = options_of(design, spec, RobustStateFeedbackOptions)
     plant = spec.plant
     n, m = plant.n, plant.m
@@ -274,6 +275,8 @@ def run_robust_observer(spec: "Spec", design: "DesignSpec") -> DesignResult:
     InfeasibleDesign
         No gain meets the request at every vertex, or the re-check fails.
     """
+    from tanksynth.design.robust import HinfBound, robust_observer  # loads cvxpy on first use
+
     o = options_of(design, spec, RobustObserverOptions)
     plant = spec.plant
     n = plant.n

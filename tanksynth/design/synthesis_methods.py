@@ -37,14 +37,13 @@ from tanksynth.analysis.linearize import discretize_zoh, equilibrium_input, line
 from tanksynth.analysis.lmi_region import region_from_parts
 from tanksynth.analysis.statespace import model_names
 from tanksynth.design.result import DesignMethod, DesignResult, options_of, rekeyed
-from tanksynth.design.synthesis import (GeneralizedPlant, SynthesisResult, synthesize_observer,
-                                        synthesize_state_feedback)
 from tanksynth.errors import DesignWarning, SpecError
 from tanksynth.spec.method_options import (H2ObserverOptions, H2StateFeedbackOptions,
                                            HinfObserverOptions, HinfStateFeedbackOptions,
                                            MultiobjectiveOptions)
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
+    from tanksynth.design.synthesis import GeneralizedPlant, SynthesisResult
     from tanksynth.spec import DesignSpec, Spec
 
 __all__ = ["run_h2_state_feedback", "run_h2_observer", "run_hinf_state_feedback",
@@ -172,6 +171,8 @@ def _riccati_observer(A, C, Bw, Dv, Cz, domain) -> dict:
 
 def _state_feedback(spec, design, o, method: str, objective: str, **kw) -> DesignResult:
     m = _model(spec, o)
+    from tanksynth.design.synthesis import GeneralizedPlant, synthesize_state_feedback  # cvxpy
+
     P = GeneralizedPlant(m["A"], m["B"], m["Bw"], o.Cz, o.Dzu, o.time_domain, m["dt"])
     try:
         res = synthesize_state_feedback(P, objective=objective, margin=o.margin, solver=o.solver,
@@ -190,6 +191,8 @@ def _state_feedback(spec, design, o, method: str, objective: str, **kw) -> Desig
 
 
 def _observer(spec, design, o, method: str, objective: str, **kw) -> DesignResult:
+    from tanksynth.design.synthesis import synthesize_observer  # loads cvxpy on first use
+
     m = _model(spec, o)
     Dv = np.diag(np.asarray(o.measurement_std, float))
     Cz = np.asarray(o.Cz)
