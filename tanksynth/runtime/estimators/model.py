@@ -62,6 +62,10 @@ def regularized_jacobian(plant: Plant, eps: float) -> sp.Matrix:
 
     def fix(entry: sp.Expr) -> sp.Expr:
         entry = entry.replace(lambda a: isinstance(a, sp.DiracDelta), lambda a: sp.Integer(0))
+        # sign(-b) sign(b) is -sign(b)^2 = -1 away from b = 0: write sign(-b) as -sign(b) first,
+        # or the product stays and evaluates to 0 at equal heads (a lost Jacobian entry)
+        entry = entry.replace(lambda a: isinstance(a, sp.sign) and a.args[0].could_extract_minus_sign(),
+                              lambda a: -sp.sign(-a.args[0]))
         entry = entry.replace(lambda a: a.is_Pow and isinstance(a.base, sp.sign) and a.exp == 2,
                               lambda a: sp.Integer(1))
         return entry.replace(is_singular_power, lambda a: sp.Pow(a.base + e, a.exp))

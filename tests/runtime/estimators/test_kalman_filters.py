@@ -124,6 +124,21 @@ def test_regularised_derivative_matches_notes(hybrid_plant):
     assert float(J[0, 0].subs(point).subs(pv)) == pytest.approx(-dQ1 / A, rel=1e-9)
 
 
+def test_regularised_derivative_at_equal_heads_of_a_signed_link():
+    """The three-tank link h2 - h3 is written sgn(h3 - h2) sqrt(2 g |h3 - h2|): its derivative is
+    sign(-b) sign(b) / sqrt(|b|) = -1 / sqrt(|b|), not 0, at equal heads (the regularised value,
+    continuous with the entries next to the surface)."""
+    from tanksynth.plants import three_tank
+
+    plant = three_tank()
+    J = regularized_jacobian(plant, 1e-6)
+    h1, h2, h3 = plant.x
+    on = np.array(J.subs({h1: 0.4, h2: 0.3, h3: 0.3}), dtype=float)
+    near = np.array(J.subs({h1: 0.4, h2: 0.3, h3: 0.3 + 1e-13}), dtype=float)
+    assert abs(on[1, 2]) > 1.0                       # 3.6 1/s with eps = 1e-6 m
+    np.testing.assert_allclose(on, near, rtol=1e-6)
+
+
 @pytest.mark.parametrize("mode", [(0, 0, 0), (1, 1, 1), (1, 0, 1), (0, 1, 0), (1, 1, 0)])
 def test_ekf_jacobian_is_the_mode_jacobian(hybrid_plant, mode):
     """Away from the surfaces the regularised Jacobian equals d f_mode/dx (seed 002 section 3)."""
