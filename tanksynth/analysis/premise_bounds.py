@@ -142,17 +142,20 @@ def _premise_bounds(qlpv: QuasiLPV, domain: Domain, dens: list, method: str, sam
     exprs = qlpv.premise_expressions()
     lower, upper = np.empty(qlpv.p), np.empty(qlpv.p)
     info = []
+    # one compiled function for every atom (the one `QuasiLPV.atom_values` uses), not one
+    # `lambdify` per premise; the sample points' values are Z, computed above
+    atoms = lambdify_cached([qlpv.states], list(qlpv.atoms))
     for k, e in enumerate(exprs):
-        fn = lambdify_cached([qlpv.states], e)
-
-        def point(X, fn=fn, sign=1.0):
-            return sign * np.broadcast_to(np.asarray(fn(X.T), dtype=float), (len(X),))
+        def point(X, k=k, sign=1.0):
+            with np.errstate(invalid="ignore", divide="ignore"):
+                a = np.broadcast_to(np.asarray(atoms(X.T)[k], dtype=float), (len(X),))
+                return sign * (a / (X @ qlpv.weights[k]))
 
         up = _branch_and_bound(lambda lo, hi, e=e: interval_evaluate(e, qlpv.states, lo, hi)[1],
-                               point, domain, pts, rtol, max_boxes, max_rounds)
+                               point, domain, pts, rtol, max_boxes, max_rounds, seed_values=Z[:, k])
         dn = _branch_and_bound(lambda lo, hi, e=e: -interval_evaluate(e, qlpv.states, lo, hi)[0],
-                               lambda X, fn=fn: point(X, fn, -1.0), domain, pts, rtol, max_boxes,
-                               max_rounds)
+                               lambda X, k=k: point(X, k, -1.0), domain, pts, rtol, max_boxes,
+                               max_rounds, seed_values=-Z[:, k])
         if not (np.isfinite(up[0]) and np.isfinite(dn[0])):
             raise SpecError(f"premise z{k + 1} = {e} has no finite interval enclosure on the domain",
                             key=f"weights.z{k + 1}")

@@ -199,7 +199,7 @@ class Domain:
         return pts[self.contains(pts)]
 
     def linear_range(self, w: np.ndarray) -> tuple[float, float]:
-        """Exact ``(min, max)`` of ``w . x`` over the (closed) domain, by LP.
+        """Exact ``(min, max)`` of ``w . x`` over the (closed) domain, by LP (closed form for a box).
 
         Parameters
         ----------
@@ -221,8 +221,12 @@ class Domain:
         hit = _CACHE.get(key)
         if hit is not None:
             return hit
+        if not self.G.size:     # a box: the extremes are at its corners, no LP needed
+            lo = float(np.sum(np.where(w > 0, w * self.lower, w * self.upper)))
+            hi = float(np.sum(np.where(w > 0, w * self.upper, w * self.lower)))
+            return _remember(key, (lo, hi))
         bounds = list(zip(self.lower, self.upper))
-        kw = dict(A_ub=-self.G, b_ub=-self.g) if self.G.size else {}
+        kw = dict(A_ub=-self.G, b_ub=-self.g)
         vals = []
         for sgn in (1.0, -1.0):
             res = sopt.linprog(sgn * w, bounds=bounds, method="highs", **kw)
@@ -349,12 +353,14 @@ class QuasiLPV:
         return tuple(sp.Symbol(f"z{k + 1}", real=True) for k in range(self.p))
 
     def premise_expressions(self) -> tuple[sp.Expr, ...]:
-        """``z_k(x) = n_k(x) / (w_k . x)`` with exact (rational) weights."""
-        out = []
-        for k, atom in enumerate(self.atoms):
-            den = sum(exact(w) * s for w, s in zip(self.weights[k], self.states))
-            out.append(atom / den)
-        return tuple(out)
+        """``z_k(x) = n_k(x) / (w_k . x)`` with exact (rational) weights (built once)."""
+        if "premise_expressions" not in self._cache:
+            out = []
+            for k, atom in enumerate(self.atoms):
+                den = sum(exact(w) * s for w, s in zip(self.weights[k], self.states) if w != 0)
+                out.append(atom / den)
+            self._cache["premise_expressions"] = tuple(out)
+        return self._cache["premise_expressions"]
 
     def A_of(self, z: Sequence[float]) -> np.ndarray:
         """``A(z)`` for one premise vector (1/s).

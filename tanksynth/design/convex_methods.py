@@ -268,8 +268,38 @@ def run_ts_observer(spec: "Spec", design: "DesignSpec") -> DesignResult:
         diagnostics["reference_L"]["note"] = ("LMI solutions are not unique: the comparison is "
                                               "informative, the re-check decides")
     gains = {"L": res.L, "P": res.P, "Q": res.Q, "A0": A0, "B": ts.B0, "C": C}
-    latex = {"L": sp.latex(sp.Matrix(np.round(res.L, 6))), "A0": sp.latex(sp.Matrix(np.round(A0, 8)))}
+    latex = {"L": _matrix_latex(np.round(res.L, 6)), "A0": _matrix_latex(np.round(A0, 8))}
     return DesignResult(design.name, "ts_observer", plant.name, gains, diagnostics, latex)
+
+
+def _matrix_latex(M: np.ndarray) -> str:
+    """``sympy.latex(sympy.Matrix(M))``, each distinct value converted and printed once.
+
+    A 64 x 64 gain has 4,096 entries but a few distinct values; converting and
+    printing every entry took most of a second.
+    """
+    from sympy.printing.latex import LatexPrinter
+
+    class _Memo(LatexPrinter):
+        memo: dict = {}
+
+        def _print_Float(self, expr):
+            key = (expr._mpf_, expr._prec)
+            if key not in self.memo:
+                self.memo[key] = super()._print_Float(expr)
+            return self.memo[key]
+
+    M = np.asarray(M)
+    converted: dict = {}
+    flat = []
+    for v in M.reshape(-1):
+        key = v.tobytes()
+        if key not in converted:
+            converted[key] = sp.sympify(v)
+        flat.append(converted[key])
+    printer = _Memo()
+    printer.memo = {}
+    return printer.doprint(sp.Matrix(M.shape[0], M.shape[1] if M.ndim > 1 else 1, flat))
 
 
 def _solve_gain(spec, design, o, observer, feedback, fallback_opt: str, augmented_B: bool):

@@ -31,7 +31,6 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any, Sequence
 
-import control
 import numpy as np
 from scipy.optimize import linear_sum_assignment, minimize_scalar
 
@@ -439,6 +438,8 @@ def place_state_feedback(A: Any, B: Any, poles: Any, method: str = "auto", tol: 
     if method == "acker" and m != 1:
         raise DimensionError(f"acker needs a single input (column), got {m}")
     _refuse_uncontrollable(A, B, state_names, _dual)
+    import control  # here: python-control (with scipy.signal, matplotlib) costs ~0.5-3 s to import
+
     try:
         K = np.asarray(control.acker(A, B, p) if method == "acker" else control.place(A, B, p),
                        dtype=float)
