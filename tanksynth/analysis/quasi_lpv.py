@@ -553,14 +553,22 @@ def quasi_lpv(plant: Plant,
             W = np.asarray(weights, dtype=float)
     W = _check_weights(W, p, n)
     C_sym = jacobian(plant.h_numeric, x)
-    if any(e.free_symbols for e in C_sym):
+    if any(e.free_symbols for e in C_sym.todok().values()):
         raise SpecError("the output map is not linear in the states: the observer LMI needs y = C x",
                         key="plant.outputs")
-    f64 = lambda Mx: np.array(Mx.evalf(), dtype=float)  # noqa: E731
+    f64 = _float_matrix
     return QuasiLPV(tuple(x), tuple(u), tuple(scaled), W, f64(M_exact).reshape(n, p),
                     f64(A_lin).reshape(n, n), f64(B).reshape(n, m), f64(d).reshape(n),
                     f64(C_sym).reshape(plant.q, n), atom_states, M_exact, A_lin,
                     _input_box(plant))
+
+
+def _float_matrix(Mx: sp.Matrix) -> np.ndarray:
+    """``np.array(Mx.evalf(), dtype=float)``, evaluating the nonzero entries only."""
+    out = np.zeros(Mx.shape)
+    for (i, j), v in Mx.todok().items():
+        out[i, j] = float(v.evalf())
+    return out
 
 
 def _input_box(plant: Plant) -> tuple[tuple[float, float], ...]:
