@@ -275,31 +275,29 @@ def run_ts_observer(spec: "Spec", design: "DesignSpec") -> DesignResult:
 def _matrix_latex(M: np.ndarray) -> str:
     """``sympy.latex(sympy.Matrix(M))``, each distinct value converted and printed once.
 
-    A 64 x 64 gain has 4,096 entries but a few distinct values; converting and
-    printing every entry took most of a second.
+    The same text as sympy's matrix printer (``\\left[\\begin{matrix}..`` up to
+    10 columns, ``array`` with a column spec beyond), assembled here: a 256 x 256
+    gain has 65,536 entries but a few distinct values, and printing every entry
+    through sympy took seconds.
     """
-    from sympy.printing.latex import LatexPrinter
-
-    class _Memo(LatexPrinter):
-        memo: dict = {}
-
-        def _print_Float(self, expr):
-            key = (expr._mpf_, expr._prec)
-            if key not in self.memo:
-                self.memo[key] = super()._print_Float(expr)
-            return self.memo[key]
-
     M = np.asarray(M)
-    converted: dict = {}
-    flat = []
-    for v in M.reshape(-1):
-        key = v.tobytes()
-        if key not in converted:
-            converted[key] = sp.sympify(v)
-        flat.append(converted[key])
-    printer = _Memo()
-    printer.memo = {}
-    return printer.doprint(sp.Matrix(M.shape[0], M.shape[1] if M.ndim > 1 else 1, flat))
+    if M.ndim == 1:
+        M = M.reshape(-1, 1)
+    if M.ndim != 2 or not M.size:
+        return sp.latex(sp.Matrix(M))
+    text: dict = {}
+    rows = []
+    for row in M:
+        cells = []
+        for v in row:
+            key = v.tobytes()
+            if key not in text:
+                text[key] = sp.latex(sp.sympify(v))
+            cells.append(text[key])
+        rows.append(" & ".join(cells))
+    env = "matrix" if M.shape[1] <= 10 else "array"
+    spec = "" if env == "matrix" else "{" + "c" * M.shape[1] + "}"
+    return rf"\left[\begin{{{env}}}{spec}" + r"\\".join(rows) + rf"\end{{{env}}}\right]"
 
 
 def _solve_gain(spec, design, o, observer, feedback, fallback_opt: str, augmented_B: bool):

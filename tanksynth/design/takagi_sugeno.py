@@ -17,7 +17,7 @@ from tanksynth.errors import SpecError
 from tanksynth.analysis.interval import _branch_and_bound, interval_evaluate
 from tanksynth.analysis import blas as _blas
 from tanksynth.analysis.quasi_lpv import lambdify_cached
-from tanksynth.analysis.symbolic import jacobian
+from tanksynth.analysis.symbolic import jacobian_by_form
 from tanksynth.analysis.takagi_sugeno import Domain, QuasiLPV, TSModel, ts_model, vertex_observability
 
 __all__ = [
@@ -154,14 +154,12 @@ def _jacobian_exprs(qlpv: QuasiLPV) -> sp.Matrix:
     Built row by row from the nonzero entries of ``A_lin`` and ``M`` (a dense
     sympy matrix product costs ``n^2`` symbolic products, 4,096 at n = 64).
     """
-    n, p = qlpv.n, qlpv.p
-    A, M = qlpv.exact_A_lin, qlpv.exact_incidence
-    rows = []
-    for i in range(n):
-        terms = [A[i, j] * qlpv.states[j] for j in range(n) if A[i, j] != 0]
-        terms += [M[i, k] * qlpv.atoms[k] for k in range(p) if M[i, k] != 0]
-        rows.append(sp.Add(*terms))
-    return jacobian(sp.Matrix(rows), qlpv.states)
+    terms: list[list[sp.Expr]] = [[] for _ in range(qlpv.n)]
+    for (i, j), c in sorted(qlpv.exact_A_lin.todok().items()):
+        terms[i].append(c * qlpv.states[j])
+    for (i, k), c in sorted(qlpv.exact_incidence.todok().items()):
+        terms[i].append(c * qlpv.atoms[k])
+    return jacobian_by_form(sp.Matrix([sp.Add(*t) for t in terms]), qlpv.states)
 
 
 @dataclass(frozen=True)
