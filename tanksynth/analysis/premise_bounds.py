@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from tanksynth.analysis.interval import _branch_and_bound, interval_evaluate
-from tanksynth.analysis.quasi_lpv import _CACHE, Domain, QuasiLPV, _remember, lambdify_cached
+from tanksynth.analysis.quasi_lpv import _CACHE, Domain, FormEvaluator, QuasiLPV, _remember
 from tanksynth.errors import SpecError
 
 __all__ = ["PremiseBounds", "premise_bounds"]
@@ -142,14 +142,13 @@ def _premise_bounds(qlpv: QuasiLPV, domain: Domain, dens: list, method: str, sam
     exprs = qlpv.premise_expressions()
     lower, upper = np.empty(qlpv.p), np.empty(qlpv.p)
     info = []
-    # one compiled function for every atom (the one `QuasiLPV.atom_values` uses), not one
-    # `lambdify` per premise; the sample points' values are Z, computed above
-    atoms = lambdify_cached([qlpv.states], list(qlpv.atoms))
+    # the atoms' compiled functions (one per form, `FormEvaluator`), not one `lambdify` per
+    # premise; the sample points' values are Z, computed above
+    atoms = qlpv._lambdified("atoms", lambda: FormEvaluator(qlpv.atoms, qlpv.states))
     for k, e in enumerate(exprs):
         def point(X, k=k, sign=1.0):
             with np.errstate(invalid="ignore", divide="ignore"):
-                a = np.broadcast_to(np.asarray(atoms(X.T)[k], dtype=float), (len(X),))
-                return sign * (a / (X @ qlpv.weights[k]))
+                return sign * (atoms(X)[:, k] / (X @ qlpv.weights[k]))
 
         up = _branch_and_bound(lambda lo, hi, e=e: interval_evaluate(e, qlpv.states, lo, hi)[1],
                                point, domain, pts, rtol, max_boxes, max_rounds, seed_values=Z[:, k])

@@ -28,8 +28,8 @@ import numpy as np
 import scipy.optimize as sopt
 import sympy as sp
 
-from tanksynth.analysis.symbolic import jacobian
-from tanksynth.errors import DimensionError, RegionError, SpecError
+from tanksynth.analysis.symbolic import _canonical, _form_symbol, jacobian
+from tanksynth.errors import DimensionError, RegionError, SpecError, TanksynthError
 from tanksynth.plants.base import Plant, exact
 
 #: lambdify modules: the derivative of abs/sign (DiracDelta) is zero away from the kinks.
@@ -86,6 +86,53 @@ def lambdify_cached(args: Sequence[Any], expr: Any, **kw: Any) -> Callable:
     return fn
 
 
+class FormEvaluator:
+    """Many expressions of the states evaluated at M points, one compiled function per form.
+
+    Expressions that differ only by which states they use (one tank type,
+    another instance: ``c sqrt(h1)`` and ``c sqrt(h3)``) share one renamed
+    form (`tanksynth.analysis.symbolic._canonical`); each form is compiled
+    once (`lambdify_cached`) and evaluated on the columns of all its
+    instances at once. A network of n tanks of a few types compiles a few
+    small functions instead of one function of n expressions.
+
+    Parameters
+    ----------
+    exprs : sequence of sympy.Expr
+        Functions of ``states`` only (other free symbols: `TanksynthError`).
+    states : sequence of sympy.Symbol
+    """
+
+    def __init__(self, exprs: Sequence[sp.Expr], states: Sequence[sp.Symbol]) -> None:
+        index = {s: j for j, s in enumerate(states)}
+        groups: dict[sp.Expr, list[tuple[int, tuple[int, ...]]]] = {}
+        arity: dict[sp.Expr, tuple[sp.Symbol, ...]] = {}
+        for k, e in enumerate(exprs):
+            e = sp.sympify(e)
+            if e.free_symbols - set(index):
+                raise TanksynthError(f"expression {e} depends on symbols other than the states")
+            form, _, own = _canonical(e, index)
+            groups.setdefault(form, []).append((k, tuple(index[s] for s in own)))
+            arity[form] = tuple(_form_symbol(i, s) for i, s in enumerate(own))
+        self.count = len(exprs)
+        self._groups = []
+        for form, members in groups.items():
+            fn = lambdify_cached([list(arity[form])], form)
+            rows = np.array([k for k, _ in members], dtype=int)
+            cols = np.array([c for _, c in members], dtype=int).reshape(len(members), len(arity[form]))
+            self._groups.append((fn, rows, cols))
+
+    def __call__(self, X: np.ndarray) -> np.ndarray:
+        """Values at the points ``X`` (M, n): (M, count); NaN/inf where undefined (no warning)."""
+        X = np.atleast_2d(np.asarray(X, dtype=float))
+        out = np.empty((X.shape[0], self.count))
+        with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+            for fn, rows, cols in self._groups:
+                values = fn(X[:, cols].transpose(2, 0, 1))   # arguments (arity, M, members)
+                out[:, rows] = np.broadcast_to(np.asarray(values, dtype=float), (X.shape[0], len(rows)))
+        return out
+
+
 def _freeze(value: Any) -> Any:
     if isinstance(value, (list, tuple)):
         return tuple(_freeze(v) for v in value)
@@ -93,7 +140,8 @@ def _freeze(value: Any) -> Any:
         return ("matrix", value.shape, tuple(value))
     return value
 
-__all__ = ["Domain", "domain_from_plant", "QuasiLPV", "quasi_lpv", "clear_cache", "lambdify_cached"]
+__all__ = ["Domain", "domain_from_plant", "QuasiLPV", "quasi_lpv", "clear_cache", "lambdify_cached",
+           "FormEvaluator"]
 
 
 @dataclass(frozen=True)
@@ -405,12 +453,9 @@ class QuasiLPV:
         X : ndarray, shape (M, n)
             States (state units, m).
         """
-        fn = self._lambdified("atoms", lambda: lambdify_cached([self.states], list(self.atoms)))
+        fn = self._lambdified("atoms", lambda: FormEvaluator(self.atoms, self.states))
         X = np.atleast_2d(np.asarray(X, dtype=float))
-        with np.errstate(invalid="ignore", divide="ignore"):
-            vals = fn(X.T)
-        out = np.column_stack([np.broadcast_to(np.asarray(v, dtype=float), (X.shape[0],))
-                               for v in vals])
+        out = fn(X)
         bad = ~np.all(np.isfinite(out), axis=1) & np.all(np.isfinite(X), axis=1)
         if bad.any():
             from tanksynth.errors import TanksynthWarning
@@ -503,9 +548,16 @@ def quasi_lpv(plant: Plant,
     B = sp.zeros(n, m)
     d = sp.zeros(n, 1)
     found: dict[sp.Expr, dict[int, sp.Expr]] = {}
+    index = {s: j for j, s in enumerate((*x, *u))}
+    split: dict[sp.Expr, list[tuple[sp.Expr, sp.Expr]]] = {}   # per row form (one per tank type)
     for i, fi in enumerate(plant.f_numeric):
-        for term in sp.Add.make_args(sp.expand(fi)):
-            coeff, rest = term.as_independent(*x, *u, as_Add=False)
+        form, back, own = _canonical(fi, index)
+        if form not in split:
+            names = [_form_symbol(k, s) for k, s in enumerate(own)]
+            split[form] = [term.as_independent(*names, as_Add=False)
+                           for term in sp.Add.make_args(sp.expand(form))]
+        for coeff, rest in split[form]:
+            coeff, rest = coeff.xreplace(back), rest.xreplace(back)
             if rest == 1:
                 d[i] += coeff
             elif rest in xs:
@@ -513,6 +565,7 @@ def quasi_lpv(plant: Plant,
             elif rest in us:
                 B[i, u.index(rest)] += coeff
             elif rest.free_symbols & us:
+                term = coeff * rest
                 raise SpecError(f"term {term} of equation {i + 1} is not linear in the inputs with a "
                                 "constant coefficient: the TS rewriting supports f = A(z) x + B u + d",
                                 key="plant")

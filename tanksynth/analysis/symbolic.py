@@ -139,7 +139,7 @@ def jacobian(exprs: sp.Matrix, variables: Sequence[sp.Symbol]) -> sp.Matrix:
 
 
 def _canonical(expr: sp.Expr, index: dict) -> tuple[sp.Expr, dict, tuple]:
-    """``expr`` with its variables renamed ``_v0, _v1, ...`` (in the order of ``index``).
+    """``expr`` with its variables renamed ``_tanksynth_form_0, ...`` (in the order of ``index``).
 
     Returns the renamed expression, the map back to the variables and the
     variables in order. Rows of a plant built from repeated parts (one tank
@@ -147,8 +147,13 @@ def _canonical(expr: sp.Expr, index: dict) -> tuple[sp.Expr, dict, tuple]:
     (derivatives, expansion) is done once per form (`jacobian_by_form`).
     """
     own = sorted((s for s in expr.free_symbols if s in index), key=index.__getitem__)
-    forward = {s: sp.Symbol(f"_v{k}", **s.assumptions0) for k, s in enumerate(own)}
+    forward = {s: _form_symbol(k, s) for k, s in enumerate(own)}
     return expr.xreplace(forward), {v: s for s, v in forward.items()}, tuple(own)
+
+
+def _form_symbol(k: int, like: sp.Symbol) -> sp.Symbol:
+    """The k-th variable of a renamed form (`_canonical`), with the assumptions of ``like``."""
+    return sp.Symbol(f"_tanksynth_form_{k}", **like.assumptions0)
 
 
 def jacobian_by_form(exprs: sp.Matrix, variables: Sequence[sp.Symbol],
@@ -179,8 +184,7 @@ def jacobian_by_form(exprs: sp.Matrix, variables: Sequence[sp.Symbol],
     for i, e in enumerate(exprs):
         form, back, own = _canonical(e, index)
         if form not in memo:
-            memo[form] = tuple(sp.diff(form, sp.Symbol(f"_v{k}", **s.assumptions0))
-                               for k, s in enumerate(own))
+            memo[form] = tuple(sp.diff(form, _form_symbol(k, s)) for k, s in enumerate(own))
         for s, d in zip(own, memo[form]):
             out[i, index[s]] = d.xreplace(back)
     return out

@@ -16,7 +16,7 @@ import sympy as sp
 from tanksynth.errors import SpecError
 from tanksynth.analysis.interval import _branch_and_bound, interval_evaluate
 from tanksynth.analysis import blas as _blas
-from tanksynth.analysis.quasi_lpv import lambdify_cached
+from tanksynth.analysis.quasi_lpv import FormEvaluator, lambdify_cached
 from tanksynth.analysis.symbolic import jacobian_by_form
 from tanksynth.analysis.takagi_sugeno import Domain, QuasiLPV, TSModel, ts_model, vertex_observability
 
@@ -168,24 +168,21 @@ class _JacobianParts:
 
     ``base`` holds the constant entries; ``rows``, ``cols`` locate the
     non-constant entries, whose values at M points ``values(P)`` returns as
-    an (M, k) array (one `lambdify` call, common sub-expressions shared).
+    an (M, k) array (`FormEvaluator`: one compiled function per distinct
+    form of entry, e.g. per tank type).
     """
 
     base: np.ndarray
     rows: np.ndarray
     cols: np.ndarray
-    fn: Callable | None
+    fn: FormEvaluator | None
 
     def values(self, P: np.ndarray) -> np.ndarray:
         """Non-constant entries at the points ``P`` (M, n): (M, k), NaN/inf where singular."""
-        P = np.asarray(P, dtype=float)
-        out = np.empty((len(P), len(self.rows)))
-        if self.fn is not None:
-            with np.errstate(divide="ignore", invalid="ignore"):
-                values = self.fn(P.T)
-            for k, v in enumerate(values):
-                out[:, k] = v
-        return out
+        P = np.atleast_2d(np.asarray(P, dtype=float))
+        if self.fn is None:
+            return np.empty((len(P), 0))
+        return self.fn(P)
 
     def dense(self, P: np.ndarray) -> np.ndarray:
         """``df/dx`` at the points ``P`` (M, n): (M, n, n)."""
@@ -207,7 +204,7 @@ def _jacobian_parts(q: QuasiLPV, J: sp.Matrix) -> _JacobianParts:
                 exprs.append(e)
             elif e != 0:
                 base[i, j] = float(e)
-    fn = lambdify_cached([q.states], exprs, cse=True) if exprs else None
+    fn = FormEvaluator(exprs, q.states) if exprs else None
     rows = np.array([w[0] for w in where], dtype=int)
     cols = np.array([w[1] for w in where], dtype=int)
     return _JacobianParts(base, rows, cols, fn)
@@ -216,8 +213,8 @@ def _jacobian_parts(q: QuasiLPV, J: sp.Matrix) -> _JacobianParts:
 def _jacobian_function(q: QuasiLPV, J: sp.Matrix) -> Callable[[np.ndarray], np.ndarray]:
     """Vectorised ``df/dx`` at M points: (M, n) -> (M, n, n); inf where singular.
 
-    The constant entries are evaluated once; the others are compiled by one
-    `lambdify` call (common sub-expressions shared), not one per entry.
+    The constant entries are evaluated once; the others are compiled once
+    per distinct form (`FormEvaluator`), not one per entry.
     """
     return _jacobian_parts(q, J).dense
 
