@@ -153,11 +153,18 @@ def _split(lo: np.ndarray, hi: np.ndarray, width: np.ndarray) -> tuple[np.ndarra
 def _branch_and_bound(upper_fn: Callable[[np.ndarray, np.ndarray], np.ndarray],
                       point_fn: Callable[[np.ndarray], np.ndarray], domain: Domain,
                       seeds: np.ndarray, rtol: float, max_boxes: int,
-                      max_rounds: int) -> tuple[float, float, int, int]:
-    """Maximise over the domain: guaranteed upper bound and best sampled value."""
+                      max_rounds: int, seed_values: np.ndarray | None = None
+                      ) -> tuple[float, float, int, int]:
+    """Maximise over the domain: guaranteed upper bound and best sampled value.
+
+    ``seed_values``: ``point_fn(seeds)`` when the caller already has it.
+    """
     width = domain.upper - domain.lower
     lo, hi = domain.lower[None].copy(), domain.upper[None].copy()
-    vals = point_fn(seeds) if len(seeds) else np.array([-np.inf])
+    if seed_values is not None and len(seeds):
+        vals = np.asarray(seed_values, dtype=float)
+    else:
+        vals = point_fn(seeds) if len(seeds) else np.array([-np.inf])
     inner = float(np.max(vals[np.isfinite(vals)])) if np.any(np.isfinite(vals)) else -np.inf
     total = 0
     for rounds in range(1, max_rounds + 1):

@@ -16,6 +16,7 @@ import sympy as sp
 
 from tanksynth.errors import DimensionError, SpecError
 from tanksynth.plants.base import Plant
+from tanksynth.analysis.blas import small_dense
 from tanksynth.analysis.symbolic import jacobian
 
 __all__ = [
@@ -112,12 +113,14 @@ def equilibrium_input(plant: Plant, x0: Sequence[float], given_u0: Sequence[floa
     zero = np.zeros((1, plant.m))
     f0 = comp.rhs(x0[None], zero)[0]
     G = comp.jacobians(x0[None], zero)[1][0]
-    u0, *_ = np.linalg.lstsq(G, -f0, rcond=None)
+    with small_dense():   # an n x m least-squares problem: one BLAS thread
+        u0, *_ = np.linalg.lstsq(G, -f0, rcond=None)
     # One Newton refinement in case the model is not affine in u.
     for _ in range(5 if plant.m else 0):  # no inputs (autonomous plant): nothing to solve
         r = comp.rhs(x0[None], u0[None])[0]
         Gk = comp.jacobians(x0[None], u0[None])[1][0]
-        step, *_ = np.linalg.lstsq(Gk, -r, rcond=None)
+        with small_dense():
+            step, *_ = np.linalg.lstsq(Gk, -r, rcond=None)
         u0 = u0 + step
         if np.max(np.abs(step)) <= 1e-15 * (1 + np.max(np.abs(u0))):
             break
@@ -264,7 +267,8 @@ def discretize_zoh(F: np.ndarray, B: np.ndarray, ts: float) -> tuple[np.ndarray,
     M = np.zeros((n + m, n + m))
     M[:n, :n] = F
     M[:n, n:] = B
-    E = sla.expm(M * ts)
+    with small_dense():
+        E = sla.expm(M * ts)
     return E[:n, :n], E[:n, n:]
 
 

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from tanksynth.analysis.interval import _branch_and_bound, interval_evaluate
-from tanksynth.analysis.quasi_lpv import _CACHE, Domain, QuasiLPV, _remember, lambdify_cached
+from tanksynth.analysis.quasi_lpv import _CACHE, Domain, FormEvaluator, QuasiLPV, _remember
 from tanksynth.errors import SpecError
 
 __all__ = ["PremiseBounds", "premise_bounds"]
@@ -142,17 +142,19 @@ def _premise_bounds(qlpv: QuasiLPV, domain: Domain, dens: list, method: str, sam
     exprs = qlpv.premise_expressions()
     lower, upper = np.empty(qlpv.p), np.empty(qlpv.p)
     info = []
+    # the atoms' compiled functions (one per form, `FormEvaluator`), not one `lambdify` per
+    # premise; the sample points' values are Z, computed above
+    atoms = qlpv._lambdified("atoms", lambda: FormEvaluator(qlpv.atoms, qlpv.states))
     for k, e in enumerate(exprs):
-        fn = lambdify_cached([qlpv.states], e)
-
-        def point(X, fn=fn, sign=1.0):
-            return sign * np.broadcast_to(np.asarray(fn(X.T), dtype=float), (len(X),))
+        def point(X, k=k, sign=1.0):
+            with np.errstate(invalid="ignore", divide="ignore"):
+                return sign * (atoms(X)[:, k] / (X @ qlpv.weights[k]))
 
         up = _branch_and_bound(lambda lo, hi, e=e: interval_evaluate(e, qlpv.states, lo, hi)[1],
-                               point, domain, pts, rtol, max_boxes, max_rounds)
+                               point, domain, pts, rtol, max_boxes, max_rounds, seed_values=Z[:, k])
         dn = _branch_and_bound(lambda lo, hi, e=e: -interval_evaluate(e, qlpv.states, lo, hi)[0],
-                               lambda X, fn=fn: point(X, fn, -1.0), domain, pts, rtol, max_boxes,
-                               max_rounds)
+                               lambda X, k=k: point(X, k, -1.0), domain, pts, rtol, max_boxes,
+                               max_rounds, seed_values=-Z[:, k])
         if not (np.isfinite(up[0]) and np.isfinite(dn[0])):
             raise SpecError(f"premise z{k + 1} = {e} has no finite interval enclosure on the domain",
                             key=f"weights.z{k + 1}")

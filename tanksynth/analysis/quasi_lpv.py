@@ -28,8 +28,8 @@ import numpy as np
 import scipy.optimize as sopt
 import sympy as sp
 
-from tanksynth.analysis.symbolic import jacobian
-from tanksynth.errors import DimensionError, RegionError, SpecError
+from tanksynth.analysis.symbolic import _canonical, _form_symbol, jacobian
+from tanksynth.errors import DimensionError, RegionError, SpecError, TanksynthError
 from tanksynth.plants.base import Plant, exact
 
 #: lambdify modules: the derivative of abs/sign (DiracDelta) is zero away from the kinks.
@@ -86,6 +86,53 @@ def lambdify_cached(args: Sequence[Any], expr: Any, **kw: Any) -> Callable:
     return fn
 
 
+class FormEvaluator:
+    """Many expressions of the states evaluated at M points, one compiled function per form.
+
+    Expressions that differ only by which states they use (one tank type,
+    another instance: ``c sqrt(h1)`` and ``c sqrt(h3)``) share one renamed
+    form (`tanksynth.analysis.symbolic._canonical`); each form is compiled
+    once (`lambdify_cached`) and evaluated on the columns of all its
+    instances at once. A network of n tanks of a few types compiles a few
+    small functions instead of one function of n expressions.
+
+    Parameters
+    ----------
+    exprs : sequence of sympy.Expr
+        Functions of ``states`` only (other free symbols: `TanksynthError`).
+    states : sequence of sympy.Symbol
+    """
+
+    def __init__(self, exprs: Sequence[sp.Expr], states: Sequence[sp.Symbol]) -> None:
+        index = {s: j for j, s in enumerate(states)}
+        groups: dict[sp.Expr, list[tuple[int, tuple[int, ...]]]] = {}
+        arity: dict[sp.Expr, tuple[sp.Symbol, ...]] = {}
+        for k, e in enumerate(exprs):
+            e = sp.sympify(e)
+            if e.free_symbols - set(index):
+                raise TanksynthError(f"expression {e} depends on symbols other than the states")
+            form, _, own = _canonical(e, index)
+            groups.setdefault(form, []).append((k, tuple(index[s] for s in own)))
+            arity[form] = tuple(_form_symbol(i, s) for i, s in enumerate(own))
+        self.count = len(exprs)
+        self._groups = []
+        for form, members in groups.items():
+            fn = lambdify_cached([list(arity[form])], form)
+            rows = np.array([k for k, _ in members], dtype=int)
+            cols = np.array([c for _, c in members], dtype=int).reshape(len(members), len(arity[form]))
+            self._groups.append((fn, rows, cols))
+
+    def __call__(self, X: np.ndarray) -> np.ndarray:
+        """Values at the points ``X`` (M, n): (M, count); NaN/inf where undefined (no warning)."""
+        X = np.atleast_2d(np.asarray(X, dtype=float))
+        out = np.empty((X.shape[0], self.count))
+        with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+            for fn, rows, cols in self._groups:
+                values = fn(X[:, cols].transpose(2, 0, 1))   # arguments (arity, M, members)
+                out[:, rows] = np.broadcast_to(np.asarray(values, dtype=float), (X.shape[0], len(rows)))
+        return out
+
+
 def _freeze(value: Any) -> Any:
     if isinstance(value, (list, tuple)):
         return tuple(_freeze(v) for v in value)
@@ -93,7 +140,8 @@ def _freeze(value: Any) -> Any:
         return ("matrix", value.shape, tuple(value))
     return value
 
-__all__ = ["Domain", "domain_from_plant", "QuasiLPV", "quasi_lpv", "clear_cache", "lambdify_cached"]
+__all__ = ["Domain", "domain_from_plant", "QuasiLPV", "quasi_lpv", "clear_cache", "lambdify_cached",
+           "FormEvaluator"]
 
 
 @dataclass(frozen=True)
@@ -199,7 +247,7 @@ class Domain:
         return pts[self.contains(pts)]
 
     def linear_range(self, w: np.ndarray) -> tuple[float, float]:
-        """Exact ``(min, max)`` of ``w . x`` over the (closed) domain, by LP.
+        """Exact ``(min, max)`` of ``w . x`` over the (closed) domain, by LP (closed form for a box).
 
         Parameters
         ----------
@@ -221,8 +269,12 @@ class Domain:
         hit = _CACHE.get(key)
         if hit is not None:
             return hit
+        if not self.G.size:     # a box: the extremes are at its corners, no LP needed
+            lo = float(np.sum(np.where(w > 0, w * self.lower, w * self.upper)))
+            hi = float(np.sum(np.where(w > 0, w * self.upper, w * self.lower)))
+            return _remember(key, (lo, hi))
         bounds = list(zip(self.lower, self.upper))
-        kw = dict(A_ub=-self.G, b_ub=-self.g) if self.G.size else {}
+        kw = dict(A_ub=-self.G, b_ub=-self.g)
         vals = []
         for sgn in (1.0, -1.0):
             res = sopt.linprog(sgn * w, bounds=bounds, method="highs", **kw)
@@ -349,12 +401,14 @@ class QuasiLPV:
         return tuple(sp.Symbol(f"z{k + 1}", real=True) for k in range(self.p))
 
     def premise_expressions(self) -> tuple[sp.Expr, ...]:
-        """``z_k(x) = n_k(x) / (w_k . x)`` with exact (rational) weights."""
-        out = []
-        for k, atom in enumerate(self.atoms):
-            den = sum(exact(w) * s for w, s in zip(self.weights[k], self.states))
-            out.append(atom / den)
-        return tuple(out)
+        """``z_k(x) = n_k(x) / (w_k . x)`` with exact (rational) weights (built once)."""
+        if "premise_expressions" not in self._cache:
+            out = []
+            for k, atom in enumerate(self.atoms):
+                den = sum(exact(w) * s for w, s in zip(self.weights[k], self.states) if w != 0)
+                out.append(atom / den)
+            self._cache["premise_expressions"] = tuple(out)
+        return self._cache["premise_expressions"]
 
     def A_of(self, z: Sequence[float]) -> np.ndarray:
         """``A(z)`` for one premise vector (1/s).
@@ -399,12 +453,9 @@ class QuasiLPV:
         X : ndarray, shape (M, n)
             States (state units, m).
         """
-        fn = self._lambdified("atoms", lambda: lambdify_cached([self.states], list(self.atoms)))
+        fn = self._lambdified("atoms", lambda: FormEvaluator(self.atoms, self.states))
         X = np.atleast_2d(np.asarray(X, dtype=float))
-        with np.errstate(invalid="ignore", divide="ignore"):
-            vals = fn(X.T)
-        out = np.column_stack([np.broadcast_to(np.asarray(v, dtype=float), (X.shape[0],))
-                               for v in vals])
+        out = fn(X)
         bad = ~np.all(np.isfinite(out), axis=1) & np.all(np.isfinite(X), axis=1)
         if bad.any():
             from tanksynth.errors import TanksynthWarning
@@ -497,9 +548,16 @@ def quasi_lpv(plant: Plant,
     B = sp.zeros(n, m)
     d = sp.zeros(n, 1)
     found: dict[sp.Expr, dict[int, sp.Expr]] = {}
+    index = {s: j for j, s in enumerate((*x, *u))}
+    split: dict[sp.Expr, list[tuple[sp.Expr, sp.Expr]]] = {}   # per row form (one per tank type)
     for i, fi in enumerate(plant.f_numeric):
-        for term in sp.Add.make_args(sp.expand(fi)):
-            coeff, rest = term.as_independent(*x, *u, as_Add=False)
+        form, back, own = _canonical(fi, index)
+        if form not in split:
+            names = [_form_symbol(k, s) for k, s in enumerate(own)]
+            split[form] = [term.as_independent(*names, as_Add=False)
+                           for term in sp.Add.make_args(sp.expand(form))]
+        for coeff, rest in split[form]:
+            coeff, rest = coeff.xreplace(back), rest.xreplace(back)
             if rest == 1:
                 d[i] += coeff
             elif rest in xs:
@@ -507,6 +565,7 @@ def quasi_lpv(plant: Plant,
             elif rest in us:
                 B[i, u.index(rest)] += coeff
             elif rest.free_symbols & us:
+                term = coeff * rest
                 raise SpecError(f"term {term} of equation {i + 1} is not linear in the inputs with a "
                                 "constant coefficient: the TS rewriting supports f = A(z) x + B u + d",
                                 key="plant")
@@ -547,14 +606,22 @@ def quasi_lpv(plant: Plant,
             W = np.asarray(weights, dtype=float)
     W = _check_weights(W, p, n)
     C_sym = jacobian(plant.h_numeric, x)
-    if any(e.free_symbols for e in C_sym):
+    if any(e.free_symbols for e in C_sym.todok().values()):
         raise SpecError("the output map is not linear in the states: the observer LMI needs y = C x",
                         key="plant.outputs")
-    f64 = lambda Mx: np.array(Mx.evalf(), dtype=float)  # noqa: E731
+    f64 = _float_matrix
     return QuasiLPV(tuple(x), tuple(u), tuple(scaled), W, f64(M_exact).reshape(n, p),
                     f64(A_lin).reshape(n, n), f64(B).reshape(n, m), f64(d).reshape(n),
                     f64(C_sym).reshape(plant.q, n), atom_states, M_exact, A_lin,
                     _input_box(plant))
+
+
+def _float_matrix(Mx: sp.Matrix) -> np.ndarray:
+    """``np.array(Mx.evalf(), dtype=float)``, evaluating the nonzero entries only."""
+    out = np.zeros(Mx.shape)
+    for (i, j), v in Mx.todok().items():
+        out[i, j] = float(v.evalf())
+    return out
 
 
 def _input_box(plant: Plant) -> tuple[tuple[float, float], ...]:

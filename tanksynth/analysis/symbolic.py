@@ -24,6 +24,7 @@ __all__ = [
     "TooComplexError",
     "symbolic_budget",
     "jacobian",
+    "jacobian_by_form",
     "control_affine",
     "lie_derivative",
     "lie_derivatives",
@@ -134,6 +135,58 @@ def jacobian(exprs: sp.Matrix, variables: Sequence[sp.Symbol]) -> sp.Matrix:
             j = index.get(s)
             if j is not None:
                 out[i, j] = sp.diff(e, s)
+    return out
+
+
+def _canonical(expr: sp.Expr, index: dict) -> tuple[sp.Expr, dict, tuple]:
+    """``expr`` with its variables renamed ``_tanksynth_form_0, ...`` (in the order of ``index``).
+
+    Returns the renamed expression, the map back to the variables and the
+    variables in order. Rows of a plant built from repeated parts (one tank
+    type, another instance) then share one renamed form, and work on it
+    (derivatives, expansion) is done once per form (`jacobian_by_form`).
+    """
+    own = sorted((s for s in expr.free_symbols if s in index), key=index.__getitem__)
+    forward = {s: _form_symbol(k, s) for k, s in enumerate(own)}
+    return expr.xreplace(forward), {v: s for s, v in forward.items()}, tuple(own)
+
+
+def _form_symbol(k: int, like: sp.Symbol) -> sp.Symbol:
+    """The k-th variable of a renamed form (`_canonical`), with the assumptions of ``like``."""
+    return sp.Symbol(f"_tanksynth_form_{k}", **like.assumptions0)
+
+
+def jacobian_by_form(exprs: sp.Matrix, variables: Sequence[sp.Symbol],
+                     memo: dict | None = None) -> sp.Matrix:
+    """`jacobian`, differentiating each distinct form of a row once (see `_canonical`).
+
+    The same matrix as `jacobian`: a row's derivatives are those of its
+    renamed form with the variables put back. For a network of ``n`` tanks of
+    a few types, a few forms are differentiated instead of ``n`` rows.
+
+    Parameters
+    ----------
+    exprs : sympy.Matrix, shape (k, 1)
+    variables : sequence of sympy.Symbol, length n
+    memo : dict, optional
+        Derivatives of the forms already seen (shared between calls).
+
+    Returns
+    -------
+    sympy.Matrix, shape (k, n)
+    """
+    exprs = sp.Matrix(exprs)
+    if exprs.shape[1] != 1:
+        raise DimensionError(f"jacobian expects a column, got shape {exprs.shape}")
+    index = {v: j for j, v in enumerate(variables)}
+    memo = {} if memo is None else memo
+    out = sp.zeros(exprs.shape[0], len(variables))
+    for i, e in enumerate(exprs):
+        form, back, own = _canonical(e, index)
+        if form not in memo:
+            memo[form] = tuple(sp.diff(form, _form_symbol(k, s)) for k, s in enumerate(own))
+        for s, d in zip(own, memo[form]):
+            out[i, index[s]] = d.xreplace(back)
     return out
 
 

@@ -270,8 +270,36 @@ def run_ts_observer(spec: "Spec", design: "DesignSpec") -> DesignResult:
         diagnostics["reference_L"]["note"] = ("LMI solutions are not unique: the comparison is "
                                               "informative, the re-check decides")
     gains = {"L": res.L, "P": res.P, "Q": res.Q, "A0": A0, "B0": ts.B0, "C": C}
-    latex = {"L": sp.latex(sp.Matrix(np.round(res.L, 6))), "A0": sp.latex(sp.Matrix(np.round(A0, 8)))}
+    latex = {"L": _matrix_latex(np.round(res.L, 6)), "A0": _matrix_latex(np.round(A0, 8))}
     return DesignResult(design.name, "ts_observer", plant.name, gains, diagnostics, latex)
+
+
+def _matrix_latex(M: np.ndarray) -> str:
+    """``sympy.latex(sympy.Matrix(M))``, each distinct value converted and printed once.
+
+    The same text as sympy's matrix printer (``\\left[\\begin{matrix}..`` up to
+    10 columns, ``array`` with a column spec beyond), assembled here: a 256 x 256
+    gain has 65,536 entries but a few distinct values, and printing every entry
+    through sympy took seconds.
+    """
+    M = np.asarray(M)
+    if M.ndim == 1:
+        M = M.reshape(-1, 1)
+    if M.ndim != 2 or not M.size:
+        return sp.latex(sp.Matrix(M))
+    text: dict = {}
+    rows = []
+    for row in M:
+        cells = []
+        for v in row:
+            key = v.tobytes()
+            if key not in text:
+                text[key] = sp.latex(sp.sympify(v))
+            cells.append(text[key])
+        rows.append(" & ".join(cells))
+    env = "matrix" if M.shape[1] <= 10 else "array"
+    spec = "" if env == "matrix" else "{" + "c" * M.shape[1] + "}"
+    return rf"\left[\begin{{{env}}}{spec}" + r"\\".join(rows) + rf"\end{{{env}}}\right]"
 
 
 def _solve_gain(spec, design, o, observer, feedback, fallback_opt: str, augmented_B: bool):

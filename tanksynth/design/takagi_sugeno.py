@@ -16,8 +16,8 @@ import sympy as sp
 from tanksynth.errors import SpecError
 from tanksynth.analysis.interval import _branch_and_bound, interval_evaluate
 from tanksynth.analysis import blas as _blas
-from tanksynth.analysis.quasi_lpv import lambdify_cached
-from tanksynth.analysis.symbolic import jacobian
+from tanksynth.analysis.quasi_lpv import FormEvaluator, lambdify_cached
+from tanksynth.analysis.symbolic import jacobian_by_form
 from tanksynth.analysis.takagi_sugeno import Domain, QuasiLPV, TSModel, ts_model, vertex_observability
 
 __all__ = [
@@ -149,19 +149,51 @@ class LipschitzBound:
 
 
 def _jacobian_exprs(qlpv: QuasiLPV) -> sp.Matrix:
-    f = sp.Matrix(qlpv.exact_A_lin) * sp.Matrix(qlpv.states)
-    f += qlpv.exact_incidence * sp.Matrix(qlpv.atoms)
-    return jacobian(f, qlpv.states)
+    """``df/dx`` of ``f = A_lin x + M n(x)`` (symbolic, parameters substituted).
 
-
-
-
-def _jacobian_function(q: QuasiLPV, J: sp.Matrix) -> Callable[[np.ndarray], np.ndarray]:
-    """Vectorised ``df/dx`` at M points: (M, n) -> (M, n, n); inf where singular.
-
-    The constant entries are evaluated once; the others are compiled by one
-    `lambdify` call (common sub-expressions shared), not one per entry.
+    Built row by row from the nonzero entries of ``A_lin`` and ``M`` (a dense
+    sympy matrix product costs ``n^2`` symbolic products, 4,096 at n = 64).
     """
+    terms: list[list[sp.Expr]] = [[] for _ in range(qlpv.n)]
+    for (i, j), c in sorted(qlpv.exact_A_lin.todok().items()):
+        terms[i].append(c * qlpv.states[j])
+    for (i, k), c in sorted(qlpv.exact_incidence.todok().items()):
+        terms[i].append(c * qlpv.atoms[k])
+    return jacobian_by_form(sp.Matrix([sp.Add(*t) for t in terms]), qlpv.states)
+
+
+@dataclass(frozen=True)
+class _JacobianParts:
+    """``df/dx`` as its constant entries plus the non-constant ones compiled once.
+
+    ``base`` holds the constant entries; ``rows``, ``cols`` locate the
+    non-constant entries, whose values at M points ``values(P)`` returns as
+    an (M, k) array (`FormEvaluator`: one compiled function per distinct
+    form of entry, e.g. per tank type).
+    """
+
+    base: np.ndarray
+    rows: np.ndarray
+    cols: np.ndarray
+    fn: FormEvaluator | None
+
+    def values(self, P: np.ndarray) -> np.ndarray:
+        """Non-constant entries at the points ``P`` (M, n): (M, k), NaN/inf where singular."""
+        P = np.atleast_2d(np.asarray(P, dtype=float))
+        if self.fn is None:
+            return np.empty((len(P), 0))
+        return self.fn(P)
+
+    def dense(self, P: np.ndarray) -> np.ndarray:
+        """``df/dx`` at the points ``P`` (M, n): (M, n, n)."""
+        out = np.empty((len(P), *self.base.shape))
+        out[:] = self.base
+        if len(self.rows):
+            out[:, self.rows, self.cols] = self.values(P)
+        return out
+
+
+def _jacobian_parts(q: QuasiLPV, J: sp.Matrix) -> _JacobianParts:
     base = np.zeros((q.n, q.n))
     where, exprs = [], []
     for i in range(q.n):
@@ -172,21 +204,80 @@ def _jacobian_function(q: QuasiLPV, J: sp.Matrix) -> Callable[[np.ndarray], np.n
                 exprs.append(e)
             elif e != 0:
                 base[i, j] = float(e)
-    fn = lambdify_cached([q.states], exprs, cse=True) if exprs else None
+    fn = FormEvaluator(exprs, q.states) if exprs else None
     rows = np.array([w[0] for w in where], dtype=int)
     cols = np.array([w[1] for w in where], dtype=int)
+    return _JacobianParts(base, rows, cols, fn)
 
-    def jac_at(P: np.ndarray) -> np.ndarray:
-        out = np.empty((len(P), q.n, q.n))
-        out[:] = base
-        if fn is not None:
-            with np.errstate(divide="ignore", invalid="ignore"):
-                values = fn(np.asarray(P, dtype=float).T)
-            for k, v in enumerate(values):
-                out[:, rows[k], cols[k]] = v
-        return out
 
-    return jac_at
+def _jacobian_function(q: QuasiLPV, J: sp.Matrix) -> Callable[[np.ndarray], np.ndarray]:
+    """Vectorised ``df/dx`` at M points: (M, n) -> (M, n, n); inf where singular.
+
+    The constant entries are evaluated once; the others are compiled once
+    per distinct form (`FormEvaluator`), not one per entry.
+    """
+    return _jacobian_parts(q, J).dense
+
+
+def _spectral_norms(parts: _JacobianParts, A0: np.ndarray, values: np.ndarray) -> np.ndarray:
+    """``||df/dx - A0||_2`` at M points from the non-constant entries ``values`` (M, k).
+
+    The rows and columns of ``D = df/dx - A0`` split into the connected
+    components of its sparsity pattern (bipartite graph of rows and columns):
+    ``D`` is, up to permutations, block diagonal, and its spectral norm is the
+    largest of the blocks' (two blocks per tank pair of the tank network, not
+    one n x n SVD per point). Blocks with one row or column: Euclidean norm;
+    with two: the larger eigenvalue of the 2 x 2 Gram matrix in closed form;
+    larger ones: batched SVD. NaN where an entry is not finite.
+    """
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    n = A0.shape[0]
+    M = len(values)
+    const = parts.base - A0
+    pattern = const != 0
+    pattern[parts.rows, parts.cols] = True
+    r_idx, c_idx = np.nonzero(pattern)
+    graph = coo_matrix((np.ones(len(r_idx)), (r_idx, n + c_idx)), shape=(2 * n, 2 * n))
+    _, label = connected_components(graph, directed=False)
+    entry = {(int(i), int(j)): k for k, (i, j) in enumerate(zip(parts.rows, parts.cols))}
+    groups: dict[tuple[int, int], list[tuple[np.ndarray, np.ndarray]]] = {}
+    for comp in np.unique(label):
+        R = np.flatnonzero(label[:n] == comp)
+        C = np.flatnonzero(label[n:] == comp)
+        if R.size and C.size:
+            groups.setdefault((R.size, C.size), []).append((R, C))
+    finite = np.all(np.isfinite(values), axis=1) & bool(np.all(np.isfinite(const)))
+    best = np.zeros(M)
+    for (r, c), comps in groups.items():
+        Rg = np.array([R for R, _ in comps])            # (g, r)
+        Cg = np.array([C for _, C in comps])            # (g, c)
+        blocks = np.empty((M, len(comps), r, c))
+        blocks[:] = const[Rg[:, :, None], Cg[:, None, :]]
+        for g, (R, C) in enumerate(comps):
+            for a, i in enumerate(R):
+                for b, j in enumerate(C):
+                    k = entry.get((int(i), int(j)))
+                    if k is not None:
+                        blocks[:, g, a, b] = values[:, k] - A0[i, j]
+        with np.errstate(invalid="ignore", over="ignore"):
+            if min(r, c) == 1:
+                norms = np.sqrt(np.sum(blocks.reshape(M, len(comps), -1) ** 2, axis=2))
+            elif min(r, c) == 2:
+                G = blocks @ np.swapaxes(blocks, 2, 3) if r == 2 else \
+                    np.swapaxes(blocks, 2, 3) @ blocks
+                p, q, o = G[..., 0, 0], G[..., 1, 1], G[..., 0, 1]
+                norms = np.sqrt(0.5 * (p + q) + np.hypot(0.5 * (p - q), o))
+            else:
+                flat = blocks.reshape(-1, r, c)
+                ok = np.all(np.isfinite(flat), axis=(1, 2))
+                norms = np.full(len(flat), np.nan)
+                if ok.any():
+                    norms[ok] = np.linalg.svd(flat[ok], compute_uv=False)[:, 0]
+                norms = norms.reshape(M, len(comps))
+        best = np.maximum(best, np.max(norms, axis=1))
+    return np.where(finite, best, np.nan)
 
 
 def _prod(a: float, b: float) -> float:
@@ -241,20 +332,19 @@ def lipschitz_bound(ts: TSModel, form: str = "jacobian", method: str = "interval
     q = ts.qlpv
     X = np.vstack([ts.domain.sample(samples, seed), ts.domain.corners()])
     J = _jacobian_exprs(q)
-    jac_at = _jacobian_function(q, J)
+    parts = _jacobian_parts(q, J)
     A0 = ts.A0
-    # sampled sup of ||df/dx - A0||_2, in chunks (the (M, n, n) stack is 166 MB at n = 64)
+    # sampled sup of ||df/dx - A0||_2, block by block (`_spectral_norms`), in chunks
     finite = np.ones(len(X), dtype=bool)
     sampled = -np.inf
-    chunk = max(1, 2 ** 20 // max(q.n * q.n, 1))
+    chunk = max(1, 2 ** 20 // max(len(parts.rows), 1))
     with _blas.small_dense(), np.errstate(divide="ignore", invalid="ignore"):
         for start in range(0, len(X), chunk):
-            D = jac_at(X[start:start + chunk])
-            D -= A0
-            ok = np.all(np.isfinite(D), axis=(1, 2))
+            norms = _spectral_norms(parts, A0, parts.values(X[start:start + chunk]))
+            ok = np.isfinite(norms)
             finite[start:start + chunk] = ok
             if ok.any():
-                sampled = max(sampled, float(np.max(np.linalg.norm(D[ok], 2, axis=(1, 2)))))
+                sampled = max(sampled, float(np.max(norms[ok])))
     if not finite.any():
         sampled = np.inf
     if not finite.all():
@@ -285,10 +375,14 @@ def lipschitz_bound(ts: TSModel, form: str = "jacobian", method: str = "interval
                 tot = tot + np.maximum(np.abs(a), np.abs(b)) ** 2
             return np.sqrt(tot)
 
+        varying = np.zeros(A0.shape, dtype=bool)
+        varying[parts.rows, parts.cols] = True
+        fixed_sq = float(np.sum(np.where(varying, 0.0, parts.base - A0) ** 2))
+        A0_varying = A0[parts.rows, parts.cols]
+
         def point(P: np.ndarray) -> np.ndarray:
-            with np.errstate(divide="ignore", invalid="ignore"):
-                Dp = jac_at(P) - A0
-            v = np.sqrt(np.sum(Dp ** 2, axis=(1, 2)))
+            with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+                v = np.sqrt(fixed_sq + np.sum((parts.values(P) - A0_varying) ** 2, axis=1))
             return np.where(np.isfinite(v), v, np.inf)
 
         outer, inner, boxes, rounds = _branch_and_bound(upper, point, ts.domain, X, rtol, max_boxes,
@@ -478,7 +572,7 @@ def search_weightings(qlpv: QuasiLPV, domain: Domain, *, values: Sequence[float]
     C = qlpv.C
     prob = ObserverLMIProblem(qlpv.n, C, variant, kappa, solver=solver)
     Xs = np.vstack([domain.sample(samples, seed), domain.corners()])
-    J = None
+    parts = jac_values = None
     records: list[dict] = []
     best: dict | None = None
     for W in combos:
@@ -498,11 +592,11 @@ def search_weightings(qlpv: QuasiLPV, domain: Domain, *, values: Sequence[float]
             continue
         A0 = ts.A0
         omega = prob.time_scale(A0, 0.0)
-        if J is None:
-            J = _jacobian_function(qlpv, _jacobian_exprs(qlpv))(Xs)
-        D = J - A0
-        lip = (float(np.max(np.linalg.norm(D, 2, axis=(1, 2)))) if np.all(np.isfinite(D))
-               else float("inf"))
+        if parts is None:
+            parts = _jacobian_parts(qlpv, _jacobian_exprs(qlpv))
+            jac_values = parts.values(Xs)
+        norms = _spectral_norms(parts, A0, jac_values)
+        lip = float(np.max(norms)) if np.all(np.isfinite(norms)) else float("inf")
         rec["psi_lipschitz_sampled"] = lip
 
         def feasible(psi: float, A0=A0, omega=omega) -> bool:

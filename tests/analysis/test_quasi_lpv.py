@@ -126,3 +126,35 @@ def test_atom_values_warn_when_a_state_leaves_the_premises_domain(qlpv):
                                               r"h1 = 0.4, h2 = -0.01"):
         vals = qlpv.atom_values(np.array([[0.4, 0.2, 0.3], [0.4, -0.01, 0.3]]))
     assert np.all(np.isfinite(vals[0])) and not np.all(np.isfinite(vals[1]))
+
+
+# ------------------------------------------------------------------ issue 15
+def test_form_evaluator_matches_one_lambdify_per_expression():
+    """Expressions sharing a form (one tank type) are compiled once; each value equals the
+    expression's own lambdified value."""
+    from tanksynth.analysis.quasi_lpv import FormEvaluator
+    h = sp.symbols("h1:7", positive=True)
+    exprs = [3 * sp.sqrt(h[0]), 3 * sp.sqrt(h[2]), sp.sqrt(sp.Abs(h[1] - h[3])) / h[1],
+             sp.sqrt(sp.Abs(h[4] - h[5])) / h[4], 2 * h[5] ** 2 + h[0], sp.Integer(2) * h[3]]
+    ev = FormEvaluator(exprs, h)
+    assert len(ev._groups) == 4
+    X = np.random.default_rng(1).uniform(0.1, 2.0, size=(40, 6))
+    got = ev(X)
+    for k, e in enumerate(exprs):
+        ref = sp.lambdify([h], e, "numpy")(X.T)
+        np.testing.assert_allclose(got[:, k], np.broadcast_to(ref, (40,)), rtol=1e-15)
+    with pytest.raises(Exception, match="other than the states"):
+        FormEvaluator([h[0] * sp.Symbol("k")], h)
+
+
+def test_box_linear_range_matches_linprog():
+    """On a box (no orderings) the range of w . x is in closed form; scipy's LP agrees."""
+    import scipy.optimize as sopt
+
+    from tanksynth.analysis.quasi_lpv import Domain
+    lo, hi = np.array([0.1, -2.0, 0.0]), np.array([0.7, 3.0, 5.0])
+    dom = Domain(lo, hi, np.zeros((0, 3)), np.zeros(0), ("a", "b", "c"))
+    for w in (np.array([1.0, -2.0, 0.5]), np.array([0.0, 0.0, -1.0])):
+        bounds = list(zip(lo, hi))
+        ref = (sopt.linprog(w, bounds=bounds).fun, -sopt.linprog(-w, bounds=bounds).fun)
+        assert dom.linear_range(w) == pytest.approx(ref, rel=1e-12, abs=1e-12)

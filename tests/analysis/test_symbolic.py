@@ -134,3 +134,17 @@ def test_relative_degree_three_tank_middle_tank():
     k32 = plant.p["mu32"] * Phi * sp.sqrt(2 * g) / (2 * sp.sqrt(h3 - h2))
     expected = sp.Matrix([[k13 / A**2, k32 / A**2]])
     assert (rd.decoupling - expected).applyfunc(sp.simplify) == sp.zeros(1, 2)
+
+
+def test_jacobian_by_form_is_the_jacobian():
+    """Rows of one form (two tanks of one type) are differentiated once; the matrix equals
+    sympy's own derivative of every row."""
+    from tanksynth.analysis.symbolic import jacobian_by_form
+    h = sp.symbols("h1:5", real=True)
+    u = sp.Symbol("u", real=True)
+    f = sp.Matrix([-2 * sp.sqrt(h[0]) + sp.sqrt(h[2]) + u, -2 * sp.sqrt(h[1]) + sp.sqrt(h[3]) + u,
+                   -sp.sqrt(h[2]) + u, sp.sign(h[0] - h[3]) * sp.sqrt(sp.Abs(h[0] - h[3]))])
+    memo: dict = {}
+    J = jacobian_by_form(f, h, memo)
+    assert J == sp.Matrix(4, 4, lambda i, j: sp.diff(f[i], h[j]))
+    assert len(memo) == 3                         # rows 1 and 2 share a form

@@ -115,3 +115,16 @@ def test_fragile_spec_is_refused_unless_allowed():
     assert smin / np.linalg.norm(A, 2) < 1e-6
     assert any("fragile" in s for s in lines)
     assert sla.norm(L) > 1e6
+
+
+def test_matrix_latex_is_sympys_text():
+    """Issue 15: the ts_observer LaTeX of a gain is assembled per distinct value; the text is
+    exactly sympy's ``latex(Matrix(M))`` (``matrix`` up to 10 columns, ``array`` beyond)."""
+    import sympy as sp
+
+    from tanksynth.design.convex_methods import _matrix_latex
+    rng = np.random.default_rng(2)
+    for M in (np.round(rng.normal(size=(3, 3)), 6), np.round(np.kron(np.eye(8), rng.normal(size=(2, 2))), 6),
+              np.zeros((2, 2)), np.round(rng.normal(size=(12, 3)) * 1e-7, 8), np.ones((1, 11)),
+              np.array([[1e20, -0.0], [3.0, 0.5]]), np.array([[1.0]])):
+        assert _matrix_latex(M) == sp.latex(sp.Matrix(M))

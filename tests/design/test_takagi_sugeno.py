@@ -117,3 +117,38 @@ def test_search_reports_what_it_searched(qlpv, ordered):
 def test_module_exports():
     for name in tsmod.__all__:
         assert hasattr(tsmod, name)
+
+
+# ------------------------------------------------------------- sampled norms (issue 15)
+def test_blockwise_spectral_norms_equal_the_dense_norm():
+    """`_spectral_norms` splits df/dx - A0 into the components of its pattern; the dense
+    2-norm (numpy SVD of the whole n x n matrix) is the reference, on the tank network (2 x 2
+    blocks) and on the three-tank (one coupled block)."""
+    from tanksynth.design.takagi_sugeno import (_jacobian_exprs, _jacobian_parts,
+                                                _spectral_norms)
+    for plant, box in ((tank_network(N=12), [(1.0, 40.0)] * 12),
+                       (three_tank("h1h2"), [(0.05, 0.62), (0.05, 0.62), (0.05, 0.62)])):
+        q = quasi_lpv(plant)
+        dom = domain_from_plant(plant, box)
+        ts = ts_model(q, dom, method="sampling", samples=500)
+        parts = _jacobian_parts(q, _jacobian_exprs(q))
+        X = dom.sample(300, seed=3)
+        norms = _spectral_norms(parts, ts.A0, parts.values(X))
+        D = parts.dense(X) - ts.A0
+        ok = np.all(np.isfinite(D), axis=(1, 2))
+        assert ok.any()
+        np.testing.assert_allclose(norms[ok], np.linalg.norm(D[ok], 2, axis=(1, 2)), rtol=1e-12)
+        assert np.all(np.isnan(norms[~ok]))
+    # a random pattern with 1 x k, 2 x k and 3 x 3 blocks, A0 with entries off the pattern
+    rng = np.random.default_rng(0)
+    n = 9
+    base = np.zeros((n, n))
+    rows, cols = np.array([0, 0, 1, 2, 3, 4, 5, 5, 6, 7, 8]), np.array([0, 1, 1, 3, 4, 2, 5, 6, 7, 8, 6])
+    parts = tsmod._JacobianParts(base, rows, cols, None)
+    A0 = np.zeros((n, n))
+    A0[2, 2] = 0.5
+    values = rng.normal(size=(50, len(rows)))
+    dense = np.zeros((50, n, n))
+    dense[:, rows, cols] = values
+    np.testing.assert_allclose(_spectral_norms(parts, A0, values),
+                               np.linalg.norm(dense - A0, 2, axis=(1, 2)), rtol=1e-12)

@@ -195,5 +195,16 @@ class TsObserverOptions(MethodOptions):
             allow_fragile=r.read("allow_fragile", parse_bool))
 
     def memory_estimate(self, plant: Any, ts: float | None) -> tuple[float, str]:
-        """``samples`` points of the domain, each with its n x n Jacobian and premises (bytes)."""
-        return 8.0 * 6 * self.samples * (plant.n ** 2 + 4 * plant.n + 8), "samples"
+        """Peak memory of the sampled steps (bytes).
+
+        ``samples`` points of the domain plus up to 4,096 box corners, each with
+        its states, premises, inputs and model values (exactness test); the
+        Jacobians of the Lipschitz estimate are evaluated in chunks of 2^20
+        values (their non-constant entries only), so they add a fixed amount,
+        except in the weighting search (every point's n x n Jacobian at once).
+        """
+        n, points = plant.n, max(self.samples, 2000) + 4096
+        need = 6 * points * (2 * n + 8) + 8 * 2 ** 20 + 16 * n * n
+        if self.search:
+            need += points * n * n
+        return 8.0 * need, "samples"
