@@ -37,6 +37,7 @@ from typing import Any
 
 import numpy as np
 
+from tanksynth.analysis.blas import small_dense
 from tanksynth.analysis.linearize import equilibrium_input
 from tanksynth.design.decentralized import (centralized_gain, equicorrelated_intensity,
                                             finite_horizon_gains, one_step_gains, own_tank_pattern,
@@ -103,8 +104,9 @@ def run_decentralized_kalman(spec: Any, design: Any) -> DesignResult:
 
     eq = equilibrium_input(plant, spec.x0, spec.given_u0)
     u = eq.u0 if o.input is None else np.array(o.input)
-    models, x_pred = window_models(plant, spec.x0, np.tile(u, (T + 1, 1)), ts, Qc, R,
-                                   relinearize_every=relin)
+    with small_dense():  # many small expm / Van Loan products: BLAS threads only wait on a busy box
+        models, x_pred = window_models(plant, spec.x0, np.tile(u, (T + 1, 1)), ts, Qc, R,
+                                       relinearize_every=relin)
     A = [m.A for m in models[1:]]
     C = [m.C for m in models[1:]]
     Q = [m.Q for m in models[1:]]
