@@ -12,12 +12,14 @@ $(STAMP): pyproject.toml
 	$(PY) -m pip install --quiet -e '.[dev]'
 	touch $(STAMP)
 
-# pdflatex/latexmk/pdftotext for the reports, from Debian packages when missing.
+# pdflatex/latexmk/pdftotext for the reports and a C compiler (exported laws, the simulator's
+# compiled kernel; both fall back or skip without one), from Debian packages when missing.
 tex:
-	@if ! command -v pdflatex >/dev/null || ! command -v latexmk >/dev/null || ! command -v pdftotext >/dev/null; then \
+	@if ! command -v pdflatex >/dev/null || ! command -v latexmk >/dev/null || ! command -v pdftotext >/dev/null \
+			|| ! command -v gcc >/dev/null; then \
 		SUDO=$$( [ "$$(id -u)" = 0 ] || echo sudo ); \
 		$$SUDO apt-get update -qq && DEBIAN_FRONTEND=noninteractive $$SUDO apt-get install -y -qq --no-install-recommends \
-			texlive-latex-base texlive-latex-recommended latexmk poppler-utils >/dev/null; \
+			texlive-latex-base texlive-latex-recommended latexmk poppler-utils gcc libc6-dev >/dev/null; \
 	fi
 
 demo: $(STAMP)
