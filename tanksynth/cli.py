@@ -632,7 +632,7 @@ def _note_warnings(caught: list, quiet: bool, code: int = 0) -> None:
             kinds = sorted({w.category.__name__ for w in library})
             first = _warning_line(library[0].message, library[0].category, library[0].filename)
             _out.print(f"note: {len(library)} library warning(s) ({', '.join(kinds)}) were handled; "
-                       f"first: {first[:160]}", markup=False, highlight=False)
+                       f"first: {first[:160]}", markup=False, highlight=False, soft_wrap=True)
     except OSError:  # stdout/stderr closed: nothing more to say
         pass
 
