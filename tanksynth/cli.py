@@ -203,7 +203,7 @@ def _design_all(spec, outdir: Path, export: tuple[str, ...]) -> tuple[list[Path]
     write_refused(outdir, refused)
     written = []
     for design, result in results:
-        formats = list(export)
+        formats = list(dict.fromkeys(export))  # "--export law --export law": once
         derived = None
         if "law" in formats and "law" not in result.diagnostics:
             formats.remove("law")

@@ -348,3 +348,19 @@ def test_written_paths_are_printed_whole_on_one_line(tmp_path, capsys):
     code, out, _ = run_cli(capsys, "design", spec, "-o", out_dir)
     assert code == 0
     assert f"wrote {out_dir / 'linear_model.json'}\n" in out, out
+
+
+def test_an_export_format_given_twice_is_written_once(tmp_path, capsys):
+    """``--export law --export law`` (or h twice) exports once; it was exit 2 claiming the
+    design "has no control law to export", after the plant record was written."""
+    spec = tmp_path / "s.toml"
+    spec.write_text(SEED000.read_text(encoding="utf-8").replace(
+        'method = "linearize"', 'method = "pole_placement"\npoles = [0.9, 0.91, 0.92]'),
+        encoding="utf-8")
+    code, _, err = run_cli(capsys, "design", spec, "-o", tmp_path / "o", "--export", "law",
+                           "--export", "h", "--export", "law", "--export", "h")
+    assert code == 0, err
+    names = sorted(p.name for p in (tmp_path / "o").iterdir())
+    assert names == ["linear_model.h", "linear_model.json", "linear_model.npz",
+                     "linear_model_law.c", "linear_model_law.casadi", "linear_model_law.h",
+                     "plant.json", "spec.toml"], names
