@@ -148,7 +148,7 @@ def _refuse_other_spec(spec, outdir: Path, force: bool) -> None:
     for path in files:
         path.unlink(missing_ok=True)
     _out.print(f"--force: removed {len(files)} file(s) of another spec's run from {outdir}",
-               markup=False, highlight=False)
+               markup=False, highlight=False, soft_wrap=True)
 
 
 def _locked(directory, command: str):
@@ -203,7 +203,7 @@ def _design_all(spec, outdir: Path, export: tuple[str, ...]) -> tuple[list[Path]
     write_refused(outdir, refused)
     written = []
     for design, result in results:
-        formats = list(export)
+        formats = list(dict.fromkeys(export))  # "--export law --export law": once
         derived = None
         if "law" in formats and "law" not in result.diagnostics:
             formats.remove("law")
@@ -225,7 +225,7 @@ def _derived_law(spec, design, result):
                       f"{design.name}_law")
     if law is None:
         _out.print(f"{design.name}: no control law or estimator step to export (method "
-                   f"{design.method})", markup=False, highlight=False)
+                   f"{design.method})", markup=False, highlight=False, soft_wrap=True)
     return law
 
 
@@ -335,7 +335,7 @@ def check(spec: str, as_json: bool, outdir: str | None, spec_only: bool) -> None
             click.echo(json.dumps(summary, indent=2))
         else:
             _out.print(f"{spec}: valid; plant {s.plant.name}, {len(s.designs)} design(s)",
-                       markup=False, highlight=False)
+                       markup=False, highlight=False, soft_wrap=True)
         return
     with _stage("rank conditions (Kalman, PBH, nonlinear observability)", quiet=as_json):
         checks = _rank_conditions(s)
@@ -350,7 +350,8 @@ def check(spec: str, as_json: bool, outdir: str | None, spec_only: bool) -> None
     else:
         _print_checks(checks)
         if outdir is not None:
-            _out.print(f"rank verdicts: {Path(outdir) / 'checks.json'}", markup=False, highlight=False)
+            _out.print(f"rank verdicts: {Path(outdir) / 'checks.json'}", markup=False, highlight=False,
+                       soft_wrap=True)
     if any(c.passed is False for c in checks):
         raise _Fail(EXIT_FAILED, "some rank conditions fail")
 
@@ -373,7 +374,7 @@ def design(spec: str, outdir: str, export: tuple[str, ...], force: bool) -> None
         _refuse_other_spec(s, Path(outdir), force)
         written, infeasible = _design_all(s, Path(outdir), export)
     for path in written:
-        _out.print(f"wrote {path}")
+        _out.print(f"wrote {path}", markup=False, highlight=False, soft_wrap=True)  # one line, as given
     if infeasible:
         raise _Fail(EXIT_INFEASIBLE, _refused_summary(infeasible, len(s.designs)))
 
@@ -426,8 +427,8 @@ def _run_locked(s, spec: str | None, out: Path, pdf: bool | None) -> None:
     out.mkdir(parents=True, exist_ok=True)
     atomic_write(checks_path, json.dumps(to_jsonable([c.as_dict() for c in checks]), indent=2) + "\n")
     for path in written:
-        _out.print(f"artefact: {path}", markup=False, highlight=False)
-    _out.print(f"rank verdicts: {checks_path}", markup=False, highlight=False)
+        _out.print(f"artefact: {path}", markup=False, highlight=False, soft_wrap=True)
+    _out.print(f"rank verdicts: {checks_path}", markup=False, highlight=False, soft_wrap=True)
     verdicts = []
     if written:
         from rich.progress import Progress
@@ -645,7 +646,7 @@ def _note_warnings(caught: list, quiet: bool, code: int = 0) -> None:
             kinds = sorted({w.category.__name__ for w in library})
             first = _warning_line(library[0].message, library[0].category, library[0].filename)
             _out.print(f"note: {len(library)} library warning(s) ({', '.join(kinds)}) were handled; "
-                       f"first: {first[:160]}", markup=False, highlight=False)
+                       f"first: {first[:160]}", markup=False, highlight=False, soft_wrap=True)
     except OSError:  # stdout/stderr closed: nothing more to say
         pass
 

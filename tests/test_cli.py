@@ -336,3 +336,31 @@ def test_os_errors_and_internal_errors_keep_the_exit_code_contract(tmp_path, cap
     assert code == 4 and len(err.strip().splitlines()) == 1, err
     log = err.split("traceback in ")[1].split(";")[0]
     assert "ZeroDivisionError: a bug" in Path(log).read_text()
+
+
+def test_written_paths_are_printed_whole_on_one_line(tmp_path, capsys):
+    """`design` prints each artefact path on one line as given: not wrapped at the console
+    width when stdout is a pipe (a script reads ``wrote <path>``), brackets not taken as rich
+    markup (``[bold]`` used to vanish from the printed path)."""
+    spec = tmp_path / "s.toml"
+    spec.write_text(SEED000.read_text(encoding="utf-8"), encoding="utf-8")
+    out_dir = tmp_path / ("a_directory_name_long_enough_to_pass_eighty_columns_" * 2) / "[bold]out"
+    code, out, _ = run_cli(capsys, "design", spec, "-o", out_dir)
+    assert code == 0
+    assert f"wrote {out_dir / 'linear_model.json'}\n" in out, out
+
+
+def test_an_export_format_given_twice_is_written_once(tmp_path, capsys):
+    """``--export law --export law`` (or h twice) exports once; it was exit 2 claiming the
+    design "has no control law to export", after the plant record was written."""
+    spec = tmp_path / "s.toml"
+    spec.write_text(SEED000.read_text(encoding="utf-8").replace(
+        'method = "linearize"', 'method = "pole_placement"\npoles = [0.9, 0.91, 0.92]'),
+        encoding="utf-8")
+    code, _, err = run_cli(capsys, "design", spec, "-o", tmp_path / "o", "--export", "law",
+                           "--export", "h", "--export", "law", "--export", "h")
+    assert code == 0, err
+    names = sorted(p.name for p in (tmp_path / "o").iterdir())
+    assert names == ["linear_model.h", "linear_model.json", "linear_model.npz",
+                     "linear_model_law.c", "linear_model_law.casadi", "linear_model_law.h",
+                     "plant.json", "spec.toml"], names

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import hashlib
 import os
+import re
 import shutil
 import subprocess
 import tempfile
@@ -24,11 +25,15 @@ import numpy as np
 
 from tanksynth.artefacts.atomic import commit
 from tanksynth.errors import ArtefactError
-from tanksynth.runtime.laws import rename_law
+from tanksynth.runtime.laws import c_identifier, rename_law
 
 __all__ = ['c_header', 'ExportedLaw', 'export_law', 'compile_law', 'load_compiled_law',
            'implementation_data', 'mat_contents', 'DERIVED_LAW_METHODS', 'state_feedback_law',
            'observer_law', 'kalman_step', 'estimator_step', 'derived_law']
+
+
+#: File stems `export_law` keeps as given (else the C symbol is the stem).
+_FILE_STEM = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]*")
 
 
 @dataclass(frozen=True)
@@ -70,7 +75,10 @@ def export_law(law: ca.Function, directory: str | Path, name: str | None = None)
     directory : str or Path
         Created if missing.
     name : str, optional
-        File stem and C symbol (made a C identifier); default the law's name.
+        File stem (kept as given when it is a file name of letters, digits, ``_``, ``.``
+        and ``-``, e.g. ``1a_law`` beside the artefact ``1a.json``) and C symbol (made a C
+        identifier, `tanksynth.runtime.laws.c_identifier`: ``law_1a_law``); default the
+        law's name.
 
     Returns
     -------
@@ -80,7 +88,8 @@ def export_law(law: ca.Function, directory: str | Path, name: str | None = None)
     directory.mkdir(parents=True, exist_ok=True)
     fn = rename_law(law, name or law.name())
     stem = fn.name()
-    final = {ext: directory / f"{stem}{ext}" for ext in (".casadi", ".c", ".h")}
+    file_stem = name if name is not None and _FILE_STEM.fullmatch(name) else stem
+    final = {ext: directory / f"{file_stem}{ext}" for ext in (".casadi", ".c", ".h")}
     # CasADi's code generator refuses an output prefix that contains
     # "<stem>.c" (a guard for its old API); such a target directory is built
     # in the system temp directory, then copied beside the targets.
@@ -95,10 +104,13 @@ def export_law(law: ca.Function, directory: str | Path, name: str | None = None)
         cg.add(fn)
         cg.generate(str(build) + os.sep)
         for ext, target in final.items():
-            if not (build / target.name).is_file():
-                raise ArtefactError(f"export of law '{stem}': {target.name} was not generated")
+            built = build / f"{stem}{ext}"  # CasADi names its files after the C symbol
+            if not built.is_file():
+                raise ArtefactError(f"export of law '{stem}': {built.name} was not generated")
             if build != tmpdir:
-                shutil.copyfile(build / target.name, tmpdir / target.name)
+                shutil.copyfile(built, tmpdir / target.name)
+            elif built.name != target.name:
+                built.rename(tmpdir / target.name)
         try:
             for ext in (".c", ".h", ".casadi"):
                 renamed.append(commit(tmpdir / final[ext].name, final[ext]))
@@ -492,7 +504,7 @@ def derived_law(gains: Mapping[str, np.ndarray], diagnostics: Mapping[str, Any],
     options : MethodOptions
         Its validated options.
     name : str
-        Function name (a C identifier).
+        Function name (made a C identifier, `tanksynth.runtime.laws.c_identifier`).
 
     Returns
     -------
@@ -505,6 +517,7 @@ def derived_law(gains: Mapping[str, np.ndarray], diagnostics: Mapping[str, Any],
     from tanksynth.artefacts.estimator_laws import ESTIMATOR_LAW_METHODS, estimator_law
     from tanksynth.artefacts.synthesis_laws import SYNTHESIS_LAW_METHODS, synthesis_law
 
+    name = c_identifier(name)  # a design name may start with a digit or hold '.', '-'
     if method in ESTIMATOR_LAW_METHODS:
         return estimator_law(gains, diagnostics, method, spec, options, name)
     if method in SYNTHESIS_LAW_METHODS:

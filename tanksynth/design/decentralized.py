@@ -53,7 +53,7 @@ from typing import Any
 
 import numpy as np
 
-from tanksynth.errors import DimensionError, SpecError
+from tanksynth.errors import DimensionError, InfeasibleDesign, SpecError
 from tanksynth.design.decentralized_models import (DiscreteModel, _array2, _check_pd, _check_psd, _sym,
                                                    discretize_noise, equicorrelated_intensity,
                                                    linear_model, lower_tank_equilibrium,
@@ -61,7 +61,8 @@ from tanksynth.design.decentralized_models import (DiscreteModel, _array2, _chec
 from tanksynth.analysis.blas import small_dense
 from tanksynth.design.decentralized_recursion import (CovarianceTrajectory, _fh_casadi, _fh_iterative,
                                                       _forward, _joseph, _Kernels, _one_step,
-                                                      _one_step_start, _Pattern, _require_pd)
+                                                      _one_step_start, _Pattern, _require_pd,
+                                                      _symmetrised)
 
 __all__ = [
     "KalmanStep",
@@ -491,8 +492,20 @@ def finite_horizon_gains(A_seq: Any, C_seq: Any, Q_seq: Any, R_seq: Any, E: Any,
             kern = _Kernels(C, pat)
             K0, init = _one_step_start(A, C, Q, R, kern, P0)
             _check_start(init)
-            K, traj, iters, converged, status, history = _fh_iterative(
-                A, C, Q, R, kern, P0, K0, init, float(tol), int(max_iter))
+            try:
+                K, traj, iters, converged, status, history = _fh_iterative(
+                    A, C, Q, R, kern, P0, K0, init, float(tol), int(max_iter))
+                broke = not traj.cost <= init.cost * (1.0 + 1e-9)   # NaN too
+            except InfeasibleDesign:   # non-finite gains, or a P(k|k) not positive definite
+                broke, iters, history = True, 0, [init.cost]
+            if broke:
+                # An exact block-coordinate sweep never raises the cost: round-off did (e.g. P0
+                # 1e50 times R): keep the one-step start when it is itself sound (else the
+                # start's own breakdown is the error, naming its step).
+                for k, Pf in enumerate(init.P_filt):
+                    _require_pd(Pf, f"P({k + 1}|{k + 1}) at window step {k + 1}")
+                K, traj, converged = list(K0), _symmetrised(init), False
+                status = "numerical breakdown of the sweeps; kept the one-step gains"
     else:
         K0, P_filt, P_pred = [], [], []
         Pp = P0

@@ -22,7 +22,7 @@ from tanksynth.errors import ArtefactError, DimensionError, InfeasibleDesign, Sp
 from tanksynth.plants.base import Plant
 from tanksynth.plants.compile import compile_matrix
 
-__all__ = ['ANTI_WINDUP', 'IntegralTracking', 'integral_tracking_law', 'InverseDynamicsLaw', 'inverse_dynamics_law', 'law_document', 'law_from_document', 'rename_law']
+__all__ = ['ANTI_WINDUP', 'IntegralTracking', 'integral_tracking_law', 'InverseDynamicsLaw', 'inverse_dynamics_law', 'law_document', 'law_from_document', 'rename_law', 'c_identifier']
 
 
 #: Anti-windup schemes of `integral_tracking_law`.
@@ -446,6 +446,22 @@ def _c_ident(text: str) -> str:
         ident = "law_" + ident.lstrip("_")
     return ident
 
+
+
+def c_identifier(text: str) -> str:
+    """The C identifier (and CasADi Function name) a law named ``text`` gets.
+
+    Parameters
+    ----------
+    text : str
+        Any name, e.g. a design name such as ``1a`` or ``inv-dyn`` (not valid in C).
+
+    Returns
+    -------
+    str
+        A letter, then letters, digits and single underscores (``law_1a``, ``inv_dyn``).
+    """
+    return _c_ident(text)
 
 
 def rename_law(law: ca.Function, name: str) -> ca.Function:

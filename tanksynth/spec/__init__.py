@@ -310,11 +310,21 @@ def _parse(table: Mapping[str, Any], source: str | None, sha256: str,
     return Spec(plant, x0, given_u0, ts, tuple(designs), title, source, sha256, table)
 
 
+#: Bad ``[[design]]`` tables named one by one (index and name) in the summary of
+#: `_designs_error`; beyond, the indices are given as ranges.
+MAX_LISTED_DESIGNS = 8
+#: Characters of each table's own error in the summary of several (a long list of
+#: valid values in one does not hide the others).
+MAX_DESIGN_DETAIL = 160
+
+
 def _designs_error(raw_designs: list, errors: list[tuple[int, SpecError]]) -> SpecError:
     """One error for the invalid ``[[design]]`` tables (``(index, error)`` pairs): the error
     itself when there is one, else a `SpecError` naming every bad table first (so a message cut
-    at the CLI's line limit still names them all), then each table's error with its key; its
-    ``errors`` attribute holds the single errors, in table order."""
+    at the CLI's line limit still names them all; as index ranges when there are more than
+    `MAX_LISTED_DESIGNS`), then each distinct error with its key and the tables it concerns
+    (each cut to `MAX_DESIGN_DETAIL` characters); its ``errors`` attribute holds the single
+    errors, in table order."""
     if len(errors) == 1:
         return errors[0][1]
 
@@ -322,9 +332,31 @@ def _designs_error(raw_designs: list, errors: list[tuple[int, SpecError]]) -> Sp
         name = raw_designs[i].get("name") if isinstance(raw_designs[i], Mapping) else None
         return f"design[{i}]" + (f" {name!r}" if isinstance(name, str) and _NAME_RE.match(name) else "")
 
-    parts = [f"{label(i)}: " + (f"key '{exc.key}': " if exc.key and exc.key != f"design[{i}]" else "")
-             + exc.detail for i, exc in errors]
-    out = SpecError(f"{len(errors)} invalid designs ({', '.join(label(i) for i, _ in errors)}): "
+    def labels(indices: list[int]) -> str:
+        if len(indices) <= MAX_LISTED_DESIGNS:
+            return ", ".join(label(i) for i in indices)
+        runs: list[list[int]] = []
+        for i in indices:
+            if runs and i == runs[-1][-1] + 1:
+                runs[-1].append(i)
+            else:
+                runs.append([i])
+        return "design[" + ", ".join(str(r[0]) if len(r) == 1 else f"{r[0]}-{r[-1]}" for r in runs) + "]"
+
+    groups: dict[tuple[str, str], list[int]] = {}
+    keys: dict[int, str] = {}
+    for i, exc in errors:
+        keys[i] = "" if exc.key in (None, f"design[{i}]") else exc.key
+        key = keys[i][len(f"design[{i}]"):] if keys[i].startswith(f"design[{i}].") else keys[i]
+        detail = " ".join(exc.detail.split())
+        if len(detail) > MAX_DESIGN_DETAIL:
+            detail = detail[:MAX_DESIGN_DETAIL - 4] + " ..."
+        groups.setdefault((key, detail), []).append(i)
+    # one table: its full key (design[i].poles); several: the key inside each (design[*].poles)
+    parts = [f"{labels(ix)}: " + (f"key '{keys[ix[0]] if len(ix) == 1 else 'design[*]' + key}': "
+                                  if key else "") + detail
+             for (key, detail), ix in groups.items()]
+    out = SpecError(f"{len(errors)} invalid designs ({labels([i for i, _ in errors])}): "
                     + "; ".join(parts))
     out.errors = tuple(exc for _, exc in errors)
     return out

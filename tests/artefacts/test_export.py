@@ -247,3 +247,24 @@ def test_every_controller_and_estimator_method_has_a_law():
     missing = [row.name for row in TABLE if set(row.kinds) != {"model"}
                and row.name not in covered | carried]
     assert missing == []
+
+
+def test_design_names_that_are_not_c_identifiers_export_their_law(tmp_path):
+    """A design name may start with a digit or hold '.', '-' (the spec allows it): the law is
+    still exported (it was an internal error), as ``<name>_law.*`` beside ``<name>.json``,
+    with a C symbol made an identifier; compiled, it is u_op - K (x - x_op) with the stored K."""
+    base = SPEC.split("[[design]]")[0]
+    designs = "".join(f'[[design]]\nname = "{nm}"\nmethod = "pole_placement"\n'
+                      'poles = [0.90, 0.92, 0.94]\n' for nm in ("1a", "x-y", "int"))
+    spec = tmp_path / "s.toml"
+    spec.write_text(base + designs, encoding="utf-8")
+    o = tmp_path / "o"
+    assert main(["design", str(spec), "-o", str(o), "--export", "law", "--export", "h"]) == 0
+    for name, symbol in (("1a", "law_1a_law"), ("x-y", "x_y_law"), ("int", "int_law")):
+        assert {p.name for p in o.glob(f"{name}_law.*")} == {f"{name}_law.{e}" for e in ("c", "h", "casadi")}
+        lib = compile_law(o / f"{name}_law.c", o / f"{name}_law.so", flags=("-O2", "-Wall", "-Werror"))
+        law = load_compiled_law(lib, symbol)
+        K = read_artefact(o / f"{name}.json")["gains"]["K"]
+        x2 = X + np.array([0.01, -0.02, 0.005])
+        du = _np(law(x2)) - _np(law(X))
+        np.testing.assert_allclose(du, -K @ (x2 - X), rtol=1e-12, atol=1e-15)

@@ -391,3 +391,27 @@ def test_spec_requires_process_noise_and_own_measurements():
         with pytest.raises(SpecError, match="h3, h4") as exc:
             METHODS["decentralized_kalman"].design(spec, spec.designs[0])
     assert exc.value.key == "design[0].E"
+
+
+@pytest.mark.parametrize("p0", [1e50, 1e100])
+def test_sweeps_broken_by_round_off_keep_the_one_step_gains(p0):
+    """P0 1e50 times R: I - K C is pure round-off at the first step, the sweeps then gave a
+    cost of 1e18 .. 1e268 (against 12 for the one-step gains) or a P(k|k) that is not positive
+    definite. The route keeps the one-step gains (never worse than its start), warns, and
+    reports it; the one-step covariances are recomputed here from the gains (Joseph form)."""
+    rng = np.random.default_rng(0)
+    n, T = 4, 10
+    A = [np.eye(n) + 0.05 * rng.standard_normal((n, n)) for _ in range(T)]
+    C, Q, R = [np.eye(n)] * T, [0.01 * np.eye(n)] * T, [np.eye(n)] * T
+    with pytest.warns(RuntimeWarning, match="kept the one-step gains"):
+        res = finite_horizon_gains(A, C, Q, R, np.eye(n), p0 * np.eye(n))
+    assert res.converged is False and res.cost <= res.one_step_cost
+    P, cost = p0 * np.eye(n), 0.0
+    for k in range(T):                      # one-step optimal gain with E = I, C = I: scalar KF
+        K = np.diag(np.diag(P) / (np.diag(P) + 1.0))
+        np.testing.assert_allclose(res.K[k], K, rtol=1e-12, atol=0)
+        IKC = np.eye(n) - K
+        Pf = IKC @ P @ IKC.T + K @ K.T
+        cost += np.trace(Pf)
+        P = A[k] @ Pf @ A[k].T + Q[k]
+    assert res.cost == pytest.approx(cost, rel=1e-9)

@@ -515,3 +515,28 @@ def test_a_parameter_of_zero_in_a_denominator_is_a_spec_error():
     with pytest.raises(SpecError, match="division by zero") as info:
         parse_spec(table)
     assert info.value.key == "plant"
+
+
+def test_many_invalid_designs_stay_useful_within_the_cli_line(tmp_path, capsys):
+    """40 tables with the same mistake plus one with a long list of valid values: the one
+    line (cut at 600 characters) still names every bad table (as index ranges) and gives
+    each distinct reason, instead of 600 characters of names and no reason."""
+    from tanksynth.cli import MAX_MESSAGE, main
+
+    bad = "".join(f'[[design]]\nname = "p{i}"\nmethod = "pole_placement"\npoles = [0.5, 0.6]\n'
+                  for i in range(40))
+    good = '[[design]]\nname = "ok"\nmethod = "linearize"\n'
+    spec = tmp_path / "spec.toml"
+    spec.write_text(_THREE_TANK + bad + good + '[[design]]\nname = "m"\nmethod = "nosuch"\n'
+                    + '[[design]]\nname = "k"\nmethod = "kalman"\nbogus = 1\n')
+    with pytest.raises(SpecError) as info:
+        load_spec(spec)
+    assert len(info.value.errors) == 42
+    assert main(["design", str(spec), "-o", str(tmp_path / "out")]) == 2
+    line = capsys.readouterr().err.strip()
+    assert "\n" not in line and len(line) <= MAX_MESSAGE + len("error: ")
+    assert "42 invalid designs (design[0-39, 41-42])" in line, line
+    assert "design[0-39]: key 'design[*].poles': 2 poles given, expected 3" in line, line
+    assert "design[41] 'm': key 'design[41].method': unknown method 'nosuch'" in line, line
+    assert "design[42] 'k': key 'design[42].bogus': unknown option 'bogus'" in line, line
+    assert not (tmp_path / "out").exists()

@@ -76,7 +76,8 @@ class FeedbackLinearizationOptions(MethodOptions):
             raise r.fail("tracked", f"plant '{plant.name}' has {plant.q} outputs and {plant.m} "
                                     f"inputs: choose {plant.m} outputs (or states) to decouple")
         if r.given("poles") == r.given("bandwidth"):
-            raise r.fail("poles", "give the outer loop either 'poles' or 'bandwidth' (not both)")
+            raise r.fail("poles", "give the outer loop either 'poles' or 'bandwidth' ("
+                         + ("not both)" if r.given("poles") else "neither is given)"))
         count = len(tracked) if tracked is not None else plant.q
         bandwidth = r.read("bandwidth", parse_vector, broadcast=True, above=0.0)
         if bandwidth is not None and bandwidth.size not in (1, count):

@@ -46,6 +46,32 @@ def _blocks(value: Any, key: str, names: list[str]) -> tuple[tuple[str, ...], ..
     return tuple(parse_names(b, f"{key}[{i}]", names, what="state") for i, b in enumerate(value))
 
 
+def _check_structure(r: OptionReader, blocks: tuple[tuple[str, ...], ...] | None,
+                     pattern: np.ndarray | None, names: list[str]) -> None:
+    """The LMI structure the design needs, checked with the other options (not at design time):
+    ``blocks`` partition the states; ``pattern`` is 0/1, and restricts a gain only with
+    ``blocks`` whose states share their row of the pattern (``L = P^-1 K`` mixes a block's rows)."""
+    if blocks is not None:
+        flat = [v for b in blocks for v in b]
+        if sorted(flat) != sorted(names) or len(set(flat)) != len(flat):
+            raise r.fail("blocks", f"blocks must partition the states {names} (each state in "
+                                   f"exactly one block), got {[list(b) for b in blocks]}")
+    if pattern is None:
+        return
+    if not np.all(np.isin(pattern, (0.0, 1.0))):
+        raise r.fail("pattern", "expected a 0/1 matrix (1: the gain entry is free, 0: it is zero)")
+    if pattern.all():
+        return
+    if blocks is None:
+        raise r.fail("pattern", "a gain pattern needs blocks (a block-diagonal Lyapunov matrix): "
+                                "with a dense P, L = P^-1 K is dense whatever the pattern of K")
+    for b in blocks:
+        rows = pattern[[names.index(v) for v in b]]
+        if not np.all(rows == rows[0]):
+            raise r.fail("pattern", f"pattern rows differ inside block {list(b)}: L = P^-1 K mixes "
+                                    "the rows of a block, so its states must allow the same outputs")
+
+
 @dataclass(frozen=True, eq=False)
 class TsObserverOptions(MethodOptions):
     """Options of ``ts_observer``: TS multiple model (sector nonlinearity on the premises) and
@@ -171,6 +197,9 @@ class TsObserverOptions(MethodOptions):
         kappa_max = r.read("kappa_max", parse_number, above=1.0)
         if kappa_max < kappa:
             raise r.fail("kappa_max", f"kappa_max = {kappa_max:g} is below kappa = {kappa:g}")
+        blocks = r.read("blocks", _blocks, names)
+        pattern = r.read("pattern", parse_matrix, (n, q))
+        _check_structure(r, blocks, pattern, names)
         return cls(
             weights=r.read("weights", _weights, n), psi=psi, psi_source=psi_source,
             variant=r.read("variant", parse_choice, LMI_VARIANTS),
@@ -186,8 +215,7 @@ class TsObserverOptions(MethodOptions):
             search=r.read("search", parse_bool),
             search_values=tuple(float(v) for v in values),
             search_criterion=r.read("search_criterion", parse_choice, ("psi_max", "certified")),
-            blocks=r.read("blocks", _blocks, names),
-            pattern=r.read("pattern", parse_matrix, (n, q)),
+            blocks=blocks, pattern=pattern,
             reference_L=r.read("reference_L", parse_matrix, (n, q)),
             margin=r.read("margin", parse_number, above=0.0, below=1.0),
             kappa=kappa, kappa_max=kappa_max,
