@@ -33,6 +33,7 @@ Artefact gains (every one a 1-D or 2-D float array, so that the JSON, .npz,
 
 from __future__ import annotations
 
+import warnings
 from typing import Any
 
 import numpy as np
@@ -43,7 +44,7 @@ from tanksynth.design.decentralized import (centralized_gain, equicorrelated_int
                                             finite_horizon_gains, one_step_gains, own_tank_pattern,
                                             window_models)
 from tanksynth.design.result import DesignMethod, DesignResult, options_of
-from tanksynth.errors import DimensionError, InfeasibleDesign, SpecError
+from tanksynth.errors import DesignWarning, DimensionError, InfeasibleDesign, SpecError
 from tanksynth.spec.method_options import DecentralizedKalmanOptions
 
 __all__ = ["run_decentralized_kalman"]
@@ -134,8 +135,13 @@ def run_decentralized_kalman(spec: Any, design: Any) -> DesignResult:
         K, P = K_os, P_os
         cost, iterations, converged, status, history = cost_os, 0, True, "one_step", (cost_os,)
     else:
-        res = finite_horizon_gains(A, C, Q, Rs, E, P0_pred, method=method, tol=tol,
-                                   max_iter=max_iter)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            res = finite_horizon_gains(A, C, Q, Rs, E, P0_pred, method=method, tol=tol,
+                                       max_iter=max_iter)
+        for w in caught:  # non-convergence is about this design: say so as a design warning
+            category = DesignWarning if issubclass(w.category, RuntimeWarning) else w.category
+            warnings.warn(str(w.message), category, stacklevel=2)
         K, P = res.K, res.P
         cost, iterations, converged, status = res.cost, res.iterations, res.converged, res.status
         history = res.history

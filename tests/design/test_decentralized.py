@@ -415,3 +415,4 @@ def test_sweeps_broken_by_round_off_keep_the_one_step_gains(p0):
         cost += np.trace(Pf)
         P = A[k] @ Pf @ A[k].T + Q[k]
     assert res.cost == pytest.approx(cost, rel=1e-9)
+
