@@ -19,12 +19,22 @@ DECENTRALIZED_ALGORITHMS = ("casadi", "iterative", "one_step")
 
 
 def _noise(value: Any, key: str, size: int, *, semidefinite: bool) -> float | np.ndarray:
-    """A number (kept: times the identity) or a covariance matrix (list of rows, or diagonal)."""
+    """A number (kept: times the identity) or a covariance matrix (list of rows, or diagonal),
+    at most `NOISE_MAX` in size (beyond it the Riccati recursion overflows or loses every digit)."""
     if isinstance(value, (int, float)) and not isinstance(value, bool):
         if semidefinite:
-            return parse_number(value, key, at_least=0.0)
-        return parse_number(value, key, above=0.0)
-    return parse_covariance(value, key, size, semidefinite)
+            return parse_number(value, key, at_least=0.0, at_most=NOISE_MAX)
+        return parse_number(value, key, above=0.0, at_most=NOISE_MAX)
+    cov = parse_covariance(value, key, size, semidefinite)
+    if np.max(np.abs(cov)) > NOISE_MAX:
+        raise SpecError(f"covariance entries must be at most {NOISE_MAX:g} in size, got "
+                        f"{np.max(np.abs(cov)):.3g}", key=key)
+    return cov
+
+
+#: Largest covariance entry accepted (the plant's units squared, or squared per s): a
+#: level known to 1e6 m (or cm) is no knowledge at all, and 1e12 keeps the recursion finite.
+NOISE_MAX = 1e12
 
 
 def _pattern(value: Any, key: str, shape: tuple[int, int]) -> str | np.ndarray:
