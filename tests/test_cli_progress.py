@@ -39,7 +39,7 @@ def test_design_and_report_print_each_stage(tmp_path, capsys):
     out = capsys.readouterr().out
     assert "- designing obs (pole_placement) [1/2]" in out
     assert "- designing lin (linearize) [2/2]" in out
-    assert out.index("[1/2]") < out.index("[2/2]") < out.index("wrote")
+    assert out.index("[1/2]") < out.index("[2/2]") < out.index("artefact: ")
     assert main(["report", str(tmp_path / "o")]) == 0
     assert "- writing the report" in capsys.readouterr().out
 
