@@ -64,6 +64,26 @@ def _live() -> bool:
     return importlib.util.find_spec("ipywidgets") is not None
 
 
+def _bars(quiet: bool = False) -> bool:
+    """Progress bars are drawn: a live display on a terminal (or a notebook with ipywidgets).
+
+    Piped output gets none: a stopped bar would leave an empty line there; the stage lines
+    say what runs.
+    """
+    return not quiet and _live() and (_out.is_terminal or _out.is_jupyter)
+
+
+def _progress(quiet: bool = False):
+    """A progress bar for the artefacts or runs of a stage: a spinner, the current item, done
+    of total and the elapsed time (no ETA: one artefact's verdict can take long)."""
+    from rich.progress import (BarColumn, MofNCompleteColumn, Progress, SpinnerColumn,
+                               TextColumn, TimeElapsedColumn)
+
+    return Progress(SpinnerColumn(), TextColumn("{task.description}"), BarColumn(),
+                    MofNCompleteColumn(), TimeElapsedColumn(), console=_out, transient=True,
+                    disable=not _bars(quiet))
+
+
 @contextmanager
 def _stage(text: str, quiet: bool = False):
     """Print a line as a stage starts, and a spinner while it runs (on a terminal only);
@@ -77,6 +97,36 @@ def _stage(text: str, quiet: bool = False):
         return
     with _out.status(text, spinner="dots"):
         yield
+
+
+#: Library warnings whose meaning is known: (category name, text fragment, what it means).
+KNOWN_WARNINGS = (
+    ("UserWarning", "Tight layout not applied",
+     "a figure's layout could not be tightened (cosmetic: labels may overlap)"),
+    ("UserWarning", "Solution may be inaccurate",
+     "a convex solver reported an inaccurate solution (the design's checks re-verify it)"),
+)
+
+
+def _meaning(message, category, filename) -> str:
+    """What a library warning means for the user, on one short line: a known one (see
+    `KNOWN_WARNINGS`), a numerical one with where it came from, else a generic line."""
+    text = str(message)
+    for kind, fragment, meaning in KNOWN_WARNINGS:
+        if category.__name__ == kind and fragment in text:
+            return meaning
+    if issubclass(category, RuntimeWarning):
+        return _warning_line(message, category, filename)
+    return (f"a {category.__name__} from {_origin(filename)} (not known to affect the results; "
+            "tanksynth --verbose COMMAND prints its text)")
+
+
+def _origin(filename) -> str:
+    """The top-level package a warning came from (its file's path), else the file's name."""
+    parts = Path(str(filename)).parts
+    if "site-packages" in parts and parts.index("site-packages") + 1 < len(parts):
+        return parts[parts.index("site-packages") + 1].removesuffix(".py")
+    return Path(str(filename)).name
 
 
 def _warning_line(message, category, filename) -> str:
@@ -231,7 +281,9 @@ def _derived_law(spec, design, result):
 
 @click.group(context_settings={"help_option_names": ["-h", "--help"]})
 @click.version_option(package_name="tanksynth")
-def cli() -> None:
+@click.option("-v", "--verbose", is_flag=True,
+              help="Also print the raw text of the library warnings the note summarises.")
+def cli(verbose: bool) -> None:
     """Observer and controller synthesis for multi-tank hydraulic plants."""
 
 
@@ -374,7 +426,7 @@ def design(spec: str, outdir: str, export: tuple[str, ...], force: bool) -> None
         _refuse_other_spec(s, Path(outdir), force)
         written, infeasible = _design_all(s, Path(outdir), export)
     for path in written:
-        _out.print(f"wrote {path}", markup=False, highlight=False, soft_wrap=True)  # one line, as given
+        _out.print(f"artefact: {path}", markup=False, highlight=False, soft_wrap=True)  # one line, as given
     if infeasible:
         raise _Fail(EXIT_INFEASIBLE, _refused_summary(infeasible, len(s.designs)))
 
@@ -431,12 +483,11 @@ def _run_locked(s, spec: str | None, out: Path, pdf: bool | None) -> None:
     _out.print(f"rank verdicts: {checks_path}", markup=False, highlight=False, soft_wrap=True)
     verdicts = []
     if written:
-        from rich.progress import Progress
-
         _out.print("- verifying every artefact on the nonlinear plant", markup=False, highlight=False)
-        with Progress(console=_out, transient=True, disable=not _live()) as bar:
-            task = bar.add_task("verifying artefacts", total=None)
-            verdicts = verify_directory(out, progress=lambda d, n: bar.update(task, completed=d, total=n))
+        with _progress() as bar:
+            task = bar.add_task("verifying artefacts", total=len(written))
+            verdicts = verify_directory(out, progress=lambda d, n: bar.update(task, completed=d, total=n),
+                                        started=_started(bar, task))
         _write_report(out, pdf)
         _print_summary(written)
         if spec is None and not have_tex:
@@ -450,6 +501,13 @@ def _run_locked(s, spec: str | None, out: Path, pdf: bool | None) -> None:
     failed += [v.name for v in verdicts if v.passed is False]
     if failed:
         raise _Fail(EXIT_FAILED, "some checks fail: " + ", ".join(failed))
+
+
+def _started(bar, task):
+    """``started(done, total, name, method)`` for `verify_directory`: the bar names the artefact
+    being verified (its checks run inside one verdict)."""
+    return lambda d, n, name, method: bar.update(task, completed=d, total=n,
+                                                 description=f"verifying {name} ({method})")
 
 
 def _print_summary(paths: list[Path]) -> None:
@@ -489,8 +547,10 @@ def _write_report(directory: Path, pdf: bool):
         _out.print(f"report: {res.tex}, {res.pdf.name} ({res.pages} pages, LaTeX "
                    f"{res.latex_seconds:.1f} s)", markup=False, highlight=False)
     else:
-        _out.print(f"report: {res.tex} (for the PDF: --pdf, needs pdflatex and latexmk)", markup=False,
-                   highlight=False)
+        tex = all(shutil.which(tool) for tool in ("pdflatex", "latexmk"))
+        _out.print(f"report: {res.tex} (" + ("add --pdf for the PDF)" if tex else
+                                             "for the PDF: install pdflatex and latexmk, then --pdf)"),
+                   markup=False, highlight=False)
     for comp in res.comparisons:
         if comp.errata:
             _out.print(f"paper vs tool ({comp.title}): {len(comp.errata)} erratum/errata in the "
@@ -539,8 +599,6 @@ def verify(directory: str, scheduler: str | None, as_json: bool, runs: int,
 
 def _verify_locked(directory: str, scheduler: str | None, as_json: bool, runs: int,
                    scenarios: tuple[str, ...], seed: int, workers: int, connect_timeout: float) -> None:
-    from rich.progress import Progress
-
     from tanksynth.artefacts.io import to_jsonable
     from tanksynth.verify.campaign import campaign_tasks, run_campaign
     from tanksynth.sim.scenarios import SCENARIOS
@@ -548,18 +606,18 @@ def _verify_locked(directory: str, scheduler: str | None, as_json: bool, runs: i
     from tanksynth.verify.runner import load_directory
 
     quiet = as_json
-    with Progress(console=_out, transient=True, disable=quiet or not _live()) as bar:
+    with _progress(quiet) as bar:
         task = bar.add_task("verifying artefacts", total=None)
         verdicts = verify_directory(directory, scheduler=scheduler,
                                     progress=lambda d, n: bar.update(task, completed=d, total=n),
-                                    connect_timeout=connect_timeout)
+                                    started=_started(bar, task), connect_timeout=connect_timeout)
     table_path = None
     if runs:
         spec, docs = load_directory(directory, METHODS)
         names = list(scenarios) or [s for s in SCENARIOS if SCENARIOS[s].applies_to(spec.plant)]
         tasks = campaign_tasks(spec.text or (Path(directory) / "spec.toml").read_text(encoding="utf-8"),
                                [d for _, d in docs], names, runs, seed=seed, runners=RUNNERS)
-        with Progress(console=_out, transient=True, disable=quiet or not _live()) as bar:
+        with _progress(quiet) as bar:
             task = bar.add_task("campaign", total=len(tasks))
             table = run_campaign(tasks, scheduler=scheduler, workers=workers,
                                  progress=lambda d, n: bar.update(task, completed=d, total=n),
@@ -602,7 +660,8 @@ def main(argv: list[str] | None = None) -> int:
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         code = _main(args)
-    _note_warnings(caught, quiet="--json" in args, code=code)
+    _note_warnings(caught, quiet="--json" in args, code=code,
+                   verbose=bool(args) and args[0] in ("-v", "--verbose"))
     return code
 
 
@@ -627,9 +686,10 @@ def _ignore_file_size_signal() -> None:
         signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
 
 
-def _note_warnings(caught: list, quiet: bool, code: int = 0) -> None:
+def _note_warnings(caught: list, quiet: bool, code: int = 0, verbose: bool = False) -> None:
     """Tanksynth warnings (a meaning for the user): one line each on stderr, unless the exit
-    code is 2 or 4 (their contract is one stderr line). Library warnings: one note on stdout.
+    code is 2 or 4 (their contract is one stderr line). Library warnings: one note on stdout
+    saying what they mean (`_meaning`); their raw text only with ``verbose``.
     Nothing with ``--json``."""
     from tanksynth.errors import DesignWarning, TanksynthWarning
 
@@ -644,9 +704,17 @@ def _note_warnings(caught: list, quiet: bool, code: int = 0) -> None:
                 click.echo(f"warning: {line}", err=True)
         if library:
             kinds = sorted({w.category.__name__ for w in library})
-            first = _warning_line(library[0].message, library[0].category, library[0].filename)
-            _out.print(f"note: {len(library)} library warning(s) ({', '.join(kinds)}) were handled; "
-                       f"first: {first[:160]}", markup=False, highlight=False, soft_wrap=True)
+            meanings = list(dict.fromkeys(_meaning(w.message, w.category, w.filename)
+                                          for w in library))
+            shown = "; ".join(m[:200] for m in meanings[:3]) + (
+                f"; and {len(meanings) - 3} more" if len(meanings) > 3 else "")
+            _out.print(f"note: {len(library)} library warning(s) ({', '.join(kinds)}) were handled: "
+                       f"{shown}", markup=False, highlight=False, soft_wrap=True)
+            if verbose:
+                raw = dict.fromkeys(f"{w.category.__name__}: {_one_line(w.message)[:300]} "
+                                    f"({w.filename}:{w.lineno})" for w in library)
+                for line in raw:
+                    _out.print(f"  raw: {line}", markup=False, highlight=False, soft_wrap=True)
     except OSError:  # stdout/stderr closed: nothing more to say
         pass
 
@@ -669,7 +737,7 @@ def _main(argv: list[str]) -> int:
         click.echo(f"infeasible: {_one_line(exc)}", err=True)
         return EXIT_INFEASIBLE
     except TanksynthError as exc:
-        click.echo(f"error: {_one_line(exc)}", err=True)
+        click.echo(f"error: {_design_index_note(_one_line(exc))}", err=True)
         return EXIT_BAD_INPUT
     except OSError as exc:  # a path the user gave: unwritable, missing, full disk ...
         where = f"{exc.filename}: " if exc.filename else ""
@@ -686,6 +754,16 @@ def _main(argv: list[str]) -> int:
                    "please report it)", err=True)
         return EXIT_INTERNAL
     return EXIT_OK
+
+
+def _design_index_note(text: str) -> str:
+    """``text`` with, when it names ``design[i]``, which ``[[design]]`` table that is (the
+    index counts from 0: ``design[1]`` is the second table), still on one line."""
+    found = list(dict.fromkeys(int(i) for i in re.findall(r"\bdesign\[(\d+)\]", text)))
+    if not found:
+        return text
+    where = ", ".join(f"design[{i}] = [[design]] table {i + 1}" for i in found[:4])
+    return f"{text} ({where}; indices count from 0)"
 
 
 def _internal_error_log() -> str:

@@ -327,7 +327,8 @@ def design(spec: Spec, entry: DesignSpec) -> DesignResult:
 
 def verify_directory(directory: str | Path, scheduler: str | None = None,
                      progress: Callable[[int, int], None] | None = None,
-                     connect_timeout: float = 10.0) -> list[Verdict]:
+                     connect_timeout: float = 10.0,
+                     started: Callable[[int, int, str, str], None] | None = None) -> list[Verdict]:
     """Run the verdict of every artefact of a result directory (see `tanksynth.verify.runner`).
 
     Parameters
@@ -340,9 +341,11 @@ def verify_directory(directory: str | Path, scheduler: str | None = None,
         ``progress(done, total)`` after each artefact.
     connect_timeout : float
         Seconds to wait for the scheduler (s).
+    started : callable, optional
+        ``started(done, total, name, method)`` as an artefact's verdict starts.
     """
     return _verify_directory(directory, METHODS, scheduler=scheduler, progress=progress,
-                             connect_timeout=connect_timeout)
+                             connect_timeout=connect_timeout, started=started)
 
 
 def write_report(directory: str | Path, pdf: bool = False, timeout: float = 180.0) -> Any:

@@ -340,14 +340,14 @@ def test_os_errors_and_internal_errors_keep_the_exit_code_contract(tmp_path, cap
 
 def test_written_paths_are_printed_whole_on_one_line(tmp_path, capsys):
     """`design` prints each artefact path on one line as given: not wrapped at the console
-    width when stdout is a pipe (a script reads ``wrote <path>``), brackets not taken as rich
+    width when stdout is a pipe (a script reads ``artefact: <path>``), brackets not taken as rich
     markup (``[bold]`` used to vanish from the printed path)."""
     spec = tmp_path / "s.toml"
     spec.write_text(SEED000.read_text(encoding="utf-8"), encoding="utf-8")
     out_dir = tmp_path / ("a_directory_name_long_enough_to_pass_eighty_columns_" * 2) / "[bold]out"
     code, out, _ = run_cli(capsys, "design", spec, "-o", out_dir)
     assert code == 0
-    assert f"wrote {out_dir / 'linear_model.json'}\n" in out, out
+    assert f"artefact: {out_dir / 'linear_model.json'}\n" in out, out
 
 
 def test_an_export_format_given_twice_is_written_once(tmp_path, capsys):

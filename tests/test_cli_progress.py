@@ -39,7 +39,7 @@ def test_design_and_report_print_each_stage(tmp_path, capsys):
     out = capsys.readouterr().out
     assert "- designing obs (pole_placement) [1/2]" in out
     assert "- designing lin (linearize) [2/2]" in out
-    assert out.index("[1/2]") < out.index("[2/2]") < out.index("wrote")
+    assert out.index("[1/2]") < out.index("[2/2]") < out.index("artefact: ")
     assert main(["report", str(tmp_path / "o")]) == 0
     assert "- writing the report" in capsys.readouterr().out
 
@@ -112,3 +112,74 @@ def test_no_live_display_in_a_notebook_without_ipywidgets(monkeypatch):
     monkeypatch.setattr(importlib.util, "find_spec",
                         lambda name, *a: None if name == "ipywidgets" else real(name, *a))
     assert cli._live() is False
+
+
+def test_run_piped_names_no_bar_and_the_pdf_hint_follows_tex(tmp_path, capsys, monkeypatch):
+    import shutil
+
+    spec = tmp_path / "s.toml"
+    spec.write_text(SPEC, encoding="utf-8")
+    real_which = shutil.which
+    monkeypatch.setattr(shutil, "which", lambda tool, *a, **k: f"/usr/bin/{tool}"
+                        if tool in ("pdflatex", "latexmk") else real_which(tool, *a, **k))
+    assert main(["run", str(spec), "-o", str(tmp_path / "o"), "--no-pdf"]) == 0
+    out = capsys.readouterr().out
+    lines = out.splitlines()
+    at = next(i for i, line in enumerate(lines) if line.startswith("- verifying every artefact"))
+    assert lines[at + 1].strip() != ""     # piped: no bar, so no empty line left behind it
+    text = " ".join(out.split())           # rich wraps long paths at the console width
+    assert "report.tex (add --pdf for the PDF)" in text and "needs pdflatex" not in text
+    assert sum(line.startswith("artefact: ") for line in lines) == 2
+    assert not any(line.startswith("wrote ") for line in lines)
+    monkeypatch.setattr(shutil, "which", lambda tool, *a, **k: None)
+    assert main(["report", str(tmp_path / "o")]) == 0
+    text = " ".join(capsys.readouterr().out.split())
+    assert "report.tex (for the PDF: install pdflatex and latexmk, then --pdf)" in text
+
+
+def test_verify_names_each_artefact_as_its_verdict_starts(tmp_path):
+    from tanksynth.methods import verify_directory
+
+    spec = tmp_path / "s.toml"
+    spec.write_text(SPEC, encoding="utf-8")
+    assert main(["design", str(spec), "-o", str(tmp_path / "o")]) == 0
+    events = []
+    verify_directory(tmp_path / "o", progress=lambda d, n: events.append(("done", d, n)),
+                     started=lambda d, n, name, method: events.append(("start", d, n, name, method)))
+    starts = [e for e in events if e[0] == "start"]
+    assert sorted(e[3] for e in starts) == ["lin", "obs"]
+    assert {e[3]: e[4] for e in starts} == {"obs": "pole_placement", "lin": "linearize"}
+    # each start comes before its artefact's completion: start(i) then done(i + 1)
+    assert [e[:3] for e in events] == [("start", 0, 2), ("done", 1, 2), ("start", 1, 2), ("done", 2, 2)]
+
+
+def test_known_library_warning_is_said_by_its_meaning_raw_only_with_verbose(monkeypatch, capsys):
+    def noisy(argv):
+        warnings.warn("Tight layout not applied. The bottom and top margins cannot be made large "
+                      "enough to accommodate all Axes decorations.", UserWarning)
+        warnings.warn("zork frobnicated", FutureWarning)
+        return 0
+
+    monkeypatch.setattr(cli, "_main", noisy)
+    assert cli.main(["report", "x"]) == 0
+    out = " ".join(capsys.readouterr().out.split())
+    assert "note: 2 library warning(s) (FutureWarning, UserWarning) were handled" in out
+    assert "a figure's layout could not be tightened (cosmetic" in out
+    assert "a FutureWarning from" in out and "--verbose" in out
+    assert "Tight layout not applied" not in out and "zork" not in out
+    assert cli.main(["--verbose", "report", "x"]) == 0
+    out = " ".join(capsys.readouterr().out.split())
+    assert "raw: UserWarning: Tight layout not applied." in out and "raw: FutureWarning: zork" in out
+
+
+def test_an_error_naming_design_i_says_the_index_counts_from_0(tmp_path, capsys):
+    spec = tmp_path / "s.toml"
+    spec.write_text(SPEC.replace("poles = [0.5, 0.6, 0.7]", "poles = [0.5, 0.6]")
+                    .replace('method = "linearize"', 'method = "linearize"\nbogus = 1'), encoding="utf-8")
+    assert main(["check", str(spec), "--spec-only"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("error: ")
+    assert "design[0] = [[design]] table 1" in err and "design[1] = [[design]] table 2" in err
+    assert "indices count from 0" in err
+    spec.write_text(SPEC, encoding="utf-8")
+    assert main(["check", str(spec), "--spec-only"]) == 0

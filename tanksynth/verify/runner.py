@@ -353,7 +353,8 @@ def _remote_verdict(table: Mapping[str, VerifiableMethod], doc: dict, spec_text:
 def verify_directory(directory: str | Path, table: Mapping[str, VerifiableMethod],
                      scheduler: str | None = None,
                      progress: Callable[[int, int], None] | None = None,
-                     connect_timeout: float = CONNECT_TIMEOUT) -> list[Verdict]:
+                     connect_timeout: float = CONNECT_TIMEOUT,
+                     started: Callable[[int, int, str, str], None] | None = None) -> list[Verdict]:
     """Verify every artefact of a directory and record the verdicts in them.
 
     Beside each artefact ``DIR/<name>.json`` the trace of its verdict's main
@@ -375,6 +376,10 @@ def verify_directory(directory: str | Path, table: Mapping[str, VerifiableMethod
         ``progress(done, total)`` after each artefact.
     connect_timeout : float
         Seconds to wait for the scheduler (`tanksynth.verify.cluster.connect`).
+    started : callable, optional
+        ``started(done, total, name, method)`` as an artefact's verdict starts (in process
+        only: on a cluster they run at once), so a display can name the artefact whose
+        checks run.
 
     Returns
     -------
@@ -395,6 +400,8 @@ def verify_directory(directory: str | Path, table: Mapping[str, VerifiableMethod
     traces: dict[Path, dict | None] = {}
     if scheduler is None:
         for i, (path, doc) in enumerate(docs):
+            if started is not None:
+                started(i, total, str(doc["name"]), str(doc["method"]))
             checks[path], traces[path] = verdict_with_trace(doc, spec, table[str(doc["method"])].verdict)
             if progress is not None:
                 progress(i + 1, total)

@@ -21,6 +21,14 @@ beside the artefact (or the ``spec`` given). The systems (``system``):
     integral action the augmented loop ``(Aa - Ba K, Br, [C1 0], 0)`` from
     the references to the tracked outputs, the integrator states named
     ``z_<output>``.
+
+Signals are named after the plant's (`spec` or ``plant.json``): states, inputs ``u`` and
+outputs ``y`` by their names; disturbance inputs ``w_<state>`` and measurement noise
+``v_<output>`` (where a channel enters one state / output, else ``w_<i>``, ``v_<i>``,
+0-based), estimation errors ``e_<state>``, estimates ``<state>_hat``, references
+``r_<output>``, integrator states ``z_<output>``, performance outputs ``z_<state>``,
+``z_<input>`` (controllers) or ``z_e_<state>`` (observers: ``z`` weighs the error), else
+``z_<i>``.
 ``"performance"`` (default of the H2 / H-infinity / multi-objective designs, which declare ``Bw``)
     state feedback: ``(A - B K, Bw, Cz - Dzu K, 0)`` from ``w`` to ``z``;
     observer: the error system ``(A - L C, [Bw, -L Dv], Cz, 0)``.
@@ -140,6 +148,35 @@ def _fit(names: list[str] | None, size: int, prefix: str) -> list[str]:
     return list(names) if names is not None and len(names) == size else [f"{prefix}{i}" for i in range(size)]
 
 
+def _channels(prefix: str, columns: list[np.ndarray], names: list[list[str] | None]) -> list[str]:
+    """Names of the channels whose matrix columns are ``columns``: ``<prefix>_<signal>`` when a
+    column has one nonzero entry, on a signal with a name (``names`` gives, per block of rows,
+    the signal names or None), else ``<prefix>_<index>`` (0-based); distinct either way."""
+    out = []
+    for j, col in enumerate(columns):
+        hits = np.flatnonzero(np.abs(np.asarray(col, dtype=float)) > 0)
+        label, offset = f"{prefix}_{j}", 0
+        for block in names:
+            size = len(block) if block is not None else 0
+            if len(hits) == 1 and block is not None and offset <= hits[0] < offset + size:
+                label = f"{prefix}_{block[hits[0] - offset]}"
+            offset += size
+        out.append(label)
+    return [n if out.count(n) == 1 else f"{prefix}_{j}" for j, n in enumerate(out)]
+
+
+def _w_columns(a: _Artefact, Bw: np.ndarray) -> list[np.ndarray]:
+    """The columns naming the disturbances: the continuous-time ``Bw`` the design records
+    (``diagnostics.disturbances.Bw_continuous``; a ZOH ``Bwd`` mixes the states), else ``Bw``."""
+    dist = a.diag.get("disturbances")
+    raw = dist.get("Bw_continuous") if isinstance(dist, Mapping) else None
+    try:
+        cont = np.atleast_2d(np.asarray(raw, dtype=float)) if raw is not None else None
+    except (TypeError, ValueError):
+        cont = None
+    return list((cont if cont is not None and cont.shape == Bw.shape else Bw).T)
+
+
 def _ss(a: _Artefact, system: str, A: np.ndarray, B: np.ndarray, C: np.ndarray, dt: float, *,
         states: list[str] | None = None, inputs: list[str] | None = None,
         outputs: list[str] | None = None) -> Any:
@@ -218,8 +255,9 @@ def _controller(a: _Artefact, system: str, vertex: int | None) -> Any:
                                 f"({a.method!r} is not an H2 / H-infinity design): system "
                                 "'performance' does not apply")
         return _ss(a, system, A - B @ K, Bw, Cz - Dzu @ K, dt,
-                   inputs=[f"w{i}" for i in range(Bw.shape[1])],
-                   outputs=[f"z{i}" for i in range(Cz.shape[0])])
+                   inputs=_channels("w", _w_columns(a, Bw), [_fit(states, n, "x")]),
+                   outputs=_channels("z", list(np.hstack([Cz, Dzu])),
+                                     [_fit(states, n, "x"), _fit(inputs, Dzu.shape[1], "u")]))
     if system not in ("closed_loop", "reference", "loop"):
         raise ArtefactError(f"{a.label} is a state feedback: system {system!r} does not apply "
                             "(use 'closed_loop', 'performance' or 'loop')")
@@ -250,9 +288,11 @@ def _observer(a: _Artefact, system: str, vertex: int | None) -> Any:
             raise ArtefactError(f"{a.label}: no Bw, Dv, Cz ({a.method!r} is not an H2 / H-infinity "
                                 "design): system 'performance' does not apply")
         Bcl = np.hstack([Bw, -L @ Dv])
+        states = _fit(a.names("states"), n, "x")
         return _ss(a, system, A - L @ C, Bcl, Cz, dt,
-                   inputs=[f"w{i}" for i in range(Bw.shape[1])] + [f"v{i}" for i in range(Dv.shape[1])],
-                   outputs=[f"z{i}" for i in range(Cz.shape[0])])
+                   inputs=_channels("w", _w_columns(a, Bw), [states])
+                   + _channels("v", list(Dv.T), [_fit(a.names("outputs"), Dv.shape[0], "y")]),
+                   outputs=_channels("z", list(Cz), [[f"e_{x}" for x in states]]))
     if system == "observer":
         Bo = np.hstack([B, L])
         states = _fit(a.names("states"), n, "x")

@@ -57,6 +57,11 @@ def test_synthesis_controllers(designed, name):
     assert (perf.ninputs, perf.noutputs) == (g["Bwd"].shape[1], g["Cz"].shape[0])
     np.testing.assert_allclose(_poles(perf), _eig(g["Ad"] - g["Bd"] @ g["K"]), atol=1e-10)
     np.testing.assert_allclose(perf.C, g["Cz"] - g["Dzu"] @ g["K"], atol=1e-12)
+    # one naming convention: w_<state> (Bw = diag(1/A): one inflow per tank), z_<state>/z_<input>
+    assert perf.input_labels == ["w_h1", "w_h2", "w_h3"]
+    assert perf.output_labels == ["z_h1", "z_h2", "z_h3", "z_q1", "z_q2"]
+    picks = [np.flatnonzero(row) for row in np.hstack([g["Cz"], g["Dzu"]])]
+    assert [int(p[0]) for p in picks if len(p) == 1] == [0, 1, 2, 3, 4]
     loop = d.to_statespace("loop")    # L(z) = K (zI - A)^-1 B: open-loop poles
     np.testing.assert_allclose(_poles(loop), _eig(g["Ad"]), atol=1e-10)
     with pytest.raises(ArtefactError, match="state feedback"):
@@ -75,6 +80,8 @@ def test_synthesis_observers(designed, name):
     perf = d.to_statespace()     # default: w, v -> z
     assert perf.ninputs == g["Bwd"].shape[1] + g["Dv"].shape[1]
     np.testing.assert_allclose(perf.B, np.hstack([g["Bwd"], -g["L"] @ g["Dv"]]))
+    assert perf.input_labels == ["w_h1", "w_h2", "w_h3", "v_h1", "v_h2"]
+    assert perf.output_labels == ["z_e_h1", "z_e_h2", "z_e_h3"]
     obs = d.to_statespace("observer")
     assert obs.output_labels == ["h1_hat", "h2_hat", "h3_hat"] and obs.input_labels == ["q1", "q2", "h1", "h2"]
 
