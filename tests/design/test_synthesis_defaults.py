@@ -110,3 +110,33 @@ def test_user_disturbance_std_is_kept_and_an_absurd_one_warns_in_plant_units():
 def test_a_misspelt_auto_is_refused_with_its_key():
     with pytest.raises(SpecError, match="disturbance_std"):
         _spec("three_tank", "h2_observer", 'disturbance_std = "autp"\n')
+
+
+ROBUST = THREE_TANK.replace('outputs = "h1h2"', 'outputs = "all"')
+
+
+@pytest.mark.parametrize("method, region, gamma", [
+    ("robust_observer", '[{type = "disk", center = 0.5, radius = 0.4}]', 0.005),
+    ("robust_state_feedback", '[{type = "disk", center = 0.9, radius = 0.08}]', 0.02)])
+def test_robust_hinf_channel_defaults_to_pump_sized_disturbances(method, region, gamma):
+    """With gamma and no Bw: B diag(0.1 range) (state feedback) or 0.1 max|B| range I (observer).
+
+    Three-tank: B = [I2; 0] / A per m^3/s, range qmax, so both are 0.1 qmax / A (m/s) per unit
+    w; the old defaults (B, I: 1 m^3/s or 1 m/s) made gamma a number in units no pump reaches.
+    """
+    from tanksynth.verify.robust import robust_observer_verdict, robust_state_feedback_verdict
+
+    spec = parse_spec_text(ROBUST + f'[[design]]\nname = "d"\nmethod = "{method}"\n'
+                           f'uncertain = {{mu13 = "15%"}}\nregion = {region}\ngamma = {gamma}\n')
+    p = {q.name: float(q.value) for q in spec.plant.parameters}
+    s = 0.1 * p["qmax"] / p["A"]
+    want = s * (np.eye(3) if method == "robust_observer" else np.eye(3)[:, :2])
+    np.testing.assert_allclose(spec.designs[0].config.Bw, want, rtol=1e-9)
+    res = METHODS[method].design(spec, spec.designs[0])
+    verdict = robust_observer_verdict if method == "robust_observer" else robust_state_feedback_verdict
+    checks = {c.name: c for c in verdict(artefact_document(res, spec.sha256), spec)}
+    assert not {k: c.detail for k, c in checks.items() if c.passed is not True}
+    assert "vertex_hinf" in checks
+    # without gamma the channel is unused and Bw stays unset (None: the old per-vertex default)
+    spec = parse_spec_text(ROBUST + f'[[design]]\nname = "d"\nmethod = "{method}"\nregion = {region}\n')
+    assert spec.designs[0].config.Bw is None

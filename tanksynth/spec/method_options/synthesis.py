@@ -33,7 +33,7 @@ from tanksynth.spec.options import (parse_choice, parse_covariance, parse_matrix
 
 __all__ = ["DISTURBANCE_SHORTCUTS", "DISTURBANCE_FRACTION", "SYNTHESIS_OBJECTIVES", "SYNTHESIS_SOLVERS", "SYNTHESIS_TARGETS",
            "SYNTHESIS_ROUTES",
-           "inflow_matrix", "auto_disturbance_std", "bryson_state_weight", "bryson_input_weight",
+           "inflow_matrix", "auto_disturbance_std", "nominal_input_matrix", "bryson_state_weight", "bryson_input_weight",
            "H2StateFeedbackOptions", "H2ObserverOptions", "HinfStateFeedbackOptions",
            "HinfObserverOptions", "MultiobjectiveOptions"]
 
@@ -130,14 +130,8 @@ def auto_disturbance_std(plant: Any, Bw: np.ndarray) -> np.ndarray:
     ranges = np.array([float(hi) - float(lo) for lo, hi in plant.input_limits], dtype=float)
     if not np.all(np.isfinite(ranges)) or not np.any(ranges > 0):
         return std
-    lo = np.array([float(b[0]) for b in plant.region.bounds], dtype=float)
-    hi = np.array([float(b[1]) for b in plant.region.bounds], dtype=float)
-    x = np.where(np.isfinite(lo) & np.isfinite(hi), 0.5 * (lo + hi),
-                 np.where(np.isfinite(lo), lo, np.where(np.isfinite(hi), hi, 0.0)))
-    u = np.array([0.5 * (float(a) + float(b)) for a, b in plant.input_limits], dtype=float)
-    try:
-        B = np.asarray(plant.compiled.jacobians(x[None], u[None])[1], float).reshape(plant.n, plant.m)
-    except Exception:  # noqa: BLE001 - an input map that cannot be evaluated at the box centre
+    B = nominal_input_matrix(plant)
+    if B is None:
         return std
     authority = float(np.max(np.abs(B) * ranges[None, :]))
     if not np.isfinite(authority) or authority <= 0:
@@ -146,6 +140,37 @@ def auto_disturbance_std(plant: Any, Bw: np.ndarray) -> np.ndarray:
     ok = np.isfinite(col) & (col > 0)
     std[ok] = DISTURBANCE_FRACTION * authority / col[ok]
     return np.minimum(std, MAX_STD)
+
+
+def nominal_input_matrix(plant: Any) -> np.ndarray | None:
+    """The input Jacobian ``B = df/du`` at the centre of the region box, inputs at mid-range.
+
+    Tank plants take their pumps affinely, so ``B`` (state unit per s per input
+    unit) does not depend on the point; the operating point is not known when
+    options are read, hence the box centre (a finite bound where the other is
+    infinite, else 0).
+
+    Parameters
+    ----------
+    plant : Plant
+        The plant (region box in state units, input limits in input units).
+
+    Returns
+    -------
+    ndarray, shape (n, m), or None
+        ``B``, or None where the input map cannot be evaluated there (not finite).
+    """
+    lo = np.array([float(b[0]) for b in plant.region.bounds], dtype=float)
+    hi = np.array([float(b[1]) for b in plant.region.bounds], dtype=float)
+    x = np.where(np.isfinite(lo) & np.isfinite(hi), 0.5 * (lo + hi),
+                 np.where(np.isfinite(lo), lo, np.where(np.isfinite(hi), hi, 0.0)))
+    u = np.array([0.5 * (float(a) + float(b)) if np.isfinite(float(a)) and np.isfinite(float(b))
+                  else 0.0 for a, b in plant.input_limits], dtype=float)
+    try:
+        B = np.asarray(plant.compiled.jacobians(x[None], u[None])[1], float).reshape(plant.n, plant.m)
+    except Exception:  # noqa: BLE001 - an input map that cannot be evaluated at the box centre
+        return None
+    return B if np.all(np.isfinite(B)) else None
 
 
 def _span(bounds: Any, size: int) -> np.ndarray:
