@@ -180,10 +180,10 @@ _COMMON_DOC = """
         H-infinity bound at every vertex (units of ``z`` per unit of ``w``; at most 1e12);
         default None (no H-infinity constraint).
     Bw : ndarray or None
-        Continuous-time disturbance input matrix (n x nw, state units per s
-        per disturbance unit, ``w`` normalised); default {bw}, read with
-        ``gamma`` (its only use) at the centre of the region box with the
-        nominal parameters.
+        Continuous-time disturbance input matrix of the ``gamma`` channel (n
+        x nw, state units per s per unit of the normalised ``w``), default
+        with ``gamma`` {bw}, taken at the region box centre with the nominal
+        parameters. Without ``gamma`` it is unused (None).
     Cz : ndarray or None
         Performance output matrix on the plant states (nz x n); default the
         identity (every state, state units).{dzu}

@@ -227,14 +227,13 @@ _COMMON_DOC = """
         per disturbance unit), or ``"inflows"`` (default): a unit inflow into
         each tank, ``diag(1 / A_i)`` from the plant's tank areas.
     disturbance_std : ndarray or str
-        Size of each disturbance (disturbance units; with ``"inflows"`` the
-        plant's volume flow, level unit x area unit per s: m^3/s for the
-        three-tank, cm^3/s for ``tank_network``): one number for all or nw
-        numbers, each in (0, 1e10]; default ``"auto"``: each disturbance's
-        largest effect on a state's rate is 10 % of the largest rate a pump
-        gives over its full range, ``std_j = 0.1 max|B diag(range)| /
-        max_i |Bw_ij|`` (with ``"inflows"`` on the three-tank: 1.2e-5 m^3/s,
-        10 % of a pump's flow, into each tank; see ``auto_disturbance_std``).
+        Size of each disturbance, default ``"auto"``: each moves a state at
+        most 10 % as fast as the pumps at full range (``std_j = 0.1 max|B
+        diag(range)| / max_i |Bw_ij|``; with ``"inflows"`` an inflow in the
+        plant's volume-flow unit, 1.2e-5 m^3/s on the three-tank, 2.3 - 2.7
+        cm^3/s on ``tank_network``). Else one number for all or nw numbers,
+        each in (0, 1e10], in disturbance units (with ``"inflows"``: level
+        unit x tank-area unit per s); see ``auto_disturbance_std``.
     Q : ndarray
         State weight (n x n, symmetric positive semidefinite, 1 / state unit^2);
         default Bryson's ``diag(1 / span_i^2)`` over the region box.
@@ -347,8 +346,8 @@ class _SynthesisOptions(MethodOptions):
 
     time_domain: str | None = option(None, unit="-")
     Bw: Any = option("inflows", unit="state units/s per disturbance unit")
-    disturbance_std: Any = option("auto", unit="disturbance units (Bw = \"inflows\": the plant's "
-                                                   "volume flow, level unit x area unit / s)")
+    disturbance_std: Any = option("auto", unit="disturbance units (\"inflows\": level unit x "
+                                                   "area unit / s)")
     Q: Any = option(None, unit="1/(state units)^2")
     Cz: Any = option(None, unit="performance units per state unit")
     margin: float = option(1e-9, unit="-")
@@ -391,7 +390,7 @@ class H2ObserverOptions(_SynthesisOptions):
     """
 
     method_name: ClassVar[str] = "h2_observer"
-    measurement_std: Any = option(None, unit="output units (m)")
+    measurement_std: Any = option(None, unit="output units")
     route: str = option("auto", unit="-")
 
     @classmethod
@@ -443,7 +442,7 @@ class HinfObserverOptions(_SynthesisOptions):
     """
 
     method_name: ClassVar[str] = "hinf_observer"
-    measurement_std: Any = option(None, unit="output units (m)")
+    measurement_std: Any = option(None, unit="output units")
     backoff: float = option(1e-3, unit="-")
     route: str = option("auto", unit="-")
 
@@ -485,7 +484,7 @@ class MultiobjectiveOptions(_StateFeedbackOptions):
     objective: str = option("hinf", unit="-")
     h2_bound: float | None = option(None, unit="-")
     hinf_bound: float | None = option(None, unit="-")
-    measurement_std: Any = option(None, unit="output units (m)")
+    measurement_std: Any = option(None, unit="output units")
     backoff: float = option(1e-3, unit="-")
 
     @classmethod
