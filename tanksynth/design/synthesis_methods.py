@@ -107,8 +107,9 @@ DISTURBANCE_AUTHORITY_RATIO = 10.0
 def _warn_disturbance_size(plant: Any, B: np.ndarray, Bw: np.ndarray) -> None:
     """Warn when ``Bw diag(disturbance_std)`` moves the states far faster than the pumps can.
 
-    The H2/H-infinity figures are in the units of ``w``; a default ``disturbance_std = 1``
-    with ``Bw = "inflows"`` means inflows of 1 m^3/s, thousands of times a laboratory pump.
+    The H2/H-infinity figures are in the units of ``w``; ``disturbance_std = 1`` with
+    ``Bw = "inflows"`` on the SI three-tank means inflows of 1 m^3/s, thousands of times its
+    pumps (the default ``"auto"`` is 10 % of the pumps' authority).
     """
     ranges = np.array([float(hi - lo) for lo, hi in plant.input_limits])
     if not np.all(np.isfinite(ranges)) or not np.any(ranges > 0):
@@ -120,7 +121,20 @@ def _warn_disturbance_size(plant: Any, B: np.ndarray, Bw: np.ndarray) -> None:
                       f"faster than the pumps at full range (Bw diag(disturbance_std) against "
                       f"B diag(input range)): H2/H-infinity figures are in those units; set "
                       f"disturbance_std to a realistic size (with Bw = \"inflows\": an inflow in "
-                      f"the input unit, e.g. m^3/s)", DesignWarning, stacklevel=3)
+                      f"{_flow_unit(plant)}) or leave it \"auto\" (10 % of the pumps' authority)",
+                      DesignWarning, stacklevel=3)
+
+
+def _flow_unit(plant: Any) -> str:
+    """The plant's volume-flow unit (level unit x tank-area unit per s), e.g. ``"m^3/s"``."""
+    units = {p.name: str(getattr(p, "unit", "")) for p in plant.parameters}
+    area = units.get("A1", units.get("A", ""))
+    level = str(plant.states[0].unit) if plant.n else ""
+    if area and level and area.replace(" ", "") == f"{level}^2":
+        return f"{level}^3/s"
+    if area and level:
+        return f"{level} {area}/s"
+    return "the unit of w"
 
 
 def _base_diagnostics(spec: Any, o: Any, m: dict, res: SynthesisResult) -> dict:

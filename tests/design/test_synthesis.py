@@ -411,9 +411,10 @@ method = "hinf_state_feedback"
 """
 
 
-@pytest.mark.parametrize("std, warned", [(None, True), (5e-6, False)])
+@pytest.mark.parametrize("std, warned", [(None, False), (5e-6, False), (1.0, True)])
 def test_disturbances_far_beyond_the_pumps_are_warned(std, warned):
-    """Default disturbance_std = 1 m^3/s with Bw = "inflows" is 8,333 x the 1.2e-4 m^3/s pump."""
+    """disturbance_std = 1 m^3/s with Bw = "inflows" is 8,333 x the 1.2e-4 m^3/s pump (the
+    default "auto" is 10 % of it)."""
     import warnings as _w
 
     from tanksynth.errors import DesignWarning
@@ -429,4 +430,4 @@ def test_disturbances_far_beyond_the_pumps_are_warned(std, warned):
     assert bool(hit) is warned
     assert bool([line for line in res.diagnostics.get("warnings", []) if "faster than the pumps" in line]) is warned
     if warned:  # B = 1/A per pump, range 1.2e-4: ratio (1/A) / (1.2e-4/A) = 8333
-        assert "8.33e+03 times" in hit[0]
+        assert "8.33e+03 times" in hit[0] and "m^3/s" in hit[0]

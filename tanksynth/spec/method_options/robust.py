@@ -24,6 +24,8 @@ import numpy as np
 
 from tanksynth.errors import SpecError
 from tanksynth.spec.method_options.base import MethodOptions, OptionReader, option, time_domain_of
+from tanksynth.spec.method_options.synthesis import (DISTURBANCE_FRACTION, auto_disturbance_std,
+                                                     nominal_input_matrix)
 from tanksynth.spec.options import (did_you_mean, parse_bool, parse_choice, parse_integer,
                                     parse_matrix, parse_names, parse_number, parse_region,
                                     parse_vector, region_is_stable)
@@ -138,6 +140,26 @@ def _common(r: OptionReader, plant: Any, ts: float | None) -> dict[str, Any]:
             "seed": r.read("seed", parse_integer, at_least=0)}
 
 
+def _default_Bw(plant: Any, observer: bool) -> np.ndarray | None:
+    """The H-infinity channel's default ``Bw`` (continuous time), sized by the pumps.
+
+    State feedback: ``B diag(0.1 range)``, a disturbance entering like each pump
+    with 10 % of its range; observer: ``s I`` with ``s`` 10 % of the pumps'
+    authority ``max |B_ik| range_k`` (a level-rate disturbance on every state,
+    state unit per s). ``B`` at the region box centre, nominal parameters. None
+    (the unscaled ``B`` / identity of every vertex) where the plant gives no
+    finite input range or input map.
+    """
+    if observer:
+        s = auto_disturbance_std(plant, np.eye(plant.n))
+        return np.diag(s)
+    B = nominal_input_matrix(plant)
+    ranges = np.array([float(hi) - float(lo) for lo, hi in plant.input_limits], dtype=float)
+    if B is None or not np.all(np.isfinite(ranges) & (ranges > 0)):
+        return None
+    return B * (DISTURBANCE_FRACTION * ranges)[None, :]
+
+
 _COMMON_DOC = """
     region : tuple of tuple
         Required. The LMI region every vertex's eigenvalues must lie in, a
@@ -158,8 +180,10 @@ _COMMON_DOC = """
         H-infinity bound at every vertex (units of ``z`` per unit of ``w``; at most 1e12);
         default None (no H-infinity constraint).
     Bw : ndarray or None
-        Continuous-time disturbance input matrix (n x nw, state units per s
-        per disturbance unit); default {bw}.
+        Continuous-time disturbance input matrix of the ``gamma`` channel (n
+        x nw, state units per s per unit of the normalised ``w``), default
+        with ``gamma`` {bw}, taken at the region box centre with the nominal
+        parameters. Without ``gamma`` it is unused (None).
     Cz : ndarray or None
         Performance output matrix on the plant states (nz x n); default the
         identity (every state, state units).{dzu}
@@ -186,8 +210,8 @@ class RobustStateFeedbackOptions(MethodOptions):
     every vertex of the parameter box, with a common Lyapunov matrix.
 
     Attributes
-    ----------{_COMMON_DOC.format(bw="the input matrix B of each vertex (disturbances entering "
-                                     "like the pumps' flows)",
+    ----------{_COMMON_DOC.format(bw="``B diag(0.1 (umax - umin))``: a disturbance entering "
+                                     "like each pump with 10 % of its range (input units)",
                                   dzu='''
     Dzu : ndarray or None
         Feedthrough of the inputs to ``z`` (nz x m, z units per input unit);
@@ -226,8 +250,8 @@ class RobustStateFeedbackOptions(MethodOptions):
     Cz: np.ndarray | None = option(None, unit="performance units per state unit")
     Dzu: np.ndarray | None = option(None, unit="performance units per input unit")
     saturation: bool = option(False, unit="-")
-    umax: np.ndarray | None = option(None, unit="input units (m^3/s)")
-    box: np.ndarray | None = option(None, unit="state units (m)")
+    umax: np.ndarray | None = option(None, unit="input units")
+    box: np.ndarray | None = option(None, unit="state units")
     margin: float = option(1e-6, unit="-")
     kappa: float = option(1e4, unit="-")
     solver: str = option("CLARABEL", unit="-")
@@ -250,6 +274,8 @@ class RobustStateFeedbackOptions(MethodOptions):
         if integral and tracked is None:
             tracked = tuple(outputs[:m])
         Bw = r.read("Bw", parse_matrix, (n, None))
+        if Bw is None and common["gamma"] is not None:
+            Bw = _default_Bw(plant, observer=False)
         Cz = r.read("Cz", parse_matrix, (None, n))
         nz = Cz.shape[0] if Cz is not None else n
         Dzu = r.read("Dzu", parse_matrix, (nz, m))
@@ -274,7 +300,9 @@ class RobustObserverOptions(MethodOptions):
     common Lyapunov matrix (dual of `RobustStateFeedbackOptions`).
 
     Attributes
-    ----------{_COMMON_DOC.format(bw="the identity (a disturbance flow into every state)", dzu="")}
+    ----------{_COMMON_DOC.format(bw="``s I``: a disturbance on every state's rate of 10 % of the "
+                                     "pumps' authority ``s = 0.1 max_ik |B_ik| range_k`` (state "
+                                     "units per s)", dzu="")}
     """
 
     method_name: ClassVar[str] = "robust_observer"
@@ -299,5 +327,7 @@ class RobustObserverOptions(MethodOptions):
         r = OptionReader(cls, options, key, ts)
         common = _common(r, plant, ts)
         n = plant.n
-        return cls(**common, Bw=r.read("Bw", parse_matrix, (n, None)),
-                   Cz=r.read("Cz", parse_matrix, (None, n)))
+        Bw = r.read("Bw", parse_matrix, (n, None))
+        if Bw is None and common["gamma"] is not None:
+            Bw = _default_Bw(plant, observer=True)
+        return cls(**common, Bw=Bw, Cz=r.read("Cz", parse_matrix, (None, n)))

@@ -9,7 +9,12 @@ All use the Jacobian linearisation at the operating point (ZOH-discretised with
 
 ``w`` and ``v`` are normalised (unit intensity); ``Bw`` is given in continuous
 time (the physical disturbance) and ZOH-discretised with the plant in discrete
-time. Defaults follow Bryson's rule, so ``z`` is dimensionless:
+time. ``disturbance_std = "auto"`` (the default) sizes each disturbance from the
+pumps (`auto_disturbance_std`): its largest effect on a state's rate is
+`DISTURBANCE_FRACTION` (10 %) of the largest rate a pump produces over its full
+range, so with ``Bw = "inflows"`` each tank receives an unknown inflow in the
+plant's own volume-flow unit (1.2e-5 m^3/s, 10 % of a pump, for the SI
+three-tank; 2.3 - 2.7 cm^3/s for ``tank_network`` whose pumps are driven in V). Defaults follow Bryson's rule, so ``z`` is dimensionless:
 ``Q = diag(1 / span_i^2)`` over the operating region's box and ``R = diag(1 /
 range_j^2)`` over the actuators' ranges; ``Cz = [Q^1/2; 0]``, ``Dzu = [0;
 R^1/2]`` for state feedback and ``Cz = Q^1/2`` for observers.
@@ -26,14 +31,17 @@ from tanksynth.spec.method_options.base import MethodOptions, OptionReader, opti
 from tanksynth.spec.options import (parse_choice, parse_covariance, parse_matrix, parse_number,
                                     parse_region, parse_vector, region_is_stable)
 
-__all__ = ["DISTURBANCE_SHORTCUTS", "SYNTHESIS_OBJECTIVES", "SYNTHESIS_SOLVERS", "SYNTHESIS_TARGETS",
+__all__ = ["DISTURBANCE_SHORTCUTS", "DISTURBANCE_FRACTION", "SYNTHESIS_OBJECTIVES", "SYNTHESIS_SOLVERS", "SYNTHESIS_TARGETS",
            "SYNTHESIS_ROUTES",
-           "inflow_matrix", "bryson_state_weight", "bryson_input_weight",
+           "inflow_matrix", "auto_disturbance_std", "nominal_input_matrix", "bryson_state_weight", "bryson_input_weight",
            "H2StateFeedbackOptions", "H2ObserverOptions", "HinfStateFeedbackOptions",
            "HinfObserverOptions", "MultiobjectiveOptions"]
 
 #: Shortcuts for ``Bw``.
 DISTURBANCE_SHORTCUTS = ("inflows",)
+#: ``disturbance_std = "auto"``: each disturbance's largest effect on a state's rate, as a
+#: fraction of the largest rate a pump produces over its full range (`auto_disturbance_std`).
+DISTURBANCE_FRACTION = 0.1
 #: Largest disturbance or measurement standard deviation accepted (in the signal's unit; far
 #: beyond any physical tank signal, and its square keeps the Riccati/LMI data representable).
 MAX_STD = 1e10
@@ -83,6 +91,86 @@ def inflow_matrix(plant: Any, key: str = "Bw") -> np.ndarray:
     if np.any(areas <= 0):
         raise SpecError(f"tank areas must be > 0, got {areas.tolist()}", key=key)
     return np.diag(1.0 / areas)
+
+
+def auto_disturbance_std(plant: Any, Bw: np.ndarray) -> np.ndarray:
+    """The ``disturbance_std = "auto"`` size of each disturbance (disturbance units).
+
+    Each column ``j`` of ``Bw`` is scaled so that its largest effect on a state's
+    rate is `DISTURBANCE_FRACTION` (10 %) of the pumps' authority, the largest
+    ``|B_ik| (umax_k - umin_k)`` (state unit per s)::
+
+        std_j = 0.1 max_ik |B_ik| range_k / max_i |Bw_ij|
+
+    ``B`` is the input Jacobian at the centre of the operating region's box with
+    every input at mid-range (constant for tank plants, whose pumps enter
+    affinely). With ``Bw = "inflows"`` (``diag(1 / A_i)``) this is an unknown
+    inflow into each tank that raises its level at 10 % of the fastest rate a
+    pump raises any level at full range, in the plant's volume-flow unit (level
+    unit x area unit per s): 1.2e-5 m^3/s for the three-tank (pumps of 1.2e-4
+    m^3/s straight into tanks of equal area), ``0.1 x 0.7 x 3.33 cm^3/(V s) x
+    10 V x A_j / 28 cm^2`` = 2.33 / 2.66 cm^3/s for ``tank_network``
+    (``"decenter"``: 28 / 32 cm^2 tanks). A column of zeros, or a plant without
+    finite input ranges or input authority, gets 1 (disturbance unit).
+
+    Parameters
+    ----------
+    plant : Plant
+        The plant (input limits in input units, region box in state units).
+    Bw : ndarray, shape (n, nw)
+        Continuous-time disturbance input matrix (state unit per s per disturbance unit).
+
+    Returns
+    -------
+    ndarray, shape (nw,)
+        One standard deviation per disturbance (disturbance units), > 0.
+    """
+    Bw = np.asarray(Bw, dtype=float)
+    std = np.ones(Bw.shape[1])
+    ranges = np.array([float(hi) - float(lo) for lo, hi in plant.input_limits], dtype=float)
+    if not np.all(np.isfinite(ranges)) or not np.any(ranges > 0):
+        return std
+    B = nominal_input_matrix(plant)
+    if B is None:
+        return std
+    authority = float(np.max(np.abs(B) * ranges[None, :]))
+    if not np.isfinite(authority) or authority <= 0:
+        return std
+    col = np.max(np.abs(Bw), axis=0) if Bw.size else np.zeros(0)
+    ok = np.isfinite(col) & (col > 0)
+    std[ok] = DISTURBANCE_FRACTION * authority / col[ok]
+    return np.minimum(std, MAX_STD)
+
+
+def nominal_input_matrix(plant: Any) -> np.ndarray | None:
+    """The input Jacobian ``B = df/du`` at the centre of the region box, inputs at mid-range.
+
+    Tank plants take their pumps affinely, so ``B`` (state unit per s per input
+    unit) does not depend on the point; the operating point is not known when
+    options are read, hence the box centre (a finite bound where the other is
+    infinite, else 0).
+
+    Parameters
+    ----------
+    plant : Plant
+        The plant (region box in state units, input limits in input units).
+
+    Returns
+    -------
+    ndarray, shape (n, m), or None
+        ``B``, or None where the input map cannot be evaluated there (not finite).
+    """
+    lo = np.array([float(b[0]) for b in plant.region.bounds], dtype=float)
+    hi = np.array([float(b[1]) for b in plant.region.bounds], dtype=float)
+    x = np.where(np.isfinite(lo) & np.isfinite(hi), 0.5 * (lo + hi),
+                 np.where(np.isfinite(lo), lo, np.where(np.isfinite(hi), hi, 0.0)))
+    u = np.array([0.5 * (float(a) + float(b)) if np.isfinite(float(a)) and np.isfinite(float(b))
+                  else 0.0 for a, b in plant.input_limits], dtype=float)
+    try:
+        B = np.asarray(plant.compiled.jacobians(x[None], u[None])[1], float).reshape(plant.n, plant.m)
+    except Exception:  # noqa: BLE001 - an input map that cannot be evaluated at the box centre
+        return None
+    return B if np.all(np.isfinite(B)) else None
 
 
 def _span(bounds: Any, size: int) -> np.ndarray:
@@ -138,9 +226,14 @@ _COMMON_DOC = """
         Disturbance input matrix in continuous time, n x nw (state unit per s
         per disturbance unit), or ``"inflows"`` (default): a unit inflow into
         each tank, ``diag(1 / A_i)`` from the plant's tank areas.
-    disturbance_std : ndarray
-        Size of each disturbance (disturbance units; with ``"inflows"``
-        m^3/s for SI plants): one number for all or nw numbers, each in (0, 1e10]; default 1.
+    disturbance_std : ndarray or str
+        Size of each disturbance, default ``"auto"``: each moves a state at
+        most 10 % as fast as the pumps at full range (``std_j = 0.1 max|B
+        diag(range)| / max_i |Bw_ij|``; with ``"inflows"`` an inflow in the
+        plant's volume-flow unit, 1.2e-5 m^3/s on the three-tank, 2.3 - 2.7
+        cm^3/s on ``tank_network``). Else one number for all or nw numbers,
+        each in (0, 1e10], in disturbance units (with ``"inflows"``: level
+        unit x tank-area unit per s); see ``auto_disturbance_std``.
     Q : ndarray
         State weight (n x n, symmetric positive semidefinite, 1 / state unit^2);
         default Bryson's ``diag(1 / span_i^2)`` over the region box.
@@ -189,8 +282,11 @@ def _common(r: OptionReader, plant: Any, ts: float | None, observer: bool) -> di
     else:
         Bw = np.array(parse_matrix(raw, r.key("Bw"), (n, None)))
     nw = Bw.shape[1]
-    raw_w = r.options.get("disturbance_std", 1.0)
-    if _is_scalar(raw_w):
+    raw_w = r.options.get("disturbance_std", "auto")
+    if isinstance(raw_w, str):
+        parse_choice(raw_w, r.key("disturbance_std"), ("auto",))
+        std = auto_disturbance_std(plant, Bw)
+    elif _is_scalar(raw_w):
         std = np.full(nw, parse_number(raw_w, r.key("disturbance_std"), above=0.0, at_most=MAX_STD))
     else:
         std = parse_vector(raw_w, r.key("disturbance_std"), nw)
@@ -250,7 +346,8 @@ class _SynthesisOptions(MethodOptions):
 
     time_domain: str | None = option(None, unit="-")
     Bw: Any = option("inflows", unit="state units/s per disturbance unit")
-    disturbance_std: Any = option(1.0, unit="disturbance units (m^3/s)")
+    disturbance_std: Any = option("auto", unit="disturbance units (\"inflows\": level unit x "
+                                                   "area unit / s)")
     Q: Any = option(None, unit="1/(state units)^2")
     Cz: Any = option(None, unit="performance units per state unit")
     margin: float = option(1e-9, unit="-")
@@ -293,7 +390,7 @@ class H2ObserverOptions(_SynthesisOptions):
     """
 
     method_name: ClassVar[str] = "h2_observer"
-    measurement_std: Any = option(None, unit="output units (m)")
+    measurement_std: Any = option(None, unit="output units")
     route: str = option("auto", unit="-")
 
     @classmethod
@@ -345,7 +442,7 @@ class HinfObserverOptions(_SynthesisOptions):
     """
 
     method_name: ClassVar[str] = "hinf_observer"
-    measurement_std: Any = option(None, unit="output units (m)")
+    measurement_std: Any = option(None, unit="output units")
     backoff: float = option(1e-3, unit="-")
     route: str = option("auto", unit="-")
 
@@ -387,7 +484,7 @@ class MultiobjectiveOptions(_StateFeedbackOptions):
     objective: str = option("hinf", unit="-")
     h2_bound: float | None = option(None, unit="-")
     hinf_bound: float | None = option(None, unit="-")
-    measurement_std: Any = option(None, unit="output units (m)")
+    measurement_std: Any = option(None, unit="output units")
     backoff: float = option(1e-3, unit="-")
 
     @classmethod
