@@ -249,6 +249,13 @@ def run_ts_observer(spec: "Spec", design: "DesignSpec") -> DesignResult:
         caveats.append(f"psi = {res.psi:.4g} 1/s was {how}, "
                        f"not derived from the region; sampled Lipschitz constant of Delta on the "
                        f"domain: {lip.value:.4g} 1/s ({'covered' if certified else 'NOT covered'})")
+        if not certified:  # the LMI holds, but it certifies nothing on this plant and region
+            bound = ("unbounded (the region reaches a point where a sqrt has infinite slope, e.g. "
+                     "equal heads without orderings)" if not np.isfinite(lip.value)
+                     else f"{lip.value:.4g} 1/s")
+            warnings.warn(f"psi = {res.psi:.4g} 1/s ({how}) does not cover the Lipschitz constant "
+                          f"of the TS remainder on the region, {bound}: the observer LMI holds but "
+                          "certifies no convergence on the plant", DesignWarning, stacklevel=2)
     diagnostics.update({
         "psi_source": psi_source,
         "ts_model": ts.as_dict(),

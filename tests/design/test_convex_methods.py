@@ -128,3 +128,25 @@ def test_matrix_latex_is_sympys_text():
               np.zeros((2, 2)), np.round(rng.normal(size=(12, 3)) * 1e-7, 8), np.ones((1, 11)),
               np.array([[1e20, -0.0], [3.0, 0.5]]), np.array([[1.0]])):
         assert _matrix_latex(M) == sp.latex(sp.Matrix(M))
+
+
+def test_uncovered_psi_warns_that_nothing_is_certified():
+    """Seed 001's safe variant maximises psi on a region without orderings, where the remainder's
+    Lipschitz constant is unbounded (sqrt of a head difference at equal heads): the LMI holds,
+    but the design must say it certifies nothing; a psi that covers the constant says nothing."""
+    from pathlib import Path
+
+    from tanksynth.methods import load_spec
+
+    spec = load_spec(Path(__file__).parents[2] / "examples" / "seed001_ts_observer.toml")
+    by_name = {d.name: d for d in spec.designs}
+    for name, expect in (("ts_observer_paper_safe", True), ("ts_observer_certified", False)):
+        entry = by_name[name]
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always", DesignWarning)
+            res = METHODS[entry.method].design(spec, entry)
+        said = [str(w.message) for w in caught if "certifies no convergence" in str(w.message)]
+        assert bool(said) is expect, (name, said)
+        if expect:
+            assert "unbounded" in said[0]
+            assert not np.isfinite(res.diagnostics["lipschitz"]["value"])
