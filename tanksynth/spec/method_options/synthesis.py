@@ -47,6 +47,9 @@ SYNTHESIS_OBJECTIVES = ("hinf", "h2")
 SYNTHESIS_SOLVERS = ("CLARABEL", "SCS")
 #: How a pure H2 / H-infinity design is solved (``multiobjective`` always uses the LMIs).
 SYNTHESIS_ROUTES = ("auto", "riccati", "lmi")
+#: What ``route = "auto"`` does (the catalogue's default text).
+_ROUTE_TEXT = 'computed: "riccati", "lmi" when the Riccati route does not apply'
+
 #: What ``multiobjective`` designs.
 SYNTHESIS_TARGETS = ("state_feedback", "observer")
 
@@ -275,7 +278,7 @@ class H2StateFeedbackOptions(_StateFeedbackOptions):
     """
 
     method_name: ClassVar[str] = "h2_state_feedback"
-    route: str = option("auto", unit="-", choices=SYNTHESIS_ROUTES)
+    route: str = option("auto", unit="-", choices=SYNTHESIS_ROUTES, default_text=_ROUTE_TEXT)
 
     @classmethod
     def from_table(cls, options: Mapping[str, Any], key: str, plant: Any,
@@ -296,7 +299,7 @@ class H2ObserverOptions(_SynthesisOptions):
 
     method_name: ClassVar[str] = "h2_observer"
     measurement_std: Any = option(None, unit="output units (m)")
-    route: str = option("auto", unit="-", choices=SYNTHESIS_ROUTES)
+    route: str = option("auto", unit="-", choices=SYNTHESIS_ROUTES, default_text=_ROUTE_TEXT)
 
     @classmethod
     def from_table(cls, options: Mapping[str, Any], key: str, plant: Any,
@@ -326,7 +329,7 @@ class HinfStateFeedbackOptions(_StateFeedbackOptions):
 
     method_name: ClassVar[str] = "hinf_state_feedback"
     backoff: float = option(1e-3, unit="-")
-    route: str = option("auto", unit="-", choices=SYNTHESIS_ROUTES)
+    route: str = option("auto", unit="-", choices=SYNTHESIS_ROUTES, default_text=_ROUTE_TEXT)
 
     @classmethod
     def from_table(cls, options: Mapping[str, Any], key: str, plant: Any,
@@ -349,7 +352,7 @@ class HinfObserverOptions(_SynthesisOptions):
     method_name: ClassVar[str] = "hinf_observer"
     measurement_std: Any = option(None, unit="output units (m)")
     backoff: float = option(1e-3, unit="-")
-    route: str = option("auto", unit="-", choices=SYNTHESIS_ROUTES)
+    route: str = option("auto", unit="-", choices=SYNTHESIS_ROUTES, default_text=_ROUTE_TEXT)
 
     @classmethod
     def from_table(cls, options: Mapping[str, Any], key: str, plant: Any,
