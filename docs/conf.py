@@ -65,10 +65,14 @@ def _api_pages() -> None:
 
     import tanksynth
 
+    # private modules (a ``_``-prefixed part: tanksynth._lazy, __main__) are not API
     names = sorted(m.name for m in pkgutil.walk_packages(tanksynth.__path__, "tanksynth.")
-                   if not m.name.endswith("__main__"))
+                   if not any(part.startswith("_") for part in m.name.split(".")))
     api = GENERATED / "api"
     api.mkdir(parents=True, exist_ok=True)
+    for stale in api.glob("*.md"):  # a page of a module gone (or now private) from an older build
+        if stale.stem not in ("index", "tanksynth", *names):
+            stale.unlink()
     for name in ["tanksynth", *names]:
         text = (f"# `{name}`\n\n```{{eval-rst}}\n.. automodule:: {name}\n"
                 + ("   :no-index:\n" if name == "tanksynth" else "") + "```\n")
@@ -115,7 +119,9 @@ class _KnownWarnings:
 
 
 def _write_seen(app, exception) -> None:
-    (Path(app.outdir) / "known_warnings_seen.txt").write_text(
+    """Note the known warnings met next to the html directory (not inside the published site)."""
+    (Path(app.outdir) / "known_warnings_seen.txt").unlink(missing_ok=True)  # left by older builds
+    (Path(app.outdir).parent / "known_warnings_seen.txt").write_text(
         "".join(f"{k}\n" for k in sorted(_seen_known)), encoding="utf-8")
 
 

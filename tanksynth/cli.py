@@ -332,7 +332,8 @@ def plants(as_json: bool, markdown: bool) -> None:
 @click.option("--markdown", is_flag=True, help="Print Markdown (the README's text).")
 def methods(name: str | None, as_json: bool, markdown: bool) -> None:
     """List the design methods; with NAME, each of its options (type, default, unit, meaning)."""
-    from tanksynth.docgen import method_catalogue, method_markdown, method_options, methods_markdown
+    from tanksynth.docgen import (method_catalogue, method_markdown, method_options, methods_markdown,
+                                  option_cells)
 
     if markdown:
         click.echo(method_markdown(name) if name else methods_markdown(), nl=False)
@@ -360,11 +361,12 @@ def methods(name: str | None, as_json: bool, markdown: bool) -> None:
     from rich.markup import escape
 
     table = Table(title=escape(f"{row.name} ({' / '.join(row.kinds)}): {row.summary}"))
-    for col in ("option", "type", "default", "unit", "meaning"):
-        table.add_column(col, overflow="fold")
+    for col, ratio in (("option", 2), ("type", 2), ("default", 2), ("unit", 2), ("meaning", 3)):
+        table.add_column(col, overflow="fold", ratio=ratio, min_width=15 if col == "unit" else None)
     for d in docs:
-        table.add_row(*(escape(d[k].replace("``", "")) for k in ("name", "type")),
-                      "[bold]required[/]" if d["required"] else escape(d["default"]),
+        typ, default = option_cells(d)
+        table.add_row(escape(d["name"]), escape(typ),
+                      "[bold]required[/]" if d["required"] else escape(default),
                       *(escape(d[k].replace("``", "")) for k in ("unit", "meaning")))
     _out.print(table if docs else f"{row.name}: no options")
 

@@ -22,7 +22,7 @@ from typing import Any, Callable
 from tanksynth.errors import SpecError
 from tanksynth.spec.method_options.base import numpydoc_section
 
-__all__ = ["method_catalogue", "method_options", "methods_markdown", "method_markdown",
+__all__ = ["method_catalogue", "method_options", "methods_markdown", "method_markdown", "option_cells",
            "plant_families", "plants_markdown", "plant_markdown", "custom_plant_markdown",
            "GENERATED_SECTIONS", "generated_section", "update_readme", "write_pages", "main"]
 
@@ -64,6 +64,34 @@ def method_options(name: str) -> list[dict[str, Any]]:
     return [d.as_dict() for d in method(name).options.describe()]
 
 
+def option_cells(doc: dict[str, Any]) -> tuple[str, str]:
+    """The type and default texts of one option of the catalogue (README, ``tanksynth methods``).
+
+    The type lists every allowed value of a choice option (``str: "auto" | "lmi"``);
+    the default says what a None or computed default IS (``computed: ...``).
+
+    Parameters
+    ----------
+    doc : dict
+        One entry of `method_options`.
+
+    Returns
+    -------
+    (str, str)
+        The type text and the default text (``"required"`` for a required option).
+    """
+    typ = doc["type"].replace("``", "")
+    if doc["choices"]:
+        typ += (": " if typ.startswith("str") else " or ") + " | ".join(doc["choices"])
+    if doc["required"]:
+        return typ, "required"
+    default = doc["default"]
+    if doc["default_text"]:
+        text = doc["default_text"].replace("``", "")
+        default = text if default == "None" else f"{default} ({text})"
+    return typ, default
+
+
 def _cell(text: str) -> str:
     return " ".join(str(text).split()).replace("|", "\\|")
 
@@ -97,9 +125,15 @@ def method_markdown(name: str, level: int = 3) -> str:
     if not docs:
         lines += ["No options.", ""]
     else:
-        lines += _table(("option", "type", "default", "unit", "meaning"),
-                        [(f"`{d.name}`", d.type, "**required**" if d.required else f"`{d.default}`",
-                          d.unit, d.meaning) for d in docs])
+        rows = []
+        for d in docs:
+            typ, default = option_cells(d.as_dict())
+            if d.required:
+                default = "**required**"
+            elif not d.default_text:
+                default = f"`{default}`"
+            rows.append((f"`{d.name}`", typ, default, d.unit, d.meaning))
+        lines += _table(("option", "type", "default", "unit", "meaning"), rows)
         lines.append("")
     return "\n".join(lines)
 

@@ -138,3 +138,84 @@ def test_check_output_writes_checks_json(tmp_path, capsys):
     assert written == json.loads(out)
     by_name = {c["check"]: c for c in written}
     assert by_name["observability"]["data"]["rank"] == 3
+
+
+def _examples_by_method() -> dict[str, tuple[Path, int]]:
+    """One example spec (and the index of its [[design]] table) per method."""
+    import tomllib
+
+    found: dict[str, tuple[Path, int]] = {}
+    for path in sorted((ROOT / "examples").glob("*.toml")):
+        data = tomllib.loads(path.read_text(encoding="utf-8"))
+        for i, table in enumerate(data.get("design", [])):
+            found.setdefault(table["method"], (path, i))
+    return found
+
+
+EXAMPLES_BY_METHOD = _examples_by_method()
+
+
+@pytest.mark.parametrize("row", TABLE, ids=lambda r: r.name)
+def test_catalogue_row_says_what_a_none_default_is(row):
+    """Every option whose default is None says what the default IS, and its type admits None."""
+    section = docgen.generated_section((ROOT / "README.md").read_text(encoding="utf-8"), "methods")
+    for d in row.options.describe():
+        if d.default != "None":
+            continue
+        assert d.default_text, f"{row.name}.{d.name}: default None without a default_text"
+        assert "None" in d.type, f"{row.name}.{d.name}: type {d.type!r} does not admit None"
+        line = next(ln for ln in section.split(f"### `{row.name}`", 1)[1].splitlines()
+                    if ln.startswith(f"| `{d.name}` |"))
+        cells = [c.strip() for c in re.split(r"(?<!\\)\|", line)[1:-1]]
+        assert cells[2] == docgen._cell(d.default_text.replace("``", "")), (row.name, d.name, cells)
+
+
+@pytest.mark.parametrize("row", [r for r in TABLE if r.name in EXAMPLES_BY_METHOD],
+                         ids=lambda r: r.name)
+def test_catalogue_row_lists_every_allowed_value_of_a_choice(row, capsys):
+    """Each option is given a word no reader accepts: when the reader answers 'expected one of
+    [...]', every value it names must be in the README row and in ``tanksynth methods NAME``."""
+    import tomllib
+
+    from tanksynth.errors import SpecError
+    from tanksynth.methods import parse_spec
+
+    path, index = EXAMPLES_BY_METHOD[row.name]
+    section = docgen.generated_section((ROOT / "README.md").read_text(encoding="utf-8"), "methods")
+    rows = section.split(f"### `{row.name}`", 1)[1].split("\n### ", 1)[0]
+    _, cli_out, _ = run_cli(capsys, "methods", row.name, "--markdown")
+    probed = 0
+    for name in row.options.option_names():
+        if name == "method":  # the [[design]] key `method` names the design method
+            continue
+        data = tomllib.loads(path.read_text(encoding="utf-8"))
+        data["design"][index][name] = "zz_not_a_value"
+        try:
+            parse_spec(data, source=str(path))
+        except SpecError as exc:
+            match = re.search(r"expected one of \[(.*?)\]", str(exc))
+            if match is None or f"design[{index}].{name}" not in str(exc):
+                continue
+            allowed = [eval(v) for v in re.findall(r"'[^']*'|-?[\d.e+-]+", match.group(1))]
+            line = next(ln for ln in rows.splitlines() if ln.startswith(f"| `{name}` |"))
+            for value in allowed:
+                shown = f'"{value}"' if isinstance(value, str) else repr(value)
+                assert shown in line, f"{row.name}.{name}: allowed value {shown} not in {line}"
+                assert shown in cli_out
+            probed += 1
+    declared = [d for d in row.options.describe() if d.choices]
+    assert probed >= len([d for d in declared if d.name not in ("pole_domain", "method")]), \
+        (row.name, probed)
+
+
+def test_catalogue_shows_route_choices_and_the_poles_table_form(capsys):
+    code, out, _ = run_cli(capsys, "methods", "h2_state_feedback", "--markdown")
+    assert '"auto" \\| "riccati" \\| "lmi"' in out
+    assert "| `Q` | ndarray or None | computed: Bryson's" in out
+    code, out, _ = run_cli(capsys, "methods", "pole_placement", "--markdown")
+    assert "{values, domain}" in out and '"s" \\| "z"' in out
+    code, out, _ = run_cli(capsys, "methods", "kalman", "--json")
+    x0 = {o["name"]: o for o in json.loads(out)["options"]}["x0"]
+    assert x0["default"] == "None" and x0["default_text"] == "computed: the operating point"
+    code, out, _ = run_cli(capsys, "methods", "h2_state_feedback")
+    assert code == 0 and "riccati" in out and "Bryson" in out

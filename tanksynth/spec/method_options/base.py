@@ -21,10 +21,11 @@ from tanksynth.errors import SpecError
 from tanksynth.spec.options import unknown_word_hint
 
 __all__ = ["MethodOptions", "OptionReader", "OptionDoc", "option", "numpydoc_section", "time_domain_of",
-           "MEMORY_BUDGET", "memory_budget"]
+           "MEMORY_BUDGET", "memory_budget", "TIME_DOMAIN_TEXT"]
 
 
-def option(default: Any = MISSING, *, unit: str, doc: str = "") -> Any:
+def option(default: Any = MISSING, *, unit: str, doc: str = "", default_text: str = "",
+           choices: tuple[Any, ...] = ()) -> Any:
     """A field of an Options dataclass that declares its unit (and, optionally, its meaning).
 
     Use it as the field's default: ``margin: float = option(1e-6, unit="-")``;
@@ -41,15 +42,25 @@ def option(default: Any = MISSING, *, unit: str, doc: str = "") -> Any:
     doc : str, optional
         One line of meaning; default the first sentence of the option's entry
         in the class docstring's ``Attributes`` section.
+    default_text : str, optional
+        What a default of None (or a computed default) IS, in a few words
+        (``"the operating point"``); default the ``default ...`` clause of the
+        option's docstring entry.
+    choices : tuple, optional
+        The allowed values of a choice option (the tuple its reader passes to
+        `tanksynth.spec.options.parse_choice`).
 
     Returns
     -------
     dataclasses.Field
-        The field, its ``metadata`` holding ``unit`` and ``doc``.
+        The field, its ``metadata`` holding ``unit``, ``doc``, ``default_text``
+        and ``choices``.
     """
     if not isinstance(unit, str) or not unit:
         raise TypeError("option(): unit must be a non-empty string ('-' when dimensionless)")
-    return dataclasses.field(default=default, metadata={"unit": unit, "doc": doc})
+    return dataclasses.field(default=default, metadata={"unit": unit, "doc": doc,
+                                                        "default_text": default_text,
+                                                        "choices": tuple(choices)})
 
 
 @dataclass(frozen=True)
@@ -72,6 +83,11 @@ class OptionDoc:
         One line (the field's ``doc``, else the first sentence of its docstring entry).
     description : str
         The whole docstring entry (one paragraph), ``""`` if undocumented.
+    default_text : str
+        What the default IS when it is None or computed (``"computed: the
+        operating point"``), ``""`` for a plain default.
+    choices : tuple of str
+        The allowed values of a choice option (``repr`` of each), ``()`` otherwise.
     """
 
     name: str
@@ -81,6 +97,8 @@ class OptionDoc:
     unit: str
     meaning: str
     description: str
+    default_text: str = ""
+    choices: tuple[str, ...] = ()
 
     def as_dict(self) -> dict[str, Any]:
         """JSON-friendly fields."""
@@ -146,6 +164,27 @@ def _first_sentence(text: str) -> str:
             if not re.search(r"(\be\.g|\bi\.e|\bcf|\bvs|\bet al)$", text[:i]):
                 return text[:i]
     return text.rstrip(".;")
+
+
+def _default_clause(text: str) -> str:
+    """The ``default ...`` clause of a docstring entry, without a leading ``None``.
+
+    ``"...; default None: the operating point."`` gives ``"the operating point"``;
+    ``""`` when the entry has no such clause (or says only ``default None``).
+    """
+    match = re.search(r"(?:^|[.;,]\s+|\(|\s)[Dd]efault(?:s)?(?::)?\s+(?!when\b|with\b|without\b)(.*)",
+                      text)
+    if not match:
+        return ""
+    clause = _first_sentence(match.group(1)).replace("``", "")
+    clause = re.sub(r"^None\b\s*[:,]?\s*", "", clause).strip()
+    if clause.startswith("(") and clause.endswith(")"):
+        clause = clause[1:-1].strip()
+    return clause
+
+
+#: The computed default of a linear design's ``time_domain`` (its `option` ``default_text``).
+TIME_DOMAIN_TEXT = '"discrete" with [sampling] ts, else "continuous"'
 
 #: Default memory budget of one design (bytes): a design whose estimated arrays exceed it is
 #: refused at spec validation (exit 2 naming the option that drives the size), before it
@@ -306,8 +345,20 @@ class MethodOptions:
             required = f.default is MISSING and f.default_factory is MISSING
             default = "required" if required else repr(cls.default(f.name))
             meaning = f.metadata.get("doc") or _first_sentence(text)
-            out.append(OptionDoc(f.name, typ or str(f.type), default, required,
-                                 f.metadata.get("unit", ""), meaning, text))
+            typ = typ or str(f.type)
+            computed = ""
+            if not required and cls.default(f.name) is None:
+                if "None" not in typ:  # the key may be left out: say so in the type
+                    typ += " or None"
+                computed = f.metadata.get("default_text") or _default_clause(text)
+            elif not required:
+                computed = f.metadata.get("default_text", "")
+            if computed and not computed.startswith(("computed:", "unset:")):
+                computed = f"computed: {computed}"
+            choices = tuple(repr(c).replace("'", '"') if isinstance(c, str) else repr(c)
+                            for c in f.metadata.get("choices", ()))
+            out.append(OptionDoc(f.name, typ, default, required, f.metadata.get("unit", ""),
+                                 meaning, text, computed, choices))
         return tuple(out)
 
     @classmethod

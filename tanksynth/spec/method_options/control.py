@@ -56,8 +56,9 @@ class FeedbackLinearizationOptions(MethodOptions):
     method_name: ClassVar[str] = "feedback_linearization"
 
     tracked: tuple[str, ...] | None = option(None, unit="-")
-    poles: tuple[complex, ...] | None = option(None, unit="1/s")
-    bandwidth: np.ndarray | None = option(None, unit="1/s")
+    poles: tuple[complex, ...] | None = option(None, unit="1/s",
+                                               default_text="unset: give poles or bandwidth")
+    bandwidth: np.ndarray | None = option(None, unit="1/s", default_text="unset: give poles or bandwidth")
     saturate: bool = option(True, unit="-")
     allow_unstable_zero_dynamics: bool = option(False, unit="-")
     grid: int = option(11, unit="-")
@@ -126,10 +127,10 @@ class IntegralTrackingOptions(MethodOptions):
 
     poles: tuple[complex, ...] = option(unit="- (z-plane)")
     tracked: tuple[str, ...] | None = option(None, unit="-")
-    method: str = option("auto", unit="-")
-    anti_windup: str = option("back_calculation", unit="-")
+    method: str = option("auto", unit="-", choices=PLACE_METHODS)
+    anti_windup: str = option("back_calculation", unit="-", choices=ANTI_WINDUP_SCHEMES)
     aw_gain: float = option(1.0, unit="-")
-    reference_gain: np.ndarray | None = option(None, unit="units of K")
+    reference_gain: np.ndarray | None = option(None, unit="units of K", default_text="unset: no comparison")
 
     @classmethod
     def from_table(cls, options: Mapping[str, Any], key: str, plant: Any,

@@ -99,7 +99,7 @@ class DecentralizedKalmanOptions(MethodOptions):
     needs_sampling: ClassVar[bool] = True
 
     process_noise: float | np.ndarray = option(unit="(state units)^2/s")
-    algorithm: str = option("iterative", unit="-")
+    algorithm: str = option("iterative", unit="-", choices=DECENTRALIZED_ALGORITHMS)
     window: int = option(40, unit="samples")
     E: str | np.ndarray = option("own_tank", unit="-")
     tolerance: float = option(1e-6, unit="-")

@@ -195,7 +195,7 @@ class AdaptiveKalmanOptions(MethodOptions):
     P0: np.ndarray = option(unit="(state units)^2")
     window: int = option(unit="samples")
     x0: np.ndarray | None = option(None, unit="state units")
-    form: str = option("full", unit="-")
+    form: str = option("full", unit="-", choices=("full", "steady_state"))
     q_floor: float = option(0.0, unit="(state units)^2")
 
     @classmethod
@@ -336,9 +336,11 @@ class LuenbergerOptions(MethodOptions):
     method_name: ClassVar[str] = "luenberger"
     needs_sampling: ClassVar[bool] = True
 
-    L: np.ndarray | None = option(None, unit="(state units)/(output units)")
-    poles: tuple[complex, ...] | None = option(None, unit="1/s (continuous) or - (discrete, z-plane)")
-    form: str = option("current", unit="-")
+    L: np.ndarray | None = option(None, unit="(state units)/(output units)",
+                                  default_text="unset: give L or poles")
+    poles: tuple[complex, ...] | None = option(None, unit="1/s (continuous) or - (discrete, z-plane)",
+                                               default_text="unset: give L or poles")
+    form: str = option("current", unit="-", choices=OBSERVER_FORMS)
     x0: np.ndarray | None = option(None, unit="state units")
     substeps: int = option(10, unit="-")
     nonlinear: bool = option(False, unit="-")
@@ -432,7 +434,7 @@ class NarxOptions(KalmanOptions):
     hold: tuple[int, int] = option((30, 150), unit="samples")
     noise_std: np.ndarray | None = option(None, unit="output units")
     sim_substeps: int = option(10, unit="-")
-    target: str = option("ekf", unit="-")
+    target: str = option("ekf", unit="-", choices=("ekf", "true"))
     restarts: int = option(3, unit="-")
     max_iter: int = option(200, unit="-")
     max_fail: int = option(6, unit="-")

@@ -13,7 +13,8 @@ from typing import Any, ClassVar, Mapping
 import numpy as np
 
 from tanksynth.errors import SpecError
-from tanksynth.spec.method_options.base import MethodOptions, OptionReader, option, time_domain_of
+from tanksynth.spec.method_options.base import (TIME_DOMAIN_TEXT, MethodOptions, OptionReader, option,
+                                                 time_domain_of)
 from tanksynth.spec.options import (parse_bool, parse_choice, parse_matrix, parse_names, parse_number,
                                     parse_poles, parse_region, region_is_stable)
 
@@ -137,7 +138,7 @@ class PolePlacementOptions(MethodOptions):
 
     Attributes
     ----------
-    poles : tuple of complex
+    poles : tuple of complex, or table {{values, domain}}
         Required. Eigenvalues to place, of ``A - B K`` (n; with integral
         action n + p, of the augmented system) or of ``A - L C`` (n): 1/s in
         continuous time, dimensionless (z-plane) in discrete time. Complex
@@ -160,13 +161,15 @@ class PolePlacementOptions(MethodOptions):
     method_name: ClassVar[str] = "pole_placement"
 
     poles: tuple[complex, ...] = option(unit="1/s (continuous) or - (discrete, z-plane)")
-    target: str = option("state_feedback", unit="-")
-    time_domain: str | None = option(None, unit="-")
+    target: str = option("state_feedback", unit="-", choices=TARGETS)
+    time_domain: str | None = option(None, unit="-",
+                                     default_text=TIME_DOMAIN_TEXT, choices=TIME_DOMAINS)
     integral: bool = option(False, unit="-")
     tracked: tuple[str, ...] | None = option(None, unit="-")
-    method: str = option("auto", unit="-")
-    reference_gain: np.ndarray | None = option(None, unit="units of K or L")
-    pole_domain: str | None = option(None, unit="-")
+    method: str = option("auto", unit="-", choices=PLACE_METHODS)
+    reference_gain: np.ndarray | None = option(None, unit="units of K or L",
+                                               default_text="unset: no comparison")
+    pole_domain: str | None = option(None, unit="-", choices=POLE_DOMAINS)
     allow_fragile: bool = option(False, unit="-")
 
     @classmethod
@@ -221,13 +224,14 @@ class LmiPlacementOptions(MethodOptions):
     method_name: ClassVar[str] = "lmi_placement"
 
     region: tuple[tuple, ...] = option(unit="1/s (continuous) or - (discrete, z-plane)")
-    target: str = option("observer", unit="-")
-    time_domain: str | None = option(None, unit="-")
+    target: str = option("observer", unit="-", choices=TARGETS)
+    time_domain: str | None = option(None, unit="-",
+                                     default_text=TIME_DOMAIN_TEXT, choices=TIME_DOMAINS)
     integral: bool = option(False, unit="-")
     tracked: tuple[str, ...] | None = option(None, unit="-")
     margin: float = option(1e-6, unit="-")
     kappa: float = option(1e4, unit="-")
-    solver: str = option("CLARABEL", unit="-")
+    solver: str = option("CLARABEL", unit="-", choices=LMI_SOLVERS)
     kappa_max: float = option(1e8, unit="-")
     allow_fragile: bool = option(False, unit="-")
 
@@ -279,8 +283,9 @@ class CanonicalObserverOptions(MethodOptions):
     method_name: ClassVar[str] = "canonical_observer"
 
     poles: tuple[complex, ...] = option(unit="1/s")
-    reference_gain: np.ndarray | None = option(None, unit="(state units)/(output units)/s")
-    reference_closed_loop: np.ndarray | None = option(None, unit="1/s")
+    reference_gain: np.ndarray | None = option(None, unit="(state units)/(output units)/s",
+                                               default_text="unset: no comparison")
+    reference_closed_loop: np.ndarray | None = option(None, unit="1/s", default_text="unset: no comparison")
     allow_fragile: bool = option(False, unit="-")
 
     @classmethod

@@ -23,7 +23,8 @@ from typing import Any, ClassVar, Mapping
 import numpy as np
 
 from tanksynth.errors import SpecError
-from tanksynth.spec.method_options.base import MethodOptions, OptionReader, option, time_domain_of
+from tanksynth.spec.method_options.base import (TIME_DOMAIN_TEXT, MethodOptions, OptionReader, option,
+                                                 time_domain_of)
 from tanksynth.spec.method_options.synthesis import (DISTURBANCE_FRACTION, auto_disturbance_std,
                                                      nominal_input_matrix)
 from tanksynth.spec.options import (did_you_mean, parse_bool, parse_choice, parse_integer,
@@ -242,10 +243,11 @@ class RobustStateFeedbackOptions(MethodOptions):
 
     region: tuple[tuple, ...] = option(unit="1/s (continuous) or - (discrete, z-plane)")
     uncertain: tuple[tuple[str, float, float], ...] = option((), unit="units of each parameter")
-    time_domain: str | None = option(None, unit="-")
+    time_domain: str | None = option(None, unit="-",
+                                     default_text=TIME_DOMAIN_TEXT, choices=_TIME_DOMAINS)
     integral: bool = option(False, unit="-")
     tracked: tuple[str, ...] | None = option(None, unit="-")
-    gamma: float | None = option(None, unit="-")
+    gamma: float | None = option(None, unit="-", default_text="unset: no H-infinity constraint")
     Bw: np.ndarray | None = option(None, unit="state units/s per disturbance unit")
     Cz: np.ndarray | None = option(None, unit="performance units per state unit")
     Dzu: np.ndarray | None = option(None, unit="performance units per input unit")
@@ -254,7 +256,7 @@ class RobustStateFeedbackOptions(MethodOptions):
     box: np.ndarray | None = option(None, unit="state units")
     margin: float = option(1e-6, unit="-")
     kappa: float = option(1e4, unit="-")
-    solver: str = option("CLARABEL", unit="-")
+    solver: str = option("CLARABEL", unit="-", choices=ROBUST_SOLVERS)
     samples: int = option(200, unit="-")
     mc_runs: int = option(16, unit="-")
     seed: int = option(0, unit="-")
@@ -309,13 +311,14 @@ class RobustObserverOptions(MethodOptions):
 
     region: tuple[tuple, ...] = option(unit="1/s (continuous) or - (discrete, z-plane)")
     uncertain: tuple[tuple[str, float, float], ...] = option((), unit="units of each parameter")
-    time_domain: str | None = option(None, unit="-")
-    gamma: float | None = option(None, unit="-")
+    time_domain: str | None = option(None, unit="-",
+                                     default_text=TIME_DOMAIN_TEXT, choices=_TIME_DOMAINS)
+    gamma: float | None = option(None, unit="-", default_text="unset: no H-infinity constraint")
     Bw: np.ndarray | None = option(None, unit="state units/s per disturbance unit")
     Cz: np.ndarray | None = option(None, unit="performance units per state unit")
     margin: float = option(1e-6, unit="-")
     kappa: float = option(1e4, unit="-")
-    solver: str = option("CLARABEL", unit="-")
+    solver: str = option("CLARABEL", unit="-", choices=ROBUST_SOLVERS)
     samples: int = option(200, unit="-")
     mc_runs: int = option(16, unit="-")
     seed: int = option(0, unit="-")

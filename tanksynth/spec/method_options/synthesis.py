@@ -27,7 +27,8 @@ from typing import Any, ClassVar, Mapping
 
 import numpy as np
 
-from tanksynth.spec.method_options.base import MethodOptions, OptionReader, option, time_domain_of
+from tanksynth.spec.method_options.base import (TIME_DOMAIN_TEXT, MethodOptions, OptionReader, option,
+                                                 time_domain_of)
 from tanksynth.spec.options import (parse_choice, parse_covariance, parse_matrix, parse_number,
                                     parse_region, parse_vector, region_is_stable)
 
@@ -54,6 +55,9 @@ SYNTHESIS_OBJECTIVES = ("hinf", "h2")
 SYNTHESIS_SOLVERS = ("CLARABEL", "SCS")
 #: How a pure H2 / H-infinity design is solved (``multiobjective`` always uses the LMIs).
 SYNTHESIS_ROUTES = ("auto", "riccati", "lmi")
+#: What ``route = "auto"`` does (the catalogue's default text).
+_ROUTE_TEXT = 'computed: "riccati", "lmi" when the Riccati route does not apply'
+
 #: What ``multiobjective`` designs.
 SYNTHESIS_TARGETS = ("state_feedback", "observer")
 
@@ -344,14 +348,15 @@ def _ro(arr: np.ndarray) -> np.ndarray:
 class _SynthesisOptions(MethodOptions):
     """Shared fields (see the subclasses)."""
 
-    time_domain: str | None = option(None, unit="-")
-    Bw: Any = option("inflows", unit="state units/s per disturbance unit")
+    time_domain: str | None = option(None, unit="-",
+                                     default_text=TIME_DOMAIN_TEXT, choices=("continuous", "discrete"))
+    Bw: Any = option("inflows", unit="state units/s per disturbance unit", choices=DISTURBANCE_SHORTCUTS)
     disturbance_std: Any = option("auto", unit="disturbance units (\"inflows\": level unit x "
-                                                   "area unit / s)")
+                                                  "area unit / s)")
     Q: Any = option(None, unit="1/(state units)^2")
     Cz: Any = option(None, unit="performance units per state unit")
     margin: float = option(1e-9, unit="-")
-    solver: str = option("CLARABEL", unit="-")
+    solver: str = option("CLARABEL", unit="-", choices=SYNTHESIS_SOLVERS)
 
 
 @dataclass(frozen=True, eq=False)
@@ -370,7 +375,7 @@ class H2StateFeedbackOptions(_StateFeedbackOptions):
     """
 
     method_name: ClassVar[str] = "h2_state_feedback"
-    route: str = option("auto", unit="-")
+    route: str = option("auto", unit="-", choices=SYNTHESIS_ROUTES, default_text=_ROUTE_TEXT)
 
     @classmethod
     def from_table(cls, options: Mapping[str, Any], key: str, plant: Any,
@@ -391,7 +396,7 @@ class H2ObserverOptions(_SynthesisOptions):
 
     method_name: ClassVar[str] = "h2_observer"
     measurement_std: Any = option(None, unit="output units")
-    route: str = option("auto", unit="-")
+    route: str = option("auto", unit="-", choices=SYNTHESIS_ROUTES, default_text=_ROUTE_TEXT)
 
     @classmethod
     def from_table(cls, options: Mapping[str, Any], key: str, plant: Any,
@@ -421,7 +426,7 @@ class HinfStateFeedbackOptions(_StateFeedbackOptions):
 
     method_name: ClassVar[str] = "hinf_state_feedback"
     backoff: float = option(1e-3, unit="-")
-    route: str = option("auto", unit="-")
+    route: str = option("auto", unit="-", choices=SYNTHESIS_ROUTES, default_text=_ROUTE_TEXT)
 
     @classmethod
     def from_table(cls, options: Mapping[str, Any], key: str, plant: Any,
@@ -444,7 +449,7 @@ class HinfObserverOptions(_SynthesisOptions):
     method_name: ClassVar[str] = "hinf_observer"
     measurement_std: Any = option(None, unit="output units")
     backoff: float = option(1e-3, unit="-")
-    route: str = option("auto", unit="-")
+    route: str = option("auto", unit="-", choices=SYNTHESIS_ROUTES, default_text=_ROUTE_TEXT)
 
     @classmethod
     def from_table(cls, options: Mapping[str, Any], key: str, plant: Any,
@@ -480,10 +485,10 @@ class MultiobjectiveOptions(_StateFeedbackOptions):
 
     method_name: ClassVar[str] = "multiobjective"
     region: tuple = option((), unit="1/s (continuous) or - (discrete, z-plane)")
-    target: str = option("state_feedback", unit="-")
-    objective: str = option("hinf", unit="-")
-    h2_bound: float | None = option(None, unit="-")
-    hinf_bound: float | None = option(None, unit="-")
+    target: str = option("state_feedback", unit="-", choices=SYNTHESIS_TARGETS)
+    objective: str = option("hinf", unit="-", choices=SYNTHESIS_OBJECTIVES)
+    h2_bound: float | None = option(None, unit="-", default_text="unset: no H2 bound")
+    hinf_bound: float | None = option(None, unit="-", default_text="unset: no H-infinity bound")
     measurement_std: Any = option(None, unit="output units")
     backoff: float = option(1e-3, unit="-")
 

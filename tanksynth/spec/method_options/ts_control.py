@@ -89,7 +89,8 @@ class TsStateFeedbackOptions(MethodOptions):
 
     method_name: ClassVar[str] = "ts_state_feedback"
 
-    relaxation: str = option("auto", unit="-")
+    relaxation: str = option("auto", unit="-", choices=PDC_RELAXATIONS,
+                             default_text='computed: "vertex", then "tuan" if vertex is infeasible')
     decay_rate: float = option(0.0, unit="1/s")
     pump_limits: bool = option(True, unit="-")
     region_margin: float = option(0.01, unit="state units (m)")
@@ -104,7 +105,7 @@ class TsStateFeedbackOptions(MethodOptions):
     setpoint_tolerance: float = option(0.002, unit="state units (m)")
     margin: float = option(1e-6, unit="-")
     kappa: float = option(1e4, unit="-")
-    solver: str = option("CLARABEL", unit="-")
+    solver: str = option("CLARABEL", unit="-", choices=LMI_SOLVERS)
 
     @classmethod
     def _common(cls, r: OptionReader, plant: Any) -> dict:
@@ -169,9 +170,11 @@ class TsOutputFeedbackOptions(TsStateFeedbackOptions):
 
     method_name: ClassVar[str] = "ts_output_feedback"
 
-    premises: str = option("auto", unit="-")
+    premises: str = option("auto", unit="-", choices=("auto", "measured", "estimated"),
+                           default_text='computed: "measured" when every premise depends on measured '
+                                        'states only, else "estimated"')
     observer_decay: float = option(0.02, unit="1/s")
-    lipschitz_method: str = option("interval", unit="-")
+    lipschitz_method: str = option("interval", unit="-", choices=("interval", "sampling"))
     coupling_factor: float = option(2.0, unit="-")
 
     @classmethod
