@@ -248,7 +248,9 @@ class RobustStateFeedbackOptions(MethodOptions):
     integral: bool = option(False, unit="-")
     tracked: tuple[str, ...] | None = option(None, unit="-")
     gamma: float | None = option(None, unit="-", default_text="unset: no H-infinity constraint")
-    Bw: np.ndarray | None = option(None, unit="state units/s per disturbance unit")
+    Bw: np.ndarray | None = option(None, unit="state units/s per disturbance unit",
+                                   default_text=("computed with gamma: pump-sized, B diag(0.1 range); "
+                                                 "unused without gamma"))
     Cz: np.ndarray | None = option(None, unit="performance units per state unit")
     Dzu: np.ndarray | None = option(None, unit="performance units per input unit")
     saturation: bool = option(False, unit="-")
@@ -314,7 +316,9 @@ class RobustObserverOptions(MethodOptions):
     time_domain: str | None = option(None, unit="-",
                                      default_text=TIME_DOMAIN_TEXT, choices=_TIME_DOMAINS)
     gamma: float | None = option(None, unit="-", default_text="unset: no H-infinity constraint")
-    Bw: np.ndarray | None = option(None, unit="state units/s per disturbance unit")
+    Bw: np.ndarray | None = option(None, unit="state units/s per disturbance unit",
+                                   default_text=("computed with gamma: 0.1 max|B| range I; unused "
+                                                 "without gamma"))
     Cz: np.ndarray | None = option(None, unit="performance units per state unit")
     margin: float = option(1e-6, unit="-")
     kappa: float = option(1e4, unit="-")
