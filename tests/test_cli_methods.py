@@ -186,8 +186,6 @@ def test_catalogue_row_lists_every_allowed_value_of_a_choice(row, capsys):
     _, cli_out, _ = run_cli(capsys, "methods", row.name, "--markdown")
     probed = 0
     for name in row.options.option_names():
-        if name == "method":  # the [[design]] key `method` names the design method
-            continue
         data = tomllib.loads(path.read_text(encoding="utf-8"))
         data["design"][index][name] = "zz_not_a_value"
         try:
@@ -204,7 +202,7 @@ def test_catalogue_row_lists_every_allowed_value_of_a_choice(row, capsys):
                 assert shown in cli_out
             probed += 1
     declared = [d for d in row.options.describe() if d.choices]
-    assert probed >= len([d for d in declared if d.name not in ("pole_domain", "method")]), \
+    assert probed >= len([d for d in declared if d.name != "pole_domain"]), \
         (row.name, probed)
 
 
@@ -219,3 +217,22 @@ def test_catalogue_shows_route_choices_and_the_poles_table_form(capsys):
     assert x0["default"] == "None" and x0["default_text"] == "computed: the operating point"
     code, out, _ = run_cli(capsys, "methods", "h2_state_feedback")
     assert code == 0 and "riccati" in out and "Bryson" in out
+
+
+def test_no_option_shadows_a_design_table_key():
+    """`name` and `method` name the design in a [[design]] table: an option with either name
+    could never be set from a spec (pole_placement's placement routine was `method`)."""
+    from tanksynth.methods import TABLE
+
+    clashes = [(row.name, key) for row in TABLE for key in ("name", "method")
+               if key in row.options.option_names()]
+    assert clashes == []
+
+
+def test_placement_algorithm_is_settable_from_a_spec():
+    from tanksynth.methods import parse_spec_text
+
+    text = ('[plant]\nmodel = "three_tank"\n[operating_point]\nx = {h1 = 0.4, h2 = 0.2, h3 = 0.3}\n'
+            '[sampling]\nts = 1.0\n[[design]]\nname = "pp"\nmethod = "pole_placement"\n'
+            'target = "state_feedback"\npoles = [0.6, 0.7, 0.8]\nalgorithm = "place"\n')
+    assert parse_spec_text(text).designs[0].config.algorithm == "place"

@@ -116,7 +116,7 @@ def run_integral_tracking(spec, design) -> DesignResult:
                       stacklevel=2)
     try:
         it = design_integral_tracking(
-            plant, spec.x0, list(o.poles), spec.ts, tracked=list(o.tracked), method=o.method,
+            plant, spec.x0, list(o.poles), spec.ts, tracked=list(o.tracked), method=o.algorithm,
             anti_windup=o.anti_windup, aw_gain=o.aw_gain, given_u0=spec.given_u0)
     except SpecError as exc:
         raise rekeyed(design, exc) from None

@@ -457,7 +457,7 @@ def run_pole_placement(spec: "Spec", design: "DesignSpec") -> DesignResult:
     """
     o = options_of(design, spec, PolePlacementOptions)
     plant = spec.plant
-    method = o.method
+    method = o.algorithm
     poles, converted = _plane_of_poles(o, spec.ts)
     res, gains, diagnostics, (A, B, C), closed = _solve_gain(
         spec, design, o,

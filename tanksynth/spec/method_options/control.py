@@ -110,7 +110,7 @@ class IntegralTrackingOptions(MethodOptions):
     tracked : tuple of str
         Outputs to track (at most m, named as the plant's outputs); default the
         first m outputs.
-    method : str
+    algorithm : str
         Placement routine: ``"auto"`` (default), ``"place"`` or ``"acker"``.
     anti_windup : str
         ``"back_calculation"`` (default), ``"clamping"`` or ``"none"``.
@@ -127,7 +127,7 @@ class IntegralTrackingOptions(MethodOptions):
 
     poles: tuple[complex, ...] = option(unit="- (z-plane)")
     tracked: tuple[str, ...] | None = option(None, unit="-")
-    method: str = option("auto", unit="-", choices=PLACE_METHODS)
+    algorithm: str = option("auto", unit="-", choices=PLACE_METHODS)
     anti_windup: str = option("back_calculation", unit="-", choices=ANTI_WINDUP_SCHEMES)
     aw_gain: float = option(1.0, unit="-")
     reference_gain: np.ndarray | None = option(None, unit="units of K", default_text="unset: no comparison")
@@ -144,7 +144,7 @@ class IntegralTrackingOptions(MethodOptions):
         note = f"{plant.n} states + {len(tracked)} integrators of the tracked outputs {list(tracked)}"
         return cls(poles=r.read("poles", parse_poles, count=size, count_note=note,
                                 stable_in="discrete"), tracked=tracked,
-                   method=r.read("method", parse_choice, PLACE_METHODS),
+                   algorithm=r.read("algorithm", parse_choice, PLACE_METHODS),
                    anti_windup=r.read("anti_windup", parse_choice, ANTI_WINDUP_SCHEMES),
                    aw_gain=r.read("aw_gain", parse_number, above=0.0, at_most=1.0),
                    reference_gain=r.read("reference_gain", parse_matrix, (plant.m, size)))

@@ -151,7 +151,7 @@ class PolePlacementOptions(MethodOptions):
     pole_domain : str or None
         The plane the poles are written in (``"s"`` or ``"z"``), from the
         poles table; default None (the plane of ``time_domain``).
-    method : str
+    algorithm : str
         ``"auto"`` (default), ``"place"`` (Tits-Yang) or ``"acker"``.
     reference_gain : ndarray or None
         A gain to compare with the derived one (the shape of ``K`` or ``L``,
@@ -166,7 +166,7 @@ class PolePlacementOptions(MethodOptions):
                                      default_text=TIME_DOMAIN_TEXT, choices=TIME_DOMAINS)
     integral: bool = option(False, unit="-")
     tracked: tuple[str, ...] | None = option(None, unit="-")
-    method: str = option("auto", unit="-", choices=PLACE_METHODS)
+    algorithm: str = option("auto", unit="-", choices=PLACE_METHODS)
     reference_gain: np.ndarray | None = option(None, unit="units of K or L",
                                                default_text="unset: no comparison")
     pole_domain: str | None = option(None, unit="-", choices=POLE_DOMAINS)
@@ -188,7 +188,7 @@ class PolePlacementOptions(MethodOptions):
         poles, plane = r.read("poles", _poles_in_plane, count=count, count_note=note,
                               time_domain=setup["time_domain"])
         return cls(poles=poles, pole_domain=plane, **setup,
-                   method=r.read("method", parse_choice, PLACE_METHODS),
+                   algorithm=r.read("algorithm", parse_choice, PLACE_METHODS),
                    reference_gain=r.read("reference_gain", parse_matrix, shape),
                    allow_fragile=r.read("allow_fragile", parse_bool))
 
