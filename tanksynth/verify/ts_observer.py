@@ -85,8 +85,9 @@ class TSObserver:
                 g = self.model.rhs(x, u) - x @ self.A0.T + self._y @ self.L.T
                 x = x @ self._phi.T + g @ self._gamma.T
             if not np.all(np.isfinite(x)):
-                raise TanksynthError("the TS observer's estimate became non-finite (premise "
-                                     "denominator w . x_hat = 0?)")
+                raise TanksynthError("the TS observer diverged: its estimate became non-finite "
+                                     "(a premise denominator w . x_hat reached 0), so it does not "
+                                     "converge on the plant from this start")
             self._x = x
         self._y = np.array(y, dtype=float)
         return self._x
