@@ -20,7 +20,7 @@ from tanksynth.reports.latex import Tex, escape_latex, format_eigenvalues, forma
 __all__ = ["linearisation_applies", "linearisation_rows", "law_applies", "law_rows"]
 
 _LIN_SHAPES = {"F": (3, 3), "B": (3, 2), "u_op": (2,)}
-_LAW_SHAPES = {"Lambda_x0": (2, 2), "Lambda0_x0": (2,), "x_op": (3,)}
+_LAW_SHAPES = {"Lambda_op": (2, 2), "Lambda0_op": (2,), "x_op": (3,)}
 
 
 def linearisation_applies(inputs: ReportInputs) -> bool:
@@ -213,7 +213,7 @@ def law_rows(inputs: ReportInputs) -> tuple[PaperRow, ...]:
     if art is None:  # `applies` selected this entry
         raise ReportError("seed 000 comparison: no feedback_linearization artefact of (h1, h2)")
     x0 = artefact_array(art, "x_op")
-    lam, lam0 = artefact_array(art, "Lambda_x0"), artefact_array(art, "Lambda0_x0")
+    lam, lam0 = artefact_array(art, "Lambda_op"), artefact_array(art, "Lambda0_op")
     params = {k: inputs.parameters()[k] for k in paper.TABLE_I}
     try:
         printed = paper.printed_law(params, x0)
