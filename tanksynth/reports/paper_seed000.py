@@ -202,7 +202,7 @@ def law_applies(inputs: ReportInputs) -> bool:
 
 
 def law_rows(inputs: ReportInputs) -> tuple[PaperRow, ...]:
-    """The printed Lambda, Lambda0, beta and alpha of Sec. IV at the artefact's x0.
+    """The printed Lambda, Lambda0, beta and alpha of Sec. IV at the artefact's x_op.
 
     Parameters
     ----------
@@ -219,7 +219,7 @@ def law_rows(inputs: ReportInputs) -> tuple[PaperRow, ...]:
         printed = paper.printed_law(params, x0)
         beta = np.linalg.inv(lam)
     except (ValueError, np.linalg.LinAlgError) as exc:
-        raise ReportError(f"seed 000 comparison: cannot evaluate the law at x0 = {x0.tolist()} "
+        raise ReportError(f"seed 000 comparison: cannot evaluate the law at x_op = {x0.tolist()} "
                           f"({exc})") from None
     ours = {"Lambda": lam, "Lambda0": lam0, "beta": beta, "alpha": -beta @ lam0}
     sym = {k: v for k, v in (art.get("latex") or {}).items() if isinstance(v, str)}
