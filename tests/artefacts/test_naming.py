@@ -147,6 +147,8 @@ def test_an_artefact_with_the_old_names_is_named():
         artefact_matrix(doc, "A", (1, 1), "discrete")
     with pytest.raises(ArtefactError, match=r"no gain 'x_hat0' but 'x0'"):
         artefact_gain(doc, "x_hat0")
+    with pytest.raises(ArtefactError, match=r"no gain 'Lambda_op' but 'Lambda_x0'"):
+        artefact_matrix({**doc, "gains": {"Lambda_x0": [[1.0]]}}, "Lambda_op", (1, 1))
     with pytest.raises(ArtefactError, match=r"no gain 'K'$"):
         artefact_gain(doc, "K")
     np.testing.assert_array_equal(artefact_matrix({**doc, "gains": {"F": [[2.0]]}}, "A", (1, 1),
