@@ -24,7 +24,8 @@ from tanksynth.spec.method_options.base import numpydoc_section
 
 __all__ = ["method_catalogue", "method_options", "methods_markdown", "method_markdown", "option_cells",
            "plant_families", "plants_markdown", "plant_markdown", "custom_plant_markdown",
-           "GENERATED_SECTIONS", "generated_section", "update_readme", "write_pages", "main"]
+           "gain_names_markdown", "GENERATED_SECTIONS", "generated_section", "update_readme",
+           "write_pages", "main"]
 
 
 def method_catalogue() -> list[dict[str, Any]]:
@@ -259,9 +260,24 @@ def plants_markdown(level: int = 3) -> str:
     return "\n".join(parts).rstrip("\n") + "\n"
 
 
+def gain_names_markdown() -> str:
+    """The README's gain-naming table, from `tanksynth.analysis.statespace.GAIN_NAMES`.
+
+    Returns
+    -------
+    str
+        A Markdown table (name(s), meaning), one row per entry.
+    """
+    from tanksynth.analysis.statespace import GAIN_NAMES
+
+    rows = [(", ".join(f"`{n}`" for n in names), meaning) for names, meaning in GAIN_NAMES.items()]
+    return "\n".join(_table(("Name", "Meaning"), rows)) + "\n"
+
+
 #: The README's generated sections: marker name -> text.
 GENERATED_SECTIONS: dict[str, Callable[[], str]] = {"plants": plants_markdown,
-                                                    "methods": methods_markdown}
+                                                    "methods": methods_markdown,
+                                                    "gain_names": gain_names_markdown}
 
 
 def _markers(name: str) -> tuple[str, str]:

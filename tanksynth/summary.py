@@ -96,7 +96,7 @@ def key_figure(doc: Mapping[str, Any], state_units: Sequence[str] | None = None)
     if "inner_radius" in data.get("region_recheck", {}):
         unit = _common_unit(state_units)
         return (f"certified region: ball of radius {float(data['region_recheck']['inner_radius']):.3g} "
-                f"{unit} around x0").replace("  ", " ")
+                f"{unit} around x_op").replace("  ", " ")
     for name in ("estimator_convergence", "observer_convergence"):
         conv = data.get(name, {})
         if "e0" in conv and "tail_max" in conv:

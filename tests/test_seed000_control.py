@@ -91,7 +91,7 @@ def test_spec_artefact_feedback_linearization(results, tmp_path):
     spec, res = results
     r = res["nonlinear_decoupling"]
     np.testing.assert_allclose(r.gains["K"], [[0.05], [0.05]])
-    np.testing.assert_allclose(r.gains["Lambda_x0"], np.diag([1 / 0.0154] * 2))
+    np.testing.assert_allclose(r.gains["Lambda_op"], np.diag([1 / 0.0154] * 2))
     d = r.diagnostics
     assert d["degrees"] == [1, 1] and d["sum_degrees"] == 2 and d["n"] == 3
     assert d["zero_dynamics"]["stable"] and d["zero_dynamics"]["coordinates"] == ["h3"]

@@ -22,4 +22,4 @@ def test_robust_key_figure_is_the_worst_vertex_margin():
 
 def test_ts_control_key_figure_is_the_certified_radius_with_its_unit():
     doc = _doc(("region_recheck", {"inner_radius": 0.0412, "c": 1.0}))
-    assert key_figure(doc, ["m", "m", "m"]) == "certified region: ball of radius 0.0412 m around x0"
+    assert key_figure(doc, ["m", "m", "m"]) == "certified region: ball of radius 0.0412 m around x_op"

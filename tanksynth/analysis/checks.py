@@ -70,12 +70,12 @@ def equilibrium_checks(plant: Plant, eq) -> list[Check]:
     res = np.abs(eq.residual)
     i = int(np.argmax(res))
     st = plant.states[i]
-    detail = (f"max |f(x0, u0)| = {res[i]:.3g} {st.unit}/s (tolerance {eq.tolerance:.3g}) with "
-              f"least-squares u0 = {np.array2string(eq.u0, precision=4)}")
+    detail = (f"max |f(x_op, u_op)| = {res[i]:.3g} {st.unit}/s (tolerance {eq.tolerance:.3g}) with "
+              f"least-squares u_op = {np.array2string(eq.u0, precision=4)}")
     if not eq.is_equilibrium:
         bad = [plant.states[j].name for j in np.flatnonzero(res > eq.tolerance)]
         detail += (f"; unbalanced: d{st.name}/dt = {eq.residual[i]:.3g} {st.unit}/s (equation(s) of "
-                   f"{', '.join(bad)}): no input holds the plant at x0")
+                   f"{', '.join(bad)}): no input holds the plant at x_op")
     out = [Check("equilibrium", eq.is_equilibrium, detail, eq.as_dict())]
     lim = plant.input_limits
     parts = [f"{q.name} = {v:.4g} {q.unit} in [{lo:g}, {hi:g}]"
@@ -124,7 +124,7 @@ def rank_conditions(plant: Plant, x0: Sequence[float], ts: float | None = None,
         # Informative (None): a printed input that does not balance is an
         # erratum to report, not a failed rank condition.
         checks.append(Check("given_u0_balances", None,
-                            f"the spec's u0 {verdict}: max |f(x0, u0)| = {bal:.3g} (state units/s)",
+                            f"the spec's operating_point.u {verdict}: max |f(x_op, u)| = {bal:.3g} (state units/s)",
                             {"residual": eq.given_residual.tolist()}))
     lin = linearize(plant, x0, eq.u0, ts=ts)
     checks.append(_kalman("controllability", controllability_rank(lin.F, lin.B)))

@@ -14,6 +14,8 @@
 `model_names`
     the artefact gain names of a linear model's matrices in a time domain
     (the naming rule: ``F, B, Bw`` continuous, ``Ad, Bd, Bwd`` discrete).
+`GAIN_NAMES`, `undocumented_gains`
+    the one table of every artefact gain name (README, Artefacts) and its check.
 """
 
 from __future__ import annotations
@@ -26,7 +28,7 @@ import scipy.linalg as sla
 from tanksynth.errors import DimensionError
 
 __all__ = ["statespace_matrices", "to_statespace", "h2_norm", "hinf_norm", "hinf_below",
-           "MODEL_NAMES", "model_names"]
+           "MODEL_NAMES", "model_names", "GAIN_NAMES", "undocumented_gains"]
 
 #: Artefact gain names of a linear model ``x' = A x + B u + Bw w`` (continuous time) or
 #: ``x[k+1] = A x[k] + B u[k] + Bw w[k]`` (discrete time), by time domain. ``C`` is ``C`` in
@@ -267,3 +269,95 @@ def model_names(time_domain: str) -> dict[str, str]:
         return dict(MODEL_NAMES[time_domain])
     except (KeyError, TypeError):
         raise ValueError(f"time_domain must be 'continuous' or 'discrete', got {time_domain!r}") from None
+
+
+#: The one naming table of the artefacts' gains, name(s) -> meaning; the README's Artefacts
+#: table is generated from it (`tanksynth.docgen`) and tests/artefacts/test_naming.py checks
+#: that every gain of every example is named here. ``<k>`` stands for an index 0, 1, ...;
+#: ``sp_<name>`` for any other name of the table.
+GAIN_NAMES: dict[tuple[str, ...], str] = {
+    ("F", "B", "C", "Bw"): "continuous-time model `x' = F x + B u + Bw w`, `y = C x` (deviations from "
+                           "`x_op`, `u_op`); the Takagi-Sugeno PDC designs store their vertex matrices "
+                           "as `F` (r x n x n) and `B`",
+    ("Ad", "Bd", "C", "Bwd"): "discrete-time model `x[k+1] = Ad x[k] + Bd u[k] + Bwd w[k]` (ZOH at `ts`)",
+    ("x_op", "u_op"): "the operating point a controller, observer or linearisation is built around "
+                      "(`u_op` the equilibrium input; never `x0`, `u0`)",
+    ("x_hat0",): "an estimator's initial estimate: the spec's estimator option `x0` is stored as "
+                 "`x_hat0`",
+    ("K",): "controller gain, `u = u_op - K (x - x_op)` (Takagi-Sugeno: one per rule, r x m x n; "
+            "`feedback_linearization`: the outer-loop coefficients)",
+    ("K1", "K2", "Br"): "integral action: `K = [K1 K2]` on the state and the integrators, `Br` the "
+                        "reference input matrix of the augmented model",
+    ("Kaw", "C1"): "`integral_tracking`: anti-windup (back-calculation) gain, the tracked outputs' "
+                   "rows of `C`",
+    ("K_ss", "P_ss"): "`kalman`: steady-state Kalman gain (textbook `K`) and Riccati solution",
+    ("K_<k>", "E", "P0_pred", "P_diag", "x_pred"): "`decentralized_kalman`: Kalman gain of window step "
+                                                   "k + 1 (n x q), its sparsity pattern `E`, "
+                                                   "`P(1|0)`, the diagonals of `P(k|k)` and the "
+                                                   "predicted estimates over the window",
+    ("L",): "observer gain, `x_hat' = ... + L (y - C x_hat)` (Takagi-Sugeno measured premises: one per "
+            "rule)",
+    ("Psi", "Gamma_d", "threshold_coefficients", "threshold_rates"):
+        "`fault_detection`: observer gain `Psi` (the paper's name), `Gamma_d = A - Psi C` (1/s) and "
+        "the adaptive threshold's coefficients (output units) and rates (1/s)",
+    ("Q", "R", "P0"): "process and measurement noise covariances, initial error covariance "
+                      "(`ts_observer`, `ts_output_feedback`: `Q` is the observer LMI's Lipschitz "
+                      "weighting matrix)",
+    ("Q0", "q_floor", "window"): "`adaptive_kalman`: initial `Q`, its floor and the estimation window "
+                                 "(samples)",
+    ("G", "abc", "phi0"): "process noise input matrix (`adaptive_scaling_kalman`, "
+                          "`consensus_filter`); the scaling law's `a, b, c` and initial scaling",
+    ("R<k>", "C<k>"): "`consensus_filter`: sensor node k's measurement noise covariance and output rows",
+    ("alpha", "beta", "kappa", "redraw"): "`ukf` sigma-point parameters and redraw flag "
+                                          "(`ts_output_feedback`: `beta` weighs the observer term "
+                                          "`eps' Po eps` of its Lyapunov function)",
+    ("W1", "b1", "W2", "b2", "in_mean", "in_scale", "out_mean", "out_scale", "delays",
+     "training_inputs", "training_targets", "ekf_Q", "ekf_R", "ekf_P0"):
+        "`narx`: network weights and biases, input/output normalisation, delays, the training set "
+        "and the tuning of the EKF that produced its targets",
+    ("P",): "Lyapunov matrix, `V = x' P x` of the closed loop or `e' P e` of the observer error "
+            "(`lmi_placement`, robust and Takagi-Sugeno designs)",
+    ("Po",): "`ts_output_feedback`: Lyapunov matrix of the observer error",
+    ("X",): "LMI variable of the H2/Hinf/multiobjective synthesis (`K = Y X^-1`): `X = P^-1` for a "
+            "state feedback, `X = P` for an observer (solved as the dual)",
+    ("Cz", "Dzu", "Dv"): "H2/Hinf performance output `z = Cz x + Dzu u`; `Dv` the measurement noise "
+                         "input of the observer problem",
+    ("Lambda_op", "Lambda0_op"): "`feedback_linearization`: decoupling matrix `Lambda(x)` and drift "
+                                 "`Lambda_0(x)` at `x_op` (the report keeps the paper's symbols)",
+    ("A0", "B0"): "Takagi-Sugeno models: the affine part, the paper's names",
+    ("forms", "z_lower", "z_upper", "region_c", "semi_axes", "axes"):
+        "Takagi-Sugeno PDC: the premises' linear forms and bounds, the certified region's level "
+        "`V <= region_c`, its semi-axes (m) and axes",
+    ("sp_<name>", "sp_switch_level"): "Takagi-Sugeno set-point stage: `<name>` of the design about the "
+                                      "second operating point, and the switching level",
+    ("input_limits",): "the input range the law saturates to (input units); `inverse_dynamics` stores "
+                       "its law's gain as `C` (1/s, the paper's name), not an output matrix",
+}
+
+
+def undocumented_gains(names: Sequence[str]) -> list[str]:
+    """The names in ``names`` that `GAIN_NAMES` does not document.
+
+    Parameters
+    ----------
+    names : sequence of str
+        Gain names of an artefact.
+
+    Returns
+    -------
+    list of str
+        In the order given; ``<k>`` in a table name matches a decimal index,
+        ``sp_<name>`` the prefix ``sp_`` on a documented name.
+    """
+    import re
+
+    exact = {n for row in GAIN_NAMES for n in row if "<" not in n}
+    patterns = [re.compile(re.escape(n).replace(re.escape("<k>"), r"\d+") + r"\Z")
+                for row in GAIN_NAMES for n in row if "<k>" in n]
+
+    def known(name: str) -> bool:
+        if name in exact or any(p.match(name) for p in patterns):
+            return True
+        return name.startswith("sp_") and known(name[3:])
+
+    return [n for n in names if not known(n)]

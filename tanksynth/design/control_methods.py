@@ -3,7 +3,7 @@
 ==========================  ===================================================
 ``feedback_linearization``  exact feedback linearisation with decoupling (seed
                             000 II-C); gains ``K`` (outer-loop coefficients),
-                            ``Lambda_x0``, ``Lambda0_x0``, ``u_op``, ``x_op``; the law
+                            ``Lambda_op``, ``Lambda0_op``, ``u_op``, ``x_op``; the law
                             itself serialised in ``diagnostics.law``
 ``integral_tracking``       linear tracking with integral action, pump
                             saturation and anti-windup (seed 000 II-B); gains
@@ -45,8 +45,8 @@ def run_feedback_linearization(spec, design) -> DesignResult:
     """Exact feedback linearisation with decoupling (seed 000 II-C).
 
     Gains: ``K`` (outer-loop coefficients ``c_ik``, m x max theta; for
-    relative degree 1 the ``K_i`` of eq. 27, 1/s), ``Lambda_x0`` and
-    ``Lambda0_x0`` (at the operating point), ``u_op`` (the law's input at
+    relative degree 1 the ``K_i`` of eq. 27, 1/s), ``Lambda_op`` and
+    ``Lambda0_op`` (at the operating point), ``u_op`` (the law's input at
     the operating point ``x_op`` with ``y_r = y(x_op)``) and ``x_op``.
 
     Parameters
@@ -86,7 +86,7 @@ def run_feedback_linearization(spec, design) -> DesignResult:
                          if fl.saturated else "u, zeta = law(x, y_r) (unsaturated)",
         "alpha_at_x0": alpha.tolist(),
     })
-    gains = {"K": fl.outer.matrix, "Lambda_x0": Lam, "Lambda0_x0": Lam0, "u_op": u0,
+    gains = {"K": fl.outer.matrix, "Lambda_op": Lam, "Lambda0_op": Lam0, "u_op": u0,
              "x_op": spec.x0}
     return DesignResult(design.name, "feedback_linearization", plant.name, gains, diagnostics,
                         fl.latex())

@@ -353,6 +353,7 @@ def _solve_gain(spec, design, o, observer, feedback, fallback_opt: str, augmente
                 closed = lambda G: A - B @ G  # noqa: E731
     except SpecError as exc:
         raise rekeyed(design, exc, fallback=fallback_opt) from None
+    gains.update({"x_op": np.asarray(spec.x0, dtype=float), "u_op": np.asarray(eq.u0, dtype=float)})
     return res, gains, diagnostics, (A, B, C), closed
 
 
@@ -368,8 +369,9 @@ def run_lmi_placement(spec: "Spec", design: "DesignSpec") -> DesignResult:
 
     Gains: ``K`` (state feedback, ``u = -K x``; with integral action also
     ``K1``, ``K2``) or ``L`` (observer), plus ``P`` (Lyapunov matrix of the
-    closed loop) and the model used (``F``, ``B``, ``C`` in continuous time,
-    ``Ad``, ``Bd``, ``C`` in discrete time: `model_names`).
+    closed loop), the model used (``F``, ``B``, ``C`` in continuous time,
+    ``Ad``, ``Bd``, ``C`` in discrete time: `model_names`) and its operating
+    point ``x_op``, ``u_op`` (the equilibrium input).
 
     Parameters
     ----------
@@ -429,7 +431,8 @@ def run_pole_placement(spec: "Spec", design: "DesignSpec") -> DesignResult:
 
     Gains: ``K`` (``u = -K x_e``; with integral action ``K1``, ``K2`` and the
     reference input matrix ``Br``) or ``L``, plus the model used (``F, B,
-    C`` or ``Ad, Bd, C``: `model_names`). With
+    C`` or ``Ad, Bd, C``: `model_names`) and its operating point ``x_op``,
+    ``u_op``. With
     ``reference_gain`` the diagnostics put the paper's gain beside the
     derived one and give the eigenvalues the paper's gain produces on the
     derived model.

@@ -20,7 +20,7 @@ from tanksynth.reports.latex import Tex, escape_latex, format_eigenvalues, forma
 __all__ = ["linearisation_applies", "linearisation_rows", "law_applies", "law_rows"]
 
 _LIN_SHAPES = {"F": (3, 3), "B": (3, 2), "u_op": (2,)}
-_LAW_SHAPES = {"Lambda_x0": (2, 2), "Lambda0_x0": (2,), "x_op": (3,)}
+_LAW_SHAPES = {"Lambda_op": (2, 2), "Lambda0_op": (2,), "x_op": (3,)}
 
 
 def linearisation_applies(inputs: ReportInputs) -> bool:
@@ -202,7 +202,7 @@ def law_applies(inputs: ReportInputs) -> bool:
 
 
 def law_rows(inputs: ReportInputs) -> tuple[PaperRow, ...]:
-    """The printed Lambda, Lambda0, beta and alpha of Sec. IV at the artefact's x0.
+    """The printed Lambda, Lambda0, beta and alpha of Sec. IV at the artefact's x_op.
 
     Parameters
     ----------
@@ -213,13 +213,13 @@ def law_rows(inputs: ReportInputs) -> tuple[PaperRow, ...]:
     if art is None:  # `applies` selected this entry
         raise ReportError("seed 000 comparison: no feedback_linearization artefact of (h1, h2)")
     x0 = artefact_array(art, "x_op")
-    lam, lam0 = artefact_array(art, "Lambda_x0"), artefact_array(art, "Lambda0_x0")
+    lam, lam0 = artefact_array(art, "Lambda_op"), artefact_array(art, "Lambda0_op")
     params = {k: inputs.parameters()[k] for k in paper.TABLE_I}
     try:
         printed = paper.printed_law(params, x0)
         beta = np.linalg.inv(lam)
     except (ValueError, np.linalg.LinAlgError) as exc:
-        raise ReportError(f"seed 000 comparison: cannot evaluate the law at x0 = {x0.tolist()} "
+        raise ReportError(f"seed 000 comparison: cannot evaluate the law at x_op = {x0.tolist()} "
                           f"({exc})") from None
     ours = {"Lambda": lam, "Lambda0": lam0, "beta": beta, "alpha": -beta @ lam0}
     sym = {k: v for k, v in (art.get("latex") or {}).items() if isinstance(v, str)}

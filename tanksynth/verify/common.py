@@ -156,7 +156,7 @@ def artefact_gain(doc: Mapping[str, Any], name: str) -> np.ndarray:
 
 #: New gain name -> the name artefacts written before the naming rule used.
 _OLD_NAMES = {"F": "A", "Ad": "A", "Bd": "B", "Bwd": "Bw", "B0": "B", "x_op": "x0", "u_op": "u0",
-              "x_hat0": "x0"}
+              "x_hat0": "x0", "Lambda_op": "Lambda_x0", "Lambda0_op": "Lambda0_x0"}
 
 
 def artefact_matrix(doc: Mapping[str, Any], name: str, shape: tuple[int, int] | None = None,

@@ -131,7 +131,7 @@ def feedback_linearization_verdict(doc: Mapping[str, Any], spec: Any, *,
                                    trace: TraceRecorder | None = None) -> list[Check]:
     """Verdict of a ``feedback_linearization`` artefact (seed 000 section II-C).
 
-    Checks: ``rank_decoupling`` (stored ``Lambda(x0)`` invertible),
+    Checks: ``rank_decoupling`` (stored ``Lambda_op`` = Lambda(x_op) invertible),
     ``law_matches_gains`` (the serialised law at ``x_op``: ``u_op`` when the
     references equal the outputs, ``Lambda^-1 (zeta - Lambda_0)`` and
     ``zeta_i = K_i (y_r,i - y_i)`` for other references), then per output
@@ -147,8 +147,8 @@ def feedback_linearization_verdict(doc: Mapping[str, Any], spec: Any, *,
     plant = spec.plant
     n, m = plant.n, plant.m
     K = np.atleast_2d(artefact_gain(doc, "K")).reshape(m, -1)
-    Lam = artefact_matrix(doc, "Lambda_x0", (m, m))
-    Lam0 = artefact_gain(doc, "Lambda0_x0").reshape(m)
+    Lam = artefact_matrix(doc, "Lambda_op", (m, m))
+    Lam0 = artefact_gain(doc, "Lambda0_op").reshape(m)
     u0 = artefact_gain(doc, "u_op").reshape(m)
     x0 = artefact_gain(doc, "x_op").reshape(n)
     names = tracked_outputs(doc, spec)
@@ -157,7 +157,7 @@ def feedback_linearization_verdict(doc: Mapping[str, Any], spec: Any, *,
     rk = np.linalg.matrix_rank(Lam)
     cond = float(np.linalg.cond(Lam))
     checks.append(Check("rank_decoupling", bool(rk == m),
-                        f"rank {rk}/{m} of the stored decoupling matrix Lambda(x0), condition number "
+                        f"rank {rk}/{m} of the stored decoupling matrix Lambda_op = Lambda(x_op), condition number "
                         f"{cond:.3g}", {"rank": int(rk), "condition_number": cond}))
     degree_one = bool(K.shape[1] == 1 or not np.any(K[:, 1:]))
 
@@ -168,7 +168,7 @@ def feedback_linearization_verdict(doc: Mapping[str, Any], spec: Any, *,
         X = np.tile(x0, (refs.shape[0], 1))
         u, zeta = law.evaluate(X, refs)[:2]
         items = [relative_difference(u[0], u0)]
-        detail = [f"u(x0, y(x0)) vs stored u0: {items[0]:.3g}"]
+        detail = [f"u(x_op, y(x_op)) vs stored u_op: {items[0]:.3g}"]
         if degree_one:
             z_exp = (refs - y0) * K[:, 0]
             zd = float(np.max(np.abs(zeta - z_exp)) / max(float(np.max(np.abs(z_exp))), 1e-300))
@@ -178,11 +178,11 @@ def feedback_linearization_verdict(doc: Mapping[str, Any], spec: Any, *,
             ud = relative_difference(u[unsat], u_exp[unsat]) if unsat.any() else 0.0
             items += [zd, ud]
             detail += [f"zeta vs K (y_r - y) with the stored K: {zd:.3g}",
-                       f"u vs Lambda(x0)^-1 (zeta - Lambda_0(x0)) with the stored matrices "
+                       f"u vs Lambda_op^-1 (zeta - Lambda0_op) with the stored matrices "
                        f"({int(unsat.sum())} unsaturated references): {ud:.3g}"]
         worst = max(items)
         return [Check("law_matches_gains", bool(worst <= 1e-8),
-                      "serialised law (diagnostics.law) at x0 against the gains: " + "; ".join(detail)
+                      "serialised law (diagnostics.law) at x_op against the gains: " + "; ".join(detail)
                       + " (relative, tolerance 1e-08)", {"differences": items})]
 
     checks += guard("law_matches_gains", law_match)
@@ -306,8 +306,8 @@ def inverse_dynamics_verdict(doc: Mapping[str, Any], spec: Any, *,
         d0 = relative_difference(a[0], u0)
         return [Check("law_matches_gains", bool(diff <= 1e-9 and d0 <= 1e-9),
                       f"serialised law against inverse_dynamics_law built from the stored C = "
-                      f"{C.tolist()} at {X.shape[0]} points: relative difference {diff:.3g}; at x0 "
-                      f"with the set-points at x0 it gives the stored u0 to {d0:.3g} (tolerance 1e-09)",
+                      f"{C.tolist()} at {X.shape[0]} points: relative difference {diff:.3g}; at x_op "
+                      f"with its set-points it gives the stored u_op to {d0:.3g} (tolerance 1e-09)",
                       {"relative_difference": diff, "u0_difference": d0})]
 
     checks += guard("law_matches_gains", law_match)

@@ -153,7 +153,7 @@ def linearize_run(doc: Mapping[str, Any], spec: Any) -> ModelRun:
         raise ArtefactError(f"artefact '{doc['name']}': no sampling period in its diagnostics")
     x0, u0 = artefact_gain(doc, "x_op").reshape(n), artefact_gain(doc, "u_op").reshape(m)
     return ModelRun(Ad.reshape(n, n), Bd.reshape(n, m), x0, u0, float(ts),
-                    f"the artefact's discrete linear model (ZOH, ts = {float(ts):g} s) at x0 = ["
+                    f"the artefact's discrete linear model (ZOH, ts = {float(ts):g} s) at x_op = ["
                     + ", ".join(f"{v:.4g}" for v in x0) + "] predicting the nonlinear plant from "
-                    "the same inputs (the scenario's input schedule or u0 held), free run and one "
+                    "the same inputs (the scenario's input schedule or u_op held), free run and one "
                     "step ahead")

@@ -435,7 +435,7 @@ def _disturbance_step(doc: Mapping[str, Any], spec: Any, c: dict,
         on = float(np.max(np.abs(e[phase - win:phase + 1] - bias)))
         off = float(np.max(np.abs(e[-win:])))
         tol_off = 0.05 * float(np.max(np.abs(x_ss)))
-        what = (f"the plant settles at x0 + {fmt(dxf)} (linear prediction {fmt(x_ss)}); the estimation "
+        what = (f"the plant settles at x_op + {fmt(dxf)} (linear prediction {fmt(x_ss)}); the estimation "
                 f"error settles at the observer's fixed point for that state, bias {fmt(bias)} (linear "
                 f"prediction {fmt(lin_bias)}): largest deviation over the last {win} samples {on:.3g} "
                 f"(tolerance {tol_on:.3g} = 5 % of the plant's offset); after the step, |e|_inf = "
@@ -445,7 +445,7 @@ def _disturbance_step(doc: Mapping[str, Any], spec: Any, c: dict,
         tol_on = OFFSET_TOLERANCE * float(np.max(np.abs(x_ss)))
         off = float(np.max(np.abs(X[-win:] - x0)))
         tol_off = 0.05 * float(np.max(np.abs(x_ss)))
-        what = (f"state settles at x0 + {fmt(x_ss)} predicted by the linear closed loop (largest "
+        what = (f"state settles at x_op + {fmt(x_ss)} predicted by the linear closed loop (largest "
                 f"deviation over the last {win} samples {on:.3g}, tolerance {tol_on:.3g} = "
                 f"{100 * OFFSET_TOLERANCE:g} %); after the step, |x - x0|_inf = {off:.3g} (tolerance "
                 f"{tol_off:.3g})")

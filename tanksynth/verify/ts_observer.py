@@ -144,7 +144,7 @@ def _ts_model_from_artefact(doc: Mapping[str, Any], spec: Any) -> tuple[Any, lis
 
 
 def _local_error_check(spec: Any, L: np.ndarray, C: np.ndarray) -> Check:
-    """``eig(F(x0) - L C)``: the observer error dynamics linearised at the operating point."""
+    """``eig(F(x_op) - L C)``: the observer error dynamics linearised at the operating point."""
     from tanksynth.analysis.linearize import linearize
 
     x0, u0 = operating_point(spec)
@@ -152,7 +152,7 @@ def _local_error_check(spec: Any, L: np.ndarray, C: np.ndarray) -> Check:
     eig = np.linalg.eigvals(F - L @ C)
     worst = float(np.max(eig.real))
     return Check("local_error_dynamics", bool(worst < 0),
-                 f"eigenvalues of F(x0) - L C (F the Jacobian of the nonlinear plant at the operating "
+                 f"eigenvalues of F(x_op) - L C (F the Jacobian of the nonlinear plant at the operating "
                  f"point: the error dynamics of eq. (20) for small errors there, whatever A0 and psi) "
                  f"{fmt(np.sort_complex(eig), 5)}: largest real part {worst:.4g} 1/s (must be < 0, a "
                  "necessary condition for convergence)",
@@ -167,7 +167,7 @@ def ts_observer_verdict(doc: Mapping[str, Any], spec: Any, *,
     ``model_recheck`` (stored ``A0``, ``B``, ``C`` vs the rebuilt multiple
     model), ``lmi_recheck`` (LMI 28 by `observer_lmi_recheck` from the
     stored ``P``, ``Q``, ``L`` and ``psi``), ``stability`` of ``A0 - L C``,
-    ``local_error_dynamics`` (``F(x0) - L C`` with the plant's Jacobian:
+    ``local_error_dynamics`` (``F(x_op) - L C`` with the plant's Jacobian:
     the LMI certifies ``A0 - L C`` plus a Lipschitz bound, which need not
     hold), ``rank_observability`` of ``(A0, C)`` and of every vertex, and
     ``observer_convergence`` of the multiple observer (20) on the nonlinear

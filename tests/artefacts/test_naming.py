@@ -17,12 +17,15 @@ import numpy as np
 import pytest
 from scipy.linalg import expm
 
+from tanksynth.analysis.statespace import GAIN_NAMES, undocumented_gains
 from tanksynth.artefacts.export import implementation_data, mat_contents
+from tanksynth.docgen import gain_names_markdown, generated_section
 from tanksynth.errors import ArtefactError
 from tanksynth.methods import METHODS, load_spec
 from tanksynth.verify.common import artefact_gain, artefact_matrix
 
-EXAMPLES = sorted(Path(__file__).resolve().parents[2].joinpath("examples").glob("*.toml"))
+ROOT = Path(__file__).resolve().parents[2]
+EXAMPLES = sorted(ROOT.joinpath("examples").glob("*.toml"))
 CONTINUOUS = ("F", "B", "Bw")
 DISCRETE = ("Ad", "Bd", "Bwd")
 
@@ -144,7 +147,47 @@ def test_an_artefact_with_the_old_names_is_named():
         artefact_matrix(doc, "A", (1, 1), "discrete")
     with pytest.raises(ArtefactError, match=r"no gain 'x_hat0' but 'x0'"):
         artefact_gain(doc, "x_hat0")
+    with pytest.raises(ArtefactError, match=r"no gain 'Lambda_op' but 'Lambda_x0'"):
+        artefact_matrix({**doc, "gains": {"Lambda_x0": [[1.0]]}}, "Lambda_op", (1, 1))
     with pytest.raises(ArtefactError, match=r"no gain 'K'$"):
         artefact_gain(doc, "K")
     np.testing.assert_array_equal(artefact_matrix({**doc, "gains": {"F": [[2.0]]}}, "A", (1, 1),
                                                   "continuous"), [[2.0]])
+
+
+def test_every_gain_name_is_in_the_table(designed):
+    """The README table (`GAIN_NAMES`) lists every gain every example's designs store."""
+    bad = [f"{example}/{name} ({r.method}): {undocumented_gains(list(r.gains))}"
+           for (example, name), (_, r) in designed.items() if undocumented_gains(list(r.gains))]
+    assert not bad, "undocumented gain names (add them to GAIN_NAMES):\n" + "\n".join(bad)
+
+
+def test_the_table_check_fails_on_a_new_name():
+    names = ["K", "K_0", "K_39", "R1", "C12", "sp_K", "sp_x_op", "sp_switch_level",
+             "Lambda_x0", "K_x", "sp_new", "new_gain", "x0", "A", "sp_"]
+    assert undocumented_gains(names) == ["Lambda_x0", "K_x", "sp_new", "new_gain", "x0", "A", "sp_"]
+
+
+def test_the_readme_table_is_generated_from_the_dict():
+    table = generated_section((ROOT / "README.md").read_text(encoding="utf-8"), "gain_names")
+    assert table == gain_names_markdown()
+    rows = [line for line in table.splitlines() if line.startswith("| `")]
+    assert len(rows) == len(GAIN_NAMES)
+    for (names, _), row in zip(GAIN_NAMES.items(), rows):
+        assert row.split(" | ")[0] == "| " + ", ".join(f"`{n}`" for n in names)
+
+
+def test_placement_designs_store_their_operating_point(designed):
+    """``pole_placement`` / ``lmi_placement`` gains hold ``x_op`` (the spec's point) and ``u_op``
+    (the equilibrium input the .mat also carries, from the diagnostics)."""
+    seen = 0
+    for (example, name), (spec, r) in designed.items():
+        if r.method not in ("pole_placement", "lmi_placement"):
+            continue
+        np.testing.assert_array_equal(r.gains["x_op"], spec.x0, err_msg=f"{example}/{name}")
+        data = implementation_data(r.diagnostics, None)
+        np.testing.assert_allclose(r.gains["u_op"], data["u_op"], rtol=0, atol=0,
+                                   err_msg=f"{example}/{name}")
+        assert r.gains["u_op"].shape == (spec.plant.m,)
+        seen += 1
+    assert seen >= 2     # one of each in examples/

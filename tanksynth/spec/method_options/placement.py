@@ -211,7 +211,9 @@ class LmiPlacementOptions(MethodOptions):
     margin : float
         Strictness margin of the LMIs, in (0, 1); default 1e-6.
     kappa : float
-        Bound ``I <= X <= kappa I`` of the Lyapunov matrix (> 1); default 1e4.
+        Bound ``I <= X <= kappa I`` of the LMI variable ``X`` (``X = P^-1`` for a
+        state feedback, ``X = P`` for an observer, ``P`` the stored Lyapunov
+        matrix; > 1); default 1e4.
     kappa_max : float
         Ceiling of the automatic relaxation of ``kappa``: when the bound is
         active at the optimum of a refused LMI, it is retried with ``kappa``
