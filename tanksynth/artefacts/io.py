@@ -29,6 +29,7 @@ import numpy as np
 
 from tanksynth.artefacts.atomic import atomic_write, commit, discard, stage
 from tanksynth.artefacts.export import c_header
+from tanksynth.artefacts.jsontext import dumps
 from tanksynth.errors import ArtefactError, SpecError
 
 if TYPE_CHECKING:  # the artefact only reads a result's fields; no import of the design stage
@@ -79,56 +80,6 @@ def to_jsonable(value: Any) -> Any:
     if value is None or isinstance(value, str):
         return value
     return str(value)
-
-
-class _NotPlain(Exception):
-    """A value `_dumps` leaves to `json.dumps` (the whole document then goes there)."""
-
-
-_FLOAT_REPR = float.__repr__
-
-
-def _dumps(doc: Any) -> str:
-    """``json.dumps(doc, indent=2, allow_nan=False)``, the same text, faster on big matrices.
-
-    With ``indent``, the standard library encodes in pure Python, one call per
-    number (seconds for the artefact of a 256-state design); here each list of
-    numbers is encoded by the C encoder in one call and only re-joined with the
-    indentation. Anything unusual (non-string keys, other types) is left to
-    `json.dumps` itself.
-    """
-    try:
-        return _encode(doc, "")
-    except _NotPlain:
-        return json.dumps(doc, indent=2, allow_nan=False)
-
-
-def _encode(value: Any, indent: str) -> str:
-    inner = indent + "  "
-    if isinstance(value, dict):
-        if not value:
-            return "{}"
-        parts = []
-        for k, v in value.items():
-            if not isinstance(k, str):
-                raise _NotPlain
-            parts.append(f"{inner}{json.encoder.encode_basestring_ascii(k)}: {_encode(v, inner)}")
-        return "{\n" + ",\n".join(parts) + "\n" + indent + "}"
-    if isinstance(value, list):
-        if not value:
-            return "[]"
-        if all(type(v) is float or type(v) is int for v in value):
-            for v in value:
-                if type(v) is float and not math.isfinite(v):
-                    raise ValueError(f"Out of range float values are not JSON compliant: {v!r}")
-            flat = json.dumps(value)[1:-1].split(", ")
-            return "[\n" + inner + (",\n" + inner).join(flat) + "\n" + indent + "]"
-        return "[\n" + ",\n".join(inner + _encode(v, inner) for v in value) + "\n" + indent + "]"
-    if isinstance(value, str):
-        return json.encoder.encode_basestring_ascii(value)
-    if value is None or value is True or value is False or type(value) in (int, float):
-        return json.dumps(value, allow_nan=False)
-    raise _NotPlain
 
 
 def gains_digest(gains: Mapping[str, Any]) -> str:
@@ -354,7 +305,7 @@ def write_artefact(result: DesignResult, directory: str | Path, spec_sha256: str
     doc = artefact_document(result, spec_sha256, solver, npz_sha256=hashlib.sha256(npz).hexdigest(),
                             plant_record_sha256=plant_record_sha256)
     payloads: dict[str, bytes] = {
-        ".json": (_dumps(doc) + "\n").encode("utf-8"),
+        ".json": (dumps(doc) + "\n").encode("utf-8"),
         ".npz": npz,
     }
     extensions = (".json", ".npz", *(f".{e}" for e in export if e != "law"))
@@ -641,7 +592,7 @@ def rehash(path: str | Path) -> Path:
         prov["plant_record_sha256"] = file_sha256(record)
     prov["content_sha256"] = content_digest(doc)
     atomic_write(path.with_suffix(".npz"), npz)
-    atomic_write(path, _dumps(doc) + "\n")
+    atomic_write(path, dumps(doc) + "\n")
     return path
 
 

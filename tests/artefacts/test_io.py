@@ -374,16 +374,18 @@ def test_fast_indented_json_is_the_standard_text():
     """Issue 15: the artefact JSON is encoded list by list with the C encoder; the text is
     exactly ``json.dumps(doc, indent=2, allow_nan=False)``, NaN is still refused, and
     unusual content (tuples, numpy scalars, non-string keys) is left to json itself."""
+    from tanksynth.artefacts.jsontext import dumps
+
     rng = np.random.default_rng(0)
     doc = {"gains": {"L": rng.normal(size=(5, 3)).tolist(), "e": []},
            "d": {"n": [1, 2.5, -0.0, 1e300, 5e-324], "mixed": [True, None, "x\u00e9\"\n", 3],
                  "nested": [[], [[1.0]], {}], "t": "caf\u00e9"}, "k": 7, "f": 0.1, "b": False}
     for value in (doc, {}, [], [[{"a": 1}]], 3.5, "s", None, {"t": (1, 2)}, {1: 2},
                   {"n": np.float64(1.5)}, [1.0, True]):
-        assert artefact_mod._dumps(value) == json.dumps(value, indent=2, allow_nan=False)
+        assert dumps(value) == json.dumps(value, indent=2, allow_nan=False)
     for bad in ({"a": [float("nan")]}, {"a": float("inf")}, [1.0, float("-inf")]):
         with pytest.raises(ValueError):
-            artefact_mod._dumps(bad)
+            dumps(bad)
     assert artefact_mod.to_jsonable({"a": np.array([[1.0, 2.0]]), "b": np.array([1.0, np.inf]),
                                      "c": np.arange(2)}) == {"a": [[1.0, 2.0]], "b": [1.0, "inf"],
                                                              "c": [0, 1]}
