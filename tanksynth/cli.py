@@ -12,8 +12,6 @@ stderr: they are counted in one note on stdout.
 from __future__ import annotations
 
 import json
-import os
-import re
 import shutil
 import sys
 import warnings
@@ -26,6 +24,13 @@ from rich.console import Console
 from rich.table import Table
 
 from tanksynth.errors import InfeasibleDesign, SpecError, TanksynthError
+from tanksynth.messages import KNOWN_WARNINGS, MAX_MESSAGE  # noqa: F401 (the CLI's surface)
+from tanksynth.messages import design_index_note as _design_index_note
+from tanksynth.messages import note_warnings
+from tanksynth.messages import one_line as _one_line
+from tanksynth.process import ignore_file_size_signal as _ignore_file_size_signal
+from tanksynth.process import internal_error_log as _internal_error_log
+from tanksynth.process import one_blas_thread as _one_blas_thread
 
 __all__ = ["main", "cli"]
 
@@ -41,14 +46,8 @@ class _Fail(Exception):
 
 
 #: Longest message line printed (characters): an echoed value in an error is cut, not dumped.
-MAX_MESSAGE = 600
 
 
-def _one_line(exc: BaseException) -> str:
-    """The message on one line, its long runs of digits and its total length cut."""
-    text = " ".join(str(exc).split())
-    text = re.sub(r"\d{40,}", lambda m: f"<{len(m.group(0))} digits>", text)
-    return text if len(text) <= MAX_MESSAGE else text[:MAX_MESSAGE - 12] + " ... (cut)"
 
 
 def _live() -> bool:
@@ -98,47 +97,6 @@ def _stage(text: str, quiet: bool = False):
     with _out.status(text, spinner="dots"):
         yield
 
-
-#: Library warnings whose meaning is known: (category name, text fragment, what it means).
-KNOWN_WARNINGS = (
-    ("UserWarning", "Tight layout not applied",
-     "a figure's layout could not be tightened (cosmetic: labels may overlap)"),
-    ("UserWarning", "Solution may be inaccurate",
-     "a convex solver reported an inaccurate solution (the design's checks re-verify it)"),
-)
-
-
-def _meaning(message, category, filename) -> str:
-    """What a library warning means for the user, on one short line: a known one (see
-    `KNOWN_WARNINGS`), a numerical one with where it came from, else a generic line."""
-    text = str(message)
-    for kind, fragment, meaning in KNOWN_WARNINGS:
-        if category.__name__ == kind and fragment in text:
-            return meaning
-    if issubclass(category, RuntimeWarning):
-        return _warning_line(message, category, filename)
-    return (f"a {category.__name__} from {_origin(filename)} (not known to affect the results; "
-            "tanksynth --verbose COMMAND prints its text)")
-
-
-def _origin(filename) -> str:
-    """The top-level package a warning came from (its file's path), else the file's name."""
-    parts = Path(str(filename)).parts
-    if "site-packages" in parts and parts.index("site-packages") + 1 < len(parts):
-        return parts[parts.index("site-packages") + 1].removesuffix(".py")
-    return Path(str(filename)).name
-
-
-def _warning_line(message, category, filename) -> str:
-    """One line for a warning: a tanksynth warning as it is, a numerical library warning with
-    where it came from and what it means."""
-    text = _one_line(message)
-    if issubclass(category, RuntimeWarning) and "lambdify" in str(filename):
-        return (f"numerical: {text} (in generated model code): a model or premise was evaluated "
-                "outside its domain (e.g. a negative level), giving NaN there")
-    if issubclass(category, RuntimeWarning):
-        return f"numerical: {text} (in {Path(str(filename)).name})"
-    return text
 
 
 def _load(spec_path: str | None):
@@ -662,63 +620,13 @@ def main(argv: list[str] | None = None) -> int:
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         code = _main(args)
-    _note_warnings(caught, quiet="--json" in args, code=code,
+    note_warnings(caught, _out, quiet="--json" in args, code=code,
                    verbose=bool(args) and args[0] in ("-v", "--verbose"))
     return code
 
 
-def _one_blas_thread() -> None:
-    """One BLAS thread for a command, unless the user chose (``OPENBLAS_NUM_THREADS``, ...).
-
-    The command's dense work is small (3-64 states): OpenBLAS's threads make it slower, badly
-    so on a loaded machine (a 5 x 5 ``expm`` 0.4 ms instead of 0.017 ms; ``tanksynth run
-    examples/three_tank_robust.toml`` 43 s instead of 13 s, issue 15). Read by the BLAS when it
-    loads, so only before numpy is imported (a fresh ``tanksynth`` process, not a caller's).
-    """
-    if "numpy" not in sys.modules:
-        for var in ("OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
-            os.environ.setdefault(var, "1")
 
 
-def _ignore_file_size_signal() -> None:
-    import signal
-    import threading
-
-    if hasattr(signal, "SIGXFSZ") and threading.current_thread() is threading.main_thread():
-        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
-
-
-def _note_warnings(caught: list, quiet: bool, code: int = 0, verbose: bool = False) -> None:
-    """Tanksynth warnings (a meaning for the user): one line each on stderr, unless the exit
-    code is 2 or 4 (their contract is one stderr line). Library warnings: one note on stdout
-    saying what they mean (`_meaning`); their raw text only with ``verbose``.
-    Nothing with ``--json``."""
-    from tanksynth.errors import DesignWarning, TanksynthWarning
-
-    if not caught or quiet:
-        return
-    ours = [w for w in caught if issubclass(w.category, TanksynthWarning)
-            and not issubclass(w.category, DesignWarning)]  # design warnings: printed per design
-    library = [w for w in caught if not issubclass(w.category, TanksynthWarning)]
-    try:
-        if code not in (2, 4):
-            for line in dict.fromkeys(_warning_line(w.message, w.category, w.filename) for w in ours):
-                click.echo(f"warning: {line}", err=True)
-        if library:
-            kinds = sorted({w.category.__name__ for w in library})
-            meanings = list(dict.fromkeys(_meaning(w.message, w.category, w.filename)
-                                          for w in library))
-            shown = "; ".join(m[:200] for m in meanings[:3]) + (
-                f"; and {len(meanings) - 3} more" if len(meanings) > 3 else "")
-            _out.print(f"note: {len(library)} library warning(s) ({', '.join(kinds)}) were handled: "
-                       f"{shown}", markup=False, highlight=False, soft_wrap=True)
-            if verbose:
-                raw = dict.fromkeys(f"{w.category.__name__}: {_one_line(w.message)[:300]} "
-                                    f"({w.filename}:{w.lineno})" for w in library)
-                for line in raw:
-                    _out.print(f"  raw: {line}", markup=False, highlight=False, soft_wrap=True)
-    except OSError:  # stdout/stderr closed: nothing more to say
-        pass
 
 
 def _main(argv: list[str]) -> int:
@@ -758,25 +666,8 @@ def _main(argv: list[str]) -> int:
     return EXIT_OK
 
 
-def _design_index_note(text: str) -> str:
-    """``text`` with, when it names ``design[i]``, which ``[[design]]`` table that is (the
-    index counts from 0: ``design[1]`` is the second table), still on one line."""
-    found = list(dict.fromkeys(int(i) for i in re.findall(r"\bdesign\[(\d+)\]", text)))
-    if not found:
-        return text
-    where = ", ".join(f"design[{i}] = [[design]] table {i + 1}" for i in found[:4])
-    return f"{text} ({where}; indices count from 0)"
 
 
-def _internal_error_log() -> str:
-    """Write the current exception's traceback to a temporary log file; return its path."""
-    import tempfile
-    import traceback
-
-    fd, path = tempfile.mkstemp(prefix="tanksynth-internal-error-", suffix=".log")
-    with os.fdopen(fd, "w", encoding="utf-8") as fh:
-        fh.write(traceback.format_exc())
-    return path
 
 
 if __name__ == "__main__":  # pragma: no cover

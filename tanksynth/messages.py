@@ -1,0 +1,175 @@
+"""Messages of the command line on one line: exceptions cut to a readable length, library
+warnings translated into what they mean for the user, design-table indices explained."""
+
+from __future__ import annotations
+
+import re
+import sys
+from pathlib import Path
+from typing import Any
+
+__all__ = ["MAX_MESSAGE", "KNOWN_WARNINGS", "one_line", "meaning", "origin", "warning_line",
+           "design_index_note", "note_warnings"]
+
+#: Longest message printed (characters); longer ones are cut.
+MAX_MESSAGE = 600
+
+
+def one_line(exc: BaseException) -> str:
+    """The message on one line, its long runs of digits and its total length cut.
+
+    Parameters
+    ----------
+    exc : BaseException or str
+        The error (or warning message) to print.
+
+    Returns
+    -------
+    str
+        At most `MAX_MESSAGE` characters; runs of 40+ digits shown as ``<n digits>``.
+    """
+    text = " ".join(str(exc).split())
+    text = re.sub(r"\d{40,}", lambda m: f"<{len(m.group(0))} digits>", text)
+    return text if len(text) <= MAX_MESSAGE else text[:MAX_MESSAGE - 12] + " ... (cut)"
+
+
+#: Library warnings whose meaning is known: (category name, text fragment, what it means).
+KNOWN_WARNINGS = (
+    ("UserWarning", "Tight layout not applied",
+     "a figure's layout could not be tightened (cosmetic: labels may overlap)"),
+    ("UserWarning", "Solution may be inaccurate",
+     "a convex solver reported an inaccurate solution (the design's checks re-verify it)"),
+)
+
+
+def meaning(message: Any, category: type, filename: str) -> str:
+    """What a library warning means for the user, on one short line: a known one (see
+    `KNOWN_WARNINGS`), a numerical one with where it came from, else a generic line.
+
+    Parameters
+    ----------
+    message : Warning or str
+        The warning's message.
+    category : type
+        Its class (a `Warning` subclass).
+    filename : str
+        The file that issued it.
+    """
+    text = str(message)
+    for kind, fragment, meaning in KNOWN_WARNINGS:
+        if category.__name__ == kind and fragment in text:
+            return meaning
+    if issubclass(category, RuntimeWarning):
+        return warning_line(message, category, filename)
+    return (f"a {category.__name__} from {origin(filename)} (not known to affect the results; "
+            "tanksynth --verbose COMMAND prints its text)")
+
+
+def origin(filename: str) -> str:
+    """The top-level package a warning came from (its file's path), else the file's name.
+
+    Parameters
+    ----------
+    filename : str
+        The file that issued the warning.
+    """
+    parts = Path(str(filename)).parts
+    if "site-packages" in parts and parts.index("site-packages") + 1 < len(parts):
+        return parts[parts.index("site-packages") + 1].removesuffix(".py")
+    return Path(str(filename)).name
+
+
+def warning_line(message: Any, category: type, filename: str) -> str:
+    """One line for a warning: a tanksynth warning as it is, a numerical library warning with
+    where it came from and what it means.
+
+    Parameters
+    ----------
+    message : Warning or str
+        The warning's message.
+    category : type
+        Its class (a `Warning` subclass).
+    filename : str
+        The file that issued it.
+    """
+    text = one_line(message)
+    if issubclass(category, RuntimeWarning) and "lambdify" in str(filename):
+        return (f"numerical: {text} (in generated model code): a model or premise was evaluated "
+                "outside its domain (e.g. a negative level), giving NaN there")
+    if issubclass(category, RuntimeWarning):
+        return f"numerical: {text} (in {Path(str(filename)).name})"
+    return text
+
+
+def design_index_note(text: str, limit: int = MAX_MESSAGE) -> str:
+    """``text`` with, when it names ``design[i]``, which ``[[design]]`` table that is (the
+    index counts from 0: ``design[1]`` is the second table), still on one line.
+
+    Parameters
+    ----------
+    text : str
+        A one-line message.
+    limit : int
+        Longest result (characters): the message is cut to leave room for the note.
+
+    Returns
+    -------
+    str
+        The message and the note, at most ``limit`` characters.
+    """
+    found = list(dict.fromkeys(int(i) for i in re.findall(r"\bdesign\[(\d+)\]", text)))
+    if not found:
+        return text
+    where = ", ".join(f"design[{i}] = [[design]] table {i + 1}" for i in found[:4])
+    note = f" ({where}; indices count from 0)"
+    if len(text) + len(note) > limit:
+        text = text[:max(0, limit - len(note) - 10)].rstrip() + " ... (cut)"
+    return text + note
+
+
+def note_warnings(caught: list, console: Any, quiet: bool, code: int = 0,
+                  verbose: bool = False) -> None:
+    """Tanksynth warnings (a meaning for the user): one line each on stderr, unless the exit
+    code is 2 or 4 (their contract is one stderr line). Library warnings: one note on stdout
+    saying what they mean (`meaning`); their raw text only with ``verbose``.
+    Nothing with ``--json``.
+
+    Parameters
+    ----------
+    caught : list of warnings.WarningMessage
+        The warnings a command recorded.
+    console : rich.console.Console
+        Where the library-warning note goes (stdout).
+    quiet : bool
+        Print nothing (``--json``).
+    code : int
+        The command's exit code (no warning lines on 2 or 4).
+    verbose : bool
+        Also print the library warnings' raw text.
+    """
+    from tanksynth.errors import DesignWarning, TanksynthWarning
+
+    if not caught or quiet:
+        return
+    ours = [w for w in caught if issubclass(w.category, TanksynthWarning)
+            and not issubclass(w.category, DesignWarning)]  # design warnings: printed per design
+    library = [w for w in caught if not issubclass(w.category, TanksynthWarning)]
+    try:
+        if code not in (2, 4):
+            for line in dict.fromkeys(warning_line(w.message, w.category, w.filename) for w in ours):
+                print(f"warning: {line}", file=sys.stderr)
+        if library:
+            kinds = sorted({w.category.__name__ for w in library})
+            meanings = list(dict.fromkeys(meaning(w.message, w.category, w.filename)
+                                          for w in library))
+            shown = "; ".join(m[:200] for m in meanings[:3]) + (
+                f"; and {len(meanings) - 3} more" if len(meanings) > 3 else "")
+            console.print(f"note: {len(library)} library warning(s) ({', '.join(kinds)}) were handled: "
+                       f"{shown}", markup=False, highlight=False, soft_wrap=True)
+            if verbose:
+                raw = dict.fromkeys(f"{w.category.__name__}: {one_line(w.message)[:300]} "
+                                    f"({w.filename}:{w.lineno})" for w in library)
+                for line in raw:
+                    console.print(f"  raw: {line}", markup=False, highlight=False, soft_wrap=True)
+    except OSError:  # stdout/stderr closed: nothing more to say
+        pass
