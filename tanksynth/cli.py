@@ -505,12 +505,12 @@ def _write_report(directory: Path, pdf: bool):
         res = write_report(directory, pdf=pdf)
     if res.pdf is not None:
         _out.print(f"report: {res.tex}, {res.pdf.name} ({res.pages} pages, LaTeX "
-                   f"{res.latex_seconds:.1f} s)", markup=False, highlight=False)
+                   f"{res.latex_seconds:.1f} s)", markup=False, highlight=False, soft_wrap=True)
     else:
         tex = all(shutil.which(tool) for tool in ("pdflatex", "latexmk"))
         _out.print(f"report: {res.tex} (" + ("add --pdf for the PDF)" if tex else
                                              "for the PDF: install pdflatex and latexmk, then --pdf)"),
-                   markup=False, highlight=False)
+                   markup=False, highlight=False, soft_wrap=True)
     for comp in res.comparisons:
         if comp.errata:
             _out.print(f"paper vs tool ({comp.title}): {len(comp.errata)} erratum/errata in the "

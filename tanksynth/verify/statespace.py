@@ -14,13 +14,7 @@ time, written ``A``, ``B``, ``C`` below; and ``Bw`` (``Bwd``), ``Cz``,
 the operating point. Where the artefact
 stores no linear model (EKF-type filters, ``luenberger``, ``integral_tracking``,
 the Takagi-Sugeno designs' premises) the plant is rebuilt from ``spec.toml``
-beside the artefact (or the ``spec`` given). The systems (``system``):
-
-``"closed_loop"`` (default of the other controllers; ``"reference"`` is the same system)
-    ``(A - B K, B, C, 0)`` from an input offset to the measured outputs; with
-    integral action the augmented loop ``(Aa - Ba K, Br, [C1 0], 0)`` from
-    the references to the tracked outputs, the integrator states named
-    ``z_<output>``.
+beside the artefact (or the ``spec`` given).
 
 Signals are named after the plant's (`spec` or ``plant.json``): states, inputs ``u`` and
 outputs ``y`` by their names; disturbance inputs ``w_<state>`` and measurement noise
@@ -29,6 +23,15 @@ outputs ``y`` by their names; disturbance inputs ``w_<state>`` and measurement n
 ``r_<output>``, integrator states ``z_<output>``, performance outputs ``z_<state>``,
 ``z_<input>`` (controllers) or ``z_e_<state>`` (observers: ``z`` weighs the error), else
 ``z_<i>``.
+
+The systems (``system``):
+
+``"closed_loop"`` (default of the other controllers; ``"reference"`` is the same system)
+    ``(A - B K, B, C, 0)`` from an input offset to the measured outputs; with
+    integral action the augmented loop ``(Aa - Ba K, Br, [C1 0], 0)`` from
+    the references to the tracked outputs, the integrator states named
+    ``z_<output>``.
+
 ``"performance"`` (default of the H2 / H-infinity / multi-objective designs, which declare ``Bw``)
     state feedback: ``(A - B K, Bw, Cz - Dzu K, 0)`` from ``w`` to ``z``;
     observer: the error system ``(A - L C, [Bw, -L Dv], Cz, 0)``.
