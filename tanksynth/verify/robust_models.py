@@ -122,7 +122,7 @@ def linear_models(plant: Any, names: Sequence[str], values: np.ndarray,
     for row in values:  # validation only (cheap: no compilation)
         plant.with_parameters(dict(zip(names, map(float, row))), key="uncertain")
     pp = _parametric(plant, names)
-    M, n, m = values.shape[0], plant.n, plant.m
+    M, m = values.shape[0], plant.m
     X = np.tile(np.asarray(x0, dtype=float), (M, 1))
     U = np.zeros((M, m))
     f0 = pp.evaluate("f", X, U, values)[:, :, 0]
