@@ -415,6 +415,27 @@ def _unit_label(names: list, units: list, i: int) -> str:
     return f"{name} [{unit}]" if unit else name
 
 
+#: Legend entries of a time-domain panel before entries sharing a colour and line style merge.
+_LEGEND_ROWS = 12
+
+
+def _legend(ax) -> None:
+    """Legend right of the panel; with more than `_LEGEND_ROWS` entries (the 10 colours repeat), one
+    entry per colour and line style naming the signals drawn with it (``h1, h11, h21``)."""
+    handles, labels = ax.get_legend_handles_labels()
+    if len(handles) > _LEGEND_ROWS:
+        from matplotlib.colors import to_hex
+
+        groups: dict = {}
+        for h, lab in zip(handles, labels):
+            key = (to_hex(h.get_color()), str(h.get_linestyle()))
+            groups.setdefault(key, (h, []))[1].append(lab)
+        handles = [g[0] for g in groups.values()]
+        labels = [", ".join(g[1]) if len(g[1]) <= 4 else
+                  f"{g[1][0]}, {g[1][1]}, ..., {g[1][-1]} ({len(g[1])})" for g in groups.values()]
+    ax.legend(handles, labels, fontsize=6, loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False)
+
+
 def time_domain_figure(artefact: Mapping[str, Any], artefact_dir: Path, directory: Path,
                        stem: str) -> TraceFigure | None:
     """Draw the stored verdict trace of one artefact to ``directory/stem.pdf`` (vector PDF).
@@ -528,7 +549,7 @@ def time_domain_figure(artefact: Mapping[str, Any], artefact_dir: Path, director
         ax.tick_params(labelsize=7)
         _plain_axis(ax)
         ax.grid(True, linewidth=0.3, color="0.9")
-        ax.legend(fontsize=6, loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False)
+        _legend(ax)
     axes[-1].set_xlabel("time t [s]", fontsize=8)
     fig.tight_layout()
     # Laid out: no layout engine at all, or savefig draws the whole figure once more before
