@@ -78,8 +78,10 @@ def staircase(t: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
     Returns
     -------
-    ts, ys : ndarray, shape (..., 2 N - 1)
-        ``y[k]`` held from ``t[k]`` to ``t[k+1]``.
+    ts : ndarray, shape (..., 2 N - 1)
+        Vertex times (s): every sample time twice but the first.
+    ys : ndarray, shape (..., 2 N - 1)
+        Vertex values (the unit of ``y``): ``y[k]`` held from ``t[k]`` to ``t[k+1]``.
     """
     t, y = np.broadcast_arrays(np.asarray(t, float), np.asarray(y, float))
     ts = np.repeat(t, 2, axis=-1)[..., 1:]
