@@ -41,7 +41,8 @@ from tanksynth.verify.common import (MAX_STEPS, artefact_gain, artefact_matrix, 
                                      operating_point, option, relative_difference)
 from tanksynth.verify.traces import TraceRecorder
 
-from tanksynth.plants.compile import evaluate_map, rk4_step
+from tanksynth.plants.compile import rk4_step
+from tanksynth.verify.batch_call import BatchCall
 
 __all__ = ["ResidualObserver", "period_function", "FAULT_TS", "FAULT_HORIZON", "FAULT_TIME_TOLERANCE", "FAULT_SLACK", "FAULT_START_OFFSET",
            "FaultScenario", "rule_initial_states", "fault_scenario", "fault_detection_verdict"]
@@ -133,9 +134,8 @@ class ResidualObserver:
             M = self._x.shape[0]
             fn = self._maps.get(M)
             if fn is None:
-                fn = self._maps[M] = self._period.map(M, "serial")
-            u = np.broadcast_to(np.asarray(u, dtype=float), (M, self._period.size1_in(1)))
-            self._x = evaluate_map(fn, self._x, u, self._y, y.reshape(M, -1))[:, :, 0]
+                fn = self._maps[M] = BatchCall(self._period, M)
+            self._x = fn(self._x, u, self._y, y.reshape(M, -1))
         self._y = y.copy()
         self.residuals.append(y - self.output(self._x).reshape(y.shape))
         return self._x

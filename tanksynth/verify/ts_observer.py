@@ -102,14 +102,13 @@ class TSObserver:
             Measurements (output units, m) and previous inputs (input units, m^3/s).
         """
         if self._y is not None and self._period is not None:
-            from tanksynth.plants.compile import evaluate_map
+            from tanksynth.verify.batch_call import BatchCall
 
             M = self._x.shape[0]
             fn = self._maps.get(M)
             if fn is None:
-                fn = self._maps[M] = self._period.map(M, "serial")
-            U = np.broadcast_to(np.asarray(u, dtype=float), (M, self._period.size1_in(1)))
-            x = evaluate_map(fn, self._x, U, self._y.reshape(M, -1))[:, :, 0]
+                fn = self._maps[M] = BatchCall(self._period, M)
+            x = fn(self._x, u, self._y.reshape(M, -1))
         elif self._y is not None:
             x = self._x
             for _ in range(self.substeps):
