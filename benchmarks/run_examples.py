@@ -14,17 +14,24 @@ one in ``EXPECTED_EXIT`` (0 unless listed) also fails the run.
 ``--profile NAME ...`` prints, for those examples, the top cumulative costs of one cProfile'd
 ``tanksynth run`` and the largest ``python -X importtime`` packages of the CLI.
 
+``--baseline DIR`` times every example a second time with another source tree first on
+``PYTHONPATH`` (e.g. ``git archive <commit> | tar -x -C DIR``), interleaved with the current tree
+(this tree, baseline, next example, ...): before/after numbers under the same load. The record
+then goes to ``run_examples_baseline.json`` with the ratio baseline / current of every example.
+
 Usage::
 
     .venv/bin/python benchmarks/run_examples.py                  # every example, 3 reps
     .venv/bin/python benchmarks/run_examples.py --only seed000_akf hybrid_three_tank --reps 5
     .venv/bin/python benchmarks/run_examples.py --imports-only   # import and --help only
     .venv/bin/python benchmarks/run_examples.py --profile seed000_akf --reps 0
+    .venv/bin/python benchmarks/run_examples.py --only seed004_fault_detection --baseline /tmp/base
 """
 
 from __future__ import annotations
 
 import argparse
+import os
 import pstats
 import subprocess
 import sys
@@ -59,12 +66,17 @@ def run_command(stem: str) -> list[str]:
     return [CLI, "run", str(ROOT / "examples" / f"{stem}.toml"), "-o"]
 
 
-def timed(cmd: list[str], outdir: bool) -> tuple[float, int, str]:
-    """Wall time (s), exit code and last stderr line of one fresh-process command."""
+def timed(cmd: list[str], outdir: bool, tree: Path | None = None) -> tuple[float, int, str]:
+    """Wall time (s), exit code and last stderr line of one fresh-process command (``tree``: the
+    source tree put first on ``PYTHONPATH``; None: the environment's)."""
+    env = None
+    if tree is not None:
+        env = dict(os.environ, PYTHONPATH=os.pathsep.join(
+            [str(tree)] + [p for p in os.environ.get("PYTHONPATH", "").split(os.pathsep) if p]))
     with tempfile.TemporaryDirectory(prefix="tanksynth-bench-") as tmp:
         full = cmd + [str(Path(tmp) / "out")] if outdir else cmd
         t0 = time.perf_counter()
-        proc = subprocess.run(full, capture_output=True, text=True, cwd=ROOT)
+        proc = subprocess.run(full, capture_output=True, text=True, cwd=ROOT, env=env)
         wall = time.perf_counter() - t0
     last = (proc.stderr.strip().splitlines() or [""])[-1][:200]
     return wall, proc.returncode, last
@@ -132,11 +144,18 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--imports-only", action="store_true", help="time import and --help only")
     ap.add_argument("--profile", nargs="*", default=None,
                     help="profile these examples (no names: the three slowest measured)")
+    ap.add_argument("--baseline", type=Path, default=None,
+                    help="another source tree: time every example with it too, interleaved")
     args = ap.parse_args(argv)
+    if args.baseline is not None and not (args.baseline / "tanksynth" / "__init__.py").is_file():
+        ap.error(f"--baseline {args.baseline}: no tanksynth/__init__.py there")
     reps = 0 if args.reps == 0 else max(args.reps, 3)
     stems = [] if args.imports_only else (args.only or [p.stem for p in EXAMPLES])
-    commands = {name: (cmd, False) for name, cmd in IMPORT_COMMANDS.items()}
-    commands.update({stem: (run_command(stem), True) for stem in stems})
+    commands = {name: (cmd, False, None) for name, cmd in IMPORT_COMMANDS.items()}
+    for stem in stems:
+        commands[stem] = (run_command(stem), True, None)
+        if args.baseline is not None:
+            commands[f"{stem} @baseline"] = (run_command(stem), True, args.baseline.resolve())
     before = machine()
     print(f"{len(commands)} commands, {reps} interleaved reps, fresh process each; "
           f"load {before['loadavg']}")
@@ -144,8 +163,8 @@ def main(argv: list[str] | None = None) -> int:
     codes: dict[str, list[int]] = {name: [] for name in commands}
     notes: dict[str, str] = {}
     for rep in range(reps):
-        for name, (cmd, outdir) in commands.items():
-            wall, rc, last = timed(cmd, outdir)
+        for name, (cmd, outdir, tree) in commands.items():
+            wall, rc, last = timed(cmd, outdir, tree)
             times[name].append(wall)
             codes[name].append(rc)
             if rc:
@@ -160,7 +179,7 @@ def main(argv: list[str] | None = None) -> int:
         if floor is None and name in stems and name not in SEARCH_HEAVY:
             floor = RUN_FLOOR
         ok = floor is None or sm["median"] < floor
-        want = EXPECTED_EXIT.get(name, 0)
+        want = EXPECTED_EXIT.get(name.split(" @")[0], 0)
         exit_ok = all(c == want for c in codes[name])
         if not ok:
             failed.append(f"{name}: median {sm['median']:.2f} s >= {floor:g} s")
@@ -191,10 +210,21 @@ def main(argv: list[str] | None = None) -> int:
         if not reps:
             path = write_record("run_examples_profiles", {"profiles": profiles}, before)
             print(f"\nrecord: {path}")
+    speedups = {}
+    if reps and args.baseline is not None:
+        print(f"\nbaseline {args.baseline}: ratio baseline / current of each repetition")
+        for stem in stems:
+            r = [b / a for a, b in zip(times[stem], times[f"{stem} @baseline"])]
+            speedups[stem] = {"ratios": r, "median": sorted(r)[len(r) // 2]}
+            print(f"  {stem:30s} median {speedups[stem]['median']:5.2f}x  "
+                  f"({', '.join(f'{v:.2f}' for v in r)})")
     if reps:
-        path = write_record("run_examples", {"reps": reps, "rows": rows, "importtime": breakdown,
-                                             "search_heavy": list(SEARCH_HEAVY),
-                                             "profiles": profiles, "failed": failed}, before)
+        payload = {"reps": reps, "rows": rows, "importtime": breakdown,
+                   "search_heavy": list(SEARCH_HEAVY), "profiles": profiles, "failed": failed}
+        if args.baseline is not None:
+            payload.update(baseline=str(args.baseline), speedups=speedups)
+        path = write_record("run_examples_baseline" if args.baseline is not None else "run_examples",
+                            payload, before)
         print(f"\nrecord: {path}")
     for msg in failed:
         print(f"benchmarks/run_examples.py: {msg}", file=sys.stderr)

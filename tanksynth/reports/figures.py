@@ -27,6 +27,7 @@ from typing import Any, Iterator, Mapping
 import numpy as np
 
 from tanksynth.artefacts.atomic import atomic_write
+from tanksynth.reports.trace_lines import draw_runs, envelope
 
 __all__ = ["EigenvalueSet", "eigenvalue_sets", "eigen_label", "is_pole_key", "FigureFile", "pole_map",
            "TraceFigure", "time_domain_figure", "ordinal"]
@@ -301,7 +302,9 @@ def pole_map(artefact: Mapping[str, Any], directory: Path, stem: str) -> FigureF
         ax.legend(handles=handles, fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.2),
                   ncol=1, frameon=False)
     fig.tight_layout()
-    fig.set_layout_engine("none")  # laid out: savefig would lay out (draw) once more
+    # Laid out: no layout engine at all, or savefig draws the whole figure once more before
+    # printing (it does so for any engine, even the placeholder that ``"none"`` leaves).
+    fig.set_layout_engine(None)
     directory.mkdir(parents=True, exist_ok=True)
     target = directory / f"{stem}.pdf"
     _atomic_savefig(fig, target)
@@ -412,6 +415,27 @@ def _unit_label(names: list, units: list, i: int) -> str:
     return f"{name} [{unit}]" if unit else name
 
 
+#: Legend entries of a time-domain panel before entries sharing a colour and line style merge.
+_LEGEND_ROWS = 12
+
+
+def _legend(ax) -> None:
+    """Legend right of the panel; with more than `_LEGEND_ROWS` entries (the 10 colours repeat), one
+    entry per colour and line style naming the signals drawn with it (``h1, h11, h21``)."""
+    handles, labels = ax.get_legend_handles_labels()
+    if len(handles) > _LEGEND_ROWS:
+        from matplotlib.colors import to_hex
+
+        groups: dict = {}
+        for h, lab in zip(handles, labels):
+            key = (to_hex(h.get_color()), str(h.get_linestyle()))
+            groups.setdefault(key, (h, []))[1].append(lab)
+        handles = [g[0] for g in groups.values()]
+        labels = [", ".join(g[1]) if len(g[1]) <= 4 else
+                  f"{g[1][0]}, {g[1][1]}, ..., {g[1][-1]} ({len(g[1])})" for g in groups.values()]
+    ax.legend(handles, labels, fontsize=6, loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False)
+
+
 def time_domain_figure(artefact: Mapping[str, Any], artefact_dir: Path, directory: Path,
                        stem: str) -> TraceFigure | None:
     """Draw the stored verdict trace of one artefact to ``directory/stem.pdf`` (vector PDF).
@@ -469,54 +493,54 @@ def time_domain_figure(artefact: Mapping[str, Any], artefact_dir: Path, director
         if panel == "linear":
             scale = float(lin["scale"])
             for i in range(n):
-                ax.plot(t, x[1, :, i] - x[0, :, i], color=colors[i], linewidth=1.1,
+                ax.plot(*envelope(t, x[1, :, i] - x[0, :, i]), color=colors[i], linewidth=1.1,
                         label=f"{snames[i] if i < len(snames) else i + 1} nonlinear")
-                ax.plot(t, lin["prediction"][:, i], color=colors[i], linewidth=1.0, linestyle="--",
+                ax.plot(*envelope(t, lin["prediction"][:, i]), color=colors[i], linewidth=1.0, linestyle="--",
                         label=f"{snames[i] if i < len(snames) else i + 1} linear model")
             ax.set_ylabel(f"deviation from x0 [{state_unit}]" if state_unit else "deviation from x0",
                           fontsize=8)
             ax.set_title("response to a small step: nonlinear plant (solid) and linear model (dashed); "
                          f"largest gap {100 * float(lin['gap']) / max(scale, 1e-300):.2g} %", fontsize=8)
         elif panel == "levels":
-            for r in range(x.shape[0]):
-                for i in range(n):
-                    ax.plot(t, x[r, :, i], color=colors[i], linewidth=1.0 if r == 0 else 0.5,
-                            alpha=1.0 if r == 0 else 0.45,
-                            label=_unit_label(snames, sunits, i) if r == 0 else None)
+            for i in range(n):
+                ax.plot(*envelope(t, x[0, :, i]), color=colors[i], linewidth=1.0,
+                        label=_unit_label(snames, sunits, i))
+                draw_runs(ax, t, x[1:, :, i], color=colors[i], linewidth=0.5, alpha=0.45)
             if ref is not None and np.ndim(ref) == 2 and np.shape(ref)[0] == t.size:
                 for j in range(np.shape(ref)[1]):
                     k = snames.index(rnames[j]) if j < len(rnames) and rnames[j] in snames else j
-                    ax.plot(t, np.asarray(ref)[:, j], color=colors[k % len(colors)], linestyle="--",
+                    ax.plot(*envelope(t, np.asarray(ref, float)[:, j]), color=colors[k % len(colors)],
+                            linestyle="--",
                             linewidth=0.8, label=f"ref. {rnames[j] if j < len(rnames) else j + 1}")
             ax.set_ylabel(f"states [{state_unit}]" if state_unit else "states", fontsize=8)
             ax.set_title("plant (nonlinear)" + (" and references" if ref is not None else ""), fontsize=9)
         elif panel == "estimates":
             xh = np.asarray(x_hat, float)
             for i in range(n):
-                ax.plot(t, x[0, :, i], color=colors[i], linewidth=1.0, label=f"{snames[i] if i < len(snames) else i + 1}")
-                ax.plot(t, xh[0, :, i], color=colors[i], linewidth=0.9, linestyle="--",
+                ax.plot(*envelope(t, x[0, :, i]), color=colors[i], linewidth=1.0,
+                        label=f"{snames[i] if i < len(snames) else i + 1}")
+                ax.plot(*envelope(t, xh[0, :, i]), color=colors[i], linewidth=0.9, linestyle="--",
                         label=f"{snames[i] if i < len(snames) else i + 1} estimate")
             ax.set_ylabel(f"state and estimate [{state_unit}]" if state_unit else "state and estimate",
                           fontsize=8)
             ax.set_title("estimates (dashed) against the true states", fontsize=9)
         elif panel == "error":
             err = np.asarray(x_hat, float) - x
-            for r in range(err.shape[0]):
-                for i in range(n):
-                    ax.plot(t, err[r, :, i], color=colors[i], linewidth=1.0 if r == 0 else 0.5,
-                            alpha=1.0 if r == 0 else 0.45,
-                            label=f"{snames[i] if i < len(snames) else i + 1}" if r == 0 else None)
+            for i in range(n):
+                ax.plot(*envelope(t, err[0, :, i]), color=colors[i], linewidth=1.0,
+                        label=f"{snames[i] if i < len(snames) else i + 1}")
+                draw_runs(ax, t, err[1:, :, i], color=colors[i], linewidth=0.5, alpha=0.45)
             ax.axhline(0.0, color="0.6", linewidth=0.6)
             ax.set_ylabel(f"estimate - state [{state_unit}]" if state_unit else "estimate - state",
                           fontsize=8)
             ax.set_title("estimation error", fontsize=9)
         else:
             shown = [_display(iunits[j] if j < len(iunits) else "") for j in range(u.shape[2])]
-            for r in range(u.shape[0]):
-                for j in range(u.shape[2]):
-                    ax.step(t_u, shown[j][0] * u[r, :, j], where="post", color=colors[j % len(colors)],
-                            linewidth=1.0 if r == 0 else 0.5, alpha=1.0 if r == 0 else 0.45,
-                            label=(inames[j] if j < len(inames) else f"#{j + 1}") if r == 0 else None)
+            for j in range(u.shape[2]):
+                ax.step(*envelope(t_u, shown[j][0] * u[0, :, j]), where="post", color=colors[j % len(colors)],
+                        linewidth=1.0, label=inames[j] if j < len(inames) else f"#{j + 1}")
+                draw_runs(ax, t_u, shown[j][0] * u[1:, :, j], step=True, color=colors[j % len(colors)],
+                          linewidth=0.5, alpha=0.45)
             same = {sh[1] for sh in shown}
             unit = same.pop() if len(same) == 1 else ""
             what = "flow" if unit == "l/s" else "input"
@@ -525,10 +549,12 @@ def time_domain_figure(artefact: Mapping[str, Any], artefact_dir: Path, director
         ax.tick_params(labelsize=7)
         _plain_axis(ax)
         ax.grid(True, linewidth=0.3, color="0.9")
-        ax.legend(fontsize=6, loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False)
+        _legend(ax)
     axes[-1].set_xlabel("time t [s]", fontsize=8)
     fig.tight_layout()
-    fig.set_layout_engine("none")  # laid out: savefig would lay out (draw) once more
+    # Laid out: no layout engine at all, or savefig draws the whole figure once more before
+    # printing (it does so for any engine, even the placeholder that ``"none"`` leaves).
+    fig.set_layout_engine(None)
     directory.mkdir(parents=True, exist_ok=True)
     target = directory / f"{stem}.pdf"
     _atomic_savefig(fig, target)

@@ -182,6 +182,7 @@ def region_figure(art: Mapping[str, Any], artefact_dir: Path, directory: Path,
     fig.legend(list(seen.values()), list(seen.keys()), loc="lower center", ncol=3, fontsize=7,
                frameon=False)
     fig.tight_layout(rect=(0, 0.16 if has_sp else 0.12, 1, 1))
+    fig.set_layout_engine(None)  # laid out: savefig would draw the figure once more
     directory.mkdir(parents=True, exist_ok=True)
     target = directory / f"{stem}.pdf"
     atomic_write(target, lambda fh: fig.savefig(fh, format="pdf",

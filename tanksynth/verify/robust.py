@@ -35,9 +35,10 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 
 from tanksynth.analysis.checks import Check
-from tanksynth.analysis.linearize import discretize_zoh, equilibrium_input, linearize
+from tanksynth.analysis.linearize import discretize_zoh, equilibrium_input
 from tanksynth.errors import ArtefactError
 from tanksynth.sim.simulate import run_seeds, simulate
+from tanksynth.verify.robust_models import linear_models
 from tanksynth.verify.robust_traces import PeakRecordingLaw, record_monte_carlo
 from tanksynth.spec.method_options.robust import parse_uncertain
 from tanksynth.verify.common import (OBSERVER_TOLERANCE, artefact_matrix, fmt, guard, model_recheck,
@@ -114,21 +115,22 @@ def hinf_norm(A: np.ndarray, B: np.ndarray, C: np.ndarray, D: np.ndarray | None 
 
 def _models(spec: Any, box: Sequence[Sequence[Any]], values: np.ndarray, domain: str,
             Bw: Any) -> list[dict]:
-    """Linearisations at the spec's levels for parameter values (rows of ``values``)."""
+    """Linearisations at the spec's levels for parameter values (rows of ``values``), the plant
+    compiled once with the parameters as arguments (`tanksynth.verify.robust_models`)."""
     plant = spec.plant
     names = [b[0] for b in box]
+    values = np.asarray(values, dtype=float)
+    values = values.reshape(values.shape[0] if values.ndim else 1, len(names))
+    u0s, Fs, Bs, Cs = linear_models(plant, names, values, spec.x0)
     out = []
-    for row in values:
-        pl = plant.with_parameters(dict(zip(names, map(float, row))), key="uncertain") if names else plant
-        eq = equilibrium_input(pl, spec.x0)
-        lin = linearize(pl, spec.x0, eq.u0)
-        W = lin.B if isinstance(Bw, str) and Bw == "inputs" else (
+    for row, u0, F, Bc, C in zip(values, u0s, Fs, Bs, Cs):
+        W = Bc if isinstance(Bw, str) and Bw == "inputs" else (
             np.eye(plant.n) if isinstance(Bw, str) else np.asarray(Bw, dtype=float))
-        A, B = lin.F, lin.B
+        A, B = F, Bc
         if domain == "discrete":
-            Ad, BB = discretize_zoh(lin.F, np.hstack([lin.B, W]), float(spec.ts))
+            Ad, BB = discretize_zoh(F, np.hstack([Bc, W]), float(spec.ts))
             A, B, W = Ad, BB[:, :plant.m], BB[:, plant.m:]
-        out.append({"A": A, "B": B, "C": lin.C, "Bw": W, "u0": eq.u0, "F": lin.F, "Bc": lin.B,
+        out.append({"A": A, "B": B, "C": C, "Bw": W, "u0": u0, "F": F, "Bc": Bc,
                     "params": dict(zip(names, map(float, row)))})
     return out
 

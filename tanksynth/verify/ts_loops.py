@@ -126,6 +126,7 @@ class _PlantModel:
 
     def __init__(self, plant: Any, A0: np.ndarray, C: np.ndarray):
         self.plant, self.A0, self.C = plant, A0, C
+        self.casadi_rhs = plant.compiled.f    # TSObserver steps a whole period in one call
 
     def rhs(self, X: np.ndarray, U: np.ndarray) -> np.ndarray:
         return self.plant.compiled.rhs(X, U)

@@ -218,3 +218,40 @@ def test_declared_scenario_reproduces_the_design_times_tightly(designed):
     det = checks["fault_detected"]
     assert det.passed is True and "initial_states" in det.detail and "schedule" in det.detail
     assert max(det.data["differences"]) < 2e-4
+
+
+def test_observer_period_is_the_rk4_of_the_numpy_model():
+    """One compiled period = 4 RK4 substeps of f(x, u) + Psi (y(t) - h(x)) written here in numpy."""
+    from tanksynth.sim.integrate import param_arrays
+    from tanksynth.sim.tape import numpy_model
+    from tanksynth.verify.fault import ResidualObserver
+
+    plant = hydraulic_fault()
+    Psi = np.array([[1.2], [0.4], [-0.3]])
+    ts, M = 1e-3, 3
+    model, p = numpy_model(plant), param_arrays(plant, {"delta_bar": 0.0}, 1)
+    obs = ResidualObserver(plant, Psi, ts)
+    rng = np.random.default_rng(2)
+    x = 0.5 + rng.random((M, 3))
+    obs.reset(x)
+    y_prev = None
+    for _ in range(20):
+        y = 1.0 + 0.1 * rng.standard_normal((M, 1))
+        u = 1.0 + 0.1 * rng.random((M, 1))
+        got = obs.step(y, u).copy()
+        if y_prev is not None:
+            h = ts / 4
+
+            def f(v, t, u=u, y0=y_prev, y1=y):
+                yt = y0 + (y1 - y0) * t / ts
+                return np.asarray(model.rhs(v, u, p)) + (yt - np.asarray(model.output(v, p)).reshape(M, 1)) @ Psi.T
+
+            for j in range(4):
+                t0 = j * h
+                k1 = f(x, t0)
+                k2 = f(x + 0.5 * h * k1, t0 + 0.5 * h)
+                k3 = f(x + 0.5 * h * k2, t0 + 0.5 * h)
+                k4 = f(x + h * k3, t0 + h)
+                x = x + (h / 6.0) * (k1 + 2 * k2 + 2 * k3 + k4)
+        np.testing.assert_allclose(got, x, rtol=1e-13, atol=0)
+        y_prev = y
