@@ -141,3 +141,17 @@ def test_the_name_check_catches_what_it_should(tmp_path):
     kinds = {f.split(": ", 1)[1].split(" '")[0] for f in found}
     assert {"imported module", "name", "argument", "dict key", "keyword argument",
             "attribute"} <= kinds, found
+
+
+def test_test_modules_have_distinct_names():
+    """pytest imports test files of directories without ``__init__.py`` by their base name: two
+    ``test_x.py`` in such directories make the whole run fail at collection (CI saw it)."""
+    from collections import defaultdict
+    from pathlib import Path
+
+    tests = Path(__file__).resolve().parent
+    seen = defaultdict(list)
+    for path in tests.rglob("test_*.py"):
+        if not (path.parent / "__init__.py").is_file():
+            seen[path.name].append(str(path.relative_to(tests)))
+    assert {name: paths for name, paths in seen.items() if len(paths) > 1} == {}
