@@ -97,7 +97,10 @@ def _model(spec: Any, o: Any) -> dict:
 def _model_gains(m: dict, time_domain: str) -> dict:
     """The model's matrices under their artefact names (`model_names`)."""
     names = model_names(time_domain)
-    return {names[role]: m[role] for role in ("A", "B", "C", "Bw")}
+    out = {names[role]: m[role] for role in ("A", "B", "C", "Bw")}
+    # the operating point the deviation model (and so the gain) is about
+    out["x_op"], out["u_op"] = np.asarray(m["eq"].x0, dtype=float), np.asarray(m["eq"].u0, dtype=float)
+    return out
 
 
 #: Disturbances larger than this multiple of the pumps' full authority get a warning.
