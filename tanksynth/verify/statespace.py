@@ -262,8 +262,10 @@ def _controller(a: _Artefact, system: str, vertex: int | None) -> Any:
                    outputs=_channels("z", list(np.hstack([Cz, Dzu])),
                                      [_fit(states, n, "x"), _fit(inputs, Dzu.shape[1], "u")]))
     if system not in ("closed_loop", "reference", "loop"):
+        usable = "'closed_loop', 'performance' or 'loop'" if a.model("Bw") is not None \
+            else "'closed_loop' or 'loop'"
         raise ArtefactError(f"{a.label} is a state feedback: system {system!r} does not apply "
-                            "(use 'closed_loop', 'performance' or 'loop')")
+                            f"(use {usable})")
     if K.shape[1] == n:
         if system == "loop":
             return _ss(a, system, A, B, K, dt, inputs=inputs, outputs=[f"{u}_fb" for u in
@@ -302,8 +304,10 @@ def _observer(a: _Artefact, system: str, vertex: int | None) -> Any:
         return _ss(a, system, A - L @ C, Bo, np.eye(n), dt,
                    inputs=_fit(a.names("inputs"), B.shape[1], "u") + _fit(a.names("outputs"), L.shape[1], "y"),
                    outputs=[f"{s}_hat" for s in states])
+    usable = "'error', 'performance' or 'observer'" if a.model("Bw") is not None \
+        else "'error' or 'observer'"
     raise ArtefactError(f"{a.label} is an observer: system {system!r} does not apply "
-                        "(use 'error', 'performance' or 'observer')")
+                        f"(use {usable})")
 
 
 def _ts_memberships(a: _Artefact) -> tuple[np.ndarray, np.ndarray]:

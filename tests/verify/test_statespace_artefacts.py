@@ -183,3 +183,12 @@ def test_ts_pdc_local_linearisation(designed, name):
         warnings.simplefilter("error")
         with pytest.raises(ArtefactError, match="linearisation at the operating point"):
             d.to_statespace("performance")
+
+
+def test_wrong_system_names_only_the_systems_that_apply(designed):
+    """A robust observer declares no disturbance channel: the hint must not offer
+    'performance', which would then be refused too; an H-infinity observer's hint does."""
+    with pytest.raises(ArtefactError, match=r"\(use 'error' or 'observer'\)"):
+        designed["robust"]["robust_observer"].to_statespace("closed_loop")
+    with pytest.raises(ArtefactError, match=r"\(use 'error', 'performance' or 'observer'\)"):
+        designed["hinf"]["hinf_observer"].to_statespace("closed_loop")
