@@ -108,7 +108,7 @@ class FormEvaluator:
         groups: dict[sp.Expr, list[tuple[int, tuple[int, ...]]]] = {}
         arity: dict[sp.Expr, tuple[sp.Symbol, ...]] = {}
         for k, e in enumerate(exprs):
-            e = sp.sympify(e)
+            e = sp.sympify(e, strict=True)  # sympy expressions (numbers at most), never text
             if e.free_symbols - set(index):
                 raise TanksynthError(f"expression {e} depends on symbols other than the states")
             form, _, own = _canonical(e, index)

@@ -50,7 +50,31 @@ from tanksynth.plants.base import Plant, exact
 
 __all__ = ["Domain", "domain_from_plant", "QuasiLPV", "quasi_lpv", "PremiseBounds", "premise_bounds",
            "MAX_ENUMERATED_PREMISES", "TSModel", "ts_model", "ExactnessReport", "check_exactness",
-           "VertexObservability", "vertex_observability"]
+           "VertexObservability", "vertex_observability", "vertex_memberships"]
+
+
+def vertex_memberships(F1: np.ndarray, sigmas: Sequence[Sequence[int]]) -> np.ndarray:
+    """The vertex weights ``mu_i = prod_k F_k^(sigma_ik)`` from the first partitions.
+
+    Parameters
+    ----------
+    F1 : ndarray, shape (M, p)
+        First partition ``F_k^1`` of every premise at M points (dimensionless, in [0, 1]);
+        the second is ``1 - F_k^1``.
+    sigmas : sequence of sequence of int
+        Per vertex, which partition (1 or 2) of each premise it takes (Table I order).
+
+    Returns
+    -------
+    ndarray, shape (M, r)
+        The memberships (dimensionless, summing to 1 over the vertices).
+    """
+    F = np.stack([F1, 1.0 - F1], axis=2)           # (M, p, 2)
+    mu = np.ones((F1.shape[0], len(sigmas)))
+    for i, sig in enumerate(sigmas):
+        for k, s in enumerate(sig):
+            mu[:, i] *= F[:, k, s - 1]
+    return mu
 
 
 #: Above this many premise variables the 2^p vertices are not enumerated.
@@ -150,13 +174,7 @@ class TSModel:
         """
         if not self.enumerated:
             raise TanksynthError(f"2^{self.qlpv.p} memberships are not enumerated; use partitions()")
-        F1 = self.partitions(X)
-        F = np.stack([F1, 1.0 - F1], axis=2)           # (M, p, 2)
-        mu = np.ones((F1.shape[0], self.r))
-        for i, sig in enumerate(self.sigmas):
-            for k, s in enumerate(sig):
-                mu[:, i] *= F[:, k, s - 1]
-        return mu
+        return vertex_memberships(self.partitions(X), self.sigmas)
 
     def rhs(self, X: np.ndarray, U: np.ndarray) -> np.ndarray:
         """``sum_i mu_i (A_i x + B_i u) + d`` at M points (eq. 16).

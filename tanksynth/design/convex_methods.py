@@ -294,6 +294,10 @@ def _matrix_latex(M: np.ndarray) -> str:
         M = M.reshape(-1, 1)
     if M.ndim != 2 or not M.size:
         return sp.latex(sp.Matrix(M))
+    kind = M.dtype.kind
+    # a number, never text: the entries are floats or integers (anything else goes through Matrix)
+    as_sympy = (lambda v: sp.Float(float(v))) if kind == "f" else \
+        (lambda v: sp.Integer(int(v))) if kind in "iub" else (lambda v: sp.Matrix([[v]])[0, 0])
     text: dict = {}
     rows = []
     for row in M:
@@ -301,7 +305,7 @@ def _matrix_latex(M: np.ndarray) -> str:
         for v in row:
             key = v.tobytes()
             if key not in text:
-                text[key] = sp.latex(sp.sympify(v))
+                text[key] = sp.latex(as_sympy(v))
             cells.append(text[key])
         rows.append(" & ".join(cells))
     env = "matrix" if M.shape[1] <= 10 else "array"

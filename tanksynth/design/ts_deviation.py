@@ -30,6 +30,7 @@ import numpy as np
 import sympy as sp
 
 from tanksynth.analysis.quasi_lpv import _NUMPY, Domain, QuasiLPV, lambdify_cached
+from tanksynth.analysis.takagi_sugeno import vertex_memberships
 from tanksynth.errors import SpecError
 
 __all__ = ["DeviationTSModel", "deviation_ts_model", "linear_argument"]
@@ -206,12 +207,7 @@ class DeviationTSModel:
         Z = self.premises(X)
         span = self.upper - self.lower
         F1 = np.where(span > 0, (Z - self.lower) / np.where(span > 0, span, 1.0), 1.0)
-        F = np.stack([F1, 1.0 - F1], axis=2)
-        mu = np.ones((F1.shape[0], self.r))
-        for i, sig in enumerate(self.sigmas):
-            for k, s in enumerate(sig):
-                mu[:, i] *= F[:, k, s - 1]
-        return mu
+        return vertex_memberships(F1, self.sigmas)
 
     def rhs(self, X: np.ndarray, U: np.ndarray) -> np.ndarray:
         """``dx/dt = sum_i mu_i (A_i e + B v)`` at M points (state units/s).
