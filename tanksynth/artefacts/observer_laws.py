@@ -206,20 +206,34 @@ def decentralized_step(name: str, plant: Any, gains: Sequence[np.ndarray], ts: f
     from tanksynth.sim.integrate import symbolic_rk4
 
     n, q, m = plant.n, plant.q, plant.m
-    xh, u, y, k = (ca.SX.sym("x_hat", n), ca.SX.sym("u", m), ca.SX.sym("y", q),
-                   ca.SX.sym("k"))
+    xh, u = ca.SX.sym("x_hat", n), ca.SX.sym("u", m)
     lo, hi = plant.state_bounds()
     start = ca.fmin(ca.fmax(xh, ca.DM(lo)), ca.DM(hi))
     step = symbolic_rk4(plant, start, u, float(ts), int(substeps))
-    pred = step.x
-    innov = y - plant.compiled.h(pred)
-    corr = ca.SX.zeros(n)
-    for j, K in enumerate(gains):
-        Kd = ca.sparsify(ca.DM(np.asarray(K, dtype=float)))
-        corr = ca.if_else(k == j + 1, Kd @ innov, corr)
-    return ca.Function(name, [xh, u, y, k], [pred + corr, step.crossed],
+    predict = ca.Function(f"{name}_predict", [xh, u],
+                          [step.x, step.crossed, plant.compiled.h(step.x)])
+    # The gains as one table of their common nonzeros, one row per window step, read at index k:
+    # generated C holds T x nnz numbers instead of T branches of inline code (N = 64: 40 gains).
+    Ks = [np.asarray(K, dtype=float).reshape(n, q) for K in gains]
+    T = len(Ks)
+    mask = np.any(np.stack([K != 0.0 for K in Ks]), axis=0) if T else np.zeros((n, q), bool)
+    pattern = ca.sparsify(ca.DM(mask.astype(float))).sparsity()
+    rows, cols = np.asarray(pattern.row(), int), np.asarray(pattern.get_col(), int)
+    nnz = len(rows)
+    table = ca.DM(np.concatenate([K[rows, cols] for K in Ks]) if T and nnz else np.zeros(1))
+    xm, um, ym, km = (ca.MX.sym("x_hat", n), ca.MX.sym("u", m), ca.MX.sym("y", q),
+                      ca.MX.sym("k"))
+    pred, crossed, y_pred = predict(xm, um)
+    j = ca.floor(km)
+    inside = ca.logic_and(j >= 1, j <= T)
+    if T and nnz:
+        row = ca.fmin(ca.fmax(j, 1), T) - 1
+        K_k = ca.MX(pattern, ca.MX(table)[row * nnz + ca.DM(np.arange(nnz))])
+        corr = ca.if_else(inside, ca.mtimes(K_k, ym - y_pred), ca.MX.zeros(n))
+    else:
+        corr = ca.MX.zeros(n)
+    return ca.Function(name, [xm, um, ym, km], [pred + corr, crossed],
                        ["x_hat", "u", "y", "k"], ["x_hat_next", "crossed"])
-
 
 
 def fault_detection_step(name: str, plant: Any, Psi: np.ndarray, coefficients: np.ndarray,

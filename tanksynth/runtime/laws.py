@@ -465,7 +465,7 @@ def c_identifier(text: str) -> str:
 
 
 def rename_law(law: ca.Function, name: str) -> ca.Function:
-    """The same SX law under another (C-identifier) name.
+    """The same law (SX, or MX for a table-driven one) under another (C-identifier) name.
 
     Parameters
     ----------
@@ -474,6 +474,7 @@ def rename_law(law: ca.Function, name: str) -> ca.Function:
     name : str
         New name (made a C identifier).
     """
-    ins = [ca.SX.sym(law.name_in(i), law.sparsity_in(i)) for i in range(law.n_in())]
+    sym = ca.MX.sym if law.is_a("MXFunction") else ca.SX.sym
+    ins = [sym(law.name_in(i), law.sparsity_in(i)) for i in range(law.n_in())]
     outs = law.call(ins)
     return ca.Function(_c_ident(name), ins, outs, law.name_in(), law.name_out())
