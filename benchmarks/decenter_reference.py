@@ -52,8 +52,8 @@ import sys
 
 import numpy as np
 
-__all__ = ["sparse_eq_solver", "sparse_eq_solver_loops", "one_step", "lambda_printed",
-           "finite_horizon"]
+__all__ = ["finite_horizon", "lambda_printed", "one_step", "sparse_eq_solver",
+           "sparse_eq_solver_loops"]
 
 
 def sparse_eq_solver(A: np.ndarray, B: np.ndarray, C: np.ndarray, E: np.ndarray) -> np.ndarray:
@@ -179,9 +179,12 @@ def _self_check(seed: int = 3) -> list[str]:
     E.flat[rng.permutation(n * o)[:10]] = 1
     A = [np.eye(n) * 0.9 + 0.1 * rng.standard_normal((n, n)) for _ in range(T)]
     C = [rng.standard_normal((o, n)) for _ in range(T)]
-    Q = [(lambda M: M @ M.T)(0.3 * rng.standard_normal((n, n))) for _ in range(T)]
-    R = [(lambda M: M @ M.T + np.eye(o))(0.3 * rng.standard_normal((o, o))) for _ in range(T)]
-    P0 = (lambda M: M @ M.T + np.eye(n))(rng.standard_normal((n, n)))
+    Gq = 0.3 * rng.standard_normal((T, n, n))
+    Gr = 0.3 * rng.standard_normal((T, o, o))
+    Q = [G @ G.T for G in Gq]
+    R = [G @ G.T + np.eye(o) for G in Gr]
+    G0 = rng.standard_normal((n, n))
+    P0 = G0 @ G0.T + np.eye(n)
     fails = []
     Am, Bm, Cm = rng.standard_normal((n, n)), R[0], rng.standard_normal((n, o))
     X = sparse_eq_solver(Am, Bm, Cm, E)
@@ -200,7 +203,7 @@ def _self_check(seed: int = 3) -> list[str]:
         if not np.allclose(lambda_printed(A, C, Ks, i), Lam, rtol=1e-10, atol=1e-10):
             fails.append(f"printed Lambda sum differs from the recursion at step {i}")
             break
-    K1, _, c1, _ = finite_horizon(A, C, Q, R, E, P0, max_it=1)
+    _, _, c1, _ = finite_horizon(A, C, Q, R, E, P0, max_it=1)
     Pp, c0 = P0, 0.0
     for i in range(T):
         _, Pp, Pf = one_step(A[i], C[i], Q[i], R[i], E, Pp)

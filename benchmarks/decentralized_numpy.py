@@ -61,12 +61,12 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from decentralized import CASES, MAX_ITER, TOL, window  # noqa: E402
-from decenter_reference import finite_horizon as decenter_fh  # noqa: E402
-from harness import Floors, machine, ratios, summary, write_record  # noqa: E402
-from threadpoolctl import threadpool_limits  # noqa: E402
+from decenter_reference import finite_horizon as decenter_fh
+from decentralized import CASES, MAX_ITER, TOL, window
+from harness import Floors, machine, ratios, summary, write_record
+from threadpoolctl import threadpool_limits
 
-from tanksynth.design.decentralized import finite_horizon_gains  # noqa: E402
+from tanksynth.design.decentralized import finite_horizon_gains
 
 
 def plain_numpy(A, C, Q, R, E, P0, tol=TOL, max_iter=MAX_ITER):
@@ -158,14 +158,14 @@ def main() -> int:
             reps = max(args.reps if N <= 64 else args.reps_large, 3)
             seqs, E, P0 = window(N, case)
 
-            def ours():
+            def ours(seqs=seqs, E=E, P0=P0):
                 return finite_horizon_gains(*seqs, E, P0, tol=TOL, max_iter=MAX_ITER)
 
-            def numpy_():
+            def numpy_(seqs=seqs, E=E, P0=P0):
                 with limited():
                     return plain_numpy(*seqs, E, P0)
 
-            def decenter():
+            def decenter(seqs=seqs, E=E, P0=P0):
                 with limited():
                     return decenter_fh(*seqs, E, P0, epsl=TOL, max_it=MAX_ITER)
 

@@ -16,9 +16,9 @@ import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benchmarks"))
 
-import decenter_reference as dec  # noqa: E402
+import decenter_reference as dec
 
-from tanksynth.design.decentralized import finite_horizon_gains  # noqa: E402
+from tanksynth.design.decentralized import finite_horizon_gains
 
 
 def _window(seed: int, n: int = 5, o: int = 3, T: int = 10):
