@@ -1,4 +1,4 @@
-"""Decentralised finite-horizon gains: tanksynth's default route vs a plain numpy iteration.
+"""Decentralised finite-horizon gains: tanksynth's default route vs plain numpy and DECENTER.
 
 Issue 15. The same window as ``benchmarks/decentralized.py`` (seed 003's set-up
 on ``tank_network(N)``: 40 steps, relinearised every 10, q = 0.01 cm^2/s with
@@ -8,22 +8,43 @@ free entries). Contenders, interleaved, ``--reps`` repetitions (>= 3):
 
 * ``tanksynth``: ``finite_horizon_gains(...)`` with its default route, which
   also validates every input once (shapes, finiteness, symmetry, Q >= 0,
-  R > 0, P(1|0) > 0), symmetrises every covariance it carries or returns and
+  R > 0, P(1|0) > 0), symmetrises every covariance it returns and
   re-checks every returned P(k|k) > 0 (Cholesky), all inside the timing;
 * ``numpy``: the same algorithm (one-step start, Pedroso and Batista's
-  backward sweep of masked gains, forward Joseph-form pass, relative change of
-  every ``tr P(k|k)`` below tol) written plainly here in numpy, the way a
-  capable user would (about 40 lines): no validation, no symmetrisation,
-  no positive-definiteness check, ``np.linalg.solve`` (LU) for the gain
-  equation (tanksynth: LAPACK ``posv``, Cholesky, on the same free entries;
-  ``np.linalg.solve``'s Python overhead is most of the difference at N = 16).
+  backward sweep of masked gains with ``Lambda_k = I + M' Lambda_{k+1} M``,
+  forward Joseph-form pass, relative change of every ``tr P(k|k)`` below tol)
+  written plainly here in numpy, the way a capable user would (about 40
+  lines): no validation, no symmetrisation, no positive-definiteness check,
+  ``np.linalg.solve`` (LU) for the gain equation;
+* ``decenter``: DECENTER's published algorithm (``kalmanFiniteHorizonLTV`` +
+  ``sparseEqSolver`` + ``kalmanOneStepLTV``, the toolbox seed 003 runs), ported
+  step for step in ``decenter_reference.py``: ``Lambda`` as printed, the sum
+  of ``Gamma' Gamma`` over the rest of the window with every product rebuilt
+  (O(T^3) matrix products per sweep, against O(T) for the recursion), the
+  predicted covariance recomputed in the backward sweep, the stop checked
+  from the second iteration on.
 
-Both must reach the same cost (1e-9 relative). Printed: min and median per
-contender, the ratio numpy / tanksynth per repetition. Floor (median ratio,
-exit 1 on a miss): tanksynth at least as fast as the plain numpy iteration
-(ratio >= 1) for N >= 16. The window models are built once, outside the timing.
+Same work on every side: the same window matrices (built once, outside the
+timing), pattern, tolerance and iteration limit. Before timing, per N: cost
+of each contender relative to tanksynth's (must be <= 1e-9), the largest gain
+difference relative to the largest tanksynth gain entry (<= 1e-8) and the
+outer iterations. BLAS threads: tanksynth runs its sweeps on one OpenBLAS
+thread (``tanksynth.analysis.blas.small_dense``); by default the two
+alternatives get the same (``threadpool_limits(1)`` entered inside their
+timed call), so that the comparison is of the algorithms, not of OpenBLAS's
+threads on a shared 2-core machine (``--alt-blas default`` leaves them alone:
+at N = 128 that made the plain iteration 4-21 s instead of 0.6 s here).
 
-Usage: ``python benchmarks/decentralized_numpy.py [--sizes 16 32 64] [--reps 15]``
+Printed: wall min / median per contender, the median CPU time
+(``time.process_time``, all threads), the ratio alternative / tanksynth per
+repetition (wall) and its median, in wall and CPU. Floors (median wall ratio,
+exit 1 on a miss, and on a disagreement): tanksynth at least as fast as the
+plain numpy iteration and as DECENTER's algorithm (ratio >= 1) for N >= 16.
+Record: ``results/decentralized_numpy.json`` (load average before and after).
+N > 64 runs ``--reps-large`` repetitions (default 3).
+
+Usage: ``python benchmarks/decentralized_numpy.py [--sizes 16 32 64 128] [--reps 15]
+[--reps-large 3] [--alt-blas one|default]``
 """
 
 from __future__ import annotations
@@ -31,17 +52,21 @@ from __future__ import annotations
 import argparse
 import statistics
 import sys
+import time
 import warnings
+from contextlib import nullcontext
 from pathlib import Path
 
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from decentralized import CASES, MAX_ITER, TOL, window  # noqa: E402
-from harness import Floors, interleave, machine, ratios, summary, write_record  # noqa: E402
+from decenter_reference import finite_horizon as decenter_fh
+from decentralized import CASES, MAX_ITER, TOL, window
+from harness import Floors, machine, ratios, summary, write_record
+from threadpoolctl import threadpool_limits
 
-from tanksynth.design.decentralized import finite_horizon_gains  # noqa: E402
+from tanksynth.design.decentralized import finite_horizon_gains
 
 
 def plain_numpy(A, C, Q, R, E, P0, tol=TOL, max_iter=MAX_ITER):
@@ -87,47 +112,108 @@ def plain_numpy(A, C, Q, R, E, P0, tol=TOL, max_iter=MAX_ITER):
     return K, float(traces.sum()), it
 
 
+COST_RTOL, GAIN_RTOL = 1e-9, 1e-8
+ALTERNATIVES = ("numpy", "decenter")
+
+
+def interleave_cpu(contenders, reps: int) -> tuple[dict[str, list[float]], dict[str, list[float]]]:
+    """Wall and CPU (``process_time``, all threads) seconds per call, contenders interleaved."""
+    wall = {name: [] for name in contenders}
+    cpu = {name: [] for name in contenders}
+    for _ in range(int(reps)):
+        for name, fn in contenders.items():
+            c0, t0 = time.process_time(), time.perf_counter()
+            fn()
+            wall[name].append(time.perf_counter() - t0)
+            cpu[name].append(time.process_time() - c0)
+    return wall, cpu
+
+
+def gain_diff(K, K_ref) -> float:
+    """Largest entry of ``K - K_ref`` over the window, relative to the largest of ``K_ref``."""
+    return float(max(np.abs(np.asarray(a) - np.asarray(b)).max() for a, b in zip(K, K_ref))
+                 / max(np.abs(np.asarray(b)).max() for b in K_ref))
+
+
 def main() -> int:
-    """Run the benchmark; exit 1 on a floor miss or a cost mismatch."""
+    """Run the benchmark; exit 1 on a floor miss or a disagreement."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--sizes", type=int, nargs="+", default=[16, 32, 64])
-    ap.add_argument("--reps", type=int, default=15)
+    ap.add_argument("--sizes", type=int, nargs="+", default=[16, 32, 64, 128])
+    ap.add_argument("--reps", type=int, default=15, help="repetitions for N <= 64 (>= 3)")
+    ap.add_argument("--reps-large", type=int, default=3, help="repetitions for N > 64 (>= 3)")
+    ap.add_argument("--alt-blas", choices=("one", "default"), default="one",
+                    help="BLAS threads of the alternatives: one (as tanksynth) or untouched")
     args = ap.parse_args()
-    reps = max(args.reps, 3)
     before = machine()
     floors = Floors()
     rows = []
-    print(f"decentralised FH gains, window 40; {reps} interleaved reps; load {before['loadavg']}")
+
+    def limited():
+        return threadpool_limits(limits=1, user_api="blas") if args.alt_blas == "one" else nullcontext()
+
+    print(f"decentralised FH gains, window 40, tol {TOL:g}; load {before['loadavg']}; "
+          f"alternatives' BLAS threads: {args.alt_blas}")
     for case in CASES:
         for N in args.sizes:
+            reps = max(args.reps if N <= 64 else args.reps_large, 3)
             seqs, E, P0 = window(N, case)
+
+            def ours(seqs=seqs, E=E, P0=P0):
+                return finite_horizon_gains(*seqs, E, P0, tol=TOL, max_iter=MAX_ITER)
+
+            def numpy_(seqs=seqs, E=E, P0=P0):
+                with limited():
+                    return plain_numpy(*seqs, E, P0)
+
+            def decenter(seqs=seqs, E=E, P0=P0):
+                with limited():
+                    return decenter_fh(*seqs, E, P0, epsl=TOL, max_it=MAX_ITER)
+
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore", RuntimeWarning)
-                ours = finite_horizon_gains(*seqs, E, P0, tol=TOL, max_iter=MAX_ITER)
-                _, cost, iters = plain_numpy(*seqs, E, P0)
-                times = interleave({
-                    "tanksynth": lambda: finite_horizon_gains(*seqs, E, P0, tol=TOL, max_iter=MAX_ITER),
-                    "numpy": lambda: plain_numpy(*seqs, E, P0)}, reps)
-            rel = abs(ours.cost - cost) / cost
-            r = ratios(times["numpy"], times["tanksynth"])
-            row = {"case": case, "N": N, "times": times, "ratio_numpy_over_tanksynth": r,
-                   "cost_tanksynth": ours.cost, "cost_numpy": cost, "cost_rel_diff": rel,
-                   "iterations": {"tanksynth": ours.iterations, "numpy": iters}}
+                ref = ours()
+                K_np, c_np, it_np = numpy_()
+                K_dc, _, c_dc, it_dc = decenter()
+                agree = {
+                    "numpy": {"cost": c_np, "cost_rel_diff": abs(c_np - ref.cost) / ref.cost,
+                              "gain_rel_diff": gain_diff(K_np, ref.K), "iterations": it_np},
+                    "decenter": {"cost": c_dc, "cost_rel_diff": abs(c_dc - ref.cost) / ref.cost,
+                                 "gain_rel_diff": gain_diff(K_dc, ref.K), "iterations": it_dc}}
+                print(f"\n{case}, N = {N} ({int(E.sum())} free entries): tanksynth cost "
+                      f"{ref.cost:.10g}, {ref.iterations} iterations")
+                ok = True
+                for name, a in agree.items():
+                    good = a["cost_rel_diff"] <= COST_RTOL and a["gain_rel_diff"] <= GAIN_RTOL
+                    ok &= good
+                    print(f"  {name:9s} cost {a['cost']:.10g} (rel diff {a['cost_rel_diff']:.1e}), "
+                          f"gains rel diff {a['gain_rel_diff']:.1e}, {a['iterations']} iterations"
+                          + ("" if good else "   DISAGREE"))
+                    floors.rows.append({"what": f"agreement {name} {case} N={N}", "ok": bool(good)})
+                if not ok:
+                    continue
+                wall, cpu = interleave_cpu({"tanksynth": ours, "numpy": numpy_,
+                                            "decenter": decenter}, reps)
+            row = {"case": case, "N": N, "free_entries": int(E.sum()), "reps": reps,
+                   "times": wall, "cpu_times": cpu, "cost_tanksynth": ref.cost,
+                   "iterations_tanksynth": ref.iterations, "agreement": agree}
+            for name in ("tanksynth",) + ALTERNATIVES:
+                sw = summary(wall[name])
+                print(f"  {name:9s} wall min {sw['min'] * 1e3:9.1f} ms  median {sw['median'] * 1e3:9.1f} ms"
+                      f"   cpu median {statistics.median(cpu[name]) * 1e3:9.1f} ms")
+            for name in ALTERNATIVES:
+                r, rc = ratios(wall[name], wall["tanksynth"]), ratios(cpu[name], cpu["tanksynth"])
+                row[f"ratio_{name}_over_tanksynth"] = r
+                row[f"cpu_ratio_{name}_over_tanksynth"] = rc
+                print(f"  {name} / tanksynth per rep: " + " ".join(f"{v:.2f}" for v in r)
+                      + f"   median {statistics.median(r):.2f} (cpu {statistics.median(rc):.2f})")
             rows.append(row)
-            st, sn = summary(times["tanksynth"]), summary(times["numpy"])
-            print(f"\n{case}, N = {N}: cost {ours.cost:.6g} vs {cost:.6g} (rel {rel:.1e}), "
-                  f"iterations {ours.iterations} / {iters}")
-            print(f"  tanksynth min {st['min'] * 1e3:8.1f} ms  median {st['median'] * 1e3:8.1f} ms")
-            print(f"  numpy     min {sn['min'] * 1e3:8.1f} ms  median {sn['median'] * 1e3:8.1f} ms")
-            print("  numpy / tanksynth per rep: " + " ".join(f"{v:.2f}" for v in r)
-                  + f"   median {statistics.median(r):.2f}")
-            if rel > 1e-9:
-                floors.rows.append({"what": f"cost agreement {case} N={N}", "ok": False})
-                print("  COSTS DISAGREE")
             if N >= 16:
-                floors.check(f"{case} N={N} vs plain numpy", statistics.median(r), 1.0)
-    path = write_record("decentralized_numpy", {"reps": reps, "rows": rows, "floors": floors.rows},
-                        before)
+                for name in ALTERNATIVES:
+                    floors.check(f"{case} N={N} vs {name}",
+                                 statistics.median(row[f"ratio_{name}_over_tanksynth"]), 1.0)
+    path = write_record("decentralized_numpy", {"alt_blas": args.alt_blas, "reps": args.reps,
+                                                "reps_large": args.reps_large, "rows": rows,
+                                                "floors": floors.rows}, before)
     print(f"\nrecord: {path}")
     return 1 if floors.failed else 0
 
