@@ -21,6 +21,9 @@ _CONTROLLER: list[Any] = []
 def _controller() -> Any:
     """One `threadpoolctl.ThreadpoolController` (scans the loaded BLAS once)."""
     if not _CONTROLLER:
+        # numpy and scipy each bring their own OpenBLAS; load both before the one scan, or a
+        # library loaded later would never be limited.
+        import scipy.linalg  # noqa: F401
         from threadpoolctl import ThreadpoolController
 
         _CONTROLLER.append(ThreadpoolController())
