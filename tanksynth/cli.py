@@ -562,8 +562,7 @@ def _verify_locked(directory: str, scheduler: str | None, as_json: bool, runs: i
     from tanksynth.artefacts.io import to_jsonable
     from tanksynth.verify.campaign import campaign_tasks, run_campaign
     from tanksynth.sim.scenarios import SCENARIOS
-    from tanksynth.methods import METHODS, RUNNERS, verify_directory
-    from tanksynth.verify.runner import load_directory
+    from tanksynth.methods import RUNNERS, load_directory, verify_directory
 
     quiet = as_json
     with _progress(quiet) as bar:
@@ -573,7 +572,7 @@ def _verify_locked(directory: str, scheduler: str | None, as_json: bool, runs: i
                                     started=_started(bar, task), connect_timeout=connect_timeout)
     table_path = None
     if runs:
-        spec, docs = load_directory(directory, METHODS)
+        spec, docs = load_directory(directory)
         names = list(scenarios) or [s for s in SCENARIOS if SCENARIOS[s].applies_to(spec.plant)]
         tasks = campaign_tasks(spec.text or (Path(directory) / "spec.toml").read_text(encoding="utf-8"),
                                [d for _, d in docs], names, runs, seed=seed, runners=RUNNERS)
