@@ -28,7 +28,6 @@ from typing import TYPE_CHECKING, Any, Iterable, Mapping
 import numpy as np
 
 from tanksynth.artefacts.atomic import atomic_write, commit, discard, stage
-from tanksynth.artefacts.export import c_header
 from tanksynth.artefacts.jsontext import dumps
 from tanksynth.errors import ArtefactError, SpecError
 
@@ -289,6 +288,7 @@ def write_artefact(result: DesignResult, directory: str | Path, spec_sha256: str
     Path
         The JSON file.
     """
+    from tanksynth.artefacts.export import c_header  # deferred: export loads CasADi and the runtime laws
     export = list(export)
     bad = [e for e in export if e not in EXPORT_FORMATS]
     if bad:
