@@ -288,7 +288,6 @@ def write_artefact(result: DesignResult, directory: str | Path, spec_sha256: str
     Path
         The JSON file.
     """
-    from tanksynth.artefacts.export import c_header  # deferred: export loads CasADi and the runtime laws
     export = list(export)
     bad = [e for e in export if e not in EXPORT_FORMATS]
     if bad:
@@ -326,6 +325,8 @@ def write_artefact(result: DesignResult, directory: str | Path, spec_sha256: str
                 contents = mat_contents(gains, data)
                 payload = lambda fh: savemat(fh, contents, oned_as="column")  # noqa: E731
             else:
+                from tanksynth.artefacts.export import c_header  # deferred: loads CasADi, the laws
+
                 payload = c_header(result.name, gains, data)
             temps[ext] = stage(target, payload)
         # The JSON (the artefact proper) is renamed last, and whatever was
