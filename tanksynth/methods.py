@@ -138,6 +138,10 @@ class Method:
         """The parts as given: reference strings (or objects), by part name."""
         return {part: self.__dict__["_" + part] for part in _PARTS}
 
+    def __repr__(self) -> str:  # the references, without importing the parts
+        parts = ", ".join(f"{part}={ref!r}" for part, ref in self.refs().items())
+        return f"Method(name={self.name!r}, kinds={self.kinds!r}, summary={self.summary!r}, {parts})"
+
     def validate(self, options: Mapping[str, Any], key: str, plant: Any,
                  ts: float | None) -> MethodOptions:
         """Validate a ``[[design]]`` table's options (the spec parser's check; imports only the

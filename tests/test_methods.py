@@ -92,7 +92,7 @@ def test_import_loads_no_numerical_library():
     import subprocess
     import sys
 
-    code = ("import sys, tanksynth.methods as m; m.METHODS['kalman']; m.RUNNERS; "
+    code = ("import sys, tanksynth.methods as m; m.METHODS['kalman']; m.RUNNERS; repr(m.TABLE); "
             "print(sorted(k for k in ('numpy', 'sympy', 'scipy', 'casadi', 'cvxpy', 'control', "
             "'matplotlib', 'tanksynth.design', 'tanksynth.verify', 'tanksynth.spec') "
             "if k in sys.modules))")
