@@ -14,10 +14,12 @@ one in ``EXPECTED_EXIT`` (0 unless listed) also fails the run.
 ``--profile NAME ...`` prints, for those examples, the top cumulative costs of one cProfile'd
 ``tanksynth run`` and the largest ``python -X importtime`` packages of the CLI.
 
-``--baseline DIR`` times every example a second time with another source tree first on
-``PYTHONPATH`` (e.g. ``git archive <commit> | tar -x -C DIR``), interleaved with the current tree
-(this tree, baseline, next example, ...): before/after numbers under the same load. The record
-then goes to ``run_examples_baseline.json`` with the ratio baseline / current of every example.
+``--baseline DIR`` times every command (examples and imports) a second time with another source
+tree first on ``PYTHONPATH`` (e.g. ``git archive <commit> | tar -x -C DIR``), interleaved with the
+current tree (this tree, baseline, next command, ...): before/after numbers under the same load.
+The record then goes to ``run_examples_baseline.json`` with the ratio baseline / current of every
+command. Each command's CPU time (user + system) is printed beside its wall time: on a loaded
+machine it is the steadier of the two.
 
 Usage::
 
@@ -33,6 +35,7 @@ from __future__ import annotations
 import argparse
 import os
 import pstats
+import resource
 import subprocess
 import sys
 import tempfile
@@ -52,7 +55,7 @@ IMPORT_COMMANDS = {
     "tanksynth --help": [CLI, "--help"],
     "import tanksynth.methods": [PY, "-c", "import tanksynth.methods"],
 }
-IMPORT_FLOORS = {"import tanksynth": 1.0, "tanksynth --help": 0.5}
+IMPORT_FLOORS = {"import tanksynth": 1.0, "tanksynth --help": 0.5, "import tanksynth.methods": 0.5}
 RUN_FLOOR = 3.0                                  # s, median wall of `tanksynth run`
 #: The two search-heavy examples (named from the measurements, see benchmarks/README.md).
 SEARCH_HEAVY = ("seed001_ts_observer", "three_tank_ts_control")
@@ -66,20 +69,25 @@ def run_command(stem: str) -> list[str]:
     return [CLI, "run", str(ROOT / "examples" / f"{stem}.toml"), "-o"]
 
 
-def timed(cmd: list[str], outdir: bool, tree: Path | None = None) -> tuple[float, int, str]:
-    """Wall time (s), exit code and last stderr line of one fresh-process command (``tree``: the
-    source tree put first on ``PYTHONPATH``; None: the environment's)."""
+def timed(cmd: list[str], outdir: bool, tree: Path | None = None) -> tuple[float, int, str, float]:
+    """Wall time (s), exit code, last stderr line and CPU time (user + system, s; steadier than
+    the wall time on a loaded machine) of one fresh-process command (``tree``: the source tree
+    put first on ``PYTHONPATH``; None: the environment's)."""
     env = None
     if tree is not None:
         env = dict(os.environ, PYTHONPATH=os.pathsep.join(
             [str(tree)] + [p for p in os.environ.get("PYTHONPATH", "").split(os.pathsep) if p]))
     with tempfile.TemporaryDirectory(prefix="tanksynth-bench-") as tmp:
         full = cmd + [str(Path(tmp) / "out")] if outdir else cmd
+        r0 = resource.getrusage(resource.RUSAGE_CHILDREN)
         t0 = time.perf_counter()
-        proc = subprocess.run(full, capture_output=True, text=True, cwd=ROOT, env=env)
+        # cwd: ``python -c`` puts it first on sys.path, before PYTHONPATH
+        proc = subprocess.run(full, capture_output=True, text=True, cwd=tree or ROOT, env=env)
         wall = time.perf_counter() - t0
+        r1 = resource.getrusage(resource.RUSAGE_CHILDREN)
+    cpu = (r1.ru_utime - r0.ru_utime) + (r1.ru_stime - r0.ru_stime)
     last = (proc.stderr.strip().splitlines() or [""])[-1][:200]
-    return wall, proc.returncode, last
+    return wall, proc.returncode, last, cpu
 
 
 def importtime(args: list[str], top: int = 8) -> list[tuple[str, float]]:
@@ -151,7 +159,11 @@ def main(argv: list[str] | None = None) -> int:
         ap.error(f"--baseline {args.baseline}: no tanksynth/__init__.py there")
     reps = 0 if args.reps == 0 else max(args.reps, 3)
     stems = [] if args.imports_only else (args.only or [p.stem for p in EXAMPLES])
-    commands = {name: (cmd, False, None) for name, cmd in IMPORT_COMMANDS.items()}
+    commands = {}
+    for name, cmd in IMPORT_COMMANDS.items():
+        commands[name] = (cmd, False, None)
+        if args.baseline is not None:
+            commands[f"{name} @baseline"] = (cmd, False, args.baseline.resolve())
     for stem in stems:
         commands[stem] = (run_command(stem), True, None)
         if args.baseline is not None:
@@ -160,22 +172,25 @@ def main(argv: list[str] | None = None) -> int:
     print(f"{len(commands)} commands, {reps} interleaved reps, fresh process each; "
           f"load {before['loadavg']}")
     times: dict[str, list[float]] = {name: [] for name in commands}
+    cpus: dict[str, list[float]] = {name: [] for name in commands}
     codes: dict[str, list[int]] = {name: [] for name in commands}
     notes: dict[str, str] = {}
     for rep in range(reps):
         for name, (cmd, outdir, tree) in commands.items():
-            wall, rc, last = timed(cmd, outdir, tree)
+            wall, rc, last, cpu = timed(cmd, outdir, tree)
             times[name].append(wall)
+            cpus[name].append(cpu)
             codes[name].append(rc)
             if rc:
                 notes[name] = last
         print(f"  rep {rep + 1}/{reps} done, load {[round(v, 2) for v in machine()['loadavg']]}")
     rows, failed = [], []
     if reps:
-        print(f"\n{'command':32s} {'min s':>7s} {'median s':>9s} {'floor s':>8s} {'exit':>5s}")
+        print(f"\n{'command':32s} {'min s':>7s} {'median s':>9s} {'floor s':>8s} {'exit':>5s} "
+              f"{'cpu min/median s':>17s}")
     for name in commands if reps else ():
         sm = summary(times[name])
-        floor = IMPORT_FLOORS.get(name)
+        floor = None if name.endswith(" @baseline") else IMPORT_FLOORS.get(name)
         if floor is None and name in stems and name not in SEARCH_HEAVY:
             floor = RUN_FLOOR
         ok = floor is None or sm["median"] < floor
@@ -189,8 +204,9 @@ def main(argv: list[str] | None = None) -> int:
         heavy = " (search-heavy)" if name in SEARCH_HEAVY else ""
         print(f"{name + heavy:32s} {sm['min']:7.2f} {sm['median']:9.2f} "
               f"{'' if floor is None else f'{floor:.1f}':>8s} {','.join(map(str, sorted(set(codes[name])))):>5s}"
-              f" {tag}")
-        rows.append({"command": name, "times": times[name], "exit_codes": codes[name], **sm,
+              f" {min(cpus[name]):8.2f} {sorted(cpus[name])[len(cpus[name]) // 2]:8.2f} {tag}")
+        rows.append({"command": name, "times": times[name], "cpu_times": cpus[name],
+                     "exit_codes": codes[name], **sm,
                      "floor": floor, "ok": ok and exit_ok, "stderr_tail": notes.get(name)})
     breakdown = {}
     for label, cmd in (("import tanksynth", ["-c", "import tanksynth"]),
@@ -213,7 +229,7 @@ def main(argv: list[str] | None = None) -> int:
     speedups = {}
     if reps and args.baseline is not None:
         print(f"\nbaseline {args.baseline}: ratio baseline / current of each repetition")
-        for stem in stems:
+        for stem in [*IMPORT_COMMANDS, *stems]:
             r = [b / a for a, b in zip(times[stem], times[f"{stem} @baseline"])]
             speedups[stem] = {"ratios": r, "median": sorted(r)[len(r) // 2]}
             print(f"  {stem:30s} median {speedups[stem]['median']:5.2f}x  "

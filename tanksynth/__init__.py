@@ -8,14 +8,7 @@ use (``import tanksynth`` itself loads none of the numerical libraries).
 
 from __future__ import annotations
 
-from importlib import metadata as _metadata
-
 from tanksynth._lazy import lazy_exports as _lazy_exports
-
-try:
-    __version__ = _metadata.version("tanksynth")
-except _metadata.PackageNotFoundError:  # pragma: no cover - source tree without install
-    __version__ = "0+unknown"
 
 _EXPORTS = {
     **dict.fromkeys(["read_artefact", "write_artefact"], "tanksynth.artefacts.io"),
@@ -35,7 +28,22 @@ _EXPORTS = {
                      "pbh_test", "symbolic_observability"], "tanksynth.analysis.rank"),
 }
 
-__getattr__, __dir__ = _lazy_exports(__name__, _EXPORTS)
+_lazy_getattr, __dir__ = _lazy_exports(__name__, _EXPORTS)
+
+
+def __getattr__(name: str):
+    """``__version__`` (read from the installed metadata on first use: importlib.metadata
+    costs ~25 ms, issue 15) and the lazy re-exports."""
+    if name == "__version__":
+        from importlib import metadata
+
+        try:
+            version = metadata.version("tanksynth")
+        except metadata.PackageNotFoundError:  # pragma: no cover - source tree without install
+            version = "0+unknown"
+        globals()["__version__"] = version
+        return version
+    return _lazy_getattr(name)
 
 
 def clear_cache(disk: bool = False) -> dict[str, int]:

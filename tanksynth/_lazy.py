@@ -8,6 +8,7 @@ module is imported on first attribute access.
 from __future__ import annotations
 
 import importlib
+import sys
 from typing import Any, Callable, Mapping
 
 __all__ = ["lazy_exports"]
@@ -33,8 +34,9 @@ def lazy_exports(package: str, exports: Mapping[str, str]) -> tuple[Callable[[st
         module = exports.get(name)
         if module is None:
             raise AttributeError(f"module {package!r} has no attribute {name!r}")
-        value = getattr(importlib.import_module(module), name)
-        globals_of = importlib.import_module(package).__dict__
+        __import__(module)  # not importlib.import_module: `python -X importtime` does not see those
+        value = getattr(sys.modules[module], name)
+        globals_of = sys.modules[package].__dict__
         globals_of[name] = value  # later lookups skip __getattr__
         return value
 

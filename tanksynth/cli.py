@@ -560,10 +560,7 @@ def verify(directory: str, scheduler: str | None, as_json: bool, runs: int,
 def _verify_locked(directory: str, scheduler: str | None, as_json: bool, runs: int,
                    scenarios: tuple[str, ...], seed: int, workers: int, connect_timeout: float) -> None:
     from tanksynth.artefacts.io import to_jsonable
-    from tanksynth.verify.campaign import campaign_tasks, run_campaign
-    from tanksynth.sim.scenarios import SCENARIOS
-    from tanksynth.methods import METHODS, RUNNERS, verify_directory
-    from tanksynth.verify.runner import load_directory
+    from tanksynth.methods import verify_directory
 
     quiet = as_json
     with _progress(quiet) as bar:
@@ -572,8 +569,12 @@ def _verify_locked(directory: str, scheduler: str | None, as_json: bool, runs: i
                                     progress=lambda d, n: bar.update(task, completed=d, total=n),
                                     started=_started(bar, task), connect_timeout=connect_timeout)
     table_path = None
-    if runs:
-        spec, docs = load_directory(directory, METHODS)
+    if runs:  # the campaign's modules only when one runs
+        from tanksynth.methods import RUNNERS, load_directory
+        from tanksynth.sim.scenarios import SCENARIOS
+        from tanksynth.verify.campaign import campaign_tasks, run_campaign
+
+        spec, docs = load_directory(directory)
         names = list(scenarios) or [s for s in SCENARIOS if SCENARIOS[s].applies_to(spec.plant)]
         tasks = campaign_tasks(spec.text or (Path(directory) / "spec.toml").read_text(encoding="utf-8"),
                                [d for _, d in docs], names, runs, seed=seed, runners=RUNNERS)

@@ -8,10 +8,12 @@ holds:
     ``"model"``, ``"controller"``, ``"observer"``, ``"estimator"`` or
     ``"detector"`` (``pole_placement`` and ``lmi_placement`` are controllers
     or observers, by their ``target`` option: both kinds are listed).
+``options``
+    The method's Options dataclass (`tanksynth.spec.method_options`): options,
+    defaults, units, validation at parse time (`Method.validate`).
 ``adapter``
-    The design adapter (`tanksynth.design.DesignMethod`): the method's
-    Options dataclass (``Method.options``: options, defaults, units,
-    validation at parse time) and ``run(spec, design) -> DesignResult``.
+    The design adapter (`tanksynth.design.DesignMethod`): the same Options
+    class and ``run(spec, design) -> DesignResult``.
 ``verdict``
     ``verdict(doc, spec) -> list[Check]`` of `tanksynth.verify`: re-derives what
     it checks from the artefact and simulates it on the nonlinear plant.
@@ -22,48 +24,86 @@ holds:
 ``statement``
     ``statement(diagnostics) -> Tex``: the problem solved, for the report.
 
+A row names these parts (``"tanksynth.design.model_methods:LINEARIZE"``) and each
+is imported on first use, so a command imports only the modules of the methods
+its spec uses (``import tanksynth.methods`` loads no numerical library; issue 15).
 The table is complete or the package does not import: `_check_table` runs at
-import and raises if a row lacks a part its kind needs.
+import and raises if a row lacks a part its kind needs or names one malformed;
+`resolve_table` (run by the test suite) imports every part and checks it.
 """
 
 from __future__ import annotations
 
+import re
+import sys
 from dataclasses import dataclass
+from functools import cache
 from pathlib import Path
 from types import MappingProxyType
-from typing import Any, Callable, Mapping
+from typing import TYPE_CHECKING, Any, Callable, Iterator, Mapping
 
-from tanksynth.design import control_methods, convex_methods, decentralized_methods, model_methods
-from tanksynth.design import estimator_methods as est
-from tanksynth.design import robust_methods
-from tanksynth.design import ts_control_methods
-from tanksynth.design import synthesis_methods as syn
-from tanksynth.design.audit import designed
-from tanksynth.design.result import DesignMethod, DesignResult
-from tanksynth.reports import statements as st
-from tanksynth.spec import DesignSpec, Spec, load_spec as _load_spec, parse_spec as _parse_spec
-from tanksynth.spec import parse_spec_text as _parse_spec_text
-from tanksynth.spec.method_options import MethodOptions
-from tanksynth.verify import campaign, decentralized, estimators, fault, laws, model, narx, placement
-from tanksynth.verify import robust as robust_verdicts
-from tanksynth.verify import robust_runs
-from tanksynth.verify import ts_observer
-from tanksynth.verify import ts_control
-from tanksynth.verify import synthesis as syn_verdict
-from tanksynth.verify.runner import Verdict, VerdictFn
-from tanksynth.verify.runner import verify_directory as _verify_directory
+if TYPE_CHECKING:  # annotations only: the modules load when a row's part is first used
+    from tanksynth.design.result import DesignMethod, DesignResult
+    from tanksynth.spec import DesignSpec, Spec
+    from tanksynth.spec.method_options import MethodOptions
+    from tanksynth.verify.runner import Verdict, VerdictFn
 
-__all__ = ["KINDS", "Method", "TABLE", "METHODS", "VERDICTS", "RUNNERS", "STATEMENTS",
-           "method", "design", "load_spec", "parse_spec", "parse_spec_text", "verify_directory",
-           "write_report"]
+__all__ = ["KINDS", "Method", "TABLE", "METHODS", "VERDICTS", "RUNNERS", "STATEMENTS", "ADAPTERS",
+           "method", "resolve", "resolve_table", "design", "load_spec", "parse_spec", "parse_spec_text",
+           "load_directory", "verify_directory", "write_report"]
 
 #: What a design method produces.
 KINDS = ("model", "controller", "observer", "estimator", "detector")
+
+#: ``"package.module:attribute"``: how a row names a part.
+_REF = re.compile(r"tanksynth(\.[a-z_][a-z0-9_]*)+:[A-Za-z_][A-Za-z0-9_]*\Z")
+
+
+@cache
+def resolve(ref: str) -> Any:
+    """The object a row names: ``"tanksynth.design.model_methods:LINEARIZE"`` -> that constant.
+
+    Imports the module on first use; cached.
+
+    Parameters
+    ----------
+    ref : str
+        ``"<module>:<attribute>"``.
+
+    Returns
+    -------
+    object
+        The module's attribute.
+    """
+    module, _, attr = ref.partition(":")
+    __import__(module)  # not importlib.import_module: `python -X importtime` does not see those
+    return getattr(sys.modules[module], attr)
+
+
+class _Part:
+    """A field of `Method` given as a reference string (imported on first read, see `resolve`)
+    or as the object itself (``dataclasses.replace(row, verdict=fn)``)."""
+
+    def __set_name__(self, owner: type, name: str) -> None:
+        self._slot = "_" + name
+
+    def __get__(self, obj: Any, objtype: type | None = None) -> Any:
+        if obj is None:
+            raise AttributeError(self._slot[1:])  # no class-level default (dataclass fields)
+        value = obj.__dict__[self._slot]
+        return resolve(value) if isinstance(value, str) else value
+
+    def __set__(self, obj: Any, value: Any) -> None:
+        obj.__dict__[self._slot] = value  # reached from the dataclass __init__ only (frozen)
 
 
 @dataclass(frozen=True)
 class Method:
     """One row of the method table.
+
+    The parts (``options``, ``adapter``, ``verdict``, ``statement``, ``campaign``) are given as
+    ``"<module>:<attribute>"`` strings and read as the objects they name, imported on first use
+    (`resolve`); an object given instead is used as is.
 
     Attributes
     ----------
@@ -73,6 +113,8 @@ class Method:
         Some of `KINDS`.
     summary : str
         One line: what the method designs.
+    options : type of MethodOptions
+        The Options dataclass (``adapter.options``); validates a ``[[design]]`` table.
     adapter : DesignMethod
         The Options class and the design function.
     verdict : callable
@@ -86,15 +128,42 @@ class Method:
     name: str
     kinds: tuple[str, ...]
     summary: str
-    adapter: DesignMethod
-    verdict: VerdictFn
-    statement: Callable[[Mapping[str, Any]], Any]
-    campaign: Callable[..., Any]
+    options: type[MethodOptions] = _Part()     # type: ignore[assignment]
+    adapter: DesignMethod = _Part()            # type: ignore[assignment]
+    verdict: VerdictFn = _Part()               # type: ignore[assignment]
+    statement: Callable[[Mapping[str, Any]], Any] = _Part()  # type: ignore[assignment]
+    campaign: Callable[..., Any] = _Part()     # type: ignore[assignment]
 
-    @property
-    def options(self) -> type[MethodOptions]:
-        """The method's Options dataclass (`tanksynth.spec.method_options`)."""
-        return self.adapter.options
+    def refs(self) -> dict[str, Any]:
+        """The parts as given: reference strings (or objects), by part name."""
+        return {part: self.__dict__["_" + part] for part in _PARTS}
+
+    def __repr__(self) -> str:  # the references, without importing the parts
+        parts = ", ".join(f"{part}={ref!r}" for part, ref in self.refs().items())
+        return f"Method(name={self.name!r}, kinds={self.kinds!r}, summary={self.summary!r}, {parts})"
+
+    def validate(self, options: Mapping[str, Any], key: str, plant: Any,
+                 ts: float | None) -> MethodOptions:
+        """Validate a ``[[design]]`` table's options (the spec parser's check; imports only the
+        Options, not the design code).
+
+        Parameters
+        ----------
+        options : mapping
+            The raw options of the ``[[design]]`` table.
+        key : str
+            Dotted key of the table, for error messages (e.g. ``design[1]``).
+        plant : Plant
+            The spec's plant.
+        ts : float or None
+            The spec's sampling period [s].
+
+        Returns
+        -------
+        MethodOptions
+            The options with their defaults (an instance of `options`).
+        """
+        return self.options.validated(options, key, plant, ts)
 
     def design(self, spec: Spec, design: DesignSpec) -> DesignResult:
         """Run the design of one ``[[design]]`` entry of ``spec``.
@@ -110,113 +179,176 @@ class Method:
         design : DesignSpec
             One of its ``[[design]]`` entries (of this method).
         """
+        from tanksynth.design.audit import designed
+
         return designed(self.adapter.run, spec, design)
 
 
-def _row(name: str, kinds: tuple[str, ...], summary: str, adapter: DesignMethod, verdict: VerdictFn,
-         statement: Callable[[Mapping[str, Any]], Any], campaign: Callable[..., Any]) -> Method:
-    return Method(name, kinds, summary, adapter, verdict, statement, campaign)
+_PARTS = ("options", "adapter", "verdict", "statement", "campaign")
+#: Where each part's short reference is looked up (``_row``).
+_HOMES = {"options": "tanksynth.spec.method_options", "adapter": "tanksynth.design",
+          "verdict": "tanksynth.verify", "statement": "tanksynth.reports.statements",
+          "campaign": "tanksynth.verify"}
+
+
+def _row(name: str, kinds: tuple[str, ...], summary: str, *, options: str, adapter: str, verdict: str,
+         statement: str, campaign: str) -> Method:
+    """A row; the parts are short references: ``options`` and ``statement`` an attribute of
+    `tanksynth.spec.method_options` / `tanksynth.reports.statements`, the others
+    ``"<module>:<attribute>"`` of `tanksynth.design` / `tanksynth.verify`."""
+    given = {"options": options, "adapter": adapter, "verdict": verdict, "statement": statement,
+             "campaign": campaign}
+    full = {part: (f"{_HOMES[part]}.{ref}" if ":" in ref else f"{_HOMES[part]}:{ref}")
+            for part, ref in given.items()}
+    return Method(name, kinds, summary, **full)
 
 
 _CONTROLLER_OR_OBSERVER = ("controller", "observer")
 
 #: The design methods, in the order the documentation lists them.
 TABLE: tuple[Method, ...] = (
-    _row("linearize", ("model",), "linearisation at the operating point and exact ZOH discretisation",
-         model_methods.LINEARIZE, model.linearize_verdict, st.linearize_statement,
-         campaign.linearize_run),
+    _row("linearize", ("model",),
+         "linearisation at the operating point and exact ZOH discretisation",
+         options="LinearizeOptions", adapter="model_methods:LINEARIZE",
+         verdict="model:linearize_verdict", statement="linearize_statement",
+         campaign="model_runs:linearize_run"),
     _row("pole_placement", _CONTROLLER_OR_OBSERVER,
          "exact pole placement (python-control place/acker), optional integral action",
-         convex_methods.POLE_PLACEMENT, placement.pole_placement_verdict,
-         st.pole_placement_statement, campaign.placement_run),
+         options="PolePlacementOptions", adapter="convex_methods:POLE_PLACEMENT",
+         verdict="placement:pole_placement_verdict", statement="pole_placement_statement",
+         campaign="estimation_runs:placement_run"),
     _row("lmi_placement", _CONTROLLER_OR_OBSERVER,
          "pole placement in an LMI region (cvxpy + Clarabel), optional integral action",
-         convex_methods.LMI_PLACEMENT, placement.lmi_placement_verdict, st.lmi_placement_statement,
-         campaign.placement_run),
-    _row("canonical_observer", ("observer",), "Luenberger observer by the observable canonical form",
-         convex_methods.CANONICAL_OBSERVER, placement.canonical_observer_verdict,
-         st.canonical_observer_statement, campaign.canonical_observer_run),
-    _row("ts_observer", ("observer",), "Takagi-Sugeno multiple-model observer by an LMI",
-         convex_methods.TS_OBSERVER, ts_observer.ts_observer_verdict, st.ts_observer_statement,
-         campaign.ts_observer_run),
+         options="LmiPlacementOptions", adapter="convex_methods:LMI_PLACEMENT",
+         verdict="placement:lmi_placement_verdict", statement="lmi_placement_statement",
+         campaign="estimation_runs:placement_run"),
+    _row("canonical_observer", ("observer",),
+         "Luenberger observer by the observable canonical form",
+         options="CanonicalObserverOptions", adapter="convex_methods:CANONICAL_OBSERVER",
+         verdict="placement:canonical_observer_verdict", statement="canonical_observer_statement",
+         campaign="estimation_runs:canonical_observer_run"),
+    _row("ts_observer", ("observer",),
+         "Takagi-Sugeno multiple-model observer by an LMI",
+         options="TsObserverOptions", adapter="convex_methods:TS_OBSERVER",
+         verdict="ts_observer:ts_observer_verdict", statement="ts_observer_statement",
+         campaign="estimation_runs:ts_observer_run"),
     _row("feedback_linearization", ("controller",),
          "exact input-output feedback linearisation with decoupling",
-         control_methods.FEEDBACK_LINEARIZATION, laws.feedback_linearization_verdict,
-         st.feedback_linearization_statement, campaign.feedback_linearization_loop),
+         options="FeedbackLinearizationOptions", adapter="control_methods:FEEDBACK_LINEARIZATION",
+         verdict="laws:feedback_linearization_verdict", statement="feedback_linearization_statement",
+         campaign="closed_loops:feedback_linearization_loop"),
     _row("integral_tracking", ("controller",),
          "sampled state feedback with integral action, saturation and anti-windup",
-         control_methods.INTEGRAL_TRACKING, laws.integral_tracking_verdict,
-         st.integral_tracking_statement, campaign.integral_tracking_loop),
-    _row("inverse_dynamics", ("controller",), "estimator-based inverse-dynamics control, ISE-tuned",
-         control_methods.INVERSE_DYNAMICS, laws.inverse_dynamics_verdict,
-         st.inverse_dynamics_statement, campaign.inverse_dynamics_loop),
+         options="IntegralTrackingOptions", adapter="control_methods:INTEGRAL_TRACKING",
+         verdict="laws:integral_tracking_verdict", statement="integral_tracking_statement",
+         campaign="closed_loops:integral_tracking_loop"),
+    _row("inverse_dynamics", ("controller",),
+         "estimator-based inverse-dynamics control, ISE-tuned",
+         options="InverseDynamicsOptions", adapter="control_methods:INVERSE_DYNAMICS",
+         verdict="laws:inverse_dynamics_verdict", statement="inverse_dynamics_statement",
+         campaign="closed_loops:inverse_dynamics_loop"),
     _row("decentralized_kalman", ("estimator",),
          "decentralised Kalman gains under a sparsity pattern (one-step or finite horizon)",
-         decentralized_methods.DECENTRALIZED_KALMAN, decentralized.decentralized_kalman_verdict,
-         st.decentralized_kalman_statement, campaign.decentralized_kalman_run),
-    _row("kalman", ("estimator",), "Kalman filter on the ZOH linearisation",
-         est.KALMAN, estimators.kalman_verdict, st.kalman_statement, campaign.kalman_run),
-    _row("ekf", ("estimator",), "extended Kalman filter on the nonlinear model",
-         est.EKF, estimators.ekf_verdict, st.ekf_statement, campaign.ekf_run),
-    _row("ukf", ("estimator",), "unscented Kalman filter", est.UKF, estimators.ukf_verdict,
-         st.ukf_statement, campaign.ukf_run),
-    _row("adaptive_kalman", ("estimator",), "Kalman filter with innovation-window adaptive Q",
-         est.ADAPTIVE_KALMAN, estimators.adaptive_kalman_verdict, st.adaptive_kalman_statement,
-         campaign.adaptive_kalman_run),
-    _row("adaptive_scaling_kalman", ("estimator",), "Kalman filter with adaptive process-noise scaling",
-         est.ADAPTIVE_SCALING_KALMAN, estimators.adaptive_scaling_kalman_verdict,
-         st.adaptive_scaling_kalman_statement, campaign.adaptive_scaling_kalman_run),
-    _row("consensus_filter", ("estimator",), "information-form consensus filter over redundant sensors",
-         est.CONSENSUS_FILTER, estimators.consensus_filter_verdict, st.consensus_filter_statement,
-         campaign.consensus_filter_run),
-    _row("luenberger", ("observer",), "discrete or continuous Luenberger observer",
-         est.LUENBERGER, estimators.luenberger_verdict, st.luenberger_statement,
-         campaign.luenberger_run),
-    _row("narx", ("estimator",), "NARX neural estimator trained on EKF data",
-         est.NARX, narx.narx_verdict, st.narx_statement, campaign.narx_run),
-    _row("fault_detection", ("detector",), "observer residual with a derived fault-detection threshold",
-         est.FAULT_DETECTION, fault.fault_detection_verdict, st.fault_detection_statement,
-         campaign.fault_detection_run),
+         options="DecentralizedKalmanOptions", adapter="decentralized_methods:DECENTRALIZED_KALMAN",
+         verdict="decentralized:decentralized_kalman_verdict", statement="decentralized_kalman_statement",
+         campaign="estimation_runs:decentralized_kalman_run"),
+    _row("kalman", ("estimator",),
+         "Kalman filter on the ZOH linearisation",
+         options="KalmanOptions", adapter="estimator_methods:KALMAN",
+         verdict="estimators:kalman_verdict", statement="kalman_statement",
+         campaign="estimation_runs:kalman_run"),
+    _row("ekf", ("estimator",),
+         "extended Kalman filter on the nonlinear model",
+         options="EkfOptions", adapter="estimator_methods:EKF",
+         verdict="estimators:ekf_verdict", statement="ekf_statement",
+         campaign="estimation_runs:ekf_run"),
+    _row("ukf", ("estimator",),
+         "unscented Kalman filter",
+         options="UkfOptions", adapter="estimator_methods:UKF",
+         verdict="estimators:ukf_verdict", statement="ukf_statement",
+         campaign="estimation_runs:ukf_run"),
+    _row("adaptive_kalman", ("estimator",),
+         "Kalman filter with innovation-window adaptive Q",
+         options="AdaptiveKalmanOptions", adapter="estimator_methods:ADAPTIVE_KALMAN",
+         verdict="estimators:adaptive_kalman_verdict", statement="adaptive_kalman_statement",
+         campaign="estimation_runs:adaptive_kalman_run"),
+    _row("adaptive_scaling_kalman", ("estimator",),
+         "Kalman filter with adaptive process-noise scaling",
+         options="AdaptiveScalingKalmanOptions", adapter="estimator_methods:ADAPTIVE_SCALING_KALMAN",
+         verdict="estimators:adaptive_scaling_kalman_verdict", statement="adaptive_scaling_kalman_statement",
+         campaign="estimation_runs:adaptive_scaling_kalman_run"),
+    _row("consensus_filter", ("estimator",),
+         "information-form consensus filter over redundant sensors",
+         options="ConsensusFilterOptions", adapter="estimator_methods:CONSENSUS_FILTER",
+         verdict="estimators:consensus_filter_verdict", statement="consensus_filter_statement",
+         campaign="estimation_runs:consensus_filter_run"),
+    _row("luenberger", ("observer",),
+         "discrete or continuous Luenberger observer",
+         options="LuenbergerOptions", adapter="estimator_methods:LUENBERGER",
+         verdict="estimators:luenberger_verdict", statement="luenberger_statement",
+         campaign="estimation_runs:luenberger_run"),
+    _row("narx", ("estimator",),
+         "NARX neural estimator trained on EKF data",
+         options="NarxOptions", adapter="estimator_methods:NARX",
+         verdict="narx:narx_verdict", statement="narx_statement",
+         campaign="estimation_runs:narx_run"),
+    _row("fault_detection", ("detector",),
+         "observer residual with a derived fault-detection threshold",
+         options="FaultDetectionOptions", adapter="estimator_methods:FAULT_DETECTION",
+         verdict="fault:fault_detection_verdict", statement="fault_detection_statement",
+         campaign="detector_runs:fault_detection_run"),
     _row("robust_state_feedback", ("controller",),
          "one state feedback for every vertex of a parameter box: LMI region, optional H-infinity "
          "bound, saturation-aware invariant ellipsoid, optional integral action",
-         robust_methods.ROBUST_STATE_FEEDBACK, robust_verdicts.robust_state_feedback_verdict,
-         st.robust_state_feedback_statement, robust_runs.robust_state_feedback_run),
+         options="RobustStateFeedbackOptions", adapter="robust_methods:ROBUST_STATE_FEEDBACK",
+         verdict="robust:robust_state_feedback_verdict", statement="robust_state_feedback_statement",
+         campaign="robust_runs:robust_state_feedback_run"),
     _row("robust_observer", ("observer",),
          "one observer gain for every vertex of a parameter box: LMI region, optional H-infinity bound",
-         robust_methods.ROBUST_OBSERVER, robust_verdicts.robust_observer_verdict,
-         st.robust_observer_statement, robust_runs.robust_observer_run),
+         options="RobustObserverOptions", adapter="robust_methods:ROBUST_OBSERVER",
+         verdict="robust:robust_observer_verdict", statement="robust_observer_statement",
+         campaign="robust_runs:robust_observer_run"),
     _row("ts_state_feedback", ("controller",),
          "Takagi-Sugeno PDC state feedback by LMIs (vertex/Tuan relaxations), certified region",
-         ts_control_methods.TS_STATE_FEEDBACK, ts_control.ts_control_verdict,
-         st.ts_state_feedback_statement, ts_control.ts_control_run),
+         options="TsStateFeedbackOptions", adapter="ts_control_methods:TS_STATE_FEEDBACK",
+         verdict="ts_control:ts_control_verdict", statement="ts_state_feedback_statement",
+         campaign="ts_control:ts_control_run"),
     _row("ts_output_feedback", ("controller",),
          "Takagi-Sugeno PDC on a TS observer (measured or estimated premises), certified region",
-         ts_control_methods.TS_OUTPUT_FEEDBACK, ts_control.ts_control_verdict,
-         st.ts_output_feedback_statement, ts_control.ts_control_run),
-    _row("h2_state_feedback", ("controller",), "state feedback minimising the H2 norm (Riccati = LQR, or LMI)",
-         syn.H2_STATE_FEEDBACK, syn_verdict.synthesis_verdict, st.h2_state_feedback_statement,
-         syn_verdict.synthesis_run),
-    _row("h2_observer", ("observer",), "observer minimising the H2 norm (Riccati = steady Kalman, or LMI)",
-         syn.H2_OBSERVER, syn_verdict.synthesis_verdict, st.h2_observer_statement,
-         syn_verdict.synthesis_run),
+         options="TsOutputFeedbackOptions", adapter="ts_control_methods:TS_OUTPUT_FEEDBACK",
+         verdict="ts_control:ts_control_verdict", statement="ts_output_feedback_statement",
+         campaign="ts_control:ts_control_run"),
+    _row("h2_state_feedback", ("controller",),
+         "state feedback minimising the H2 norm (Riccati = LQR, or LMI)",
+         options="H2StateFeedbackOptions", adapter="synthesis_methods:H2_STATE_FEEDBACK",
+         verdict="synthesis:synthesis_verdict", statement="h2_state_feedback_statement",
+         campaign="synthesis:synthesis_run"),
+    _row("h2_observer", ("observer",),
+         "observer minimising the H2 norm (Riccati = steady Kalman, or LMI)",
+         options="H2ObserverOptions", adapter="synthesis_methods:H2_OBSERVER",
+         verdict="synthesis:synthesis_verdict", statement="h2_observer_statement",
+         campaign="synthesis:synthesis_run"),
     _row("hinf_state_feedback", ("controller",),
          "state feedback minimising the H-infinity norm (Riccati gamma iteration, or LMI)",
-         syn.HINF_STATE_FEEDBACK, syn_verdict.synthesis_verdict, st.hinf_state_feedback_statement,
-         syn_verdict.synthesis_run),
+         options="HinfStateFeedbackOptions", adapter="synthesis_methods:HINF_STATE_FEEDBACK",
+         verdict="synthesis:synthesis_verdict", statement="hinf_state_feedback_statement",
+         campaign="synthesis:synthesis_run"),
     _row("hinf_observer", ("observer",),
          "observer minimising the H-infinity norm of the error (Riccati gamma iteration, or LMI)",
-         syn.HINF_OBSERVER, syn_verdict.synthesis_verdict, st.hinf_observer_statement,
-         syn_verdict.synthesis_run),
+         options="HinfObserverOptions", adapter="synthesis_methods:HINF_OBSERVER",
+         verdict="synthesis:synthesis_verdict", statement="hinf_observer_statement",
+         campaign="synthesis:synthesis_run"),
     _row("multiobjective", _CONTROLLER_OR_OBSERVER,
          "H2/H-infinity objective and bounds with an LMI pole region, common Lyapunov matrix",
-         syn.MULTIOBJECTIVE, syn_verdict.synthesis_verdict, st.multiobjective_statement,
-         syn_verdict.synthesis_run),
+         options="MultiobjectiveOptions", adapter="synthesis_methods:MULTIOBJECTIVE",
+         verdict="synthesis:synthesis_verdict", statement="multiobjective_statement",
+         campaign="synthesis:synthesis_run"),
 )
 
 
 def _check_table(table: tuple[Method, ...]) -> None:
-    """Raise if a row is incomplete; runs at import, so an incomplete table cannot be used."""
+    """Raise if a row is incomplete or names a part malformed; runs at import (names only: no
+    part is imported, `resolve_table` does that)."""
     seen: set[str] = set()
     for row in table:
         problems = []
@@ -225,35 +357,111 @@ def _check_table(table: tuple[Method, ...]) -> None:
         seen.add(row.name)
         if not row.kinds or any(k not in KINDS for k in row.kinds):
             problems.append(f"kinds {row.kinds} not among {KINDS}")
-        if row.adapter.name != row.name or row.options.method_name != row.name:
-            problems.append(f"adapter is for method {row.adapter.name!r}, options for "
-                            f"{row.options.method_name!r}")
-        if not (isinstance(row.options, type) and issubclass(row.options, MethodOptions)):
-            problems.append("no Options class")
-        for part in ("verdict", "statement"):
-            if not callable(getattr(row, part)):
+        for part, ref in row.refs().items():
+            if isinstance(ref, str) and not _REF.match(ref):
+                problems.append(f"{part} {ref!r} is not '<module>:<attribute>'")
+            elif not isinstance(ref, str) and not callable(ref):
                 problems.append(f"no {part}")
-        if not callable(row.campaign):
-            problems.append("no campaign runner")
         if not row.summary:
             problems.append("no summary")
         if problems:
             raise TypeError(f"method table row {row.name!r}: " + "; ".join(problems))
 
 
+def resolve_table(table: tuple[Method, ...] | None = None) -> None:
+    """Import every part of every row and check it: the adapter and the Options are the
+    method's, the verdict, statement and campaign runner are callables.
+
+    Parameters
+    ----------
+    table : tuple of Method, optional
+        Default `TABLE`.
+
+    Raises
+    ------
+    TypeError
+        Naming the row and what is wrong.
+    ImportError, AttributeError
+        A part names a module or attribute that does not exist.
+    """
+    from tanksynth.spec.method_options import MethodOptions
+
+    for row in TABLE if table is None else table:
+        problems = []
+        opts = row.options
+        if not (isinstance(opts, type) and issubclass(opts, MethodOptions)):
+            problems.append("no Options class")
+        elif opts.method_name != row.name or row.adapter.name != row.name:
+            problems.append(f"adapter is for method {row.adapter.name!r}, options for "
+                            f"{opts.method_name!r}")
+        elif row.adapter.options is not opts:
+            problems.append(f"options {opts.__name__} are not the adapter's "
+                            f"({row.adapter.options.__name__})")
+        if not callable(getattr(row.adapter, "run", None)):
+            problems.append("no design function")
+        for part in ("verdict", "statement", "campaign"):
+            if not callable(getattr(row, part)):
+                problems.append(f"no {part}")
+        if problems:
+            raise TypeError(f"method table row {row.name!r}: " + "; ".join(problems))
+
+
 _check_table(TABLE)
+
+
+class _View(Mapping[str, Any]):
+    """A read-only map method name -> one part of its row, imported on first lookup."""
+
+    def __init__(self, part: str | None) -> None:
+        self._part = part
+
+    def __getitem__(self, name: str) -> Any:
+        row = METHODS[name]
+        return row if self._part is None else getattr(row, self._part)
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(METHODS)
+
+    def __len__(self) -> int:
+        return len(METHODS)
+
+    def __repr__(self) -> str:
+        return f"<method table view {self._part or 'rows'}: {', '.join(METHODS)}>"
+
 
 #: Rows by method name.
 METHODS: Mapping[str, Method] = MappingProxyType({row.name: row for row in TABLE})
-#: Verdict of each method (what `verify_directory` runs).
-VERDICTS: Mapping[str, VerdictFn] = MappingProxyType({row.name: row.verdict for row in TABLE})
-#: Campaign runner of each method (what `campaign_tasks` runs for its artefacts).
-RUNNERS: Mapping[str, Callable[..., Any]] = MappingProxyType({row.name: row.campaign for row in TABLE})
-#: Problem statement of each method (report).
-STATEMENTS: Mapping[str, Callable[[Mapping[str, Any]], Any]] = MappingProxyType(
-    {row.name: row.statement for row in TABLE})
-#: Design adapters by name (``adapter.validate`` gives the Options the spec parser stores).
-ADAPTERS: Mapping[str, DesignMethod] = MappingProxyType({row.name: row.adapter for row in TABLE})
+#: Verdict of each method (what `verify_directory` runs); imported on lookup.
+VERDICTS: Mapping[str, VerdictFn] = _View("verdict")
+#: Campaign runner of each method (what `campaign_tasks` runs for its artefacts); imported on lookup.
+RUNNERS: Mapping[str, Callable[..., Any]] = _View("campaign")
+#: Problem statement of each method (report); imported on lookup.
+STATEMENTS: Mapping[str, Callable[[Mapping[str, Any]], Any]] = _View("statement")
+#: Design adapters by name; imported on lookup (the spec parser validates with the rows'
+#: `Method.validate`, which imports only the Options).
+ADAPTERS: Mapping[str, DesignMethod] = _View("adapter")
+
+
+class _Verifiable:
+    """What the verify runner reads of a row (``verdict``; ``adapter.validate`` for the spec)
+    without importing the design code: the row validates with its Options."""
+
+    __slots__ = ("_row",)
+
+    def __init__(self, row: Method) -> None:
+        self._row = row
+
+    @property
+    def verdict(self) -> Any:
+        return self._row.verdict
+
+    @property
+    def adapter(self) -> Method:
+        return self._row
+
+
+def _verifiable() -> dict[str, _Verifiable]:
+    return {name: _Verifiable(row) for name, row in METHODS.items()}
 
 
 def method(name: str) -> Method:
@@ -281,7 +489,9 @@ def load_spec(path: str | Path) -> Spec:
     path : str or Path
         The TOML spec.
     """
-    return _load_spec(path, methods=ADAPTERS)
+    from tanksynth.spec import load_spec as _load_spec
+
+    return _load_spec(path, methods=METHODS)
 
 
 def parse_spec(table: Mapping[str, Any], source: str | None = None, sha256: str = "") -> Spec:
@@ -296,7 +506,9 @@ def parse_spec(table: Mapping[str, Any], source: str | None = None, sha256: str 
     sha256 : str
         sha256 of the spec text (provenance).
     """
-    return _parse_spec(table, source, sha256, methods=ADAPTERS)
+    from tanksynth.spec import parse_spec as _parse_spec
+
+    return _parse_spec(table, source, sha256, methods=METHODS)
 
 
 def parse_spec_text(data: bytes | str, source: str | None = None) -> Spec:
@@ -309,7 +521,9 @@ def parse_spec_text(data: bytes | str, source: str | None = None) -> Spec:
     source : str, optional
         Where it came from (for messages).
     """
-    return _parse_spec_text(data, source, methods=ADAPTERS)
+    from tanksynth.spec import parse_spec_text as _parse_spec_text
+
+    return _parse_spec_text(data, source, methods=METHODS)
 
 
 def design(spec: Spec, entry: DesignSpec) -> DesignResult:
@@ -344,8 +558,30 @@ def verify_directory(directory: str | Path, scheduler: str | None = None,
     started : callable, optional
         ``started(done, total, name, method)`` as an artefact's verdict starts.
     """
-    return _verify_directory(directory, METHODS, scheduler=scheduler, progress=progress,
+    from tanksynth.verify.runner import verify_directory as _verify_directory
+
+    return _verify_directory(directory, _verifiable(), scheduler=scheduler, progress=progress,
                              connect_timeout=connect_timeout, started=started)
+
+
+def load_directory(directory: str | Path) -> tuple[Spec, list[tuple[Path, dict]]]:
+    """Read a result directory's spec and artefacts, refusing bad ones (see
+    `tanksynth.verify.runner.load_directory`); imports no design code.
+
+    Parameters
+    ----------
+    directory : str or Path
+        A result directory.
+
+    Returns
+    -------
+    spec : Spec
+    artefacts : list of (Path, dict)
+        Each artefact's path and document (gains as arrays), sorted by name.
+    """
+    from tanksynth.verify.runner import load_directory as _load_directory
+
+    return _load_directory(directory, _verifiable())
 
 
 def write_report(directory: str | Path, pdf: bool = False, timeout: float = 180.0) -> Any:

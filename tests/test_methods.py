@@ -15,7 +15,8 @@ from typing import Mapping
 import pytest
 
 import tanksynth
-from tanksynth.methods import KINDS, METHODS, TABLE, load_spec
+from tanksynth.methods import (ADAPTERS, KINDS, METHODS, RUNNERS, STATEMENTS, TABLE, VERDICTS, load_spec,
+                               resolve, resolve_table)
 from tanksynth.spec.method_options import MethodOptions
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -50,6 +51,68 @@ def _example_methods() -> dict[str, list[str]]:
 def test_table_lists_each_method_once():
     assert len(NAMES) == len(set(NAMES)) >= 18
     assert set(METHODS) == set(NAMES)
+
+
+def test_every_part_resolves():
+    """The rows name their parts (imported on first use): every name resolves to the right
+    kind of object, so a typo in the table fails here even if no example uses the method."""
+    resolve_table()
+    for row in TABLE:
+        refs = row.refs()
+        assert all(isinstance(ref, str) for ref in refs.values()), row.name
+        assert row.options is row.adapter.options is resolve(refs["options"])
+        assert row.verdict is VERDICTS[row.name] and row.campaign is RUNNERS[row.name]
+        assert row.statement is STATEMENTS[row.name] and row.adapter is ADAPTERS[row.name]
+        assert len(inspect.signature(row.adapter.run).parameters) == 2, row.name
+        assert len(inspect.signature(row.statement).parameters) >= 1, row.name
+        assert len(inspect.signature(row.verdict).parameters) >= 2, row.name
+        assert len(inspect.signature(row.campaign).parameters) >= 2, row.name
+
+
+def test_a_bad_reference_is_refused():
+    """A malformed name fails the import-time check; a well-formed one naming nothing fails
+    `resolve_table`."""
+    from tanksynth.methods import _check_table
+
+    row = TABLE[0]
+    with pytest.raises(TypeError, match="not '<module>:<attribute>'"):
+        _check_table((dataclasses.replace(row, verdict="tanksynth.verify.model.linearize_verdict"),))
+    with pytest.raises(TypeError, match="listed twice"):
+        _check_table((row, row))
+    with pytest.raises(AttributeError):
+        resolve_table((dataclasses.replace(row, verdict="tanksynth.verify.model:no_such_verdict"),))
+    with pytest.raises(TypeError, match="options for 'kalman'"):
+        resolve_table((dataclasses.replace(row, options="tanksynth.spec.method_options:KalmanOptions"),))
+
+
+def test_import_loads_no_numerical_library():
+    """``import tanksynth.methods`` loads none of the rows' parts: a command imports only the
+    modules of its spec's methods (issue 15). Fresh interpreter, so this process's imports do
+    not count."""
+    import subprocess
+    import sys
+
+    code = ("import sys, tanksynth.methods as m; m.METHODS['kalman']; m.RUNNERS; repr(m.TABLE); "
+            "print(sorted(k for k in ('numpy', 'sympy', 'scipy', 'casadi', 'cvxpy', 'control', "
+            "'matplotlib', 'tanksynth.design', 'tanksynth.verify', 'tanksynth.spec') "
+            "if k in sys.modules))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True,
+                         cwd=ROOT).stdout.strip()
+    assert out == "[]"
+
+
+def test_parsing_a_spec_imports_no_design_code():
+    """Validating a spec's options needs the Options classes only (`Method.validate`)."""
+    import subprocess
+    import sys
+
+    code = ("import sys; from tanksynth.methods import load_spec; "
+            f"s = load_spec({str(ROOT / 'examples' / 'seed000_akf.toml')!r}); "
+            "print(len(s.designs), sorted(k for k in sys.modules if k.startswith(('tanksynth.design', "
+            "'tanksynth.verify', 'cvxpy', 'control'))))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True,
+                         cwd=ROOT).stdout.strip()
+    assert out.endswith(" []") and int(out.split()[0]) >= 1, out
 
 
 @pytest.mark.parametrize("row", TABLE, ids=lambda r: r.name)

@@ -25,7 +25,6 @@ from dataclasses import dataclass, field
 from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
-import scipy.optimize as sopt
 import sympy as sp
 
 from tanksynth.analysis.symbolic import _canonical, _form_symbol, jacobian
@@ -264,6 +263,7 @@ class Domain:
         RegionError
             If the domain is empty.
         """
+        import scipy.optimize as sopt  # deferred: scipy.optimize imports in ~0.15 s
         w = np.asarray(w, dtype=float)
         key = ("linear_range", self._key(), w.tobytes())
         hit = _CACHE.get(key)

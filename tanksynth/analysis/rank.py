@@ -13,8 +13,6 @@ from typing import Sequence
 import numpy as np
 import sympy as sp
 
-from scipy.optimize import brentq
-
 from tanksynth.errors import DimensionError
 from tanksynth.plants.base import Plant
 from tanksynth.plants.compile import compile_matrix, evaluate_points
@@ -495,6 +493,8 @@ def observability_determinant_zeros(plant: Plant, result: NonlinearObservability
         if not (np.isfinite(da) and np.isfinite(db)) or da * db >= 0:
             continue
         g = lambda t: float(det_at(a + t * (b - a))[0])  # noqa: E731
+        from scipy.optimize import brentq  # deferred to a sign change: scipy.optimize ~0.15 s
+
         t0 = brentq(g, 0.0, 1.0, xtol=1e-12)
         z = a + t0 * (b - a)
         # a sign change through a singularity (a square root at an equal-level boundary) is

@@ -14,7 +14,6 @@ from dataclasses import dataclass
 from typing import Sequence
 
 import numpy as np
-from scipy.optimize import root
 
 from tanksynth.errors import DimensionError
 from tanksynth.plants.base import Plant
@@ -91,6 +90,7 @@ def trim(plant: Plant, u: Sequence[float], x_guess: Sequence[float] | None = Non
         the tolerance inside the region: the inputs cannot hold the plant in
         its region, e.g. more inflow than the outlets can drain).
     """
+    from scipy.optimize import root  # deferred: scipy.optimize imports in ~0.15 s
     u = np.asarray(u, dtype=float).reshape(-1)
     if u.size != plant.m or not np.all(np.isfinite(u)):
         raise DimensionError(f"u must have {plant.m} finite entries, got {u.tolist()}")

@@ -2,10 +2,19 @@
 
 from __future__ import annotations
 
-from tanksynth.artefacts.export import c_header
-from tanksynth.artefacts.io import (EXPORT_FORMATS, PLANT_SCHEMA, SCHEMA, artefact_document,
-                                    gains_digest, read_artefact, read_plant_record,
-                                    to_jsonable, write_artefact, write_plant_record)
+from tanksynth._lazy import lazy_exports as _lazy_exports
+
+#: Re-exported name -> its module, imported on first use (PEP 562): importing the package
+#: loads none of its modules' dependencies (issue 15).
+_EXPORTS = {
+    "c_header": "tanksynth.artefacts.export",
+    **dict.fromkeys(["EXPORT_FORMATS", "PLANT_SCHEMA", "SCHEMA", "artefact_document",
+                     "gains_digest", "read_artefact", "read_plant_record", "to_jsonable",
+                     "write_artefact", "write_plant_record"],
+                    "tanksynth.artefacts.io"),
+}
+
+__getattr__, __dir__ = _lazy_exports(__name__, _EXPORTS)
 
 __all__ = ["SCHEMA", "PLANT_SCHEMA", "EXPORT_FORMATS", "write_plant_record", "read_plant_record",
            "to_jsonable", "gains_digest", "artefact_document", "write_artefact", "read_artefact",

@@ -28,7 +28,6 @@ from typing import TYPE_CHECKING, Any, Iterable, Mapping
 import numpy as np
 
 from tanksynth.artefacts.atomic import atomic_write, commit, discard, stage
-from tanksynth.artefacts.export import c_header
 from tanksynth.artefacts.jsontext import dumps
 from tanksynth.errors import ArtefactError, SpecError
 
@@ -326,6 +325,8 @@ def write_artefact(result: DesignResult, directory: str | Path, spec_sha256: str
                 contents = mat_contents(gains, data)
                 payload = lambda fh: savemat(fh, contents, oned_as="column")  # noqa: E731
             else:
+                from tanksynth.artefacts.export import c_header  # deferred: loads CasADi, the laws
+
                 payload = c_header(result.name, gains, data)
             temps[ext] = stage(target, payload)
         # The JSON (the artefact proper) is renamed last, and whatever was

@@ -49,7 +49,6 @@ from typing import Any, Sequence
 
 import casadi as ca
 import numpy as np
-from scipy.optimize import minimize_scalar
 
 from tanksynth.analysis.linearize import equilibrium_input, linearize
 from tanksynth.design.placement import integral_augmentation, place_state_feedback
@@ -373,6 +372,7 @@ def tune_inverse_dynamics(plant: Plant, scenario: ServoScenario, *,
         With the tuned ``C``.
     tuning : ISETuning
     """
+    from scipy.optimize import minimize_scalar  # deferred: scipy.optimize imports in ~0.15 s
     lo, hi = map(float, bounds)
     g = np.asarray(grid, dtype=float).reshape(-1)
     if g.size < 2 or np.any(g < lo) or np.any(g > hi) or not (0 <= lo < hi):

@@ -11,11 +11,21 @@ comparison of `tanksynth.reports.paper` (the printed values are in
 `tanksynth.papers`).
 """
 
-from tanksynth.reports.inputs import ReportInputs, read_report_inputs
-from tanksynth.reports.latex import escape_latex
-from tanksynth.reports.comparison import PaperComparison, PaperRow
-from tanksynth.reports.paper import compare_with_papers
-from tanksynth.reports.writer import ReportResult, render_report, write_report
+from __future__ import annotations
+
+from tanksynth._lazy import lazy_exports as _lazy_exports
+
+#: Re-exported name -> its module, imported on first use (PEP 562): importing the package
+#: loads none of its modules' dependencies (issue 15).
+_EXPORTS = {
+    **dict.fromkeys(["ReportInputs", "read_report_inputs"], "tanksynth.reports.inputs"),
+    "escape_latex": "tanksynth.reports.latex",
+    **dict.fromkeys(["PaperComparison", "PaperRow"], "tanksynth.reports.comparison"),
+    "compare_with_papers": "tanksynth.reports.paper",
+    **dict.fromkeys(["ReportResult", "render_report", "write_report"], "tanksynth.reports.writer"),
+}
+
+__getattr__, __dir__ = _lazy_exports(__name__, _EXPORTS)
 
 __all__ = [
     "write_report",

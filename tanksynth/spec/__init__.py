@@ -114,10 +114,10 @@ def load_spec(path: str | Path, *, methods: Mapping[str, Any] | None = None) -> 
     Parameters
     ----------
     path : str or Path
-    methods : mapping of method name to design adapter, optional
-        The adapters the ``[[design]]`` options are validated against
-        (`tanksynth.methods.ADAPTERS`; `tanksynth.load_spec` passes them):
-        ``adapter.validate(options, key, plant, ts)`` returns the method's
+    methods : mapping of method name to row, optional
+        What the ``[[design]]`` options are validated against (the method table
+        `tanksynth.methods.METHODS`, or its design adapters; `tanksynth.load_spec`
+        passes the table): ``row.validate(options, key, plant, ts)`` returns the method's
         Options (stored as `DesignSpec.config`). Every design's options are
         validated here, before any design runs. Without it the method names
         and options are not checked: only the plant, operating point,
@@ -146,7 +146,7 @@ def parse_spec_text(data: bytes | str, source: str | None = None, *,
         The spec text (UTF-8 bytes, or text).
     source : str, optional
         The file it came from, named in errors and kept as `Spec.source`.
-    methods : mapping of method name to design adapter, optional
+    methods : mapping of method name to row, optional
         As in `load_spec`.
 
     Raises
@@ -237,7 +237,7 @@ def parse_spec(table: Mapping[str, Any], source: str | None = None, sha256: str 
         File name for error messages.
     sha256 : str
         Hash of the spec text.
-    methods : mapping of method name to design adapter, optional
+    methods : mapping of method name to row, optional
         See `load_spec`.
 
     Raises

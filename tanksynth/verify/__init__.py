@@ -9,6 +9,15 @@ Which verdict belongs to which method is the method table's business
 
 from __future__ import annotations
 
-from tanksynth.verify.runner import Verdict, VerdictFn, load_directory, verify_directory
+from tanksynth._lazy import lazy_exports as _lazy_exports
+
+#: Re-exported name -> its module, imported on first use (PEP 562): importing the package
+#: loads none of its modules' dependencies (issue 15).
+_EXPORTS = {
+    **dict.fromkeys(["Verdict", "VerdictFn", "load_directory", "verify_directory"],
+                    "tanksynth.verify.runner"),
+}
+
+__getattr__, __dir__ = _lazy_exports(__name__, _EXPORTS)
 
 __all__ = ["Verdict", "VerdictFn", "load_directory", "verify_directory"]

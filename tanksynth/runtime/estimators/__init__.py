@@ -18,16 +18,32 @@ is design work: `tanksynth.design.narx`. Caches: `tanksynth.runtime.cache`.
 
 from __future__ import annotations
 
-from tanksynth.runtime.estimators.adaptive import (AdaptiveKalmanFilter, AdaptiveKalmanTuning, AdaptiveScalingKalmanFilter,
-                       AdaptiveScalingTuning, linear_model_for)
-from tanksynth.runtime.estimators.base import (BACKENDS, ArrayEstimator, CovarianceError, DiscreteModel, Estimator,
-                   KernelEstimator, discrete_model, joseph_update, regularized_jacobian)
-from tanksynth.runtime.estimators.consensus import ConsensusFilter, ConsensusTuning
-from tanksynth.runtime.estimators.kalman import (ExtendedKalmanFilter, KalmanFilter, KalmanTuning, model_from_tuning,
-                     steady_state_gain)
-from tanksynth.runtime.estimators.luenberger import OBSERVER_FORMS, LuenbergerObserver, LuenbergerTuning, TSMultiObserver
-from tanksynth.runtime.estimators.narx import NARXEstimator, NARXTuning
-from tanksynth.runtime.estimators.ukf import UKFTuning, UnscentedKalmanFilter, ukf_weights
+from tanksynth._lazy import lazy_exports as _lazy_exports
+
+#: Re-exported name -> its module, imported on first use (PEP 562): importing the package
+#: loads none of its modules' dependencies (issue 15).
+_EXPORTS = {
+    **dict.fromkeys(["AdaptiveKalmanFilter", "AdaptiveKalmanTuning",
+                     "AdaptiveScalingKalmanFilter", "AdaptiveScalingTuning", "linear_model_for"],
+                    "tanksynth.runtime.estimators.adaptive"),
+    **dict.fromkeys(["BACKENDS", "ArrayEstimator", "CovarianceError", "DiscreteModel",
+                     "Estimator", "KernelEstimator", "discrete_model", "joseph_update",
+                     "regularized_jacobian"],
+                    "tanksynth.runtime.estimators.base"),
+    **dict.fromkeys(["ConsensusFilter", "ConsensusTuning"],
+                    "tanksynth.runtime.estimators.consensus"),
+    **dict.fromkeys(["ExtendedKalmanFilter", "KalmanFilter", "KalmanTuning", "model_from_tuning",
+                     "steady_state_gain"],
+                    "tanksynth.runtime.estimators.kalman"),
+    **dict.fromkeys(["OBSERVER_FORMS", "LuenbergerObserver", "LuenbergerTuning",
+                     "TSMultiObserver"],
+                    "tanksynth.runtime.estimators.luenberger"),
+    **dict.fromkeys(["NARXEstimator", "NARXTuning"], "tanksynth.runtime.estimators.narx"),
+    **dict.fromkeys(["UKFTuning", "UnscentedKalmanFilter", "ukf_weights"],
+                    "tanksynth.runtime.estimators.ukf"),
+}
+
+__getattr__, __dir__ = _lazy_exports(__name__, _EXPORTS)
 
 __all__ = [
     "BACKENDS", "ArrayEstimator", "CovarianceError", "DiscreteModel", "Estimator",

@@ -8,22 +8,35 @@ class to its method.
 
 from __future__ import annotations
 
-from tanksynth.spec.method_options.base import MethodOptions, OptionReader
-from tanksynth.spec.method_options.control import (FeedbackLinearizationOptions, IntegralTrackingOptions,
-                                                   InverseDynamicsOptions)
-from tanksynth.spec.method_options.decentralized import DecentralizedKalmanOptions
-from tanksynth.spec.method_options.estimators import (AdaptiveKalmanOptions, AdaptiveScalingKalmanOptions,
-                                                      ConsensusFilterOptions, EkfOptions, KalmanOptions,
-                                                      LuenbergerOptions, NarxOptions, UkfOptions)
-from tanksynth.spec.method_options.fault import FaultDetectionOptions
-from tanksynth.spec.method_options.placement import (CanonicalObserverOptions, LinearizeOptions,
-                                                     LmiPlacementOptions, PolePlacementOptions)
-from tanksynth.spec.method_options.ts_observer import TsObserverOptions
-from tanksynth.spec.method_options.robust import RobustObserverOptions, RobustStateFeedbackOptions
-from tanksynth.spec.method_options.ts_control import TsOutputFeedbackOptions, TsStateFeedbackOptions
-from tanksynth.spec.method_options.synthesis import (H2ObserverOptions, H2StateFeedbackOptions,
-                                                     HinfObserverOptions, HinfStateFeedbackOptions,
-                                                     MultiobjectiveOptions)
+from tanksynth._lazy import lazy_exports as _lazy_exports
+
+#: Re-exported name -> its module, imported on first use (PEP 562): importing the package
+#: loads none of its modules' dependencies (issue 15).
+_EXPORTS = {
+    **dict.fromkeys(["MethodOptions", "OptionReader"], "tanksynth.spec.method_options.base"),
+    **dict.fromkeys(["FeedbackLinearizationOptions", "IntegralTrackingOptions",
+                     "InverseDynamicsOptions"],
+                    "tanksynth.spec.method_options.control"),
+    "DecentralizedKalmanOptions": "tanksynth.spec.method_options.decentralized",
+    **dict.fromkeys(["AdaptiveKalmanOptions", "AdaptiveScalingKalmanOptions",
+                     "ConsensusFilterOptions", "EkfOptions", "KalmanOptions",
+                     "LuenbergerOptions", "NarxOptions", "UkfOptions"],
+                    "tanksynth.spec.method_options.estimators"),
+    "FaultDetectionOptions": "tanksynth.spec.method_options.fault",
+    **dict.fromkeys(["CanonicalObserverOptions", "LinearizeOptions", "LmiPlacementOptions",
+                     "PolePlacementOptions"],
+                    "tanksynth.spec.method_options.placement"),
+    "TsObserverOptions": "tanksynth.spec.method_options.ts_observer",
+    **dict.fromkeys(["RobustObserverOptions", "RobustStateFeedbackOptions"],
+                    "tanksynth.spec.method_options.robust"),
+    **dict.fromkeys(["TsOutputFeedbackOptions", "TsStateFeedbackOptions"],
+                    "tanksynth.spec.method_options.ts_control"),
+    **dict.fromkeys(["H2ObserverOptions", "H2StateFeedbackOptions", "HinfObserverOptions",
+                     "HinfStateFeedbackOptions", "MultiobjectiveOptions"],
+                    "tanksynth.spec.method_options.synthesis"),
+}
+
+__getattr__, __dir__ = _lazy_exports(__name__, _EXPORTS)
 
 __all__ = [
     "MethodOptions", "OptionReader",
