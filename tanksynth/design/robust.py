@@ -16,7 +16,9 @@ Synthesis (one gain, one common Lyapunov matrix ``X``)
     it contains the corners ``v`` of a box, ``[[tau, v'], [v, X]] >= 0``.
     Observers solve the dual (``A_i'``, ``C_i'``; ``L = K'``).
 
-Solved with cvxpy + Clarabel on a scaled problem (diagonal balancing of the
+Solved with Clarabel (the LMIs written straight in its conic form by
+`tanksynth.design.robust_conic`; with ``solver = "SCS"`` through cvxpy) on a
+scaled problem (diagonal balancing of the
 states, inputs normalised by ``umax`` or by the columns of ``B``, time
 scaling in continuous time), phase 1 the largest margin (its optimum below
 ``margin`` is the certificate of infeasibility), phase 2 the smallest gain
