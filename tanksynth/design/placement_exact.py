@@ -450,8 +450,7 @@ def ackermann(A: Any, B: Any, poles: Any) -> np.ndarray:
     ``acker`` (which sums matrix powers instead of Horner's scheme: the gains
     agree to rounding, checked on random systems in the tests), without
     importing python-control (~0.9 s: scipy.signal, scipy.stats, pyplot).
-    Numerically it is only as good as ``W`` is conditioned: callers judge the
-    achieved poles (`placement_accuracy`).
+    Only as accurate as ``W`` is conditioned: callers judge the poles.
 
     Parameters
     ----------
