@@ -281,15 +281,19 @@ def servo_ise(plant: Plant, law: InverseDynamicsLaw, scenario: ServoScenario,
     if numeric:
         return _servo_ise_numeric(plant, law, scenario, C)
     M = C.shape[0]
-    step = (_step or _servo_step(plant, law, scenario)).map(M, "serial")
-    x = np.tile(scenario.x0[:, None], (1, M))
+    sps = scenario.setpoints()
+    N = len(sps)
+    # the whole horizon in one call: the step mapped over the runs, accumulated over the
+    # periods (``mapaccum``: the same step, evaluated N times inside CasADi instead of N calls)
+    horizon = (_step or _servo_step(plant, law, scenario)).map(M, "serial").mapaccum(N)
+    X, inc, cr = horizon(np.tile(scenario.x0[:, None], (1, M)), np.repeat(sps.T, M, axis=1),
+                         np.tile(C.T, (1, N)))
+    x = np.asarray(X, dtype=float)[:, -M:]
+    inc = np.asarray(inc, dtype=float).reshape(-1, N, M)
     ise = np.zeros((len(law.controlled), M))
-    crossed = np.zeros(M, dtype=bool)
-    for sp_k in scenario.setpoints():
-        x, inc, cr = step(x, np.tile(sp_k[:, None], (1, M)), C.T)
-        ise += np.asarray(inc, dtype=float)
-        crossed |= np.asarray(cr, dtype=float).reshape(-1) > 0
-    x = np.asarray(x, dtype=float)
+    for k in range(N):                          # summed period by period, in time order
+        ise += inc[:, k]
+    crossed = np.any(np.asarray(cr, dtype=float).reshape(N, M) > 0, axis=0)
     out = ise.T
     out[~np.all(np.isfinite(x), axis=0)] = np.inf
     if crossed.any():

@@ -16,7 +16,9 @@ Synthesis (one gain, one common Lyapunov matrix ``X``)
     it contains the corners ``v`` of a box, ``[[tau, v'], [v, X]] >= 0``.
     Observers solve the dual (``A_i'``, ``C_i'``; ``L = K'``).
 
-Solved with cvxpy + Clarabel on a scaled problem (diagonal balancing of the
+Solved with Clarabel (the LMIs written straight in its conic form by
+`tanksynth.design.robust_conic`; with ``solver = "SCS"`` through cvxpy) on a
+scaled problem (diagonal balancing of the
 states, inputs normalised by ``umax`` or by the columns of ``B``, time
 scaling in continuous time), phase 1 the largest margin (its optimum below
 ``margin`` is the certificate of infeasibility), phase 2 the smallest gain
@@ -30,12 +32,11 @@ import time
 from dataclasses import dataclass, field
 from typing import Any, Sequence
 
-import cvxpy as cp
 import numpy as np
 import scipy.linalg as sla
 
 from tanksynth.analysis.lmi_region import LMIRegion
-from tanksynth.design.lmi_problem import solve_status
+from tanksynth.design.robust_conic import modelling
 from tanksynth.errors import DimensionError, InfeasibleDesign, SpecError
 
 __all__ = ["HinfBound", "SaturationBound", "RobustResult", "robust_state_feedback",
@@ -283,8 +284,13 @@ def robust_state_feedback(A: Any, B: Any, region: LMIRegion, *, domain: str = "c
     omega = omega if omega > 0 else 1.0
     As, Bs, reg = Ab / omega, Bb / omega, region.scaled(omega)
     I = np.eye(n)
-    X = cp.Variable((n, n), symmetric=True)
-    Y = cp.Variable((m, n))
+    # Clarabel: the LMIs written straight in its conic form (robust_conic); SCS: through cvxpy
+    lib = modelling(solver)
+    X = lib.variable((n, n), symmetric=True)
+    Y = lib.variable((m, n))
+    tau = lib.variable(nonneg=True)
+    t = lib.variable()
+    lib.reserve_norm()
     d = reg.order * n
     homogeneous = hinf is None and saturation is None
     hs = None
@@ -308,31 +314,29 @@ def robust_state_feedback(A: Any, B: Any, region: LMIRegion, *, domain: str = "c
             v = np.zeros(n)
             v[:nb] = np.asarray(signs) * half
             corners.append(v / s)
-    tau = cp.Variable(nonneg=True)
-
     def constraints(t: Any, regions_only: bool = False, vertices: Sequence[int] | None = None) -> list:
         out = []
         for i in (range(V) if vertices is None else vertices):
             AclX = As[i] @ X - Bs[i] @ Y
-            out.append(_region_block(reg, AclX, X, cp.kron) << -t * np.eye(d))
+            out.append(_region_block(reg, AclX, X, lib.kron) << -t * np.eye(d))
             if regions_only:
                 continue
             if hs is not None:
                 CclX = hs[1][i] @ X - hs[2] @ Y
-                blk = _hinf_block(domain, AclX, X, hs[0][i], CclX, hs[3], cp.bmat)
+                blk = _hinf_block(domain, AclX, X, hs[0][i], CclX, hs[3], lib.bmat)
                 size = blk.shape[0]
                 out.append(blk << -t * np.eye(size) if domain == "continuous" else blk >> t * np.eye(size))
             if saturation is not None:
-                out.append(_lyapunov_block(domain, AclX, X, cp.bmat) << 0)
+                out.append(_lyapunov_block(domain, AclX, X, lib.bmat) << 0)
         if saturation is not None and not regions_only:
             if saturation.halfspaces is not None:
                 for c, b in zip(np.asarray(saturation.halfspaces, float), saturation.limits):
                     cc = np.zeros(n)
                     cc[:c.size] = c
                     cs = cc * s
-                    out.append(cs @ X @ cs <= float(b) ** 2)
+                    out.append(cs[None, :] @ X @ cs[:, None] <= float(b) ** 2)
             for j in range(m):
-                out.append(cp.bmat([[np.ones((1, 1)), Y[j:j + 1, :]], [Y[j:j + 1, :].T, X]]) >> 0)
+                out.append(lib.bmat([[np.ones((1, 1)), Y[j:j + 1, :]], [Y[j:j + 1, :].T, X]]) >> 0)
         if homogeneous or regions_only:
             out += [X >> I, X << kappa * I]
         else:
@@ -340,31 +344,30 @@ def robust_state_feedback(A: Any, B: Any, region: LMIRegion, *, domain: str = "c
         return out
 
     def box_constraints(bound: Any) -> list:
-        corner = np.ones((1, 1)) * bound if isinstance(bound, float) else cp.reshape(bound, (1, 1), order="F")
-        return [cp.bmat([[corner, v[None, :]], [v[:, None], X]]) >> 0 for v in corners]
+        corner = np.ones((1, 1)) * bound if isinstance(bound, float) else lib.reshape(bound, (1, 1), order="F")
+        return [lib.bmat([[corner, v[None, :]], [v[:, None], X]]) >> 0 for v in corners]
 
-    t = cp.Variable()
     base = constraints(t)
     if saturation is not None and saturation.box is not None:
         base += box_constraints(1.0)
     start = time.perf_counter()
-    status = solve_status(cp.Problem(cp.Maximize(t), base + [t <= 1.0]), solver)
+    status = lib.solve_status(lib.Problem(lib.Maximize(t), base + [t <= 1.0]), solver)
     tstar = float(t.value) if status in ("optimal", "optimal_inaccurate") and t.value is not None else -np.inf
     if tstar < margin:
         raise InfeasibleDesign(_infeasible_reason(region, V, margin, tstar, status, solver, hinf,
-                                                  saturation, constraints, t, nominal))
+                                                  saturation, constraints, t, nominal, lib))
     Xv, Yv, status1 = X.value.copy(), Y.value.copy(), status
     bound = max(margin, 0.5 * tstar)
     phase2 = constraints(bound)
     if saturation is not None and saturation.box is not None:
         phase2 += box_constraints(1.0)
-        objective = cp.Minimize(cp.norm(Y, "fro"))
+        objective = lib.Minimize(lib.norm_fro(Y))
     elif saturation is not None:
         phase2 += box_constraints(tau)
-        objective = cp.Minimize(tau)
+        objective = lib.Minimize(tau)
     else:
-        objective = cp.Minimize(cp.norm(Y, "fro"))
-    status2 = solve_status(cp.Problem(objective, phase2), solver)
+        objective = lib.Minimize(lib.norm_fro(Y))
+    status2 = lib.solve_status(lib.Problem(objective, phase2), solver)
     if status2 in ("optimal", "optimal_inaccurate") and X.value is not None:
         Xv, Yv = X.value, Y.value
         status = f"{status1} (phase 1), {status2} (phase 2)"
@@ -380,16 +383,18 @@ def robust_state_feedback(A: Any, B: Any, region: LMIRegion, *, domain: str = "c
 
 
 def _infeasible_reason(region, V, margin, tstar, status, solver, hinf, saturation, constraints, t,
-                       nominal) -> str:
+                       nominal, lib) -> str:
     extra = []
     parts = ("region" + (", H-infinity bound" if hinf is not None else "")
              + (", saturation bound" if saturation is not None else ""))
     if hinf is not None or saturation is not None:
-        st = solve_status(cp.Problem(cp.Maximize(t), constraints(t, regions_only=True) + [t <= 1.0]), solver)
+        st = lib.solve_status(lib.Problem(lib.Maximize(t), constraints(t, regions_only=True) + [t <= 1.0]),
+                             solver)
         tr = float(t.value) if t.value is not None and st.startswith("optimal") else -np.inf
         extra.append(f"the region alone at the {V} vertices: t* = {tr:.3g}")
     if nominal is not None and V > 1:
-        st = solve_status(cp.Problem(cp.Maximize(t), constraints(t, True, [nominal]) + [t <= 1.0]), solver)
+        st = lib.solve_status(lib.Problem(lib.Maximize(t), constraints(t, True, [nominal]) + [t <= 1.0]),
+                             solver)
         tn = float(t.value) if t.value is not None and st.startswith("optimal") else -np.inf
         extra.append(f"the nominal model alone: t* = {tn:.3g}"
                      + (" (feasible: the uncertainty makes the request infeasible)" if tn >= margin

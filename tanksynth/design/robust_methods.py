@@ -156,7 +156,7 @@ def run_robust_state_feedback(spec: "Spec", design: "DesignSpec") -> DesignResul
         No gain meets the request at every vertex (with the largest
         achievable margin as the certificate), or the re-check fails.
     """
-    from tanksynth.design.robust import (HinfBound, SaturationBound, ellipsoid_axes,  # cvxpy
+    from tanksynth.design.robust import (HinfBound, SaturationBound, ellipsoid_axes,
                                          robust_state_feedback)
 
     o = options_of(design, spec, RobustStateFeedbackOptions)
@@ -275,7 +275,7 @@ def run_robust_observer(spec: "Spec", design: "DesignSpec") -> DesignResult:
     InfeasibleDesign
         No gain meets the request at every vertex, or the re-check fails.
     """
-    from tanksynth.design.robust import HinfBound, robust_observer  # loads cvxpy on first use
+    from tanksynth.design.robust import HinfBound, robust_observer
 
     o = options_of(design, spec, RobustObserverOptions)
     plant = spec.plant

@@ -117,6 +117,31 @@ def test_nonlinear_observability_three_tank_h1():
     assert res.as_dict()["min_rank"] == 3
 
 
+def test_nonlinear_observability_of_a_hybrid_plant_equals_the_sympy_lie_derivatives():
+    """The CasADi (AD) codistribution against sympy: Lie derivatives of the Piecewise/Max/sign
+    model differentiated by sympy, lambdified, ranked here with the same scaling and tolerance."""
+    from tanksynth.plants import hybrid_three_tank
+
+    plant = hybrid_three_tank()
+    res = nonlinear_observability(plant, count=60, seed=2)
+    u = {s: sp.Float(v) for s, v in zip(plant.u, res.input_value)}
+    f = plant.f_smooth_numeric.xreplace(u)
+    L, rows = plant.h_numeric, []
+    for _ in range(res.orders):
+        grad = L.jacobian(plant.x)
+        rows.append(grad)
+        L = grad * f
+    D = sp.Matrix.vstack(*rows).replace(sp.DiracDelta, lambda *a: sp.S.Zero)
+    fn = sp.lambdify([plant.x], D, modules="numpy")
+    with np.errstate(invalid="ignore", divide="ignore"):        # numpy evaluates every branch
+        vals = np.array([np.asarray(fn(p), dtype=float) for p in res.points])
+    vals = vals / np.linalg.norm(vals, axis=2, keepdims=True)
+    sv = np.linalg.svd(vals, compute_uv=False)
+    np.testing.assert_array_equal(res.ranks, np.sum(sv > 1e-9 * sv[:, :1], axis=1))
+    np.testing.assert_allclose(res.smallest_singular_values, sv[:, plant.n - 1], rtol=1e-9)
+    assert res.orders == 3 and res.full
+
+
 def test_nonlinear_observability_three_tank_h1_depends_on_direction():
     """With only h1 measured, q1 enters L_f^k h1; still full for every input in range."""
     plant = three_tank(outputs="h1")

@@ -1,11 +1,12 @@
-"""Exact pole placement (python-control) with its accuracy report."""
+"""Exact pole placement (python-control's routines, called directly) with its accuracy report."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from tanksynth.design.placement_exact import place_observer, place_state_feedback, pole_errors
+from tanksynth.design.placement_exact import (ackermann, place_observer, place_state_feedback,
+                                              pole_errors)
 from tanksynth.errors import DimensionError, SpecError
 
 
@@ -26,6 +27,49 @@ def test_mimo_place_and_siso_acker():
     assert o.gain.shape == (4, 2)
     _, emax = pole_errors(poles, np.linalg.eigvals(A - o.gain @ B.T))
     assert emax < 1e-9
+
+
+def test_place_is_python_controls_place_bit_for_bit():
+    control = pytest.importorskip("control")
+    rng = np.random.default_rng(7)
+    for n, m in [(3, 2), (4, 2), (5, 2), (5, 3), (6, 4)]:
+        for _ in range(20):
+            A, B = rng.standard_normal((n, n)), rng.standard_normal((n, m))
+            re = -rng.uniform(0.5, 5.0, n)
+            poles = re.astype(complex)
+            if n >= 4:  # one complex pair
+                poles[:2] = [re[0] + 1j, re[0] - 1j]
+            r = place_state_feedback(A, B, poles, method="place")
+            np.testing.assert_array_equal(r.gain, control.place(A, B, poles))
+
+
+def test_ackermann_agrees_with_python_control_acker_on_random_systems():
+    control = pytest.importorskip("control")
+    rng = np.random.default_rng(11)
+    for n in range(1, 9):
+        for _ in range(100):
+            A, b = rng.standard_normal((n, n)), rng.standard_normal((n, 1))
+            poles = -rng.uniform(0.1, 4.0, n)
+            K = ackermann(A, b, poles)
+            ref = np.asarray(control.acker(A, b, poles), dtype=float).reshape(1, n)
+            W = np.hstack([np.linalg.matrix_power(A, k) @ b for k in range(n)])
+            # both are W^-1 phi(A) rounded differently (Horner here, a power sum there)
+            bound = 1e-13 * np.linalg.cond(W) * max(1.0, np.linalg.norm(A, 2)) ** n
+            assert np.max(np.abs(K - ref)) <= bound * np.max(np.abs(ref))
+            # and the closed loop has the requested characteristic polynomial
+            np.testing.assert_allclose(np.poly(A - b @ K), np.poly(poles), rtol=0,
+                                       atol=1e-7 * np.max(np.abs(np.poly(poles))) * np.linalg.cond(W))
+
+
+def test_ackermann_refuses_an_uncontrollable_pair_and_several_inputs():
+    A = np.diag([-1.0, -2.0])
+    with pytest.raises(ValueError, match="not controllable"):
+        ackermann(A, [[1.0], [0.0]], [-3.0, -4.0])
+    with pytest.raises(ValueError, match="one input column"):
+        ackermann(A, np.eye(2), [-3.0, -4.0])
+    # a known gain: double integrator, poles -1, -2: K = [2, 3]
+    K = ackermann([[0.0, 1.0], [0.0, 0.0]], [[0.0], [1.0]], [-1.0, -2.0])
+    np.testing.assert_allclose(K, [[2.0, 3.0]], rtol=0, atol=1e-14)
 
 
 def test_placement_input_errors():
