@@ -213,7 +213,7 @@ TABLE: tuple[Method, ...] = (
          verdict="model:linearize_verdict", statement="linearize_statement",
          campaign="model_runs:linearize_run"),
     _row("pole_placement", _CONTROLLER_OR_OBSERVER,
-         "exact pole placement (python-control place/acker), optional integral action",
+         "exact pole placement (Tits-Yang place, Ackermann acker), optional integral action",
          options="PolePlacementOptions", adapter="convex_methods:POLE_PLACEMENT",
          verdict="placement:pole_placement_verdict", statement="pole_placement_statement",
          campaign="estimation_runs:placement_run"),

@@ -26,7 +26,7 @@ __all__ = ["LMI_SOLVERS", "PLACE_METHODS", "TARGETS", "TIME_DOMAINS", "POLE_DOMA
 LMI_SOLVERS = ("CLARABEL", "SCS")
 #: What a linear gain design computes.
 TARGETS = ("observer", "state_feedback")
-#: Routines of exact pole placement (python-control).
+#: Routines of exact pole placement (Tits-Yang `place` by scipy.signal.place_poles, as python-control; Ackermann `acker`).
 PLACE_METHODS = ("auto", "place", "acker")
 #: Time domains of a linear design.
 TIME_DOMAINS = ("continuous", "discrete")
@@ -133,8 +133,8 @@ _GAIN_DOC = """
 
 @dataclass(frozen=True, eq=False)
 class PolePlacementOptions(MethodOptions):
-    __doc__ = f"""Options of ``pole_placement``: exact pole placement (python-control ``place`` /
-    ``acker``) on the linearisation at the operating point.
+    __doc__ = f"""Options of ``pole_placement``: exact pole placement (Tits-Yang ``place``
+    by scipy.signal.place_poles, which python-control's ``place`` calls; Ackermann ``acker``) on the linearisation at the operating point.
 
     Attributes
     ----------
