@@ -42,9 +42,9 @@ class RebuiltModel:
         self.C = self.q.C
         p = self.forms.shape[0]
         self.sigmas = list(itertools.product((1, 2), repeat=p))
-        # index of each vertex's factors in the (premise, partition) table of `memberships`
+        # column of each vertex's factors in the table [F^1, F^2] (M, 2p) of `memberships`
         self._s = np.array(self.sigmas, dtype=int).reshape(len(self.sigmas), p) - 1
-        self._k = np.broadcast_to(np.arange(p), self._s.shape)
+        self._factor = np.arange(p) + p * self._s
         self._width = self.upper - self.lower
         self.A = np.array([self.q.A_lin + sum(np.outer(self.q.incidence[:, k], self.forms[k])
                                               * (self.upper[k] if s == 1 else self.lower[k])
@@ -101,7 +101,7 @@ class RebuiltModel:
         # multiplied in the order k = 1 ... p (the same products as one vertex at a time)
         if not self._s.shape[1]:
             return np.ones((X.shape[0], 1))
-        G = np.stack([F1, 1.0 - F1], axis=2)[:, self._k, self._s]     # (M, r, p)
+        G = np.take(np.concatenate([F1, 1.0 - F1], axis=1), self._factor, axis=1)   # (M, r, p)
         mu = G[:, :, 0].copy()
         for k in range(1, G.shape[2]):
             mu *= G[:, :, k]

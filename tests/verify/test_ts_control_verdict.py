@@ -153,3 +153,24 @@ def test_memberships_rebuild_the_plant_and_the_vertex_products(designed):
         f = np.asarray(rhs(X, u0)) - np.asarray(rhs(np.tile(model.x0, (len(X), 1)), u0))
         np.testing.assert_allclose(np.einsum("mi,ink,mk->mn", mu, model.A, e), f,
                                    rtol=0, atol=1e-9 * np.abs(f).max())
+
+
+def test_pdc_law_is_the_membership_weighted_gain(designed):
+    """``u = u0 - sum_j mu_j K_j (x_hat - x0)``, premises at ``x_hat`` or at given states
+    (the law's batched products against a loop over runs and rules)."""
+    from tanksynth.verify.ts_loops import PDCLaw
+
+    spec, docs = designed
+    doc = docs["pdc"]
+    model = rebuild_model(spec.plant, doc)
+    K = np.asarray(doc["gains"]["K"]).reshape(len(model.sigmas), 2, 3)
+    law = PDCLaw(model, K)
+    rng = np.random.default_rng(7)
+    X = model.x0 + rng.uniform(-0.05, 0.05, size=(9, 3))
+    XZ = model.x0 + rng.uniform(-0.05, 0.05, size=(9, 3))
+    for premises in (None, XZ):
+        mu = model.memberships(X if premises is None else premises)
+        ref = np.array([model.u0 - sum(mu[m, j] * (K[j] @ (X[m] - model.x0)) for j in range(len(K)))
+                        for m in range(len(X))])
+        np.testing.assert_allclose(law.raw(X, premises), ref, rtol=1e-13, atol=1e-20)
+    np.testing.assert_allclose(law(X, None, 0.0), law.raw(X), rtol=0, atol=0)
