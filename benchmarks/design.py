@@ -8,7 +8,8 @@ repetition runs the whole ``tanksynth design SPEC -o DIR`` command
 (``tanksynth.cli.main``) in a fresh interpreter: its wall time (interpreter
 start, imports, parse, designs, artefacts written), and inside it the time of
 the imports and parse, of each ``design`` call (wall and CPU) and of the
-artefact writing, and the peak memory (max RSS). N values are interleaved,
+artefact writing, the peak memory (max RSS) and each design's CPU time (wall time
+on the shared 2-core machine is noisy). N values are interleaved,
 ``--reps`` repetitions (>= 3); min and median printed; the growth exponent of
 the design time and of the command time over N = 16 ... 64 (least squares of
 log t on log N) is reported.
@@ -73,8 +74,9 @@ methods.Method.design, aio.write_artefact = timed_design, timed_write
 code = cli.main(["design", sys.argv[1], "-o", sys.argv[2], "--force"])
 t1 = time.perf_counter()
 print(json.dumps({"code": code, "package": tanksynth_path, "import_and_parse": first[0] - t0 if first else None,
-                  "designs": times, "design_total": sum(times.values()),
+                  "designs": times, "designs_cpu": cpu, "design_total": sum(times.values()),
                   "design_cpu": sum(cpu.values()), "write": sum(writes), "in_process": t1 - t0,
+                  "command_cpu": time.process_time(),
                   "maxrss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}))
 """
 
@@ -125,8 +127,9 @@ def main() -> int:
     for N in args.sizes:
         specs[N] = tmp / f"net{N}.toml"
         specs[N].write_text(spec_text(N))
-    keys = ("design_total", "design_cpu", "command_wall", "import_and_parse", "write", "maxrss_mb")
-    rows = {N: {**{k: [] for k in keys}, "designs": []} for N in args.sizes}
+    keys = ("design_total", "design_cpu", "command_wall", "command_cpu", "import_and_parse", "write",
+            "maxrss_mb")
+    rows = {N: {**{k: [] for k in keys}, "designs": [], "designs_cpu": []} for N in args.sizes}
     failed, package = [], None
     env = {**os.environ, "PYTHONPATH": os.pathsep.join(
         [str(Path(args.tree).resolve())] + [p for p in os.environ.get("PYTHONPATH", "").split(os.pathsep) if p])}
@@ -162,7 +165,8 @@ def main() -> int:
             for k in keys:
                 rows[N][k].append(out[k])
             rows[N]["designs"].append(out["designs"])
-            print(f"  rep {rep + 1} N = {N}: command {wall:.2f} s, designs {out['design_total']:.2f} s "
+            rows[N]["designs_cpu"].append(out["designs_cpu"])
+            print(f"  rep {rep + 1} N = {N}: command {wall:.2f} s (cpu {out['command_cpu']:.2f} s), designs {out['design_total']:.2f} s "
                   f"(cpu {out['design_cpu']:.2f} s), imports+parse {out['import_and_parse']:.2f} s, "
                   f"write {out['write']:.2f} s", flush=True)
     print(f"\n{'N':>5} {'command min':>12} {'median':>8} {'designs min':>12} {'median':>8} {'cpu med':>8} "
@@ -174,9 +178,11 @@ def main() -> int:
         d, c = summary(r["design_total"]), summary(r["command_wall"])
         med = {k: statistics.median(r[k]) for k in ("design_cpu", "import_and_parse", "write", "maxrss_mb")}
         per = {k: statistics.median(x[k] for x in r["designs"]) for k in r["designs"][0]}
+        per_cpu = {k: statistics.median(x[k] for x in r["designs_cpu"]) for k in r["designs_cpu"][0]}
         print(f"{N:5d} {c['min']:11.2f}s {c['median']:7.2f}s {d['min']:11.2f}s {d['median']:7.2f}s "
               f"{med['design_cpu']:7.2f}s {med['import_and_parse']:11.2f}s {med['write']:5.2f}s "
-              f"{med['maxrss_mb']:7.0f}   " + "  ".join(f"{k} {v:.2f}s" for k, v in per.items()))
+              f"{med['maxrss_mb']:7.0f}   " + "  ".join(f"{k} {v:.2f}s (cpu {per_cpu[k]:.2f})"
+                                                     for k, v in per.items()))
     exponent = _exponent(args.sizes, {N: rows[N]["design_total"] for N in args.sizes})
     exponent_cmd = _exponent(args.sizes, {N: rows[N]["command_wall"] for N in args.sizes})
     if exponent is not None:

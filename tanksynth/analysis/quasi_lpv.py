@@ -119,16 +119,21 @@ class FormEvaluator:
             fn = lambdify_cached([list(arity[form])], form)
             rows = np.array([k for k, _ in members], dtype=int)
             cols = np.array([c for _, c in members], dtype=int).reshape(len(members), len(arity[form]))
-            self._groups.append((fn, rows, cols))
+            # (M, n) -> (arity, M, members): the column indices transposed once here, so that a
+            # call takes the arguments with one fancy index (`X[:, cols.T]` is `X[:, cols]`
+            # transposed, the same numbers)
+            self._groups.append((fn, rows, np.ascontiguousarray(cols.T)))
 
     def __call__(self, X: np.ndarray) -> np.ndarray:
         """Values at the points ``X`` (M, n): (M, count); NaN/inf where undefined (no warning)."""
         X = np.atleast_2d(np.asarray(X, dtype=float))
-        out = np.empty((X.shape[0], self.count))
+        M = X.shape[0]
+        out = np.empty((M, self.count))
         with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
-            for fn, rows, cols in self._groups:
-                values = fn(X[:, cols].transpose(2, 0, 1))   # arguments (arity, M, members)
-                out[:, rows] = np.broadcast_to(np.asarray(values, dtype=float), (X.shape[0], len(rows)))
+            for fn, rows, cols_t in self._groups:
+                values = np.asarray(fn(X[:, cols_t].transpose(1, 0, 2)), dtype=float)  # (arity, M, members)
+                out[:, rows] = values if values.shape == (M, len(rows)) else np.broadcast_to(
+                    values, (M, len(rows)))
         return out
 
 
@@ -456,6 +461,8 @@ class QuasiLPV:
         fn = self._lambdified("atoms", lambda: FormEvaluator(self.atoms, self.states))
         X = np.atleast_2d(np.asarray(X, dtype=float))
         out = fn(X)
+        if np.isfinite(out).all():        # the common case: nothing to warn about
+            return out
         bad = ~np.all(np.isfinite(out), axis=1) & np.all(np.isfinite(X), axis=1)
         if bad.any():
             from tanksynth.errors import TanksynthWarning

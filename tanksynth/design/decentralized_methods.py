@@ -83,6 +83,15 @@ def run_decentralized_kalman(spec: Any, design: Any) -> DesignResult:
     InfeasibleDesign
         A covariance lost positive definiteness.
     """
+    # n x n products, factorisations and expm all through: one BLAS thread (at n = 128 OpenBLAS's
+    # threads made each 128 x 128 Cholesky of the reference costs ~60 ms of waiting on the loaded
+    # 2-core machine, 25 s of CPU for the design; issue 15)
+    with small_dense():
+        return _decentralized_kalman(spec, design)
+
+
+def _decentralized_kalman(spec: Any, design: Any) -> DesignResult:
+    """`run_decentralized_kalman` (under one BLAS thread)."""
     plant = spec.plant
     ts = spec.ts
     o = options_of(design, spec, DecentralizedKalmanOptions)
@@ -105,9 +114,8 @@ def run_decentralized_kalman(spec: Any, design: Any) -> DesignResult:
 
     eq = equilibrium_input(plant, spec.x0, spec.given_u0)
     u = eq.u0 if o.input is None else np.array(o.input)
-    with small_dense():  # many small expm / Van Loan products: BLAS threads only wait on a busy box
-        models, x_pred = window_models(plant, spec.x0, np.tile(u, (T + 1, 1)), ts, Qc, R,
-                                       relinearize_every=relin)
+    models, x_pred = window_models(plant, spec.x0, np.tile(u, (T + 1, 1)), ts, Qc, R,
+                                   relinearize_every=relin)
     A = [m.A for m in models[1:]]
     C = [m.C for m in models[1:]]
     Q = [m.Q for m in models[1:]]
@@ -141,7 +149,7 @@ def run_decentralized_kalman(spec: Any, design: Any) -> DesignResult:
                                        max_iter=max_iter)
         for w in caught:  # non-convergence is about this design: say so as a design warning
             category = DesignWarning if issubclass(w.category, RuntimeWarning) else w.category
-            warnings.warn(str(w.message), category, stacklevel=2)
+            warnings.warn(str(w.message), category, stacklevel=3)
         K, P = res.K, res.P
         cost, iterations, converged, status = res.cost, res.iterations, res.converged, res.status
         history = res.history

@@ -47,7 +47,8 @@ class PDCLaw:
         """
         mu = self.model.memberships(x_hat if xz is None else xz)
         E = x_hat - self.model.x0
-        return self.model.u0 - np.einsum("mj,jan,mn->ma", mu, self.K, E)
+        KE = (mu @ self.K.reshape(len(self.K), -1)).reshape(len(mu), *self.K.shape[1:])  # sum_j mu_j K_j
+        return self.model.u0 - (KE @ E[:, :, None])[:, :, 0]
 
     def __call__(self, x_hat: np.ndarray, reference: np.ndarray, t: float) -> np.ndarray:
         """Input (M, m)."""

@@ -42,6 +42,10 @@ class RebuiltModel:
         self.C = self.q.C
         p = self.forms.shape[0]
         self.sigmas = list(itertools.product((1, 2), repeat=p))
+        # column of each vertex's factors in the table [F^1, F^2] (M, 2p) of `memberships`
+        self._s = np.array(self.sigmas, dtype=int).reshape(len(self.sigmas), p) - 1
+        self._factor = np.arange(p) + p * self._s
+        self._width = self.upper - self.lower
         self.A = np.array([self.q.A_lin + sum(np.outer(self.q.incidence[:, k], self.forms[k])
                                               * (self.upper[k] if s == 1 else self.lower[k])
                                               for k, s in enumerate(sig)) for sig in self.sigmas])
@@ -92,11 +96,15 @@ class RebuiltModel:
         with np.errstate(divide="ignore", invalid="ignore"):
             Z = (self.q.atom_values(X) - self.at0) / dt
         Z = np.where(np.abs(dt) < 1e-12, self.slope0, Z)
-        F1 = (Z - self.lower) / (self.upper - self.lower)
-        mu = np.ones((X.shape[0], len(self.sigmas)))
-        for i, sig in enumerate(self.sigmas):
-            for k, s in enumerate(sig):
-                mu[:, i] *= F1[:, k] if s == 1 else 1.0 - F1[:, k]
+        F1 = (Z - self.lower) / self._width
+        # mu_i = prod_k F_k^(sigma_ik), the factors taken for all vertices at once and
+        # multiplied in the order k = 1 ... p (the same products as one vertex at a time)
+        if not self._s.shape[1]:
+            return np.ones((X.shape[0], 1))
+        G = np.take(np.concatenate([F1, 1.0 - F1], axis=1), self._factor, axis=1)   # (M, r, p)
+        mu = G[:, :, 0].copy()
+        for k in range(1, G.shape[2]):
+            mu *= G[:, :, k]
         return mu
 
 

@@ -143,6 +143,10 @@ def test_form_evaluator_matches_one_lambdify_per_expression():
     for k, e in enumerate(exprs):
         ref = sp.lambdify([h], e, "numpy")(X.T)
         np.testing.assert_allclose(got[:, k], np.broadcast_to(ref, (40,)), rtol=1e-15)
+    # constant expressions (a form without arguments) broadcast to every point
+    const = FormEvaluator([sp.Integer(5), 3 * sp.sqrt(h[0]), sp.Rational(1, 3)], h)(X)
+    np.testing.assert_array_equal(const[:, [0, 2]], np.tile([5.0, 1.0 / 3.0], (40, 1)))
+    np.testing.assert_allclose(const[:, 1], 3 * np.sqrt(X[:, 0]), rtol=1e-15)
     with pytest.raises(Exception, match="other than the states"):
         FormEvaluator([h[0] * sp.Symbol("k")], h)
 

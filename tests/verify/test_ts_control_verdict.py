@@ -122,3 +122,55 @@ def test_measured_premises_verdict_passes(tmp_path):
     bad = copy.deepcopy(doc)
     bad["gains"]["L"] = (-np.asarray(doc["gains"]["L"])).tolist()
     assert _by_name(ts_control_verdict(bad, spec))["observer_lmi_recheck"].passed is False
+
+
+
+def test_memberships_rebuild_the_plant_and_the_vertex_products(designed):
+    """The rebuilt memberships (all vertices at once, issue 15) are the products
+    ``prod_k F_k^(sigma_ik)`` taken vertex by vertex, sum to 1, and weight the vertex matrices
+    into the plant's exact deviation dynamics ``f(x, u0) - f(x0, u0)``."""
+    spec, docs = designed
+    for name in ("pdc", "pdc_output"):
+        model = rebuild_model(spec.plant, docs[name])
+        X = model.x0 + np.random.default_rng(4).uniform(-0.1, 0.1, size=(50, 3))
+        X[0] = model.x0                                   # the secants' removable point
+        X = X[model.inside(X)]
+        mu = model.memberships(X)
+        # first partitions by hand: secant slope of each atom from x0 along its form
+        e = X - model.x0
+        dt = e @ model.forms.T
+        at = model.q.atom_values(X) - model.q.atom_values(model.x0[None, :])
+        Z = np.where(np.abs(dt) < 1e-12, model.slope0, at / np.where(dt == 0, 1.0, dt))
+        F1 = (Z - model.lower) / (model.upper - model.lower)
+        ref = np.ones_like(mu)
+        for i, sig in enumerate(model.sigmas):
+            for k, s in enumerate(sig):
+                ref[:, i] = ref[:, i] * (F1[:, k] if s == 1 else 1.0 - F1[:, k])
+        np.testing.assert_array_equal(mu, ref)
+        np.testing.assert_allclose(mu.sum(axis=1), 1.0, rtol=0, atol=1e-12)
+        u0 = np.tile(model.u0, (len(X), 1))
+        rhs = spec.plant.compiled.rhs
+        f = np.asarray(rhs(X, u0)) - np.asarray(rhs(np.tile(model.x0, (len(X), 1)), u0))
+        np.testing.assert_allclose(np.einsum("mi,ink,mk->mn", mu, model.A, e), f,
+                                   rtol=0, atol=1e-9 * np.abs(f).max())
+
+
+def test_pdc_law_is_the_membership_weighted_gain(designed):
+    """``u = u0 - sum_j mu_j K_j (x_hat - x0)``, premises at ``x_hat`` or at given states
+    (the law's batched products against a loop over runs and rules)."""
+    from tanksynth.verify.ts_loops import PDCLaw
+
+    spec, docs = designed
+    doc = docs["pdc"]
+    model = rebuild_model(spec.plant, doc)
+    K = np.asarray(doc["gains"]["K"]).reshape(len(model.sigmas), 2, 3)
+    law = PDCLaw(model, K)
+    rng = np.random.default_rng(7)
+    X = model.x0 + rng.uniform(-0.05, 0.05, size=(9, 3))
+    XZ = model.x0 + rng.uniform(-0.05, 0.05, size=(9, 3))
+    for premises in (None, XZ):
+        mu = model.memberships(X if premises is None else premises)
+        ref = np.array([model.u0 - sum(mu[m, j] * (K[j] @ (X[m] - model.x0)) for j in range(len(K)))
+                        for m in range(len(X))])
+        np.testing.assert_allclose(law.raw(X, premises), ref, rtol=1e-13, atol=1e-20)
+    np.testing.assert_allclose(law(X, None, 0.0), law.raw(X), rtol=0, atol=0)
