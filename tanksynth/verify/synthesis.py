@@ -329,7 +329,9 @@ def disturbance_plant(plant: Any, Bw: np.ndarray) -> Any:
             tag = "_" + tag
         tags.append(tag)
     w = sp.Matrix([sp.Symbol(t, real=True) for t in tags])
-    f = plant.f + sp.Matrix(Bw.tolist()).applyfunc(sp.nsimplify) * w
+    # each entry as the exact rational value of its double: every route computes with the stored
+    # Bw bit for bit (nsimplify took 0.2 s a design and rounded to a nearby 'nice' rational)
+    f = plant.f + sp.Matrix([[sp.Rational(float(v)) for v in row] for row in Bw]) * w
     bounds = tuple(plant.input_bounds) + ((-math.inf, math.inf),) * len(tags) if plant.input_bounds else ()
     return replace(plant, inputs=tuple(plant.inputs) + tuple(Quantity(t, "w", "declared disturbance")
                                                            for t in tags),
