@@ -313,18 +313,13 @@ def simulate(plant: Plant, *, ts: float, steps: int, x0: Sequence[float] | np.nd
     x = integ.clip(x)
     # Input limits depend on the parameters only: rebuilt when a change applies.
     lo, hi = input_limits(plant, params, M)
-    if (estimator is None and isinstance(controller, InputSequence) and not noisy and not schedule
-            and not jump_at and controller.inputs.shape[0] >= N):
-        # Open loop without noise, faults or jumps: the whole horizon in one call (same numbers).
-        done = _open_loop(integ, x, controller.inputs[:N], params, lo, hi, ts, int(substeps))
-        if done is not None:
-            timing["calls"] = N
-            return _pack(*done, ref, seeds, ts, substeps, integ, timing, plant)
-    if controller is None and not noisy and not schedule and not jump_at:
-        # The input is held whatever the estimate: the plant does not depend on the estimator.
-        # Plant over the whole horizon in one call, then the estimator over its measurements.
-        done = _open_loop(integ, x, np.broadcast_to(u_prev, (N, M, m)), params, lo, hi, ts,
-                          int(substeps))
+    sequence = isinstance(controller, InputSequence) and controller.inputs.shape[0] >= N
+    if (controller is None or sequence) and not noisy and not schedule and not jump_at:
+        # The inputs are known in advance (held, or a given sequence), whatever the estimate: the
+        # plant does not depend on the estimator. The whole horizon in one call (same numbers),
+        # then the estimator over its measurements.
+        seq = controller.inputs[:N] if sequence else np.broadcast_to(u_prev, (N, M, m))
+        done = _open_loop(integ, x, seq, params, lo, hi, ts, int(substeps))
         if done is not None:
             timing["calls"] = N
             if estimator is not None:

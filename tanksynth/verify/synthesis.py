@@ -45,7 +45,7 @@ import sympy as sp
 from tanksynth.analysis.checks import Check
 from tanksynth.analysis.rank import controllability_rank, observability_rank
 from tanksynth.plants.base import Quantity
-from tanksynth.sim.simulate import run_seeds, simulate
+from tanksynth.sim.simulate import InputSequence, run_seeds, simulate
 from tanksynth.verify.closed_loops import ClosedLoop
 from tanksynth.verify.common import (MAX_STEPS, artefact_matrix, fmt, guard, model_recheck,
                                      operating_point, option, rank_check, region_check,
@@ -416,6 +416,9 @@ def _disturbance_step(doc: Mapping[str, Any], spec: Any, c: dict,
     if c["observer"]:
         form = "predictor" if dt is not None else "continuous"
         est = _SliceInput(luenberger_estimator(plant, c["L"], x0, u0, ts_sim, form), plant.m)
+        # the inputs do not depend on the estimate: the same law's values, given in advance (the
+        # plant is then integrated over the whole horizon in one call)
+        law = InputSequence(np.array([law(x0[None, :], None, k * ts_sim)[0] for k in range(steps)]))
     res = simulate(dplant, ts=ts_sim, steps=steps, x0=x0, seeds=run_seeds(0, 1), controller=law,
                    estimator=est, u_init=np.concatenate([u0, np.zeros_like(w)]))
     if trace is not None:
