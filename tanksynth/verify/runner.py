@@ -331,10 +331,16 @@ def load_directory(directory: str | Path,
 
 
 def _write_verification(path: Path, verification: Mapping[str, Any]) -> None:
-    """Set the ``verification`` field of an artefact JSON, atomically, gains untouched."""
+    """Set the ``verification`` field of an artefact JSON, atomically, gains untouched.
+
+    The text is `tanksynth.artefacts.jsontext.dumps` (``json.dumps(indent=2)`` byte for
+    byte; the standard library's indented encoder took 0.1-0.4 s on a 1 MB artefact).
+    """
+    from tanksynth.artefacts.jsontext import dumps
+
     raw = json.loads(path.read_text(encoding="utf-8"))
     raw["verification"] = verification
-    atomic_write(path, json.dumps(raw, indent=2, allow_nan=False) + "\n")
+    atomic_write(path, dumps(raw) + "\n")
 
 
 
