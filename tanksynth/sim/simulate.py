@@ -54,6 +54,7 @@ from tanksynth.errors import DimensionError, SimulationError
 from tanksynth.plants.base import Plant
 from tanksynth.sim.inputs import (BatchEstimator, ConstantInput, ControlLaw, EstimatorAdapter,
                                   InputSequence, ParameterChange, StateJump)
+from tanksynth.sim.affine import affine_horizon
 from tanksynth.sim.integrate import Integrator, input_limits, param_arrays
 
 __all__ = [
@@ -325,6 +326,16 @@ def simulate(plant: Plant, *, ts: float, steps: int, x0: Sequence[float] | np.nd
             if estimator is not None:
                 done = _estimate(estimator, done, u_prev, timing)
             return _pack(*done, ref, seeds, ts, substeps, integ, timing, plant)
+    affine = getattr(controller, "affine", None)
+    if affine is not None and estimator is None and not noisy and not schedule and not jump_at:
+        # u_k = b_k - K (x_k - x_ref): law and plant in one CasADi call over the horizon
+        b, K, x_ref = affine(N, float(ts))
+        loop = affine_horizon(integ, x, np.asarray(b, dtype=float).reshape(N, m), K, x_ref, params,
+                              lo, hi, ts, int(substeps))
+        if loop is not None:
+            timing["calls"] = N
+            return _pack(*_with_outputs(integ, *loop, params), ref, seeds, ts, substeps, integ,
+                         timing, plant)
     refs = np.broadcast_to(ref[:, None, :], (N + 1, M, ref.shape[1]))
     for k in range(N + 1):
         t_k = k * ts
@@ -408,6 +419,21 @@ def _open_loop(integ: Integrator, x: np.ndarray, seq: np.ndarray, params: dict[s
     if model.k:
         modes[:] = integ.bits(flat, rows).reshape(M, N + 1, model.k)
     return Xr, Y, Ur, Xr.view(), modes
+
+
+def _with_outputs(integ: Integrator, X: np.ndarray, U: np.ndarray, params: dict[str, Any]) -> tuple:
+    """``(x, y, u, x_hat, modes)`` run-major from the states (M, N + 1, n) and inputs of a loop."""
+    model = integ.model
+    M, N1, n = X.shape
+    flat = X.reshape(-1, n)
+    rows = params
+    if any(np.ndim(v) for v in params.values()):
+        rows = {k: (np.repeat(v, N1) if np.ndim(v) else v) for k, v in params.items()}
+    Y = integ.output(flat, rows).reshape(M, N1, model.q)
+    modes = np.zeros((M, N1, model.k), dtype=np.int8)
+    if model.k:
+        modes[:] = integ.bits(flat, rows).reshape(M, N1, model.k)
+    return X, Y, U, X.copy(), modes
 
 
 def _estimate(estimator: BatchEstimator, done: tuple, u_init: np.ndarray, timing: dict) -> tuple:

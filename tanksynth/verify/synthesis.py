@@ -350,6 +350,26 @@ class _StepLaw:
         w = self.w if self.t_on <= t + 1e-12 < self.t_off else np.zeros_like(self.w)
         return np.hstack([u, np.tile(w, (M, 1))])
 
+    def affine(self, steps: int, ts: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The law as ``[u, w]_k = b_k - [K; 0] (x_k - x0)`` (`tanksynth.sim.affine`; ``K = 0``
+        without a gain).
+
+        Parameters
+        ----------
+        steps : int
+            Number of periods N.
+        ts : float
+            Sampling period (s): the step is on over ``[t_on, t_off)``.
+        """
+        m = len(self.u0)
+        n = len(self.x0)
+        b = np.array([np.concatenate([self.u0, self.w if self.t_on <= k * ts + 1e-12 < self.t_off
+                                      else np.zeros_like(self.w)]) for k in range(int(steps))])
+        K = np.zeros((m + len(self.w), n))
+        if self.K is not None:
+            K[:m] = self.K
+        return b, K, np.asarray(self.x0, dtype=float)
+
 
 class _SliceInput:
     """An estimator that sees only the first ``m`` inputs (the controls)."""
@@ -418,7 +438,7 @@ def _disturbance_step(doc: Mapping[str, Any], spec: Any, c: dict,
         est = _SliceInput(luenberger_estimator(plant, c["L"], x0, u0, ts_sim, form), plant.m)
         # the inputs do not depend on the estimate: the same law's values, given in advance (the
         # plant is then integrated over the whole horizon in one call)
-        law = InputSequence(np.array([law(x0[None, :], None, k * ts_sim)[0] for k in range(steps)]))
+        law = InputSequence(law.affine(steps, ts_sim)[0])     # K = 0: b_k are the inputs
     res = simulate(dplant, ts=ts_sim, steps=steps, x0=x0, seeds=run_seeds(0, 1), controller=law,
                    estimator=est, u_init=np.concatenate([u0, np.zeros_like(w)]))
     if trace is not None:
