@@ -315,12 +315,13 @@ def simulate(plant: Plant, *, ts: float, steps: int, x0: Sequence[float] | np.nd
     # Input limits depend on the parameters only: rebuilt when a change applies.
     lo, hi = input_limits(plant, params, M)
     sequence = isinstance(controller, InputSequence) and controller.inputs.shape[0] >= N
-    if (controller is None or sequence) and not noisy and not schedule and not jump_at:
+    if (controller is None or sequence) and not noisy and not jump_at:
         # The inputs are known in advance (held, or a given sequence), whatever the estimate: the
-        # plant does not depend on the estimator. The whole horizon in one call (same numbers),
-        # then the estimator over its measurements.
+        # plant does not depend on the estimator. The whole horizon in one call per stretch
+        # between parameter changes (same numbers), then the estimator over its measurements.
         seq = controller.inputs[:N] if sequence else np.broadcast_to(u_prev, (N, M, m))
-        done = _open_loop(integ, x, seq, params, lo, hi, ts, int(substeps))
+        done = (_open_loop_changes(integ, plant, x, seq, params, schedule, ts, int(substeps))
+                if schedule else _open_loop(integ, x, seq, params, lo, hi, ts, int(substeps)))
         if done is not None:
             timing["calls"] = N
             if estimator is not None:
@@ -419,6 +420,45 @@ def _open_loop(integ: Integrator, x: np.ndarray, seq: np.ndarray, params: dict[s
     if model.k:
         modes[:] = integ.bits(flat, rows).reshape(M, N + 1, model.k)
     return Xr, Y, Ur, Xr.view(), modes
+
+
+def _open_loop_changes(integ: Integrator, plant: Plant, x: np.ndarray, seq: np.ndarray,
+                       params: dict[str, Any], schedule: Mapping[int, list], ts: float,
+                       substeps: int) -> tuple | None:
+    """`_open_loop` over the stretches between parameter changes, or None (integrator untouched).
+
+    As in the loop: the values changing at sample ``k`` hold from the measurement at ``k`` on
+    (and the input limits naming them from the input of period ``k``).
+    """
+    N, M = seq.shape[0], x.shape[0]
+    seq = seq[:, None, :] if seq.ndim == 2 else seq
+    saved = (integ.events, integ.clipped_low, integ.clipped_high, set(integ.backends))
+    p = dict(params)
+    cuts = sorted(k for k in schedule if 0 < k <= N)
+    parts = []
+    for a, b in zip([0] + cuts, cuts + [N + 1]):
+        for values in schedule.get(a, ()) if a <= N else ():
+            p.update({name: param_arrays(plant, values, M)[name] for name in values})
+        if b > N:                                  # the last stretch ends with sample N
+            b = N
+        lo, hi = input_limits(plant, p, M)
+        if b > a:
+            part = _open_loop(integ, x, seq[a:b], p, lo, hi, ts, substeps)
+        else:                                      # a change at the last sample: its output only
+            part = _with_outputs(integ, x[:, None, :], np.empty((M, 0, seq.shape[-1])), p)
+        if part is None:
+            integ.events, integ.clipped_low, integ.clipped_high = saved[:3]
+            integ.backends = saved[3]
+            return None
+        parts.append(part)
+        x = np.array(part[0][:, -1])
+    last = len(parts) - 1
+    cut = lambda arr, i: arr if i == last else arr[:, :-1]  # noqa: E731 - drop the shared sample
+    X = np.concatenate([cut(q[0], i) for i, q in enumerate(parts)], axis=1)
+    Y = np.concatenate([cut(q[1], i) for i, q in enumerate(parts)], axis=1)
+    U = np.concatenate([q[2] for q in parts], axis=1)
+    modes = np.concatenate([cut(q[4], i) for i, q in enumerate(parts)], axis=1)
+    return X, Y, U, X.copy(), modes
 
 
 def _with_outputs(integ: Integrator, X: np.ndarray, U: np.ndarray, params: dict[str, Any]) -> tuple:

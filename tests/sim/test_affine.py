@@ -2,6 +2,8 @@
 (`tanksynth.sim.affine`) and a plant whose inputs do not depend on the estimate; both against
 the period-by-period loop (forced with a plain callable, which offers neither route)."""
 
+import sys
+
 import numpy as np
 import pytest
 
@@ -105,3 +107,34 @@ def test_estimator_does_not_change_a_plant_with_known_inputs():
         for name in ("x", "y", "u", "x_hat"):
             assert np.array_equal(getattr(fast, name), getattr(slow, name)), name
         assert not np.array_equal(fast.x_hat, fast.x)      # the observer ran
+
+
+@pytest.mark.parametrize("name, samples", [("delta_bar", (0,)), ("delta_bar", (70,)),
+                                           ("delta_bar", (70, 140)), ("psi3", (200,))])
+def test_parameter_changes_with_known_inputs_equal_the_loop(name, samples, monkeypatch):
+    """Faults (parameter changes) with a held input: stretch by stretch, the loop's numbers
+    (a change at the last sample changes only its measurement, y = x3 / psi3)."""
+    from tanksynth.plants import hydraulic_fault
+    from tanksynth.sim.simulate import ParameterChange
+
+    plant = hydraulic_fault()
+    base = {p.name: p.value for p in plant.parameters}[name]
+    x0, u0 = np.array([4.0, 4.0 / 3.0, 4.0]), np.array([2.0])       # the healthy equilibrium
+    changes = [ParameterChange(k, {name: np.array([base, base + 0.2 * (1 + i)])})
+               for i, k in enumerate(samples)]
+    common = dict(ts=1.0, steps=200, x0=np.tile(x0, (2, 1)), seeds=[0, 1], u_init=u0,
+                  changes=changes)
+    module = sys.modules["tanksynth.sim.simulate"]
+    used = []
+    route = module._open_loop_changes
+    monkeypatch.setattr(module, "_open_loop_changes", lambda *a: used.append(route(*a)) or used[-1])
+    fast = simulate(plant, **common)
+    assert len(used) == 1 and used[0] is not None                # the stretch route ran
+    slow = simulate(plant, controller=lambda xh, r, t: np.tile(u0, (xh.shape[0], 1)), **common)
+    for field in ("x", "y", "u", "modes"):
+        assert np.array_equal(getattr(fast, field), getattr(slow, field)), field
+    assert (fast.clipped_low, fast.clipped_high, fast.events) == \
+        (slow.clipped_low, slow.clipped_high, slow.events)
+    k = min(samples)
+    assert np.array_equal(fast.y[0, :k], fast.y[1, :k])           # before the change: the same
+    assert not np.array_equal(fast.y[0, k:], fast.y[1, k:])       # from it on: the fault shows
