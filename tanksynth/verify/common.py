@@ -555,10 +555,18 @@ class CasadiControlLaw:
             One array per input of the Function, shape (M, k_i) (its units).
         """
         count = int(args[0].shape[0])
-        fn = self._mapped.get(count)
-        if fn is None:
-            fn = self.function.map(count, "serial") if count > 1 else self.function
-            self._mapped[count] = fn
+        slot = self._mapped.get(count)
+        if slot is None:  # one bound buffer per batch size when the Function allows (same numbers)
+            from tanksynth.verify.batch_call import BatchCall
+
+            if BatchCall.fits(self.function) and len(args) == self.function.n_in():
+                slot = (BatchCall(self.function, count), None)
+            else:
+                slot = (None, self.function.map(count, "serial") if count > 1 else self.function)
+            self._mapped[count] = slot
+        buffered, fn = slot
+        if buffered is not None:
+            return buffered.all(*[np.asarray(a, dtype=float) for a in args])
         outs = fn(*[np.asarray(a, dtype=float).T for a in args])
         outs = outs if isinstance(outs, (list, tuple)) else [outs]
         return [np.asarray(o, dtype=float).reshape(-1, count).T for o in outs]
