@@ -363,8 +363,11 @@ class _StepLaw:
         """
         m = len(self.u0)
         n = len(self.x0)
-        b = np.array([np.concatenate([self.u0, self.w if self.t_on <= k * ts + 1e-12 < self.t_off
-                                      else np.zeros_like(self.w)]) for k in range(int(steps))])
+        t = np.arange(int(steps)) * float(ts)          # t_k = k ts, as the simulator's samples
+        on = (self.t_on <= t + 1e-12) & (t + 1e-12 < self.t_off)
+        b = np.zeros((int(steps), m + len(self.w)))
+        b[:, :m] = self.u0
+        b[on, m:] = self.w
         K = np.zeros((m + len(self.w), n))
         if self.K is not None:
             K[:m] = self.K
