@@ -400,11 +400,20 @@ def _open_loop(integ: Integrator, x: np.ndarray, seq: np.ndarray, params: dict[s
     Ur = np.empty((M, N, model.m))
     src = np.broadcast_to(seq, (N, M, model.m)).transpose(1, 0, 2)
     np.minimum(np.maximum(src, lo[:, None, :]), hi[:, None, :], out=Ur)
-    Xr = np.empty((M, N + 1, model.n))
-    Xr[:, 0] = x
-    if integ.horizon(x, Ur.transpose(1, 0, 2), params, ts, substeps,
-                     out=Xr[:, 1:].transpose(1, 0, 2)) is None:
-        return None
+    loop = None
+    if integ.native(substeps) is None and model.m and (M == 1 or np.all(seq == seq[:, :1])):
+        # no compiled kernel: CasADi in chunks built once per plant (`affine_horizon` with K = 0,
+        # u = sat(b) exactly) rather than `Integrator.horizon`'s mapaccum built per length N
+        loop = affine_horizon(integ, x, seq[:, 0, :], np.zeros((model.m, model.n)),
+                              np.zeros(model.n), params, lo, hi, ts, substeps)
+    if loop is not None:
+        Xr = loop[0]
+    else:
+        Xr = np.empty((M, N + 1, model.n))
+        Xr[:, 0] = x
+        if integ.horizon(x, Ur.transpose(1, 0, 2), params, ts, substeps,
+                         out=Xr[:, 1:].transpose(1, 0, 2)) is None:
+            return None
     Xr.flags.writeable = False
     flat = Xr.reshape(-1, model.n)
     rows = params

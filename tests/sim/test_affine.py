@@ -88,9 +88,12 @@ def test_affine_route_declines_a_hybrid_crossing():
     assert res.events == 3
 
 
-def test_estimator_does_not_change_a_plant_with_known_inputs():
+@pytest.mark.parametrize("backend", ["auto", "numpy"])
+def test_estimator_does_not_change_a_plant_with_known_inputs(backend, monkeypatch):
     """Held input or input sequence with an observer: plant first, then the observer; the same
-    numbers bit for bit as the loop (a plain callable replaying the sequence)."""
+    numbers bit for bit as the loop (a plain callable replaying the sequence). ``numpy``: no
+    compiled kernel, the open loop goes through `affine_horizon` with K = 0."""
+    monkeypatch.setenv("TANKSYNTH_SIM_BACKEND", backend)
     L = 0.02 * np.eye(3)[:, : TANK.q]
     tuning = LuenbergerTuning(L=L, x0=X0, ts=2.0, operating_point=(X0, U0), form="predictor")
     est = lambda: EstimatorAdapter(LuenbergerObserver(TANK, tuning))  # noqa: E731
