@@ -493,9 +493,21 @@ def _estimate(estimator: BatchEstimator, done: tuple, u_init: np.ndarray, timing
     """
     X, Y, U, _, modes = done
     M, N1, n = X.shape
+    t0 = time.perf_counter()
+    run = getattr(estimator, "run", None)
+    if run is not None:              # the whole sequence in one call (the same steps)
+        Us = np.empty((N1, M, U.shape[2]))
+        Us[0] = u_init
+        Us[1:] = U.transpose(1, 0, 2)
+        XH = run(np.ascontiguousarray(Y.transpose(1, 0, 2)), Us)
+        if XH is not None:
+            XH = np.asarray(XH, dtype=float)
+            if XH.shape != (N1, M, n):
+                raise DimensionError(f"estimator returned shape {XH.shape[1:]}, expected ({M}, {n})")
+            timing["estimator"] += time.perf_counter() - t0
+            return X, Y, U, np.ascontiguousarray(XH.transpose(1, 0, 2)), modes
     XH = np.empty((N1, M, n))
     u_prev = u_init
-    t0 = time.perf_counter()
     for k in range(N1):
         xh = np.asarray(estimator.step(np.array(Y[:, k]), u_prev), dtype=float)
         if xh.shape != (M, n):

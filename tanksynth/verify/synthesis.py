@@ -386,6 +386,9 @@ class _SliceInput:
     def step(self, y, u):
         return self.est.step(y, u[:, : self.m])
 
+    def run(self, Y, U):
+        return self.est.run(Y, U[..., : self.m])
+
 
 def _disturbance_step(doc: Mapping[str, Any], spec: Any, c: dict,
                       trace: TraceRecorder | None) -> Check:
