@@ -559,11 +559,10 @@ class CasadiControlLaw:
         if slot is None:  # one bound buffer per batch size when the Function allows (same numbers)
             from tanksynth.verify.batch_call import BatchCall
 
-            if BatchCall.fits(self.function) and len(args) == self.function.n_in():
-                slot = (BatchCall(self.function, count), None)
-            else:
-                slot = (None, self.function.map(count, "serial") if count > 1 else self.function)
-            self._mapped[count] = slot
+            fn = self.function
+            slot = self._mapped[count] = (
+                (BatchCall(fn, count), None) if BatchCall.fits(fn) and len(args) == fn.n_in()
+                else (None, fn.map(count, "serial") if count > 1 else fn))
         buffered, fn = slot
         if buffered is not None:
             return buffered.all(*[np.asarray(a, dtype=float) for a in args])
