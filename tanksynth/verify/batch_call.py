@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["BatchCall"]
+__all__ = ["BatchCall", "mapped_call"]
 
 
 class BatchCall:
@@ -85,3 +85,26 @@ class BatchCall:
             np.copyto(dst, src)
         self._run()
         return self._out.copy()
+
+
+def mapped_call(fn: Any, count: int, nargs: int) -> tuple[BatchCall | None, Any]:
+    """How to evaluate ``fn`` at ``count`` points: a bound buffer, or the mapped Function.
+
+    Parameters
+    ----------
+    fn : casadi.Function
+        The function (its results: the same numbers either way).
+    count : int
+        Number of points M of every call.
+    nargs : int
+        Number of arguments the caller passes.
+
+    Returns
+    -------
+    (BatchCall, None) or (None, casadi.Function)
+        A `BatchCall` when ``fn`` `fits` and takes ``nargs`` arguments; else ``fn`` mapped
+        over ``count`` points (itself for one point).
+    """
+    if BatchCall.fits(fn) and nargs == fn.n_in():
+        return BatchCall(fn, count), None
+    return None, (fn.map(int(count), "serial") if count > 1 else fn)

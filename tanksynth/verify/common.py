@@ -555,15 +555,10 @@ class CasadiControlLaw:
             One array per input of the Function, shape (M, k_i) (its units).
         """
         count = int(args[0].shape[0])
-        slot = self._mapped.get(count)
-        if slot is None:  # one bound buffer per batch size when the Function allows (same numbers)
-            from tanksynth.verify.batch_call import BatchCall
-
-            fn = self.function
-            slot = self._mapped[count] = (
-                (BatchCall(fn, count), None) if BatchCall.fits(fn) and len(args) == fn.n_in()
-                else (None, fn.map(count, "serial") if count > 1 else fn))
-        buffered, fn = slot
+        if count not in self._mapped:     # one bound buffer per batch size when the Function allows
+            from tanksynth.verify.batch_call import mapped_call
+            self._mapped[count] = mapped_call(self.function, count, len(args))
+        buffered, fn = self._mapped[count]
         if buffered is not None:
             return buffered.all(*[np.asarray(a, dtype=float) for a in args])
         outs = fn(*[np.asarray(a, dtype=float).T for a in args])
