@@ -365,7 +365,11 @@ def inverse_dynamics_law(plant: Plant, C: Any, controlled: Sequence[str] | None 
     sps = tuple(sp.Symbol(f"{c}sp", real=True) for c in chosen)
     Cs = tuple(sp.Symbol(f"C{i + 1}", nonnegative=True) for i in range(plant.m))
     desired = sp.Matrix([Cs[i] * (sps[i] - plant.x[j]) for i, j in enumerate(idx)])
-    expr = (Gc.inv(method="LU") * (desired - f0c)).applyfunc(sp.expand)
+    # Gc^-1 as Matrix.inv(method="LU") computes it (LUsolve of the identity), without its
+    # symbolic re-check of invertibility (det.equals(0) -> simplify, 0.1-0.4 s and an import of
+    # sympy.physics): invertibility is checked above (numerically over the region when Gc
+    # depends on the state, else by its determinant)
+    expr = (Gc.LUsolve(Gc.eye(Gc.rows)) * (desired - f0c)).applyfunc(sp.expand)
     numeric = expr.xreplace(plant.parameter_values)
     core = compile_matrix("id_core", numeric, [plant.x, sps, Cs], ["x_hat", "h_sp", "C"])
     x = ca.SX.sym("x_hat", plant.n)

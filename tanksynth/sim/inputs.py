@@ -206,3 +206,20 @@ class EstimatorAdapter:
             Inputs held over the previous period (input units, m^3/s).
         """
         return self._est.step(y, u)
+
+    def run(self, Y: np.ndarray, U: np.ndarray) -> np.ndarray | None:
+        """Measurements (N, M, q) and previous inputs (N, M, m) -> estimates (N, M, n).
+
+        The same as `step` at each sample in turn (the runtime estimator's ``run``); None
+        when a subclass redefines `step` without redefining this (the caller then steps).
+
+        Parameters
+        ----------
+        Y : ndarray, shape (N, M, q)
+            Measurements (output units, m).
+        U : ndarray, shape (N, M, m)
+            Inputs held over the period before each measurement (input units, m^3/s).
+        """
+        if type(self).step is not EstimatorAdapter.step:
+            return None
+        return self._est.run(Y, U)

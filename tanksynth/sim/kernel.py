@@ -427,10 +427,15 @@ def _native_kernel(model: Any, backend: str, cc: str | None, build: bool) -> Nat
                        "the CasADi/numpy code")
         _LOG.info(_STATE.last)
         return None
-    try:
-        source = kernel_source(model)
-    except ValueError as exc:
-        _STATE.last = str(exc)
+    source = model._casadi.get("kernel_source")   # the C of a model never changes: translated once
+    if source is None:
+        try:
+            source = kernel_source(model)
+        except ValueError as exc:
+            source = exc
+        model._casadi["kernel_source"] = source
+    if isinstance(source, ValueError):
+        _STATE.last = str(source)
         _LOG.info(_STATE.last)
         return None
     candidates = []

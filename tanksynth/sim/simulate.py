@@ -54,6 +54,7 @@ from tanksynth.errors import DimensionError, SimulationError
 from tanksynth.plants.base import Plant
 from tanksynth.sim.inputs import (BatchEstimator, ConstantInput, ControlLaw, EstimatorAdapter,
                                   InputSequence, ParameterChange, StateJump)
+from tanksynth.sim.affine import affine_horizon
 from tanksynth.sim.integrate import Integrator, input_limits, param_arrays
 
 __all__ = [
@@ -313,13 +314,29 @@ def simulate(plant: Plant, *, ts: float, steps: int, x0: Sequence[float] | np.nd
     x = integ.clip(x)
     # Input limits depend on the parameters only: rebuilt when a change applies.
     lo, hi = input_limits(plant, params, M)
-    if (estimator is None and isinstance(controller, InputSequence) and not noisy and not schedule
-            and not jump_at and controller.inputs.shape[0] >= N):
-        # Open loop without noise, faults or jumps: the whole horizon in one call (same numbers).
-        done = _open_loop(integ, x, controller.inputs[:N], params, lo, hi, ts, int(substeps))
+    sequence = isinstance(controller, InputSequence) and controller.inputs.shape[0] >= N
+    if (controller is None or sequence) and not noisy and not jump_at:
+        # The inputs are known in advance (held, or a given sequence), whatever the estimate: the
+        # plant does not depend on the estimator. The whole horizon in one call per stretch
+        # between parameter changes (same numbers), then the estimator over its measurements.
+        seq = controller.inputs[:N] if sequence else np.broadcast_to(u_prev, (N, M, m))
+        done = (_open_loop_changes(integ, plant, x, seq, params, schedule, ts, int(substeps))
+                if schedule else _open_loop(integ, x, seq, params, lo, hi, ts, int(substeps)))
         if done is not None:
             timing["calls"] = N
+            if estimator is not None:
+                done = _estimate(estimator, done, u_prev, timing)
             return _pack(*done, ref, seeds, ts, substeps, integ, timing, plant)
+    affine = getattr(controller, "affine", None)
+    if affine is not None and estimator is None and not noisy and not schedule and not jump_at:
+        # u_k = b_k - K (x_k - x_ref): law and plant in one CasADi call over the horizon
+        b, K, x_ref = affine(N, float(ts))
+        loop = affine_horizon(integ, x, np.asarray(b, dtype=float).reshape(N, m), K, x_ref, params,
+                              lo, hi, ts, int(substeps))
+        if loop is not None:
+            timing["calls"] = N
+            return _pack(*_with_outputs(integ, *loop, params), ref, seeds, ts, substeps, integ,
+                         timing, plant)
     refs = np.broadcast_to(ref[:, None, :], (N + 1, M, ref.shape[1]))
     for k in range(N + 1):
         t_k = k * ts
@@ -383,11 +400,20 @@ def _open_loop(integ: Integrator, x: np.ndarray, seq: np.ndarray, params: dict[s
     Ur = np.empty((M, N, model.m))
     src = np.broadcast_to(seq, (N, M, model.m)).transpose(1, 0, 2)
     np.minimum(np.maximum(src, lo[:, None, :]), hi[:, None, :], out=Ur)
-    Xr = np.empty((M, N + 1, model.n))
-    Xr[:, 0] = x
-    if integ.horizon(x, Ur.transpose(1, 0, 2), params, ts, substeps,
-                     out=Xr[:, 1:].transpose(1, 0, 2)) is None:
-        return None
+    loop = None
+    if integ.native(substeps) is None and model.m and (M == 1 or np.all(seq == seq[:, :1])):
+        # no compiled kernel: CasADi in chunks built once per plant (`affine_horizon` with K = 0,
+        # u = sat(b) exactly) rather than `Integrator.horizon`'s mapaccum built per length N
+        loop = affine_horizon(integ, x, seq[:, 0, :], np.zeros((model.m, model.n)),
+                              np.zeros(model.n), params, lo, hi, ts, substeps)
+    if loop is not None:
+        Xr = loop[0]
+    else:
+        Xr = np.empty((M, N + 1, model.n))
+        Xr[:, 0] = x
+        if integ.horizon(x, Ur.transpose(1, 0, 2), params, ts, substeps,
+                         out=Xr[:, 1:].transpose(1, 0, 2)) is None:
+            return None
     Xr.flags.writeable = False
     flat = Xr.reshape(-1, model.n)
     rows = params
@@ -403,6 +429,94 @@ def _open_loop(integ: Integrator, x: np.ndarray, seq: np.ndarray, params: dict[s
     if model.k:
         modes[:] = integ.bits(flat, rows).reshape(M, N + 1, model.k)
     return Xr, Y, Ur, Xr.view(), modes
+
+
+def _open_loop_changes(integ: Integrator, plant: Plant, x: np.ndarray, seq: np.ndarray,
+                       params: dict[str, Any], schedule: Mapping[int, list], ts: float,
+                       substeps: int) -> tuple | None:
+    """`_open_loop` over the stretches between parameter changes, or None (integrator untouched).
+
+    As in the loop: the values changing at sample ``k`` hold from the measurement at ``k`` on
+    (and the input limits naming them from the input of period ``k``).
+    """
+    N, M = seq.shape[0], x.shape[0]
+    seq = seq[:, None, :] if seq.ndim == 2 else seq
+    saved = (integ.events, integ.clipped_low, integ.clipped_high, set(integ.backends))
+    p = dict(params)
+    cuts = sorted(k for k in schedule if 0 < k <= N)
+    parts = []
+    for a, b in zip([0] + cuts, cuts + [N + 1]):
+        for values in schedule.get(a, ()) if a <= N else ():
+            p.update({name: param_arrays(plant, values, M)[name] for name in values})
+        if b > N:                                  # the last stretch ends with sample N
+            b = N
+        lo, hi = input_limits(plant, p, M)
+        if b > a:
+            part = _open_loop(integ, x, seq[a:b], p, lo, hi, ts, substeps)
+        else:                                      # a change at the last sample: its output only
+            part = _with_outputs(integ, x[:, None, :], np.empty((M, 0, seq.shape[-1])), p)
+        if part is None:
+            integ.events, integ.clipped_low, integ.clipped_high = saved[:3]
+            integ.backends = saved[3]
+            return None
+        parts.append(part)
+        x = np.array(part[0][:, -1])
+    last = len(parts) - 1
+    cut = lambda arr, i: arr if i == last else arr[:, :-1]  # noqa: E731 - drop the shared sample
+    X = np.concatenate([cut(q[0], i) for i, q in enumerate(parts)], axis=1)
+    Y = np.concatenate([cut(q[1], i) for i, q in enumerate(parts)], axis=1)
+    U = np.concatenate([q[2] for q in parts], axis=1)
+    modes = np.concatenate([cut(q[4], i) for i, q in enumerate(parts)], axis=1)
+    return X, Y, U, X.copy(), modes
+
+
+def _with_outputs(integ: Integrator, X: np.ndarray, U: np.ndarray, params: dict[str, Any]) -> tuple:
+    """``(x, y, u, x_hat, modes)`` run-major from the states (M, N + 1, n) and inputs of a loop."""
+    model = integ.model
+    M, N1, n = X.shape
+    flat = X.reshape(-1, n)
+    rows = params
+    if any(np.ndim(v) for v in params.values()):
+        rows = {k: (np.repeat(v, N1) if np.ndim(v) else v) for k, v in params.items()}
+    Y = integ.output(flat, rows).reshape(M, N1, model.q)
+    modes = np.zeros((M, N1, model.k), dtype=np.int8)
+    if model.k:
+        modes[:] = integ.bits(flat, rows).reshape(M, N1, model.k)
+    return X, Y, U, X.copy(), modes
+
+
+def _estimate(estimator: BatchEstimator, done: tuple, u_init: np.ndarray, timing: dict) -> tuple:
+    """The estimator over the measurements of an open-loop run: ``done`` with ``x_hat`` filled.
+
+    The same calls as the closed loop: at sample ``k`` the estimator gets ``(y_k, u_{k-1})``
+    with ``u_{-1} = u_init`` (as given) and then the saturated inputs held.
+    """
+    X, Y, U, _, modes = done
+    M, N1, n = X.shape
+    t0 = time.perf_counter()
+    run = getattr(estimator, "run", None)
+    if run is not None:              # the whole sequence in one call (the same steps)
+        Us = np.empty((N1, M, U.shape[2]))
+        Us[0] = u_init
+        Us[1:] = U.transpose(1, 0, 2)
+        XH = run(np.ascontiguousarray(Y.transpose(1, 0, 2)), Us)
+        if XH is not None:
+            XH = np.asarray(XH, dtype=float)
+            if XH.shape != (N1, M, n):
+                raise DimensionError(f"estimator returned shape {XH.shape[1:]}, expected ({M}, {n})")
+            timing["estimator"] += time.perf_counter() - t0
+            return X, Y, U, np.ascontiguousarray(XH.transpose(1, 0, 2)), modes
+    XH = np.empty((N1, M, n))
+    u_prev = u_init
+    for k in range(N1):
+        xh = np.asarray(estimator.step(np.array(Y[:, k]), u_prev), dtype=float)
+        if xh.shape != (M, n):
+            raise DimensionError(f"estimator returned shape {xh.shape}, expected ({M}, {n})")
+        XH[k] = xh
+        if k < N1 - 1:
+            u_prev = np.array(U[:, k])
+    timing["estimator"] += time.perf_counter() - t0
+    return X, Y, U, np.ascontiguousarray(XH.transpose(1, 0, 2)), modes
 
 
 def _result(X: np.ndarray, Y: np.ndarray, U: np.ndarray, XH: np.ndarray, ref: np.ndarray,

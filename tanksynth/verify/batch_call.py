@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["BatchCall"]
+__all__ = ["BatchCall", "mapped_call"]
 
 
 class BatchCall:
@@ -21,7 +21,8 @@ class BatchCall:
     Parameters
     ----------
     fn : casadi.Function
-        Dense vector arguments (k_i,) and one dense vector result (r,).
+        Dense vector arguments (k_i,) and dense vector results (r_j,) (`fits`); ``call``
+        returns the first, `all` every one.
     count : int
         Number of points M of every call.
 
@@ -34,11 +35,39 @@ class BatchCall:
         self.count = int(count)
         self.mapped = fn.map(self.count, "serial")
         self._args = [np.zeros((self.count, fn.size1_in(i))) for i in range(fn.n_in())]
-        self._out = np.zeros((self.count, fn.size1_out(0)))
+        self._outs = [np.zeros((self.count, fn.size1_out(j))) for j in range(fn.n_out())]
+        self._out = self._outs[0]
         self._buf, self._run = self.mapped.buffer()
         for i, a in enumerate(self._args):
             self._buf.set_arg(i, memoryview(a))
-        self._buf.set_res(0, memoryview(self._out))
+        for j, r in enumerate(self._outs):
+            self._buf.set_res(j, memoryview(r))
+
+    @staticmethod
+    def fits(fn: Any) -> bool:
+        """True when every argument and result of ``fn`` is a dense, non-empty column vector.
+
+        Parameters
+        ----------
+        fn : casadi.Function
+        """
+        ins = [fn.sparsity_in(i) for i in range(fn.n_in())]
+        outs = [fn.sparsity_out(j) for j in range(fn.n_out())]
+        return bool(outs) and all(sp.is_dense() and sp.size2() == 1 and sp.size1() > 0
+                                  for sp in ins + outs)
+
+    def all(self, *arrays: np.ndarray) -> list[np.ndarray]:
+        """Every result at the M points: (M, k_i) arrays in, NEW (M, r_j) arrays out.
+
+        Parameters
+        ----------
+        *arrays : ndarray, shape (M, k_i) (or broadcastable)
+            Argument i at every point (its units).
+        """
+        for dst, src in zip(self._args, arrays):
+            np.copyto(dst, src)
+        self._run()
+        return [r.copy() for r in self._outs]
 
     def __call__(self, *arrays: np.ndarray) -> np.ndarray:
         """Evaluate at the M points: (M, k_i) arrays in, (M, r) array out.
@@ -56,3 +85,26 @@ class BatchCall:
             np.copyto(dst, src)
         self._run()
         return self._out.copy()
+
+
+def mapped_call(fn: Any, count: int, nargs: int) -> tuple[BatchCall | None, Any]:
+    """How to evaluate ``fn`` at ``count`` points: a bound buffer, or the mapped Function.
+
+    Parameters
+    ----------
+    fn : casadi.Function
+        The function (its results: the same numbers either way).
+    count : int
+        Number of points M of every call.
+    nargs : int
+        Number of arguments the caller passes.
+
+    Returns
+    -------
+    (BatchCall, None) or (None, casadi.Function)
+        A `BatchCall` when ``fn`` `fits` and takes ``nargs`` arguments; else ``fn`` mapped
+        over ``count`` points (itself for one point).
+    """
+    if BatchCall.fits(fn) and nargs == fn.n_in():
+        return BatchCall(fn, count), None
+    return None, (fn.map(int(count), "serial") if count > 1 else fn)

@@ -555,10 +555,12 @@ class CasadiControlLaw:
             One array per input of the Function, shape (M, k_i) (its units).
         """
         count = int(args[0].shape[0])
-        fn = self._mapped.get(count)
-        if fn is None:
-            fn = self.function.map(count, "serial") if count > 1 else self.function
-            self._mapped[count] = fn
+        if count not in self._mapped:     # one bound buffer per batch size when the Function allows
+            from tanksynth.verify.batch_call import mapped_call
+            self._mapped[count] = mapped_call(self.function, count, len(args))
+        buffered, fn = self._mapped[count]
+        if buffered is not None:
+            return buffered.all(*[np.asarray(a, dtype=float) for a in args])
         outs = fn(*[np.asarray(a, dtype=float).T for a in args])
         outs = outs if isinstance(outs, (list, tuple)) else [outs]
         return [np.asarray(o, dtype=float).reshape(-1, count).T for o in outs]

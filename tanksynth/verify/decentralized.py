@@ -80,10 +80,7 @@ class DecentralizedFilter:
         integ = self._integ
         x = integ.clip(np.asarray(x, dtype=float))
         u = np.minimum(np.maximum(np.asarray(u, dtype=float), self._u_lo), self._u_hi)
-        h = self.ts / self.substeps
-        for _ in range(self.substeps):
-            x = integ.step(x, u, self._params, h)
-        return integ.clip(x)
+        return integ.clip(integ.advance(x, u, self._params, self.ts, self.substeps))
 
     def step(self, y: np.ndarray, u: np.ndarray) -> np.ndarray:
         """Measurement (M, q), previous input (M, m) -> estimate (M, n).

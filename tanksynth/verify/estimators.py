@@ -188,6 +188,9 @@ class _StackedSensors(EstimatorAdapter):
     def step(self, y: np.ndarray, u: np.ndarray) -> np.ndarray:
         return self._est.step(np.tile(y, (1, self.sensors)), u)
 
+    def run(self, Y: np.ndarray, U: np.ndarray) -> np.ndarray:
+        return self._est.run(np.tile(Y, (1, 1, self.sensors)), U)
+
 
 def _sensor_covariances(doc: Mapping[str, Any], spec: Any) -> list[np.ndarray]:
     """``R0 .. R(N-1)`` of a consensus artefact (each sensor measures the plant's output)."""

@@ -208,6 +208,28 @@ class _Schedule:
         v = [val for start, val in self.pieces if start <= t + 1e-12][-1]
         return np.tile(v, (x_hat.shape[0], 1))
 
+    def sequence(self, steps: int, ts: float) -> np.ndarray:
+        """The inputs of periods ``0 .. steps - 1`` (at ``t = k ts``), (steps, m): the same values
+        as the calls, for `tanksynth.sim.simulate.InputSequence`.
+
+        Parameters
+        ----------
+        steps : int
+            Number of periods.
+        ts : float
+            Sampling period (s).
+        """
+        t = np.arange(int(steps)) * float(ts)
+        out = np.full((int(steps), self.pieces[0][1].size), np.nan)
+        set_ = np.zeros(int(steps), dtype=bool)
+        for start, val in self.pieces:
+            on = start <= t + 1e-12
+            out[on] = val
+            set_ |= on
+        if not set_.all():
+            raise IndexError(f"no input piece starts at or before t = {t[~set_][0]:g} s")
+        return out
+
 
 @dataclass(frozen=True, eq=False)
 class FaultScenario:
@@ -441,7 +463,7 @@ def fault_detection_verdict(doc: Mapping[str, Any], spec: Any, *,
         The artefact, the validated spec and a recorder of the simulated runs.
     """
     from tanksynth.analysis.linearize import linearize
-    from tanksynth.sim.simulate import ParameterChange
+    from tanksynth.sim.simulate import InputSequence, ParameterChange
 
     plant = spec.plant
     n = plant.n
@@ -474,8 +496,11 @@ def fault_detection_verdict(doc: Mapping[str, Any], spec: Any, *,
         faults = np.concatenate([np.zeros(R), np.full(R, delta_bar)])
         obs = ResidualObserver(plant, Psi, ts)
         change = [ParameterChange(k_f, {"delta_bar": faults})] if params else []
+        # the inputs are scheduled in advance: given as a sequence, the plant is integrated
+        # over whole stretches between the parameter changes (`simulate`)
         res = simulate(plant, ts=ts, steps=steps, x0=x0, seeds=run_seeds(0, 2 * R),
-                       controller=_Schedule(sc.inputs), estimator=obs,
+                       controller=InputSequence(_Schedule(sc.inputs).sequence(steps, ts)),
+                       estimator=obs,
                        x_hat0=np.full((2 * R, n), lo), parameters=params or None,
                        changes=change, substeps=4)
         t = res.t

@@ -352,6 +352,20 @@ class StateFeedback:
         """Input (M, m) from the state (M, n)."""
         return self.u0 - (x_hat - self.x0) @ self.K.T
 
+    def affine(self, steps: int, ts: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The law as ``u_k = b_k - K (x_k - x0)``: ``(b (steps, m), K, x0)`` (`tanksynth.sim.affine`).
+
+        Parameters
+        ----------
+        steps : int
+            Number of periods N.
+        ts : float
+            Sampling period (s; not used: the law does not depend on time).
+        """
+        u0 = np.asarray(self.u0, dtype=float).reshape(-1)
+        return (np.tile(u0, (int(steps), 1)), np.asarray(self.K, dtype=float),
+                np.asarray(self.x0, dtype=float))
+
 
 @dataclass
 class IntegralStateFeedback:

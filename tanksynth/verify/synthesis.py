@@ -45,7 +45,7 @@ import sympy as sp
 from tanksynth.analysis.checks import Check
 from tanksynth.analysis.rank import controllability_rank, observability_rank
 from tanksynth.plants.base import Quantity
-from tanksynth.sim.simulate import run_seeds, simulate
+from tanksynth.sim.simulate import InputSequence, run_seeds, simulate
 from tanksynth.verify.closed_loops import ClosedLoop
 from tanksynth.verify.common import (MAX_STEPS, artefact_matrix, fmt, guard, model_recheck,
                                      operating_point, option, rank_check, region_check,
@@ -329,7 +329,9 @@ def disturbance_plant(plant: Any, Bw: np.ndarray) -> Any:
             tag = "_" + tag
         tags.append(tag)
     w = sp.Matrix([sp.Symbol(t, real=True) for t in tags])
-    f = plant.f + sp.Matrix(Bw.tolist()).applyfunc(sp.nsimplify) * w
+    # each entry as the exact rational value of its double: every route computes with the stored
+    # Bw bit for bit (nsimplify took 0.2 s a design and rounded to a nearby 'nice' rational)
+    f = plant.f + sp.Matrix([[sp.Rational(float(v)) for v in row] for row in Bw]) * w
     bounds = tuple(plant.input_bounds) + ((-math.inf, math.inf),) * len(tags) if plant.input_bounds else ()
     return replace(plant, inputs=tuple(plant.inputs) + tuple(Quantity(t, "w", "declared disturbance")
                                                            for t in tags),
@@ -348,6 +350,29 @@ class _StepLaw:
         w = self.w if self.t_on <= t + 1e-12 < self.t_off else np.zeros_like(self.w)
         return np.hstack([u, np.tile(w, (M, 1))])
 
+    def affine(self, steps: int, ts: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The law as ``[u, w]_k = b_k - [K; 0] (x_k - x0)`` (`tanksynth.sim.affine`; ``K = 0``
+        without a gain).
+
+        Parameters
+        ----------
+        steps : int
+            Number of periods N.
+        ts : float
+            Sampling period (s): the step is on over ``[t_on, t_off)``.
+        """
+        m = len(self.u0)
+        n = len(self.x0)
+        t = np.arange(int(steps)) * float(ts)          # t_k = k ts, as the simulator's samples
+        on = (self.t_on <= t + 1e-12) & (t + 1e-12 < self.t_off)
+        b = np.zeros((int(steps), m + len(self.w)))
+        b[:, :m] = self.u0
+        b[on, m:] = self.w
+        K = np.zeros((m + len(self.w), n))
+        if self.K is not None:
+            K[:m] = self.K
+        return b, K, np.asarray(self.x0, dtype=float)
+
 
 class _SliceInput:
     """An estimator that sees only the first ``m`` inputs (the controls)."""
@@ -360,6 +385,9 @@ class _SliceInput:
 
     def step(self, y, u):
         return self.est.step(y, u[:, : self.m])
+
+    def run(self, Y, U):
+        return self.est.run(Y, U[..., : self.m])
 
 
 def _disturbance_step(doc: Mapping[str, Any], spec: Any, c: dict,
@@ -414,6 +442,9 @@ def _disturbance_step(doc: Mapping[str, Any], spec: Any, c: dict,
     if c["observer"]:
         form = "predictor" if dt is not None else "continuous"
         est = _SliceInput(luenberger_estimator(plant, c["L"], x0, u0, ts_sim, form), plant.m)
+        # the inputs do not depend on the estimate: the same law's values, given in advance (the
+        # plant is then integrated over the whole horizon in one call)
+        law = InputSequence(law.affine(steps, ts_sim)[0])     # K = 0: b_k are the inputs
     res = simulate(dplant, ts=ts_sim, steps=steps, x0=x0, seeds=run_seeds(0, 1), controller=law,
                    estimator=est, u_init=np.concatenate([u0, np.zeros_like(w)]))
     if trace is not None:

@@ -232,3 +232,25 @@ def test_batch_covariance_error_names_the_run(fault_plant):
     with pytest.raises(CovarianceError, match=r"predicted covariance .* step 1 \(run 1\)") as info:
         batch.step(np.full((3, 1), 2.0), [1.0])
     assert info.value.run == 1 and info.value.step == 1
+
+
+@pytest.mark.parametrize("name", ["kf", "akf", "askf", "consensus", "luenberger_current",
+                                  "luenberger_nonlinear"])
+def test_batch_run_equals_its_steps(estimators, name):
+    """`run` on batch arrays checks them once and calls `_advance`: the numbers of `step`; a
+    non-finite measurement still fails at its own step (the step-by-step route)."""
+    plant, est = estimators[name]
+    Y, U, X0 = _data(plant, est, seed=3)
+    a, b = est.batch(M), est.batch(M)
+    a.reset(X0)
+    b.reset(X0)
+    XA = a.run(Y, U)
+    XB = np.array([b.step(Y[i], U[i]) for i in range(STEPS)])
+    np.testing.assert_array_equal(XA, XB)
+    assert a.k == b.k == STEPS
+    bad = Y.copy()
+    bad[7, 1, 0] = np.nan
+    a.reset(X0)
+    with pytest.raises(DimensionError, match="step 8"):
+        a.run(bad, U)
+    assert a.k == 7
