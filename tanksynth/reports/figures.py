@@ -27,7 +27,8 @@ from typing import Any, Iterator, Mapping
 import numpy as np
 
 from tanksynth.artefacts.atomic import atomic_write
-from tanksynth.reports.trace_lines import draw_runs, envelope
+from tanksynth.reports.figure_layout import stacked_layout
+from tanksynth.reports.trace_lines import PanelLines
 
 __all__ = ["EigenvalueSet", "eigenvalue_sets", "eigen_label", "is_pole_key", "FigureFile", "pole_map",
            "TraceFigure", "time_domain_figure", "ordinal"]
@@ -419,10 +420,9 @@ def _unit_label(names: list, units: list, i: int) -> str:
 _LEGEND_ROWS = 12
 
 
-def _legend(ax) -> None:
+def _legend(ax, handles: list, labels: list) -> None:
     """Legend right of the panel; with more than `_LEGEND_ROWS` entries (the 10 colours repeat), one
     entry per colour and line style naming the signals drawn with it (``h1, h11, h21``)."""
-    handles, labels = ax.get_legend_handles_labels()
     if len(handles) > _LEGEND_ROWS:
         from matplotlib.colors import to_hex
 
@@ -490,71 +490,73 @@ def time_domain_figure(artefact: Mapping[str, Any], artefact_dir: Path, director
     n = x.shape[2]
     state_unit = sunits[0] if sunits and all(v == sunits[0] for v in sunits) else ""
     for ax, panel in zip(axes, panels):
+        lines = PanelLines()      # every line of the panel: one collection, drawn in this order
         if panel == "linear":
             scale = float(lin["scale"])
             for i in range(n):
-                ax.plot(*envelope(t, x[1, :, i] - x[0, :, i]), color=colors[i], linewidth=1.1,
-                        label=f"{snames[i] if i < len(snames) else i + 1} nonlinear")
-                ax.plot(*envelope(t, lin["prediction"][:, i]), color=colors[i], linewidth=1.0, linestyle="--",
-                        label=f"{snames[i] if i < len(snames) else i + 1} linear model")
+                lines.line(t, x[1, :, i] - x[0, :, i], color=colors[i], linewidth=1.1,
+                           label=f"{snames[i] if i < len(snames) else i + 1} nonlinear")
+                lines.line(t, lin["prediction"][:, i], color=colors[i], linewidth=1.0, linestyle="--",
+                           label=f"{snames[i] if i < len(snames) else i + 1} linear model")
             ax.set_ylabel(f"deviation from x0 [{state_unit}]" if state_unit else "deviation from x0",
                           fontsize=8)
             ax.set_title("response to a small step: nonlinear plant (solid) and linear model (dashed); "
-                         f"largest gap {100 * float(lin['gap']) / max(scale, 1e-300):.2g} %", fontsize=8)
+                         f"largest gap {100 * float(lin['gap']) / max(scale, 1e-300):.2g} %", fontsize=8,
+                         y=1.0)
         elif panel == "levels":
             for i in range(n):
-                ax.plot(*envelope(t, x[0, :, i]), color=colors[i], linewidth=1.0,
-                        label=_unit_label(snames, sunits, i))
-                draw_runs(ax, t, x[1:, :, i], color=colors[i], linewidth=0.5, alpha=0.45)
+                lines.line(t, x[0, :, i], color=colors[i], linewidth=1.0, label=_unit_label(snames, sunits, i))
+                lines.runs(t, x[1:, :, i], color=colors[i], linewidth=0.5, alpha=0.45)
             if ref is not None and np.ndim(ref) == 2 and np.shape(ref)[0] == t.size:
                 for j in range(np.shape(ref)[1]):
                     k = snames.index(rnames[j]) if j < len(rnames) and rnames[j] in snames else j
-                    ax.plot(*envelope(t, np.asarray(ref, float)[:, j]), color=colors[k % len(colors)],
-                            linestyle="--",
-                            linewidth=0.8, label=f"ref. {rnames[j] if j < len(rnames) else j + 1}")
+                    lines.line(t, np.asarray(ref, float)[:, j], color=colors[k % len(colors)], linestyle="--",
+                               linewidth=0.8, label=f"ref. {rnames[j] if j < len(rnames) else j + 1}")
             ax.set_ylabel(f"states [{state_unit}]" if state_unit else "states", fontsize=8)
-            ax.set_title("plant (nonlinear)" + (" and references" if ref is not None else ""), fontsize=9)
+            ax.set_title("plant (nonlinear)" + (" and references" if ref is not None else ""), fontsize=9,
+                         y=1.0)
         elif panel == "estimates":
             xh = np.asarray(x_hat, float)
             for i in range(n):
-                ax.plot(*envelope(t, x[0, :, i]), color=colors[i], linewidth=1.0,
-                        label=f"{snames[i] if i < len(snames) else i + 1}")
-                ax.plot(*envelope(t, xh[0, :, i]), color=colors[i], linewidth=0.9, linestyle="--",
-                        label=f"{snames[i] if i < len(snames) else i + 1} estimate")
+                lines.line(t, x[0, :, i], color=colors[i], linewidth=1.0,
+                           label=f"{snames[i] if i < len(snames) else i + 1}")
+                lines.line(t, xh[0, :, i], color=colors[i], linewidth=0.9, linestyle="--",
+                           label=f"{snames[i] if i < len(snames) else i + 1} estimate")
             ax.set_ylabel(f"state and estimate [{state_unit}]" if state_unit else "state and estimate",
                           fontsize=8)
-            ax.set_title("estimates (dashed) against the true states", fontsize=9)
+            ax.set_title("estimates (dashed) against the true states", fontsize=9, y=1.0)
         elif panel == "error":
             err = np.asarray(x_hat, float) - x
             for i in range(n):
-                ax.plot(*envelope(t, err[0, :, i]), color=colors[i], linewidth=1.0,
-                        label=f"{snames[i] if i < len(snames) else i + 1}")
-                draw_runs(ax, t, err[1:, :, i], color=colors[i], linewidth=0.5, alpha=0.45)
+                lines.line(t, err[0, :, i], color=colors[i], linewidth=1.0,
+                           label=f"{snames[i] if i < len(snames) else i + 1}")
+                lines.runs(t, err[1:, :, i], color=colors[i], linewidth=0.5, alpha=0.45)
             ax.axhline(0.0, color="0.6", linewidth=0.6)
             ax.set_ylabel(f"estimate - state [{state_unit}]" if state_unit else "estimate - state",
                           fontsize=8)
-            ax.set_title("estimation error", fontsize=9)
+            ax.set_title("estimation error", fontsize=9, y=1.0)
         else:
             shown = [_display(iunits[j] if j < len(iunits) else "") for j in range(u.shape[2])]
             for j in range(u.shape[2]):
-                ax.step(*envelope(t_u, shown[j][0] * u[0, :, j]), where="post", color=colors[j % len(colors)],
-                        linewidth=1.0, label=inames[j] if j < len(inames) else f"#{j + 1}")
-                draw_runs(ax, t_u, shown[j][0] * u[1:, :, j], step=True, color=colors[j % len(colors)],
-                          linewidth=0.5, alpha=0.45)
+                lines.line(t_u, shown[j][0] * u[0, :, j], step=True, color=colors[j % len(colors)],
+                           linewidth=1.0, label=inames[j] if j < len(inames) else f"#{j + 1}")
+                lines.runs(t_u, shown[j][0] * u[1:, :, j], step=True, color=colors[j % len(colors)],
+                           linewidth=0.5, alpha=0.45)
             same = {sh[1] for sh in shown}
             unit = same.pop() if len(same) == 1 else ""
             what = "flow" if unit == "l/s" else "input"
             ax.set_ylabel(f"{what} [{unit}]" if unit else what, fontsize=8)
-            ax.set_title("inputs (zero-order hold)", fontsize=9)
+            ax.set_title("inputs (zero-order hold)", fontsize=9, y=1.0)
+        lines.draw(ax)
         ax.tick_params(labelsize=7)
         _plain_axis(ax)
         ax.grid(True, linewidth=0.3, color="0.9")
-        _legend(ax)
+        _legend(ax, lines.handles, lines.labels)
     axes[-1].set_xlabel("time t [s]", fontsize=8)
-    fig.tight_layout()
-    # Laid out: no layout engine at all, or savefig draws the whole figure once more before
-    # printing (it does so for any engine, even the placeholder that ``"none"`` leaves).
-    fig.set_layout_engine(None)
+    # Margins and label positions from the texts' metrics: no layout engine (tight_layout lays every
+    # tick and legend out once more before savefig draws them); titles at y = 1 (no tick labels
+    # above the panels: matplotlib's automatic title position would measure the ticks again).
+    stacked_layout(fig, axes, tick_size=7)
     directory.mkdir(parents=True, exist_ok=True)
     target = directory / f"{stem}.pdf"
     _atomic_savefig(fig, target)
