@@ -68,6 +68,8 @@ from tanksynth.reports import read_report_inputs
 from tanksynth.reports import writer
 from tanksynth.reports.context import trace_figures
 from tanksynth.reports.ts_figures import region_figures
+import tanksynth
+out_tree = str(Path(tanksynth.__file__).resolve().parents[1])
 inputs = read_report_inputs(directory)
 out = {}
 def timed(key, fn):
@@ -98,6 +100,7 @@ if prof:
     s = io.StringIO()
     pstats.Stats(prof, stream=s).sort_stats("cumulative").print_stats(45)
     out["profile"] = s.getvalue()
+out["tree"] = out_tree
 out["files"] = sorted(str(f.path.name) for d in (p, t, r) for f in d.values())
 print("@@" + json.dumps(out))
 """
@@ -121,12 +124,15 @@ def _measure(tree: Path, run_dir: Path, profile: bool = False) -> dict:
         d = Path(tmp) / run_dir.name
         shutil.copytree(run_dir, d, ignore=shutil.ignore_patterns("report-figures", "report*.pdf"))
         env = dict(os.environ, PYTHONPATH=str(tree), OPENBLAS_NUM_THREADS="1")
-        res = subprocess.run([PY, "-c", CHILD, str(d), "1" if profile else "0"], env=env,
+        # cwd outside every tree: ``python -c`` puts the working directory first on sys.path
+        res = subprocess.run([PY, "-c", CHILD, str(d), "1" if profile else "0"], env=env, cwd=tmp,
                              capture_output=True, text=True, check=False)
         line = [ln for ln in res.stdout.splitlines() if ln.startswith("@@")]
         if res.returncode != 0 or not line:
             raise SystemExit(f"figure stage failed with {tree} on {run_dir}:\n{res.stderr[-3000:]}")
         out = json.loads(line[0][2:])
+        if Path(out["tree"]) != tree.resolve():
+            raise SystemExit(f"measured {out['tree']}, expected {tree}")
         out["content"] = _content(d / "report-figures", out["files"])
     for key in ("cpu", "wall"):
         out.setdefault("figures", {})[key] = sum(out[s][key] for s in ("poles", "traces", "regions"))

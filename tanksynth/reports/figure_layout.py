@@ -16,7 +16,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
-__all__ = ["text_size", "visible_tick_labels", "legend_width", "stacked_layout"]
+__all__ = ["text_size", "visible_tick_labels", "legend_width", "stacked_layout", "square_panels_layout"]
 
 #: Padding around the figure and between panels (pt): tight_layout's default, 1.08 font sizes.
 PAD_FACTOR = 1.08
@@ -167,3 +167,90 @@ def stacked_layout(fig: Any, axes: Sequence[Any], *, tick_size: float, legend_an
     if xl:
         axes[-1].xaxis.set_label_coords(0.5, -(xtick + labelpad) / ah)
     return frac
+
+
+def _legend_height(legend: Any) -> float:
+    """Height (pt) of a one-column legend: rows of text or handle, label spacing, border padding."""
+    from matplotlib import rcParams
+
+    texts = legend.get_texts()
+    if not texts:
+        return 0.0
+    fs = float(texts[0].get_fontsize())
+    rows = [max(text_size(t.get_text(), fs)[1], rcParams["legend.handleheight"] * fs) for t in texts]
+    return sum(rows) + (len(rows) - 1) * rcParams["legend.labelspacing"] * fs \
+        + 2 * rcParams["legend.borderpad"] * fs
+
+
+def square_panels_layout(fig: Any, axes: Sequence[Any], *, tick_size: float, legend_drop: float,
+                         slack: float = 1.0) -> float:
+    """Place a row of square panels (equal aspect) with a legend below each; size the figure to fit.
+
+    The figure keeps its width; its height becomes what the panels need: title above, x tick labels,
+    x label and the legend (anchored ``legend_drop`` panel heights below each panel, upper centre)
+    below. Panels are squares of one side, side by side, each with room on its left for its y label
+    and tick labels.
+
+    Parameters
+    ----------
+    fig : matplotlib.figure.Figure
+    axes : sequence of matplotlib.axes.Axes
+        The panels, left to right, with their final limits, texts and legends.
+    tick_size : float
+        Font size of the tick labels (pt).
+    legend_drop : float
+        Where the legends hang: ``bbox_to_anchor = (0.5, -legend_drop)`` in axes fraction.
+    slack : float
+        Extra room (pt) on every side, against rounding of the font metrics.
+
+    Returns
+    -------
+    float
+        The side of the panels (pt).
+    """
+    from matplotlib import rcParams
+
+    W = float(fig.get_size_inches()[0]) * 72.0
+    pad = PAD_FACTOR * float(rcParams["font.size"]) + slack
+    tick_h = text_size("0123456789", tick_size)[1]
+    ytick = float(rcParams["ytick.major.size"]) + float(rcParams["ytick.major.pad"])
+    xtick = float(rcParams["xtick.major.size"]) + float(rcParams["xtick.major.pad"]) + tick_h
+    labelpad = float(rcParams["axes.labelpad"])
+    titlepad = float(rcParams["axes.titlepad"])
+    lefts, widths, below_fixed, below_drop, legend_w = [], [], [], [], []
+    top = pad
+    for ax in axes:
+        widest = max((text_size(s, tick_size)[0] for s in visible_tick_labels(ax.yaxis)), default=0.0)
+        widths.append(widest)
+        yl = _label_height(ax.yaxis.label)
+        lefts.append((yl + labelpad if yl else 0.0) + widest + ytick)
+        th = _label_height(ax.title)
+        top = max(top, pad + (th + titlepad if th else 0.0))
+        xl = _label_height(ax.xaxis.label)
+        below_fixed.append(xtick + (xl + labelpad if xl else 0.0))
+        leg = ax.get_legend()
+        if leg is not None and leg.get_texts():
+            fs = float(leg.get_texts()[0].get_fontsize())
+            below_drop.append(rcParams["legend.borderaxespad"] * fs + _legend_height(leg))
+            legend_w.append(legend_width(leg) - rcParams["legend.borderaxespad"] * fs)
+        else:
+            below_drop.append(0.0)
+            legend_w.append(0.0)
+    P = len(axes)
+    side = (W - (P + 1) * pad - sum(lefts)) / P
+    for _ in range(4):   # a legend wider than its panel needs room on both sides
+        over = max([(lw - side) / 2.0 for lw in legend_w] + [0.0])
+        side = (W - (P + 1) * pad - sum(lefts) - 2 * P * over) / P
+    side = max(side, 36.0)
+    below = max(max(f, legend_drop * side + d) for f, d in zip(below_fixed, below_drop))
+    H = top + side + below + pad
+    fig.set_size_inches(W / 72.0, H / 72.0)
+    used = sum(lefts) + P * side + (P - 1) * pad
+    x = (W - used) / 2.0
+    for ax, left, widest in zip(axes, lefts, widths):
+        x += left
+        ax.set_position([x / W, (H - top - side) / H, side / W, side / H])
+        ax.yaxis.set_label_coords(-(ytick + widest + labelpad) / side, 0.5)
+        ax.xaxis.set_label_coords(0.5, -(xtick + labelpad) / side)
+        x += side + pad
+    return side

@@ -27,11 +27,11 @@ from typing import Any, Iterator, Mapping
 import numpy as np
 
 from tanksynth.artefacts.atomic import atomic_write
-from tanksynth.reports.figure_layout import stacked_layout
+from tanksynth.reports.figure_layout import square_panels_layout, stacked_layout
 from tanksynth.reports.trace_lines import PanelLines
 
 __all__ = ["EigenvalueSet", "eigenvalue_sets", "eigen_label", "is_pole_key", "FigureFile", "pole_map",
-           "TraceFigure", "time_domain_figure", "ordinal"]
+           "TraceFigure", "TraceCanvas", "time_domain_figure", "ordinal"]
 
 #: Keys whose eigenvalues are not poles of a dynamic system (LMI blocks, matrices P, Q, X ...).
 _NOT_POLES = ("lmi", "residual", "covariance", "_P", "_Q", "_X", "hessian")
@@ -185,6 +185,8 @@ def _atomic_savefig(fig, target: Path) -> None:
 
 
 _MARKERS = ("x", "o", "s", "^", "D", "v", "P", "*")
+#: The pole maps' legends hang this fraction of the panel height below the panel.
+_LEGEND_DROP = 0.2
 
 
 def _region_matrices(artefact: Mapping[str, Any]) -> tuple[np.ndarray, np.ndarray, str] | None:
@@ -285,10 +287,10 @@ def pole_map(artefact: Mapping[str, Any], directory: Path, stem: str) -> FigureF
         if disc:
             t = np.linspace(0, 2 * np.pi, 2000)
             ax.plot(np.cos(t), np.sin(t), color="0.45", linewidth=0.8, label="_unit circle")
-            ax.set_title("z-plane (discrete time)", fontsize=9)
+            ax.set_title("z-plane (discrete time)", fontsize=9, y=1.0)
         else:
             ax.axvline(0.0, color="0.45", linewidth=0.8)
-            ax.set_title("s-plane (continuous time)", fontsize=9)
+            ax.set_title("s-plane (continuous time)", fontsize=9, y=1.0)
         ax.set_xlim(x0, x1)
         ax.set_ylim(y0, y1)
         ax.set_aspect("equal", adjustable="box")
@@ -300,12 +302,12 @@ def pole_map(artefact: Mapping[str, Any], directory: Path, stem: str) -> FigureF
         ax.xaxis.set_major_locator(MaxNLocator(5))
         ax.yaxis.set_major_locator(MaxNLocator(5))
         ax.grid(True, linewidth=0.3, color="0.9")
-        ax.legend(handles=handles, fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.2),
+        ax.legend(handles=handles, fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -_LEGEND_DROP),
                   ncol=1, frameon=False)
-    fig.tight_layout()
-    # Laid out: no layout engine at all, or savefig draws the whole figure once more before
-    # printing (it does so for any engine, even the placeholder that ``"none"`` leaves).
-    fig.set_layout_engine(None)
+    # Square panels placed from the texts' metrics and the figure's height fitted to them (no
+    # layout engine: tight_layout lays every tick out once more before savefig draws them, and
+    # with equal aspect it left the legends below the panels cut off).
+    square_panels_layout(fig, fig.axes, tick_size=7, legend_drop=_LEGEND_DROP)
     directory.mkdir(parents=True, exist_ok=True)
     target = directory / f"{stem}.pdf"
     _atomic_savefig(fig, target)
@@ -436,8 +438,56 @@ def _legend(ax, handles: list, labels: list) -> None:
     ax.legend(handles, labels, fontsize=6, loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False)
 
 
+class TraceCanvas:
+    """Figures reused by the time-domain figures of one report, one per panel count.
+
+    Creating the axes and their tick artists is a good part of a figure's cost; a figure with
+    as many panels as an earlier one is drawn on the earlier one's axes, emptied (its lines,
+    legends, texts and data limits reset), keeping the axes and their ticks. Pass one canvas to
+    successive `time_domain_figure` calls; each figure is saved before the next one reuses it.
+    """
+
+    def __init__(self) -> None:
+        self._figures: dict[int, tuple[Any, list]] = {}
+
+    def axes(self, panels: int) -> tuple[Any, list]:
+        """A figure of ``panels`` stacked empty panels (7.2 in wide, 1.9 in per panel).
+
+        Parameters
+        ----------
+        panels : int
+            Number of panels.
+
+        Returns
+        -------
+        (Figure, list of Axes)
+        """
+        from matplotlib.transforms import Bbox
+
+        if panels in self._figures:
+            fig, axes = self._figures[panels]
+            for ax in axes:
+                for artist in [*ax.collections, *ax.lines]:
+                    artist.remove()
+                if ax.get_legend() is not None:
+                    ax.get_legend().remove()
+                ax.set_title("")
+                ax.set_xlabel("")
+                ax.set_ylabel("")
+                ax.dataLim = Bbox.null()
+                ax.ignore_existing_data_limits = True
+                ax.set_autoscale_on(True)
+            return fig, axes
+        from matplotlib.figure import Figure
+
+        fig = Figure(figsize=(7.2, 1.9 * panels + 0.4))
+        axes = [fig.add_subplot(panels, 1, k + 1) for k in range(panels)]
+        self._figures[panels] = (fig, axes)
+        return fig, axes
+
+
 def time_domain_figure(artefact: Mapping[str, Any], artefact_dir: Path, directory: Path,
-                       stem: str) -> TraceFigure | None:
+                       stem: str, *, canvas: TraceCanvas | None = None) -> TraceFigure | None:
     """Draw the stored verdict trace of one artefact to ``directory/stem.pdf`` (vector PDF).
 
     Subplots: states (levels) with their references; estimates against the
@@ -454,6 +504,9 @@ def time_domain_figure(artefact: Mapping[str, Any], artefact_dir: Path, director
         Figure directory (created if missing).
     stem : str
         File name without extension (a safe ASCII name chosen by the caller).
+    canvas : TraceCanvas, optional
+        Figures to reuse (`trace_figures` passes one for all the figures of a report); a new
+        figure when omitted.
 
     Returns
     -------
@@ -477,15 +530,12 @@ def time_domain_figure(artefact: Mapping[str, Any], artefact_dir: Path, director
     snames, sunits = list(head.get("state_names", [])), list(head.get("state_units", []))
     inames, iunits = list(head.get("input_names", [])), list(head.get("input_units", []))
     rnames = list(head.get("reference_names", []))
-    from matplotlib.figure import Figure
-
     panels = ["levels"] + (["estimates", "error"] if x_hat is not None else []) \
         + (["inputs"] if u.ndim == 3 and u.shape[2] > 0 and u.shape[1] == t_u.size else [])
     lin = _linear_prediction(artefact, head, t, x, u)
     if lin is not None:
         panels = ["linear"] + [p for p in panels if p == "inputs"]
-    fig = Figure(figsize=(7.2, 1.9 * len(panels) + 0.4))
-    axes = [fig.add_subplot(len(panels), 1, k + 1) for k in range(len(panels))]
+    fig, axes = (canvas or TraceCanvas()).axes(len(panels))
     colors = [f"C{i % 10}" for i in range(max(x.shape[2], u.shape[2] if u.ndim == 3 else 0, 1))]
     n = x.shape[2]
     state_unit = sunits[0] if sunits and all(v == sunits[0] for v in sunits) else ""
