@@ -20,7 +20,8 @@ from tanksynth.reports.designs import design_view, latex_label
 from tanksynth.reports.equations import split_equation
 from tanksynth.reports.prose import prose_latex
 from tanksynth.reports.trusted import math_or_text
-from tanksynth.reports.figures import FigureFile, TraceCanvas, TraceFigure, time_domain_figure
+from tanksynth.reports.figure_layout import TraceCanvas
+from tanksynth.reports.figures import FigureFile, TraceFigure, time_domain_figure
 from tanksynth.reports.inputs import ReportInputs
 from tanksynth.reports.latex import (Tex, escape_latex, expression_latex, format_eigenvalues,
                                      format_number, format_unit, gain_latex, symbol_latex)

@@ -7,6 +7,8 @@ again; for the report's figures that first pass was about a third of their cost.
 locator will show, the heights of the titles and labels and the width of each legend, all
 measured with the font's metrics (`matplotlib.textpath.TextToPath`, at 72 dpi as the PDF
 backend measures them), then sets them with ``subplots_adjust``. Everything is in points.
+`square_panels_layout` does the same for the pole maps' square panels. `TraceCanvas` keeps the
+figures of one report's time-domain figures for reuse (axes and tick artists made once).
 """
 
 from __future__ import annotations
@@ -16,7 +18,8 @@ from typing import Any, Sequence
 
 import numpy as np
 
-__all__ = ["text_size", "visible_tick_labels", "legend_width", "stacked_layout", "square_panels_layout"]
+__all__ = ["text_size", "visible_tick_labels", "legend_width", "stacked_layout", "square_panels_layout",
+           "TraceCanvas"]
 
 #: Padding around the figure and between panels (pt): tight_layout's default, 1.08 font sizes.
 PAD_FACTOR = 1.08
@@ -254,3 +257,59 @@ def square_panels_layout(fig: Any, axes: Sequence[Any], *, tick_size: float, leg
         ax.xaxis.set_label_coords(0.5, -(xtick + labelpad) / side)
         x += side + pad
     return side
+
+
+class TraceCanvas:
+    """Figures reused by the time-domain figures of one report, one per panel count.
+
+    Creating the axes and their tick artists is a good part of a figure's cost; a figure with
+    as many panels as an earlier one is drawn on the earlier one's axes, emptied (its lines,
+    legends, texts and data limits reset), keeping the axes and their ticks. Pass one canvas to
+    successive `time_domain_figure` calls; each figure is saved before the next one reuses it.
+
+    Attributes
+    ----------
+    last : matplotlib.figure.Figure or None
+        The figure handed out last (the one just drawn, until the next call of `axes`).
+    """
+
+    def __init__(self) -> None:
+        self._figures: dict[int, tuple[Any, list]] = {}
+        self.last: Any = None
+
+    def axes(self, panels: int) -> tuple[Any, list]:
+        """A figure of ``panels`` stacked empty panels (7.2 in wide, 1.9 in per panel).
+
+        Parameters
+        ----------
+        panels : int
+            Number of panels.
+
+        Returns
+        -------
+        (Figure, list of Axes)
+        """
+        from matplotlib.transforms import Bbox
+
+        if panels in self._figures:
+            fig, axes = self._figures[panels]
+            for ax in axes:
+                for artist in [*ax.collections, *ax.lines]:
+                    artist.remove()
+                if ax.get_legend() is not None:
+                    ax.get_legend().remove()
+                ax.set_title("")
+                ax.set_xlabel("")
+                ax.set_ylabel("")
+                ax.dataLim = Bbox.null()
+                ax.ignore_existing_data_limits = True
+                ax.set_autoscale_on(True)
+            self.last = fig
+            return fig, axes
+        from matplotlib.figure import Figure
+
+        fig = Figure(figsize=(7.2, 1.9 * panels + 0.4))
+        axes = [fig.add_subplot(panels, 1, k + 1) for k in range(panels)]
+        self._figures[panels] = (fig, axes)
+        self.last = fig
+        return fig, axes

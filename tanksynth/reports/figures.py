@@ -27,11 +27,11 @@ from typing import Any, Iterator, Mapping
 import numpy as np
 
 from tanksynth.artefacts.atomic import atomic_write
-from tanksynth.reports.figure_layout import square_panels_layout, stacked_layout
+from tanksynth.reports.figure_layout import TraceCanvas, square_panels_layout, stacked_layout
 from tanksynth.reports.trace_lines import PanelLines
 
 __all__ = ["EigenvalueSet", "eigenvalue_sets", "eigen_label", "is_pole_key", "FigureFile", "pole_map",
-           "TraceFigure", "TraceCanvas", "time_domain_figure", "ordinal"]
+           "TraceFigure", "time_domain_figure", "ordinal"]
 
 #: Keys whose eigenvalues are not poles of a dynamic system (LMI blocks, matrices P, Q, X ...).
 _NOT_POLES = ("lmi", "residual", "covariance", "_P", "_Q", "_X", "hessian")
@@ -229,36 +229,14 @@ def _view(points: np.ndarray, disc: bool) -> tuple[float, float, float, float]:
     return cx - side / 2, cx + side / 2, -side / 2, side / 2
 
 
-def pole_map(artefact: Mapping[str, Any], directory: Path, stem: str) -> FigureFile | None:
-    """Draw the eigenvalues of one artefact (s- and/or z-plane) to ``directory/stem.pdf``.
-
-    Each plane is zoomed to its eigenvalues; the LMI region requested for
-    the design (when the diagnostics record one) is shaded; the legend,
-    with the sets named in words (`eigen_label`), sits below the axes.
-
-    Parameters
-    ----------
-    artefact : mapping
-        As read by `tanksynth.artefacts.io.read_artefact`.
-    directory : Path
-        Figure directory (created if missing).
-    stem : str
-        File name without extension (a safe ASCII name chosen by the caller).
-
-    Returns
-    -------
-    FigureFile or None
-        None when the artefact has no eigenvalues.
-    """
-    sets = eigenvalue_sets(artefact)
-    if not sets:
-        return None
+def _pole_figure(artefact: Mapping[str, Any], sets: tuple[EigenvalueSet, ...],
+                 region: tuple[np.ndarray, np.ndarray, str] | None) -> Any:
+    """The pole map of `pole_map`, laid out, not saved (a `matplotlib.figure.Figure`)."""
     from matplotlib.figure import Figure
     from matplotlib.patches import Patch
     from matplotlib.ticker import MaxNLocator
 
     planes = [p for p in (False, True) if any(s.discrete == p for s in sets)]
-    region = _region_matrices(artefact)
     fig = Figure(figsize=(3.6 * len(planes) + 0.4, 4.1))
     for k, disc in enumerate(planes):
         ax = fig.add_subplot(1, len(planes), k + 1)
@@ -308,6 +286,35 @@ def pole_map(artefact: Mapping[str, Any], directory: Path, stem: str) -> FigureF
     # layout engine: tight_layout lays every tick out once more before savefig draws them, and
     # with equal aspect it left the legends below the panels cut off).
     square_panels_layout(fig, fig.axes, tick_size=7, legend_drop=_LEGEND_DROP)
+    return fig
+
+
+def pole_map(artefact: Mapping[str, Any], directory: Path, stem: str) -> FigureFile | None:
+    """Draw the eigenvalues of one artefact (s- and/or z-plane) to ``directory/stem.pdf``.
+
+    Each plane is zoomed to its eigenvalues; the LMI region requested for
+    the design (when the diagnostics record one) is shaded; the legend,
+    with the sets named in words (`eigen_label`), sits below the axes.
+
+    Parameters
+    ----------
+    artefact : mapping
+        As read by `tanksynth.artefacts.io.read_artefact`.
+    directory : Path
+        Figure directory (created if missing).
+    stem : str
+        File name without extension (a safe ASCII name chosen by the caller).
+
+    Returns
+    -------
+    FigureFile or None
+        None when the artefact has no eigenvalues.
+    """
+    sets = eigenvalue_sets(artefact)
+    if not sets:
+        return None
+    region = _region_matrices(artefact)
+    fig = _pole_figure(artefact, sets, region)
     directory.mkdir(parents=True, exist_ok=True)
     target = directory / f"{stem}.pdf"
     _atomic_savefig(fig, target)
@@ -438,54 +445,6 @@ def _legend(ax, handles: list, labels: list) -> None:
     ax.legend(handles, labels, fontsize=6, loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False)
 
 
-class TraceCanvas:
-    """Figures reused by the time-domain figures of one report, one per panel count.
-
-    Creating the axes and their tick artists is a good part of a figure's cost; a figure with
-    as many panels as an earlier one is drawn on the earlier one's axes, emptied (its lines,
-    legends, texts and data limits reset), keeping the axes and their ticks. Pass one canvas to
-    successive `time_domain_figure` calls; each figure is saved before the next one reuses it.
-    """
-
-    def __init__(self) -> None:
-        self._figures: dict[int, tuple[Any, list]] = {}
-
-    def axes(self, panels: int) -> tuple[Any, list]:
-        """A figure of ``panels`` stacked empty panels (7.2 in wide, 1.9 in per panel).
-
-        Parameters
-        ----------
-        panels : int
-            Number of panels.
-
-        Returns
-        -------
-        (Figure, list of Axes)
-        """
-        from matplotlib.transforms import Bbox
-
-        if panels in self._figures:
-            fig, axes = self._figures[panels]
-            for ax in axes:
-                for artist in [*ax.collections, *ax.lines]:
-                    artist.remove()
-                if ax.get_legend() is not None:
-                    ax.get_legend().remove()
-                ax.set_title("")
-                ax.set_xlabel("")
-                ax.set_ylabel("")
-                ax.dataLim = Bbox.null()
-                ax.ignore_existing_data_limits = True
-                ax.set_autoscale_on(True)
-            return fig, axes
-        from matplotlib.figure import Figure
-
-        fig = Figure(figsize=(7.2, 1.9 * panels + 0.4))
-        axes = [fig.add_subplot(panels, 1, k + 1) for k in range(panels)]
-        self._figures[panels] = (fig, axes)
-        return fig, axes
-
-
 def time_domain_figure(artefact: Mapping[str, Any], artefact_dir: Path, directory: Path,
                        stem: str, *, canvas: TraceCanvas | None = None) -> TraceFigure | None:
     """Draw the stored verdict trace of one artefact to ``directory/stem.pdf`` (vector PDF).
@@ -504,7 +463,7 @@ def time_domain_figure(artefact: Mapping[str, Any], artefact_dir: Path, director
         Figure directory (created if missing).
     stem : str
         File name without extension (a safe ASCII name chosen by the caller).
-    canvas : TraceCanvas, optional
+    canvas : tanksynth.reports.figure_layout.TraceCanvas, optional
         Figures to reuse (`trace_figures` passes one for all the figures of a report); a new
         figure when omitted.
 
