@@ -19,7 +19,7 @@ from typing import Any, Sequence
 import numpy as np
 
 __all__ = ["text_size", "visible_tick_labels", "legend_width", "stacked_layout", "square_panels_layout",
-           "TraceCanvas"]
+           "draw_decorations", "TraceCanvas"]
 
 #: Padding around the figure and between panels (pt): tight_layout's default, 1.08 font sizes.
 PAD_FACTOR = 1.08
@@ -27,10 +27,12 @@ PAD_FACTOR = 1.08
 
 @lru_cache(maxsize=4096)
 def text_size(text: str, size: float) -> tuple[float, float]:
-    """Width and height (pt) of one line of text as matplotlib lays it out.
+    """Width and height (pt) of one line of text as the PDF backend lays it out.
 
-    The height is at least that of ``"lp"`` (matplotlib's line box); text with a pair of
-    unescaped ``$`` is measured as mathtext, as `matplotlib.text.Text` would draw it.
+    Measured as `matplotlib.backends.backend_pdf` measures text: the font at ``size`` pt and
+    72 dpi, unhinted, its box rounded to whole points by FreeType; the height is at least that
+    of ``"lp"`` (matplotlib's line box). Text with a pair of unescaped ``$`` is measured as
+    mathtext, as `matplotlib.text.Text` would draw it.
 
     Parameters
     ----------
@@ -42,12 +44,34 @@ def text_size(text: str, size: float) -> tuple[float, float]:
     from matplotlib.font_manager import FontProperties
 
     prop = FontProperties(size=size)
-    ttp = _text_to_path()
     dollars = text.count("$") - text.count(r"\$")
-    ismath = dollars >= 2 and dollars % 2 == 0
-    w, h, _ = ttp.get_text_width_height_descent(text, prop, ismath=ismath)
-    _, lp, _ = ttp.get_text_width_height_descent("lp", prop, ismath=False)
-    return float(w), float(max(h, lp))
+    if dollars >= 2 and dollars % 2 == 0:
+        w, h, _ = _text_to_path().get_text_width_height_descent(text, prop, ismath=True)
+        return float(w), float(max(h, _measure("lp", size)[1]))
+    w, h, _ = _measure(text, size)
+    return w, max(h, _measure("lp", size)[1])
+
+
+@lru_cache(maxsize=4096)
+def _measure(text: str, size: float) -> tuple[float, float, float]:
+    from matplotlib.font_manager import FontProperties, findfont, get_font
+    from matplotlib.ft2font import LoadFlags
+
+    font = get_font(findfont(FontProperties(size=size)))
+    font.set_size(size, 72)
+    font.set_text(text, 0.0, flags=LoadFlags.NO_HINTING)
+    w, h = font.get_width_height()
+    return w / 64.0, h / 64.0, font.get_descent() / 64.0
+
+
+def _above_baseline(text: str, size: float) -> float:
+    """Height (pt) of a line's box above its baseline (a title sits on its baseline)."""
+    dollars = text.count("$") - text.count(r"\$")
+    if dollars >= 2 and dollars % 2 == 0:
+        return text_size(text, size)[1]
+    _, h, d = _measure(text, size)
+    _, lh, ld = _measure("lp", size)
+    return max(h, lh) - max(d, ld)
 
 
 @lru_cache(maxsize=1)
@@ -55,6 +79,19 @@ def _text_to_path() -> Any:
     from matplotlib.textpath import TextToPath
 
     return TextToPath()
+
+
+def _visible_ticks(axis: Any) -> tuple[list[float], list[str], str]:
+    """Locations, labels and offset text of the major ticks inside the view limits (as matplotlib
+    selects them: its locator's ticks, 1e-10 relative tolerance)."""
+    locs = np.asarray(axis.get_majorticklocs(), dtype=float)
+    fmt = axis.get_major_formatter()
+    labels = fmt.format_ticks(locs)
+    lo, hi = sorted(axis.get_view_interval())
+    tol = 1e-10 * (hi - lo)
+    keep = [(float(v), lab) for v, lab in zip(locs, labels) if lo - tol <= v <= hi + tol]
+    offset = fmt.get_offset() if hasattr(fmt, "get_offset") else ""
+    return [v for v, _ in keep], [lab for _, lab in keep], str(offset or "")
 
 
 def visible_tick_labels(axis: Any) -> list[str]:
@@ -65,11 +102,86 @@ def visible_tick_labels(axis: Any) -> list[str]:
     axis : matplotlib.axis.Axis
         With its final limits, locator and formatter.
     """
-    locs = np.asarray(axis.get_majorticklocs(), dtype=float)
-    labels = axis.get_major_formatter().format_ticks(locs)
-    lo, hi = sorted(axis.get_view_interval())
-    tol = 1e-9 * max(hi - lo, 1e-300)
-    return [lab for v, lab in zip(locs, labels) if lo - tol <= v <= hi + tol and lab]
+    return [lab for lab in _visible_ticks(axis)[1] if lab]
+
+
+def draw_decorations(ax: Any, *, tick_size: float, grid: dict | None = None) -> None:
+    """Draw an axes' ticks, tick labels, grid and axis labels as a few plain artists.
+
+    Matplotlib's axis objects keep one `Tick` (five artists) per tick and lay every tick label
+    out twice per draw; here the limits are frozen, the visible ticks computed once by the
+    axis' own locator and formatter, and drawn as one marker line per axis (tick marks), one
+    NaN-separated line per axis (grid lines), one text per tick label and per axis label, at
+    the places and with the properties matplotlib uses (``get_xaxis_text1_transform`` ...).
+    The axis objects are then hidden. Call it last, after the layout (label coordinates set).
+
+    Parameters
+    ----------
+    ax : matplotlib.axes.Axes
+        Linear scales, final limits and label positions (``set_label_coords``).
+    tick_size : float
+        Font size of the tick labels (pt).
+    grid : dict, optional
+        Properties of the major grid lines (``linewidth``, ``color``); no grid when omitted.
+    """
+    from matplotlib import rcParams
+    from matplotlib.lines import TICKDOWN, TICKLEFT, Line2D
+    from matplotlib.transforms import ScaledTranslation
+
+    ax.set_xlim(ax.get_xlim())      # frozen: the ticks below are those of these limits
+    ax.set_ylim(ax.get_ylim())
+    z = 1.5 if rcParams["axes.axisbelow"] == "line" else (0.5 if rcParams["axes.axisbelow"] else 2.5)
+    for axis in (ax.xaxis, ax.yaxis):
+        name = axis.axis_name
+        locs, labels, offset = _visible_ticks(axis)
+        size = float(rcParams[f"{name}tick.major.size"])
+        pad = float(rcParams[f"{name}tick.major.pad"])
+        color = rcParams[f"{name}tick.color"]
+        lcolor = rcParams[f"{name}tick.labelcolor"]
+        lcolor = color if lcolor == "inherit" else lcolor
+        nan = [np.nan] * len(locs)
+        ends = np.ravel(np.column_stack([np.zeros(len(locs)), np.ones(len(locs)), nan]))
+        at = np.ravel(np.column_stack([locs, locs, nan]))
+        if name == "x":
+            tick_xy, marker = (locs, np.zeros(len(locs))), TICKDOWN
+            grid_xy, gtrans = (at, ends), ax.get_xaxis_transform("grid")
+            ttrans, va, ha = ax.get_xaxis_text1_transform(size + pad)
+            mtrans = ax.get_xaxis_transform("tick1")
+        else:
+            tick_xy, marker = (np.zeros(len(locs)), locs), TICKLEFT
+            grid_xy, gtrans = (ends, at), ax.get_yaxis_transform("grid")
+            ttrans, va, ha = ax.get_yaxis_text1_transform(size + pad)
+            mtrans = ax.get_yaxis_transform("tick1")
+        if grid and locs:
+            ax.add_artist(Line2D(*grid_xy, transform=gtrans, zorder=z, linestyle=rcParams["grid.linestyle"],
+                                 alpha=rcParams["grid.alpha"], **grid))
+        if locs:
+            ax.add_artist(Line2D(*tick_xy, transform=mtrans, marker=marker, markersize=size,
+                                 markeredgewidth=float(rcParams[f"{name}tick.major.width"]), color=color,
+                                 markeredgecolor=color, linestyle="none", clip_on=False, zorder=z))
+        for v, lab in zip(locs, labels):
+            if lab:
+                xy = (v, 0.0) if name == "x" else (0.0, v)
+                ax.text(*xy, lab, transform=ttrans, va=va, ha=ha, fontsize=tick_size, color=lcolor,
+                        clip_on=False)
+        if offset:       # matplotlib's offset / multiplier text (right below, or above left)
+            fs = tick_size
+            if name == "x":
+                shift = ScaledTranslation(0, -(size + pad + text_size("0", tick_size)[1] + 3.0) / 72.0,
+                                          ax.get_figure(root=True).dpi_scale_trans)
+                ax.text(1.0, 0.0, offset, transform=ax.transAxes + shift, va="top", ha="right", fontsize=fs,
+                        color=lcolor)
+            else:
+                shift = ScaledTranslation(0, 3.0 / 72.0, ax.get_figure(root=True).dpi_scale_trans)
+                ax.text(0.0, 1.0, offset, transform=ax.transAxes + shift, va="baseline", ha="left",
+                        fontsize=fs, color=lcolor)
+        label = axis.label
+        if label.get_text():
+            x, y = label.get_position()
+            ax.text(x, y, label.get_text(), transform=ax.transAxes, fontsize=label.get_fontsize(),
+                    color=label.get_color(), rotation=label.get_rotation(), rotation_mode="anchor",
+                    va=label.get_verticalalignment(), ha=label.get_horizontalalignment(), clip_on=False)
+        axis.set_visible(False)
 
 
 def legend_width(legend: Any) -> float:
@@ -97,7 +209,7 @@ def _label_height(label: Any) -> float:
 
 
 def stacked_layout(fig: Any, axes: Sequence[Any], *, tick_size: float, legend_anchor: float = 1.01,
-                   slack: float = 1.0) -> dict[str, float]:
+                   slack: float = 0.0) -> dict[str, float]:
     """Set the margins of a column of panels (``fig.add_subplot(P, 1, k)``) from their text.
 
     Left: y label, y tick labels, tick marks; right: the legends anchored at ``legend_anchor``
@@ -140,7 +252,7 @@ def stacked_layout(fig: Any, axes: Sequence[Any], *, tick_size: float, legend_an
         left = max(left, pad + (yl + labelpad if yl else 0.0) + widest + ytick)
         leg = ax.get_legend()
         legends.append(legend_width(leg) if leg is not None else 0.0)
-        th = _label_height(ax.title)
+        th = _above_baseline(ax.title.get_text(), float(ax.title.get_fontsize())) if ax.title.get_text() else 0.0
         titles.append(th + titlepad if th else 0.0)
         title_w.append(text_size(ax.title.get_text(), float(ax.title.get_fontsize()))[0]
                        if ax.title.get_text() else 0.0)
@@ -227,7 +339,7 @@ def square_panels_layout(fig: Any, axes: Sequence[Any], *, tick_size: float, leg
         widths.append(widest)
         yl = _label_height(ax.yaxis.label)
         lefts.append((yl + labelpad if yl else 0.0) + widest + ytick)
-        th = _label_height(ax.title)
+        th = _above_baseline(ax.title.get_text(), float(ax.title.get_fontsize())) if ax.title.get_text() else 0.0
         top = max(top, pad + (th + titlepad if th else 0.0))
         xl = _label_height(ax.xaxis.label)
         below_fixed.append(xtick + (xl + labelpad if xl else 0.0))
@@ -294,8 +406,10 @@ class TraceCanvas:
         if panels in self._figures:
             fig, axes = self._figures[panels]
             for ax in axes:
-                for artist in [*ax.collections, *ax.lines]:
+                for artist in [*ax.collections, *ax.lines, *ax.texts, *ax.artists]:
                     artist.remove()
+                ax.xaxis.set_visible(True)
+                ax.yaxis.set_visible(True)
                 if ax.get_legend() is not None:
                     ax.get_legend().remove()
                 ax.set_title("")

@@ -27,7 +27,8 @@ from typing import Any, Iterator, Mapping
 import numpy as np
 
 from tanksynth.artefacts.atomic import atomic_write
-from tanksynth.reports.figure_layout import TraceCanvas, square_panels_layout, stacked_layout
+from tanksynth.reports.figure_layout import (TraceCanvas, draw_decorations, square_panels_layout,
+                                              stacked_layout)
 from tanksynth.reports.trace_lines import PanelLines
 
 __all__ = ["EigenvalueSet", "eigenvalue_sets", "eigen_label", "is_pole_key", "FigureFile", "pole_map",
@@ -557,15 +558,16 @@ def time_domain_figure(artefact: Mapping[str, Any], artefact_dir: Path, director
             ax.set_ylabel(f"{what} [{unit}]" if unit else what, fontsize=8)
             ax.set_title("inputs (zero-order hold)", fontsize=9, y=1.0)
         lines.draw(ax)
-        ax.tick_params(labelsize=7)
+        ax.tick_params(labelsize=7)    # also sets how many ticks fit (the locator's tick space)
         _plain_axis(ax)
-        ax.grid(True, linewidth=0.3, color="0.9")
         _legend(ax, lines.handles, lines.labels)
     axes[-1].set_xlabel("time t [s]", fontsize=8)
     # Margins and label positions from the texts' metrics: no layout engine (tight_layout lays every
     # tick and legend out once more before savefig draws them); titles at y = 1 (no tick labels
     # above the panels: matplotlib's automatic title position would measure the ticks again).
     stacked_layout(fig, axes, tick_size=7)
+    for ax in axes:      # ticks, tick labels, grid and axis labels as a few plain artists
+        draw_decorations(ax, tick_size=7, grid={"linewidth": 0.3, "color": "0.9"})
     directory.mkdir(parents=True, exist_ok=True)
     target = directory / f"{stem}.pdf"
     _atomic_savefig(fig, target)
