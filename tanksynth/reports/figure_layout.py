@@ -19,7 +19,7 @@ from typing import Any, Sequence
 import numpy as np
 
 __all__ = ["text_size", "visible_tick_labels", "legend_width", "stacked_layout", "square_panels_layout",
-           "draw_decorations", "TraceCanvas"]
+           "square_grid_layout", "place_axis_labels", "draw_decorations", "TraceCanvas"]
 
 #: Padding around the figure and between panels (pt): tight_layout's default, 1.08 font sizes.
 PAD_FACTOR = 1.08
@@ -103,6 +103,32 @@ def visible_tick_labels(axis: Any) -> list[str]:
         With its final limits, locator and formatter.
     """
     return [lab for lab in _visible_ticks(axis)[1] if lab]
+
+
+def place_axis_labels(ax: Any, *, tick_size: float) -> None:
+    """Put an axes' x and y labels where matplotlib's automatic placement would (labelpad beyond
+    the tick labels), for an axes already positioned (after ``apply_aspect``).
+
+    Parameters
+    ----------
+    ax : matplotlib.axes.Axes
+        Final position and limits.
+    tick_size : float
+        Font size of the tick labels (pt).
+    """
+    from matplotlib import rcParams
+
+    ax.apply_aspect()
+    W, H = (float(v) * 72.0 for v in ax.get_figure(root=True).get_size_inches())
+    pos = ax.get_position()
+    aw, ah = max(pos.width * W, 1.0), max(pos.height * H, 1.0)
+    widest = max((text_size(s, tick_size)[0] for s in visible_tick_labels(ax.yaxis)), default=0.0)
+    ytick = float(rcParams["ytick.major.size"]) + float(rcParams["ytick.major.pad"])
+    xtick = float(rcParams["xtick.major.size"]) + float(rcParams["xtick.major.pad"]) \
+        + text_size("0123456789", tick_size)[1]
+    labelpad = float(rcParams["axes.labelpad"])
+    ax.yaxis.set_label_coords(-(ytick + widest + labelpad) / aw, 0.5)
+    ax.xaxis.set_label_coords(0.5, -(xtick + labelpad) / ah)
 
 
 def draw_decorations(ax: Any, *, tick_size: float, grid: dict | None = None) -> None:
@@ -427,3 +453,74 @@ class TraceCanvas:
         self._figures[panels] = (fig, axes)
         self.last = fig
         return fig, axes
+
+
+def square_grid_layout(fig: Any, axes: Sequence[Any], *, cols: int, tick_size: float,
+                       legend: Any = None, slack: float = 1.0) -> float:
+    """Place square panels (equal aspect) on a grid of ``cols`` columns, above a figure legend.
+
+    Each column has room on its left for its panels' y labels and tick labels, each row room above
+    for its titles and below for its x tick labels and x labels; the figure keeps its size and the
+    grid is centred in it, above ``legend`` (a figure legend at the lower centre, if any).
+
+    Parameters
+    ----------
+    fig : matplotlib.figure.Figure
+    axes : sequence of matplotlib.axes.Axes
+        The panels, row by row, with their final limits and texts.
+    cols : int
+        Panels per row.
+    tick_size : float
+        Font size of the tick labels (pt).
+    legend : matplotlib.legend.Legend, optional
+        The figure's legend below the panels (``ncols`` columns).
+    slack : float
+        Extra room (pt) on every side, against rounding of the font metrics.
+
+    Returns
+    -------
+    float
+        The side of the panels (pt).
+    """
+    from matplotlib import rcParams
+
+    W, H = (float(v) * 72.0 for v in fig.get_size_inches())
+    pad = PAD_FACTOR * float(rcParams["font.size"]) + slack
+    xtick = float(rcParams["xtick.major.size"]) + float(rcParams["xtick.major.pad"]) \
+        + text_size("0123456789", tick_size)[1]
+    ytick = float(rcParams["ytick.major.size"]) + float(rcParams["ytick.major.pad"])
+    labelpad = float(rcParams["axes.labelpad"])
+    titlepad = float(rcParams["axes.titlepad"])
+    rows = -(-len(axes) // cols)
+    lefts, tops, belows = [0.0] * cols, [0.0] * rows, [0.0] * rows
+    for k, ax in enumerate(axes):
+        r, c = divmod(k, cols)
+        widest = max((text_size(s, tick_size)[0] for s in visible_tick_labels(ax.yaxis)), default=0.0)
+        yl = _label_height(ax.yaxis.label)
+        lefts[c] = max(lefts[c], (yl + labelpad if yl else 0.0) + widest + ytick)
+        t = ax.title.get_text()
+        tops[r] = max(tops[r], _above_baseline(t, float(ax.title.get_fontsize())) + titlepad if t else 0.0)
+        xl = _label_height(ax.xaxis.label)
+        belows[r] = max(belows[r], xtick + (xl + labelpad if xl else 0.0))
+    bottom = 0.0
+    if legend is not None and legend.get_texts():
+        texts = legend.get_texts()
+        fs = float(texts[0].get_fontsize())
+        per_row = -(-len(texts) // max(int(getattr(legend, "_ncols", 1)), 1))
+        row_h = max(max(text_size(t.get_text(), fs)[1] for t in texts), rcParams["legend.handleheight"] * fs)
+        bottom = rcParams["legend.borderaxespad"] * fs + 2 * rcParams["legend.borderpad"] * fs \
+            + per_row * row_h + (per_row - 1) * rcParams["legend.labelspacing"] * fs
+    side_w = (W - (cols + 1) * pad - sum(lefts)) / cols
+    side_h = (H - (rows + 1) * pad - bottom - sum(tops) - sum(belows)) / rows
+    side = max(min(side_w, side_h), 36.0)
+    x0 = (W - (sum(lefts) + cols * side + (cols - 1) * pad)) / 2.0
+    used_h = sum(tops) + sum(belows) + rows * side + (rows - 1) * pad
+    y_top = H - (H - bottom - used_h) / 2.0          # grid centred in the room above the legend
+    for k, ax in enumerate(axes):
+        r, c = divmod(k, cols)
+        x = x0 + sum(lefts[:c + 1]) + c * (side + pad)
+        y = y_top - sum(tops[:r + 1]) - r * (side + pad) - sum(belows[:r]) - side
+        ax.set_position([x / W, y / H, side / W, side / H])
+    for ax in axes:
+        place_axis_labels(ax, tick_size=tick_size)
+    return side

@@ -214,6 +214,12 @@ def _region_margin(L: np.ndarray, M: np.ndarray, Z: np.ndarray) -> np.ndarray:
     z = Z.ravel()
     F = L[None, :, :] + M[None, :, :] * z[:, None, None] + M.T[None, :, :] * np.conj(z)[:, None, None]
     F = 0.5 * (F + np.conj(np.transpose(F, (0, 2, 1))))
+    if F.shape[1] == 1:          # half-planes, vertical strips' sides ...: the entry itself
+        return -F[:, 0, 0].real.reshape(Z.shape)
+    if F.shape[1] == 2:          # disks, sectors' halves ...: the larger root of the 2 x 2 Hermitian
+        a, d, b = F[:, 0, 0].real, F[:, 1, 1].real, F[:, 0, 1]
+        top = 0.5 * (a + d) + np.hypot(0.5 * (a - d), np.abs(b))
+        return -top.reshape(Z.shape)
     return -np.linalg.eigvalsh(F)[:, -1].reshape(Z.shape)
 
 
@@ -280,13 +286,14 @@ def _pole_figure(artefact: Mapping[str, Any], sets: tuple[EigenvalueSet, ...],
         ax.ticklabel_format(useOffset=False)
         ax.xaxis.set_major_locator(MaxNLocator(5))
         ax.yaxis.set_major_locator(MaxNLocator(5))
-        ax.grid(True, linewidth=0.3, color="0.9")
         ax.legend(handles=handles, fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -_LEGEND_DROP),
                   ncol=1, frameon=False)
     # Square panels placed from the texts' metrics and the figure's height fitted to them (no
     # layout engine: tight_layout lays every tick out once more before savefig draws them, and
     # with equal aspect it left the legends below the panels cut off).
     square_panels_layout(fig, fig.axes, tick_size=7, legend_drop=_LEGEND_DROP)
+    for ax in fig.axes:      # ticks, tick labels, grid and axis labels as a few plain artists
+        draw_decorations(ax, tick_size=7, grid={"linewidth": 0.3, "color": "0.9"})
     return fig
 
 
