@@ -324,13 +324,14 @@ def _legend_height(legend: Any) -> float:
 
 
 def square_panels_layout(fig: Any, axes: Sequence[Any], *, tick_size: float, legend_drop: float,
-                         slack: float = 1.0) -> float:
+                         slack: float = 1.0, keep_height: bool = True) -> float:
     """Place a row of square panels (equal aspect) with a legend below each; size the figure to fit.
 
     The figure keeps its width; its height becomes what the panels need: title above, x tick labels,
     x label and the legend (anchored ``legend_drop`` panel heights below each panel, upper centre)
     below. Panels are squares of one side, side by side, each with room on its left for its y label
-    and tick labels.
+    and tick labels; with ``keep_height`` they are made smaller (to 60 % at most) rather than the
+    figure taller than it was.
 
     Parameters
     ----------
@@ -343,6 +344,8 @@ def square_panels_layout(fig: Any, axes: Sequence[Any], *, tick_size: float, leg
         Where the legends hang: ``bbox_to_anchor = (0.5, -legend_drop)`` in axes fraction.
     slack : float
         Extra room (pt) on every side, against rounding of the font metrics.
+    keep_height : bool
+        Prefer smaller panels to a taller figure (see above).
 
     Returns
     -------
@@ -382,6 +385,11 @@ def square_panels_layout(fig: Any, axes: Sequence[Any], *, tick_size: float, leg
     for _ in range(4):   # a legend wider than its panel needs room on both sides
         over = max([(lw - side) / 2.0 for lw in legend_w] + [0.0])
         side = (W - (P + 1) * pad - sum(lefts) - 2 * P * over) / P
+    if keep_height:          # no taller than the figure was, unless the panels would shrink below 60 %
+        H0 = float(fig.get_size_inches()[1]) * 72.0
+        fit = min(min(H0 - top - pad - f, (H0 - top - pad - d) / (1.0 + legend_drop))
+                  for f, d in zip(below_fixed, below_drop))
+        side = min(side, max(fit, 0.6 * side))
     side = max(side, 36.0)
     below = max(max(f, legend_drop * side + d) for f, d in zip(below_fixed, below_drop))
     H = top + side + below + pad
