@@ -234,6 +234,10 @@ def _label_height(label: Any) -> float:
     return text_size(text, float(label.get_fontsize()))[1] if text else 0.0
 
 
+def _ticks_state(axes: Sequence[Any]) -> list:
+    return [(visible_tick_labels(ax.xaxis), visible_tick_labels(ax.yaxis)) for ax in axes]
+
+
 def stacked_layout(fig: Any, axes: Sequence[Any], *, tick_size: float, legend_anchor: float = 1.01,
                    slack: float = 0.0) -> dict[str, float]:
     """Set the margins of a column of panels (``fig.add_subplot(P, 1, k)``) from their text.
@@ -260,6 +264,20 @@ def stacked_layout(fig: Any, axes: Sequence[Any], *, tick_size: float, legend_an
     dict
         The ``subplots_adjust`` fractions (``left``, ``right``, ``top``, ``bottom``, ``hspace``).
     """
+    # The locator's ticks depend on the panel size: laid out again until the tick labels measured
+    # are those of the final panels (twice, rarely three times).
+    before = _ticks_state(axes)
+    for _ in range(3):
+        frac = _stacked_once(fig, axes, tick_size=tick_size, legend_anchor=legend_anchor, slack=slack)
+        after = _ticks_state(axes)
+        if after == before:
+            break
+        before = after
+    return frac
+
+
+def _stacked_once(fig: Any, axes: Sequence[Any], *, tick_size: float, legend_anchor: float,
+                  slack: float) -> dict[str, float]:
     from matplotlib import rcParams
 
     W, H = (float(v) * 72.0 for v in fig.get_size_inches())
@@ -352,6 +370,20 @@ def square_panels_layout(fig: Any, axes: Sequence[Any], *, tick_size: float, leg
     float
         The side of the panels (pt).
     """
+    H0 = float(fig.get_size_inches()[1]) * 72.0
+    before = _ticks_state(axes)
+    for _ in range(3):     # again until the tick labels measured are those of the final panels
+        side = _square_once(fig, axes, tick_size=tick_size, legend_drop=legend_drop, slack=slack,
+                            keep_height=keep_height, H0=H0)
+        after = _ticks_state(axes)
+        if after == before:
+            break
+        before = after
+    return side
+
+
+def _square_once(fig: Any, axes: Sequence[Any], *, tick_size: float, legend_drop: float, slack: float,
+                 keep_height: bool, H0: float) -> float:
     from matplotlib import rcParams
 
     W = float(fig.get_size_inches()[0]) * 72.0
@@ -386,7 +418,6 @@ def square_panels_layout(fig: Any, axes: Sequence[Any], *, tick_size: float, leg
         over = max([(lw - side) / 2.0 for lw in legend_w] + [0.0])
         side = (W - (P + 1) * pad - sum(lefts) - 2 * P * over) / P
     if keep_height:          # no taller than the figure was, unless the panels would shrink below 60 %
-        H0 = float(fig.get_size_inches()[1]) * 72.0
         fit = min(min(H0 - top - pad - f, (H0 - top - pad - d) / (1.0 + legend_drop))
                   for f, d in zip(below_fixed, below_drop))
         side = min(side, max(fit, 0.6 * side))
@@ -452,6 +483,10 @@ class TraceCanvas:
                 ax.dataLim = Bbox.null()
                 ax.ignore_existing_data_limits = True
                 ax.set_autoscale_on(True)
+            from matplotlib import rcParams
+
+            fig.subplots_adjust(**{k: rcParams[f"figure.subplot.{k}"]     # as a new figure starts
+                                   for k in ("left", "right", "top", "bottom", "hspace", "wspace")})
             self.last = fig
             return fig, axes
         from matplotlib.figure import Figure
@@ -490,6 +525,18 @@ def square_grid_layout(fig: Any, axes: Sequence[Any], *, cols: int, tick_size: f
     float
         The side of the panels (pt).
     """
+    before = _ticks_state(axes)
+    for _ in range(3):     # again until the tick labels measured are those of the final panels
+        side = _grid_once(fig, axes, cols=cols, tick_size=tick_size, legend=legend, slack=slack)
+        after = _ticks_state(axes)
+        if after == before:
+            break
+        before = after
+    return side
+
+
+def _grid_once(fig: Any, axes: Sequence[Any], *, cols: int, tick_size: float, legend: Any,
+               slack: float) -> float:
     from matplotlib import rcParams
 
     W, H = (float(v) * 72.0 for v in fig.get_size_inches())
