@@ -20,6 +20,7 @@ from tanksynth.reports.designs import design_view, latex_label
 from tanksynth.reports.equations import split_equation
 from tanksynth.reports.prose import prose_latex
 from tanksynth.reports.trusted import math_or_text
+from tanksynth.reports.figure_layout import TraceCanvas
 from tanksynth.reports.figures import FigureFile, TraceFigure, time_domain_figure
 from tanksynth.reports.inputs import ReportInputs
 from tanksynth.reports.latex import (Tex, escape_latex, expression_latex, format_eigenvalues,
@@ -310,9 +311,10 @@ def trace_figures(inputs: ReportInputs) -> dict[str, TraceFigure]:
     """
     figdir = inputs.directory / _FIGURE_DIR
     out: dict[str, TraceFigure] = {}
+    canvas = TraceCanvas()    # figures with the same panel count reuse one figure's axes
     for i, art in enumerate(inputs.artefacts):
         name = str(art.get("name", ""))
-        fig = time_domain_figure(art, inputs.directory, figdir, _trace_stem(i, name))
+        fig = time_domain_figure(art, inputs.directory, figdir, _trace_stem(i, name), canvas=canvas)
         if fig is not None:
             out[name] = fig
     if figdir.is_dir():

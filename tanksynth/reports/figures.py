@@ -27,7 +27,9 @@ from typing import Any, Iterator, Mapping
 import numpy as np
 
 from tanksynth.artefacts.atomic import atomic_write
-from tanksynth.reports.trace_lines import draw_runs, envelope
+from tanksynth.reports.figure_layout import (TraceCanvas, draw_decorations, square_panels_layout,
+                                              stacked_layout)
+from tanksynth.reports.trace_lines import PanelLines
 
 __all__ = ["EigenvalueSet", "eigenvalue_sets", "eigen_label", "is_pole_key", "FigureFile", "pole_map",
            "TraceFigure", "time_domain_figure", "ordinal"]
@@ -184,6 +186,8 @@ def _atomic_savefig(fig, target: Path) -> None:
 
 
 _MARKERS = ("x", "o", "s", "^", "D", "v", "P", "*")
+#: The pole maps' legends hang this fraction of the panel height below the panel.
+_LEGEND_DROP = 0.2
 
 
 def _region_matrices(artefact: Mapping[str, Any]) -> tuple[np.ndarray, np.ndarray, str] | None:
@@ -210,6 +214,12 @@ def _region_margin(L: np.ndarray, M: np.ndarray, Z: np.ndarray) -> np.ndarray:
     z = Z.ravel()
     F = L[None, :, :] + M[None, :, :] * z[:, None, None] + M.T[None, :, :] * np.conj(z)[:, None, None]
     F = 0.5 * (F + np.conj(np.transpose(F, (0, 2, 1))))
+    if F.shape[1] == 1:          # half-planes, vertical strips' sides ...: the entry itself
+        return -F[:, 0, 0].real.reshape(Z.shape)
+    if F.shape[1] == 2:          # disks, sectors' halves ...: the larger root of the 2 x 2 Hermitian
+        a, d, b = F[:, 0, 0].real, F[:, 1, 1].real, F[:, 0, 1]
+        top = 0.5 * (a + d) + np.hypot(0.5 * (a - d), np.abs(b))
+        return -top.reshape(Z.shape)
     return -np.linalg.eigvalsh(F)[:, -1].reshape(Z.shape)
 
 
@@ -226,36 +236,14 @@ def _view(points: np.ndarray, disc: bool) -> tuple[float, float, float, float]:
     return cx - side / 2, cx + side / 2, -side / 2, side / 2
 
 
-def pole_map(artefact: Mapping[str, Any], directory: Path, stem: str) -> FigureFile | None:
-    """Draw the eigenvalues of one artefact (s- and/or z-plane) to ``directory/stem.pdf``.
-
-    Each plane is zoomed to its eigenvalues; the LMI region requested for
-    the design (when the diagnostics record one) is shaded; the legend,
-    with the sets named in words (`eigen_label`), sits below the axes.
-
-    Parameters
-    ----------
-    artefact : mapping
-        As read by `tanksynth.artefacts.io.read_artefact`.
-    directory : Path
-        Figure directory (created if missing).
-    stem : str
-        File name without extension (a safe ASCII name chosen by the caller).
-
-    Returns
-    -------
-    FigureFile or None
-        None when the artefact has no eigenvalues.
-    """
-    sets = eigenvalue_sets(artefact)
-    if not sets:
-        return None
+def _pole_figure(artefact: Mapping[str, Any], sets: tuple[EigenvalueSet, ...],
+                 region: tuple[np.ndarray, np.ndarray, str] | None) -> Any:
+    """The pole map of `pole_map`, laid out, not saved (a `matplotlib.figure.Figure`)."""
     from matplotlib.figure import Figure
     from matplotlib.patches import Patch
     from matplotlib.ticker import MaxNLocator
 
     planes = [p for p in (False, True) if any(s.discrete == p for s in sets)]
-    region = _region_matrices(artefact)
     fig = Figure(figsize=(3.6 * len(planes) + 0.4, 4.1))
     for k, disc in enumerate(planes):
         ax = fig.add_subplot(1, len(planes), k + 1)
@@ -284,10 +272,10 @@ def pole_map(artefact: Mapping[str, Any], directory: Path, stem: str) -> FigureF
         if disc:
             t = np.linspace(0, 2 * np.pi, 2000)
             ax.plot(np.cos(t), np.sin(t), color="0.45", linewidth=0.8, label="_unit circle")
-            ax.set_title("z-plane (discrete time)", fontsize=9)
+            ax.set_title("z-plane (discrete time)", fontsize=9, y=1.0)
         else:
             ax.axvline(0.0, color="0.45", linewidth=0.8)
-            ax.set_title("s-plane (continuous time)", fontsize=9)
+            ax.set_title("s-plane (continuous time)", fontsize=9, y=1.0)
         ax.set_xlim(x0, x1)
         ax.set_ylim(y0, y1)
         ax.set_aspect("equal", adjustable="box")
@@ -298,13 +286,43 @@ def pole_map(artefact: Mapping[str, Any], directory: Path, stem: str) -> FigureF
         ax.ticklabel_format(useOffset=False)
         ax.xaxis.set_major_locator(MaxNLocator(5))
         ax.yaxis.set_major_locator(MaxNLocator(5))
-        ax.grid(True, linewidth=0.3, color="0.9")
-        ax.legend(handles=handles, fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.2),
+        ax.legend(handles=handles, fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -_LEGEND_DROP),
                   ncol=1, frameon=False)
-    fig.tight_layout()
-    # Laid out: no layout engine at all, or savefig draws the whole figure once more before
-    # printing (it does so for any engine, even the placeholder that ``"none"`` leaves).
-    fig.set_layout_engine(None)
+    # Square panels placed from the texts' metrics and the figure's height fitted to them (no
+    # layout engine: tight_layout lays every tick out once more before savefig draws them, and
+    # with equal aspect it left the legends below the panels cut off).
+    square_panels_layout(fig, fig.axes, tick_size=7, legend_drop=_LEGEND_DROP)
+    for ax in fig.axes:      # ticks, tick labels, grid and axis labels as a few plain artists
+        draw_decorations(ax, tick_size=7, grid={"linewidth": 0.3, "color": "0.9"})
+    return fig
+
+
+def pole_map(artefact: Mapping[str, Any], directory: Path, stem: str) -> FigureFile | None:
+    """Draw the eigenvalues of one artefact (s- and/or z-plane) to ``directory/stem.pdf``.
+
+    Each plane is zoomed to its eigenvalues; the LMI region requested for
+    the design (when the diagnostics record one) is shaded; the legend,
+    with the sets named in words (`eigen_label`), sits below the axes.
+
+    Parameters
+    ----------
+    artefact : mapping
+        As read by `tanksynth.artefacts.io.read_artefact`.
+    directory : Path
+        Figure directory (created if missing).
+    stem : str
+        File name without extension (a safe ASCII name chosen by the caller).
+
+    Returns
+    -------
+    FigureFile or None
+        None when the artefact has no eigenvalues.
+    """
+    sets = eigenvalue_sets(artefact)
+    if not sets:
+        return None
+    region = _region_matrices(artefact)
+    fig = _pole_figure(artefact, sets, region)
     directory.mkdir(parents=True, exist_ok=True)
     target = directory / f"{stem}.pdf"
     _atomic_savefig(fig, target)
@@ -419,10 +437,9 @@ def _unit_label(names: list, units: list, i: int) -> str:
 _LEGEND_ROWS = 12
 
 
-def _legend(ax) -> None:
+def _legend(ax, handles: list, labels: list) -> None:
     """Legend right of the panel; with more than `_LEGEND_ROWS` entries (the 10 colours repeat), one
     entry per colour and line style naming the signals drawn with it (``h1, h11, h21``)."""
-    handles, labels = ax.get_legend_handles_labels()
     if len(handles) > _LEGEND_ROWS:
         from matplotlib.colors import to_hex
 
@@ -437,7 +454,7 @@ def _legend(ax) -> None:
 
 
 def time_domain_figure(artefact: Mapping[str, Any], artefact_dir: Path, directory: Path,
-                       stem: str) -> TraceFigure | None:
+                       stem: str, *, canvas: TraceCanvas | None = None) -> TraceFigure | None:
     """Draw the stored verdict trace of one artefact to ``directory/stem.pdf`` (vector PDF).
 
     Subplots: states (levels) with their references; estimates against the
@@ -454,6 +471,9 @@ def time_domain_figure(artefact: Mapping[str, Any], artefact_dir: Path, director
         Figure directory (created if missing).
     stem : str
         File name without extension (a safe ASCII name chosen by the caller).
+    canvas : tanksynth.reports.figure_layout.TraceCanvas, optional
+        Figures to reuse (`trace_figures` passes one for all the figures of a report); a new
+        figure when omitted.
 
     Returns
     -------
@@ -477,84 +497,84 @@ def time_domain_figure(artefact: Mapping[str, Any], artefact_dir: Path, director
     snames, sunits = list(head.get("state_names", [])), list(head.get("state_units", []))
     inames, iunits = list(head.get("input_names", [])), list(head.get("input_units", []))
     rnames = list(head.get("reference_names", []))
-    from matplotlib.figure import Figure
-
     panels = ["levels"] + (["estimates", "error"] if x_hat is not None else []) \
         + (["inputs"] if u.ndim == 3 and u.shape[2] > 0 and u.shape[1] == t_u.size else [])
     lin = _linear_prediction(artefact, head, t, x, u)
     if lin is not None:
         panels = ["linear"] + [p for p in panels if p == "inputs"]
-    fig = Figure(figsize=(7.2, 1.9 * len(panels) + 0.4))
-    axes = [fig.add_subplot(len(panels), 1, k + 1) for k in range(len(panels))]
+    fig, axes = (canvas or TraceCanvas()).axes(len(panels))
     colors = [f"C{i % 10}" for i in range(max(x.shape[2], u.shape[2] if u.ndim == 3 else 0, 1))]
     n = x.shape[2]
     state_unit = sunits[0] if sunits and all(v == sunits[0] for v in sunits) else ""
     for ax, panel in zip(axes, panels):
+        lines = PanelLines()      # every line of the panel: one collection, drawn in this order
         if panel == "linear":
             scale = float(lin["scale"])
             for i in range(n):
-                ax.plot(*envelope(t, x[1, :, i] - x[0, :, i]), color=colors[i], linewidth=1.1,
-                        label=f"{snames[i] if i < len(snames) else i + 1} nonlinear")
-                ax.plot(*envelope(t, lin["prediction"][:, i]), color=colors[i], linewidth=1.0, linestyle="--",
-                        label=f"{snames[i] if i < len(snames) else i + 1} linear model")
+                lines.line(t, x[1, :, i] - x[0, :, i], color=colors[i], linewidth=1.1,
+                           label=f"{snames[i] if i < len(snames) else i + 1} nonlinear")
+                lines.line(t, lin["prediction"][:, i], color=colors[i], linewidth=1.0, linestyle="--",
+                           label=f"{snames[i] if i < len(snames) else i + 1} linear model")
             ax.set_ylabel(f"deviation from x0 [{state_unit}]" if state_unit else "deviation from x0",
                           fontsize=8)
             ax.set_title("response to a small step: nonlinear plant (solid) and linear model (dashed); "
-                         f"largest gap {100 * float(lin['gap']) / max(scale, 1e-300):.2g} %", fontsize=8)
+                         f"largest gap {100 * float(lin['gap']) / max(scale, 1e-300):.2g} %", fontsize=8,
+                         y=1.0)
         elif panel == "levels":
             for i in range(n):
-                ax.plot(*envelope(t, x[0, :, i]), color=colors[i], linewidth=1.0,
-                        label=_unit_label(snames, sunits, i))
-                draw_runs(ax, t, x[1:, :, i], color=colors[i], linewidth=0.5, alpha=0.45)
+                lines.line(t, x[0, :, i], color=colors[i], linewidth=1.0, label=_unit_label(snames, sunits, i))
+                lines.runs(t, x[1:, :, i], color=colors[i], linewidth=0.5, alpha=0.45)
             if ref is not None and np.ndim(ref) == 2 and np.shape(ref)[0] == t.size:
                 for j in range(np.shape(ref)[1]):
                     k = snames.index(rnames[j]) if j < len(rnames) and rnames[j] in snames else j
-                    ax.plot(*envelope(t, np.asarray(ref, float)[:, j]), color=colors[k % len(colors)],
-                            linestyle="--",
-                            linewidth=0.8, label=f"ref. {rnames[j] if j < len(rnames) else j + 1}")
+                    lines.line(t, np.asarray(ref, float)[:, j], color=colors[k % len(colors)], linestyle="--",
+                               linewidth=0.8, label=f"ref. {rnames[j] if j < len(rnames) else j + 1}")
             ax.set_ylabel(f"states [{state_unit}]" if state_unit else "states", fontsize=8)
-            ax.set_title("plant (nonlinear)" + (" and references" if ref is not None else ""), fontsize=9)
+            ax.set_title("plant (nonlinear)" + (" and references" if ref is not None else ""), fontsize=9,
+                         y=1.0)
         elif panel == "estimates":
             xh = np.asarray(x_hat, float)
             for i in range(n):
-                ax.plot(*envelope(t, x[0, :, i]), color=colors[i], linewidth=1.0,
-                        label=f"{snames[i] if i < len(snames) else i + 1}")
-                ax.plot(*envelope(t, xh[0, :, i]), color=colors[i], linewidth=0.9, linestyle="--",
-                        label=f"{snames[i] if i < len(snames) else i + 1} estimate")
+                lines.line(t, x[0, :, i], color=colors[i], linewidth=1.0,
+                           label=f"{snames[i] if i < len(snames) else i + 1}")
+                lines.line(t, xh[0, :, i], color=colors[i], linewidth=0.9, linestyle="--",
+                           label=f"{snames[i] if i < len(snames) else i + 1} estimate")
             ax.set_ylabel(f"state and estimate [{state_unit}]" if state_unit else "state and estimate",
                           fontsize=8)
-            ax.set_title("estimates (dashed) against the true states", fontsize=9)
+            ax.set_title("estimates (dashed) against the true states", fontsize=9, y=1.0)
         elif panel == "error":
             err = np.asarray(x_hat, float) - x
             for i in range(n):
-                ax.plot(*envelope(t, err[0, :, i]), color=colors[i], linewidth=1.0,
-                        label=f"{snames[i] if i < len(snames) else i + 1}")
-                draw_runs(ax, t, err[1:, :, i], color=colors[i], linewidth=0.5, alpha=0.45)
+                lines.line(t, err[0, :, i], color=colors[i], linewidth=1.0,
+                           label=f"{snames[i] if i < len(snames) else i + 1}")
+                lines.runs(t, err[1:, :, i], color=colors[i], linewidth=0.5, alpha=0.45)
             ax.axhline(0.0, color="0.6", linewidth=0.6)
             ax.set_ylabel(f"estimate - state [{state_unit}]" if state_unit else "estimate - state",
                           fontsize=8)
-            ax.set_title("estimation error", fontsize=9)
+            ax.set_title("estimation error", fontsize=9, y=1.0)
         else:
             shown = [_display(iunits[j] if j < len(iunits) else "") for j in range(u.shape[2])]
             for j in range(u.shape[2]):
-                ax.step(*envelope(t_u, shown[j][0] * u[0, :, j]), where="post", color=colors[j % len(colors)],
-                        linewidth=1.0, label=inames[j] if j < len(inames) else f"#{j + 1}")
-                draw_runs(ax, t_u, shown[j][0] * u[1:, :, j], step=True, color=colors[j % len(colors)],
-                          linewidth=0.5, alpha=0.45)
+                lines.line(t_u, shown[j][0] * u[0, :, j], step=True, color=colors[j % len(colors)],
+                           linewidth=1.0, label=inames[j] if j < len(inames) else f"#{j + 1}")
+                lines.runs(t_u, shown[j][0] * u[1:, :, j], step=True, color=colors[j % len(colors)],
+                           linewidth=0.5, alpha=0.45)
             same = {sh[1] for sh in shown}
             unit = same.pop() if len(same) == 1 else ""
             what = "flow" if unit == "l/s" else "input"
             ax.set_ylabel(f"{what} [{unit}]" if unit else what, fontsize=8)
-            ax.set_title("inputs (zero-order hold)", fontsize=9)
-        ax.tick_params(labelsize=7)
+            ax.set_title("inputs (zero-order hold)", fontsize=9, y=1.0)
+        lines.draw(ax)
+        ax.tick_params(labelsize=7)    # also sets how many ticks fit (the locator's tick space)
         _plain_axis(ax)
-        ax.grid(True, linewidth=0.3, color="0.9")
-        _legend(ax)
+        _legend(ax, lines.handles, lines.labels)
     axes[-1].set_xlabel("time t [s]", fontsize=8)
-    fig.tight_layout()
-    # Laid out: no layout engine at all, or savefig draws the whole figure once more before
-    # printing (it does so for any engine, even the placeholder that ``"none"`` leaves).
-    fig.set_layout_engine(None)
+    # Margins and label positions from the texts' metrics: no layout engine (tight_layout lays every
+    # tick and legend out once more before savefig draws them); titles at y = 1 (no tick labels
+    # above the panels: matplotlib's automatic title position would measure the ticks again).
+    stacked_layout(fig, axes, tick_size=7)
+    for ax in axes:      # ticks, tick labels, grid and axis labels as a few plain artists
+        draw_decorations(ax, tick_size=7, grid={"linewidth": 0.3, "color": "0.9"})
     directory.mkdir(parents=True, exist_ok=True)
     target = directory / f"{stem}.pdf"
     _atomic_savefig(fig, target)

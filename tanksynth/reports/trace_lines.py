@@ -6,7 +6,10 @@ equal index slices of a trace, the samples where it is smallest and largest (in 
 the first and last samples, so every extreme a pixel column shows is still drawn (min/max
 decimation, as oscilloscopes do). `draw_runs` draws the runs of one signal as ONE
 `matplotlib.collections.LineCollection` (one artist instead of one `Line2D` per run), each run
-decimated the same way, optionally as a zero-order-hold staircase.
+decimated the same way, optionally as a zero-order-hold staircase. `PanelLines` collects every
+line of one panel (first runs, further runs, references, in drawing order) and draws them as ONE
+collection with per-line colour, width and dash pattern; the legend gets proxy handles, so a panel
+costs one artist and one autoscale instead of one `Line2D` per signal.
 """
 
 from __future__ import annotations
@@ -15,7 +18,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["ENVELOPE_BINS", "envelope", "staircase", "draw_runs"]
+__all__ = ["ENVELOPE_BINS", "envelope", "staircase", "draw_runs", "PanelLines"]
 
 #: Index slices per trace: about the pixel width of a 5 in axis at 200 dpi (the figures are 7.2 in wide).
 ENVELOPE_BINS = 1000
@@ -124,3 +127,106 @@ def draw_runs(ax: Any, t: np.ndarray, Y: np.ndarray, *, step: bool = False, bins
     ax.add_collection(coll, autolim=True)
     ax.autoscale_view()
     return coll
+
+
+class PanelLines:
+    """The lines of one panel, drawn as ONE `LineCollection` in the order they were added.
+
+    Each line keeps its own colour, alpha, width and dash pattern (the collection's per-segment
+    properties), so the panel looks as if every line were a `Line2D` drawn in turn; lines given a
+    ``label`` get a proxy `Line2D` (not added to the axes) for the legend.
+
+    Parameters
+    ----------
+    bins : int
+        `envelope` slices of every line.
+    """
+
+    def __init__(self, bins: int = ENVELOPE_BINS) -> None:
+        self.bins = int(bins)
+        self._segments: list[np.ndarray] = []
+        self._colors: list[tuple[float, float, float, float]] = []
+        self._widths: list[float] = []
+        self._styles: list[str] = []
+        self.handles: list[Any] = []
+        self.labels: list[str] = []
+
+    def _add(self, tk: np.ndarray, yk: np.ndarray, step: bool, color: Any, linewidth: float,
+             linestyle: str, alpha: float) -> None:
+        from matplotlib.colors import to_rgba
+
+        if step:
+            tk, yk = staircase(tk, yk)
+        rgba = to_rgba(color, alpha)
+        for tr, yr in zip(np.atleast_2d(tk), np.atleast_2d(yk)):
+            self._segments.append(np.column_stack([tr, yr]))
+            self._colors.append(rgba)
+            self._widths.append(float(linewidth))
+            self._styles.append(linestyle)
+
+    def line(self, t: np.ndarray, y: np.ndarray, *, color: Any, linewidth: float, linestyle: str = "-",
+             alpha: float = 1.0, step: bool = False, label: str | None = None) -> None:
+        """Add one signal (decimated by `envelope`).
+
+        Parameters
+        ----------
+        t : ndarray, shape (N,)
+            Sample times (s).
+        y : ndarray, shape (N,)
+            The signal (any unit).
+        color, linewidth, linestyle, alpha
+            Matplotlib line properties (width in points).
+        step : bool
+            Zero-order-hold staircase (as ``ax.step(where="post")``).
+        label : str, optional
+            Legend entry (a proxy handle with the same colour, width and dash pattern).
+        """
+        tk, yk = envelope(t, np.asarray(y, dtype=float), self.bins)
+        self._add(tk, yk, step, color, linewidth, linestyle, alpha)
+        if label is not None:
+            from matplotlib.lines import Line2D
+
+            self.handles.append(Line2D([], [], color=color, linewidth=linewidth, linestyle=linestyle,
+                                       alpha=None if alpha == 1.0 else alpha))
+            self.labels.append(str(label))
+
+    def runs(self, t: np.ndarray, Y: np.ndarray, *, color: Any, linewidth: float, linestyle: str = "-",
+             alpha: float = 1.0, step: bool = False) -> None:
+        """Add R runs of one signal (each decimated by `envelope`; nothing for R = 0).
+
+        Parameters
+        ----------
+        t : ndarray, shape (N,)
+            Sample times (s).
+        Y : ndarray, shape (R, N)
+            The runs (any unit).
+        color, linewidth, linestyle, alpha, step
+            As in `line`.
+        """
+        Y = np.asarray(Y, dtype=float)
+        if Y.ndim != 2 or Y.shape[0] == 0:
+            return
+        tk, yk = envelope(t, Y, self.bins)
+        self._add(tk, yk, step, color, linewidth, linestyle, alpha)
+
+    def draw(self, ax: Any) -> Any:
+        """Add the collection to ``ax`` and autoscale once.
+
+        Parameters
+        ----------
+        ax : matplotlib.axes.Axes
+
+        Returns
+        -------
+        matplotlib.collections.LineCollection or None
+            None when no line was added.
+        """
+        from matplotlib.collections import LineCollection
+
+        if not self._segments:
+            return None
+        coll = LineCollection(self._segments, colors=self._colors, linewidths=self._widths,
+                              linestyles=self._styles)
+        ax.add_collection(coll, autolim=True)
+        ax.autoscale_view()
+        return coll

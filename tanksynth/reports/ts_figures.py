@@ -25,6 +25,7 @@ from typing import Any, Mapping
 import numpy as np
 
 from tanksynth.artefacts.atomic import atomic_write
+from tanksynth.reports.figure_layout import draw_decorations, square_grid_layout
 from tanksynth.reports.figures import FigureFile
 
 __all__ = ["REGION_METHODS", "ellipse_outline", "region_figure", "region_figures"]
@@ -119,6 +120,7 @@ def region_figure(art: Mapping[str, Any], artefact_dir: Path, directory: Path,
     pairs = list(combinations(range(n), 2))[:6]
     if not pairs:
         return None
+    from matplotlib.collections import LineCollection
     from matplotlib.figure import Figure
     from matplotlib.patches import Rectangle
 
@@ -136,10 +138,9 @@ def region_figure(art: Mapping[str, Any], artefact_dir: Path, directory: Path,
                 xs = np.linspace(lo[i] if lo else x0[i] - 1, hi[i] if hi else x0[i] + 1, 2)
                 ax.plot(xs, (float(row["g"]) - G[i] * xs) / G[j], color="0.35", linestyle=":",
                         linewidth=0.9, label="domain ordering")
-        if X is not None and X.ndim == 3 and X.shape[2] == n:
-            for r in range(X.shape[0]):
-                ax.plot(X[r, :, i], X[r, :, j], color="C0", linewidth=0.4, alpha=0.55,
-                        label="verdict trajectories" if r == 0 else None)
+        if X is not None and X.ndim == 3 and X.shape[2] == n:   # every run: one collection
+            ax.add_collection(LineCollection(list(X[:, :, [i, j]]), colors="C0", linewidths=0.4, alpha=0.55,
+                                             label="verdict trajectories"), autolim=False)
             ax.plot(X[:, 0, i], X[:, 0, j], linestyle="none", marker="o", markersize=2.2, color="C0",
                     label="sampled initial states")
         sl, pr = _pair_views(P, c, x0, i, j)
@@ -150,9 +151,8 @@ def region_figure(art: Mapping[str, Any], artefact_dir: Path, directory: Path,
                 label="operating point x_op")
         if has_sp:
             if Xs is not None and Xs.ndim == 3 and Xs.shape[2] == n:
-                for r in range(Xs.shape[0]):
-                    ax.plot(Xs[r, :, i], Xs[r, :, j], color="C3", linewidth=0.4, alpha=0.5,
-                            label="set-point runs" if r == 0 else None)
+                ax.add_collection(LineCollection(list(Xs[:, :, [i, j]]), colors="C3", linewidths=0.4, alpha=0.5,
+                                                 label="set-point runs"), autolim=False)
             sl2, pr2 = _pair_views(P2, c2, x2, i, j)
             ax.plot(pr2[:, 0], pr2[:, 1], color="C1", linestyle="--", linewidth=0.8,
                     label="region about x_op2 (projection)")
@@ -173,16 +173,18 @@ def region_figure(art: Mapping[str, Any], artefact_dir: Path, directory: Path,
         ax.set_ylim(mid[1] - half, mid[1] + half)
         ax.set_aspect("equal", adjustable="box")
         ax.tick_params(labelsize=7)
-        ax.grid(True, linewidth=0.3, color="0.9")
     handles, labels = fig.axes[0].get_legend_handles_labels()
     seen = dict(zip(labels, handles))
     for ax in fig.axes[1:]:
         for h, lab in zip(*ax.get_legend_handles_labels()):
             seen.setdefault(lab, h)
-    fig.legend(list(seen.values()), list(seen.keys()), loc="lower center", ncol=3, fontsize=7,
-               frameon=False)
-    fig.tight_layout(rect=(0, 0.16 if has_sp else 0.12, 1, 1))
-    fig.set_layout_engine(None)  # laid out: savefig would draw the figure once more
+    legend = fig.legend(list(seen.values()), list(seen.keys()), loc="lower center", ncol=3, fontsize=7,
+                        frameon=False)
+    # panels placed from the texts' metrics above the legend (no layout engine: tight_layout lays
+    # every tick out once more before savefig draws them)
+    square_grid_layout(fig, fig.axes, cols=cols, tick_size=7, legend=legend)
+    for ax in fig.axes:          # ticks, tick labels, grid and axis labels as a few plain artists
+        draw_decorations(ax, tick_size=7, grid={"linewidth": 0.3, "color": "0.9"})
     directory.mkdir(parents=True, exist_ok=True)
     target = directory / f"{stem}.pdf"
     atomic_write(target, lambda fh: fig.savefig(fh, format="pdf",

@@ -52,3 +52,19 @@ def test_region_figure_without_a_trace_says_so(pdc_dir, tmp_path):
     fig = region_figure(art, tmp_path, tmp_path / "figs", "region-00-pdc")   # no trace there
     assert fig is not None and "no verdict trace" in fig.caption
     assert fig.path.read_bytes().startswith(b"%PDF")
+
+
+def test_region_figure_shows_its_legend_and_labels(pdc_dir, tmp_path):
+    import shutil
+    import subprocess
+
+    if not shutil.which("pdftotext"):
+        pytest.skip("pdftotext not installed")
+    inputs = read_report_inputs(pdc_dir)
+    art = next(a for a in inputs.artefacts if a["name"] == "pdc")
+    fig = region_figure(art, pdc_dir, tmp_path / "figs", "region-00-pdc")
+    text = " ".join(subprocess.run(["pdftotext", "-raw", str(fig.path), "-"], capture_output=True, text=True,
+                                   check=True).stdout.split())
+    for words in ("TS domain", "verdict trajectories", "sampled initial states", "region (projection)",
+                  "operating point x_op", "set-point runs", "h1 [m]", "h2 [m]"):
+        assert words in text, words
