@@ -13,7 +13,7 @@ from tanksynth.verify.common import (POLE_TOLERANCE, artefact_matrix, complex_li
                                      rank_check, region_check, region_lmi_check, stability_check,
                                      time_domain, tracked_outputs)
 from tanksynth.verify.numerics import integral_augmentation, pole_agreement
-from tanksynth.verify.simulations import (IntegralStateFeedback, designed_time_constant,
+from tanksynth.verify.simulations import (IntegralStateFeedback, designed_time_constant, requested_poles,
                                           eigenvector_conditioning, fastest_rate,
                                           luenberger_estimator, observer_convergence,
                                           observer_period, regulation_check, servo_check)
@@ -51,21 +51,6 @@ def _pole_check(matrix: np.ndarray, requested: Any, what: str) -> Check:
                   "max_error": m.max_error, "max_relative_error": m.max_relative_error,
                   "multiplicity": ag.multiplicity.tolist(), "polynomial_error": ag.polynomial_error,
                   "measure": ag.measure, "tolerance": POLE_TOLERANCE})
-
-
-def _requested_poles(doc: Mapping[str, Any], spec: Any, domain: str) -> Any:
-    """The spec's poles in the design's plane: ``pole_domain = "s"`` in discrete time is
-    converted here, independently of the design, by ``z = exp(p ts)``."""
-    from tanksynth.spec.options import parse_poles
-
-    poles = option(doc, spec, "poles")
-    if poles is None:
-        return None
-    given = option(doc, spec, "pole_domain")
-    values = np.asarray(parse_poles(poles, "poles"), dtype=complex)
-    if given == "s" and domain == "discrete":
-        values = np.exp(values * float(spec.ts))
-    return values
 
 
 def _placement_common(doc: Mapping[str, Any], spec: Any) -> dict:
@@ -159,7 +144,7 @@ def pole_placement_verdict(doc: Mapping[str, Any], spec: Any, *,
     c = _placement_common(doc, spec)
     checks = [model_recheck(c["plant"], c["x0"], c["u0"], c["domain"], c["ts"],
                             {"A": c["A"], "B": c["B"], "C": c["C"]})]
-    poles = _requested_poles(doc, spec, c["domain"])
+    poles = requested_poles(doc, spec, c["domain"])
     if poles is None:
         checks.append(Check("poles", None, "the spec entry of this artefact gives no poles"))
     else:
@@ -233,7 +218,7 @@ def canonical_observer_verdict(doc: Mapping[str, Any], spec: Any, *,
     eigs = np.linalg.eigvals(A - L @ C)
     what = "the observer error matrix A - L C"
     checks = [model_recheck(plant, x0, u0, "continuous", None, {"A": A, "C": C})]
-    poles = _requested_poles(doc, spec, "continuous")
+    poles = requested_poles(doc, spec, "continuous")
     if poles is None:
         checks.append(Check("poles", None, "the spec entry of this artefact gives no poles"))
     else:

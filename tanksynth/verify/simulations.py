@@ -24,6 +24,7 @@ from tanksynth.verify.common import (MAX_STEPS, OBSERVER_TIME_CONSTANTS, OBSERVE
 from tanksynth.verify.traces import TraceRecorder
 
 __all__ = [
+    "requested_poles",
     "slowest_time_constant", "fastest_rate", "eigen_time_constant", "region_time_constant",
     "designed_time_constant", "eigenvector_conditioning", "observer_period", "perturbed_start",
     "observer_convergence", "luenberger_estimator", "StateFeedback", "IntegralStateFeedback",
@@ -106,6 +107,36 @@ def region_time_constant(region: Any, domain: str, ts: float | None) -> float:
     return best
 
 
+def requested_poles(doc: Mapping[str, Any], spec: Any, domain: str) -> np.ndarray | None:
+    """The spec's poles in the design's plane (None when the spec gives none).
+
+    ``pole_domain = "s"`` in discrete time is converted here, independently of
+    the design, by ``z = exp(p ts)``.
+
+    Parameters
+    ----------
+    doc, spec : mapping, Spec
+        The artefact and the validated spec.
+    domain : {"continuous", "discrete"}
+        The design's time domain.
+
+    Returns
+    -------
+    ndarray of complex or None
+        Poles in 1/s (continuous) or in the z-plane (discrete, dimensionless).
+    """
+    from tanksynth.spec.options import parse_poles
+
+    poles = option(doc, spec, "poles")
+    if poles is None:
+        return None
+    given = option(doc, spec, "pole_domain")
+    values = np.asarray(parse_poles(poles, "poles"), dtype=complex)
+    if given == "s" and domain == "discrete":
+        values = np.exp(values * float(spec.ts))
+    return values
+
+
 def designed_time_constant(doc: Mapping[str, Any], spec: Any, eigs: np.ndarray, domain: str,
                            ts: float | None) -> tuple[float, str]:
     """Slowest time constant (s) the DESIGN asks for, and the rule that gave it.
@@ -122,11 +153,10 @@ def designed_time_constant(doc: Mapping[str, Any], spec: Any, eigs: np.ndarray, 
         ``"continuous"`` or ``"discrete"``; sampling period [s].
     """
     from tanksynth.analysis.lmi_region import region_from_parts
-    from tanksynth.spec.options import parse_poles, parse_region
+    from tanksynth.spec.options import parse_region
 
-    poles = option(doc, spec, "poles")
-    if poles is not None:
-        p = np.asarray(parse_poles(poles, "poles"), dtype=complex)
+    p = requested_poles(doc, spec, domain)
+    if p is not None:
         tau, rule = eigen_time_constant(p, domain, ts)
         return tau, rule.replace("(", "(of the poles requested in the spec: ", 1)
     raw = option(doc, spec, "region")
