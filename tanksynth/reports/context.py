@@ -398,7 +398,7 @@ def build_context(inputs: ReportInputs, figures: Mapping[str, FigureFile],
     designs = [design_view(a, figures.get(str(a.get("name"))), statements) for a in inputs.artefacts]
     traces = traces or {}
     designs = [dataclasses.replace(d, trace_figure=traces[d.name], trace_caption=prose_latex(
-        traces[d.name].caption)) if d.name in traces else d for d in designs]
+        traces[d.name].caption, literal=(d.name,))) if d.name in traces else d for d in designs]
     designs = [dataclasses.replace(d, region_figure=(regions or {})[d.name])
                if d.name in (regions or {}) else d for d in designs]
     checks = [_check_view(c) for c in inputs.checks] if inputs.checks is not None else None

@@ -223,12 +223,14 @@ class DesignView:
     @property
     def figure_caption(self) -> Tex:
         """The pole map's caption, typeset."""
-        return prose_latex(self.figure.caption) if self.figure is not None else Tex("")
+        return (prose_latex(self.figure.caption, literal=(self.name,)) if self.figure is not None
+                else Tex(""))
 
     @property
     def region_caption(self) -> Tex:
         """The certified-region figure's caption, typeset."""
-        return prose_latex(self.region_figure.caption) if self.region_figure is not None else Tex("")
+        return (prose_latex(self.region_figure.caption, literal=(self.name,))
+                if self.region_figure is not None else Tex(""))
 
 
 _MARGIN_KEYS = ("margin", "achieved_margin", "min_region_margin", "max_pole_error", "condition_P",

@@ -200,7 +200,7 @@ def prose_math(text: str) -> str:
     return re.sub(r"\$", "", tex).replace(r"\textless{}", "<").replace(r"\textgreater{}", ">")
 
 
-def prose_latex(text: Any, breakable: bool = True) -> Tex:
+def prose_latex(text: Any, breakable: bool = True, literal: tuple[str, ...] = ()) -> Tex:
     """Plain-text prose as LaTeX text mode, with its mathematical fragments typeset.
 
     Parameters
@@ -209,6 +209,10 @@ def prose_latex(text: Any, breakable: bool = True) -> Tex:
         Converted with ``str``; None gives an empty string.
     breakable : bool
         Allow line breaks inside long runs of plain text (narrow table columns).
+    literal : tuple of str
+        Words set verbatim (escaped, never read as mathematics): names the
+        user chose, such as a design called ``my_pp``, which would otherwise
+        read as ``my`` with subscript ``pp``.
 
     Returns
     -------
@@ -217,11 +221,25 @@ def prose_latex(text: Any, breakable: bool = True) -> Tex:
     if text is None:
         return Tex("")
     s = " ".join(str(text).split())
-    out: list[str] = []
-    pos = 0
+    words = sorted({w for w in literal if w}, key=len, reverse=True)
+    if words:
+        pattern = re.compile("|".join(rf"(?<![\w.]){re.escape(w)}(?![\w])" for w in words))
+        out, pos = [], 0
+        for m in pattern.finditer(s):
+            out.append(_typeset(s[pos:m.start()], breakable))
+            out.append(escape_latex(m.group(0), breakable=breakable))
+            pos = m.end()
+        out.append(_typeset(s[pos:], breakable))
+        return Tex("".join(out))
+    return Tex(_typeset(s, breakable))
+
+
+def _typeset(s: str, breakable: bool) -> str:
+    """Escape ``s`` as text, its recognised fragments as mathematics."""
+    out, pos = [], 0
     for m in _TOKEN.finditer(s):
         out.append(escape_latex(s[pos:m.start()], breakable=breakable))
         out.append(_token_tex(m.lastgroup or "", m.group(0)))
         pos = m.end()
     out.append(escape_latex(s[pos:], breakable=breakable))
-    return Tex("".join(out))
+    return "".join(out)

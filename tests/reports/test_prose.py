@@ -44,3 +44,15 @@ def test_fmt_uses_significant_digits():
     assert text == "q1 in [0, 0.00012] m^3/s, q2 in [0, 0.00012] m^3/s"
     assert fmt_signals([3.5e-5], [Sig("q1", "m^3/s")]) == "q1 = 3.5e-05 m^3/s"
     assert re.fullmatch(r"[^\[]*", fmt_signals([1.0], [Sig("x", "1")]))
+
+
+def test_user_names_given_as_literals_stay_verbatim():
+    """A design called ``my_pp`` is a name, not ``my`` with subscript ``pp`` (new-user report);
+    the rest of the sentence is still typeset (``lambda_max`` as Greek with a subscript)."""
+    text = "Verdict simulation of design my_pp (pole_placement): lambda_max = 0.9, pp_my_pp kept"
+    assert "_{pp}" in prose_latex(text)                       # what the literal protects against
+    tex = prose_latex(text, literal=("my_pp",)).replace("\\allowbreak{}", "")
+    assert "my\\_pp (" in tex and "_{pp}" not in tex.replace("pp\\_my\\_pp", "")
+    assert "\\lambda_{\\max}" in tex
+    assert "pp\\_my\\_pp" in tex or "pp_my_pp" not in tex     # a longer word is not split
+    assert prose_latex("a_b", literal=("",)) == prose_latex("a_b")
