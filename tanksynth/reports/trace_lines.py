@@ -175,7 +175,8 @@ class PanelLines:
         y : ndarray, shape (N,)
             The signal (any unit).
         color, linewidth, linestyle, alpha
-            Matplotlib line properties (width in points).
+            Matplotlib line properties: width in points, alpha an opacity in [0, 1]
+            (dimensionless).
         step : bool
             Zero-order-hold staircase (as ``ax.step(where="post")``).
         label : str, optional
@@ -201,7 +202,7 @@ class PanelLines:
         Y : ndarray, shape (R, N)
             The runs (any unit).
         color, linewidth, linestyle, alpha, step
-            As in `line`.
+            As in `line` (width in points, alpha dimensionless).
         """
         Y = np.asarray(Y, dtype=float)
         if Y.ndim != 2 or Y.shape[0] == 0:
