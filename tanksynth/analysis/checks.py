@@ -52,7 +52,20 @@ class Check:
 
 def _kalman(name: str, result) -> Check:
     s = result.singular_values
-    detail = (f"rank {result.rank}/{result.n}, smallest of first n singular values "
+    k = result.n if result.blocks is None else result.blocks
+    if k >= result.n:
+        what = "of the full Kalman matrix"
+    elif k == 1:
+        what = (f"of {'B' if result.kind == 'controllability' else 'C'} alone (its first block: rank n "
+                "there, the later blocks cannot lower it; singular values of that block)")
+    else:   # the leading blocks already span the states: later ones cannot lower the rank
+        last = {1: "", 2: ", A"}.get(k, f", ..., A^{k - 1}")
+        blocks = (f"[B{last.replace('A', 'AB') if k == 2 else (last + ' B' if last else '')}]"
+                  if result.kind == "controllability"
+                  else f"[C{'; CA' if k == 2 else ('; ...; C A^' + str(k - 1) if k > 2 else '')}]")
+        what = (f"of the leading {k} Kalman block(s) {blocks} (rank n there: the later blocks "
+                "cannot lower it; singular values of those blocks)")
+    detail = (f"rank {result.rank}/{result.n} {what}, smallest of first n singular values "
               f"{(s[result.n - 1] if s.size >= result.n else 0.0):.3g}, condition number "
               f"{result.condition_number:.3g}")
     return Check(name, result.full, detail, result.as_dict())
