@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import sympy as sp
 
@@ -130,3 +132,21 @@ def test_kalman_detail_names_the_blocks_that_decide():
     s = np.linalg.svd(np.array([[1.0, -1.0], [1.0, -2.0]]), compute_uv=False)
     assert ctrb.passed and ctrb.data["blocks"] == 2 and "full Kalman matrix" in ctrb.detail
     np.testing.assert_allclose(ctrb.data["singular_values"], s, rtol=1e-12)
+
+
+def test_row_by_row_jacobians_decide_as_the_whole_ones():
+    """The early-stopping Jacobians give the whole `symbolic_jacobians` on a smooth model, and
+    None exactly when the whole ones keep a non-smooth term (the hybrid three-tank)."""
+    from tanksynth.analysis.checks import _NONSMOOTH, _analytic_jacobians
+    from tanksynth.analysis.linearize import symbolic_jacobians
+    from tanksynth.methods import load_spec
+
+    smooth = parse_spec_text(DTS200_H3).plant
+    F, _, C = symbolic_jacobians(smooth)
+    assert not (F.has(*_NONSMOOTH) or C.has(*_NONSMOOTH))
+    F2, C2 = _analytic_jacobians(smooth)
+    assert F2 == F and C2 == C
+    hybrid = load_spec(Path(__file__).resolve().parents[2] / "examples" / "hybrid_three_tank.toml").plant
+    F, _, C = symbolic_jacobians(hybrid)
+    assert F.has(*_NONSMOOTH) or C.has(*_NONSMOOTH)
+    assert _analytic_jacobians(hybrid) is None
