@@ -9,8 +9,8 @@ import numpy as np
 
 import sympy as sp
 
-from tanksynth.analysis.symbolic import TooComplexError, symbolic_budget
-from tanksynth.analysis.linearize import equilibrium_input, linearize, symbolic_jacobians
+from tanksynth.analysis.symbolic import TooComplexError, jacobian, symbolic_budget
+from tanksynth.analysis.linearize import equilibrium_input, linearize
 from tanksynth.plants.base import Plant
 from tanksynth.analysis.rank import (controllability_rank, nonlinear_observability,
                                      observability_determinant_zeros, observability_rank, pbh_test,
@@ -52,10 +52,48 @@ class Check:
 
 def _kalman(name: str, result) -> Check:
     s = result.singular_values
-    detail = (f"rank {result.rank}/{result.n}, smallest of first n singular values "
+    k = result.n if result.blocks is None else result.blocks
+    if k >= result.n:
+        what = "of the full Kalman matrix"
+    elif k == 1:
+        what = (f"of {'B' if result.kind == 'controllability' else 'C'} alone (its first block: rank n "
+                "there, the later blocks cannot lower it; singular values of that block)")
+    else:   # the leading blocks already span the states: later ones cannot lower the rank
+        last = {1: "", 2: ", A"}.get(k, f", ..., A^{k - 1}")
+        blocks = (f"[B{last.replace('A', 'AB') if k == 2 else (last + ' B' if last else '')}]"
+                  if result.kind == "controllability"
+                  else f"[C{'; CA' if k == 2 else ('; ...; C A^' + str(k - 1) if k > 2 else '')}]")
+        what = (f"of the leading {k} Kalman block(s) {blocks} (rank n there: the later blocks "
+                "cannot lower it; singular values of those blocks)")
+    detail = (f"rank {result.rank}/{result.n} {what}, smallest of first n singular values "
               f"{(s[result.n - 1] if s.size >= result.n else 0.0):.3g}, condition number "
               f"{result.condition_number:.3g}")
     return Check(name, result.full, detail, result.as_dict())
+
+
+_NONSMOOTH = (sp.Abs, sp.sign, sp.Max, sp.Min, sp.Heaviside, sp.DiracDelta, sp.Piecewise)
+
+
+def _analytic_jacobians(plant: Plant) -> tuple[sp.Matrix, sp.Matrix] | None:
+    """Symbolic ``df/dx``, ``dh/dx`` of the region's smooth form, or None if one keeps a non-smooth term.
+
+    The entries of `tanksynth.analysis.linearize.symbolic_jacobians` (``dh/dx`` first, then ``df/dx`` row
+    by row), stopping at the first row with a non-smooth term: on a hybrid
+    model the verdict (not attempted) is then known without differentiating
+    the rest (sympy's product rule through ``Piecewise``/``Max`` took ~1 s of
+    the hybrid three-tank's 1.4 s check); ``df/du`` is not needed.
+    """
+    rows = []
+    for exprs in (plant.h, plant.f_smooth):
+        block = []
+        for e in exprs:
+            row = jacobian(sp.Matrix([e]), plant.x)
+            if row.has(*_NONSMOOTH):
+                return None
+            block.append(row)
+        rows.append(sp.Matrix.vstack(*block) if block else sp.zeros(0, plant.n))
+    C_sym, F_sym = rows
+    return F_sym, C_sym
 
 
 def equilibrium_checks(plant: Plant, eq) -> list[Check]:
@@ -162,16 +200,16 @@ def rank_conditions(plant: Plant, x0: Sequence[float], ts: float | None = None,
                   f"there in {', '.join(nl.unobservable_states())}")
         ok = False
     checks.append(Check("nonlinear_observability", ok, detail, data))
-    F_sym, _, C_sym = symbolic_jacobians(plant) if plant.n <= SYMBOLIC_MAX_STATES else (None, None, None)
-    nonsmooth = (sp.Abs, sp.sign, sp.Max, sp.Min, sp.Heaviside, sp.DiracDelta, sp.Piecewise)
-    if F_sym is None:
+    jacobians = _analytic_jacobians(plant) if plant.n <= SYMBOLIC_MAX_STATES else False
+    if jacobians is False:
         checks.append(Check("symbolic_observability", None,
                             f"not attempted: n = {plant.n} > {SYMBOLIC_MAX_STATES} states"))
-    elif F_sym.has(*nonsmooth) or C_sym.has(*nonsmooth):
+    elif jacobians is None:
         checks.append(Check("symbolic_observability", None,
                             "not attempted: the Jacobian keeps non-smooth terms on the region "
                             "(hybrid switching or undetermined flow directions)"))
     else:
+        F_sym, C_sym = jacobians
         try:
             with symbolic_budget("the symbolic observability determinant"):
                 sym = symbolic_observability(F_sym, C_sym, variables=plant.x, state_names=names)

@@ -19,6 +19,8 @@ from tanksynth.plants.base import Plant
 from tanksynth.plants.compile import compile_matrix, evaluate_points, to_casadi
 from tanksynth.analysis.blas import small_dense
 from tanksynth.analysis.symbolic import jacobian
+# re-exported: the symbolic determinant lives in its own module (size), named from here as before
+from tanksynth.analysis.rank_symbolic import SymbolicRank, symbolic_observability
 
 __all__ = [
     "RankResult",
@@ -91,6 +93,14 @@ def observability_matrix(A: np.ndarray, C: np.ndarray) -> np.ndarray:
 class RankResult:
     """Numerical rank of a Kalman matrix, with its evidence.
 
+    The rank is decided on the leading blocks of the Kalman matrix, ``[B, AB,
+    ..., A^(k-1) B]`` (``[C; CA; ...; C A^(k-1)]``), for ``k = 1, 2, 4, ...``
+    up to ``n``: the first ``k`` whose blocks have rank ``n`` settles it (more
+    columns span no less, so the full matrix has rank ``n`` too), and every
+    number below is then of those ``k`` blocks. With ``rank C = n`` (every
+    state measured) that is ``C`` alone; a rank-deficient pair ends at ``k =
+    n``, the full matrix.
+
     Attributes
     ----------
     kind : str
@@ -98,12 +108,18 @@ class RankResult:
     rank, n : int
         Numerical rank and the full rank expected.
     singular_values : ndarray
+        Of the ``blocks`` leading blocks (a lower bound, entry by entry, of
+        the full matrix's: appending blocks never lowers a singular value).
     tolerance : float
-        Singular values above it count.
+        Singular values above it count: ``max(shape) eps s_max`` of the
+        leading blocks.
     condition_number : float
         ``s_max / s_min`` over the first ``n`` singular values (inf if rank
         deficient): large values mean the verdict is fragile.
     matrix : ndarray
+        The leading blocks the numbers are of.
+    blocks : int or None
+        How many blocks ``k`` (None: all ``n``, as a result built by hand).
     """
 
     kind: str
@@ -113,6 +129,7 @@ class RankResult:
     tolerance: float
     condition_number: float
     matrix: np.ndarray
+    blocks: int | None = None
 
     @property
     def full(self) -> bool:
@@ -123,10 +140,11 @@ class RankResult:
         """JSON-friendly summary."""
         return {"kind": self.kind, "rank": self.rank, "n": self.n, "full": self.full,
                 "singular_values": self.singular_values.tolist(), "tolerance": self.tolerance,
-                "condition_number": self.condition_number}
+                "condition_number": self.condition_number,
+                "blocks": self.n if self.blocks is None else self.blocks}
 
 
-def _rank(kind: str, M: np.ndarray, n: int, tol: float | None) -> RankResult:
+def _rank(kind: str, M: np.ndarray, n: int, tol: float | None, blocks: int) -> RankResult:
     with small_dense():    # a threaded BLAS makes this SVD ~100x slower on a loaded small machine
         s = np.linalg.svd(M, compute_uv=False)
     if tol is None:
@@ -134,35 +152,74 @@ def _rank(kind: str, M: np.ndarray, n: int, tol: float | None) -> RankResult:
     rank = int(np.sum(s > tol))
     top = s[:n]
     cond = float(top[0] / top[-1]) if top.size == n and top[-1] > tol else float("inf")
-    return RankResult(kind, rank, n, s, float(tol), cond, M)
+    return RankResult(kind, rank, n, s, float(tol), cond, M, blocks)
+
+
+def _leading_rank(kind: str, A: np.ndarray, first: np.ndarray, tol: float | None) -> RankResult:
+    """Rank of the leading ``k = 1, 2, 4, ..., n`` Kalman blocks (``first`` is ``B`` or ``C``).
+
+    Stops at the first ``k`` with rank ``n``: one SVD of ``C`` when ``rank C
+    = n``, of ``[B, AB]`` when ``B`` and ``AB`` already span the states,
+    instead of the ``(n q) x n`` matrix (65,536 x 256 for a 256-tank network
+    measured everywhere). The blocks are the products of
+    `controllability_matrix` / `observability_matrix`, built once each.
+    """
+    n = A.shape[0]
+    blocks, k = [first], 1
+    while True:
+        with small_dense():   # n x n by n x m products: threads only wait on a loaded machine
+            while len(blocks) < k:
+                blocks.append(A @ blocks[-1] if kind == "controllability" else blocks[-1] @ A)
+        M = np.hstack(blocks) if kind == "controllability" else np.vstack(blocks)
+        res = _rank(kind, M, n, tol, k)
+        if res.full or k >= n:
+            return res
+        k = min(2 * k, n)
 
 
 def controllability_rank(A: np.ndarray, B: np.ndarray, tol: float | None = None) -> RankResult:
-    """Kalman controllability rank of ``(A, B)`` by SVD.
+    """Kalman controllability rank of ``(A, B)`` by SVD of its leading blocks.
+
+    ``[B, AB, ..., A^(k-1) B]`` for ``k = 1, 2, 4, ...`` up to ``n``: the
+    first with rank ``n`` decides (see `RankResult`); a deficient pair is
+    judged on the full ``n x (n m)`` matrix.
 
     Parameters
     ----------
     A : ndarray, shape (n, n)
     B : ndarray, shape (n, m)
     tol : float, optional
-        Singular-value threshold; default ``max(shape) eps s_max``.
+        Singular-value threshold; default ``max(shape) eps s_max`` of the
+        blocks judged.
     """
-    M = controllability_matrix(A, B)
-    return _rank("controllability", M, M.shape[0], tol)
+    A, B = _matrix(A, "A"), _matrix(B, "B")
+    n = A.shape[0]
+    if A.shape != (n, n) or B.shape[0] != n:
+        raise DimensionError(f"A is {A.shape} and B is {B.shape}: expected (n, n) and (n, m)")
+    return _leading_rank("controllability", A, B, tol)
 
 
 def observability_rank(A: np.ndarray, C: np.ndarray, tol: float | None = None) -> RankResult:
-    """Kalman observability rank of ``(A, C)`` by SVD.
+    """Kalman observability rank of ``(A, C)`` by SVD of its leading blocks.
+
+    ``[C; CA; ...; C A^(k-1)]`` for ``k = 1, 2, 4, ...`` up to ``n``: the
+    first with rank ``n`` decides (see `RankResult`), ``C`` alone when every
+    state is measured; a deficient pair is judged on the full ``(n q) x n``
+    matrix.
 
     Parameters
     ----------
     A : ndarray, shape (n, n)
     C : ndarray, shape (q, n)
     tol : float, optional
-        Singular-value threshold; default ``max(shape) eps s_max``.
+        Singular-value threshold; default ``max(shape) eps s_max`` of the
+        blocks judged.
     """
-    M = observability_matrix(A, C)
-    return _rank("observability", M, M.shape[1], tol)
+    A, C = _matrix(A, "A"), _matrix(C, "C")
+    n = A.shape[0]
+    if A.shape != (n, n) or C.shape[1] != n:
+        raise DimensionError(f"A is {A.shape} and C is {C.shape}: expected (n, n) and (q, n)")
+    return _leading_rank("observability", A, C, tol)
 
 
 @dataclass(frozen=True)
@@ -519,141 +576,3 @@ def observability_determinant_zeros(plant: Plant, result: NonlinearObservability
     return DeterminantZeros(True, len(pairs), np.array(zeros).reshape(-1, n),
                             f"sign changes of det along {len(pairs)} segments (consecutive sampled "
                             "points and each point to the centroid), zeros located by brentq")
-
-
-@dataclass(frozen=True)
-class SymbolicRank:
-    """Symbolic rank condition of an observability matrix.
-
-    Attributes
-    ----------
-    matrix : sympy.Matrix
-        ``O = [C; CA; ...; CA^(n-1)]``.
-    blocks_used : int
-        Minors are taken over the first ``blocks_used`` blocks ``C A^k``:
-        the fewest that reach rank n generically (with ``C = I``, one).
-    determinant : sympy.Expr
-        ``det O`` factored (square case) or the gcd of the non-zero maximal
-        minors (rank < n needs every minor to vanish).
-    factors : tuple of sympy.Expr
-        Non-constant factors: the rank drops where any of them vanishes.
-    variables : tuple of sympy.Symbol
-        Premise/state variables treated as varying.
-    degenerate_parameters : tuple of dict
-        Parameter values for which ``det O`` vanishes identically in the
-        variables (the structure is unobservable whatever they are).
-    null_direction : tuple of str
-        When the determinant is identically zero: the states carrying (at
-        least 10% of) the kernel of ``O`` at a generic point, i.e. the
-        unobservable direction.
-    """
-
-    matrix: sp.Matrix
-    blocks_used: int
-    determinant: sp.Expr
-    factors: tuple[sp.Expr, ...]
-    variables: tuple[sp.Symbol, ...]
-    degenerate_parameters: tuple[dict, ...] = field(default=())
-    null_direction: tuple[str, ...] = field(default=())
-
-    @property
-    def identically_zero(self) -> bool:
-        """``det O`` (every maximal minor) is zero for every parameter and variable value."""
-        return bool(sp.simplify(self.determinant) == 0)
-
-    def as_dict(self) -> dict:
-        """JSON-friendly summary (expressions as strings)."""
-        return {"determinant": str(self.determinant), "blocks_used": self.blocks_used, "factors": [str(f) for f in self.factors],
-                "variables": [str(v) for v in self.variables],
-                "degenerate_parameters": [{str(k): str(v) for k, v in d.items()}
-                                          for d in self.degenerate_parameters],
-                "identically_zero": self.identically_zero,
-                "null_direction": list(self.null_direction)}
-
-
-def symbolic_observability(A: sp.Matrix, C: sp.Matrix,
-                           variables: Sequence[sp.Symbol] = (),
-                           state_names: Sequence[str] | None = None) -> SymbolicRank:
-    """Factored determinant of the observability matrix and its conditions.
-
-    Parameters
-    ----------
-    A : sympy.Matrix, shape (n, n)
-        May depend on parameters and on varying ``variables`` (premise
-        variables or states).
-    C : sympy.Matrix, shape (q, n)
-    variables : sequence of sympy.Symbol
-        The symbols that vary; the remaining free symbols are parameters.
-        ``degenerate_parameters`` lists the parameter sets on which the
-        determinant (every maximal minor) vanishes for every value of the
-        variables.
-    state_names : sequence of str, optional
-        Names of the columns, for the unobservable direction of an
-        identically singular ``O``.
-    """
-    A, C = sp.Matrix(A), sp.Matrix(C)
-    n = A.shape[0]
-    blocks = [C]
-    for _ in range(n - 1):
-        blocks.append(blocks[-1] * A)
-    # Only the first blocks that reach rank n generically are needed: with
-    # C = I the observability matrix is decided by C alone (1 minor, not 84).
-    # Generic rank: at random rational values of every symbol.
-    rng = np.random.default_rng(0)
-    symbols = sorted(set().union(*(b.free_symbols for b in blocks)), key=str)
-    point = {s: sp.Rational(int(rng.integers(2, 97)), int(rng.integers(2, 97))) for s in symbols}
-    all_blocks = blocks
-    for k in range(1, n + 1):
-        if sp.Matrix.vstack(*blocks[:k]).xreplace(point).rank() == n:
-            blocks = blocks[:k]
-            break
-    O = sp.Matrix.vstack(*blocks).applyfunc(sp.expand)
-    O_full = sp.Matrix.vstack(*all_blocks).applyfunc(sp.expand)
-    if O.shape[0] == n:
-        det = sp.factor(O.det(method="berkowitz"))
-        minors = [sp.expand(det)]
-    else:
-        from itertools import combinations
-
-        minors = [sp.expand(O.extract(list(r), list(range(n))).det(method="berkowitz"))
-                  for r in combinations(range(O.shape[0]), n)]
-        minors = [mnr for mnr in minors if mnr != 0]
-        det = sp.factor(sp.gcd_list(minors)) if minors else sp.Integer(0)
-    numerator = sp.factor(sp.fraction(sp.together(det))[0])
-    factors = []
-    for fac in sp.Mul.make_args(numerator):
-        if fac.is_Pow and fac.exp.is_positive:
-            fac = fac.base
-        if fac.free_symbols and fac not in factors:
-            factors.append(fac)
-    variables = tuple(variables)
-    degenerate: list[dict] = []
-    params = sorted(set().union(*(mnr.free_symbols for mnr in minors)) - set(variables), key=str) \
-        if minors else []
-    if minors and params:
-        try:
-            coeffs = sorted({c for mnr in minors
-                             for c in sp.Poly(sp.fraction(sp.together(mnr))[0], *variables).coeffs()},
-                            key=str) if variables else minors
-            sols = sp.solve(coeffs, params, dict=True)
-        except sp.PolynomialError:
-            # Not polynomial in the variables: only factors free of them can
-            # vanish identically.
-            sols = []
-            if len(minors) == 1:
-                for fac in factors:
-                    if not fac.free_symbols & set(variables):
-                        sols += sp.solve(fac, sorted(fac.free_symbols, key=str), dict=True)
-        # A parameter set that kills the truncated matrix may leave the later
-        # blocks with rank n: keep it only if the full matrix drops rank too.
-        degenerate = [sol for sol in sols if sol and
-                      O_full.xreplace(sol).xreplace(point).rank() < n]
-    null: tuple[str, ...] = ()
-    if det == 0:
-        names = list(state_names) if state_names is not None else [f"x{i + 1}" for i in range(n)]
-        kernel = O_full.xreplace(point).nullspace()
-        if kernel:
-            v = np.abs(np.array([float(sp.N(x)) for x in kernel[0]]))
-            null = tuple(nm for nm, x in zip(names, v) if x >= 0.1 * v.max())
-    return SymbolicRank(O_full, len(blocks), det, tuple(factors), variables, tuple(degenerate),
-                        null)

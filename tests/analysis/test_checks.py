@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import sympy as sp
 
@@ -115,3 +117,36 @@ def test_region_rank_verdict_finds_the_singular_surface():
     for z in zeros["zeros"][:5]:
         a, b, c = z
         assert det(a * 0.999, b, c) * det(a * 1.001, b, c) <= 0 or abs(det(a, b, c)) < 1e-12
+
+
+def test_kalman_detail_names_the_blocks_that_decide():
+    """Both states measured: observability is decided by C alone and the detail says so; the
+    controllability of x1, x2 (decoupled, one input) needs the whole [B, AB]."""
+    text = UNOBSERVABLE.replace('y = "x1"', 'y1 = "x1"\ny2 = "x2"').replace(
+        'title = "x2 is invisible"', 'title = "both measured"')
+    checks = _checks(text, samples=20)
+    obs, ctrb = checks["observability"], checks["controllability"]
+    assert obs.passed and obs.data["blocks"] == 1 and "C alone" in obs.detail
+    np.testing.assert_allclose(obs.data["singular_values"], [1.0, 1.0], rtol=1e-12)
+    # [B, AB] = [[1, -1], [1, -2]] (a = 1): the whole Kalman matrix, computed by hand
+    s = np.linalg.svd(np.array([[1.0, -1.0], [1.0, -2.0]]), compute_uv=False)
+    assert ctrb.passed and ctrb.data["blocks"] == 2 and "full Kalman matrix" in ctrb.detail
+    np.testing.assert_allclose(ctrb.data["singular_values"], s, rtol=1e-12)
+
+
+def test_row_by_row_jacobians_decide_as_the_whole_ones():
+    """The early-stopping Jacobians give the whole `symbolic_jacobians` on a smooth model, and
+    None exactly when the whole ones keep a non-smooth term (the hybrid three-tank)."""
+    from tanksynth.analysis.checks import _NONSMOOTH, _analytic_jacobians
+    from tanksynth.analysis.linearize import symbolic_jacobians
+    from tanksynth.methods import load_spec
+
+    smooth = parse_spec_text(DTS200_H3).plant
+    F, _, C = symbolic_jacobians(smooth)
+    assert not (F.has(*_NONSMOOTH) or C.has(*_NONSMOOTH))
+    F2, C2 = _analytic_jacobians(smooth)
+    assert F2 == F and C2 == C
+    hybrid = load_spec(Path(__file__).resolve().parents[2] / "examples" / "hybrid_three_tank.toml").plant
+    F, _, C = symbolic_jacobians(hybrid)
+    assert F.has(*_NONSMOOTH) or C.has(*_NONSMOOTH)
+    assert _analytic_jacobians(hybrid) is None

@@ -54,6 +54,73 @@ def test_tolerance_changes_verdict():
     assert controllability_rank(A, B, tol=1e-6).rank == 1
 
 
+def _full_kalman_rank(M):
+    """The rule on a whole Kalman matrix, by hand: numpy SVD, max(shape) eps s_max."""
+    s = np.linalg.svd(M, compute_uv=False)
+    return int(np.sum(s > max(M.shape) * np.finfo(float).eps * s[0])), s
+
+
+def test_every_state_measured_decides_on_c_alone():
+    """rank C = n: one SVD of C, its singular values reported, the (n q) x n matrix never built."""
+    rng = np.random.default_rng(3)
+    n = 12
+    A = rng.normal(size=(n, n))
+    C = np.diag(rng.uniform(0.5, 2.0, n)) @ np.linalg.qr(rng.normal(size=(n, n)))[0]
+    r = observability_rank(A, C)
+    assert r.full and r.blocks == 1 and r.matrix.shape == (n, n)
+    s = np.linalg.svd(C, compute_uv=False)
+    np.testing.assert_allclose(r.singular_values, s, rtol=1e-12)
+    np.testing.assert_allclose(r.condition_number, s[0] / s[-1], rtol=1e-12)
+    assert r.as_dict()["blocks"] == 1
+
+
+def test_leading_blocks_give_the_full_matrix_verdict_and_lower_bounds():
+    """Random pairs, full and deficient: same rank as the whole matrix; reported singular values
+    are those of the leading blocks [B, AB, ...] (each at most the whole matrix's)."""
+    rng = np.random.default_rng(7)
+    for n, m in ((5, 1), (6, 2), (6, 3), (8, 4), (9, 9)):
+        A = rng.normal(size=(n, n)) / np.sqrt(n)
+        B = rng.normal(size=(n, m))
+        whole = np.hstack([np.linalg.matrix_power(A, j) @ B for j in range(n)])
+        rank, s_whole = _full_kalman_rank(whole)
+        r = controllability_rank(A, B)
+        assert r.rank == rank == n
+        k = r.blocks
+        assert k in (1, 2, 4, 8, n) and k * m >= n
+        lead = whole[:, :k * m]
+        np.testing.assert_allclose(r.singular_values, np.linalg.svd(lead, compute_uv=False),
+                                   rtol=1e-10)
+        assert np.all(r.singular_values[:n] <= s_whole[:n] * (1 + 1e-12))
+        # fewer blocks than k (the previous try) would not do
+        if k > 1:
+            prev = whole[:, :(1 << ((k - 1).bit_length() - 1)) * m]   # the try before k
+            assert _full_kalman_rank(prev)[0] < n
+        o = observability_rank(A, B.T)
+        assert o.rank == n and o.blocks == k
+    # a deficient pair is judged on the whole matrix, as before
+    A = np.diag([-1.0, -2.0, -3.0, -4.0])
+    B = np.array([[1.0], [1.0], [0.0], [1.0]])
+    whole = np.hstack([np.linalg.matrix_power(A, j) @ B for j in range(4)])
+    r = controllability_rank(A, B)
+    rank, s_whole = _full_kalman_rank(whole)
+    assert r.rank == rank == 3 and r.blocks == 4 and r.matrix.shape == (4, 4)
+    np.testing.assert_allclose(r.singular_values, s_whole, rtol=1e-12)
+
+
+def test_leading_blocks_not_fooled_by_growing_powers():
+    """With ||A|| >> 1 the whole matrix's tolerance max(shape) eps s_max is dominated by A^(n-1):
+    the naive full SVD loses rank that C = I already proves."""
+    rng = np.random.default_rng(0)
+    n = 30
+    A = 50.0 * rng.normal(size=(n, n))
+    C = np.eye(n)
+    whole = np.vstack([np.linalg.matrix_power(A, j) for j in range(n)])
+    assert _full_kalman_rank(whole)[0] < n            # the naive verdict
+    r = observability_rank(A, C)
+    assert r.full and r.blocks == 1
+    np.testing.assert_allclose(r.singular_values, np.ones(n), rtol=1e-12)
+
+
 def test_dimension_errors():
     with pytest.raises(DimensionError):
         controllability_rank(np.ones((2, 3)), np.ones((2, 1)))
