@@ -332,7 +332,8 @@ class VertexObservability:
     ----------
     ranks : tuple of int
     conditions : tuple of float
-        Condition numbers of the observability matrices.
+        Condition numbers of the leading Kalman blocks that decide each rank (see
+        `tanksynth.analysis.rank.RankResult`; dimensionless).
     unobservable : tuple of int
         Indices (1-based, Table I order) of unobservable vertices.
     symbolic : dict or None
