@@ -114,6 +114,11 @@ def equilibrium_checks(plant: Plant, eq) -> list[Check]:
         bad = [plant.states[j].name for j in np.flatnonzero(res > eq.tolerance)]
         detail += (f"; unbalanced: d{st.name}/dt = {eq.residual[i]:.3g} {st.unit}/s (equation(s) of "
                    f"{', '.join(bad)}): no input holds the plant at x_op")
+        from tanksynth.analysis.trim import balancing_hint
+
+        hint = balancing_hint(plant, eq.x0, eq.tolerance)
+        if hint:
+            detail += f"; {hint}"
     out = [Check("equilibrium", eq.is_equilibrium, detail, eq.as_dict())]
     lim = plant.input_limits
     parts = [f"{q.name} = {v:.4g} {q.unit} in [{lo:g}, {hi:g}]"

@@ -18,7 +18,7 @@ import numpy as np
 from tanksynth.errors import DimensionError
 from tanksynth.plants.base import Plant
 
-__all__ = ["Trim", "trim"]
+__all__ = ["Trim", "trim", "LevelFix", "balancing_levels", "balancing_hint"]
 
 
 @dataclass(frozen=True)
@@ -139,3 +139,130 @@ def trim(plant: Plant, u: Sequence[float], x_guess: Sequence[float] | None = Non
         return Trim(x, u, fun(x), False, tol, False, ("no start converged",), len(points))
     (_, worst), x, r, bad = best
     return Trim(x, u, r, bool(not bad and worst <= tol), tol, not bad, bad, len(points))
+
+
+@dataclass(frozen=True)
+class LevelFix:
+    """One state changed so that the others stay where the user put them and the plant balances.
+
+    Attributes
+    ----------
+    state : str
+        The state changed.
+    value : float
+        Its balancing value (state units).
+    u : ndarray, shape (m,)
+        The equilibrium input there (input units), inside the actuator range.
+    max_abs_residual : float
+        ``max |f(x, u)|`` at the solution (state units per s).
+    """
+
+    state: str
+    value: float
+    u: np.ndarray
+    max_abs_residual: float
+
+    def describe(self, unit: str = "") -> str:
+        """``"h3 = 0.325 m"``."""
+        return f"{self.state} = {self.value:.4g}" + (f" {unit}" if unit else "")
+
+
+def balancing_levels(plant: Plant, x: Sequence[float], tolerance: float) -> list[LevelFix]:
+    """Equilibria that differ from ``x`` in one state only (a hint for a wrong operating point).
+
+    For each state ``i``, the other states are held at ``x`` and ``x_i`` and the
+    inputs are solved from ``f(x, u) = 0`` (bounded least squares: ``x_i`` in the
+    region's box, ``u`` in the actuator range); a solution is kept when its
+    residual is within ``tolerance`` and the point satisfies the region.
+
+    Parameters
+    ----------
+    plant : Plant
+    x : sequence of float, length n
+        The operating point given (state units).
+    tolerance : float
+        Absolute tolerance on ``max |f(x, u)|`` (state units per s), e.g. the
+        equilibrium check's.
+
+    Returns
+    -------
+    list of LevelFix
+        Sorted by the size of the change relative to the state's range; empty
+        when no single state can balance the plant.
+    """
+    from scipy.optimize import (
+        least_squares,  # deferred: only for an operating point that is wrong
+    )
+
+    x = np.asarray(x, dtype=float).reshape(-1)
+    if x.size != plant.n or not np.all(np.isfinite(x)):
+        raise DimensionError(f"x must have {plant.n} finite entries, got {x.tolist()}")
+    comp = plant.compiled
+    lo = np.array([b[0] for b in plant.region.bounds], dtype=float)
+    hi = np.array([b[1] for b in plant.region.bounds], dtype=float)
+    ulim = np.asarray(plant.input_limits, dtype=float).reshape(plant.m, 2)
+    fixes = []
+    for i, st in enumerate(plant.states):
+        if not lo[i] < hi[i]:
+            continue
+
+        def point(z, i=i):
+            xi = x.copy()
+            xi[i] = z[0]
+            return xi, z[1:]
+
+        def fun(z):
+            xi, u = point(z)
+            return comp.rhs(xi[None], u[None])[0]
+
+        def jac(z, i=i):
+            xi, u = point(z)
+            A, B = (J[0] for J in comp.jacobians(xi[None], u[None]))
+            return np.column_stack([A[:, i], B])
+
+        z0 = np.concatenate([[np.clip(x[i], lo[i], hi[i])], ulim.mean(axis=1)])
+        with np.errstate(all="ignore"):
+            try:
+                sol = least_squares(fun, z0, jac=jac, bounds=(np.r_[lo[i], ulim[:, 0]],
+                                                              np.r_[hi[i], ulim[:, 1]]),
+                                    xtol=1e-15, ftol=1e-15, gtol=1e-15, max_nfev=200)
+            except ValueError:
+                continue
+        xi, u = point(sol.x)
+        r = fun(sol.x)
+        if not np.all(np.isfinite(r)) or float(np.max(np.abs(r))) > tolerance:
+            continue
+        if plant.region.violations(xi, plant.x) or abs(xi[i] - x[i]) <= 1e-12 * max(1.0, abs(x[i])):
+            continue
+        fixes.append((abs(xi[i] - x[i]) / (hi[i] - lo[i]),
+                      LevelFix(st.name, float(xi[i]), np.asarray(u, dtype=float),
+                               float(np.max(np.abs(r))))))
+    return [f for _, f in sorted(fixes, key=lambda t: t[0])]
+
+
+def balancing_hint(plant: Plant, x: Sequence[float], tolerance: float) -> str:
+    """One sentence naming the single-state changes that make ``x`` an equilibrium ("" if none).
+
+    Parameters
+    ----------
+    plant : Plant
+    x : sequence of float
+        The operating point given (state units).
+    tolerance : float
+        Absolute tolerance on ``max |f(x, u)|`` (state units per s).
+
+    Returns
+    -------
+    str
+        E.g. ``"the plant balances with h3 = 0.325 m (or h1 = 0.55 m), the other
+        levels as given"``.
+    """
+    fixes = balancing_levels(plant, x, tolerance)
+    if not fixes:
+        return ""
+    units = {s.name: s.unit for s in plant.states}
+    first, rest = fixes[0], fixes[1:]
+    text = f"the plant balances with {first.describe(units[first.state])}"
+    if rest:
+        text += " (or " + ", or ".join(f.describe(units[f.state]) for f in rest) + ")"
+    return text + ", the other states as given"

@@ -28,6 +28,7 @@ import numpy as np
 
 from tanksynth.analysis.linearize import equilibrium_input
 from tanksynth.analysis.statespace import model_names
+from tanksynth.analysis.trim import balancing_hint
 from tanksynth.design.result import DesignResult
 from tanksynth.errors import DesignWarning
 
@@ -52,10 +53,13 @@ def spec_warnings(spec: Any) -> list[str]:
         res = np.abs(eq.residual)
         i = int(np.argmax(res))
         st = plant.states[i]
-        out.append(f"the operating point is not an equilibrium: max |f(x0, u0)| = {res[i]:.3g} "
+        out.append(f"the operating point is not an equilibrium: max |f(x_op, u_op)| = {res[i]:.3g} "
                    f"{st.unit}/s in the equation of d{st.name}/dt (tolerance {eq.tolerance:.3g}) with "
-                   f"the least-squares input u0 = {np.array2string(eq.u0, precision=4)}; the design "
+                   f"the least-squares input u_op = {np.array2string(eq.u0, precision=4)}; the design "
                    "linearises about a point the plant does not stay at")
+        hint = balancing_hint(plant, spec.x0, eq.tolerance)
+        if hint:
+            out[-1] += f"; {hint}"
     if not eq.within_bounds:
         bad = [f"{q.name} = {v:.4g} {q.unit} not in [{lo:g}, {hi:g}]"
                for q, v, (lo, hi) in zip(plant.inputs, eq.u0, plant.input_limits)

@@ -150,3 +150,18 @@ def test_row_by_row_jacobians_decide_as_the_whole_ones():
     F, _, C = symbolic_jacobians(hybrid)
     assert F.has(*_NONSMOOTH) or C.has(*_NONSMOOTH)
     assert _analytic_jacobians(hybrid) is None
+
+
+def test_equilibrium_check_names_the_level_that_balances_the_plant():
+    """A wrong operating point (h3 = 0.35 m where tank 3 balances at (h1 + h2)/2 = 0.325 m) fails
+    the equilibrium check, and its detail says which single level fixes it."""
+    from tanksynth.analysis.checks import equilibrium_checks
+    from tanksynth.analysis.linearize import equilibrium_input
+    from tanksynth.plants import three_tank
+
+    p = three_tank()
+    eq_check = equilibrium_checks(p, equilibrium_input(p, [0.50, 0.15, 0.35]))[0]
+    assert eq_check.passed is False
+    assert "the plant balances with h3 = 0.325 m" in eq_check.detail
+    ok = equilibrium_checks(p, equilibrium_input(p, [0.50, 0.15, 0.325]))[0]
+    assert ok.passed and "balances" not in ok.detail
