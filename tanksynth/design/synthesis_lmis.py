@@ -206,7 +206,8 @@ def _library(values: Sequence[Any]) -> Any:
         if isinstance(v, robust_conic.Expression):
             return robust_conic
         if type(v).__module__.startswith("cvxpy."):
-            import cvxpy as lib     # only the SCS route builds cvxpy expressions
+            # only the SCS route builds cvxpy expressions
+            import cvxpy as lib
     return lib
 
 
