@@ -485,7 +485,7 @@ def eliminated_fits(n: int, C: np.ndarray, variant: str, blocks: Any) -> bool:
     return size * size * (nvars + 1) <= ELIMINATED_DENSE_LIMIT
 
 
-def sweep_problem(A0: np.ndarray, C: np.ndarray, variant: str, kappa: float,
+def sweep_problem(A0: np.ndarray | None, C: np.ndarray, variant: str, kappa: float,
                   blocks: Sequence[Sequence[int]] | None, pattern: Any, solver: str, form: str,
                   margin: float) -> ObserverLMIProblem | ConicObserverLMI:
     """The problem `maximise_psi` solves at every trial ``psi``.
@@ -497,8 +497,10 @@ def sweep_problem(A0: np.ndarray, C: np.ndarray, variant: str, kappa: float,
 
     Parameters
     ----------
-    A0 : ndarray, shape (n, n)
-        1/s (its non-zeros give ``A0_pattern``).
+    A0 : ndarray, shape (n, n), or None
+        1/s (its non-zeros give the cvxpy problem's ``A0_pattern``); None:
+        ``A0`` not known yet (several ``A0`` solved with one problem), dense
+        pattern.
     C : ndarray, shape (q, n)
     variant, kappa, blocks, pattern, solver, form, margin
         As in `tanksynth.design.lmi.maximise_psi`.
@@ -507,12 +509,13 @@ def sweep_problem(A0: np.ndarray, C: np.ndarray, variant: str, kappa: float,
     -------
     ObserverLMIProblem or ConicEliminatedLMI
     """
-    n = A0.shape[0]
+    C = np.atleast_2d(np.asarray(C, dtype=float))
+    n = C.shape[1] if A0 is None else A0.shape[0]
     if solver == "CLARABEL" and (form == "eliminated" or (form == "auto" and pattern is None)) \
             and eliminated_fits(n, C, variant, blocks):
         return ConicEliminatedLMI(n, C, variant, kappa, blocks, pattern, margin=margin)
-    return ObserverLMIProblem(n, C, variant, kappa, blocks, pattern, solver, A0_pattern=A0 != 0,
-                              form=form, margin=margin)
+    return ObserverLMIProblem(n, C, variant, kappa, blocks, pattern, solver,
+                              A0_pattern=None if A0 is None else A0 != 0, form=form, margin=margin)
 
 
 def one_shot_problem(A0: np.ndarray, C: np.ndarray, variant: str, kappa: float,
