@@ -38,9 +38,11 @@ re-checked in numpy in the original units (eigenvalues of the LMI blocks,
 
 The scaled problem compiled once with cvxpy Parameters (structure, ``K``
 eliminated by the projection lemma, sparse ``A0``) is
-`tanksynth.design.lmi_problem.ObserverLMIProblem` (the ``psi`` sweep); a
-full-form LMI solved once by Clarabel is built as conic data directly
-(`tanksynth.design.lmi_conic`); the Kalman observability test is skipped
+`tanksynth.design.lmi_problem.ObserverLMIProblem` (SCS, and eliminated
+problems too large for dense expressions); with Clarabel a full-form LMI
+solved once is built as conic data directly and the eliminated form is
+rebuilt at each solve without cvxpy (`tanksynth.design.lmi_conic`, one-shot
+and ``psi`` sweep alike); the Kalman observability test is skipped
 when ``C`` alone has rank ``n``. None of this touches the re-check: every gain
 is checked against the full ``2n x 2n`` block matrix of eq. (28).
 """
