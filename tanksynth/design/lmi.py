@@ -38,9 +38,11 @@ re-checked in numpy in the original units (eigenvalues of the LMI blocks,
 
 The scaled problem compiled once with cvxpy Parameters (structure, ``K``
 eliminated by the projection lemma, sparse ``A0``) is
-`tanksynth.design.lmi_problem.ObserverLMIProblem` (the ``psi`` sweep); a
-full-form LMI solved once by Clarabel is built as conic data directly
-(`tanksynth.design.lmi_conic`); the Kalman observability test is skipped
+`tanksynth.design.lmi_problem.ObserverLMIProblem` (SCS, and eliminated
+problems too large for dense expressions); with Clarabel a full-form LMI
+solved once is built as conic data directly and the eliminated form is
+rebuilt at each solve without cvxpy (`tanksynth.design.lmi_conic`, one-shot
+and ``psi`` sweep alike); the Kalman observability test is skipped
 when ``C`` alone has rank ``n``. None of this touches the re-check: every gain
 is checked against the full ``2n x 2n`` block matrix of eq. (28).
 """
@@ -56,7 +58,7 @@ from tanksynth.errors import DimensionError, InfeasibleDesign, SpecError, Unobse
 # Module import (not names), so that a test may replace the rank functions.
 from tanksynth.analysis import rank as _rank
 from tanksynth.analysis.blas import small_dense
-from tanksynth.design.lmi_conic import ConicObserverLMI, one_shot_problem, with_kappa
+from tanksynth.design.lmi_conic import ConicObserverLMI, one_shot_problem, sweep_problem, with_kappa
 from tanksynth.design.lmi_problem import (FORMS, SOLVERS, VARIANTS, ObserverLMIProblem, _check_variant,
                                           _matrix, _sym)
 
@@ -404,6 +406,8 @@ def _accept(A0: np.ndarray, C: np.ndarray, psi: float, raw: dict,
     conic = isinstance(prob, ConicObserverLMI)
     nnz = int(np.count_nonzero(A0 if conic else prob.A0_pattern))
     structure["A0_parameter"] = (
+        f"none: eliminated form rebuilt for Clarabel at each solve, no cvxpy (A0 as dense data, "
+        f"{nnz} of {n * n} entries non-zero)" if conic and prob.form == "eliminated" else
         f"none: solved once, conic data built directly for Clarabel (A0 sparse data, {nnz} of "
         f"{n * n} entries)" if conic else
         "dense" if nnz == n * n else f"sparse, {nnz} of {n * n} entries (A0_pattern)")
@@ -590,8 +594,7 @@ def maximise_psi(A0: Any, C: Any, *, variant: str = "qI", margin: float = 1e-6, 
         raise SpecError(f"margin must be a number in (0, 1), got {margin!r}", key="margin")
     _check_variant(variant)
     _refuse_unobservable(A0, C)
-    prob = problem or ObserverLMIProblem(A0.shape[0], C, variant, kappa, blocks, pattern, solver,
-                                         A0_pattern=A0 != 0, form=form, margin=margin)
+    prob = problem or sweep_problem(A0, C, variant, kappa, blocks, pattern, solver, form, margin)
     prob.margin = float(margin)
     omega = prob.time_scale(A0, 0.0)
     extra = {} if solver_options is None else {"solver_options": solver_options}

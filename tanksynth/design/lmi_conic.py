@@ -10,6 +10,12 @@ Clarabel's ``min c'x  s.t.  A x + s = b, s in K`` with sparse matrices, and
 solves it with Clarabel. It is used for one-shot solves only; the ``psi``
 sweep keeps the cvxpy problem compiled once with Parameters.
 
+`ConicEliminatedLMI`: the eliminated form (``K`` recovered in closed form,
+`ObserverLMIProblem`'s default without a gain pattern) with Clarabel, written
+with the affine expressions of `tanksynth.design.robust_conic` and rebuilt at
+each solve (one-shot and ``psi`` sweep alike) when it is small enough for
+dense expressions (`ELIMINATED_DENSE_LIMIT`); otherwise cvxpy as before.
+
 Variables ``x = [p, qv, k, t]``: the free entries of the (block-diagonal)
 symmetric ``P`` (upper triangle of each block, column-major), of ``Q``
 (``q`` for ``Q = q I``), of ``K`` (the allowed entries of the gain pattern)
@@ -30,10 +36,18 @@ import numpy as np
 import scipy.sparse as sps
 
 from tanksynth.analysis.blas import small_dense
-from tanksynth.design.lmi_problem import ObserverLMIProblem, _check_variant, _matrix, _structure
+from tanksynth.design import robust_conic as rc
+from tanksynth.design.lmi_problem import (ObserverLMIProblem, _check_variant, _matrix, _output_split,
+                                          _structure, _sym)
 from tanksynth.errors import DimensionError, SpecError
 
-__all__ = ["ConicObserverLMI", "one_shot_problem", "with_kappa"]
+__all__ = ["ConicObserverLMI", "ConicEliminatedLMI", "one_shot_problem", "sweep_problem", "eliminated_fits",
+           "with_kappa", "ELIMINATED_DENSE_LIMIT"]
+
+#: Largest ``(LMI size)^2 x (number of variables)`` for which the eliminated form is written
+#: with the dense expressions of `tanksynth.design.robust_conic` (8 bytes each: 64 MB);
+#: larger eliminated problems keep cvxpy (`ObserverLMIProblem`).
+ELIMINATED_DENSE_LIMIT = 8_000_000
 
 #: Clarabel status -> cvxpy's status string (the names `ObserverLMIProblem` reports).
 _STATUS = {"Solved": "optimal", "AlmostSolved": "optimal_inaccurate",
@@ -306,6 +320,204 @@ class ConicObserverLMI:
         return out
 
 
+class ConicEliminatedLMI(ConicObserverLMI):
+    """Scaled observer LMI (28), eliminated form, solved by Clarabel without cvxpy.
+
+    The problem `tanksynth.design.lmi_problem.ObserverLMIProblem` builds with
+    ``form="eliminated"`` and ``solver="CLARABEL"`` (same variables,
+    normalisation, objective and closed-form gain recovery), written with the
+    affine expressions of `tanksynth.design.robust_conic` and rebuilt, cheaply,
+    at every `solve` (the ``psi`` sweep included). Dense expressions: meant for
+    problems under `ELIMINATED_DENSE_LIMIT` (see `eliminated_fits`).
+
+    Parameters
+    ----------
+    n : int
+        Number of states.
+    C : array_like, shape (q, n)
+        Output matrix (rows are normalised internally).
+    variant : {"qI", "full"}
+    kappa : float
+        Conditioning bound: ``P >= I``, ``trace P <= kappa n`` (> 1).
+    blocks : sequence of sequence of int, optional
+        Partition of the states: ``P`` and ``Q`` are block-diagonal.
+    margin : float
+        Margin the recovered gain is built for (dimensionless, normalised LMI).
+    solver_options : mapping, optional
+        Clarabel settings for every solve.
+    """
+
+    form = "eliminated"
+    recover_gain = ObserverLMIProblem.recover_gain
+
+    def __init__(self, n: int, C: Any, variant: str = "qI", kappa: float = 1e4,
+                 blocks: Sequence[Sequence[int]] | None = None, pattern: Any = None, *,
+                 margin: float = 1e-6, solver_options: dict | None = None):
+        super().__init__(n, C, variant, kappa, blocks, pattern, margin=margin,
+                         solver_options=solver_options)
+        if self.mask is not None:
+            raise SpecError("the eliminated form needs a free gain K: a gain pattern needs "
+                            "form='full'", key="form")
+        self.V1, self.V2, self._W = _output_split(self.Cs)
+        self.fixed_P = self.V2.shape[1] == 0
+
+    def _parts(self, m: rc.Model) -> list:
+        """``(block, variable)`` of a symmetric (block-diagonal) matrix, assembled by `_assemble`."""
+        return [(b, m.variable((len(b), len(b)), symmetric=True) if len(b) > 1 else m.variable())
+                for b in ([list(range(self.n))] if self.blocks is None else self.blocks)]
+
+    def _assemble(self, m: rc.Model, parts: list) -> rc.Expression:
+        n = self.n
+        data = np.zeros((n, n, m.size + 1))
+        for b, v in parts:
+            idx = np.asarray(b)
+            data[np.ix_(idx, idx)] = v.data.reshape(len(b), len(b), m.size + 1)
+        return rc.Expression(m, data)
+
+    def solve(self, A0: np.ndarray, psi: float, omega: float | None = None, *,
+              margin: float | None = None, solver_options: dict | None = None) -> dict:
+        """Solve the scaled problem; the raw (unchecked) solution, as `ObserverLMIProblem.solve`.
+
+        Parameters
+        ----------
+        A0 : ndarray, shape (n, n)
+            Mean vertex matrix (1/s).
+        psi : float
+            Lipschitz constant (1/s), >= 0.
+        omega : float, optional
+            Time scale (1/s); default `time_scale`.
+        margin : float, optional
+            Margin the recovered gain is built for; default the problem's
+            ``margin``. Dimensionless (normalised LMI).
+        solver_options : mapping, optional
+            Clarabel settings for this solve (over the problem's).
+
+        Returns
+        -------
+        dict
+            ``status``, ``t`` (``-inf`` on failure) and when solved ``P``,
+            ``Q``, ``K``, ``L`` in original units, ``omega``, ``t_P``,
+            ``t_K``, ``solve_time`` (s, problem build included).
+        """
+        A0 = _matrix(A0, "A0")
+        n = self.n
+        if A0.shape != (n, n):
+            raise DimensionError(f"A0 has shape {A0.shape}, expected ({n}, {n})")
+        if not (np.isfinite(psi) and psi >= 0):
+            raise SpecError(f"psi must be a finite number >= 0, got {psi!r}", key="psi")
+        start = time.perf_counter()
+        w = float(omega) if omega is not None else self.time_scale(A0, psi)
+        As, t2 = A0 / w, (psi / w) ** 2
+        I, V2 = np.eye(n), self.V2
+        # Variables in ObserverLMIProblem's order: t, P (unless fixed), Q.
+        m = rc.Model()
+        t = m.variable()
+        p_parts = None if self.fixed_P else self._parts(m)
+        qv = m.variable() if self.variant == "qI" else None
+        q_parts = None if qv is not None else self._parts(m)
+        m.freeze()
+        cons = []
+        P = None
+        if p_parts is not None:
+            P = self._assemble(m, p_parts)
+            for b, v in p_parts:            # P >= I per block (a linear bound for 1 x 1 blocks)
+                cons.append(v >= 1.0 if len(b) == 1 else v >> np.eye(len(b)))
+        Q = qv * I if qv is not None else self._assemble(m, q_parts)
+        if V2.shape[1] == 0:
+            cons.insert(0, qv >= t if qv is not None else 0.5 * (Q + Q.T) >> t * I)
+        else:
+            PV2 = P @ V2
+            Ys = As @ V2
+            X22 = Ys.T @ PV2 + V2.T @ P @ Ys + t2 * (V2.T @ Q @ V2)
+            M = rc.bmat([[X22, PV2.T], [PV2, -Q]])
+            cons.insert(0, 0.5 * (M + M.T) << -t * np.eye(n + V2.shape[1]))
+        if P is not None:
+            cons.append(rc.trace(P) <= self.kappa * n)
+        cons.append(t <= 1.0)
+        prob = rc.Problem(rc.Maximize(t), cons)
+        settings = {**self.solver_options, **(solver_options or {})}
+        try:
+            prob.solve("CLARABEL", **settings)
+        except (AttributeError, TypeError) as exc:
+            raise SpecError(f"Clarabel setting refused: {exc}", key="solver_options") from None
+        except BaseException as exc:  # the Rust solver raises PanicException (a BaseException)
+            if isinstance(exc, (KeyboardInterrupt, SystemExit)):
+                raise
+            return {"status": f"solver_error: {exc}", "t": -np.inf, "omega": w,
+                    "solve_time": time.perf_counter() - start}
+        status = str(prob.status)
+        out: dict = {"status": status, "omega": w}
+        if status not in _ACCEPTED or t.value is None:
+            out.update({"t": -np.inf, "solve_time": time.perf_counter() - start})
+            return out
+        Pv = I if P is None else _sym(np.asarray(P.value, dtype=float))
+        Qs = float(qv.value) * I if qv is not None else _sym(np.asarray(Q.value, dtype=float))
+        with small_dense():
+            Ks, t_P, t_K = self.recover_gain(As, t2, Pv, Qs,
+                                             self.margin if margin is None else float(margin))
+        K = w * Ks * self.output_scale[None, :]
+        L = np.linalg.solve(Pv, K)
+        out.update({"t": float(t.value), "P": Pv, "Q": Qs / w, "K": K, "L": L, "t_P": t_P,
+                    "t_K": t_K, "solve_time": time.perf_counter() - start})
+        return out
+
+
+def eliminated_fits(n: int, C: np.ndarray, variant: str, blocks: Any) -> bool:
+    """Whether the eliminated LMI is small enough for `ConicEliminatedLMI` (dense expressions).
+
+    Parameters
+    ----------
+    n : int
+    C : ndarray, shape (q, n)
+    variant : {"qI", "full"}
+    blocks : sequence of sequence of int or None
+
+    Returns
+    -------
+    bool
+        ``(LMI size)^2 x (number of variables) <= ELIMINATED_DENSE_LIMIT``.
+    """
+    rank = int(np.linalg.matrix_rank(np.atleast_2d(np.asarray(C, dtype=float))))
+    r2 = n - rank
+    sym = sum(len(b) * (len(b) + 1) // 2 for b in (blocks or [list(range(n))]))
+    nvars = (sym if r2 > 0 else 0) + (1 if variant == "qI" else sym) + 1
+    size = n + r2 if r2 > 0 else (1 if variant == "qI" else n)
+    return size * size * (nvars + 1) <= ELIMINATED_DENSE_LIMIT
+
+
+def sweep_problem(A0: np.ndarray | None, C: np.ndarray, variant: str, kappa: float,
+                  blocks: Sequence[Sequence[int]] | None, pattern: Any, solver: str, form: str,
+                  margin: float) -> ObserverLMIProblem | ConicObserverLMI:
+    """The problem `maximise_psi` solves at every trial ``psi``.
+
+    With Clarabel, the eliminated form of a problem under
+    `ELIMINATED_DENSE_LIMIT` is rebuilt at each trial without cvxpy
+    (`ConicEliminatedLMI`: milliseconds); otherwise the cvxpy problem compiled
+    once with Parameters (`ObserverLMIProblem`).
+
+    Parameters
+    ----------
+    A0 : ndarray, shape (n, n), or None
+        1/s (its non-zeros give the cvxpy problem's ``A0_pattern``); None:
+        ``A0`` not known yet (several ``A0`` solved with one problem), dense
+        pattern.
+    C : ndarray, shape (q, n)
+    variant, kappa, blocks, pattern, solver, form, margin
+        As in `tanksynth.design.lmi.maximise_psi`.
+
+    Returns
+    -------
+    ObserverLMIProblem or ConicEliminatedLMI
+    """
+    C = np.atleast_2d(np.asarray(C, dtype=float))
+    n = C.shape[1] if A0 is None else A0.shape[0]
+    if solver == "CLARABEL" and (form == "eliminated" or (form == "auto" and pattern is None)) \
+            and eliminated_fits(n, C, variant, blocks):
+        return ConicEliminatedLMI(n, C, variant, kappa, blocks, pattern, margin=margin)
+    return ObserverLMIProblem(n, C, variant, kappa, blocks, pattern, solver,
+                              A0_pattern=None if A0 is None else A0 != 0, form=form, margin=margin)
+
+
 def one_shot_problem(A0: np.ndarray, C: np.ndarray, variant: str, kappa: float,
                      blocks: Sequence[Sequence[int]] | None, pattern: Any, solver: str, form: str,
                      margin: float) -> ObserverLMIProblem | ConicObserverLMI:
@@ -315,7 +527,7 @@ def one_shot_problem(A0: np.ndarray, C: np.ndarray, variant: str, kappa: float,
     directly as conic data (`ConicObserverLMI`): cvxpy's compilation of a
     Parameter problem costs 10-30 times the solve and pays off only when the
     problem is solved again. The eliminated form (gain recovered in closed
-    form) and SCS keep `ObserverLMIProblem`.
+    form) is `sweep_problem`'s choice; SCS keeps `ObserverLMIProblem`.
 
     Parameters
     ----------
@@ -332,8 +544,7 @@ def one_shot_problem(A0: np.ndarray, C: np.ndarray, variant: str, kappa: float,
     n = A0.shape[0]
     if solver == "CLARABEL" and (form == "full" or (form == "auto" and pattern is not None)):
         return ConicObserverLMI(n, C, variant, kappa, blocks, pattern, margin=margin)
-    return ObserverLMIProblem(n, C, variant, kappa, blocks, pattern, solver, A0_pattern=A0 != 0,
-                              form=form, margin=margin)
+    return sweep_problem(A0, C, variant, kappa, blocks, pattern, solver, form, margin)
 
 
 def with_kappa(prob: ObserverLMIProblem | ConicObserverLMI, kappa: float,
@@ -352,6 +563,9 @@ def with_kappa(prob: ObserverLMIProblem | ConicObserverLMI, kappa: float,
     -------
     ObserverLMIProblem or ConicObserverLMI
     """
+    if isinstance(prob, ConicEliminatedLMI):
+        return ConicEliminatedLMI(prob.n, prob.C, prob.variant, kappa, prob.blocks, None,
+                                  margin=margin, solver_options=prob.solver_options)
     if isinstance(prob, ConicObserverLMI):
         return ConicObserverLMI(prob.n, prob.C, prob.variant, kappa, prob.blocks, prob.mask,
                                 margin=margin, solver_options=prob.solver_options)

@@ -21,15 +21,17 @@ from __future__ import annotations
 
 import time
 import warnings
-from typing import Any, Callable, Sequence
+from typing import TYPE_CHECKING, Any, Callable, Sequence
 
-import cvxpy as cp
 import numpy as np
 import scipy.linalg as sla
 import scipy.sparse as sps
 
 from tanksynth.analysis.blas import small_dense
 from tanksynth.errors import DimensionError, SpecError
+
+if TYPE_CHECKING:
+    import cvxpy as cp
 
 __all__ = [
     "solve_status",
@@ -70,6 +72,8 @@ def solve_status(problem: cp.Problem, solver: str, **settings: Any) -> str:
     str
         ``problem.status``, or ``"solver_error (<message>)"`` (one line, at most 200 characters).
     """
+    import cvxpy as cp      # here, not at module level: the direct Clarabel routes never pay it
+
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", UserWarning)
@@ -141,6 +145,8 @@ def _sparse_parameter(pattern: np.ndarray, name: str) -> tuple[Any, Callable[[np
     potentially non-zero; over the pattern the LMI keeps the network's
     sparsity, which Clarabel's chordal decomposition exploits.
     """
+    import cvxpy as cp
+
     shape = pattern.shape
     idx = np.flatnonzero(pattern.ravel(order="F"))
     if idx.size == pattern.size:
@@ -171,6 +177,8 @@ def _symmetric(n: int, blocks: list[list[int]] | None, name: str) -> tuple[Any, 
     whose compile time grows with the number of blocks); ``>= I`` is imposed
     per block, as a linear bound for 1x1 blocks.
     """
+    import cvxpy as cp
+
     if blocks is None:
         V = cp.Variable((n, n), symmetric=True, name=name)
         return V, [V >> np.eye(n)], cp.trace(V)
@@ -296,6 +304,8 @@ class ObserverLMIProblem:
                  blocks: Sequence[Sequence[int]] | None = None, pattern: Any = None,
                  solver: str = "CLARABEL", *, A0_pattern: Any = None, form: str = "auto",
                  margin: float = 1e-6, solver_options: dict | None = None):
+        import cvxpy as cp      # only the cvxpy route builds this class (see lmi_conic)
+
         _check_variant(variant)
         _check_solver(solver)
         if form not in FORMS:
@@ -463,6 +473,8 @@ class ObserverLMIProblem:
         As, t2 = A0 / w, (psi / w) ** 2
         self._set_A0(As)
         self.t2.value = t2
+        import cvxpy as cp
+
         opts = self._options(solver_options)
         start = time.perf_counter()
         try:

@@ -1,11 +1,11 @@
-"""Pole placement in LMI regions (Chilali-Gahinet), with cvxpy + Clarabel.
+"""Pole placement in LMI regions (Chilali-Gahinet), with Clarabel (SCS through cvxpy).
 
     ``D = {z : L_D + M_D z + M_D' conj(z) < 0}``: half-plane ``Re z < -alpha``,
     disk (centre, radius; the natural region in discrete time), conic sector,
     and intersections of these. ``A - B K`` has all its eigenvalues in ``D``
     iff there is ``X > 0`` with ``L_D (x) X + M_D (x) (A X - B Y) + M_D' (x)
     (A X - B Y)' < 0``, ``K = Y X^-1``. Observers use the dual ``(A', C')``.
-    Solved with cvxpy + Clarabel after scaling (diagonal balancing of ``A``,
+    Solved with Clarabel (conic form written directly) after scaling (diagonal balancing of ``A``,
     input normalisation, time scaling in continuous time), with an explicit
     margin, and re-checked in numpy (LMI eigenvalues, closed-loop
     eigenvalues inside the region).
@@ -30,7 +30,6 @@ import time
 from dataclasses import dataclass
 from typing import Any, Sequence
 
-import cvxpy as cp
 import numpy as np
 import scipy.linalg as sla
 
@@ -38,7 +37,7 @@ from tanksynth.analysis.lmi_region import LMIRegion
 from tanksynth.errors import (DimensionError, InfeasibleDesign, SpecError, UncontrollableError,
                               UnobservableError)
 from tanksynth.design.lmi import SOLVERS, LMICheck
-from tanksynth.design.lmi_problem import solve_status
+from tanksynth.design.robust_conic import modelling
 from tanksynth.design.placement_exact import _complex_list, _matrix, _pair
 # Module import (not names), so that a test may replace the rank functions.
 from tanksynth.analysis import rank as _rank
@@ -261,7 +260,7 @@ def lmi_state_feedback(A: Any, B: Any, region: LMIRegion, *, domain: str = "cont
     tries: list[dict] = []
     kap = float(kappa)
     while True:
-        X, Y, phase2, bound, tstar, status, active = _phase1(As, Bs, reg, n, m, kap, solver)
+        X, Y, phase2, tstar, status, active = _phase1(As, Bs, reg, n, m, kap, solver)
         tries.append({"kappa": kap, "largest_margin_t": tstar, "status": status,
                       "bound_active": active})
         if tstar >= margin:
@@ -285,8 +284,7 @@ def lmi_state_feedback(A: Any, B: Any, region: LMIRegion, *, domain: str = "cont
             + ("; the conditioning bound is not active, so the optimum certifies that no larger "
                "margin exists)" if active is False else "; the solver returned no point)"))
     Xv, Yv = X.value.copy(), Y.value.copy()
-    bound.value = max(margin, 0.5 * tstar)
-    status2 = solve_status(phase2, solver)
+    status2 = phase2(max(margin, 0.5 * tstar))
     if status2 in ("optimal", "optimal_inaccurate") and X.value is not None:
         Xv, Yv, status = X.value, Y.value, f"{status} (phase 1), {status2} (phase 2)"
     else:
@@ -341,29 +339,37 @@ def _phase1(As: np.ndarray, Bs: np.ndarray, reg: LMIRegion, n: int, m: int, kapp
             solver: str):
     """Build both phases for one ``kappa`` and solve phase 1.
 
-    Returns ``(X, Y, phase2, bound, t*, status, active)``; ``active`` is
-    whether ``X`` sits at ``kappa I`` (None when the solver returned no point).
+    Returns ``(X, Y, phase2, t*, status, active)``; ``phase2(bound)`` solves
+    phase 2 with the margin ``bound`` (dimensionless) and returns its status;
+    ``active`` is whether ``X`` sits at ``kappa I`` (None when the solver
+    returned no point). With Clarabel the LMIs are written straight in its
+    conic form (`tanksynth.design.robust_conic`), with SCS through cvxpy.
     """
     I = np.eye(n)
-    X = cp.Variable((n, n), symmetric=True)
-    Y = cp.Variable((m, n))
-    t = cp.Variable()
-    bound = cp.Parameter(nonneg=True)
-    lmi = _d_lmi(reg, As @ X - Bs @ Y, X, cp.kron)
+    lib = modelling(solver)
+    X = lib.variable((n, n), symmetric=True)
+    Y = lib.variable((m, n))
+    t = lib.variable()
+    lib.reserve_norm()
+    lmi = _d_lmi(reg, As @ X - Bs @ Y, X, lib.kron)
     lmi = 0.5 * (lmi + lmi.T)
     d = reg.order * n
     box = [X >> I, X << kappa * I]
     # Phase 1: largest margin t (certifies infeasibility when t* < margin and the box is slack).
-    phase1 = cp.Problem(cp.Maximize(t), [lmi << -t * np.eye(d), t <= 1.0, *box])
-    # Phase 2: smallest ||Y||_F keeping half of the achievable margin (moderate gains).
-    phase2 = cp.Problem(cp.Minimize(cp.norm(Y, "fro")), [lmi << -bound * np.eye(d), *box])
-    status = solve_status(phase1, solver)
+    phase1 = lib.Problem(lib.Maximize(t), [lmi << -t * np.eye(d), t <= 1.0, *box])
+
+    def phase2(bound: float) -> str:
+        # Phase 2: smallest ||Y||_F keeping half of the achievable margin (moderate gains).
+        prob = lib.Problem(lib.Minimize(lib.norm_fro(Y)), [lmi << -bound * np.eye(d), *box])
+        return lib.solve_status(prob, solver)
+
+    status = lib.solve_status(phase1, solver)
     solved = status in ("optimal", "optimal_inaccurate") and t.value is not None
     tstar = float(t.value) if solved else -np.inf
     active = None
     if solved and X.value is not None:
         active = bool(np.max(np.linalg.eigvalsh(_sym_np(X.value))) >= KAPPA_ACTIVE * kappa)
-    return X, Y, phase2, bound, tstar, status, active
+    return X, Y, phase2, tstar, status, active
 
 
 def _sym_np(M: np.ndarray) -> np.ndarray:

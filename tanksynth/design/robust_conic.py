@@ -1,4 +1,4 @@
-"""Affine matrix expressions solved straight in Clarabel's conic form (the robust LMIs).
+"""Affine matrix expressions solved straight in Clarabel's conic form (robust, synthesis, placement LMIs).
 
 The robust LMIs of `tanksynth.design.robust` are small (a few 3 x 3 to 16 x 16
 blocks per vertex, about twenty variables) and solved two or three times per
@@ -29,7 +29,7 @@ import numpy as np
 import scipy.sparse as sps
 
 __all__ = ["Model", "Expression", "Variable", "Problem", "Maximize", "Minimize", "kron", "bmat",
-           "reshape", "norm", "solve_status", "modelling"]
+           "reshape", "trace", "norm", "solve_status", "modelling"]
 
 #: Clarabel status -> cvxpy's status string.
 _STATUS = {"Solved": "optimal", "AlmostSolved": "optimal_inaccurate",
@@ -369,6 +369,24 @@ def bmat(blocks: Sequence[Sequence[Any]]) -> Expression:
                                              for row in blocks], axis=0))
 
 
+def trace(expr: Expression) -> Expression:
+    """Trace of a square matrix expression (cvxpy's ``trace``).
+
+    Parameters
+    ----------
+    expr : Expression, shape (k, k)
+
+    Returns
+    -------
+    Expression
+        Scalar.
+    """
+    d = expr.data
+    if d.ndim != 3 or d.shape[0] != d.shape[1]:
+        raise ValueError(f"trace needs a square matrix, got shape {d.shape[:-1]}")
+    return Expression(expr.model, np.einsum("iiv->v", d))
+
+
 def reshape(expr: Expression, shape: tuple[int, ...], order: str = "F") -> Expression:
     """Reshape (column-major by default, as cvxpy's).
 
@@ -410,7 +428,13 @@ class Problem:
 
     def _model(self) -> Model:
         expr = self.objective.expr
-        return (expr.expr if isinstance(expr, _Norm) else expr).model
+        if isinstance(expr, _Norm):
+            return expr.expr.model
+        if isinstance(expr, Expression):
+            return expr.model
+        if not self.constraints:
+            raise ValueError("a problem with a constant objective needs constraints")
+        return self.constraints[0].model          # constant objective: a feasibility problem
 
     def _data(self) -> tuple:
         obj = self.objective
@@ -424,8 +448,10 @@ class Problem:
             cons.append(Constraint("soc", np.vstack([t.data[None], e.data.reshape(-1, N + 1)]),
                                    model))
             c += t.data
-        else:
+        elif isinstance(obj.expr, Expression):
             c += obj.sign * obj.expr.data
+        else:
+            c[N] = obj.sign * float(obj.expr)
         used = c[:N] != 0
         for k in cons:
             used |= np.any(k.data.reshape(-1, N + 1)[:, :N] != 0, axis=0)
@@ -511,7 +537,7 @@ class _Conic:
     def __init__(self) -> None:
         self.model = Model()
         self._epigraph: Variable | None = None
-        self.kron, self.bmat, self.reshape = kron, bmat, reshape
+        self.kron, self.bmat, self.reshape, self.trace = kron, bmat, reshape, trace
         self.Problem, self.Maximize, self.Minimize = Problem, Maximize, Minimize
         self.solve_status = solve_status
 
@@ -538,7 +564,7 @@ class _Cvxpy:
         from tanksynth.design.lmi_problem import solve_status as cvx_status
 
         self.cp = cp
-        self.kron, self.bmat, self.reshape = cp.kron, cp.bmat, cp.reshape
+        self.kron, self.bmat, self.reshape, self.trace = cp.kron, cp.bmat, cp.reshape, cp.trace
         self.Problem, self.Maximize, self.Minimize = cp.Problem, cp.Maximize, cp.Minimize
         self.solve_status = cvx_status
 
@@ -564,7 +590,7 @@ def modelling(solver: str) -> Any:
     Returns
     -------
     object
-        ``variable``, ``kron``, ``bmat``, ``reshape``, ``norm_fro``,
+        ``variable``, ``kron``, ``bmat``, ``reshape``, ``trace``, ``norm_fro``,
         ``reserve_norm``, ``Problem``, ``Maximize``, ``Minimize``,
         ``solve_status``.
     """

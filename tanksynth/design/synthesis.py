@@ -1,4 +1,4 @@
-"""H2 and H-infinity synthesis by LMIs (cvxpy + Clarabel): building blocks and solvers.
+"""H2 and H-infinity synthesis by LMIs (Clarabel; SCS through cvxpy): building blocks and solvers.
 
 Generalised plant (continuous time: ``x' = dx/dt``; discrete time: ``x' = x(k+1)``)::
 
@@ -8,7 +8,7 @@ Generalised plant (continuous time: ``x' = dx/dt``; discrete time: ``x' = x(k+1)
 State feedback ``u = -K x`` gives ``Acl = A - B K``, ``Bw``, ``Ccl = Cz - Dzu K``.
 The LMIs are written in ``X = X' > 0`` and ``Y = K X`` (``K = Y X^-1``); every
 block builder below returns a matrix that must be NEGATIVE definite and works
-on cvxpy expressions (for solving) and on numpy arrays (for re-checking): `h2_lmis`,
+on affine expressions (for solving) and on numpy arrays (for re-checking): `h2_lmis`,
 `hinf_lmis`, `region_lmi` (their formulas: `tanksynth.design.synthesis_lmis`).
 
 `synthesize_state_feedback` solves any combination (H2 and/or H-infinity
@@ -31,6 +31,10 @@ solved by default with its Riccati equation (`tanksynth.design.synthesis_riccati
 which has the same optimum and scales (N = 64 tanks in about a second, where
 Clarabel's dense factorisation of the LMI takes minutes); ``route = "lmi"``
 forces the LMIs. Both routes' gains get the same re-check.
+
+Solver: with Clarabel the LMIs are written straight in its conic form
+(`tanksynth.design.robust_conic`: no cvxpy import, no canonicalisation);
+SCS solves the same LMIs through cvxpy.
 """
 
 from __future__ import annotations
@@ -39,14 +43,13 @@ import time
 from dataclasses import dataclass, field
 from typing import Any, Sequence
 
-import cvxpy as cp
 import numpy as np
 import scipy.linalg as sla
 
 from tanksynth.analysis.lmi_region import LMIRegion
 from tanksynth.analysis.statespace import h2_norm, hinf_below, hinf_norm, statespace_matrices
 from tanksynth.design.lmi import LMICheck
-from tanksynth.design.lmi_problem import solve_status
+from tanksynth.design.robust_conic import modelling
 from tanksynth.design.synthesis_lmis import (DOMAINS, GeneralizedPlant, generalized_plant, h2_lmis,
                                             hinf_lmis, hinf_lmis_reduced, observer_plant, region_lmi)
 from tanksynth.design.synthesis_riccati import (riccati_applicable, riccati_h2, riccati_hinf,
@@ -165,10 +168,10 @@ class SynthesisResult:
                 "gain_norm": float(np.linalg.norm(self.gain, 2)), "scaling": self.scaling}
 
 
-def _solve(problem: cp.Problem, solver: str) -> str:
-    """`solve_status` with this module's tight tolerances (the Riccati comparison needs them)."""
+def _solve(lib: Any, problem: Any, solver: str) -> str:
+    """``lib.solve_status`` with this module's tight tolerances (the Riccati comparison needs them)."""
     settings = _CLARABEL if solver == "CLARABEL" else {"eps": 1e-9, "max_iters": 200000}
-    return solve_status(problem, solver, **settings)
+    return lib.solve_status(problem, solver, **settings)
 
 
 def _ok(status: str) -> bool:
@@ -326,10 +329,14 @@ def synthesize_state_feedback(plants: GeneralizedPlant | Sequence[GeneralizedPla
     reg_s = None if region is None else (region.scaled(sc.omega) if domain == "continuous" else region)
     f2, finf = sc.h2_factor(domain), sc.hinf_factor()
     n, m, nz = models[0].n, models[0].m, models[0].Cz.shape[0]
-    X = cp.Variable((n, n), symmetric=True)
-    Y = cp.Variable((m, n))
-    W = cp.Variable((nz, nz), symmetric=True) if use_h2 else None
-    g = cp.Variable(nonneg=True) if use_hinf else None
+    # Clarabel: the LMIs written straight in its conic form (robust_conic); SCS: through cvxpy.
+    # Every variable first (the conic model's size is fixed by the first expression built).
+    lib = modelling(solver)
+    X = lib.variable((n, n), symmetric=True)
+    Y = lib.variable((m, n))
+    W = lib.variable((nz, nz), symmetric=True) if use_h2 else None
+    g = lib.variable(nonneg=True) if use_hinf else None
+    t = lib.variable()                                  # phase 2 margin
     # without an H2 LMI in the same X, the smaller bounded real lemma in (gamma X, mu = gamma^2)
     reduced = use_hinf and not use_h2
 
@@ -348,29 +355,29 @@ def synthesize_state_feedback(plants: GeneralizedPlant | Sequence[GeneralizedPla
 
     bounds = []
     if h2_bound is not None:
-        bounds.append(cp.trace(W) <= (h2_bound / f2) ** 2)
+        bounds.append(lib.trace(W) <= (h2_bound / f2) ** 2)
     if hinf_bound is not None:
         bounds.append(g <= (hinf_bound / finf) ** 2 if reduced else g <= hinf_bound / finf)
-    goal = {"h2": cp.trace(W) if use_h2 else None, "hinf": g, "none": None}[objective]
+    goal = {"h2": lib.trace(W) if use_h2 else None, "hinf": g, "none": None}[objective]
     start = time.perf_counter()
-    phase1 = cp.Problem(cp.Minimize(goal if goal is not None else 0), lmis(margin) + bounds)
-    status = _solve(phase1, solver)
+    phase1 = lib.Problem(lib.Minimize(goal if goal is not None else 0), lmis(margin) + bounds)
+    status = _solve(lib, phase1, solver)
     if not _ok(status) or X.value is None:
         raise InfeasibleDesign(_infeasible_reason(status, solver, lmis, margin, W, g, f2, finf,
-                                                  h2_bound, hinf_bound, region, len(models), reduced))
+                                                  h2_bound, hinf_bound, region, len(models), reduced,
+                                                  lib))
     opt = None if goal is None else float(goal.value)
     values = (X.value.copy(), Y.value.copy(), None if W is None else W.value.copy(),
               None if g is None else float(g.value))
     if backoff > 0 or objective == "none":
-        t = cp.Variable()
         cap = 10.0 * float(np.max(np.linalg.eigvalsh(values[0])))
         extra = [t <= 1.0, X << cap * np.eye(n)]
         if objective == "h2":
-            extra.append(cp.trace(W) <= (1.0 + backoff) ** 2 * opt)
+            extra.append(lib.trace(W) <= (1.0 + backoff) ** 2 * opt)
         elif objective == "hinf":
             extra.append(g <= (1.0 + backoff) ** (2 if reduced else 1) * opt)
-        phase2 = cp.Problem(cp.Maximize(t), lmis(t) + bounds + extra)
-        status2 = _solve(phase2, solver)
+        phase2 = lib.Problem(lib.Maximize(t), lmis(t) + bounds + extra)
+        status2 = _solve(lib, phase2, solver)
         if _ok(status2) and X.value is not None and t.value is not None and t.value >= margin:
             values = (X.value.copy(), Y.value.copy(), None if W is None else W.value.copy(),
                       None if g is None else float(g.value))
@@ -468,7 +475,7 @@ def _riccati_design(P: GeneralizedPlant, objective: str, backoff: float, dual: b
 
 
 def _infeasible_reason(status, solver, lmis, margin, W, g, f2, finf, h2_bound, hinf_bound, region,
-                       count, reduced=False) -> str:
+                       count, reduced=False, lib=None) -> str:
     what = []
     if h2_bound is not None:
         what.append(f"||T_zw||_2 <= {h2_bound:.6g}")
@@ -485,9 +492,9 @@ def _infeasible_reason(status, solver, lmis, margin, W, g, f2, finf, h2_bound, h
                                           ("H-infinity", g, finf, hinf_bound, reduced)):
         if bound is None or var is None:
             continue
-        goal = cp.trace(var) if name == "H2" else var
-        prob = cp.Problem(cp.Minimize(goal), lmis(margin))
-        st = _solve(prob, solver)
+        goal = lib.trace(var) if name == "H2" else var
+        prob = lib.Problem(lib.Minimize(goal), lmis(margin))
+        st = _solve(lib, prob, solver)
         if _ok(st) and goal.value is not None:
             best = (np.sqrt(max(float(goal.value), 0.0)) if sq else float(goal.value)) * factor
             cert.append(f"smallest {name} bound the LMIs admit without the bounds: {best:.6g}")

@@ -8,7 +8,9 @@ Generalised plant (continuous time: ``x' = dx/dt``; discrete time: ``x' = x(k+1)
 State feedback ``u = -K x`` gives ``Acl = A - B K``, ``Bw``, ``Ccl = Cz - Dzu K``.
 The LMIs are written in ``X = X' > 0`` and ``Y = K X`` (``K = Y X^-1``); every
 block builder below returns a matrix that must be NEGATIVE definite and works
-on cvxpy expressions (for solving) and on numpy arrays (for re-checking):
+on affine expressions (for solving: `tanksynth.design.robust_conic`'s, written
+straight in Clarabel's conic form, or cvxpy's on the SCS route) and on numpy
+arrays (for re-checking):
 
 `h2_lmis`
     continuous: ``He(AX - BY) + Bw Bw' < 0`` and ``[[W, CzX - DzuY], [., X]] > 0``;
@@ -30,13 +32,13 @@ independent re-check of the returned gain: `tanksynth.design.synthesis`.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Sequence
 
-import cvxpy as cp
 import numpy as np
 
 from tanksynth.analysis.lmi_region import LMIRegion
 from tanksynth.analysis.statespace import statespace_matrices
+from tanksynth.design import robust_conic
 from tanksynth.errors import DimensionError, SpecError
 
 __all__ = ["DOMAINS", "GeneralizedPlant", "generalized_plant", "observer_plant",
@@ -197,13 +199,22 @@ def observer_plant(A: Any, C: Any, Bw: Any, Dv: Any, Cz: Any, domain: str = "con
 
 
 # ========================================================================= LMI blocks
-def _is_expr(value: Any) -> bool:
-    return isinstance(value, cp.Expression)
+def _library(values: Sequence[Any]) -> Any:
+    """The module whose ``bmat``/``kron`` handle ``values``: robust_conic, cvxpy or None (numpy)."""
+    lib = None
+    for v in values:
+        if isinstance(v, robust_conic.Expression):
+            return robust_conic
+        if type(v).__module__.startswith("cvxpy."):
+            # only the SCS route builds cvxpy expressions
+            import cvxpy as lib
+    return lib
 
 
 def _bmat(rows: list[list[Any]]) -> Any:
-    if any(_is_expr(b) for row in rows for b in row):
-        return cp.bmat(rows)
+    lib = _library([b for row in rows for b in row])
+    if lib is not None:
+        return lib.bmat(rows)
     return np.block([[np.asarray(b, dtype=float) for b in row] for row in rows])
 
 
@@ -326,15 +337,16 @@ def region_lmi(region: LMIRegion, plant: GeneralizedPlant, X: Any, Y: Any) -> An
     region : LMIRegion
         In the units of the eigenvalues of ``plant.A``.
     plant : GeneralizedPlant
-    X, Y : cvxpy expressions or ndarrays
+    X, Y : affine expressions (robust_conic or cvxpy) or ndarrays
 
     Returns
     -------
-    cvxpy expression or ndarray
+    expression or ndarray
         Symmetric, size ``region.order * n``.
     """
     AX = plant.A @ X - plant.B @ Y
-    kron = cp.kron if (_is_expr(X) or _is_expr(Y)) else np.kron
+    lib = _library([X, Y])
+    kron = np.kron if lib is None else lib.kron
     M = kron(region.L, X) + kron(region.M, AX) + kron(region.M.T, AX.T)
     return _sym(M)
 

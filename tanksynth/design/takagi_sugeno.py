@@ -553,7 +553,8 @@ def search_weightings(qlpv: QuasiLPV, domain: Domain, *, values: Sequence[float]
     -------
     WeightSearch
     """
-    from tanksynth.design.lmi import ObserverLMIProblem, bisect_feasible
+    from tanksynth.design.lmi import bisect_feasible
+    from tanksynth.design.lmi_conic import sweep_problem
 
     if premises is None:
         premises = [k for k in range(qlpv.p) if len(qlpv.atom_states[k]) > 1]
@@ -570,7 +571,8 @@ def search_weightings(qlpv: QuasiLPV, domain: Domain, *, values: Sequence[float]
         if not any(np.array_equal(W, V) for V in combos):
             combos.append(W)
     C = qlpv.C
-    prob = ObserverLMIProblem(qlpv.n, C, variant, kappa, solver=solver)
+    # Clarabel: the eliminated form without cvxpy (rebuilt per trial); else the cvxpy problem
+    prob = sweep_problem(None, C, variant, kappa, None, None, solver, "auto", 1e-6)
     Xs = np.vstack([domain.sample(samples, seed), domain.corners()])
     parts = jac_values = None
     records: list[dict] = []

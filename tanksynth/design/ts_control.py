@@ -222,7 +222,7 @@ def pdc_lmi(A: Any, B: Any, *, alpha: float = 0.0, relaxation: str = "tuan",
     InfeasibleDesign
         Solver failure, or the re-check fails.
     """
-    import cvxpy as cp
+    from tanksynth.design.robust_conic import modelling
 
     A = np.asarray(A, dtype=float)
     B = np.atleast_2d(np.asarray(B, dtype=float))
@@ -253,9 +253,11 @@ def pdc_lmi(A: Any, B: Any, *, alpha: float = 0.0, relaxation: str = "tuan",
     Bs = np.linalg.solve(Tx, B @ Tu)
     omega = max(float(max(np.linalg.norm(Ai, 2) for Ai in As)), float(alpha), 1e-12)
     As, Bs, al = As / omega, Bs / omega, alpha / omega
-    X = cp.Variable((n, n), symmetric=True)
-    Ms = [cp.Variable((m, n)) for _ in range(r)]
-    t = cp.Variable()
+    # Clarabel: the LMIs written straight in its conic form (robust_conic); others through cvxpy
+    lib = modelling(solver)
+    X = lib.variable((n, n), symmetric=True)
+    Ms = [lib.variable((m, n)) for _ in range(r)]
+    t = lib.variable()
     cons = [X >> margin * np.eye(n)]
     if inner_radius > 0:
         cons.append(X >> inner_radius ** 2 * np.diag(dist ** -2.0))
@@ -271,26 +273,25 @@ def pdc_lmi(A: Any, B: Any, *, alpha: float = 0.0, relaxation: str = "tuan",
     bounded = False
     Gs = G @ Tx
     for l in range(len(g)):
-        cons.append(Gs[l] @ X @ Gs[l] <= g[l] ** 2)
+        cons.append(Gs[l][None, :] @ X @ Gs[l][:, None] <= g[l] ** 2)
         bounded = True
     if um is not None:
         for Mi in Ms:
             for j in range(m):
-                blk = cp.bmat([[np.ones((1, 1)), Mi[j:j + 1, :]], [Mi[j:j + 1, :].T, X]])
+                blk = lib.bmat([[np.ones((1, 1)), Mi[j:j + 1, :]], [Mi[j:j + 1, :].T, X]])
                 cons.append(0.5 * (blk + blk.T) >> 0)
         bounded = True
     if bounded:
         cons.append(X >> t * np.eye(n))
-        prob = cp.Problem(cp.Maximize(t), cons)
+        prob = lib.Problem(lib.Maximize(t), cons)
     else:
         cons += [X << kappa * np.eye(n)]
-        prob = cp.Problem(cp.Minimize(0), cons)
+        prob = lib.Problem(lib.Minimize(0), cons)
         t = None
-    try:
-        prob.solve(solver=solver)
-    except cp.error.SolverError as exc:
-        raise InfeasibleDesign(f"PDC LMI ({relaxation}): solver {solver} failed: {exc}") from None
-    status = str(prob.status)
+    status = lib.solve_status(prob, solver)
+    if status.startswith("solver_error"):
+        raise InfeasibleDesign(f"PDC LMI ({relaxation}): solver {solver} failed: "
+                               f"{status.removeprefix('solver_error ')}")
     if status not in ("optimal", "optimal_inaccurate") or X.value is None:
         raise InfeasibleDesign(f"PDC LMI ({relaxation}, alpha = {alpha:g} 1/s): solver status "
                                f"{status}")

@@ -186,25 +186,27 @@ def observer_decay_lmi(A0: Any, C: Any, psi: float, alpha: float, *, margin: flo
     InfeasibleDesign
         Infeasible, or the re-check fails.
     """
-    import cvxpy as cp
+    from tanksynth.design.robust_conic import modelling
 
     A0 = np.asarray(A0, dtype=float)
     C = np.atleast_2d(np.asarray(C, dtype=float))
     n, q = A0.shape[0], C.shape[0]
     om = max(float(np.linalg.norm(A0, 2)), psi, alpha, 1e-12)
     As, ps, al = A0 / om, psi / om, alpha / om
-    P = cp.Variable((n, n), symmetric=True)
-    N = cp.Variable((n, q))
-    qv = cp.Variable()
+    # Clarabel: the LMI written straight in its conic form (robust_conic); others through cvxpy
+    lib = modelling(solver)
+    P = lib.variable((n, n), symmetric=True)
+    N = lib.variable((n, q))
+    qv = lib.variable()
     H = P @ As - N @ C
-    blk = cp.bmat([[H + H.T + 2 * al * P + ps ** 2 * qv * np.eye(n), P], [P, -qv * np.eye(n)]])
+    blk = lib.bmat([[H + H.T + 2 * al * P + ps ** 2 * qv * np.eye(n), P], [P, -qv * np.eye(n)]])
     cons = [0.5 * (blk + blk.T) << -margin * np.eye(2 * n), P >> np.eye(n),
-            cp.trace(P) <= kappa * n, qv >= margin]
-    prob = cp.Problem(cp.Minimize(0), cons)
-    try:
-        prob.solve(solver=solver)
-    except cp.error.SolverError as exc:
-        raise InfeasibleDesign(f"observer LMI (28) with decay: solver failed: {exc}") from None
+            lib.trace(P) <= kappa * n, qv >= margin]
+    prob = lib.Problem(lib.Minimize(0), cons)
+    status = lib.solve_status(prob, solver)
+    if status.startswith("solver_error"):
+        raise InfeasibleDesign("observer LMI (28) with decay: solver failed: "
+                               f"{status.removeprefix('solver_error ')}")
     if prob.status not in ("optimal", "optimal_inaccurate") or P.value is None:
         raise InfeasibleDesign(f"observer LMI (28) with decay {alpha:g} 1/s and psi = {psi:.4g} 1/s: "
                                f"solver status {prob.status}")

@@ -147,6 +147,19 @@ def test_recheck_refuses_a_solution_the_solver_called_optimal(monkeypatch):
 
     monkeypatch.setattr(ObserverLMIProblem, "solve", tampered)
     with pytest.raises(InfeasibleDesign, match="independent re-check.*status optimal"):
+        observer_lmi(A0, C12, 0.01, problem=ObserverLMIProblem(3, C12, form="eliminated"))
+    # the direct Clarabel route (the default here) gets the same check
+    from tanksynth.design.lmi_conic import ConicEliminatedLMI
+
+    real_conic = ConicEliminatedLMI.solve
+
+    def tampered_conic(self, A0_, psi, omega=None, **kw):
+        out = real_conic(self, A0_, psi, omega, **kw)
+        out["K"] = -out["K"]
+        return out
+
+    monkeypatch.setattr(ConicEliminatedLMI, "solve", tampered_conic)
+    with pytest.raises(InfeasibleDesign, match="independent re-check.*status optimal"):
         observer_lmi(A0, C12, 0.01)
 
 
@@ -310,7 +323,8 @@ def test_a0_pattern_parameter(form):
     with pytest.raises(DimensionError, match="outside the A0_pattern"):
         sparse.solve(B, 0.0)
     res = observer_lmi(A, C, 0.01, **struct)         # builds A0_pattern = A0 != 0 itself
-    assert "sparse" in res.structure["A0_parameter"]
+    assert "sparse" in res.structure["A0_parameter"] if form == "full" else \
+        "rebuilt for Clarabel" in res.structure["A0_parameter"]        # direct route, no Parameter
     with pytest.raises(DimensionError, match="A0_pattern"):
         ObserverLMIProblem(8, C, A0_pattern=np.ones((3, 3)))
 

@@ -148,3 +148,57 @@ def test_kappa_retry_on_the_conic_route():
     res = observer_lmi(A0, C12, psi, form="full", kappa=1e4, kappa_max=1e6)
     assert res.kappa > 1e4 and res.scaling["kappa_tries"][0]["bound_active"]
     assert eq28_holds(res, A0, C12)
+
+
+# ----------------------------------------------------- eliminated form (ConicEliminatedLMI)
+@pytest.mark.parametrize("variant", ["qI", "full"])
+@pytest.mark.parametrize("case", ["mixed blocks, free K", "dense P, free K"])
+@pytest.mark.parametrize("psi", [0.3, 3.0])
+def test_eliminated_form_reaches_the_hand_written_full_lmi_optimum(case, variant, psi):
+    """The projection lemma keeps the optimal margin: the eliminated LMI solved without cvxpy
+    reaches the optimum of the full LMI (with K) written here in cvxpy; its recovered gain
+    satisfies eq. (28)."""
+    from tanksynth.design.lmi_conic import ConicEliminatedLMI
+
+    A, C, _, _ = _plant()
+    _, blocks, _ = CASES[case]
+    out = ConicEliminatedLMI(6, C, variant, 100.0, blocks).solve(A, psi)
+    ref = hand_cvxpy(A, C, psi, variant, 100.0, blocks, None)
+    if ref > 0:
+        assert out["status"] == "optimal"
+        assert out["t"] == pytest.approx(ref, abs=1e-6)
+    else:
+        assert out["t"] < 0 and out["t"] == pytest.approx(ref, abs=1e-4)
+
+
+@pytest.mark.parametrize("which", ["C", "C2", "identity"])
+@pytest.mark.parametrize("variant", ["qI", "full"])
+def test_eliminated_form_matches_the_cvxpy_problem_point_for_point(which, variant):
+    """Same problem as ObserverLMIProblem(form="eliminated") through cvxpy: same Clarabel
+    iterates, hence the same (P, Q, L) -- also where the optimum is not unique (C = I: any
+    Q >= t I is optimal)."""
+    from tanksynth.design.lmi_conic import ConicEliminatedLMI
+    from tanksynth.design.lmi_problem import ObserverLMIProblem
+
+    A, C, C2, _ = _plant()
+    Cm = {"C": C, "C2": C2, "identity": np.eye(6)}[which]
+    for psi in (0.0, 0.5):
+        a = ObserverLMIProblem(6, Cm, variant, 100.0, form="eliminated").solve(A, psi)
+        b = ConicEliminatedLMI(6, Cm, variant, 100.0).solve(A, psi)
+        assert a["status"] == b["status"] == "optimal"
+        assert b["t"] == pytest.approx(a["t"], abs=1e-8)
+        for key in ("P", "Q", "L"):
+            np.testing.assert_allclose(b[key], a[key], rtol=1e-6, atol=1e-8 * np.abs(a[key]).max())
+
+
+def test_observer_lmi_and_maximise_psi_take_the_direct_eliminated_route():
+    from tanksynth.design.lmi import maximise_psi
+
+    A, C, _, _ = _plant()
+    res = observer_lmi(A, C, 0.3)
+    assert res.structure["form"] == "eliminated"
+    assert "rebuilt for Clarabel" in res.structure["A0_parameter"]
+    assert all(c.passed for c in res.checks) and eq28_holds(res, A, C)
+    sweep = maximise_psi(A, C)
+    assert "rebuilt for Clarabel" in sweep.result.structure["A0_parameter"]
+    assert eq28_holds(sweep.result, A, C) and sweep.result.psi == sweep.psi_max

@@ -145,3 +145,45 @@ def test_active_kappa_bound_is_relaxed_then_named():
     tries = res.scaling["kappa_tries"]
     assert tries[0]["bound_active"] and tries[0]["largest_margin_t"] < 0
     assert res.scaling["kappa"] > 1e4 and res.scaling["kappa_relaxed"]
+
+
+# ------------------------------------------------ direct Clarabel route vs hand-written cvxpy
+def _cvxpy_largest_margin(As, Bs, reg, kappa):
+    """Phase 1 written here in cvxpy (Clarabel): max t, region LMI <= -t I, I <= X <= kappa I."""
+    import cvxpy as cp
+
+    n, m = Bs.shape
+    X, Y, t = cp.Variable((n, n), symmetric=True), cp.Variable((m, n)), cp.Variable()
+    AX = As @ X - Bs @ Y
+    R = cp.kron(reg.L, X) + cp.kron(reg.M, AX) + cp.kron(reg.M.T, AX.T)
+    d = R.shape[0]
+    prob = cp.Problem(cp.Maximize(t), [0.5 * (R + R.T) << -t * np.eye(d), t <= 1.0,
+                                       X >> np.eye(n), X << kappa * np.eye(n)])
+    prob.solve(solver="CLARABEL")
+    return float(t.value)
+
+
+@pytest.mark.parametrize("seed", [0, 3])
+def test_direct_clarabel_route_meets_a_hand_written_cvxpy_problem(seed):
+    """The region LMI written straight in Clarabel's conic form (no cvxpy) reaches the largest
+    margin t* that a plain cvxpy formulation of phase 1 reaches on the same scaled data."""
+    A, B = random_system(seed=seed)
+    region = half_plane(0.5) & sector(np.radians(40))
+    res = lmi_state_feedback(A, B, region, kappa=1e3)
+    sc = res.scaling
+    s, su, w = np.array(sc["state_balance"]), np.array(sc["input_scale"]), sc["time_scale"]
+    As = A * (1.0 / s)[:, None] * s[None, :] / w
+    Bs = B / s[:, None] * su[None, :] / w
+    ref = _cvxpy_largest_margin(As, Bs, region.scaled(w), 1e3)
+    assert sc["largest_margin_t"] == pytest.approx(ref, rel=1e-6, abs=1e-9)
+    assert all(region.contains(z) for z in np.linalg.eigvals(A - B @ res.gain))
+
+
+def test_scs_route_through_cvxpy_meets_the_clarabel_route():
+    A, B = random_system()
+    region = half_plane(0.5) & sector(np.radians(40))
+    a = lmi_state_feedback(A, B, region, kappa=1e3)
+    b = lmi_state_feedback(A, B, region, kappa=1e3, solver="SCS")
+    assert b.solver == "SCS" and "phase 2" in b.status
+    assert b.scaling["largest_margin_t"] == pytest.approx(a.scaling["largest_margin_t"], rel=1e-3)
+    assert all(region.contains(z) for z in np.linalg.eigvals(A - B @ b.gain))

@@ -93,3 +93,28 @@ def test_robust_state_feedback_conic_route_meets_the_cvxpy_route():
     assert abs(ta - tb) <= 1e-3 * abs(tb)                        # SCS: first-order accuracy
     for i in range(3):
         assert np.max(np.linalg.eigvals(A[i] - B[i] @ a.gain).real) < -0.5
+
+
+def test_trace_and_a_feasibility_problem():
+    """``trace`` (the H2 objective) and a constant objective (``Minimize(0)``: feasibility)."""
+    m = rc.Model()
+    W = m.variable((2, 2), symmetric=True)
+    X = m.variable((2, 2), symmetric=True)
+    m.freeze()
+    Wv = np.array([[2.0, 0.5], [0.5, -1.0]])
+    m.values = np.concatenate([[Wv[0, 0], Wv[0, 1], Wv[1, 1]], np.zeros(3)])
+    assert rc.trace(W).value == pytest.approx(1.0, abs=1e-15)
+    with pytest.raises(ValueError):
+        rc.trace(W[0:1, :])
+    # min trace W s.t. [[W, C], [C', I]] >= 0  <=>  W >= C C': optimum trace C C'
+    C = np.array([[1.0, 2.0], [0.0, 3.0]])
+    blk = rc.bmat([[W, C], [C.T, np.eye(2)]])
+    prob = rc.Problem(rc.Minimize(rc.trace(W)), [blk >> 0])
+    assert prob.solve() == pytest.approx(np.trace(C @ C.T), rel=1e-7)
+    np.testing.assert_allclose(W.value, C @ C.T, atol=1e-6)
+    # feasibility: X >= I and X <= 2 I is feasible, X >= 3 I and X <= 2 I is not
+    assert rc.solve_status(rc.Problem(rc.Minimize(0), [X >> np.eye(2), X << 2 * np.eye(2)]),
+                           "CLARABEL") == "optimal"
+    assert np.all(np.linalg.eigvalsh(X.value) >= 1 - 1e-7)
+    assert rc.solve_status(rc.Problem(rc.Minimize(0), [X >> 3 * np.eye(2), X << 2 * np.eye(2)]),
+                           "CLARABEL") == "infeasible"
