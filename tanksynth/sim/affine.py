@@ -134,7 +134,7 @@ def affine_horizon(integ: Any, x: np.ndarray, b: np.ndarray, K: np.ndarray, x_re
         pm[:, j] = v
     rep = lambda a: np.ascontiguousarray(np.broadcast_to(  # noqa: E731
         np.asarray(a, dtype=float)[:, None, :], (count, CHUNK, a.shape[-1])))
-    xk = np.ascontiguousarray(x, dtype=float)
+    xk = np.array(x, dtype=float, order="C")      # a copy: the caller's x stays the start
     bk = np.empty((count, CHUNK, m))
     args = [xk, bk, rep(per_run(np.asarray(K, dtype=float).reshape(-1), m * n)),
             rep(per_run(x_ref, n)), rep(lo), rep(hi), rep(cm), rep(pm),

@@ -88,6 +88,30 @@ def test_affine_route_declines_a_hybrid_crossing():
     assert res.events == 3
 
 
+def test_affine_route_declining_after_a_chunk_leaves_the_start_state():
+    """A crossing after the first chunk: the loop that takes over starts from the given x0.
+
+    Regression: the route advanced the caller's state array in place chunk by chunk, so the
+    fallback loop started from the state at the end of the last chunk without a crossing.
+    """
+    plant = hybrid_three_tank()
+    integ = Integrator.for_plant(plant)
+    params = param_arrays(plant, None, 1)
+    lo, hi = input_limits(plant, params, 1)
+    K = 1e-2 * np.ones((2, 3))                  # far below x_ref: the pumps saturate high
+    xop = np.array([0.31918677, 0.3209075, 0.30968861])
+    b = np.tile([100 * LPH, 100 * LPH], (200, 1))
+    x = np.zeros((1, 3))
+    assert affine_horizon(integ, x, b, K, xop, params, lo, hi, 1.0, 4) is None
+    assert np.array_equal(x, np.zeros((1, 3)))
+    x0 = np.zeros(3)
+    fast = simulate(plant, ts=1.0, steps=200, x0=x0, seeds=[0], controller=_Feedback(b, K, xop))
+    slow = simulate(plant, ts=1.0, steps=200, x0=x0, seeds=[0], controller=_Plain(b, K, xop))
+    assert np.array_equal(fast.x[:, 0], np.zeros((1, 3)))
+    assert fast.events > 0                      # crossings: the loop did take over
+    assert np.max(np.abs(fast.x - slow.x)) <= 1e-13 * np.max(np.abs(slow.x))
+
+
 @pytest.mark.parametrize("backend", ["auto", "numpy"])
 def test_estimator_does_not_change_a_plant_with_known_inputs(backend, monkeypatch):
     """Held input or input sequence with an observer: plant first, then the observer; the same
