@@ -107,7 +107,8 @@ def affine_horizon(integ: Any, x: np.ndarray, b: np.ndarray, K: np.ndarray, x_re
     (X, U) or None
         ``X`` (M, N + 1, n) the states at the samples, ``U`` (M, N, m) the saturated inputs
         held over each period; None (nothing counted) when a run changed hybrid mode
-        inside a period, a state is not finite, or the loop does not fit this route
+        inside a period, a state, input, gain or parameter is not finite (NaN limits),
+        or the loop does not fit this route
         (per-run bounds, more than `MAX_RUNS` runs when the plant's compiled kernel
         serves the loop, more than the CasADi route takes): the caller then steps
         period by period.
@@ -122,8 +123,16 @@ def affine_horizon(integ: Any, x: np.ndarray, b: np.ndarray, K: np.ndarray, x_re
         return None
     if count > MAX_RUNS and integ.native(substeps) is not None:
         return None
-    fn = _function(model, substeps, count)
     pv, c = integ._values(p)
+    # NaN never reaches the states here (CasADi's fmin/fmax, as C's, return the other operand:
+    # the saturation and the clipping would turn it into a bound): non-finite data goes to the
+    # loop, which reports it (`SimulationError`) as before.
+    finite = (np.isfinite(x).all() and np.isfinite(b).all() and np.isfinite(K).all()
+              and np.isfinite(x_ref).all() and not np.isnan(lo).any() and not np.isnan(hi).any()
+              and all(np.isfinite(v).all() for v in (*pv, *c)))
+    if not finite:
+        return None
+    fn = _function(model, substeps, count)
     per_run = lambda a, w: np.broadcast_to(  # noqa: E731
         np.asarray(a, dtype=float).reshape(-1, w) if np.ndim(a) else a, (count, w))
     cm = np.empty((count, model.n_constants))
@@ -134,7 +143,7 @@ def affine_horizon(integ: Any, x: np.ndarray, b: np.ndarray, K: np.ndarray, x_re
         pm[:, j] = v
     rep = lambda a: np.ascontiguousarray(np.broadcast_to(  # noqa: E731
         np.asarray(a, dtype=float)[:, None, :], (count, CHUNK, a.shape[-1])))
-    xk = np.ascontiguousarray(x, dtype=float)
+    xk = np.array(x, dtype=float, order="C")      # a copy: the caller's x stays the start
     bk = np.empty((count, CHUNK, m))
     args = [xk, bk, rep(per_run(np.asarray(K, dtype=float).reshape(-1), m * n)),
             rep(per_run(x_ref, n)), rep(lo), rep(hi), rep(cm), rep(pm),

@@ -395,8 +395,8 @@ def _open_loop(integ: Integrator, x: np.ndarray, seq: np.ndarray, params: dict[s
     N, M = seq.shape[0], x.shape[0]
     model = integ.model
     seq = seq[:, None, :] if seq.ndim == 2 else seq
-    if seq.shape[1] not in (1, M):
-        return None
+    if seq.shape[1] not in (1, M) or not np.isfinite(x).all():
+        return None                      # (a non-finite start: the loop names run and sample)
     Ur = np.empty((M, N, model.m))
     src = np.broadcast_to(seq, (N, M, model.m)).transpose(1, 0, 2)
     np.minimum(np.maximum(src, lo[:, None, :]), hi[:, None, :], out=Ur)

@@ -88,6 +88,30 @@ def test_affine_route_declines_a_hybrid_crossing():
     assert res.events == 3
 
 
+def test_affine_route_declining_after_a_chunk_leaves_the_start_state():
+    """A crossing after the first chunk: the loop that takes over starts from the given x0.
+
+    Regression: the route advanced the caller's state array in place chunk by chunk, so the
+    fallback loop started from the state at the end of the last chunk without a crossing.
+    """
+    plant = hybrid_three_tank()
+    integ = Integrator.for_plant(plant)
+    params = param_arrays(plant, None, 1)
+    lo, hi = input_limits(plant, params, 1)
+    K = 1e-2 * np.ones((2, 3))                  # far below x_ref: the pumps saturate high
+    xop = np.array([0.31918677, 0.3209075, 0.30968861])
+    b = np.tile([100 * LPH, 100 * LPH], (200, 1))
+    x = np.zeros((1, 3))
+    assert affine_horizon(integ, x, b, K, xop, params, lo, hi, 1.0, 4) is None
+    assert np.array_equal(x, np.zeros((1, 3)))
+    x0 = np.zeros(3)
+    fast = simulate(plant, ts=1.0, steps=200, x0=x0, seeds=[0], controller=_Feedback(b, K, xop))
+    slow = simulate(plant, ts=1.0, steps=200, x0=x0, seeds=[0], controller=_Plain(b, K, xop))
+    assert np.array_equal(fast.x[:, 0], np.zeros((1, 3)))
+    assert fast.events > 0                      # crossings: the loop did take over
+    assert np.max(np.abs(fast.x - slow.x)) <= 1e-13 * np.max(np.abs(slow.x))
+
+
 @pytest.mark.parametrize("backend", ["auto", "numpy"])
 def test_estimator_does_not_change_a_plant_with_known_inputs(backend, monkeypatch):
     """Held input or input sequence with an observer: plant first, then the observer; the same
@@ -141,3 +165,40 @@ def test_parameter_changes_with_known_inputs_equal_the_loop(name, samples, monke
     k = min(samples)
     assert np.array_equal(fast.y[0, :k], fast.y[1, :k])           # before the change: the same
     assert not np.array_equal(fast.y[0, k:], fast.y[1, k:])       # from it on: the fault shows
+
+
+@pytest.mark.parametrize("what", ["x0", "gain", "parameter", "feedforward"])
+def test_affine_route_sends_non_finite_data_to_the_loop(what):
+    """NaN must not be laundered by the CasADi saturation/clipping (fmin/fmax return the other
+    operand): the route declines and the loop reports the non-finite state, as without the route.
+
+    Regression: a NaN start, gain, parameter or feed-forward gave a finite trajectory (NaN turned
+    into an input or state bound) where the loop raised `SimulationError`.
+    """
+    from tanksynth.errors import SimulationError
+
+    N = 100
+    K = np.ones((TANK.m, 3)) if what != "gain" else np.full((TANK.m, 3), np.inf)
+    b = np.tile(U0, (N, 1))
+    if what == "feedforward":
+        b[:] = np.nan
+    start = np.array([np.nan, 0.2, 0.25]) if what == "x0" else X0 + 0.01
+    params = {TANK.parameters[1].name: np.nan} if what == "parameter" else None
+    integ = Integrator.for_plant(TANK)
+    p = param_arrays(TANK, params, 1)
+    lo, hi = input_limits(TANK, p, 1)
+    assert affine_horizon(integ, integ.clip(start[None]), b, K, X0, p, lo, hi, 2.0, 4) is None
+    for law in (_Feedback(b, K, X0), _Plain(b, K, X0)):
+        with pytest.raises(SimulationError, match="non-finite state"):
+            simulate(TANK, ts=2.0, steps=N, x0=start, seeds=[0], controller=law, parameters=params)
+
+
+@pytest.mark.parametrize("backend", ["auto", "numpy"])
+def test_open_loop_with_a_non_finite_start_raises(backend, monkeypatch):
+    """Known inputs and a NaN start: the loop's error, on either backend (not a result with NaN
+    at sample 0 and finite states after, the NaN clipped away by the CasADi route)."""
+    from tanksynth.errors import SimulationError
+
+    monkeypatch.setenv("TANKSYNTH_SIM_BACKEND", backend)
+    with pytest.raises(SimulationError, match="sample 0"):
+        simulate(TANK, ts=2.0, steps=50, x0=[np.nan, 0.2, 0.25], seeds=[0], u_init=U0)
