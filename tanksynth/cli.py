@@ -39,6 +39,9 @@ EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT, EXIT_INFEASIBLE, EXIT_INTERNAL = 0, 1, 2, 
 
 _out = Console()
 
+#: Columns of the console used for tables when stdout is not a terminal (piped, redirected).
+_PIPED_WIDTH = 200
+
 
 class _Fail(Exception):
     def __init__(self, code: int, message: str):
@@ -71,6 +74,12 @@ def _bars(quiet: bool = False) -> bool:
     say what runs.
     """
     return not quiet and _live() and (_out.is_terminal or _out.is_jupyter)
+
+
+def _piped() -> bool:
+    """stdout is neither a terminal nor a notebook (a pipe or a file): tables get no 80-column
+    folding there."""
+    return not (_out.is_terminal or _out.is_jupyter)
 
 
 def _progress(quiet: bool = False):
@@ -306,11 +315,18 @@ def methods(name: str | None, as_json: bool, markdown: bool) -> None:
         if as_json:
             click.echo(json.dumps(cat, indent=2))
             return
-        table = Table(title="Design methods (tanksynth methods NAME: its options)")
+        title = "Design methods (tanksynth methods NAME: its options)"
+        rows = [(m["name"], " / ".join(m["kinds"]), m["summary"]) for m in cat]
+        if _piped():  # piped: one plain line per method (grep, less), not a wrapped table
+            widths = [max(len(r[i]) for r in rows + [("method", "kind", "")]) for i in (0, 1)]
+            for r in [("method", "kind", "designs"), *rows]:
+                click.echo(f"{r[0]:<{widths[0]}}  {r[1]:<{widths[1]}}  {r[2]}")
+            return
+        table = Table(title=title)
         for col in ("method", "kind", "designs"):
             table.add_column(col, overflow="fold")
-        for m in cat:
-            table.add_row(m["name"], " / ".join(m["kinds"]), m["summary"])
+        for row in rows:
+            table.add_row(*row)
         _out.print(table)
         return
     from tanksynth.methods import method
@@ -331,7 +347,9 @@ def methods(name: str | None, as_json: bool, markdown: bool) -> None:
         table.add_row(escape(d["name"]), escape(typ),
                       "[bold]required[/]" if d["required"] else escape(default),
                       *(escape(d[k].replace("``", "")) for k in ("unit", "meaning")))
-    _out.print(table if docs else f"{row.name}: no options")
+    # piped: a wide console (a method's option table is unreadable folded at 80 columns)
+    console = Console(width=_PIPED_WIDTH) if _piped() else _out
+    console.print(table if docs else f"{row.name}: no options")
 
 
 @cli.command()
