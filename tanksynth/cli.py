@@ -545,7 +545,8 @@ def _write_report(directory: Path, pdf: bool):
     for comp in res.comparisons:
         if comp.errata:
             _out.print(f"paper vs tool ({comp.title}): {len(comp.errata)} printed value(s) in the "
-                       "paper differ from the derivation (paper errata)", markup=False, highlight=False)
+                       "paper differ from the derivation (paper errata)", markup=False, highlight=False,
+                       soft_wrap=True)
     return res
 
 
