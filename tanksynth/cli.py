@@ -25,6 +25,7 @@ from rich.table import Table
 
 from tanksynth.errors import InfeasibleDesign, SpecError, TanksynthError
 from tanksynth.messages import KNOWN_WARNINGS, MAX_MESSAGE  # noqa: F401 (the CLI's surface)
+from tanksynth.messages import StageClock, law_line
 from tanksynth.messages import design_index_note as _design_index_note
 from tanksynth.messages import note_warnings
 from tanksynth.messages import one_line as _one_line
@@ -37,6 +38,9 @@ __all__ = ["main", "cli"]
 EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT, EXIT_INFEASIBLE, EXIT_INTERNAL = 0, 1, 2, 3, 4
 
 _out = Console()
+
+#: Columns of the console used for tables when stdout is not a terminal (piped, redirected).
+_PIPED_WIDTH = 200
 
 
 class _Fail(Exception):
@@ -70,6 +74,12 @@ def _bars(quiet: bool = False) -> bool:
     say what runs.
     """
     return not quiet and _live() and (_out.is_terminal or _out.is_jupyter)
+
+
+def _piped() -> bool:
+    """stdout is neither a terminal nor a notebook (a pipe or a file): tables get no 80-column
+    folding there."""
+    return not (_out.is_terminal or _out.is_jupyter)
 
 
 def _progress(quiet: bool = False):
@@ -165,8 +175,10 @@ def _locked(directory, command: str):
     return directory_lock(directory, command=command)
 
 
-def _design_all(spec, outdir: Path, export: tuple[str, ...]) -> tuple[list[Path], list[str]]:
-    """Design every entry, then write the artefacts.
+def _design_all(spec, outdir: Path, export: tuple[str, ...]
+                ) -> tuple[list[Path], list[str], list[Path]]:
+    """Design every entry, then write the artefacts; return the artefacts, the refusals and
+    the ``<name>_law.casadi`` files written (``--export law``).
 
     The spec's options were all validated when it was parsed; a design that
     still fails on bad input raises before anything is written. A refused
@@ -209,7 +221,7 @@ def _design_all(spec, outdir: Path, export: tuple[str, ...]) -> tuple[list[Path]
         click.echo(f"refused {line}")
     plant_sha = file_sha256(write_plant_record(spec, outdir))
     write_refused(outdir, refused)
-    written = []
+    written, laws = [], []
     for design, result in results:
         formats = list(dict.fromkeys(export))  # "--export law --export law": once
         derived = None
@@ -218,11 +230,13 @@ def _design_all(spec, outdir: Path, export: tuple[str, ...]) -> tuple[list[Path]
             derived = _derived_law(spec, design, result)
         written.append(write_artefact(result, outdir, spec.sha256, export=formats,
                                       plant_record_sha256=plant_sha))
+        if "law" in formats:
+            laws.append(outdir / f"{design.name}_law.casadi")
         if derived is not None:  # the law (or estimator step) built from the written gains
             from tanksynth.artefacts.export import export_law
 
-            export_law(derived, outdir, name=f"{design.name}_law")
-    return written, infeasible
+            laws.append(export_law(derived, outdir, name=f"{design.name}_law").casadi)
+    return written, infeasible, laws
 
 
 def _derived_law(spec, design, result):
@@ -301,11 +315,18 @@ def methods(name: str | None, as_json: bool, markdown: bool) -> None:
         if as_json:
             click.echo(json.dumps(cat, indent=2))
             return
-        table = Table(title="Design methods (tanksynth methods NAME: its options)")
+        title = "Design methods (tanksynth methods NAME: its options)"
+        rows = [(m["name"], " / ".join(m["kinds"]), m["summary"]) for m in cat]
+        if _piped():  # piped: one plain line per method (grep, less), not a wrapped table
+            widths = [max(len(r[i]) for r in rows + [("method", "kind", "")]) for i in (0, 1)]
+            for r in [("method", "kind", "designs"), *rows]:
+                click.echo(f"{r[0]:<{widths[0]}}  {r[1]:<{widths[1]}}  {r[2]}")
+            return
+        table = Table(title=title)
         for col in ("method", "kind", "designs"):
             table.add_column(col, overflow="fold")
-        for m in cat:
-            table.add_row(m["name"], " / ".join(m["kinds"]), m["summary"])
+        for row in rows:
+            table.add_row(*row)
         _out.print(table)
         return
     from tanksynth.methods import method
@@ -326,7 +347,9 @@ def methods(name: str | None, as_json: bool, markdown: bool) -> None:
         table.add_row(escape(d["name"]), escape(typ),
                       "[bold]required[/]" if d["required"] else escape(default),
                       *(escape(d[k].replace("``", "")) for k in ("unit", "meaning")))
-    _out.print(table if docs else f"{row.name}: no options")
+    # piped: a wide console (a method's option table is unreadable folded at 80 columns)
+    console = Console(width=_PIPED_WIDTH) if _piped() else _out
+    console.print(table if docs else f"{row.name}: no options")
 
 
 @cli.command()
@@ -384,9 +407,11 @@ def design(spec: str, outdir: str, export: tuple[str, ...], force: bool) -> None
         raise SpecError("the spec has no [[design]] entry", key="design", source=spec)
     with _locked(outdir, "design"):
         _refuse_other_spec(s, Path(outdir), force)
-        written, infeasible = _design_all(s, Path(outdir), export)
+        written, infeasible, laws = _design_all(s, Path(outdir), export)
     for path in written:
         _out.print(f"artefact: {path}", markup=False, highlight=False, soft_wrap=True)  # one line, as given
+    for path in laws:  # the files and the signature, read back from the written Function
+        _out.print(law_line(path), markup=False, highlight=False, soft_wrap=True)
     if infeasible:
         raise _Fail(EXIT_INFEASIBLE, _refused_summary(infeasible, len(s.designs)))
 
@@ -427,14 +452,16 @@ def _run_locked(s, spec: str | None, out: Path, pdf: bool | None) -> None:
     have_tex = all(shutil.which(tool) for tool in ("pdflatex", "latexmk"))
     if pdf is None:
         pdf = spec is None and have_tex
-    with _stage("rank conditions (Kalman, PBH, nonlinear observability)"):
+    clock = StageClock()
+    with _stage("rank conditions (Kalman, PBH, nonlinear observability)"), clock("rank checks"):
         checks = _rank_conditions(s)
     _print_checks(checks)
     if s.designs:
         _out.print(f"designing {len(s.designs)} gain(s): "
                    + ", ".join(f"{d.name} ({d.method})" for d in s.designs), markup=False,
                    highlight=False)
-    written, infeasible = _design_all(s, out, ())
+    with clock("design"):
+        written, infeasible, _ = _design_all(s, out, ())
     checks_path = out / "checks.json"
     out.mkdir(parents=True, exist_ok=True)
     atomic_write(checks_path, json.dumps(to_jsonable([c.as_dict() for c in checks]), indent=2) + "\n")
@@ -444,17 +471,21 @@ def _run_locked(s, spec: str | None, out: Path, pdf: bool | None) -> None:
     verdicts = []
     if written:
         _out.print("- verifying every artefact on the nonlinear plant", markup=False, highlight=False)
-        with _progress() as bar:
+        with _progress() as bar, clock("verify"):
             task = bar.add_task("verifying artefacts", total=len(written))
             verdicts = verify_directory(out, progress=lambda d, n: bar.update(task, completed=d, total=n),
                                         started=_started(bar, task))
-        _write_report(out, pdf)
+        with clock("report"):
+            res = _write_report(out, pdf)
+        if res.pdf is not None:
+            clock.part("report", "LaTeX", res.latex_seconds)
         _print_summary(written)
         if spec is None and not have_tex:
             _out.print("no PDF: install pdflatex and latexmk (Debian: make tex) and run "
                        f"'tanksynth report {out} --pdf'", markup=False, highlight=False)
     else:
         _out.print("no report: no design artefact was written")
+    _out.print(clock.line(), markup=False, highlight=False, soft_wrap=True)
     if infeasible:
         raise _Fail(EXIT_INFEASIBLE, _refused_summary(infeasible, len(s.designs)))
     failed = [c.name for c in checks if c.passed is False]
@@ -513,8 +544,9 @@ def _write_report(directory: Path, pdf: bool):
                    markup=False, highlight=False, soft_wrap=True)
     for comp in res.comparisons:
         if comp.errata:
-            _out.print(f"paper vs tool ({comp.title}): {len(comp.errata)} erratum/errata in the "
-                       "printed values", markup=False, highlight=False)
+            _out.print(f"paper vs tool ({comp.title}): {len(comp.errata)} printed value(s) in the "
+                       "paper differ from the derivation (paper errata)", markup=False, highlight=False,
+                       soft_wrap=True)
     return res
 
 

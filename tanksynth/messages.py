@@ -5,11 +5,13 @@ from __future__ import annotations
 
 import re
 import sys
+import time
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
 __all__ = ["MAX_MESSAGE", "KNOWN_WARNINGS", "one_line", "meaning", "origin", "warning_line",
-           "design_index_note", "note_warnings"]
+           "design_index_note", "note_warnings", "law_line", "StageClock"]
 
 #: Longest message printed (characters); longer ones are cut.
 MAX_MESSAGE = 600
@@ -173,3 +175,75 @@ def note_warnings(caught: list, console: Any, quiet: bool, code: int = 0,
                     console.print(f"  raw: {line}", markup=False, highlight=False, soft_wrap=True)
     except OSError:  # stdout/stderr closed: nothing more to say
         pass
+
+
+def _size(shape: tuple[int, int]) -> str:
+    """``3`` for a column of 3, ``1x3`` / ``3x3`` otherwise (a CasADi argument's shape)."""
+    rows, cols = shape
+    return str(rows) if cols == 1 else f"{rows}x{cols}"
+
+
+def law_line(casadi_file: str | Path) -> str:
+    """One line naming an exported law's files and its signature, read from the written file.
+
+    Parameters
+    ----------
+    casadi_file : str or Path
+        ``<dir>/<name>_law.casadi`` written by `tanksynth.artefacts.export.export_law`
+        (``<name>_law.c`` and ``<name>_law.h`` beside it).
+
+    Returns
+    -------
+    str
+        ``law: <dir>/<name>_law.{casadi,c,h}: <function>(x[3], y[2]) -> (u[2])``: the C
+        function / CasADi Function name, each input and output name with its size (``n``
+        for a column of n entries, ``rxc`` otherwise).
+    """
+    import casadi
+
+    path = Path(casadi_file)
+    fn = casadi.Function.load(str(path))
+    ins = ", ".join(f"{fn.name_in(i)}[{_size(fn.size_in(i))}]" for i in range(fn.n_in()))
+    outs = ", ".join(f"{fn.name_out(i)}[{_size(fn.size_out(i))}]" for i in range(fn.n_out()))
+    return f"law: {path.with_suffix('')}.{{casadi,c,h}}: {fn.name()}({ins}) -> ({outs})"
+
+
+class StageClock:
+    """Wall time of the stages of a command, summed per stage name, for one summary line.
+
+    Use ``with clock("design"): ...`` around a stage (repeatable: the times add up),
+    `part` to note a share of a stage timed elsewhere (the LaTeX run of the report) and
+    `line` for the summary.
+    """
+
+    def __init__(self) -> None:
+        self._seconds: dict[str, float] = {}
+        self._parts: dict[str, list[tuple[str, float]]] = {}
+        self._start = time.perf_counter()
+
+    @contextmanager
+    def __call__(self, stage: str):
+        """Time the block as (part of) ``stage``; the time counts even if the block raises."""
+        t0 = time.perf_counter()
+        try:
+            yield
+        finally:
+            self._seconds[stage] = self._seconds.get(stage, 0.0) + time.perf_counter() - t0
+
+    def part(self, stage: str, name: str, seconds: float) -> None:
+        """Note that ``seconds`` (s) of ``stage`` were spent in ``name`` (shown in brackets)."""
+        self._parts.setdefault(stage, []).append((name, float(seconds)))
+
+    @property
+    def seconds(self) -> dict[str, float]:
+        """Wall time per stage (s), in the order the stages first ran."""
+        return dict(self._seconds)
+
+    def line(self) -> str:
+        """``times: rank checks 0.4 s, design 1.2 s, ... (LaTeX 3.1 s); total 9.8 s`` (wall, s)."""
+        items = []
+        for stage, sec in self._seconds.items():
+            parts = "".join(f" ({name} {s:.1f} s)" for name, s in self._parts.get(stage, []))
+            items.append(f"{stage} {sec:.1f} s{parts}")
+        total = time.perf_counter() - self._start
+        return "times: " + ", ".join(items) + f"; total {total:.1f} s"

@@ -151,6 +151,13 @@ def test_run_default_demo(tmp_path, capsys, monkeypatch):
     for name in docs:
         assert name[:12] in summary
     assert "FAIL" not in summary.replace(str(tmp_path), ""), summary
+    # the seed papers' errata are said to be the paper's, found by the derivation
+    assert any(line.startswith("paper vs tool (") and line.endswith(
+        "printed value(s) in the paper differ from the derivation (paper errata)")
+        for line in out.splitlines()), out                     # one line, even piped
+    assert "erratum/errata" not in out
+    assert "printed value(s) of the paper differ from the derivation (paper errata)" in (
+        out_dir / "report.tex").read_text(encoding="utf-8")
     from tanksynth.summary import key_figure
 
     assert key_figure(docs["integral_pole_placement"]) == "poles 0.9, 0.92, 0.94, 0.95, 0.97"
@@ -364,3 +371,34 @@ def test_an_export_format_given_twice_is_written_once(tmp_path, capsys):
     assert names == ["linear_model.h", "linear_model.json", "linear_model.npz",
                      "linear_model_law.c", "linear_model_law.casadi", "linear_model_law.h",
                      "plant.json", "spec.toml"], names
+
+
+def test_export_law_prints_each_laws_files_and_signature(tmp_path, capsys):
+    """``design --export law`` names, per law, its three files and its signature (inputs with
+    sizes -> outputs): a law carried by the design (feedback linearisation, from the example)
+    and one derived from the written gains (a pole-placement observer)."""
+    import re
+
+    spec = tmp_path / "s.toml"
+    text = (ROOT / "examples" / "seed000_feedback_linearization.toml").read_text(encoding="utf-8")
+    head = text[:text.index("[[design]]")]
+    spec.write_text(head + '[[design]]\nname = "fl"\nmethod = "feedback_linearization"\n'
+                    'tracked = ["h1", "h2"]\npoles = [-0.05, -0.05]\n'
+                    '[[design]]\nname = "obs"\nmethod = "pole_placement"\ntarget = "observer"\n'
+                    'poles = [0.5, 0.6, 0.7]\n', encoding="utf-8")
+    out_dir = tmp_path / "o"
+    code, out, err = run_cli(capsys, "design", spec, "-o", out_dir, "--export", "law")
+    assert code == 0, err
+    laws = [line for line in out.splitlines() if line.startswith("law: ")]
+    assert len(laws) == 2, out
+    # three tanks (n = 3), two pumps (m = 2), C = I3 (q = 3), two tracked levels
+    expected = {"fl": "fl_law(x[3], y_r[2]) -> (u[2], zeta[2])",
+                "obs": "obs_law(x_hat[3], u[2], y[3]) -> (x_hat_next[3])"}
+    for line, (name, signature) in zip(laws, expected.items()):
+        m = re.fullmatch(r"law: (.+)\.\{casadi,c,h\}: (.+)", line)
+        assert m, line
+        assert m.group(1) == str(out_dir / f"{name}_law")
+        for ext in (".casadi", ".c", ".h"):
+            assert Path(m.group(1) + ext).is_file(), ext
+        assert m.group(2) == signature
+    assert out.index("artefact: ") < out.index("law: ")

@@ -9,6 +9,7 @@ import json
 import re
 from pathlib import Path
 
+import click
 import pytest
 
 from tanksynth import docgen
@@ -236,3 +237,65 @@ def test_placement_algorithm_is_settable_from_a_spec():
             '[sampling]\nts = 1.0\n[[design]]\nname = "pp"\nmethod = "pole_placement"\n'
             'target = "state_feedback"\npoles = [0.6, 0.7, 0.8]\nalgorithm = "place"\n')
     assert parse_spec_text(text).designs[0].config.algorithm == "place"
+
+
+def _readme_command_rows() -> dict[str, str]:
+    """The README's command table: command name -> its row (usage and what it does)."""
+    text = (ROOT / "README.md").read_text(encoding="utf-8")
+    section = text[text.index("## Command line"):]
+    rows = {}
+    for line in section.splitlines():
+        m = re.match(r"\| `tanksynth (\w+)[ `]", line)
+        if m:
+            rows[m.group(1)] = line
+    return rows
+
+
+def test_readme_command_table_names_every_option_of_every_command():
+    """Every option ``--help`` lists (long and short forms, ``--no-`` ones included) is in the
+    README row of its command; every command has a row."""
+    from tanksynth.cli import cli
+
+    rows = _readme_command_rows()
+    assert set(rows) == set(cli.commands), (sorted(rows), sorted(cli.commands))
+    missing = []
+    for name, command in cli.commands.items():
+        for param in command.params:
+            if not isinstance(param, click.Option):
+                continue
+            said = [opt for opt in (*param.opts, *param.secondary_opts)
+                    if re.search(re.escape(opt) + r"(?![\w-])", rows[name])]
+            if not any(opt in said for opt in param.opts):   # -o or --output, either form
+                missing.append(f"{name} {'/'.join(param.opts)}")
+            missing += [f"{name} {opt}" for opt in param.secondary_opts if opt not in said]
+    assert missing == [], f"README command table lacks {missing}"
+    text = (ROOT / "README.md").read_text(encoding="utf-8")
+    for param in cli.params:  # the group's own options (tanksynth -v ...)
+        assert any(f"`tanksynth {opt}" in text for opt in param.opts), param.opts
+
+
+def test_piped_methods_is_one_line_per_method():
+    """Piped (stdout not a terminal), ``tanksynth methods`` prints a header and one plain line
+    per method, whatever the width; ``methods NAME`` keeps each option on one line."""
+    import os
+    import subprocess
+    import sys
+
+    env = {**os.environ, "PYTHONPATH": str(ROOT), "COLUMNS": "80"}
+    env.pop("FORCE_COLOR", None)
+    run = subprocess.run([sys.executable, "-m", "tanksynth", "methods"], capture_output=True,
+                         text=True, env=env, timeout=120, check=True)
+    lines = run.stdout.splitlines()
+    assert len(lines) == 1 + len(TABLE), run.stdout
+    assert lines[0].split() == ["method", "kind", "designs"]
+    for line, row in zip(lines[1:], TABLE):
+        assert line.split()[0] == row.name and line.rstrip().endswith(row.summary), line
+        assert " / ".join(row.kinds) in line
+    run = subprocess.run([sys.executable, "-m", "tanksynth", "methods", "ekf"], capture_output=True,
+                         text=True, env=env, timeout=120, check=True)
+    rows = [line for line in run.stdout.splitlines() if line.startswith("│")]
+    meanings = {o["name"]: o["meaning"] for o in docgen.method_options("ekf")}
+    assert len(rows) == len(meanings)                 # one line per option: nothing folded
+    for line in rows:
+        name = line.split("│")[1].strip()
+        assert meanings[name] in line

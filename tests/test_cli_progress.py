@@ -183,3 +183,45 @@ def test_an_error_naming_design_i_says_the_index_counts_from_0(tmp_path, capsys)
     assert "indices count from 0" in err
     spec.write_text(SPEC, encoding="utf-8")
     assert main(["check", str(spec), "--spec-only"]) == 0
+
+
+def test_run_ends_with_the_wall_time_of_each_stage(tmp_path, capsys):
+    """``run`` ends with one ``times:`` line: rank checks, design, verify, report and the
+    total, in seconds; each stage takes part of the total and the stages sum to at most it."""
+    import re
+
+    spec = tmp_path / "s.toml"
+    spec.write_text(SPEC, encoding="utf-8")
+    assert main(["run", str(spec), "-o", str(tmp_path / "o"), "--no-pdf"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    times = [line for line in lines if line.startswith("times: ")]
+    assert len(times) == 1 and lines[-1] == times[0], lines[-3:]
+    m = re.fullmatch(r"times: (.+); total (\d+\.\d) s", times[0])
+    assert m, times[0]
+    stages = dict(re.fullmatch(r"(.+) (\d+\.\d) s", item).groups() for item in m.group(1).split(", "))
+    assert list(stages) == ["rank checks", "design", "verify", "report"]
+    seconds = {k: float(v) for k, v in stages.items()}
+    total = float(m.group(2))
+    assert all(s >= 0 for s in seconds.values()) and total > 0
+    assert sum(seconds.values()) <= total + 0.05 * len(seconds)   # each rounded to 0.1 s
+
+
+def test_stage_clock_sums_a_stage_and_shows_a_part():
+    import time
+
+    from tanksynth.messages import StageClock
+
+    clock = StageClock()
+    for _ in range(2):
+        with clock("design"):
+            time.sleep(0.06)
+    try:
+        with clock("report"):
+            time.sleep(0.02)
+            raise ValueError("the time of a failed stage still counts")
+    except ValueError:
+        pass
+    clock.part("report", "LaTeX", 1.234)
+    assert 0.12 <= clock.seconds["design"] < 0.5 and 0.02 <= clock.seconds["report"] < 0.4
+    line = clock.line()
+    assert line.startswith("times: design 0.1 s, report 0.0 s (LaTeX 1.2 s); total ")
