@@ -261,6 +261,29 @@ def _margin_label(path: str) -> Tex:
     label = None if where else _MARGIN_WORDS.get(key)
     text = Tex(label) if label else prose_latex(words(key))
     return Tex(text + (f" ({escape_latex(where)})" if where else ""))
+
+
+def _margin_rows(diag: Mapping[str, Any]) -> list[tuple[Tex, Tex]]:
+    """The "Margins and conditioning" rows: every margin key found in ``diagnostics``, each
+    quantity ONCE. A design records the same number under several sub-records (``placement.
+    gain_norm`` and ``robustness.gain_norm``, ``placement.max_pole_error`` and ``placement.
+    accuracy.max_pole_error``): a hit with the key and value of an earlier one is the same
+    quantity and is dropped; the first hit (the shallowest, breadth first) keeps its label, the
+    plainest one."""
+    rows: list[tuple[Tex, Tex]] = []
+    seen: set[tuple[str, str]] = set()
+    for key in _MARGIN_KEYS:
+        for path, v in _find(diag, key):
+            if not (_is_number(v) or (isinstance(v, str) and v.lower() in ("inf", "-inf", "nan"))):
+                continue
+            ident = (key, repr(float(v)))
+            if ident in seen:
+                continue
+            seen.add(ident)
+            rows.append((_margin_label(path), _m(v)))
+    return rows
+
+
 _SHOWN = ("solver", "status", "checks", "assumptions", "caveats", "equilibrium", "rank")
 
 
@@ -335,11 +358,7 @@ def design_view(art: Mapping[str, Any], figure: FigureFile | None,
     prov = art.get("provenance") or {}
     solver = next((v for _, v in solver_hits if isinstance(v, str) and v), None) or prov.get("solver")
     status = next((v for _, v in status_hits if isinstance(v, str) and v), None)
-    margins = []
-    for key in _MARGIN_KEYS:
-        for path, v in _find(diag, key):
-            if _is_number(v) or (isinstance(v, str) and v.lower() in ("inf", "-inf", "nan")):
-                margins.append((_margin_label(path), _m(v)))
+    margins = _margin_rows(diag)
     checks = []
     for path, v in _find(diag, "checks"):
         for row in _checks_rows(v):
