@@ -39,3 +39,8 @@ def test_lmi_gain_norm_duplicate_is_dropped():
         "robustness": {"gain_norm": 0.00138, "eigenvector_condition": 456.5}}}
     labels = [str(k) for k, _ in design_view(art, None, STATEMENTS).margins]
     assert sum("gain" in k for k in labels) == 1 and len(labels) == 4
+    assert "norm of the gain" in labels      # the plain label, not "gain norm (robustness)"
+    # the same diagnostics with the robustness record first: the same rows
+    art["diagnostics"] = {"robustness": art["diagnostics"]["robustness"], "lmi": art["diagnostics"]["lmi"]}
+    again = [str(k) for k, _ in design_view(art, None, STATEMENTS).margins]
+    assert sorted(again) == sorted(labels)
