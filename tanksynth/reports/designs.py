@@ -261,6 +261,33 @@ def _margin_label(path: str) -> Tex:
     label = None if where else _MARGIN_WORDS.get(key)
     text = Tex(label) if label else prose_latex(words(key))
     return Tex(text + (f" ({escape_latex(where)})" if where else ""))
+
+
+def _margin_where(path: str) -> int:
+    """How many sub-record names a margin's label carries (0: the plain label of `_MARGIN_WORDS`)."""
+    return sum(1 for p in path.split(".")[:-1] if p not in ("lmi", "placement"))
+
+
+def _margin_rows(diag: Mapping[str, Any]) -> list[tuple[Tex, Tex]]:
+    """The "Margins and conditioning" rows: every margin key found in ``diagnostics``, each
+    quantity ONCE. A design records the same number under several sub-records (``placement.
+    gain_norm`` and ``robustness.gain_norm``, ``placement.max_pole_error`` and ``placement.
+    accuracy.max_pole_error``): hits with the same key and value are one quantity, shown in one
+    row at the place of the first hit, labelled by the hit with the plainest label (fewest
+    sub-record names, then the first)."""
+    chosen: dict[tuple[str, str], str] = {}
+    values: dict[tuple[str, str], Any] = {}
+    for key in _MARGIN_KEYS:
+        for path, v in _find(diag, key):
+            if not (_is_number(v) or (isinstance(v, str) and v.lower() in ("inf", "-inf", "nan"))):
+                continue
+            ident = (key, repr(float(v)))
+            if ident not in chosen or _margin_where(path) < _margin_where(chosen[ident]):
+                chosen[ident] = path      # (a dict keeps the first hit's place)
+            values.setdefault(ident, v)
+    return [(_margin_label(path), _m(values[ident])) for ident, path in chosen.items()]
+
+
 _SHOWN = ("solver", "status", "checks", "assumptions", "caveats", "equilibrium", "rank")
 
 
@@ -335,11 +362,7 @@ def design_view(art: Mapping[str, Any], figure: FigureFile | None,
     prov = art.get("provenance") or {}
     solver = next((v for _, v in solver_hits if isinstance(v, str) and v), None) or prov.get("solver")
     status = next((v for _, v in status_hits if isinstance(v, str) and v), None)
-    margins = []
-    for key in _MARGIN_KEYS:
-        for path, v in _find(diag, key):
-            if _is_number(v) or (isinstance(v, str) and v.lower() in ("inf", "-inf", "nan")):
-                margins.append((_margin_label(path), _m(v)))
+    margins = _margin_rows(diag)
     checks = []
     for path, v in _find(diag, "checks"):
         for row in _checks_rows(v):

@@ -242,6 +242,9 @@ def stacked_layout(fig: Any, axes: Sequence[Any], *, tick_size: float, legend_an
                    slack: float = 0.0) -> dict[str, float]:
     """Set the margins of a column of panels (``fig.add_subplot(P, 1, k)``) from their text.
 
+    A legend taller than the room below its panel's top (down to the next panel's top, or to the
+    figure's bottom edge for the last panel) makes the figure taller, the panels with it.
+
     Left: y label, y tick labels, tick marks; right: the legends anchored at ``legend_anchor``
     (axes fraction) outside each panel; top and between panels: titles, x tick labels; bottom:
     x tick labels and x label of the last panel. A title wider than its panel widens both
@@ -315,6 +318,15 @@ def _stacked_once(fig: Any, axes: Sequence[Any], *, tick_size: float, legend_anc
         left, right = new_l, new_r
     P = len(axes)
     ah = max((H - top - bottom - (P - 1) * gap) / P, 1.0)
+    # A legend hangs from its panel's top: it must end above the next panel's legend (one panel
+    # and one gap lower) or, for the last panel, above the figure's bottom edge. A taller legend
+    # makes the figure taller (the panels grow, the text keeps its size).
+    tall = [_legend_height(ax.get_legend()) if ax.get_legend() is not None else 0.0 for ax in axes]
+    need = max([tall[k] - gap for k in range(P - 1)] + [tall[-1] - bottom + pad] + [0.0])
+    if need > ah:
+        ah = need
+        H = top + bottom + (P - 1) * gap + P * ah
+        fig.set_size_inches(W / 72.0, H / 72.0)
     frac = {"left": left / W, "right": 1.0 - right / W, "top": 1.0 - top / H, "bottom": bottom / H,
             "hspace": gap / ah}
     fig.subplots_adjust(**frac)
@@ -470,6 +482,7 @@ class TraceCanvas:
 
         if panels in self._figures:
             fig, axes = self._figures[panels]
+            fig.set_size_inches(7.2, 1.9 * panels + 0.4)    # `stacked_layout` may have grown it
             for ax in axes:
                 for artist in [*ax.collections, *ax.lines, *ax.texts, *ax.artists]:
                     artist.remove()

@@ -435,9 +435,36 @@ def _unit_label(names: list, units: list, i: int) -> str:
 
 #: Legend entries of a time-domain panel before entries sharing a colour and line style merge.
 _LEGEND_ROWS = 12
+#: Text sizes (pt) of the time-domain figures, drawn 7.2 in wide and scaled to about 0.86 of that
+#: in the report (0.95 of a 16.6 cm text width): tick labels and legends print at about 7.3 pt,
+#: axis labels at 7.8 pt, titles at 8.6 pt.
+_TICK_PT, _LEGEND_PT, _LABEL_PT, _TITLE_PT = 8.5, 8.5, 9.0, 10.0
+#: Grey of the legend entries that name the runs (not a signal's colour).
+_RUN_GREY = "0.35"
 
 
-def _legend(ax, handles: list, labels: list) -> None:
+def _run_styles(runs: int) -> dict:
+    """Line style of the runs after the first: one further run dashed, a bundle thin and faded."""
+    if runs == 2:
+        return {"linewidth": 0.8, "linestyle": "--", "alpha": 0.85}
+    return {"linewidth": 0.5, "linestyle": "-", "alpha": 0.45}
+
+
+def _run_handles(runs: int) -> tuple[list, list]:
+    """Legend entries marking the runs (first run solid, the others as `_run_styles`); none for one
+    run."""
+    from matplotlib.lines import Line2D
+
+    if runs < 2:
+        return [], []
+    st = _run_styles(runs)
+    first = Line2D([], [], color=_RUN_GREY, linewidth=1.0)
+    rest = Line2D([], [], color=_RUN_GREY, linewidth=st["linewidth"], linestyle=st["linestyle"],
+                  alpha=None if st["alpha"] == 1.0 else st["alpha"])
+    return [first, rest], ["run 1", "run 2" if runs == 2 else f"runs 2-{runs}"]
+
+
+def _legend(ax, handles: list, labels: list, extra: tuple[list, list] = ([], [])) -> None:
     """Legend right of the panel; with more than `_LEGEND_ROWS` entries (the 10 colours repeat), one
     entry per colour and line style naming the signals drawn with it (``h1, h11, h21``)."""
     if len(handles) > _LEGEND_ROWS:
@@ -450,7 +477,8 @@ def _legend(ax, handles: list, labels: list) -> None:
         handles = [g[0] for g in groups.values()]
         labels = [", ".join(g[1]) if len(g[1]) <= 4 else
                   f"{g[1][0]}, {g[1][1]}, ..., {g[1][-1]} ({len(g[1])})" for g in groups.values()]
-    ax.legend(handles, labels, fontsize=6, loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False)
+    ax.legend(handles + list(extra[0]), labels + list(extra[1]), fontsize=_LEGEND_PT, loc="upper left",
+              bbox_to_anchor=(1.01, 1.0), frameon=False)
 
 
 def time_domain_figure(artefact: Mapping[str, Any], artefact_dir: Path, directory: Path,
@@ -459,7 +487,9 @@ def time_domain_figure(artefact: Mapping[str, Any], artefact_dir: Path, director
 
     Subplots: states (levels) with their references; estimates against the
     true states and the estimation error when the trace has estimates; the
-    inputs. The first run of the trace is drawn solid, further runs thin.
+    inputs, each held to the end of the horizon (zero-order hold). The first run of
+    the trace is drawn solid, a second run dashed, a bundle of further runs thin; the
+    legends of the panels drawing runs name them (``run 1``, ``run 2``).
 
     Parameters
     ----------
@@ -506,6 +536,14 @@ def time_domain_figure(artefact: Mapping[str, Any], artefact_dir: Path, director
     colors = [f"C{i % 10}" for i in range(max(x.shape[2], u.shape[2] if u.ndim == 3 else 0, 1))]
     n = x.shape[2]
     state_unit = sunits[0] if sunits and all(v == sunits[0] for v in sunits) else ""
+    runs_drawn = x.shape[0]
+    further = _run_styles(runs_drawn)
+    run_marks = _run_handles(runs_drawn)
+
+    def sname(i: int) -> str:   # a state's legend entry: no unit when the axis label gives it
+        return (str(snames[i]) if i < len(snames) else str(i + 1)) if state_unit else \
+            _unit_label(snames, sunits, i)
+
     for ax, panel in zip(axes, panels):
         lines = PanelLines()      # every line of the panel: one collection, drawn in this order
         if panel == "linear":
@@ -516,65 +554,69 @@ def time_domain_figure(artefact: Mapping[str, Any], artefact_dir: Path, director
                 lines.line(t, lin["prediction"][:, i], color=colors[i], linewidth=1.0, linestyle="--",
                            label=f"{snames[i] if i < len(snames) else i + 1} linear model")
             ax.set_ylabel(f"deviation from x0 [{state_unit}]" if state_unit else "deviation from x0",
-                          fontsize=8)
+                          fontsize=_LABEL_PT)
             ax.set_title("response to a small step: nonlinear plant (solid) and linear model (dashed); "
-                         f"largest gap {100 * float(lin['gap']) / max(scale, 1e-300):.2g} %", fontsize=8,
+                         f"largest gap {100 * float(lin['gap']) / max(scale, 1e-300):.2g} %", fontsize=_LABEL_PT,
                          y=1.0)
         elif panel == "levels":
             for i in range(n):
-                lines.line(t, x[0, :, i], color=colors[i], linewidth=1.0, label=_unit_label(snames, sunits, i))
-                lines.runs(t, x[1:, :, i], color=colors[i], linewidth=0.5, alpha=0.45)
+                lines.line(t, x[0, :, i], color=colors[i], linewidth=1.0, label=sname(i))
+                lines.runs(t, x[1:, :, i], color=colors[i], **further)
             if ref is not None and np.ndim(ref) == 2 and np.shape(ref)[0] == t.size:
                 for j in range(np.shape(ref)[1]):
                     k = snames.index(rnames[j]) if j < len(rnames) and rnames[j] in snames else j
                     lines.line(t, np.asarray(ref, float)[:, j], color=colors[k % len(colors)], linestyle="--",
                                linewidth=0.8, label=f"ref. {rnames[j] if j < len(rnames) else j + 1}")
-            ax.set_ylabel(f"states [{state_unit}]" if state_unit else "states", fontsize=8)
-            ax.set_title("plant (nonlinear)" + (" and references" if ref is not None else ""), fontsize=9,
+            ax.set_ylabel(f"states [{state_unit}]" if state_unit else "states", fontsize=_LABEL_PT)
+            ax.set_title("plant (nonlinear)" + (" and references" if ref is not None else ""), fontsize=_TITLE_PT,
                          y=1.0)
         elif panel == "estimates":
             xh = np.asarray(x_hat, float)
             for i in range(n):
                 lines.line(t, x[0, :, i], color=colors[i], linewidth=1.0,
                            label=f"{snames[i] if i < len(snames) else i + 1}")
-                lines.line(t, xh[0, :, i], color=colors[i], linewidth=0.9, linestyle="--",
-                           label=f"{snames[i] if i < len(snames) else i + 1} estimate")
+                lines.line(t, xh[0, :, i], color=colors[i], linewidth=0.9, linestyle="--")
             ax.set_ylabel(f"state and estimate [{state_unit}]" if state_unit else "state and estimate",
-                          fontsize=8)
-            ax.set_title("estimates (dashed) against the true states", fontsize=9, y=1.0)
+                          fontsize=_LABEL_PT)
+            ax.set_title("estimates (dashed) against the true states", fontsize=_TITLE_PT, y=1.0)
         elif panel == "error":
             err = np.asarray(x_hat, float) - x
             for i in range(n):
                 lines.line(t, err[0, :, i], color=colors[i], linewidth=1.0,
                            label=f"{snames[i] if i < len(snames) else i + 1}")
-                lines.runs(t, err[1:, :, i], color=colors[i], linewidth=0.5, alpha=0.45)
+                lines.runs(t, err[1:, :, i], color=colors[i], **further)
             ax.axhline(0.0, color="0.6", linewidth=0.6)
             ax.set_ylabel(f"estimate - state [{state_unit}]" if state_unit else "estimate - state",
-                          fontsize=8)
-            ax.set_title("estimation error", fontsize=9, y=1.0)
+                          fontsize=_LABEL_PT)
+            ax.set_title("estimation error", fontsize=_TITLE_PT, y=1.0)
         else:
             shown = [_display(iunits[j] if j < len(iunits) else "") for j in range(u.shape[2])]
             for j in range(u.shape[2]):
-                lines.line(t_u, shown[j][0] * u[0, :, j], step=True, color=colors[j % len(colors)],
+                lines.line(t_u, shown[j][0] * u[0, :, j], step=True, end=t[-1], color=colors[j % len(colors)],
                            linewidth=1.0, label=inames[j] if j < len(inames) else f"#{j + 1}")
-                lines.runs(t_u, shown[j][0] * u[1:, :, j], step=True, color=colors[j % len(colors)],
-                           linewidth=0.5, alpha=0.45)
+                lines.runs(t_u, shown[j][0] * u[1:, :, j], step=True, end=t[-1],
+                           color=colors[j % len(colors)], **further)
             same = {sh[1] for sh in shown}
             unit = same.pop() if len(same) == 1 else ""
             what = "flow" if unit == "l/s" else "input"
-            ax.set_ylabel(f"{what} [{unit}]" if unit else what, fontsize=8)
-            ax.set_title("inputs (zero-order hold)", fontsize=9, y=1.0)
+            ax.set_ylabel(f"{what} [{unit}]" if unit else what, fontsize=_LABEL_PT)
+            ax.set_title("inputs (zero-order hold)", fontsize=_TITLE_PT, y=1.0)
         lines.draw(ax)
-        ax.tick_params(labelsize=7)    # also sets how many ticks fit (the locator's tick space)
+        ax.tick_params(labelsize=_TICK_PT)    # also sets how many ticks fit (the locator's tick space)
         _plain_axis(ax)
-        _legend(ax, lines.handles, lines.labels)
-    axes[-1].set_xlabel("time t [s]", fontsize=8)
+        extra = run_marks if panel in ("levels", "error", "inputs") else ([], [])
+        if panel == "estimates":     # one entry for every dashed estimate
+            from matplotlib.lines import Line2D
+
+            extra = ([Line2D([], [], color=_RUN_GREY, linewidth=0.9, linestyle="--")], ["estimate"])
+        _legend(ax, lines.handles, lines.labels, extra)
+    axes[-1].set_xlabel("time t [s]", fontsize=_LABEL_PT)
     # Margins and label positions from the texts' metrics: no layout engine (tight_layout lays every
     # tick and legend out once more before savefig draws them); titles at y = 1 (no tick labels
     # above the panels: matplotlib's automatic title position would measure the ticks again).
-    stacked_layout(fig, axes, tick_size=7)
+    stacked_layout(fig, axes, tick_size=_TICK_PT)
     for ax in axes:      # ticks, tick labels, grid and axis labels as a few plain artists
-        draw_decorations(ax, tick_size=7, grid={"linewidth": 0.3, "color": "0.9"})
+        draw_decorations(ax, tick_size=_TICK_PT, grid={"linewidth": 0.3, "color": "0.9"})
     directory.mkdir(parents=True, exist_ok=True)
     target = directory / f"{stem}.pdf"
     _atomic_savefig(fig, target)
@@ -586,6 +628,7 @@ def time_domain_figure(artefact: Mapping[str, Any], artefact_dir: Path, director
     caption = (f"Verdict simulation of design {name} ({artefact.get('method', '')}) on the nonlinear "
                f"plant: {scenario}. Check {check}: {_word(passed)}; artefact verdict: {_word(verdict)}. "
                f"{runs} run{'s' if runs != 1 else ''} shown"
+               + (" (the upper panel: run 2 minus run 1)" if lin is not None and runs == 2 else "")
                + (f", every {ordinal(int(head['stride']))} sample" if int(head.get("stride", 1)) > 1
                   else "") + ".")
     return TraceFigure(target, f"{directory.name}/{stem}.pdf", caption, scenario, check,

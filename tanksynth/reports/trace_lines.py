@@ -69,7 +69,7 @@ def envelope(t: np.ndarray, y: np.ndarray, bins: int = ENVELOPE_BINS) -> tuple[n
     return (tk[0], yk[0]) if one else (tk, yk)
 
 
-def staircase(t: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def staircase(t: np.ndarray, y: np.ndarray, end: float | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Zero-order-hold ("post") staircase vertices of samples along the last axis.
 
     Parameters
@@ -78,17 +78,24 @@ def staircase(t: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         Sample times (s).
     y : ndarray, shape (..., N)
         Held values.
+    end : float, optional
+        End of the horizon (s): the last value ``y[N-1]`` is held from ``t[N-1]`` to ``end``
+        (a zero-order hold's last input acts until the end of the simulation, one sample after
+        its sample time). Ignored unless later than ``t[N-1]``.
 
     Returns
     -------
-    ts : ndarray, shape (..., 2 N - 1)
-        Vertex times (s): every sample time twice but the first.
-    ys : ndarray, shape (..., 2 N - 1)
+    ts : ndarray, shape (..., 2 N - 1), or (..., 2 N) with ``end``
+        Vertex times (s): every sample time twice but the first (and ``end``).
+    ys : ndarray, shape (..., 2 N - 1), or (..., 2 N) with ``end``
         Vertex values (the unit of ``y``): ``y[k]`` held from ``t[k]`` to ``t[k+1]``.
     """
     t, y = np.broadcast_arrays(np.asarray(t, float), np.asarray(y, float))
     ts = np.repeat(t, 2, axis=-1)[..., 1:]
     ys = np.repeat(y, 2, axis=-1)[..., :-1]
+    if end is not None and t.shape[-1] and float(end) > float(np.max(t[..., -1])):
+        ts = np.concatenate([ts, np.full(ts.shape[:-1] + (1,), float(end))], axis=-1)
+        ys = np.concatenate([ys, y[..., -1:]], axis=-1)
     return ts, ys
 
 
@@ -152,11 +159,11 @@ class PanelLines:
         self.labels: list[str] = []
 
     def _add(self, tk: np.ndarray, yk: np.ndarray, step: bool, color: Any, linewidth: float,
-             linestyle: str, alpha: float) -> None:
+             linestyle: str, alpha: float, end: float | None = None) -> None:
         from matplotlib.colors import to_rgba
 
         if step:
-            tk, yk = staircase(tk, yk)
+            tk, yk = staircase(tk, yk, end)
         rgba = to_rgba(color, alpha)
         for tr, yr in zip(np.atleast_2d(tk), np.atleast_2d(yk)):
             self._segments.append(np.column_stack([tr, yr]))
@@ -165,7 +172,8 @@ class PanelLines:
             self._styles.append(linestyle)
 
     def line(self, t: np.ndarray, y: np.ndarray, *, color: Any, linewidth: float, linestyle: str = "-",
-             alpha: float = 1.0, step: bool = False, label: str | None = None) -> None:
+             alpha: float = 1.0, step: bool = False, end: float | None = None,
+             label: str | None = None) -> None:
         """Add one signal (decimated by `envelope`).
 
         Parameters
@@ -179,11 +187,14 @@ class PanelLines:
             (dimensionless).
         step : bool
             Zero-order-hold staircase (as ``ax.step(where="post")``).
+        end : float, optional
+            With ``step``: end of the horizon (s), the last value is held until then
+            (`staircase`).
         label : str, optional
             Legend entry (a proxy handle with the same colour, width and dash pattern).
         """
         tk, yk = envelope(t, np.asarray(y, dtype=float), self.bins)
-        self._add(tk, yk, step, color, linewidth, linestyle, alpha)
+        self._add(tk, yk, step, color, linewidth, linestyle, alpha, end)
         if label is not None:
             from matplotlib.lines import Line2D
 
@@ -192,7 +203,7 @@ class PanelLines:
             self.labels.append(str(label))
 
     def runs(self, t: np.ndarray, Y: np.ndarray, *, color: Any, linewidth: float, linestyle: str = "-",
-             alpha: float = 1.0, step: bool = False) -> None:
+             alpha: float = 1.0, step: bool = False, end: float | None = None) -> None:
         """Add R runs of one signal (each decimated by `envelope`; nothing for R = 0).
 
         Parameters
@@ -201,14 +212,14 @@ class PanelLines:
             Sample times (s).
         Y : ndarray, shape (R, N)
             The runs (any unit).
-        color, linewidth, linestyle, alpha, step
-            As in `line` (width in points, alpha dimensionless).
+        color, linewidth, linestyle, alpha, step, end
+            As in `line` (width in points, alpha dimensionless, end in s).
         """
         Y = np.asarray(Y, dtype=float)
         if Y.ndim != 2 or Y.shape[0] == 0:
             return
         tk, yk = envelope(t, Y, self.bins)
-        self._add(tk, yk, step, color, linewidth, linestyle, alpha)
+        self._add(tk, yk, step, color, linewidth, linestyle, alpha, end)
 
     def draw(self, ax: Any) -> Any:
         """Add the collection to ``ax`` and autoscale once.

@@ -112,6 +112,27 @@ def test_stacked_layout_keeps_every_text_on_the_page_and_apart(panels):
             assert ext[id(ax.title)].y1 <= min(b.y0 for b in above) + 0.5   # clear of the panel above
 
 
+def test_stacked_layout_grows_the_figure_for_a_tall_legend():
+    """A legend longer than its panel would run into the next panel's legend (or off the page):
+    the figure grows so that every legend ends above the next one and on the page."""
+    fig, axes = _figure(3)
+    h0 = fig.get_size_inches()[1]
+    t = np.linspace(0.0, 40.0, 20)
+    for ax in axes:
+        for i in range(14):
+            ax.plot(t, i + np.sin(t), label=f"h{i + 1}, h{i + 11}, h{i + 21}")
+        ax.tick_params(labelsize=8.5)
+        ax.legend(fontsize=8.5, loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False)
+    stacked_layout(fig, axes, tick_size=8.5)
+    assert fig.get_size_inches()[1] > h0
+    r, page, ext, texts = _extents(fig)
+    legs = [ax.get_legend().get_window_extent(r) for ax in axes]
+    for k, leg in enumerate(legs):
+        assert _inside(leg, page)
+        if k + 1 < len(legs):
+            assert leg.y0 >= legs[k + 1].y1 - 0.5, k       # above the next panel's legend
+
+
 def test_square_panels_fit_their_legends_and_titles():
     from matplotlib.figure import Figure
 

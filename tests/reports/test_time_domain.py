@@ -171,8 +171,14 @@ def test_time_domain_figure_content(tmp_path):
     segs = [len(a.collections[0].get_segments()) for a in axes]
     assert [len(a.collections) for a in axes] == [1, 1, 1, 1] and segs == [6, 6, 6, 4]
     legends = [[t.get_text() for t in a.get_legend().get_texts()] for a in axes]
-    assert legends[0] == ["h1 [m]", "h2 [m]", "h3 [m]"] and legends[3] == ["q1", "q2"]
-    assert legends[1] == ["h1", "h1 estimate", "h2", "h2 estimate", "h3", "h3 estimate"]
+    # the unit is on the axis label; the two runs are named (run 1 solid, run 2 dashed) where drawn
+    assert legends[0] == ["h1", "h2", "h3", "run 1", "run 2"] and legends[3] == ["q1", "q2", "run 1", "run 2"]
+    assert legends[2] == ["h1", "h2", "h3", "run 1", "run 2"]
+    assert legends[1] == ["h1", "h2", "h3", "estimate"]     # one entry for the dashed estimates
+    styles = [str(h.get_linestyle()) for h in axes[0].get_legend().legend_handles]
+    assert styles[-2:] == ["-", "--"]
+    dashes = [d for _, d in axes[0].collections[0].get_linestyles()]   # (offset, dash pattern or None)
+    assert all(d is None for d in dashes[::2]) and all(d for d in dashes[1::2])   # run 1 solid, run 2 dashed
     # the data shown: levels span the trace's range; flows shown in l/s (x 1e3)
     lo, hi = axes[0].dataLim.y0, axes[0].dataLim.y1
     assert lo == pytest.approx(arrays["x"].min()) and hi == pytest.approx(arrays["x"].max())
@@ -182,8 +188,35 @@ def test_time_domain_figure_content(tmp_path):
                               check=True).stdout
         text = " ".join(text.split())
         for words in ("plant (nonlinear)", "estimation error", "inputs (zero-order hold)", "time t [s]",
-                      "h2 estimate", "h3 [m]", "q2"):     # horizontal texts (rotated ones split)
+                      "estimate", "run 2", "q2"):     # horizontal texts (rotated ones split)
             assert words in text, words
+
+
+def test_time_domain_text_reads_at_print_size_and_inputs_reach_the_horizon_end(tmp_path):
+    """Scaled into the report (0.95 text width, at most 0.72 text height, template's geometry), the
+    legend and tick labels print at 7 pt or more; the held inputs are drawn to the last state sample."""
+    import re
+
+    from tanksynth.reports.figure_layout import TraceCanvas
+
+    arrays = _synthetic_trace(tmp_path, "obs", estimator=True, samples=41)
+    canvas = TraceCanvas()
+    time_domain_figure({"name": "obs", "method": "m"}, tmp_path, tmp_path / "figs", "t", canvas=canvas)
+    fig = canvas.last
+    template = (Path(__file__).parents[2] / "tanksynth/reports/templates/report.tex.j2").read_text()
+    assert "a4paper" in template
+    margin_cm = float(re.search(r"\\usepackage\[margin=([0-9.]+)cm\]\{geometry\}", template).group(1))
+    text_w = (21.0 - 2 * margin_cm) / 2.54 * 72.0      # pt (1/72 in, as the figure's size)
+    text_h = (29.7 - 2 * margin_cm) / 2.54 * 72.0
+    w, h = (72.0 * v for v in fig.get_size_inches())
+    scale = min(0.95 * text_w / w, 0.72 * text_h / h)
+    for ax in fig.axes:
+        legend_pt = ax.get_legend().get_texts()[0].get_fontsize()
+        tick_pt = ax.yaxis.get_major_ticks()[0].label1.get_fontsize()
+        assert legend_pt * scale >= 7.0 and tick_pt * scale >= 7.0, (legend_pt, tick_pt, scale)
+    inputs = fig.axes[-1]
+    assert inputs.get_title() == "inputs (zero-order hold)"
+    assert inputs.dataLim.x1 == pytest.approx(arrays["t"][-1]) and arrays["t_u"][-1] < arrays["t"][-1]
 
 
 def test_reused_canvas_draws_the_same_pdf(tmp_path):

@@ -54,6 +54,16 @@ def test_staircase_holds_each_value_until_the_next_sample():
     np.testing.assert_array_equal(ys, [5.0, 5.0, 6.0, 6.0, 7.0])
 
 
+def test_staircase_holds_the_last_value_to_the_end_of_the_horizon():
+    # inputs sampled at t = 0, 1 (zero-order hold) on a horizon ending at t = 2: u[1] acts on [1, 2]
+    ts, ys = staircase(np.array([[0.0, 1.0]]), np.array([[5.0, 6.0]]), end=2.0)
+    np.testing.assert_array_equal(ts, [[0.0, 1.0, 1.0, 2.0]])
+    np.testing.assert_array_equal(ys, [[5.0, 5.0, 6.0, 6.0]])
+    # an end not after the last sample adds nothing
+    np.testing.assert_array_equal(staircase(np.array([0.0, 1.0]), np.array([5.0, 6.0]), end=1.0)[0],
+                                  [0.0, 1.0, 1.0])
+
+
 def test_draw_runs_adds_one_collection_with_the_data_limits():
     from matplotlib.figure import Figure
 
