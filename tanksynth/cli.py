@@ -25,13 +25,14 @@ from rich.table import Table
 
 from tanksynth.errors import InfeasibleDesign, SpecError, TanksynthError
 from tanksynth.messages import KNOWN_WARNINGS, MAX_MESSAGE  # noqa: F401 (the CLI's surface)
-from tanksynth.messages import StageClock, law_line
+from tanksynth.messages import StageClock, law_line, print_summary
 from tanksynth.messages import design_index_note as _design_index_note
 from tanksynth.messages import note_warnings
 from tanksynth.messages import one_line as _one_line
 from tanksynth.process import ignore_file_size_signal as _ignore_file_size_signal
 from tanksynth.process import internal_error_log as _internal_error_log
 from tanksynth.process import one_blas_thread as _one_blas_thread
+from tanksynth.report_worker import ReportWorker, report_summary
 
 __all__ = ["main", "cli"]
 
@@ -445,14 +446,24 @@ def run(spec: str | None, outdir: str, pdf: bool | None, force: bool) -> None:
 
 
 def _run_locked(s, spec: str | None, out: Path, pdf: bool | None) -> None:
-    from tanksynth.artefacts.atomic import atomic_write
-    from tanksynth.artefacts.io import to_jsonable
-    from tanksynth.methods import verify_directory
-
     have_tex = all(shutil.which(tool) for tool in ("pdflatex", "latexmk"))
     if pdf is None:
         pdf = spec is None and have_tex
     clock = StageClock()
+    # the report's imports run in a forked worker on the other core meanwhile (report_worker)
+    worker = ReportWorker.start(out, pdf) if s.designs else None
+    try:
+        _run_stages(s, spec, out, pdf, have_tex, clock, worker)
+    finally:
+        if worker is not None:
+            worker.cancel()
+
+
+def _run_stages(s, spec, out: Path, pdf: bool, have_tex: bool, clock, worker) -> None:
+    from tanksynth.artefacts.atomic import atomic_write
+    from tanksynth.artefacts.io import to_jsonable
+    from tanksynth.methods import verify_directory
+
     with _stage("rank conditions (Kalman, PBH, nonlinear observability)"), clock("rank checks"):
         checks = _rank_conditions(s)
     _print_checks(checks)
@@ -476,10 +487,10 @@ def _run_locked(s, spec: str | None, out: Path, pdf: bool | None) -> None:
             verdicts = verify_directory(out, progress=lambda d, n: bar.update(task, completed=d, total=n),
                                         started=_started(bar, task))
         with clock("report"):
-            res = _write_report(out, pdf)
+            res = _write_report(out, pdf, worker)
         if res.pdf is not None:
             clock.part("report", "LaTeX", res.latex_seconds)
-        _print_summary(written)
+        print_summary(written, _out)
         if spec is None and not have_tex:
             _out.print("no PDF: install pdflatex and latexmk (Debian: make tex) and run "
                        f"'tanksynth report {out} --pdf'", markup=False, highlight=False)
@@ -501,39 +512,14 @@ def _started(bar, task):
                                                  description=f"verifying {name} ({method})")
 
 
-def _print_summary(paths: list[Path]) -> None:
-    from tanksynth.artefacts.io import read_artefact
-    from tanksynth.summary import summary_row
-
-    table = Table(title="Designs, verified on the nonlinear plant")
-    for col in ("design", "method", "key figure", "verdict"):
-        table.add_column(col, overflow="fold")
-    failures = []
-    try:
-        from tanksynth.artefacts.io import read_plant_record
-
-        units = [s.get("unit", "") for s in read_plant_record(paths[0].parent)["plant"]["states"]]
-    except (TanksynthError, KeyError, TypeError, OSError):
-        units = None
-    for path in paths:
-        doc = read_artefact(path)
-        row = summary_row(doc, units)
-        table.add_row(row.name, row.method, row.figure, "[green]pass[/]" if row.passed else "[red]FAIL[/]")
-        failures += [(row.name, c) for c in (doc.get("verification") or {}).get("checks", [])
-                     if c.get("passed") is False]
-    _out.print(table)
-    for name, c in failures:  # why, without opening the artefact
-        _out.print(f"{name}: {c['check']} FAILED: {_one_line(c.get('detail', ''))}", markup=False,
-                   highlight=False)
-    _out.print(f"artefacts: {paths[0].parent}/<design>.json (.npz beside)", markup=False,
-               highlight=False)
-
-
-def _write_report(directory: Path, pdf: bool):
-    from tanksynth.methods import write_report
-
+def _write_report(directory: Path, pdf: bool, worker=None):
+    """Write the report (by ``worker`` when given and it manages, else here) and say where."""
     with _stage("writing the report (figures, LaTeX" + (", PDF with latexmk)" if pdf else ")")):
-        res = write_report(directory, pdf=pdf)
+        res = worker.finish() if worker is not None else None
+        if res is None:
+            from tanksynth.methods import write_report
+
+            res = report_summary(write_report(directory, pdf=pdf))
     if res.pdf is not None:
         _out.print(f"report: {res.tex}, {res.pdf.name} ({res.pages} pages, LaTeX "
                    f"{res.latex_seconds:.1f} s)", markup=False, highlight=False, soft_wrap=True)
@@ -542,11 +528,10 @@ def _write_report(directory: Path, pdf: bool):
         _out.print(f"report: {res.tex} (" + ("add --pdf for the PDF)" if tex else
                                              "for the PDF: install pdflatex and latexmk, then --pdf)"),
                    markup=False, highlight=False, soft_wrap=True)
-    for comp in res.comparisons:
-        if comp.errata:
-            _out.print(f"paper vs tool ({comp.title}): {len(comp.errata)} printed value(s) in the "
-                       "paper differ from the derivation (paper errata)", markup=False, highlight=False,
-                       soft_wrap=True)
+    for title, count in res.errata:
+        _out.print(f"paper vs tool ({title}): {count} printed value(s) in the "
+                   "paper differ from the derivation (paper errata)", markup=False, highlight=False,
+                   soft_wrap=True)
     return res
 
 

@@ -10,7 +10,9 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
-__all__ = ["MAX_MESSAGE", "KNOWN_WARNINGS", "one_line", "meaning", "origin", "warning_line",
+from tanksynth.errors import TanksynthError
+
+__all__ = ["print_summary", "MAX_MESSAGE", "KNOWN_WARNINGS", "one_line", "meaning", "origin", "warning_line",
            "design_index_note", "note_warnings", "law_line", "StageClock"]
 
 #: Longest message printed (characters); longer ones are cut.
@@ -231,7 +233,17 @@ class StageClock:
             self._seconds[stage] = self._seconds.get(stage, 0.0) + time.perf_counter() - t0
 
     def part(self, stage: str, name: str, seconds: float) -> None:
-        """Note that ``seconds`` (s) of ``stage`` were spent in ``name`` (shown in brackets)."""
+        """Note that ``seconds`` (s) of ``stage`` were spent in ``name`` (shown in brackets).
+
+        Parameters
+        ----------
+        stage : str
+            A stage timed by the clock.
+        name : str
+            The part (e.g. ``"LaTeX"``).
+        seconds : float
+            Its wall time (s).
+        """
         self._parts.setdefault(stage, []).append((name, float(seconds)))
 
     @property
@@ -247,3 +259,43 @@ class StageClock:
             items.append(f"{stage} {sec:.1f} s{parts}")
         total = time.perf_counter() - self._start
         return "times: " + ", ".join(items) + f"; total {total:.1f} s"
+
+
+def print_summary(paths: list[Path], console: Any) -> None:
+    """The table ``run`` ends with: design, method, key figure, verdict; then each failed
+    check's reason and where the artefacts are.
+
+    Parameters
+    ----------
+    paths : list of Path
+        The artefacts written (non-empty), all in one directory.
+    console : rich.console.Console
+        Where to print.
+    """
+    from rich.table import Table
+
+    from tanksynth.artefacts.io import read_artefact
+    from tanksynth.summary import summary_row
+
+    table = Table(title="Designs, verified on the nonlinear plant")
+    for col in ("design", "method", "key figure", "verdict"):
+        table.add_column(col, overflow="fold")
+    failures = []
+    try:
+        from tanksynth.artefacts.io import read_plant_record
+
+        units = [s.get("unit", "") for s in read_plant_record(paths[0].parent)["plant"]["states"]]
+    except (TanksynthError, KeyError, TypeError, OSError):
+        units = None
+    for path in paths:
+        doc = read_artefact(path)
+        row = summary_row(doc, units)
+        table.add_row(row.name, row.method, row.figure, "[green]pass[/]" if row.passed else "[red]FAIL[/]")
+        failures += [(row.name, c) for c in (doc.get("verification") or {}).get("checks", [])
+                     if c.get("passed") is False]
+    console.print(table)
+    for name, c in failures:  # why, without opening the artefact
+        console.print(f"{name}: {c['check']} FAILED: {one_line(c.get('detail', ''))}", markup=False,
+                   highlight=False)
+    console.print(f"artefacts: {paths[0].parent}/<design>.json (.npz beside)", markup=False,
+               highlight=False)

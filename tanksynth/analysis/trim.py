@@ -163,7 +163,13 @@ class LevelFix:
     max_abs_residual: float
 
     def describe(self, unit: str = "") -> str:
-        """``"h3 = 0.325 m"``."""
+        """``"h3 = 0.325 m"``.
+
+        Parameters
+        ----------
+        unit : str
+            The state's unit (appended when not empty).
+        """
         return f"{self.state} = {self.value:.4g}" + (f" {unit}" if unit else "")
 
 

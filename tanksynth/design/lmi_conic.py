@@ -341,6 +341,9 @@ class ConicEliminatedLMI(ConicObserverLMI):
         Conditioning bound: ``P >= I``, ``trace P <= kappa n`` (> 1).
     blocks : sequence of sequence of int, optional
         Partition of the states: ``P`` and ``Q`` are block-diagonal.
+    pattern : array_like of bool, shape (n, q), optional
+        Allowed non-zeros of the gain (dimensionless 0/1); the eliminated form needs None (a
+        full gain).
     margin : float
         Margin the recovered gain is built for (dimensionless, normalised LMI).
     solver_options : mapping, optional

@@ -1,0 +1,215 @@
+"""The report stage of ``tanksynth run`` in a process forked before the design (issue 15).
+
+The report needs matplotlib, jinja2 and the report modules (about 0.5-0.6 s of
+imports), but only the files that design and verification write. So ``run``
+forks a worker right after reading the spec: the worker imports the report
+stack on the second core while the parent checks, designs and verifies, then
+waits; when told to, it writes the report from the directory and sends back a
+short summary. The report is the same as the one written in-process (it is
+the same function reading the same files).
+
+The worker is used only where forking is safe and cheap: Linux, a process
+with no other thread running (a pytest-xdist worker or a notebook kernel has
+some: the report is then written in-process), and unless
+``TANKSYNTH_REPORT_WORKER=0``. Whatever goes wrong in the worker (it dies,
+raises, sends nothing), the parent writes the report itself, so errors
+surface exactly as without a worker.
+"""
+
+from __future__ import annotations
+
+import os
+import pickle
+import sys
+import threading
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+__all__ = ["ReportSummary", "ReportWorker", "report_summary", "worker_usable"]
+
+
+@dataclass(frozen=True)
+class ReportSummary:
+    """What ``run`` prints about a written report.
+
+    Attributes
+    ----------
+    tex : Path
+        The LaTeX source written.
+    pdf : Path or None
+        The PDF, when compiled.
+    pages : int or None
+        Pages of the PDF.
+    latex_seconds : float
+        Wall time of the LaTeX compilation (s); 0 without a PDF.
+    errata : tuple of (str, int)
+        Per paper comparison: its title and how many printed values differ
+        from the derivation.
+    """
+
+    tex: Path
+    pdf: Path | None
+    pages: int | None
+    latex_seconds: float
+    errata: tuple[tuple[str, int], ...]
+
+
+def report_summary(result: Any) -> ReportSummary:
+    """The summary of a `tanksynth.reports.writer.ReportResult`.
+
+    Parameters
+    ----------
+    result : ReportResult
+
+    Returns
+    -------
+    ReportSummary
+    """
+    return ReportSummary(Path(result.tex), None if result.pdf is None else Path(result.pdf),
+                         result.pages, float(result.latex_seconds or 0.0),
+                         tuple((str(c.title), len(c.errata)) for c in result.comparisons if c.errata))
+
+
+def worker_usable() -> bool:
+    """True where the report may be written by a forked worker (see the module docstring)."""
+    return (sys.platform.startswith("linux") and hasattr(os, "fork")
+            and os.environ.get("TANKSYNTH_REPORT_WORKER", "1") != "0"
+            and threading.active_count() == 1)
+
+
+def _write_all(fd: int, data: bytes) -> None:
+    view = memoryview(data)
+    while view:
+        view = view[os.write(fd, view):]
+
+
+def _read_all(fd: int) -> bytes:
+    chunks = []
+    while True:
+        chunk = os.read(fd, 1 << 16)
+        if not chunk:
+            return b"".join(chunks)
+        chunks.append(chunk)
+
+
+class ReportWorker:
+    """A forked process that writes the report of a result directory when told to.
+
+    Use `start` (None where a worker is not usable), then exactly one of
+    `finish` (write the report, get its summary) or `cancel`.
+
+    Parameters
+    ----------
+    pid : int
+        The worker's process id.
+    go : int
+        Write end of the pipe that tells the worker to start.
+    result : int
+        Read end of the pipe the worker answers on.
+    """
+
+    def __init__(self, pid: int, go: int, result: int):
+        self._pid, self._go, self._result = pid, go, result
+        self._done = False
+
+    @classmethod
+    def start(cls, directory: Path, pdf: bool) -> "ReportWorker | None":
+        """Fork the worker; it imports the report stack and waits.
+
+        Parameters
+        ----------
+        directory : Path
+            The result directory the report will be written from.
+        pdf : bool
+            Compile the PDF too.
+
+        Returns
+        -------
+        ReportWorker or None
+            None where forking is not usable (`worker_usable`).
+        """
+        if not worker_usable():
+            return None
+        go_r, go_w = os.pipe()
+        res_r, res_w = os.pipe()
+        sys.stdout.flush()
+        sys.stderr.flush()
+        pid = os.fork()
+        if pid == 0:  # the worker: never returns
+            try:
+                os.close(go_w)
+                os.close(res_r)
+                _serve(Path(directory), bool(pdf), go_r, res_w)
+            finally:
+                os._exit(0)
+        os.close(go_r)
+        os.close(res_w)
+        return cls(pid, go_w, res_r)
+
+    def finish(self) -> ReportSummary | None:
+        """Tell the worker to write the report; its summary, or None if it did not manage
+        (the caller then writes the report itself)."""
+        self._done = True
+        try:
+            _write_all(self._go, b"go")
+        except OSError:
+            pass
+        os.close(self._go)
+        try:
+            data = _read_all(self._result)
+        finally:
+            os.close(self._result)
+            self._reap()
+        try:
+            status, payload = pickle.loads(data)
+        except Exception:  # noqa: BLE001 - nothing or garbage: the worker died
+            return None
+        return payload if status == "ok" and isinstance(payload, ReportSummary) else None
+
+    def cancel(self) -> None:
+        """Let the worker go without writing anything (nothing once `finish` ran)."""
+        if self._done:
+            return
+        self._done = True
+        os.close(self._go)
+        os.close(self._result)
+        self._reap()
+
+    def _reap(self) -> None:
+        try:
+            os.waitpid(self._pid, 0)
+        except ChildProcessError:
+            pass
+
+
+#: What the report imports (lazily, inside its functions): imported by the worker up front.
+_REPORT_STACK = ("tanksynth.reports.writer", "tanksynth.reports.figures", "tanksynth.reports.context",
+                 "jinja2", "matplotlib.figure", "matplotlib.backends.backend_pdf",
+                 "matplotlib.collections", "matplotlib.lines", "matplotlib.patches",
+                 "matplotlib.ticker", "matplotlib.textpath", "matplotlib.transforms",
+                 "matplotlib.font_manager")
+
+
+def _serve(directory: Path, pdf: bool, go: int, result: int) -> None:
+    """The worker's life: import, wait for "go", write the report, send the summary."""
+    try:
+        from tanksynth.methods import write_report
+
+        for module in _REPORT_STACK:
+            __import__(module)
+        from matplotlib.font_manager import FontProperties, findfont
+
+        findfont(FontProperties())  # the font cache, read once
+    except Exception:  # noqa: BLE001 - the parent writes the report itself
+        return
+    if _read_all(go) != b"go":
+        return
+    try:
+        payload: tuple[str, Any] = ("ok", report_summary(write_report(directory, pdf=pdf)))
+    except BaseException as exc:  # noqa: BLE001 - reported by the parent's own attempt
+        payload = ("failed", f"{type(exc).__name__}: {exc}")
+    try:
+        _write_all(result, pickle.dumps(payload))
+    except OSError:
+        pass
