@@ -368,9 +368,22 @@ def robust_state_feedback(A: Any, B: Any, region: LMIRegion, *, domain: str = "c
     else:
         objective = lib.Minimize(lib.norm_fro(Y))
     status2 = lib.solve_status(lib.Problem(objective, phase2), solver)
-    if status2 in ("optimal", "optimal_inaccurate") and X.value is not None:
+    def gain_norm(Xa: np.ndarray, Ya: np.ndarray) -> float:
+        with np.errstate(all="ignore"):
+            try:
+                return float(np.linalg.norm(np.linalg.solve(0.5 * (Xa + Xa.T), np.asarray(Ya).T)))
+            except np.linalg.LinAlgError:
+                return np.inf
+
+    solved2 = status2 in ("optimal", "optimal_inaccurate") and X.value is not None
+    # phase 2 exists to shrink the gain: an inaccurate phase 2 that does not is not taken
+    worse = solved2 and status2 != "optimal" and gain_norm(X.value, Y.value) > gain_norm(Xv, Yv)
+    if solved2 and not worse:
         Xv, Yv = X.value, Y.value
         status = f"{status1} (phase 1), {status2} (phase 2)"
+    elif worse:
+        status = (f"{status1} (phase 1), {status2} (phase 2 inaccurate and with a larger gain: "
+                  "phase-1 solution kept)")
     else:
         status = f"{status1} (phase 1), {status2} (phase 2 failed: phase-1 solution kept)"
     elapsed = time.perf_counter() - start

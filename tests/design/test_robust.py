@@ -237,3 +237,22 @@ def test_example_designs_meet_the_region_at_recomputed_vertices():
         Ba = np.vstack([lin.Bd, np.zeros((2, 2))])
         eig = np.linalg.eigvals(Aa - Ba @ K)
         assert np.all(np.abs(eig - 0.9) < 0.08)
+
+
+def test_inaccurate_phase_two_never_returns_a_larger_gain_than_phase_one():
+    """A random 3-state, 2-input polytope with a loose H-infinity bound (gamma = 1e6): Clarabel ends
+    phase 2 (min ||Y||_F) 'optimal_inaccurate' with ||K|| ~ 3,500 where phase 1's gain has ~760
+    (breaker's case). Phase 2 is there to shrink the gain: the larger inaccurate one is not taken."""
+    from tanksynth.analysis.lmi_region import half_plane
+    from tanksynth.design.robust import HinfBound, robust_state_feedback
+
+    rng = np.random.default_rng(3)
+    n, m, V = 3, 2, 3
+    A0, B0 = rng.standard_normal((n, n)), rng.standard_normal((n, m))
+    A = np.stack([A0 * (1 + 0.1 * k) for k in range(V)])
+    B = np.stack([B0] * V)
+    Bw = np.stack([np.eye(n)[:, :1]] * V)
+    r = robust_state_feedback(A, B, half_plane(0.1), hinf=HinfBound(1e6, Bw, np.eye(n), np.zeros((n, m))))
+    assert np.linalg.norm(r.gain) < 1500.0, (np.linalg.norm(r.gain), r.status)
+    for i in range(V):   # still a certified design: every vertex in Re s < -0.1
+        assert np.max(np.linalg.eigvals(A[i] - B[i] @ r.gain).real) < -0.1
