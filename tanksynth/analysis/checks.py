@@ -204,6 +204,9 @@ def rank_conditions(plant: Plant, x0: Sequence[float], ts: float | None = None,
                   f"them, e.g. {np.round(nl.drop_points[0], 4).tolist()}; unobservable direction "
                   f"there in {', '.join(nl.unobservable_states())}")
         ok = False
+    if nl.undefined_points:
+        detail += (f"; {nl.undefined_points} sampled point(s) left out: a Lie derivative is not "
+                   "finite there (a kink of sqrt/abs/max in the model)")
     checks.append(Check("nonlinear_observability", ok, detail, data))
     jacobians = _analytic_jacobians(plant) if plant.n <= SYMBOLIC_MAX_STATES else False
     if jacobians is False:

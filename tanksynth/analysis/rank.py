@@ -14,7 +14,7 @@ import casadi as ca
 import numpy as np
 import sympy as sp
 
-from tanksynth.errors import DimensionError
+from tanksynth.errors import DimensionError, SpecError
 from tanksynth.plants.base import Plant
 from tanksynth.plants.compile import compile_matrix, evaluate_points, to_casadi
 from tanksynth.analysis.blas import small_dense
@@ -348,6 +348,9 @@ class NonlinearObservability:
         direction the codistribution does not see (right singular vector of
         the smallest singular value): the unobservable direction there.
     state_names : tuple of str
+    undefined_points : int
+        Sampled points left out because a Lie derivative is not finite there
+        (a kink of ``sqrt``/``abs``/``max``); 0 normally.
     """
 
     orders: int
@@ -358,6 +361,7 @@ class NonlinearObservability:
     input_value: np.ndarray
     drop_directions: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
     state_names: tuple[str, ...] = ()
+    undefined_points: int = 0
 
     def unobservable_states(self) -> list[str]:
         """States carrying at least 10% of the first drop point's unobservable direction."""
@@ -384,7 +388,8 @@ class NonlinearObservability:
                 "min_smallest_singular_value": float(self.smallest_singular_values.min()),
                 "drop_points": self.drop_points[:10].tolist(),
                 "drop_directions": self.drop_directions.tolist(),
-                "unobservable_states": self.unobservable_states()}
+                "unobservable_states": self.unobservable_states(),
+                "undefined_points": self.undefined_points}
 
 
 def nonlinear_observability(plant: Plant, points: np.ndarray | None = None, count: int = 200,
@@ -418,7 +423,15 @@ def nonlinear_observability(plant: Plant, points: np.ndarray | None = None, coun
     rtol : float
         Singular values below ``rtol * s_max`` (rows scaled to unit norm)
         count as zero.
+
+    Raises
+    ------
+    SpecError
+        A given point where a Lie derivative is not finite (a kink of
+        ``sqrt``/``abs``/``max``: no rank is defined there); sampled points
+        there are left out.
     """
+    given = points is not None
     if points is None:
         points = plant.region.sample(count, plant.x, seed=seed, margin=0.01)
     points = np.atleast_2d(np.asarray(points, dtype=float))
@@ -427,6 +440,7 @@ def nonlinear_observability(plant: Plant, points: np.ndarray | None = None, coun
              for lo, hi in plant.input_limits]
     u = np.asarray(u, dtype=float).reshape(plant.m)
     M = len(points)
+    undefined = 0
     names = tuple(st.name for st in plant.states)
     # f at the constant input (numbers for u, as the check uses it), h, in CasADi once
     f = plant.f_smooth_numeric.xreplace({s: sp.Float(v) for s, v in zip(plant.u, u)})
@@ -440,6 +454,17 @@ def nonlinear_observability(plant: Plant, points: np.ndarray | None = None, coun
         grad = ca.jacobian(L, xs)
         fn = ca.Function("codist", [xs, us], [grad], ["x", "u"], ["out"])
         blocks.append(_evaluate(fn, grad.shape[0], plant.n, points, u))
+        finite = np.all(np.isfinite(blocks[-1].reshape(len(points), -1)), axis=1)
+        if not np.all(finite):
+            # a kink of sqrt/abs/max where a derivative is infinite: no rank is defined there
+            bad = points[np.flatnonzero(~finite)[0]]
+            if given or np.all(~finite):
+                raise SpecError(f"the Lie derivatives of the outputs (order {k}) are not finite at "
+                                f"x = {np.array2string(bad, precision=6)} (a kink of sqrt/abs/max in the "
+                                "model): check the rank at points off it", key="points")
+            points, blocks = points[finite], [b[finite] for b in blocks]
+            undefined += int(np.sum(~finite))
+            M = len(points)
         vals = np.concatenate(blocks, axis=1)
         # Rows scaled to unit norm (zero rows stay zero): SI models mix 1e-5 and 1e2.
         norms = np.linalg.norm(vals, axis=2, keepdims=True)
@@ -449,11 +474,11 @@ def nonlinear_observability(plant: Plant, points: np.ndarray | None = None, coun
         smin = s[:, plant.n - 1] if s.shape[1] >= plant.n else np.zeros(M)
         if np.all(ranks == plant.n):
             return NonlinearObservability(k + 1, ranks, points, smin, plant.n, u,
-                                          np.zeros((0, plant.n)), names)
+                                          np.zeros((0, plant.n)), names, undefined)
         L = ca.mtimes(grad, fx)
     drops = np.flatnonzero(ranks < plant.n)[:10]
     dirs = np.array([np.linalg.svd(scaled[i])[2][-1] for i in drops]).reshape(-1, plant.n)
-    return NonlinearObservability(plant.n, ranks, points, smin, plant.n, u, dirs, names)
+    return NonlinearObservability(plant.n, ranks, points, smin, plant.n, u, dirs, names, undefined)
 
 
 def _codistribution(plant: Plant, orders: int):

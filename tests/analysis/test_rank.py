@@ -311,3 +311,35 @@ def test_symbolic_observability_tall_matrix_gcd():
     assert sp.expand(res.determinant - (a - b)) == 0 or sp.expand(res.determinant + (a - b)) == 0
     assert [{str(k): v for k, v in d.items()} for d in res.degenerate_parameters] in (
         [{"a": b}], [{"b": a}])
+
+
+def test_nonlinear_observability_at_a_kink_is_a_keyed_error_and_sampled_kinks_are_left_out():
+    """sqrt(2 g max(h2 - h0, 0)) has an infinite derivative for h2 <= h0 (breaker's case): a given
+    point there is a SpecError on 'points' (no raw LinAlgError); sampled points there are left
+    out and counted, and the rest still give a rank."""
+    import sympy as sp
+
+    from tanksynth.errors import SpecError
+    from tanksynth.plants.custom import custom_plant
+
+    table = {
+        "name": "kink", "states": {"h1": {"unit": "m", "min": 0.0, "max": 0.6},
+                                   "h2": {"unit": "m", "min": 0.0, "max": 0.6}},
+        "inputs": {"q": {"unit": "m^3/s", "min": 0.0, "max": 1e-4}},
+        "parameters": {"A": {"value": 0.0154, "unit": "m^2"}, "a": {"value": 2.5e-5, "unit": "m^2"},
+                       "g": {"value": 9.81, "unit": "m/s^2"}, "h0": {"value": 0.3, "unit": "m"}},
+        "equations": {"h1": "(q - a*sqrt(2*g*max(h1 - h2, 0)))/A",
+                      "h2": "(a*sqrt(2*g*max(h1 - h2, 0)) - a*sqrt(2*g*max(h2 - h0, 0)))/A"},
+        "outputs": {"y": {"expr": "h2", "unit": "m"}},
+    }
+    plant = custom_plant(table)
+    assert isinstance(plant.f[1], sp.Expr)
+    with pytest.raises(SpecError) as err:
+        nonlinear_observability(plant, points=np.array([[0.5, 0.2]]))
+    assert err.value.key == "points" and "not finite" in str(err.value)
+    r = nonlinear_observability(plant, count=100, seed=1)
+    assert r.undefined_points > 0 and len(r.points) + r.undefined_points == 100
+    # kept: off both kinks (h2 > h0 and h1 > h2), where every derivative is finite
+    assert np.all(r.points[:, 1] > 0.3) and np.all(r.points[:, 0] > r.points[:, 1])
+    assert np.all(np.isfinite(r.smallest_singular_values))
+    assert r.as_dict()["undefined_points"] == r.undefined_points
