@@ -375,6 +375,9 @@ def simulate(plant: Plant, *, ts: float, steps: int, x0: Sequence[float] | np.nd
         else:
             u = u_prev
         timing["calls"] += 1
+        if not np.isfinite(u).all():   # (CasADi's fmin/fmax would saturate NaN to a bound)
+            bad = int(np.flatnonzero(~np.all(np.isfinite(u), axis=1))[0])
+            raise SimulationError(f"run {bad} (seed {int(seeds[bad])}): non-finite input at sample {k}")
         u = np.minimum(np.maximum(u, lo), hi)
         U[k] = u
         x = integ.advance(x, u, params, ts, int(substeps))
@@ -395,8 +398,8 @@ def _open_loop(integ: Integrator, x: np.ndarray, seq: np.ndarray, params: dict[s
     N, M = seq.shape[0], x.shape[0]
     model = integ.model
     seq = seq[:, None, :] if seq.ndim == 2 else seq
-    if seq.shape[1] not in (1, M) or not np.isfinite(x).all():
-        return None                      # (a non-finite start: the loop names run and sample)
+    if seq.shape[1] not in (1, M) or not np.isfinite(x).all() or not np.isfinite(seq).all():
+        return None                      # (non-finite start or input: the loop names run and sample)
     Ur = np.empty((M, N, model.m))
     src = np.broadcast_to(seq, (N, M, model.m)).transpose(1, 0, 2)
     np.minimum(np.maximum(src, lo[:, None, :]), hi[:, None, :], out=Ur)

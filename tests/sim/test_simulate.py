@@ -174,3 +174,26 @@ def test_open_loop_input_sequences():
         simulate(HYBRID, ts=1.0, steps=5, x0=x0[0], seeds=[0, 1], controller=InputSequence(U))
     with pytest.raises(DimensionError, match="periods"):
         simulate(HYBRID, ts=1.0, steps=90, x0=x0[0], seeds=[0], controller=InputSequence(U[:, 0]))
+
+
+@pytest.mark.parametrize("backend", ["native", "numpy"])
+@pytest.mark.parametrize("how", ["held", "sequence"])
+def test_a_non_finite_input_is_an_error_on_every_backend(monkeypatch, backend, how):
+    """NaN inputs raise SimulationError naming run and sample (the CasADi route's fmin/fmax would
+    saturate NaN to a bound and return a finite, wrong trajectory: breaker's case)."""
+    from tanksynth.analysis.linearize import equilibrium_input
+    from tanksynth.errors import SimulationError
+    from tanksynth.plants import three_tank
+    from tanksynth.sim.simulate import InputSequence, simulate
+
+    monkeypatch.setenv("TANKSYNTH_SIM_BACKEND", backend)
+    plant = three_tank()
+    x0 = np.array([0.30, 0.20, 0.25])
+    u0 = equilibrium_input(plant, x0).u0
+    nan_u = np.full(plant.m, np.nan)
+    kw = (dict(u_init=nan_u) if how == "held"
+          else dict(u_init=u0, controller=InputSequence(np.tile(nan_u, (50, 1)))))
+    with pytest.raises(SimulationError, match="run 0 .*non-finite input at sample 0"):
+        simulate(plant, x0=x0, ts=2.0, steps=50, seeds=[0], **kw)
+    ok = simulate(plant, x0=x0, ts=2.0, steps=5, seeds=[0], u_init=u0)   # finite input: no error
+    assert np.isfinite(ok.x).all()
