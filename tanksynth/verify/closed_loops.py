@@ -29,7 +29,7 @@ from tanksynth.sim.metrics import Metric, compute_metrics
 from tanksynth.sim.scenarios import Scenario, run_scenario
 from tanksynth.sim.simulate import BatchEstimator
 
-from tanksynth.verify.simulations import IntegralStateFeedback
+from tanksynth.verify.simulations import IntegralStateFeedback, StateFeedback  # noqa: F401 (re-export)
 
 __all__ = [
     "CONTINUOUS_TS",
@@ -139,40 +139,6 @@ class ClosedLoop:
                               estimator=estimator, substeps=substeps)
         return compute_metrics(result, setup, plant, estimated=estimator is not None,
                                controlled=True)
-
-
-@dataclass(frozen=True)
-class StateFeedback:
-    """Regulation by state feedback ``u = u0 - K (x_hat - x0)`` (a stateless `ControlLaw`).
-
-    Attributes
-    ----------
-    K : ndarray, shape (m, n)
-    x0, u0 : ndarray
-        Operating point (state and input units).
-    """
-
-    K: np.ndarray
-    x0: np.ndarray
-    u0: np.ndarray
-
-    def __call__(self, x_hat: np.ndarray, reference: np.ndarray, t: float) -> np.ndarray:
-        """Input (M, m) from the estimate (M, n); the reference is not used."""
-        return self.u0 - (x_hat - self.x0) @ self.K.T
-
-    def affine(self, steps: int, ts: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """The law as ``u_k = b_k - K (x_k - x0)``: ``(b (steps, m), K, x0)`` (`tanksynth.sim.affine`).
-
-        Parameters
-        ----------
-        steps : int
-            Number of periods N.
-        ts : float
-            Sampling period (s; not used: the law does not depend on time).
-        """
-        u0 = np.asarray(self.u0, dtype=float).reshape(-1)
-        return (np.tile(u0, (int(steps), 1)), np.asarray(self.K, dtype=float),
-                np.asarray(self.x0, dtype=float))
 
 
 @dataclass

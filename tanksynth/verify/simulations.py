@@ -379,8 +379,8 @@ class StateFeedback:
     u0: np.ndarray
 
     def __call__(self, x_hat: np.ndarray, reference: np.ndarray, t: float) -> np.ndarray:
-        """Input (M, m) from the state (M, n)."""
-        return self.u0 - (x_hat - self.x0) @ self.K.T
+        """Input (M, m) from the state (M, n) (each run's numbers independent of M: einsum)."""
+        return self.u0 - np.einsum("ij,kj->ik", x_hat - self.x0, self.K)
 
     def affine(self, steps: int, ts: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """The law as ``u_k = b_k - K (x_k - x0)``: ``(b (steps, m), K, x0)`` (`tanksynth.sim.affine`).
@@ -439,8 +439,11 @@ class IntegralStateFeedback:
 
     def __call__(self, x_hat: np.ndarray, reference: np.ndarray, t: float) -> np.ndarray:
         """Input (M, m) from the state (M, n) and the reference (M, p)."""
-        u = self.u0 - (x_hat - self.x0) @ self.K1.T - self.z @ self.K2.T
-        self.z = self.z + self.ts * (reference - x_hat @ self.C1.T)
+        # einsum, not @: BLAS rounds a row differently with the batch size, and a run must give
+        # the same numbers alone or in any campaign chunk
+        u = (self.u0 - np.einsum("ij,kj->ik", x_hat - self.x0, self.K1)
+             - np.einsum("ij,kj->ik", self.z, self.K2))
+        self.z = self.z + self.ts * (reference - np.einsum("ij,kj->ik", x_hat, self.C1))
         return u
 
 

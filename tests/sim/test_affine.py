@@ -170,7 +170,8 @@ def test_parameter_changes_with_known_inputs_equal_the_loop(name, samples, monke
 @pytest.mark.parametrize("what", ["x0", "gain", "parameter", "feedforward"])
 def test_affine_route_sends_non_finite_data_to_the_loop(what):
     """NaN must not be laundered by the CasADi saturation/clipping (fmin/fmax return the other
-    operand): the route declines and the loop reports the non-finite state, as without the route.
+    operand): the route declines and the loop reports the non-finite state (or, for a NaN law, the
+    non-finite input it computes), as without the route.
 
     Regression: a NaN start, gain, parameter or feed-forward gave a finite trajectory (NaN turned
     into an input or state bound) where the loop raised `SimulationError`.
@@ -189,7 +190,7 @@ def test_affine_route_sends_non_finite_data_to_the_loop(what):
     lo, hi = input_limits(TANK, p, 1)
     assert affine_horizon(integ, integ.clip(start[None]), b, K, X0, p, lo, hi, 2.0, 4) is None
     for law in (_Feedback(b, K, X0), _Plain(b, K, X0)):
-        with pytest.raises(SimulationError, match="non-finite state"):
+        with pytest.raises(SimulationError, match="non-finite (state|input)"):
             simulate(TANK, ts=2.0, steps=N, x0=start, seeds=[0], controller=law, parameters=params)
 
 
