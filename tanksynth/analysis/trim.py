@@ -196,9 +196,7 @@ def balancing_levels(plant: Plant, x: Sequence[float], tolerance: float) -> list
         Sorted by the size of the change relative to the state's range; empty
         when no single state can balance the plant.
     """
-    from scipy.optimize import (
-        least_squares,  # deferred: only for an operating point that is wrong
-    )
+    from scipy.optimize import least_squares  # deferred: only for an operating point that is wrong
 
     x = np.asarray(x, dtype=float).reshape(-1)
     if x.size != plant.n or not np.all(np.isfinite(x)):

@@ -247,6 +247,16 @@ class ConicObserverLMI:
         layout = {"P": (pi, pj, pv), "Q": (qi, qj, qv), "K": (ka, ko, kv), "it": it}
         return sps.csc_matrix((nv, nv)), c, Amat, np.concatenate(bs), cones, layout
 
+    def _scaled(self, A0: Any, psi: float, omega: float | None) -> tuple[float, np.ndarray, float]:
+        """Checked ``A0``/``psi`` and the scaled data ``(omega, A0 / omega, (psi / omega)^2)``."""
+        A0 = _matrix(A0, "A0")
+        if A0.shape != (self.n, self.n):
+            raise DimensionError(f"A0 has shape {A0.shape}, expected ({self.n}, {self.n})")
+        if not (np.isfinite(psi) and psi >= 0):
+            raise SpecError(f"psi must be a finite number >= 0, got {psi!r}", key="psi")
+        w = float(omega) if omega is not None else self.time_scale(A0, psi)
+        return w, A0 / w, (psi / w) ** 2
+
     def solve(self, A0: np.ndarray, psi: float, omega: float | None = None, *,
               margin: float | None = None, solver_options: dict | None = None) -> dict:
         """Solve the scaled problem; the raw (unchecked) solution, as `ObserverLMIProblem.solve`.
@@ -273,14 +283,8 @@ class ConicObserverLMI:
         """
         import clarabel
 
-        A0 = _matrix(A0, "A0")
-        if A0.shape != (self.n, self.n):
-            raise DimensionError(f"A0 has shape {A0.shape}, expected ({self.n}, {self.n})")
-        if not (np.isfinite(psi) and psi >= 0):
-            raise SpecError(f"psi must be a finite number >= 0, got {psi!r}", key="psi")
         start = time.perf_counter()
-        w = float(omega) if omega is not None else self.time_scale(A0, psi)
-        As, t2 = A0 / w, (psi / w) ** 2
+        w, As, t2 = self._scaled(A0, psi, omega)
         Pobj, c, Amat, b, cones, lay = self._data(As, t2)
         settings = clarabel.DefaultSettings()
         settings.verbose = False
@@ -402,15 +406,9 @@ class ConicEliminatedLMI(ConicObserverLMI):
             ``Q``, ``K``, ``L`` in original units, ``omega``, ``t_P``,
             ``t_K``, ``solve_time`` (s, problem build included).
         """
-        A0 = _matrix(A0, "A0")
         n = self.n
-        if A0.shape != (n, n):
-            raise DimensionError(f"A0 has shape {A0.shape}, expected ({n}, {n})")
-        if not (np.isfinite(psi) and psi >= 0):
-            raise SpecError(f"psi must be a finite number >= 0, got {psi!r}", key="psi")
         start = time.perf_counter()
-        w = float(omega) if omega is not None else self.time_scale(A0, psi)
-        As, t2 = A0 / w, (psi / w) ** 2
+        w, As, t2 = self._scaled(A0, psi, omega)
         I, V2 = np.eye(n), self.V2
         # Variables in ObserverLMIProblem's order: t, P (unless fixed), Q.
         m = rc.Model()

@@ -135,12 +135,7 @@ def affine_horizon(integ: Any, x: np.ndarray, b: np.ndarray, K: np.ndarray, x_re
     fn = _function(model, substeps, count)
     per_run = lambda a, w: np.broadcast_to(  # noqa: E731
         np.asarray(a, dtype=float).reshape(-1, w) if np.ndim(a) else a, (count, w))
-    cm = np.empty((count, model.n_constants))
-    pm = np.empty((count, len(pv)))
-    for j, v in enumerate(c):
-        cm[:, j] = v
-    for j, v in enumerate(pv):
-        pm[:, j] = v
+    cm, pm = integ._run_matrices(pv, c, count)
     rep = lambda a: np.ascontiguousarray(np.broadcast_to(  # noqa: E731
         np.asarray(a, dtype=float)[:, None, :], (count, CHUNK, a.shape[-1])))
     xk = np.array(x, dtype=float, order="C")      # a copy: the caller's x stays the start

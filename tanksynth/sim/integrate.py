@@ -340,6 +340,17 @@ class Integrator:
             self._cache_key, self._cache = key, (pv, self.model.constants(pv))
         return self._cache
 
+    def _run_matrices(self, pv: list, c: tuple, count: int) -> tuple[np.ndarray, np.ndarray]:
+        """Constants and parameter values as (count, width) matrices, one row per run (scalars
+        broadcast), the layout of the CasADi period functions' inputs."""
+        cm = np.empty((count, self.model.n_constants))
+        pm = np.empty((count, len(pv)))
+        for j, v in enumerate(c):
+            cm[:, j] = v
+        for j, v in enumerate(pv):
+            pm[:, j] = v
+        return cm, pm
+
     def _row_bounds(self) -> tuple[Callable, Callable, Callable]:
         """Clipping ``clip(src, dst)`` on the row layout and the tests ``below``/``above``.
 
@@ -521,12 +532,7 @@ class Integrator:
             model._casadi[key] = fn
         rep = lambda a: np.ascontiguousarray(np.broadcast_to(  # noqa: E731
             np.asarray(a, dtype=float)[:, None, :], (count, N, a.shape[-1])))
-        cm = np.empty((count, model.n_constants))
-        pm = np.empty((count, len(pv)))
-        for j, v in enumerate(c):
-            cm[:, j] = v
-        for j, v in enumerate(pv):
-            pm[:, j] = v
+        cm, pm = self._run_matrices(pv, c, count)
         args = [np.ascontiguousarray(x, dtype=float), np.ascontiguousarray(U.transpose(1, 0, 2)),
                 rep(cm), rep(pm), np.full((count, N, 1), float(ts) / substeps),
                 rep(np.broadcast_to(self.lower, (count, model.n))),
