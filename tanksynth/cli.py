@@ -476,6 +476,8 @@ def _run_stages(s, spec, out: Path, pdf: bool, have_tex: bool, clock, worker) ->
     checks_path = out / "checks.json"
     out.mkdir(parents=True, exist_ok=True)
     atomic_write(checks_path, json.dumps(to_jsonable([c.as_dict() for c in checks]), indent=2) + "\n")
+    if worker is not None and written:
+        worker.designed()  # it draws the eigenvalue maps while the artefacts are verified
     for path in written:
         _out.print(f"artefact: {path}", markup=False, highlight=False, soft_wrap=True)
     _out.print(f"rank verdicts: {checks_path}", markup=False, highlight=False, soft_wrap=True)

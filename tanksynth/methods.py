@@ -584,7 +584,8 @@ def load_directory(directory: str | Path) -> tuple[Spec, list[tuple[Path, dict]]
     return _load_directory(directory, _verifiable())
 
 
-def write_report(directory: str | Path, pdf: bool = False, timeout: float = 180.0) -> Any:
+def write_report(directory: str | Path, pdf: bool = False, timeout: float = 180.0, *,
+                 drawn: Mapping[str, Any] | None = None) -> Any:
     """Write the design report of a result directory (see `tanksynth.reports.write_report`).
 
     Parameters
@@ -595,7 +596,9 @@ def write_report(directory: str | Path, pdf: bool = False, timeout: float = 180.
         Also compile ``report.pdf`` (latexmk/pdflatex).
     timeout : float
         LaTeX time limit (s).
+    drawn : mapping, optional
+        Figures drawn ahead from the directory's current files (file stem -> figure).
     """
     from tanksynth.reports import write_report as _write_report
 
-    return _write_report(directory, pdf, timeout, statements=STATEMENTS)
+    return _write_report(directory, pdf, timeout, statements=STATEMENTS, drawn=drawn)

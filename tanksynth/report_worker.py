@@ -8,6 +8,12 @@ waits; when told to, it writes the report from the directory and sends back a
 short summary. The report is the same as the one written in-process (it is
 the same function reading the same files).
 
+Two steps of the report are drawn ahead or in parallel (the figures are
+most of its time): told that the designs are written (`ReportWorker.designed`),
+the worker draws the eigenvalue maps while the parent verifies (they read
+only the design artefacts); told to go, it forks once more and the two
+processes draw half of the time-domain figures each, largest trace first.
+
 The worker is used only where forking is safe and cheap: Linux, a process
 with no other thread running (a pytest-xdist worker or a notebook kernel has
 some: the report is then written in-process), and unless
@@ -24,7 +30,7 @@ import sys
 import threading
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable, Iterator
 
 __all__ = ["ReportSummary", "ReportWorker", "report_summary", "worker_usable"]
 
@@ -96,8 +102,9 @@ def _read_all(fd: int) -> bytes:
 class ReportWorker:
     """A forked process that writes the report of a result directory when told to.
 
-    Use `start` (None where a worker is not usable), then exactly one of
-    `finish` (write the report, get its summary) or `cancel`.
+    Use `start` (None where a worker is not usable), optionally `designed`,
+    then exactly one of `finish` (write the report, get its summary) or
+    `cancel`.
 
     Parameters
     ----------
@@ -147,12 +154,21 @@ class ReportWorker:
         os.close(res_w)
         return cls(pid, go_w, res_r)
 
+    def designed(self) -> None:
+        """Tell the worker the design artefacts are written: it draws their eigenvalue maps
+        meanwhile (nothing once `finish` or `cancel` ran)."""
+        if not self._done:
+            try:
+                _write_all(self._go, _DESIGNED)
+            except OSError:
+                pass
+
     def finish(self) -> ReportSummary | None:
         """Tell the worker to write the report; its summary, or None if it did not manage
         (the caller then writes the report itself)."""
         self._done = True
         try:
-            _write_all(self._go, b"go")
+            _write_all(self._go, _GO)
         except OSError:
             pass
         os.close(self._go)
@@ -191,8 +207,26 @@ _REPORT_STACK = ("tanksynth.reports.writer", "tanksynth.reports.figures", "tanks
                  "matplotlib.font_manager")
 
 
+#: Messages on the "go" pipe, one line each.
+_DESIGNED, _GO = b"designed\n", b"go\n"
+
+
+def _messages(fd: int) -> Iterator[bytes]:
+    """The lines the parent sends, until it closes the pipe."""
+    pending = b""
+    while True:
+        chunk = os.read(fd, 1 << 12)
+        if not chunk:
+            return
+        pending += chunk
+        while b"\n" in pending:
+            line, pending = pending.split(b"\n", 1)
+            yield line + b"\n"
+
+
 def _serve(directory: Path, pdf: bool, go: int, result: int) -> None:
-    """The worker's life: import, wait for "go", write the report, send the summary."""
+    """The worker's life: import, draw what it is told it can, write the report on "go",
+    send the summary."""
     try:
         from tanksynth.methods import write_report
 
@@ -203,13 +237,67 @@ def _serve(directory: Path, pdf: bool, go: int, result: int) -> None:
         findfont(FontProperties())  # the font cache, read once
     except Exception:  # noqa: BLE001 - the parent writes the report itself
         return
-    if _read_all(go) != b"go":
-        return
+    drawn: dict[str, Any] = {}
+    for message in _messages(go):
+        if message == _DESIGNED:
+            drawn.update(_ahead(_pole_maps, directory))
+        elif message == _GO:
+            break
+    else:
+        return  # cancelled
+    drawn.update(_ahead(_trace_figures_in_two, directory))
     try:
-        payload: tuple[str, Any] = ("ok", report_summary(write_report(directory, pdf=pdf)))
+        payload: tuple[str, Any] = ("ok", report_summary(write_report(directory, pdf=pdf, drawn=drawn)))
     except BaseException as exc:  # noqa: BLE001 - reported by the parent's own attempt
         payload = ("failed", f"{type(exc).__name__}: {exc}")
     try:
         _write_all(result, pickle.dumps(payload))
     except OSError:
         pass
+
+
+def _ahead(draw: Callable[[Any], dict[str, Any]], directory: Path) -> dict[str, Any]:
+    """Figures drawn ahead of `write_report`; none when anything fails (`write_report` then
+    draws them, or raises what is wrong)."""
+    from tanksynth.reports.inputs import read_report_inputs
+
+    try:
+        return draw(read_report_inputs(directory))
+    except Exception:  # noqa: BLE001
+        return {}
+
+
+def _pole_maps(inputs: Any) -> dict[str, Any]:
+    from tanksynth.reports.writer import draw_pole_maps
+
+    return draw_pole_maps(inputs)
+
+
+def _trace_figures_in_two(inputs: Any) -> dict[str, Any]:
+    """Every time-domain figure, half of them (by trace size) drawn in a forked process."""
+    from tanksynth.reports.context import draw_trace_figures, trace_jobs
+
+    jobs = [i for _, i in trace_jobs(inputs)]
+    if len(jobs) < 2 or threading.active_count() != 1:
+        return draw_trace_figures(inputs, jobs)
+    theirs, mine = jobs[0::2], jobs[1::2]  # the largest to the helper: this one renders after
+    read, write = os.pipe()
+    pid = os.fork()
+    if pid == 0:
+        try:
+            os.close(read)
+            _write_all(write, pickle.dumps(draw_trace_figures(inputs, theirs)))
+        finally:
+            os._exit(0)
+    os.close(write)
+    try:
+        out = draw_trace_figures(inputs, mine)
+        data = _read_all(read)
+    finally:
+        os.close(read)
+        os.waitpid(pid, 0)
+    try:
+        helped = pickle.loads(data)
+    except Exception:  # noqa: BLE001 - the helper died: its figures are drawn by write_report
+        helped = {}
+    return {**out, **(helped if isinstance(helped, dict) else {})}

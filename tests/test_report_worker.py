@@ -1,5 +1,6 @@
-"""`tanksynth run` writes the report in a forked worker (issue 15): the same files as in-process,
-and a worker that fails or is cancelled changes nothing."""
+"""`tanksynth run` writes the report in a forked worker (issue 15): the same files as in-process
+(eigenvalue maps drawn while verification runs, time-domain figures drawn by two processes), and a
+worker that fails or is cancelled changes nothing."""
 
 from __future__ import annotations
 
@@ -17,10 +18,14 @@ CLI = str(Path(sys.executable).with_name("tanksynth"))
 pytestmark = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="fork worker: Linux only")
 
 
+#: Five designs with eigenvalue maps and time-domain figures of different sizes.
+EXAMPLE = ROOT / "examples" / "seed004_fault_detection.toml"
+
+
 def _run(tmp: Path, worker: str) -> Path:
     out = tmp / f"worker{worker}" / "out"   # same directory name: the report names it
     env = dict(os.environ, TANKSYNTH_REPORT_WORKER=worker)
-    proc = subprocess.run([CLI, "run", str(ROOT / "examples" / "tank_network_n8.toml"), "-o", str(out)],
+    proc = subprocess.run([CLI, "run", str(EXAMPLE), "-o", str(out)],
                           capture_output=True, text=True, env=env, timeout=600)
     assert proc.returncode == 0, proc.stderr
     assert "times:" in proc.stdout and "report:" in proc.stdout
@@ -35,7 +40,37 @@ def _digests(directory: Path) -> dict[str, str]:
 def test_report_by_the_worker_is_the_in_process_report(tmp_path):
     by_worker, in_process = _run(tmp_path, "1"), _run(tmp_path, "0")
     a, b = _digests(by_worker), _digests(in_process)
-    assert len(a) > 1 and a == b
+    assert sum(k.startswith("traces-") for k in a) >= 4 and sum(k.startswith("poles-") for k in a) >= 4
+    assert a == b
+
+
+def test_figures_drawn_ahead_are_used_and_the_rest_drawn(tmp_path):
+    """`write_report(drawn=...)`: figures drawn ahead (all maps, half the traces) are taken as
+    they are, the others drawn in place; the files are those of a report drawn all at once."""
+    import shutil
+
+    from tanksynth.methods import write_report
+    from tanksynth.reports.context import draw_trace_figures, trace_jobs
+    from tanksynth.reports.inputs import read_report_inputs
+    from tanksynth.reports.writer import draw_pole_maps
+
+    whole = _run(tmp_path, "0")
+    ahead = tmp_path / "ahead" / "out"
+    shutil.copytree(whole, ahead)
+    shutil.rmtree(ahead / "report-figures")
+    (ahead / "report.tex").unlink()
+    inputs = read_report_inputs(ahead)
+    jobs = trace_jobs(inputs)
+    sizes = [(ahead / f"{inputs.artefacts[i]['name']}.traces.npz").stat().st_size for _, i in jobs]
+    assert len(jobs) >= 4 and sizes == sorted(sizes, reverse=True)
+    drawn = {**draw_pole_maps(inputs), **draw_trace_figures(inputs, [i for _, i in jobs[0::2]])}
+    drawn_files = {p.name: p.stat().st_mtime_ns for p in (ahead / "report-figures").glob("*.pdf")}
+    assert {f"{stem}.pdf" for stem, _ in jobs[1::2]}.isdisjoint(drawn_files)
+    res = write_report(ahead, drawn=drawn)
+    assert {name: (ahead / "report-figures" / name).stat().st_mtime_ns  # not drawn again
+            for name in drawn_files} == drawn_files
+    assert {p.name for p in res.figures} == {p.name for p in (whole / "report-figures").glob("*.pdf")}
+    assert _digests(ahead) == _digests(whole)
 
 
 SCRIPT = """

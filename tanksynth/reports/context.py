@@ -26,7 +26,7 @@ from tanksynth.reports.inputs import ReportInputs
 from tanksynth.reports.latex import (Tex, escape_latex, expression_latex, format_eigenvalues,
                                      format_number, format_unit, gain_latex, symbol_latex)
 
-__all__ = ["build_context", "trace_figures"]
+__all__ = ["build_context", "trace_figures", "trace_jobs", "draw_trace_figures"]
 
 
 def _m(value: Any, digits: int = 5) -> Tex:
@@ -292,7 +292,57 @@ def _trace_stem(index: int, name: str) -> str:
     return f"traces-{index:02d}-{safe or 'design'}"
 
 
-def trace_figures(inputs: ReportInputs) -> dict[str, TraceFigure]:
+def trace_jobs(inputs: ReportInputs) -> list[tuple[str, int]]:
+    """The time-domain figures a report draws: (file stem, artefact index) of every artefact
+    with a verdict trace file, largest trace file first (what `draw_trace_figures` takes).
+
+    Parameters
+    ----------
+    inputs : ReportInputs
+
+    Returns
+    -------
+    list of (str, int)
+    """
+    from tanksynth.artefacts.traces import trace_path
+
+    jobs = []
+    for i, art in enumerate(inputs.artefacts):
+        name = str(art.get("name", ""))
+        path = trace_path(inputs.directory / f"{name}.json", name)
+        if path.is_file():
+            jobs.append((path.stat().st_size, _trace_stem(i, name), i))
+    return [(stem, i) for _, stem, i in sorted(jobs, key=lambda j: (-j[0], j[2]))]
+
+
+def draw_trace_figures(inputs: ReportInputs, indices: Sequence[int] | None = None
+                       ) -> dict[str, TraceFigure | None]:
+    """Draw the time-domain figures of some artefacts (all by default), ahead of `trace_figures`.
+
+    Parameters
+    ----------
+    inputs : ReportInputs
+    indices : sequence of int, optional
+        Artefact indices in ``inputs.artefacts``.
+
+    Returns
+    -------
+    dict
+        File stem (``traces-NN-<name>``) -> TraceFigure, or None when the
+        artefact has no (readable) trace.
+    """
+    figdir = inputs.directory / _FIGURE_DIR
+    canvas = TraceCanvas()    # figures with the same panel count reuse one figure's axes
+    out: dict[str, TraceFigure | None] = {}
+    for i in range(len(inputs.artefacts)) if indices is None else indices:
+        art = inputs.artefacts[i]
+        stem = _trace_stem(i, str(art.get("name", "")))
+        out[stem] = time_domain_figure(art, inputs.directory, figdir, stem, canvas=canvas)
+    return out
+
+
+def trace_figures(inputs: ReportInputs, drawn: Mapping[str, Any] | None = None
+                  ) -> dict[str, TraceFigure]:
     """Draw the time-domain figure of every artefact that has a verdict trace.
 
     Figures go to ``DIR/report-figures/traces-NN-<name>.pdf`` (vector PDF,
@@ -303,6 +353,9 @@ def trace_figures(inputs: ReportInputs) -> dict[str, TraceFigure]:
     ----------
     inputs : ReportInputs
         The report's inputs (artefacts of the output directory).
+    drawn : mapping, optional
+        Figures already drawn from these inputs (`draw_trace_figures`, file
+        stem -> figure or None): used as they are; the others are drawn here.
 
     Returns
     -------
@@ -310,11 +363,15 @@ def trace_figures(inputs: ReportInputs) -> dict[str, TraceFigure]:
         Artefact name -> TraceFigure.
     """
     figdir = inputs.directory / _FIGURE_DIR
+    drawn = drawn or {}
+    missing = [i for i, art in enumerate(inputs.artefacts)
+               if _trace_stem(i, str(art.get("name", ""))) not in drawn]
+    fresh = draw_trace_figures(inputs, missing) if missing else {}
     out: dict[str, TraceFigure] = {}
-    canvas = TraceCanvas()    # figures with the same panel count reuse one figure's axes
     for i, art in enumerate(inputs.artefacts):
         name = str(art.get("name", ""))
-        fig = time_domain_figure(art, inputs.directory, figdir, _trace_stem(i, name), canvas=canvas)
+        stem = _trace_stem(i, name)
+        fig = fresh[stem] if stem in fresh else drawn[stem]
         if fig is not None:
             out[name] = fig
     if figdir.is_dir():

@@ -29,7 +29,7 @@ from tanksynth.reports.latex import Tex, environment
 from tanksynth.reports.paper import compare_with_papers
 from tanksynth.reports.pdf import compile_pdf, pdf_page_count
 
-__all__ = ["ReportResult", "render_report", "write_report", "FIGURE_DIR"]
+__all__ = ["ReportResult", "render_report", "write_report", "draw_pole_maps", "FIGURE_DIR"]
 
 #: Sub-directory of DIR for the report's figures.
 FIGURE_DIR = "report-figures"
@@ -77,6 +77,27 @@ def _figure_stem(index: int, name: str) -> str:
     return f"poles-{index:02d}-{safe or 'design'}"
 
 
+def draw_pole_maps(inputs: ReportInputs) -> dict[str, FigureFile | None]:
+    """Draw the eigenvalue map of every artefact, ahead of `write_report` (its ``drawn``).
+
+    Parameters
+    ----------
+    inputs : ReportInputs
+
+    Returns
+    -------
+    dict
+        File stem (``poles-NN-<name>``) -> FigureFile, or None for an
+        artefact without eigenvalues.
+    """
+    figdir = inputs.directory / FIGURE_DIR
+    out: dict[str, FigureFile | None] = {}
+    for i, art in enumerate(inputs.artefacts):
+        stem = _figure_stem(i, str(art.get("name", "")))
+        out[stem] = pole_map(art, figdir, stem)
+    return out
+
+
 def render_report(inputs: ReportInputs, figures: dict[str, FigureFile] | None = None,
                   comparisons: tuple[PaperComparison, ...] | None = None,
                   traces: dict[str, TraceFigure] | None = None, *,
@@ -106,7 +127,8 @@ def render_report(inputs: ReportInputs, figures: dict[str, FigureFile] | None = 
 
 
 def write_report(directory: str | Path, pdf: bool = False, timeout: float = 180.0, *,
-                 statements: Mapping[str, Callable[[Mapping[str, Any]], Tex]]) -> ReportResult:
+                 statements: Mapping[str, Callable[[Mapping[str, Any]], Tex]],
+                 drawn: Mapping[str, FigureFile | TraceFigure | None] | None = None) -> ReportResult:
     """Write ``DIR/report.tex`` and its figures; with ``pdf`` also ``DIR/report.pdf``.
 
     Parameters
@@ -120,6 +142,11 @@ def write_report(directory: str | Path, pdf: bool = False, timeout: float = 180.
         Seconds allowed for the LaTeX build.
     statements : mapping of method name to callable
         Problem statement of each design method (`tanksynth.methods.STATEMENTS`).
+    drawn : mapping, optional
+        Figures already drawn from this directory's current files (file stem ->
+        figure or None; `draw_pole_maps`, `tanksynth.reports.context.draw_trace_figures`),
+        e.g. by another process while verification ran: used as they are, the
+        others are drawn here.
 
     Returns
     -------
@@ -142,9 +169,11 @@ def write_report(directory: str | Path, pdf: bool = False, timeout: float = 180.
     d = inputs.directory
     comparisons = compare_with_papers(inputs)
     figdir = d / FIGURE_DIR
+    drawn = drawn or {}
     figures: dict[str, FigureFile] = {}
     for i, art in enumerate(inputs.artefacts):
-        fig = pole_map(art, figdir, _figure_stem(i, str(art.get("name", ""))))
+        stem = _figure_stem(i, str(art.get("name", "")))
+        fig = drawn[stem] if stem in drawn else pole_map(art, figdir, stem)
         if fig is not None:
             figures[str(art["name"])] = fig
     if figdir.is_dir():  # figures of artefacts that are gone
@@ -152,7 +181,7 @@ def write_report(directory: str | Path, pdf: bool = False, timeout: float = 180.
         for stale in figdir.glob("poles-*.pdf"):
             if stale.name not in keep:
                 stale.unlink(missing_ok=True)
-    traces = trace_figures(inputs)
+    traces = trace_figures(inputs, drawn)
     regions = region_figures(inputs)
     tex = render_report(inputs, figures, comparisons, traces, statements=statements, regions=regions)
     tex_path = d / "report.tex"
