@@ -304,7 +304,11 @@ def robust_state_feedback(A: Any, B: Any, region: LMIRegion, *, domain: str = "c
         cw = 1.0 / max(float(np.max(np.linalg.norm(Bws, axis=1))), 1e-300)
         rz = 1.0 / max(float(np.max(np.linalg.norm(Czs, axis=2))),
                        float(np.max(np.linalg.norm(Dzs, axis=1))) if Dzs.size else 0.0, 1e-300)
-        hs = (Bws * cw, Czs * rz, Dzs * rz, float(hinf.gamma) * cw * rz)
+        # congruence diag(I, a I, a I) of the bounded-real block, a = 1/sqrt(max(g, 1)): the data
+        # stays O(1) for any gamma (gamma = 1e12 would put 1e12 next to O(1) terms otherwise)
+        g = float(hinf.gamma) * cw * rz
+        a = 1.0 / np.sqrt(max(g, 1.0))
+        hs = (Bws * (cw * a), Czs * (rz * a), Dzs * (rz * a), g * a * a)
     corners = None
     if saturation is not None:
         nb = saturation.n_box or n
