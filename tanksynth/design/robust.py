@@ -8,7 +8,11 @@ Synthesis (one gain, one common Lyapunov matrix ``X``)
     optional H-infinity bound (bounded real lemma at every vertex, continuous
     ``[[He(A_i X - B_i Y), Bw_i, (Cz X - Dzu Y)'], [Bw_i', -g I, 0], [Cz X -
     Dzu Y, 0, -g I]] < 0``, discrete ``[[X, A_cl X, Bw, 0], [., X, 0, (C_cl
-    X)'], [., ., g I, 0], [., ., ., g I]] > 0``); optional saturation bound
+    X)'], [., ., g I, 0], [., ., ., g I]] > 0``, both written congruence-scaled
+    by ``a = 1/sqrt(max(g, 1))`` on the ``w`` and ``z`` rows: ``a Bw``, ``a Cz``,
+    ``min(g, 1) I``, so the data stay O(1) for any ``gamma`` up to 1e12; a
+    bound that the design without it already meets is not imposed, see
+    `_without_bound`); optional saturation bound
     (`SaturationBound`): the ellipsoid ``x' X^-1 x <= 1`` (deviation
     coordinates) is invariant at every vertex (implied by the region LMI with
     the same ``X``, imposed explicitly as the Lyapunov LMI too) and
@@ -125,6 +129,10 @@ class RobustResult:
     checks : tuple of dict
         The numpy re-check (name, value, limit, passed).
     hinf : dict or None
+        ``gamma``, ``vertices``, ``worst_lmi_eigenvalue`` (normalised bounded
+        real blocks, < 0), ``imposed`` (False: the design without the bound
+        already meets it, certified with its Lyapunov matrix times
+        ``lyapunov_scale``), ``congruence_scale`` (``a`` of the scaled blocks).
     saturation : dict or None
     scaling : dict
     """
@@ -500,8 +508,10 @@ def _infeasible_reason(region, V, margin, tstar, status, solver, hinf, saturatio
                         else " (infeasible even without uncertainty)"))
     return (f"no single gain meets the {parts} at all {V} vertex model(s) with margin {margin:g} "
             f"(region {region.describe()}): largest achievable margin t* = {tstar:.3g} (solver {solver} "
-            f"status {status}; max t s.t. every vertex LMI <= -t I with a common Lyapunov matrix, the "
-            "optimum certifies that no larger margin exists)" + ("; " + "; ".join(extra) if extra else ""))
+            f"status {status}; max t s.t. every vertex LMI <= -t I with a common Lyapunov matrix, "
+            + ("the optimum certifies that no larger margin exists)" if status.startswith("optimal") else
+               "no optimum was returned: the request could not be certified, which is no proof that it "
+               "is infeasible)") + ("; " + "; ".join(extra) if extra else ""))
 
 
 def _recheck(A, B, K, Xs, Xo, Ks, As, Bs, reg, region, domain, margin, tstar, solver, status, elapsed,
