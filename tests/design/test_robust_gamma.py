@@ -232,3 +232,16 @@ def test_three_tank_gamma_below_a_region_bound_exits_3(tmp_path, capsys):
     cap = capsys.readouterr()
     assert "H-infinity bound" in cap.out + cap.err
     assert not list((tmp_path / "o").glob("observer.json"))
+
+
+@pytest.mark.parametrize("gamma", [1.4, 1e6, 1e12])
+def test_scs_designs_certified(gamma):
+    """SCS (first-order, ~1e-5 accurate) ended phase 2 'optimal' with X not positive definite on
+    this polytope (refused at gamma = 1.4, 1e6, 1e12 before): the phase-1 solution, with twice the
+    margin, is re-checked before refusing."""
+    A, B, Bw, region = _polytope("continuous")
+    for impose in (False, True):
+        res = robust_state_feedback(A, B, region, hinf=_bound(Bw, gamma), solver="SCS", _impose=impose)
+        assert _certified(A, B, Bw, res.gain, gamma, "continuous")
+        for Ai, Bi in zip(A, B):
+            assert np.all(np.linalg.eigvals(Ai - Bi @ res.gain).real < -0.5)
