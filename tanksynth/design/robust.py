@@ -8,7 +8,11 @@ Synthesis (one gain, one common Lyapunov matrix ``X``)
     optional H-infinity bound (bounded real lemma at every vertex, continuous
     ``[[He(A_i X - B_i Y), Bw_i, (Cz X - Dzu Y)'], [Bw_i', -g I, 0], [Cz X -
     Dzu Y, 0, -g I]] < 0``, discrete ``[[X, A_cl X, Bw, 0], [., X, 0, (C_cl
-    X)'], [., ., g I, 0], [., ., ., g I]] > 0``); optional saturation bound
+    X)'], [., ., g I, 0], [., ., ., g I]] > 0``, both written congruence-scaled
+    by ``a = 1/sqrt(max(g, 1))`` on the ``w`` and ``z`` rows: ``a Bw``, ``a Cz``,
+    ``min(g, 1) I``, so the data stay O(1) for any ``gamma`` up to 1e12; a
+    bound that the design without it already meets is not imposed, see
+    `_without_bound`); optional saturation bound
     (`SaturationBound`): the ellipsoid ``x' X^-1 x <= 1`` (deviation
     coordinates) is invariant at every vertex (implied by the region LMI with
     the same ``X``, imposed explicitly as the Lyapunov LMI too) and
@@ -27,6 +31,7 @@ scaling in continuous time), phase 1 the largest margin (its optimum below
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 import time
 from dataclasses import dataclass, field
@@ -34,6 +39,7 @@ from typing import Any, Sequence
 
 import numpy as np
 import scipy.linalg as sla
+from scipy.optimize import minimize_scalar
 
 from tanksynth.analysis.lmi_region import LMIRegion
 from tanksynth.design.robust_conic import modelling
@@ -123,6 +129,10 @@ class RobustResult:
     checks : tuple of dict
         The numpy re-check (name, value, limit, passed).
     hinf : dict or None
+        ``gamma``, ``vertices``, ``worst_lmi_eigenvalue`` (normalised bounded
+        real blocks, < 0), ``imposed`` (False: the design without the bound
+        already meets it, certified with its Lyapunov matrix times
+        ``lyapunov_scale``), ``congruence_scale`` (``a`` of the scaled blocks).
     saturation : dict or None
     scaling : dict
     """
@@ -209,6 +219,18 @@ def _hinf_block(domain: str, AclX: Any, X: Any, Bw: np.ndarray, CclX: Any, gamma
     return 0.5 * (M + M.T)
 
 
+def _brl_worst(domain: str, As: np.ndarray, Bs: np.ndarray, Ks: np.ndarray, Xs: np.ndarray,
+               hs: tuple) -> float:
+    """Largest eigenvalue of the normalised bounded-real blocks over the vertices, as ``<= 0``."""
+    worst = -np.inf
+    for i in range(As.shape[0]):
+        AclX = (As[i] - Bs[i] @ Ks) @ Xs
+        CclX = (hs[1][i] - hs[2] @ Ks) @ Xs
+        ev = np.linalg.eigvalsh(_hinf_block(domain, AclX, Xs, hs[0][i], CclX, hs[3], np.block))
+        worst = max(worst, float(ev.max()) if domain == "continuous" else float(-ev.min()))
+    return worst
+
+
 def _lyapunov_block(domain: str, AclX: Any, X: Any, lib) -> Any:
     """``He(A_cl X) <= 0`` (continuous) or ``[[X, A_cl X], [., X]] >= 0`` (discrete), as ``<= 0``."""
     if domain == "continuous":
@@ -220,7 +242,8 @@ def _lyapunov_block(domain: str, AclX: Any, X: Any, lib) -> Any:
 def robust_state_feedback(A: Any, B: Any, region: LMIRegion, *, domain: str = "continuous",
                           hinf: HinfBound | None = None, saturation: SaturationBound | None = None,
                           margin: float = 1e-6, kappa: float = 1e4, solver: str = "CLARABEL",
-                          nominal: int | None = None, _dual: bool = False) -> RobustResult:
+                          nominal: int | None = None, _dual: bool = False,
+                          _impose: bool = False) -> RobustResult:
     """One state feedback ``u = -K x`` putting ``eig(A_i - B_i K)`` in ``region`` at every vertex.
 
     Parameters
@@ -304,7 +327,16 @@ def robust_state_feedback(A: Any, B: Any, region: LMIRegion, *, domain: str = "c
         cw = 1.0 / max(float(np.max(np.linalg.norm(Bws, axis=1))), 1e-300)
         rz = 1.0 / max(float(np.max(np.linalg.norm(Czs, axis=2))),
                        float(np.max(np.linalg.norm(Dzs, axis=1))) if Dzs.size else 0.0, 1e-300)
-        hs = (Bws * cw, Czs * rz, Dzs * rz, float(hinf.gamma) * cw * rz)
+        # congruence diag(I, a I, a I) of the bounded-real block, a = 1/sqrt(max(g, 1)): the data
+        # stays O(1) for any gamma (gamma = 1e12 would put 1e12 next to O(1) terms otherwise)
+        g = float(hinf.gamma) * cw * rz
+        a = 1.0 / np.sqrt(max(g, 1.0))
+        hs = (Bws * (cw * a), Czs * (rz * a), Dzs * (rz * a), g * a * a, a)
+        if not _impose:
+            free = _without_bound(A, B, region, domain, saturation, margin, kappa, solver, nominal,
+                                  _dual, As, Bs, s, su, hs, hinf)
+            if free is not None:
+                return free
     corners = None
     if saturation is not None:
         nb = saturation.n_box or n
@@ -347,15 +379,14 @@ def robust_state_feedback(A: Any, B: Any, region: LMIRegion, *, domain: str = "c
         corner = np.ones((1, 1)) * bound if isinstance(bound, float) else lib.reshape(bound, (1, 1), order="F")
         return [lib.bmat([[corner, v[None, :]], [v[:, None], X]]) >> 0 for v in corners]
 
-    base = constraints(t)
-    if saturation is not None and saturation.box is not None:
-        base += box_constraints(1.0)
+    fixed = box_constraints(1.0) if saturation is not None and saturation.box is not None else []
+    base = constraints(t) + fixed
     start = time.perf_counter()
     status = lib.solve_status(lib.Problem(lib.Maximize(t), base + [t <= 1.0]), solver)
     tstar = float(t.value) if status in ("optimal", "optimal_inaccurate") and t.value is not None else -np.inf
     if tstar < margin:
         raise InfeasibleDesign(_infeasible_reason(region, V, margin, tstar, status, solver, hinf,
-                                                  saturation, constraints, t, nominal, lib))
+                                                  saturation, constraints, t, nominal, lib, fixed))
     Xv, Yv, status1 = X.value.copy(), Y.value.copy(), status
     bound = max(margin, 0.5 * tstar)
     phase2 = constraints(bound)
@@ -378,6 +409,8 @@ def robust_state_feedback(A: Any, B: Any, region: LMIRegion, *, domain: str = "c
     solved2 = status2 in ("optimal", "optimal_inaccurate") and X.value is not None
     # phase 2 exists to shrink the gain: an inaccurate phase 2 that does not is not taken
     worse = solved2 and status2 != "optimal" and gain_norm(X.value, Y.value) > gain_norm(Xv, Yv)
+    first = (Xv, Yv, f"{status1} (phase 1), {status2} (phase 2 fails the re-check: phase-1 "
+                     "solution kept)")
     if solved2 and not worse:
         Xv, Yv = X.value, Y.value
         status = f"{status1} (phase 1), {status2} (phase 2)"
@@ -387,16 +420,76 @@ def robust_state_feedback(A: Any, B: Any, region: LMIRegion, *, domain: str = "c
     else:
         status = f"{status1} (phase 1), {status2} (phase 2 failed: phase-1 solution kept)"
     elapsed = time.perf_counter() - start
-    Xs = 0.5 * (Xv + Xv.T)
-    Ks = np.linalg.solve(Xs, np.asarray(Yv).T).T
-    K = (su[:, None] * Ks) / s[None, :]
-    Xo = (s[:, None] * Xs) * s[None, :]
-    return _recheck(A, B, K, Xs, Xo, Ks, As, Bs, reg, region, domain, margin, tstar, solver, status,
-                    elapsed, hinf, hs, saturation, corners, s, su, omega, kappa, _dual)
+    # a first-order solver (SCS) can end phase 2 'optimal' a few 1e-6 outside the constraints: the
+    # phase-1 solution (margin t* >= 2 x phase 2's) is re-checked before the design is refused
+    def finish(Xv: np.ndarray, Yv: np.ndarray, status: str) -> RobustResult:
+        Xs = 0.5 * (Xv + Xv.T)
+        Ks = np.linalg.solve(Xs, np.asarray(Yv).T).T
+        K = (su[:, None] * Ks) / s[None, :]
+        Xo = (s[:, None] * Xs) * s[None, :]
+        return _recheck(A, B, K, Xs, Xo, Ks, As, Bs, reg, region, domain, margin, tstar, solver,
+                        status, elapsed, hinf, hs, saturation, corners, s, su, omega, kappa, _dual)
+
+    try:
+        return finish(Xv, Yv, status)
+    except InfeasibleDesign as exc:
+        if Xv is first[0]:
+            raise
+        try:
+            return finish(*first)
+        except InfeasibleDesign:
+            raise exc from None
+
+
+def _without_bound(A, B, region, domain, saturation, margin, kappa, solver, nominal, dual, As, Bs, s,
+                   su, hs, hinf) -> RobustResult | None:
+    """The design without the H-infinity bound when it already meets it, else None.
+
+    The bound is a constraint, not an objective: when the design without it
+    (same region, saturation, margin) satisfies the normalised bounded real
+    lemma at every vertex with ``c X`` (its own Lyapunov matrix times the best
+    scalar ``c`` keeping ``c X`` in ``[I/kappa, kappa I]``; the block is affine
+    in ``c``, so its largest eigenvalue is convex in ``c``) with the re-check's
+    margin/2, that design is certified for ``gamma`` and the bound does not
+    bind (a loose ``gamma`` such as 1e12 returns exactly the design without
+    it). Otherwise the bound is imposed in the LMIs.
+    """
+    try:
+        free = robust_state_feedback(A, B, region, domain=domain, saturation=saturation, margin=margin,
+                                     kappa=kappa, solver=solver, nominal=nominal, _dual=dual)
+    except InfeasibleDesign:
+        return None          # the design with the bound says why (or finds the wider X range)
+    K = free.gain.T if dual else free.gain
+    Xs = free.X / np.outer(s, s)
+    Ks = K * s[None, :] / su[:, None]
+    Xs = 0.5 * (Xs + Xs.T)
+    ev = np.linalg.eigvalsh(Xs)
+    lo, hi = np.log(1.0 / (kappa * ev[0])), np.log(kappa / ev[-1])
+    def worst_at(u: float) -> float:
+        return _brl_worst(domain, As, Bs, Ks, np.exp(u) * Xs, hs)
+
+    u = 0.0
+    if hi > lo:
+        u = float(minimize_scalar(worst_at, bounds=(lo, hi), method="bounded",
+                                  options={"xatol": 1e-4}).x)
+    u = min((u, 0.0), key=worst_at) if lo <= 0.0 <= hi else u
+    worst = worst_at(u)
+    if not worst <= -0.5 * margin:
+        return None
+    check = {"name": "bounded real lemma at every vertex, normalised (<= -margin/2)",
+             "value": float(worst), "limit": float(-0.5 * margin), "passed": True}
+    return dataclasses.replace(
+        free, checks=free.checks + (check,),
+        status=free.status + "; H-infinity bound met without imposing it",
+        hinf={"gamma": float(hinf.gamma), "vertices": int(As.shape[0]), "worst_lmi_eigenvalue": worst,
+              "imposed": False, "congruence_scale": float(hs[4]), "lyapunov_scale": float(np.exp(u)),
+              "note": ("the design without the bound already satisfies the bounded real lemma at "
+                       "every vertex with its own Lyapunov matrix times lyapunov_scale: gamma "
+                       "does not bind")})
 
 
 def _infeasible_reason(region, V, margin, tstar, status, solver, hinf, saturation, constraints, t,
-                       nominal, lib) -> str:
+                       nominal, lib, fixed) -> str:
     extra = []
     parts = ("region" + (", H-infinity bound" if hinf is not None else "")
              + (", saturation bound" if saturation is not None else ""))
@@ -406,16 +499,19 @@ def _infeasible_reason(region, V, margin, tstar, status, solver, hinf, saturatio
         tr = float(t.value) if t.value is not None and st.startswith("optimal") else -np.inf
         extra.append(f"the region alone at the {V} vertices: t* = {tr:.3g}")
     if nominal is not None and V > 1:
-        st = lib.solve_status(lib.Problem(lib.Maximize(t), constraints(t, True, [nominal]) + [t <= 1.0]),
-                             solver)
+        # the nominal model with every bound (region, H-infinity, saturation, box) of the request
+        st = lib.solve_status(lib.Problem(lib.Maximize(t), constraints(t, False, [nominal]) + fixed
+                                          + [t <= 1.0]), solver)
         tn = float(t.value) if t.value is not None and st.startswith("optimal") else -np.inf
-        extra.append(f"the nominal model alone: t* = {tn:.3g}"
+        extra.append(f"the nominal model alone ({parts}): t* = {tn:.3g}"
                      + (" (feasible: the uncertainty makes the request infeasible)" if tn >= margin
                         else " (infeasible even without uncertainty)"))
     return (f"no single gain meets the {parts} at all {V} vertex model(s) with margin {margin:g} "
             f"(region {region.describe()}): largest achievable margin t* = {tstar:.3g} (solver {solver} "
-            f"status {status}; max t s.t. every vertex LMI <= -t I with a common Lyapunov matrix, the "
-            "optimum certifies that no larger margin exists)" + ("; " + "; ".join(extra) if extra else ""))
+            f"status {status}; max t s.t. every vertex LMI <= -t I with a common Lyapunov matrix, "
+            + ("the optimum certifies that no larger margin exists)" if status.startswith("optimal") else
+               "no optimum was returned: the request could not be certified, which is no proof that it "
+               "is infeasible)") + ("; " + "; ".join(extra) if extra else ""))
 
 
 def _recheck(A, B, K, Xs, Xo, Ks, As, Bs, reg, region, domain, margin, tstar, solver, status, elapsed,
@@ -446,16 +542,11 @@ def _recheck(A, B, K, Xs, Xo, Ks, As, Bs, reg, region, domain, margin, tstar, so
         margins_arr.min() > 0)
     hinf_out = None
     if hinf is not None:
-        worst_h = -np.inf
-        for i in range(V):
-            AclX = (As[i] - Bs[i] @ Ks) @ Xs
-            CclX = (hs[1][i] - hs[2] @ Ks) @ Xs
-            blk = _hinf_block(domain, AclX, Xs, hs[0][i], CclX, hs[3], np.block)
-            ev = np.linalg.eigvalsh(blk)
-            worst_h = max(worst_h, float(ev.max()) if domain == "continuous" else float(-ev.min()))
+        worst_h = _brl_worst(domain, As, Bs, Ks, Xs, hs)
         add("bounded real lemma at every vertex, normalised (<= -margin/2)", worst_h, -0.5 * margin,
             worst_h <= -0.5 * margin)
-        hinf_out = {"gamma": float(hinf.gamma), "vertices": V, "worst_lmi_eigenvalue": worst_h}
+        hinf_out = {"gamma": float(hinf.gamma), "vertices": V, "worst_lmi_eigenvalue": worst_h,
+                    "imposed": True, "congruence_scale": float(hs[4])}
     sat_out = None
     if saturation is not None:
         umax = np.asarray(saturation.umax, dtype=float)

@@ -179,7 +179,9 @@ _COMMON_DOC = """
         with a sampling period) or ``"continuous"``.
     gamma : float or None
         H-infinity bound at every vertex (units of ``z`` per unit of ``w``; at most 1e12);
-        default None (no H-infinity constraint).
+        default None (no H-infinity constraint). A bound the design without it
+        already meets is certified but not imposed (the gain is then that
+        design's; diagnostics ``robust.hinf.imposed = false``).
     Bw : ndarray or None
         Continuous-time disturbance input matrix of the ``gamma`` channel (n
         x nw, state units per s per unit of the normalised ``w``), default
