@@ -351,6 +351,11 @@ def _robust_common(diag: Mapping[str, Any]) -> str:
     if isinstance(hinf, Mapping) and _is_number(hinf.get("gamma")):
         text += (rf". At every vertex the bounded real lemma certifies $\|T_{{zw}}\|_\infty < "
                  rf"{format_number(hinf['gamma'])}$")
+        if hinf.get("imposed") is False:  # the design without the bound already met it
+            scale = hinf.get("lyapunov_scale")
+            text += (" with the design's own Lyapunov matrix"
+                     + (rf" times ${format_number(scale)}$" if _is_number(scale) else "")
+                     + ": the bound does not bind, so it was not imposed in the LMIs")
     margin = rob.get("margin")
     if _is_number(margin):
         text += rf". Strict inequalities carry the margin ${format_number(margin)}$ after scaling"

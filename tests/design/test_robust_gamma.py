@@ -245,3 +245,17 @@ def test_scs_designs_certified(gamma):
         assert _certified(A, B, Bw, res.gain, gamma, "continuous")
         for Ai, Bi in zip(A, B):
             assert np.all(np.linalg.eigvals(Ai - Bi @ res.gain).real < -0.5)
+
+
+def test_report_statement_says_whether_the_bound_was_imposed():
+    """The report's problem statement: a bound met by the design without it is certified with
+    the design's own Lyapunov matrix and said not to be imposed; an imposed one is not."""
+    from tanksynth.reports.statements import robust_observer_statement
+
+    spec = parse_spec_text(SPEC.format(sf="", obs=f"gamma = 1e9\n{BW_OBS}"))
+    d = next(d for d in spec.designs if d.name == "observer")
+    diag = METHODS[d.method].design(spec, d).diagnostics
+    loose = str(robust_observer_statement(diag))
+    assert r"\|T_{zw}\|_\infty <" in loose and "not imposed" in loose
+    imposed = {**diag, "robust": {**diag["robust"], "hinf": {**diag["robust"]["hinf"], "imposed": True}}}
+    assert "not imposed" not in str(robust_observer_statement(imposed))
