@@ -234,7 +234,27 @@ def prose_latex(text: Any, breakable: bool = True, literal: tuple[str, ...] = ()
     return Tex(_typeset(s, breakable))
 
 
+#: A quoted phrase: ``'every state settled (to the run's own equilibrium)'``; the opening quote
+#: starts a word after a space, apostrophes inside sit between letters, there are several words
+#: (a Python list of names ``['h1', 'h2']`` is not prose), the closing quote ends a word or a
+#: bracket (not a transpose ``(A - L C)'``, which no opening quote precedes).
+_QUOTED = re.compile(r"(?<![^\s(])'(?=\w)((?:[^']|(?<=\w)'(?=\w))*?\s(?:[^']|(?<=\w)'(?=\w))*?)'(?!\w)")
+
+
 def _typeset(s: str, breakable: bool) -> str:
+    """Escape ``s`` as text, its quoted phrases in typographic quotes, its recognised fragments
+    as mathematics."""
+    quoted = list(_QUOTED.finditer(s))
+    if quoted:
+        out, pos = [], 0
+        for m in quoted:
+            out += [_fragments(s[pos:m.start()], breakable), "`", _fragments(m.group(1), breakable), "'"]
+            pos = m.end()
+        return "".join(out + [_fragments(s[pos:], breakable)])
+    return _fragments(s, breakable)
+
+
+def _fragments(s: str, breakable: bool) -> str:
     """Escape ``s`` as text, its recognised fragments as mathematics."""
     out, pos = [], 0
     for m in _TOKEN.finditer(s):

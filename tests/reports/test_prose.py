@@ -56,3 +56,11 @@ def test_user_names_given_as_literals_stay_verbatim():
     assert "\\lambda_{\\max}" in tex
     assert "pp\\_my\\_pp" in tex or "pp_my_pp" not in tex     # a longer word is not split
     assert prose_latex("a_b", literal=("",)) == prose_latex("a_b")
+
+
+def test_quoted_phrase_is_quoted_not_a_transpose():
+    """A quoted phrase ending in a bracket (a robust verdict's detail) is not read as the
+    transpose of a bracket; a real transpose still is."""
+    tex = str(prose_latex("1 run(s) fail 'every state settled (to the run's own equilibrium)' on [H, 1.2 H]"))
+    assert r"^{\top}" not in tex and "`every state settled" in tex and "equilibrium)' on" in tex
+    assert str(prose_latex("with (A - L C)' P and K' P")).count(r"^{\top}") == 2
