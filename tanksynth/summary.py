@@ -92,7 +92,15 @@ def key_figure(doc: Mapping[str, Any], state_units: Sequence[str] | None = None)
             return f"{label} = {float(data[name]['value']):.4g} (recomputed)"
     if "margins" in data.get("vertex_region", {}):
         margins = data["vertex_region"]["margins"]
-        return f"region margin {min(float(m) for m in margins):.3g} at the worst of {len(margins)} models"
+        text = (f"region margin -lambda_max(f_D) {min(float(m) for m in margins):.3g} at the worst of "
+                f"{len(margins)} models")
+        hinf = data.get("vertex_hinf", {})
+        if hinf.get("norms") and "gamma" in hinf:  # the H-infinity channel, recomputed per model
+            bound = (((doc.get("diagnostics") or {}).get("robust") or {}).get("hinf") or {})
+            text += (f"; ||T_zw||inf {max(float(v) for v in hinf['norms']):.4g} <= gamma "
+                     f"{float(hinf['gamma']):.4g}"
+                     + (" (not binding)" if bound.get("imposed") is False else ""))
+        return text
     if "inner_radius" in data.get("region_recheck", {}):
         unit = _common_unit(state_units)
         return (f"certified region: ball of radius {float(data['region_recheck']['inner_radius']):.3g} "

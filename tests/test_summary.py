@@ -17,7 +17,17 @@ def test_hinf_key_figure_is_the_recomputed_norm():
 
 def test_robust_key_figure_is_the_worst_vertex_margin():
     doc = _doc(("vertex_region", {"margins": [0.3, 0.0027, 0.1]}))
-    assert key_figure(doc) == "region margin 0.0027 at the worst of 3 models"
+    assert key_figure(doc) == "region margin -lambda_max(f_D) 0.0027 at the worst of 3 models"
+
+
+def test_robust_key_figure_shows_the_hinf_norm_against_gamma():
+    """With an H-infinity channel: the largest recomputed vertex norm against gamma, and whether
+    the bound was imposed (a loose gamma is met by the design without it)."""
+    doc = _doc(("vertex_region", {"margins": [0.3, 0.0027]}),
+               ("vertex_hinf", {"norms": [0.0123, 0.0495, 0.02], "gamma": 10.0}))
+    assert key_figure(doc).endswith("; ||T_zw||inf 0.0495 <= gamma 10")
+    loose = dict(doc, diagnostics={"robust": {"hinf": {"gamma": 10.0, "imposed": False}}})
+    assert key_figure(loose).endswith("; ||T_zw||inf 0.0495 <= gamma 10 (not binding)")
 
 
 def test_ts_control_key_figure_is_the_certified_radius_with_its_unit():
