@@ -163,7 +163,7 @@ def _refuse_other_spec(spec, outdir: Path, force: bool) -> None:
         return
     if not force:
         raise SpecError(f"{reason}; choose another output directory, or pass --force to replace "
-                        f"its {len(files)} file(s) of that run", source=str(outdir))
+                        f"that run ({len(files)} file(s) besides plant.json and spec.toml)", source=str(outdir))
     for path in files:
         path.unlink(missing_ok=True)
     _out.print(f"--force: removed {len(files)} file(s) of another spec's run from {outdir}",

@@ -598,8 +598,8 @@ def rehash(path: str | Path) -> Path:
 
 
 #: Files of a result directory that belong to the run as a whole (not to one design).
-_RUN_FILES = ("plant.json", "spec.toml", "checks.json", "campaign.csv", "campaign.json", "report.tex",
-              "report.pdf", "report.log")
+_RUN_FILES = ("plant.json", "spec.toml", "checks.json", "refused.json", "campaign.csv", "campaign.json",
+              "report.tex", "report.pdf", "report.log")
 #: Files written beside an artefact ``<name>.json``.
 _SIBLING_SUFFIXES = (".npz", ".traces.npz", ".mat", ".h", "_law.c", "_law.h", "_law.casadi")
 

@@ -316,7 +316,7 @@ def robust_state_feedback(A: Any, B: Any, region: LMIRegion, *, domain: str = "c
     lib.reserve_norm()
     d = reg.order * n
     homogeneous = hinf is None and saturation is None
-    hs = None
+    hs, free_norm = None, None
     if hinf is not None:
         Bw = np.asarray(hinf.Bw, dtype=float)
         Bws = Bw / s[None, :, None] / omega
@@ -333,8 +333,8 @@ def robust_state_feedback(A: Any, B: Any, region: LMIRegion, *, domain: str = "c
         a = 1.0 / np.sqrt(max(g, 1.0))
         hs = (Bws * (cw * a), Czs * (rz * a), Dzs * (rz * a), g * a * a, a)
         if not _impose:
-            free = _without_bound(A, B, region, domain, saturation, margin, kappa, solver, nominal,
-                                  _dual, As, Bs, s, su, hs, hinf)
+            free, free_norm = _without_bound(A, B, region, domain, saturation, margin, kappa, solver,
+                                             nominal, _dual, As, Bs, s, su, hs, hinf)
             if free is not None:
                 return free
     corners = None
@@ -386,7 +386,8 @@ def robust_state_feedback(A: Any, B: Any, region: LMIRegion, *, domain: str = "c
     tstar = float(t.value) if status in ("optimal", "optimal_inaccurate") and t.value is not None else -np.inf
     if tstar < margin:
         raise InfeasibleDesign(_infeasible_reason(region, V, margin, tstar, status, solver, hinf,
-                                                  saturation, constraints, t, nominal, lib, fixed))
+                                                  saturation, constraints, t, nominal, lib, fixed,
+                                                  free_norm))
     Xv, Yv, status1 = X.value.copy(), Y.value.copy(), status
     bound = max(margin, 0.5 * tstar)
     phase2 = constraints(bound)
@@ -442,8 +443,10 @@ def robust_state_feedback(A: Any, B: Any, region: LMIRegion, *, domain: str = "c
 
 
 def _without_bound(A, B, region, domain, saturation, margin, kappa, solver, nominal, dual, As, Bs, s,
-                   su, hs, hinf) -> RobustResult | None:
-    """The design without the H-infinity bound when it already meets it, else None.
+                   su, hs, hinf) -> tuple[RobustResult | None, float | None]:
+    """The design without the H-infinity bound when it already meets it (else None), and that
+    design's largest vertex H-infinity norm (None when there is no such design), which a refusal
+    of the bound quotes.
 
     The bound is a constraint, not an objective: when the design without it
     (same region, saturation, margin) satisfies the normalised bounded real
@@ -458,8 +461,9 @@ def _without_bound(A, B, region, domain, saturation, margin, kappa, solver, nomi
         free = robust_state_feedback(A, B, region, domain=domain, saturation=saturation, margin=margin,
                                      kappa=kappa, solver=solver, nominal=nominal, _dual=dual)
     except InfeasibleDesign:
-        return None          # the design with the bound says why (or finds the wider X range)
+        return None, None    # the design with the bound says why (or finds the wider X range)
     K = free.gain.T if dual else free.gain
+    norm = _vertex_hinf_norm(A, B, K, hinf, domain)
     Xs = free.X / np.outer(s, s)
     Ks = K * s[None, :] / su[:, None]
     Xs = 0.5 * (Xs + Xs.T)
@@ -475,7 +479,7 @@ def _without_bound(A, B, region, domain, saturation, margin, kappa, solver, nomi
     u = min((u, 0.0), key=worst_at) if lo <= 0.0 <= hi else u
     worst = worst_at(u)
     if not worst <= -0.5 * margin:
-        return None
+        return None, norm
     check = {"name": "bounded real lemma at every vertex, normalised (<= -margin/2)",
              "value": float(worst), "limit": float(-0.5 * margin), "passed": True}
     return dataclasses.replace(
@@ -485,11 +489,29 @@ def _without_bound(A, B, region, domain, saturation, margin, kappa, solver, nomi
               "imposed": False, "congruence_scale": float(hs[4]), "lyapunov_scale": float(np.exp(u)),
               "note": ("the design without the bound already satisfies the bounded real lemma at "
                        "every vertex with its own Lyapunov matrix times lyapunov_scale: gamma "
-                       "does not bind")})
+                       "does not bind")}), norm
+
+
+def _vertex_hinf_norm(A: np.ndarray, B: np.ndarray, K: np.ndarray, hinf: Any, domain: str) -> float:
+    """Largest H-infinity norm from w to z of the closed loops A_i - B_i K (Hamiltonian bisection;
+    the bilinear transform for discrete loops), inf when one is unstable."""
+    from tanksynth.analysis.statespace import hinf_norm
+
+    Bw = np.asarray(hinf.Bw, dtype=float)
+    Cz = np.asarray(hinf.Cz, dtype=float)
+    Dzu = np.asarray(hinf.Dzu, dtype=float)
+    dt = None if domain == "continuous" else 1.0
+    worst = 0.0
+    for i in range(A.shape[0]):
+        Bwi = Bw[i] if Bw.ndim == 3 else Bw
+        Czi = Cz[i] if Cz.ndim == 3 else Cz
+        Ccl = Czi - Dzu @ K if Dzu.size else Czi
+        worst = max(worst, hinf_norm(A[i] - B[i] @ K, Bwi, Ccl, None, dt=dt, rtol=1e-6))
+    return float(worst)
 
 
 def _infeasible_reason(region, V, margin, tstar, status, solver, hinf, saturation, constraints, t,
-                       nominal, lib, fixed) -> str:
+                       nominal, lib, fixed, free_norm=None) -> str:
     extra = []
     parts = ("region" + (", H-infinity bound" if hinf is not None else "")
              + (", saturation bound" if saturation is not None else ""))
@@ -506,12 +528,23 @@ def _infeasible_reason(region, V, margin, tstar, status, solver, hinf, saturatio
         extra.append(f"the nominal model alone ({parts}): t* = {tn:.3g}"
                      + (" (feasible: the uncertainty makes the request infeasible)" if tn >= margin
                         else " (infeasible even without uncertainty)"))
-    return (f"no single gain meets the {parts} at all {V} vertex model(s) with margin {margin:g} "
+    hint = ""
+    if free_norm is not None and np.isfinite(free_norm) and hinf is not None:
+        hint = (f"gamma = {float(hinf.gamma):.4g} not met: without the bound the design reaches "
+                f"||T_zw||inf = {free_norm:.4g} at its worst vertex model (a gamma of at least that is "
+                "worth trying); ")
+    if status == "optimal":
+        how = "the optimum certifies that no larger margin exists)"
+    elif status.startswith("optimal"):
+        how = (f"the solver's optimum is inaccurate ({status}): an indication, not a certificate "
+               "that no larger margin exists)")
+    else:
+        how = ("no optimum was returned: the request could not be certified, which is no proof that it "
+               "is infeasible)")
+    return (hint + f"no single gain meets the {parts} at all {V} vertex model(s) with margin {margin:g} "
             f"(region {region.describe()}): largest achievable margin t* = {tstar:.3g} (solver {solver} "
             f"status {status}; max t s.t. every vertex LMI <= -t I with a common Lyapunov matrix, "
-            + ("the optimum certifies that no larger margin exists)" if status.startswith("optimal") else
-               "no optimum was returned: the request could not be certified, which is no proof that it "
-               "is infeasible)") + ("; " + "; ".join(extra) if extra else ""))
+            + how + ("; " + "; ".join(extra) if extra else ""))
 
 
 def _recheck(A, B, K, Xs, Xo, Ks, As, Bs, reg, region, domain, margin, tstar, solver, status, elapsed,

@@ -142,6 +142,15 @@ def test_gamma_below_the_achievable_norm_is_refused():
         robust_state_feedback(A, B, half_plane(0.1), hinf=HinfBound(0.9, Bw, Cz, Dzu), nominal=0)
     # the region alone is feasible: the bound makes the request infeasible, at the nominal too
     assert "region alone" in str(err.value) and "infeasible even without uncertainty" in str(err.value)
+    # the refusal says what the design without the bound reaches: its worst vertex norm, here in
+    # closed form sqrt(1 + k^2) / (k - a) at a = 1.2 with the gain of the unbounded design
+    import re
+
+    kf = float(robust_state_feedback(A, B, half_plane(0.1)).gain[0, 0])
+    quoted = float(re.search(r"reaches \|\|T_zw\|\|inf = ([0-9.eE+-]+) at its worst vertex",
+                             str(err.value)).group(1))
+    assert str(err.value).startswith("gamma = 0.9 not met")
+    assert quoted == pytest.approx(np.sqrt(1 + kf ** 2) / (kf - 1.2), rel=1e-3)
 
 
 def test_observer_bound_over_the_range():
