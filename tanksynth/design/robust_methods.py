@@ -85,6 +85,30 @@ def _common_diagnostics(spec: "Spec", o: Any, vm: VertexModels, nom: VertexModel
     }
 
 
+def _channel(design: "DesignSpec", o: Any, Cz: np.ndarray, Dzu: np.ndarray | None,
+              observer: bool) -> dict:
+    """The H-infinity channel w -> z in words and matrices (the report's problem statement)."""
+    given = set(design.options)
+    if "Bw" in given:
+        w = "w enters through the given B_w (x' = f(x, u) + B_w w)"
+    elif observer:
+        w = ("w: a level-rate disturbance on every state, B_w = s I with s = 10 % of the pumps' "
+             "authority max_k |B_ik| range_k (the default)")
+    else:
+        w = ("w: a disturbance entering like each pump with 10 % of its range, B_w = B diag(0.1 range) "
+             "(the default)")
+    z = ("z = C_z x" + ("" if observer else " + D_zu u") + (" with the given C_z" if "Cz" in given
+                                                            else ", C_z = I (every state, the default)"))
+    if not observer:
+        z += "" if "Dzu" in given else (", D_zu = 0" if "Cz" in given else " and D_zu = 0")
+    return {"w": w, "z": z, "observer": observer,
+            "given": sorted(given & {"Bw", "Cz", "Dzu"}),
+            "Bw": None if o.Bw is None else np.asarray(o.Bw, dtype=float).tolist(),
+            "Cz": np.asarray(Cz, dtype=float).tolist(),
+            "Dzu": None if Dzu is None else np.asarray(Dzu, dtype=float).tolist(),
+            "note": "B_w in continuous time (state units per s per unit of w), taken at every vertex"}
+
+
 def _region_halfspaces(plant: Any, x0: Any) -> tuple[np.ndarray, np.ndarray, list[str]]:
     """Half-spaces ``c' (x - x0) <= b`` of the operating region: its bounds and its orderings."""
     import sympy as sp
@@ -216,6 +240,8 @@ def run_robust_state_feedback(spec: "Spec", design: "DesignSpec") -> DesignResul
     gains: dict[str, np.ndarray] = {"K": K, "P": res.P, names["A"]: nom.A[0], names["B"]: nom.B[0],
                                     "C": C0, "x_op": np.asarray(spec.x0, dtype=float), "u_op": u0}
     diagnostics = _common_diagnostics(spec, o, vm, nom, u0, res)
+    if hinf is not None:
+        diagnostics["hinf_channel"] = _channel(design, o, hinf.Cz[:, :n], hinf.Dzu, observer=False)
     if o.integral:
         gains.update({"K1": K[:, :n], "K2": K[:, n:]})
         diagnostics["integral"] = {"tracked": tracked, "C1": C1.tolist()}
@@ -300,6 +326,8 @@ def run_robust_observer(spec: "Spec", design: "DesignSpec") -> DesignResult:
     gains = {"L": res.gain, "P": res.P, names["A"]: nom.A[0], names["B"]: nom.B[0], "C": nom.C[0],
              "x_op": np.asarray(spec.x0, dtype=float), "u_op": u0}
     diagnostics = _common_diagnostics(spec, o, vm, nom, u0, res)
+    if hinf is not None:
+        diagnostics["hinf_channel"] = _channel(design, o, hinf.Cz, None, observer=True)
     caveats = ["the error matrix A(p) - L C is certified for every model of the polytope; an "
                "observer running on the NOMINAL model with a plant whose parameters differ keeps a "
                "bias (the mismatch acts as a disturbance), which the campaign measures"]

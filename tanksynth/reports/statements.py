@@ -340,6 +340,12 @@ def _robust_common(diag: Mapping[str, Any]) -> str:
         text = (rf" for every model of the polytope spanned by the $2^{{{len(unc)}}}$ corners of the "
                 rf"parameter box ${box}$ and the nominal model (linearised at the operating levels, "
                 r"each with its own equilibrium input), with one common Lyapunov matrix")
+        balanced = (diag.get("vertex_models") or {}).get("balanced") or []
+        off = sum(1 for b in balanced if b is False)
+        if off:
+            text += (rf"; {off} of the {len(balanced)} corner models cannot hold the operating levels "
+                     r"with any input (no equilibrium there): they are linearised at the levels with "
+                     r"the least-squares input, which leaves the level rates $f(x_0, u_0) \neq 0$")
     else:
         text = " for the nominal model (no uncertain parameter)"
     if region:
@@ -351,15 +357,37 @@ def _robust_common(diag: Mapping[str, Any]) -> str:
     if isinstance(hinf, Mapping) and _is_number(hinf.get("gamma")):
         text += (rf". At every vertex the bounded real lemma certifies $\|T_{{zw}}\|_\infty < "
                  rf"{format_number(hinf['gamma'])}$")
+        text += _hinf_channel(diag.get("hinf_channel"))
         if hinf.get("imposed") is False:  # the design without the bound already met it
             scale = hinf.get("lyapunov_scale")
             text += (" with the design's own Lyapunov matrix"
-                     + (rf" times ${format_number(scale)}$" if _is_number(scale) else "")
+                     + (rf" times ${format_number(scale)}$" if _is_number(scale) and abs(scale - 1) > 1e-9
+                        else "")
                      + ": the bound does not bind, so it was not imposed in the LMIs")
     margin = rob.get("margin")
     if _is_number(margin):
         text += rf". Strict inequalities carry the margin ${format_number(margin)}$ after scaling"
     return text + "."
+
+
+def _hinf_channel(channel: Any) -> str:
+    """`` (w: ...; z = ...)``: the robust designs' H-infinity channel (``hinf_channel``)."""
+    if not isinstance(channel, Mapping) or "observer" not in channel:
+        return ""
+    given = set(channel.get("given") or ())
+    observer = bool(channel["observer"])
+    if "Bw" in given:
+        w = r"$w$ enters through the given $B_w$, $\dot x = f(x, u) + B_w w$"
+    elif observer:
+        w = (r"$w$ a level-rate disturbance on every state, $B_w = s I$ with $s$ 10\,\% of the pumps' "
+             r"largest authority $\max_k |B_{ik}|\,\mathrm{range}_k$ (default)")
+    else:
+        w = r"$w$ enters like each pump with 10\,\% of its range, $B_w = B\,\mathrm{diag}(0.1\,\mathrm{range})$ (default)"
+    z = r"$z = C_z x" + ("" if observer else r" + D_{zu} u") + "$"
+    z += r" with the given $C_z$" if "Cz" in given else r", $C_z = I$ (every state, default)"
+    if not observer and "Dzu" not in given:
+        z += r", $D_{zu} = 0$"
+    return f" ({w}; {z})"
 
 
 def robust_state_feedback_statement(diag: Mapping[str, Any]) -> Tex:

@@ -266,5 +266,10 @@ def test_report_statement_says_whether_the_bound_was_imposed():
     diag = METHODS[d.method].design(spec, d).diagnostics
     loose = str(robust_observer_statement(diag))
     assert r"\|T_{zw}\|_\infty <" in loose and "not imposed" in loose
+    # the channel: this spec gives Bw (BW_OBS), Cz is the default identity
+    assert "the given $B_w$" in loose and "$C_z = I$ (every state, default)" in loose
+    # corners that cannot hold the levels are named (mu13 != mu32 moves h3's balance)
+    off = diag["vertex_models"]["balanced"].count(False)
+    assert off > 0 and f"{off} of the {len(diag['vertex_models']['balanced'])} corner models" in loose
     imposed = {**diag, "robust": {**diag["robust"], "hinf": {**diag["robust"]["hinf"], "imposed": True}}}
     assert "not imposed" not in str(robust_observer_statement(imposed))
