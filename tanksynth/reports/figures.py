@@ -22,7 +22,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Iterator, Mapping
+from typing import Any, Iterator, Mapping, Sequence
 
 import numpy as np
 
@@ -128,8 +128,12 @@ def eigen_label(path: str) -> str:
         return "with the gain printed in the paper"
     if last in ("requested", "achieved"):
         return last
+    if last in ("achieved_poles", "achieved_eigenvalues"):
+        return "achieved"
     if last.startswith("eigenvalues_"):
         return "eigenvalues of " + last[len("eigenvalues_"):]
+    if last.endswith("_eigenvalues") and "model" in parts[:-1]:   # the plant's own matrix
+        return "plant (open loop): eigenvalues of " + last[:-len("_eigenvalues")]
     core = last.replace("eigenvalues", "").replace("poles", "").replace("_", " ").strip()
     return ("achieved: " + core) if core else "achieved"
 
@@ -236,6 +240,23 @@ def _view(points: np.ndarray, disc: bool) -> tuple[float, float, float, float]:
     return cx - side / 2, cx + side / 2, -side / 2, side / 2
 
 
+def _same_sets_merged(sets: Sequence[EigenvalueSet]) -> list[tuple[np.ndarray, str]]:
+    """The sets to draw, equal ones (same eigenvalues to 1e-9 relative, e.g. ``requested`` and
+    ``achieved`` of an exact placement) drawn once under their joined labels."""
+    out: list[tuple[np.ndarray, list[str], np.ndarray]] = []
+    for s in sets:
+        v = np.array(s.values)
+        key = np.sort_complex(v)
+        for _, labels, other in out:
+            if other.shape == key.shape and np.allclose(other, key, rtol=1e-9, atol=1e-12):
+                if eigen_label(s.path) not in labels:
+                    labels.append(eigen_label(s.path))
+                break
+        else:
+            out.append((v, [eigen_label(s.path)], key))
+    return [(v, " = ".join(labels)) for v, labels, _ in out]
+
+
 def _pole_figure(artefact: Mapping[str, Any], sets: tuple[EigenvalueSet, ...],
                  region: tuple[np.ndarray, np.ndarray, str] | None) -> Any:
     """The pole map of `pole_map`, laid out, not saved (a `matplotlib.figure.Figure`)."""
@@ -263,11 +284,9 @@ def _pole_figure(artefact: Mapping[str, Any], sets: tuple[EigenvalueSet, ...],
                 handles.append(Patch(facecolor="#cfe3f5", edgecolor="#2a6db0",
                                      label="requested region" + (f": {desc}" if desc and len(desc) < 50
                                                                  else "")))
-        for m, s in enumerate(chosen):
-            v = np.array(s.values)
+        for m, (v, label) in enumerate(_same_sets_merged(chosen)):
             (line,) = ax.plot(v.real, v.imag, linestyle="none", marker=_MARKERS[m % len(_MARKERS)],
-                              markersize=7 - m, fillstyle="none", markeredgewidth=1.1,
-                              label=eigen_label(s.path))
+                              markersize=7 - m, fillstyle="none", markeredgewidth=1.1, label=label)
             handles.append(line)
         if disc:
             t = np.linspace(0, 2 * np.pi, 2000)

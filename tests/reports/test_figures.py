@@ -72,8 +72,10 @@ def test_pole_map_keeps_everything_on_the_page():
             assert page.x0 - 0.5 <= e.x0 and e.x1 <= page.x1 + 0.5 and page.y0 - 0.5 <= e.y0 \
                 and e.y1 <= page.y1 + 0.5, t.get_text()
     labels = [t.get_text() for t in axes[0].get_legend().get_texts()]
-    assert labels == ["requested region: disk |s + 2| < 1.5", "requested", "achieved"]
-    assert [t.get_text() for t in axes[1].get_legend().get_texts()] == ["achieved: Ad"]
+    # requested and achieved are equal here (exact placement): one marker, both names
+    assert labels == ["requested region: disk |s + 2| < 1.5", "requested = achieved"]
+    assert [t.get_text() for t in axes[1].get_legend().get_texts()] == [
+        "plant (open loop): eigenvalues of Ad"]
     # the axis labels and tick labels are drawn (as texts of the axes)
     words = {t.get_text() for t in axes[0].texts}
     assert {"real part [1/s]", "imaginary part [1/s]"} <= words and len(words) >= 8
@@ -88,5 +90,17 @@ def test_pole_map_pdf_text(tmp_path):
                           check=True).stdout
     text = " ".join(text.split())
     for words in ("s-plane (continuous time)", "z-plane (discrete time)", "requested region: disk",
-                  "achieved: Ad", "real part [1/s]", "real part"):
+                  "plant (open loop): eigenvalues of Ad", "real part [1/s]", "real part"):
         assert words in text, words
+
+
+def test_only_equal_eigenvalue_sets_share_a_marker():
+    from tanksynth.reports.figures import _same_sets_merged
+
+    art = _artefact()
+    art["diagnostics"]["placement"]["achieved"] = [[-2.0, 0.5], [-2.0, -0.5], [-1.001, 0.0]]
+    labels = [label for _, label in _same_sets_merged([s for s in eigenvalue_sets(art) if not s.discrete])]
+    assert labels == ["requested", "achieved"]
+    art["diagnostics"]["placement"]["achieved"] = [[-1.0, 1e-13], [-2.0, -0.5], [-2.0, 0.5 + 1e-12]]
+    labels = [label for _, label in _same_sets_merged([s for s in eigenvalue_sets(art) if not s.discrete])]
+    assert labels == ["requested = achieved"]
