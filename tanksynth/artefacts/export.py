@@ -28,7 +28,7 @@ from tanksynth.errors import ArtefactError
 from tanksynth.runtime.laws import c_identifier, rename_law
 
 __all__ = ['c_header', 'ExportedLaw', 'export_law', 'compile_law', 'load_compiled_law',
-           'implementation_data', 'mat_contents', 'DERIVED_LAW_METHODS', 'state_feedback_law',
+           'implementation_data', 'mat_contents', 'DERIVED_LAW_METHODS', 'state_feedback_law', 'saturate_input',
            'observer_law', 'kalman_step', 'estimator_step', 'derived_law']
 
 
@@ -331,9 +331,33 @@ def _output_at(plant: Any, x: np.ndarray) -> np.ndarray:
     return np.array(plant.h_numeric.subs(values), dtype=float).reshape(-1)
 
 
+def saturate_input(u: Any, limits: Any | None) -> Any:
+    """``u`` clipped to the actuator range, element by element (infinite bounds leave it free).
+
+    Parameters
+    ----------
+    u : casadi.SX, shape (m, 1)
+        The law's input (input units).
+    limits : array_like, shape (m, 2), or None
+        ``(lower, upper)`` per input (input units); None: ``u`` unchanged.
+    """
+    if limits is None:
+        return u
+    lim = np.asarray(limits, dtype=float).reshape(-1, 2)
+    parts = []
+    for j in range(lim.shape[0]):
+        v = u[j]
+        if np.isfinite(lim[j, 0]):
+            v = ca.fmax(v, float(lim[j, 0]))
+        if np.isfinite(lim[j, 1]):
+            v = ca.fmin(v, float(lim[j, 1]))
+        parts.append(v)
+    return ca.vertcat(*parts)
+
+
 def state_feedback_law(name: str, K: np.ndarray, x_op: np.ndarray, u_op: np.ndarray,
                        integral: Mapping[str, Any] | None = None, Br: np.ndarray | None = None,
-                       continuous: bool = False) -> ca.Function:
+                       continuous: bool = False, input_limits: Any | None = None) -> ca.Function:
     """The state feedback ``u = u_op - K (x - x_op)`` of a linear design, with integral action.
 
     Parameters
@@ -352,6 +376,10 @@ def state_feedback_law(name: str, K: np.ndarray, x_op: np.ndarray, u_op: np.ndar
         Reference input matrix of the augmented system ((n + p) x p).
     continuous : bool
         Continuous-time design: the integrator output is ``z_dot``, not ``z_next``.
+    input_limits : array_like, shape (m, 2), optional
+        Actuator range (input units): ``u`` is clipped to it, as the plant the
+        verdict simulates clips it (the integrators are not: that loop has no
+        anti-windup either). None: unclipped.
 
     Returns
     -------
@@ -366,14 +394,14 @@ def state_feedback_law(name: str, K: np.ndarray, x_op: np.ndarray, u_op: np.ndar
     n = x_op.size
     x = ca.SX.sym("x", n)
     if integral is None:
-        u = ca.DM(u_op) - ca.DM(K) @ (x - ca.DM(x_op))
+        u = saturate_input(ca.DM(u_op) - ca.DM(K) @ (x - ca.DM(x_op)), input_limits)
         return ca.Function(name, [x], [u], ["x"], ["u"])
     Aa, C1 = np.asarray(integral["augmented_A"], dtype=float), np.asarray(integral["C1"], dtype=float)
     p = C1.shape[0]
     Br = np.vstack([np.zeros((n, p)), np.eye(p)]) if Br is None else np.asarray(Br, dtype=float)
     z, r = ca.SX.sym("z", p), ca.SX.sym("y_r", p)
     dx = x - ca.DM(x_op)
-    u = ca.DM(u_op) - ca.DM(K[:, :n]) @ dx - ca.DM(K[:, n:]) @ z
+    u = saturate_input(ca.DM(u_op) - ca.DM(K[:, :n]) @ dx - ca.DM(K[:, n:]) @ z, input_limits)
     z_new = ca.DM(Aa[n:, :n]) @ dx + ca.DM(Aa[n:, n:]) @ z + ca.DM(Br[n:]) @ (r - ca.DM(C1 @ x_op))
     out = "z_dot" if continuous else "z_next"
     return ca.Function(name, [x, z, r], [u, z_new], ["x", "z", "y_r"], ["u", out])
@@ -555,7 +583,7 @@ def derived_law(gains: Mapping[str, np.ndarray], diagnostics: Mapping[str, Any],
         integral = diagnostics.get("integral")
         return state_feedback_law(name, gains["K"], x_op, u_op,
                                   integral if isinstance(integral, Mapping) else None,
-                                  gains.get("Br"), continuous)
+                                  gains.get("Br"), continuous, plant.input_limits)
     if "L" not in gains:
         return None
     form = "continuous" if continuous else (diagnostics.get("form") or "predictor")

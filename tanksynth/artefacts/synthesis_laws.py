@@ -38,7 +38,7 @@ import casadi as ca
 import numpy as np
 
 from tanksynth.analysis.linearize import equilibrium_input, linearize
-from tanksynth.artefacts.export import observer_law, state_feedback_law
+from tanksynth.artefacts.export import observer_law, saturate_input, state_feedback_law
 from tanksynth.errors import ArtefactError
 
 __all__ = ["SYNTHESIS_LAW_METHODS", "synthesis_law", "integral_feedback_law",
@@ -110,7 +110,8 @@ def _ts_gains(gains: Mapping[str, Any], plant: Any) -> dict[str, Any]:
 
 # ----------------------------------------------------------------------------- builders
 def integral_feedback_law(name: str, K1: np.ndarray, K2: np.ndarray, C1: np.ndarray,
-                          x_op: np.ndarray, u_op: np.ndarray, ts: float | None) -> ca.Function:
+                          x_op: np.ndarray, u_op: np.ndarray, ts: float | None,
+                          input_limits: Any | None = None) -> ca.Function:
     """State feedback with integral action on ``y1 = C1 x`` (robust design's integrators).
 
     Parameters
@@ -127,6 +128,8 @@ def integral_feedback_law(name: str, K1: np.ndarray, K2: np.ndarray, C1: np.ndar
         Operating point (state units, m) and its input (input units, m^3/s).
     ts : float or None
         Sampling period (s) of a discrete design; None: continuous time.
+    input_limits : array_like, shape (m, 2), optional
+        Actuator range (input units) ``u`` is clipped to (the integrators are not).
 
     Returns
     -------
@@ -139,7 +142,7 @@ def integral_feedback_law(name: str, K1: np.ndarray, K2: np.ndarray, C1: np.ndar
     x_op, u_op = np.asarray(x_op, dtype=float), np.asarray(u_op, dtype=float)
     p = C1.shape[0]
     x, z, r = ca.SX.sym("x", x_op.size), ca.SX.sym("z", p), ca.SX.sym("y_r", p)
-    u = ca.DM(u_op) - ca.DM(K1) @ (x - ca.DM(x_op)) - ca.DM(K2) @ z
+    u = saturate_input(ca.DM(u_op) - ca.DM(K1) @ (x - ca.DM(x_op)) - ca.DM(K2) @ z, input_limits)
     err = r - ca.DM(C1) @ x
     if ts is None:
         return ca.Function(name, [x, z, r], [u, err], ["x", "z", "y_r"], ["u", "z_dot"])
@@ -250,21 +253,6 @@ def _pdc(mu: ca.SX, K: np.ndarray, e: ca.SX, u_op: np.ndarray) -> ca.SX:
     return u
 
 
-def _saturate(u: ca.SX, limits: np.ndarray | None) -> ca.SX:
-    if limits is None:
-        return u
-    lim = np.asarray(limits, dtype=float).reshape(-1, 2)
-    parts = []
-    for j in range(lim.shape[0]):
-        v = u[j]
-        if np.isfinite(lim[j, 0]):
-            v = ca.fmax(v, float(lim[j, 0]))
-        if np.isfinite(lim[j, 1]):
-            v = ca.fmin(v, float(lim[j, 1]))
-        parts.append(v)
-    return ca.vertcat(*parts)
-
-
 def pdc_law(name: str, K: np.ndarray, x_op: np.ndarray, u_op: np.ndarray,
             memberships: Callable[[ca.SX], ca.SX], limits: np.ndarray | None = None) -> ca.Function:
     """The parallel distributed compensation ``u = u_op - sum_i mu_i(x) K_i (x - x_op)``.
@@ -290,7 +278,7 @@ def pdc_law(name: str, K: np.ndarray, x_op: np.ndarray, u_op: np.ndarray,
     K = np.asarray(K, dtype=float)
     x_op = np.asarray(x_op, dtype=float)
     x = ca.SX.sym("x", x_op.size)
-    u = _saturate(_pdc(memberships(x), K, x - ca.DM(x_op), u_op), limits)
+    u = saturate_input(_pdc(memberships(x), K, x - ca.DM(x_op), u_op), limits)
     return ca.Function(name, [x], [u], ["x"], ["u"])
 
 
@@ -358,7 +346,7 @@ def pdc_output_feedback_law(name: str, plant: Any, K: np.ndarray, L: np.ndarray,
     else:
         mu = memberships(xh)
         xdot = plant.compiled.f(xh, ua) + ca.DM(L) @ innovation
-    u = _saturate(_pdc(mu, K, xh - ca.DM(x_op), u_op), limits)
+    u = saturate_input(_pdc(mu, K, xh - ca.DM(x_op), u_op), limits)
     return ca.Function(name, [xh, ua, y], [u, xdot], ["x_hat", "u_applied", "y"], ["u", "x_hat_dot"])
 
 
@@ -414,10 +402,11 @@ def synthesis_law(gains: Mapping[str, Any], diagnostics: Mapping[str, Any], meth
                                        vertices, limits)
     discrete = _time_domain(diagnostics, options, spec) == "discrete"
     ts = float(spec.ts) if discrete else None
+    limits = plant.input_limits  # u clipped as the plant the verdict simulates clips it
     if method == "robust_state_feedback":
         g = _robust_gains(gains, plant)
         if "K" in g:
-            return state_feedback_law(name, g["K"], g["x_op"], g["u_op"])
+            return state_feedback_law(name, g["K"], g["x_op"], g["u_op"], input_limits=limits)
         integ = diagnostics.get("integral") if isinstance(diagnostics.get("integral"), Mapping) else {}
         C1 = integ.get("C1")
         if C1 is None:
@@ -426,7 +415,7 @@ def synthesis_law(gains: Mapping[str, Any], diagnostics: Mapping[str, Any], meth
                            or outputs[:plant.m])
             C1 = g["C"][[outputs.index(t) for t in tracked]]
         return integral_feedback_law(name, g["K1"], g["K2"], np.asarray(C1, dtype=float), g["x_op"],
-                                     g["u_op"], ts)
+                                     g["u_op"], ts, limits)
     x_op = np.asarray(spec.x0, dtype=float)
     u_op = np.asarray(equilibrium_input(plant, spec.x0, spec.given_u0).u0, dtype=float)
     if method == "robust_observer":
@@ -434,4 +423,4 @@ def synthesis_law(gains: Mapping[str, Any], diagnostics: Mapping[str, Any], meth
     g = _synthesis_gains(gains, plant)
     if "L" in g:
         return nominal_observer_law(name, plant, g["L"], x_op, u_op, ts)
-    return state_feedback_law(name, g["K"], x_op, u_op)
+    return state_feedback_law(name, g["K"], x_op, u_op, input_limits=limits)

@@ -249,6 +249,12 @@ def test_every_controller_and_estimator_method_has_a_law():
     assert missing == []
 
 
+def spec_plant_limits(spec: Path) -> np.ndarray:
+    from tanksynth.methods import load_spec
+
+    return load_spec(spec).plant.input_limits
+
+
 def test_design_names_that_are_not_c_identifiers_export_their_law(tmp_path):
     """A design name may start with a digit or hold '.', '-' (the spec allows it): the law is
     still exported (it was an internal error), as ``<name>_law.*`` beside ``<name>.json``,
@@ -265,6 +271,12 @@ def test_design_names_that_are_not_c_identifiers_export_their_law(tmp_path):
         lib = compile_law(o / f"{name}_law.c", o / f"{name}_law.so", flags=("-O2", "-Wall", "-Werror"))
         law = load_compiled_law(lib, symbol)
         K = read_artefact(o / f"{name}.json")["gains"]["K"]
-        x2 = X + np.array([0.01, -0.02, 0.005])
+        x2 = X + np.array([0.001, -0.002, 0.0005])   # inside the pumps' range: linear
         du = _np(law(x2)) - _np(law(X))
         np.testing.assert_allclose(du, -K @ (x2 - X), rtol=1e-12, atol=1e-15)
+        # far out: clipped to the pumps' range, as the plant the verdict simulates clips it
+        lo, hi = np.asarray(spec_plant_limits(spec), dtype=float).T
+        x3 = X + np.array([0.2, -0.15, 0.1])
+        np.testing.assert_allclose(_np(law(x3)), np.clip(_np(law(X)) - K @ (x3 - X), lo, hi),
+                                   rtol=1e-12, atol=1e-15)
+        assert np.any(_np(law(x3)) != _np(law(X)) - K @ (x3 - X))   # the clip was active
