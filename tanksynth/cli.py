@@ -532,7 +532,8 @@ def _write_report(directory: Path, pdf: bool, worker=None):
                    markup=False, highlight=False, soft_wrap=True)
     for title, count in res.errata:
         _out.print(f"paper vs tool ({title}): {count} printed value(s) in the "
-                   "paper differ from the derivation (paper errata)", markup=False, highlight=False,
+                   "paper differ from the derivation (paper errata; not a failure of the designs: "
+                   "the report's section 'Paper vs tool')", markup=False, highlight=False,
                    soft_wrap=True)
     return res
 
