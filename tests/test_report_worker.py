@@ -73,6 +73,38 @@ def test_figures_drawn_ahead_are_used_and_the_rest_drawn(tmp_path):
     assert _digests(ahead) == _digests(whole)
 
 
+
+def test_figures_drawn_ahead_that_do_not_fit_are_drawn_again(tmp_path):
+    """`write_report(drawn=...)` with entries that are not this directory's figures of those stems
+    (another directory's, another artefact's, None for an artefact with eigenvalues, a wrong type):
+    drawn again, the report is the one drawn all at once (no figure reused under a wrong name)."""
+    import shutil
+
+    from tanksynth.methods import write_report
+    from tanksynth.reports.context import draw_trace_figures
+    from tanksynth.reports.inputs import read_report_inputs
+    from tanksynth.reports.writer import draw_pole_maps
+
+    whole = _run(tmp_path, "0")
+    want = _digests(whole)
+    other = tmp_path / "other" / "out"
+    shutil.copytree(whole, other)
+    inputs = read_report_inputs(other)
+    elsewhere = {**draw_pole_maps(inputs), **draw_trace_figures(inputs)}
+    poles = sorted(k for k in elsewhere if k.startswith("poles-") and elsewhere[k] is not None)
+    traces = sorted(k for k in elsewhere if k.startswith("traces-") and elsewhere[k] is not None)
+    assert len(poles) >= 2 and len(traces) >= 2
+    shutil.rmtree(whole / "report-figures")
+    write_report(whole, drawn=elsewhere)                   # another directory's files
+    assert _digests(whole) == want
+    here = {**draw_pole_maps(read_report_inputs(whole)), **draw_trace_figures(read_report_inputs(whole))}
+    wrong = {poles[0]: here[poles[1]], traces[0]: here[traces[1]],   # another artefact's figure
+             poles[1]: None, traces[1]: None,                      # "no figure" where there is one
+             poles[2] if len(poles) > 2 else "poles-99-x": "not a figure"}
+    write_report(whole, drawn=wrong)
+    assert _digests(whole) == want
+
+
 SCRIPT = """
 import os, signal, sys, threading
 from pathlib import Path

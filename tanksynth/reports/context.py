@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import dataclasses
 import re
+from pathlib import Path
 from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
@@ -26,7 +27,7 @@ from tanksynth.reports.inputs import ReportInputs
 from tanksynth.reports.latex import (Tex, escape_latex, expression_latex, format_eigenvalues,
                                      format_number, format_unit, gain_latex, symbol_latex)
 
-__all__ = ["build_context", "trace_figures", "trace_jobs", "draw_trace_figures"]
+__all__ = ["build_context", "trace_figures", "trace_jobs", "draw_trace_figures", "drawn_usable"]
 
 
 def _m(value: Any, digits: int = 5) -> Tex:
@@ -292,6 +293,45 @@ def _trace_stem(index: int, name: str) -> str:
     return f"traces-{index:02d}-{safe or 'design'}"
 
 
+def drawn_usable(drawn: Mapping[str, Any], stem: str, target: Path, kind: type,
+                 none_ok: Callable[[], bool]) -> bool:
+    """Whether ``drawn[stem]`` (a figure drawn ahead) can stand for the one drawn here.
+
+    It can when it is None and ``none_ok()`` (this artefact has no such figure),
+    or a ``kind`` instance whose file is ``target`` and exists; anything else
+    (another directory's or another artefact's figure, a missing file, a wrong
+    type) is drawn again.
+
+    Parameters
+    ----------
+    drawn : mapping
+        File stem -> figure or None.
+    stem : str
+        File stem of the figure wanted.
+    target : Path
+        ``DIR/report-figures/<stem>.pdf``.
+    kind : type
+        `FigureFile` or `TraceFigure`.
+    none_ok : callable
+        True when the artefact has no figure of this kind.
+
+    Returns
+    -------
+    bool
+    """
+    if stem not in drawn:
+        return False
+    fig = drawn[stem]
+    if fig is None:
+        return bool(none_ok())
+    if not isinstance(fig, kind):
+        return False
+    try:
+        return Path(fig.path).resolve() == target.resolve() and target.is_file()
+    except (OSError, TypeError):
+        return False
+
+
 def trace_jobs(inputs: ReportInputs) -> list[tuple[str, int]]:
     """The time-domain figures a report draws: (file stem, artefact index) of every artefact
     with a verdict trace file, largest trace file first (what `draw_trace_figures` takes).
@@ -362,10 +402,17 @@ def trace_figures(inputs: ReportInputs, drawn: Mapping[str, Any] | None = None
     dict
         Artefact name -> TraceFigure.
     """
+    from tanksynth.artefacts.traces import trace_path
+
     figdir = inputs.directory / _FIGURE_DIR
     drawn = drawn or {}
-    missing = [i for i, art in enumerate(inputs.artefacts)
-               if _trace_stem(i, str(art.get("name", ""))) not in drawn]
+
+    def ahead(i: int, name: str) -> bool:
+        stem = _trace_stem(i, name)
+        return drawn_usable(drawn, stem, figdir / f"{stem}.pdf", TraceFigure,
+                            lambda: not trace_path(inputs.directory / f"{name}.json", name).is_file())
+
+    missing = [i for i, art in enumerate(inputs.artefacts) if not ahead(i, str(art.get("name", "")))]
     fresh = draw_trace_figures(inputs, missing) if missing else {}
     out: dict[str, TraceFigure] = {}
     for i, art in enumerate(inputs.artefacts):

@@ -20,8 +20,8 @@ from typing import Any, Callable, Mapping
 
 from tanksynth.artefacts.atomic import atomic_write, commit
 from tanksynth.errors import ArtefactError, ReportError
-from tanksynth.reports.context import build_context, trace_figures
-from tanksynth.reports.figures import FigureFile, TraceFigure, pole_map
+from tanksynth.reports.context import build_context, drawn_usable, trace_figures
+from tanksynth.reports.figures import FigureFile, TraceFigure, eigenvalue_sets, pole_map
 from tanksynth.reports.ts_figures import region_figures
 from tanksynth.reports.inputs import ReportInputs, read_report_inputs
 from tanksynth.reports.comparison import PaperComparison
@@ -145,8 +145,9 @@ def write_report(directory: str | Path, pdf: bool = False, timeout: float = 180.
     drawn : mapping, optional
         Figures already drawn from this directory's current files (file stem ->
         figure or None; `draw_pole_maps`, `tanksynth.reports.context.draw_trace_figures`),
-        e.g. by another process while verification ran: used as they are, the
-        others are drawn here.
+        e.g. by another process while verification ran: used as they are when
+        they are this directory's files of those stems (`drawn_usable`; None
+        only for an artefact without such a figure), the others are drawn here.
 
     Returns
     -------
@@ -173,7 +174,9 @@ def write_report(directory: str | Path, pdf: bool = False, timeout: float = 180.
     figures: dict[str, FigureFile] = {}
     for i, art in enumerate(inputs.artefacts):
         stem = _figure_stem(i, str(art.get("name", "")))
-        fig = drawn[stem] if stem in drawn else pole_map(art, figdir, stem)
+        ahead = drawn_usable(drawn, stem, figdir / f"{stem}.pdf", FigureFile,
+                             lambda: not eigenvalue_sets(art))  # noqa: B023 - called right here
+        fig = drawn[stem] if ahead else pole_map(art, figdir, stem)
         if fig is not None:
             figures[str(art["name"])] = fig
     if figdir.is_dir():  # figures of artefacts that are gone
