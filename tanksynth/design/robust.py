@@ -387,7 +387,7 @@ def robust_state_feedback(A: Any, B: Any, region: LMIRegion, *, domain: str = "c
     if tstar < margin:
         raise InfeasibleDesign(_infeasible_reason(region, V, margin, tstar, status, solver, hinf,
                                                   saturation, constraints, t, nominal, lib, fixed,
-                                                  free_norm))
+                                                  free_norm, kappa))
     Xv, Yv, status1 = X.value.copy(), Y.value.copy(), status
     bound = max(margin, 0.5 * tstar)
     phase2 = constraints(bound)
@@ -511,7 +511,7 @@ def _vertex_hinf_norm(A: np.ndarray, B: np.ndarray, K: np.ndarray, hinf: Any, do
 
 
 def _infeasible_reason(region, V, margin, tstar, status, solver, hinf, saturation, constraints, t,
-                       nominal, lib, fixed, free_norm=None) -> str:
+                       nominal, lib, fixed, free_norm=None, kappa=None) -> str:
     extra = []
     parts = ("region" + (", H-infinity bound" if hinf is not None else "")
              + (", saturation bound" if saturation is not None else ""))
@@ -527,14 +527,16 @@ def _infeasible_reason(region, V, margin, tstar, status, solver, hinf, saturatio
         tn = float(t.value) if t.value is not None and st.startswith("optimal") else -np.inf
         extra.append(f"the nominal model alone ({parts}): t* = {tn:.3g}"
                      + (" (feasible: the uncertainty makes the request infeasible)" if tn >= margin
-                        else " (infeasible even without uncertainty)"))
+                        else " (infeasible even without uncertainty" + (", within kappa" if kappa else "")
+                        + ")"))
     hint = ""
     if free_norm is not None and np.isfinite(free_norm) and hinf is not None:
         hint = (f"gamma = {float(hinf.gamma):.4g} not met: without the bound the design reaches "
                 f"||T_zw||inf = {free_norm:.4g} at its worst vertex model (a gamma of at least that is "
                 "worth trying); ")
+    within = "" if kappa is None else f" with the Lyapunov matrix's conditioning bound kappa = {kappa:g}"
     if status == "optimal":
-        how = "the optimum certifies that no larger margin exists)"
+        how = f"the optimum certifies that no larger margin exists{within})"
     elif status.startswith("optimal"):
         how = (f"the solver's optimum is inaccurate ({status}): an indication, not a certificate "
                "that no larger margin exists)")

@@ -20,6 +20,7 @@ the diagnostics predict per vertex (``offsets``).
 
 from __future__ import annotations
 
+import warnings
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -30,7 +31,8 @@ from tanksynth.analysis.rank import controllability_rank, observability_rank
 from tanksynth.analysis.statespace import model_names
 from tanksynth.design.result import DesignMethod, DesignResult, options_of, rekeyed
 from tanksynth.design.robust_models import VertexModels, augment_integral, polytope_check, vertex_models
-from tanksynth.errors import InfeasibleDesign, SpecError, UncontrollableError, UnobservableError
+from tanksynth.errors import (DesignWarning, InfeasibleDesign, SpecError, UncontrollableError,
+                              UnobservableError)
 from tanksynth.spec.method_options.robust import RobustObserverOptions, RobustStateFeedbackOptions
 
 if TYPE_CHECKING:  # pragma: no cover - typing only
@@ -83,6 +85,24 @@ def _common_diagnostics(spec: "Spec", o: Any, vm: VertexModels, nom: VertexModel
         "robust": res.as_dict(), "solver": res.solver, "status": res.status,
         "assumptions": [a.text for a in plant.assumptions],
     }
+
+
+#: Fastest continuous closed-loop eigenvalue, times the sampling period, worth a warning: a
+#: sampled controller cannot run a loop much faster than its sampling (nor pumps follow it).
+STIFF_SAMPLING = 20.0
+
+
+def _warn_if_stiff(A: np.ndarray, B: np.ndarray, K: np.ndarray, domain: str, ts: float | None) -> None:
+    """A continuous design whose closed loop is far faster than the sampling period: a
+    `DesignWarning` (the region bounds the eigenvalues from one side only)."""
+    if domain != "continuous" or not ts:
+        return
+    fast = max(float(np.max(np.abs(np.linalg.eigvals(Ai - Bi @ K)))) for Ai, Bi in zip(A, B))
+    if fast * float(ts) > STIFF_SAMPLING:
+        warnings.warn(f"the closed loop has an eigenvalue of modulus {fast:.3g} 1/s, "
+                      f"{fast * float(ts):.3g} times the sampling rate 1/ts (ts = {float(ts):g} s): a "
+                      "sampled controller cannot run it and the pumps saturate at once; bound the "
+                      "region from the fast side too (a disk or a sector)", DesignWarning, stacklevel=2)
 
 
 def _channel(design: "DesignSpec", o: Any, Cz: np.ndarray, Dzu: np.ndarray | None,
@@ -236,6 +256,7 @@ def run_robust_state_feedback(spec: "Spec", design: "DesignSpec") -> DesignResul
     except SpecError as exc:
         raise rekeyed(design, exc, fallback="region") from None
     K = res.gain
+    _warn_if_stiff(A, B, K, o.time_domain, spec.ts)
     names = model_names(o.time_domain)
     gains: dict[str, np.ndarray] = {"K": K, "P": res.P, names["A"]: nom.A[0], names["B"]: nom.B[0],
                                     "C": C0, "x_op": np.asarray(spec.x0, dtype=float), "u_op": u0}

@@ -41,8 +41,8 @@ from tanksynth.sim.simulate import run_seeds, simulate
 from tanksynth.verify.robust_models import linear_models
 from tanksynth.verify.robust_traces import PeakRecordingLaw, record_monte_carlo
 from tanksynth.spec.method_options.robust import parse_uncertain
-from tanksynth.verify.common import (OBSERVER_TOLERANCE, artefact_matrix, fmt, guard, model_recheck,
-                                     option, stability_check, time_domain)
+from tanksynth.verify.common import (MAX_STEPS, OBSERVER_TOLERANCE, artefact_matrix, fmt, guard,
+                                     model_recheck, option, stability_check, time_domain)
 from tanksynth.verify.numerics import integral_augmentation, region_lmi_matrix
 from tanksynth.verify.simulations import (IntegralStateFeedback, StateFeedback, designed_time_constant,
                                           eigenvector_conditioning, observer_period, perturbed_start)
@@ -349,12 +349,27 @@ def _law(c: dict, ts: float) -> Any:
     return StateFeedback(c["K"], c["x0"], c["u0"])
 
 
+def _too_stiff(c: dict, spec: Any, ts: float, H: float, steps: int) -> Check:
+    """The Monte-Carlo check of a loop too stiff to simulate: failed (the gain cannot be trusted
+    without its run on the nonlinear plant), with the loop's time scales."""
+    eigs = np.concatenate([np.linalg.eigvals(M) for M in _closed_loops(c, spec, c["models"])])
+    fast = float(np.max(np.abs(eigs)))
+    return Check("monte_carlo", False,
+                 f"not simulated: the closed loop spans {fast:.3g} 1/s (fastest eigenvalue) to a horizon "
+                 f"of {H:.4g} s, {steps} samples of {ts:.3g} s (limit {10 * MAX_STEPS}); a gain this "
+                 f"fast saturates the pumps at once and cannot be run by a sampled controller: bound "
+                 f"the region (e.g. a disk or sector as well as the half-plane) so that the eigenvalues "
+                 f"stay slow", {"samples": int(steps), "fastest_eigenvalue": fast, "horizon_s": H})
+
+
 def _mc_feedback(doc: Mapping[str, Any], spec: Any, c: dict, trace: Any = None) -> list[Check]:
     plant = spec.plant
     runs = int(option(doc, spec, "mc_runs", 16))
     seed = int(option(doc, spec, "seed", 0))
     ts = _sim_period(c, spec, _closed_loops(c, spec, c["models"]))
     H, k_h, steps, rule = _horizon(doc, spec, c, ts)
+    if steps > 10 * MAX_STEPS:
+        return [_too_stiff(c, spec, ts, H, steps)]
     values = _sample(c["box"], runs, seed + 1) if c["box"] else np.zeros((runs, 0))
     params = {b[0]: values[:, j] for j, b in enumerate(c["box"])}
     x_start, frac = perturbed_start(plant, c["x0"])

@@ -105,3 +105,54 @@ def test_campaign_workers_read_the_box_from_a_spec_parsed_without_its_methods():
     assert expected and _box(doc, raw) == expected
     for name, lo, hi in expected:  # the example's "15%": [0.85 p, 1.15 p]
         assert 0 < lo < hi and abs((hi - lo) / (hi + lo) - 0.15) < 1e-12, name
+
+
+STIFF = """
+title = "stiff"
+[plant]
+model = "three_tank"
+outputs = "all"
+[operating_point]
+x = {h1 = 0.40, h2 = 0.20, h3 = 0.30}
+[sampling]
+ts = 1.0
+[[design]]
+name = "stiff"
+method = "robust_state_feedback"
+time_domain = "continuous"
+uncertain = {mu13 = "15%"}
+region = [{type = "half_plane", alpha = 0.01}]
+gamma = 1e-3
+Bw = [[0.01, 0], [0, 0.01], [0, 0]]
+"""
+
+
+def test_a_loop_too_stiff_to_simulate_is_warned_and_fails_its_monte_carlo(tmp_path):
+    """A half-plane region bounds the eigenvalues from one side: this H-infinity bound drives
+    them to ~1e4 1/s. The design warns (far beyond the sampling rate); the verdict does not try
+    the ~1e8 samples its Monte-Carlo run would take (it ran out of memory): failed, saying why."""
+    import warnings as _w
+
+    import numpy as np
+
+    from tanksynth.errors import DesignWarning
+    from tanksynth.methods import METHODS, parse_spec_text, verify_directory
+    from tanksynth.cli import main
+
+    spec = parse_spec_text(STIFF)
+    d = spec.designs[0]
+    with _w.catch_warnings(record=True) as caught:
+        _w.simplefilter("always")
+        res = METHODS[d.method].design(spec, d)
+    K, F, B = res.gains["K"], res.gains["F"], res.gains["B"]
+    fast = float(np.max(np.abs(np.linalg.eigvals(F - B @ K))))       # nominal model alone
+    assert fast > 20.0                                                # > 20 x 1/ts
+    assert any(issubclass(w.category, DesignWarning) and "sampling rate" in str(w.message)
+               for w in caught)
+    path = tmp_path / "s.toml"
+    path.write_text(STIFF, encoding="utf-8")
+    assert main(["design", str(path), "-o", str(tmp_path / "o")]) == 0
+    (v,) = verify_directory(tmp_path / "o")
+    mc = next(c for c in v.checks if c.name == "monte_carlo")
+    assert mc.passed is False and mc.detail.startswith("not simulated")
+    assert mc.data["fastest_eigenvalue"] >= fast * (1 - 1e-9) and mc.data["samples"] > 200000
