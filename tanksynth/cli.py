@@ -492,7 +492,7 @@ def _run_stages(s, spec, out: Path, pdf: bool, have_tex: bool, clock, worker) ->
             res = _write_report(out, pdf, worker)
         if res.pdf is not None:
             clock.part("report", "LaTeX", res.latex_seconds)
-        print_summary(written, _out)
+        print_summary(written, Console(width=_PIPED_WIDTH) if _piped() else _out)  # names unbroken
         if spec is None and not have_tex:
             _out.print("no PDF: install pdflatex and latexmk (Debian: make tex) and run "
                        f"'tanksynth report {out} --pdf'", markup=False, highlight=False)

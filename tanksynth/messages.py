@@ -278,8 +278,8 @@ def print_summary(paths: list[Path], console: Any) -> None:
     from tanksynth.summary import summary_row
 
     table = Table(title="Designs, verified on the nonlinear plant")
-    for col in ("design", "method", "key figure", "verdict"):
-        table.add_column(col, overflow="fold")
+    for col in ("design", "method", "key figure", "verdict"):   # names never broken mid-word
+        table.add_column(col, overflow="fold", no_wrap=col in ("design", "method"))
     failures = []
     try:
         from tanksynth.artefacts.io import read_plant_record

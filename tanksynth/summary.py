@@ -111,10 +111,19 @@ def key_figure(doc: Mapping[str, Any], state_units: Sequence[str] | None = None)
             unit = _common_unit(state_units)
             return (f"|e|inf {float(conv['e0']):.2g} {unit} -> {float(conv['tail_max']):.2g} {unit} "
                     f"in {float(conv.get('horizon_s', 0.0)):.0f} s (nonlinear plant)").replace("  ", " ")
+    fault = data.get("fault_detected", {})
+    if fault.get("t_detect") and "t_fault" in fault:   # the residual detector on the nonlinear plant
+        delay = max(float(t) for t in fault["t_detect"]) - float(fault["t_fault"])
+        alarm = checks.get("no_false_alarm", {}).get("passed")
+        return (f"fault detected {delay:.3g} s after it occurs (worst of {len(fault['t_detect'])} runs)"
+                + ("; no false alarm" if alarm is True else "; FALSE ALARM" if alarm is False else ""))
     stab = data.get("stability", {})
     if "value" in stab:
         what = "spectral radius" if stab.get("domain") == "discrete" else "max Re(pole)"
         return f"{what} {float(stab['value']):.4g}" + ("" if stab.get("domain") == "discrete" else " 1/s")
+    if data.get("first_order_agreement", {}).get("relative_errors"):   # a linearisation
+        return (f"first-order agreement with the nonlinear plant: relative error "
+                f"{max(float(e) for e in data['first_order_agreement']['relative_errors']):.2g}")
     return "-"
 
 

@@ -33,3 +33,12 @@ def test_robust_key_figure_shows_the_hinf_norm_against_gamma():
 def test_ts_control_key_figure_is_the_certified_radius_with_its_unit():
     doc = _doc(("region_recheck", {"inner_radius": 0.0412, "c": 1.0}))
     assert key_figure(doc, ["m", "m", "m"]) == "certified region: ball of radius 0.0412 m around x_op"
+
+
+def test_fault_detector_and_linearisation_key_figures():
+    doc = _doc(("no_false_alarm", {"healthy_margin": 1e-9}),
+               ("fault_detected", {"t_detect": [2.0170, 2.0152, 2.0127], "t_fault": 2.0}))
+    doc["verification"]["checks"][0]["passed"] = True
+    assert key_figure(doc) == "fault detected 0.017 s after it occurs (worst of 3 runs); no false alarm"
+    lin = _doc(("first_order_agreement", {"relative_errors": [8.1e-14, 1.75e-13, 4.5e-13]}))
+    assert key_figure(lin) == "first-order agreement with the nonlinear plant: relative error 4.5e-13"
