@@ -121,7 +121,11 @@ def equilibrium_checks(plant: Plant, eq) -> list[Check]:
             detail += f"; {hint}"
     out = [Check("equilibrium", eq.is_equilibrium, detail, eq.as_dict())]
     lim = plant.input_limits
-    parts = [f"{q.name} = {v:.4g} {q.unit} in [{lo:g}, {hi:g}]"
+    def unit(q: Any) -> str:
+        return "" if str(q.unit) in ("", "1", "-") else f" {q.unit}"
+
+    parts = [(f"{q.name} = {v:.4g}{unit(q)} in [{lo:g}, {hi:g}]" if np.isfinite(lo) or np.isfinite(hi)
+              else f"{q.name} = {v:.4g}{unit(q)} (no actuator range given)")
              + ("" if lo - 1e-12 <= v <= hi + 1e-12 else " VIOLATED")
              for q, v, (lo, hi) in zip(plant.inputs, eq.u0, lim)]
     out.append(Check("equilibrium_input_bounds", eq.within_bounds,
