@@ -121,10 +121,10 @@ class TraceRecorder:
             The simulated runs and the plant model.
         scenario, check : str
             Names of the scenario and the check the runs belong to.
-        estimator, reference_names, runs, disturbances : bool, sequence of str or None, int, \
-sequence of str
-            Whether estimates are kept, names of the references, number of runs kept, names of
-            the inputs that are disturbances.
+        estimator, reference_names, runs : bool, sequence of str or None, int
+            Whether estimates are kept, names of the references, number of runs kept.
+        disturbances : sequence of str
+            Names of the inputs that are disturbances (see `trace_of`).
         """
         if self.trace is not None:
             kept = {str(tr["header"]["check"]) for tr in [self.trace, *self.extras]}
