@@ -20,12 +20,14 @@ pytestmark = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="fo
 
 #: Five designs with eigenvalue maps and time-domain figures of different sizes.
 EXAMPLE = ROOT / "examples" / "seed004_fault_detection.toml"
+#: Five designs whose verdicts store an extra trace each (the disturbance step): two figures each.
+EXTRAS = ROOT / "examples" / "three_tank_hinf.toml"
 
 
-def _run(tmp: Path, worker: str) -> Path:
+def _run(tmp: Path, worker: str, example: Path = EXAMPLE) -> Path:
     out = tmp / f"worker{worker}" / "out"   # same directory name: the report names it
     env = dict(os.environ, TANKSYNTH_REPORT_WORKER=worker)
-    proc = subprocess.run([CLI, "run", str(EXAMPLE), "-o", str(out)],
+    proc = subprocess.run([CLI, "run", str(example), "-o", str(out)],
                           capture_output=True, text=True, env=env, timeout=600)
     assert proc.returncode == 0, proc.stderr
     assert "times:" in proc.stdout and "report:" in proc.stdout
@@ -41,6 +43,14 @@ def test_report_by_the_worker_is_the_in_process_report(tmp_path):
     by_worker, in_process = _run(tmp_path, "1"), _run(tmp_path, "0")
     a, b = _digests(by_worker), _digests(in_process)
     assert sum(k.startswith("traces-") for k in a) >= 4 and sum(k.startswith("poles-") for k in a) >= 4
+    assert a == b
+
+
+def test_extra_trace_figures_by_the_worker_are_the_in_process_ones(tmp_path):
+    by_worker, in_process = _run(tmp_path, "1", EXTRAS), _run(tmp_path, "0", EXTRAS)
+    a, b = _digests(by_worker), _digests(in_process)
+    assert sum(k.startswith("traces-") and k.endswith("-1.pdf") for k in a) == 5
+    assert sum(k.startswith("traces-") for k in a) == 10
     assert a == b
 
 

@@ -6,14 +6,26 @@ simulation (the first one the verdict runs that calls `tanksynth.verify.traces.T
 and observers), ``t_u``/``u`` (inputs), ``reference`` (if any) for the first
 `TRACE_RUNS` runs, decimated to at most `TRACE_MAX_SAMPLES` samples, and a
 JSON header (scenario, check and its verdict, state/input names and units).
+
+The file also holds up to `TRACE_EXTRAS` further traces: the first simulation
+of each other check the verdict records (e.g. the H2/H-infinity
+``disturbance_step`` after the ``regulation`` run). Their arrays are stored
+under the prefixed keys ``extraK.t``, ``extraK.x``, ... (K = 1, 2) and their
+headers as the list ``extras`` in the main header, so the main trace reads
+exactly as in a file without extras (schema ``tanksynth.traces/1``; a reader
+that knows nothing of extras ignores them), and a file without extras is
+byte for byte the file written before extras existed.
+
 It is written atomically and is not part of the artefact JSON (the
-provenance hash is untouched); the report draws it as a time-domain figure.
-A verdict that simulates nothing leaves no trace (a stale one is removed).
+provenance hash is untouched); the report draws each stored trace as a
+time-domain figure. A verdict that simulates nothing leaves no trace (a
+stale one is removed).
 """
 
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 from typing import Any, Mapping
 
@@ -22,7 +34,8 @@ import numpy as np
 from tanksynth.artefacts.atomic import atomic_write
 
 
-__all__ = ["TRACE_SUFFIX", "TRACE_MAX_SAMPLES", "TRACE_RUNS", "trace_path", "write_trace", "read_trace"]
+__all__ = ["TRACE_SUFFIX", "TRACE_MAX_SAMPLES", "TRACE_RUNS", "TRACE_EXTRAS", "trace_path", "write_trace",
+           "read_trace"]
 
 
 #: File name suffix of an artefact's verdict trace: ``DIR/<name>.traces.npz``.
@@ -37,6 +50,15 @@ TRACE_MAX_SAMPLES = 2000
 
 #: Runs of the verdict simulation batch kept in a trace (the first ones).
 TRACE_RUNS = 2
+
+
+#: Further traces kept beside the main one at most: the first simulation of each other check
+#: (a figure each in the report; a file stays small).
+TRACE_EXTRAS = 2
+
+
+#: Prefix of an extra trace's array keys in the file: ``extra1.t``, ``extra1.x``, ...
+_EXTRA = "extra{}."
 
 
 
@@ -57,7 +79,10 @@ def trace_path(artefact_path: str | Path, name: str) -> Path:
 def write_trace(path: str | Path, trace: Mapping[str, Any]) -> Path:
     """Write a trace (`verdict_with_trace`) as ``.npz``, atomically (temp file + os.replace).
 
-    The header is stored as a JSON string (``header``); no pickled object.
+    The header is stored as a JSON string (``header``); no pickled object. The
+    extra traces (``trace["more"]``, at most `TRACE_EXTRAS` are written) go under
+    the array keys ``extraK.<key>`` with their headers as the main header's list
+    ``extras``; without extras the file is the one-trace file.
 
     Parameters
     ----------
@@ -65,17 +90,32 @@ def write_trace(path: str | Path, trace: Mapping[str, Any]) -> Path:
         Target ``.traces.npz``.
     trace : mapping
         ``header`` (a JSON-friendly mapping) and ``arrays`` (time in s, signals in the
-        plant's units).
+        plant's units); optionally ``more``, a sequence of such mappings.
+
+    Raises
+    ------
+    ValueError
+        A header already holds the key ``extras``.
     """
     path = Path(path)
     arrays = {k: np.asarray(v, dtype=float) for k, v in trace["arrays"].items()}
-    header = np.array(json.dumps(trace["header"], allow_nan=False, sort_keys=True))
-    return atomic_write(path, lambda fh: np.savez_compressed(fh, header=header, **arrays))
+    header = dict(trace["header"])
+    more = list(trace.get("more") or [])[:TRACE_EXTRAS]
+    if "extras" in header or any("extras" in m["header"] for m in more):
+        raise ValueError(f"{path}: a trace header may not hold the key 'extras' (the extra traces' list)")
+    if more:
+        header["extras"] = [dict(m["header"]) for m in more]
+        for k, m in enumerate(more, start=1):
+            arrays.update({_EXTRA.format(k) + key: np.asarray(v, dtype=float) for key, v in m["arrays"].items()})
+    text = np.array(json.dumps(header, allow_nan=False, sort_keys=True))
+    return atomic_write(path, lambda fh: np.savez_compressed(fh, header=text, **arrays))
 
 
 
 def read_trace(path: str | Path) -> dict | None:
     """Read a trace file; None when it is missing or unreadable (no time-domain figure then).
+
+    Files written before extra traces existed read the same way (``more`` empty).
 
     Parameters
     ----------
@@ -85,7 +125,9 @@ def read_trace(path: str | Path) -> dict | None:
     Returns
     -------
     dict or None
-        ``{"header": dict, "arrays": dict of ndarray}``.
+        ``{"header": dict, "arrays": dict of ndarray, "more": list}``: the main trace and
+        the extra traces (each ``{"header", "arrays"}``, in the order recorded; an
+        unreadable extra is left out).
     """
     try:
         with np.load(Path(path), allow_pickle=False) as data:
@@ -93,6 +135,16 @@ def read_trace(path: str | Path) -> dict | None:
             arrays = {k: np.asarray(data[k]) for k in data.files if k != "header"}
     except (OSError, ValueError, KeyError, json.JSONDecodeError, EOFError):
         return None
-    if not isinstance(header, dict) or "t" not in arrays or "x" not in arrays:
+    if not isinstance(header, dict):
         return None
-    return {"header": header, "arrays": arrays}
+    extras = header.pop("extras", None)
+    main = {k: v for k, v in arrays.items() if not re.match(r"extra\d+\.", k)}
+    if "t" not in main or "x" not in main:
+        return None
+    more = []
+    for k, head in enumerate(extras if isinstance(extras, list) else [], start=1):
+        prefix = _EXTRA.format(k)
+        arr = {key[len(prefix):]: v for key, v in arrays.items() if key.startswith(prefix)}
+        if isinstance(head, dict) and "t" in arr and "x" in arr:
+            more.append({"header": head, "arrays": arr})
+    return {"header": header, "arrays": main, "more": more}

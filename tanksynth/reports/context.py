@@ -22,7 +22,7 @@ from tanksynth.reports.equations import split_equation
 from tanksynth.reports.prose import prose_latex
 from tanksynth.reports.trusted import math_or_text
 from tanksynth.reports.figure_layout import TraceCanvas
-from tanksynth.reports.figures import FigureFile, TraceFigure, time_domain_figure
+from tanksynth.reports.figures import FigureFile, TraceFigure, time_domain_figures
 from tanksynth.reports.inputs import ReportInputs
 from tanksynth.reports.latex import (Tex, escape_latex, expression_latex, format_eigenvalues,
                                      format_number, format_unit, gain_latex, symbol_latex)
@@ -332,9 +332,17 @@ def drawn_usable(drawn: Mapping[str, Any], stem: str, target: Path, kind: type,
         return False
 
 
+def _as_figures(value: Any) -> tuple[TraceFigure, ...]:
+    """An artefact's drawn time-domain figures as a tuple (a lone figure or None also accepted)."""
+    if value is None:
+        return ()
+    return (value,) if isinstance(value, TraceFigure) else tuple(value)
+
+
 def trace_jobs(inputs: ReportInputs) -> list[tuple[str, int]]:
     """The time-domain figures a report draws: (file stem, artefact index) of every artefact
     with a verdict trace file, largest trace file first (what `draw_trace_figures` takes).
+    An artefact's extra traces are drawn with its main one (one job).
 
     Parameters
     ----------
@@ -356,7 +364,7 @@ def trace_jobs(inputs: ReportInputs) -> list[tuple[str, int]]:
 
 
 def draw_trace_figures(inputs: ReportInputs, indices: Sequence[int] | None = None
-                       ) -> dict[str, TraceFigure | None]:
+                       ) -> dict[str, tuple[TraceFigure, ...]]:
     """Draw the time-domain figures of some artefacts (all by default), ahead of `trace_figures`.
 
     Parameters
@@ -368,25 +376,27 @@ def draw_trace_figures(inputs: ReportInputs, indices: Sequence[int] | None = Non
     Returns
     -------
     dict
-        File stem (``traces-NN-<name>``) -> TraceFigure, or None when the
-        artefact has no (readable) trace.
+        File stem of the main figure (``traces-NN-<name>``) -> the artefact's figures: the
+        main one, then one per extra trace (``traces-NN-<name>-K``); empty when the artefact
+        has no (readable) trace.
     """
     figdir = inputs.directory / _FIGURE_DIR
     canvas = TraceCanvas()    # figures with the same panel count reuse one figure's axes
-    out: dict[str, TraceFigure | None] = {}
+    out: dict[str, tuple[TraceFigure, ...]] = {}
     for i in range(len(inputs.artefacts)) if indices is None else indices:
         art = inputs.artefacts[i]
         stem = _trace_stem(i, str(art.get("name", "")))
-        out[stem] = time_domain_figure(art, inputs.directory, figdir, stem, canvas=canvas)
+        out[stem] = time_domain_figures(art, inputs.directory, figdir, stem, canvas=canvas)
     return out
 
 
 def trace_figures(inputs: ReportInputs, drawn: Mapping[str, Any] | None = None
-                  ) -> dict[str, TraceFigure]:
-    """Draw the time-domain figure of every artefact that has a verdict trace.
+                  ) -> dict[str, tuple[TraceFigure, ...]]:
+    """Draw the time-domain figures of every artefact that has a verdict trace.
 
-    Figures go to ``DIR/report-figures/traces-NN-<name>.pdf`` (vector PDF,
-    written atomically); figures of traces that are gone are removed. An
+    Figures go to ``DIR/report-figures/traces-NN-<name>.pdf`` (the main
+    trace) and ``traces-NN-<name>-K.pdf`` (its K-th extra trace), vector PDF
+    written atomically; figures of traces that are gone are removed. An
     artefact without ``DIR/<name>.traces.npz`` simply has none.
 
     Parameters
@@ -394,13 +404,14 @@ def trace_figures(inputs: ReportInputs, drawn: Mapping[str, Any] | None = None
     inputs : ReportInputs
         The report's inputs (artefacts of the output directory).
     drawn : mapping, optional
-        Figures already drawn from these inputs (`draw_trace_figures`, file
-        stem -> figure or None): used as they are; the others are drawn here.
+        Figures already drawn from these inputs (`draw_trace_figures`, main
+        file stem -> tuple of figures; a lone figure or None is read as a
+        tuple of it or none): used as they are; the others are drawn here.
 
     Returns
     -------
     dict
-        Artefact name -> TraceFigure.
+        Artefact name -> its figures (main first), for the artefacts that have one.
     """
     from tanksynth.artefacts.traces import trace_path
 
@@ -408,21 +419,35 @@ def trace_figures(inputs: ReportInputs, drawn: Mapping[str, Any] | None = None
     drawn = drawn or {}
 
     def ahead(i: int, name: str) -> bool:
+        """The figures drawn ahead for this artefact are its own (`drawn_usable` on the main
+        figure; the extras this directory's existing files)."""
         stem = _trace_stem(i, name)
-        return drawn_usable(drawn, stem, figdir / f"{stem}.pdf", TraceFigure,
-                            lambda: not trace_path(inputs.directory / f"{name}.json", name).is_file())
+        if stem not in drawn:
+            return False
+        try:
+            figs = _as_figures(drawn[stem])
+        except TypeError:
+            return False
+        if not figs:
+            return not trace_path(inputs.directory / f"{name}.json", name).is_file()
+        if not all(isinstance(f, TraceFigure) for f in figs):
+            return False
+        return (drawn_usable({stem: figs[0]}, stem, figdir / f"{stem}.pdf", TraceFigure, lambda: False)
+                and all(Path(f.path).stem.startswith(stem + "-")
+                        and drawn_usable({"x": f}, "x", figdir / Path(f.path).name, TraceFigure,
+                                         lambda: False) for f in figs[1:]))
 
     missing = [i for i, art in enumerate(inputs.artefacts) if not ahead(i, str(art.get("name", "")))]
     fresh = draw_trace_figures(inputs, missing) if missing else {}
-    out: dict[str, TraceFigure] = {}
+    out: dict[str, tuple[TraceFigure, ...]] = {}
     for i, art in enumerate(inputs.artefacts):
         name = str(art.get("name", ""))
         stem = _trace_stem(i, name)
-        fig = fresh[stem] if stem in fresh else drawn[stem]
-        if fig is not None:
-            out[name] = fig
+        figs = _as_figures(fresh[stem] if stem in fresh else drawn[stem])
+        if figs:
+            out[name] = figs
     if figdir.is_dir():
-        keep = {f.path.name for f in out.values()}
+        keep = {f.path.name for figs in out.values() for f in figs}
         for stale in figdir.glob("traces-*.pdf"):
             if stale.name not in keep:
                 stale.unlink(missing_ok=True)
@@ -488,8 +513,9 @@ def build_context(inputs: ReportInputs, figures: Mapping[str, FigureFile],
     figures : mapping of artefact name to FigureFile
         Pole maps.
     paper : sequence of PaperComparison
-    traces : mapping of artefact name to TraceFigure, optional
-        Time-domain figures drawn by `trace_figures` (none when omitted).
+    traces : mapping of artefact name to tuple of TraceFigure, optional
+        Time-domain figures drawn by `trace_figures`, main first (none when omitted; a lone
+        TraceFigure is its artefact's main figure).
     statements : mapping of method name to callable
         Problem statement of each method (`tanksynth.methods.STATEMENTS`).
     regions : mapping of artefact name to FigureFile, optional
@@ -500,9 +526,12 @@ def build_context(inputs: ReportInputs, figures: Mapping[str, FigureFile],
     opv = _operating_view(inputs)
     lin = [_linearization_view(a, opv) for a in inputs.by_method("linearize")]
     designs = [design_view(a, figures.get(str(a.get("name"))), statements) for a in inputs.artefacts]
-    traces = traces or {}
-    designs = [dataclasses.replace(d, trace_figure=traces[d.name], trace_caption=prose_latex(
-        traces[d.name].caption, literal=(d.name,))) if d.name in traces else d for d in designs]
+    traces = {k: v for k, v in ((k, _as_figures(v)) for k, v in (traces or {}).items()) if v}
+    designs = [dataclasses.replace(d, trace_figure=traces[d.name][0], trace_caption=prose_latex(
+        traces[d.name][0].caption, literal=(d.name,))) if d.name in traces else d for d in designs]
+    trace_extras = {d.name: [{"figure": f, "caption": prose_latex(f.caption, literal=(d.name,)),
+                              "k": f.path.stem.rsplit("-", 1)[-1]}
+                             for f in traces[d.name][1:]] for d in designs if d.name in traces}
     designs = [dataclasses.replace(d, region_figure=(regions or {})[d.name])
                if d.name in (regions or {}) else d for d in designs]
     checks = [_check_view(c) for c in inputs.checks] if inputs.checks is not None else None
@@ -551,6 +580,7 @@ def build_context(inputs: ReportInputs, figures: Mapping[str, FigureFile],
         "campaign": _campaign_view(inputs.campaign),
         "figures": [designs_fig for designs_fig in designs if designs_fig.figure is not None],
         "trace_figures": [d for d in designs if d.trace_figure is not None],
+        "trace_extras": trace_extras,
         "paper": paper,
         "n_errata": n_err,
     }

@@ -12,7 +12,8 @@ verify`` stores beside each artefact (``DIR/<name>.traces.npz``, see
 `tanksynth.verify.traces.TraceRecorder.record`): levels with their references,
 estimates against the true states and the estimation error when the
 artefact is an estimator, and the inputs. An artefact without a trace file
-simply has no time-domain figure.
+simply has no time-domain figure; `time_domain_figures` also draws the file's
+extra traces (another check's simulation, e.g. the H-infinity disturbance step).
 
 Figures are drawn on `matplotlib.figure.Figure` objects and saved with
 ``Figure.savefig``: no pyplot state, no backend selection (``matplotlib.use``).
@@ -32,7 +33,7 @@ from tanksynth.reports.figure_layout import (TraceCanvas, draw_decorations, squa
 from tanksynth.reports.trace_lines import PanelLines
 
 __all__ = ["EigenvalueSet", "eigenvalue_sets", "eigen_label", "is_pole_key", "FigureFile", "pole_map",
-           "TraceFigure", "time_domain_figure", "ordinal"]
+           "TraceFigure", "time_domain_figure", "time_domain_figures", "ordinal"]
 
 #: Keys whose eigenvalues are not poles of a dynamic system (LMI blocks, matrices P, Q, X ...).
 _NOT_POLES = ("lmi", "residual", "covariance", "_P", "_Q", "_X", "hessian")
@@ -529,12 +530,46 @@ def time_domain_figure(artefact: Mapping[str, Any], artefact_dir: Path, director
     TraceFigure or None
         None when the artefact has no (readable) trace file.
     """
+    figures = time_domain_figures(artefact, artefact_dir, directory, stem, canvas=canvas, extras=False)
+    return figures[0] if figures else None
+
+
+def time_domain_figures(artefact: Mapping[str, Any], artefact_dir: Path, directory: Path, stem: str, *,
+                        canvas: TraceCanvas | None = None, extras: bool = True) -> tuple[TraceFigure, ...]:
+    """Draw every trace stored for one artefact: the main one to ``directory/stem.pdf`` (as
+    `time_domain_figure`), the K-th extra trace (`tanksynth.artefacts.traces`) to
+    ``directory/stem-K.pdf``.
+
+    Parameters
+    ----------
+    artefact, artefact_dir, directory, stem, canvas
+        As `time_domain_figure`.
+    extras : bool
+        Draw the extra traces too.
+
+    Returns
+    -------
+    tuple of TraceFigure
+        The main figure first, then the extras drawn (an unreadable one is left out); empty
+        when the artefact has no (readable) main trace.
+    """
     from tanksynth.artefacts.traces import read_trace, trace_path
 
     name = str(artefact.get("name", ""))
     trace = read_trace(trace_path(Path(artefact_dir) / f"{name}.json", name))
-    if trace is None:
-        return None
+    main = None if trace is None else _trace_figure(artefact, trace, directory, stem, canvas, False)
+    if main is None:
+        return ()
+    more = [_trace_figure(artefact, tr, directory, f"{stem}-{k}", canvas, True)
+            for k, tr in enumerate(trace["more"] if extras else [], start=1)]
+    return (main, *(f for f in more if f is not None))
+
+
+def _trace_figure(artefact: Mapping[str, Any], trace: Mapping[str, Any], directory: Path, stem: str,
+                  canvas: TraceCanvas | None, is_extra: bool) -> TraceFigure | None:
+    """One trace (``{"header", "arrays"}``) drawn to ``directory/stem.pdf``; None if it is not
+    drawable. ``is_extra``: an extra simulation of the verdict (its caption says so)."""
+    name = str(artefact.get("name", ""))
     head, arr = trace["header"], trace["arrays"]
     t, x = np.asarray(arr["t"], float), np.asarray(arr["x"], float)
     if x.ndim != 3 or x.shape[1] != t.size or t.size < 2:
@@ -546,11 +581,16 @@ def time_domain_figure(artefact: Mapping[str, Any], artefact_dir: Path, director
     snames, sunits = list(head.get("state_names", [])), list(head.get("state_units", []))
     inames, iunits = list(head.get("input_names", [])), list(head.get("input_units", []))
     rnames = list(head.get("reference_names", []))
+    # the inputs the header names as disturbances (a disturbance-step run) get a panel of their own
+    m_u = u.shape[2] if u.ndim == 3 and u.shape[1] == t_u.size else 0
+    dist = set(head.get("disturbance_names") or [])
+    cols = {"inputs": [j for j in range(m_u) if j >= len(inames) or inames[j] not in dist]}
+    cols["disturbances"] = [j for j in range(m_u) if j not in cols["inputs"]]
     panels = ["levels"] + (["estimates", "error"] if x_hat is not None else []) \
-        + (["inputs"] if u.ndim == 3 and u.shape[2] > 0 and u.shape[1] == t_u.size else [])
+        + [p for p in ("inputs", "disturbances") if cols[p]]
     lin = _linear_prediction(artefact, head, t, x, u)
     if lin is not None:
-        panels = ["linear"] + [p for p in panels if p == "inputs"]
+        panels = ["linear"] + [p for p in panels if p in cols]
     fig, axes = (canvas or TraceCanvas()).axes(len(panels))
     colors = [f"C{i % 10}" for i in range(max(x.shape[2], u.shape[2] if u.ndim == 3 else 0, 1))]
     n = x.shape[2]
@@ -609,21 +649,24 @@ def time_domain_figure(artefact: Mapping[str, Any], artefact_dir: Path, director
                           fontsize=_LABEL_PT)
             ax.set_title("estimation error", fontsize=_TITLE_PT, y=1.0)
         else:
-            shown = [_display(iunits[j] if j < len(iunits) else "") for j in range(u.shape[2])]
-            for j in range(u.shape[2]):
-                lines.line(t_u, shown[j][0] * u[0, :, j], step=True, end=t[-1], color=colors[j % len(colors)],
+            shown = [_display(iunits[j] if j < len(iunits) else "") for j in cols[panel]]
+            for k, j in enumerate(cols[panel]):
+                lines.line(t_u, shown[k][0] * u[0, :, j], step=True, end=t[-1], color=colors[k % len(colors)],
                            linewidth=1.0, label=inames[j] if j < len(inames) else f"#{j + 1}")
-                lines.runs(t_u, shown[j][0] * u[1:, :, j], step=True, end=t[-1],
-                           color=colors[j % len(colors)], **further)
+                lines.runs(t_u, shown[k][0] * u[1:, :, j], step=True, end=t[-1],
+                           color=colors[k % len(colors)], **further)
             same = {sh[1] for sh in shown}
             unit = same.pop() if len(same) == 1 else ""
             what = "flow" if unit == "l/s" else "input"
+            if panel == "disturbances":   # normalised: w = 1 is one declared standard deviation
+                what, unit = "disturbance w", "normalised"
             ax.set_ylabel(f"{what} [{unit}]" if unit else what, fontsize=_LABEL_PT)
-            ax.set_title("inputs (zero-order hold)", fontsize=_TITLE_PT, y=1.0)
+            ax.set_title(f"{'declared disturbances' if panel == 'disturbances' else 'inputs'} (zero-order hold)",
+                         fontsize=_TITLE_PT, y=1.0)
         lines.draw(ax)
         ax.tick_params(labelsize=_TICK_PT)    # also sets how many ticks fit (the locator's tick space)
         _plain_axis(ax)
-        extra = run_marks if panel in ("levels", "error", "inputs") else ([], [])
+        extra = run_marks if panel in ("levels", "error", "inputs", "disturbances") else ([], [])
         if panel == "estimates":     # one entry for every dashed estimate
             from matplotlib.lines import Line2D
 
@@ -644,7 +687,8 @@ def time_domain_figure(artefact: Mapping[str, Any], artefact_dir: Path, director
     passed = head.get("check_passed")
     verdict = head.get("verdict_passed")
     runs = int(head.get("runs", x.shape[0]))
-    caption = (f"Verdict simulation of design {name} ({artefact.get('method', '')}) on the nonlinear "
+    caption = (f"{'Further v' if is_extra else 'V'}erdict simulation of design {name} "
+               f"({artefact.get('method', '')}) on the nonlinear "
                f"plant: {scenario}. Check {check}: {_word(passed)}; artefact verdict: {_word(verdict)}. "
                f"{runs} run{'s' if runs != 1 else ''} shown"
                + (" (the upper panel: run 2 minus run 1)" if lin is not None and runs == 2 else "")

@@ -100,7 +100,7 @@ def draw_pole_maps(inputs: ReportInputs) -> dict[str, FigureFile | None]:
 
 def render_report(inputs: ReportInputs, figures: dict[str, FigureFile] | None = None,
                   comparisons: tuple[PaperComparison, ...] | None = None,
-                  traces: dict[str, TraceFigure] | None = None, *,
+                  traces: dict[str, tuple[TraceFigure, ...]] | None = None, *,
                   statements: Mapping[str, Callable[[Mapping[str, Any]], Tex]],
                   regions: dict[str, FigureFile] | None = None) -> str:
     """The LaTeX source of the report (no file is written).
@@ -112,8 +112,9 @@ def render_report(inputs: ReportInputs, figures: dict[str, FigureFile] | None = 
         Pole maps to include (none when omitted).
     comparisons : tuple of PaperComparison, optional
         Computed with `compare_with_papers` when omitted.
-    traces : dict of artefact name to TraceFigure, optional
-        Time-domain figures to include (none when omitted).
+    traces : dict of artefact name to tuple of TraceFigure, optional
+        Time-domain figures to include, main first then the extra traces'
+        (`tanksynth.reports.context.trace_figures`; none when omitted).
     statements : mapping of method name to callable
         Problem statement of each design method (`tanksynth.methods.STATEMENTS`).
     regions : dict of artefact name to FigureFile, optional
@@ -128,7 +129,7 @@ def render_report(inputs: ReportInputs, figures: dict[str, FigureFile] | None = 
 
 def write_report(directory: str | Path, pdf: bool = False, timeout: float = 180.0, *,
                  statements: Mapping[str, Callable[[Mapping[str, Any]], Tex]],
-                 drawn: Mapping[str, FigureFile | TraceFigure | None] | None = None) -> ReportResult:
+                 drawn: Mapping[str, Any] | None = None) -> ReportResult:
     """Write ``DIR/report.tex`` and its figures; with ``pdf`` also ``DIR/report.pdf``.
 
     Parameters
@@ -144,10 +145,11 @@ def write_report(directory: str | Path, pdf: bool = False, timeout: float = 180.
         Problem statement of each design method (`tanksynth.methods.STATEMENTS`).
     drawn : mapping, optional
         Figures already drawn from this directory's current files (file stem ->
-        figure or None; `draw_pole_maps`, `tanksynth.reports.context.draw_trace_figures`),
-        e.g. by another process while verification ran: used as they are when
-        they are this directory's files of those stems (`drawn_usable`; None
-        only for an artefact without such a figure), the others are drawn here.
+        figure or None, `draw_pole_maps`; main trace stem -> tuple of figures,
+        `tanksynth.reports.context.draw_trace_figures`), e.g. by another process
+        while verification ran: used as they are when they are this directory's
+        files of those stems (`drawn_usable`; None only for an artefact without
+        such a figure), the others are drawn here.
 
     Returns
     -------
@@ -219,7 +221,7 @@ def write_report(directory: str | Path, pdf: bool = False, timeout: float = 180.
             shutil.rmtree(build, ignore_errors=True)
     else:
         _atomic_write_text(tex_path, tex)
-    drawn = [f.path for f in figures.values()] + [f.path for f in traces.values()]
+    drawn = [f.path for f in figures.values()] + [f.path for figs in traces.values() for f in figs]
     return ReportResult(tex_path, out_pdf, out_log, tuple(drawn),
                         comparisons, pages, time.perf_counter() - start, latex_seconds)
 

@@ -113,7 +113,7 @@ def verdict_for(doc: Mapping[str, Any], spec: Any, verdict: VerdictFn,
 
 def verdict_with_trace(doc: Mapping[str, Any], spec: Any,
                        verdict: VerdictFn) -> tuple[list[Check], dict | None]:
-    """`verdict_for` with a fresh `TraceRecorder`: the checks and the main simulation's trace.
+    """`verdict_for` with a fresh `TraceRecorder`: the checks and the recorded traces.
 
     Parameters
     ----------
@@ -128,22 +128,25 @@ def verdict_with_trace(doc: Mapping[str, Any], spec: Any,
     -------
     checks : list of Check
     trace : dict or None
-        ``{"header": dict, "arrays": dict of ndarray}`` (see `trace_of`),
-        with the verdict of the check it decides (``check_passed``) and of
-        the artefact (``verdict_passed``) added to the header; None when
-        the verdict recorded no simulation.
+        The main simulation's ``{"header": dict, "arrays": dict of ndarray}``
+        (see `trace_of`) and ``more``, the list of the extra traces kept
+        (`TraceRecorder.extras`, same form); each header gets the verdict of
+        the check it decides (``check_passed``) and of the artefact
+        (``verdict_passed``); None when the verdict recorded no simulation.
+        Plain data: it crosses process boundaries (Dask) whole.
     """
     recorder = TraceRecorder()
     checks = verdict_for(doc, spec, verdict, trace=recorder)
-    trace = recorder.trace
-    if trace is not None:
-        named = [c for c in checks if c.name == trace["header"]["check"]]
-        decided = [c.passed for c in checks if c.passed is not None]
-        trace["header"]["check_passed"] = named[0].passed if named else None
-        trace["header"]["verdict_passed"] = bool(decided) and all(decided)
-        trace["header"]["artefact"] = str(doc.get("name", ""))
-        trace["header"]["method"] = str(doc.get("method", ""))
-    return checks, trace
+    if recorder.trace is None:
+        return checks, None
+    decided = [c.passed for c in checks if c.passed is not None]
+    for tr in [recorder.trace, *recorder.extras]:
+        named = [c for c in checks if c.name == tr["header"]["check"]]
+        tr["header"]["check_passed"] = named[0].passed if named else None
+        tr["header"]["verdict_passed"] = bool(decided) and all(decided)
+        tr["header"]["artefact"] = str(doc.get("name", ""))
+        tr["header"]["method"] = str(doc.get("method", ""))
+    return checks, {**recorder.trace, "more": list(recorder.extras)}
 
 
 
@@ -371,7 +374,8 @@ def _splice_top_level(text: str, key: str, value: str) -> str | None:
 
 def _remote_verdict(table: Mapping[str, VerifiableMethod], doc: dict, spec_text: str,
                     source: str) -> tuple[list[dict], dict | None]:
-    """Run one verdict on a Dask worker (plain data in, plain data out), with its trace."""
+    """Run one verdict on a Dask worker (plain data in, plain data out), with its traces (main and
+    extras, `verdict_with_trace`)."""
     spec = _spec_from_text(spec_text, source, table)
     verdict = table[str(doc["method"])].verdict
     doc = dict(doc)
@@ -389,9 +393,9 @@ def verify_directory(directory: str | Path, table: Mapping[str, VerifiableMethod
     """Verify every artefact of a directory and record the verdicts in them.
 
     Beside each artefact ``DIR/<name>.json`` the trace of its verdict's main
-    simulation is written to ``DIR/<name>.traces.npz`` (`write_trace`,
-    atomic); an artefact whose verdict simulates nothing has its stale
-    trace removed. The artefact JSON gets only its ``verification`` field.
+    simulation (and its extra traces, `TraceRecorder`) is written to
+    ``DIR/<name>.traces.npz`` (`write_trace`, atomic); an artefact whose
+    verdict simulates nothing has its stale trace removed. The artefact JSON gets only its ``verification`` field.
 
     Parameters
     ----------

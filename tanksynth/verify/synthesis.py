@@ -449,6 +449,7 @@ def _disturbance_step(doc: Mapping[str, Any], spec: Any, c: dict,
                    estimator=est, u_init=np.concatenate([u0, np.zeros_like(w)]))
     if trace is not None:
         trace.record(res, dplant, check="disturbance_step", estimator=c["observer"],
+                     disturbances=[q.name for q in dplant.inputs[plant.m:]],
                      scenario=f"declared disturbances stepped to {fmt(w)} at t = 0, removed at "
                               f"t = {phase * ts_sim:g} s")
     win = max(phase // 10, 1)

@@ -96,3 +96,47 @@ def test_artefact_statespace_for_python_control_users(designed):
     assert control.norm(err, 2) == pytest.approx(h2, rel=1e-6)
     obs = artefact_statespace(docs["h2_observer"], "observer", spec)
     assert obs.ninputs == 2 + 2 and obs.output_labels == ["h1_hat", "h2_hat", "h3_hat"]
+
+
+@pytest.mark.parametrize("name", ["h2_controller", "hinf_controller", "h2_observer", "hinf_observer",
+                                  "multiobjective_disk"])
+def test_the_disturbance_step_is_recorded_beside_the_main_run(designed, name, monkeypatch):
+    """The recorder keeps the regulation / observer run (main) and the disturbance step (extra): its
+    arrays are the simulated runs (decimated by the stated stride), its inputs the pumps then the
+    declared disturbances, stepped to the check's w and removed at the check's phase."""
+    import tanksynth.verify.synthesis as synthesis
+    from tanksynth.artefacts.traces import TRACE_MAX_SAMPLES
+    from tanksynth.verify.traces import TraceRecorder
+
+    spec, docs = designed
+    runs = []
+
+    def simulate_and_keep(*args, **kwargs):
+        runs.append(synthesis.simulate.__wrapped__(*args, **kwargs))
+        return runs[-1]
+
+    simulate_and_keep.__wrapped__ = synthesis.simulate
+    monkeypatch.setattr(synthesis, "simulate", simulate_and_keep)
+    rec = TraceRecorder()
+    checks = {c.name: c for c in synthesis_verdict(docs[name], spec, trace=rec)}
+    observer = "observer" in name
+    assert rec.trace["header"]["check"] == ("observer_convergence" if observer else "regulation")
+    (extra,) = rec.extras
+    head, arr = extra["header"], extra["arrays"]
+    assert head["check"] == "disturbance_step" and checks["disturbance_step"].passed is True
+    (res,) = runs                                    # the one simulation of this module: the step
+    stride = int(np.ceil(res.t.size / TRACE_MAX_SAMPLES))
+    assert head["stride"] == stride and head["runs"] == 1
+    np.testing.assert_array_equal(arr["t"], res.t[::stride])
+    np.testing.assert_array_equal(arr["x"], res.x[:1, ::stride])
+    np.testing.assert_array_equal(arr["u"], res.u[:1, ::stride])
+    assert ("x_hat" in arr) is observer
+    m = 2                                           # the three-tank's pumps q1, q2, then w
+    assert head["input_names"] == ["q1", "q2", "w1", "w2", "w3"]
+    assert head["disturbance_names"] == ["w1", "w2", "w3"]
+    data = checks["disturbance_step"].data
+    t_off = data["phase_samples"] * data["ts"]
+    w = arr["u"][0, :, m:]
+    on = arr["t_u"] < t_off - 1e-9
+    np.testing.assert_allclose(w[on], np.tile(data["w"], (int(on.sum()), 1)), rtol=0, atol=0)
+    assert np.all(w[~on] == 0.0) and on.any() and (~on).any()

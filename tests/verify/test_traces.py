@@ -60,3 +60,38 @@ def test_no_recorder_no_trace_and_no_global_state():
     assert rec.trace["header"]["scenario"] == "main run"
     other = TraceRecorder()                                        # recorders are independent
     assert other.trace is None
+
+
+def test_recorder_keeps_the_main_trace_and_the_first_of_two_other_checks():
+    from tanksynth.artefacts.traces import TRACE_EXTRAS
+
+    plant, res = _result(steps=20)
+    rec = TraceRecorder()
+    assert rec.extras == []
+    for scenario, check in [("main", "a"), ("again a", "a"), ("first b", "b"), ("second b", "b"),
+                            ("first c", "c"), ("first d", "d")]:
+        rec.record(res, plant, scenario=scenario, check=check)
+    assert TRACE_EXTRAS == 2
+    assert rec.trace["header"]["scenario"] == "main"                 # the main trace is unchanged
+    assert [(e["header"]["scenario"], e["header"]["check"]) for e in rec.extras] == \
+        [("first b", "b"), ("first c", "c")]                          # d: over the limit
+    assert "disturbance_names" not in rec.trace["header"]
+
+
+def _two_check_verdict(doc, spec, *, trace=None):
+    plant, res = _result(steps=10)
+    trace.record(res, plant, scenario="main run", check="main")
+    trace.record(res, plant, scenario="step", check="step", disturbances=["q2"])
+    return [Check("main", True, "ran"), Check("step", False, "failed")]
+
+
+def test_runner_returns_the_extras_with_their_own_verdicts():
+    checks, trace = verdict_with_trace({"name": "a", "method": "m"}, None, _two_check_verdict)
+    assert trace["header"]["check"] == "main" and trace["header"]["check_passed"] is True
+    (extra,) = trace["more"]
+    head = extra["header"]
+    assert head["check"] == "step" and head["check_passed"] is False
+    assert head["verdict_passed"] is False and head["artefact"] == "a" and head["method"] == "m"
+    assert head["disturbance_names"] == ["q2"]
+    # no extra recorded: an empty list
+    assert verdict_with_trace({"name": "a", "method": "m"}, None, _simulating_verdict)[1]["more"] == []

@@ -1,0 +1,94 @@
+"""The verdict trace file: main trace plus extra traces, and files written before extras existed."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from tanksynth.artefacts.traces import TRACE_EXTRAS, read_trace, write_trace
+
+
+def _trace(seed: int, check: str, n: int = 3, m: int = 2, k: int = 7) -> dict:
+    rng = np.random.default_rng(seed)
+    t = np.arange(k, dtype=float)
+    arrays = {"t": t, "x": rng.normal(size=(2, k, n)), "t_u": t[:-1], "u": rng.normal(size=(2, k - 1, m))}
+    header = {"schema": "tanksynth.traces/1", "scenario": f"scenario {seed}", "check": check, "runs": 2,
+              "stride": 1, "state_names": ["h1", "h2", "h3"], "input_names": ["q1", "q2"]}
+    return {"header": header, "arrays": arrays}
+
+
+def _same(a: dict, b: dict) -> None:
+    assert a["header"] == b["header"]
+    assert set(a["arrays"]) == set(b["arrays"])
+    for key, value in a["arrays"].items():
+        np.testing.assert_array_equal(value, b["arrays"][key])
+
+
+def test_round_trip_with_extras(tmp_path):
+    main, one, two = _trace(0, "regulation"), _trace(1, "disturbance_step", m=5), _trace(2, "other")
+    one["arrays"]["x_hat"] = one["arrays"]["x"] + 1.0
+    path = write_trace(tmp_path / "a.traces.npz", {**main, "more": [one, two]})
+    back = read_trace(path)
+    _same(back, main)
+    assert len(back["more"]) == 2
+    _same(back["more"][0], one)
+    _same(back["more"][1], two)
+
+
+def test_more_than_the_limit_is_not_written(tmp_path):
+    more = [_trace(k, f"c{k}") for k in range(1, TRACE_EXTRAS + 3)]
+    back = read_trace(write_trace(tmp_path / "a.traces.npz", {**_trace(0, "c0"), "more": more}))
+    assert [m["header"]["check"] for m in back["more"]] == [f"c{k}" for k in range(1, TRACE_EXTRAS + 1)]
+
+
+def test_an_old_file_reads_with_no_extras(tmp_path):
+    """A file as written before extras existed (header + main arrays, nothing else)."""
+    main = _trace(0, "regulation")
+    path = tmp_path / "old.traces.npz"
+    with open(path, "wb") as fh:
+        np.savez_compressed(fh, header=np.array(json.dumps(main["header"], sort_keys=True)), **main["arrays"])
+    back = read_trace(path)
+    _same(back, main)
+    assert back["more"] == []
+
+
+def test_a_new_file_reads_with_the_old_reader(tmp_path):
+    """The pre-extras reader (header + every array by name) finds the main trace unchanged: schema
+    /1, same arrays under the same keys; the extras are keys and a header list it does not use."""
+    main = _trace(0, "regulation")
+    path = write_trace(tmp_path / "a.traces.npz", {**main, "more": [_trace(1, "disturbance_step")]})
+    with np.load(path, allow_pickle=False) as data:
+        header = json.loads(str(data["header"][()]))
+        arrays = {k: np.asarray(data[k]) for k in data.files if k != "header"}
+    assert header["schema"] == "tanksynth.traces/1" and header["check"] == "regulation"
+    for key, value in main["arrays"].items():
+        np.testing.assert_array_equal(arrays[key], value)
+    assert header["extras"][0]["check"] == "disturbance_step"
+
+
+def test_a_file_without_extras_has_only_the_main_keys(tmp_path):
+    main = _trace(0, "regulation")
+    for trace in (main, {**main, "more": []}):
+        path = write_trace(tmp_path / "a.traces.npz", trace)
+        with np.load(path, allow_pickle=False) as data:
+            assert set(data.files) == {"header", *main["arrays"]}
+            assert "extras" not in json.loads(str(data["header"][()]))
+
+
+def test_an_unreadable_extra_is_left_out(tmp_path):
+    path = write_trace(tmp_path / "a.traces.npz", {**_trace(0, "a"), "more": [_trace(1, "b"), _trace(2, "c")]})
+    with np.load(path, allow_pickle=False) as data:
+        kept = {k: data[k] for k in data.files if k != "extra1.x"}     # extra 1 lost its states
+    with open(path, "wb") as fh:
+        np.savez_compressed(fh, **kept)
+    back = read_trace(path)
+    assert [m["header"]["check"] for m in back["more"]] == ["c"] and back["header"]["check"] == "a"
+
+
+def test_a_header_holding_extras_is_refused(tmp_path):
+    bad = _trace(0, "a")
+    bad["header"]["extras"] = []
+    with pytest.raises(ValueError, match="extras"):
+        write_trace(tmp_path / "a.traces.npz", bad)
