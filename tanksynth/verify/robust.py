@@ -594,8 +594,3 @@ def robust_observer_verdict(doc: Mapping[str, Any], spec: Any, *, trace: Any = N
     checks += guard("sampled_region", lambda: _sampled_check(doc, spec, c))
     checks += guard("monte_carlo", lambda: _mc_observer(doc, spec, c, trace))
     return checks
-
-
-# ================================================================= campaign
-
-
