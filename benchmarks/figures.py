@@ -101,7 +101,9 @@ if prof:
     pstats.Stats(prof, stream=s).sort_stats("cumulative").print_stats(45)
     out["profile"] = s.getvalue()
 out["tree"] = out_tree
-out["files"] = sorted(str(f.path.name) for d in (p, t, r) for f in d.values())
+# trace_figures gives one figure per artefact in older trees, a tuple (main + extras) now
+out["files"] = sorted(str(f.path.name) for d in (p, t, r) for v in d.values()
+                      for f in (v if isinstance(v, tuple) else (v,)))
 print("@@" + json.dumps(out))
 """
 

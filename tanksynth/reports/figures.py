@@ -1,6 +1,6 @@
 """Report figures (matplotlib, vector PDF): pole maps of the artefacts' eigenvalues.
 
-Eigenvalue lists are found in an artefact's diagnostics by name (any key
+Eigenvalue lists are found in an artefact's diagnostics by name (`tanksynth.reports.eigen_sets`: any key
 containing ``eigenvalues``, at any depth, in the ``[re, im]`` pair
 convention of `tanksynth.artefacts.io.to_jsonable`). Discrete-time sets (keys
 naming ``Ad``, or diagnostics declaring a discrete domain) are drawn in the
@@ -23,120 +23,18 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Iterator, Mapping, Sequence
+from typing import Any, Mapping, Sequence
 
 import numpy as np
 
 from tanksynth.artefacts.atomic import atomic_write
+from tanksynth.reports.eigen_sets import EigenvalueSet, eigen_label, eigenvalue_sets, is_pole_key
 from tanksynth.reports.figure_layout import (TraceCanvas, draw_decorations, square_panels_layout,
                                               stacked_layout)
 from tanksynth.reports.trace_lines import PanelLines
 
 __all__ = ["EigenvalueSet", "eigenvalue_sets", "eigen_label", "is_pole_key", "FigureFile", "pole_map",
            "TraceFigure", "time_domain_figure", "time_domain_figures", "ordinal"]
-
-#: Keys whose eigenvalues are not poles of a dynamic system (LMI blocks, matrices P, Q, X ...).
-_NOT_POLES = ("lmi", "residual", "covariance", "_P", "_Q", "_X", "hessian")
-
-
-@dataclass(frozen=True)
-class EigenvalueSet:
-    """Eigenvalues found in an artefact.
-
-    Attributes
-    ----------
-    path : str
-        Dotted key path in the diagnostics (``lmi.closed_loop_eigenvalues``).
-    values : tuple of complex
-    discrete : bool
-        z-plane (True) or s-plane (False).
-    """
-
-    path: str
-    values: tuple[complex, ...]
-    discrete: bool
-
-
-def _as_complex(values: Any) -> tuple[complex, ...] | None:
-    if not isinstance(values, list) or not values:
-        return None
-    out = []
-    for v in values:
-        if isinstance(v, (list, tuple)) and len(v) == 2 and all(isinstance(x, (int, float)) for x in v):
-            out.append(complex(float(v[0]), float(v[1])))
-        elif isinstance(v, (int, float)) and not isinstance(v, bool):
-            out.append(complex(float(v), 0.0))
-        else:
-            return None
-    return tuple(out)
-
-
-def is_pole_key(key: str) -> bool:
-    """True for diagnostics keys that name eigenvalues or poles of a dynamic system.
-
-    ``*eigenvalue*``, ``poles``, ``*_poles``, ``achieved``, ``requested``;
-    not LMI-block or matrix eigenvalues (``lmi_eigenvalues`` ...).
-
-    Parameters
-    ----------
-    key : str
-        A diagnostics key.
-    """
-    k = str(key)
-    if any(bad in k for bad in _NOT_POLES):
-        return False
-    return "eigenvalue" in k or k in ("poles", "achieved", "requested") or k.endswith("_poles")
-
-
-def _walk(node: Any, path: str, discrete: bool | None) -> Iterator[EigenvalueSet]:
-    if not isinstance(node, Mapping):
-        return
-    dom = node.get("time_domain", node.get("domain"))
-    if isinstance(dom, str) and dom in ("discrete", "continuous"):
-        discrete = dom == "discrete"
-    for key, value in node.items():
-        sub = f"{path}.{key}" if path else str(key)
-        k = str(key)
-        if is_pole_key(k):
-            vals = _as_complex(value)
-            if vals:
-                if "Ad" in k or "discrete" in k:
-                    disc = True
-                elif k.endswith("_F") or "continuous" in k:
-                    disc = False
-                else:
-                    disc = bool(discrete)
-                yield EigenvalueSet(sub, vals, disc)
-        elif isinstance(value, Mapping):
-            yield from _walk(value, sub, discrete)
-
-
-def eigen_label(path: str) -> str:
-    """An eigenvalue set's key path in words, for legends and tables.
-
-    ``placement.requested`` -> ``requested``; ``lmi.closed_loop_eigenvalues`` ->
-    ``achieved: closed loop``; a set computed with a reference (printed) gain ->
-    ``with the gain printed in the paper``; ``eigenvalues_Ad`` -> ``eigenvalues of Ad``.
-
-    Parameters
-    ----------
-    path : str
-        Dotted key path of the eigenvalue set in the diagnostics.
-    """
-    parts = [p for p in str(path).split(".") if p]
-    last = parts[-1] if parts else str(path)
-    if any("reference" in p for p in parts):
-        return "with the gain printed in the paper"
-    if last in ("requested", "achieved"):
-        return last
-    if last in ("achieved_poles", "achieved_eigenvalues"):
-        return "achieved"
-    if last.startswith("eigenvalues_"):
-        return "eigenvalues of " + last[len("eigenvalues_"):]
-    if last.endswith("_eigenvalues") and "model" in parts[:-1]:   # the plant's own matrix
-        return "plant (open loop): eigenvalues of " + last[:-len("_eigenvalues")]
-    core = last.replace("eigenvalues", "").replace("poles", "").replace("_", " ").strip()
-    return ("achieved: " + core) if core else "achieved"
 
 
 def ordinal(k: int) -> str:
@@ -150,18 +48,6 @@ def ordinal(k: int) -> str:
     k = int(k)
     suffix = "th" if 10 <= k % 100 <= 20 else {1: "st", 2: "nd", 3: "rd"}.get(k % 10, "th")
     return f"{k}{suffix}"
-
-
-def eigenvalue_sets(artefact: Mapping[str, Any]) -> tuple[EigenvalueSet, ...]:
-    """Every eigenvalue list in an artefact's diagnostics (see module docstring).
-
-    Parameters
-    ----------
-    artefact : mapping
-        A loaded artefact.
-    """
-    diag = artefact.get("diagnostics") or {}
-    return tuple(_walk(diag, "", None))
 
 
 @dataclass(frozen=True)

@@ -104,3 +104,14 @@ def test_only_equal_eigenvalue_sets_share_a_marker():
     art["diagnostics"]["placement"]["achieved"] = [[-1.0, 1e-13], [-2.0, -0.5], [-2.0, 0.5 + 1e-12]]
     labels = [label for _, label in _same_sets_merged([s for s in eigenvalue_sets(art) if not s.discrete])]
     assert labels == ["requested = achieved"]
+
+
+def test_per_model_eigenvalue_lists_are_one_set_of_every_model():
+    """The synthesis designs store one eigenvalue list per model of their polytope: one set
+    (their pole maps were missing: the nested lists were not read)."""
+    art = {"diagnostics": {"time_domain": "discrete", "synthesis": {"closed_loop_eigenvalues": [
+        [[0.96, 0.0], [0.97, 0.1], [0.97, -0.1]], [[0.95, 0.0], [0.5, 0.0], [0.6, 0.0]]]}}}
+    (s,) = eigenvalue_sets(art)
+    assert s.discrete and s.values == (0.96, 0.97 + 0.1j, 0.97 - 0.1j, 0.95, 0.5, 0.6)
+    bad = {"diagnostics": {"synthesis": {"closed_loop_eigenvalues": [[[0.9, 0.0]], [["x"]]]}}}
+    assert eigenvalue_sets(bad) == ()
