@@ -500,10 +500,10 @@ def _trace_figure(artefact: Mapping[str, Any], trace: Mapping[str, Any], directo
         lines = PanelLines()      # every line of the panel: one collection, drawn in this order
         if panel != "signals" and ax.get_yscale() != "linear":   # a reused canvas' signal panel
             ax.set_yscale("linear")
-        if panel == "signals":
+        if panel == "signals":     # tick size first: a logarithmic panel fixes its ticks by it
+            ax.tick_params(labelsize=_TICK_PT)
             lines, *events, several = draw_signals(ax, t, signals, head, further, label_size=_LABEL_PT,
                                                    title_size=_TITLE_PT)
-            ax.tick_params(labelsize=_TICK_PT)
             if ax.get_yscale() == "linear":
                 _plain_axis(ax)
             marks = run_marks if several else ([], [])

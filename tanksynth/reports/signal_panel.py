@@ -44,7 +44,8 @@ def draw_signals(ax: Any, t: np.ndarray, signals: np.ndarray, head: Mapping[str,
     Parameters
     ----------
     ax : matplotlib.axes.Axes
-        An empty panel (its y scale is set here: linear or logarithmic).
+        An empty panel with its tick label size set (its y scale is set here: linear or
+        logarithmic; a logarithmic one gets the major ticks its locator chooses for that size).
     t : ndarray, shape (N,)
         Sample times (s).
     signals : ndarray, shape (R, N, k)
