@@ -16,6 +16,15 @@ exactly as in a file without extras (schema ``tanksynth.traces/1``; a reader
 that knows nothing of extras ignores them), and a file without extras is
 byte for byte the file written before extras existed.
 
+A trace may also hold further named signals of its runs (e.g. the fault
+detector's residual and threshold): the array ``signals`` (runs, samples, k) on
+the times ``t``, and in its header ``signal_names``, ``signal_units``,
+``signal_styles`` (matplotlib line styles), ``signal_title`` and ``events``
+(``[[t, label], ...]``, instants to mark, s). A trace without signals has none
+of these keys (its file is the one written before signals existed); signals
+that do not fit their trace (shape or names) are dropped on reading, the rest
+of the trace reads as usual.
+
 It is written atomically and is not part of the artefact JSON (the
 provenance hash is untouched); the report draws each stored trace as a
 time-domain figure. A verdict that simulates nothing leaves no trace (a
@@ -55,6 +64,10 @@ TRACE_RUNS = 2
 #: Further traces kept beside the main one at most: the first simulation of each other check
 #: (a figure each in the report; a file stays small).
 TRACE_EXTRAS = 2
+
+
+#: Header keys that describe the array ``signals`` (dropped with it when it does not fit).
+_SIGNAL_KEYS = ("signal_names", "signal_units", "signal_styles", "signal_title", "events")
 
 
 #: Prefix of an extra trace's array keys in the file: ``extra1.t``, ``extra1.x``, ...
@@ -127,7 +140,8 @@ def read_trace(path: str | Path) -> dict | None:
     dict or None
         ``{"header": dict, "arrays": dict of ndarray, "more": list}``: the main trace and
         the extra traces (each ``{"header", "arrays"}``, in the order recorded; an
-        unreadable extra is left out).
+        unreadable extra is left out). Signals that do not fit their trace (array
+        ``signals`` not (runs, samples, k) for k names) are left out with their header keys.
     """
     try:
         with np.load(Path(path), allow_pickle=False) as data:
@@ -146,5 +160,21 @@ def read_trace(path: str | Path) -> dict | None:
         prefix = _EXTRA.format(k)
         arr = {key[len(prefix):]: v for key, v in arrays.items() if key.startswith(prefix)}
         if isinstance(head, dict) and "t" in arr and "x" in arr:
-            more.append({"header": head, "arrays": arr})
-    return {"header": header, "arrays": main, "more": more}
+            more.append(_signals_checked({"header": head, "arrays": arr}))
+    return {**_signals_checked({"header": header, "arrays": main}), "more": more}
+
+
+def _signals_checked(trace: dict) -> dict:
+    """The trace, without its signals (array and header keys) when they do not fit it."""
+    head, arr = trace["header"], trace["arrays"]
+    if "signals" not in arr and not any(k in head for k in _SIGNAL_KEYS):
+        return trace
+    sig, x, t = arr.get("signals"), arr["x"], arr["t"]
+    names, units = head.get("signal_names"), head.get("signal_units")
+    ok = (sig is not None and sig.ndim == 3 and x.ndim == 3 and sig.shape[:2] == (x.shape[0], t.size)
+          and isinstance(names, list) and len(names) == sig.shape[2]
+          and (units is None or (isinstance(units, list) and len(units) == sig.shape[2])))
+    if ok:
+        return trace
+    return {"header": {k: v for k, v in head.items() if k not in _SIGNAL_KEYS},
+            "arrays": {k: v for k, v in arr.items() if k != "signals"}}

@@ -14,6 +14,8 @@ estimates against the true states and the estimation error when the
 artefact is an estimator, and the inputs. An artefact without a trace file
 simply has no time-domain figure; `time_domain_figures` also draws the file's
 extra traces (another check's simulation, e.g. the H-infinity disturbance step).
+A trace with further named signals (e.g. the fault detector's residual and
+threshold) gets one more panel drawing them (`tanksynth.reports.signal_panel`).
 
 Figures are drawn on `matplotlib.figure.Figure` objects and saved with
 ``Figure.savefig``: no pyplot state, no backend selection (``matplotlib.use``).
@@ -31,6 +33,7 @@ from tanksynth.artefacts.atomic import atomic_write
 from tanksynth.reports.eigen_sets import EigenvalueSet, eigen_label, eigenvalue_sets, is_pole_key
 from tanksynth.reports.figure_layout import (TraceCanvas, draw_decorations, square_panels_layout,
                                               stacked_layout)
+from tanksynth.reports.signal_panel import draw_signals
 from tanksynth.reports.trace_lines import PanelLines
 
 __all__ = ["EigenvalueSet", "eigenvalue_sets", "eigen_label", "is_pole_key", "FigureFile", "pole_map",
@@ -393,7 +396,8 @@ def time_domain_figure(artefact: Mapping[str, Any], artefact_dir: Path, director
 
     Subplots: states (levels) with their references; estimates against the
     true states and the estimation error when the trace has estimates; the
-    inputs, each held to the end of the horizon (zero-order hold). The first run of
+    inputs, each held to the end of the horizon (zero-order hold); the trace's further signals and
+    their events when it has some (`tanksynth.reports.signal_panel.draw_signals`). The first run of
     the trace is drawn solid, a second run dashed, a bundle of further runs thin; the
     legends of the panels drawing runs name them (``run 1``, ``run 2``).
 
@@ -477,6 +481,9 @@ def _trace_figure(artefact: Mapping[str, Any], trace: Mapping[str, Any], directo
     lin = _linear_prediction(artefact, head, t, x, u)
     if lin is not None:
         panels = ["linear"] + [p for p in panels if p in cols]
+    signals = arr.get("signals")     # further named signals (read_trace checked their shape)
+    if signals is not None:
+        panels.append("signals")
     fig, axes = (canvas or TraceCanvas()).axes(len(panels))
     colors = [f"C{i % 10}" for i in range(max(x.shape[2], u.shape[2] if u.ndim == 3 else 0, 1))]
     n = x.shape[2]
@@ -491,6 +498,17 @@ def _trace_figure(artefact: Mapping[str, Any], trace: Mapping[str, Any], directo
 
     for ax, panel in zip(axes, panels):
         lines = PanelLines()      # every line of the panel: one collection, drawn in this order
+        if panel != "signals" and ax.get_yscale() != "linear":   # a reused canvas' signal panel
+            ax.set_yscale("linear")
+        if panel == "signals":     # tick size first: a logarithmic panel fixes its ticks by it
+            ax.tick_params(labelsize=_TICK_PT)
+            lines, *events, several = draw_signals(ax, t, signals, head, further, label_size=_LABEL_PT,
+                                                   title_size=_TITLE_PT)
+            if ax.get_yscale() == "linear":
+                _plain_axis(ax)
+            marks = run_marks if several else ([], [])
+            _legend(ax, lines.handles, lines.labels, (events[0] + marks[0], events[1] + marks[1]))
+            continue
         if panel == "linear":
             scale = float(lin["scale"])
             for i in range(n):

@@ -35,14 +35,14 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 
 from tanksynth.analysis.checks import Check
+from tanksynth.artefacts.traces import TRACE_RUNS
 from tanksynth.errors import ArtefactError
+from tanksynth.plants.compile import rk4_step
 from tanksynth.sim.simulate import run_seeds, simulate
+from tanksynth.verify.batch_call import BatchCall
 from tanksynth.verify.common import (MAX_STEPS, artefact_gain, artefact_matrix, fmt, guard,
                                      operating_point, option, relative_difference)
-from tanksynth.verify.traces import TraceRecorder
-
-from tanksynth.plants.compile import rk4_step
-from tanksynth.verify.batch_call import BatchCall
+from tanksynth.verify.traces import Signal, TraceRecorder
 
 __all__ = ["ResidualObserver", "period_function", "FAULT_TS", "FAULT_HORIZON", "FAULT_TIME_TOLERANCE", "FAULT_SLACK", "FAULT_START_OFFSET",
            "FaultScenario", "rule_initial_states", "fault_scenario", "fault_detection_verdict"]
@@ -535,6 +535,8 @@ def fault_detection_verdict(doc: Mapping[str, Any], spec: Any, *,
                  f"input: {sc.inputs_source}; sampled every {ts:g} s (4 RK4 substeps), stored Psi, "
                  f"threshold {thr_name} from the stored coefficients and rates")
         td = ", ".join("none" if d is None else f"{d:.5g} s" for d in detect)
+        if trace is not None:
+            _record(trace, res, plant, sc, r, thr, detect, setup)
         compared = [i for i, s in enumerate(stored) if s is not None]
         sd = "; no stored detection time for these initial states" if not compared else (
             f"; stored {fmt(np.array([stored[i] for i in compared]), 6)} s for start(s) "
@@ -559,6 +561,22 @@ def fault_detection_verdict(doc: Mapping[str, Any], spec: Any, *,
         ]
 
     return checks + guard("fault_detected", simulate_detection)
+
+
+def _record(trace: TraceRecorder, res: Any, plant: Any, sc: FaultScenario, r: np.ndarray,
+            thr: np.ndarray, detect: list, setup: str) -> None:
+    """Record the faulty runs (the second half of the batch; the first `TRACE_RUNS` starts) with
+    their residual ``|epsilon|`` and the threshold (output units) as signals, the onset marked."""
+    R, unit = sc.starts.shape[0], plant.outputs[0].unit
+    shown = list(range(min(R, TRACE_RUNS)))
+    td = ", ".join("none" if detect[i] is None else f"{detect[i]:.5g} s" for i in shown)
+    trace.record(res, plant, check="fault_detected", estimator=True, rows=[R + i for i in shown],
+                 scenario=f"fault delta_bar = {sc.delta_bar:g} from t_f = {sc.t_fault:g} s, runs from "
+                 f"start(s) {[i + 1 for i in shown]} of {setup}; the residual first exceeds the threshold "
+                 f"at t_d = {td}", signal_title="residual |y - h(x_hat)| against its threshold",
+                 signals=(Signal("|epsilon|", unit, r), Signal("threshold", unit, np.broadcast_to(thr, r.shape),
+                                                               "--")),
+                 events=[(sc.t_fault, f"fault at t_f = {sc.t_fault:g} s")])
 
 
 def _stored_times(doc: Mapping[str, Any], starts: np.ndarray) -> list[float | None]:

@@ -11,18 +11,43 @@ at most `TRACE_EXTRAS` of them. A verdict called without a recorder
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from typing import Any, Sequence
 
 import numpy as np
 
 from tanksynth.artefacts.traces import TRACE_EXTRAS, TRACE_MAX_SAMPLES, TRACE_RUNS
 
-__all__ = ["TraceRecorder", "trace_of"]
+__all__ = ["Signal", "TraceRecorder", "trace_of"]
+
+
+@dataclass(frozen=True, eq=False)
+class Signal:
+    """A further named signal of a simulation, recorded beside the states (see `trace_of`).
+
+    Attributes
+    ----------
+    name : str
+        Legend entry (e.g. ``|epsilon|``).
+    unit : str
+        Its unit (as the verdict defines it).
+    values : ndarray, shape (M, N + 1)
+        One value per run of the batch and sample time ``result.t``.
+    style : str
+        Line style of the figure: ``"-"`` solid, ``"--"`` dashed, ``":"`` dotted.
+    """
+
+    name: str
+    unit: str
+    values: Any
+    style: str = "-"
 
 
 def trace_of(result: Any, plant: Any, *, scenario: str, check: str, estimator: bool = False,
              reference_names: Sequence[str] | None = None, runs: int = TRACE_RUNS,
-             disturbances: Sequence[str] = ()) -> dict:
+             disturbances: Sequence[str] = (), rows: Sequence[int] | None = None,
+             signals: Sequence[Signal] = (), signal_title: str = "",
+             events: Sequence[tuple[float, str]] = ()) -> dict:
     """A compact trace of a simulation: ``{"header": dict, "arrays": dict of ndarray}``.
 
     Parameters
@@ -44,29 +69,54 @@ def trace_of(result: Any, plant: Any, *, scenario: str, check: str, estimator: b
     disturbances : sequence of str
         Names of the plant inputs that are disturbances, not the controller's (header
         ``disturbance_names`` when any: the report draws them apart).
+    rows : sequence of int, optional
+        The runs of the batch kept, in this order (at most ``runs`` of them); default the
+        first ``runs`` runs.
+    signals : sequence of Signal
+        Further named signals on the sample times ``result.t``, one value per run of the batch
+        (e.g. a residual and its threshold): array ``signals`` (runs kept, samples, k) and header
+        ``signal_names``, ``signal_units``, ``signal_styles``, ``signal_title``; nothing of
+        them when empty (the trace is then the one written before signals existed).
+    signal_title : str
+        Title of the signals' panel (header ``signal_title``).
+    events : sequence of (float, str)
+        Instants (s) worth marking in the signals' panel with their labels, e.g. the fault onset
+        (header ``events``, ``[[t, label], ...]``; only with signals).
 
     Returns
     -------
     dict
         Arrays ``t`` (s), ``x`` (state units), ``t_u`` (s), ``u`` (input
-        units), ``x_hat`` and ``reference`` when present, decimated to at most
-        `TRACE_MAX_SAMPLES` samples; the header names them.
+        units), ``x_hat``, ``reference`` and ``signals`` (signal units) when present, decimated to
+        at most `TRACE_MAX_SAMPLES` samples; the header names them.
+
+    Raises
+    ------
+    ValueError
+        A kept run index outside the batch, or a signal not one value per run and sample.
     """
     t = np.asarray(result.t, dtype=float)
     stride = max(1, int(math.ceil(t.size / TRACE_MAX_SAMPLES)))
     keep = slice(None, None, stride)
-    r = max(1, min(int(runs), int(result.x.shape[0])))
+    M = int(result.x.shape[0])
+    if rows is None:
+        idx = np.arange(max(1, min(int(runs), M)))
+    else:
+        idx = np.asarray([int(i) for i in rows][:max(1, int(runs))], dtype=int)
+        if idx.size == 0 or np.any((idx < 0) | (idx >= M)):
+            raise ValueError(f"trace_of: runs {list(rows)} to keep of a batch of {M}")
+    r = int(idx.size)
     ref = np.asarray(result.reference, dtype=float)
     names = [str(v) for v in reference_names] if reference_names is not None else \
         [f"r{i + 1}" for i in range(ref.shape[1] if ref.ndim == 2 else 0)]
     arrays: dict[str, np.ndarray] = {
         "t": t[keep],
-        "x": np.asarray(result.x[:r], dtype=float)[:, keep],
+        "x": np.asarray(result.x, dtype=float)[idx][:, keep],
         "t_u": t[:-1][keep],
-        "u": np.asarray(result.u[:r], dtype=float)[:, keep],
+        "u": np.asarray(result.u, dtype=float)[idx][:, keep],
     }
     if estimator:
-        arrays["x_hat"] = np.asarray(result.x_hat[:r], dtype=float)[:, keep]
+        arrays["x_hat"] = np.asarray(result.x_hat, dtype=float)[idx][:, keep]
     if ref.ndim == 2 and ref.shape[1] > 0:
         arrays["reference"] = ref[keep]
     header = {
@@ -82,10 +132,24 @@ def trace_of(result: Any, plant: Any, *, scenario: str, check: str, estimator: b
         "input_names": [q.name for q in plant.inputs],
         "input_units": [q.unit for q in plant.inputs],
         "reference_names": names[:ref.shape[1]] if ref.ndim == 2 else [],
-        "seeds": [int(v) for v in np.asarray(result.seeds)[:r]],
+        "seeds": [int(v) for v in np.asarray(result.seeds)[idx]],
     }
     if disturbances:
         header["disturbance_names"] = [str(v) for v in disturbances]
+    if signals:
+        values = []
+        for sig in signals:
+            v = np.asarray(sig.values, dtype=float)
+            if v.shape != (M, t.size):
+                raise ValueError(f"trace_of: signal {sig.name!r} has shape {v.shape}, expected "
+                                 f"{(M, t.size)} (runs, samples)")
+            values.append(v[idx][:, keep])
+        arrays["signals"] = np.stack(values, axis=-1)
+        header["signal_names"] = [str(sig.name) for sig in signals]
+        header["signal_units"] = [str(sig.unit) for sig in signals]
+        header["signal_styles"] = [str(sig.style) for sig in signals]
+        header["signal_title"] = str(signal_title)
+        header["events"] = [[float(te), str(label)] for te, label in events]
     return {"header": header, "arrays": arrays}
 
 
@@ -111,7 +175,7 @@ class TraceRecorder:
 
     def record(self, result: Any, plant: Any, *, scenario: str, check: str, estimator: bool = False,
                reference_names: Sequence[str] | None = None, runs: int = TRACE_RUNS,
-               disturbances: Sequence[str] = ()) -> None:
+               disturbances: Sequence[str] = (), **more: Any) -> None:
         """Keep the trace of ``result`` (see `trace_of`): as the main trace when none is kept, as
         an extra one when its check has none yet and fewer than `TRACE_EXTRAS` are kept.
 
@@ -125,13 +189,15 @@ class TraceRecorder:
             Whether estimates are kept, names of the references, number of runs kept.
         disturbances : sequence of str
             Names of the inputs that are disturbances (see `trace_of`).
+        **more
+            ``rows``, ``signals``, ``signal_title``, ``events`` of `trace_of`.
         """
         if self.trace is not None:
             kept = {str(tr["header"]["check"]) for tr in [self.trace, *self.extras]}
             if str(check) in kept or len(self.extras) >= TRACE_EXTRAS:
                 return
         tr = trace_of(result, plant, scenario=scenario, check=check, estimator=estimator,
-                      reference_names=reference_names, runs=runs, disturbances=disturbances)
+                      reference_names=reference_names, runs=runs, disturbances=disturbances, **more)
         if self.trace is None:
             self.trace = tr
         else:

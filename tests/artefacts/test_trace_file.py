@@ -92,3 +92,47 @@ def test_a_header_holding_extras_is_refused(tmp_path):
     bad["header"]["extras"] = []
     with pytest.raises(ValueError, match="extras"):
         write_trace(tmp_path / "a.traces.npz", bad)
+
+
+# ----------------------------------------------------------------------------- named signals
+def _with_signals(trace: dict, k: int = 2) -> dict:
+    runs, samples = trace["arrays"]["x"].shape[:2]
+    sig = np.random.default_rng(5).uniform(size=(runs, samples, k))
+    head = {**trace["header"], "signal_names": [f"s{j}" for j in range(k)], "signal_units": ["m"] * k,
+            "signal_styles": ["-"] * k, "signal_title": "signals", "events": [[2.0, "onset"]]}
+    return {"header": head, "arrays": {**trace["arrays"], "signals": sig}}
+
+
+def test_round_trip_with_signals_in_the_main_and_an_extra_trace(tmp_path):
+    main, extra = _with_signals(_trace(0, "fault_detected")), _with_signals(_trace(1, "other"), k=3)
+    back = read_trace(write_trace(tmp_path / "a.traces.npz", {**main, "more": [extra, _trace(2, "plain")]}))
+    _same(back, main)
+    _same(back["more"][0], extra)
+    _same(back["more"][1], _trace(2, "plain"))
+    assert "signals" not in back["more"][1]["arrays"] and "signal_names" not in back["more"][1]["header"]
+
+
+def test_a_file_without_signals_is_byte_identical_to_the_old_writer(tmp_path):
+    """Written the pre-signals way (header JSON sorted + the arrays, compressed) by hand."""
+    main = _trace(0, "regulation")
+    new = write_trace(tmp_path / "new.traces.npz", main)
+    old = tmp_path / "old.traces.npz"
+    with open(old, "wb") as fh:
+        np.savez_compressed(fh, header=np.array(json.dumps(main["header"], allow_nan=False, sort_keys=True)),
+                            **main["arrays"])
+    assert new.read_bytes() == old.read_bytes()
+    back = read_trace(old)
+    assert "signals" not in back["arrays"] and not any(k.startswith("signal") for k in back["header"])
+
+
+@pytest.mark.parametrize("spoil", ["shape", "names", "units"])
+def test_signals_that_do_not_fit_are_dropped_and_the_rest_reads(tmp_path, spoil):
+    bad = _with_signals(_trace(0, "fault_detected"))
+    if spoil == "shape":
+        bad["arrays"]["signals"] = bad["arrays"]["signals"][:, :-1]          # one sample short
+    elif spoil == "names":
+        bad["header"]["signal_names"] = ["only one"]
+    else:
+        bad["header"]["signal_units"] = "m"
+    back = read_trace(write_trace(tmp_path / "a.traces.npz", bad))
+    _same(back, _trace(0, "fault_detected"))

@@ -95,3 +95,62 @@ def test_runner_returns_the_extras_with_their_own_verdicts():
     assert head["disturbance_names"] == ["q2"]
     # no extra recorded: an empty list
     assert verdict_with_trace({"name": "a", "method": "m"}, None, _simulating_verdict)[1]["more"] == []
+
+
+# ----------------------------------------------------------------------------- named signals
+def test_signals_follow_the_kept_runs_and_the_decimation():
+    from tanksynth.verify.traces import Signal, trace_of
+
+    plant, res = _result()
+    M, N = res.x.shape[0], res.t.size
+    level_sum = np.asarray(res.x, float).sum(axis=2)                   # (M, N): one value per run and sample
+    flat = np.broadcast_to(np.linspace(1.0, 2.0, N), (M, N))
+    tr = trace_of(res, plant, scenario="s", check="c", rows=[2, 0],
+                  signals=(Signal("sum", "m", level_sum), Signal("limit", "m", flat, "--")),
+                  signal_title="sum of levels", events=[(100.0, "event")])
+    head, arr = tr["header"], tr["arrays"]
+    stride = head["stride"]
+    assert stride == int(np.ceil(N / TRACE_MAX_SAMPLES)) and head["runs"] == 2
+    np.testing.assert_array_equal(arr["x"], np.asarray(res.x)[[2, 0]][:, ::stride])
+    np.testing.assert_array_equal(arr["signals"][:, :, 0], level_sum[[2, 0]][:, ::stride])
+    np.testing.assert_array_equal(arr["signals"][:, :, 1], flat[[2, 0]][:, ::stride])
+    assert head["seeds"] == [int(v) for v in np.asarray(res.seeds)[[2, 0]]]
+    assert head["signal_names"] == ["sum", "limit"] and head["signal_units"] == ["m", "m"]
+    assert head["signal_styles"] == ["-", "--"] and head["signal_title"] == "sum of levels"
+    assert head["events"] == [[100.0, "event"]]
+
+
+def test_without_signals_the_trace_is_the_one_written_before_they_existed():
+    from tanksynth.verify.traces import trace_of
+
+    plant, res = _result()
+    tr = trace_of(res, plant, scenario="s", check="c")
+    assert set(tr["arrays"]) == {"t", "x", "t_u", "u"}
+    assert set(tr["header"]) == {"schema", "scenario", "check", "runs", "stride", "ts", "plant", "state_names",
+                                 "state_units", "input_names", "input_units", "reference_names", "seeds"}
+    np.testing.assert_array_equal(tr["arrays"]["x"], np.asarray(res.x)[:2, ::tr["header"]["stride"]])
+    first = trace_of(res, plant, scenario="s", check="c", rows=[0, 1])     # the same runs, named
+    assert first["header"] == tr["header"]
+    for key, value in tr["arrays"].items():
+        np.testing.assert_array_equal(first["arrays"][key], value)
+
+
+def test_a_signal_of_the_wrong_shape_or_a_run_outside_the_batch_is_refused():
+    import pytest
+
+    from tanksynth.verify.traces import Signal, trace_of
+
+    plant, res = _result(steps=10)
+    with pytest.raises(ValueError, match="signal 'r'"):
+        trace_of(res, plant, scenario="s", check="c", signals=(Signal("r", "m", np.zeros((3, 10))),))
+    with pytest.raises(ValueError, match="runs"):
+        trace_of(res, plant, scenario="s", check="c", rows=[3])
+
+
+def test_the_recorder_passes_signals_on():
+    from tanksynth.verify.traces import Signal
+
+    plant, res = _result(steps=10)
+    rec = TraceRecorder()
+    rec.record(res, plant, scenario="s", check="c", signals=(Signal("r", "1", np.ones((3, 11))),), rows=[1])
+    assert rec.trace["arrays"]["signals"].shape == (1, 11, 1) and rec.trace["header"]["events"] == []
