@@ -574,8 +574,7 @@ def _record(trace: TraceRecorder, res: Any, plant: Any, sc: FaultScenario, r: np
                  scenario=f"fault delta_bar = {sc.delta_bar:g} from t_f = {sc.t_fault:g} s, runs from "
                  f"start(s) {[i + 1 for i in shown]} of {setup}; the residual first exceeds the threshold "
                  f"at t_d = {td}", signal_title="residual |y - h(x_hat)| against its threshold",
-                 signals=(Signal("|epsilon|", unit, r), Signal("threshold", unit, np.broadcast_to(thr, r.shape),
-                                                               "--")),
+                 signals=(Signal("|epsilon|", unit, r), Signal("threshold", unit, np.broadcast_to(thr, r.shape), "--")),
                  events=[(sc.t_fault, f"fault at t_f = {sc.t_fault:g} s")])
 
 
