@@ -8,7 +8,7 @@ import sys
 import time
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Any
+from typing import Any, Mapping
 
 from tanksynth.errors import TanksynthError
 
@@ -291,11 +291,13 @@ def print_summary(paths: list[Path], console: Any) -> None:
         doc = read_artefact(path)
         row = summary_row(doc, units)
         table.add_row(row.name, row.method, row.figure, "[green]pass[/]" if row.passed else "[red]FAIL[/]")
-        failures += [(row.name, c) for c in (doc.get("verification") or {}).get("checks", [])
-                     if c.get("passed") is False]
+        ver = doc.get("verification")
+        checks = ver.get("checks") if isinstance(ver, Mapping) else None   # an edited artefact: no crash
+        failures += [(row.name, c) for c in (checks if isinstance(checks, list) else [])
+                     if isinstance(c, Mapping) and c.get("passed") is False]
     console.print(table)
     for name, c in failures:  # why, without opening the artefact
-        console.print(f"{name}: {c['check']} FAILED: {one_line(c.get('detail', ''))}", markup=False,
+        console.print(f"{name}: {c.get('check', '?')} FAILED: {one_line(c.get('detail', ''))}", markup=False,
                    highlight=False)
     console.print(f"artefacts: {paths[0].parent}/<design>.json (.npz beside)", markup=False,
                highlight=False)

@@ -36,7 +36,9 @@ class SummaryRow:
 
 def _checks(doc: Mapping[str, Any]) -> dict[str, Mapping[str, Any]]:
     ver = doc.get("verification") or {}
-    return {str(c.get("check")): c for c in ver.get("checks") or [] if isinstance(c, Mapping)}
+    checks = ver.get("checks") if isinstance(ver, Mapping) else None
+    return {str(c.get("check")): c for c in (checks if isinstance(checks, list) else [])
+            if isinstance(c, Mapping)}
 
 
 def _complex(v: Any) -> complex:
@@ -64,6 +66,9 @@ def key_figure(doc: Mapping[str, Any], state_units: Sequence[str] | None = None)
     """The key figure of one verified artefact (``doc`` as read from its JSON), or ``"-"``.
 
     ``state_units`` (the plant record's state units) give the error figures their unit.
+    Recorded data that cannot be read (an edited artefact: a string, None or an
+    empty list where a number or list was recorded) gives
+    ``"- (unreadable verification data)"``, never an exception.
 
     Parameters
     ----------
@@ -72,8 +77,15 @@ def key_figure(doc: Mapping[str, Any], state_units: Sequence[str] | None = None)
     state_units : sequence of str, optional
         Units of the plant's states (e.g. ``m``); None: figures without a unit.
     """
+    try:
+        return _key_figure(doc, state_units)
+    except (TypeError, ValueError, KeyError, IndexError, AttributeError, OverflowError):
+        return "- (unreadable verification data)"
+
+
+def _key_figure(doc: Mapping[str, Any], state_units: Sequence[str] | None) -> str:
     checks = _checks(doc)
-    data = {name: (c.get("data") or {}) for name, c in checks.items()}
+    data = {name: (c.get("data") if isinstance(c.get("data"), Mapping) else {}) for name, c in checks.items()}
     if "achieved" in data.get("poles", {}):
         return "poles " + _poles(data["poles"]["achieved"])
     if "psi" in data.get("lmi_recheck", {}):
@@ -97,8 +109,9 @@ def key_figure(doc: Mapping[str, Any], state_units: Sequence[str] | None = None)
         hinf = data.get("vertex_hinf", {})
         if hinf.get("norms") and "gamma" in hinf:  # the H-infinity channel, recomputed per model
             bound = (((doc.get("diagnostics") or {}).get("robust") or {}).get("hinf") or {})
-            text += (f"; ||T_zw||inf {max(float(v) for v in hinf['norms']):.4g} <= gamma "
-                     f"{float(hinf['gamma']):.4g}"
+            worst, gamma = max(float(v) for v in hinf["norms"]), float(hinf["gamma"])
+            text += (f"; ||T_zw||inf {worst:.4g} {'<=' if worst <= gamma else '> (EXCEEDS)'} gamma "
+                     f"{gamma:.4g}"
                      + (" (not binding)" if bound.get("imposed") is False else ""))
         return text
     if "inner_radius" in data.get("region_recheck", {}):
@@ -113,10 +126,13 @@ def key_figure(doc: Mapping[str, Any], state_units: Sequence[str] | None = None)
                     f"in {float(conv.get('horizon_s', 0.0)):.0f} s (nonlinear plant)").replace("  ", " ")
     fault = data.get("fault_detected", {})
     if fault.get("t_detect") and "t_fault" in fault:   # the residual detector on the nonlinear plant
-        delay = max(float(t) for t in fault["t_detect"]) - float(fault["t_fault"])
+        times = list(fault["t_detect"])
         alarm = checks.get("no_false_alarm", {}).get("passed")
-        return (f"fault detected {delay:.3g} s after it occurs (worst of {len(fault['t_detect'])} runs)"
-                + ("; no false alarm" if alarm is True else "; FALSE ALARM" if alarm is False else ""))
+        missed = sum(t is None for t in times)   # a run whose fault was never detected
+        text = (f"fault NOT detected in {missed} of {len(times)} runs" if missed else
+                f"fault detected {max(float(t) for t in times) - float(fault['t_fault']):.3g} s after "
+                f"it occurs (worst of {len(times)} runs)")
+        return text + ("; no false alarm" if alarm is True else "; FALSE ALARM" if alarm is False else "")
     stab = data.get("stability", {})
     if "value" in stab:
         what = "spectral radius" if stab.get("domain") == "discrete" else "max Re(pole)"
@@ -139,4 +155,4 @@ def summary_row(doc: Mapping[str, Any], state_units: Sequence[str] | None = None
     """
     ver = doc.get("verification") or {}
     return SummaryRow(str(doc.get("name", "")), str(doc.get("method", "")), key_figure(doc, state_units),
-                      bool(ver.get("passed")))
+                      isinstance(ver, Mapping) and ver.get("passed") is True)

@@ -42,3 +42,29 @@ def test_fault_detector_and_linearisation_key_figures():
     assert key_figure(doc) == "fault detected 0.017 s after it occurs (worst of 3 runs); no false alarm"
     lin = _doc(("first_order_agreement", {"relative_errors": [8.1e-14, 1.75e-13, 4.5e-13]}))
     assert key_figure(lin) == "first-order agreement with the nonlinear plant: relative error 4.5e-13"
+
+
+def test_a_norm_above_gamma_is_not_printed_as_within_it():
+    doc = _doc(("vertex_region", {"margins": [0.3]}), ("vertex_hinf", {"norms": [0.2, 12.5], "gamma": 10.0}))
+    assert key_figure(doc).endswith("; ||T_zw||inf 12.5 > (EXCEEDS) gamma 10")
+
+
+def test_a_fault_missed_in_a_run_is_said_so():
+    """The verdict records None for a run whose fault was never detected (float(None) crashed the summary)."""
+    doc = _doc(("no_false_alarm", {}), ("fault_detected", {"t_detect": [2.017, None, 2.0127], "t_fault": 2.0}))
+    doc["verification"]["checks"][0]["passed"] = True
+    assert key_figure(doc) == "fault NOT detected in 1 of 3 runs; no false alarm"
+
+
+def test_edited_verification_data_gives_no_key_figure_not_an_exception():
+    bad = [("poles", {"achieved": None}), ("poles", {"achieved": ["x"]}), ("poles", "achieved"),
+           ("first_order_agreement", {"relative_errors": [None]}), ("hinf_norm", {"value": "x"}),
+           ("fault_detected", {"t_detect": ["x"], "t_fault": 2.0}), ("vertex_region", {"margins": []})]
+    for name, data in bad:
+        figure = key_figure(_doc((name, data)))
+        assert figure in ("- (unreadable verification data)", "-"), (name, data, figure)
+    for ver in ("x", [1], {"checks": "x"}, {"checks": [1, None]}):
+        assert key_figure({"verification": ver}) == "-"
+    from tanksynth.summary import summary_row
+    assert summary_row({"name": "a", "verification": "x"}).passed is False
+    assert summary_row({"name": "a", "verification": {"passed": "false"}}).passed is False

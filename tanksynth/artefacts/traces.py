@@ -125,6 +125,11 @@ def write_trace(path: str | Path, trace: Mapping[str, Any]) -> Path:
 
 
 
+def _numeric(arrays: dict) -> bool:
+    """Every array holds numbers (an edited file's string array is unreadable, not a crash)."""
+    return all(np.issubdtype(v.dtype, np.number) or v.dtype == np.bool_ for v in arrays.values())
+
+
 def read_trace(path: str | Path) -> dict | None:
     """Read a trace file; None when it is missing or unreadable (no time-domain figure then).
 
@@ -153,13 +158,13 @@ def read_trace(path: str | Path) -> dict | None:
         return None
     extras = header.pop("extras", None)
     main = {k: v for k, v in arrays.items() if not re.match(r"extra\d+\.", k)}
-    if "t" not in main or "x" not in main:
+    if "t" not in main or "x" not in main or not _numeric(main):
         return None
     more = []
     for k, head in enumerate(extras if isinstance(extras, list) else [], start=1):
         prefix = _EXTRA.format(k)
         arr = {key[len(prefix):]: v for key, v in arrays.items() if key.startswith(prefix)}
-        if isinstance(head, dict) and "t" in arr and "x" in arr:
+        if isinstance(head, dict) and "t" in arr and "x" in arr and _numeric(arr):
             more.append(_signals_checked({"header": head, "arrays": arr}))
     return {**_signals_checked({"header": header, "arrays": main}), "more": more}
 

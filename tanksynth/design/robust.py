@@ -531,9 +531,12 @@ def _infeasible_reason(region, V, margin, tstar, status, solver, hinf, saturatio
                         + ")"))
     hint = ""
     if free_norm is not None and np.isfinite(free_norm) and hinf is not None:
+        # the unbounded design's norm is no lower limit: imposing the bound reaches less (the
+        # scalar test of test_robust_gamma: above 2 without the bound, gamma = 2 met)
         hint = (f"gamma = {float(hinf.gamma):.4g} not met: without the bound the design reaches "
-                f"||T_zw||inf = {free_norm:.4g} at its worst vertex model (a gamma of at least that is "
-                "worth trying); ")
+                f"||T_zw||inf = {free_norm:.4g} at its worst vertex model (not a lower limit: with the "
+                f"bound imposed a gain can reach less: a gamma between {float(hinf.gamma):.4g} and that "
+                "may be met); ")
     within = "" if kappa is None else f" with the Lyapunov matrix's conditioning bound kappa = {kappa:g}"
     if status == "optimal":
         how = f"the optimum certifies that no larger margin exists{within})"

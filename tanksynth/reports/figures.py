@@ -462,11 +462,13 @@ def _trace_figure(artefact: Mapping[str, Any], trace: Mapping[str, Any], directo
     name = str(artefact.get("name", ""))
     head, arr = trace["header"], trace["arrays"]
     t, x = np.asarray(arr["t"], float), np.asarray(arr["x"], float)
-    if x.ndim != 3 or x.shape[1] != t.size or t.size < 2:
+    if x.ndim != 3 or x.shape[1] != t.size or t.size < 2 or x.shape[0] < 1:
         return None
     u = np.asarray(arr.get("u", np.zeros((x.shape[0], 0, 0))), float)
     t_u = np.asarray(arr.get("t_u", t[:-1]), float)
     x_hat = arr.get("x_hat")
+    if x_hat is not None and np.shape(x_hat) != x.shape:   # an edited file: not drawable
+        return None
     ref = arr.get("reference")
     snames, sunits = list(head.get("state_names", [])), list(head.get("state_units", []))
     inames, iunits = list(head.get("input_names", [])), list(head.get("input_units", []))

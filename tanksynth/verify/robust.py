@@ -349,17 +349,18 @@ def _law(c: dict, ts: float) -> Any:
     return StateFeedback(c["K"], c["x0"], c["u0"])
 
 
-def _too_stiff(c: dict, spec: Any, ts: float, H: float, steps: int) -> Check:
+def _too_stiff(c: dict, spec: Any, ts: float, H: float, steps: int, rule: str) -> Check:
     """The Monte-Carlo check of a loop too stiff to simulate: failed (the gain cannot be trusted
-    without its run on the nonlinear plant), with the loop's time scales."""
+    without its run on the nonlinear plant), with the loop's time scales and which one is to blame."""
     eigs = np.concatenate([np.linalg.eigvals(M) for M in _closed_loops(c, spec, c["models"])])
-    fast = float(np.max(np.abs(eigs)))
-    return Check("monte_carlo", False,
-                 f"not simulated: the closed loop spans {fast:.3g} 1/s (fastest eigenvalue) to a horizon "
-                 f"of {H:.4g} s, {steps} samples of {ts:.3g} s (limit {10 * MAX_STEPS}); a gain this "
-                 f"fast saturates the pumps at once and cannot be run by a sampled controller: bound "
-                 f"the region (e.g. a disk or sector as well as the half-plane) so that the eigenvalues "
-                 f"stay slow", {"samples": int(steps), "fastest_eigenvalue": fast, "horizon_s": H})
+    fast, unit = float(np.max(np.abs(eigs))), " 1/s" if c["domain"] == "continuous" else ""
+    why = ("a gain this fast saturates the pumps at once and cannot be run by a sampled controller: bound the "
+           "region (e.g. a disk or sector as well as the half-plane) so that the eigenvalues stay slow"
+           if ts < float(spec.ts or np.inf) else f"the horizon is that long because of {rule}: ask the region "
+           "for a faster guaranteed decay (the gain is not too fast)")   # a slow decay, not a fast gain
+    return Check("monte_carlo", False, f"not simulated: the closed loop spans {fast:.3g}{unit} (largest "
+                 f"|eigenvalue|) to a horizon of {H:.4g} s, {steps} samples of {ts:.3g} s (limit "
+                 f"{10 * MAX_STEPS}); {why}", {"samples": int(steps), "fastest_eigenvalue": fast, "horizon_s": H})
 
 
 def _mc_feedback(doc: Mapping[str, Any], spec: Any, c: dict, trace: Any = None) -> list[Check]:
@@ -369,7 +370,7 @@ def _mc_feedback(doc: Mapping[str, Any], spec: Any, c: dict, trace: Any = None) 
     ts = _sim_period(c, spec, _closed_loops(c, spec, c["models"]))
     H, k_h, steps, rule = _horizon(doc, spec, c, ts)
     if steps > 10 * MAX_STEPS:
-        return [_too_stiff(c, spec, ts, H, steps)]
+        return [_too_stiff(c, spec, ts, H, steps, rule)]
     values = _sample(c["box"], runs, seed + 1) if c["box"] else np.zeros((runs, 0))
     params = {b[0]: values[:, j] for j, b in enumerate(c["box"])}
     x_start, frac = perturbed_start(plant, c["x0"])

@@ -136,3 +136,17 @@ def test_signals_that_do_not_fit_are_dropped_and_the_rest_reads(tmp_path, spoil)
         bad["header"]["signal_units"] = "m"
     back = read_trace(write_trace(tmp_path / "a.traces.npz", bad))
     _same(back, _trace(0, "fault_detected"))
+
+
+def test_a_non_numeric_array_is_unreadable_not_a_crash(tmp_path):
+    """An edited file whose array holds strings: that extra is left out, such a main trace is None
+    (the report's figure code converted it with float() and the report died)."""
+    path = write_trace(tmp_path / "a.traces.npz", {**_trace(0, "a"), "more": [_trace(1, "b"), _trace(2, "c")]})
+    with np.load(path, allow_pickle=False) as data:
+        arrays = {k: data[k] for k in data.files}
+    with open(path, "wb") as fh:
+        np.savez_compressed(fh, **{**arrays, "extra1.x": np.array("garbage")})
+    assert [m["header"]["check"] for m in read_trace(path)["more"]] == ["c"]
+    with open(path, "wb") as fh:
+        np.savez_compressed(fh, **{**arrays, "x": np.array(["a", "b"])})
+    assert read_trace(path) is None

@@ -151,6 +151,8 @@ def test_gamma_below_the_achievable_norm_is_refused():
                              str(err.value)).group(1))
     assert str(err.value).startswith("gamma = 0.9 not met")
     assert quoted == pytest.approx(np.sqrt(1 + kf ** 2) / (kf - 1.2), rel=1e-3)
+    # that norm is no lower limit (gamma = 2 was met above): the message must not advise it as one
+    assert quoted > 2.0 and "not a lower limit" in str(err.value) and "worth trying" not in str(err.value)
 
 
 def test_observer_bound_over_the_range():

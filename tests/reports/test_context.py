@@ -117,3 +117,24 @@ def test_drawn_ahead_the_extras_come_with_their_artefact(hinf_dir, tmp_path):
     # None for an artefact that has a trace is not taken at its word: drawn here (drawn_usable)
     again = trace_figures(inputs, {stem: None})[inputs.artefacts[index]["name"]]
     assert [f.path.stem for f in again] == [stem, f"{stem}-1"]
+
+
+def test_an_edited_trace_file_does_not_stop_the_report(hinf_dir, tmp_path):
+    """Trace arrays edited between verify and report (strings, an estimate of the wrong shape, no
+    runs): that figure is left out, the report is written (each of these crashed write_report)."""
+    d = Path(shutil.copytree(hinf_dir, tmp_path / "out"))
+    edits = {"hinf_controller": {"extra1.x": np.array("garbage")}, "h2_observer": {"x_hat": np.zeros((5, 3))},
+             "hinf_observer": {"extra1.x_hat": np.zeros((1, 5))}, "h2_controller": {"x": None}}
+    for name, edit in edits.items():
+        path = d / f"{name}.traces.npz"
+        with np.load(path, allow_pickle=False) as data:
+            arrays = {k: data[k] for k in data.files}
+        with open(path, "wb") as fh:
+            np.savez_compressed(fh, **{**arrays, **{k: arrays[k][:0] if v is None else v   # no runs
+                                                       for k, v in edit.items()}})
+    write_report(d)
+    tex = (d / "report.tex").read_text(encoding="utf-8")
+    assert "traces-02-hinf-controller.pdf" in tex and "traces-02-hinf-controller-1.pdf" not in tex
+    assert "traces-01-h2-observer" not in tex and "traces-00-h2-controller" not in tex
+    assert "traces-03-hinf-observer.pdf" in tex and "traces-03-hinf-observer-1.pdf" not in tex
+    assert "traces-04-multiobjective-disk-1.pdf" in tex

@@ -156,3 +156,22 @@ def test_a_loop_too_stiff_to_simulate_is_warned_and_fails_its_monte_carlo(tmp_pa
     mc = next(c for c in v.checks if c.name == "monte_carlo")
     assert mc.passed is False and mc.detail.startswith("not simulated")
     assert mc.data["fastest_eigenvalue"] >= fast * (1 - 1e-9) and mc.data["samples"] > 200000
+
+
+def test_a_horizon_too_long_is_not_blamed_on_a_fast_gain(tmp_path):
+    """A half-plane with a tiny decay (alpha = 1e-5 1/s) gives a 5e5 s horizon from the region's
+    guaranteed decay, while the loop itself is slow (|eigenvalue| < 0.1 1/s, simulated at ts = 1 s):
+    the check said 'a gain this fast saturates the pumps'; it must name the slow guaranteed decay."""
+    import numpy as np
+
+    from tanksynth.cli import main
+    from tanksynth.methods import verify_directory
+
+    path = tmp_path / "slow.toml"
+    path.write_text(STIFF.replace('alpha = 0.01', 'alpha = 0.00001').split("gamma")[0], encoding="utf-8")
+    assert main(["design", str(path), "-o", str(tmp_path / "o")]) == 0
+    (v,) = verify_directory(tmp_path / "o")
+    mc = next(c for c in v.checks if c.name == "monte_carlo")
+    assert mc.passed is False and mc.detail.startswith("not simulated")
+    assert mc.data["fastest_eigenvalue"] < 0.1 and np.isclose(mc.data["horizon_s"], 5e5, rtol=0.2)
+    assert "saturates the pumps" not in mc.detail and "faster guaranteed decay" in mc.detail
