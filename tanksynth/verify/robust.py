@@ -45,7 +45,7 @@ from tanksynth.verify.common import (MAX_STEPS, OBSERVER_TOLERANCE, artefact_mat
                                      model_recheck, option, stability_check, time_domain)
 from tanksynth.verify.numerics import integral_augmentation, region_lmi_matrix
 from tanksynth.verify.simulations import (IntegralStateFeedback, StateFeedback, designed_time_constant,
-                                          eigenvector_conditioning, observer_period, perturbed_start)
+                                          eigen_time_constant, eigenvector_conditioning, observer_period, perturbed_start)
 
 __all__ = ["SATURATION_TOLERANCE", "hinf_norm", "robust_state_feedback_verdict",
            "robust_observer_verdict"]
@@ -326,6 +326,9 @@ def _horizon(doc: Mapping[str, Any], spec: Any, c: dict, ts: float) -> tuple[flo
     tau, rule = designed_time_constant(doc, spec, eigs, c["domain"], spec.ts)
     kappa = max(eigenvector_conditioning(M) for M in loops)
     kappa = min(max(kappa, 1.0), 1e8) if np.isfinite(kappa) else 1e8
+    own = eigen_time_constant(eigs, c["domain"], spec.ts)[0]
+    if 1.2 * tau * (5.0 + math.log(kappa)) / ts > 10 * MAX_STEPS and own < tau:  # a weak promise
+        tau, rule = own, f"(the vertex loops' own: {rule[1:-1]} would take too long to simulate)"
     H = tau * (5.0 + math.log(kappa))
     k_h = max(int(math.ceil(H / ts)), 1)
     return H, k_h, max(int(math.ceil(1.2 * H / ts)), k_h + 1), f"tau = {tau:.4g} s {rule}, kappa = {kappa:.3g}"

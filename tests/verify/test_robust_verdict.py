@@ -158,20 +158,26 @@ def test_a_loop_too_stiff_to_simulate_is_warned_and_fails_its_monte_carlo(tmp_pa
     assert mc.data["fastest_eigenvalue"] >= fast * (1 - 1e-9) and mc.data["samples"] > 200000
 
 
-def test_a_horizon_too_long_is_not_blamed_on_a_fast_gain(tmp_path):
-    """A half-plane with a tiny decay (alpha = 1e-5 1/s) gives a 5e5 s horizon from the region's
-    guaranteed decay, while the loop itself is slow (|eigenvalue| < 0.1 1/s, simulated at ts = 1 s):
-    the check said 'a gain this fast saturates the pumps'; it must name the slow guaranteed decay."""
+def test_a_weak_decay_promise_is_verified_over_the_loops_own_time_constant(tmp_path):
+    """A half-plane with a tiny decay (alpha = 1e-5 1/s) promises a 5e5 s horizon (600,001
+    samples: the check used to fail 'not simulated', a correct design refused by a naive test).
+    The vertex loops themselves are far faster: their own slowest time constant sets the horizon,
+    and the design passes on the nonlinear plant."""
     import numpy as np
 
     from tanksynth.cli import main
-    from tanksynth.methods import verify_directory
+    from tanksynth.methods import METHODS, parse_spec_text, verify_directory
 
+    text = STIFF.replace('alpha = 0.01', 'alpha = 0.00001').split("gamma")[0]
     path = tmp_path / "slow.toml"
-    path.write_text(STIFF.replace('alpha = 0.01', 'alpha = 0.00001').split("gamma")[0], encoding="utf-8")
+    path.write_text(text, encoding="utf-8")
     assert main(["design", str(path), "-o", str(tmp_path / "o")]) == 0
+    spec = parse_spec_text(text)
+    res = METHODS["robust_state_feedback"].design(spec, spec.designs[0])
+    F, B, K = res.gains["F"], res.gains["B"], res.gains["K"]
+    slowest = float(np.min(np.abs(np.linalg.eigvals(F - B @ K).real)))      # nominal loop, 1/s
+    assert 1.0 / slowest < 1e4                                               # far below 1e5 s
     (v,) = verify_directory(tmp_path / "o")
     mc = next(c for c in v.checks if c.name == "monte_carlo")
-    assert mc.passed is False and mc.detail.startswith("not simulated")
-    assert mc.data["fastest_eigenvalue"] < 0.1 and np.isclose(mc.data["horizon_s"], 5e5, rtol=0.2)
-    assert "saturates the pumps" not in mc.detail and "faster guaranteed decay" in mc.detail
+    assert mc.passed is True and "vertex loops' own" in mc.detail
+    assert mc.data["horizon_s"] < 0.05 * 5e5
