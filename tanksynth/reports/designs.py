@@ -17,7 +17,7 @@ import numpy as np
 from tanksynth.reports.comparison import latex_matrix_entries
 from tanksynth.reports.equations import split_equation, visual_length
 from tanksynth.reports.trusted import is_trusted_math, math_or_text
-from tanksynth.reports.figures import (FigureFile, TraceFigure, eigen_label, eigenvalue_sets,
+from tanksynth.reports.figures import (FigureFile, TraceFigure, eigenvalue_sets,
                                        is_pole_key)
 from tanksynth.reports.latex import (Tex, escape_latex, format_eigenvalues, format_number,
                                      gain_latex, matrix_latex, symbol_latex)
@@ -371,7 +371,7 @@ def design_view(art: Mapping[str, Any], figure: FigureFile | None,
             checks.append(row)
     eig = []
     for s in eigenvalue_sets(art):
-        eig.append((escape_latex(eigen_label(s.path)),
+        eig.append((escape_latex(s.label),
                     Tex("$" + format_eigenvalues([[v.real, v.imag] for v in s.values], 5, limit=16)
                         + "$" + (r" \ ($z$)" if s.discrete else ""))))
     gains = [gain_latex(k, v) for k, v in (art.get("gains") or {}).items()]

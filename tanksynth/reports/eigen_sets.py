@@ -8,6 +8,7 @@ eigenvalues), with its plane from the key or the nearest ``time_domain``.
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 from typing import Any, Iterator, Mapping
 
@@ -30,11 +31,20 @@ class EigenvalueSet:
     values : tuple of complex
     discrete : bool
         z-plane (True) or s-plane (False).
+    observer : bool
+        The artefact is an observer (gain ``L``, no ``K``): its "closed loop" is the
+        estimation-error dynamics.
     """
 
     path: str
     values: tuple[complex, ...]
     discrete: bool
+    observer: bool = False
+
+    @property
+    def label(self) -> str:
+        """The set in words (`eigen_label`)."""
+        return eigen_label(self.path, self.observer)
 
 
 
@@ -99,17 +109,20 @@ def _walk(node: Any, path: str, discrete: bool | None) -> Iterator[EigenvalueSet
 
 
 
-def eigen_label(path: str) -> str:
+def eigen_label(path: str, observer: bool = False) -> str:
     """An eigenvalue set's key path in words, for legends and tables.
 
     ``placement.requested`` -> ``requested``; ``lmi.closed_loop_eigenvalues`` ->
-    ``achieved: closed loop``; a set computed with a reference (printed) gain ->
-    ``with the gain printed in the paper``; ``eigenvalues_Ad`` -> ``eigenvalues of Ad``.
+    ``achieved: closed loop`` (``achieved: error dynamics`` for an observer); a set
+    computed with a reference (printed) gain -> ``with the gain printed in the paper``;
+    ``eigenvalues_Ad`` -> ``eigenvalues of Ad``.
 
     Parameters
     ----------
     path : str
         Dotted key path of the eigenvalue set in the diagnostics.
+    observer : bool
+        The artefact is an observer: a "closed loop" is its error dynamics.
     """
     parts = [p for p in str(path).split(".") if p]
     last = parts[-1] if parts else str(path)
@@ -124,6 +137,8 @@ def eigen_label(path: str) -> str:
     if last.endswith("_eigenvalues") and "model" in parts[:-1]:   # the plant's own matrix
         return "plant (open loop): eigenvalues of " + last[:-len("_eigenvalues")]
     core = last.replace("eigenvalues", "").replace("poles", "").replace("_", " ").strip()
+    if observer and core == "closed loop":
+        core = "error dynamics"
     return ("achieved: " + core) if core else "achieved"
 
 
@@ -137,4 +152,6 @@ def eigenvalue_sets(artefact: Mapping[str, Any]) -> tuple[EigenvalueSet, ...]:
         A loaded artefact.
     """
     diag = artefact.get("diagnostics") or {}
-    return tuple(_walk(diag, "", None))
+    gains = artefact.get("gains") if isinstance(artefact.get("gains"), Mapping) else {}
+    observer = "L" in gains and "K" not in gains
+    return tuple(dataclasses.replace(e, observer=observer) if observer else e for e in _walk(diag, "", None))

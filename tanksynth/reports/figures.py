@@ -139,11 +139,11 @@ def _same_sets_merged(sets: Sequence[EigenvalueSet]) -> list[tuple[np.ndarray, s
         key = np.sort_complex(v)
         for _, labels, other in out:
             if other.shape == key.shape and np.allclose(other, key, rtol=1e-9, atol=1e-12):
-                if eigen_label(s.path) not in labels:
-                    labels.append(eigen_label(s.path))
+                if s.label not in labels:
+                    labels.append(s.label)
                 break
         else:
-            out.append((v, [eigen_label(s.path)], key))
+            out.append((v, [s.label], key))
     return [(v, " = ".join(labels)) for v, labels, _ in out]
 
 

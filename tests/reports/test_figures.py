@@ -115,3 +115,12 @@ def test_per_model_eigenvalue_lists_are_one_set_of_every_model():
     assert s.discrete and s.values == (0.96, 0.97 + 0.1j, 0.97 - 0.1j, 0.95, 0.5, 0.6)
     bad = {"diagnostics": {"synthesis": {"closed_loop_eigenvalues": [[[0.9, 0.0]], [["x"]]]}}}
     assert eigenvalue_sets(bad) == ()
+
+
+def test_an_observers_closed_loop_is_its_error_dynamics():
+    """The synthesis observers store their A - L C eigenvalues as ``closed_loop_eigenvalues``:
+    labelled as the error dynamics for an observer artefact (gain L, no K)."""
+    diag = {"time_domain": "discrete", "synthesis": {"closed_loop_eigenvalues": [[[0.7, 0.0]]]}}
+    (obs,) = eigenvalue_sets({"gains": {"L": [[1.0]], "X": [[1.0]]}, "diagnostics": diag})
+    (ctl,) = eigenvalue_sets({"gains": {"K": [[1.0]], "X": [[1.0]]}, "diagnostics": diag})
+    assert obs.label == "achieved: error dynamics" and ctl.label == "achieved: closed loop"
