@@ -32,7 +32,7 @@ class Signal:
     unit : str
         Its unit (as the verdict defines it).
     values : ndarray, shape (M, N + 1)
-        One value per run of the batch and sample time ``result.t``.
+        One value per run of the batch and sample time ``result.t``, in ``unit``.
     style : str
         Line style of the figure: ``"-"`` solid, ``"--"`` dashed, ``":"`` dotted.
     """
