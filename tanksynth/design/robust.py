@@ -39,7 +39,6 @@ from typing import Any, Sequence
 
 import numpy as np
 import scipy.linalg as sla
-from scipy.optimize import minimize_scalar
 
 from tanksynth.analysis.lmi_region import LMIRegion
 from tanksynth.design.robust_conic import modelling
@@ -474,6 +473,8 @@ def _without_bound(A, B, region, domain, saturation, margin, kappa, solver, nomi
 
     u = 0.0
     if hi > lo:
+        from scipy.optimize import minimize_scalar  # deferred: scipy.optimize imports in ~0.15 s
+
         u = float(minimize_scalar(worst_at, bounds=(lo, hi), method="bounded",
                                   options={"xatol": 1e-4}).x)
     u = min((u, 0.0), key=worst_at) if lo <= 0.0 <= hi else u
