@@ -405,8 +405,10 @@ def trace_figures(inputs: ReportInputs, drawn: Mapping[str, Any] | None = None
         The report's inputs (artefacts of the output directory).
     drawn : mapping, optional
         Figures already drawn from these inputs (`draw_trace_figures`, main
-        file stem -> tuple of figures; a lone figure or None is read as a
-        tuple of it or none): used as they are; the others are drawn here.
+        file stem -> tuple of figures; a lone figure is read as a tuple of it):
+        used as they are when they are this directory's files of that artefact
+        (`drawn_usable`; none only for an artefact without a trace file); the
+        others are drawn here.
 
     Returns
     -------
