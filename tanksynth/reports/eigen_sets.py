@@ -126,6 +126,8 @@ def eigen_label(path: str, observer: bool = False) -> str:
     """
     parts = [p for p in str(path).split(".") if p]
     last = parts[-1] if parts else str(path)
+    if "reference_closed_loop" in parts[:-1]:   # the printed matrix itself, not a printed gain's loop
+        return "of the closed-loop matrix printed in the paper"
     if any("reference" in p for p in parts):
         return "with the gain printed in the paper"
     if last in ("requested", "achieved"):

@@ -30,7 +30,7 @@ _NUM = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
 _CPLX = rf"{_NUM}[-+](?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?j"
 _BASE = rf"(?:{_G}|[A-Za-z]{{1,2}})"
 _SCRIPT = r"(?:max|min|inf|[A-Za-z0-9]{1,3})"
-_SUP = r"\^\(?-?[A-Za-z0-9.]{1,4}\)?"
+_SUP = r"\^(?:\(-?[A-Za-z0-9.]{1,4}\)|-?[A-Za-z0-9.]{1,4})"   # ^(-1) with both brackets, or ^-1
 
 _TOKEN = re.compile(
     r"(?P<list>\[(?:[^\[\]]|\[[^\[\]]*\])*\])"

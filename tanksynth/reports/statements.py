@@ -565,9 +565,11 @@ def _h2_statement(diag: Mapping[str, Any], observer: bool) -> Tex:
     g = "L^\\top" if observer else "K"
     if diag.get("route") == "riccati":
         what = "steady Kalman filter" if observer else "LQR"
+        weights = (r"the noise covariances $B_w B_w^\top$ (process) and $D_v D_v^\top$ (measurement)"
+                   if observer else r"the weights $C_z^\top C_z$, $D_{zu}^\top D_{zu}$")
         return Tex(_synthesis_plant(diag, observer)
                    + rf", minimise $\|T_{{zw}}\|_2$: the {what} gain from the algebraic Riccati equation "
-                   r"with the weights $C_z^\top C_z$, $D_{zu}^\top D_{zu}$ (the H2 LMI has the same optimum; "
+                   rf"with {weights} (the H2 LMI has the same optimum; "
                    r"the gain is re-checked by the Gramian)" + _synthesis_numbers(diag))
     text = (_synthesis_plant(diag, observer)
             + rf", minimise $\operatorname{{tr}} W$ over $X \succ 0$, $Y = {g} X$, $W$ with the H2 LMIs "

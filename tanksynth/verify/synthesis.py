@@ -462,7 +462,7 @@ def _disturbance_step(doc: Mapping[str, Any], spec: Any, c: dict,
         shift = (np.linalg.solve(I - c["Acl"], LC @ dxf) if dt is not None
                  else -np.linalg.solve(c["Acl"], LC @ dxf))
         bias = shift - dxf
-        lin_bias = a * (err_gain @ direction)
+        lin_bias = -a * (err_gain @ direction)   # e = x_hat - x: w drives the plant, not the observer
         tol_on = 0.05 * float(np.max(np.abs(dxf)))
         on = float(np.max(np.abs(e[phase - win:phase + 1] - bias)))
         off = float(np.max(np.abs(e[-win:])))

@@ -124,3 +124,11 @@ def test_an_observers_closed_loop_is_its_error_dynamics():
     (obs,) = eigenvalue_sets({"gains": {"L": [[1.0]], "X": [[1.0]]}, "diagnostics": diag})
     (ctl,) = eigenvalue_sets({"gains": {"K": [[1.0]], "X": [[1.0]]}, "diagnostics": diag})
     assert obs.label == "achieved: error dynamics" and ctl.label == "achieved: closed loop"
+
+
+def test_a_printed_gain_and_a_printed_closed_loop_matrix_are_told_apart():
+    from tanksynth.reports.figures import eigen_label
+
+    assert eigen_label("reference_gain.reference_closed_loop_eigenvalues") == "with the gain printed in the paper"
+    assert eigen_label("reference_closed_loop.reference_eigenvalues") == \
+        "of the closed-loop matrix printed in the paper"

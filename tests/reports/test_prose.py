@@ -64,3 +64,8 @@ def test_quoted_phrase_is_quoted_not_a_transpose():
     tex = str(prose_latex("1 run(s) fail 'every state settled (to the run's own equilibrium)' on [H, 1.2 H]"))
     assert r"^{\top}" not in tex and "`every state settled" in tex and "equilibrium)' on" in tex
     assert str(prose_latex("with (A - L C)' P and K' P")).count(r"^{\top}") == 2
+
+
+def test_an_inverse_before_a_closing_bracket_keeps_the_bracket():
+    assert str(prose_latex("at every model (X = P^-1)")) == "at every model (X = $P^{-1}$)"
+    assert "$X^{-1}$" in str(prose_latex("X^(-1) here"))

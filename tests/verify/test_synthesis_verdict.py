@@ -140,3 +140,17 @@ def test_the_disturbance_step_is_recorded_beside_the_main_run(designed, name, mo
     on = arr["t_u"] < t_off - 1e-9
     np.testing.assert_allclose(w[on], np.tile(data["w"], (int(on.sum()), 1)), rtol=0, atol=0)
     assert np.all(w[~on] == 0.0) and on.any() and (~on).any()
+
+
+@pytest.mark.parametrize("name", ["h2_observer", "hinf_observer"])
+def test_observer_bias_and_its_linear_prediction_have_one_sign_convention(designed, name):
+    """The disturbance step's estimation bias is x_hat - x; its linear prediction is printed with
+    the same convention (it was printed as x - x_hat: opposite signs in one sentence)."""
+    import re
+
+    spec, docs = designed
+    detail = _checks(docs[name], spec)["disturbance_step"].detail
+    bias, pred = (np.array([float(v) for v in re.findall(r"-?[0-9.]+(?:e-?\d+)?", group)])
+                  for group in re.search(r"bias \[([^\]]*)\] \(linear prediction \[([^\]]*)\]", detail).groups())
+    big = np.abs(bias) > 0.2 * np.max(np.abs(bias))
+    assert big.any() and np.all(np.sign(bias[big]) == np.sign(pred[big]))
