@@ -90,7 +90,9 @@ class LMIRegion:
             if part[0] == "half_plane":
                 words.append(f"Re z < {-part[1]:g}")
             elif part[0] == "disk":
-                words.append(f"|z - ({part[1]:g})| < {part[2]:g}")
+                c = float(part[1])
+                centre = "|z|" if c == 0 else (f"|z - {c:g}|" if c > 0 else f"|z + {-c:g}|")
+                words.append(f"{centre} < {part[2]:g}")
             else:
                 words.append(f"|arg(-z)| < {np.degrees(part[1]):g} deg")
         return " and ".join(words)

@@ -34,3 +34,9 @@ def test_region_stability_domains():
 def test_bad_regions(make):
     with pytest.raises(SpecError):
         make()
+
+
+def test_disk_descriptions_read_as_written_by_hand():
+    assert disk(0.9, 0.08).describe() == "|z - 0.9| < 0.08"
+    assert disk(0.0, 0.97).describe() == "|z| < 0.97"
+    assert disk(-2.0, 1.5).describe() == "|z + 2| < 1.5"
