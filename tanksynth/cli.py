@@ -83,6 +83,12 @@ def _piped() -> bool:
     return not (_out.is_terminal or _out.is_jupyter)
 
 
+def _wide() -> Console:
+    """The console for tables: piped, a wide one (an option table or design names folded at 80
+    columns are unreadable)."""
+    return Console(width=_PIPED_WIDTH) if _piped() else _out
+
+
 def _progress(quiet: bool = False):
     """A progress bar for the artefacts or runs of a stage: a spinner, the current item, done
     of total and the elapsed time (no ETA: one artefact's verdict can take long)."""
@@ -348,9 +354,7 @@ def methods(name: str | None, as_json: bool, markdown: bool) -> None:
         table.add_row(escape(d["name"]), escape(typ),
                       "[bold]required[/]" if d["required"] else escape(default),
                       *(escape(d[k].replace("``", "")) for k in ("unit", "meaning")))
-    # piped: a wide console (a method's option table is unreadable folded at 80 columns)
-    console = Console(width=_PIPED_WIDTH) if _piped() else _out
-    console.print(table if docs else f"{row.name}: no options")
+    _wide().print(table if docs else f"{row.name}: no options")
 
 
 @cli.command()
@@ -492,7 +496,7 @@ def _run_stages(s, spec, out: Path, pdf: bool, have_tex: bool, clock, worker) ->
             res = _write_report(out, pdf, worker)
         if res.pdf is not None:
             clock.part("report", "LaTeX", res.latex_seconds)
-        print_summary(written, Console(width=_PIPED_WIDTH) if _piped() else _out)  # names unbroken
+        print_summary(written, _wide())
         if spec is None and not have_tex:
             _out.print("no PDF: install pdflatex and latexmk (Debian: make tex) and run "
                        f"'tanksynth report {out} --pdf'", markup=False, highlight=False)

@@ -107,21 +107,10 @@ def _warn_if_stiff(A: np.ndarray, B: np.ndarray, K: np.ndarray, domain: str, ts:
 
 def _channel(design: "DesignSpec", o: Any, Cz: np.ndarray, Dzu: np.ndarray | None,
               observer: bool) -> dict:
-    """The H-infinity channel w -> z in words and matrices (the report's problem statement)."""
+    """The H-infinity channel w -> z: which of ``Bw``, ``Cz``, ``Dzu`` the spec gave (the others
+    are the defaults the report's problem statement names) and the matrices used."""
     given = set(design.options)
-    if "Bw" in given:
-        w = "w enters through the given B_w (x' = f(x, u) + B_w w)"
-    elif observer:
-        w = ("w: a level-rate disturbance on every state, B_w = s I with s = 10 % of the pumps' "
-             "authority max_k |B_ik| range_k (the default)")
-    else:
-        w = ("w: a disturbance entering like each pump with 10 % of its range, B_w = B diag(0.1 range) "
-             "(the default)")
-    z = ("z = C_z x" + ("" if observer else " + D_zu u") + (" with the given C_z" if "Cz" in given
-                                                            else ", C_z = I (every state, the default)"))
-    if not observer:
-        z += "" if "Dzu" in given else (", D_zu = 0" if "Cz" in given else " and D_zu = 0")
-    return {"w": w, "z": z, "observer": observer,
+    return {"observer": observer,
             "given": sorted(given & {"Bw", "Cz", "Dzu"}),
             "Bw": None if o.Bw is None else np.asarray(o.Bw, dtype=float).tolist(),
             "Cz": np.asarray(Cz, dtype=float).tolist(),

@@ -322,8 +322,11 @@ def drawn_usable(drawn: Mapping[str, Any], stem: str, target: Path, kind: type,
     if stem not in drawn:
         return False
     fig = drawn[stem]
-    if fig is None:
-        return bool(none_ok())
+    return bool(none_ok()) if fig is None else _is_file(fig, kind, target)
+
+
+def _is_file(fig: Any, kind: type, target: Path) -> bool:
+    """``fig`` is a ``kind`` whose file is ``target`` and exists."""
     if not isinstance(fig, kind):
         return False
     try:
@@ -434,10 +437,9 @@ def trace_figures(inputs: ReportInputs, drawn: Mapping[str, Any] | None = None
             return not trace_path(inputs.directory / f"{name}.json", name).is_file()
         if not all(isinstance(f, TraceFigure) for f in figs):
             return False
-        return (drawn_usable({stem: figs[0]}, stem, figdir / f"{stem}.pdf", TraceFigure, lambda: False)
+        return (_is_file(figs[0], TraceFigure, figdir / f"{stem}.pdf")
                 and all(Path(f.path).stem.startswith(stem + "-")
-                        and drawn_usable({"x": f}, "x", figdir / Path(f.path).name, TraceFigure,
-                                         lambda: False) for f in figs[1:]))
+                        and _is_file(f, TraceFigure, figdir / Path(f.path).name) for f in figs[1:]))
 
     missing = [i for i, art in enumerate(inputs.artefacts) if not ahead(i, str(art.get("name", "")))]
     fresh = draw_trace_figures(inputs, missing) if missing else {}
