@@ -54,8 +54,8 @@ import numpy as np  # noqa: E402
 try:
     import casadi  # noqa: E402
 
-    from tanksynth.design.decentralized import finite_horizon_gains  # noqa: E402
-    from tanksynth.design.decentralized_models import equicorrelated_intensity, window_models  # noqa: E402
+    from tanksynth.design.decentralized.gains import finite_horizon_gains  # noqa: E402
+    from tanksynth.design.decentralized.models import equicorrelated_intensity, window_models  # noqa: E402
     from tanksynth.plants.tank_network import tank_network  # noqa: E402
 except ImportError as exc:  # pragma: no cover - only when the package is broken
     sys.exit(f"benchmarks/decentralized.py: cannot import tanksynth ({exc}); run `make bench` or "

@@ -66,7 +66,7 @@ from decentralized import CASES, MAX_ITER, TOL, window
 from harness import Floors, machine, ratios, summary, write_record
 from threadpoolctl import threadpool_limits
 
-from tanksynth.design.decentralized import finite_horizon_gains
+from tanksynth.design.decentralized.gains import finite_horizon_gains
 
 
 def plain_numpy(A, C, Q, R, E, P0, tol=TOL, max_iter=MAX_ITER):

@@ -7,7 +7,7 @@ Bryson's weights (``z = [Q^1/2 x; R^1/2 u]``), it times (every design includes
 the library's independent re-check: Gramian H2, Hamiltonian H-infinity bisection):
 
 hinf_riccati
-    `tanksynth.design.synthesis.synthesize_state_feedback` with
+    `tanksynth.design.synthesis.synthesize.synthesize_state_feedback` with
     ``objective="hinf"``, ``backoff=1e-3`` and the default ``route="auto"``:
     gamma bisection on the game Riccati equation (scipy ARE), the central gain
     at ``1.001 gamma_optimum``. This is what ``hinf_state_feedback`` runs.
@@ -61,7 +61,7 @@ def _problem(N: int):
     from scipy.optimize import fsolve
 
     from tanksynth.analysis.linearize import linearize
-    from tanksynth.design.synthesis import GeneralizedPlant
+    from tanksynth.design.synthesis.synthesize import GeneralizedPlant
     from tanksynth.plants.tank_network import tank_network
     from tanksynth.spec.method_options.synthesis import (bryson_input_weight, bryson_state_weight,
                                                          inflow_matrix)
@@ -80,7 +80,7 @@ def _problem(N: int):
 
 
 def _hinf(P, route):
-    from tanksynth.design.synthesis import synthesize_state_feedback
+    from tanksynth.design.synthesis.synthesize import synthesize_state_feedback
 
     res = synthesize_state_feedback(P, objective="hinf", route=route,
                                     backoff=1e-3 if route == "auto" else 0.0)
@@ -89,7 +89,7 @@ def _hinf(P, route):
 
 
 def _h2(P, route):
-    from tanksynth.design.synthesis import synthesize_state_feedback
+    from tanksynth.design.synthesis.synthesize import synthesize_state_feedback
 
     res = synthesize_state_feedback(P, objective="h2", route=route)
     return {"h2": res.h2, "achieved_h2": res.achieved_h2[0], "achieved_hinf": res.achieved_hinf[0],

@@ -79,8 +79,8 @@ try:
     import cvxpy as cp  # noqa: E402
     import scs  # noqa: E402
 
-    from tanksynth.design.lmi import maximise_psi, observer_lmi  # noqa: E402
-    from tanksynth.design.lmi_problem import ObserverLMIProblem  # noqa: E402
+    from tanksynth.design.observer_lmi.lmi import maximise_psi, observer_lmi  # noqa: E402
+    from tanksynth.design.observer_lmi.problem import ObserverLMIProblem  # noqa: E402
     from tanksynth.analysis.quasi_lpv import domain_from_plant, quasi_lpv  # noqa: E402
     from tanksynth.analysis.takagi_sugeno import ts_model  # noqa: E402
     from tanksynth.errors import InfeasibleDesign  # noqa: E402

@@ -46,7 +46,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from harness import Floors, interleave, machine, ratios, summary, write_record  # noqa: E402
 from lmi import PSI, ts_network  # noqa: E402
 
-from tanksynth.design.lmi import observer_lmi  # noqa: E402
+from tanksynth.design.observer_lmi.lmi import observer_lmi  # noqa: E402
 
 KAPPA = 1e4
 

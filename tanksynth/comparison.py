@@ -26,7 +26,7 @@ from tanksynth.plants.base import Plant
 from tanksynth.sim.metrics import compute_metrics
 from tanksynth.sim.scenarios import CONTROL_BENCHMARK_SCENARIOS, SCENARIOS, run_scenario
 from tanksynth.sim.simulate import BatchEstimator, run_seeds
-from tanksynth.verify.closed_loops import InverseDynamicsLaw
+from tanksynth.verify.laws.campaign import InverseDynamicsLaw
 
 __all__ = ["ESTIMATOR_KINDS", "FilterTuning", "comparison_estimators", "ComparisonRow",
            "controller_comparison"]
@@ -80,7 +80,7 @@ def _factory(kind: str, plant: Plant, ts: float, x0: np.ndarray,
     elif kind == "ukf":
         template = UnscentedKalmanFilter(plant, UKFTuning(**common))
     else:
-        from tanksynth.design.narx import train_narx
+        from tanksynth.design.estimators.narx_training import train_narx
 
         training = train_narx(plant, KalmanTuning(**common), runs=t.narx_runs, steps=t.narx_steps,
                               restarts=t.narx_restarts, max_iter=t.narx_iterations, clip=True)

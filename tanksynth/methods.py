@@ -24,7 +24,7 @@ holds:
 ``statement``
     ``statement(diagnostics) -> Tex``: the problem solved, for the report.
 
-A row names these parts (``"tanksynth.design.model_methods:LINEARIZE"``) and each
+A row names these parts (``"tanksynth.design.model.adapters:LINEARIZE"``) and each
 is imported on first use, so a command imports only the modules of the methods
 its spec uses (``import tanksynth.methods`` loads no numerical library; issue 15).
 The table is complete or the package does not import: `_check_table` runs at
@@ -48,9 +48,13 @@ if TYPE_CHECKING:  # annotations only: the modules load when a row's part is fir
     from tanksynth.spec.method_options import MethodOptions
     from tanksynth.verify.runner import Verdict, VerdictFn
 
-__all__ = ["KINDS", "Method", "TABLE", "METHODS", "VERDICTS", "RUNNERS", "STATEMENTS", "ADAPTERS",
+__all__ = ["KINDS", "FAMILIES", "Method", "home", "TABLE", "METHODS", "VERDICTS", "RUNNERS", "STATEMENTS", "ADAPTERS",
            "method", "resolve", "resolve_table", "design", "load_spec", "parse_spec", "parse_spec_text",
            "load_directory", "verify_directory", "write_report"]
+
+#: The method families: each is a sub-package of the same name in every stage (`home`).
+FAMILIES = ("model", "placement", "observer_lmi", "takagi_sugeno", "laws", "decentralized",
+            "estimators", "fault", "robust", "synthesis")
 
 #: What a design method produces.
 KINDS = ("model", "controller", "observer", "estimator", "detector")
@@ -61,7 +65,7 @@ _REF = re.compile(r"tanksynth(\.[a-z_][a-z0-9_]*)+:[A-Za-z_][A-Za-z0-9_]*\Z")
 
 @cache
 def resolve(ref: str) -> Any:
-    """The object a row names: ``"tanksynth.design.model_methods:LINEARIZE"`` -> that constant.
+    """The object a row names: ``"tanksynth.design.model.adapters:LINEARIZE"`` -> that constant.
 
     Imports the module on first use; cached.
 
@@ -109,6 +113,10 @@ class Method:
     ----------
     name : str
         The spec's ``method`` value.
+    family : str
+        The method family (`FAMILIES`): the sub-package that holds its parts in every stage
+        (``tanksynth.design.<family>``, ``tanksynth.verify.<family>``, the options and the
+        report statement of that name; `home`).
     kinds : tuple of str
         Some of `KINDS`.
     summary : str
@@ -126,6 +134,7 @@ class Method:
     """
 
     name: str
+    family: str
     kinds: tuple[str, ...]
     summary: str
     options: type[MethodOptions] = _Part()     # type: ignore[assignment]
@@ -140,7 +149,7 @@ class Method:
 
     def __repr__(self) -> str:  # the references, without importing the parts
         parts = ", ".join(f"{part}={ref!r}" for part, ref in self.refs().items())
-        return f"Method(name={self.name!r}, kinds={self.kinds!r}, summary={self.summary!r}, {parts})"
+        return f"Method(name={self.name!r}, family={self.family!r}, kinds={self.kinds!r}, summary={self.summary!r}, {parts})"
 
     def validate(self, options: Mapping[str, Any], key: str, plant: Any,
                  ts: float | None) -> MethodOptions:
@@ -185,164 +194,188 @@ class Method:
 
 
 _PARTS = ("options", "adapter", "verdict", "statement", "campaign")
-#: Where each part's short reference is looked up (``_row``).
-_HOMES = {"options": "tanksynth.spec.method_options", "adapter": "tanksynth.design",
-          "verdict": "tanksynth.verify", "statement": "tanksynth.reports.statements",
-          "campaign": "tanksynth.verify"}
+#: Where each part of a family lives: the family's module in each stage (``_row``).
+_HOMES = {"options": "tanksynth.spec.method_options.{family}",
+          "adapter": "tanksynth.design.{family}.adapters",
+          "verdict": "tanksynth.verify.{family}.verdicts",
+          "statement": "tanksynth.reports.statements",
+          "campaign": "tanksynth.verify.{family}.campaign"}
+#: The stage packages, for a part given as ``"<module>:<attribute>"`` relative to its stage.
+_STAGES = {"options": "tanksynth.spec.method_options", "adapter": "tanksynth.design",
+           "verdict": "tanksynth.verify", "statement": "tanksynth.reports.statements",
+           "campaign": "tanksynth.verify"}
 
 
-def _row(name: str, kinds: tuple[str, ...], summary: str, *, options: str, adapter: str, verdict: str,
-         statement: str, campaign: str) -> Method:
-    """A row; the parts are short references: ``options`` and ``statement`` an attribute of
-    `tanksynth.spec.method_options` / `tanksynth.reports.statements`, the others
-    ``"<module>:<attribute>"`` of `tanksynth.design` / `tanksynth.verify`."""
+def home(part: str, family: str) -> str:
+    """The module that holds a family's ``part`` (``home("verdict", "placement")`` ->
+    ``"tanksynth.verify.placement.verdicts"``).
+
+    Parameters
+    ----------
+    part : str
+        One of ``"options"``, ``"adapter"``, ``"verdict"``, ``"statement"``, ``"campaign"``.
+    family : str
+        The method family (`FAMILIES`).
+
+    Returns
+    -------
+    str
+        The dotted module name.
+    """
+    return _HOMES[part].format(family=family)
+
+
+def _row(name: str, family: str, kinds: tuple[str, ...], summary: str, *, options: str, adapter: str,
+         verdict: str, statement: str, campaign: str) -> Method:
+    """A row; each part is the attribute's name in its family's module (`home`), or
+    ``"<module>:<attribute>"`` relative to the stage package where a part lives elsewhere."""
     given = {"options": options, "adapter": adapter, "verdict": verdict, "statement": statement,
              "campaign": campaign}
-    full = {part: (f"{_HOMES[part]}.{ref}" if ":" in ref else f"{_HOMES[part]}:{ref}")
+    full = {part: (f"{_STAGES[part]}.{ref}" if ":" in ref else f"{home(part, family)}:{ref}")
             for part, ref in given.items()}
-    return Method(name, kinds, summary, **full)
+    return Method(name, family, kinds, summary, **full)
 
 
 _CONTROLLER_OR_OBSERVER = ("controller", "observer")
 
 #: The design methods, in the order the documentation lists them.
 TABLE: tuple[Method, ...] = (
-    _row("linearize", ("model",),
+    _row("linearize", "model", ("model",),
          "linearisation at the operating point and exact ZOH discretisation",
-         options="LinearizeOptions", adapter="model_methods:LINEARIZE",
-         verdict="model:linearize_verdict", statement="linearize_statement",
-         campaign="model_runs:linearize_run"),
-    _row("pole_placement", _CONTROLLER_OR_OBSERVER,
+         options="LinearizeOptions", adapter="LINEARIZE",
+         verdict="linearize_verdict", statement="linearize_statement",
+         campaign="linearize_run"),
+    _row("pole_placement", "placement", _CONTROLLER_OR_OBSERVER,
          "exact pole placement (Tits-Yang place, Ackermann acker), optional integral action",
-         options="PolePlacementOptions", adapter="convex_methods:POLE_PLACEMENT",
-         verdict="placement:pole_placement_verdict", statement="pole_placement_statement",
-         campaign="estimation_runs:placement_run"),
-    _row("lmi_placement", _CONTROLLER_OR_OBSERVER,
+         options="PolePlacementOptions", adapter="POLE_PLACEMENT",
+         verdict="pole_placement_verdict", statement="pole_placement_statement",
+         campaign="estimators.campaign:placement_run"),
+    _row("lmi_placement", "placement", _CONTROLLER_OR_OBSERVER,
          "pole placement in an LMI region (cvxpy + Clarabel), optional integral action",
-         options="LmiPlacementOptions", adapter="convex_methods:LMI_PLACEMENT",
-         verdict="placement:lmi_placement_verdict", statement="lmi_placement_statement",
-         campaign="estimation_runs:placement_run"),
-    _row("canonical_observer", ("observer",),
+         options="LmiPlacementOptions", adapter="LMI_PLACEMENT",
+         verdict="lmi_placement_verdict", statement="lmi_placement_statement",
+         campaign="estimators.campaign:placement_run"),
+    _row("canonical_observer", "placement", ("observer",),
          "Luenberger observer by the observable canonical form",
-         options="CanonicalObserverOptions", adapter="convex_methods:CANONICAL_OBSERVER",
-         verdict="placement:canonical_observer_verdict", statement="canonical_observer_statement",
-         campaign="estimation_runs:canonical_observer_run"),
-    _row("ts_observer", ("observer",),
+         options="CanonicalObserverOptions", adapter="CANONICAL_OBSERVER",
+         verdict="canonical_observer_verdict", statement="canonical_observer_statement",
+         campaign="estimators.campaign:canonical_observer_run"),
+    _row("ts_observer", "observer_lmi", ("observer",),
          "Takagi-Sugeno multiple-model observer by an LMI",
-         options="TsObserverOptions", adapter="convex_methods:TS_OBSERVER",
-         verdict="ts_observer:ts_observer_verdict", statement="ts_observer_statement",
-         campaign="estimation_runs:ts_observer_run"),
-    _row("feedback_linearization", ("controller",),
+         options="TsObserverOptions", adapter="placement.adapters:TS_OBSERVER",
+         verdict="ts_observer_verdict", statement="ts_observer_statement",
+         campaign="estimators.campaign:ts_observer_run"),
+    _row("feedback_linearization", "laws", ("controller",),
          "exact input-output feedback linearisation with decoupling",
-         options="FeedbackLinearizationOptions", adapter="control_methods:FEEDBACK_LINEARIZATION",
-         verdict="laws:feedback_linearization_verdict", statement="feedback_linearization_statement",
-         campaign="closed_loops:feedback_linearization_loop"),
-    _row("integral_tracking", ("controller",),
+         options="FeedbackLinearizationOptions", adapter="FEEDBACK_LINEARIZATION",
+         verdict="feedback_linearization_verdict", statement="feedback_linearization_statement",
+         campaign="feedback_linearization_loop"),
+    _row("integral_tracking", "laws", ("controller",),
          "sampled state feedback with integral action, saturation and anti-windup",
-         options="IntegralTrackingOptions", adapter="control_methods:INTEGRAL_TRACKING",
-         verdict="laws:integral_tracking_verdict", statement="integral_tracking_statement",
-         campaign="closed_loops:integral_tracking_loop"),
-    _row("inverse_dynamics", ("controller",),
+         options="IntegralTrackingOptions", adapter="INTEGRAL_TRACKING",
+         verdict="integral_tracking_verdict", statement="integral_tracking_statement",
+         campaign="integral_tracking_loop"),
+    _row("inverse_dynamics", "laws", ("controller",),
          "estimator-based inverse-dynamics control, ISE-tuned",
-         options="InverseDynamicsOptions", adapter="control_methods:INVERSE_DYNAMICS",
-         verdict="laws:inverse_dynamics_verdict", statement="inverse_dynamics_statement",
-         campaign="closed_loops:inverse_dynamics_loop"),
-    _row("decentralized_kalman", ("estimator",),
+         options="InverseDynamicsOptions", adapter="INVERSE_DYNAMICS",
+         verdict="inverse_dynamics_verdict", statement="inverse_dynamics_statement",
+         campaign="inverse_dynamics_loop"),
+    _row("decentralized_kalman", "decentralized", ("estimator",),
          "decentralised Kalman gains under a sparsity pattern (one-step or finite horizon)",
-         options="DecentralizedKalmanOptions", adapter="decentralized_methods:DECENTRALIZED_KALMAN",
-         verdict="decentralized:decentralized_kalman_verdict", statement="decentralized_kalman_statement",
-         campaign="estimation_runs:decentralized_kalman_run"),
-    _row("kalman", ("estimator",),
+         options="DecentralizedKalmanOptions", adapter="DECENTRALIZED_KALMAN",
+         verdict="decentralized_kalman_verdict", statement="decentralized_kalman_statement",
+         campaign="estimators.campaign:decentralized_kalman_run"),
+    _row("kalman", "estimators", ("estimator",),
          "Kalman filter on the ZOH linearisation",
-         options="KalmanOptions", adapter="estimator_methods:KALMAN",
-         verdict="estimators:kalman_verdict", statement="kalman_statement",
-         campaign="estimation_runs:kalman_run"),
-    _row("ekf", ("estimator",),
+         options="KalmanOptions", adapter="KALMAN",
+         verdict="kalman_verdict", statement="kalman_statement",
+         campaign="kalman_run"),
+    _row("ekf", "estimators", ("estimator",),
          "extended Kalman filter on the nonlinear model",
-         options="EkfOptions", adapter="estimator_methods:EKF",
-         verdict="estimators:ekf_verdict", statement="ekf_statement",
-         campaign="estimation_runs:ekf_run"),
-    _row("ukf", ("estimator",),
+         options="EkfOptions", adapter="EKF",
+         verdict="ekf_verdict", statement="ekf_statement",
+         campaign="ekf_run"),
+    _row("ukf", "estimators", ("estimator",),
          "unscented Kalman filter",
-         options="UkfOptions", adapter="estimator_methods:UKF",
-         verdict="estimators:ukf_verdict", statement="ukf_statement",
-         campaign="estimation_runs:ukf_run"),
-    _row("adaptive_kalman", ("estimator",),
+         options="UkfOptions", adapter="UKF",
+         verdict="ukf_verdict", statement="ukf_statement",
+         campaign="ukf_run"),
+    _row("adaptive_kalman", "estimators", ("estimator",),
          "Kalman filter with innovation-window adaptive Q",
-         options="AdaptiveKalmanOptions", adapter="estimator_methods:ADAPTIVE_KALMAN",
-         verdict="estimators:adaptive_kalman_verdict", statement="adaptive_kalman_statement",
-         campaign="estimation_runs:adaptive_kalman_run"),
-    _row("adaptive_scaling_kalman", ("estimator",),
+         options="AdaptiveKalmanOptions", adapter="ADAPTIVE_KALMAN",
+         verdict="adaptive_kalman_verdict", statement="adaptive_kalman_statement",
+         campaign="adaptive_kalman_run"),
+    _row("adaptive_scaling_kalman", "estimators", ("estimator",),
          "Kalman filter with adaptive process-noise scaling",
-         options="AdaptiveScalingKalmanOptions", adapter="estimator_methods:ADAPTIVE_SCALING_KALMAN",
-         verdict="estimators:adaptive_scaling_kalman_verdict", statement="adaptive_scaling_kalman_statement",
-         campaign="estimation_runs:adaptive_scaling_kalman_run"),
-    _row("consensus_filter", ("estimator",),
+         options="AdaptiveScalingKalmanOptions", adapter="ADAPTIVE_SCALING_KALMAN",
+         verdict="adaptive_scaling_kalman_verdict", statement="adaptive_scaling_kalman_statement",
+         campaign="adaptive_scaling_kalman_run"),
+    _row("consensus_filter", "estimators", ("estimator",),
          "information-form consensus filter over redundant sensors",
-         options="ConsensusFilterOptions", adapter="estimator_methods:CONSENSUS_FILTER",
-         verdict="estimators:consensus_filter_verdict", statement="consensus_filter_statement",
-         campaign="estimation_runs:consensus_filter_run"),
-    _row("luenberger", ("observer",),
+         options="ConsensusFilterOptions", adapter="CONSENSUS_FILTER",
+         verdict="consensus_filter_verdict", statement="consensus_filter_statement",
+         campaign="consensus_filter_run"),
+    _row("luenberger", "estimators", ("observer",),
          "discrete or continuous Luenberger observer",
-         options="LuenbergerOptions", adapter="estimator_methods:LUENBERGER",
-         verdict="estimators:luenberger_verdict", statement="luenberger_statement",
-         campaign="estimation_runs:luenberger_run"),
-    _row("narx", ("estimator",),
+         options="LuenbergerOptions", adapter="LUENBERGER",
+         verdict="luenberger_verdict", statement="luenberger_statement",
+         campaign="luenberger_run"),
+    _row("narx", "estimators", ("estimator",),
          "NARX neural estimator trained on EKF data",
-         options="NarxOptions", adapter="estimator_methods:NARX",
-         verdict="narx:narx_verdict", statement="narx_statement",
-         campaign="estimation_runs:narx_run"),
-    _row("fault_detection", ("detector",),
+         options="NarxOptions", adapter="NARX",
+         verdict="estimators.narx:narx_verdict", statement="narx_statement",
+         campaign="narx_run"),
+    _row("fault_detection", "fault", ("detector",),
          "observer residual with a derived fault-detection threshold",
-         options="FaultDetectionOptions", adapter="estimator_methods:FAULT_DETECTION",
-         verdict="fault:fault_detection_verdict", statement="fault_detection_statement",
-         campaign="detector_runs:fault_detection_run"),
-    _row("robust_state_feedback", ("controller",),
+         options="FaultDetectionOptions", adapter="estimators.adapters:FAULT_DETECTION",
+         verdict="fault_detection_verdict", statement="fault_detection_statement",
+         campaign="fault_detection_run"),
+    _row("robust_state_feedback", "robust", ("controller",),
          "one state feedback for every vertex of a parameter box: LMI region, optional H-infinity "
          "bound, saturation-aware invariant ellipsoid, optional integral action",
-         options="RobustStateFeedbackOptions", adapter="robust_methods:ROBUST_STATE_FEEDBACK",
-         verdict="robust:robust_state_feedback_verdict", statement="robust_state_feedback_statement",
-         campaign="robust_runs:robust_state_feedback_run"),
-    _row("robust_observer", ("observer",),
+         options="RobustStateFeedbackOptions", adapter="ROBUST_STATE_FEEDBACK",
+         verdict="robust_state_feedback_verdict", statement="robust_state_feedback_statement",
+         campaign="robust_state_feedback_run"),
+    _row("robust_observer", "robust", ("observer",),
          "one observer gain for every vertex of a parameter box: LMI region, optional H-infinity bound",
-         options="RobustObserverOptions", adapter="robust_methods:ROBUST_OBSERVER",
-         verdict="robust:robust_observer_verdict", statement="robust_observer_statement",
-         campaign="robust_runs:robust_observer_run"),
-    _row("ts_state_feedback", ("controller",),
+         options="RobustObserverOptions", adapter="ROBUST_OBSERVER",
+         verdict="robust_observer_verdict", statement="robust_observer_statement",
+         campaign="robust_observer_run"),
+    _row("ts_state_feedback", "takagi_sugeno", ("controller",),
          "Takagi-Sugeno PDC state feedback by LMIs (vertex/Tuan relaxations), certified region",
-         options="TsStateFeedbackOptions", adapter="ts_control_methods:TS_STATE_FEEDBACK",
-         verdict="ts_control:ts_control_verdict", statement="ts_state_feedback_statement",
-         campaign="ts_control:ts_control_run"),
-    _row("ts_output_feedback", ("controller",),
+         options="TsStateFeedbackOptions", adapter="TS_STATE_FEEDBACK",
+         verdict="ts_control_verdict", statement="ts_state_feedback_statement",
+         campaign="takagi_sugeno.verdicts:ts_control_run"),
+    _row("ts_output_feedback", "takagi_sugeno", ("controller",),
          "Takagi-Sugeno PDC on a TS observer (measured or estimated premises), certified region",
-         options="TsOutputFeedbackOptions", adapter="ts_control_methods:TS_OUTPUT_FEEDBACK",
-         verdict="ts_control:ts_control_verdict", statement="ts_output_feedback_statement",
-         campaign="ts_control:ts_control_run"),
-    _row("h2_state_feedback", ("controller",),
+         options="TsOutputFeedbackOptions", adapter="TS_OUTPUT_FEEDBACK",
+         verdict="ts_control_verdict", statement="ts_output_feedback_statement",
+         campaign="takagi_sugeno.verdicts:ts_control_run"),
+    _row("h2_state_feedback", "synthesis", ("controller",),
          "state feedback minimising the H2 norm (Riccati = LQR, or LMI)",
-         options="H2StateFeedbackOptions", adapter="synthesis_methods:H2_STATE_FEEDBACK",
-         verdict="synthesis:synthesis_verdict", statement="h2_state_feedback_statement",
-         campaign="synthesis:synthesis_run"),
-    _row("h2_observer", ("observer",),
+         options="H2StateFeedbackOptions", adapter="H2_STATE_FEEDBACK",
+         verdict="synthesis_verdict", statement="h2_state_feedback_statement",
+         campaign="synthesis.verdicts:synthesis_run"),
+    _row("h2_observer", "synthesis", ("observer",),
          "observer minimising the H2 norm (Riccati = steady Kalman, or LMI)",
-         options="H2ObserverOptions", adapter="synthesis_methods:H2_OBSERVER",
-         verdict="synthesis:synthesis_verdict", statement="h2_observer_statement",
-         campaign="synthesis:synthesis_run"),
-    _row("hinf_state_feedback", ("controller",),
+         options="H2ObserverOptions", adapter="H2_OBSERVER",
+         verdict="synthesis_verdict", statement="h2_observer_statement",
+         campaign="synthesis.verdicts:synthesis_run"),
+    _row("hinf_state_feedback", "synthesis", ("controller",),
          "state feedback minimising the H-infinity norm (Riccati gamma iteration, or LMI)",
-         options="HinfStateFeedbackOptions", adapter="synthesis_methods:HINF_STATE_FEEDBACK",
-         verdict="synthesis:synthesis_verdict", statement="hinf_state_feedback_statement",
-         campaign="synthesis:synthesis_run"),
-    _row("hinf_observer", ("observer",),
+         options="HinfStateFeedbackOptions", adapter="HINF_STATE_FEEDBACK",
+         verdict="synthesis_verdict", statement="hinf_state_feedback_statement",
+         campaign="synthesis.verdicts:synthesis_run"),
+    _row("hinf_observer", "synthesis", ("observer",),
          "observer minimising the H-infinity norm of the error (Riccati gamma iteration, or LMI)",
-         options="HinfObserverOptions", adapter="synthesis_methods:HINF_OBSERVER",
-         verdict="synthesis:synthesis_verdict", statement="hinf_observer_statement",
-         campaign="synthesis:synthesis_run"),
-    _row("multiobjective", _CONTROLLER_OR_OBSERVER,
+         options="HinfObserverOptions", adapter="HINF_OBSERVER",
+         verdict="synthesis_verdict", statement="hinf_observer_statement",
+         campaign="synthesis.verdicts:synthesis_run"),
+    _row("multiobjective", "synthesis", _CONTROLLER_OR_OBSERVER,
          "H2/H-infinity objective and bounds with an LMI pole region, common Lyapunov matrix",
-         options="MultiobjectiveOptions", adapter="synthesis_methods:MULTIOBJECTIVE",
-         verdict="synthesis:synthesis_verdict", statement="multiobjective_statement",
-         campaign="synthesis:synthesis_run"),
+         options="MultiobjectiveOptions", adapter="MULTIOBJECTIVE",
+         verdict="synthesis_verdict", statement="multiobjective_statement",
+         campaign="synthesis.verdicts:synthesis_run"),
 )
 
 
@@ -357,6 +390,8 @@ def _check_table(table: tuple[Method, ...]) -> None:
         seen.add(row.name)
         if not row.kinds or any(k not in KINDS for k in row.kinds):
             problems.append(f"kinds {row.kinds} not among {KINDS}")
+        if row.family not in FAMILIES:
+            problems.append(f"family {row.family!r} not among {FAMILIES}")
         for part, ref in row.refs().items():
             if isinstance(ref, str) and not _REF.match(ref):
                 problems.append(f"{part} {ref!r} is not '<module>:<attribute>'")

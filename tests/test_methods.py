@@ -76,11 +76,11 @@ def test_a_bad_reference_is_refused():
 
     row = TABLE[0]
     with pytest.raises(TypeError, match="not '<module>:<attribute>'"):
-        _check_table((dataclasses.replace(row, verdict="tanksynth.verify.model.linearize_verdict"),))
+        _check_table((dataclasses.replace(row, verdict="tanksynth.verify.model.verdicts.linearize_verdict"),))
     with pytest.raises(TypeError, match="listed twice"):
         _check_table((row, row))
     with pytest.raises(AttributeError):
-        resolve_table((dataclasses.replace(row, verdict="tanksynth.verify.model:no_such_verdict"),))
+        resolve_table((dataclasses.replace(row, verdict="tanksynth.verify.model.verdicts:no_such_verdict"),))
     with pytest.raises(TypeError, match="options for 'kalman'"):
         resolve_table((dataclasses.replace(row, options="tanksynth.spec.method_options:KalmanOptions"),))
 
@@ -134,7 +134,7 @@ def test_row_is_complete(row):
     assert row.kinds and set(row.kinds) <= set(KINDS)
     assert callable(row.campaign), f"{row.name}: no campaign runner"
     if "controller" in row.kinds:       # a controller's runner builds its closed loop
-        from tanksynth.verify.closed_loops import ClosedLoop
+        from tanksynth.verify.laws.campaign import ClosedLoop
 
         returns = typing.get_type_hints(row.campaign).get("return")
         assert ClosedLoop in (returns, *typing.get_args(returns)), \

@@ -54,7 +54,7 @@ def _estimators(plant, u_op):
     common = dict(R=R0, P0=P0, x0=X0_HAT, ts=1.0)
     kf = KalmanFilter(plant, KalmanTuning(Q=Q0, **common, operating_point=op))
     Ad = kf.model.Ad
-    from tanksynth.design.placement import place_observer
+    from tanksynth.design.placement.canonical import place_observer
 
     L = np.linalg.solve(Ad, place_observer(Ad, np.eye(3), [0.8, 0.85, 0.9]).gain)
     return {

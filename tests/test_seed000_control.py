@@ -16,10 +16,10 @@ import pytest
 
 from tanksynth.artefacts import read_artefact, write_artefact
 from tanksynth.methods import METHODS
-from tanksynth.design.control import design_integral_tracking
+from tanksynth.design.laws.tracking import design_integral_tracking
 from tanksynth.papers import seed000
 from tanksynth.runtime.laws import law_from_document
-from tanksynth.design.feedback_linearization import feedback_linearization
+from tanksynth.design.laws.feedback_linearization import feedback_linearization
 from tanksynth.plants import three_tank
 from tanksynth.methods import load_spec
 from tanksynth.sim.integrate import casadi_step

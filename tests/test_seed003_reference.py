@@ -41,7 +41,7 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from tanksynth.design.decentralized import (centralized_gain, equicorrelated_intensity,
+from tanksynth.design.decentralized.gains import (centralized_gain, equicorrelated_intensity,
                                             finite_horizon_gains, linear_model, one_step_gains,
                                             own_tank_pattern, window_models)
 from tanksynth.methods import load_spec

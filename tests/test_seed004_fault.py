@@ -16,7 +16,7 @@ import sympy as sp
 from tanksynth.runtime.estimators import (AdaptiveScalingKalmanFilter, AdaptiveScalingTuning,
                                          ConsensusFilter, ConsensusTuning, LuenbergerObserver,
                                          LuenbergerTuning, discrete_model)
-from tanksynth.design.fault import detection_time, fault_threshold, fit_fault_size
+from tanksynth.design.fault.threshold import detection_time, fault_threshold, fit_fault_size
 from tanksynth.papers.seed004 import DETECTION_TIMES as SEED004_DETECTION_TIMES
 from tanksynth.papers.seed004 import INITIAL_STATES as SEED004_INITIAL_STATES
 from tanksynth.papers.seed004 import INPUT as SEED004_INPUT
@@ -34,7 +34,7 @@ def th():
 
 
 def test_gain_and_error_dynamics_match_print(th):
-    from tanksynth.design.placement import canonical_observer
+    from tanksynth.design.placement.canonical import canonical_observer
 
     co = canonical_observer(th.A, th.C, [-5, -8, -10])
     assert list(co.Psi_o) == [sp.Rational(3197, 8), sp.Rational(673, 4), sp.Rational(41, 2)]

@@ -66,7 +66,7 @@ def ts_observer_step(name: str, model: Any, L: np.ndarray, ts: float | None, sub
 
     ``dx_hat/dt = sum_i mu_i(z) (A_i x_hat + B u) + d + L (y - C x_hat)``
     with the measurement of the start of the period held, integrated as the
-    verdict's observer (`tanksynth.verify.ts_observer.TSObserver`): ``substeps``
+    verdict's observer (`tanksynth.verify.observer_lmi.verdicts.TSObserver`): ``substeps``
     steps ``x <- Phi x + Gamma g`` with ``Phi, Gamma`` the exact ZOH of ``A0 - L
     C`` over ``ts / substeps`` and ``g = rhs(x, u) - A0 x + L y``. The
     memberships are CasADi expressions of the premise variables ``z_k =
@@ -173,7 +173,7 @@ def decentralized_step(name: str, plant: Any, gains: Sequence[np.ndarray], ts: f
                        substeps: int = 4) -> ca.Function:
     """One step of the decentralised Kalman filter with the window's time-varying gains.
 
-    As the verdict's filter (`tanksynth.verify.decentralized.DecentralizedFilter`):
+    As the verdict's filter (`tanksynth.verify.decentralized.verdicts.DecentralizedFilter`):
     prediction by ``substeps`` RK4 steps of the nominal plant (states clipped to
     the plant's bounds, input saturated: `tanksynth.sim.integrate.symbolic_rk4`),
     then ``x_hat(k|k) = x_pred + K_(k-1) (y_k - h(x_pred))`` for the window
@@ -243,7 +243,7 @@ def fault_detection_step(name: str, plant: Any, Psi: np.ndarray, coefficients: n
 
     The observer of the healthy plant ``dx_hat/dt = f(x_hat, u) + Psi (y -
     h(x_hat))`` (``delta_bar = 0``), integrated as the verdict's
-    `tanksynth.verify.fault.ResidualObserver`: ``substeps`` RK4 steps with
+    `tanksynth.verify.fault.verdicts.ResidualObserver`: ``substeps`` RK4 steps with
     ``y`` interpolated linearly between the two latest samples and ``u``
     held; then the residual ``epsilon = y_k - h(x_hat_k)`` and the threshold
     ``sum_i c_i exp(lambda_i t)`` (eq. 54, or eq. 55 with ``|c_i|`` when

@@ -7,18 +7,18 @@ spec)``, handed over by the method table) for what to run, runs the
 scenario for its runs in one batch and returns tidy rows:
 
 ``controller``
-    the serialised law or gains in closed loop (`tanksynth.verify.closed_loops`):
+    the serialised law or gains in closed loop (`tanksynth.verify.laws.campaign`):
     ``ise_<y>``, ``offset_<y>``, tracking and rejection times;
 ``estimator``
     the estimator or observer on the noisy measurements
-    (`tanksynth.verify.estimation_runs`): ``rmse_<state>`` after the warm-up;
+    (`tanksynth.verify.estimators.campaign`): ``rmse_<state>`` after the warm-up;
 ``detector``
     the residual test on the scenario and on its fault-free twin
-    (`tanksynth.verify.detector_runs`): ``detection_delay``,
+    (`tanksynth.verify.fault.campaign`): ``detection_delay``,
     ``false_alarm_rate``, ``first_false_alarm``;
 ``model``
     the discrete linear model against the nonlinear plant
-    (`tanksynth.verify.model_runs`): ``prediction_rmse_<state>``,
+    (`tanksynth.verify.model.campaign`): ``prediction_rmse_<state>``,
     ``one_step_rmse_<state>``;
 
 plus the computation time of what ran. Metric names use the plant's own
@@ -53,17 +53,17 @@ from tanksynth.plants.base import Plant
 from tanksynth.sim.metrics import Metric
 from tanksynth.sim.scenarios import Scenario, scenario
 from tanksynth.sim.simulate import run_seeds
-from tanksynth.verify.closed_loops import (ArtefactIntegralLaw, ArtefactLaw, ClosedLoop,
+from tanksynth.verify.laws.campaign import (ArtefactIntegralLaw, ArtefactLaw, ClosedLoop,
                                            IntegralStateFeedback, InverseDynamicsLaw, StateFeedback,
                                            closed_loop_for, feedback_linearization_loop, sampling_period,
                                            integral_tracking_loop, inverse_dynamics_loop,
                                            state_feedback_loop)
-from tanksynth.verify.detector_runs import DetectorRun, fault_detection_run
-from tanksynth.verify.estimation_runs import (EstimatorRun, canonical_observer_run,
+from tanksynth.verify.fault.campaign import DetectorRun, fault_detection_run
+from tanksynth.verify.estimators.campaign import (EstimatorRun, canonical_observer_run,
                                               decentralized_kalman_run, estimator_run, narx_run,
                                               kalman_run, ekf_run, ukf_run, adaptive_kalman_run, adaptive_scaling_kalman_run, consensus_filter_run, luenberger_run,
                                               placement_run, ts_observer_run)
-from tanksynth.verify.model_runs import ModelRun, linearize_run
+from tanksynth.verify.model.campaign import ModelRun, linearize_run
 
 from tanksynth.verify.cluster import CONNECT_TIMEOUT, connect
 

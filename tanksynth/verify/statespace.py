@@ -312,7 +312,7 @@ def _observer(a: _Artefact, system: str, vertex: int | None) -> Any:
 
 def _ts_memberships(a: _Artefact) -> tuple[np.ndarray, np.ndarray]:
     """``mu_i(x0)`` (the memberships at the operating point, premises at their limit slopes), ``C``."""
-    from tanksynth.verify.ts_control import rebuild_model
+    from tanksynth.verify.takagi_sugeno.verdicts import rebuild_model
 
     model = rebuild_model(a.spec.plant, a.doc)
     return model.memberships(model.x0[None, :])[0], np.atleast_2d(model.C)

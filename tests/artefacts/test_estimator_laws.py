@@ -126,7 +126,7 @@ def test_consensus_step_compiled_matches_the_runtime_filter(seed004):
 
 
 def test_fault_detection_step_compiled_matches_the_verdicts_observer(seed004):
-    from tanksynth.verify.fault import ResidualObserver
+    from tanksynth.verify.fault.verdicts import ResidualObserver
 
     out, spec = seed004
     g = _gains(out, "residual_fault_detector")
@@ -258,7 +258,7 @@ def seed001(tmp_path_factory):
 
 
 def test_ts_observer_step_compiled_matches_the_verdicts_observer(seed001):
-    from tanksynth.verify.ts_observer import TSObserver, _ts_model_from_artefact
+    from tanksynth.verify.observer_lmi.verdicts import TSObserver, _ts_model_from_artefact
 
     out, spec = seed001
     doc = read_artefact(out / "ts_observer_paper.json")
@@ -359,7 +359,7 @@ relinearize_every = 3
 
 def test_decentralized_step_compiled_matches_the_verdicts_filter(tmp_path_factory):
     from tanksynth.methods import load_spec
-    from tanksynth.verify.decentralized import DecentralizedFilter
+    from tanksynth.verify.decentralized.verdicts import DecentralizedFilter
 
     base = (EXAMPLES / "seed003_tank_network.toml").read_text(encoding="utf-8")
     assert 'method = "decentralized_kalman"' in base and 'E = "own_tank"' in base

@@ -3,8 +3,8 @@
 
 Every law is exported by ``tanksynth design --export law``, its generated C compiled with gcc
 and evaluated, and compared on sampled states with what the method's verdict and campaign
-runner simulate (`tanksynth.verify.simulations`, `tanksynth.verify.robust_runs`,
-`tanksynth.verify.ts_control`, `tanksynth.verify.ts_observer`): the same control, and for the
+runner simulate (`tanksynth.verify.simulations`, `tanksynth.verify.robust.campaign`,
+`tanksynth.verify.takagi_sugeno.verdicts`, `tanksynth.verify.observer_lmi.verdicts`): the same control, and for the
 observers the same next estimate (continuous-time fields integrated here with the verifier's
 own rule: exact ZOH, RK4 with held premises, exponential Euler), to 1e-10 relative.
 """
@@ -202,7 +202,7 @@ def test_every_method_exports_a_law(syn, rob, ts):
 def test_synthesis_state_feedback_is_the_verdicts(syn, name):
     from tanksynth.verify.common import operating_point
     from tanksynth.verify.simulations import StateFeedback
-    from tanksynth.verify.synthesis import synthesis_run
+    from tanksynth.verify.synthesis.verdicts import synthesis_run
 
     doc, spec = _load(syn, name)
     x0, u0 = operating_point(spec)
@@ -218,7 +218,7 @@ def test_synthesis_state_feedback_is_the_verdicts(syn, name):
 
 
 def test_robust_state_feedback_is_the_campaigns(rob):
-    from tanksynth.verify.robust_runs import robust_state_feedback_run
+    from tanksynth.verify.robust.campaign import robust_state_feedback_run
 
     doc, spec = _load(rob, "rsf")
     run = robust_state_feedback_run(doc, spec)
@@ -231,7 +231,7 @@ def test_robust_state_feedback_is_the_campaigns(rob):
 
 @pytest.mark.parametrize("name", ["rint", "rint_c"])
 def test_robust_integral_action_is_the_verdicts(rob, name):
-    from tanksynth.verify.robust_runs import robust_state_feedback_run
+    from tanksynth.verify.robust.campaign import robust_state_feedback_run
 
     doc, spec = _load(rob, name)
     controller = robust_state_feedback_run(doc, spec).controller   # IntegralStateFeedback, ts = 1 s
@@ -322,7 +322,7 @@ def test_continuous_observer_field_integrates_to_the_runtime_observer(request, o
 
 # ------------------------------------------------------------------- Takagi-Sugeno
 def test_pdc_state_feedback_is_the_verdicts_law(ts):
-    from tanksynth.verify.ts_control import region_points, ts_control_run
+    from tanksynth.verify.takagi_sugeno.verdicts import region_points, ts_control_run
 
     doc, spec = _load(ts, "pdc")
     g = doc["gains"]
@@ -351,8 +351,8 @@ def test_pdc_state_feedback_is_the_verdicts_law(ts):
 
 
 def test_pdc_output_feedback_measured_premises(ts):
-    from tanksynth.verify.closed_loops import sampling_period
-    from tanksynth.verify.ts_control import ts_control_run
+    from tanksynth.verify.laws.campaign import sampling_period
+    from tanksynth.verify.takagi_sugeno.verdicts import ts_control_run
 
     doc, spec = _load(ts, "pdc_meas")
     plant = spec.plant
@@ -388,8 +388,8 @@ def test_pdc_output_feedback_measured_premises(ts):
 
 
 def test_pdc_output_feedback_estimated_premises(ts):
-    from tanksynth.verify.closed_loops import sampling_period
-    from tanksynth.verify.ts_control import ts_control_run
+    from tanksynth.verify.laws.campaign import sampling_period
+    from tanksynth.verify.takagi_sugeno.verdicts import ts_control_run
 
     doc, spec = _load(ts, "pdc_est")
     plant = spec.plant

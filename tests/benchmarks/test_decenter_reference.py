@@ -18,7 +18,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benchmarks"))
 
 import decenter_reference as dec
 
-from tanksynth.design.decentralized import finite_horizon_gains
+from tanksynth.design.decentralized.gains import finite_horizon_gains
 
 
 def _window(seed: int, n: int = 5, o: int = 3, T: int = 10):

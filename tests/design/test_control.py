@@ -11,10 +11,10 @@ import pytest
 import sympy as sp
 
 from tanksynth.artefacts.export import compile_law, export_law, load_compiled_law
-from tanksynth.design.control import ServoScenario, _servo_step, servo_ise, tune_inverse_dynamics
+from tanksynth.design.laws.tracking import ServoScenario, _servo_step, servo_ise, tune_inverse_dynamics
 from tanksynth.runtime.laws import (integral_tracking_law, inverse_dynamics_law, law_document,
                                     law_from_document, rename_law)
-from tanksynth.design.feedback_linearization import feedback_linearization
+from tanksynth.design.laws.feedback_linearization import feedback_linearization
 from tanksynth.errors import ArtefactError, DimensionError, SpecError
 from tanksynth.plants import hybrid_three_tank, three_tank
 from tanksynth.plants.hybrid_three_tank import LPH

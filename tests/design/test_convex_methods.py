@@ -122,7 +122,7 @@ def test_matrix_latex_is_sympys_text():
     exactly sympy's ``latex(Matrix(M))`` (``matrix`` up to 10 columns, ``array`` beyond)."""
     import sympy as sp
 
-    from tanksynth.design.convex_methods import _matrix_latex
+    from tanksynth.design.placement.adapters import _matrix_latex
     rng = np.random.default_rng(2)
     for M in (np.round(rng.normal(size=(3, 3)), 6), np.round(np.kron(np.eye(8), rng.normal(size=(2, 2))), 6),
               np.zeros((2, 2)), np.round(rng.normal(size=(12, 3)) * 1e-7, 8), np.ones((1, 11)),

@@ -13,7 +13,7 @@ import pytest
 
 from tanksynth.artefacts import read_artefact, write_artefact
 from tanksynth.methods import METHODS
-from tanksynth.design.decentralized import (KalmanStep, centralized_gain, covariance_recursion,
+from tanksynth.design.decentralized.gains import (KalmanStep, centralized_gain, covariance_recursion,
                                             equicorrelated_intensity, finite_horizon_gains,
                                             lower_tank_equilibrium, one_step_gains, window_models)
 from tanksynth.errors import DimensionError, InfeasibleDesign, SpecError
@@ -108,7 +108,7 @@ def test_full_pattern_gives_the_centralized_gains(seed):
 
 def test_full_pattern_through_the_sparse_solver():
     """The free-entry linear system itself (not the all-free shortcut) gives the KF gain."""
-    from tanksynth.design.decentralized_recursion import _Pattern
+    from tanksynth.design.decentralized.recursion import _Pattern
 
     A, C, Q, R, _, P0 = random_ltv(3, T=1)
     pat = _Pattern(np.ones((5, 3), dtype=bool))

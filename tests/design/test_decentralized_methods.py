@@ -26,7 +26,7 @@ def test_design_runs_on_one_blas_thread(monkeypatch):
     loaded 2-core machine); the limit is lifted again after the design."""
     from threadpoolctl import threadpool_info
 
-    import tanksynth.design.decentralized_methods as dm
+    import tanksynth.design.decentralized.adapters as dm
     from tanksynth.methods import METHODS
     from tanksynth.spec import parse_spec_text
 

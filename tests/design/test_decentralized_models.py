@@ -7,7 +7,7 @@ import pytest
 import scipy.linalg as sla
 from scipy.integrate import quad_vec
 
-from tanksynth.design.decentralized_models import (DiscreteModel, discretize_noise,
+from tanksynth.design.decentralized.models import (DiscreteModel, discretize_noise,
                                                    equicorrelated_intensity, linear_model,
                                                    lower_tank_equilibrium, own_tank_pattern,
                                                    window_models)

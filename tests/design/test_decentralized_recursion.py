@@ -10,8 +10,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from tanksynth.design.decentralized import finite_horizon_gains
-from tanksynth.design.decentralized_recursion import (_Kernels, _Pattern, _require_pd,
+from tanksynth.design.decentralized.gains import finite_horizon_gains
+from tanksynth.design.decentralized.recursion import (_Kernels, _Pattern, _require_pd,
                                                       _spd_solve)
 from tanksynth.errors import InfeasibleDesign
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from tanksynth.design.decoupling import decoupling_analysis, select_outputs
+from tanksynth.design.laws.decoupling import decoupling_analysis, select_outputs
 from tanksynth.errors import DimensionError, InfeasibleDesign, SpecError
 from tanksynth.plants import three_tank
 from tanksynth.plants.custom import custom_plant

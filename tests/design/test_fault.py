@@ -7,7 +7,7 @@ import pytest
 import scipy.linalg as sla
 import sympy as sp
 
-from tanksynth.design.fault import (detection_time, fault_threshold, residual)
+from tanksynth.design.fault.threshold import (detection_time, fault_threshold, residual)
 from tanksynth.errors import DimensionError, SimulationError, SpecError
 from tanksynth.plants import hydraulic_fault, three_tank
 from tanksynth.sim.integrate import rk4_matrix

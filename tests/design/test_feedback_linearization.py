@@ -13,7 +13,7 @@ import pytest
 import sympy as sp
 
 from tanksynth.analysis.region import region_points
-from tanksynth.design.feedback_linearization import decoupling_analysis, feedback_linearization, outer_loop
+from tanksynth.design.laws.feedback_linearization import decoupling_analysis, feedback_linearization, outer_loop
 from tanksynth.errors import InfeasibleDesign, SpecError
 from tanksynth.plants import three_tank
 from tanksynth.methods import load_spec

@@ -11,8 +11,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from tanksynth.design import lmi
-from tanksynth.design.lmi import (ObserverLMIProblem, bisect_feasible, check_observer_lmi,
+from tanksynth.design.observer_lmi import lmi as lmi
+from tanksynth.design.observer_lmi.lmi import (ObserverLMIProblem, bisect_feasible, check_observer_lmi,
                                   maximise_psi, observer_lmi)
 from tanksynth.errors import DimensionError, InfeasibleDesign, SpecError, UnobservableError
 
@@ -149,7 +149,7 @@ def test_recheck_refuses_a_solution_the_solver_called_optimal(monkeypatch):
     with pytest.raises(InfeasibleDesign, match="independent re-check.*status optimal"):
         observer_lmi(A0, C12, 0.01, problem=ObserverLMIProblem(3, C12, form="eliminated"))
     # the direct Clarabel route (the default here) gets the same check
-    from tanksynth.design.lmi_conic import ConicEliminatedLMI
+    from tanksynth.design.observer_lmi.conic_form import ConicEliminatedLMI
 
     real_conic = ConicEliminatedLMI.solve
 

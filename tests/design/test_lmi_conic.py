@@ -13,8 +13,8 @@ import cvxpy as cp
 import numpy as np
 import pytest
 
-from tanksynth.design.lmi import observer_lmi
-from tanksynth.design.lmi_conic import ConicObserverLMI
+from tanksynth.design.observer_lmi.lmi import observer_lmi
+from tanksynth.design.observer_lmi.conic_form import ConicObserverLMI
 from tanksynth.errors import InfeasibleDesign, SpecError
 
 
@@ -158,7 +158,7 @@ def test_eliminated_form_reaches_the_hand_written_full_lmi_optimum(case, variant
     """The projection lemma keeps the optimal margin: the eliminated LMI solved without cvxpy
     reaches the optimum of the full LMI (with K) written here in cvxpy; its recovered gain
     satisfies eq. (28)."""
-    from tanksynth.design.lmi_conic import ConicEliminatedLMI
+    from tanksynth.design.observer_lmi.conic_form import ConicEliminatedLMI
 
     A, C, _, _ = _plant()
     _, blocks, _ = CASES[case]
@@ -177,8 +177,8 @@ def test_eliminated_form_matches_the_cvxpy_problem_point_for_point(which, varian
     """Same problem as ObserverLMIProblem(form="eliminated") through cvxpy: same Clarabel
     iterates, hence the same (P, Q, L) -- also where the optimum is not unique (C = I: any
     Q >= t I is optimal)."""
-    from tanksynth.design.lmi_conic import ConicEliminatedLMI
-    from tanksynth.design.lmi_problem import ObserverLMIProblem
+    from tanksynth.design.observer_lmi.conic_form import ConicEliminatedLMI
+    from tanksynth.design.observer_lmi.problem import ObserverLMIProblem
 
     A, C, C2, _ = _plant()
     Cm = {"C": C, "C2": C2, "identity": np.eye(6)}[which]
@@ -192,7 +192,7 @@ def test_eliminated_form_matches_the_cvxpy_problem_point_for_point(which, varian
 
 
 def test_observer_lmi_and_maximise_psi_take_the_direct_eliminated_route():
-    from tanksynth.design.lmi import maximise_psi
+    from tanksynth.design.observer_lmi.lmi import maximise_psi
 
     A, C, _, _ = _plant()
     res = observer_lmi(A, C, 0.3)

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from tanksynth.design.lmi_problem import ObserverLMIProblem
+from tanksynth.design.observer_lmi.problem import ObserverLMIProblem
 
 
 def _eq28(A0, C, P, Q, L, psi):

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from scipy.optimize import least_squares
 
-from tanksynth.design.narx import generate_ekf_data, levenberg_marquardt, train_narx
+from tanksynth.design.estimators.narx_training import generate_ekf_data, levenberg_marquardt, train_narx
 from tanksynth.plants import hybrid_three_tank
 from tanksynth.plants.hybrid_three_tank import LPH
 from tanksynth.runtime.estimators import KalmanTuning

@@ -12,10 +12,10 @@ import numpy as np
 import pytest
 import sympy as sp
 
-from tanksynth.design import placement
+from tanksynth.design.placement import canonical as placement
 from tanksynth.methods import METHODS
 from tanksynth.analysis.linearize import equilibrium_input, linearize
-from tanksynth.design.placement import (canonical_observer, integral_augmentation, place_observer,
+from tanksynth.design.placement.canonical import (canonical_observer, integral_augmentation, place_observer,
                                         pole_errors)
 from tanksynth.errors import DimensionError, SpecError, UnobservableError
 from tanksynth.methods import load_spec, parse_spec_text

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from tanksynth.design.placement_exact import (ackermann, place_observer, place_state_feedback,
+from tanksynth.design.placement.exact import (ackermann, place_observer, place_state_feedback,
                                               pole_errors)
 from tanksynth.errors import DimensionError, SpecError
 
@@ -130,7 +130,7 @@ def test_triple_pole_is_accepted_with_the_exact_gain():
 
 
 def test_wrong_gain_for_a_repeated_pole_is_still_refused():
-    from tanksynth.design.placement_exact import placement_accuracy
+    from tanksynth.design.placement.exact import placement_accuracy
 
     K = np.array([[3.5, 6.5, 4.5 + 1e-3]])              # characteristic polynomial off by 1e-3
     acc = placement_accuracy([-2, -2, -2], HF_A - HF_B @ K)
@@ -151,7 +151,7 @@ def test_nearly_uncontrollable_pair_is_flagged_fragile():
     destabilises the loop; the robustness figure says so (and the adapters refuse it)."""
     import control
 
-    from tanksynth.design.placement_exact import refuse_fragile, robustness_report
+    from tanksynth.design.placement.exact import refuse_fragile, robustness_report
     from tanksynth.errors import InfeasibleDesign
 
     A, B = _nearly_uncontrollable(1e-10)
@@ -177,7 +177,7 @@ def test_nearly_uncontrollable_pair_is_flagged_fragile():
 
 
 def test_stability_radius_of_a_normal_matrix_is_the_distance_to_the_boundary():
-    from tanksynth.design.placement_exact import stability_radius
+    from tanksynth.design.placement.exact import stability_radius
 
     r, _ = stability_radius(np.diag([-0.5, -2.0]), "continuous")
     assert r == pytest.approx(0.5, rel=1e-6)
@@ -191,7 +191,7 @@ def test_stability_radius_of_a_block_diagonal_loop_is_the_smallest_block_radius(
     path), and the dense matrix's sigma_min at the returned point agrees."""
     import scipy.linalg as sla
 
-    from tanksynth.design.placement_exact import stability_radius
+    from tanksynth.design.placement.exact import stability_radius
     rng = np.random.default_rng(4)
     blocks = [rng.normal(size=(k, k)) - 3.0 * np.eye(k) for k in (1, 2, 2, 3)]
     perm = rng.permutation(8)

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from tanksynth.analysis.lmi_region import disk, half_plane, sector
-from tanksynth.design.placement_lmi import lmi_observer, lmi_state_feedback
+from tanksynth.design.placement.regions import lmi_observer, lmi_state_feedback
 from tanksynth.errors import DimensionError, InfeasibleDesign, SpecError, UncontrollableError, UnobservableError
 
 

@@ -11,8 +11,8 @@ import pytest
 
 from tanksynth.analysis.lmi_region import disk, half_plane, intersect
 from tanksynth.cli import main
-from tanksynth.design.robust import HinfBound, SaturationBound, robust_observer, robust_state_feedback
-from tanksynth.design.robust_models import box_corners, vertex_models
+from tanksynth.design.robust.polytopic import HinfBound, SaturationBound, robust_observer, robust_state_feedback
+from tanksynth.design.robust.vertices import box_corners, vertex_models
 from tanksynth.errors import InfeasibleDesign, SpecError
 from tanksynth.methods import load_spec, parse_spec_text
 from tanksynth.plants import builtin_plant
@@ -244,7 +244,7 @@ def test_inaccurate_phase_two_never_returns_a_larger_gain_than_phase_one():
     phase 2 (min ||Y||_F) 'optimal_inaccurate' with ||K|| ~ 3,500 where phase 1's gain has ~760
     (breaker's case). Phase 2 is there to shrink the gain: the larger inaccurate one is not taken."""
     from tanksynth.analysis.lmi_region import half_plane
-    from tanksynth.design.robust import HinfBound, robust_state_feedback
+    from tanksynth.design.robust.polytopic import HinfBound, robust_state_feedback
 
     rng = np.random.default_rng(3)
     n, m, V = 3, 2, 3

@@ -6,8 +6,8 @@ import cvxpy as cp
 import numpy as np
 import pytest
 
-from tanksynth.design import robust_conic as rc
-from tanksynth.design.robust import robust_state_feedback
+from tanksynth.design import conic as rc
+from tanksynth.design.robust.polytopic import robust_state_feedback
 from tanksynth.analysis.lmi_region import region_from_parts
 
 

@@ -14,7 +14,7 @@ import scipy.linalg as sla
 
 from tanksynth.analysis.lmi_region import disk, half_plane
 from tanksynth.cli import main
-from tanksynth.design.robust import HinfBound, robust_observer, robust_state_feedback
+from tanksynth.design.robust.polytopic import HinfBound, robust_observer, robust_state_feedback
 from tanksynth.errors import InfeasibleDesign
 from tanksynth.methods import METHODS, parse_spec_text
 

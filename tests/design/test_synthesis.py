@@ -15,7 +15,7 @@ import pytest
 import scipy.linalg as sla
 
 from tanksynth.analysis.lmi_region import disk, half_plane
-from tanksynth.design.synthesis import (GeneralizedPlant, generalized_plant, h2_lmis, hinf_lmis,
+from tanksynth.design.synthesis.synthesize import (GeneralizedPlant, generalized_plant, h2_lmis, hinf_lmis,
                                         hinf_lmis_reduced,
                                         observer_plant, region_lmi, synthesize_observer,
                                         synthesize_state_feedback)

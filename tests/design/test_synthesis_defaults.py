@@ -15,7 +15,7 @@ import pytest
 from tanksynth.artefacts.io import artefact_document
 from tanksynth.errors import DesignWarning, SpecError
 from tanksynth.methods import METHODS, parse_spec_text
-from tanksynth.verify.synthesis import synthesis_verdict
+from tanksynth.verify.synthesis.verdicts import synthesis_verdict
 
 THREE_TANK = """
 [plant]
@@ -124,7 +124,7 @@ def test_robust_hinf_channel_defaults_to_pump_sized_disturbances(method, region,
     Three-tank: B = [I2; 0] / A per m^3/s, range qmax, so both are 0.1 qmax / A (m/s) per unit
     w; the old defaults (B, I: 1 m^3/s or 1 m/s) made gamma a number in units no pump reaches.
     """
-    from tanksynth.verify.robust import robust_observer_verdict, robust_state_feedback_verdict
+    from tanksynth.verify.robust.verdicts import robust_observer_verdict, robust_state_feedback_verdict
 
     spec = parse_spec_text(ROBUST + f'[[design]]\nname = "d"\nmethod = "{method}"\n'
                            f'uncertain = {{mu13 = "15%"}}\nregion = {region}\ngamma = {gamma}\n')

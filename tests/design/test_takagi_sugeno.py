@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 from tanksynth.papers import seed001
-from tanksynth.design import takagi_sugeno as tsmod
+from tanksynth.design.observer_lmi import weighting as tsmod
 from tanksynth.analysis.takagi_sugeno import domain_from_plant, quasi_lpv, ts_model
-from tanksynth.design.takagi_sugeno import (candidate_weights, lipschitz_bound, search_weightings,
+from tanksynth.design.observer_lmi.weighting import (candidate_weights, lipschitz_bound, search_weightings,
                                             selection_rules)
 from tanksynth.errors import SpecError
 from tanksynth.plants import tank_network, three_tank
@@ -70,7 +70,7 @@ def test_lipschitz_bounds_on_an_ordered_region(qlpv, ordered):
     assert len(eq27.detail["tau"]) == 8 and eq27.detail["phi"] == pytest.approx(np.hypot(1.2e-4, 1.2e-4))
     # dense independent sampling never exceeds the guaranteed bound
     X = ordered.sample(20000, seed=5)
-    from tanksynth.design.takagi_sugeno import _jacobian_exprs, _jacobian_function
+    from tanksynth.design.observer_lmi.weighting import _jacobian_exprs, _jacobian_function
     J = _jacobian_function(qlpv, _jacobian_exprs(qlpv))(X)
     assert np.max(np.linalg.norm(J - ts.A0, 2, axis=(1, 2))) <= guaranteed.value
 
@@ -124,7 +124,7 @@ def test_blockwise_spectral_norms_equal_the_dense_norm():
     """`_spectral_norms` splits df/dx - A0 into the components of its pattern; the dense
     2-norm (numpy SVD of the whole n x n matrix) is the reference, on the tank network (2 x 2
     blocks) and on the three-tank (one coupled block)."""
-    from tanksynth.design.takagi_sugeno import (_jacobian_exprs, _jacobian_parts,
+    from tanksynth.design.observer_lmi.weighting import (_jacobian_exprs, _jacobian_parts,
                                                 _spectral_norms)
     for plant, box in ((tank_network(N=12), [(1.0, 40.0)] * 12),
                        (three_tank("h1h2"), [(0.05, 0.62), (0.05, 0.62), (0.05, 0.62)])):

@@ -1,4 +1,4 @@
-"""Takagi-Sugeno PDC design (tanksynth.design.ts_control and its adapters)."""
+"""Takagi-Sugeno PDC design (tanksynth.design.takagi_sugeno.pdc and its adapters)."""
 
 from __future__ import annotations
 
@@ -8,9 +8,9 @@ import sympy as sp
 
 from tanksynth.analysis.linearize import equilibrium_input
 from tanksynth.analysis.takagi_sugeno import domain_from_plant, quasi_lpv
-from tanksynth.design.ts_control import condition_weights, max_decay_rate, pdc_lmi
-from tanksynth.design.ts_deviation import deviation_ts_model, linear_argument
-from tanksynth.design.ts_region import certified_region
+from tanksynth.design.takagi_sugeno.pdc import condition_weights, max_decay_rate, pdc_lmi
+from tanksynth.design.takagi_sugeno.deviation import deviation_ts_model, linear_argument
+from tanksynth.design.takagi_sugeno.region import certified_region
 from tanksynth.errors import InfeasibleDesign, SpecError
 from tanksynth.methods import METHODS, parse_spec_text
 

@@ -1,11 +1,11 @@
-"""Switch level and composite decay of the TS PDC certificates (tanksynth.design.ts_region)."""
+"""Switch level and composite decay of the TS PDC certificates (tanksynth.design.takagi_sugeno.region)."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from tanksynth.design.ts_region import composite_decay, switch_level
+from tanksynth.design.takagi_sugeno.region import composite_decay, switch_level
 
 
 def _min_level_on_boundary(P1, P2, c2, d, points=200_000):

@@ -59,7 +59,7 @@ def test_each_design_has_its_disturbance_step_figure(hinf_dir):
 def test_the_figure_draws_what_the_verdict_simulated(hinf_dir, monkeypatch):
     """Run each verdict again with the simulator wrapped: the stored extra trace holds the
     disturbance step's runs (every stride-th sample), and the figure drawn from it is that check's."""
-    import tanksynth.verify.synthesis as synthesis
+    import tanksynth.verify.synthesis.verdicts as synthesis
     from tanksynth.verify.runner import load_directory
 
     spec, docs = load_directory(hinf_dir, METHODS)

@@ -7,7 +7,7 @@ from pathlib import Path
 
 from tanksynth.methods import load_spec
 from tanksynth.plants import hybrid_three_tank, three_tank
-from tanksynth.verify.closed_loops import InverseDynamicsLaw
+from tanksynth.verify.laws.campaign import InverseDynamicsLaw
 from tanksynth.sim.metrics import (ESTIMATION_WARMUP, compute_metrics, controlled_names,
                                    detection_metrics, estimation_metrics, estimation_rmse, ise,
                                    settling_time, warmup_samples)

@@ -16,7 +16,7 @@ from tanksynth.methods import load_spec
 from tanksynth.runtime.estimators.kalman import ExtendedKalmanFilter, KalmanTuning
 from tanksynth.sim.simulate import EstimatorAdapter, run_seeds, simulate
 from tanksynth.verify.campaign import campaign_tasks, run_campaign
-from tanksynth.verify.model_runs import linear_predictions
+from tanksynth.verify.model.campaign import linear_predictions
 
 ROOT = Path(__file__).resolve().parents[2]
 X_HYBRID = [0.31918677, 0.3209075, 0.30968861]

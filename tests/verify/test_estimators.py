@@ -7,7 +7,7 @@ import pytest
 
 from tanksynth.cli import main
 from tanksynth.methods import METHODS
-from tanksynth.verify import estimators
+from tanksynth.verify.estimators import verdicts as estimators
 from tanksynth.verify.runner import load_directory
 
 SPEC = """

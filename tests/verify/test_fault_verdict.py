@@ -23,7 +23,7 @@ from tanksynth.errors import ArtefactError
 from tanksynth.methods import verify_directory
 from tanksynth.plants import hydraulic_fault
 from tanksynth.papers import seed004
-from tanksynth.verify.fault import (FAULT_START_OFFSET, fault_detection_verdict, fault_scenario,
+from tanksynth.verify.fault.verdicts import (FAULT_START_OFFSET, fault_detection_verdict, fault_scenario,
                                     rule_initial_states)
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
@@ -224,7 +224,7 @@ def test_observer_period_is_the_rk4_of_the_numpy_model():
     """One compiled period = 4 RK4 substeps of f(x, u) + Psi (y(t) - h(x)) written here in numpy."""
     from tanksynth.sim.integrate import param_arrays
     from tanksynth.sim.tape import numpy_model
-    from tanksynth.verify.fault import ResidualObserver
+    from tanksynth.verify.fault.verdicts import ResidualObserver
 
     plant = hydraulic_fault()
     Psi = np.array([[1.2], [0.4], [-0.3]])

@@ -467,7 +467,7 @@ def test_fault_detection_reports_detection_times(designed_more, tmp_path, capsys
 def test_decentralized_filter_prediction_equals_one_simulator_step(model, x, u):
     """`DecentralizedFilter.predict` (one direct integrator call) equals `simulate(steps=1)`."""
     from tanksynth.plants import hybrid_three_tank, tank_network
-    from tanksynth.verify.decentralized import DecentralizedFilter
+    from tanksynth.verify.decentralized.verdicts import DecentralizedFilter
     from tanksynth.sim.simulate import simulate
 
     plant = tank_network(N=8) if model == "tank_network" else hybrid_three_tank()

@@ -10,7 +10,7 @@ from tanksynth.errors import SpecError
 from tanksynth.methods import load_spec
 from tanksynth.sim.integrate import param_arrays
 from tanksynth.sim.tape import numpy_model
-from tanksynth.verify.robust_models import linear_models
+from tanksynth.verify.robust.models import linear_models
 
 EXAMPLE = "examples/three_tank_robust.toml"
 

@@ -1,4 +1,4 @@
-"""Robust verdicts record their Monte-Carlo runs (tanksynth.verify.robust_traces)."""
+"""Robust verdicts record their Monte-Carlo runs (tanksynth.verify.robust.traces)."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ from tanksynth.artefacts.io import read_artefact, write_artefact
 from tanksynth.artefacts.traces import trace_path, write_trace
 from tanksynth.methods import METHODS, load_spec
 from tanksynth.reports.figures import time_domain_figure
-from tanksynth.verify.robust_traces import PeakRecordingLaw, record_monte_carlo
+from tanksynth.verify.robust.traces import PeakRecordingLaw, record_monte_carlo
 from tanksynth.verify.runner import verdict_with_trace
 
 EXAMPLE = "examples/three_tank_robust.toml"

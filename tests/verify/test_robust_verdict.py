@@ -9,9 +9,9 @@ import pytest
 from tanksynth.artefacts.io import read_artefact, write_artefact
 from tanksynth.methods import METHODS, load_spec
 from tanksynth.sim.scenarios import scenario
-from tanksynth.verify.closed_loops import ClosedLoop
-from tanksynth.verify.robust import hinf_norm
-from tanksynth.verify.robust_runs import robust_state_feedback_run
+from tanksynth.verify.laws.campaign import ClosedLoop
+from tanksynth.verify.robust.verdicts import hinf_norm
+from tanksynth.verify.robust.campaign import robust_state_feedback_run
 
 EXAMPLE = "examples/three_tank_robust.toml"
 
@@ -95,7 +95,7 @@ def test_campaign_workers_read_the_box_from_a_spec_parsed_without_its_methods():
 
     from tanksynth.methods import parse_spec_text as parse_validated
     from tanksynth.spec import parse_spec_text as parse_raw
-    from tanksynth.verify.robust import _box
+    from tanksynth.verify.robust.verdicts import _box
 
     text = (Path(__file__).resolve().parents[2] / "examples" / "three_tank_robust.toml").read_bytes()
     validated, raw = parse_validated(text), parse_raw(text)

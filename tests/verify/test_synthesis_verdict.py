@@ -12,7 +12,7 @@ import pytest
 from tanksynth.artefacts.io import artefact_document
 from tanksynth.methods import design, load_spec
 from tanksynth.verify.statespace import artefact_statespace
-from tanksynth.verify.synthesis import disturbance_plant, h2_norm, hinf_norm, synthesis_verdict
+from tanksynth.verify.synthesis.verdicts import disturbance_plant, h2_norm, hinf_norm, synthesis_verdict
 
 EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "three_tank_hinf.toml"
 
@@ -104,7 +104,7 @@ def test_the_disturbance_step_is_recorded_beside_the_main_run(designed, name, mo
     """The recorder keeps the regulation / observer run (main) and the disturbance step (extra): its
     arrays are the simulated runs (decimated by the stated stride), its inputs the pumps then the
     declared disturbances, stepped to the check's w and removed at the check's phase."""
-    import tanksynth.verify.synthesis as synthesis
+    import tanksynth.verify.synthesis.verdicts as synthesis
     from tanksynth.artefacts.traces import TRACE_MAX_SAMPLES
     from tanksynth.verify.traces import TraceRecorder
 

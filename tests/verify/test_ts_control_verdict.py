@@ -1,4 +1,4 @@
-"""Verdict of the Takagi-Sugeno PDC controllers (tanksynth.verify.ts_control)."""
+"""Verdict of the Takagi-Sugeno PDC controllers (tanksynth.verify.takagi_sugeno.verdicts)."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from tanksynth.methods import METHODS, load_spec
-from tanksynth.verify.ts_control import (rebuild_model, region_level, region_points, simulate_region,
+from tanksynth.verify.takagi_sugeno.verdicts import (rebuild_model, region_level, region_points, simulate_region,
                                          ts_control_run, ts_control_verdict)
 
 EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "three_tank_ts_control.toml"
@@ -158,7 +158,7 @@ def test_memberships_rebuild_the_plant_and_the_vertex_products(designed):
 def test_pdc_law_is_the_membership_weighted_gain(designed):
     """``u = u0 - sum_j mu_j K_j (x_hat - x0)``, premises at ``x_hat`` or at given states
     (the law's batched products against a loop over runs and rules)."""
-    from tanksynth.verify.ts_loops import PDCLaw
+    from tanksynth.verify.takagi_sugeno.loops import PDCLaw
 
     spec, docs = designed
     doc = docs["pdc"]

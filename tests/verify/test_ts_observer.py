@@ -6,8 +6,8 @@ import numpy as np
 from scipy.linalg import expm
 
 from tanksynth.methods import load_spec
-from tanksynth.verify.ts_loops import _PlantModel
-from tanksynth.verify.ts_observer import TSObserver
+from tanksynth.verify.takagi_sugeno.loops import _PlantModel
+from tanksynth.verify.observer_lmi.verdicts import TSObserver
 
 
 def test_compiled_period_is_the_exponential_euler_rule():

@@ -1,5 +1,5 @@
-"""Verdict of the TS PDC set-point change (tanksynth.verify.ts_setpoint) and the region campaign
-runner (tanksynth.verify.ts_runs)."""
+"""Verdict of the TS PDC set-point change (tanksynth.verify.takagi_sugeno.setpoint) and the region campaign
+runner (tanksynth.verify.takagi_sugeno.campaign)."""
 
 from __future__ import annotations
 
@@ -11,9 +11,9 @@ import pytest
 
 from tanksynth.methods import METHODS, load_spec
 from tanksynth.sim.scenarios import scenario
-from tanksynth.verify.ts_control import ts_control_run, ts_control_verdict
-from tanksynth.verify.ts_runs import TsRegionRun, region_draws
-from tanksynth.verify.ts_setpoint import max_on_ellipsoid, setpoint_checks
+from tanksynth.verify.takagi_sugeno.verdicts import ts_control_run, ts_control_verdict
+from tanksynth.verify.takagi_sugeno.campaign import TsRegionRun, region_draws
+from tanksynth.verify.takagi_sugeno.setpoint import max_on_ellipsoid, setpoint_checks
 from tanksynth.verify.traces import TraceRecorder
 
 EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "three_tank_ts_control.toml"

@@ -13,7 +13,7 @@
 ==============================  =====================================================
 
 Training the NARX network (data through the simulator, Levenberg-Marquardt)
-is design work: `tanksynth.design.narx`. Caches: `tanksynth.runtime.cache`.
+is design work: `tanksynth.design.estimators.narx_training`. Caches: `tanksynth.runtime.cache`.
 """
 
 from __future__ import annotations

@@ -1,6 +1,6 @@
 """Luenberger observers (discrete and continuous) and the TS multi-observer (seed 001 eq. 20).
 
-The gain ``L`` is an argument (from `tanksynth.design.placement`, the
+The gain ``L`` is an argument (from `tanksynth.design.placement.canonical`, the
 canonical form of seed 004 eq. 27-29, an LMI design, or any other source),
 so these observers do not depend on how it was designed.
 
@@ -232,7 +232,7 @@ class TSMultiObserver(_ContinuousBase):
     ts_model : object
         Multiple model with ``rhs(X (M, n), U (M, m)) -> (M, n)`` (state
         units/s; memberships evaluated at the estimate) and ``C`` (q, n),
-        e.g. `tanksynth.design.takagi_sugeno.TSModel`.
+        e.g. `tanksynth.design.observer_lmi.weighting.TSModel`.
     tuning : LuenbergerTuning
         ``form`` must be ``"continuous"``; ``L`` from the LMI (28).
     runs : int, optional

@@ -16,7 +16,7 @@ This module holds what the artefact ships and the loop runs: the weights
 (`NARXTuning`), the forward pass and the estimator kernel (`NARXEstimator`),
 and the layout of the network's open-loop regressors (``_features``). The
 training (data generation through the simulator, Levenberg-Marquardt) is
-design work: `tanksynth.design.narx`.
+design work: `tanksynth.design.estimators.narx_training`.
 """
 
 from __future__ import annotations

@@ -19,7 +19,7 @@ from tanksynth.spec.options import (parse_bool, parse_choice, parse_matrix, pars
                                     parse_poles, parse_region, region_is_stable)
 
 __all__ = ["LMI_SOLVERS", "PLACE_METHODS", "TARGETS", "TIME_DOMAINS", "POLE_DOMAINS",
-           "LinearizeOptions", "PolePlacementOptions", "LmiPlacementOptions",
+           "PolePlacementOptions", "LmiPlacementOptions",
            "CanonicalObserverOptions"]
 
 #: Conic solvers of the LMI designs (cvxpy names).
@@ -65,28 +65,6 @@ def _poles_in_plane(value: Any, key: str, *, count: int, count_note: str, time_d
     stable = time_domain if plane is None else ("continuous" if plane == "s" else "discrete")
     return parse_poles(value["values"], f"{key}.values", count=count, count_note=count_note,
                        stable_in=stable), plane
-
-
-@dataclass(frozen=True, eq=False)
-class LinearizeOptions(MethodOptions):
-    """Options of ``linearize`` (none): the Jacobian linearisation at the operating point and its
-    exact ZOH discretisation with ``[sampling] ts`` (required).
-
-    Attributes
-    ----------
-    (none)
-        The method takes no option.
-    """
-
-    method_name: ClassVar[str] = "linearize"
-    needs_sampling: ClassVar[bool] = True
-
-    @classmethod
-    def from_table(cls, options: Mapping[str, Any], key: str, plant: Any,
-                   ts: float | None) -> "LinearizeOptions":
-        """Refuse any option and a spec without a sampling period (see `MethodOptions.from_table`)."""
-        OptionReader(cls, options, key, ts)
-        return cls()
 
 
 def _gain_setup(r: OptionReader, plant: Any, ts: float | None) -> dict[str, Any]:

@@ -19,7 +19,7 @@ C = np.array([[0.0, 0.0, 0.5]])
 
 def _gain_for_poles(poles, A_, C_):
     try:
-        from tanksynth.design.placement import place_observer
+        from tanksynth.design.placement.canonical import place_observer
         return place_observer(A_, C_, poles).gain
     except ImportError:                                   # pragma: no cover
         import control

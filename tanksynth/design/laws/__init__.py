@@ -1,0 +1,5 @@
+"""The ``laws`` family (design): nonlinear and sampled control laws (``feedback_linearization``,
+``integral_tracking``, ``inverse_dynamics``).
+"""
+
+__all__: list[str] = []

@@ -1,0 +1,4 @@
+"""The ``model`` family (design): linear models of the plant (``linearize``).
+"""
+
+__all__: list[str] = []

@@ -1,0 +1,5 @@
+"""The ``synthesis`` family (design): H2 / H-infinity synthesis (``h2_*``, ``hinf_*``,
+``multiobjective``).
+"""
+
+__all__: list[str] = []

@@ -1,0 +1,5 @@
+"""The ``takagi_sugeno`` family (design): Takagi-Sugeno PDC controllers (``ts_state_feedback``,
+``ts_output_feedback``).
+"""
+
+__all__: list[str] = []

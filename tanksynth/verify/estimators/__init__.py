@@ -1,0 +1,6 @@
+"""The ``estimators`` family (verdicts and campaign runners): state estimators (``kalman``,
+``ekf``, ``ukf``, ``adaptive_kalman``, ``adaptive_scaling_kalman``, ``consensus_filter``,
+``luenberger``, ``narx``).
+"""
+
+__all__: list[str] = []
