@@ -239,20 +239,20 @@ class <<Options>>(MethodOptions):
 
     Attributes
     ----------
-    example_option : float
+    <<option>> : float
         Example option, to be replaced by the method's own (dimensionless, > 0); default 1.
     """
 
     method_name: ClassVar[str] = "<<name>>"
 
-    example_option: float = option(1.0, unit="-")
+    <<option>>: float = option(1.0, unit="-")
 
     @classmethod
     def from_table(cls, options: Mapping[str, Any], key: str, plant: Any,
                    ts: float | None) -> "<<Options>>":
         """See `MethodOptions.from_table`."""
         r = OptionReader(cls, options, key, ts)
-        return cls(example_option=r.read("example_option", parse_number, above=0.0))
+        return cls(<<option>>=r.read("<<option>>", parse_number, above=0.0))
 '''
 
 ADAPTER_CODE = '''
@@ -278,7 +278,7 @@ def run_<<name>>(spec: Spec, design: DesignSpec) -> DesignResult:
     plant = spec.plant
     gains = {"x_op": np.array(spec.x0, dtype=float)}
     diagnostics = {"scaffold": "design not written yet (skeleton of scripts/add_method.py)",
-                   "example_option": options.example_option}
+                   "<<option>>": options.<<option>>}
     return DesignResult(design.name, "<<name>>", plant.name, gains, diagnostics)
 
 
@@ -657,17 +657,6 @@ class Edit:
         self.original = original
         self.text = original or ""
 
-    def module_name(self, root: Path) -> str:
-        """The dotted module name of a ``.py`` file under ``root``.
-
-        Parameters
-        ----------
-        root : Path
-            The repository.
-        """
-        parts = self.path.relative_to(root).with_suffix("").parts
-        return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
-
     def check_free(self, names: Sequence[str]) -> None:
         """`BadInput` if the module already binds one of ``names``.
 
@@ -934,7 +923,7 @@ def plan(request: Request, methods: ModuleType) -> list[Edit]:
     returns = " | ".join(t.__name__ for t in run_types) or "Any"
     values = {"name": name, "family": request.family, "summary": request.summary,
               "Options": refs["options"], "NAME": refs["adapter"], "latex_name": latex_name,
-              "returns": returns,
+              "returns": returns, "option": EXAMPLE_OPTION,
               "options_doc": _wrap(f"Options of ``{name}``: {request.summary}.", "    "),
               "test_doc": _wrap(f"``{name}`` ({request.summary}): designed on its example; what "
                                 "is left to write is marked.")}
@@ -1060,14 +1049,15 @@ def _check_tree(request: Request) -> None:
     code = ("import tanksynth.methods as m; m.resolve_table(); "
             f"s = m.load_spec({str(example)!r}); "
             f"assert [d.method for d in s.designs] == [{request.name!r}], s.designs")
-    steps = [[sys.executable, "-c", code]]
+    steps = {"resolving the table and loading the example": [sys.executable, "-c", code]}
     if (root / "README.md").is_file():
-        steps.append([sys.executable, "-m", "tanksynth.docgen", str(root / "README.md")])
-    for step in steps:
+        steps["python -m tanksynth.docgen"] = [sys.executable, "-m", "tanksynth.docgen",
+                                               str(root / "README.md")]
+    for what, step in steps.items():
         run = subprocess.run(step, cwd=root, env=env, capture_output=True, text=True)
         if run.returncode != 0:
             last = (run.stderr.strip() or run.stdout.strip() or "failed").splitlines()[-1]
-            raise CheckFailed(f"the new tree fails `{' '.join(step[1:3])}`: {last}")
+            raise CheckFailed(f"the new tree fails {what}: {last}")
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -1119,7 +1109,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     sys.stdout.write(
         f"method {request.name!r} scaffolded; its verdict fails until written. Next: grep -rn "
         f"'TODO({request.name})' tanksynth tests examples, write each part, then remove the xfail "
-        f"markers of tests/design/test_{request.name}.py\n")
+        f"markers of tests/design/test_{request.name}.py (a law for --export law is not scaffolded)\n")
     return 0
 
 

@@ -93,6 +93,22 @@ def test_bad_input_exits_2_with_one_line_and_writes_nothing(tmp_path):
         assert "Traceback" not in run.stderr and _files(tree) == before, case
 
 
+def test_a_tree_that_fails_its_check_is_restored(tmp_path):
+    """The new tree is checked in a fresh interpreter (here a skeleton whose verdict's name differs
+    from its row's, as a bug of the script would make it): exit 1 and every file as before."""
+    tree = _copy(tmp_path)
+    script = tree / "scripts" / "add_method.py"
+    text = script.read_text(encoding="utf-8")
+    assert text.count("def <<name>>_verdict(") == 1
+    script.write_text(text.replace("def <<name>>_verdict(", "def <<name>>_verdict_typo("),
+                      encoding="utf-8")
+    before = _files(tree)
+    run = _scaffold(tree, *NEW)
+    assert run.returncode == 1, (run.stdout, run.stderr)
+    assert "no attribute 'sliding_mode_verdict'" in run.stderr and "every file restored" in run.stderr
+    assert _files(tree) == before
+
+
 @pytest.fixture(scope="module")
 def scaffolded(tmp_path_factory) -> Path:
     """A copy of the package with ``residual_bank`` (family fault) and ``sliding_mode`` (new family
