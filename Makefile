@@ -57,5 +57,12 @@ $(DOCS_STAMP): $(STAMP)
 docs: $(DOCS_STAMP)
 	$(PY) -m sphinx -W --keep-going -b html docs docs/_build/html
 
+# Scaffold a design method into its family and add its table row (scripts/add_method.py --help):
+# make method NAME=residual_bank FAMILY=fault KIND=detector [SUMMARY="..."] [PLANT_FROM=spec.toml]
+.PHONY: method
+method: $(STAMP)
+	$(PY) scripts/add_method.py "$(NAME)" --family "$(FAMILY)" --kind "$(KIND)" \
+		$(if $(SUMMARY),--summary "$(SUMMARY)") $(if $(PLANT_FROM),--plant-from "$(PLANT_FROM)")
+
 clean:
 	rm -rf $(VENV) tanksynth-demo .pytest_cache docs/_build docs/_generated
