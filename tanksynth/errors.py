@@ -41,12 +41,19 @@ class SpecError(TanksynthError, ValueError):
         Dotted path of the offending key, e.g. ``plant.parameters.A``.
     source : str, optional
         File the spec came from, if any.
+
+    Attributes
+    ----------
+    errors : tuple of SpecError
+        When several ``[[design]]`` tables are invalid, each table's error (this
+        error's message joins them); empty otherwise.
     """
 
     def __init__(self, message: str, key: str | None = None, source: str | None = None):
         self.key = key
         self.source = source
         self.detail = message
+        self.errors: tuple[SpecError, ...] = ()
         where = []
         if source:
             where.append(str(source))
