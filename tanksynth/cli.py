@@ -338,15 +338,15 @@ def methods(name: str | None, as_json: bool, markdown: bool) -> None:
         return
     from tanksynth.methods import method
 
-    row = method(name)  # SpecError (exit 2) naming the methods for an unknown name
+    entry = method(name)  # SpecError (exit 2) naming the methods for an unknown name
     docs = method_options(name)
     if as_json:
-        click.echo(json.dumps({"name": row.name, "kinds": list(row.kinds), "summary": row.summary,
+        click.echo(json.dumps({"name": entry.name, "kinds": list(entry.kinds), "summary": entry.summary,
                                "options": docs}, indent=2))
         return
     from rich.markup import escape
 
-    table = Table(title=escape(f"{row.name} ({' / '.join(row.kinds)}): {row.summary}"))
+    table = Table(title=escape(f"{entry.name} ({' / '.join(entry.kinds)}): {entry.summary}"))
     for col, ratio in (("option", 2), ("type", 2), ("default", 2), ("unit", 2), ("meaning", 3)):
         table.add_column(col, overflow="fold", ratio=ratio, min_width=15 if col == "unit" else None)
     for d in docs:
@@ -354,7 +354,7 @@ def methods(name: str | None, as_json: bool, markdown: bool) -> None:
         table.add_row(escape(d["name"]), escape(typ),
                       "[bold]required[/]" if d["required"] else escape(default),
                       *(escape(d[k].replace("``", "")) for k in ("unit", "meaning")))
-    _wide().print(table if docs else f"{row.name}: no options")
+    _wide().print(table if docs else f"{entry.name}: no options")
 
 
 @cli.command()

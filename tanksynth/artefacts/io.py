@@ -23,11 +23,11 @@ import platform
 import stat
 from importlib import metadata
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Iterable, Mapping
+from typing import TYPE_CHECKING, Any, Iterable, Mapping, cast
 
 import numpy as np
 
-from tanksynth.artefacts.atomic import atomic_write, commit, discard, stage
+from tanksynth.artefacts.atomic import Payload, atomic_write, commit, discard, stage
 from tanksynth.artefacts.jsontext import dumps
 from tanksynth.artefacts.model import SCHEMA, Artefact, Gains, Provenance, check_document
 from tanksynth.errors import ArtefactError, SpecError
@@ -197,7 +197,8 @@ def content_digest(doc: Mapping[str, Any]) -> str:
 def _npz_bytes(gains: Mapping[str, np.ndarray]) -> bytes:
     """The ``.npz`` file of the gains, in memory (zip timestamps make it differ run to run)."""
     buf = io.BytesIO()
-    np.savez(buf, **gains)
+    # Any: numpy's stub types allow_pickle as a keyword too, which no gain's name can be
+    np.savez(buf, **cast(Mapping[str, Any], gains))
     return buf.getvalue()
 
 
@@ -303,6 +304,7 @@ def write_artefact(result: DesignResult, directory: str | Path, spec_sha256: str
         data = implementation_data(result.diagnostics, record)
     try:
         for ext, target in final.items():
+            payload: Payload
             if ext in payloads:
                 payload = payloads[ext]
             elif ext == ".mat":
