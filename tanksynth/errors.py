@@ -7,6 +7,11 @@ python-control's ``exception.py`` pattern.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from pathlib import Path
+
 __all__ = [
     "TanksynthError",
     "SpecError",
@@ -134,7 +139,7 @@ class ReportError(TanksynthError, RuntimeError):
         The LaTeX log kept for diagnosis (``DIR/report.log``).
     """
 
-    def __init__(self, message: str, log_path=None):
+    def __init__(self, message: str, log_path: str | Path | None = None):
         self.log_path = log_path
         super().__init__(message)
 

@@ -8,7 +8,7 @@ import sys
 import time
 from contextlib import contextmanager
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Iterator
 
 from tanksynth.errors import TanksynthError
 
@@ -227,7 +227,7 @@ class StageClock:
         self._start = time.perf_counter()
 
     @contextmanager
-    def __call__(self, stage: str):
+    def __call__(self, stage: str) -> Iterator[None]:
         """Time the block as (part of) ``stage``; the time counts even if the block raises."""
         t0 = time.perf_counter()
         try:

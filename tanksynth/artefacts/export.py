@@ -30,6 +30,7 @@ from tanksynth.spec.method_options.base import MethodOptions
 
 if TYPE_CHECKING:  # annotations only: the runtime estimators load with the law that needs them
     from tanksynth.plants.base import Plant
+    from tanksynth.runtime.estimators.base import KernelEstimator
     from tanksynth.runtime.estimators.kalman import KalmanTuning
     from tanksynth.spec import Spec
 
@@ -487,7 +488,7 @@ def kalman_step(name: str, plant: Plant, tuning: KalmanTuning, linear: bool) -> 
                                                                                    backend="vm"))
 
 
-def estimator_step(name: str, est: Any) -> ca.Function:
+def estimator_step(name: str, est: KernelEstimator) -> ca.Function:
     """The step of a kernel estimator whose state is ``x`` then ``P`` (KF, EKF, UKF), standalone.
 
     Parameters

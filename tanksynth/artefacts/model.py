@@ -405,7 +405,7 @@ def check_document(doc: Any, path: Path | str | None = None) -> dict[str, np.nda
     Returns
     -------
     dict of str to ndarray
-        The gains, float64.
+        The gains, float64 (the plant's units).
 
     Raises
     ------

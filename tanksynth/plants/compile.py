@@ -14,13 +14,16 @@ here, below both, because those two layers must not import each other).
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any, Callable, Mapping, Sequence
+from typing import TYPE_CHECKING, Any, Callable, Mapping, Sequence
 
 import casadi as ca
 import numpy as np
 import sympy as sp
 
 from tanksynth.errors import TanksynthError
+
+if TYPE_CHECKING:  # the plant's module imports this one on first use (Plant.compiled)
+    from tanksynth.plants.base import Plant
 
 __all__ = ["to_casadi", "CompiledPlant", "compile_plant", "compile_matrix", "rk4_step",
            "evaluate_map", "evaluate_points"]
@@ -391,7 +394,7 @@ def evaluate_points(fn: ca.Function, *arrays: np.ndarray) -> np.ndarray:
     return out.reshape(count, cols, rows).transpose(0, 2, 1)
 
 
-def compile_plant(plant) -> CompiledPlant:
+def compile_plant(plant: Plant) -> CompiledPlant:
     """Compile a `Plant` (parameters substituted) into a `CompiledPlant`.
 
     Parameters

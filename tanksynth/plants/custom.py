@@ -54,36 +54,38 @@ def _number(value: Any, key: str) -> float:
 
 
 @overload
-def _signal(name: str, spec: Any, key: str, need_bounds: Literal[True]) -> tuple[Quantity, tuple[float, float]]:
+def _signal(name: str, declared: Any, key: str, need_bounds: Literal[True]) -> tuple[Quantity, tuple[float, float]]:
     ...
 
 
 @overload
-def _signal(name: str, spec: Any, key: str, need_bounds: Literal[False]
+def _signal(name: str, declared: Any, key: str, need_bounds: Literal[False]
             ) -> tuple[Quantity, tuple[float, float] | None]:
     ...
 
 
-def _signal(name: str, spec: Any, key: str, need_bounds: bool) -> tuple[Quantity, tuple[float, float] | None]:
+def _signal(name: str, declared: Any, key: str, need_bounds: bool) -> tuple[Quantity, tuple[float, float] | None]:
+    """A state's or input's `Quantity` and its box bounds from its spec entry ``declared`` (a unit
+    string or a table ``{unit, min, max, description}``, as written: checked here)."""
     validate_name(name, key)
-    if isinstance(spec, str):
-        spec = {"unit": spec}
-    if not isinstance(spec, Mapping):
+    if isinstance(declared, str):
+        declared = {"unit": declared}
+    if not isinstance(declared, Mapping):
         raise SpecError("expected a unit string or a table {unit, min, max}", key=key)
-    unknown = set(spec) - {"unit", "min", "max", "description"}
+    unknown = set(declared) - {"unit", "min", "max", "description"}
     if unknown:
         raise SpecError(f"unknown field(s) {sorted(unknown)}; expected unit, min, max, description", key=key)
-    unit = spec.get("unit", "1")
+    unit = declared.get("unit", "1")
     if not isinstance(unit, str):
         raise SpecError(f"unit must be a string, got {unit!r}", key=f"{key}.unit")
-    desc = spec.get("description", "")
+    desc = declared.get("description", "")
     if not isinstance(desc, str):
         raise SpecError("description must be a string", key=f"{key}.description")
     bounds = None
-    if "min" in spec or "max" in spec or need_bounds:
-        if "min" not in spec or "max" not in spec:
+    if "min" in declared or "max" in declared or need_bounds:
+        if "min" not in declared or "max" not in declared:
             raise SpecError("expected both 'min' and 'max' (the operating region)", key=key)
-        lo, hi = _number(spec["min"], f"{key}.min"), _number(spec["max"], f"{key}.max")
+        lo, hi = _number(declared["min"], f"{key}.min"), _number(declared["max"], f"{key}.max")
         if not lo < hi:
             raise SpecError(f"min ({lo}) must be smaller than max ({hi})", key=key)
         bounds = (lo, hi)
