@@ -84,6 +84,9 @@ class Gains(Mapping[str, np.ndarray]):
     def __len__(self) -> int:
         return len(self._arrays)
 
+    def __reduce__(self) -> tuple[type[Gains], tuple[dict[str, np.ndarray]]]:
+        return Gains, (self._arrays,)  # unpickled arrays would be writeable: made read-only again
+
     def __repr__(self) -> str:
         return "Gains(" + ", ".join(f"{k}: shape {v.shape}" for k, v in self._arrays.items()) + ")"
 
