@@ -7,9 +7,11 @@ reads each part:
 `Artefact`
     Written by design (`tanksynth.artefacts.io.write_artefact`: ``tanksynth
     design`` and ``run``) from a `tanksynth.design.result.DesignResult`; read
-    by verify (`tanksynth.verify.runner`), the report
-    (`tanksynth.reports.inputs`), ``tanksynth.load`` (`tanksynth.loading`) and
-    the run summary (`tanksynth.messages.print_summary`).
+    as an `Artefact` (`tanksynth.artefacts.io.load_artefact`) by
+    ``tanksynth.load`` (`tanksynth.loading`) and the run summary
+    (`tanksynth.messages.print_summary`), as its document
+    (`tanksynth.artefacts.io.read_artefact`, the same checks) by verify
+    (`tanksynth.verify.runner`) and the report (`tanksynth.reports.inputs`).
 `Gains`
     Written by design (also as ``<name>.npz``); read by every stage after it
     (verify re-derives its checks from them).
