@@ -35,8 +35,10 @@ demo: $(STAMP) bytecode
 
 # import-linter contracts (.importlinter: layers, verify never imports design, papers only
 # in reports) first, then the test suite.
+# Between them mypy type-checks the whole package ([tool.mypy] in pyproject.toml).
 test: $(STAMP) tex bytecode
 	$(VENV)/bin/lint-imports --no-logo
+	$(VENV)/bin/mypy
 	$(PY) -m pytest -n 2 -q
 
 # The adversarial property tests at ten times the scale of `make test` (>= 20,000 generated specs

@@ -8,6 +8,8 @@ use (``import tanksynth`` itself loads none of the numerical libraries).
 
 from __future__ import annotations
 
+from typing import Any
+
 from tanksynth._lazy import lazy_exports as _lazy_exports
 
 _EXPORTS = {
@@ -31,7 +33,7 @@ _EXPORTS = {
 _lazy_getattr, __dir__ = _lazy_exports(__name__, _EXPORTS)
 
 
-def __getattr__(name: str):
+def __getattr__(name: str) -> Any:
     """``__version__`` (read from the installed metadata on first use: importlib.metadata
     costs ~25 ms, issue 15) and the lazy re-exports."""
     if name == "__version__":

@@ -15,9 +15,10 @@ import json
 import shutil
 import sys
 import warnings
-from contextlib import contextmanager
+from contextlib import AbstractContextManager, contextmanager
 from importlib import resources
 from pathlib import Path
+from typing import TYPE_CHECKING, Any, Callable, Iterable, Iterator
 
 import click
 from rich.console import Console
@@ -32,7 +33,15 @@ from tanksynth.messages import one_line as _one_line
 from tanksynth.process import ignore_file_size_signal as _ignore_file_size_signal
 from tanksynth.process import internal_error_log as _internal_error_log
 from tanksynth.process import one_blas_thread as _one_blas_thread
-from tanksynth.report_worker import ReportWorker, report_summary
+from tanksynth.report_worker import ReportSummary, ReportWorker, report_summary
+
+if TYPE_CHECKING:  # annotations only: each command imports what it needs when it runs
+    import casadi
+    from rich.progress import Progress, TaskID
+
+    from tanksynth.analysis.checks import Check
+    from tanksynth.design.result import DesignResult
+    from tanksynth.spec import DesignSpec, Spec
 
 __all__ = ["main", "cli"]
 
@@ -89,7 +98,7 @@ def _wide() -> Console:
     return Console(width=_PIPED_WIDTH) if _piped() else _out
 
 
-def _progress(quiet: bool = False):
+def _progress(quiet: bool = False) -> Progress:
     """A progress bar for the artefacts or runs of a stage: a spinner, the current item, done
     of total and the elapsed time (no ETA: one artefact's verdict can take long)."""
     from rich.progress import (BarColumn, MofNCompleteColumn, Progress, SpinnerColumn,
@@ -101,7 +110,7 @@ def _progress(quiet: bool = False):
 
 
 @contextmanager
-def _stage(text: str, quiet: bool = False):
+def _stage(text: str, quiet: bool = False) -> Iterator[None]:
     """Print a line as a stage starts, and a spinner while it runs (on a terminal only);
     nothing with ``quiet`` (``--json`` output must stay one JSON document)."""
     if quiet:
@@ -116,7 +125,7 @@ def _stage(text: str, quiet: bool = False):
 
 
 
-def _load(spec_path: str | None):
+def _load(spec_path: str | None) -> Spec:
     from tanksynth.methods import load_spec, parse_spec_text
 
     if spec_path is None:
@@ -137,18 +146,20 @@ def _keyed(exc: TanksynthError, key: str, source: str | None) -> SpecError:
     return SpecError(f"{type(exc).__name__}: {_one_line(exc)}", key=key, source=source)
 
 
-def _rank_conditions(s):
+def _rank_conditions(s: Spec) -> list[Check]:
     from tanksynth.analysis.checks import rank_conditions
 
     try:
-        return rank_conditions(s.plant, s.x0, s.ts, s.given_u0)
+        # as lists: the analysis takes sequences of float (the same numbers)
+        given = None if s.given_u0 is None else s.given_u0.tolist()
+        return rank_conditions(s.plant, s.x0.tolist(), s.ts, given)
     except InfeasibleDesign:
         raise
     except TanksynthError as exc:
         raise _keyed(exc, "plant", s.source) from None
 
 
-def _print_checks(checks, title: str = "Rank conditions") -> None:
+def _print_checks(checks: Iterable[Check], title: str = "Rank conditions") -> None:
     table = Table(title=title)
     table.add_column("check")
     table.add_column("verdict")
@@ -159,7 +170,7 @@ def _print_checks(checks, title: str = "Rank conditions") -> None:
     _out.print(table)
 
 
-def _refuse_other_spec(spec, outdir: Path, force: bool) -> None:
+def _refuse_other_spec(spec: Spec, outdir: Path, force: bool) -> None:
     """Refuse (exit 2) a directory written from another spec; with ``force``, remove that
     run's files first."""
     from tanksynth.artefacts.io import other_spec_files
@@ -176,13 +187,13 @@ def _refuse_other_spec(spec, outdir: Path, force: bool) -> None:
                markup=False, highlight=False, soft_wrap=True)
 
 
-def _locked(directory, command: str):
+def _locked(directory: str | Path, command: str) -> AbstractContextManager[Path]:
     from tanksynth.artefacts.atomic import directory_lock
 
     return directory_lock(directory, command=command)
 
 
-def _design_all(spec, outdir: Path, export: tuple[str, ...]
+def _design_all(spec: Spec, outdir: Path, export: tuple[str, ...]
                 ) -> tuple[list[Path], list[str], list[Path]]:
     """Design every entry, then write the artefacts; return the artefacts, the refusals and
     the ``<name>_law.casadi`` files written (``--export law``).
@@ -202,7 +213,9 @@ def _design_all(spec, outdir: Path, export: tuple[str, ...]
 
     from tanksynth.reports.refused import refusal, write_refused
 
-    results, infeasible, refused = [], [], []
+    results: list[tuple[DesignSpec, DesignResult]] = []
+    infeasible: list[str] = []
+    refused: list[dict[str, Any]] = []
     seen: dict[str, list[str]] = {}
     for k, design in enumerate(spec.designs, 1):
         with warnings.catch_warnings(record=True) as caught:
@@ -228,7 +241,8 @@ def _design_all(spec, outdir: Path, export: tuple[str, ...]
         click.echo(f"refused {line}")
     plant_sha = file_sha256(write_plant_record(spec, outdir))
     write_refused(outdir, refused)
-    written, laws = [], []
+    written: list[Path] = []
+    laws: list[Path] = []
     for design, result in results:
         formats = list(dict.fromkeys(export))  # "--export law --export law": once
         derived = None
@@ -246,7 +260,7 @@ def _design_all(spec, outdir: Path, export: tuple[str, ...]
     return written, infeasible, laws
 
 
-def _derived_law(spec, design, result):
+def _derived_law(spec: Spec, design: DesignSpec, result: DesignResult) -> casadi.Function | None:
     """The law / estimator step of a design without one in its diagnostics (None: says so)."""
     from tanksynth.artefacts.export import derived_law
 
@@ -338,15 +352,15 @@ def methods(name: str | None, as_json: bool, markdown: bool) -> None:
         return
     from tanksynth.methods import method
 
-    row = method(name)  # SpecError (exit 2) naming the methods for an unknown name
+    entry = method(name)  # SpecError (exit 2) naming the methods for an unknown name
     docs = method_options(name)
     if as_json:
-        click.echo(json.dumps({"name": row.name, "kinds": list(row.kinds), "summary": row.summary,
+        click.echo(json.dumps({"name": entry.name, "kinds": list(entry.kinds), "summary": entry.summary,
                                "options": docs}, indent=2))
         return
     from rich.markup import escape
 
-    table = Table(title=escape(f"{row.name} ({' / '.join(row.kinds)}): {row.summary}"))
+    table = Table(title=escape(f"{entry.name} ({' / '.join(entry.kinds)}): {entry.summary}"))
     for col, ratio in (("option", 2), ("type", 2), ("default", 2), ("unit", 2), ("meaning", 3)):
         table.add_column(col, overflow="fold", ratio=ratio, min_width=15 if col == "unit" else None)
     for d in docs:
@@ -354,7 +368,7 @@ def methods(name: str | None, as_json: bool, markdown: bool) -> None:
         table.add_row(escape(d["name"]), escape(typ),
                       "[bold]required[/]" if d["required"] else escape(default),
                       *(escape(d[k].replace("``", "")) for k in ("unit", "meaning")))
-    _wide().print(table if docs else f"{row.name}: no options")
+    _wide().print(table if docs else f"{entry.name}: no options")
 
 
 @cli.command()
@@ -449,7 +463,7 @@ def run(spec: str | None, outdir: str, pdf: bool | None, force: bool) -> None:
         _run_locked(s, spec, out, pdf)
 
 
-def _run_locked(s, spec: str | None, out: Path, pdf: bool | None) -> None:
+def _run_locked(s: Spec, spec: str | None, out: Path, pdf: bool | None) -> None:
     have_tex = all(shutil.which(tool) for tool in ("pdflatex", "latexmk"))
     if pdf is None:
         pdf = spec is None and have_tex
@@ -463,7 +477,8 @@ def _run_locked(s, spec: str | None, out: Path, pdf: bool | None) -> None:
             worker.cancel()
 
 
-def _run_stages(s, spec, out: Path, pdf: bool, have_tex: bool, clock, worker) -> None:
+def _run_stages(s: Spec, spec: str | None, out: Path, pdf: bool, have_tex: bool, clock: StageClock,
+                worker: ReportWorker | None) -> None:
     from tanksynth.artefacts.atomic import atomic_write
     from tanksynth.artefacts.io import to_jsonable
     from tanksynth.methods import verify_directory
@@ -511,14 +526,14 @@ def _run_stages(s, spec, out: Path, pdf: bool, have_tex: bool, clock, worker) ->
         raise _Fail(EXIT_FAILED, "some checks fail: " + ", ".join(failed))
 
 
-def _started(bar, task):
+def _started(bar: Progress, task: TaskID) -> Callable[[int, int, str, str], None]:
     """``started(done, total, name, method)`` for `verify_directory`: the bar names the artefact
     being verified (its checks run inside one verdict)."""
     return lambda d, n, name, method: bar.update(task, completed=d, total=n,
                                                  description=f"verifying {name} ({method})")
 
 
-def _write_report(directory: Path, pdf: bool, worker=None):
+def _write_report(directory: Path, pdf: bool, worker: ReportWorker | None = None) -> ReportSummary:
     """Write the report (by ``worker`` when given and it manages, else here) and say where."""
     with _stage("writing the report (figures, LaTeX" + (", PDF with latexmk)" if pdf else ")")):
         res = worker.finish() if worker is not None else None

@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Callable, Iterable, Mapping, Sequence
+from typing import TYPE_CHECKING, Any, Callable, Iterable, Mapping, Sequence
 
 import numpy as np
 
@@ -27,6 +27,9 @@ from tanksynth.sim.metrics import compute_metrics
 from tanksynth.sim.scenarios import CONTROL_BENCHMARK_SCENARIOS, SCENARIOS, run_scenario
 from tanksynth.sim.simulate import BatchEstimator, run_seeds
 from tanksynth.verify.laws.campaign import InverseDynamicsLaw
+
+if TYPE_CHECKING:  # the estimators load with the comparison that builds them
+    from tanksynth.runtime.estimators.base import KernelEstimator
 
 __all__ = ["ESTIMATOR_KINDS", "FilterTuning", "comparison_estimators", "ComparisonRow",
            "controller_comparison"]
@@ -73,8 +76,9 @@ def _factory(kind: str, plant: Plant, ts: float, x0: np.ndarray,
     from tanksynth.runtime.estimators.ukf import UKFTuning, UnscentedKalmanFilter
     from tanksynth.sim.simulate import EstimatorAdapter
 
-    common = dict(Q=t.Q * np.eye(plant.n), R=t.R * np.eye(plant.q), P0=t.P0 * np.eye(plant.n),
-                  x0=x0, ts=ts, substeps=t.substeps, clip=True)
+    common: dict[str, Any] = dict(Q=t.Q * np.eye(plant.n), R=t.R * np.eye(plant.q),
+                                  P0=t.P0 * np.eye(plant.n), x0=x0, ts=ts, substeps=t.substeps, clip=True)
+    template: KernelEstimator
     if kind == "ekf":
         template = ExtendedKalmanFilter(plant, KalmanTuning(**common))
     elif kind == "ukf":
@@ -118,7 +122,7 @@ def comparison_estimators(plant: Plant, ts: float, combinations: Mapping[str, st
     ValueError
         An unknown estimator kind.
     """
-    x0 = np.full(plant.n, 0.3) if x0 is None else np.asarray(x0, dtype=float)
+    start = np.full(plant.n, 0.3) if x0 is None else np.asarray(x0, dtype=float)
     out: dict[str, tuple[Callable[[], BatchEstimator] | None, str]] = {}
     for label, kind in combinations.items():
         if kind is None:
@@ -128,7 +132,7 @@ def comparison_estimators(plant: Plant, ts: float, combinations: Mapping[str, st
             raise ValueError(f"combination {label!r}: unknown estimator kind {kind!r}; expected one "
                              "of " + ", ".join(ESTIMATOR_KINDS) + " or None")
         try:
-            out[label] = (_factory(kind, plant, ts, x0, tuning), "")
+            out[label] = (_factory(kind, plant, ts, start, tuning), "")
         except (TanksynthError, np.linalg.LinAlgError) as exc:
             out[label] = (None, f"{kind} estimator could not be built: {' '.join(str(exc).split())}")
     return out
@@ -191,15 +195,15 @@ def controller_comparison(plant: Plant, estimators: EstimatorFactories, *, x_op:
     """
     from tanksynth.analysis.linearize import equilibrium_input
 
-    x_op = np.asarray(x_op, dtype=float)
-    u_op = equilibrium_input(plant, x_op).u0
+    x_point = [float(v) for v in x_op]
+    u_op = equilibrium_input(plant, x_point).u0.tolist()
     tracked = tuple(int(i) for i in tracked)
     if law is None:
         law = InverseDynamicsLaw(plant, tracked, tuple(float(g) for g in gains))
-    seeds = run_seeds(seed, runs)
+    seeds = run_seeds(seed, runs).tolist()  # Python ints: the same uint64 seeds
     rows = []
     for name in scenarios:
-        setup = SCENARIOS[name].setup(plant, x_op, u_op, tracked, ts=ts)
+        setup = SCENARIOS[name].setup(plant, x_point, u_op, tracked, ts=ts)
         for label, (factory, reason) in estimators.items():
             if reason:
                 rows.append(ComparisonRow(name, label, {}, reason))

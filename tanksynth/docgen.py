@@ -17,7 +17,7 @@ import inspect
 import re
 import sys
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any, Callable, Sequence
 
 from tanksynth.errors import SpecError
 from tanksynth.spec.method_options.base import numpydoc_section
@@ -97,7 +97,7 @@ def _cell(text: str) -> str:
     return " ".join(str(text).split()).replace("|", "\\|")
 
 
-def _table(header: tuple[str, ...], rows: list[tuple[str, ...]]) -> list[str]:
+def _table(header: tuple[str, ...], rows: Sequence[tuple[str, ...]]) -> list[str]:
     out = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
     out += ["| " + " | ".join(_cell(c) for c in row) + " |" for row in rows]
     return out
@@ -231,7 +231,7 @@ def custom_plant_markdown(level: int = 3) -> str:
     from tanksynth.plants import custom
 
     keys = numpydoc_section(custom.custom_plant.__doc__, "Parameters")["spec"][1]
-    example = inspect.getdoc(custom).split("Example::", 1)[1].split("\n\n")[1]
+    example = (inspect.getdoc(custom) or "").split("Example::", 1)[1].split("\n\n")[1]
     example = inspect.cleandoc(example)
     return "\n".join([
         f"{'#' * level} `model = \"custom\"`", "",

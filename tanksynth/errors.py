@@ -7,6 +7,11 @@ python-control's ``exception.py`` pattern.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from pathlib import Path
+
 __all__ = [
     "TanksynthError",
     "SpecError",
@@ -41,12 +46,19 @@ class SpecError(TanksynthError, ValueError):
         Dotted path of the offending key, e.g. ``plant.parameters.A``.
     source : str, optional
         File the spec came from, if any.
+
+    Attributes
+    ----------
+    errors : tuple of SpecError
+        When several ``[[design]]`` tables are invalid, each table's error (this
+        error's message joins them); empty otherwise.
     """
 
     def __init__(self, message: str, key: str | None = None, source: str | None = None):
         self.key = key
         self.source = source
         self.detail = message
+        self.errors: tuple[SpecError, ...] = ()
         where = []
         if source:
             where.append(str(source))
@@ -127,7 +139,7 @@ class ReportError(TanksynthError, RuntimeError):
         The LaTeX log kept for diagnosis (``DIR/report.log``).
     """
 
-    def __init__(self, message: str, log_path=None):
+    def __init__(self, message: str, log_path: str | Path | None = None):
         self.log_path = log_path
         super().__init__(message)
 

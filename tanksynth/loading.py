@@ -23,6 +23,7 @@ from typing import Any, Iterator, Mapping
 import numpy as np
 
 from tanksynth.artefacts.io import read_plant_record
+from tanksynth.artefacts.model import Artefact
 from tanksynth.errors import ArtefactError
 from tanksynth.verify.runner import read_checks, read_directory
 
@@ -57,6 +58,24 @@ class Design:
     diagnostics: Mapping[str, Any]
     verification: Mapping[str, Any] | None
     plant_record: Mapping[str, Any] | None = field(default=None, repr=False)
+
+    @classmethod
+    def from_artefact(cls, artefact: Artefact, path: Path,
+                      plant_record: Mapping[str, Any] | None = None) -> "Design":
+        """The `Design` of an artefact read from ``path``.
+
+        Parameters
+        ----------
+        artefact : Artefact
+            As read (`tanksynth.artefacts.model.Artefact.from_document`).
+        path : Path
+            Its JSON file.
+        plant_record : mapping, optional
+            ``plant.json`` of its directory.
+        """
+        verification = None if artefact.verification is None else artefact.verification.to_document()
+        return cls(artefact.name, artefact.method, path, artefact.gains, artefact.diagnostics,
+                   verification, plant_record)
 
     @property
     def verdict(self) -> bool | None:
@@ -201,13 +220,8 @@ class Results(Mapping[str, Design]):
 
 
 def _design(path: Path, doc: Mapping[str, Any], record: Mapping[str, Any] | None) -> Design:
-    gains = {}
-    for k, v in doc["gains"].items():
-        arr = np.array(v, dtype=float)
-        arr.flags.writeable = False
-        gains[k] = arr
-    return Design(doc["name"], doc["method"], path, gains, doc.get("diagnostics") or {},
-                  doc.get("verification"), record)
+    """The `Design` of a document `read_directory` checked (hashes included)."""
+    return Design.from_artefact(Artefact.from_document(doc, path), path, record)
 
 
 def _plant_record(directory: Path) -> Mapping[str, Any] | None:

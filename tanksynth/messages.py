@@ -8,9 +8,12 @@ import sys
 import time
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Any, Mapping
+from typing import TYPE_CHECKING, Any, Iterator
 
 from tanksynth.errors import TanksynthError
+
+if TYPE_CHECKING:  # read when the summary is printed
+    from tanksynth.artefacts.model import VerificationCheck
 
 __all__ = ["print_summary", "MAX_MESSAGE", "KNOWN_WARNINGS", "one_line", "meaning", "origin", "warning_line",
            "design_index_note", "note_warnings", "law_line", "StageClock"]
@@ -19,7 +22,7 @@ __all__ = ["print_summary", "MAX_MESSAGE", "KNOWN_WARNINGS", "one_line", "meanin
 MAX_MESSAGE = 600
 
 
-def one_line(exc: BaseException) -> str:
+def one_line(exc: BaseException | str) -> str:
     """The message on one line, its long runs of digits and its total length cut.
 
     Parameters
@@ -224,7 +227,7 @@ class StageClock:
         self._start = time.perf_counter()
 
     @contextmanager
-    def __call__(self, stage: str):
+    def __call__(self, stage: str) -> Iterator[None]:
         """Time the block as (part of) ``stage``; the time counts even if the block raises."""
         t0 = time.perf_counter()
         try:
@@ -274,13 +277,13 @@ def print_summary(paths: list[Path], console: Any) -> None:
     """
     from rich.table import Table
 
-    from tanksynth.artefacts.io import read_artefact
+    from tanksynth.artefacts.io import load_artefact
     from tanksynth.summary import summary_row
 
     table = Table(title="Designs, verified on the nonlinear plant")
     for col in ("design", "method", "key figure", "verdict"):   # names never broken mid-word
         table.add_column(col, overflow="fold", no_wrap=col in ("design", "method"))
-    failures = []
+    failures: list[tuple[str, VerificationCheck]] = []
     try:
         from tanksynth.artefacts.io import read_plant_record
 
@@ -288,16 +291,14 @@ def print_summary(paths: list[Path], console: Any) -> None:
     except (TanksynthError, KeyError, TypeError, OSError):
         units = None
     for path in paths:
-        doc = read_artefact(path)
-        row = summary_row(doc, units)
+        artefact = load_artefact(path)
+        row = summary_row(artefact, units)
         table.add_row(row.name, row.method, row.figure, "[green]pass[/]" if row.passed else "[red]FAIL[/]")
-        ver = doc.get("verification")
-        checks = ver.get("checks") if isinstance(ver, Mapping) else None   # an edited artefact: no crash
-        failures += [(row.name, c) for c in (checks if isinstance(checks, list) else [])
-                     if isinstance(c, Mapping) and c.get("passed") is False]
+        if artefact.verification is not None:   # an edited verification reads leniently: no crash
+            failures += [(row.name, c) for c in artefact.verification.checks if c.passed is False]
     console.print(table)
     for name, c in failures:  # why, without opening the artefact
-        console.print(f"{name}: {c.get('check', '?')} FAILED: {one_line(c.get('detail', ''))}", markup=False,
+        console.print(f"{name}: {c.check} FAILED: {one_line(c.detail)}", markup=False,
                    highlight=False)
     console.print(f"artefacts: {paths[0].parent}/<design>.json (.npz beside)", markup=False,
                highlight=False)

@@ -40,13 +40,14 @@ from dataclasses import dataclass
 from functools import cache
 from pathlib import Path
 from types import MappingProxyType
-from typing import TYPE_CHECKING, Any, Callable, Iterator, Mapping
+from typing import TYPE_CHECKING, Any, Callable, Generic, Iterator, Mapping, TypeVar, cast
 
 if TYPE_CHECKING:  # annotations only: the modules load when a row's part is first used
     from tanksynth.design.result import DesignMethod, DesignResult
+    from tanksynth.plants.base import Plant
     from tanksynth.spec import DesignSpec, Spec
     from tanksynth.spec.method_options import MethodOptions
-    from tanksynth.verify.runner import Verdict, VerdictFn
+    from tanksynth.verify.runner import VerifiableMethod, Verdict, VerdictFn
 
 __all__ = ["KINDS", "FAMILIES", "Method", "home", "TABLE", "METHODS", "VERDICTS", "RUNNERS", "STATEMENTS", "ADAPTERS",
            "method", "resolve", "resolve_table", "design", "load_spec", "parse_spec", "parse_spec_text",
@@ -84,20 +85,24 @@ def resolve(ref: str) -> Any:
     return getattr(sys.modules[module], attr)
 
 
-class _Part:
+#: The type of the object a `_Part` field holds.
+_T = TypeVar("_T")
+
+
+class _Part(Generic[_T]):
     """A field of `Method` given as a reference string (imported on first read, see `resolve`)
     or as the object itself (``dataclasses.replace(row, verdict=fn)``)."""
 
     def __set_name__(self, owner: type, name: str) -> None:
         self._slot = "_" + name
 
-    def __get__(self, obj: Any, objtype: type | None = None) -> Any:
+    def __get__(self, obj: Any, objtype: type | None = None) -> _T:
         if obj is None:
             raise AttributeError(self._slot[1:])  # no class-level default (dataclass fields)
         value = obj.__dict__[self._slot]
-        return resolve(value) if isinstance(value, str) else value
+        return cast(_T, resolve(value)) if isinstance(value, str) else value
 
-    def __set__(self, obj: Any, value: Any) -> None:
+    def __set__(self, obj: Any, value: _T | str) -> None:
         obj.__dict__[self._slot] = value  # reached from the dataclass __init__ only (frozen)
 
 
@@ -137,11 +142,11 @@ class Method:
     family: str
     kinds: tuple[str, ...]
     summary: str
-    options: type[MethodOptions] = _Part()     # type: ignore[assignment]
-    adapter: DesignMethod = _Part()            # type: ignore[assignment]
-    verdict: VerdictFn = _Part()               # type: ignore[assignment]
-    statement: Callable[[Mapping[str, Any]], Any] = _Part()  # type: ignore[assignment]
-    campaign: Callable[..., Any] = _Part()     # type: ignore[assignment]
+    options: _Part[type[MethodOptions]] = _Part()
+    adapter: _Part[DesignMethod] = _Part()
+    verdict: _Part[VerdictFn] = _Part()
+    statement: _Part[Callable[[Mapping[str, Any]], Any]] = _Part()
+    campaign: _Part[Callable[..., Any]] = _Part()
 
     def refs(self) -> dict[str, Any]:
         """The parts as given: reference strings (or objects), by part name."""
@@ -151,7 +156,7 @@ class Method:
         parts = ", ".join(f"{part}={ref!r}" for part, ref in self.refs().items())
         return f"Method(name={self.name!r}, family={self.family!r}, kinds={self.kinds!r}, summary={self.summary!r}, {parts})"
 
-    def validate(self, options: Mapping[str, Any], key: str, plant: Any,
+    def validate(self, options: Mapping[str, Any], key: str, plant: Plant,
                  ts: float | None) -> MethodOptions:
         """Validate a ``[[design]]`` table's options (the spec parser's check; imports only the
         Options, not the design code).
@@ -495,8 +500,11 @@ class _Verifiable:
         return self._row
 
 
-def _verifiable() -> dict[str, _Verifiable]:
-    return {name: _Verifiable(row) for name, row in METHODS.items()}
+def _verifiable() -> Mapping[str, VerifiableMethod]:
+    # cast: the rows' parts are read-only properties (imported on first read); the runner only
+    # reads them, though its Protocol declares them as plain (settable) attributes
+    return cast("Mapping[str, VerifiableMethod]",
+                {name: _Verifiable(row) for name, row in METHODS.items()})
 
 
 def method(name: str) -> Method:

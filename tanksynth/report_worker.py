@@ -30,7 +30,11 @@ import sys
 import threading
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Callable, Iterator
+from typing import TYPE_CHECKING, Any, Callable, Iterator
+
+if TYPE_CHECKING:  # the report stack loads in the worker (or in write_report), not on import
+    from tanksynth.reports.inputs import ReportInputs
+    from tanksynth.reports.writer import ReportResult
 
 __all__ = ["ReportSummary", "ReportWorker", "report_summary", "worker_usable"]
 
@@ -61,7 +65,7 @@ class ReportSummary:
     errata: tuple[tuple[str, int], ...]
 
 
-def report_summary(result: Any) -> ReportSummary:
+def report_summary(result: ReportResult) -> ReportSummary:
     """The summary of a `tanksynth.reports.writer.ReportResult`.
 
     Parameters
@@ -91,7 +95,7 @@ def _write_all(fd: int, data: bytes) -> None:
 
 
 def _read_all(fd: int) -> bytes:
-    chunks = []
+    chunks: list[bytes] = []
     while True:
         chunk = os.read(fd, 1 << 16)
         if not chunk:
@@ -256,7 +260,7 @@ def _serve(directory: Path, pdf: bool, go: int, result: int) -> None:
         pass
 
 
-def _ahead(draw: Callable[[Any], dict[str, Any]], directory: Path) -> dict[str, Any]:
+def _ahead(draw: Callable[[ReportInputs], dict[str, Any]], directory: Path) -> dict[str, Any]:
     """Figures drawn ahead of `write_report`; none when anything fails (`write_report` then
     draws them, or raises what is wrong)."""
     from tanksynth.reports.inputs import read_report_inputs
@@ -267,13 +271,13 @@ def _ahead(draw: Callable[[Any], dict[str, Any]], directory: Path) -> dict[str, 
         return {}
 
 
-def _pole_maps(inputs: Any) -> dict[str, Any]:
+def _pole_maps(inputs: ReportInputs) -> dict[str, Any]:
     from tanksynth.reports.writer import draw_pole_maps
 
     return draw_pole_maps(inputs)
 
 
-def _trace_figures_in_two(inputs: Any) -> dict[str, Any]:
+def _trace_figures_in_two(inputs: ReportInputs) -> dict[str, Any]:
     """Every time-domain figure, half of them (by trace size) drawn in a forked process."""
     from tanksynth.reports.context import draw_trace_figures, trace_jobs
 

@@ -12,6 +12,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any, Mapping, Sequence
 
+from tanksynth.artefacts.model import Artefact, Verification, VerificationCheck
+
 __all__ = ["SummaryRow", "key_figure", "summary_row"]
 
 
@@ -34,11 +36,28 @@ class SummaryRow:
     passed: bool
 
 
-def _checks(doc: Mapping[str, Any]) -> dict[str, Mapping[str, Any]]:
-    ver = doc.get("verification") or {}
-    checks = ver.get("checks") if isinstance(ver, Mapping) else None
-    return {str(c.get("check")): c for c in (checks if isinstance(checks, list) else [])
-            if isinstance(c, Mapping)}
+@dataclass(frozen=True)
+class _Read:
+    """What the summary reads of an artefact (an `Artefact`, or a document as read from its JSON)."""
+
+    name: str
+    method: str
+    diagnostics: Mapping[str, Any]
+    verification: Verification | None
+
+
+def _read(doc: Artefact | Mapping[str, Any]) -> _Read:
+    if isinstance(doc, Artefact):
+        return _Read(doc.name, doc.method, doc.diagnostics, doc.verification)
+    diagnostics = doc.get("diagnostics")
+    return _Read(str(doc.get("name", "")), str(doc.get("method", "")),
+                 diagnostics if isinstance(diagnostics, Mapping) else {},
+                 Verification.from_document(doc.get("verification")))
+
+
+def _checks(read: _Read) -> dict[str, VerificationCheck]:
+    """The recorded checks by name (the last of a name)."""
+    return {} if read.verification is None else {c.check: c for c in read.verification.checks}
 
 
 def _complex(v: Any) -> complex:
@@ -62,8 +81,8 @@ def _common_unit(units: Sequence[str] | None) -> str:
     return ""
 
 
-def key_figure(doc: Mapping[str, Any], state_units: Sequence[str] | None = None) -> str:
-    """The key figure of one verified artefact (``doc`` as read from its JSON), or ``"-"``.
+def key_figure(doc: Artefact | Mapping[str, Any], state_units: Sequence[str] | None = None) -> str:
+    """The key figure of one verified artefact, or ``"-"``.
 
     ``state_units`` (the plant record's state units) give the error figures their unit.
     Recorded data that cannot be read (an edited artefact: a string, None or an
@@ -72,20 +91,21 @@ def key_figure(doc: Mapping[str, Any], state_units: Sequence[str] | None = None)
 
     Parameters
     ----------
-    doc : mapping
-        A verified artefact, as read from its JSON.
+    doc : Artefact or mapping
+        A verified artefact (`tanksynth.artefacts.io.load_artefact`), or its
+        document as read from its JSON.
     state_units : sequence of str, optional
         Units of the plant's states (e.g. ``m``); None: figures without a unit.
     """
     try:
-        return _key_figure(doc, state_units)
+        return _key_figure(_read(doc), state_units)
     except (TypeError, ValueError, KeyError, IndexError, AttributeError, OverflowError):
         return "- (unreadable verification data)"
 
 
-def _key_figure(doc: Mapping[str, Any], state_units: Sequence[str] | None) -> str:
+def _key_figure(doc: _Read, state_units: Sequence[str] | None) -> str:
     checks = _checks(doc)
-    data = {name: (c.get("data") if isinstance(c.get("data"), Mapping) else {}) for name, c in checks.items()}
+    data: dict[str, Mapping[str, Any]] = {name: c.data for name, c in checks.items()}
     if "achieved" in data.get("poles", {}):
         return "poles " + _poles(data["poles"]["achieved"])
     if "psi" in data.get("lmi_recheck", {}):
@@ -97,7 +117,7 @@ def _key_figure(doc: Mapping[str, Any], state_units: Sequence[str] | None) -> st
                      f"{unit}").replace("  ", " ").rstrip()
         return text
     norms = (("hinf_norm", "||T_zw||inf"), ("h2_norm", "||T_zw||2"))
-    if str(doc.get("method", "")).startswith("h2_") or data.get("h2_optimality"):
+    if doc.method.startswith("h2_") or data.get("h2_optimality"):
         norms = norms[::-1]  # an H2 design is judged by its H2 norm
     for name, label in norms:
         if "value" in data.get(name, {}):
@@ -108,7 +128,7 @@ def _key_figure(doc: Mapping[str, Any], state_units: Sequence[str] | None) -> st
                 f"{len(margins)} models")
         hinf = data.get("vertex_hinf", {})
         if hinf.get("norms") and "gamma" in hinf:  # the H-infinity channel, recomputed per model
-            bound = (((doc.get("diagnostics") or {}).get("robust") or {}).get("hinf") or {})
+            bound = ((doc.diagnostics.get("robust") or {}).get("hinf") or {})
             worst, gamma = max(float(v) for v in hinf["norms"]), float(hinf["gamma"])
             text += (f"; ||T_zw||inf {worst:.4g} {'<=' if worst <= gamma else '> (EXCEEDS)'} gamma "
                      f"{gamma:.4g}"
@@ -127,7 +147,8 @@ def _key_figure(doc: Mapping[str, Any], state_units: Sequence[str] | None) -> st
     fault = data.get("fault_detected", {})
     if fault.get("t_detect") and "t_fault" in fault:   # the residual detector on the nonlinear plant
         times = list(fault["t_detect"])
-        alarm = checks.get("no_false_alarm", {}).get("passed")
+        no_false_alarm = checks.get("no_false_alarm")
+        alarm = None if no_false_alarm is None else no_false_alarm.passed
         missed = sum(t is None for t in times)   # a run whose fault was never detected
         text = (f"fault NOT detected in {missed} of {len(times)} runs" if missed else
                 f"fault detected {max(float(t) for t in times) - float(fault['t_fault']):.3g} s after "
@@ -143,16 +164,17 @@ def _key_figure(doc: Mapping[str, Any], state_units: Sequence[str] | None) -> st
     return "-"
 
 
-def summary_row(doc: Mapping[str, Any], state_units: Sequence[str] | None = None) -> SummaryRow:
+def summary_row(doc: Artefact | Mapping[str, Any], state_units: Sequence[str] | None = None) -> SummaryRow:
     """`SummaryRow` of one verified artefact (``state_units``: see `key_figure`).
 
     Parameters
     ----------
-    doc : mapping
-        A verified artefact, as read from its JSON.
+    doc : Artefact or mapping
+        A verified artefact (`tanksynth.artefacts.io.load_artefact`), or its
+        document as read from its JSON.
     state_units : sequence of str, optional
         Units of the plant's states (e.g. ``m``); None: figures without a unit.
     """
-    ver = doc.get("verification") or {}
-    return SummaryRow(str(doc.get("name", "")), str(doc.get("method", "")), key_figure(doc, state_units),
-                      isinstance(ver, Mapping) and ver.get("passed") is True)
+    read = _read(doc)
+    return SummaryRow(read.name, read.method, key_figure(doc, state_units),
+                      read.verification is not None and read.verification.passed)

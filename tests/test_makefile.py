@@ -1,4 +1,5 @@
-"""The Makefile's ``bytecode`` target never leaves a stale .pyc that Python would use."""
+"""The Makefile: ``bytecode`` never leaves a stale .pyc that Python would use; ``test`` runs the
+type checker on the package."""
 
 from __future__ import annotations
 
@@ -7,6 +8,7 @@ import re
 import shlex
 import subprocess
 import sys
+import tomllib
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -37,3 +39,30 @@ def test_bytecode_edit_in_the_same_second_with_the_same_size_is_seen(tmp_path: P
     out = subprocess.run([sys.executable, "-c", "import tanksynth.constant as c; print(c.VALUE)"],
                          cwd=tmp_path, env=env, check=True, capture_output=True, text=True)
     assert out.stdout.strip() == "12"
+
+
+def _recipe(target: str) -> list[str]:
+    """The command lines of a Makefile target (without make's ``@``/``-`` prefixes)."""
+    text = (ROOT / "Makefile").read_text(encoding="utf-8")
+    block = re.search(rf"^{re.escape(target)}:.*\n((?:\t.*\n?)*)", text, re.MULTILINE)
+    assert block is not None, f"no {target} target in the Makefile"
+    return [line.strip().lstrip("@-") for line in block.group(1).splitlines()]
+
+
+def test_the_test_target_type_checks_the_package_after_the_import_contracts() -> None:
+    lines = _recipe("test")
+    mypy = [i for i, line in enumerate(lines) if shlex.split(line)[0] == "$(VENV)/bin/mypy"]
+    lint = [i for i, line in enumerate(lines) if shlex.split(line)[0] == "$(VENV)/bin/lint-imports"]
+    tests = [i for i, line in enumerate(lines) if "pytest" in line]
+    assert mypy and lint and tests, lines
+    assert lint[0] < mypy[0] < tests[0], lines
+    args = [a for a in shlex.split(lines[mypy[0]])[1:] if not a.startswith("-")]
+    pyproject = tomllib.loads((ROOT / "pyproject.toml").read_text(encoding="utf-8"))
+    config = pyproject["tool"]["mypy"]
+    # with no paths on the command line, mypy checks what [tool.mypy] names: the whole package
+    checked = args or [*config.get("packages", []), *config.get("files", [])]
+    assert "tanksynth" in checked, checked
+    assert config.get("ignore_missing_imports") is not True, "untyped libraries are listed one by one"
+    # the mypy that runs is the one `pip install -e '.[dev]'` installs
+    dev = pyproject["project"]["optional-dependencies"]["dev"]
+    assert any(re.match(r"mypy\b", req) for req in dev), dev

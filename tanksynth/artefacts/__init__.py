@@ -9,13 +9,16 @@ from tanksynth._lazy import lazy_exports as _lazy_exports
 _EXPORTS = {
     "c_header": "tanksynth.artefacts.export",
     **dict.fromkeys(["EXPORT_FORMATS", "PLANT_SCHEMA", "SCHEMA", "artefact_document",
-                     "gains_digest", "read_artefact", "read_plant_record", "to_jsonable",
-                     "write_artefact", "write_plant_record"],
+                     "gains_digest", "load_artefact", "read_artefact", "read_plant_record",
+                     "to_jsonable", "write_artefact", "write_plant_record"],
                     "tanksynth.artefacts.io"),
+    **dict.fromkeys(["Artefact", "Gains", "Provenance", "Verification", "VerificationCheck"],
+                    "tanksynth.artefacts.model"),
 }
 
 __getattr__, __dir__ = _lazy_exports(__name__, _EXPORTS)
 
 __all__ = ["SCHEMA", "PLANT_SCHEMA", "EXPORT_FORMATS", "write_plant_record", "read_plant_record",
            "to_jsonable", "gains_digest", "artefact_document", "write_artefact", "read_artefact",
-           "c_header"]
+           "load_artefact", "c_header", "Artefact", "Gains", "Provenance", "Verification",
+           "VerificationCheck"]

@@ -29,7 +29,7 @@ from typing import BinaryIO, Callable, Iterator
 
 from tanksynth.errors import ArtefactError
 
-__all__ = ["atomic_write", "stage", "commit", "discard", "file_mode", "directory_lock", "LOCK_NAME"]
+__all__ = ["Payload", "atomic_write", "stage", "commit", "discard", "file_mode", "directory_lock", "LOCK_NAME"]
 
 #: The lock file of a result directory.
 LOCK_NAME = ".tanksynth.lock"

@@ -38,15 +38,24 @@ decentralised Kalman and fault-detector steps are built in `tanksynth.artefacts.
 
 from __future__ import annotations
 
-from typing import Any, Mapping
+from typing import TYPE_CHECKING, Any, Mapping
 
 import casadi as ca
 import numpy as np
 
 from tanksynth.errors import ArtefactError
+from tanksynth.artefacts.export import sampling_period
 from tanksynth.artefacts.observer_laws import (decentralized_step, fault_detection_step,
                                                 ts_model_from_record, ts_observer_step)
 from tanksynth.runtime.estimators.kernels import sx_spd_inverse
+
+if TYPE_CHECKING:  # annotations only: each estimator's module loads with the law that needs it
+    from tanksynth.runtime.estimators.adaptive import AdaptiveKalmanFilter, AdaptiveScalingKalmanFilter
+    from tanksynth.runtime.estimators.consensus import ConsensusFilter
+    from tanksynth.runtime.estimators.model import DiscreteModel
+    from tanksynth.runtime.estimators.narx import NARXEstimator
+    from tanksynth.spec import Spec
+    from tanksynth.spec.method_options.base import MethodOptions
 
 __all__ = ["ESTIMATOR_LAW_METHODS", "estimator_law", "adaptive_kalman_step",
            "adaptive_scaling_step", "consensus_step", "narx_step", "sx_psd_floor"]
@@ -62,6 +71,14 @@ JACOBI_SWEEPS = 12
 
 def _sym(A: ca.SX) -> ca.SX:
     return 0.5 * (A + A.T)
+
+
+def _linear(model: DiscreteModel) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """``Ad, Bd, cd, C, dy`` of a linear filter's model (``x(k) = Ad x(k-1) + Bd u(k) + cd``,
+    ``y = C x + dy``)."""
+    if model.Ad is None or model.Bd is None or model.cd is None or model.C is None or model.dy is None:
+        raise ArtefactError("the filter's model is not linear: no step of a linear filter to export")
+    return model.Ad, model.Bd, model.cd, model.C, model.dy
 
 
 def _joseph(P: ca.SX, K: ca.SX, H: np.ndarray | ca.SX, R: np.ndarray) -> ca.SX:
@@ -132,7 +149,7 @@ def sx_psd_floor(A: ca.SX, floor: float, sweeps: int = JACOBI_SWEEPS) -> ca.SX:
 
 
 # ------------------------------------------------------------------ linear-model Kalman filters
-def adaptive_kalman_step(name: str, est: Any) -> ca.Function:
+def adaptive_kalman_step(name: str, est: AdaptiveKalmanFilter) -> ca.Function:
     """One step of the adaptive-Q Kalman filter (seed 000 eq. 29-37) with its innovation window.
 
     Parameters
@@ -158,19 +175,20 @@ def adaptive_kalman_step(name: str, est: Any) -> ca.Function:
         "steady_state"``, eigenvalues clipped at ``q_floor`` by `sx_psd_floor`)
         once the window is full, as in the runtime.
     """
-    mdl, tun = est.model, est.tuning
+    tun = est.tuning
+    Ad, Bd, cd, C, dy = _linear(est.model)
     n, q, m, W = est.n, est.q, est.m, int(tun.window)
     x, P, Q = ca.SX.sym("x", n), ca.SX.sym("P", n, n), ca.SX.sym("Q", n, n)
     V, DX = ca.SX.sym("V", W, q), ca.SX.sym("DX", W, n)
     filled, y, u = ca.SX.sym("filled"), ca.SX.sym("y", q), ca.SX.sym("u", m)
-    F, H = ca.DM(mdl.Ad), ca.DM(mdl.C)
-    xp = F @ x + ca.DM(mdl.Bd) @ u + ca.DM(mdl.cd)                        # (30)
+    F, H = ca.DM(Ad), ca.DM(C)
+    xp = F @ x + ca.DM(Bd) @ u + ca.DM(cd)                                # (30)
     Pp = _sym(F @ P @ F.T + Q)                                           # (31)
-    K = _gain(Pp, mdl.C, tun.R)                                          # (32)
-    v = y - (H @ xp + ca.DM(mdl.dy))                                     # innovation (35)
+    K = _gain(Pp, C, tun.R)                                              # (32)
+    v = y - (H @ xp + ca.DM(dy))                                         # innovation (35)
     dx = K @ v
     x_new = xp + dx                                                      # (33)
-    P_new = _joseph(Pp, K, mdl.C, tun.R)                                 # (34)
+    P_new = _joseph(Pp, K, C, tun.R)                                     # (34)
     V_new = ca.vertcat(v.T, V[:W - 1, :]) if W > 1 else v.T
     DX_new = ca.vertcat(dx.T, DX[:W - 1, :]) if W > 1 else dx.T
     filled_new = ca.fmin(filled + 1, W)
@@ -186,7 +204,7 @@ def adaptive_kalman_step(name: str, est: Any) -> ca.Function:
                        ["x_next", "P_next", "Q_next", "V_next", "DX_next", "filled_next"])
 
 
-def adaptive_scaling_step(name: str, est: Any) -> ca.Function:
+def adaptive_scaling_step(name: str, est: AdaptiveScalingKalmanFilter) -> ca.Function:
     """One step of the adaptive-scaling Kalman filter (seed 004 eq. 30-41).
 
     Parameters
@@ -205,26 +223,27 @@ def adaptive_scaling_step(name: str, est: Any) -> ca.Function:
         scaling ``phi_(k-1)`` (dimensionless, start ``phi0``); ``y`` (q) the new
         measurement, ``u`` (m) the held input.
     """
-    mdl, tun = est.model, est.tuning
+    tun = est.tuning
+    Ad, Bd, cd, Cm, dy = _linear(est.model)
     n, q, m = est.n, est.q, est.m
     x, P, phi = ca.SX.sym("x", n), ca.SX.sym("P", n, n), ca.SX.sym("phi")
     y, u = ca.SX.sym("y", q), ca.SX.sym("u", m)
-    A, C = ca.DM(mdl.Ad), ca.DM(mdl.C)
-    xp = A @ x + ca.DM(mdl.Bd) @ u + ca.DM(mdl.cd)                        # (30)
-    v = y - (C @ xp + ca.DM(mdl.dy))
+    A, C = ca.DM(Ad), ca.DM(Cm)
+    xp = A @ x + ca.DM(Bd) @ u + ca.DM(cd)                                # (30)
+    v = y - (C @ xp + ca.DM(dy))
     APA = A @ P @ A.T
     tr_beta = ca.trace(C @ APA @ C.T + ca.DM(tun.R))                      # (34b)
     match = (ca.dot(v, v) - tr_beta) / est._tr_gamma
     phi_new = ca.fmax(tun.a * tun.phi0 + tun.b * phi + tun.c * match, 0.0)   # (36)-(38)
     Pp = _sym(APA + phi_new * ca.DM(est._GQG))                           # (32)
-    K = _gain(Pp, mdl.C, tun.R)                                          # (39)
+    K = _gain(Pp, Cm, tun.R)                                             # (39)
     x_new = xp + K @ v                                                   # (40)
-    P_new = _joseph(Pp, K, mdl.C, tun.R)                                 # (41)
+    P_new = _joseph(Pp, K, Cm, tun.R)                                    # (41)
     return ca.Function(name, [x, P, phi, y, u], [x_new, P_new, phi_new],
                        ["x", "P", "phi", "y", "u"], ["x_next", "P_next", "phi_next"])
 
 
-def consensus_step(name: str, est: Any) -> ca.Function:
+def consensus_step(name: str, est: ConsensusFilter) -> ca.Function:
     """One step of the consensus filter (seed 004 eq. 42-51) over all its sensors.
 
     The runtime takes the consensus sums as exact, so the network's step is
@@ -248,12 +267,13 @@ def consensus_step(name: str, est: Any) -> ca.Function:
         ``P0``); ``y`` the measurements of the ``N`` sensors stacked (sensor 0
         first, ``sum q_i`` entries, output units); ``u`` (m) the held input.
     """
-    mdl, tun = est.model, est.tuning
+    tun = est.tuning
+    Ad, Bd, cd, _, _ = _linear(est.model)
     n, m, N = est.n, est.m, tun.sensors
     x, Mc = ca.SX.sym("x", n), ca.SX.sym("M", n, n)
     y, u = ca.SX.sym("y", est.q), ca.SX.sym("u", m)
-    A, Hm, Z = ca.DM(mdl.Ad), ca.DM(est._H), ca.DM(est._Z)
-    xbar = A @ x + ca.DM(mdl.Bd) @ u + ca.DM(mdl.cd)                      # (51)
+    A, Hm, Z = ca.DM(Ad), ca.DM(est._H), ca.DM(est._Z)
+    xbar = A @ x + ca.DM(Bd) @ u + ca.DM(cd)                              # (51)
     P = _sym(A @ Mc @ A.T + ca.DM(est._GQG))                             # (50)
     info = _sym(sx_spd_inverse(N * P)[0] + Hm)                           # (44)
     Pcal = _sym(sx_spd_inverse(info)[0])
@@ -264,7 +284,7 @@ def consensus_step(name: str, est: Any) -> ca.Function:
                        ["x_next", "M_next"])
 
 
-def narx_step(name: str, est: Any) -> ca.Function:
+def narx_step(name: str, est: NARXEstimator) -> ca.Function:
     """One step of the NARX estimator (seed 002 eq. 42-45): the trained network with its delays.
 
     Parameters
@@ -311,31 +331,34 @@ def _initial_and_op(gains: Mapping[str, Any]) -> tuple[np.ndarray, Any]:
     return _vec(gains, "x_hat0").reshape(-1), op
 
 
-def _adaptive_kalman_data(gains: Mapping[str, Any], spec: Any, options: Any) -> Any:
+def _adaptive_kalman_data(gains: Mapping[str, Any], spec: Spec, options: MethodOptions | None
+                          ) -> AdaptiveKalmanFilter:
     from tanksynth.runtime.estimators.adaptive import AdaptiveKalmanFilter, AdaptiveKalmanTuning
 
     x0, op = _initial_and_op(gains)
     tuning = AdaptiveKalmanTuning(Q0=_vec(gains, "Q0"), R=_vec(gains, "R"), P0=_vec(gains, "P0"),
-                                  x0=x0, ts=float(spec.ts),
+                                  x0=x0, ts=sampling_period(spec, "adaptive_kalman"),
                                   window=int(round(float(_vec(gains, "window").ravel()[0]))),
                                   q_floor=float(_vec(gains, "q_floor").ravel()[0]),
                                   form=getattr(options, "form", "full"), operating_point=op)
     return AdaptiveKalmanFilter(spec.plant, tuning)
 
 
-def _adaptive_scaling_data(gains: Mapping[str, Any], spec: Any, options: Any) -> Any:
+def _adaptive_scaling_data(gains: Mapping[str, Any], spec: Spec, options: MethodOptions | None
+                           ) -> AdaptiveScalingKalmanFilter:
     from tanksynth.runtime.estimators.adaptive import AdaptiveScalingKalmanFilter, AdaptiveScalingTuning
 
     x0, op = _initial_and_op(gains)
     a, b, c = (float(v) for v in _vec(gains, "abc").ravel())
     tuning = AdaptiveScalingTuning(Q=np.atleast_2d(_vec(gains, "Q")), R=_vec(gains, "R"),
-                                   P0=_vec(gains, "P0"), x0=x0, ts=float(spec.ts), a=a, b=b, c=c,
+                                   P0=_vec(gains, "P0"), x0=x0, a=a, b=b, c=c,
+                                   ts=sampling_period(spec, "adaptive_scaling_kalman"),
                                    G=_vec(gains, "G"), phi0=float(_vec(gains, "phi0").ravel()[0]),
                                    operating_point=op)
     return AdaptiveScalingKalmanFilter(spec.plant, tuning)
 
 
-def _consensus_data(gains: Mapping[str, Any], spec: Any, options: Any) -> Any:
+def _consensus_data(gains: Mapping[str, Any], spec: Spec, options: MethodOptions | None) -> ConsensusFilter:
     from tanksynth.runtime.estimators.consensus import ConsensusFilter, ConsensusTuning
 
     x0, op = _initial_and_op(gains)
@@ -345,12 +368,12 @@ def _consensus_data(gains: Mapping[str, Any], spec: Any, options: Any) -> Any:
     Cs = tuple(_vec(gains, f"C{i}") for i in range(N)) if "C0" in gains else None
     tuning = ConsensusTuning(Q=np.atleast_2d(_vec(gains, "Q")),
                              R=tuple(np.atleast_2d(_vec(gains, f"R{i}")) for i in range(N)),
-                             P0=_vec(gains, "P0"), x0=x0, ts=float(spec.ts), C=Cs,
-                             G=_vec(gains, "G"), operating_point=op)
+                             P0=_vec(gains, "P0"), x0=x0, C=Cs, G=_vec(gains, "G"),
+                             ts=sampling_period(spec, "consensus_filter"), operating_point=op)
     return ConsensusFilter(spec.plant, tuning)
 
 
-def _narx_data(gains: Mapping[str, Any], spec: Any, options: Any) -> Any:
+def _narx_data(gains: Mapping[str, Any], spec: Spec, options: MethodOptions | None) -> NARXEstimator:
     from tanksynth.runtime.estimators.narx import NARXEstimator, NARXTuning
 
     n = spec.plant.n
@@ -360,14 +383,15 @@ def _narx_data(gains: Mapping[str, Any], spec: Any, options: Any) -> Any:
                         _vec(gains, "b2").reshape(n), _vec(gains, "in_mean").reshape(-1),
                         _vec(gains, "in_scale").reshape(-1), _vec(gains, "out_mean").reshape(n),
                         _vec(gains, "out_scale").reshape(n), x0=_vec(gains, "x_hat0").reshape(n),
-                        ts=float(spec.ts), delays=int(round(float(_vec(gains, "delays").ravel()[0]))),
+                        ts=sampling_period(spec, "narx"),
+                        delays=int(round(float(_vec(gains, "delays").ravel()[0]))),
                         substeps=int(getattr(options, "substeps", 1)),
                         clip=bool(getattr(options, "clip", False)))
     return NARXEstimator(spec.plant, tuning, backend="vm")
 
 
 def estimator_law(gains: Mapping[str, np.ndarray], diagnostics: Mapping[str, Any], method: str,
-                  spec: Any, options: Any, name: str) -> ca.Function | None:
+                  spec: Spec, options: MethodOptions | None, name: str) -> ca.Function | None:
     """The step of an estimator in `ESTIMATOR_LAW_METHODS`, from its artefact.
 
     Parameters
@@ -405,13 +429,13 @@ def estimator_law(gains: Mapping[str, np.ndarray], diagnostics: Mapping[str, Any
         return ts_observer_step(name, model, _vec(gains, "L").reshape(n, q),
                                 None if spec.ts is None else float(spec.ts))
     if method == "decentralized_kalman":
-        Ks = []
+        Ks: list[np.ndarray] = []
         while f"K_{len(Ks)}" in gains:
             Ks.append(_vec(gains, f"K_{len(Ks)}").reshape(n, q))
-        return decentralized_step(name, spec.plant, Ks, float(spec.ts))
+        return decentralized_step(name, spec.plant, Ks, sampling_period(spec, method))
     if method == "fault_detection":
         return fault_detection_step(name, spec.plant, _vec(gains, "Psi"),
                                     _vec(gains, "threshold_coefficients"),
-                                    _vec(gains, "threshold_rates"), float(spec.ts),
+                                    _vec(gains, "threshold_rates"), sampling_period(spec, method),
                                     conservative=bool(getattr(options, "conservative", True)))
     return None

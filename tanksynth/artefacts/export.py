@@ -18,7 +18,7 @@ import subprocess
 import tempfile
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Mapping, Sequence
+from typing import TYPE_CHECKING, Any, Mapping, Sequence, TypeVar
 
 import casadi as ca
 import numpy as np
@@ -26,10 +26,20 @@ import numpy as np
 from tanksynth.artefacts.atomic import commit
 from tanksynth.errors import ArtefactError
 from tanksynth.runtime.laws import c_identifier, rename_law
+from tanksynth.spec.method_options.base import MethodOptions
+
+if TYPE_CHECKING:  # annotations only: the runtime estimators load with the law that needs them
+    from tanksynth.plants.base import Plant
+    from tanksynth.runtime.estimators.base import KernelEstimator
+    from tanksynth.runtime.estimators.kalman import KalmanTuning
+    from tanksynth.spec import Spec
+
+_Options = TypeVar("_Options", bound=MethodOptions)
 
 __all__ = ['c_header', 'ExportedLaw', 'export_law', 'compile_law', 'load_compiled_law',
            'implementation_data', 'mat_contents', 'DERIVED_LAW_METHODS', 'state_feedback_law', 'saturate_input',
-           'observer_law', 'kalman_step', 'estimator_step', 'derived_law']
+           'observer_law', 'kalman_step', 'estimator_step', 'derived_law', 'operating_point',
+           'sampling_period']
 
 
 #: File stems `export_law` keeps as given (else the C symbol is the stem).
@@ -326,7 +336,7 @@ DERIVED_LAW_METHODS = ("pole_placement", "lmi_placement", "canonical_observer", 
                        "kalman", "ekf", "ukf")
 
 
-def _output_at(plant: Any, x: np.ndarray) -> np.ndarray:
+def _output_at(plant: Plant, x: np.ndarray) -> np.ndarray:
     values = dict(zip(plant.x, (float(v) for v in x)))
     return np.array(plant.h_numeric.subs(values), dtype=float).reshape(-1)
 
@@ -449,7 +459,7 @@ def observer_law(name: str, A: np.ndarray, B: np.ndarray, C: np.ndarray, L: np.n
     return ca.Function(name, [xh, u, y], [new], ["x_hat", "u", "y"], [out])
 
 
-def kalman_step(name: str, plant: Any, tuning: Any, linear: bool) -> ca.Function:
+def kalman_step(name: str, plant: Plant, tuning: KalmanTuning, linear: bool) -> ca.Function:
     """The (extended) Kalman filter step the runtime runs, as a standalone Function.
 
     Parameters
@@ -478,7 +488,7 @@ def kalman_step(name: str, plant: Any, tuning: Any, linear: bool) -> ca.Function
                                                                                    backend="vm"))
 
 
-def estimator_step(name: str, est: Any) -> ca.Function:
+def estimator_step(name: str, est: KernelEstimator) -> ca.Function:
     """The step of a kernel estimator whose state is ``x`` then ``P`` (KF, EKF, UKF), standalone.
 
     Parameters
@@ -515,8 +525,58 @@ def estimator_step(name: str, est: Any) -> ca.Function:
     return ca.Function(name, ins, outs, names_in, names_out)
 
 
+def operating_point(spec: Spec) -> tuple[np.ndarray, np.ndarray]:
+    """The spec's operating point and its equilibrium input, as the designs linearise there.
+
+    Parameters
+    ----------
+    spec : Spec
+        The spec a design was made from.
+
+    Returns
+    -------
+    x_op : ndarray, shape (n,)
+        Operating levels (state units, m).
+    u_op : ndarray, shape (m,)
+        Equilibrium input at ``x_op`` (input units, m^3/s; the spec's ``u`` when given and
+        checked, see `tanksynth.analysis.linearize.equilibrium_input`).
+    """
+    from tanksynth.analysis.linearize import equilibrium_input
+
+    given = None if spec.given_u0 is None else spec.given_u0.tolist()
+    eq = equilibrium_input(spec.plant, spec.x0.tolist(), given)
+    return np.asarray(spec.x0, dtype=float), np.asarray(eq.u0, dtype=float)
+
+
+def sampling_period(spec: Spec, method: str) -> float:
+    """The spec's sampling period (s), which a discrete-time law of ``method`` needs.
+
+    Parameters
+    ----------
+    spec : Spec
+        The spec a design was made from.
+    method : str
+        The design's method, named in the error.
+
+    Raises
+    ------
+    ArtefactError
+        The spec has no ``[sampling] ts``.
+    """
+    if spec.ts is None:
+        raise ArtefactError(f"the law of a discrete-time {method} design needs the spec's [sampling] ts")
+    return float(spec.ts)
+
+
+def _options_of(options: MethodOptions | None, cls: type[_Options]) -> _Options:
+    """The validated options of the design, of the method's Options class."""
+    if not isinstance(options, cls):  # a caller's bug: the spec's designs are validated on parsing
+        raise TypeError(f"expected the design's validated {cls.__name__}, got {type(options).__name__}")
+    return options
+
+
 def derived_law(gains: Mapping[str, np.ndarray], diagnostics: Mapping[str, Any], method: str,
-                spec: Any, options: Any, name: str) -> ca.Function | None:
+                spec: Spec, options: MethodOptions | None, name: str) -> ca.Function | None:
     """The law or estimator step of a design whose artefact does not carry one, from its gains.
 
     Parameters
@@ -552,33 +612,40 @@ def derived_law(gains: Mapping[str, np.ndarray], diagnostics: Mapping[str, Any],
         return synthesis_law(gains, diagnostics, method, spec, options, name)
     if method not in DERIVED_LAW_METHODS or getattr(options, "nonlinear", False):
         return None
-    from tanksynth.analysis.linearize import equilibrium_input, linearize
+    from tanksynth.analysis.linearize import linearize
 
     plant = spec.plant
-    eq = equilibrium_input(plant, spec.x0, spec.given_u0)
-    x_op, u_op = np.asarray(spec.x0, dtype=float), np.asarray(eq.u0, dtype=float)
+    x_op, u_op = operating_point(spec)
     if method in ("kalman", "ekf"):
         from tanksynth.runtime.estimators.kalman import KalmanTuning
+        from tanksynth.spec.method_options.estimators import KalmanOptions
 
-        tuning = KalmanTuning(Q=gains["Q"], R=gains["R"], P0=gains["P0"], x0=gains["x_hat0"], ts=spec.ts,
-                              substeps=options.substeps, jacobian_eps=options.jacobian_eps,
-                              switch_tol=options.switch_tol, clip=options.clip,
+        kalman = _options_of(options, KalmanOptions)
+        tuning = KalmanTuning(Q=gains["Q"], R=gains["R"], P0=gains["P0"], x0=gains["x_hat0"],
+                              ts=sampling_period(spec, method),
+                              substeps=kalman.substeps, jacobian_eps=kalman.jacobian_eps,
+                              switch_tol=kalman.switch_tol, clip=kalman.clip,
                               operating_point=(x_op, u_op) if method == "kalman" else None)
         return kalman_step(name, plant, tuning, linear=method == "kalman")
     if method == "ukf":
         from tanksynth.runtime.estimators.ukf import UKFTuning, UnscentedKalmanFilter
+        from tanksynth.spec.method_options.estimators import UkfOptions
 
-        tuning = UKFTuning(Q=gains["Q"], R=gains["R"], P0=gains["P0"], x0=gains["x_hat0"], ts=spec.ts,
-                           alpha=options.alpha, beta=options.beta, kappa=options.kappa,
-                           redraw=options.redraw, substeps=options.substeps, clip=options.clip)
-        return estimator_step(name, UnscentedKalmanFilter(plant, tuning, backend="vm"))
-    lin = linearize(plant, x_op, u_op, ts=spec.ts)
+        ukf = _options_of(options, UkfOptions)
+        ukf_tuning = UKFTuning(Q=gains["Q"], R=gains["R"], P0=gains["P0"], x0=gains["x_hat0"],
+                               ts=sampling_period(spec, method),
+                               alpha=ukf.alpha, beta=ukf.beta, kappa=ukf.kappa,
+                               redraw=ukf.redraw, substeps=ukf.substeps, clip=ukf.clip)
+        return estimator_step(name, UnscentedKalmanFilter(plant, ukf_tuning, backend="vm"))
+    lin = linearize(plant, x_op.tolist(), u_op.tolist(), ts=spec.ts)
     time_domain = diagnostics.get("time_domain", "continuous" if method == "canonical_observer"
                                   else "discrete")
     if method == "luenberger":
         time_domain = "continuous" if diagnostics.get("form") == "continuous" else "discrete"
     continuous = time_domain == "continuous"
     A, B = (lin.F, lin.B) if continuous else (lin.Ad, lin.Bd)
+    if A is None or B is None:
+        raise ArtefactError(f"design of method {method} in discrete time needs the spec's [sampling] ts")
     if "K" in gains:
         integral = diagnostics.get("integral")
         return state_feedback_law(name, gains["K"], x_op, u_op,

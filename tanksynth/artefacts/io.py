@@ -23,23 +23,24 @@ import platform
 import stat
 from importlib import metadata
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Iterable, Mapping
+from typing import TYPE_CHECKING, Any, Iterable, Mapping, cast
 
 import numpy as np
 
-from tanksynth.artefacts.atomic import atomic_write, commit, discard, stage
+from tanksynth.artefacts.atomic import Payload, atomic_write, commit, discard, stage
 from tanksynth.artefacts.jsontext import dumps
+from tanksynth.artefacts.model import SCHEMA, Artefact, Gains, Provenance, check_document
 from tanksynth.errors import ArtefactError, SpecError
 
 if TYPE_CHECKING:  # the artefact only reads a result's fields; no import of the design stage
     from tanksynth.design.result import DesignResult
+    from tanksynth.spec import Spec
 
-__all__ = ["SCHEMA", "PLANT_SCHEMA", "EXPORT_FORMATS", "write_plant_record", "read_plant_record", "to_jsonable", "gains_digest", "artefact_document",
-           "write_artefact", "read_artefact", "content_digest", "file_sha256", "check_npz",
-           "check_orphan_npz", "check_plant_record", "rehash", "other_spec_files", "read_limited",
-           "MAX_FILE_BYTES"]
+__all__ = ["SCHEMA", "PLANT_SCHEMA", "EXPORT_FORMATS", "write_plant_record", "read_plant_record",
+           "to_jsonable", "gains_digest", "artefact_document", "write_artefact", "read_artefact",
+           "load_artefact", "content_digest", "file_sha256", "check_npz", "check_orphan_npz",
+           "check_plant_record", "rehash", "other_spec_files", "read_limited", "MAX_FILE_BYTES"]
 
-SCHEMA = "tanksynth.artefact/1"
 PLANT_SCHEMA = "tanksynth.plant/1"
 #: Optional export formats besides .json and .npz.
 EXPORT_FORMATS = ("mat", "h", "law")
@@ -196,7 +197,8 @@ def content_digest(doc: Mapping[str, Any]) -> str:
 def _npz_bytes(gains: Mapping[str, np.ndarray]) -> bytes:
     """The ``.npz`` file of the gains, in memory (zip timestamps make it differ run to run)."""
     buf = io.BytesIO()
-    np.savez(buf, **gains)
+    # Any: numpy's stub types allow_pickle as a keyword too, which no gain's name can be
+    np.savez(buf, **cast(Mapping[str, Any], gains))
     return buf.getvalue()
 
 
@@ -234,25 +236,10 @@ def artefact_document(result: DesignResult, spec_sha256: str, solver: str = "",
     versions = _versions()
     if npz_sha256 is None:
         npz_sha256 = hashlib.sha256(_npz_bytes(gains)).hexdigest()
-    doc = {
-        "schema": SCHEMA,
-        "name": result.name,
-        "method": result.method,
-        "plant": result.plant,
-        "gains": {k: v.tolist() for k, v in gains.items()},
-        "diagnostics": to_jsonable(result.diagnostics),
-        "latex": dict(result.latex),
-        "verification": None,
-        "provenance": {
-            "spec_sha256": spec_sha256,
-            "gains_sha256": gains_digest(gains),
-            "tanksynth_version": versions.pop("tanksynth"),
-            "packages": versions,
-            "solver": solver,
-            "npz_sha256": npz_sha256,
-            "plant_record_sha256": plant_record_sha256,
-        },
-    }
+    provenance = Provenance(spec_sha256, gains_digest(gains), versions.pop("tanksynth"), versions, solver,
+                            npz_sha256, plant_record_sha256, content_sha256="")  # set below: covers the rest
+    doc = Artefact(result.name, result.method, result.plant, Gains(gains), to_jsonable(result.diagnostics),
+                   dict(result.latex), None, provenance).to_document()
     doc["provenance"]["content_sha256"] = content_digest(doc)
     return doc
 
@@ -317,6 +304,7 @@ def write_artefact(result: DesignResult, directory: str | Path, spec_sha256: str
         data = implementation_data(result.diagnostics, record)
     try:
         for ext, target in final.items():
+            payload: Payload
             if ext in payloads:
                 payload = payloads[ext]
             elif ext == ".mat":
@@ -352,46 +340,41 @@ def write_artefact(result: DesignResult, directory: str | Path, spec_sha256: str
     return final[".json"]
 
 
-def read_artefact(path: str | Path, check_gains: bool = True) -> dict:
+def _json_document(path: Path) -> Any:
+    """The JSON value of an artefact file (errors name the file)."""
+    try:
+        return json.loads(read_limited(path).decode("utf-8"))
+    except OSError as exc:
+        raise ArtefactError(f"{path}: cannot read artefact: {exc.strerror}") from None
+    except (json.JSONDecodeError, UnicodeDecodeError, RecursionError) as exc:
+        raise ArtefactError(f"{path}: not a JSON artefact: {exc}") from None
+
+
+def read_artefact(path: str | Path, check_gains: bool = True) -> dict[str, Any]:
     """Read an artefact JSON and check its schema and gain provenance.
 
     Parameters
     ----------
     path : str or Path
+        The artefact (``DIR/<name>.json``).
     check_gains : bool
         Recompute the gains' sha256 and the content's sha256 (`content_digest`)
         and refuse a mismatch (tampering).
 
+    Returns
+    -------
+    dict
+        The document, its gains as float arrays (`load_artefact`: as an `Artefact`).
+
     Raises
     ------
     ArtefactError
+        Naming the file: unreadable, not JSON, not of the form of an artefact
+        (`tanksynth.artefacts.model.check_document`), or edited after design.
     """
     path = Path(path)
-    try:
-        doc = json.loads(read_limited(path).decode("utf-8"))
-    except OSError as exc:
-        raise ArtefactError(f"{path}: cannot read artefact: {exc.strerror}") from None
-    except (json.JSONDecodeError, UnicodeDecodeError, RecursionError) as exc:
-        raise ArtefactError(f"{path}: not a JSON artefact: {exc}") from None
-    if not isinstance(doc, dict) or doc.get("schema") != SCHEMA:
-        raise ArtefactError(f"{path}: expected schema {SCHEMA!r}, got "
-                            f"{doc.get('schema') if isinstance(doc, dict) else type(doc).__name__!r}")
-    for key in ("name", "method", "plant", "gains", "provenance"):
-        if key not in doc:
-            raise ArtefactError(f"{path}: missing key {key!r}")
-    try:
-        gains = {k: np.asarray(v, dtype=float) for k, v in doc["gains"].items()}
-    except (TypeError, ValueError, AttributeError):
-        raise ArtefactError(f"{path}: gains must be nested lists of numbers") from None
-    bad = sorted(k for k, v in gains.items() if np.isnan(v).any())
-    if bad:
-        raise ArtefactError(f"{path}: gain(s) {', '.join(bad)} hold NaN entries; a designed gain is a "
-                            "number (infinite entries only mark unbounded limits)")
-    if not isinstance(doc["name"], str) or doc["name"] != path.stem:
-        raise ArtefactError(f"{path}: the artefact's name {doc['name']!r} does not match its file "
-                            f"name (expected {path.stem!r}); artefacts are written as <name>.json")
-    if not isinstance(doc["provenance"], dict):
-        raise ArtefactError(f"{path}: provenance must be a table")
+    doc = _json_document(path)
+    gains = check_document(doc, path)
     if check_gains and gains_digest(gains) != doc["provenance"].get("gains_sha256"):
         raise ArtefactError(f"{path}: gains do not match their provenance hash "
                             "(edited after design?)")
@@ -411,7 +394,24 @@ def read_artefact(path: str | Path, check_gains: bool = True) -> dict:
     return doc
 
 
-def write_plant_record(spec, directory: str | Path) -> Path:
+def load_artefact(path: str | Path) -> Artefact:
+    """Read an artefact JSON as an `Artefact`, with every check of `read_artefact`.
+
+    Parameters
+    ----------
+    path : str or Path
+        The artefact (``DIR/<name>.json``).
+
+    Raises
+    ------
+    ArtefactError
+        As `read_artefact` (hashes checked), or a field of another type
+        (`Artefact.from_document`).
+    """
+    return Artefact.from_document(read_artefact(path), path)
+
+
+def write_plant_record(spec: Spec, directory: str | Path) -> Path:
     """Write ``DIR/plant.json`` and ``DIR/spec.toml``: what reports need of the plant.
 
     ``plant.json`` (schema ``tanksynth.plant/1``) holds the plant summary
@@ -445,7 +445,7 @@ def write_plant_record(spec, directory: str | Path) -> Path:
     return target
 
 
-def read_plant_record(directory: str | Path) -> dict:
+def read_plant_record(directory: str | Path) -> dict[str, Any]:
     """Read ``DIR/plant.json`` (see `write_plant_record`).
 
     Parameters

@@ -9,17 +9,21 @@ ends at the new measurement.
 
 from __future__ import annotations
 
-from typing import Any, Mapping, Sequence
+from typing import TYPE_CHECKING, Any, Mapping, Sequence
 
 import casadi as ca
 import numpy as np
 
 from tanksynth.errors import ArtefactError
 
+if TYPE_CHECKING:  # annotations only: the TS analysis loads with the observer that needs it
+    from tanksynth.analysis.takagi_sugeno import TSModel
+    from tanksynth.plants.base import Plant
+
 __all__ = ["ts_model_from_record", "ts_observer_step", "decentralized_step", "fault_detection_step"]
 
 
-def ts_model_from_record(plant: Any, record: Mapping[str, Any]) -> Any:
+def ts_model_from_record(plant: Plant, record: Mapping[str, Any]) -> TSModel:
     """The TS multiple model of a ``ts_observer`` design, rebuilt from ``diagnostics.ts_model``.
 
     Parameters
@@ -60,7 +64,7 @@ def ts_model_from_record(plant: Any, record: Mapping[str, Any]) -> Any:
 
 
 
-def ts_observer_step(name: str, model: Any, L: np.ndarray, ts: float | None, substeps: int = 8,
+def ts_observer_step(name: str, model: TSModel, L: np.ndarray, ts: float | None, substeps: int = 8,
                      premises: str = "estimated") -> ca.Function:
     """One period of the TS multiple observer (seed 001 eq. 20), exponential Euler as verified.
 
@@ -169,7 +173,7 @@ def _product(factors: Sequence[Any]) -> Any:
 
 
 
-def decentralized_step(name: str, plant: Any, gains: Sequence[np.ndarray], ts: float,
+def decentralized_step(name: str, plant: Plant, gains: Sequence[np.ndarray], ts: float,
                        substeps: int = 4) -> ca.Function:
     """One step of the decentralised Kalman filter with the window's time-varying gains.
 
@@ -236,7 +240,7 @@ def decentralized_step(name: str, plant: Any, gains: Sequence[np.ndarray], ts: f
                        ["x_hat", "u", "y", "k"], ["x_hat_next", "crossed"])
 
 
-def fault_detection_step(name: str, plant: Any, Psi: np.ndarray, coefficients: np.ndarray,
+def fault_detection_step(name: str, plant: Plant, Psi: np.ndarray, coefficients: np.ndarray,
                          rates: np.ndarray, ts: float, conservative: bool = True,
                          substeps: int = 4) -> ca.Function:
     """One sample of the residual fault detector (seed 004 section II-F): observer, residual, test.
@@ -287,14 +291,14 @@ def fault_detection_step(name: str, plant: Any, Psi: np.ndarray, coefficients: n
 
     f, hfun = healthy.compiled.f, healthy.compiled.h
     n, q, m = plant.n, plant.q, plant.m
-    Psi = ca.DM(np.asarray(Psi, dtype=float).reshape(n, q))
+    gain = ca.DM(np.asarray(Psi, dtype=float).reshape(n, q))
     xh, u = ca.SX.sym("x_hat", n), ca.SX.sym("u", m)
     y0, y1, t = ca.SX.sym("y_prev", q), ca.SX.sym("y", q), ca.SX.sym("t")
     h = float(ts) / int(substeps)
     dy = (y1 - y0) / float(ts)
     x = xh
     for j in range(int(substeps)):
-        x = rk4_step(lambda s, tt: f(s, u) + Psi @ (y0 + dy * tt - hfun(s)), x, h, t=j * h)
+        x = rk4_step(lambda s, tt: f(s, u) + gain @ (y0 + dy * tt - hfun(s)), x, h, t=j * h)
     residual = y1 - hfun(x)
     c = np.abs(coefficients) if conservative else np.asarray(coefficients, dtype=float)
     thr = ca.SX(0.0)

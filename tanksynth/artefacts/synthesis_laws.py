@@ -32,14 +32,20 @@ today's keys and the renamed ones (``x_op``/``u_op`` for ``x0``/``u0``).
 from __future__ import annotations
 
 import itertools
-from typing import Any, Callable, Mapping
+from typing import TYPE_CHECKING, Any, Callable, Literal, Mapping, overload
 
 import casadi as ca
 import numpy as np
 
-from tanksynth.analysis.linearize import equilibrium_input, linearize
-from tanksynth.artefacts.export import observer_law, saturate_input, state_feedback_law
+from tanksynth.analysis.linearize import linearize
+from tanksynth.artefacts.export import (observer_law, operating_point, sampling_period, saturate_input,
+                                        state_feedback_law)
 from tanksynth.errors import ArtefactError
+
+if TYPE_CHECKING:
+    from tanksynth.plants.base import Plant
+    from tanksynth.spec import Spec
+    from tanksynth.spec.method_options.base import MethodOptions
 
 __all__ = ["SYNTHESIS_LAW_METHODS", "synthesis_law", "integral_feedback_law",
            "nominal_observer_law", "ts_memberships", "pdc_law", "pdc_output_feedback_law"]
@@ -54,6 +60,16 @@ PREMISE_SINGULAR = 1e-12
 
 
 # ------------------------------------------------------------------------ reading gains
+@overload
+def _gain(gains: Mapping[str, Any], *keys: str, required: Literal[True] = True) -> np.ndarray:
+    ...
+
+
+@overload
+def _gain(gains: Mapping[str, Any], *keys: str, required: bool) -> np.ndarray | None:
+    ...
+
+
 def _gain(gains: Mapping[str, Any], *keys: str, required: bool = True) -> np.ndarray | None:
     """The first of ``keys`` present in ``gains`` as a float array (None if absent and optional)."""
     for key in keys:
@@ -64,21 +80,21 @@ def _gain(gains: Mapping[str, Any], *keys: str, required: bool = True) -> np.nda
     return None
 
 
-def _time_domain(diagnostics: Mapping[str, Any], options: Any, spec: Any) -> str:
+def _time_domain(diagnostics: Mapping[str, Any], options: MethodOptions | None, spec: Spec) -> str:
     value = diagnostics.get("time_domain", getattr(options, "time_domain", None))
     if value in ("continuous", "discrete"):
         return str(value)
     return "discrete" if spec.ts is not None else "continuous"
 
 
-def _synthesis_gains(gains: Mapping[str, Any], plant: Any) -> dict[str, np.ndarray]:
+def _synthesis_gains(gains: Mapping[str, Any], plant: Plant) -> dict[str, np.ndarray]:
     """``K`` (m, n) or ``L`` (n, q) of an H2 / H-infinity / multi-objective / robust observer design."""
     if "L" in gains:
         return {"L": _gain(gains, "L").reshape(plant.n, plant.q)}
     return {"K": _gain(gains, "K").reshape(plant.m, -1)}
 
 
-def _robust_gains(gains: Mapping[str, Any], plant: Any) -> dict[str, Any]:
+def _robust_gains(gains: Mapping[str, Any], plant: Plant) -> dict[str, Any]:
     """``K`` (or ``K1``, ``K2``), the model's ``C`` and the operating point of a robust state feedback."""
     n, m = plant.n, plant.m
     out: dict[str, Any] = {"x_op": _gain(gains, "x_op").reshape(n),
@@ -92,7 +108,7 @@ def _robust_gains(gains: Mapping[str, Any], plant: Any) -> dict[str, Any]:
     return out
 
 
-def _ts_gains(gains: Mapping[str, Any], plant: Any) -> dict[str, Any]:
+def _ts_gains(gains: Mapping[str, Any], plant: Plant) -> dict[str, Any]:
     """PDC gains, operating point, premise forms and bounds (and observer gain) of a TS design."""
     n, m = plant.n, plant.m
     forms = _gain(gains, "forms").reshape(-1, n)
@@ -149,7 +165,7 @@ def integral_feedback_law(name: str, K1: np.ndarray, K2: np.ndarray, C1: np.ndar
     return ca.Function(name, [x, z, r], [u, z + float(ts) * err], ["x", "z", "y_r"], ["u", "z_next"])
 
 
-def nominal_observer_law(name: str, plant: Any, L: np.ndarray, x_op: np.ndarray, u_op: np.ndarray,
+def nominal_observer_law(name: str, plant: Plant, L: np.ndarray, x_op: np.ndarray, u_op: np.ndarray,
                          ts: float | None) -> ca.Function:
     """The Luenberger observer the verdicts run, on the plant linearised at the operating point.
 
@@ -174,14 +190,14 @@ def nominal_observer_law(name: str, plant: Any, L: np.ndarray, x_op: np.ndarray,
         time ``x_hat_dot = F dx + B du + L (dy - C dx)`` (deviations from the operating point).
     """
     x_op, u_op = np.asarray(x_op, dtype=float), np.asarray(u_op, dtype=float)
-    lin = linearize(plant, x_op, u_op, ts=ts)
+    lin = linearize(plant, x_op.tolist(), u_op.tolist(), ts=ts)
     y_op = np.asarray(plant.compiled.output(x_op[None]), dtype=float).reshape(-1)
-    if ts is None:
+    if ts is None or lin.Ad is None or lin.Bd is None:  # Ad, Bd: set whenever ts is
         return observer_law(name, lin.F, lin.B, lin.C, L, x_op, u_op, y_op, "continuous")
     return observer_law(name, lin.Ad, lin.Bd, lin.C, L, x_op, u_op, y_op, "predictor")
 
 
-def ts_memberships(plant: Any, x_op: np.ndarray, forms: np.ndarray, lower: np.ndarray,
+def ts_memberships(plant: Plant, x_op: np.ndarray, forms: np.ndarray, lower: np.ndarray,
                    upper: np.ndarray) -> Callable[[ca.SX], ca.SX]:
     """Memberships ``mu_i(x)`` of the deviation TS model of a design, as CasADi expressions.
 
@@ -247,7 +263,7 @@ def ts_memberships(plant: Any, x_op: np.ndarray, forms: np.ndarray, lower: np.nd
 
 
 def _pdc(mu: ca.SX, K: np.ndarray, e: ca.SX, u_op: np.ndarray) -> ca.SX:
-    u = ca.DM(u_op)
+    u = ca.SX(ca.DM(u_op))
     for i in range(K.shape[0]):
         u = u - mu[i] * (ca.DM(K[i]) @ e)
     return u
@@ -282,7 +298,7 @@ def pdc_law(name: str, K: np.ndarray, x_op: np.ndarray, u_op: np.ndarray,
     return ca.Function(name, [x], [u], ["x"], ["u"])
 
 
-def pdc_output_feedback_law(name: str, plant: Any, K: np.ndarray, L: np.ndarray, x_op: np.ndarray,
+def pdc_output_feedback_law(name: str, plant: Plant, K: np.ndarray, L: np.ndarray, x_op: np.ndarray,
                             u_op: np.ndarray, memberships: Callable[[ca.SX], ca.SX],
                             vertices: np.ndarray | None = None, limits: np.ndarray | None = None
                             ) -> ca.Function:
@@ -350,7 +366,7 @@ def pdc_output_feedback_law(name: str, plant: Any, K: np.ndarray, L: np.ndarray,
     return ca.Function(name, [xh, ua, y], [u, xdot], ["x_hat", "u_applied", "y"], ["u", "x_hat_dot"])
 
 
-def _ts_vertices(plant: Any, forms: np.ndarray, lower: np.ndarray, upper: np.ndarray) -> np.ndarray:
+def _ts_vertices(plant: Plant, forms: np.ndarray, lower: np.ndarray, upper: np.ndarray) -> np.ndarray:
     """Vertex matrices ``A_lin + sum_k incidence_k forms_k (upper_k or lower_k)`` (1/s)."""
     from tanksynth.analysis.takagi_sugeno import quasi_lpv
 
@@ -361,8 +377,8 @@ def _ts_vertices(plant: Any, forms: np.ndarray, lower: np.ndarray, upper: np.nda
 
 
 # ---------------------------------------------------------------------------- dispatch
-def synthesis_law(gains: Mapping[str, Any], diagnostics: Mapping[str, Any], method: str, spec: Any,
-                  options: Any, name: str) -> ca.Function | None:
+def synthesis_law(gains: Mapping[str, Any], diagnostics: Mapping[str, Any], method: str, spec: Spec,
+                  options: MethodOptions | None, name: str) -> ca.Function | None:
     """The law or observer step of a synthesis, robust or Takagi-Sugeno design (see the module).
 
     Parameters
@@ -401,13 +417,14 @@ def synthesis_law(gains: Mapping[str, Any], diagnostics: Mapping[str, Any], meth
         return pdc_output_feedback_law(name, plant, g["K"], g["L"], g["x_op"], g["u_op"], mu,
                                        vertices, limits)
     discrete = _time_domain(diagnostics, options, spec) == "discrete"
-    ts = float(spec.ts) if discrete else None
+    ts = sampling_period(spec, method) if discrete else None
     limits = plant.input_limits  # u clipped as the plant the verdict simulates clips it
     if method == "robust_state_feedback":
         g = _robust_gains(gains, plant)
         if "K" in g:
             return state_feedback_law(name, g["K"], g["x_op"], g["u_op"], input_limits=limits)
-        integ = diagnostics.get("integral") if isinstance(diagnostics.get("integral"), Mapping) else {}
+        integral = diagnostics.get("integral")
+        integ: Mapping[str, Any] = integral if isinstance(integral, Mapping) else {}
         C1 = integ.get("C1")
         if C1 is None:
             outputs = [s.name for s in plant.outputs]
@@ -416,8 +433,7 @@ def synthesis_law(gains: Mapping[str, Any], diagnostics: Mapping[str, Any], meth
             C1 = g["C"][[outputs.index(t) for t in tracked]]
         return integral_feedback_law(name, g["K1"], g["K2"], np.asarray(C1, dtype=float), g["x_op"],
                                      g["u_op"], ts, limits)
-    x_op = np.asarray(spec.x0, dtype=float)
-    u_op = np.asarray(equilibrium_input(plant, spec.x0, spec.given_u0).u0, dtype=float)
+    x_op, u_op = operating_point(spec)
     if method == "robust_observer":
         return nominal_observer_law(name, plant, _synthesis_gains(gains, plant)["L"], x_op, u_op, ts)
     g = _synthesis_gains(gains, plant)

@@ -36,7 +36,7 @@ from __future__ import annotations
 import json
 import re
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any, Mapping, cast
 
 import numpy as np
 
@@ -121,7 +121,9 @@ def write_trace(path: str | Path, trace: Mapping[str, Any]) -> Path:
         for k, m in enumerate(more, start=1):
             arrays.update({_EXTRA.format(k) + key: np.asarray(v, dtype=float) for key, v in m["arrays"].items()})
     text = np.array(json.dumps(header, allow_nan=False, sort_keys=True))
-    return atomic_write(path, lambda fh: np.savez_compressed(fh, header=text, **arrays))
+    # Any: numpy's stub types allow_pickle as a keyword too, which no array name here can be
+    entries = cast(dict[str, Any], arrays)
+    return atomic_write(path, lambda fh: np.savez_compressed(fh, header=text, **entries))
 
 
 

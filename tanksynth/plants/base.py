@@ -14,12 +14,15 @@ import math
 from dataclasses import dataclass, field, replace
 from fractions import Fraction
 from functools import cached_property
-from typing import Any, Iterable, Mapping, Sequence
+from typing import TYPE_CHECKING, Any, Iterable, Mapping, Sequence
 
 import numpy as np
 import sympy as sp
 
 from tanksynth.errors import DimensionError, RegionError, SpecError
+
+if TYPE_CHECKING:  # compiled on first use (CasADi loads then)
+    from tanksynth.plants.compile import CompiledPlant
 
 __all__ = [
     "Quantity",
@@ -28,8 +31,12 @@ __all__ = [
     "Region",
     "HybridModes",
     "Plant",
+    "OptionValue",
     "exact",
 ]
+
+#: The value of a plant family's construction option (``N = 4``, ``parameter_set = "decenter"``).
+OptionValue = int | float | str | bool
 
 
 def exact(value: float) -> sp.Rational:
@@ -189,12 +196,12 @@ class Region:
     bounds: tuple[tuple[float, float], ...]
     orderings: tuple[tuple[sp.Expr, sp.Expr], ...] = ()
 
-    def violations(self, x: Sequence[float], states: Sequence[sp.Symbol]) -> list[str]:
+    def violations(self, x: Sequence[float] | np.ndarray, states: Sequence[sp.Symbol]) -> list[str]:
         """List the region conditions violated by the numeric state ``x``.
 
         Parameters
         ----------
-        x : sequence of float
+        x : sequence of float or ndarray, shape (n,)
             State (state units, m).
         states : sequence of sympy.Symbol
             The state symbols.
@@ -324,7 +331,7 @@ class Plant:
     assumptions: tuple[Assumption, ...] = ()
     hybrid: HybridModes | None = None
     source: str = ""
-    options: tuple[tuple[str, Any], ...] = field(default=())
+    options: tuple[tuple[str, OptionValue], ...] = field(default=())
 
     def __post_init__(self) -> None:
         n, m, q = len(self.states), len(self.inputs), len(self.outputs)
@@ -459,7 +466,7 @@ class Plant:
         """One warning line per parameter outside its plausible range (see `Parameter.plausible`)."""
         return [w for w in (prm.implausible() for prm in self.parameters) if w]
 
-    def option(self, name: str, default: Any = None) -> Any:
+    def option(self, name: str, default: OptionValue | None = None) -> OptionValue | None:
         """A construction option of the plant family (e.g. ``N``).
 
         Parameters
@@ -540,14 +547,15 @@ class Plant:
         """
         if bounds is None:
             return self
-        return replace(self, region=replace(self.region, bounds=tuple(tuple(map(float, b)) for b in bounds)))
+        return replace(self, region=replace(self.region,
+                                            bounds=tuple((float(lo), float(hi)) for lo, hi in bounds)))
 
-    def check_point(self, x: Sequence[float], key: str = "operating_point") -> None:
+    def check_point(self, x: Sequence[float] | np.ndarray, key: str = "operating_point") -> None:
         """Raise `RegionError` if ``x`` is outside the operating region.
 
         Parameters
         ----------
-        x : sequence of float
+        x : sequence of float or ndarray, shape (n,)
             State (state units, m).
         key : str, optional
             Spec key named in the error.
@@ -561,7 +569,7 @@ class Plant:
             )
 
     @cached_property
-    def compiled(self):
+    def compiled(self) -> CompiledPlant:
         """Numeric functions compiled once (see `tanksynth.plants.compile`)."""
         from tanksynth.plants.compile import compile_plant
 

@@ -14,13 +14,16 @@ here, below both, because those two layers must not import each other).
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any, Callable, Mapping, Sequence
+from typing import TYPE_CHECKING, Any, Callable, Mapping, Sequence
 
 import casadi as ca
 import numpy as np
 import sympy as sp
 
 from tanksynth.errors import TanksynthError
+
+if TYPE_CHECKING:  # the plant's module imports this one on first use (Plant.compiled)
+    from tanksynth.plants.base import Plant
 
 __all__ = ["to_casadi", "CompiledPlant", "compile_plant", "compile_matrix", "rk4_step",
            "evaluate_map", "evaluate_points"]
@@ -230,15 +233,15 @@ class CompiledPlant:
     jac_u: ca.Function
     jac_h: ca.Function
     switching: ca.Function | None = None
-    _maps: dict = field(default_factory=dict, repr=False)
+    _maps: dict[tuple[str, int], ca.Function] = field(default_factory=dict, repr=False)
 
     def _batch(self, fn: ca.Function, *arrays: np.ndarray, matrix: bool = False) -> np.ndarray:
-        arrays = [np.atleast_2d(np.asarray(a, dtype=float)) for a in arrays]
-        count = arrays[0].shape[0]
+        points = [np.atleast_2d(np.asarray(a, dtype=float)) for a in arrays]
+        count = points[0].shape[0]
         key = (fn.name(), count)
         if key not in self._maps:
             self._maps[key] = fn.map(count, "serial")
-        out = evaluate_map(self._maps[key], *arrays)
+        out = evaluate_map(self._maps[key], *points)
         return out if matrix else out[:, :, 0]
 
     def rhs(self, x: np.ndarray, u: np.ndarray) -> np.ndarray:
@@ -289,6 +292,17 @@ class CompiledPlant:
         return (self._batch(self.switching, x) > 0).astype(int)
 
 
+def _buffer(fn: ca.Function) -> tuple[Any, Callable[[], Any]]:
+    """``fn.buffer()``: the buffer (``set_arg(i, memoryview)``, ``set_res(i, memoryview)``) and
+    the call that evaluates into it.
+
+    CasADi's stubs give ``set_arg``/``set_res`` the C++ signature (pointer, size); the Python
+    binding takes one buffer object, hence the buffer typed as Any.
+    """
+    buf, run = fn.buffer()
+    return buf, run
+
+
 def evaluate_map(mapped: ca.Function, *arrays: np.ndarray) -> np.ndarray:
     """Evaluate a mapped Function at M points straight into numpy (no ``DM`` round trip).
 
@@ -318,12 +332,12 @@ def evaluate_map(mapped: ca.Function, *arrays: np.ndarray) -> np.ndarray:
     if not shapes_ok or count == 0 or any(a.size == 0 for a in args):
         out = np.asarray(mapped(*[a.T for a in args]), dtype=float)
         return out.reshape(rows, count, cols).transpose(1, 0, 2)
-    buf, run = mapped.buffer()
+    buf, run = _buffer(mapped)
     for i, a in enumerate(args):
-        buf.set_arg(i, memoryview(a))
+        buf.set_arg(i, a.data)
     nz = np.empty(sparsity.nnz())
     if nz.size:
-        buf.set_res(0, memoryview(nz))
+        buf.set_res(0, nz.data)
         run()
     if sparsity.is_dense():
         flat = nz
@@ -363,13 +377,13 @@ def evaluate_points(fn: ca.Function, *arrays: np.ndarray) -> np.ndarray:
                for i, a in enumerate(args)):
         return evaluate_map(fn.map(count, "serial"), *arrays)
     if nz.shape[1] and count:
-        buf, run = fn.buffer()
+        buf, run = _buffer(fn)
         rows_j = [np.ascontiguousarray(a) for a in args]
         for j in range(count):
             for i, a in enumerate(rows_j):
                 if a.shape[1]:
-                    buf.set_arg(i, memoryview(a[j]))
-            buf.set_res(0, memoryview(nz[j]))
+                    buf.set_arg(i, a[j].data)
+            buf.set_res(0, nz[j].data)
             run()
     out = np.zeros((count, cols * rows))
     if sparsity.is_dense():
@@ -380,7 +394,7 @@ def evaluate_points(fn: ca.Function, *arrays: np.ndarray) -> np.ndarray:
     return out.reshape(count, cols, rows).transpose(0, 2, 1)
 
 
-def compile_plant(plant) -> CompiledPlant:
+def compile_plant(plant: Plant) -> CompiledPlant:
     """Compile a `Plant` (parameters substituted) into a `CompiledPlant`.
 
     Parameters

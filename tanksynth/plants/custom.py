@@ -24,7 +24,7 @@ Every equation goes through the whitelist parser; nothing is evaluated.
 from __future__ import annotations
 
 import math
-from typing import Any, Mapping
+from typing import Any, Literal, Mapping, overload
 
 import sympy as sp
 
@@ -53,33 +53,46 @@ def _number(value: Any, key: str) -> float:
     return value
 
 
-def _signal(name: str, spec: Any, key: str, need_bounds: bool) -> tuple[Quantity, tuple[float, float] | None]:
+@overload
+def _signal(name: str, declared: Any, key: str, need_bounds: Literal[True]) -> tuple[Quantity, tuple[float, float]]:
+    ...
+
+
+@overload
+def _signal(name: str, declared: Any, key: str, need_bounds: Literal[False]
+            ) -> tuple[Quantity, tuple[float, float] | None]:
+    ...
+
+
+def _signal(name: str, declared: Any, key: str, need_bounds: bool) -> tuple[Quantity, tuple[float, float] | None]:
+    """A state's or input's `Quantity` and its box bounds from its spec entry ``declared`` (a unit
+    string or a table ``{unit, min, max, description}``, as written: checked here)."""
     validate_name(name, key)
-    if isinstance(spec, str):
-        spec = {"unit": spec}
-    if not isinstance(spec, Mapping):
+    if isinstance(declared, str):
+        declared = {"unit": declared}
+    if not isinstance(declared, Mapping):
         raise SpecError("expected a unit string or a table {unit, min, max}", key=key)
-    unknown = set(spec) - {"unit", "min", "max", "description"}
+    unknown = set(declared) - {"unit", "min", "max", "description"}
     if unknown:
         raise SpecError(f"unknown field(s) {sorted(unknown)}; expected unit, min, max, description", key=key)
-    unit = spec.get("unit", "1")
+    unit = declared.get("unit", "1")
     if not isinstance(unit, str):
         raise SpecError(f"unit must be a string, got {unit!r}", key=f"{key}.unit")
-    desc = spec.get("description", "")
+    desc = declared.get("description", "")
     if not isinstance(desc, str):
         raise SpecError("description must be a string", key=f"{key}.description")
     bounds = None
-    if "min" in spec or "max" in spec or need_bounds:
-        if "min" not in spec or "max" not in spec:
+    if "min" in declared or "max" in declared or need_bounds:
+        if "min" not in declared or "max" not in declared:
             raise SpecError("expected both 'min' and 'max' (the operating region)", key=key)
-        lo, hi = _number(spec["min"], f"{key}.min"), _number(spec["max"], f"{key}.max")
+        lo, hi = _number(declared["min"], f"{key}.min"), _number(declared["max"], f"{key}.max")
         if not lo < hi:
             raise SpecError(f"min ({lo}) must be smaller than max ({hi})", key=key)
         bounds = (lo, hi)
     return Quantity(name, unit, desc), bounds
 
 
-def _inputs_outside_domain_free(expr: sp.Expr, inputs: set, key: str) -> None:
+def _inputs_outside_domain_free(expr: sp.Expr, inputs: set[sp.Symbol], key: str) -> None:
     """Refuse an input under ``sqrt``, a fractional power or ``log``: the equilibrium input is
     found by least squares over all reals and the simulators clip nothing before evaluating,
     so such a model is undefined for part of its input range (use a state or a parameter)."""
@@ -128,19 +141,21 @@ def custom_plant(spec: Mapping[str, Any], key: str = "plant") -> Plant:
     if not isinstance(description, str):
         raise SpecError("expected a string", key=f"{key}.description")
 
-    states, bounds = [], []
+    states: list[Quantity] = []
+    bounds: list[tuple[float, float]] = []
     for nm, sig in _table(spec.get("states"), f"{key}.states").items():
         qty, b = _signal(nm, sig, f"{key}.states.{nm}", need_bounds=True)
         states.append(qty)
         bounds.append(b)
-    inputs, input_bounds = [], []
+    inputs: list[Quantity] = []
+    input_bounds: list[tuple[float, float]] = []
     raw_inputs = spec.get("inputs", {})
     if not isinstance(raw_inputs, Mapping):
         raise SpecError("expected a table of inputs", key=f"{key}.inputs")
     for nm, sig in raw_inputs.items():
-        qty, b = _signal(nm, sig, f"{key}.inputs.{nm}", need_bounds=False)
+        qty, limits = _signal(nm, sig, f"{key}.inputs.{nm}", need_bounds=False)
         inputs.append(qty)
-        input_bounds.append(b or (float("-inf"), float("inf")))
+        input_bounds.append(limits or (float("-inf"), float("inf")))
 
     params = []
     raw_params = spec.get("parameters", {})
@@ -153,9 +168,9 @@ def custom_plant(spec: Mapping[str, Any], key: str = "plant") -> Plant:
             prm = {"value": prm}
         if not isinstance(prm, Mapping) or "value" not in prm:
             raise SpecError("expected a number or a table {value, unit, min, max}", key=pkey)
-        extra = set(prm) - {"value", "unit", "min", "max", "description"}
-        if extra:
-            raise SpecError(f"unknown field(s) {sorted(extra)}", key=pkey)
+        unknown_fields = set(prm) - {"value", "unit", "min", "max", "description"}
+        if unknown_fields:
+            raise SpecError(f"unknown field(s) {sorted(unknown_fields)}", key=pkey)
         unit = prm.get("unit", "1")
         if not isinstance(unit, str):
             raise SpecError("unit must be a string", key=f"{pkey}.unit")

@@ -80,13 +80,13 @@ def validate_name(name: object, key: str) -> str:
 
 
 def _tokenise(text: str, key: str) -> list[tuple[str, str, int]]:
-    tokens = []
+    tokens: list[tuple[str, str, int]] = []
     pos = 0
     while pos < len(text):
         if text[pos:].strip() == "":
             break
         m = _TOKEN_RE.match(text, pos)
-        if m is None or m.end() == pos:
+        if m is None or m.end() == pos or m.lastgroup is None:
             col = pos + (len(text[pos:]) - len(text[pos:].lstrip()))
             raise ParseError(
                 f"unexpected character {text[col]!r} at column {col + 1} in {text!r}; "

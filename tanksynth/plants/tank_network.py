@@ -168,6 +168,7 @@ def tank_network(N: int = 4, parameter_set: str = "decenter") -> Plant:
         rows.append((-outflow(i) + pump(i - half - 1, False)) / p[f"A{i}"])
     f = sp.Matrix(rows)
 
+    outputs: tuple[Quantity, ...]
     if johansson:
         hmap = sp.Matrix([p["kc"] * h[0], p["kc"] * h[1]])
         outputs = (Quantity("y1", "V", "level sensor of tank 1, kc h1"),

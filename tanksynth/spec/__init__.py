@@ -15,7 +15,7 @@ import re
 import tomllib
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any, Mapping
+from typing import TYPE_CHECKING, Any, Mapping, Protocol
 
 import numpy as np
 
@@ -24,8 +24,11 @@ from tanksynth.plants import BUILTIN_PLANTS, Plant, custom_plant
 from tanksynth.spec.options import (parse_box, parse_number, parse_vector,
                                     unknown_word_hint)
 
-__all__ = ["Spec", "DesignSpec", "load_spec", "parse_spec", "parse_spec_text", "MIN_TS", "MAX_TS",
-           "MAX_MODEL_MAGNITUDE"]
+if TYPE_CHECKING:  # the Options classes load with the method table, not with the spec
+    from tanksynth.spec.method_options.base import MethodOptions
+
+__all__ = ["Spec", "DesignSpec", "OptionsValidator", "load_spec", "parse_spec", "parse_spec_text",
+           "MIN_TS", "MAX_TS", "MAX_MODEL_MAGNITUDE"]
 
 #: Sampling periods accepted (s): below MIN_TS a discrete model equals the identity in
 #: floating point; above MAX_TS no tank model is meaningful.
@@ -45,6 +48,28 @@ RESERVED_NAMES = {"plant": "plant.json (the plant record)", "checks": "checks.js
 #: Name endings that collide with files written beside another design's artefact.
 RESERVED_SUFFIXES = {".traces": "<name>.traces.npz (a verdict trace)",
                      "_law": "<name>_law.c/.h/.casadi (an exported control law)"}
+
+
+class OptionsValidator(Protocol):
+    """What a ``[[design]]`` table's options are validated by: a row of the method table
+    (`tanksynth.methods.Method`) or a design adapter (`tanksynth.design.result.DesignMethod`)."""
+
+    def validate(self, options: Mapping[str, Any], key: str, plant: Plant,
+                 ts: float | None) -> MethodOptions:
+        """The method's validated Options of ``options`` (see `tanksynth.methods.Method.validate`).
+
+        Parameters
+        ----------
+        options : mapping
+            The raw options (without ``name`` and ``method``).
+        key : str
+            Where the table is in the spec (``design[i]``).
+        plant : Plant
+            The spec's plant.
+        ts : float or None
+            Sampling period (s).
+        """
+        ...
 
 
 @dataclass(frozen=True)
@@ -68,7 +93,7 @@ class DesignSpec:
     method: str
     options: Mapping[str, Any]
     key: str
-    config: Any = None
+    config: MethodOptions | None = None
 
 
 @dataclass(frozen=True)
@@ -108,7 +133,7 @@ class Spec:
     text: str = field(default="", repr=False)
 
 
-def load_spec(path: str | Path, *, methods: Mapping[str, Any] | None = None) -> Spec:
+def load_spec(path: str | Path, *, methods: Mapping[str, OptionsValidator] | None = None) -> Spec:
     """Read and validate a TOML spec file.
 
     Parameters
@@ -137,7 +162,7 @@ def load_spec(path: str | Path, *, methods: Mapping[str, Any] | None = None) -> 
 
 
 def parse_spec_text(data: bytes | str, source: str | None = None, *,
-                    methods: Mapping[str, Any] | None = None) -> Spec:
+                    methods: Mapping[str, OptionsValidator] | None = None) -> Spec:
     """Validate spec text (TOML) and build the `Spec` (``methods`` as in `load_spec`).
 
     Parameters
@@ -226,7 +251,7 @@ def _build_plant(table: Mapping[str, Any]) -> Plant:
 
 
 def parse_spec(table: Mapping[str, Any], source: str | None = None, sha256: str = "", *,
-               methods: Mapping[str, Any] | None = None) -> Spec:
+               methods: Mapping[str, OptionsValidator] | None = None) -> Spec:
     """Validate a parsed TOML table and build the `Spec`.
 
     Parameters
@@ -254,14 +279,13 @@ def parse_spec(table: Mapping[str, Any], source: str | None = None, sha256: str 
     except SpecError as exc:
         if exc.source is None and source is not None:
             sourced = type(exc)(exc.detail, key=exc.key, source=source)
-            if hasattr(exc, "errors"):  # several invalid [[design]] tables
-                sourced.errors = exc.errors
+            sourced.errors = exc.errors  # several invalid [[design]] tables: each one's error
             raise sourced from None
         raise
 
 
 def _parse(table: Mapping[str, Any], source: str | None, sha256: str,
-           methods: Mapping[str, Any] | None) -> Spec:
+           methods: Mapping[str, OptionsValidator] | None) -> Spec:
     if not isinstance(table, Mapping):
         raise SpecError("expected a TOML document (table)")
     unknown = [k for k in table if k not in _TOP_KEYS]
@@ -299,7 +323,9 @@ def _parse(table: Mapping[str, Any], source: str | None, sha256: str,
     raw_designs = table.get("design", [])
     if not isinstance(raw_designs, list):
         raise SpecError("expected an array of tables [[design]]", key="design")
-    designs, seen, errors = [], {}, []
+    designs: list[DesignSpec] = []
+    seen: dict[str, str] = {}
+    errors: list[tuple[int, SpecError]] = []
     for i, entry in enumerate(raw_designs):
         try:
             designs.append(_design(i, entry, seen, plant, ts, methods))
@@ -363,7 +389,7 @@ def _designs_error(raw_designs: list, errors: list[tuple[int, SpecError]]) -> Sp
 
 
 def _design(i: int, entry: Any, seen: dict[str, str], plant: Plant, ts: float | None,
-            methods: Mapping[str, Any] | None) -> DesignSpec:
+            methods: Mapping[str, OptionsValidator] | None) -> DesignSpec:
     """Validate the ``[[design]]`` table number ``i`` (``seen``: the file-name forms of the
     names before it, updated here)."""
     key = f"design[{i}]"

@@ -13,12 +13,15 @@ import dataclasses
 import inspect
 import re
 from dataclasses import MISSING, dataclass
-from typing import Any, Callable, ClassVar, Mapping
+from typing import TYPE_CHECKING, Any, Callable, ClassVar, Mapping
 
 import numpy as np
 
 from tanksynth.errors import SpecError
 from tanksynth.spec.options import unknown_word_hint
+
+if TYPE_CHECKING:  # the plant's module loads sympy; only its type is needed here
+    from tanksynth.plants.base import Plant
 
 __all__ = ["MethodOptions", "OptionReader", "OptionDoc", "option", "numpydoc_section", "time_domain_of",
            "MEMORY_BUDGET", "memory_budget", "TIME_DOMAIN_TEXT"]
@@ -226,7 +229,7 @@ class MethodOptions:
     needs_sampling: ClassVar[bool] = False
 
     @classmethod
-    def from_table(cls, options: Mapping[str, Any], key: str, plant: Any,
+    def from_table(cls, options: Mapping[str, Any], key: str, plant: Plant,
                    ts: float | None) -> "MethodOptions":
         """Validate a ``[[design]]`` table's options (without ``name`` and ``method``).
 
@@ -254,7 +257,7 @@ class MethodOptions:
         raise NotImplementedError(f"{cls.__name__}.from_table")
 
     @classmethod
-    def validated(cls, options: Mapping[str, Any], key: str, plant: Any,
+    def validated(cls, options: Mapping[str, Any], key: str, plant: Plant,
                   ts: float | None) -> "MethodOptions":
         """`from_table`, remembering the table the options were read from (`source`).
 
@@ -288,7 +291,7 @@ class MethodOptions:
         object.__setattr__(out, "_source", dict(options))
         return out
 
-    def memory_estimate(self, plant: Any, ts: float | None) -> tuple[float, str] | None:
+    def memory_estimate(self, plant: Plant, ts: float | None) -> tuple[float, str] | None:
         """Estimated peak memory of the design (bytes) and the option that drives it.
 
         Subclasses whose sizes come from options (samples, windows, network

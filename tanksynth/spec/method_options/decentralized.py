@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, ClassVar, Mapping
+from typing import TYPE_CHECKING, Any, ClassVar, Mapping
 
 import numpy as np
 
@@ -11,6 +11,9 @@ from tanksynth.errors import SpecError
 from tanksynth.spec.method_options.base import MethodOptions, OptionReader, option
 from tanksynth.spec.options import (parse_choice, parse_covariance, parse_integer, parse_matrix,
                                     parse_number, parse_vector)
+
+if TYPE_CHECKING:  # the plant's module loads sympy; only its type is needed here
+    from tanksynth.plants.base import Plant
 
 __all__ = ["DECENTRALIZED_ALGORITHMS", "DecentralizedKalmanOptions"]
 
@@ -111,7 +114,7 @@ class DecentralizedKalmanOptions(MethodOptions):
     relinearize_every: int = option(10, unit="samples")
 
     @classmethod
-    def from_table(cls, options: Mapping[str, Any], key: str, plant: Any,
+    def from_table(cls, options: Mapping[str, Any], key: str, plant: Plant,
                    ts: float | None) -> "DecentralizedKalmanOptions":
         """See `MethodOptions.from_table`; the correlation applies to a number ``process_noise``."""
         r = OptionReader(cls, options, key, ts)
@@ -133,7 +136,7 @@ class DecentralizedKalmanOptions(MethodOptions):
             input=r.read("input", parse_vector, names=[s.name for s in plant.inputs]),
             relinearize_every=r.read("relinearize_every", parse_integer, at_least=1))
 
-    def memory_estimate(self, plant: Any, ts: float | None) -> tuple[float, str]:
+    def memory_estimate(self, plant: Plant, ts: float | None) -> tuple[float, str]:
         """``window`` steps of n x n models, covariances and gains; CasADi's graph of the window
         problem holds some 50 matrices per step (bytes)."""
         per_step = plant.n ** 2 * 10 + plant.n * plant.q * 4 + plant.q ** 2 * 4

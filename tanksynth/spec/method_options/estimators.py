@@ -9,7 +9,7 @@ initial estimate ``x0`` defaults to the operating point.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, ClassVar, Mapping
+from typing import TYPE_CHECKING, Any, ClassVar, Mapping
 
 import numpy as np
 
@@ -17,6 +17,9 @@ from tanksynth.errors import SpecError
 from tanksynth.spec.method_options.base import MethodOptions, OptionReader, option
 from tanksynth.spec.options import (parse_bool, parse_choice, parse_covariance, parse_integer,
                                     parse_matrix, parse_number, parse_poles, parse_vector)
+
+if TYPE_CHECKING:  # the plant's module loads sympy; only its type is needed here
+    from tanksynth.plants.base import Plant
 
 __all__ = ["OBSERVER_FORMS", "KalmanOptions", "EkfOptions", "UkfOptions", "AdaptiveKalmanOptions",
            "AdaptiveScalingKalmanOptions", "ConsensusFilterOptions", "LuenbergerOptions",
@@ -63,11 +66,11 @@ _JACOBIAN_DOC = """
         one-sided (state units, >= 0); default 0."""
 
 
-def _x0(r: OptionReader, plant: Any) -> np.ndarray | None:
+def _x0(r: OptionReader, plant: Plant) -> np.ndarray | None:
     return r.read("x0", parse_vector, names=[s.name for s in plant.states])
 
 
-def _filter_fields(r: OptionReader, plant: Any, Q: str = "Q", q_size: int | None = None
+def _filter_fields(r: OptionReader, plant: Plant, Q: str = "Q", q_size: int | None = None
                    ) -> dict[str, Any]:
     """``Q`` (``q_size`` square, default n), ``R``, ``P0``, ``x0`` (and ``substeps``, ``clip``
     when the class has them)."""
@@ -110,7 +113,7 @@ class KalmanOptions(_FilterOptions):
     switch_tol: float = option(0.0, unit="state units")
 
     @classmethod
-    def from_table(cls, options: Mapping[str, Any], key: str, plant: Any,
+    def from_table(cls, options: Mapping[str, Any], key: str, plant: Plant,
                    ts: float | None) -> "KalmanOptions":
         """See `MethodOptions.from_table`."""
         r = OptionReader(cls, options, key, ts)
@@ -157,7 +160,7 @@ class UkfOptions(_FilterOptions):
     redraw: bool = option(True, unit="-")
 
     @classmethod
-    def from_table(cls, options: Mapping[str, Any], key: str, plant: Any,
+    def from_table(cls, options: Mapping[str, Any], key: str, plant: Plant,
                    ts: float | None) -> "UkfOptions":
         """See `MethodOptions.from_table`."""
         r = OptionReader(cls, options, key, ts)
@@ -199,7 +202,7 @@ class AdaptiveKalmanOptions(MethodOptions):
     q_floor: float = option(0.0, unit="(state units)^2")
 
     @classmethod
-    def from_table(cls, options: Mapping[str, Any], key: str, plant: Any,
+    def from_table(cls, options: Mapping[str, Any], key: str, plant: Plant,
                    ts: float | None) -> "AdaptiveKalmanOptions":
         """See `MethodOptions.from_table`."""
         r = OptionReader(cls, options, key, ts)
@@ -250,7 +253,7 @@ class AdaptiveScalingKalmanOptions(MethodOptions):
     phi0: float = option(1.0, unit="-")
 
     @classmethod
-    def from_table(cls, options: Mapping[str, Any], key: str, plant: Any,
+    def from_table(cls, options: Mapping[str, Any], key: str, plant: Plant,
                    ts: float | None) -> "AdaptiveScalingKalmanOptions":
         """See `MethodOptions.from_table`; ``Q`` is r x r for an n x r ``G``."""
         r = OptionReader(cls, options, key, ts)
@@ -298,7 +301,7 @@ class ConsensusFilterOptions(MethodOptions):
     x0: np.ndarray | None = option(None, unit="state units")
 
     @classmethod
-    def from_table(cls, options: Mapping[str, Any], key: str, plant: Any,
+    def from_table(cls, options: Mapping[str, Any], key: str, plant: Plant,
                    ts: float | None) -> "ConsensusFilterOptions":
         """See `MethodOptions.from_table`."""
         r = OptionReader(cls, options, key, ts)
@@ -346,7 +349,7 @@ class LuenbergerOptions(MethodOptions):
     nonlinear: bool = option(False, unit="-")
 
     @classmethod
-    def from_table(cls, options: Mapping[str, Any], key: str, plant: Any,
+    def from_table(cls, options: Mapping[str, Any], key: str, plant: Plant,
                    ts: float | None) -> "LuenbergerOptions":
         """See `MethodOptions.from_table`; exactly one of ``L`` and ``poles``."""
         r = OptionReader(cls, options, key, ts)
@@ -440,7 +443,7 @@ class NarxOptions(KalmanOptions):
     max_fail: int = option(6, unit="-")
 
     @classmethod
-    def from_table(cls, options: Mapping[str, Any], key: str, plant: Any,
+    def from_table(cls, options: Mapping[str, Any], key: str, plant: Plant,
                    ts: float | None) -> "NarxOptions":
         """See `MethodOptions.from_table`."""
         r = OptionReader(cls, options, key, ts)
@@ -454,7 +457,7 @@ class NarxOptions(KalmanOptions):
                    noise_std=r.read("noise_std", parse_vector, plant.q, at_least=0.0),
                    target=r.read("target", parse_choice, ("ekf", "true")))
 
-    def memory_estimate(self, plant: Any, ts: float | None) -> tuple[float, str]:
+    def memory_estimate(self, plant: Plant, ts: float | None) -> tuple[float, str]:
         """The Levenberg-Marquardt Jacobian (N n x P, built twice) with N = ``steps x runs``
         samples and P weights, its P x P normal matrix, and the data runs (bytes)."""
         n, q, m = plant.n, plant.q, plant.m
@@ -465,4 +468,4 @@ class NarxOptions(KalmanOptions):
                       + 12 * samples * (n + q + m) + 2 * samples * self.hidden * nin)
         ratios = {"steps": self.steps / 600, "runs": self.runs / 4, "hidden": self.hidden / 5,
                   "delays": self.delays / 2, "validation_runs": self.validation_runs}
-        return need, max(ratios, key=ratios.get)
+        return need, max(ratios, key=lambda option: ratios[option])

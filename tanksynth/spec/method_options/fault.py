@@ -3,13 +3,16 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, ClassVar, Mapping
+from typing import TYPE_CHECKING, Any, ClassVar, Mapping
 
 import numpy as np
 
 from tanksynth.errors import SpecError
 from tanksynth.spec.method_options.base import MethodOptions, OptionReader, option
 from tanksynth.spec.options import parse_bool, parse_number, parse_poles, parse_vector
+
+if TYPE_CHECKING:  # the plant's module loads sympy; only its type is needed here
+    from tanksynth.plants.base import Plant
 
 __all__ = ["FaultDetectionOptions"]
 
@@ -93,7 +96,7 @@ class FaultDetectionOptions(MethodOptions):
     input: tuple[np.ndarray, ...] | None = option(None, unit="s, input units")
 
     @classmethod
-    def from_table(cls, options: Mapping[str, Any], key: str, plant: Any,
+    def from_table(cls, options: Mapping[str, Any], key: str, plant: Plant,
                    ts: float | None) -> "FaultDetectionOptions":
         """See `MethodOptions.from_table`; a single-output plant, starts inside the bounds."""
         r = OptionReader(cls, options, key, ts)

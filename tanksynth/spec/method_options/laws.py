@@ -4,7 +4,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, ClassVar, Mapping
+from typing import TYPE_CHECKING, Any, ClassVar, Mapping
 
 import numpy as np
 
@@ -12,6 +12,9 @@ from tanksynth.spec.method_options.base import MethodOptions, OptionReader, opti
 from tanksynth.spec.method_options.placement import PLACE_METHODS
 from tanksynth.spec.options import (parse_bool, parse_choice, parse_integer, parse_matrix, parse_names,
                                     parse_number, parse_poles, parse_vector)
+
+if TYPE_CHECKING:  # the plant's module loads sympy; only its type is needed here
+    from tanksynth.plants.base import Plant
 
 __all__ = ["ANTI_WINDUP_SCHEMES", "FeedbackLinearizationOptions", "IntegralTrackingOptions",
            "InverseDynamicsOptions"]
@@ -66,7 +69,7 @@ class FeedbackLinearizationOptions(MethodOptions):
     seed: int = option(0, unit="-")
 
     @classmethod
-    def from_table(cls, options: Mapping[str, Any], key: str, plant: Any,
+    def from_table(cls, options: Mapping[str, Any], key: str, plant: Plant,
                    ts: float | None) -> "FeedbackLinearizationOptions":
         """See `MethodOptions.from_table`; decoupling needs as many outputs as inputs."""
         r = OptionReader(cls, options, key, ts)
@@ -91,7 +94,7 @@ class FeedbackLinearizationOptions(MethodOptions):
                    samples=r.read("samples", parse_integer, at_least=0, at_most=1_000_000),
                    seed=r.read("seed", parse_integer, at_least=0))
 
-    def memory_estimate(self, plant: Any, ts: float | None) -> tuple[float, str]:
+    def memory_estimate(self, plant: Plant, ts: float | None) -> tuple[float, str]:
         """``grid^n`` region points plus ``samples``, each with its n x n Jacobian (bytes)."""
         points = float(self.grid) ** plant.n + self.samples
         return 8.0 * 4 * points * (plant.n + plant.n ** 2 + plant.m), "grid"
@@ -133,7 +136,7 @@ class IntegralTrackingOptions(MethodOptions):
     reference_gain: np.ndarray | None = option(None, unit="units of K", default_text="unset: no comparison")
 
     @classmethod
-    def from_table(cls, options: Mapping[str, Any], key: str, plant: Any,
+    def from_table(cls, options: Mapping[str, Any], key: str, plant: Plant,
                    ts: float | None) -> "IntegralTrackingOptions":
         """See `MethodOptions.from_table`; n + p poles for p tracked outputs."""
         r = OptionReader(cls, options, key, ts)
@@ -200,7 +203,7 @@ class InverseDynamicsOptions(MethodOptions):
     saturate: bool = option(True, unit="-")
 
     @classmethod
-    def from_table(cls, options: Mapping[str, Any], key: str, plant: Any,
+    def from_table(cls, options: Mapping[str, Any], key: str, plant: Plant,
                    ts: float | None) -> "InverseDynamicsOptions":
         """See `MethodOptions.from_table`; ``C`` and ``tune = true`` exclude each other."""
         r = OptionReader(cls, options, key, ts)
@@ -233,7 +236,7 @@ class InverseDynamicsOptions(MethodOptions):
                    substeps=r.read("substeps", parse_integer, at_least=1, at_most=1000), grid=grid,
                    bounds=bounds, saturate=r.read("saturate", parse_bool))
 
-    def memory_estimate(self, plant: Any, ts: float | None) -> tuple[float, str]:
+    def memory_estimate(self, plant: Plant, ts: float | None) -> tuple[float, str]:
         """``grid^m`` servo runs of ``horizon / ts`` samples, states and inputs kept (bytes)."""
         runs = float(np.size(self.grid)) ** plant.m
         samples = self.horizon / ts if ts else 1.0

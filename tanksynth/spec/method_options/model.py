@@ -3,9 +3,12 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, ClassVar, Mapping
+from typing import TYPE_CHECKING, Any, ClassVar, Mapping
 
 from tanksynth.spec.method_options.base import MethodOptions, OptionReader
+
+if TYPE_CHECKING:  # the plant's module loads sympy; only its type is needed here
+    from tanksynth.plants.base import Plant
 
 __all__ = ["LinearizeOptions"]
 
@@ -25,7 +28,7 @@ class LinearizeOptions(MethodOptions):
     needs_sampling: ClassVar[bool] = True
 
     @classmethod
-    def from_table(cls, options: Mapping[str, Any], key: str, plant: Any,
+    def from_table(cls, options: Mapping[str, Any], key: str, plant: Plant,
                    ts: float | None) -> "LinearizeOptions":
         """Refuse any option and a spec without a sampling period (see `MethodOptions.from_table`)."""
         OptionReader(cls, options, key, ts)

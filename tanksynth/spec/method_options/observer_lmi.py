@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from types import MappingProxyType
-from typing import Any, ClassVar, Mapping
+from typing import TYPE_CHECKING, Any, ClassVar, Mapping
 
 import numpy as np
 import sympy as sp
@@ -14,6 +14,9 @@ from tanksynth.spec.method_options.base import MethodOptions, OptionReader, opti
 from tanksynth.spec.method_options.placement import LMI_SOLVERS
 from tanksynth.spec.options import (parse_bool, parse_box, parse_choice, parse_integer, parse_matrix,
                                     parse_names, parse_number, parse_vector)
+
+if TYPE_CHECKING:  # the plant's module loads sympy; only its type is needed here
+    from tanksynth.plants.base import Plant
 
 __all__ = ["LMI_VARIANTS", "TsObserverOptions"]
 
@@ -175,7 +178,7 @@ class TsObserverOptions(MethodOptions):
     allow_fragile: bool = option(False, unit="-")
 
     @classmethod
-    def from_table(cls, options: Mapping[str, Any], key: str, plant: Any,
+    def from_table(cls, options: Mapping[str, Any], key: str, plant: Plant,
                    ts: float | None) -> "TsObserverOptions":
         """See `MethodOptions.from_table`."""
         r = OptionReader(cls, options, key, ts)
@@ -223,7 +226,7 @@ class TsObserverOptions(MethodOptions):
             solver=r.read("solver", parse_choice, LMI_SOLVERS),
             allow_fragile=r.read("allow_fragile", parse_bool))
 
-    def memory_estimate(self, plant: Any, ts: float | None) -> tuple[float, str]:
+    def memory_estimate(self, plant: Plant, ts: float | None) -> tuple[float, str]:
         """Peak memory of the sampled steps (bytes).
 
         ``samples`` points of the domain plus up to 4,096 box corners, each with

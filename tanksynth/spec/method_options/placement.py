@@ -8,7 +8,7 @@ ZOH-discretised with ``[sampling] ts`` in discrete time.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, ClassVar, Mapping
+from typing import TYPE_CHECKING, Any, ClassVar, Mapping
 
 import numpy as np
 
@@ -17,6 +17,9 @@ from tanksynth.spec.method_options.base import (TIME_DOMAIN_TEXT, MethodOptions,
                                                  time_domain_of)
 from tanksynth.spec.options import (parse_bool, parse_choice, parse_matrix, parse_names, parse_number,
                                     parse_poles, parse_region, region_is_stable)
+
+if TYPE_CHECKING:  # the plant's module loads sympy; only its type is needed here
+    from tanksynth.plants.base import Plant
 
 __all__ = ["LMI_SOLVERS", "PLACE_METHODS", "TARGETS", "TIME_DOMAINS", "POLE_DOMAINS",
            "PolePlacementOptions", "LmiPlacementOptions",
@@ -67,7 +70,7 @@ def _poles_in_plane(value: Any, key: str, *, count: int, count_note: str, time_d
                        stable_in=stable), plane
 
 
-def _gain_setup(r: OptionReader, plant: Any, ts: float | None) -> dict[str, Any]:
+def _gain_setup(r: OptionReader, plant: Plant, ts: float | None) -> dict[str, Any]:
     """``target``, ``time_domain``, ``integral`` and ``tracked`` of a linear gain design."""
     target = r.read("target", parse_choice, TARGETS)
     time_domain = r.read("time_domain", parse_choice, TIME_DOMAINS) or time_domain_of(ts)
@@ -85,7 +88,7 @@ def _gain_setup(r: OptionReader, plant: Any, ts: float | None) -> dict[str, Any]
     return {"target": target, "time_domain": time_domain, "integral": integral, "tracked": tracked}
 
 
-def _gain_shape(setup: Mapping[str, Any], plant: Any) -> tuple[int, int]:
+def _gain_shape(setup: Mapping[str, Any], plant: Plant) -> tuple[int, int]:
     """Shape of ``K`` (m x n, or m x (n + p) with integral action) or ``L`` (n x q)."""
     if setup["target"] == "observer":
         return plant.n, plant.q
@@ -151,7 +154,7 @@ class PolePlacementOptions(MethodOptions):
     allow_fragile: bool = option(False, unit="-")
 
     @classmethod
-    def from_table(cls, options: Mapping[str, Any], key: str, plant: Any,
+    def from_table(cls, options: Mapping[str, Any], key: str, plant: Plant,
                    ts: float | None) -> "PolePlacementOptions":
         """See `MethodOptions.from_table`; the pole count follows ``target`` and ``integral``."""
         r = OptionReader(cls, options, key, ts)
@@ -216,7 +219,7 @@ class LmiPlacementOptions(MethodOptions):
     allow_fragile: bool = option(False, unit="-")
 
     @classmethod
-    def from_table(cls, options: Mapping[str, Any], key: str, plant: Any,
+    def from_table(cls, options: Mapping[str, Any], key: str, plant: Plant,
                    ts: float | None) -> "LmiPlacementOptions":
         """See `MethodOptions.from_table`; the region must be stable in the time domain."""
         r = OptionReader(cls, options, key, ts)
@@ -269,7 +272,7 @@ class CanonicalObserverOptions(MethodOptions):
     allow_fragile: bool = option(False, unit="-")
 
     @classmethod
-    def from_table(cls, options: Mapping[str, Any], key: str, plant: Any,
+    def from_table(cls, options: Mapping[str, Any], key: str, plant: Plant,
                    ts: float | None) -> "CanonicalObserverOptions":
         """See `MethodOptions.from_table`; the plant must have one output and n <= 8."""
         r = OptionReader(cls, options, key, ts)

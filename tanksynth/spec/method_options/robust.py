@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import re
 from dataclasses import dataclass
-from typing import Any, ClassVar, Mapping
+from typing import TYPE_CHECKING, Any, ClassVar, Mapping
 
 import numpy as np
 
@@ -31,6 +31,9 @@ from tanksynth.spec.options import (did_you_mean, parse_bool, parse_choice, pars
                                     parse_matrix, parse_names, parse_number, parse_region,
                                     parse_vector, region_is_stable)
 
+if TYPE_CHECKING:  # the plant's module loads sympy; only its type is needed here
+    from tanksynth.plants.base import Plant
+
 __all__ = ["MAX_UNCERTAIN", "ROBUST_SOLVERS", "parse_uncertain", "RobustStateFeedbackOptions",
            "RobustObserverOptions"]
 
@@ -42,7 +45,7 @@ _TIME_DOMAINS = ("continuous", "discrete")
 _RELATIVE = re.compile(r"^\s*(?:\+-|\+/-|±)?\s*([0-9]*\.?[0-9]+(?:[eE][-+]?[0-9]+)?)\s*%\s*$")
 
 
-def parse_uncertain(value: Any, key: str, plant: Any) -> tuple[tuple[str, float, float], ...]:
+def parse_uncertain(value: Any, key: str, plant: Plant) -> tuple[tuple[str, float, float], ...]:
     """Intervals of uncertain plant parameters, ``((name, low, high), ...)`` in spec order.
 
     Parameters
@@ -116,7 +119,7 @@ def parse_uncertain(value: Any, key: str, plant: Any) -> tuple[tuple[str, float,
     return tuple(out)
 
 
-def _common(r: OptionReader, plant: Any, ts: float | None) -> dict[str, Any]:
+def _common(r: OptionReader, plant: Plant, ts: float | None) -> dict[str, Any]:
     """Options shared by both robust designs."""
     time_domain = r.read("time_domain", parse_choice, _TIME_DOMAINS) or time_domain_of(ts)
     if time_domain == "discrete" and ts is None:
@@ -141,7 +144,7 @@ def _common(r: OptionReader, plant: Any, ts: float | None) -> dict[str, Any]:
             "seed": r.read("seed", parse_integer, at_least=0)}
 
 
-def _default_Bw(plant: Any, observer: bool) -> np.ndarray | None:
+def _default_Bw(plant: Plant, observer: bool) -> np.ndarray | None:
     """The H-infinity channel's default ``Bw`` (continuous time), sized by the pumps.
 
     State feedback: ``B diag(0.1 range)``, a disturbance entering like each pump
@@ -266,7 +269,7 @@ class RobustStateFeedbackOptions(MethodOptions):
     seed: int = option(0, unit="-")
 
     @classmethod
-    def from_table(cls, options: Mapping[str, Any], key: str, plant: Any,
+    def from_table(cls, options: Mapping[str, Any], key: str, plant: Plant,
                    ts: float | None) -> "RobustStateFeedbackOptions":
         """See `MethodOptions.from_table`."""
         r = OptionReader(cls, options, key, ts)
@@ -330,7 +333,7 @@ class RobustObserverOptions(MethodOptions):
     seed: int = option(0, unit="-")
 
     @classmethod
-    def from_table(cls, options: Mapping[str, Any], key: str, plant: Any,
+    def from_table(cls, options: Mapping[str, Any], key: str, plant: Plant,
                    ts: float | None) -> "RobustObserverOptions":
         """See `MethodOptions.from_table`."""
         r = OptionReader(cls, options, key, ts)

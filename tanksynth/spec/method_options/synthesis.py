@@ -23,7 +23,7 @@ R^1/2]`` for state feedback and ``Cz = Q^1/2`` for observers.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, ClassVar, Mapping
+from typing import TYPE_CHECKING, Any, ClassVar, Mapping
 
 import numpy as np
 
@@ -31,6 +31,9 @@ from tanksynth.spec.method_options.base import (TIME_DOMAIN_TEXT, MethodOptions,
                                                  time_domain_of)
 from tanksynth.spec.options import (parse_choice, parse_covariance, parse_matrix, parse_number,
                                     parse_region, parse_vector, region_is_stable)
+
+if TYPE_CHECKING:  # the plant's module loads sympy; only its type is needed here
+    from tanksynth.plants.base import Plant
 
 __all__ = ["DISTURBANCE_SHORTCUTS", "DISTURBANCE_FRACTION", "SYNTHESIS_OBJECTIVES", "SYNTHESIS_SOLVERS", "SYNTHESIS_TARGETS",
            "SYNTHESIS_ROUTES",
@@ -62,7 +65,7 @@ _ROUTE_TEXT = 'computed: "riccati", "lmi" when the Riccati route does not apply'
 SYNTHESIS_TARGETS = ("state_feedback", "observer")
 
 
-def inflow_matrix(plant: Any, key: str = "Bw") -> np.ndarray:
+def inflow_matrix(plant: Plant, key: str = "Bw") -> np.ndarray:
     """``Bw`` of the ``"inflows"`` shortcut: a unit inflow into each tank, ``diag(1 / A_i)``.
 
     The tank areas are the plant's parameters ``A1 .. An`` (one per tank), else
@@ -97,7 +100,7 @@ def inflow_matrix(plant: Any, key: str = "Bw") -> np.ndarray:
     return np.diag(1.0 / areas)
 
 
-def auto_disturbance_std(plant: Any, Bw: np.ndarray) -> np.ndarray:
+def auto_disturbance_std(plant: Plant, Bw: np.ndarray) -> np.ndarray:
     """The ``disturbance_std = "auto"`` size of each disturbance (disturbance units).
 
     Each column ``j`` of ``Bw`` is scaled so that its largest effect on a state's
@@ -146,7 +149,7 @@ def auto_disturbance_std(plant: Any, Bw: np.ndarray) -> np.ndarray:
     return np.minimum(std, MAX_STD)
 
 
-def nominal_input_matrix(plant: Any) -> np.ndarray | None:
+def nominal_input_matrix(plant: Plant) -> np.ndarray | None:
     """The input Jacobian ``B = df/du`` at the centre of the region box, inputs at mid-range.
 
     Tank plants take their pumps affinely, so ``B`` (state unit per s per input
@@ -183,7 +186,7 @@ def _span(bounds: Any, size: int) -> np.ndarray:
     return np.where(np.isfinite(span) & (span > 0), span, 1.0)
 
 
-def bryson_state_weight(plant: Any) -> np.ndarray:
+def bryson_state_weight(plant: Plant) -> np.ndarray:
     """Bryson's ``Q = diag(1 / span_i^2)`` over the operating region's box (1 / state unit^2).
 
     Parameters
@@ -194,7 +197,7 @@ def bryson_state_weight(plant: Any) -> np.ndarray:
     return np.diag(1.0 / _span(plant.region.bounds, plant.n) ** 2)
 
 
-def bryson_input_weight(plant: Any) -> np.ndarray:
+def bryson_input_weight(plant: Plant) -> np.ndarray:
     """Bryson's ``R = diag(1 / range_j^2)`` over the actuators' ranges (1 / input unit^2).
 
     Parameters
@@ -205,7 +208,7 @@ def bryson_input_weight(plant: Any) -> np.ndarray:
     return np.diag(1.0 / _span(plant.input_limits, plant.m) ** 2)
 
 
-def _output_span(plant: Any) -> np.ndarray:
+def _output_span(plant: Plant) -> np.ndarray:
     """``|h(x_max) - h(x_min)|`` over the region box (output units; 1 where zero or undefined)."""
     lo = np.array([b[0] for b in plant.region.bounds], dtype=float)
     hi = np.array([b[1] for b in plant.region.bounds], dtype=float)
@@ -273,7 +276,7 @@ _OBS_DOC = """
         q numbers; default 1 % of ``|h(x_max) - h(x_min)|`` over the region box."""
 
 
-def _common(r: OptionReader, plant: Any, ts: float | None, observer: bool) -> dict[str, Any]:
+def _common(r: OptionReader, plant: Plant, ts: float | None, observer: bool) -> dict[str, Any]:
     time_domain = r.read("time_domain", parse_choice, ("continuous", "discrete")) or time_domain_of(ts)
     if time_domain == "discrete" and ts is None:
         raise r.fail("time_domain", "a discrete-time design needs a sampling period: add "
@@ -378,7 +381,7 @@ class H2StateFeedbackOptions(_StateFeedbackOptions):
     route: str = option("auto", unit="-", choices=SYNTHESIS_ROUTES, default_text=_ROUTE_TEXT)
 
     @classmethod
-    def from_table(cls, options: Mapping[str, Any], key: str, plant: Any,
+    def from_table(cls, options: Mapping[str, Any], key: str, plant: Plant,
                    ts: float | None) -> "H2StateFeedbackOptions":
         """See `MethodOptions.from_table`."""
         r = OptionReader(cls, options, key, ts)
@@ -399,7 +402,7 @@ class H2ObserverOptions(_SynthesisOptions):
     route: str = option("auto", unit="-", choices=SYNTHESIS_ROUTES, default_text=_ROUTE_TEXT)
 
     @classmethod
-    def from_table(cls, options: Mapping[str, Any], key: str, plant: Any,
+    def from_table(cls, options: Mapping[str, Any], key: str, plant: Plant,
                    ts: float | None) -> "H2ObserverOptions":
         """See `MethodOptions.from_table`."""
         r = OptionReader(cls, options, key, ts)
@@ -429,7 +432,7 @@ class HinfStateFeedbackOptions(_StateFeedbackOptions):
     route: str = option("auto", unit="-", choices=SYNTHESIS_ROUTES, default_text=_ROUTE_TEXT)
 
     @classmethod
-    def from_table(cls, options: Mapping[str, Any], key: str, plant: Any,
+    def from_table(cls, options: Mapping[str, Any], key: str, plant: Plant,
                    ts: float | None) -> "HinfStateFeedbackOptions":
         """See `MethodOptions.from_table`."""
         r = OptionReader(cls, options, key, ts)
@@ -452,7 +455,7 @@ class HinfObserverOptions(_SynthesisOptions):
     route: str = option("auto", unit="-", choices=SYNTHESIS_ROUTES, default_text=_ROUTE_TEXT)
 
     @classmethod
-    def from_table(cls, options: Mapping[str, Any], key: str, plant: Any,
+    def from_table(cls, options: Mapping[str, Any], key: str, plant: Plant,
                    ts: float | None) -> "HinfObserverOptions":
         """See `MethodOptions.from_table`."""
         r = OptionReader(cls, options, key, ts)
@@ -493,7 +496,7 @@ class MultiobjectiveOptions(_StateFeedbackOptions):
     backoff: float = option(1e-3, unit="-")
 
     @classmethod
-    def from_table(cls, options: Mapping[str, Any], key: str, plant: Any,
+    def from_table(cls, options: Mapping[str, Any], key: str, plant: Plant,
                    ts: float | None) -> "MultiobjectiveOptions":
         """See `MethodOptions.from_table`; the region must be stable in the time domain."""
         r = OptionReader(cls, options, key, ts)
@@ -511,8 +514,9 @@ class MultiobjectiveOptions(_StateFeedbackOptions):
                                    "stability domain (continuous: add a half-plane alpha >= 0, a disk "
                                    "left of 0 or a sector; discrete: add a disk with |center| + "
                                    "radius <= 1)")
-        bounds = {name: (r.read(name, parse_number, above=0.0, at_most=MAX_NORM_BOUND) if r.given(name) else None)
-                  for name in ("h2_bound", "hinf_bound")}
+        h2_bound, hinf_bound = (r.read(name, parse_number, above=0.0, at_most=MAX_NORM_BOUND)
+                                if r.given(name) else None for name in ("h2_bound", "hinf_bound"))
         return cls(**common, region=region, target=target,
-                   objective=r.read("objective", parse_choice, SYNTHESIS_OBJECTIVES), **bounds,
+                   objective=r.read("objective", parse_choice, SYNTHESIS_OBJECTIVES),
+                   h2_bound=h2_bound, hinf_bound=hinf_bound,
                    backoff=r.read("backoff", parse_number, at_least=0.0, at_most=1.0))

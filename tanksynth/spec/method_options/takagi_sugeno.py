@@ -4,13 +4,16 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from types import MappingProxyType
-from typing import Any, ClassVar, Mapping
+from typing import TYPE_CHECKING, Any, ClassVar, Mapping
 
 from tanksynth.spec.method_options.base import MethodOptions, OptionReader, option
 from tanksynth.spec.method_options.placement import LMI_SOLVERS
 from tanksynth.errors import SpecError
 from tanksynth.spec.options import (parse_bool, parse_box, parse_choice, parse_integer, parse_number,
                                      parse_vector)
+
+if TYPE_CHECKING:  # the plant's module loads sympy; only its type is needed here
+    from tanksynth.plants.base import Plant
 
 __all__ = ["PDC_RELAXATIONS", "TsStateFeedbackOptions", "TsOutputFeedbackOptions"]
 
@@ -108,7 +111,7 @@ class TsStateFeedbackOptions(MethodOptions):
     solver: str = option("CLARABEL", unit="-", choices=LMI_SOLVERS)
 
     @classmethod
-    def _common(cls, r: OptionReader, plant: Any) -> dict:
+    def _common(cls, r: OptionReader, plant: Plant) -> dict:
         names = [s.name for s in plant.states]
         domain = r.read("domain", parse_box, names)
         return dict(
@@ -131,7 +134,7 @@ class TsStateFeedbackOptions(MethodOptions):
             solver=r.read("solver", parse_choice, LMI_SOLVERS))
 
     @classmethod
-    def from_table(cls, options: Mapping[str, Any], key: str, plant: Any,
+    def from_table(cls, options: Mapping[str, Any], key: str, plant: Plant,
                    ts: float | None) -> "TsStateFeedbackOptions":
         """See `MethodOptions.from_table`."""
         r = OptionReader(cls, options, key, ts)
@@ -178,7 +181,7 @@ class TsOutputFeedbackOptions(TsStateFeedbackOptions):
     coupling_factor: float = option(2.0, unit="-")
 
     @classmethod
-    def from_table(cls, options: Mapping[str, Any], key: str, plant: Any,
+    def from_table(cls, options: Mapping[str, Any], key: str, plant: Plant,
                    ts: float | None) -> "TsOutputFeedbackOptions":
         """See `MethodOptions.from_table`."""
         r = OptionReader(cls, options, key, ts)
