@@ -49,10 +49,10 @@ import numpy as np
 
 from tanksynth.errors import CovarianceError, DimensionError, SpecError, TanksynthError
 from tanksynth.plants.base import Plant
-# _positive_float, _positive_int and _mmin are imported from here by the sibling estimators.
+# _positive_float, _positive_int and sx_min are imported from here by the sibling estimators.
 from tanksynth.runtime.estimators.arrays import (_positive_float, _positive_int, as_matrix,  # noqa: F401
                                                  as_spd, as_vector)
-from tanksynth.runtime.estimators.kernels import (_mmin, _native, sx_cholesky,  # noqa: F401
+from tanksynth.runtime.estimators.kernels import (native_function, sx_cholesky, sx_min,  # noqa: F401
                                                   sx_spd_inverse, sx_symmetrize)
 from tanksynth.runtime.estimators.model import (DiscreteModel, _PlantDimensions, discrete_model,
                                                 regularized_jacobian)
@@ -300,7 +300,7 @@ class KernelEstimator(Estimator):
             fn = kernel
             used = "vm"
             if backend in ("auto", "native"):
-                native = _native(kernel)
+                native = native_function(kernel)
                 if native is not None:
                     fn, used = native, "native"
                 elif backend == "native":

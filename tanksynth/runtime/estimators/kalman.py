@@ -28,7 +28,7 @@ import scipy.linalg as sla
 
 from tanksynth.errors import DimensionError, SpecError
 from tanksynth.plants.base import Plant
-from tanksynth.runtime.estimators.base import (DiscreteModel, KernelEstimator, _mmin, _positive_float, _positive_int, as_spd,
+from tanksynth.runtime.estimators.base import (DiscreteModel, KernelEstimator, sx_min, _positive_float, _positive_int, as_spd,
                    as_vector, discrete_model, sx_cholesky, sx_spd_inverse, sx_symmetrize)
 
 __all__ = [
@@ -238,7 +238,7 @@ class ExtendedKalmanFilter(KernelEstimator):
         if hyb:
             new += [ca.reshape(Phi, n * n, 1), ca.SX(1)]
             extra.append(ca.if_else(kept, 1, 0))
-        checks = ca.vertcat(_mmin(piv_p), _mmin(piv_s), _mmin(piv_n), ca.sum1(xn))
+        checks = ca.vertcat(sx_min(piv_p), sx_min(piv_s), sx_min(piv_n), ca.sum1(xn))
         return ca.Function(f"{self.method}_step", [S, y, u, p],
                            [ca.densify(ca.vertcat(*new)), ca.densify(checks),
                             ca.densify(ca.vertcat(*extra))],

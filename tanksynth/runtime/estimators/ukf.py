@@ -30,7 +30,7 @@ import numpy as np
 
 from tanksynth.errors import SpecError
 from tanksynth.plants.base import Plant
-from tanksynth.runtime.estimators.base import (DiscreteModel, KernelEstimator, _mmin, _positive_float, _positive_int, as_spd,
+from tanksynth.runtime.estimators.base import (DiscreteModel, KernelEstimator, sx_min, _positive_float, _positive_int, as_spd,
                    as_vector, sx_cholesky, sx_spd_inverse, sx_symmetrize)
 from tanksynth.runtime.estimators.kalman import _colmajor, model_from_tuning
 
@@ -201,7 +201,7 @@ class UnscentedKalmanFilter(KernelEstimator):
         xn = mdl.clip_sx(xp + K @ nu)                               # eq. 39
         Pn = sx_symmetrize(Pp - K @ Pyy @ K.T)                      # eq. 40
         _, piv_n = sx_cholesky(Pn)
-        checks = ca.vertcat(_mmin(piv0), _mmin(piv_p), _mmin(piv_s), _mmin(piv_n), ca.sum1(xn))
+        checks = ca.vertcat(sx_min(piv0), sx_min(piv_p), sx_min(piv_s), sx_min(piv_n), ca.sum1(xn))
         return ca.Function("ukf_step", [S, y, u, p],
                            [ca.densify(ca.vertcat(xn, ca.reshape(Pn, n * n, 1))),
                             ca.densify(checks), ca.densify(ca.vertcat(nu, ca.reshape(K, n * q, 1)))],
