@@ -48,4 +48,4 @@ def cache_info() -> dict[str, object]:
     """Sizes of the caches: native kernels loaded and on disk (with the directory), plants."""
     info = kernels.cache_info()
     return {"native_loaded": info["loaded"], "native_files": info["files"],
-            "native_directory": info["directory"], "plants": len(model._PLANT_CACHE)}
+            "native_directory": info["directory"], "plants": model.cached_plants()}

@@ -37,10 +37,14 @@ from typing import Any
 
 import numpy as np
 
+from tanksynth.analysis.matrices import symmetrize
 from tanksynth.errors import DimensionError, SpecError
 from tanksynth.plants.base import Plant
-from tanksynth.runtime.estimators.base import (ArrayEstimator, DiscreteModel, _positive_float, _positive_int, _sym, as_matrix,
-                   as_spd, as_vector, discrete_model, joseph_update, mv)
+from tanksynth.runtime.estimators.base import (ArrayEstimator, DiscreteModel, discrete_model,
+                                               joseph_update, mv, per_run)
+from tanksynth.runtime.estimators.tuning import (agree_on_states, choice, noise_covariances,
+                                                 noise_input, operating_point, positive_float,
+                                                 positive_int, set_fields)
 
 __all__ = [
     "AdaptiveKalmanTuning",
@@ -83,17 +87,6 @@ def linear_model_for(plant: Plant, tuning: Any) -> DiscreteModel:
     return model
 
 
-def _op(value: Any) -> tuple[np.ndarray, np.ndarray] | None:
-    if value is None:
-        return None
-    x_op, u_op = value
-    return as_vector(x_op, "operating_point x0"), as_vector(u_op, "operating_point u0")
-
-
-def _stack(A: np.ndarray, M: int) -> np.ndarray:
-    return np.broadcast_to(A, (M, *A.shape)).copy()
-
-
 @dataclass(frozen=True, eq=False)
 class AdaptiveKalmanTuning:
     """Tuning of the adaptive-Q Kalman filter (seed 000 section III): the artefact.
@@ -134,19 +127,13 @@ class AdaptiveKalmanTuning:
     operating_point: tuple[np.ndarray, np.ndarray] | None = None
 
     def __post_init__(self) -> None:
-        set_ = lambda k, v: object.__setattr__(self, k, v)  # noqa: E731
-        set_("Q0", as_spd(self.Q0, "Q0", semidefinite=True))
-        set_("R", as_spd(self.R, "R"))
-        set_("P0", as_spd(self.P0, "P0"))
-        set_("x0", as_vector(self.x0, "x0"))
-        if self.Q0.shape != self.P0.shape:
-            raise DimensionError(f"Q0 {self.Q0.shape} and P0 {self.P0.shape} must have the same shape")
-        set_("ts", _positive_float(self.ts, "ts"))
-        set_("window", _positive_int(self.window, "window"))
-        if self.form not in _AKF_FORMS:
-            raise SpecError(f"form must be one of {_AKF_FORMS}, got {self.form!r}", key="form")
-        set_("q_floor", _positive_float(self.q_floor, "q_floor", allow_zero=True))
-        set_("operating_point", _op(self.operating_point))
+        set_fields(self, **noise_covariances(self, process="Q0"))
+        agree_on_states(self.x0, Q0=self.Q0, P0=self.P0)
+        set_fields(self, ts=positive_float(self.ts, "ts"),
+                   window=positive_int(self.window, "window"),
+                   form=choice(self.form, "form", _AKF_FORMS),
+                   q_floor=positive_float(self.q_floor, "q_floor", allow_zero=True),
+                   operating_point=operating_point(self.operating_point))
 
     def gains(self) -> dict[str, np.ndarray]:
         """Tuning arrays for the artefact; the initial estimate ``x0`` is stored as ``x_hat0``."""
@@ -192,8 +179,8 @@ class AdaptiveKalmanFilter(ArrayEstimator):
 
     def _reset_arrays(self) -> None:
         M, n, q, W = self._M, self.n, self.q, self.tuning.window
-        self._P = _stack(self.tuning.P0, M)
-        self._Q = _stack(self.tuning.Q0, M)
+        self._P = per_run(self.tuning.P0, M)
+        self._Q = per_run(self.tuning.Q0, M)
         self._v = np.zeros((M, W, q))
         self._dx = np.zeros((M, W, n))
         self._filled = 0
@@ -214,9 +201,9 @@ class AdaptiveKalmanFilter(ArrayEstimator):
         F, H, R = mdl.Ad, mdl.C, tun.R
         P_prev = self._P
         xp = mv(F, self._x) + mv(mdl.Bd, U) + mdl.cd                       # (30)
-        Pp = _sym(F @ P_prev @ F.T + self._Q)                             # (31)
+        Pp = symmetrize(F @ P_prev @ F.T + self._Q)                             # (31)
         self._check_spd(Pp, "predicted covariance P(k|k-1)")
-        S = _sym(H @ Pp @ H.T + R)
+        S = symmetrize(H @ Pp @ H.T + R)
         self._check_spd(S, "innovation covariance S(k)")
         K = np.swapaxes(np.linalg.solve(S, H @ np.swapaxes(Pp, -1, -2)), -1, -2)   # (32)
         v = Y - (mv(H, xp) + mdl.dy)                                       # innovation (35, erratum)
@@ -237,9 +224,9 @@ class AdaptiveKalmanFilter(ArrayEstimator):
             else:                                                         # (37)
                 Cv = np.einsum("mwi,mwj->mij", self._v, self._v) / W
                 Qh = K @ Cv @ np.swapaxes(K, -1, -2)
-            w, V = np.linalg.eigh(_sym(Qh))
+            w, V = np.linalg.eigh(symmetrize(Qh))
             w = np.maximum(w, tun.q_floor)
-            self._Q = _sym((V * w[:, None, :]) @ np.swapaxes(V, -1, -2))
+            self._Q = symmetrize((V * w[:, None, :]) @ np.swapaxes(V, -1, -2))
         self._x = x
         self._P = P
         return x
@@ -285,24 +272,17 @@ class AdaptiveScalingTuning:
     operating_point: tuple[np.ndarray, np.ndarray] | None = None
 
     def __post_init__(self) -> None:
-        set_ = lambda k, v: object.__setattr__(self, k, v)  # noqa: E731
-        set_("Q", as_spd(self.Q, "Q", semidefinite=True))
-        set_("R", as_spd(self.R, "R"))
-        set_("P0", as_spd(self.P0, "P0"))
-        set_("x0", as_vector(self.x0, "x0"))
+        set_fields(self, **noise_covariances(self))
         n = self.x0.size
-        G = np.eye(n) if self.G is None else as_matrix(self.G, "G")
-        if G.shape != (n, self.Q.shape[0]):
-            raise DimensionError(f"G must be {n} x {self.Q.shape[0]} (n x size of Q), got {G.shape}")
-        set_("G", G)
-        set_("ts", _positive_float(self.ts, "ts"))
-        for name in ("a", "b", "c"):
-            set_(name, _positive_float(getattr(self, name), name, allow_zero=True))
+        set_fields(self, G=noise_input(self.G, n, self.Q.shape[0]),
+                   ts=positive_float(self.ts, "ts"),
+                   **{name: positive_float(getattr(self, name), name, allow_zero=True)
+                      for name in ("a", "b", "c")})
         if abs(self.a + self.b + self.c - 1.0) > 1e-12:
             raise SpecError(f"a + b + c must equal 1, got {self.a} + {self.b} + {self.c} = "
                             f"{self.a + self.b + self.c!r}", key="a")
-        set_("phi0", _positive_float(self.phi0, "phi0", allow_zero=True))
-        set_("operating_point", _op(self.operating_point))
+        set_fields(self, phi0=positive_float(self.phi0, "phi0", allow_zero=True),
+                   operating_point=operating_point(self.operating_point))
 
     def gains(self) -> dict[str, np.ndarray]:
         """Tuning arrays for the artefact; the initial estimate ``x0`` is stored as ``x_hat0``."""
@@ -353,7 +333,7 @@ class AdaptiveScalingKalmanFilter(ArrayEstimator):
         return (self.plant, self.tuning), {}
 
     def _reset_arrays(self) -> None:
-        self._P = _stack(self.tuning.P0, self._M)
+        self._P = per_run(self.tuning.P0, self._M)
         self._phi = np.full(self._M, self.tuning.phi0)
 
     @property
@@ -377,9 +357,9 @@ class AdaptiveScalingKalmanFilter(ArrayEstimator):
         match = (np.einsum("mi,mi->m", v, v) - tr_beta) / self._tr_gamma
         ups = tun.a * tun.phi0 + tun.b * self._phi + tun.c * match        # (36)/(37)
         phi = np.maximum(ups, 0.0)                                        # (38)
-        Pp = _sym(APA + phi[:, None, None] * self._GQG)                   # (32)
+        Pp = symmetrize(APA + phi[:, None, None] * self._GQG)                   # (32)
         self._check_spd(Pp, "predicted covariance P(k|k-1)")
-        Pbar = _sym(C @ Pp @ C.T + R)                                     # (33)
+        Pbar = symmetrize(C @ Pp @ C.T + R)                                     # (33)
         self._check_spd(Pbar, "innovation covariance P_bar(k)")
         K = np.swapaxes(np.linalg.solve(Pbar, C @ np.swapaxes(Pp, -1, -2)), -1, -2)  # (39)
         x = xp + np.einsum("mij,mj->mi", K, v)                            # (40)

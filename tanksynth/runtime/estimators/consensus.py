@@ -25,11 +25,13 @@ from __future__ import annotations
 from dataclasses import dataclass
 import numpy as np
 
+from tanksynth.analysis.matrices import symmetrize
 from tanksynth.errors import DimensionError, SpecError
 from tanksynth.plants.base import Plant
-from tanksynth.runtime.estimators.adaptive import _op, _stack, linear_model_for
-from tanksynth.runtime.estimators.base import (ArrayEstimator, _positive_float, _sym, as_matrix, as_spd, as_vector,
-                   joseph_update, mv)
+from tanksynth.runtime.estimators.adaptive import linear_model_for
+from tanksynth.runtime.estimators.base import ArrayEstimator, joseph_update, mv, per_run
+from tanksynth.runtime.estimators.tuning import (as_matrix, noise_covariances, noise_input,
+                                                 operating_point, positive_float, set_fields)
 
 __all__ = ["ConsensusTuning", "ConsensusFilter"]
 
@@ -70,13 +72,7 @@ class ConsensusTuning:
     operating_point: tuple[np.ndarray, np.ndarray] | None = None
 
     def __post_init__(self) -> None:
-        set_ = lambda k, v: object.__setattr__(self, k, v)  # noqa: E731
-        set_("Q", as_spd(self.Q, "Q", semidefinite=True))
-        if isinstance(self.R, np.ndarray) or not isinstance(self.R, (tuple, list)) or not self.R:
-            raise SpecError("R must be a non-empty list of sensor covariances R_i", key="R")
-        set_("R", tuple(as_spd(Ri, f"R[{i}]") for i, Ri in enumerate(self.R)))
-        set_("P0", as_spd(self.P0, "P0"))
-        set_("x0", as_vector(self.x0, "x0"))
+        set_fields(self, **noise_covariances(self, sensors=True))
         n = self.x0.size
         if self.C is not None:
             if not isinstance(self.C, (tuple, list)) or len(self.C) != len(self.R):
@@ -85,13 +81,10 @@ class ConsensusTuning:
             for i, (Ci, Ri) in enumerate(zip(Cs, self.R)):
                 if Ci.shape != (Ri.shape[0], n):
                     raise DimensionError(f"C[{i}] must be {Ri.shape[0]} x {n}, got {Ci.shape}")
-            set_("C", Cs)
-        G = np.eye(n) if self.G is None else as_matrix(self.G, "G")
-        if G.shape != (n, self.Q.shape[0]):
-            raise DimensionError(f"G must be {n} x {self.Q.shape[0]}, got {G.shape}")
-        set_("G", G)
-        set_("ts", _positive_float(self.ts, "ts"))
-        set_("operating_point", _op(self.operating_point))
+            set_fields(self, C=Cs)
+        set_fields(self, G=noise_input(self.G, n, self.Q.shape[0]),
+                   ts=positive_float(self.ts, "ts"),
+                   operating_point=operating_point(self.operating_point))
 
     @property
     def sensors(self) -> int:
@@ -175,7 +168,7 @@ class ConsensusFilter(ArrayEstimator):
         return (self.plant, self.tuning), {}
 
     def _reset_arrays(self) -> None:
-        self._Mc = _stack(self.tuning.P0, self._M)
+        self._Mc = per_run(self.tuning.P0, self._M)
         self._prior = self._x.copy()
         self._first = True
 
@@ -194,11 +187,11 @@ class ConsensusFilter(ArrayEstimator):
         A = mdl.Ad
         N = self.tuning.sensors
         xbar = mv(A, self._x) + mv(mdl.Bd, U) + mdl.cd                       # (51)
-        P = _sym(A @ self._Mc @ A.T + self._GQG)                           # (50), central
+        P = symmetrize(A @ self._Mc @ A.T + self._GQG)                           # (50), central
         self._check_spd(P, "predicted covariance P(k|k-1)")
-        info = _sym(np.linalg.inv(N * P) + self._H)                        # (44)
+        info = symmetrize(np.linalg.inv(N * P) + self._H)                        # (44)
         self._check_spd(info, "information matrix (N P)^-1 + H")
-        Pcal = _sym(np.linalg.inv(info))
+        Pcal = symmetrize(np.linalg.inv(info))
         z = mv(self._Z, Y - self._d_stack)                                # (48)
         x = xbar + np.einsum("mij,mj->mi", Pcal, z - mv(self._H, xbar))     # (49)
         K = Pcal @ self._Z                                                 # stacked gain = M C' R^-1

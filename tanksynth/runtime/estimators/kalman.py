@@ -28,8 +28,12 @@ import scipy.linalg as sla
 
 from tanksynth.errors import DimensionError, SpecError
 from tanksynth.plants.base import Plant
-from tanksynth.runtime.estimators.base import (DiscreteModel, KernelEstimator, sx_min, _positive_float, _positive_int, as_spd,
-                   as_vector, discrete_model, sx_cholesky, sx_spd_inverse, sx_symmetrize)
+from tanksynth.runtime.estimators.base import (DiscreteModel, KernelEstimator, column_major,
+                                               discrete_model)
+from tanksynth.runtime.estimators.kernels import sx_cholesky, sx_min, sx_spd_inverse, sx_symmetrize
+from tanksynth.runtime.estimators.tuning import (agree_on_states, as_spd, noise_covariances,
+                                                 operating_point, positive_float, positive_int,
+                                                 set_fields)
 
 __all__ = [
     "KalmanTuning",
@@ -82,22 +86,13 @@ class KalmanTuning:
     operating_point: tuple[np.ndarray, np.ndarray] | None = field(default=None)
 
     def __post_init__(self) -> None:
-        set_ = lambda k, v: object.__setattr__(self, k, v)  # noqa: E731
-        set_("Q", as_spd(self.Q, "Q", semidefinite=True))
-        set_("R", as_spd(self.R, "R"))
-        set_("P0", as_spd(self.P0, "P0"))
-        set_("x0", as_vector(self.x0, "x0"))
-        if self.P0.shape[0] != self.x0.size or self.Q.shape[0] != self.x0.size:
-            raise DimensionError(f"Q {self.Q.shape}, P0 {self.P0.shape} and x0 ({self.x0.size},) "
-                                 "must agree on the number of states")
-        set_("ts", _positive_float(self.ts, "ts"))
-        set_("substeps", _positive_int(self.substeps, "substeps"))
-        set_("jacobian_eps", _positive_float(self.jacobian_eps, "jacobian_eps"))
-        set_("switch_tol", _positive_float(self.switch_tol, "switch_tol", allow_zero=True))
-        if self.operating_point is not None:
-            x_op, u_op = self.operating_point
-            set_("operating_point", (as_vector(x_op, "operating_point x0"),
-                                     as_vector(u_op, "operating_point u0")))
+        set_fields(self, **noise_covariances(self))
+        agree_on_states(self.x0, Q=self.Q, P0=self.P0)
+        set_fields(self, ts=positive_float(self.ts, "ts"),
+                   substeps=positive_int(self.substeps, "substeps"),
+                   jacobian_eps=positive_float(self.jacobian_eps, "jacobian_eps"),
+                   switch_tol=positive_float(self.switch_tol, "switch_tol", allow_zero=True),
+                   operating_point=operating_point(self.operating_point))
 
     def gains(self) -> dict[str, np.ndarray]:
         """The tuning matrices as float arrays (artefact gains); the initial
@@ -140,10 +135,6 @@ def model_from_tuning(plant: Plant, tuning: Any, operating_point: Any = None) ->
                           jacobian_eps=getattr(tuning, "jacobian_eps", 1e-6),
                           switch_tol=getattr(tuning, "switch_tol", 0.0),
                           clip=getattr(tuning, "clip", False))
-
-
-def _colmajor(A: np.ndarray) -> np.ndarray:
-    return np.asarray(A, dtype=float).ravel(order="F")
 
 
 class ExtendedKalmanFilter(KernelEstimator):
@@ -245,14 +236,14 @@ class ExtendedKalmanFilter(KernelEstimator):
                            ["state", "y", "u", "params"], ["state_new", "checks", "extra"])
 
     def _params(self) -> np.ndarray:
-        return np.concatenate([_colmajor(self.tuning.Q), _colmajor(self.tuning.R)])
+        return np.concatenate([column_major(self.tuning.Q), column_major(self.tuning.R)])
 
     def _initial_state(self, X0: np.ndarray) -> np.ndarray:
         base, hyb = self._layout()
         M = X0.shape[0]
         out = np.zeros((M, base + hyb))
         out[:, :self.n] = X0
-        out[:, self.n:base] = _colmajor(self.tuning.P0)
+        out[:, self.n:base] = column_major(self.tuning.P0)
         return out
 
     # -- views -------------------------------------------------------------------------

@@ -38,9 +38,9 @@ from tanksynth.errors import DimensionError, SpecError
 from tanksynth.plants.compile import rk4_step
 from tanksynth.plants.base import Plant
 from tanksynth.analysis.linearize import discretize_zoh, linearize
-from tanksynth.runtime.estimators.adaptive import _op
-from tanksynth.runtime.estimators.base import (ArrayEstimator, _positive_float, _positive_int, as_matrix, as_vector,
-                   discrete_model, mv)
+from tanksynth.runtime.estimators.base import ArrayEstimator, discrete_model, mv
+from tanksynth.runtime.estimators.tuning import (as_matrix, as_vector, choice, operating_point,
+                                                 positive_float, positive_int, set_fields)
 
 __all__ = ["LuenbergerTuning", "LuenbergerObserver", "TSMultiObserver", "OBSERVER_FORMS"]
 
@@ -76,16 +76,13 @@ class LuenbergerTuning:
     operating_point: tuple[np.ndarray, np.ndarray] | None = None
 
     def __post_init__(self) -> None:
-        set_ = lambda k, v: object.__setattr__(self, k, v)  # noqa: E731
-        set_("L", as_matrix(self.L, "L"))
-        set_("x0", as_vector(self.x0, "x0"))
+        set_fields(self, L=as_matrix(self.L, "L"), x0=as_vector(self.x0, "x0"))
         if self.L.shape[0] != self.x0.size:
             raise DimensionError(f"L has {self.L.shape[0]} rows, x0 has {self.x0.size} entries")
-        set_("ts", _positive_float(self.ts, "ts"))
-        if self.form not in OBSERVER_FORMS:
-            raise SpecError(f"form must be one of {OBSERVER_FORMS}, got {self.form!r}", key="form")
-        set_("substeps", _positive_int(self.substeps, "substeps"))
-        set_("operating_point", _op(self.operating_point))
+        set_fields(self, ts=positive_float(self.ts, "ts"),
+                   form=choice(self.form, "form", OBSERVER_FORMS),
+                   substeps=positive_int(self.substeps, "substeps"),
+                   operating_point=operating_point(self.operating_point))
 
     def gains(self) -> dict[str, np.ndarray]:
         """Tuning arrays for the artefact; the initial estimate ``x0`` is stored as ``x_hat0``."""
