@@ -95,11 +95,13 @@ def test_a_failing_loader_is_a_build_error(cache):
         cache.library(["twice"], lambda name: SOURCE, load, find_compiler())
 
 
+@needs_cc
 def test_memory_is_bounded(cache, monkeypatch):
-    monkeypatch.setattr(native_cache, "MAX_LOADED", 3)
-    for i in range(5):
-        native_cache._remember(cache.loaded, str(i), i)
-    assert list(cache.loaded) == ["2", "3", "4"]
+    """Beyond MAX_LOADED libraries in memory, the oldest is forgotten (its file stays)."""
+    monkeypatch.setattr(native_cache, "MAX_LOADED", 2)
+    libs = [cache.library([f"twice {i}"], lambda name: SOURCE, _load, find_compiler())
+            for i in range(3)]
+    assert list(cache.loaded.values()) == libs[1:] and cache.info()["files"] == 3
 
 
 @needs_cc

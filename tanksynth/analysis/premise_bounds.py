@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from tanksynth.analysis.interval import branch_and_bound, interval_evaluate
-from tanksynth.analysis.quasi_lpv import Domain, FormEvaluator, QuasiLPV, recall, remember
+from tanksynth.analysis.quasi_lpv import Domain, QuasiLPV, recall, remember
 from tanksynth.errors import SpecError
 
 __all__ = ["PremiseBounds", "premise_bounds"]
@@ -117,7 +117,7 @@ def premise_bounds(qlpv: QuasiLPV, domain: Domain, method: str = "interval", sam
     # the weighting search asks for the same bounds over and over (cached with the domain's
     # samples and LP ranges, `tanksynth.analysis.quasi_lpv.clear_cache`)
     key = ("premise_bounds", tuple(qlpv.premise_expressions()), qlpv.weights.tobytes(),
-           tuple(qlpv.states), domain._key(),
+           tuple(qlpv.states), domain.cache_key(),
            method, int(samples), float(margin), int(seed), float(rtol), int(max_boxes),
            int(max_rounds))
     hit = recall(key)
@@ -144,7 +144,7 @@ def _premise_bounds(qlpv: QuasiLPV, domain: Domain, dens: list, method: str, sam
     info = []
     # the atoms' compiled functions (one per form, `FormEvaluator`), not one `lambdify` per
     # premise; the sample points' values are Z, computed above
-    atoms = qlpv._lambdified("atoms", lambda: FormEvaluator(qlpv.atoms, qlpv.states))
+    atoms = qlpv.atom_evaluator()
     for k, e in enumerate(exprs):
         def point(X, k=k, sign=1.0):
             with np.errstate(invalid="ignore", divide="ignore"):

@@ -238,7 +238,7 @@ class Domain:
         RegionError
             If the domain is empty or too thin to sample.
         """
-        key = ("sample", self._key(), int(count), int(seed))
+        key = ("sample", self.cache_key(), int(count), int(seed))
         hit = recall(key)
         if hit is not None:
             return hit.copy()
@@ -252,8 +252,9 @@ class Domain:
                 return out[:count]
         raise RegionError("the TS domain is empty or too thin to sample", key="region")
 
-    def _key(self) -> tuple:
-        """The domain's numbers, as a hashable key of the caches (`clear_cache`)."""
+    def cache_key(self) -> tuple:
+        """The domain's numbers (bounds and constraints, as bytes), a hashable key of the
+        analysis cache (`recall`, `remember`)."""
         return (self.lower.tobytes(), self.upper.tobytes(), self.G.shape, self.G.tobytes(),
                 self.g.tobytes())
 
@@ -297,7 +298,7 @@ class Domain:
         """
         import scipy.optimize as sopt  # deferred: scipy.optimize imports in ~0.15 s
         w = np.asarray(w, dtype=float)
-        key = ("linear_range", self._key(), w.tobytes())
+        key = ("linear_range", self.cache_key(), w.tobytes())
         hit = recall(key)
         if hit is not None:
             return hit
@@ -472,10 +473,12 @@ class QuasiLPV:
             A += z[k] * self.exact_incidence[:, k] * w
         return A
 
-    def _lambdified(self, name: str, builder: Callable[[], Any]) -> Any:
-        if name not in self._cache:
-            self._cache[name] = builder()
-        return self._cache[name]
+    def atom_evaluator(self) -> "FormEvaluator":
+        """The atoms ``n_k(x)`` compiled once (`FormEvaluator`): (M, n) -> (M, p), no warning
+        where they are undefined (NaN), unlike `atom_values`."""
+        if "atoms" not in self._cache:
+            self._cache["atoms"] = FormEvaluator(self.atoms, self.states)
+        return self._cache["atoms"]
 
     def atom_values(self, X: np.ndarray) -> np.ndarray:
         """``n_k(x)`` at M points: (M, n) -> (M, p).
@@ -485,7 +488,7 @@ class QuasiLPV:
         X : ndarray, shape (M, n)
             States (state units, m).
         """
-        fn = self._lambdified("atoms", lambda: FormEvaluator(self.atoms, self.states))
+        fn = self.atom_evaluator()
         X = np.atleast_2d(np.asarray(X, dtype=float))
         out = fn(X)
         if np.isfinite(out).all():        # the common case: nothing to warn about
