@@ -302,6 +302,15 @@ class AdaptiveScalingKalmanFilter(ArrayEstimator):
     tuning : AdaptiveScalingTuning
     runs : int, optional
 
+    Attributes
+    ----------
+    model : DiscreteModel
+    state_noise_covariance : ndarray, shape (n, n)
+        ``G Q G'``: the nominal process noise in the states (squared state units), scaled
+        by ``phi_k``.
+    output_noise_trace : float
+        ``tr(C G Q G' C')`` (squared output units), the divisor of eq. 36.
+
     Raises
     ------
     SpecError
@@ -321,9 +330,9 @@ class AdaptiveScalingKalmanFilter(ArrayEstimator):
         if tuning.R.shape != (plant.q, plant.q):
             raise DimensionError(f"R must be {plant.q} x {plant.q}, got {tuning.R.shape}")
         C = self.model.C
-        self._GQG = tuning.G @ tuning.Q @ tuning.G.T
-        self._tr_gamma = float(np.trace(C @ self._GQG @ C.T))
-        if not self._tr_gamma > 0:
+        self.state_noise_covariance = tuning.G @ tuning.Q @ tuning.G.T
+        self.output_noise_trace = float(np.trace(C @ self.state_noise_covariance @ C.T))
+        if not self.output_noise_trace > 0:
             raise SpecError("C G Q G' C' has zero trace: the scaled process noise does not reach "
                             "the output, so phi cannot be matched to the innovation (eq. 36); "
                             "choose G (noise input) and Q so that C G Q G' C' != 0", key="G")
@@ -354,10 +363,10 @@ class AdaptiveScalingKalmanFilter(ArrayEstimator):
         APA = A @ self._P @ A.T
         beta = C @ APA @ C.T + R                                          # (34b)
         tr_beta = np.trace(beta, axis1=-2, axis2=-1)
-        match = (np.einsum("mi,mi->m", v, v) - tr_beta) / self._tr_gamma
+        match = (np.einsum("mi,mi->m", v, v) - tr_beta) / self.output_noise_trace
         ups = tun.a * tun.phi0 + tun.b * self._phi + tun.c * match        # (36)/(37)
         phi = np.maximum(ups, 0.0)                                        # (38)
-        Pp = symmetrize(APA + phi[:, None, None] * self._GQG)                   # (32)
+        Pp = symmetrize(APA + phi[:, None, None] * self.state_noise_covariance)  # (32)
         self._check_spd(Pp, "predicted covariance P(k|k-1)")
         Pbar = symmetrize(C @ Pp @ C.T + R)                                     # (33)
         self._check_spd(Pbar, "innovation covariance P_bar(k)")

@@ -433,9 +433,21 @@ class KernelEstimator(Estimator):
                                  other._backend_request, _shared=other._shared)
 
     @property
+    def step_kernel(self) -> ca.Function:
+        """The SX step ``(state, y, u, params) -> (state_new, checks, extra)`` (see `_build`),
+        before any compilation: what an exported law is built from."""
+        return self._shared["sx"]
+
+    @property
+    def kernel_parameters(self) -> np.ndarray:
+        """The numeric tuning vector the kernel's ``params`` input is fed (a copy; units of
+        the tuning's entries)."""
+        return self._P.copy()
+
+    @property
     def instructions(self) -> int:
         """Number of elementary operations of the step kernel (per run)."""
-        return int(self._shared["sx"].n_instructions())
+        return int(self.step_kernel.n_instructions())
 
 
 class ArrayEstimator(Estimator):

@@ -121,6 +121,20 @@ class ConsensusFilter(ArrayEstimator):
     ----------
     prior : ndarray
         ``x_bar`` of the last step, (n,) or (M, n) (property).
+    model : DiscreteModel
+    stacked_C : ndarray, shape (sum q_i, n)
+        ``C_i`` of the sensors, stacked (output per state units).
+    stacked_offset : ndarray, shape (sum q_i,)
+        Output offsets ``d_i``, stacked (output units).
+    stacked_R : ndarray, shape (sum q_i, sum q_i)
+        Block diagonal of the ``R_i`` (squared output units).
+    information_matrix : ndarray, shape (n, n)
+        ``H = 1/N sum C_i' R_i^-1 C_i`` (eq. 43; 1 / squared state units).
+    information_gain : ndarray, shape (n, sum q_i)
+        ``1/N [C_1' R_1^-1, ..., C_N' R_N^-1]`` (eq. 48), taking the stacked measurements
+        to ``z``.
+    state_noise_covariance : ndarray, shape (n, n)
+        ``G Q G'`` (squared state units).
     """
 
     method = "consensus_filter"
@@ -142,21 +156,21 @@ class ConsensusFilter(ArrayEstimator):
             if Ri.shape[0] != Ci.shape[0] or Ci.shape[1] != plant.n:
                 raise DimensionError(f"sensor {i}: C is {Ci.shape} and R is {Ri.shape} for "
                                      f"n = {plant.n}")
-        self._C_stack = np.vstack(Cs)
-        self._d_stack = np.concatenate(ds)
-        self._R_stack = np.zeros((len(self._d_stack),) * 2)
-        self._Rinv_stack = np.zeros_like(self._R_stack)
+        self.stacked_C = np.vstack(Cs)
+        self.stacked_offset = np.concatenate(ds)
+        self.stacked_R = np.zeros((len(self.stacked_offset),) * 2)
+        self._Rinv_stack = np.zeros_like(self.stacked_R)
         i0 = 0
         for Ri in tuning.R:
             k = Ri.shape[0]
-            self._R_stack[i0:i0 + k, i0:i0 + k] = Ri
+            self.stacked_R[i0:i0 + k, i0:i0 + k] = Ri
             self._Rinv_stack[i0:i0 + k, i0:i0 + k] = np.linalg.inv(Ri)
             i0 += k
         N = tuning.sensors
-        self._H = self._C_stack.T @ self._Rinv_stack @ self._C_stack / N          # (43)
-        self._Z = self._C_stack.T @ self._Rinv_stack / N                           # (48)
-        self._GQG = tuning.G @ tuning.Q @ tuning.G.T
-        self._qy = self._q = self._C_stack.shape[0]
+        self.information_matrix = self.stacked_C.T @ self._Rinv_stack @ self.stacked_C / N  # (43)
+        self.information_gain = self.stacked_C.T @ self._Rinv_stack / N  # (48)
+        self.state_noise_covariance = tuning.G @ tuning.Q @ tuning.G.T
+        self._qy = self._q = self.stacked_C.shape[0]
         self.reset()
 
     @property
@@ -187,15 +201,15 @@ class ConsensusFilter(ArrayEstimator):
         A = mdl.Ad
         N = self.tuning.sensors
         xbar = mv(A, self._x) + mv(mdl.Bd, U) + mdl.cd                       # (51)
-        P = symmetrize(A @ self._Mc @ A.T + self._GQG)                           # (50), central
+        P = symmetrize(A @ self._Mc @ A.T + self.state_noise_covariance)  # (50), central
         self._check_spd(P, "predicted covariance P(k|k-1)")
-        info = symmetrize(np.linalg.inv(N * P) + self._H)                        # (44)
+        info = symmetrize(np.linalg.inv(N * P) + self.information_matrix)  # (44)
         self._check_spd(info, "information matrix (N P)^-1 + H")
         Pcal = symmetrize(np.linalg.inv(info))
-        z = mv(self._Z, Y - self._d_stack)                                # (48)
-        x = xbar + np.einsum("mij,mj->mi", Pcal, z - mv(self._H, xbar))     # (49)
-        K = Pcal @ self._Z                                                 # stacked gain = M C' R^-1
-        Mc = joseph_update(P, K, self._C_stack, self._R_stack)
+        z = mv(self.information_gain, Y - self.stacked_offset)            # (48)
+        x = xbar + np.einsum("mij,mj->mi", Pcal, z - mv(self.information_matrix, xbar))  # (49)
+        K = Pcal @ self.information_gain                  # stacked gain = M C' R^-1
+        Mc = joseph_update(P, K, self.stacked_C, self.stacked_R)
         self._check_spd(Mc, "updated covariance M(k)")
         self._check_state(x)
         self._x, self._Mc, self._prior = x, Mc, xbar
