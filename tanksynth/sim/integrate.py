@@ -525,11 +525,11 @@ class Integrator:
             return None
         pv, c = self._values(p)
         key = ("horizon", substeps, N, count)
-        fn = model._casadi.get(key)
+        fn = model.compiled.get(key)
         if fn is None:
             fn = model.casadi_advance(substeps, 1).mapaccum(N)
             fn = fn if count == 1 else fn.map(count, "serial")
-            model._casadi[key] = fn
+            model.compiled[key] = fn
         rep = lambda a: np.ascontiguousarray(np.broadcast_to(  # noqa: E731
             np.asarray(a, dtype=float)[:, None, :], (count, N, a.shape[-1])))
         cm, pm = self._run_matrices(pv, c, count)

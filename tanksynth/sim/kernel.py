@@ -336,21 +336,21 @@ def native_kernel(model: Any, work: float | None = None) -> NativeKernel | None:
     """
     env = tuple(os.environ.get(v) for v in ("TANKSYNTH_SIM_BACKEND", "TANKSYNTH_CC", "PATH",
                                              "TANKSYNTH_CACHE_DIR", "XDG_CACHE_HOME", "HOME"))
-    cached = model._casadi.get(("native", env))
+    cached = model.compiled.get(("native", env))
     if cached is not None:
         _STATUS[0] = cached[1]
         return cached[0]
     backend = (env[0] or "auto").strip().lower()
     cc = None if backend == "numpy" else find_compiler()
     key = ("native", backend, cc, str(cache_dir()))
-    cached = model._casadi.get(key)
+    cached = model.compiled.get(key)
     if cached is not None:
         _STATUS[0] = cached[1]
         return cached[0]
     build = backend == "native" or (work is not None and work * model.n >= BUILD_WORK)
     kernel = _native_kernel(model, backend, cc, build)
     if kernel is not None or build:      # a skipped build is asked again by a larger simulation
-        model._casadi[key] = model._casadi[("native", env)] = (kernel, _STATUS[0])
+        model.compiled[key] = model.compiled[("native", env)] = (kernel, _STATUS[0])
     return kernel
 
 
@@ -364,13 +364,13 @@ def _native_kernel(model: Any, backend: str, cc: str | None, build: bool) -> Nat
                       "the CasADi/numpy code")
         _LOG.info(_STATUS[0])
         return None
-    source = model._casadi.get("kernel_source")   # the C of a model never changes: translated once
+    source = model.compiled.get("kernel_source")   # the C of a model never changes: translated once
     if source is None:
         try:
             source = kernel_source(model)
         except ValueError as exc:
             source = exc
-        model._casadi["kernel_source"] = source
+        model.compiled["kernel_source"] = source
     if isinstance(source, ValueError):
         _STATUS[0] = str(source)
         _LOG.info(_STATUS[0])
