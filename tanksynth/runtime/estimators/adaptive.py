@@ -38,13 +38,14 @@ from typing import Any
 import numpy as np
 
 from tanksynth.analysis.matrices import symmetrize
-from tanksynth.errors import DimensionError, SpecError
+from tanksynth.errors import SpecError
 from tanksynth.plants.base import Plant
 from tanksynth.runtime.estimators.base import (ArrayEstimator, DiscreteModel, discrete_model,
                                                joseph_update, mv, per_run)
-from tanksynth.runtime.estimators.tuning import (agree_on_states, choice, noise_covariances,
-                                                 noise_input, operating_point, positive_float,
-                                                 positive_int, set_fields)
+from tanksynth.runtime.estimators.tuning import (agree_on_states, artefact_gains, choice,
+                                                 fits_plant, noise_covariances, noise_input,
+                                                 operating_point, positive_float, positive_int,
+                                                 require_tuning, set_fields)
 
 __all__ = [
     "AdaptiveKalmanTuning",
@@ -74,12 +75,7 @@ def linear_model_for(plant: Plant, tuning: Any) -> DiscreteModel:
     DimensionError
         ``x0`` or ``P0`` do not fit the plant.
     """
-    if tuning.x0.size != plant.n:
-        raise DimensionError(f"x0 must have {plant.n} entries for plant '{plant.name}', got "
-                             f"{tuning.x0.size}")
-    P0 = getattr(tuning, "P0", None)
-    if P0 is not None and P0.shape != (plant.n, plant.n):
-        raise DimensionError(f"P0 must be {plant.n} x {plant.n}, got {P0.shape}")
+    fits_plant(tuning, plant, P0=(plant.n, plant.n))
     model = discrete_model(plant, tuning.ts, operating_point=tuning.operating_point)
     if model.kind != "linear":
         raise SpecError(f"plant '{plant.name}' is nonlinear: this filter runs on a linear model; "
@@ -137,11 +133,9 @@ class AdaptiveKalmanTuning:
 
     def gains(self) -> dict[str, np.ndarray]:
         """Tuning arrays for the artefact; the initial estimate ``x0`` is stored as ``x_hat0``."""
-        out = {"Q0": self.Q0, "R": self.R, "P0": self.P0, "x_hat0": self.x0,
-               "window": np.array([float(self.window)]), "q_floor": np.array([self.q_floor])}
-        if self.operating_point is not None:
-            out["x_op"], out["u_op"] = self.operating_point
-        return out
+        return artefact_gains(self, Q0=self.Q0, R=self.R, P0=self.P0, x_hat0=self.x0,
+                              window=np.array([float(self.window)]),
+                              q_floor=np.array([self.q_floor]))
 
 
 class AdaptiveKalmanFilter(ArrayEstimator):
@@ -165,13 +159,10 @@ class AdaptiveKalmanFilter(ArrayEstimator):
     method = "adaptive_kalman"
 
     def __init__(self, plant: Plant, tuning: AdaptiveKalmanTuning, runs: int | None = None):
-        if not isinstance(tuning, AdaptiveKalmanTuning):
-            raise SpecError(f"AdaptiveKalmanFilter needs an AdaptiveKalmanTuning, got "
-                            f"{type(tuning).__name__}", key="tuning")
+        require_tuning(self, tuning, AdaptiveKalmanTuning)
         super().__init__(plant, tuning, runs)
         self.model = linear_model_for(plant, tuning)
-        if tuning.R.shape != (plant.q, plant.q):
-            raise DimensionError(f"R must be {plant.q} x {plant.q}, got {tuning.R.shape}")
+        fits_plant(tuning, plant, R=(plant.q, plant.q))
         self.reset()
 
     def _clone_args(self) -> tuple[tuple, dict]:
@@ -286,11 +277,9 @@ class AdaptiveScalingTuning:
 
     def gains(self) -> dict[str, np.ndarray]:
         """Tuning arrays for the artefact; the initial estimate ``x0`` is stored as ``x_hat0``."""
-        out = {"Q": self.Q, "R": self.R, "P0": self.P0, "x_hat0": self.x0, "G": self.G,
-               "abc": np.array([self.a, self.b, self.c]), "phi0": np.array([self.phi0])}
-        if self.operating_point is not None:
-            out["x_op"], out["u_op"] = self.operating_point
-        return out
+        return artefact_gains(self, Q=self.Q, R=self.R, P0=self.P0, x_hat0=self.x0, G=self.G,
+                              abc=np.array([self.a, self.b, self.c]),
+                              phi0=np.array([self.phi0]))
 
 
 class AdaptiveScalingKalmanFilter(ArrayEstimator):
@@ -322,13 +311,10 @@ class AdaptiveScalingKalmanFilter(ArrayEstimator):
     method = "adaptive_scaling_kalman"
 
     def __init__(self, plant: Plant, tuning: AdaptiveScalingTuning, runs: int | None = None):
-        if not isinstance(tuning, AdaptiveScalingTuning):
-            raise SpecError(f"AdaptiveScalingKalmanFilter needs an AdaptiveScalingTuning, got "
-                            f"{type(tuning).__name__}", key="tuning")
+        require_tuning(self, tuning, AdaptiveScalingTuning)
         super().__init__(plant, tuning, runs)
         self.model = linear_model_for(plant, tuning)
-        if tuning.R.shape != (plant.q, plant.q):
-            raise DimensionError(f"R must be {plant.q} x {plant.q}, got {tuning.R.shape}")
+        fits_plant(tuning, plant, R=(plant.q, plant.q))
         C = self.model.C
         self.state_noise_covariance = tuning.G @ tuning.Q @ tuning.G.T
         self.output_noise_trace = float(np.trace(C @ self.state_noise_covariance @ C.T))

@@ -30,8 +30,9 @@ from tanksynth.errors import DimensionError, SpecError
 from tanksynth.plants.base import Plant
 from tanksynth.runtime.estimators.adaptive import linear_model_for
 from tanksynth.runtime.estimators.base import ArrayEstimator, joseph_update, mv, per_run
-from tanksynth.runtime.estimators.tuning import (as_matrix, noise_covariances, noise_input,
-                                                 operating_point, positive_float, set_fields)
+from tanksynth.runtime.estimators.tuning import (artefact_gains, as_matrix, noise_covariances,
+                                                 noise_input, operating_point, positive_float,
+                                                 require_tuning, set_fields)
 
 __all__ = ["ConsensusTuning", "ConsensusFilter"]
 
@@ -94,15 +95,9 @@ class ConsensusTuning:
     def gains(self) -> dict[str, np.ndarray]:
         """Tuning arrays for the artefact (``R_i``, ``C_i`` as ``R0, R1, ...``); the initial
         estimate ``x0`` is stored as ``x_hat0``."""
-        out = {"Q": self.Q, "P0": self.P0, "x_hat0": self.x0, "G": self.G}
-        for i, Ri in enumerate(self.R):
-            out[f"R{i}"] = Ri
-        if self.C is not None:
-            for i, Ci in enumerate(self.C):
-                out[f"C{i}"] = Ci
-        if self.operating_point is not None:
-            out["x_op"], out["u_op"] = self.operating_point
-        return out
+        sensors = {f"R{i}": Ri for i, Ri in enumerate(self.R)}
+        sensors.update({f"C{i}": Ci for i, Ci in enumerate(self.C or ())})
+        return artefact_gains(self, Q=self.Q, P0=self.P0, x_hat0=self.x0, G=self.G, **sensors)
 
 
 class ConsensusFilter(ArrayEstimator):
@@ -140,9 +135,7 @@ class ConsensusFilter(ArrayEstimator):
     method = "consensus_filter"
 
     def __init__(self, plant: Plant, tuning: ConsensusTuning, runs: int | None = None):
-        if not isinstance(tuning, ConsensusTuning):
-            raise SpecError(f"ConsensusFilter needs a ConsensusTuning, got {type(tuning).__name__}",
-                            key="tuning")
+        require_tuning(self, tuning, ConsensusTuning)
         super().__init__(plant, tuning, runs)
         self.model = linear_model_for(plant, tuning)
         mdl = self.model

@@ -26,13 +26,14 @@ import casadi as ca
 import numpy as np
 import scipy.linalg as sla
 
-from tanksynth.errors import DimensionError, SpecError
+from tanksynth.errors import SpecError
 from tanksynth.plants.base import Plant
 from tanksynth.runtime.estimators.base import (DiscreteModel, KernelEstimator, column_major,
                                                discrete_model)
 from tanksynth.runtime.estimators.kernels import sx_cholesky, sx_min, sx_spd_inverse, sx_symmetrize
-from tanksynth.runtime.estimators.tuning import (agree_on_states, as_spd, noise_covariances,
-                                                 operating_point, positive_float, positive_int,
+from tanksynth.runtime.estimators.tuning import (agree_on_states, artefact_gains, as_spd,
+                                                 fits_plant, noise_covariances, operating_point,
+                                                 positive_float, positive_int, require_tuning,
                                                  set_fields)
 
 __all__ = [
@@ -97,10 +98,7 @@ class KalmanTuning:
     def gains(self) -> dict[str, np.ndarray]:
         """The tuning matrices as float arrays (artefact gains); the initial
         estimate ``x0`` is stored as ``x_hat0``."""
-        out = {"Q": self.Q, "R": self.R, "P0": self.P0, "x_hat0": self.x0}
-        if self.operating_point is not None:
-            out["x_op"], out["u_op"] = self.operating_point
-        return out
+        return artefact_gains(self, Q=self.Q, R=self.R, P0=self.P0, x_hat0=self.x0)
 
 
 def model_from_tuning(plant: Plant, tuning: Any, operating_point: Any = None) -> DiscreteModel:
@@ -121,14 +119,7 @@ def model_from_tuning(plant: Plant, tuning: Any, operating_point: Any = None) ->
         ``Q``, ``R``, ``P0`` or ``x0`` do not fit the plant.
     """
     n, q = plant.n, plant.q
-    for name, shape in (("Q", (n, n)), ("P0", (n, n)), ("R", (q, q))):
-        value = getattr(tuning, name, None)
-        if value is not None and value.shape != shape:
-            raise DimensionError(f"{name} must be {shape[0]} x {shape[1]} for plant "
-                                 f"'{plant.name}' (n = {n}, q = {q}), got {value.shape}")
-    if tuning.x0.size != n:
-        raise DimensionError(f"x0 must have {n} entries for plant '{plant.name}', got "
-                             f"{tuning.x0.size}")
+    fits_plant(tuning, plant, Q=(n, n), P0=(n, n), R=(q, q))
     op = operating_point if operating_point is not None else getattr(tuning, "operating_point", None)
     return discrete_model(plant, tuning.ts, operating_point=op,
                           substeps=getattr(tuning, "substeps", 1),
@@ -179,9 +170,7 @@ class ExtendedKalmanFilter(KernelEstimator):
 
     def __init__(self, plant: Plant, tuning: KalmanTuning, runs: int | None = None,
                  backend: str = "auto", *, model: DiscreteModel | None = None):
-        if not isinstance(tuning, KalmanTuning):
-            raise SpecError(f"{type(self).__name__} needs a KalmanTuning, got "
-                            f"{type(tuning).__name__}", key="tuning")
+        require_tuning(self, tuning, KalmanTuning)
         model = model if model is not None else model_from_tuning(plant, tuning)
         self._check_model(model)
         super().__init__(plant, tuning, model, runs, backend)

@@ -39,8 +39,9 @@ from tanksynth.plants.compile import rk4_step
 from tanksynth.plants.base import Plant
 from tanksynth.analysis.linearize import discretize_zoh, linearize
 from tanksynth.runtime.estimators.base import ArrayEstimator, discrete_model, mv
-from tanksynth.runtime.estimators.tuning import (as_matrix, as_vector, choice, operating_point,
-                                                 positive_float, positive_int, set_fields)
+from tanksynth.runtime.estimators.tuning import (artefact_gains, as_matrix, as_vector, choice,
+                                                 fits_plant, operating_point, positive_float,
+                                                 positive_int, require_tuning, set_fields)
 
 __all__ = ["LuenbergerTuning", "LuenbergerObserver", "TSMultiObserver", "OBSERVER_FORMS"]
 
@@ -86,10 +87,7 @@ class LuenbergerTuning:
 
     def gains(self) -> dict[str, np.ndarray]:
         """Tuning arrays for the artefact; the initial estimate ``x0`` is stored as ``x_hat0``."""
-        out = {"L": self.L, "x_hat0": self.x0}
-        if self.operating_point is not None:
-            out["x_op"], out["u_op"] = self.operating_point
-        return out
+        return artefact_gains(self, L=self.L, x_hat0=self.x0)
 
 
 class _ContinuousBase(ArrayEstimator):
@@ -145,15 +143,9 @@ class LuenbergerObserver(_ContinuousBase):
     method = "luenberger"
 
     def __init__(self, plant: Plant, tuning: LuenbergerTuning, runs: int | None = None):
-        if not isinstance(tuning, LuenbergerTuning):
-            raise SpecError(f"LuenbergerObserver needs a LuenbergerTuning, got "
-                            f"{type(tuning).__name__}", key="tuning")
+        require_tuning(self, tuning, LuenbergerTuning)
         super().__init__(plant, tuning, runs)
-        if tuning.L.shape != (plant.n, plant.q):
-            raise DimensionError(f"L must be {plant.n} x {plant.q} for plant '{plant.name}', got "
-                                 f"{tuning.L.shape}")
-        if tuning.x0.size != plant.n:
-            raise DimensionError(f"x0 must have {plant.n} entries, got {tuning.x0.size}")
+        fits_plant(tuning, plant, L=(plant.n, plant.q))
         self.model = discrete_model(plant, tuning.ts, operating_point=tuning.operating_point)
         mdl, L = self.model, tuning.L
         self.error_matrix = None
@@ -249,8 +241,7 @@ class TSMultiObserver(_ContinuousBase):
         if C.shape != (plant.q, plant.n) or tuning.L.shape != (plant.n, plant.q):
             raise DimensionError(f"C is {C.shape} and L is {tuning.L.shape}; expected "
                                  f"({plant.q}, {plant.n}) and ({plant.n}, {plant.q})")
-        if tuning.x0.size != plant.n:
-            raise DimensionError(f"x0 must have {plant.n} entries, got {tuning.x0.size}")
+        fits_plant(tuning, plant)
         self.ts_model = ts_model
         self._C = C
         self._setup_field(ts_model.rhs, lambda X: mv(C, X))

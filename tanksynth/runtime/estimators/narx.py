@@ -31,7 +31,7 @@ from tanksynth.errors import DimensionError, SpecError
 from tanksynth.plants.base import Plant
 from tanksynth.runtime.estimators.base import DiscreteModel, KernelEstimator, discrete_model
 from tanksynth.runtime.estimators.tuning import (as_matrix, as_vector, positive_float, positive_int,
-                                                 set_fields)
+                                                 require_tuning, set_fields)
 
 __all__ = ["NARXTuning", "NARXEstimator", "forward_pass", "open_loop_regressors"]
 
@@ -167,9 +167,7 @@ class NARXEstimator(KernelEstimator):
 
     def __init__(self, plant: Plant, tuning: NARXTuning, runs: int | None = None,
                  backend: str = "auto", *, model: DiscreteModel | None = None):
-        if not isinstance(tuning, NARXTuning):
-            raise SpecError(f"NARXEstimator needs a NARXTuning, got {type(tuning).__name__}",
-                            key="tuning")
+        require_tuning(self, tuning, NARXTuning)
         if tuning.W2.shape[0] != plant.n or tuning.n_outputs != plant.q:
             raise DimensionError(f"the network has {tuning.W2.shape[0]} outputs and takes "
                                  f"{tuning.n_outputs} measurements; plant '{plant.name}' has "

@@ -18,6 +18,9 @@ each kind of value:
 `noise_input`          ``G``, the n x r matrix the process noise enters by
 `agree_on_states`      matrices with one side per state agree with ``x0``
 `set_fields`           store validated values in a frozen tuning
+`require_tuning`       an estimator is given the tuning class it runs
+`fits_plant`           a tuning's ``x0`` and matrices have the plant's sizes
+`artefact_gains`       a tuning's arrays for the artefact, operating point included
 =====================  ==================================================
 
 Every check raises a `TanksynthError` subclass naming the value, the value
@@ -36,7 +39,7 @@ from tanksynth.errors import DimensionError, SpecError
 
 __all__ = ["as_matrix", "as_vector", "as_spd", "positive_int", "positive_float", "number_in",
            "choice", "operating_point", "noise_covariances", "noise_input", "agree_on_states",
-           "set_fields"]
+           "set_fields", "require_tuning", "fits_plant", "artefact_gains"]
 
 
 def _floats(value: Any, name: str, what: str) -> np.ndarray:
@@ -393,3 +396,76 @@ def set_fields(tuning: Any, **values: Any) -> None:
     """
     for name, value in values.items():
         object.__setattr__(tuning, name, value)
+
+
+def require_tuning(estimator: Any, tuning: Any, expected: type) -> None:
+    """Check that an estimator is given the tuning class it runs.
+
+    Parameters
+    ----------
+    estimator : object
+        The estimator being built (its class names the message).
+    tuning : object
+        The tuning given.
+    expected : type
+        The tuning class it needs.
+
+    Raises
+    ------
+    SpecError
+        ``tuning`` is not an ``expected``; the key is ``tuning``.
+    """
+    if not isinstance(tuning, expected):
+        name = expected.__name__
+        article = "an" if name[0] in "AEIOU" else "a"
+        raise SpecError(f"{type(estimator).__name__} needs {article} {name}, got "
+                        f"{type(tuning).__name__}", key="tuning")
+
+
+def fits_plant(tuning: Any, plant: Any, **shapes: tuple[int, int]) -> None:
+    """Check a tuning's sizes against the plant: ``x0`` has n entries, each named matrix its shape.
+
+    Parameters
+    ----------
+    tuning : object
+        A tuning with ``x0`` (and the named matrices; one that is None is not checked).
+    plant : Plant
+        The plant (``n`` states, ``q`` outputs, ``name``).
+    **shapes : (int, int)
+        Field name -> required shape, e.g. ``R=(q, q)``, ``L=(n, q)``.
+
+    Raises
+    ------
+    DimensionError
+        A matrix or ``x0`` of the wrong size; the message names the plant and its n and q.
+    """
+    n, q = plant.n, plant.q
+    for name, shape in shapes.items():
+        value = getattr(tuning, name, None)
+        if value is not None and value.shape != tuple(shape):
+            raise DimensionError(f"{name} must be {shape[0]} x {shape[1]} for plant "
+                                 f"'{plant.name}' (n = {n}, q = {q}), got {value.shape}")
+    if tuning.x0.size != n:
+        raise DimensionError(f"x0 must have {n} entries for plant '{plant.name}', got "
+                             f"{tuning.x0.size}")
+
+
+def artefact_gains(tuning: Any, **gains: np.ndarray) -> dict[str, np.ndarray]:
+    """A tuning's arrays for the artefact, in order, then its operating point (``x_op``, ``u_op``).
+
+    Parameters
+    ----------
+    tuning : object
+        The tuning (its ``operating_point``, if it has one and it is set, is appended).
+    **gains : ndarray
+        Artefact name -> array, in the order they are written (the initial estimate as
+        ``x_hat0``).
+
+    Returns
+    -------
+    dict of str to ndarray
+    """
+    op = getattr(tuning, "operating_point", None)
+    if op is not None:
+        gains["x_op"], gains["u_op"] = op
+    return gains

@@ -28,13 +28,13 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
-from tanksynth.errors import SpecError
 from tanksynth.plants.base import Plant
 from tanksynth.runtime.estimators.base import DiscreteModel, KernelEstimator, column_major
 from tanksynth.runtime.estimators.kalman import model_from_tuning
 from tanksynth.runtime.estimators.kernels import sx_cholesky, sx_min, sx_spd_inverse, sx_symmetrize
-from tanksynth.runtime.estimators.tuning import (agree_on_states, noise_covariances, number_in,
-                                                 operating_point, positive_float, positive_int,
+from tanksynth.runtime.estimators.tuning import (agree_on_states, artefact_gains,
+                                                 noise_covariances, number_in, operating_point,
+                                                 positive_float, positive_int, require_tuning,
                                                  set_fields)
 
 __all__ = ["UKFTuning", "UnscentedKalmanFilter", "ukf_weights"]
@@ -88,12 +88,9 @@ class UKFTuning:
     def gains(self) -> dict[str, np.ndarray]:
         """Tuning arrays for the artefact (``alpha, beta, kappa`` as 1-vectors); the initial
         estimate ``x0`` is stored as ``x_hat0``."""
-        out = {"Q": self.Q, "R": self.R, "P0": self.P0, "x_hat0": self.x0,
-               "alpha": np.array([self.alpha]), "beta": np.array([self.beta]),
-               "kappa": np.array([self.kappa]), "redraw": np.array([float(self.redraw)])}
-        if self.operating_point is not None:
-            out["x_op"], out["u_op"] = self.operating_point
-        return out
+        return artefact_gains(self, Q=self.Q, R=self.R, P0=self.P0, x_hat0=self.x0,
+                              alpha=np.array([self.alpha]), beta=np.array([self.beta]),
+                              kappa=np.array([self.kappa]), redraw=np.array([float(self.redraw)]))
 
 
 def ukf_weights(n: int, alpha: float, beta: float, kappa: float) -> tuple[np.ndarray, np.ndarray, float]:
@@ -150,9 +147,7 @@ class UnscentedKalmanFilter(KernelEstimator):
 
     def __init__(self, plant: Plant, tuning: UKFTuning, runs: int | None = None,
                  backend: str = "auto", *, model: DiscreteModel | None = None):
-        if not isinstance(tuning, UKFTuning):
-            raise SpecError(f"UnscentedKalmanFilter needs a UKFTuning, got {type(tuning).__name__}",
-                            key="tuning")
+        require_tuning(self, tuning, UKFTuning)
         model = model if model is not None else model_from_tuning(plant, tuning)
         super().__init__(plant, tuning, model, runs, backend)
 
