@@ -550,7 +550,7 @@ def mv(A: np.ndarray, X: np.ndarray) -> np.ndarray:
 
 
 def per_run(A: np.ndarray, runs: int) -> np.ndarray:
-    """A writable copy of ``A`` for each of ``runs`` runs, shape (runs, *A.shape).
+    """A writable copy of ``A`` for each of ``runs`` runs, shape ``(runs,) + A.shape``.
 
     Parameters
     ----------
