@@ -6,6 +6,7 @@
 `tanksynth.analysis.rank`       Kalman, PBH, nonlinear and symbolic rank conditions
 `tanksynth.analysis.checks`     the rank conditions of a spec (``tanksynth check``)
 `tanksynth.analysis.trim`       levels that given inputs hold still (root finding on f)
+`tanksynth.analysis.matrices`   small matrix helpers (symmetrize)
 ==============================  ===============================================================
 """
 
@@ -28,6 +29,7 @@ _EXPORTS = {
                      "pbh_test", "symbolic_observability"],
                     "tanksynth.analysis.rank"),
     "Trim": "tanksynth.analysis.trim",
+    "symmetrize": "tanksynth.analysis.matrices",
     **dict.fromkeys(["RelativeDegree", "control_affine", "jacobian", "lie_derivative",
                      "lie_derivatives", "relative_degree"],
                     "tanksynth.analysis.symbolic"),
@@ -45,4 +47,5 @@ __all__ = [
     "RelativeDegree", "control_affine", "jacobian", "lie_derivative", "lie_derivatives",
     "relative_degree",
     "Trim", "trim",
+    "symmetrize",
 ]

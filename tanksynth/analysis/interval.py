@@ -1,4 +1,5 @@
-"""Interval arithmetic on sympy expressions and a branch-and-bound enclosure over a box.
+"""Interval arithmetic on sympy expressions (`interval_evaluate`) and a branch-and-bound
+enclosure of a function's maximum over a domain (`branch_and_bound`).
 
 Used for guaranteed bounds of Takagi-Sugeno premise variables and Lipschitz
 constants over an operating domain.
@@ -16,7 +17,7 @@ from tanksynth.errors import TanksynthError
 if TYPE_CHECKING:
     from tanksynth.analysis.takagi_sugeno import Domain
 
-__all__ = ["interval_evaluate"]
+__all__ = ["interval_evaluate", "branch_and_bound"]
 
 
 def _recip(lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -150,14 +151,51 @@ def _split(lo: np.ndarray, hi: np.ndarray, width: np.ndarray) -> tuple[np.ndarra
 
 
 
-def _branch_and_bound(upper_fn: Callable[[np.ndarray, np.ndarray], np.ndarray],
-                      point_fn: Callable[[np.ndarray], np.ndarray], domain: Domain,
-                      seeds: np.ndarray, rtol: float, max_boxes: int,
-                      max_rounds: int, seed_values: np.ndarray | None = None
-                      ) -> tuple[float, float, int, int]:
-    """Maximise over the domain: guaranteed upper bound and best sampled value.
+def branch_and_bound(upper_fn: Callable[[np.ndarray, np.ndarray], np.ndarray],
+                     point_fn: Callable[[np.ndarray], np.ndarray], domain: Domain,
+                     seeds: np.ndarray, rtol: float, max_boxes: int,
+                     max_rounds: int, seed_values: np.ndarray | None = None
+                     ) -> tuple[float, float, int, int]:
+    """Maximise a function over the domain: a guaranteed upper bound and the best sampled value.
 
-    ``seed_values``: ``point_fn(seeds)`` when the caller already has it.
+    Boxes of the domain's bounding box that can hold the maximum are halved
+    along their relatively widest side (the most promising `max_boxes` / 2 when
+    there are too many) until the enclosure and the best value found agree to
+    ``rtol``, or for `max_rounds` rounds.
+
+    Parameters
+    ----------
+    upper_fn : callable
+        ``upper_fn(lo, hi) -> (B,)``: an upper bound of the function over each box
+        ``[lo, hi]`` (``lo``, ``hi`` of shape (B, n), state units), e.g. from
+        `interval_evaluate`.
+    point_fn : callable
+        ``point_fn(X) -> (P,)``: the function's values at points ``X`` (P, n) of the
+        domain (non-finite values are ignored).
+    domain : Domain
+        The box and the linear constraints ``G x <= g`` to maximise over.
+    seeds : ndarray, shape (S, n)
+        Sample points of the domain giving the first lower bound of the maximum.
+    rtol : float
+        Relative gap between the upper bound and the best value at which to stop
+        (dimensionless).
+    max_boxes : int
+        Largest number of boxes kept per round.
+    max_rounds : int
+        Largest number of halving rounds.
+    seed_values : ndarray, shape (S,), optional
+        ``point_fn(seeds)`` when the caller already has it.
+
+    Returns
+    -------
+    upper : float
+        Guaranteed upper bound of the maximum (the function's units; inf when unbounded).
+    best : float
+        Best value found at a sample point (a lower bound of the maximum).
+    boxes : int
+        Boxes bounded in all.
+    rounds : int
+        Rounds run.
     """
     width = domain.upper - domain.lower
     lo, hi = domain.lower[None].copy(), domain.upper[None].copy()

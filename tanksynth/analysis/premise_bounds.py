@@ -14,8 +14,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from tanksynth.analysis.interval import _branch_and_bound, interval_evaluate
-from tanksynth.analysis.quasi_lpv import _CACHE, Domain, FormEvaluator, QuasiLPV, _remember
+from tanksynth.analysis.interval import branch_and_bound, interval_evaluate
+from tanksynth.analysis.quasi_lpv import Domain, QuasiLPV, recall, remember
 from tanksynth.errors import SpecError
 
 __all__ = ["PremiseBounds", "premise_bounds"]
@@ -117,13 +117,13 @@ def premise_bounds(qlpv: QuasiLPV, domain: Domain, method: str = "interval", sam
     # the weighting search asks for the same bounds over and over (cached with the domain's
     # samples and LP ranges, `tanksynth.analysis.quasi_lpv.clear_cache`)
     key = ("premise_bounds", tuple(qlpv.premise_expressions()), qlpv.weights.tobytes(),
-           tuple(qlpv.states), domain._key(),
+           tuple(qlpv.states), domain.cache_key(),
            method, int(samples), float(margin), int(seed), float(rtol), int(max_boxes),
            int(max_rounds))
-    hit = _CACHE.get(key)
+    hit = recall(key)
     if hit is not None:
         return hit
-    return _remember(key, _premise_bounds(qlpv, domain, dens, method, samples, margin, seed, rtol,
+    return remember(key, _premise_bounds(qlpv, domain, dens, method, samples, margin, seed, rtol,
                                           max_boxes, max_rounds))
 
 
@@ -144,17 +144,17 @@ def _premise_bounds(qlpv: QuasiLPV, domain: Domain, dens: list, method: str, sam
     info = []
     # the atoms' compiled functions (one per form, `FormEvaluator`), not one `lambdify` per
     # premise; the sample points' values are Z, computed above
-    atoms = qlpv._lambdified("atoms", lambda: FormEvaluator(qlpv.atoms, qlpv.states))
+    atoms = qlpv.atom_evaluator()
     for k, e in enumerate(exprs):
         def point(X, k=k, sign=1.0):
             with np.errstate(invalid="ignore", divide="ignore"):
                 return sign * (atoms(X)[:, k] / (X @ qlpv.weights[k]))
 
-        up = _branch_and_bound(lambda lo, hi, e=e: interval_evaluate(e, qlpv.states, lo, hi)[1],
-                               point, domain, pts, rtol, max_boxes, max_rounds, seed_values=Z[:, k])
-        dn = _branch_and_bound(lambda lo, hi, e=e: -interval_evaluate(e, qlpv.states, lo, hi)[0],
-                               lambda X, k=k: point(X, k, -1.0), domain, pts, rtol, max_boxes,
-                               max_rounds, seed_values=-Z[:, k])
+        up = branch_and_bound(lambda lo, hi, e=e: interval_evaluate(e, qlpv.states, lo, hi)[1],
+                              point, domain, pts, rtol, max_boxes, max_rounds, seed_values=Z[:, k])
+        dn = branch_and_bound(lambda lo, hi, e=e: -interval_evaluate(e, qlpv.states, lo, hi)[0],
+                              lambda X, k=k: point(X, k, -1.0), domain, pts, rtol, max_boxes,
+                              max_rounds, seed_values=-Z[:, k])
         if not (np.isfinite(up[0]) and np.isfinite(dn[0])):
             raise SpecError(f"premise z{k + 1} = {e} has no finite interval enclosure on the domain",
                             key=f"weights.z{k + 1}")

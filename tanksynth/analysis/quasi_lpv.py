@@ -27,23 +27,49 @@ from typing import Any, Callable, Mapping, Sequence
 import numpy as np
 import sympy as sp
 
-from tanksynth.analysis.symbolic import _canonical, _form_symbol, jacobian
+from tanksynth.analysis.symbolic import canonical_form, form_symbol, jacobian
 from tanksynth.errors import DimensionError, RegionError, SpecError, TanksynthError
 from tanksynth.plants.base import Plant, exact
 
-#: lambdify modules: the derivative of abs/sign (DiracDelta) is zero away from the kinks.
-_NUMPY = [{"DiracDelta": lambda a: 0 * a}, "numpy"]
+#: ``modules`` of every `sympy.lambdify` of the TS analysis: numpy, with the derivative of
+#: abs/sign (DiracDelta) zero away from the kinks.
+LAMBDIFY_MODULES = [{"DiracDelta": lambda a: 0 * a}, "numpy"]
 
 
 #: Results of `Domain.sample`, `Domain.linear_range` and `lambdify_cached`, keyed by the
 #: domain's numbers (and the sample size and seed, the weights, the expression): the TS
-#: weighting search asks for the same ones over and over. `clear_cache` empties it; at most
-#: `_CACHE_SIZE` entries (then emptied).
+#: weighting search asks for the same ones over and over (`recall`, `remember`). `clear_cache`
+#: empties it; at most `_CACHE_SIZE` entries (then emptied).
 _CACHE: dict[tuple, Any] = {}
 _CACHE_SIZE = 1024
 
 
-def _remember(key: tuple, value: Any) -> Any:
+def recall(key: tuple) -> Any:
+    """The analysis cache's value for ``key`` (see `remember`), or None.
+
+    Parameters
+    ----------
+    key : tuple
+        Hashable key: what was computed and from which numbers.
+    """
+    return _CACHE.get(key)
+
+
+def remember(key: tuple, value: Any) -> Any:
+    """Keep ``value`` in the analysis cache under ``key`` (bounded; `clear_cache` empties it).
+
+    Parameters
+    ----------
+    key : tuple
+        Hashable key: what was computed and from which numbers (a domain's, a plant's).
+    value : object
+        The result (treated as read-only by everyone who recalls it).
+
+    Returns
+    -------
+    object
+        ``value``.
+    """
     if len(_CACHE) >= _CACHE_SIZE:
         _CACHE.clear()
     _CACHE[key] = value
@@ -64,7 +90,7 @@ def clear_cache() -> int:
 
 
 def lambdify_cached(args: Sequence[Any], expr: Any, **kw: Any) -> Callable:
-    """`sympy.lambdify` of ``expr`` in ``args`` (modules `_NUMPY`), compiled once per expression.
+    """`sympy.lambdify` of ``expr`` in ``args`` (modules `LAMBDIFY_MODULES`), compiled once per expression.
 
     Parameters
     ----------
@@ -79,9 +105,9 @@ def lambdify_cached(args: Sequence[Any], expr: Any, **kw: Any) -> Callable:
     callable
     """
     key = ("lambdify", _freeze(args), _freeze(expr), tuple(sorted(kw.items())))
-    fn = _CACHE.get(key)
+    fn = recall(key)
     if fn is None:
-        fn = _remember(key, sp.lambdify(args, expr, modules=_NUMPY, **kw))
+        fn = remember(key, sp.lambdify(args, expr, modules=LAMBDIFY_MODULES, **kw))
     return fn
 
 
@@ -90,7 +116,7 @@ class FormEvaluator:
 
     Expressions that differ only by which states they use (one tank type,
     another instance: ``c sqrt(h1)`` and ``c sqrt(h3)``) share one renamed
-    form (`tanksynth.analysis.symbolic._canonical`); each form is compiled
+    form (`tanksynth.analysis.symbolic.canonical_form`); each form is compiled
     once (`lambdify_cached`) and evaluated on the columns of all its
     instances at once. A network of n tanks of a few types compiles a few
     small functions instead of one function of n expressions.
@@ -110,9 +136,9 @@ class FormEvaluator:
             e = sp.sympify(e, strict=True)  # sympy expressions (numbers at most), never text
             if e.free_symbols - set(index):
                 raise TanksynthError(f"expression {e} depends on symbols other than the states")
-            form, _, own = _canonical(e, index)
+            form, _, own = canonical_form(e, index)
             groups.setdefault(form, []).append((k, tuple(index[s] for s in own)))
-            arity[form] = tuple(_form_symbol(i, s) for i, s in enumerate(own))
+            arity[form] = tuple(form_symbol(i, s) for i, s in enumerate(own))
         self.count = len(exprs)
         self._groups = []
         for form, members in groups.items():
@@ -144,7 +170,8 @@ def _freeze(value: Any) -> Any:
         return ("matrix", value.shape, tuple(value))
     return value
 
-__all__ = ["Domain", "domain_from_plant", "QuasiLPV", "quasi_lpv", "clear_cache", "lambdify_cached",
+__all__ = ["Domain", "domain_from_plant", "QuasiLPV", "quasi_lpv", "clear_cache", "recall", "remember",
+           "input_box", "LAMBDIFY_MODULES", "lambdify_cached",
            "FormEvaluator"]
 
 
@@ -211,8 +238,8 @@ class Domain:
         RegionError
             If the domain is empty or too thin to sample.
         """
-        key = ("sample", self._key(), int(count), int(seed))
-        hit = _CACHE.get(key)
+        key = ("sample", self.cache_key(), int(count), int(seed))
+        hit = recall(key)
         if hit is not None:
             return hit.copy()
         rng = np.random.default_rng(seed)
@@ -221,12 +248,13 @@ class Domain:
             cand = rng.uniform(self.lower, self.upper, size=(max(4 * count, 256), self.n))
             out = np.vstack([out, cand[self.contains(cand)]])
             if len(out) >= count:
-                _remember(key, out[:count].copy())
+                remember(key, out[:count].copy())
                 return out[:count]
         raise RegionError("the TS domain is empty or too thin to sample", key="region")
 
-    def _key(self) -> tuple:
-        """The domain's numbers, as a hashable key of the caches (`clear_cache`)."""
+    def cache_key(self) -> tuple:
+        """The domain's numbers (bounds and constraints, as bytes), a hashable key of the
+        analysis cache (`recall`, `remember`)."""
         return (self.lower.tobytes(), self.upper.tobytes(), self.G.shape, self.G.tobytes(),
                 self.g.tobytes())
 
@@ -270,14 +298,14 @@ class Domain:
         """
         import scipy.optimize as sopt  # deferred: scipy.optimize imports in ~0.15 s
         w = np.asarray(w, dtype=float)
-        key = ("linear_range", self._key(), w.tobytes())
-        hit = _CACHE.get(key)
+        key = ("linear_range", self.cache_key(), w.tobytes())
+        hit = recall(key)
         if hit is not None:
             return hit
         if not self.G.size:     # a box: the extremes are at its corners, no LP needed
             lo = float(np.sum(np.where(w > 0, w * self.lower, w * self.upper)))
             hi = float(np.sum(np.where(w > 0, w * self.upper, w * self.lower)))
-            return _remember(key, (lo, hi))
+            return remember(key, (lo, hi))
         bounds = list(zip(self.lower, self.upper))
         kw = dict(A_ub=-self.G, b_ub=-self.g)
         vals = []
@@ -286,7 +314,7 @@ class Domain:
             if res.status != 0:
                 raise RegionError(f"the TS domain is empty ({res.message})", key="region")
             vals.append(sgn * res.fun)
-        return _remember(key, (float(vals[0]), float(vals[1])))
+        return remember(key, (float(vals[0]), float(vals[1])))
 
     def as_dict(self) -> dict:
         """JSON-friendly description."""
@@ -445,10 +473,12 @@ class QuasiLPV:
             A += z[k] * self.exact_incidence[:, k] * w
         return A
 
-    def _lambdified(self, name: str, builder: Callable[[], Any]) -> Any:
-        if name not in self._cache:
-            self._cache[name] = builder()
-        return self._cache[name]
+    def atom_evaluator(self) -> "FormEvaluator":
+        """The atoms ``n_k(x)`` compiled once (`FormEvaluator`): (M, n) -> (M, p), no warning
+        where they are undefined (NaN), unlike `atom_values`."""
+        if "atoms" not in self._cache:
+            self._cache["atoms"] = FormEvaluator(self.atoms, self.states)
+        return self._cache["atoms"]
 
     def atom_values(self, X: np.ndarray) -> np.ndarray:
         """``n_k(x)`` at M points: (M, n) -> (M, p).
@@ -458,7 +488,7 @@ class QuasiLPV:
         X : ndarray, shape (M, n)
             States (state units, m).
         """
-        fn = self._lambdified("atoms", lambda: FormEvaluator(self.atoms, self.states))
+        fn = self.atom_evaluator()
         X = np.atleast_2d(np.asarray(X, dtype=float))
         out = fn(X)
         if np.isfinite(out).all():        # the common case: nothing to warn about
@@ -558,9 +588,9 @@ def quasi_lpv(plant: Plant,
     index = {s: j for j, s in enumerate((*x, *u))}
     split: dict[sp.Expr, list[tuple[sp.Expr, sp.Expr]]] = {}   # per row form (one per tank type)
     for i, fi in enumerate(plant.f_numeric):
-        form, back, own = _canonical(fi, index)
+        form, back, own = canonical_form(fi, index)
         if form not in split:
-            names = [_form_symbol(k, s) for k, s in enumerate(own)]
+            names = [form_symbol(k, s) for k, s in enumerate(own)]
             split[form] = [term.as_independent(*names, as_Add=False)
                            for term in sp.Add.make_args(sp.expand(form))]
         for coeff, rest in split[form]:
@@ -620,7 +650,7 @@ def quasi_lpv(plant: Plant,
     return QuasiLPV(tuple(x), tuple(u), tuple(scaled), W, f64(M_exact).reshape(n, p),
                     f64(A_lin).reshape(n, n), f64(B).reshape(n, m), f64(d).reshape(n),
                     f64(C_sym).reshape(plant.q, n), atom_states, M_exact, A_lin,
-                    _input_box(plant))
+                    input_box(plant))
 
 
 def _float_matrix(Mx: sp.Matrix) -> np.ndarray:
@@ -631,8 +661,19 @@ def _float_matrix(Mx: sp.Matrix) -> np.ndarray:
     return out
 
 
-def _input_box(plant: Plant) -> tuple[tuple[float, float], ...]:
-    """Finite actuator box of a plant (``[-1, 1]`` where a limit is infinite)."""
+def input_box(plant: Plant) -> tuple[tuple[float, float], ...]:
+    """Finite actuator box of a plant: its input limits, ``-1`` or ``1`` where a limit is infinite.
+
+    Parameters
+    ----------
+    plant : Plant
+        The plant (its ``input_limits``, input units).
+
+    Returns
+    -------
+    tuple of (float, float)
+        ``(low, high)`` of each input (input units).
+    """
     lim = np.asarray(plant.input_limits, dtype=float).reshape(plant.m, 2)
     return tuple((float(lo) if np.isfinite(lo) else -1.0, float(hi) if np.isfinite(hi) else 1.0)
                  for lo, hi in lim)

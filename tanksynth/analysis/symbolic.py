@@ -25,6 +25,8 @@ __all__ = [
     "symbolic_budget",
     "jacobian",
     "jacobian_by_form",
+    "canonical_form",
+    "form_symbol",
     "control_affine",
     "lie_derivative",
     "lie_derivatives",
@@ -138,27 +140,51 @@ def jacobian(exprs: sp.Matrix, variables: Sequence[sp.Symbol]) -> sp.Matrix:
     return out
 
 
-def _canonical(expr: sp.Expr, index: dict) -> tuple[sp.Expr, dict, tuple]:
+def canonical_form(expr: sp.Expr, index: dict) -> tuple[sp.Expr, dict, tuple]:
     """``expr`` with its variables renamed ``_tanksynth_form_0, ...`` (in the order of ``index``).
 
-    Returns the renamed expression, the map back to the variables and the
-    variables in order. Rows of a plant built from repeated parts (one tank
-    type, another instance) then share one renamed form, and work on it
-    (derivatives, expansion) is done once per form (`jacobian_by_form`).
+    Rows of a plant built from repeated parts (one tank type, another
+    instance) then share one renamed form, and work on it (derivatives,
+    expansion, compilation) is done once per form (`jacobian_by_form`,
+    `tanksynth.analysis.quasi_lpv.FormEvaluator`).
+
+    Parameters
+    ----------
+    expr : sympy.Expr
+        An expression of (some of) the variables.
+    index : dict
+        Variable (sympy.Symbol) -> its position; symbols not in it are left as they are.
+
+    Returns
+    -------
+    form : sympy.Expr
+        ``expr`` with its k-th own variable replaced by `form_symbol` ``(k, variable)``.
+    back : dict
+        Form symbol -> the variable it stands for.
+    own : tuple of sympy.Symbol
+        The variables of ``expr``, in the order of ``index``.
     """
     own = sorted((s for s in expr.free_symbols if s in index), key=index.__getitem__)
-    forward = {s: _form_symbol(k, s) for k, s in enumerate(own)}
+    forward = {s: form_symbol(k, s) for k, s in enumerate(own)}
     return expr.xreplace(forward), {v: s for s, v in forward.items()}, tuple(own)
 
 
-def _form_symbol(k: int, like: sp.Symbol) -> sp.Symbol:
-    """The k-th variable of a renamed form (`_canonical`), with the assumptions of ``like``."""
+def form_symbol(k: int, like: sp.Symbol) -> sp.Symbol:
+    """The k-th variable of a renamed form (`canonical_form`), with the assumptions of ``like``.
+
+    Parameters
+    ----------
+    k : int
+        Position of the variable in the form.
+    like : sympy.Symbol
+        The variable it stands for (its assumptions: real, positive, ...).
+    """
     return sp.Symbol(f"_tanksynth_form_{k}", **like.assumptions0)
 
 
 def jacobian_by_form(exprs: sp.Matrix, variables: Sequence[sp.Symbol],
                      memo: dict | None = None) -> sp.Matrix:
-    """`jacobian`, differentiating each distinct form of a row once (see `_canonical`).
+    """`jacobian`, differentiating each distinct form of a row once (see `canonical_form`).
 
     The same matrix as `jacobian`: a row's derivatives are those of its
     renamed form with the variables put back. For a network of ``n`` tanks of
@@ -182,9 +208,9 @@ def jacobian_by_form(exprs: sp.Matrix, variables: Sequence[sp.Symbol],
     memo = {} if memo is None else memo
     out = sp.zeros(exprs.shape[0], len(variables))
     for i, e in enumerate(exprs):
-        form, back, own = _canonical(e, index)
+        form, back, own = canonical_form(e, index)
         if form not in memo:
-            memo[form] = tuple(sp.diff(form, _form_symbol(k, s)) for k, s in enumerate(own))
+            memo[form] = tuple(sp.diff(form, form_symbol(k, s)) for k, s in enumerate(own))
         for s, d in zip(own, memo[form]):
             out[i, index[s]] = d.xreplace(back)
     return out

@@ -44,7 +44,7 @@ import sympy as sp
 from tanksynth.analysis import blas as _blas
 from tanksynth.analysis import rank as _rank
 from tanksynth.analysis.premise_bounds import PremiseBounds, premise_bounds
-from tanksynth.analysis.quasi_lpv import Domain, QuasiLPV, _input_box, domain_from_plant, quasi_lpv
+from tanksynth.analysis.quasi_lpv import Domain, QuasiLPV, domain_from_plant, input_box, quasi_lpv
 from tanksynth.errors import DimensionError, TanksynthError
 from tanksynth.plants.base import Plant, exact
 
@@ -301,7 +301,7 @@ def check_exactness(ts: TSModel, plant: Plant, count: int = 5000, seed: int = 0,
     """
     rng = np.random.default_rng(seed + 1)
     X = ts.domain.sample(count, seed)
-    ub = _input_box(plant)
+    ub = input_box(plant)
     U = rng.uniform([b[0] for b in ub], [b[1] for b in ub], size=(count, plant.m))
     f = plant.compiled.rhs(X, U)
     g = ts.rhs(X, U)

@@ -233,9 +233,9 @@ def adaptive_scaling_step(name: str, est: AdaptiveScalingKalmanFilter) -> ca.Fun
     v = y - (C @ xp + ca.DM(dy))
     APA = A @ P @ A.T
     tr_beta = ca.trace(C @ APA @ C.T + ca.DM(tun.R))                      # (34b)
-    match = (ca.dot(v, v) - tr_beta) / est._tr_gamma
+    match = (ca.dot(v, v) - tr_beta) / est.output_noise_trace
     phi_new = ca.fmax(tun.a * tun.phi0 + tun.b * phi + tun.c * match, 0.0)   # (36)-(38)
-    Pp = _sym(APA + phi_new * ca.DM(est._GQG))                           # (32)
+    Pp = _sym(APA + phi_new * ca.DM(est.state_noise_covariance))        # (32)
     K = _gain(Pp, Cm, tun.R)                                             # (39)
     x_new = xp + K @ v                                                   # (40)
     P_new = _joseph(Pp, K, Cm, tun.R)                                    # (41)
@@ -272,14 +272,14 @@ def consensus_step(name: str, est: ConsensusFilter) -> ca.Function:
     n, m, N = est.n, est.m, tun.sensors
     x, Mc = ca.SX.sym("x", n), ca.SX.sym("M", n, n)
     y, u = ca.SX.sym("y", est.q), ca.SX.sym("u", m)
-    A, Hm, Z = ca.DM(Ad), ca.DM(est._H), ca.DM(est._Z)
+    A, Hm, Z = ca.DM(Ad), ca.DM(est.information_matrix), ca.DM(est.information_gain)
     xbar = A @ x + ca.DM(Bd) @ u + ca.DM(cd)                              # (51)
-    P = _sym(A @ Mc @ A.T + ca.DM(est._GQG))                             # (50)
+    P = _sym(A @ Mc @ A.T + ca.DM(est.state_noise_covariance))          # (50)
     info = _sym(sx_spd_inverse(N * P)[0] + Hm)                           # (44)
     Pcal = _sym(sx_spd_inverse(info)[0])
-    z = Z @ (y - ca.DM(est._d_stack))                                    # (48)
+    z = Z @ (y - ca.DM(est.stacked_offset))                              # (48)
     x_new = xbar + Pcal @ (z - Hm @ xbar)                                # (49)
-    M_new = _joseph(P, Pcal @ Z, est._C_stack, est._R_stack)
+    M_new = _joseph(P, Pcal @ Z, est.stacked_C, est.stacked_R)
     return ca.Function(name, [x, Mc, y, u], [x_new, M_new], ["x", "M", "y", "u"],
                        ["x_next", "M_next"])
 
@@ -304,11 +304,11 @@ def narx_step(name: str, est: NARXEstimator) -> ca.Function:
         ``x_pred`` the model prediction ``x(k|k-1)`` and ``innovation`` ``y -
         h(x_pred)`` (the network's exogenous inputs).
     """
-    kernel = est._shared["sx"]
+    kernel = est.step_kernel
     n, d = est.n, int(est.tuning.delays)
     x, past = ca.SX.sym("x", n), ca.SX.sym("x_past", (d - 1) * n)
     y, u = ca.SX.sym("y", est.q), ca.SX.sym("u", est.m)
-    params = ca.DM(np.asarray(est._params(), dtype=float))
+    params = ca.DM(est.kernel_parameters)
     new, _, extra = kernel(ca.vertcat(x, past), y, u, params)
     q = est.q
     return ca.Function(name, [x, past, y, u], [new[:n], new[n:], extra[q:], extra[:q]],

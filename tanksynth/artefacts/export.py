@@ -506,13 +506,13 @@ def estimator_step(name: str, est: KernelEstimator) -> ca.Function:
         kernel keeps more state, e.g. on a hybrid plant), as in `kalman_step`.
     """
     plant = est.plant
-    kernel = est._shared["sx"]
+    kernel = est.step_kernel
     n = plant.n
     x, P = ca.SX.sym("x", n), ca.SX.sym("P", n, n)
     y, u = ca.SX.sym("y", plant.q), ca.SX.sym("u", plant.m)
     extra = kernel.size1_in(0) - n - n * n
     mem = ca.SX.sym("memory", extra)
-    params = ca.DM(np.asarray(est._params(), dtype=float))
+    params = ca.DM(est.kernel_parameters)
     state = ca.vertcat(x, ca.reshape(P, n * n, 1), mem)
     new = kernel(state, y, u, params)[0]
     outs = [new[:n], ca.reshape(new[n:n + n * n], n, n)]

@@ -2,11 +2,13 @@
 
 ``tanksynth.runtime`` keeps two caches:
 
-* native estimator kernels (`tanksynth.runtime.estimators.kernels`):
+* native estimator kernels (`tanksynth.runtime.estimators.kernels`, the
+  family ``kernels`` of the one native-compile cache, `tanksynth.native_cache`):
   shared libraries compiled from the kernels' generated C, on disk in
   `tanksynth.runtime.estimators.kernels.cache_dir` (``$TANKSYNTH_CACHE``,
-  else ``$XDG_CACHE_HOME/tanksynth/kernels``, else
-  ``~/.cache/tanksynth/kernels``) and, once loaded, in memory;
+  else ``$TANKSYNTH_CACHE_DIR/kernels``, else
+  ``$XDG_CACHE_HOME/tanksynth/kernels``, else ``~/.cache/tanksynth/kernels``)
+  and, once loaded, in memory;
 * per-plant compiled pieces of the estimators' sampled models (the
   regularised Jacobian Function, the affinity test), in memory, dropped with
   the plant (`tanksynth.runtime.estimators.model`).
@@ -46,4 +48,4 @@ def cache_info() -> dict[str, object]:
     """Sizes of the caches: native kernels loaded and on disk (with the directory), plants."""
     info = kernels.cache_info()
     return {"native_loaded": info["loaded"], "native_files": info["files"],
-            "native_directory": info["directory"], "plants": len(model._PLANT_CACHE)}
+            "native_directory": info["directory"], "plants": model.cached_plants()}

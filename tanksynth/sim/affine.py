@@ -41,7 +41,7 @@ CHUNK = 64
 def _function(model: Any, substeps: int, runs: int) -> Any:
     """``mapaccum`` over `CHUNK` periods of law + saturation + period, mapped over ``runs``."""
     key = ("affine", substeps, runs)
-    fn = model._casadi.get(key)
+    fn = model.compiled.get(key)
     if fn is not None:
         return fn
     import casadi as ca
@@ -72,7 +72,7 @@ def _function(model: Any, substeps: int, runs: int) -> Any:
                        [x1, u, crossed, low, high])
     fn = step.mapaccum(CHUNK)
     fn = fn if runs == 1 else fn.map(runs, "serial")
-    model._casadi[key] = fn
+    model.compiled[key] = fn
     return fn
 
 

@@ -15,7 +15,8 @@ blocks of `BLOCK` runs laid out one row per state, so that the C compiler
 vectorises across runs (with AVX2 where the CPU has it); remaining runs
 one at a time. Compiled with ``-ffp-contract=off`` (no fused multiply-add)
 and without ``-ffast-math``, the kernel gives the numbers of the numpy code
-bit for bit (tested). Building and loading: `tanksynth.sim.kernel`.
+bit for bit (tested). Building and loading: `tanksynth.sim.kernel` (compiler, flags
+and cache: `tanksynth.native_cache`).
 """
 
 from __future__ import annotations

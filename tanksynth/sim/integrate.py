@@ -167,6 +167,7 @@ class Integrator:
         self.clipped_high = 0
         self._cache_key: tuple | None = None
         self._cache: tuple = ((), ())
+        self._finite_values: tuple = (None, True)        # (_cache it was computed for, finite)
         self._buffers: dict[tuple, Any] = {}
         self._rows: tuple | None = None
         self._kernel: NativeKernel | None | bool = False     # False: not asked for yet
@@ -303,7 +304,8 @@ class Integrator:
         if kernel is not None:
             x1, low, high = native.period(self, kernel, x, u, p, h, substeps)
             self.backends.add("native")
-        elif 0 < x.shape[0] <= limit and self.model.n and self.lower.ndim == 1 and self.upper.ndim == 1:
+        elif (0 < x.shape[0] <= limit and self.model.n and self.lower.ndim == 1
+              and self.upper.ndim == 1 and self._finite(x, u, p)):
             x1, low, high = self._period_casadi(x, u, p, h, substeps)
             self.backends.add("casadi")
         else:
@@ -339,6 +341,20 @@ class Integrator:
         if self._cache_key != key:
             self._cache_key, self._cache = key, (pv, self.model.constants(pv))
         return self._cache
+
+    def _finite(self, x: np.ndarray, u: np.ndarray, p: Mapping[str, Any]) -> bool:
+        """States, inputs and parameter values all finite (the parameters' test cached with them).
+
+        The CasADi period function clips with ``fmin``/``fmax``, which return the other
+        operand for a NaN: a NaN state would become a bound, a finite trajectory where the
+        numpy code (and the native kernel) propagate it and the loop reports it.
+        """
+        if not (np.isfinite(x).all() and np.isfinite(u).all()):
+            return False
+        values = self._values(p)
+        if self._finite_values[0] is not values:
+            self._finite_values = (values, all(np.isfinite(v).all() for v in (*values[0], *values[1])))
+        return self._finite_values[1]
 
     def _run_matrices(self, pv: list, c: tuple, count: int) -> tuple[np.ndarray, np.ndarray]:
         """Constants and parameter values as (count, width) matrices, one row per run (scalars
@@ -489,7 +505,8 @@ class Integrator:
         over the runs. Both give the numbers of `advance`, bit for bit.
         Returns None, having changed nothing, when this path does not apply
         (no kernel and too many runs or no CasADi form, or, on the CasADi
-        route, a period changed a hybrid mode) or a state became non-finite:
+        route, non-finite data or a period that changed a hybrid mode) or a
+        state became non-finite:
         the caller then steps period by period.
 
         Parameters
@@ -521,15 +538,15 @@ class Integrator:
             return native.horizon(self, kernel, x, U, p, float(ts) / substeps, substeps, out)
         limit = CASADI_MAX_RUNS_HYBRID if model.k else CASADI_MAX_RUNS
         if not (0 < count <= limit and N > 0 and model.n and self.lower.ndim == 1
-                and self.upper.ndim == 1):
+                and self.upper.ndim == 1 and self._finite(x, U, p)):
             return None
         pv, c = self._values(p)
         key = ("horizon", substeps, N, count)
-        fn = model._casadi.get(key)
+        fn = model.compiled.get(key)
         if fn is None:
             fn = model.casadi_advance(substeps, 1).mapaccum(N)
             fn = fn if count == 1 else fn.map(count, "serial")
-            model._casadi[key] = fn
+            model.compiled[key] = fn
         rep = lambda a: np.ascontiguousarray(np.broadcast_to(  # noqa: E731
             np.asarray(a, dtype=float)[:, None, :], (count, N, a.shape[-1])))
         cm, pm = self._run_matrices(pv, c, count)

@@ -21,37 +21,33 @@ with the reason in `kernel_status` and in the log (logger
 Environment: ``TANKSYNTH_SIM_BACKEND`` = ``auto`` (default: load a kernel
 already built, compile a new one only for a simulation of at least
 `BUILD_WORK` state-steps), ``native`` (always compile) or ``numpy`` (never
-use a kernel); ``TANKSYNTH_CC`` the compiler (default ``gcc``, else ``cc``,
-on the ``PATH``).
+use a kernel).
 
-Cache (no hidden state): libraries are written to ``<dir>/sim/`` where
-``<dir>`` is ``$TANKSYNTH_CACHE_DIR``, else ``$XDG_CACHE_HOME/tanksynth``,
-else ``~/.cache/tanksynth`` (`cache_dir`), named by the SHA-256 of the C
-source, the compiler path and its flags, so a library is never used for
-another kernel. A build writes to a temporary directory inside that
-directory and renames the library into place (atomic: concurrent processes
-may build the same kernel, the last rename wins, the files are identical).
-Loaded kernels are kept in memory (``_STATE``); `clear_cache` forgets them
-(and, on request, deletes the files); `cache_info` reports the counts,
-including the compiler runs of this process (``compiles``).
+Compiler, flags and cache: the one native-compile cache of tanksynth
+(`tanksynth.native_cache`: ``$TANKSYNTH_CC``, else ``gcc``/``cc``; ``-O3
+-shared -fPIC -ffp-contract=off -fno-math-errno -std=c99``, plus ``-mavx2``
+on an x86-64 CPU with AVX2, without it if that build fails; locked, atomic
+builds). The kernels are its family ``sim``: ``tk_sim_*.so`` files in
+`cache_dir` (``$TANKSYNTH_CACHE_DIR/sim``, else
+``$XDG_CACHE_HOME/tanksynth/sim``, else ``~/.cache/tanksynth/sim``), named by
+the SHA-256 of the C source, `tanksynth.sim.csource.KERNEL_VERSION`, the
+compiler path and its flags, so a library is never used for another kernel.
+Loaded kernels are kept in memory; `clear_cache` forgets them (and, on
+request, deletes the files); `cache_info` reports the counts, including the
+compiler runs of this process (``compiles``).
 """
 
 from __future__ import annotations
 
 import ctypes
-import hashlib
 import logging
 import os
-import platform
-import shutil
-import subprocess
-import tempfile
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from tanksynth.native_cache import NativeBuildError, NativeCache, find_compiler
 from tanksynth.sim.csource import KERNEL_VERSION, kernel_source
 
 __all__ = ["NativeKernel", "PeriodCall", "native_kernel", "kernel_status", "cache_dir", "clear_cache",
@@ -61,29 +57,6 @@ _LOG = logging.getLogger("tanksynth.sim")
 
 #: Smallest simulation (RK4 run-steps x states) for which ``auto`` compiles a new kernel.
 BUILD_WORK = 1e6
-
-_FLAGS = ("-O3", "-shared", "-fPIC", "-ffp-contract=off", "-fno-math-errno", "-std=c99")
-
-
-def _cpu_flags() -> tuple[tuple[str, ...], ...]:
-    """Compiler flag sets to try, best first: ``-mavx2`` on an x86-64 CPU that has AVX2.
-
-    AVX2 lets the compiler vectorise the kernel's conditionals (clipping,
-    hybrid branches) over 4 runs; the numbers do not change (the same IEEE
-    operations, no fused multiply-add). The flags are part of the cache key,
-    so a library built with them is never loaded for another flag set.
-    """
-    if platform.machine().lower() in ("x86_64", "amd64"):
-        try:
-            info = Path("/proc/cpuinfo").read_text()
-        except OSError:
-            info = ""
-        flags = next((ln.split(":", 1)[1].split() for ln in info.splitlines()
-                      if ln.startswith("flags")), [])
-        if "avx2" in flags:
-            return (_FLAGS + ("-mavx2",), _FLAGS)
-    return (_FLAGS,)
-
 
 def per_run_table(values: Any, count: int) -> np.ndarray:
     """Values (scalars or (M,) arrays) as a (M, len(values)) table for `NativeKernel.run`.
@@ -110,6 +83,13 @@ def per_run_table(values: Any, count: int) -> np.ndarray:
 
 
 # ----------------------------------------------------------------------------- build + cache
+#: The simulation kernels' family of the native-compile cache.
+_CACHE = NativeCache("sim", "tk_sim_")
+
+#: What the last `native_kernel` request gave (`kernel_status`).
+_STATUS = ["no kernel asked for yet"]
+
+
 def cache_dir() -> Path:
     """Directory of the compiled simulation kernels (not created here).
 
@@ -119,29 +99,8 @@ def cache_dir() -> Path:
         ``$TANKSYNTH_CACHE_DIR/sim``, else ``$XDG_CACHE_HOME/tanksynth/sim``,
         else ``~/.cache/tanksynth/sim``.
     """
-    base = os.environ.get("TANKSYNTH_CACHE_DIR")
-    if base:
-        return Path(base) / "sim"
-    xdg = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
-    return Path(xdg) / "tanksynth" / "sim"
+    return _CACHE.directory()
 
-
-def _compiler() -> str | None:
-    cc = os.environ.get("TANKSYNTH_CC")
-    if cc:
-        return shutil.which(cc) or (cc if os.path.isfile(cc) else None)
-    return shutil.which("gcc") or shutil.which("cc")
-
-
-@dataclass
-class _State:
-    loaded: dict[str, "NativeKernel"] = field(default_factory=dict)
-    failed: dict[str, str] = field(default_factory=dict)
-    compiles: int = 0
-    last: str = "no kernel asked for yet"
-
-
-_STATE = _State()
 
 _ARGTYPES = [ctypes.c_long, ctypes.c_long, ctypes.c_int, ctypes.c_double, ctypes.c_void_p,
              ctypes.c_void_p, ctypes.c_long, ctypes.c_long, ctypes.c_void_p, ctypes.c_long,
@@ -349,29 +308,6 @@ class PeriodCall:
         return self.out[0].copy(), self.stop, self.low[0], self.high[0]
 
 
-def _build(source: str, cc: str, flags: tuple[str, ...], so_path: Path) -> float:
-    """Compile ``source`` to ``so_path`` (atomic rename); returns the compiler's wall time (s)."""
-    import time
-
-    directory = so_path.parent
-    directory.mkdir(parents=True, exist_ok=True)
-    with tempfile.TemporaryDirectory(dir=directory, prefix=".build-") as tmp:
-        src = Path(tmp) / "kernel.c"
-        src.write_text(source)
-        out = Path(tmp) / "kernel.so"
-        t0 = time.perf_counter()
-        proc = subprocess.run([cc, *flags, str(src), "-o", str(out), "-lm"],
-                              capture_output=True, text=True, timeout=600)
-        seconds = time.perf_counter() - t0
-        if proc.returncode != 0 or not out.is_file():
-            msg = (proc.stderr or proc.stdout or "").strip().splitlines()
-            raise OSError(f"{cc} exited with status {proc.returncode}"
-                          + (f": {msg[0][:300]}" if msg else ""))
-        os.replace(out, so_path)
-    _STATE.compiles += 1
-    return seconds
-
-
 def native_kernel(model: Any, work: float | None = None) -> NativeKernel | None:
     """The compiled period kernel of a plant's numpy model, or None (then use the numpy code).
 
@@ -400,84 +336,66 @@ def native_kernel(model: Any, work: float | None = None) -> NativeKernel | None:
     """
     env = tuple(os.environ.get(v) for v in ("TANKSYNTH_SIM_BACKEND", "TANKSYNTH_CC", "PATH",
                                              "TANKSYNTH_CACHE_DIR", "XDG_CACHE_HOME", "HOME"))
-    cached = model._casadi.get(("native", env))
+    cached = model.compiled.get(("native", env))
     if cached is not None:
-        _STATE.last = cached[1]
+        _STATUS[0] = cached[1]
         return cached[0]
     backend = (env[0] or "auto").strip().lower()
-    cc = None if backend == "numpy" else _compiler()
+    cc = None if backend == "numpy" else find_compiler()
     key = ("native", backend, cc, str(cache_dir()))
-    cached = model._casadi.get(key)
+    cached = model.compiled.get(key)
     if cached is not None:
-        _STATE.last = cached[1]
+        _STATUS[0] = cached[1]
         return cached[0]
     build = backend == "native" or (work is not None and work * model.n >= BUILD_WORK)
     kernel = _native_kernel(model, backend, cc, build)
     if kernel is not None or build:      # a skipped build is asked again by a larger simulation
-        model._casadi[key] = model._casadi[("native", env)] = (kernel, _STATE.last)
+        model.compiled[key] = model.compiled[("native", env)] = (kernel, _STATUS[0])
     return kernel
 
 
 def _native_kernel(model: Any, backend: str, cc: str | None, build: bool) -> NativeKernel | None:
+    """`native_kernel` once the backend and the compiler are known; sets `kernel_status`."""
     if backend == "numpy":
-        _STATE.last = "numpy backend requested (TANKSYNTH_SIM_BACKEND=numpy)"
+        _STATUS[0] = "numpy backend requested (TANKSYNTH_SIM_BACKEND=numpy)"
         return None
     if cc is None:
-        _STATE.last = ("no C compiler found (TANKSYNTH_CC or gcc/cc on PATH): simulating with "
-                       "the CasADi/numpy code")
-        _LOG.info(_STATE.last)
+        _STATUS[0] = ("no C compiler found (TANKSYNTH_CC or gcc/cc on PATH): simulating with "
+                      "the CasADi/numpy code")
+        _LOG.info(_STATUS[0])
         return None
-    source = model._casadi.get("kernel_source")   # the C of a model never changes: translated once
+    source = model.compiled.get("kernel_source")   # the C of a model never changes: translated once
     if source is None:
         try:
             source = kernel_source(model)
         except ValueError as exc:
             source = exc
-        model._casadi["kernel_source"] = source
+        model.compiled["kernel_source"] = source
     if isinstance(source, ValueError):
-        _STATE.last = str(source)
-        _LOG.info(_STATE.last)
+        _STATUS[0] = str(source)
+        _LOG.info(_STATUS[0])
         return None
-    candidates = []
-    for flags in _cpu_flags():
-        digest = hashlib.sha256("\0".join([source, cc, *flags, KERNEL_VERSION]).encode()).hexdigest()
-        if digest in _STATE.loaded:
-            return _STATE.loaded[digest]
-        candidates.append((digest, flags, cache_dir() / f"tk_sim_{digest[:24]}.so"))
-    if all(digest in _STATE.failed for digest, _, _ in candidates):
-        _STATE.last = _STATE.failed[candidates[-1][0]]
-        return None
-    if not build and not any(path.is_file() for _, _, path in candidates):
-        _STATE.last = (f"native kernel not built: a small simulation (below {BUILD_WORK:.0e} "
-                       f"state-steps; TANKSYNTH_SIM_BACKEND=native to build anyway)")
-        return None
-    reason = ""
-    for digest, flags, so_path in candidates:     # best flags first; next if the build fails
-        if not build and not so_path.is_file():
-            continue
-        seconds = 0.0
-        try:
-            if not so_path.is_file():
-                seconds = _build(source, cc, flags, so_path)
-            lib = ctypes.CDLL(str(so_path))
-            kernel = NativeKernel(lib, so_path, model.n, model.m, seconds)
-        except (OSError, subprocess.SubprocessError, AttributeError) as exc:
-            reason = (f"native simulation kernel unavailable ({exc}); simulating with the "
+    try:
+        lib = _CACHE.library([source, KERNEL_VERSION], lambda name: source,
+                             lambda path, name: ctypes.CDLL(str(path)), cc, build)
+    except NativeBuildError as exc:
+        _STATUS[0] = (f"native simulation kernel unavailable ({exc}); simulating with the "
                       f"CasADi/numpy code")
-            _STATE.failed[digest] = reason
-            continue
-        _STATE.loaded[digest] = kernel
-        _STATE.last = (f"native kernel {so_path.name} ({' '.join(flags[:1] + flags[6:])})"
-                       + (f", compiled in {seconds:.2f} s" if seconds else ""))
-        return kernel
-    _STATE.last = reason
-    _LOG.warning(reason)
-    return None
+        if not exc.repeated:
+            _LOG.warning(_STATUS[0])
+        return None
+    if lib is None:
+        _STATUS[0] = (f"native kernel not built: a small simulation (below {BUILD_WORK:.0e} "
+                      f"state-steps; TANKSYNTH_SIM_BACKEND=native to build anyway)")
+        return None
+    _STATUS[0] = (f"native kernel {lib.path.name} ({' '.join(lib.flags[:1] + lib.flags[6:])})"
+                  + (f", compiled in {lib.compile_seconds:.2f} s" if lib.compile_seconds else ""))
+    return NativeKernel(lib.handle, lib.path, model.n, model.m, lib.compile_seconds)
 
 
 def kernel_status() -> str:
     """What the last `native_kernel` request gave: the library used, or why none was."""
-    return _STATE.last
+    return _STATUS[0]
 
 
 def clear_cache(disk: bool = False) -> dict[str, int]:
@@ -493,19 +411,9 @@ def clear_cache(disk: bool = False) -> dict[str, int]:
     dict
         ``loaded`` (kernels forgotten) and ``files`` (libraries deleted).
     """
-    loaded = len(_STATE.loaded)
-    _STATE.loaded.clear()
-    _STATE.failed.clear()
-    files = 0
-    directory = cache_dir()
-    if disk and directory.is_dir():
-        for path in directory.glob("tk_sim_*.so"):
-            path.unlink(missing_ok=True)
-            files += 1
-    return {"loaded": loaded, "files": files}
+    return _CACHE.clear(disk)
 
 
 def cache_info() -> dict[str, object]:
-    """Kernels loaded, failed builds, compiler runs of this process, and the directory."""
-    return {"loaded": len(_STATE.loaded), "failed": len(_STATE.failed),
-            "compiles": _STATE.compiles, "directory": str(cache_dir())}
+    """Kernels loaded, failed builds, compiler runs of this process, libraries on disk, the directory."""
+    return _CACHE.info()

@@ -236,6 +236,10 @@ class NumpyModel:
     output_index : tuple of int or None
         When every output is one state (``h(x) = x[output_index]``), those
         states' indices (the output is then a selection, no code to run).
+    compiled : dict
+        What the simulator compiled from this model, by key (CasADi period
+        functions, the C source of its kernel, the native kernel and why there is
+        none); built on first use and dropped with the model (`clear_cache`).
     """
 
     n: int
@@ -246,7 +250,7 @@ class NumpyModel:
     source: str = field(repr=False)
     n_constants: int = field(repr=False)
     _fns: Mapping[str, Callable] = field(repr=False)
-    _casadi: dict = field(default_factory=dict, repr=False, compare=False)
+    compiled: dict = field(default_factory=dict, repr=False, compare=False)
     output_index: tuple[int, ...] | None = field(default=None, repr=False)
 
     def parameter_values(self, params: Mapping[str, Any]) -> list:
@@ -389,14 +393,14 @@ class NumpyModel:
             Number of runs the function is mapped over.
         """
         key = (int(substeps), int(runs))
-        fn = self._casadi.get(key)
+        fn = self.compiled.get(key)
         if fn is None:
-            base = self._casadi.get((int(substeps), 1))
+            base = self.compiled.get((int(substeps), 1))
             if base is None:
                 base = _casadi_period(self, int(substeps))
-                self._casadi[(int(substeps), 1)] = base
+                self.compiled[(int(substeps), 1)] = base
             fn = base if runs == 1 else base.map(int(runs), "serial")
-            self._casadi[key] = fn
+            self.compiled[key] = fn
         return fn
 
 

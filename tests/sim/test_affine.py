@@ -203,3 +203,21 @@ def test_open_loop_with_a_non_finite_start_raises(backend, monkeypatch):
     monkeypatch.setenv("TANKSYNTH_SIM_BACKEND", backend)
     with pytest.raises(SimulationError, match="sample 0"):
         simulate(TANK, ts=2.0, steps=50, x0=[np.nan, 0.2, 0.25], seeds=[0], u_init=U0)
+
+
+@pytest.mark.parametrize("route", ["advance", "horizon"])
+def test_casadi_routes_do_not_clip_a_nan_parameter_away(route, monkeypatch):
+    """Without a native kernel, a NaN parameter propagates as in the numpy code (the CasADi
+    clipping's fmax would make the state a bound: a finite trajectory).
+
+    Regression: the loop's CasADi period route gave finite states of 0 for a NaN parameter.
+    """
+    monkeypatch.setenv("TANKSYNTH_SIM_BACKEND", "numpy")             # no native kernel
+    integ = Integrator.for_plant(TANK)
+    p = param_arrays(TANK, {TANK.parameters[1].name: np.nan}, 1)
+    x = integ.clip((X0 + 0.01)[None])
+    if route == "advance":
+        assert not np.isfinite(integ.advance(x, U0[None], p, 2.0, 4)).all()
+        assert "casadi" not in integ.backends
+    else:
+        assert integ.horizon(x, np.tile(U0, (5, 1, 1)), p, 2.0, 4) is None

@@ -73,6 +73,6 @@ def test_untranslatable_code_is_refused_not_miscompiled(cache):
 
     model = tape.numpy_model(three_tank())
     odd = replace(model, source=model.source.replace("numpy.sqrt(r_1)", "numpy.arcsinh(r_1)"),
-                  _casadi={})
+                  compiled={})
     assert kernel.native_kernel(odd) is None
     assert "numpy.arcsinh" in kernel.kernel_status()

@@ -25,9 +25,9 @@ import numpy as np
 
 from tanksynth.errors import CovarianceError, InfeasibleDesign, SpecError
 from tanksynth.plants.base import Plant
-from tanksynth.runtime.estimators.base import _positive_int, as_matrix, as_vector
+from tanksynth.runtime.estimators.tuning import as_matrix, as_vector, positive_int
 from tanksynth.runtime.estimators.kalman import ExtendedKalmanFilter, KalmanTuning
-from tanksynth.runtime.estimators.narx import NARXEstimator, NARXTuning, _features, _forward
+from tanksynth.runtime.estimators.narx import NARXEstimator, NARXTuning, forward_pass, open_loop_regressors
 from tanksynth.sim.simulate import simulate_inputs
 
 __all__ = ["NARXTraining", "train_narx", "generate_ekf_data", "levenberg_marquardt", "LMResult"]
@@ -81,8 +81,8 @@ def generate_ekf_data(plant: Plant, ekf_tuning: KalmanTuning, *, runs: int, step
         (steps, runs, q).
     """
     rng = np.random.default_rng(seed)
-    runs = _positive_int(runs, "runs")
-    steps = _positive_int(steps, "steps")
+    runs = positive_int(runs, "runs")
+    steps = positive_int(steps, "steps")
     ranges = plant.input_limits if input_range is None else as_matrix(input_range, "input_range",
                                                                       (plant.m, 2))
     if not np.all(np.isfinite(ranges)) or np.any(ranges[:, 1] < ranges[:, 0]):
@@ -135,7 +135,7 @@ def _jacobian(theta: np.ndarray, Z: np.ndarray, H: int, n: int) -> np.ndarray:
     N, nin = Z.shape
     params = _unpack(theta, H, nin, n)
     W1, _, W2, _ = params
-    _, A = _forward(params, Z)
+    _, A = forward_pass(params, Z)
     D = 1.0 - A * A
     J = np.zeros((N, n, theta.size))
     o1 = H * nin
@@ -318,17 +318,17 @@ def train_narx(plant: Plant, ekf_tuning: KalmanTuning, *, hidden: int = 5, delay
     """
     if target not in ("ekf", "true"):
         raise SpecError(f"target must be 'ekf' or 'true', got {target!r}", key="target")
-    hidden = _positive_int(hidden, "hidden")
-    delays = _positive_int(delays, "delays")
-    validation_runs = _positive_int(validation_runs, "validation_runs")
-    total = _positive_int(runs, "runs") + validation_runs
+    hidden = positive_int(hidden, "hidden")
+    delays = positive_int(delays, "delays")
+    validation_runs = positive_int(validation_runs, "validation_runs")
+    total = positive_int(runs, "runs") + validation_runs
     data = generate_ekf_data(plant, ekf_tuning, runs=total, steps=steps, seed=seed,
                              input_range=input_range, hold=hold, noise_std=noise_std,
                              sim_substeps=sim_substeps)
     train = {k: v[:, :runs] for k, v in data.items()}
     valid = {k: v[:, runs:] for k, v in data.items()}
-    X_in, T, prior = _features(train, ekf_tuning.x0, delays, target)
-    Xv_in, Tv, prior_v = _features(valid, ekf_tuning.x0, delays, target)
+    X_in, T, prior = open_loop_regressors(train, ekf_tuning.x0, delays, target)
+    Xv_in, Tv, prior_v = open_loop_regressors(valid, ekf_tuning.x0, delays, target)
     base, base_v = 0.0, 0.0
     in_mean, in_scale = X_in.mean(axis=0), X_in.std(axis=0)
     in_scale = np.where(in_scale > 0, in_scale, 1.0)
@@ -343,11 +343,11 @@ def train_narx(plant: Plant, ekf_tuning: KalmanTuning, *, hidden: int = 5, delay
     Tvn = (Tv - out_mean) / out_scale
 
     def residual(theta: np.ndarray) -> np.ndarray:
-        out, _ = _forward(_unpack(theta, hidden, nin, n), Z)
+        out, _ = forward_pass(_unpack(theta, hidden, nin, n), Z)
         return (out - Tn).ravel()
 
     def validation(theta: np.ndarray) -> float:
-        out, _ = _forward(_unpack(theta, hidden, nin, n), Zv)
+        out, _ = forward_pass(_unpack(theta, hidden, nin, n), Zv)
         return float(np.mean((out - Tvn) ** 2))
 
     def closed_loop(tuning: NARXTuning) -> np.ndarray:
@@ -365,7 +365,7 @@ def train_narx(plant: Plant, ekf_tuning: KalmanTuning, *, hidden: int = 5, delay
     target_v = valid["x_ekf"] if target == "ekf" else valid["x"][1:]
     best = None
     candidates = []
-    for _ in range(_positive_int(restarts, "restarts")):
+    for _ in range(positive_int(restarts, "restarts")):
         theta0 = np.concatenate([rng.normal(0, 1 / np.sqrt(nin), hidden * nin), np.zeros(hidden),
                                  rng.normal(0, 1 / np.sqrt(hidden), n * hidden), np.zeros(n)])
         sol = levenberg_marquardt(residual, lambda t: _jacobian(t, Z, hidden, n), theta0,
@@ -388,7 +388,7 @@ def train_narx(plant: Plant, ekf_tuning: KalmanTuning, *, hidden: int = 5, delay
     params = (tuning.W1, tuning.b1, tuning.W2, tuning.b2)
 
     def mse_units(Xi: np.ndarray, Ti: np.ndarray, Bi: Any) -> list[float]:
-        out, _ = _forward(params, (Xi - in_mean) / in_scale)
+        out, _ = forward_pass(params, (Xi - in_mean) / in_scale)
         return (np.mean((Bi + out * out_scale + out_mean - Ti) ** 2, axis=0)).tolist()
 
     truth = valid["x"][1:]

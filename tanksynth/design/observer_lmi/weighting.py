@@ -14,7 +14,7 @@ import numpy as np
 import sympy as sp
 
 from tanksynth.errors import SpecError
-from tanksynth.analysis.interval import _branch_and_bound, interval_evaluate
+from tanksynth.analysis.interval import branch_and_bound, interval_evaluate
 from tanksynth.analysis import blas as _blas
 from tanksynth.analysis.quasi_lpv import FormEvaluator, lambdify_cached
 from tanksynth.analysis.symbolic import jacobian_by_form
@@ -385,7 +385,7 @@ def lipschitz_bound(ts: TSModel, form: str = "jacobian", method: str = "interval
                 v = np.sqrt(fixed_sq + np.sum((parts.values(P) - A0_varying) ** 2, axis=1))
             return np.where(np.isfinite(v), v, np.inf)
 
-        outer, inner, boxes, rounds = _branch_and_bound(upper, point, ts.domain, X, rtol, max_boxes,
+        outer, inner, boxes, rounds = branch_and_bound(upper, point, ts.domain, X, rtol, max_boxes,
                                                         max_rounds)
         value = outer * (1 + 1e-12) if np.isfinite(outer) else np.inf
         return LipschitzBound(value, form, method, sampled,

@@ -29,7 +29,7 @@ from typing import Any, Sequence
 import numpy as np
 import sympy as sp
 
-from tanksynth.analysis.quasi_lpv import _NUMPY, Domain, QuasiLPV, lambdify_cached
+from tanksynth.analysis.quasi_lpv import LAMBDIFY_MODULES, Domain, QuasiLPV, lambdify_cached
 from tanksynth.analysis.takagi_sugeno import vertex_memberships
 from tanksynth.errors import SpecError
 
@@ -88,7 +88,7 @@ def linear_argument(atom: sp.Expr, states: Sequence[sp.Symbol], seed: int = 0) -
                      "deviation TS model of ts_state_feedback needs n_k(x) = phi(a . x)", key="plant")
     if cand is None:
         raise fail
-    fn = sp.lambdify([states], atom, modules=_NUMPY)
+    fn = sp.lambdify([states], atom, modules=LAMBDIFY_MODULES)
     rng = np.random.default_rng(seed)
     X = rng.uniform(0.1, 0.6, size=(64, n))
     D = rng.normal(size=(64, n))

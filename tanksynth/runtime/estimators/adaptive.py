@@ -37,10 +37,15 @@ from typing import Any
 
 import numpy as np
 
-from tanksynth.errors import DimensionError, SpecError
+from tanksynth.analysis.matrices import symmetrize
+from tanksynth.errors import SpecError
 from tanksynth.plants.base import Plant
-from tanksynth.runtime.estimators.base import (ArrayEstimator, DiscreteModel, _positive_float, _positive_int, _sym, as_matrix,
-                   as_spd, as_vector, discrete_model, joseph_update, mv)
+from tanksynth.runtime.estimators.base import (ArrayEstimator, DiscreteModel, discrete_model,
+                                               joseph_update, mv, per_run)
+from tanksynth.runtime.estimators.tuning import (agree_on_states, artefact_gains, choice,
+                                                 fits_plant, noise_covariances, noise_input,
+                                                 operating_point, positive_float, positive_int,
+                                                 require_tuning, set_fields)
 
 __all__ = [
     "AdaptiveKalmanTuning",
@@ -70,28 +75,12 @@ def linear_model_for(plant: Plant, tuning: Any) -> DiscreteModel:
     DimensionError
         ``x0`` or ``P0`` do not fit the plant.
     """
-    if tuning.x0.size != plant.n:
-        raise DimensionError(f"x0 must have {plant.n} entries for plant '{plant.name}', got "
-                             f"{tuning.x0.size}")
-    P0 = getattr(tuning, "P0", None)
-    if P0 is not None and P0.shape != (plant.n, plant.n):
-        raise DimensionError(f"P0 must be {plant.n} x {plant.n}, got {P0.shape}")
+    fits_plant(tuning, plant, P0=(plant.n, plant.n))
     model = discrete_model(plant, tuning.ts, operating_point=tuning.operating_point)
     if model.kind != "linear":
         raise SpecError(f"plant '{plant.name}' is nonlinear: this filter runs on a linear model; "
                         "give operating_point = (x0, u0) to linearise about", key="operating_point")
     return model
-
-
-def _op(value: Any) -> tuple[np.ndarray, np.ndarray] | None:
-    if value is None:
-        return None
-    x_op, u_op = value
-    return as_vector(x_op, "operating_point x0"), as_vector(u_op, "operating_point u0")
-
-
-def _stack(A: np.ndarray, M: int) -> np.ndarray:
-    return np.broadcast_to(A, (M, *A.shape)).copy()
 
 
 @dataclass(frozen=True, eq=False)
@@ -134,27 +123,19 @@ class AdaptiveKalmanTuning:
     operating_point: tuple[np.ndarray, np.ndarray] | None = None
 
     def __post_init__(self) -> None:
-        set_ = lambda k, v: object.__setattr__(self, k, v)  # noqa: E731
-        set_("Q0", as_spd(self.Q0, "Q0", semidefinite=True))
-        set_("R", as_spd(self.R, "R"))
-        set_("P0", as_spd(self.P0, "P0"))
-        set_("x0", as_vector(self.x0, "x0"))
-        if self.Q0.shape != self.P0.shape:
-            raise DimensionError(f"Q0 {self.Q0.shape} and P0 {self.P0.shape} must have the same shape")
-        set_("ts", _positive_float(self.ts, "ts"))
-        set_("window", _positive_int(self.window, "window"))
-        if self.form not in _AKF_FORMS:
-            raise SpecError(f"form must be one of {_AKF_FORMS}, got {self.form!r}", key="form")
-        set_("q_floor", _positive_float(self.q_floor, "q_floor", allow_zero=True))
-        set_("operating_point", _op(self.operating_point))
+        set_fields(self, **noise_covariances(self, process="Q0"))
+        agree_on_states(self.x0, Q0=self.Q0, P0=self.P0)
+        set_fields(self, ts=positive_float(self.ts, "ts"),
+                   window=positive_int(self.window, "window"),
+                   form=choice(self.form, "form", _AKF_FORMS),
+                   q_floor=positive_float(self.q_floor, "q_floor", allow_zero=True),
+                   operating_point=operating_point(self.operating_point))
 
     def gains(self) -> dict[str, np.ndarray]:
         """Tuning arrays for the artefact; the initial estimate ``x0`` is stored as ``x_hat0``."""
-        out = {"Q0": self.Q0, "R": self.R, "P0": self.P0, "x_hat0": self.x0,
-               "window": np.array([float(self.window)]), "q_floor": np.array([self.q_floor])}
-        if self.operating_point is not None:
-            out["x_op"], out["u_op"] = self.operating_point
-        return out
+        return artefact_gains(self, Q0=self.Q0, R=self.R, P0=self.P0, x_hat0=self.x0,
+                              window=np.array([float(self.window)]),
+                              q_floor=np.array([self.q_floor]))
 
 
 class AdaptiveKalmanFilter(ArrayEstimator):
@@ -178,13 +159,10 @@ class AdaptiveKalmanFilter(ArrayEstimator):
     method = "adaptive_kalman"
 
     def __init__(self, plant: Plant, tuning: AdaptiveKalmanTuning, runs: int | None = None):
-        if not isinstance(tuning, AdaptiveKalmanTuning):
-            raise SpecError(f"AdaptiveKalmanFilter needs an AdaptiveKalmanTuning, got "
-                            f"{type(tuning).__name__}", key="tuning")
+        require_tuning(self, tuning, AdaptiveKalmanTuning)
         super().__init__(plant, tuning, runs)
         self.model = linear_model_for(plant, tuning)
-        if tuning.R.shape != (plant.q, plant.q):
-            raise DimensionError(f"R must be {plant.q} x {plant.q}, got {tuning.R.shape}")
+        fits_plant(tuning, plant, R=(plant.q, plant.q))
         self.reset()
 
     def _clone_args(self) -> tuple[tuple, dict]:
@@ -192,8 +170,8 @@ class AdaptiveKalmanFilter(ArrayEstimator):
 
     def _reset_arrays(self) -> None:
         M, n, q, W = self._M, self.n, self.q, self.tuning.window
-        self._P = _stack(self.tuning.P0, M)
-        self._Q = _stack(self.tuning.Q0, M)
+        self._P = per_run(self.tuning.P0, M)
+        self._Q = per_run(self.tuning.Q0, M)
         self._v = np.zeros((M, W, q))
         self._dx = np.zeros((M, W, n))
         self._filled = 0
@@ -214,9 +192,9 @@ class AdaptiveKalmanFilter(ArrayEstimator):
         F, H, R = mdl.Ad, mdl.C, tun.R
         P_prev = self._P
         xp = mv(F, self._x) + mv(mdl.Bd, U) + mdl.cd                       # (30)
-        Pp = _sym(F @ P_prev @ F.T + self._Q)                             # (31)
+        Pp = symmetrize(F @ P_prev @ F.T + self._Q)                             # (31)
         self._check_spd(Pp, "predicted covariance P(k|k-1)")
-        S = _sym(H @ Pp @ H.T + R)
+        S = symmetrize(H @ Pp @ H.T + R)
         self._check_spd(S, "innovation covariance S(k)")
         K = np.swapaxes(np.linalg.solve(S, H @ np.swapaxes(Pp, -1, -2)), -1, -2)   # (32)
         v = Y - (mv(H, xp) + mdl.dy)                                       # innovation (35, erratum)
@@ -237,9 +215,9 @@ class AdaptiveKalmanFilter(ArrayEstimator):
             else:                                                         # (37)
                 Cv = np.einsum("mwi,mwj->mij", self._v, self._v) / W
                 Qh = K @ Cv @ np.swapaxes(K, -1, -2)
-            w, V = np.linalg.eigh(_sym(Qh))
+            w, V = np.linalg.eigh(symmetrize(Qh))
             w = np.maximum(w, tun.q_floor)
-            self._Q = _sym((V * w[:, None, :]) @ np.swapaxes(V, -1, -2))
+            self._Q = symmetrize((V * w[:, None, :]) @ np.swapaxes(V, -1, -2))
         self._x = x
         self._P = P
         return x
@@ -285,32 +263,23 @@ class AdaptiveScalingTuning:
     operating_point: tuple[np.ndarray, np.ndarray] | None = None
 
     def __post_init__(self) -> None:
-        set_ = lambda k, v: object.__setattr__(self, k, v)  # noqa: E731
-        set_("Q", as_spd(self.Q, "Q", semidefinite=True))
-        set_("R", as_spd(self.R, "R"))
-        set_("P0", as_spd(self.P0, "P0"))
-        set_("x0", as_vector(self.x0, "x0"))
+        set_fields(self, **noise_covariances(self))
         n = self.x0.size
-        G = np.eye(n) if self.G is None else as_matrix(self.G, "G")
-        if G.shape != (n, self.Q.shape[0]):
-            raise DimensionError(f"G must be {n} x {self.Q.shape[0]} (n x size of Q), got {G.shape}")
-        set_("G", G)
-        set_("ts", _positive_float(self.ts, "ts"))
-        for name in ("a", "b", "c"):
-            set_(name, _positive_float(getattr(self, name), name, allow_zero=True))
+        set_fields(self, G=noise_input(self.G, n, self.Q.shape[0]),
+                   ts=positive_float(self.ts, "ts"),
+                   **{name: positive_float(getattr(self, name), name, allow_zero=True)
+                      for name in ("a", "b", "c")})
         if abs(self.a + self.b + self.c - 1.0) > 1e-12:
             raise SpecError(f"a + b + c must equal 1, got {self.a} + {self.b} + {self.c} = "
                             f"{self.a + self.b + self.c!r}", key="a")
-        set_("phi0", _positive_float(self.phi0, "phi0", allow_zero=True))
-        set_("operating_point", _op(self.operating_point))
+        set_fields(self, phi0=positive_float(self.phi0, "phi0", allow_zero=True),
+                   operating_point=operating_point(self.operating_point))
 
     def gains(self) -> dict[str, np.ndarray]:
         """Tuning arrays for the artefact; the initial estimate ``x0`` is stored as ``x_hat0``."""
-        out = {"Q": self.Q, "R": self.R, "P0": self.P0, "x_hat0": self.x0, "G": self.G,
-               "abc": np.array([self.a, self.b, self.c]), "phi0": np.array([self.phi0])}
-        if self.operating_point is not None:
-            out["x_op"], out["u_op"] = self.operating_point
-        return out
+        return artefact_gains(self, Q=self.Q, R=self.R, P0=self.P0, x_hat0=self.x0, G=self.G,
+                              abc=np.array([self.a, self.b, self.c]),
+                              phi0=np.array([self.phi0]))
 
 
 class AdaptiveScalingKalmanFilter(ArrayEstimator):
@@ -321,6 +290,15 @@ class AdaptiveScalingKalmanFilter(ArrayEstimator):
     plant : Plant
     tuning : AdaptiveScalingTuning
     runs : int, optional
+
+    Attributes
+    ----------
+    model : DiscreteModel
+    state_noise_covariance : ndarray, shape (n, n)
+        ``G Q G'``: the nominal process noise in the states (squared state units), scaled
+        by ``phi_k``.
+    output_noise_trace : float
+        ``tr(C G Q G' C')`` (squared output units), the divisor of eq. 36.
 
     Raises
     ------
@@ -333,17 +311,14 @@ class AdaptiveScalingKalmanFilter(ArrayEstimator):
     method = "adaptive_scaling_kalman"
 
     def __init__(self, plant: Plant, tuning: AdaptiveScalingTuning, runs: int | None = None):
-        if not isinstance(tuning, AdaptiveScalingTuning):
-            raise SpecError(f"AdaptiveScalingKalmanFilter needs an AdaptiveScalingTuning, got "
-                            f"{type(tuning).__name__}", key="tuning")
+        require_tuning(self, tuning, AdaptiveScalingTuning)
         super().__init__(plant, tuning, runs)
         self.model = linear_model_for(plant, tuning)
-        if tuning.R.shape != (plant.q, plant.q):
-            raise DimensionError(f"R must be {plant.q} x {plant.q}, got {tuning.R.shape}")
+        fits_plant(tuning, plant, R=(plant.q, plant.q))
         C = self.model.C
-        self._GQG = tuning.G @ tuning.Q @ tuning.G.T
-        self._tr_gamma = float(np.trace(C @ self._GQG @ C.T))
-        if not self._tr_gamma > 0:
+        self.state_noise_covariance = tuning.G @ tuning.Q @ tuning.G.T
+        self.output_noise_trace = float(np.trace(C @ self.state_noise_covariance @ C.T))
+        if not self.output_noise_trace > 0:
             raise SpecError("C G Q G' C' has zero trace: the scaled process noise does not reach "
                             "the output, so phi cannot be matched to the innovation (eq. 36); "
                             "choose G (noise input) and Q so that C G Q G' C' != 0", key="G")
@@ -353,7 +328,7 @@ class AdaptiveScalingKalmanFilter(ArrayEstimator):
         return (self.plant, self.tuning), {}
 
     def _reset_arrays(self) -> None:
-        self._P = _stack(self.tuning.P0, self._M)
+        self._P = per_run(self.tuning.P0, self._M)
         self._phi = np.full(self._M, self.tuning.phi0)
 
     @property
@@ -374,12 +349,12 @@ class AdaptiveScalingKalmanFilter(ArrayEstimator):
         APA = A @ self._P @ A.T
         beta = C @ APA @ C.T + R                                          # (34b)
         tr_beta = np.trace(beta, axis1=-2, axis2=-1)
-        match = (np.einsum("mi,mi->m", v, v) - tr_beta) / self._tr_gamma
+        match = (np.einsum("mi,mi->m", v, v) - tr_beta) / self.output_noise_trace
         ups = tun.a * tun.phi0 + tun.b * self._phi + tun.c * match        # (36)/(37)
         phi = np.maximum(ups, 0.0)                                        # (38)
-        Pp = _sym(APA + phi[:, None, None] * self._GQG)                   # (32)
+        Pp = symmetrize(APA + phi[:, None, None] * self.state_noise_covariance)  # (32)
         self._check_spd(Pp, "predicted covariance P(k|k-1)")
-        Pbar = _sym(C @ Pp @ C.T + R)                                     # (33)
+        Pbar = symmetrize(C @ Pp @ C.T + R)                                     # (33)
         self._check_spd(Pbar, "innovation covariance P_bar(k)")
         K = np.swapaxes(np.linalg.solve(Pbar, C @ np.swapaxes(Pp, -1, -2)), -1, -2)  # (39)
         x = xp + np.einsum("mij,mj->mi", K, v)                            # (40)

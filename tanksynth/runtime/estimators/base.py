@@ -32,8 +32,8 @@ stops being positive definite (or a state that stops being finite) raises
 `CovarianceError` naming the step, the run and the matrix, never a silent
 NaN. The estimator keeps its last valid state when that happens.
 
-The pieces live in sibling modules and are re-exported here: validation
-(`tanksynth.runtime.estimators.arrays`), the sampled model
+The pieces live in sibling modules and are re-exported here: the tuning
+validator (`tanksynth.runtime.estimators.tuning`), the sampled model
 (`tanksynth.runtime.estimators.model`), SX helpers and native kernels
 (`tanksynth.runtime.estimators.kernels`).
 """
@@ -47,15 +47,14 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
+from tanksynth.analysis.matrices import symmetrize
 from tanksynth.errors import CovarianceError, DimensionError, SpecError, TanksynthError
 from tanksynth.plants.base import Plant
-# _positive_float, _positive_int and _mmin are imported from here by the sibling estimators.
-from tanksynth.runtime.estimators.arrays import (_positive_float, _positive_int, as_matrix,  # noqa: F401
-                                                 as_spd, as_vector)
-from tanksynth.runtime.estimators.kernels import (_mmin, _native, sx_cholesky,  # noqa: F401
-                                                  sx_spd_inverse, sx_symmetrize)
-from tanksynth.runtime.estimators.model import (DiscreteModel, _PlantDimensions, discrete_model,
+from tanksynth.runtime.estimators.kernels import (native_function, sx_cholesky, sx_spd_inverse,
+                                                  sx_symmetrize)
+from tanksynth.runtime.estimators.model import (DiscreteModel, PlantDimensions, discrete_model,
                                                 regularized_jacobian)
+from tanksynth.runtime.estimators.tuning import as_matrix, as_spd, as_vector, positive_int
 
 __all__ = [
     "CovarianceError",
@@ -73,6 +72,8 @@ __all__ = [
     "sx_symmetrize",
     "joseph_update",
     "mv",
+    "per_run",
+    "column_major",
     "BACKENDS",
 ]
 
@@ -80,7 +81,7 @@ __all__ = [
 BACKENDS = ("auto", "native", "vm")
 
 
-class Estimator(_PlantDimensions, abc.ABC):
+class Estimator(PlantDimensions, abc.ABC):
     """Interface of every estimator (single run or ``runs`` parallel runs).
 
     Subclasses implement `_advance` (one step on the run-stacked state) and
@@ -103,7 +104,7 @@ class Estimator(_PlantDimensions, abc.ABC):
 
     def __init__(self, plant: Plant, tuning: Any, runs: int | None):
         if runs is not None:
-            runs = _positive_int(runs, "runs")
+            runs = positive_int(runs, "runs")
         self.plant = plant
         self.tuning = tuning
         self.runs = runs
@@ -111,7 +112,7 @@ class Estimator(_PlantDimensions, abc.ABC):
         self._n, self._m, self._q = plant.n, plant.m, plant.q
         self._no_input = np.zeros((1 if runs is None else runs, 0))
 
-    # -- dimensions (n, m, q: from _PlantDimensions) ----------------------------------
+    # -- dimensions (n, m, q: from PlantDimensions) ----------------------------------
     @property
     def _M(self) -> int:
         return 1 if self.runs is None else self.runs
@@ -300,7 +301,7 @@ class KernelEstimator(Estimator):
             fn = kernel
             used = "vm"
             if backend in ("auto", "native"):
-                native = _native(kernel)
+                native = native_function(kernel)
                 if native is not None:
                     fn, used = native, "native"
                 elif backend == "native":
@@ -432,9 +433,21 @@ class KernelEstimator(Estimator):
                                  other._backend_request, _shared=other._shared)
 
     @property
+    def step_kernel(self) -> ca.Function:
+        """The SX step ``(state, y, u, params) -> (state_new, checks, extra)`` (see `_build`),
+        before any compilation: what an exported law is built from."""
+        return self._shared["sx"]
+
+    @property
+    def kernel_parameters(self) -> np.ndarray:
+        """The numeric tuning vector the kernel's ``params`` input is fed (a copy; units of
+        the tuning's entries)."""
+        return self._P.copy()
+
+    @property
     def instructions(self) -> int:
         """Number of elementary operations of the step kernel (per run)."""
-        return int(self._shared["sx"].n_instructions())
+        return int(self.step_kernel.n_instructions())
 
 
 class ArrayEstimator(Estimator):
@@ -536,8 +549,32 @@ def mv(A: np.ndarray, X: np.ndarray) -> np.ndarray:
     return np.einsum("ij,mj->mi", A, X)
 
 
-def _sym(P: np.ndarray) -> np.ndarray:
-    return 0.5 * (P + np.swapaxes(P, -1, -2))
+def per_run(A: np.ndarray, runs: int) -> np.ndarray:
+    """A writable copy of ``A`` for each of ``runs`` runs, shape ``(runs,) + A.shape``.
+
+    Parameters
+    ----------
+    A : ndarray
+        The per-run initial value (a covariance, squared state units).
+    runs : int
+        Number of runs M.
+    """
+    return np.broadcast_to(A, (runs, *A.shape)).copy()
+
+
+def column_major(A: np.ndarray) -> np.ndarray:
+    """The entries of ``A`` column by column, as a kernel's parameter vector reads a matrix.
+
+    Parameters
+    ----------
+    A : array_like, shape (r, c)
+        A matrix (any units).
+
+    Returns
+    -------
+    ndarray, shape (r c,)
+    """
+    return np.asarray(A, dtype=float).ravel(order="F")
 
 
 def joseph_update(P: np.ndarray, K: np.ndarray, H: np.ndarray, R: np.ndarray) -> np.ndarray:
@@ -559,4 +596,4 @@ def joseph_update(P: np.ndarray, K: np.ndarray, H: np.ndarray, R: np.ndarray) ->
     """
     n = P.shape[-1]
     IKH = np.eye(n) - K @ H
-    return _sym(IKH @ P @ np.swapaxes(IKH, -1, -2) + K @ R @ np.swapaxes(K, -1, -2))
+    return symmetrize(IKH @ P @ np.swapaxes(IKH, -1, -2) + K @ R @ np.swapaxes(K, -1, -2))

@@ -25,11 +25,14 @@ from __future__ import annotations
 from dataclasses import dataclass
 import numpy as np
 
+from tanksynth.analysis.matrices import symmetrize
 from tanksynth.errors import DimensionError, SpecError
 from tanksynth.plants.base import Plant
-from tanksynth.runtime.estimators.adaptive import _op, _stack, linear_model_for
-from tanksynth.runtime.estimators.base import (ArrayEstimator, _positive_float, _sym, as_matrix, as_spd, as_vector,
-                   joseph_update, mv)
+from tanksynth.runtime.estimators.adaptive import linear_model_for
+from tanksynth.runtime.estimators.base import ArrayEstimator, joseph_update, mv, per_run
+from tanksynth.runtime.estimators.tuning import (artefact_gains, as_matrix, noise_covariances,
+                                                 noise_input, operating_point, positive_float,
+                                                 require_tuning, set_fields)
 
 __all__ = ["ConsensusTuning", "ConsensusFilter"]
 
@@ -70,13 +73,7 @@ class ConsensusTuning:
     operating_point: tuple[np.ndarray, np.ndarray] | None = None
 
     def __post_init__(self) -> None:
-        set_ = lambda k, v: object.__setattr__(self, k, v)  # noqa: E731
-        set_("Q", as_spd(self.Q, "Q", semidefinite=True))
-        if isinstance(self.R, np.ndarray) or not isinstance(self.R, (tuple, list)) or not self.R:
-            raise SpecError("R must be a non-empty list of sensor covariances R_i", key="R")
-        set_("R", tuple(as_spd(Ri, f"R[{i}]") for i, Ri in enumerate(self.R)))
-        set_("P0", as_spd(self.P0, "P0"))
-        set_("x0", as_vector(self.x0, "x0"))
+        set_fields(self, **noise_covariances(self, sensors=True))
         n = self.x0.size
         if self.C is not None:
             if not isinstance(self.C, (tuple, list)) or len(self.C) != len(self.R):
@@ -85,13 +82,10 @@ class ConsensusTuning:
             for i, (Ci, Ri) in enumerate(zip(Cs, self.R)):
                 if Ci.shape != (Ri.shape[0], n):
                     raise DimensionError(f"C[{i}] must be {Ri.shape[0]} x {n}, got {Ci.shape}")
-            set_("C", Cs)
-        G = np.eye(n) if self.G is None else as_matrix(self.G, "G")
-        if G.shape != (n, self.Q.shape[0]):
-            raise DimensionError(f"G must be {n} x {self.Q.shape[0]}, got {G.shape}")
-        set_("G", G)
-        set_("ts", _positive_float(self.ts, "ts"))
-        set_("operating_point", _op(self.operating_point))
+            set_fields(self, C=Cs)
+        set_fields(self, G=noise_input(self.G, n, self.Q.shape[0]),
+                   ts=positive_float(self.ts, "ts"),
+                   operating_point=operating_point(self.operating_point))
 
     @property
     def sensors(self) -> int:
@@ -101,15 +95,9 @@ class ConsensusTuning:
     def gains(self) -> dict[str, np.ndarray]:
         """Tuning arrays for the artefact (``R_i``, ``C_i`` as ``R0, R1, ...``); the initial
         estimate ``x0`` is stored as ``x_hat0``."""
-        out = {"Q": self.Q, "P0": self.P0, "x_hat0": self.x0, "G": self.G}
-        for i, Ri in enumerate(self.R):
-            out[f"R{i}"] = Ri
-        if self.C is not None:
-            for i, Ci in enumerate(self.C):
-                out[f"C{i}"] = Ci
-        if self.operating_point is not None:
-            out["x_op"], out["u_op"] = self.operating_point
-        return out
+        sensors = {f"R{i}": Ri for i, Ri in enumerate(self.R)}
+        sensors.update({f"C{i}": Ci for i, Ci in enumerate(self.C or ())})
+        return artefact_gains(self, Q=self.Q, P0=self.P0, x_hat0=self.x0, G=self.G, **sensors)
 
 
 class ConsensusFilter(ArrayEstimator):
@@ -128,14 +116,26 @@ class ConsensusFilter(ArrayEstimator):
     ----------
     prior : ndarray
         ``x_bar`` of the last step, (n,) or (M, n) (property).
+    model : DiscreteModel
+    stacked_C : ndarray, shape (sum q_i, n)
+        ``C_i`` of the sensors, stacked (output per state units).
+    stacked_offset : ndarray, shape (sum q_i,)
+        Output offsets ``d_i``, stacked (output units).
+    stacked_R : ndarray, shape (sum q_i, sum q_i)
+        Block diagonal of the ``R_i`` (squared output units).
+    information_matrix : ndarray, shape (n, n)
+        ``H = 1/N sum C_i' R_i^-1 C_i`` (eq. 43; 1 / squared state units).
+    information_gain : ndarray, shape (n, sum q_i)
+        ``1/N [C_1' R_1^-1, ..., C_N' R_N^-1]`` (eq. 48), taking the stacked measurements
+        to ``z``.
+    state_noise_covariance : ndarray, shape (n, n)
+        ``G Q G'`` (squared state units).
     """
 
     method = "consensus_filter"
 
     def __init__(self, plant: Plant, tuning: ConsensusTuning, runs: int | None = None):
-        if not isinstance(tuning, ConsensusTuning):
-            raise SpecError(f"ConsensusFilter needs a ConsensusTuning, got {type(tuning).__name__}",
-                            key="tuning")
+        require_tuning(self, tuning, ConsensusTuning)
         super().__init__(plant, tuning, runs)
         self.model = linear_model_for(plant, tuning)
         mdl = self.model
@@ -149,21 +149,21 @@ class ConsensusFilter(ArrayEstimator):
             if Ri.shape[0] != Ci.shape[0] or Ci.shape[1] != plant.n:
                 raise DimensionError(f"sensor {i}: C is {Ci.shape} and R is {Ri.shape} for "
                                      f"n = {plant.n}")
-        self._C_stack = np.vstack(Cs)
-        self._d_stack = np.concatenate(ds)
-        self._R_stack = np.zeros((len(self._d_stack),) * 2)
-        self._Rinv_stack = np.zeros_like(self._R_stack)
+        self.stacked_C = np.vstack(Cs)
+        self.stacked_offset = np.concatenate(ds)
+        self.stacked_R = np.zeros((len(self.stacked_offset),) * 2)
+        self._Rinv_stack = np.zeros_like(self.stacked_R)
         i0 = 0
         for Ri in tuning.R:
             k = Ri.shape[0]
-            self._R_stack[i0:i0 + k, i0:i0 + k] = Ri
+            self.stacked_R[i0:i0 + k, i0:i0 + k] = Ri
             self._Rinv_stack[i0:i0 + k, i0:i0 + k] = np.linalg.inv(Ri)
             i0 += k
         N = tuning.sensors
-        self._H = self._C_stack.T @ self._Rinv_stack @ self._C_stack / N          # (43)
-        self._Z = self._C_stack.T @ self._Rinv_stack / N                           # (48)
-        self._GQG = tuning.G @ tuning.Q @ tuning.G.T
-        self._qy = self._q = self._C_stack.shape[0]
+        self.information_matrix = self.stacked_C.T @ self._Rinv_stack @ self.stacked_C / N  # (43)
+        self.information_gain = self.stacked_C.T @ self._Rinv_stack / N  # (48)
+        self.state_noise_covariance = tuning.G @ tuning.Q @ tuning.G.T
+        self._qy = self._q = self.stacked_C.shape[0]
         self.reset()
 
     @property
@@ -175,7 +175,7 @@ class ConsensusFilter(ArrayEstimator):
         return (self.plant, self.tuning), {}
 
     def _reset_arrays(self) -> None:
-        self._Mc = _stack(self.tuning.P0, self._M)
+        self._Mc = per_run(self.tuning.P0, self._M)
         self._prior = self._x.copy()
         self._first = True
 
@@ -194,15 +194,15 @@ class ConsensusFilter(ArrayEstimator):
         A = mdl.Ad
         N = self.tuning.sensors
         xbar = mv(A, self._x) + mv(mdl.Bd, U) + mdl.cd                       # (51)
-        P = _sym(A @ self._Mc @ A.T + self._GQG)                           # (50), central
+        P = symmetrize(A @ self._Mc @ A.T + self.state_noise_covariance)  # (50), central
         self._check_spd(P, "predicted covariance P(k|k-1)")
-        info = _sym(np.linalg.inv(N * P) + self._H)                        # (44)
+        info = symmetrize(np.linalg.inv(N * P) + self.information_matrix)  # (44)
         self._check_spd(info, "information matrix (N P)^-1 + H")
-        Pcal = _sym(np.linalg.inv(info))
-        z = mv(self._Z, Y - self._d_stack)                                # (48)
-        x = xbar + np.einsum("mij,mj->mi", Pcal, z - mv(self._H, xbar))     # (49)
-        K = Pcal @ self._Z                                                 # stacked gain = M C' R^-1
-        Mc = joseph_update(P, K, self._C_stack, self._R_stack)
+        Pcal = symmetrize(np.linalg.inv(info))
+        z = mv(self.information_gain, Y - self.stacked_offset)            # (48)
+        x = xbar + np.einsum("mij,mj->mi", Pcal, z - mv(self.information_matrix, xbar))  # (49)
+        K = Pcal @ self.information_gain                  # stacked gain = M C' R^-1
+        Mc = joseph_update(P, K, self.stacked_C, self.stacked_R)
         self._check_spd(Mc, "updated covariance M(k)")
         self._check_state(x)
         self._x, self._Mc, self._prior = x, Mc, xbar

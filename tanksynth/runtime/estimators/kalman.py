@@ -26,10 +26,15 @@ import casadi as ca
 import numpy as np
 import scipy.linalg as sla
 
-from tanksynth.errors import DimensionError, SpecError
+from tanksynth.errors import SpecError
 from tanksynth.plants.base import Plant
-from tanksynth.runtime.estimators.base import (DiscreteModel, KernelEstimator, _mmin, _positive_float, _positive_int, as_spd,
-                   as_vector, discrete_model, sx_cholesky, sx_spd_inverse, sx_symmetrize)
+from tanksynth.runtime.estimators.base import (DiscreteModel, KernelEstimator, column_major,
+                                               discrete_model)
+from tanksynth.runtime.estimators.kernels import sx_cholesky, sx_min, sx_spd_inverse, sx_symmetrize
+from tanksynth.runtime.estimators.tuning import (agree_on_states, artefact_gains, as_spd,
+                                                 fits_plant, noise_covariances, operating_point,
+                                                 positive_float, positive_int, require_tuning,
+                                                 set_fields)
 
 __all__ = [
     "KalmanTuning",
@@ -82,30 +87,18 @@ class KalmanTuning:
     operating_point: tuple[np.ndarray, np.ndarray] | None = field(default=None)
 
     def __post_init__(self) -> None:
-        set_ = lambda k, v: object.__setattr__(self, k, v)  # noqa: E731
-        set_("Q", as_spd(self.Q, "Q", semidefinite=True))
-        set_("R", as_spd(self.R, "R"))
-        set_("P0", as_spd(self.P0, "P0"))
-        set_("x0", as_vector(self.x0, "x0"))
-        if self.P0.shape[0] != self.x0.size or self.Q.shape[0] != self.x0.size:
-            raise DimensionError(f"Q {self.Q.shape}, P0 {self.P0.shape} and x0 ({self.x0.size},) "
-                                 "must agree on the number of states")
-        set_("ts", _positive_float(self.ts, "ts"))
-        set_("substeps", _positive_int(self.substeps, "substeps"))
-        set_("jacobian_eps", _positive_float(self.jacobian_eps, "jacobian_eps"))
-        set_("switch_tol", _positive_float(self.switch_tol, "switch_tol", allow_zero=True))
-        if self.operating_point is not None:
-            x_op, u_op = self.operating_point
-            set_("operating_point", (as_vector(x_op, "operating_point x0"),
-                                     as_vector(u_op, "operating_point u0")))
+        set_fields(self, **noise_covariances(self))
+        agree_on_states(self.x0, Q=self.Q, P0=self.P0)
+        set_fields(self, ts=positive_float(self.ts, "ts"),
+                   substeps=positive_int(self.substeps, "substeps"),
+                   jacobian_eps=positive_float(self.jacobian_eps, "jacobian_eps"),
+                   switch_tol=positive_float(self.switch_tol, "switch_tol", allow_zero=True),
+                   operating_point=operating_point(self.operating_point))
 
     def gains(self) -> dict[str, np.ndarray]:
         """The tuning matrices as float arrays (artefact gains); the initial
         estimate ``x0`` is stored as ``x_hat0``."""
-        out = {"Q": self.Q, "R": self.R, "P0": self.P0, "x_hat0": self.x0}
-        if self.operating_point is not None:
-            out["x_op"], out["u_op"] = self.operating_point
-        return out
+        return artefact_gains(self, Q=self.Q, R=self.R, P0=self.P0, x_hat0=self.x0)
 
 
 def model_from_tuning(plant: Plant, tuning: Any, operating_point: Any = None) -> DiscreteModel:
@@ -126,24 +119,13 @@ def model_from_tuning(plant: Plant, tuning: Any, operating_point: Any = None) ->
         ``Q``, ``R``, ``P0`` or ``x0`` do not fit the plant.
     """
     n, q = plant.n, plant.q
-    for name, shape in (("Q", (n, n)), ("P0", (n, n)), ("R", (q, q))):
-        value = getattr(tuning, name, None)
-        if value is not None and value.shape != shape:
-            raise DimensionError(f"{name} must be {shape[0]} x {shape[1]} for plant "
-                                 f"'{plant.name}' (n = {n}, q = {q}), got {value.shape}")
-    if tuning.x0.size != n:
-        raise DimensionError(f"x0 must have {n} entries for plant '{plant.name}', got "
-                             f"{tuning.x0.size}")
+    fits_plant(tuning, plant, Q=(n, n), P0=(n, n), R=(q, q))
     op = operating_point if operating_point is not None else getattr(tuning, "operating_point", None)
     return discrete_model(plant, tuning.ts, operating_point=op,
                           substeps=getattr(tuning, "substeps", 1),
                           jacobian_eps=getattr(tuning, "jacobian_eps", 1e-6),
                           switch_tol=getattr(tuning, "switch_tol", 0.0),
                           clip=getattr(tuning, "clip", False))
-
-
-def _colmajor(A: np.ndarray) -> np.ndarray:
-    return np.asarray(A, dtype=float).ravel(order="F")
 
 
 class ExtendedKalmanFilter(KernelEstimator):
@@ -188,9 +170,7 @@ class ExtendedKalmanFilter(KernelEstimator):
 
     def __init__(self, plant: Plant, tuning: KalmanTuning, runs: int | None = None,
                  backend: str = "auto", *, model: DiscreteModel | None = None):
-        if not isinstance(tuning, KalmanTuning):
-            raise SpecError(f"{type(self).__name__} needs a KalmanTuning, got "
-                            f"{type(tuning).__name__}", key="tuning")
+        require_tuning(self, tuning, KalmanTuning)
         model = model if model is not None else model_from_tuning(plant, tuning)
         self._check_model(model)
         super().__init__(plant, tuning, model, runs, backend)
@@ -238,21 +218,21 @@ class ExtendedKalmanFilter(KernelEstimator):
         if hyb:
             new += [ca.reshape(Phi, n * n, 1), ca.SX(1)]
             extra.append(ca.if_else(kept, 1, 0))
-        checks = ca.vertcat(_mmin(piv_p), _mmin(piv_s), _mmin(piv_n), ca.sum1(xn))
+        checks = ca.vertcat(sx_min(piv_p), sx_min(piv_s), sx_min(piv_n), ca.sum1(xn))
         return ca.Function(f"{self.method}_step", [S, y, u, p],
                            [ca.densify(ca.vertcat(*new)), ca.densify(checks),
                             ca.densify(ca.vertcat(*extra))],
                            ["state", "y", "u", "params"], ["state_new", "checks", "extra"])
 
     def _params(self) -> np.ndarray:
-        return np.concatenate([_colmajor(self.tuning.Q), _colmajor(self.tuning.R)])
+        return np.concatenate([column_major(self.tuning.Q), column_major(self.tuning.R)])
 
     def _initial_state(self, X0: np.ndarray) -> np.ndarray:
         base, hyb = self._layout()
         M = X0.shape[0]
         out = np.zeros((M, base + hyb))
         out[:, :self.n] = X0
-        out[:, self.n:base] = _colmajor(self.tuning.P0)
+        out[:, self.n:base] = column_major(self.tuning.P0)
         return out
 
     # -- views -------------------------------------------------------------------------

@@ -1,32 +1,34 @@
 """CasADi building blocks of the estimator kernels, and their native compilation.
 
-SX helpers (symmetrisation, Cholesky with pivots, SPD inverse) used to write
-every step of a `KernelEstimator` as one SX function; `_native` compiles
-such a function to a shared library with the C compiler (``gcc``/``cc``)
-and loads it (``casadi.external``).
+SX helpers (symmetrisation, Cholesky with pivots, SPD inverse, smallest
+entry) used to write every step of a `KernelEstimator` as one SX function;
+`native_function` compiles such a function to a shared library and loads it
+(``casadi.external``), or gives None (the caller evaluates the SX function in
+CasADi's virtual machine).
 
-Cache (no hidden state): compiled libraries are written to
-``$TANKSYNTH_CACHE`` if set, else ``$XDG_CACHE_HOME/tanksynth/kernels``, else
-``~/.cache/tanksynth/kernels`` (`cache_dir`), named by the SHA-256 of their
-generated C source, compiler flags and CasADi version, so a library is never
-used for another kernel; the loaded ones are also kept in memory
-(``_NATIVE_CACHE``). `clear_cache` (and ``tanksynth.runtime.clear_cache``)
-forgets the loaded ones and, on request, deletes the files.
+Compiler, flags and cache: the one native-compile cache of tanksynth
+(`tanksynth.native_cache`: ``$TANKSYNTH_CC``, else ``gcc``/``cc``; the same
+flags as the simulator's kernels; locked, atomic builds; failures remembered).
+The estimator kernels are its family ``kernels``: ``tk_*.so`` files in
+``$TANKSYNTH_CACHE`` if set, else ``$TANKSYNTH_CACHE_DIR/kernels``, else
+``$XDG_CACHE_HOME/tanksynth/kernels``, else ``~/.cache/tanksynth/kernels``
+(`cache_dir`), named by the SHA-256 of their generated C source, the CasADi
+version, the compiler path and its flags, so a library is never used for
+another kernel; the loaded ones are also kept in memory. `clear_cache` (and
+``tanksynth.runtime.clear_cache``) forgets the loaded ones and, on request,
+deletes the files.
 """
 
 from __future__ import annotations
 
-import hashlib
-import os
-import shutil
-import subprocess
-import tempfile
 from pathlib import Path
 
 import casadi as ca
 
-__all__ = ["sx_symmetrize", "sx_cholesky", "sx_spd_inverse", "cache_dir", "clear_cache",
-           "cache_info"]
+from tanksynth.native_cache import NativeBuildError, NativeCache, find_compiler
+
+__all__ = ["sx_symmetrize", "sx_cholesky", "sx_spd_inverse", "sx_min", "native_function",
+           "cache_dir", "clear_cache", "cache_info"]
 
 
 def sx_symmetrize(A: ca.SX) -> ca.SX:
@@ -108,11 +110,22 @@ def sx_spd_inverse(A: ca.SX) -> tuple[ca.SX, ca.SX]:
     return Li.T @ Li, piv
 
 
-def _mmin(v: ca.SX) -> ca.SX:
+def sx_min(v: ca.SX) -> ca.SX:
+    """Smallest entry of a vector (a chain of ``fmin``; the pivots a kernel checks).
+
+    Parameters
+    ----------
+    v : casadi.SX, shape (k, 1)
+        A non-empty vector.
+    """
     out = v[0]
     for i in range(1, v.numel()):
         out = ca.fmin(out, v[i])
     return out
+
+
+#: The estimator kernels' family of the native-compile cache.
+_CACHE = NativeCache("kernels", "tk_", directory_env="TANKSYNTH_CACHE")
 
 
 def cache_dir() -> Path:
@@ -121,56 +134,45 @@ def cache_dir() -> Path:
     Returns
     -------
     pathlib.Path
-        ``$TANKSYNTH_CACHE``, else ``$XDG_CACHE_HOME/tanksynth/kernels``, else
-        ``~/.cache/tanksynth/kernels``.
+        ``$TANKSYNTH_CACHE``, else ``$TANKSYNTH_CACHE_DIR/kernels``, else
+        ``$XDG_CACHE_HOME/tanksynth/kernels``, else ``~/.cache/tanksynth/kernels``.
     """
-    if os.environ.get("TANKSYNTH_CACHE"):
-        return Path(os.environ["TANKSYNTH_CACHE"])
-    base = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache")
-    return base / "tanksynth" / "kernels"
+    return _CACHE.directory()
 
 
-_NATIVE_FLAGS = ("-O2", "-fPIC", "-shared", "-ffp-contract=off", "-fno-math-errno")
-_NATIVE_CACHE: dict[str, ca.Function] = {}
+def _c_source(fn: ca.Function, name: str) -> str:
+    """C source of ``fn`` renamed ``name`` (the symbol `casadi.external` looks up)."""
+    renamed = ca.Function(name, fn.sx_in(), fn.call(fn.sx_in()), fn.name_in(), fn.name_out())
+    gen = ca.CodeGenerator(f"{name}.c", {"with_header": False})
+    gen.add(renamed)
+    return gen.dump()
 
 
-def _compiler() -> str | None:
-    return shutil.which("gcc") or shutil.which("cc")
+def native_function(fn: ca.Function) -> ca.Function | None:
+    """``fn`` compiled to native code (built once, cached on disk and in memory) and loaded.
 
+    Parameters
+    ----------
+    fn : casadi.Function
+        An SX function (a kernel's step).
 
-def _native(fn: ca.Function) -> ca.Function | None:
-    """Compile an SX function to a shared library (cached by source hash) and load it."""
-    cc = _compiler()
+    Returns
+    -------
+    casadi.Function or None
+        The loaded library's function (same inputs and outputs, the same numbers);
+        None when no C compiler is found or the build or load fails.
+    """
+    cc = find_compiler()
     if cc is None:
         return None
     gen = ca.CodeGenerator("tk_kernel.c", {"with_header": False})
     gen.add(fn)
-    code = gen.dump()
-    digest = hashlib.sha256((code + " ".join(_NATIVE_FLAGS) + ca.__version__).encode()).hexdigest()
-    if digest in _NATIVE_CACHE:
-        return _NATIVE_CACHE[digest]
-    name = f"tk_{digest[:20]}"
     try:
-        directory = cache_dir()
-        directory.mkdir(parents=True, exist_ok=True)
-        so_path = directory / f"{name}.so"
-        if not so_path.exists():
-            renamed = ca.Function(name, fn.sx_in(), fn.call(fn.sx_in()), fn.name_in(),
-                                  fn.name_out())
-            gen = ca.CodeGenerator(f"{name}.c", {"with_header": False})
-            gen.add(renamed)
-            with tempfile.TemporaryDirectory(dir=directory) as tmp:
-                src = Path(tmp) / f"{name}.c"
-                src.write_text(gen.dump())
-                out = Path(tmp) / f"{name}.so"
-                subprocess.run([cc, *_NATIVE_FLAGS, str(src), "-o", str(out), "-lm"], check=True,
-                               capture_output=True, timeout=300)
-                os.replace(out, so_path)
-        loaded = ca.external(name, str(so_path))
-    except (OSError, subprocess.SubprocessError, RuntimeError):
+        lib = _CACHE.library([gen.dump(), ca.__version__], lambda name: _c_source(fn, name),
+                             lambda path, name: ca.external(name, str(path)), cc)
+    except NativeBuildError:
         return None
-    _NATIVE_CACHE[digest] = loaded
-    return loaded
+    return lib.handle
 
 
 def clear_cache(disk: bool = False) -> dict[str, int]:
@@ -190,19 +192,10 @@ def clear_cache(disk: bool = False) -> dict[str, int]:
     dict
         ``loaded``: kernels forgotten; ``files``: libraries deleted.
     """
-    loaded = len(_NATIVE_CACHE)
-    _NATIVE_CACHE.clear()
-    files = 0
-    if disk:
-        directory = cache_dir()
-        for path in directory.glob("tk_*.so") if directory.is_dir() else ():
-            path.unlink(missing_ok=True)
-            files += 1
-    return {"loaded": loaded, "files": files}
+    return _CACHE.clear(disk)
 
 
 def cache_info() -> dict[str, object]:
     """``loaded`` (native kernels in memory), ``files`` (libraries on disk), ``directory``."""
-    directory = cache_dir()
-    files = len(list(directory.glob("tk_*.so"))) if directory.is_dir() else 0
-    return {"loaded": len(_NATIVE_CACHE), "files": files, "directory": str(directory)}
+    info = _CACHE.info()
+    return {"loaded": info["loaded"], "files": info["files"], "directory": info["directory"]}

@@ -38,9 +38,10 @@ from tanksynth.errors import DimensionError, SpecError
 from tanksynth.plants.compile import rk4_step
 from tanksynth.plants.base import Plant
 from tanksynth.analysis.linearize import discretize_zoh, linearize
-from tanksynth.runtime.estimators.adaptive import _op
-from tanksynth.runtime.estimators.base import (ArrayEstimator, _positive_float, _positive_int, as_matrix, as_vector,
-                   discrete_model, mv)
+from tanksynth.runtime.estimators.base import ArrayEstimator, discrete_model, mv
+from tanksynth.runtime.estimators.tuning import (artefact_gains, as_matrix, as_vector, choice,
+                                                 fits_plant, operating_point, positive_float,
+                                                 positive_int, require_tuning, set_fields)
 
 __all__ = ["LuenbergerTuning", "LuenbergerObserver", "TSMultiObserver", "OBSERVER_FORMS"]
 
@@ -76,23 +77,17 @@ class LuenbergerTuning:
     operating_point: tuple[np.ndarray, np.ndarray] | None = None
 
     def __post_init__(self) -> None:
-        set_ = lambda k, v: object.__setattr__(self, k, v)  # noqa: E731
-        set_("L", as_matrix(self.L, "L"))
-        set_("x0", as_vector(self.x0, "x0"))
+        set_fields(self, L=as_matrix(self.L, "L"), x0=as_vector(self.x0, "x0"))
         if self.L.shape[0] != self.x0.size:
             raise DimensionError(f"L has {self.L.shape[0]} rows, x0 has {self.x0.size} entries")
-        set_("ts", _positive_float(self.ts, "ts"))
-        if self.form not in OBSERVER_FORMS:
-            raise SpecError(f"form must be one of {OBSERVER_FORMS}, got {self.form!r}", key="form")
-        set_("substeps", _positive_int(self.substeps, "substeps"))
-        set_("operating_point", _op(self.operating_point))
+        set_fields(self, ts=positive_float(self.ts, "ts"),
+                   form=choice(self.form, "form", OBSERVER_FORMS),
+                   substeps=positive_int(self.substeps, "substeps"),
+                   operating_point=operating_point(self.operating_point))
 
     def gains(self) -> dict[str, np.ndarray]:
         """Tuning arrays for the artefact; the initial estimate ``x0`` is stored as ``x_hat0``."""
-        out = {"L": self.L, "x_hat0": self.x0}
-        if self.operating_point is not None:
-            out["x_op"], out["u_op"] = self.operating_point
-        return out
+        return artefact_gains(self, L=self.L, x_hat0=self.x0)
 
 
 class _ContinuousBase(ArrayEstimator):
@@ -148,15 +143,9 @@ class LuenbergerObserver(_ContinuousBase):
     method = "luenberger"
 
     def __init__(self, plant: Plant, tuning: LuenbergerTuning, runs: int | None = None):
-        if not isinstance(tuning, LuenbergerTuning):
-            raise SpecError(f"LuenbergerObserver needs a LuenbergerTuning, got "
-                            f"{type(tuning).__name__}", key="tuning")
+        require_tuning(self, tuning, LuenbergerTuning)
         super().__init__(plant, tuning, runs)
-        if tuning.L.shape != (plant.n, plant.q):
-            raise DimensionError(f"L must be {plant.n} x {plant.q} for plant '{plant.name}', got "
-                                 f"{tuning.L.shape}")
-        if tuning.x0.size != plant.n:
-            raise DimensionError(f"x0 must have {plant.n} entries, got {tuning.x0.size}")
+        fits_plant(tuning, plant, L=(plant.n, plant.q))
         self.model = discrete_model(plant, tuning.ts, operating_point=tuning.operating_point)
         mdl, L = self.model, tuning.L
         self.error_matrix = None
@@ -252,8 +241,7 @@ class TSMultiObserver(_ContinuousBase):
         if C.shape != (plant.q, plant.n) or tuning.L.shape != (plant.n, plant.q):
             raise DimensionError(f"C is {C.shape} and L is {tuning.L.shape}; expected "
                                  f"({plant.q}, {plant.n}) and ({plant.n}, {plant.q})")
-        if tuning.x0.size != plant.n:
-            raise DimensionError(f"x0 must have {plant.n} entries, got {tuning.x0.size}")
+        fits_plant(tuning, plant)
         self.ts_model = ts_model
         self._C = C
         self._setup_field(ts_model.rhs, lambda X: mv(C, X))

@@ -9,7 +9,7 @@ regularised Jacobian the extended filters linearise with.
 Cache (no hidden state): per-plant compiled pieces (the regularised
 Jacobian Function, the affinity test) live in ``_PLANT_CACHE``, keyed by the
 plant's identity and dropped with the plant (weak reference);
-``tanksynth.runtime.clear_cache`` empties it.
+``tanksynth.runtime.clear_cache`` empties it (`clear_cache`; `cached_plants` counts it).
 """
 
 from __future__ import annotations
@@ -25,9 +25,10 @@ import sympy as sp
 from tanksynth.analysis.linearize import discretize_zoh, equilibrium_input, linearize
 from tanksynth.plants.base import Plant
 from tanksynth.plants.compile import compile_matrix, rk4_step
-from tanksynth.runtime.estimators.arrays import _positive_float, _positive_int, as_vector
+from tanksynth.runtime.estimators.tuning import as_vector, positive_float, positive_int
 
-__all__ = ["DiscreteModel", "discrete_model", "regularized_jacobian", "clear_cache"]
+__all__ = ["DiscreteModel", "PlantDimensions", "discrete_model", "regularized_jacobian",
+           "clear_cache", "cached_plants"]
 
 
 def regularized_jacobian(plant: Plant, eps: float) -> sp.Matrix:
@@ -96,6 +97,11 @@ def clear_cache() -> int:
     return count
 
 
+def cached_plants() -> int:
+    """Number of plants whose compiled pieces are held (`clear_cache` drops them)."""
+    return len(_PLANT_CACHE)
+
+
 def _plant_cache(plant: Plant) -> dict:
     """Per-plant cache of compiled estimator pieces (dropped with the plant)."""
     key = id(plant)
@@ -107,8 +113,14 @@ def _plant_cache(plant: Plant) -> dict:
     return entry[1]
 
 
-class _PlantDimensions:
-    """``n``, ``m``, ``q`` read from ``self.plant`` (states, inputs, outputs)."""
+class PlantDimensions:
+    """Mixin: ``n``, ``m``, ``q`` read from ``self.plant`` (states, inputs, outputs).
+
+    Attributes
+    ----------
+    plant : Plant
+        Set by the class that mixes it in (a model, an estimator).
+    """
 
     plant: Plant
 
@@ -129,7 +141,7 @@ class _PlantDimensions:
 
 
 @dataclass(frozen=True, eq=False)
-class DiscreteModel(_PlantDimensions):
+class DiscreteModel(PlantDimensions):
     """The sampled model an estimator predicts with, built once from a plant.
 
     Either linear affine (``kind == "linear"``) in absolute coordinates::
@@ -382,10 +394,10 @@ def discrete_model(plant: Plant, ts: float, *, operating_point: Any = None, subs
     DimensionError
         Operating point of the wrong size.
     """
-    ts = _positive_float(ts, "ts")
-    substeps = _positive_int(substeps, "substeps")
-    jacobian_eps = _positive_float(jacobian_eps, "jacobian_eps")
-    switch_tol = _positive_float(switch_tol, "switch_tol", allow_zero=True)
+    ts = positive_float(ts, "ts")
+    substeps = positive_int(substeps, "substeps")
+    jacobian_eps = positive_float(jacobian_eps, "jacobian_eps")
+    switch_tol = positive_float(switch_tol, "switch_tol", allow_zero=True)
     common = dict(plant=plant, ts=ts, substeps=substeps, jacobian_eps=jacobian_eps,
                   switch_tol=switch_tol, clip=bool(clip))
     if operating_point is not None:

@@ -14,7 +14,7 @@ training data's mean and standard deviation (stored in the tuning).
 
 This module holds what the artefact ships and the loop runs: the weights
 (`NARXTuning`), the forward pass and the estimator kernel (`NARXEstimator`),
-and the layout of the network's open-loop regressors (``_features``). The
+and the layout of the network's open-loop regressors (`open_loop_regressors`). The
 training (data generation through the simulator, Levenberg-Marquardt) is
 design work: `tanksynth.design.estimators.narx_training`.
 """
@@ -29,10 +29,11 @@ import numpy as np
 
 from tanksynth.errors import DimensionError, SpecError
 from tanksynth.plants.base import Plant
-from tanksynth.runtime.estimators.base import (DiscreteModel, KernelEstimator, _positive_float,
-                                               _positive_int, as_matrix, as_vector, discrete_model)
+from tanksynth.runtime.estimators.base import DiscreteModel, KernelEstimator, discrete_model
+from tanksynth.runtime.estimators.tuning import (as_matrix, as_vector, positive_float, positive_int,
+                                                 require_tuning, set_fields)
 
-__all__ = ["NARXTuning", "NARXEstimator"]
+__all__ = ["NARXTuning", "NARXEstimator", "forward_pass", "open_loop_regressors"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -78,25 +79,21 @@ class NARXTuning:
     clip: bool = False
 
     def __post_init__(self) -> None:
-        set_ = lambda k, v: object.__setattr__(self, k, v)  # noqa: E731
-        set_("W1", as_matrix(self.W1, "W1"))
-        set_("W2", as_matrix(self.W2, "W2"))
+        set_fields(self, W1=as_matrix(self.W1, "W1"), W2=as_matrix(self.W2, "W2"))
         H, nin = self.W1.shape
         n = self.W2.shape[0]
-        set_("b1", as_vector(self.b1, "b1", H))
-        set_("b2", as_vector(self.b2, "b2", n))
+        set_fields(self, b1=as_vector(self.b1, "b1", H), b2=as_vector(self.b2, "b2", n))
         if self.W2.shape != (n, H):
             raise DimensionError(f"W2 must be (n, {H}), got {self.W2.shape}")
-        set_("in_mean", as_vector(self.in_mean, "in_mean", nin))
-        set_("in_scale", as_vector(self.in_scale, "in_scale", nin))
-        set_("out_mean", as_vector(self.out_mean, "out_mean", n))
-        set_("out_scale", as_vector(self.out_scale, "out_scale", n))
+        set_fields(self, in_mean=as_vector(self.in_mean, "in_mean", nin),
+                   in_scale=as_vector(self.in_scale, "in_scale", nin),
+                   out_mean=as_vector(self.out_mean, "out_mean", n),
+                   out_scale=as_vector(self.out_scale, "out_scale", n))
         if not (np.all(self.in_scale > 0) and np.all(self.out_scale > 0)):
             raise SpecError("in_scale and out_scale must be > 0", key="in_scale")
-        set_("x0", as_vector(self.x0, "x0", n))
-        set_("ts", _positive_float(self.ts, "ts"))
-        set_("delays", _positive_int(self.delays, "delays"))
-        set_("substeps", _positive_int(self.substeps, "substeps"))
+        set_fields(self, x0=as_vector(self.x0, "x0", n), ts=positive_float(self.ts, "ts"),
+                   delays=positive_int(self.delays, "delays"),
+                   substeps=positive_int(self.substeps, "substeps"))
         if nin - (1 + self.delays) * n < 1:
             raise DimensionError(f"W1 has {nin} inputs: expected n + q + d n with q >= 1 "
                                  f"(n = {n}, d = {self.delays})")
@@ -123,7 +120,24 @@ class NARXTuning:
                 "out_scale": self.out_scale, "x_hat0": self.x0, "delays": np.array([float(self.delays)])}
 
 
-def _forward(params: Sequence[np.ndarray], Z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def forward_pass(params: Sequence[np.ndarray], Z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The network on standardised inputs, in numpy: the kernel's eq. 45 without the scaling.
+
+    Parameters
+    ----------
+    params : sequence of ndarray
+        ``(W1 (H, nin), b1 (H,), W2 (n, H), b2 (n,))``, as in `NARXTuning` (dimensionless:
+        standardised units).
+    Z : ndarray, shape (N, nin)
+        Standardised inputs, one sample per row.
+
+    Returns
+    -------
+    outputs : ndarray, shape (N, n)
+        Standardised outputs (linear layer).
+    hidden : ndarray, shape (N, H)
+        ``tanh`` activations of the hidden layer.
+    """
     W1, b1, W2, b2 = params
     A = np.tanh(Z @ W1.T + b1)
     return A @ W2.T + b2, A
@@ -153,9 +167,7 @@ class NARXEstimator(KernelEstimator):
 
     def __init__(self, plant: Plant, tuning: NARXTuning, runs: int | None = None,
                  backend: str = "auto", *, model: DiscreteModel | None = None):
-        if not isinstance(tuning, NARXTuning):
-            raise SpecError(f"NARXEstimator needs a NARXTuning, got {type(tuning).__name__}",
-                            key="tuning")
+        require_tuning(self, tuning, NARXTuning)
         if tuning.W2.shape[0] != plant.n or tuning.n_outputs != plant.q:
             raise DimensionError(f"the network has {tuning.W2.shape[0]} outputs and takes "
                                  f"{tuning.n_outputs} measurements; plant '{plant.name}' has "
@@ -207,9 +219,36 @@ class NARXEstimator(KernelEstimator):
         return np.tile(X0, (1, self.tuning.delays))
 
 
-def _features(data: dict[str, np.ndarray], x0: np.ndarray, delays: int,
-              target: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Open-loop (teacher-forced) inputs, targets and priors; samples ordered (step, run)."""
+def open_loop_regressors(data: dict[str, np.ndarray], x0: np.ndarray, delays: int,
+                         target: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Open-loop (teacher-forced) inputs, targets and priors of the network; samples ordered
+    (step, run).
+
+    The inputs are laid out as the kernel reads them: ``[x(k|k-1), gamma(k), x(k-1), ...,
+    x(k-d)]`` with the delayed estimates taken from the data (the target states).
+
+    Parameters
+    ----------
+    data : dict of ndarray
+        Logged runs, each (steps, runs, .): ``prior`` (x(k|k-1), state units), ``innovation``
+        (gamma(k), output units), ``x_ekf`` (EKF estimates) and ``x`` (true states, one more
+        step), in state units.
+    x0 : ndarray, shape (n,)
+        The initial estimate standing for the delayed states before the first step (state units).
+    delays : int
+        Output feedback delays d.
+    target : {"ekf", "true"}
+        Train towards the EKF's estimates or the true states.
+
+    Returns
+    -------
+    inputs : ndarray, shape (steps runs, n + q + d n)
+        Regressors (state and output units).
+    targets : ndarray, shape (steps runs, n)
+        Target states (state units).
+    priors : ndarray, shape (steps runs, n)
+        Predictions x(k|k-1) (state units).
+    """
     est = data["x_ekf"] if target == "ekf" else data["x"][1:]
     steps, runs, n = est.shape
     past = [np.concatenate([np.broadcast_to(x0, (j + 1, runs, n)), est[:steps - j - 1]])

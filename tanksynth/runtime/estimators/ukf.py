@@ -28,11 +28,14 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
-from tanksynth.errors import SpecError
 from tanksynth.plants.base import Plant
-from tanksynth.runtime.estimators.base import (DiscreteModel, KernelEstimator, _mmin, _positive_float, _positive_int, as_spd,
-                   as_vector, sx_cholesky, sx_spd_inverse, sx_symmetrize)
-from tanksynth.runtime.estimators.kalman import _colmajor, model_from_tuning
+from tanksynth.runtime.estimators.base import DiscreteModel, KernelEstimator, column_major
+from tanksynth.runtime.estimators.kalman import model_from_tuning
+from tanksynth.runtime.estimators.kernels import sx_cholesky, sx_min, sx_spd_inverse, sx_symmetrize
+from tanksynth.runtime.estimators.tuning import (agree_on_states, artefact_gains,
+                                                 noise_covariances, number_in, operating_point,
+                                                 positive_float, positive_int, require_tuning,
+                                                 set_fields)
 
 __all__ = ["UKFTuning", "UnscentedKalmanFilter", "ukf_weights"]
 
@@ -71,38 +74,23 @@ class UKFTuning:
     operating_point: tuple[np.ndarray, np.ndarray] | None = None
 
     def __post_init__(self) -> None:
-        set_ = lambda k, v: object.__setattr__(self, k, v)  # noqa: E731
-        set_("Q", as_spd(self.Q, "Q", semidefinite=True))
-        set_("R", as_spd(self.R, "R"))
-        set_("P0", as_spd(self.P0, "P0"))
-        set_("x0", as_vector(self.x0, "x0"))
-        set_("ts", _positive_float(self.ts, "ts"))
-        set_("substeps", _positive_int(self.substeps, "substeps"))
-        alpha = _positive_float(self.alpha, "alpha")
-        if alpha > 1:
-            raise SpecError(f"alpha must be in (0, 1], got {alpha}", key="alpha")
-        set_("alpha", alpha)
-        set_("beta", _positive_float(self.beta, "beta", allow_zero=True))
-        kappa = float(self.kappa)
+        set_fields(self, **noise_covariances(self))
+        agree_on_states(self.x0, Q=self.Q, P0=self.P0)
         n = self.x0.size
-        if not np.isfinite(kappa) or n + kappa <= 0:
-            raise SpecError(f"kappa must be finite with n + kappa > 0, got {self.kappa!r}",
-                            key="kappa")
-        set_("kappa", kappa)
-        if self.operating_point is not None:
-            x_op, u_op = self.operating_point
-            set_("operating_point", (as_vector(x_op, "operating_point x0"),
-                                     as_vector(u_op, "operating_point u0")))
+        set_fields(self, ts=positive_float(self.ts, "ts"),
+                   substeps=positive_int(self.substeps, "substeps"),
+                   alpha=number_in(self.alpha, "alpha", above=0.0, at_most=1.0),
+                   beta=positive_float(self.beta, "beta", allow_zero=True),
+                   kappa=number_in(self.kappa, "kappa", above=-n,
+                                   expected="finite with n + kappa > 0"),
+                   operating_point=operating_point(self.operating_point))
 
     def gains(self) -> dict[str, np.ndarray]:
         """Tuning arrays for the artefact (``alpha, beta, kappa`` as 1-vectors); the initial
         estimate ``x0`` is stored as ``x_hat0``."""
-        out = {"Q": self.Q, "R": self.R, "P0": self.P0, "x_hat0": self.x0,
-               "alpha": np.array([self.alpha]), "beta": np.array([self.beta]),
-               "kappa": np.array([self.kappa]), "redraw": np.array([float(self.redraw)])}
-        if self.operating_point is not None:
-            out["x_op"], out["u_op"] = self.operating_point
-        return out
+        return artefact_gains(self, Q=self.Q, R=self.R, P0=self.P0, x_hat0=self.x0,
+                              alpha=np.array([self.alpha]), beta=np.array([self.beta]),
+                              kappa=np.array([self.kappa]), redraw=np.array([float(self.redraw)]))
 
 
 def ukf_weights(n: int, alpha: float, beta: float, kappa: float) -> tuple[np.ndarray, np.ndarray, float]:
@@ -159,9 +147,7 @@ class UnscentedKalmanFilter(KernelEstimator):
 
     def __init__(self, plant: Plant, tuning: UKFTuning, runs: int | None = None,
                  backend: str = "auto", *, model: DiscreteModel | None = None):
-        if not isinstance(tuning, UKFTuning):
-            raise SpecError(f"UnscentedKalmanFilter needs a UKFTuning, got {type(tuning).__name__}",
-                            key="tuning")
+        require_tuning(self, tuning, UKFTuning)
         model = model if model is not None else model_from_tuning(plant, tuning)
         super().__init__(plant, tuning, model, runs, backend)
 
@@ -201,19 +187,19 @@ class UnscentedKalmanFilter(KernelEstimator):
         xn = mdl.clip_sx(xp + K @ nu)                               # eq. 39
         Pn = sx_symmetrize(Pp - K @ Pyy @ K.T)                      # eq. 40
         _, piv_n = sx_cholesky(Pn)
-        checks = ca.vertcat(_mmin(piv0), _mmin(piv_p), _mmin(piv_s), _mmin(piv_n), ca.sum1(xn))
+        checks = ca.vertcat(sx_min(piv0), sx_min(piv_p), sx_min(piv_s), sx_min(piv_n), ca.sum1(xn))
         return ca.Function("ukf_step", [S, y, u, p],
                            [ca.densify(ca.vertcat(xn, ca.reshape(Pn, n * n, 1))),
                             ca.densify(checks), ca.densify(ca.vertcat(nu, ca.reshape(K, n * q, 1)))],
                            ["state", "y", "u", "params"], ["state_new", "checks", "extra"])
 
     def _params(self) -> np.ndarray:
-        return np.concatenate([_colmajor(self.tuning.Q), _colmajor(self.tuning.R)])
+        return np.concatenate([column_major(self.tuning.Q), column_major(self.tuning.R)])
 
     def _initial_state(self, X0: np.ndarray) -> np.ndarray:
         out = np.zeros((X0.shape[0], self.n + self.n * self.n))
         out[:, :self.n] = X0
-        out[:, self.n:] = _colmajor(self.tuning.P0)
+        out[:, self.n:] = column_major(self.tuning.P0)
         return out
 
     @property
