@@ -14,6 +14,8 @@ from tanksynth.papers import seed000 as paper
 from tanksynth.reports.comparison import (AGREES, ERRATUM, PaperRow, artefact_array, cell_fit,
                                           cell_matrix, cell_number, close, first_artefact,
                                           latex_matrix_entries, params_match, printed_precision)
+from tanksynth.reports.diagnostics.laws import controlled_outputs_of
+from tanksynth.reports.diagnostics.model import equilibrium_of
 from tanksynth.reports.inputs import ReportInputs
 from tanksynth.reports.latex import Tex, escape_latex, format_eigenvalues, format_number
 
@@ -146,8 +148,8 @@ def _formula_gaps(inputs: ReportInputs, points: int = 12) -> np.ndarray:
 def _u0_rows(art, B: np.ndarray, u0: np.ndarray, name: str) -> list[PaperRow]:
     """The printed u0 (Sec. IV) against the exact equilibrium input of the artefact."""
     up = np.array([float(t) for t in paper.U0_TEXT])
-    eq = (art.get("diagnostics") or {}).get("equilibrium", {}) or {}
-    base_res = np.asarray(eq.get("residual", np.zeros(3)), dtype=float)
+    residual = equilibrium_of(art.get("diagnostics") or {}).residual
+    base_res = np.asarray(residual if residual is not None else np.zeros(3), dtype=float)
     # the model is affine in u with constant B: f(x0, u) = f(x0, u0) + B (u - u0)
     res_printed = base_res + B @ (up - u0)
     rows = []
@@ -180,8 +182,8 @@ def _u0_rows(art, B: np.ndarray, u0: np.ndarray, name: str) -> list[PaperRow]:
 
 def _law_artefact(inputs: ReportInputs):
     for a in inputs.by_method("feedback_linearization"):
-        outputs = (a.get("diagnostics") or {}).get("outputs")
-        if outputs is not None and list(outputs) != ["h1", "h2"]:
+        outputs = controlled_outputs_of(a.get("diagnostics") or {})
+        if outputs is not None and outputs != ("h1", "h2"):
             continue
         if all(artefact_array(a, k) is not None and artefact_array(a, k).shape == s
                for k, s in _LAW_SHAPES.items()):

@@ -25,6 +25,7 @@ from typing import Any, Mapping
 import numpy as np
 
 from tanksynth.artefacts.atomic import atomic_write
+from tanksynth.reports.diagnostics.takagi_sugeno import certified_region_of, ts_model_of
 from tanksynth.reports.figure_layout import draw_decorations, square_grid_layout
 from tanksynth.reports.figures import FigureFile
 
@@ -97,11 +98,12 @@ def region_figure(art: Mapping[str, Any], artefact_dir: Path, directory: Path,
         return None
     n = x0.size
     P, x0, c = P.reshape(n, n), x0.ravel(), float(np.ravel(c)[0])
-    reg = diag.get("region") or {}
-    names = [str(v) for v in reg.get("states", [])] or [f"x{k + 1}" for k in range(n)]
-    dom = ((diag.get("ts_model") or {}).get("domain") or {})
-    lo, hi = dom.get("lower"), dom.get("upper")
-    ineq = dom.get("inequalities") or []
+    states = certified_region_of(diag).states
+    names = list(states) if len(states) == n else [f"x{k + 1}" for k in range(n)]
+    domain = ts_model_of(diag).domain
+    # names or a box of another size than the state belong to another model: not used
+    lo = domain.lower if domain.lower is not None and len(domain.lower) == n else None
+    hi = domain.upper if domain.upper is not None and len(domain.upper) == n else None
     from tanksynth.artefacts.traces import read_trace, trace_path
 
     name = str(art.get("name", ""))
@@ -132,11 +134,11 @@ def region_figure(art: Mapping[str, Any], artefact_dir: Path, directory: Path,
         if lo is not None and hi is not None:
             ax.add_patch(Rectangle((lo[i], lo[j]), hi[i] - lo[i], hi[j] - lo[j], fill=False,
                                    edgecolor="0.35", linewidth=0.9, label="TS domain"))
-        for row in ineq:   # orderings G x >= g involving only this pair
-            G = np.asarray(row.get("G", []), float)
+        for row in domain.inequalities:   # orderings G x >= g involving only this pair
+            G = np.asarray(row.G, float)
             if G.size == n and np.count_nonzero(G) == 2 and G[i] != 0 and G[j] != 0:
                 xs = np.linspace(lo[i] if lo else x0[i] - 1, hi[i] if hi else x0[i] + 1, 2)
-                ax.plot(xs, (float(row["g"]) - G[i] * xs) / G[j], color="0.35", linestyle=":",
+                ax.plot(xs, (row.g - G[i] * xs) / G[j], color="0.35", linestyle=":",
                         linewidth=0.9, label="domain ordering")
         if X is not None and X.ndim == 3 and X.shape[2] == n:   # every run: one collection
             ax.add_collection(LineCollection(list(X[:, :, [i, j]]), colors="C0", linewidths=0.4, alpha=0.55,

@@ -3,16 +3,21 @@
 The readers (`entry`, `entries`, `section`, `names`) turn a missing key or a value of the
 wrong type into "missing", so that an artefact edited by hand gives a report without the
 edited quantity instead of a traceback (`tanksynth.reports.diagnostics`). The shared sections
-are the time domain, integral action (`integral_of`) and the description of an LMI region.
+are the time domain, integral action (`integral_of`), the LMI region a design was asked for
+(`lmi_region_of`) and the printed values a design was compared with (`references_of`).
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Any, Callable, Mapping, TypeGuard, TypeVar, Union
 
+import numpy as np
+
 __all__ = ["Diagnostics", "JsonNumber", "is_number", "is_json_number", "is_text", "is_flag", "entry", "entries",
-           "section", "names", "eigenvalue_pairs", "description", "time_domain_of", "Integral", "integral_of"]
+           "section", "names", "eigenvalue_pairs", "description", "time_domain_of", "Integral", "integral_of",
+           "LmiRegion", "lmi_region_of", "Reference", "references_of"]
 
 #: The type an `entry` is read as.
 T = TypeVar("T")
@@ -213,3 +218,109 @@ def integral_of(diag: Diagnostics) -> Integral | None:
     if not isinstance(integral, Mapping):
         return None
     return Integral(names(integral, "tracked"))
+
+
+@dataclass(frozen=True)
+class LmiRegion:
+    """An LMI region ``D = {z : L + M z + M' conj(z) < 0}`` a design placed its poles in.
+
+    Attributes
+    ----------
+    L, M : ndarray, shape (k, k)
+        The region's matrices (``L`` in the units of z: 1/s in continuous time, dimensionless in
+        discrete time; ``M`` dimensionless).
+    description : str
+        The region in words (empty when not written).
+    domain : str or None
+        The plane: ``"continuous"`` (s-plane) or ``"discrete"`` (z-plane), when the design says.
+    """
+
+    L: np.ndarray
+    M: np.ndarray
+    description: str
+    domain: str | None
+
+
+def lmi_region_of(diag: Diagnostics) -> LmiRegion | None:
+    """The LMI region of the design: the first ``region`` section with square matrices ``L``
+    and ``M`` of one shape, searched breadth first (``lmi.region``, ``robust.region``,
+    ``synthesis.region`` ...), or None.
+
+    Parameters
+    ----------
+    diag : mapping
+        The artefact's diagnostics.
+    """
+    frontier: list[Any] = [diag]
+    while frontier:
+        node = frontier.pop(0)
+        if not isinstance(node, Mapping):
+            continue
+        region = node.get("region")
+        if isinstance(region, Mapping) and "L" in region and "M" in region:
+            try:
+                L, M = np.asarray(region["L"], dtype=float), np.asarray(region["M"], dtype=float)
+            except (TypeError, ValueError):
+                return None
+            if L.ndim == 2 and L.shape == M.shape and L.shape[0] == L.shape[1]:
+                domain = time_domain_of(diag) or entry(section(diag, "lmi"), "domain", is_text)
+                return LmiRegion(L, M, entry(region, "description", is_text) or "", domain)
+        frontier.extend(v for v in node.values() if isinstance(v, Mapping))
+    return None
+
+
+@dataclass(frozen=True)
+class Reference:
+    """A printed value the spec gave a design to compare with (``diagnostics["reference_*"]``).
+
+    Attributes
+    ----------
+    label : str
+        What was compared (``gain``, ``L``, ``closed_loop``; ``value`` when unnamed).
+    reference : ndarray
+        The printed value (its own units).
+    derived : ndarray
+        The design's value, same units.
+    eigenvalues : tuple
+        The eigenvalues the printed value gives, ``(re, im)`` pairs per set recorded (1/s, or
+        dimensionless in discrete time).
+    max_pole_error : float or None
+        How far those eigenvalues are from the design's, at most (same units).
+    note : str or None
+        The design's remark on the comparison.
+    """
+
+    label: str
+    reference: np.ndarray
+    derived: np.ndarray
+    eigenvalues: tuple[tuple[tuple[float, float], ...], ...] = ()
+    max_pole_error: float | None = None
+    note: str | None = None
+
+
+def _reference(key: str, ref: Mapping[str, Any]) -> Reference | None:
+    try:
+        reference = np.asarray(ref["reference"], dtype=float)
+        derived = np.asarray(ref["derived"], dtype=float)
+    except (TypeError, ValueError):
+        return None
+    eigenvalues = (eigenvalue_pairs(ref, k) for k in ("reference_closed_loop_eigenvalues", "reference_eigenvalues"))
+    error = entry(ref, "reference_max_pole_error", is_number)
+    note = ref.get("note")
+    return Reference(key[len("reference_"):] or "value", reference, derived,
+                     eigenvalues=tuple(e for e in eigenvalues if e is not None),
+                     max_pole_error=error if error is not None and math.isfinite(error) else None,
+                     note=note if isinstance(note, str) else None)
+
+
+def references_of(diag: Diagnostics) -> tuple[Reference, ...]:
+    """Every ``reference_*`` comparison the design stored (by key) whose values are numbers.
+
+    Parameters
+    ----------
+    diag : mapping
+        The artefact's diagnostics.
+    """
+    found = (_reference(str(key), diag[key]) for key in sorted(k for k in diag if str(k).startswith("reference"))
+             if isinstance(diag[key], Mapping) and "reference" in diag[key] and "derived" in diag[key])
+    return tuple(r for r in found if r is not None)

@@ -1,15 +1,17 @@
 """The ``placement`` family's diagnostics: what exact pole placement (``placement``) and LMI
-region placement (``lmi``) record about the poles asked for and the region certified.
+region placement (``lmi``) record about the poles asked for and the region certified, and where
+any design records its poles (`design_poles_of`).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any, Mapping
 
 from tanksynth.reports.diagnostics.common import (Diagnostics, description, eigenvalue_pairs, entry,
                                                   is_number, is_text, section)
 
-__all__ = ["ExactPlacement", "exact_placement_of", "RegionPlacement", "region_placement_of"]
+__all__ = ["ExactPlacement", "exact_placement_of", "RegionPlacement", "region_placement_of", "design_poles_of"]
 
 
 def _is_observer(kind: object) -> bool:
@@ -89,3 +91,30 @@ def region_placement_of(diag: Diagnostics) -> RegionPlacement:
     return RegionPlacement(observer=_is_observer(lmi.get("kind", "state_feedback")),
                            region=description(lmi, "region"), domain=entry(lmi, "domain", is_text),
                            margin=entry(lmi, "margin", is_number))
+
+
+#: Where a design records the poles it asked for or achieved, in the order they are looked for.
+_POLE_PATHS = (("placement", "requested"), ("placement", "achieved"), ("achieved_poles",), ("requested_poles",),
+               ("poles",))
+
+
+def design_poles_of(diag: Diagnostics) -> tuple[complex, ...] | None:
+    """The poles the design asked for (else achieved): the first of ``placement.requested``,
+    ``placement.achieved``, ``achieved_poles``, ``requested_poles``, ``poles`` that is a
+    non-empty list of numbers or ``[re, im]`` pairs (1/s, or dimensionless in discrete time).
+
+    Parameters
+    ----------
+    diag : mapping
+        The artefact's diagnostics.
+    """
+    for path in _POLE_PATHS:
+        node: Any = diag
+        for key in path:
+            node = node.get(key) if isinstance(node, Mapping) else None
+        if isinstance(node, list) and node:
+            try:
+                return tuple(complex(*v) if isinstance(v, list) else complex(v) for v in node)
+            except (TypeError, ValueError):
+                continue
+    return None
