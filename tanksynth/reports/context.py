@@ -16,6 +16,8 @@ from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
 
+from tanksynth.artefacts.traces import trace_path
+from tanksynth.plants import BUILTIN_PLANTS
 from tanksynth.reports.comparison import PaperComparison
 from tanksynth.reports.diagnostics.common import is_number
 from tanksynth.reports.diagnostics.model import linearization_of
@@ -291,7 +293,7 @@ def _trace_stem(index: int, name: str) -> str:
     return f"traces-{index:02d}-{safe or 'design'}"
 
 
-def drawn_usable(drawn: Mapping[str, Any], stem: str, target: Path, kind: type,
+def drawn_usable(drawn: Mapping[str, Any], stem: str, target: Path, kind: type[FigureFile] | type[TraceFigure],
                  none_ok: Callable[[], bool]) -> bool:
     """Whether ``drawn[stem]`` (a figure drawn ahead) can stand for the one drawn here.
 
@@ -323,7 +325,7 @@ def drawn_usable(drawn: Mapping[str, Any], stem: str, target: Path, kind: type,
     return bool(none_ok()) if fig is None else _is_file(fig, kind, target)
 
 
-def _is_file(fig: Any, kind: type, target: Path) -> bool:
+def _is_file(fig: Any, kind: type[FigureFile] | type[TraceFigure], target: Path) -> bool:
     """``fig`` is a ``kind`` whose file is ``target`` and exists."""
     if not isinstance(fig, kind):
         return False
@@ -353,8 +355,6 @@ def trace_jobs(inputs: ReportInputs) -> list[tuple[str, int]]:
     -------
     list of (str, int)
     """
-    from tanksynth.artefacts.traces import trace_path
-
     jobs = []
     for i, art in enumerate(inputs.artefacts):
         name = str(art.get("name", ""))
@@ -416,8 +416,6 @@ def trace_figures(inputs: ReportInputs, drawn: Mapping[str, Any] | None = None
     dict
         Artefact name -> its figures (main first), for the artefacts that have one.
     """
-    from tanksynth.artefacts.traces import trace_path
-
     figdir = inputs.directory / _FIGURE_DIR
     drawn = drawn or {}
 
@@ -497,14 +495,12 @@ def _spec_verbatim(text: str | None, limit: int = 600) -> Tex:
 
 
 def _is_builtin(name: str) -> bool:
-    from tanksynth.plants import BUILTIN_PLANTS
-
     return name in BUILTIN_PLANTS
 
 
 def build_context(inputs: ReportInputs, figures: Mapping[str, FigureFile],
                   paper: Sequence[PaperComparison],
-                  traces: Mapping[str, TraceFigure] | None = None, *,
+                  traces: Mapping[str, tuple[TraceFigure, ...] | TraceFigure | None] | None = None, *,
                   statements: Mapping[str, Callable[[Mapping[str, Any]], Tex]],
                   regions: Mapping[str, FigureFile] | None = None) -> dict[str, Any]:
     """Everything the templates need, formatted (no file is written).
@@ -528,12 +524,12 @@ def build_context(inputs: ReportInputs, figures: Mapping[str, FigureFile],
     opv = _operating_view(inputs)
     lin = [_linearization_view(a, opv) for a in inputs.by_method("linearize")]
     designs = [design_view(a, figures.get(str(a.get("name"))), statements) for a in inputs.artefacts]
-    traces = {k: v for k, v in ((k, _as_figures(v)) for k, v in (traces or {}).items()) if v}
-    designs = [dataclasses.replace(d, trace_figure=traces[d.name][0], trace_caption=prose_latex(
-        traces[d.name][0].caption, literal=(d.name,))) if d.name in traces else d for d in designs]
+    drawn = {k: v for k, v in ((k, _as_figures(v)) for k, v in (traces or {}).items()) if v}
+    designs = [dataclasses.replace(d, trace_figure=drawn[d.name][0], trace_caption=prose_latex(
+        drawn[d.name][0].caption, literal=(d.name,))) if d.name in drawn else d for d in designs]
     trace_extras = {d.name: [{"figure": f, "caption": prose_latex(f.caption, literal=(d.name,)),
                               "k": f.path.stem.rsplit("-", 1)[-1]}
-                             for f in traces[d.name][1:]] for d in designs if d.name in traces}
+                             for f in drawn[d.name][1:]] for d in designs if d.name in drawn}
     designs = [dataclasses.replace(d, region_figure=(regions or {})[d.name])
                if d.name in (regions or {}) else d for d in designs]
     checks = [_check_view(c) for c in inputs.checks] if inputs.checks is not None else None

@@ -299,7 +299,7 @@ def _verdict_tex(passed: Any, word_pass: str = "pass", word_fail: str = "FAIL") 
 def _checks_rows(value: Any) -> list[dict[str, Tex]]:
     """Rows of a list of check records (``name``/``check``, ``passed``, and ``value``,
     ``limit``, ``unit`` or ``detail``)."""
-    rows = []
+    rows: list[dict[str, Tex]] = []
     if not isinstance(value, list):
         return rows
     for c in value:

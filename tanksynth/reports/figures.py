@@ -28,8 +28,10 @@ from pathlib import Path
 from typing import Any, Mapping, Sequence
 
 import numpy as np
+from scipy.linalg import expm
 
 from tanksynth.artefacts.atomic import atomic_write
+from tanksynth.artefacts.traces import read_trace, trace_path
 from tanksynth.reports.diagnostics.common import LmiRegion, lmi_region_of
 from tanksynth.reports.eigen_sets import EigenvalueSet, eigen_label, eigenvalue_sets, is_pole_key
 from tanksynth.reports.figure_layout import (TraceCanvas, draw_decorations, square_panels_layout,
@@ -37,6 +39,9 @@ from tanksynth.reports.figure_layout import (TraceCanvas, draw_decorations, squa
 from tanksynth.reports.signal_panel import draw_signals
 from tanksynth.reports.trace_lines import PanelLines
 
+# matplotlib is imported inside the functions that draw (about 0.4 s), not at the top: the report
+# imports this module for its records and helpers too, and needs matplotlib only for a figure it
+# draws itself (not for those drawn ahead by `tanksynth.report_worker`).
 __all__ = ["EigenvalueSet", "eigenvalue_sets", "eigen_label", "is_pole_key", "FigureFile", "pole_map",
            "TraceFigure", "time_domain_figure", "time_domain_figures", "ordinal"]
 
@@ -229,8 +234,6 @@ def _linear_prediction(artefact: Mapping[str, Any], head: Mapping[str, Any], t: 
         return None
     if x.shape[0] < 2 or u.ndim != 3 or u.shape[0] < 2 or u.shape[1] < 1:
         return None
-    from scipy.linalg import expm
-
     F, B = np.asarray(gains["F"], float), np.asarray(gains["B"], float)
     n, m = F.shape[0], B.shape[1]
     if x.shape[2] != n or u.shape[2] != m:
@@ -422,11 +425,11 @@ def time_domain_figures(artefact: Mapping[str, Any], artefact_dir: Path, directo
         The main figure first, then the extras drawn (an unreadable one is left out); empty
         when the artefact has no (readable) main trace.
     """
-    from tanksynth.artefacts.traces import read_trace, trace_path
-
     name = str(artefact.get("name", ""))
     trace = read_trace(trace_path(Path(artefact_dir) / f"{name}.json", name))
-    main = None if trace is None else _trace_figure(artefact, trace, directory, stem, canvas, False)
+    if trace is None:
+        return ()
+    main = _trace_figure(artefact, trace, directory, stem, canvas, False)
     if main is None:
         return ()
     more = [_trace_figure(artefact, tr, directory, f"{stem}-{k}", canvas, True)
@@ -490,7 +493,7 @@ def _trace_figure(artefact: Mapping[str, Any], trace: Mapping[str, Any], directo
             marks = run_marks if several else ([], [])
             _legend(ax, lines.handles, lines.labels, (events[0] + marks[0], events[1] + marks[1]))
             continue
-        if panel == "linear":
+        if panel == "linear" and lin is not None:   # (listed only with a prediction)
             scale = float(lin["scale"])
             for i in range(n):
                 lines.line(t, x[1, :, i] - x[0, :, i], color=colors[i], linewidth=1.1,

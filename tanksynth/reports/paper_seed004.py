@@ -18,8 +18,8 @@ import numpy as np
 from tanksynth.errors import ReportError
 from tanksynth.papers import seed004 as paper
 from tanksynth.reports.comparison import (AGREES, DIFFERS, ERRATUM, PaperRow, artefact_array,
-                                          cell_matrix, cell_number, close, first_artefact,
-                                          params_match, poly_latex, printed_precision)
+                                          artefact_arrays, cell_matrix, cell_number, close,
+                                          first_artefact, params_match, poly_latex, printed_precision)
 from tanksynth.reports.diagnostics.fault import (Detection, detection_time, detections_of, fault_size_of,
                                                  initial_states_of)
 from tanksynth.reports.inputs import ReportInputs
@@ -29,6 +29,7 @@ __all__ = ["structure_applies", "structure_rows", "detection_applies", "detectio
            "stored_detections"]
 
 _LIN_SHAPES = {"F": (3, 3), "B": (3, 1), "C": (1, 3)}
+_FAULT_SHAPES = {"Psi": (3, 1), "Gamma_d": (3, 3)}
 
 
 def structure_applies(inputs: ReportInputs) -> bool:
@@ -63,9 +64,10 @@ def structure_rows(inputs: ReportInputs) -> tuple[PaperRow, ...]:
         The report's inputs (spec, plant, artefacts).
     """
     art = first_artefact(inputs, "linearize", None, _LIN_SHAPES)
-    if art is None:  # `applies` selected this entry; a missing artefact is a registry bug
+    arrays = None if art is None else artefact_arrays(art, _LIN_SHAPES)
+    if arrays is None:  # `applies` selected this entry; a missing artefact is a registry bug
         raise ReportError("seed 004 comparison: no three-state linearize artefact")
-    F, B, C = (artefact_array(art, k) for k in ("F", "B", "C"))
+    F, B, C = arrays["F"], arrays["B"], arrays["C"]
     d = inputs.parameters().get("delta_bar", 0.0)
     pr = paper.printed_matrices(d)
     healthy = d == 0.0
@@ -118,10 +120,8 @@ def structure_rows(inputs: ReportInputs) -> tuple[PaperRow, ...]:
 
 # ------------------------------------------------------------------ fault detection
 def _fault_artefact(inputs: ReportInputs) -> Mapping[str, Any] | None:
-    shapes = {"Psi": (3, 1), "Gamma_d": (3, 3)}
     for a in inputs.by_method("fault_detection"):
-        if all(artefact_array(a, k) is not None and artefact_array(a, k).shape == s
-               for k, s in shapes.items()):
+        if artefact_arrays(a, _FAULT_SHAPES) is not None:
             return a
     return None
 
@@ -180,9 +180,10 @@ def detection_rows(inputs: ReportInputs) -> tuple[PaperRow, ...]:
         The report's inputs (spec, plant, artefacts).
     """
     art = _fault_artefact(inputs)
-    if art is None:  # `applies` selected this entry
+    arrays = None if art is None else artefact_arrays(art, _FAULT_SHAPES)
+    if art is None or arrays is None:  # `applies` selected this entry
         raise ReportError("seed 004 comparison: no three-state fault_detection artefact")
-    Psi, Gd = artefact_array(art, "Psi"), artefact_array(art, "Gamma_d")
+    Psi, Gd = arrays["Psi"], arrays["Gamma_d"]
     rows: list[PaperRow] = []
     poles = np.sort(np.linalg.eigvals(Gd).real)
     printed_poles = np.sort(np.array(paper.OBSERVER_POLES))
