@@ -203,7 +203,7 @@ _PARTS = ("options", "adapter", "verdict", "statement", "campaign")
 _HOMES = {"options": "tanksynth.spec.method_options.{family}",
           "adapter": "tanksynth.design.{family}.adapters",
           "verdict": "tanksynth.verify.{family}.verdicts",
-          "statement": "tanksynth.reports.statements",
+          "statement": "tanksynth.reports.statements.{family}",
           "campaign": "tanksynth.verify.{family}.campaign"}
 #: The stage packages, for a part given as ``"<module>:<attribute>"`` relative to its stage.
 _STAGES = {"options": "tanksynth.spec.method_options", "adapter": "tanksynth.design",

@@ -8,7 +8,10 @@ region, assumptions), the linearisation and discretisation, every rank
 condition, each design (problem, solver, re-check, margins, eigenvalues,
 gains), verification (once run), pole-map figures and the paper-vs-tool
 comparison of `tanksynth.reports.paper` (the printed values are in
-`tanksynth.papers`).
+`tanksynth.papers`). Each design's problem statement comes from
+`tanksynth.reports.statements` (one module per method family); what the report
+reads of a design's diagnostics, it reads through the named accessors of
+`tanksynth.reports.diagnostics`.
 """
 
 from __future__ import annotations

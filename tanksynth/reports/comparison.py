@@ -14,6 +14,7 @@ from dataclasses import dataclass
 from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
+import sympy as sp
 
 from tanksynth.reports.inputs import ReportInputs
 from tanksynth.reports.latex import Tex, format_number, matrix_latex
@@ -29,6 +30,7 @@ __all__ = [
     "cell_terms",
     "close",
     "artefact_array",
+    "artefact_arrays",
     "params_match",
     "first_artefact",
     "printed_precision",
@@ -167,8 +169,6 @@ def cell_terms(expr: Any, per_line: int = 2) -> Tex:
     per_line : int, optional
         Terms per line.
     """
-    import sympy as sp
-
     expr = sp.factor(expr)
     head, body = sp.Integer(1), expr
     if isinstance(expr, sp.Mul):
@@ -244,6 +244,28 @@ def artefact_array(artefact: Mapping[str, Any], name: str) -> np.ndarray | None:
         return None
 
 
+def artefact_arrays(artefact: Mapping[str, Any],
+                    shapes: Mapping[str, tuple[int, ...]]) -> dict[str, np.ndarray] | None:
+    """The gains named in ``shapes`` as float arrays, when every one is there with its shape.
+
+    Parameters
+    ----------
+    artefact : mapping
+        A loaded artefact.
+    shapes : mapping of str to tuple of int
+        Name of each gain and its required shape.
+
+    Returns
+    -------
+    dict or None
+        Name -> array (the gain's own units); None when one is absent, not numeric or of
+        another shape.
+    """
+    arrays = {name: artefact_array(artefact, name) for name in shapes}
+    found = {name: a for name, a in arrays.items() if a is not None and a.shape == shapes[name]}
+    return found if len(found) == len(shapes) else None
+
+
 def params_match(inputs: ReportInputs, expected: Mapping[str, float], rtol: float = 1e-12) -> bool:
     """True when the plant has every parameter of ``expected`` with that value.
 
@@ -277,8 +299,7 @@ def first_artefact(inputs: ReportInputs, method: str, x0: Sequence[float] | None
         Required shape of each named gain; None: any.
     """
     for a in inputs.by_method(method):
-        if shapes and any(artefact_array(a, k) is None or artefact_array(a, k).shape != s
-                          for k, s in shapes.items()):
+        if shapes and artefact_arrays(a, shapes) is None:
             continue
         if x0 is not None:
             ax0 = artefact_array(a, "x_op")
@@ -344,12 +365,12 @@ def latex_matrix_entries(tex: str) -> list[list[str]] | None:
     return [[e.strip() for e in r] for r in rows]
 
 
-def poly_latex(coeffs: Sequence[float], var: str = "s") -> str:
+def poly_latex(coeffs: Sequence[float] | np.ndarray, var: str = "s") -> str:
     """Math-mode LaTeX of a polynomial given by its coefficients, highest power first.
 
     Parameters
     ----------
-    coeffs : sequence of float
+    coeffs : sequence of float or ndarray
         Coefficients, highest power first.
     var : str, optional
         Name of the variable.

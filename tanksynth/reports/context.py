@@ -16,7 +16,11 @@ from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
 
+from tanksynth.artefacts.traces import trace_path
+from tanksynth.plants import BUILTIN_PLANTS
 from tanksynth.reports.comparison import PaperComparison
+from tanksynth.reports.diagnostics.common import is_number
+from tanksynth.reports.diagnostics.model import linearization_of
 from tanksynth.reports.designs import design_view, latex_label
 from tanksynth.reports.equations import split_equation
 from tanksynth.reports.prose import prose_latex
@@ -32,10 +36,6 @@ __all__ = ["build_context", "trace_figures", "trace_jobs", "draw_trace_figures",
 
 def _m(value: Any, digits: int = 5) -> Tex:
     return Tex("$" + format_number(value, digits) + "$")
-
-
-def _is_number(v: Any) -> bool:
-    return isinstance(v, (int, float)) and not isinstance(v, bool)
 
 
 # ------------------------------------------------------------------- plant
@@ -152,12 +152,11 @@ def _operating_view(inputs: ReportInputs) -> dict[str, Any]:
 
 
 def _linearization_view(art: Mapping[str, Any], opv: Mapping[str, Any]) -> dict[str, Any]:
-    diag = art.get("diagnostics") or {}
+    lin = linearization_of(art.get("diagnostics") or {})
+    eq = lin.equilibrium
     gains = art.get("gains") or {}
-    eq = diag.get("equilibrium") or {}
     shown = [gain_latex(k, gains[k]) for k in ("F", "B", "C", "Ad", "Bd") if k in gains]
     u0 = gains.get("u_op")
-    given = eq.get("given_u0")
     rows = []
     names, units = opv["input_names"], opv["input_units"]
     if u0 is not None:
@@ -165,15 +164,18 @@ def _linearization_view(art: Mapping[str, Any], opv: Mapping[str, Any]) -> dict[
             nm = names[k] if k < len(names) else f"u{k + 1}"
             un = units[k] if k < len(units) else ""
             rows.append({"sym": Tex("$" + symbol_latex(nm) + "$"), "ours": _m(v),
-                         "given": _m(given[k]) if isinstance(given, list) and k < len(given) else
-                         Tex("--"), "unit": format_unit(un)})
+                         "given": _m(eq.given_u0[k]) if eq.given_u0 is not None and k < len(eq.given_u0)
+                         else Tex("--"), "unit": format_unit(un)})
     snames = opv["state_names"]
 
-    def residual(vec):
-        if not isinstance(vec, list):
+    def residual(vec: Sequence[Any] | None) -> list[dict[str, Tex]]:
+        if vec is None:
             return []
         return [{"sym": Tex(r"$\dot{" + symbol_latex(snames[i] if i < len(snames) else f"x{i+1}")
                             + "}$"), "value": _m(v, 4)} for i, v in enumerate(vec)]
+
+    def eigenvalues(pairs: Sequence[tuple[float, float]] | None) -> Tex | None:
+        return None if pairs is None else Tex("$" + format_eigenvalues([list(p) for p in pairs], 5) + "$")
 
     latex = {k: math_or_text(v)[0] for k, v in (art.get("latex") or {}).items() if isinstance(v, str)}
     return {
@@ -181,19 +183,17 @@ def _linearization_view(art: Mapping[str, Any], opv: Mapping[str, Any]) -> dict[
         "label": latex_label("lin", str(art.get("name", ""))),
         "gains": shown,
         "F_sym": latex.get("F"), "B_sym": latex.get("B"),
-        "eig_F": Tex("$" + format_eigenvalues(diag["eigenvalues_F"], 5) + "$")
-        if "eigenvalues_F" in diag else None,
-        "eig_Ad": Tex("$" + format_eigenvalues(diag["eigenvalues_Ad"], 5) + "$")
-        if "eigenvalues_Ad" in diag else None,
-        "ts": _m(diag["ts"]) if _is_number(diag.get("ts")) else None,
+        "eig_F": eigenvalues(lin.eigenvalues_F),
+        "eig_Ad": eigenvalues(lin.eigenvalues_Ad),
+        "ts": _m(lin.ts) if lin.ts is not None else None,
         "u0": rows,
-        "residual": residual(eq.get("residual")),
-        "max_residual": _m(eq["max_abs_residual"], 3) if "max_abs_residual" in eq else None,
-        "is_equilibrium": eq.get("is_equilibrium"),
-        "given_residual": residual(eq.get("given_u0_residual")),
-        "given_balances": eq.get("given_u0_balances"),
-        "within_bounds": eq.get("within_input_bounds"),
-        "smooth_valid": diag.get("smooth_form_valid"),
+        "residual": residual(eq.residual),
+        "max_residual": _m(eq.max_abs_residual, 3) if eq.max_abs_residual is not None else None,
+        "is_equilibrium": eq.is_equilibrium,
+        "given_residual": residual(eq.given_u0_residual),
+        "given_balances": eq.given_u0_balances,
+        "within_bounds": eq.within_input_bounds,
+        "smooth_valid": lin.smooth_form_valid,
     }
 
 
@@ -208,10 +208,10 @@ def _check_view(c: Mapping[str, Any]) -> dict[str, Any]:
         if "min_rank" in data and "n" in data:
             facts.append(Tex(f"min.\\ rank ${data['min_rank']}/{data['n']}$ over "
                              f"{data.get('points', '?')} points"))
-        if _is_number(data.get("condition_number")):
+        if is_number(data.get("condition_number")):
             facts.append(Tex(r"$\kappa = " + format_number(data["condition_number"], 3) + "$"))
         sv = data.get("singular_values")
-        if isinstance(sv, list) and sv and all(_is_number(x) for x in sv):
+        if isinstance(sv, list) and sv and all(is_number(x) for x in sv):
             facts.append(Tex(r"$\sigma_{\min} = " + format_number(min(sv), 3) + "$"))
         if isinstance(data.get("modes"), list) and data["modes"]:
             facts.append(Tex(f"{len(data['modes'])} failing mode(s)"))
@@ -293,7 +293,7 @@ def _trace_stem(index: int, name: str) -> str:
     return f"traces-{index:02d}-{safe or 'design'}"
 
 
-def drawn_usable(drawn: Mapping[str, Any], stem: str, target: Path, kind: type,
+def drawn_usable(drawn: Mapping[str, Any], stem: str, target: Path, kind: type[FigureFile] | type[TraceFigure],
                  none_ok: Callable[[], bool]) -> bool:
     """Whether ``drawn[stem]`` (a figure drawn ahead) can stand for the one drawn here.
 
@@ -325,7 +325,7 @@ def drawn_usable(drawn: Mapping[str, Any], stem: str, target: Path, kind: type,
     return bool(none_ok()) if fig is None else _is_file(fig, kind, target)
 
 
-def _is_file(fig: Any, kind: type, target: Path) -> bool:
+def _is_file(fig: Any, kind: type[FigureFile] | type[TraceFigure], target: Path) -> bool:
     """``fig`` is a ``kind`` whose file is ``target`` and exists."""
     if not isinstance(fig, kind):
         return False
@@ -355,8 +355,6 @@ def trace_jobs(inputs: ReportInputs) -> list[tuple[str, int]]:
     -------
     list of (str, int)
     """
-    from tanksynth.artefacts.traces import trace_path
-
     jobs = []
     for i, art in enumerate(inputs.artefacts):
         name = str(art.get("name", ""))
@@ -418,8 +416,6 @@ def trace_figures(inputs: ReportInputs, drawn: Mapping[str, Any] | None = None
     dict
         Artefact name -> its figures (main first), for the artefacts that have one.
     """
-    from tanksynth.artefacts.traces import trace_path
-
     figdir = inputs.directory / _FIGURE_DIR
     drawn = drawn or {}
 
@@ -479,7 +475,7 @@ def _refused_view(rec: Mapping[str, Any],
     cert_rows = []
     if isinstance(cert, Mapping):
         for k, v in cert.items():
-            value = _m(v) if _is_number(v) else prose_latex(v if isinstance(v, str) else str(v))
+            value = _m(v) if is_number(v) else prose_latex(v if isinstance(v, str) else str(v))
             cert_rows.append((prose_latex(str(k).replace("_", " ")), value))
     elif cert:
         cert_rows.append((Tex("certificate"), prose_latex(str(cert))))
@@ -499,14 +495,12 @@ def _spec_verbatim(text: str | None, limit: int = 600) -> Tex:
 
 
 def _is_builtin(name: str) -> bool:
-    from tanksynth.plants import BUILTIN_PLANTS
-
     return name in BUILTIN_PLANTS
 
 
 def build_context(inputs: ReportInputs, figures: Mapping[str, FigureFile],
                   paper: Sequence[PaperComparison],
-                  traces: Mapping[str, TraceFigure] | None = None, *,
+                  traces: Mapping[str, tuple[TraceFigure, ...] | TraceFigure | None] | None = None, *,
                   statements: Mapping[str, Callable[[Mapping[str, Any]], Tex]],
                   regions: Mapping[str, FigureFile] | None = None) -> dict[str, Any]:
     """Everything the templates need, formatted (no file is written).
@@ -530,12 +524,12 @@ def build_context(inputs: ReportInputs, figures: Mapping[str, FigureFile],
     opv = _operating_view(inputs)
     lin = [_linearization_view(a, opv) for a in inputs.by_method("linearize")]
     designs = [design_view(a, figures.get(str(a.get("name"))), statements) for a in inputs.artefacts]
-    traces = {k: v for k, v in ((k, _as_figures(v)) for k, v in (traces or {}).items()) if v}
-    designs = [dataclasses.replace(d, trace_figure=traces[d.name][0], trace_caption=prose_latex(
-        traces[d.name][0].caption, literal=(d.name,))) if d.name in traces else d for d in designs]
+    drawn = {k: v for k, v in ((k, _as_figures(v)) for k, v in (traces or {}).items()) if v}
+    designs = [dataclasses.replace(d, trace_figure=drawn[d.name][0], trace_caption=prose_latex(
+        drawn[d.name][0].caption, literal=(d.name,))) if d.name in drawn else d for d in designs]
     trace_extras = {d.name: [{"figure": f, "caption": prose_latex(f.caption, literal=(d.name,)),
                               "k": f.path.stem.rsplit("-", 1)[-1]}
-                             for f in traces[d.name][1:]] for d in designs if d.name in traces}
+                             for f in drawn[d.name][1:]] for d in designs if d.name in drawn}
     designs = [dataclasses.replace(d, region_figure=(regions or {})[d.name])
                if d.name in (regions or {}) else d for d in designs]
     checks = [_check_view(c) for c in inputs.checks] if inputs.checks is not None else None

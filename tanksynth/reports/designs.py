@@ -15,6 +15,7 @@ from typing import Any, Callable, Mapping, Sequence
 import numpy as np
 
 from tanksynth.reports.comparison import latex_matrix_entries
+from tanksynth.reports.diagnostics.common import is_number
 from tanksynth.reports.equations import split_equation, visual_length
 from tanksynth.reports.trusted import is_trusted_math, math_or_text
 from tanksynth.reports.figures import (FigureFile, TraceFigure, eigenvalue_sets,
@@ -47,18 +48,14 @@ def latex_label(prefix: str, name: str) -> str:
     return f"{prefix}:{safe}"
 
 
-def _is_number(v: Any) -> bool:
-    return isinstance(v, (int, float)) and not isinstance(v, bool)
-
-
 def _is_complex_list(v: Any) -> bool:
     return (isinstance(v, list) and bool(v) and all(isinstance(x, list) and len(x) == 2
-                                                   and all(_is_number(y) for y in x) for x in v))
+                                                   and all(is_number(y) for y in x) for x in v))
 
 
 def _is_matrix(v: Any) -> bool:
     return (isinstance(v, list) and bool(v) and all(isinstance(r, list) and r and
-                                                   all(_is_number(x) for x in r) for r in v)
+                                                   all(is_number(x) for x in r) for r in v)
             and len({len(r) for r in v}) == 1)
 
 
@@ -66,7 +63,7 @@ def _value_tex(key: str, v: Any) -> Tex:
     """One diagnostics value as LaTeX (bounded size)."""
     if v is None:
         return Tex("--")
-    if isinstance(v, bool) or _is_number(v):
+    if isinstance(v, bool) or is_number(v):
         return _m(v)
     if isinstance(v, str):
         if v.lower() in ("inf", "-inf", "nan"):
@@ -77,9 +74,9 @@ def _value_tex(key: str, v: Any) -> Tex:
         if not v:
             return Tex(r"\emph{empty}")
         if ("eigenvalue" in key or is_pole_key(key)) and \
-                (_is_complex_list(v) or all(_is_number(x) for x in v)):
+                (_is_complex_list(v) or all(is_number(x) for x in v)):
             return Tex("$" + format_eigenvalues(v, 4, limit=12) + "$")
-        if all(_is_number(x) for x in v):
+        if all(is_number(x) for x in v):
             if len(v) <= 8:
                 return Tex("$(" + ",\\; ".join(format_number(x, 4) for x in v) + ")$")
             arr = np.asarray(v, dtype=float)
@@ -279,7 +276,7 @@ def _margin_rows(diag: Mapping[str, Any]) -> list[tuple[Tex, Tex]]:
     values: dict[tuple[str, str], Any] = {}
     for key in _MARGIN_KEYS:
         for path, v in _find(diag, key):
-            if not (_is_number(v) or (isinstance(v, str) and v.lower() in ("inf", "-inf", "nan"))):
+            if not (is_number(v) or (isinstance(v, str) and v.lower() in ("inf", "-inf", "nan"))):
                 continue
             ident = (key, repr(float(v)))
             if ident not in chosen or _margin_where(path) < _margin_where(chosen[ident]):
@@ -302,7 +299,7 @@ def _verdict_tex(passed: Any, word_pass: str = "pass", word_fail: str = "FAIL") 
 def _checks_rows(value: Any) -> list[dict[str, Tex]]:
     """Rows of a list of check records (``name``/``check``, ``passed``, and ``value``,
     ``limit``, ``unit`` or ``detail``)."""
-    rows = []
+    rows: list[dict[str, Tex]] = []
     if not isinstance(value, list):
         return rows
     for c in value:

@@ -54,7 +54,8 @@ def _as_complex(values: Any) -> tuple[complex, ...] | None:
     if all(isinstance(v, list) and v and isinstance(v[0], (list, tuple)) for v in values):
         # one list per model (the synthesis designs' polytope): every model's eigenvalues
         sets = [_as_complex(v) for v in values]
-        return None if any(s is None for s in sets) else tuple(z for s in sets for z in s)
+        every = [s for s in sets if s is not None]
+        return tuple(z for s in every for z in s) if len(every) == len(sets) else None
     out = []
     for v in values:
         if isinstance(v, (list, tuple)) and len(v) == 2 and all(isinstance(x, (int, float)) for x in v):
@@ -154,6 +155,7 @@ def eigenvalue_sets(artefact: Mapping[str, Any]) -> tuple[EigenvalueSet, ...]:
         A loaded artefact.
     """
     diag = artefact.get("diagnostics") or {}
-    gains = artefact.get("gains") if isinstance(artefact.get("gains"), Mapping) else {}
+    gains = artefact.get("gains")
+    gains = gains if isinstance(gains, Mapping) else {}
     observer = "L" in gains and "K" not in gains
     return tuple(dataclasses.replace(e, observer=observer) if observer else e for e in _walk(diag, "", None))

@@ -14,15 +14,28 @@ figures of one report's time-domain figures for reuse (axes and tick artists mad
 from __future__ import annotations
 
 from functools import lru_cache
-from typing import Any, Sequence
+from typing import TYPE_CHECKING, Any, Sequence, cast
 
 import numpy as np
 
+if TYPE_CHECKING:  # annotations only (matplotlib loads where a figure is drawn)
+    from matplotlib.typing import MarkerType
+
+# matplotlib is imported inside the functions that draw (about 0.4 s), not at the top: the report
+# imports this module for its records and helpers too, and needs matplotlib only for a figure it
+# draws itself (not for those drawn ahead by `tanksynth.report_worker`).
 __all__ = ["text_size", "visible_tick_labels", "legend_width", "stacked_layout", "square_panels_layout",
            "square_grid_layout", "place_axis_labels", "draw_decorations", "TraceCanvas"]
 
 #: Padding around the figure and between panels (pt): tight_layout's default, 1.08 font sizes.
 PAD_FACTOR = 1.08
+
+
+def _rc(key: str) -> Any:
+    """The matplotlib setting ``key``, named at run time (``xtick.major.size`` from the axis)."""
+    from matplotlib import rcParams
+
+    return rcParams[key]  # type: ignore[index]  # the stubs accept literal keys only
 
 
 @lru_cache(maxsize=4096)
@@ -151,7 +164,8 @@ def draw_decorations(ax: Any, *, tick_size: float, grid: dict | None = None) -> 
         Properties of the major grid lines (``linewidth``, ``color``); no grid when omitted.
     """
     from matplotlib import rcParams
-    from matplotlib.lines import TICKDOWN, TICKLEFT, Line2D
+    from matplotlib.lines import Line2D
+    from matplotlib.markers import TICKDOWN, TICKLEFT  # ints, which the stubs type as any int
     from matplotlib.transforms import ScaledTranslation
 
     ax.set_xlim(ax.get_xlim())      # frozen: the ticks below are those of these limits
@@ -160,14 +174,16 @@ def draw_decorations(ax: Any, *, tick_size: float, grid: dict | None = None) -> 
     for axis in (ax.xaxis, ax.yaxis):
         name = axis.axis_name
         locs, labels, offset = _visible_ticks(axis)
-        size = float(rcParams[f"{name}tick.major.size"])
-        pad = float(rcParams[f"{name}tick.major.pad"])
-        color = rcParams[f"{name}tick.color"]
-        lcolor = rcParams[f"{name}tick.labelcolor"]
+        size = float(_rc(f"{name}tick.major.size"))
+        pad = float(_rc(f"{name}tick.major.pad"))
+        color = _rc(f"{name}tick.color")
+        lcolor = _rc(f"{name}tick.labelcolor")
         lcolor = color if lcolor == "inherit" else lcolor
         nan = [np.nan] * len(locs)
         ends = np.ravel(np.column_stack([np.zeros(len(locs)), np.ones(len(locs)), nan]))
         at = np.ravel(np.column_stack([locs, locs, nan]))
+        tick_xy: tuple[Any, Any]
+        grid_xy: tuple[Any, Any]
         if name == "x":
             tick_xy, marker = (locs, np.zeros(len(locs))), TICKDOWN
             grid_xy, gtrans = (at, ends), ax.get_xaxis_transform("grid")
@@ -182,8 +198,8 @@ def draw_decorations(ax: Any, *, tick_size: float, grid: dict | None = None) -> 
             ax.add_artist(Line2D(*grid_xy, transform=gtrans, zorder=z, linestyle=rcParams["grid.linestyle"],
                                  alpha=rcParams["grid.alpha"], **grid))
         if locs:
-            ax.add_artist(Line2D(*tick_xy, transform=mtrans, marker=marker, markersize=size,
-                                 markeredgewidth=float(rcParams[f"{name}tick.major.width"]), color=color,
+            ax.add_artist(Line2D(*tick_xy, transform=mtrans, marker=cast("MarkerType", marker), markersize=size,
+                                 markeredgewidth=float(_rc(f"{name}tick.major.width")), color=color,
                                  markeredgecolor=color, linestyle="none", clip_on=False, zorder=z))
         for v, lab in zip(locs, labels):
             if lab:
@@ -498,7 +514,7 @@ class TraceCanvas:
                 ax.set_autoscale_on(True)
             from matplotlib import rcParams
 
-            fig.subplots_adjust(**{k: rcParams[f"figure.subplot.{k}"]     # as a new figure starts
+            fig.subplots_adjust(**{k: _rc(f"figure.subplot.{k}")     # as a new figure starts
                                    for k in ("left", "right", "top", "bottom", "hspace", "wspace")})
             self.last = fig
             return fig, axes

@@ -28,14 +28,20 @@ from pathlib import Path
 from typing import Any, Mapping, Sequence
 
 import numpy as np
+from scipy.linalg import expm
 
 from tanksynth.artefacts.atomic import atomic_write
+from tanksynth.artefacts.traces import read_trace, trace_path
+from tanksynth.reports.diagnostics.common import LmiRegion, lmi_region_of
 from tanksynth.reports.eigen_sets import EigenvalueSet, eigen_label, eigenvalue_sets, is_pole_key
 from tanksynth.reports.figure_layout import (TraceCanvas, draw_decorations, square_panels_layout,
                                               stacked_layout)
 from tanksynth.reports.signal_panel import draw_signals
 from tanksynth.reports.trace_lines import PanelLines
 
+# matplotlib is imported inside the functions that draw (about 0.4 s), not at the top: the report
+# imports this module for its records and helpers too, and needs matplotlib only for a figure it
+# draws itself (not for those drawn ahead by `tanksynth.report_worker`).
 __all__ = ["EigenvalueSet", "eigenvalue_sets", "eigen_label", "is_pole_key", "FigureFile", "pole_map",
            "TraceFigure", "time_domain_figure", "time_domain_figures", "ordinal"]
 
@@ -84,25 +90,6 @@ _MARKERS = ("x", "o", "s", "^", "D", "v", "P", "*")
 _LEGEND_DROP = 0.2
 
 
-def _region_matrices(artefact: Mapping[str, Any]) -> tuple[np.ndarray, np.ndarray, str] | None:
-    """The LMI region ``L + M z + M' conj(z) < 0`` requested for this design, if any."""
-    frontier = [artefact.get("diagnostics") or {}]
-    while frontier:
-        node = frontier.pop(0)
-        if not isinstance(node, Mapping):
-            continue
-        reg = node.get("region")
-        if isinstance(reg, Mapping) and "L" in reg and "M" in reg:
-            try:
-                L, M = np.asarray(reg["L"], dtype=float), np.asarray(reg["M"], dtype=float)
-            except (TypeError, ValueError):
-                return None
-            if L.ndim == 2 and L.shape == M.shape and L.shape[0] == L.shape[1]:
-                return L, M, str(reg.get("description", ""))
-        frontier.extend(v for v in node.values() if isinstance(v, Mapping))
-    return None
-
-
 def _region_margin(L: np.ndarray, M: np.ndarray, Z: np.ndarray) -> np.ndarray:
     """``-lambda_max(L + M z + M' conj(z))`` on a grid of complex points (positive inside)."""
     z = Z.ravel()
@@ -148,7 +135,7 @@ def _same_sets_merged(sets: Sequence[EigenvalueSet]) -> list[tuple[np.ndarray, s
 
 
 def _pole_figure(artefact: Mapping[str, Any], sets: tuple[EigenvalueSet, ...],
-                 region: tuple[np.ndarray, np.ndarray, str] | None) -> Any:
+                 region: LmiRegion | None) -> Any:
     """The pole map of `pole_map`, laid out, not saved (a `matplotlib.figure.Figure`)."""
     from matplotlib.figure import Figure
     from matplotlib.patches import Patch
@@ -161,19 +148,16 @@ def _pole_figure(artefact: Mapping[str, Any], sets: tuple[EigenvalueSet, ...],
         chosen = [s for s in sets if s.discrete == disc]
         pts = np.concatenate([np.array(s.values) for s in chosen])
         x0, x1, y0, y1 = _view(pts, disc)
-        handles = []
-        if region is not None:
-            dom = str((artefact.get("diagnostics") or {}).get("time_domain", "")) or \
-                str(((artefact.get("diagnostics") or {}).get("lmi") or {}).get("domain", ""))
-            if (dom == "discrete") == disc:
-                L, M, desc = region
-                X, Y = np.meshgrid(np.linspace(x0, x1, 240), np.linspace(y0, y1, 240))
-                marg = _region_margin(L, M, X + 1j * Y)
-                ax.contourf(X, Y, marg, levels=[0.0, np.inf], colors=["#cfe3f5"], alpha=0.8)
-                ax.contour(X, Y, marg, levels=[0.0], colors=["#2a6db0"], linewidths=0.8)
-                handles.append(Patch(facecolor="#cfe3f5", edgecolor="#2a6db0",
-                                     label="requested region" + (f": {desc}" if desc and len(desc) < 50
-                                                                 else "")))
+        handles: list[Any] = []   # the region's patch, then the poles' markers
+        if region is not None and (region.domain == "discrete") == disc:
+            L, M, desc = region.L, region.M, region.description
+            X, Y = np.meshgrid(np.linspace(x0, x1, 240), np.linspace(y0, y1, 240))
+            marg = _region_margin(L, M, X + 1j * Y)
+            ax.contourf(X, Y, marg, levels=[0.0, np.inf], colors=["#cfe3f5"], alpha=0.8)
+            ax.contour(X, Y, marg, levels=[0.0], colors=["#2a6db0"], linewidths=0.8)
+            handles.append(Patch(facecolor="#cfe3f5", edgecolor="#2a6db0",
+                                 label="requested region" + (f": {desc}" if desc and len(desc) < 50
+                                                             else "")))
         for m, (v, label) in enumerate(_same_sets_merged(chosen)):
             (line,) = ax.plot(v.real, v.imag, linestyle="none", marker=_MARKERS[m % len(_MARKERS)],
                               markersize=7 - m, fillstyle="none", markeredgewidth=1.1, label=label)
@@ -230,7 +214,7 @@ def pole_map(artefact: Mapping[str, Any], directory: Path, stem: str) -> FigureF
     sets = eigenvalue_sets(artefact)
     if not sets:
         return None
-    region = _region_matrices(artefact)
+    region = lmi_region_of(artefact.get("diagnostics") or {})
     fig = _pole_figure(artefact, sets, region)
     directory.mkdir(parents=True, exist_ok=True)
     target = directory / f"{stem}.pdf"
@@ -250,8 +234,6 @@ def _linear_prediction(artefact: Mapping[str, Any], head: Mapping[str, Any], t: 
         return None
     if x.shape[0] < 2 or u.ndim != 3 or u.shape[0] < 2 or u.shape[1] < 1:
         return None
-    from scipy.linalg import expm
-
     F, B = np.asarray(gains["F"], float), np.asarray(gains["B"], float)
     n, m = F.shape[0], B.shape[1]
     if x.shape[2] != n or u.shape[2] != m:
@@ -443,11 +425,11 @@ def time_domain_figures(artefact: Mapping[str, Any], artefact_dir: Path, directo
         The main figure first, then the extras drawn (an unreadable one is left out); empty
         when the artefact has no (readable) main trace.
     """
-    from tanksynth.artefacts.traces import read_trace, trace_path
-
     name = str(artefact.get("name", ""))
     trace = read_trace(trace_path(Path(artefact_dir) / f"{name}.json", name))
-    main = None if trace is None else _trace_figure(artefact, trace, directory, stem, canvas, False)
+    if trace is None:
+        return ()
+    main = _trace_figure(artefact, trace, directory, stem, canvas, False)
     if main is None:
         return ()
     more = [_trace_figure(artefact, tr, directory, f"{stem}-{k}", canvas, True)
@@ -511,7 +493,7 @@ def _trace_figure(artefact: Mapping[str, Any], trace: Mapping[str, Any], directo
             marks = run_marks if several else ([], [])
             _legend(ax, lines.handles, lines.labels, (events[0] + marks[0], events[1] + marks[1]))
             continue
-        if panel == "linear":
+        if panel == "linear" and lin is not None:   # (listed only with a prediction)
             scale = float(lin["scale"])
             for i in range(n):
                 lines.line(t, x[1, :, i] - x[0, :, i], color=colors[i], linewidth=1.1,

@@ -21,6 +21,8 @@ from typing import Any, Iterable
 
 import numpy as np
 
+from tanksynth.errors import ParseError
+
 __all__ = [
     "Tex",
     "escape_latex",
@@ -193,7 +195,7 @@ def format_number(value: Any, digits: int = 5) -> Tex:
     if isinstance(value, (int, np.integer)):
         return Tex(str(int(value)))
     if isinstance(value, (complex, np.complexfloating)):
-        return format_complex(value.real, value.imag, digits)
+        return format_complex(float(value.real), float(value.imag), digits)
     x = float(value)
     if math.isnan(x):
         return Tex(r"\text{NaN}")
@@ -346,7 +348,7 @@ def symbol_latex(name: Any) -> Tex:
     """
     s = str(name)
     if _IDENT.match(s):
-        import sympy as sp
+        import sympy as sp  # here, not at the top: see `expression_latex`
 
         return Tex(sp.latex(sp.Symbol(s)))
     return Tex(r"\text{" + escape_latex(s) + "}")
@@ -387,9 +389,10 @@ def expression_latex(text: Any) -> Tex | None:
     """
     if not isinstance(text, str) or not text.strip() or len(text) > 4000:
         return None
+    # sympy (with the parser, about 0.5 s) is imported where symbols are typeset, not at the top:
+    # every problem statement (`tanksynth.reports.statements`) builds on this module and needs none
     import sympy as sp
 
-    from tanksynth.errors import ParseError
     from tanksynth.plants.parser import FUNCTIONS, parse_expression
 
     names = {n: sp.Symbol(n) for n in set(re.findall(r"[A-Za-z_][A-Za-z0-9_]*", text))
@@ -470,7 +473,7 @@ class GainDisplay:
         return Tex(r" \times ".join(str(s) for s in self.shape))
 
 
-def _index(idx: tuple[int, ...]) -> str:
+def _index(idx: tuple[int | np.integer, ...]) -> str:
     return "(" + ",".join(str(i + 1) for i in idx) + ")"
 
 
@@ -563,7 +566,7 @@ def environment():
     ``((( expression )))``, ``((= comment =))``. Every expression that is not
     `Tex` is escaped; numbers are formatted with `format_number`.
     """
-    import jinja2
+    import jinja2  # only to render a report: the statements and figures that use this module do not
 
     env = jinja2.Environment(
         loader=jinja2.PackageLoader("tanksynth.reports", "templates"),

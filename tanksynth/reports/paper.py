@@ -12,7 +12,6 @@ operating point, the row says so.
 
 from __future__ import annotations
 
-import math
 from typing import Any, Mapping
 
 import numpy as np
@@ -20,6 +19,8 @@ import numpy as np
 from tanksynth.reports import paper_seed000, paper_seed001, paper_seed004
 from tanksynth.reports.comparison import (AGREES, DIFFERS, ERRATUM, PaperComparison, PaperRow,
                                           Reproduction, cell_matrix, printed_precision)
+from tanksynth.reports.diagnostics.common import references_of
+from tanksynth.reports.diagnostics.placement import design_poles_of
 from tanksynth.reports.inputs import ReportInputs
 from tanksynth.reports.latex import Tex, escape_latex, format_eigenvalues, format_number
 
@@ -67,22 +68,6 @@ def _half_unit(x: float) -> float:
     return printed_precision(repr(float(x)))
 
 
-def _pole_scale(diag: Mapping[str, Any]) -> float | None:
-    """Largest |pole| the design asked for or achieved (for relative pole errors)."""
-    for path in (("placement", "requested"), ("placement", "achieved"), ("achieved_poles",),
-                 ("requested_poles",), ("poles",)):
-        node: Any = diag
-        for k in path:
-            node = node.get(k) if isinstance(node, Mapping) else None
-        if isinstance(node, list) and node:
-            try:
-                vals = [complex(*v) if isinstance(v, list) else complex(v) for v in node]
-            except (TypeError, ValueError):
-                continue
-            return max(abs(v) for v in vals)
-    return None
-
-
 #: A printed gain whose poles miss the design's poles by more than this fraction of the
 #: largest pole is an erratum (rounding of printed digits moves poles far less).
 POLE_ERROR_ERRATUM = 0.05
@@ -109,19 +94,12 @@ def reference_rows(artefact: Mapping[str, Any]) -> tuple[PaperRow, ...]:
     """
     rows: list[PaperRow] = []
     diag = artefact.get("diagnostics") or {}
-    scale_poles = _pole_scale(diag)
-    for key in sorted(k for k in diag if str(k).startswith("reference")):
-        ref = diag[key]
-        if not isinstance(ref, Mapping) or "reference" not in ref or "derived" not in ref:
-            continue
-        try:
-            R = np.asarray(ref["reference"], dtype=float)
-            D = np.asarray(ref["derived"], dtype=float)
-        except (TypeError, ValueError):
-            continue
+    poles = design_poles_of(diag)
+    scale_poles = max(abs(p) for p in poles) if poles else None
+    for ref in references_of(diag):
+        R, D = ref.reference, ref.derived
         if R.shape != D.shape or R.size > 64:
             continue
-        label = str(key)[len("reference_"):] or "value"
         scale = max(float(np.max(np.abs(D), initial=0.0)), 1e-300)
         diff = np.abs(R - D)
         maxdiff = float(np.max(diff, initial=0.0))
@@ -134,15 +112,11 @@ def reference_rows(artefact: Mapping[str, Any]) -> tuple[PaperRow, ...]:
         elif maxdiff > 0:
             parts.append("equal to the digits given")
         verdict = AGREES if same else DIFFERS
-        for ek in ("reference_closed_loop_eigenvalues", "reference_eigenvalues"):
-            if ek in ref:
-                try:
-                    parts.append("the reference gives eigenvalues $"
-                                 + format_eigenvalues(ref[ek], 4) + "$")
-                except (TypeError, ValueError):
-                    pass
-        err = ref.get("reference_max_pole_error")
-        if _is_num(err):
+        for eigenvalues in ref.eigenvalues:
+            parts.append("the reference gives eigenvalues $"
+                         + format_eigenvalues([list(p) for p in eigenvalues], 4) + "$")
+        err = ref.max_pole_error
+        if err is not None:
             rel = float(err) / scale_poles if scale_poles else None
             parts.append(f"largest pole error ${format_number(err, 3)}$"
                          + (f" (${format_number(100 * rel, 3)}\\,\\%$ of the largest pole)"
@@ -150,17 +124,13 @@ def reference_rows(artefact: Mapping[str, Any]) -> tuple[PaperRow, ...]:
             if not same and rel is not None and rel > POLE_ERROR_ERRATUM:
                 verdict = ERRATUM
                 parts.insert(0, "the printed value does not have the design's poles")
-        if isinstance(ref.get("note"), str):
-            parts.append(escape_latex(ref["note"]))
+        if ref.note is not None:
+            parts.append(escape_latex(ref.note))
         rows.append(PaperRow(
-            Tex(r"\texttt{" + escape_latex(label, breakable=True) + r"} of \texttt{"
+            Tex(r"\texttt{" + escape_latex(ref.label, breakable=True) + r"} of \texttt{"
                 + escape_latex(artefact.get("name", ""), breakable=True) + "}"),
             cell_matrix(R, 4), cell_matrix(D, 4), verdict, Tex("; ".join(parts))))
     return tuple(rows)
-
-
-def _is_num(v: Any) -> bool:
-    return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(float(v))
 
 
 def compare_with_papers(inputs: ReportInputs) -> tuple[PaperComparison, ...]:

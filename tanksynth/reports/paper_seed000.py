@@ -8,12 +8,16 @@ directory on the three-tank plant with the paper's Table I parameters.
 from __future__ import annotations
 
 import numpy as np
+import sympy as sp
 
 from tanksynth.errors import ReportError
 from tanksynth.papers import seed000 as paper
-from tanksynth.reports.comparison import (AGREES, ERRATUM, PaperRow, artefact_array, cell_fit,
-                                          cell_matrix, cell_number, close, first_artefact,
-                                          latex_matrix_entries, params_match, printed_precision)
+from tanksynth.plants import builtin_plant
+from tanksynth.reports.comparison import (AGREES, ERRATUM, PaperRow, artefact_arrays, cell_fit, cell_matrix,
+                                          cell_number, close, first_artefact, latex_matrix_entries,
+                                          params_match, printed_precision)
+from tanksynth.reports.diagnostics.laws import controlled_outputs_of
+from tanksynth.reports.diagnostics.model import equilibrium_of
 from tanksynth.reports.inputs import ReportInputs
 from tanksynth.reports.latex import Tex, escape_latex, format_eigenvalues, format_number
 
@@ -47,9 +51,10 @@ def linearisation_rows(inputs: ReportInputs) -> tuple[PaperRow, ...]:
         The report's inputs (spec, plant, artefacts).
     """
     art = first_artefact(inputs, "linearize", paper.Y0, _LIN_SHAPES)
-    if art is None:  # `applies` selected this entry; a missing artefact is a registry bug
+    arrays = None if art is None else artefact_arrays(art, _LIN_SHAPES)
+    if art is None or arrays is None:  # `applies` selected this entry; else a registry bug
         raise ReportError("seed 000 comparison: no linearize artefact at y0 = (0.40, 0.20, 0.30) m")
-    F, B, u0 = (artefact_array(art, k) for k in ("F", "B", "u_op"))
+    F, B, u0 = arrays["F"], arrays["B"], arrays["u_op"]
     params = {k: inputs.parameters()[k] for k in paper.TABLE_I}
     Fp, Bp = paper.printed_F(params, paper.Y0)
     Fp[np.abs(Fp) < 1e-12 * np.max(np.abs(Fp))] = 0.0   # -t32 + t13 cancels exactly at y0
@@ -114,10 +119,6 @@ def linearisation_rows(inputs: ReportInputs) -> tuple[PaperRow, ...]:
 def _formula_gaps(inputs: ReportInputs, points: int = 12) -> np.ndarray:
     """Largest relative gap, per entry, between eq. (8) as printed (formulas in the state) and the
     Jacobian of the smooth model of the recorded plant, at region points with y1 > y3 > y2 > 0."""
-    import sympy as sp
-
-    from tanksynth.plants import builtin_plant
-
     plant = builtin_plant(inputs.plant_name)
     x = plant.x
     h1, h2, h3 = x
@@ -146,8 +147,8 @@ def _formula_gaps(inputs: ReportInputs, points: int = 12) -> np.ndarray:
 def _u0_rows(art, B: np.ndarray, u0: np.ndarray, name: str) -> list[PaperRow]:
     """The printed u0 (Sec. IV) against the exact equilibrium input of the artefact."""
     up = np.array([float(t) for t in paper.U0_TEXT])
-    eq = (art.get("diagnostics") or {}).get("equilibrium", {}) or {}
-    base_res = np.asarray(eq.get("residual", np.zeros(3)), dtype=float)
+    residual = equilibrium_of(art.get("diagnostics") or {}).residual
+    base_res = np.asarray(residual if residual is not None else np.zeros(3), dtype=float)
     # the model is affine in u with constant B: f(x0, u) = f(x0, u0) + B (u - u0)
     res_printed = base_res + B @ (up - u0)
     rows = []
@@ -180,11 +181,10 @@ def _u0_rows(art, B: np.ndarray, u0: np.ndarray, name: str) -> list[PaperRow]:
 
 def _law_artefact(inputs: ReportInputs):
     for a in inputs.by_method("feedback_linearization"):
-        outputs = (a.get("diagnostics") or {}).get("outputs")
-        if outputs is not None and list(outputs) != ["h1", "h2"]:
+        outputs = controlled_outputs_of(a.get("diagnostics") or {})
+        if outputs is not None and outputs != ("h1", "h2"):
             continue
-        if all(artefact_array(a, k) is not None and artefact_array(a, k).shape == s
-               for k, s in _LAW_SHAPES.items()):
+        if artefact_arrays(a, _LAW_SHAPES) is not None:
             return a
     return None
 
@@ -210,13 +210,13 @@ def law_rows(inputs: ReportInputs) -> tuple[PaperRow, ...]:
         The report's inputs (spec, plant, artefacts).
     """
     art = _law_artefact(inputs)
-    if art is None:  # `applies` selected this entry
+    arrays = None if art is None else artefact_arrays(art, _LAW_SHAPES)
+    if art is None or arrays is None:  # `applies` selected this entry
         raise ReportError("seed 000 comparison: no feedback_linearization artefact of (h1, h2)")
-    x0 = artefact_array(art, "x_op")
-    lam, lam0 = artefact_array(art, "Lambda_op"), artefact_array(art, "Lambda0_op")
+    x0, lam, lam0 = arrays["x_op"], arrays["Lambda_op"], arrays["Lambda0_op"]
     params = {k: inputs.parameters()[k] for k in paper.TABLE_I}
     try:
-        printed = paper.printed_law(params, x0)
+        printed = paper.printed_law(params, x0.tolist())
         beta = np.linalg.inv(lam)
     except (ValueError, np.linalg.LinAlgError) as exc:
         raise ReportError(f"seed 000 comparison: cannot evaluate the law at x_op = {x0.tolist()} "

@@ -8,6 +8,9 @@ three-tank plant brings it into the report.
 
 from __future__ import annotations
 
+import sympy as sp
+
+from tanksynth.analysis.rank import symbolic_observability
 from tanksynth.papers import seed001 as paper
 from tanksynth.reports.comparison import AGREES, ERRATUM, PaperRow, cell_terms
 from tanksynth.reports.inputs import ReportInputs
@@ -28,8 +31,6 @@ def observability_applies(inputs: ReportInputs) -> bool:
 
 
 def _values(lam, gam) -> dict:
-    import sympy as sp
-
     vals = dict(zip(lam, (sp.Rational(str(v)) for v in paper.LAMBDA)))
     vals.update(zip(gam, (sp.Rational(str(v)) for v in paper.GAMMA)))
     return vals
@@ -49,10 +50,6 @@ def observability_rows(inputs: ReportInputs) -> tuple[PaperRow, ...]:
     inputs : ReportInputs
         The report's inputs (spec, plant, artefacts).
     """
-    import sympy as sp
-
-    from tanksynth.analysis.rank import symbolic_observability
-
     (z1, z2, z3), lam, gam = paper.symbols()
     A = paper.A_eq10()
     C = sp.Matrix([[1, 0, 0]])

@@ -11,15 +11,17 @@ from __future__ import annotations
 
 import math
 import re
-from typing import Any, Mapping, Sequence
+from typing import Any, Mapping
 
 import numpy as np
 
 from tanksynth.errors import ReportError
 from tanksynth.papers import seed004 as paper
 from tanksynth.reports.comparison import (AGREES, DIFFERS, ERRATUM, PaperRow, artefact_array,
-                                          cell_matrix, cell_number, close, first_artefact,
-                                          params_match, poly_latex, printed_precision)
+                                          artefact_arrays, cell_matrix, cell_number, close,
+                                          first_artefact, params_match, poly_latex, printed_precision)
+from tanksynth.reports.diagnostics.fault import (Detection, detection_time, detections_of, fault_size_of,
+                                                 initial_states_of)
 from tanksynth.reports.inputs import ReportInputs
 from tanksynth.reports.latex import Tex, escape_latex, format_eigenvalues, format_number
 
@@ -27,6 +29,7 @@ __all__ = ["structure_applies", "structure_rows", "detection_applies", "detectio
            "stored_detections"]
 
 _LIN_SHAPES = {"F": (3, 3), "B": (3, 1), "C": (1, 3)}
+_FAULT_SHAPES = {"Psi": (3, 1), "Gamma_d": (3, 3)}
 
 
 def structure_applies(inputs: ReportInputs) -> bool:
@@ -61,9 +64,10 @@ def structure_rows(inputs: ReportInputs) -> tuple[PaperRow, ...]:
         The report's inputs (spec, plant, artefacts).
     """
     art = first_artefact(inputs, "linearize", None, _LIN_SHAPES)
-    if art is None:  # `applies` selected this entry; a missing artefact is a registry bug
+    arrays = None if art is None else artefact_arrays(art, _LIN_SHAPES)
+    if arrays is None:  # `applies` selected this entry; a missing artefact is a registry bug
         raise ReportError("seed 004 comparison: no three-state linearize artefact")
-    F, B, C = (artefact_array(art, k) for k in ("F", "B", "C"))
+    F, B, C = arrays["F"], arrays["B"], arrays["C"]
     d = inputs.parameters().get("delta_bar", 0.0)
     pr = paper.printed_matrices(d)
     healthy = d == 0.0
@@ -116,10 +120,8 @@ def structure_rows(inputs: ReportInputs) -> tuple[PaperRow, ...]:
 
 # ------------------------------------------------------------------ fault detection
 def _fault_artefact(inputs: ReportInputs) -> Mapping[str, Any] | None:
-    shapes = {"Psi": (3, 1), "Gamma_d": (3, 3)}
     for a in inputs.by_method("fault_detection"):
-        if all(artefact_array(a, k) is not None and artefact_array(a, k).shape == s
-               for k, s in shapes.items()):
+        if artefact_arrays(a, _FAULT_SHAPES) is not None:
             return a
     return None
 
@@ -136,48 +138,7 @@ def detection_applies(inputs: ReportInputs) -> bool:
             and _fault_artefact(inputs) is not None)
 
 
-_X0_KEYS = ("x0", "initial_state", "initial_states", "starts", "start")
-_T_KEYS = ("t_detect", "t_d", "detection_time", "detection_times", "time", "times")
-
-
-def _time(v: Any) -> float | None:
-    """A stored detection time; None, negative or non-finite means not detected."""
-    if isinstance(v, bool) or not isinstance(v, (int, float)):
-        return None
-    v = float(v)
-    return v if math.isfinite(v) and v >= 0 else None
-
-
-def _first(node: Mapping[str, Any], keys: Sequence[str]) -> Any:
-    return next((node[k] for k in keys if k in node), None)
-
-
-def _pairs(node: Any) -> list[tuple[np.ndarray, float | None]]:
-    """(initial state, detection time) pairs from a list of records or a table of columns."""
-    out: list[tuple[np.ndarray, float | None]] = []
-    if isinstance(node, list):
-        for rec in node:
-            if isinstance(rec, Mapping):
-                x0, t = _first(rec, _X0_KEYS), _first(rec, _T_KEYS)
-                try:
-                    out.append((np.asarray(x0, dtype=float).reshape(-1), _time(t)))
-                except (TypeError, ValueError):
-                    continue
-        return out
-    if isinstance(node, Mapping):
-        for key in ("records", "runs", "results"):
-            if isinstance(node.get(key), list):
-                return _pairs(node[key])
-        x0s, ts = _first(node, _X0_KEYS), _first(node, _T_KEYS)
-        if isinstance(x0s, list) and isinstance(ts, list) and len(x0s) == len(ts):
-            try:
-                return [(np.asarray(x, dtype=float).reshape(-1), _time(t)) for x, t in zip(x0s, ts)]
-            except (TypeError, ValueError):
-                return []
-    return out
-
-
-def stored_detections(artefact: Mapping[str, Any]) -> list[tuple[np.ndarray, float | None]]:
+def stored_detections(artefact: Mapping[str, Any]) -> list[Detection]:
     """The (initial state, detection time in s) pairs a ``fault_detection`` artefact stores.
 
     Read from ``diagnostics["detection"]`` or ``diagnostics["detections"]`` (a list of
@@ -192,28 +153,18 @@ def stored_detections(artefact: Mapping[str, Any]) -> list[tuple[np.ndarray, flo
         A loaded ``fault_detection`` artefact.
     """
     diag = artefact.get("diagnostics") or {}
-    for key in ("detection", "detections"):
-        pairs = _pairs(diag.get(key))
-        if pairs:
-            return pairs
+    recorded = detections_of(diag)
+    if recorded:
+        return recorded
     times = artefact_array(artefact, "detection_times")
-    starts = _first(diag, ("initial_states", "starts"))
-    if times is not None and isinstance(starts, list) and len(starts) == times.size:
+    starts = initial_states_of(diag)
+    if times is not None and starts is not None and len(starts) == times.size:
         try:
-            return [(np.asarray(x, dtype=float).reshape(-1), _time(float(t)))
+            return [(np.asarray(x, dtype=float).reshape(-1), detection_time(float(t)))
                     for x, t in zip(starts, times.ravel())]
         except (TypeError, ValueError):
             return []
     return []
-
-
-def _fault_size(artefact: Mapping[str, Any]) -> float | None:
-    diag = artefact.get("diagnostics") or {}
-    for node in (diag, diag.get("detection") if isinstance(diag.get("detection"), Mapping) else {}):
-        v = node.get("delta_bar") if isinstance(node, Mapping) else None
-        if isinstance(v, (int, float)) and not isinstance(v, bool):
-            return float(v)
-    return None
 
 
 def _half_unit(x: float) -> float:
@@ -229,9 +180,10 @@ def detection_rows(inputs: ReportInputs) -> tuple[PaperRow, ...]:
         The report's inputs (spec, plant, artefacts).
     """
     art = _fault_artefact(inputs)
-    if art is None:  # `applies` selected this entry
+    arrays = None if art is None else artefact_arrays(art, _FAULT_SHAPES)
+    if art is None or arrays is None:  # `applies` selected this entry
         raise ReportError("seed 004 comparison: no three-state fault_detection artefact")
-    Psi, Gd = artefact_array(art, "Psi"), artefact_array(art, "Gamma_d")
+    Psi, Gd = arrays["Psi"], arrays["Gamma_d"]
     rows: list[PaperRow] = []
     poles = np.sort(np.linalg.eigvals(Gd).real)
     printed_poles = np.sort(np.array(paper.OBSERVER_POLES))
@@ -289,7 +241,7 @@ def _threshold_rows(art: Mapping[str, Any]) -> list[PaperRow]:
 
 def _detection_time_rows(art: Mapping[str, Any]) -> list[PaperRow]:
     stored = stored_detections(art)
-    size = _fault_size(art)
+    size = fault_size_of(art.get("diagnostics") or {})
     size_note = (r"the fault size $\bar\delta$ is not printed; ours with $\bar\delta = "
                  + (format_number(size) if size is not None else r"\text{?}") + "$ (declared)")
     rows = []

@@ -12,6 +12,7 @@ import signal
 import re
 import shutil
 import subprocess
+import time
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -112,8 +113,6 @@ def compile_pdf(tex_file: Path, timeout: float = 180.0) -> CompileResult:
         reports undefined references. ``log_path`` is the log in the build
         directory (the caller keeps a copy).
     """
-    import time
-
     tex_file = Path(tex_file)
     workdir = tex_file.parent
     stem = tex_file.stem

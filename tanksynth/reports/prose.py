@@ -118,8 +118,9 @@ def _list_tex(text: str) -> Tex:
         rest = re.sub(r"\[[^\[\]]*\]", "", inner)
         if rows and not rest.strip(" ,"):
             parsed = [_parse_items(r) for r in rows]
-            if all(p is not None and p and all(isinstance(v, float) for v in p) for p in parsed):
-                body = r" \\ ".join(" & ".join(format_number(v, 4) for v in p) for p in parsed)
+            numeric = [p for p in parsed if p and all(isinstance(v, float) for v in p)]
+            if len(numeric) == len(parsed):
+                body = r" \\ ".join(" & ".join(format_number(v, 4) for v in p) for p in numeric)
                 return Tex(r"$\left[\begin{smallmatrix}" + body + r"\end{smallmatrix}\right]$")
             cells = [[c.strip() for c in r.split(",")] for r in rows]
             body = r" \\ ".join(" & ".join(_math_cell(c) for c in row) for row in cells)

@@ -13,6 +13,7 @@ from pathlib import Path
 from typing import Any, Iterable, Mapping
 
 from tanksynth.artefacts.atomic import atomic_write
+from tanksynth.artefacts.io import to_jsonable
 from tanksynth.errors import ArtefactError
 
 __all__ = ["REFUSED_FILE", "REFUSED_SCHEMA", "refusal", "write_refused", "read_refused"]
@@ -34,8 +35,6 @@ def refusal(name: str, method: str, exc: BaseException) -> dict[str, Any]:
         The exception; its message is the reason, its ``certificate``
         attribute (a mapping or text), when present, the certificate.
     """
-    from tanksynth.artefacts.io import to_jsonable
-
     cert = getattr(exc, "certificate", None)
     return {"name": str(name), "method": str(method), "reason": " ".join(str(exc).split()),
             "certificate": to_jsonable(cert) if cert is not None else None}

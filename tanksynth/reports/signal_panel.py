@@ -18,6 +18,9 @@ import numpy as np
 
 from tanksynth.reports.trace_lines import PanelLines
 
+# matplotlib is imported inside the functions that draw (about 0.4 s), not at the top: the report
+# imports this module for its records and helpers too, and needs matplotlib only for a figure it
+# draws itself (not for those drawn ahead by `tanksynth.report_worker`).
 __all__ = ["LOG_DECADES", "LOG_FLOOR", "draw_signals"]
 
 #: Decades of positive values above which a never-negative signal panel is logarithmic.

@@ -14,10 +14,16 @@ costs one artist and one autoscale instead of one `Line2D` per signal.
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
 
+if TYPE_CHECKING:  # annotations only (matplotlib loads where a figure is drawn)
+    from matplotlib.typing import LineStyleType
+
+# matplotlib is imported inside the functions that draw (about 0.4 s), not at the top: the report
+# imports this module for its records and helpers too, and needs matplotlib only for a figure it
+# draws itself (not for those drawn ahead by `tanksynth.report_worker`).
 __all__ = ["ENVELOPE_BINS", "envelope", "staircase", "draw_runs", "PanelLines"]
 
 #: Index slices per trace: about the pixel width of a 5 in axis at 200 dpi (the figures are 7.2 in wide).
@@ -198,7 +204,9 @@ class PanelLines:
         if label is not None:
             from matplotlib.lines import Line2D
 
-            self.handles.append(Line2D([], [], color=color, linewidth=linewidth, linestyle=linestyle,
+            # the style is read from a trace file: matplotlib checks it (the stubs list literals)
+            self.handles.append(Line2D([], [], color=color, linewidth=linewidth,
+                                       linestyle=cast("LineStyleType", linestyle),
                                        alpha=None if alpha == 1.0 else alpha))
             self.labels.append(str(label))
 

@@ -25,9 +25,14 @@ from typing import Any, Mapping
 import numpy as np
 
 from tanksynth.artefacts.atomic import atomic_write
+from tanksynth.artefacts.traces import read_trace, trace_path
+from tanksynth.reports.diagnostics.takagi_sugeno import certified_region_of, ts_model_of
 from tanksynth.reports.figure_layout import draw_decorations, square_grid_layout
 from tanksynth.reports.figures import FigureFile
 
+# matplotlib is imported inside the functions that draw (about 0.4 s), not at the top: the report
+# imports this module for its records and helpers too, and needs matplotlib only for a figure it
+# draws itself (not for those drawn ahead by `tanksynth.report_worker`).
 __all__ = ["REGION_METHODS", "ellipse_outline", "region_figure", "region_figures"]
 
 #: Methods whose artefacts have a certified-region figure.
@@ -61,6 +66,16 @@ def _gain(art: Mapping[str, Any], key: str) -> np.ndarray | None:
     return None if v is None else np.asarray(v, dtype=float)
 
 
+def _certificate(art: Mapping[str, Any], prefix: str = "") -> tuple[np.ndarray, np.ndarray, float] | None:
+    """``(P, x_op, c)`` of the region stored as the gains ``<prefix>P``, ``<prefix>x_op`` and
+    ``<prefix>region_c``; None when one is missing or their sizes do not match."""
+    P, x0, c = (_gain(art, prefix + key) for key in ("P", "x_op", "region_c"))
+    if P is None or x0 is None or c is None or P.size != x0.size ** 2 or c.size == 0:
+        return None
+    n = x0.size
+    return P.reshape(n, n), x0.ravel(), float(np.ravel(c)[0])
+
+
 def _pair_views(P: np.ndarray, c: float, x0: np.ndarray, i: int, j: int) -> tuple[np.ndarray, np.ndarray]:
     """Slice through ``x0`` (other deviations zero) and projection of the ellipsoid on (i, j)."""
     idx = [i, j]
@@ -91,19 +106,18 @@ def region_figure(art: Mapping[str, Any], artefact_dir: Path, directory: Path,
     """
     if str(art.get("method", "")) not in REGION_METHODS:
         return None
-    P, x0, c = _gain(art, "P"), _gain(art, "x_op"), _gain(art, "region_c")
-    diag = art.get("diagnostics") or {}
-    if P is None or x0 is None or c is None:
+    region = _certificate(art)
+    if region is None:
         return None
+    P, x0, c = region
     n = x0.size
-    P, x0, c = P.reshape(n, n), x0.ravel(), float(np.ravel(c)[0])
-    reg = diag.get("region") or {}
-    names = [str(v) for v in reg.get("states", [])] or [f"x{k + 1}" for k in range(n)]
-    dom = ((diag.get("ts_model") or {}).get("domain") or {})
-    lo, hi = dom.get("lower"), dom.get("upper")
-    ineq = dom.get("inequalities") or []
-    from tanksynth.artefacts.traces import read_trace, trace_path
-
+    diag = art.get("diagnostics") or {}
+    states = certified_region_of(diag).states
+    names = list(states) if len(states) == n else [f"x{k + 1}" for k in range(n)]
+    domain = ts_model_of(diag).domain
+    # names or a box of another size than the state belong to another model: not used
+    lo = domain.lower if domain.lower is not None and len(domain.lower) == n else None
+    hi = domain.upper if domain.upper is not None and len(domain.upper) == n else None
     name = str(art.get("name", ""))
     trace = read_trace(trace_path(Path(artefact_dir) / f"{name}.json", name))
     units = [""] * n
@@ -113,10 +127,10 @@ def region_figure(art: Mapping[str, Any], artefact_dir: Path, directory: Path,
         X = np.asarray(trace["arrays"]["x"], float)
         if "setpoint_x" in trace["arrays"]:
             Xs = np.asarray(trace["arrays"]["setpoint_x"], float)
-    P2, x2, c2 = _gain(art, "sp_P"), _gain(art, "sp_x_op"), _gain(art, "sp_region_c")
-    has_sp = P2 is not None and x2 is not None and c2 is not None
-    if has_sp:
-        P2, x2, c2 = P2.reshape(n, n), x2.ravel(), float(np.ravel(c2)[0])
+    second = _certificate(art, "sp_")      # the region about the set-point x_op2, if any
+    if second is not None and second[1].size != n:
+        second = None
+    has_sp = second is not None
     pairs = list(combinations(range(n), 2))[:6]
     if not pairs:
         return None
@@ -132,11 +146,11 @@ def region_figure(art: Mapping[str, Any], artefact_dir: Path, directory: Path,
         if lo is not None and hi is not None:
             ax.add_patch(Rectangle((lo[i], lo[j]), hi[i] - lo[i], hi[j] - lo[j], fill=False,
                                    edgecolor="0.35", linewidth=0.9, label="TS domain"))
-        for row in ineq:   # orderings G x >= g involving only this pair
-            G = np.asarray(row.get("G", []), float)
+        for row in domain.inequalities:   # orderings G x >= g involving only this pair
+            G = np.asarray(row.G, float)
             if G.size == n and np.count_nonzero(G) == 2 and G[i] != 0 and G[j] != 0:
                 xs = np.linspace(lo[i] if lo else x0[i] - 1, hi[i] if hi else x0[i] + 1, 2)
-                ax.plot(xs, (float(row["g"]) - G[i] * xs) / G[j], color="0.35", linestyle=":",
+                ax.plot(xs, (row.g - G[i] * xs) / G[j], color="0.35", linestyle=":",
                         linewidth=0.9, label="domain ordering")
         if X is not None and X.ndim == 3 and X.shape[2] == n:   # every run: one collection
             ax.add_collection(LineCollection(list(X[:, :, [i, j]]), colors="C0", linewidths=0.4, alpha=0.55,
@@ -149,7 +163,8 @@ def region_figure(art: Mapping[str, Any], artefact_dir: Path, directory: Path,
         ax.plot(sl[:, 0], sl[:, 1], color="C2", linewidth=1.2, label="region (slice at x_op)")
         ax.plot([x0[i]], [x0[j]], marker="+", markersize=9, color="k", linestyle="none",
                 label="operating point x_op")
-        if has_sp:
+        if second is not None:
+            P2, x2, c2 = second
             if Xs is not None and Xs.ndim == 3 and Xs.shape[2] == n:
                 ax.add_collection(LineCollection(list(Xs[:, :, [i, j]]), colors="C3", linewidths=0.4, alpha=0.5,
                                                  label="set-point runs"), autolim=False)

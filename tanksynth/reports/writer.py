@@ -221,8 +221,8 @@ def write_report(directory: str | Path, pdf: bool = False, timeout: float = 180.
             shutil.rmtree(build, ignore_errors=True)
     else:
         _atomic_write_text(tex_path, tex)
-    drawn = [f.path for f in figures.values()] + [f.path for figs in traces.values() for f in figs]
-    return ReportResult(tex_path, out_pdf, out_log, tuple(drawn),
+    drawn_files = [f.path for f in figures.values()] + [f.path for figs in traces.values() for f in figs]
+    return ReportResult(tex_path, out_pdf, out_log, tuple(drawn_files),
                         comparisons, pages, time.perf_counter() - start, latex_seconds)
 
 

@@ -9,6 +9,7 @@ import subprocess
 import numpy as np
 import pytest
 
+from tanksynth.reports.diagnostics.common import lmi_region_of
 from tanksynth.reports.figures import _pole_figure, _region_margin, eigenvalue_sets, pole_map
 
 
@@ -56,8 +57,10 @@ def _artefact():
 def test_pole_map_keeps_everything_on_the_page():
     art = _artefact()
     sets = eigenvalue_sets(art)
-    fig = _pole_figure(art, sets, (np.array(art["diagnostics"]["region"]["L"]),
-                                   np.array(art["diagnostics"]["region"]["M"]), "disk |s + 2| < 1.5"))
+    region = lmi_region_of(art["diagnostics"])
+    assert region is not None and region.description == "disk |s + 2| < 1.5" and region.domain == "continuous"
+    np.testing.assert_array_equal(region.L, [[-1.5, -2.0], [-2.0, -1.5]])
+    fig = _pole_figure(art, sets, region)
     r = _pdf_draw(fig)
     page = fig.bbox
     axes = fig.axes
