@@ -23,95 +23,77 @@ import time
 import warnings
 from typing import TYPE_CHECKING, Any, Callable, Sequence
 
+import clarabel
 import numpy as np
 import scipy.linalg as sla
 import scipy.sparse as sps
 
 from tanksynth.analysis.blas import small_dense
+from tanksynth.design.conic import ACCEPTED
+from tanksynth.design.lmi_checks import check_solver
+from tanksynth.design.matrices import real_matrix, symmetrized
 from tanksynth.errors import DimensionError, SpecError
 
 if TYPE_CHECKING:
     import cvxpy as cp
 
 __all__ = [
-    "solve_status",
-    "SOLVERS",
     "VARIANTS",
     "FORMS",
     "ObserverLMIProblem",
+    "check_variant",
+    "checked_structure",
+    "output_split",
 ]
 
-#: Solvers accepted for the LMIs (Clarabel is the default, SCS for comparisons).
-SOLVERS = ("CLARABEL", "SCS")
 #: Variants of the ``Q`` matrix of eq. (28).
 VARIANTS = ("qI", "full")
 #: Forms of the LMI: ``K`` kept as a variable, or eliminated (projection lemma).
 FORMS = ("auto", "full", "eliminated")
 
-_ACCEPTED = ("optimal", "optimal_inaccurate")
 
-
-def solve_status(problem: cp.Problem, solver: str, **settings: Any) -> str:
-    """Solve ``problem`` and return cvxpy's status, never raising on a solver failure.
-
-    The status is only a hint: every design re-checks its returned matrices
-    with numpy. cvxpy's UserWarnings ("solution may be inaccurate") are
-    silenced because the status and the re-check say the same.
+def check_variant(variant: str) -> None:
+    """Refuse a ``Q`` variant outside `VARIANTS` (`SpecError` keyed ``variant``).
 
     Parameters
     ----------
-    problem : cvxpy.Problem
-        The LMI problem.
-    solver : str
-        A cvxpy solver name (``"CLARABEL"``, ``"SCS"``).
-    **settings
-        Solver settings passed to ``problem.solve``.
-
-    Returns
-    -------
-    str
-        ``problem.status``, or ``"solver_error (<message>)"`` (one line, at most 200 characters).
+    variant : str
+        ``"qI"`` or ``"full"``.
     """
-    import cvxpy as cp      # here, not at module level: the direct Clarabel routes never pay it
-
-    try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", UserWarning)
-            problem.solve(solver=solver, **settings)
-    except cp.error.SolverError as exc:
-        return f"solver_error ({' '.join(str(exc).split())[:200]})"
-    return str(problem.status)
-
-
-def _matrix(value: Any, name: str) -> np.ndarray:
-    try:
-        arr = np.atleast_2d(np.asarray(value, dtype=float))
-    except (TypeError, ValueError):
-        raise DimensionError(f"{name} must be a real 2-D array") from None
-    if arr.ndim != 2:
-        raise DimensionError(f"{name} must be 2-D, got {arr.ndim} dimensions")
-    if not np.all(np.isfinite(arr)):
-        raise DimensionError(f"{name} has non-finite entries")
-    return arr
-
-
-def _sym(M: np.ndarray) -> np.ndarray:
-    return 0.5 * (M + M.T)
-
-
-def _check_variant(variant: str) -> None:
     if variant not in VARIANTS:
         raise SpecError(f"unknown LMI variant {variant!r}; expected one of {list(VARIANTS)}",
                         key="variant")
 
 
-def _check_solver(solver: str) -> None:
-    if solver not in SOLVERS:
-        raise SpecError(f"unknown solver {solver!r}; expected one of {list(SOLVERS)}", key="solver")
+def checked_structure(n: int, q: int, blocks: Sequence[Sequence[int]] | None,
+                      pattern: Any) -> tuple[list[list[int]] | None, np.ndarray | None]:
+    """The block partition of ``P`` and the gain pattern of ``L``, checked together.
 
+    Parameters
+    ----------
+    n : int
+        Number of states.
+    q : int
+        Number of outputs.
+    blocks : sequence of sequence of int, optional
+        A partition of the state indices ``0 .. n-1``: ``P`` (and ``Q``) block-diagonal.
+    pattern : array_like of 0/1, shape (n, q), optional
+        Allowed non-zero entries of ``L`` (dimensionless); needs ``blocks``, with the same
+        allowed outputs for every state of a block (``L = P^-1 K`` mixes a block's rows).
 
-def _structure(n: int, q: int, blocks: Sequence[Sequence[int]] | None,
-               pattern: Any) -> tuple[list[list[int]] | None, np.ndarray | None]:
+    Returns
+    -------
+    blocks : list of list of int or None
+        Each block sorted.
+    mask : ndarray of bool, shape (n, q), or None
+        The pattern.
+
+    Raises
+    ------
+    DimensionError
+        Not a partition, a pattern of another shape or not 0/1, a pattern without blocks, or
+        rows of a block with different patterns.
+    """
     if blocks is not None:
         blocks = [sorted(int(i) for i in b) for b in blocks]
         flat = sorted(i for b in blocks for i in b)
@@ -145,7 +127,7 @@ def _sparse_parameter(pattern: np.ndarray, name: str) -> tuple[Any, Callable[[np
     potentially non-zero; over the pattern the LMI keeps the network's
     sparsity, which Clarabel's chordal decomposition exploits.
     """
-    import cvxpy as cp
+    import cvxpy as cp      # here: cvxpy's import costs seconds and the Clarabel routes never need it
 
     shape = pattern.shape
     idx = np.flatnonzero(pattern.ravel(order="F"))
@@ -177,7 +159,7 @@ def _symmetric(n: int, blocks: list[list[int]] | None, name: str) -> tuple[Any, 
     whose compile time grows with the number of blocks); ``>= I`` is imposed
     per block, as a linear bound for 1x1 blocks.
     """
-    import cvxpy as cp
+    import cvxpy as cp      # here: cvxpy's import costs seconds and the Clarabel routes never need it
 
     if blocks is None:
         V = cp.Variable((n, n), symmetric=True, name=name)
@@ -214,13 +196,25 @@ def _symmetric(n: int, blocks: list[list[int]] | None, name: str) -> tuple[Any, 
     return M, cons, cp.sum(v[np.array(diag)])
 
 
-def _output_split(Cs: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def output_split(Cs: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Orthonormal bases of the row space ``V1`` and null space ``V2`` of ``Cs``.
 
     Also ``W = pinv(Cs V1)``, so that ``G V1' = (G W) Cs`` for any ``G``. When
     every output measures one state (``C`` a row selection), ``V1`` and ``V2``
     are columns of the identity (the eliminated LMI keeps the sparsity);
     otherwise they come from the SVD of ``Cs``.
+
+    Parameters
+    ----------
+    Cs : ndarray, shape (q, n)
+        Output matrix with normalised rows (dimensionless).
+
+    Returns
+    -------
+    V1 : ndarray, shape (n, r)
+    V2 : ndarray, shape (n, n - r)
+    W : ndarray, shape (r, q)
+        ``pinv(Cs V1)``.
     """
     with small_dense():
         return _split(Cs)
@@ -304,13 +298,13 @@ class ObserverLMIProblem:
                  blocks: Sequence[Sequence[int]] | None = None, pattern: Any = None,
                  solver: str = "CLARABEL", *, A0_pattern: Any = None, form: str = "auto",
                  margin: float = 1e-6, solver_options: dict | None = None):
-        import cvxpy as cp      # only the cvxpy route builds this class (see lmi_conic)
+        import cvxpy as cp      # here: only the cvxpy route builds this class (conic_form does not)
 
-        _check_variant(variant)
-        _check_solver(solver)
+        check_variant(variant)
+        check_solver(solver)
         if form not in FORMS:
             raise SpecError(f"unknown LMI form {form!r}; expected one of {list(FORMS)}", key="form")
-        C = _matrix(C, "C")
+        C = real_matrix(C, "C")
         if C.shape[1] != n:
             raise DimensionError(f"C has {C.shape[1]} columns, expected n = {n}")
         if not (np.isfinite(kappa) and kappa > 1):
@@ -324,7 +318,7 @@ class ObserverLMIProblem:
         self.output_scale = 1.0 / row
         Cs = C * self.output_scale[:, None]
         self.Cs = Cs
-        self.blocks, self.mask = _structure(n, q, blocks, pattern)
+        self.blocks, self.mask = checked_structure(n, q, blocks, pattern)
         if A0_pattern is None:
             self.A0_pattern = np.ones((n, n), dtype=bool)
         else:
@@ -346,7 +340,7 @@ class ObserverLMIProblem:
         I = np.eye(n)
         # With C of full column rank the eliminated LMI does not contain P (it is Q >= t I):
         # any P >= I with trace P <= kappa n will do, P = I, and no n x n cone is built for it.
-        self.fixed_P = form == "eliminated" and _output_split(Cs)[1].shape[1] == 0
+        self.fixed_P = form == "eliminated" and output_split(Cs)[1].shape[1] == 0
         if self.fixed_P:
             P, p_cons, p_trace = None, [], None
         else:
@@ -375,7 +369,7 @@ class ObserverLMIProblem:
             M = cp.bmat([[X, P], [P, -Q]])
             lmi = [0.5 * (M + M.T) << -self.t * np.eye(2 * n)]
         else:
-            self.V1, self.V2, self._W = _output_split(Cs)
+            self.V1, self.V2, self._W = output_split(Cs)
             V2 = self.V2
             self.Kv = self.K = None
             # The A0 Parameter enters as Y = A0 V2 only (pattern of A0_pattern V2).
@@ -423,8 +417,6 @@ class ObserverLMIProblem:
         if self.solver == "CLARABEL":
             stale = self._options_used - set(opts)
             if stale:
-                import clarabel
-
                 defaults = clarabel.DefaultSettings()
                 opts.update({k: getattr(defaults, k) for k in stale})
         self._options_used |= set(opts)
@@ -458,7 +450,7 @@ class ObserverLMIProblem:
             ``P``, ``Q`` in the eliminated LMI) and ``t_K`` (margin the
             gain was built for).
         """
-        A0 = _matrix(A0, "A0")
+        A0 = real_matrix(A0, "A0")
         if A0.shape != (self.n, self.n):
             raise DimensionError(f"A0 has shape {A0.shape}, expected ({self.n}, {self.n})")
         outside = (A0 != 0) & ~self.A0_pattern
@@ -473,7 +465,7 @@ class ObserverLMIProblem:
         As, t2 = A0 / w, (psi / w) ** 2
         self._set_A0(As)
         self.t2.value = t2
-        import cvxpy as cp
+        import cvxpy as cp      # here: only the cvxpy route solves with this class (issue 15)
 
         opts = self._options(solver_options)
         start = time.perf_counter()
@@ -487,13 +479,13 @@ class ObserverLMIProblem:
             return {"status": f"solver_error: {exc}", "t": -np.inf, "omega": w,
                     "solve_time": time.perf_counter() - start}
         out: dict = {"status": status, "omega": w}
-        if status not in _ACCEPTED or self.t.value is None:
+        if status not in ACCEPTED or self.t.value is None:
             out["t"] = -np.inf
             out["solve_time"] = time.perf_counter() - start
             return out
-        P = np.eye(self.n) if self.P is None else _sym(np.asarray(self.P.value, dtype=float))
+        P = np.eye(self.n) if self.P is None else symmetrized(np.asarray(self.P.value, dtype=float))
         Qs = np.asarray(self.Q.value, dtype=float)
-        Qs = _sym(np.atleast_2d(Qs)) if Qs.ndim == 2 else float(Qs) * np.eye(self.n)
+        Qs = symmetrized(np.atleast_2d(Qs)) if Qs.ndim == 2 else float(Qs) * np.eye(self.n)
         if self.form == "full":
             Ks = np.asarray(self.K.value, dtype=float).reshape(self.n, self.q)
         else:
@@ -556,7 +548,7 @@ class ObserverLMIProblem:
         """
         V1, V2 = self.V1, self.V2
         X0 = As.T @ P + P @ As + t2 * Qs
-        S0 = _sym(np.block([[V2.T @ X0 @ V2, V2.T @ P], [P @ V2, -Qs]]))
+        S0 = symmetrized(np.block([[V2.T @ X0 @ V2, V2.T @ P], [P @ V2, -Qs]]))
         t_P = float(-np.max(np.linalg.eigvalsh(S0)))
         if t_P > margin:
             t_K = min(1.0, t_P - 0.1 * (t_P - margin))
@@ -567,7 +559,7 @@ class ObserverLMIProblem:
             PQP = P @ sla.cho_solve(sla.cho_factor(Qt), P)
         except np.linalg.LinAlgError:
             PQP = P @ np.linalg.lstsq(Qt, P, rcond=None)[0]
-        Y = _sym(X0 + PQP)
+        Y = symmetrized(X0 + PQP)
         YV1 = Y @ V1
         G = V2 @ (V2.T @ YV1) + 0.5 * V1 @ (V1.T @ YV1) + t_K * V1
         return G @ self._W, t_P, t_K

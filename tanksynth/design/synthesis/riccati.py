@@ -22,43 +22,25 @@ H-infinity
     hinf_below`), so the upper end of the bracket is always certified by a gain.
 
 Every function works on the (unscaled) `GeneralizedPlant`; scipy's ARE
-solvers balance the problem themselves. `single_threaded_blas` limits the BLAS
-to one thread (threadpoolctl, when installed): the matrices are small (a few
+solvers balance the problem themselves. The callers run them with the BLAS limited
+to one thread (`tanksynth.analysis.blas.small_dense`): the matrices are small (a few
 hundred rows), and on a loaded machine OpenBLAS's thread pool made the N = 64
 bisection 20 to 40 times slower (48 s against 1.2 s measured).
 """
 
 from __future__ import annotations
 
-import contextlib
 from dataclasses import dataclass
-from typing import Any
-
 import numpy as np
 import scipy.linalg as sla
 
 from tanksynth.analysis.statespace import hinf_below, hinf_norm
 from tanksynth.design.synthesis.lmis import GeneralizedPlant
 
-__all__ = ["RiccatiSolution", "riccati_applicable", "riccati_h2", "riccati_hinf", "BISECTION_RTOL",
-           "single_threaded_blas"]
+__all__ = ["RiccatiSolution", "riccati_applicable", "riccati_h2", "riccati_hinf", "BISECTION_RTOL"]
 
 #: Relative width of the final gamma bracket of the H-infinity bisection.
 BISECTION_RTOL = 1e-8
-
-
-def single_threaded_blas() -> Any:
-    """Context manager limiting BLAS to one thread (a no-op without threadpoolctl).
-
-    Returns
-    -------
-    contextlib.AbstractContextManager
-    """
-    try:
-        from threadpoolctl import threadpool_limits
-    except ImportError:  # pragma: no cover - optional
-        return contextlib.nullcontext()
-    return threadpool_limits(limits=1, user_api="blas")
 
 
 @dataclass(frozen=True, eq=False)

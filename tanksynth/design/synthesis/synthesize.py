@@ -46,14 +46,14 @@ from typing import Any, Sequence
 import numpy as np
 import scipy.linalg as sla
 
+from tanksynth.analysis.blas import small_dense
 from tanksynth.analysis.lmi_region import LMIRegion
 from tanksynth.analysis.statespace import h2_norm, hinf_below, hinf_norm, statespace_matrices
-from tanksynth.design.observer_lmi.lmi import LMICheck
 from tanksynth.design.conic import modelling
+from tanksynth.design.lmi_checks import SOLVERS, LMICheck, check_solver
 from tanksynth.design.synthesis.lmis import (DOMAINS, GeneralizedPlant, generalized_plant, h2_lmis,
                                             hinf_lmis, hinf_lmis_reduced, observer_plant, region_lmi)
-from tanksynth.design.synthesis.riccati import (riccati_applicable, riccati_h2, riccati_hinf,
-                                                single_threaded_blas)
+from tanksynth.design.synthesis.riccati import riccati_applicable, riccati_h2, riccati_hinf
 from tanksynth.errors import DimensionError, InfeasibleDesign, SpecError
 
 __all__ = [
@@ -66,8 +66,6 @@ __all__ = [
 
 #: What `synthesize_state_feedback` minimises (``"none"``: feasibility, well-conditioned point).
 OBJECTIVES = ("h2", "hinf", "none")
-#: Conic solvers (cvxpy names).
-SOLVERS = ("CLARABEL", "SCS")
 #: How a pure H2 / H-infinity design is solved: ``"auto"`` (Riccati when it applies, else LMI),
 #: ``"riccati"`` (required; refused when it does not apply) or ``"lmi"``.
 ROUTES = ("auto", "riccati", "lmi")
@@ -309,15 +307,14 @@ def synthesize_state_feedback(plants: GeneralizedPlant | Sequence[GeneralizedPla
         raise SpecError(f"margin must be in (0, 0.01), got {margin!r}", key="margin")
     if not (np.isfinite(backoff) and backoff >= 0):
         raise SpecError(f"backoff must be >= 0, got {backoff!r}", key="backoff")
-    if solver not in SOLVERS:
-        raise SpecError(f"unknown solver {solver!r}; expected one of {list(SOLVERS)}", key="solver")
+    check_solver(solver)
     if route not in ROUTES:
         raise SpecError(f"route must be one of {ROUTES}, got {route!r}", key="route")
     if route != "lmi":
         why = _riccati_refusal(models, objective, h2_bound, hinf_bound, region)
         if why is None:
             try:
-                with single_threaded_blas():
+                with small_dense():
                     return _riccati_design(models[0], objective, backoff, dual)
             except np.linalg.LinAlgError as exc:
                 why = f"scipy's Riccati solver failed ({exc})"

@@ -31,6 +31,8 @@ from typing import Any, Sequence
 
 import numpy as np
 
+from tanksynth.design.bisection import bisect_feasible
+from tanksynth.design.conic import modelling
 from tanksynth.errors import DimensionError, InfeasibleDesign, SpecError
 
 __all__ = ["RELAXATIONS", "condition_weights", "PDCResult", "pdc_lmi", "relaxed_conditions",
@@ -222,8 +224,6 @@ def pdc_lmi(A: Any, B: Any, *, alpha: float = 0.0, relaxation: str = "tuan",
     InfeasibleDesign
         Solver failure, or the re-check fails.
     """
-    from tanksynth.design.conic import modelling
-
     A = np.asarray(A, dtype=float)
     B = np.atleast_2d(np.asarray(B, dtype=float))
     if A.ndim != 3 or A.shape[1] != A.shape[2] or B.shape[0] != A.shape[1]:
@@ -338,8 +338,6 @@ def max_decay_rate(A: Any, B: Any, relaxation: str, *, start: float | None = Non
         The largest feasible ``alpha`` found (0.0 if only 0 is, -1.0 if none)
         and the trials ``(alpha, feasible)``.
     """
-    from tanksynth.design.observer_lmi.lmi import bisect_feasible
-
     def feasible(a: float) -> bool:
         try:
             pdc_lmi(A, B, alpha=a, relaxation=relaxation, **kwargs)

@@ -13,6 +13,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
+from tanksynth.design.conic import modelling
 from tanksynth.errors import InfeasibleDesign
 
 __all__ = ["Region", "certified_region", "coupling_weight", "lyapunov_decay", "observer_decay_lmi",
@@ -186,8 +187,6 @@ def observer_decay_lmi(A0: Any, C: Any, psi: float, alpha: float, *, margin: flo
     InfeasibleDesign
         Infeasible, or the re-check fails.
     """
-    from tanksynth.design.conic import modelling
-
     A0 = np.asarray(A0, dtype=float)
     C = np.atleast_2d(np.asarray(C, dtype=float))
     n, q = A0.shape[0], C.shape[0]
@@ -222,7 +221,7 @@ def observer_decay_lmi(A0: Any, C: Any, psi: float, alpha: float, *, margin: flo
 
 def _contained(P1: np.ndarray, level1: float, P2: np.ndarray, c2: float, d: np.ndarray) -> bool:
     """S-lemma: ``{z' P1 z <= level1}`` inside ``{(z - d)' P2 (z - d) <= c2}``."""
-    from scipy.optimize import minimize_scalar
+    from scipy.optimize import minimize_scalar  # deferred: scipy.optimize imports in ~0.3 s
 
     Lc = np.linalg.cholesky(0.5 * (P1 + P1.T))
     Li = np.linalg.inv(Lc)
