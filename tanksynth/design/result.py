@@ -8,11 +8,13 @@ from typing import Any, Callable, Mapping, TypeVar
 import numpy as np
 
 from tanksynth.errors import SpecError
+from tanksynth.spec import DesignSpec, Spec
 from tanksynth.spec.method_options.base import MethodOptions
 
-__all__ = ["DesignResult", "DesignMethod", "options_of", "rekeyed"]
+__all__ = ["DesignResult", "DesignMethod", "options_of", "rekeyed", "keyed_call"]
 
 T = TypeVar("T", bound=MethodOptions)
+R = TypeVar("R")
 
 
 @dataclass(frozen=True)
@@ -142,3 +144,40 @@ def rekeyed(design: Any, exc: SpecError, option: str | None = None,
     if option is None and exc.key and exc.key.startswith(design.key):
         return exc
     return SpecError(exc.detail, key=f"{design.key}.{option or exc.key or fallback}")
+
+
+def keyed_call(design: DesignSpec, build: Callable[..., R], renames: Mapping[str, str], /,
+               **kwargs: Any) -> R:
+    """``build(**kwargs)`` (a tuning class, a design step), its `SpecError` keyed to the spec option.
+
+    A runtime tuning or a design algorithm names the argument it refuses (``key="a"``); the
+    user wrote a spec option (``abc``): the error is re-raised as ``design[i].<option>``.
+
+    Parameters
+    ----------
+    design : DesignSpec
+        The ``[[design]]`` entry the call is for.
+    build : callable
+        What to call.
+    renames : mapping of str to str
+        Argument name -> spec option, where they differ (other keys are kept as they are).
+    **kwargs
+        The arguments of ``build``.
+
+    Returns
+    -------
+    object
+        What ``build`` returns.
+
+    Raises
+    ------
+    SpecError
+        ``build``'s, keyed ``design[i].<option>`` (unchanged when it already names a key of a
+        ``[[design]]`` entry, or none).
+    """
+    try:
+        return build(**kwargs)
+    except SpecError as exc:
+        if exc.key and not exc.key.startswith("design["):
+            raise rekeyed(design, exc, renames.get(exc.key, exc.key)) from None
+        raise

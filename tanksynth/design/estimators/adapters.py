@@ -1,4 +1,4 @@
-"""Spec design methods for the estimators and fault detection.
+"""Spec design methods of the ``estimators`` family: state estimators and observers.
 
 ===========================  =========================================================
 ``kalman``                   CKF on the ZOH linearisation at the operating point (seed
@@ -12,7 +12,6 @@
 ``consensus_filter``         information-form consensus filter (seed 004 eq. 42-51)
 ``narx``                     NARX estimator trained on EKF data (seed 002 section 3.3)
 ``luenberger``               Luenberger observer from a gain ``L`` or poles
-``fault_detection``          residual threshold and detection times (seed 004 II-F)
 ===========================  =========================================================
 
 Covariance options accept a number (``s I``), a list (diagonal) or a list
@@ -28,10 +27,8 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
-import sympy as sp
 
 from tanksynth.analysis.linearize import equilibrium_input, linearize
-from tanksynth.design.fault.threshold import detection_time, fault_threshold
 from tanksynth.design.estimators.narx_training import train_narx
 from tanksynth.design.result import DesignMethod, DesignResult, options_of, rekeyed
 from tanksynth.errors import SpecError, UnobservableError
@@ -44,13 +41,12 @@ from tanksynth.runtime.estimators.kalman import (ExtendedKalmanFilter, KalmanFil
 from tanksynth.runtime.estimators.luenberger import LuenbergerObserver, LuenbergerTuning
 from tanksynth.runtime.estimators.ukf import UKFTuning, UnscentedKalmanFilter
 from tanksynth.spec.method_options import (AdaptiveKalmanOptions, AdaptiveScalingKalmanOptions,
-                                           ConsensusFilterOptions, EkfOptions,
-                                           FaultDetectionOptions, KalmanOptions, LuenbergerOptions,
-                                           NarxOptions, UkfOptions)
+                                           ConsensusFilterOptions, EkfOptions, KalmanOptions,
+                                           LuenbergerOptions, NarxOptions, UkfOptions)
 
 __all__ = [
     "run_kalman", "run_ekf", "run_ukf", "run_adaptive_kalman", "run_adaptive_scaling_kalman",
-    "run_consensus_filter", "run_narx", "run_luenberger", "run_fault_detection", "plausibility",
+    "run_consensus_filter", "run_narx", "run_luenberger", "plausibility",
 ]
 
 #: Option named in a `SpecError` a tuning or design step raises, by the key it uses.
@@ -377,58 +373,6 @@ def run_luenberger(spec: Any, design: Any) -> DesignResult:
     return DesignResult(design.name, "luenberger", plant.name, tuning.gains(), diag)
 
 
-def run_fault_detection(spec: Any, design: Any) -> DesignResult:
-    """Observer gain, residual threshold and detection times (seed 004 section II-F).
-
-    The threshold bounds the output residual of the healthy plant for every
-    initial level in ``(lower, upper]`` (`tanksynth.design.fault.threshold.fault_threshold`);
-    the detection times of the declared fault ``delta_bar`` from ``t_fault``
-    are computed for each of ``initial_states`` (default: the operating
-    point) under ``input`` (default: the equilibrium input, held) and stored
-    in the diagnostics. Options:
-    `tanksynth.spec.method_options.FaultDetectionOptions`.
-
-    Gains: ``Psi`` (observer gain), ``Gamma_d`` (``A - Psi C``, 1/s) and the
-    threshold's ``threshold_coefficients`` (output units) and
-    ``threshold_rates`` (1/s).
-
-    Parameters
-    ----------
-    spec : Spec
-        The validated spec (plant, operating point, sampling).
-    design : DesignSpec
-        This ``[[design]]`` entry (method and options).
-    """
-    o = options_of(design, spec, FaultDetectionOptions)
-    poles = [p.real if p.imag == 0 else p for p in o.poles]
-    plant = spec.plant
-    healthy = plant.with_parameters({"delta_bar": 0.0}) if "delta_bar" in plant.p else plant
-    th = _tuning(design, fault_threshold, plant=healthy, poles=poles, bounds=tuple(o.bounds))
-    gains = {"Psi": np.array(th.Psi.evalf(17), dtype=float),
-             "Gamma_d": np.array(th.Gamma_d.evalf(17), dtype=float),
-             "threshold_coefficients": np.array([float(c) for c, _ in th.terms]),
-             "threshold_rates": np.array([float(sp.re(lam)) for _, lam in th.terms])}
-    starts = [np.array(spec.x0, dtype=float)] if o.initial_states is None else \
-        [np.array(x, dtype=float) for x in o.initial_states]
-    pieces = [[float(v) for v in p] for p in o.input] if o.input is not None else \
-        [[0.0, *equilibrium_input(healthy, spec.x0, spec.given_u0).u0.tolist()]]
-    detections = [_tuning(design, detection_time, th=th, x0=x, delta_bar=o.delta_bar,
-                          t_fault=o.t_fault, conservative=o.conservative, plant=healthy,
-                          input_schedule=[(p[0], p[1:]) for p in pieces]) for x in starts]
-    diag = {"threshold": th.as_dict(), "delta_bar": o.delta_bar, "t_fault": o.t_fault,
-            "conservative": o.conservative, "input": pieces,
-            "initial_states": [x.tolist() for x in starts],
-            "detection_times": [r.t_detect for r in detections],
-            "detections": [{"x0": r.x0.tolist(), "t_detect": r.t_detect,
-                            "false_alarm_before_fault": r.false_alarm} for r in detections],
-            "notes": ["delta_bar is declared in the spec (fault size)",
-                      "detection_times[i] is None when the fault is not detected within 3 s of "
-                      "its onset from initial_states[i] under the input pieces [t_start, u...]"]}
-    latex = {"threshold": sp.latex(th.expression),
-             "threshold_conservative": sp.latex(th.conservative)}
-    return DesignResult(design.name, "fault_detection", plant.name, gains, diag, latex)
-
-
 # ------------------------------------------------------------------ design methods
 KALMAN = DesignMethod("kalman", run_kalman, KalmanOptions)
 EKF = DesignMethod("ekf", run_ekf, EkfOptions)
@@ -439,4 +383,3 @@ ADAPTIVE_SCALING_KALMAN = DesignMethod("adaptive_scaling_kalman", run_adaptive_s
 CONSENSUS_FILTER = DesignMethod("consensus_filter", run_consensus_filter, ConsensusFilterOptions)
 NARX = DesignMethod("narx", run_narx, NarxOptions)
 LUENBERGER = DesignMethod("luenberger", run_luenberger, LuenbergerOptions)
-FAULT_DETECTION = DesignMethod("fault_detection", run_fault_detection, FaultDetectionOptions)
