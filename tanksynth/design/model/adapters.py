@@ -6,17 +6,16 @@ import numpy as np
 import sympy as sp
 
 from tanksynth.analysis.linearize import equilibrium_input, linearize, symbolic_jacobians
+from tanksynth.analysis.rank import controllability_rank, observability_rank, pbh_test
+from tanksynth.design.matrices import complex_pairs
 from tanksynth.design.result import DesignMethod, DesignResult, options_of
+from tanksynth.spec import DesignSpec, Spec
 from tanksynth.spec.method_options import LinearizeOptions
 
-__all__ = ["run_linearize"]
+__all__ = ["run_linearize", "LINEARIZE"]
 
 
-def _complex_list(values: np.ndarray) -> list[list[float]]:
-    return [[float(v.real), float(v.imag)] for v in np.sort_complex(np.asarray(values, dtype=complex))]
-
-
-def run_linearize(spec, design) -> DesignResult:
+def run_linearize(spec: Spec, design: DesignSpec) -> DesignResult:
     """Linearise at the operating point and discretise with ZOH.
 
     Gains: ``F``, ``B`` (continuous), ``Ad``, ``Bd`` (exact ZOH, period
@@ -31,11 +30,6 @@ def run_linearize(spec, design) -> DesignResult:
     design : DesignSpec
         This ``[[design]]`` entry (method and options).
     """
-    # Imported here: tanksynth.analysis.rank imports tanksynth.analysis.symbolic, whose
-    # package __init__ imports this module (a top-level import would be circular
-    # when tanksynth.analysis.rank is imported first).
-    from tanksynth.analysis.rank import controllability_rank, observability_rank, pbh_test
-
     options_of(design, spec, LinearizeOptions)  # no option; refuses a spec without ts
     plant = spec.plant
     eq = equilibrium_input(plant, spec.x0, spec.given_u0)
@@ -56,8 +50,8 @@ def run_linearize(spec, design) -> DesignResult:
     smooth_here = not plant.region.violations(spec.x0, plant.x)
     diagnostics = {
         "equilibrium": eq.as_dict(),
-        "eigenvalues_F": _complex_list(lin.eigenvalues),
-        "eigenvalues_Ad": _complex_list(np.linalg.eigvals(lin.Ad)),
+        "eigenvalues_F": complex_pairs(lin.eigenvalues),
+        "eigenvalues_Ad": complex_pairs(np.linalg.eigvals(lin.Ad)),
         "ts": spec.ts,
         "rank": ranks,
         "smooth_form_valid": smooth_here,

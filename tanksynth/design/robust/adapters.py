@@ -21,28 +21,29 @@ the diagnostics predict per vertex (``offsets``).
 from __future__ import annotations
 
 import warnings
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
+import sympy as sp
 
 from tanksynth.analysis.linearize import equilibrium_input
 from tanksynth.analysis.lmi_region import region_from_parts
 from tanksynth.analysis.rank import controllability_rank, observability_rank
 from tanksynth.analysis.statespace import model_names
 from tanksynth.design.result import DesignMethod, DesignResult, options_of, rekeyed
+from tanksynth.design.robust.polytopic import (HinfBound, SaturationBound, ellipsoid_axes,
+                                               robust_observer, robust_state_feedback)
 from tanksynth.design.robust.vertices import VertexModels, augment_integral, polytope_check, vertex_models
 from tanksynth.errors import (DesignWarning, InfeasibleDesign, SpecError, UncontrollableError,
                               UnobservableError)
+from tanksynth.spec import DesignSpec, Spec
 from tanksynth.spec.method_options.robust import RobustObserverOptions, RobustStateFeedbackOptions
-
-if TYPE_CHECKING:  # pragma: no cover - typing only
-    from tanksynth.spec import DesignSpec, Spec
 
 __all__ = ["run_robust_state_feedback", "run_robust_observer", "ROBUST_STATE_FEEDBACK",
            "ROBUST_OBSERVER"]
 
 
-def _models(spec: "Spec", design: "DesignSpec", o: Any, Bw: Any) -> tuple[VertexModels, VertexModels,
+def _models(spec: Spec, design: DesignSpec, o: Any, Bw: Any) -> tuple[VertexModels, VertexModels,
                                                                           np.ndarray]:
     """Vertex models, the nominal model and the nominal equilibrium input."""
     plant = spec.plant
@@ -62,7 +63,7 @@ def _stack(vm: VertexModels, nom: VertexModels, name: str) -> np.ndarray:
     return np.concatenate([mats, getattr(nom, name)]) if vm.names else mats
 
 
-def _common_diagnostics(spec: "Spec", o: Any, vm: VertexModels, nom: VertexModels, u0: np.ndarray,
+def _common_diagnostics(spec: Spec, o: Any, vm: VertexModels, nom: VertexModels, u0: np.ndarray,
                         res: Any) -> dict[str, Any]:
     plant = spec.plant
     poly = polytope_check(plant, spec.x0, o.uncertain, vm, samples=16, seed=o.seed)
@@ -105,7 +106,7 @@ def _warn_if_stiff(A: np.ndarray, B: np.ndarray, K: np.ndarray, domain: str, ts:
                       "region from the fast side too (a disk or a sector)", DesignWarning, stacklevel=2)
 
 
-def _channel(design: "DesignSpec", o: Any, Cz: np.ndarray, Dzu: np.ndarray | None,
+def _channel(design: DesignSpec, o: Any, Cz: np.ndarray, Dzu: np.ndarray | None,
               observer: bool) -> dict:
     """The H-infinity channel w -> z: which of ``Bw``, ``Cz``, ``Dzu`` the spec gave (the others
     are the defaults the report's problem statement names) and the matrices used."""
@@ -120,8 +121,6 @@ def _channel(design: "DesignSpec", o: Any, Cz: np.ndarray, Dzu: np.ndarray | Non
 
 def _region_halfspaces(plant: Any, x0: Any) -> tuple[np.ndarray, np.ndarray, list[str]]:
     """Half-spaces ``c' (x - x0) <= b`` of the operating region: its bounds and its orderings."""
-    import sympy as sp
-
     x0 = np.asarray(x0, dtype=float)
     n = plant.n
     rows, limits, words = [], [], []
@@ -159,7 +158,7 @@ def _offsets(A: np.ndarray, B: np.ndarray, K: np.ndarray, du: np.ndarray, domain
 
 
 # ----------------------------------------------------------- robust_state_feedback
-def run_robust_state_feedback(spec: "Spec", design: "DesignSpec") -> DesignResult:
+def run_robust_state_feedback(spec: Spec, design: DesignSpec) -> DesignResult:
     """One state feedback meeting an LMI region at every vertex of the parameter box.
 
     Gains: ``K`` (``u = u_op - K (x - x_op)``; with integral action ``K1``,
@@ -189,9 +188,6 @@ def run_robust_state_feedback(spec: "Spec", design: "DesignSpec") -> DesignResul
         No gain meets the request at every vertex (with the largest
         achievable margin as the certificate), or the re-check fails.
     """
-    from tanksynth.design.robust.polytopic import (HinfBound, SaturationBound, ellipsoid_axes,
-                                         robust_state_feedback)
-
     o = options_of(design, spec, RobustStateFeedbackOptions)
     plant = spec.plant
     n, m = plant.n, plant.m
@@ -287,7 +283,7 @@ def run_robust_state_feedback(spec: "Spec", design: "DesignSpec") -> DesignResul
 
 
 # --------------------------------------------------------------- robust_observer
-def run_robust_observer(spec: "Spec", design: "DesignSpec") -> DesignResult:
+def run_robust_observer(spec: Spec, design: DesignSpec) -> DesignResult:
     """One observer gain meeting an LMI region at every vertex of the parameter box.
 
     Gains: ``L`` (``x_hat' = ... + L (y - C x_hat)``), ``P`` (common
@@ -311,8 +307,6 @@ def run_robust_observer(spec: "Spec", design: "DesignSpec") -> DesignResult:
     InfeasibleDesign
         No gain meets the request at every vertex, or the re-check fails.
     """
-    from tanksynth.design.robust.polytopic import HinfBound, robust_observer
-
     o = options_of(design, spec, RobustObserverOptions)
     plant = spec.plant
     n = plant.n

@@ -41,14 +41,12 @@ import numpy as np
 import scipy.linalg as sla
 
 from tanksynth.analysis.lmi_region import LMIRegion
+from tanksynth.analysis.statespace import hinf_norm
 from tanksynth.design.conic import modelling
 from tanksynth.errors import DimensionError, InfeasibleDesign, SpecError
 
 __all__ = ["HinfBound", "SaturationBound", "RobustResult", "robust_state_feedback",
            "robust_observer", "ellipsoid_axes"]
-
-
-# ================================================================ vertex models
 
 
 # ====================================================================== bounds
@@ -496,8 +494,6 @@ def _without_bound(A, B, region, domain, saturation, margin, kappa, solver, nomi
 def _vertex_hinf_norm(A: np.ndarray, B: np.ndarray, K: np.ndarray, hinf: Any, domain: str) -> float:
     """Largest H-infinity norm from w to z of the closed loops A_i - B_i K (Hamiltonian bisection;
     the bilinear transform for discrete loops), inf when one is unstable."""
-    from tanksynth.analysis.statespace import hinf_norm
-
     Bw = np.asarray(hinf.Bw, dtype=float)
     Cz = np.asarray(hinf.Cz, dtype=float)
     Dzu = np.asarray(hinf.Dzu, dtype=float)

@@ -28,7 +28,7 @@ Lyapunov variable ``X``.
 from __future__ import annotations
 
 import warnings
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 import scipy.linalg as sla
@@ -37,14 +37,13 @@ from tanksynth.analysis.linearize import discretize_zoh, equilibrium_input, line
 from tanksynth.analysis.lmi_region import region_from_parts
 from tanksynth.analysis.statespace import model_names
 from tanksynth.design.result import DesignMethod, DesignResult, options_of, rekeyed
+from tanksynth.design.synthesis.synthesize import (GeneralizedPlant, SynthesisResult,
+                                                   synthesize_observer, synthesize_state_feedback)
 from tanksynth.errors import DesignWarning, SpecError
+from tanksynth.spec import DesignSpec, Spec
 from tanksynth.spec.method_options import (H2ObserverOptions, H2StateFeedbackOptions,
                                            HinfObserverOptions, HinfStateFeedbackOptions,
                                            MultiobjectiveOptions)
-
-if TYPE_CHECKING:  # pragma: no cover - typing only
-    from tanksynth.design.synthesis.synthesize import GeneralizedPlant, SynthesisResult
-    from tanksynth.spec import DesignSpec, Spec
 
 __all__ = ["run_h2_state_feedback", "run_h2_observer", "run_hinf_state_feedback",
            "run_hinf_observer", "run_multiobjective", "H2_STATE_FEEDBACK", "H2_OBSERVER",
@@ -188,8 +187,6 @@ def _riccati_observer(A, C, Bw, Dv, Cz, domain) -> dict:
 
 def _state_feedback(spec, design, o, method: str, objective: str, **kw) -> DesignResult:
     m = _model(spec, o)
-    from tanksynth.design.synthesis.synthesize import GeneralizedPlant, synthesize_state_feedback  # cvxpy
-
     P = GeneralizedPlant(m["A"], m["B"], m["Bw"], o.Cz, o.Dzu, o.time_domain, m["dt"])
     try:
         res = synthesize_state_feedback(P, objective=objective, margin=o.margin, solver=o.solver,
@@ -208,8 +205,6 @@ def _state_feedback(spec, design, o, method: str, objective: str, **kw) -> Desig
 
 
 def _observer(spec, design, o, method: str, objective: str, **kw) -> DesignResult:
-    from tanksynth.design.synthesis.synthesize import synthesize_observer  # loads cvxpy on first use
-
     m = _model(spec, o)
     Dv = np.diag(np.asarray(o.measurement_std, float))
     Cz = np.asarray(o.Cz)
@@ -232,30 +227,30 @@ def _observer(spec, design, o, method: str, objective: str, **kw) -> DesignResul
     return DesignResult(design.name, method, spec.plant.name, gains, diag, {})
 
 
-def run_h2_state_feedback(spec: "Spec", design: "DesignSpec") -> DesignResult:
+def run_h2_state_feedback(spec: Spec, design: DesignSpec) -> DesignResult:
     """``u = -K x`` minimising the H2 norm from ``w`` to ``z`` (LMI; diagnostics: the LQR optimum)."""
     return _state_feedback(spec, design, options_of(design, spec, H2StateFeedbackOptions),
                            "h2_state_feedback", "h2")
 
 
-def run_h2_observer(spec: "Spec", design: "DesignSpec") -> DesignResult:
+def run_h2_observer(spec: Spec, design: DesignSpec) -> DesignResult:
     """Observer ``L`` minimising the H2 norm of the weighted error (diagnostics: the Kalman optimum)."""
     return _observer(spec, design, options_of(design, spec, H2ObserverOptions), "h2_observer", "h2")
 
 
-def run_hinf_state_feedback(spec: "Spec", design: "DesignSpec") -> DesignResult:
+def run_hinf_state_feedback(spec: Spec, design: DesignSpec) -> DesignResult:
     """``u = -K x`` minimising the H-infinity norm from ``w`` to ``z`` (bounded real lemma)."""
     o = options_of(design, spec, HinfStateFeedbackOptions)
     return _state_feedback(spec, design, o, "hinf_state_feedback", "hinf", backoff=o.backoff)
 
 
-def run_hinf_observer(spec: "Spec", design: "DesignSpec") -> DesignResult:
+def run_hinf_observer(spec: Spec, design: DesignSpec) -> DesignResult:
     """Observer ``L`` minimising the H-infinity norm from ``(w, v)`` to the weighted error."""
     o = options_of(design, spec, HinfObserverOptions)
     return _observer(spec, design, o, "hinf_observer", "hinf", backoff=o.backoff)
 
 
-def run_multiobjective(spec: "Spec", design: "DesignSpec") -> DesignResult:
+def run_multiobjective(spec: Spec, design: DesignSpec) -> DesignResult:
     """H2 / H-infinity objective and bounds with an LMI pole region, one common Lyapunov matrix."""
     o = options_of(design, spec, MultiobjectiveOptions)
     try:
