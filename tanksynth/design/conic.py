@@ -221,11 +221,15 @@ class Variable(Expression):
         self._model = model
         Expression.__init__(self, model, np.zeros(0))
 
+    #: The selection of the variable's entries, built once the model is frozen.
+    _data: np.ndarray | None = None
+
     @property
     def data(self) -> np.ndarray:   # built once the model is frozen
         model = self._model
         model.freeze()
-        if getattr(self, "_data", None) is None or self._data.shape[-1] != model.size + 1:
+        cached = self._data
+        if cached is None or cached.shape[-1] != model.size + 1:
             shape, symmetric = self._spec
             first, _ = self._range
             out = np.zeros(shape + (model.size + 1,))
@@ -240,8 +244,8 @@ class Variable(Expression):
             else:
                 idx = np.arange(int(np.prod(shape))).reshape(shape)
                 out.reshape(-1, model.size + 1)[np.arange(idx.size), first + idx.ravel()] = 1.0
-            self._data = out
-        return self._data
+            self._data = cached = out
+        return cached
 
     @data.setter
     def data(self, value: np.ndarray) -> None:

@@ -78,7 +78,7 @@ def reference_comparison(reference: np.ndarray, derived: np.ndarray,
     reference : ndarray
         The reference gain (units of the gain).
     derived : ndarray
-        The derived gain, same shape.
+        The derived gain, same shape (units of the gain).
     closed_loop_of : callable, optional
         ``closed_loop_of(G)``: the closed-loop matrix a gain gives on the derived model; with it
         the eigenvalues the reference gain gives are listed.
@@ -93,7 +93,8 @@ def reference_comparison(reference: np.ndarray, derived: np.ndarray,
     diff = derived - reference
     out = {"reference": reference.tolist(), "derived": derived.tolist(),
            "difference": diff.tolist(), "max_abs_difference": float(np.max(np.abs(diff))),
-           "relative_difference": float(np.linalg.norm(diff) / max(np.linalg.norm(reference), 1e-300))}
+           "relative_difference": float(np.linalg.norm(diff)
+                                        / max(float(np.linalg.norm(reference)), 1e-300))}
     if closed_loop_of is not None:
         eig = np.linalg.eigvals(closed_loop_of(reference))
         out["reference_closed_loop_eigenvalues"] = complex_pairs(eig)

@@ -8,6 +8,7 @@ from typing import Any, Callable, Mapping, TypeVar
 import numpy as np
 
 from tanksynth.errors import SpecError
+from tanksynth.plants.base import Plant
 from tanksynth.spec import DesignSpec, Spec
 from tanksynth.spec.method_options.base import MethodOptions
 
@@ -63,7 +64,7 @@ class DesignMethod:
     """
 
     name: str
-    run: Callable[..., DesignResult]
+    run: Callable[[Spec, DesignSpec], DesignResult]
     options: type[MethodOptions]
 
     def __post_init__(self) -> None:
@@ -71,7 +72,7 @@ class DesignMethod:
             raise TypeError(f"design method {self.name!r} has the options of "
                             f"{self.options.method_name!r}")
 
-    def validate(self, options: Mapping[str, Any], key: str, plant: Any,
+    def validate(self, options: Mapping[str, Any], key: str, plant: Plant,
                  ts: float | None) -> MethodOptions:
         """Validate a ``[[design]]`` table's options: `MethodOptions.from_table` of `options`.
 
@@ -94,7 +95,7 @@ class DesignMethod:
         return self.options.validated(options, key, plant, ts)
 
 
-def options_of(design: Any, spec: Any, cls: type[T]) -> T:
+def options_of(design: DesignSpec, spec: Spec, cls: type[T]) -> T:
     """The validated options of a ``[[design]]`` entry (``design.config``).
 
     A `DesignSpec` parsed without the method table has no ``config``, and
@@ -118,10 +119,13 @@ def options_of(design: Any, spec: Any, cls: type[T]) -> T:
     config = getattr(design, "config", None)
     if isinstance(config, cls) and config.read_from(design.options):
         return config
-    return cls.validated(design.options, design.key, spec.plant, spec.ts)
+    options = cls.validated(design.options, design.key, spec.plant, spec.ts)
+    if not isinstance(options, cls):    # `validated` builds the class it is called on
+        raise TypeError(f"{cls.__name__}.validated returned a {type(options).__name__}")
+    return options
 
 
-def rekeyed(design: Any, exc: SpecError, option: str | None = None,
+def rekeyed(design: DesignSpec, exc: SpecError, option: str | None = None,
             fallback: str = "options") -> SpecError:
     """A `SpecError` a design step raised, keyed to the spec option it is about.
 

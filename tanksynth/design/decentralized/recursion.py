@@ -173,7 +173,7 @@ class GainPattern:
         ``(n, o)``.
     rr, cc : tuple of ndarray
         ``numpy.ix_`` of the free entries' rows (columns) with themselves: the principal
-        submatrices of the gain equation.
+        submatrices of the gain equation (indices, dimensionless).
     """
 
     def __init__(self, mask: np.ndarray):
@@ -511,7 +511,7 @@ class _Kernels:
         route returns is symmetrised once, at the end (`_symmetrised`).
         """
         mode, sel, scale, _ = ("dense", None, None, None) if k is None else self.step[k]
-        if mode == "diag":
+        if mode == "diag" and k is not None:      # "diag" is a step's mode: k is given
             d, kr = self._diag(k, K)
             Rcc = self._rcc.get(id(R))
             if Rcc is None:
@@ -644,9 +644,9 @@ def _fh_casadi(A, C, Q, R, pat: GainPattern, P0, K0, init: CovarianceTrajectory,
         Uinv.append(np.linalg.inv(U))
     z = ca.MX.sym("z", nf * T)
     parts = ca.vertsplit(z, [i * nf for i in range(T + 1)])
-    P = ca.DM(P0)
+    P: Any = ca.DM(P0)       # a constant, then an expression of the gains
     eye = ca.DM.eye(n)
-    J = 0
+    J: Any = 0
     for k in range(T):
         kk = ca.DM(w0[k]) + ca.mtimes(ca.DM(Uinv[k]), parts[k])
         Kk = ca.reshape(ca.mtimes(Z, kk), n, o)
@@ -656,7 +656,7 @@ def _fh_casadi(A, C, Q, R, pat: GainPattern, P0, K0, init: CovarianceTrajectory,
         if k < T - 1:
             Ak = ca.DM(A[k])
             P = ca.mtimes([Ak, Pf, Ak.T]) + ca.DM(Q[k])
-    opts = {
+    opts: dict[str, Any] = {
         "print_time": False,
         "ipopt.print_level": 0,
         "ipopt.sb": "yes",
@@ -665,17 +665,18 @@ def _fh_casadi(A, C, Q, R, pat: GainPattern, P0, K0, init: CovarianceTrajectory,
         "ipopt.hessian_approximation": "limited-memory",
         "ipopt.limited_memory_max_history": 20,
     }
-    solver = ca.nlpsol("decentralized_fh", "ipopt", {"x": z, "f": J / init.cost}, opts)
+    problem: dict[str, Any] = {"x": z, "f": J / init.cost}
+    solver = ca.nlpsol("decentralized_fh", "ipopt", problem, opts)
     sol = solver(x0=np.zeros(nf * T))
     stats = solver.stats()
     zs = np.asarray(sol["x"], dtype=float).ravel()
     if not np.all(np.isfinite(zs)):
         raise InfeasibleDesign(f"IPOPT returned non-finite gains ({stats.get('return_status')})")
-    K = []
+    K: list[np.ndarray] = []
     for k in range(T):
-        Kk = np.zeros((n, o))
-        Kk[pat.rows, pat.cols] = w0[k] + Uinv[k] @ zs[k * nf:(k + 1) * nf]
-        K.append(Kk)
+        gain = np.zeros((n, o))
+        gain[pat.rows, pat.cols] = w0[k] + Uinv[k] @ zs[k * nf:(k + 1) * nf]
+        K.append(gain)
     traj = covariance_pass(A, C, Q, R, K, P0)
     status = str(stats.get("return_status", "unknown"))
     converged = bool(stats.get("success", False)) or status == "Solved_To_Acceptable_Level"

@@ -35,9 +35,11 @@ from typing import Any
 
 import numpy as np
 
-from tanksynth.analysis.linearize import LinearModel, equilibrium_input, linearize
+from tanksynth.analysis.linearize import LinearModel
 from tanksynth.analysis.rank import observability_rank, pbh_test
 from tanksynth.design.estimators.narx_training import train_narx
+from tanksynth.design.operating_point import (as_levels, discrete_pair, equilibrium_at, linearized_at,
+                                              sampling_period)
 from tanksynth.design.placement.canonical import place_observer
 from tanksynth.design.result import DesignMethod, DesignResult, keyed_call, options_of
 from tanksynth.errors import UnobservableError
@@ -96,7 +98,7 @@ def plausibility(plant: Plant, x0: np.ndarray, R: np.ndarray | None = None,
         Initial estimate covariance (state units squared).
     """
     notes = [f"initial estimate outside the operating region: {v}"
-             for v in plant.region.violations(x0, plant.x)]
+             for v in plant.region.violations(as_levels(x0), plant.x)]
     span = float(np.max([hi - lo for lo, hi in plant.region.bounds]))
     unit = plant.states[0].unit
     if R is not None:
@@ -135,9 +137,9 @@ def _observable_at_operating_point(spec: Spec, what: str, *, continuous: bool = 
     that many redundant sensors.
     """
     plant = spec.plant
-    eq = equilibrium_input(plant, spec.x0, spec.given_u0)
-    lin = linearize(plant, spec.x0, eq.u0, ts=spec.ts)
-    A = lin.F if continuous else lin.Ad
+    eq = equilibrium_at(plant, spec.x0, spec.given_u0)
+    lin = linearized_at(plant, spec.x0, eq.u0, ts=spec.ts)
+    A = lin.F if continuous else discrete_pair(lin)[0]
     C = lin.C if sensors == 1 else np.vstack([lin.C] * sensors)
     rank = observability_rank(A, C)
     if not rank.full:
@@ -167,9 +169,16 @@ def _pairs(values: np.ndarray) -> list[list[float]]:
 
 def _model_diag(model: DiscreteModel) -> dict:
     out = model.describe()
-    if model.kind == "linear":
+    if model.kind == "linear" and model.Ad is not None:
         out["Ad_eigenvalues"] = _pairs(np.linalg.eigvals(model.Ad))
     return out
+
+
+def _linear_model_gains(model: DiscreteModel) -> dict[str, np.ndarray]:
+    """``Ad``, ``Bd``, ``C`` of a linear filter's model (stored as gains)."""
+    if model.Ad is None or model.Bd is None or model.C is None:
+        raise TypeError(f"a {model.kind} model has no Ad, Bd, C")
+    return {"Ad": model.Ad, "Bd": model.Bd, "C": model.C}
 
 
 def _filter_result(spec: Spec, design: DesignSpec, method: str, at: _OperatingPoint, tuning: Any,
@@ -205,11 +214,11 @@ def run_kalman(spec: Spec, design: DesignSpec) -> DesignResult:
     tuning = _kalman_tuning(spec, design, options_of(design, spec, KalmanOptions),
                             operating_point=at.point)
     model = KalmanFilter(spec.plant, tuning, backend="vm").model
+    matrices = _linear_model_gains(model)
     K, P = steady_state_gain(model, tuning.Q, tuning.R)
-    Acl = (np.eye(spec.plant.n) - K @ model.C) @ model.Ad
+    Acl = (np.eye(spec.plant.n) - K @ model.C) @ matrices["Ad"]
     return _filter_result(
-        spec, design, "kalman", at, tuning, model,
-        gains={"Ad": model.Ad, "Bd": model.Bd, "C": model.C, "K_ss": K, "P_ss": P},
+        spec, design, "kalman", at, tuning, model, gains={**matrices, "K_ss": K, "P_ss": P},
         time_domain="discrete",   # the model is stored as Ad, Bd (`model_names`)
         steady_state={"error_dynamics_eigenvalues": _pairs(np.linalg.eigvals(Acl)),
                       "source": "scipy.linalg.solve_discrete_are"})
@@ -269,7 +278,7 @@ def run_adaptive_kalman(spec: Spec, design: DesignSpec) -> DesignResult:
     model = AdaptiveKalmanFilter(spec.plant, tuning).model
     return _filter_result(
         spec, design, "adaptive_kalman", at, tuning, model,
-        gains={"Ad": model.Ad, "Bd": model.Bd, "C": model.C},
+        gains=_linear_model_gains(model),
         time_domain="discrete",   # the model is stored as Ad, Bd (`model_names`)
         errata=["seed 000 eq. 35 uses the updated estimate in v_k (a residual); the innovation "
                 "y_k - H x_k^+ (prediction) is used, as in Mohamed & Schwarz (1999)"])
@@ -346,7 +355,8 @@ def run_narx(spec: Spec, design: DesignSpec) -> DesignResult:
              "ekf_P0": ekf_tuning.P0, "training_inputs": training.inputs,
              "training_targets": training.targets}
     # the trained network runs on no model of its own: the diagnostics describe the EKF's
-    diag = {"model": _model_diag(discrete_model(plant, spec.ts, substeps=ekf_tuning.substeps)),
+    diag = {"model": _model_diag(discrete_model(plant, sampling_period(spec),
+                                                substeps=ekf_tuning.substeps)),
             "observability_at_operating_point": at.rank, **training.diagnostics,
             "plausibility": plausibility(plant, ekf_tuning.x0, ekf_tuning.R, ekf_tuning.P0),
             "sampling_period": spec.ts}
@@ -374,7 +384,7 @@ def run_luenberger(spec: Spec, design: DesignSpec) -> DesignResult:
     form = o.form
     at = _observable_at_operating_point(spec, _LINEARISATION, continuous=form == "continuous")
     lin = at.lin
-    A_design = lin.F if form == "continuous" else lin.Ad
+    A_design = lin.F if form == "continuous" else discrete_pair(lin)[0]
     placement = None
     if o.L is not None:
         L = np.array(o.L)
@@ -383,7 +393,7 @@ def run_luenberger(spec: Spec, design: DesignSpec) -> DesignResult:
                                poles=list(o.poles))
         L = placement.gain
         if form == "current":
-            L = np.linalg.solve(lin.Ad, L)            # eig((I - L C) Ad) = eig(Ad - (Ad L) C)
+            L = np.linalg.solve(discrete_pair(lin)[0], L)   # eig((I - L C) Ad) = eig(Ad - (Ad L) C)
     tuning = keyed_call(design, LuenbergerTuning, _OPTION_OF, L=L, x0=_x0(spec, o), ts=spec.ts,
                         form=form, substeps=o.substeps,
                         operating_point=None if o.nonlinear else at.point)

@@ -10,8 +10,8 @@ from __future__ import annotations
 import numpy as np
 import sympy as sp
 
-from tanksynth.analysis.linearize import equilibrium_input
 from tanksynth.design.fault.threshold import detection_time, fault_threshold
+from tanksynth.design.operating_point import equilibrium_at
 from tanksynth.design.result import DesignMethod, DesignResult, keyed_call, options_of
 from tanksynth.spec import DesignSpec, Spec
 from tanksynth.spec.method_options import FaultDetectionOptions
@@ -57,7 +57,7 @@ def run_fault_detection(spec: Spec, design: DesignSpec) -> DesignResult:
     starts = [np.array(spec.x0, dtype=float)] if o.initial_states is None else \
         [np.array(x, dtype=float) for x in o.initial_states]
     pieces = [[float(v) for v in p] for p in o.input] if o.input is not None else \
-        [[0.0, *equilibrium_input(healthy, spec.x0, spec.given_u0).u0.tolist()]]
+        [[0.0, *equilibrium_at(healthy, spec.x0, spec.given_u0).u0.tolist()]]
     detections = [keyed_call(design, detection_time, _OPTION_OF, th=th, x0=x, delta_bar=o.delta_bar,
                              t_fault=o.t_fault, conservative=o.conservative, plant=healthy,
                              input_schedule=[(p[0], p[1:]) for p in pieces]) for x in starts]

@@ -193,7 +193,8 @@ class ZeroDynamics:
         if ev.size:
             out["min_real_part"] = float(np.min(ev.real))
             out["max_abs_imag"] = float(np.max(np.abs(ev.imag)))
-            out["worst_point"] = dict(zip(state_names, map(float, self.worst_point)))
+            if self.worst_point is not None:
+                out["worst_point"] = dict(zip(state_names, map(float, self.worst_point)))
         return out
 
 
@@ -321,7 +322,8 @@ def _check_rank(plant: Plant, dec_num: sp.Matrix, names: Sequence[str], degrees:
         if len(bad):
             k = int(bad[0])
             raise InfeasibleDesign(
-                f"relative degree of output {names[i]} is not defined at x = {point_text(points[k], states)}: "
+                f"relative degree of output {names[i]} is not defined at x = "
+                f"{point_text(points[k], states)}: "
                 f"L_g L_f^{degrees[i] - 1} h vanishes there although it is not identically zero "
                 f"({len(bad)} of {len(points)} region points); not decouplable there")
     sv = np.linalg.svd(L, compute_uv=False)                 # (M, m)

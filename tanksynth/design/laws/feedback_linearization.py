@@ -276,11 +276,12 @@ def feedback_linearization(plant: Plant, outputs: Sequence[str] | None = None, *
     if zd.dimension and not zd.stable and not allow_unstable_zero_dynamics:
         k = int(np.argmax(zd.eigenvalues.real.max(axis=1)))
         lam = zd.eigenvalues[k][np.argmax(zd.eigenvalues[k].real)]
+        where = "?" if zd.worst_point is None else point_text(zd.worst_point, states)
         unstable = int(np.sum(zd.eigenvalues.real.max(axis=1) >= 0))
         raise InfeasibleDesign(
             f"zero dynamics of plant '{plant.name}' (internal states {list(zd.coordinates)}, dimension "
             f"{zd.dimension}) are unstable: Jacobian eigenvalue {complex(lam):.4g} 1/s at x = "
-            f"{point_text(zd.worst_point, states)} ({unstable} of {len(zd.points)} region points with "
+            f"{where} ({unstable} of {len(zd.points)} region points with "
             "Re >= 0); exact decoupling would make them diverge (non-minimum phase). Set "
             "allow_unstable_zero_dynamics = true to design anyway")
     outer = outer_loop(dec.degrees, poles, bandwidth)

@@ -164,7 +164,7 @@ def run_ts_observer(spec: Spec, design: DesignSpec) -> DesignResult:
         "solver": res.solver,
         "status": res.status,
         "robustness": checked_robustness(A0, A0 - res.L @ C, res.L, "continuous", o.allow_fragile,
-                              "the observer error matrix A0 - L C"),
+                                         "the observer error matrix A0 - L C"),
         "caveats": caveats,
         "assumptions": [a.text for a in plant.assumptions],
     })

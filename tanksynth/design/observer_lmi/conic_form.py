@@ -41,7 +41,7 @@ from tanksynth.design import conic as rc
 from tanksynth.design.conic import ACCEPTED, CLARABEL_STATUS
 from tanksynth.design.matrices import real_matrix, symmetrized
 from tanksynth.design.observer_lmi.problem import (ObserverLMIProblem, check_variant, checked_structure,
-                                                   output_split)
+                                                   output_split, recovered_gain)
 from tanksynth.errors import DimensionError, SpecError
 
 __all__ = ["ConicObserverLMI", "ConicEliminatedLMI", "one_shot_problem", "sweep_problem", "eliminated_fits",
@@ -210,10 +210,10 @@ class ConicObserverLMI:
         # Nonnegative rows: p_ii >= 1 (1 x 1 blocks), trace P <= kappa n, t <= 1.
         singles = np.array([f for f, d in pblocks if d == 1], dtype=int)
         ns = singles.size
-        rows = [np.arange(ns), np.full(pdiag.size, ns), [ns + 1]]
-        cols = [singles, pdiag, [it]]
-        vals = [-one(ns), one(pdiag.size), [1.0]]
-        bs = [-one(ns), [self.kappa * n, 1.0]]
+        rows: list[Any] = [np.arange(ns), np.full(pdiag.size, ns), [ns + 1]]
+        cols: list[Any] = [singles, pdiag, [it]]
+        vals: list[Any] = [-one(ns), one(pdiag.size), [1.0]]
+        bs: list[Any] = [-one(ns), [self.kappa * n, 1.0]]
         nn = ns + 2
         lmi_size = n * (2 * n + 1)
         rows.append(nn + lrow)
@@ -347,7 +347,6 @@ class ConicEliminatedLMI(ConicObserverLMI):
     """
 
     form = "eliminated"
-    recover_gain = ObserverLMIProblem.recover_gain
 
     def __init__(self, n: int, C: Any, variant: str = "qI", kappa: float = 1e4,
                  blocks: Sequence[Sequence[int]] | None = None, pattern: Any = None, *,
@@ -406,7 +405,7 @@ class ConicEliminatedLMI(ConicObserverLMI):
         m = rc.Model()
         t = m.variable()
         p_parts = None if self.fixed_P else self._parts(m)
-        qv = m.variable() if self.variant == "qI" else None
+        qv: Any = m.variable() if self.variant == "qI" else None
         q_parts = None if qv is not None else self._parts(m)
         m.freeze()
         cons = []
@@ -415,15 +414,15 @@ class ConicEliminatedLMI(ConicObserverLMI):
             P = self._assemble(m, p_parts)
             for b, v in p_parts:            # P >= I per block (a linear bound for 1 x 1 blocks)
                 cons.append(v >= 1.0 if len(b) == 1 else v >> np.eye(len(b)))
-        Q = qv * I if qv is not None else self._assemble(m, q_parts)
+        Q = qv * I if qv is not None else self._assemble(m, q_parts or [])
         if V2.shape[1] == 0:
-            cons.insert(0, qv >= t if qv is not None else 0.5 * (Q + Q.T) >> t * I)
+            cons.insert(0, qv >= t if qv is not None else symmetrized(Q) >> t * I)
         else:
             PV2 = P @ V2
             Ys = As @ V2
             X22 = Ys.T @ PV2 + V2.T @ P @ Ys + t2 * (V2.T @ Q @ V2)
             M = rc.bmat([[X22, PV2.T], [PV2, -Q]])
-            cons.insert(0, 0.5 * (M + M.T) << -t * np.eye(n + V2.shape[1]))
+            cons.insert(0, symmetrized(M) << -t * np.eye(n + V2.shape[1]))
         if P is not None:
             cons.append(rc.trace(P) <= self.kappa * n)
         cons.append(t <= 1.0)
@@ -446,8 +445,8 @@ class ConicEliminatedLMI(ConicObserverLMI):
         Pv = I if P is None else symmetrized(np.asarray(P.value, dtype=float))
         Qs = float(qv.value) * I if qv is not None else symmetrized(np.asarray(Q.value, dtype=float))
         with small_dense():
-            Ks, t_P, t_K = self.recover_gain(As, t2, Pv, Qs,
-                                             self.margin if margin is None else float(margin))
+            Ks, t_P, t_K = recovered_gain(self.V1, self.V2, self._W, As, t2, Pv, Qs,
+                                          self.margin if margin is None else float(margin))
         K = w * Ks * self.output_scale[None, :]
         L = np.linalg.solve(Pv, K)
         out.update({"t": float(t.value), "P": Pv, "Q": Qs / w, "K": K, "L": L, "t_P": t_P,

@@ -493,7 +493,7 @@ def maximise_psi(A0: Any, C: Any, *, variant: str = "qI", margin: float = 1e-6, 
     prob = problem or sweep_problem(A0, C, variant, kappa, blocks, pattern, solver, form, margin)
     prob.margin = float(margin)
     omega = prob.time_scale(A0, 0.0)
-    extra = {} if solver_options is None else {"solver_options": solver_options}
+    extra: dict[str, Any] = {} if solver_options is None else {"solver_options": solver_options}
 
     designs: dict[float, ObserverLMIResult] = {}
     refused: list[str] = []

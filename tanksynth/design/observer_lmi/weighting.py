@@ -265,7 +265,7 @@ def _spectral_norms(parts: _JacobianParts, A0: np.ndarray, values: np.ndarray) -
     return np.where(finite, best, np.nan)
 
 
-def _prod(a: float, b: float) -> float:
+def _prod(a: float | np.floating, b: float | np.floating) -> float:
     """``a * b`` with ``0 * inf = 0`` (a zero matrix contributes nothing)."""
     return 0.0 if a == 0 or b == 0 else float(a * b)
 
@@ -556,7 +556,8 @@ def search_weightings(qlpv: QuasiLPV, domain: Domain, *, values: Sequence[float]
     # Clarabel: the eliminated form without cvxpy (rebuilt per trial); else the cvxpy problem
     prob = sweep_problem(None, C, variant, kappa, None, None, solver, "auto", 1e-6)
     Xs = np.vstack([domain.sample(samples, seed), domain.corners()])
-    parts = jac_values = None
+    parts: _JacobianParts | None = None
+    jac_values: np.ndarray | None = None
     records: list[dict] = []
     best: dict | None = None
     for W in combos:
@@ -576,7 +577,7 @@ def search_weightings(qlpv: QuasiLPV, domain: Domain, *, values: Sequence[float]
             continue
         A0 = ts.A0
         omega = prob.time_scale(A0, 0.0)
-        if parts is None:
+        if parts is None or jac_values is None:
             parts = _jacobian_parts(qlpv, _jacobian_exprs(qlpv))
             jac_values = parts.values(Xs)
         norms = _spectral_norms(parts, A0, jac_values)

@@ -23,11 +23,13 @@ from typing import Any, Callable
 import numpy as np
 import sympy as sp
 
-from tanksynth.analysis.linearize import Equilibrium, LinearModel, equilibrium_input, linearize, symbolic_jacobians
+from tanksynth.analysis.linearize import Equilibrium, LinearModel, symbolic_jacobians
 from tanksynth.analysis.lmi_region import region_from_parts
 from tanksynth.analysis.statespace import model_names
 from tanksynth.design.linear_gains import checked_robustness, reference_comparison
 from tanksynth.design.matrices import complex_pairs
+from tanksynth.design.operating_point import (discrete_pair, equilibrium_at, linearized_at,
+                                              sampling_period, time_domain_of)
 from tanksynth.design.placement.canonical import (canonical_observer, integral_augmentation,
                                                   place_observer, place_state_feedback, pole_errors)
 from tanksynth.design.placement.exact import placement_accuracy
@@ -49,18 +51,19 @@ __all__ = [
 ]
 
 
-def _model(spec, time_domain: str) -> tuple[dict, Any, Any]:
+def _model(spec: Spec, time_domain: str) -> tuple[dict[str, np.ndarray], Equilibrium, LinearModel]:
     """Linear model at the operating point: matrices by name, equilibrium, LinearModel."""
     plant = spec.plant
-    eq = equilibrium_input(plant, spec.x0, spec.given_u0)
-    lin = linearize(plant, spec.x0, eq.u0, ts=spec.ts if time_domain == "discrete" else None)
-    A, B = (lin.Ad, lin.Bd) if time_domain == "discrete" else (lin.F, lin.B)
+    eq = equilibrium_at(plant, spec.x0, spec.given_u0)
+    lin = linearized_at(plant, spec.x0, eq.u0, ts=spec.ts if time_domain == "discrete" else None)
+    A, B = discrete_pair(lin) if time_domain == "discrete" else (lin.F, lin.B)
     return {"A": A, "B": B, "C": lin.C}, eq, lin
 
 
-def _augment(model: dict, C1: np.ndarray, time_domain: str, ts: float | None) -> dict:
+def _augment(model: dict[str, np.ndarray], C1: np.ndarray, time_domain: str,
+             spec: Spec) -> dict[str, np.ndarray]:
     if time_domain == "discrete":
-        aug = integral_augmentation(model["A"], model["B"], C1, ts)
+        aug = integral_augmentation(model["A"], model["B"], C1, sampling_period(spec))
         return {"A": aug.A, "B": aug.B, "Br": aug.Br}
     n, p = model["A"].shape[0], C1.shape[0]
     m = model["B"].shape[1]
@@ -70,11 +73,15 @@ def _augment(model: dict, C1: np.ndarray, time_domain: str, ts: float | None) ->
     return {"A": A, "B": B, "Br": Br}
 
 
+#: A placement route: ``(A, B or C, state names) -> result with a .gain``.
+_GainRoute = Callable[[np.ndarray, np.ndarray, list[str]], Any]
+
+
 def _assumptions(spec: Spec) -> list[str]:
     return [a.text for a in spec.plant.assumptions]
 
 
-def _plane_of_poles(o, ts: float | None) -> tuple[list[complex], dict | None]:
+def _plane_of_poles(o: PolePlacementOptions, spec: Spec) -> tuple[list[complex], dict | None]:
     """The poles in the design's plane, and a note when they were converted or look mixed up.
 
     s-plane poles of a discrete design (``poles = {values, domain = "s"}``)
@@ -85,6 +92,7 @@ def _plane_of_poles(o, ts: float | None) -> tuple[list[complex], dict | None]:
     poles = [complex(p) for p in o.poles]
     plane = getattr(o, "pole_domain", None)
     if o.time_domain == "discrete" and plane == "s":
+        ts = sampling_period(spec)
         z = [complex(np.exp(p * ts)) for p in poles]
         return z, {"given": complex_pairs(poles), "domain": "s", "placed": complex_pairs(z),
                    "conversion": f"z = exp(p ts), ts = {ts:g} s"}
@@ -98,7 +106,10 @@ def _plane_of_poles(o, ts: float | None) -> tuple[list[complex], dict | None]:
     return poles, None
 
 
-def _solve_gain(spec, design, o, observer, feedback, fallback_opt: str, augmented_B: bool):
+def _solve_gain(spec: Spec, design: DesignSpec, o: LmiPlacementOptions | PolePlacementOptions,
+                observer: _GainRoute, feedback: _GainRoute, fallback_opt: str, augmented_B: bool
+                ) -> tuple[Any, dict[str, np.ndarray], dict[str, Any],
+                           tuple[np.ndarray, np.ndarray, np.ndarray], Callable[[np.ndarray], np.ndarray]]:
     """Shared body of `run_lmi_placement` and `run_pole_placement`.
 
     Builds the model, then calls ``observer(A, C, names)`` or
@@ -110,12 +121,13 @@ def _solve_gain(spec, design, o, observer, feedback, fallback_opt: str, augmente
     ``closed(G)`` is the closed-loop matrix a gain ``G`` gives.
     """
     plant = spec.plant
-    time_domain = o.time_domain
+    time_domain = time_domain_of(o)
     model, eq, _ = _model(spec, time_domain)
     names = [s.name for s in plant.states]
     A, B, C = model["A"], model["B"], model["C"]
     diagnostics: dict[str, Any] = {"equilibrium": eq.as_dict(), "time_domain": time_domain,
                                    "ts": spec.ts, "assumptions": _assumptions(spec)}
+    closed: Callable[[np.ndarray], np.ndarray]
     try:
         if o.target == "observer":
             res = observer(A, C, names)
@@ -124,9 +136,9 @@ def _solve_gain(spec, design, o, observer, feedback, fallback_opt: str, augmente
         else:
             if o.integral:
                 outputs = [s.name for s in plant.outputs]
-                tracked = list(o.tracked)
+                tracked = list(o.tracked or ())
                 C1 = C[[outputs.index(t) for t in tracked]]
-                aug = _augment(model, C1, time_domain, spec.ts)
+                aug = _augment(model, C1, time_domain, spec)
                 Aa, Ba = aug["A"], aug["B"]
                 res = feedback(Aa, Ba, names + [f"z_{t}" for t in tracked])
                 K = res.gain
@@ -146,7 +158,7 @@ def _solve_gain(spec, design, o, observer, feedback, fallback_opt: str, augmente
     return res, gains, diagnostics, (A, B, C), closed
 
 
-def _loop_name(o) -> str:
+def _loop_name(o: LmiPlacementOptions | PolePlacementOptions) -> str:
     if o.target == "observer":
         return "the observer error matrix A - L C"
     return "the augmented closed loop Aa - Ba K" if o.integral else "the closed loop A - B K"
@@ -186,7 +198,7 @@ def run_lmi_placement(spec: Spec, design: DesignSpec) -> DesignResult:
     o = options_of(design, spec, LmiPlacementOptions)
     plant = spec.plant
     region = region_from_parts(o.region)
-    time_domain, margin, kappa, solver = o.time_domain, o.margin, o.kappa, o.solver
+    time_domain, margin, kappa, solver = time_domain_of(o), o.margin, o.kappa, o.solver
     kmax = o.kappa_max
     res, gains, diagnostics, (A, B, C), closed = _solve_gain(
         spec, design, o,
@@ -197,11 +209,11 @@ def run_lmi_placement(spec: Spec, design: DesignSpec) -> DesignResult:
                                                kappa=kappa, solver=solver, state_names=names,
                                                kappa_max=kmax),
         fallback_opt="region", augmented_B=False)
-    gain = gains.get("L", gains.get("K"))
+    gain = gains["L"] if "L" in gains else gains["K"]
     open_loop = A if o.target == "observer" or not o.integral else \
         diagnostics["integral"]["augmented_A"]
-    diagnostics["robustness"] = checked_robustness(np.asarray(open_loop, dtype=float), closed(gain), gain,
-                                        time_domain, o.allow_fragile, _loop_name(o))
+    diagnostics["robustness"] = checked_robustness(np.asarray(open_loop, dtype=float), closed(gain),
+                                                   gain, time_domain, o.allow_fragile, _loop_name(o))
     if res.scaling.get("kappa_relaxed"):
         warnings.warn(f"the conditioning bound was active: kappa relaxed from {kappa:g} to "
                       f"{res.scaling['kappa']:g} (ceiling kappa_max = {kmax:g})", DesignWarning,
@@ -248,7 +260,7 @@ def run_pole_placement(spec: Spec, design: DesignSpec) -> DesignResult:
     o = options_of(design, spec, PolePlacementOptions)
     plant = spec.plant
     method = o.algorithm
-    poles, converted = _plane_of_poles(o, spec.ts)
+    poles, converted = _plane_of_poles(o, spec)
     res, gains, diagnostics, (A, B, C), closed = _solve_gain(
         spec, design, o,
         lambda A, C, names: place_observer(A, C, poles, method, state_names=names),
@@ -260,8 +272,8 @@ def run_pole_placement(spec: Spec, design: DesignSpec) -> DesignResult:
         diagnostics["poles_converted"] = converted
     open_loop = A if o.target == "observer" or not o.integral else \
         np.asarray(diagnostics["integral"]["augmented_A"], dtype=float)
-    diagnostics["robustness"] = checked_robustness(open_loop, closed(gain), gain, o.time_domain,
-                                        o.allow_fragile, _loop_name(o))
+    diagnostics["robustness"] = checked_robustness(open_loop, closed(gain), gain, time_domain_of(o),
+                                                   o.allow_fragile, _loop_name(o))
     if o.reference_gain is not None:
         ref = o.reference_gain
         cmp_ = reference_comparison(ref, gain, closed)
@@ -270,7 +282,7 @@ def run_pole_placement(spec: Spec, design: DesignSpec) -> DesignResult:
         cmp_["note"] = ("with several inputs the gain placing given poles is not unique (place uses "
                         "Tits-Yang); compare the achieved poles, not the digits")
         diagnostics["reference_gain"] = cmp_
-    names = model_names(o.time_domain)
+    names = model_names(time_domain_of(o))
     gains.update({names["A"]: A, names["B"]: B, "C": C})
     return DesignResult(design.name, "pole_placement", plant.name, gains, diagnostics, {})
 
@@ -336,7 +348,7 @@ def run_canonical_observer(spec: Spec, design: DesignSpec) -> DesignResult:
         "accuracy": {"measure": "characteristic polynomial in exact arithmetic (sympy)",
                      "exact": co.exact, "float_gain": acc},
         "robustness": checked_robustness(An, An - L @ Cn, L, "continuous", o.allow_fragile,
-                              "the observer error matrix F - L C"),
+                                         "the observer error matrix F - L C"),
         "place_cross_check": {"L_place": pl.gain.tolist(),
                               "max_abs_difference": float(np.max(np.abs(pl.gain - L))),
                               "place_report": pl.as_dict()},

@@ -202,14 +202,15 @@ def observer_plant(A: Any, C: Any, Bw: Any, Dv: Any, Cz: Any, domain: str = "con
 # ========================================================================= LMI blocks
 def _library(values: Sequence[Any]) -> Any:
     """The module whose ``bmat``/``kron`` handle ``values``: robust_conic, cvxpy or None (numpy)."""
-    lib = None
+    lib: Any = None
     for v in values:
         if isinstance(v, robust_conic.Expression):
             return robust_conic
         if type(v).__module__.startswith("cvxpy."):
             # only the SCS route builds cvxpy expressions (cvxpy is loaded then; here, not at
             # the top, so that the Clarabel route never pays its import)
-            import cvxpy as lib
+            import cvxpy
+            lib = cvxpy
     return lib
 
 

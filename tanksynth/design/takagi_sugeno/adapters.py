@@ -30,11 +30,11 @@ from typing import Any
 
 import numpy as np
 
-from tanksynth.analysis.linearize import equilibrium_input
 from tanksynth.analysis.takagi_sugeno import domain_from_plant, quasi_lpv, ts_model
 from tanksynth.design.bisection import bisect_feasible
 from tanksynth.design.matrices import symmetrized
 from tanksynth.design.observer_lmi.weighting import lipschitz_bound
+from tanksynth.design.operating_point import equilibrium_at
 from tanksynth.design.result import DesignMethod, DesignResult, options_of, rekeyed
 from tanksynth.design.takagi_sugeno.pdc import certified_decay, max_decay_rate, pdc_lmi
 from tanksynth.design.takagi_sugeno.deviation import deviation_ts_model
@@ -88,10 +88,10 @@ def _setup(spec: Spec, design: DesignSpec, o: Any, x_op: Any = None) -> dict:
         raise rekeyed(design, exc, "domain") from None
     if x_op is None:
         x0 = np.asarray(spec.x0, dtype=float)
-        eq = equilibrium_input(plant, x0, spec.given_u0)
+        eq = equilibrium_at(plant, x0, spec.given_u0)
     else:
         x0 = np.asarray(x_op, dtype=float)
-        eq = equilibrium_input(plant, x0)
+        eq = equilibrium_at(plant, x0)
         if not (eq.is_equilibrium and eq.within_bounds and bool(domain.contains(x0)[0])):
             raise SpecError(f"setpoint {x0.tolist()} is not an equilibrium inside the domain with "
                             f"the pumps in range: input {eq.u0.tolist()}, residual "
@@ -172,7 +172,7 @@ def _refuse_small(region: Any, P: np.ndarray, o: Any) -> float:
     return inner
 
 
-def _common_diag(s: dict, res: Any, tried: list, region: Any, inner: float, spec: Any) -> dict:
+def _common_diag(s: dict, res: Any, tried: list, region: Any, inner: float, spec: Spec) -> dict:
     return {"ts_model": s["model"].as_dict(), "exactness": s["exactness"],
             "equilibrium": s["eq"].as_dict(), "relaxations_tried": tried,
             "lmi": res.as_dict(), "relaxation": res.relaxation, "decay_rate": res.decay,
@@ -383,7 +383,7 @@ def _estimate_faces(region: Any, s: dict, P: np.ndarray, extra: np.ndarray) -> A
     lim = dict(region.limits)
     for l, nm in enumerate(s["face_names"]):
         lim[f"estimate face {nm}"] = float(g[l] ** 2 / (G[l] @ (Pi + extra) @ G[l]))
-    binding = min(lim, key=lim.get)
+    binding = min(lim, key=lambda face: lim[face])
     k = np.sqrt(lim[binding] / region.c)
     return dataclasses.replace(region, c=lim[binding], limits=lim, binding=binding,
                                semi_axes=region.semi_axes * k, extents=region.extents * k)
