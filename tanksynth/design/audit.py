@@ -22,25 +22,27 @@ from __future__ import annotations
 
 import warnings
 from dataclasses import replace
-from typing import Any, Callable
+from typing import Callable
 
 import numpy as np
 
-from tanksynth.analysis.linearize import equilibrium_input
 from tanksynth.analysis.statespace import model_names
 from tanksynth.analysis.trim import balancing_hint
+from tanksynth.design.operating_point import as_levels, equilibrium_at
 from tanksynth.design.result import DesignResult
 from tanksynth.errors import DesignWarning
+from tanksynth.spec import DesignSpec, Spec
 
 __all__ = ["spec_warnings", "result_warnings", "designed"]
 
 
-def spec_warnings(spec: Any) -> list[str]:
+def spec_warnings(spec: Spec) -> list[str]:
     """Warnings about the spec's plant and operating point (one line each).
 
     Parameters
     ----------
-    spec : tanksynth.spec.Spec
+    spec : Spec
+        The validated spec (its plant and operating point).
 
     Returns
     -------
@@ -48,7 +50,7 @@ def spec_warnings(spec: Any) -> list[str]:
     """
     plant = spec.plant
     out = list(plant.implausible_parameters())
-    eq = equilibrium_input(plant, spec.x0, spec.given_u0)
+    eq = equilibrium_at(plant, spec.x0, spec.given_u0)
     if not eq.is_equilibrium:
         res = np.abs(eq.residual)
         i = int(np.argmax(res))
@@ -57,7 +59,7 @@ def spec_warnings(spec: Any) -> list[str]:
                    f"{st.unit}/s in the equation of d{st.name}/dt (tolerance {eq.tolerance:.3g}) with "
                    f"the least-squares input u_op = {np.array2string(eq.u0, precision=4)}; the design "
                    "linearises about a point the plant does not stay at")
-        hint = balancing_hint(plant, spec.x0, eq.tolerance)
+        hint = balancing_hint(plant, as_levels(spec.x0), eq.tolerance)
         if hint:
             out[-1] += f"; {hint}"
     if not eq.within_bounds:
@@ -124,7 +126,8 @@ def result_warnings(result: DesignResult) -> list[str]:
     return out
 
 
-def designed(run: Callable[[Any, Any], DesignResult], spec: Any, entry: Any) -> DesignResult:
+def designed(run: Callable[[Spec, DesignSpec], DesignResult], spec: Spec,
+             entry: DesignSpec) -> DesignResult:
     """Run ``run(spec, entry)`` and record every warning in ``diagnostics["warnings"]``.
 
     Spec warnings (`spec_warnings`) are issued before designing (so a refused
@@ -137,8 +140,10 @@ def designed(run: Callable[[Any, Any], DesignResult], spec: Any, entry: Any) -> 
     ----------
     run : callable
         ``run(spec, entry) -> DesignResult`` (a method's design function).
-    spec : tanksynth.spec.Spec
-    entry : tanksynth.spec.DesignSpec
+    spec : Spec
+        The validated spec.
+    entry : DesignSpec
+        One of its ``[[design]]`` entries.
 
     Returns
     -------

@@ -23,20 +23,25 @@ here: the robust designs re-check every returned gain in numpy.
 
 from __future__ import annotations
 
+import warnings
 from typing import Any, Sequence
 
+import clarabel
 import numpy as np
 import scipy.sparse as sps
 
 __all__ = ["Model", "Expression", "Variable", "Problem", "Maximize", "Minimize", "kron", "bmat",
-           "reshape", "trace", "norm", "solve_status", "modelling"]
+           "reshape", "trace", "norm", "solve_status", "cvxpy_solve_status", "modelling",
+           "CLARABEL_STATUS", "ACCEPTED"]
 
-#: Clarabel status -> cvxpy's status string.
-_STATUS = {"Solved": "optimal", "AlmostSolved": "optimal_inaccurate",
+#: Clarabel status -> cvxpy's status string (what every LMI route reports).
+CLARABEL_STATUS = {"Solved": "optimal", "AlmostSolved": "optimal_inaccurate",
            "PrimalInfeasible": "infeasible", "DualInfeasible": "unbounded",
            "AlmostPrimalInfeasible": "infeasible_inaccurate",
            "AlmostDualInfeasible": "unbounded_inaccurate", "MaxIterations": "user_limit",
            "MaxTime": "user_limit"}
+#: The statuses whose solution is read (and then re-checked in numpy).
+ACCEPTED = ("optimal", "optimal_inaccurate")
 _SQRT2 = float(np.sqrt(2.0))
 
 
@@ -216,11 +221,15 @@ class Variable(Expression):
         self._model = model
         Expression.__init__(self, model, np.zeros(0))
 
+    #: The selection of the variable's entries, built once the model is frozen.
+    _data: np.ndarray | None = None
+
     @property
     def data(self) -> np.ndarray:   # built once the model is frozen
         model = self._model
         model.freeze()
-        if getattr(self, "_data", None) is None or self._data.shape[-1] != model.size + 1:
+        cached = self._data
+        if cached is None or cached.shape[-1] != model.size + 1:
             shape, symmetric = self._spec
             first, _ = self._range
             out = np.zeros(shape + (model.size + 1,))
@@ -235,8 +244,8 @@ class Variable(Expression):
             else:
                 idx = np.arange(int(np.prod(shape))).reshape(shape)
                 out.reshape(-1, model.size + 1)[np.arange(idx.size), first + idx.ravel()] = 1.0
-            self._data = out
-        return self._data
+            self._data = cached = out
+        return cached
 
     @data.setter
     def data(self, value: np.ndarray) -> None:
@@ -253,8 +262,6 @@ class Constraint:
 
     def rows(self) -> tuple[np.ndarray, Any]:
         """``(G, cone)``: the cone's entries ``s = G @ [x; 1]`` and the Clarabel cone."""
-        import clarabel
-
         D = self.data
         if self.kind == "nonneg":
             G = D.reshape(-1, D.shape[-1])
@@ -485,8 +492,6 @@ class Problem:
         float or None
             The optimal objective value (None when not solved).
         """
-        import clarabel
-
         if solver != "CLARABEL":
             raise ValueError(f"the conic route solves with Clarabel only, got {solver!r}")
         P, c, A, b, cones, cols = self._data()
@@ -496,10 +501,10 @@ class Problem:
             setattr(opts, key, value)
         model = self._model()
         sol = clarabel.DefaultSolver(P, c, A, b, cones, opts).solve()
-        self.status = _STATUS.get(str(sol.status), "solver_error")
+        self.status = CLARABEL_STATUS.get(str(sol.status), "solver_error")
         x = np.asarray(sol.x, dtype=float)
         model.values = np.full(model.size, np.nan)
-        if self.status in ("optimal", "optimal_inaccurate") and x.size == cols.size \
+        if self.status in ACCEPTED and x.size == cols.size \
                 and np.all(np.isfinite(x)):
             model.values[cols] = x
             return float(c @ x)
@@ -531,6 +536,38 @@ def solve_status(problem: Problem, solver: str, **settings: Any) -> str:
     return str(problem.status)
 
 
+def cvxpy_solve_status(problem: Any, solver: str, **settings: Any) -> str:
+    """Solve a cvxpy ``problem`` and return cvxpy's status, never raising on a solver failure.
+
+    The status is only a hint: every design re-checks its returned matrices
+    with numpy. cvxpy's UserWarnings ("solution may be inaccurate") are
+    silenced because the status and the re-check say the same.
+
+    Parameters
+    ----------
+    problem : cvxpy.Problem
+        The LMI problem.
+    solver : str
+        A cvxpy solver name (``"CLARABEL"``, ``"SCS"``).
+    **settings
+        Solver settings passed to ``problem.solve``.
+
+    Returns
+    -------
+    str
+        ``problem.status``, or ``"solver_error (<message>)"`` (one line, at most 200 characters).
+    """
+    import cvxpy as cp      # here, not at module level: the direct Clarabel routes never pay it
+
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", UserWarning)
+            problem.solve(solver=solver, **settings)
+    except cp.error.SolverError as exc:
+        return f"solver_error ({' '.join(str(exc).split())[:200]})"
+    return str(problem.status)
+
+
 class _Conic:
     """`robust`'s modelling calls on this module (Clarabel, no cvxpy)."""
 
@@ -559,14 +596,12 @@ class _Cvxpy:
     """The same calls on cvxpy (the SCS route, and any solver but Clarabel)."""
 
     def __init__(self) -> None:
-        import cvxpy as cp
-
-        from tanksynth.design.observer_lmi.problem import solve_status as cvx_status
+        import cvxpy as cp      # here: cvxpy's import costs seconds, the Clarabel route avoids it
 
         self.cp = cp
         self.kron, self.bmat, self.reshape, self.trace = cp.kron, cp.bmat, cp.reshape, cp.trace
         self.Problem, self.Maximize, self.Minimize = cp.Problem, cp.Maximize, cp.Minimize
-        self.solve_status = cvx_status
+        self.solve_status = cvxpy_solve_status
 
     def variable(self, shape: tuple[int, ...] = (), symmetric: bool = False,
                  nonneg: bool = False) -> Any:

@@ -8,11 +8,14 @@ from typing import Any, Callable, Mapping, TypeVar
 import numpy as np
 
 from tanksynth.errors import SpecError
+from tanksynth.plants.base import Plant
+from tanksynth.spec import DesignSpec, Spec
 from tanksynth.spec.method_options.base import MethodOptions
 
-__all__ = ["DesignResult", "DesignMethod", "options_of", "rekeyed"]
+__all__ = ["DesignResult", "DesignMethod", "options_of", "rekeyed", "keyed_call"]
 
 T = TypeVar("T", bound=MethodOptions)
+R = TypeVar("R")
 
 
 @dataclass(frozen=True)
@@ -61,7 +64,7 @@ class DesignMethod:
     """
 
     name: str
-    run: Callable[..., DesignResult]
+    run: Callable[[Spec, DesignSpec], DesignResult]
     options: type[MethodOptions]
 
     def __post_init__(self) -> None:
@@ -69,7 +72,7 @@ class DesignMethod:
             raise TypeError(f"design method {self.name!r} has the options of "
                             f"{self.options.method_name!r}")
 
-    def validate(self, options: Mapping[str, Any], key: str, plant: Any,
+    def validate(self, options: Mapping[str, Any], key: str, plant: Plant,
                  ts: float | None) -> MethodOptions:
         """Validate a ``[[design]]`` table's options: `MethodOptions.from_table` of `options`.
 
@@ -92,7 +95,7 @@ class DesignMethod:
         return self.options.validated(options, key, plant, ts)
 
 
-def options_of(design: Any, spec: Any, cls: type[T]) -> T:
+def options_of(design: DesignSpec, spec: Spec, cls: type[T]) -> T:
     """The validated options of a ``[[design]]`` entry (``design.config``).
 
     A `DesignSpec` parsed without the method table has no ``config``, and
@@ -116,10 +119,13 @@ def options_of(design: Any, spec: Any, cls: type[T]) -> T:
     config = getattr(design, "config", None)
     if isinstance(config, cls) and config.read_from(design.options):
         return config
-    return cls.validated(design.options, design.key, spec.plant, spec.ts)
+    options = cls.validated(design.options, design.key, spec.plant, spec.ts)
+    if not isinstance(options, cls):    # `validated` builds the class it is called on
+        raise TypeError(f"{cls.__name__}.validated returned a {type(options).__name__}")
+    return options
 
 
-def rekeyed(design: Any, exc: SpecError, option: str | None = None,
+def rekeyed(design: DesignSpec, exc: SpecError, option: str | None = None,
             fallback: str = "options") -> SpecError:
     """A `SpecError` a design step raised, keyed to the spec option it is about.
 
@@ -142,3 +148,40 @@ def rekeyed(design: Any, exc: SpecError, option: str | None = None,
     if option is None and exc.key and exc.key.startswith(design.key):
         return exc
     return SpecError(exc.detail, key=f"{design.key}.{option or exc.key or fallback}")
+
+
+def keyed_call(design: DesignSpec, build: Callable[..., R], renames: Mapping[str, str], /,
+               **kwargs: Any) -> R:
+    """``build(**kwargs)`` (a tuning class, a design step), its `SpecError` keyed to the spec option.
+
+    A runtime tuning or a design algorithm names the argument it refuses (``key="a"``); the
+    user wrote a spec option (``abc``): the error is re-raised as ``design[i].<option>``.
+
+    Parameters
+    ----------
+    design : DesignSpec
+        The ``[[design]]`` entry the call is for.
+    build : callable
+        What to call.
+    renames : mapping of str to str
+        Argument name -> spec option, where they differ (other keys are kept as they are).
+    **kwargs
+        The arguments of ``build``.
+
+    Returns
+    -------
+    object
+        What ``build`` returns.
+
+    Raises
+    ------
+    SpecError
+        ``build``'s, keyed ``design[i].<option>`` (unchanged when it already names a key of a
+        ``[[design]]`` entry, or none).
+    """
+    try:
+        return build(**kwargs)
+    except SpecError as exc:
+        if exc.key and not exc.key.startswith("design["):
+            raise rekeyed(design, exc, renames.get(exc.key, exc.key)) from None
+        raise

@@ -122,12 +122,12 @@ def test_matrix_latex_is_sympys_text():
     exactly sympy's ``latex(Matrix(M))`` (``matrix`` up to 10 columns, ``array`` beyond)."""
     import sympy as sp
 
-    from tanksynth.design.placement.adapters import _matrix_latex
+    from tanksynth.design.linear_gains import matrix_latex
     rng = np.random.default_rng(2)
     for M in (np.round(rng.normal(size=(3, 3)), 6), np.round(np.kron(np.eye(8), rng.normal(size=(2, 2))), 6),
               np.zeros((2, 2)), np.round(rng.normal(size=(12, 3)) * 1e-7, 8), np.ones((1, 11)),
               np.array([[1e20, -0.0], [3.0, 0.5]]), np.array([[1.0]])):
-        assert _matrix_latex(M) == sp.latex(sp.Matrix(M))
+        assert matrix_latex(M) == sp.latex(sp.Matrix(M))
 
 
 def test_uncovered_psi_warns_that_nothing_is_certified():

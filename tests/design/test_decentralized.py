@@ -108,10 +108,10 @@ def test_full_pattern_gives_the_centralized_gains(seed):
 
 def test_full_pattern_through_the_sparse_solver():
     """The free-entry linear system itself (not the all-free shortcut) gives the KF gain."""
-    from tanksynth.design.decentralized.recursion import _Pattern
+    from tanksynth.design.decentralized.recursion import GainPattern
 
     A, C, Q, R, _, P0 = random_ltv(3, T=1)
-    pat = _Pattern(np.ones((5, 3), dtype=bool))
+    pat = GainPattern(np.ones((5, 3), dtype=bool))
     pat.full = False
     S = C[0] @ P0 @ C[0].T + R[0]
     K = pat.solve(None, S, P0 @ C[0].T)

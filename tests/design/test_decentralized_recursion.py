@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 
 from tanksynth.design.decentralized.gains import finite_horizon_gains
-from tanksynth.design.decentralized.recursion import (_Kernels, _Pattern, _require_pd,
-                                                      _spd_solve)
+from tanksynth.design.decentralized.recursion import (GainPattern, _Kernels, _spd_solve,
+                                                      require_positive_definite)
 from tanksynth.errors import InfeasibleDesign
 
 
@@ -118,7 +118,7 @@ def _cases():
 def test_every_kernel_mode_gives_the_plain_iteration(name):
     n, C_of, E, mode = _cases()[name]
     A, C, Q, R, E, P0 = system(n, C_of, E)
-    kern = _Kernels(C, _Pattern(E != 0))
+    kern = _Kernels(C, GainPattern(E != 0))
     assert {step[0] for step in kern.step} == {mode}
     res = finite_horizon_gains(A, C, Q, R, E, P0, tol=1e-9, max_iter=500)
     K_ref, cost_ref = plain_fh(A, C, Q, R, E, P0, tol=1e-9, max_iter=500)
@@ -141,19 +141,19 @@ def test_spd_solve_falls_back_to_lu_and_refuses_a_singular_system():
         _spd_solve(np.zeros((2, 2)), b)
 
 
-def test_require_pd_names_the_step():
-    _require_pd(np.eye(3), "P(1|1)")
+def test_require_positive_definite_names_the_step():
+    require_positive_definite(np.eye(3), "P(1|1)")
     with pytest.raises(InfeasibleDesign, match=r"P\(4\|4\).*smallest eigenvalue -1"):
-        _require_pd(np.diag([1.0, -1.0, 2.0]), "P(4|4)")
+        require_positive_definite(np.diag([1.0, -1.0, 2.0]), "P(4|4)")
     with pytest.raises(InfeasibleDesign, match="not positive definite"):
-        _require_pd(np.full((2, 2), np.nan), "P(2|2)")
+        require_positive_definite(np.full((2, 2), np.nan), "P(2|2)")
 
 
 def test_one_state_full_pattern_is_the_scalar_kalman_filter():
     """n = o = 1: the pattern is full and the "diag" mode applies at once (both code paths)."""
     A = [np.array([[0.9 + 0.01 * k]]) for k in range(6)]
     C, Q, R = [np.array([[2.0]])] * 6, [np.array([[0.1]])] * 6, [np.array([[1.0]])] * 6
-    assert _Kernels(C, _Pattern(np.ones((1, 1), dtype=bool))).step[0][0] == "diag"
+    assert _Kernels(C, GainPattern(np.ones((1, 1), dtype=bool))).step[0][0] == "diag"
     res = finite_horizon_gains(A, C, Q, R, np.ones((1, 1)), np.array([[3.0]]))
     P, cost = 3.0, 0.0
     for k in range(6):                                 # the scalar Kalman filter by hand

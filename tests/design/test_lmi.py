@@ -11,9 +11,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from tanksynth.design.bisection import bisect_feasible
 from tanksynth.design.observer_lmi import lmi as lmi
-from tanksynth.design.observer_lmi.lmi import (ObserverLMIProblem, bisect_feasible, check_observer_lmi,
-                                  maximise_psi, observer_lmi)
+from tanksynth.design.observer_lmi.lmi import ObserverLMIProblem, check_observer_lmi, maximise_psi, observer_lmi
 from tanksynth.errors import DimensionError, InfeasibleDesign, SpecError, UnobservableError
 
 # A0 of the seed 001 TS model (paper weights, levels in [0.05, 0.62] m, all flow directions)

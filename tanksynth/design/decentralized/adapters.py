@@ -34,20 +34,21 @@ Artefact gains (every one a 1-D or 2-D float array, so that the JSON, .npz,
 from __future__ import annotations
 
 import warnings
-from typing import Any
 
 import numpy as np
 
 from tanksynth.analysis.blas import small_dense
-from tanksynth.analysis.linearize import equilibrium_input
 from tanksynth.design.decentralized.gains import (centralized_gain, equicorrelated_intensity,
                                             finite_horizon_gains, one_step_gains, own_tank_pattern,
                                             window_models)
+from tanksynth.design.matrices import symmetrized
+from tanksynth.design.operating_point import equilibrium_at, sampling_period
 from tanksynth.design.result import DesignMethod, DesignResult, options_of
 from tanksynth.errors import DesignWarning, DimensionError, InfeasibleDesign, SpecError
+from tanksynth.spec import DesignSpec, Spec
 from tanksynth.spec.method_options import DecentralizedKalmanOptions
 
-__all__ = ["run_decentralized_kalman"]
+__all__ = ["run_decentralized_kalman", "DECENTRALIZED_KALMAN"]
 
 
 def _covariance(value: float | np.ndarray, size: int) -> np.ndarray:
@@ -55,7 +56,7 @@ def _covariance(value: float | np.ndarray, size: int) -> np.ndarray:
     return np.array(value, dtype=float) if isinstance(value, np.ndarray) else value * np.eye(size)
 
 
-def run_decentralized_kalman(spec: Any, design: Any) -> DesignResult:
+def run_decentralized_kalman(spec: Spec, design: DesignSpec) -> DesignResult:
     """Decentralised (sparse) Kalman gains over one window at the operating point.
 
     Parameters
@@ -90,10 +91,10 @@ def run_decentralized_kalman(spec: Any, design: Any) -> DesignResult:
         return _decentralized_kalman(spec, design)
 
 
-def _decentralized_kalman(spec: Any, design: Any) -> DesignResult:
+def _decentralized_kalman(spec: Spec, design: DesignSpec) -> DesignResult:
     """`run_decentralized_kalman` (under one BLAS thread)."""
     plant = spec.plant
-    ts = spec.ts
+    ts = sampling_period(spec)
     o = options_of(design, spec, DecentralizedKalmanOptions)
     method, T, max_iter, relin, tol = (o.algorithm, o.window, o.max_iter, o.relinearize_every,
                                        o.tolerance)
@@ -112,7 +113,7 @@ def _decentralized_kalman(spec: Any, design: Any) -> DesignResult:
     R = _covariance(o.measurement_noise, plant.q)
     P00 = _covariance(o.initial_covariance, plant.n)
 
-    eq = equilibrium_input(plant, spec.x0, spec.given_u0)
+    eq = equilibrium_at(plant, spec.x0, spec.given_u0)
     u = eq.u0 if o.input is None else np.array(o.input)
     models, x_pred = window_models(plant, spec.x0, np.tile(u, (T + 1, 1)), ts, Qc, R,
                                    relinearize_every=relin)
@@ -120,8 +121,7 @@ def _decentralized_kalman(spec: Any, design: Any) -> DesignResult:
     C = [m.C for m in models[1:]]
     Q = [m.Q for m in models[1:]]
     Rs = [m.R for m in models[1:]]
-    P0_pred = models[0].A @ P00 @ models[0].A.T + models[0].Q
-    P0_pred = 0.5 * (P0_pred + P0_pred.T)
+    P0_pred = symmetrized(models[0].A @ P00 @ models[0].A.T + models[0].Q)
 
     # Reference costs on the same window: one-step and centralised gains.
     K_os, P_os = [], []
@@ -141,7 +141,8 @@ def _decentralized_kalman(spec: Any, design: Any) -> DesignResult:
 
     if method == "one_step":
         K, P = K_os, P_os
-        cost, iterations, converged, status, history = cost_os, 0, True, "one_step", (cost_os,)
+        history: tuple[float, ...] = (cost_os,)
+        cost, iterations, converged, status = cost_os, 0, True, "one_step"
     else:
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")

@@ -53,16 +53,18 @@ from typing import Any
 
 import numpy as np
 
-from tanksynth.errors import DimensionError, InfeasibleDesign, SpecError
-from tanksynth.design.decentralized.models import (DiscreteModel, _array2, _check_pd, _check_psd, _sym,
-                                                   discretize_noise, equicorrelated_intensity,
-                                                   linear_model, lower_tank_equilibrium,
-                                                   own_tank_pattern, window_models)
-from tanksynth.analysis.blas import small_dense
-from tanksynth.design.decentralized.recursion import (CovarianceTrajectory, _fh_casadi, _fh_iterative,
-                                                      _forward, _joseph, _Kernels, _one_step,
-                                                      _one_step_start, _Pattern, _require_pd,
-                                                      _symmetrised)
+from tanksynth.design.decentralized.models import (DiscreteModel, discretize_noise,
+                                                   equicorrelated_intensity, linear_model,
+                                                   lower_tank_equilibrium, own_tank_pattern,
+                                                   window_models)
+from tanksynth.design.decentralized.recursion import (CovarianceTrajectory, GainPattern,
+                                                      covariance_pass, iterative_gains, ipopt_gains,
+                                                      joseph_update, one_step_update,
+                                                      require_positive_definite)
+from tanksynth.design.decentralized.validation import (checked_matrix, positive_definite,
+                                                       positive_semidefinite)
+from tanksynth.design.matrices import symmetrized
+from tanksynth.errors import DimensionError, SpecError
 
 __all__ = [
     "KalmanStep",
@@ -229,7 +231,7 @@ def _stacked(items: list, name: str, shape: tuple[int, int]) -> list[np.ndarray]
         arr = None
     if arr is not None and arr.shape == (len(items), *shape) and np.isfinite(arr).all():
         return list(arr)
-    return [_array2(m, f"{name}[{k}]", shape) for k, m in enumerate(items)]
+    return [checked_matrix(m, f"{name}[{k}]", shape) for k, m in enumerate(items)]
 
 
 def _window(A_seq: Any, C_seq: Any, Q_seq: Any, R_seq: Any, E: Any, P0_pred: Any
@@ -244,9 +246,9 @@ def _window(A_seq: Any, C_seq: Any, Q_seq: Any, R_seq: Any, E: Any, P0_pred: Any
         if len(items) != T:
             raise DimensionError(f"{name} has {len(items)} matrices, expected T = {T} (the length "
                                  "of A_seq)")
-    A0 = _array2(seqs["A_seq"][0], "A_seq[0]")
+    A0 = checked_matrix(seqs["A_seq"][0], "A_seq[0]")
     n = A0.shape[0]
-    C0 = _array2(seqs["C_seq"][0], "C_seq[0]", (None, n))
+    C0 = checked_matrix(seqs["C_seq"][0], "C_seq[0]", (None, n))
     o = C0.shape[0]
     A = _stacked(seqs["A_seq"], "A_seq", (n, n))
     C = _stacked(seqs["C_seq"], "C_seq", (o, n))
@@ -259,12 +261,12 @@ def _window(A_seq: Any, C_seq: Any, Q_seq: Any, R_seq: Any, E: Any, P0_pred: Any
             seen[key] = check(M, name)
         return seen[key]
 
-    Q = [once(_check_psd, q, f"Q_seq[{k}]")
+    Q = [once(positive_semidefinite, q, f"Q_seq[{k}]")
          for k, q in enumerate(_stacked(seqs["Q_seq"], "Q_seq", (n, n)))]
-    R = [once(_check_pd, r, f"R_seq[{k}]")
+    R = [once(positive_definite, r, f"R_seq[{k}]")
          for k, r in enumerate(_stacked(seqs["R_seq"], "R_seq", (o, o)))]
     mask = np.ones((n, o), dtype=bool) if E is None else _mask(E, n, o)
-    P0 = _check_pd(_array2(P0_pred, "P0_pred", (n, n)), "P0_pred")
+    P0 = positive_definite(checked_matrix(P0_pred, "P0_pred", (n, n)), "P0_pred")
     return A, C, Q, R, mask, P0
 
 
@@ -305,11 +307,11 @@ def centralized_gain(A: Any, C: Any, Q: Any, R: Any, P_pred: Any) -> KalmanStep:
     """
     As, Cs, Qs, Rs, _, P = _window([A], [C], [Q], [R], None, P_pred)
     A, C, Q, R = As[0], Cs[0], Qs[0], Rs[0]
-    S = _sym(C @ P @ C.T + R)
+    S = symmetrized(C @ P @ C.T + R)
     K = np.linalg.solve(S, (P @ C.T).T).T
-    P_filt = _joseph(K, C, R, P)
-    _require_pd(P_filt, "P(k|k)")
-    return KalmanStep(K, P_filt, _sym(A @ P_filt @ A.T + Q))
+    P_filt = joseph_update(K, C, R, P)
+    require_positive_definite(P_filt, "P(k|k)")
+    return KalmanStep(K, P_filt, symmetrized(A @ P_filt @ A.T + Q))
 
 
 def one_step_gains(A: Any, C: Any, Q: Any, R: Any, E: Any, P_pred: Any) -> KalmanStep:
@@ -354,8 +356,8 @@ def one_step_gains(A: Any, C: Any, Q: Any, R: Any, E: Any, P_pred: Any) -> Kalma
         ``P(k|k)`` not positive definite (numerical breakdown).
     """
     A_, C_, Q_, R_, mask, P = _window([A], [C], [Q], [R], E, P_pred)
-    K, P_filt, P_next = _one_step(A_[0], C_[0], Q_[0], R_[0], _Pattern(mask), P)
-    _require_pd(P_filt, "P(k|k)")
+    K, P_filt, P_next = one_step_update(A_[0], C_[0], Q_[0], R_[0], GainPattern(mask), P)
+    require_positive_definite(P_filt, "P(k|k)")
     return KalmanStep(K, P_filt, P_next)
 
 
@@ -389,15 +391,8 @@ def covariance_recursion(A_seq: Any, C_seq: Any, Q_seq: Any, R_seq: Any, K_seq: 
     Ks = _sequence(K_seq, "K_seq")
     if len(Ks) != len(A):
         raise DimensionError(f"K_seq has {len(Ks)} gains, expected T = {len(A)}")
-    K = [_array2(k, f"K_seq[{i}]", (n, o)) for i, k in enumerate(Ks)]
-    return _forward(A, C, Q, R, K, P0)
-
-
-def _check_start(init: CovarianceTrajectory) -> None:
-    """The one-step start broke down numerically: name the step (the sweeps check at the end)."""
-    if not (np.isfinite(init.traces).all() and (init.traces > 0).all()):
-        for k, Pf in enumerate(init.P_filt):
-            _require_pd(Pf, f"P({k + 1}|{k + 1}) at window step {k + 1}")
+    K = [checked_matrix(k, f"K_seq[{i}]", (n, o)) for i, k in enumerate(Ks)]
+    return covariance_pass(A, C, Q, R, K, P0)
 
 
 def finite_horizon_gains(A_seq: Any, C_seq: Any, Q_seq: Any, R_seq: Any, E: Any, P0_pred: Any, *,
@@ -486,39 +481,10 @@ def finite_horizon_gains(A_seq: Any, C_seq: Any, Q_seq: Any, R_seq: Any, E: Any,
         raise SpecError(f"max_iter must be an integer >= 1, got {max_iter!r}", key="max_iter")
     start = time.perf_counter()
     A, C, Q, R, mask, P0 = _window(A_seq, C_seq, Q_seq, R_seq, E, P0_pred)
-    pat = _Pattern(mask)
-    if method == "iterative":
-        with small_dense():
-            kern = _Kernels(C, pat)
-            K0, init = _one_step_start(A, C, Q, R, kern, P0)
-            _check_start(init)
-            try:
-                K, traj, iters, converged, status, history = _fh_iterative(
-                    A, C, Q, R, kern, P0, K0, init, float(tol), int(max_iter))
-                broke = not traj.cost <= init.cost * (1.0 + 1e-9)   # NaN too
-            except InfeasibleDesign:   # non-finite gains, or a P(k|k) not positive definite
-                broke, iters, history = True, 0, [init.cost]
-            if broke:
-                # An exact block-coordinate sweep never raises the cost: round-off did (e.g. P0
-                # 1e50 times R): keep the one-step start when it is itself sound (else the
-                # start's own breakdown is the error, naming its step).
-                for k, Pf in enumerate(init.P_filt):
-                    _require_pd(Pf, f"P({k + 1}|{k + 1}) at window step {k + 1}")
-                K, traj, converged = list(K0), _symmetrised(init), False
-                status = "numerical breakdown of the sweeps; kept the one-step gains"
-    else:
-        K0, P_filt, P_pred = [], [], []
-        Pp = P0
-        for k in range(len(A)):
-            P_pred.append(Pp)
-            K, Pf, Pp = _one_step(A[k], C[k], Q[k], R[k], pat, Pp)
-            _require_pd(Pf, f"P({k + 1}|{k + 1}) at window step {k + 1}")
-            K0.append(K)
-            P_filt.append(Pf)
-        traces = np.array([np.trace(P) for P in P_filt])
-        init = CovarianceTrajectory(P_filt, P_pred, Pp, traces, float(traces.sum()))
-        K, traj, iters, converged, status, history = _fh_casadi(A, C, Q, R, pat, P0, K0, init,
-                                                                 float(tol), int(max_iter))
+    route = iterative_gains if method == "iterative" else ipopt_gains
+    res = route(A, C, Q, R, GainPattern(mask), P0, float(tol), int(max_iter))
+    K, traj, init, iters, converged, status = (res.K, res.trajectory, res.start, res.iterations,
+                                               res.converged, res.status)
     if not converged:
         warnings.warn(f"finite-horizon gains ({method}) did not converge within max_iter = "
                       f"{max_iter} ({status}); returning the last iterate (cost {traj.cost:.6g}, "
@@ -526,7 +492,7 @@ def finite_horizon_gains(A_seq: Any, C_seq: Any, Q_seq: Any, R_seq: Any, E: Any,
     return FiniteHorizonResult(K=K, P=traj.P_filt, cost=traj.cost, iterations=iters,
                                converged=converged, method=method, P_pred=traj.P_pred,
                                P_pred_next=traj.P_pred_next, one_step_cost=init.cost,
-                               history=tuple(history), status=status,
+                               history=tuple(res.history), status=status,
                                seconds=time.perf_counter() - start, E=mask)
 
 

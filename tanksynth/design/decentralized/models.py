@@ -15,9 +15,8 @@ discrete models ``(A_k, C_k, Q_k, R_k)`` and a sparsity pattern:
                             every ``relinearize_every`` steps
 ==========================  ==================================================
 
-Also the checks of the covariance matrices given to the gain routines
-(symmetric, positive (semi)definite), shared with
-`tanksynth.design.decentralized.gains`.
+The checks of the matrices given (shape, symmetric, positive (semi)definite) are
+`tanksynth.design.decentralized.validation`.
 
 Units: covariances are in the squared state unit (cm^2 for the tank
 network), ``R`` in the squared output unit, process-noise intensities
@@ -33,9 +32,12 @@ from typing import Any
 import numpy as np
 import scipy.linalg as sla
 
+from tanksynth.analysis.linearize import discretize_zoh
+from tanksynth.design.decentralized.validation import (checked_matrix, positive_definite,
+                                                       positive_semidefinite)
+from tanksynth.design.matrices import symmetrized
 from tanksynth.errors import DimensionError, RegionError, SpecError
 from tanksynth.plants.base import Plant
-from tanksynth.analysis.linearize import discretize_zoh
 
 __all__ = [
     "DiscreteModel",
@@ -46,68 +48,6 @@ __all__ = [
     "linear_model",
     "window_models",
 ]
-
-_SYM_RTOL = 1e-8          # relative asymmetry accepted (then symmetrised) in inputs
-_PSD_RTOL = 1e-10         # relative negative eigenvalue accepted in Q (rounding)
-
-
-# ================================================================== validation
-def _array2(value: Any, name: str, shape: tuple[int | None, int | None] | None = None) -> np.ndarray:
-    try:
-        arr = np.array(value, dtype=float)
-    except (TypeError, ValueError):
-        raise DimensionError(f"{name} must be a matrix of numbers, got {type(value).__name__}") from None
-    if arr.ndim == 0:
-        arr = arr.reshape(1, 1)
-    if arr.ndim != 2:
-        raise DimensionError(f"{name} must be a 2-D matrix, got an array of shape {arr.shape}")
-    if shape is not None:
-        for got, want in zip(arr.shape, shape):
-            if want is not None and got != want:
-                raise DimensionError(f"{name} has shape {arr.shape}, expected "
-                                     f"({shape[0] if shape[0] is not None else '*'}, "
-                                     f"{shape[1] if shape[1] is not None else '*'})")
-    if not np.all(np.isfinite(arr)):
-        raise DimensionError(f"{name} has non-finite entries")
-    return arr
-
-
-def _symmetric(M: np.ndarray, name: str) -> np.ndarray:
-    scale = max(1.0, float(np.max(np.abs(M))))
-    if float(np.max(np.abs(M - M.T))) > _SYM_RTOL * scale:
-        raise SpecError(f"{name} is not symmetric (max |M - M'| = {np.max(np.abs(M - M.T)):.3g})",
-                        key=name)
-    return 0.5 * (M + M.T)
-
-
-def _check_pd(M: np.ndarray, name: str) -> np.ndarray:
-    """Symmetrise and require positive definiteness (Cholesky)."""
-    M = _symmetric(M, name)
-    try:
-        np.linalg.cholesky(M)
-    except np.linalg.LinAlgError:
-        low = float(np.linalg.eigvalsh(M)[0])
-        raise SpecError(f"{name} is not positive definite (smallest eigenvalue {low:.3g})",
-                        key=name) from None
-    return M
-
-
-def _check_psd(M: np.ndarray, name: str) -> np.ndarray:
-    M = _symmetric(M, name)
-    slack = _PSD_RTOL * max(1.0, float(np.max(np.abs(M))))
-    try:
-        np.linalg.cholesky(M + slack * np.eye(M.shape[0]))
-        return M
-    except np.linalg.LinAlgError:
-        low = float(np.linalg.eigvalsh(M)[0])
-    if low < -slack:
-        raise SpecError(f"{name} is not positive semidefinite (smallest eigenvalue {low:.3g})",
-                        key=name)
-    return M
-
-
-def _sym(M: np.ndarray) -> np.ndarray:
-    return 0.5 * (M + M.T)
 
 
 # ============================================================ sparsity patterns
@@ -214,11 +154,11 @@ def discretize_noise(F: Any, Qc: Any, ts: float) -> tuple[np.ndarray, np.ndarray
     Q_d : ndarray, shape (n, n)
         Discrete process-noise covariance (squared state unit).
     """
-    F = _array2(F, "F")
+    F = checked_matrix(F, "F")
     n = F.shape[0]
     if F.shape != (n, n):
         raise DimensionError(f"F must be square, got shape {F.shape}")
-    Qc = _check_psd(_array2(Qc, "Qc", (n, n)), "Qc")
+    Qc = positive_semidefinite(checked_matrix(Qc, "Qc", (n, n)), "Qc")
     if isinstance(ts, bool) or not isinstance(ts, (int, float)) or not (np.isfinite(ts) and ts > 0):
         raise SpecError(f"sampling period must be a positive number of seconds, got {ts!r}",
                         key="sampling.ts")
@@ -228,7 +168,7 @@ def discretize_noise(F: Any, Qc: Any, ts: float) -> tuple[np.ndarray, np.ndarray
     M[n:, n:] = F.T
     G = sla.expm(M * ts)
     Ad = G[n:, n:].T
-    return Ad, _sym(Ad @ G[:n, n:])
+    return Ad, symmetrized(Ad @ G[:n, n:])
 
 
 @dataclass(frozen=True, eq=False)
@@ -424,7 +364,7 @@ def linear_model(plant: Plant, x: Any, u: Any, ts: float, Qc: Any, R: Any, *,
     _, Qd = discretize_noise(F, Qc, ts)
     C = np.asarray(comp.jac_h(x_lin), dtype=float).reshape(plant.q, plant.n)
     y_lin = np.asarray(comp.h(x_lin), dtype=float).reshape(-1)
-    Rm = _check_pd(_array2(R, "R", (plant.q, plant.q)), "R")
+    Rm = positive_definite(checked_matrix(R, "R", (plant.q, plant.q)), "R")
     return DiscreteModel(Ad, BD[:, : plant.m], C, Qd, Rm, x_lin, u_lin, y_lin, BD[:, plant.m],
                          float(ts), scheme)
 

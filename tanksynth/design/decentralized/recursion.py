@@ -1,10 +1,11 @@
 """Joseph-form covariance recursion and the sparse gain kernels (seed 003).
 
 The kernels behind `tanksynth.design.decentralized.gains`: the gain equation on a
-sparsity pattern (`_Pattern`), one Kalman step with a sparse gain, the
-covariance pass over a window for given gains (`CovarianceTrajectory`), and
-the two finite-horizon routes (IPOPT through CasADi, Pedroso & Batista's
-backward/forward sweeps). Inputs are validated by the callers, once.
+sparsity pattern (`GainPattern`), one Kalman step with a sparse gain (`one_step_update`,
+`joseph_update`), the covariance pass over a window for given gains (`covariance_pass`,
+`CovarianceTrajectory`), and the two finite-horizon routes (`ipopt_gains`: IPOPT through
+CasADi; `iterative_gains`: Pedroso & Batista's backward/forward sweeps), each started from the
+one-step gains of the window (`RouteResult`). Inputs are validated by the callers, once.
 
 The sweeps (the default route) run on `_Kernels`: how ``K C`` is applied
 (diagonal, through the selection ``C``, or dense) is decided once per window,
@@ -22,15 +23,14 @@ from typing import Any
 
 import numpy as np
 
+from scipy.linalg.lapack import dposv as _POSV, dpotrf as _POTRF
+
+from tanksynth.analysis.blas import small_dense
+from tanksynth.design.matrices import symmetrized
 from tanksynth.errors import InfeasibleDesign
-from tanksynth.design.decentralized.models import _sym
 
-__all__ = ["CovarianceTrajectory"]
-
-try:
-    from scipy.linalg.lapack import dposv as _POSV, dpotrf as _POTRF
-except ImportError:  # pragma: no cover - scipy is a dependency
-    _POSV = _POTRF = None
+__all__ = ["CovarianceTrajectory", "GainPattern", "RouteResult", "joseph_update", "one_step_update",
+           "require_positive_definite", "covariance_pass", "iterative_gains", "ipopt_gains"]
 
 _BLOCK_SCALING_MAX = 400  # free entries per step up to which the casadi route scales by blocks
 
@@ -60,6 +60,39 @@ class CovarianceTrajectory:
     cost: float
 
 
+@dataclass(frozen=True, eq=False)
+class RouteResult:
+    """What a finite-horizon route returns (`iterative_gains`, `ipopt_gains`).
+
+    Attributes
+    ----------
+    K : list of ndarray, each (n, o)
+        Gains ``K(1) .. K(T)`` (state unit per output unit); 0 off the pattern.
+    trajectory : CovarianceTrajectory
+        Their covariances, recomputed from the gains (symmetric).
+    iterations : int
+        Outer iterations (sweeps) or IPOPT iterations.
+    converged : bool
+        The route met its tolerance within ``max_iter``.
+    status : str
+        ``"converged"``, ``"max_iter"``, IPOPT's return status, or why the one-step gains were
+        kept.
+    history : list of float
+        Cost after each outer iteration (squared state unit); for IPOPT the warm-start and final
+        costs.
+    start : CovarianceTrajectory
+        The covariances of the one-step gains the route started from.
+    """
+
+    K: list[np.ndarray]
+    trajectory: CovarianceTrajectory
+    iterations: int
+    converged: bool
+    status: str
+    history: list[float]
+    start: CovarianceTrajectory
+
+
 # ====================================================================== kernels
 def _predict(A: np.ndarray, Pf: np.ndarray, Q: np.ndarray) -> np.ndarray:
     """``P(k+1|k) = A P(k|k) A' + Q``, symmetrised (in place: ``(X + X') / 2``, ``X = A P A' + Q``)."""
@@ -70,19 +103,50 @@ def _predict(A: np.ndarray, Pf: np.ndarray, Q: np.ndarray) -> np.ndarray:
     return X
 
 
-def _joseph(K: np.ndarray, C: np.ndarray, R: np.ndarray, P_pred: np.ndarray) -> np.ndarray:
+def joseph_update(K: np.ndarray, C: np.ndarray, R: np.ndarray, P_pred: np.ndarray) -> np.ndarray:
+    """``P(k|k) = (I - K C) P(k|k-1) (I - K C)' + K R K'`` (Joseph form, valid for any gain),
+    symmetrised.
+
+    Parameters
+    ----------
+    K : ndarray, shape (n, o)
+        Filter gain (state unit per output unit).
+    C : ndarray, shape (o, n)
+        Output matrix (output unit per state unit).
+    R : ndarray, shape (o, o)
+        Measurement-noise covariance (squared output unit).
+    P_pred : ndarray, shape (n, n)
+        ``P(k|k-1)`` (squared state unit).
+
+    Returns
+    -------
+    ndarray, shape (n, n)
+        ``P(k|k)`` (squared state unit).
+    """
     IKC = -(K @ C)
     IKC[np.diag_indices_from(IKC)] += 1.0                 # I - K C without building I
-    return _sym(IKC @ P_pred @ IKC.T + K @ R @ K.T)
+    return symmetrized(IKC @ P_pred @ IKC.T + K @ R @ K.T)
 
 
-def _require_pd(P: np.ndarray, what: str) -> None:
+def require_positive_definite(P: np.ndarray, what: str) -> None:
+    """Refuse a covariance of the recursion that lost positive definiteness (LAPACK Cholesky).
+
+    Parameters
+    ----------
+    P : ndarray, shape (n, n)
+        A covariance of the recursion (squared state unit).
+    what : str
+        Which one, for the message (``"P(3|3) at window step 3"``).
+
+    Raises
+    ------
+    InfeasibleDesign
+        Not finite or not positive definite (naming ``what`` and its smallest eigenvalue).
+    """
     try:
         if not np.isfinite(P).all():
             raise np.linalg.LinAlgError
-        if _POTRF is None:  # pragma: no cover - scipy is a dependency
-            np.linalg.cholesky(P)
-        elif _POTRF(P, lower=1, clean=0)[1] != 0:     # LAPACK Cholesky, no copy of the result
+        if _POTRF(P, lower=1, clean=0)[1] != 0:     # LAPACK Cholesky, no copy of the result
             raise np.linalg.LinAlgError
     except np.linalg.LinAlgError:
         low = float(np.linalg.eigvalsh(P)[0]) if np.all(np.isfinite(P)) else float("nan")
@@ -90,8 +154,27 @@ def _require_pd(P: np.ndarray, what: str) -> None:
                                "the covariance recursion broke down numerically") from None
 
 
-class _Pattern:
-    """Index arrays of the free entries of a mask, in row-major order."""
+class GainPattern:
+    """Index arrays of the free entries of a gain's sparsity pattern, in row-major order.
+
+    Parameters
+    ----------
+    mask : ndarray of bool, shape (n, o)
+        True where a gain entry is free (dimensionless).
+
+    Attributes
+    ----------
+    mask : ndarray of bool, shape (n, o)
+    full : bool
+        Every entry is free.
+    rows, cols : ndarray of int
+        Row and column of each free entry.
+    shape : tuple of int
+        ``(n, o)``.
+    rr, cc : tuple of ndarray
+        ``numpy.ix_`` of the free entries' rows (columns) with themselves: the principal
+        submatrices of the gain equation (indices, dimensionless).
+    """
 
     def __init__(self, mask: np.ndarray):
         self.mask = mask
@@ -111,6 +194,26 @@ class _Pattern:
         and solved directly (LAPACK ``gesv`` through numpy; the system is
         symmetric positive definite). With every entry free the solution is
         ``K = L^-1 rhs S^-1`` (one ``o x o`` solve instead of ``n o``).
+
+        Parameters
+        ----------
+        L : ndarray, shape (n, n), or None
+            Left weighting (the cost-to-go ``Lambda_k`` of the sweeps; dimensionless), None for
+            the identity.
+        S : ndarray, shape (o, o)
+            Innovation covariance ``C P C' + R`` (squared output unit).
+        rhs : ndarray, shape (n, o)
+            Right-hand side ``L P C'`` (state unit times output unit).
+
+        Returns
+        -------
+        ndarray, shape (n, o)
+            The gain (state unit per output unit), 0 off the pattern.
+
+        Raises
+        ------
+        InfeasibleDesign
+            The equation on the free entries is singular.
         """
         K = np.zeros(self.shape)
         if self.full:  # every entry free: L K S = rhs
@@ -129,24 +232,74 @@ class _Pattern:
         return K
 
 
-def _one_step(A: np.ndarray, C: np.ndarray, Q: np.ndarray, R: np.ndarray, pat: _Pattern,
-              P_pred: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    S = _sym(C @ P_pred @ C.T + R)
+def one_step_update(A: np.ndarray, C: np.ndarray, Q: np.ndarray, R: np.ndarray, pat: GainPattern,
+                    P_pred: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """One filter step with the one-step optimal gain on a pattern (``min tr P(k|k)``).
+
+    Parameters
+    ----------
+    A : ndarray, shape (n, n)
+        ``A_k``, for the prediction (dimensionless).
+    C : ndarray, shape (o, n)
+        ``C_k`` (output unit per state unit).
+    Q : ndarray, shape (n, n)
+        Process-noise covariance (squared state unit).
+    R : ndarray, shape (o, o)
+        Measurement-noise covariance (squared output unit).
+    pat : GainPattern
+        The free entries of the gain.
+    P_pred : ndarray, shape (n, n)
+        ``P(k|k-1)`` (squared state unit).
+
+    Returns
+    -------
+    K : ndarray, shape (n, o)
+        The gain (state unit per output unit).
+    P_filt : ndarray, shape (n, n)
+        ``P(k|k)`` (squared state unit).
+    P_pred_next : ndarray, shape (n, n)
+        ``P(k+1|k)`` (squared state unit).
+    """
+    S = symmetrized(C @ P_pred @ C.T + R)
     K = pat.solve(None, S, P_pred @ C.T)
-    P_filt = _joseph(K, C, R, P_pred)
-    return K, P_filt, _sym(A @ P_filt @ A.T + Q)
+    P_filt = joseph_update(K, C, R, P_pred)
+    return K, P_filt, symmetrized(A @ P_filt @ A.T + Q)
 
 
-def _forward(A: list[np.ndarray], C: list[np.ndarray], Q: list[np.ndarray], R: list[np.ndarray],
-             K: list[np.ndarray], P0: np.ndarray, check: bool = True,
-             kern: "_Kernels | None" = None) -> CovarianceTrajectory:
+def covariance_pass(A: list[np.ndarray], C: list[np.ndarray], Q: list[np.ndarray],
+                    R: list[np.ndarray], K: list[np.ndarray], P0: np.ndarray, check: bool = True,
+                    kernels: "_Kernels | None" = None) -> CovarianceTrajectory:
+    """The Joseph-form covariances of a window for given gains.
+
+    Parameters
+    ----------
+    A, C, Q, R : list of ndarray, length T
+        ``A_k`` (n, n, dimensionless), ``C_k`` (o, n, output unit per state unit), ``Q_k``
+        (n, n, squared state unit), ``R_k`` (o, o, squared output unit).
+    K : list of ndarray, length T
+        Gains (n, o), state unit per output unit.
+    P0 : ndarray, shape (n, n)
+        ``P(1|0)`` (squared state unit).
+    check : bool
+        Refuse a ``P(k|k)`` that is not positive definite (`require_positive_definite`), step by
+        step.
+    kernels : optional
+        The iterative route's product kernels for this window (its own products, covariances
+        left unsymmetrised); None: the dense products, symmetrised at every step.
+
+    Returns
+    -------
+    CovarianceTrajectory
+    """
+    kern = kernels
     P_filt, P_pred = [], []
     Pp = P0
     for k in range(len(A)):
         P_pred.append(Pp)
-        Pf = _joseph(K[k], C[k], R[k], Pp) if kern is None else kern.joseph(K[k], C[k], R[k], Pp, k)
+        Pf = (joseph_update(K[k], C[k], R[k], Pp) if kern is None
+              else kern.joseph(K[k], C[k], R[k], Pp, k))
         if check:
-            _require_pd(Pf, f"P({k + 1}|{k + 1}) at window step {k + 1}")
+            require_positive_definite(Pf, f"P({k + 1}|{k + 1}) at window step {k + 1}")
         P_filt.append(Pf)
         Pp = _predict(A[k], Pf, Q[k]) if kern is None else A[k] @ Pf @ A[k].T + Q[k]
     traces = np.array([P.trace() for P in P_filt])
@@ -188,7 +341,7 @@ def _spd_solve(M: np.ndarray, b: np.ndarray) -> np.ndarray:
     `InfeasibleDesign`. (No ``overwrite_*`` flags: with them f2py's
     write-back makes the call several times slower.)
     """
-    _, x, info = _POSV(M, b) if _POSV else (None, None, 1)
+    _, x, info = _POSV(M, b)
     if info == 0:
         return x
     try:
@@ -216,7 +369,7 @@ class _Kernels:
         ``C_k`` a scaled selection, any ``E``: ``K C X = K (C X)`` with ``C X``
         a row gather, ``X C' K'`` likewise (no ``n x n`` product with ``K C``).
     ``"dense"``
-        The dense products of `_joseph`.
+        The dense products of `joseph_update`.
 
     The gain equation's right-hand side is formed on the free entries only
     (``O(n nf)``), ``[L]_rr`` is ``L`` itself when each row has one free
@@ -224,7 +377,7 @@ class _Kernels:
     definite) is solved by Cholesky (LAPACK ``posv``; LU if that fails).
     """
 
-    def __init__(self, C: list[np.ndarray], pat: _Pattern):
+    def __init__(self, C: list[np.ndarray], pat: GainPattern):
         """``C`` the window's output matrices, ``pat`` the pattern of the gains."""
         self.pat = pat
         n, o = pat.shape
@@ -358,7 +511,7 @@ class _Kernels:
         route returns is symmetrised once, at the end (`_symmetrised`).
         """
         mode, sel, scale, _ = ("dense", None, None, None) if k is None else self.step[k]
-        if mode == "diag":
+        if mode == "diag" and k is not None:      # "diag" is a step's mode: k is given
             d, kr = self._diag(k, K)
             Rcc = self._rcc.get(id(R))
             if Rcc is None:
@@ -425,7 +578,7 @@ def _fh_iterative(A, C, Q, R, kern: _Kernels, P0, K0: list[np.ndarray],
         if not np.isfinite(np.stack(K)).all():
             raise InfeasibleDesign(f"the finite-horizon iteration produced non-finite gains "
                                    f"(outer iteration {it})")
-        new = _forward(A, C, Q, R, K, P0, check=False, kern=kern)   # checked once, below
+        new = covariance_pass(A, C, Q, R, K, P0, check=False, kernels=kern)   # checked once, below
         if not np.isfinite(new.traces).all():
             traj = new                                   # broke down: the check below names the step
             break
@@ -438,18 +591,18 @@ def _fh_iterative(A, C, Q, R, kern: _Kernels, P0, K0: list[np.ndarray],
     traj = _symmetrised(traj)
     # the covariances the gains give, positive definite (one Cholesky per step, at the end only)
     for k, Pf in enumerate(traj.P_filt):
-        _require_pd(Pf, f"P({k + 1}|{k + 1}) at window step {k + 1}")
+        require_positive_definite(Pf, f"P({k + 1}|{k + 1}) at window step {k + 1}")
     status = "converged" if converged else "max_iter"
     return K, traj, it, converged, status, history
 
 
 def _symmetrised(traj: CovarianceTrajectory) -> CovarianceTrajectory:
     """The trajectory with every covariance symmetrised (same traces, same cost)."""
-    return CovarianceTrajectory([_sym(P) for P in traj.P_filt], [_sym(P) for P in traj.P_pred],
-                                _sym(traj.P_pred_next), traj.traces, traj.cost)
+    return CovarianceTrajectory([symmetrized(P) for P in traj.P_filt], [symmetrized(P) for P in traj.P_pred],
+                                symmetrized(traj.P_pred_next), traj.traces, traj.cost)
 
 
-def _block_hessians(A, C, R, pat: _Pattern, K, P_pred) -> list[np.ndarray]:
+def _block_hessians(A, C, R, pat: GainPattern, K, P_pred) -> list[np.ndarray]:
     """Hessian blocks ``2 [S_k kron Lambda_k]_EE`` of the cost in each ``K_k`` alone."""
     T, n = len(A), A[0].shape[0]
     eye = np.eye(n)
@@ -458,15 +611,15 @@ def _block_hessians(A, C, R, pat: _Pattern, K, P_pred) -> list[np.ndarray]:
     for k in range(T - 1, -1, -1):
         if k < T - 1:
             M = (eye - K[k + 1] @ C[k + 1]) @ A[k]
-            L = _sym(eye + M.T @ L @ M)
-        S = _sym(C[k] @ P_pred[k] @ C[k].T + R[k])
+            L = symmetrized(eye + M.T @ L @ M)
+        S = symmetrized(C[k] @ P_pred[k] @ C[k].T + R[k])
         out[k] = L[pat.rr] * S[pat.cc]
     return out
 
 
-def _fh_casadi(A, C, Q, R, pat: _Pattern, P0, K0, init: CovarianceTrajectory, tol: float,
+def _fh_casadi(A, C, Q, R, pat: GainPattern, P0, K0, init: CovarianceTrajectory, tol: float,
                max_iter: int):
-    import casadi as ca
+    import casadi as ca     # here: only this route (not the default) builds a CasADi problem
 
     T = len(A)
     n, o = pat.shape
@@ -491,9 +644,9 @@ def _fh_casadi(A, C, Q, R, pat: _Pattern, P0, K0, init: CovarianceTrajectory, to
         Uinv.append(np.linalg.inv(U))
     z = ca.MX.sym("z", nf * T)
     parts = ca.vertsplit(z, [i * nf for i in range(T + 1)])
-    P = ca.DM(P0)
+    P: Any = ca.DM(P0)       # a constant, then an expression of the gains
     eye = ca.DM.eye(n)
-    J = 0
+    J: Any = 0
     for k in range(T):
         kk = ca.DM(w0[k]) + ca.mtimes(ca.DM(Uinv[k]), parts[k])
         Kk = ca.reshape(ca.mtimes(Z, kk), n, o)
@@ -503,7 +656,7 @@ def _fh_casadi(A, C, Q, R, pat: _Pattern, P0, K0, init: CovarianceTrajectory, to
         if k < T - 1:
             Ak = ca.DM(A[k])
             P = ca.mtimes([Ak, Pf, Ak.T]) + ca.DM(Q[k])
-    opts = {
+    opts: dict[str, Any] = {
         "print_time": False,
         "ipopt.print_level": 0,
         "ipopt.sb": "yes",
@@ -512,18 +665,19 @@ def _fh_casadi(A, C, Q, R, pat: _Pattern, P0, K0, init: CovarianceTrajectory, to
         "ipopt.hessian_approximation": "limited-memory",
         "ipopt.limited_memory_max_history": 20,
     }
-    solver = ca.nlpsol("decentralized_fh", "ipopt", {"x": z, "f": J / init.cost}, opts)
+    problem: dict[str, Any] = {"x": z, "f": J / init.cost}
+    solver = ca.nlpsol("decentralized_fh", "ipopt", problem, opts)
     sol = solver(x0=np.zeros(nf * T))
     stats = solver.stats()
     zs = np.asarray(sol["x"], dtype=float).ravel()
     if not np.all(np.isfinite(zs)):
         raise InfeasibleDesign(f"IPOPT returned non-finite gains ({stats.get('return_status')})")
-    K = []
+    K: list[np.ndarray] = []
     for k in range(T):
-        Kk = np.zeros((n, o))
-        Kk[pat.rows, pat.cols] = w0[k] + Uinv[k] @ zs[k * nf:(k + 1) * nf]
-        K.append(Kk)
-    traj = _forward(A, C, Q, R, K, P0)
+        gain = np.zeros((n, o))
+        gain[pat.rows, pat.cols] = w0[k] + Uinv[k] @ zs[k * nf:(k + 1) * nf]
+        K.append(gain)
+    traj = covariance_pass(A, C, Q, R, K, P0)
     status = str(stats.get("return_status", "unknown"))
     converged = bool(stats.get("success", False)) or status == "Solved_To_Acceptable_Level"
     if traj.cost > init.cost:  # never hand back something worse than the warm start
@@ -531,3 +685,109 @@ def _fh_casadi(A, C, Q, R, pat: _Pattern, P0, K0, init: CovarianceTrajectory, to
         status += " (worse than the one-step warm start; kept the one-step gains)"
     return K, traj, int(stats.get("iter_count", 0)), converged, status, [init.cost, traj.cost]
 
+
+def _check_start(init: CovarianceTrajectory) -> None:
+    """The one-step start broke down numerically: name the step (the sweeps check at the end)."""
+    if not (np.isfinite(init.traces).all() and (init.traces > 0).all()):
+        for k, Pf in enumerate(init.P_filt):
+            require_positive_definite(Pf, f"P({k + 1}|{k + 1}) at window step {k + 1}")
+
+
+def iterative_gains(A: list[np.ndarray], C: list[np.ndarray], Q: list[np.ndarray],
+                    R: list[np.ndarray], pat: GainPattern, P0: np.ndarray, tol: float,
+                    max_iter: int) -> RouteResult:
+    """Finite-horizon gains by Pedroso & Batista's backward/forward sweeps, from the one-step gains.
+
+    Runs under one BLAS thread (`tanksynth.analysis.blas.small_dense`). Should the sweeps break
+    down numerically (non-finite gains, a covariance not positive definite, a cost above the
+    start: round-off, e.g. ``P0`` 1e50 times ``R``), the one-step gains are kept when they are
+    themselves sound.
+
+    Parameters
+    ----------
+    A, C, Q, R : list of ndarray, length T
+        The window's models, validated: ``A_k`` (n, n, dimensionless), ``C_k`` (o, n, output unit
+        per state unit), ``Q_k`` (n, n, squared state unit), ``R_k`` (o, o, squared output unit).
+    pat : GainPattern
+        The free entries of the gains.
+    P0 : ndarray, shape (n, n)
+        ``P(1|0)`` (squared state unit).
+    tol : float
+        Relative change of every ``tr P(k|k)`` at which the sweeps stop (dimensionless).
+    max_iter : int
+        Largest number of outer iterations.
+
+    Returns
+    -------
+    RouteResult
+
+    Raises
+    ------
+    InfeasibleDesign
+        The one-step start itself lost positive definiteness (naming the step).
+    """
+    with small_dense():
+        kern = _Kernels(C, pat)
+        K0, init = _one_step_start(A, C, Q, R, kern, P0)
+        _check_start(init)
+        try:
+            K, traj, iters, converged, status, history = _fh_iterative(
+                A, C, Q, R, kern, P0, K0, init, tol, max_iter)
+            broke = not traj.cost <= init.cost * (1.0 + 1e-9)   # NaN too
+        except InfeasibleDesign:   # non-finite gains, or a P(k|k) not positive definite
+            broke, iters, history = True, 0, [init.cost]
+        if broke:
+            # An exact block-coordinate sweep never raises the cost: round-off did (e.g. P0
+            # 1e50 times R): keep the one-step start when it is itself sound (else the
+            # start's own breakdown is the error, naming its step).
+            for k, Pf in enumerate(init.P_filt):
+                require_positive_definite(Pf, f"P({k + 1}|{k + 1}) at window step {k + 1}")
+            K, traj, converged = list(K0), _symmetrised(init), False
+            status = "numerical breakdown of the sweeps; kept the one-step gains"
+    return RouteResult(K, traj, iters, converged, status, history, init)
+
+
+def ipopt_gains(A: list[np.ndarray], C: list[np.ndarray], Q: list[np.ndarray],
+                R: list[np.ndarray], pat: GainPattern, P0: np.ndarray, tol: float,
+                max_iter: int) -> RouteResult:
+    """Finite-horizon gains by IPOPT (CasADi) on the covariance recursion, from the one-step gains.
+
+    The one-step gains of the window are the warm start (each of their covariances checked);
+    should IPOPT end above their cost, they are returned (``converged`` false).
+
+    Parameters
+    ----------
+    A, C, Q, R : list of ndarray, length T
+        The window's models, validated: ``A_k`` (n, n, dimensionless), ``C_k`` (o, n, output unit
+        per state unit), ``Q_k`` (n, n, squared state unit), ``R_k`` (o, o, squared output unit).
+    pat : GainPattern
+        The free entries of the gains.
+    P0 : ndarray, shape (n, n)
+        ``P(1|0)`` (squared state unit).
+    tol : float
+        Relative tolerance (dimensionless); IPOPT's ``tol`` is ``tol * 1e-2``.
+    max_iter : int
+        Largest number of IPOPT iterations.
+
+    Returns
+    -------
+    RouteResult
+
+    Raises
+    ------
+    InfeasibleDesign
+        A covariance of the start lost positive definiteness, or IPOPT returned non-finite gains.
+    """
+    K0, P_filt, P_pred = [], [], []
+    Pp = P0
+    for k in range(len(A)):
+        P_pred.append(Pp)
+        K, Pf, Pp = one_step_update(A[k], C[k], Q[k], R[k], pat, Pp)
+        require_positive_definite(Pf, f"P({k + 1}|{k + 1}) at window step {k + 1}")
+        K0.append(K)
+        P_filt.append(Pf)
+    traces = np.array([np.trace(P) for P in P_filt])
+    init = CovarianceTrajectory(P_filt, P_pred, Pp, traces, float(traces.sum()))
+    K, traj, iters, converged, status, history = _fh_casadi(A, C, Q, R, pat, P0, K0, init, tol,
+                                                             max_iter)
+    return RouteResult(K, traj, iters, converged, status, history, init)

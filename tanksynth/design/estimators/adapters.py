@@ -1,4 +1,4 @@
-"""Spec design methods for the estimators and fault detection.
+"""Spec design methods of the ``estimators`` family: state estimators and observers.
 
 ===========================  =========================================================
 ``kalman``                   CKF on the ZOH linearisation at the operating point (seed
@@ -12,7 +12,6 @@
 ``consensus_filter``         information-form consensus filter (seed 004 eq. 42-51)
 ``narx``                     NARX estimator trained on EKF data (seed 002 section 3.3)
 ``luenberger``               Luenberger observer from a gain ``L`` or poles
-``fault_detection``          residual threshold and detection times (seed 004 II-F)
 ===========================  =========================================================
 
 Covariance options accept a number (``s I``), a list (diagonal) or a list
@@ -21,20 +20,30 @@ estimate (option ``x0``, gain ``x_hat0``) defaults to the operating point. Every
 unobservable linearisation (`UnobservableError` naming the modes) and lists
 physically implausible tuning values (initial estimate outside the region,
 noise or initial spread larger than the region) in the diagnostics.
+
+Every adapter has the same shape: the linearisation at the operating point and its
+observability (`_observable_at_operating_point`), the tuning from the validated options
+(`_kalman_tuning` for the Kalman-type filters), the runtime filter built once (its model is
+what the diagnostics describe), and the common diagnostics (`_filter_result`); each adapter
+states only what differs (its tuning class, extra gains and diagnostics, its errata).
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-import sympy as sp
 
-from tanksynth.analysis.linearize import equilibrium_input, linearize
-from tanksynth.design.fault.threshold import detection_time, fault_threshold
+from tanksynth.analysis.linearize import LinearModel
+from tanksynth.analysis.rank import observability_rank, pbh_test
 from tanksynth.design.estimators.narx_training import train_narx
-from tanksynth.design.result import DesignMethod, DesignResult, options_of, rekeyed
-from tanksynth.errors import SpecError, UnobservableError
+from tanksynth.design.operating_point import (as_levels, discrete_pair, equilibrium_at, linearized_at,
+                                              sampling_period)
+from tanksynth.design.placement.canonical import place_observer
+from tanksynth.design.result import DesignMethod, DesignResult, keyed_call, options_of
+from tanksynth.errors import UnobservableError
+from tanksynth.plants.base import Plant
 from tanksynth.runtime.estimators.adaptive import (AdaptiveKalmanFilter, AdaptiveKalmanTuning,
                                                    AdaptiveScalingKalmanFilter, AdaptiveScalingTuning)
 from tanksynth.runtime.estimators.base import DiscreteModel, discrete_model
@@ -43,37 +52,33 @@ from tanksynth.runtime.estimators.kalman import (ExtendedKalmanFilter, KalmanFil
                                                  steady_state_gain)
 from tanksynth.runtime.estimators.luenberger import LuenbergerObserver, LuenbergerTuning
 from tanksynth.runtime.estimators.ukf import UKFTuning, UnscentedKalmanFilter
+from tanksynth.spec import DesignSpec, Spec
 from tanksynth.spec.method_options import (AdaptiveKalmanOptions, AdaptiveScalingKalmanOptions,
-                                           ConsensusFilterOptions, EkfOptions,
-                                           FaultDetectionOptions, KalmanOptions, LuenbergerOptions,
-                                           NarxOptions, UkfOptions)
+                                           ConsensusFilterOptions, EkfOptions, KalmanOptions,
+                                           LuenbergerOptions, NarxOptions, UkfOptions)
 
 __all__ = [
     "run_kalman", "run_ekf", "run_ukf", "run_adaptive_kalman", "run_adaptive_scaling_kalman",
-    "run_consensus_filter", "run_narx", "run_luenberger", "run_fault_detection", "plausibility",
+    "run_consensus_filter", "run_narx", "run_luenberger", "plausibility",
+    "KALMAN", "EKF", "UKF", "ADAPTIVE_KALMAN", "ADAPTIVE_SCALING_KALMAN", "CONSENSUS_FILTER",
+    "NARX", "LUENBERGER",
 ]
 
-#: Option named in a `SpecError` a tuning or design step raises, by the key it uses.
-_OPTION_OF = {"a": "abc", "b": "abc", "c": "abc", "gain": "poles", "input_schedule": "input"}
+#: Option named in a `SpecError` a tuning raises, by the key it uses.
+_OPTION_OF = {"a": "abc", "b": "abc", "c": "abc"}
+#: What the observability refusal names: the linear model a linear filter runs on, or the
+#: linearisation a nonlinear estimator is only checked on.
+_LINEAR_MODEL = "(Ad, C) at the operating point"
+_LINEARISATION = "the linearisation at the operating point"
 
 
-def _tuning(design: Any, cls: Any, **kwargs: Any) -> Any:
-    """Build a tuning (or run a design step), re-keying its errors to the spec option."""
-    try:
-        return cls(**kwargs)
-    except SpecError as exc:
-        if exc.key and not exc.key.startswith("design["):
-            raise rekeyed(design, exc, _OPTION_OF.get(exc.key, exc.key)) from None
-        raise
-
-
-def _x0(spec: Any, o: Any) -> np.ndarray:
+def _x0(spec: Spec, o: Any) -> np.ndarray:
     """The initial estimate: the option, else the operating point (state units)."""
     return np.array(spec.x0 if o.x0 is None else o.x0, dtype=float)
 
 
 # ------------------------------------------------------------------------------ checks
-def plausibility(plant: Any, x0: np.ndarray, R: np.ndarray | None = None,
+def plausibility(plant: Plant, x0: np.ndarray, R: np.ndarray | None = None,
                  P0: np.ndarray | None = None) -> list[str]:
     """Physically odd tuning values, as sentences for the report.
 
@@ -93,7 +98,7 @@ def plausibility(plant: Any, x0: np.ndarray, R: np.ndarray | None = None,
         Initial estimate covariance (state units squared).
     """
     notes = [f"initial estimate outside the operating region: {v}"
-             for v in plant.region.violations(x0, plant.x)]
+             for v in plant.region.violations(as_levels(x0), plant.x)]
     span = float(np.max([hi - lo for lo, hi in plant.region.bounds]))
     unit = plant.states[0].unit
     if R is not None:
@@ -109,15 +114,33 @@ def plausibility(plant: Any, x0: np.ndarray, R: np.ndarray | None = None,
     return notes
 
 
-def _linear_at_op(spec: Any) -> tuple[Any, np.ndarray, np.ndarray]:
-    eq = equilibrium_input(spec.plant, spec.x0, spec.given_u0)
-    lin = linearize(spec.plant, spec.x0, eq.u0, ts=spec.ts)
-    return lin, spec.x0, eq.u0
+@dataclass(frozen=True)
+class _OperatingPoint:
+    """The linearisation at the operating point (equilibrium input) and its observability."""
+
+    lin: LinearModel
+    x_op: np.ndarray
+    u_op: np.ndarray
+    rank: dict
+
+    @property
+    def point(self) -> tuple[np.ndarray, np.ndarray]:
+        """``(x_op, u_op)``: the point a linear filter's tuning is linearised at."""
+        return self.x_op, self.u_op
 
 
-def _require_observable(plant: Any, A: np.ndarray, C: np.ndarray, what: str) -> dict:
-    from tanksynth.analysis.rank import observability_rank, pbh_test
+def _observable_at_operating_point(spec: Spec, what: str, *, continuous: bool = False,
+                                   sensors: int = 1) -> _OperatingPoint:
+    """Linearise at the operating point and refuse an unobservable pair, naming the modes.
 
+    ``continuous``: check ``(F, C)`` instead of ``(Ad, C)``; ``sensors``: ``C`` repeated for
+    that many redundant sensors.
+    """
+    plant = spec.plant
+    eq = equilibrium_at(plant, spec.x0, spec.given_u0)
+    lin = linearized_at(plant, spec.x0, eq.u0, ts=spec.ts)
+    A = lin.F if continuous else discrete_pair(lin)[0]
+    C = lin.C if sensors == 1 else np.vstack([lin.C] * sensors)
     rank = observability_rank(A, C)
     if not rank.full:
         pbh = pbh_test(A, C=C, state_names=[s.name for s in plant.states])
@@ -125,10 +148,10 @@ def _require_observable(plant: Any, A: np.ndarray, C: np.ndarray, what: str) -> 
                           for m in pbh.modes) or "rank deficient"
         raise UnobservableError(f"{what} is not observable (rank {rank.rank} < {rank.n}): "
                                 f"unobservable modes: {modes}")
-    return rank.as_dict()
+    return _OperatingPoint(lin, spec.x0, eq.u0, rank.as_dict())
 
 
-def _kalman_tuning(spec: Any, design: Any, o: KalmanOptions | UkfOptions, cls: type = KalmanTuning,
+def _kalman_tuning(spec: Spec, design: DesignSpec, o: Any, cls: type = KalmanTuning,
                    extra: dict[str, Any] | None = None, operating_point: Any = None) -> Any:
     """The tuning of a Kalman-type filter from its validated options."""
     kwargs = dict(Q=o.Q, R=o.R, P0=o.P0, x0=_x0(spec, o), ts=spec.ts, substeps=o.substeps,
@@ -136,26 +159,48 @@ def _kalman_tuning(spec: Any, design: Any, o: KalmanOptions | UkfOptions, cls: t
     if cls is KalmanTuning:
         kwargs.update(jacobian_eps=o.jacobian_eps, switch_tol=o.switch_tol)
     kwargs.update(extra or {})
-    return _tuning(design, cls, **kwargs)
+    return keyed_call(design, cls, _OPTION_OF, **kwargs)
+
+
+def _pairs(values: np.ndarray) -> list[list[float]]:
+    """Eigenvalues as ``[re, im]`` pairs, in the eigensolver's order."""
+    return [[float(v.real), float(v.imag)] for v in values]
 
 
 def _model_diag(model: DiscreteModel) -> dict:
     out = model.describe()
-    if model.kind == "linear":
-        out["Ad_eigenvalues"] = [[float(v.real), float(v.imag)]
-                                 for v in np.linalg.eigvals(model.Ad)]
+    if model.kind == "linear" and model.Ad is not None:
+        out["Ad_eigenvalues"] = _pairs(np.linalg.eigvals(model.Ad))
     return out
 
 
-def _common_diag(spec: Any, tuning: Any, R: Any, P0: Any, rank: dict, model: DiscreteModel) -> dict:
-    return {"model": _model_diag(model), "observability_at_operating_point": rank,
-            "plausibility": plausibility(spec.plant, tuning.x0, R, P0),
-            "assumptions": [a.text for a in spec.plant.assumptions],
-            "sampling_period": spec.ts}
+def _linear_model_gains(model: DiscreteModel) -> dict[str, np.ndarray]:
+    """``Ad``, ``Bd``, ``C`` of a linear filter's model (stored as gains)."""
+    if model.Ad is None or model.Bd is None or model.C is None:
+        raise TypeError(f"a {model.kind} model has no Ad, Bd, C")
+    return {"Ad": model.Ad, "Bd": model.Bd, "C": model.C}
+
+
+def _filter_result(spec: Spec, design: DesignSpec, method: str, at: _OperatingPoint, tuning: Any,
+                   model: DiscreteModel, *, noise: np.ndarray | None = None,
+                   gains: dict[str, np.ndarray] | None = None, **extra: Any) -> DesignResult:
+    """The result of a filter design: the tuning's gains (and ``gains``), the common diagnostics
+    (model, observability, plausibility, assumptions, sampling period) and then ``extra``.
+
+    ``noise``: the measurement noise covariance judged by `plausibility` (default the tuning's
+    ``R``).
+    """
+    plant = spec.plant
+    diag = {"model": _model_diag(model), "observability_at_operating_point": at.rank,
+            "plausibility": plausibility(plant, tuning.x0, tuning.R if noise is None else noise,
+                                         tuning.P0),
+            "assumptions": [a.text for a in plant.assumptions],
+            "sampling_period": spec.ts, **extra}
+    return DesignResult(design.name, method, plant.name, {**tuning.gains(), **(gains or {})}, diag)
 
 
 # ------------------------------------------------------------------------------ methods
-def run_kalman(spec: Any, design: Any) -> DesignResult:
+def run_kalman(spec: Spec, design: DesignSpec) -> DesignResult:
     """Kalman filter (CKF) on the ZOH linearisation at the operating point (seed 000).
 
     Parameters
@@ -165,24 +210,21 @@ def run_kalman(spec: Any, design: Any) -> DesignResult:
     design : DesignSpec
         This ``[[design]]`` entry (method and options).
     """
-    lin, x_op, u_op = _linear_at_op(spec)
-    rank = _require_observable(spec.plant, lin.Ad, lin.C, "(Ad, C) at the operating point")
+    at = _observable_at_operating_point(spec, _LINEAR_MODEL)
     tuning = _kalman_tuning(spec, design, options_of(design, spec, KalmanOptions),
-                            operating_point=(x_op, u_op))
-    kf = KalmanFilter(spec.plant, tuning, backend="vm")
-    K, P = steady_state_gain(kf.model, tuning.Q, tuning.R)
-    Acl = (np.eye(spec.plant.n) - K @ kf.model.C) @ kf.model.Ad
-    gains = {**tuning.gains(), "Ad": kf.model.Ad, "Bd": kf.model.Bd, "C": kf.model.C,
-             "K_ss": K, "P_ss": P}
-    diag = _common_diag(spec, tuning, tuning.R, tuning.P0, rank, kf.model)
-    diag["time_domain"] = "discrete"   # the model is stored as Ad, Bd (`model_names`)
-    diag["steady_state"] = {"error_dynamics_eigenvalues": [[float(v.real), float(v.imag)]
-                                                           for v in np.linalg.eigvals(Acl)],
-                            "source": "scipy.linalg.solve_discrete_are"}
-    return DesignResult(design.name, "kalman", spec.plant.name, gains, diag)
+                            operating_point=at.point)
+    model = KalmanFilter(spec.plant, tuning, backend="vm").model
+    matrices = _linear_model_gains(model)
+    K, P = steady_state_gain(model, tuning.Q, tuning.R)
+    Acl = (np.eye(spec.plant.n) - K @ model.C) @ matrices["Ad"]
+    return _filter_result(
+        spec, design, "kalman", at, tuning, model, gains={**matrices, "K_ss": K, "P_ss": P},
+        time_domain="discrete",   # the model is stored as Ad, Bd (`model_names`)
+        steady_state={"error_dynamics_eigenvalues": _pairs(np.linalg.eigvals(Acl)),
+                      "source": "scipy.linalg.solve_discrete_are"})
 
 
-def run_ekf(spec: Any, design: Any) -> DesignResult:
+def run_ekf(spec: Spec, design: DesignSpec) -> DesignResult:
     """Extended Kalman filter on the nonlinear model (seed 002 eq. 13-22).
 
     Parameters
@@ -192,16 +234,14 @@ def run_ekf(spec: Any, design: Any) -> DesignResult:
     design : DesignSpec
         This ``[[design]]`` entry (method and options).
     """
-    lin, _, _ = _linear_at_op(spec)
-    rank = _require_observable(spec.plant, lin.Ad, lin.C, "the linearisation at the operating point")
+    at = _observable_at_operating_point(spec, _LINEARISATION)
     tuning = _kalman_tuning(spec, design, options_of(design, spec, EkfOptions))
     ekf = ExtendedKalmanFilter(spec.plant, tuning, backend="vm")
-    diag = _common_diag(spec, tuning, tuning.R, tuning.P0, rank, ekf.model)
-    diag["kernel_instructions"] = ekf.instructions
-    return DesignResult(design.name, "ekf", spec.plant.name, tuning.gains(), diag)
+    return _filter_result(spec, design, "ekf", at, tuning, ekf.model,
+                          kernel_instructions=ekf.instructions)
 
 
-def run_ukf(spec: Any, design: Any) -> DesignResult:
+def run_ukf(spec: Spec, design: DesignSpec) -> DesignResult:
     """Unscented Kalman filter (seed 002 eq. 23-40).
 
     Parameters
@@ -211,18 +251,16 @@ def run_ukf(spec: Any, design: Any) -> DesignResult:
     design : DesignSpec
         This ``[[design]]`` entry (method and options).
     """
-    lin, _, _ = _linear_at_op(spec)
-    rank = _require_observable(spec.plant, lin.Ad, lin.C, "the linearisation at the operating point")
+    at = _observable_at_operating_point(spec, _LINEARISATION)
     o = options_of(design, spec, UkfOptions)
     tuning = _kalman_tuning(spec, design, o, UKFTuning,
                             {"alpha": o.alpha, "beta": o.beta, "kappa": o.kappa, "redraw": o.redraw})
     ukf = UnscentedKalmanFilter(spec.plant, tuning, backend="vm")
-    diag = _common_diag(spec, tuning, tuning.R, tuning.P0, rank, ukf.model)
-    diag["kernel_instructions"] = ukf.instructions
-    return DesignResult(design.name, "ukf", spec.plant.name, tuning.gains(), diag)
+    return _filter_result(spec, design, "ukf", at, tuning, ukf.model,
+                          kernel_instructions=ukf.instructions)
 
 
-def run_adaptive_kalman(spec: Any, design: Any) -> DesignResult:
+def run_adaptive_kalman(spec: Spec, design: DesignSpec) -> DesignResult:
     """Adaptive-Q Kalman filter (seed 000 eq. 29-37) on the linearisation.
 
     Parameters
@@ -232,24 +270,21 @@ def run_adaptive_kalman(spec: Any, design: Any) -> DesignResult:
     design : DesignSpec
         This ``[[design]]`` entry (method and options).
     """
-    plant = spec.plant
-    lin, x_op, u_op = _linear_at_op(spec)
-    rank = _require_observable(plant, lin.Ad, lin.C, "(Ad, C) at the operating point")
+    at = _observable_at_operating_point(spec, _LINEAR_MODEL)
     o = options_of(design, spec, AdaptiveKalmanOptions)
-    tuning = _tuning(design, AdaptiveKalmanTuning, Q0=o.Q0, R=o.R, P0=o.P0, x0=_x0(spec, o),
-                     ts=spec.ts, window=o.window, form=o.form, q_floor=o.q_floor,
-                     operating_point=(x_op, u_op))
-    akf = AdaptiveKalmanFilter(plant, tuning)
-    diag = _common_diag(spec, tuning, tuning.R, tuning.P0, rank, akf.model)
-    diag["time_domain"] = "discrete"   # the model is stored as Ad, Bd (`model_names`)
-    diag["errata"] = ["seed 000 eq. 35 uses the updated estimate in v_k (a residual); the innovation "
-                      "y_k - H x_k^+ (prediction) is used, as in Mohamed & Schwarz (1999)"]
-    return DesignResult(design.name, "adaptive_kalman", plant.name,
-                        {**tuning.gains(), "Ad": akf.model.Ad, "Bd": akf.model.Bd,
-                         "C": akf.model.C}, diag)
+    tuning = keyed_call(design, AdaptiveKalmanTuning, _OPTION_OF, Q0=o.Q0, R=o.R, P0=o.P0,
+                        x0=_x0(spec, o), ts=spec.ts, window=o.window, form=o.form,
+                        q_floor=o.q_floor, operating_point=at.point)
+    model = AdaptiveKalmanFilter(spec.plant, tuning).model
+    return _filter_result(
+        spec, design, "adaptive_kalman", at, tuning, model,
+        gains=_linear_model_gains(model),
+        time_domain="discrete",   # the model is stored as Ad, Bd (`model_names`)
+        errata=["seed 000 eq. 35 uses the updated estimate in v_k (a residual); the innovation "
+                "y_k - H x_k^+ (prediction) is used, as in Mohamed & Schwarz (1999)"])
 
 
-def run_adaptive_scaling_kalman(spec: Any, design: Any) -> DesignResult:
+def run_adaptive_scaling_kalman(spec: Spec, design: DesignSpec) -> DesignResult:
     """Adaptive-scaling Kalman filter (seed 004 eq. 30-41).
 
     Parameters
@@ -259,22 +294,21 @@ def run_adaptive_scaling_kalman(spec: Any, design: Any) -> DesignResult:
     design : DesignSpec
         This ``[[design]]`` entry (method and options).
     """
-    plant = spec.plant
-    lin, x_op, u_op = _linear_at_op(spec)
-    rank = _require_observable(plant, lin.Ad, lin.C, "(Ad, C) at the operating point")
+    at = _observable_at_operating_point(spec, _LINEAR_MODEL)
     o = options_of(design, spec, AdaptiveScalingKalmanOptions)
     a, b, c = o.abc
-    tuning = _tuning(design, AdaptiveScalingTuning, Q=o.Q, R=o.R, P0=o.P0, x0=_x0(spec, o),
-                     ts=spec.ts, a=a, b=b, c=c, G=o.G, phi0=o.phi0, operating_point=(x_op, u_op))
-    filt = AdaptiveScalingKalmanFilter(plant, tuning)
-    diag = _common_diag(spec, tuning, tuning.R, tuning.P0, rank, filt.model)
-    diag["errata"] = ["seed 004 eq. 36 is read as the trace equation v'v = tr(beta) + phi "
-                      "tr(C G Q G' C') solved for phi (the printed form divides a vector by a "
-                      "matrix that itself contains phi)"]
-    return DesignResult(design.name, "adaptive_scaling_kalman", plant.name, tuning.gains(), diag)
+    tuning = keyed_call(design, AdaptiveScalingTuning, _OPTION_OF, Q=o.Q, R=o.R, P0=o.P0,
+                        x0=_x0(spec, o), ts=spec.ts, a=a, b=b, c=c, G=o.G, phi0=o.phi0,
+                        operating_point=at.point)
+    model = AdaptiveScalingKalmanFilter(spec.plant, tuning).model
+    return _filter_result(
+        spec, design, "adaptive_scaling_kalman", at, tuning, model,
+        errata=["seed 004 eq. 36 is read as the trace equation v'v = tr(beta) + phi "
+                "tr(C G Q G' C') solved for phi (the printed form divides a vector by a "
+                "matrix that itself contains phi)"])
 
 
-def run_consensus_filter(spec: Any, design: Any) -> DesignResult:
+def run_consensus_filter(spec: Spec, design: DesignSpec) -> DesignResult:
     """Consensus (information-form) filter with N redundant sensors (seed 004 eq. 42-51).
 
     Parameters
@@ -284,23 +318,19 @@ def run_consensus_filter(spec: Any, design: Any) -> DesignResult:
     design : DesignSpec
         This ``[[design]]`` entry (method and options).
     """
-    plant = spec.plant
-    lin, x_op, u_op = _linear_at_op(spec)
     o = options_of(design, spec, ConsensusFilterOptions)
     R = list(o.R)
-    C_stack = np.vstack([lin.C] * len(R))
-    rank = _require_observable(plant, lin.Ad, C_stack, "(Ad, C) at the operating point")
-    tuning = _tuning(design, ConsensusTuning, Q=o.Q, R=tuple(R), P0=o.P0, x0=_x0(spec, o),
-                     ts=spec.ts, operating_point=(x_op, u_op))
-    filt = ConsensusFilter(plant, tuning)
-    diag = _common_diag(spec, tuning, R[0], tuning.P0, rank, filt.model)
-    diag["sensors"] = len(R)
-    diag["errata"] = ["seed 004 eq. 50 propagates Pcal = N (P^-1 + sum H_i)^-1; for N > 1 the "
-                      "central covariance Pcal / N is propagated (identical for N = 1)"]
-    return DesignResult(design.name, "consensus_filter", plant.name, tuning.gains(), diag)
+    at = _observable_at_operating_point(spec, _LINEAR_MODEL, sensors=len(R))
+    tuning = keyed_call(design, ConsensusTuning, _OPTION_OF, Q=o.Q, R=tuple(R), P0=o.P0,
+                        x0=_x0(spec, o), ts=spec.ts, operating_point=at.point)
+    model = ConsensusFilter(spec.plant, tuning).model
+    return _filter_result(
+        spec, design, "consensus_filter", at, tuning, model, noise=R[0], sensors=len(R),
+        errata=["seed 004 eq. 50 propagates Pcal = N (P^-1 + sum H_i)^-1; for N > 1 the "
+                "central covariance Pcal / N is propagated (identical for N = 1)"])
 
 
-def run_narx(spec: Any, design: Any) -> DesignResult:
+def run_narx(spec: Spec, design: DesignSpec) -> DesignResult:
     """NARX estimator trained by Levenberg-Marquardt on EKF data (seed 002 section 3.3).
 
     Parameters
@@ -311,13 +341,12 @@ def run_narx(spec: Any, design: Any) -> DesignResult:
         This ``[[design]]`` entry (method and options).
     """
     plant = spec.plant
-    lin, _, _ = _linear_at_op(spec)
-    rank = _require_observable(plant, lin.Ad, lin.C, "the linearisation at the operating point")
+    at = _observable_at_operating_point(spec, _LINEARISATION)
     o = options_of(design, spec, NarxOptions)
     ekf_tuning = _kalman_tuning(spec, design, o)
-    training = _tuning(
-        design, train_narx, plant=plant, ekf_tuning=ekf_tuning, hidden=o.hidden, delays=o.delays,
-        runs=o.runs, validation_runs=o.validation_runs, steps=o.steps, seed=o.seed,
+    training = keyed_call(
+        design, train_narx, _OPTION_OF, plant=plant, ekf_tuning=ekf_tuning, hidden=o.hidden,
+        delays=o.delays, runs=o.runs, validation_runs=o.validation_runs, steps=o.steps, seed=o.seed,
         input_range=None if o.input_range is None else np.array(o.input_range), hold=o.hold,
         noise_std=None if o.noise_std is None else np.array(o.noise_std),
         sim_substeps=o.sim_substeps, target=o.target, restarts=o.restarts, max_iter=o.max_iter,
@@ -325,14 +354,16 @@ def run_narx(spec: Any, design: Any) -> DesignResult:
     gains = {**training.tuning.gains(), "ekf_Q": ekf_tuning.Q, "ekf_R": ekf_tuning.R,
              "ekf_P0": ekf_tuning.P0, "training_inputs": training.inputs,
              "training_targets": training.targets}
-    diag = {"model": _model_diag(discrete_model(plant, spec.ts, substeps=ekf_tuning.substeps)),
-            "observability_at_operating_point": rank, **training.diagnostics,
+    # the trained network runs on no model of its own: the diagnostics describe the EKF's
+    diag = {"model": _model_diag(discrete_model(plant, sampling_period(spec),
+                                                substeps=ekf_tuning.substeps)),
+            "observability_at_operating_point": at.rank, **training.diagnostics,
             "plausibility": plausibility(plant, ekf_tuning.x0, ekf_tuning.R, ekf_tuning.P0),
             "sampling_period": spec.ts}
     return DesignResult(design.name, "narx", plant.name, gains, diag)
 
 
-def run_luenberger(spec: Any, design: Any) -> DesignResult:
+def run_luenberger(spec: Spec, design: DesignSpec) -> DesignResult:
     """Luenberger observer from a given gain ``L`` or from observer ``poles``.
 
     Poles are placed (`tanksynth.design.placement.canonical.place_observer`) on the
@@ -348,85 +379,33 @@ def run_luenberger(spec: Any, design: Any) -> DesignResult:
     design : DesignSpec
         This ``[[design]]`` entry (method and options).
     """
-    from tanksynth.design.placement.canonical import place_observer
-
     o = options_of(design, spec, LuenbergerOptions)
     plant = spec.plant
     form = o.form
-    lin, x_op, u_op = _linear_at_op(spec)
-    A_design = lin.F if form == "continuous" else lin.Ad
-    rank = _require_observable(plant, A_design, lin.C, "the linearisation at the operating point")
+    at = _observable_at_operating_point(spec, _LINEARISATION, continuous=form == "continuous")
+    lin = at.lin
+    A_design = lin.F if form == "continuous" else discrete_pair(lin)[0]
     placement = None
     if o.L is not None:
         L = np.array(o.L)
     else:
-        placement = _tuning(design, place_observer, A=A_design, C=lin.C, poles=list(o.poles))
+        placement = keyed_call(design, place_observer, _OPTION_OF, A=A_design, C=lin.C,
+                               poles=list(o.poles))
         L = placement.gain
         if form == "current":
-            L = np.linalg.solve(lin.Ad, L)            # eig((I - L C) Ad) = eig(Ad - (Ad L) C)
-    tuning = _tuning(design, LuenbergerTuning, L=L, x0=_x0(spec, o), ts=spec.ts, form=form,
-                     substeps=o.substeps, operating_point=None if o.nonlinear else (x_op, u_op))
+            L = np.linalg.solve(discrete_pair(lin)[0], L)   # eig((I - L C) Ad) = eig(Ad - (Ad L) C)
+    tuning = keyed_call(design, LuenbergerTuning, _OPTION_OF, L=L, x0=_x0(spec, o), ts=spec.ts,
+                        form=form, substeps=o.substeps,
+                        operating_point=None if o.nonlinear else at.point)
     obs = LuenbergerObserver(plant, tuning)
     diag = {"model": _model_diag(obs.model), "form": form,
-            "observability_at_operating_point": rank,
+            "observability_at_operating_point": at.rank,
             "plausibility": plausibility(plant, tuning.x0),
             "error_dynamics_eigenvalues": None if obs.error_eigenvalues is None else
-            [[float(v.real), float(v.imag)] for v in obs.error_eigenvalues]}
+            _pairs(obs.error_eigenvalues)}
     if placement is not None:
         diag["placement"] = placement.as_dict()
     return DesignResult(design.name, "luenberger", plant.name, tuning.gains(), diag)
-
-
-def run_fault_detection(spec: Any, design: Any) -> DesignResult:
-    """Observer gain, residual threshold and detection times (seed 004 section II-F).
-
-    The threshold bounds the output residual of the healthy plant for every
-    initial level in ``(lower, upper]`` (`tanksynth.design.fault.threshold.fault_threshold`);
-    the detection times of the declared fault ``delta_bar`` from ``t_fault``
-    are computed for each of ``initial_states`` (default: the operating
-    point) under ``input`` (default: the equilibrium input, held) and stored
-    in the diagnostics. Options:
-    `tanksynth.spec.method_options.FaultDetectionOptions`.
-
-    Gains: ``Psi`` (observer gain), ``Gamma_d`` (``A - Psi C``, 1/s) and the
-    threshold's ``threshold_coefficients`` (output units) and
-    ``threshold_rates`` (1/s).
-
-    Parameters
-    ----------
-    spec : Spec
-        The validated spec (plant, operating point, sampling).
-    design : DesignSpec
-        This ``[[design]]`` entry (method and options).
-    """
-    o = options_of(design, spec, FaultDetectionOptions)
-    poles = [p.real if p.imag == 0 else p for p in o.poles]
-    plant = spec.plant
-    healthy = plant.with_parameters({"delta_bar": 0.0}) if "delta_bar" in plant.p else plant
-    th = _tuning(design, fault_threshold, plant=healthy, poles=poles, bounds=tuple(o.bounds))
-    gains = {"Psi": np.array(th.Psi.evalf(17), dtype=float),
-             "Gamma_d": np.array(th.Gamma_d.evalf(17), dtype=float),
-             "threshold_coefficients": np.array([float(c) for c, _ in th.terms]),
-             "threshold_rates": np.array([float(sp.re(lam)) for _, lam in th.terms])}
-    starts = [np.array(spec.x0, dtype=float)] if o.initial_states is None else \
-        [np.array(x, dtype=float) for x in o.initial_states]
-    pieces = [[float(v) for v in p] for p in o.input] if o.input is not None else \
-        [[0.0, *equilibrium_input(healthy, spec.x0, spec.given_u0).u0.tolist()]]
-    detections = [_tuning(design, detection_time, th=th, x0=x, delta_bar=o.delta_bar,
-                          t_fault=o.t_fault, conservative=o.conservative, plant=healthy,
-                          input_schedule=[(p[0], p[1:]) for p in pieces]) for x in starts]
-    diag = {"threshold": th.as_dict(), "delta_bar": o.delta_bar, "t_fault": o.t_fault,
-            "conservative": o.conservative, "input": pieces,
-            "initial_states": [x.tolist() for x in starts],
-            "detection_times": [r.t_detect for r in detections],
-            "detections": [{"x0": r.x0.tolist(), "t_detect": r.t_detect,
-                            "false_alarm_before_fault": r.false_alarm} for r in detections],
-            "notes": ["delta_bar is declared in the spec (fault size)",
-                      "detection_times[i] is None when the fault is not detected within 3 s of "
-                      "its onset from initial_states[i] under the input pieces [t_start, u...]"]}
-    latex = {"threshold": sp.latex(th.expression),
-             "threshold_conservative": sp.latex(th.conservative)}
-    return DesignResult(design.name, "fault_detection", plant.name, gains, diag, latex)
 
 
 # ------------------------------------------------------------------ design methods
@@ -439,4 +418,3 @@ ADAPTIVE_SCALING_KALMAN = DesignMethod("adaptive_scaling_kalman", run_adaptive_s
 CONSENSUS_FILTER = DesignMethod("consensus_filter", run_consensus_filter, ConsensusFilterOptions)
 NARX = DesignMethod("narx", run_narx, NarxOptions)
 LUENBERGER = DesignMethod("luenberger", run_luenberger, LuenbergerOptions)
-FAULT_DETECTION = DesignMethod("fault_detection", run_fault_detection, FaultDetectionOptions)

@@ -363,15 +363,15 @@ def train_narx(plant: Plant, ekf_tuning: KalmanTuning, *, hidden: int = 5, delay
         return out
 
     target_v = valid["x_ekf"] if target == "ekf" else valid["x"][1:]
-    best = None
+    best: tuple[float, Any, NARXTuning, np.ndarray] | None = None
     candidates = []
     for _ in range(positive_int(restarts, "restarts")):
         theta0 = np.concatenate([rng.normal(0, 1 / np.sqrt(nin), hidden * nin), np.zeros(hidden),
                                  rng.normal(0, 1 / np.sqrt(hidden), n * hidden), np.zeros(n)])
         sol = levenberg_marquardt(residual, lambda t: _jacobian(t, Z, hidden, n), theta0,
                                   max_iter=max_iter, validation=validation, max_fail=max_fail)
-        W = tuple(np.array(a) for a in _unpack(sol.x, hidden, nin, n))
-        cand = NARXTuning(*W, in_mean, in_scale, out_mean, out_scale, x0=ekf_tuning.x0,
+        W1, b1, W2, b2 = (np.array(a) for a in _unpack(sol.x, hidden, nin, n))
+        cand = NARXTuning(W1, b1, W2, b2, in_mean, in_scale, out_mean, out_scale, x0=ekf_tuning.x0,
                           ts=ekf_tuning.ts, delays=delays, substeps=ekf_tuning.substeps, clip=clip)
         closed = closed_loop(cand)
         score = float(np.sqrt(np.mean((closed - target_v) ** 2)))
@@ -380,6 +380,8 @@ def train_narx(plant: Plant, ekf_tuning: KalmanTuning, *, hidden: int = 5, delay
                            "iterations": sol.nit, "message": sol.message})
         if best is None or score < best[0]:
             best = (score, sol, cand, closed)
+    if best is None:        # restarts >= 1: one candidate at least
+        raise InfeasibleDesign("no NARX estimator was trained (restarts = 0)")
     score, sol, tuning, closed = best
     if not np.isfinite(score):
         raise InfeasibleDesign("no trained NARX estimator stays finite in closed loop on the "

@@ -39,6 +39,7 @@ from typing import Any, Iterator, Sequence
 import numpy as np
 import sympy as sp
 
+from tanksynth.design.placement.canonical import canonical_observer
 from tanksynth.errors import DimensionError, SimulationError, SpecError
 from tanksynth.plants.base import Plant, exact
 from tanksynth.sim.integrate import rk4_matrix
@@ -190,8 +191,6 @@ def fault_threshold(plant: Plant, poles: Sequence[Any] = (-5, -8, -10), *,
             raise SpecError("the threshold is derived for distinct real observer poles, got "
                             f"{list(poles)}", key="poles")
         poles = [p if isinstance(p, sp.Basic) else exact(complex(p).real) for p in poles]
-        from tanksynth.design.placement.canonical import canonical_observer
-
         Psi = canonical_observer(A, C, list(poles)).Psi
     else:
         Psi = _exact_rational_matrix(gain, (n, 1), "gain")
@@ -486,7 +485,7 @@ def detection_time(th: FaultThreshold, x0: Any, delta_bar: float, *, t_fault: fl
     -------
     DetectionResult
     """
-    from scipy.optimize import brentq  # deferred: scipy.optimize imports in ~0.15 s
+    from scipy.optimize import brentq  # deferred: scipy.optimize imports in ~0.3 s
     if not (isinstance(delta_bar, (int, float)) and np.isfinite(delta_bar) and delta_bar > 0):
         raise SpecError(f"delta_bar must be a positive number, got {delta_bar!r}", key="delta_bar")
     run = _linear_run(th, x0, delta_bar, t_fault, input_schedule, fault_matrix, dt,
@@ -548,7 +547,7 @@ def fit_fault_size(th: FaultThreshold, x0: Any, t_detect: float, *, t_fault: flo
     dt : float, optional
         RK4 step of the simulation and scan step [s].
     """
-    from scipy.optimize import brentq  # deferred: scipy.optimize imports in ~0.15 s
+    from scipy.optimize import brentq  # deferred: scipy.optimize imports in ~0.3 s
     def gap(log_d: float) -> float:
         res = detection_time(th, x0, float(np.exp(log_d)), t_fault=t_fault,
                              conservative=conservative, horizon=max(1.0, 2 * (t_detect - t_fault)),

@@ -26,22 +26,25 @@ from typing import Any
 import numpy as np
 import sympy as sp
 
-from tanksynth.analysis.linearize import equilibrium_input, linearize
 from tanksynth.design.laws.tracking import ServoScenario, design_integral_tracking, tune_inverse_dynamics
 from tanksynth.design.laws.feedback_linearization import feedback_linearization
+from tanksynth.design.operating_point import (discrete_pair, equilibrium_at, linearized_at,
+                                              sampling_period)
 from tanksynth.design.result import DesignMethod, DesignResult, options_of, rekeyed
 from tanksynth.design.placement.canonical import integral_augmentation
 from tanksynth.design.placement.exact import robustness_report
 from tanksynth.errors import DesignWarning, SpecError
 from tanksynth.runtime.laws import inverse_dynamics_law, law_document, rename_law
+from tanksynth.spec import DesignSpec, Spec
 from tanksynth.spec.method_options import (FeedbackLinearizationOptions, IntegralTrackingOptions,
                                            InverseDynamicsOptions)
 
-__all__ = ["run_feedback_linearization", "run_integral_tracking", "run_inverse_dynamics"]
+__all__ = ["run_feedback_linearization", "run_integral_tracking", "run_inverse_dynamics",
+           "FEEDBACK_LINEARIZATION", "INTEGRAL_TRACKING", "INVERSE_DYNAMICS"]
 
 
 # ------------------------------------------------------- feedback_linearization
-def run_feedback_linearization(spec, design) -> DesignResult:
+def run_feedback_linearization(spec: Spec, design: DesignSpec) -> DesignResult:
     """Exact feedback linearisation with decoupling (seed 000 II-C).
 
     Gains: ``K`` (outer-loop coefficients ``c_ik``, m x max theta; for
@@ -75,7 +78,7 @@ def run_feedback_linearization(spec, design) -> DesignResult:
     alpha = num(dec.alpha).reshape(-1)
     y0 = num(dec.h).reshape(-1)
     u0 = np.asarray(fl.law(spec.x0, y0)[0], dtype=float).reshape(-1)
-    eq = equilibrium_input(plant, spec.x0, spec.given_u0)
+    eq = equilibrium_at(plant, spec.x0, spec.given_u0)
     diagnostics = dict(fl.diagnostics)
     diagnostics.update({
         "equilibrium": eq.as_dict(),
@@ -93,7 +96,7 @@ def run_feedback_linearization(spec, design) -> DesignResult:
 
 
 # ------------------------------------------------------------ integral_tracking
-def run_integral_tracking(spec, design) -> DesignResult:
+def run_integral_tracking(spec: Spec, design: DesignSpec) -> DesignResult:
     """Linear tracking with integral action, saturation and anti-windup (seed 000 II-B).
 
     Gains: ``K = [K1 K2]``, ``K1``, ``K2``, ``Kaw`` (back-calculation),
@@ -116,13 +119,15 @@ def run_integral_tracking(spec, design) -> DesignResult:
                       stacklevel=2)
     try:
         it = design_integral_tracking(
-            plant, spec.x0, list(o.poles), spec.ts, tracked=list(o.tracked), method=o.algorithm,
+            plant, spec.x0, list(o.poles), sampling_period(spec), tracked=list(o.tracked),
+            method=o.algorithm,
             anti_windup=o.anti_windup, aw_gain=o.aw_gain, given_u0=spec.given_u0)
     except SpecError as exc:
         raise rekeyed(design, exc) from None
     diagnostics = dict(it.diagnostics)
-    lin = linearize(plant, it.x0, it.u0, ts=spec.ts)
-    aug = integral_augmentation(lin.Ad, lin.Bd, it.C1, spec.ts)
+    ts = sampling_period(spec)
+    Ad, Bd = discrete_pair(linearized_at(plant, it.x0, it.u0, ts=ts))
+    aug = integral_augmentation(Ad, Bd, it.C1, ts)
     rob = robustness_report(aug.A, aug.A - aug.B @ it.K, it.K, "discrete")
     diagnostics["robustness"] = rob
     if rob["fragile"]:
@@ -145,7 +150,7 @@ def run_integral_tracking(spec, design) -> DesignResult:
 
 
 # ------------------------------------------------------------- inverse_dynamics
-def run_inverse_dynamics(spec, design) -> DesignResult:
+def run_inverse_dynamics(spec: Spec, design: DesignSpec) -> DesignResult:
     """Inverse-dynamics law (seed 002 eq. 46-47), ``C`` given or tuned by minimum ISE.
 
     Without ``C`` (or with ``tune = true``) the rates are tuned on the servo
@@ -172,7 +177,8 @@ def run_inverse_dynamics(spec, design) -> DesignResult:
             base = inverse_dynamics_law(plant, np.ones(plant.m), controlled, saturate=False)
             idx = [[s.name for s in plant.states].index(c) for c in base.controlled]
             scenario = ServoScenario(spec.x0.copy(), spec.x0[idx].copy(), np.array(o.step),
-                                     o.step_time, o.horizon, float(spec.ts), o.substeps)
+                                     o.step_time, o.horizon, float(sampling_period(spec)),
+                                     o.substeps)
             law, tuning = tune_inverse_dynamics(plant, scenario, controlled=base.controlled,
                                                 grid=np.array(o.grid),
                                                 bounds=(float(o.bounds[0]), float(o.bounds[1])),
@@ -185,7 +191,7 @@ def run_inverse_dynamics(spec, design) -> DesignResult:
         raise rekeyed(design, exc) from None
     idx = [[s.name for s in plant.states].index(c) for c in law.controlled]
     u0 = np.asarray(law.law(spec.x0, spec.x0[idx]), dtype=float).reshape(-1)
-    eq = equilibrium_input(plant, spec.x0, spec.given_u0)
+    eq = equilibrium_at(plant, spec.x0, spec.given_u0)
     diagnostics.update(law.diagnostics)
     diagnostics.update({
         "equilibrium": eq.as_dict(),

@@ -42,6 +42,8 @@ from tanksynth.analysis.symbolic import RelativeDegree, control_affine, lie_deri
 __all__ = [
     "RANK_TOL",
     "select_outputs",
+    "point_text",
+    "simplify_if_small",
     "ZeroDynamics",
     "Decoupling",
     "decoupling_analysis",
@@ -52,7 +54,20 @@ RANK_TOL = 1e-9
 
 
 # --------------------------------------------------------------------- helpers
-def _fmt(x: np.ndarray, names: Sequence[str]) -> str:
+def point_text(x: np.ndarray, names: Sequence[str]) -> str:
+    """A point of the region as the messages name it: ``(h1 = 0.3, h2 = 0.2)``.
+
+    Parameters
+    ----------
+    x : ndarray, shape (n,)
+        The point (state units).
+    names : sequence of str
+        The state names.
+
+    Returns
+    -------
+    str
+    """
     return "(" + ", ".join(f"{nm} = {v:.6g}" for nm, v in zip(names, np.asarray(x, float))) + ")"
 
 
@@ -96,8 +111,20 @@ def select_outputs(plant: Plant, outputs: Sequence[str] | None) -> tuple[sp.Matr
     return sp.Matrix(rows), tuple(names)
 
 
-def _tidy(expr: Any, limit: int = 400) -> Any:
-    """``sympy.simplify`` when the expression is small (keeps the analysis fast)."""
+def simplify_if_small(expr: Any, limit: int = 400) -> Any:
+    """``sympy.simplify`` when the expression is small (keeps the analysis fast).
+
+    Parameters
+    ----------
+    expr : sympy.Expr
+        The expression.
+    limit : int
+        Largest ``sympy.count_ops`` simplified; a larger expression is returned as is.
+
+    Returns
+    -------
+    sympy.Expr
+    """
     if sp.count_ops(expr) <= limit:
         return sp.simplify(expr)
     return expr
@@ -166,7 +193,8 @@ class ZeroDynamics:
         if ev.size:
             out["min_real_part"] = float(np.min(ev.real))
             out["max_abs_imag"] = float(np.max(np.abs(ev.imag)))
-            out["worst_point"] = dict(zip(state_names, map(float, self.worst_point)))
+            if self.worst_point is not None:
+                out["worst_point"] = dict(zip(state_names, map(float, self.worst_point)))
         return out
 
 
@@ -273,7 +301,7 @@ def _check_rank(plant: Plant, dec_num: sp.Matrix, names: Sequence[str], degrees:
     """Raise `InfeasibleDesign` where ``rank Lambda < m``; return the evidence otherwise."""
     m = plant.m
     states = [s.name for s in plant.states]
-    det_sym = _tidy(Lambda_sym.det()) if m <= 4 else None
+    det_sym = simplify_if_small(Lambda_sym.det()) if m <= 4 else None
     if det_sym is not None and det_sym == 0:
         raise InfeasibleDesign(
             f"not decouplable: det Lambda(x) = 0 identically (rank Lambda < m = {m} everywhere in "
@@ -284,7 +312,7 @@ def _check_rank(plant: Plant, dec_num: sp.Matrix, names: Sequence[str], degrees:
     finite = np.all(np.isfinite(L), axis=(1, 2))
     if not np.all(finite):
         k = int(np.flatnonzero(~finite)[0])
-        raise InfeasibleDesign(f"Lambda(x) is not finite at x = {_fmt(points[k], states)} on the "
+        raise InfeasibleDesign(f"Lambda(x) is not finite at x = {point_text(points[k], states)} on the "
                                f"operating region (outputs {list(names)})")
     # A row that vanishes: the relative degree of that output is not defined there.
     row = np.linalg.norm(L, axis=2)                         # (M, m)
@@ -294,7 +322,8 @@ def _check_rank(plant: Plant, dec_num: sp.Matrix, names: Sequence[str], degrees:
         if len(bad):
             k = int(bad[0])
             raise InfeasibleDesign(
-                f"relative degree of output {names[i]} is not defined at x = {_fmt(points[k], states)}: "
+                f"relative degree of output {names[i]} is not defined at x = "
+                f"{point_text(points[k], states)}: "
                 f"L_g L_f^{degrees[i] - 1} h vanishes there although it is not identically zero "
                 f"({len(bad)} of {len(points)} region points); not decouplable there")
     sv = np.linalg.svd(L, compute_uv=False)                 # (M, m)
@@ -302,7 +331,7 @@ def _check_rank(plant: Plant, dec_num: sp.Matrix, names: Sequence[str], degrees:
     k = int(np.argmin(ratio))
     if ratio[k] <= RANK_TOL:
         raise InfeasibleDesign(
-            f"not decouplable: rank Lambda(x) < m = {m} at x = {_fmt(points[k], states)} "
+            f"not decouplable: rank Lambda(x) < m = {m} at x = {point_text(points[k], states)} "
             f"(sigma_min/sigma_max = {ratio[k]:.3g}; {int(np.sum(ratio <= RANK_TOL))} of "
             f"{len(points)} region points)")
     det = np.linalg.det(L)
@@ -320,8 +349,8 @@ def _check_rank(plant: Plant, dec_num: sp.Matrix, names: Sequence[str], degrees:
         x_star = a + 0.5 * (lo + hi) * (b - a)
         raise InfeasibleDesign(
             f"not decouplable on the whole region: det Lambda(x) changes sign, so rank Lambda < "
-            f"m = {m} on a surface through x = {_fmt(x_star, states)} (between region points "
-            f"{_fmt(a, states)} and {_fmt(b, states)})"
+            f"m = {m} on a surface through x = {point_text(x_star, states)} (between region points "
+            f"{point_text(a, states)} and {point_text(b, states)})"
             + (f"; det Lambda = {det_sym}" if det_sym is not None else ""))
     return {"points": int(len(points)), "min_sigma_ratio": float(ratio[k]),
             "min_sigma_ratio_at": dict(zip(states, map(float, points[k]))),
@@ -413,7 +442,7 @@ def _zero_dynamics(plant: Plant, rd_num: RelativeDegree, lie_num: Sequence[sp.Ma
     worst = int(np.argmax(ev.real.max(axis=1)))
     max_real = float(ev.real.max())
     closed = f0_sym + G_sym * alpha_sym
-    zd_expr = sp.Matrix([_tidy(closed[j]) for j in coords])
+    zd_expr = sp.Matrix([simplify_if_small(closed[j]) for j in coords])
     return ZeroDynamics(d, tuple(plant.states[j].name for j in coords), zd_expr, kept, ev, max_real,
                         kept[worst], bool(max_real < 0), int(len(points) - len(kept)))
 
@@ -459,8 +488,8 @@ def decoupling_analysis(plant: Plant, outputs: Sequence[str] | None = None, *, p
     pts = region_points(plant, per_axis, samples, seed, margin)
     vals = plant.parameter_values
     rank = _check_rank(plant, Lambda.xreplace(vals), names, rd.degrees, Lambda, pts)
-    beta = Lambda.inv(method="LU").applyfunc(_tidy)
-    alpha = (-beta * Lambda0).applyfunc(_tidy)
+    beta = Lambda.inv(method="LU").applyfunc(simplify_if_small)
+    alpha = (-beta * Lambda0).applyfunc(simplify_if_small)
     rd_num = RelativeDegree(rd.degrees, Lambda.xreplace(vals), Lambda0.xreplace(vals))
     lie_num = [L.xreplace(vals) for L in lie]
     zd = _zero_dynamics(plant, rd_num, lie_num, alpha, f0, G, pts)

@@ -44,14 +44,14 @@ import casadi as ca
 import numpy as np
 import sympy as sp
 
-from tanksynth.errors import InfeasibleDesign, SpecError
 from tanksynth.analysis.region import batch_eval, batch_eval2, region_points
+from tanksynth.analysis.symbolic import control_affine, jacobian, lie_derivatives
+from tanksynth.design.laws.decoupling import RANK_TOL as RANK_TOL
+from tanksynth.design.laws.decoupling import (Decoupling, ZeroDynamics, decoupling_analysis,
+                                              point_text, select_outputs, simplify_if_small)
+from tanksynth.errors import InfeasibleDesign, SpecError
 from tanksynth.plants.base import Plant
 from tanksynth.plants.compile import compile_matrix
-from tanksynth.analysis.symbolic import control_affine, jacobian, lie_derivatives
-from tanksynth.design.laws.decoupling import (Decoupling, ZeroDynamics, _fmt, _tidy, decoupling_analysis,
-                                         select_outputs)
-from tanksynth.design.laws.decoupling import RANK_TOL as RANK_TOL
 
 __all__ = [
     "select_outputs",
@@ -276,11 +276,12 @@ def feedback_linearization(plant: Plant, outputs: Sequence[str] | None = None, *
     if zd.dimension and not zd.stable and not allow_unstable_zero_dynamics:
         k = int(np.argmax(zd.eigenvalues.real.max(axis=1)))
         lam = zd.eigenvalues[k][np.argmax(zd.eigenvalues[k].real)]
+        where = "?" if zd.worst_point is None else point_text(zd.worst_point, states)
         unstable = int(np.sum(zd.eigenvalues.real.max(axis=1) >= 0))
         raise InfeasibleDesign(
             f"zero dynamics of plant '{plant.name}' (internal states {list(zd.coordinates)}, dimension "
             f"{zd.dimension}) are unstable: Jacobian eigenvalue {complex(lam):.4g} 1/s at x = "
-            f"{_fmt(zd.worst_point, states)} ({unstable} of {len(zd.points)} region points with "
+            f"{where} ({unstable} of {len(zd.points)} region points with "
             "Re >= 0); exact decoupling would make them diverge (non-minimum phase). Set "
             "allow_unstable_zero_dynamics = true to design anyway")
     outer = outer_loop(dec.degrees, poles, bandwidth)
@@ -309,7 +310,7 @@ def feedback_linearization(plant: Plant, outputs: Sequence[str] | None = None, *
     # Law from the smooth model (analysed) for the report, and consistency on the region.
     alpha_n = dec.alpha.xreplace(vals)
     beta_n = dec.beta.xreplace(vals)
-    u_smooth = (alpha_n + beta_n * sp.Matrix(zeta_expr)).applyfunc(lambda e: _tidy(e, 200))
+    u_smooth = (alpha_n + beta_n * sp.Matrix(zeta_expr)).applyfunc(lambda e: simplify_if_small(e, 200))
     smooth_fn = compile_matrix("fl_smooth", u_smooth, [plant.x, refs], ["x", "y_r"])
     pts = region_points(plant, 0, 200, seed + 1, margin)
     h_fn = compile_matrix("h_sel", dec.h.xreplace(vals), [plant.x], ["x"])

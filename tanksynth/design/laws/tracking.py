@@ -49,8 +49,9 @@ from typing import Any, Sequence
 
 import casadi as ca
 import numpy as np
+from numpy.typing import ArrayLike
 
-from tanksynth.analysis.linearize import equilibrium_input, linearize
+from tanksynth.design.operating_point import discrete_pair, equilibrium_at, linearized_at
 from tanksynth.design.placement.canonical import integral_augmentation, place_state_feedback
 from tanksynth.errors import DimensionError, InfeasibleDesign, SimulationError, SpecError
 from tanksynth.plants.base import Plant
@@ -104,11 +105,11 @@ def design_integral_tracking(plant: Plant, x0: Any, poles: Any, ts: float, *,
     IntegralTracking
         Pump saturation from ``plant.input_limits``.
     """
-    eq = equilibrium_input(plant, x0, given_u0)
+    eq = equilibrium_at(plant, x0, given_u0)
     if not eq.is_equilibrium:
         raise InfeasibleDesign(f"x0 = {np.asarray(x0).tolist()} is not an equilibrium of plant "
                                f"'{plant.name}' (residual {eq.residual.tolist()})")
-    lin = linearize(plant, x0, eq.u0, ts=ts)
+    lin = linearized_at(plant, x0, eq.u0, ts=ts)
     names = [s.name for s in plant.outputs]
     chosen = list(tracked) if tracked is not None else names[: plant.m]
     unknown = [c for c in chosen if c not in names]
@@ -118,7 +119,8 @@ def design_integral_tracking(plant: Plant, x0: Any, poles: Any, ts: float, *,
         raise DimensionError(f"more tracked outputs than inputs: {len(chosen)} outputs {chosen} but "
                              f"{plant.m} inputs (seed 000 II-B needs p <= m)")
     C1 = lin.C[[names.index(c) for c in chosen]]
-    aug = integral_augmentation(lin.Ad, lin.Bd, C1, ts)
+    Ad, Bd = discrete_pair(lin)
+    aug = integral_augmentation(Ad, Bd, C1, ts)
     res = place_state_feedback(aug.A, aug.B, poles, method,
                                state_names=[s.name for s in plant.states] + [f"z_{c}" for c in chosen])
     K = res.gain
@@ -128,7 +130,7 @@ def design_integral_tracking(plant: Plant, x0: Any, poles: Any, ts: float, *,
     diag = dict(law.diagnostics)
     diag.update({"equilibrium": eq.as_dict(), "placement": res.as_dict(),
                  "augmented_A": aug.A.tolist(), "augmented_B": aug.B.tolist(),
-                 "Ad": lin.Ad.tolist(), "Bd": lin.Bd.tolist()})
+                 "Ad": Ad.tolist(), "Bd": Bd.tolist()})
     return IntegralTracking(law.K1, law.K2, law.Kaw, law.x0, law.u0, law.C1, law.ts,
                             law.input_limits, law.anti_windup, law.tracked, law.law, diag)
 
@@ -345,7 +347,7 @@ class ISETuning:
 
 def tune_inverse_dynamics(plant: Plant, scenario: ServoScenario, *,
                           controlled: Sequence[str] | None = None,
-                          grid: Sequence[float] = tuple(np.round(np.linspace(0.1, 1.0, 10), 10)),
+                          grid: ArrayLike = tuple(np.round(np.linspace(0.1, 1.0, 10), 10)),
                           bounds: tuple[float, float] = (0.0, 1.0), xatol: float = 1e-3,
                           saturate: bool = True, name: str = "inverse_dynamics"
                           ) -> tuple[InverseDynamicsLaw, ISETuning]:
@@ -360,7 +362,7 @@ def tune_inverse_dynamics(plant: Plant, scenario: ServoScenario, *,
     plant : Plant
     scenario : ServoScenario
     controlled : sequence of str, optional
-    grid : sequence of float
+    grid : array_like of float
         Coarse values of each ``C_i`` (1/s), inside ``bounds``.
     bounds : (float, float)
         Admissible range of each ``C_i`` (seed 002: 0 to 1).

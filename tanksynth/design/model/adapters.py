@@ -5,18 +5,18 @@ from __future__ import annotations
 import numpy as np
 import sympy as sp
 
-from tanksynth.analysis.linearize import equilibrium_input, linearize, symbolic_jacobians
+from tanksynth.analysis.linearize import symbolic_jacobians
+from tanksynth.analysis.rank import controllability_rank, observability_rank, pbh_test
+from tanksynth.design.matrices import complex_pairs
+from tanksynth.design.operating_point import as_levels, discrete_pair, equilibrium_at, linearized_at
 from tanksynth.design.result import DesignMethod, DesignResult, options_of
+from tanksynth.spec import DesignSpec, Spec
 from tanksynth.spec.method_options import LinearizeOptions
 
-__all__ = ["run_linearize"]
+__all__ = ["run_linearize", "LINEARIZE"]
 
 
-def _complex_list(values: np.ndarray) -> list[list[float]]:
-    return [[float(v.real), float(v.imag)] for v in np.sort_complex(np.asarray(values, dtype=complex))]
-
-
-def run_linearize(spec, design) -> DesignResult:
+def run_linearize(spec: Spec, design: DesignSpec) -> DesignResult:
     """Linearise at the operating point and discretise with ZOH.
 
     Gains: ``F``, ``B`` (continuous), ``Ad``, ``Bd`` (exact ZOH, period
@@ -31,21 +31,17 @@ def run_linearize(spec, design) -> DesignResult:
     design : DesignSpec
         This ``[[design]]`` entry (method and options).
     """
-    # Imported here: tanksynth.analysis.rank imports tanksynth.analysis.symbolic, whose
-    # package __init__ imports this module (a top-level import would be circular
-    # when tanksynth.analysis.rank is imported first).
-    from tanksynth.analysis.rank import controllability_rank, observability_rank, pbh_test
-
     options_of(design, spec, LinearizeOptions)  # no option; refuses a spec without ts
     plant = spec.plant
-    eq = equilibrium_input(plant, spec.x0, spec.given_u0)
-    lin = linearize(plant, spec.x0, eq.u0, ts=spec.ts)
+    eq = equilibrium_at(plant, spec.x0, spec.given_u0)
+    lin = linearized_at(plant, spec.x0, eq.u0, ts=spec.ts)
+    Ad, Bd = discrete_pair(lin)
     names = [s.name for s in plant.states]
     ranks = {
         "controllability": controllability_rank(lin.F, lin.B).as_dict(),
         "observability": observability_rank(lin.F, lin.C).as_dict(),
-        "controllability_discrete": controllability_rank(lin.Ad, lin.Bd).as_dict(),
-        "observability_discrete": observability_rank(lin.Ad, lin.C).as_dict(),
+        "controllability_discrete": controllability_rank(Ad, Bd).as_dict(),
+        "observability_discrete": observability_rank(Ad, lin.C).as_dict(),
         "pbh_controllability": pbh_test(lin.F, B=lin.B, state_names=names).as_dict(),
         "pbh_observability": pbh_test(lin.F, C=lin.C, state_names=names).as_dict(),
     }
@@ -53,17 +49,17 @@ def run_linearize(spec, design) -> DesignResult:
     if plant.n <= 6:
         F_sym, B_sym, _ = symbolic_jacobians(plant)
         latex = {"F": sp.latex(F_sym), "B": sp.latex(B_sym)}
-    smooth_here = not plant.region.violations(spec.x0, plant.x)
+    smooth_here = not plant.region.violations(as_levels(spec.x0), plant.x)
     diagnostics = {
         "equilibrium": eq.as_dict(),
-        "eigenvalues_F": _complex_list(lin.eigenvalues),
-        "eigenvalues_Ad": _complex_list(np.linalg.eigvals(lin.Ad)),
+        "eigenvalues_F": complex_pairs(lin.eigenvalues),
+        "eigenvalues_Ad": complex_pairs(np.linalg.eigvals(Ad)),
         "ts": spec.ts,
         "rank": ranks,
         "smooth_form_valid": smooth_here,
         "assumptions": [a.text for a in plant.assumptions],
     }
-    gains = {"F": lin.F, "B": lin.B, "Ad": lin.Ad, "Bd": lin.Bd, "C": lin.C,
+    gains = {"F": lin.F, "B": lin.B, "Ad": Ad, "Bd": Bd, "C": lin.C,
              "x_op": lin.x0, "u_op": lin.u0}
     return DesignResult(design.name, "linearize", plant.name, gains, diagnostics, latex)
 

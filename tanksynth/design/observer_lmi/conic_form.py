@@ -32,13 +32,16 @@ from __future__ import annotations
 import time
 from typing import Any, Sequence
 
+import clarabel
 import numpy as np
 import scipy.sparse as sps
 
 from tanksynth.analysis.blas import small_dense
 from tanksynth.design import conic as rc
-from tanksynth.design.observer_lmi.problem import (ObserverLMIProblem, _check_variant, _matrix, _output_split,
-                                          _structure, _sym)
+from tanksynth.design.conic import ACCEPTED, CLARABEL_STATUS
+from tanksynth.design.matrices import real_matrix, symmetrized
+from tanksynth.design.observer_lmi.problem import (ObserverLMIProblem, check_variant, checked_structure,
+                                                   output_split, recovered_gain)
 from tanksynth.errors import DimensionError, SpecError
 
 __all__ = ["ConicObserverLMI", "ConicEliminatedLMI", "one_shot_problem", "sweep_problem", "eliminated_fits",
@@ -49,13 +52,6 @@ __all__ = ["ConicObserverLMI", "ConicEliminatedLMI", "one_shot_problem", "sweep_
 #: larger eliminated problems keep cvxpy (`ObserverLMIProblem`).
 ELIMINATED_DENSE_LIMIT = 8_000_000
 
-#: Clarabel status -> cvxpy's status string (the names `ObserverLMIProblem` reports).
-_STATUS = {"Solved": "optimal", "AlmostSolved": "optimal_inaccurate",
-           "PrimalInfeasible": "infeasible", "DualInfeasible": "unbounded",
-           "AlmostPrimalInfeasible": "infeasible_inaccurate",
-           "AlmostDualInfeasible": "unbounded_inaccurate", "MaxIterations": "user_limit",
-           "MaxTime": "user_limit"}
-_ACCEPTED = ("optimal", "optimal_inaccurate")
 _SQRT2 = float(np.sqrt(2.0))
 
 
@@ -147,8 +143,8 @@ class ConicObserverLMI:
     def __init__(self, n: int, C: Any, variant: str = "qI", kappa: float = 1e4,
                  blocks: Sequence[Sequence[int]] | None = None, pattern: Any = None, *,
                  margin: float = 1e-6, solver_options: dict | None = None):
-        _check_variant(variant)
-        C = _matrix(C, "C")
+        check_variant(variant)
+        C = real_matrix(C, "C")
         if C.shape[1] != n:
             raise DimensionError(f"C has {C.shape[1]} columns, expected n = {n}")
         if not (np.isfinite(kappa) and kappa > 1):
@@ -160,7 +156,7 @@ class ConicObserverLMI:
         self.C = C
         self.output_scale = 1.0 / row
         self.Cs = C * self.output_scale[:, None]
-        self.blocks, self.mask = _structure(n, self.q, blocks, pattern)
+        self.blocks, self.mask = checked_structure(n, self.q, blocks, pattern)
         self.A0_pattern = np.ones((n, n), dtype=bool)
         self.margin = float(margin)
         self.solver_options = dict(solver_options or {})
@@ -182,8 +178,6 @@ class ConicObserverLMI:
 
     def _data(self, As: np.ndarray, t2: float) -> tuple:
         """Clarabel data ``(P, c, A, b, cones, layout)`` of the scaled problem."""
-        import clarabel
-
         n, q = self.n, self.q
         pi, pj, pv, pdiag, pblocks = _sym_entries(n, self.blocks, 0)
         iq = int(pv.max()) + 1
@@ -216,10 +210,10 @@ class ConicObserverLMI:
         # Nonnegative rows: p_ii >= 1 (1 x 1 blocks), trace P <= kappa n, t <= 1.
         singles = np.array([f for f, d in pblocks if d == 1], dtype=int)
         ns = singles.size
-        rows = [np.arange(ns), np.full(pdiag.size, ns), [ns + 1]]
-        cols = [singles, pdiag, [it]]
-        vals = [-one(ns), one(pdiag.size), [1.0]]
-        bs = [-one(ns), [self.kappa * n, 1.0]]
+        rows: list[Any] = [np.arange(ns), np.full(pdiag.size, ns), [ns + 1]]
+        cols: list[Any] = [singles, pdiag, [it]]
+        vals: list[Any] = [-one(ns), one(pdiag.size), [1.0]]
+        bs: list[Any] = [-one(ns), [self.kappa * n, 1.0]]
         nn = ns + 2
         lmi_size = n * (2 * n + 1)
         rows.append(nn + lrow)
@@ -249,7 +243,7 @@ class ConicObserverLMI:
 
     def _scaled(self, A0: Any, psi: float, omega: float | None) -> tuple[float, np.ndarray, float]:
         """Checked ``A0``/``psi`` and the scaled data ``(omega, A0 / omega, (psi / omega)^2)``."""
-        A0 = _matrix(A0, "A0")
+        A0 = real_matrix(A0, "A0")
         if A0.shape != (self.n, self.n):
             raise DimensionError(f"A0 has shape {A0.shape}, expected ({self.n}, {self.n})")
         if not (np.isfinite(psi) and psi >= 0):
@@ -281,8 +275,6 @@ class ConicObserverLMI:
             ``Q``, ``K``, ``L`` in original units, ``omega``, ``solve_time``
             (s, problem build included).
         """
-        import clarabel
-
         start = time.perf_counter()
         w, As, t2 = self._scaled(A0, psi, omega)
         Pobj, c, Amat, b, cones, lay = self._data(As, t2)
@@ -301,12 +293,12 @@ class ConicObserverLMI:
                 raise
             return {"status": f"solver_error: {exc}", "t": -np.inf, "omega": w,
                     "solve_time": time.perf_counter() - start}
-        status = _STATUS.get(str(sol.status), "solver_error")
+        status = CLARABEL_STATUS.get(str(sol.status), "solver_error")
         self.stats = {"num_iters": int(sol.iterations), "solve_time": float(sol.solve_time),
                       "status": str(sol.status)}
         out: dict = {"status": status, "omega": w}
         x = np.asarray(sol.x, dtype=float)
-        if status not in _ACCEPTED or x.size == 0 or not np.all(np.isfinite(x)):
+        if status not in ACCEPTED or x.size == 0 or not np.all(np.isfinite(x)):
             out.update({"t": -np.inf, "solve_time": time.perf_counter() - start})
             return out
         n, q = self.n, self.q
@@ -355,7 +347,6 @@ class ConicEliminatedLMI(ConicObserverLMI):
     """
 
     form = "eliminated"
-    recover_gain = ObserverLMIProblem.recover_gain
 
     def __init__(self, n: int, C: Any, variant: str = "qI", kappa: float = 1e4,
                  blocks: Sequence[Sequence[int]] | None = None, pattern: Any = None, *,
@@ -365,7 +356,7 @@ class ConicEliminatedLMI(ConicObserverLMI):
         if self.mask is not None:
             raise SpecError("the eliminated form needs a free gain K: a gain pattern needs "
                             "form='full'", key="form")
-        self.V1, self.V2, self._W = _output_split(self.Cs)
+        self.V1, self.V2, self._W = output_split(self.Cs)
         self.fixed_P = self.V2.shape[1] == 0
 
     def _parts(self, m: rc.Model) -> list:
@@ -414,7 +405,7 @@ class ConicEliminatedLMI(ConicObserverLMI):
         m = rc.Model()
         t = m.variable()
         p_parts = None if self.fixed_P else self._parts(m)
-        qv = m.variable() if self.variant == "qI" else None
+        qv: Any = m.variable() if self.variant == "qI" else None
         q_parts = None if qv is not None else self._parts(m)
         m.freeze()
         cons = []
@@ -423,15 +414,15 @@ class ConicEliminatedLMI(ConicObserverLMI):
             P = self._assemble(m, p_parts)
             for b, v in p_parts:            # P >= I per block (a linear bound for 1 x 1 blocks)
                 cons.append(v >= 1.0 if len(b) == 1 else v >> np.eye(len(b)))
-        Q = qv * I if qv is not None else self._assemble(m, q_parts)
+        Q = qv * I if qv is not None else self._assemble(m, q_parts or [])
         if V2.shape[1] == 0:
-            cons.insert(0, qv >= t if qv is not None else 0.5 * (Q + Q.T) >> t * I)
+            cons.insert(0, qv >= t if qv is not None else symmetrized(Q) >> t * I)
         else:
             PV2 = P @ V2
             Ys = As @ V2
             X22 = Ys.T @ PV2 + V2.T @ P @ Ys + t2 * (V2.T @ Q @ V2)
             M = rc.bmat([[X22, PV2.T], [PV2, -Q]])
-            cons.insert(0, 0.5 * (M + M.T) << -t * np.eye(n + V2.shape[1]))
+            cons.insert(0, symmetrized(M) << -t * np.eye(n + V2.shape[1]))
         if P is not None:
             cons.append(rc.trace(P) <= self.kappa * n)
         cons.append(t <= 1.0)
@@ -448,14 +439,14 @@ class ConicEliminatedLMI(ConicObserverLMI):
                     "solve_time": time.perf_counter() - start}
         status = str(prob.status)
         out: dict = {"status": status, "omega": w}
-        if status not in _ACCEPTED or t.value is None:
+        if status not in ACCEPTED or t.value is None:
             out.update({"t": -np.inf, "solve_time": time.perf_counter() - start})
             return out
-        Pv = I if P is None else _sym(np.asarray(P.value, dtype=float))
-        Qs = float(qv.value) * I if qv is not None else _sym(np.asarray(Q.value, dtype=float))
+        Pv = I if P is None else symmetrized(np.asarray(P.value, dtype=float))
+        Qs = float(qv.value) * I if qv is not None else symmetrized(np.asarray(Q.value, dtype=float))
         with small_dense():
-            Ks, t_P, t_K = self.recover_gain(As, t2, Pv, Qs,
-                                             self.margin if margin is None else float(margin))
+            Ks, t_P, t_K = recovered_gain(self.V1, self.V2, self._W, As, t2, Pv, Qs,
+                                          self.margin if margin is None else float(margin))
         K = w * Ks * self.output_scale[None, :]
         L = np.linalg.solve(Pv, K)
         out.update({"t": float(t.value), "P": Pv, "Q": Qs / w, "K": K, "L": L, "t_P": t_P,

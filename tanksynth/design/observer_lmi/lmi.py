@@ -20,9 +20,9 @@ Two variants are offered (notes/plants.md section 4.2):
     for every ``psi`` once the conditioning bound ``kappa`` is large enough,
     so "maximise psi" only measures ``kappa``.
 
-Conditioning bound: when a refused LMI has ``trace P`` at ``kappa n`` the
-bound, not the plant, limits the margin; `observer_lmi` then retries with
-``kappa`` times `KAPPA_STEP` up to ``kappa_max`` and, if still refused, says
+Conditioning bound (`tanksynth.design.lmi_checks`): when a refused LMI has ``trace P`` at
+``kappa n`` the bound, not the plant, limits the margin; `observer_lmi` then retries with
+``kappa`` times ``KAPPA_STEP`` up to ``kappa_max`` and, if still refused, says
 the bound is active and names the option. `maximise_psi` reports
 ``bounded_by_kappa`` whenever the bound is active at ``psi_max`` (both
 variants).
@@ -50,81 +50,31 @@ is checked against the full ``2n x 2n`` block matrix of eq. (28).
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any, Callable, Sequence
+from typing import Any, Sequence
 
 import numpy as np
 
-from tanksynth.errors import DimensionError, InfeasibleDesign, SpecError, UnobservableError
 # Module import (not names), so that a test may replace the rank functions.
 from tanksynth.analysis import rank as _rank
 from tanksynth.analysis.blas import small_dense
-from tanksynth.design.observer_lmi.conic_form import ConicObserverLMI, one_shot_problem, sweep_problem, with_kappa
-from tanksynth.design.observer_lmi.problem import (FORMS, SOLVERS, VARIANTS, ObserverLMIProblem, _check_variant,
-                                          _matrix, _sym)
+from tanksynth.design.bisection import bisect_feasible
+from tanksynth.design.lmi_checks import KAPPA_STEP, LMICheck, kappa_active
+from tanksynth.design.matrices import real_matrix, symmetrized
+from tanksynth.design.observer_lmi.conic_form import (ConicObserverLMI, one_shot_problem, sweep_problem,
+                                                      with_kappa)
+from tanksynth.design.observer_lmi.problem import FORMS, VARIANTS, ObserverLMIProblem, check_variant
+from tanksynth.errors import DimensionError, InfeasibleDesign, SpecError, UnobservableError
 
 __all__ = [
-    "SOLVERS",
     "VARIANTS",
     "FORMS",
-    "LMICheck",
     "ObserverLMIResult",
     "ObserverLMIProblem",
     "observer_lmi",
     "check_observer_lmi",
     "PsiSearch",
     "maximise_psi",
-    "bisect_feasible",
-    "KAPPA_STEP",
-    "kappa_active",
 ]
-
-#: Factor by which ``kappa`` is relaxed on each retry of `observer_lmi` (up to ``kappa_max``).
-KAPPA_STEP = 100.0
-#: The bound ``trace P <= kappa n`` is active when ``trace P >= (1 - 1e-3) kappa n``.
-_ACTIVE = 1.0 - 1e-3
-
-
-def kappa_active(P: Any, kappa: float) -> bool:
-    """True when ``trace P`` sits at the conditioning bound ``kappa n`` (to 0.1%).
-
-    Parameters
-    ----------
-    P : array_like, shape (n, n)
-        Lyapunov matrix of the normalised problem (``P >= I``).
-    kappa : float
-    """
-    P = np.atleast_2d(np.asarray(P, dtype=float))
-    return bool(np.trace(P) >= _ACTIVE * kappa * P.shape[0])
-
-
-@dataclass(frozen=True)
-class LMICheck:
-    """One item of the independent numpy re-check.
-
-    Attributes
-    ----------
-    name : str
-        What was checked (``"LMI (28) block matrix"``, ``"P > 0"``, ...).
-    value : float
-        The checked quantity (a largest or smallest eigenvalue, or a real
-        part), in the units given by ``unit``.
-    limit : float
-        The bound it had to satisfy.
-    passed : bool
-    unit : str
-        Units/normalisation of ``value``.
-    """
-
-    name: str
-    value: float
-    limit: float
-    passed: bool
-    unit: str = ""
-
-    def as_dict(self) -> dict:
-        """JSON-friendly form."""
-        return {"name": self.name, "value": self.value, "limit": self.limit,
-                "passed": self.passed, "unit": self.unit}
 
 
 @dataclass(frozen=True)
@@ -252,20 +202,20 @@ def check_observer_lmi(A0: Any, C: Any, psi: float, P: Any, Q: Any, K: Any, marg
     error_eigenvalues : ndarray, shape (n,)
         Of ``A0 - P^-1 K C`` (1/s).
     """
-    A0, C, P, Q, K = (_matrix(v, nm) for v, nm in ((A0, "A0"), (C, "C"), (P, "P"), (Q, "Q"), (K, "K")))
+    A0, C, P, Q, K = (real_matrix(v, nm) for v, nm in ((A0, "A0"), (C, "C"), (P, "P"), (Q, "Q"), (K, "K")))
     n = A0.shape[0]
     if P.shape != (n, n) or Q.shape != (n, n) or K.shape != (n, C.shape[0]) or C.shape[1] != n:
         raise DimensionError("shapes of A0, C, P, Q, K do not match")
     X = A0.T @ P + P @ A0 - C.T @ K.T - K @ C + psi ** 2 * Q
-    M = _sym(np.block([[X, P], [P, -Q]]))
+    M = symmetrized(np.block([[X, P], [P, -Q]]))
     d = np.concatenate([np.full(n, omega ** -0.5), np.full(n, omega ** 0.5)])
     Mn = M * d[:, None] * d[None, :]
     eig = np.linalg.eigvalsh(Mn)
     eig_raw = float(np.max(np.linalg.eigvalsh(M)))
     L = np.linalg.solve(P, K)
     err = np.linalg.eigvals(A0 - L @ C)
-    pmin = float(np.min(np.linalg.eigvalsh(_sym(P))))
-    qmin = float(np.min(np.linalg.eigvalsh(_sym(Q))))
+    pmin = float(np.min(np.linalg.eigvalsh(symmetrized(P))))
+    qmin = float(np.min(np.linalg.eigvalsh(symmetrized(Q))))
     need = -(1.0 - tolerance) * margin
     checks = (
         LMICheck("LMI (28) block matrix, normalised (max eigenvalue <= -(1-tol) margin)",
@@ -357,8 +307,8 @@ def observer_lmi(A0: Any, C: Any, psi: float, *, variant: str = "qI", margin: fl
         fails; the message gives the solver status, the achieved margin and
         the failed check.
     """
-    A0 = _matrix(A0, "A0")
-    C = _matrix(C, "C")
+    A0 = real_matrix(A0, "A0")
+    C = real_matrix(C, "C")
     n = A0.shape[0]
     if A0.shape != (n, n):
         raise DimensionError(f"A0 must be square, got shape {A0.shape}")
@@ -366,7 +316,7 @@ def observer_lmi(A0: Any, C: Any, psi: float, *, variant: str = "qI", margin: fl
         raise DimensionError(f"C has {C.shape[1]} columns, expected n = {n}")
     if not (isinstance(margin, (int, float)) and np.isfinite(margin) and 0 < margin < 1):
         raise SpecError(f"margin must be a number in (0, 1), got {margin!r}", key="margin")
-    _check_variant(variant)
+    check_variant(variant)
     _refuse_unobservable(A0, C)
     prob = problem or one_shot_problem(A0, C, variant, kappa, blocks, pattern, solver, form, margin)
     prob.margin = float(margin)
@@ -448,60 +398,6 @@ def _accept(A0: np.ndarray, C: np.ndarray, psi: float, raw: dict,
                  "trace_P_over_kappa_n": float(np.trace(raw["P"]) / (prob.kappa * n)),
                  "kappa_tries": list(tries or [])},
         structure=structure)
-
-
-def bisect_feasible(feasible: Callable[[float], bool], start: float, rtol: float = 1e-3,
-                    max_doublings: int = 40, max_steps: int = 60) -> tuple[float, float, list]:
-    """Largest ``x >= 0`` with ``feasible(x)`` for a monotone predicate.
-
-    Feasibility must be monotone (feasible at ``x`` implies feasible below
-    ``x``), which holds for ``psi`` in eq. (28): the ``psi^2 Q`` term only
-    grows. The bracket is found by doubling from ``start``.
-
-    Parameters
-    ----------
-    feasible : callable
-        ``feasible(x) -> bool``.
-    start : float
-        First trial value (> 0).
-    rtol : float
-        Relative width of the final bracket.
-    max_doublings, max_steps : int
-        Limits of the bracketing and of the bisection.
-
-    Returns
-    -------
-    lo : float
-        Largest value found feasible (0.0 if only 0 is).
-    hi : float
-        Smallest value found infeasible (``inf`` if none found).
-    history : list of (float, bool)
-        Every trial.
-    """
-    history: list = []
-
-    def test(x: float) -> bool:
-        ok = bool(feasible(x))
-        history.append((float(x), ok))
-        return ok
-
-    lo, hi = 0.0, float(start)
-    for _ in range(max_doublings):
-        if test(hi):
-            lo, hi = hi, 2.0 * hi
-        else:
-            break
-    else:
-        return lo, float("inf"), history
-    for _ in range(max_steps):
-        if hi - lo <= rtol * hi:
-            break
-        mid = 0.5 * (lo + hi)
-        if test(mid):
-            lo = mid
-        else:
-            hi = mid
-    return lo, hi, history
 
 
 @dataclass(frozen=True)
@@ -586,18 +482,18 @@ def maximise_psi(A0: Any, C: Any, *, variant: str = "qI", margin: float = 1e-6, 
     decay rate is reachable); the search then stops where the numbers
     break down or after the doublings of `bisect_feasible`.
     """
-    A0 = _matrix(A0, "A0")
-    C = _matrix(C, "C")
+    A0 = real_matrix(A0, "A0")
+    C = real_matrix(C, "C")
     if A0.shape != (A0.shape[0], A0.shape[0]) or C.shape[1] != A0.shape[0]:
         raise DimensionError(f"A0 is {A0.shape} and C is {C.shape}: expected (n, n) and (q, n)")
     if not (isinstance(margin, (int, float)) and np.isfinite(margin) and 0 < margin < 1):
         raise SpecError(f"margin must be a number in (0, 1), got {margin!r}", key="margin")
-    _check_variant(variant)
+    check_variant(variant)
     _refuse_unobservable(A0, C)
     prob = problem or sweep_problem(A0, C, variant, kappa, blocks, pattern, solver, form, margin)
     prob.margin = float(margin)
     omega = prob.time_scale(A0, 0.0)
-    extra = {} if solver_options is None else {"solver_options": solver_options}
+    extra: dict[str, Any] = {} if solver_options is None else {"solver_options": solver_options}
 
     designs: dict[float, ObserverLMIResult] = {}
     refused: list[str] = []

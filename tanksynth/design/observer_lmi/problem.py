@@ -23,100 +23,83 @@ import time
 import warnings
 from typing import TYPE_CHECKING, Any, Callable, Sequence
 
+import clarabel
 import numpy as np
 import scipy.linalg as sla
 import scipy.sparse as sps
 
 from tanksynth.analysis.blas import small_dense
+from tanksynth.design.conic import ACCEPTED
+from tanksynth.design.lmi_checks import check_solver
+from tanksynth.design.matrices import real_matrix, symmetrized
 from tanksynth.errors import DimensionError, SpecError
 
 if TYPE_CHECKING:
     import cvxpy as cp
 
 __all__ = [
-    "solve_status",
-    "SOLVERS",
     "VARIANTS",
     "FORMS",
     "ObserverLMIProblem",
+    "check_variant",
+    "checked_structure",
+    "output_split",
+    "recovered_gain",
 ]
 
-#: Solvers accepted for the LMIs (Clarabel is the default, SCS for comparisons).
-SOLVERS = ("CLARABEL", "SCS")
 #: Variants of the ``Q`` matrix of eq. (28).
 VARIANTS = ("qI", "full")
 #: Forms of the LMI: ``K`` kept as a variable, or eliminated (projection lemma).
 FORMS = ("auto", "full", "eliminated")
 
-_ACCEPTED = ("optimal", "optimal_inaccurate")
 
-
-def solve_status(problem: cp.Problem, solver: str, **settings: Any) -> str:
-    """Solve ``problem`` and return cvxpy's status, never raising on a solver failure.
-
-    The status is only a hint: every design re-checks its returned matrices
-    with numpy. cvxpy's UserWarnings ("solution may be inaccurate") are
-    silenced because the status and the re-check say the same.
+def check_variant(variant: str) -> None:
+    """Refuse a ``Q`` variant outside `VARIANTS` (`SpecError` keyed ``variant``).
 
     Parameters
     ----------
-    problem : cvxpy.Problem
-        The LMI problem.
-    solver : str
-        A cvxpy solver name (``"CLARABEL"``, ``"SCS"``).
-    **settings
-        Solver settings passed to ``problem.solve``.
-
-    Returns
-    -------
-    str
-        ``problem.status``, or ``"solver_error (<message>)"`` (one line, at most 200 characters).
+    variant : str
+        ``"qI"`` or ``"full"``.
     """
-    import cvxpy as cp      # here, not at module level: the direct Clarabel routes never pay it
-
-    try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", UserWarning)
-            problem.solve(solver=solver, **settings)
-    except cp.error.SolverError as exc:
-        return f"solver_error ({' '.join(str(exc).split())[:200]})"
-    return str(problem.status)
-
-
-def _matrix(value: Any, name: str) -> np.ndarray:
-    try:
-        arr = np.atleast_2d(np.asarray(value, dtype=float))
-    except (TypeError, ValueError):
-        raise DimensionError(f"{name} must be a real 2-D array") from None
-    if arr.ndim != 2:
-        raise DimensionError(f"{name} must be 2-D, got {arr.ndim} dimensions")
-    if not np.all(np.isfinite(arr)):
-        raise DimensionError(f"{name} has non-finite entries")
-    return arr
-
-
-def _sym(M: np.ndarray) -> np.ndarray:
-    return 0.5 * (M + M.T)
-
-
-def _check_variant(variant: str) -> None:
     if variant not in VARIANTS:
         raise SpecError(f"unknown LMI variant {variant!r}; expected one of {list(VARIANTS)}",
                         key="variant")
 
 
-def _check_solver(solver: str) -> None:
-    if solver not in SOLVERS:
-        raise SpecError(f"unknown solver {solver!r}; expected one of {list(SOLVERS)}", key="solver")
+def checked_structure(n: int, q: int, blocks: Sequence[Sequence[int]] | None,
+                      pattern: Any) -> tuple[list[list[int]] | None, np.ndarray | None]:
+    """The block partition of ``P`` and the gain pattern of ``L``, checked together.
 
+    Parameters
+    ----------
+    n : int
+        Number of states.
+    q : int
+        Number of outputs.
+    blocks : sequence of sequence of int, optional
+        A partition of the state indices ``0 .. n-1``: ``P`` (and ``Q``) block-diagonal.
+    pattern : array_like of 0/1, shape (n, q), optional
+        Allowed non-zero entries of ``L`` (dimensionless); needs ``blocks``, with the same
+        allowed outputs for every state of a block (``L = P^-1 K`` mixes a block's rows).
 
-def _structure(n: int, q: int, blocks: Sequence[Sequence[int]] | None,
-               pattern: Any) -> tuple[list[list[int]] | None, np.ndarray | None]:
-    if blocks is not None:
-        blocks = [sorted(int(i) for i in b) for b in blocks]
-        flat = sorted(i for b in blocks for i in b)
-        if flat != list(range(n)) or any(not b for b in blocks):
-            raise DimensionError(f"blocks must partition the state indices 0..{n - 1}, got {blocks}")
+    Returns
+    -------
+    blocks : list of list of int or None
+        Each block sorted.
+    mask : ndarray of bool, shape (n, q), or None
+        The pattern.
+
+    Raises
+    ------
+    DimensionError
+        Not a partition, a pattern of another shape or not 0/1, a pattern without blocks, or
+        rows of a block with different patterns.
+    """
+    partition = None if blocks is None else [sorted(int(i) for i in b) for b in blocks]
+    if partition is not None:
+        flat = sorted(i for b in partition for i in b)
+        if flat != list(range(n)) or any(not b for b in partition):
+            raise DimensionError(f"blocks must partition the state indices 0..{n - 1}, got {partition}")
     mask = None
     if pattern is not None:
         mask = np.asarray(pattern, dtype=float)
@@ -124,8 +107,8 @@ def _structure(n: int, q: int, blocks: Sequence[Sequence[int]] | None,
             raise DimensionError(f"pattern must be a 0/1 array of shape ({n}, {q}), got shape "
                                  f"{mask.shape}")
         mask = mask.astype(bool)
-        if blocks is not None:
-            for b in blocks:
+        if partition is not None:
+            for b in partition:
                 if not np.all(mask[b] == mask[b[0]]):
                     raise DimensionError(
                         f"pattern rows differ inside block {b}: with a block-diagonal P, L = P^-1 K "
@@ -134,7 +117,7 @@ def _structure(n: int, q: int, blocks: Sequence[Sequence[int]] | None,
         elif not mask.all():
             raise DimensionError("a gain pattern needs a block partition of P (blocks=...): with a "
                                  "dense P, L = P^-1 K is dense whatever the pattern of K")
-    return blocks, mask
+    return partition, mask
 
 
 def _sparse_parameter(pattern: np.ndarray, name: str) -> tuple[Any, Callable[[np.ndarray], None]]:
@@ -145,7 +128,7 @@ def _sparse_parameter(pattern: np.ndarray, name: str) -> tuple[Any, Callable[[np
     potentially non-zero; over the pattern the LMI keeps the network's
     sparsity, which Clarabel's chordal decomposition exploits.
     """
-    import cvxpy as cp
+    import cvxpy as cp      # here: cvxpy's import costs seconds and the Clarabel routes never need it
 
     shape = pattern.shape
     idx = np.flatnonzero(pattern.ravel(order="F"))
@@ -177,7 +160,7 @@ def _symmetric(n: int, blocks: list[list[int]] | None, name: str) -> tuple[Any, 
     whose compile time grows with the number of blocks); ``>= I`` is imposed
     per block, as a linear bound for 1x1 blocks.
     """
-    import cvxpy as cp
+    import cvxpy as cp      # here: cvxpy's import costs seconds and the Clarabel routes never need it
 
     if blocks is None:
         V = cp.Variable((n, n), symmetric=True, name=name)
@@ -210,17 +193,29 @@ def _symmetric(n: int, blocks: list[list[int]] | None, name: str) -> tuple[Any, 
     for first, d, lr, lc in local:
         Sb = sps.csc_matrix((np.ones(len(lr)), (lr, lc)), shape=(d * d, d * (d + 1) // 2))
         Mb = cp.reshape(Sb @ v[first:first + d * (d + 1) // 2], (d, d), order="F")
-        cons.append(0.5 * (Mb + Mb.T) >> np.eye(d))
+        cons.append(symmetrized(Mb) >> np.eye(d))
     return M, cons, cp.sum(v[np.array(diag)])
 
 
-def _output_split(Cs: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def output_split(Cs: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Orthonormal bases of the row space ``V1`` and null space ``V2`` of ``Cs``.
 
     Also ``W = pinv(Cs V1)``, so that ``G V1' = (G W) Cs`` for any ``G``. When
     every output measures one state (``C`` a row selection), ``V1`` and ``V2``
     are columns of the identity (the eliminated LMI keeps the sparsity);
     otherwise they come from the SVD of ``Cs``.
+
+    Parameters
+    ----------
+    Cs : ndarray, shape (q, n)
+        Output matrix with normalised rows (dimensionless).
+
+    Returns
+    -------
+    V1 : ndarray, shape (n, r)
+    V2 : ndarray, shape (n, n - r)
+    W : ndarray, shape (r, q)
+        ``pinv(Cs V1)``.
     """
     with small_dense():
         return _split(Cs)
@@ -260,7 +255,7 @@ class ObserverLMIProblem:
             [ P V2         -Q   ]  <=  -t I        (size 2n - r)
 
         so the optimal margin ``t*`` is that of eq. (28) itself. ``K`` is
-        then recovered in closed form (`recover_gain`) for the margin
+        then recovered in closed form (`recovered_gain`) for the margin
         ``t_K = min(1, (t_P + margin) / 2)``, where ``t_P`` is the margin
         the returned ``P``, ``Q`` reach in the eliminated LMI (recomputed in
         numpy): half-way between the required and the reached margin, so
@@ -304,13 +299,13 @@ class ObserverLMIProblem:
                  blocks: Sequence[Sequence[int]] | None = None, pattern: Any = None,
                  solver: str = "CLARABEL", *, A0_pattern: Any = None, form: str = "auto",
                  margin: float = 1e-6, solver_options: dict | None = None):
-        import cvxpy as cp      # only the cvxpy route builds this class (see lmi_conic)
+        import cvxpy as cp      # here: only the cvxpy route builds this class (conic_form does not)
 
-        _check_variant(variant)
-        _check_solver(solver)
+        check_variant(variant)
+        check_solver(solver)
         if form not in FORMS:
             raise SpecError(f"unknown LMI form {form!r}; expected one of {list(FORMS)}", key="form")
-        C = _matrix(C, "C")
+        C = real_matrix(C, "C")
         if C.shape[1] != n:
             raise DimensionError(f"C has {C.shape[1]} columns, expected n = {n}")
         if not (np.isfinite(kappa) and kappa > 1):
@@ -324,7 +319,7 @@ class ObserverLMIProblem:
         self.output_scale = 1.0 / row
         Cs = C * self.output_scale[:, None]
         self.Cs = Cs
-        self.blocks, self.mask = _structure(n, q, blocks, pattern)
+        self.blocks, self.mask = checked_structure(n, q, blocks, pattern)
         if A0_pattern is None:
             self.A0_pattern = np.ones((n, n), dtype=bool)
         else:
@@ -346,10 +341,11 @@ class ObserverLMIProblem:
         I = np.eye(n)
         # With C of full column rank the eliminated LMI does not contain P (it is Q >= t I):
         # any P >= I with trace P <= kappa n will do, P = I, and no n x n cone is built for it.
-        self.fixed_P = form == "eliminated" and _output_split(Cs)[1].shape[1] == 0
-        if self.fixed_P:
-            P, p_cons, p_trace = None, [], None
-        else:
+        self.fixed_P = form == "eliminated" and output_split(Cs)[1].shape[1] == 0
+        P: Any = None            # cvxpy expressions (or None: P fixed at I)
+        p_cons: list = []
+        p_trace: Any = None
+        if not self.fixed_P:
             P, p_cons, p_trace = _symmetric(n, self.blocks, "P")
         self.P = P
         if variant == "qI":
@@ -359,6 +355,8 @@ class ObserverLMIProblem:
             Q, _, _ = _symmetric(n, self.blocks, "Q")
             self.qv = Q
         self.Q = Q
+        self.Kv: Any = None      # the gain variable of the full form (None: eliminated)
+        self.K: Any = None
         if form == "full":
             self.A0s, self._set_A0 = _sparse_parameter(self.A0_pattern, "A0_scaled")
             if self.mask is None:
@@ -373,23 +371,22 @@ class ObserverLMIProblem:
             self.K = K
             X = self.A0s.T @ P + P @ self.A0s - Cs.T @ K.T - K @ Cs + self.t2 * Q
             M = cp.bmat([[X, P], [P, -Q]])
-            lmi = [0.5 * (M + M.T) << -self.t * np.eye(2 * n)]
+            lmi = [symmetrized(M) << -self.t * np.eye(2 * n)]
         else:
-            self.V1, self.V2, self._W = _output_split(Cs)
+            self.V1, self.V2, self._W = output_split(Cs)
             V2 = self.V2
-            self.Kv = self.K = None
             # The A0 Parameter enters as Y = A0 V2 only (pattern of A0_pattern V2).
             ypat = (self.A0_pattern.astype(float) @ (V2 != 0).astype(float)) != 0
             self.A0s, self._set_Y = _sparse_parameter(ypat, "A0V2_scaled")
             self._set_A0 = lambda A: self._set_Y(A @ V2)
             if V2.shape[1] == 0:
                 lmi = [self.qv >= self.t] if variant == "qI" else \
-                      [0.5 * (Q + Q.T) >> self.t * I]
+                      [symmetrized(Q) >> self.t * I]
             else:
                 PV2 = P @ V2
                 X22 = self.A0s.T @ PV2 + V2.T @ P @ self.A0s + self.t2 * (V2.T @ Q @ V2)
                 M = cp.bmat([[X22, PV2.T], [PV2, -Q]])
-                lmi = [0.5 * (M + M.T) << -self.t * np.eye(n + V2.shape[1])]
+                lmi = [symmetrized(M) << -self.t * np.eye(n + V2.shape[1])]
         # Normalisation of the homogeneous LMI: P >= I and trace(P) <= kappa n (a linear
         # conditioning bound, cond(P) <= kappa n; cheaper than a second PSD cone P <= kappa I).
         cons = lmi + p_cons + ([] if p_trace is None else [p_trace <= self.kappa * n])
@@ -423,8 +420,6 @@ class ObserverLMIProblem:
         if self.solver == "CLARABEL":
             stale = self._options_used - set(opts)
             if stale:
-                import clarabel
-
                 defaults = clarabel.DefaultSettings()
                 opts.update({k: getattr(defaults, k) for k in stale})
         self._options_used |= set(opts)
@@ -458,7 +453,7 @@ class ObserverLMIProblem:
             ``P``, ``Q`` in the eliminated LMI) and ``t_K`` (margin the
             gain was built for).
         """
-        A0 = _matrix(A0, "A0")
+        A0 = real_matrix(A0, "A0")
         if A0.shape != (self.n, self.n):
             raise DimensionError(f"A0 has shape {A0.shape}, expected ({self.n}, {self.n})")
         outside = (A0 != 0) & ~self.A0_pattern
@@ -473,7 +468,7 @@ class ObserverLMIProblem:
         As, t2 = A0 / w, (psi / w) ** 2
         self._set_A0(As)
         self.t2.value = t2
-        import cvxpy as cp
+        import cvxpy as cp      # here: only the cvxpy route solves with this class (issue 15)
 
         opts = self._options(solver_options)
         start = time.perf_counter()
@@ -487,19 +482,19 @@ class ObserverLMIProblem:
             return {"status": f"solver_error: {exc}", "t": -np.inf, "omega": w,
                     "solve_time": time.perf_counter() - start}
         out: dict = {"status": status, "omega": w}
-        if status not in _ACCEPTED or self.t.value is None:
+        if status not in ACCEPTED or self.t.value is None:
             out["t"] = -np.inf
             out["solve_time"] = time.perf_counter() - start
             return out
-        P = np.eye(self.n) if self.P is None else _sym(np.asarray(self.P.value, dtype=float))
+        P = np.eye(self.n) if self.P is None else symmetrized(np.asarray(self.P.value, dtype=float))
         Qs = np.asarray(self.Q.value, dtype=float)
-        Qs = _sym(np.atleast_2d(Qs)) if Qs.ndim == 2 else float(Qs) * np.eye(self.n)
+        Qs = symmetrized(np.atleast_2d(Qs)) if Qs.ndim == 2 else float(Qs) * np.eye(self.n)
         if self.form == "full":
             Ks = np.asarray(self.K.value, dtype=float).reshape(self.n, self.q)
         else:
             with small_dense():
-                Ks, t_P, t_K = self.recover_gain(As, t2, P, Qs,
-                                                 self.margin if margin is None else float(margin))
+                Ks, t_P, t_K = recovered_gain(self.V1, self.V2, self._W, As, t2, P, Qs,
+                                              self.margin if margin is None else float(margin))
             out.update({"t_P": t_P, "t_K": t_K})
         # Back to original units: Q = Qs / omega, K = omega Ks S_y (see module notes).
         K = w * Ks * self.output_scale[None, :]
@@ -509,66 +504,69 @@ class ObserverLMIProblem:
                     "solve_time": time.perf_counter() - start})
         return out
 
-    def recover_gain(self, As: np.ndarray, t2: float, P: np.ndarray, Qs: np.ndarray,
-                     margin: float) -> tuple[np.ndarray, float, float]:
-        """Closed-form ``K`` for given ``P``, ``Q`` (eliminated form, scaled units).
 
-        In the coordinates ``T = diag([V1 V2], I)`` the block matrix of eq.
-        (28) plus ``t I`` reads, with ``a`` the ``r`` measured directions,
-        ``b`` the unmeasured ones, ``c`` the second block row and ``H = [Ha;
-        Hb] = V' K Cs V1``::
+def recovered_gain(V1: np.ndarray, V2: np.ndarray, W: np.ndarray, As: np.ndarray, t2: float,
+                   P: np.ndarray, Qs: np.ndarray, margin: float) -> tuple[np.ndarray, float, float]:
+    """Closed-form ``K`` for given ``P``, ``Q`` (eliminated form, scaled units).
 
-            [ Naa - Ha - Ha'   Nab - Hb'   Nac ]
-            [ Nba - Hb         Nbb         Nbc ]
-            [ Nca              Ncb         Ncc ]
+    In the coordinates ``T = diag([V1 V2], I)`` the block matrix of eq.
+    (28) plus ``t I`` reads, with ``a`` the ``r`` measured directions,
+    ``b`` the unmeasured ones, ``c`` the second block row and ``H = [Ha;
+    Hb] = V' K Cs V1``::
 
-        ``Ncc = t I - Q < 0``. Its Schur complement is ``Z - [Ha + Ha', Hb';
-        Hb, 0]`` with ``Z = V' Y V + t I``, ``Y = X0 + P (Q - t I)^-1 P``.
-        ``Hb = Zba`` and ``Ha = Zaa / 2 + t I / 2`` leave ``diag(-t I, Zbb)``,
-        and ``Zbb < 0`` is the eliminated LMI at margin ``t``: the whole
-        matrix is negative definite, i.e. eq. (28) holds with a margin above
-        ``t``. So ``K Cs V1 = G = (V2 V2' + V1 V1' / 2) Y V1 + t V1`` and
-        ``K = G pinv(Cs V1)``. The gain does not grow as ``t`` approaches
-        the margin ``t_P`` of ``(P, Q)`` (only ``Q - t I`` is inverted).
+        [ Naa - Ha - Ha'   Nab - Hb'   Nac ]
+        [ Nba - Hb         Nbb         Nbc ]
+        [ Nca              Ncb         Ncc ]
 
-        Parameters
-        ----------
-        As : ndarray, shape (n, n)
-            State matrix in scaled units (``A0 / omega``, dimensionless).
-        t2 : float
-            Slack of the eliminated block (scaled units).
-        P, Qs : ndarray, shape (n, n)
-            Solved Lyapunov matrix and scaled ``Q``.
-        margin : float
-            Strictness margin of the block condition (scaled units).
+    ``Ncc = t I - Q < 0``. Its Schur complement is ``Z - [Ha + Ha', Hb';
+    Hb, 0]`` with ``Z = V' Y V + t I``, ``Y = X0 + P (Q - t I)^-1 P``.
+    ``Hb = Zba`` and ``Ha = Zaa / 2 + t I / 2`` leave ``diag(-t I, Zbb)``,
+    and ``Zbb < 0`` is the eliminated LMI at margin ``t``: the whole
+    matrix is negative definite, i.e. eq. (28) holds with a margin above
+    ``t``. So ``K Cs V1 = G = (V2 V2' + V1 V1' / 2) Y V1 + t V1`` and
+    ``K = G pinv(Cs V1)``. The gain does not grow as ``t`` approaches
+    the margin ``t_P`` of ``(P, Q)`` (only ``Q - t I`` is inverted).
 
-        Returns
-        -------
-        K : ndarray, shape (n, q)
-            Scaled gain variable (``P L`` in the scaled units of the problem).
-        t_P : float
-            Margin of ``(P, Q)`` in the eliminated LMI (``-`` its largest
-            eigenvalue, recomputed here); scaled units.
-        t_K : float
-            Margin the gain is built for: ``min(1, t_P - (t_P - margin) / 10)``
-            when ``t_P > margin`` (else below ``t_P``; the design is then
-            refused); scaled units.
-        """
-        V1, V2 = self.V1, self.V2
-        X0 = As.T @ P + P @ As + t2 * Qs
-        S0 = _sym(np.block([[V2.T @ X0 @ V2, V2.T @ P], [P @ V2, -Qs]]))
-        t_P = float(-np.max(np.linalg.eigvalsh(S0)))
-        if t_P > margin:
-            t_K = min(1.0, t_P - 0.1 * (t_P - margin))
-        else:
-            t_K = t_P - 0.5 * abs(t_P) - 1e-12
-        Qt = Qs - t_K * np.eye(self.n)                       # positive definite (block of S0)
-        try:
-            PQP = P @ sla.cho_solve(sla.cho_factor(Qt), P)
-        except np.linalg.LinAlgError:
-            PQP = P @ np.linalg.lstsq(Qt, P, rcond=None)[0]
-        Y = _sym(X0 + PQP)
-        YV1 = Y @ V1
-        G = V2 @ (V2.T @ YV1) + 0.5 * V1 @ (V1.T @ YV1) + t_K * V1
-        return G @ self._W, t_P, t_K
+    Parameters
+    ----------
+    V1, V2 : ndarray, shape (n, r) and (n, n - r)
+        Orthonormal bases of the row space and null space of ``Cs`` (`output_split`).
+    W : ndarray, shape (r, q)
+        ``pinv(Cs V1)`` (`output_split`).
+    As : ndarray, shape (n, n)
+        State matrix in scaled units (``A0 / omega``, dimensionless).
+    t2 : float
+        Slack of the eliminated block (scaled units).
+    P, Qs : ndarray, shape (n, n)
+        Solved Lyapunov matrix and scaled ``Q``.
+    margin : float
+        Strictness margin of the block condition (scaled units).
 
+    Returns
+    -------
+    K : ndarray, shape (n, q)
+        Scaled gain variable (``P L`` in the scaled units of the problem).
+    t_P : float
+        Margin of ``(P, Q)`` in the eliminated LMI (``-`` its largest
+        eigenvalue, recomputed here); scaled units.
+    t_K : float
+        Margin the gain is built for: ``min(1, t_P - (t_P - margin) / 10)``
+        when ``t_P > margin`` (else below ``t_P``; the design is then
+        refused); scaled units.
+    """
+    X0 = As.T @ P + P @ As + t2 * Qs
+    S0 = symmetrized(np.block([[V2.T @ X0 @ V2, V2.T @ P], [P @ V2, -Qs]]))
+    t_P = float(-np.max(np.linalg.eigvalsh(S0)))
+    if t_P > margin:
+        t_K = min(1.0, t_P - 0.1 * (t_P - margin))
+    else:
+        t_K = t_P - 0.5 * abs(t_P) - 1e-12
+    Qt = Qs - t_K * np.eye(P.shape[0])                 # positive definite (block of S0)
+    try:
+        PQP = P @ sla.cho_solve(sla.cho_factor(Qt), P)
+    except np.linalg.LinAlgError:
+        PQP = P @ np.linalg.lstsq(Qt, P, rcond=None)[0]
+    Y = symmetrized(X0 + PQP)
+    YV1 = Y @ V1
+    G = V2 @ (V2.T @ YV1) + 0.5 * V1 @ (V1.T @ YV1) + t_K * V1
+    return G @ W, t_P, t_K

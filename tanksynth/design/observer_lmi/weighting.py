@@ -12,13 +12,17 @@ from typing import Callable, Sequence
 
 import numpy as np
 import sympy as sp
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
 
-from tanksynth.errors import SpecError
-from tanksynth.analysis.interval import branch_and_bound, interval_evaluate
 from tanksynth.analysis import blas as _blas
+from tanksynth.analysis.interval import branch_and_bound, interval_evaluate
 from tanksynth.analysis.quasi_lpv import FormEvaluator, lambdify_cached
 from tanksynth.analysis.symbolic import jacobian_by_form
 from tanksynth.analysis.takagi_sugeno import Domain, QuasiLPV, TSModel, ts_model, vertex_observability
+from tanksynth.design.bisection import bisect_feasible
+from tanksynth.design.observer_lmi.conic_form import sweep_problem
+from tanksynth.errors import SpecError
 
 __all__ = [
     "SelectionRules",
@@ -29,22 +33,6 @@ __all__ = [
     "search_weightings",
     "candidate_weights",
 ]
-
-
-
-# ------------------------------------------------------------------ interval tools
-
-
-# ---------------------------------------------------------------------- bounds
-
-
-# ---------------------------------------------------------------------- TS model
-
-
-# ------------------------------------------------------------------ exactness test
-
-
-# ------------------------------------------------------------ observability / rules
 
 
 @dataclass(frozen=True)
@@ -230,9 +218,6 @@ def _spectral_norms(parts: _JacobianParts, A0: np.ndarray, values: np.ndarray) -
     with two: the larger eigenvalue of the 2 x 2 Gram matrix in closed form;
     larger ones: batched SVD. NaN where an entry is not finite.
     """
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
-
     n = A0.shape[0]
     M = len(values)
     const = parts.base - A0
@@ -280,7 +265,7 @@ def _spectral_norms(parts: _JacobianParts, A0: np.ndarray, values: np.ndarray) -
     return np.where(finite, best, np.nan)
 
 
-def _prod(a: float, b: float) -> float:
+def _prod(a: float | np.floating, b: float | np.floating) -> float:
     """``a * b`` with ``0 * inf = 0`` (a zero matrix contributes nothing)."""
     return 0.0 if a == 0 or b == 0 else float(a * b)
 
@@ -553,9 +538,6 @@ def search_weightings(qlpv: QuasiLPV, domain: Domain, *, values: Sequence[float]
     -------
     WeightSearch
     """
-    from tanksynth.design.observer_lmi.lmi import bisect_feasible
-    from tanksynth.design.observer_lmi.conic_form import sweep_problem
-
     if premises is None:
         premises = [k for k in range(qlpv.p) if len(qlpv.atom_states[k]) > 1]
     premises = list(premises)
@@ -574,7 +556,8 @@ def search_weightings(qlpv: QuasiLPV, domain: Domain, *, values: Sequence[float]
     # Clarabel: the eliminated form without cvxpy (rebuilt per trial); else the cvxpy problem
     prob = sweep_problem(None, C, variant, kappa, None, None, solver, "auto", 1e-6)
     Xs = np.vstack([domain.sample(samples, seed), domain.corners()])
-    parts = jac_values = None
+    parts: _JacobianParts | None = None
+    jac_values: np.ndarray | None = None
     records: list[dict] = []
     best: dict | None = None
     for W in combos:
@@ -594,7 +577,7 @@ def search_weightings(qlpv: QuasiLPV, domain: Domain, *, values: Sequence[float]
             continue
         A0 = ts.A0
         omega = prob.time_scale(A0, 0.0)
-        if parts is None:
+        if parts is None or jac_values is None:
             parts = _jacobian_parts(qlpv, _jacobian_exprs(qlpv))
             jac_values = parts.values(Xs)
         norms = _spectral_norms(parts, A0, jac_values)

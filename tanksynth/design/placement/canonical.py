@@ -35,22 +35,17 @@ from typing import Any, Sequence
 import numpy as np
 import sympy as sp
 
+from tanksynth.design.matrices import matrix_pair, real_matrix
+from tanksynth.design.placement.exact import (PlacementResult, checked_poles, place_observer,
+                                              place_state_feedback, pole_errors)
+from tanksynth.design.placement.regions import LMIPlacementResult, lmi_observer, lmi_state_feedback
 from tanksynth.errors import DimensionError, SpecError, UnobservableError
 from tanksynth.plants.base import exact
-from tanksynth.design.placement.exact import (PlacementResult, _matrix, _pair, _poles, place_observer,
-                                              place_state_feedback, pole_errors)
-from tanksynth._lazy import lazy_exports
-
-# The LMI route (and `_d_lmi`, the block builder of the LMI regions the verdicts' re-check
-# uses) loads on first use: cvxpy's import costs 0.5-1.8 s (it loads scipy.stats).
-__getattr__, __dir__ = lazy_exports(__name__, {
-    name: "tanksynth.design.placement.regions"
-    for name in ("LMIPlacementResult", "lmi_observer", "lmi_state_feedback", "_d_lmi")})
 
 __all__ = [
-    "LMIPlacementResult",  # noqa: F822 - lazy (module __getattr__)
-    "lmi_state_feedback",  # noqa: F822
-    "lmi_observer",  # noqa: F822
+    "LMIPlacementResult",
+    "lmi_state_feedback",
+    "lmi_observer",
     "PlacementResult",
     "place_state_feedback",
     "place_observer",
@@ -117,8 +112,8 @@ def integral_augmentation(Ad: Any, Bd: Any, C1: Any, ts: float) -> AugmentedSyst
     -------
     AugmentedSystem
     """
-    Ad, Bd = _pair(Ad, Bd, "Bd")
-    C1 = _matrix(C1, "C1")
+    Ad, Bd = matrix_pair(Ad, Bd, "Bd")
+    C1 = real_matrix(C1, "C1")
     n, m = Bd.shape
     p = C1.shape[0]
     if C1.shape[1] != n:
@@ -249,7 +244,7 @@ def canonical_observer(A: Any, C: Any, poles: Sequence[Any]) -> CanonicalObserve
                              f"got {C.shape}")
     if len(poles) != n:
         raise DimensionError(f"{len(poles)} poles given, expected n = {n}")
-    _poles([complex(sp.N(_exact_pole(p))) for p in poles], n)
+    checked_poles([complex(sp.N(_exact_pole(p))) for p in poles], n)
     s = sp.Symbol("s")
     Q_O = sp.Matrix.vstack(*[C * A ** k for k in range(n)])
     if Q_O.det() == 0:

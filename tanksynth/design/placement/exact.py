@@ -36,18 +36,22 @@ from dataclasses import dataclass, field
 from typing import Any, Sequence
 
 import numpy as np
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
 
-from tanksynth.errors import (DimensionError, InfeasibleDesign, SpecError, UncontrollableError,
-                      UnobservableError)
 # Module import (not names), so that a test may replace the rank functions.
 from tanksynth.analysis import blas as _blas
 from tanksynth.analysis import rank as _rank
+from tanksynth.design.matrices import complex_pairs, matrix_pair, real_matrix
+from tanksynth.errors import (DimensionError, InfeasibleDesign, SpecError, UncontrollableError,
+                              UnobservableError)
 
 __all__ = [
     "PlacementResult",
     "place_state_feedback",
     "place_observer",
     "ackermann",
+    "checked_poles",
     "pole_errors",
     "pole_clusters",
     "placement_accuracy",
@@ -67,27 +71,6 @@ FRAGILITY_THRESHOLD = 1e-6
 
 
 # -------------------------------------------------------------------- helpers
-def _matrix(value: Any, name: str) -> np.ndarray:
-    try:
-        arr = np.atleast_2d(np.asarray(value, dtype=float))
-    except (TypeError, ValueError):
-        raise DimensionError(f"{name} must be a real 2-D array") from None
-    if arr.ndim != 2 or not np.all(np.isfinite(arr)):
-        raise DimensionError(f"{name} must be a finite 2-D array")
-    return arr
-
-
-def _pair(A: Any, B: Any, nameB: str = "B") -> tuple[np.ndarray, np.ndarray]:
-    A = _matrix(A, "A")
-    n = A.shape[0]
-    if A.shape != (n, n):
-        raise DimensionError(f"A must be square, got shape {A.shape}")
-    B = _matrix(B, nameB)
-    if B.shape[0] != n:
-        raise DimensionError(f"{nameB} has {B.shape[0]} rows, expected n = {n}")
-    return A, B
-
-
 def _refuse_uncontrollable(A: np.ndarray, B: np.ndarray, names: Sequence[str] | None,
                            dual: bool) -> None:
     rank = _rank.controllability_rank(A, B)
@@ -102,7 +85,27 @@ def _refuse_uncontrollable(A: np.ndarray, B: np.ndarray, names: Sequence[str] | 
                               f"uncontrollable modes: {modes or 'not isolated by PBH'}")
 
 
-def _poles(poles: Any, n: int) -> np.ndarray:
+def checked_poles(poles: Any, n: int) -> np.ndarray:
+    """The requested poles as ``n`` finite complex numbers, complex ones in conjugate pairs.
+
+    Parameters
+    ----------
+    poles : array_like of complex
+        Requested poles (1/s in continuous time, dimensionless in discrete time).
+    n : int
+        Number of states: how many poles are needed.
+
+    Returns
+    -------
+    ndarray of complex, shape (n,)
+
+    Raises
+    ------
+    SpecError
+        Not numbers, not finite, or complex poles without their conjugates (key ``poles``).
+    DimensionError
+        Another number of poles than ``n``.
+    """
     try:
         p = np.asarray(poles, dtype=complex).reshape(-1)
     except (TypeError, ValueError):
@@ -234,9 +237,6 @@ def _diagonal_blocks(Acl: np.ndarray) -> list[np.ndarray] | None:
     ``z I - Acl`` has the same components): a list of (g, b, b) stacks, or
     None when there is one component (a dense matrix).
     """
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
-
     n = Acl.shape[0]
     r, c = np.nonzero(Acl)
     count, label = connected_components(coo_matrix((np.ones(len(r)), (r, c)), shape=(n, n)),
@@ -387,10 +387,6 @@ def refuse_fragile(report: dict, what: str, option: str = "allow_fragile") -> No
         f"{option} = true to accept it")
 
 
-def _complex_list(values: np.ndarray) -> list[list[float]]:
-    return [[float(v.real), float(v.imag)] for v in np.sort_complex(np.asarray(values, dtype=complex))]
-
-
 # -------------------------------------------------------------- exact placement
 @dataclass(frozen=True)
 class PlacementResult:
@@ -436,7 +432,7 @@ class PlacementResult:
     def as_dict(self) -> dict:
         """JSON-friendly accuracy report."""
         return {"kind": self.kind, "method": self.method,
-                "requested": _complex_list(self.requested), "achieved": _complex_list(self.achieved),
+                "requested": complex_pairs(self.requested), "achieved": complex_pairs(self.achieved),
                 "max_pole_error": self.max_pole_error,
                 "eigenvector_condition": self.eigenvector_condition,
                 "gain_norm": float(np.linalg.norm(self.gain, 2)),
@@ -539,9 +535,9 @@ def place_state_feedback(A: Any, B: Any, poles: Any, method: str = "auto", tol: 
     InfeasibleDesign
         The achieved poles miss the requested ones by more than ``tol``.
     """
-    A, B = _pair(A, B, "C'" if _dual else "B")
+    A, B = matrix_pair(A, B, "C'" if _dual else "B")
     n, m = B.shape
-    p = _poles(poles, n)
+    p = checked_poles(poles, n)
     if method not in ("auto", "place", "acker"):
         raise SpecError(f"unknown placement method {method!r}; expected auto, place or acker",
                         key="method")
@@ -597,8 +593,8 @@ def place_observer(A: Any, C: Any, poles: Any, method: str = "auto", tol: float 
     UnobservableError
         Before placing, naming the modes.
     """
-    A = _matrix(A, "A")
-    C = _matrix(C, "C")
+    A = real_matrix(A, "A")
+    C = real_matrix(C, "C")
     if C.shape[1] != A.shape[0]:
         raise DimensionError(f"C has {C.shape[1]} columns, expected n = {A.shape[0]}")
     return place_state_feedback(A.T, C.T, poles, method, tol, state_names, _dual=True)

@@ -15,10 +15,10 @@ mode cannot be moved, so the design is refused only when such a mode lies
 outside the region (named with the states its PBH direction lives in); modes
 already inside are kept and listed in the diagnostics.
 
-The conditioning bound ``I <= X <= kappa I``: when a refused LMI has ``X``
-at the bound (``lambda_max(X) >= (1 - 1e-3) kappa``), the bound, not the
+The conditioning bound ``I <= X <= kappa I`` (`tanksynth.design.lmi_checks`): when a refused
+LMI has ``X`` at the bound (``lambda_max(X) >= (1 - 1e-3) kappa``), the bound, not the
 region, limits the margin; the LMI is retried with ``kappa`` multiplied by
-`KAPPA_STEP` up to ``kappa_max`` before refusing, and a refusal says the
+``KAPPA_STEP`` up to ``kappa_max`` before refusing, and a refusal says the
 bound is active and names the option.
 
 The routes are collected in `tanksynth.design.placement.canonical`.
@@ -33,28 +33,21 @@ from typing import Any, Sequence
 import numpy as np
 import scipy.linalg as sla
 
-from tanksynth.analysis.lmi_region import LMIRegion
-from tanksynth.errors import (DimensionError, InfeasibleDesign, SpecError, UncontrollableError,
-                              UnobservableError)
-from tanksynth.design.observer_lmi.lmi import SOLVERS, LMICheck
-from tanksynth.design.conic import modelling
-from tanksynth.design.placement.exact import _complex_list, _matrix, _pair
 # Module import (not names), so that a test may replace the rank functions.
 from tanksynth.analysis import rank as _rank
+from tanksynth.analysis.lmi_region import LMIRegion
+from tanksynth.design.conic import modelling
+from tanksynth.design.lmi_checks import KAPPA_STEP, LMICheck, check_solver, kappa_active
+from tanksynth.design.matrices import complex_pairs, matrix_pair, real_matrix, symmetrized
+from tanksynth.errors import (DimensionError, InfeasibleDesign, SpecError, UncontrollableError,
+                              UnobservableError)
 
 __all__ = [
     "LMIPlacementResult",
     "lmi_state_feedback",
     "lmi_observer",
     "fixed_modes",
-    "KAPPA_STEP",
-    "KAPPA_ACTIVE",
 ]
-
-#: Factor by which ``kappa`` is relaxed on each retry (up to ``kappa_max``).
-KAPPA_STEP = 100.0
-#: ``X`` is at the conditioning bound when ``lambda_max(X) >= KAPPA_ACTIVE kappa``.
-KAPPA_ACTIVE = 1.0 - 1e-3
 
 
 def fixed_modes(A: Any, B: Any, state_names: Sequence[str] | None = None
@@ -79,7 +72,7 @@ def fixed_modes(A: Any, B: Any, state_names: Sequence[str] | None = None
     list of (complex, tuple of str)
         Empty when the pair is controllable.
     """
-    A, B = _pair(A, B)
+    A, B = matrix_pair(A, B)
     n = A.shape[0]
     names = list(state_names) if state_names is not None else [f"x{i + 1}" for i in range(n)]
     rank = _rank.controllability_rank(A, B)
@@ -172,7 +165,7 @@ class LMIPlacementResult:
                 "margin": self.margin, "achieved_margin": self.achieved_margin,
                 "solver": self.solver, "status": self.status, "solve_time_s": self.solve_time,
                 "checks": [c.as_dict() for c in self.checks],
-                "closed_loop_eigenvalues": _complex_list(self.closed_loop_eigenvalues),
+                "closed_loop_eigenvalues": complex_pairs(self.closed_loop_eigenvalues),
                 "min_region_margin": float(np.min(self.region_margins)),
                 "condition_P": float(np.linalg.cond(self.P)),
                 "gain_norm": float(np.linalg.norm(self.gain, 2)),
@@ -230,7 +223,7 @@ def lmi_state_feedback(A: Any, B: Any, region: LMIRegion, *, domain: str = "cont
         Solver infeasible/failed or re-check failed; says when the
         conditioning bound was active.
     """
-    A, B = _pair(A, B, "C'" if _dual else "B")
+    A, B = matrix_pair(A, B, "C'" if _dual else "B")
     n, m = B.shape[0], B.shape[1]
     if domain not in ("continuous", "discrete"):
         raise SpecError(f"domain must be 'continuous' or 'discrete', got {domain!r}", key="domain")
@@ -242,8 +235,7 @@ def lmi_state_feedback(A: Any, B: Any, region: LMIRegion, *, domain: str = "cont
                         "sector; discrete: add a disk with |centre| + radius <= 1)", key="region")
     if not (isinstance(margin, (int, float)) and 0 < margin < 1):
         raise SpecError(f"margin must be in (0, 1), got {margin!r}", key="margin")
-    if solver not in SOLVERS:
-        raise SpecError(f"unknown solver {solver!r}; expected one of {list(SOLVERS)}", key="solver")
+    check_solver(solver)
     kappa_max = float(kappa if kappa_max is None else max(kappa_max, kappa))
     fixed = _refuse_outside_region(A, B, region, state_names, _dual)
     # scaling: diagonal balancing of A, unit input columns, time scale (continuous)
@@ -290,16 +282,16 @@ def lmi_state_feedback(A: Any, B: Any, region: LMIRegion, *, domain: str = "cont
     else:
         status = f"{status} (phase 1), {status2} (phase 2 failed: phase-1 gain kept)"
     elapsed = time.perf_counter() - start
-    Xs = 0.5 * (Xv + Xv.T)
+    Xs = symmetrized(Xv)
     Ks = np.linalg.solve(Xs.T, np.asarray(Yv).T).T           # Y X^-1
     K = (su[:, None] * Ks) / s[None, :]                            # S_u Ks T^-1
     # --- independent re-check (numpy) ---
     Acl_s = As - Bs @ Ks
-    Mn = _sym_np(_d_lmi(reg, Acl_s @ Xs, Xs, np.kron))
+    Mn = symmetrized(_d_lmi(reg, Acl_s @ Xs, Xs, np.kron))
     eig_n = np.linalg.eigvalsh(Mn)
     Xo = (s[:, None] * Xs) * s[None, :]                             # T Xs T'
     Acl = A - B @ K
-    Mo = _sym_np(_d_lmi(region, Acl @ Xo, Xo, np.kron))
+    Mo = symmetrized(_d_lmi(region, Acl @ Xo, Xo, np.kron))
     eig_o = float(np.max(np.linalg.eigvalsh(Mo)))
     lam = np.linalg.eigvals(Acl)
     margins = np.array([region.margin(z) for z in lam])
@@ -322,7 +314,7 @@ def lmi_state_feedback(A: Any, B: Any, region: LMIRegion, *, domain: str = "cont
     kind = "observer" if _dual else "state_feedback"
     P = Xo if _dual else np.linalg.inv(Xo)
     return LMIPlacementResult(
-        gain=K.T if _dual else K, P=_sym_np(P), X=Xo, kind=kind, region=region, domain=domain,
+        gain=K.T if _dual else K, P=symmetrized(P), X=Xo, kind=kind, region=region, domain=domain,
         margin=float(margin), achieved_margin=float(-eig_n.max()), solver=solver, status=status,
         solve_time=elapsed, checks=checks, closed_loop_eigenvalues=lam, region_margins=margins,
         scaling={"state_balance": s.tolist(), "input_scale": su.tolist(), "time_scale": omega,
@@ -352,7 +344,7 @@ def _phase1(As: np.ndarray, Bs: np.ndarray, reg: LMIRegion, n: int, m: int, kapp
     t = lib.variable()
     lib.reserve_norm()
     lmi = _d_lmi(reg, As @ X - Bs @ Y, X, lib.kron)
-    lmi = 0.5 * (lmi + lmi.T)
+    lmi = symmetrized(lmi)
     d = reg.order * n
     box = [X >> I, X << kappa * I]
     # Phase 1: largest margin t (certifies infeasibility when t* < margin and the box is slack).
@@ -368,12 +360,8 @@ def _phase1(As: np.ndarray, Bs: np.ndarray, reg: LMIRegion, n: int, m: int, kapp
     tstar = float(t.value) if solved else -np.inf
     active = None
     if solved and X.value is not None:
-        active = bool(np.max(np.linalg.eigvalsh(_sym_np(X.value))) >= KAPPA_ACTIVE * kappa)
+        active = kappa_active(X.value, kappa, bound="eigenvalue")
     return X, Y, phase2, tstar, status, active
-
-
-def _sym_np(M: np.ndarray) -> np.ndarray:
-    return 0.5 * (M + M.T)
 
 
 def lmi_observer(A: Any, C: Any, region: LMIRegion, *, domain: str = "continuous",
@@ -406,8 +394,8 @@ def lmi_observer(A: Any, C: Any, region: LMIRegion, *, domain: str = "continuous
         modes inside it are kept.
     InfeasibleDesign
     """
-    A = _matrix(A, "A")
-    C = _matrix(C, "C")
+    A = real_matrix(A, "A")
+    C = real_matrix(C, "C")
     if C.shape[1] != A.shape[0]:
         raise DimensionError(f"C has {C.shape[1]} columns, expected n = {A.shape[0]}")
     return lmi_state_feedback(A.T, C.T, region, domain=domain, margin=margin, kappa=kappa,

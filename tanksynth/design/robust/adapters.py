@@ -21,28 +21,29 @@ the diagnostics predict per vertex (``offsets``).
 from __future__ import annotations
 
 import warnings
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
+import sympy as sp
 
-from tanksynth.analysis.linearize import equilibrium_input
 from tanksynth.analysis.lmi_region import region_from_parts
 from tanksynth.analysis.rank import controllability_rank, observability_rank
 from tanksynth.analysis.statespace import model_names
+from tanksynth.design.operating_point import equilibrium_at, time_domain_of
 from tanksynth.design.result import DesignMethod, DesignResult, options_of, rekeyed
+from tanksynth.design.robust.polytopic import (HinfBound, SaturationBound, ellipsoid_axes,
+                                               robust_observer, robust_state_feedback)
 from tanksynth.design.robust.vertices import VertexModels, augment_integral, polytope_check, vertex_models
 from tanksynth.errors import (DesignWarning, InfeasibleDesign, SpecError, UncontrollableError,
                               UnobservableError)
+from tanksynth.spec import DesignSpec, Spec
 from tanksynth.spec.method_options.robust import RobustObserverOptions, RobustStateFeedbackOptions
-
-if TYPE_CHECKING:  # pragma: no cover - typing only
-    from tanksynth.spec import DesignSpec, Spec
 
 __all__ = ["run_robust_state_feedback", "run_robust_observer", "ROBUST_STATE_FEEDBACK",
            "ROBUST_OBSERVER"]
 
 
-def _models(spec: "Spec", design: "DesignSpec", o: Any, Bw: Any) -> tuple[VertexModels, VertexModels,
+def _models(spec: Spec, design: DesignSpec, o: Any, Bw: Any) -> tuple[VertexModels, VertexModels,
                                                                           np.ndarray]:
     """Vertex models, the nominal model and the nominal equilibrium input."""
     plant = spec.plant
@@ -52,7 +53,7 @@ def _models(spec: "Spec", design: "DesignSpec", o: Any, Bw: Any) -> tuple[Vertex
     except SpecError as exc:
         raise rekeyed(design, exc, "uncertain") from None
     nom = vertex_models(plant, spec.x0, (), o.time_domain, ts, Bw=Bw)
-    eq = equilibrium_input(plant, spec.x0, spec.given_u0)
+    eq = equilibrium_at(plant, spec.x0, spec.given_u0)
     return vm, nom, eq.u0
 
 
@@ -62,7 +63,7 @@ def _stack(vm: VertexModels, nom: VertexModels, name: str) -> np.ndarray:
     return np.concatenate([mats, getattr(nom, name)]) if vm.names else mats
 
 
-def _common_diagnostics(spec: "Spec", o: Any, vm: VertexModels, nom: VertexModels, u0: np.ndarray,
+def _common_diagnostics(spec: Spec, o: Any, vm: VertexModels, nom: VertexModels, u0: np.ndarray,
                         res: Any) -> dict[str, Any]:
     plant = spec.plant
     poly = polytope_check(plant, spec.x0, o.uncertain, vm, samples=16, seed=o.seed)
@@ -105,7 +106,7 @@ def _warn_if_stiff(A: np.ndarray, B: np.ndarray, K: np.ndarray, domain: str, ts:
                       "region from the fast side too (a disk or a sector)", DesignWarning, stacklevel=2)
 
 
-def _channel(design: "DesignSpec", o: Any, Cz: np.ndarray, Dzu: np.ndarray | None,
+def _channel(design: DesignSpec, o: Any, Cz: np.ndarray, Dzu: np.ndarray | None,
               observer: bool) -> dict:
     """The H-infinity channel w -> z: which of ``Bw``, ``Cz``, ``Dzu`` the spec gave (the others
     are the defaults the report's problem statement names) and the matrices used."""
@@ -120,8 +121,6 @@ def _channel(design: "DesignSpec", o: Any, Cz: np.ndarray, Dzu: np.ndarray | Non
 
 def _region_halfspaces(plant: Any, x0: Any) -> tuple[np.ndarray, np.ndarray, list[str]]:
     """Half-spaces ``c' (x - x0) <= b`` of the operating region: its bounds and its orderings."""
-    import sympy as sp
-
     x0 = np.asarray(x0, dtype=float)
     n = plant.n
     rows, limits, words = [], [], []
@@ -159,7 +158,7 @@ def _offsets(A: np.ndarray, B: np.ndarray, K: np.ndarray, du: np.ndarray, domain
 
 
 # ----------------------------------------------------------- robust_state_feedback
-def run_robust_state_feedback(spec: "Spec", design: "DesignSpec") -> DesignResult:
+def run_robust_state_feedback(spec: Spec, design: DesignSpec) -> DesignResult:
     """One state feedback meeting an LMI region at every vertex of the parameter box.
 
     Gains: ``K`` (``u = u_op - K (x - x_op)``; with integral action ``K1``,
@@ -189,10 +188,8 @@ def run_robust_state_feedback(spec: "Spec", design: "DesignSpec") -> DesignResul
         No gain meets the request at every vertex (with the largest
         achievable margin as the certificate), or the re-check fails.
     """
-    from tanksynth.design.robust.polytopic import (HinfBound, SaturationBound, ellipsoid_axes,
-                                         robust_state_feedback)
-
     o = options_of(design, spec, RobustStateFeedbackOptions)
+    domain = time_domain_of(o)
     plant = spec.plant
     n, m = plant.n, plant.m
     vm, nom, u0 = _models(spec, design, o, "inputs" if o.Bw is None else o.Bw)
@@ -205,10 +202,10 @@ def run_robust_state_feedback(spec: "Spec", design: "DesignSpec") -> DesignResul
     tracked: list[str] = []
     if o.integral:
         outputs = [s.name for s in plant.outputs]
-        tracked = list(o.tracked)
+        tracked = list(o.tracked or ())
         C1 = C0[[outputs.index(t) for t in tracked]]
         p = C1.shape[0]
-        aug = [augment_integral(Ai, Bi, C1, o.time_domain, spec.ts) for Ai, Bi in zip(A, B)]
+        aug = [augment_integral(Ai, Bi, C1, domain, spec.ts) for Ai, Bi in zip(A, B)]
         A = np.array([a for a, _ in aug])
         B = np.array([b for _, b in aug])
         W = np.concatenate([W, np.zeros((W.shape[0], p, W.shape[2]))], axis=1)
@@ -239,14 +236,14 @@ def run_robust_state_feedback(spec: "Spec", design: "DesignSpec") -> DesignResul
                               H if H.size else None, b if H.size else None)
     region = region_from_parts(o.region)
     try:
-        res = robust_state_feedback(A, B, region, domain=o.time_domain, hinf=hinf, saturation=sat,
+        res = robust_state_feedback(A, B, region, domain=domain, hinf=hinf, saturation=sat,
                                     margin=o.margin, kappa=o.kappa, solver=o.solver,
                                     nominal=A.shape[0] - 1 if vm.names else None)
     except SpecError as exc:
         raise rekeyed(design, exc, fallback="region") from None
     K = res.gain
-    _warn_if_stiff(A, B, K, o.time_domain, spec.ts)
-    names = model_names(o.time_domain)
+    _warn_if_stiff(A, B, K, domain, spec.ts)
+    names = model_names(domain)
     gains: dict[str, np.ndarray] = {"K": K, "P": res.P, names["A"]: nom.A[0], names["B"]: nom.B[0],
                                     "C": C0, "x_op": np.asarray(spec.x0, dtype=float), "u_op": u0}
     diagnostics = _common_diagnostics(spec, o, vm, nom, u0, res)
@@ -258,7 +255,7 @@ def run_robust_state_feedback(spec: "Spec", design: "DesignSpec") -> DesignResul
     # offsets without integral action: the law applies the nominal u0 at every vertex
     du = np.array([u0 - ui for ui in vm.u0])
     if not o.integral and vm.names:
-        dx = _offsets(vm.A, vm.B, K, du, o.time_domain)
+        dx = _offsets(vm.A, vm.B, K, du, domain)
         diagnostics["offsets"] = {
             "input_shift": (-du).tolist(), "steady_state_deviation": dx.tolist(),
             "max_abs_deviation": float(np.max(np.abs(dx))),
@@ -270,7 +267,7 @@ def run_robust_state_feedback(spec: "Spec", design: "DesignSpec") -> DesignResul
         P = res.P
         axes = ellipsoid_axes(P[:n, :n], [s.name for s in plant.states])
         diagnostics["saturation"] = {
-            **res.saturation, "umax_default": o.umax is None,
+            **(res.saturation or {}), "umax_default": o.umax is None,
             "ellipsoid_axes": axes, "units": [s.unit for s in plant.states],
             "inside": words,
             "section": ("z = 0 (integrators start empty)" if o.integral else "full state"),
@@ -287,7 +284,7 @@ def run_robust_state_feedback(spec: "Spec", design: "DesignSpec") -> DesignResul
 
 
 # --------------------------------------------------------------- robust_observer
-def run_robust_observer(spec: "Spec", design: "DesignSpec") -> DesignResult:
+def run_robust_observer(spec: Spec, design: DesignSpec) -> DesignResult:
     """One observer gain meeting an LMI region at every vertex of the parameter box.
 
     Gains: ``L`` (``x_hat' = ... + L (y - C x_hat)``), ``P`` (common
@@ -311,9 +308,8 @@ def run_robust_observer(spec: "Spec", design: "DesignSpec") -> DesignResult:
     InfeasibleDesign
         No gain meets the request at every vertex, or the re-check fails.
     """
-    from tanksynth.design.robust.polytopic import HinfBound, robust_observer
-
     o = options_of(design, spec, RobustObserverOptions)
+    domain = time_domain_of(o)
     plant = spec.plant
     n = plant.n
     vm, nom, u0 = _models(spec, design, o, "identity" if o.Bw is None else o.Bw)
@@ -327,12 +323,12 @@ def run_robust_observer(spec: "Spec", design: "DesignSpec") -> DesignResult:
         hinf = HinfBound(float(o.gamma), W, Cz, np.zeros((Cz.shape[0], 0)))
     region = region_from_parts(o.region)
     try:
-        res = robust_observer(A, C, region, domain=o.time_domain, hinf=hinf, margin=o.margin,
+        res = robust_observer(A, C, region, domain=domain, hinf=hinf, margin=o.margin,
                               kappa=o.kappa, solver=o.solver,
                               nominal=A.shape[0] - 1 if vm.names else None)
     except SpecError as exc:
         raise rekeyed(design, exc, fallback="region") from None
-    names = model_names(o.time_domain)
+    names = model_names(domain)
     gains = {"L": res.gain, "P": res.P, names["A"]: nom.A[0], names["B"]: nom.B[0], "C": nom.C[0],
              "x_op": np.asarray(spec.x0, dtype=float), "u_op": u0}
     diagnostics = _common_diagnostics(spec, o, vm, nom, u0, res)

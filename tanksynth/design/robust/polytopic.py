@@ -41,14 +41,13 @@ import numpy as np
 import scipy.linalg as sla
 
 from tanksynth.analysis.lmi_region import LMIRegion
+from tanksynth.analysis.statespace import hinf_norm
 from tanksynth.design.conic import modelling
+from tanksynth.design.matrices import symmetrized
 from tanksynth.errors import DimensionError, InfeasibleDesign, SpecError
 
 __all__ = ["HinfBound", "SaturationBound", "RobustResult", "robust_state_feedback",
            "robust_observer", "ellipsoid_axes"]
-
-
-# ================================================================ vertex models
 
 
 # ====================================================================== bounds
@@ -189,7 +188,7 @@ def ellipsoid_axes(P: np.ndarray, names: Sequence[str]) -> dict:
         ``lengths`` (ascending), ``directions`` (columns), ``extent`` (largest
         ``|x_i|`` on the ellipsoid, per state) and ``names``.
     """
-    w, V = np.linalg.eigh(0.5 * (P + P.T))
+    w, V = np.linalg.eigh(symmetrized(P))
     lengths = 1.0 / np.sqrt(w)
     order = np.argsort(lengths)
     extent = np.sqrt(np.diag(np.linalg.inv(P)))
@@ -200,7 +199,7 @@ def ellipsoid_axes(P: np.ndarray, names: Sequence[str]) -> dict:
 # ================================================================== synthesis
 def _region_block(reg: LMIRegion, AX: Any, X: Any, kron) -> Any:
     out = kron(reg.L, X) + kron(reg.M, AX) + kron(reg.M.T, AX.T)
-    return 0.5 * (out + out.T)
+    return symmetrized(out)
 
 
 def _hinf_block(domain: str, AclX: Any, X: Any, Bw: np.ndarray, CclX: Any, gamma: float, lib) -> Any:
@@ -215,7 +214,7 @@ def _hinf_block(domain: str, AclX: Any, X: Any, Bw: np.ndarray, CclX: Any, gamma
         blocks = [[X, AclX, Bw, Zwz], [AclX.T, X, Zw, CclX.T], [Bw.T, Zw.T, gamma * np.eye(nw), Zz],
                   [Zwz.T, CclX, Zz.T, gamma * np.eye(nz)]]
     M = lib(blocks)
-    return 0.5 * (M + M.T)
+    return symmetrized(M)
 
 
 def _brl_worst(domain: str, As: np.ndarray, Bs: np.ndarray, Ks: np.ndarray, Xs: np.ndarray,
@@ -233,9 +232,9 @@ def _brl_worst(domain: str, As: np.ndarray, Bs: np.ndarray, Ks: np.ndarray, Xs: 
 def _lyapunov_block(domain: str, AclX: Any, X: Any, lib) -> Any:
     """``He(A_cl X) <= 0`` (continuous) or ``[[X, A_cl X], [., X]] >= 0`` (discrete), as ``<= 0``."""
     if domain == "continuous":
-        return 0.5 * (AclX + AclX.T) * 2
+        return symmetrized(AclX) * 2
     M = lib([[X, AclX], [AclX.T, X]])
-    return -0.5 * (M + M.T)
+    return -symmetrized(M)
 
 
 def robust_state_feedback(A: Any, B: Any, region: LMIRegion, *, domain: str = "continuous",
@@ -361,7 +360,8 @@ def robust_state_feedback(A: Any, B: Any, region: LMIRegion, *, domain: str = "c
                 out.append(_lyapunov_block(domain, AclX, X, lib.bmat) << 0)
         if saturation is not None and not regions_only:
             if saturation.halfspaces is not None:
-                for c, b in zip(np.asarray(saturation.halfspaces, float), saturation.limits):
+                for c, b in zip(np.asarray(saturation.halfspaces, float),
+                                np.asarray(saturation.limits, float)):
                     cc = np.zeros(n)
                     cc[:c.size] = c
                     cs = cc * s
@@ -402,7 +402,7 @@ def robust_state_feedback(A: Any, B: Any, region: LMIRegion, *, domain: str = "c
     def gain_norm(Xa: np.ndarray, Ya: np.ndarray) -> float:
         with np.errstate(all="ignore"):
             try:
-                return float(np.linalg.norm(np.linalg.solve(0.5 * (Xa + Xa.T), np.asarray(Ya).T)))
+                return float(np.linalg.norm(np.linalg.solve(symmetrized(Xa), np.asarray(Ya).T)))
             except np.linalg.LinAlgError:
                 return np.inf
 
@@ -423,7 +423,7 @@ def robust_state_feedback(A: Any, B: Any, region: LMIRegion, *, domain: str = "c
     # a first-order solver (SCS) can end phase 2 'optimal' a few 1e-6 outside the constraints: the
     # phase-1 solution (margin t* >= 2 x phase 2's) is re-checked before the design is refused
     def finish(Xv: np.ndarray, Yv: np.ndarray, status: str) -> RobustResult:
-        Xs = 0.5 * (Xv + Xv.T)
+        Xs = symmetrized(Xv)
         Ks = np.linalg.solve(Xs, np.asarray(Yv).T).T
         K = (su[:, None] * Ks) / s[None, :]
         Xo = (s[:, None] * Xs) * s[None, :]
@@ -465,7 +465,7 @@ def _without_bound(A, B, region, domain, saturation, margin, kappa, solver, nomi
     norm = _vertex_hinf_norm(A, B, K, hinf, domain)
     Xs = free.X / np.outer(s, s)
     Ks = K * s[None, :] / su[:, None]
-    Xs = 0.5 * (Xs + Xs.T)
+    Xs = symmetrized(Xs)
     ev = np.linalg.eigvalsh(Xs)
     lo, hi = np.log(1.0 / (kappa * ev[0])), np.log(kappa / ev[-1])
     def worst_at(u: float) -> float:
@@ -496,8 +496,6 @@ def _without_bound(A, B, region, domain, saturation, margin, kappa, solver, nomi
 def _vertex_hinf_norm(A: np.ndarray, B: np.ndarray, K: np.ndarray, hinf: Any, domain: str) -> float:
     """Largest H-infinity norm from w to z of the closed loops A_i - B_i K (Hamiltonian bisection;
     the bilinear transform for discrete loops), inf when one is unstable."""
-    from tanksynth.analysis.statespace import hinf_norm
-
     Bw = np.asarray(hinf.Bw, dtype=float)
     Cz = np.asarray(hinf.Cz, dtype=float)
     Dzu = np.asarray(hinf.Dzu, dtype=float)
@@ -597,7 +595,7 @@ def _recheck(A, B, K, Xs, Xo, Ks, As, Bs, reg, region, domain, margin, tstar, so
         for i in range(V):
             Acl = A[i] - B[i] @ K
             Lm = Acl.T @ P + P @ Acl if domain == "continuous" else Acl.T @ P @ Acl - P
-            lyap = max(lyap, float(np.max(np.linalg.eigvalsh(0.5 * (Lm + Lm.T)))) / float(np.linalg.norm(P, 2)))
+            lyap = max(lyap, float(np.max(np.linalg.eigvalsh(symmetrized(Lm)))) / float(np.linalg.norm(P, 2)))
         if saturation.halfspaces is not None:
             Xp = Xo[:saturation.halfspaces.shape[1], :saturation.halfspaces.shape[1]]
             reach = np.sqrt(np.einsum("ij,jk,ik->i", saturation.halfspaces, Xp, saturation.halfspaces))
@@ -626,7 +624,7 @@ def _recheck(A, B, K, Xs, Xo, Ks, As, Bs, reg, region, domain, margin, tstar, so
     P = Xo if dual else np.linalg.inv(Xo)
     wv = int(np.argmin(margins_arr))
     return RobustResult(
-        gain=K.T if dual else K, P=0.5 * (P + P.T), X=Xo, kind="observer" if dual else "state_feedback",
+        gain=K.T if dual else K, P=symmetrized(P), X=Xo, kind="observer" if dual else "state_feedback",
         region=region, domain=domain, margin=float(margin), achieved_margin=float(-worst_n),
         largest_margin=float(tstar), solver=solver, status=status, solve_time=elapsed,
         vertex_eigenvalues=np.array(eigs), vertex_margins=margins_arr, worst_vertex=wv,

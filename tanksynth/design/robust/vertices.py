@@ -20,12 +20,15 @@ from __future__ import annotations
 
 import itertools
 from dataclasses import dataclass
-from typing import Any, Sequence
+from typing import Sequence
 
 import numpy as np
+from numpy.typing import ArrayLike
 
-from tanksynth.analysis.linearize import discretize_zoh, equilibrium_input, linearize
+from tanksynth.analysis.linearize import discretize_zoh
+from tanksynth.design.operating_point import equilibrium_at, linearized_at
 from tanksynth.errors import SpecError
+from tanksynth.plants.base import Plant
 
 __all__ = ["VertexModels", "vertex_models", "box_corners", "polytope_check", "augment_integral"]
 
@@ -97,7 +100,7 @@ class VertexModels:
 
 
 
-def vertex_models(plant: Any, x0: Sequence[float], box: Sequence[tuple[str, float, float]],
+def vertex_models(plant: Plant, x0: ArrayLike, box: Sequence[tuple[str, float, float]],
                   domain: str, ts: float | None = None, *, values: np.ndarray | None = None,
                   Bw: np.ndarray | str = "inputs") -> VertexModels:
     """Linearise ``plant`` at the levels ``x0`` at every corner of ``box`` (or at ``values``).
@@ -106,7 +109,7 @@ def vertex_models(plant: Any, x0: Sequence[float], box: Sequence[tuple[str, floa
     ----------
     plant : Plant
         With its nominal parameters (the spec's overrides applied).
-    x0 : sequence of float, length n
+    x0 : array_like, length n
         Operating levels (state units), kept at every vertex.
     box : sequence of (name, low, high)
         Uncertain parameters; empty: the nominal model only.
@@ -134,16 +137,16 @@ def vertex_models(plant: Any, x0: Sequence[float], box: Sequence[tuple[str, floa
         raise SpecError("a discrete-time design needs a sampling period", key="sampling.ts")
     names = tuple(b[0] for b in box)
     vals = box_corners(box) if values is None else np.atleast_2d(np.asarray(values, dtype=float))
-    x0 = np.asarray(x0, dtype=float).reshape(-1)
+    levels = np.asarray(x0, dtype=float).reshape(-1)
     As, Bs, Cs, Ws, U, ok = [], [], [], [], [], []
     for row in vals:
         pl = plant.with_parameters(dict(zip(names, map(float, row))), key="uncertain") if names else plant
-        eq = equilibrium_input(pl, x0)
-        lin = linearize(pl, x0, eq.u0)
+        eq = equilibrium_at(pl, levels)
+        lin = linearized_at(pl, levels, eq.u0)
         W = lin.B if isinstance(Bw, str) and Bw == "inputs" else (
             np.eye(plant.n) if isinstance(Bw, str) else np.asarray(Bw, dtype=float))
         A, B = lin.F, lin.B
-        if domain == "discrete":
+        if domain == "discrete" and ts is not None:     # (refused above without ts)
             Ad, BB = discretize_zoh(lin.F, np.hstack([lin.B, W]), float(ts))
             A, B, W = Ad, BB[:, :plant.m], BB[:, plant.m:]
         As.append(A)
@@ -153,12 +156,12 @@ def vertex_models(plant: Any, x0: Sequence[float], box: Sequence[tuple[str, floa
         U.append(eq.u0)
         ok.append(eq.is_equilibrium)
     return VertexModels(names, vals, np.array(As), np.array(Bs), np.array(Cs), np.array(Ws),
-                        np.array(U), np.array(ok, dtype=bool), x0, domain,
+                        np.array(U), np.array(ok, dtype=bool), levels, domain,
                         None if ts is None else float(ts))
 
 
 
-def polytope_check(plant: Any, x0: Sequence[float], box: Sequence[tuple[str, float, float]],
+def polytope_check(plant: Plant, x0: ArrayLike, box: Sequence[tuple[str, float, float]],
                    vertices: VertexModels, samples: int = 32, seed: int = 0) -> dict:
     """How far the models inside the box are from the multilinear interpolation of the vertices.
 
@@ -172,7 +175,7 @@ def polytope_check(plant: Any, x0: Sequence[float], box: Sequence[tuple[str, flo
     ----------
     plant : Plant
         The plant model.
-    x0 : sequence of float
+    x0 : array_like
         Operating levels (state units, m).
     box : sequence of (str, float, float)
         Uncertain parameters: name, lower and upper value (parameter units).
@@ -239,6 +242,8 @@ def augment_integral(A: np.ndarray, B: np.ndarray, C1: np.ndarray, domain: str,
     n, m = B.shape
     p = C1.shape[0]
     if domain == "discrete":
+        if ts is None:
+            raise SpecError("a discrete-time design needs a sampling period", key="sampling.ts")
         Aa = np.block([[A, np.zeros((n, p))], [-float(ts) * C1, np.eye(p)]])
     else:
         Aa = np.block([[A, np.zeros((n, p))], [-C1, np.zeros((p, p))]])

@@ -28,23 +28,25 @@ Lyapunov variable ``X``.
 from __future__ import annotations
 
 import warnings
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 import scipy.linalg as sla
 
-from tanksynth.analysis.linearize import discretize_zoh, equilibrium_input, linearize
+from tanksynth.analysis.linearize import discretize_zoh
 from tanksynth.analysis.lmi_region import region_from_parts
 from tanksynth.analysis.statespace import model_names
+from tanksynth.design.operating_point import (discrete_pair, equilibrium_at, linearized_at,
+                                              sampling_period)
 from tanksynth.design.result import DesignMethod, DesignResult, options_of, rekeyed
+from tanksynth.design.synthesis.synthesize import (GeneralizedPlant, SynthesisResult,
+                                                   synthesize_observer, synthesize_state_feedback)
 from tanksynth.errors import DesignWarning, SpecError
+from tanksynth.plants.base import Plant
+from tanksynth.spec import DesignSpec, Spec
 from tanksynth.spec.method_options import (H2ObserverOptions, H2StateFeedbackOptions,
                                            HinfObserverOptions, HinfStateFeedbackOptions,
                                            MultiobjectiveOptions)
-
-if TYPE_CHECKING:  # pragma: no cover - typing only
-    from tanksynth.design.synthesis.synthesize import GeneralizedPlant, SynthesisResult
-    from tanksynth.spec import DesignSpec, Spec
 
 __all__ = ["run_h2_state_feedback", "run_h2_observer", "run_hinf_state_feedback",
            "run_hinf_observer", "run_multiobjective", "H2_STATE_FEEDBACK", "H2_OBSERVER",
@@ -80,21 +82,21 @@ _DOC = """
 """
 
 
-def _model(spec: Any, o: Any) -> dict:
+def _model(spec: Spec, o: Any) -> dict[str, Any]:
     plant = spec.plant
-    eq = equilibrium_input(plant, spec.x0, spec.given_u0)
+    eq = equilibrium_at(plant, spec.x0, spec.given_u0)
     discrete = o.time_domain == "discrete"
-    lin = linearize(plant, spec.x0, eq.u0, ts=spec.ts if discrete else None)
+    lin = linearized_at(plant, spec.x0, eq.u0, ts=spec.ts if discrete else None)
     Bw_c = np.asarray(o.Bw, float) * np.asarray(o.disturbance_std, float)[None, :]
     _warn_disturbance_size(plant, lin.B, Bw_c)
     if discrete:
-        A, B, Bw = lin.Ad, lin.Bd, discretize_zoh(lin.F, Bw_c, spec.ts)[1]
+        (A, B), Bw = discrete_pair(lin), discretize_zoh(lin.F, Bw_c, sampling_period(spec))[1]
     else:
         A, B, Bw = lin.F, lin.B, Bw_c
     return {"A": A, "B": B, "C": lin.C, "Bw": Bw, "eq": eq, "dt": spec.ts if discrete else None}
 
 
-def _model_gains(m: dict, time_domain: str) -> dict:
+def _model_gains(m: dict[str, Any], time_domain: str) -> dict[str, np.ndarray]:
     """The model's matrices under their artefact names (`model_names`)."""
     names = model_names(time_domain)
     out = {names[role]: m[role] for role in ("A", "B", "C", "Bw")}
@@ -107,7 +109,7 @@ def _model_gains(m: dict, time_domain: str) -> dict:
 DISTURBANCE_AUTHORITY_RATIO = 10.0
 
 
-def _warn_disturbance_size(plant: Any, B: np.ndarray, Bw: np.ndarray) -> None:
+def _warn_disturbance_size(plant: Plant, B: np.ndarray, Bw: np.ndarray) -> None:
     """Warn when ``Bw diag(disturbance_std)`` moves the states far faster than the pumps can.
 
     The H2/H-infinity figures are in the units of ``w``; ``disturbance_std = 1`` with
@@ -128,7 +130,7 @@ def _warn_disturbance_size(plant: Any, B: np.ndarray, Bw: np.ndarray) -> None:
                       DesignWarning, stacklevel=3)
 
 
-def _flow_unit(plant: Any) -> str:
+def _flow_unit(plant: Plant) -> str:
     """The plant's volume-flow unit (level unit x tank-area unit per s), e.g. ``"m^3/s"``."""
     units = {p.name: str(getattr(p, "unit", "")) for p in plant.parameters}
     area = units.get("A1", units.get("A", ""))
@@ -140,7 +142,7 @@ def _flow_unit(plant: Any) -> str:
     return "the unit of w"
 
 
-def _base_diagnostics(spec: Any, o: Any, m: dict, res: SynthesisResult) -> dict:
+def _base_diagnostics(spec: Spec, o: Any, m: dict[str, Any], res: SynthesisResult) -> dict[str, Any]:
     return {"equilibrium": m["eq"].as_dict(), "time_domain": o.time_domain, "ts": spec.ts,
             "assumptions": [a.text for a in spec.plant.assumptions],
             "synthesis": res.as_dict(), "route": res.route, "solver": res.solver, "status": res.status,
@@ -170,7 +172,8 @@ def _riccati_state_feedback(P: GeneralizedPlant) -> dict:
                                                                  else "discrete")}
 
 
-def _riccati_observer(A, C, Bw, Dv, Cz, domain) -> dict:
+def _riccati_observer(A: np.ndarray, C: np.ndarray, Bw: np.ndarray, Dv: np.ndarray, Cz: np.ndarray,
+                      domain: str) -> dict[str, Any]:
     """The steady Kalman filter (predictor in discrete time) for ``Bw w``, ``Dv v``: evidence."""
     Qn, Rn = Bw @ Bw.T, Dv @ Dv.T
     try:
@@ -186,10 +189,9 @@ def _riccati_observer(A, C, Bw, Dv, Cz, domain) -> dict:
             "L": L.tolist(), "method": "scipy solve_%s_are (dual)" % domain}
 
 
-def _state_feedback(spec, design, o, method: str, objective: str, **kw) -> DesignResult:
+def _state_feedback(spec: Spec, design: DesignSpec, o: Any, method: str, objective: str, *,
+                    extra_diagnostics: dict[str, Any] | None = None, **kw: Any) -> DesignResult:
     m = _model(spec, o)
-    from tanksynth.design.synthesis.synthesize import GeneralizedPlant, synthesize_state_feedback  # cvxpy
-
     P = GeneralizedPlant(m["A"], m["B"], m["Bw"], o.Cz, o.Dzu, o.time_domain, m["dt"])
     try:
         res = synthesize_state_feedback(P, objective=objective, margin=o.margin, solver=o.solver,
@@ -202,14 +204,14 @@ def _state_feedback(spec, design, o, method: str, objective: str, **kw) -> Desig
         if ref["available"] and res.h2 is not None:
             ref["relative_difference"] = abs(res.h2 - ref["h2"]) / max(ref["h2"], 1e-300)
         diag["riccati_reference"] = ref
+    diag.update(extra_diagnostics or {})
     gains = {"K": res.gain, **_model_gains(m, o.time_domain),
              "Cz": np.asarray(o.Cz), "Dzu": np.asarray(o.Dzu), "X": res.X}
     return DesignResult(design.name, method, spec.plant.name, gains, diag, {})
 
 
-def _observer(spec, design, o, method: str, objective: str, **kw) -> DesignResult:
-    from tanksynth.design.synthesis.synthesize import synthesize_observer  # loads cvxpy on first use
-
+def _observer(spec: Spec, design: DesignSpec, o: Any, method: str, objective: str, *,
+              extra_diagnostics: dict[str, Any] | None = None, **kw: Any) -> DesignResult:
     m = _model(spec, o)
     Dv = np.diag(np.asarray(o.measurement_std, float))
     Cz = np.asarray(o.Cz)
@@ -227,35 +229,36 @@ def _observer(spec, design, o, method: str, objective: str, **kw) -> DesignResul
         if ref["available"] and res.h2 is not None:
             ref["relative_difference"] = abs(res.h2 - ref["h2"]) / max(ref["h2"], 1e-300)
         diag["riccati_reference"] = ref
+    diag.update(extra_diagnostics or {})
     gains = {"L": res.gain, **_model_gains(m, o.time_domain), "Dv": Dv,
              "Cz": Cz, "X": res.X}
     return DesignResult(design.name, method, spec.plant.name, gains, diag, {})
 
 
-def run_h2_state_feedback(spec: "Spec", design: "DesignSpec") -> DesignResult:
+def run_h2_state_feedback(spec: Spec, design: DesignSpec) -> DesignResult:
     """``u = -K x`` minimising the H2 norm from ``w`` to ``z`` (LMI; diagnostics: the LQR optimum)."""
     return _state_feedback(spec, design, options_of(design, spec, H2StateFeedbackOptions),
                            "h2_state_feedback", "h2")
 
 
-def run_h2_observer(spec: "Spec", design: "DesignSpec") -> DesignResult:
+def run_h2_observer(spec: Spec, design: DesignSpec) -> DesignResult:
     """Observer ``L`` minimising the H2 norm of the weighted error (diagnostics: the Kalman optimum)."""
     return _observer(spec, design, options_of(design, spec, H2ObserverOptions), "h2_observer", "h2")
 
 
-def run_hinf_state_feedback(spec: "Spec", design: "DesignSpec") -> DesignResult:
+def run_hinf_state_feedback(spec: Spec, design: DesignSpec) -> DesignResult:
     """``u = -K x`` minimising the H-infinity norm from ``w`` to ``z`` (bounded real lemma)."""
     o = options_of(design, spec, HinfStateFeedbackOptions)
     return _state_feedback(spec, design, o, "hinf_state_feedback", "hinf", backoff=o.backoff)
 
 
-def run_hinf_observer(spec: "Spec", design: "DesignSpec") -> DesignResult:
+def run_hinf_observer(spec: Spec, design: DesignSpec) -> DesignResult:
     """Observer ``L`` minimising the H-infinity norm from ``(w, v)`` to the weighted error."""
     o = options_of(design, spec, HinfObserverOptions)
     return _observer(spec, design, o, "hinf_observer", "hinf", backoff=o.backoff)
 
 
-def run_multiobjective(spec: "Spec", design: "DesignSpec") -> DesignResult:
+def run_multiobjective(spec: Spec, design: DesignSpec) -> DesignResult:
     """H2 / H-infinity objective and bounds with an LMI pole region, one common Lyapunov matrix."""
     o = options_of(design, spec, MultiobjectiveOptions)
     try:
@@ -263,13 +266,12 @@ def run_multiobjective(spec: "Spec", design: "DesignSpec") -> DesignResult:
     except SpecError as exc:
         raise rekeyed(design, exc, "region") from None
     kw = dict(region=region, h2_bound=o.h2_bound, hinf_bound=o.hinf_bound, backoff=o.backoff)
+    extra = {"conservatism": CONSERVATISM, "target": o.target}
     if o.target == "observer":
-        out = _observer(spec, design, o, "multiobjective", o.objective, **kw)
-    else:
-        out = _state_feedback(spec, design, o, "multiobjective", o.objective, **kw)
-    out.diagnostics["conservatism"] = CONSERVATISM
-    out.diagnostics["target"] = o.target
-    return out
+        return _observer(spec, design, o, "multiobjective", o.objective, extra_diagnostics=extra,
+                         **kw)
+    return _state_feedback(spec, design, o, "multiobjective", o.objective, extra_diagnostics=extra,
+                           **kw)
 
 
 for _fn in (run_h2_state_feedback, run_h2_observer, run_hinf_state_feedback, run_hinf_observer,

@@ -39,6 +39,7 @@ import numpy as np
 from tanksynth.analysis.lmi_region import LMIRegion
 from tanksynth.analysis.statespace import statespace_matrices
 from tanksynth.design import conic as robust_conic
+from tanksynth.design.matrices import symmetrized
 from tanksynth.errors import DimensionError, SpecError
 
 __all__ = ["DOMAINS", "GeneralizedPlant", "generalized_plant", "observer_plant",
@@ -201,13 +202,15 @@ def observer_plant(A: Any, C: Any, Bw: Any, Dv: Any, Cz: Any, domain: str = "con
 # ========================================================================= LMI blocks
 def _library(values: Sequence[Any]) -> Any:
     """The module whose ``bmat``/``kron`` handle ``values``: robust_conic, cvxpy or None (numpy)."""
-    lib = None
+    lib: Any = None
     for v in values:
         if isinstance(v, robust_conic.Expression):
             return robust_conic
         if type(v).__module__.startswith("cvxpy."):
-            # only the SCS route builds cvxpy expressions
-            import cvxpy as lib
+            # only the SCS route builds cvxpy expressions (cvxpy is loaded then; here, not at
+            # the top, so that the Clarabel route never pays its import)
+            import cvxpy
+            lib = cvxpy
     return lib
 
 
@@ -216,10 +219,6 @@ def _bmat(rows: list[list[Any]]) -> Any:
     if lib is not None:
         return lib.bmat(rows)
     return np.block([[np.asarray(b, dtype=float) for b in row] for row in rows])
-
-
-def _sym(M: Any) -> Any:
-    return 0.5 * (M + M.T)
 
 
 def _eye_times(g: Any, k: int) -> Any:
@@ -256,7 +255,7 @@ def h2_lmis(plant: GeneralizedPlant, X: Any, Y: Any, W: Any) -> list[Any]:
     else:
         first = -_bmat([[X - gram, AX], [AX.T, X]])
     second = -_bmat([[W, CX], [CX.T, X]])
-    return [_sym(first), _sym(second)]
+    return [symmetrized(first), symmetrized(second)]
 
 
 def hinf_lmis(plant: GeneralizedPlant, X: Any, Y: Any, gamma: Any) -> list[Any]:
@@ -291,7 +290,7 @@ def hinf_lmis(plant: GeneralizedPlant, X: Any, Y: Any, gamma: Any) -> list[Any]:
                    [AX.T, -X, Znw, CX.T],
                    [Bw.T, Znw.T, -_eye_times(gamma, nw), Zwz],
                    [Znz.T, CX, Zzw, -_eye_times(gamma, nz)]])
-    return [_sym(M)]
+    return [symmetrized(M)]
 
 
 def hinf_lmis_reduced(plant: GeneralizedPlant, X: Any, Y: Any, mu: Any) -> list[Any]:
@@ -326,7 +325,7 @@ def hinf_lmis_reduced(plant: GeneralizedPlant, X: Any, Y: Any, mu: Any) -> list[
     else:
         Znz = np.zeros((n, nz))
         M = _bmat([[-X + gram, AX, Znz], [AX.T, -X, CX.T], [Znz.T, CX, -_eye_times(mu, nz)]])
-    return [_sym(M)]
+    return [symmetrized(M)]
 
 
 def region_lmi(region: LMIRegion, plant: GeneralizedPlant, X: Any, Y: Any) -> Any:
@@ -348,6 +347,6 @@ def region_lmi(region: LMIRegion, plant: GeneralizedPlant, X: Any, Y: Any) -> An
     lib = _library([X, Y])
     kron = np.kron if lib is None else lib.kron
     M = kron(region.L, X) + kron(region.M, AX) + kron(region.M.T, AX.T)
-    return _sym(M)
+    return symmetrized(M)
 
 

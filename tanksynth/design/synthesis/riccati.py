@@ -22,43 +22,27 @@ H-infinity
     hinf_below`), so the upper end of the bracket is always certified by a gain.
 
 Every function works on the (unscaled) `GeneralizedPlant`; scipy's ARE
-solvers balance the problem themselves. `single_threaded_blas` limits the BLAS
-to one thread (threadpoolctl, when installed): the matrices are small (a few
+solvers balance the problem themselves. The callers run them with the BLAS limited
+to one thread (`tanksynth.analysis.blas.small_dense`): the matrices are small (a few
 hundred rows), and on a loaded machine OpenBLAS's thread pool made the N = 64
 bisection 20 to 40 times slower (48 s against 1.2 s measured).
 """
 
 from __future__ import annotations
 
-import contextlib
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 import scipy.linalg as sla
 
 from tanksynth.analysis.statespace import hinf_below, hinf_norm
+from tanksynth.design.matrices import symmetrized
 from tanksynth.design.synthesis.lmis import GeneralizedPlant
 
-__all__ = ["RiccatiSolution", "riccati_applicable", "riccati_h2", "riccati_hinf", "BISECTION_RTOL",
-           "single_threaded_blas"]
+__all__ = ["RiccatiSolution", "riccati_applicable", "riccati_h2", "riccati_hinf", "BISECTION_RTOL"]
 
 #: Relative width of the final gamma bracket of the H-infinity bisection.
 BISECTION_RTOL = 1e-8
-
-
-def single_threaded_blas() -> Any:
-    """Context manager limiting BLAS to one thread (a no-op without threadpoolctl).
-
-    Returns
-    -------
-    contextlib.AbstractContextManager
-    """
-    try:
-        from threadpoolctl import threadpool_limits
-    except ImportError:  # pragma: no cover - optional
-        return contextlib.nullcontext()
-    return threadpool_limits(limits=1, user_api="blas")
 
 
 @dataclass(frozen=True, eq=False)
@@ -95,7 +79,7 @@ class RiccatiSolution:
 
 def _weights(P: GeneralizedPlant) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     Q = P.Cz.T @ P.Cz
-    return 0.5 * (Q + Q.T), P.Dzu.T @ P.Dzu, P.Cz.T @ P.Dzu
+    return symmetrized(Q), P.Dzu.T @ P.Dzu, P.Cz.T @ P.Dzu
 
 
 def riccati_applicable(P: GeneralizedPlant) -> str | None:
@@ -110,7 +94,7 @@ def riccati_applicable(P: GeneralizedPlant) -> str | None:
     str or None
     """
     R = P.Dzu.T @ P.Dzu
-    w = np.linalg.eigvalsh(0.5 * (R + R.T))
+    w = np.linalg.eigvalsh(symmetrized(R))
     if w.size == 0 or w[0] <= 1e-12 * max(w[-1], 1e-300):
         return "Dzu' Dzu is singular (every input must be weighted in z)"
     return None
@@ -124,7 +108,7 @@ def _h2_gain(P: GeneralizedPlant) -> tuple[np.ndarray, np.ndarray]:
     else:
         X = sla.solve_discrete_are(P.A, P.B, Q, R, s=S)
         K = np.linalg.solve(R + P.B.T @ X @ P.B, P.B.T @ X @ P.A + S.T)
-    return 0.5 * (X + X.T), K
+    return symmetrized(X), K
 
 
 def riccati_h2(P: GeneralizedPlant) -> RiccatiSolution:
@@ -162,7 +146,7 @@ def _hinf_gain(P: GeneralizedPlant, gamma: float) -> tuple[np.ndarray, np.ndarra
                 X = sla.solve_discrete_are(P.A, Bt, Q, Rt, s=St)
     except (np.linalg.LinAlgError, ValueError):
         return None
-    X = 0.5 * (X + X.T)
+    X = symmetrized(X)
     if not np.all(np.isfinite(X)):
         return None
     scale = max(float(np.max(np.abs(X))), 1e-300)
@@ -173,7 +157,7 @@ def _hinf_gain(P: GeneralizedPlant, gamma: float) -> tuple[np.ndarray, np.ndarra
             K = np.linalg.solve(R, P.B.T @ X + S.T)
         else:
             G = gamma ** 2 * np.eye(nw) - P.Bw.T @ X @ P.Bw
-            if np.linalg.eigvalsh(0.5 * (G + G.T))[0] <= 0:
+            if np.linalg.eigvalsh(symmetrized(G))[0] <= 0:
                 return None
             XBw = X @ P.Bw
             Xb = X + XBw @ np.linalg.solve(G, XBw.T)

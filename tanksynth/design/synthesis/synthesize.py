@@ -46,14 +46,15 @@ from typing import Any, Sequence
 import numpy as np
 import scipy.linalg as sla
 
+from tanksynth.analysis.blas import small_dense
 from tanksynth.analysis.lmi_region import LMIRegion
 from tanksynth.analysis.statespace import h2_norm, hinf_below, hinf_norm, statespace_matrices
-from tanksynth.design.observer_lmi.lmi import LMICheck
 from tanksynth.design.conic import modelling
+from tanksynth.design.lmi_checks import SOLVERS, LMICheck, check_solver
+from tanksynth.design.matrices import symmetrized
 from tanksynth.design.synthesis.lmis import (DOMAINS, GeneralizedPlant, generalized_plant, h2_lmis,
                                             hinf_lmis, hinf_lmis_reduced, observer_plant, region_lmi)
-from tanksynth.design.synthesis.riccati import (riccati_applicable, riccati_h2, riccati_hinf,
-                                                single_threaded_blas)
+from tanksynth.design.synthesis.riccati import riccati_applicable, riccati_h2, riccati_hinf
 from tanksynth.errors import DimensionError, InfeasibleDesign, SpecError
 
 __all__ = [
@@ -66,8 +67,6 @@ __all__ = [
 
 #: What `synthesize_state_feedback` minimises (``"none"``: feasibility, well-conditioned point).
 OBJECTIVES = ("h2", "hinf", "none")
-#: Conic solvers (cvxpy names).
-SOLVERS = ("CLARABEL", "SCS")
 #: How a pure H2 / H-infinity design is solved: ``"auto"`` (Riccati when it applies, else LMI),
 #: ``"riccati"`` (required; refused when it does not apply) or ``"lmi"``.
 ROUTES = ("auto", "riccati", "lmi")
@@ -309,15 +308,14 @@ def synthesize_state_feedback(plants: GeneralizedPlant | Sequence[GeneralizedPla
         raise SpecError(f"margin must be in (0, 0.01), got {margin!r}", key="margin")
     if not (np.isfinite(backoff) and backoff >= 0):
         raise SpecError(f"backoff must be >= 0, got {backoff!r}", key="backoff")
-    if solver not in SOLVERS:
-        raise SpecError(f"unknown solver {solver!r}; expected one of {list(SOLVERS)}", key="solver")
+    check_solver(solver)
     if route not in ROUTES:
         raise SpecError(f"route must be one of {ROUTES}, got {route!r}", key="route")
     if route != "lmi":
         why = _riccati_refusal(models, objective, h2_bound, hinf_bound, region)
         if why is None:
             try:
-                with single_threaded_blas():
+                with small_dense():
                     return _riccati_design(models[0], objective, backoff, dual)
             except np.linalg.LinAlgError as exc:
                 why = f"scipy's Riccati solver failed ({exc})"
@@ -334,8 +332,8 @@ def synthesize_state_feedback(plants: GeneralizedPlant | Sequence[GeneralizedPla
     lib = modelling(solver)
     X = lib.variable((n, n), symmetric=True)
     Y = lib.variable((m, n))
-    W = lib.variable((nz, nz), symmetric=True) if use_h2 else None
-    g = lib.variable(nonneg=True) if use_hinf else None
+    W: Any = lib.variable((nz, nz), symmetric=True) if use_h2 else None
+    g: Any = lib.variable(nonneg=True) if use_hinf else None
     t = lib.variable()                                  # phase 2 margin
     # without an H2 LMI in the same X, the smaller bounded real lemma in (gamma X, mu = gamma^2)
     reduced = use_hinf and not use_h2
@@ -372,9 +370,9 @@ def synthesize_state_feedback(plants: GeneralizedPlant | Sequence[GeneralizedPla
     if backoff > 0 or objective == "none":
         cap = 10.0 * float(np.max(np.linalg.eigvalsh(values[0])))
         extra = [t <= 1.0, X << cap * np.eye(n)]
-        if objective == "h2":
+        if objective == "h2" and opt is not None:        # (the objective is then the goal)
             extra.append(lib.trace(W) <= (1.0 + backoff) ** 2 * opt)
-        elif objective == "hinf":
+        elif objective == "hinf" and opt is not None:
             extra.append(g <= (1.0 + backoff) ** (2 if reduced else 1) * opt)
         phase2 = lib.Problem(lib.Maximize(t), lmis(t) + bounds + extra)
         status2 = _solve(lib, phase2, solver)
@@ -386,7 +384,7 @@ def synthesize_state_feedback(plants: GeneralizedPlant | Sequence[GeneralizedPla
             status = f"{status} (phase 1), {status2} (phase 2 failed: phase-1 point kept)"
     elapsed = time.perf_counter() - start
     Xs, Ys, Wv, gv = values
-    Xs = 0.5 * (Xs + Xs.T)
+    Xs = symmetrized(Xs)
     Ks = np.linalg.solve(Xs.T, Ys.T).T
     K = (sc.su[:, None] * Ks) / sc.s[None, :]
     h2_claim = None if Wv is None else float(np.sqrt(max(np.trace(Wv), 0.0)) * f2)
@@ -409,7 +407,7 @@ def synthesize_state_feedback(plants: GeneralizedPlant | Sequence[GeneralizedPla
         scaling["route_note"] = f"LMI route: the Riccati route does not apply ({why})"
     return SynthesisResult(
         gain=K.T if dual else K, kind="observer" if dual else "state_feedback", objective=objective,
-        domain=domain, X=0.5 * (Xo + Xo.T), h2=h2_claim, gamma=g_claim,
+        domain=domain, X=symmetrized(Xo), h2=h2_claim, gamma=g_claim,
         h2_optimum=None if (objective != "h2" or opt is None) else float(np.sqrt(max(opt, 0.0)) * f2),
         gamma_optimum=None if (objective != "hinf" or opt is None) else float(opt * finf),
         achieved_h2=tuple(a_h2), achieved_hinf=tuple(a_hinf), closed_loop_eigenvalues=tuple(eigs),
@@ -442,20 +440,21 @@ def _riccati_design(P: GeneralizedPlant, objective: str, backoff: float, dual: b
     # H-infinity gamma^2 P^-1 with P the game Riccati solution (the reduced bounded real lemma
     # at equality) when P is well conditioned
     X, certificate = None, "closed-loop controllability Gramian"
-    if objective == "hinf":
+    if objective == "hinf" and sol.gamma is not None:   # (the game solution has a gamma)
         w = np.linalg.eigvalsh(sol.X)
         if w[0] > 1e-12 * w[-1] > 0:
             X, certificate = sol.gamma ** 2 * np.linalg.inv(sol.X), "gamma^2 P^-1 (P: game ARE solution)"
     if X is None:
         X = (sla.solve_continuous_lyapunov(Acl, -Bcl @ Bcl.T) if dt is None
              else sla.solve_discrete_lyapunov(Acl, Bcl @ Bcl.T))
-    X = 0.5 * (X + X.T)
+    X = symmetrized(X)
     checks, eigs, _, a_h2, a_hinf = _recheck([P], [P], K, X, None, None, None, None, None,
                                              sol.h2, sol.gamma, 0.0, False)
     failed = [c for c in checks if not c.passed]
     if failed:
         worst = "; ".join(f"{c.name}: {c.value:.4g} vs {c.limit:.4g}" for c in failed)
         raise np.linalg.LinAlgError(f"the Riccati gain fails the independent re-check ({worst})")
+    info: dict[str, Any]
     if objective == "h2":
         status = "optimal (stabilising ARE solution)"
         info = {"riccati": "solve_%s_are (LQR)" % P.domain}

@@ -26,22 +26,23 @@ Lyapunov function (`tanksynth.design.takagi_sugeno.region.switch_level`).
 from __future__ import annotations
 
 import dataclasses
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
-from tanksynth.analysis.linearize import equilibrium_input
 from tanksynth.analysis.takagi_sugeno import domain_from_plant, quasi_lpv, ts_model
+from tanksynth.design.bisection import bisect_feasible
+from tanksynth.design.matrices import symmetrized
+from tanksynth.design.observer_lmi.weighting import lipschitz_bound
+from tanksynth.design.operating_point import equilibrium_at
 from tanksynth.design.result import DesignMethod, DesignResult, options_of, rekeyed
 from tanksynth.design.takagi_sugeno.pdc import certified_decay, max_decay_rate, pdc_lmi
 from tanksynth.design.takagi_sugeno.deviation import deviation_ts_model
 from tanksynth.design.takagi_sugeno.region import (certified_region, composite_decay, coupling_weight,
                                        lyapunov_decay, observer_decay_lmi, switch_level)
 from tanksynth.errors import InfeasibleDesign, SpecError
+from tanksynth.spec import DesignSpec, Spec
 from tanksynth.spec.method_options import TsOutputFeedbackOptions, TsStateFeedbackOptions
-
-if TYPE_CHECKING:  # pragma: no cover - typing only
-    from tanksynth.spec import DesignSpec, Spec
 
 __all__ = ["run_ts_state_feedback", "run_ts_output_feedback", "TS_STATE_FEEDBACK",
            "TS_OUTPUT_FEEDBACK", "domain_faces", "SETPOINT_PREFIX"]
@@ -74,7 +75,7 @@ def domain_faces(domain: Any, x0: np.ndarray) -> tuple[np.ndarray, np.ndarray, l
     return np.array(rows), np.array(rhs), names
 
 
-def _setup(spec: "Spec", design: "DesignSpec", o: Any, x_op: Any = None) -> dict:
+def _setup(spec: Spec, design: DesignSpec, o: Any, x_op: Any = None) -> dict:
     plant = spec.plant
     names = [s.name for s in plant.states]
     box = list(plant.region.bounds)
@@ -87,10 +88,10 @@ def _setup(spec: "Spec", design: "DesignSpec", o: Any, x_op: Any = None) -> dict
         raise rekeyed(design, exc, "domain") from None
     if x_op is None:
         x0 = np.asarray(spec.x0, dtype=float)
-        eq = equilibrium_input(plant, x0, spec.given_u0)
+        eq = equilibrium_at(plant, x0, spec.given_u0)
     else:
         x0 = np.asarray(x_op, dtype=float)
-        eq = equilibrium_input(plant, x0)
+        eq = equilibrium_at(plant, x0)
         if not (eq.is_equilibrium and eq.within_bounds and bool(domain.contains(x0)[0])):
             raise SpecError(f"setpoint {x0.tolist()} is not an equilibrium inside the domain with "
                             f"the pumps in range: input {eq.u0.tolist()}, residual "
@@ -171,7 +172,7 @@ def _refuse_small(region: Any, P: np.ndarray, o: Any) -> float:
     return inner
 
 
-def _common_diag(s: dict, res: Any, tried: list, region: Any, inner: float, spec: Any) -> dict:
+def _common_diag(s: dict, res: Any, tried: list, region: Any, inner: float, spec: Spec) -> dict:
     return {"ts_model": s["model"].as_dict(), "exactness": s["exactness"],
             "equilibrium": s["eq"].as_dict(), "relaxations_tried": tried,
             "lmi": res.as_dict(), "relaxation": res.relaxation, "decay_rate": res.decay,
@@ -192,7 +193,7 @@ def _gains(s: dict, res: Any, region: Any) -> dict:
             "semi_axes": region.semi_axes, "axes": region.axes}
 
 
-def run_ts_state_feedback(spec: "Spec", design: "DesignSpec") -> DesignResult:
+def run_ts_state_feedback(spec: Spec, design: DesignSpec) -> DesignResult:
     """PDC state feedback on the exact deviation TS model, certified region.
 
     Gains: ``K`` (r, m, n: ``u = u_op - sum_i mu_i(x) K_i (x - x_op)``), ``P``
@@ -239,7 +240,7 @@ def _measured(model: Any) -> bool:
     return rows_unit and all(set(np.flatnonzero(a).tolist()) <= seen for a in model.forms)
 
 
-def run_ts_output_feedback(spec: "Spec", design: "DesignSpec") -> DesignResult:
+def run_ts_output_feedback(spec: Spec, design: DesignSpec) -> DesignResult:
     """PDC on an estimate with a composite Lyapunov certificate.
 
     Measured premises (the outputs select every state a premise depends
@@ -272,8 +273,6 @@ def run_ts_output_feedback(spec: "Spec", design: "DesignSpec") -> DesignResult:
         Controller or observer infeasible, no finite Lipschitz bound, region
         too small.
     """
-    from tanksynth.design.observer_lmi.weighting import lipschitz_bound
-
     o = options_of(design, spec, TsOutputFeedbackOptions)
     s = _setup(spec, design, o)
     model = s["model"]
@@ -302,8 +301,7 @@ def run_ts_output_feedback(spec: "Spec", design: "DesignSpec") -> DesignResult:
             raise InfeasibleDesign("PDC observer LMIs infeasible for observer_decay = "
                                    f"{o.observer_decay:g} 1/s: " + "; ".join(
                                        f"{t['relaxation']}: {t['reason']}" for t in dtried))
-        Po = np.linalg.inv(dual.P)
-        Po = 0.5 * (Po + Po.T)
+        Po = symmetrized(np.linalg.inv(dual.P))
         L = np.transpose(dual.K, (0, 2, 1))
         alpha_o = certified_decay(dual.P, np.transpose(model.A, (0, 2, 1)), model.C.T, dual.K,
                                   dual.relaxation)
@@ -325,8 +323,6 @@ def run_ts_output_feedback(spec: "Spec", design: "DesignSpec") -> DesignResult:
             raise InfeasibleDesign("estimated premises: the remainder f(x) - A0 x has no finite "
                                    "Lipschitz bound on the domain (" + str(lip.detail.get("text"))
                                    + "); set orderings = true with ordering_gap > 0")
-        from tanksynth.design.observer_lmi.lmi import bisect_feasible
-
         def feasible(a: float) -> bool:
             try:
                 observer_decay_lmi(model.A0, model.C, lip.value, a, margin=o.margin, kappa=o.kappa,
@@ -387,7 +383,7 @@ def _estimate_faces(region: Any, s: dict, P: np.ndarray, extra: np.ndarray) -> A
     lim = dict(region.limits)
     for l, nm in enumerate(s["face_names"]):
         lim[f"estimate face {nm}"] = float(g[l] ** 2 / (G[l] @ (Pi + extra) @ G[l]))
-    binding = min(lim, key=lim.get)
+    binding = min(lim, key=lambda face: lim[face])
     k = np.sqrt(lim[binding] / region.c)
     return dataclasses.replace(region, c=lim[binding], limits=lim, binding=binding,
                                semi_axes=region.semi_axes * k, extents=region.extents * k)
@@ -397,7 +393,7 @@ def _estimate_faces(region: Any, s: dict, P: np.ndarray, extra: np.ndarray) -> A
 SETPOINT_PREFIX = "sp_"
 
 
-def _setpoint_stage(spec: "Spec", design: "DesignSpec", o: Any, s1: dict, res1: Any, region1: Any,
+def _setpoint_stage(spec: Spec, design: DesignSpec, o: Any, s1: dict, res1: Any, region1: Any,
                     relaxations: list[str], obs: dict | None = None) -> tuple[dict, dict]:
     """The PDC about the set-point ``x_op2`` and the certificate of the switch to it.
 

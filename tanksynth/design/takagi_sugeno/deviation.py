@@ -28,6 +28,7 @@ from typing import Any, Sequence
 
 import numpy as np
 import sympy as sp
+from numpy.typing import ArrayLike
 
 from tanksynth.analysis.quasi_lpv import LAMBDIFY_MODULES, Domain, QuasiLPV, lambdify_cached
 from tanksynth.analysis.takagi_sugeno import vertex_memberships
@@ -239,7 +240,7 @@ class DeviationTSModel:
 
 
 
-def deviation_ts_model(qlpv: QuasiLPV, domain: Domain, x0: Sequence[float], u0: Sequence[float],
+def deviation_ts_model(qlpv: QuasiLPV, domain: Domain, x0: ArrayLike, u0: ArrayLike,
                        samples: int = 20001, margin: float = 1e-3) -> DeviationTSModel:
     """Exact TS model of the deviations from ``(x0, u0)`` on ``domain``.
 
@@ -249,9 +250,9 @@ def deviation_ts_model(qlpv: QuasiLPV, domain: Domain, x0: Sequence[float], u0: 
         Atoms and incidence of the plant (its weights are not used).
     domain : Domain
         Where the model must be exact (must contain ``x0``).
-    x0 : sequence of float
+    x0 : array_like, shape (n,)
         Operating point (state units).
-    u0 : sequence of float
+    u0 : array_like, shape (m,)
         Equilibrium input (input units).
     samples : int
         Points of the 1-D grid of each secant slope.
@@ -268,16 +269,16 @@ def deviation_ts_model(qlpv: QuasiLPV, domain: Domain, x0: Sequence[float], u0: 
         ``x0`` outside the domain, an atom not of the form ``phi(a . x)``,
         or a secant unbounded on the domain.
     """
-    x0 = np.asarray(x0, dtype=float).reshape(qlpv.n)
-    u0 = np.asarray(u0, dtype=float).reshape(qlpv.B.shape[1])
-    if not bool(domain.contains(x0)[0]):
-        raise SpecError(f"operating point {x0.tolist()} is outside the TS domain "
+    x_op = np.asarray(x0, dtype=float).reshape(qlpv.n)
+    u_op = np.asarray(u0, dtype=float).reshape(qlpv.B.shape[1])
+    if not bool(domain.contains(x_op)[0]):
+        raise SpecError(f"operating point {x_op.tolist()} is outside the TS domain "
                         f"({domain.description})", key="domain")
     if qlpv.p > 12:
         raise SpecError(f"{qlpv.p} premises: 2^{qlpv.p} vertices are too many for the PDC LMIs",
                         key="plant")
     forms = np.array([linear_argument(a, qlpv.states) for a in qlpv.atoms]).reshape(qlpv.p, qlpv.n)
-    model = DeviationTSModel(x0, u0, forms, np.zeros(qlpv.p), np.zeros(qlpv.p), np.zeros(qlpv.p),
+    model = DeviationTSModel(x_op, u_op, forms, np.zeros(qlpv.p), np.zeros(qlpv.p), np.zeros(qlpv.p),
                              np.zeros(qlpv.p), np.zeros((1, qlpv.n, qlpv.n)), qlpv.B, qlpv.C, (),
                              domain, qlpv, "")
     slope0 = model._tangent()
@@ -285,13 +286,13 @@ def deviation_ts_model(qlpv: QuasiLPV, domain: Domain, x0: Sequence[float], u0: 
     for k in range(qlpv.p):
         a = forms[k]
         tmin, tmax = domain.linear_range(a)
-        t0 = float(a @ x0)
+        t0 = float(a @ x_op)
         grid = np.unique(np.concatenate([np.linspace(tmin, tmax, samples), [tmin, tmax]]))
-        # the line x0 + s a covers the exact range of a . x but may leave the domain (h2 < 0 on
+        # the line x_op + s a covers the exact range of a . x but may leave the domain (h2 < 0 on
         # the line of h3 - h2): atom k depends on a . x only, so it alone is evaluated there
-        X = x0 + np.outer(grid - t0, a / (a @ a))
+        X = x_op + np.outer(grid - t0, a / (a @ a))
         vals = _atom_on_points(qlpv, k, X)
-        at0 = float(_atom_on_points(qlpv, k, x0[None, :])[0])
+        at0 = float(_atom_on_points(qlpv, k, x_op[None, :])[0])
         dt = grid - t0
         ok = np.abs(dt) > 1e-9 * max(1.0, abs(t0))
         z = np.concatenate([(vals[ok] - at0) / dt[ok], [slope0[k]]])
@@ -311,5 +312,5 @@ def deviation_ts_model(qlpv: QuasiLPV, domain: Domain, x0: Sequence[float], u0: 
                                    for k, s in enumerate(sig)) for sig in sigmas])
     method = (f"secant slopes on a 1-D grid of {samples} points over the exact (LP) range of each "
               f"linear form, widened by {margin:g} of the sampled range on each side")
-    return DeviationTSModel(x0, u0, forms, lower, upper, np.array(slo), np.array(shi), A, qlpv.B,
+    return DeviationTSModel(x_op, u_op, forms, lower, upper, np.array(slo), np.array(shi), A, qlpv.B,
                             qlpv.C, sigmas, domain, qlpv, method)

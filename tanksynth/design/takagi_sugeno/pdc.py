@@ -31,6 +31,9 @@ from typing import Any, Sequence
 
 import numpy as np
 
+from tanksynth.design.bisection import bisect_feasible
+from tanksynth.design.conic import modelling
+from tanksynth.design.matrices import symmetrized
 from tanksynth.errors import DimensionError, InfeasibleDesign, SpecError
 
 __all__ = ["RELAXATIONS", "condition_weights", "PDCResult", "pdc_lmi", "relaxed_conditions",
@@ -106,7 +109,7 @@ def relaxed_conditions(P: np.ndarray, A: np.ndarray, B: np.ndarray, K: np.ndarra
                 G = P @ (A[i] - B @ K[j])
                 N[i, j] = G + G.T + 2.0 * alpha * P
             S = S + w * N[i, j]
-        out.append(0.5 * (S + S.T))
+        out.append(symmetrized(S))
     return out
 
 
@@ -130,7 +133,7 @@ def certified_decay(P: np.ndarray, A: np.ndarray, B: np.ndarray, K: np.ndarray,
     relaxation : str
         Relaxation of the PDC conditions: one of ``RELAXATIONS`` (``"vertex"``, ``"tuan"``, ``"all_pairs"``).
     """
-    Lc = np.linalg.cholesky(0.5 * (P + P.T))
+    Lc = np.linalg.cholesky(symmetrized(P))
     Li = np.linalg.inv(Lc)
     best = np.inf
     conds = condition_weights(relaxation, A.shape[0])
@@ -222,8 +225,6 @@ def pdc_lmi(A: Any, B: Any, *, alpha: float = 0.0, relaxation: str = "tuan",
     InfeasibleDesign
         Solver failure, or the re-check fails.
     """
-    from tanksynth.design.conic import modelling
-
     A = np.asarray(A, dtype=float)
     B = np.atleast_2d(np.asarray(B, dtype=float))
     if A.ndim != 3 or A.shape[1] != A.shape[2] or B.shape[0] != A.shape[1]:
@@ -269,7 +270,7 @@ def pdc_lmi(A: Any, B: Any, *, alpha: float = 0.0, relaxation: str = "tuan",
                 Gij = As[i] @ X - Bs @ Ms[j]
                 Y[i, j] = Gij + Gij.T + 2 * al * X
             S = S + w * Y[i, j]
-        cons.append(0.5 * (S + S.T) << -margin * np.eye(n))
+        cons.append(symmetrized(S) << -margin * np.eye(n))
     bounded = False
     Gs = G @ Tx
     for l in range(len(g)):
@@ -279,7 +280,7 @@ def pdc_lmi(A: Any, B: Any, *, alpha: float = 0.0, relaxation: str = "tuan",
         for Mi in Ms:
             for j in range(m):
                 blk = lib.bmat([[np.ones((1, 1)), Mi[j:j + 1, :]], [Mi[j:j + 1, :].T, X]])
-                cons.append(0.5 * (blk + blk.T) >> 0)
+                cons.append(symmetrized(blk) >> 0)
         bounded = True
     if bounded:
         cons.append(X >> t * np.eye(n))
@@ -300,9 +301,9 @@ def pdc_lmi(A: Any, B: Any, *, alpha: float = 0.0, relaxation: str = "tuan",
         raise InfeasibleDesign(f"PDC LMI ({relaxation}, alpha = {alpha:g} 1/s): the certified "
                                f"ellipsoid is degenerate (size t = {tval:.3g})")
     Xo = Tx @ X.value @ Tx
-    Xo = 0.5 * (Xo + Xo.T)
+    Xo = symmetrized(Xo)
     P = np.linalg.inv(Xo)
-    P = 0.5 * (P + P.T)
+    P = symmetrized(P)
     K = np.array([Tu @ Mi.value @ Tx @ P for Mi in Ms])
     # ---- independent re-check in the original units
     mats = relaxed_conditions(P, A, B, K, alpha, relaxation)
@@ -338,8 +339,6 @@ def max_decay_rate(A: Any, B: Any, relaxation: str, *, start: float | None = Non
         The largest feasible ``alpha`` found (0.0 if only 0 is, -1.0 if none)
         and the trials ``(alpha, feasible)``.
     """
-    from tanksynth.design.observer_lmi.lmi import bisect_feasible
-
     def feasible(a: float) -> bool:
         try:
             pdc_lmi(A, B, alpha=a, relaxation=relaxation, **kwargs)

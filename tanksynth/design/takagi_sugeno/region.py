@@ -13,6 +13,8 @@ from typing import Any, Sequence
 
 import numpy as np
 
+from tanksynth.design.conic import modelling
+from tanksynth.design.matrices import symmetrized
 from tanksynth.errors import InfeasibleDesign
 
 __all__ = ["Region", "certified_region", "coupling_weight", "lyapunov_decay", "observer_decay_lmi",
@@ -77,10 +79,10 @@ def certified_region(P: np.ndarray, K: np.ndarray, faces: tuple[np.ndarray, np.n
     extra_inverse : ndarray, shape (n, n), optional
         Added to ``P^-1`` for the input limits (output feedback: ``P_o^-1 / beta``).
     """
-    P = 0.5 * (P + P.T)
+    P = symmetrized(P)
     Pi = np.linalg.inv(P)
     G, g = faces
-    limits = {}
+    limits: dict[str, float] = {}
     names = list(names) or [f"face{l}" for l in range(len(g))]
     for l in range(len(g)):
         limits[f"face {names[l] if l < len(names) else l}"] = float(g[l] ** 2 / (G[l] @ Pi @ G[l]))
@@ -91,7 +93,7 @@ def certified_region(P: np.ndarray, K: np.ndarray, faces: tuple[np.ndarray, np.n
                 k = K[i, j]
                 den = float(k @ Pk @ k)
                 limits[f"pump {j + 1} at vertex {i + 1}"] = float(um ** 2 / den) if den > 0 else np.inf
-    binding = min(limits, key=limits.get)
+    binding = min(limits, key=lambda face: limits[face])
     c = float(limits[binding])
     lam, V = np.linalg.eigh(P)
     return Region(c, limits, binding, np.sqrt(c / lam)[::-1], V[:, ::-1],
@@ -109,9 +111,9 @@ def lyapunov_decay(P: np.ndarray, W: np.ndarray) -> float:
     W : ndarray, shape (n, n)
         Decrease matrix: ``dV/dt <= -e' W e``.
     """
-    Lc = np.linalg.cholesky(0.5 * (P + P.T))
+    Lc = np.linalg.cholesky(symmetrized(P))
     Li = np.linalg.inv(Lc)
-    return float(np.linalg.eigvalsh(Li @ (0.5 * (W + W.T)) @ Li.T)[0] / 2.0)
+    return float(np.linalg.eigvalsh(Li @ symmetrized(W) @ Li.T)[0] / 2.0)
 
 
 
@@ -144,7 +146,7 @@ def coupling_weight(Pc: np.ndarray, K: np.ndarray, B: np.ndarray, alpha_c: float
     if not (alpha_c > 0 and alpha_o > 0):
         raise InfeasibleDesign(f"composite certificate needs positive decay rates (controller "
                                f"{alpha_c:.3g} 1/s, observer {alpha_o:.3g} 1/s)")
-    lam, V = np.linalg.eigh(0.5 * (Po + Po.T))
+    lam, V = np.linalg.eigh(symmetrized(Po))
     R = V @ np.diag(lam ** -0.5) @ V.T
     worst = max(float(np.linalg.eigvalsh(R @ Kj.T @ B.T @ Pc @ B @ Kj @ R)[-1]) for Kj in K)
     return factor * worst / (4.0 * alpha_c * alpha_o)
@@ -186,8 +188,6 @@ def observer_decay_lmi(A0: Any, C: Any, psi: float, alpha: float, *, margin: flo
     InfeasibleDesign
         Infeasible, or the re-check fails.
     """
-    from tanksynth.design.conic import modelling
-
     A0 = np.asarray(A0, dtype=float)
     C = np.atleast_2d(np.asarray(C, dtype=float))
     n, q = A0.shape[0], C.shape[0]
@@ -200,7 +200,7 @@ def observer_decay_lmi(A0: Any, C: Any, psi: float, alpha: float, *, margin: flo
     qv = lib.variable()
     H = P @ As - N @ C
     blk = lib.bmat([[H + H.T + 2 * al * P + ps ** 2 * qv * np.eye(n), P], [P, -qv * np.eye(n)]])
-    cons = [0.5 * (blk + blk.T) << -margin * np.eye(2 * n), P >> np.eye(n),
+    cons = [symmetrized(blk) << -margin * np.eye(2 * n), P >> np.eye(n),
             lib.trace(P) <= kappa * n, qv >= margin]
     prob = lib.Problem(lib.Minimize(0), cons)
     status = lib.solve_status(prob, solver)
@@ -215,18 +215,18 @@ def observer_decay_lmi(A0: Any, C: Any, psi: float, alpha: float, *, margin: flo
     Q = float(qv.value) * np.eye(n) / om      # Q in original time units: psi^2 Q = (psi/om)^2 q om
     G = Pv @ (A0 - L @ C)
     full = np.block([[G + G.T + 2 * alpha * Pv + psi ** 2 * Q, Pv], [Pv, -Q]])
-    if not (np.linalg.eigvalsh(0.5 * (full + full.T))[-1] < 0 and np.linalg.eigvalsh(Pv)[0] > 0):
+    if not (np.linalg.eigvalsh(symmetrized(full))[-1] < 0 and np.linalg.eigvalsh(Pv)[0] > 0):
         raise InfeasibleDesign(f"observer LMI (28) with decay {alpha:g} 1/s: the re-check fails")
     return L, Pv, Q
 
 
 def _contained(P1: np.ndarray, level1: float, P2: np.ndarray, c2: float, d: np.ndarray) -> bool:
     """S-lemma: ``{z' P1 z <= level1}`` inside ``{(z - d)' P2 (z - d) <= c2}``."""
-    from scipy.optimize import minimize_scalar
+    from scipy.optimize import minimize_scalar  # deferred: scipy.optimize imports in ~0.3 s
 
-    Lc = np.linalg.cholesky(0.5 * (P1 + P1.T))
+    Lc = np.linalg.cholesky(symmetrized(P1))
     Li = np.linalg.inv(Lc)
-    Q = Li @ (0.5 * (P2 + P2.T)) @ Li.T / c2        # w = Lc' z: {w' w <= level1}
+    Q = Li @ symmetrized(P2) @ Li.T / c2        # w = Lc' z: {w' w <= level1}
     b = Q @ (Lc.T @ d)
     corner = float((Lc.T @ d) @ b) - 1.0
     lo = float(np.linalg.eigvalsh(Q)[-1])
