@@ -29,6 +29,7 @@ the options (region, uncertain box, H-infinity bound, saturation):
 
 from __future__ import annotations
 
+import itertools
 import math
 from typing import Any, Mapping, Sequence
 
@@ -36,19 +37,22 @@ import numpy as np
 
 from tanksynth.analysis.checks import Check
 from tanksynth.analysis.linearize import discretize_zoh, equilibrium_input
+from tanksynth.analysis.lmi_region import region_from_parts
 from tanksynth.errors import ArtefactError
 from tanksynth.sim.simulate import run_seeds, simulate
+from tanksynth.spec import Spec
+from tanksynth.spec.method_options.robust import parse_uncertain
+from tanksynth.spec.options import parse_region
 from tanksynth.verify.robust.models import linear_models
 from tanksynth.verify.robust.traces import PeakRecordingLaw, record_monte_carlo
-from tanksynth.spec.method_options.robust import parse_uncertain
 from tanksynth.verify.common import (MAX_STEPS, OBSERVER_TOLERANCE, artefact_matrix, fmt, guard,
                                      model_recheck, option, stability_check, time_domain)
 from tanksynth.verify.numerics import integral_augmentation, region_lmi_matrix
 from tanksynth.verify.simulations import (IntegralStateFeedback, StateFeedback, designed_time_constant,
                                           eigen_time_constant, eigenvector_conditioning, observer_period, perturbed_start)
 
-__all__ = ["SATURATION_TOLERANCE", "hinf_norm", "robust_state_feedback_verdict",
-           "robust_observer_verdict"]
+__all__ = ["SATURATION_TOLERANCE", "hinf_norm", "uncertain_box", "robust_feedback_law",
+           "robust_state_feedback_verdict", "robust_observer_verdict"]
 
 #: Relative excess of ``|u - u0|`` over ``umax`` tolerated on the nonlinear plant.
 SATURATION_TOLERANCE = 0.02
@@ -113,7 +117,7 @@ def hinf_norm(A: np.ndarray, B: np.ndarray, C: np.ndarray, D: np.ndarray | None 
     return hi
 
 
-def _models(spec: Any, box: Sequence[Sequence[Any]], values: np.ndarray, domain: str,
+def _models(spec: Spec, box: Sequence[Sequence[Any]], values: np.ndarray, domain: str,
             Bw: Any) -> list[dict]:
     """Linearisations at the spec's levels for parameter values (rows of ``values``), the plant
     compiled once with the parameters as arguments (`tanksynth.verify.robust.models`)."""
@@ -138,12 +142,24 @@ def _models(spec: Any, box: Sequence[Sequence[Any]], values: np.ndarray, domain:
 def _corners(box: Sequence[Sequence[Any]]) -> np.ndarray:
     if not box:
         return np.zeros((1, 0))
-    import itertools
-
     return np.array(list(itertools.product(*[(float(b[1]), float(b[2])) for b in box])))
 
 
-def _box(doc: Mapping[str, Any], spec: Any) -> list[tuple[str, float, float]]:
+def uncertain_box(doc: Mapping[str, Any], spec: Spec) -> list[tuple[str, float, float]]:
+    """The design's uncertain parameters and their intervals (option ``uncertain``).
+
+    Parameters
+    ----------
+    doc : mapping
+        The artefact.
+    spec : Spec
+        The validated spec (or one read without its methods: the option as written is parsed).
+
+    Returns
+    -------
+    list of (str, float, float)
+        Parameter name, lower and upper bound (the parameter's units).
+    """
     raw = option(doc, spec, "uncertain", ())
     if isinstance(raw, Mapping):  # a spec read without its methods (campaign workers): as written
         raw = parse_uncertain(raw, "uncertain", spec.plant)
@@ -162,10 +178,7 @@ def _label(params: Mapping[str, float]) -> str:
 
 
 # ============================================================ shared context
-def _context(doc: Mapping[str, Any], spec: Any, observer: bool) -> dict:
-    from tanksynth.analysis.lmi_region import region_from_parts
-    from tanksynth.spec.options import parse_region
-
+def _context(doc: Mapping[str, Any], spec: Spec, observer: bool) -> dict:
     plant = spec.plant
     n, m, q = plant.n, plant.m, plant.q
     domain = time_domain(doc, spec)
@@ -173,7 +186,7 @@ def _context(doc: Mapping[str, Any], spec: Any, observer: bool) -> dict:
     if raw is None:
         raise ArtefactError(f"artefact '{doc['name']}': the spec entry gives no region")
     region = region_from_parts(parse_region(raw, "region"))
-    box = _box(doc, spec)
+    box = uncertain_box(doc, spec)
     Bw = option(doc, spec, "Bw")
     Bw = ("identity" if observer else "inputs") if Bw is None else np.asarray(Bw, dtype=float)
     corners = _corners(box)
@@ -216,13 +229,13 @@ def _closed(c: dict, mdl: Mapping[str, Any]) -> np.ndarray:
     return mdl["A"] - mdl["B"] @ c["K"]
 
 
-def _closed_loops(c: dict, spec: Any, models: Sequence[Mapping[str, Any]]) -> list[np.ndarray]:
+def _closed_loops(c: dict, spec: Spec, models: Sequence[Mapping[str, Any]]) -> list[np.ndarray]:
     c["ts"] = float(spec.ts) if c["domain"] == "discrete" else None
     return [_closed(c, mdl) for mdl in models]
 
 
 # =================================================================== checks
-def _vertex_checks(doc: Mapping[str, Any], spec: Any, c: dict) -> list[Check]:
+def _vertex_checks(doc: Mapping[str, Any], spec: Spec, c: dict) -> list[Check]:
     region, models = c["region"], c["models"]
     checks = [model_recheck(c["plant"], c["x0"], c["u0"], c["domain"], spec.ts,
                             {"A": c["A"], "B": c["B"], "C": c["C"]})]
@@ -275,7 +288,7 @@ def _vertex_checks(doc: Mapping[str, Any], spec: Any, c: dict) -> list[Check]:
     return checks
 
 
-def _hinf_check(doc: Mapping[str, Any], spec: Any, c: dict, loops: Sequence[np.ndarray],
+def _hinf_check(doc: Mapping[str, Any], spec: Spec, c: dict, loops: Sequence[np.ndarray],
                 gamma: float) -> Check:
     n = c["n"]
     Cz = option(doc, spec, "Cz")
@@ -300,7 +313,7 @@ def _hinf_check(doc: Mapping[str, Any], spec: Any, c: dict, loops: Sequence[np.n
                  f"{gamma:g}", {"norms": [float(v) for v in norms], "gamma": gamma})
 
 
-def _sampled_check(doc: Mapping[str, Any], spec: Any, c: dict) -> list[Check]:
+def _sampled_check(doc: Mapping[str, Any], spec: Spec, c: dict) -> list[Check]:
     if not c["box"]:
         return [Check("sampled_region", None, "no uncertain parameter: nothing to sample")]
     count = int(option(doc, spec, "samples", 200))
@@ -320,7 +333,7 @@ def _sampled_check(doc: Mapping[str, Any], spec: Any, c: dict) -> list[Check]:
                    "worst_parameters": models[w]["params"]})]
 
 
-def _horizon(doc: Mapping[str, Any], spec: Any, c: dict, ts: float) -> tuple[float, int, int, str]:
+def _horizon(doc: Mapping[str, Any], spec: Spec, c: dict, ts: float) -> tuple[float, int, int, str]:
     loops = _closed_loops(c, spec, c["models"])
     eigs = np.concatenate([np.linalg.eigvals(M) for M in loops])
     tau, rule = designed_time_constant(doc, spec, eigs, c["domain"], spec.ts)
@@ -334,7 +347,7 @@ def _horizon(doc: Mapping[str, Any], spec: Any, c: dict, ts: float) -> tuple[flo
     return H, k_h, max(int(math.ceil(1.2 * H / ts)), k_h + 1), f"tau = {tau:.4g} s {rule}, kappa = {kappa:.3g}"
 
 
-def _sim_period(c: dict, spec: Any, loops: Sequence[np.ndarray]) -> float:
+def _sim_period(c: dict, spec: Spec, loops: Sequence[np.ndarray]) -> float:
     if c["domain"] == "discrete":
         return float(spec.ts)
     fast = max(float(np.max(np.abs(np.linalg.eigvals(M)))) for M in loops)
@@ -342,17 +355,38 @@ def _sim_period(c: dict, spec: Any, loops: Sequence[np.ndarray]) -> float:
     return float(min(step, spec.ts)) if spec.ts else step
 
 
-def _law(c: dict, ts: float) -> Any:
-    if c["integral"]:
-        n = c["n"]
-        C1 = np.zeros((len(c["rows"]), n))
-        for i, r in enumerate(c["rows"]):
-            C1[i] = c["C"][r]
-        return IntegralStateFeedback(c["K"][:, :n], c["K"][:, n:], C1, c["x0"], c["u0"], ts)
-    return StateFeedback(c["K"], c["x0"], c["u0"])
+def robust_feedback_law(K: np.ndarray, C: np.ndarray, rows: Sequence[int] | None, x0: np.ndarray,
+                        u0: np.ndarray, ts: float) -> StateFeedback | IntegralStateFeedback:
+    """The robust state feedback as a batch control law, with integral action when it tracks.
+
+    Parameters
+    ----------
+    K : ndarray, shape (m, n) or (m, n + p)
+        The stored gain (input units per state unit; its last p columns act on the integrators).
+    C : ndarray, shape (q, n)
+        The stored output matrix (output units per state unit).
+    rows : sequence of int or None
+        The tracked outputs' rows of ``C`` (p of them); None: no integral action.
+    x0, u0 : ndarray (n,), ndarray (m,)
+        Operating point (state units, m) and its input (input units, m^3/s).
+    ts : float
+        Sampling period of the integrators [s].
+    """
+    if rows is not None:
+        n = C.shape[1]
+        C1 = np.zeros((len(rows), n))
+        for i, r in enumerate(rows):
+            C1[i] = C[r]
+        return IntegralStateFeedback(K[:, :n], K[:, n:], C1, x0, u0, ts)
+    return StateFeedback(K, x0, u0)
 
 
-def _too_stiff(c: dict, spec: Any, ts: float, H: float, steps: int, rule: str) -> Check:
+def _law(c: dict, ts: float) -> StateFeedback | IntegralStateFeedback:
+    """`robust_feedback_law` of a verdict's context."""
+    return robust_feedback_law(c["K"], c["C"], c["rows"] if c["integral"] else None, c["x0"], c["u0"], ts)
+
+
+def _too_stiff(c: dict, spec: Spec, ts: float, H: float, steps: int, rule: str) -> Check:
     """The Monte-Carlo check of a loop too stiff to simulate: failed (the gain cannot be trusted
     without its run on the nonlinear plant), with the loop's time scales and which one is to blame."""
     eigs = np.concatenate([np.linalg.eigvals(M) for M in _closed_loops(c, spec, c["models"])])
@@ -366,7 +400,7 @@ def _too_stiff(c: dict, spec: Any, ts: float, H: float, steps: int, rule: str) -
                  f"{10 * MAX_STEPS}); {why}", {"samples": int(steps), "fastest_eigenvalue": fast, "horizon_s": H})
 
 
-def _mc_feedback(doc: Mapping[str, Any], spec: Any, c: dict, trace: Any = None) -> list[Check]:
+def _mc_feedback(doc: Mapping[str, Any], spec: Spec, c: dict, trace: Any = None) -> list[Check]:
     plant = spec.plant
     runs = int(option(doc, spec, "mc_runs", 16))
     seed = int(option(doc, spec, "seed", 0))
@@ -414,7 +448,7 @@ def _mc_feedback(doc: Mapping[str, Any], spec: Any, c: dict, trace: Any = None) 
                    "offsets": offset.tolist(), "worst_parameters": worst, "horizon_s": H, "ts": ts})]
 
 
-def _saturation_checks(doc: Mapping[str, Any], spec: Any, c: dict) -> list[Check]:
+def _saturation_checks(doc: Mapping[str, Any], spec: Spec, c: dict) -> list[Check]:
     plant, n = spec.plant, c["n"]
     P, K = c["P"], c["K"]
     lim = np.asarray(plant.input_limits, dtype=float)
@@ -440,8 +474,6 @@ def _saturation_checks(doc: Mapping[str, Any], spec: Any, c: dict) -> list[Check
     box = option(doc, spec, "box")
     if box is not None:
         half = np.asarray(box, dtype=float)
-        import itertools
-
         worst = max(float(v @ Pxx @ v) for v in (np.array(sg) * half
                                                  for sg in itertools.product((-1.0, 1.0), repeat=n)))
         checks.append(Check("saturation_box", bool(worst <= 1 + 1e-6),
@@ -452,7 +484,7 @@ def _saturation_checks(doc: Mapping[str, Any], spec: Any, c: dict) -> list[Check
     return checks
 
 
-def _saturation_sim(doc: Mapping[str, Any], spec: Any, c: dict, Pxx: np.ndarray,
+def _saturation_sim(doc: Mapping[str, Any], spec: Spec, c: dict, Pxx: np.ndarray,
                     umax: np.ndarray) -> Check:
     plant, n = spec.plant, c["n"]
     w, V = np.linalg.eigh(0.5 * (Pxx + Pxx.T))
@@ -493,7 +525,7 @@ def _saturation_sim(doc: Mapping[str, Any], spec: Any, c: dict, Pxx: np.ndarray,
                  {"peak_ratio": peak, "starts": len(starts), "skipped": skipped})
 
 
-def robust_state_feedback_verdict(doc: Mapping[str, Any], spec: Any, *, trace: Any = None) -> list[Check]:
+def robust_state_feedback_verdict(doc: Mapping[str, Any], spec: Spec, *, trace: Any = None) -> list[Check]:
     """Verdict of a ``robust_state_feedback`` artefact (see the module docstring).
 
     Parameters
@@ -536,7 +568,7 @@ class _InstanceObserver:
         return self.x0 + self.e
 
 
-def _mc_observer(doc: Mapping[str, Any], spec: Any, c: dict, trace: Any = None) -> list[Check]:
+def _mc_observer(doc: Mapping[str, Any], spec: Spec, c: dict, trace: Any = None) -> list[Check]:
     plant = spec.plant
     runs = int(option(doc, spec, "mc_runs", 16))
     seed = int(option(doc, spec, "seed", 0))
@@ -585,7 +617,7 @@ def _mc_observer(doc: Mapping[str, Any], spec: Any, c: dict, trace: Any = None) 
                    "horizon_s": H, "ts": ts})]
 
 
-def robust_observer_verdict(doc: Mapping[str, Any], spec: Any, *, trace: Any = None) -> list[Check]:
+def robust_observer_verdict(doc: Mapping[str, Any], spec: Spec, *, trace: Any = None) -> list[Check]:
     """Verdict of a ``robust_observer`` artefact (see the module docstring).
 
     Parameters

@@ -46,19 +46,17 @@ from tanksynth.analysis.checks import Check
 from tanksynth.analysis.rank import controllability_rank, observability_rank
 from tanksynth.plants.base import Quantity
 from tanksynth.sim.simulate import InputSequence, run_seeds, simulate
-from tanksynth.verify.laws.campaign import ClosedLoop
 from tanksynth.verify.common import (MAX_STEPS, artefact_matrix, fmt, guard, model_recheck,
                                      operating_point, option, rank_check, region_check,
                                      region_lmi_check, relative_difference, stability_check,
                                      time_domain)
-from tanksynth.verify.estimators.campaign import EstimatorRun, placement_run
 from tanksynth.verify.simulations import (eigenvector_conditioning, luenberger_estimator,
                                           observer_convergence, observer_period, regulation_check,
                                           slowest_time_constant)
 from tanksynth.verify.traces import TraceRecorder
 
 __all__ = ["NORM_TOLERANCE", "OPTIMALITY_TOLERANCE", "OFFSET_TOLERANCE", "h2_norm", "hinf_norm",
-           "synthesis_verdict", "synthesis_run", "disturbance_plant"]
+           "synthesis_verdict", "disturbance_plant"]
 
 #: Relative agreement of recomputed norms with the artefact's claims.
 NORM_TOLERANCE = 1e-6
@@ -547,19 +545,3 @@ def synthesis_verdict(doc: Mapping[str, Any], spec: Any, *,
         checks += guard("region", lambda: _region_checks(doc, spec, c))
     checks += guard("simulation", lambda: _simulations(doc, spec, c, trace))
     return checks
-
-
-def synthesis_run(doc: Mapping[str, Any], spec: Any) -> "EstimatorRun | ClosedLoop":
-    """Campaign runner: the observer ``L`` on the noisy measurements, or ``K`` in closed loop.
-
-    The same runs as ``lmi_placement`` artefacts
-    (`tanksynth.verify.estimators.campaign.placement_run`).
-
-    Parameters
-    ----------
-    doc : mapping
-        The artefact.
-    spec : Spec
-        The validated spec.
-    """
-    return placement_run(doc, spec)
