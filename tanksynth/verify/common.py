@@ -1,4 +1,4 @@
-"""Shared by the verdicts: tolerances, option and gain readers, re-checks, law adapters.
+"""Shared by the verdicts: tolerances, option and gain readers, re-checks.
 
 Every verdict reads the gains of the artefact (the part its provenance hash
 protects) and the spec it was designed from; the diagnostics are evidence to
@@ -101,7 +101,6 @@ from tanksynth.analysis.statespace import model_names
 from tanksynth.errors import ArtefactError, TanksynthError
 from tanksynth.plants.base import Plant
 from tanksynth.spec import DesignSpec, Spec
-from tanksynth.verify.batch_call import mapped_call
 from tanksynth.verify.numerics import match_poles, region_lmi_matrix, symmetric
 
 __all__ = [
@@ -112,7 +111,7 @@ __all__ = [
     "time_domain", "tracked_outputs", "output_rows", "output_at",
     "one_line", "guard", "fmt", "fmt_signals", "complex_list", "relative_difference",
     "model_recheck", "pole_check", "stability_check", "region_check", "region_lmi_check",
-    "rank_check", "CasadiControlLaw", "CasadiIntegralLaw",
+    "rank_check",
 ]
 
 #: Largest relative difference between a stored model matrix and the re-linearisation.
@@ -562,74 +561,3 @@ def rank_check(name: str, result: RankResult, pair: str) -> Check:
     return Check(name, bool(result.full),
                  f"rank {result.rank}/{result.n} of {pair} stored in the artefact, condition number "
                  f"{result.condition_number:.3g}", result.as_dict())
-
-
-# ======================================================================= law adapters
-class CasadiControlLaw:
-    """A `ControlLaw` from a CasADi Function ``(x_hat, reference) -> u`` (batch over runs).
-
-    The Function is evaluated on the M runs at once (``Function.map``);
-    only its first output is used (feedback-linearisation laws also return
-    ``zeta``).
-
-    Parameters
-    ----------
-    function : casadi.Function
-        Inputs ``x_hat`` (n) and the reference (r), first output ``u`` (m).
-    """
-
-    def __init__(self, function: Any):
-        self.function = function
-        self._mapped: dict[int, Any] = {}
-
-    def evaluate(self, *args: np.ndarray) -> list[np.ndarray]:
-        """Every output of the Function at M points: inputs (M, k_i) -> outputs (M, k_j).
-
-        Parameters
-        ----------
-        *args : ndarray
-            One array per input of the Function, shape (M, k_i) (its units).
-        """
-        count = int(args[0].shape[0])
-        if count not in self._mapped:     # one bound buffer per batch size when the Function allows
-            self._mapped[count] = mapped_call(self.function, count, len(args))
-        buffered, fn = self._mapped[count]
-        if buffered is not None:
-            return buffered.all(*[np.asarray(a, dtype=float) for a in args])
-        outs = fn(*[np.asarray(a, dtype=float).T for a in args])
-        outs = outs if isinstance(outs, (list, tuple)) else [outs]
-        return [np.asarray(o, dtype=float).reshape(-1, count).T for o in outs]
-
-    def __call__(self, x_hat: np.ndarray, reference: np.ndarray, t: float) -> np.ndarray:
-        """Input (M, m) for the estimate (M, n) and the reference (M, r)."""
-        return self.evaluate(x_hat, reference)[0]
-
-
-class CasadiIntegralLaw(CasadiControlLaw):
-    """A stateful `ControlLaw` from ``(x, z, y_r) -> (u, z_next)`` (integral tracking).
-
-    Parameters
-    ----------
-    function : casadi.Function
-        `tanksynth.runtime.laws.integral_tracking_law` signature.
-    """
-
-    def __init__(self, function: Any):
-        super().__init__(function)
-        self.z = np.zeros((0, int(function.nnz_in(1))))
-
-    def reset(self, runs: int) -> None:
-        """Zero the integrators of ``runs`` runs.
-
-        Parameters
-        ----------
-        runs : int
-            Number of runs M.
-        """
-        self.z = np.zeros((int(runs), int(self.function.nnz_in(1))))
-
-    def __call__(self, x_hat: np.ndarray, reference: np.ndarray, t: float) -> np.ndarray:
-        """Input (M, m); advances the integrator state."""
-        u, z_next = self.evaluate(x_hat, self.z, reference)[:2]
-        self.z = z_next
-        return u

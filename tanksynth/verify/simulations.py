@@ -15,8 +15,13 @@ from typing import Any, Callable, Mapping, Sequence
 import numpy as np
 
 from tanksynth.analysis.checks import Check
+from tanksynth.analysis.lmi_region import region_from_parts
 from tanksynth.errors import TanksynthError
+from tanksynth.plants.base import Plant
+from tanksynth.runtime.estimators.luenberger import LuenbergerObserver, LuenbergerTuning
 from tanksynth.sim.simulate import BatchEstimator, EstimatorAdapter, run_seeds, simulate
+from tanksynth.spec import Spec
+from tanksynth.spec.options import parse_poles, parse_region
 from tanksynth.verify.common import (MAX_STEPS, OBSERVER_TIME_CONSTANTS, OBSERVER_TOLERANCE,
                                      PERTURBATION, SERVO_TIME_CONSTANTS, SERVO_TOLERANCE,
                                      fmt_signals,
@@ -107,7 +112,7 @@ def region_time_constant(region: Any, domain: str, ts: float | None) -> float:
     return best
 
 
-def requested_poles(doc: Mapping[str, Any], spec: Any, domain: str) -> np.ndarray | None:
+def requested_poles(doc: Mapping[str, Any], spec: Spec, domain: str) -> np.ndarray | None:
     """The spec's poles in the design's plane (None when the spec gives none).
 
     ``pole_domain = "s"`` in discrete time is converted here, independently of
@@ -125,8 +130,6 @@ def requested_poles(doc: Mapping[str, Any], spec: Any, domain: str) -> np.ndarra
     ndarray of complex or None
         Poles in 1/s (continuous) or in the z-plane (discrete, dimensionless).
     """
-    from tanksynth.spec.options import parse_poles
-
     poles = option(doc, spec, "poles")
     if poles is None:
         return None
@@ -137,7 +140,7 @@ def requested_poles(doc: Mapping[str, Any], spec: Any, domain: str) -> np.ndarra
     return values
 
 
-def designed_time_constant(doc: Mapping[str, Any], spec: Any, eigs: np.ndarray, domain: str,
+def designed_time_constant(doc: Mapping[str, Any], spec: Spec, eigs: np.ndarray, domain: str,
                            ts: float | None) -> tuple[float, str]:
     """Slowest time constant (s) the DESIGN asks for, and the rule that gave it.
 
@@ -152,9 +155,6 @@ def designed_time_constant(doc: Mapping[str, Any], spec: Any, eigs: np.ndarray, 
     domain, ts : str, float or None
         ``"continuous"`` or ``"discrete"``; sampling period [s].
     """
-    from tanksynth.analysis.lmi_region import region_from_parts
-    from tanksynth.spec.options import parse_region
-
     p = requested_poles(doc, spec, domain)
     if p is not None:
         tau, rule = eigen_time_constant(p, domain, ts)
@@ -208,7 +208,7 @@ def _horizon(tau: float, ts: float, conditioning: float) -> tuple[float, float, 
 
 
 # ========================================================================== observers
-def perturbed_start(plant: Any, x0: np.ndarray, inside: Callable[[np.ndarray], bool] | None = None
+def perturbed_start(plant: Plant, x0: np.ndarray, inside: Callable[[np.ndarray], bool] | None = None
                     ) -> tuple[np.ndarray, float]:
     """``x0 + delta`` in the region (and ``inside``), delta = 5 % of the span, alternating signs.
 
@@ -249,7 +249,7 @@ def perturbed_start(plant: Any, x0: np.ndarray, inside: Callable[[np.ndarray], b
                          "the operating region" + (" and the TS domain" if inside else ""))
 
 
-def observer_convergence(plant: Any, estimator: BatchEstimator, x0: np.ndarray, u0: np.ndarray,
+def observer_convergence(plant: Plant, estimator: BatchEstimator, x0: np.ndarray, u0: np.ndarray,
                          tau: float, ts: float, *, conditioning: float = 1.0,
                          inside: Callable[[np.ndarray], bool] | None = None,
                          rule: str = "", substeps: int = 4, name: str = "observer_convergence",
@@ -331,7 +331,7 @@ def observer_convergence(plant: Any, estimator: BatchEstimator, x0: np.ndarray, 
                   "kappa": kappa, "ts": ts, "x_start": x_start.tolist(), "error_inf": err.tolist()})
 
 
-def luenberger_estimator(plant: Any, L: np.ndarray, x0: np.ndarray, u0: np.ndarray, ts: float,
+def luenberger_estimator(plant: Plant, L: np.ndarray, x0: np.ndarray, u0: np.ndarray, ts: float,
                          form: str) -> EstimatorAdapter:
     """The runtime's Luenberger observer on the model linearised at ``(x0, u0)``.
 
@@ -355,8 +355,6 @@ def luenberger_estimator(plant: Any, L: np.ndarray, x0: np.ndarray, u0: np.ndarr
     -------
     EstimatorAdapter
     """
-    from tanksynth.runtime.estimators.luenberger import LuenbergerObserver, LuenbergerTuning
-
     tuning = LuenbergerTuning(L=np.asarray(L, dtype=float), x0=np.asarray(x0, dtype=float),
                               ts=float(ts), form=form, operating_point=(x0, u0))
     return EstimatorAdapter(LuenbergerObserver(plant, tuning))
@@ -447,7 +445,7 @@ class IntegralStateFeedback:
         return u
 
 
-def servo_check(plant: Any, controller: Callable, x0: np.ndarray, u0: np.ndarray,
+def servo_check(plant: Plant, controller: Callable, x0: np.ndarray, u0: np.ndarray,
                 out_idx: Sequence[int], tau: float, ts: float, substeps: int = 4,
                 rule: str = "", *, trace: TraceRecorder | None = None) -> list[Check]:
     """``servo_tracking`` and ``bounded_inputs``: step the tracked set-points by 5 %.
@@ -512,7 +510,7 @@ def servo_check(plant: Any, controller: Callable, x0: np.ndarray, u0: np.ndarray
                   {"saturated_samples": saturated, "final_input": u[-1].tolist()})]
 
 
-def regulation_check(plant: Any, K: np.ndarray, x0: np.ndarray, u0: np.ndarray, tau: float,
+def regulation_check(plant: Plant, K: np.ndarray, x0: np.ndarray, u0: np.ndarray, tau: float,
                      ts: float, conditioning: float = 1.0, rule: str = "", *,
                      trace: TraceRecorder | None = None) -> Check:
     """``regulation``: ``u = u0 - K (x - x0)`` from ``x0 + delta`` back to ``x0``.

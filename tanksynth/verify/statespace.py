@@ -64,10 +64,16 @@ import warnings
 from pathlib import Path
 from typing import Any, Mapping
 
+import control
 import numpy as np
+from scipy.linalg import solve_discrete_are
 
+from tanksynth.analysis.linearize import equilibrium_input, linearize
 from tanksynth.analysis.statespace import model_names
 from tanksynth.errors import ArtefactError, TanksynthWarning
+from tanksynth.spec import Spec, parse_spec_text
+from tanksynth.verify.numerics import integral_augmentation
+from tanksynth.verify.takagi_sugeno.model import rebuild_model
 
 __all__ = ["artefact_statespace", "SYSTEMS", "DEFAULT_SYSTEM"]
 
@@ -89,7 +95,7 @@ _TS = ("ts_state_feedback", "ts_output_feedback")
 class _Artefact:
     """The artefact's gains as arrays, its diagnostics, names and (lazily) its spec."""
 
-    def __init__(self, doc: Mapping[str, Any], spec: Any, plant_record: Mapping[str, Any] | None,
+    def __init__(self, doc: Mapping[str, Any], spec: Spec, plant_record: Mapping[str, Any] | None,
                  source: Path | None):
         self.name = str(doc.get("name", "artefact"))
         self.method = str(doc.get("method", ""))
@@ -127,8 +133,6 @@ class _Artefact:
             if path is None or not path.is_file():
                 raise ArtefactError(f"{self.label}: no spec.toml beside it (or spec given), needed "
                                     f"to rebuild the plant of a {self.method!r} design")
-            from tanksynth.spec import parse_spec_text
-
             self._spec = parse_spec_text(path.read_bytes(), source=str(path))
         return self._spec
 
@@ -140,8 +144,6 @@ class _Artefact:
 
     def linearisation(self) -> Any:
         """The ZOH linearisation at the spec's operating point."""
-        from tanksynth.analysis.linearize import equilibrium_input, linearize
-
         spec = self.spec
         eq = equilibrium_input(spec.plant, spec.x0, spec.given_u0)
         return linearize(spec.plant, spec.x0, eq.u0, ts=spec.ts)
@@ -183,8 +185,6 @@ def _w_columns(a: _Artefact, Bw: np.ndarray) -> list[np.ndarray]:
 def _ss(a: _Artefact, system: str, A: np.ndarray, B: np.ndarray, C: np.ndarray, dt: float, *,
         states: list[str] | None = None, inputs: list[str] | None = None,
         outputs: list[str] | None = None) -> Any:
-    import control
-
     n = A.shape[0]
     D = np.zeros((C.shape[0], B.shape[1]))
     states = _fit(states if states is not None else a.names("states"), n, "x")
@@ -220,8 +220,6 @@ def _model(a: _Artefact, vertex: int | None) -> tuple[np.ndarray, np.ndarray, np
 def _augmented(a: _Artefact, A: np.ndarray, B: np.ndarray, C: np.ndarray, K: np.ndarray
                ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, list[str]]:
     """``Aa, Ba, Br, Ca`` and the tracked outputs of a loop with integral action."""
-    from tanksynth.verify.numerics import integral_augmentation
-
     n = A.shape[0]
     integral = a.diag.get("integral")
     if not isinstance(integral, Mapping) or ("C1" not in integral and "augmented_A" not in integral):
@@ -312,8 +310,6 @@ def _observer(a: _Artefact, system: str, vertex: int | None) -> Any:
 
 def _ts_memberships(a: _Artefact) -> tuple[np.ndarray, np.ndarray]:
     """``mu_i(x0)`` (the memberships at the operating point, premises at their limit slopes), ``C``."""
-    from tanksynth.verify.takagi_sugeno.verdicts import rebuild_model
-
     model = rebuild_model(a.spec.plant, a.doc)
     return model.memberships(model.x0[None, :])[0], np.atleast_2d(model.C)
 
@@ -351,8 +347,6 @@ def _ts_pdc(a: _Artefact, system: str) -> Any:
 
 
 def _kalman(a: _Artefact, system: str) -> Any:
-    from scipy.linalg import solve_discrete_are
-
     if system != "error":
         raise ArtefactError(f"{a.label}: a Kalman filter gives its steady-state error system "
                             f"('error'), not {system!r}")
@@ -397,7 +391,7 @@ def _integral_tracking(a: _Artefact, system: str) -> Any:
                inputs=[f"r_{t}" for t in tracked], outputs=tracked if len(tracked) == p else None)
 
 
-def artefact_statespace(doc: Mapping[str, Any], system: str | None = None, spec: Any = None, *,
+def artefact_statespace(doc: Mapping[str, Any], system: str | None = None, spec: Spec = None, *,
                         plant_record: Mapping[str, Any] | None = None, source: str | Path | None = None,
                         vertex: int | None = None) -> Any:
     """A closed loop, error system or observer of an artefact as a `control.StateSpace`.

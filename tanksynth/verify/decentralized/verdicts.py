@@ -8,7 +8,10 @@ import numpy as np
 
 from tanksynth.analysis.checks import Check
 from tanksynth.errors import ArtefactError
+from tanksynth.plants.base import Plant
+from tanksynth.sim.integrate import Integrator, param_arrays
 from tanksynth.sim.simulate import run_seeds, simulate
+from tanksynth.spec import Spec
 from tanksynth.verify.common import (artefact_gain, artefact_matrix, fmt, guard, operating_point,
                                      option)
 from tanksynth.verify.traces import TraceRecorder
@@ -36,7 +39,7 @@ class DecentralizedFilter:
         RK4 steps of the prediction.
     """
 
-    def __init__(self, plant: Any, gains: Sequence[np.ndarray], ts: float, substeps: int = 4):
+    def __init__(self, plant: Plant, gains: Sequence[np.ndarray], ts: float, substeps: int = 4):
         self.plant = plant
         self.gains = [np.asarray(K, dtype=float) for K in gains]
         self.ts = float(ts)
@@ -45,8 +48,6 @@ class DecentralizedFilter:
         self._k = 0
         # The simulator's own integrator, model, parameters and bounds, built once: one
         # `predict` is exactly the state `simulate(..., steps=1, u_init=u).x[:, 1]` returns.
-        from tanksynth.sim.integrate import Integrator, param_arrays
-
         self._params = param_arrays(plant, None, 1)
         self._integ = Integrator.for_plant(plant, self._params)
         self._u_lo = np.full(plant.m, -np.inf)
@@ -101,7 +102,7 @@ class DecentralizedFilter:
         return self._x
 
 
-def decentralized_kalman_verdict(doc: Mapping[str, Any], spec: Any, *,
+def decentralized_kalman_verdict(doc: Mapping[str, Any], spec: Spec, *,
                                  trace: TraceRecorder | None = None) -> list[Check]:
     """Verdict of a ``decentralized_kalman`` artefact (seed 003).
 

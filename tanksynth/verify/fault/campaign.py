@@ -26,8 +26,8 @@ from tanksynth.errors import ArtefactError
 from tanksynth.plants.base import Plant
 from tanksynth.sim.metrics import Metric, detection_metrics, timing_metrics
 from tanksynth.sim.scenarios import Scenario, run_scenario
-from tanksynth.verify.common import operating_point
-from tanksynth.verify.common import artefact_gain, design_options
+from tanksynth.spec import Spec
+from tanksynth.verify.common import artefact_gain, design_options, operating_point
 
 from tanksynth.verify.fault.verdicts import ResidualObserver
 
@@ -110,7 +110,7 @@ class DetectorRun:
         return out
 
 
-def fault_detection_run(doc: Mapping[str, Any], spec: Any) -> DetectorRun:
+def fault_detection_run(doc: Mapping[str, Any], spec: Spec) -> DetectorRun:
     """The residual test of a ``fault_detection`` artefact (stored ``Psi`` and threshold).
 
     Parameters

@@ -30,8 +30,8 @@ from tanksynth.sim.metrics import Metric, compute_metrics
 from tanksynth.sim.scenarios import Scenario, run_scenario
 from tanksynth.sim.simulate import BatchEstimator
 from tanksynth.spec import Spec
-from tanksynth.verify.common import (CasadiControlLaw, CasadiIntegralLaw, operating_point,
-                                     sampling_period)
+from tanksynth.verify.batch_call import CasadiControlLaw, CasadiIntegralLaw
+from tanksynth.verify.common import operating_point, sampling_period
 from tanksynth.verify.simulations import IntegralStateFeedback, StateFeedback  # noqa: F401 (re-export)
 
 __all__ = [
@@ -118,7 +118,7 @@ class InverseDynamicsLaw:
     The law is `tanksynth.runtime.laws.inverse_dynamics_law` (``u =
     G_c(x_hat)^-1 (c (r - x_hat_c) - f0_c(x_hat))``, nominal parameters,
     saturated to the pumps' range), evaluated on the M runs at once by
-    `tanksynth.verify.common.CasadiControlLaw`.
+    `tanksynth.verify.batch_call.CasadiControlLaw`.
 
     Attributes
     ----------

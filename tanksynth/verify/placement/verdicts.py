@@ -7,7 +7,10 @@ from typing import Any, Mapping
 import numpy as np
 
 from tanksynth.analysis.checks import Check
+from tanksynth.analysis.lmi_region import region_from_parts
 from tanksynth.analysis.rank import controllability_rank, observability_rank
+from tanksynth.spec import Spec
+from tanksynth.spec.options import parse_region
 from tanksynth.verify.common import (POLE_TOLERANCE, artefact_matrix, complex_list, fmt, guard,
                                      model_recheck, operating_point, option, output_rows,
                                      rank_check, region_check, region_lmi_check, stability_check,
@@ -53,7 +56,7 @@ def _pole_check(matrix: np.ndarray, requested: Any, what: str) -> Check:
                   "measure": ag.measure, "tolerance": POLE_TOLERANCE})
 
 
-def _placement_common(doc: Mapping[str, Any], spec: Any) -> dict:
+def _placement_common(doc: Mapping[str, Any], spec: Spec) -> dict:
     plant = spec.plant
     n, m, q = plant.n, plant.m, plant.q
     domain = time_domain(doc, spec)
@@ -95,7 +98,7 @@ def _placement_rank(c: dict) -> list[Check]:
     return checks
 
 
-def _placement_simulation(doc: Mapping[str, Any], spec: Any, c: dict,
+def _placement_simulation(doc: Mapping[str, Any], spec: Spec, c: dict,
                           trace: TraceRecorder | None) -> list[Check]:
     plant, domain, ts = c["plant"], c["domain"], c["ts"]
     tau, rule = designed_time_constant(doc, spec, c["eigs"], domain, ts)
@@ -127,7 +130,7 @@ def _placement_simulation(doc: Mapping[str, Any], spec: Any, c: dict,
                              eigenvector_conditioning(c["Acl"]), rule=rule, trace=trace)]
 
 
-def pole_placement_verdict(doc: Mapping[str, Any], spec: Any, *,
+def pole_placement_verdict(doc: Mapping[str, Any], spec: Spec, *,
                            trace: TraceRecorder | None = None) -> list[Check]:
     """Verdict of a ``pole_placement`` artefact (state feedback, integral action or observer).
 
@@ -155,7 +158,7 @@ def pole_placement_verdict(doc: Mapping[str, Any], spec: Any, *,
     return checks
 
 
-def lmi_placement_verdict(doc: Mapping[str, Any], spec: Any, *,
+def lmi_placement_verdict(doc: Mapping[str, Any], spec: Spec, *,
                           trace: TraceRecorder | None = None) -> list[Check]:
     """Verdict of an ``lmi_placement`` artefact.
 
@@ -169,9 +172,6 @@ def lmi_placement_verdict(doc: Mapping[str, Any], spec: Any, *,
     doc, spec, trace : mapping, Spec, TraceRecorder or None
         The artefact, the validated spec and a recorder of the simulated runs.
     """
-    from tanksynth.analysis.lmi_region import region_from_parts
-    from tanksynth.spec.options import parse_region
-
     c = _placement_common(doc, spec)
     size = c["Acl"].shape[0]
     checks = [model_recheck(c["plant"], c["x0"], c["u0"], c["domain"], c["ts"],
@@ -195,7 +195,7 @@ def lmi_placement_verdict(doc: Mapping[str, Any], spec: Any, *,
     return checks
 
 
-def canonical_observer_verdict(doc: Mapping[str, Any], spec: Any, *,
+def canonical_observer_verdict(doc: Mapping[str, Any], spec: Spec, *,
                                trace: TraceRecorder | None = None) -> list[Check]:
     """Verdict of a ``canonical_observer`` artefact (seed 004 eq. 27-29).
 

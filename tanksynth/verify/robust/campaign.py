@@ -17,7 +17,8 @@ from tanksynth.verify.common import (artefact_matrix, operating_point, option, s
                                      time_domain)
 from tanksynth.verify.estimation import EstimatorRun
 from tanksynth.verify.laws.campaign import ClosedLoop
-from tanksynth.verify.robust.verdicts import robust_feedback_law, uncertain_box
+from tanksynth.verify.robust.models import uncertain_box
+from tanksynth.verify.robust.verdicts import robust_feedback_law
 from tanksynth.verify.simulations import luenberger_estimator
 
 __all__ = ["RobustClosedLoop", "RobustObserverRun", "robust_state_feedback_run", "robust_observer_run"]

@@ -41,9 +41,8 @@ from tanksynth.analysis.lmi_region import region_from_parts
 from tanksynth.errors import ArtefactError
 from tanksynth.sim.simulate import run_seeds, simulate
 from tanksynth.spec import Spec
-from tanksynth.spec.method_options.robust import parse_uncertain
 from tanksynth.spec.options import parse_region
-from tanksynth.verify.robust.models import linear_models
+from tanksynth.verify.robust.models import box_corners, box_samples, linear_models, uncertain_box
 from tanksynth.verify.robust.traces import PeakRecordingLaw, record_monte_carlo
 from tanksynth.verify.common import (MAX_STEPS, OBSERVER_TOLERANCE, artefact_matrix, fmt, guard,
                                      model_recheck, option, stability_check, time_domain)
@@ -51,7 +50,7 @@ from tanksynth.verify.numerics import integral_augmentation, region_lmi_matrix
 from tanksynth.verify.simulations import (IntegralStateFeedback, StateFeedback, designed_time_constant,
                                           eigen_time_constant, eigenvector_conditioning, observer_period, perturbed_start)
 
-__all__ = ["SATURATION_TOLERANCE", "hinf_norm", "uncertain_box", "robust_feedback_law",
+__all__ = ["SATURATION_TOLERANCE", "hinf_norm", "robust_feedback_law",
            "robust_state_feedback_verdict", "robust_observer_verdict"]
 
 #: Relative excess of ``|u - u0|`` over ``umax`` tolerated on the nonlinear plant.
@@ -139,40 +138,6 @@ def _models(spec: Spec, box: Sequence[Sequence[Any]], values: np.ndarray, domain
     return out
 
 
-def _corners(box: Sequence[Sequence[Any]]) -> np.ndarray:
-    if not box:
-        return np.zeros((1, 0))
-    return np.array(list(itertools.product(*[(float(b[1]), float(b[2])) for b in box])))
-
-
-def uncertain_box(doc: Mapping[str, Any], spec: Spec) -> list[tuple[str, float, float]]:
-    """The design's uncertain parameters and their intervals (option ``uncertain``).
-
-    Parameters
-    ----------
-    doc : mapping
-        The artefact.
-    spec : Spec
-        The validated spec (or one read without its methods: the option as written is parsed).
-
-    Returns
-    -------
-    list of (str, float, float)
-        Parameter name, lower and upper bound (the parameter's units).
-    """
-    raw = option(doc, spec, "uncertain", ())
-    if isinstance(raw, Mapping):  # a spec read without its methods (campaign workers): as written
-        raw = parse_uncertain(raw, "uncertain", spec.plant)
-    return [(str(b[0]), float(b[1]), float(b[2])) for b in raw]
-
-
-def _sample(box: Sequence[Sequence[Any]], count: int, seed: int) -> np.ndarray:
-    rng = np.random.default_rng([int(seed), 20261201])
-    lo = np.array([b[1] for b in box], dtype=float)
-    hi = np.array([b[2] for b in box], dtype=float)
-    return lo + rng.random((count, len(box))) * (hi - lo)
-
-
 def _label(params: Mapping[str, float]) -> str:
     return ", ".join(f"{k} = {v:.6g}" for k, v in params.items()) or "nominal"
 
@@ -189,7 +154,7 @@ def _context(doc: Mapping[str, Any], spec: Spec, observer: bool) -> dict:
     box = uncertain_box(doc, spec)
     Bw = option(doc, spec, "Bw")
     Bw = ("identity" if observer else "inputs") if Bw is None else np.asarray(Bw, dtype=float)
-    corners = _corners(box)
+    corners = box_corners(box)
     models = _models(spec, box, corners, domain, Bw)
     if box:
         models += _models(spec, (), np.zeros((1, 0)), domain, Bw)
@@ -318,7 +283,7 @@ def _sampled_check(doc: Mapping[str, Any], spec: Spec, c: dict) -> list[Check]:
         return [Check("sampled_region", None, "no uncertain parameter: nothing to sample")]
     count = int(option(doc, spec, "samples", 200))
     seed = int(option(doc, spec, "seed", 0))
-    values = _sample(c["box"], count, seed)
+    values = box_samples(c["box"], count, seed)
     models = _models(spec, c["box"], values, c["domain"], c["Bw"])
     loops = _closed_loops(c, spec, models)
     region = c["region"]
@@ -408,7 +373,7 @@ def _mc_feedback(doc: Mapping[str, Any], spec: Spec, c: dict, trace: Any = None)
     H, k_h, steps, rule = _horizon(doc, spec, c, ts)
     if steps > 10 * MAX_STEPS:
         return [_too_stiff(c, spec, ts, H, steps, rule)]
-    values = _sample(c["box"], runs, seed + 1) if c["box"] else np.zeros((runs, 0))
+    values = box_samples(c["box"], runs, seed + 1) if c["box"] else np.zeros((runs, 0))
     params = {b[0]: values[:, j] for j, b in enumerate(c["box"])}
     x_start, frac = perturbed_start(plant, c["x0"])
     law = _law(c, ts)
@@ -577,7 +542,7 @@ def _mc_observer(doc: Mapping[str, Any], spec: Spec, c: dict, trace: Any = None)
     tau, _ = designed_time_constant(doc, spec, eigs, c["domain"], spec.ts)
     ts = observer_period(c["domain"], spec.ts, tau)
     H, k_h, steps, rule = _horizon(doc, spec, c, ts)
-    values = _sample(c["box"], runs, seed + 1) if c["box"] else np.zeros((runs, 0))
+    values = box_samples(c["box"], runs, seed + 1) if c["box"] else np.zeros((runs, 0))
     models = _models(spec, c["box"], values, "continuous", "identity")
     L = c["L"]
     Phi, Gam, U0 = [], [], []

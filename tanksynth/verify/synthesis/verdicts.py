@@ -43,9 +43,13 @@ import scipy.linalg as sla
 import sympy as sp
 
 from tanksynth.analysis.checks import Check
+from tanksynth.analysis.linearize import linearize
+from tanksynth.analysis.lmi_region import LMIRegion, region_from_parts
 from tanksynth.analysis.rank import controllability_rank, observability_rank
-from tanksynth.plants.base import Quantity
+from tanksynth.plants.base import Plant, Quantity
 from tanksynth.sim.simulate import InputSequence, run_seeds, simulate
+from tanksynth.spec import Spec
+from tanksynth.spec.options import parse_region
 from tanksynth.verify.common import (MAX_STEPS, artefact_matrix, fmt, guard, model_recheck,
                                      operating_point, option, rank_check, region_check,
                                      region_lmi_check, relative_difference, stability_check,
@@ -172,7 +176,7 @@ def _riccati_h2(c: dict) -> float:
 
 
 # ============================================================================ reading
-def _read(doc: Mapping[str, Any], spec: Any) -> dict:
+def _read(doc: Mapping[str, Any], spec: Spec) -> dict:
     plant = spec.plant
     n, m, q = plant.n, plant.m, plant.q
     domain = time_domain(doc, spec)
@@ -201,7 +205,7 @@ def _read(doc: Mapping[str, Any], spec: Any) -> dict:
     return out
 
 
-def _data_check(doc: Mapping[str, Any], spec: Any, c: dict) -> Check:
+def _data_check(doc: Mapping[str, Any], spec: Spec, c: dict) -> Check:
     """Stored Bw, Cz, Dzu / Dv against the spec's options (validated values)."""
     Bw_c = np.asarray(option(doc, spec, "Bw"), float)
     std = np.asarray(option(doc, spec, "disturbance_std"), float)
@@ -225,8 +229,6 @@ def _data_check(doc: Mapping[str, Any], spec: Any, c: dict) -> Check:
 
 
 def _continuous_F(c: dict) -> np.ndarray:
-    from tanksynth.analysis.linearize import linearize
-
     return linearize(c["plant"], c["x0"], c["u0"]).F
 
 
@@ -292,10 +294,7 @@ def _norm_checks(doc: Mapping[str, Any], c: dict) -> list[Check]:
     return checks
 
 
-def _region_checks(doc: Mapping[str, Any], spec: Any, c: dict) -> list[Check]:
-    from tanksynth.analysis.lmi_region import region_from_parts
-    from tanksynth.spec.options import parse_region
-
+def _region_checks(doc: Mapping[str, Any], spec: Spec, c: dict) -> list[Check]:
     raw = option(doc, spec, "region")
     if raw is None:
         return [Check("region", None, "the spec entry of this artefact gives no region")]
@@ -309,7 +308,7 @@ def _region_checks(doc: Mapping[str, Any], spec: Any, c: dict) -> list[Check]:
 
 
 # ======================================================================= simulations
-def disturbance_plant(plant: Any, Bw: np.ndarray) -> Any:
+def disturbance_plant(plant: Plant, Bw: np.ndarray) -> Any:
     """The plant with the disturbances as extra (unbounded) inputs: ``f(x, u) + Bw w``.
 
     Parameters
@@ -388,7 +387,7 @@ class _SliceInput:
         return self.est.run(Y, U[..., : self.m])
 
 
-def _disturbance_step(doc: Mapping[str, Any], spec: Any, c: dict,
+def _disturbance_step(doc: Mapping[str, Any], spec: Spec, c: dict,
                       trace: TraceRecorder | None) -> Check:
     plant, dt, x0, u0 = c["plant"], c["dt"], c["x0"], c["u0"]
     n = plant.n
@@ -489,7 +488,7 @@ def _disturbance_step(doc: Mapping[str, Any], spec: Any, c: dict,
                   "return_tolerance": tol_off, "ts": ts_sim, "phase_samples": phase})
 
 
-def _simulations(doc: Mapping[str, Any], spec: Any, c: dict, trace: TraceRecorder | None) -> list[Check]:
+def _simulations(doc: Mapping[str, Any], spec: Spec, c: dict, trace: TraceRecorder | None) -> list[Check]:
     plant, dt, x0, u0 = c["plant"], c["dt"], c["x0"], c["u0"]
     tau = slowest_time_constant(c["eigs"], c["domain"], dt)
     kappa = eigenvector_conditioning(c["Acl"])
@@ -510,7 +509,7 @@ def _simulations(doc: Mapping[str, Any], spec: Any, c: dict, trace: TraceRecorde
     return [first] + guard("disturbance_step", lambda: [_disturbance_step(doc, spec, c, trace)])
 
 
-def synthesis_verdict(doc: Mapping[str, Any], spec: Any, *,
+def synthesis_verdict(doc: Mapping[str, Any], spec: Spec, *,
                       trace: TraceRecorder | None = None) -> list[Check]:
     """Verdict of an H2 / H-infinity / multi-objective artefact (controller or observer).
 
