@@ -42,9 +42,9 @@ class BatchCall:
         self._out = self._outs[0]
         self._buf, self._run = self.mapped.buffer()
         for i, a in enumerate(self._args):
-            self._buf.set_arg(i, memoryview(a))
+            self._buf.set_arg(i, a.data)
         for j, r in enumerate(self._outs):
-            self._buf.set_res(j, memoryview(r))
+            self._buf.set_res(j, r.data)
 
     @staticmethod
     def fits(fn: Any) -> bool:

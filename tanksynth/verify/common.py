@@ -107,7 +107,7 @@ __all__ = [
     "MODEL_TOLERANCE", "POLE_TOLERANCE", "OBSERVER_TIME_CONSTANTS", "OBSERVER_TOLERANCE",
     "SERVO_TIME_CONSTANTS", "SERVO_TOLERANCE", "PERTURBATION", "MAX_STEPS", "NUMERIC_ERRORS",
     "CONTINUOUS_TS", "artefact_gain", "artefact_matrix", "design_options", "option",
-    "operating_point", "sampling_period", "discrete_ts",
+    "operating_point", "sampling_period", "discrete_ts", "required_ts",
     "time_domain", "tracked_outputs", "output_rows", "output_at",
     "one_line", "guard", "fmt", "fmt_signals", "complex_list", "relative_difference",
     "model_recheck", "pole_check", "stability_check", "region_check", "region_lmi_check",
@@ -279,10 +279,26 @@ def discrete_ts(spec: Spec) -> float:
     ArtefactError
         The spec has no sampling period (no discrete-time design can come from it).
     """
-    if spec.ts is None:
+    return required_ts(spec.ts)
+
+
+def required_ts(ts: float | None) -> float:
+    """A sampling period that a discrete-time computation needs (s).
+
+    Parameters
+    ----------
+    ts : float or None
+        The sampling period [s]; None where the spec gives none.
+
+    Raises
+    ------
+    ArtefactError
+        ``ts`` is None: no discrete-time model (or design) exists without it.
+    """
+    if ts is None:
         raise ArtefactError("the spec has no sampling period [sampling] ts: a discrete-time "
                             "artefact cannot be verified against it")
-    return float(spec.ts)
+    return float(ts)
 
 
 def time_domain(doc: Mapping[str, Any], spec: Spec) -> str:
@@ -433,7 +449,7 @@ def relative_difference(a: np.ndarray, b: np.ndarray) -> float:
     a, b : ndarray
         Arrays of the same shape and units.
     """
-    return float(np.linalg.norm(a - b) / max(np.linalg.norm(b), 1e-300))
+    return float(np.linalg.norm(a - b) / max(float(np.linalg.norm(b)), 1e-300))
 
 
 # ========================================================================== re-checks
@@ -451,9 +467,10 @@ def model_recheck(plant: Plant, x0: np.ndarray, u0: np.ndarray, domain: str, ts:
         ``"continuous"``/``"discrete"``, sampling period [s], the artefact's model by role
         (``"A"``, ``"B"``, ``"C"``; stored as ``F, B, C`` or ``Ad, Bd, C``: `model_names`).
     """
-    lin = linearize(plant, x0, u0, ts=ts if domain == "discrete" else None)
-    ref = {"A": lin.Ad if domain == "discrete" else lin.F,
-           "B": lin.Bd if domain == "discrete" else lin.B, "C": lin.C}
+    lin = linearize(plant, x0, u0, ts=required_ts(ts) if domain == "discrete" else None)
+    A, B = (lin.Ad, lin.Bd) if domain == "discrete" else (lin.F, lin.B)
+    assert A is not None and B is not None  # ts given: linearize discretised
+    ref = {"A": A, "B": B, "C": lin.C}
     diffs = {}
     for name, mat in stored.items():
         r = ref[name]

@@ -24,8 +24,7 @@ from tanksynth.spec import Spec
 from tanksynth.spec.options import parse_poles, parse_region
 from tanksynth.verify.common import (MAX_STEPS, OBSERVER_TIME_CONSTANTS, OBSERVER_TOLERANCE,
                                      PERTURBATION, SERVO_TIME_CONSTANTS, SERVO_TOLERANCE,
-                                     fmt_signals,
-                                     option, output_at)
+                                     discrete_ts, fmt_signals, option, output_at, required_ts)
 from tanksynth.verify.traces import TraceRecorder
 
 __all__ = [
@@ -55,8 +54,8 @@ def slowest_time_constant(eigs: np.ndarray, domain: str, ts: float | None) -> fl
         if not rho < 1:
             return math.inf
         if rho == 0:
-            return float(ts)
-        return float(-ts / math.log(rho))
+            return required_ts(ts)
+        return float(-required_ts(ts) / math.log(rho))
     slow = float(np.min(-eigs.real))
     return 1.0 / slow if slow > 0 else math.inf
 
@@ -71,7 +70,7 @@ def fastest_rate(eigs: np.ndarray, domain: str, ts: float | None) -> float:
     """
     eigs = np.asarray(eigs, dtype=complex)
     if domain == "discrete":
-        return 1.0 / float(ts)
+        return 1.0 / required_ts(ts)
     return float(np.max(np.abs(eigs)))
 
 
@@ -108,7 +107,7 @@ def region_time_constant(region: Any, domain: str, ts: float | None) -> float:
                 best = min(best, 1.0 / rate)
         elif part[0] == "disk" and abs(part[1]) + part[2] < 1:
             rho = abs(part[1]) + part[2]
-            best = min(best, float(ts) if rho == 0 else -float(ts) / math.log(rho))
+            best = min(best, required_ts(ts) if rho == 0 else -required_ts(ts) / math.log(rho))
     return best
 
 
@@ -136,7 +135,7 @@ def requested_poles(doc: Mapping[str, Any], spec: Spec, domain: str) -> np.ndarr
     given = option(doc, spec, "pole_domain")
     values = np.asarray(parse_poles(poles, "poles"), dtype=complex)
     if given == "s" and domain == "discrete":
-        values = np.exp(values * float(spec.ts))
+        values = np.exp(values * discrete_ts(spec))
     return values
 
 
@@ -192,7 +191,7 @@ def observer_period(domain: str, spec_ts: float | None, tau: float) -> float:
         Time domain, the spec's sampling period [s], the observer's time constant [s].
     """
     if domain == "discrete":
-        return float(spec_ts)
+        return required_ts(spec_ts)
     step = tau / 20.0
     return float(min(spec_ts, step)) if spec_ts else float(step)
 

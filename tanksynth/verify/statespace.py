@@ -95,7 +95,7 @@ _TS = ("ts_state_feedback", "ts_output_feedback")
 class _Artefact:
     """The artefact's gains as arrays, its diagnostics, names and (lazily) its spec."""
 
-    def __init__(self, doc: Mapping[str, Any], spec: Spec, plant_record: Mapping[str, Any] | None,
+    def __init__(self, doc: Mapping[str, Any], spec: Spec | None, plant_record: Mapping[str, Any] | None,
                  source: Path | None):
         self.name = str(doc.get("name", "artefact"))
         self.method = str(doc.get("method", ""))
@@ -111,6 +111,13 @@ class _Artefact:
     @property
     def discrete(self) -> bool:
         return self.diag.get("time_domain", "discrete") == "discrete"
+
+    def need(self, key: str) -> np.ndarray:
+        """Gain ``key`` as `g` reads it; an `ArtefactError` naming it when the artefact lacks it."""
+        value = self.g(key)
+        if value is None:
+            raise ArtefactError(f"{self.label}: no gain {key!r}")
+        return value
 
     def model(self, role: str) -> np.ndarray | None:
         """The model matrix ``role`` (``"A"``, ``"B"``, ``"Bw"``, ``"C"``) under its name (`model_names`)."""
@@ -209,7 +216,8 @@ def _model(a: _Artefact, vertex: int | None) -> tuple[np.ndarray, np.ndarray, np
         count = len(vm["A"])
         if not isinstance(vertex, int) or not 0 <= vertex < count:
             raise ArtefactError(f"{a.label}: vertex must be an integer in [0, {count - 1}], got {vertex!r}")
-        return tuple(np.atleast_2d(np.asarray(vm[k][vertex], dtype=float)) for k in ("A", "B", "C"))
+        stored = [np.atleast_2d(np.asarray(vm[k][vertex], dtype=float)) for k in ("A", "B", "C")]
+        return stored[0], stored[1], stored[2]
     A, B, C = (a.model(k) for k in ("A", "B", "C"))
     if A is not None and B is not None and C is not None and A.ndim == 2:
         return A, B, C
@@ -245,7 +253,7 @@ def _augmented(a: _Artefact, A: np.ndarray, B: np.ndarray, C: np.ndarray, K: np.
 
 
 def _controller(a: _Artefact, system: str, vertex: int | None) -> Any:
-    K = a.g("K")
+    K = a.need("K")
     A, B, C = _model(a, vertex)
     n, dt = A.shape[0], a.dt(a.discrete)
     states, inputs, outputs = a.names("states"), a.names("inputs"), a.names("outputs")
@@ -279,7 +287,7 @@ def _controller(a: _Artefact, system: str, vertex: int | None) -> Any:
 
 
 def _observer(a: _Artefact, system: str, vertex: int | None) -> Any:
-    L = a.g("L")
+    L = a.need("L")
     A, B, C = _model(a, vertex)
     discrete = a.discrete and a.method != "canonical_observer"
     dt, n = a.dt(discrete), A.shape[0]
@@ -319,7 +327,7 @@ def _ts_pdc(a: _Artefact, system: str) -> Any:
         raise ArtefactError(f"{a.label}: a Takagi-Sugeno PDC design gives its linearisation at the "
                             f"operating point, system 'closed_loop' (or 'error' for "
                             f"ts_output_feedback), not {system!r}")
-    Ai, B, Ki = a.gains["F"], a.g("B"), a.gains["K"]
+    Ai, B, Ki = a.gains["F"], a.need("B"), a.gains["K"]
     if Ai.ndim != 3 or Ki.ndim != 3 or Ai.shape[0] != Ki.shape[0]:
         raise ArtefactError(f"{a.label}: expected vertex matrices F (r, n, n) and PDC gains K "
                             f"(r, m, n), got F {Ai.shape}, K {Ki.shape}")
@@ -352,14 +360,14 @@ def _kalman(a: _Artefact, system: str) -> Any:
                             f"('error'), not {system!r}")
     g = a.gains
     if "Ad" in g and "C" in g:
-        Ad, C = a.g("Ad"), a.g("C")
+        Ad, C = a.need("Ad"), a.need("C")
     else:
         lin = a.linearisation()
         Ad, C = lin.Ad, lin.C
-    Q = a.g("Q0") if "Q0" in g else a.g("Q")
+    Q = a.need("Q0") if "Q0" in g else a.need("Q")
     if a.method == "adaptive_scaling_kalman" and "G" in g:
-        Q = a.g("G") @ Q @ a.g("G").T
-    R = a.g("R")
+        Q = a.need("G") @ Q @ a.need("G").T
+    R = a.need("R")
     P = solve_discrete_are(Ad.T, C.T, Q, R)     # predicted covariance
     K = P @ C.T @ np.linalg.inv(C @ P @ C.T + R)
     return _error(a, system, (np.eye(Ad.shape[0]) - K @ C) @ Ad, Ad @ K, a.dt(True))
@@ -368,7 +376,7 @@ def _kalman(a: _Artefact, system: str) -> Any:
 def _luenberger(a: _Artefact, system: str) -> Any:
     if system != "error":
         raise ArtefactError(f"{a.label}: luenberger gives its error system ('error'), not {system!r}")
-    lin, L, form = a.linearisation(), a.g("L"), a.diag.get("form")
+    lin, L, form = a.linearisation(), a.need("L"), a.diag.get("form")
     if form == "continuous":
         return _error(a, system, lin.F - L @ lin.C, L, 0)
     if form == "predictor":
@@ -379,7 +387,7 @@ def _luenberger(a: _Artefact, system: str) -> Any:
 def _integral_tracking(a: _Artefact, system: str) -> Any:
     if system not in ("closed_loop", "reference"):
         raise ArtefactError(f"{a.label}: integral_tracking gives its closed loop, not {system!r}")
-    lin, C1, K = a.linearisation(), a.g("C1"), a.g("K")
+    lin, C1, K = a.linearisation(), a.need("C1"), a.need("K")
     n, p, ts = lin.Ad.shape[0], C1.shape[0], a.dt(True)
     # x+ = Ad x + Bd u, z+ = z + ts (r - C1 x), u = -K1 x - K2 z (deviations, no saturation)
     Aa = np.block([[lin.Ad, np.zeros((n, p))], [-ts * C1, np.eye(p)]])
@@ -391,7 +399,7 @@ def _integral_tracking(a: _Artefact, system: str) -> Any:
                inputs=[f"r_{t}" for t in tracked], outputs=tracked if len(tracked) == p else None)
 
 
-def artefact_statespace(doc: Mapping[str, Any], system: str | None = None, spec: Spec = None, *,
+def artefact_statespace(doc: Mapping[str, Any], system: str | None = None, spec: Spec | None = None, *,
                         plant_record: Mapping[str, Any] | None = None, source: str | Path | None = None,
                         vertex: int | None = None) -> Any:
     """A closed loop, error system or observer of an artefact as a `control.StateSpace`.
@@ -442,7 +450,7 @@ def artefact_statespace(doc: Mapping[str, Any], system: str | None = None, spec:
     if method == "linearize":
         if system not in (None, "model"):
             raise ArtefactError(f"{a.label}: linearize gives its model ('model'), not {system!r}")
-        return _ss(a, "model", a.g("Ad"), a.g("Bd"), a.g("C"), a.dt(True), inputs=a.names("inputs"),
+        return _ss(a, "model", a.need("Ad"), a.need("Bd"), a.need("C"), a.dt(True), inputs=a.names("inputs"),
                    outputs=a.names("outputs"))
     if method in _TS:
         return _ts_pdc(a, system or "closed_loop")
@@ -453,7 +461,7 @@ def artefact_statespace(doc: Mapping[str, Any], system: str | None = None, spec:
     if method == "ts_observer":
         if system not in (None, "error"):
             raise ArtefactError(f"{a.label}: ts_observer gives its error system ('error'), not {system!r}")
-        return _error(a, "error", a.g("A0") - a.g("L") @ a.g("C"), a.g("L"), 0)
+        return _error(a, "error", a.need("A0") - a.need("L") @ a.need("C"), a.need("L"), 0)
     if method == "integral_tracking":
         return _integral_tracking(a, system or "closed_loop")
     if method == "luenberger":

@@ -133,6 +133,7 @@ def _dare_error(spec: Spec, op: tuple[np.ndarray, np.ndarray] | None, Q: np.ndar
     x_op, u_op = op if op is not None else operating_point(spec)
     lin = linearize(spec.plant, x_op, u_op, ts=discrete_ts(spec))
     Ad, C = lin.Ad, np.vstack([lin.C] * sensors)
+    assert Ad is not None  # linearised with ts: discretised
     P = sla.solve_discrete_are(Ad.T, C.T, 0.5 * (Q + Q.T), R)
     K = P @ C.T @ np.linalg.inv(C @ P @ C.T + R)
     return (np.eye(spec.plant.n) - K @ C) @ Ad
@@ -303,7 +304,7 @@ def _kalman_rechecks(doc: Mapping[str, Any], spec: Spec) -> list[Check]:
                              {"A": Ad, "B": Bd, "C": C})]
     S = C @ P @ C.T + R
     res = Ad @ P @ Ad.T - Ad @ P @ C.T @ np.linalg.solve(S, C @ P @ Ad.T) + Q - P
-    rr = float(np.linalg.norm(res) / max(np.linalg.norm(P), 1e-300))
+    rr = float(np.linalg.norm(res) / max(float(np.linalg.norm(P)), 1e-300))
     kk = relative_difference(K, P @ C.T @ np.linalg.inv(S))
     pmin = float(np.min(np.linalg.eigvalsh(0.5 * (P + P.T))))
     checks.append(Check("riccati_recheck", bool(rr <= 1e-8 and kk <= 1e-8 and pmin > 0),

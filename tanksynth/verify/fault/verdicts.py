@@ -514,7 +514,7 @@ def fault_detection_verdict(doc: Mapping[str, Any], spec: Spec, *,
         worst_pre = float(np.max(np.where(pre_fault, margin[R:], -np.inf)))
         slack = FAULT_SLACK * float(np.interp(t_skip, t, thr))
         ok_h = bool(worst_h <= slack and worst_pre <= slack and np.all(np.isfinite(r)))
-        detect = []
+        detect: list[float | None] = []
         for i in range(R, 2 * R):
             idx = np.flatnonzero((t > t_f) & (margin[i] > 0))
             if idx.size == 0:

@@ -207,6 +207,8 @@ class ArtefactIntegralLaw(ArtefactLaw):
     signature : str
     """
 
+    _law: CasadiIntegralLaw
+
     def __init__(self, function: Any, signature: str = ""):
         self.function = function
         self.signature = signature

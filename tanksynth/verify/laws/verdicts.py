@@ -21,7 +21,8 @@ from tanksynth.spec import Spec
 from tanksynth.spec.options import parse_poles
 from tanksynth.verify.batch_call import CasadiControlLaw, CasadiIntegralLaw
 from tanksynth.verify.common import (MAX_STEPS, MODEL_TOLERANCE, PERTURBATION, artefact_gain,
-                                     artefact_matrix, fmt, guard, option, output_at, output_rows,
+                                     artefact_matrix, discrete_ts, fmt, guard, option, output_at,
+                                     output_rows,
                                      pole_check, rank_check, relative_difference, stability_check,
                                      tracked_outputs)
 from tanksynth.verify.numerics import integral_augmentation
@@ -70,7 +71,7 @@ def integral_tracking_verdict(doc: Mapping[str, Any], spec: Spec, *,
     x0 = artefact_gain(doc, "x_op").reshape(n)
     u0 = artefact_gain(doc, "u_op").reshape(m)
     limits = artefact_matrix(doc, "input_limits", (m, 2))
-    ts = float(spec.ts)
+    ts = discrete_ts(spec)
     checks = []
     residual = plant.compiled.rhs(x0[None], u0[None])[0]
     scale = float(np.max(np.abs(plant.compiled.rhs(x0[None], np.zeros((1, m)))[0]))) or 1.0
@@ -309,7 +310,7 @@ def inverse_dynamics_verdict(doc: Mapping[str, Any], spec: Spec, *,
 
     def servo() -> list[Check]:
         sc = scenario("servo")
-        ts = float(spec.ts)
+        ts = discrete_ts(spec)
         setup = sc.setup(plant, x0, u0, tuple(idx), ts=ts)
         res = run_scenario(setup, plant, ts=ts, seeds=run_seeds(0, 2),
                            controller=CasadiControlLaw(built.law), substeps=4)

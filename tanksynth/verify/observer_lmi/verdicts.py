@@ -67,7 +67,7 @@ class TSObserver:
         n = self.A0.shape[0]
         self._phi, self._gamma = discretize_zoh(self.A0 - self.L @ self.C, np.eye(n),
                                                 float(ts) / self.substeps)
-        self._x: np.ndarray | None = None
+        self._x: np.ndarray = np.empty((0, n))    # set by reset
         self._y: np.ndarray | None = None
         f = getattr(model, "casadi_rhs", None)
         self._period = None if f is None else self._compiled_period(f)
@@ -187,11 +187,12 @@ def _ts_model_from_artefact(doc: Mapping[str, Any], spec: Spec) -> tuple[TSModel
         return None, [Check("ts_model_rebuilt", None,
                             "cannot rebuild the TS observer (eq. 20): the artefact's diagnostics lack "
                             + ", ".join(missing))]
+    premises: list[Mapping[str, Any]] = prem if isinstance(prem, list) else []
     W, domain, pb = recorded_ts_parts(plant, rec)
     qlpv = quasi_lpv(plant, W)
-    atoms_rec = [str(p.get("atom")) for p in prem]
+    atoms_rec = [str(p.get("atom")) for p in premises]
     atoms_new = [str(a) for a in qlpv.atoms]
-    inc_rec = np.array([p.get("incidence", [np.nan] * plant.n) for p in prem], dtype=float).T
+    inc_rec = np.array([p.get("incidence", [np.nan] * plant.n) for p in premises], dtype=float).T
     same = atoms_rec == atoms_new and inc_rec.shape == qlpv.incidence.shape and \
         bool(np.allclose(inc_rec, qlpv.incidence, rtol=0, atol=1e-12))
     lower, upper = pb.lower, pb.upper
@@ -290,7 +291,7 @@ def ts_observer_verdict(doc: Mapping[str, Any], spec: Spec, *,
     checks.append(stability_check(eigs, "continuous", what))
     checks += guard("local_error_dynamics", lambda: [_local_error_check(spec, L, C)])
     checks.append(rank_check("rank_observability", observability_rank(A0, C), "(A0, C)"))
-    if model is not None and model.enumerated:
+    if model is not None and model.enumerated and model.A is not None:
         ranks = [observability_rank(Ai, C) for Ai in model.A]
         bad = [i + 1 for i, r in enumerate(ranks) if not r.full]
         checks.append(Check("rank_observability_vertices", not bad,

@@ -13,8 +13,8 @@ from tanksynth.spec import Spec
 from tanksynth.spec.options import parse_region
 from tanksynth.verify.common import (POLE_TOLERANCE, artefact_matrix, complex_list, fmt, guard,
                                      model_recheck, operating_point, option, output_rows,
-                                     rank_check, region_check, region_lmi_check, stability_check,
-                                     time_domain, tracked_outputs)
+                                     rank_check, region_check, region_lmi_check, required_ts,
+                                     stability_check, time_domain, tracked_outputs)
 from tanksynth.verify.numerics import integral_augmentation, pole_agreement
 from tanksynth.verify.simulations import (IntegralStateFeedback, designed_time_constant, requested_poles,
                                           eigenvector_conditioning, fastest_rate,
@@ -68,7 +68,7 @@ def _placement_common(doc: Mapping[str, Any], spec: Spec) -> dict:
     gains = doc["gains"]
     target = "observer" if "L" in gains else "state_feedback"
     integral = "K1" in gains and "K2" in gains
-    out = dict(plant=plant, domain=domain, ts=ts, A=A, B=B, C=C, x0=x0, u0=u0, target=target,
+    out: dict[str, Any] = dict(plant=plant, domain=domain, ts=ts, A=A, B=B, C=C, x0=x0, u0=u0, target=target,
                integral=integral)
     if target == "observer":
         L = artefact_matrix(doc, "L", (n, q))
@@ -78,7 +78,7 @@ def _placement_common(doc: Mapping[str, Any], spec: Spec) -> dict:
         rows = output_rows(plant, names)
         C1 = C[rows]
         K = artefact_matrix(doc, "K", (m, n + len(rows)))
-        Aa, Ba = integral_augmentation(A, B, C1, float(ts) if domain == "discrete" else None)
+        Aa, Ba = integral_augmentation(A, B, C1, required_ts(ts) if domain == "discrete" else None)
         out.update(K=K, C1=C1, rows=rows, tracked=names, Aa=Aa, Ba=Ba, Acl=Aa - Ba @ K,
                    what="the augmented closed loop Aa - Ba K")
     else:

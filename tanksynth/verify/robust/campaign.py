@@ -37,7 +37,7 @@ def _draws(box: Sequence[tuple[str, float, float]], seeds: Sequence[int]) -> np.
 def _sampled_setup(sc: Scenario, setup: ScenarioSetup, box: Sequence[tuple[str, float, float]],
                    seeds: Sequence[int]) -> tuple[Any, np.ndarray]:
     draws = _draws(box, seeds)
-    params = {**dict(setup.parameters), **{b[0]: draws[:, j] for j, b in enumerate(box)}}
+    params: dict[str, Any] = {**dict(setup.parameters), **{b[0]: draws[:, j] for j, b in enumerate(box)}}
     return replace(setup, parameters=params), draws
 
 

@@ -21,6 +21,7 @@ from typing import Any, Mapping, Sequence
 
 import casadi as ca
 import numpy as np
+from numpy.typing import ArrayLike
 
 from tanksynth.plants.base import Plant
 from tanksynth.plants.compile import compile_matrix, evaluate_map
@@ -97,7 +98,7 @@ def _parametric(plant: Plant, names: tuple[str, ...]) -> ParametricPlant:
 
 
 def linear_models(plant: Plant, names: Sequence[str], values: np.ndarray,
-                  x0: Sequence[float]) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+                  x0: ArrayLike) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Equilibrium input and linearisation at the levels ``x0`` for each parameter point.
 
     Parameters

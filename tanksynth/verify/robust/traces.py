@@ -15,6 +15,8 @@ from typing import Any, Sequence
 import numpy as np
 
 from tanksynth.plants.base import Plant
+from tanksynth.sim.simulate import SimulationResult
+from tanksynth.verify.traces import TraceRecorder
 
 __all__ = ["PeakRecordingLaw", "record_monte_carlo"]
 
@@ -54,7 +56,7 @@ class PeakRecordingLaw:
         return u
 
 
-def record_monte_carlo(trace: Any, result: Any, plant: Plant, *, observer: bool,
+def record_monte_carlo(trace: TraceRecorder | None, result: SimulationResult, plant: Plant, *, observer: bool,
                        reference_names: Sequence[str] | None = None) -> None:
     """Record the Monte-Carlo runs of a robust verdict (no-op without a recorder).
 

@@ -44,11 +44,13 @@ from tanksynth.spec import Spec
 from tanksynth.spec.options import parse_region
 from tanksynth.verify.robust.models import box_corners, box_samples, linear_models, uncertain_box
 from tanksynth.verify.robust.traces import PeakRecordingLaw, record_monte_carlo
-from tanksynth.verify.common import (MAX_STEPS, OBSERVER_TOLERANCE, artefact_matrix, fmt, guard,
-                                     model_recheck, option, stability_check, time_domain)
+from tanksynth.verify.common import (MAX_STEPS, OBSERVER_TOLERANCE, artefact_matrix, discrete_ts,
+                                     fmt, guard, model_recheck, option, stability_check,
+                                     time_domain)
 from tanksynth.verify.numerics import integral_augmentation, region_lmi_matrix
 from tanksynth.verify.simulations import (IntegralStateFeedback, StateFeedback, designed_time_constant,
                                           eigen_time_constant, eigenvector_conditioning, observer_period, perturbed_start)
+from tanksynth.verify.traces import TraceRecorder
 
 __all__ = ["SATURATION_TOLERANCE", "hinf_norm", "robust_feedback_law",
            "robust_state_feedback_verdict", "robust_observer_verdict"]
@@ -131,7 +133,7 @@ def _models(spec: Spec, box: Sequence[Sequence[Any]], values: np.ndarray, domain
             np.eye(plant.n) if isinstance(Bw, str) else np.asarray(Bw, dtype=float))
         A, B = F, Bc
         if domain == "discrete":
-            Ad, BB = discretize_zoh(F, np.hstack([Bc, W]), float(spec.ts))
+            Ad, BB = discretize_zoh(F, np.hstack([Bc, W]), discrete_ts(spec))
             A, B, W = Ad, BB[:, :plant.m], BB[:, plant.m:]
         out.append({"A": A, "B": B, "C": C, "Bw": W, "u0": u0, "F": F, "Bc": Bc,
                     "params": dict(zip(names, map(float, row)))})
@@ -161,7 +163,7 @@ def _context(doc: Mapping[str, Any], spec: Spec, observer: bool) -> dict:
         models[-1]["params"] = {"nominal": 1.0}
     x0 = np.asarray(spec.x0, dtype=float)
     u0 = equilibrium_input(plant, spec.x0, spec.given_u0).u0
-    c = dict(plant=plant, n=n, m=m, q=q, domain=domain, region=region, box=box, Bw=Bw, models=models,
+    c: dict[str, Any] = dict(plant=plant, n=n, m=m, q=q, domain=domain, region=region, box=box, Bw=Bw, models=models,
              x0=x0, u0=u0, A=artefact_matrix(doc, "A", (n, n), domain), B=artefact_matrix(doc, "B", (n, m), domain),
              C=artefact_matrix(doc, "C", (q, n)))
     integral = "K1" in doc["gains"] and "K2" in doc["gains"]
@@ -195,7 +197,7 @@ def _closed(c: dict, mdl: Mapping[str, Any]) -> np.ndarray:
 
 
 def _closed_loops(c: dict, spec: Spec, models: Sequence[Mapping[str, Any]]) -> list[np.ndarray]:
-    c["ts"] = float(spec.ts) if c["domain"] == "discrete" else None
+    c["ts"] = discrete_ts(spec) if c["domain"] == "discrete" else None
     return [_closed(c, mdl) for mdl in models]
 
 
@@ -314,7 +316,7 @@ def _horizon(doc: Mapping[str, Any], spec: Spec, c: dict, ts: float) -> tuple[fl
 
 def _sim_period(c: dict, spec: Spec, loops: Sequence[np.ndarray]) -> float:
     if c["domain"] == "discrete":
-        return float(spec.ts)
+        return discrete_ts(spec)
     fast = max(float(np.max(np.abs(np.linalg.eigvals(M)))) for M in loops)
     step = 0.05 / fast if fast > 0 else 1.0
     return float(min(step, spec.ts)) if spec.ts else step
@@ -365,7 +367,7 @@ def _too_stiff(c: dict, spec: Spec, ts: float, H: float, steps: int, rule: str) 
                  f"{10 * MAX_STEPS}); {why}", {"samples": int(steps), "fastest_eigenvalue": fast, "horizon_s": H})
 
 
-def _mc_feedback(doc: Mapping[str, Any], spec: Spec, c: dict, trace: Any = None) -> list[Check]:
+def _mc_feedback(doc: Mapping[str, Any], spec: Spec, c: dict, trace: TraceRecorder | None = None) -> list[Check]:
     plant = spec.plant
     runs = int(option(doc, spec, "mc_runs", 16))
     seed = int(option(doc, spec, "seed", 0))
@@ -390,7 +392,7 @@ def _mc_feedback(doc: Mapping[str, Any], spec: Spec, c: dict, trace: Any = None)
     tol = OBSERVER_TOLERANCE * d0
     settle = np.max(np.abs(X[:, k_h:] - X[:, -1:]), axis=(1, 2))
     offset = np.max(np.abs(X[:, -1] - c["x0"]), axis=1)
-    if c["integral"]:
+    if c["integral"] and ref is not None:
         track = np.max(np.abs(res.y[:, k_h:][..., c["rows"]] - ref[0][None, None, :]), axis=(1, 2))
         err = np.maximum(settle, track)
         what = (f"tracked outputs {c['tracked']} back within {tol:.3g} of their set-points and every "
@@ -480,7 +482,7 @@ def _saturation_sim(doc: Mapping[str, Any], spec: Spec, c: dict, Pxx: np.ndarray
         ref = np.tile(y0, (steps + 1, 1))
     simulate(plant, ts=ts, steps=steps, x0=np.array(starts), seeds=run_seeds(0, len(starts)),
              controller=law, reference=ref, u_init=c["u0"])
-    peak = float(np.max(law.peak))
+    peak = float(np.max(law.peak)) if law.peak is not None else 0.0
     return Check("saturation_nonlinear", bool(peak <= 1 + SATURATION_TOLERANCE),
                  f"{len(starts)} starts on the ellipsoid's boundary (semi-axes {fmt(1 / np.sqrt(w))} in "
                  f"the states' units, +-each axis and 24 random directions; {skipped} outside the "
@@ -490,7 +492,7 @@ def _saturation_sim(doc: Mapping[str, Any], spec: Spec, c: dict, Pxx: np.ndarray
                  {"peak_ratio": peak, "starts": len(starts), "skipped": skipped})
 
 
-def robust_state_feedback_verdict(doc: Mapping[str, Any], spec: Spec, *, trace: Any = None) -> list[Check]:
+def robust_state_feedback_verdict(doc: Mapping[str, Any], spec: Spec, *, trace: TraceRecorder | None = None) -> list[Check]:
     """Verdict of a ``robust_state_feedback`` artefact (see the module docstring).
 
     Parameters
@@ -518,7 +520,7 @@ class _InstanceObserver:
     def __init__(self, Phi: np.ndarray, Gamma: np.ndarray, x0: np.ndarray, u0: np.ndarray,
                  y0: np.ndarray):
         self.Phi, self.Gamma, self.x0, self.u0, self.y0 = Phi, Gamma, x0, u0, y0
-        self.e: np.ndarray | None = None
+        self.e: np.ndarray = np.empty((0, x0.shape[0]))    # set by reset
         self.y_prev: np.ndarray | None = None
 
     def reset(self, x_hat0: np.ndarray) -> None:
@@ -533,7 +535,7 @@ class _InstanceObserver:
         return self.x0 + self.e
 
 
-def _mc_observer(doc: Mapping[str, Any], spec: Spec, c: dict, trace: Any = None) -> list[Check]:
+def _mc_observer(doc: Mapping[str, Any], spec: Spec, c: dict, trace: TraceRecorder | None = None) -> list[Check]:
     plant = spec.plant
     runs = int(option(doc, spec, "mc_runs", 16))
     seed = int(option(doc, spec, "seed", 0))
@@ -545,7 +547,7 @@ def _mc_observer(doc: Mapping[str, Any], spec: Spec, c: dict, trace: Any = None)
     values = box_samples(c["box"], runs, seed + 1) if c["box"] else np.zeros((runs, 0))
     models = _models(spec, c["box"], values, "continuous", "identity")
     L = c["L"]
-    Phi, Gam, U0 = [], [], []
+    Phi, Gam, inputs = [], [], []
     for mdl in models:
         if c["domain"] == "discrete":
             Ad, Bd = discretize_zoh(mdl["F"], mdl["Bc"], ts)
@@ -555,8 +557,8 @@ def _mc_observer(doc: Mapping[str, Any], spec: Spec, c: dict, trace: Any = None)
             Ph, G = discretize_zoh(mdl["F"] - L @ mdl["C"], np.hstack([mdl["Bc"], L]), ts)
             Phi.append(Ph)
             Gam.append(G)
-        U0.append(mdl["u0"])
-    U0 = np.array(U0)
+        inputs.append(mdl["u0"])
+    U0 = np.array(inputs)
     y0 = np.asarray(plant.compiled.output(c["x0"][None]), dtype=float).reshape(-1)
     est = _InstanceObserver(np.array(Phi), np.array(Gam), c["x0"], U0, y0)
     x_start, frac = perturbed_start(plant, c["x0"])
@@ -582,7 +584,7 @@ def _mc_observer(doc: Mapping[str, Any], spec: Spec, c: dict, trace: Any = None)
                    "horizon_s": H, "ts": ts})]
 
 
-def robust_observer_verdict(doc: Mapping[str, Any], spec: Spec, *, trace: Any = None) -> list[Check]:
+def robust_observer_verdict(doc: Mapping[str, Any], spec: Spec, *, trace: TraceRecorder | None = None) -> list[Check]:
     """Verdict of a ``robust_observer`` artefact (see the module docstring).
 
     Parameters

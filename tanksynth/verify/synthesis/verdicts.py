@@ -44,14 +44,15 @@ import sympy as sp
 
 from tanksynth.analysis.checks import Check
 from tanksynth.analysis.linearize import linearize
-from tanksynth.analysis.lmi_region import LMIRegion, region_from_parts
+from tanksynth.analysis.lmi_region import region_from_parts
 from tanksynth.analysis.rank import controllability_rank, observability_rank
+from tanksynth.errors import ArtefactError
 from tanksynth.plants.base import Plant, Quantity
 from tanksynth.sim.simulate import InputSequence, run_seeds, simulate
 from tanksynth.spec import Spec
 from tanksynth.spec.options import parse_region
-from tanksynth.verify.common import (MAX_STEPS, artefact_matrix, fmt, guard, model_recheck,
-                                     operating_point, option, rank_check, region_check,
+from tanksynth.verify.common import (MAX_STEPS, artefact_matrix, discrete_ts, fmt, guard,
+                                     model_recheck, operating_point, option, rank_check, region_check,
                                      region_lmi_check, relative_difference, stability_check,
                                      time_domain)
 from tanksynth.verify.simulations import (eigenvector_conditioning, luenberger_estimator,
@@ -180,7 +181,7 @@ def _read(doc: Mapping[str, Any], spec: Spec) -> dict:
     plant = spec.plant
     n, m, q = plant.n, plant.m, plant.q
     domain = time_domain(doc, spec)
-    dt = float(spec.ts) if domain == "discrete" else None
+    dt = discrete_ts(spec) if domain == "discrete" else None
     gains = doc["gains"]
     A = artefact_matrix(doc, "A", (n, n), domain)
     B = artefact_matrix(doc, "B", (n, m), domain)
@@ -189,7 +190,7 @@ def _read(doc: Mapping[str, Any], spec: Spec) -> dict:
     Bw = Bw.reshape(n, -1) if Bw.size % n == 0 else Bw
     Cz = np.atleast_2d(np.asarray(gains["Cz"], float)) if "Cz" in gains else None
     x0, u0 = operating_point(spec)
-    out = dict(plant=plant, domain=domain, dt=dt, A=A, B=B, C=C, Bw=Bw, Cz=Cz, x0=x0, u0=u0,
+    out: dict[str, Any] = dict(plant=plant, domain=domain, dt=dt, A=A, B=B, C=C, Bw=Bw, Cz=Cz, x0=x0, u0=u0,
                observer="L" in gains)
     if out["observer"]:
         L = artefact_matrix(doc, "L", (n, q))
@@ -197,6 +198,8 @@ def _read(doc: Mapping[str, Any], spec: Spec) -> dict:
         out.update(L=L, Dv=Dv, Acl=A - L @ C, Bcl=np.hstack([Bw, -L @ Dv]), Ccl=Cz,
                    what="the observer error matrix A - L C")
     else:
+        if Cz is None:
+            raise ArtefactError(f"artefact '{doc['name']}' ({doc['method']}) has no gain 'Cz'")
         K = artefact_matrix(doc, "K", (m, n))
         Dzu = artefact_matrix(doc, "Dzu", (Cz.shape[0], m))
         out.update(K=K, Dzu=Dzu, Acl=A - B @ K, Bcl=Bw, Ccl=Cz - Dzu @ K,
@@ -434,14 +437,15 @@ def _disturbance_step(doc: Mapping[str, Any], spec: Spec, c: dict,
     if steps > MAX_STEPS:
         return Check("disturbance_step", None, f"not simulated: {steps} samples needed (> {MAX_STEPS})")
     dplant = disturbance_plant(plant, Bw_c)
-    law = _StepLaw(None if c["observer"] else c["K"], x0, u0, w, 0.0, phase * ts_sim)
+    step_law = _StepLaw(None if c["observer"] else c["K"], x0, u0, w, 0.0, phase * ts_sim)
+    law: _StepLaw | InputSequence = step_law
     est = None
     if c["observer"]:
         form = "predictor" if dt is not None else "continuous"
         est = _SliceInput(luenberger_estimator(plant, c["L"], x0, u0, ts_sim, form), plant.m)
         # the inputs do not depend on the estimate: the same law's values, given in advance (the
         # plant is then integrated over the whole horizon in one call)
-        law = InputSequence(law.affine(steps, ts_sim)[0])     # K = 0: b_k are the inputs
+        law = InputSequence(step_law.affine(steps, ts_sim)[0])     # K = 0: b_k are the inputs
     res = simulate(dplant, ts=ts_sim, steps=steps, x0=x0, seeds=run_seeds(0, 1), controller=law,
                    estimator=est, u_init=np.concatenate([u0, np.zeros_like(w)]))
     if trace is not None:

@@ -31,6 +31,7 @@ from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
 
+from tanksynth.errors import ArtefactError
 from tanksynth.plants.base import Plant
 from tanksynth.sim.metrics import Metric
 from tanksynth.sim.scenarios import Scenario
@@ -110,6 +111,9 @@ class TsRegionRun(ClosedLoop):
         """
         metrics = ClosedLoop.evaluate(self, sc, plant, ts=ts, seeds=seeds, substeps=substeps)
         doc, spec = self.doc, self.spec
+        if spec is None:
+            raise ArtefactError("a TS region run needs the spec it was built from (ts_control_run "
+                                "gives it)")
         E0, eps0 = region_draws(doc, spec, seeds, sc.name)
         c = float(artefact_gain(doc, "region_c")[0])
         out = simulate_region(doc, spec, E0, eps0=eps0, horizon=region_horizon(doc))

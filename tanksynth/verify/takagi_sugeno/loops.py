@@ -9,7 +9,7 @@ alike, so that both check the same things.
 
 from __future__ import annotations
 
-from typing import Any, Mapping
+from typing import Any, Mapping, Sequence
 
 import numpy as np
 
@@ -77,7 +77,8 @@ class MeasuredPremiseObserver:
     def __init__(self, model: RebuiltModel, L: np.ndarray, ts: float, substeps: int):
         self.m, self.L, self.h, self.sub = model, L, ts / substeps, substeps
         self.rows = [int(np.flatnonzero(r)[0]) for r in model.C]
-        self._x = self._y = None
+        self._x: np.ndarray = np.empty((0, model.A.shape[1]))    # set by reset
+        self._y: np.ndarray | None = None
 
     def reset(self, x_hat0: np.ndarray) -> None:
         """Initial estimates (M, n).
@@ -174,7 +175,7 @@ def plant_ts_observer(doc: Mapping[str, Any], plant: Plant, C: np.ndarray, ts: f
                       artefact_gain(doc, "L"), ts)
 
 
-def region_points(P: np.ndarray, c: float, count: int, seed: int,
+def region_points(P: np.ndarray, c: float, count: int, seed: int | Sequence[int],
                   scale: float = 1.0) -> np.ndarray:
     """Seeded deviations: half on ``e' P e = scale^2 c``, half inside (radius uniform in (0, 1)).
 

@@ -78,7 +78,7 @@ def max_on_ellipsoid(P1: np.ndarray, level: float, P2: np.ndarray, d: np.ndarray
 
     top = q[-1]
     ties = np.isclose(q, top, rtol=1e-12, atol=0.0)
-    if np.linalg.norm(b[ties]) <= 1e-14 * max(np.linalg.norm(b), 1e-300):
+    if np.linalg.norm(b[ties]) <= 1e-14 * max(float(np.linalg.norm(b)), 1e-300):
         w = np.where(ties, 0.0, q * b / np.where(ties, 1.0, q - top))
         rest = r ** 2 - float(w @ w)
         if rest >= 0:

@@ -145,14 +145,14 @@ def _observer_checks(doc: Mapping[str, Any], s: dict) -> list[Check]:
         # Lyapunov for A_i - L_j C with Po: the dual conditions on (A_i', C', L_j') with P = Po^-1
         # are congruent to these.
         r = model.A.shape[0]
-        lam = []
+        largest = []
         for cond in condition_weights(rel, r):
             S = np.zeros((n, n))
             for (i, j), w in cond.items():
                 M = Po @ (model.A[i] - L[j] @ model.C)
                 S += w * (M + M.T + 2 * alpha * Po)
-            lam.append(np.linalg.eigvalsh(0.5 * (S + S.T))[-1])
-        lam = np.array(lam)
+            largest.append(np.linalg.eigvalsh(0.5 * (S + S.T))[-1])
+        lam = np.array(largest)
         return [Check("observer_lmi_recheck", bool(lam.max() < 0),
                       f"{lam.size} PDC observer conditions ({rel}) on Po, L_j with alpha = {alpha:g} "
                       f"1/s: largest eigenvalue {lam.max():.4g} (< 0)", {"max_eigenvalue": float(lam.max())})]
@@ -161,9 +161,9 @@ def _observer_checks(doc: Mapping[str, Any], s: dict) -> list[Check]:
     psi = float((diag.get("observer") or {}).get("psi", np.nan))
     Gm = Po @ (A0 - L @ model.C)
     blk = np.block([[Gm + Gm.T + psi ** 2 * Q, Po], [Po, -Q]])
-    lam = float(np.linalg.eigvalsh(0.5 * (blk + blk.T))[-1])
+    top = float(np.linalg.eigvalsh(0.5 * (blk + blk.T))[-1])
     dA = float(np.max(np.abs(A0 - model.A.mean(axis=0))))
-    return [Check("observer_lmi_recheck", bool(np.isfinite(psi) and lam < 0 and dA <= 1e-9),
+    return [Check("observer_lmi_recheck", bool(np.isfinite(psi) and top < 0 and dA <= 1e-9),
                   f"LMI (28) [[He(Po (A0 - L C)) + psi^2 Q, Po], [Po, -Q]] with psi = {psi:.4g} 1/s: "
-                  f"largest eigenvalue {lam:.4g} (< 0); stored A0 vs the mean rebuilt vertex: {dA:.3g}",
-                  {"max_eigenvalue": lam, "psi": psi})]
+                  f"largest eigenvalue {top:.4g} (< 0); stored A0 vs the mean rebuilt vertex: {dA:.3g}",
+                  {"max_eigenvalue": top, "psi": psi})]
