@@ -107,7 +107,7 @@ __all__ = [
     "MODEL_TOLERANCE", "POLE_TOLERANCE", "OBSERVER_TIME_CONSTANTS", "OBSERVER_TOLERANCE",
     "SERVO_TIME_CONSTANTS", "SERVO_TOLERANCE", "PERTURBATION", "MAX_STEPS", "NUMERIC_ERRORS",
     "CONTINUOUS_TS", "artefact_gain", "artefact_matrix", "design_options", "option",
-    "operating_point", "sampling_period", "discrete_ts", "required_ts",
+    "operating_point", "stored_operating_point", "sampling_period", "discrete_ts", "required_ts",
     "time_domain", "tracked_outputs", "output_rows", "output_at",
     "one_line", "guard", "fmt", "fmt_signals", "complex_list", "relative_difference",
     "model_recheck", "pole_check", "stability_check", "region_check", "region_lmi_check",
@@ -253,6 +253,25 @@ def operating_point(spec: Spec) -> tuple[np.ndarray, np.ndarray]:
     """
     eq = equilibrium_input(spec.plant, spec.x0, spec.given_u0)
     return np.asarray(spec.x0, dtype=float).copy(), np.asarray(eq.u0, dtype=float)
+
+
+def stored_operating_point(doc: Mapping[str, Any]) -> tuple[np.ndarray, np.ndarray] | None:
+    """The operating point an artefact ships (gains ``x_op``, ``u_op``; state and input units).
+
+    Parameters
+    ----------
+    doc : mapping
+        The artefact.
+
+    Returns
+    -------
+    (ndarray (n,), ndarray (m,)) or None
+        None when the artefact ships no operating point (its design used the spec's).
+    """
+    gains = doc["gains"]
+    if "x_op" in gains and "u_op" in gains:
+        return artefact_gain(doc, "x_op").reshape(-1), artefact_gain(doc, "u_op").reshape(-1)
+    return None
 
 
 def sampling_period(spec: Spec) -> float:

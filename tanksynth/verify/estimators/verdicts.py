@@ -28,7 +28,7 @@ from tanksynth.spec.options import parse_covariance, parse_poles
 from tanksynth.verify.common import (NUMERIC_ERRORS, artefact_gain, artefact_matrix, design_options,
                                      discrete_ts, fmt, guard, model_recheck, one_line,
                                      operating_point, option, pole_check, rank_check,
-                                     relative_difference, stability_check)
+                                     relative_difference, stability_check, stored_operating_point)
 from tanksynth.verify.estimation import EstimatorRebuild
 from tanksynth.verify.estimators.narx import (NARX_CLOSED_LOOP_FACTOR, NARX_FIT_FACTOR,
                                               NARX_FRESH_DRAW, fresh_ekf_data, narx_network,
@@ -46,13 +46,6 @@ __all__ = ["KALMAN", "EKF", "UKF", "LUENBERGER", "ADAPTIVE_KALMAN", "ADAPTIVE_SC
 def _spec_kwargs(doc: Mapping[str, Any], spec: Spec, names: Sequence[str]) -> dict:
     opts = design_options(doc, spec)
     return {k: opts[k] for k in names if k in opts}
-
-
-def _operating_point_gains(doc: Mapping[str, Any]) -> tuple[np.ndarray, np.ndarray] | None:
-    gains = doc["gains"]
-    if "x_op" in gains and "u_op" in gains:
-        return artefact_gain(doc, "x_op"), artefact_gain(doc, "u_op")
-    return None
 
 
 def _steady_kalman_error(spec: Spec, Q: np.ndarray, R: np.ndarray) -> np.ndarray:
@@ -73,7 +66,7 @@ def _kalman_builder(doc: Mapping[str, Any], spec: Spec) -> tuple[BatchEstimator,
     n, q = plant.n, plant.q
     Q, R = artefact_matrix(doc, "Q", (n, n)), artefact_matrix(doc, "R", (q, q))
     tuning = KalmanTuning(Q=Q, R=R, P0=artefact_matrix(doc, "P0", (n, n)), x0=_x0_hat(doc, spec),
-                          ts=discrete_ts(spec), operating_point=_operating_point_gains(doc),
+                          ts=discrete_ts(spec), operating_point=stored_operating_point(doc),
                           **_spec_kwargs(doc, spec, ("substeps", "clip", "jacobian_eps", "switch_tol")))
     linear = doc["method"] == "kalman"
     est = (KalmanFilter if linear else ExtendedKalmanFilter)(plant, tuning, backend="vm")
@@ -93,7 +86,7 @@ def _ukf_builder(doc: Mapping[str, Any], spec: Spec) -> tuple[BatchEstimator, np
     n, q = plant.n, plant.q
     Q, R = artefact_matrix(doc, "Q", (n, n)), artefact_matrix(doc, "R", (q, q))
     tuning = UKFTuning(Q=Q, R=R, P0=artefact_matrix(doc, "P0", (n, n)), x0=_x0_hat(doc, spec),
-                       ts=discrete_ts(spec), operating_point=_operating_point_gains(doc),
+                       ts=discrete_ts(spec), operating_point=stored_operating_point(doc),
                        **_spec_kwargs(doc, spec, ("alpha", "beta", "kappa", "redraw", "substeps",
                                                   "clip")))
     est = UnscentedKalmanFilter(plant, tuning, backend="vm")
@@ -109,7 +102,7 @@ def _adaptive_kalman_builder(doc: Mapping[str, Any], spec: Spec
                                   x0=_x0_hat(doc, spec), ts=discrete_ts(spec),
                                   window=int(round(float(artefact_gain(doc, "window")[0]))),
                                   q_floor=float(artefact_gain(doc, "q_floor")[0]),
-                                  operating_point=_operating_point_gains(doc),
+                                  operating_point=stored_operating_point(doc),
                                   **_spec_kwargs(doc, spec, ("form",)))
     est = AdaptiveKalmanFilter(plant, tuning)
     return EstimatorAdapter(est), _x0_hat(doc, spec), "adaptive-Q Kalman filter"
@@ -163,7 +156,7 @@ def _adaptive_scaling_builder(doc: Mapping[str, Any], spec: Spec
     tuning = AdaptiveScalingTuning(Q=Q, R=R, P0=artefact_matrix(doc, "P0", (n, n)),
                                    x0=_x0_hat(doc, spec), ts=discrete_ts(spec), a=a, b=b, c=c,
                                    G=G, phi0=float(np.ravel(artefact_gain(doc, "phi0"))[0]),
-                                   operating_point=_operating_point_gains(doc))
+                                   operating_point=stored_operating_point(doc))
     est = AdaptiveScalingKalmanFilter(plant, tuning)
     return EstimatorAdapter(est), _x0_hat(doc, spec), "adaptive-scaling Kalman filter"
 
@@ -174,7 +167,7 @@ def _adaptive_scaling_error(doc: Mapping[str, Any], spec: Spec) -> tuple[np.ndar
     G = artefact_matrix(doc, "G", (n, Q.shape[0]))
     Qc, src_q = _claimed(doc, spec, "Q", Q)
     Rc, src_r = _claimed(doc, spec, "R", artefact_matrix(doc, "R", (q, q)))
-    err = _dare_error(spec, _operating_point_gains(doc), G @ Qc @ G.T, Rc)
+    err = _dare_error(spec, stored_operating_point(doc), G @ Qc @ G.T, Rc)
     return err, f"steady-state filter with phi = 1, Q of the {src_q}, R of the {src_r}"
 
 
@@ -215,7 +208,7 @@ def _consensus_builder(doc: Mapping[str, Any], spec: Spec) -> tuple[BatchEstimat
     tuning = ConsensusTuning(Q=Q, R=tuple(Rs), P0=artefact_matrix(doc, "P0", (n, n)),
                              x0=_x0_hat(doc, spec), ts=discrete_ts(spec),
                              G=artefact_matrix(doc, "G", (n, Q.shape[0])),
-                             operating_point=_operating_point_gains(doc))
+                             operating_point=stored_operating_point(doc))
     return _StackedSensors(ConsensusFilter(plant, tuning), len(Rs)), _x0_hat(doc, spec), \
         f"consensus filter with {len(Rs)} sensors, each fed the plant's measurement"
 
@@ -226,7 +219,7 @@ def _consensus_error(doc: Mapping[str, Any], spec: Spec) -> tuple[np.ndarray, st
     G = artefact_matrix(doc, "G", (spec.plant.n, Q.shape[0]))
     Qc, src_q = _claimed(doc, spec, "Q", Q)
     Rc, src_r = _claimed(doc, spec, "R", sla.block_diag(*Rs))
-    err = _dare_error(spec, _operating_point_gains(doc), G @ Qc @ G.T, Rc, sensors=len(Rs))
+    err = _dare_error(spec, stored_operating_point(doc), G @ Qc @ G.T, Rc, sensors=len(Rs))
     return err, (f"equivalent centralised steady-state filter, Q of the {src_q}, R of the {src_r}")
 
 
@@ -262,7 +255,7 @@ def _luenberger_builder(doc: Mapping[str, Any], spec: Spec) -> tuple[BatchEstima
     plant = spec.plant
     L = artefact_matrix(doc, "L", (plant.n, plant.q))
     form = str(option(doc, spec, "form", "current"))
-    op = _operating_point_gains(doc)
+    op = stored_operating_point(doc)
     tuning = LuenbergerTuning(L=L, x0=_x0_hat(doc, spec), ts=discrete_ts(spec), form=form,
                               operating_point=op, **_spec_kwargs(doc, spec, ("substeps",)))
     where = "the linearisation at the operating point" if op is not None else "the nonlinear model"
@@ -273,7 +266,7 @@ def _luenberger_builder(doc: Mapping[str, Any], spec: Spec) -> tuple[BatchEstima
 def _luenberger_error(doc: Mapping[str, Any], spec: Spec) -> tuple[np.ndarray, str]:
     L = artefact_matrix(doc, "L", (spec.plant.n, spec.plant.q))
     form = str(option(doc, spec, "form", "current"))
-    err = _luenberger_error_matrix(spec, L, form, _operating_point_gains(doc))
+    err = _luenberger_error_matrix(spec, L, form, stored_operating_point(doc))
     if form == "continuous":
         return sla.expm(err * discrete_ts(spec)), "exp((F - L C) ts) of the stored L"
     return err, f"error matrix of the stored L, {form} form"
@@ -298,7 +291,7 @@ def _kalman_rechecks(doc: Mapping[str, Any], spec: Spec) -> list[Check]:
     C = artefact_matrix(doc, "C", (q, n))
     Q, R = artefact_matrix(doc, "Q", (n, n)), artefact_matrix(doc, "R", (q, q))
     K, P = artefact_matrix(doc, "K_ss", (n, q)), artefact_matrix(doc, "P_ss", (n, n))
-    op = _operating_point_gains(doc)
+    op = stored_operating_point(doc)
     x_op, u_op = op if op is not None else operating_point(spec)
     checks = [model_recheck(plant, x_op, u_op, "discrete", discrete_ts(spec),
                              {"A": Ad, "B": Bd, "C": C})]
@@ -352,7 +345,7 @@ def estimator_verdict(doc: Mapping[str, Any], spec: Spec, rebuild: EstimatorRebu
             plant = spec.plant
             L = artefact_matrix(doc, "L", (plant.n, plant.q))
             form = str(option(doc, spec, "form", "current"))
-            err = _luenberger_error_matrix(spec, L, form, _operating_point_gains(doc))
+            err = _luenberger_error_matrix(spec, L, form, stored_operating_point(doc))
             what = {"current": "(I - L C) Ad", "predictor": "Ad - L C"}.get(form, "F - L C")
             domain = "continuous" if form == "continuous" else "discrete"
             out = [stability_check(np.linalg.eigvals(err), domain, what)]

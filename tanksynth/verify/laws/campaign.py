@@ -31,7 +31,7 @@ from tanksynth.sim.scenarios import Scenario, run_scenario
 from tanksynth.sim.simulate import BatchEstimator
 from tanksynth.spec import Spec
 from tanksynth.verify.batch_call import CasadiControlLaw, CasadiIntegralLaw
-from tanksynth.verify.common import operating_point, sampling_period
+from tanksynth.verify.common import operating_point, sampling_period, stored_operating_point
 from tanksynth.verify.simulations import IntegralStateFeedback, StateFeedback  # noqa: F401 (re-export)
 
 __all__ = [
@@ -275,10 +275,9 @@ def _tracked(spec: Spec, doc: Mapping[str, Any]) -> tuple[int, ...]:
 
 
 def _operating_point(spec: Spec, doc: Mapping[str, Any]) -> tuple[np.ndarray, np.ndarray]:
-    gains = doc["gains"]
-    if "x_op" in gains and "u_op" in gains:
-        return np.asarray(gains["x_op"], float).reshape(-1), np.asarray(gains["u_op"], float).reshape(-1)
-    return operating_point(spec)
+    """The artefact's operating point, else the spec's."""
+    stored = stored_operating_point(doc)
+    return stored if stored is not None else operating_point(spec)
 
 
 def state_feedback_loop(doc: Mapping[str, Any], spec: Spec) -> ClosedLoop:
