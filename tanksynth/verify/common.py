@@ -265,8 +265,9 @@ def stored_operating_point(doc: Mapping[str, Any]) -> tuple[np.ndarray, np.ndarr
 
     Returns
     -------
-    (ndarray (n,), ndarray (m,)) or None
-        None when the artefact ships no operating point (its design used the spec's).
+    tuple of ndarray, or None
+        ``(x_op, u_op)``: levels (state units, m) and inputs (input units, m^3/s); None when
+        the artefact ships no operating point (its design used the spec's).
     """
     gains = doc["gains"]
     if "x_op" in gains and "u_op" in gains:
