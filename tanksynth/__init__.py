@@ -78,8 +78,7 @@ def clear_cache(disk: bool = False) -> dict[str, int]:
     dropped = {"sim_models": _sim(), "result_specs": runner.clear_cache(),
                "analysis_samples": _analysis()}
     dropped.update(_runtime(disk=disk))
-    dropped["campaign_specs"] = campaign._spec.cache_info().currsize
-    campaign._spec.cache_clear()
+    dropped["campaign_specs"] = campaign.clear_cache()
     return dropped
 
 

@@ -4,6 +4,9 @@
 0.1 ms); the per-sample estimators of the verdicts call one period function thousands of times with
 the same shapes, so `BatchCall` binds preallocated input and output arrays to the function's buffer
 once and only copies the values in and out.
+
+`CasadiControlLaw` and `CasadiIntegralLaw` are control laws serialised as CasADi Functions,
+evaluated that way on the M runs of a simulation at once.
 """
 
 from __future__ import annotations
@@ -12,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["BatchCall", "mapped_call"]
+__all__ = ["BatchCall", "mapped_call", "CasadiControlLaw", "CasadiIntegralLaw"]
 
 
 class BatchCall:
@@ -39,9 +42,9 @@ class BatchCall:
         self._out = self._outs[0]
         self._buf, self._run = self.mapped.buffer()
         for i, a in enumerate(self._args):
-            self._buf.set_arg(i, memoryview(a))
+            self._buf.set_arg(i, a.data)
         for j, r in enumerate(self._outs):
-            self._buf.set_res(j, memoryview(r))
+            self._buf.set_res(j, r.data)
 
     @staticmethod
     def fits(fn: Any) -> bool:
@@ -108,3 +111,73 @@ def mapped_call(fn: Any, count: int, nargs: int) -> tuple[BatchCall | None, Any]
     if BatchCall.fits(fn) and nargs == fn.n_in():
         return BatchCall(fn, count), None
     return None, (fn.map(int(count), "serial") if count > 1 else fn)
+
+
+class CasadiControlLaw:
+    """A `ControlLaw` from a CasADi Function ``(x_hat, reference) -> u`` (batch over runs).
+
+    The Function is evaluated on the M runs at once (``Function.map``);
+    only its first output is used (feedback-linearisation laws also return
+    ``zeta``).
+
+    Parameters
+    ----------
+    function : casadi.Function
+        Inputs ``x_hat`` (n) and the reference (r), first output ``u`` (m).
+    """
+
+    def __init__(self, function: Any):
+        self.function = function
+        self._mapped: dict[int, Any] = {}
+
+    def evaluate(self, *args: np.ndarray) -> list[np.ndarray]:
+        """Every output of the Function at M points: inputs (M, k_i) -> outputs (M, k_j).
+
+        Parameters
+        ----------
+        *args : ndarray
+            One array per input of the Function, shape (M, k_i) (its units).
+        """
+        count = int(args[0].shape[0])
+        if count not in self._mapped:     # one bound buffer per batch size when the Function allows
+            self._mapped[count] = mapped_call(self.function, count, len(args))
+        buffered, fn = self._mapped[count]
+        if buffered is not None:
+            return buffered.all(*[np.asarray(a, dtype=float) for a in args])
+        outs = fn(*[np.asarray(a, dtype=float).T for a in args])
+        outs = outs if isinstance(outs, (list, tuple)) else [outs]
+        return [np.asarray(o, dtype=float).reshape(-1, count).T for o in outs]
+
+    def __call__(self, x_hat: np.ndarray, reference: np.ndarray, t: float) -> np.ndarray:
+        """Input (M, m) for the estimate (M, n) and the reference (M, r)."""
+        return self.evaluate(x_hat, reference)[0]
+
+
+class CasadiIntegralLaw(CasadiControlLaw):
+    """A stateful `ControlLaw` from ``(x, z, y_r) -> (u, z_next)`` (integral tracking).
+
+    Parameters
+    ----------
+    function : casadi.Function
+        `tanksynth.runtime.laws.integral_tracking_law` signature.
+    """
+
+    def __init__(self, function: Any):
+        super().__init__(function)
+        self.z = np.zeros((0, int(function.nnz_in(1))))
+
+    def reset(self, runs: int) -> None:
+        """Zero the integrators of ``runs`` runs.
+
+        Parameters
+        ----------
+        runs : int
+            Number of runs M.
+        """
+        self.z = np.zeros((int(runs), int(self.function.nnz_in(1))))
+
+    def __call__(self, x_hat: np.ndarray, reference: np.ndarray, t: float) -> np.ndarray:
+        """Input (M, m); advances the integrator state."""
+        u, z_next = self.evaluate(x_hat, self.z, reference)[:2]
+        self.z = z_next
+        return u

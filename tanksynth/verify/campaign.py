@@ -11,7 +11,7 @@ scenario for its runs in one batch and returns tidy rows:
     ``ise_<y>``, ``offset_<y>``, tracking and rejection times;
 ``estimator``
     the estimator or observer on the noisy measurements
-    (`tanksynth.verify.estimators.campaign`): ``rmse_<state>`` after the warm-up;
+    (`tanksynth.verify.estimation`): ``rmse_<state>`` after the warm-up;
 ``detector``
     the residual test on the scenario and on its fault-free twin
     (`tanksynth.verify.fault.campaign`): ``detection_delay``,
@@ -53,60 +53,12 @@ from tanksynth.plants.base import Plant
 from tanksynth.sim.metrics import Metric
 from tanksynth.sim.scenarios import Scenario, scenario
 from tanksynth.sim.simulate import run_seeds
-from tanksynth.verify.laws.campaign import (ArtefactIntegralLaw, ArtefactLaw, ClosedLoop,
-                                           IntegralStateFeedback, InverseDynamicsLaw, StateFeedback,
-                                           closed_loop_for, feedback_linearization_loop, sampling_period,
-                                           integral_tracking_loop, inverse_dynamics_loop,
-                                           state_feedback_loop)
-from tanksynth.verify.fault.campaign import DetectorRun, fault_detection_run
-from tanksynth.verify.estimators.campaign import (EstimatorRun, canonical_observer_run,
-                                              decentralized_kalman_run, estimator_run, narx_run,
-                                              kalman_run, ekf_run, ukf_run, adaptive_kalman_run, adaptive_scaling_kalman_run, consensus_filter_run, luenberger_run,
-                                              placement_run, ts_observer_run)
-from tanksynth.verify.model.campaign import ModelRun, linearize_run
-
+from tanksynth.spec import Spec, parse_spec_text
 from tanksynth.verify.cluster import CONNECT_TIMEOUT, connect
+from tanksynth.verify.common import sampling_period
 
-__all__ = [
-    "CampaignRun",
-    "Runner",
-    "CampaignTask",
-    "CampaignTable",
-    "COLUMNS",
-    "campaign_tasks",
-    "run_task",
-    "run_campaign",
-    # what runs (re-exported for the method table)
-    "ClosedLoop",
-    "EstimatorRun",
-    "DetectorRun",
-    "ModelRun",
-    "IntegralStateFeedback",
-    "StateFeedback",
-    "InverseDynamicsLaw",
-    "ArtefactLaw",
-    "ArtefactIntegralLaw",
-    "closed_loop_for",
-    "state_feedback_loop",
-    "feedback_linearization_loop",
-    "integral_tracking_loop",
-    "inverse_dynamics_loop",
-    "placement_run",
-    "estimator_run",
-    "kalman_run",
-    "ekf_run",
-    "ukf_run",
-    "adaptive_kalman_run",
-    "adaptive_scaling_kalman_run",
-    "consensus_filter_run",
-    "luenberger_run",
-    "canonical_observer_run",
-    "ts_observer_run",
-    "narx_run",
-    "decentralized_kalman_run",
-    "fault_detection_run",
-    "linearize_run",
-]
+__all__ = ["CampaignRun", "Runner", "CampaignTask", "CampaignTable", "COLUMNS", "campaign_spec",
+           "clear_cache", "campaign_tasks", "run_task", "run_campaign"]
 
 #: Columns of the tidy campaign table (``loop`` describes what ran).
 COLUMNS = ("artefact", "method", "kind", "plant", "scenario", "run", "seed", "metric", "value", "unit",
@@ -142,7 +94,7 @@ class CampaignRun(Protocol):
 
 #: A method's campaign runner: ``runner(doc, spec) -> CampaignRun`` (a module-level function,
 #: so that tasks pickle).
-Runner = Callable[[Mapping[str, Any], Any], CampaignRun]
+Runner = Callable[[Mapping[str, Any], Spec], CampaignRun]
 
 
 # ------------------------------------------------------------------------- tasks
@@ -182,10 +134,25 @@ class CampaignTask:
 
 
 @lru_cache(maxsize=8)
-def _spec(text: str):
-    from tanksynth.spec import parse_spec_text
+def campaign_spec(text: str) -> Spec:
+    """The spec of a campaign, parsed once per process (at most 8 kept; `clear_cache` empties it).
 
+    Parsed without the method table: a worker needs the plant, the operating point and the
+    sampling period, and each design's options as written.
+
+    Parameters
+    ----------
+    text : str
+        The spec TOML.
+    """
     return parse_spec_text(text.encode("utf-8"), source="<campaign spec>")
+
+
+def clear_cache() -> int:
+    """Forget the campaign specs parsed in this process; returns how many."""
+    count = campaign_spec.cache_info().currsize
+    campaign_spec.cache_clear()
+    return count
 
 
 #: Errors of a run that are results (a diverging estimator, a law that drives the state
@@ -210,7 +177,7 @@ def run_task(task: CampaignTask) -> list[dict]:
     ArtefactError
         The runner could not rebuild what the artefact ships.
     """
-    spec = _spec(task.spec_text)
+    spec = campaign_spec(task.spec_text)
     plant = spec.plant
     doc = dict(task.doc)
     doc["gains"] = {k: np.asarray(v, dtype=float) for k, v in doc["gains"].items()}
@@ -268,7 +235,7 @@ def campaign_tasks(spec_text: str, artefacts: Sequence[Mapping[str, Any]], scena
     """
     if runs < 1 or chunk < 1:
         raise SpecError(f"runs and chunk must be >= 1, got {runs}, {chunk}", key="campaign")
-    plant = _spec(spec_text).plant
+    plant = campaign_spec(spec_text).plant
     seeds = run_seeds(seed, runs)
     tasks = []
     for doc in artefacts:
@@ -379,7 +346,7 @@ def run_campaign(tasks: Sequence[CampaignTask], *, scheduler: str | None = None,
             if progress is not None:
                 progress(i + 1, total)
         return _collect(results, total)
-    from distributed import LocalCluster, as_completed
+    from distributed import LocalCluster, as_completed  # here: dask stays off the local path
 
     cluster = None
     if scheduler is None:

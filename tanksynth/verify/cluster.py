@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import threading
 from typing import Any
 
 from tanksynth.errors import SchedulerError
@@ -27,9 +28,7 @@ def connect(address: str, timeout: float = CONNECT_TIMEOUT) -> Any:
         A malformed address, a refused connection, or a peer that does not answer within
         ``timeout`` (the message names the address).
     """
-    import threading
-
-    from distributed import Client
+    from distributed import Client  # here: runner and campaign import this module on dask-free paths
 
     outcome: dict[str, Any] = {}
 

@@ -1,4 +1,4 @@
-"""Shared by the verdicts: tolerances, option and gain readers, re-checks, law adapters.
+"""Shared by the verdicts: tolerances, option and gain readers, re-checks.
 
 Every verdict reads the gains of the artefact (the part its provenance hash
 protects) and the spec it was designed from; the diagnostics are evidence to
@@ -94,18 +94,24 @@ from typing import Any, Callable, Mapping, Sequence
 import numpy as np
 
 from tanksynth.analysis.checks import Check
+from tanksynth.analysis.linearize import equilibrium_input, linearize
+from tanksynth.analysis.lmi_region import LMIRegion
+from tanksynth.analysis.rank import RankResult
 from tanksynth.analysis.statespace import model_names
 from tanksynth.errors import ArtefactError, TanksynthError
+from tanksynth.plants.base import Plant
+from tanksynth.spec import DesignSpec, Spec
 from tanksynth.verify.numerics import match_poles, region_lmi_matrix, symmetric
 
 __all__ = [
     "MODEL_TOLERANCE", "POLE_TOLERANCE", "OBSERVER_TIME_CONSTANTS", "OBSERVER_TOLERANCE",
     "SERVO_TIME_CONSTANTS", "SERVO_TOLERANCE", "PERTURBATION", "MAX_STEPS", "NUMERIC_ERRORS",
-    "artefact_gain", "artefact_matrix", "design_options", "option", "operating_point",
+    "CONTINUOUS_TS", "artefact_gain", "artefact_matrix", "design_options", "option",
+    "operating_point", "stored_operating_point", "sampling_period", "discrete_ts", "required_ts",
     "time_domain", "tracked_outputs", "output_rows", "output_at",
     "one_line", "guard", "fmt", "fmt_signals", "complex_list", "relative_difference",
     "model_recheck", "pole_check", "stability_check", "region_check", "region_lmi_check",
-    "rank_check", "CasadiControlLaw", "CasadiIntegralLaw",
+    "rank_check",
 ]
 
 #: Largest relative difference between a stored model matrix and the re-linearisation.
@@ -124,6 +130,9 @@ SERVO_TOLERANCE = 0.02
 PERTURBATION = 0.05
 #: Most samples a verification simulation may take (else the check is not decided).
 MAX_STEPS = 20000
+#: Sampling period of campaigns on a spec without one (continuous-time designs), s: the
+#: scenarios count samples with ts = 1 s in mind.
+CONTINUOUS_TS = 1.0
 #: Errors a group of checks may raise on bad data or failed numerics (`guard` turns them
 #: into one failed check).
 NUMERIC_ERRORS = (TanksynthError, np.linalg.LinAlgError, ValueError, RuntimeError,
@@ -187,14 +196,14 @@ def artefact_matrix(doc: Mapping[str, Any], name: str, shape: tuple[int, int] | 
     return arr
 
 
-def _design_entry(doc: Mapping[str, Any], spec: Any) -> Any:
+def _design_entry(doc: Mapping[str, Any], spec: Spec) -> DesignSpec | None:
     for d in getattr(spec, "designs", ()):
         if d.name == doc["name"] and d.method == doc["method"]:
             return d
     return None
 
 
-def design_options(doc: Mapping[str, Any], spec: Any) -> Mapping[str, Any]:
+def design_options(doc: Mapping[str, Any], spec: Spec) -> Mapping[str, Any]:
     """The options of the spec's ``[[design]]`` entry that produced an artefact.
 
     Parameters
@@ -213,7 +222,7 @@ def design_options(doc: Mapping[str, Any], spec: Any) -> Mapping[str, Any]:
     return entry.options if entry is not None else {}
 
 
-def option(doc: Mapping[str, Any], spec: Any, name: str, default: Any = None) -> Any:
+def option(doc: Mapping[str, Any], spec: Spec, name: str, default: Any = None) -> Any:
     """An option of the artefact's design as validated (spec value, else the method's default).
 
     Parameters
@@ -234,7 +243,7 @@ def option(doc: Mapping[str, Any], spec: Any, name: str, default: Any = None) ->
     return default if value is None else value
 
 
-def operating_point(spec: Any) -> tuple[np.ndarray, np.ndarray]:
+def operating_point(spec: Spec) -> tuple[np.ndarray, np.ndarray]:
     """The spec's operating point ``x0`` (state units) and its equilibrium input (input units).
 
     Parameters
@@ -242,13 +251,77 @@ def operating_point(spec: Any) -> tuple[np.ndarray, np.ndarray]:
     spec : Spec
         The validated spec.
     """
-    from tanksynth.analysis.linearize import equilibrium_input
-
     eq = equilibrium_input(spec.plant, spec.x0, spec.given_u0)
     return np.asarray(spec.x0, dtype=float).copy(), np.asarray(eq.u0, dtype=float)
 
 
-def time_domain(doc: Mapping[str, Any], spec: Any) -> str:
+def stored_operating_point(doc: Mapping[str, Any]) -> tuple[np.ndarray, np.ndarray] | None:
+    """The operating point an artefact ships (gains ``x_op``, ``u_op``; state and input units).
+
+    Parameters
+    ----------
+    doc : mapping
+        The artefact.
+
+    Returns
+    -------
+    tuple of ndarray, or None
+        ``(x_op, u_op)``: levels (state units, m) and inputs (input units, m^3/s); None when
+        the artefact ships no operating point (its design used the spec's).
+    """
+    gains = doc["gains"]
+    if "x_op" in gains and "u_op" in gains:
+        return artefact_gain(doc, "x_op").reshape(-1), artefact_gain(doc, "u_op").reshape(-1)
+    return None
+
+
+def sampling_period(spec: Spec) -> float:
+    """The campaign's sampling period (s): the spec's ``ts``, else `CONTINUOUS_TS`.
+
+    Parameters
+    ----------
+    spec : Spec
+        The validated spec.
+    """
+    return float(spec.ts) if spec.ts else CONTINUOUS_TS
+
+
+def discrete_ts(spec: Spec) -> float:
+    """The spec's sampling period ``ts`` (s): the period a discrete-time artefact was designed at.
+
+    Parameters
+    ----------
+    spec : Spec
+        The validated spec.
+
+    Raises
+    ------
+    ArtefactError
+        The spec has no sampling period (no discrete-time design can come from it).
+    """
+    return required_ts(spec.ts)
+
+
+def required_ts(ts: float | None) -> float:
+    """A sampling period that a discrete-time computation needs (s).
+
+    Parameters
+    ----------
+    ts : float or None
+        The sampling period [s]; None where the spec gives none.
+
+    Raises
+    ------
+    ArtefactError
+        ``ts`` is None: no discrete-time model (or design) exists without it.
+    """
+    if ts is None:
+        raise ArtefactError("the spec has no sampling period [sampling] ts: a discrete-time "
+                            "artefact cannot be verified against it")
+    return float(ts)
+
+
+def time_domain(doc: Mapping[str, Any], spec: Spec) -> str:
     """``"continuous"`` or ``"discrete"``: the design's option, else discrete iff the spec has ``ts``.
 
     Parameters
@@ -262,7 +335,7 @@ def time_domain(doc: Mapping[str, Any], spec: Any) -> str:
     return "discrete" if spec.ts is not None else "continuous"
 
 
-def output_rows(plant: Any, names: Sequence[str]) -> list[int]:
+def output_rows(plant: Plant, names: Sequence[str]) -> list[int]:
     """Indices of the named outputs of the plant.
 
     Parameters
@@ -283,7 +356,7 @@ def output_rows(plant: Any, names: Sequence[str]) -> list[int]:
     return [outputs.index(n) for n in names]
 
 
-def tracked_outputs(doc: Mapping[str, Any], spec: Any, name: str = "tracked") -> list[str]:
+def tracked_outputs(doc: Mapping[str, Any], spec: Spec, name: str = "tracked") -> list[str]:
     """The tracked outputs the design declares (option ``name``), else the first ``m`` outputs.
 
     Parameters
@@ -297,7 +370,7 @@ def tracked_outputs(doc: Mapping[str, Any], spec: Any, name: str = "tracked") ->
     return [s.name for s in spec.plant.outputs][: spec.plant.m]
 
 
-def output_at(plant: Any, x: np.ndarray) -> np.ndarray:
+def output_at(plant: Plant, x: np.ndarray) -> np.ndarray:
     """The plant's output ``h(x)`` at one state (output units).
 
     Parameters
@@ -396,11 +469,11 @@ def relative_difference(a: np.ndarray, b: np.ndarray) -> float:
     a, b : ndarray
         Arrays of the same shape and units.
     """
-    return float(np.linalg.norm(a - b) / max(np.linalg.norm(b), 1e-300))
+    return float(np.linalg.norm(a - b) / max(float(np.linalg.norm(b)), 1e-300))
 
 
 # ========================================================================== re-checks
-def model_recheck(plant: Any, x0: np.ndarray, u0: np.ndarray, domain: str, ts: float | None,
+def model_recheck(plant: Plant, x0: np.ndarray, u0: np.ndarray, domain: str, ts: float | None,
                   stored: Mapping[str, np.ndarray]) -> Check:
     """``model_recheck``: stored ``A``/``B``/``C`` against the plant linearised at ``(x0, u0)``.
 
@@ -414,11 +487,10 @@ def model_recheck(plant: Any, x0: np.ndarray, u0: np.ndarray, domain: str, ts: f
         ``"continuous"``/``"discrete"``, sampling period [s], the artefact's model by role
         (``"A"``, ``"B"``, ``"C"``; stored as ``F, B, C`` or ``Ad, Bd, C``: `model_names`).
     """
-    from tanksynth.analysis.linearize import linearize
-
-    lin = linearize(plant, x0, u0, ts=ts if domain == "discrete" else None)
-    ref = {"A": lin.Ad if domain == "discrete" else lin.F,
-           "B": lin.Bd if domain == "discrete" else lin.B, "C": lin.C}
+    lin = linearize(plant, x0, u0, ts=required_ts(ts) if domain == "discrete" else None)
+    A, B = (lin.Ad, lin.Bd) if domain == "discrete" else (lin.F, lin.B)
+    assert A is not None and B is not None  # ts given: linearize discretised
+    ref = {"A": A, "B": B, "C": lin.C}
     diffs = {}
     for name, mat in stored.items():
         r = ref[name]
@@ -478,7 +550,7 @@ def stability_check(eigs: np.ndarray, domain: str, what: str) -> Check:
     return Check("stability", bool(ok), detail, {"value": value, "domain": domain})
 
 
-def region_check(eigs: np.ndarray, region: Any, what: str) -> Check:
+def region_check(eigs: np.ndarray, region: LMIRegion, what: str) -> Check:
     """``region``: every eigenvalue inside the LMI region (``-lambda_max(f_D(z)) > 0``).
 
     Parameters
@@ -494,7 +566,7 @@ def region_check(eigs: np.ndarray, region: Any, what: str) -> Check:
                  {"margins": margins.tolist(), "region": region.describe()})
 
 
-def region_lmi_check(region: Any, Acl: np.ndarray, X: np.ndarray, what: str) -> Check:
+def region_lmi_check(region: LMIRegion, Acl: np.ndarray, X: np.ndarray, what: str) -> Check:
     """``lmi_recheck``: the region LMI of ``Acl`` with the stored Lyapunov matrix ``X``.
 
     Parameters
@@ -515,7 +587,7 @@ def region_lmi_check(region: Any, Acl: np.ndarray, X: np.ndarray, what: str) -> 
                  {"lmi_max_eigenvalue": lam, "relative": lam / scale, "X_min_eigenvalue": xmin})
 
 
-def rank_check(name: str, result: Any, pair: str) -> Check:
+def rank_check(name: str, result: RankResult, pair: str) -> Check:
     """A Kalman rank test (`tanksynth.analysis.rank`) as a check: full rank passes.
 
     Parameters
@@ -526,75 +598,3 @@ def rank_check(name: str, result: Any, pair: str) -> Check:
     return Check(name, bool(result.full),
                  f"rank {result.rank}/{result.n} of {pair} stored in the artefact, condition number "
                  f"{result.condition_number:.3g}", result.as_dict())
-
-
-# ======================================================================= law adapters
-class CasadiControlLaw:
-    """A `ControlLaw` from a CasADi Function ``(x_hat, reference) -> u`` (batch over runs).
-
-    The Function is evaluated on the M runs at once (``Function.map``);
-    only its first output is used (feedback-linearisation laws also return
-    ``zeta``).
-
-    Parameters
-    ----------
-    function : casadi.Function
-        Inputs ``x_hat`` (n) and the reference (r), first output ``u`` (m).
-    """
-
-    def __init__(self, function: Any):
-        self.function = function
-        self._mapped: dict[int, Any] = {}
-
-    def evaluate(self, *args: np.ndarray) -> list[np.ndarray]:
-        """Every output of the Function at M points: inputs (M, k_i) -> outputs (M, k_j).
-
-        Parameters
-        ----------
-        *args : ndarray
-            One array per input of the Function, shape (M, k_i) (its units).
-        """
-        count = int(args[0].shape[0])
-        if count not in self._mapped:     # one bound buffer per batch size when the Function allows
-            from tanksynth.verify.batch_call import mapped_call
-            self._mapped[count] = mapped_call(self.function, count, len(args))
-        buffered, fn = self._mapped[count]
-        if buffered is not None:
-            return buffered.all(*[np.asarray(a, dtype=float) for a in args])
-        outs = fn(*[np.asarray(a, dtype=float).T for a in args])
-        outs = outs if isinstance(outs, (list, tuple)) else [outs]
-        return [np.asarray(o, dtype=float).reshape(-1, count).T for o in outs]
-
-    def __call__(self, x_hat: np.ndarray, reference: np.ndarray, t: float) -> np.ndarray:
-        """Input (M, m) for the estimate (M, n) and the reference (M, r)."""
-        return self.evaluate(x_hat, reference)[0]
-
-
-class CasadiIntegralLaw(CasadiControlLaw):
-    """A stateful `ControlLaw` from ``(x, z, y_r) -> (u, z_next)`` (integral tracking).
-
-    Parameters
-    ----------
-    function : casadi.Function
-        `tanksynth.runtime.laws.integral_tracking_law` signature.
-    """
-
-    def __init__(self, function: Any):
-        super().__init__(function)
-        self.z = np.zeros((0, int(function.nnz_in(1))))
-
-    def reset(self, runs: int) -> None:
-        """Zero the integrators of ``runs`` runs.
-
-        Parameters
-        ----------
-        runs : int
-            Number of runs M.
-        """
-        self.z = np.zeros((int(runs), int(self.function.nnz_in(1))))
-
-    def __call__(self, x_hat: np.ndarray, reference: np.ndarray, t: float) -> np.ndarray:
-        """Input (M, m); advances the integrator state."""
-        u, z_next = self.evaluate(x_hat, self.z, reference)[:2]
-        self.z = z_next
-        return u

@@ -29,9 +29,11 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any, Sequence
+from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
+from scipy.optimize import linear_sum_assignment
 
 from tanksynth.errors import DimensionError
 
@@ -72,7 +74,7 @@ class PoleMatch:
         return float(np.max(self.relative_errors)) if self.relative_errors.size else 0.0
 
 
-def match_poles(requested: Sequence[complex], achieved: Sequence[complex]) -> PoleMatch:
+def match_poles(requested: ArrayLike, achieved: ArrayLike) -> PoleMatch:
     """Match achieved eigenvalues to requested poles, one to one.
 
     The matching minimises the sum of the relative distances ``|q_j - p_i|
@@ -94,7 +96,6 @@ def match_poles(requested: Sequence[complex], achieved: Sequence[complex]) -> Po
     DimensionError
         The two lists have different lengths.
     """
-    from scipy.optimize import linear_sum_assignment  # deferred: scipy.optimize imports in ~0.15 s
     p = np.asarray(requested, dtype=complex).reshape(-1)
     q = np.asarray(achieved, dtype=complex).reshape(-1)
     if p.size != q.size:
@@ -139,7 +140,7 @@ class PoleAgreement:
     measure: str
 
 
-def pole_agreement(requested: Sequence[complex], matrix: Any, tol: float = 1e-6,
+def pole_agreement(requested: ArrayLike, matrix: ArrayLike, tol: float = 1e-6,
                    cluster: float = 1e-3) -> PoleAgreement:
     """Do the eigenvalues of ``matrix`` meet the requested poles, with multiplicity in mind?
 

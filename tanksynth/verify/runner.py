@@ -13,6 +13,7 @@ byte for byte as they were, so their provenance hash stays valid.
 
 from __future__ import annotations
 
+import hashlib
 import inspect
 import json
 from dataclasses import dataclass
@@ -21,13 +22,16 @@ from typing import Any, Callable, Mapping, Protocol
 
 import numpy as np
 
-from tanksynth.artefacts.atomic import atomic_write
 from tanksynth.analysis.checks import Check
+from tanksynth.artefacts.atomic import atomic_write
+from tanksynth.artefacts.io import (SCHEMA, check_npz, check_orphan_npz, check_plant_record,
+                                    read_artefact, read_limited, to_jsonable)
+from tanksynth.artefacts.jsontext import dumps
 from tanksynth.artefacts.traces import trace_path, write_trace
 from tanksynth.errors import ArtefactError, TanksynthError
-from tanksynth.verify.traces import TraceRecorder
-
+from tanksynth.spec import Spec, parse_spec_text
 from tanksynth.verify.cluster import CONNECT_TIMEOUT, connect
+from tanksynth.verify.traces import TraceRecorder
 
 __all__ = ["clear_cache", "VerdictFn", "Verdict", "verdict_for", "verdict_with_trace", "read_checks", "read_directory", "load_directory",
            "verify_directory"]
@@ -71,8 +75,6 @@ class Verdict:
 
     def as_dict(self) -> dict:
         """The ``verification`` field of the artefact."""
-        from tanksynth.artefacts.io import to_jsonable  # lazy: tanksynth.artefacts.io imports the design stage
-
         return {"passed": self.passed, "checks": [to_jsonable(c.as_dict()) for c in self.checks]}
 
 
@@ -86,7 +88,7 @@ def _takes_trace(verdict: VerdictFn) -> bool:
     return "trace" in params or any(p.kind is inspect.Parameter.VAR_KEYWORD for p in params.values())
 
 
-def verdict_for(doc: Mapping[str, Any], spec: Any, verdict: VerdictFn,
+def verdict_for(doc: Mapping[str, Any], spec: Spec, verdict: VerdictFn,
                 trace: TraceRecorder | None = None) -> list[Check]:
     """The checks of one artefact (``doc`` as returned by `read_artefact`).
 
@@ -111,7 +113,7 @@ def verdict_for(doc: Mapping[str, Any], spec: Any, verdict: VerdictFn,
         return [Check("verification", False, f"verdict could not run: {' '.join(str(exc).split())}")]
 
 
-def verdict_with_trace(doc: Mapping[str, Any], spec: Any,
+def verdict_with_trace(doc: Mapping[str, Any], spec: Spec,
                        verdict: VerdictFn) -> tuple[list[Check], dict | None]:
     """`verdict_for` with a fresh `TraceRecorder`: the checks and the recorded traces.
 
@@ -170,8 +172,6 @@ def clear_cache() -> int:
 
 def _spec_from_text(text: str, source: str, table: Mapping[str, VerifiableMethod]):
     """The spec of a result directory, every design's options validated (cached per process)."""
-    from tanksynth.spec import parse_spec_text
-
     key = (text, source, tuple(sorted(table)))
     if key not in _SPECS:
         if len(_SPECS) >= 8:
@@ -202,8 +202,6 @@ def read_checks(directory: str | Path) -> list[dict] | None:
         Naming ``checks.json``: unreadable, not JSON, or not a list of
         verdicts (each an object with a ``check`` key).
     """
-    from tanksynth.artefacts.io import read_limited  # lazy: see Verdict.as_dict
-
     path = Path(directory) / "checks.json"
     if not path.exists() and not path.is_symlink():
         return None
@@ -253,9 +251,6 @@ def read_directory(directory: str | Path,
         artefact, a ``plant.json`` other than the one designed with, an
         artefact designed from another spec, a malformed ``checks.json``.
     """
-    from tanksynth.artefacts.io import (SCHEMA, check_npz, check_orphan_npz,  # lazy: see Verdict.as_dict
-                                        check_plant_record, read_artefact, read_limited)
-
     directory = Path(directory)
     if not directory.is_dir():
         raise ArtefactError(f"{directory}: not a directory")
@@ -290,8 +285,6 @@ def read_directory(directory: str | Path,
     except ArtefactError:
         raise ArtefactError(f"{spec_path}: missing; the artefacts are checked against the spec they "
                             "were designed from (written by `tanksynth design`)") from None
-    import hashlib
-
     sha = hashlib.sha256(raw).hexdigest()
     for path, doc in docs:
         if doc["provenance"].get("spec_sha256") != sha:
@@ -341,8 +334,6 @@ def _write_verification(path: Path, verification: Mapping[str, Any]) -> None:
     artefact took 0.05-0.4 s); the result must parse back to the document with the new
     field, else the whole document is encoded again.
     """
-    from tanksynth.artefacts.jsontext import dumps
-
     text = path.read_text(encoding="utf-8")
     raw = json.loads(text)
     raw["verification"] = verification
@@ -441,7 +432,7 @@ def verify_directory(directory: str | Path, table: Mapping[str, VerifiableMethod
             if progress is not None:
                 progress(i + 1, total)
     else:
-        from distributed import as_completed
+        from distributed import as_completed  # here: dask stays off the in-process path
 
         text = (Path(directory) / "spec.toml").read_text(encoding="utf-8")
         source = str(Path(directory) / "spec.toml")

@@ -15,12 +15,16 @@ from typing import Any, Callable, Mapping, Sequence
 import numpy as np
 
 from tanksynth.analysis.checks import Check
+from tanksynth.analysis.lmi_region import region_from_parts
 from tanksynth.errors import TanksynthError
+from tanksynth.plants.base import Plant
+from tanksynth.runtime.estimators.luenberger import LuenbergerObserver, LuenbergerTuning
 from tanksynth.sim.simulate import BatchEstimator, EstimatorAdapter, run_seeds, simulate
+from tanksynth.spec import Spec
+from tanksynth.spec.options import parse_poles, parse_region
 from tanksynth.verify.common import (MAX_STEPS, OBSERVER_TIME_CONSTANTS, OBSERVER_TOLERANCE,
                                      PERTURBATION, SERVO_TIME_CONSTANTS, SERVO_TOLERANCE,
-                                     fmt_signals,
-                                     option, output_at)
+                                     discrete_ts, fmt_signals, option, output_at, required_ts)
 from tanksynth.verify.traces import TraceRecorder
 
 __all__ = [
@@ -50,8 +54,8 @@ def slowest_time_constant(eigs: np.ndarray, domain: str, ts: float | None) -> fl
         if not rho < 1:
             return math.inf
         if rho == 0:
-            return float(ts)
-        return float(-ts / math.log(rho))
+            return required_ts(ts)
+        return float(-required_ts(ts) / math.log(rho))
     slow = float(np.min(-eigs.real))
     return 1.0 / slow if slow > 0 else math.inf
 
@@ -66,7 +70,7 @@ def fastest_rate(eigs: np.ndarray, domain: str, ts: float | None) -> float:
     """
     eigs = np.asarray(eigs, dtype=complex)
     if domain == "discrete":
-        return 1.0 / float(ts)
+        return 1.0 / required_ts(ts)
     return float(np.max(np.abs(eigs)))
 
 
@@ -103,11 +107,11 @@ def region_time_constant(region: Any, domain: str, ts: float | None) -> float:
                 best = min(best, 1.0 / rate)
         elif part[0] == "disk" and abs(part[1]) + part[2] < 1:
             rho = abs(part[1]) + part[2]
-            best = min(best, float(ts) if rho == 0 else -float(ts) / math.log(rho))
+            best = min(best, required_ts(ts) if rho == 0 else -required_ts(ts) / math.log(rho))
     return best
 
 
-def requested_poles(doc: Mapping[str, Any], spec: Any, domain: str) -> np.ndarray | None:
+def requested_poles(doc: Mapping[str, Any], spec: Spec, domain: str) -> np.ndarray | None:
     """The spec's poles in the design's plane (None when the spec gives none).
 
     ``pole_domain = "s"`` in discrete time is converted here, independently of
@@ -125,19 +129,17 @@ def requested_poles(doc: Mapping[str, Any], spec: Any, domain: str) -> np.ndarra
     ndarray of complex or None
         Poles in 1/s (continuous) or in the z-plane (discrete, dimensionless).
     """
-    from tanksynth.spec.options import parse_poles
-
     poles = option(doc, spec, "poles")
     if poles is None:
         return None
     given = option(doc, spec, "pole_domain")
     values = np.asarray(parse_poles(poles, "poles"), dtype=complex)
     if given == "s" and domain == "discrete":
-        values = np.exp(values * float(spec.ts))
+        values = np.exp(values * discrete_ts(spec))
     return values
 
 
-def designed_time_constant(doc: Mapping[str, Any], spec: Any, eigs: np.ndarray, domain: str,
+def designed_time_constant(doc: Mapping[str, Any], spec: Spec, eigs: np.ndarray, domain: str,
                            ts: float | None) -> tuple[float, str]:
     """Slowest time constant (s) the DESIGN asks for, and the rule that gave it.
 
@@ -152,9 +154,6 @@ def designed_time_constant(doc: Mapping[str, Any], spec: Any, eigs: np.ndarray, 
     domain, ts : str, float or None
         ``"continuous"`` or ``"discrete"``; sampling period [s].
     """
-    from tanksynth.analysis.lmi_region import region_from_parts
-    from tanksynth.spec.options import parse_region
-
     p = requested_poles(doc, spec, domain)
     if p is not None:
         tau, rule = eigen_time_constant(p, domain, ts)
@@ -192,7 +191,7 @@ def observer_period(domain: str, spec_ts: float | None, tau: float) -> float:
         Time domain, the spec's sampling period [s], the observer's time constant [s].
     """
     if domain == "discrete":
-        return float(spec_ts)
+        return required_ts(spec_ts)
     step = tau / 20.0
     return float(min(spec_ts, step)) if spec_ts else float(step)
 
@@ -208,7 +207,7 @@ def _horizon(tau: float, ts: float, conditioning: float) -> tuple[float, float, 
 
 
 # ========================================================================== observers
-def perturbed_start(plant: Any, x0: np.ndarray, inside: Callable[[np.ndarray], bool] | None = None
+def perturbed_start(plant: Plant, x0: np.ndarray, inside: Callable[[np.ndarray], bool] | None = None
                     ) -> tuple[np.ndarray, float]:
     """``x0 + delta`` in the region (and ``inside``), delta = 5 % of the span, alternating signs.
 
@@ -249,7 +248,7 @@ def perturbed_start(plant: Any, x0: np.ndarray, inside: Callable[[np.ndarray], b
                          "the operating region" + (" and the TS domain" if inside else ""))
 
 
-def observer_convergence(plant: Any, estimator: BatchEstimator, x0: np.ndarray, u0: np.ndarray,
+def observer_convergence(plant: Plant, estimator: BatchEstimator, x0: np.ndarray, u0: np.ndarray,
                          tau: float, ts: float, *, conditioning: float = 1.0,
                          inside: Callable[[np.ndarray], bool] | None = None,
                          rule: str = "", substeps: int = 4, name: str = "observer_convergence",
@@ -331,7 +330,7 @@ def observer_convergence(plant: Any, estimator: BatchEstimator, x0: np.ndarray, 
                   "kappa": kappa, "ts": ts, "x_start": x_start.tolist(), "error_inf": err.tolist()})
 
 
-def luenberger_estimator(plant: Any, L: np.ndarray, x0: np.ndarray, u0: np.ndarray, ts: float,
+def luenberger_estimator(plant: Plant, L: np.ndarray, x0: np.ndarray, u0: np.ndarray, ts: float,
                          form: str) -> EstimatorAdapter:
     """The runtime's Luenberger observer on the model linearised at ``(x0, u0)``.
 
@@ -355,8 +354,6 @@ def luenberger_estimator(plant: Any, L: np.ndarray, x0: np.ndarray, u0: np.ndarr
     -------
     EstimatorAdapter
     """
-    from tanksynth.runtime.estimators.luenberger import LuenbergerObserver, LuenbergerTuning
-
     tuning = LuenbergerTuning(L=np.asarray(L, dtype=float), x0=np.asarray(x0, dtype=float),
                               ts=float(ts), form=form, operating_point=(x0, u0))
     return EstimatorAdapter(LuenbergerObserver(plant, tuning))
@@ -447,7 +444,7 @@ class IntegralStateFeedback:
         return u
 
 
-def servo_check(plant: Any, controller: Callable, x0: np.ndarray, u0: np.ndarray,
+def servo_check(plant: Plant, controller: Callable, x0: np.ndarray, u0: np.ndarray,
                 out_idx: Sequence[int], tau: float, ts: float, substeps: int = 4,
                 rule: str = "", *, trace: TraceRecorder | None = None) -> list[Check]:
     """``servo_tracking`` and ``bounded_inputs``: step the tracked set-points by 5 %.
@@ -512,7 +509,7 @@ def servo_check(plant: Any, controller: Callable, x0: np.ndarray, u0: np.ndarray
                   {"saturated_samples": saturated, "final_input": u[-1].tolist()})]
 
 
-def regulation_check(plant: Any, K: np.ndarray, x0: np.ndarray, u0: np.ndarray, tau: float,
+def regulation_check(plant: Plant, K: np.ndarray, x0: np.ndarray, u0: np.ndarray, tau: float,
                      ts: float, conditioning: float = 1.0, rule: str = "", *,
                      trace: TraceRecorder | None = None) -> Check:
     """``regulation``: ``u = u0 - K (x - x0)`` from ``x0 + delta`` back to ``x0``.

@@ -64,10 +64,16 @@ import warnings
 from pathlib import Path
 from typing import Any, Mapping
 
+import control
 import numpy as np
+from scipy.linalg import solve_discrete_are
 
+from tanksynth.analysis.linearize import equilibrium_input, linearize
 from tanksynth.analysis.statespace import model_names
 from tanksynth.errors import ArtefactError, TanksynthWarning
+from tanksynth.spec import Spec, parse_spec_text
+from tanksynth.verify.numerics import integral_augmentation
+from tanksynth.verify.takagi_sugeno.model import rebuild_model
 
 __all__ = ["artefact_statespace", "SYSTEMS", "DEFAULT_SYSTEM"]
 
@@ -89,7 +95,7 @@ _TS = ("ts_state_feedback", "ts_output_feedback")
 class _Artefact:
     """The artefact's gains as arrays, its diagnostics, names and (lazily) its spec."""
 
-    def __init__(self, doc: Mapping[str, Any], spec: Any, plant_record: Mapping[str, Any] | None,
+    def __init__(self, doc: Mapping[str, Any], spec: Spec | None, plant_record: Mapping[str, Any] | None,
                  source: Path | None):
         self.name = str(doc.get("name", "artefact"))
         self.method = str(doc.get("method", ""))
@@ -105,6 +111,13 @@ class _Artefact:
     @property
     def discrete(self) -> bool:
         return self.diag.get("time_domain", "discrete") == "discrete"
+
+    def need(self, key: str) -> np.ndarray:
+        """Gain ``key`` as `g` reads it; an `ArtefactError` naming it when the artefact lacks it."""
+        value = self.g(key)
+        if value is None:
+            raise ArtefactError(f"{self.label}: no gain {key!r}")
+        return value
 
     def model(self, role: str) -> np.ndarray | None:
         """The model matrix ``role`` (``"A"``, ``"B"``, ``"Bw"``, ``"C"``) under its name (`model_names`)."""
@@ -127,8 +140,6 @@ class _Artefact:
             if path is None or not path.is_file():
                 raise ArtefactError(f"{self.label}: no spec.toml beside it (or spec given), needed "
                                     f"to rebuild the plant of a {self.method!r} design")
-            from tanksynth.spec import parse_spec_text
-
             self._spec = parse_spec_text(path.read_bytes(), source=str(path))
         return self._spec
 
@@ -140,8 +151,6 @@ class _Artefact:
 
     def linearisation(self) -> Any:
         """The ZOH linearisation at the spec's operating point."""
-        from tanksynth.analysis.linearize import equilibrium_input, linearize
-
         spec = self.spec
         eq = equilibrium_input(spec.plant, spec.x0, spec.given_u0)
         return linearize(spec.plant, spec.x0, eq.u0, ts=spec.ts)
@@ -183,8 +192,6 @@ def _w_columns(a: _Artefact, Bw: np.ndarray) -> list[np.ndarray]:
 def _ss(a: _Artefact, system: str, A: np.ndarray, B: np.ndarray, C: np.ndarray, dt: float, *,
         states: list[str] | None = None, inputs: list[str] | None = None,
         outputs: list[str] | None = None) -> Any:
-    import control
-
     n = A.shape[0]
     D = np.zeros((C.shape[0], B.shape[1]))
     states = _fit(states if states is not None else a.names("states"), n, "x")
@@ -209,7 +216,8 @@ def _model(a: _Artefact, vertex: int | None) -> tuple[np.ndarray, np.ndarray, np
         count = len(vm["A"])
         if not isinstance(vertex, int) or not 0 <= vertex < count:
             raise ArtefactError(f"{a.label}: vertex must be an integer in [0, {count - 1}], got {vertex!r}")
-        return tuple(np.atleast_2d(np.asarray(vm[k][vertex], dtype=float)) for k in ("A", "B", "C"))
+        stored = [np.atleast_2d(np.asarray(vm[k][vertex], dtype=float)) for k in ("A", "B", "C")]
+        return stored[0], stored[1], stored[2]
     A, B, C = (a.model(k) for k in ("A", "B", "C"))
     if A is not None and B is not None and C is not None and A.ndim == 2:
         return A, B, C
@@ -220,8 +228,6 @@ def _model(a: _Artefact, vertex: int | None) -> tuple[np.ndarray, np.ndarray, np
 def _augmented(a: _Artefact, A: np.ndarray, B: np.ndarray, C: np.ndarray, K: np.ndarray
                ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, list[str]]:
     """``Aa, Ba, Br, Ca`` and the tracked outputs of a loop with integral action."""
-    from tanksynth.verify.numerics import integral_augmentation
-
     n = A.shape[0]
     integral = a.diag.get("integral")
     if not isinstance(integral, Mapping) or ("C1" not in integral and "augmented_A" not in integral):
@@ -247,7 +253,7 @@ def _augmented(a: _Artefact, A: np.ndarray, B: np.ndarray, C: np.ndarray, K: np.
 
 
 def _controller(a: _Artefact, system: str, vertex: int | None) -> Any:
-    K = a.g("K")
+    K = a.need("K")
     A, B, C = _model(a, vertex)
     n, dt = A.shape[0], a.dt(a.discrete)
     states, inputs, outputs = a.names("states"), a.names("inputs"), a.names("outputs")
@@ -281,7 +287,7 @@ def _controller(a: _Artefact, system: str, vertex: int | None) -> Any:
 
 
 def _observer(a: _Artefact, system: str, vertex: int | None) -> Any:
-    L = a.g("L")
+    L = a.need("L")
     A, B, C = _model(a, vertex)
     discrete = a.discrete and a.method != "canonical_observer"
     dt, n = a.dt(discrete), A.shape[0]
@@ -312,8 +318,6 @@ def _observer(a: _Artefact, system: str, vertex: int | None) -> Any:
 
 def _ts_memberships(a: _Artefact) -> tuple[np.ndarray, np.ndarray]:
     """``mu_i(x0)`` (the memberships at the operating point, premises at their limit slopes), ``C``."""
-    from tanksynth.verify.takagi_sugeno.verdicts import rebuild_model
-
     model = rebuild_model(a.spec.plant, a.doc)
     return model.memberships(model.x0[None, :])[0], np.atleast_2d(model.C)
 
@@ -323,7 +327,7 @@ def _ts_pdc(a: _Artefact, system: str) -> Any:
         raise ArtefactError(f"{a.label}: a Takagi-Sugeno PDC design gives its linearisation at the "
                             f"operating point, system 'closed_loop' (or 'error' for "
                             f"ts_output_feedback), not {system!r}")
-    Ai, B, Ki = a.gains["F"], a.g("B"), a.gains["K"]
+    Ai, B, Ki = a.gains["F"], a.need("B"), a.gains["K"]
     if Ai.ndim != 3 or Ki.ndim != 3 or Ai.shape[0] != Ki.shape[0]:
         raise ArtefactError(f"{a.label}: expected vertex matrices F (r, n, n) and PDC gains K "
                             f"(r, m, n), got F {Ai.shape}, K {Ki.shape}")
@@ -351,21 +355,19 @@ def _ts_pdc(a: _Artefact, system: str) -> Any:
 
 
 def _kalman(a: _Artefact, system: str) -> Any:
-    from scipy.linalg import solve_discrete_are
-
     if system != "error":
         raise ArtefactError(f"{a.label}: a Kalman filter gives its steady-state error system "
                             f"('error'), not {system!r}")
     g = a.gains
     if "Ad" in g and "C" in g:
-        Ad, C = a.g("Ad"), a.g("C")
+        Ad, C = a.need("Ad"), a.need("C")
     else:
         lin = a.linearisation()
         Ad, C = lin.Ad, lin.C
-    Q = a.g("Q0") if "Q0" in g else a.g("Q")
+    Q = a.need("Q0") if "Q0" in g else a.need("Q")
     if a.method == "adaptive_scaling_kalman" and "G" in g:
-        Q = a.g("G") @ Q @ a.g("G").T
-    R = a.g("R")
+        Q = a.need("G") @ Q @ a.need("G").T
+    R = a.need("R")
     P = solve_discrete_are(Ad.T, C.T, Q, R)     # predicted covariance
     K = P @ C.T @ np.linalg.inv(C @ P @ C.T + R)
     return _error(a, system, (np.eye(Ad.shape[0]) - K @ C) @ Ad, Ad @ K, a.dt(True))
@@ -374,7 +376,7 @@ def _kalman(a: _Artefact, system: str) -> Any:
 def _luenberger(a: _Artefact, system: str) -> Any:
     if system != "error":
         raise ArtefactError(f"{a.label}: luenberger gives its error system ('error'), not {system!r}")
-    lin, L, form = a.linearisation(), a.g("L"), a.diag.get("form")
+    lin, L, form = a.linearisation(), a.need("L"), a.diag.get("form")
     if form == "continuous":
         return _error(a, system, lin.F - L @ lin.C, L, 0)
     if form == "predictor":
@@ -385,7 +387,7 @@ def _luenberger(a: _Artefact, system: str) -> Any:
 def _integral_tracking(a: _Artefact, system: str) -> Any:
     if system not in ("closed_loop", "reference"):
         raise ArtefactError(f"{a.label}: integral_tracking gives its closed loop, not {system!r}")
-    lin, C1, K = a.linearisation(), a.g("C1"), a.g("K")
+    lin, C1, K = a.linearisation(), a.need("C1"), a.need("K")
     n, p, ts = lin.Ad.shape[0], C1.shape[0], a.dt(True)
     # x+ = Ad x + Bd u, z+ = z + ts (r - C1 x), u = -K1 x - K2 z (deviations, no saturation)
     Aa = np.block([[lin.Ad, np.zeros((n, p))], [-ts * C1, np.eye(p)]])
@@ -397,7 +399,7 @@ def _integral_tracking(a: _Artefact, system: str) -> Any:
                inputs=[f"r_{t}" for t in tracked], outputs=tracked if len(tracked) == p else None)
 
 
-def artefact_statespace(doc: Mapping[str, Any], system: str | None = None, spec: Any = None, *,
+def artefact_statespace(doc: Mapping[str, Any], system: str | None = None, spec: Spec | None = None, *,
                         plant_record: Mapping[str, Any] | None = None, source: str | Path | None = None,
                         vertex: int | None = None) -> Any:
     """A closed loop, error system or observer of an artefact as a `control.StateSpace`.
@@ -448,7 +450,7 @@ def artefact_statespace(doc: Mapping[str, Any], system: str | None = None, spec:
     if method == "linearize":
         if system not in (None, "model"):
             raise ArtefactError(f"{a.label}: linearize gives its model ('model'), not {system!r}")
-        return _ss(a, "model", a.g("Ad"), a.g("Bd"), a.g("C"), a.dt(True), inputs=a.names("inputs"),
+        return _ss(a, "model", a.need("Ad"), a.need("Bd"), a.need("C"), a.dt(True), inputs=a.names("inputs"),
                    outputs=a.names("outputs"))
     if method in _TS:
         return _ts_pdc(a, system or "closed_loop")
@@ -459,7 +461,7 @@ def artefact_statespace(doc: Mapping[str, Any], system: str | None = None, spec:
     if method == "ts_observer":
         if system not in (None, "error"):
             raise ArtefactError(f"{a.label}: ts_observer gives its error system ('error'), not {system!r}")
-        return _error(a, "error", a.g("A0") - a.g("L") @ a.g("C"), a.g("L"), 0)
+        return _error(a, "error", a.need("A0") - a.need("L") @ a.need("C"), a.need("L"), 0)
     if method == "integral_tracking":
         return _integral_tracking(a, system or "closed_loop")
     if method == "luenberger":

@@ -12,11 +12,14 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any, Sequence
+from typing import TYPE_CHECKING, Any, Sequence
 
 import numpy as np
 
 from tanksynth.artefacts.traces import TRACE_EXTRAS, TRACE_MAX_SAMPLES, TRACE_RUNS
+
+if TYPE_CHECKING:  # annotations only: this module stays free of the plant (sympy) stack
+    from tanksynth.plants.base import Plant
 
 __all__ = ["Signal", "TraceRecorder", "trace_of"]
 
@@ -43,7 +46,7 @@ class Signal:
     style: str = "-"
 
 
-def trace_of(result: Any, plant: Any, *, scenario: str, check: str, estimator: bool = False,
+def trace_of(result: Any, plant: Plant, *, scenario: str, check: str, estimator: bool = False,
              reference_names: Sequence[str] | None = None, runs: int = TRACE_RUNS,
              disturbances: Sequence[str] = (), rows: Sequence[int] | None = None,
              signals: Sequence[Signal] = (), signal_title: str = "",
@@ -173,7 +176,7 @@ class TraceRecorder:
         self.trace: dict | None = None
         self.extras: list[dict] = []
 
-    def record(self, result: Any, plant: Any, *, scenario: str, check: str, estimator: bool = False,
+    def record(self, result: Any, plant: Plant, *, scenario: str, check: str, estimator: bool = False,
                reference_names: Sequence[str] | None = None, runs: int = TRACE_RUNS,
                disturbances: Sequence[str] = (), **more: Any) -> None:
         """Keep the trace of ``result`` (see `trace_of`): as the main trace when none is kept, as

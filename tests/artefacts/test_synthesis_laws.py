@@ -202,7 +202,7 @@ def test_every_method_exports_a_law(syn, rob, ts):
 def test_synthesis_state_feedback_is_the_verdicts(syn, name):
     from tanksynth.verify.common import operating_point
     from tanksynth.verify.simulations import StateFeedback
-    from tanksynth.verify.synthesis.verdicts import synthesis_run
+    from tanksynth.verify.synthesis.campaign import synthesis_run
 
     doc, spec = _load(syn, name)
     x0, u0 = operating_point(spec)
@@ -322,7 +322,8 @@ def test_continuous_observer_field_integrates_to_the_runtime_observer(request, o
 
 # ------------------------------------------------------------------- Takagi-Sugeno
 def test_pdc_state_feedback_is_the_verdicts_law(ts):
-    from tanksynth.verify.takagi_sugeno.verdicts import region_points, ts_control_run
+    from tanksynth.verify.takagi_sugeno.campaign import ts_control_run
+    from tanksynth.verify.takagi_sugeno.verdicts import region_points
 
     doc, spec = _load(ts, "pdc")
     g = doc["gains"]
@@ -351,8 +352,8 @@ def test_pdc_state_feedback_is_the_verdicts_law(ts):
 
 
 def test_pdc_output_feedback_measured_premises(ts):
-    from tanksynth.verify.laws.campaign import sampling_period
-    from tanksynth.verify.takagi_sugeno.verdicts import ts_control_run
+    from tanksynth.verify.common import sampling_period
+    from tanksynth.verify.takagi_sugeno.campaign import ts_control_run
 
     doc, spec = _load(ts, "pdc_meas")
     plant = spec.plant
@@ -388,8 +389,8 @@ def test_pdc_output_feedback_measured_premises(ts):
 
 
 def test_pdc_output_feedback_estimated_premises(ts):
-    from tanksynth.verify.laws.campaign import sampling_period
-    from tanksynth.verify.takagi_sugeno.verdicts import ts_control_run
+    from tanksynth.verify.common import sampling_period
+    from tanksynth.verify.takagi_sugeno.campaign import ts_control_run
 
     doc, spec = _load(ts, "pdc_est")
     plant = spec.plant

@@ -62,7 +62,7 @@ def test_every_result_and_the_fit_test():
 
 def test_casadi_control_law_buffered_equals_the_mapped_call():
     """`CasadiControlLaw.evaluate` through one bound buffer: the numbers of Function.map."""
-    from tanksynth.verify.common import CasadiControlLaw
+    from tanksynth.verify.batch_call import CasadiControlLaw
 
     rng = np.random.default_rng(2)
     fn = _two_outputs()

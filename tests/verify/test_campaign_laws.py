@@ -13,8 +13,8 @@ from tanksynth.errors import ArtefactError
 from tanksynth.sim.metrics import compute_metrics
 from tanksynth.sim.scenarios import run_scenario, scenario
 from tanksynth.sim.simulate import ConstantInput, run_seeds
-from tanksynth.verify.campaign import (ArtefactIntegralLaw, ArtefactLaw, campaign_tasks,
-                                       closed_loop_for, run_campaign)
+from tanksynth.verify.campaign import campaign_tasks, run_campaign
+from tanksynth.verify.laws.campaign import ArtefactIntegralLaw, ArtefactLaw, closed_loop_for
 
 ROOT = Path(__file__).resolve().parents[2]
 

@@ -200,7 +200,7 @@ def test_linear_predictions_by_hand():
 
 def test_no_seed_identifiers_in_sim_and_campaign_modules():
     files = list((ROOT / "tanksynth" / "sim").glob("*.py"))
-    files += [ROOT / "tanksynth" / "verify" / "campaign.py"]
+    files += [ROOT / "tanksynth" / "verify" / f"{m}.py" for m in ("campaign", "estimation")]
     files += sorted((ROOT / "tanksynth" / "verify").glob("*/campaign.py"))  # each family's runners
     assert len(files) > 12
     files += [ROOT / "tanksynth" / "comparison.py"]

@@ -95,14 +95,14 @@ def test_campaign_workers_read_the_box_from_a_spec_parsed_without_its_methods():
 
     from tanksynth.methods import parse_spec_text as parse_validated
     from tanksynth.spec import parse_spec_text as parse_raw
-    from tanksynth.verify.robust.verdicts import _box
+    from tanksynth.verify.robust.models import uncertain_box
 
     text = (Path(__file__).resolve().parents[2] / "examples" / "three_tank_robust.toml").read_bytes()
     validated, raw = parse_validated(text), parse_raw(text)
     entry = next(d for d in validated.designs if d.method == "robust_state_feedback")
     doc = {"name": entry.name, "method": entry.method}
-    expected = _box(doc, validated)
-    assert expected and _box(doc, raw) == expected
+    expected = uncertain_box(doc, validated)
+    assert expected and uncertain_box(doc, raw) == expected
     for name, lo, hi in expected:  # the example's "15%": [0.85 p, 1.15 p]
         assert 0 < lo < hi and abs((hi - lo) / (hi + lo) - 0.15) < 1e-12, name
 

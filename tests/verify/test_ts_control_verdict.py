@@ -9,8 +9,9 @@ import numpy as np
 import pytest
 
 from tanksynth.methods import METHODS, load_spec
-from tanksynth.verify.takagi_sugeno.verdicts import (rebuild_model, region_level, region_points, simulate_region,
-                                         ts_control_run, ts_control_verdict)
+from tanksynth.verify.takagi_sugeno.campaign import ts_control_run
+from tanksynth.verify.takagi_sugeno.verdicts import (rebuild_model, region_level, region_points,
+                                                     simulate_region, ts_control_verdict)
 
 EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "three_tank_ts_control.toml"
 

@@ -1,4 +1,4 @@
-"""TSObserver (verify/ts_observer.py): the compiled period equals the exponential-Euler rule by hand."""
+"""TSObserver (verify/observer_lmi/verdicts.py): the compiled period equals the exponential-Euler rule by hand."""
 
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ import numpy as np
 from scipy.linalg import expm
 
 from tanksynth.methods import load_spec
-from tanksynth.verify.takagi_sugeno.loops import _PlantModel
+from tanksynth.verify.takagi_sugeno.loops import PlantObserverModel
 from tanksynth.verify.observer_lmi.verdicts import TSObserver
 
 
@@ -20,7 +20,7 @@ def test_compiled_period_is_the_exponential_euler_rule():
     C = np.eye(q, n)
     L = 0.05 * rng.random((n, q))
     ts, sub, M = 2.0, 8, 4
-    model = _PlantModel(plant, A0, C)
+    model = PlantObserverModel(plant, A0, C)
     obs = TSObserver(model, L, ts, sub)
     assert obs._period is not None          # the compiled route is the one under test
     # exact ZOH of the stiff linear part over ts / sub, by one expm of the augmented matrix

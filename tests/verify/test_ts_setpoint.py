@@ -11,8 +11,8 @@ import pytest
 
 from tanksynth.methods import METHODS, load_spec
 from tanksynth.sim.scenarios import scenario
-from tanksynth.verify.takagi_sugeno.verdicts import ts_control_run, ts_control_verdict
-from tanksynth.verify.takagi_sugeno.campaign import TsRegionRun, region_draws
+from tanksynth.verify.takagi_sugeno.campaign import TsRegionRun, region_draws, ts_control_run
+from tanksynth.verify.takagi_sugeno.verdicts import ts_control_verdict
 from tanksynth.verify.takagi_sugeno.setpoint import max_on_ellipsoid, setpoint_checks
 from tanksynth.verify.traces import TraceRecorder
 

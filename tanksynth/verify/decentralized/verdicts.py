@@ -8,9 +8,12 @@ import numpy as np
 
 from tanksynth.analysis.checks import Check
 from tanksynth.errors import ArtefactError
+from tanksynth.plants.base import Plant
+from tanksynth.sim.integrate import Integrator, param_arrays
 from tanksynth.sim.simulate import run_seeds, simulate
-from tanksynth.verify.common import (artefact_gain, artefact_matrix, fmt, guard, operating_point,
-                                     option)
+from tanksynth.spec import Spec
+from tanksynth.verify.common import (artefact_gain, artefact_matrix, discrete_ts, fmt, guard,
+                                     operating_point, option)
 from tanksynth.verify.traces import TraceRecorder
 
 __all__ = ["DecentralizedFilter", "decentralized_kalman_verdict"]
@@ -36,17 +39,15 @@ class DecentralizedFilter:
         RK4 steps of the prediction.
     """
 
-    def __init__(self, plant: Any, gains: Sequence[np.ndarray], ts: float, substeps: int = 4):
+    def __init__(self, plant: Plant, gains: Sequence[np.ndarray], ts: float, substeps: int = 4):
         self.plant = plant
         self.gains = [np.asarray(K, dtype=float) for K in gains]
         self.ts = float(ts)
         self.substeps = int(substeps)
-        self._x: np.ndarray | None = None
+        self._x: np.ndarray = np.empty((0, plant.n))    # set by reset
         self._k = 0
         # The simulator's own integrator, model, parameters and bounds, built once: one
         # `predict` is exactly the state `simulate(..., steps=1, u_init=u).x[:, 1]` returns.
-        from tanksynth.sim.integrate import Integrator, param_arrays
-
         self._params = param_arrays(plant, None, 1)
         self._integ = Integrator.for_plant(plant, self._params)
         self._u_lo = np.full(plant.m, -np.inf)
@@ -101,7 +102,7 @@ class DecentralizedFilter:
         return self._x
 
 
-def decentralized_kalman_verdict(doc: Mapping[str, Any], spec: Any, *,
+def decentralized_kalman_verdict(doc: Mapping[str, Any], spec: Spec, *,
                                  trace: TraceRecorder | None = None) -> list[Check]:
     """Verdict of a ``decentralized_kalman`` artefact (seed 003).
 
@@ -145,7 +146,7 @@ def decentralized_kalman_verdict(doc: Mapping[str, Any], spec: Any, *,
                         "(must be > 0)", {"asymmetry": sym, "P0_min_eigenvalue": pmin}))
 
     def simulate_window() -> list[Check]:
-        ts = float(spec.ts)
+        ts = discrete_ts(spec)
         x0 = np.asarray(spec.x0, dtype=float)
         opt_u = option(doc, spec, "input")
         if isinstance(opt_u, list) and len(opt_u) == m:
@@ -163,7 +164,7 @@ def decentralized_kalman_verdict(doc: Mapping[str, Any], spec: Any, *,
         lo = np.array([b[0] for b in plant.region.bounds], float)
         starts = np.maximum(starts, np.where(np.isfinite(lo), lo, -np.inf))
         seeds = run_seeds(5, runs)
-        common = dict(ts=ts, steps=T, x0=starts, seeds=seeds, x_hat0=np.tile(x0, (runs, 1)),
+        common: dict[str, Any] = dict(ts=ts, steps=T, x0=starts, seeds=seeds, x_hat0=np.tile(x0, (runs, 1)),
                       u_init=u, process_std=np.sqrt(np.maximum(qdiag, 0) * ts),
                       measurement_std=np.sqrt(np.maximum(rdiag, 0)), substeps=4)
         filt = simulate(plant, estimator=DecentralizedFilter(plant, Ks, ts), **common)

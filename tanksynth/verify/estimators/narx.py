@@ -1,4 +1,9 @@
-"""Verdict of ``narx`` (NARX estimator trained on EKF data)."""
+"""The NARX estimator as the verify stage sees it: its network from the stored weights, its
+tuning rebuilt from the artefact, and fresh EKF data drawn by the verdict itself.
+
+Used by the ``narx`` verdict (`tanksynth.verify.estimators.verdicts.narx_verdict`) and its
+campaign runner (`tanksynth.verify.estimators.campaign.narx_run`).
+"""
 
 from __future__ import annotations
 
@@ -6,13 +11,15 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from tanksynth.analysis.checks import Check
-from tanksynth.verify.common import (NUMERIC_ERRORS, artefact_gain, design_options, fmt, guard,
-                                     one_line, option, relative_difference)
-from tanksynth.verify.traces import TraceRecorder
+from tanksynth.plants.base import Plant
+from tanksynth.runtime.estimators.kalman import ExtendedKalmanFilter, KalmanTuning
+from tanksynth.runtime.estimators.narx import NARXTuning
+from tanksynth.sim.simulate import simulate_inputs
+from tanksynth.spec import Spec
+from tanksynth.verify.common import artefact_gain, option
 
 __all__ = ["fresh_ekf_data", "NARX_FIT_FACTOR", "NARX_CLOSED_LOOP_FACTOR", "NARX_FRESH_DRAW", "narx_network",
-           "teacher_forced_inputs", "narx_verdict"]
+           "narx_tuning", "teacher_forced_inputs"]
 
 
 #: Fresh one-step fit error allowed, as a multiple of the training fit error.
@@ -83,7 +90,35 @@ def teacher_forced_inputs(data: Mapping[str, np.ndarray], x0: np.ndarray, delays
     return inputs.reshape(steps * runs, -1), est.reshape(steps * runs, n)
 
 
-def fresh_ekf_data(plant: Any, ekf_tuning: Any, *, runs: int, steps: int, seed: int,
+def narx_tuning(doc: Mapping[str, Any], spec: Spec, ts: float) -> NARXTuning:
+    """The NARX estimator an artefact ships: its stored weights, normalisation and delays.
+
+    Parameters
+    ----------
+    doc : mapping
+        The artefact (gains ``W1``, ``b1``, ``W2``, ``b2``, ``in_mean``, ``in_scale``,
+        ``out_mean``, ``out_scale``, ``x_hat0``, ``delays``).
+    spec : Spec
+        The validated spec (options ``substeps``, ``clip``).
+    ts : float
+        Sampling period [s].
+    """
+    n = spec.plant.n
+
+    def g(key: str) -> np.ndarray:
+        return np.asarray(artefact_gain(doc, key), dtype=float)
+
+    W1 = np.atleast_2d(g("W1"))
+    H = W1.shape[0]
+    return NARXTuning(W1, g("b1").reshape(H), np.atleast_2d(g("W2")).reshape(n, H),
+                      g("b2").reshape(n), g("in_mean").reshape(-1), g("in_scale").reshape(-1),
+                      g("out_mean").reshape(n), g("out_scale").reshape(n), x0=g("x_hat0").reshape(n),
+                      ts=ts, delays=int(round(float(np.ravel(g("delays"))[0]))),
+                      substeps=int(option(doc, spec, "substeps", 1)),
+                      clip=bool(option(doc, spec, "clip", False)))
+
+
+def fresh_ekf_data(plant: Plant, ekf_tuning: KalmanTuning, *, runs: int, steps: int, seed: int,
                    input_range: Any = None, hold: Any = (30, 150), noise_std: Any = None,
                    sim_substeps: int = 10) -> dict[str, np.ndarray]:
     """Fresh EKF data for the NARX verdict, drawn by the verdict itself (not by the design code).
@@ -111,9 +146,6 @@ def fresh_ekf_data(plant: Any, ekf_tuning: Any, *, runs: int, steps: int, seed: 
         ``x`` (steps + 1, runs, n), ``u`` (steps, runs, m), ``y`` (steps, runs, q),
         ``x_ekf`` and ``prior`` (steps, runs, n), ``innovation`` (steps, runs, q).
     """
-    from tanksynth.runtime.estimators.kalman import ExtendedKalmanFilter
-    from tanksynth.sim.simulate import simulate_inputs
-
     rng = np.random.default_rng(seed)
     ranges = np.asarray(plant.input_limits if input_range is None else input_range,
                         dtype=float).reshape(plant.m, 2)
@@ -141,149 +173,3 @@ def fresh_ekf_data(plant: Any, ekf_tuning: Any, *, runs: int, steps: int, seed: 
         prior[k] = ekf.prediction
         innovation[k] = ekf.innovation
     return {"x": X, "u": U, "y": Y, "x_ekf": x_ekf, "prior": prior, "innovation": innovation}
-
-
-def narx_verdict(doc: Mapping[str, Any], spec: Any, *,
-                 trace: TraceRecorder | None = None) -> list[Check]:
-    """Verdict of a ``narx`` artefact (seed 002 section 3.3).
-
-    The network is evaluated from the stored weights and normalisation by
-    the verdict's own `narx_network` (the shipped `NARXEstimator` runs the
-    closed loop); fresh data come from `fresh_ekf_data` with the stored EKF tuning
-    (``ekf_Q``, ``ekf_R``, ``ekf_P0``, ``x_hat0``) and the spec's data options,
-    on a seed the training never used (2 runs, the spec's ``steps``).
-
-    ``training_fit_recheck``
-        the one-step (teacher-forced) MSE of the stored weights on the
-        stored training data equals the training MSE the diagnostics report
-        (relative tolerance 1e-6).
-    ``one_step_fit``
-        on the fresh data, the mean over states of the one-step MSE is at
-        most `NARX_FIT_FACTOR` (3) times the reference: the larger of the
-        mean training MSE and the mean held-out (validation) one-step MSE
-        the design reports.
-    ``closed_loop_bounded``
-        the estimator runs in closed loop on the fresh measurements
-        (`NARXEstimator`, own predictions fed back): every estimate finite
-        and the RMSE against the true states (mean over states) at most
-        `NARX_CLOSED_LOOP_FACTOR` (3) times the larger of the design's
-        validation RMSE against the true states and the EKF's RMSE on the
-        same fresh data.
-
-    Parameters
-    ----------
-    doc, spec, trace : mapping, Spec, TraceRecorder or None
-        The artefact, the validated spec and a recorder of the simulated runs.
-    """
-    from tanksynth.runtime.estimators.kalman import KalmanTuning
-    from tanksynth.runtime.estimators.narx import NARXEstimator, NARXTuning
-
-    plant = spec.plant
-    n, q = plant.n, plant.q
-
-    def g(key: str) -> np.ndarray:
-        return np.asarray(artefact_gain(doc, key), dtype=float)
-
-    W1 = np.atleast_2d(g("W1"))
-    H = W1.shape[0]
-    delays = int(round(float(np.ravel(g("delays"))[0])))
-    substeps = int(option(doc, spec, "substeps", 1))
-    clip = bool(option(doc, spec, "clip", False))
-    tuning = NARXTuning(W1, g("b1").reshape(H), np.atleast_2d(g("W2")).reshape(n, H),
-                        g("b2").reshape(n), g("in_mean").reshape(-1), g("in_scale").reshape(-1),
-                        g("out_mean").reshape(n), g("out_scale").reshape(n), x0=g("x_hat0").reshape(n),
-                        ts=float(spec.ts), delays=delays, substeps=substeps, clip=clip)
-    weights = {"W1": tuning.W1, "b1": tuning.b1, "W2": tuning.W2, "b2": tuning.b2,
-               "in_mean": tuning.in_mean, "in_scale": tuning.in_scale,
-               "out_mean": tuning.out_mean, "out_scale": tuning.out_scale}
-
-    def predict(X_in: np.ndarray) -> np.ndarray:
-        return narx_network(weights, X_in)
-
-    diag = doc.get("diagnostics", {}) or {}
-    fit = diag.get("fit", {}) or {}
-    claimed = np.asarray(fit.get("mse_train", []), dtype=float).reshape(-1)
-    checks: list[Check] = []
-
-    def recheck() -> list[Check]:
-        Xt, Tt = np.atleast_2d(g("training_inputs")), np.atleast_2d(g("training_targets"))
-        mse = np.mean((predict(Xt) - Tt) ** 2, axis=0)
-        if claimed.size != n:
-            return [Check("training_fit_recheck", None, "the diagnostics report no training MSE")]
-        diff = relative_difference(mse, claimed)
-        return [Check("training_fit_recheck", bool(diff <= 1e-6),
-                      f"one-step MSE of the stored weights on the {Xt.shape[0]} stored training "
-                      f"samples {fmt(mse)} against the reported training MSE {fmt(claimed)}: "
-                      f"relative difference {diff:.3g} (tolerance 1e-06)",
-                      {"mse": mse.tolist(), "reported": claimed.tolist(), "difference": diff})]
-
-    checks += guard("training_fit_recheck", recheck)
-
-    def fresh() -> list[Check]:
-        train = diag.get("training", {}) or {}
-        seed = int(option(doc, spec, "seed", train.get("seed", 0))) + NARX_FRESH_DRAW
-        steps = int(option(doc, spec, "steps", train.get("steps", 600)))
-        target = str(option(doc, spec, "target", train.get("target", "ekf")))
-        input_range = option(doc, spec, "input_range")
-        hold = tuple(option(doc, spec, "hold", [30, 150]))
-        noise = option(doc, spec, "noise_std")
-        ekf = KalmanTuning(Q=np.atleast_2d(g("ekf_Q")).reshape(n, n),
-                           R=np.atleast_2d(g("ekf_R")).reshape(q, q),
-                           P0=np.atleast_2d(g("ekf_P0")).reshape(n, n), x0=tuning.x0,
-                           ts=float(spec.ts), substeps=substeps, clip=clip,
-                           **{k: v for k, v in design_options(doc, spec).items()
-                              if k in ("jacobian_eps", "switch_tol")})
-        runs = 2
-        data = fresh_ekf_data(plant, ekf, runs=runs, steps=steps, seed=seed,
-                                 input_range=input_range, hold=hold, noise_std=noise,
-                                 sim_substeps=int(option(doc, spec, "sim_substeps", 10)))
-        X_in, T = teacher_forced_inputs(data, tuning.x0, delays, target)
-        mse = np.mean((predict(X_in) - T) ** 2, axis=0)
-        out: list[Check] = []
-        if claimed.size == n:
-            held = np.asarray(fit.get("mse_validation_open_loop", []), dtype=float).reshape(-1)
-            ref = max(float(np.mean(claimed)), float(np.mean(held)) if held.size == n else 0.0)
-            ratio = float(np.mean(mse) / max(ref, 1e-300))
-            out.append(Check("one_step_fit", bool(np.all(np.isfinite(mse)) and
-                                                  ratio <= NARX_FIT_FACTOR),
-                             f"one-step (teacher-forced) MSE on fresh EKF data ({runs} runs x {steps} "
-                             f"samples, seed {seed}, target {target}): {fmt(mse)}, mean "
-                             f"{float(np.mean(mse)):.4g}; reference max(training MSE mean "
-                             f"{float(np.mean(claimed)):.4g}, held-out validation MSE mean "
-                             f"{float(np.mean(held)) if held.size == n else float('nan'):.4g}) = "
-                             f"{ref:.4g}; ratio {ratio:.3g} (must be <= "
-                             f"{NARX_FIT_FACTOR:g})", {"mse": mse.tolist(), "ratio": ratio,
-                                                       "factor": NARX_FIT_FACTOR, "seed": seed}))
-        else:
-            out.append(Check("one_step_fit", None, "the diagnostics report no training MSE"))
-        est = NARXEstimator(plant, tuning, runs=runs, backend="vm")
-        X_hat = np.empty_like(data["x_ekf"])
-        failed = None
-        with np.errstate(all="ignore"):
-            for k in range(steps):
-                try:
-                    X_hat[k] = est.step(data["y"][k], data["u"][k])
-                except NUMERIC_ERRORS as exc:
-                    X_hat[k:] = np.nan
-                    failed = (k, one_line(exc))
-                    break
-        truth = data["x"][1:]
-        rmse = float(np.sqrt(np.mean((X_hat - truth) ** 2)))
-        ekf_rmse = float(np.sqrt(np.mean((data["x_ekf"] - truth) ** 2)))
-        val = (diag.get("closed_loop_validation", {}) or {}).get("rmse_vs_true")
-        claim = float(np.sqrt(np.mean(np.square(val)))) if val else 0.0
-        bound = NARX_CLOSED_LOOP_FACTOR * max(claim, ekf_rmse)
-        ok = bool(failed is None and np.all(np.isfinite(X_hat)) and rmse <= bound)
-        out.append(Check("closed_loop_bounded", ok,
-                         f"NARX in closed loop (own estimates fed back) on the fresh measurements: "
-                         f"RMSE against the true states {rmse:.4g}"
-                         + (f" (stopped at step {failed[0]}: {failed[1]})" if failed else "")
-                         + f"; bound {NARX_CLOSED_LOOP_FACTOR:g} x max(design's validation RMSE "
-                           f"{claim:.4g}, EKF RMSE on the same data {ekf_rmse:.4g}) = {bound:.4g} "
-                           "(every estimate must be finite and the RMSE within the bound)",
-                         {"rmse": rmse, "bound": bound, "claimed_rmse": claim,
-                          "ekf_rmse": ekf_rmse}))
-        return out
-
-    checks += guard("one_step_fit", fresh)
-    return checks

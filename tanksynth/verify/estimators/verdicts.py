@@ -1,66 +1,72 @@
 """Verdicts of the estimators: kalman, ekf, ukf, adaptive_kalman, adaptive_scaling_kalman,
-consensus_filter, luenberger; an `EstimatorRebuild` per method rebuilds each from its artefact."""
+consensus_filter, luenberger (an `EstimatorRebuild` per method rebuilds each from its artefact)
+and narx (its network and fresh data: `tanksynth.verify.estimators.narx`)."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
+import scipy.linalg as sla
 
 from tanksynth.analysis.checks import Check
+from tanksynth.analysis.linearize import linearize
 from tanksynth.analysis.rank import observability_rank
 from tanksynth.errors import ArtefactError
+from tanksynth.runtime.estimators.adaptive import (AdaptiveKalmanFilter, AdaptiveKalmanTuning,
+                                                   AdaptiveScalingKalmanFilter, AdaptiveScalingTuning)
+from tanksynth.runtime.estimators.base import discrete_model
+from tanksynth.runtime.estimators.consensus import ConsensusFilter, ConsensusTuning
+from tanksynth.runtime.estimators.kalman import (ExtendedKalmanFilter, KalmanFilter, KalmanTuning,
+                                                 steady_state_gain)
+from tanksynth.runtime.estimators.luenberger import LuenbergerObserver, LuenbergerTuning
+from tanksynth.runtime.estimators.narx import NARXEstimator
+from tanksynth.runtime.estimators.ukf import UKFTuning, UnscentedKalmanFilter
 from tanksynth.sim.simulate import BatchEstimator, EstimatorAdapter
+from tanksynth.spec import Spec
+from tanksynth.spec.options import parse_covariance, parse_poles
 from tanksynth.verify.common import (NUMERIC_ERRORS, artefact_gain, artefact_matrix, design_options,
-                                     guard, model_recheck, one_line, operating_point, option,
-                                     pole_check, rank_check, relative_difference, stability_check)
+                                     discrete_ts, fmt, guard, model_recheck, one_line,
+                                     operating_point, option, pole_check, rank_check,
+                                     relative_difference, stability_check, stored_operating_point)
+from tanksynth.verify.estimation import EstimatorRebuild
+from tanksynth.verify.estimators.narx import (NARX_CLOSED_LOOP_FACTOR, NARX_FIT_FACTOR,
+                                              NARX_FRESH_DRAW, fresh_ekf_data, narx_network,
+                                              narx_tuning, teacher_forced_inputs)
 from tanksynth.verify.simulations import (designed_time_constant, eigen_time_constant,
                                           eigenvector_conditioning, observer_convergence)
 from tanksynth.verify.traces import TraceRecorder
 
-__all__ = ["EstimatorRebuild", "KALMAN", "EKF", "UKF", "LUENBERGER", "ADAPTIVE_KALMAN",
-           "ADAPTIVE_SCALING_KALMAN", "CONSENSUS_FILTER", "estimator_verdict", "kalman_verdict", "ekf_verdict", "ukf_verdict",
+__all__ = ["KALMAN", "EKF", "UKF", "LUENBERGER", "ADAPTIVE_KALMAN", "ADAPTIVE_SCALING_KALMAN",
+           "CONSENSUS_FILTER", "estimator_verdict", "kalman_verdict", "ekf_verdict", "ukf_verdict",
            "adaptive_kalman_verdict", "adaptive_scaling_kalman_verdict", "consensus_filter_verdict",
-           "luenberger_verdict"]
+           "luenberger_verdict", "narx_verdict"]
 
 
-def _spec_kwargs(doc: Mapping[str, Any], spec: Any, names: Sequence[str]) -> dict:
+def _spec_kwargs(doc: Mapping[str, Any], spec: Spec, names: Sequence[str]) -> dict:
     opts = design_options(doc, spec)
     return {k: opts[k] for k in names if k in opts}
 
 
-def _operating_point_gains(doc: Mapping[str, Any]) -> tuple[np.ndarray, np.ndarray] | None:
-    gains = doc["gains"]
-    if "x_op" in gains and "u_op" in gains:
-        return artefact_gain(doc, "x_op"), artefact_gain(doc, "u_op")
-    return None
-
-
-def _steady_kalman_error(spec: Any, Q: np.ndarray, R: np.ndarray) -> np.ndarray:
+def _steady_kalman_error(spec: Spec, Q: np.ndarray, R: np.ndarray) -> np.ndarray:
     """``(I - K C) Ad`` of the steady-state Kalman filter of the linearisation at the operating point."""
-    from tanksynth.runtime.estimators.base import discrete_model
-    from tanksynth.runtime.estimators.kalman import steady_state_gain
-
     x0, u0 = operating_point(spec)
-    model = discrete_model(spec.plant, float(spec.ts), operating_point=(x0, u0))
+    model = discrete_model(spec.plant, discrete_ts(spec), operating_point=(x0, u0))
     K, _ = steady_state_gain(model, Q, R)
     return (np.eye(spec.plant.n) - K @ model.C) @ model.Ad
 
 
-def _x0_hat(doc: Mapping[str, Any], spec: Any) -> np.ndarray:
+def _x0_hat(doc: Mapping[str, Any], spec: Spec) -> np.ndarray:
     """The initial estimate the artefact ships (gain ``x_hat0``, state units)."""
     return artefact_gain(doc, "x_hat0").reshape(spec.plant.n)
 
 
-def _kalman_builder(doc: Mapping[str, Any], spec: Any) -> tuple[BatchEstimator, np.ndarray, str]:
-    from tanksynth.runtime.estimators.kalman import ExtendedKalmanFilter, KalmanFilter, KalmanTuning
-
+def _kalman_builder(doc: Mapping[str, Any], spec: Spec) -> tuple[BatchEstimator, np.ndarray, str]:
     plant = spec.plant
     n, q = plant.n, plant.q
     Q, R = artefact_matrix(doc, "Q", (n, n)), artefact_matrix(doc, "R", (q, q))
     tuning = KalmanTuning(Q=Q, R=R, P0=artefact_matrix(doc, "P0", (n, n)), x0=_x0_hat(doc, spec),
-                          ts=float(spec.ts), operating_point=_operating_point_gains(doc),
+                          ts=discrete_ts(spec), operating_point=stored_operating_point(doc),
                           **_spec_kwargs(doc, spec, ("substeps", "clip", "jacobian_eps", "switch_tol")))
     linear = doc["method"] == "kalman"
     est = (KalmanFilter if linear else ExtendedKalmanFilter)(plant, tuning, backend="vm")
@@ -69,50 +75,46 @@ def _kalman_builder(doc: Mapping[str, Any], spec: Any) -> tuple[BatchEstimator, 
     return EstimatorAdapter(est), _x0_hat(doc, spec), what
 
 
-def _kalman_error(doc: Mapping[str, Any], spec: Any) -> tuple[np.ndarray, str]:
+def _kalman_error(doc: Mapping[str, Any], spec: Spec) -> tuple[np.ndarray, str]:
     n, q = spec.plant.n, spec.plant.q
     Q, R = artefact_matrix(doc, "Q", (n, n)), artefact_matrix(doc, "R", (q, q))
     return _steady_kalman_error(spec, Q, R), "steady-state filter with the stored Q and R"
 
 
-def _ukf_builder(doc: Mapping[str, Any], spec: Any) -> tuple[BatchEstimator, np.ndarray, str]:
-    from tanksynth.runtime.estimators.ukf import UKFTuning, UnscentedKalmanFilter
-
+def _ukf_builder(doc: Mapping[str, Any], spec: Spec) -> tuple[BatchEstimator, np.ndarray, str]:
     plant = spec.plant
     n, q = plant.n, plant.q
     Q, R = artefact_matrix(doc, "Q", (n, n)), artefact_matrix(doc, "R", (q, q))
     tuning = UKFTuning(Q=Q, R=R, P0=artefact_matrix(doc, "P0", (n, n)), x0=_x0_hat(doc, spec),
-                       ts=float(spec.ts), operating_point=_operating_point_gains(doc),
+                       ts=discrete_ts(spec), operating_point=stored_operating_point(doc),
                        **_spec_kwargs(doc, spec, ("alpha", "beta", "kappa", "redraw", "substeps",
                                                   "clip")))
     est = UnscentedKalmanFilter(plant, tuning, backend="vm")
     return EstimatorAdapter(est), _x0_hat(doc, spec), "unscented Kalman filter"
 
 
-def _adaptive_kalman_builder(doc: Mapping[str, Any], spec: Any
+def _adaptive_kalman_builder(doc: Mapping[str, Any], spec: Spec
                              ) -> tuple[BatchEstimator, np.ndarray, str]:
-    from tanksynth.runtime.estimators.adaptive import AdaptiveKalmanFilter, AdaptiveKalmanTuning
-
     plant = spec.plant
     n, q = plant.n, plant.q
     Q0, R = artefact_matrix(doc, "Q0", (n, n)), artefact_matrix(doc, "R", (q, q))
     tuning = AdaptiveKalmanTuning(Q0=Q0, R=R, P0=artefact_matrix(doc, "P0", (n, n)),
-                                  x0=_x0_hat(doc, spec), ts=float(spec.ts),
+                                  x0=_x0_hat(doc, spec), ts=discrete_ts(spec),
                                   window=int(round(float(artefact_gain(doc, "window")[0]))),
                                   q_floor=float(artefact_gain(doc, "q_floor")[0]),
-                                  operating_point=_operating_point_gains(doc),
+                                  operating_point=stored_operating_point(doc),
                                   **_spec_kwargs(doc, spec, ("form",)))
     est = AdaptiveKalmanFilter(plant, tuning)
     return EstimatorAdapter(est), _x0_hat(doc, spec), "adaptive-Q Kalman filter"
 
 
-def _adaptive_kalman_error(doc: Mapping[str, Any], spec: Any) -> tuple[np.ndarray, str]:
+def _adaptive_kalman_error(doc: Mapping[str, Any], spec: Spec) -> tuple[np.ndarray, str]:
     n, q = spec.plant.n, spec.plant.q
     Q0, R = artefact_matrix(doc, "Q0", (n, n)), artefact_matrix(doc, "R", (q, q))
     return _steady_kalman_error(spec, Q0, R), "steady-state filter with the stored Q0 and R"
 
 
-def _dare_error(spec: Any, op: tuple[np.ndarray, np.ndarray] | None, Q: np.ndarray,
+def _dare_error(spec: Spec, op: tuple[np.ndarray, np.ndarray] | None, Q: np.ndarray,
                 R: np.ndarray, sensors: int = 1) -> np.ndarray:
     """``(I - K C) Ad`` of the steady-state Kalman filter on the linearisation at ``op``.
 
@@ -121,39 +123,30 @@ def _dare_error(spec: Any, op: tuple[np.ndarray, np.ndarray] | None, Q: np.ndarr
     the block-diagonal covariance of the N sensors (the centralised filter
     the consensus filter reproduces).
     """
-    import scipy.linalg as sla
-
-    from tanksynth.analysis.linearize import linearize
-
     x_op, u_op = op if op is not None else operating_point(spec)
-    lin = linearize(spec.plant, x_op, u_op, ts=float(spec.ts))
+    lin = linearize(spec.plant, x_op, u_op, ts=discrete_ts(spec))
     Ad, C = lin.Ad, np.vstack([lin.C] * sensors)
+    assert Ad is not None  # linearised with ts: discretised
     P = sla.solve_discrete_are(Ad.T, C.T, 0.5 * (Q + Q.T), R)
     K = P @ C.T @ np.linalg.inv(C @ P @ C.T + R)
     return (np.eye(spec.plant.n) - K @ C) @ Ad
 
 
-def _claimed(doc: Mapping[str, Any], spec: Any, opt: str, stored: np.ndarray) -> tuple[np.ndarray, str]:
+def _claimed(doc: Mapping[str, Any], spec: Spec, opt: str, stored: np.ndarray) -> tuple[np.ndarray, str]:
     """The covariance the spec declares for ``opt`` (the design's claim), else the stored one."""
-    from tanksynth.spec.options import parse_covariance
-
     options = design_options(doc, spec)
     if opt not in options:
         return stored, "stored"
     value = options[opt]
     size = stored.shape[0]
     if opt == "R" and doc["method"] == "consensus_filter":
-        import scipy.linalg as sla
-
         return sla.block_diag(*[parse_covariance(v, f"{opt}[{i}]", size // len(value))
                                 for i, v in enumerate(value)]), "spec"
     return parse_covariance(value, opt, size, semidefinite=(opt == "Q")), "spec"
 
 
-def _adaptive_scaling_builder(doc: Mapping[str, Any], spec: Any
+def _adaptive_scaling_builder(doc: Mapping[str, Any], spec: Spec
                               ) -> tuple[BatchEstimator, np.ndarray, str]:
-    from tanksynth.runtime.estimators.adaptive import AdaptiveScalingKalmanFilter, AdaptiveScalingTuning
-
     plant = spec.plant
     n, q = plant.n, plant.q
     Q = np.atleast_2d(artefact_gain(doc, "Q"))
@@ -161,20 +154,20 @@ def _adaptive_scaling_builder(doc: Mapping[str, Any], spec: Any
     R = artefact_matrix(doc, "R", (q, q))
     a, b, c = (float(v) for v in np.asarray(artefact_gain(doc, "abc"), float).reshape(3))
     tuning = AdaptiveScalingTuning(Q=Q, R=R, P0=artefact_matrix(doc, "P0", (n, n)),
-                                   x0=_x0_hat(doc, spec), ts=float(spec.ts), a=a, b=b, c=c,
+                                   x0=_x0_hat(doc, spec), ts=discrete_ts(spec), a=a, b=b, c=c,
                                    G=G, phi0=float(np.ravel(artefact_gain(doc, "phi0"))[0]),
-                                   operating_point=_operating_point_gains(doc))
+                                   operating_point=stored_operating_point(doc))
     est = AdaptiveScalingKalmanFilter(plant, tuning)
     return EstimatorAdapter(est), _x0_hat(doc, spec), "adaptive-scaling Kalman filter"
 
 
-def _adaptive_scaling_error(doc: Mapping[str, Any], spec: Any) -> tuple[np.ndarray, str]:
+def _adaptive_scaling_error(doc: Mapping[str, Any], spec: Spec) -> tuple[np.ndarray, str]:
     n, q = spec.plant.n, spec.plant.q
     Q = np.atleast_2d(artefact_gain(doc, "Q"))
     G = artefact_matrix(doc, "G", (n, Q.shape[0]))
     Qc, src_q = _claimed(doc, spec, "Q", Q)
     Rc, src_r = _claimed(doc, spec, "R", artefact_matrix(doc, "R", (q, q)))
-    err = _dare_error(spec, _operating_point_gains(doc), G @ Qc @ G.T, Rc)
+    err = _dare_error(spec, stored_operating_point(doc), G @ Qc @ G.T, Rc)
     return err, f"steady-state filter with phi = 1, Q of the {src_q}, R of the {src_r}"
 
 
@@ -192,7 +185,7 @@ class _StackedSensors(EstimatorAdapter):
         return self._est.run(np.tile(Y, (1, 1, self.sensors)), U)
 
 
-def _sensor_covariances(doc: Mapping[str, Any], spec: Any) -> list[np.ndarray]:
+def _sensor_covariances(doc: Mapping[str, Any], spec: Spec) -> list[np.ndarray]:
     """``R0 .. R(N-1)`` of a consensus artefact (each sensor measures the plant's output)."""
     gains = doc["gains"]
     N = 0
@@ -207,30 +200,26 @@ def _sensor_covariances(doc: Mapping[str, Any], spec: Any) -> list[np.ndarray]:
     return [artefact_matrix(doc, f"R{i}", (q, q)) for i in range(N)]
 
 
-def _consensus_builder(doc: Mapping[str, Any], spec: Any) -> tuple[BatchEstimator, np.ndarray, str]:
-    from tanksynth.runtime.estimators.consensus import ConsensusFilter, ConsensusTuning
-
+def _consensus_builder(doc: Mapping[str, Any], spec: Spec) -> tuple[BatchEstimator, np.ndarray, str]:
     plant = spec.plant
     n = plant.n
     Rs = _sensor_covariances(doc, spec)
     Q = np.atleast_2d(artefact_gain(doc, "Q"))
     tuning = ConsensusTuning(Q=Q, R=tuple(Rs), P0=artefact_matrix(doc, "P0", (n, n)),
-                             x0=_x0_hat(doc, spec), ts=float(spec.ts),
+                             x0=_x0_hat(doc, spec), ts=discrete_ts(spec),
                              G=artefact_matrix(doc, "G", (n, Q.shape[0])),
-                             operating_point=_operating_point_gains(doc))
+                             operating_point=stored_operating_point(doc))
     return _StackedSensors(ConsensusFilter(plant, tuning), len(Rs)), _x0_hat(doc, spec), \
         f"consensus filter with {len(Rs)} sensors, each fed the plant's measurement"
 
 
-def _consensus_error(doc: Mapping[str, Any], spec: Any) -> tuple[np.ndarray, str]:
-    import scipy.linalg as sla
-
+def _consensus_error(doc: Mapping[str, Any], spec: Spec) -> tuple[np.ndarray, str]:
     Rs = _sensor_covariances(doc, spec)
     Q = np.atleast_2d(artefact_gain(doc, "Q"))
     G = artefact_matrix(doc, "G", (spec.plant.n, Q.shape[0]))
     Qc, src_q = _claimed(doc, spec, "Q", Q)
     Rc, src_r = _claimed(doc, spec, "R", sla.block_diag(*Rs))
-    err = _dare_error(spec, _operating_point_gains(doc), G @ Qc @ G.T, Rc, sensors=len(Rs))
+    err = _dare_error(spec, stored_operating_point(doc), G @ Qc @ G.T, Rc, sensors=len(Rs))
     return err, (f"equivalent centralised steady-state filter, Q of the {src_q}, R of the {src_r}")
 
 
@@ -251,10 +240,8 @@ def _covariance_check(est: Any) -> Check:
                  {"asymmetry": asym, "min_eigenvalue": pmin, "max_eigenvalue": pmax})
 
 
-def _luenberger_error_matrix(spec: Any, L: np.ndarray, form: str,
+def _luenberger_error_matrix(spec: Spec, L: np.ndarray, form: str,
                              op: tuple[np.ndarray, np.ndarray] | None) -> np.ndarray:
-    from tanksynth.analysis.linearize import linearize
-
     x_op, u_op = op if op is not None else operating_point(spec)
     lin = linearize(spec.plant, x_op, u_op, ts=spec.ts)
     if form == "current":
@@ -264,54 +251,25 @@ def _luenberger_error_matrix(spec: Any, L: np.ndarray, form: str,
     return lin.F - L @ lin.C
 
 
-def _luenberger_builder(doc: Mapping[str, Any], spec: Any) -> tuple[BatchEstimator, np.ndarray, str]:
-    from tanksynth.runtime.estimators.luenberger import LuenbergerObserver, LuenbergerTuning
-
+def _luenberger_builder(doc: Mapping[str, Any], spec: Spec) -> tuple[BatchEstimator, np.ndarray, str]:
     plant = spec.plant
     L = artefact_matrix(doc, "L", (plant.n, plant.q))
     form = str(option(doc, spec, "form", "current"))
-    op = _operating_point_gains(doc)
-    tuning = LuenbergerTuning(L=L, x0=_x0_hat(doc, spec), ts=float(spec.ts), form=form,
+    op = stored_operating_point(doc)
+    tuning = LuenbergerTuning(L=L, x0=_x0_hat(doc, spec), ts=discrete_ts(spec), form=form,
                               operating_point=op, **_spec_kwargs(doc, spec, ("substeps",)))
     where = "the linearisation at the operating point" if op is not None else "the nonlinear model"
     return EstimatorAdapter(LuenbergerObserver(plant, tuning)), _x0_hat(doc, spec), \
         f"Luenberger observer, {form} form, on {where}"
 
 
-def _luenberger_error(doc: Mapping[str, Any], spec: Any) -> tuple[np.ndarray, str]:
-    import scipy.linalg as sla
-
+def _luenberger_error(doc: Mapping[str, Any], spec: Spec) -> tuple[np.ndarray, str]:
     L = artefact_matrix(doc, "L", (spec.plant.n, spec.plant.q))
     form = str(option(doc, spec, "form", "current"))
-    err = _luenberger_error_matrix(spec, L, form, _operating_point_gains(doc))
+    err = _luenberger_error_matrix(spec, L, form, stored_operating_point(doc))
     if form == "continuous":
-        return sla.expm(err * float(spec.ts)), "exp((F - L C) ts) of the stored L"
+        return sla.expm(err * discrete_ts(spec)), "exp((F - L C) ts) of the stored L"
     return err, f"error matrix of the stored L, {form} form"
-
-
-@dataclass(frozen=True)
-class EstimatorRebuild:
-    """How the verify stage rebuilds one estimator method's artefact, and the horizon of its run.
-
-    Attributes
-    ----------
-    method : str
-        The design method.
-    build : callable
-        ``build(doc, spec) -> (BatchEstimator, x0_hat, description)``: the estimator the
-        artefact ships (through `tanksynth.runtime`, wrapped for the batch simulator), the
-        initial estimate it ships (state units, shape (n,)) and a one-line description.
-    error : callable
-        ``error(doc, spec) -> (E, how)``: the discrete error matrix whose eigenvalues set the
-        convergence horizon (steady-state gain at the operating point, or the observer's).
-    covariance : bool
-        The filter's covariance is checked symmetric positive definite after the run.
-    """
-
-    method: str
-    build: Callable[[Mapping[str, Any], Any], tuple[BatchEstimator, np.ndarray, str]]
-    error: Callable[[Mapping[str, Any], Any], tuple[np.ndarray, str]]
-    covariance: bool = False
 
 
 KALMAN = EstimatorRebuild("kalman", _kalman_builder, _kalman_error)
@@ -325,7 +283,7 @@ CONSENSUS_FILTER = EstimatorRebuild("consensus_filter", _consensus_builder, _con
                                     covariance=True)
 
 
-def _kalman_rechecks(doc: Mapping[str, Any], spec: Any) -> list[Check]:
+def _kalman_rechecks(doc: Mapping[str, Any], spec: Spec) -> list[Check]:
     """CKF artefact: stored model, Riccati solution and steady-state gain re-checked."""
     plant = spec.plant
     n, m, q = plant.n, plant.m, plant.q
@@ -333,13 +291,13 @@ def _kalman_rechecks(doc: Mapping[str, Any], spec: Any) -> list[Check]:
     C = artefact_matrix(doc, "C", (q, n))
     Q, R = artefact_matrix(doc, "Q", (n, n)), artefact_matrix(doc, "R", (q, q))
     K, P = artefact_matrix(doc, "K_ss", (n, q)), artefact_matrix(doc, "P_ss", (n, n))
-    op = _operating_point_gains(doc)
+    op = stored_operating_point(doc)
     x_op, u_op = op if op is not None else operating_point(spec)
-    checks = [model_recheck(plant, x_op, u_op, "discrete", float(spec.ts),
+    checks = [model_recheck(plant, x_op, u_op, "discrete", discrete_ts(spec),
                              {"A": Ad, "B": Bd, "C": C})]
     S = C @ P @ C.T + R
     res = Ad @ P @ Ad.T - Ad @ P @ C.T @ np.linalg.solve(S, C @ P @ Ad.T) + Q - P
-    rr = float(np.linalg.norm(res) / max(np.linalg.norm(P), 1e-300))
+    rr = float(np.linalg.norm(res) / max(float(np.linalg.norm(P)), 1e-300))
     kk = relative_difference(K, P @ C.T @ np.linalg.inv(S))
     pmin = float(np.min(np.linalg.eigvalsh(0.5 * (P + P.T))))
     checks.append(Check("riccati_recheck", bool(rr <= 1e-8 and kk <= 1e-8 and pmin > 0),
@@ -354,7 +312,7 @@ def _kalman_rechecks(doc: Mapping[str, Any], spec: Any) -> list[Check]:
     return checks
 
 
-def estimator_verdict(doc: Mapping[str, Any], spec: Any, rebuild: EstimatorRebuild, *,
+def estimator_verdict(doc: Mapping[str, Any], spec: Spec, rebuild: EstimatorRebuild, *,
                       trace: TraceRecorder | None = None) -> list[Check]:
     """Default verdict of an estimator artefact.
 
@@ -383,13 +341,11 @@ def estimator_verdict(doc: Mapping[str, Any], spec: Any, rebuild: EstimatorRebui
     if method == "kalman":
         checks += guard("riccati_recheck", lambda: _kalman_rechecks(doc, spec))
     if method == "luenberger":
-        from tanksynth.spec.options import parse_poles
-
         def poles() -> list[Check]:
             plant = spec.plant
             L = artefact_matrix(doc, "L", (plant.n, plant.q))
             form = str(option(doc, spec, "form", "current"))
-            err = _luenberger_error_matrix(spec, L, form, _operating_point_gains(doc))
+            err = _luenberger_error_matrix(spec, L, form, stored_operating_point(doc))
             what = {"current": "(I - L C) Ad", "predictor": "Ad - L C"}.get(form, "F - L C")
             domain = "continuous" if form == "continuous" else "discrete"
             out = [stability_check(np.linalg.eigvals(err), domain, what)]
@@ -415,7 +371,7 @@ def estimator_verdict(doc: Mapping[str, Any], spec: Any, rebuild: EstimatorRebui
         plant = spec.plant
         x0, u0 = operating_point(spec)
         eigs = np.linalg.eigvals(err)
-        ts = float(spec.ts)
+        ts = discrete_ts(spec)
         tau, rule = eigen_time_constant(eigs, "discrete", ts)
         if method == "luenberger" and option(doc, spec, "poles") is not None:
             form = str(option(doc, spec, "form", "current"))
@@ -434,7 +390,7 @@ def estimator_verdict(doc: Mapping[str, Any], spec: Any, rebuild: EstimatorRebui
 
 
 def _estimator_verdict_for(rebuild: EstimatorRebuild) -> Callable[..., list[Check]]:
-    def verdict(doc: Mapping[str, Any], spec: Any, *,
+    def verdict(doc: Mapping[str, Any], spec: Spec, *,
                 trace: TraceRecorder | None = None) -> list[Check]:
         return estimator_verdict(doc, spec, rebuild, trace=trace)
 
@@ -452,3 +408,139 @@ adaptive_kalman_verdict = _estimator_verdict_for(ADAPTIVE_KALMAN)
 adaptive_scaling_kalman_verdict = _estimator_verdict_for(ADAPTIVE_SCALING_KALMAN)
 consensus_filter_verdict = _estimator_verdict_for(CONSENSUS_FILTER)
 luenberger_verdict = _estimator_verdict_for(LUENBERGER)
+
+
+def narx_verdict(doc: Mapping[str, Any], spec: Spec, *,
+                 trace: TraceRecorder | None = None) -> list[Check]:
+    """Verdict of a ``narx`` artefact (seed 002 section 3.3).
+
+    The network is evaluated from the stored weights and normalisation by
+    the verdict's own `narx_network` (the shipped `NARXEstimator` runs the
+    closed loop); fresh data come from `fresh_ekf_data` with the stored EKF tuning
+    (``ekf_Q``, ``ekf_R``, ``ekf_P0``, ``x_hat0``) and the spec's data options,
+    on a seed the training never used (2 runs, the spec's ``steps``).
+
+    ``training_fit_recheck``
+        the one-step (teacher-forced) MSE of the stored weights on the
+        stored training data equals the training MSE the diagnostics report
+        (relative tolerance 1e-6).
+    ``one_step_fit``
+        on the fresh data, the mean over states of the one-step MSE is at
+        most `NARX_FIT_FACTOR` (3) times the reference: the larger of the
+        mean training MSE and the mean held-out (validation) one-step MSE
+        the design reports.
+    ``closed_loop_bounded``
+        the estimator runs in closed loop on the fresh measurements
+        (`NARXEstimator`, own predictions fed back): every estimate finite
+        and the RMSE against the true states (mean over states) at most
+        `NARX_CLOSED_LOOP_FACTOR` (3) times the larger of the design's
+        validation RMSE against the true states and the EKF's RMSE on the
+        same fresh data.
+
+    Parameters
+    ----------
+    doc, spec, trace : mapping, Spec, TraceRecorder or None
+        The artefact, the validated spec and a recorder of the simulated runs.
+    """
+    plant = spec.plant
+    n, q = plant.n, plant.q
+
+    def g(key: str) -> np.ndarray:
+        return np.asarray(artefact_gain(doc, key), dtype=float)
+
+    tuning = narx_tuning(doc, spec, discrete_ts(spec))
+    delays, substeps, clip = tuning.delays, tuning.substeps, tuning.clip
+    weights = {"W1": tuning.W1, "b1": tuning.b1, "W2": tuning.W2, "b2": tuning.b2,
+               "in_mean": tuning.in_mean, "in_scale": tuning.in_scale,
+               "out_mean": tuning.out_mean, "out_scale": tuning.out_scale}
+
+    def predict(X_in: np.ndarray) -> np.ndarray:
+        return narx_network(weights, X_in)
+
+    diag = doc.get("diagnostics", {}) or {}
+    fit = diag.get("fit", {}) or {}
+    claimed = np.asarray(fit.get("mse_train", []), dtype=float).reshape(-1)
+    checks: list[Check] = []
+
+    def recheck() -> list[Check]:
+        Xt, Tt = np.atleast_2d(g("training_inputs")), np.atleast_2d(g("training_targets"))
+        mse = np.mean((predict(Xt) - Tt) ** 2, axis=0)
+        if claimed.size != n:
+            return [Check("training_fit_recheck", None, "the diagnostics report no training MSE")]
+        diff = relative_difference(mse, claimed)
+        return [Check("training_fit_recheck", bool(diff <= 1e-6),
+                      f"one-step MSE of the stored weights on the {Xt.shape[0]} stored training "
+                      f"samples {fmt(mse)} against the reported training MSE {fmt(claimed)}: "
+                      f"relative difference {diff:.3g} (tolerance 1e-06)",
+                      {"mse": mse.tolist(), "reported": claimed.tolist(), "difference": diff})]
+
+    checks += guard("training_fit_recheck", recheck)
+
+    def fresh() -> list[Check]:
+        train = diag.get("training", {}) or {}
+        seed = int(option(doc, spec, "seed", train.get("seed", 0))) + NARX_FRESH_DRAW
+        steps = int(option(doc, spec, "steps", train.get("steps", 600)))
+        target = str(option(doc, spec, "target", train.get("target", "ekf")))
+        input_range = option(doc, spec, "input_range")
+        hold = tuple(option(doc, spec, "hold", [30, 150]))
+        noise = option(doc, spec, "noise_std")
+        ekf = KalmanTuning(Q=np.atleast_2d(g("ekf_Q")).reshape(n, n),
+                           R=np.atleast_2d(g("ekf_R")).reshape(q, q),
+                           P0=np.atleast_2d(g("ekf_P0")).reshape(n, n), x0=tuning.x0,
+                           ts=discrete_ts(spec), substeps=substeps, clip=clip,
+                           **{k: v for k, v in design_options(doc, spec).items()
+                              if k in ("jacobian_eps", "switch_tol")})
+        runs = 2
+        data = fresh_ekf_data(plant, ekf, runs=runs, steps=steps, seed=seed,
+                                 input_range=input_range, hold=hold, noise_std=noise,
+                                 sim_substeps=int(option(doc, spec, "sim_substeps", 10)))
+        X_in, T = teacher_forced_inputs(data, tuning.x0, delays, target)
+        mse = np.mean((predict(X_in) - T) ** 2, axis=0)
+        out: list[Check] = []
+        if claimed.size == n:
+            held = np.asarray(fit.get("mse_validation_open_loop", []), dtype=float).reshape(-1)
+            ref = max(float(np.mean(claimed)), float(np.mean(held)) if held.size == n else 0.0)
+            ratio = float(np.mean(mse) / max(ref, 1e-300))
+            out.append(Check("one_step_fit", bool(np.all(np.isfinite(mse)) and
+                                                  ratio <= NARX_FIT_FACTOR),
+                             f"one-step (teacher-forced) MSE on fresh EKF data ({runs} runs x {steps} "
+                             f"samples, seed {seed}, target {target}): {fmt(mse)}, mean "
+                             f"{float(np.mean(mse)):.4g}; reference max(training MSE mean "
+                             f"{float(np.mean(claimed)):.4g}, held-out validation MSE mean "
+                             f"{float(np.mean(held)) if held.size == n else float('nan'):.4g}) = "
+                             f"{ref:.4g}; ratio {ratio:.3g} (must be <= "
+                             f"{NARX_FIT_FACTOR:g})", {"mse": mse.tolist(), "ratio": ratio,
+                                                       "factor": NARX_FIT_FACTOR, "seed": seed}))
+        else:
+            out.append(Check("one_step_fit", None, "the diagnostics report no training MSE"))
+        est = NARXEstimator(plant, tuning, runs=runs, backend="vm")
+        X_hat = np.empty_like(data["x_ekf"])
+        failed = None
+        with np.errstate(all="ignore"):
+            for k in range(steps):
+                try:
+                    X_hat[k] = est.step(data["y"][k], data["u"][k])
+                except NUMERIC_ERRORS as exc:
+                    X_hat[k:] = np.nan
+                    failed = (k, one_line(exc))
+                    break
+        truth = data["x"][1:]
+        rmse = float(np.sqrt(np.mean((X_hat - truth) ** 2)))
+        ekf_rmse = float(np.sqrt(np.mean((data["x_ekf"] - truth) ** 2)))
+        val = (diag.get("closed_loop_validation", {}) or {}).get("rmse_vs_true")
+        claim = float(np.sqrt(np.mean(np.square(val)))) if val else 0.0
+        bound = NARX_CLOSED_LOOP_FACTOR * max(claim, ekf_rmse)
+        ok = bool(failed is None and np.all(np.isfinite(X_hat)) and rmse <= bound)
+        out.append(Check("closed_loop_bounded", ok,
+                         f"NARX in closed loop (own estimates fed back) on the fresh measurements: "
+                         f"RMSE against the true states {rmse:.4g}"
+                         + (f" (stopped at step {failed[0]}: {failed[1]})" if failed else "")
+                         + f"; bound {NARX_CLOSED_LOOP_FACTOR:g} x max(design's validation RMSE "
+                           f"{claim:.4g}, EKF RMSE on the same data {ekf_rmse:.4g}) = {bound:.4g} "
+                           "(every estimate must be finite and the RMSE within the bound)",
+                         {"rmse": rmse, "bound": bound, "claimed_rmse": claim,
+                          "ekf_rmse": ekf_rmse}))
+        return out
+
+    checks += guard("one_step_fit", fresh)
+    return checks

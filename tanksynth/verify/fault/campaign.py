@@ -26,8 +26,8 @@ from tanksynth.errors import ArtefactError
 from tanksynth.plants.base import Plant
 from tanksynth.sim.metrics import Metric, detection_metrics, timing_metrics
 from tanksynth.sim.scenarios import Scenario, run_scenario
-from tanksynth.verify.laws.campaign import spec_operating_point
-from tanksynth.verify.common import artefact_gain, design_options
+from tanksynth.spec import Spec
+from tanksynth.verify.common import artefact_gain, design_options, operating_point
 
 from tanksynth.verify.fault.verdicts import ResidualObserver
 
@@ -110,7 +110,7 @@ class DetectorRun:
         return out
 
 
-def fault_detection_run(doc: Mapping[str, Any], spec: Any) -> DetectorRun:
+def fault_detection_run(doc: Mapping[str, Any], spec: Spec) -> DetectorRun:
     """The residual test of a ``fault_detection`` artefact (stored ``Psi`` and threshold).
 
     Parameters
@@ -137,7 +137,7 @@ def fault_detection_run(doc: Mapping[str, Any], spec: Any) -> DetectorRun:
     conservative = diag.get("conservative") if isinstance(diag, Mapping) else None
     if not isinstance(conservative, bool):
         conservative = bool(design_options(doc, spec).get("conservative", True))
-    x_op, u_op = spec_operating_point(spec)
+    x_op, u_op = operating_point(spec)
     what = "eq. 55, conservative" if conservative else "eq. 54"
     return DetectorRun(Psi.reshape(plant.n, plant.q), coef, rates, conservative, x_op, u_op,
                        f"residual test: observer with the artefact's Psi on the nominal model, fed "

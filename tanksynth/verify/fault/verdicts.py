@@ -32,13 +32,19 @@ from dataclasses import dataclass
 from fractions import Fraction
 from typing import Any, Mapping, Sequence
 
+import casadi as ca
 import numpy as np
 
 from tanksynth.analysis.checks import Check
+from tanksynth.analysis.linearize import linearize
 from tanksynth.artefacts.traces import TRACE_RUNS
 from tanksynth.errors import ArtefactError
+from tanksynth.plants.base import Plant
 from tanksynth.plants.compile import rk4_step
-from tanksynth.sim.simulate import run_seeds, simulate
+from tanksynth.sim.integrate import param_arrays
+from tanksynth.sim.simulate import InputSequence, ParameterChange, run_seeds, simulate
+from tanksynth.sim.tape import numpy_model
+from tanksynth.spec import Spec
 from tanksynth.verify.batch_call import BatchCall
 from tanksynth.verify.common import (MAX_STEPS, artefact_gain, artefact_matrix, fmt, guard,
                                      operating_point, option, relative_difference)
@@ -84,10 +90,7 @@ class ResidualObserver:
         RK4 steps per period.
     """
 
-    def __init__(self, plant: Any, Psi: np.ndarray, ts: float, substeps: int = 4):
-        from tanksynth.sim.integrate import param_arrays
-        from tanksynth.sim.tape import numpy_model
-
+    def __init__(self, plant: Plant, Psi: np.ndarray, ts: float, substeps: int = 4):
         healthy = {"delta_bar": 0.0} if "delta_bar" in {p.name for p in plant.parameters} else None
         self.model = numpy_model(plant)
         self.params = param_arrays(plant, healthy, 1)
@@ -141,7 +144,7 @@ class ResidualObserver:
         return self._x
 
 
-def period_function(plant: Any, Psi: np.ndarray, ts: float, substeps: int,
+def period_function(plant: Plant, Psi: np.ndarray, ts: float, substeps: int,
                     parameters: Mapping[str, float] | None = None) -> Any:
     """One sampling period of the residual observer as a CasADi function.
 
@@ -170,8 +173,6 @@ def period_function(plant: Any, Psi: np.ndarray, ts: float, substeps: int,
         Arguments ``x_hat`` (n, state units), ``u`` (m, input units),
         ``y_prev`` and ``y`` (q, output units); result ``x_hat_next`` (n).
     """
-    import casadi as ca
-
     Psi = np.asarray(Psi, dtype=float).reshape(plant.n, plant.q)
     key = (id(plant), tuple(sorted((parameters or {}).items())), Psi.tobytes(), float(ts), int(substeps))
     hit = _PERIODS.get(key)
@@ -307,7 +308,7 @@ def _recorded(doc: Mapping[str, Any], key: str) -> Any:
     return diag.get(key) if isinstance(diag, Mapping) else None
 
 
-def _bounds(doc: Mapping[str, Any], spec: Any) -> tuple[float, float, str]:
+def _bounds(doc: Mapping[str, Any], spec: Spec) -> tuple[float, float, str]:
     raw = option(doc, spec, "bounds")
     if raw is not None:
         lo, hi = (float(v) for v in raw)
@@ -323,7 +324,7 @@ def _bounds(doc: Mapping[str, Any], spec: Any) -> tuple[float, float, str]:
     return lo, hi, "the bounds the design recorded (x_hat0, x_hat0 + e_hat)"
 
 
-def _number(doc: Mapping[str, Any], spec: Any, name: str) -> float:
+def _number(doc: Mapping[str, Any], spec: Spec, name: str) -> float:
     value = option(doc, spec, name)
     if value is None:
         value = _recorded(doc, name)
@@ -333,7 +334,7 @@ def _number(doc: Mapping[str, Any], spec: Any, name: str) -> float:
     return float(value)
 
 
-def _inputs(doc: Mapping[str, Any], spec: Any) -> tuple[tuple, str]:
+def _inputs(doc: Mapping[str, Any], spec: Spec) -> tuple[tuple, str]:
     m = spec.plant.m
     raw, whose = option(doc, spec, "input"), "the spec's"
     if raw is None:
@@ -359,7 +360,7 @@ def _inputs(doc: Mapping[str, Any], spec: Any) -> tuple[tuple, str]:
     return tuple(pieces), f"{whose} input schedule {text}"
 
 
-def fault_scenario(doc: Mapping[str, Any], spec: Any) -> FaultScenario:
+def fault_scenario(doc: Mapping[str, Any], spec: Spec) -> FaultScenario:
     """The scenario of the fault-detection verdict (see the module docstring).
 
     Parameters
@@ -434,7 +435,7 @@ def _threshold_recheck(Psi: np.ndarray, Gd: np.ndarray, coef: np.ndarray, rates:
                                   "coefficient_difference": dc})]
 
 
-def fault_detection_verdict(doc: Mapping[str, Any], spec: Any, *,
+def fault_detection_verdict(doc: Mapping[str, Any], spec: Spec, *,
                             trace: TraceRecorder | None = None) -> list[Check]:
     """Verdict of a ``fault_detection`` artefact (seed 004 section II-F).
 
@@ -462,9 +463,6 @@ def fault_detection_verdict(doc: Mapping[str, Any], spec: Any, *,
     doc, spec, trace : mapping, Spec, TraceRecorder or None
         The artefact, the validated spec and a recorder of the simulated runs.
     """
-    from tanksynth.analysis.linearize import linearize
-    from tanksynth.sim.simulate import InputSequence, ParameterChange
-
     plant = spec.plant
     n = plant.n
     Psi = artefact_matrix(doc, "Psi", (n, 1))
@@ -516,7 +514,7 @@ def fault_detection_verdict(doc: Mapping[str, Any], spec: Any, *,
         worst_pre = float(np.max(np.where(pre_fault, margin[R:], -np.inf)))
         slack = FAULT_SLACK * float(np.interp(t_skip, t, thr))
         ok_h = bool(worst_h <= slack and worst_pre <= slack and np.all(np.isfinite(r)))
-        detect = []
+        detect: list[float | None] = []
         for i in range(R, 2 * R):
             idx = np.flatnonzero((t > t_f) & (margin[i] > 0))
             if idx.size == 0:
@@ -563,7 +561,7 @@ def fault_detection_verdict(doc: Mapping[str, Any], spec: Any, *,
     return checks + guard("fault_detected", simulate_detection)
 
 
-def _record(trace: TraceRecorder, res: Any, plant: Any, sc: FaultScenario, r: np.ndarray,
+def _record(trace: TraceRecorder, res: Any, plant: Plant, sc: FaultScenario, r: np.ndarray,
             thr: np.ndarray, detect: list, setup: str) -> None:
     """Record the faulty runs (the second half of the batch; the first `TRACE_RUNS` starts) with
     their residual ``|epsilon|`` and the threshold (output units) as signals, the onset marked."""

@@ -25,16 +25,16 @@ import numpy as np
 
 from tanksynth.errors import ArtefactError
 from tanksynth.plants.base import Plant
+from tanksynth.runtime.laws import inverse_dynamics_law, law_from_document
 from tanksynth.sim.metrics import Metric, compute_metrics
 from tanksynth.sim.scenarios import Scenario, run_scenario
 from tanksynth.sim.simulate import BatchEstimator
-
+from tanksynth.spec import Spec
+from tanksynth.verify.batch_call import CasadiControlLaw, CasadiIntegralLaw
+from tanksynth.verify.common import operating_point, sampling_period, stored_operating_point
 from tanksynth.verify.simulations import IntegralStateFeedback, StateFeedback  # noqa: F401 (re-export)
 
 __all__ = [
-    "CONTINUOUS_TS",
-    "sampling_period",
-    "spec_operating_point",
     "ClosedLoop",
     "IntegralStateFeedback",
     "StateFeedback",
@@ -47,36 +47,6 @@ __all__ = [
     "inverse_dynamics_loop",
     "closed_loop_for",
 ]
-
-
-#: Sampling period of campaigns on a spec without one (continuous-time designs), s: the
-#: scenarios count samples with ts = 1 s in mind.
-CONTINUOUS_TS = 1.0
-
-
-def sampling_period(spec: Any) -> float:
-    """The campaign's sampling period (s): the spec's ``ts``, else `CONTINUOUS_TS`.
-
-    Parameters
-    ----------
-    spec : Spec
-        The validated spec.
-    """
-    return float(spec.ts) if spec.ts else CONTINUOUS_TS
-
-
-def spec_operating_point(spec: Any) -> tuple[np.ndarray, np.ndarray]:
-    """The spec's operating point and its equilibrium input (state units, input units).
-
-    Parameters
-    ----------
-    spec : Spec
-        The validated spec.
-    """
-    from tanksynth.analysis.linearize import equilibrium_input
-
-    eq = equilibrium_input(spec.plant, spec.x0, spec.given_u0)
-    return np.asarray(spec.x0, dtype=float).copy(), np.asarray(eq.u0, dtype=float)
 
 
 @dataclass(frozen=True)
@@ -148,7 +118,7 @@ class InverseDynamicsLaw:
     The law is `tanksynth.runtime.laws.inverse_dynamics_law` (``u =
     G_c(x_hat)^-1 (c (r - x_hat_c) - f0_c(x_hat))``, nominal parameters,
     saturated to the pumps' range), evaluated on the M runs at once by
-    `tanksynth.verify.common.CasadiControlLaw`.
+    `tanksynth.verify.batch_call.CasadiControlLaw`.
 
     Attributes
     ----------
@@ -169,9 +139,6 @@ class InverseDynamicsLaw:
     _law: Any = field(init=False, default=None, repr=False)
 
     def __post_init__(self) -> None:
-        from tanksynth.runtime.laws import inverse_dynamics_law
-        from tanksynth.verify.common import CasadiControlLaw
-
         names = [s.name for s in self.plant.states]
         law = inverse_dynamics_law(self.plant, np.asarray(self.gains, dtype=float),
                                    [names[i] for i in self.tracked], saturate=self.saturate)
@@ -200,8 +167,6 @@ class ArtefactLaw:
     """
 
     def __init__(self, function: Any, signature: str = ""):
-        from tanksynth.verify.common import CasadiControlLaw
-
         self.function = function
         self.signature = signature
         self._law = CasadiControlLaw(function)
@@ -242,9 +207,9 @@ class ArtefactIntegralLaw(ArtefactLaw):
     signature : str
     """
 
-    def __init__(self, function: Any, signature: str = ""):
-        from tanksynth.verify.common import CasadiIntegralLaw
+    _law: CasadiIntegralLaw
 
+    def __init__(self, function: Any, signature: str = ""):
         self.function = function
         self.signature = signature
         self._law = CasadiIntegralLaw(function)
@@ -270,8 +235,6 @@ class ArtefactIntegralLaw(ArtefactLaw):
 
 
 def _law_of(doc: Mapping[str, Any]) -> tuple[Any, str]:
-    from tanksynth.runtime.laws import law_from_document
-
     diag = doc.get("diagnostics") or {}
     law = diag.get("law") if isinstance(diag, Mapping) else None
     if not isinstance(law, Mapping):
@@ -281,7 +244,7 @@ def _law_of(doc: Mapping[str, Any]) -> tuple[Any, str]:
     return law_from_document(dict(law)), str(signature) if isinstance(signature, str) else ""
 
 
-def _named_states(spec: Any, doc: Mapping[str, Any], keys: Sequence[str]) -> tuple[int, ...] | None:
+def _named_states(spec: Spec, doc: Mapping[str, Any], keys: Sequence[str]) -> tuple[int, ...] | None:
     """State indices of the names listed under one of ``keys`` (diagnostics, then design options)."""
     names = [s.name for s in spec.plant.states]
     diag = doc.get("diagnostics") or {}
@@ -299,7 +262,7 @@ def _named_states(spec: Any, doc: Mapping[str, Any], keys: Sequence[str]) -> tup
     return None
 
 
-def _tracked(spec: Any, doc: Mapping[str, Any]) -> tuple[int, ...]:
+def _tracked(spec: Spec, doc: Mapping[str, Any]) -> tuple[int, ...]:
     names = [s.name for s in spec.plant.states]
     integ = (doc.get("diagnostics") or {}).get("integral") or {}
     C1 = integ.get("C1") if isinstance(integ, Mapping) else None
@@ -311,14 +274,13 @@ def _tracked(spec: Any, doc: Mapping[str, Any]) -> tuple[int, ...]:
     return tuple(range(min(spec.plant.m, spec.plant.n)))
 
 
-def _operating_point(spec: Any, doc: Mapping[str, Any]) -> tuple[np.ndarray, np.ndarray]:
-    gains = doc["gains"]
-    if "x_op" in gains and "u_op" in gains:
-        return np.asarray(gains["x_op"], float).reshape(-1), np.asarray(gains["u_op"], float).reshape(-1)
-    return spec_operating_point(spec)
+def _operating_point(spec: Spec, doc: Mapping[str, Any]) -> tuple[np.ndarray, np.ndarray]:
+    """The artefact's operating point, else the spec's."""
+    stored = stored_operating_point(doc)
+    return stored if stored is not None else operating_point(spec)
 
 
-def state_feedback_loop(doc: Mapping[str, Any], spec: Any) -> ClosedLoop:
+def state_feedback_loop(doc: Mapping[str, Any], spec: Spec) -> ClosedLoop:
     """State feedback of a placement artefact (integral action when it has ``K1``, ``K2``), true state.
 
     Parameters
@@ -353,7 +315,7 @@ def state_feedback_loop(doc: Mapping[str, Any], spec: Any) -> ClosedLoop:
                         "feedback gain (K, or K1 and K2)")
 
 
-def _serialized_loop(doc: Mapping[str, Any], spec: Any, law: ArtefactLaw, keys: Sequence[str],
+def _serialized_loop(doc: Mapping[str, Any], spec: Spec, law: ArtefactLaw, keys: Sequence[str],
                      what: str) -> ClosedLoop:
     x0, u0 = _operating_point(spec, doc)
     tracked = _named_states(spec, doc, keys)
@@ -365,7 +327,7 @@ def _serialized_loop(doc: Mapping[str, Any], spec: Any, law: ArtefactLaw, keys: 
                                                   "true state fed back")
 
 
-def feedback_linearization_loop(doc: Mapping[str, Any], spec: Any) -> ClosedLoop:
+def feedback_linearization_loop(doc: Mapping[str, Any], spec: Spec) -> ClosedLoop:
     """The serialised feedback-linearising law of the artefact, true state.
 
     Parameters
@@ -377,7 +339,7 @@ def feedback_linearization_loop(doc: Mapping[str, Any], spec: Any) -> ClosedLoop
                             "input-output feedback linearisation")
 
 
-def integral_tracking_loop(doc: Mapping[str, Any], spec: Any) -> ClosedLoop:
+def integral_tracking_loop(doc: Mapping[str, Any], spec: Spec) -> ClosedLoop:
     """The serialised integral-tracking law with anti-windup, integrator state per run.
 
     Parameters
@@ -389,7 +351,7 @@ def integral_tracking_loop(doc: Mapping[str, Any], spec: Any) -> ClosedLoop:
                             "state feedback with integral action and anti-windup")
 
 
-def inverse_dynamics_loop(doc: Mapping[str, Any], spec: Any) -> ClosedLoop:
+def inverse_dynamics_loop(doc: Mapping[str, Any], spec: Spec) -> ClosedLoop:
     """The serialised inverse-dynamics law, true state fed back.
 
     Parameters
@@ -401,7 +363,7 @@ def inverse_dynamics_loop(doc: Mapping[str, Any], spec: Any) -> ClosedLoop:
                             "inverse-dynamics control (u = G_c(x)^-1 (diag(C) (x_sp - x_c) - f0_c(x)))")
 
 
-def closed_loop_for(doc: Mapping[str, Any], spec: Any,
+def closed_loop_for(doc: Mapping[str, Any], spec: Spec,
                     builder: Callable[[Mapping[str, Any], Any], Any]) -> ClosedLoop:
     """The closed loop of a controller artefact from its method's campaign runner.
 

@@ -8,13 +8,22 @@ from typing import Any, Mapping
 import numpy as np
 
 from tanksynth.analysis.checks import Check
+from tanksynth.analysis.linearize import linearize
 from tanksynth.analysis.rank import controllability_rank
+from tanksynth.analysis.region import region_points
 from tanksynth.errors import ArtefactError
+from tanksynth.plants.base import Plant
+from tanksynth.runtime.laws import integral_tracking_law, inverse_dynamics_law, law_from_document
+from tanksynth.sim.metrics import compute_metrics
+from tanksynth.sim.scenarios import run_scenario, scenario
 from tanksynth.sim.simulate import run_seeds, simulate
-from tanksynth.verify.common import (MAX_STEPS, MODEL_TOLERANCE, PERTURBATION, CasadiControlLaw,
-                                     CasadiIntegralLaw, artefact_gain, artefact_matrix, fmt, guard,
-                                     option, output_at, output_rows, pole_check,
-                                     rank_check, relative_difference, stability_check,
+from tanksynth.spec import Spec
+from tanksynth.spec.options import parse_poles
+from tanksynth.verify.batch_call import CasadiControlLaw, CasadiIntegralLaw
+from tanksynth.verify.common import (MAX_STEPS, MODEL_TOLERANCE, PERTURBATION, artefact_gain,
+                                     artefact_matrix, discrete_ts, fmt, guard, option, output_at,
+                                     output_rows,
+                                     pole_check, rank_check, relative_difference, stability_check,
                                      tracked_outputs)
 from tanksynth.verify.numerics import integral_augmentation
 from tanksynth.verify.simulations import designed_time_constant, servo_check
@@ -24,8 +33,6 @@ __all__ = ["integral_tracking_verdict", "feedback_linearization_verdict", "inver
 
 
 def _law(doc: Mapping[str, Any]) -> Any:
-    from tanksynth.runtime.laws import law_from_document
-
     diag = doc.get("diagnostics") or {}
     law = diag.get("law") if isinstance(diag, Mapping) else None
     if not isinstance(law, Mapping):
@@ -33,13 +40,11 @@ def _law(doc: Mapping[str, Any]) -> Any:
     return law_from_document(dict(law))
 
 
-def _region_samples(plant: Any, count: int = 24, seed: int = 7) -> np.ndarray:
-    from tanksynth.analysis.region import region_points
-
+def _region_samples(plant: Plant, count: int = 24, seed: int = 7) -> np.ndarray:
     return region_points(plant, 0, count, seed, 0.05)
 
 
-def integral_tracking_verdict(doc: Mapping[str, Any], spec: Any, *,
+def integral_tracking_verdict(doc: Mapping[str, Any], spec: Spec, *,
                               trace: TraceRecorder | None = None) -> list[Check]:
     """Verdict of an ``integral_tracking`` artefact (seed 000 eq. 13-16 with saturation).
 
@@ -56,10 +61,6 @@ def integral_tracking_verdict(doc: Mapping[str, Any], spec: Any, *,
     doc, spec, trace : mapping, Spec, TraceRecorder or None
         The artefact, the validated spec and a recorder of the simulated runs.
     """
-    from tanksynth.runtime.laws import integral_tracking_law
-    from tanksynth.spec.options import parse_poles
-    from tanksynth.analysis.linearize import linearize
-
     plant = spec.plant
     n, m = plant.n, plant.m
     K1 = artefact_matrix(doc, "K1", (m, n))
@@ -70,7 +71,7 @@ def integral_tracking_verdict(doc: Mapping[str, Any], spec: Any, *,
     x0 = artefact_gain(doc, "x_op").reshape(n)
     u0 = artefact_gain(doc, "u_op").reshape(m)
     limits = artefact_matrix(doc, "input_limits", (m, 2))
-    ts = float(spec.ts)
+    ts = discrete_ts(spec)
     checks = []
     residual = plant.compiled.rhs(x0[None], u0[None])[0]
     scale = float(np.max(np.abs(plant.compiled.rhs(x0[None], np.zeros((1, m)))[0]))) or 1.0
@@ -127,7 +128,7 @@ def integral_tracking_verdict(doc: Mapping[str, Any], spec: Any, *,
     return checks
 
 
-def feedback_linearization_verdict(doc: Mapping[str, Any], spec: Any, *,
+def feedback_linearization_verdict(doc: Mapping[str, Any], spec: Spec, *,
                                    trace: TraceRecorder | None = None) -> list[Check]:
     """Verdict of a ``feedback_linearization`` artefact (seed 000 section II-C).
 
@@ -252,7 +253,7 @@ def feedback_linearization_verdict(doc: Mapping[str, Any], spec: Any, *,
     return checks
 
 
-def inverse_dynamics_verdict(doc: Mapping[str, Any], spec: Any, *,
+def inverse_dynamics_verdict(doc: Mapping[str, Any], spec: Spec, *,
                              trace: TraceRecorder | None = None) -> list[Check]:
     """Verdict of an ``inverse_dynamics`` artefact (seed 002 eq. 46-47).
 
@@ -268,11 +269,6 @@ def inverse_dynamics_verdict(doc: Mapping[str, Any], spec: Any, *,
     doc, spec, trace : mapping, Spec, TraceRecorder or None
         The artefact, the validated spec and a recorder of the simulated runs.
     """
-    from tanksynth.runtime.laws import inverse_dynamics_law
-    from tanksynth.analysis.linearize import linearize
-    from tanksynth.sim.metrics import compute_metrics
-    from tanksynth.sim.scenarios import run_scenario, scenario
-
     plant = spec.plant
     n, m = plant.n, plant.m
     C = artefact_gain(doc, "C").reshape(m)
@@ -314,7 +310,7 @@ def inverse_dynamics_verdict(doc: Mapping[str, Any], spec: Any, *,
 
     def servo() -> list[Check]:
         sc = scenario("servo")
-        ts = float(spec.ts)
+        ts = discrete_ts(spec)
         setup = sc.setup(plant, x0, u0, tuple(idx), ts=ts)
         res = run_scenario(setup, plant, ts=ts, seeds=run_seeds(0, 2),
                            controller=CasadiControlLaw(built.law), substeps=4)

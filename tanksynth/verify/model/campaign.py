@@ -25,6 +25,7 @@ from tanksynth.errors import ArtefactError
 from tanksynth.plants.base import Plant
 from tanksynth.sim.metrics import Metric, prediction_metrics
 from tanksynth.sim.scenarios import Scenario, run_scenario
+from tanksynth.spec import Spec
 from tanksynth.verify.common import artefact_gain
 
 __all__ = ["ModelRun", "linear_predictions", "linearize_run"]
@@ -133,7 +134,7 @@ class ModelRun:
         return prediction_metrics(plant, np.asarray(res.x), free, one)
 
 
-def linearize_run(doc: Mapping[str, Any], spec: Any) -> ModelRun:
+def linearize_run(doc: Mapping[str, Any], spec: Spec) -> ModelRun:
     """The discrete model ``Ad, Bd`` at ``x0, u0`` of a ``linearize`` artefact.
 
     Parameters

@@ -27,13 +27,15 @@ from tanksynth.analysis.linearize import discretize_zoh, linearize
 from tanksynth.analysis.rank import controllability_rank, observability_rank
 from tanksynth.errors import ArtefactError
 from tanksynth.sim.simulate import run_seeds, simulate
+from tanksynth.plants.base import Plant
+from tanksynth.spec import Spec
 from tanksynth.verify.common import artefact_gain, relative_difference
 from tanksynth.verify.traces import TraceRecorder
 
 __all__ = ["first_order_agreement", "linearize_verdict"]
 
 
-def first_order_agreement(plant: Any, F: np.ndarray, B: np.ndarray, Ad: np.ndarray, Bd: np.ndarray,
+def first_order_agreement(plant: Plant, F: np.ndarray, B: np.ndarray, Ad: np.ndarray, Bd: np.ndarray,
                           x0: np.ndarray, u0: np.ndarray, ts: float, *, horizon: int = 20,
                           eps0: float = 5e-3, substeps: int = 10,
                           trace: TraceRecorder | None = None) -> dict[str, Any]:
@@ -102,7 +104,7 @@ def first_order_agreement(plant: Any, F: np.ndarray, B: np.ndarray, Ad: np.ndarr
 
 
 
-def linearize_verdict(doc: Mapping[str, Any], spec: Any, *,
+def linearize_verdict(doc: Mapping[str, Any], spec: Spec, *,
                       trace: TraceRecorder | None = None) -> list[Check]:
     """Verdict of a ``linearize`` artefact (see the module docstring).
 

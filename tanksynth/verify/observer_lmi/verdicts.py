@@ -4,11 +4,17 @@ from __future__ import annotations
 
 from typing import Any, Mapping
 
+import casadi as ca
 import numpy as np
 
 from tanksynth.analysis.checks import Check
+from tanksynth.analysis.linearize import discretize_zoh, linearize
 from tanksynth.analysis.rank import observability_rank
+from tanksynth.analysis.takagi_sugeno import Domain, PremiseBounds, TSModel, quasi_lpv, ts_model
 from tanksynth.errors import TanksynthError
+from tanksynth.plants.base import Plant
+from tanksynth.spec import Spec
+from tanksynth.verify.batch_call import BatchCall
 from tanksynth.verify.common import (MODEL_TOLERANCE, artefact_matrix, complex_list, fmt, guard,
                                      operating_point, option, rank_check, relative_difference,
                                      stability_check)
@@ -17,7 +23,7 @@ from tanksynth.verify.simulations import (eigen_time_constant, eigenvector_condi
                                           observer_convergence, observer_period)
 from tanksynth.verify.traces import TraceRecorder
 
-__all__ = ["TSObserver", "ts_observer_verdict"]
+__all__ = ["TSObserver", "recorded_ts_parts", "ts_observer_verdict"]
 
 
 class TSObserver:
@@ -53,8 +59,6 @@ class TSObserver:
     """
 
     def __init__(self, model: Any, L: np.ndarray, ts: float, substeps: int = 8):
-        from tanksynth.analysis.linearize import discretize_zoh
-
         self.model = model
         self.L = np.asarray(L, dtype=float)
         self.A0 = np.asarray(model.A0, dtype=float)
@@ -63,7 +67,7 @@ class TSObserver:
         n = self.A0.shape[0]
         self._phi, self._gamma = discretize_zoh(self.A0 - self.L @ self.C, np.eye(n),
                                                 float(ts) / self.substeps)
-        self._x: np.ndarray | None = None
+        self._x: np.ndarray = np.empty((0, n))    # set by reset
         self._y: np.ndarray | None = None
         f = getattr(model, "casadi_rhs", None)
         self._period = None if f is None else self._compiled_period(f)
@@ -71,8 +75,6 @@ class TSObserver:
 
     def _compiled_period(self, f: Any) -> Any:
         """``x_next = period(x_hat, u, y_prev)``: the substeps of `step` as one CasADi function."""
-        import casadi as ca
-
         n, m, q = self.A0.shape[0], f.size1_in(1), self.C.shape[0]
         xh, u, y0 = ca.SX.sym("x_hat", n), ca.SX.sym("u", m), ca.SX.sym("y_prev", q)
         A0, L, phi, gam = (ca.DM(v) for v in (self.A0, self.L, self._phi, self._gamma))
@@ -102,8 +104,6 @@ class TSObserver:
             Measurements (output units, m) and previous inputs (input units, m^3/s).
         """
         if self._y is not None and self._period is not None:
-            from tanksynth.verify.batch_call import BatchCall
-
             M = self._x.shape[0]
             fn = self._maps.get(M)
             if fn is None:
@@ -123,10 +123,49 @@ class TSObserver:
         self._y = np.array(y, dtype=float)
         return self._x
 
-def _ts_model_from_artefact(doc: Mapping[str, Any], spec: Any) -> tuple[Any, list[Check]]:
-    """Rebuild the TS multiple model from the plant and the recorded premises/bounds/domain."""
-    from tanksynth.analysis.takagi_sugeno import Domain, PremiseBounds, quasi_lpv, ts_model
 
+def recorded_ts_parts(plant: Plant, record: Mapping[str, Any]
+                      ) -> tuple[np.ndarray, Domain, PremiseBounds]:
+    """The premise weights, domain and premise bounds a ``ts_observer`` design recorded.
+
+    Parameters
+    ----------
+    plant : Plant
+        The spec's plant (its state names and count).
+    record : mapping
+        ``diagnostics.ts_model``: ``premises[*].weights``, ``domain`` (``lower``, ``upper``,
+        ``inequalities`` ``G x <= g``; state units) and ``bounds`` (``lower``, ``upper`` of the
+        premises).
+
+    Returns
+    -------
+    weights : ndarray, shape (k, n)
+        One row per premise.
+    domain : Domain
+        The TS model's domain.
+    bounds : PremiseBounds
+        The recorded premise bounds (used as found and as given).
+
+    Raises
+    ------
+    KeyError, TypeError, ValueError
+        The record lacks a part or holds a malformed one.
+    """
+    W = np.array([p["weights"] for p in record["premises"]], dtype=float)
+    dom, bounds = record["domain"], record["bounds"]
+    ineq = dom.get("inequalities") or []
+    G = np.array([r["G"] for r in ineq], dtype=float).reshape(len(ineq), plant.n)
+    g = np.array([r["g"] for r in ineq], dtype=float)
+    domain = Domain(np.array(dom["lower"], float), np.array(dom["upper"], float), G, g,
+                    tuple(s.name for s in plant.states), str(dom.get("description", "")))
+    lower, upper = np.array(bounds["lower"], float), np.array(bounds["upper"], float)
+    pb = PremiseBounds(lower, upper, str(bounds.get("method", "recorded")),
+                       float(bounds.get("margin", 0.0)), lower, upper, {})
+    return W, domain, pb
+
+
+def _ts_model_from_artefact(doc: Mapping[str, Any], spec: Spec) -> tuple[TSModel | None, list[Check]]:
+    """Rebuild the TS multiple model from the plant and the recorded premises/bounds/domain."""
     plant = spec.plant
     diag = doc.get("diagnostics") or {}
     rec = diag.get("ts_model") if isinstance(diag, Mapping) else None
@@ -148,21 +187,15 @@ def _ts_model_from_artefact(doc: Mapping[str, Any], spec: Any) -> tuple[Any, lis
         return None, [Check("ts_model_rebuilt", None,
                             "cannot rebuild the TS observer (eq. 20): the artefact's diagnostics lack "
                             + ", ".join(missing))]
-    W = np.array([p["weights"] for p in prem], dtype=float)
+    premises: list[Mapping[str, Any]] = prem if isinstance(prem, list) else []
+    W, domain, pb = recorded_ts_parts(plant, rec)
     qlpv = quasi_lpv(plant, W)
-    atoms_rec = [str(p.get("atom")) for p in prem]
+    atoms_rec = [str(p.get("atom")) for p in premises]
     atoms_new = [str(a) for a in qlpv.atoms]
-    inc_rec = np.array([p.get("incidence", [np.nan] * plant.n) for p in prem], dtype=float).T
+    inc_rec = np.array([p.get("incidence", [np.nan] * plant.n) for p in premises], dtype=float).T
     same = atoms_rec == atoms_new and inc_rec.shape == qlpv.incidence.shape and \
         bool(np.allclose(inc_rec, qlpv.incidence, rtol=0, atol=1e-12))
-    ineq = dom.get("inequalities") or []
-    G = np.array([r["G"] for r in ineq], dtype=float).reshape(len(ineq), plant.n)
-    g = np.array([r["g"] for r in ineq], dtype=float)
-    domain = Domain(np.array(dom["lower"], float), np.array(dom["upper"], float), G, g,
-                    tuple(s.name for s in plant.states), str(dom.get("description", "")))
-    lower, upper = np.array(bounds["lower"], float), np.array(bounds["upper"], float)
-    pb = PremiseBounds(lower, upper, str(bounds.get("method", "recorded")),
-                       float(bounds.get("margin", 0.0)), lower, upper, {})
+    lower, upper = pb.lower, pb.upper
     model = ts_model(qlpv, domain, bounds=pb)
     checks = [Check("ts_model_rebuilt", bool(same),
                     f"premises re-derived from the plant with the recorded weights {W.tolist()}: atoms "
@@ -174,10 +207,8 @@ def _ts_model_from_artefact(doc: Mapping[str, Any], spec: Any) -> tuple[Any, lis
     return model, checks
 
 
-def _local_error_check(spec: Any, L: np.ndarray, C: np.ndarray) -> Check:
+def _local_error_check(spec: Spec, L: np.ndarray, C: np.ndarray) -> Check:
     """``eig(F(x_op) - L C)``: the observer error dynamics linearised at the operating point."""
-    from tanksynth.analysis.linearize import linearize
-
     x0, u0 = operating_point(spec)
     F = linearize(spec.plant, x0, u0).F
     eig = np.linalg.eigvals(F - L @ C)
@@ -190,7 +221,7 @@ def _local_error_check(spec: Any, L: np.ndarray, C: np.ndarray) -> Check:
                  {"eigenvalues": complex_list(eig), "max_real_part": worst})
 
 
-def ts_observer_verdict(doc: Mapping[str, Any], spec: Any, *,
+def ts_observer_verdict(doc: Mapping[str, Any], spec: Spec, *,
                         trace: TraceRecorder | None = None) -> list[Check]:
     """Verdict of a ``ts_observer`` artefact (seed 001).
 
@@ -260,7 +291,7 @@ def ts_observer_verdict(doc: Mapping[str, Any], spec: Any, *,
     checks.append(stability_check(eigs, "continuous", what))
     checks += guard("local_error_dynamics", lambda: [_local_error_check(spec, L, C)])
     checks.append(rank_check("rank_observability", observability_rank(A0, C), "(A0, C)"))
-    if model is not None and model.enumerated:
+    if model is not None and model.enumerated and model.A is not None:
         ranks = [observability_rank(Ai, C) for Ai in model.A]
         bad = [i + 1 for i, r in enumerate(ranks) if not r.full]
         checks.append(Check("rank_observability_vertices", not bad,

@@ -7,11 +7,14 @@ from typing import Any, Mapping
 import numpy as np
 
 from tanksynth.analysis.checks import Check
+from tanksynth.analysis.lmi_region import region_from_parts
 from tanksynth.analysis.rank import controllability_rank, observability_rank
+from tanksynth.spec import Spec
+from tanksynth.spec.options import parse_region
 from tanksynth.verify.common import (POLE_TOLERANCE, artefact_matrix, complex_list, fmt, guard,
                                      model_recheck, operating_point, option, output_rows,
-                                     rank_check, region_check, region_lmi_check, stability_check,
-                                     time_domain, tracked_outputs)
+                                     rank_check, region_check, region_lmi_check, required_ts,
+                                     stability_check, time_domain, tracked_outputs)
 from tanksynth.verify.numerics import integral_augmentation, pole_agreement
 from tanksynth.verify.simulations import (IntegralStateFeedback, designed_time_constant, requested_poles,
                                           eigenvector_conditioning, fastest_rate,
@@ -53,7 +56,7 @@ def _pole_check(matrix: np.ndarray, requested: Any, what: str) -> Check:
                   "measure": ag.measure, "tolerance": POLE_TOLERANCE})
 
 
-def _placement_common(doc: Mapping[str, Any], spec: Any) -> dict:
+def _placement_common(doc: Mapping[str, Any], spec: Spec) -> dict:
     plant = spec.plant
     n, m, q = plant.n, plant.m, plant.q
     domain = time_domain(doc, spec)
@@ -65,7 +68,7 @@ def _placement_common(doc: Mapping[str, Any], spec: Any) -> dict:
     gains = doc["gains"]
     target = "observer" if "L" in gains else "state_feedback"
     integral = "K1" in gains and "K2" in gains
-    out = dict(plant=plant, domain=domain, ts=ts, A=A, B=B, C=C, x0=x0, u0=u0, target=target,
+    out: dict[str, Any] = dict(plant=plant, domain=domain, ts=ts, A=A, B=B, C=C, x0=x0, u0=u0, target=target,
                integral=integral)
     if target == "observer":
         L = artefact_matrix(doc, "L", (n, q))
@@ -75,7 +78,7 @@ def _placement_common(doc: Mapping[str, Any], spec: Any) -> dict:
         rows = output_rows(plant, names)
         C1 = C[rows]
         K = artefact_matrix(doc, "K", (m, n + len(rows)))
-        Aa, Ba = integral_augmentation(A, B, C1, float(ts) if domain == "discrete" else None)
+        Aa, Ba = integral_augmentation(A, B, C1, required_ts(ts) if domain == "discrete" else None)
         out.update(K=K, C1=C1, rows=rows, tracked=names, Aa=Aa, Ba=Ba, Acl=Aa - Ba @ K,
                    what="the augmented closed loop Aa - Ba K")
     else:
@@ -95,7 +98,7 @@ def _placement_rank(c: dict) -> list[Check]:
     return checks
 
 
-def _placement_simulation(doc: Mapping[str, Any], spec: Any, c: dict,
+def _placement_simulation(doc: Mapping[str, Any], spec: Spec, c: dict,
                           trace: TraceRecorder | None) -> list[Check]:
     plant, domain, ts = c["plant"], c["domain"], c["ts"]
     tau, rule = designed_time_constant(doc, spec, c["eigs"], domain, ts)
@@ -127,7 +130,7 @@ def _placement_simulation(doc: Mapping[str, Any], spec: Any, c: dict,
                              eigenvector_conditioning(c["Acl"]), rule=rule, trace=trace)]
 
 
-def pole_placement_verdict(doc: Mapping[str, Any], spec: Any, *,
+def pole_placement_verdict(doc: Mapping[str, Any], spec: Spec, *,
                            trace: TraceRecorder | None = None) -> list[Check]:
     """Verdict of a ``pole_placement`` artefact (state feedback, integral action or observer).
 
@@ -155,7 +158,7 @@ def pole_placement_verdict(doc: Mapping[str, Any], spec: Any, *,
     return checks
 
 
-def lmi_placement_verdict(doc: Mapping[str, Any], spec: Any, *,
+def lmi_placement_verdict(doc: Mapping[str, Any], spec: Spec, *,
                           trace: TraceRecorder | None = None) -> list[Check]:
     """Verdict of an ``lmi_placement`` artefact.
 
@@ -169,9 +172,6 @@ def lmi_placement_verdict(doc: Mapping[str, Any], spec: Any, *,
     doc, spec, trace : mapping, Spec, TraceRecorder or None
         The artefact, the validated spec and a recorder of the simulated runs.
     """
-    from tanksynth.analysis.lmi_region import region_from_parts
-    from tanksynth.spec.options import parse_region
-
     c = _placement_common(doc, spec)
     size = c["Acl"].shape[0]
     checks = [model_recheck(c["plant"], c["x0"], c["u0"], c["domain"], c["ts"],
@@ -195,7 +195,7 @@ def lmi_placement_verdict(doc: Mapping[str, Any], spec: Any, *,
     return checks
 
 
-def canonical_observer_verdict(doc: Mapping[str, Any], spec: Any, *,
+def canonical_observer_verdict(doc: Mapping[str, Any], spec: Spec, *,
                                trace: TraceRecorder | None = None) -> list[Check]:
     """Verdict of a ``canonical_observer`` artefact (seed 004 eq. 27-29).
 

@@ -9,13 +9,17 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
+from tanksynth.plants.base import Plant
 from tanksynth.sim.metrics import Metric, compute_metrics, estimation_metrics, timing_metrics
-from tanksynth.sim.scenarios import Scenario, run_scenario
+from tanksynth.sim.scenarios import Scenario, ScenarioSetup, run_scenario
+from tanksynth.spec import Spec
+from tanksynth.verify.common import (artefact_matrix, operating_point, option, sampling_period,
+                                     time_domain)
+from tanksynth.verify.estimation import EstimatorRun
 from tanksynth.verify.laws.campaign import ClosedLoop
-from tanksynth.verify.estimators.campaign import EstimatorRun
-from tanksynth.analysis.linearize import equilibrium_input
-from tanksynth.verify.common import artefact_matrix, option, time_domain
-from tanksynth.verify.robust.verdicts import _box, _law
+from tanksynth.verify.robust.models import uncertain_box
+from tanksynth.verify.robust.verdicts import robust_feedback_law
+from tanksynth.verify.simulations import luenberger_estimator
 
 __all__ = ["RobustClosedLoop", "RobustObserverRun", "robust_state_feedback_run", "robust_observer_run"]
 
@@ -30,15 +34,15 @@ def _draws(box: Sequence[tuple[str, float, float]], seeds: Sequence[int]) -> np.
 
 
 
-def _sampled_setup(sc: Scenario, setup: Any, box: Sequence[tuple[str, float, float]],
+def _sampled_setup(sc: Scenario, setup: ScenarioSetup, box: Sequence[tuple[str, float, float]],
                    seeds: Sequence[int]) -> tuple[Any, np.ndarray]:
     draws = _draws(box, seeds)
-    params = {**dict(setup.parameters), **{b[0]: draws[:, j] for j, b in enumerate(box)}}
+    params: dict[str, Any] = {**dict(setup.parameters), **{b[0]: draws[:, j] for j, b in enumerate(box)}}
     return replace(setup, parameters=params), draws
 
 
 
-def _param_metrics(plant: Any, box: Sequence[tuple[str, float, float]], draws: np.ndarray
+def _param_metrics(plant: Plant, box: Sequence[tuple[str, float, float]], draws: np.ndarray
                    ) -> dict[str, Metric]:
     units = {p.name: p.unit for p in plant.parameters}
     return {f"param_{name}": Metric(f"param_{name}", draws[:, j], units[name],
@@ -74,7 +78,7 @@ class RobustClosedLoop(ClosedLoop):
 
     box: tuple[tuple[str, float, float], ...] = ()
 
-    def evaluate(self, sc: Scenario, plant: Any, *, ts: float, seeds: Sequence[int],
+    def evaluate(self, sc: Scenario, plant: Plant, *, ts: float, seeds: Sequence[int],
                  substeps: int = 4) -> dict[str, Metric]:
         """The closed-loop metrics of `ClosedLoop.evaluate` and ``param_<name>`` per run.
 
@@ -122,7 +126,7 @@ class RobustObserverRun(EstimatorRun):
 
     box: tuple[tuple[str, float, float], ...] = ()
 
-    def evaluate(self, sc: Scenario, plant: Any, *, ts: float, seeds: Sequence[int],
+    def evaluate(self, sc: Scenario, plant: Plant, *, ts: float, seeds: Sequence[int],
                  substeps: int = 4) -> dict[str, Metric]:
         """The estimation metrics and ``param_<name>`` per run.
 
@@ -148,7 +152,7 @@ class RobustObserverRun(EstimatorRun):
 
 
 
-def robust_state_feedback_run(doc: Mapping[str, Any], spec: Any) -> ClosedLoop:
+def robust_state_feedback_run(doc: Mapping[str, Any], spec: Spec) -> ClosedLoop:
     """Campaign runner of ``robust_state_feedback``: a `RobustClosedLoop` (true state fed back).
 
     Parameters
@@ -158,32 +162,28 @@ def robust_state_feedback_run(doc: Mapping[str, Any], spec: Any) -> ClosedLoop:
     spec : Spec
         The validated spec.
     """
-    from tanksynth.verify.laws.campaign import sampling_period
-
     plant = spec.plant
     gains = doc["gains"]
-    x0 = np.asarray(spec.x0, dtype=float)
-    u0 = equilibrium_input(plant, spec.x0, spec.given_u0).u0
-    c = {"integral": "K1" in gains and "K2" in gains, "n": plant.n, "x0": x0, "u0": u0,
-         "C": np.asarray(gains["C"], dtype=float).reshape(plant.q, plant.n)}
-    p = 0
-    if c["integral"]:
+    x0, u0 = operating_point(spec)
+    C = np.asarray(gains["C"], dtype=float).reshape(plant.q, plant.n)
+    rows = None
+    if "K1" in gains and "K2" in gains:
         outputs = [s.name for s in plant.outputs]
         tracked = list(option(doc, spec, "tracked") or outputs[:plant.m])
-        c["rows"] = [outputs.index(t) for t in tracked]
-        p = len(tracked)
-    c["K"] = np.asarray(gains["K"], dtype=float).reshape(plant.m, plant.n + p)
-    states = tuple(int(np.argmax(np.abs(c["C"][r]))) for r in c["rows"]) if c["integral"] \
+        rows = [outputs.index(t) for t in tracked]
+    K = np.asarray(gains["K"], dtype=float).reshape(plant.m, plant.n + (len(rows) if rows else 0))
+    states = tuple(int(np.argmax(np.abs(C[r]))) for r in rows) if rows is not None \
         else tuple(range(min(plant.m, plant.n)))
-    return RobustClosedLoop(_law(c, sampling_period(spec)), None, x0, u0, states,
+    return RobustClosedLoop(robust_feedback_law(K, C, rows, x0, u0, sampling_period(spec)), None,
+                            x0, u0, states,
                             "robust state feedback u = u0 - K (x - x0)"
-                            + (" - K2 z" if c["integral"] else "")
+                            + (" - K2 z" if rows is not None else "")
                             + ", true state fed back, plants with parameters sampled in the box",
-                            box=tuple(_box(doc, spec)))
+                            box=tuple(uncertain_box(doc, spec)))
 
 
 
-def robust_observer_run(doc: Mapping[str, Any], spec: Any) -> EstimatorRun:
+def robust_observer_run(doc: Mapping[str, Any], spec: Spec) -> EstimatorRun:
     """Campaign runner of ``robust_observer``: a `RobustObserverRun` on the nominal model.
 
     Parameters
@@ -193,15 +193,11 @@ def robust_observer_run(doc: Mapping[str, Any], spec: Any) -> EstimatorRun:
     spec : Spec
         The validated spec.
     """
-    from tanksynth.verify.laws.campaign import sampling_period
-    from tanksynth.verify.simulations import luenberger_estimator
-
     plant = spec.plant
-    x0 = np.asarray(spec.x0, dtype=float)
-    u0 = equilibrium_input(plant, spec.x0, spec.given_u0).u0
+    x0, u0 = operating_point(spec)
     form = "predictor" if time_domain(doc, spec) == "discrete" else "continuous"
     L = artefact_matrix(doc, "L", (plant.n, plant.q))
     est = luenberger_estimator(plant, L, x0, u0, sampling_period(spec), form)
     return RobustObserverRun(est, x0, u0, None,
                              f"robust observer L ({form} form) on the nominal model, plants with "
-                             "parameters sampled in the box", box=tuple(_box(doc, spec)))
+                             "parameters sampled in the box", box=tuple(uncertain_box(doc, spec)))

@@ -1,4 +1,5 @@
-"""Linearisations of one plant at many parameter values, compiled once.
+"""The uncertain parameter box of a robust design, and linearisations of one plant at many
+parameter values in it, compiled once.
 
 The robust verdicts linearise the plant at the box corners, at ``samples`` uniform draws and at the
 Monte-Carlo draws (hundreds of parameter points). Compiling a fresh plant per point (sympy
@@ -15,14 +16,20 @@ relative: the parameters enter as floats instead of exact rationals).
 
 from __future__ import annotations
 
-from typing import Any, Sequence
+import itertools
+from typing import Any, Mapping, Sequence
 
 import casadi as ca
 import numpy as np
+from numpy.typing import ArrayLike
 
+from tanksynth.plants.base import Plant
 from tanksynth.plants.compile import compile_matrix, evaluate_map
+from tanksynth.spec import Spec
+from tanksynth.spec.method_options.robust import parse_uncertain
+from tanksynth.verify.common import option
 
-__all__ = ["ParametricPlant", "linear_models"]
+__all__ = ["uncertain_box", "box_corners", "box_samples", "ParametricPlant", "linear_models"]
 
 
 class ParametricPlant:
@@ -36,7 +43,7 @@ class ParametricPlant:
         The parameters passed per point (each in its own unit).
     """
 
-    def __init__(self, plant: Any, names: Sequence[str]) -> None:
+    def __init__(self, plant: Plant, names: Sequence[str]) -> None:
         self.plant = plant
         self.names = tuple(names)
         n, m = plant.n, plant.m
@@ -79,7 +86,7 @@ class ParametricPlant:
 _CACHE: dict = {}
 
 
-def _parametric(plant: Any, names: tuple[str, ...]) -> ParametricPlant:
+def _parametric(plant: Plant, names: tuple[str, ...]) -> ParametricPlant:
     """One compilation per (plant object, parameter names); the plant is kept alive with it."""
     key = (id(plant), names)
     hit = _CACHE.get(key)
@@ -90,8 +97,8 @@ def _parametric(plant: Any, names: tuple[str, ...]) -> ParametricPlant:
     return hit
 
 
-def linear_models(plant: Any, names: Sequence[str], values: np.ndarray,
-                  x0: Sequence[float]) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def linear_models(plant: Plant, names: Sequence[str], values: np.ndarray,
+                  x0: ArrayLike) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Equilibrium input and linearisation at the levels ``x0`` for each parameter point.
 
     Parameters
@@ -143,3 +150,53 @@ def linear_models(plant: Any, names: Sequence[str], values: np.ndarray,
     B = pp.evaluate("jac_u", X, u0, values)
     C = pp.evaluate("jac_h", X, values)
     return u0, F, B, C
+
+
+def box_corners(box: Sequence[Sequence[Any]]) -> np.ndarray:
+    """The 2^k corners of a parameter box, one row each (the parameters' units).
+
+    Parameters
+    ----------
+    box : sequence of (str, float, float)
+        Parameter name, lower and upper bound (`uncertain_box`).
+    """
+    if not box:
+        return np.zeros((1, 0))
+    return np.array(list(itertools.product(*[(float(b[1]), float(b[2])) for b in box])))
+
+
+def uncertain_box(doc: Mapping[str, Any], spec: Spec) -> list[tuple[str, float, float]]:
+    """The design's uncertain parameters and their intervals (option ``uncertain``).
+
+    Parameters
+    ----------
+    doc : mapping
+        The artefact.
+    spec : Spec
+        The validated spec (or one read without its methods: the option as written is parsed).
+
+    Returns
+    -------
+    list of (str, float, float)
+        Parameter name, lower and upper bound (the parameter's units).
+    """
+    raw = option(doc, spec, "uncertain", ())
+    if isinstance(raw, Mapping):  # a spec read without its methods (campaign workers): as written
+        raw = parse_uncertain(raw, "uncertain", spec.plant)
+    return [(str(b[0]), float(b[1]), float(b[2])) for b in raw]
+
+
+def box_samples(box: Sequence[Sequence[Any]], count: int, seed: int) -> np.ndarray:
+    """``count`` parameter values drawn uniformly in a box, one row each (the parameters' units).
+
+    Parameters
+    ----------
+    box : sequence of (str, float, float)
+        Parameter name, lower and upper bound (`uncertain_box`).
+    count, seed : int
+        How many draws; the seed (mixed with a constant, ``default_rng([seed, 20261201])``).
+    """
+    rng = np.random.default_rng([int(seed), 20261201])
+    lo = np.array([b[1] for b in box], dtype=float)
+    hi = np.array([b[2] for b in box], dtype=float)
+    return lo + rng.random((count, len(box))) * (hi - lo)

@@ -14,6 +14,10 @@ from typing import Any, Sequence
 
 import numpy as np
 
+from tanksynth.plants.base import Plant
+from tanksynth.sim.simulate import SimulationResult
+from tanksynth.verify.traces import TraceRecorder
+
 __all__ = ["PeakRecordingLaw", "record_monte_carlo"]
 
 
@@ -52,7 +56,7 @@ class PeakRecordingLaw:
         return u
 
 
-def record_monte_carlo(trace: Any, result: Any, plant: Any, *, observer: bool,
+def record_monte_carlo(trace: TraceRecorder | None, result: SimulationResult, plant: Plant, *, observer: bool,
                        reference_names: Sequence[str] | None = None) -> None:
     """Record the Monte-Carlo runs of a robust verdict (no-op without a recorder).
 

@@ -29,6 +29,7 @@ the options (region, uncertain box, H-infinity bound, saturation):
 
 from __future__ import annotations
 
+import itertools
 import math
 from typing import Any, Mapping, Sequence
 
@@ -36,19 +37,23 @@ import numpy as np
 
 from tanksynth.analysis.checks import Check
 from tanksynth.analysis.linearize import discretize_zoh, equilibrium_input
+from tanksynth.analysis.lmi_region import region_from_parts
 from tanksynth.errors import ArtefactError
 from tanksynth.sim.simulate import run_seeds, simulate
-from tanksynth.verify.robust.models import linear_models
+from tanksynth.spec import Spec
+from tanksynth.spec.options import parse_region
+from tanksynth.verify.robust.models import box_corners, box_samples, linear_models, uncertain_box
 from tanksynth.verify.robust.traces import PeakRecordingLaw, record_monte_carlo
-from tanksynth.spec.method_options.robust import parse_uncertain
-from tanksynth.verify.common import (MAX_STEPS, OBSERVER_TOLERANCE, artefact_matrix, fmt, guard,
-                                     model_recheck, option, stability_check, time_domain)
+from tanksynth.verify.common import (MAX_STEPS, OBSERVER_TOLERANCE, artefact_matrix, discrete_ts,
+                                     fmt, guard, model_recheck, option, stability_check,
+                                     time_domain)
 from tanksynth.verify.numerics import integral_augmentation, region_lmi_matrix
 from tanksynth.verify.simulations import (IntegralStateFeedback, StateFeedback, designed_time_constant,
                                           eigen_time_constant, eigenvector_conditioning, observer_period, perturbed_start)
+from tanksynth.verify.traces import TraceRecorder
 
-__all__ = ["SATURATION_TOLERANCE", "hinf_norm", "robust_state_feedback_verdict",
-           "robust_observer_verdict"]
+__all__ = ["SATURATION_TOLERANCE", "hinf_norm", "robust_feedback_law",
+           "robust_state_feedback_verdict", "robust_observer_verdict"]
 
 #: Relative excess of ``|u - u0|`` over ``umax`` tolerated on the nonlinear plant.
 SATURATION_TOLERANCE = 0.02
@@ -113,7 +118,7 @@ def hinf_norm(A: np.ndarray, B: np.ndarray, C: np.ndarray, D: np.ndarray | None 
     return hi
 
 
-def _models(spec: Any, box: Sequence[Sequence[Any]], values: np.ndarray, domain: str,
+def _models(spec: Spec, box: Sequence[Sequence[Any]], values: np.ndarray, domain: str,
             Bw: Any) -> list[dict]:
     """Linearisations at the spec's levels for parameter values (rows of ``values``), the plant
     compiled once with the parameters as arguments (`tanksynth.verify.robust.models`)."""
@@ -128,33 +133,11 @@ def _models(spec: Any, box: Sequence[Sequence[Any]], values: np.ndarray, domain:
             np.eye(plant.n) if isinstance(Bw, str) else np.asarray(Bw, dtype=float))
         A, B = F, Bc
         if domain == "discrete":
-            Ad, BB = discretize_zoh(F, np.hstack([Bc, W]), float(spec.ts))
+            Ad, BB = discretize_zoh(F, np.hstack([Bc, W]), discrete_ts(spec))
             A, B, W = Ad, BB[:, :plant.m], BB[:, plant.m:]
         out.append({"A": A, "B": B, "C": C, "Bw": W, "u0": u0, "F": F, "Bc": Bc,
                     "params": dict(zip(names, map(float, row)))})
     return out
-
-
-def _corners(box: Sequence[Sequence[Any]]) -> np.ndarray:
-    if not box:
-        return np.zeros((1, 0))
-    import itertools
-
-    return np.array(list(itertools.product(*[(float(b[1]), float(b[2])) for b in box])))
-
-
-def _box(doc: Mapping[str, Any], spec: Any) -> list[tuple[str, float, float]]:
-    raw = option(doc, spec, "uncertain", ())
-    if isinstance(raw, Mapping):  # a spec read without its methods (campaign workers): as written
-        raw = parse_uncertain(raw, "uncertain", spec.plant)
-    return [(str(b[0]), float(b[1]), float(b[2])) for b in raw]
-
-
-def _sample(box: Sequence[Sequence[Any]], count: int, seed: int) -> np.ndarray:
-    rng = np.random.default_rng([int(seed), 20261201])
-    lo = np.array([b[1] for b in box], dtype=float)
-    hi = np.array([b[2] for b in box], dtype=float)
-    return lo + rng.random((count, len(box))) * (hi - lo)
 
 
 def _label(params: Mapping[str, float]) -> str:
@@ -162,10 +145,7 @@ def _label(params: Mapping[str, float]) -> str:
 
 
 # ============================================================ shared context
-def _context(doc: Mapping[str, Any], spec: Any, observer: bool) -> dict:
-    from tanksynth.analysis.lmi_region import region_from_parts
-    from tanksynth.spec.options import parse_region
-
+def _context(doc: Mapping[str, Any], spec: Spec, observer: bool) -> dict:
     plant = spec.plant
     n, m, q = plant.n, plant.m, plant.q
     domain = time_domain(doc, spec)
@@ -173,17 +153,17 @@ def _context(doc: Mapping[str, Any], spec: Any, observer: bool) -> dict:
     if raw is None:
         raise ArtefactError(f"artefact '{doc['name']}': the spec entry gives no region")
     region = region_from_parts(parse_region(raw, "region"))
-    box = _box(doc, spec)
+    box = uncertain_box(doc, spec)
     Bw = option(doc, spec, "Bw")
     Bw = ("identity" if observer else "inputs") if Bw is None else np.asarray(Bw, dtype=float)
-    corners = _corners(box)
+    corners = box_corners(box)
     models = _models(spec, box, corners, domain, Bw)
     if box:
         models += _models(spec, (), np.zeros((1, 0)), domain, Bw)
         models[-1]["params"] = {"nominal": 1.0}
     x0 = np.asarray(spec.x0, dtype=float)
     u0 = equilibrium_input(plant, spec.x0, spec.given_u0).u0
-    c = dict(plant=plant, n=n, m=m, q=q, domain=domain, region=region, box=box, Bw=Bw, models=models,
+    c: dict[str, Any] = dict(plant=plant, n=n, m=m, q=q, domain=domain, region=region, box=box, Bw=Bw, models=models,
              x0=x0, u0=u0, A=artefact_matrix(doc, "A", (n, n), domain), B=artefact_matrix(doc, "B", (n, m), domain),
              C=artefact_matrix(doc, "C", (q, n)))
     integral = "K1" in doc["gains"] and "K2" in doc["gains"]
@@ -216,13 +196,13 @@ def _closed(c: dict, mdl: Mapping[str, Any]) -> np.ndarray:
     return mdl["A"] - mdl["B"] @ c["K"]
 
 
-def _closed_loops(c: dict, spec: Any, models: Sequence[Mapping[str, Any]]) -> list[np.ndarray]:
-    c["ts"] = float(spec.ts) if c["domain"] == "discrete" else None
+def _closed_loops(c: dict, spec: Spec, models: Sequence[Mapping[str, Any]]) -> list[np.ndarray]:
+    c["ts"] = discrete_ts(spec) if c["domain"] == "discrete" else None
     return [_closed(c, mdl) for mdl in models]
 
 
 # =================================================================== checks
-def _vertex_checks(doc: Mapping[str, Any], spec: Any, c: dict) -> list[Check]:
+def _vertex_checks(doc: Mapping[str, Any], spec: Spec, c: dict) -> list[Check]:
     region, models = c["region"], c["models"]
     checks = [model_recheck(c["plant"], c["x0"], c["u0"], c["domain"], spec.ts,
                             {"A": c["A"], "B": c["B"], "C": c["C"]})]
@@ -275,7 +255,7 @@ def _vertex_checks(doc: Mapping[str, Any], spec: Any, c: dict) -> list[Check]:
     return checks
 
 
-def _hinf_check(doc: Mapping[str, Any], spec: Any, c: dict, loops: Sequence[np.ndarray],
+def _hinf_check(doc: Mapping[str, Any], spec: Spec, c: dict, loops: Sequence[np.ndarray],
                 gamma: float) -> Check:
     n = c["n"]
     Cz = option(doc, spec, "Cz")
@@ -300,12 +280,12 @@ def _hinf_check(doc: Mapping[str, Any], spec: Any, c: dict, loops: Sequence[np.n
                  f"{gamma:g}", {"norms": [float(v) for v in norms], "gamma": gamma})
 
 
-def _sampled_check(doc: Mapping[str, Any], spec: Any, c: dict) -> list[Check]:
+def _sampled_check(doc: Mapping[str, Any], spec: Spec, c: dict) -> list[Check]:
     if not c["box"]:
         return [Check("sampled_region", None, "no uncertain parameter: nothing to sample")]
     count = int(option(doc, spec, "samples", 200))
     seed = int(option(doc, spec, "seed", 0))
-    values = _sample(c["box"], count, seed)
+    values = box_samples(c["box"], count, seed)
     models = _models(spec, c["box"], values, c["domain"], c["Bw"])
     loops = _closed_loops(c, spec, models)
     region = c["region"]
@@ -320,7 +300,7 @@ def _sampled_check(doc: Mapping[str, Any], spec: Any, c: dict) -> list[Check]:
                    "worst_parameters": models[w]["params"]})]
 
 
-def _horizon(doc: Mapping[str, Any], spec: Any, c: dict, ts: float) -> tuple[float, int, int, str]:
+def _horizon(doc: Mapping[str, Any], spec: Spec, c: dict, ts: float) -> tuple[float, int, int, str]:
     loops = _closed_loops(c, spec, c["models"])
     eigs = np.concatenate([np.linalg.eigvals(M) for M in loops])
     tau, rule = designed_time_constant(doc, spec, eigs, c["domain"], spec.ts)
@@ -334,25 +314,46 @@ def _horizon(doc: Mapping[str, Any], spec: Any, c: dict, ts: float) -> tuple[flo
     return H, k_h, max(int(math.ceil(1.2 * H / ts)), k_h + 1), f"tau = {tau:.4g} s {rule}, kappa = {kappa:.3g}"
 
 
-def _sim_period(c: dict, spec: Any, loops: Sequence[np.ndarray]) -> float:
+def _sim_period(c: dict, spec: Spec, loops: Sequence[np.ndarray]) -> float:
     if c["domain"] == "discrete":
-        return float(spec.ts)
+        return discrete_ts(spec)
     fast = max(float(np.max(np.abs(np.linalg.eigvals(M)))) for M in loops)
     step = 0.05 / fast if fast > 0 else 1.0
     return float(min(step, spec.ts)) if spec.ts else step
 
 
-def _law(c: dict, ts: float) -> Any:
-    if c["integral"]:
-        n = c["n"]
-        C1 = np.zeros((len(c["rows"]), n))
-        for i, r in enumerate(c["rows"]):
-            C1[i] = c["C"][r]
-        return IntegralStateFeedback(c["K"][:, :n], c["K"][:, n:], C1, c["x0"], c["u0"], ts)
-    return StateFeedback(c["K"], c["x0"], c["u0"])
+def robust_feedback_law(K: np.ndarray, C: np.ndarray, rows: Sequence[int] | None, x0: np.ndarray,
+                        u0: np.ndarray, ts: float) -> StateFeedback | IntegralStateFeedback:
+    """The robust state feedback as a batch control law, with integral action when it tracks.
+
+    Parameters
+    ----------
+    K : ndarray, shape (m, n) or (m, n + p)
+        The stored gain (input units per state unit; its last p columns act on the integrators).
+    C : ndarray, shape (q, n)
+        The stored output matrix (output units per state unit).
+    rows : sequence of int or None
+        The tracked outputs' rows of ``C`` (p of them); None: no integral action.
+    x0, u0 : ndarray (n,), ndarray (m,)
+        Operating point (state units, m) and its input (input units, m^3/s).
+    ts : float
+        Sampling period of the integrators [s].
+    """
+    if rows is not None:
+        n = C.shape[1]
+        C1 = np.zeros((len(rows), n))
+        for i, r in enumerate(rows):
+            C1[i] = C[r]
+        return IntegralStateFeedback(K[:, :n], K[:, n:], C1, x0, u0, ts)
+    return StateFeedback(K, x0, u0)
 
 
-def _too_stiff(c: dict, spec: Any, ts: float, H: float, steps: int, rule: str) -> Check:
+def _law(c: dict, ts: float) -> StateFeedback | IntegralStateFeedback:
+    """`robust_feedback_law` of a verdict's context."""
+    return robust_feedback_law(c["K"], c["C"], c["rows"] if c["integral"] else None, c["x0"], c["u0"], ts)
+
+
+def _too_stiff(c: dict, spec: Spec, ts: float, H: float, steps: int, rule: str) -> Check:
     """The Monte-Carlo check of a loop too stiff to simulate: failed (the gain cannot be trusted
     without its run on the nonlinear plant), with the loop's time scales and which one is to blame."""
     eigs = np.concatenate([np.linalg.eigvals(M) for M in _closed_loops(c, spec, c["models"])])
@@ -366,7 +367,7 @@ def _too_stiff(c: dict, spec: Any, ts: float, H: float, steps: int, rule: str) -
                  f"{10 * MAX_STEPS}); {why}", {"samples": int(steps), "fastest_eigenvalue": fast, "horizon_s": H})
 
 
-def _mc_feedback(doc: Mapping[str, Any], spec: Any, c: dict, trace: Any = None) -> list[Check]:
+def _mc_feedback(doc: Mapping[str, Any], spec: Spec, c: dict, trace: TraceRecorder | None = None) -> list[Check]:
     plant = spec.plant
     runs = int(option(doc, spec, "mc_runs", 16))
     seed = int(option(doc, spec, "seed", 0))
@@ -374,7 +375,7 @@ def _mc_feedback(doc: Mapping[str, Any], spec: Any, c: dict, trace: Any = None) 
     H, k_h, steps, rule = _horizon(doc, spec, c, ts)
     if steps > 10 * MAX_STEPS:
         return [_too_stiff(c, spec, ts, H, steps, rule)]
-    values = _sample(c["box"], runs, seed + 1) if c["box"] else np.zeros((runs, 0))
+    values = box_samples(c["box"], runs, seed + 1) if c["box"] else np.zeros((runs, 0))
     params = {b[0]: values[:, j] for j, b in enumerate(c["box"])}
     x_start, frac = perturbed_start(plant, c["x0"])
     law = _law(c, ts)
@@ -391,7 +392,7 @@ def _mc_feedback(doc: Mapping[str, Any], spec: Any, c: dict, trace: Any = None) 
     tol = OBSERVER_TOLERANCE * d0
     settle = np.max(np.abs(X[:, k_h:] - X[:, -1:]), axis=(1, 2))
     offset = np.max(np.abs(X[:, -1] - c["x0"]), axis=1)
-    if c["integral"]:
+    if c["integral"] and ref is not None:
         track = np.max(np.abs(res.y[:, k_h:][..., c["rows"]] - ref[0][None, None, :]), axis=(1, 2))
         err = np.maximum(settle, track)
         what = (f"tracked outputs {c['tracked']} back within {tol:.3g} of their set-points and every "
@@ -414,7 +415,7 @@ def _mc_feedback(doc: Mapping[str, Any], spec: Any, c: dict, trace: Any = None) 
                    "offsets": offset.tolist(), "worst_parameters": worst, "horizon_s": H, "ts": ts})]
 
 
-def _saturation_checks(doc: Mapping[str, Any], spec: Any, c: dict) -> list[Check]:
+def _saturation_checks(doc: Mapping[str, Any], spec: Spec, c: dict) -> list[Check]:
     plant, n = spec.plant, c["n"]
     P, K = c["P"], c["K"]
     lim = np.asarray(plant.input_limits, dtype=float)
@@ -440,8 +441,6 @@ def _saturation_checks(doc: Mapping[str, Any], spec: Any, c: dict) -> list[Check
     box = option(doc, spec, "box")
     if box is not None:
         half = np.asarray(box, dtype=float)
-        import itertools
-
         worst = max(float(v @ Pxx @ v) for v in (np.array(sg) * half
                                                  for sg in itertools.product((-1.0, 1.0), repeat=n)))
         checks.append(Check("saturation_box", bool(worst <= 1 + 1e-6),
@@ -452,7 +451,7 @@ def _saturation_checks(doc: Mapping[str, Any], spec: Any, c: dict) -> list[Check
     return checks
 
 
-def _saturation_sim(doc: Mapping[str, Any], spec: Any, c: dict, Pxx: np.ndarray,
+def _saturation_sim(doc: Mapping[str, Any], spec: Spec, c: dict, Pxx: np.ndarray,
                     umax: np.ndarray) -> Check:
     plant, n = spec.plant, c["n"]
     w, V = np.linalg.eigh(0.5 * (Pxx + Pxx.T))
@@ -483,7 +482,7 @@ def _saturation_sim(doc: Mapping[str, Any], spec: Any, c: dict, Pxx: np.ndarray,
         ref = np.tile(y0, (steps + 1, 1))
     simulate(plant, ts=ts, steps=steps, x0=np.array(starts), seeds=run_seeds(0, len(starts)),
              controller=law, reference=ref, u_init=c["u0"])
-    peak = float(np.max(law.peak))
+    peak = float(np.max(law.peak)) if law.peak is not None else 0.0
     return Check("saturation_nonlinear", bool(peak <= 1 + SATURATION_TOLERANCE),
                  f"{len(starts)} starts on the ellipsoid's boundary (semi-axes {fmt(1 / np.sqrt(w))} in "
                  f"the states' units, +-each axis and 24 random directions; {skipped} outside the "
@@ -493,7 +492,7 @@ def _saturation_sim(doc: Mapping[str, Any], spec: Any, c: dict, Pxx: np.ndarray,
                  {"peak_ratio": peak, "starts": len(starts), "skipped": skipped})
 
 
-def robust_state_feedback_verdict(doc: Mapping[str, Any], spec: Any, *, trace: Any = None) -> list[Check]:
+def robust_state_feedback_verdict(doc: Mapping[str, Any], spec: Spec, *, trace: TraceRecorder | None = None) -> list[Check]:
     """Verdict of a ``robust_state_feedback`` artefact (see the module docstring).
 
     Parameters
@@ -521,7 +520,7 @@ class _InstanceObserver:
     def __init__(self, Phi: np.ndarray, Gamma: np.ndarray, x0: np.ndarray, u0: np.ndarray,
                  y0: np.ndarray):
         self.Phi, self.Gamma, self.x0, self.u0, self.y0 = Phi, Gamma, x0, u0, y0
-        self.e: np.ndarray | None = None
+        self.e: np.ndarray = np.empty((0, x0.shape[0]))    # set by reset
         self.y_prev: np.ndarray | None = None
 
     def reset(self, x_hat0: np.ndarray) -> None:
@@ -536,7 +535,7 @@ class _InstanceObserver:
         return self.x0 + self.e
 
 
-def _mc_observer(doc: Mapping[str, Any], spec: Any, c: dict, trace: Any = None) -> list[Check]:
+def _mc_observer(doc: Mapping[str, Any], spec: Spec, c: dict, trace: TraceRecorder | None = None) -> list[Check]:
     plant = spec.plant
     runs = int(option(doc, spec, "mc_runs", 16))
     seed = int(option(doc, spec, "seed", 0))
@@ -545,10 +544,10 @@ def _mc_observer(doc: Mapping[str, Any], spec: Any, c: dict, trace: Any = None) 
     tau, _ = designed_time_constant(doc, spec, eigs, c["domain"], spec.ts)
     ts = observer_period(c["domain"], spec.ts, tau)
     H, k_h, steps, rule = _horizon(doc, spec, c, ts)
-    values = _sample(c["box"], runs, seed + 1) if c["box"] else np.zeros((runs, 0))
+    values = box_samples(c["box"], runs, seed + 1) if c["box"] else np.zeros((runs, 0))
     models = _models(spec, c["box"], values, "continuous", "identity")
     L = c["L"]
-    Phi, Gam, U0 = [], [], []
+    Phi, Gam, inputs = [], [], []
     for mdl in models:
         if c["domain"] == "discrete":
             Ad, Bd = discretize_zoh(mdl["F"], mdl["Bc"], ts)
@@ -558,8 +557,8 @@ def _mc_observer(doc: Mapping[str, Any], spec: Any, c: dict, trace: Any = None) 
             Ph, G = discretize_zoh(mdl["F"] - L @ mdl["C"], np.hstack([mdl["Bc"], L]), ts)
             Phi.append(Ph)
             Gam.append(G)
-        U0.append(mdl["u0"])
-    U0 = np.array(U0)
+        inputs.append(mdl["u0"])
+    U0 = np.array(inputs)
     y0 = np.asarray(plant.compiled.output(c["x0"][None]), dtype=float).reshape(-1)
     est = _InstanceObserver(np.array(Phi), np.array(Gam), c["x0"], U0, y0)
     x_start, frac = perturbed_start(plant, c["x0"])
@@ -585,7 +584,7 @@ def _mc_observer(doc: Mapping[str, Any], spec: Any, c: dict, trace: Any = None) 
                    "horizon_s": H, "ts": ts})]
 
 
-def robust_observer_verdict(doc: Mapping[str, Any], spec: Any, *, trace: Any = None) -> list[Check]:
+def robust_observer_verdict(doc: Mapping[str, Any], spec: Spec, *, trace: TraceRecorder | None = None) -> list[Check]:
     """Verdict of a ``robust_observer`` artefact (see the module docstring).
 
     Parameters

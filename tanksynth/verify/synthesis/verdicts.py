@@ -43,22 +43,25 @@ import scipy.linalg as sla
 import sympy as sp
 
 from tanksynth.analysis.checks import Check
+from tanksynth.analysis.linearize import linearize
+from tanksynth.analysis.lmi_region import region_from_parts
 from tanksynth.analysis.rank import controllability_rank, observability_rank
-from tanksynth.plants.base import Quantity
+from tanksynth.errors import ArtefactError
+from tanksynth.plants.base import Plant, Quantity
 from tanksynth.sim.simulate import InputSequence, run_seeds, simulate
-from tanksynth.verify.laws.campaign import ClosedLoop
-from tanksynth.verify.common import (MAX_STEPS, artefact_matrix, fmt, guard, model_recheck,
-                                     operating_point, option, rank_check, region_check,
+from tanksynth.spec import Spec
+from tanksynth.spec.options import parse_region
+from tanksynth.verify.common import (MAX_STEPS, artefact_matrix, discrete_ts, fmt, guard,
+                                     model_recheck, operating_point, option, rank_check, region_check,
                                      region_lmi_check, relative_difference, stability_check,
                                      time_domain)
-from tanksynth.verify.estimators.campaign import EstimatorRun, placement_run
 from tanksynth.verify.simulations import (eigenvector_conditioning, luenberger_estimator,
                                           observer_convergence, observer_period, regulation_check,
                                           slowest_time_constant)
 from tanksynth.verify.traces import TraceRecorder
 
 __all__ = ["NORM_TOLERANCE", "OPTIMALITY_TOLERANCE", "OFFSET_TOLERANCE", "h2_norm", "hinf_norm",
-           "synthesis_verdict", "synthesis_run", "disturbance_plant"]
+           "synthesis_verdict", "disturbance_plant"]
 
 #: Relative agreement of recomputed norms with the artefact's claims.
 NORM_TOLERANCE = 1e-6
@@ -174,11 +177,11 @@ def _riccati_h2(c: dict) -> float:
 
 
 # ============================================================================ reading
-def _read(doc: Mapping[str, Any], spec: Any) -> dict:
+def _read(doc: Mapping[str, Any], spec: Spec) -> dict:
     plant = spec.plant
     n, m, q = plant.n, plant.m, plant.q
     domain = time_domain(doc, spec)
-    dt = float(spec.ts) if domain == "discrete" else None
+    dt = discrete_ts(spec) if domain == "discrete" else None
     gains = doc["gains"]
     A = artefact_matrix(doc, "A", (n, n), domain)
     B = artefact_matrix(doc, "B", (n, m), domain)
@@ -187,7 +190,7 @@ def _read(doc: Mapping[str, Any], spec: Any) -> dict:
     Bw = Bw.reshape(n, -1) if Bw.size % n == 0 else Bw
     Cz = np.atleast_2d(np.asarray(gains["Cz"], float)) if "Cz" in gains else None
     x0, u0 = operating_point(spec)
-    out = dict(plant=plant, domain=domain, dt=dt, A=A, B=B, C=C, Bw=Bw, Cz=Cz, x0=x0, u0=u0,
+    out: dict[str, Any] = dict(plant=plant, domain=domain, dt=dt, A=A, B=B, C=C, Bw=Bw, Cz=Cz, x0=x0, u0=u0,
                observer="L" in gains)
     if out["observer"]:
         L = artefact_matrix(doc, "L", (n, q))
@@ -195,6 +198,8 @@ def _read(doc: Mapping[str, Any], spec: Any) -> dict:
         out.update(L=L, Dv=Dv, Acl=A - L @ C, Bcl=np.hstack([Bw, -L @ Dv]), Ccl=Cz,
                    what="the observer error matrix A - L C")
     else:
+        if Cz is None:
+            raise ArtefactError(f"artefact '{doc['name']}' ({doc['method']}) has no gain 'Cz'")
         K = artefact_matrix(doc, "K", (m, n))
         Dzu = artefact_matrix(doc, "Dzu", (Cz.shape[0], m))
         out.update(K=K, Dzu=Dzu, Acl=A - B @ K, Bcl=Bw, Ccl=Cz - Dzu @ K,
@@ -203,7 +208,7 @@ def _read(doc: Mapping[str, Any], spec: Any) -> dict:
     return out
 
 
-def _data_check(doc: Mapping[str, Any], spec: Any, c: dict) -> Check:
+def _data_check(doc: Mapping[str, Any], spec: Spec, c: dict) -> Check:
     """Stored Bw, Cz, Dzu / Dv against the spec's options (validated values)."""
     Bw_c = np.asarray(option(doc, spec, "Bw"), float)
     std = np.asarray(option(doc, spec, "disturbance_std"), float)
@@ -227,8 +232,6 @@ def _data_check(doc: Mapping[str, Any], spec: Any, c: dict) -> Check:
 
 
 def _continuous_F(c: dict) -> np.ndarray:
-    from tanksynth.analysis.linearize import linearize
-
     return linearize(c["plant"], c["x0"], c["u0"]).F
 
 
@@ -294,10 +297,7 @@ def _norm_checks(doc: Mapping[str, Any], c: dict) -> list[Check]:
     return checks
 
 
-def _region_checks(doc: Mapping[str, Any], spec: Any, c: dict) -> list[Check]:
-    from tanksynth.analysis.lmi_region import region_from_parts
-    from tanksynth.spec.options import parse_region
-
+def _region_checks(doc: Mapping[str, Any], spec: Spec, c: dict) -> list[Check]:
     raw = option(doc, spec, "region")
     if raw is None:
         return [Check("region", None, "the spec entry of this artefact gives no region")]
@@ -311,7 +311,7 @@ def _region_checks(doc: Mapping[str, Any], spec: Any, c: dict) -> list[Check]:
 
 
 # ======================================================================= simulations
-def disturbance_plant(plant: Any, Bw: np.ndarray) -> Any:
+def disturbance_plant(plant: Plant, Bw: np.ndarray) -> Any:
     """The plant with the disturbances as extra (unbounded) inputs: ``f(x, u) + Bw w``.
 
     Parameters
@@ -390,7 +390,7 @@ class _SliceInput:
         return self.est.run(Y, U[..., : self.m])
 
 
-def _disturbance_step(doc: Mapping[str, Any], spec: Any, c: dict,
+def _disturbance_step(doc: Mapping[str, Any], spec: Spec, c: dict,
                       trace: TraceRecorder | None) -> Check:
     plant, dt, x0, u0 = c["plant"], c["dt"], c["x0"], c["u0"]
     n = plant.n
@@ -437,14 +437,15 @@ def _disturbance_step(doc: Mapping[str, Any], spec: Any, c: dict,
     if steps > MAX_STEPS:
         return Check("disturbance_step", None, f"not simulated: {steps} samples needed (> {MAX_STEPS})")
     dplant = disturbance_plant(plant, Bw_c)
-    law = _StepLaw(None if c["observer"] else c["K"], x0, u0, w, 0.0, phase * ts_sim)
+    step_law = _StepLaw(None if c["observer"] else c["K"], x0, u0, w, 0.0, phase * ts_sim)
+    law: _StepLaw | InputSequence = step_law
     est = None
     if c["observer"]:
         form = "predictor" if dt is not None else "continuous"
         est = _SliceInput(luenberger_estimator(plant, c["L"], x0, u0, ts_sim, form), plant.m)
         # the inputs do not depend on the estimate: the same law's values, given in advance (the
         # plant is then integrated over the whole horizon in one call)
-        law = InputSequence(law.affine(steps, ts_sim)[0])     # K = 0: b_k are the inputs
+        law = InputSequence(step_law.affine(steps, ts_sim)[0])     # K = 0: b_k are the inputs
     res = simulate(dplant, ts=ts_sim, steps=steps, x0=x0, seeds=run_seeds(0, 1), controller=law,
                    estimator=est, u_init=np.concatenate([u0, np.zeros_like(w)]))
     if trace is not None:
@@ -491,7 +492,7 @@ def _disturbance_step(doc: Mapping[str, Any], spec: Any, c: dict,
                   "return_tolerance": tol_off, "ts": ts_sim, "phase_samples": phase})
 
 
-def _simulations(doc: Mapping[str, Any], spec: Any, c: dict, trace: TraceRecorder | None) -> list[Check]:
+def _simulations(doc: Mapping[str, Any], spec: Spec, c: dict, trace: TraceRecorder | None) -> list[Check]:
     plant, dt, x0, u0 = c["plant"], c["dt"], c["x0"], c["u0"]
     tau = slowest_time_constant(c["eigs"], c["domain"], dt)
     kappa = eigenvector_conditioning(c["Acl"])
@@ -512,7 +513,7 @@ def _simulations(doc: Mapping[str, Any], spec: Any, c: dict, trace: TraceRecorde
     return [first] + guard("disturbance_step", lambda: [_disturbance_step(doc, spec, c, trace)])
 
 
-def synthesis_verdict(doc: Mapping[str, Any], spec: Any, *,
+def synthesis_verdict(doc: Mapping[str, Any], spec: Spec, *,
                       trace: TraceRecorder | None = None) -> list[Check]:
     """Verdict of an H2 / H-infinity / multi-objective artefact (controller or observer).
 
@@ -547,19 +548,3 @@ def synthesis_verdict(doc: Mapping[str, Any], spec: Any, *,
         checks += guard("region", lambda: _region_checks(doc, spec, c))
     checks += guard("simulation", lambda: _simulations(doc, spec, c, trace))
     return checks
-
-
-def synthesis_run(doc: Mapping[str, Any], spec: Any) -> "EstimatorRun | ClosedLoop":
-    """Campaign runner: the observer ``L`` on the noisy measurements, or ``K`` in closed loop.
-
-    The same runs as ``lmi_placement`` artefacts
-    (`tanksynth.verify.estimators.campaign.placement_run`).
-
-    Parameters
-    ----------
-    doc : mapping
-        The artefact.
-    spec : Spec
-        The validated spec.
-    """
-    return placement_run(doc, spec)

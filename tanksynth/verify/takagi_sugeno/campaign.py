@@ -27,21 +27,28 @@ from __future__ import annotations
 
 import zlib
 from dataclasses import dataclass, field
-from typing import Any, Mapping, Sequence
+from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
 
+from tanksynth.errors import ArtefactError
+from tanksynth.plants.base import Plant
 from tanksynth.sim.metrics import Metric
 from tanksynth.sim.scenarios import Scenario
-from tanksynth.verify.laws.campaign import ClosedLoop, sampling_period
-from tanksynth.verify.common import artefact_gain, fmt
-from tanksynth.verify.takagi_sugeno.loops import (MeasuredPremiseObserver, PDCLaw, loop_setup, region_conditions,
-                                       region_horizon, region_sample, simulate_region)
+from tanksynth.sim.simulate import BatchEstimator
+from tanksynth.spec import Spec
+from tanksynth.verify.common import artefact_gain, fmt, sampling_period
+from tanksynth.verify.laws.campaign import ClosedLoop
+from tanksynth.verify.takagi_sugeno.loops import (MeasuredPremiseObserver, PDCLaw, loop_setup,
+                                                  plant_ts_observer, region_conditions,
+                                                  region_horizon, region_sample, simulate_region)
+from tanksynth.verify.takagi_sugeno.setpoint import (PREFIX, setpoint_conditions,
+                                                     setpoint_settle_time, switch_runs)
 
-__all__ = ["TsRegionRun", "ts_region_run", "region_draws"]
+__all__ = ["TsRegionRun", "ts_control_run", "region_draws"]
 
 
-def region_draws(doc: Mapping[str, Any], spec: Any, seeds: Sequence[int],
+def region_draws(doc: Mapping[str, Any], spec: Spec, seeds: Sequence[int],
                  scenario: str) -> tuple[np.ndarray, np.ndarray | None]:
     """One point of the certified region per run, drawn from its seed and the scenario's name.
 
@@ -89,9 +96,9 @@ class TsRegionRun(ClosedLoop):
     """
 
     doc: Mapping[str, Any] = field(default_factory=dict)
-    spec: Any = None
+    spec: Spec | None = None
 
-    def evaluate(self, sc: Scenario, plant: Any, *, ts: float, seeds: Sequence[int],
+    def evaluate(self, sc: Scenario, plant: Plant, *, ts: float, seeds: Sequence[int],
                  substeps: int = 4) -> dict[str, Metric]:
         """The scenario's closed-loop metrics and the certificate's (see the module).
 
@@ -104,14 +111,14 @@ class TsRegionRun(ClosedLoop):
         """
         metrics = ClosedLoop.evaluate(self, sc, plant, ts=ts, seeds=seeds, substeps=substeps)
         doc, spec = self.doc, self.spec
+        if spec is None:
+            raise ArtefactError("a TS region run needs the spec it was built from (ts_control_run "
+                                "gives it)")
         E0, eps0 = region_draws(doc, spec, seeds, sc.name)
         c = float(artefact_gain(doc, "region_c")[0])
         out = simulate_region(doc, spec, E0, eps0=eps0, horizon=region_horizon(doc))
         cond = region_conditions(out, c)
         if "sp_K" in doc["gains"]:
-            from tanksynth.verify.takagi_sugeno.setpoint import (PREFIX, setpoint_conditions,
-                                                      setpoint_settle_time, switch_runs)
-
             n = plant.n
             dwell = switch_runs(doc, spec, 2, 0)["dwell"]
             settle = setpoint_settle_time(doc, n)
@@ -137,8 +144,9 @@ class TsRegionRun(ClosedLoop):
         return metrics
 
 
-def ts_region_run(doc: Mapping[str, Any], spec: Any) -> TsRegionRun:
-    """Campaign runner of ``ts_state_feedback`` / ``ts_output_feedback`` (`TsRegionRun`).
+def ts_control_run(doc: Mapping[str, Any], spec: Spec) -> ClosedLoop:
+    """Campaign runner of ``ts_state_feedback`` / ``ts_output_feedback``: a `ClosedLoop` that also
+    samples the certified region (`TsRegionRun`).
 
     Parameters
     ----------
@@ -148,8 +156,7 @@ def ts_region_run(doc: Mapping[str, Any], spec: Any) -> TsRegionRun:
     s = loop_setup(doc, spec)
     ts = sampling_period(spec)
     model = s["model"]
-    n = spec.plant.n
-    factory = None
+    factory: Callable[[], BatchEstimator] | None = None
     law = PDCLaw(model, s["K"])
     if doc["method"] == "ts_output_feedback":
         L = artefact_gain(doc, "L")
@@ -158,11 +165,7 @@ def ts_region_run(doc: Mapping[str, Any], spec: Any) -> TsRegionRun:
             law = PDCLaw(model, s["K"], shared)     # the law reads the observer's measured premises
             factory = lambda: shared  # noqa: E731
         else:
-            from tanksynth.verify.takagi_sugeno.loops import _PlantModel
-            from tanksynth.verify.observer_lmi.verdicts import TSObserver
-
-            A0 = artefact_gain(doc, "A0").reshape(n, n)
-            factory = lambda: TSObserver(_PlantModel(spec.plant, A0, model.C), L, ts)  # noqa: E731
+            factory = lambda: plant_ts_observer(doc, spec.plant, model.C, ts)  # noqa: E731
     outputs = [s_.name for s_ in spec.plant.outputs]
     states = [s_.name for s_ in spec.plant.states]
     tracked = tuple(states.index(o) for o in outputs if o in states)

@@ -9,15 +9,19 @@ alike, so that both check the same things.
 
 from __future__ import annotations
 
-from typing import Any, Mapping
+from typing import Any, Mapping, Sequence
 
 import numpy as np
 
+from tanksynth.plants.base import Plant
+from tanksynth.sim.simulate import simulate
+from tanksynth.spec import Spec
 from tanksynth.verify.common import artefact_gain
+from tanksynth.verify.observer_lmi.verdicts import TSObserver
 from tanksynth.verify.traces import TraceRecorder
 from tanksynth.verify.takagi_sugeno.model import RebuiltModel
 
-__all__ = ["PDCLaw", "MeasuredPremiseObserver", "SwitchedLaw", "region_points", "simulate_region",
+__all__ = ["PDCLaw", "MeasuredPremiseObserver", "PlantObserverModel", "plant_ts_observer", "SwitchedLaw", "region_points", "simulate_region",
            "region_sample", "region_horizon", "region_conditions", "GROWTH_LIMIT", "FINAL_RATIO",
            "loop_setup"]
 
@@ -73,7 +77,8 @@ class MeasuredPremiseObserver:
     def __init__(self, model: RebuiltModel, L: np.ndarray, ts: float, substeps: int):
         self.m, self.L, self.h, self.sub = model, L, ts / substeps, substeps
         self.rows = [int(np.flatnonzero(r)[0]) for r in model.C]
-        self._x = self._y = None
+        self._x: np.ndarray = np.empty((0, model.A.shape[1]))    # set by reset
+        self._y: np.ndarray | None = None
 
     def reset(self, x_hat0: np.ndarray) -> None:
         """Initial estimates (M, n).
@@ -122,18 +127,55 @@ class MeasuredPremiseObserver:
         return self._x
 
 
-class _PlantModel:
-    """What `TSObserver` needs: the TS model at the estimate equals the plant's ``f``."""
+class PlantObserverModel:
+    """The model a `TSObserver` of a ``ts_output_feedback`` artefact runs on: the plant's own ``f``
+    (the TS model at the estimate equals it) with the stored ``A0`` and ``C``.
 
-    def __init__(self, plant: Any, A0: np.ndarray, C: np.ndarray):
+    Parameters
+    ----------
+    plant : Plant
+        The plant model.
+    A0 : ndarray, shape (n, n)
+        The observer's linear part (1/s).
+    C : ndarray, shape (q, n)
+        The output matrix (output units per state unit).
+    """
+
+    def __init__(self, plant: Plant, A0: np.ndarray, C: np.ndarray):
         self.plant, self.A0, self.C = plant, A0, C
         self.casadi_rhs = plant.compiled.f    # TSObserver steps a whole period in one call
 
     def rhs(self, X: np.ndarray, U: np.ndarray) -> np.ndarray:
-        return self.plant.compiled.rhs(X, U)
+        """``f(x, u)`` at M points: states (M, n), inputs (M, m) -> derivatives (M, n).
+
+        Parameters
+        ----------
+        X, U : ndarray (M, n), ndarray (M, m)
+            States (state units, m) and inputs (input units, m^3/s).
+        """
+        return np.asarray(self.plant.compiled.rhs(X, U), dtype=float)
 
 
-def region_points(P: np.ndarray, c: float, count: int, seed: int,
+def plant_ts_observer(doc: Mapping[str, Any], plant: Plant, C: np.ndarray, ts: float) -> TSObserver:
+    """The single-gain TS observer of a ``ts_output_feedback`` artefact (its ``L`` and ``A0``).
+
+    Parameters
+    ----------
+    doc : mapping
+        The artefact (gains ``L`` (n, q) and ``A0`` (n, n)).
+    plant : Plant
+        The plant model.
+    C : ndarray, shape (q, n)
+        The output matrix of the rebuilt model.
+    ts : float
+        Sampling period [s].
+    """
+    n = plant.n
+    return TSObserver(PlantObserverModel(plant, artefact_gain(doc, "A0").reshape(n, n), C),
+                      artefact_gain(doc, "L"), ts)
+
+
+def region_points(P: np.ndarray, c: float, count: int, seed: int | Sequence[int],
                   scale: float = 1.0) -> np.ndarray:
     """Seeded deviations: half on ``e' P e = scale^2 c``, half inside (radius uniform in (0, 1)).
 
@@ -161,7 +203,7 @@ def region_points(P: np.ndarray, c: float, count: int, seed: int,
     return E * radius[:, None]
 
 
-def loop_setup(doc: Mapping[str, Any], spec: Any, prefix: str = "") -> dict:
+def loop_setup(doc: Mapping[str, Any], spec: Spec, prefix: str = "") -> dict:
     """Rebuilt model, gains ``K``, ``P``, rules ``r`` and the fastest closed-loop eigenvalue (1/s).
 
     Parameters
@@ -199,20 +241,17 @@ class SwitchedLaw:
         return (self.second if t >= self.t_switch - 1e-9 else self.first)(x_hat, reference, t)
 
 
-def _estimator(doc: Mapping[str, Any], plant: Any, model: RebuiltModel, r: int, ts: float) -> Any:
+def _estimator(doc: Mapping[str, Any], plant: Plant, model: RebuiltModel, r: int, ts: float) -> Any:
     """The observer of a ``ts_output_feedback`` artefact (about the first operating point)."""
-    n = plant.n
     L = artefact_gain(doc, "L")
     if L.ndim == 3:
         sub = int(np.ceil(ts * max(float(np.max(np.abs(np.linalg.eigvals(model.A[i] - L[j] @ model.C))))
                                    for i in range(r) for j in range(r)) / 0.5)) + 1
         return MeasuredPremiseObserver(model, L, ts, sub)
-    from tanksynth.verify.observer_lmi.verdicts import TSObserver
-
-    return TSObserver(_PlantModel(plant, artefact_gain(doc, "A0").reshape(n, n), model.C), L, ts)
+    return plant_ts_observer(doc, plant, model.C, ts)
 
 
-def simulate_region(doc: Mapping[str, Any], spec: Any, E0: np.ndarray, *, horizon: float,
+def simulate_region(doc: Mapping[str, Any], spec: Spec, E0: np.ndarray, *, horizon: float,
                     eps0: np.ndarray | None = None, trace: TraceRecorder | None = None,
                     ts: float | None = None, switch_at: float | None = None,
                     scenario: str = "certified region", check: str = "region_simulation") -> dict:
@@ -244,8 +283,6 @@ def simulate_region(doc: Mapping[str, Any], spec: Any, E0: np.ndarray, *, horizo
         ``e' P e`` (plus ``beta eps' Po eps`` with an observer), ``t``, ``x``,
         ``ts``, ``switch`` (first sample of the second law, or None).
     """
-    from tanksynth.sim.simulate import simulate
-
     plant = spec.plant
     n = plant.n
     stages = [loop_setup(doc, spec)] + ([loop_setup(doc, spec, "sp_")] if switch_at is not None else [])
@@ -302,7 +339,7 @@ def simulate_region(doc: Mapping[str, Any], spec: Any, E0: np.ndarray, *, horizo
 GROWTH_LIMIT, FINAL_RATIO = 1e-3, 0.1
 
 
-def region_sample(doc: Mapping[str, Any], spec: Any, count: int, seed: Any) -> tuple[np.ndarray, Any]:
+def region_sample(doc: Mapping[str, Any], spec: Spec, count: int, seed: Any) -> tuple[np.ndarray, Any]:
     """Seeded initial deviations on and inside the certified region (and estimation errors).
 
     Half the points on the boundary ``V = c`` (scaled by ``1 - 1e-6``), half

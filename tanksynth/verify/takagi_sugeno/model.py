@@ -1,4 +1,5 @@
-"""The deviation TS model of a PDC artefact rebuilt from the plant, and its LMI/region formulas.
+"""The deviation TS model of a PDC artefact rebuilt from the plant, its LMI/region formulas, and
+the check that the stored vertices are the rebuilt ones (`model_recheck`).
 
 Own numerics for the verdict of ``ts_state_feedback`` / ``ts_output_feedback``
 (`tanksynth.verify.takagi_sugeno.verdicts`): nothing here imports the design code.
@@ -11,10 +12,14 @@ from typing import Any, Mapping
 
 import numpy as np
 
+from tanksynth.analysis.checks import Check
 from tanksynth.analysis.takagi_sugeno import quasi_lpv
-from tanksynth.verify.common import artefact_gain
+from tanksynth.plants.base import Plant
+from tanksynth.spec import Spec
+from tanksynth.verify.common import artefact_gain, fmt, option
 
-__all__ = ["RebuiltModel", "rebuild_model", "pdc_conditions", "region_level", "condition_weights"]
+__all__ = ["RebuiltModel", "rebuild_model", "pdc_conditions", "region_level", "condition_weights",
+           "model_recheck"]
 
 
 class RebuiltModel:
@@ -29,7 +34,7 @@ class RebuiltModel:
         Prefix of the gain keys (``"sp_"``: the model about the set-point).
     """
 
-    def __init__(self, plant: Any, doc: Mapping[str, Any], prefix: str = ""):
+    def __init__(self, plant: Plant, doc: Mapping[str, Any], prefix: str = ""):
         self.plant = plant
         self.q = quasi_lpv(plant)
         n, m = plant.n, plant.m
@@ -108,7 +113,7 @@ class RebuiltModel:
         return mu
 
 
-def rebuild_model(plant: Any, doc: Mapping[str, Any], prefix: str = "") -> RebuiltModel:
+def rebuild_model(plant: Plant, doc: Mapping[str, Any], prefix: str = "") -> RebuiltModel:
     """`RebuiltModel` of an artefact.
 
     Parameters
@@ -188,3 +193,42 @@ def region_level(P: np.ndarray, K: np.ndarray, G: np.ndarray, g: np.ndarray,
         vals += [margins[j] ** 2 / (K[i, j] @ Pk @ K[i, j]) for i in range(K.shape[0])
                  for j in range(len(margins)) if K[i, j] @ Pk @ K[i, j] > 0]
     return float(min(vals))
+
+
+def model_recheck(doc: Mapping[str, Any], spec: Spec, prefix: str = "",
+                  name: str = "ts_model_recheck") -> Check:
+    """The stored vertices against those rebuilt from the plant; the TS model against ``f(x, u)``.
+
+    Parameters
+    ----------
+    doc, spec : mapping, Spec
+        The artefact and the validated spec.
+    prefix, name : str
+        Prefix of the gain keys (``"sp_"``: the model about the set-point); name of the check.
+    """
+    plant = spec.plant
+    n, m = plant.n, plant.m
+    model = rebuild_model(plant, doc, prefix)
+    stored = artefact_gain(doc, prefix + "F").reshape(model.A.shape)
+    d = float(np.max(np.abs(stored - model.A)) / max(np.max(np.abs(model.A)), 1e-300))
+    X = np.random.default_rng(int(option(doc, spec, "seed", 0)) + 7).uniform(
+        model.lo_box, model.hi_box, size=(4000, n))
+    X = X[model.inside(X)]
+    lim = np.asarray(plant.input_limits, dtype=float).reshape(m, 2)
+    U = np.random.default_rng(3).uniform(np.where(np.isfinite(lim[:, 0]), lim[:, 0], -1),
+                                         np.where(np.isfinite(lim[:, 1]), lim[:, 1], 1),
+                                         size=(len(X), m))
+    mu = model.memberships(X)
+    ts_rhs = np.einsum("mi,inj,mj->mn", mu, model.A, X - model.x0) + (U - model.u0) @ model.B.T
+    f = plant.compiled.rhs(X, U)
+    err = float(np.max(np.abs(ts_rhs - f)) / max(np.max(np.abs(f)), 1e-300))
+    f0 = float(np.max(np.abs(plant.compiled.rhs(model.x0[None, :], model.u0[None, :]))))
+    scale = float(np.max(np.abs(model.B @ model.u0))) or 1.0
+    ok = d <= 1e-9 and err <= 1e-8 and mu.min() >= -1e-12 and f0 <= 1e-6 * scale
+    return Check(name, bool(ok),
+                 f"operating point {fmt(model.x0)}: |f(x_op, u_op)| = {f0:.3g} (an equilibrium); "
+                 f"vertices rebuilt from the plant's atoms and the stored premise forms/bounds: "
+                 f"relative difference {d:.3g}; TS model vs f(x, u) at {len(X)} seeded domain "
+                 f"points: relative error {err:.3g}, smallest membership {mu.min():.3g}",
+                 {"vertex_difference": d, "max_relative_error": err,
+                  "min_membership": float(mu.min()), "equilibrium_residual": f0})

@@ -34,10 +34,12 @@ from typing import Any, Mapping
 import numpy as np
 
 from tanksynth.analysis.checks import Check
+from tanksynth.spec import Spec
 from tanksynth.verify.common import artefact_gain, fmt, guard, option
 from tanksynth.verify.traces import TraceRecorder
-from tanksynth.verify.takagi_sugeno.loops import GROWTH_LIMIT, loop_setup, region_points, simulate_region
-from tanksynth.verify.takagi_sugeno.model import pdc_conditions, region_level
+from tanksynth.verify.takagi_sugeno.loops import (GROWTH_LIMIT, loop_setup, region_points,
+                                                  region_sample, simulate_region)
+from tanksynth.verify.takagi_sugeno.model import model_recheck, pdc_conditions, region_level
 
 __all__ = ["PREFIX", "max_on_ellipsoid", "setpoint_checks", "switch_runs", "setpoint_conditions",
            "setpoint_settle_time"]
@@ -76,7 +78,7 @@ def max_on_ellipsoid(P1: np.ndarray, level: float, P2: np.ndarray, d: np.ndarray
 
     top = q[-1]
     ties = np.isclose(q, top, rtol=1e-12, atol=0.0)
-    if np.linalg.norm(b[ties]) <= 1e-14 * max(np.linalg.norm(b), 1e-300):
+    if np.linalg.norm(b[ties]) <= 1e-14 * max(float(np.linalg.norm(b)), 1e-300):
         w = np.where(ties, 0.0, q * b / np.where(ties, 1.0, q - top))
         rest = r ** 2 - float(w @ w)
         if rest >= 0:
@@ -135,7 +137,7 @@ def _decay(doc: Mapping[str, Any], n: int, prefix: str) -> float:
     return min(rates)
 
 
-def switch_runs(doc: Mapping[str, Any], spec: Any, count: int, seed: Any) -> dict:
+def switch_runs(doc: Mapping[str, Any], spec: Spec, count: int, seed: Any) -> dict:
     """Seeded initial conditions of the set-point runs and the dwell time.
 
     Parameters
@@ -154,8 +156,6 @@ def switch_runs(doc: Mapping[str, Any], spec: Any, count: int, seed: Any) -> dic
         ``eps_region``), ``E_switch`` (on and inside ``{V_1 <= gamma c_1}``,
         with ``eps_switch``), ``dwell`` [s], ``gamma``, ``c1``, ``c2``.
     """
-    from tanksynth.verify.takagi_sugeno.loops import region_sample
-
     n = spec.plant.n
     P1, _, _, _ = _blocks(doc, n)
     c1 = float(artefact_gain(doc, "region_c")[0])
@@ -219,7 +219,7 @@ def setpoint_conditions(out: Mapping[str, Any], x2: np.ndarray, c2: float, tol: 
             "left_domain": out["left_domain"], "saturated": out["saturated"], "passed": ok}
 
 
-def setpoint_checks(doc: Mapping[str, Any], spec: Any, *,
+def setpoint_checks(doc: Mapping[str, Any], spec: Spec, *,
                     trace: TraceRecorder | None = None) -> list[Check]:
     """The set-point checks of a PDC artefact with ``sp_`` gains (see the module).
 
@@ -229,8 +229,6 @@ def setpoint_checks(doc: Mapping[str, Any], spec: Any, *,
         The artefact, the validated spec and the recorder of the verdict's runs
         (the set-point runs are added to its arrays as ``setpoint_t``, ``setpoint_x``).
     """
-    from tanksynth.verify.takagi_sugeno.verdicts import model_recheck
-
     n = spec.plant.n
     diag = doc.get("diagnostics") or {}
     sp = diag.get("setpoint") or {}

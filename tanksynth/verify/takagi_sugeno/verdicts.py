@@ -27,7 +27,7 @@ An artefact with a set-point change (gain keys ``sp_*``) adds the checks of
 `tanksynth.verify.takagi_sugeno.setpoint`. The model, the laws and the region runs
 live in `tanksynth.verify.takagi_sugeno.model` and `tanksynth.verify.takagi_sugeno.loops`
 (re-exported here); the campaign runs the same conditions
-(`tanksynth.verify.takagi_sugeno.campaign`).
+(`tanksynth.verify.takagi_sugeno.campaign.ts_control_run`).
 """
 
 from __future__ import annotations
@@ -37,61 +37,24 @@ from typing import Any, Mapping
 import numpy as np
 
 from tanksynth.analysis.checks import Check
-from tanksynth.verify.laws.campaign import ClosedLoop
+from tanksynth.spec import Spec
 from tanksynth.verify.common import artefact_gain, fmt, guard, option
 from tanksynth.verify.traces import TraceRecorder
-from tanksynth.verify.takagi_sugeno.loops import (FINAL_RATIO, GROWTH_LIMIT, MeasuredPremiseObserver, PDCLaw,
-                                       SwitchedLaw, loop_setup, region_conditions, region_horizon,
-                                       region_points, region_sample, simulate_region)
-from tanksynth.verify.takagi_sugeno.model import (RebuiltModel, condition_weights, pdc_conditions,
-                                       rebuild_model, region_level)
+from tanksynth.verify.takagi_sugeno.loops import (FINAL_RATIO, GROWTH_LIMIT, MeasuredPremiseObserver,
+                                                  PDCLaw, SwitchedLaw, loop_setup, region_conditions,
+                                                  region_horizon, region_points, region_sample,
+                                                  simulate_region)
+from tanksynth.verify.takagi_sugeno.model import (RebuiltModel, condition_weights, model_recheck,
+                                                  pdc_conditions, rebuild_model, region_level)
+from tanksynth.verify.takagi_sugeno.setpoint import setpoint_checks
 
 __all__ = ["RebuiltModel", "rebuild_model", "pdc_conditions", "region_level", "PDCLaw",
            "MeasuredPremiseObserver", "SwitchedLaw", "region_points", "simulate_region", "ts_control_verdict",
-           "ts_control_run", "model_recheck", "region_sample", "region_horizon",
+           "model_recheck", "region_sample", "region_horizon",
            "region_conditions", "GROWTH_LIMIT", "FINAL_RATIO"]
 
 
-def model_recheck(doc: Mapping[str, Any], spec: Any, prefix: str = "",
-                  name: str = "ts_model_recheck") -> Check:
-    """The stored vertices against those rebuilt from the plant; the TS model against ``f(x, u)``.
-
-    Parameters
-    ----------
-    doc, spec : mapping, Spec
-        The artefact and the validated spec.
-    prefix, name : str
-        Prefix of the gain keys (``"sp_"``: the model about the set-point); name of the check.
-    """
-    plant = spec.plant
-    n, m = plant.n, plant.m
-    model = loop_setup(doc, spec, prefix)["model"]
-    stored = artefact_gain(doc, prefix + "F").reshape(model.A.shape)
-    d = float(np.max(np.abs(stored - model.A)) / max(np.max(np.abs(model.A)), 1e-300))
-    X = np.random.default_rng(int(option(doc, spec, "seed", 0)) + 7).uniform(
-        model.lo_box, model.hi_box, size=(4000, n))
-    X = X[model.inside(X)]
-    lim = np.asarray(plant.input_limits, dtype=float).reshape(m, 2)
-    U = np.random.default_rng(3).uniform(np.where(np.isfinite(lim[:, 0]), lim[:, 0], -1),
-                                         np.where(np.isfinite(lim[:, 1]), lim[:, 1], 1),
-                                         size=(len(X), m))
-    mu = model.memberships(X)
-    ts_rhs = np.einsum("mi,inj,mj->mn", mu, model.A, X - model.x0) + (U - model.u0) @ model.B.T
-    f = plant.compiled.rhs(X, U)
-    err = float(np.max(np.abs(ts_rhs - f)) / max(np.max(np.abs(f)), 1e-300))
-    f0 = float(np.max(np.abs(plant.compiled.rhs(model.x0[None, :], model.u0[None, :]))))
-    scale = float(np.max(np.abs(model.B @ model.u0))) or 1.0
-    ok = d <= 1e-9 and err <= 1e-8 and mu.min() >= -1e-12 and f0 <= 1e-6 * scale
-    return Check(name, bool(ok),
-                 f"operating point {fmt(model.x0)}: |f(x_op, u_op)| = {f0:.3g} (an equilibrium); "
-                 f"vertices rebuilt from the plant's atoms and the stored premise forms/bounds: "
-                 f"relative difference {d:.3g}; TS model vs f(x, u) at {len(X)} seeded domain "
-                 f"points: relative error {err:.3g}, smallest membership {mu.min():.3g}",
-                 {"vertex_difference": d, "max_relative_error": err,
-                  "min_membership": float(mu.min()), "equilibrium_residual": f0})
-
-
-def ts_control_verdict(doc: Mapping[str, Any], spec: Any, *,
+def ts_control_verdict(doc: Mapping[str, Any], spec: Spec, *,
                        trace: TraceRecorder | None = None) -> list[Check]:
     """Verdict of a ``ts_state_feedback`` / ``ts_output_feedback`` artefact (see the module).
 
@@ -165,8 +128,6 @@ def ts_control_verdict(doc: Mapping[str, Any], spec: Any, *,
                      ("region_recheck", region_checks), ("region_simulation", sim_checks)):
         checks += guard(name, fn)
     if "sp_K" in (doc.get("gains") or {}):
-        from tanksynth.verify.takagi_sugeno.setpoint import setpoint_checks
-
         checks += setpoint_checks(doc, spec, trace=trace)
     return checks
 
@@ -184,14 +145,14 @@ def _observer_checks(doc: Mapping[str, Any], s: dict) -> list[Check]:
         # Lyapunov for A_i - L_j C with Po: the dual conditions on (A_i', C', L_j') with P = Po^-1
         # are congruent to these.
         r = model.A.shape[0]
-        lam = []
+        largest = []
         for cond in condition_weights(rel, r):
             S = np.zeros((n, n))
             for (i, j), w in cond.items():
                 M = Po @ (model.A[i] - L[j] @ model.C)
                 S += w * (M + M.T + 2 * alpha * Po)
-            lam.append(np.linalg.eigvalsh(0.5 * (S + S.T))[-1])
-        lam = np.array(lam)
+            largest.append(np.linalg.eigvalsh(0.5 * (S + S.T))[-1])
+        lam = np.array(largest)
         return [Check("observer_lmi_recheck", bool(lam.max() < 0),
                       f"{lam.size} PDC observer conditions ({rel}) on Po, L_j with alpha = {alpha:g} "
                       f"1/s: largest eigenvalue {lam.max():.4g} (< 0)", {"max_eigenvalue": float(lam.max())})]
@@ -200,23 +161,9 @@ def _observer_checks(doc: Mapping[str, Any], s: dict) -> list[Check]:
     psi = float((diag.get("observer") or {}).get("psi", np.nan))
     Gm = Po @ (A0 - L @ model.C)
     blk = np.block([[Gm + Gm.T + psi ** 2 * Q, Po], [Po, -Q]])
-    lam = float(np.linalg.eigvalsh(0.5 * (blk + blk.T))[-1])
+    top = float(np.linalg.eigvalsh(0.5 * (blk + blk.T))[-1])
     dA = float(np.max(np.abs(A0 - model.A.mean(axis=0))))
-    return [Check("observer_lmi_recheck", bool(np.isfinite(psi) and lam < 0 and dA <= 1e-9),
+    return [Check("observer_lmi_recheck", bool(np.isfinite(psi) and top < 0 and dA <= 1e-9),
                   f"LMI (28) [[He(Po (A0 - L C)) + psi^2 Q, Po], [Po, -Q]] with psi = {psi:.4g} 1/s: "
-                  f"largest eigenvalue {lam:.4g} (< 0); stored A0 vs the mean rebuilt vertex: {dA:.3g}",
-                  {"max_eigenvalue": lam, "psi": psi})]
-
-
-def ts_control_run(doc: Mapping[str, Any], spec: Any) -> ClosedLoop:
-    """Campaign runner: a `ClosedLoop` that also samples the certified region
-    (`tanksynth.verify.takagi_sugeno.campaign.TsRegionRun`).
-
-    Parameters
-    ----------
-    doc, spec : mapping, Spec
-        The artefact and the validated spec.
-    """
-    from tanksynth.verify.takagi_sugeno.campaign import ts_region_run
-
-    return ts_region_run(doc, spec)
+                  f"largest eigenvalue {top:.4g} (< 0); stored A0 vs the mean rebuilt vertex: {dA:.3g}",
+                  {"max_eigenvalue": top, "psi": psi})]
