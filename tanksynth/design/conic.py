@@ -185,10 +185,10 @@ class Expression:
     def __rshift__(self, other: Any) -> "Constraint":
         return Constraint("psd", self.data - self._lift(other), self.model)
 
-    def __le__(self, other: Any) -> "Constraint":        # type: ignore[override]
+    def __le__(self, other: Any) -> "Constraint":
         return Constraint("nonneg", self._lift(other) - self.data, self.model)
 
-    def __ge__(self, other: Any) -> "Constraint":        # type: ignore[override]
+    def __ge__(self, other: Any) -> "Constraint":
         return Constraint("nonneg", self.data - self._lift(other), self.model)
 
 
