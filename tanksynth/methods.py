@@ -205,10 +205,6 @@ _HOMES = {"options": "tanksynth.spec.method_options.{family}",
           "verdict": "tanksynth.verify.{family}.verdicts",
           "statement": "tanksynth.reports.statements.{family}",
           "campaign": "tanksynth.verify.{family}.campaign"}
-#: The stage packages, for a part given as ``"<module>:<attribute>"`` relative to its stage.
-_STAGES = {"options": "tanksynth.spec.method_options", "adapter": "tanksynth.design",
-           "verdict": "tanksynth.verify", "statement": "tanksynth.reports.statements",
-           "campaign": "tanksynth.verify"}
 
 
 def home(part: str, family: str) -> str:
@@ -232,12 +228,11 @@ def home(part: str, family: str) -> str:
 
 def _row(name: str, family: str, kinds: tuple[str, ...], summary: str, *, options: str, adapter: str,
          verdict: str, statement: str, campaign: str) -> Method:
-    """A row; each part is the attribute's name in its family's module (`home`), or
-    ``"<module>:<attribute>"`` relative to the stage package where a part lives elsewhere."""
+    """A row; each part is named by its attribute in its family's module (`home`): a reader who
+    knows a method's family finds every part under that name, so there is no other form."""
     given = {"options": options, "adapter": adapter, "verdict": verdict, "statement": statement,
              "campaign": campaign}
-    full = {part: (f"{_STAGES[part]}.{ref}" if ":" in ref else f"{home(part, family)}:{ref}")
-            for part, ref in given.items()}
+    full = {part: f"{home(part, family)}:{ref}" for part, ref in given.items()}
     return Method(name, family, kinds, summary, **full)
 
 

@@ -69,6 +69,26 @@ def test_every_part_resolves():
         assert len(inspect.signature(row.campaign).parameters) >= 2, row.name
 
 
+def test_every_part_is_defined_in_its_familys_module():
+    """Issue 26: a reader who knows a method's family finds each part under that name in every
+    stage: the object the row names is *defined* in the family's module of that stage (not
+    re-exported there from elsewhere), and the family is one of FAMILIES."""
+    from tanksynth.methods import FAMILIES, home
+
+    for row in TABLE:
+        assert row.family in FAMILIES, row.name
+        for part, ref in row.refs().items():
+            module = ref.partition(":")[0]
+            assert module == home(part, row.family), (row.name, part, ref)
+            obj = getattr(row, part)
+            defined_in = getattr(obj, "__module__", None) or type(obj).__module__
+            if part == "adapter":  # a DesignMethod constant: its design function is the part
+                defined_in = obj.run.__module__
+            assert defined_in == module, (row.name, part, defined_in)
+    # every family has its module in every stage, and a method
+    assert {row.family for row in TABLE} == set(FAMILIES)
+
+
 def test_a_bad_reference_is_refused():
     """A malformed name fails the import-time check; a well-formed one naming nothing fails
     `resolve_table`."""
