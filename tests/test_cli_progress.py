@@ -206,22 +206,33 @@ def test_run_ends_with_the_wall_time_of_each_stage(tmp_path, capsys):
     assert sum(seconds.values()) <= total + 0.05 * len(seconds)   # each rounded to 0.1 s
 
 
-def test_stage_clock_sums_a_stage_and_shows_a_part():
-    import time
+def test_stage_clock_sums_a_stage_and_shows_a_part(monkeypatch):
+    import types
 
+    from tanksynth import messages
     from tanksynth.messages import StageClock
 
+    # a clock that moves only when told: the sums are exact, whatever the machine's load
+    now = [100.0]
+    monkeypatch.setattr(messages, "time", types.SimpleNamespace(perf_counter=lambda: now[0]))
+
+    def sleep(seconds):
+        now[0] += seconds
+
     clock = StageClock()
+    sleep(0.5)                                   # before any stage: in the total only
     for _ in range(2):
         with clock("design"):
-            time.sleep(0.06)
+            sleep(0.06)
+        sleep(1.0)                               # between stages: in the total only
     try:
         with clock("report"):
-            time.sleep(0.02)
+            sleep(0.02)
             raise ValueError("the time of a failed stage still counts")
     except ValueError:
         pass
     clock.part("report", "LaTeX", 1.234)
-    assert 0.12 <= clock.seconds["design"] < 0.5 and 0.02 <= clock.seconds["report"] < 0.4
+    assert list(clock.seconds) == ["design", "report"]
+    assert abs(clock.seconds["design"] - 0.12) < 1e-9 and abs(clock.seconds["report"] - 0.02) < 1e-9
     line = clock.line()
-    assert line.startswith("times: design 0.1 s, report 0.0 s (LaTeX 1.2 s); total ")
+    assert line == "times: design 0.1 s, report 0.0 s (LaTeX 1.2 s); total 2.6 s"

@@ -94,7 +94,9 @@ def test_crash_input_is_exit_2_naming_the_key(case, tmp_path):
     code, _, err, seconds = run(["check", "--spec-only", spec])
     assert_contract(code, err, seconds, case)
     assert code == 2, err
-    assert seconds < 10, f"{case}: {seconds:.1f} s"
+    # refused by the spec checks and the static expression limits, never by running into the
+    # symbolic time budget; the time of each case (< 10 s) is a floor of benchmarks/limits.py
+    assert "did not finish within" not in err, err
     assert err.startswith(f"error: {spec}: "), err  # the file first ...
     if key is not None:
         assert f"key '{key}'" in err, err          # ... then the key
@@ -129,7 +131,8 @@ def test_symbolic_step_past_its_budget_is_a_skipped_check(tmp_path, monkeypatch)
     checks = {c["check"]: c for c in json.loads(out)}
     sym = checks["symbolic_observability"]
     assert sym["passed"] is None and "too complex for symbolic analysis" in sym["detail"], sym
-    assert seconds < 60
+    assert "did not finish within 2 s" in sym["detail"], sym     # cut off by the budget set
+    assert seconds < 60                 # and not long after it (30x the budget: a loaded machine)
 
 
 @pytest.mark.parametrize("name", ["inv-dyn", "it--2", "jac"])
@@ -282,7 +285,9 @@ def test_a_fifo_or_device_in_a_result_directory_does_not_hang(result_dir, tmp_pa
     os.mkfifo(d / "plant.json")
     t0 = time.perf_counter()
     code, _, err, _ = run(["verify", d, "--json"])
-    assert code == 2 and "plant.json" in err and time.perf_counter() - t0 < 10, err
+    # not a hang (a blocking open never returns): a bound generous for a loaded machine; the
+    # time itself (< 10 s) is a floor of benchmarks/limits.py
+    assert code == 2 and "plant.json" in err and time.perf_counter() - t0 < 60, err
     (d / "plant.json").unlink()
     (d / "plant.json").symlink_to("/dev/zero")
     code, _, err, _ = run(["verify", d, "--json"])
@@ -297,7 +302,8 @@ def test_a_fifo_as_the_lock_file_does_not_hang(result_dir, tmp_path):
     os.mkfifo(d / ".tanksynth.lock")
     t0 = time.perf_counter()
     code, _, err, _ = run(["verify", d, "--json"])
-    assert code == 2 and ".tanksynth.lock" in err and time.perf_counter() - t0 < 10, err
+    # not a hang, as above (the time itself: benchmarks/limits.py)
+    assert code == 2 and ".tanksynth.lock" in err and time.perf_counter() - t0 < 60, err
 
 
 # ---------------------------------------------- lock holders that are not a process (item 10)
