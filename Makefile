@@ -4,7 +4,7 @@ VENV   := .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
 
-.PHONY: demo test fuzz bench tex clean docs bytecode
+.PHONY: demo test test-fast fuzz bench tex clean docs bytecode
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -38,6 +38,11 @@ demo: $(STAMP) bytecode
 test: $(STAMP) tex bytecode
 	$(VENV)/bin/lint-imports --no-logo
 	$(PY) -m pytest -n 2 -q
+
+# The edit-test loop: every test but those marked slow (notebooks, the docs build, examples and
+# campaigns run end to end, fuzzing at scale; `make test` runs them too), under a minute here.
+test-fast: $(STAMP) bytecode
+	$(PY) -m pytest -n 2 -q -m "not slow"
 
 # The adversarial property tests at ten times the scale of `make test` (>= 20,000 generated specs
 # and edited result directories through the CLI entry point), randomised on every run.

@@ -37,3 +37,26 @@ def test_bytecode_edit_in_the_same_second_with_the_same_size_is_seen(tmp_path: P
     out = subprocess.run([sys.executable, "-c", "import tanksynth.constant as c; print(c.VALUE)"],
                          cwd=tmp_path, env=env, check=True, capture_output=True, text=True)
     assert out.stdout.strip() == "12"
+
+
+def test_test_fast_selects_the_tests_not_marked_slow(tmp_path: Path) -> None:
+    text = (ROOT / "Makefile").read_text(encoding="utf-8")
+    target = re.search(r"^test-fast:(.*)\n((?:\t.*\n?)+)", text, re.MULTILINE)
+    assert target is not None, "no test-fast target in the Makefile"
+    assert {"$(STAMP)", "bytecode"} <= set(target.group(1).split())   # as `test`
+    assert "test-fast" in re.search(r"^\.PHONY:(.*)$", text, re.MULTILINE).group(1).split()
+    runs = [shlex.split(line.strip().lstrip("@")) for line in target.group(2).splitlines()]
+    runs = [w for w in runs if w[:3] == ["$(PY)", "-m", "pytest"]]
+    assert len(runs) == 1, target.group(0)
+    words = runs[0]
+    assert words[words.index("-m", 3) + 1] == "not slow"
+    test_recipe = re.search(r"^test:.*\n((?:\t.*\n?)+)", text, re.MULTILINE).group(1)
+    assert "slow" not in test_recipe                                    # `make test` runs everything
+    # the selection as pytest makes it: a module with a slow test and others
+    (tmp_path / "test_marks.py").write_text(
+        "import pytest\n\n\n@pytest.mark.slow\ndef test_long():\n    pass\n\n\ndef test_short():\n    pass\n")
+    args = [w for w in words[1:] if w not in ("-n", "2")]
+    out = subprocess.run([sys.executable, *args, "--collect-only", "-p", "no:cacheprovider",
+                          "-o", "markers=slow: long", "--rootdir", str(tmp_path), str(tmp_path)],
+                         cwd=tmp_path, capture_output=True, text=True)
+    assert "test_marks.py::test_short" in out.stdout and "test_long" not in out.stdout, out.stdout
