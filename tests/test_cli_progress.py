@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import warnings
 
+import pytest
 import numpy as np
 
 from tanksynth import cli
@@ -32,6 +33,7 @@ method = "linearize"
 """
 
 
+@pytest.mark.slow
 def test_design_and_report_print_each_stage(tmp_path, capsys):
     spec = tmp_path / "s.toml"
     spec.write_text(SPEC, encoding="utf-8")
@@ -44,6 +46,7 @@ def test_design_and_report_print_each_stage(tmp_path, capsys):
     assert "- writing the report" in capsys.readouterr().out
 
 
+@pytest.mark.slow
 def test_run_prints_each_stage_in_order(tmp_path, capsys):
     spec = tmp_path / "s.toml"
     spec.write_text(SPEC, encoding="utf-8")
@@ -114,6 +117,7 @@ def test_no_live_display_in_a_notebook_without_ipywidgets(monkeypatch):
     assert cli._live() is False
 
 
+@pytest.mark.slow
 def test_run_piped_names_no_bar_and_the_pdf_hint_follows_tex(tmp_path, capsys, monkeypatch):
     import shutil
 
@@ -185,6 +189,7 @@ def test_an_error_naming_design_i_says_the_index_counts_from_0(tmp_path, capsys)
     assert main(["check", str(spec), "--spec-only"]) == 0
 
 
+@pytest.mark.slow
 def test_run_ends_with_the_wall_time_of_each_stage(tmp_path, capsys):
     """``run`` ends with one ``times:`` line: rank checks, design, verify, report and the
     total, in seconds; each stage takes part of the total and the stages sum to at most it."""

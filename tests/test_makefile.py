@@ -1,4 +1,5 @@
-"""The Makefile's ``bytecode`` target never leaves a stale .pyc that Python would use."""
+"""The Makefile's targets: ``bytecode`` never leaves a stale .pyc that Python would use; ``test-fast``
+runs the suite without the tests marked slow."""
 
 from __future__ import annotations
 
@@ -8,6 +9,8 @@ import shlex
 import subprocess
 import sys
 from pathlib import Path
+
+import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -39,7 +42,7 @@ def test_bytecode_edit_in_the_same_second_with_the_same_size_is_seen(tmp_path: P
     assert out.stdout.strip() == "12"
 
 
-def test_test_fast_selects_the_tests_not_marked_slow(tmp_path: Path) -> None:
+def test_test_fast_selects_the_tests_not_marked_slow() -> None:
     text = (ROOT / "Makefile").read_text(encoding="utf-8")
     target = re.search(r"^test-fast:(.*)\n((?:\t.*\n?)+)", text, re.MULTILINE)
     assert target is not None, "no test-fast target in the Makefile"
@@ -52,7 +55,16 @@ def test_test_fast_selects_the_tests_not_marked_slow(tmp_path: Path) -> None:
     assert words[words.index("-m", 3) + 1] == "not slow"
     test_recipe = re.search(r"^test:.*\n((?:\t.*\n?)+)", text, re.MULTILINE).group(1)
     assert "slow" not in test_recipe                                    # `make test` runs everything
-    # the selection as pytest makes it: a module with a slow test and others
+
+
+@pytest.mark.slow
+def test_test_fast_arguments_make_pytest_leave_out_a_slow_test(tmp_path: Path) -> None:
+    """The selection as pytest makes it with the target's arguments: a module with a slow test
+    and another."""
+    text = (ROOT / "Makefile").read_text(encoding="utf-8")
+    recipe = re.search(r"^test-fast:.*\n\t@?(.+)$", text, re.MULTILINE).group(1)
+    words = shlex.split(recipe)
+    assert words[:3] == ["$(PY)", "-m", "pytest"]
     (tmp_path / "test_marks.py").write_text(
         "import pytest\n\n\n@pytest.mark.slow\ndef test_long():\n    pass\n\n\ndef test_short():\n    pass\n")
     args = [w for w in words[1:] if w not in ("-n", "2")]

@@ -120,6 +120,7 @@ def test_numbers_in_errors_are_cut(tmp_path):
     assert code == 2 and len(err) < 400 and "..." in err, err
 
 
+@pytest.mark.slow
 def test_symbolic_step_past_its_budget_is_a_skipped_check(tmp_path, monkeypatch):
     """A polynomial output of degree 64 passes the parse limits; its determinant is refused by the
     time budget and reported as not attempted, not a hang."""
@@ -179,6 +180,7 @@ def test_missing_result_directory_is_exit_2(tmp_path, command):
     assert code == 2 and "missing" in err, err
 
 
+@pytest.mark.slow
 def test_file_size_limit_is_exit_2_not_a_signal(tmp_path):
     """``ulimit -f``: the write fails with EFBIG (SIGXFSZ ignored), one line naming the file."""
     import resource
@@ -236,6 +238,7 @@ def test_design_refuses_a_directory_of_another_spec_unless_forced(tmp_path):
     assert code == 0, err
 
 
+@pytest.mark.slow
 def test_verify_and_report_keep_file_modes_and_new_files_share_one(result_dir, tmp_path):
     import shutil
     import stat

@@ -189,6 +189,7 @@ def test_validate_name():
 # --------------------------------------------------------------- properties
 # No per-example deadline (a loaded machine missed 500 ms): the parse time of such texts,
 # < 0.5 s each, is a floor of benchmarks/limits.py.
+@pytest.mark.slow
 @settings(max_examples=400, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(st.text())
 def test_any_text_parses_or_raises_parse_error(text):
@@ -206,6 +207,7 @@ _alphabet = st.sampled_from(list("xyA0123456789.eE+-*/() ,") + ["**", "sqrt(", "
                                                                "exp(", "log(", "min(", "max("])
 
 
+@pytest.mark.slow
 @settings(max_examples=400, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(st.lists(_alphabet, max_size=40).map("".join))
 def test_grammar_shaped_text_parses_or_raises_parse_error(text):

@@ -32,6 +32,7 @@ def test_unknown_unicode_is_named_not_fatal():
     assert escape_latex("\x00\x07") == ""
 
 
+@pytest.mark.slow
 @settings(max_examples=300, deadline=None)
 @given(st.text(max_size=60))
 def test_escaped_text_has_no_active_characters(text):
@@ -58,6 +59,7 @@ def test_numbers_and_units():
     assert format_unit("50% & co") == r"50\% \& co"
 
 
+@pytest.mark.slow
 @needs_latex
 def test_hostile_strings_compile(demo_dir, tmp_path):
     d = copy_dir(demo_dir, tmp_path / "hostile")
@@ -99,6 +101,7 @@ def test_trusted_math_allow_list():
         assert not is_trusted_math(bad), bad
 
 
+@pytest.mark.slow
 @needs_latex
 def test_no_file_leaks_through_a_report(demo_dir, tmp_path):
     """LaTeX planted in an artefact's `latex` field and in plant.json's equations is shown as text,

@@ -11,7 +11,7 @@ import pytest
 from reports_helpers import copy_dir, needs_latex
 from tanksynth.cli import main
 
-pytestmark = needs_latex
+pytestmark = [needs_latex, pytest.mark.slow]   # real pdflatex builds
 
 SECTIONS = ["Plant", "Operating point, linearisation and discretisation", "Rank conditions",
             "Designs", "Verification", "Paper vs tool", "Spec"]

@@ -37,6 +37,7 @@ def _both_paths(monkeypatch, plant, **kw):
     return small, rows
 
 
+@pytest.mark.slow
 def test_casadi_period_and_numpy_rows_give_the_same_runs_bit_for_bit(monkeypatch):
     plant = hybrid_three_tank()
     rng = np.random.default_rng(5)

@@ -27,6 +27,7 @@ def _free_port() -> int:
         return s.getsockname()[1]
 
 
+@pytest.mark.slow
 def test_silent_refused_and_malformed_schedulers_are_bad_input(designed, capsys):
     silent = socket.socket()
     silent.bind(("127.0.0.1", 0))
