@@ -202,7 +202,7 @@ def test_second_run_on_a_locked_directory_says_who_holds_it(result_dir, tmp_path
 
     d = tmp_path / "d"
     shutil.copytree(result_dir, d)
-    holder = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(60)"])
+    holder = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(600)"])   # killed below
     try:
         (d / ".tanksynth.lock").write_text(json.dumps({"pid": holder.pid, "host": socket.gethostname(),
                                                        "command": "design", "started": "2026-12-01T10:00"}))

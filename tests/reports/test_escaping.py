@@ -8,7 +8,7 @@ import subprocess
 from pathlib import Path
 
 import pytest
-from hypothesis import given, settings
+from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from reports_helpers import copy_dir, edit_json, needs_latex
@@ -33,7 +33,7 @@ def test_unknown_unicode_is_named_not_fatal():
 
 
 @pytest.mark.slow
-@settings(max_examples=300, deadline=None)
+@settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])  # no clock
 @given(st.text(max_size=60))
 def test_escaped_text_has_no_active_characters(text):
     out = escape_latex(text, breakable=True)
