@@ -153,8 +153,8 @@ def test_deep_nesting_refused(text):
     ("2**exp(exp(exp(exp(10))))", "cannot be evaluated exactly"),
 ])
 def test_huge_constants_refused(text, match):
-    # refused by a size limit before the constant is built (the message says which); the
-    # speed of the refusal (< 0.5 s) is a floor of benchmarks/limits.py
+    # refused by the limit the message names; the speed of the refusal (< 0.5 s) is a floor
+    # of benchmarks/limits.py
     with pytest.raises(ParseError, match=match):
         parse(text)
 
