@@ -40,7 +40,8 @@ test: $(STAMP) tex bytecode
 	$(PY) -m pytest -n 2 -q
 
 # The edit-test loop: every test but those marked slow (notebooks, the docs build, examples and
-# campaigns run end to end, fuzzing at scale; `make test` runs them too), under a minute here.
+# campaigns run end to end, LaTeX, C compiles, fuzzing at scale; `make test` runs them too):
+# 1,716 of 2,003 tests, about 90 s of CPU, under a minute when both cores are free.
 test-fast: $(STAMP) bytecode
 	$(PY) -m pytest -n 2 -q -m "not slow"
 
