@@ -127,6 +127,7 @@ def test_design_is_deterministic(tmp_path, capsys):
         assert ga[k].tobytes() == gb[k].tobytes()
 
 
+@pytest.mark.slow
 def test_run_default_demo(tmp_path, capsys, monkeypatch):
     """`make demo` as a user runs it: the built-in demo designs two controllers and two observers,
     verifies every one on the nonlinear plant, writes the report and prints the summary."""
@@ -225,6 +226,7 @@ def test_help_exit_0(capsys):
         assert command in out
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(not EXE.exists(), reason="console script not installed")
 def test_console_script_bad_input(tmp_path):
     spec = tmp_path / "broken.toml"
@@ -238,6 +240,7 @@ def test_console_script_bad_input(tmp_path):
     assert "broken.toml" in proc.stderr and "invalid TOML" in proc.stderr
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(not EXE.exists(), reason="console script not installed")
 def test_console_script_plants_json():
     proc = subprocess.run([str(EXE), "plants", "--json"], capture_output=True, text=True, timeout=120)
@@ -374,6 +377,7 @@ def test_an_export_format_given_twice_is_written_once(tmp_path, capsys):
                      "plant.json", "spec.toml"], names
 
 
+@pytest.mark.slow
 def test_export_law_prints_each_laws_files_and_signature(tmp_path, capsys):
     """``design --export law`` names, per law, its three files and its signature (inputs with
     sizes -> outputs): a law carried by the design (feedback linearisation, from the example)

@@ -171,6 +171,7 @@ def test_catalogue_row_says_what_a_none_default_is(row):
         assert cells[2] == docgen._cell(d.default_text.replace("``", "")), (row.name, d.name, cells)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("row", [r for r in TABLE if r.name in EXAMPLES_BY_METHOD],
                          ids=lambda r: r.name)
 def test_catalogue_row_lists_every_allowed_value_of_a_choice(row, capsys):
@@ -274,6 +275,7 @@ def test_readme_command_table_names_every_option_of_every_command():
         assert any(f"`tanksynth {opt}" in text for opt in param.opts), param.opts
 
 
+@pytest.mark.slow
 def test_piped_methods_is_one_line_per_method():
     """Piped (stdout not a terminal), ``tanksynth methods`` prints a header and one plain line
     per method, whatever the width; ``methods NAME`` keeps each option on one line."""

@@ -29,6 +29,9 @@ import myst_nb  # noqa: E402,F401
 import sphinx  # noqa: E402,F401
 
 
+pytestmark = pytest.mark.slow   # the Sphinx build with the notebooks executed
+
+
 def _known() -> list[str]:
     return [line.strip() for line in KNOWN.read_text(encoding="utf-8").splitlines()
             if line.strip() and not line.startswith("#")]

@@ -21,6 +21,7 @@ def test_there_is_an_example_per_builtin_plant():
     assert any(load_spec(path).raw["plant"]["model"] == "custom" for path in EXAMPLES)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("path", EXAMPLES, ids=lambda p: p.stem)
 def test_example_checks_and_designs(path, tmp_path):
     spec = load_spec(path)

@@ -109,6 +109,7 @@ def offenders(root: Path = ROOT) -> list[str]:
     return found
 
 
+@pytest.mark.slow
 def test_no_seed_paper_names_in_general_code():
     found = offenders()
     assert not found, (f"{len(found)} seed-paper name(s) in general code (move the values to "

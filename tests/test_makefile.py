@@ -1,5 +1,5 @@
-"""The Makefile: ``bytecode`` never leaves a stale .pyc that Python would use; ``test`` runs the
-type checker on the package."""
+"""The Makefile's targets: ``bytecode`` never leaves a stale .pyc that Python would use; ``test``
+runs the type checker on the package; ``test-fast`` runs the suite without the tests marked slow."""
 
 from __future__ import annotations
 
@@ -10,6 +10,8 @@ import subprocess
 import sys
 import tomllib
 from pathlib import Path
+
+import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -66,3 +68,35 @@ def test_the_test_target_type_checks_the_package_after_the_import_contracts() ->
     # the mypy that runs is the one `pip install -e '.[dev]'` installs
     dev = pyproject["project"]["optional-dependencies"]["dev"]
     assert any(re.match(r"mypy\b", req) for req in dev), dev
+
+
+def test_test_fast_selects_the_tests_not_marked_slow() -> None:
+    text = (ROOT / "Makefile").read_text(encoding="utf-8")
+    target = re.search(r"^test-fast:(.*)\n((?:\t.*\n?)+)", text, re.MULTILINE)
+    assert target is not None, "no test-fast target in the Makefile"
+    assert {"$(STAMP)", "bytecode"} <= set(target.group(1).split())   # as `test`
+    assert "test-fast" in re.search(r"^\.PHONY:(.*)$", text, re.MULTILINE).group(1).split()
+    runs = [shlex.split(line.strip().lstrip("@")) for line in target.group(2).splitlines()]
+    runs = [w for w in runs if w[:3] == ["$(PY)", "-m", "pytest"]]
+    assert len(runs) == 1, target.group(0)
+    words = runs[0]
+    assert words[words.index("-m", 3) + 1] == "not slow"
+    test_recipe = re.search(r"^test:.*\n((?:\t.*\n?)+)", text, re.MULTILINE).group(1)
+    assert "slow" not in test_recipe                                    # `make test` runs everything
+
+
+@pytest.mark.slow
+def test_test_fast_arguments_make_pytest_leave_out_a_slow_test(tmp_path: Path) -> None:
+    """The selection as pytest makes it with the target's arguments: a module with a slow test
+    and another."""
+    text = (ROOT / "Makefile").read_text(encoding="utf-8")
+    recipe = re.search(r"^test-fast:.*\n\t@?(.+)$", text, re.MULTILINE).group(1)
+    words = shlex.split(recipe)
+    assert words[:3] == ["$(PY)", "-m", "pytest"]
+    (tmp_path / "test_marks.py").write_text(
+        "import pytest\n\n\n@pytest.mark.slow\ndef test_long():\n    pass\n\n\ndef test_short():\n    pass\n")
+    args = [w for w in words[1:] if w not in ("-n", "2")]
+    out = subprocess.run([sys.executable, *args, "--collect-only", "-p", "no:cacheprovider",
+                          "-o", "markers=slow: long", "--rootdir", str(tmp_path), str(tmp_path)],
+                         cwd=tmp_path, capture_output=True, text=True)
+    assert "test_marks.py::test_short" in out.stdout and "test_long" not in out.stdout, out.stdout

@@ -121,6 +121,7 @@ def test_import_loads_no_numerical_library():
     assert out == "[]"
 
 
+@pytest.mark.slow
 def test_parsing_a_spec_imports_no_design_code():
     """Validating a spec's options needs the Options classes only (`Method.validate`)."""
     import subprocess
@@ -240,6 +241,7 @@ _ADAPTER_FILES = sorted([*(ROOT / "tanksynth" / "spec").rglob("*.py"),
                          ROOT / "tanksynth" / "design" / "result.py"])
 
 
+@pytest.mark.slow
 def test_no_seed_values_in_options_or_adapters():
     """Seed data (printed values, seed constants) lives in tanksynth.papers: no identifier or
     dict key of the spec layer or of a design adapter names a seed, a paper or a printed value,

@@ -39,6 +39,7 @@ def _digests(directory: Path) -> dict[str, str]:
     return {p.name: hashlib.sha256(p.read_bytes()).hexdigest() for p in files}
 
 
+@pytest.mark.slow
 def test_report_by_the_worker_is_the_in_process_report(tmp_path):
     by_worker, in_process = _run(tmp_path, "1"), _run(tmp_path, "0")
     a, b = _digests(by_worker), _digests(in_process)
@@ -46,6 +47,7 @@ def test_report_by_the_worker_is_the_in_process_report(tmp_path):
     assert a == b
 
 
+@pytest.mark.slow
 def test_extra_trace_figures_by_the_worker_are_the_in_process_ones(tmp_path):
     by_worker, in_process = _run(tmp_path, "1", EXTRAS), _run(tmp_path, "0", EXTRAS)
     a, b = _digests(by_worker), _digests(in_process)
@@ -54,6 +56,7 @@ def test_extra_trace_figures_by_the_worker_are_the_in_process_ones(tmp_path):
     assert a == b
 
 
+@pytest.mark.slow
 def test_figures_drawn_ahead_are_used_and_the_rest_drawn(tmp_path):
     """`write_report(drawn=...)`: figures drawn ahead (all maps, half the traces) are taken as
     they are, the others drawn in place; the files are those of a report drawn all at once."""
@@ -84,6 +87,7 @@ def test_figures_drawn_ahead_are_used_and_the_rest_drawn(tmp_path):
 
 
 
+@pytest.mark.slow
 def test_figures_drawn_ahead_that_do_not_fit_are_drawn_again(tmp_path):
     """`write_report(drawn=...)` with entries that are not this directory's figures of those stems
     (another directory's, another artefact's, None for an artefact with eigenvalues, a wrong type):
@@ -137,6 +141,7 @@ elif what == "empty":
 """
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("what, expected", [
     ("kill", "None"),                 # the worker died: finish says so; run writes the report itself
     ("cancel", "cancelled False"),    # cancelled (twice): nothing written

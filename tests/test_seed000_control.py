@@ -57,6 +57,7 @@ def time_constant(t: np.ndarray, y: np.ndarray) -> float:
 
 
 # --------------------------------------------------------- feedback linearisation
+@pytest.mark.slow
 @pytest.mark.parametrize("K1, K2", [(0.05, 0.05), (0.1, 0.03)])
 def test_step_on_yr1_first_order_and_decoupled(plant, K1, K2):
     fl = feedback_linearization(plant, ["h1", "h2"], poles=[-K1, -K2], per_axis=7, samples=100)

@@ -113,6 +113,7 @@ def test_lipschitz_route_fails_where_f_is_not_lipschitz(spec):
         design(spec, "ts_observer_paper", psi_source="lipschitz", variant="qI")
 
 
+@pytest.mark.slow
 def test_certified_design_on_an_ordered_region(spec):
     """psi from the guaranteed Lipschitz bound, Q = qI: a design the theory covers.
 

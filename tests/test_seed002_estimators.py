@@ -63,6 +63,7 @@ def test_ekf_and_ukf_recover_from_the_initial_mismatch(scenario):
     assert ekf.instructions < 0.5 * ukf.instructions
 
 
+@pytest.mark.slow
 def test_example_designs_and_the_narx_estimator(scenario):
     plant, X, Y, U = scenario
     spec = load_spec(EXAMPLE)

@@ -23,6 +23,9 @@ from tanksynth.sim.simulate import simulate
 SPEC = Path(__file__).resolve().parents[1] / "examples" / "seed002_inverse_dynamics.toml"
 
 
+pytestmark = pytest.mark.slow   # every test uses the tuned design (ISE search)
+
+
 @pytest.fixture(scope="module")
 def design():
     spec = load_spec(SPEC)

@@ -35,6 +35,7 @@ def table():
                                              scenarios=("servo", "mismatch", "leakage"))
 
 
+@pytest.mark.slow
 def test_rows_run_or_say_why_not(table):
     estimators, rows = table
     assert {r.controller for r in rows} == set(COMBINATIONS)
@@ -49,6 +50,7 @@ def test_rows_run_or_say_why_not(table):
                 (r.metrics["offset_h1"] + r.metrics["offset_h2"]) / 2)
 
 
+@pytest.mark.slow
 def test_magnitudes_against_the_paper(table):
     _, rows = table
     ran = {(r.scenario, r.controller): r.metrics for r in rows if not r.skipped}

@@ -187,6 +187,7 @@ def test_example_constants(spec):
     assert spec.x0[:paper.N // 2].tolist() == [paper.X0_LEVEL] * (paper.N // 2)
 
 
+@pytest.mark.slow
 def test_windows_order_centralized_fh_one_step(run):
     """Expected costs on the same models: centralised <= FH <= one-step, every window."""
     assert len(run["windows"]) == DURATION // 40
@@ -196,6 +197,7 @@ def test_windows_order_centralized_fh_one_step(run):
         assert w["centralized"] < w["one_step"] * (1 - 1e-2)
 
 
+@pytest.mark.slow
 def test_rmse_ordering_and_bounded(run):
     r = run["rmse"]
     for name in ("centralized", "one_step", "finite_horizon", "finite_horizon_propagated"):
@@ -211,6 +213,7 @@ def test_rmse_ordering_and_bounded(run):
     assert r["finite_horizon_propagated"] <= r["one_step"] * (1 + 3e-2)
 
 
+@pytest.mark.slow
 def test_first_window_routes_agree(spec):
     """The spec's first window (N = 40, 40 steps, 6 V): casadi and iterative costs agree."""
     opt = spec.designs[0].options

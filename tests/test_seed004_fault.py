@@ -77,6 +77,7 @@ def test_detection_times_beside_the_paper(th):
     assert d2 == pytest.approx(1.0298, abs=2e-3)
 
 
+@pytest.mark.slow
 def test_sampled_luenberger_residual_detects_the_fault_too(th):
     """A digital continuous-form observer flags the leak within 1 ms of the exact time.
 

@@ -5,6 +5,8 @@ import os
 import subprocess
 import sys
 
+import pytest
+
 PROBE = """
 import json
 from tanksynth.analysis.blas import small_dense
@@ -16,6 +18,7 @@ print(json.dumps({"inside": inside, "after": after}))
 """
 
 
+@pytest.mark.slow
 def test_small_dense_limits_every_blas_library_and_restores_them():
     env = {k: v for k, v in os.environ.items()
            if k not in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")}

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import pytest
 import numpy as np
 import sympy as sp
 
@@ -76,6 +77,7 @@ def test_structurally_unobservable_plant_is_named():
     assert nl.passed is False and "unobservable direction there in x2" in nl.detail
 
 
+@pytest.mark.slow
 def test_equilibrium_verdict_names_tolerance_equation_and_bounds():
     """Item 10."""
     c = _checks(DTS200_H3.replace("h3 = 0.30}", "h3 = 0.25}"))
@@ -89,6 +91,7 @@ def test_equilibrium_verdict_names_tolerance_equation_and_bounds():
     assert bounds.passed is False and "q1" in bounds.detail and "VIOLATED" in bounds.detail
 
 
+@pytest.mark.slow
 def test_region_rank_verdict_finds_the_singular_surface():
     """Item 11: rank 3 at every sampled point, yet det d(L_f^k h) vanishes on a surface of
     the region (through (0.4254, 0.2, 0.3))."""

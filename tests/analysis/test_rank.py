@@ -184,6 +184,7 @@ def test_nonlinear_observability_three_tank_h1():
     assert res.as_dict()["min_rank"] == 3
 
 
+@pytest.mark.slow
 def test_nonlinear_observability_of_a_hybrid_plant_equals_the_sympy_lie_derivatives():
     """The CasADi (AD) codistribution against sympy: Lie derivatives of the Piecewise/Max/sign
     model differentiated by sympy, lambdified, ranked here with the same scaling and tolerance."""

@@ -122,6 +122,7 @@ def test_relative_degree_undefined_raises():
         relative_degree(sp.Matrix([-x1, -x2 + u]), sp.Matrix([x1]), [x1, x2], [u])
 
 
+@pytest.mark.slow
 def test_relative_degree_three_tank_middle_tank():
     """y = h3: the pumps reach tank 3 only through tanks 1 and 2, so theta = 2."""
     plant = three_tank()

@@ -171,6 +171,7 @@ form = "steady_state"
 """
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name, form", [("akf", "full"), ("akf37", "steady_state")])
 def test_adaptive_kalman_step_compiled_matches_the_runtime_filter(tmp_path_factory, name, form):
     from tanksynth.methods import load_spec
@@ -215,6 +216,7 @@ def test_psd_floor_is_the_eigenvalue_clip():
 
 
 # ------------------------------------------------------------------ seed 002: NARX
+@pytest.mark.slow
 def test_narx_step_compiled_matches_the_runtime_estimator(tmp_path_factory):
     from tanksynth.methods import load_spec
     from tanksynth.runtime.estimators.narx import NARXEstimator, NARXTuning
@@ -357,6 +359,7 @@ relinearize_every = 3
 """
 
 
+@pytest.mark.slow
 def test_decentralized_step_compiled_matches_the_verdicts_filter(tmp_path_factory):
     from tanksynth.methods import load_spec
     from tanksynth.verify.decentralized.verdicts import DecentralizedFilter

@@ -255,6 +255,7 @@ def spec_plant_limits(spec: Path) -> np.ndarray:
     return load_spec(spec).plant.input_limits
 
 
+@pytest.mark.slow
 def test_design_names_that_are_not_c_identifiers_export_their_law(tmp_path):
     """A design name may start with a digit or hold '.', '-' (the spec allows it): the law is
     still exported (it was an internal error), as ``<name>_law.*`` beside ``<name>.json``,

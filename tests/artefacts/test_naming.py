@@ -43,10 +43,12 @@ def designed() -> dict:
     return out
 
 
+@pytest.mark.slow
 def test_every_method_has_an_example_design(designed):
     assert {r.method for _, r in designed.values()} == set(METHODS)
 
 
+@pytest.mark.slow
 def test_the_rule_holds_for_every_gain(designed):
     bad = []
     for (example, name), (_, r) in designed.items():
@@ -65,6 +67,7 @@ def test_the_rule_holds_for_every_gain(designed):
     assert not bad, "\n".join(bad)
 
 
+@pytest.mark.slow
 def test_names_agree_with_the_time_domain(designed):
     bad = []
     checked = 0
@@ -86,6 +89,7 @@ def test_names_agree_with_the_time_domain(designed):
     assert checked >= 15        # pole/LMI placement, synthesis, robust, TS PDC, canonical, Kalman
 
 
+@pytest.mark.slow
 def test_matrices_behave_like_their_time_domain(designed):
     """Tank plants are open-loop stable: ``F`` has eigenvalues with real part <= 0 (1/s), its
     ZOH ``Ad = expm(F ts)`` eigenvalues in (0, 1]. A discrete matrix stored as ``F`` (or the
@@ -105,6 +109,7 @@ def test_matrices_behave_like_their_time_domain(designed):
     assert not bad, "\n".join(bad)
 
 
+@pytest.mark.slow
 def test_linearize_Ad_Bd_are_the_zoh_of_F_B(designed):
     n_checked = 0
     for (example, name), (spec, r) in designed.items():
@@ -120,6 +125,7 @@ def test_linearize_Ad_Bd_are_the_zoh_of_F_B(designed):
     assert n_checked >= 5
 
 
+@pytest.mark.slow
 def test_initial_estimates_are_x_hat0(designed):
     """Every estimator shipping an initial estimate names it ``x_hat0``: the spec's ``x0`` option."""
     seen = 0
@@ -131,6 +137,7 @@ def test_initial_estimates_are_x_hat0(designed):
     assert seen >= 8   # ekf, ukf (twice each), kalman, adaptive_kalman, luenberger, narx, ...
 
 
+@pytest.mark.slow
 def test_mat_files_follow_the_rule(designed):
     for (example, name), (_, r) in designed.items():
         mat = mat_contents(r.gains, implementation_data(r.diagnostics, None))
@@ -155,6 +162,7 @@ def test_an_artefact_with_the_old_names_is_named():
                                                   "continuous"), [[2.0]])
 
 
+@pytest.mark.slow
 def test_every_gain_name_is_in_the_table(designed):
     """The README table (`GAIN_NAMES`) lists every gain every example's designs store."""
     bad = [f"{example}/{name} ({r.method}): {undocumented_gains(list(r.gains))}"
@@ -177,6 +185,7 @@ def test_the_readme_table_is_generated_from_the_dict():
         assert row.split(" | ")[0] == "| " + ", ".join(f"`{n}`" for n in names)
 
 
+@pytest.mark.slow
 def test_placement_designs_store_their_operating_point(designed):
     """Placement and H2 / H-infinity / multi-objective gains hold ``x_op`` (the spec's point) and
     ``u_op`` (the equilibrium input the .mat also carries, from the diagnostics)."""

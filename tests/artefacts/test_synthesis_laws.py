@@ -22,7 +22,8 @@ from tanksynth.artefacts.export import compile_law, load_compiled_law
 from tanksynth.artefacts.io import read_artefact
 from tanksynth.cli import main
 
-pytestmark = pytest.mark.skipif(shutil.which("gcc") is None, reason="gcc is needed to compile laws")
+pytestmark = [pytest.mark.skipif(shutil.which("gcc") is None, reason="gcc is needed to compile laws"),
+              pytest.mark.slow]   # every test compiles the laws of designs made for the module
 
 HEAD = """
 [plant]

@@ -281,6 +281,7 @@ def check_codegen(law: ca.Function, tmp_path: Path, name: str, sampler, count: i
     return worst
 
 
+@pytest.mark.slow
 @needs_gcc
 def test_codegen_feedback_linearization_law(tmp_path):
     plant = three_tank(outputs="h1h2")
@@ -295,6 +296,7 @@ def test_codegen_inverse_dynamics_law(tmp_path, id_law):
     check_codegen(id_law.law, tmp_path, "inverse_dynamics", sampler)
 
 
+@pytest.mark.slow
 @needs_gcc
 def test_codegen_integral_tracking_law(tmp_path):
     sampler = lambda rng: [rng.uniform(0.0, 0.62, 3), rng.uniform(-3, 3, 2),  # noqa: E731

@@ -130,6 +130,7 @@ def test_matrix_latex_is_sympys_text():
         assert matrix_latex(M) == sp.latex(sp.Matrix(M))
 
 
+@pytest.mark.slow
 def test_uncovered_psi_warns_that_nothing_is_certified():
     """Seed 001's safe variant maximises psi on a region without orderings, where the remainder's
     Lipschitz constant is unbounded (sqrt of a head difference at equal heads): the LMI holds,

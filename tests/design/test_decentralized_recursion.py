@@ -114,7 +114,7 @@ def _cases():
     }
 
 
-@pytest.mark.parametrize("name", list(_cases()))
+@pytest.mark.parametrize("name", [pytest.param(n, marks=pytest.mark.slow) if "n = 40" in n else n for n in _cases()])
 def test_every_kernel_mode_gives_the_plain_iteration(name):
     n, C_of, E, mode = _cases()[name]
     A, C, Q, R, E, P0 = system(n, C_of, E)

@@ -163,6 +163,7 @@ def test_relative_degree_two_law_gives_the_chosen_polynomial():
 
 
 # --------------------------------------------------------------- zero dynamics
+@pytest.mark.slow
 def test_quadruple_tank_minimum_phase_accepted_nonminimum_refused():
     good = load_spec(EXAMPLES / "quadruple_tank_min_phase.toml").plant
     fl = feedback_linearization(good, None, poles=[-0.1, -0.1], per_axis=6)

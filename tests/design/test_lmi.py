@@ -256,6 +256,7 @@ def test_eliminated_and_full_forms_have_the_same_optimum():
         assert f.result.structure["form"] == "full"
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("seed", range(4))
 def test_recovered_gain_meets_the_margin_it_was_built_for(seed):
     """The closed-form K gives LMI (28) <= -t_K I with t_K >= the required margin."""

@@ -26,6 +26,7 @@ def trained(hybrid_plant):
                       seed=0, input_range=[[30 * LPH, 130 * LPH]] * 2, restarts=2, max_iter=120)
 
 
+@pytest.mark.slow
 def test_structure_is_table_3(trained):
     tun = trained.tuning
     d = trained.diagnostics["structure"]
@@ -35,6 +36,7 @@ def test_structure_is_table_3(trained):
     assert tun.W1.shape == (5, 10) and tun.W2.shape == (3, 5) and d["parameters"] == 73
 
 
+@pytest.mark.slow
 def test_training_data_seed_and_fit_error_are_recorded(trained, hybrid_plant):
     diag = trained.diagnostics
     assert diag["training"]["seed"] == 0 and diag["training"]["samples"] == 3 * 400
@@ -69,6 +71,7 @@ def test_levenberg_marquardt_matches_minpack_on_a_curve_fit():
     assert ours.success
 
 
+@pytest.mark.slow
 def test_training_data_come_from_the_simulator(hybrid_plant):
     """The plant runs through the toolbox's one simulator: same states, saturated inputs."""
     data = generate_ekf_data(hybrid_plant, KalmanTuning(**EKF), runs=2, steps=120, seed=3,

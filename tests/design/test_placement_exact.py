@@ -29,6 +29,7 @@ def test_mimo_place_and_siso_acker():
     assert emax < 1e-9
 
 
+@pytest.mark.slow
 def test_place_is_python_controls_place_bit_for_bit():
     control = pytest.importorskip("control")
     rng = np.random.default_rng(7)
@@ -43,6 +44,7 @@ def test_place_is_python_controls_place_bit_for_bit():
             np.testing.assert_array_equal(r.gain, control.place(A, B, poles))
 
 
+@pytest.mark.slow
 def test_ackermann_agrees_with_python_control_acker_on_random_systems():
     control = pytest.importorskip("control")
     rng = np.random.default_rng(11)

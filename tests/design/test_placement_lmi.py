@@ -179,6 +179,7 @@ def test_direct_clarabel_route_meets_a_hand_written_cvxpy_problem(seed):
     assert all(region.contains(z) for z in np.linalg.eigvals(A - B @ res.gain))
 
 
+@pytest.mark.slow
 def test_scs_route_through_cvxpy_meets_the_clarabel_route():
     A, B = random_system()
     region = half_plane(0.5) & sector(np.radians(40))

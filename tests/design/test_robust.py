@@ -95,6 +95,7 @@ def _hinf_sweep(A, B, C, discrete):
     return max(np.linalg.norm(C @ np.linalg.solve(zz * np.eye(n) - A, B), 2) for zz in z)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("domain", ["continuous", "discrete"])
 def test_hinf_bound_holds_at_every_vertex(domain):
     rng = np.random.default_rng(3)

@@ -53,6 +53,7 @@ def _sweep(A, B, C, discrete):
     return max(np.linalg.norm(C @ np.linalg.solve(p * np.eye(n) - A, B), 2) for p in pts)
 
 
+@pytest.mark.slow
 def test_hamiltonian_test_agrees_with_a_sweep():
     rng = np.random.default_rng(0)
     for discrete in (False, True):
@@ -213,6 +214,7 @@ def _corner_models(spec, ts):
     return out
 
 
+@pytest.mark.slow
 def test_three_tank_designs_accepted_over_the_gamma_range():
     base = parse_spec_text(SPEC.format(sf="", obs=""))
     ref = {d.name: METHODS[d.method].design(base, d).gains for d in base.designs}
@@ -245,6 +247,7 @@ def test_three_tank_gamma_below_a_region_bound_exits_3(tmp_path, capsys):
     assert not list((tmp_path / "o").glob("observer.json"))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("gamma", [1.4, 1e6, 1e12])
 def test_scs_designs_certified(gamma):
     """SCS (first-order, ~1e-5 accurate) ended phase 2 'optimal' with X not positive definite on

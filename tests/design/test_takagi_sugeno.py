@@ -60,6 +60,7 @@ def test_not_lipschitz_when_levels_may_be_equal(ts_all):
     assert lb.value == np.inf and "not Lipschitz" in lb.detail["text"]
 
 
+@pytest.mark.slow
 def test_lipschitz_bounds_on_an_ordered_region(qlpv, ordered):
     ts = ts_model(qlpv, ordered)
     sampled = lipschitz_bound(ts, "jacobian", "sampling", margin=0.0)

@@ -298,6 +298,7 @@ print(" ".join(out))
 """
 
 
+@pytest.mark.slow
 def test_designs_do_not_depend_on_pythonhashseed():
     """Byte-identical gains whatever the hash seed (sympy's sets iterate in hash order). Seeds 0
     and 3 gave two different PDC gains before linear_argument sorted its candidates and fixed the

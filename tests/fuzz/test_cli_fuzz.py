@@ -15,6 +15,7 @@ import os
 import shutil
 import tomllib
 
+import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -42,6 +43,9 @@ _leaf = st.one_of(_numbers, st.booleans(), _words, st.text(max_size=12))
 _values = st.recursive(_leaf, lambda inner: st.one_of(
     st.lists(inner, max_size=5), st.dictionaries(st.one_of(_words, st.text(max_size=6)), inner,
                                                  max_size=4)), max_leaves=12)
+
+
+pytestmark = pytest.mark.slow   # 2,000 generated cases through the CLI (about a minute)
 
 
 def _paths(node, prefix=()):

@@ -94,7 +94,9 @@ def test_crash_input_is_exit_2_naming_the_key(case, tmp_path):
     code, _, err, seconds = run(["check", "--spec-only", spec])
     assert_contract(code, err, seconds, case)
     assert code == 2, err
-    assert seconds < 10, f"{case}: {seconds:.1f} s"
+    # refused by the spec checks and the static expression limits, never by running into the
+    # symbolic time budget; the time of each case (< 10 s) is a floor of benchmarks/limits.py
+    assert "did not finish within" not in err, err
     assert err.startswith(f"error: {spec}: "), err  # the file first ...
     if key is not None:
         assert f"key '{key}'" in err, err          # ... then the key
@@ -118,6 +120,7 @@ def test_numbers_in_errors_are_cut(tmp_path):
     assert code == 2 and len(err) < 400 and "..." in err, err
 
 
+@pytest.mark.slow
 def test_symbolic_step_past_its_budget_is_a_skipped_check(tmp_path, monkeypatch):
     """A polynomial output of degree 64 passes the parse limits; its determinant is refused by the
     time budget and reported as not attempted, not a hang."""
@@ -129,7 +132,8 @@ def test_symbolic_step_past_its_budget_is_a_skipped_check(tmp_path, monkeypatch)
     checks = {c["check"]: c for c in json.loads(out)}
     sym = checks["symbolic_observability"]
     assert sym["passed"] is None and "too complex for symbolic analysis" in sym["detail"], sym
-    assert seconds < 60
+    assert "did not finish within 2 s" in sym["detail"], sym     # cut off by the budget set
+    assert seconds < 60                 # and not long after it (30x the budget: a loaded machine)
 
 
 @pytest.mark.parametrize("name", ["inv-dyn", "it--2", "jac"])
@@ -176,6 +180,7 @@ def test_missing_result_directory_is_exit_2(tmp_path, command):
     assert code == 2 and "missing" in err, err
 
 
+@pytest.mark.slow
 def test_file_size_limit_is_exit_2_not_a_signal(tmp_path):
     """``ulimit -f``: the write fails with EFBIG (SIGXFSZ ignored), one line naming the file."""
     import resource
@@ -197,7 +202,7 @@ def test_second_run_on_a_locked_directory_says_who_holds_it(result_dir, tmp_path
 
     d = tmp_path / "d"
     shutil.copytree(result_dir, d)
-    holder = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(60)"])
+    holder = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(600)"])   # killed below
     try:
         (d / ".tanksynth.lock").write_text(json.dumps({"pid": holder.pid, "host": socket.gethostname(),
                                                        "command": "design", "started": "2026-12-01T10:00"}))
@@ -233,6 +238,7 @@ def test_design_refuses_a_directory_of_another_spec_unless_forced(tmp_path):
     assert code == 0, err
 
 
+@pytest.mark.slow
 def test_verify_and_report_keep_file_modes_and_new_files_share_one(result_dir, tmp_path):
     import shutil
     import stat
@@ -282,7 +288,9 @@ def test_a_fifo_or_device_in_a_result_directory_does_not_hang(result_dir, tmp_pa
     os.mkfifo(d / "plant.json")
     t0 = time.perf_counter()
     code, _, err, _ = run(["verify", d, "--json"])
-    assert code == 2 and "plant.json" in err and time.perf_counter() - t0 < 10, err
+    # not a hang (a blocking open never returns): a bound generous for a loaded machine; the
+    # time itself (< 10 s) is a floor of benchmarks/limits.py
+    assert code == 2 and "plant.json" in err and time.perf_counter() - t0 < 60, err
     (d / "plant.json").unlink()
     (d / "plant.json").symlink_to("/dev/zero")
     code, _, err, _ = run(["verify", d, "--json"])
@@ -297,7 +305,8 @@ def test_a_fifo_as_the_lock_file_does_not_hang(result_dir, tmp_path):
     os.mkfifo(d / ".tanksynth.lock")
     t0 = time.perf_counter()
     code, _, err, _ = run(["verify", d, "--json"])
-    assert code == 2 and ".tanksynth.lock" in err and time.perf_counter() - t0 < 10, err
+    # not a hang, as above (the time itself: benchmarks/limits.py)
+    assert code == 2 and ".tanksynth.lock" in err and time.perf_counter() - t0 < 60, err
 
 
 # ---------------------------------------------- lock holders that are not a process (item 10)

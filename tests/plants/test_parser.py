@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import time
-
 import pytest
 import sympy as sp
 from hypothesis import HealthCheck, given, settings
@@ -140,26 +138,25 @@ def test_overlong_input_refused():
     "sqrt(" * 500 + "x" + ")" * 500,
     "x" + "**x" * 500,
 ])
-def test_deep_nesting_refused_quickly(text):
-    t0 = time.perf_counter()
+def test_deep_nesting_refused(text):
+    # refused by the depth limit; its speed (< 0.5 s) is a floor of benchmarks/limits.py
     with pytest.raises(ParseError, match="nested"):
         parse(text)
-    assert time.perf_counter() - t0 < 0.5
 
 
-@pytest.mark.parametrize("text", [
-    "1e9999999",                                   # Fraction would build 10**9999999 (~7 s)
-    "1e-9999999",
-    "((2**64)**64)**64",                           # exact constant with 262144 bits
-    "(1.000000000000000000000000000000000001**64)**64",
-    "*".join(["1e300"] * 2000),                    # product of many in-range constants
-    "2**exp(exp(exp(exp(10))))",
+@pytest.mark.parametrize("text,match", [
+    ("1e9999999", "out of range"),                 # Fraction would build 10**9999999 (~7 s)
+    ("1e-9999999", "out of range"),
+    ("((2**64)**64)**64", "more than 4096 bits"),  # exact constant with 262144 bits
+    ("(1.000000000000000000000000000000000001**64)**64", "more than 4096 bits"),
+    ("*".join(["1e300"] * 2000), "longer than"),   # product of many in-range constants
+    ("2**exp(exp(exp(exp(10))))", "cannot be evaluated exactly"),
 ])
-def test_huge_constants_refused_quickly(text):
-    t0 = time.perf_counter()
-    with pytest.raises(ParseError):
+def test_huge_constants_refused(text, match):
+    # refused by the limit the message names; the speed of the refusal (< 0.5 s) is a floor
+    # of benchmarks/limits.py
+    with pytest.raises(ParseError, match=match):
         parse(text)
-    assert time.perf_counter() - t0 < 0.5
 
 
 @pytest.mark.parametrize("text", ["log(0)", "sqrt(-1)", "(-8)**(1/3)", "x + log(0)"])
@@ -190,7 +187,10 @@ def test_validate_name():
 
 
 # --------------------------------------------------------------- properties
-@settings(max_examples=400, deadline=500, suppress_health_check=[HealthCheck.too_slow])
+# No per-example deadline (a loaded machine missed 500 ms): the parse time of such texts,
+# < 0.5 s each, is a floor of benchmarks/limits.py.
+@pytest.mark.slow
+@settings(max_examples=400, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(st.text())
 def test_any_text_parses_or_raises_parse_error(text):
     try:
@@ -207,7 +207,8 @@ _alphabet = st.sampled_from(list("xyA0123456789.eE+-*/() ,") + ["**", "sqrt(", "
                                                                "exp(", "log(", "min(", "max("])
 
 
-@settings(max_examples=400, deadline=500, suppress_health_check=[HealthCheck.too_slow])
+@pytest.mark.slow
+@settings(max_examples=400, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(st.lists(_alphabet, max_size=40).map("".join))
 def test_grammar_shaped_text_parses_or_raises_parse_error(text):
     try:

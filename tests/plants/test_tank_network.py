@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import time
-
 import numpy as np
 import pytest
 import scipy.linalg as sl
@@ -112,11 +110,8 @@ def test_coupling_pattern_N8():
     np.testing.assert_array_equal(bpat, expected_b)
 
 
-def test_N64_builds_fast_and_compiles():
-    t0 = time.perf_counter()
-    plant = tank_network(64)
-    elapsed = time.perf_counter() - t0
-    assert elapsed < 2.0
+def test_N64_builds_and_compiles():
+    plant = tank_network(64)            # its build time (< 2 s) is a floor of benchmarks/limits.py
     assert (plant.n, plant.m) == (64, 32)
     x = np.full((3, 64), 20.0)
     u = np.full((3, 32), 5.0)

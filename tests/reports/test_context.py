@@ -23,6 +23,9 @@ ROOT = Path(__file__).resolve().parents[2]
 DESIGNS = ("h2_controller", "h2_observer", "hinf_controller", "hinf_observer", "multiobjective_disk")
 
 
+pytestmark = pytest.mark.slow   # every test uses a designed, verified and reported H-infinity example
+
+
 @pytest.fixture(scope="module")
 def hinf_dir(tmp_path_factory) -> Path:
     d = tmp_path_factory.mktemp("hinf") / "out"

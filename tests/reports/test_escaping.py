@@ -8,7 +8,7 @@ import subprocess
 from pathlib import Path
 
 import pytest
-from hypothesis import given, settings
+from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from reports_helpers import copy_dir, edit_json, needs_latex
@@ -32,7 +32,8 @@ def test_unknown_unicode_is_named_not_fatal():
     assert escape_latex("\x00\x07") == ""
 
 
-@settings(max_examples=300, deadline=None)
+@pytest.mark.slow
+@settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])  # no clock
 @given(st.text(max_size=60))
 def test_escaped_text_has_no_active_characters(text):
     out = escape_latex(text, breakable=True)
@@ -58,6 +59,7 @@ def test_numbers_and_units():
     assert format_unit("50% & co") == r"50\% \& co"
 
 
+@pytest.mark.slow
 @needs_latex
 def test_hostile_strings_compile(demo_dir, tmp_path):
     d = copy_dir(demo_dir, tmp_path / "hostile")
@@ -99,6 +101,7 @@ def test_trusted_math_allow_list():
         assert not is_trusted_math(bad), bad
 
 
+@pytest.mark.slow
 @needs_latex
 def test_no_file_leaks_through_a_report(demo_dir, tmp_path):
     """LaTeX planted in an artefact's `latex` field and in plant.json's equations is shown as text,

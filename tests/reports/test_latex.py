@@ -11,7 +11,7 @@ import pytest
 from reports_helpers import copy_dir, needs_latex
 from tanksynth.cli import main
 
-pytestmark = needs_latex
+pytestmark = [needs_latex, pytest.mark.slow]   # real pdflatex builds
 
 SECTIONS = ["Plant", "Operating point, linearisation and discretisation", "Rank conditions",
             "Designs", "Verification", "Paper vs tool", "Spec"]
@@ -90,9 +90,14 @@ def test_latex_timeout_ends_the_whole_process_group(tmp_path):
     tex = tmp_path / "forever_loop_doc.tex"
     tex.write_text("\\documentclass{article}\\begin{document}\\def\\x{\\x}\\x\\end{document}\n")
     start = time.perf_counter()
-    with pytest.raises(ReportError, match="did not finish"):
+    with pytest.raises(ReportError, match="did not finish within 3 s"):
         compile_pdf(tex, timeout=3)
-    assert time.perf_counter() - start < 20
-    time.sleep(0.5)
-    left = subprocess.run(["pgrep", "-f", "forever_loop_doc"], capture_output=True, text=True).stdout
+    # cut off, not hung: a generous bound (20x) for a loaded machine; how soon after the
+    # timeout the build ends (< 20 s) is a floor of benchmarks/limits.py
+    assert time.perf_counter() - start < 60
+    for _ in range(300):                  # SIGKILLed processes leave when scheduled: wait for it
+        left = subprocess.run(["pgrep", "-f", "forever_loop_doc"], capture_output=True, text=True).stdout
+        if not left.strip():
+            break
+        time.sleep(0.1)
     assert left.strip() == ""

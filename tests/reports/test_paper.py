@@ -171,6 +171,7 @@ def test_seed004_fault_detection_rows(tmp_path):
     assert "not printed" in times[0].note and r"\bar\delta = 1" in times[0].note
 
 
+@pytest.mark.slow
 @needs_latex
 def test_seed004_fault_detection_rows_typeset(tmp_path):
     import subprocess

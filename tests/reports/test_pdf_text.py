@@ -14,11 +14,12 @@ import textwrap
 import tomllib
 from pathlib import Path
 
+import pytest
 
 from reports_helpers import needs_latex
 from tanksynth.cli import main
 
-pytestmark = needs_latex
+pytestmark = [needs_latex, pytest.mark.slow]   # real pdflatex builds of several examples
 
 #: Python/numpy reprs and ASCII operators that must not reach the body of a report.
 FORBIDDEN = {

@@ -105,6 +105,7 @@ def test_eigenvalue_sets_of_linearisation(demo_dir):
     assert len(sets["eigenvalues_F"].values) == 3
 
 
+@pytest.mark.slow
 def test_report_tex_is_atomic_and_deterministic(demo_dir, tmp_path):
     d = copy_dir(demo_dir, tmp_path / "det")
     first = write_report(d).tex.read_text(encoding="utf-8")
@@ -113,6 +114,7 @@ def test_report_tex_is_atomic_and_deterministic(demo_dir, tmp_path):
     assert not [p for p in d.iterdir() if p.name.startswith(".")]
 
 
+@pytest.mark.slow
 @needs_latex
 def test_latex_failure_is_report_error_exit_2(demo_dir, tmp_path, capsys):
     d = copy_dir(demo_dir, tmp_path / "broken")

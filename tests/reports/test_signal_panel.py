@@ -72,6 +72,7 @@ def test_the_signal_panel_draws_residual_threshold_and_the_fault(tmp_path):
     assert fig.path.read_bytes().startswith(b"%PDF")
 
 
+@pytest.mark.slow
 def test_a_narrow_range_is_linear_and_a_reused_canvas_draws_the_fresh_figure(tmp_path):
     _signal_trace(tmp_path, "single", decades=0.5 * LOG_DECADES, runs=1)
     _, axes = _last_panel(tmp_path, "single", TraceCanvas())
@@ -113,6 +114,7 @@ def test_the_log_panel_shows_only_ticks_inside_its_limits(tmp_path):
     assert len(visible_tick_labels(ax.yaxis)) == ticks.size
 
 
+@pytest.mark.slow
 def test_the_seed004_report_has_the_residual_figure(tmp_path):
     d = tmp_path / "s4"
     assert main(["run", str(ROOT / "examples" / "seed004_fault_detection.toml"), "-o", str(d), "--no-pdf"]) == 0

@@ -43,6 +43,7 @@ def _check_trace(directory: Path, name: str, estimator: bool) -> dict:
     return trace
 
 
+@pytest.mark.slow
 def test_linearisation_trace_and_figure(tmp_path):
     d = _run(tmp_path / "demo", str(ROOT / "examples" / "seed000_three_tank.toml"))
     _check_trace(d, "linear_model", estimator=False)
@@ -64,6 +65,7 @@ def test_linearisation_trace_and_figure(tmp_path):
     assert lin["gap"] < 0.05 * lin["scale"]        # first-order agreement near x0
 
 
+@pytest.mark.slow
 @needs_latex
 def test_seed004_observer_trace_and_pdf(tmp_path):
     d = _run(tmp_path / "s4", str(ROOT / "examples" / "seed004_fault_detection.toml"))
@@ -79,6 +81,7 @@ def test_seed004_observer_trace_and_pdf(tmp_path):
     assert "initial-state mismatch" in text and "observer convergence" in text.replace("_", " ")
 
 
+@pytest.mark.slow
 def test_missing_trace_means_no_figure(tmp_path):
     d = _run(tmp_path / "demo", str(ROOT / "examples" / "seed000_three_tank.toml"))
     (d / "linear_model.traces.npz").unlink()
@@ -114,6 +117,7 @@ def test_trace_decimated(tmp_path):
     assert not list(tmp_path.glob(".*.tmp"))
 
 
+@pytest.mark.slow
 @needs_latex
 def test_trace_figure_without_pole_map_reaches_pdf(tmp_path):
     """seed 002 inverse dynamics records no eigenvalues: the time-domain figure alone is typeset."""
@@ -219,6 +223,7 @@ def test_time_domain_text_reads_at_print_size_and_inputs_reach_the_horizon_end(t
     assert inputs.dataLim.x1 == pytest.approx(arrays["t"][-1]) and arrays["t_u"][-1] < arrays["t"][-1]
 
 
+@pytest.mark.slow
 def test_reused_canvas_draws_the_same_pdf(tmp_path):
     """Figures drawn on a reused canvas are byte-identical to figures drawn on a fresh one."""
     from tanksynth.reports.figure_layout import TraceCanvas

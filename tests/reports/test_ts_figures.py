@@ -37,6 +37,7 @@ def pdc_dir(tmp_path_factory):
     return out
 
 
+@pytest.mark.slow
 def test_report_has_the_region_figure(pdc_dir):
     tex = (pdc_dir / "report.tex").read_text(encoding="utf-8")
     assert "report-figures/region-00-pdc.pdf" in tex
@@ -46,6 +47,7 @@ def test_report_has_the_region_figure(pdc_dir):
     assert "set-point" in cap and "trajectories" in cap and "c = 1" in cap
 
 
+@pytest.mark.slow
 def test_region_figure_without_a_trace_says_so(pdc_dir, tmp_path):
     inputs = read_report_inputs(pdc_dir)
     art = next(a for a in inputs.artefacts if a["name"] == "pdc")
@@ -54,6 +56,7 @@ def test_region_figure_without_a_trace_says_so(pdc_dir, tmp_path):
     assert fig.path.read_bytes().startswith(b"%PDF")
 
 
+@pytest.mark.slow
 def test_region_figure_shows_its_legend_and_labels(pdc_dir, tmp_path):
     import shutil
     import subprocess

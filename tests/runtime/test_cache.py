@@ -40,6 +40,7 @@ def test_clear_cache_then_rebuild_vm():
     np.testing.assert_array_equal(after, before)
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(shutil.which("gcc") is None and shutil.which("cc") is None,
                     reason="no C compiler")
 def test_clear_cache_then_rebuild_native(tmp_path, monkeypatch):

@@ -31,6 +31,7 @@ def test_kernel_source_is_c_with_the_entry_point():
     assert "sqrt(" in src and "copysign(" in src and "pow(" not in src
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("plant", [three_tank(), hybrid_three_tank(), tank_network(4)],
                          ids=["three_tank", "hybrid", "network"])
 def test_inline_and_per_stage_layouts_give_the_same_numbers(cache, monkeypatch, plant):

@@ -14,6 +14,9 @@ from tanksynth.sim.integrate import Integrator
 from tanksynth.sim.simulate import ParameterChange, StateJump
 
 
+pytestmark = pytest.mark.slow   # every test compiles the simulator's C kernel into a private cache
+
+
 def _fallback(monkeypatch, fn):
     """``fn()`` with the numpy/CasADi routes (native kernel refused), caches restored after."""
     monkeypatch.setenv("TANKSYNTH_SIM_BACKEND", "numpy")

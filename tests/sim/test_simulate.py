@@ -33,6 +33,7 @@ def test_numpy_model_matches_compiled_casadi(plant):
     assert numpy_model(plant.with_parameters({})) is model  # one compile per structure
 
 
+@pytest.mark.slow
 def test_hybrid_crossings_are_located_and_accurate():
     """Filling through h0: each level crosses once (no chattering), matches a tight solve_ivp."""
     x0, u = [0.25, 0.25, 0.2], [110 * LPH, 100 * LPH]

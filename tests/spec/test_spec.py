@@ -370,6 +370,7 @@ def mutated_spec(draw):
     return doc
 
 
+@pytest.mark.slow
 @settings(max_examples=200, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(mutated_spec())
 def test_fuzzed_specs_only_raise_spec_errors(doc):
@@ -385,6 +386,7 @@ def test_fuzzed_specs_only_raise_spec_errors(doc):
         assert not spec.plant.region.violations(spec.x0, spec.plant.x)
 
 
+@pytest.mark.slow
 @settings(max_examples=100, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(st.data())
 def test_fuzzed_spec_text_only_raises_spec_errors(data):

@@ -92,6 +92,7 @@ def test_a_failed_simulation_is_a_row_not_a_blank(artefacts):
     assert "non-finite state at sample 7" in rows[0]["loop"] and rows[0]["kind"] == "estimator"
 
 
+@pytest.mark.slow
 def test_dask_cluster_survives_a_killed_worker(artefacts, runners):
     distributed = pytest.importorskip("distributed")
     _, text, docs = artefacts

@@ -99,6 +99,7 @@ def test_missing_law_is_refused(seed000, runners):
         closed_loop_for(doc, _spec(text), runners[doc['method']])
 
 
+@pytest.mark.slow
 def test_inverse_dynamics_campaign(tmp_path, runners):
     assert main(["design", str(ROOT / "examples" / "seed002_inverse_dynamics.toml"), "-o",
                  str(tmp_path)]) == 0

@@ -104,6 +104,7 @@ def test_every_method_has_a_runner(runners):
         assert dict(methods.RUNNERS) == runners
 
 
+@pytest.mark.slow
 def test_ekf_campaign_rmse_equals_the_ekf_run_by_hand(tmp_path_factory, runners):
     text, docs, spec = _design(tmp_path_factory, "ekf", EKF_SPEC)
     runs, seed = 3, 7
@@ -134,6 +135,7 @@ def test_ekf_campaign_rmse_equals_the_ekf_run_by_hand(tmp_path_factory, runners)
                 assert row["value"] > 1e-5                      # noise and a wrong start: never 0
 
 
+@pytest.mark.slow
 def test_observer_runs_on_noisy_measurements(tmp_path_factory, runners):
     text, docs, spec = _design(tmp_path_factory, "observer", OBSERVER_SPEC)
     table = run_campaign(campaign_tasks(text, [docs["observer"]], ["servo", "regulatory"], 2,
@@ -156,6 +158,7 @@ def fault_table(tmp_path_factory, runners):
                                        runners=runners), local=True)
 
 
+@pytest.mark.slow
 def test_detector_rows(fault_table):
     rows = [r for r in fault_table.rows if r["artefact"] == "detector"]
     assert {r["kind"] for r in rows} == {"detector"}
@@ -169,6 +172,7 @@ def test_detector_rows(fault_table):
     assert all("Psi" in r["loop"] and "without them" in r["loop"] for r in rows)
 
 
+@pytest.mark.slow
 def test_canonical_observer_and_model_rows(fault_table):
     summary = fault_table.summary()
     kinds = {(r["artefact"], r["kind"]) for r in fault_table.rows}
@@ -269,6 +273,7 @@ P0 = 1e-3
 """
 
 
+@pytest.mark.slow
 def test_noise_free_scenario_gives_no_rmse_for_an_exact_start(tmp_path_factory, runners):
     """dynamic_steps (no noise, no disturbance for an estimator) with the estimate at the true state:
     the error is zero by construction, so the row says not_applicable instead of rmse = 0.0;

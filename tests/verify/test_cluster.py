@@ -27,6 +27,7 @@ def _free_port() -> int:
         return s.getsockname()[1]
 
 
+@pytest.mark.slow
 def test_silent_refused_and_malformed_schedulers_are_bad_input(designed, capsys):
     silent = socket.socket()
     silent.bind(("127.0.0.1", 0))
@@ -40,6 +41,11 @@ def test_silent_refused_and_malformed_schedulers_are_bad_input(designed, capsys)
             err = capsys.readouterr().err
             assert code == 2, (address, err)
             assert len(err.strip().splitlines()) == 1 and "Dask scheduler" in err, err
-            assert elapsed < 15, (address, elapsed)
+            # the wait was the --connect-timeout given ("did not answer within 1 s" or
+            # "waited at most 1 s", whichever deadline a loaded machine reaches first)
+            assert "within 1 s" in err or "at most 1 s" in err, err
+            # not a hang: a generous bound for a loaded machine; the time itself (< 15 s, the
+            # import of distributed included) is a floor of benchmarks/limits.py
+            assert elapsed < 60, (address, elapsed)
     finally:
         silent.close()

@@ -23,6 +23,9 @@ EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "seed004_fault_dete
 NAME = "residual_fault_detector"
 
 
+pytestmark = pytest.mark.slow   # every test uses a verified fault-detection campaign
+
+
 @pytest.fixture(scope="module")
 def run_dir(tmp_path_factory) -> Path:
     d = tmp_path_factory.mktemp("fault_trace") / "out"

@@ -130,6 +130,7 @@ def test_scenario_refuses_what_it_cannot_simulate(options, match):
 
 
 # ----------------------------------------------------------------- on the example spec
+@pytest.mark.slow
 def test_verdict_passes_on_the_example_spec(designed, tmp_path):
     d = Path(shutil.copytree(designed, tmp_path / "good"))
     verdict, checks = _checks(d)
@@ -141,6 +142,7 @@ def test_verdict_passes_on_the_example_spec(designed, tmp_path):
     assert max(det["differences"]) <= det["tolerance_s"]
 
 
+@pytest.mark.slow
 def test_wrong_threshold_fails(designed, tmp_path):
     d = Path(shutil.copytree(designed, tmp_path / "thr"))
     _rewrite(d / "fd.json", gains=lambda g: g.update(threshold_coefficients=0.5 *
@@ -150,6 +152,7 @@ def test_wrong_threshold_fails(designed, tmp_path):
     assert checks["threshold_recheck"].passed is False and checks["no_false_alarm"].passed is False
 
 
+@pytest.mark.slow
 def test_wrong_gain_fails(designed, tmp_path):
     d = Path(shutil.copytree(designed, tmp_path / "gain"))
     _rewrite(d / "fd.json", gains=lambda g: g.update(Psi=0.01 * g["Psi"]))

@@ -259,6 +259,7 @@ def _rewrite(path: Path, mutate) -> None:
     write_artefact(result, path.parent, doc["provenance"]["spec_sha256"])
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("key", ["three_tank", "ts", "inverse", "network", "canonical"])
 def test_designed_artefacts_pass(designed, key, tmp_path, capsys):
     d = Path(shutil.copytree(designed[key], tmp_path / key))
@@ -274,6 +275,7 @@ def test_designed_artefacts_pass(designed, key, tmp_path, capsys):
         assert read_artefact(d / f"{name}.json")["verification"]["passed"] is True
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("key", ["three_tank", "ts", "inverse", "network"])
 def test_wrong_gains_fail_with_exit_1(designed, key, tmp_path, capsys):
     d = Path(shutil.copytree(designed[key], tmp_path / key))
@@ -287,6 +289,7 @@ def test_wrong_gains_fail_with_exit_1(designed, key, tmp_path, capsys):
         assert must_fail <= failed, (name, sorted(failed))
 
 
+@pytest.mark.slow
 def test_canonical_observer_with_a_wrong_gain_fails(designed, tmp_path, capsys):
     d = Path(shutil.copytree(designed["canonical"], tmp_path / "canonical"))
     _rewrite(d / "luenberger_canonical.json", _scale("L", factor=0.01))
@@ -297,6 +300,7 @@ def test_canonical_observer_with_a_wrong_gain_fails(designed, tmp_path, capsys):
     assert doc["verification"]["passed"] is False
 
 
+@pytest.mark.slow
 def test_estimator_verdicts(designed, tmp_path, capsys):
     d = Path(shutil.copytree(designed["estimators"], tmp_path / "good"))
     code, arts = _verify_json(d, capsys)
@@ -313,6 +317,7 @@ def test_estimator_verdicts(designed, tmp_path, capsys):
         assert must_fail <= {c["check"] for c in arts[name]["checks"] if c["passed"] is False}
 
 
+@pytest.mark.slow
 def test_observer_rule_and_numbers_are_stated(designed, tmp_path, capsys):
     d = Path(shutil.copytree(designed["three_tank"], tmp_path / "tt"))
     _, arts = _verify_json(d, capsys)
@@ -424,6 +429,7 @@ def _dir_of(name):
     return {"askf": "filters", "cf": "filters", "fd": "fault", "narx": "narx"}[name]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("key", ["filters", "fault", "narx"])
 def test_more_estimator_verdicts_good_and_wrong(designed_more, key, tmp_path, capsys):
     names = [n for n in MORE if _dir_of(n) == key]
@@ -449,6 +455,7 @@ def test_more_estimator_verdicts_good_and_wrong(designed_more, key, tmp_path, ca
         assert doc["verification"]["passed"] is False
 
 
+@pytest.mark.slow
 def test_fault_detection_reports_detection_times(designed_more, tmp_path, capsys):
     d = Path(shutil.copytree(designed_more["fault"], tmp_path / "fd"))
     _, arts = _verify_json(d, capsys)

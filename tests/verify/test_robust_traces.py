@@ -15,6 +15,7 @@ from tanksynth.verify.runner import verdict_with_trace
 EXAMPLE = "examples/three_tank_robust.toml"
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name,observer", [("robust_integral", False), ("robust_observer", True)])
 def test_monte_carlo_runs_are_the_trace_and_are_drawn(name, observer, tmp_path):
     spec = load_spec(EXAMPLE)

@@ -32,6 +32,7 @@ def _doc(example, name, tmp_path):
     return docs[name]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", ["robust_saturation", "robust_observer"])
 def test_example_verdict_passes(example, name, tmp_path):
     spec, _ = example
@@ -45,6 +46,7 @@ def test_example_verdict_passes(example, name, tmp_path):
     assert failed == []
 
 
+@pytest.mark.slow
 def test_tampered_gain_fails_at_a_vertex(example, tmp_path):
     spec, _ = example
     doc = dict(_doc(example, "robust_saturation", tmp_path))
@@ -62,6 +64,7 @@ def _sweep(A, B, C, discrete):
     return max(np.linalg.norm(C @ np.linalg.solve(zz * np.eye(n) - A, B), 2) for zz in z)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("discrete", [False, True])
 def test_hinf_norm_matches_a_frequency_sweep(discrete):
     rng = np.random.default_rng(5)
@@ -74,6 +77,7 @@ def test_hinf_norm_matches_a_frequency_sweep(discrete):
     assert got == pytest.approx(ref, rel=1e-3)
 
 
+@pytest.mark.slow
 def test_campaign_runner_samples_the_box(example, tmp_path):
     spec, _ = example
     doc = _doc(example, "robust_integral", tmp_path)
@@ -127,6 +131,7 @@ Bw = [[0.01, 0], [0, 0.01], [0, 0]]
 """
 
 
+@pytest.mark.slow
 def test_a_loop_too_stiff_to_simulate_is_warned_and_fails_its_monte_carlo(tmp_path):
     """A half-plane region bounds the eigenvalues from one side: this H-infinity bound drives
     them to ~1e4 1/s. The design warns (far beyond the sampling rate); the verdict does not try
@@ -158,6 +163,7 @@ def test_a_loop_too_stiff_to_simulate_is_warned_and_fails_its_monte_carlo(tmp_pa
     assert mc.data["fastest_eigenvalue"] >= fast * (1 - 1e-9) and mc.data["samples"] > 200000
 
 
+@pytest.mark.slow
 def test_a_weak_decay_promise_is_verified_over_the_loops_own_time_constant(tmp_path):
     """A half-plane with a tiny decay (alpha = 1e-5 1/s) promises a 5e5 s horizon (600,001
     samples: the check used to fail 'not simulated', a correct design refused by a naive test).

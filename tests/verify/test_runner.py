@@ -37,6 +37,7 @@ def test_splice_needs_a_top_level_key():
     assert json.loads(_splice_top_level(text, "a", "3")) == {"a": 3}
 
 
+@pytest.mark.slow
 def test_extra_traces_cross_the_scheduler_whole(tmp_path):
     """`verify --scheduler`: the verdicts run on a Dask worker; the trace files hold the same main
     and extra traces (the H2/H-infinity disturbance steps) as verifying in process."""

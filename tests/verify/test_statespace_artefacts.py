@@ -26,6 +26,9 @@ ROOT = Path(__file__).resolve().parents[2] / "examples"
 NAMES = ["h1", "h2", "h3"]
 
 
+pytestmark = pytest.mark.slow   # every test uses the designs of every state-space example
+
+
 @pytest.fixture(scope="module")
 def designed(tmp_path_factory) -> dict:
     out = {}

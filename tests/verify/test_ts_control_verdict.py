@@ -16,6 +16,9 @@ from tanksynth.verify.takagi_sugeno.verdicts import (rebuild_model, region_level
 EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "three_tank_ts_control.toml"
 
 
+pytestmark = pytest.mark.slow   # every test uses the TS controller designs and their closed-loop verdicts
+
+
 def _doc(result):
     return {"name": result.name, "method": result.method, "plant": result.plant,
             "gains": {k: np.asarray(v).tolist() for k, v in result.gains.items()},

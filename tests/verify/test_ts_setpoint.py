@@ -54,6 +54,7 @@ def test_max_on_ellipsoid_hard_case():
     assert max_on_ellipsoid(np.eye(2), 1.0, P2, d) == pytest.approx(4.01 + 0.01 / 3, rel=1e-9)
 
 
+@pytest.mark.slow
 def test_setpoint_verdict_passes_and_records_the_runs(pdc):
     spec, doc = pdc
     rec = TraceRecorder()
@@ -69,6 +70,7 @@ def test_setpoint_verdict_passes_and_records_the_runs(pdc):
     assert np.allclose(arr["setpoint_x"][:, -1], doc["gains"]["sp_x_op"], atol=0.002)
 
 
+@pytest.mark.slow
 def test_tampered_setpoint_artefacts_fail(pdc):
     spec, doc = pdc
     wide = copy.deepcopy(doc)
@@ -82,6 +84,7 @@ def test_tampered_setpoint_artefacts_fail(pdc):
     assert checks["setpoint_simulation"].passed is False
 
 
+@pytest.mark.slow
 def test_region_draws_cover_boundary_and_interior(pdc):
     spec, doc = pdc
     P, c = doc["gains"]["P"], float(doc["gains"]["region_c"][0])
@@ -96,6 +99,7 @@ def test_region_draws_cover_boundary_and_interior(pdc):
     assert np.array_equal(E, again)                     # seeded
 
 
+@pytest.mark.slow
 def test_campaign_run_judges_region_and_setpoint_like_the_verdict(pdc):
     spec, doc = pdc
     run = ts_control_run(doc, spec)

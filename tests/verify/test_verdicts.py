@@ -18,6 +18,9 @@ from tanksynth.verify import runner
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
 
 
+pytestmark = pytest.mark.slow   # every test uses a designed example and verifies it
+
+
 @pytest.fixture(scope="module")
 def designed(tmp_path_factory):
     out = tmp_path_factory.mktemp("artefacts")

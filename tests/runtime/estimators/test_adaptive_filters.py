@@ -30,6 +30,7 @@ def _akf(tank_plant, u_op, window, form="full"):
     return AdaptiveKalmanFilter(tank_plant, tun)
 
 
+@pytest.mark.slow
 def test_akf_recovers_a_known_q_within_20_percent(tank_plant, seed000_model):
     """Seed 000 eq. 36 with window 800 on synthetic data from the linearised three-tank."""
     u_op = seed000_model
@@ -52,6 +53,7 @@ def test_akf_recovers_a_known_q_within_20_percent(tank_plant, seed000_model):
     assert np.sqrt(np.mean(e_akf ** 2)) < 0.8 * np.sqrt(np.mean(e_kf ** 2))
 
 
+@pytest.mark.slow
 def test_akf_steady_state_form_is_biased(tank_plant, seed000_model):
     """Eq. 37 (K C_v K') drops P(k) - F P(k-1) F': not within 20% here (report finding)."""
     u_op = seed000_model

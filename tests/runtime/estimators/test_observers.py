@@ -80,6 +80,7 @@ def test_discrete_form_needs_a_linear_model(tank_plant):
         LuenbergerObserver(tank_plant, LuenbergerTuning(L=np.eye(3), x0=[0.4, 0.2, 0.3], ts=1.0))
 
 
+@pytest.mark.slow
 def test_ts_multi_observer_converges_on_the_nonlinear_three_tank():
     """Seed 001: TS multiple model of the three-tank, observer (20) with the printed L."""
     from tanksynth.analysis.takagi_sugeno import domain_from_plant, quasi_lpv, ts_model
