@@ -209,7 +209,8 @@ class TSModel:
         return {"premises": self.qlpv.atoms_as_dict(), "bounds": self.bounds.as_dict(),
                 "domain": self.domain.as_dict(), "r": self.r, "vertices_enumerated": self.enumerated,
                 "sigmas": [list(s) for s in self.sigmas] if small else None,
-                "A_vertices": self.A.tolist() if small and self.A is not None else None, "A0": self.A0.tolist(),
+                "A_vertices": self.A.tolist() if small and self.A is not None else None,
+                "A0": self.A0.tolist(),
                 "B": self.B.tolist(), "d": self.d.tolist(), "C": self.C.tolist()}
 
 
