@@ -51,18 +51,21 @@ def __getattr__(name: str) -> Any:
 def clear_cache(disk: bool = False) -> dict[str, int]:
     """Empty every cache tanksynth keeps in this process (and, with ``disk``, on disk).
 
-    The caches are: compiled numpy models of plants (`tanksynth.sim.tape`), loaded
-    native estimator kernels and per-plant model pieces (`tanksynth.runtime.cache`;
-    the compiled kernels live in ``$TANKSYNTH_CACHE``, else ``~/.cache/tanksynth/kernels``,
-    deleted with ``disk=True``), domain samples, LP ranges, premise bounds and lambdified
-    functions of the TS analysis (`tanksynth.analysis.quasi_lpv`), parsed specs of result directories
-    (`tanksynth.verify.runner`) and of campaign tasks (`tanksynth.verify.campaign`).
+    The caches are: compiled numpy models of plants (`tanksynth.sim.tape`); loaded native
+    kernels of the simulator (`tanksynth.sim.kernel`) and of the estimators, and per-plant
+    model pieces (`tanksynth.runtime.cache`); domain samples, LP ranges, premise bounds and
+    lambdified functions of the TS analysis (`tanksynth.analysis.quasi_lpv`); parsed specs of
+    result directories (`tanksynth.verify.runner`) and of campaign tasks
+    (`tanksynth.verify.campaign`). The compiled kernels live on disk under the one cache root
+    (`tanksynth.native_cache.cache_root`: ``$TANKSYNTH_CACHE_DIR``, else
+    ``$XDG_CACHE_HOME/tanksynth``, else ``~/.cache/tanksynth``), in ``sim/`` and ``kernels/``
+    (the estimators' in ``$TANKSYNTH_CACHE`` when it is set); ``disk=True`` deletes them.
     Everything is rebuilt on demand; results do not change.
 
     Parameters
     ----------
     disk : bool
-        Also delete the compiled kernels on disk.
+        Also delete the compiled kernels on disk (the simulator's and the estimators').
 
     Returns
     -------
@@ -71,6 +74,7 @@ def clear_cache(disk: bool = False) -> dict[str, int]:
     """
     from tanksynth.runtime.cache import clear_cache as _runtime
     from tanksynth.sim.tape import clear_cache as _sim
+    from tanksynth.sim.kernel import clear_cache as _sim_kernels
     from tanksynth.verify import campaign, runner
 
     from tanksynth.analysis.quasi_lpv import clear_cache as _analysis
@@ -78,6 +82,8 @@ def clear_cache(disk: bool = False) -> dict[str, int]:
     dropped = {"sim_models": _sim(), "result_specs": runner.clear_cache(),
                "analysis_samples": _analysis()}
     dropped.update(_runtime(disk=disk))
+    sim_native = _sim_kernels(disk)
+    dropped.update(sim_native_loaded=sim_native["loaded"], sim_native_files=sim_native["files"])
     dropped["campaign_specs"] = campaign.clear_cache()
     return dropped
 

@@ -3,9 +3,10 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any, Sequence
+from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 
 import sympy as sp
 
@@ -134,8 +135,8 @@ def equilibrium_checks(plant: Plant, eq) -> list[Check]:
     return out
 
 
-def rank_conditions(plant: Plant, x0: Sequence[float], ts: float | None = None,
-                    given_u0: Sequence[float] | None = None, samples: int = 200,
+def rank_conditions(plant: Plant, x0: npt.ArrayLike, ts: float | None = None,
+                    given_u0: npt.ArrayLike | None = None, samples: int = 200,
                     seed: int = 0) -> list[Check]:
     """Every rank verdict for a plant at an operating point.
 
@@ -149,11 +150,11 @@ def rank_conditions(plant: Plant, x0: Sequence[float], ts: float | None = None,
     Parameters
     ----------
     plant : Plant
-    x0 : sequence of float
+    x0 : array_like, shape (n,)
         Operating levels (state units, e.g. m).
     ts : float, optional
         Sampling period (s).
-    given_u0 : sequence of float, optional
+    given_u0 : array_like, shape (m,), optional
         Input written in the spec (its balance is reported).
     samples, seed : int
         Region sampling for the nonlinear check.
@@ -165,7 +166,7 @@ def rank_conditions(plant: Plant, x0: Sequence[float], ts: float | None = None,
     names = [s.name for s in plant.states]
     eq = equilibrium_input(plant, x0, given_u0)
     checks = equilibrium_checks(plant, eq)
-    if given_u0 is not None:
+    if eq.given_residual is not None:   # given_u0 was given
         bal = float(np.max(np.abs(eq.given_residual)))
         verdict = "balances the model" if bal <= eq.tolerance else "does NOT balance the model"
         # Informative (None): a printed input that does not balance is an
@@ -176,12 +177,12 @@ def rank_conditions(plant: Plant, x0: Sequence[float], ts: float | None = None,
     lin = linearize(plant, x0, eq.u0, ts=ts)
     checks.append(_kalman("controllability", controllability_rank(lin.F, lin.B)))
     checks.append(_kalman("observability", observability_rank(lin.F, lin.C)))
-    for kind, kw in (("controllability", {"B": lin.B}), ("observability", {"C": lin.C})):
-        pbh = pbh_test(lin.F, state_names=names, **kw)
+    for kind, pbh in (("controllability", pbh_test(lin.F, B=lin.B, state_names=names)),
+                      ("observability", pbh_test(lin.F, C=lin.C, state_names=names))):
         detail = "every mode passes" if pbh.passed else "; ".join(
             f"mode {m.eigenvalue:.4g} fails, lives in {', '.join(m.states)}" for m in pbh.modes)
         checks.append(Check(f"pbh_{kind}", pbh.passed, detail, pbh.as_dict()))
-    if ts is not None:
+    if lin.Ad is not None and lin.Bd is not None:   # discretised: ts was given
         checks.append(_kalman("controllability_discrete", controllability_rank(lin.Ad, lin.Bd)))
         checks.append(_kalman("observability_discrete", observability_rank(lin.Ad, lin.C)))
     nl = nonlinear_observability(plant, count=samples, seed=seed)
@@ -212,8 +213,8 @@ def rank_conditions(plant: Plant, x0: Sequence[float], ts: float | None = None,
         detail += (f"; {nl.undefined_points} sampled point(s) left out: a Lie derivative is not "
                    "finite there (a kink of sqrt/abs/max in the model)")
     checks.append(Check("nonlinear_observability", ok, detail, data))
-    jacobians = _analytic_jacobians(plant) if plant.n <= SYMBOLIC_MAX_STATES else False
-    if jacobians is False:
+    jacobians = _analytic_jacobians(plant) if plant.n <= SYMBOLIC_MAX_STATES else None
+    if plant.n > SYMBOLIC_MAX_STATES:
         checks.append(Check("symbolic_observability", None,
                             f"not attempted: n = {plant.n} > {SYMBOLIC_MAX_STATES} states"))
     elif jacobians is None:

@@ -8,9 +8,10 @@ and errata) come from `symbolic_jacobians`.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, Sequence
+from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 import scipy.linalg as sla
 import sympy as sp
 
@@ -72,14 +73,14 @@ class Equilibrium:
             "is_equilibrium": self.is_equilibrium, "tolerance": self.tolerance,
             "within_input_bounds": self.within_bounds,
         }
-        if self.given_u0 is not None:
+        if self.given_u0 is not None and self.given_residual is not None:  # set together
             out["given_u0"] = self.given_u0.tolist()
             out["given_u0_residual"] = self.given_residual.tolist()
             out["given_u0_balances"] = bool(np.max(np.abs(self.given_residual)) <= self.tolerance)
         return out
 
 
-def _vector(value: Sequence[float], size: int, name: str) -> np.ndarray:
+def _vector(value: npt.ArrayLike, size: int, name: str) -> np.ndarray:
     arr = np.asarray(value, dtype=float).reshape(-1)
     if arr.size != size:
         raise DimensionError(f"{name} has {arr.size} entries, expected {size}")
@@ -88,16 +89,16 @@ def _vector(value: Sequence[float], size: int, name: str) -> np.ndarray:
     return arr
 
 
-def equilibrium_input(plant: Plant, x0: Sequence[float], given_u0: Sequence[float] | None = None,
+def equilibrium_input(plant: Plant, x0: npt.ArrayLike, given_u0: npt.ArrayLike | None = None,
                       tolerance: float | None = None) -> Equilibrium:
     """Input balancing ``f(x0, u) = 0`` (least squares when over-determined).
 
     Parameters
     ----------
     plant : Plant
-    x0 : sequence of float, length n
+    x0 : array_like, shape (n,)
         Levels in the state units.
-    given_u0 : sequence of float, optional
+    given_u0 : array_like, shape (m,), optional
         An input to check against the model (its residual is reported).
     tolerance : float, optional
         Absolute tolerance on ``max |f(x0, u0)|`` (state units/s). Default:
@@ -108,31 +109,31 @@ def equilibrium_input(plant: Plant, x0: Sequence[float], given_u0: Sequence[floa
     -------
     Equilibrium
     """
-    x0 = _vector(x0, plant.n, "x0")
+    x = _vector(x0, plant.n, "x0")
     comp = plant.compiled
     zero = np.zeros((1, plant.m))
-    f0 = comp.rhs(x0[None], zero)[0]
-    G = comp.jacobians(x0[None], zero)[1][0]
+    f0 = comp.rhs(x[None], zero)[0]
+    G = comp.jacobians(x[None], zero)[1][0]
     with small_dense():   # an n x m least-squares problem: one BLAS thread
         u0, *_ = np.linalg.lstsq(G, -f0, rcond=None)
     # One Newton refinement in case the model is not affine in u.
     for _ in range(5 if plant.m else 0):  # no inputs (autonomous plant): nothing to solve
-        r = comp.rhs(x0[None], u0[None])[0]
-        Gk = comp.jacobians(x0[None], u0[None])[1][0]
+        r = comp.rhs(x[None], u0[None])[0]
+        Gk = comp.jacobians(x[None], u0[None])[1][0]
         with small_dense():
             step, *_ = np.linalg.lstsq(Gk, -r, rcond=None)
         u0 = u0 + step
         if np.max(np.abs(step)) <= 1e-15 * (1 + np.max(np.abs(u0))):
             break
-    residual = comp.rhs(x0[None], u0[None])[0]
+    residual = comp.rhs(x[None], u0[None])[0]
     scale = max(np.max(np.abs(f0)), np.max(np.abs(G @ u0)) if u0.size else 0.0)
     tol = float(tolerance) if tolerance is not None else float(max(1e-6 * scale, 1e-15))
     within = bool(all(lo - 1e-12 <= v <= hi + 1e-12 for v, (lo, hi) in zip(u0, plant.input_limits)))
     given = given_res = None
     if given_u0 is not None:
         given = _vector(given_u0, plant.m, "given u0")
-        given_res = comp.rhs(x0[None], given[None])[0]
-    return Equilibrium(x0, u0, residual, bool(np.max(np.abs(residual)) <= tol), tol, within,
+        given_res = comp.rhs(x[None], given[None])[0]
+    return Equilibrium(x, u0, residual, bool(np.max(np.abs(residual)) <= tol), tol, within,
                        given, given_res)
 
 
@@ -200,10 +201,14 @@ class LinearModel:
 
         if discrete is None:
             discrete = self.Ad is not None
-        if discrete and (self.Ad is None or self.ts is None):
+        dt: float   # 0: continuous time, as python-control reads it
+        if not discrete:
+            A, B, dt = self.F, self.B, 0
+        elif self.Ad is None or self.Bd is None or self.ts is None:
             raise SpecError("the linear model was not discretised: linearize(..., ts=...) first",
                             key="sampling.ts")
-        A, B = (self.Ad, self.Bd) if discrete else (self.F, self.B)
+        else:
+            A, B, dt = self.Ad, self.Bd, float(self.ts)
         D = np.zeros((self.C.shape[0], B.shape[1]))
         kw: dict[str, Any] = {}
         for key, names, size in (("states", self.state_names, A.shape[0]),
@@ -211,18 +216,18 @@ class LinearModel:
                                  ("outputs", self.output_names, self.C.shape[0])):
             if len(names) == size:
                 kw[key] = list(names)
-        return control.ss(A, B, self.C, D, float(self.ts) if discrete else 0, **kw)
+        return control.ss(A, B, self.C, D, dt, **kw)
 
 
-def linearize(plant: Plant, x0: Sequence[float], u0: Sequence[float], ts: float | None = None) -> LinearModel:
+def linearize(plant: Plant, x0: npt.ArrayLike, u0: npt.ArrayLike, ts: float | None = None) -> LinearModel:
     """Jacobian linearisation of a plant, optionally ZOH-discretised.
 
     Parameters
     ----------
     plant : Plant
-    x0 : sequence of float, length n
+    x0 : array_like, shape (n,)
         Operating state (state units, e.g. m).
-    u0 : sequence of float, length m
+    u0 : array_like, shape (m,)
         Operating input (input units, e.g. m^3/s).
     ts : float, optional
         Sampling period in s; if given, ``Ad`` and ``Bd`` are filled.
@@ -231,16 +236,16 @@ def linearize(plant: Plant, x0: Sequence[float], u0: Sequence[float], ts: float 
     -------
     LinearModel
     """
-    x0 = _vector(x0, plant.n, "x0")
-    u0 = _vector(u0, plant.m, "u0")
+    x = _vector(x0, plant.n, "x0")
+    u = _vector(u0, plant.m, "u0")
     comp = plant.compiled
-    F, B = comp.jacobians(x0[None], u0[None])
-    C = np.asarray(comp.jac_h(x0)).reshape(plant.q, plant.n)
-    offset = comp.rhs(x0[None], u0[None])[0]
+    F, B = comp.jacobians(x[None], u[None])
+    C = np.asarray(comp.jac_h(x)).reshape(plant.q, plant.n)
+    offset = comp.rhs(x[None], u[None])[0]
     Ad = Bd = None
     if ts is not None:
         Ad, Bd = discretize_zoh(F[0], B[0], ts)
-    return LinearModel(F[0], B[0], C, x0, u0, offset, ts, Ad, Bd,
+    return LinearModel(F[0], B[0], C, x, u, offset, ts, Ad, Bd,
                        tuple(s.name for s in plant.states), tuple(s.name for s in plant.inputs),
                        tuple(s.name for s in plant.outputs))
 

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, Sequence
+from typing import Any, Callable, Sequence
 
 import numpy as np
 import scipy.linalg as sla
@@ -240,7 +240,8 @@ def region_from_parts(parts: Sequence[tuple]) -> LMIRegion:
     SpecError
         An empty list or an invalid elementary region.
     """
-    builders = {"half_plane": half_plane, "disk": disk, "sector": sector}
+    builders: dict[str, Callable[..., LMIRegion]] = {"half_plane": half_plane, "disk": disk,
+                                                     "sector": sector}
     regions = []
     for part in parts:
         if not part or part[0] not in builders:

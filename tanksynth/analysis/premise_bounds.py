@@ -150,10 +150,18 @@ def _premise_bounds(qlpv: QuasiLPV, domain: Domain, dens: list, method: str, sam
             with np.errstate(invalid="ignore", divide="ignore"):
                 return sign * (atoms(X)[:, k] / (X @ qlpv.weights[k]))
 
-        up = branch_and_bound(lambda lo, hi, e=e: interval_evaluate(e, qlpv.states, lo, hi)[1],
-                              point, domain, pts, rtol, max_boxes, max_rounds, seed_values=Z[:, k])
-        dn = branch_and_bound(lambda lo, hi, e=e: -interval_evaluate(e, qlpv.states, lo, hi)[0],
-                              lambda X, k=k: point(X, k, -1.0), domain, pts, rtol, max_boxes,
+        def upper_bound(lo: np.ndarray, hi: np.ndarray, e=e) -> np.ndarray:
+            return interval_evaluate(e, qlpv.states, lo, hi)[1]
+
+        def negated_lower_bound(lo: np.ndarray, hi: np.ndarray, e=e) -> np.ndarray:
+            return -interval_evaluate(e, qlpv.states, lo, hi)[0]
+
+        def negated_point(X: np.ndarray, k: int = k) -> np.ndarray:
+            return point(X, k, -1.0)
+
+        up = branch_and_bound(upper_bound, point, domain, pts, rtol, max_boxes, max_rounds,
+                              seed_values=Z[:, k])
+        dn = branch_and_bound(negated_lower_bound, negated_point, domain, pts, rtol, max_boxes,
                               max_rounds, seed_values=-Z[:, k])
         if not (np.isfinite(up[0]) and np.isfinite(dn[0])):
             raise SpecError(f"premise z{k + 1} = {e} has no finite interval enclosure on the domain",

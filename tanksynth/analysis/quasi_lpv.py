@@ -25,6 +25,7 @@ from dataclasses import dataclass, field
 from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
+import numpy.typing as npt
 import sympy as sp
 
 from tanksynth.analysis.symbolic import canonical_form, form_symbol, jacobian
@@ -443,16 +444,16 @@ class QuasiLPV:
             self._cache["premise_expressions"] = tuple(out)
         return self._cache["premise_expressions"]
 
-    def A_of(self, z: Sequence[float]) -> np.ndarray:
+    def A_of(self, z: npt.ArrayLike) -> np.ndarray:
         """``A(z)`` for one premise vector (1/s).
 
         Parameters
         ----------
-        z : sequence of float
+        z : array_like, shape (p,)
             Premise values, one per atom (their own units).
         """
-        z = np.asarray(z, dtype=float).reshape(self.p)
-        return self.A_lin + np.einsum("k,ik,kj->ij", z, self.incidence, self.weights)
+        premises = np.asarray(z, dtype=float).reshape(self.p)
+        return self.A_lin + np.einsum("k,ik,kj->ij", premises, self.incidence, self.weights)
 
     def A_symbolic(self, symbolic_weights: bool = False) -> sp.Matrix:
         """``A(z)`` in the premise symbols (eq. 10).

@@ -12,6 +12,7 @@ from typing import Sequence
 
 import casadi as ca
 import numpy as np
+import numpy.typing as npt
 import sympy as sp
 
 from tanksynth.errors import DimensionError, SpecError
@@ -297,8 +298,7 @@ def pbh_test(A: np.ndarray, B: np.ndarray | None = None, C: np.ndarray | None = 
     n = A.shape[0]
     names = list(state_names) if state_names is not None else [f"x{i + 1}" for i in range(n)]
     with small_dense():
-        if tol is None:
-            tol = 1e-9 * (1.0 + np.linalg.norm(A, 2))
+        threshold = float(tol) if tol is not None else float(1e-9 * (1.0 + np.linalg.norm(A, 2)))
         eigenvalues = np.linalg.eigvals(A)
     kind = "observability" if C is not None else "controllability"
     modes = []
@@ -312,7 +312,7 @@ def pbh_test(A: np.ndarray, B: np.ndarray | None = None, C: np.ndarray | None = 
         with small_dense():
             s = np.linalg.svd(pencil, compute_uv=False)
         smin = float(s[min(n, len(s)) - 1]) if len(s) >= n else 0.0
-        if smin <= tol:
+        if smin <= threshold:
             with small_dense():
                 if C is not None:
                     _, s, vh = np.linalg.svd(pencil)
@@ -323,7 +323,7 @@ def pbh_test(A: np.ndarray, B: np.ndarray | None = None, C: np.ndarray | None = 
             mag = np.abs(direction)
             states = tuple(nm for nm, v in zip(names, mag) if v >= 0.1 * mag.max())
             modes.append(PBHMode(complex(lam), direction, states, smin))
-    return PBHResult(kind, tuple(modes), float(tol))
+    return PBHResult(kind, tuple(modes), threshold)
 
 
 @dataclass(frozen=True)
@@ -393,7 +393,7 @@ class NonlinearObservability:
 
 
 def nonlinear_observability(plant: Plant, points: np.ndarray | None = None, count: int = 200,
-                            seed: int = 0, u: Sequence[float] | None = None,
+                            seed: int = 0, u: npt.ArrayLike | None = None,
                             rtol: float = 1e-9) -> NonlinearObservability:
     """Local observability rank ``rank d(L_f^k h), k = 0..n-1`` over the region.
 
@@ -418,7 +418,7 @@ def nonlinear_observability(plant: Plant, points: np.ndarray | None = None, coun
         (kept 1% away from its faces).
     count, seed : int
         Sampling of the region when ``points`` is not given.
-    u : sequence of float, optional
+    u : array_like, shape (m,), optional
         Constant input for ``f``; default the middle of the input bounds.
     rtol : float
         Singular values below ``rtol * s_max`` (rows scaled to unit norm)
@@ -438,14 +438,15 @@ def nonlinear_observability(plant: Plant, points: np.ndarray | None = None, coun
     if u is None:
         u = [0.5 * (lo + hi) if np.isfinite(lo) and np.isfinite(hi) else 0.0
              for lo, hi in plant.input_limits]
-    u = np.asarray(u, dtype=float).reshape(plant.m)
+    u_value = np.asarray(u, dtype=float).reshape(plant.m)
     M = len(points)
     undefined = 0
     names = tuple(st.name for st in plant.states)
     # f at the constant input (numbers for u, as the check uses it), h, in CasADi once
-    f = plant.f_smooth_numeric.xreplace({s: sp.Float(v) for s, v in zip(plant.u, u)})
+    f = plant.f_smooth_numeric.xreplace({s: sp.Float(v) for s, v in zip(plant.u, u_value)})
     xs, us = ca.SX.sym("x", plant.n), ca.SX.sym("u", plant.m)
-    symbols, cache = dict(zip(plant.x, ca.vertsplit(xs))), {}
+    symbols = dict(zip(plant.x, ca.vertsplit(xs)))
+    cache: dict = {}
     fx = ca.vertcat(*[to_casadi(e, symbols, cache) for e in f])
     L = ca.vertcat(*[to_casadi(e, symbols, cache) for e in plant.h_numeric])
     blocks = []
@@ -453,7 +454,7 @@ def nonlinear_observability(plant: Plant, points: np.ndarray | None = None, coun
         # one order at a time: only the new block d(L_f^k h) is built and evaluated
         grad = ca.jacobian(L, xs)
         fn = ca.Function("codist", [xs, us], [grad], ["x", "u"], ["out"])
-        blocks.append(_evaluate(fn, grad.shape[0], plant.n, points, u))
+        blocks.append(_evaluate(fn, grad.shape[0], plant.n, points, u_value))
         finite = np.all(np.isfinite(blocks[-1].reshape(len(points), -1)), axis=1)
         if not np.all(finite):
             # a kink of sqrt/abs/max where a derivative is infinite: no rank is defined there
@@ -473,12 +474,13 @@ def nonlinear_observability(plant: Plant, points: np.ndarray | None = None, coun
         ranks = np.sum(s > rtol * s[:, :1], axis=1)
         smin = s[:, plant.n - 1] if s.shape[1] >= plant.n else np.zeros(M)
         if np.all(ranks == plant.n):
-            return NonlinearObservability(k + 1, ranks, points, smin, plant.n, u,
+            return NonlinearObservability(k + 1, ranks, points, smin, plant.n, u_value,
                                           np.zeros((0, plant.n)), names, undefined)
         L = ca.mtimes(grad, fx)
     drops = np.flatnonzero(ranks < plant.n)[:10]
     dirs = np.array([np.linalg.svd(scaled[i])[2][-1] for i in drops]).reshape(-1, plant.n)
-    return NonlinearObservability(plant.n, ranks, points, smin, plant.n, u, dirs, names, undefined)
+    return NonlinearObservability(plant.n, ranks, points, smin, plant.n, u_value, dirs, names,
+                                  undefined)
 
 
 def _codistribution(plant: Plant, orders: int):
@@ -581,7 +583,7 @@ def observability_determinant_zeros(plant: Plant, result: NonlinearObservability
     pairs = [(pts[i], pts[i + 1], d[i], d[i + 1]) for i in range(len(pts) - 1)]
     dc = float(det_at(centre)[0])
     pairs += [(pts[i], centre, d[i], dc) for i in range(len(pts))]
-    zeros = []
+    zeros: list[np.ndarray] = []
     for a, b, da, db in pairs:
         if len(zeros) >= max_zeros:
             break

@@ -39,6 +39,7 @@ from dataclasses import dataclass
 from typing import Any, Sequence
 
 import numpy as np
+import numpy.typing as npt
 import sympy as sp
 
 from tanksynth.analysis import blas as _blas
@@ -132,12 +133,12 @@ class TSModel:
         """Mean input matrix (all ``B_i`` are equal)."""
         return self.B
 
-    def vertex(self, sigma: Sequence[int]) -> np.ndarray:
+    def vertex(self, sigma: Sequence[int] | npt.NDArray[np.integer]) -> np.ndarray:
         """``A_i`` for one ``sigma`` (1 = max, 2 = min per premise), 1/s.
 
         Parameters
         ----------
-        sigma : sequence of int
+        sigma : sequence of int or ndarray of int, shape (p,)
             One index per premise: 1 for its maximum, 2 for its minimum.
         """
         sigma = tuple(int(v) for v in sigma)
@@ -193,7 +194,7 @@ class TSModel:
         """
         X = np.atleast_2d(np.asarray(X, dtype=float))
         U = np.atleast_2d(np.asarray(U, dtype=float))
-        if self.enumerated:
+        if self.A is not None:   # the vertices are enumerated
             mu = self.memberships(X)
             return np.einsum("mi,inj,mj->mn", mu, self.A, X) + U @ self.B.T + self.d
         # sum_i mu_i A_i = A_lin + sum_k (F_k1 z_k1 + F_k2 z_k2) M_k w_k' (products of F sum to 1)
@@ -208,7 +209,8 @@ class TSModel:
         return {"premises": self.qlpv.atoms_as_dict(), "bounds": self.bounds.as_dict(),
                 "domain": self.domain.as_dict(), "r": self.r, "vertices_enumerated": self.enumerated,
                 "sigmas": [list(s) for s in self.sigmas] if small else None,
-                "A_vertices": self.A.tolist() if small else None, "A0": self.A0.tolist(),
+                "A_vertices": self.A.tolist() if small and self.A is not None else None,
+                "A0": self.A0.tolist(),
                 "B": self.B.tolist(), "d": self.d.tolist(), "C": self.C.tolist()}
 
 
@@ -381,7 +383,7 @@ def vertex_observability(ts: TSModel, C: np.ndarray | None = None, symbolic: boo
     """
     C = ts.C if C is None else np.atleast_2d(np.asarray(C, dtype=float))
     n = ts.qlpv.n
-    count = len(ts.A) if ts.enumerated else int(sample_vertices)
+    count = len(ts.A) if ts.A is not None else int(sample_vertices)
     sv = np.linalg.svd(C, compute_uv=False) if C.size else np.zeros(0)
     tol = max(C.shape) * np.finfo(float).eps * (sv[0] if sv.size else 0.0)
     if C.shape[1] == n and int(np.sum(sv > tol)) == n:
@@ -391,7 +393,7 @@ def vertex_observability(ts: TSModel, C: np.ndarray | None = None, symbolic: boo
                                    f"A_i is; the Kalman ranks of the {count} vertices were not "
                                    f"computed")
     ranks, conds, bad = [], [], []
-    if ts.enumerated:
+    if ts.A is not None:   # the vertices are enumerated
         vertices = ts.A
     else:   # 2^p too many: a seeded sample of vertices (reported as such)
         rng = np.random.default_rng(0)
@@ -407,6 +409,7 @@ def vertex_observability(ts: TSModel, C: np.ndarray | None = None, symbolic: boo
     sym = None
     if symbolic and ts.qlpv.n <= 4:
         C_exact = sp.Matrix([[exact(v) for v in row] for row in C])
-        res = _rank.symbolic_observability(ts.qlpv.A_symbolic(), C_exact, ts.qlpv.premise_symbols)
-        sym = res.as_dict()
+        symbolic_rank = _rank.symbolic_observability(ts.qlpv.A_symbolic(), C_exact,
+                                                     ts.qlpv.premise_symbols)
+        sym = symbolic_rank.as_dict()
     return VertexObservability(tuple(ranks), tuple(conds), tuple(bad), sym)

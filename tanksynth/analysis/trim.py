@@ -11,9 +11,8 @@ region, and keeps the solution inside the region with the smallest residual.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Sequence
-
 import numpy as np
+import numpy.typing as npt
 
 from tanksynth.errors import DimensionError
 from tanksynth.plants.base import Plant
@@ -63,16 +62,16 @@ class Trim:
                 "starts": self.starts}
 
 
-def trim(plant: Plant, u: Sequence[float], x_guess: Sequence[float] | None = None,
+def trim(plant: Plant, u: npt.ArrayLike, x_guess: npt.ArrayLike | None = None,
          starts: int = 20, seed: int = 0, tolerance: float | None = None) -> Trim:
     """Levels ``x`` with ``f(x, u) = 0`` for given inputs ``u`` (root finding on the model).
 
     Parameters
     ----------
     plant : Plant
-    u : sequence of float, length m
+    u : array_like, shape (m,)
         Inputs (pump flows) in the input units.
-    x_guess : sequence of float, optional
+    x_guess : array_like, shape (n,), optional
         First starting point (state units); then the region's centre and
         ``starts`` seeded samples of the region.
     starts : int
@@ -91,9 +90,9 @@ def trim(plant: Plant, u: Sequence[float], x_guess: Sequence[float] | None = Non
         its region, e.g. more inflow than the outlets can drain).
     """
     from scipy.optimize import root  # deferred: scipy.optimize imports in ~0.15 s
-    u = np.asarray(u, dtype=float).reshape(-1)
-    if u.size != plant.m or not np.all(np.isfinite(u)):
-        raise DimensionError(f"u must have {plant.m} finite entries, got {u.tolist()}")
+    u_vec = np.asarray(u, dtype=float).reshape(-1)
+    if u_vec.size != plant.m or not np.all(np.isfinite(u_vec)):
+        raise DimensionError(f"u must have {plant.m} finite entries, got {u_vec.tolist()}")
     comp = plant.compiled
     lo = np.array([b[0] for b in plant.region.bounds], dtype=float)
     hi = np.array([b[1] for b in plant.region.bounds], dtype=float)
@@ -108,15 +107,15 @@ def trim(plant: Plant, u: Sequence[float], x_guess: Sequence[float] | None = Non
     except Exception:  # a region too thin to sample: the box centre only
         pass
     points.append(0.5 * (lo + hi))
-    G = comp.jacobians(points[-1][None], u[None])[1][0]
-    scale = float(np.max(np.abs(G @ u))) if u.size else 0.0
+    G = comp.jacobians(points[-1][None], u_vec[None])[1][0]
+    scale = float(np.max(np.abs(G @ u_vec))) if u_vec.size else 0.0
     tol = float(tolerance) if tolerance is not None else max(1e-9 * scale, 1e-15)
 
     def fun(x):
-        return comp.rhs(x[None], u[None])[0]
+        return comp.rhs(x[None], u_vec[None])[0]
 
     def jac(x):
-        return comp.jacobians(x[None], u[None])[0][0]
+        return comp.jacobians(x[None], u_vec[None])[0][0]
 
     best = None
     for x0 in points:
@@ -136,9 +135,9 @@ def trim(plant: Plant, u: Sequence[float], x_guess: Sequence[float] | None = Non
             break
     if best is None:
         x = points[-1]
-        return Trim(x, u, fun(x), False, tol, False, ("no start converged",), len(points))
+        return Trim(x, u_vec, fun(x), False, tol, False, ("no start converged",), len(points))
     (_, worst), x, r, bad = best
-    return Trim(x, u, r, bool(not bad and worst <= tol), tol, not bad, bad, len(points))
+    return Trim(x, u_vec, r, bool(not bad and worst <= tol), tol, not bad, bad, len(points))
 
 
 @dataclass(frozen=True)
@@ -173,7 +172,7 @@ class LevelFix:
         return f"{self.state} = {self.value:.4g}" + (f" {unit}" if unit else "")
 
 
-def balancing_levels(plant: Plant, x: Sequence[float], tolerance: float) -> list[LevelFix]:
+def balancing_levels(plant: Plant, x: npt.ArrayLike, tolerance: float) -> list[LevelFix]:
     """Equilibria that differ from ``x`` in one state only (a hint for a wrong operating point).
 
     For each state ``i``, the other states are held at ``x`` and ``x_i`` and the
@@ -184,7 +183,7 @@ def balancing_levels(plant: Plant, x: Sequence[float], tolerance: float) -> list
     Parameters
     ----------
     plant : Plant
-    x : sequence of float, length n
+    x : array_like, shape (n,)
         The operating point given (state units).
     tolerance : float
         Absolute tolerance on ``max |f(x, u)|`` (state units per s), e.g. the
@@ -198,9 +197,9 @@ def balancing_levels(plant: Plant, x: Sequence[float], tolerance: float) -> list
     """
     from scipy.optimize import least_squares  # deferred: only for an operating point that is wrong
 
-    x = np.asarray(x, dtype=float).reshape(-1)
-    if x.size != plant.n or not np.all(np.isfinite(x)):
-        raise DimensionError(f"x must have {plant.n} finite entries, got {x.tolist()}")
+    level = np.asarray(x, dtype=float).reshape(-1)   # the operating point given
+    if level.size != plant.n or not np.all(np.isfinite(level)):
+        raise DimensionError(f"x must have {plant.n} finite entries, got {level.tolist()}")
     comp = plant.compiled
     lo = np.array([b[0] for b in plant.region.bounds], dtype=float)
     hi = np.array([b[1] for b in plant.region.bounds], dtype=float)
@@ -211,7 +210,7 @@ def balancing_levels(plant: Plant, x: Sequence[float], tolerance: float) -> list
             continue
 
         def point(z, i=i):
-            xi = x.copy()
+            xi = level.copy()
             xi[i] = z[0]
             return xi, z[1:]
 
@@ -224,7 +223,7 @@ def balancing_levels(plant: Plant, x: Sequence[float], tolerance: float) -> list
             A, B = (J[0] for J in comp.jacobians(xi[None], u[None]))
             return np.column_stack([A[:, i], B])
 
-        z0 = np.concatenate([[np.clip(x[i], lo[i], hi[i])], ulim.mean(axis=1)])
+        z0 = np.concatenate([[np.clip(level[i], lo[i], hi[i])], ulim.mean(axis=1)])
         with np.errstate(all="ignore"):
             try:
                 sol = least_squares(fun, z0, jac=jac, bounds=(np.r_[lo[i], ulim[:, 0]],
@@ -236,21 +235,22 @@ def balancing_levels(plant: Plant, x: Sequence[float], tolerance: float) -> list
         r = fun(sol.x)
         if not np.all(np.isfinite(r)) or float(np.max(np.abs(r))) > tolerance:
             continue
-        if plant.region.violations(xi, plant.x) or abs(xi[i] - x[i]) <= 1e-12 * max(1.0, abs(x[i])):
+        if (plant.region.violations(xi, plant.x)
+                or abs(xi[i] - level[i]) <= 1e-12 * max(1.0, abs(level[i]))):
             continue
-        fixes.append((abs(xi[i] - x[i]) / (hi[i] - lo[i]),
+        fixes.append((abs(xi[i] - level[i]) / (hi[i] - lo[i]),
                       LevelFix(st.name, float(xi[i]), np.asarray(u, dtype=float),
                                float(np.max(np.abs(r))))))
     return [f for _, f in sorted(fixes, key=lambda t: t[0])]
 
 
-def balancing_hint(plant: Plant, x: Sequence[float], tolerance: float) -> str:
+def balancing_hint(plant: Plant, x: npt.ArrayLike, tolerance: float) -> str:
     """One sentence naming the single-state changes that make ``x`` an equilibrium ("" if none).
 
     Parameters
     ----------
     plant : Plant
-    x : sequence of float
+    x : array_like, shape (n,)
         The operating point given (state units).
     tolerance : float
         Absolute tolerance on ``max |f(x, u)|`` (state units per s).

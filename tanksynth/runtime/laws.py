@@ -479,6 +479,7 @@ def rename_law(law: ca.Function, name: str) -> ca.Function:
         New name (made a C identifier).
     """
     sym = ca.MX.sym if law.is_a("MXFunction") else ca.SX.sym
-    ins = [sym(law.name_in(i), law.sparsity_in(i)) for i in range(law.n_in())]
+    ins: list[Any] = [sym(law.name_in(i), law.sparsity_in(i))   # all MX or all SX, as the law's
+                      for i in range(law.n_in())]
     outs = law.call(ins)
     return ca.Function(_c_ident(name), ins, outs, law.name_in(), law.name_out())

@@ -60,13 +60,13 @@ def _function(model: Any, substeps: int, runs: int) -> Any:
     lo = ca.SX.sym("lower", n)
     hi = ca.SX.sym("upper", n)
     d = [x[j] - xr[j] for j in range(n)]
-    u = []
+    inputs = []
     for i in range(m):
         acc = K[i * n] * d[0]
         for j in range(1, n):
             acc = acc + K[i * n + j] * d[j]
-        u.append(ca.fmin(ca.fmax(b[i] - acc, ulo[i]), uhi[i]))
-    u = ca.vertcat(*u)
+        inputs.append(ca.fmin(ca.fmax(b[i] - acc, ulo[i]), uhi[i]))
+    u = ca.vertcat(*inputs)
     x1, crossed, low, high = period(x, u, c, p, h, lo, hi)
     step = ca.Function("affine_period", [x, b, K, xr, ulo, uhi, c, p, h, lo, hi],
                        [x1, u, crossed, low, high])
@@ -148,9 +148,9 @@ def affine_horizon(integ: Any, x: np.ndarray, b: np.ndarray, K: np.ndarray, x_re
            np.empty((count, CHUNK, substeps)), np.empty((count, CHUNK, substeps))]
     buf, run = fn.buffer()
     for j, a in enumerate(args):
-        buf.set_arg(j, memoryview(a))
+        buf.set_arg(j, a.data)
     for j, r in enumerate(res):
-        buf.set_res(j, memoryview(r))
+        buf.set_res(j, r.data)
     b = np.asarray(b, dtype=float)
     X = np.empty((count, N + 1, n))
     U = np.empty((count, N, m))

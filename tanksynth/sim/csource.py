@@ -105,7 +105,8 @@ class _Expr:
             if isinstance(e, ast.Constant) and isinstance(e.value, (int, float)):
                 val = float(e.value)
             elif (isinstance(e, ast.UnaryOp) and isinstance(e.op, ast.USub)
-                  and isinstance(e.operand, ast.Constant)):
+                  and isinstance(e.operand, ast.Constant)
+                  and isinstance(e.operand.value, (int, float))):
                 val = -float(e.operand.value)
             if val == 2.0:
                 return f"({a} * {a})"
@@ -176,9 +177,11 @@ class _Expr:
 
     def _select(self, node: ast.Call) -> str:
         """``numpy.select(conds, values, default)`` as nested conditionals (first true wins)."""
-        if len(node.args) != 2 or not all(isinstance(a, ast.List) for a in node.args):
+        if len(node.args) != 2:
             raise _Unsupported("select")
         conds, values = node.args
+        if not (isinstance(conds, ast.List) and isinstance(values, ast.List)):
+            raise _Unsupported("select")
         default = next((k.value for k in node.keywords if k.arg == "default"), None)
         out = self(default) if default is not None else "NAN"
         for cond, value in reversed(list(zip(conds.elts, values.elts))):
@@ -219,7 +222,8 @@ def _function_body(tree: ast.Module, name: str, rows: list[str], consts: str, pa
             lines.append(f"const double {var} = {expr(value)};")
             env[target.id] = var
         elif (isinstance(target, ast.Subscript) and isinstance(target.value, ast.Name)
-              and target.value.id == "out" and isinstance(target.slice, ast.Constant)):
+              and target.value.id == "out" and isinstance(target.slice, ast.Constant)
+              and isinstance(target.slice.value, int)):
             name = out[int(target.slice.value)]
             decl = "" if "[" in name else "const double "       # array element or new local
             lines.append(f"{decl}{name} = {expr(value)};")

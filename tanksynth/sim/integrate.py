@@ -461,9 +461,9 @@ class Integrator:
                    np.empty((count, substeps))]
             buf, run = model.casadi_advance(substeps, count).buffer()
             for j, a in enumerate(args):
-                buf.set_arg(j, memoryview(a))
+                buf.set_arg(j, a.data)
             for j, r in enumerate(res):
-                buf.set_res(j, memoryview(r))
+                buf.set_res(j, r.data)
             slot = self._buffers[(substeps, count)] = [args, res, buf, run, None]
         args, res, _, run, filled = slot
         args[0][...] = x
@@ -558,9 +558,9 @@ class Integrator:
                np.empty((count, N, substeps)), np.empty((count, N, substeps))]
         buf, run = fn.buffer()
         for j, a in enumerate(args):
-            buf.set_arg(j, memoryview(a))
+            buf.set_arg(j, a.data)
         for j, r in enumerate(res):
-            buf.set_res(j, memoryview(r))
+            buf.set_res(j, r.data)
         run()
         X, crossed, low, high = res
         if crossed.any() or not np.isfinite(X).all():

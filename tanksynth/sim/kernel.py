@@ -102,11 +102,11 @@ def cache_dir() -> Path:
     return _CACHE.directory()
 
 
-_ARGTYPES = [ctypes.c_long, ctypes.c_long, ctypes.c_int, ctypes.c_double, ctypes.c_void_p,
+_ARGTYPES = (ctypes.c_long, ctypes.c_long, ctypes.c_int, ctypes.c_double, ctypes.c_void_p,
              ctypes.c_void_p, ctypes.c_long, ctypes.c_long, ctypes.c_void_p, ctypes.c_long,
              ctypes.c_void_p, ctypes.c_long, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_void_p,
              ctypes.c_void_p, ctypes.c_long, ctypes.c_long, ctypes.c_void_p, ctypes.c_void_p,
-             ctypes.c_void_p]
+             ctypes.c_void_p)
 
 
 class NativeKernel:

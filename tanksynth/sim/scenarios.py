@@ -30,6 +30,7 @@ from dataclasses import dataclass, field, replace
 from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
+import numpy.typing as npt
 
 from tanksynth.errors import SpecError
 from tanksynth.plants.base import Plant
@@ -186,19 +187,19 @@ class Scenario:
         """
         return not self.plants or plant.name in self.plants
 
-    def setup(self, plant: Plant, x_op: Sequence[float], u_op: Sequence[float] | None = None,
-              tracked: Sequence[int] | None = None, ts: float = 1.0) -> ScenarioSetup:
+    def setup(self, plant: Plant, x_op: npt.ArrayLike, u_op: npt.ArrayLike | None = None,
+              tracked: Sequence[int] | np.ndarray | None = None, ts: float = 1.0) -> ScenarioSetup:
         """Concrete arrays for one plant and operating point.
 
         Parameters
         ----------
         plant : Plant
-        x_op : sequence of float, length n
+        x_op : array_like, shape (n,)
             Operating levels (state units): initial state (unless the scenario
             gives one) and initial set-points of the tracked states.
-        u_op : sequence of float, length m, optional
+        u_op : array_like, shape (m,), optional
             Operating input (input units, held before t = 0); default zeros.
-        tracked : sequence of int, optional
+        tracked : sequence of int or ndarray of int, optional
             Indices of the controlled states (default: the first ``m``).
         ts : float
             Sampling period (s), to place faults given in seconds.
@@ -213,21 +214,22 @@ class Scenario:
             raise SpecError(f"scenario '{self.name}' is defined for {', '.join(self.plants)}, "
                             f"not for plant '{plant.name}'", key="scenario")
         n = plant.n
-        x_op = np.asarray(x_op, dtype=float).reshape(n)
-        tracked = tuple(range(min(plant.m, n))) if tracked is None else tuple(int(i) for i in tracked)
+        x_point = np.asarray(x_op, dtype=float).reshape(n)
+        tracked_states = (tuple(range(min(plant.m, n))) if tracked is None
+                          else tuple(int(i) for i in tracked))
         u_init = np.zeros(plant.m) if u_op is None else np.asarray(u_op, dtype=float).reshape(plant.m)
         N = self.steps
-        ref = np.tile(x_op[list(tracked)], (N + 1, 1))
+        ref = np.tile(x_point[list(tracked_states)], (N + 1, 1))
         for sample, step in self.setpoint_steps:
             ref[sample:] += step
         for sample, comp, step in self.reference_steps:
             ref[sample:, comp] += step
-        x0 = x_op.copy() if self.x0 is None else np.asarray(self.x0, dtype=float)
+        x0 = x_point.copy() if self.x0 is None else np.asarray(self.x0, dtype=float)
         xh0 = x0.copy() if self.x_hat0 is None else np.asarray(self.x_hat0, dtype=float)
         jumps = []
         for sample, delta in self.jumps:
             d = np.zeros(n)
-            d[list(tracked)] = delta
+            d[list(tracked_states)] = delta
             jumps.append(StateJump(sample, tuple(d)))
         nominal = {p.name: p.value for p in plant.parameters}
         params = {}
@@ -251,12 +253,13 @@ class Scenario:
                 raise SpecError(f"unknown fault kind {kind!r}", key="scenario.faults")
             changes.append(ParameterChange(int(when), {name: float(new)}))
         disturbances = tuple(sorted({s for s, _ in self.jumps} | {c.sample for c in changes}))
-        setpoints = {s for s, _ in self.setpoint_steps} | {s for s, _, _ in self.reference_steps}
+        setpoint_samples = ({s for s, _ in self.setpoint_steps}
+                            | {s for s, _, _ in self.reference_steps})
         if self.x0 is not None:
-            setpoints.add(0)  # reaching the set-points from a distant initial state
-        setpoints = tuple(sorted(setpoints))
-        return ScenarioSetup(self, N, x0, xh0, ref, tracked, params, tuple(changes), tuple(jumps),
-                             setpoints, disturbances, u_init, self.input_schedule)
+            setpoint_samples.add(0)  # reaching the set-points from a distant initial state
+        return ScenarioSetup(self, N, x0, xh0, ref, tracked_states, params, tuple(changes),
+                             tuple(jumps), tuple(sorted(setpoint_samples)), disturbances, u_init,
+                             self.input_schedule)
 
 
 def uncertain_parameters(plant: Plant) -> tuple[str, ...]:
@@ -345,7 +348,7 @@ def scenario(name: str) -> Scenario:
     return SCENARIOS[name]
 
 
-def run_scenario(setup: ScenarioSetup, plant: Plant, *, ts: float, seeds: Sequence[int],
+def run_scenario(setup: ScenarioSetup, plant: Plant, *, ts: float, seeds: Sequence[int] | np.ndarray,
                  controller: Callable | None = None, estimator: BatchEstimator | None = None,
                  substeps: int = 4, **kwargs: Any) -> SimulationResult:
     """Simulate a concrete scenario for every seed (one batch).
@@ -358,7 +361,7 @@ def run_scenario(setup: ScenarioSetup, plant: Plant, *, ts: float, seeds: Sequen
         and faults).
     ts : float
         Sampling period (s).
-    seeds : sequence of int
+    seeds : sequence of int or ndarray of int
         One per run.
     controller : ControlLaw, optional
         Default: the scenario's input schedule, or the operating input held.

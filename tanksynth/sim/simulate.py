@@ -72,6 +72,10 @@ __all__ = [
     "simulate_inputs",
 ]
 
+#: ``(x, y, u, x_hat, modes)`` of M runs, run-major: shapes (M, N + 1, n), (M, N + 1, q),
+#: (M, N, m), (M, N + 1, n), (M, N + 1, k).
+_Runs = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]
+
 
 @dataclass(frozen=True)
 class SimulationResult:
@@ -290,9 +294,10 @@ def simulate(plant: Plant, *, ts: float, steps: int, x0: Sequence[float] | np.nd
     # Noise: one generator per run, drawn in a fixed order (process, then measurement).
     # Without noise nothing is drawn (the draws would be multiplied by zero).
     noisy = bool(np.any(wstd != 0) or np.any(vstd != 0))
-    w = np.empty((M, N, n)) if noisy else None
-    v = np.empty((M, N + 1, q)) if noisy else None
+    w: np.ndarray | None = None   # process noise, (M, N, n) when noisy
+    v: np.ndarray | None = None   # measurement noise, (M, N + 1, q) when noisy
     if noisy:
+        w, v = np.empty((M, N, n)), np.empty((M, N + 1, q))
         for r, s in enumerate(seeds):
             rng = np.random.default_rng(int(s))
             w[r] = rng.standard_normal((N, n))
@@ -314,12 +319,13 @@ def simulate(plant: Plant, *, ts: float, steps: int, x0: Sequence[float] | np.nd
     x = integ.clip(x)
     # Input limits depend on the parameters only: rebuilt when a change applies.
     lo, hi = input_limits(plant, params, M)
-    sequence = isinstance(controller, InputSequence) and controller.inputs.shape[0] >= N
-    if (controller is None or sequence) and not noisy and not jump_at:
+    sequence = (controller.inputs if isinstance(controller, InputSequence)
+                and controller.inputs.shape[0] >= N else None)
+    if (controller is None or sequence is not None) and not noisy and not jump_at:
         # The inputs are known in advance (held, or a given sequence), whatever the estimate: the
         # plant does not depend on the estimator. The whole horizon in one call per stretch
         # between parameter changes (same numbers), then the estimator over its measurements.
-        seq = controller.inputs[:N] if sequence else np.broadcast_to(u_prev, (N, M, m))
+        seq = sequence[:N] if sequence is not None else np.broadcast_to(u_prev, (N, M, m))
         done = (_open_loop_changes(integ, plant, x, seq, params, schedule, ts, int(substeps))
                 if schedule else _open_loop(integ, x, seq, params, lo, hi, ts, int(substeps)))
         if done is not None:
@@ -352,7 +358,7 @@ def simulate(plant: Plant, *, ts: float, steps: int, x0: Sequence[float] | np.nd
         if model.k:
             modes[k] = integ.bits(x, params)
         y = integ.output(x, params)
-        if noisy:
+        if v is not None:   # noisy
             y = y + v[:, k]
         Y[k] = y
         if estimator is not None:
@@ -381,14 +387,14 @@ def simulate(plant: Plant, *, ts: float, steps: int, x0: Sequence[float] | np.nd
         u = np.minimum(np.maximum(u, lo), hi)
         U[k] = u
         x = integ.advance(x, u, params, ts, int(substeps))
-        if noisy:   # (without noise the advanced state is already clipped)
+        if w is not None:   # noisy (without noise the advanced state is already clipped)
             x = integ.clip_counted(x + w[:, k])
         u_prev = u
     return _result(X, Y, U, XH, ref, seeds, modes, ts, substeps, integ, timing, plant)
 
 
 def _open_loop(integ: Integrator, x: np.ndarray, seq: np.ndarray, params: dict[str, Any],
-               lo: np.ndarray, hi: np.ndarray, ts: float, substeps: int) -> tuple | None:
+               lo: np.ndarray, hi: np.ndarray, ts: float, substeps: int) -> _Runs | None:
     """Open loop over a known input sequence in one `Integrator.horizon` call, or None.
 
     Works on run-major buffers (the result's layout: no transposed copies);
@@ -436,7 +442,7 @@ def _open_loop(integ: Integrator, x: np.ndarray, seq: np.ndarray, params: dict[s
 
 def _open_loop_changes(integ: Integrator, plant: Plant, x: np.ndarray, seq: np.ndarray,
                        params: dict[str, Any], schedule: Mapping[int, list], ts: float,
-                       substeps: int) -> tuple | None:
+                       substeps: int) -> _Runs | None:
     """`_open_loop` over the stretches between parameter changes, or None (integrator untouched).
 
     As in the loop: the values changing at sample ``k`` hold from the measurement at ``k`` on
@@ -473,7 +479,7 @@ def _open_loop_changes(integ: Integrator, plant: Plant, x: np.ndarray, seq: np.n
     return X, Y, U, X.copy(), modes
 
 
-def _with_outputs(integ: Integrator, X: np.ndarray, U: np.ndarray, params: dict[str, Any]) -> tuple:
+def _with_outputs(integ: Integrator, X: np.ndarray, U: np.ndarray, params: dict[str, Any]) -> _Runs:
     """``(x, y, u, x_hat, modes)`` run-major from the states (M, N + 1, n) and inputs of a loop."""
     model = integ.model
     M, N1, n = X.shape
@@ -488,7 +494,7 @@ def _with_outputs(integ: Integrator, X: np.ndarray, U: np.ndarray, params: dict[
     return X, Y, U, X.copy(), modes
 
 
-def _estimate(estimator: BatchEstimator, done: tuple, u_init: np.ndarray, timing: dict) -> tuple:
+def _estimate(estimator: BatchEstimator, done: _Runs, u_init: np.ndarray, timing: dict) -> _Runs:
     """The estimator over the measurements of an open-loop run: ``done`` with ``x_hat`` filled.
 
     The same calls as the closed loop: at sample ``k`` the estimator gets ``(y_k, u_{k-1})``

@@ -53,7 +53,7 @@ def _saturation(plant: Plant) -> Callable[[Any], Any]:
 
     def sat(u: Any) -> Any:
         out = ca.SX(u) if not isinstance(u, ca.MX) else u
-        parts = []
+        parts: list[Any] = []   # all SX, or all MX (as ``out``)
         for i, (lo, hi) in enumerate(limits):
             v = out[i]
             if np.isfinite(lo):

@@ -167,8 +167,8 @@ class _Hoister:
 
 
 def _generate(groups: Mapping[str, tuple[list[sp.Expr], list[sp.Symbol]]],
-              params: Sequence[sp.Symbol]) -> tuple[str, dict[str, Callable]]:
-    """Source code and compiled functions: ``constants(p)`` and one function per group.
+              params: Sequence[sp.Symbol]) -> tuple[str, dict[str, Callable], int]:
+    """Source code, compiled functions (``constants(p)`` and one per group), number of constants.
 
     Each group ``name -> (expressions, row symbols)`` becomes
     ``name(rows, c, p, out)``: ``rows`` a sequence of the row arrays (states
@@ -212,8 +212,7 @@ def _generate(groups: Mapping[str, tuple[list[sp.Expr], list[sp.Symbol]]],
     namespace: dict[str, Any] = {"numpy": np}
     exec(compile(source, "<tanksynth.sim.tape>", "exec"), namespace)  # noqa: S102 - generated from sympy
     fns = {name: namespace[name] for name in ("constants", *groups)}
-    fns["n_constants"] = len(hoister.consts)
-    return source, fns
+    return source, fns, len(hoister.consts)
 
 
 @dataclass(frozen=True)
@@ -475,12 +474,12 @@ def _casadi_period(model: NumpyModel, substeps: int) -> Any:
         return [v[i] for i in range(n)]
 
     def f(v: Any) -> Any:
-        out = [None] * n
+        out: list[Any] = [None] * n   # filled with SX entries by the generated function
         ns["f"]([*rows(v), *us], cs, ps, out)
         return ca.vertcat(*[ca.SX(o) for o in out])
 
     def switching(v: Any) -> list:
-        out = [None] * k
+        out: list[Any] = [None] * k   # filled with SX entries by the generated function
         ns["s"](rows(v), cs, ps, out)
         return [ca.SX(o) for o in out]
 
@@ -570,10 +569,10 @@ def numpy_model(plant: Plant) -> NumpyModel:
         groups = {"f": (f, xs + us), "h": (h, xs)}
         if s:
             groups["s"] = (s, xs)
-        source, fns = _generate(groups, params)
+        source, fns, n_constants = _generate(groups, params)
         index = tuple(xs.index(e) if e in xs else -1 for e in h)
         model = NumpyModel(plant.n, plant.m, plant.q, len(switching), names, source,
-                           fns["n_constants"], fns,
+                           n_constants, fns,
                            output_index=None if -1 in index else index)
         _MODELS[key] = model
     if len(_BY_ID) > 256:

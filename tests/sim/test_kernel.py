@@ -199,3 +199,19 @@ def test_concurrent_processes_build_one_library_safely(cache):
     assert outs[0][0] == outs[1][0] and outs[0][0].startswith("native ")
     assert len(list((cache / "sim").glob("tk_sim_*.so"))) == 1
     assert not list((cache / "sim").glob(".build-*"))
+
+
+def test_package_clear_cache_with_disk_deletes_the_simulator_kernels(cache, monkeypatch):
+    import tanksynth
+
+    monkeypatch.delenv("TANKSYNTH_CACHE", raising=False)    # the estimators' kernels: here too
+    plant = three_tank()
+    lib = kernel.native_kernel(tape.numpy_model(plant))
+    assert lib is not None and lib.path.exists() and kernel.cache_info()["loaded"] >= 1
+    kept = tanksynth.clear_cache()                           # memory only: the library stays
+    assert kept["sim_native_loaded"] >= 1 and kept["sim_native_files"] == 0 and lib.path.exists()
+    kernel.native_kernel(tape.numpy_model(plant))            # loaded again from disk
+    dropped = tanksynth.clear_cache(disk=True)
+    assert dropped["sim_native_loaded"] == 1 and dropped["sim_native_files"] == 1
+    assert not lib.path.exists() and not list((cache / "sim").glob("tk_sim_*.so"))
+    assert kernel.cache_info()["loaded"] == 0

@@ -33,7 +33,7 @@ Errata (recorded in the diagnostics):
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 
@@ -188,16 +188,17 @@ class AdaptiveKalmanFilter(ArrayEstimator):
         return self._P[0].copy() if self.runs is None else self._P.copy()
 
     def _advance(self, Y: np.ndarray, U: np.ndarray) -> np.ndarray:
-        mdl, tun = self.model, self.tuning
-        F, H, R = mdl.Ad, mdl.C, tun.R
+        tun = self.tuning
+        F, Bd, cd, H, dy = self.model.linear_matrices()
+        R = tun.R
         P_prev = self._P
-        xp = mv(F, self._x) + mv(mdl.Bd, U) + mdl.cd                       # (30)
+        xp = mv(F, self._x) + mv(Bd, U) + cd                               # (30)
         Pp = symmetrize(F @ P_prev @ F.T + self._Q)                             # (31)
         self._check_spd(Pp, "predicted covariance P(k|k-1)")
         S = symmetrize(H @ Pp @ H.T + R)
         self._check_spd(S, "innovation covariance S(k)")
         K = np.swapaxes(np.linalg.solve(S, H @ np.swapaxes(Pp, -1, -2)), -1, -2)   # (32)
-        v = Y - (mv(H, xp) + mdl.dy)                                       # innovation (35, erratum)
+        v = Y - (mv(H, xp) + dy)                                           # innovation (35, erratum)
         dx = np.einsum("mij,mj->mi", K, v)
         x = xp + dx                                                       # (33)
         P = joseph_update(Pp, K, H, R)                                    # (34), Joseph
@@ -277,7 +278,8 @@ class AdaptiveScalingTuning:
 
     def gains(self) -> dict[str, np.ndarray]:
         """Tuning arrays for the artefact; the initial estimate ``x0`` is stored as ``x_hat0``."""
-        return artefact_gains(self, Q=self.Q, R=self.R, P0=self.P0, x_hat0=self.x0, G=self.G,
+        G = cast(np.ndarray, self.G)   # an array after __post_init__ (the identity for None)
+        return artefact_gains(self, Q=self.Q, R=self.R, P0=self.P0, x_hat0=self.x0, G=G,
                               abc=np.array([self.a, self.b, self.c]),
                               phi0=np.array([self.phi0]))
 
@@ -315,8 +317,9 @@ class AdaptiveScalingKalmanFilter(ArrayEstimator):
         super().__init__(plant, tuning, runs)
         self.model = linear_model_for(plant, tuning)
         fits_plant(tuning, plant, R=(plant.q, plant.q))
-        C = self.model.C
-        self.state_noise_covariance = tuning.G @ tuning.Q @ tuning.G.T
+        C = self.model.linear_matrices().C
+        G = cast(np.ndarray, tuning.G)   # an array after __post_init__ (the identity for None)
+        self.state_noise_covariance = G @ tuning.Q @ G.T
         self.output_noise_trace = float(np.trace(C @ self.state_noise_covariance @ C.T))
         if not self.output_noise_trace > 0:
             raise SpecError("C G Q G' C' has zero trace: the scaled process noise does not reach "
@@ -342,10 +345,11 @@ class AdaptiveScalingKalmanFilter(ArrayEstimator):
         return self._P[0].copy() if self.runs is None else self._P.copy()
 
     def _advance(self, Y: np.ndarray, U: np.ndarray) -> np.ndarray:
-        mdl, tun = self.model, self.tuning
-        A, C, R = mdl.Ad, mdl.C, tun.R
-        xp = mv(A, self._x) + mv(mdl.Bd, U) + mdl.cd                        # (30)
-        v = Y - (mv(C, xp) + mdl.dy)                                       # innovation
+        tun = self.tuning
+        A, Bd, cd, C, dy = self.model.linear_matrices()
+        R = tun.R
+        xp = mv(A, self._x) + mv(Bd, U) + cd                               # (30)
+        v = Y - (mv(C, xp) + dy)                                           # innovation
         APA = A @ self._P @ A.T
         beta = C @ APA @ C.T + R                                          # (34b)
         tr_beta = np.trace(beta, axis1=-2, axis2=-1)

@@ -42,7 +42,7 @@ from __future__ import annotations
 
 import abc
 import math
-from typing import Any
+from typing import Any, Callable
 
 import casadi as ca
 import numpy as np
@@ -330,13 +330,13 @@ class KernelEstimator(Estimator):
         self._buffers = []
         for a, b in ((0, 1), (1, 0)):
             fb, ev = run_fn.buffer()
-            fb.set_arg(0, memoryview(self._states[a].reshape(-1)))
-            fb.set_arg(1, memoryview(self._Y.reshape(-1)))
-            fb.set_arg(2, memoryview(self._U.reshape(-1)))
-            fb.set_arg(3, memoryview(self._P))
-            fb.set_res(0, memoryview(self._states[b].reshape(-1)))
-            fb.set_res(1, memoryview(self._checks.reshape(-1)))
-            fb.set_res(2, memoryview(self._extra.reshape(-1)))
+            fb.set_arg(0, self._states[a].reshape(-1).data)
+            fb.set_arg(1, self._Y.reshape(-1).data)
+            fb.set_arg(2, self._U.reshape(-1).data)
+            fb.set_arg(3, self._P.data)
+            fb.set_res(0, self._states[b].reshape(-1).data)
+            fb.set_res(1, self._checks.reshape(-1).data)
+            fb.set_res(2, self._extra.reshape(-1).data)
             self._buffers.append((fb, ev, b))
         self._cur = 0
         self._backend_request = backend
@@ -503,7 +503,9 @@ class ArrayEstimator(Estimator):
             Number of parallel runs (>= 1).
         """
         args, kwargs = self._clone_args()
-        return type(self)(*args, runs=runs, **kwargs)
+        # each subclass has its own constructor (``_clone_args`` gives its arguments)
+        build: Callable[..., ArrayEstimator] = type(self)
+        return build(*args, runs=runs, **kwargs)
 
     def _check_spd(self, P: np.ndarray, matrix: str) -> None:
         """Raise `CovarianceError` if any (M, n, n) slice is not positive definite."""

@@ -23,6 +23,8 @@ covariance ``N P`` and the central ``P`` are kept apart here; for ``N = 1``
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import cast
+
 import numpy as np
 
 from tanksynth.analysis.matrices import symmetrize
@@ -97,7 +99,8 @@ class ConsensusTuning:
         estimate ``x0`` is stored as ``x_hat0``."""
         sensors = {f"R{i}": Ri for i, Ri in enumerate(self.R)}
         sensors.update({f"C{i}": Ci for i, Ci in enumerate(self.C or ())})
-        return artefact_gains(self, Q=self.Q, P0=self.P0, x_hat0=self.x0, G=self.G, **sensors)
+        G = cast(np.ndarray, self.G)   # an array after __post_init__ (the identity for None)
+        return artefact_gains(self, Q=self.Q, P0=self.P0, x_hat0=self.x0, G=G, **sensors)
 
 
 class ConsensusFilter(ArrayEstimator):
@@ -138,10 +141,10 @@ class ConsensusFilter(ArrayEstimator):
         require_tuning(self, tuning, ConsensusTuning)
         super().__init__(plant, tuning, runs)
         self.model = linear_model_for(plant, tuning)
-        mdl = self.model
+        sampled = self.model.linear_matrices()
         if tuning.C is None:
-            Cs = [mdl.C] * tuning.sensors
-            ds = [mdl.dy] * tuning.sensors
+            Cs = [sampled.C] * tuning.sensors
+            ds = [sampled.dy] * tuning.sensors
         else:
             Cs = list(tuning.C)
             ds = [np.zeros(Ci.shape[0]) for Ci in Cs]
@@ -162,7 +165,8 @@ class ConsensusFilter(ArrayEstimator):
         N = tuning.sensors
         self.information_matrix = self.stacked_C.T @ self._Rinv_stack @ self.stacked_C / N  # (43)
         self.information_gain = self.stacked_C.T @ self._Rinv_stack / N  # (48)
-        self.state_noise_covariance = tuning.G @ tuning.Q @ tuning.G.T
+        G = cast(np.ndarray, tuning.G)   # an array after __post_init__ (the identity for None)
+        self.state_noise_covariance = G @ tuning.Q @ G.T
         self._qy = self._q = self.stacked_C.shape[0]
         self.reset()
 
@@ -190,10 +194,9 @@ class ConsensusFilter(ArrayEstimator):
         return self._prior[0].copy() if self.runs is None else self._prior.copy()
 
     def _advance(self, Y: np.ndarray, U: np.ndarray) -> np.ndarray:
-        mdl = self.model
-        A = mdl.Ad
+        A, Bd, cd, _, _ = self.model.linear_matrices()
         N = self.tuning.sensors
-        xbar = mv(A, self._x) + mv(mdl.Bd, U) + mdl.cd                       # (51)
+        xbar = mv(A, self._x) + mv(Bd, U) + cd                               # (51)
         P = symmetrize(A @ self._Mc @ A.T + self.state_noise_covariance)  # (50), central
         self._check_spd(P, "predicted covariance P(k|k-1)")
         info = symmetrize(np.linalg.inv(N * P) + self.information_matrix)  # (44)

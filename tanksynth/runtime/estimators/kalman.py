@@ -196,10 +196,11 @@ class ExtendedKalmanFilter(KernelEstimator):
         Q = ca.reshape(p[:n * n], n, n)
         R = ca.reshape(p[n * n:], q, q)
         Phi = mdl.transition_jacobian_sx(x, u)
-        kept = None
-        if hyb:
+        on_surface = mdl.on_surface_sx(x)   # None without switching surfaces (hyb == 0)
+        kept = ca.SX(0)                     # the previous Jacobian kept (hybrid plants only)
+        if on_surface is not None:
             Phi_prev = ca.reshape(S[base:base + n * n], n, n)
-            kept = ca.logic_and(mdl.on_surface_sx(x), S[base + n * n] > 0)
+            kept = ca.logic_and(on_surface, S[base + n * n] > 0)
             Phi = ca.if_else(kept, Phi_prev, Phi)
         xp = mdl.predict_sx(x, u)
         Pp = sx_symmetrize(Phi @ P @ Phi.T + Q)
@@ -339,6 +340,7 @@ def steady_state_gain(model: DiscreteModel, Q: Any, R: Any) -> tuple[np.ndarray,
         raise SpecError("steady_state_gain needs a linear model", key="model")
     Q = as_spd(Q, "Q", model.n, semidefinite=True)
     R = as_spd(R, "R", model.q)
-    P = sla.solve_discrete_are(model.Ad.T, model.C.T, Q, R)
-    K = P @ model.C.T @ np.linalg.inv(model.C @ P @ model.C.T + R)
+    Ad, _, _, C, _ = model.linear_matrices()
+    P = sla.solve_discrete_are(Ad.T, C.T, Q, R)
+    K = P @ C.T @ np.linalg.inv(C @ P @ C.T + R)
     return K, P

@@ -168,11 +168,13 @@ def native_function(fn: ca.Function) -> ca.Function | None:
     gen = ca.CodeGenerator("tk_kernel.c", {"with_header": False})
     gen.add(fn)
     try:
-        lib = _CACHE.library([gen.dump(), ca.__version__], lambda name: _c_source(fn, name),
+        # casadi's type stubs omit __version__ (the package sets it at import)
+        version = ca.__version__  # type: ignore[attr-defined]
+        lib = _CACHE.library([gen.dump(), version], lambda name: _c_source(fn, name),
                              lambda path, name: ca.external(name, str(path)), cc)
     except NativeBuildError:
         return None
-    return lib.handle
+    return None if lib is None else lib.handle   # (None only for build=False)
 
 
 def clear_cache(disk: bool = False) -> dict[str, int]:

@@ -99,7 +99,7 @@ class _ContinuousBase(ArrayEstimator):
         self._out = output
 
     def _reset_arrays(self) -> None:
-        self._yprev = None
+        self._yprev: np.ndarray | None = None   # the previous measurement (none before the first)
 
     def _field(self, X: np.ndarray, U: np.ndarray, Yh: np.ndarray | None) -> np.ndarray:
         dX = self._rhs(X, U)
@@ -148,12 +148,13 @@ class LuenbergerObserver(_ContinuousBase):
         fits_plant(tuning, plant, L=(plant.n, plant.q))
         self.model = discrete_model(plant, tuning.ts, operating_point=tuning.operating_point)
         mdl, L = self.model, tuning.L
-        self.error_matrix = None
+        self.error_matrix: np.ndarray | None = None
         if mdl.kind == "linear":
+            sampled = mdl.linear_matrices()
             if tuning.form == "current":
-                self.error_matrix = (np.eye(plant.n) - L @ mdl.C) @ mdl.Ad
+                self.error_matrix = (np.eye(plant.n) - L @ sampled.C) @ sampled.Ad
             elif tuning.form == "predictor":
-                self.error_matrix = mdl.Ad - L @ mdl.C
+                self.error_matrix = sampled.Ad - L @ sampled.C
             else:
                 if mdl.operating_point is not None:
                     lin = linearize(plant, *mdl.operating_point)
@@ -162,8 +163,8 @@ class LuenbergerObserver(_ContinuousBase):
                 else:
                     lin = linearize(plant, np.zeros(plant.n), np.zeros(plant.m))
                     c = lin.offset
-                Ao = lin.F - L @ mdl.C
-                G = np.hstack([lin.B, L, (c - L @ mdl.dy)[:, None]])
+                Ao = lin.F - L @ sampled.C
+                G = np.hstack([lin.B, L, (c - L @ sampled.dy)[:, None]])
                 self._Phi, Gam = discretize_zoh(Ao, G, tuning.ts)
                 m, q = plant.m, plant.q
                 self._Gu, self._Gy, self._g = Gam[:, :m], Gam[:, m:m + q], Gam[:, -1]
@@ -190,16 +191,19 @@ class LuenbergerObserver(_ContinuousBase):
         L = tun.L
         X = self._x
         if tun.form == "current":
-            xp = mv(mdl.Ad, X) + mv(mdl.Bd, U) + mdl.cd
-            X = xp + mv(L, Y - mv(mdl.C, xp) - mdl.dy)
+            Ad, Bd, cd, C, dy = mdl.linear_matrices()
+            xp = mv(Ad, X) + mv(Bd, U) + cd
+            X = xp + mv(L, Y - mv(C, xp) - dy)
         elif tun.form == "predictor":
-            Xn = mv(mdl.Ad, X) + mv(mdl.Bd, U) + mdl.cd
+            Ad, Bd, cd, C, dy = mdl.linear_matrices()
+            Xn = mv(Ad, X) + mv(Bd, U) + cd
             if self._yprev is not None:
-                Xn = Xn + mv(L, self._yprev - mv(mdl.C, X) - mdl.dy)
+                Xn = Xn + mv(L, self._yprev - mv(C, X) - dy)
             X = Xn
         elif mdl.kind == "linear":
             if self._yprev is None:
-                X = mv(mdl.Ad, X) + mv(mdl.Bd, U) + mdl.cd
+                Ad, Bd, cd, _, _ = mdl.linear_matrices()
+                X = mv(Ad, X) + mv(Bd, U) + cd
             else:
                 X = (mv(self._Phi, X) + mv(self._Gu, U) + mv(self._Gy, self._yprev)
                      + self._g)

@@ -16,19 +16,20 @@ from __future__ import annotations
 
 import weakref
 from dataclasses import dataclass
-from typing import Any, Sequence
+from typing import Any, NamedTuple, Sequence
 
 import casadi as ca
 import numpy as np
 import sympy as sp
 
 from tanksynth.analysis.linearize import discretize_zoh, equilibrium_input, linearize
+from tanksynth.errors import SpecError
 from tanksynth.plants.base import Plant
 from tanksynth.plants.compile import compile_matrix, rk4_step
 from tanksynth.runtime.estimators.tuning import as_vector, positive_float, positive_int
 
-__all__ = ["DiscreteModel", "PlantDimensions", "discrete_model", "regularized_jacobian",
-           "clear_cache", "cached_plants"]
+__all__ = ["DiscreteModel", "LinearMatrices", "PlantDimensions", "discrete_model",
+           "regularized_jacobian", "clear_cache", "cached_plants"]
 
 
 def regularized_jacobian(plant: Plant, eps: float) -> sp.Matrix:
@@ -107,8 +108,10 @@ def _plant_cache(plant: Plant) -> dict:
     key = id(plant)
     entry = _PLANT_CACHE.get(key)
     if entry is None or entry[0]() is not plant:
-        ref = weakref.ref(plant, lambda _r, k=key: _PLANT_CACHE.pop(k, None))
-        entry = (ref, {})
+        def forget(_ref: weakref.ref, key: int = key) -> None:   # the plant was collected
+            _PLANT_CACHE.pop(key, None)
+
+        entry = (weakref.ref(plant, forget), {})
         _PLANT_CACHE[key] = entry
     return entry[1]
 
@@ -138,6 +141,30 @@ class PlantDimensions:
     def q(self) -> int:
         """Number of measured outputs."""
         return self.plant.q
+
+
+class LinearMatrices(NamedTuple):
+    """The matrices of a linear sampled model ``x(k) = Ad x(k-1) + Bd u(k) + cd``, ``y = C x + dy``.
+
+    Attributes
+    ----------
+    Ad : ndarray, shape (n, n)
+        State transition over one period (dimensionless).
+    Bd : ndarray, shape (n, m)
+        Input matrix (state units per input unit).
+    cd : ndarray, shape (n,)
+        Affine term (state units).
+    C : ndarray, shape (q, n)
+        Output matrix (output units per state unit).
+    dy : ndarray, shape (q,)
+        Output offset (output units).
+    """
+
+    Ad: np.ndarray
+    Bd: np.ndarray
+    cd: np.ndarray
+    C: np.ndarray
+    dy: np.ndarray
 
 
 @dataclass(frozen=True, eq=False)
@@ -203,6 +230,24 @@ class DiscreteModel(PlantDimensions):
     dy: np.ndarray | None = None
     operating_point: tuple[np.ndarray, np.ndarray] | None = None
 
+    def linear_matrices(self) -> LinearMatrices:
+        """``(Ad, Bd, cd, C, dy)`` of a linear model (kind ``"linear"``).
+
+        Returns
+        -------
+        LinearMatrices
+
+        Raises
+        ------
+        SpecError
+            The model is nonlinear (it has no such matrices).
+        """
+        if self.Ad is None or self.Bd is None or self.cd is None or self.C is None or self.dy is None:
+            raise SpecError(f"the sampled model of plant '{self.plant.name}' is nonlinear: it has no "
+                            "linear matrices; give operating_point = (x0, u0) to linearise about",
+                            key="operating_point")
+        return LinearMatrices(self.Ad, self.Bd, self.cd, self.C, self.dy)
+
     @property
     def hybrid(self) -> bool:
         """The model is nonlinear on a plant with switching surfaces."""
@@ -257,9 +302,10 @@ class DiscreteModel(PlantDimensions):
             Input held over the period (input units).
         """
         if self.kind == "linear":
-            out = ca.DM(self.Ad) @ x + ca.DM(self.cd)
+            lin = self.linear_matrices()
+            out = ca.DM(lin.Ad) @ x + ca.DM(lin.cd)
             if self.m:
-                out = out + ca.DM(self.Bd) @ u
+                out = out + ca.DM(lin.Bd) @ u
             return self.clip_sx(out)
         f = self._funcs()["f"]
         h = self.ts / self.substeps
@@ -279,7 +325,7 @@ class DiscreteModel(PlantDimensions):
         """
         n = self.n
         if self.kind == "linear":
-            return ca.SX(ca.DM(self.Ad))
+            return ca.SX(ca.DM(self.linear_matrices().Ad))
         J = self._funcs()["J"](x, u)
         h = self.ts / self.substeps
         I = ca.SX.eye(n)
@@ -302,7 +348,8 @@ class DiscreteModel(PlantDimensions):
             State (state units).
         """
         if self.kind == "linear":
-            return ca.DM(self.C) @ x + ca.DM(self.dy)
+            lin = self.linear_matrices()
+            return ca.DM(lin.C) @ x + ca.DM(lin.dy)
         return self._funcs()["h"](x)
 
     def output_jacobian_sx(self, x: ca.SX) -> ca.SX:
@@ -314,7 +361,7 @@ class DiscreteModel(PlantDimensions):
             State (state units).
         """
         if self.kind == "linear":
-            return ca.SX(ca.DM(self.C))
+            return ca.SX(ca.DM(self.linear_matrices().C))
         return self._funcs()["H"](x)
 
     def on_surface_sx(self, x: ca.SX) -> ca.SX | None:
@@ -398,8 +445,8 @@ def discrete_model(plant: Plant, ts: float, *, operating_point: Any = None, subs
     substeps = positive_int(substeps, "substeps")
     jacobian_eps = positive_float(jacobian_eps, "jacobian_eps")
     switch_tol = positive_float(switch_tol, "switch_tol", allow_zero=True)
-    common = dict(plant=plant, ts=ts, substeps=substeps, jacobian_eps=jacobian_eps,
-                  switch_tol=switch_tol, clip=bool(clip))
+    common: dict[str, Any] = dict(plant=plant, ts=ts, substeps=substeps,
+                                  jacobian_eps=jacobian_eps, switch_tol=switch_tol, clip=bool(clip))
     if operating_point is not None:
         if isinstance(operating_point, tuple) and len(operating_point) == 2 and \
                 np.ndim(operating_point[0]) == 1:

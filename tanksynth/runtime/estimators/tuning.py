@@ -254,7 +254,7 @@ def positive_float(value: Any, name: str, allow_zero: bool = False) -> float:
     SpecError
         Not a number, not finite, or out of range.
     """
-    return number_in(value, name, **({"at_least": 0.0} if allow_zero else {"above": 0.0}))
+    return number_in(value, name, at_least=0.0) if allow_zero else number_in(value, name, above=0.0)
 
 
 def choice(value: Any, name: str, choices: tuple[str, ...]) -> str:
