@@ -21,17 +21,21 @@ unobservable linearisation (`UnobservableError` naming the modes) and lists
 physically implausible tuning values (initial estimate outside the region,
 noise or initial spread larger than the region) in the diagnostics.
 
-Every adapter has the same shape: the linearisation at the operating point and its
-observability (`_observable_at_operating_point`), the tuning from the validated options
-(`_kalman_tuning` for the Kalman-type filters), the runtime filter built once (its model is
-what the diagnostics describe), and the common diagnostics (`_filter_result`); each adapter
-states only what differs (its tuning class, extra gains and diagnostics, its errata).
+Every method is made by one template, `estimator_method` (name, options class, linearisation,
+build step): its design function checks the observability of the linearisation at the
+operating point (`_observable_at_operating_point`), reads the validated options and returns
+what the method's build step ``_build_<name>(spec, design, at, options)`` gives. A build step
+states only what differs: its tuning (`_kalman_tuning` for the Kalman-type filters, else the
+tuning class with its extra arguments), the runtime filter built once (its model is what the
+diagnostics describe), its extra gains and diagnostics (the Kalman-type filters add them to the
+common ones of `_filter_outcome`), its errata; its docstring is the method's summary.
 """
 
 from __future__ import annotations
 
+import inspect
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Callable, NamedTuple
 
 import numpy as np
 
@@ -55,11 +59,11 @@ from tanksynth.runtime.estimators.ukf import UKFTuning, UnscentedKalmanFilter
 from tanksynth.spec import DesignSpec, Spec
 from tanksynth.spec.method_options import (AdaptiveKalmanOptions, AdaptiveScalingKalmanOptions,
                                            ConsensusFilterOptions, EkfOptions, KalmanOptions,
-                                           LuenbergerOptions, NarxOptions, UkfOptions)
+                                           LuenbergerOptions, MethodOptions, NarxOptions,
+                                           UkfOptions)
 
 __all__ = [
-    "run_kalman", "run_ekf", "run_ukf", "run_adaptive_kalman", "run_adaptive_scaling_kalman",
-    "run_consensus_filter", "run_narx", "run_luenberger", "plausibility",
+    "estimator_method", "plausibility",
     "KALMAN", "EKF", "UKF", "ADAPTIVE_KALMAN", "ADAPTIVE_SCALING_KALMAN", "CONSENSUS_FILTER",
     "NARX", "LUENBERGER",
 ]
@@ -181,11 +185,20 @@ def _linear_model_gains(model: DiscreteModel) -> dict[str, np.ndarray]:
     return {"Ad": model.Ad, "Bd": model.Bd, "C": model.C}
 
 
-def _filter_result(spec: Spec, design: DesignSpec, method: str, at: _OperatingPoint, tuning: Any,
-                   model: DiscreteModel, *, noise: np.ndarray | None = None,
-                   gains: dict[str, np.ndarray] | None = None, **extra: Any) -> DesignResult:
-    """The result of a filter design: the tuning's gains (and ``gains``), the common diagnostics
-    (model, observability, plausibility, assumptions, sampling period) and then ``extra``.
+class _Outcome(NamedTuple):
+    """What a method's build step returns: the gains and the diagnostics (in order) of its
+    `DesignResult`."""
+
+    gains: dict[str, np.ndarray]
+    diagnostics: dict[str, Any]
+
+
+def _filter_outcome(spec: Spec, at: _OperatingPoint, tuning: Any, model: DiscreteModel, *,
+                    noise: np.ndarray | None = None, gains: dict[str, np.ndarray] | None = None,
+                    **extra: Any) -> _Outcome:
+    """The outcome of a Kalman-type filter: the tuning's gains (and ``gains``), the common
+    diagnostics (model, observability, plausibility, assumptions, sampling period) and then
+    ``extra``.
 
     ``noise``: the measurement noise covariance judged by `plausibility` (default the tuning's
     ``R``).
@@ -196,153 +209,188 @@ def _filter_result(spec: Spec, design: DesignSpec, method: str, at: _OperatingPo
                                          tuning.P0),
             "assumptions": [a.text for a in plant.assumptions],
             "sampling_period": spec.ts, **extra}
-    return DesignResult(design.name, method, plant.name, {**tuning.gains(), **(gains or {})}, diag)
+    return _Outcome({**tuning.gains(), **(gains or {})}, diag)
 
 
-# ------------------------------------------------------------------------------ methods
-def run_kalman(spec: Spec, design: DesignSpec) -> DesignResult:
-    """Kalman filter (CKF) on the ZOH linearisation at the operating point (seed 000).
+# ------------------------------------------------------------------------------ template
+#: A method's build step: ``build(spec, design, at, options) -> _Outcome``.
+_Build = Callable[[Spec, DesignSpec, _OperatingPoint, Any], _Outcome]
+#: What a method is refused on: the description of the pair whose observability is checked
+#: (before the options are read), or ``linearisation(spec, options) -> _OperatingPoint`` for a
+#: pair that depends on the options (checked after reading them).
+_Linearisation = str | Callable[[Spec, Any], _OperatingPoint]
+
+_RUN_DOC = """{summary}
+
+The design function of ``{name}`` (`estimator_method`): the observability of
+the linearisation at the operating point, the validated options (`{options}`),
+then the method's tuning, filter, gains and diagnostics (`{build}`).
+
+Parameters
+----------
+spec : Spec
+    The validated spec (plant, operating point, sampling).
+design : DesignSpec
+    This ``[[design]]`` entry (method ``{name}`` and its options).
+
+Returns
+-------
+DesignResult
+    The gains (SI units) and diagnostics of the ``{name}`` design.
+
+Raises
+------
+UnobservableError
+    The linearisation at the operating point is not observable (the modes are named).
+SpecError
+    Invalid options (validated again when ``design`` was copied with other
+    options) or an option the tuning refuses, keyed ``design[i].<option>``.
+"""
+
+
+class _EstimatorDesign:
+    """The design function of one estimator method (see `estimator_method`); its docstring is
+    the method's (`_RUN_DOC`)."""
+
+    def __init__(self, name: str, options: type[MethodOptions], linearisation: _Linearisation,
+                 build: _Build) -> None:
+        self.name, self.options = name, options
+        self.linearisation, self.build = linearisation, build
+        summary = inspect.getdoc(build)
+        if not summary:
+            raise TypeError(f"the build step of {name!r} has no docstring (the method's summary)")
+        self.__doc__ = _RUN_DOC.format(summary=summary, name=name,
+                                       options=options.__name__, build=build.__name__)
+
+    def __call__(self, spec: Spec, design: DesignSpec) -> DesignResult:
+        if isinstance(self.linearisation, str):   # refused before the options are read
+            at = _observable_at_operating_point(spec, self.linearisation)
+            o = options_of(design, spec, self.options)
+        else:                                       # the checked pair depends on the options
+            o = options_of(design, spec, self.options)
+            at = self.linearisation(spec, o)
+        gains, diagnostics = self.build(spec, design, at, o)
+        return DesignResult(design.name, self.name, spec.plant.name, gains, diagnostics)
+
+    def __repr__(self) -> str:
+        return f"<design of {self.name!r}: {self.build.__name__}>"
+
+
+def estimator_method(name: str, options: type[MethodOptions], linearisation: _Linearisation,
+                     build: _Build) -> DesignMethod:
+    """The `DesignMethod` of an estimator: the family's steps around the method's build step.
+
+    Its design function ``run(spec, design)`` checks the observability of the linearisation at
+    the operating point (refusing an unobservable one with `UnobservableError`, the modes
+    named), reads the validated options (`options_of`), calls ``build(spec, design, at,
+    options)`` and returns the ``(gains, diagnostics)`` it gives as the `DesignResult` of
+    ``name``. Its docstring is the build step's, with the parameters of ``run``.
 
     Parameters
     ----------
-    spec : Spec
-        The validated spec (plant, operating point, sampling).
-    design : DesignSpec
-        This ``[[design]]`` entry (method and options).
+    name : str
+        The spec's ``method`` value.
+    options : type of MethodOptions
+        The method's Options class (its ``method_name`` is ``name``).
+    linearisation : str or callable
+        The description of the pair whose observability is checked before the options are read
+        (``"(Ad, C) at the operating point"`` for a filter on the linear model, ``"the
+        linearisation at the operating point"`` for one on the nonlinear model), or
+        ``linearisation(spec, options)`` returning the checked linearisation when the pair
+        depends on the options (checked after reading them).
+    build : callable
+        ``build(spec, design, at, options) -> (gains, diagnostics)``: the method's tuning,
+        filter, gains and diagnostics; ``at`` is the linearisation at the operating point.
+
+    Returns
+    -------
+    DesignMethod
+        ``DesignMethod(name, run, options)``.
     """
-    at = _observable_at_operating_point(spec, _LINEAR_MODEL)
-    tuning = _kalman_tuning(spec, design, options_of(design, spec, KalmanOptions),
-                            operating_point=at.point)
+    return DesignMethod(name, _EstimatorDesign(name, options, linearisation, build), options)
+
+
+# ------------------------------------------------------------------------------ methods
+def _build_kalman(spec: Spec, design: DesignSpec, at: _OperatingPoint,
+                  o: KalmanOptions) -> _Outcome:
+    """Kalman filter (CKF) on the ZOH linearisation at the operating point (seed 000)."""
+    tuning = _kalman_tuning(spec, design, o, operating_point=at.point)
     model = KalmanFilter(spec.plant, tuning, backend="vm").model
     matrices = _linear_model_gains(model)
     K, P = steady_state_gain(model, tuning.Q, tuning.R)
     Acl = (np.eye(spec.plant.n) - K @ model.C) @ matrices["Ad"]
-    return _filter_result(
-        spec, design, "kalman", at, tuning, model, gains={**matrices, "K_ss": K, "P_ss": P},
+    return _filter_outcome(
+        spec, at, tuning, model, gains={**matrices, "K_ss": K, "P_ss": P},
         time_domain="discrete",   # the model is stored as Ad, Bd (`model_names`)
         steady_state={"error_dynamics_eigenvalues": _pairs(np.linalg.eigvals(Acl)),
                       "source": "scipy.linalg.solve_discrete_are"})
 
 
-def run_ekf(spec: Spec, design: DesignSpec) -> DesignResult:
-    """Extended Kalman filter on the nonlinear model (seed 002 eq. 13-22).
-
-    Parameters
-    ----------
-    spec : Spec
-        The validated spec (plant, operating point, sampling).
-    design : DesignSpec
-        This ``[[design]]`` entry (method and options).
-    """
-    at = _observable_at_operating_point(spec, _LINEARISATION)
-    tuning = _kalman_tuning(spec, design, options_of(design, spec, EkfOptions))
+def _build_ekf(spec: Spec, design: DesignSpec, at: _OperatingPoint, o: EkfOptions) -> _Outcome:
+    """Extended Kalman filter on the nonlinear model (seed 002 eq. 13-22)."""
+    tuning = _kalman_tuning(spec, design, o)
     ekf = ExtendedKalmanFilter(spec.plant, tuning, backend="vm")
-    return _filter_result(spec, design, "ekf", at, tuning, ekf.model,
-                          kernel_instructions=ekf.instructions)
+    return _filter_outcome(spec, at, tuning, ekf.model, kernel_instructions=ekf.instructions)
 
 
-def run_ukf(spec: Spec, design: DesignSpec) -> DesignResult:
-    """Unscented Kalman filter (seed 002 eq. 23-40).
-
-    Parameters
-    ----------
-    spec : Spec
-        The validated spec (plant, operating point, sampling).
-    design : DesignSpec
-        This ``[[design]]`` entry (method and options).
-    """
-    at = _observable_at_operating_point(spec, _LINEARISATION)
-    o = options_of(design, spec, UkfOptions)
+def _build_ukf(spec: Spec, design: DesignSpec, at: _OperatingPoint, o: UkfOptions) -> _Outcome:
+    """Unscented Kalman filter (seed 002 eq. 23-40)."""
     tuning = _kalman_tuning(spec, design, o, UKFTuning,
                             {"alpha": o.alpha, "beta": o.beta, "kappa": o.kappa, "redraw": o.redraw})
     ukf = UnscentedKalmanFilter(spec.plant, tuning, backend="vm")
-    return _filter_result(spec, design, "ukf", at, tuning, ukf.model,
-                          kernel_instructions=ukf.instructions)
+    return _filter_outcome(spec, at, tuning, ukf.model, kernel_instructions=ukf.instructions)
 
 
-def run_adaptive_kalman(spec: Spec, design: DesignSpec) -> DesignResult:
-    """Adaptive-Q Kalman filter (seed 000 eq. 29-37) on the linearisation.
-
-    Parameters
-    ----------
-    spec : Spec
-        The validated spec (plant, operating point, sampling).
-    design : DesignSpec
-        This ``[[design]]`` entry (method and options).
-    """
-    at = _observable_at_operating_point(spec, _LINEAR_MODEL)
-    o = options_of(design, spec, AdaptiveKalmanOptions)
+def _build_adaptive_kalman(spec: Spec, design: DesignSpec, at: _OperatingPoint,
+                           o: AdaptiveKalmanOptions) -> _Outcome:
+    """Adaptive-Q Kalman filter (seed 000 eq. 29-37) on the linearisation."""
     tuning = keyed_call(design, AdaptiveKalmanTuning, _OPTION_OF, Q0=o.Q0, R=o.R, P0=o.P0,
                         x0=_x0(spec, o), ts=spec.ts, window=o.window, form=o.form,
                         q_floor=o.q_floor, operating_point=at.point)
     model = AdaptiveKalmanFilter(spec.plant, tuning).model
-    return _filter_result(
-        spec, design, "adaptive_kalman", at, tuning, model,
-        gains=_linear_model_gains(model),
+    return _filter_outcome(
+        spec, at, tuning, model, gains=_linear_model_gains(model),
         time_domain="discrete",   # the model is stored as Ad, Bd (`model_names`)
         errata=["seed 000 eq. 35 uses the updated estimate in v_k (a residual); the innovation "
                 "y_k - H x_k^+ (prediction) is used, as in Mohamed & Schwarz (1999)"])
 
 
-def run_adaptive_scaling_kalman(spec: Spec, design: DesignSpec) -> DesignResult:
-    """Adaptive-scaling Kalman filter (seed 004 eq. 30-41).
-
-    Parameters
-    ----------
-    spec : Spec
-        The validated spec (plant, operating point, sampling).
-    design : DesignSpec
-        This ``[[design]]`` entry (method and options).
-    """
-    at = _observable_at_operating_point(spec, _LINEAR_MODEL)
-    o = options_of(design, spec, AdaptiveScalingKalmanOptions)
+def _build_adaptive_scaling_kalman(spec: Spec, design: DesignSpec, at: _OperatingPoint,
+                                   o: AdaptiveScalingKalmanOptions) -> _Outcome:
+    """Adaptive-scaling Kalman filter (seed 004 eq. 30-41)."""
     a, b, c = o.abc
     tuning = keyed_call(design, AdaptiveScalingTuning, _OPTION_OF, Q=o.Q, R=o.R, P0=o.P0,
                         x0=_x0(spec, o), ts=spec.ts, a=a, b=b, c=c, G=o.G, phi0=o.phi0,
                         operating_point=at.point)
     model = AdaptiveScalingKalmanFilter(spec.plant, tuning).model
-    return _filter_result(
-        spec, design, "adaptive_scaling_kalman", at, tuning, model,
+    return _filter_outcome(
+        spec, at, tuning, model,
         errata=["seed 004 eq. 36 is read as the trace equation v'v = tr(beta) + phi "
                 "tr(C G Q G' C') solved for phi (the printed form divides a vector by a "
                 "matrix that itself contains phi)"])
 
 
-def run_consensus_filter(spec: Spec, design: DesignSpec) -> DesignResult:
-    """Consensus (information-form) filter with N redundant sensors (seed 004 eq. 42-51).
+def _consensus_linearisation(spec: Spec, o: ConsensusFilterOptions) -> _OperatingPoint:
+    """``(Ad, C)`` at the operating point, ``C`` repeated for each redundant sensor."""
+    return _observable_at_operating_point(spec, _LINEAR_MODEL, sensors=len(o.R))
 
-    Parameters
-    ----------
-    spec : Spec
-        The validated spec (plant, operating point, sampling).
-    design : DesignSpec
-        This ``[[design]]`` entry (method and options).
-    """
-    o = options_of(design, spec, ConsensusFilterOptions)
-    R = list(o.R)
-    at = _observable_at_operating_point(spec, _LINEAR_MODEL, sensors=len(R))
-    tuning = keyed_call(design, ConsensusTuning, _OPTION_OF, Q=o.Q, R=tuple(R), P0=o.P0,
+
+def _build_consensus_filter(spec: Spec, design: DesignSpec, at: _OperatingPoint,
+                            o: ConsensusFilterOptions) -> _Outcome:
+    """Consensus (information-form) filter with N redundant sensors (seed 004 eq. 42-51)."""
+    R = tuple(o.R)
+    tuning = keyed_call(design, ConsensusTuning, _OPTION_OF, Q=o.Q, R=R, P0=o.P0,
                         x0=_x0(spec, o), ts=spec.ts, operating_point=at.point)
     model = ConsensusFilter(spec.plant, tuning).model
-    return _filter_result(
-        spec, design, "consensus_filter", at, tuning, model, noise=R[0], sensors=len(R),
+    return _filter_outcome(
+        spec, at, tuning, model, noise=R[0], sensors=len(R),
         errata=["seed 004 eq. 50 propagates Pcal = N (P^-1 + sum H_i)^-1; for N > 1 the "
                 "central covariance Pcal / N is propagated (identical for N = 1)"])
 
 
-def run_narx(spec: Spec, design: DesignSpec) -> DesignResult:
-    """NARX estimator trained by Levenberg-Marquardt on EKF data (seed 002 section 3.3).
-
-    Parameters
-    ----------
-    spec : Spec
-        The validated spec (plant, operating point, sampling).
-    design : DesignSpec
-        This ``[[design]]`` entry (method and options).
-    """
+def _build_narx(spec: Spec, design: DesignSpec, at: _OperatingPoint, o: NarxOptions) -> _Outcome:
+    """NARX estimator trained by Levenberg-Marquardt on EKF data (seed 002 section 3.3)."""
     plant = spec.plant
-    at = _observable_at_operating_point(spec, _LINEARISATION)
-    o = options_of(design, spec, NarxOptions)
     ekf_tuning = _kalman_tuning(spec, design, o)
     training = keyed_call(
         design, train_narx, _OPTION_OF, plant=plant, ekf_tuning=ekf_tuning, hidden=o.hidden,
@@ -360,10 +408,17 @@ def run_narx(spec: Spec, design: DesignSpec) -> DesignResult:
             "observability_at_operating_point": at.rank, **training.diagnostics,
             "plausibility": plausibility(plant, ekf_tuning.x0, ekf_tuning.R, ekf_tuning.P0),
             "sampling_period": spec.ts}
-    return DesignResult(design.name, "narx", plant.name, gains, diag)
+    return _Outcome(gains, diag)
 
 
-def run_luenberger(spec: Spec, design: DesignSpec) -> DesignResult:
+def _luenberger_linearisation(spec: Spec, o: LuenbergerOptions) -> _OperatingPoint:
+    """The linearisation at the operating point: ``(F, C)`` for the continuous form, else
+    ``(Ad, C)``."""
+    return _observable_at_operating_point(spec, _LINEARISATION, continuous=o.form == "continuous")
+
+
+def _build_luenberger(spec: Spec, design: DesignSpec, at: _OperatingPoint,
+                      o: LuenbergerOptions) -> _Outcome:
     """Luenberger observer from a given gain ``L`` or from observer ``poles``.
 
     Poles are placed (`tanksynth.design.placement.canonical.place_observer`) on the
@@ -371,18 +426,9 @@ def run_luenberger(spec: Spec, design: DesignSpec) -> DesignResult:
     ``eig(Ad - L C)`` (predictor) or ``eig((I - L C) Ad)`` (current form).
     ``nonlinear = true`` runs the continuous form on the plant's own vector
     field instead of the linearisation.
-
-    Parameters
-    ----------
-    spec : Spec
-        The validated spec (plant, operating point, sampling).
-    design : DesignSpec
-        This ``[[design]]`` entry (method and options).
     """
-    o = options_of(design, spec, LuenbergerOptions)
     plant = spec.plant
     form = o.form
-    at = _observable_at_operating_point(spec, _LINEARISATION, continuous=form == "continuous")
     lin = at.lin
     A_design = lin.F if form == "continuous" else discrete_pair(lin)[0]
     placement = None
@@ -405,16 +451,19 @@ def run_luenberger(spec: Spec, design: DesignSpec) -> DesignResult:
             _pairs(obs.error_eigenvalues)}
     if placement is not None:
         diag["placement"] = placement.as_dict()
-    return DesignResult(design.name, "luenberger", plant.name, tuning.gains(), diag)
+    return _Outcome(tuning.gains(), diag)
 
 
 # ------------------------------------------------------------------ design methods
-KALMAN = DesignMethod("kalman", run_kalman, KalmanOptions)
-EKF = DesignMethod("ekf", run_ekf, EkfOptions)
-UKF = DesignMethod("ukf", run_ukf, UkfOptions)
-ADAPTIVE_KALMAN = DesignMethod("adaptive_kalman", run_adaptive_kalman, AdaptiveKalmanOptions)
-ADAPTIVE_SCALING_KALMAN = DesignMethod("adaptive_scaling_kalman", run_adaptive_scaling_kalman,
-                                       AdaptiveScalingKalmanOptions)
-CONSENSUS_FILTER = DesignMethod("consensus_filter", run_consensus_filter, ConsensusFilterOptions)
-NARX = DesignMethod("narx", run_narx, NarxOptions)
-LUENBERGER = DesignMethod("luenberger", run_luenberger, LuenbergerOptions)
+KALMAN = estimator_method("kalman", KalmanOptions, _LINEAR_MODEL, _build_kalman)
+EKF = estimator_method("ekf", EkfOptions, _LINEARISATION, _build_ekf)
+UKF = estimator_method("ukf", UkfOptions, _LINEARISATION, _build_ukf)
+ADAPTIVE_KALMAN = estimator_method("adaptive_kalman", AdaptiveKalmanOptions, _LINEAR_MODEL,
+                                   _build_adaptive_kalman)
+ADAPTIVE_SCALING_KALMAN = estimator_method("adaptive_scaling_kalman", AdaptiveScalingKalmanOptions,
+                                           _LINEAR_MODEL, _build_adaptive_scaling_kalman)
+CONSENSUS_FILTER = estimator_method("consensus_filter", ConsensusFilterOptions,
+                                    _consensus_linearisation, _build_consensus_filter)
+NARX = estimator_method("narx", NarxOptions, _LINEARISATION, _build_narx)
+LUENBERGER = estimator_method("luenberger", LuenbergerOptions, _luenberger_linearisation,
+                              _build_luenberger)
