@@ -95,12 +95,13 @@ class ParameterChange:
     ----------
     sample : int
         Sample index ``k``: the new values hold from ``t_k`` on.
-    values : mapping of str to float
-        Parameter name -> value in the parameter's unit.
+    values : mapping of str to float or ndarray
+        Parameter name -> value in the parameter's unit: one value for every run, or an array of
+        shape ``(M,)`` with one value per run of a batch (a fault on half the runs).
     """
 
     sample: int
-    values: Mapping[str, float]
+    values: Mapping[str, float | np.ndarray]
 
 
 @dataclass(frozen=True)

@@ -277,7 +277,7 @@ def simulate(plant: Plant, *, ts: float, steps: int, x0: Sequence[float] | np.nd
     wstd = _per_run(process_std, 1, n, "process_std")[0]
     vstd = _per_run(measurement_std, 1, q, "measurement_std")[0]
     params = param_arrays(plant, parameters, M)
-    schedule: dict[int, list[Mapping[str, float]]] = {}
+    schedule: dict[int, list[Mapping[str, float | np.ndarray]]] = {}
     for ch in changes:
         param_arrays(plant, ch.values, M)  # validates names and shapes
         schedule.setdefault(int(ch.sample), []).append(ch.values)

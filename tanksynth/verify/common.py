@@ -239,7 +239,9 @@ def option(doc: Mapping[str, Any], spec: Spec, name: str, default: Any = None) -
     if entry is None:
         return default
     config = entry.config if getattr(entry, "config", None) is not None else entry.options
-    value = config.get(name) if hasattr(config, "get") else getattr(config, name, None)
+    if config is None:
+        return default
+    value = config.get(name) if isinstance(config, Mapping) else getattr(config, name, None)
     return default if value is None else value
 
 
