@@ -15,8 +15,9 @@ import pytest
 import tanksynth.verify
 
 VERIFY = Path(tanksynth.verify.__file__).parent
-#: The Monte-Carlo campaign module is not a verdict (its own contract is kept elsewhere).
-MODULES = sorted(p for p in VERIFY.glob("*.py") if p.name != "campaign.py")
+#: Every module of the stage, the families' sub-packages included; the Monte-Carlo campaign
+#: modules are not verdicts (their own contract: tests/verify/test_campaign_runs.py).
+MODULES = sorted(p for p in VERIFY.rglob("*.py") if p.name != "campaign.py")
 FORBIDDEN_IMPORTS = ("tanksynth.design", "tanksynth.methods", "tanksynth.papers")
 FORBIDDEN_NAMES = re.compile(r"(?i:seed0|paper|printed)|SEED")
 
@@ -25,7 +26,7 @@ def _tree(path: Path) -> ast.AST:
     return ast.parse(path.read_text(encoding="utf-8"), filename=str(path))
 
 
-@pytest.mark.parametrize("path", MODULES, ids=lambda p: p.name)
+@pytest.mark.parametrize("path", MODULES, ids=lambda p: str(p.relative_to(VERIFY)))
 def test_no_import_of_the_design_stage(path):
     found = []
     for node in ast.walk(_tree(path)):
@@ -38,7 +39,7 @@ def test_no_import_of_the_design_stage(path):
     assert not found, f"{path.name} imports {found}"
 
 
-@pytest.mark.parametrize("path", MODULES, ids=lambda p: p.name)
+@pytest.mark.parametrize("path", MODULES, ids=lambda p: str(p.relative_to(VERIFY)))
 def test_no_paper_identifier_or_key(path):
     bad = []
     for node in ast.walk(_tree(path)):
@@ -62,6 +63,9 @@ def test_no_paper_identifier_or_key(path):
     assert not bad, f"{path.name} uses {bad}"
 
 
-@pytest.mark.parametrize("path", MODULES, ids=lambda p: p.name)
-def test_modules_stay_short(path):
-    assert len(path.read_text(encoding="utf-8").splitlines()) <= 600, path.name
+@pytest.mark.parametrize("path", MODULES, ids=lambda p: str(p.relative_to(VERIFY)))
+def test_modules_stay_readable(path):
+    """Modules are cut by topic, not to fit a line count (issue 26): this is not a cap to cut
+    to, only a ceiling far above any one topic's verdict, so a module that reaches it has grown
+    a second topic and is split by topic."""
+    assert len(path.read_text(encoding="utf-8").splitlines()) <= 1000, path.name
