@@ -15,7 +15,7 @@ from typing import Mapping
 import pytest
 
 import tanksynth
-from tanksynth.methods import (ADAPTERS, KINDS, METHODS, RUNNERS, STATEMENTS, TABLE, VERDICTS, load_spec,
+from tanksynth.methods import (ADAPTERS, FAMILIES, KINDS, METHODS, RUNNERS, STATEMENTS, TABLE, VERDICTS, load_spec,
                                resolve, resolve_table)
 from tanksynth.spec.method_options import MethodOptions
 
@@ -237,7 +237,7 @@ def _names_and_keys(path: Path):
 #: The option layer and the design adapters (the algorithms' modules are checked by their own
 #: tests for the whole tree).
 _ADAPTER_FILES = sorted([*(ROOT / "tanksynth" / "spec").rglob("*.py"),
-                         *(ROOT / "tanksynth" / "design").glob("*_methods.py"),
+                         *(ROOT / "tanksynth" / "design").rglob("adapters.py"),
                          ROOT / "tanksynth" / "design" / "result.py"])
 
 
@@ -247,6 +247,7 @@ def test_no_seed_values_in_options_or_adapters():
     dict key of the spec layer or of a design adapter names a seed, a paper or a printed value,
     and no adapter branches on a plant's name."""
     bad = re.compile(r"seed0|SEED|paper|printed")
+    assert sum(p.name == "adapters.py" for p in _ADAPTER_FILES) == len(FAMILIES)  # every family's
     found = [f"{path.relative_to(ROOT)}:{line}: {name}" for path in _ADAPTER_FILES
              for line, name in _names_and_keys(path) if bad.search(name)]
     assert found == []

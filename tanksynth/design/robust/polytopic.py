@@ -305,7 +305,7 @@ def robust_state_feedback(A: Any, B: Any, region: LMIRegion, *, domain: str = "c
     omega = omega if omega > 0 else 1.0
     As, Bs, reg = Ab / omega, Bb / omega, region.scaled(omega)
     I = np.eye(n)
-    # Clarabel: the LMIs written straight in its conic form (robust_conic); SCS: through cvxpy
+    # Clarabel: the LMIs written straight in its conic form (design.conic); SCS: through cvxpy
     lib = modelling(solver)
     X = lib.variable((n, n), symmetric=True)
     Y = lib.variable((m, n))

@@ -38,7 +38,7 @@ import numpy as np
 
 from tanksynth.analysis.lmi_region import LMIRegion
 from tanksynth.analysis.statespace import statespace_matrices
-from tanksynth.design import conic as robust_conic
+from tanksynth.design import conic
 from tanksynth.design.matrices import symmetrized
 from tanksynth.errors import DimensionError, SpecError
 
@@ -201,11 +201,11 @@ def observer_plant(A: Any, C: Any, Bw: Any, Dv: Any, Cz: Any, domain: str = "con
 
 # ========================================================================= LMI blocks
 def _library(values: Sequence[Any]) -> Any:
-    """The module whose ``bmat``/``kron`` handle ``values``: robust_conic, cvxpy or None (numpy)."""
+    """The module whose ``bmat``/``kron`` handle ``values``: design.conic, cvxpy or None (numpy)."""
     lib: Any = None
     for v in values:
-        if isinstance(v, robust_conic.Expression):
-            return robust_conic
+        if isinstance(v, conic.Expression):
+            return conic
         if type(v).__module__.startswith("cvxpy."):
             # only the SCS route builds cvxpy expressions (cvxpy is loaded then; here, not at
             # the top, so that the Clarabel route never pays its import)
@@ -336,7 +336,7 @@ def region_lmi(region: LMIRegion, plant: GeneralizedPlant, X: Any, Y: Any) -> An
     region : LMIRegion
         In the units of the eigenvalues of ``plant.A``.
     plant : GeneralizedPlant
-    X, Y : affine expressions (robust_conic or cvxpy) or ndarrays
+    X, Y : affine expressions (design.conic or cvxpy) or ndarrays
 
     Returns
     -------

@@ -327,7 +327,7 @@ def synthesize_state_feedback(plants: GeneralizedPlant | Sequence[GeneralizedPla
     reg_s = None if region is None else (region.scaled(sc.omega) if domain == "continuous" else region)
     f2, finf = sc.h2_factor(domain), sc.hinf_factor()
     n, m, nz = models[0].n, models[0].m, models[0].Cz.shape[0]
-    # Clarabel: the LMIs written straight in its conic form (robust_conic); SCS: through cvxpy.
+    # Clarabel: the LMIs written straight in its conic form (design.conic); SCS: through cvxpy.
     # Every variable first (the conic model's size is fixed by the first expression built).
     lib = modelling(solver)
     X = lib.variable((n, n), symmetric=True)

@@ -254,7 +254,7 @@ def pdc_lmi(A: Any, B: Any, *, alpha: float = 0.0, relaxation: str = "tuan",
     Bs = np.linalg.solve(Tx, B @ Tu)
     omega = max(float(max(np.linalg.norm(Ai, 2) for Ai in As)), float(alpha), 1e-12)
     As, Bs, al = As / omega, Bs / omega, alpha / omega
-    # Clarabel: the LMIs written straight in its conic form (robust_conic); others through cvxpy
+    # Clarabel: the LMIs written straight in its conic form (design.conic); others through cvxpy
     lib = modelling(solver)
     X = lib.variable((n, n), symmetric=True)
     Ms = [lib.variable((m, n)) for _ in range(r)]

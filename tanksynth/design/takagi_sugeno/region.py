@@ -193,7 +193,7 @@ def observer_decay_lmi(A0: Any, C: Any, psi: float, alpha: float, *, margin: flo
     n, q = A0.shape[0], C.shape[0]
     om = max(float(np.linalg.norm(A0, 2)), psi, alpha, 1e-12)
     As, ps, al = A0 / om, psi / om, alpha / om
-    # Clarabel: the LMI written straight in its conic form (robust_conic); others through cvxpy
+    # Clarabel: the LMI written straight in its conic form (design.conic); others through cvxpy
     lib = modelling(solver)
     P = lib.variable((n, n), symmetric=True)
     N = lib.variable((n, q))
