@@ -491,7 +491,8 @@ def model_recheck(plant: Plant, x0: np.ndarray, u0: np.ndarray, domain: str, ts:
     """
     lin = linearize(plant, x0, u0, ts=required_ts(ts) if domain == "discrete" else None)
     A, B = (lin.Ad, lin.Bd) if domain == "discrete" else (lin.F, lin.B)
-    assert A is not None and B is not None  # ts given: linearize discretised
+    if A is None or B is None:  # linearize discretises whenever it is given ts
+        raise ArtefactError(f"no {domain}-time model of the plant at the operating point (ts = {ts})")
     ref = {"A": A, "B": B, "C": lin.C}
     diffs = {}
     for name, mat in stored.items():

@@ -126,7 +126,8 @@ def _dare_error(spec: Spec, op: tuple[np.ndarray, np.ndarray] | None, Q: np.ndar
     x_op, u_op = op if op is not None else operating_point(spec)
     lin = linearize(spec.plant, x_op, u_op, ts=discrete_ts(spec))
     Ad, C = lin.Ad, np.vstack([lin.C] * sensors)
-    assert Ad is not None  # linearised with ts: discretised
+    if Ad is None:  # linearize discretises whenever it is given ts
+        raise ArtefactError("no discrete-time model of the plant: the spec gives no sampling period")
     P = sla.solve_discrete_are(Ad.T, C.T, 0.5 * (Q + Q.T), R)
     K = P @ C.T @ np.linalg.inv(C @ P @ C.T + R)
     return (np.eye(spec.plant.n) - K @ C) @ Ad
