@@ -28,11 +28,12 @@ __all__ = ["MethodOptions", "OptionReader", "OptionDoc", "option", "numpydoc_sec
 
 
 def option(default: Any = MISSING, *, unit: str, doc: str = "", default_text: str = "",
-           choices: tuple[Any, ...] = ()) -> Any:
+           choices: tuple[Any, ...] = (), required_when: str = "") -> Any:
     """A field of an Options dataclass that declares its unit (and, optionally, its meaning).
 
     Use it as the field's default: ``margin: float = option(1e-6, unit="-")``;
-    a required option omits the default: ``poles: tuple = option(unit="1/s")``.
+    a required option omits the default: ``poles: tuple = option(unit="1/s")`` (such a
+    field is keyword-only in the constructor, so it may follow inherited fields with defaults).
 
     Parameters
     ----------
@@ -52,18 +53,21 @@ def option(default: Any = MISSING, *, unit: str, doc: str = "", default_text: st
     choices : tuple, optional
         The allowed values of a choice option (the tuple its reader passes to
         `tanksynth.spec.options.parse_choice`).
+    required_when : str, optional
+        For an option with a default that the plant can make necessary: when it is
+        (``"the plant has not as many outputs as inputs"``); the catalogue prints it.
 
     Returns
     -------
     dataclasses.Field
-        The field, its ``metadata`` holding ``unit``, ``doc``, ``default_text``
-        and ``choices``.
+        The field, its ``metadata`` holding ``unit``, ``doc``, ``default_text``,
+        ``choices`` and ``required_when``.
     """
     if not isinstance(unit, str) or not unit:
         raise TypeError("option(): unit must be a non-empty string ('-' when dimensionless)")
-    return dataclasses.field(default=default, metadata={"unit": unit, "doc": doc,
-                                                        "default_text": default_text,
-                                                        "choices": tuple(choices)})
+    return dataclasses.field(default=default, kw_only=default is MISSING,
+                             metadata={"unit": unit, "doc": doc, "default_text": default_text,
+                                       "choices": tuple(choices), "required_when": required_when})
 
 
 @dataclass(frozen=True)
@@ -79,7 +83,7 @@ class OptionDoc:
     default : str
         The default as written in Python (``repr``), or ``"required"``.
     required : bool
-        The option has no default.
+        The option has no default: a table without it is refused.
     unit : str
         Its unit (``"-"`` dimensionless); ``""`` when the field declares none.
     meaning : str
@@ -91,6 +95,11 @@ class OptionDoc:
         operating point"``), ``""`` for a plain default.
     choices : tuple of str
         The allowed values of a choice option (``repr`` of each), ``()`` otherwise.
+    one_of : tuple of str
+        The group of options of which a table gives exactly one (this option among
+        them, see `MethodOptions.one_of`), ``()`` for an option outside such a group.
+    required_when : str
+        When the plant makes this option (which has a default) necessary, ``""`` if never.
     """
 
     name: str
@@ -102,6 +111,8 @@ class OptionDoc:
     description: str
     default_text: str = ""
     choices: tuple[str, ...] = ()
+    one_of: tuple[str, ...] = ()
+    required_when: str = ""
 
     def as_dict(self) -> dict[str, Any]:
         """JSON-friendly fields."""
@@ -223,10 +234,15 @@ class MethodOptions:
         (class attribute) The spec's ``method`` value.
     needs_sampling : bool
         (class attribute) The method needs ``[sampling] ts``.
+    one_of : tuple of tuple of str
+        (class attribute) Groups of options of which a table gives exactly one
+        (``(("L", "poles"),)``): `OptionReader` refuses a table giving none or
+        several, and `describe` says so of each member (one source for both).
     """
 
     method_name: ClassVar[str] = ""
     needs_sampling: ClassVar[bool] = False
+    one_of: ClassVar[tuple[tuple[str, ...], ...]] = ()
 
     @classmethod
     def from_table(cls, options: Mapping[str, Any], key: str, plant: Plant,
@@ -342,6 +358,7 @@ class MethodOptions:
         tuple of OptionDoc
         """
         documented = numpydoc_section(cls.__doc__, "Attributes")
+        groups = {name: group for group in cls.one_of for name in group}
         out = []
         for f in dataclasses.fields(cls):
             typ, text = documented.get(f.name, ("", ""))
@@ -356,12 +373,19 @@ class MethodOptions:
                 computed = f.metadata.get("default_text") or _default_clause(text)
             elif not required:
                 computed = f.metadata.get("default_text", "")
+            group = groups.get(f.name, ())
+            required_when = f.metadata.get("required_when", "")
+            if group:
+                computed = f"unset: give exactly one of {_names_text(group)}"
+            elif required_when:
+                computed = f"{computed}; required when {required_when}" if computed \
+                    else f"unset: required when {required_when}"
             if computed and not computed.startswith(("computed:", "unset:")):
                 computed = f"computed: {computed}"
             choices = tuple(repr(c).replace("'", '"') if isinstance(c, str) else repr(c)
                             for c in f.metadata.get("choices", ()))
             out.append(OptionDoc(f.name, typ, default, required, f.metadata.get("unit", ""),
-                                 meaning, text, computed, choices))
+                                 meaning, text, computed, choices, group, required_when))
         return tuple(out)
 
     @classmethod
@@ -398,6 +422,11 @@ class MethodOptions:
                    for f in dataclasses.fields(self))
 
     __hash__ = None  # type: ignore[assignment]  # arrays inside
+
+
+def _names_text(names: tuple[str, ...]) -> str:
+    """``L and poles`` (``a, b and c`` for three)."""
+    return ", ".join(names[:-1]) + f" and {names[-1]}" if len(names) > 1 else "".join(names)
 
 
 def _same(a: Any, b: Any) -> bool:
@@ -464,6 +493,13 @@ class OptionReader:
         if cls.needs_sampling and ts is None:
             raise SpecError(f"method '{cls.method_name}' needs a sampling period: add [sampling] ts = ...",
                             key="sampling.ts")
+        for group in cls.one_of:
+            given = [name for name in group if name in options]
+            if len(given) != 1:
+                raise SpecError(f"give exactly one of {_names_text(group)} ("
+                                + ("neither is given)" if not given else "not both)" if len(group) == 2
+                                   else f"not {_names_text(tuple(given))})"),
+                                key=f"{key}.{group[0]}")
         self.cls = cls
         self.options = options
         self.base = key

@@ -337,12 +337,11 @@ class LuenbergerOptions(MethodOptions):
     """
 
     method_name: ClassVar[str] = "luenberger"
+    one_of: ClassVar[tuple[tuple[str, ...], ...]] = (("L", "poles"),)
     needs_sampling: ClassVar[bool] = True
 
-    L: np.ndarray | None = option(None, unit="(state units)/(output units)",
-                                  default_text="unset: give L or poles")
-    poles: tuple[complex, ...] | None = option(None, unit="1/s (continuous) or - (discrete, z-plane)",
-                                               default_text="unset: give L or poles")
+    L: np.ndarray | None = option(None, unit="(state units)/(output units)")
+    poles: tuple[complex, ...] | None = option(None, unit="1/s (continuous) or - (discrete, z-plane)")
     form: str = option("current", unit="-", choices=OBSERVER_FORMS)
     x0: np.ndarray | None = option(None, unit="state units")
     substeps: int = option(10, unit="-")
@@ -353,8 +352,6 @@ class LuenbergerOptions(MethodOptions):
                    ts: float | None) -> "LuenbergerOptions":
         """See `MethodOptions.from_table`; exactly one of ``L`` and ``poles``."""
         r = OptionReader(cls, options, key, ts)
-        if r.given("L") == r.given("poles"):
-            raise r.fail("L", "give exactly one of L (gain matrix) and poles")
         form = r.read("form", parse_choice, OBSERVER_FORMS)
         nonlinear = r.read("nonlinear", parse_bool)
         if nonlinear and form != "continuous":

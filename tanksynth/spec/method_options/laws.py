@@ -57,11 +57,12 @@ class FeedbackLinearizationOptions(MethodOptions):
     """
 
     method_name: ClassVar[str] = "feedback_linearization"
+    one_of: ClassVar[tuple[tuple[str, ...], ...]] = (("poles", "bandwidth"),)
 
-    tracked: tuple[str, ...] | None = option(None, unit="-")
-    poles: tuple[complex, ...] | None = option(None, unit="1/s",
-                                               default_text="unset: give poles or bandwidth")
-    bandwidth: np.ndarray | None = option(None, unit="1/s", default_text="unset: give poles or bandwidth")
+    tracked: tuple[str, ...] | None = option(None, unit="-",
+                                             required_when="the plant has not as many outputs as inputs")
+    poles: tuple[complex, ...] | None = option(None, unit="1/s")
+    bandwidth: np.ndarray | None = option(None, unit="1/s")
     saturate: bool = option(True, unit="-")
     allow_unstable_zero_dynamics: bool = option(False, unit="-")
     grid: int = option(11, unit="-")
@@ -79,9 +80,6 @@ class FeedbackLinearizationOptions(MethodOptions):
         if tracked is None and plant.q != plant.m:
             raise r.fail("tracked", f"plant '{plant.name}' has {plant.q} outputs and {plant.m} "
                                     f"inputs: choose {plant.m} outputs (or states) to decouple")
-        if r.given("poles") == r.given("bandwidth"):
-            raise r.fail("poles", "give the outer loop either 'poles' or 'bandwidth' ("
-                         + ("not both)" if r.given("poles") else "neither is given)"))
         count = len(tracked) if tracked is not None else plant.q
         bandwidth = r.read("bandwidth", parse_vector, broadcast=True, above=0.0)
         if bandwidth is not None and bandwidth.size not in (1, count):

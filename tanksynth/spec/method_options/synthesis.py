@@ -487,7 +487,7 @@ class MultiobjectiveOptions(_StateFeedbackOptions):
     """
 
     method_name: ClassVar[str] = "multiobjective"
-    region: tuple = option((), unit="1/s (continuous) or - (discrete, z-plane)")
+    region: tuple = option(unit="1/s (continuous) or - (discrete, z-plane)")
     target: str = option("state_feedback", unit="-", choices=SYNTHESIS_TARGETS)
     objective: str = option("hinf", unit="-", choices=SYNTHESIS_OBJECTIVES)
     h2_bound: float | None = option(None, unit="-", default_text="unset: no H2 bound")
@@ -500,8 +500,6 @@ class MultiobjectiveOptions(_StateFeedbackOptions):
                    ts: float | None) -> "MultiobjectiveOptions":
         """See `MethodOptions.from_table`; the region must be stable in the time domain."""
         r = OptionReader(cls, options, key, ts)
-        if not r.given("region"):
-            raise r.fail("region", "missing option 'region' for method 'multiobjective'")
         target = r.read("target", parse_choice, SYNTHESIS_TARGETS)
         observer = target == "observer"
         for opt in (("R", "Dzu") if observer else ("measurement_std",)):
