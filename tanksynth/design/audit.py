@@ -6,6 +6,8 @@ method and collects one line per problem as a `DesignWarning`:
 * the operating point is not an equilibrium (which equation is unbalanced,
   by how much, against which tolerance);
 * the equilibrium input lies outside the actuator range;
+* the sampling period is longer than the plant's slowest time constant (named, with
+  the fastest);
 * a plant parameter lies outside the plausible range its plant declares
   (a unit slip: cm^2 written as m^2);
 * the design's own closed loop (``A - B K``, ``A - L C`` from its gains, or
@@ -26,9 +28,10 @@ from typing import Callable
 
 import numpy as np
 
+from tanksynth.analysis.sampling import sampling_warning
 from tanksynth.analysis.statespace import model_names
 from tanksynth.analysis.trim import balancing_hint
-from tanksynth.design.operating_point import as_levels, equilibrium_at
+from tanksynth.design.operating_point import as_levels, equilibrium_at, linearized_at
 from tanksynth.design.result import DesignResult
 from tanksynth.errors import DesignWarning
 from tanksynth.spec import DesignSpec, Spec
@@ -67,6 +70,10 @@ def spec_warnings(spec: Spec) -> list[str]:
                for q, v, (lo, hi) in zip(plant.inputs, eq.u0, plant.input_limits)
                if not lo - 1e-12 <= v <= hi + 1e-12]
         out.append("the equilibrium input lies outside the actuator range: " + "; ".join(bad))
+    if spec.ts is not None:
+        slow = sampling_warning(linearized_at(plant, spec.x0, eq.u0).F, spec.ts)
+        if slow:
+            out.append(slow)
     return out
 
 

@@ -103,3 +103,36 @@ poles = [1.5, 0.9, 0.8]
 """
     with pytest.raises(SpecError, match="unit circle"):
         parse_spec_text(text)
+
+
+def _three_tank_time_constants(h1, h2, h3):
+    """Time constants (s) of the three-tank linearised by hand: d/dd (k sqrt(d)) = k / (2 sqrt(d))."""
+    g, A, Phi, mu13, mu32, mu20 = 9.81, 0.0154, 5e-5, 0.5, 0.5, 0.675
+    c13, c32, c20 = (mu * Phi * np.sqrt(2 * g) / (2 * np.sqrt(d)) / A
+                     for mu, d in ((mu13, h1 - h3), (mu32, h3 - h2), (mu20, h2)))
+    F = np.array([[-c13, 0.0, c13],
+                  [0.0, -c32 - c20, c32],
+                  [c13, c32, -c13 - c32]])
+    return np.sort(-1.0 / np.linalg.eigvals(F).real)
+
+
+def test_sampling_period_longer_than_the_slowest_time_constant_warns_naming_them():
+    """Issue 30 item 15: ts = 1000 s on the three-tank is 2.2x its slowest time constant."""
+    taus = _three_tank_time_constants(0.40, 0.20, 0.30)
+    assert 1000.0 / taus[-1] == pytest.approx(2.2, abs=0.05)
+    text = HEAD.format(params="", h1=0.40, h2=0.20, h3=0.30).replace("ts = 1.0", "ts = 1000.0")
+    res, lines = _design(text)
+    line = next(s for s in lines if "slowest time constant" in s)
+    assert f"{taus[-1]:.3g} s" in line and f"fastest {taus[0]:.3g} s" in line, line
+    assert f"{1000.0 / taus[0]:.2g}x" in line and "ts = 1000 s" in line
+    assert line in res.diagnostics["warnings"]
+    # the ZOH factor of the fastest mode is below machine epsilon: said so
+    assert np.exp(-1000.0 / taus[0]) < np.finfo(float).eps and "machine epsilon" in line
+
+
+def test_sampling_period_shorter_than_the_slowest_time_constant_is_quiet():
+    taus = _three_tank_time_constants(0.40, 0.20, 0.30)
+    ts = float(0.9 * taus[-1])
+    text = HEAD.format(params="", h1=0.40, h2=0.20, h3=0.30).replace("ts = 1.0", f"ts = {ts!r}")
+    _, lines = _design(text)
+    assert not [s for s in lines if "time constant" in s]
