@@ -115,11 +115,13 @@ def equilibrium_checks(plant: Plant, eq) -> list[Check]:
         bad = [plant.states[j].name for j in np.flatnonzero(res > eq.tolerance)]
         detail += (f"; unbalanced: d{st.name}/dt = {eq.residual[i]:.3g} {st.unit}/s (equation(s) of "
                    f"{', '.join(bad)}): no input holds the plant at x_op")
-        from tanksynth.analysis.trim import balancing_hint
+        from tanksynth.analysis.trim import balancing_hint, trim_hint
 
-        hint = balancing_hint(plant, eq.x0, eq.tolerance)
-        if hint:
-            detail += f"; {hint}"
+        for hint in (trim_hint(plant, eq.x0, eq.u0 if eq.given_u0 is None else eq.given_u0,
+                               u_given=eq.given_u0 is not None),
+                     balancing_hint(plant, eq.x0, eq.tolerance)):
+            if hint:
+                detail += f"; {hint}"
     out = [Check("equilibrium", eq.is_equilibrium, detail, eq.as_dict())]
     lim = plant.input_limits
     def unit(q: Any) -> str:

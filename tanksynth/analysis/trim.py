@@ -1,11 +1,18 @@
-"""Trim: the levels at which given pump flows hold the plant still.
+"""Trim: the levels at which given pump flows hold the plant still, and hints for a wrong point.
 
 `tanksynth.analysis.linearize.equilibrium_input` answers "which input holds
 these levels?"; tank users usually know the other side: "the pumps run at
 these flows, where do the levels settle?". `trim` solves ``f(x, u) = 0`` for
 ``x`` with ``u`` given, by `scipy.optimize.root` (hybrid Powell with the
 model's Jacobian ``df/dx``) from several starting points of the operating
-region, and keeps the solution inside the region with the smallest residual.
+region, and keeps the solution inside the region with the smallest residual;
+`trim_outputs` solves for the inputs and levels that give required outputs.
+Both live in `tanksynth.plants.trim` (the spec's ``[operating_point] trim``
+calls them) and are re-exported here.
+
+For an operating point that is not an equilibrium, `balancing_hint` names the
+single-state changes that balance it and `trim_hint` the nearest equilibrium
+for the inputs (and the spec line that uses it).
 """
 
 from __future__ import annotations
@@ -16,128 +23,9 @@ import numpy.typing as npt
 
 from tanksynth.errors import DimensionError
 from tanksynth.plants.base import Plant
+from tanksynth.plants.trim import Trim, trim, trim_outputs
 
-__all__ = ["Trim", "trim", "LevelFix", "balancing_levels", "balancing_hint"]
-
-
-@dataclass(frozen=True)
-class Trim:
-    """Levels that balance given inputs, with the evidence.
-
-    Attributes
-    ----------
-    x : ndarray, shape (n,)
-        Levels (state units) with ``f(x, u) = 0``.
-    u : ndarray, shape (m,)
-        The given inputs (input units).
-    residual : ndarray, shape (n,)
-        ``f(x, u)`` (state units per s) at the solution.
-    converged : bool
-        ``max |residual| <= tolerance`` and ``x`` inside the operating region.
-    tolerance : float
-        Absolute tolerance on ``max |f|`` (state units/s).
-    in_region : bool
-        ``x`` satisfies the region's bounds and orderings.
-    violations : tuple of str
-        Region conditions ``x`` violates (empty when inside).
-    starts : int
-        Starting points tried.
-    """
-
-    x: np.ndarray
-    u: np.ndarray
-    residual: np.ndarray
-    converged: bool
-    tolerance: float
-    in_region: bool
-    violations: tuple[str, ...]
-    starts: int
-
-    def as_dict(self) -> dict:
-        """JSON-friendly form."""
-        return {"x": self.x.tolist(), "u": self.u.tolist(), "residual": self.residual.tolist(),
-                "max_abs_residual": float(np.max(np.abs(self.residual))),
-                "converged": self.converged, "tolerance": self.tolerance,
-                "in_region": self.in_region, "violations": list(self.violations),
-                "starts": self.starts}
-
-
-def trim(plant: Plant, u: npt.ArrayLike, x_guess: npt.ArrayLike | None = None,
-         starts: int = 20, seed: int = 0, tolerance: float | None = None) -> Trim:
-    """Levels ``x`` with ``f(x, u) = 0`` for given inputs ``u`` (root finding on the model).
-
-    Parameters
-    ----------
-    plant : Plant
-    u : array_like, shape (m,)
-        Inputs (pump flows) in the input units.
-    x_guess : array_like, shape (n,), optional
-        First starting point (state units); then the region's centre and
-        ``starts`` seeded samples of the region.
-    starts : int
-        Sampled starting points (>= 0).
-    seed : int
-        Seed of the sampling.
-    tolerance : float, optional
-        Absolute tolerance on ``max |f(x, u)|`` (state units/s); default
-        ``1e-9`` times the largest input term ``max |df/du u|`` (at least 1e-15).
-
-    Returns
-    -------
-    Trim
-        The best solution found (``converged`` False when no start reached
-        the tolerance inside the region: the inputs cannot hold the plant in
-        its region, e.g. more inflow than the outlets can drain).
-    """
-    from scipy.optimize import root  # deferred: scipy.optimize imports in ~0.15 s
-    u_vec = np.asarray(u, dtype=float).reshape(-1)
-    if u_vec.size != plant.m or not np.all(np.isfinite(u_vec)):
-        raise DimensionError(f"u must have {plant.m} finite entries, got {u_vec.tolist()}")
-    comp = plant.compiled
-    lo = np.array([b[0] for b in plant.region.bounds], dtype=float)
-    hi = np.array([b[1] for b in plant.region.bounds], dtype=float)
-    points = []
-    if x_guess is not None:
-        g = np.asarray(x_guess, dtype=float).reshape(-1)
-        if g.size != plant.n:
-            raise DimensionError(f"x_guess has {g.size} entries, expected {plant.n}")
-        points.append(g)
-    try:
-        points += list(plant.region.sample(max(int(starts), 1), plant.x, seed=seed, margin=0.01))
-    except Exception:  # a region too thin to sample: the box centre only
-        pass
-    points.append(0.5 * (lo + hi))
-    G = comp.jacobians(points[-1][None], u_vec[None])[1][0]
-    scale = float(np.max(np.abs(G @ u_vec))) if u_vec.size else 0.0
-    tol = float(tolerance) if tolerance is not None else max(1e-9 * scale, 1e-15)
-
-    def fun(x):
-        return comp.rhs(x[None], u_vec[None])[0]
-
-    def jac(x):
-        return comp.jacobians(x[None], u_vec[None])[0][0]
-
-    best = None
-    for x0 in points:
-        with np.errstate(all="ignore"):
-            sol = root(fun, x0, jac=jac, method="hybr", options={"xtol": 1e-14})
-        x = np.asarray(sol.x, dtype=float)
-        if not np.all(np.isfinite(x)):
-            continue
-        r = fun(x)
-        if not np.all(np.isfinite(r)):
-            continue
-        bad = tuple(plant.region.violations(x, plant.x))
-        key = (len(bad) > 0, float(np.max(np.abs(r))))
-        if best is None or key < best[0]:
-            best = (key, x, r, bad)
-        if not bad and key[1] <= tol:
-            break
-    if best is None:
-        x = points[-1]
-        return Trim(x, u_vec, fun(x), False, tol, False, ("no start converged",), len(points))
-    (_, worst), x, r, bad = best
-    return Trim(x, u_vec, r, bool(not bad and worst <= tol), tol, not bad, bad, len(points))
+__all__ = ["Trim", "trim", "trim_outputs", "LevelFix", "balancing_levels", "balancing_hint", "trim_hint"]
 
 
 @dataclass(frozen=True)
@@ -270,3 +158,42 @@ def balancing_hint(plant: Plant, x: npt.ArrayLike, tolerance: float) -> str:
     if rest:
         text += " (or " + ", or ".join(f.describe(units[f.state]) for f in rest) + ")"
     return text + ", the other states as given"
+
+
+def trim_hint(plant: Plant, x: npt.ArrayLike, u: npt.ArrayLike, u_given: bool = True) -> str:
+    """The nearest equilibrium for inputs ``u`` and the spec lines that use it ("" if none).
+
+    `trim` from ``x`` first (so the equilibrium the solver reaches first is the
+    one nearest the levels written).
+
+    Parameters
+    ----------
+    plant : Plant
+    x : array_like, shape (n,)
+        The operating levels given (state units).
+    u : array_like, shape (m,)
+        The inputs (input units): the spec's ``u``, or the least-squares input.
+    u_given : bool
+        ``u`` is the spec's own (else the hint also says to write it).
+
+    Returns
+    -------
+    str
+        E.g. ``'nearest equilibrium for these inputs (u1 = 3 V, u2 = 3 V): h1 = 12.263 cm,
+        h2 = 12.7832 cm, h3 = 1.63394 cm, h4 = 1.40904 cm; write trim = "states" in
+        [operating_point] to use it (x, if kept, is then only the solver's start)'``.
+    """
+    found = trim(plant, u, x_guess=x)
+    if not found.converged:
+        return ""
+
+    def unit(q) -> str:
+        return "" if str(q.unit) in ("", "1", "-") else f" {q.unit}"
+
+    inputs = ", ".join(f"{q.name} = {v:.6g}{unit(q)}" for q, v in zip(plant.inputs, found.u))
+    levels = ", ".join(f"{s.name} = {v:.6g}{unit(s)}" for s, v in zip(plant.states, found.x))
+    write = ('write trim = "states" in [operating_point]' if u_given else
+             'write u = {' + ", ".join(f"{q.name} = {v:.6g}" for q, v in zip(plant.inputs, found.u))
+             + '} and trim = "states" in [operating_point]')
+    return (f"nearest equilibrium for these inputs ({inputs}): {levels}; {write} to use it "
+            "(x, if kept, is then only the solver's start)")

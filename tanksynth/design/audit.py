@@ -30,7 +30,7 @@ import numpy as np
 
 from tanksynth.analysis.sampling import sampling_warning
 from tanksynth.analysis.statespace import model_names
-from tanksynth.analysis.trim import balancing_hint
+from tanksynth.analysis.trim import balancing_hint, trim_hint
 from tanksynth.design.operating_point import as_levels, equilibrium_at, linearized_at
 from tanksynth.design.result import DesignResult
 from tanksynth.errors import DesignWarning
@@ -62,9 +62,11 @@ def spec_warnings(spec: Spec) -> list[str]:
                    f"{st.unit}/s in the equation of d{st.name}/dt (tolerance {eq.tolerance:.3g}) with "
                    f"the least-squares input u_op = {np.array2string(eq.u0, precision=4)}; the design "
                    "linearises about a point the plant does not stay at")
-        hint = balancing_hint(plant, as_levels(spec.x0), eq.tolerance)
-        if hint:
-            out[-1] += f"; {hint}"
+        for hint in (trim_hint(plant, as_levels(spec.x0), eq.u0 if eq.given_u0 is None else eq.given_u0,
+                               u_given=eq.given_u0 is not None),
+                     balancing_hint(plant, as_levels(spec.x0), eq.tolerance)):
+            if hint:
+                out[-1] += f"; {hint}"
     if not eq.within_bounds:
         bad = [f"{q.name} = {v:.4g} {q.unit} not in [{lo:g}, {hi:g}]"
                for q, v, (lo, hi) in zip(plant.inputs, eq.u0, plant.input_limits)

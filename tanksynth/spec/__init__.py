@@ -21,6 +21,7 @@ import numpy as np
 
 from tanksynth.errors import SpecError, TanksynthError
 from tanksynth.plants import BUILTIN_PLANTS, Plant, custom_plant
+from tanksynth.plants.trim import Trim, trim, trim_outputs
 from tanksynth.spec.options import (parse_box, parse_number, parse_vector,
                                     unknown_word_hint)
 
@@ -119,6 +120,9 @@ class Spec:
         The parsed TOML tables as written (values in the spec's units).
     text : str
         The spec text itself (copied beside the artefacts).
+    trim : Trim or None
+        The solution when ``[operating_point] trim`` asked for one (``x0`` is its
+        levels; with ``trim = "inputs"``, ``given_u0`` its inputs), else None.
     """
 
     plant: Plant
@@ -131,6 +135,7 @@ class Spec:
     sha256: str = ""
     raw: Mapping[str, Any] = field(default_factory=dict, repr=False)
     text: str = field(default="", repr=False)
+    trim: Trim | None = field(default=None, repr=False)
 
 
 def load_spec(path: str | Path, *, methods: Mapping[str, OptionsValidator] | None = None) -> Spec:
@@ -297,20 +302,7 @@ def _parse(table: Mapping[str, Any], source: str | None, sha256: str,
         raise SpecError("expected a string", key="title")
     plant = _build_plant(_table(table, "plant"))
 
-    op = _table(table, "operating_point")
-    extra = [k for k in op if k not in ("x", "u")]
-    if extra:
-        raise SpecError(f"unknown key(s) {extra}; expected x (levels) and optionally u (inputs)",
-                        key=f"operating_point.{extra[0]}")
-    if "x" not in op:
-        raise SpecError("missing operating levels x", key="operating_point.x")
-    x0 = np.array(parse_vector(op["x"], "operating_point.x", names=[s.name for s in plant.states]))
-    plant.check_point(x0, key="operating_point.x")
-    _check_model_numbers(plant, x0)
-    given_u0 = None
-    if "u" in op:
-        given_u0 = np.array(parse_vector(op["u"], "operating_point.u",
-                                         names=[s.name for s in plant.inputs]))
+    x0, given_u0, trimmed = _operating_point(plant, _table(table, "operating_point"))
 
     sampling = _table(table, "sampling", required=False)
     extra = [k for k in sampling if k != "ts"]
@@ -333,7 +325,7 @@ def _parse(table: Mapping[str, Any], source: str | None, sha256: str,
             errors.append((i, exc))
     if errors:
         raise _designs_error(raw_designs, errors)
-    return Spec(plant, x0, given_u0, ts, tuple(designs), title, source, sha256, table)
+    return Spec(plant, x0, given_u0, ts, tuple(designs), title, source, sha256, table, trim=trimmed)
 
 
 #: Bad ``[[design]]`` tables named one by one (index and name) in the summary of
@@ -418,6 +410,75 @@ def _design(i: int, entry: Any, seen: dict[str, str], plant: Plant, ts: float | 
     options = {k: v for k, v in entry.items() if k not in ("name", "method")}
     config = methods[method].validate(options, key, plant, ts) if methods is not None else None
     return DesignSpec(name, method, options, key, config)
+
+
+#: The ``[operating_point] trim`` values: what is solved for, and from what.
+TRIM_MODES = {"states": "the levels x from the given inputs u (f(x, u) = 0)",
+              "inputs": "the inputs u and levels x from the given outputs y (f(x, u) = 0, h(x) = y)"}
+
+
+def _operating_point(plant: Plant, op: Mapping[str, Any]) -> tuple[np.ndarray, np.ndarray | None, Trim | None]:
+    """The operating levels, the spec's input (None if not given) and the trim solution.
+
+    Without ``trim``: ``x`` (required) and, optionally, ``u`` (checked later, not trusted).
+    ``trim = "states"``: ``u`` required, the levels solved (``x``, if given, is the start).
+    ``trim = "inputs"``: ``y`` required (every output), ``u`` and the levels solved.
+    """
+    allowed = ("x", "u", "y", "trim")
+    extra = [k for k in op if k not in allowed]
+    if extra:
+        raise SpecError(f"unknown key(s) {extra}; expected x (levels), u (inputs), y (outputs, with "
+                        'trim = "inputs") and trim' + unknown_word_hint(extra[0], allowed),
+                        key=f"operating_point.{extra[0]}")
+    states, inputs, outputs = ([s.name for s in group] for group in (plant.states, plant.inputs, plant.outputs))
+    mode = op.get("trim")
+    if mode is not None and mode not in TRIM_MODES:
+        raise SpecError(f"expected one of {', '.join(repr(k) for k in TRIM_MODES)} "
+                        f"({'; '.join(f'{k!r}: {v}' for k, v in TRIM_MODES.items())}), got {mode!r}",
+                        key="operating_point.trim")
+    guess = (np.array(parse_vector(op["x"], "operating_point.x", names=states)) if "x" in op else None)
+    u = np.array(parse_vector(op["u"], "operating_point.u", names=inputs)) if "u" in op else None
+    if "y" in op and mode != "inputs":
+        raise SpecError('outputs y set the operating point only with trim = "inputs" (inputs and levels '
+                        "solved from them)", key="operating_point.y")
+    if mode is None:
+        if guess is None:
+            raise SpecError('missing operating levels x (or give u and trim = "states" to solve for them)',
+                            key="operating_point.x")
+        return _checked(plant, guess), u, None
+    if mode == "states":
+        if u is None:
+            raise SpecError('trim = "states" solves the levels from the inputs: give u', key="operating_point.u")
+        found = trim(plant, u, x_guess=guess)
+        given = f"u = {np.array2string(u, precision=6)}"
+    else:
+        if u is not None:
+            raise SpecError('trim = "inputs" solves the inputs from y: remove u (or use trim = "states")',
+                            key="operating_point.u")
+        if "y" not in op:
+            raise SpecError('trim = "inputs" solves the inputs and levels from the outputs: give y',
+                            key="operating_point.y")
+        y = np.array(parse_vector(op["y"], "operating_point.y", names=outputs))
+        if plant.q < plant.m:
+            raise SpecError(f"{plant.q} output(s) cannot determine {plant.m} inputs: give u and "
+                            'trim = "states" instead', key="operating_point.trim")
+        found = trim_outputs(plant, y, x_guess=guess)
+        given = f"y = {np.array2string(y, precision=6)}"
+    if not found.converged:
+        where = ("; ".join(found.violations) if found.violations else
+                 f"best max |f| = {np.max(np.abs(found.residual)):.3g} state units/s "
+                 f"(tolerance {found.tolerance:.3g})")
+        raise SpecError(f"no equilibrium inside the operating region for {given} (trim = {mode!r}, "
+                        f"{found.starts} starts): {where}; best levels "
+                        f"{np.array2string(found.x, precision=6)}", key="operating_point.trim")
+    return _checked(plant, found.x), (found.u if mode == "inputs" else u), found
+
+
+def _checked(plant: Plant, x0: np.ndarray) -> np.ndarray:
+    """``x0`` once inside the region with a finite model there."""
+    plant.check_point(x0, key="operating_point.x")
+    _check_model_numbers(plant, x0)
+    return x0
 
 
 def _check_model_numbers(plant: Plant, x0: np.ndarray) -> None:
