@@ -254,9 +254,10 @@ def _design_all(spec: Spec, outdir: Path, export: tuple[str, ...]
         if "law" in formats:
             laws.append(outdir / f"{design.name}_law.casadi")
         if derived is not None:  # the law (or estimator step) built from the written gains
-            from tanksynth.artefacts.export import export_law
+            from tanksynth.artefacts.export import export_law, law_statement
 
-            laws.append(export_law(derived, outdir, name=f"{design.name}_law").casadi)
+            laws.append(export_law(derived, outdir, name=f"{design.name}_law",
+                                   statement=law_statement(result.diagnostics, result.gains)).casadi)
     return written, infeasible, laws
 
 

@@ -3,9 +3,16 @@ and the contents of the ``.mat`` file.
 
 The ``.mat`` file and the C header carry what is needed to implement the design
 elsewhere, besides the gains: the sampling period ``ts``, the operating point
-``x_op``/``u_op`` (also as ``x0``/``u0`` unless a gain has that name, e.g. an
-estimator's initial estimate) and the state, input and output names and units
+``x_op``/``u_op`` (also as ``x0``/``u0`` unless a gain has that name), the continuous
+linearisation there ``A, B, C, D`` (``dx/dt = A (x - x0) + B (u - u0)``,
+``y = y0 + C (x - x0) + D (u - u0)``, from ``plant.json``), the law as text, and the
+state, input and output names and units with the unit of every matrix
 (`implementation_data`). Vectors are columns in both (MATLAB's orientation).
+
+The law files ``NAME_law.c``/``.h`` (`export_law`) open with a comment stating the law,
+its arguments with their units, the sampling period and the operating point, and compile
+cleanly with ``gcc -std=c99 -Wall -Wextra -Wpedantic -Werror`` (CasADi's generated code
+leaves some work arguments unused: they are marked ``(void)`` here).
 """
 
 from __future__ import annotations
@@ -37,7 +44,8 @@ if TYPE_CHECKING:  # annotations only: the runtime estimators load with the law 
 _Options = TypeVar("_Options", bound=MethodOptions)
 
 __all__ = ['c_header', 'ExportedLaw', 'export_law', 'compile_law', 'load_compiled_law',
-           'implementation_data', 'mat_contents', 'DERIVED_LAW_METHODS', 'state_feedback_law', 'saturate_input',
+           'implementation_data', 'mat_contents', 'linearization_record', 'law_statement',
+           'strict_c', 'law_preamble', 'matrix_units', 'DERIVED_LAW_METHODS', 'state_feedback_law', 'saturate_input',
            'observer_law', 'kalman_step', 'estimator_step', 'derived_law', 'operating_point',
            'sampling_period']
 
@@ -72,11 +80,15 @@ class ExportedLaw:
 
 
 
-def export_law(law: ca.Function, directory: str | Path, name: str | None = None) -> ExportedLaw:
+def export_law(law: ca.Function, directory: str | Path, name: str | None = None, *,
+               statement: str = "") -> ExportedLaw:
     """Write the law as ``<name>.casadi``, ``<name>.c`` and ``<name>.h``, atomically.
 
     Everything is generated in a temporary directory beside the targets and
-    renamed only when all files exist; a failure leaves nothing behind.
+    renamed only when all files exist; a failure leaves nothing behind. The C
+    files open with `law_preamble` (the law, its arguments with units from the
+    ``plant.json`` beside when there is one, ``ts``, the operating point) and
+    are made warning-free under ``-std=c99 -Wall -Wextra -Wpedantic`` (`strict_c`).
 
     Parameters
     ----------
@@ -89,6 +101,8 @@ def export_law(law: ca.Function, directory: str | Path, name: str | None = None)
         and ``-``, e.g. ``1a_law`` beside the artefact ``1a.json``) and C symbol (made a C
         identifier, `tanksynth.runtime.laws.c_identifier`: ``law_1a_law``); default the
         law's name.
+    statement : str, optional
+        The law in words and symbols (`law_statement`); default its signature.
 
     Returns
     -------
@@ -121,6 +135,11 @@ def export_law(law: ca.Function, directory: str | Path, name: str | None = None)
                 shutil.copyfile(built, tmpdir / target.name)
             elif built.name != target.name:
                 built.rename(tmpdir / target.name)
+        preamble = law_preamble(fn, _plant_record_beside(directory), statement)
+        for ext in (".c", ".h"):
+            path = tmpdir / final[ext].name
+            text = path.read_text(encoding="utf-8")
+            path.write_text(preamble + (strict_c(text) if ext == ".c" else text), encoding="utf-8")
         try:
             for ext in (".c", ".h", ".casadi"):
                 renamed.append(commit(tmpdir / final[ext].name, final[ext]))
@@ -135,6 +154,126 @@ def export_law(law: ca.Function, directory: str | Path, name: str | None = None)
     digests = {p.name: hashlib.sha256(p.read_bytes()).hexdigest() for p in final.values()}
     return ExportedLaw(stem, final[".casadi"], final[".c"], final[".h"], digests)
 
+
+
+_C_FUNCTION = re.compile(r"^(?![ \t#/*])[^\n;{}()]*?\b(\w+)\(([^()]*)\)\s*\{", re.M)
+
+
+def strict_c(source: str) -> str:
+    """CasADi's generated C with each unused parameter of a function marked ``(void)name;``.
+
+    The generated entry points take ``iw``, ``w`` and ``mem`` whether they use
+    them or not, which ``-Wextra`` (``-Wunused-parameter``) rejects under
+    ``-Werror``; nothing else is changed.
+
+    Parameters
+    ----------
+    source : str
+        The generated ``.c`` text.
+
+    Returns
+    -------
+    str
+    """
+    out, last = [], 0
+    for match in _C_FUNCTION.finditer(source):
+        open_at = match.end() - 1
+        depth, i = 0, open_at
+        while i < len(source):
+            depth += {"{": 1, "}": -1}.get(source[i], 0)
+            if depth == 0:
+                break
+            i += 1
+        body = source[open_at + 1:i]
+        unused = []
+        for param in match.group(2).split(","):
+            words = re.findall(r"\w+", param)
+            if words and words != ["void"] and not re.search(rf"\b{words[-1]}\b", body):
+                unused.append(words[-1])
+        if unused:
+            out.append(source[last:open_at + 1])
+            out.append("".join(f" (void){name};" for name in unused))
+            last = open_at + 1
+    out.append(source[last:])
+    return "".join(out)
+
+
+def _plant_record_beside(directory: Path) -> Mapping[str, Any] | None:
+    """``DIR/plant.json`` as a mapping, None when absent or unreadable (a law exported alone)."""
+    import json
+
+    path = directory / "plant.json"
+    try:
+        if path.is_file() and path.stat().st_size <= 64 * 1024 ** 2:
+            doc = json.loads(path.read_text(encoding="utf-8"))
+            return doc if isinstance(doc, Mapping) else None
+    except (OSError, ValueError):
+        return None
+    return None
+
+
+#: Units of a law's arguments, by name (``{s}``: the states with their units, ``{u}`` the
+#: inputs', ``{y}`` the outputs'; ``{y1}`` the outputs' one unit, or "output units").
+_ARGUMENT_UNITS = {"x": "{s}", "x_hat": "{s}", "x_next": "{s}", "x_hat_next": "{s}",
+                   "x_hat_dot": "{s}/s", "x_pred": "{s}", "u": "{u}", "u_applied": "{u}",
+                   "y": "{y}", "y_prev": "{y}", "y_r": "references of the tracked outputs, {y1}",
+                   "P": "({s})^2", "P_next": "({s})^2",
+                   "z": "integrated tracking error", "z_next": "integrated tracking error",
+                   "z_dot": "tracking error", "t": "s"}
+
+
+def _unit_list(names: Sequence[str], units: Sequence[str]) -> str:
+    """``"h1 [m], h2 [m]"``."""
+    return ", ".join(f"{n} [{u}]" for n, u in zip(names, units))
+
+
+def law_preamble(law: ca.Function, plant_record: Mapping[str, Any] | None, statement: str = "") -> str:
+    """The comment at the top of an exported law's C files.
+
+    Parameters
+    ----------
+    law : casadi.Function
+        The law (its name and arguments).
+    plant_record : mapping or None
+        ``plant.json`` (`tanksynth.artefacts.io.write_plant_record`): signal names
+        and units, operating point, sampling period. None: units unknown.
+    statement : str, optional
+        The law (`law_statement`); default its signature.
+
+    Returns
+    -------
+    str
+        A C comment block (``/* ... */``), lines of at most about 100 characters.
+    """
+    data = implementation_data({}, plant_record)
+    units = {"s": _unit_list(data["state_names"], data["state_units"]) or "state units",
+             "u": _unit_list(data["input_names"], data["input_units"]) or "input units",
+             "y": _unit_list(data["output_names"], data["output_units"]) or "output units",
+             "y1": _uniform_unit(data["output_units"], "output units")}
+
+    def described(i: int, out: bool) -> str:
+        name = law.name_out(i) if out else law.name_in(i)
+        size = int(law.nnz_out(i) if out else law.nnz_in(i))
+        unit = _ARGUMENT_UNITS.get(name, "see the design's artefact").format(**units)
+        return f" *   {name}[{size}]: {unit}"
+
+    signature = (f"{law.name()}({', '.join(law.name_in())}) -> ({', '.join(law.name_out())})")
+    lines = ["/*", f" * Exported by tanksynth: {signature}.",
+             f" * Law: {' '.join((statement or signature).split())}",
+             " * Values are absolute, in the plant's units (the operating point is inside the law).",
+             " * Inputs:"]
+    lines += [described(i, False) for i in range(law.n_in())]
+    lines.append(" * Outputs:")
+    lines += [described(i, True) for i in range(law.n_out())]
+    ts = data["ts"]
+    lines.append(f" * Sampling period ts = {ts!r} s." if np.isfinite(ts)
+                 else " * Continuous time (no sampling period in the spec).")
+    if data["x_op"].size:
+        lines.append(" * Operating point x_op = [" + ", ".join(repr(float(v)) for v in data["x_op"])
+                     + "], u_op = [" + ", ".join(repr(float(v)) for v in data["u_op"]) + "].")
+    lines.append(" */")
+    return "\n".join(line.replace("*/", "* /") if 0 < k < len(lines) - 1 else line
+                     for k, line in enumerate(lines)) + "\n"
 
 
 def compile_law(c_source: str | Path, output: str | Path | None = None, *, compiler: str = "gcc",
@@ -209,7 +348,9 @@ def implementation_data(diagnostics: Mapping[str, Any], plant_record: Mapping[st
         ``ts`` (s, NaN without sampling), ``x_op`` (state units), ``u_op`` (input
         units, NaN entries when unknown), and ``state_names``, ``state_units``,
         ``input_names``, ``input_units``, ``output_names``, ``output_units``
-        (lists of str, empty when unknown).
+        (lists of str, empty when unknown); ``linearization``: ``A, B, C, D`` at the
+        operating point (`linearization_record`, from ``plant.json``; empty when the
+        record has none); ``law_context``: the diagnostics `law_statement` reads.
     """
     record = plant_record or {}
     eq = diagnostics.get("equilibrium") if isinstance(diagnostics, Mapping) else None
@@ -228,7 +369,89 @@ def implementation_data(diagnostics: Mapping[str, Any], plant_record: Mapping[st
         signals = summary.get(f"{what}s", ())
         out[f"{what}_names"] = [str(v["name"]) for v in signals]
         out[f"{what}_units"] = [str(v["unit"]) for v in signals]
+    lin = record.get("linearization")
+    out["linearization"] = ({k: np.asarray(lin[k], dtype=float) for k in ("A", "B", "C", "D")}
+                            if isinstance(lin, Mapping) and all(k in lin for k in ("A", "B", "C", "D"))
+                            else {})
+    out["law_context"] = {k: diagnostics.get(k)
+                          for k in ("law_signature", "time_domain", "form", "integral")
+                          if isinstance(diagnostics, Mapping) and k in diagnostics}
     return out
+
+
+def linearization_record(spec: Spec) -> dict[str, Any] | None:
+    """The continuous linearisation at the spec's operating point, for ``plant.json``.
+
+    ``dx/dt = A (x - x0) + B (u - u0)``, ``y = y0 + C (x - x0) + D (u - u0)``
+    (``D = 0``: the outputs do not depend on the inputs), about the operating
+    levels ``x0`` and their equilibrium input ``u0`` (`operating_point`).
+
+    Parameters
+    ----------
+    spec : Spec
+        The validated spec.
+
+    Returns
+    -------
+    dict or None
+        ``A`` (1/s), ``B`` (state units/s per input unit), ``C`` (output units per
+        state unit), ``D`` (output per input units), ``x0``, ``u0``, ``y0`` as nested
+        lists; None when the model cannot be linearised there (non-finite Jacobians).
+    """
+    from tanksynth.analysis.linearize import linearize
+
+    x_op, u_op = operating_point(spec)
+    try:
+        lin = linearize(spec.plant, x_op.tolist(), u_op.tolist())
+    except (ValueError, ArithmeticError, ArtefactError):
+        return None
+    A, B, C = (np.asarray(m, dtype=float) for m in (lin.F, lin.B, lin.C))
+    if not all(np.all(np.isfinite(m)) for m in (A, B, C)):
+        return None
+    y0 = _output_at(spec.plant, x_op)
+    return {"A": A.tolist(), "B": B.tolist(), "C": C.tolist(),
+            "D": np.zeros((C.shape[0], B.shape[1])).tolist(),
+            "x0": x_op.tolist(), "u0": u_op.tolist(), "y0": y0.tolist()}
+
+
+def law_statement(diagnostics: Mapping[str, Any], gains: Mapping[str, Any]) -> str:
+    """The design's law in one line of text (what the exported law computes).
+
+    Parameters
+    ----------
+    diagnostics : mapping
+        The design's diagnostics (``law_signature``, the statement of a design that
+        builds its own law; else ``time_domain``, ``form``, ``integral``).
+    gains : mapping
+        Its gains (names only are read).
+
+    Returns
+    -------
+    str
+        E.g. ``"u = u_op - K (x - x_op), u clipped to the actuator range"``; ``""`` for
+        a design without a state feedback or observer gain.
+    """
+    signature = diagnostics.get("law_signature")
+    if isinstance(signature, str) and signature:  # a design that builds its own law states it
+        return signature
+    names = set(gains)
+    discrete = diagnostics.get("time_domain", "discrete") == "discrete"
+    if "K" in names:
+        if isinstance(diagnostics.get("integral"), Mapping):
+            z = ("z_next = z + (y_r - C1 x)" if discrete else "dz/dt = y_r - C1 x")
+            return (f"u = u_op - K1 (x - x_op) - K2 z with K = [K1 K2], {z} (integrators of the "
+                    "tracked outputs' error), u clipped to the actuator range")
+        return "u = u_op - K (x - x_op), u clipped to the actuator range"
+    if "L" in names:
+        form = diagnostics.get("form") or ("predictor" if discrete else "continuous")
+        if form == "continuous":
+            return "dx_hat/dt = A (x_hat - x_op) + B (u - u_op) + L (y - y_op - C (x_hat - x_op))"
+        if form == "current":
+            return ("x_p = x_op + Ad (x_hat - x_op) + Bd (u - u_op); "
+                    "x_hat_next = x_p + L (y - y_op - C (x_p - x_op)) (current form, y the new measurement)")
+        return ("x_hat_next = x_op + Ad (x_hat - x_op) + Bd (u - u_op) + L (y - y_op - C (x_hat - x_op)) "
+                "(predictor form)")
+    return ""
 
 
 def mat_contents(gains: Mapping[str, np.ndarray], data: Mapping[str, Any]) -> dict[str, Any]:
@@ -245,10 +468,13 @@ def mat_contents(gains: Mapping[str, np.ndarray], data: Mapping[str, Any]) -> di
     -------
     dict
         For ``scipy.io.savemat``: arrays as columns or matrices, names and
-        units as n x 1 cell arrays of strings, ``ts`` a 1 x 1 double; ``x_op``
-        and ``u_op`` the operating point (the gains of that name when the
-        design stores them). No ``x0``: an estimator's initial estimate is the
-        gain ``x_hat0`` (the naming rule, `model_names`).
+        units as n x 1 cell arrays of strings, ``ts`` a 1 x 1 double (s; NaN
+        in continuous time); ``x_op`` and ``u_op`` the operating point (the
+        gains of that name when the design stores them), also as ``x0`` and
+        ``u0`` (MATLAB's names); ``A, B, C, D`` the continuous linearisation
+        there (when ``data`` has it); ``law`` the law as text (`law_statement`);
+        ``units`` a struct giving the unit of every variable. A gain of one of
+        these names keeps its value.
     """
     def column(value: Any) -> np.ndarray:
         arr = np.asarray(value, dtype=float)
@@ -258,13 +484,56 @@ def mat_contents(gains: Mapping[str, np.ndarray], data: Mapping[str, Any]) -> di
     out["ts"] = np.array([[float(data["ts"])]])
     out.setdefault("x_op", column(data["x_op"]))
     out.setdefault("u_op", column(data["u_op"]))
+    out.setdefault("x0", column(data["x_op"]))
+    out.setdefault("u0", column(data["u_op"]))
+    for key, value in (data.get("linearization") or {}).items():
+        out.setdefault(key, np.atleast_2d(np.asarray(value, dtype=float)))
+    law = law_statement(data.get("law_context") or {}, gains)
+    if law:
+        out.setdefault("law", law)
     for key in ("state_names", "state_units", "input_names", "input_units", "output_names",
                 "output_units"):
         cells = np.empty((len(data[key]), 1), dtype=object)
         for i, text in enumerate(data[key]):
             cells[i, 0] = text
         out[key] = cells
+    units = matrix_units(data)
+    out["units"] = {k: v for k, v in units.items() if k in out}
     return out
+
+
+def matrix_units(data: Mapping[str, Any]) -> dict[str, str]:
+    """The unit of each variable of the exports, in the plant's units where they are uniform.
+
+    Parameters
+    ----------
+    data : mapping
+        `implementation_data` (the state, input and output units).
+
+    Returns
+    -------
+    dict of str to str
+        ``ts``, ``x_op``/``x0``, ``u_op``/``u0``, ``A``, ``B``, ``C``, ``D``, ``F``,
+        ``Ad``, ``Bd``, ``K``, ``L`` (``"cm/(s V)"`` when every state is in cm and
+        every input in V; ``"(state units)/s per (input units)"`` when mixed).
+    """
+    s, u, y = (_uniform_unit(data.get(f"{what}_units", ()), f"{what} units")
+               for what in ("state", "input", "output"))
+
+    def per(num: str, den: str) -> str:
+        wrap = (lambda t: f"({t})" if re.search(r"[ /*]", t) else t)
+        return f"{wrap(num)}/{wrap(den)}"
+
+    return {"ts": "s", "x_op": s, "x0": s, "u_op": u, "u0": u, "A": "1/s", "F": "1/s",
+            "B": per(s, f"s {u}" if " " not in u else f"s ({u})"), "C": per(y, s), "D": per(y, u),
+            "Ad": "1 (dimensionless)", "Bd": per(s, u), "K": per(u, s), "L": per(s, y),
+            "state_names": "-", "input_names": "-", "output_names": "-", "law": "-"}
+
+
+def _uniform_unit(units: Sequence[str], generic: str) -> str:
+    """The one unit of a group of signals (``"m"``), else ``generic``."""
+    distinct = set(units)
+    return next(iter(distinct)) if len(distinct) == 1 else generic
 
 
 def c_header(name: str, gains: Mapping[str, np.ndarray], data: Mapping[str, Any] | None = None) -> str:
@@ -300,9 +569,17 @@ def c_header(name: str, gains: Mapping[str, np.ndarray], data: Mapping[str, Any]
     arrays = dict(gains)
     if data is not None:
         lines += ["#include <math.h> /* NAN: an entry of the operating point that is unknown */", ""]
+        law = law_statement(data.get("law_context") or {}, gains)
+        if law:
+            lines.append(f"/* law: {law} */".replace("*/ */", "*/"))
         for what in ("state", "input", "output"):
             listed = ", ".join(f"{n} [{u}]" for n, u in zip(data[f"{what}_names"], data[f"{what}_units"]))
             lines.append(f"/* {what}s: {listed or 'unknown'} */")
+        units = matrix_units(data)
+        listed = ", ".join(f"{k} [{units[k]}]" for k in dict.fromkeys((*gains, "x_op", "u_op"))
+                           if k in units)
+        if listed:
+            lines.append(f"/* units: {listed} */")
         if np.isfinite(data["ts"]):
             lines.append(f"#define {stem.upper()}_TS {float(data['ts'])!r} /* sampling period, s */")
         lines.append("")

@@ -322,11 +322,12 @@ def write_artefact(result: DesignResult, directory: str | Path, spec_sha256: str
         renamed: list[Path] = []
         try:
             if law_doc is not None:
-                from tanksynth.artefacts.export import export_law
+                from tanksynth.artefacts.export import export_law, law_statement
                 from tanksynth.runtime.laws import law_from_document
 
                 exported = export_law(law_from_document(dict(law_doc)), directory,
-                                      name=f"{result.name}_law")
+                                      name=f"{result.name}_law",
+                                      statement=law_statement(result.diagnostics, result.gains))
                 renamed += [exported.casadi, exported.c_source, exported.c_header]
             for ext in sorted(temps, key=lambda e: e == ".json"):
                 renamed.append(commit(temps[ext], final[ext]))
@@ -416,7 +417,8 @@ def write_plant_record(spec: Spec, directory: str | Path) -> Path:
 
     ``plant.json`` (schema ``tanksynth.plant/1``) holds the plant summary
     (parameters with units, region, assumptions), its equations in LaTeX, the
-    operating point and sampling period, and the spec's sha256; ``spec.toml``
+    operating point, the continuous linearisation there (``linearization``:
+    ``A, B, C, D, x0, u0, y0``, or null) and sampling period, and the spec's sha256; ``spec.toml``
     is the spec text itself. Both written atomically.
 
     Parameters
@@ -424,6 +426,8 @@ def write_plant_record(spec: Spec, directory: str | Path) -> Path:
     spec : tanksynth.spec.Spec
     directory : str or Path
     """
+    from tanksynth.artefacts.export import linearization_record  # deferred: loads CasADi
+
     directory = Path(directory)
     directory.mkdir(parents=True, exist_ok=True)
     plant = spec.plant
@@ -437,6 +441,7 @@ def write_plant_record(spec: Spec, directory: str | Path) -> Path:
         "operating_point": {"x": spec.x0.tolist(),
                             "u": None if spec.given_u0 is None else spec.given_u0.tolist()},
         "ts": spec.ts,
+        "linearization": linearization_record(spec),  # A, B, C, D there, for the .mat export
     }
     target = directory / "plant.json"
     if spec.text:

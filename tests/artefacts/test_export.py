@@ -208,7 +208,10 @@ def test_header_and_mat_agree_in_orientation(out, tmp_path):
     assert "#define EKF_TS 1.0" in header and "states: h1 [m], h2 [m], h3 [m]" in header
     mat = loadmat(out / "ekf.mat")
     assert mat["x_hat0"].shape == (3, 1) and mat["x_op"].shape == (3, 1)
-    assert "x0" not in mat and "u0" not in mat     # the naming rule: x_op, u_op, x_hat0
+    # x0, u0 (MATLAB's names, issue 30 item 5) are the operating point, never the initial estimate
+    np.testing.assert_array_equal(mat["x0"], mat["x_op"])
+    np.testing.assert_array_equal(mat["u0"], mat["u_op"])
+    assert not np.array_equal(mat["x0"], mat["x_hat0"])
     values = re.search(r"ekf_x_op\[3\] = \{([^}]*)\}", header).group(1)
     np.testing.assert_allclose([float(v) for v in values.split(",")], mat["x_op"][:, 0])
     # the header compiles, and its arrays hold the .mat values
@@ -281,3 +284,63 @@ def test_design_names_that_are_not_c_identifiers_export_their_law(tmp_path):
         np.testing.assert_allclose(_np(law(x3)), np.clip(_np(law(X)) - K @ (x3 - X), lo, hi),
                                    rtol=1e-12, atol=1e-15)
         assert np.any(_np(law(x3)) != _np(law(X)) - K @ (x3 - X))   # the clip was active
+
+
+def _three_tank_by_hand(h1=0.40, h2=0.20, h3=0.30):
+    """Issue 30 item 5 reference: the three-tank linearised by hand (Torricelli, d/dd (k sqrt(d)) =
+    k / (2 sqrt(d))), A = F (1/s), B (m/s per m^3/s), and the equilibrium pump flows."""
+    g, area, Phi, mu13, mu32, mu20 = 9.81, 0.0154, 5e-5, 0.5, 0.5, 0.675
+    k13, k32, k20 = (mu * Phi * np.sqrt(2 * g) for mu in (mu13, mu32, mu20))
+    c13, c32, c20 = (k / (2 * np.sqrt(d)) / area for k, d in ((k13, h1 - h3), (k32, h3 - h2), (k20, h2)))
+    A = np.array([[-c13, 0.0, c13], [0.0, -c32 - c20, c32], [c13, c32, -c13 - c32]])
+    B = np.array([[1 / area, 0.0], [0.0, 1 / area], [0.0, 0.0]])
+    u0 = np.array([k13 * np.sqrt(h1 - h3), k20 * np.sqrt(h2) - k32 * np.sqrt(h3 - h2)])
+    return A, B, u0
+
+
+def test_mat_export_loads_in_matlab_terms_without_the_readme(out):
+    """Issue 30 item 5: A, B, C, D, x0, u0, the law as text, units and ts in the .mat."""
+    from scipy.io import loadmat
+
+    A, B, u0 = _three_tank_by_hand()
+    for name in ("sf", "obs"):
+        mat = loadmat(out / f"{name}.mat")
+        np.testing.assert_allclose(mat["A"], A, rtol=1e-9)
+        np.testing.assert_allclose(mat["B"], B, rtol=1e-12)
+        np.testing.assert_array_equal(mat["C"], [[1, 0, 0], [0, 1, 0]])  # outputs h1, h2
+        np.testing.assert_array_equal(mat["D"], np.zeros((2, 2)))
+        np.testing.assert_allclose(mat["x0"].ravel(), [0.40, 0.20, 0.30])
+        np.testing.assert_allclose(mat["u0"].ravel(), u0, rtol=1e-9)
+        assert mat["ts"].item() == 1.0
+        # the old names stay
+        np.testing.assert_array_equal(mat["x_op"], mat["x0"])
+        np.testing.assert_array_equal(mat["u_op"], mat["u0"])
+        units = mat["units"][0, 0]
+        assert units["A"].item() == "1/s" and units["ts"].item() == "s" and units["x0"].item() == "m"
+        assert units["B"].item() == "m/(s m^3/s)" or "m^3/s" in units["B"].item()
+    assert "u = u_op - K (x - x_op)" in loadmat(out / "sf.mat")["law"].item()
+    obs_law = loadmat(out / "obs.mat")["law"].item()
+    assert "x_hat_next" in obs_law and "L (y - y_op" in obs_law
+    assert loadmat(out / "sf.mat")["units"][0, 0]["K"].item() == "(m^3/s)/m"
+
+
+def test_law_header_states_the_law_units_and_sampling_period(out):
+    header = (out / "sf_law.h").read_text(encoding="utf-8")
+    comment = header[:header.index("*/")]
+    assert "u = u_op - K (x - x_op)" in comment
+    assert "h1 [m], h2 [m], h3 [m]" in comment and "q1 [m^3/s], q2 [m^3/s]" in comment
+    assert "ts = 1.0 s" in comment and "x_op = [0.4, 0.2, 0.3]" in comment
+    gains_header = (out / "sf.h").read_text(encoding="utf-8")
+    assert "law: u = u_op - K (x - x_op)" in gains_header and "K [(m^3/s)/m]" in gains_header
+
+
+@pytest.mark.slow
+def test_every_exported_law_compiles_with_strict_warnings(out):
+    """Issue 30 item 5: the generated C passes gcc -std=c99 -Wall -Wextra -Wpedantic -Werror."""
+    sources = sorted(out.glob("*_law.c"))
+    assert len(sources) >= 8
+    for src in sources:
+        proc = subprocess.run(["gcc", "-std=c99", "-Wall", "-Wextra", "-Wpedantic", "-Werror", "-c",
+                               str(src), "-o", str(src.with_suffix(".o"))],
+                              capture_output=True, text=True, timeout=120)
+        assert proc.returncode == 0, f"{src.name}: {proc.stderr[:2000]}"

@@ -141,8 +141,11 @@ def test_initial_estimates_are_x_hat0(designed):
 def test_mat_files_follow_the_rule(designed):
     for (example, name), (_, r) in designed.items():
         mat = mat_contents(r.gains, implementation_data(r.diagnostics, None))
-        assert "x0" not in mat and "u0" not in mat and "A" not in mat, (example, name)
-        assert {"x_op", "u_op"} <= set(mat)
+        # x0/u0 are MATLAB's names of the operating point (issue 30 item 5), never an estimate;
+        # A, B, C, D (continuous) come only from the plant record's linearisation (none here)
+        assert {"x_op", "u_op", "x0", "u0"} <= set(mat) and "A" not in mat, (example, name)
+        np.testing.assert_array_equal(mat["x0"], mat["x_op"])
+        np.testing.assert_array_equal(mat["u0"], mat["u_op"])
         if "x_op" in r.gains:        # the design's own operating point, as a column
             np.testing.assert_array_equal(mat["x_op"][:, 0], np.ravel(r.gains["x_op"]))
 
