@@ -484,8 +484,8 @@ def mat_contents(gains: Mapping[str, np.ndarray], data: Mapping[str, Any]) -> di
     out["ts"] = np.array([[float(data["ts"])]])
     out.setdefault("x_op", column(data["x_op"]))
     out.setdefault("u_op", column(data["u_op"]))
-    out.setdefault("x0", column(data["x_op"]))
-    out.setdefault("u0", column(data["u_op"]))
+    out.setdefault("x0", out["x_op"])
+    out.setdefault("u0", out["u_op"])
     for key, value in (data.get("linearization") or {}).items():
         out.setdefault(key, np.atleast_2d(np.asarray(value, dtype=float)))
     law = law_statement(data.get("law_context") or {}, gains)
