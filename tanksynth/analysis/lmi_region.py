@@ -9,8 +9,10 @@ import numpy as np
 import scipy.linalg as sla
 
 from tanksynth.errors import SpecError
+from tanksynth.spec.options import region_emptiness
 
-__all__ = ["LMIRegion", "half_plane", "disk", "sector", "intersect", "region_from_parts"]
+__all__ = ["LMIRegion", "half_plane", "disk", "sector", "intersect", "region_from_parts", "variable_of",
+           "check_region"]
 
 
 @dataclass(frozen=True)
@@ -83,19 +85,34 @@ class LMIRegion:
         """
         return LMIRegion(self.L / omega, self.M, self.parts)
 
-    def describe(self) -> str:
-        """Human-readable description."""
+    def describe(self, variable: str = "z") -> str:
+        """Human-readable description.
+
+        Parameters
+        ----------
+        variable : str, optional
+            The eigenvalue's letter: ``"s"`` for a continuous-time region (1/s),
+            ``"z"`` (default) for a discrete-time one; `variable_of` gives it.
+        """
+        v = variable
         words = []
         for part in self.parts:
             if part[0] == "half_plane":
-                words.append(f"Re z < {-part[1]:g}")
+                words.append(f"Re {v} < {-part[1]:g}")
             elif part[0] == "disk":
                 c = float(part[1])
-                centre = "|z|" if c == 0 else (f"|z - {c:g}|" if c > 0 else f"|z + {-c:g}|")
+                centre = f"|{v}|" if c == 0 else (f"|{v} - {c:g}|" if c > 0 else f"|{v} + {-c:g}|")
                 words.append(f"{centre} < {part[2]:g}")
             else:
-                words.append(f"|arg(-z)| < {np.degrees(part[1]):g} deg")
+                words.append(f"|arg(-{v})| < {np.degrees(part[1]):g} deg")
         return " and ".join(words)
+
+    def emptiness(self) -> str:
+        """Why the region is empty (its parts do not intersect), ``""`` when it is not.
+
+        Exact: see `tanksynth.spec.options.region_real_interval`.
+        """
+        return region_emptiness(self.parts)
 
     def stable_in(self, domain: str) -> bool:
         """True if the region lies in the stability domain.
@@ -250,3 +267,37 @@ def region_from_parts(parts: Sequence[tuple]) -> LMIRegion:
     if not regions:
         raise SpecError("an LMI region needs at least one part")
     return intersect(*regions)
+
+
+def variable_of(domain: str) -> str:
+    """The letter of an eigenvalue in ``domain``: ``"s"`` (continuous) or ``"z"`` (discrete).
+
+    Parameters
+    ----------
+    domain : {"continuous", "discrete"}
+    """
+    return "s" if domain == "continuous" else "z"
+
+
+def check_region(region: LMIRegion, domain: str) -> None:
+    """Refuse an empty region, or one outside the stability domain, before any solve.
+
+    Parameters
+    ----------
+    region : LMIRegion
+    domain : {"continuous", "discrete"}
+        Time domain of the design (names the eigenvalue ``s`` or ``z`` in the message).
+
+    Raises
+    ------
+    SpecError
+        The region is empty (its parts do not intersect: no plant's closed loop can meet
+        it), or lies outside the ``domain``-time stability domain.
+    """
+    empty = region.emptiness()
+    if empty:
+        raise SpecError(f"the region {region.describe(variable_of(domain))} is empty: {empty}", key="region")
+    if not region.stable_in(domain):
+        raise SpecError(f"region {region.describe(variable_of(domain))} is not inside the {domain}-time "
+                        "stability domain (continuous: add a half-plane alpha >= 0, a disk left of 0 or a "
+                        "sector; discrete: add a disk with |centre| + radius <= 1)", key="region")

@@ -37,6 +37,7 @@ from tanksynth.errors import SpecError
 
 __all__ = ["parse_number", "parse_integer", "parse_choice", "parse_bool", "parse_vector",
            "parse_matrix", "parse_covariance", "parse_poles", "parse_region", "region_is_stable",
+           "region_real_interval", "region_emptiness",
            "parse_names", "parse_box", "did_you_mean", "unknown_word_hint", "short_repr"]
 
 #: Largest integer any option accepts (a 64-bit signed integer: seeds, counts).
@@ -502,7 +503,75 @@ def parse_region(value: Any, key: str) -> tuple[tuple, ...]:
             raise SpecError(f"sector half-angle must be in (0, 90) degrees, got {args[0]:g}",
                             key=f"{k}.angle_deg")
         parts.append((kind, *args) if kind != "sector" else (kind, float(np.radians(args[0]))))
+    empty = region_emptiness(parts)
+    if empty:
+        raise SpecError(f"the region is empty: {empty}; no closed loop can have its eigenvalues "
+                        "there, whatever the plant: widen or remove a part", key=key)
     return tuple(parts)
+
+
+def _part_interval(part: tuple) -> tuple[float, float]:
+    """The open interval of the real axis inside one region part (`parse_region` form)."""
+    if part[0] == "half_plane":
+        return -np.inf, -float(part[1])
+    if part[0] == "disk":
+        return float(part[1]) - float(part[2]), float(part[1]) + float(part[2])
+    return -np.inf, 0.0  # a sector about the negative real axis (apex 0 excluded)
+
+
+def region_real_interval(parts: Sequence[tuple]) -> tuple[float, float]:
+    """The real points of a region: the open interval ``(lo, hi)`` (empty when ``lo >= hi``).
+
+    Every part (half-plane ``Re z < -alpha``, disk with a real centre, sector about the
+    negative real axis) is convex and symmetric about the real axis, so their intersection
+    is too: it is empty exactly when it has no real point (the midpoint of ``z`` and its
+    conjugate is real and inside). This interval therefore decides emptiness.
+
+    Parameters
+    ----------
+    parts : sequence of tuple
+        The region's parts (`parse_region`).
+
+    Returns
+    -------
+    (float, float)
+        ``lo``, ``hi`` (units of the eigenvalues; ``-inf`` when unbounded on the left).
+    """
+    lo, hi = -np.inf, np.inf
+    for part in parts:
+        a, b = _part_interval(part)
+        lo, hi = max(lo, a), min(hi, b)
+    return float(lo), float(hi)
+
+
+def region_emptiness(parts: Sequence[tuple]) -> str:
+    """Why a region (`parse_region` parts) is empty, ``""`` when it is not (`region_real_interval`).
+
+    Parameters
+    ----------
+    parts : sequence of tuple
+        The region's parts.
+
+    Returns
+    -------
+    str
+        E.g. ``"part 0 (half_plane) allows real parts below -0.5 only, part 1 (disk) real
+        parts in (0.2, 0.4) only: they do not intersect"``.
+    """
+    lo, hi = region_real_interval(parts)
+    if lo < hi:
+        return ""
+    intervals = [_part_interval(p) for p in parts]
+    i_lo = max(range(len(parts)), key=lambda i: intervals[i][0])   # the part that sets lo
+    i_hi = min(range(len(parts)), key=lambda i: intervals[i][1])   # the part that sets hi
+
+    def allows(i: int) -> str:
+        a, b = intervals[i]
+        span = f"below {b:.10g}" if a == -np.inf else f"in ({a:.10g}, {b:.10g})"
+        return f"part {i} ({parts[i][0]}) allows real parts {span} only"
+
+    return (f"{allows(i_hi)}, {allows(i_lo)}: they do not intersect (each part is symmetric about "
+            "the real axis and convex, so the intersection would contain a real point)")
 
 
 def region_is_stable(parts: Sequence[tuple], domain: str) -> bool:

@@ -215,7 +215,7 @@ def test_infeasible_bound_is_refused_with_the_achievable_optimum():
     Cz, Dzu = _weights(Q, R)
     P = GeneralizedPlant(A, B, Bw, Cz, Dzu, "discrete", 1.0)
     best = synthesize_state_feedback(P, objective="hinf").gamma_optimum
-    with pytest.raises(InfeasibleDesign, match="smallest H-infinity bound the LMIs admit") as exc:
+    with pytest.raises(InfeasibleDesign, match="the smallest the same LMIs admit") as exc:
         synthesize_state_feedback(P, objective="h2", hinf_bound=0.5 * best, region=disk(0.9, 0.08))
     assert "||T_zw||_inf <=" in str(exc.value)
 
@@ -497,3 +497,49 @@ def test_scs_route_through_cvxpy_meets_the_clarabel_route():
                                   solver="SCS", margin=1e-3)
     assert b.solver == "SCS"
     assert b.gamma_optimum == pytest.approx(a.gamma_optimum, rel=1e-3)
+
+
+def test_bound_just_below_the_optimum_is_refused_on_the_certificate_with_distinct_digits():
+    """Issue 30 item 16: a bound 1.5e-6 (relative) below the LMI optimum is refused because it is
+    below the smallest bound the same LMIs admit (not on a solver status), and the two numbers
+    are printed with the digits that tell them apart."""
+    import re
+
+    A, B, _, Bw, Q, R = _three_tank(True)
+    Cz, Dzu = _weights(Q, R)
+    P = GeneralizedPlant(A, B, Bw, Cz, Dzu, "discrete", 1.0)
+    region = disk(0.9, 0.08)
+    free = synthesize_state_feedback(P, objective="hinf", region=region)
+    best = free.gamma_optimum
+    # independent: python-control's norm of that closed loop never exceeds the LMI optimum
+    Acl, Bcl, Ccl = P.closed_loop(free.gain)
+    achieved = pc_hinf(control.ss(Acl, Bcl, Ccl, 0, 1.0))
+    assert achieved <= best * (1 + 1e-6)
+    requested = best * (1 - 1.5e-6)
+    assert f"{requested:.6g}" == f"{best:.6g}"          # the old message printed them identically
+    with pytest.raises(InfeasibleDesign) as exc:
+        synthesize_state_feedback(P, objective="hinf", hinf_bound=requested, region=region)
+    text = str(exc.value)
+    found = re.search(r"requested H-infinity bound ([0-9.e+-]+) is below ([0-9.e+-]+), the smallest", text)
+    assert found, text
+    asked, least = found.groups()
+    assert asked != least and float(asked) < float(least)
+    assert float(asked) == pytest.approx(requested, rel=10 ** -(len(asked.replace("0.", "")) - 1))
+    assert float(least) == pytest.approx(best, rel=1e-6) and float(least) >= achieved * (1 - 1e-6)
+
+
+def test_empty_region_is_refused_before_solving_naming_s_in_continuous_time():
+    """Issue 30 item 16: Re s < -0.5 and |s - 0.3| < 0.1 do not intersect: refused as an empty
+    region (bad input), whatever the plant, in the s-plane's letter."""
+    from tanksynth.design.placement.regions import lmi_state_feedback
+
+    A, B, _, Bw, Q, R = _three_tank(False)
+    Cz, Dzu = _weights(Q, R)
+    empty = half_plane(0.5) & disk(0.3, 0.1)
+    with pytest.raises(SpecError, match="empty") as exc:
+        lmi_state_feedback(A, B, empty, domain="continuous")
+    assert "Re s < -0.5" in str(exc.value) and "|s - 0.3| < 0.1" in str(exc.value)
+    assert " z" not in str(exc.value)
+    P = GeneralizedPlant(A, B, Bw, Cz, Dzu, "continuous", None)
+    with pytest.raises(SpecError, match="empty"):
+        synthesize_state_feedback(P, objective="hinf", region=empty)

@@ -35,7 +35,7 @@ import scipy.linalg as sla
 
 # Module import (not names), so that a test may replace the rank functions.
 from tanksynth.analysis import rank as _rank
-from tanksynth.analysis.lmi_region import LMIRegion
+from tanksynth.analysis.lmi_region import LMIRegion, check_region, variable_of
 from tanksynth.design.conic import modelling
 from tanksynth.design.lmi_checks import KAPPA_STEP, LMICheck, check_solver, kappa_active
 from tanksynth.design.matrices import complex_pairs, matrix_pair, real_matrix, symmetrized
@@ -229,10 +229,8 @@ def lmi_state_feedback(A: Any, B: Any, region: LMIRegion, *, domain: str = "cont
         raise SpecError(f"domain must be 'continuous' or 'discrete', got {domain!r}", key="domain")
     if not isinstance(region, LMIRegion):
         raise SpecError("region must be an LMIRegion", key="region")
-    if not region.stable_in(domain):
-        raise SpecError(f"region {region.describe()} is not inside the {domain}-time stability "
-                        "domain (continuous: add a half-plane alpha >= 0, a disk left of 0 or a "
-                        "sector; discrete: add a disk with |centre| + radius <= 1)", key="region")
+    check_region(region, domain)  # empty, or not stable: refused before any solve
+    v = variable_of(domain)
     if not (isinstance(margin, (int, float)) and 0 < margin < 1):
         raise SpecError(f"margin must be in (0, 1), got {margin!r}", key="margin")
     check_solver(solver)
@@ -263,14 +261,14 @@ def lmi_state_feedback(A: Any, B: Any, region: LMIRegion, *, domain: str = "cont
         if active:
             tried = ", ".join(f"{tr['kappa']:g}" for tr in tries)
             raise InfeasibleDesign(
-                f"no gain places the eigenvalues in {region.describe()} with margin {margin:g} "
+                f"no gain places the eigenvalues in {region.describe(v)} with margin {margin:g} "
                 f"within the conditioning bound I <= X <= kappa I: the bound is active at the "
                 f"optimum (lambda_max(X) = kappa = {kap:g}; tried kappa = "
                 f"{tried}), largest margin t* = {tstar:.3g}; "
                 f"raise the option 'kappa_max' (or 'kappa') to allow a worse-conditioned Lyapunov "
                 f"matrix (and larger gains)")
         raise InfeasibleDesign(
-            f"no gain places the eigenvalues in {region.describe()} with margin {margin:g}: solver "
+            f"no gain places the eigenvalues in {region.describe(v)} with margin {margin:g}: solver "
             f"{solver} status {status}, largest achievable margin t* = {tstar:.3g} (max t s.t. region "
             f"LMI <= -t I, I <= X <= {kap:g} I"
             + ("; the conditioning bound is not active, so the optimum certifies that no larger "

@@ -47,7 +47,7 @@ import numpy as np
 import scipy.linalg as sla
 
 from tanksynth.analysis.blas import small_dense
-from tanksynth.analysis.lmi_region import LMIRegion
+from tanksynth.analysis.lmi_region import LMIRegion, check_region, variable_of
 from tanksynth.analysis.statespace import h2_norm, hinf_below, hinf_norm, statespace_matrices
 from tanksynth.design.conic import modelling
 from tanksynth.design.lmi_checks import SOLVERS, LMICheck, check_solver
@@ -58,7 +58,7 @@ from tanksynth.design.synthesis.riccati import riccati_applicable, riccati_h2, r
 from tanksynth.errors import DimensionError, InfeasibleDesign, SpecError
 
 __all__ = [
-    "DOMAINS", "OBJECTIVES", "SOLVERS", "ROUTES", "NORM_RTOL",
+    "DOMAINS", "OBJECTIVES", "SOLVERS", "ROUTES", "NORM_RTOL", "CERTIFICATE_RTOL", "distinct_digits",
     "GeneralizedPlant", "generalized_plant", "observer_plant", "statespace_matrices",
     "h2_lmis", "hinf_lmis", "hinf_lmis_reduced", "region_lmi",
     "h2_norm", "hinf_norm", "hinf_below",
@@ -301,9 +301,8 @@ def synthesize_state_feedback(plants: GeneralizedPlant | Sequence[GeneralizedPla
     for name, b in (("h2_bound", h2_bound), ("hinf_bound", hinf_bound)):
         if b is not None and not (np.isfinite(b) and b > 0):
             raise SpecError(f"{name} must be a positive number, got {b!r}", key=name)
-    if region is not None and not region.stable_in(domain):
-        raise SpecError(f"region {region.describe()} is not inside the {domain}-time stability domain",
-                        key="region")
+    if region is not None:
+        check_region(region, domain)  # empty, or not stable: refused before any solve
     if not (0 < margin < 1e-2):
         raise SpecError(f"margin must be in (0, 0.01), got {margin!r}", key="margin")
     if not (np.isfinite(backoff) and backoff >= 0):
@@ -363,7 +362,7 @@ def synthesize_state_feedback(plants: GeneralizedPlant | Sequence[GeneralizedPla
     if not _ok(status) or X.value is None:
         raise InfeasibleDesign(_infeasible_reason(status, solver, lmis, margin, W, g, f2, finf,
                                                   h2_bound, hinf_bound, region, len(models), reduced,
-                                                  lib))
+                                                  lib, domain=domain))
     opt = None if goal is None else float(goal.value)
     values = (X.value.copy(), Y.value.copy(), None if W is None else W.value.copy(),
               None if g is None else float(g.value))
@@ -473,20 +472,38 @@ def _riccati_design(P: GeneralizedPlant, objective: str, backoff: float, dual: b
         status=status, solve_time=elapsed, checks=tuple(checks), scaling=info, route="riccati")
 
 
+#: Relative gap below the LMIs' own minimum at which a requested norm bound counts as certified
+#: infeasible (the minimum is a solver's answer: a bound 5e-7 below it can still be met).
+CERTIFICATE_RTOL = 5e-7
+
+
+def distinct_digits(a: float, b: float, least: int = 6) -> tuple[str, str]:
+    """``a`` and ``b`` printed with the fewest significant digits (at least ``least``, at most
+    17) that tell them apart (``"0.05210725"``, ``"0.05210731"``); identical only when equal.
+
+    Parameters
+    ----------
+    a, b : float
+    least : int, optional
+        Fewest significant digits (default 6).
+    """
+    for digits in range(least, 18):
+        sa, sb = f"{a:.{digits}g}", f"{b:.{digits}g}"
+        if sa != sb:
+            return sa, sb
+    return repr(float(a)), repr(float(b))
+
+
 def _infeasible_reason(status, solver, lmis, margin, W, g, f2, finf, h2_bound, hinf_bound, region,
-                       count, reduced=False, lib=None) -> str:
-    what = []
-    if h2_bound is not None:
-        what.append(f"||T_zw||_2 <= {h2_bound:.6g}")
-    if hinf_bound is not None:
-        what.append(f"||T_zw||_inf <= {hinf_bound:.6g}")
-    if region is not None:
-        what.append(f"eigenvalues in {region.describe()}")
-    text = (f"no state-feedback gain meets {' and '.join(what) or 'the LMIs'}"
-            f"{f' at all {count} models with one Lyapunov matrix' if count > 1 else ''}: solver "
-            f"{solver} status {status}")
-    # certificate: the best the LMIs admit without the bounds (same region, same models)
-    cert = []
+                       count, reduced=False, lib=None, domain="discrete") -> str:
+    """Why the bounded LMIs have no solution: a certificate when there is one.
+
+    For each bound, the same LMIs without the bounds are solved for the smallest norm
+    bound they admit; a requested bound below it is certified infeasible (said first,
+    both numbers with the digits that tell them apart), the solver status of the bounded
+    problem is then only reported."""
+    models = f" at all {count} models with one Lyapunov matrix" if count > 1 else ""
+    certified, other = [], []
     for name, var, factor, bound, sq in (("H2", W, f2, h2_bound, True),
                                           ("H-infinity", g, finf, hinf_bound, reduced)):
         if bound is None or var is None:
@@ -494,12 +511,31 @@ def _infeasible_reason(status, solver, lmis, margin, W, g, f2, finf, h2_bound, h
         goal = lib.trace(var) if name == "H2" else var
         prob = lib.Problem(lib.Minimize(goal), lmis(margin))
         st = _solve(lib, prob, solver)
-        if _ok(st) and goal.value is not None:
-            best = (np.sqrt(max(float(goal.value), 0.0)) if sq else float(goal.value)) * factor
-            cert.append(f"smallest {name} bound the LMIs admit without the bounds: {best:.6g}")
+        if not (_ok(st) and goal.value is not None):
+            other.append(f"without the bounds the LMIs are still {st}")
+            continue
+        best = (np.sqrt(max(float(goal.value), 0.0)) if sq else float(goal.value)) * factor
+        asked, least = distinct_digits(bound, best)
+        if bound < best * (1.0 - CERTIFICATE_RTOL):
+            certified.append(f"the requested {name} bound {asked} is below {least}, the smallest the "
+                             f"same LMIs admit (minimised without the bound, solver status {st}): no "
+                             "gain certified by these LMIs meets it; ask for at least that")
         else:
-            cert.append(f"without the bounds the LMIs are still {st}")
-    return text + ("; " + "; ".join(cert) if cert else "")
+            other.append(f"smallest {name} bound the LMIs admit without the bounds: {least} (requested "
+                         f"{asked}, {(bound - best) / best:+.2g} relative to it: within the solver's "
+                         f"accuracy ({CERTIFICATE_RTOL:g}) of the optimum; ask for a slightly larger bound)")
+    what = []
+    if h2_bound is not None:
+        what.append(f"||T_zw||_2 <= {h2_bound:.10g}")
+    if hinf_bound is not None:
+        what.append(f"||T_zw||_inf <= {hinf_bound:.10g}")
+    if region is not None:
+        what.append(f"eigenvalues in {region.describe(variable_of(domain))}")
+    head = f"no state-feedback gain meets {' and '.join(what) or 'the LMIs'}{models}"
+    if certified:
+        return (f"{head}: " + "; ".join(certified + other)
+                + f" (the bounded problem itself ended with solver {solver} status {status})")
+    return f"{head}: solver {solver} status {status}" + ("; " + "; ".join(other) if other else "")
 
 
 def _recheck(models, scaled, K, Xs, Ys, Wv, gv, region, reg_s, h2_claim, g_claim, margin, reduced):
@@ -532,7 +568,8 @@ def _recheck(models, scaled, K, Xs, Ys, Wv, gv, region, reg_s, h2_claim, g_claim
         if region is not None:
             mg = float(min(region.margin(z) for z in lam))
             margins.append(mg)
-            checks.append(LMICheck(f"closed-loop eigenvalues inside {region.describe()}{tag}", mg, 0.0,
+            inside = region.describe(variable_of(P.domain))
+            checks.append(LMICheck(f"closed-loop eigenvalues inside {inside}{tag}", mg, 0.0,
                                    bool(mg > 0), "-lambda_max f_D"))
         blocks = []
         if Wv is not None:
