@@ -32,6 +32,7 @@ from tanksynth.design.operating_point import as_levels, equilibrium_at
 from tanksynth.design.result import DesignResult
 from tanksynth.errors import DesignWarning
 from tanksynth.spec import DesignSpec, Spec
+from tanksynth.spec.memory import refuse_oversized_conic
 
 __all__ = ["spec_warnings", "result_warnings", "designed"]
 
@@ -150,7 +151,14 @@ def designed(run: Callable[[Spec, DesignSpec], DesignResult], spec: Spec,
     DesignResult
         With ``diagnostics["warnings"]`` (a list of str, empty when nothing
         looks wrong).
+
+    Raises
+    ------
+    DesignTooLarge
+        The design's conic (LMI) problem would exceed the memory budget
+        (`tanksynth.spec.memory`): refused before anything is built.
     """
+    refuse_oversized_conic(entry, spec.plant, spec.ts)
     lines = spec_warnings(spec)
     for line in lines:
         warnings.warn(line, DesignWarning, stacklevel=2)
