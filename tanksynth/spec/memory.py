@@ -30,11 +30,12 @@ PSD blocks of orders ``k_i`` (``s_i = k_i (k_i + 1) / 2`` rows each):
 * the constraint matrix, first dense (``S x (V + 1)``, ``S = sum s_i``),
   then its column selection and sparse copy.
 
-Calibration (``benchmarks/conic_memory.py`` and ``tests/spec/test_memory.py``):
+Calibration (``benchmarks/conic_memory.py``, ``tests/spec/test_memory.py``):
 ``multiobjective`` (H-infinity + disk, discrete) on ``tank_network`` with N =
 8, 12, 16, 20, 24 tanks measured 13, 32, 86, 231 and 412 MiB of peak RSS above
-the interpreter's; `conic_bytes` gives 21, 52, 126, 314 and 591 MiB: an upper
-bound within a factor 1.7 (the fixed `FIXED_BYTES` dominates the small ones).
+the interpreter's (VmHWM); `conic_bytes` gives 24, 53, 132, 297 and 596 MiB:
+an upper bound within a factor 1.3 to 1.9 (the fixed `FIXED_BYTES` weighs most
+on the small ones). N = 64 is estimated at 28 GiB (it aborted past 7.2 GB).
 """
 
 from __future__ import annotations

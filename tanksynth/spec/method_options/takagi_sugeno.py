@@ -153,7 +153,7 @@ class TsStateFeedbackOptions(MethodOptions):
         """
         n, rules = plant.n, 2.0 ** plant.n
         pairs = rules * (rules + 1) / 2
-        blocks = [float(n)] * int(min(pairs + 2, 1 << 20))
+        blocks = [float(n)] * int(min(pairs + 4, 1 << 20))
         if self.pump_limits:
             blocks += [n + 1.0] * int(min(2 * rules, 1 << 20))
         variables = n * (n + 1) / 2 + rules * plant.m * n + 1
