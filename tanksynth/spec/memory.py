@@ -53,6 +53,7 @@ if TYPE_CHECKING:
 
 __all__ = ["BUDGET_VARIABLE", "MEMORY_BUDGET", "MIN_BUDGET_MB", "MAX_BUDGET_MB", "memory_budget",
            "ConicSize", "conic_bytes", "conic_refusal", "refuse_oversized_conic", "region_order",
+           "nonlinear_atoms",
            "CLARABEL_BYTES_PER_ENTRY", "FIXED_BYTES"]
 
 #: The environment variable that sets the memory budget of one design (MiB).
@@ -123,6 +124,40 @@ def region_order(region: tuple[tuple, ...]) -> int:
         The region LMI of an ``n``-state design is ``order * n`` rows.
     """
     return sum(_REGION_ORDER.get(str(part[0]), 2) for part in region) or 1
+
+
+def nonlinear_atoms(plant: Plant) -> int:
+    """The distinct nonlinear atoms of the plant's dynamics: an upper bound of its TS premises.
+
+    Counts the distinct outermost subexpressions of ``f`` that depend on a
+    state and are not polynomial in it (a root, a negative or fractional power,
+    a function such as ``sign`` or ``abs``). The quasi-LPV split of
+    `tanksynth.analysis.quasi_lpv` makes one premise per such atom at most
+    (``sign(h1 - h3) sqrt(|h1 - h3|)`` counts 2 here, one premise there).
+
+    Parameters
+    ----------
+    plant : Plant
+
+    Returns
+    -------
+    int
+    """
+    import sympy as sp  # the plant holds sympy expressions already
+
+    states = set(plant.x)
+    found: set[object] = set()
+    todo = [sp.sympify(fi) for fi in plant.f_numeric]
+    while todo:
+        expr = todo.pop()
+        if not expr.free_symbols & states:
+            continue
+        if isinstance(expr, sp.Function) or (isinstance(expr, sp.Pow) and not (
+                expr.exp.is_Integer and expr.exp >= 0)):
+            found.add(expr)
+        else:
+            todo.extend(expr.args)
+    return len(found)
 
 
 @dataclass(frozen=True)
