@@ -106,16 +106,29 @@ def test_each_artefact_is_written_before_the_next_design_starts(tmp_path, monkey
 BAD_BUDGETS = ["abc", "-5", "nan", "inf", "1e-300", "0", "-inf", "1e400"]
 
 
+@pytest.fixture(scope="module")
+def linear_run(tmp_path_factory):
+    """A result directory (two linearisations of the 8-tank network) for `verify`."""
+    root = tmp_path_factory.mktemp("budget")
+    spec = root / "s.toml"
+    spec.write_text(network_spec(8, _linearize("lin") + _linearize("lin2")))
+    assert main(["design", str(spec), "-o", str(root / "run")]) == 0
+    return spec, root / "run"
+
+
 @pytest.mark.parametrize("value", BAD_BUDGETS)
-def test_a_bad_memory_budget_is_bad_input_naming_the_variable(tmp_path, capsys, monkeypatch, value):
+def test_a_bad_memory_budget_is_bad_input_naming_the_variable(tmp_path, capsys, monkeypatch, value,
+                                                             linear_run):
+    spec, run = linear_run
+    capsys.readouterr()
     monkeypatch.setenv("TANKSYNTH_MEMORY_BUDGET_MB", value)
-    spec = tmp_path / "s.toml"
-    spec.write_text(network_spec(8, _linearize("lin")))
-    for argv in (["check", "--spec-only", str(spec)], ["design", str(spec), "-o", str(tmp_path / "o")]):
-        assert main(argv) == 2
+    for argv in (["check", "--spec-only", str(spec)], ["design", str(spec), "-o", str(tmp_path / "o")],
+                 ["verify", str(run)]):
+        assert main(argv) == 2, argv
         err = capsys.readouterr().err.strip().splitlines()
-        assert len(err) == 1 and "TANKSYNTH_MEMORY_BUDGET_MB" in err[0] and repr(value) in err[0]
-    assert not list((tmp_path / "o").glob("lin.*")) if (tmp_path / "o").exists() else True
+        assert len(err) == 1 and repr(value) in err[0], (argv, err)
+        assert err[0].count("TANKSYNTH_MEMORY_BUDGET_MB") == 1  # once, not once per design
+    assert not (tmp_path / "o").exists()
 
 
 @pytest.mark.parametrize("value, mib", [("64", 64), ("1", 1), (" 2048 ", 2048), ("", 2048)])
