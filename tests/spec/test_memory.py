@@ -213,8 +213,35 @@ EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
 def test_every_lmi_familys_estimate_covers_the_problem_it_really_builds(monkeypatch, example, name):
     """The reference is the conic problem the design hands Clarabel (cones and columns read
     at `Problem._data`): the structure each family's ``conic_size`` counts must not be smaller."""
+    from tanksynth.methods import load_spec
+
+    spec = load_spec(EXAMPLES / f"{example}.toml")
+    _assert_estimate_covers_the_built_problem(monkeypatch, spec, name)
+
+
+_THREE_TANK_HEAD = (EXAMPLES / "three_tank_hinf.toml").read_text().split("[[design]]")[0]
+_DISK = 'region = [{type = "disk", center = 0.9, radius = 0.08}]\n'
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("options", [
+    'method = "multiobjective"\ntarget = "observer"\n' + _DISK,
+    'method = "multiobjective"\nobjective = "h2"\nhinf_bound = 1e3\n' + _DISK,
+    'method = "multiobjective"\ntime_domain = "continuous"\n'
+    'region = [{type = "half_plane", alpha = 0.001}, {type = "sector", angle_deg = 60}]\n',
+    'method = "h2_observer"\nroute = "lmi"\n',
+    'method = "hinf_state_feedback"\nroute = "lmi"\ntime_domain = "continuous"\n',
+])
+def test_the_synthesis_estimate_covers_every_lmi_variant(monkeypatch, options):
+    from tanksynth.methods import parse_spec_text
+
+    spec = parse_spec_text(_THREE_TANK_HEAD + '[[design]]\nname = "d"\n' + options)
+    _assert_estimate_covers_the_built_problem(monkeypatch, spec, "d")
+
+
+def _assert_estimate_covers_the_built_problem(monkeypatch, spec, name):
     from tanksynth.design import conic
-    from tanksynth.methods import METHODS, load_spec
+    from tanksynth.methods import METHODS
     from tanksynth.spec.memory import ConicSize, conic_bytes
 
     built: list[ConicSize] = []
@@ -230,7 +257,6 @@ def test_every_lmi_familys_estimate_covers_the_problem_it_really_builds(monkeypa
         return out
 
     monkeypatch.setattr(conic.Problem, "_data", spy)
-    spec = load_spec(EXAMPLES / f"{example}.toml")
     entry = next(d for d in spec.designs if d.name == name)
     size = entry.config.conic_size(spec.plant, spec.ts)
     assert size is not None and size.advice
