@@ -404,15 +404,15 @@ def test_decay_rate_reported_as_a_bracket_strict_below_equality_at_the_top():
                    p * (a[0] + a[1] - k[0] - k[1]) + 2 * alpha * p)
 
     assert worst(bracket["at_most"]) == pytest.approx(0.0, abs=1e-9)      # equality at the top
-    assert worst(bracket["at_least"]) == pytest.approx(bracket["margin"], rel=1e-9)
-    assert bracket["margin"] < 0                                          # strict below it
+    assert worst(bracket["at_least"]) == pytest.approx(-bracket["margin"], rel=1e-9)
+    assert bracket["margin"] > 0                                          # strict below it
 
 
 def test_statement_says_at_least_and_at_most_of_the_decay_rate():
     from tanksynth.reports.statements.takagi_sugeno import ts_state_feedback_statement
 
     diag = {"relaxation": "vertex", "decay_rate": 0.0103,
-            "lmi": {"decay_rate_bracket": {"at_least": 0.0102, "at_most": 0.0103, "margin": -3.7e-4}}}
+            "lmi": {"decay_rate_bracket": {"at_least": 0.0102, "at_most": 0.0103, "margin": 3.7e-4}}}
     text = str(ts_state_feedback_statement(diag))
     assert r"\alpha \ge 0.0102" in text and "at most" in text and "equality" in text
 

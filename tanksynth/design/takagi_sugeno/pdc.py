@@ -153,7 +153,7 @@ DECAY_RTOL = 1e-3
 def decay_bracket(P: np.ndarray, A: np.ndarray, B: np.ndarray, K: np.ndarray, relaxation: str,
                   imposed: float = 0.0) -> dict:
     """What ``(P, K_j)`` certify of the decay rate: at least ``at_least``, where the conditions
-    hold strictly (``margin`` their largest eigenvalue there, < 0), at most ``at_most``
+    hold strictly (``margin`` minus their largest eigenvalue there, > 0), at most ``at_most``
     (`certified_decay`, the supremum, where they hold with equality).
 
     ``at_least`` is the larger of the imposed rate and ``(1 - DECAY_RTOL) at_most`` at which the
@@ -169,8 +169,8 @@ def decay_bracket(P: np.ndarray, A: np.ndarray, B: np.ndarray, K: np.ndarray, re
     Returns
     -------
     dict
-        ``at_least``, ``at_most`` (1/s) and ``margin`` (largest eigenvalue of the conditions at
-        ``at_least``, units of ``P`` per s; negative).
+        ``at_least``, ``at_most`` (1/s) and ``margin`` (minus the largest eigenvalue of the
+        conditions at ``at_least``, units of ``P`` per s; positive).
     """
     sup = certified_decay(P, A, B, K, relaxation)
 
@@ -183,7 +183,7 @@ def decay_bracket(P: np.ndarray, A: np.ndarray, B: np.ndarray, K: np.ndarray, re
         mt = worst(trial)
         if mt < 0:
             low, m = trial, mt
-    return {"at_least": low, "at_most": float(sup), "margin": m}
+    return {"at_least": low, "at_most": float(sup), "margin": -m}
 
 
 @dataclass(frozen=True)

@@ -41,8 +41,9 @@ def _pdc(design: PdcDesign) -> str:
              r"X\end{smallmatrix}\right] \succeq 0$), enlarged. Continuous time.")
     if design.decay_rate is not None and design.decay_at_least is not None:
         text += (rf" Relaxation used: {escape_latex(design.relaxation)}; certified decay rate "
-                 rf"$\alpha \ge {format_number(design.decay_at_least)}$ 1/s (the conditions strict there, "
-                 rf"largest eigenvalue ${format_number(design.decay_margin, 3)}$); these matrices certify "
+                 rf"$\alpha \ge {format_number(design.decay_at_least)}$ 1/s (the conditions strict there: "
+                 rf"margin ${format_number(design.decay_margin, 3)}$, minus their largest eigenvalue); "
+                 r"these matrices certify "
                  rf"at most $\alpha = {format_number(design.decay_rate)}$ 1/s, where the conditions hold "
                  r"with equality.")
     elif design.decay_rate is not None:
