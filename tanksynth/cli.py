@@ -195,16 +195,18 @@ def _locked(directory: str | Path, command: str) -> AbstractContextManager[Path]
 
 def _design_all(spec: Spec, outdir: Path, export: tuple[str, ...]
                 ) -> tuple[list[Path], list[str], list[Path]]:
-    """Design every entry, then write the artefacts; return the artefacts, the refusals and
-    the ``<name>_law.casadi`` files written (``--export law``).
+    """Design every entry, writing each artefact as soon as its design finishes; return the
+    artefacts, the refusals and the ``<name>_law.casadi`` files written (``--export law``).
 
-    The spec's options were all validated when it was parsed; a design that
-    still fails on bad input raises before anything is written. A refused
-    design (`InfeasibleDesign`: infeasible, uncontrollable, unobservable,
-    fragile) is listed with its reason (no artefact for it) and the remaining
-    designs are still attempted and written. Each distinct `DesignWarning` is
-    printed once on stderr (``warning: <designs>: <text>``); the artefacts
-    record theirs in ``diagnostics["warnings"]``.
+    The spec's options were all validated when it was parsed. A refused design
+    (`InfeasibleDesign`: infeasible, uncontrollable, unobservable, fragile, or
+    `DesignTooLarge`, refused before it runs when its estimated memory exceeds
+    the budget) is listed with its reason (no artefact for it) and the
+    remaining designs are still attempted and written. The designs finished
+    before a later one fails on bad input (exit 2) or kills the process keep
+    their artefacts (each one complete: written atomically). Each distinct
+    `DesignWarning` is printed once on stderr (``warning: <designs>: <text>``);
+    the artefacts record theirs in ``diagnostics["warnings"]``.
     """
 
     from tanksynth.artefacts.io import file_sha256, write_artefact, write_plant_record
@@ -213,16 +215,19 @@ def _design_all(spec: Spec, outdir: Path, export: tuple[str, ...]
 
     from tanksynth.reports.refused import refusal, write_refused
 
-    results: list[tuple[DesignSpec, DesignResult]] = []
     infeasible: list[str] = []
     refused: list[dict[str, Any]] = []
     seen: dict[str, list[str]] = {}
+    plant_sha = file_sha256(write_plant_record(spec, outdir))
+    written: list[Path] = []
+    laws: list[Path] = []
     for k, design in enumerate(spec.designs, 1):
+        result = None
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always", DesignWarning)
             try:
                 with _stage(f"designing {design.name} ({design.method}) [{k}/{len(spec.designs)}]"):
-                    results.append((design, METHODS[design.method].design(spec, design)))
+                    result = METHODS[design.method].design(spec, design)
             except InfeasibleDesign as exc:
                 infeasible.append(f"{design.name}: {_one_line(exc)}")
                 refused.append(refusal(design.name, design.method, exc))
@@ -235,15 +240,8 @@ def _design_all(spec: Spec, outdir: Path, export: tuple[str, ...]
                     names.append(design.name)
             else:
                 warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
-    for text, names in seen.items():
-        click.echo(f"warning: {', '.join(names)}: {text}", err=True)
-    for line in infeasible:
-        click.echo(f"refused {line}")
-    plant_sha = file_sha256(write_plant_record(spec, outdir))
-    write_refused(outdir, refused)
-    written: list[Path] = []
-    laws: list[Path] = []
-    for design, result in results:
+        if result is None:
+            continue
         formats = list(dict.fromkeys(export))  # "--export law --export law": once
         derived = None
         if "law" in formats and "law" not in result.diagnostics:
@@ -258,6 +256,11 @@ def _design_all(spec: Spec, outdir: Path, export: tuple[str, ...]
 
             laws.append(export_law(derived, outdir, name=f"{design.name}_law",
                                    statement=law_statement(result.diagnostics, result.gains)).casadi)
+    for text, names in seen.items():
+        click.echo(f"warning: {', '.join(names)}: {text}", err=True)
+    for line in infeasible:
+        click.echo(f"refused {line}")
+    write_refused(outdir, refused)
     return written, infeasible, laws
 
 
@@ -385,12 +388,21 @@ def check(spec: str, as_json: bool, outdir: str | None, spec_only: bool) -> None
 
     s = _load(spec)
     if spec_only:
-        summary = {"spec": spec, "plant": s.plant.name, "designs": [d.name for d in s.designs]}
+        from tanksynth.spec.memory import conic_refusal
+
+        too_large = [why for d in s.designs if (why := conic_refusal(d, s.plant, s.ts)) is not None]
+        summary = {"spec": spec, "plant": s.plant.name, "designs": [d.name for d in s.designs],
+                   "refused": too_large}
         if as_json:
             click.echo(json.dumps(summary, indent=2))
         else:
             _out.print(f"{spec}: valid; plant {s.plant.name}, {len(s.designs)} design(s)",
                        markup=False, highlight=False, soft_wrap=True)
+            for why in too_large:
+                click.echo(f"refused {why}")
+        if too_large:
+            raise _Fail(EXIT_INFEASIBLE, f"{len(too_large)} of {len(s.designs)} design(s) would be "
+                                         "refused: over the memory budget")
         return
     with _stage("rank conditions (Kalman, PBH, nonlinear observability)", quiet=as_json):
         checks = _rank_conditions(s)

@@ -21,6 +21,7 @@ __all__ = [
     "SchedulerError",
     "DimensionError",
     "InfeasibleDesign",
+    "DesignTooLarge",
     "UnobservableError",
     "UncontrollableError",
     "ReportError",
@@ -110,6 +111,14 @@ class DimensionError(TanksynthError, ValueError):
 
 class InfeasibleDesign(TanksynthError, RuntimeError):
     """A design problem has no solution (or its solution fails the re-check)."""
+
+
+class DesignTooLarge(InfeasibleDesign):
+    """A design refused before it runs: its estimated memory exceeds the budget.
+
+    A design refusal (`InfeasibleDesign`, exit code 3) naming the design, its
+    estimated size and what shrinks it (`tanksynth.spec.memory`).
+    """
 
 
 class UnobservableError(InfeasibleDesign, ValueError):

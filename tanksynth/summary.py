@@ -136,8 +136,15 @@ def _key_figure(doc: _Read, state_units: Sequence[str] | None) -> str:
         return text
     if "inner_radius" in data.get("region_recheck", {}):
         unit = _common_unit(state_units)
-        return (f"certified region: ball of radius {float(data['region_recheck']['inner_radius']):.3g} "
-                f"{unit} around x_op").replace("  ", " ")
+        text = (f"certified region: ball of radius {float(data['region_recheck']['inner_radius']):.3g} "
+                f"{unit} around x_op")
+        allowed = ((doc.diagnostics.get("composite") or {}).get("initial_error") or {})
+        if "error_ball_at_x_op" in allowed and "plant_ball_estimate_at_x_op" in allowed:
+            # an observer runs: the region holds for an exact initial estimate only
+            text += (f" with the estimate starting exact; from x_op an initial estimation error up to "
+                     f"{float(allowed['error_ball_at_x_op']):.3g} {unit}; estimate started at x_op: "
+                     f"plant within {float(allowed['plant_ball_estimate_at_x_op']):.3g} {unit} of x_op")
+        return text.replace("  ", " ")
     for name in ("estimator_convergence", "observer_convergence"):
         conv = data.get(name, {})
         if "e0" in conv and "tail_max" in conv:

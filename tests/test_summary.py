@@ -68,3 +68,13 @@ def test_edited_verification_data_gives_no_key_figure_not_an_exception():
     from tanksynth.summary import summary_row
     assert summary_row({"name": "a", "verification": "x"}).passed is False
     assert summary_row({"name": "a", "verification": {"passed": "false"}}).passed is False
+
+
+def test_output_feedback_key_figure_states_the_initial_estimation_error_allowed():
+    """Issue 30.17: the certified ball holds for an exact initial estimate only."""
+    doc = dict(_doc(("region_recheck", {"inner_radius": 0.0212, "c": 1.0})),
+               diagnostics={"composite": {"initial_error": {"error_ball_at_x_op": 0.0011,
+                                                            "plant_ball_estimate_at_x_op": 0.00109}}})
+    text = key_figure(doc, ["m", "m", "m"])
+    assert text.startswith("certified region: ball of radius 0.0212 m around x_op with the estimate starting exact")
+    assert "initial estimation error up to 0.0011 m" in text and "0.00109 m of x_op" in text

@@ -60,6 +60,32 @@ class LMIRegion:
         """
         return float(-np.max(np.linalg.eigvalsh(self.characteristic(complex(z)))))
 
+    def boundary_distance(self, z: complex) -> float:
+        """Signed Euclidean distance from ``z`` to the region's boundary: positive inside (the
+        distance to the nearest boundary point), negative outside (minus the distance to the
+        nearest elementary region's boundary violated, a lower bound on the true distance).
+
+        Unlike `margin` (``-lambda_max f_D(z)``, scaled by the region's matrices: twice the distance
+        for a half-plane), this is in the units of ``z``.
+
+        Parameters
+        ----------
+        z : complex
+            A point of the complex plane (1/s in continuous time, dimensionless in discrete time).
+        """
+        z = complex(z)
+        out = np.inf
+        for part in self.parts:
+            if part[0] == "half_plane":
+                d = -float(part[1]) - z.real
+            elif part[0] == "disk":
+                d = float(part[2]) - abs(z - float(part[1]))
+            else:   # sector |Im z| < tan(theta) (-Re z), apex 0, half-angle theta < pi/2
+                s, c = np.sin(float(part[1])), np.cos(float(part[1]))
+                d = min(-z.real * s - z.imag * c, -z.real * s + z.imag * c)
+            out = min(out, float(d))
+        return float(out)
+
     def contains(self, z: complex, margin: float = 0.0) -> bool:
         """True if ``z`` lies inside with ``-lambda_max(f_D(z)) > margin``.
 

@@ -33,8 +33,9 @@ from tanksynth.analysis.statespace import model_names
 from tanksynth.analysis.trim import balancing_hint, trim_hint
 from tanksynth.design.operating_point import as_levels, equilibrium_at, linearized_at
 from tanksynth.design.result import DesignResult
-from tanksynth.errors import DesignWarning
+from tanksynth.errors import DesignWarning, TanksynthWarning
 from tanksynth.spec import DesignSpec, Spec
+from tanksynth.spec.memory import refuse_oversized_conic
 
 __all__ = ["spec_warnings", "result_warnings", "designed"]
 
@@ -140,8 +141,9 @@ def designed(run: Callable[[Spec, DesignSpec], DesignResult], spec: Spec,
     """Run ``run(spec, entry)`` and record every warning in ``diagnostics["warnings"]``.
 
     Spec warnings (`spec_warnings`) are issued before designing (so a refused
-    design still shows them), then the design runs with its own
-    `DesignWarning` s collected, then `result_warnings` of what it produced.
+    design still shows them), then the design runs with its own warnings collected
+    (every `TanksynthWarning`, e.g. undefined Takagi-Sugeno premises, not only the
+    `DesignWarning` s), then `result_warnings` of what it produced.
     Every line is issued as a `DesignWarning` and listed, once, in the
     result's diagnostics.
 
@@ -159,7 +161,14 @@ def designed(run: Callable[[Spec, DesignSpec], DesignResult], spec: Spec,
     DesignResult
         With ``diagnostics["warnings"]`` (a list of str, empty when nothing
         looks wrong).
+
+    Raises
+    ------
+    DesignTooLarge
+        The design's conic (LMI) problem would exceed the memory budget
+        (`tanksynth.spec.memory`): refused before anything is built.
     """
+    refuse_oversized_conic(entry, spec.plant, spec.ts)
     lines = spec_warnings(spec)
     for line in lines:
         warnings.warn(line, DesignWarning, stacklevel=2)
@@ -168,9 +177,11 @@ def designed(run: Callable[[Spec, DesignSpec], DesignResult], spec: Spec,
         result = run(spec, entry)
     own = []
     for w in caught:
-        if issubclass(w.category, DesignWarning):
+        # every tanksynth warning the design issued is this design's (one path: issued again as a
+        # DesignWarning below, so the CLI prints it with the design's name, and listed here)
+        if issubclass(w.category, TanksynthWarning):
             own.append(str(w.message))
-        else:  # not ours: pass it on unchanged
+        else:  # a library's: pass it on unchanged
             warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
     after = result_warnings(result)
     for line in own + after:

@@ -23,7 +23,7 @@ import numpy as np
 from tanksynth.design.matrices import symmetrized
 from tanksynth.errors import SpecError
 
-__all__ = ["LMICheck", "SOLVERS", "check_solver", "KAPPA_STEP", "KAPPA_ACTIVE", "kappa_active"]
+__all__ = ["LMICheck", "RELATIONS", "holds", "SOLVERS", "check_solver", "KAPPA_STEP", "KAPPA_ACTIVE", "kappa_active"]
 
 #: Solvers accepted for the LMIs (Clarabel is the default, SCS for comparisons).
 SOLVERS = ("CLARABEL", "SCS")
@@ -31,6 +31,36 @@ SOLVERS = ("CLARABEL", "SCS")
 KAPPA_STEP = 100.0
 #: The conditioning bound is active when the bounded quantity reaches this fraction of it.
 KAPPA_ACTIVE = 1.0 - 1e-3
+
+
+#: The directions a re-check compares its value to its limit in.
+RELATIONS = ("<=", "<", ">=", ">")
+
+
+def holds(value: float, relation: str, limit: float, tolerance: float = 0.0) -> bool:
+    """Whether ``value relation limit`` holds, the tolerance given to the value's side: ``value <=
+    limit + tolerance`` for ``"<="``/``"<"`` (strict: ``<``), ``value >= limit - tolerance`` for
+    ``">="``/``">"``.
+
+    Parameters
+    ----------
+    value, limit : float
+        The checked quantity and its bound (same units).
+    relation : {"<=", "<", ">=", ">"}
+        Direction of the test.
+    tolerance : float
+        Non-negative allowance for rounding (units of ``value``); a value beyond the limit by at
+        most this much passes.
+    """
+    if relation not in RELATIONS:
+        raise ValueError(f"relation must be one of {RELATIONS}, got {relation!r}")
+    if relation == "<=":
+        return bool(value <= limit + tolerance)
+    if relation == "<":
+        return bool(value < limit + tolerance)
+    if relation == ">=":
+        return bool(value >= limit - tolerance)
+    return bool(value > limit - tolerance)
 
 
 @dataclass(frozen=True)
@@ -49,6 +79,10 @@ class LMICheck:
     passed : bool
     unit : str
         Units/normalisation of ``value``.
+    relation : str
+        Direction of the test (one of `RELATIONS`; empty when not recorded).
+    tolerance : float
+        Allowance the test gave the value beyond the limit (see `holds`).
     """
 
     name: str
@@ -56,11 +90,23 @@ class LMICheck:
     limit: float
     passed: bool
     unit: str = ""
+    relation: str = ""
+    tolerance: float = 0.0
+
+    @classmethod
+    def test(cls, name: str, value: float, relation: str, limit: float, tolerance: float = 0.0,
+             unit: str = "") -> "LMICheck":
+        """The check ``value relation limit`` (within ``tolerance``, see `holds`), decided here."""
+        return cls(name, float(value), float(limit), holds(float(value), relation, float(limit), tolerance),
+                   unit, relation, float(tolerance))
 
     def as_dict(self) -> dict:
-        """JSON-friendly form."""
-        return {"name": self.name, "value": self.value, "limit": self.limit,
-                "passed": self.passed, "unit": self.unit}
+        """JSON-friendly form (``relation`` and ``tolerance`` when the test recorded them)."""
+        out = {"name": self.name, "value": self.value, "limit": self.limit,
+               "passed": self.passed, "unit": self.unit}
+        if self.relation:
+            out.update(relation=self.relation, tolerance=self.tolerance)
+        return out
 
 
 def check_solver(solver: str) -> None:

@@ -24,7 +24,8 @@ from tanksynth.reports.latex import (Tex, escape_latex, format_eigenvalues, form
                                      gain_latex, matrix_latex, symbol_latex)
 from tanksynth.reports.prose import prose_latex
 
-__all__ = ["DesignView", "design_view", "diagnostic_rows", "fragment_lines", "latex_label"]
+__all__ = ["DesignView", "design_view", "diagnostic_rows", "fragment_lines", "latex_label", "recheck_test_tex",
+           "status_note", "INACCURATE_NOTE"]
 
 _MAX_DIAG_ROWS = 30
 _MAX_TEXT = 400
@@ -193,6 +194,9 @@ class DesignView:
         Its caption, escaped.
     region_figure : FigureFile or None
         Certified-region figure (TS PDC designs, `tanksynth.reports.ts_figures`).
+    status_note : Tex
+        What a solver status short of ``optimal`` means and what the re-check then proves
+        (`status_note`); empty otherwise.
     """
 
     name: str
@@ -216,6 +220,7 @@ class DesignView:
     trace_figure: TraceFigure | None = None
     trace_caption: Tex = Tex("")
     region_figure: FigureFile | None = None
+    status_note: Tex = Tex("")
 
     @property
     def figure_caption(self) -> Tex:
@@ -230,13 +235,15 @@ class DesignView:
                 if self.region_figure is not None else Tex(""))
 
 
-_MARGIN_KEYS = ("margin", "achieved_margin", "min_region_margin", "max_pole_error", "condition_P",
+_MARGIN_KEYS = ("margin", "achieved_margin", "min_region_margin", "min_boundary_distance", "max_pole_error", "condition_P",
                 "gain_norm", "eigenvector_condition", "lmi_max_eigenvalue", "error_max_real_part")
 #: What each margin key means, in words (keys not listed are shown with their name in words).
 _MARGIN_WORDS = {
     "margin": "margin imposed on the strict LMI",
     "achieved_margin": "margin achieved by the LMI solution",
     "min_region_margin": r"smallest margin of the poles inside the region, $\min -\lambda_{\max}(f_D(z))$",
+    "min_boundary_distance": ("smallest distance of the closed-loop eigenvalues to the region's boundary "
+                              r"(units of the eigenvalues: 1/s, or the $z$-plane's)"),
     "max_pole_error": "largest error of the placed poles",
     "condition_P": r"condition number of the Lyapunov matrix $P$",
     "gain_norm": "norm of the gain",
@@ -288,6 +295,28 @@ def _margin_rows(diag: Mapping[str, Any]) -> list[tuple[Tex, Tex]]:
 _SHOWN = ("solver", "status", "checks", "assumptions", "caveats", "equilibrium", "rank")
 
 
+#: What "optimal inaccurate" means, and what the independent re-check then proves.
+INACCURATE_NOTE = (
+    "Solver status optimal_inaccurate: the solver stopped before meeting its own accuracy tolerances "
+    "(Clarabel: AlmostSolved), so its answer alone certifies nothing. The gain was kept only because "
+    "the independent re-check below, computed in numpy from the returned matrices, passed: each "
+    "constraint holds as its row states (direction, limit and the tolerance allowed). What is not "
+    "proven is optimality: a larger margin or a smaller objective may exist.")
+
+
+def status_note(status: Any) -> Tex:
+    """The note on a solver status that reports an inaccurate solution (`INACCURATE_NOTE`, typeset);
+    empty for any other status.
+
+    Parameters
+    ----------
+    status : str or None
+        The design's solver status (may join several solves, ``"optimal (phase 1), ..."``).
+    """
+    text = str(status or "").lower().replace("_", " ")
+    return prose_latex(INACCURATE_NOTE) if "optimal inaccurate" in text else Tex("")
+
+
 def _verdict_tex(passed: Any, word_pass: str = "pass", word_fail: str = "FAIL") -> Tex:
     if passed is True:
         return Tex(r"\textcolor{passgreen}{" + word_pass + "}")
@@ -296,9 +325,46 @@ def _verdict_tex(passed: Any, word_pass: str = "pass", word_fail: str = "FAIL") 
     return Tex(r"\textcolor{infoblue}{info}")
 
 
+_RELATION_TEX = {"<=": r"\le", "<": "<", ">=": r"\ge", ">": ">"}
+
+
+def _beyond_limit(c: Mapping[str, Any]) -> bool:
+    """A tested value on the wrong side of its limit (passed only by the test's tolerance)."""
+    value, limit, rel = c.get("value"), c.get("limit"), c.get("relation")
+    if not (is_number(value) and is_number(limit)) or rel not in _RELATION_TEX:
+        return False
+    v, lim = float(value), float(limit)
+    return (v > lim if rel == "<=" else v >= lim if rel == "<" else v < lim if rel == ">=" else v <= lim)
+
+
+def recheck_test_tex(c: Mapping[str, Any]) -> Tex:
+    """The test of a re-check record as it was made: direction, limit and the tolerance given to the
+    value (``<= 1 + 10^{-6}`` (tolerance)), or the bare limit for a record without its direction.
+
+    Parameters
+    ----------
+    c : mapping
+        A check record (``limit``, optional ``relation`` and ``tolerance``).
+    """
+    if "limit" not in c:
+        return Tex("--")
+    rel = c.get("relation")
+    if rel not in _RELATION_TEX:
+        return _m(c["limit"], 4)
+    tol = c.get("tolerance")
+    text = "$" + _RELATION_TEX[str(rel)] + " " + format_number(c["limit"], 6)
+    if is_number(tol) and float(tol) > 0:
+        text += (" + " if rel in ("<=", "<") else " - ") + format_number(tol, 2) + r"$ \mbox{(tolerance)}"
+    else:
+        text += "$"
+    return Tex(text)
+
+
 def _checks_rows(value: Any) -> list[dict[str, Tex]]:
     """Rows of a list of check records (``name``/``check``, ``passed``, and ``value``,
-    ``limit``, ``unit`` or ``detail``)."""
+    ``limit``, ``unit`` or ``detail``; ``relation`` and ``tolerance`` when the test recorded its
+    direction: the limit column then states the test, and a value past its limit, passed by the
+    tolerance alone, is printed with the digits that show it)."""
     rows: list[dict[str, Tex]] = []
     if not isinstance(value, list):
         return rows
@@ -308,8 +374,8 @@ def _checks_rows(value: Any) -> list[dict[str, Tex]]:
         detail = c.get("detail")
         rows.append({
             "name": prose_latex(c["name"] if c.get("name") else words(c.get("check", ""))),
-            "value": _m(c["value"], 4) if "value" in c else Tex("--"),
-            "limit": _m(c["limit"], 4) if "limit" in c else Tex("--"),
+            "value": (_m(c["value"], 12 if _beyond_limit(c) else 4) if "value" in c else Tex("--")),
+            "limit": recheck_test_tex(c),
             "unit": prose_latex(c.get("unit", "")),
             "detail": prose_latex(detail) if isinstance(detail, str) else Tex(""),
             "passed": _verdict_tex(c.get("passed")),
@@ -396,7 +462,8 @@ def design_view(art: Mapping[str, Any], figure: FigureFile | None,
         status=escape_latex(status, breakable=True) if status else Tex("--"),
         margins=margins, checks=checks, eigenvalues=eig, gains=gains, latex=latex, notes=notes,
         diagnostics=rows, omitted=omitted, verification=_verification_view(art.get("verification")),
-        figure=figure, provenance=provenance)
+        figure=figure, provenance=provenance,
+        status_note=status_note(" ".join(str(v) for _, v in status_hits if isinstance(v, str))))
 
 
 def _is_numeric_fragment(fragment: str) -> bool:

@@ -376,7 +376,9 @@ def time_domain_figure(artefact: Mapping[str, Any], artefact_dir: Path, director
                        stem: str, *, canvas: TraceCanvas | None = None) -> TraceFigure | None:
     """Draw the stored verdict trace of one artefact to ``directory/stem.pdf`` (vector PDF).
 
-    Subplots: states (levels) with their references; estimates against the
+    Subplots: states (levels) with their references, or, when the references are outputs that
+    are not states (``y = kc h1`` in V), the states alone and the outputs with their references
+    on an axis of their own, in output units; estimates against the
     true states and the estimation error when the trace has estimates; the
     inputs, each held to the end of the horizon (zero-order hold); the trace's further signals and
     their events when it has some (`tanksynth.reports.signal_panel.draw_signals`). The first run of
@@ -437,6 +439,33 @@ def time_domain_figures(artefact: Mapping[str, Any], artefact_dir: Path, directo
     return (main, *(f for f in more if f is not None))
 
 
+def _outputs_of(head: Mapping[str, Any], arr: Mapping[str, Any],
+                x: np.ndarray) -> tuple[np.ndarray, list[str], list[str]] | None:
+    """The trace's outputs ``(y, names, units)`` (`tanksynth.verify.traces.trace_of` keeps them when
+    a reference names an output that is not a state); None when it has none or they do not fit
+    (runs and samples of ``x``, one name per output)."""
+    y = arr.get("y")
+    names, units = head.get("output_names"), head.get("output_units")
+    if y is None or arr.get("reference") is None or not isinstance(names, list):
+        return None
+    y = np.asarray(y, float)
+    if y.ndim != 3 or y.shape[:2] != x.shape[:2] or len(names) != y.shape[2]:
+        return None
+    units = [str(v) for v in units] if isinstance(units, list) and len(units) == len(names) else [""] * len(names)
+    return y, [str(v) for v in names], units
+
+
+def _draw_references(lines: PanelLines, t: np.ndarray, ref: Any, rnames: list, names: list,
+                     colors: list[str]) -> None:
+    """The references, dashed, each in the colour of the signal it names (of ``names``)."""
+    if ref is None or np.ndim(ref) != 2 or np.shape(ref)[0] != t.size:
+        return
+    for j in range(np.shape(ref)[1]):
+        k = names.index(rnames[j]) if j < len(rnames) and rnames[j] in names else j
+        lines.line(t, np.asarray(ref, float)[:, j], color=colors[k % len(colors)], linestyle="--",
+                   linewidth=0.8, label=f"ref. {rnames[j] if j < len(rnames) else j + 1}")
+
+
 def _trace_figure(artefact: Mapping[str, Any], trace: Mapping[str, Any], directory: Path, stem: str,
                   canvas: TraceCanvas | None, is_extra: bool) -> TraceFigure | None:
     """One trace (``{"header", "arrays"}``) drawn to ``directory/stem.pdf``; None if it is not
@@ -460,7 +489,9 @@ def _trace_figure(artefact: Mapping[str, Any], trace: Mapping[str, Any], directo
     dist = set(head.get("disturbance_names") or [])
     cols = {"inputs": [j for j in range(m_u) if j >= len(inames) or inames[j] not in dist]}
     cols["disturbances"] = [j for j in range(m_u) if j not in cols["inputs"]]
-    panels = ["levels"] + (["estimates", "error"] if x_hat is not None else []) \
+    outputs = _outputs_of(head, arr, x)
+    panels = ["levels"] + (["outputs"] if outputs is not None else []) \
+        + (["estimates", "error"] if x_hat is not None else []) \
         + [p for p in ("inputs", "disturbances") if cols[p]]
     lin = _linear_prediction(artefact, head, t, x, u)
     if lin is not None:
@@ -509,14 +540,22 @@ def _trace_figure(artefact: Mapping[str, Any], trace: Mapping[str, Any], directo
             for i in range(n):
                 lines.line(t, x[0, :, i], color=colors[i], linewidth=1.0, label=sname(i))
                 lines.runs(t, x[1:, :, i], color=colors[i], **further)
-            if ref is not None and np.ndim(ref) == 2 and np.shape(ref)[0] == t.size:
-                for j in range(np.shape(ref)[1]):
-                    k = snames.index(rnames[j]) if j < len(rnames) and rnames[j] in snames else j
-                    lines.line(t, np.asarray(ref, float)[:, j], color=colors[k % len(colors)], linestyle="--",
-                               linewidth=0.8, label=f"ref. {rnames[j] if j < len(rnames) else j + 1}")
+            refs_here = ref is not None and outputs is None   # else drawn with the outputs
+            if refs_here:
+                _draw_references(lines, t, ref, rnames, snames, colors)
             ax.set_ylabel(f"states [{state_unit}]" if state_unit else "states", fontsize=_LABEL_PT)
-            ax.set_title("plant (nonlinear)" + (" and references" if ref is not None else ""), fontsize=_TITLE_PT,
+            ax.set_title("plant (nonlinear)" + (" and references" if refs_here else ""), fontsize=_TITLE_PT,
                          y=1.0)
+        elif panel == "outputs" and outputs is not None:   # (listed only with outputs)
+            y, onames, ounits = outputs
+            out_unit = ounits[0] if ounits and all(v == ounits[0] for v in ounits) else ""
+            for i in range(y.shape[2]):
+                lines.line(t, y[0, :, i], color=colors[i % len(colors)], linewidth=1.0,
+                           label=onames[i] if out_unit else _unit_label(onames, ounits, i))
+                lines.runs(t, y[1:, :, i], color=colors[i % len(colors)], **further)
+            _draw_references(lines, t, ref, rnames, onames, colors)
+            ax.set_ylabel(f"outputs [{out_unit}]" if out_unit else "outputs", fontsize=_LABEL_PT)
+            ax.set_title("outputs y = h(x) and their references (dashed)", fontsize=_TITLE_PT, y=1.0)
         elif panel == "estimates":
             xh = np.asarray(x_hat, float)
             for i in range(n):
@@ -554,7 +593,7 @@ def _trace_figure(artefact: Mapping[str, Any], trace: Mapping[str, Any], directo
         lines.draw(ax)
         ax.tick_params(labelsize=_TICK_PT)    # also sets how many ticks fit (the locator's tick space)
         _plain_axis(ax)
-        extra = run_marks if panel in ("levels", "error", "inputs", "disturbances") else ([], [])
+        extra = run_marks if panel in ("levels", "outputs", "error", "inputs", "disturbances") else ([], [])
         if panel == "estimates":     # one entry for every dashed estimate
             from matplotlib.lines import Line2D
 

@@ -22,6 +22,7 @@ import numpy as np
 from tanksynth.errors import SpecError, TanksynthError
 from tanksynth.plants import BUILTIN_PLANTS, Plant, custom_plant
 from tanksynth.plants.trim import Trim, trim, trim_outputs
+from tanksynth.spec.memory import memory_budget
 from tanksynth.spec.options import (parse_box, parse_number, parse_vector,
                                     unknown_word_hint)
 
@@ -277,8 +278,10 @@ def parse_spec(table: Mapping[str, Any], source: str | None = None, sha256: str 
         ``[[design]]`` table is validated and all the invalid ones are reported: one table's
         error as it is, several in one `SpecError` (``N invalid designs (design[0] 'a',
         design[2] 'c'): design[0] 'a': key ...: ...; design[2] 'c': ...``) whose ``errors``
-        attribute holds each table's error.
+        attribute holds each table's error; first of all, a bad ``TANKSYNTH_MEMORY_BUDGET_MB``
+        (`tanksynth.spec.memory.memory_budget`: it names the variable, not the file).
     """
+    memory_budget()  # the environment's budget, read once for every design (a bad one: refused)
     try:
         return _parse(table, source, sha256, methods)
     except SpecError as exc:

@@ -90,7 +90,9 @@ def trace_of(result: Any, plant: Plant, *, scenario: str, check: str, estimator:
     -------
     dict
         Arrays ``t`` (s), ``x`` (state units), ``t_u`` (s), ``u`` (input
-        units), ``x_hat``, ``reference`` and ``signals`` (signal units) when present, decimated to
+        units), ``x_hat``, ``reference`` and ``signals`` (signal units) when present, and ``y``
+        (runs kept, samples, q; output units, header ``output_names``, ``output_units``) when a
+        reference names an output that is not a state; decimated to
         at most `TRACE_MAX_SAMPLES` samples; the header names them.
 
     Raises
@@ -122,6 +124,14 @@ def trace_of(result: Any, plant: Plant, *, scenario: str, check: str, estimator:
         arrays["x_hat"] = np.asarray(result.x_hat, dtype=float)[idx][:, keep]
     if ref.ndim == 2 and ref.shape[1] > 0:
         arrays["reference"] = ref[keep]
+    states = [q.name for q in plant.states]
+    y = np.asarray(getattr(result, "y", np.zeros((0, 0, 0))), dtype=float)
+    # references of outputs that are not states (y = kc h1 in V): the outputs are kept, so that the
+    # figure draws them and their references in output units, not beside the states
+    outputs_kept = bool("reference" in arrays and any(v not in states for v in names[:ref.shape[1]])
+                        and y.ndim == 3 and y.shape[:2] == tuple(np.shape(result.x))[:2])
+    if outputs_kept:
+        arrays["y"] = y[idx][:, keep]
     header = {
         "schema": "tanksynth.traces/1",
         "scenario": str(scenario),
@@ -130,13 +140,16 @@ def trace_of(result: Any, plant: Plant, *, scenario: str, check: str, estimator:
         "stride": stride,
         "ts": float(result.ts),
         "plant": str(getattr(plant, "name", "")),
-        "state_names": [q.name for q in plant.states],
+        "state_names": states,
         "state_units": [q.unit for q in plant.states],
         "input_names": [q.name for q in plant.inputs],
         "input_units": [q.unit for q in plant.inputs],
         "reference_names": names[:ref.shape[1]] if ref.ndim == 2 else [],
         "seeds": [int(v) for v in np.asarray(result.seeds)[idx]],
     }
+    if outputs_kept:
+        header["output_names"] = [q.name for q in plant.outputs]
+        header["output_units"] = [q.unit for q in plant.outputs]
     if disturbances:
         header["disturbance_names"] = [str(v) for v in disturbances]
     if signals:

@@ -136,3 +136,47 @@ def test_sampling_period_shorter_than_the_slowest_time_constant_is_quiet():
     text = HEAD.format(params="", h1=0.40, h2=0.20, h3=0.30).replace("ts = 1.0", f"ts = {ts!r}")
     _, lines = _design(text)
     assert not [s for s in lines if "time constant" in s]
+
+
+def test_every_tanksynth_warning_of_a_design_is_recorded_and_printed_per_design():
+    """Issue 30.18: one path: a tanksynth warning issued while designing (not only a DesignWarning,
+    e.g. undefined Takagi-Sugeno premises) is listed in the design's diagnostics["warnings"] and
+    issued again as a DesignWarning (the CLI prints those per design, naming it)."""
+    from tanksynth.design.audit import designed
+    from tanksynth.errors import TanksynthWarning
+
+    spec = parse_spec_text(HEAD.format(params="[plant.parameters]\nA = 154.0", h1=0.40, h2=0.20, h3=0.30))
+    entry = spec.designs[0]
+    method = METHODS[entry.method]
+
+    def run(s, e):
+        warnings.warn(TanksynthWarning("premises undefined at 1 point"), stacklevel=2)
+        return method.adapter.run(s, e)
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        res = designed(run, spec, entry)
+    printed = [str(w.message) for w in caught if issubclass(w.category, DesignWarning)]
+    assert "premises undefined at 1 point" in printed
+    assert any("A = 154 m^2" in line for line in printed)
+    assert set(printed) == set(res.diagnostics["warnings"])
+
+
+def test_cli_warning_lines_are_the_designs_recorded_warnings(tmp_path, capsys):
+    """Issue 30.18: every 'warning: <designs>: <text>' line of the CLI is in each named design's
+    diagnostics["warnings"] (the implausible tank area of a unit slip)."""
+    import json
+
+    from tanksynth.cli import main
+
+    spec = tmp_path / "spec.toml"
+    spec.write_text(HEAD.format(params="[plant.parameters]\nA = 154.0", h1=0.40, h2=0.20, h3=0.30)
+                    + '[[design]]\nname = "lin2"\nmethod = "linearize"\n', encoding="utf-8")
+    assert main(["design", str(spec), "-o", str(tmp_path / "out")]) == 0
+    lines = [ln for ln in capsys.readouterr().err.splitlines() if ln.startswith("warning: ")]
+    assert lines and any("plausible" in ln for ln in lines)
+    for ln in lines:
+        names, text = ln.removeprefix("warning: ").split(": ", 1)
+        for name in names.split(", "):
+            doc = json.loads((tmp_path / "out" / f"{name}.json").read_text(encoding="utf-8"))
+            assert text in doc["diagnostics"]["warnings"], (name, text)

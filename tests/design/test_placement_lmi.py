@@ -188,3 +188,25 @@ def test_scs_route_through_cvxpy_meets_the_clarabel_route():
     assert b.solver == "SCS" and "phase 2" in b.status
     assert b.scaling["largest_margin_t"] == pytest.approx(a.scaling["largest_margin_t"], rel=1e-3)
     assert all(region.contains(z) for z in np.linalg.eigvals(A - B @ b.gain))
+
+
+def test_boundary_distance_is_the_euclidean_distance_to_the_boundary():
+    """Issue 30.3: the distance of a point to the region's boundary, in the units of the point."""
+    assert half_plane(0.5).boundary_distance(-0.5 - 5.9e-4 + 3j) == pytest.approx(5.9e-4)
+    assert half_plane(0.5).margin(-0.5 - 5.9e-4) == pytest.approx(2 * 5.9e-4)   # f_D: twice it
+    assert disk(0.9, 0.08).boundary_distance(0.9 + 0.05j) == pytest.approx(0.03)
+    th = np.radians(30)
+    z = -2.0 + 0.5j     # distance to the upper ray y = tan(th) (-x): |x sin + y cos|
+    assert sector(th).boundary_distance(z) == pytest.approx(abs(-2.0 * np.sin(th) + 0.5 * np.cos(th)))
+    both = half_plane(0.5) & disk(-1.0, 0.7)
+    assert both.boundary_distance(-0.6) == pytest.approx(0.1)
+    assert both.boundary_distance(0.0) < 0
+
+
+def test_lmi_gain_records_the_distance_of_its_eigenvalues_to_the_region_boundary():
+    """Issue 30.3: a gain accepted near the boundary gets its distance to it (1/s) in its diagnostics."""
+    A, B = random_system()
+    res = lmi_state_feedback(A, B, half_plane(0.5))
+    lam = np.linalg.eigvals(A - B @ res.gain)
+    dist = res.as_dict()["min_boundary_distance"]
+    assert dist == pytest.approx(float(np.min(-0.5 - lam.real)), rel=1e-9, abs=1e-12) and dist > 0

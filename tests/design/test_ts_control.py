@@ -379,3 +379,80 @@ def test_output_feedback_setpoint_keeps_the_observer():
     assert "sp_L" not in g and "sp_beta" in g
     assert res.diagnostics["setpoint"]["relaxation"] == "all_pairs"
     assert 0 < float(g["sp_switch_level"][0]) <= 1
+
+
+def test_decay_rate_reported_as_a_bracket_strict_below_equality_at_the_top():
+    """Issue 30.3: the supremum of the decay rate the returned (P, K_j) certify is where the
+    conditions hold with equality; the rate certified strictly lies below it, with its margin.
+
+    The scalar two-rule system of the test above: the vertex conditions are, by hand,
+    2 P (a_i - k_j) + 2 alpha P (i = j) and P (a_i + a_j - k_i - k_j) + 2 alpha P (i < j)."""
+    A = np.array([[[1.0]], [[-1.0]]])
+    B = np.array([[1.0]])
+    faces = (np.array([[1.0], [-1.0]]), np.array([1.0, 1.0]))
+    res = pdc_lmi(A, B, alpha=1.0, relaxation="vertex", faces=faces, input_margins=[3.0], inner_radius=1.0)
+    p, k = float(res.P[0, 0]), res.K[:, 0, 0]
+    a = A[:, 0, 0]
+    # the largest alpha keeping every condition <= 0, by hand
+    sup = min(min(k[i] - a[i] for i in range(2)), (k[0] + k[1] - a[0] - a[1]) / 2)
+    bracket = res.as_dict()["decay_rate_bracket"]
+    assert bracket["at_most"] == pytest.approx(sup, rel=1e-9) == res.decay
+    assert 1.0 <= bracket["at_least"] < bracket["at_most"]
+
+    def worst(alpha):
+        return max(max(2 * p * (a[i] - k[i]) + 2 * alpha * p for i in range(2)),
+                   p * (a[0] + a[1] - k[0] - k[1]) + 2 * alpha * p)
+
+    assert worst(bracket["at_most"]) == pytest.approx(0.0, abs=1e-9)      # equality at the top
+    assert worst(bracket["at_least"]) == pytest.approx(-bracket["margin"], rel=1e-9)
+    assert bracket["margin"] > 0                                          # strict below it
+
+
+def test_statement_says_at_least_and_at_most_of_the_decay_rate():
+    from tanksynth.reports.statements.takagi_sugeno import ts_state_feedback_statement
+
+    diag = {"relaxation": "vertex", "decay_rate": 0.0103,
+            "lmi": {"decay_rate_bracket": {"at_least": 0.0102, "at_most": 0.0103, "margin": 3.7e-4}}}
+    text = str(ts_state_feedback_statement(diag))
+    assert r"\alpha \ge 0.0102" in text and "at most" in text and "equality" in text
+
+
+def test_initial_estimation_error_allowed_by_the_composite_certificate():
+    """Issue 30.17: (e(0), eps(0)) in {e' P e + beta eps' Po eps <= c}; checked on the boundary points
+    along the eigenvectors (independent of the formula's eigenvalue bound)."""
+    from tanksynth.design.takagi_sugeno.region import initial_error_allowance
+
+    rng = np.random.default_rng(3)
+    M = rng.standard_normal((3, 3))
+    P = M @ M.T + 3 * np.eye(3)
+    N = rng.standard_normal((3, 3))
+    Po = N @ N.T + np.eye(3)
+    beta, c = 95.0, 0.9967
+    out = initial_error_allowance(P, Po, beta, c)
+    r = out["error_ball_at_x_op"]
+
+    def V(e, eps):
+        return float(e @ P @ e + beta * eps @ Po @ eps)
+
+    dirs = rng.standard_normal((20000, 3))
+    dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
+    worst = max(V(np.zeros(3), r * d) for d in dirs)
+    assert worst <= c * (1 + 1e-9) and worst >= 0.99 * c       # the ball touches the level set
+    top = np.linalg.eigh(Po)[1][:, -1]
+    assert V(np.zeros(3), 1.001 * r * top) > c                  # and no larger ball fits
+    assert max(out["error_semi_axes"]) == pytest.approx(np.sqrt(c / (beta * np.linalg.eigvalsh(Po)[0])))
+    rp = out["plant_ball_estimate_at_x_op"]                    # x_hat(0) = x_op: eps(0) = e(0)
+    assert max(V(rp * d, rp * d) for d in dirs) <= c * (1 + 1e-9)
+    top2 = np.linalg.eigh(P + beta * Po)[1][:, -1]
+    assert V(1.001 * rp * top2, 1.001 * rp * top2) > c
+
+
+def test_output_feedback_statement_states_the_initial_estimation_error():
+    from tanksynth.reports.statements.takagi_sugeno import ts_output_feedback_statement
+
+    diag = {"relaxation": "all_pairs", "decay_rate": 0.0035, "premises": "estimated",
+            "composite": {"beta": 95.0, "initial_error": {"error_ball_at_x_op": 0.0010957,
+                                                          "error_semi_axes": [0.0011, 0.0013, 0.00176],
+                                                          "plant_ball_estimate_at_x_op": 0.0010944}}}
+    text = str(ts_output_feedback_statement(diag))
+    assert r"\varepsilon(0) = 0" in text and "0.0011" in text and "0.00176" in text and "0.00109" in text

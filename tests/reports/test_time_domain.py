@@ -236,3 +236,40 @@ def test_reused_canvas_draws_the_same_pdf(tmp_path):
         reused = time_domain_figure(art, tmp_path, tmp_path / "reused", name, canvas=canvas)
         fresh = time_domain_figure(art, tmp_path, tmp_path / "fresh", name)
         assert reused.path.read_bytes() == fresh.path.read_bytes(), name
+
+
+@pytest.mark.slow
+def test_outputs_not_states_are_drawn_with_their_references_in_output_units(tmp_path):
+    """Issue 30.1: y = kc h (V, kc = 0.5 V/cm) tracked on the quadruple tank: the references (V)
+    are drawn beside the outputs on an axis in V, not on the levels' axis in cm."""
+    from tanksynth.reports.figure_layout import TraceCanvas
+
+    spec = ROOT / "examples" / "quadruple_tank_sensor_gain.toml"
+    d = tmp_path / "q"
+    assert main(["design", str(spec), "-o", str(d)]) == 0
+    assert main(["verify", str(d)]) == 0
+    canvas = TraceCanvas()
+    art = read_artefact(d / "quadruple_servo.json")
+    assert time_domain_figure(art, d, tmp_path / "figs", "servo", canvas=canvas) is not None
+    trace = read_trace(d / "quadruple_servo.traces.npz")
+    x, ref = trace["arrays"]["x"][0], trace["arrays"]["reference"]
+    axes = {a.get_ylabel(): a for a in canvas.last.axes}
+    assert set(axes) >= {"states [cm]", "outputs [V]"}
+    # the levels' axis holds the levels only (cm) ...
+    levels = axes["states [cm]"]
+    assert (levels.dataLim.y0, levels.dataLim.y1) == pytest.approx((x.min(), x.max()))
+    assert not [t.get_text() for t in levels.get_legend().get_texts() if t.get_text().startswith("ref")]
+    # ... the outputs' axis the sensor voltages kc h1, kc h2 (independent of the stored y) and the
+    # references, in the same units: every line within the union of both ranges
+    kc = 0.5
+    volts = kc * x[:, :2]
+    out = axes["outputs [V]"]
+    lo, hi = min(volts.min(), ref.min()), max(volts.max(), ref.max())
+    assert (out.dataLim.y0, out.dataLim.y1) == pytest.approx((lo, hi), rel=1e-9)
+    segments = out.collections[0].get_segments()
+    drawn = np.concatenate([s[:, 1] for s in segments])
+    assert drawn.min() == pytest.approx(lo) and drawn.max() == pytest.approx(hi)
+    legend = [t.get_text() for t in out.get_legend().get_texts()]
+    assert {"y1", "y2", "ref. y1", "ref. y2"} <= set(legend)
+    # the set-points track within the servo tolerance: reference and output meet at the end (V)
+    assert np.max(np.abs(volts[-1] - ref[-1])) < 0.02 * np.max(np.abs(ref[-1] - ref[0]))

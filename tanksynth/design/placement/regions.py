@@ -167,6 +167,8 @@ class LMIPlacementResult:
                 "checks": [c.as_dict() for c in self.checks],
                 "closed_loop_eigenvalues": complex_pairs(self.closed_loop_eigenvalues),
                 "min_region_margin": float(np.min(self.region_margins)),
+                "min_boundary_distance": float(min(self.region.boundary_distance(z)
+                                                   for z in self.closed_loop_eigenvalues)),
                 "condition_P": float(np.linalg.cond(self.P)),
                 "gain_norm": float(np.linalg.norm(self.gain, 2)),
                 "scaling": self.scaling, "fixed_modes": list(self.fixed_modes)}
@@ -296,13 +298,12 @@ def lmi_state_feedback(A: Any, B: Any, region: LMIRegion, *, domain: str = "cont
     xmin = float(np.min(np.linalg.eigvalsh(Xs)))
     need = -0.5 * margin
     checks = (
-        LMICheck("region LMI, normalised (max eigenvalue <= -margin/2)", float(eig_n.max()), need,
-                 bool(eig_n.max() <= need), "normalised"),
-        LMICheck("region LMI, original units (max eigenvalue < 0)", eig_o, 0.0, bool(eig_o < 0),
-                 "original units"),
-        LMICheck("X > 0 (min eigenvalue, normalised)", xmin, 0.0, bool(xmin > 0), ""),
-        LMICheck("closed-loop eigenvalues inside the region (min -lambda_max f_D)",
-                 float(margins.min()), 0.0, bool(margins.min() > 0), ""),
+        LMICheck.test("region LMI, normalised (max eigenvalue <= -margin/2)", float(eig_n.max()), "<=", need,
+                      unit="normalised"),
+        LMICheck.test("region LMI, original units (max eigenvalue < 0)", eig_o, "<", 0.0, unit="original units"),
+        LMICheck.test("X > 0 (min eigenvalue, normalised)", xmin, ">", 0.0),
+        LMICheck.test("closed-loop eigenvalues inside the region (min -lambda_max f_D)",
+                      float(margins.min()), ">", 0.0),
     )
     failed = [c for c in checks if not c.passed]
     if failed:

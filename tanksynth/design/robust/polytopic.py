@@ -43,6 +43,7 @@ import scipy.linalg as sla
 from tanksynth.analysis.lmi_region import LMIRegion
 from tanksynth.analysis.statespace import hinf_norm
 from tanksynth.design.conic import modelling
+from tanksynth.design.lmi_checks import LMICheck
 from tanksynth.design.matrices import symmetrized
 from tanksynth.errors import DimensionError, InfeasibleDesign, SpecError
 
@@ -166,6 +167,8 @@ class RobustResult:
                 "vertex_region_margins": self.vertex_margins.tolist(),
                 "worst_vertex": self.worst_vertex,
                 "min_region_margin": float(np.min(self.vertex_margins)),
+                "min_boundary_distance": float(min(self.region.boundary_distance(z)
+                                                   for e in self.vertex_eigenvalues for z in e)),
                 "checks": list(self.checks), "hinf": self.hinf, "saturation": self.saturation,
                 "condition_P": float(np.linalg.cond(self.P)),
                 "gain_norm": float(np.linalg.norm(self.gain, 2)), "scaling": self.scaling}
@@ -481,8 +484,8 @@ def _without_bound(A, B, region, domain, saturation, margin, kappa, solver, nomi
     worst = worst_at(u)
     if not worst <= -0.5 * margin:
         return None, norm
-    check = {"name": "bounded real lemma at every vertex, normalised (<= -margin/2)",
-             "value": float(worst), "limit": float(-0.5 * margin), "passed": True}
+    check = LMICheck.test("bounded real lemma at every vertex, normalised (<= -margin/2)", worst, "<=",
+                          -0.5 * margin).as_dict()
     return dataclasses.replace(
         free, checks=free.checks + (check,),
         status=free.status + "; H-infinity bound met without imposing it",
@@ -556,8 +559,8 @@ def _recheck(A, B, K, Xs, Xo, Ks, As, Bs, reg, region, domain, margin, tstar, so
     V, n, m = B.shape
     checks = []
 
-    def add(name: str, value: float, limit: float, ok: bool) -> None:
-        checks.append({"name": name, "value": float(value), "limit": float(limit), "passed": bool(ok)})
+    def add(name: str, value: float, relation: str, limit: float, tolerance: float = 0.0) -> None:
+        checks.append(LMICheck.test(name, value, relation, limit, tolerance).as_dict())
 
     worst_n, worst_o = -np.inf, -np.inf
     eigs, margins = [], []
@@ -570,18 +573,15 @@ def _recheck(A, B, K, Xs, Xo, Ks, As, Bs, reg, region, domain, margin, tstar, so
         eigs.append(lam)
         margins.append(min(region.margin(z) for z in lam))
     margins_arr = np.array(margins)
-    add("region LMI at every vertex, normalised (max eigenvalue <= -margin/2)", worst_n, -0.5 * margin,
-        worst_n <= -0.5 * margin)
-    add("region LMI at every vertex, original units (max eigenvalue < 0)", worst_o, 0.0, worst_o < 0)
+    add("region LMI at every vertex, normalised (max eigenvalue <= -margin/2)", worst_n, "<=", -0.5 * margin)
+    add("region LMI at every vertex, original units (max eigenvalue < 0)", worst_o, "<", 0.0)
     xmin = float(np.min(np.linalg.eigvalsh(Xs)))
-    add("X > 0 (min eigenvalue, normalised)", xmin, 0.0, xmin > 0)
-    add("eigenvalues of every vertex closed loop inside the region (min margin)", margins_arr.min(), 0.0,
-        margins_arr.min() > 0)
+    add("X > 0 (min eigenvalue, normalised)", xmin, ">", 0.0)
+    add("eigenvalues of every vertex closed loop inside the region (min margin)", margins_arr.min(), ">", 0.0)
     hinf_out = None
     if hinf is not None:
         worst_h = _brl_worst(domain, As, Bs, Ks, Xs, hs)
-        add("bounded real lemma at every vertex, normalised (<= -margin/2)", worst_h, -0.5 * margin,
-            worst_h <= -0.5 * margin)
+        add("bounded real lemma at every vertex, normalised (<= -margin/2)", worst_h, "<=", -0.5 * margin)
         hinf_out = {"gamma": float(hinf.gamma), "vertices": V, "worst_lmi_eigenvalue": worst_h,
                     "imposed": True, "congruence_scale": float(hs[4])}
     sat_out = None
@@ -589,7 +589,7 @@ def _recheck(A, B, K, Xs, Xo, Ks, As, Bs, reg, region, domain, margin, tstar, so
         umax = np.asarray(saturation.umax, dtype=float)
         peak = np.sqrt(np.maximum(np.einsum("ij,jk,ik->i", K, Xo, K), 0.0))
         ratio = float(np.max(peak / umax))
-        add("max over the ellipsoid of |K_j x| / umax_j (<= 1)", ratio, 1.0, ratio <= 1.0 + 1e-6)
+        add("max over the ellipsoid of |K_j x| / umax_j (<= 1)", ratio, "<=", 1.0, 1e-6)
         P = np.linalg.inv(Xo)
         lyap = -np.inf
         for i in range(V):
@@ -600,16 +600,14 @@ def _recheck(A, B, K, Xs, Xo, Ks, As, Bs, reg, region, domain, margin, tstar, so
             Xp = Xo[:saturation.halfspaces.shape[1], :saturation.halfspaces.shape[1]]
             reach = np.sqrt(np.einsum("ij,jk,ik->i", saturation.halfspaces, Xp, saturation.halfspaces))
             worst_h = float(np.max(reach / np.asarray(saturation.limits, dtype=float)))
-            add("ellipsoid inside the half-spaces c' x <= b (max sqrt(c' X c) / b)", worst_h, 1.0,
-                worst_h <= 1.0 + 1e-6)
+            add("ellipsoid inside the half-spaces c' x <= b (max sqrt(c' X c) / b)", worst_h, "<=", 1.0, 1e-6)
         add("ellipsoid invariant at every vertex (max eigenvalue of the Lyapunov form, relative)",
-            lyap, 0.0, lyap <= 1e-9)
+            lyap, "<=", 0.0, 1e-9)
         vs = [v * s for v in corners]
         tau_val = max(float(v @ P @ v) for v in vs)
         scale = 1.0 / np.sqrt(tau_val)
         if saturation.box is not None:
-            add("requested box inside the ellipsoid (max v' P v over its corners)", tau_val, 1.0,
-                tau_val <= 1.0 + 1e-6)
+            add("requested box inside the ellipsoid (max v' P v over its corners)", tau_val, "<=", 1.0, 1e-6)
         nb = saturation.n_box or n
         half = np.ones(nb) if saturation.box is None else np.asarray(saturation.box, dtype=float)
         sat_out = {"umax": umax.tolist(), "peak_input_deviation": peak.tolist(),

@@ -159,6 +159,9 @@ class SynthesisResult:
                                             for e in self.closed_loop_eigenvalues],
                 "region": None if self.region is None else self.region.as_dict(),
                 "region_margins": [float(v) for v in self.region_margins],
+                "min_boundary_distance": None if self.region is None else float(min(
+                    (self.region.boundary_distance(z) for e in self.closed_loop_eigenvalues for z in e),
+                    default=np.inf)),
                 "models": len(self.closed_loop_eigenvalues),
                 "route": self.route,
                 "solver": self.solver, "status": self.status, "solve_time_s": self.solve_time,
@@ -542,7 +545,7 @@ def _recheck(models, scaled, K, Xs, Ys, Wv, gv, region, reg_s, h2_claim, g_claim
     checks: list[LMICheck] = []
     eigs, margins, a_h2, a_hinf = [], [], [], []
     xmin = float(np.min(np.linalg.eigvalsh(Xs)))
-    checks.append(LMICheck("X > 0 (min eigenvalue, scaled)", xmin, 0.0, bool(xmin > 0), "scaled"))
+    checks.append(LMICheck.test("X > 0 (min eigenvalue, scaled)", xmin, ">", 0.0, unit="scaled"))
     for i, (P, Ps) in enumerate(zip(models, scaled)):
         tag = f" (model {i})" if len(models) > 1 else ""
         Acl, Bcl, Ccl = P.closed_loop(K)
@@ -553,24 +556,24 @@ def _recheck(models, scaled, K, Xs, Ys, Wv, gv, region, reg_s, h2_claim, g_claim
             dt = 1.0
         rho = float(np.max(np.abs(lam))) if P.domain == "discrete" else float(np.max(lam.real))
         lim = 1.0 if P.domain == "discrete" else 0.0
-        checks.append(LMICheck(f"closed loop stable{tag} ({'spectral radius' if lim else 'max Re'})",
-                               rho, lim, bool(rho < lim), "z-plane" if lim else "1/s"))
+        checks.append(LMICheck.test(f"closed loop stable{tag} ({'spectral radius' if lim else 'max Re'})",
+                                    rho, "<", lim, unit="z-plane" if lim else "1/s"))
         a_h2.append(h2_norm(Acl, Bcl, Ccl, None, dt))
         a_hinf.append(hinf_norm(Acl, Bcl, Ccl, None, dt))
         if h2_claim is not None:
-            ok = bool(a_h2[-1] <= h2_claim * (1 + NORM_RTOL))
-            checks.append(LMICheck(f"H2 norm (Gramian) <= claimed bound{tag}", a_h2[-1],
-                                   h2_claim, ok, "relative tolerance 1e-6"))
+            checks.append(LMICheck.test(f"H2 norm (Gramian) <= claimed bound{tag}", a_h2[-1], "<=",
+                                        h2_claim, h2_claim * NORM_RTOL, "relative tolerance 1e-6"))
         if g_claim is not None:
             ok = hinf_below(g_claim * (1 + NORM_RTOL), Acl, Bcl, Ccl, None, dt)
             checks.append(LMICheck(f"H-infinity norm (Hamiltonian test) < claimed gamma{tag}",
-                                   a_hinf[-1], g_claim, bool(ok), "relative tolerance 1e-6"))
+                                   a_hinf[-1], g_claim, bool(ok), "relative tolerance 1e-6", "<",
+                                   g_claim * NORM_RTOL))
         if region is not None:
             mg = float(min(region.margin(z) for z in lam))
             margins.append(mg)
             inside = region.describe(variable_of(P.domain))
-            checks.append(LMICheck(f"closed-loop eigenvalues inside {inside}{tag}", mg, 0.0,
-                                   bool(mg > 0), "-lambda_max f_D"))
+            checks.append(LMICheck.test(f"closed-loop eigenvalues inside {inside}{tag}", mg, ">",
+                                        0.0, unit="-lambda_max f_D"))
         blocks = []
         if Wv is not None:
             blocks += h2_lmis(Ps, Xs, Ys, Wv)
@@ -582,8 +585,8 @@ def _recheck(models, scaled, K, Xs, Ys, Wv, gv, region, reg_s, h2_claim, g_claim
             e = np.linalg.eigvalsh(B)
             scale = max(1.0, float(np.max(np.abs(e))))
             checks.append(LMICheck(f"LMI block of size {B.shape[0]} negative (max eigenvalue / scale, "
-                                   f"scaled){tag}", float(e.max()) / scale, 1e-7,
-                                   bool(e.max() / scale <= 1e-7), "scaled"))
+                                   f"scaled){tag}", float(e.max()) / scale, 0.0,
+                                   bool(e.max() / scale <= 1e-7), "scaled", "<=", 1e-7))
     return checks, eigs, margins, a_h2, a_hinf
 
 

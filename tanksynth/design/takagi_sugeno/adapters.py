@@ -39,7 +39,8 @@ from tanksynth.design.result import DesignMethod, DesignResult, options_of, reke
 from tanksynth.design.takagi_sugeno.pdc import certified_decay, max_decay_rate, pdc_lmi
 from tanksynth.design.takagi_sugeno.deviation import deviation_ts_model
 from tanksynth.design.takagi_sugeno.region import (certified_region, composite_decay, coupling_weight,
-                                       lyapunov_decay, observer_decay_lmi, switch_level)
+                                                   initial_error_allowance, lyapunov_decay,
+                                                   observer_decay_lmi, switch_level)
 from tanksynth.errors import InfeasibleDesign, SpecError
 from tanksynth.spec import DesignSpec, Spec
 from tanksynth.spec.method_options import TsOutputFeedbackOptions, TsStateFeedbackOptions
@@ -335,7 +336,7 @@ def run_ts_output_feedback(spec: Spec, design: DesignSpec) -> DesignResult:
             raise InfeasibleDesign(f"estimated premises: observer LMI (28) infeasible with psi = "
                                    f"{lip.value:.4g} 1/s (Lipschitz bound, {o.lipschitz_method}): "
                                    "restrict the domain (larger ordering_gap) or measure more states")
-        a_max, _, hist = bisect_feasible(feasible, start=max(lip.value, 1e-4), rtol=0.02)
+        a_max, a_infeasible, hist = bisect_feasible(feasible, start=max(lip.value, 1e-4), rtol=0.02)
         a_obs = min(o.observer_decay, 0.5 * a_max)
         L, Po, Q = observer_decay_lmi(model.A0, model.C, lip.value, a_obs, margin=o.margin,
                                       kappa=o.kappa, solver=o.solver)
@@ -347,6 +348,7 @@ def run_ts_output_feedback(spec: Spec, design: DesignSpec) -> DesignResult:
                                           "(two-step design)",
                                   "psi": lip.value, "lipschitz": lip.as_dict(), "decay_rate": alpha_o,
                                   "imposed_decay": a_obs, "largest_feasible_decay": a_max,
+                                  "largest_feasible_decay_bracket": [a_max, a_infeasible],
                                   "bisection_solves": len(hist),
                                   "rule": "imposed decay = min(observer_decay, half the largest "
                                           "feasible)"}
@@ -364,7 +366,8 @@ def run_ts_output_feedback(spec: Spec, design: DesignSpec) -> DesignResult:
     diag["solver"] = o.solver
     diag["composite"] = {"beta": beta, "controller_decay": alpha_c, "observer_decay": alpha_o,
                          "estimation_budget": "beta eps' Po eps <= c - e' P e",
-                         "coupling_factor": o.coupling_factor}
+                         "coupling_factor": o.coupling_factor,
+                         "initial_error": initial_error_allowance(res.P, Po, beta, region.c)}
     gains = _gains(s, res, region)
     gains.update(gains_extra)
     gains["beta"] = np.array([beta])

@@ -37,7 +37,7 @@ from tanksynth.design.matrices import symmetrized
 from tanksynth.errors import DimensionError, InfeasibleDesign, SpecError
 
 __all__ = ["RELAXATIONS", "condition_weights", "PDCResult", "pdc_lmi", "relaxed_conditions",
-           "certified_decay", "max_decay_rate"]
+           "certified_decay", "decay_bracket", "DECAY_RTOL", "max_decay_rate"]
 
 #: LMI relaxations of the PDC conditions.
 RELAXATIONS = ("vertex", "tuan", "all_pairs")
@@ -145,6 +145,47 @@ def certified_decay(P: np.ndarray, A: np.ndarray, B: np.ndarray, K: np.ndarray,
     return best
 
 
+#: Relative step below the supremum of the certified decay rate at which the conditions are
+#: re-checked strictly (the supremum itself is where they hold with equality).
+DECAY_RTOL = 1e-3
+
+
+def decay_bracket(P: np.ndarray, A: np.ndarray, B: np.ndarray, K: np.ndarray, relaxation: str,
+                  imposed: float = 0.0) -> dict:
+    """What ``(P, K_j)`` certify of the decay rate: at least ``at_least``, where the conditions
+    hold strictly (``margin`` minus their largest eigenvalue there, > 0), at most ``at_most``
+    (`certified_decay`, the supremum, where they hold with equality).
+
+    ``at_least`` is the larger of the imposed rate and ``(1 - DECAY_RTOL) at_most`` at which the
+    conditions hold strictly; the interval ``[at_least, at_most]`` is the bracket reported.
+
+    Parameters
+    ----------
+    P, A, B, K, relaxation
+        As `certified_decay`.
+    imposed : float
+        The decay rate the LMIs were solved for (1/s).
+
+    Returns
+    -------
+    dict
+        ``at_least``, ``at_most`` (1/s) and ``margin`` (minus the largest eigenvalue of the
+        conditions at ``at_least``, units of ``P`` per s; positive).
+    """
+    sup = certified_decay(P, A, B, K, relaxation)
+
+    def worst(alpha: float) -> float:
+        return max(float(np.linalg.eigvalsh(Mx)[-1]) for Mx in relaxed_conditions(P, A, B, K, alpha, relaxation))
+
+    low, m = float(imposed), worst(float(imposed))
+    trial = (1.0 - DECAY_RTOL) * sup
+    if trial > low:
+        mt = worst(trial)
+        if mt < 0:
+            low, m = trial, mt
+    return {"at_least": low, "at_most": float(sup), "margin": -m}
+
+
 @dataclass(frozen=True)
 class PDCResult:
     """A solved and re-checked PDC LMI.
@@ -159,13 +200,17 @@ class PDCResult:
     alpha : float
         Decay rate imposed (1/s).
     decay : float
-        Decay rate the returned matrices certify (`certified_decay`), 1/s.
+        Supremum of the decay rate the returned matrices certify (`certified_decay`), 1/s: the
+        conditions hold with equality there.
     t : float
         Size of the ellipsoid achieved (scaled, dimensionless; 0 without constraints).
     status : str
     max_condition_eigenvalue : float
         Largest eigenvalue of the condition matrices (original units), < 0.
     scaling : dict
+    decay_certified : dict or None
+        `decay_bracket`: the decay rate certified strictly (``at_least``, with its ``margin``)
+        and the supremum (``at_most``).
     """
 
     P: np.ndarray
@@ -177,10 +222,12 @@ class PDCResult:
     status: str
     max_condition_eigenvalue: float
     scaling: dict
+    decay_certified: dict | None = None
 
     def as_dict(self) -> dict:
-        """JSON-friendly diagnostics."""
+        """JSON-friendly diagnostics (``decay_rate_bracket``: `decay_bracket`)."""
         return {"relaxation": self.relaxation, "alpha": self.alpha, "decay_rate": self.decay,
+                "decay_rate_bracket": self.decay_certified,
                 "size_t": self.t, "status": self.status,
                 "max_condition_eigenvalue": self.max_condition_eigenvalue,
                 "condition_P": float(np.linalg.cond(self.P)), "scaling": self.scaling}
@@ -313,10 +360,11 @@ def pdc_lmi(A: Any, B: Any, *, alpha: float = 0.0, relaxation: str = "tuan",
         raise InfeasibleDesign(f"PDC LMI ({relaxation}, alpha = {alpha:g} 1/s): the solver said "
                                f"{status} but the re-check fails (largest condition eigenvalue "
                                f"{worst:.3g}, smallest eigenvalue of P {pmin:.3g})")
-    decay = certified_decay(P, A, B, K, relaxation)
+    bracket = decay_bracket(P, A, B, K, relaxation, float(alpha))
     scaling = {"state_scale": dist.tolist(), "input_scale": np.diag(Tu).tolist(),
                "time_scale": omega}
-    return PDCResult(P, K, relaxation, float(alpha), decay, tval, status, worst, scaling)
+    return PDCResult(P, K, relaxation, float(alpha), bracket["at_most"], tval, status, worst, scaling,
+                     bracket)
 
 
 def max_decay_rate(A: Any, B: Any, relaxation: str, *, start: float | None = None,

@@ -18,7 +18,7 @@ from tanksynth.design.matrices import symmetrized
 from tanksynth.errors import InfeasibleDesign
 
 __all__ = ["Region", "certified_region", "coupling_weight", "lyapunov_decay", "observer_decay_lmi",
-           "switch_level", "composite_decay"]
+           "switch_level", "composite_decay", "initial_error_allowance"]
 
 
 @dataclass(frozen=True)
@@ -151,6 +151,44 @@ def coupling_weight(Pc: np.ndarray, K: np.ndarray, B: np.ndarray, alpha_c: float
     worst = max(float(np.linalg.eigvalsh(R @ Kj.T @ B.T @ Pc @ B @ Kj @ R)[-1]) for Kj in K)
     return factor * worst / (4.0 * alpha_c * alpha_o)
 
+
+
+def initial_error_allowance(Pc: np.ndarray, Po: np.ndarray, beta: float, c: float) -> dict:
+    """What initial estimation error the composite certificate ``V = e' Pc e + beta eps' Po eps <= c``
+    allows (``e = x - x0`` the plant's deviation, ``eps = x - x_hat`` the estimation error).
+
+    The certified region ``{e' Pc e <= c}`` holds for the plant only with ``eps(0) = 0``; otherwise
+    ``(e(0), eps(0))`` must lie in ``{V <= c}``.
+
+    Parameters
+    ----------
+    Pc, Po : ndarray, shape (n, n)
+        Controller and observer Lyapunov matrices (1/state unit^2).
+    beta : float
+        Weight of the observer's term (dimensionless).
+    c : float
+        Level of the certified sublevel set (dimensionless).
+
+    Returns
+    -------
+    dict
+        ``error_ball_at_x_op``: radius of the largest ball of ``eps(0)`` allowed with the plant
+        starting at the operating point, ``sqrt(c / (beta lambda_max(Po)))``;
+        ``error_semi_axes``: semi-axes of the ellipsoid of allowed ``eps(0)`` then, ascending
+        (the largest error allowed along the most favourable direction is the last);
+        ``plant_ball_estimate_at_x_op``: radius of the largest ball of ``x(0)`` around the
+        operating point when the estimate starts there (``eps(0) = e(0)``),
+        ``sqrt(c / lambda_max(Pc + beta Po))``; all in state units.
+    """
+    Po = symmetrized(np.asarray(Po, dtype=float))
+    Pc = symmetrized(np.asarray(Pc, dtype=float))
+    lam = np.linalg.eigvalsh(beta * Po)
+    both = float(np.linalg.eigvalsh(Pc + beta * Po)[-1])
+    return {"error_ball_at_x_op": float(np.sqrt(c / lam[-1])),
+            "error_semi_axes": np.sort(np.sqrt(c / lam)).tolist(),
+            "plant_ball_estimate_at_x_op": float(np.sqrt(c / both)),
+            "rule": "(e(0), eps(0)) in {e' P e + beta eps' Po eps <= c}: eps(0) = 0 for the certified "
+                    "region of the plant alone"}
 
 
 def observer_decay_lmi(A0: Any, C: Any, psi: float, alpha: float, *, margin: float = 1e-6,

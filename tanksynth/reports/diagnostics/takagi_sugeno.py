@@ -100,7 +100,12 @@ class PdcDesign:
     relaxation : str or None
         The relaxation whose LMIs were feasible (``vertex``, ``tuan``, ``all_pairs``).
     decay_rate : float or None
-        The certified decay rate of ``V`` (1/s).
+        The supremum of the decay rate of ``V`` the matrices certify (1/s): the LMIs hold with
+        equality there.
+    decay_at_least : float or None
+        The decay rate certified with the LMIs strict (1/s), when recorded.
+    decay_margin : float or None
+        Minus the largest eigenvalue of the LMI conditions at ``decay_at_least`` (positive).
     premises : str or None
         ``"measured"`` or ``"estimated"`` (output feedback).
     observer_psi : float or None
@@ -109,14 +114,27 @@ class PdcDesign:
         An observer runs with the controller (output feedback).
     composite_beta : float or None
         The weight of the observer's Lyapunov function in the composite certificate.
+    error_ball : float or None
+        Radius of the largest ball of initial estimation error the composite certificate allows
+        with the plant starting at the operating point (state units).
+    error_semi_axes : tuple of float or None
+        Semi-axes of the ellipsoid of those errors, ascending (state units).
+    plant_ball_estimate_at_x_op : float or None
+        Radius of the largest ball of initial plant states certified when the estimate starts at
+        the operating point (state units).
     """
 
     relaxation: str | None = None
     decay_rate: float | None = None
+    decay_at_least: float | None = None
+    decay_margin: float | None = None
     premises: str | None = None
     observer_psi: float | None = None
     composite: bool = False
     composite_beta: float | None = None
+    error_ball: float | None = None
+    error_semi_axes: tuple[float, ...] | None = None
+    plant_ball_estimate_at_x_op: float | None = None
 
 
 def pdc_design_of(diag: Diagnostics) -> PdcDesign:
@@ -128,11 +146,18 @@ def pdc_design_of(diag: Diagnostics) -> PdcDesign:
         The artefact's diagnostics.
     """
     composite = section(diag, "composite")
+    bracket = section(section(diag, "lmi"), "decay_rate_bracket")
     return PdcDesign(relaxation=entry(diag, "relaxation", is_text),
                      decay_rate=entry(diag, "decay_rate", is_number),
+                     decay_at_least=entry(bracket, "at_least", is_number),
+                     decay_margin=entry(bracket, "margin", is_number),
                      premises=entry(diag, "premises", is_text),
                      observer_psi=entry(section(diag, "observer"), "psi", is_number),
-                     composite=bool(composite), composite_beta=entry(composite, "beta", is_number))
+                     composite=bool(composite), composite_beta=entry(composite, "beta", is_number),
+                     error_ball=entry(section(composite, "initial_error"), "error_ball_at_x_op", is_number),
+                     error_semi_axes=entries(section(composite, "initial_error"), "error_semi_axes", is_number),
+                     plant_ball_estimate_at_x_op=entry(section(composite, "initial_error"),
+                                                       "plant_ball_estimate_at_x_op", is_number))
 
 
 @dataclass(frozen=True)

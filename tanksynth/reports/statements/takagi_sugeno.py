@@ -39,9 +39,17 @@ def _pdc(design: PdcDesign) -> str:
     text += (r"; the ellipsoid $e^\top P e \le 1$ inside the domain ($a_l^\top X a_l \le b_l^2$) and "
              r"within the pump margins ($\left[\begin{smallmatrix} \bar u_j^2 & m_{ij} \\ m_{ij}^\top & "
              r"X\end{smallmatrix}\right] \succeq 0$), enlarged. Continuous time.")
-    if design.decay_rate is not None:
+    if design.decay_rate is not None and design.decay_at_least is not None:
         text += (rf" Relaxation used: {escape_latex(design.relaxation)}; certified decay rate "
-                 rf"${format_number(design.decay_rate)}$ 1/s.")
+                 rf"$\alpha \ge {format_number(design.decay_at_least)}$ 1/s (the conditions strict there: "
+                 rf"margin ${format_number(design.decay_margin, 3)}$, minus their largest eigenvalue); "
+                 r"these matrices certify "
+                 rf"at most $\alpha = {format_number(design.decay_rate)}$ 1/s, where the conditions hold "
+                 r"with equality.")
+    elif design.decay_rate is not None:
+        text += (rf" Relaxation used: {escape_latex(design.relaxation)}; decay rate at most "
+                 rf"${format_number(design.decay_rate)}$ 1/s (the supremum these matrices certify, where "
+                 r"the conditions hold with equality).")
     return text
 
 
@@ -102,11 +110,28 @@ def _observer(design: PdcDesign) -> str:
     return text
 
 
+def _initial_error(design: PdcDesign) -> str:
+    """What initial estimation error the composite certificate allows (output feedback)."""
+    if design.error_ball is None or design.plant_ball_estimate_at_x_op is None:
+        return ""
+    text = (r" The region holds for the plant with the estimate starting exact ($\varepsilon(0) = 0$); "
+            r"otherwise the certificate needs $(e(0), \varepsilon(0))$ in $\{V \le c\}$: with the plant "
+            rf"starting at $x_0$, an initial estimation error within the ball of radius "
+            rf"${format_number(design.error_ball, 3)}$ m")
+    if design.error_semi_axes:
+        text += (r" (the ellipsoid $\beta\, \varepsilon^\top P_o \varepsilon \le c$, semi-axes up to "
+                 rf"${format_number(design.error_semi_axes[-1], 3)}$ m)")
+    return text + (r"; with the estimate started at the operating point ($\hat x(0) = x_0$, "
+                   r"$\varepsilon(0) = e(0)$), plant states within "
+                   rf"${format_number(design.plant_ball_estimate_at_x_op, 3)}$ m of $x_0$.")
+
+
 def _pdc_statement(observer: Callable[[PdcDesign], str] | None, diag: Diagnostics) -> str:
     """The family's template: the PDC LMIs, the ``observer`` (output feedback), the certified
     region and the set-point change."""
     design = pdc_design_of(diag)
-    return _pdc(design) + (observer(design) if observer else "") + _region(diag) + _setpoint(diag, design)
+    return (_pdc(design) + (observer(design) if observer else "") + _region(diag) + _initial_error(design)
+            + _setpoint(diag, design))
 
 
 ts_state_feedback_statement = problem_statement("ts_state_feedback", __name__, partial(_pdc_statement, None))

@@ -18,10 +18,12 @@ from typing import TYPE_CHECKING, Any, Callable, ClassVar, Mapping
 import numpy as np
 
 from tanksynth.errors import SpecError
+from tanksynth.spec.memory import MEMORY_BUDGET, memory_budget
 from tanksynth.spec.options import unknown_word_hint
 
 if TYPE_CHECKING:  # the plant's module loads sympy; only its type is needed here
     from tanksynth.plants.base import Plant
+    from tanksynth.spec.memory import ConicSize
 
 __all__ = ["MethodOptions", "OptionReader", "OptionDoc", "option", "numpydoc_section", "time_domain_of",
            "MEMORY_BUDGET", "memory_budget", "TIME_DOMAIN_TEXT"]
@@ -200,25 +202,6 @@ def _default_clause(text: str) -> str:
 #: The computed default of a linear design's ``time_domain`` (its `option` ``default_text``).
 TIME_DOMAIN_TEXT = '"discrete" with [sampling] ts, else "continuous"'
 
-#: Default memory budget of one design (bytes): a design whose estimated arrays exceed it is
-#: refused at spec validation (exit 2 naming the option that drives the size), before it
-#: allocates. Override with the environment variable TANKSYNTH_MEMORY_BUDGET_MB.
-MEMORY_BUDGET = 2 * 1024 ** 3
-
-
-def memory_budget() -> int:
-    """The memory budget of one design in bytes (`MEMORY_BUDGET`, or the environment's
-    ``TANKSYNTH_MEMORY_BUDGET_MB`` when it is a positive number of MiB)."""
-    import os
-
-    raw = os.environ.get("TANKSYNTH_MEMORY_BUDGET_MB", "")
-    try:
-        value = float(raw)
-    except ValueError:
-        return MEMORY_BUDGET
-    return int(value * 1024 ** 2) if value > 0 and value < 1e12 else MEMORY_BUDGET
-
-
 @dataclass(frozen=True, eq=False)
 class MethodOptions:
     """Base of the Options dataclass of a design method.
@@ -297,9 +280,9 @@ class MethodOptions:
         """
         out = cls.from_table(options, key, plant, ts)
         estimate = out.memory_estimate(plant, ts)
+        budget = memory_budget()  # read (and a bad value refused) whatever the method
         if estimate is not None:
             need, option = estimate
-            budget = memory_budget()
             if need > budget:
                 raise SpecError(f"this design would need about {need / 1024 ** 3:.3g} GiB of memory "
                                 f"(budget {budget / 1024 ** 3:.3g} GiB, TANKSYNTH_MEMORY_BUDGET_MB); "
@@ -313,6 +296,21 @@ class MethodOptions:
         Subclasses whose sizes come from options (samples, windows, network
         sizes) override it; the estimate counts the largest arrays the
         design allocates (8 bytes per float). None: no size option.
+
+        Parameters
+        ----------
+        plant : Plant
+        ts : float or None
+            Sampling period (s).
+        """
+        return None
+
+    def conic_size(self, plant: Plant, ts: float | None) -> ConicSize | None:
+        """The size of the design's conic (LMI) problem, from the plant's sizes and the options.
+
+        The LMI families override it; `tanksynth.spec.memory.conic_refusal`
+        refuses the design (exit 3) before it runs when `conic_bytes` of it
+        exceeds the budget. None: no conic problem (the default).
 
         Parameters
         ----------

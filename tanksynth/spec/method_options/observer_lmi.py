@@ -12,6 +12,7 @@ import sympy as sp
 from tanksynth.errors import SpecError
 from tanksynth.spec.method_options.base import MethodOptions, OptionReader, option
 from tanksynth.spec.method_options.placement import LMI_SOLVERS
+from tanksynth.spec.memory import ConicSize
 from tanksynth.spec.options import (parse_bool, parse_box, parse_choice, parse_integer, parse_matrix,
                                     parse_names, parse_number, parse_vector)
 
@@ -225,6 +226,19 @@ class TsObserverOptions(MethodOptions):
             kappa=kappa, kappa_max=kappa_max,
             solver=r.read("solver", parse_choice, LMI_SOLVERS),
             allow_fragile=r.read("allow_fragile", parse_bool))
+
+    def conic_size(self, plant: Plant, ts: float | None) -> ConicSize:
+        """The observer LMI (`tanksynth.design.observer_lmi.conic_form`), from its structure.
+
+        ``P`` (n x n, symmetric), ``L`` (n x q) and ``psi``; the Lipschitz LMI
+        (counted ``2n + 1``, its widest variant) and ``I <= P <= kappa I``. The
+        weighting search solves it again, one problem at a time.
+        """
+        n = plant.n
+        return ConicSize(variables=n * (n + 1) / 2 + n * plant.q + 2,
+                         psd_orders=(2.0 * n + 1, float(n), float(n)), linear_rows=8,
+                         advice="a plant with fewer states, or blocks = [...] (a decentralised "
+                                "observer of smaller blocks)")
 
     def memory_estimate(self, plant: Plant, ts: float | None) -> tuple[float, str]:
         """Peak memory of the sampled steps (bytes).

@@ -15,6 +15,7 @@ import numpy as np
 from tanksynth.errors import SpecError
 from tanksynth.spec.method_options.base import (TIME_DOMAIN_TEXT, MethodOptions, OptionReader, option,
                                                  time_domain_of)
+from tanksynth.spec.memory import ConicSize, region_order
 from tanksynth.spec.options import (parse_bool, parse_choice, parse_matrix, parse_names, parse_number,
                                     parse_poles, parse_region, region_is_stable)
 
@@ -239,6 +240,16 @@ class LmiPlacementOptions(MethodOptions):
                    kappa=kappa, kappa_max=kappa_max,
                    solver=r.read("solver", parse_choice, LMI_SOLVERS),
                    allow_fragile=r.read("allow_fragile", parse_bool))
+
+    def conic_size(self, plant: Plant, ts: float | None) -> ConicSize:
+        """Variables ``X`` (na x na, symmetric), ``Y`` (gain inputs x na), two scalars; blocks the
+        region (``order na``) and ``I <= X <= kappa I``; ``na`` counts the integrators."""
+        na = plant.n + (len(self.tracked or ()) or plant.q if self.integral else 0)
+        gains = plant.q if self.target == "observer" else plant.m
+        return ConicSize(variables=na * (na + 1) / 2 + gains * na + 2,
+                         psd_orders=(region_order(self.region) * na, na, na), linear_rows=12,
+                         advice="fewer states (a smaller plant, e.g. fewer tanks N), a region of "
+                                "lower order (one disk or half-plane), or pole_placement")
 
 
 @dataclass(frozen=True, eq=False)

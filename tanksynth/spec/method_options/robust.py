@@ -27,6 +27,7 @@ from tanksynth.spec.method_options.base import (TIME_DOMAIN_TEXT, MethodOptions,
                                                  time_domain_of)
 from tanksynth.spec.method_options.synthesis import (DISTURBANCE_FRACTION, auto_disturbance_std,
                                                      nominal_input_matrix)
+from tanksynth.spec.memory import ConicSize, region_order
 from tanksynth.spec.options import (did_you_mean, parse_bool, parse_choice, parse_integer,
                                     parse_matrix, parse_names, parse_number, parse_region,
                                     parse_vector, region_is_stable)
@@ -35,7 +36,7 @@ if TYPE_CHECKING:  # the plant's module loads sympy; only its type is needed her
     from tanksynth.plants.base import Plant
 
 __all__ = ["MAX_UNCERTAIN", "ROBUST_SOLVERS", "parse_uncertain", "RobustStateFeedbackOptions",
-           "RobustObserverOptions"]
+           "RobustObserverOptions", "robust_conic_size"]
 
 #: Most uncertain parameters of a design (2^k vertex models).
 MAX_UNCERTAIN = 10
@@ -301,6 +302,11 @@ class RobustStateFeedbackOptions(MethodOptions):
         return cls(**common, integral=integral, tracked=tracked, Bw=Bw, Cz=Cz, Dzu=Dzu,
                    saturation=saturation, umax=umax, box=box)
 
+    def conic_size(self, plant: Plant, ts: float | None) -> ConicSize:
+        """See `robust_conic_size`; ``na`` counts the integrators."""
+        na = plant.n + (len(self.tracked or ()) if self.integral else 0)
+        return robust_conic_size(self, plant, ts, na, plant.m, self.saturation)
+
 
 @dataclass(frozen=True, eq=False)
 class RobustObserverOptions(MethodOptions):
@@ -343,3 +349,48 @@ class RobustObserverOptions(MethodOptions):
         if Bw is None and common["gamma"] is not None:
             Bw = _default_Bw(plant, observer=True)
         return cls(**common, Bw=Bw, Cz=r.read("Cz", parse_matrix, (None, n)))
+
+    def conic_size(self, plant: Plant, ts: float | None) -> ConicSize:
+        """See `robust_conic_size` (the observer's gain has q columns)."""
+        return robust_conic_size(self, plant, ts, plant.n, plant.q, False)
+
+
+def robust_conic_size(options: Any, plant: Plant, ts: float | None, na: int, gains: int,
+                      saturation: bool) -> ConicSize:
+    """The polytopic LMI problem of `tanksynth.design.robust.polytopic`, from its structure.
+
+    One ``X`` (na x na) and ``Y`` (gains x na) for the ``2^p + 1`` models (the
+    box's vertices and its centre, ``p`` uncertain parameters); per model the
+    region block (``order na``), the bounded real lemma with ``gamma``, and with
+    ``saturation`` an invariance block and one ``na + 1`` block per input.
+
+    Parameters
+    ----------
+    options : RobustStateFeedbackOptions or RobustObserverOptions
+    plant : Plant
+    ts : float or None
+        Sampling period (s).
+    na : int
+        States of the design model (with integrators).
+    gains : int
+        Columns of the gain's transpose (inputs, or outputs for an observer).
+    saturation : bool
+        The saturation-aware design.
+
+    Returns
+    -------
+    ConicSize
+    """
+    models = 2.0 ** len(options.uncertain) + 1
+    per_model = [float(region_order(options.region) * na)]
+    if options.gamma is not None:
+        nw = int(np.shape(options.Bw)[1]) if options.Bw is not None else na
+        nz = int(np.shape(options.Cz)[0]) if options.Cz is not None else na + gains
+        per_model.append(2.0 * na + nw + nz)
+    if saturation:
+        per_model += [2.0 * na] + [na + 1.0] * gains
+    blocks = tuple(per_model) * int(min(models, 1 << 20)) + (float(na), float(na))
+    return ConicSize(variables=na * (na + 1) / 2 + gains * na + 4, psd_orders=blocks,
+                     linear_rows=16, advice="fewer uncertain parameters (2^p + 1 models), fewer "
+                                             "states (a smaller plant), a region of lower order, "
+                                             "or no gamma / saturation")

@@ -29,6 +29,7 @@ import numpy as np
 
 from tanksynth.spec.method_options.base import (TIME_DOMAIN_TEXT, MethodOptions, OptionReader, option,
                                                  time_domain_of)
+from tanksynth.spec.memory import ConicSize, region_order
 from tanksynth.spec.options import (parse_choice, parse_covariance, parse_matrix, parse_number,
                                     parse_region, parse_vector, region_is_stable)
 
@@ -360,6 +361,44 @@ class _SynthesisOptions(MethodOptions):
     Cz: Any = option(None, unit="performance units per state unit")
     margin: float = option(1e-9, unit="-")
     solver: str = option("CLARABEL", unit="-", choices=SYNTHESIS_SOLVERS)
+
+    def conic_size(self, plant: Plant, ts: float | None) -> ConicSize | None:
+        """The LMI route's problem (`tanksynth.design.synthesis.synthesize`); None on the Riccati route.
+
+        Variables ``X`` (n x n, symmetric), ``Y`` (m x n), ``W`` (nz x nz, H2),
+        ``gamma`` and the phase-2 margin; blocks ``X > 0``, the H2 pair, the
+        bounded real lemma (reduced without H2), the region (``order n``) and
+        phase 2's ``X < cap I``. An observer is the dual (``m -> q``, ``nw <->
+        nz``).
+        """
+        region = tuple(getattr(self, "region", ()) or ())
+        bounds = getattr(self, "h2_bound", None) is not None or getattr(self, "hinf_bound", None) is not None
+        if self.method_name != "multiobjective" and getattr(self, "route", "auto") != "lmi":
+            return None  # one model, no region, no bound: the Riccati route applies
+        objective = getattr(self, "objective", "h2" if self.method_name.startswith("h2") else "hinf")
+        use_h2 = objective == "h2" or getattr(self, "h2_bound", None) is not None
+        use_hinf = objective == "hinf" or getattr(self, "hinf_bound", None) is not None
+        n, nw = plant.n, int(np.shape(self.Bw)[1])
+        nz = int(np.shape(self.Cz)[0]) if self.Cz is not None else n
+        if getattr(self, "target", "observer" if "observer" in self.method_name else "") == "observer":
+            m, nw, nz = plant.q, nz, nw + plant.q
+        else:
+            m = plant.m
+        discrete = (self.time_domain or time_domain_of(ts)) == "discrete"
+        blocks: list[float] = [n, n]  # X > 0 and phase 2's X < cap I
+        if use_h2:
+            blocks += [2 * n if discrete else n, nz + n]
+        if use_hinf:
+            blocks.append((2 * n if discrete else n) + nz + (0 if not use_h2 else nw))
+        if region:
+            blocks.append(region_order(region) * n)
+        advice = ("fewer states (a smaller plant, e.g. fewer tanks N)"
+                  + (", a region of lower order (one disk or half-plane)" if region else "")
+                  + ("" if region or bounds or self.method_name == "multiobjective"
+                     else ', route = "auto" (Riccati)')
+                  + ", or a decentralised method (decentralized_kalman)")
+        return ConicSize(variables=n * (n + 1) / 2 + m * n + (nz * (nz + 1) / 2 if use_h2 else 0) + 2,
+                         psd_orders=tuple(blocks), linear_rows=4, advice=advice)
 
 
 @dataclass(frozen=True, eq=False)

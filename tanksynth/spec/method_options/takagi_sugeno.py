@@ -9,6 +9,7 @@ from typing import TYPE_CHECKING, Any, ClassVar, Mapping
 from tanksynth.spec.method_options.base import MethodOptions, OptionReader, option
 from tanksynth.spec.method_options.placement import LMI_SOLVERS
 from tanksynth.errors import SpecError
+from tanksynth.spec.memory import ConicSize, nonlinear_atoms
 from tanksynth.spec.options import (parse_bool, parse_box, parse_choice, parse_integer, parse_number,
                                      parse_vector)
 
@@ -139,6 +140,29 @@ class TsStateFeedbackOptions(MethodOptions):
         """See `MethodOptions.from_table`."""
         r = OptionReader(cls, options, key, ts)
         return cls(**cls._common(r, plant))
+
+    def conic_size(self, plant: Plant, ts: float | None) -> ConicSize:
+        """The PDC LMIs (`tanksynth.design.takagi_sugeno.pdc`), from their structure.
+
+        ``r = 2^p`` rules, ``p`` bounded by the plant's distinct nonlinear
+        atoms (`nonlinear_atoms`; the exact count needs the quasi-LPV split):
+        ``X`` (n x n), one ``F_i X`` (m x n) per rule; one ``n x n``
+        block per pair of rules, one ``n + 1`` block per rule and pump limit;
+        ``ts_output_feedback`` adds the observer's gains (n x q per rule) and
+        its blocks for every pair of rules.
+        """
+        n, rules = plant.n, 2.0 ** nonlinear_atoms(plant)
+        pairs = rules * (rules + 1) / 2
+        blocks = [float(n)] * int(min(pairs + 4, 1 << 20))
+        if self.pump_limits:
+            blocks += [n + 1.0] * int(min(2 * rules, 1 << 20))
+        variables = n * (n + 1) / 2 + rules * plant.m * n + 1
+        if self.method_name == "ts_output_feedback":
+            blocks += [float(n)] * int(min(rules * rules, 1 << 20))
+            variables += n * (n + 1) / 2 + rules * n * plant.q
+        return ConicSize(variables=variables, psd_orders=tuple(blocks), linear_rows=8,
+                         advice="a plant with fewer nonlinear terms (2^p rules), or a linear method "
+                                "(lmi_placement, hinf_state_feedback)")
 
 
 @dataclass(frozen=True, eq=False)
