@@ -96,7 +96,28 @@ class LMICheck:
     @classmethod
     def test(cls, name: str, value: float, relation: str, limit: float, tolerance: float = 0.0,
              unit: str = "") -> "LMICheck":
-        """The check ``value relation limit`` (within ``tolerance``, see `holds`), decided here."""
+        """The check ``value relation limit`` (within ``tolerance``, see `holds`), decided here.
+
+        Parameters
+        ----------
+        name : str
+            What is checked, as the report prints it.
+        value : float
+            The re-computed quantity, in ``unit``.
+        relation : str
+            ``"<="`` or ``">="``: the direction of the test.
+        limit : float
+            The bound the value is tested against, in ``unit``.
+        tolerance : float, optional
+            Slack allowed past ``limit``, in ``unit`` (default 0).
+        unit : str, optional
+            Unit of ``value`` and ``limit`` (default: none).
+
+        Returns
+        -------
+        LMICheck
+            The check with ``passed`` decided by `holds`.
+        """
         return cls(name, float(value), float(limit), holds(float(value), relation, float(limit), tolerance),
                    unit, relation, float(tolerance))
 

@@ -200,7 +200,7 @@ class PDCResult:
     alpha : float
         Decay rate imposed (1/s).
     decay : float
-        Supremum of the decay rate the returned matrices certify (`certified_decay`), 1/s: the
+        Supremum of the decay rate the returned matrices certify (`certified_decay`) (1/s): the
         conditions hold with equality there.
     t : float
         Size of the ellipsoid achieved (scaled, dimensionless; 0 without constraints).

@@ -105,7 +105,7 @@ class PdcDesign:
     decay_at_least : float or None
         The decay rate certified with the LMIs strict (1/s), when recorded.
     decay_margin : float or None
-        Minus the largest eigenvalue of the LMI conditions at ``decay_at_least`` (positive).
+        Minus the largest eigenvalue of the LMI conditions at ``decay_at_least`` (positive; units of the LMI, dimensionless).
     premises : str or None
         ``"measured"`` or ``"estimated"`` (output feedback).
     observer_psi : float or None
