@@ -519,7 +519,7 @@ def check_npz(path: str | Path, doc: Mapping[str, Any]) -> Path:
     stored = doc["provenance"].get("npz_sha256")
     if not isinstance(stored, str):
         raise ArtefactError(f"{path}: provenance has no npz_sha256; {npz} is not covered")
-    gains = {str(k): np.ascontiguousarray(np.asarray(v, dtype=float)) for k, v in doc["gains"].items()}
+    gains = {str(k): np.asarray(v, dtype=float) for k, v in doc["gains"].items()}
     implied = {f"{k}": v.nbytes + _NPY_HEADER_ROOM for k, v in gains.items()}
     cap = sum(implied.values()) + sum(_ZIP_MEMBER_ROOM + 2 * len(k.encode()) for k in gains) + _ZIP_ROOM
     data = read_limited(npz, cap)
@@ -540,7 +540,7 @@ def check_npz(path: str | Path, doc: Mapping[str, Any]) -> Path:
     if missing:
         raise ArtefactError(f"{npz}: gain(s) {', '.join(missing)} of {Path(path).name} missing")
     for key, want in gains.items():
-        if np.ascontiguousarray(stored_gains[key]).tobytes() != want.tobytes():
+        if stored_gains[key].tobytes() != want.tobytes():   # C-order bytes of both
             raise ArtefactError(f"{npz}: gain {key} differs from the one in {Path(path).name} "
                                 "(the NPZ is not the verified gains)")
     return npz

@@ -194,9 +194,9 @@ def _beyond_limits(key: str, shape: tuple[int, ...], dtype: np.dtype) -> str | N
             f"a header of {dtype.itemsize} bytes, more than the {TRACE_MAX_HEADER_BYTES} accepted"
     if len(shape) > 3:
         return f"{len(shape)} dimensions, more than the 3 of a trace's arrays"
-    if count > TRACE_MAX_VALUES or dtype.itemsize > 16:
+    if count > TRACE_MAX_VALUES or count * dtype.itemsize > TRACE_MAX_VALUES * 8:
         return (f"{count} values of {dtype} (shape {shape}), more than the {TRACE_MAX_VALUES} "
-                "values a trace's array may hold")
+                f"values ({TRACE_MAX_VALUES * 8} bytes) a trace's array may hold")
     return None
 
 
@@ -216,7 +216,7 @@ def _members(path: Path, sha256: str | None) -> dict[str, np.ndarray] | None:
                             "replaced or swapped after verification)")
 
     def room(key: str) -> int:
-        return (TRACE_MAX_HEADER_BYTES if key == "header" else TRACE_MAX_VALUES * 16) + _NPY_HEADER_ROOM
+        return (TRACE_MAX_HEADER_BYTES if key == "header" else TRACE_MAX_VALUES * 8) + _NPY_HEADER_ROOM
 
     try:
         return read_npz(data, path, max_members=TRACE_MAX_MEMBERS, max_total=TRACE_MAX_BYTES,
@@ -285,8 +285,8 @@ def check_trace(artefact_path: str | Path, doc: Mapping[str, Any]) -> Path | Non
     ``verify`` records the sha256 of the ``<name>.traces.npz`` it writes as the artefact's
     ``verification.traces_sha256`` (no key when it wrote none). Strict: a trace file
     beside an artefact that records no such hash (not verified, verified by a tanksynth
-    that did not record trace hashes, or a verdict that simulated nothing) is refused, as
-    is a recorded trace that is missing; run ``tanksynth verify DIR`` again then.
+    that did not record trace hashes, or a verdict that simulated nothing) is refused; run
+    ``tanksynth verify DIR`` again then. A missing trace is no figure, as it always was.
 
     Parameters
     ----------
@@ -298,13 +298,13 @@ def check_trace(artefact_path: str | Path, doc: Mapping[str, Any]) -> Path | Non
     Returns
     -------
     Path or None
-        The checked trace file; None when there is none (and none was recorded).
+        The checked trace file; None when there is none.
 
     Raises
     ------
     ArtefactError
-        Naming the trace file: see `read_trace` (FIFO, size, bomb, sha256), not covered by
-        a ``traces_sha256``, or recorded but missing.
+        Naming the trace file: see `read_trace` (FIFO, size, bomb, sha256), or not covered
+        by a ``traces_sha256``.
     """
     target = trace_path(artefact_path, str(doc.get("name", Path(artefact_path).stem)))
     ver = doc.get("verification")
@@ -320,8 +320,7 @@ def check_trace(artefact_path: str | Path, doc: Mapping[str, Any]) -> Path | Non
         raise ArtefactError(f"{artefact_path}: verification.traces_sha256 must be a string, got "
                             f"{type(stored).__name__}")
     if not present:
-        raise ArtefactError(f"{target}: missing; {Path(artefact_path).name} records the trace verify "
-                            "wrote (traces_sha256)")
+        return None
     read_trace(target, stored)
     return target
 
