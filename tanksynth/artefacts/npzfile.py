@@ -16,7 +16,7 @@ import io
 import zipfile
 import zlib
 from pathlib import Path
-from typing import Callable
+from typing import IO, Callable
 
 import numpy as np
 from numpy.lib import format as npy_format
@@ -54,7 +54,7 @@ def npy_bytes(shape: tuple[int, ...], dtype: np.dtype) -> int:
     return count * int(dtype.itemsize)
 
 
-def _header(fh: io.BufferedIOBase) -> tuple[tuple[int, ...], bool, np.dtype]:
+def _header(fh: IO[bytes]) -> tuple[tuple[int, ...], bool, np.dtype]:
     """Shape, Fortran order and dtype of the ``.npy`` stream ``fh`` (its data not read)."""
     version = npy_format.read_magic(fh)
     if version == (1, 0):

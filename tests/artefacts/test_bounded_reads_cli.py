@@ -81,3 +81,16 @@ def test_a_400_digit_gain_is_exit_2_naming_the_file_and_key(d):
     doc["gains"][name] = 10 ** 400
     art.write_text(json.dumps(doc, indent=2))
     _refused(_cli("verify", str(d)), f"{NAME}.json", f"gains.{name}")
+
+
+def test_the_next_design_removes_what_a_killed_write_left(d, capsys):
+    """A kill between the NPZ and the JSON renames: the next design (under the lock) removes the
+    staged files of the tool's naming, and only those."""
+    (d / f"{NAME}.json").rename(d / f".{NAME}.json.k1ll3d_x.tmp")
+    (d / f".{NAME}.npz.abcdefgh.tmp").write_bytes(b"partial")
+    (d / "notes.tmp").write_text("mine")
+    assert main(["design", str(EXAMPLES / "custom_two_tank.toml"), "-o", str(d)]) == 0
+    out = capsys.readouterr().out
+    assert f"removed 3 file(s) left by an interrupted run in {d}" in out, out
+    assert sorted(p.name for p in d.iterdir() if p.name.endswith(".tmp")) == ["notes.tmp"]
+    assert main(["verify", str(d)]) == 0
