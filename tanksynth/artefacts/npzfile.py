@@ -38,6 +38,28 @@ class MalformedNPZ(ArtefactError):
 _MAX_HEADER = 10_000
 
 
+#: Bytes of one central-directory entry at most (fixed part, name, zip64 extra): numpy writes ~100.
+_MAX_ENTRY = 1024
+
+
+def _central_directory_size(data: bytes) -> int | None:
+    """Size (bytes) of the zip's central directory as its end record states; None without one.
+
+    Found as zipfile finds it (the last end-of-central-directory signature within the final
+    64 KiB + 22 bytes), the zip64 end record's size when a zip64 locator precedes it.
+    """
+    end = data.rfind(b"PK\x05\x06", max(0, len(data) - 22 - 65535))
+    if end < 0 or len(data) < end + 22:
+        return None
+    size = int.from_bytes(data[end + 12:end + 16], "little")
+    if end >= 20 and data[end - 20:end - 16] == b"PK\x06\x07":   # zipfile then reads the zip64 record
+        # the record just before the locator (where zipfile reads it) or where the locator points
+        for start in (end - 20 - 56, int.from_bytes(data[end - 12:end - 4], "little")):
+            if 0 <= start and data[start:start + 4] == b"PK\x06\x06" and len(data) >= start + 48:
+                size = max(size, int.from_bytes(data[start + 40:start + 48], "little"))
+    return size
+
+
 def npy_bytes(shape: tuple[int, ...], dtype: np.dtype) -> int:
     """Bytes of the data of an array of ``shape`` and ``dtype`` (no header).
 
@@ -99,6 +121,11 @@ def read_npz(data: bytes, path: str | Path, *, max_members: int, max_total: int,
         caller refuses (shape, dtype), data that do not match the header, a bad CRC
         (`MalformedNPZ` for what is not a well-formed archive, whatever its size).
     """
+    directory = _central_directory_size(data)
+    if directory is not None and directory > max_members * _MAX_ENTRY:
+        # zipfile would parse every entry of the central directory into objects first
+        raise ArtefactError(f"{path}: a zip directory of {directory} bytes, more than "
+                            f"{max_members} members need")
     try:
         archive = zipfile.ZipFile(io.BytesIO(data))
     except (zipfile.BadZipFile, zipfile.LargeZipFile, ValueError, OSError, EOFError,
@@ -142,6 +169,8 @@ def _member(archive: zipfile.ZipFile, info: zipfile.ZipInfo, key: str, path: str
                 shape, fortran, dtype = _header(fh)
             except (ValueError, TypeError, SyntaxError) as exc:
                 raise MalformedNPZ(f"{where}: not an .npy array ({_brief(exc)})") from None
+            if any(int(n) < 0 for n in shape):
+                raise MalformedNPZ(f"{where}: negative dimension in its header's shape {tuple(shape)}")
             if dtype.hasobject or dtype.itemsize == 0:
                 raise ArtefactError(f"{where}: dtype {dtype} is not an array of numbers or text")
             reason = check(key, tuple(shape), dtype)

@@ -233,3 +233,29 @@ def test_an_orphan_npz_without_evidence_is_left_for_the_readers(tmp_path):
     (tmp_path / ".akf.json.abcd1234.tmp").write_text("{\"truncated")
     remove_interrupted_writes(tmp_path)
     assert [p.name for p in tmp_path.iterdir()] == ["akf.npz"]
+
+
+# ---- the archive itself: a directory of millions of entries, a negative shape --------------
+
+def test_a_trace_whose_zip_directory_lists_thousands_of_entries_is_refused_before_parsing(tmp_path):
+    """zipfile builds one object per central-directory entry before anything else is read."""
+    path = tmp_path / "akf.traces.npz"
+    with zipfile.ZipFile(path, "w") as zf:
+        for i in range(20000):
+            zf.writestr(f"a{i}.npy", b"")
+    with pytest.raises(ArtefactError, match=r"akf\.traces\.npz: a zip directory of \d+ bytes"):
+        read_trace(path)
+
+
+def test_a_negative_shape_in_a_member_header_is_unreadable_not_a_read_of_everything(tmp_path):
+    path = _artefact(tmp_path)
+    npz = path.with_suffix(".npz")
+    with zipfile.ZipFile(npz, "w") as zf:
+        with zf.open("K.npy", "w") as fh:
+            np.lib.format.write_array_header_1_0(fh, {"descr": "<f8", "fortran_order": False, "shape": (-2, 3)})
+            fh.write(bytes(48))
+        with zf.open("s.npy", "w") as fh:
+            np.lib.format.write_array(fh, GAINS["s"])
+    _record_npz(path)
+    with pytest.raises(ArtefactError, match=r"akf\.npz: member 'K\.npy'"):
+        check_npz(path, read_artefact(path))

@@ -316,7 +316,7 @@ def _attack(d, data) -> tuple[str, bool]:
     return f"{op} {which}", False
 
 
-@settings(max_examples=3 * SCALE, **SETTINGS)
+@settings(max_examples=5 * SCALE, **SETTINGS)
 @given(data=st.data())
 def test_attacked_result_files_never_hang_crash_or_pass_an_unverified_gain(data, result_dir, tmp_path_factory):
     """FIFOs, symlinks, zip-bombed NPZ/trace members and rehashed edits (issue 31): verify and
