@@ -2,6 +2,9 @@
 
 Generated specs (examples mutated key by key, and raw text mutations) go through
 ``tanksynth check --spec-only``; edited result directories go through ``tanksynth verify``.
+Attacked result files (issue 31: FIFOs, symlinks, zip-bombed NPZ and trace members, NPZ and JSON
+gains that disagree with every hash recomputed by ``rehash``) go through ``verify`` and ``report``,
+which must never exit 0 while the NPZ is not the JSON's gains.
 Every case must keep the exit-code contract (`fuzz_helpers.assert_contract`): exit 0/1/2/3,
 one stderr line, never a traceback, bounded time and memory. ``make test`` runs 2,000 cases,
 ``make fuzz`` (TANKSYNTH_FUZZ_SCALE=10) 20,000.
