@@ -103,10 +103,12 @@ def stage(target: str | Path, payload: Payload) -> Path:
 
 
 #: Names of what tanksynth writes to a result directory before renaming it: `stage`'s files
-#: (``.<target>.<8 characters of mkstemp>.tmp``), the build directories of a law export
+#: (``.<target>.<8 characters of mkstemp>.tmp``, the target one of the kinds of file tanksynth
+#: writes there), the build directories of a law export
 #: (``.law-build-<8>.tmp``) and of a PDF (``.report-build-<8>``), and a lock being taken over
 #: (``.tanksynth.lock.stale.<pid>``).
-_STAGED_FILE = re.compile(r"\.(?P<target>.+)\.[a-z0-9_]{8}\.tmp")
+_STAGED_FILE = re.compile(r"\.(?P<target>.+\.(json|npz|mat|h|c|casadi|toml|csv|tex|pdf|log))"
+                          r"\.[a-z0-9_]{8}\.tmp")
 _BUILD_DIR = re.compile(r"\.law-build-[a-z0-9_]{8}\.tmp|\.report-build-[a-z0-9_]{8}")
 _STALE_LOCK = re.compile(re.escape(LOCK_NAME) + r"\.stale\.[0-9]+")
 

@@ -215,7 +215,8 @@ def test_an_interrupted_write_is_cleaned_and_nothing_else(tmp_path):
     build = tmp_path / ".law-build-k2j4h5g6.tmp"
     build.mkdir()
     (build / "x.c").write_text("int x;")
-    keep = ["notes.tmp", ".notes.tmp", ".akf.json.tmp", ".a.json.TOOLONG12.tmp", "other.npz"]
+    keep = ["notes.tmp", ".notes.tmp", ".akf.json.tmp", ".a.json.TOOLONG12.tmp", ".notes.abcdefgh.tmp",
+            ".law-build-x.tmp", "other.npz"]
     for name in keep:
         (tmp_path / name).write_text("mine")
     (tmp_path / ".link.json.abcdefgh.tmp").symlink_to(tmp_path / "notes.tmp")
