@@ -187,6 +187,16 @@ def _refuse_other_spec(spec: Spec, outdir: Path, force: bool) -> None:
                markup=False, highlight=False, soft_wrap=True)
 
 
+def _remove_interrupted(outdir: Path) -> None:
+    """Remove what a killed run left mid-write (under the lock), saying so in one line."""
+    from tanksynth.artefacts.io import remove_interrupted_writes
+
+    removed = remove_interrupted_writes(outdir)
+    if removed:
+        _out.print(f"removed {len(removed)} file(s) left by an interrupted run in {outdir}: "
+                   + ", ".join(p.name for p in removed), markup=False, highlight=False, soft_wrap=True)
+
+
 def _locked(directory: str | Path, command: str) -> AbstractContextManager[Path]:
     from tanksynth.artefacts.atomic import directory_lock
 
@@ -439,6 +449,7 @@ def design(spec: str, outdir: str, export: tuple[str, ...], force: bool) -> None
         raise SpecError("the spec has no [[design]] entry", key="design", source=spec)
     with _locked(outdir, "design"):
         _refuse_other_spec(s, Path(outdir), force)
+        _remove_interrupted(Path(outdir))
         written, infeasible, laws = _design_all(s, Path(outdir), export)
     for path in written:
         _out.print(f"artefact: {path}", markup=False, highlight=False, soft_wrap=True)  # one line, as given
@@ -473,6 +484,7 @@ def run(spec: str | None, outdir: str, pdf: bool | None, force: bool) -> None:
     out = Path(outdir)
     with _locked(out, "run"):
         _refuse_other_spec(s, out, force)
+        _remove_interrupted(out)
         _run_locked(s, spec, out, pdf)
 
 

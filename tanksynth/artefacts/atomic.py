@@ -18,6 +18,8 @@ from __future__ import annotations
 
 import json
 import os
+import re
+import shutil
 import socket
 import stat
 import tempfile
@@ -29,7 +31,8 @@ from typing import BinaryIO, Callable, Iterator
 
 from tanksynth.errors import ArtefactError
 
-__all__ = ["Payload", "atomic_write", "stage", "commit", "discard", "file_mode", "directory_lock", "LOCK_NAME"]
+__all__ = ["Payload", "atomic_write", "stage", "commit", "discard", "file_mode", "directory_lock", "LOCK_NAME",
+           "staged_target", "stale_temporaries", "remove_stale"]
 
 #: The lock file of a result directory.
 LOCK_NAME = ".tanksynth.lock"
@@ -97,6 +100,79 @@ def stage(target: str | Path, payload: Payload) -> Path:
         discard(Path(tmp))
         raise
     return Path(tmp)
+
+
+#: Names of what tanksynth writes to a result directory before renaming it: `stage`'s files
+#: (``.<target>.<8 characters of mkstemp>.tmp``, the target one of the kinds of file tanksynth
+#: writes there), the build directories of a law export
+#: (``.law-build-<8>.tmp``) and of a PDF (``.report-build-<8>``), and a lock being taken over
+#: (``.tanksynth.lock.stale.<pid>``).
+_STAGED_FILE = re.compile(r"\.(?P<target>.+\.(json|npz|mat|h|c|casadi|toml|csv|tex|pdf|log))"
+                          r"\.[a-z0-9_]{8}\.tmp")
+_BUILD_DIR = re.compile(r"\.law-build-[a-z0-9_]{8}\.tmp|\.report-build-[a-z0-9_]{8}")
+_STALE_LOCK = re.compile(re.escape(LOCK_NAME) + r"\.stale\.[0-9]+")
+
+
+def staged_target(path: str | Path) -> str | None:
+    """The name of the file a temporary file of `stage` was for; None for any other name.
+
+    Parameters
+    ----------
+    path : str or Path
+        A file name (``.<target>.<8 characters>.tmp``).
+    """
+    match = _STAGED_FILE.fullmatch(Path(path).name)
+    return None if match is None else match.group("target")
+
+
+def stale_temporaries(directory: str | Path) -> list[Path]:
+    """What a tanksynth run killed mid-write left in ``directory``: temporary files and build
+    directories of the tool's own naming (see `stage`), never any other file.
+
+    Only meaningful under `directory_lock` (no other run is writing then); regular files
+    and real directories only (a symlink of such a name is not the tool's).
+
+    Parameters
+    ----------
+    directory : str or Path
+        A result directory.
+
+    Returns
+    -------
+    list of Path
+        Sorted.
+    """
+    out = []
+    try:
+        entries = sorted(Path(directory).iterdir())
+    except OSError:
+        return []
+    for path in entries:
+        try:
+            mode = os.lstat(path).st_mode
+        except OSError:
+            continue
+        name = path.name
+        if stat.S_ISREG(mode) and (_STAGED_FILE.fullmatch(name) or _STALE_LOCK.fullmatch(name)):
+            out.append(path)
+        elif stat.S_ISDIR(mode) and _BUILD_DIR.fullmatch(name):
+            out.append(path)
+    return out
+
+
+def remove_stale(paths: list[Path]) -> None:
+    """Remove what `stale_temporaries` listed (files, and build directories with their content).
+
+    Parameters
+    ----------
+    paths : list of Path
+        From `stale_temporaries`.
+    """
+    for path in paths:
+        if path.is_dir() and not path.is_symlink():
+            shutil.rmtree(path, ignore_errors=True)
+        else:
+            path.unlink(missing_ok=True)
 
 
 def commit(staged: Path, target: str | Path) -> Path:

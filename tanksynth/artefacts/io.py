@@ -27,9 +27,11 @@ from typing import TYPE_CHECKING, Any, Iterable, Mapping, cast
 
 import numpy as np
 
-from tanksynth.artefacts.atomic import Payload, atomic_write, commit, discard, stage
+from tanksynth.artefacts.atomic import (Payload, atomic_write, commit, discard, remove_stale, stage, staged_target,
+                                       stale_temporaries)
 from tanksynth.artefacts.jsontext import dumps
 from tanksynth.artefacts.model import SCHEMA, Artefact, Gains, Provenance, check_document
+from tanksynth.artefacts.npzfile import read_npz
 from tanksynth.errors import ArtefactError, SpecError
 
 if TYPE_CHECKING:  # the artefact only reads a result's fields; no import of the design stage
@@ -39,7 +41,8 @@ if TYPE_CHECKING:  # the artefact only reads a result's fields; no import of the
 __all__ = ["SCHEMA", "PLANT_SCHEMA", "EXPORT_FORMATS", "write_plant_record", "read_plant_record",
            "to_jsonable", "gains_digest", "artefact_document", "write_artefact", "read_artefact",
            "load_artefact", "content_digest", "file_sha256", "check_npz", "check_orphan_npz",
-           "check_plant_record", "rehash", "other_spec_files", "read_limited", "MAX_FILE_BYTES"]
+           "check_plant_record", "rehash", "other_spec_files", "read_limited", "MAX_FILE_BYTES",
+           "remove_interrupted_writes"]
 
 PLANT_SCHEMA = "tanksynth.plant/1"
 #: Optional export formats besides .json and .npz.
@@ -338,6 +341,9 @@ def write_artefact(result: DesignResult, directory: str | Path, spec_sha256: str
     finally:
         for tmp in temps.values():
             discard(tmp)
+    # the verdict trace of the artefact this one replaces judged other gains (a fresh artefact
+    # is not verified; `verify` writes its trace)
+    (directory / f"{result.name}.traces.npz").unlink(missing_ok=True)
     return final[".json"]
 
 
@@ -475,15 +481,29 @@ def read_plant_record(directory: str | Path) -> dict[str, Any]:
     return doc
 
 
+#: Room for an ``.npy`` member's header (bytes) in the size a gain implies: numpy writes 128.
+_NPY_HEADER_ROOM = 4096
+#: Room for the zip's own records (bytes): per member (local and central headers, zip64
+#: extras, the name twice) and once for the archive.
+_ZIP_MEMBER_ROOM, _ZIP_ROOM = 512, 4096
+
+
 def check_npz(path: str | Path, doc: Mapping[str, Any]) -> Path:
-    """Refuse an artefact whose ``<name>.npz`` is missing or not the one design wrote.
+    """Refuse an artefact whose ``<name>.npz`` is missing, not the one design wrote, or not its gains.
+
+    The ``.npz`` is read with a cap (`read_limited`) of the size the JSON's gains
+    imply; its bytes must match ``npz_sha256``, and (even with every hash recomputed)
+    it must hold exactly the JSON's gains: the same names and shapes and, as float64,
+    the same values bit for bit. Each member's declared size and ``.npy`` header are
+    checked before anything is decompressed or allocated (`tanksynth.artefacts.npzfile`).
 
     Parameters
     ----------
     path : str or Path
         The artefact JSON (``DIR/<name>.json``).
     doc : mapping
-        Its document (`read_artefact`), whose provenance holds ``npz_sha256``.
+        Its document (`read_artefact`), whose provenance holds ``npz_sha256`` and whose
+        gains are float arrays.
 
     Returns
     -------
@@ -493,8 +513,9 @@ def check_npz(path: str | Path, doc: Mapping[str, Any]) -> Path:
     Raises
     ------
     ArtefactError
-        Naming the ``.npz``: missing, unreadable, or its bytes differ from
-        ``npz_sha256`` (edited, replaced or swapped after design).
+        Naming the ``.npz``: missing, not a regular file, larger than its gains imply,
+        unreadable, its bytes differ from ``npz_sha256`` (edited, replaced or swapped
+        after design), or its gains differ from the JSON's (names, shapes, values).
     """
     npz = Path(path).with_suffix(".npz")
     if not npz.is_file():
@@ -503,9 +524,30 @@ def check_npz(path: str | Path, doc: Mapping[str, Any]) -> Path:
     stored = doc["provenance"].get("npz_sha256")
     if not isinstance(stored, str):
         raise ArtefactError(f"{path}: provenance has no npz_sha256; {npz} is not covered")
-    if file_sha256(npz) != stored:
+    gains = {str(k): np.asarray(v, dtype=float) for k, v in doc["gains"].items()}
+    implied = {f"{k}": v.nbytes + _NPY_HEADER_ROOM for k, v in gains.items()}
+    cap = sum(implied.values()) + sum(_ZIP_MEMBER_ROOM + 2 * len(k.encode()) for k in gains) + _ZIP_ROOM
+    data = read_limited(npz, cap)
+    if hashlib.sha256(data).hexdigest() != stored:
         raise ArtefactError(f"{npz}: does not match npz_sha256 in {Path(path).name} "
                             "(gains edited, replaced or swapped after design)")
+
+    def same_form(key: str, shape: tuple[int, ...], dtype: np.dtype) -> str | None:
+        want = gains[key]
+        if dtype != np.dtype(float) or shape != want.shape:
+            return (f"holds a {dtype} array of shape {shape}, but gain {key} of {Path(path).name} "
+                    f"is float64 of shape {want.shape}")
+        return None
+
+    stored_gains = read_npz(data, npz, max_members=len(gains), max_total=sum(implied.values()),
+                            member_limit=lambda key: implied.get(key, 0), check=same_form)
+    missing = sorted(set(gains) - set(stored_gains))
+    if missing:
+        raise ArtefactError(f"{npz}: gain(s) {', '.join(missing)} of {Path(path).name} missing")
+    for key, want in gains.items():
+        if stored_gains[key].tobytes() != want.tobytes():   # C-order bytes of both
+            raise ArtefactError(f"{npz}: gain {key} differs from the one in {Path(path).name} "
+                                "(the NPZ is not the verified gains)")
     return npz
 
 
@@ -532,7 +574,52 @@ def check_orphan_npz(directory: str | Path, names: Iterable[str]) -> None:
         if npz.name.endswith(TRACE_SUFFIX) or npz.stem in known:
             continue
         raise ArtefactError(f"{npz}: gains file with no artefact {npz.stem}.json beside it "
-                            "(artefact deleted after design?)")
+                            "(artefact deleted after design, or its design interrupted: design again)")
+
+
+def remove_interrupted_writes(directory: str | Path) -> list[Path]:
+    """Remove what a run killed mid-write left in ``directory`` (call it under `directory_lock`).
+
+    `write_artefact` stages every file of an artefact, then renames them, the JSON
+    last. A kill in between leaves temporary files (``.<file>.<8 characters>.tmp``)
+    that no rename will claim, and possibly ``<name>.npz`` with no ``<name>.json``
+    (which `check_orphan_npz` refuses). Removed: every temporary file and build
+    directory of the tool's own naming (`tanksynth.artefacts.atomic.stale_temporaries`),
+    and an orphan ``<name>.npz`` exactly when a staged ``<name>.json`` left beside it
+    records its sha256 (the interrupted write's own NPZ). No other file is touched: an
+    orphan NPZ without that evidence is still refused by the readers.
+
+    Parameters
+    ----------
+    directory : str or Path
+        A result directory.
+
+    Returns
+    -------
+    list of Path
+        The files and directories removed, sorted.
+    """
+    directory = Path(directory)
+    stale = stale_temporaries(directory)
+    orphans = []
+    for tmp in stale:
+        target = staged_target(tmp)
+        if target is None or not target.endswith(".json"):
+            continue
+        json_file, npz = directory / target, directory / f"{target[:-len('.json')]}.npz"
+        if json_file.exists() or json_file.is_symlink() or not npz.is_file() or npz.is_symlink():
+            continue
+        try:
+            staged = json.loads(read_limited(tmp).decode("utf-8"))
+            recorded = staged["provenance"]["npz_sha256"]
+            if isinstance(recorded, str) and recorded == file_sha256(npz):
+                orphans.append(npz)
+        except (ArtefactError, ValueError, TypeError, KeyError, RecursionError):
+            continue   # a partial or foreign temporary file: no evidence about the NPZ
+    remove_stale(stale)
+    for npz in orphans:
+        npz.unlink(missing_ok=True)
+    return sorted(stale + orphans)
 
 
 def check_plant_record(directory: str | Path, artefacts: Iterable[tuple[Path, Mapping[str, Any]]]) -> None:
@@ -567,19 +654,24 @@ def check_plant_record(directory: str | Path, artefacts: Iterable[tuple[Path, Ma
                                 "(plant record edited after design)")
 
 
-def rehash(path: str | Path) -> Path:
+def rehash(path: str | Path, keep_npz: bool = False) -> Path:
     """Make an artefact consistent again after its JSON was edited (tests, tools).
 
     Rewrites ``<name>.npz`` from the JSON's gains and recomputes every digest
     of the provenance (``gains_sha256``, ``npz_sha256``, ``plant_record_sha256``
-    from the ``plant.json`` beside it when the field is set, ``content_sha256``):
-    the result reads as a (possibly wrong) design written consistently, not as
-    tampering.
+    from the ``plant.json`` beside it when the field is set, ``content_sha256``)
+    and, for a verified artefact with a ``<name>.traces.npz`` beside it, the
+    verification's ``traces_sha256``: the result reads as a (possibly wrong)
+    design written consistently, not as tampering.
 
     Parameters
     ----------
     path : str or Path
         The artefact JSON.
+    keep_npz : bool
+        Keep ``<name>.npz`` as it is and record its hash instead of rewriting it
+        (what a tool that edits the NPZ alone would do; the readers then still
+        compare it with the JSON's gains, `check_npz`).
 
     Returns
     -------
@@ -589,7 +681,7 @@ def rehash(path: str | Path) -> Path:
     path = Path(path)
     doc = json.loads(read_limited(path).decode("utf-8"))
     gains = {k: np.asarray(v, dtype=float) for k, v in doc["gains"].items()}
-    npz = _npz_bytes(gains)
+    npz = read_limited(path.with_suffix(".npz")) if keep_npz else _npz_bytes(gains)
     prov = doc.setdefault("provenance", {})
     prov["gains_sha256"] = gains_digest(gains)
     prov["npz_sha256"] = hashlib.sha256(npz).hexdigest()
@@ -597,7 +689,11 @@ def rehash(path: str | Path) -> Path:
     if prov.get("plant_record_sha256") is not None and record.is_file():
         prov["plant_record_sha256"] = file_sha256(record)
     prov["content_sha256"] = content_digest(doc)
-    atomic_write(path.with_suffix(".npz"), npz)
+    trace = path.with_name(f"{doc.get('name', path.stem)}.traces.npz")
+    if isinstance(doc.get("verification"), dict) and trace.is_file():
+        doc["verification"]["traces_sha256"] = file_sha256(trace)
+    if not keep_npz:
+        atomic_write(path.with_suffix(".npz"), npz)
     atomic_write(path, dumps(doc) + "\n")
     return path
 

@@ -243,10 +243,14 @@ class Verification:
         Every check that decides passed.
     checks : tuple of VerificationCheck
         In the order verify ran them.
+    traces_sha256 : str or None
+        sha256 of the ``<name>.traces.npz`` verify wrote beside the artefact; None when it
+        wrote none (the key is then absent).
     """
 
     passed: bool
     checks: tuple[VerificationCheck, ...] = ()
+    traces_sha256: str | None = None
 
     @classmethod
     def from_document(cls, value: Any) -> Verification | None:
@@ -266,8 +270,10 @@ class Verification:
             return None
         checks = value.get("checks")
         entries = checks if isinstance(checks, list) else []
+        traces = value.get("traces_sha256")
         return cls(value.get("passed") is True,
-                   tuple(VerificationCheck.from_document(c) for c in entries if isinstance(c, Mapping)))
+                   tuple(VerificationCheck.from_document(c) for c in entries if isinstance(c, Mapping)),
+                   traces if isinstance(traces, str) else None)
 
     def check(self, name: str) -> VerificationCheck | None:
         """The last check called ``name``, None when there is none.
@@ -281,7 +287,10 @@ class Verification:
 
     def to_document(self) -> dict[str, Any]:
         """The ``verification`` field as verify writes it."""
-        return {"passed": self.passed, "checks": [c.to_document() for c in self.checks]}
+        doc: dict[str, Any] = {"passed": self.passed, "checks": [c.to_document() for c in self.checks]}
+        if self.traces_sha256 is not None:
+            doc["traces_sha256"] = self.traces_sha256
+        return doc
 
 
 @dataclass(frozen=True, eq=False)
@@ -425,10 +434,16 @@ def check_document(doc: Any, path: Path | str | None = None) -> dict[str, np.nda
     for key in _REQUIRED:
         if key not in doc:
             raise _fail(path, f"missing key {key!r}")
-    try:
-        gains = {k: np.asarray(v, dtype=float) for k, v in doc["gains"].items()}
-    except (TypeError, ValueError, AttributeError):
-        raise _fail(path, "gains must be nested lists of numbers") from None
+    if not isinstance(doc["gains"], Mapping):
+        raise _fail(path, "gains must be nested lists of numbers")
+    gains = {}
+    for key, value in doc["gains"].items():
+        try:
+            gains[key] = np.asarray(value, dtype=float)
+        except OverflowError:   # an integer beyond float64 (a 400-digit literal)
+            raise _fail(path, f"gains.{key}: a number beyond the float64 range (|x| > 1.8e308)") from None
+        except (TypeError, ValueError):
+            raise _fail(path, f"gains.{key}: must be nested lists of numbers") from None
     bad = sorted(k for k, v in gains.items() if np.isnan(v).any())
     if bad:
         raise _fail(path, f"gain(s) {', '.join(bad)} hold NaN entries; a designed gain is a "

@@ -16,6 +16,7 @@ import numpy as np
 
 from tanksynth.artefacts.io import (PLANT_SCHEMA, SCHEMA, check_npz, check_orphan_npz,
                                     check_plant_record, read_artefact, read_plant_record)
+from tanksynth.artefacts.traces import check_trace
 from tanksynth.errors import ArtefactError
 from tanksynth.reports.refused import REFUSED_FILE, read_refused
 from tanksynth.verify.runner import read_checks
@@ -142,6 +143,7 @@ def read_report_inputs(directory: str | Path) -> ReportInputs:
     # the same integrity checks as `verify`: every byte the report reads is covered
     for doc in artefacts:
         check_npz(d / doc["_file"], doc)
+        check_trace(d / doc["_file"], doc)   # the verdict trace verify recorded, read bounded
     check_orphan_npz(d, names)
     check_plant_record(d, [(d / doc["_file"], doc) for doc in artefacts])
     spec_path = d / "spec.toml"

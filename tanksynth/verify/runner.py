@@ -24,10 +24,10 @@ import numpy as np
 
 from tanksynth.analysis.checks import Check
 from tanksynth.artefacts.atomic import atomic_write
-from tanksynth.artefacts.io import (SCHEMA, check_npz, check_orphan_npz, check_plant_record,
+from tanksynth.artefacts.io import (SCHEMA, check_npz, check_orphan_npz, check_plant_record, file_sha256,
                                     read_artefact, read_limited, to_jsonable)
 from tanksynth.artefacts.jsontext import dumps
-from tanksynth.artefacts.traces import trace_path, write_trace
+from tanksynth.artefacts.traces import TraceLimitError, trace_path, write_trace
 from tanksynth.errors import ArtefactError, TanksynthError
 from tanksynth.spec import Spec, parse_spec_text
 from tanksynth.verify.cluster import CONNECT_TIMEOUT, connect
@@ -453,12 +453,18 @@ def verify_directory(directory: str | Path, table: Mapping[str, VerifiableMethod
     verdicts = []
     for path, doc in docs:
         v = Verdict(str(doc["name"]), str(doc["method"]), path, tuple(checks[path]))
-        _write_verification(path, v.as_dict())
         trace = traces.get(path)
         target = trace_path(path, str(doc["name"]))
+        written = None
         if trace is not None:
-            write_trace(target, trace)
-        else:
+            try:
+                written = write_trace(target, trace)
+            except TraceLimitError:  # beyond the limits every reader applies: no figure rather than a refusal
+                written = None
+        if written is None:
             target.unlink(missing_ok=True)  # a stale trace of an earlier verdict
+        # the trace first, then the verification that records its hash (the report checks it)
+        record = v.as_dict() if written is None else {**v.as_dict(), "traces_sha256": file_sha256(written)}
+        _write_verification(path, record)
         verdicts.append(v)
     return verdicts

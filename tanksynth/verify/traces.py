@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING, Any, Sequence
 
 import numpy as np
 
-from tanksynth.artefacts.traces import TRACE_EXTRAS, TRACE_MAX_SAMPLES, TRACE_RUNS
+from tanksynth.artefacts.traces import TRACE_EXTRAS, TRACE_MAX_SAMPLES, TRACE_MAX_VALUES, TRACE_RUNS
 
 if TYPE_CHECKING:  # annotations only: this module stays free of the plant (sympy) stack
     from tanksynth.plants.base import Plant
@@ -74,7 +74,8 @@ def trace_of(result: Any, plant: Plant, *, scenario: str, check: str, estimator:
         ``disturbance_names`` when any: the report draws them apart).
     rows : sequence of int, optional
         The runs of the batch kept, in this order (at most ``runs`` of them); default the
-        first ``runs`` runs.
+        first ``runs`` runs. Fewer are kept when the widest array would hold more than
+        `TRACE_MAX_VALUES` values (the limit of a trace file).
     signals : sequence of Signal
         Further named signals on the sample times ``result.t``, one value per run of the batch
         (e.g. a residual and its threshold): array ``signals`` (runs kept, samples, k) and header
@@ -110,6 +111,10 @@ def trace_of(result: Any, plant: Plant, *, scenario: str, check: str, estimator:
         idx = np.asarray([int(i) for i in rows][:max(1, int(runs))], dtype=int)
         if idx.size == 0 or np.any((idx < 0) | (idx >= M)):
             raise ValueError(f"trace_of: runs {list(rows)} to keep of a batch of {M}")
+    # a trace file stays within what every reader accepts (TRACE_MAX_VALUES per array): the
+    # widest array's runs are cut (a Monte-Carlo batch of thousands keeps its first ones)
+    widest = max([int(np.asarray(result.x).shape[-1]), int(np.asarray(result.u).shape[-1]), len(signals), 1])
+    idx = idx[:max(1, TRACE_MAX_VALUES // (min(t.size, TRACE_MAX_SAMPLES) * widest))]
     r = int(idx.size)
     ref = np.asarray(result.reference, dtype=float)
     names = [str(v) for v in reference_names] if reference_names is not None else \

@@ -2,6 +2,9 @@
 
 Generated specs (examples mutated key by key, and raw text mutations) go through
 ``tanksynth check --spec-only``; edited result directories go through ``tanksynth verify``.
+Attacked result files (issue 31: FIFOs, symlinks, zip-bombed NPZ and trace members, NPZ and JSON
+gains that disagree with every hash recomputed by ``rehash``) go through ``verify`` and ``report``,
+which must never exit 0 while the NPZ is not the JSON's gains.
 Every case must keep the exit-code contract (`fuzz_helpers.assert_contract`): exit 0/1/2/3,
 one stderr line, never a traceback, bounded time and memory. ``make test`` runs 2,000 cases,
 ``make fuzz`` (TANKSYNTH_FUZZ_SCALE=10) 20,000.
@@ -231,3 +234,105 @@ def test_edited_result_directories_keep_the_exit_code_contract(data, result_dir,
     done = [_edit_directory(d, data) for _ in range(data.draw(st.integers(1, 3), label="edits"))]
     code, _, err, seconds = run(["verify", d, "--json"])
     assert_contract(code, err, seconds, what="; ".join(done))
+
+
+# ---- issue 31: result files that hang, bomb or disagree -------------------------------------
+
+_FILE_ATTACKS = ["fifo", "symlink", "bomb", "scaled_npz", "json_gain_npz_kept", "reshaped_npz",
+                 "huge_integer", "rehashed_json_gain"]
+
+
+def _zip_bomb(path, members: dict, key: str, values: int) -> None:
+    """An .npz of ``members`` plus ``key``: ``values`` float64 zeros deflated as they are streamed."""
+    import zipfile
+
+    import numpy as np
+
+    path.unlink(missing_ok=True)
+    with zipfile.ZipFile(path, "w", zipfile.ZIP_DEFLATED) as zf:
+        for name, arr in members.items():
+            with zf.open(f"{name}.npy", "w", force_zip64=True) as fh:
+                np.lib.format.write_array(fh, np.asarray(arr), allow_pickle=False)
+        with zf.open(f"{key}.npy", "w", force_zip64=True) as fh:
+            np.lib.format.write_array_header_1_0(fh, {"descr": "<f8", "fortran_order": False,
+                                                      "shape": (values,)})
+            chunk = bytes(1 << 20)
+            for _ in range(max(1, values * 8 // len(chunk))):
+                fh.write(chunk)
+
+
+def _attack(d, data) -> tuple[str, bool]:
+    """One attack on the artefact of ``d``; returns what it did and whether the NPZ then holds
+    gains other than the JSON's (so that no command may exit 0)."""
+    import numpy as np
+
+    from tanksynth.artefacts.io import rehash
+
+    art = next(p for p in sorted(d.glob("*.json")) if p.name != "plant.json")
+    npz, trace = art.with_suffix(".npz"), art.with_name(art.stem + ".traces.npz")
+    op = data.draw(st.sampled_from(_FILE_ATTACKS), label="attack")
+    which = data.draw(st.sampled_from(["npz", "trace"]), label="which")
+    target = npz if which == "npz" else trace
+    with np.load(npz) as z:
+        gains = {k: z[k] for k in z.files}
+    name = data.draw(st.sampled_from(sorted(gains)), label="gain")
+    if op == "fifo":
+        target.unlink()
+        os.mkfifo(target)
+    elif op == "symlink":
+        target.unlink()
+        target.symlink_to(data.draw(st.sampled_from(["/dev/zero", "/etc/passwd", "/nonexistent"]), label="to"))
+    elif op == "bomb":
+        values = data.draw(st.sampled_from([2 ** 20, 2 ** 23, 2 ** 25]), label="values")
+        if which == "npz":
+            _zip_bomb(npz, {k: v for k, v in gains.items() if k != name}, name, values)
+            rehash(art, keep_npz=True)                 # every hash recomputed: only the content differs
+            return f"bomb npz {name} {values}", True
+        with np.load(trace) as z:
+            members = {k: z[k] for k in z.files if k != "x"}
+        _zip_bomb(trace, members, "x", values)
+        rehash(art)
+    elif op in ("scaled_npz", "reshaped_npz"):
+        factor = data.draw(st.sampled_from([100.0, -1.0, 1.0 + 2.0 ** -52, 0.0]), label="factor")
+        value = gains[name] * factor if op == "scaled_npz" else gains[name].reshape(-1)[::-1].copy()
+        if value.shape == gains[name].shape and value.tobytes() == gains[name].tobytes():
+            return "no change", False
+        np.savez(npz, **{**gains, name: value})
+        rehash(art, keep_npz=True)
+        return f"{op} {name}", True
+    elif op == "json_gain_npz_kept":
+        doc = json.loads(art.read_text(encoding="utf-8"))
+        doc["gains"][name] = (np.asarray(doc["gains"][name], dtype=float) * 100 + 1).tolist()
+        art.write_text(json.dumps(doc), encoding="utf-8")
+        rehash(art, keep_npz=True)
+        return f"json gain {name} edited, npz kept", True
+    elif op == "huge_integer":
+        doc = json.loads(art.read_text(encoding="utf-8"))
+        value = doc["gains"][name]
+        doc["gains"][name] = [10 ** 400] if isinstance(value, list) else 10 ** 400
+        art.write_text(json.dumps(doc), encoding="utf-8")
+        return f"huge integer {name}", True
+    else:                                              # a consistent (possibly wrong) design
+        doc = json.loads(art.read_text(encoding="utf-8"))
+        doc["gains"][name] = (np.asarray(doc["gains"][name], dtype=float) * -3).tolist()
+        art.write_text(json.dumps(doc), encoding="utf-8")
+        rehash(art)
+        return f"rehashed json gain {name}", False
+    return f"{op} {which}", False
+
+
+@settings(max_examples=5 * SCALE, **SETTINGS)
+@given(data=st.data())
+def test_attacked_result_files_never_hang_crash_or_pass_an_unverified_gain(data, result_dir, tmp_path_factory):
+    """FIFOs, symlinks, zip-bombed NPZ/trace members and rehashed edits (issue 31): verify and
+    report end within the time bound (a hang is killed by the watchdog), with one line and a
+    documented code, never a traceback, and never exit 0 when the NPZ is not the JSON's gains."""
+    d = tmp_path_factory.getbasetemp() / f"fuzz-attack-{os.getpid()}"
+    shutil.rmtree(d, ignore_errors=True)
+    shutil.copytree(result_dir, d, symlinks=True)
+    what, edited = _attack(d, data)
+    command = data.draw(st.sampled_from(["verify", "report"]), label="command")
+    code, _, err, seconds = run([command, d] + (["--json"] if command == "verify" else []))
+    assert_contract(code, err, seconds, what=f"{command}: {what}")
+    if edited:
+        assert code != 0, f"{command} exit 0 with {what}"

@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from tanksynth.artefacts.io import rehash
 from tanksynth.artefacts.traces import TRACE_MAX_SAMPLES, read_trace, write_trace
 from tanksynth.cli import main
 from tanksynth.methods import METHODS, write_report
@@ -92,6 +93,7 @@ def test_stale_extra_figures_are_removed_and_the_main_figure_is_unchanged(hinf_d
     main_before = (figs / "traces-02-hinf-controller.pdf").read_bytes()
     trace = read_trace(d / "hinf_controller.traces.npz")
     write_trace(d / "hinf_controller.traces.npz", {"header": trace["header"], "arrays": trace["arrays"]})
+    rehash(d / "hinf_controller.json")                         # recorded as verify would
     res = write_report(d)
     assert not (figs / "traces-02-hinf-controller-1.pdf").exists()
     assert (figs / "traces-02-hinf-controller.pdf").read_bytes() == main_before   # same figure, bytes
@@ -135,6 +137,7 @@ def test_an_edited_trace_file_does_not_stop_the_report(hinf_dir, tmp_path):
         with open(path, "wb") as fh:
             np.savez_compressed(fh, **{**arrays, **{k: arrays[k][:0] if v is None else v   # no runs
                                                        for k, v in edit.items()}})
+        rehash(d / f"{name}.json")     # recorded as it is (an unrecorded edit is refused, issue 31)
     write_report(d)
     tex = (d / "report.tex").read_text(encoding="utf-8")
     assert "traces-02-hinf-controller.pdf" in tex and "traces-02-hinf-controller-1.pdf" not in tex

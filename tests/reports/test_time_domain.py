@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import hashlib
 import json
 import subprocess
 from pathlib import Path
@@ -10,6 +11,7 @@ import numpy as np
 import pytest
 
 from tanksynth.artefacts import read_artefact
+from tanksynth.artefacts.io import rehash
 from tanksynth.cli import main
 from tanksynth.reports.figures import time_domain_figure
 from tanksynth.artefacts.traces import read_trace, trace_path
@@ -38,7 +40,10 @@ def _check_trace(directory: Path, name: str, estimator: bool) -> dict:
     assert len(head["state_names"]) == arr["x"].shape[2]
     assert len(head["input_names"]) == arr["u"].shape[2]
     raw = json.loads((directory / f"{name}.json").read_text(encoding="utf-8"))
-    assert "traces" not in json.dumps(raw)  # not part of the artefact JSON
+    # not part of the artefact JSON: only its sha256, in the verification (issue 31)
+    assert "traces" not in json.dumps({k: v for k, v in raw.items() if k != "verification"})
+    assert set(raw["verification"]) == {"passed", "checks", "traces_sha256"}
+    assert raw["verification"]["traces_sha256"] == hashlib.sha256(path.read_bytes()).hexdigest()
     read_artefact(directory / f"{name}.json")  # provenance hash still valid
     return trace
 
@@ -89,6 +94,8 @@ def test_missing_trace_means_no_figure(tmp_path):
     assert time_domain_figure(art, d, d / "report-figures", "x") is None
     (d / "linear_model.traces.npz").write_bytes(b"not an npz")
     assert time_domain_figure(art, d, d / "report-figures", "x") is None
+    assert main(["report", str(d)]) == 2          # not the trace verify wrote (traces_sha256)
+    rehash(d / "linear_model.json")               # recorded as it is: unreadable, no figure
     assert main(["report", str(d)]) == 0
     tex = (d / "report.tex").read_text(encoding="utf-8")
     assert "traces-00-linear-model.pdf" not in tex

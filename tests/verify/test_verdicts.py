@@ -1,5 +1,6 @@
 """Per-method verdicts and `tanksynth verify DIR`."""
 
+import hashlib
 import json
 from dataclasses import replace
 import shutil
@@ -129,10 +130,13 @@ def test_verify_stores_traces_beside_artefacts(designed, tmp_path, monkeypatch):
     assert obs["header"]["check"] == "observer_convergence" and obs["header"]["verdict_passed"] is True
     lin = read_trace(d / "hydraulic_linear_model.traces.npz")
     assert lin is not None and "x_hat" not in lin["arrays"]
-    for name in before:  # gains and provenance untouched; the trace is not in the JSON
+    for name in before:  # gains and provenance untouched; the trace is not in the JSON, its sha256 is
         after = json.loads((d / name).read_text())
         assert after["gains"] == json.loads(before[name])["gains"]
-        assert "traces" not in json.dumps(after)
+        assert "traces" not in json.dumps({k: v for k, v in after.items() if k != "verification"})
+        trace = d / f"{after['name']}.traces.npz"
+        assert after["verification"].get("traces_sha256") == (
+            hashlib.sha256(trace.read_bytes()).hexdigest() if trace.exists() else None)
         read_artefact(d / name)
     assert not list(d.glob(".*.tmp"))
     # a verdict that simulates nothing leaves no (stale) trace
@@ -140,6 +144,7 @@ def test_verify_stores_traces_beside_artefacts(designed, tmp_path, monkeypatch):
                                                        verdict=lambda doc, spec: [Check("x", True, "")])}
     runner.verify_directory(d, no_sim)
     assert not (d / "luenberger_canonical.traces.npz").exists()
+    assert "traces_sha256" not in json.loads((d / "luenberger_canonical.json").read_text())["verification"]
     assert (d / "hydraulic_linear_model.traces.npz").exists()
 
 
