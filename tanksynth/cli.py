@@ -5,17 +5,20 @@ Exit codes: 0 success, 1 a verification (rank) check failed, 2 bad input
 path, a result directory in use by another run or written from another spec,
 a problem too large for the memory budget), 3 a design was infeasible (no
 artefact written for it), 4 an internal error (a bug: one line on stderr
-naming a log file that holds the traceback). Library warnings never reach
-stderr: they are counted in one note on stdout.
+naming a log file that holds the traceback), 130 interrupted (SIGINT, SIGTERM
+or SIGHUP: child processes ended, nothing partial left, the lock released,
+one line ``interrupted (SIGTERM): ...`` on stderr). Library warnings never
+reach stderr: they are counted in one note on stdout.
 """
 
 from __future__ import annotations
 
 import json
 import shutil
+import signal
 import sys
 import warnings
-from contextlib import AbstractContextManager, contextmanager
+from contextlib import contextmanager
 from importlib import resources
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Callable, Iterable, Iterator
@@ -30,6 +33,7 @@ from tanksynth.messages import StageClock, law_line, print_summary
 from tanksynth.messages import design_index_note as _design_index_note
 from tanksynth.messages import note_warnings
 from tanksynth.messages import one_line as _one_line
+from tanksynth.process import EXIT_INTERRUPTED, Interrupted, interruptible
 from tanksynth.process import ignore_file_size_signal as _ignore_file_size_signal
 from tanksynth.process import internal_error_log as _internal_error_log
 from tanksynth.process import one_blas_thread as _one_blas_thread
@@ -187,10 +191,35 @@ def _refuse_other_spec(spec: Spec, outdir: Path, force: bool) -> None:
                markup=False, highlight=False, soft_wrap=True)
 
 
-def _locked(directory: str | Path, command: str) -> AbstractContextManager[Path]:
+@contextmanager
+def _locked(directory: str | Path, command: str) -> Iterator[Path]:
+    """Hold the directory's lock while a command writes into it; an interruption removes what
+    the command's writers staged and had not renamed yet (a report worker ended by SIGKILL, see
+    `tanksynth.report_worker`) before the lock is released."""
     from tanksynth.artefacts.atomic import directory_lock
 
-    return directory_lock(directory, command=command)
+    with directory_lock(directory, command=command) as lock:
+        try:
+            yield lock
+        except KeyboardInterrupt:
+            _remove_staged(Path(directory))
+            raise
+
+
+#: What a writer leaves while it works (`tanksynth.artefacts.atomic.stage`: ``.<name>.*.tmp``;
+#: the PDF build: ``.report-build-*``), in the result directory or its figure directory.
+_STAGED_PATTERNS = (".*.tmp", "*/.*.tmp", ".report-build-*")
+
+
+def _remove_staged(directory: Path) -> None:
+    """Remove staged files and build directories left in ``directory`` by an interrupted writer
+    (the caller holds the lock: nothing else is writing there)."""
+    for pattern in _STAGED_PATTERNS:
+        for path in directory.glob(pattern):
+            if path.is_dir() and not path.is_symlink():
+                shutil.rmtree(path, ignore_errors=True)
+            else:
+                path.unlink(missing_ok=True)
 
 
 def _design_all(spec: Spec, outdir: Path, export: tuple[str, ...]
@@ -272,7 +301,28 @@ def _derived_law(spec: Spec, design: DesignSpec, result: DesignResult) -> casadi
     return law
 
 
-@click.group(context_settings={"help_option_names": ["-h", "--help"]})
+class _Commands(click.Group):
+    """The command group; an interruption passes through as `Interrupted` (click would turn it
+    into an `Abort` after an empty line on stderr)."""
+
+    def invoke(self, ctx: click.Context) -> Any:
+        try:
+            return super().invoke(ctx)
+        except Interrupted as exc:
+            raise _Stopped(exc.signum) from None
+        except KeyboardInterrupt:
+            raise _Stopped(int(signal.SIGINT)) from None
+
+
+class _Stopped(BaseException):
+    """`Interrupted`, carried through click (which catches every `KeyboardInterrupt`)."""
+
+    def __init__(self, signum: int):
+        super().__init__(signum)
+        self.signum = signum
+
+
+@click.group(cls=_Commands, context_settings={"help_option_names": ["-h", "--help"]})
 @click.version_option(package_name="tanksynth")
 @click.option("-v", "--verbose", is_flag=True,
               help="Also print the raw text of the library warnings the note summarises.")
@@ -472,6 +522,10 @@ def _run_locked(s: Spec, spec: str | None, out: Path, pdf: bool | None) -> None:
     worker = ReportWorker.start(out, pdf) if s.designs else None
     try:
         _run_stages(s, spec, out, pdf, have_tex, clock, worker)
+    except KeyboardInterrupt:  # interrupted: the worker ends now, before the lock is released
+        if worker is not None:
+            worker.stop()
+        raise
     finally:
         if worker is not None:
             worker.cancel()
@@ -657,12 +711,27 @@ def main(argv: list[str] | None = None) -> int:
     _ignore_file_size_signal()
     _one_blas_thread()
     args = list(sys.argv[1:] if argv is None else argv)
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        code = _main(args)
-    note_warnings(caught, _out, quiet="--json" in args, code=code,
-                   verbose=bool(args) and args[0] in ("-v", "--verbose"))
+    with interruptible():
+        try:
+            with warnings.catch_warnings(record=True) as caught:
+                warnings.simplefilter("always")
+                code = _main(args)
+            note_warnings(caught, _out, quiet="--json" in args, code=code,
+                          verbose=bool(args) and args[0] in ("-v", "--verbose"))
+        except KeyboardInterrupt as exc:  # between commands' clean-ups (parsing, the note)
+            code = _interrupted(exc.signum if isinstance(exc, Interrupted) else int(signal.SIGINT))
     return code
+
+
+def _interrupted(signum: int) -> int:
+    """Say, on one line, that the command was interrupted; the exit code `EXIT_INTERRUPTED`."""
+    name = Interrupted(signum).signal_name
+    try:
+        click.echo(f"interrupted ({name}): stopped; child processes ended, no partial file left, "
+                   "the result directory's lock released", err=True)
+    except (OSError, ValueError):  # stderr gone with the terminal (SIGHUP)
+        pass
+    return EXIT_INTERRUPTED
 
 
 
@@ -677,7 +746,12 @@ def _main(argv: list[str]) -> int:
     except click.ClickException as exc:
         click.echo(f"error: {_one_line(exc.format_message())}", err=True)
         return EXIT_BAD_INPUT
-    except click.exceptions.Abort:
+    except _Stopped as exc:
+        return _interrupted(exc.signum)
+    except click.exceptions.Abort as exc:
+        if isinstance(exc.__cause__, KeyboardInterrupt):  # while the arguments were parsed
+            cause = exc.__cause__
+            return _interrupted(cause.signum if isinstance(cause, Interrupted) else int(signal.SIGINT))
         return EXIT_BAD_INPUT
     except _Fail as exc:
         click.echo(f"{'infeasible' if exc.code == EXIT_INFEASIBLE else 'failed'}: {_one_line(exc)}",
