@@ -38,6 +38,7 @@ from tanksynth.process import ignore_file_size_signal as _ignore_file_size_signa
 from tanksynth.process import internal_error_log as _internal_error_log
 from tanksynth.process import one_blas_thread as _one_blas_thread
 from tanksynth.report_worker import ReportSummary, ReportWorker, report_summary
+from tanksynth.verify.cluster import MAX_WORKERS, WORKER_TIMEOUT
 
 if TYPE_CHECKING:  # annotations only: each command imports what it needs when it runs
     import casadi
@@ -55,6 +56,20 @@ _out = Console()
 
 #: Columns of the console used for tables when stdout is not a terminal (piped, redirected).
 _PIPED_WIDTH = 200
+
+
+class _Seconds(click.FloatRange):
+    """A finite number of seconds in a range (``nan`` and ``inf`` are refused naming the option)."""
+
+    name = "seconds"
+
+    def convert(self, value: Any, param: click.Parameter | None, ctx: click.Context | None) -> Any:
+        import math
+
+        number = super().convert(value, param, ctx)
+        if not math.isfinite(number):
+            self.fail(f"{value!r} is not a finite number of seconds", param, ctx)
+        return number
 
 
 class _Fail(Exception):
@@ -580,6 +595,44 @@ def _run_stages(s: Spec, spec: str | None, out: Path, pdf: bool, have_tex: bool,
         raise _Fail(EXIT_FAILED, "some checks fail: " + ", ".join(failed))
 
 
+#: A campaign estimated to take at least this long (s) shows its progress on stderr.
+_LONG_CAMPAIGN = 10.0
+#: Without a terminal, one progress line per this fraction of the tasks.
+_PROGRESS_STEP = 0.1
+
+
+@contextmanager
+def _campaign_progress(total: int, seconds: float) -> Iterator[Callable[[int, int], None]]:
+    """``progress(done, total)`` for a campaign, shown on stderr when it is long: a bar when stderr
+    is a terminal, else one plain line per 10 % of the tasks (with the elapsed time)."""
+    err = Console(stderr=True)
+    if seconds < _LONG_CAMPAIGN:
+        yield lambda done, n: None
+        return
+    if err.is_terminal and _live():
+        from rich.progress import (BarColumn, MofNCompleteColumn, Progress, TextColumn,
+                                   TimeElapsedColumn, TimeRemainingColumn)
+
+        with Progress(TextColumn("campaign"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
+                      TimeRemainingColumn(), console=err, transient=True) as bar:
+            task = bar.add_task("campaign", total=total)
+            yield lambda done, n: bar.update(task, completed=done, total=n)
+        return
+    import time
+
+    start = time.monotonic()
+    shown = [0]
+
+    def plain(done: int, n: int) -> None:
+        step = int(done / max(n, 1) / _PROGRESS_STEP)
+        if step > shown[0]:
+            shown[0] = step
+            click.echo(f"campaign: {done} of {n} tasks ({100 * done // max(n, 1)} %), "
+                       f"{time.monotonic() - start:.0f} s", err=True)
+
+    yield plain
+
+
 def _started(bar: Progress, task: TaskID) -> Callable[[int, int, str, str], None]:
     """``started(done, total, name, method)`` for `verify_directory`: the bar names the artefact
     being verified (its checks run inside one verdict)."""
@@ -632,13 +685,17 @@ def report(directory: str, pdf: bool) -> None:
 @click.option("--scenario", "scenarios", multiple=True,
               help="Campaign scenario (repeatable; default: every one defined for the plant).")
 @click.option("--seed", default=0, show_default=True, type=click.IntRange(min=0), help="Campaign seed.")
-@click.option("--workers", default=2, show_default=True, type=click.IntRange(min=1),
-              help="Worker processes of the local Dask cluster.")
-@click.option("--connect-timeout", default=10.0, show_default=True,
-              type=click.FloatRange(min=0.1, max=600.0),
+@click.option("--workers", default=2, show_default=True, type=click.IntRange(min=1, max=MAX_WORKERS),
+              help=f"Worker processes of the local Dask cluster (at most {MAX_WORKERS}: 4 per CPU).")
+@click.option("--connect-timeout", default=10.0, show_default=True, type=_Seconds(min=0.1, max=600.0),
               help="Seconds to wait for the Dask scheduler given with --scheduler.")
+@click.option("--worker-timeout", default=WORKER_TIMEOUT, show_default=True,
+              type=_Seconds(min=0.1, max=3600.0),
+              help="Seconds to wait while the Dask cluster has no worker (its only worker died) "
+                   "before giving up.")
 def verify(directory: str, scheduler: str | None, as_json: bool, runs: int,
-           scenarios: tuple[str, ...], seed: int, workers: int, connect_timeout: float) -> None:
+           scenarios: tuple[str, ...], seed: int, workers: int, connect_timeout: float,
+           worker_timeout: float) -> None:
     """Simulate every artefact of DIRECTORY and record the verdicts in it."""
     from tanksynth.sim.scenarios import scenario
 
@@ -646,36 +703,44 @@ def verify(directory: str, scheduler: str | None, as_json: bool, runs: int,
         scenario(name)  # unknown names are bad input (exit 2) before any work
     if not Path(directory).is_dir():
         raise SpecError("no such result directory", source=directory)
+    cluster = {"connect_timeout": connect_timeout, "worker_timeout": worker_timeout,
+               "waiting": _say_waiting}
     with _locked(directory, "verify"):
-        _verify_locked(directory, scheduler, as_json, runs, scenarios, seed, workers, connect_timeout)
+        _verify_locked(directory, scheduler, as_json, runs, scenarios, seed, workers, cluster)
+
+
+def _say_waiting(text: str) -> None:
+    """One line on stderr: the Dask cluster has no worker (`tanksynth.verify.cluster.completed`)."""
+    click.echo(text, err=True)
 
 
 def _verify_locked(directory: str, scheduler: str | None, as_json: bool, runs: int,
-                   scenarios: tuple[str, ...], seed: int, workers: int, connect_timeout: float) -> None:
+                   scenarios: tuple[str, ...], seed: int, workers: int, cluster: dict[str, Any]) -> None:
     from tanksynth.artefacts.io import to_jsonable
     from tanksynth.methods import verify_directory
 
     quiet = as_json
-    with _progress(quiet) as bar:
-        task = bar.add_task("verifying artefacts", total=None)
-        verdicts = verify_directory(directory, scheduler=scheduler,
-                                    progress=lambda d, n: bar.update(task, completed=d, total=n),
-                                    started=_started(bar, task), connect_timeout=connect_timeout)
     table_path = None
-    if runs:  # the campaign's modules only when one runs
+    if runs:  # the campaign's modules only when one runs; its estimate before any other work
         from tanksynth.methods import RUNNERS, load_directory
         from tanksynth.sim.scenarios import SCENARIOS
-        from tanksynth.verify.campaign import campaign_tasks, run_campaign
+        from tanksynth.verify.campaign import campaign_tasks, estimate_campaign, run_campaign
 
         spec, docs = load_directory(directory)
         names = list(scenarios) or [s for s in SCENARIOS if SCENARIOS[s].applies_to(spec.plant)]
         tasks = campaign_tasks(spec.text or (Path(directory) / "spec.toml").read_text(encoding="utf-8"),
                                [d for _, d in docs], names, runs, seed=seed, runners=RUNNERS)
-        with _progress(quiet) as bar:
-            task = bar.add_task("campaign", total=len(tasks))
-            table = run_campaign(tasks, scheduler=scheduler, workers=workers,
-                                 progress=lambda d, n: bar.update(task, completed=d, total=n),
-                                 connect_timeout=connect_timeout)
+        estimate = estimate_campaign(tasks, workers)  # refuses a table past the memory budget
+        click.echo(estimate.line(), err=True)
+    with _progress(quiet) as bar:
+        task = bar.add_task("verifying artefacts", total=None)
+        verdicts = verify_directory(directory, scheduler=scheduler,
+                                    progress=lambda d, n: bar.update(task, completed=d, total=n),
+                                    started=_started(bar, task), **cluster)
+    if runs:
+        with _campaign_progress(len(tasks), estimate.seconds) as progress:
+            table = run_campaign(tasks, scheduler=scheduler, workers=workers, progress=progress,
+                                 done=estimate.done, **cluster)
         table_path = table.to_csv(Path(directory) / "campaign.csv")
     if as_json:
         click.echo(json.dumps(to_jsonable({"artefacts": [{"name": v.name, "method": v.method,
