@@ -766,6 +766,8 @@ def main(argv: list[str] | None = None) -> int:
     one note on stdout (none with ``--json``). A design's own `DesignWarning`
     lines go to stderr (``warning: <designs>: <text>``). A file-size limit
     (``ulimit -f``) is an error on the file being written (exit 2), not a signal.
+    SIGINT, SIGTERM and SIGHUP interrupt any command the same way (`tanksynth.process`):
+    children ended, staged files removed, the lock released, one line, exit 130.
 
     Parameters
     ----------
