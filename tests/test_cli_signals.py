@@ -30,6 +30,8 @@ pytestmark = pytest.mark.skipif(not sys.platform.startswith("linux"),
 
 #: Hang guard of every wait (s): generous for a loaded machine, never a timing assertion.
 GUARD = 300
+#: Hang guard for the children of a SIGKILLed command to end (s; see its test).
+ORPHAN_GUARD = 120
 
 
 def _marked(mark: str) -> list[int]:
@@ -123,8 +125,10 @@ def test_the_report_worker_dies_with_a_sigkilled_parent(tmp_path):
     proc, out = _run_pdf_until_latex(tmp_path, mark)
     try:
         os.kill(proc.pid, signal.SIGKILL)
-        proc.communicate(timeout=GUARD)
-        deadline = time.monotonic() + GUARD
+        proc.wait(timeout=GUARD)        # not communicate: an orphaned worker holds the pipes
+        # hang guard, generous, yet below the report's LaTeX timeout (180 s), after which an
+        # orphaned worker would give up by itself and hide the bug
+        deadline = time.monotonic() + ORPHAN_GUARD
         while _marked(mark) and time.monotonic() < deadline:  # the worker unwinds, then exits
             time.sleep(0.1)
         alive = _marked(mark)
