@@ -7,8 +7,9 @@ Python code only after a long C call (big-integer arithmetic, a section with SIG
 returns. So the step runs in a child process forked for it (`os.fork`), which returns its
 result pickled through a pipe; at the budget the parent kills the child (SIGKILL) and raises
 `TooComplexError`. The child dies with its parent (``PR_SET_PDEATHSIG`` on Linux) and has a
-CPU-time limit a little above the budget as a second guard. Where ``fork`` is unavailable the
-step runs in the process, under SIGALRM in the main thread and without a budget elsewhere.
+CPU-time limit a little above the budget as a second guard. Where ``fork`` is unavailable (or
+fails: no process to spare) the step runs in the process, under SIGALRM in the main thread and
+without a budget elsewhere.
 
 A fork (and the child's exit) costs about 30 ms per call for a 230 MB process on a loaded
 2-core machine (measured: 50 trivial steps), against 0.8-1.3 s for the three-tank's relative
@@ -45,8 +46,10 @@ SYMBOLIC_SECONDS = 20.0
 #: Largest pickled result (bytes) a child may send back; a larger one is refused as too complex.
 RESULT_LIMIT_BYTES = 256 * 2**20
 
-#: How many results of budgeted steps are kept (a repeated step is not forked again).
+#: How many results of budgeted steps are kept (a repeated step is not forked again), and the
+#: largest pickled result kept (bytes): at most 32 x 4 MiB.
 MEMO_SIZE = 32
+MEMO_MAX_BYTES = 4 * 2**20
 
 T = TypeVar("T")
 
@@ -152,8 +155,12 @@ def run_within_budget(step: Callable[..., T], *args: Any, what: str, seconds: fl
                 _memo.move_to_end(memo_key)
         if cached is not None:
             return pickle.loads(cached)
-    payload = _run_forked(step, args, what, limit, key)
-    if memo_key is not None:
+    try:
+        payload = _run_forked(step, args, what, limit, key)
+    except _ForkFailed:                        # no process to spare (EAGAIN, ENOMEM): in here
+        with _alarm_budget(what, limit, key):
+            return step(*args)
+    if memo_key is not None and len(payload) <= MEMO_MAX_BYTES:
         with _memo_lock:
             _memo[memo_key] = payload
             while len(_memo) > MEMO_SIZE:
@@ -170,13 +177,22 @@ def _memo_key(step: Callable[..., Any], args: tuple) -> bytes | None:
 
 
 # ------------------------------------------------------------------------ the forked child
+class _ForkFailed(Exception):
+    """``os.fork`` failed: the step runs in the process instead."""
+
+
 def _run_forked(step: Callable[..., Any], args: tuple, what: str, limit: float, key: str) -> bytes:
     """Fork, run ``step(*args)`` in the child, return its pickled result (or raise its error)."""
     read_fd, write_fd = os.pipe()
     parent = os.getpid()
-    pid = os.fork()
+    try:
+        pid = os.fork()
+    except OSError:
+        os.close(read_fd)
+        os.close(write_fd)
+        raise _ForkFailed from None
     if pid == 0:                                       # the child: never returns
-        _child_main(step, args, read_fd, write_fd, parent, what, limit, key)
+        _child_main(step, args, read_fd, write_fd, parent, limit)
     os.close(write_fd)
     try:
         data = _read_until(read_fd, time.monotonic() + limit, what, limit, key)
@@ -189,29 +205,29 @@ def _run_forked(step: Callable[..., Any], args: tuple, what: str, limit: float, 
                "its process ended without a result")
         raise _over_budget(what, limit, key, why)
     ok, payload = pickle.loads(data)
+    if ok is None:
+        raise _over_budget(what, limit, key, f"its result exceeds {RESULT_LIMIT_BYTES // 2**20} MiB")
     if ok:
         return payload
     raise _child_error(payload, what)
 
 
 def _child_main(step: Callable[..., Any], args: tuple, read_fd: int, write_fd: int, parent: int,
-                what: str, limit: float, key: str) -> None:
+                limit: float) -> None:
     global _in_child
     code = 0
     try:
         os.close(read_fd)
         _in_child = True
         _detach_from_parent_handlers(parent, limit)
-        result: tuple[bool, Any]
+        result: tuple[bool | None, Any]
         try:
             result = (True, pickle.dumps(step(*args), pickle.HIGHEST_PROTOCOL))
         except BaseException as exc:  # noqa: BLE001 - every failure goes back to the parent
             result = (False, _error_record(exc))
         data = pickle.dumps(result, pickle.HIGHEST_PROTOCOL)
         if len(data) > RESULT_LIMIT_BYTES:
-            data = pickle.dumps((False, _error_record(_over_budget(
-                what, limit, key, f"its result exceeds {RESULT_LIMIT_BYTES // 2**20} MiB"))),
-                pickle.HIGHEST_PROTOCOL)
+            data = pickle.dumps((None, None), pickle.HIGHEST_PROTOCOL)   # the parent says so
         view = memoryview(data)
         while view:
             view = view[os.write(write_fd, view):]

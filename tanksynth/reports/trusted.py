@@ -15,7 +15,8 @@ typeset only when it parses in this grammar (`latex_problem` says where it does 
 - in ``\\text{...}`` and the cells of a ``tabular`` (``\\hline`` at a row's start): text
   characters, escapes and balanced ``$...$`` math shifts;
 - no trailing backslash, no ``%``, ``#``, ``~``, ``^^``, non-ASCII or control characters;
-- at most `MAX_FRAGMENT_CHARS` characters and `MAX_NESTING` nested groups.
+- at most `MAX_FRAGMENT_CHARS` characters (`MAX_DIRECTORY_CHARS` in a directory), `MAX_NESTING` nested groups and
+  `MAX_STYLE_NESTING` nested ``\\text`` / ``\\boldsymbol`` / ``\\sqrt[n]``.
 
 Everything accepted compiles with pdflatex in the report's preamble (a property test builds
 samples). `check_result_latex` refuses a result directory whose LaTeX does not parse (exit 2,
@@ -31,13 +32,25 @@ from typing import Any, Mapping, Sequence
 from tanksynth.errors import ArtefactError
 from tanksynth.reports.latex import Tex, escape_latex
 
-__all__ = ["MATH_COMMANDS", "MATH_ENVIRONMENTS", "MAX_FRAGMENT_CHARS", "MAX_NESTING",
+__all__ = ["MATH_COMMANDS", "MATH_ENVIRONMENTS", "MAX_FRAGMENT_CHARS", "MAX_DIRECTORY_CHARS",
+           "MAX_NESTING",
+           "MAX_STYLE_NESTING", "MAX_TYPESET_CHARS",
            "latex_problem", "is_trusted_math", "math_or_text", "check_result_latex"]
 
-#: Longest fragment (characters): a 64 x 64 gain printed by sympy is ~100,000.
-MAX_FRAGMENT_CHARS = 1_000_000
+#: Longest fragment (characters), and most characters of all fragments of a directory: the
+#: longest the examples write has ~1,000; pdflatex's memory (5,000,000 words) ran out at
+#: 50,000 characters of ``\frac`` typeset four times.
+MAX_FRAGMENT_CHARS = 20_000
+MAX_DIRECTORY_CHARS = 200_000
 #: Deepest nesting of groups, arguments, ``\left`` and environments.
 MAX_NESTING = 100
+#: Deepest nesting of the commands that typeset their argument in all four math styles
+#: (``\text``, ``\boldsymbol``, ``\sqrt[n]``: TeX's ``\mathchoice``): pdflatex's work grows
+#: about 4x per level (11 nested ``\text{$`` took 53 s, 11 ``\boldsymbol`` over 300 s).
+MAX_STYLE_NESTING = 4
+#: Most characters pdflatex typesets for a fragment, each counted once per style it is set in
+#: (4^k inside k of those commands).
+MAX_TYPESET_CHARS = 100_000
 
 _GREEK = ("alpha beta gamma delta epsilon varepsilon zeta eta theta vartheta iota kappa lambda mu "
           "nu xi pi varpi rho varrho sigma varsigma tau upsilon phi varphi chi psi omega "
@@ -90,6 +103,23 @@ class _Parser:
         self.text = text
         self.pos = 0
         self.depth = 0
+        self.styles = 0          # enclosing \mathchoice-like commands
+        self.extra = 0           # characters typeset again inside them
+
+    def styled(self, word: str, start: int) -> None:
+        """Enter one more command that typesets its argument in four styles."""
+        self.styles += 1
+        if self.styles > MAX_STYLE_NESTING:
+            raise self.fail(f"\\{word} nested in more than {MAX_STYLE_NESTING} of \\text, "
+                            "\\boldsymbol, \\sqrt[...]", start)
+
+    def unstyled(self, start: int) -> None:
+        """Leave it: its span is typeset 4x as often as at the level around it."""
+        self.extra += 3 * 4 ** (self.styles - 1) * (self.pos - start)
+        self.styles -= 1
+        if len(self.text) + self.extra > MAX_TYPESET_CHARS:
+            raise self.fail(f"more than {MAX_TYPESET_CHARS} characters to typeset, counting the "
+                            "copies \\text, \\boldsymbol, \\sqrt[...] make")
 
     # ----------------------------------------------------------- helpers
     def peek(self, k: int = 0) -> str:
@@ -255,16 +285,23 @@ class _Parser:
             self.argument(f"\\{word}")
             self.argument(f"\\{word}")
         elif word in _ONE_ARGUMENT:
+            styled = word == "boldsymbol" or (word == "sqrt" and self.peek() == "[")
+            if styled:
+                self.styled(word, start)
             if word == "sqrt" and self.peek() == "[":
                 self.pos += 1
                 self.math("]")
                 self.pos += 1
             self.argument(f"\\{word}")
+            if styled:
+                self.unstyled(start)
         elif word in _TEXT_ARGUMENT:
+            self.styled(word, start)
             self.skip_spaces()
             if self.peek() != "{":
                 raise self.fail(f"\\{word} without a {{text}} group")
             self.text_group()
+            self.unstyled(start)
         elif word == "left":
             self.delimiter("left")
             self.math("right")
@@ -431,8 +468,12 @@ def math_or_text(fragment: str) -> tuple[Tex, bool]:
                + r"} (not typeset: LaTeX outside the allowed math commands)}"), False
 
 
-def _refuse(path: Path, key: str, value: Any) -> None:
+def _refuse(path: Path, key: str, value: Any, seen: list[int]) -> None:
     problem = latex_problem(value)
+    if problem is None:
+        seen[0] += len(value)
+        if seen[0] > MAX_DIRECTORY_CHARS:
+            problem = f"more than {MAX_DIRECTORY_CHARS} characters of LaTeX in the directory"
     if problem is not None:
         raise ArtefactError(f"{path}: key '{key}': LaTeX refused: {problem}; expected math of "
                             "the allowed commands, as tanksynth writes it")
@@ -463,17 +504,18 @@ def check_result_latex(directory: Path, plant: Mapping[str, Any],
     ArtefactError
         Naming the file and the key of the first fragment outside the grammar (exit 2).
     """
+    seen = [0]
     equations = plant.get("equations") or {}
     if isinstance(equations, Mapping):
         for kind in ("general", "smooth", "outputs"):
             lines = equations.get(kind) or []
             for i, line in enumerate(lines if isinstance(lines, list) else [lines]):
-                _refuse(directory / "plant.json", f"equations.{kind}[{i}]", line)
+                _refuse(directory / "plant.json", f"equations.{kind}[{i}]", line, seen)
     for art in artefacts:
         for name, fragment in (art.get("latex") or {}).items():
-            _refuse(directory / str(art.get("_file", "")), f"latex.{name}", fragment)
+            _refuse(directory / str(art.get("_file", "")), f"latex.{name}", fragment, seen)
     for i, check in enumerate(checks or ()):
         data = check.get("data")
         if isinstance(data, Mapping) and data.get("determinant_latex") is not None:
             _refuse(directory / "checks.json", f"[{i}].data.determinant_latex",
-                    data["determinant_latex"])
+                    data["determinant_latex"], seen)

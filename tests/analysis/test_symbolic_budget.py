@@ -135,6 +135,14 @@ def test_results_and_errors_come_back_from_the_step():
         run_within_budget(_dies, what="d", seconds=30.0)
 
 
+def test_a_result_past_its_size_limit_is_refused(monkeypatch):
+    import tanksynth.analysis.budget as budget
+
+    monkeypatch.setattr(budget, "RESULT_LIMIT_BYTES", 100)
+    with pytest.raises(TooComplexError, match="its result exceeds"):
+        budget.run_within_budget(_matrix, 6, what="a large matrix")
+
+
 def test_a_repeated_step_is_not_run_again(monkeypatch):
     model = _double_integrator("memo")
     first = relative_degree(*model)

@@ -158,10 +158,19 @@ def test_what_parses_is_balanced_and_closed(fragment):
     assert not re.search(r"\\input|\\catcode|\^\^|%|\\end\{document\}", plain), fragment
 
 
-def test_limits_of_length_and_nesting():
+def test_limits_of_length_and_nesting(tmp_path):
+    from tanksynth.reports.trusted import check_result_latex
+
     assert latex_problem("{" * 150 + "x" + "}" * 150) is not None
     assert latex_problem("{" * 50 + "x" + "}" * 50) is None
     assert latex_problem("x" * 2_000_000) is not None
+    # four styles per \text, \boldsymbol, \sqrt[n]: pdflatex's work grows 4x per level
+    assert latex_problem(r"\text{$" * 4 + "x" + "$}" * 4) is None
+    assert latex_problem(r"\boldsymbol{" * 5 + "x" + "}" * 5) is not None
+    assert latex_problem(r"\sqrt[3]{" * 4 + "x+y " * 500 + "}" * 4) is not None
+    many = [{"_file": f"a{i}.json", "latex": {"F": "x+y " * 4000}} for i in range(20)]
+    with pytest.raises(ArtefactError, match=r"a12\.json: key 'latex\.F': .*characters of LaTeX"):
+        check_result_latex(tmp_path, {}, many, None)
 
 
 @pytest.mark.parametrize("where", ["plant", "artefact", "checks"])
