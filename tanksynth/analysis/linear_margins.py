@@ -218,18 +218,27 @@ def _is_stable(M: np.ndarray, ts: float | None) -> bool:
     return bool(np.all(np.abs(eig) < 1.0) if ts is not None else np.all(eig.real < 0.0))
 
 
-def _channel(A: np.ndarray, B: np.ndarray, C: np.ndarray, i: int, ts: float | None) -> ChannelMargins:
-    """Margins of channel ``i`` with the others closed (``A - B_j C_j`` for every j != i)."""
+def _channel(A: np.ndarray, B: np.ndarray, C: np.ndarray, i: int, ts: float | None,
+             points: int) -> ChannelMargins:
+    """Margins of channel ``i`` with the others closed (``A - B_j C_j`` for every j != i).
+
+    python-control's `stability_margins` on the channel's exact frequency response (state-space
+    evaluation on a dense grid, its ``frd`` method): its polynomial method loses the crossovers of
+    a discrete loop whose poles cluster near ``z = 1`` (slow tanks sampled fast).
+    """
     import control
     others = [j for j in range(B.shape[1]) if j != i]
     Ai = A - B[:, others] @ C[others, :]
     sys = control.ss(Ai, B[:, [i]], C[[i], :], [[0.0]], 0 if ts is None else float(ts))
+    omega = frequency_grid(block_diag(Ai, Ai - B[:, [i]] @ C[[i], :]), ts, points)
+    if ts is not None:
+        omega = omega[omega < np.pi / float(ts)]
+    data = control.frd(sys, omega, smooth=True)
     with warnings.catch_warnings(), np.errstate(divide="ignore", invalid="ignore"):
-        # python-control evaluates a transfer function at its own poles (an integrator at s = 0)
         warnings.simplefilter("ignore", RuntimeWarning)
-        gm, pm, _, wpc, wgc, _ = control.stability_margins(sys)
+        gm, pm, _, wpc, wgc, _ = control.stability_margins(data, method="frd")
         # every gain crossover: the delay margin is the smallest phase margin / crossover frequency
-        _, pms, _, _, wgcs, _ = control.stability_margins(sys, returnall=True)
+        _, pms, _, _, wgcs, _ = control.stability_margins(data, returnall=True, method="frd")
     gm, pm, wpc, wgc = (float(v) for v in (gm, pm, wpc, wgc))
     delays = []
     for p, w in zip(np.atleast_1d(pms), np.atleast_1d(wgcs)):
@@ -240,7 +249,7 @@ def _channel(A: np.ndarray, B: np.ndarray, C: np.ndarray, i: int, ts: float | No
     return ChannelMargins(i, gm, float(gm_db), pm, float(delay), wgc, wpc)
 
 
-def loop_margins(A: Any, B_in: Any, C_out: Any, ts: float | None = None) -> LoopMargins:
+def loop_margins(A: Any, B_in: Any, C_out: Any, ts: float | None = None, points: int = 2000) -> LoopMargins:
     """Margins of ``L = C_out (sI - A)^{-1} B_in`` broken at its channels (negative feedback).
 
     For state feedback pass ``(A, B, K)`` (`input_loop`), for an observer
@@ -256,6 +265,9 @@ def loop_margins(A: Any, B_in: Any, C_out: Any, ts: float | None = None) -> Loop
         What the loop feeds back.
     ts : float, optional
         Sampling time (s) of a discrete loop; None in continuous time.
+    points : int, optional
+        Frequencies of each channel's response (`frequency_grid`), between which
+        python-control interpolates its crossovers.
 
     Returns
     -------
@@ -271,7 +283,7 @@ def loop_margins(A: Any, B_in: Any, C_out: Any, ts: float | None = None) -> Loop
     m = B.shape[1]
     Acl = A - B @ C
     stable = _is_stable(Acl, ts)
-    channels = tuple(_channel(A, B, C, i, ts) for i in range(m))
+    channels = tuple(_channel(A, B, C, i, ts, points) for i in range(m))
     # S = (I + L)^{-1} = I - C (sI - A + B C)^{-1} B: ||S||_inf = 1 / min sigma(I + L)
     s_norm = hinf_norm(Acl, B, -C, np.eye(m), dt=ts) if stable else float("inf")
     r = 1.0 / s_norm if np.isfinite(s_norm) and s_norm > 0 else 0.0
