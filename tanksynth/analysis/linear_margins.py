@@ -236,10 +236,23 @@ def _channel(A: np.ndarray, B: np.ndarray, C: np.ndarray, i: int, ts: float | No
     data = control.frd(sys, omega, smooth=True)
     with warnings.catch_warnings(), np.errstate(divide="ignore", invalid="ignore"):
         warnings.simplefilter("ignore", RuntimeWarning)
-        gm, pm, _, wpc, wgc, _ = control.stability_margins(data, method="frd")
-        # every gain crossover: the delay margin is the smallest phase margin / crossover frequency
-        _, pms, _, _, wgcs, _ = control.stability_margins(data, returnall=True, method="frd")
-    gm, pm, wpc, wgc = (float(v) for v in (gm, pm, wpc, wgc))
+        gms, pms, _, wpcs, wgcs, _ = control.stability_margins(data, returnall=True, method="frd")
+    gms, pms, wpcs, wgcs = (np.atleast_1d(np.asarray(v, dtype=float)) for v in (gms, pms, wpcs, wgcs))
+    # python-control's choice without returnall: the gain margin nearest 1 (in log), the smallest |pm|
+    gm, wpc, pm, wgc = float("inf"), float("nan"), float("inf"), float("nan")
+    if gms.size:
+        j = int(np.argmin(np.abs(np.log(gms))))
+        gm, wpc = float(gms[j]), float(wpcs[j])
+    if pms.size:
+        j = int(np.argmin(np.abs(pms)))
+        pm, wgc = float(pms[j]), float(wgcs[j])
+    # every gain crossover: the delay margin is the smallest phase margin / crossover frequency
+    if ts is not None:     # the grid stops short of the Nyquist frequency, where L(-1) may be real
+        nyquist = complex(np.squeeze(sys(-1.0)))
+        if nyquist.real < 0 and abs(nyquist.imag) <= 1e-9 * abs(nyquist):
+            at_nyquist = -1.0 / nyquist.real
+            if not np.isfinite(gm) or abs(np.log(at_nyquist)) < abs(np.log(gm)):
+                gm, wpc = at_nyquist, np.pi / float(ts)
     delays = []
     for p, w in zip(np.atleast_1d(pms), np.atleast_1d(wgcs)):
         if np.isfinite(p) and np.isfinite(w) and w > 0:
@@ -249,7 +262,7 @@ def _channel(A: np.ndarray, B: np.ndarray, C: np.ndarray, i: int, ts: float | No
     return ChannelMargins(i, gm, float(gm_db), pm, float(delay), wgc, wpc)
 
 
-def loop_margins(A: Any, B_in: Any, C_out: Any, ts: float | None = None, points: int = 2000) -> LoopMargins:
+def loop_margins(A: Any, B_in: Any, C_out: Any, ts: float | None = None, points: int = 800) -> LoopMargins:
     """Margins of ``L = C_out (sI - A)^{-1} B_in`` broken at its channels (negative feedback).
 
     For state feedback pass ``(A, B, K)`` (`input_loop`), for an observer
@@ -352,7 +365,7 @@ def loop_frequency_response(A: Any, B_in: Any, C_out: Any, ts: float | None = No
 
 
 def closed_loop_step(A: Any, B: Any, C: Any, ts: float | None = None, points: int = 400) -> StepResponse:
-    """Unit-step responses of the stable linear system ``(A, B, C)`` until about five time constants.
+    """Unit-step responses of the linear system ``(A, B, C)`` over eight of its slowest time constants.
 
     Parameters
     ----------
@@ -376,7 +389,7 @@ def closed_loop_step(A: Any, B: Any, C: Any, ts: float | None = None, points: in
     eig = np.linalg.eigvals(A)
     rates = -eig.real if ts is None else -np.log(np.maximum(np.abs(eig), 1e-300)) / float(ts)
     slowest = float(np.min(rates)) if rates.size else 1.0
-    horizon = 5.0 / slowest if slowest > 0 else 10.0 * (ts or 1.0)
+    horizon = 8.0 / slowest if slowest > 0 else 10.0 * (ts or 1.0)
     if ts is None:
         t = np.linspace(0.0, horizon, int(points))
     else:

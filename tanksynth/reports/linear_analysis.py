@@ -268,8 +268,8 @@ def _draw(loops: Sequence[LinearLoop], directory: Path, stem: str, name: str) ->
                 if drawn >= 12:
                     break
                 y = step.outputs[i, k]
-                label = f"{loop.step_outputs[i] if i < len(loop.step_outputs) else i + 1} <- " \
-                        f"{loop.step_inputs[k] if k < len(loop.step_inputs) else k + 1}"
+                label = (f"{loop.step_inputs[k] if k < len(loop.step_inputs) else k + 1} \u2192 "
+                         f"{loop.step_outputs[i] if i < len(loop.step_outputs) else i + 1}")
                 if loop.ts is None:
                     ax.plot(step.time, y, linewidth=1.0, label=label)
                 else:
@@ -283,10 +283,11 @@ def _draw(loops: Sequence[LinearLoop], directory: Path, stem: str, name: str) ->
         ax.legend(fontsize=6, frameon=False)
         fr = loop_frequency_response(loop.A, loop.B_in, loop.C_out, loop.ts)
         bx = fig.add_subplot(2, cols, cols + j + 1)
-        for curve, label in ((fr.loop, "L"), (fr.sensitivity, "S = (I+L)^-1"),
-                             (fr.complementary, "T = L (I+L)^-1")):
+        several = loop.B_in.shape[1] > 1
+        for curve, sym, words in ((fr.loop, "L", "loop"), (fr.sensitivity, "S", "sensitivity"),
+                                  (fr.complementary, "T", "complementary sensitivity")):
             bx.semilogx(fr.omega, 20.0 * np.log10(np.maximum(curve, 1e-300)), linewidth=1.0,
-                        label=f"max sigma({label})" if loop.B_in.shape[1] > 1 else f"|{label}|")
+                        label=(rf"$\bar{{\sigma}}({sym})$" if several else f"$|{sym}|$") + f" {words}")
         bx.axhline(0.0, color="0.5", linewidth=0.6)
         bx.set_ylim(max(bx.get_ylim()[0], -120.0), bx.get_ylim()[1])
         bx.set_title(f"{loop.kind}: Bode magnitude" + (f" (z, ts = {loop.ts:g} s)" if loop.ts else ""),
@@ -294,7 +295,7 @@ def _draw(loops: Sequence[LinearLoop], directory: Path, stem: str, name: str) ->
         bx.set_xlabel("frequency [rad/s]", fontsize=8)
         bx.set_ylabel("magnitude [dB]", fontsize=8)
         bx.tick_params(labelsize=7)
-        bx.grid(linewidth=0.3, color="0.85", which="both")
+        bx.grid(linewidth=0.3, color="0.85")
         bx.legend(fontsize=6, frameon=False)
     fig.subplots_adjust(left=0.12 if cols == 1 else 0.08, right=0.97, top=0.94, bottom=0.09,
                         hspace=0.45, wspace=0.3)
