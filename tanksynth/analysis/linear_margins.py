@@ -91,7 +91,7 @@ class LoopMargins:
         ``min over w of sigma_min(I + L(jw))`` = ``1 / ||(I + L)^{-1}||_inf``
         (dimensionless; 0 when the closed loop is unstable).
     guaranteed_gain : tuple of float
-        Simultaneous, independent gain factors in every channel that keep the loop stable,
+        Simultaneous, independent gain factors (dimensionless) in every channel that keep the loop stable,
         ``(1 / (1 + r), 1 / (1 - r))`` with ``r = min_return_difference`` (``inf`` upper end
         when ``r >= 1``).
     guaranteed_phase_deg : float
@@ -390,10 +390,8 @@ def closed_loop_step(A: Any, B: Any, C: Any, ts: float | None = None, points: in
     rates = -eig.real if ts is None else -np.log(np.maximum(np.abs(eig), 1e-300)) / float(ts)
     slowest = float(np.min(rates)) if rates.size else 1.0
     horizon = 8.0 / slowest if slowest > 0 else 10.0 * (ts or 1.0)
-    if ts is None:
-        t = np.linspace(0.0, horizon, int(points))
-    else:
-        t = np.arange(0, min(int(np.ceil(horizon / ts)), 10000) + 1) * float(ts)
+    t = (np.linspace(0.0, horizon, int(points)) if ts is None
+         else np.arange(0, min(int(np.ceil(horizon / ts)), 10000) + 1) * float(ts))
     sys = control.ss(A, B, C, np.zeros((C.shape[0], B.shape[1])), 0 if ts is None else float(ts))
     res = control.step_response(sys, T=t)
     y = np.asarray(res.outputs).reshape(C.shape[0], B.shape[1], -1)

@@ -191,7 +191,8 @@ def linear_loops(art: Mapping[str, Any], rec: Mapping[str, Any]) -> tuple[Linear
         out.append(LinearLoop("state feedback", A, B, K, inputs, A - B @ K, B, C, inputs, outputs,
                               "a unit step of the input disturbance at each plant input", ts))
     elif K is not None and K.shape[0] == m and K.shape[1] > n:
-        integral = diag.get("integral") if isinstance(diag.get("integral"), Mapping) else {}
+        found = diag.get("integral")
+        integral: Mapping[str, Any] = found if isinstance(found, Mapping) else {}
         Aa, C1, Br = (_matrix(v) for v in (integral.get("augmented_A"), integral.get("C1"), gains.get("Br")))
         na = K.shape[1]
         if Aa is not None and Aa.shape == (na, na) and C1 is not None and C1.shape[1] == n:
