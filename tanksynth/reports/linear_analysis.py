@@ -37,6 +37,7 @@ from tanksynth.analysis.statespace import model_names
 from tanksynth.artefacts.atomic import atomic_write
 from tanksynth.reports.figures import FigureFile
 from tanksynth.reports.latex import Tex, escape_latex, format_number
+from tanksynth.verify.numerics import integral_augmentation
 
 __all__ = ["LinearLoop", "LinearAnalysisView", "linear_loops", "linear_analysis_view",
            "linear_analysis_views"]
@@ -195,6 +196,10 @@ def linear_loops(art: Mapping[str, Any], rec: Mapping[str, Any]) -> tuple[Linear
         integral: Mapping[str, Any] = found if isinstance(found, Mapping) else {}
         Aa, C1, Br = (_matrix(v) for v in (integral.get("augmented_A"), integral.get("C1"), gains.get("Br")))
         na = K.shape[1]
+        if Aa is None and C1 is not None and C1.shape == (na - n, n):
+            # no recorded augmentation: z' = r - C1 x, or z+ = z + ts (r - C1 x) (as the verdict builds it)
+            Aa = integral_augmentation(A, B, C1, ts)[0]
+            Br = np.vstack([np.zeros((n, na - n)), (ts or 1.0) * np.eye(na - n)])
         if Aa is not None and Aa.shape == (na, na) and C1 is not None and C1.shape[1] == n:
             Ba = np.vstack([B, np.zeros((na - n, m))])
             if Br is None or Br.shape[0] != na:

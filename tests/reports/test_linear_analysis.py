@@ -136,3 +136,16 @@ def test_the_pdf_has_the_linear_analysis(example_pdfs):
     for words in ("Linear analysis", "Gain margin", "Phase margin", "Delay margin",
                   "return difference", "Bode magnitude", "step response"):
         assert words in text, words
+
+
+def test_integral_servo_without_a_recorded_augmentation():
+    """A robust integral design records only C1: z+ = z + ts (r - C1 x) closes Aa - Ba K."""
+    K = [[0.5, 0.2]]
+    art = _artefact({"Ad": [[0.9]], "Bd": [[1.0]], "C": [[1.0]], "K": K}, time_domain="discrete", ts=2.0,
+                    integral={"tracked": ["h1"], "C1": [[1.0]]})
+    (loop,) = linear_loops(art, _REC)
+    assert loop.kind == "integral servo" and loop.step_outputs == ("h1",)
+    Aa = np.array([[0.9, 0.0], [-2.0, 1.0]])
+    np.testing.assert_allclose(loop.A, Aa)
+    np.testing.assert_allclose(loop.step_A, Aa - np.array([[1.0], [0.0]]) @ np.array(K))
+    np.testing.assert_allclose(loop.step_B, [[0.0], [2.0]])
