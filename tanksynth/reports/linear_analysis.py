@@ -187,10 +187,17 @@ def linear_loops(art: Mapping[str, Any], rec: Mapping[str, Any]) -> tuple[Linear
     inputs = _names(rec, "inputs", m, "u")
     outputs = _names(rec, "outputs", C.shape[0], "y")
     out: list[LinearLoop] = []
+    u_op = _matrix(gains.get("u_op", (rec.get("linearization") or {}).get("u0")))
+    # disturbance steps of 10 % of the operating input (a unit step of 1 m^3/s means nothing for a
+    # tank); a unit step where the operating input is unknown or zero
+    if u_op is not None and u_op.size == m and np.all(u_op != 0):
+        scale, step_words = 0.1 * np.abs(u_op.ravel()), "a step of 10 % of the operating input"
+    else:
+        scale, step_words = np.ones(m), "a unit step"
     K = _matrix(gains.get("K"))
     if K is not None and K.shape == (m, n):
-        out.append(LinearLoop("state feedback", A, B, K, inputs, A - B @ K, B, C, inputs, outputs,
-                              "a unit step of the input disturbance at each plant input", ts))
+        out.append(LinearLoop("state feedback", A, B, K, inputs, A - B @ K, B * scale, C, inputs, outputs,
+                              f"{step_words} as an input disturbance at each plant input", ts))
     elif K is not None and K.shape[0] == m and K.shape[1] > n:
         found = diag.get("integral")
         integral: Mapping[str, Any] = found if isinstance(found, Mapping) else {}
@@ -215,9 +222,9 @@ def linear_loops(art: Mapping[str, Any], rec: Mapping[str, Any]) -> tuple[Linear
                                   tracked_names, "a unit step of each reference", ts))
     Lg = _matrix(gains.get("L"))
     if Lg is not None and Lg.shape == (n, C.shape[0]):
-        out.append(LinearLoop("observer", A, Lg, C, outputs, A - Lg @ C, B, C, inputs,
+        out.append(LinearLoop("observer", A, Lg, C, outputs, A - Lg @ C, B * scale, C, inputs,
                               tuple(f"{o} error" for o in outputs),
-                              "a unit step of an unmeasured input disturbance at each plant input", ts))
+                              f"{step_words} as an unmeasured input disturbance at each plant input", ts))
     return tuple(out)
 
 
@@ -283,7 +290,7 @@ def _draw(loops: Sequence[LinearLoop], directory: Path, stem: str, name: str) ->
                 drawn += 1
         ax.set_title(f"{loop.kind}: step response", fontsize=8)
         ax.set_xlabel("time [s]", fontsize=8)
-        ax.set_ylabel("output per unit step", fontsize=8)
+        ax.set_ylabel("response [output units]", fontsize=8)
         ax.tick_params(labelsize=7)
         ax.grid(linewidth=0.3, color="0.85")
         ax.legend(fontsize=6, frameon=False)
@@ -293,7 +300,7 @@ def _draw(loops: Sequence[LinearLoop], directory: Path, stem: str, name: str) ->
         for curve, sym, words in ((fr.loop, "L", "loop"), (fr.sensitivity, "S", "sensitivity"),
                                   (fr.complementary, "T", "complementary sensitivity")):
             bx.semilogx(fr.omega, 20.0 * np.log10(np.maximum(curve, 1e-300)), linewidth=1.0,
-                        label=(rf"$\bar{{\sigma}}({sym})$" if several else f"$|{sym}|$") + f" {words}")
+                        label=(f"max \u03c3({sym})" if several else f"|{sym}|") + f" {words}")
         bx.axhline(0.0, color="0.5", linewidth=0.6)
         bx.set_ylim(max(bx.get_ylim()[0], -120.0), bx.get_ylim()[1])
         bx.set_title(f"{loop.kind}: Bode magnitude" + (f" (z, ts = {loop.ts:g} s)" if loop.ts else ""),
