@@ -502,7 +502,8 @@ def build_context(inputs: ReportInputs, figures: Mapping[str, FigureFile],
                   paper: Sequence[PaperComparison],
                   traces: Mapping[str, tuple[TraceFigure, ...] | TraceFigure | None] | None = None, *,
                   statements: Mapping[str, Callable[[Mapping[str, Any]], Tex]],
-                  regions: Mapping[str, FigureFile] | None = None) -> dict[str, Any]:
+                  regions: Mapping[str, FigureFile] | None = None,
+                  linear: Mapping[str, Any] | None = None) -> dict[str, Any]:
     """Everything the templates need, formatted (no file is written).
 
     Parameters
@@ -518,6 +519,8 @@ def build_context(inputs: ReportInputs, figures: Mapping[str, FigureFile],
         Problem statement of each method (`tanksynth.methods.STATEMENTS`).
     regions : mapping of artefact name to FigureFile, optional
         Certified-region figures (`tanksynth.reports.ts_figures.region_figures`).
+    linear : mapping of artefact name to LinearAnalysisView, optional
+        Linear analysis of the verified loops (`tanksynth.reports.linear_analysis`).
     """
     rec = inputs.plant
     title = rec.get("title") or f"Design report: {rec.get('plant', {}).get('name', '')}"
@@ -581,4 +584,6 @@ def build_context(inputs: ReportInputs, figures: Mapping[str, FigureFile],
         "trace_extras": trace_extras,
         "paper": paper,
         "n_errata": n_err,
+        "linear": {name: {"view": v, "caption": prose_latex(v.figure.caption, literal=(name,))}
+                   for name, v in (linear or {}).items()},
     }

@@ -23,6 +23,7 @@ from tanksynth.errors import ArtefactError, ReportError
 from tanksynth.reports.context import build_context, drawn_usable, trace_figures
 from tanksynth.reports.figures import FigureFile, TraceFigure, eigenvalue_sets, pole_map
 from tanksynth.reports.ts_figures import region_figures
+from tanksynth.reports.linear_analysis import LinearAnalysisView, linear_analysis_views
 from tanksynth.reports.inputs import ReportInputs, read_report_inputs
 from tanksynth.reports.comparison import PaperComparison
 from tanksynth.reports.latex import Tex, environment
@@ -102,7 +103,8 @@ def render_report(inputs: ReportInputs, figures: dict[str, FigureFile] | None = 
                   comparisons: tuple[PaperComparison, ...] | None = None,
                   traces: dict[str, tuple[TraceFigure, ...]] | None = None, *,
                   statements: Mapping[str, Callable[[Mapping[str, Any]], Tex]],
-                  regions: dict[str, FigureFile] | None = None) -> str:
+                  regions: dict[str, FigureFile] | None = None,
+                  linear: dict[str, LinearAnalysisView] | None = None) -> str:
     """The LaTeX source of the report (no file is written).
 
     Parameters
@@ -119,11 +121,14 @@ def render_report(inputs: ReportInputs, figures: dict[str, FigureFile] | None = 
         Problem statement of each design method (`tanksynth.methods.STATEMENTS`).
     regions : dict of artefact name to FigureFile, optional
         Certified-region figures of the TS PDC designs (none when omitted).
+    linear : dict of artefact name to LinearAnalysisView, optional
+        Linear analysis (margins, step, Bode) of the verified loops
+        (`tanksynth.reports.linear_analysis.linear_analysis_views`; none when omitted).
     """
     if comparisons is None:
         comparisons = compare_with_papers(inputs)
     ctx = build_context(inputs, figures or {}, comparisons, traces, statements=statements,
-                        regions=regions)
+                        regions=regions, linear=linear)
     return environment().get_template("report.tex.j2").render(**ctx)
 
 
@@ -188,7 +193,9 @@ def write_report(directory: str | Path, pdf: bool = False, timeout: float = 180.
                 stale.unlink(missing_ok=True)
     traces = trace_figures(inputs, drawn)
     regions = region_figures(inputs)
-    tex = render_report(inputs, figures, comparisons, traces, statements=statements, regions=regions)
+    linear = linear_analysis_views(inputs)
+    tex = render_report(inputs, figures, comparisons, traces, statements=statements, regions=regions,
+                        linear=linear)
     tex_path = d / "report.tex"
     pdf_path = d / "report.pdf"
     log_path = d / "report.log"
@@ -221,7 +228,8 @@ def write_report(directory: str | Path, pdf: bool = False, timeout: float = 180.
             shutil.rmtree(build, ignore_errors=True)
     else:
         _atomic_write_text(tex_path, tex)
-    drawn_files = [f.path for f in figures.values()] + [f.path for figs in traces.values() for f in figs]
+    drawn_files = [f.path for f in figures.values()] + [f.path for figs in traces.values() for f in figs] \
+        + [v.figure.path for v in linear.values()]
     return ReportResult(tex_path, out_pdf, out_log, tuple(drawn_files),
                         comparisons, pages, time.perf_counter() - start, latex_seconds)
 
