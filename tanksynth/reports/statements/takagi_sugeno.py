@@ -99,7 +99,8 @@ def _observer(design: PdcDesign) -> str:
                 r"\sum_j \mu_j(y) L_j (y - C\hat x)$ designed separately (separation holds: "
                 r"$\dot\varepsilon = \sum_{ij}\mu_i\mu_j (A_i - L_j C)\varepsilon$).")
     else:
-        text = (r" Estimated premises: observer of seed 001 (premises at the estimate) with LMI (28) "
+        text = (r" Estimated premises: observer of seed 001 (premises at the estimate) with the observer LMI "
+                r"$\begin{bmatrix} A_0^\top P_o + P_o A_0 - C^\top K^\top - K C + \psi^2 Q & P_o \\ P_o & -Q \end{bmatrix} \prec 0$, $L = P_o^{-1} K$, "
                 r"for $\psi$ the Lipschitz bound of the remainder; the controller uses the all-pairs "
                 r"conditions (two-step design).")
         if design.observer_psi is not None:
