@@ -14,6 +14,7 @@ from tanksynth.reports.diagnostics.common import Diagnostics
 from tanksynth.reports.diagnostics.takagi_sugeno import (PdcDesign, certified_region_of, pdc_design_of,
                                                           setpoint_change_of)
 from tanksynth.reports.latex import escape_latex, format_number
+from tanksynth.reports.prose import prose_latex
 from tanksynth.reports.statements.common import problem_statement
 
 __all__ = ["ts_state_feedback_statement", "ts_output_feedback_statement"]
@@ -61,7 +62,7 @@ def _region(diag: Diagnostics) -> str:
     text = (rf" Certified region $\{{x : (x - x_0)^\top P (x - x_0) \le {format_number(region.c)}\}}$"
             r" (inside the TS domain, pumps unsaturated)")
     if region.binding:
-        text += ", bound by " + escape_latex(region.binding)
+        text += ", bound by " + prose_latex(region.binding.replace("+ -", "- "))
     if region.extents is not None and len(region.extents) == len(region.states):
         text += "; largest deviations " + ", ".join(
             f"${escape_latex(s)}$: {format_number(v)} m" for s, v in zip(region.states, region.extents))

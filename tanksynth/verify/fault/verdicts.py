@@ -528,8 +528,9 @@ def fault_detection_verdict(doc: Mapping[str, Any], spec: Spec, *,
         diffs = [None if (d is None or s is None) else abs(d - s) for d, s in zip(detect, stored)]
         ok_d = all(d is not None and t_f < d <= t_f + FAULT_HORIZON for d in detect) and \
             all(df is None or df <= FAULT_TIME_TOLERANCE for df in diffs)
-        thr_name = ("sum_i |c_i| exp(lambda_i t), every term positive (conservative)" if sc.conservative
-                    else "sum_i c_i exp(lambda_i t) (exact)")
+        thr_name = ("the sum of |c_i| exp(lambda_i t) over the error modes i (every term positive, "
+                    "conservative)" if sc.conservative
+                    else "the sum of c_i exp(lambda_i t) over the error modes i (exact)")
         starts_text = "; ".join(f"start {i + 1} at ({', '.join(f'{v:.4g}' for v in row)})"
                                 for i, row in enumerate(starts))
         setup = (f"{R} initial states ({sc.starts_source}: {starts_text}), observer from x_hat = {lo:g}, "
@@ -554,7 +555,8 @@ def fault_detection_verdict(doc: Mapping[str, Any], spec: Spec, *,
                                          "slack": slack, "transient_s": t_skip, "ts": ts,
                                          "starts": starts.tolist()}),
             Check("fault_detected", bool(ok_d),
-                  f"{setup}: fault delta_bar = {delta_bar:g} from t_f = {t_f:g} s: detection at "
+                  f"the runs of the false-alarm check with a fault delta_bar = {delta_bar:g} from "
+                  f"t_f = {t_f:g} s: detection at "
                   f"t_d = {td} (must lie in ({t_f:g}, {t_f + FAULT_HORIZON:g}] s){sd}",
                   {"t_detect": detect, "stored": stored, "differences": diffs, "t_fault": t_f,
                    "delta_bar": delta_bar, "horizon_s": FAULT_HORIZON,
