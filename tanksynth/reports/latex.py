@@ -362,7 +362,8 @@ def symbol_latex(name: Any) -> Tex:
 #: artefact keys and plain-text names -> math-mode LaTeX (also valid matplotlib mathtext).
 NOTATION = {"x_op": "x_0", "u_op": "u_0", "y_op": "y_0", "x0": "x_0", "u0": "u_0",
             "x_op2": r"x_0^{\prime}", "u_op2": r"u_0^{\prime}", "x_hat": r"\hat{x}",
-            "x_hat0": r"\hat{x}_0", "y_hat": r"\hat{y}"}
+            "x_hat0": r"\hat{x}_0", "y_hat": r"\hat{y}",
+            "sp_x_op": r"x_0^{\prime}", "sp_u_op": r"u_0^{\prime}"}   # the set-point design's gains
 
 
 def notation_symbol(key: Any) -> Tex | None:

@@ -383,9 +383,9 @@ def fault_scenario(doc: Mapping[str, Any], spec: Spec) -> FaultScenario:
     recorded = [d.get("x0") for d in (_recorded(doc, "detections") or [])
                 if isinstance(d, Mapping)]
     if declared is not None:
-        starts, source = declared, "written in the spec"
+        starts, source = declared, "the spec's initial_states"
     elif recorded and all(isinstance(x, list) for x in recorded):
-        starts, source = recorded, "recorded with the stored detection times"
+        starts, source = recorded, "the initial states recorded with the stored detection times"
     else:
         starts = rule_initial_states(operating_point(spec)[0], lo, hi)
         source = (f"the rule: operating point, operating point +- {FAULT_START_OFFSET:g} (hi - lo) "
@@ -533,7 +533,7 @@ def fault_detection_verdict(doc: Mapping[str, Any], spec: Spec, *,
                     else "the sum of c_i exp(lambda_i t) over the error modes i (exact)")
         starts_text = "; ".join(f"start {i + 1} at ({', '.join(f'{v:.4g}' for v in row)})"
                                 for i, row in enumerate(starts))
-        setup = (f"{R} initial states ({sc.starts_source}: {starts_text}), observer from x_hat = {lo:g}, "
+        setup = (f"{R} starts ({sc.starts_source}: {starts_text}), observer from x_hat = {lo:g}, "
                  f"input: {sc.inputs_source}; sampled every {ts:g} s (4 RK4 substeps), stored Psi, "
                  f"threshold {thr_name} from the stored coefficients and rates")
         td = ", ".join("none" if d is None else f"{d:.5g} s" for d in detect)
@@ -555,8 +555,7 @@ def fault_detection_verdict(doc: Mapping[str, Any], spec: Spec, *,
                                          "slack": slack, "transient_s": t_skip, "ts": ts,
                                          "starts": starts.tolist()}),
             Check("fault_detected", bool(ok_d),
-                  f"the runs of the false-alarm check with a fault delta_bar = {delta_bar:g} from "
-                  f"t_f = {t_f:g} s: detection at "
+                  f"{setup}: fault delta_bar = {delta_bar:g} from t_f = {t_f:g} s: detection at "
                   f"t_d = {td} (must lie in ({t_f:g}, {t_f + FAULT_HORIZON:g}] s){sd}",
                   {"t_detect": detect, "stored": stored, "differences": diffs, "t_fault": t_f,
                    "delta_bar": delta_bar, "horizon_s": FAULT_HORIZON,
