@@ -101,8 +101,8 @@ RAW = {
 def _body(pdf: Path) -> str:
     text = subprocess.run(["pdftotext", "-layout", str(pdf), "-"], check=True, capture_output=True,
                           text=True).stdout
-    heads = list(re.finditer(r"^A\s+Spec\s*$", text, flags=re.M))
-    assert heads, "no spec appendix heading"
+    heads = list(re.finditer(r"^\s*A\s+Spec\s*$", text, flags=re.M))
+    assert heads, f"no spec appendix heading in {text[-3000:]!r}"
     return text[:heads[-1].start()]     # the appendix is the user's spec, verbatim
 
 
@@ -111,7 +111,8 @@ def _body(pdf: Path) -> str:
 @pytest.mark.parametrize("example", ["seed004_fault_detection", "quadruple_tank_sensor_gain",
                                      "seed001_ts_observer", "seed000_pole_placement"])
 def test_report_text_has_no_raw_keys(example, tmp_path):
-    assert main(["run", str(_ROOT / "examples" / f"{example}.toml"), "-o", str(tmp_path), "--pdf"]) == 0
+    # seed 001's printed observer gain fails its verdict (exit 1): the report is written all the same
+    assert main(["run", str(_ROOT / "examples" / f"{example}.toml"), "-o", str(tmp_path), "--pdf"]) in (0, 1)
     text = _body(tmp_path / "report.pdf")
     for what, pattern in RAW.items():
         hits = [text[max(0, m.start() - 50):m.end() + 50] for m in pattern.finditer(text)]
