@@ -2,13 +2,20 @@
 PYTHON ?= python3
 VENV   := .venv
 PY     := $(VENV)/bin/python
+# Two stamps: the runtime install (`make demo` needs nothing more) and the development tools on
+# top of it (pytest, mypy, Sphinx, ...: `make test`, `test-fast`, `bench`, `fuzz`).
+RUNTIME_STAMP := $(VENV)/.runtime-installed
 STAMP  := $(VENV)/.installed
 
 .PHONY: demo test test-fast fuzz bench tex clean docs bytecode
 
-$(STAMP): pyproject.toml
+$(RUNTIME_STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
+	$(PY) -m pip install --quiet -e .
+	touch $(RUNTIME_STAMP)
+
+$(STAMP): $(RUNTIME_STAMP) pyproject.toml
 	$(PY) -m pip install --quiet -e '.[dev]'
 	touch $(STAMP)
 
@@ -17,7 +24,7 @@ $(STAMP): pyproject.toml
 # Checked-hash .pyc files: every import compares the source's hash, so a stale .pyc is never
 # used (a timestamp .pyc keys on mtime in whole seconds and size: an edit of the same size in the
 # second of compiling kept the old code). Every module is compiled again each time (~0.5 s).
-bytecode: $(STAMP)
+bytecode: $(RUNTIME_STAMP)
 	@$(PY) -m compileall -q --invalidation-mode checked-hash tanksynth
 
 # pdflatex/latexmk/pdftotext for the reports and a C compiler (exported laws, the simulator's
@@ -30,7 +37,7 @@ tex:
 			texlive-latex-base texlive-latex-recommended latexmk poppler-utils gcc libc6-dev >/dev/null; \
 	fi
 
-demo: $(STAMP) bytecode
+demo: $(RUNTIME_STAMP) bytecode
 	$(VENV)/bin/tanksynth run -o tanksynth-demo
 
 # import-linter contracts (.importlinter: layers, verify never imports design, papers only

@@ -362,7 +362,8 @@ def cli(verbose: bool) -> None:
                                                "plant as Markdown (the README's text).")
 def plants(as_json: bool, markdown: bool) -> None:
     """List the plant families: their options, parameters and units, and the custom plant."""
-    from tanksynth.docgen import custom_plant_markdown, plant_families, plants_markdown
+    from tanksynth.docgen import (custom_plant_markdown, plain_text, plant_families,
+                                  plant_variants_markdown, plants_markdown)
     from tanksynth.plants import BUILTIN_PLANTS
 
     if markdown:
@@ -388,11 +389,13 @@ def plants(as_json: bool, markdown: bool) -> None:
                    + "; outputs: " + ", ".join(f"{v['name']} [{v['unit']}]" for v in s["outputs"]))
         _out.print(signals, markup=False, highlight=False)
         options = families[s["name"]]["options"]
-        _out.print("options ([plant] keys): " + ("; ".join(
-            f"{o['name']} = {o['default']} ({o['type']}): {o['meaning']}" for o in options)
-            if options else "none"), markup=False, highlight=False)
+        _out.print(plain_text("options ([plant] keys): " + ("; ".join(
+            f"{o['name']} = {o['default']} ({o['type']}): {o['meaning'].rstrip('.')}" for o in options)
+            if options else "none")), markup=False, highlight=False)
+        for line in plant_variants_markdown(families[s["name"]]):
+            _out.print(plain_text(line), markup=False, highlight=False)
         _out.print()
-    _out.print(custom_plant_markdown(level=2), markup=False, highlight=False)
+    _out.print(plain_text(custom_plant_markdown(level=2)), markup=False, highlight=False)
 
 
 @cli.command()

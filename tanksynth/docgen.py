@@ -23,7 +23,7 @@ from tanksynth.errors import SpecError
 from tanksynth.spec.method_options.base import numpydoc_section
 
 __all__ = ["method_catalogue", "method_options", "methods_markdown", "method_markdown", "option_cells",
-           "plant_families", "plants_markdown", "plant_markdown", "custom_plant_markdown",
+           "plant_families", "plants_markdown", "plain_text", "plant_variants_markdown", "plant_markdown", "custom_plant_markdown",
            "gain_names_markdown", "GENERATED_SECTIONS", "generated_section", "update_readme",
            "write_pages", "main"]
 
@@ -180,8 +180,69 @@ def plant_families() -> list[dict[str, Any]]:
             options.append({"name": p.name, "type": typ, "default": repr(p.default), "meaning": text})
         summary = builder().summary()
         out.append({"name": name, "description": summary["description"], "options": options,
+                    "variants": _variants(builder, options, summary["parameters"]),
                     **{k: summary[k] for k in ("states", "inputs", "outputs", "parameters")}})
     return out
+
+
+def _variants(builder: Callable[..., Any], options: Sequence[dict[str, Any]],
+              defaults: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
+    """The parameter values that differ from the defaults, for each choice of an option whose
+    type lists its choices (``{"a", "b"}``, e.g. ``parameter_set``).
+
+    Returns
+    -------
+    list of dict
+        ``{"option", "choice", "parameters": [{"name", "value", "unit"}]}``; a choice that
+        changes no parameter value, or that the builder refuses with its other defaults, is
+        left out.
+    """
+    base = {p["name"]: p["value"] for p in defaults}
+    out = []
+    for o in options:
+        choices = re.findall(r'"([^"]+)"', o["type"]) if o["type"].lstrip().startswith("{") else []
+        for choice in choices:
+            if repr(choice) == o["default"]:
+                continue
+            try:
+                params = builder(**{o["name"]: choice}).summary()["parameters"]
+            except SpecError:
+                continue
+            changed = [{"name": p["name"], "value": p["value"], "unit": p["unit"]} for p in params
+                       if base.get(p["name"]) != p["value"]]
+            if changed:
+                out.append({"option": o["name"], "choice": choice, "parameters": changed})
+    return out
+
+
+def plain_text(text: str) -> str:
+    """Docstring or Markdown text for a terminal: without RST roles (``:math:`x```), double or
+    single backticks, directives (``.. note::``) and code fences (their lines indented instead).
+
+    Parameters
+    ----------
+    text : str
+        The marked-up text.
+
+    Returns
+    -------
+    str
+    """
+    lines, fenced = [], False
+    for line in str(text).splitlines():
+        if line.lstrip().startswith("```"):
+            fenced = not fenced
+            continue
+        if fenced:
+            lines.append("    " + line)
+            continue
+        if re.match(r"\s*\.\. ", line):
+            continue
+        line = re.sub(r":[a-z]+:`([^`]*)`", r"\1", line)
+        line = re.sub(r"^#+ ", "", line)
+        line = line.replace("``", "").replace("`", "")
+        lines.append(line)
+    return "\n".join(lines)
 
 
 def _signals(family: dict[str, Any]) -> str:
@@ -211,9 +272,35 @@ def plant_markdown(family: dict[str, Any], level: int = 3) -> str:
     else:
         lines.append("No options.")
     lines += ["", "With the defaults: " + _signals(family) + ". Parameters (override under "
-              "`[plant.parameters]`): " + ", ".join(f"`{p['name']}` [{p['unit']}]"
-                                                   for p in family["parameters"]) + ".", ""]
+              "`[plant.parameters]`):", ""]
+    lines += _table(("parameter", "value", "unit", "meaning"),
+                    [(f"`{p['name']}`", f"{p['value']:.6g}", p["unit"], p["description"])
+                     for p in family["parameters"]])
+    for line in plant_variants_markdown(family):
+        lines += ["", line]
+    lines.append("")
     return "\n".join(lines)
+
+
+def plant_variants_markdown(family: dict[str, Any]) -> list[str]:
+    """One Markdown line per option choice that changes parameter values (``With
+    `parameter_set = "johansson_min_phase"`: `k2` = 3.35 cm^3/(V s), ...``).
+
+    Parameters
+    ----------
+    family : dict
+        One entry of `plant_families`.
+
+    Returns
+    -------
+    list of str
+    """
+    def value(p: dict[str, Any]) -> str:
+        unit = "" if p["unit"] in ("", "1", "-") else " " + p["unit"]
+        return f"`{p['name']}` = {p['value']:.6g}{unit}"
+
+    return [f"With `{v['option']} = \"{v['choice']}\"`: " + ", ".join(value(p) for p in v["parameters"])
+            + "." for v in family.get("variants", ())]
 
 
 def custom_plant_markdown(level: int = 3) -> str:

@@ -100,3 +100,39 @@ def test_test_fast_arguments_make_pytest_leave_out_a_slow_test(tmp_path: Path) -
                           "-o", "markers=slow: long", "--rootdir", str(tmp_path), str(tmp_path)],
                          cwd=tmp_path, capture_output=True, text=True)
     assert "test_marks.py::test_short" in out.stdout and "test_long" not in out.stdout, out.stdout
+
+
+def _prerequisites(text: str, target: str) -> list[str]:
+    """The prerequisites of a Makefile rule (variables as written, e.g. ``$(STAMP)``)."""
+    rule = re.search(rf"^{re.escape(target)}:([^\n]*)$", text, re.MULTILINE)
+    assert rule is not None, f"no rule for {target}"
+    return rule.group(1).split()
+
+
+def test_demo_installs_only_the_runtime_dependencies() -> None:
+    """Issue 30 item 13: `make demo` on a fresh clone installed `.[dev]` (pytest, mypy, Sphinx,
+    dask, ...: 3 min). Everything `demo` builds, transitively, installs tanksynth without extras."""
+    text = (ROOT / "Makefile").read_text(encoding="utf-8")
+    seen, todo, installs = set(), ["demo"], []
+    while todo:
+        target = todo.pop()
+        if target in seen:
+            continue
+        seen.add(target)
+        installs += [line for line in _recipe(target) if "pip install" in line]
+        todo += [p for p in _prerequisites(text, target)      # those with a rule of their own
+                 if re.search(rf"^{re.escape(p)}:", text, re.MULTILINE)]
+    assert installs, "demo installs nothing: a fresh clone has no venv"
+    for line in installs:
+        assert not re.search(r"\.\[", line), f"demo installs extras: {line}"
+    # the development install builds on the runtime one (one venv, two stamps)
+    dev_prereqs = _prerequisites(text, "$(STAMP)")
+    assert "$(RUNTIME_STAMP)" in dev_prereqs, dev_prereqs
+
+
+def test_readme_states_the_demo_times_with_and_without_the_install() -> None:
+    readme = (ROOT / "README.md").read_text(encoding="utf-8")
+    para = re.search(r"`make demo` is the shortest complete story.*?\n\n", readme, re.S)
+    assert para is not None
+    assert re.search(r"fresh clone", para.group(0)) and len(re.findall(r"\d+ (?:s|min)\b", para.group(0))) >= 2, \
+        para.group(0)

@@ -175,7 +175,8 @@ def rank_conditions(plant: Plant, x0: npt.ArrayLike, ts: float | None = None,
         # Informative (None): a printed input that does not balance is an
         # erratum to report, not a failed rank condition.
         checks.append(Check("given_u0_balances", None,
-                            f"the spec's operating_point.u {verdict}: max |f(x_op, u)| = {bal:.3g} (state units/s)",
+                            f"the input u written in the spec's operating point {verdict}: max |f(x_op, u)| = {bal:.3g} "
+                            "(state units/s)",
                             {"residual": eq.given_residual.tolist()}))
     lin = linearize(plant, x0, eq.u0, ts=ts)
     checks.append(_kalman("controllability", controllability_rank(lin.F, lin.B)))

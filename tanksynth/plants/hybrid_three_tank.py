@@ -47,7 +47,7 @@ LPH = 1e-3 / 3600.0
 
 _QMAX = 240 * LPH          # rated pump flow, 240 lph = 6.6667e-5 m^3/s
 _HMAX = 0.55               # overflow height (m)
-_SOURCE = "seed 002 (Vellayikot & Vaidyan, JEET 2016), Tables 1-2; notes/plants.md section 1"
+_SOURCE = "seed 002 (Vellayikot & Vaidyan, JEET 2016), Tables 1-2"
 
 
 def _parameters() -> tuple[Parameter, ...]:
@@ -154,27 +154,27 @@ def hybrid_three_tank() -> Plant:
                 "from the rig description (7 hand valves, middle pipes at h0, Tables 1-2) with the "
                 "COSY/Sim3Tanks threshold-pipe physics: Q = k sgn(dh) sqrt(2 g |dh|), "
                 "z_i = sgn(max(h_i, h0) - max(h3, h0)), drains k sqrt(2 g max(h - hd, 0))",
-                kind="reconstructed", source="notes/plants.md 1.3-1.4"),
+                kind="reconstructed", source="COSY / Sim3Tanks three-tank benchmark physics"),
             Assumption(
                 "hd1, hd2 (drain heights of T1, T2) are not published: default 0 m; irrelevant "
                 "while valves 5 and 7 are closed (k5 = k7 = 0)",
-                kind="omitted", source="notes/plants.md 1.5"),
+                kind="omitted", source="seed 002 (not given)"),
             Assumption(
                 "hz (drain height of T3) is not published: default 0 m (bottom outlet as in "
                 "COSY/Sim3Tanks); it shifts the T3 equilibrium one-for-one",
-                kind="omitted", source="notes/plants.md 1.5"),
+                kind="omitted", source="seed 002 (not given)"),
             Assumption(
                 "pump law not published: the inputs are the pump flows themselves, assumed linear "
                 "in the 0-5 V command, Q = (V/5) 240 lph (48 lph per volt), saturated to 0-240 lph",
-                kind="omitted", source="notes/plants.md 1.5; seed 002 Table 2"),
+                kind="omitted", source="seed 002 Table 2 (pump law not given)"),
             Assumption(
                 "sampling time not published: 1 s recommended (time constants are minutes); set "
                 "it in the spec's [sampling] table",
-                kind="omitted", source="notes/plants.md 1.5"),
+                kind="omitted", source="seed 002 (not given)"),
             Assumption(
                 "process/measurement noise covariances and the initial covariance are not "
                 "published: chosen per design and declared in the spec",
-                kind="omitted", source="notes/plants.md 1.5"),
+                kind="omitted", source="seed 002 (not given)"),
             Assumption(
                 "levels are clipped to [0, 0.55] m (overflow height) by the simulator; the model "
                 "itself has no overflow term",
@@ -183,7 +183,7 @@ def hybrid_three_tank() -> Plant:
                 "sgn(x) sqrt(|x|) is continuous but not differentiable at x = 0 (equal levels, or a "
                 "level at h0); an EKF should freeze the mode (mode_vector_field) and regularise "
                 "the derivative near zero heads",
-                kind="modelling", source="notes/plants.md 1.3; seed 002 section 3"),
+                kind="modelling", source="seed 002 section 3"),
         ),
         hybrid=HybridModes(names=("a", "b", "c"), switching=(h1 - h0, h2 - h0, h3 - h0)),
         source=_SOURCE,

@@ -61,8 +61,8 @@ _JOHANSSON = {
 _SOURCE = {
     "decenter": "seed 003 (DECENTER N-tank network example, Pedroso et al. 2021); parameter "
                 "values of DECENTER's getConstantsNTankNetwork",
-    "johansson_min_phase": "Johansson, IEEE TCST 8(3):456-465, 2000, P- (notes/plants.md section 3)",
-    "johansson_nonmin_phase": "Johansson, IEEE TCST 8(3):456-465, 2000, P+ (notes/plants.md section 3)",
+    "johansson_min_phase": "Johansson, IEEE TCST 8(3):456-465, 2000, P- (Tables 1-2)",
+    "johansson_nonmin_phase": "Johansson, IEEE TCST 8(3):456-465, 2000, P+ (Tables 1-2)",
 }
 
 
@@ -104,8 +104,14 @@ def tank_network(N: int = 4, parameter_set: str = "decenter") -> Plant:
     N : int
         Number of tanks, even, ``4 <= N <= 256``; ``N/2`` pumps.
     parameter_set : {"decenter", "johansson_min_phase", "johansson_nonmin_phase"}
-        Parameter values and output map (see the module docstring). The
-        Johansson sets need ``N = 4``.
+        Parameter values and output map. "decenter": tank sections A 28/32
+        cm^2 (odd/even tank), outlets a 0.071/0.057 cm^2 (lower tanks) and
+        0.040 cm^2 (upper tanks), valve fractions gamma 0.7/0.6, pump gains
+        k 3.33 cm^3/(V s), every level measured (y = h, cm).
+        "johansson_min_phase" (P-): A 28/32 cm^2, a 0.071/0.057 cm^2,
+        gamma 0.70/0.60, k 3.33/3.35 cm^3/(V s); "johansson_nonmin_phase"
+        (P+): gamma 0.43/0.34, k 3.14/3.29 cm^3/(V s); both measure
+        y = kc (h1, h2) in V with kc = 0.5 V/cm and need N = 4.
 
     Returns
     -------
@@ -192,15 +198,15 @@ def tank_network(N: int = 4, parameter_set: str = "decenter") -> Plant:
     if johansson:
         assumptions += [
             Assumption("operating region [0, 20] cm per tank: the quadruple-tank tanks are about "
-                       "20 cm high", kind="modelling", source="notes/plants.md section 3"),
+                       "20 cm high", kind="modelling", source="Johansson 2000, Sec. 2 (laboratory process)"),
             Assumption("y = (kc h1, kc h2), kc = 0.5 V/cm: only the lower tanks are measured",
-                       kind="modelling", source="Johansson 2000; notes/plants.md section 3"),
+                       kind="modelling", source="Johansson 2000, Table 1"),
         ]
         if parameter_set == "johansson_nonmin_phase":
             assumptions.append(Assumption(
                 "k2 = 3.29 cm^3/(V s) for P+; several public scripts print 3.19, a typo: with "
                 "3.19 tanks 2 and 3 do not balance at the published P+ operating point",
-                kind="modelling", source="notes/plants.md section 3"))
+                kind="modelling", source="Johansson 2000, Tables 1-2"))
     else:
         assumptions += [
             Assumption("parameter values are not printed in seed 003; taken from the DECENTER "

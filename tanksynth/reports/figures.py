@@ -531,7 +531,7 @@ def _trace_figure(artefact: Mapping[str, Any], trace: Mapping[str, Any], directo
                            label=f"{snames[i] if i < len(snames) else i + 1} nonlinear")
                 lines.line(t, lin["prediction"][:, i], color=colors[i], linewidth=1.0, linestyle="--",
                            label=f"{snames[i] if i < len(snames) else i + 1} linear model")
-            ax.set_ylabel(f"deviation from x0 [{state_unit}]" if state_unit else "deviation from x0",
+            ax.set_ylabel(f"deviation from $x_0$ [{state_unit}]" if state_unit else "deviation from $x_0$",
                           fontsize=_LABEL_PT)
             ax.set_title("response to a small step: nonlinear plant (solid) and linear model (dashed); "
                          f"largest gap {100 * float(lin['gap']) / max(scale, 1e-300):.2g} %", fontsize=_LABEL_PT,
@@ -587,6 +587,8 @@ def _trace_figure(artefact: Mapping[str, Any], trace: Mapping[str, Any], directo
             what = "flow" if unit == "l/s" else "input"
             if panel == "disturbances":   # normalised: w = 1 is one declared standard deviation
                 what, unit = "disturbance w", "normalised"
+            if unit == "l/s":     # the text and tables give m^3/s: name the conversion on the axis
+                unit = r"l/s $= 10^{-3}\,$m$^3$/s"
             ax.set_ylabel(f"{what} [{unit}]" if unit else what, fontsize=_LABEL_PT)
             ax.set_title(f"{'declared disturbances' if panel == 'disturbances' else 'inputs'} (zero-order hold)",
                          fontsize=_TITLE_PT, y=1.0)

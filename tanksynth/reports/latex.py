@@ -32,8 +32,10 @@ __all__ = [
     "format_unit",
     "symbol_latex",
     "gain_symbol",
+    "notation_symbol",
     "expression_latex",
     "matrix_latex",
+    "round_relative",
     "gain_latex",
     "GainDisplay",
     "environment",
@@ -327,10 +329,12 @@ def format_unit(unit: Any) -> Tex:
 
 
 def _unit_sep(text: str) -> str:
+    """The separator between two unit tokens, character by character (``/(`` stays ``/(``)."""
     t = text.strip()
     if not t:
         return r"\," if text else ""
-    return {"/": "/", "*": r"\,", ".": r"\,", "(": "(", ")": ")", "-": "-"}.get(t, r"\,")
+    marks = {"/": "/", "*": r"\,", ".": r"\,", "(": "(", ")": ")", "-": "-", "^": "^"}
+    return "".join(marks.get(ch, "") for ch in t if not ch.isspace())
 
 
 _IDENT = re.compile(r"[A-Za-z][A-Za-z0-9_]*\Z")
@@ -354,6 +358,30 @@ def symbol_latex(name: Any) -> Tex:
     return Tex(r"\text{" + escape_latex(s) + "}")
 
 
+#: The report's one notation for the operating point, a second (set-point) one and the estimate:
+#: artefact keys and plain-text names -> math-mode LaTeX (also valid matplotlib mathtext).
+NOTATION = {"x_op": "x_0", "u_op": "u_0", "y_op": "y_0", "x0": "x_0", "u0": "u_0",
+            "x_op2": r"x_0^{\prime}", "u_op2": r"u_0^{\prime}", "x_hat": r"\hat{x}",
+            "x_hat0": r"\hat{x}_0", "y_hat": r"\hat{y}",
+            "sp_x_op": r"x_0^{\prime}", "sp_u_op": r"u_0^{\prime}"}   # the set-point design's gains
+
+
+def notation_symbol(key: Any) -> Tex | None:
+    """Math-mode LaTeX (without ``$``) of an operating-point or estimate name, None for others.
+
+    ``x_op`` and ``x0`` are both :math:`x_0`, ``x_op2`` is :math:`x_0'`, ``x_hat0`` is
+    :math:`\\hat x_0`: the notation of the report's statements. The same string is valid
+    matplotlib mathtext (figure legends and axis labels).
+
+    Parameters
+    ----------
+    key : str
+        The name (an artefact gain key or a word of plain text).
+    """
+    tex = NOTATION.get(str(key))
+    return Tex(tex) if tex is not None else None
+
+
 _GREEK_NAMES = {"alpha", "beta", "gamma", "delta", "epsilon", "kappa", "lambda", "mu", "nu", "rho",
                 "sigma", "tau", "phi", "psi", "omega", "Gamma", "Delta", "Lambda", "Phi", "Psi", "Omega"}
 
@@ -368,6 +396,9 @@ def gain_symbol(name: Any) -> Tex:
         Name of the gain.
     """
     s = str(name)
+    notation = notation_symbol(s)
+    if notation is not None:
+        return notation
     short = re.fullmatch(r"[A-Za-z]{1,2}\d{0,2}|[A-Za-z][A-Za-z0-9]?_[A-Za-z0-9]{1,3}", s)
     if short or s in _GREEK_NAMES or re.fullmatch(r"(%s)\d{0,2}" % "|".join(_GREEK_NAMES), s):
         return symbol_latex(s)
@@ -409,6 +440,36 @@ def expression_latex(text: Any) -> Tex | None:
 MAX_ROWS, MAX_COLS, MAX_VECTOR = 16, 12, 16
 
 
+#: Entries below this fraction of a matrix's largest entry print as 0 (round-off of a product
+#: such as ``A - B K``: ``1e-19`` beside entries of order 1 is no information).
+RELATIVE_ZERO = 1e-12
+
+
+def round_relative(arr: Any, relative: float = RELATIVE_ZERO) -> np.ndarray:
+    """A float copy of ``arr`` with entries below ``relative`` times its largest finite
+    magnitude set to 0.
+
+    Parameters
+    ----------
+    arr : array_like
+        The matrix or vector (its own units).
+    relative : float, optional
+        Threshold as a fraction of the largest finite ``|entry|`` (dimensionless).
+
+    Returns
+    -------
+    numpy.ndarray
+        Same shape; nonfinite entries are kept.
+    """
+    a = np.array(arr, dtype=float)
+    finite = np.isfinite(a)
+    if not finite.any():
+        return a
+    scale = float(np.max(np.abs(a[finite])))
+    a[finite & (np.abs(a) < relative * scale)] = 0.0
+    return a
+
+
 def _common_exponent(arr: np.ndarray) -> int:
     finite = np.abs(arr[np.isfinite(arr)])
     nz = finite[finite > 0]
@@ -429,10 +490,13 @@ def matrix_latex(arr: Any, digits: int = 5, factor: bool = True) -> Tex:
     factor : bool
         Pull a common power of ten out when the largest entry is below 1e-2
         or at least 1e5 (``10^{-4} [ ... ]``, as papers print gains).
+
+    Entries below `RELATIVE_ZERO` times the largest ``|entry|`` print as 0 (`round_relative`).
     """
     a = np.asarray(arr, dtype=float)
     if a.ndim == 0:
         return format_number(float(a), digits)
+    a = round_relative(a)
     if a.ndim == 1:
         a = a.reshape(-1, 1)
     e = _common_exponent(a) if factor else 0
@@ -501,6 +565,7 @@ def gain_latex(name: str, arr: Any, digits: int = 5) -> GainDisplay:
         return GainDisplay(name, shape, True, format_number(float(a.ravel()[0]), digits), ())
     if small:
         if a.ndim == 1:
+            a = round_relative(a)
             e = _common_exponent(a)
             scaled = a / 10.0**e if e else a
             body = r"\begin{bmatrix}" + " & ".join(format_number(v, digits) for v in scaled) \

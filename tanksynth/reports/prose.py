@@ -18,7 +18,7 @@ import re
 from typing import Any
 
 from tanksynth.reports.latex import (Tex, escape_latex, format_eigenvalues, format_number,
-                                     format_unit, symbol_latex)
+                                     format_unit, notation_symbol, symbol_latex)
 
 __all__ = ["prose_latex", "list_latex"]
 
@@ -36,6 +36,7 @@ _TOKEN = re.compile(
     r"(?P<list>\[(?:[^\[\]]|\[[^\[\]]*\])*\])"
     r"|(?P<norm>\|[^|\s][^|]{0,18}\|_(?:inf|2|F)\b)"
     r"|(?P<unit>\b(?:m|l|s)\^\d(?:/s(?:\^\d)?)?(?![\w^]))"
+    r"|(?P<notation>(?<![\w.])(?:[xuy]_op2?|x_hat0?|y_hat)(?![\w]))"
     r"|(?P<hat>\b[A-Za-z]_hat\b)"
     rf"|(?P<sub>(?<![\w.-])-?{_BASE}_{_SCRIPT}(?:{_SUP})?(?![\w]))"
     rf"|(?P<sup>(?<![\w.-])-?{_BASE}{_SUP}(?![\w]))"
@@ -163,6 +164,8 @@ def _token_tex(kind: str, text: str) -> Tex:
         return Tex(r"$\|" + prose_math(inner) + r"\|_{" + _script_tex(sub) + "}$")
     if kind == "unit":
         return format_unit(text)
+    if kind == "notation":
+        return Tex("$" + (notation_symbol(text) or escape_latex(text)) + "$")
     if kind == "hat":
         return Tex(r"$\hat{" + text[0] + "}$")
     neg = "-" if text.startswith("-") and kind in ("sub", "sup", "greek") else ""

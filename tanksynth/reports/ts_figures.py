@@ -29,6 +29,7 @@ from tanksynth.artefacts.traces import read_trace, trace_path
 from tanksynth.reports.diagnostics.takagi_sugeno import certified_region_of, ts_model_of
 from tanksynth.reports.figure_layout import draw_decorations, square_grid_layout
 from tanksynth.reports.figures import FigureFile
+from tanksynth.reports.latex import NOTATION
 
 # matplotlib is imported inside the functions that draw (about 0.4 s), not at the top: the report
 # imports this module for its records and helpers too, and needs matplotlib only for a figure it
@@ -37,6 +38,8 @@ __all__ = ["REGION_METHODS", "ellipse_outline", "region_figure", "region_figures
 
 #: Methods whose artefacts have a certified-region figure.
 REGION_METHODS = ("ts_state_feedback", "ts_output_feedback")
+#: The operating point and the set-point as the report writes them (matplotlib mathtext).
+X0, X02 = NOTATION["x_op"], NOTATION["x_op2"]
 
 _FIGURE_DIR = "report-figures"
 
@@ -160,9 +163,9 @@ def region_figure(art: Mapping[str, Any], artefact_dir: Path, directory: Path,
         sl, pr = _pair_views(P, c, x0, i, j)
         ax.fill(pr[:, 0], pr[:, 1], color="C2", alpha=0.12, linewidth=0)
         ax.plot(pr[:, 0], pr[:, 1], color="C2", linestyle="--", linewidth=0.8, label="region (projection)")
-        ax.plot(sl[:, 0], sl[:, 1], color="C2", linewidth=1.2, label="region (slice at x_op)")
+        ax.plot(sl[:, 0], sl[:, 1], color="C2", linewidth=1.2, label=f"region (slice at ${X0}$)")
         ax.plot([x0[i]], [x0[j]], marker="+", markersize=9, color="k", linestyle="none",
-                label="operating point x_op")
+                label=f"operating point ${X0}$")
         if second is not None:
             P2, x2, c2 = second
             if Xs is not None and Xs.ndim == 3 and Xs.shape[2] == n:
@@ -170,10 +173,10 @@ def region_figure(art: Mapping[str, Any], artefact_dir: Path, directory: Path,
                                                  label="set-point runs"), autolim=False)
             sl2, pr2 = _pair_views(P2, c2, x2, i, j)
             ax.plot(pr2[:, 0], pr2[:, 1], color="C1", linestyle="--", linewidth=0.8,
-                    label="region about x_op2 (projection)")
-            ax.plot(sl2[:, 0], sl2[:, 1], color="C1", linewidth=1.2, label="region about x_op2 (slice)")
+                    label=f"region about ${X02}$ (projection)")
+            ax.plot(sl2[:, 0], sl2[:, 1], color="C1", linewidth=1.2, label=f"region about ${X02}$ (slice)")
             ax.plot([x2[i]], [x2[j]], marker="x", markersize=7, color="C1", linestyle="none",
-                    label="set-point x_op2")
+                    label=f"set-point ${X02}$")
         ax.set_xlabel(f"{names[i]} [{units[i]}]" if units[i] else names[i], fontsize=8)
         ax.set_ylabel(f"{names[j]} [{units[j]}]" if units[j] else names[j], fontsize=8)
         box = np.vstack([pr] + ([pr2] if has_sp else []))

@@ -350,9 +350,9 @@ def observer_lmi_recheck(A0: Any, C: Any, L: Any, P: Any, Q: Any, psi: float, *,
     need = -(1.0 - tolerance) * margin
     decay = float(np.max(err.real))
     items = (
-        LMIItem("LMI (28) block matrix, normalised (max eigenvalue <= -(1-tol) margin)",
+        LMIItem("observer LMI block matrix, normalised (max eigenvalue <= -(1-tol) margin)",
                 float(eig_n.max()), need, bool(eig_n.max() <= need), "normalised"),
-        LMIItem("LMI (28) block matrix, original units (max eigenvalue < 0)", eig_w, 0.0,
+        LMIItem("observer LMI block matrix, original units (max eigenvalue < 0)", eig_w, 0.0,
                 bool(eig_w < 0)),
         LMIItem("P > 0 (min eigenvalue)", pmin, 0.0, bool(pmin > 0)),
         LMIItem("Q > 0 (min eigenvalue)", qmin, 0.0, bool(qmin > 0), "s"),

@@ -51,7 +51,7 @@ CASES = {
     "canonical_observer": ({}, [r"$L = \Delta\Psi_o$"]),
     "ts_observer": (TS_OBSERVER, [r"L = P^{-1}K", r"$\psi = 0.125$", "(maximised)", "4 vertices"]),
     "ts_state_feedback": (PDC, ["Tuan et al.", "Relaxation used: tuan", "$0.0125$ 1/s",
-                                r"\le 0.75\}", "bound by pump u1", "$h1$: 0.22 m", "semi-axes 0.1, 0.3 m",
+                                r"\le 0.75\}", "bound by pump $u_{1}$", "$h1$: 0.22 m", "semi-axes 0.1, 0.3 m",
                                 r"$x_0' = (0.46,\; 0.26)$", "$c_2 = 0.8$", r"$\gamma = 0.5$",
                                 r"= 1851$ s"]),
     "ts_output_feedback": (OUTPUT_PDC, ["for every $(i, j)$", "Estimated premises", r"$\psi = 0.0625$ 1/s",

@@ -175,7 +175,7 @@ def test_time_domain_figure_content(tmp_path):
     assert [a.get_title() for a in axes] == ["plant (nonlinear)", "estimates (dashed) against the true states",
                                              "estimation error", "inputs (zero-order hold)"]
     assert [a.get_ylabel() for a in axes] == ["states [m]", "state and estimate [m]", "estimate - state [m]",
-                                              "flow [l/s]"]
+                                              r"flow [l/s $= 10^{-3}\,$m$^3$/s]"]   # the text's m^3/s named
     assert axes[-1].get_xlabel() == "time t [s]"
     # lines per panel: levels and error: first run + further run per state; estimates: state and
     # estimate per state; inputs: first run + further run per input

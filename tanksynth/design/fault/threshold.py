@@ -257,7 +257,8 @@ class DetectionResult:
         """JSON-friendly record."""
         return {"x0": list(map(float, self.x0)), "delta_bar": self.delta_bar,
                 "t_fault": self.t_fault, "t_detect": self.t_detect,
-                "threshold": "eq. 55 (conservative)" if self.conservative else "eq. 54",
+                "threshold": ("the sum of |c_i| exp(lambda_i t) over the error modes i (conservative)"
+                              if self.conservative else "the sum of c_i exp(lambda_i t) over the error modes i"),
                 "false_alarm_before_fault": self.false_alarm, "reference_t_detect": self.reference,
                 "difference_to_reference": (None if self.reference is None or self.t_detect is None
                                             else self.t_detect - self.reference)}

@@ -133,7 +133,7 @@ def run_ts_observer(spec: Spec, design: DesignSpec) -> DesignResult:
     if variant == "full":
         caveats.append("full Q (as printed in seed 001): the step Delta' Q Delta <= psi^2 e' Q e "
                        "needs a Lipschitz constant in the Q-weighted norm; the Euclidean bound "
-                       "justifies only Q = q I (notes/plants.md 4.2)")
+                       "justifies only Q = q I")
         try:
             safe = maximise_psi(A0, C, variant="qI", margin=margin, kappa=kappa, solver=solver)
             diagnostics["psi_max_qI"] = safe.psi_max

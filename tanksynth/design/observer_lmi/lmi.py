@@ -218,9 +218,9 @@ def check_observer_lmi(A0: Any, C: Any, psi: float, P: Any, Q: Any, K: Any, marg
     qmin = float(np.min(np.linalg.eigvalsh(symmetrized(Q))))
     need = -(1.0 - tolerance) * margin
     checks = (
-        LMICheck("LMI (28) block matrix, normalised (max eigenvalue <= -(1-tol) margin)",
+        LMICheck("observer LMI block matrix, normalised (max eigenvalue <= -(1-tol) margin)",
                  float(eig.max()), need, bool(eig.max() <= need), "normalised"),
-        LMICheck("LMI (28) block matrix, original units (max eigenvalue < 0)",
+        LMICheck("observer LMI block matrix, original units (max eigenvalue < 0)",
                  eig_raw, 0.0, bool(eig_raw < 0), "original units"),
         LMICheck("P > 0 (min eigenvalue)", pmin, 0.0, bool(pmin > 0), ""),
         LMICheck("Q > 0 (min eigenvalue)", qmin, 0.0, bool(qmin > 0), "s"),

@@ -18,7 +18,7 @@ def _ts_observer(diag: Diagnostics) -> str:
             r"with $\|\Delta\| \le \psi\|e\|$. Find $P \succ 0$, $Q \succ 0$, $K$ with "
             r"\[\begin{bmatrix} A_0^\top P + P A_0 - C^\top K^\top - K C + \psi^2 Q & P \\ "
             r"P & -Q \end{bmatrix} \prec 0, \qquad L = P^{-1}K\]"
-            r"(seed 001 LMI (28)).")
+            r"(the Lipschitz observer LMI of seed 001).")
     if observer.psi is not None:
         text += rf" Here $\psi = {format_number(observer.psi)}$"
         if observer.psi_source:

@@ -14,6 +14,7 @@ from tanksynth.reports.diagnostics.common import Diagnostics
 from tanksynth.reports.diagnostics.takagi_sugeno import (PdcDesign, certified_region_of, pdc_design_of,
                                                           setpoint_change_of)
 from tanksynth.reports.latex import escape_latex, format_number
+from tanksynth.reports.prose import prose_latex
 from tanksynth.reports.statements.common import problem_statement
 
 __all__ = ["ts_state_feedback_statement", "ts_output_feedback_statement"]
@@ -61,7 +62,7 @@ def _region(diag: Diagnostics) -> str:
     text = (rf" Certified region $\{{x : (x - x_0)^\top P (x - x_0) \le {format_number(region.c)}\}}$"
             r" (inside the TS domain, pumps unsaturated)")
     if region.binding:
-        text += ", bound by " + escape_latex(region.binding)
+        text += ", bound by " + prose_latex(region.binding.replace("+ -", "- "))
     if region.extents is not None and len(region.extents) == len(region.states):
         text += "; largest deviations " + ", ".join(
             f"${escape_latex(s)}$: {format_number(v)} m" for s, v in zip(region.states, region.extents))
@@ -99,7 +100,8 @@ def _observer(design: PdcDesign) -> str:
                 r"\sum_j \mu_j(y) L_j (y - C\hat x)$ designed separately (separation holds: "
                 r"$\dot\varepsilon = \sum_{ij}\mu_i\mu_j (A_i - L_j C)\varepsilon$).")
     else:
-        text = (r" Estimated premises: observer of seed 001 (premises at the estimate) with LMI (28) "
+        text = (r" Estimated premises: observer of seed 001 (premises at the estimate) with the observer LMI "
+                r"$\begin{bmatrix} A_0^\top P_o + P_o A_0 - C^\top K^\top - K C + \psi^2 Q & P_o \\ P_o & -Q \end{bmatrix} \prec 0$, $L = P_o^{-1} K$, "
                 r"for $\psi$ the Lipschitz bound of the remainder; the controller uses the all-pairs "
                 r"conditions (two-step design).")
         if design.observer_psi is not None:

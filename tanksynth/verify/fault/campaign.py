@@ -138,7 +138,8 @@ def fault_detection_run(doc: Mapping[str, Any], spec: Spec) -> DetectorRun:
     if not isinstance(conservative, bool):
         conservative = bool(design_options(doc, spec).get("conservative", True))
     x_op, u_op = operating_point(spec)
-    what = "eq. 55, conservative" if conservative else "eq. 54"
+    what = ("the sum of |c_i| exp(lambda_i t) over the error modes i, conservative" if conservative
+            else "the sum of c_i exp(lambda_i t) over the error modes i")
     return DetectorRun(Psi.reshape(plant.n, plant.q), coef, rates, conservative, x_op, u_op,
                        f"residual test: observer with the artefact's Psi on the nominal model, fed "
                        f"the noisy measurements of {', '.join(o.name for o in plant.outputs)}; "

@@ -528,8 +528,12 @@ def fault_detection_verdict(doc: Mapping[str, Any], spec: Spec, *,
         diffs = [None if (d is None or s is None) else abs(d - s) for d, s in zip(detect, stored)]
         ok_d = all(d is not None and t_f < d <= t_f + FAULT_HORIZON for d in detect) and \
             all(df is None or df <= FAULT_TIME_TOLERANCE for df in diffs)
-        thr_name = "eq. 55 (conservative)" if sc.conservative else "eq. 54"
-        setup = (f"{R} starts {fmt(starts)} ({sc.starts_source}), observer from x_hat = {lo:g}, "
+        thr_name = ("the sum of |c_i| exp(lambda_i t) over the error modes i (every term positive, "
+                    "conservative)" if sc.conservative
+                    else "the sum of c_i exp(lambda_i t) over the error modes i (exact)")
+        starts_text = "; ".join(f"start {i + 1} at ({', '.join(f'{v:.4g}' for v in row)})"
+                                for i, row in enumerate(starts))
+        setup = (f"{R} starts ({sc.starts_source}: {starts_text}), observer from x_hat = {lo:g}, "
                  f"input: {sc.inputs_source}; sampled every {ts:g} s (4 RK4 substeps), stored Psi, "
                  f"threshold {thr_name} from the stored coefficients and rates")
         td = ", ".join("none" if d is None else f"{d:.5g} s" for d in detect)
@@ -571,8 +575,8 @@ def _record(trace: TraceRecorder, res: Any, plant: Plant, sc: FaultScenario, r: 
     trace.record(res, plant, check="fault_detected", estimator=True, rows=[R + i for i in shown],
                  scenario=f"fault delta_bar = {sc.delta_bar:g} from t_f = {sc.t_fault:g} s, runs from "
                  f"start(s) {[i + 1 for i in shown]} of {setup}; the residual first exceeds the threshold "
-                 f"at t_d = {td}", signal_title="residual |y - h(x_hat)| against its threshold",
-                 signals=(Signal("|epsilon|", unit, r), Signal("threshold", unit, np.broadcast_to(thr, r.shape), "--")),
+                 f"at t_d = {td}", signal_title=r"residual $|y - h(\hat{x})|$ against its threshold",
+                 signals=(Signal(r"$|\varepsilon|$", unit, r), Signal("threshold", unit, np.broadcast_to(thr, r.shape), "--")),
                  events=[(sc.t_fault, f"fault at t_f = {sc.t_fault:g} s")])
 
 

@@ -274,13 +274,13 @@ def ts_observer_verdict(doc: Mapping[str, Any], spec: Spec, *,
         psi, origin = None, ""
     if psi is None:
         checks.append(Check("lmi_recheck", None, "psi is neither given in the spec nor recorded in "
-                                                 "diagnostics.lmi.psi: LMI (28) cannot be re-checked"))
+                                                 "diagnostics.lmi.psi: the observer LMI cannot be re-checked"))
     else:
         margin = float(option(doc, spec, "margin", 1e-6))
         omega = float(np.linalg.norm(A0, 2)) or (psi if psi > 0 else 1.0)
         rc = observer_lmi_recheck(A0, C, L, P, Q, psi, margin=margin, omega=omega)
         checks.append(Check("lmi_recheck", rc.passed,
-                            f"LMI (28) [[G' P + P G + psi^2 Q, P], [P, -Q]] < 0 with G = A0 - L C "
+                            f"observer LMI [[G' P + P G + psi^2 Q, P], [P, -Q]] < 0 with G = A0 - L C "
                             f"(K = P L) recomputed in numpy from the stored P, Q and L with psi = "
                             f"{psi:.6g} 1/s ({origin}), margin {margin:g}, time scale |A0|_2 = "
                             f"{omega:.4g} 1/s: " + "; ".join(
@@ -305,7 +305,7 @@ def ts_observer_verdict(doc: Mapping[str, Any], spec: Spec, *,
                                                         "ts_model_rebuilt")]
         if psi is not None and psi > 0:
             tau = 1.0 / psi
-            rule = (f"(= 1 / psi: LMI (28) puts every eigenvalue of A0 - L C left of -psi = "
+            rule = (f"(= 1 / psi: the observer LMI puts every eigenvalue of A0 - L C left of -psi = "
                     f"{-psi:.4g} 1/s, the decay the design claims)")
         else:
             tau, rule = eigen_time_constant(eigs, "continuous", None)

@@ -164,6 +164,6 @@ def _observer_checks(doc: Mapping[str, Any], s: dict) -> list[Check]:
     top = float(np.linalg.eigvalsh(0.5 * (blk + blk.T))[-1])
     dA = float(np.max(np.abs(A0 - model.A.mean(axis=0))))
     return [Check("observer_lmi_recheck", bool(np.isfinite(psi) and top < 0 and dA <= 1e-9),
-                  f"LMI (28) [[He(Po (A0 - L C)) + psi^2 Q, Po], [Po, -Q]] with psi = {psi:.4g} 1/s: "
+                  f"observer LMI [[He(Po (A0 - L C)) + psi^2 Q, Po], [Po, -Q]] with psi = {psi:.4g} 1/s: "
                   f"largest eigenvalue {top:.4g} (< 0); stored A0 vs the mean rebuilt vertex: {dA:.3g}",
                   {"max_eigenvalue": top, "psi": psi})]
