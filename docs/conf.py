@@ -67,7 +67,11 @@ html_theme_options = {
     "footer_start": ["copyright"],
     "footer_end": ["sphinx-version"],
 }
-html_sidebars = {"index": []}
+# no empty "Section Navigation" column beside the pages that have no sub-pages
+html_sidebars = {page: [] for page in ("index", "quickstart", "artefacts", "export", "python_api",
+                                       "notebooks", "developers", "_generated/api_reference")}
+html_static_path = ["_static"]
+html_css_files = ["tanksynth.css"]
 
 
 def _api_pages() -> None:

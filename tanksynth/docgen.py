@@ -23,7 +23,7 @@ from tanksynth.errors import SpecError
 from tanksynth.spec.method_options.base import numpydoc_section
 
 __all__ = ["method_catalogue", "method_options", "methods_markdown", "method_markdown", "option_cells",
-           "toml_type", "toml_example", "python_example", "python_design_call", "api_reference_markdown",
+           "toml_type", "toml_literal", "toml_example", "python_example", "python_design_call", "api_reference_markdown",
            "plant_families", "plants_markdown", "plant_markdown", "custom_plant_markdown",
            "gain_names_markdown", "GENERATED_SECTIONS", "generated_section", "update_readme",
            "API_SECTIONS", "write_pages", "main"]
@@ -138,6 +138,41 @@ def toml_type(typ: str, choices: Sequence[str] = ()) -> str:
 
 
 
+def toml_literal(text: str) -> str:
+    """A Python literal of a default (``'observer'``, ``False``, ``(30, 150)``) as TOML writes it
+    (``"observer"``, ``false``, ``[30, 150]``); any other text as it is.
+
+    Parameters
+    ----------
+    text : str
+        The ``repr`` of a default value.
+
+    Returns
+    -------
+    str
+    """
+    import ast
+    import json
+
+    def render(value: Any) -> str:
+        if isinstance(value, bool):
+            return "true" if value else "false"
+        if isinstance(value, str):
+            return json.dumps(value)
+        if isinstance(value, (int, float)):
+            return repr(value)
+        if isinstance(value, (tuple, list)):
+            return "[" + ", ".join(render(v) for v in value) + "]"
+        if isinstance(value, dict):
+            return "{" + ", ".join(f"{k} = {render(v)}" for k, v in value.items()) + "}"
+        raise ValueError(value)
+
+    try:
+        return render(ast.literal_eval(text))
+    except (ValueError, SyntaxError, TypeError, MemoryError, RecursionError):
+        return text
+
+
 def option_cells(doc: dict[str, Any]) -> tuple[str, str]:
     """The type and default texts of one option of the catalogue (README, ``tanksynth methods``).
 
@@ -157,7 +192,7 @@ def option_cells(doc: dict[str, Any]) -> tuple[str, str]:
     typ = toml_type(doc["type"].replace("``", ""), doc["choices"])
     if doc["required"]:
         return typ, "required"
-    default = doc["default"]
+    default = toml_literal(doc["default"])
     if doc["default_text"]:
         text = doc["default_text"].replace("``", "")
         default = text if default == "None" else f"{default} ({text})"
@@ -467,7 +502,7 @@ API_SECTIONS: dict[str, tuple[str, ...]] = {
     "Specs: read, design, verify, report": ("tanksynth.methods", "tanksynth.spec", "tanksynth.design.result",
                                             "tanksynth.artefacts.io"),
     "Plants": ("tanksynth.plants",),
-    "Analysis": ("tanksynth.analysis.linearize", "tanksynth.analysis.rank", "tanksynth.analysis.symbolic"),
+    "Analysis": ("tanksynth.analysis",),
     "Errors": ("tanksynth.errors",),
     "Caches": ("tanksynth",),
 }
