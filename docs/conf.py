@@ -40,6 +40,9 @@ myst_heading_anchors = 3
 # cross-references, and many classes have an attribute ``n``: not an error of the docs.
 suppress_warnings = ["myst.header", "ref.python"]
 
+# straight quotes: the option types and defaults are TOML ("auto"), to be copied as they are
+smartquotes = False
+
 napoleon_google_docstring = False
 napoleon_numpy_docstring = True
 napoleon_use_rtype = False
