@@ -100,7 +100,7 @@ def test_docs_have_the_user_pages_of_the_readme(built):
             assert name in artefacts, name
     export = _text(html / "export.html")
     for needle in ("units.A", "x0", "--export law", "#include", "obs_pp_law.h", "-Werror",
-                   "LAW(_work)"):
+                   "_sparsity_in"):
         assert needle in export, needle
     python_api = _text(html / "python_api.html")
     assert "tanksynth.load" in python_api and "to_statespace" in python_api
