@@ -62,8 +62,9 @@ fuzz: $(STAMP)
 bench: $(STAMP) bytecode
 	@for script in benchmarks/*.py; do echo "== $$script"; $(PY) $$script || exit 1; done
 
-# HTML documentation (Sphinx + myst-nb): quick start, plant and method pages generated from the
-# code, API reference, the notebooks executed. Warnings are errors. Open docs/_build/html/index.html.
+# HTML documentation (Sphinx + myst-nb, pydata-sphinx-theme): quick start, plant and method pages
+# generated from the code, the API reference of tanksynth's public names (developers: every
+# module), the notebooks executed. Warnings are errors. Open docs/_build/html/index.html.
 DOCS_STAMP := $(VENV)/.docs-installed
 $(DOCS_STAMP): $(STAMP)
 	$(PY) -m pip install --quiet -e '.[dev,docs]'

@@ -40,6 +40,9 @@ myst_heading_anchors = 3
 # cross-references, and many classes have an attribute ``n``: not an error of the docs.
 suppress_warnings = ["myst.header", "ref.python"]
 
+# straight quotes: the option types and defaults are TOML ("auto"), to be copied as they are
+smartquotes = False
+
 napoleon_google_docstring = False
 napoleon_numpy_docstring = True
 napoleon_use_rtype = False
@@ -55,12 +58,29 @@ nb_execution_timeout = 900
 nb_execution_raise_on_error = True
 nb_execution_in_temp = True
 
-html_theme = "alabaster"
+# pydata-sphinx-theme (the docs extra): navigation bar of the top-level pages, a sidebar of the
+# section, an "on this page" outline; no icon links or version switcher (nothing to fetch).
+html_theme = "pydata_sphinx_theme"
 html_title = f"tanksynth {release}"
+html_theme_options = {
+    "navigation_with_keys": False,
+    "show_toc_level": 2,
+    "header_links_before_dropdown": 8,
+    "secondary_sidebar_items": ["page-toc"],
+    "footer_start": ["copyright"],
+    "footer_end": ["sphinx-version"],
+}
+# no empty "Section Navigation" column beside the pages that have no sub-pages
+html_sidebars = {page: [] for page in ("index", "quickstart", "artefacts", "export", "python_api",
+                                       "notebooks", "developers", "_generated/api_reference")}
+html_static_path = ["_static"]
+html_css_files = ["tanksynth.css"]
 
 
 def _api_pages() -> None:
-    """One page per module of the package (autodoc of its ``__all__``), and the index."""
+    """The developers' module reference: one page per module of the package (autodoc), and
+    its index. Users read the curated page of ``tanksynth.__all__`` (``api_reference.md``,
+    written by `tanksynth.docgen.write_pages`)."""
     import pkgutil
 
     import tanksynth
@@ -79,9 +99,10 @@ def _api_pages() -> None:
         page = api / f"{name}.md"
         if not page.is_file() or page.read_text(encoding="utf-8") != text:
             page.write_text(text, encoding="utf-8")
-    index = ("# API reference\n\nEvery module of the package, from its numpydoc docstrings. The "
-             "most used names are re-exported by `tanksynth` itself (`tanksynth.load`, "
-             "`tanksynth.load_spec`, ...).\n\n```{toctree}\n:maxdepth: 1\n\n"
+    index = ("# Module reference (developers)\n\nEvery module of the package, internals included, "
+             "from its numpydoc docstrings: for work on tanksynth itself. The public interface is "
+             "the {doc}`API reference </_generated/api_reference>` (`tanksynth.__all__`: "
+             "`tanksynth.load`, `tanksynth.load_spec`, ...).\n\n```{toctree}\n:maxdepth: 1\n\n"
              + "\n".join(["tanksynth", *names]) + "\n```\n")
     if not (api / "index.md").is_file() or (api / "index.md").read_text(encoding="utf-8") != index:
         (api / "index.md").write_text(index, encoding="utf-8")

@@ -23,9 +23,10 @@ from tanksynth.errors import SpecError
 from tanksynth.spec.method_options.base import numpydoc_section
 
 __all__ = ["method_catalogue", "method_options", "methods_markdown", "method_markdown", "option_cells",
+           "toml_type", "toml_literal", "toml_example", "python_example", "python_design_call", "api_reference_markdown",
            "plant_families", "plants_markdown", "plain_text", "plant_variants_markdown", "plant_markdown", "custom_plant_markdown",
            "gain_names_markdown", "GENERATED_SECTIONS", "generated_section", "update_readme",
-           "write_pages", "main"]
+           "API_SECTIONS", "write_pages", "main"]
 
 
 def method_catalogue() -> list[dict[str, Any]]:
@@ -65,11 +66,118 @@ def method_options(name: str) -> list[dict[str, Any]]:
     return [d.as_dict() for d in method(name).options.describe()]
 
 
+#: TOML words of the Python type names of the options' docstrings (singular, plural).
+_TOML_WORDS: dict[str, tuple[str, str]] = {
+    "bool": ("boolean", "booleans"), "int": ("integer", "integers"), "float": ("number", "numbers"),
+    "str": ("string", "strings"), "complex": ("number or [re, im] array", "numbers or [re, im] arrays"),
+    "mapping": ("table", "tables"), "tuple": ("array", "arrays"),
+    "ndarray": ("array of numbers or array of arrays of numbers (a matrix)",
+                "arrays of numbers or matrices (arrays of arrays of numbers)"),
+}
+
+
+def _split_top(text: str, separator: str) -> list[str]:
+    """``text`` split at ``separator`` outside parentheses and braces."""
+    parts, depth, start, i = [], 0, 0, 0
+    while i < len(text):
+        if text[i] in "({[":
+            depth += 1
+        elif text[i] in ")}]":
+            depth -= 1
+        elif depth == 0 and text.startswith(separator, i):
+            parts.append(text[start:i])
+            start = i = i + len(separator)
+            continue
+        i += 1
+    return parts + [text[start:]]
+
+
+def _toml_term(term: str, plural: bool = False) -> str:
+    """One alternative of a numpydoc type (``tuple of float``) in TOML words."""
+    term = term.strip()
+    if term.startswith("(") and term.endswith(")"):   # a fixed-length tuple: an array [a, b]
+        inner = ", ".join(_toml_term(t) for t in _split_top(term[1:-1], ","))
+        return f"[{inner}] array" + ("s" if plural else "")
+    for outer, word in (("tuple of ", "array"), ("mapping of str to ", "table")):
+        if term.startswith(outer):
+            return f"{word}{'s' if plural else ''} of {_toml_term(term[len(outer):], plural=True)}"
+    if term.startswith("table"):   # already a TOML word (``table {values, domain}``)
+        return term
+    words = _TOML_WORDS.get(term)
+    return term if words is None else words[plural]
+
+
+def toml_type(typ: str, choices: Sequence[str] = ()) -> str:
+    """A Python type text of an option's docstring as a TOML user writes the value.
+
+    ``tuple of float`` is ``array of numbers``, ``tuple of (str, float, float)``
+    ``array of [string, number, number] arrays``, ``mapping of str to float`` ``table of
+    numbers``, a choice ``string, one of "a", "b"``; ``None`` (omit the key: the default
+    column says what then) is left out.
+
+    Parameters
+    ----------
+    typ : str
+        The numpydoc type (``tuple of complex, or table {values, domain}``).
+    choices : sequence of str
+        The allowed values of a choice option, as TOML literals (``'"auto"'``).
+
+    Returns
+    -------
+    str
+    """
+    alternatives = [t for part in _split_top(typ, ", or ") for t in _split_top(part, " or ")
+                    if t.strip() != "None"]
+    words = [_toml_term(t) for t in alternatives]
+    if choices:
+        one_of = "one of " + ", ".join(choices)
+        if words == ["string"]:
+            return f"string, {one_of}"
+        words.append(f"string, {one_of}")
+    return " or ".join(dict.fromkeys(words))
+
+
+
+def toml_literal(text: str) -> str:
+    """A Python literal of a default (``'observer'``, ``False``, ``(30, 150)``) as TOML writes it
+    (``"observer"``, ``false``, ``[30, 150]``); any other text as it is.
+
+    Parameters
+    ----------
+    text : str
+        The ``repr`` of a default value.
+
+    Returns
+    -------
+    str
+    """
+    import ast
+    import json
+
+    def render(value: Any) -> str:
+        if isinstance(value, bool):
+            return "true" if value else "false"
+        if isinstance(value, str):
+            return json.dumps(value)
+        if isinstance(value, (int, float)):
+            return repr(value)
+        if isinstance(value, (tuple, list)):
+            return "[" + ", ".join(render(v) for v in value) + "]"
+        if isinstance(value, dict):
+            return "{" + ", ".join(f"{k} = {render(v)}" for k, v in value.items()) + "}"
+        raise ValueError(value)
+
+    try:
+        return render(ast.literal_eval(text))
+    except (ValueError, SyntaxError, TypeError, MemoryError, RecursionError):
+        return text
+
+
 def option_cells(doc: dict[str, Any]) -> tuple[str, str]:
     """The type and default texts of one option of the catalogue (README, ``tanksynth methods``).
 
-    The type lists every allowed value of a choice option (``str: "auto" | "lmi"``);
-    the default says what a None or computed default IS (``computed: ...``).
+    The type is written as a TOML user writes the value (`toml_type`: ``string, one of "auto",
+    "lmi"``, ``array of numbers``); the default says what a None or computed default IS (``computed: ...``).
 
     Parameters
     ----------
@@ -81,12 +189,10 @@ def option_cells(doc: dict[str, Any]) -> tuple[str, str]:
     (str, str)
         The type text and the default text (``"required"`` for a required option).
     """
-    typ = doc["type"].replace("``", "")
-    if doc["choices"]:
-        typ += (": " if typ.startswith("str") else " or ") + " | ".join(doc["choices"])
+    typ = toml_type(doc["type"].replace("``", ""), doc["choices"])
     if doc["required"]:
         return typ, "required"
-    default = doc["default"]
+    default = toml_literal(doc["default"])
     if doc["default_text"]:
         text = doc["default_text"].replace("``", "")
         default = text if default == "None" else f"{default} ({text})"
@@ -137,6 +243,121 @@ def method_markdown(name: str, level: int = 3) -> str:
         lines += _table(("option", "type", "default", "unit", "meaning"), rows)
         lines.append("")
     return "\n".join(lines)
+
+
+def _examples_dir() -> Path:
+    """The repository's ``examples/`` (beside the package in a source tree)."""
+    return Path(__file__).resolve().parents[1] / "examples"
+
+
+def _example_of(name: str) -> tuple[Path, str, str] | None:
+    """The first example spec designing with method ``name``: (path, design name, TOML text of
+    its ``[[design]]`` table), or None without one."""
+    import tomllib
+
+    for path in sorted(_examples_dir().glob("*.toml")):
+        text = path.read_text(encoding="utf-8")
+        entries = tomllib.loads(text).get("design", [])
+        design = next((e["name"] for e in entries if e.get("method") == name), None)
+        if design is None:
+            continue
+        blocks = re.split(r"(?m)^(?=\[\[design\]\])", text)[1:]
+        for block in blocks:
+            block = re.split(r"(?m)^\[(?!\[design\]\]|design\.)", block)[0]   # up to the next other table
+            if re.search(rf'(?m)^name\s*=\s*"{re.escape(design)}"', block):
+                lines = block.rstrip().splitlines()
+                while lines and (not lines[-1].strip() or lines[-1].lstrip().startswith("#")):
+                    lines.pop()   # comments introducing the next table
+                return path, design, "\n".join(lines)
+    return None
+
+
+def toml_example(name: str) -> str:
+    """The Markdown of method ``name``'s TOML example: its ``[[design]]`` table in an example spec.
+
+    Parameters
+    ----------
+    name : str
+        A method of the table.
+
+    Returns
+    -------
+    str
+        A heading, where the table comes from and the table; empty when no example uses it.
+    """
+    found = _example_of(name)
+    if found is None:
+        return ""
+    path, design, table = found
+    return "\n".join([
+        "## TOML example", "",
+        f"The design `{design}` of `examples/{path.name}` (the file also states the plant, its "
+        f"operating point and sampling period); `tanksynth run examples/{path.name}` designs, "
+        "verifies and reports it:", "", "```toml", table, "```", ""])
+
+
+def python_design_call(spec_path: str, design: str, directory: str) -> list[str]:
+    """THE call form of a design from Python on the method pages (one place to change).
+
+    Lines of Python that design ``design`` of the spec file ``spec_path`` into the result
+    directory ``directory``, leaving a name ``spec`` bound. Today's form uses what the package
+    offers: `tanksynth.load_spec` and the method table's design step
+    (`tanksynth.methods.design`), written as an artefact. When a higher-level Python API
+    (``tanksynth.design(...)``) exists, this is the only function to switch.
+
+    Parameters
+    ----------
+    spec_path : str
+        The spec file, relative to the repository root.
+    design : str
+        The name of one ``[[design]]`` table of the spec.
+    directory : str
+        The result directory to write.
+
+    Returns
+    -------
+    list of str
+        The lines (no trailing newline).
+    """
+    return [
+        "import tanksynth",
+        "from tanksynth.artefacts import write_artefact, write_plant_record",
+        "from tanksynth.methods import design",
+        "",
+        f'spec = tanksynth.load_spec("{spec_path}")  # options validated here',
+        f'entry = next(d for d in spec.designs if d.name == "{design}")',
+        f'write_plant_record(spec, "{directory}")  # {directory}/plant.json and {directory}/spec.toml',
+        f'write_artefact(design(spec, entry), "{directory}", spec.sha256)  # {directory}/{design}.json, .npz',
+    ]
+
+
+def python_example(name: str) -> str:
+    """The Markdown of method ``name``'s Python example: design, verify, load the artefact.
+
+    Parameters
+    ----------
+    name : str
+        A method of the table.
+
+    Returns
+    -------
+    str
+        A heading and a code block (from `python_design_call`); empty when no example uses
+        the method.
+    """
+    found = _example_of(name)
+    if found is None:
+        return ""
+    path, design, _ = found
+    directory = "out"
+    lines = [*python_design_call(f"examples/{path.name}", design, directory),
+             f'tanksynth.verify_directory("{directory}")  # the gain on the nonlinear plant',
+             f'art = tanksynth.load("{directory}/{design}.json")',
+             "art.gains, art.verdict  # arrays by gain name; the verdict verify recorded"]
+    return "\n".join([
+        "## Python example", "",
+        "The same design from Python, run from the repository root (the gain names: "
+        "{doc}`/artefacts`):", "", "```python", *lines, "```", ""])
 
 
 def methods_markdown(level: int = 3) -> str:
@@ -361,6 +582,70 @@ def gain_names_markdown() -> str:
     return "\n".join(_table(("Name", "Meaning"), rows)) + "\n"
 
 
+#: The sections of the curated API page: title -> the modules whose public names it lists (a
+#: name of ``tanksynth.__all__`` from another module lands in "Other").
+API_SECTIONS: dict[str, tuple[str, ...]] = {
+    "Results: load designed artefacts": ("tanksynth.loading",),
+    "Specs: read, design, verify, report": ("tanksynth.methods", "tanksynth.spec", "tanksynth.design.result",
+                                            "tanksynth.artefacts.io"),
+    "Plants": ("tanksynth.plants",),
+    "Analysis": ("tanksynth.analysis",),
+    "Errors": ("tanksynth.errors",),
+    "Caches": ("tanksynth",),
+}
+
+
+def _api_entry(qualified: str, obj: Any) -> list[str]:
+    """The autodoc directive documenting ``obj`` under the name ``qualified``."""
+    if isinstance(obj, type) and issubclass(obj, BaseException):
+        return [f".. autoexception:: {qualified}", ""]
+    if isinstance(obj, type):
+        return [f".. autoclass:: {qualified}", "   :members:", ""]
+    return [f".. autofunction:: {qualified}", ""]
+
+
+def api_reference_markdown() -> str:
+    """The curated API page: every public name of ``tanksynth.__all__``, by topic.
+
+    A summary table (name, first line of its docstring) per section of `API_SECTIONS`, then
+    each name's full docstring (autodoc under its ``tanksynth.NAME``). The modules themselves
+    (internals included) are documented on the developers' pages.
+
+    Returns
+    -------
+    str
+        A MyST page.
+    """
+    import tanksynth
+
+    names = [n for n in tanksynth.__all__ if n != "__version__"]
+    objects = {n: getattr(tanksynth, n) for n in names}
+    sections: dict[str, list[str]] = {title: [] for title in API_SECTIONS}
+    sections["Other"] = []
+    for n in names:
+        module = getattr(objects[n], "__module__", "tanksynth")
+        home = next((title for title, mods in API_SECTIONS.items()
+                     if any(module == m or module.startswith(m + ".") for m in mods if m != "tanksynth")
+                     or module in mods), "Other")
+        sections[home].append(n)
+    lines = ["# API reference", "",
+             "The public Python interface: every name `import tanksynth` offers "
+             "(`tanksynth.__all__`; each loads its libraries on first use), by topic. "
+             "`tanksynth.__version__` is the installed version. The modules behind them, internals "
+             "included, are in the {doc}`developers' module reference </_generated/api/index>`.", ""]
+    for title, members in sections.items():
+        if not members:
+            continue
+        lines += [f"## {title}", "", *_table(("name", "what it is"), [
+            (f"{{py:obj}}`~tanksynth.{n}`",
+             (inspect.getdoc(objects[n]) or "").strip().split("\n\n")[0].replace("\n", " "))
+            for n in members]), "", "```{eval-rst}"]
+        for n in members:
+            lines += _api_entry(f"tanksynth.{n}", objects[n])
+        lines += ["```", ""]
+    return "\n".join(lines).rstrip("\n") + "\n"
+
+
 #: The README's generated sections: marker name -> text.
 GENERATED_SECTIONS: dict[str, Callable[[], str]] = {"plants": plants_markdown,
                                                     "methods": methods_markdown,
@@ -428,13 +713,14 @@ def update_readme(path: str | Path, check: bool = False) -> list[str]:
 
 
 def write_pages(directory: str | Path) -> list[Path]:
-    """Write one Markdown page per method and per plant family (for Sphinx, MyST).
+    """Write the generated Markdown pages of the Sphinx documentation (MyST).
 
     Parameters
     ----------
     directory : str or Path
-        Gets ``methods/<name>.md``, ``plants/<name>.md`` and the two index pages
-        ``methods/index.md`` and ``plants/index.md``.
+        Gets ``methods/<name>.md``, ``plants/<name>.md``, the two index pages
+        ``methods/index.md`` and ``plants/index.md``, and ``api_reference.md``
+        (`api_reference_markdown`).
 
     Returns
     -------
@@ -452,7 +738,9 @@ def write_pages(directory: str | Path) -> list[Path]:
 
     cat = method_catalogue()
     for m in cat:
-        page(directory / "methods" / f"{m['name']}.md", method_markdown(m["name"], level=1))
+        text = "\n".join(filter(None, [method_markdown(m["name"], level=1), toml_example(m["name"]),
+                                        python_example(m["name"])]))
+        page(directory / "methods" / f"{m['name']}.md", text)
     index = ["# Design methods", "", "Generated from the method table `tanksynth.methods.TABLE`; "
              "`tanksynth methods NAME` prints the same.", "",
              *_table(("method", "kind", "designs"),
@@ -469,6 +757,7 @@ def write_pages(directory: str | Path) -> list[Path]:
              "value.", "", *(f"- [`{n}`]({n}.md)" for n in names), "",
              "```{toctree}", ":hidden:", "", *names, "```", ""]
     page(directory / "plants" / "index.md", "\n".join(index))
+    page(directory / "api_reference.md", api_reference_markdown())
     return written
 
 

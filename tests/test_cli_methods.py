@@ -80,7 +80,8 @@ def test_methods_markdown_is_the_generated_text(capsys):
     assert code == 0 and out == docgen.methods_markdown()
     code, out, _ = run_cli(capsys, "methods", "kalman", "--markdown")
     assert out == docgen.method_markdown("kalman")
-    assert "| `Q` | ndarray | **required** | (state units)^2 |" in out
+    assert ("| `Q` | array of numbers or array of arrays of numbers (a matrix) | **required** "
+            "| (state units)^2 |") in out  # the type as written in TOML
 
 
 def test_plants_shows_family_options_and_the_custom_plant(capsys):
@@ -210,10 +211,10 @@ def test_catalogue_row_lists_every_allowed_value_of_a_choice(row, capsys):
 
 def test_catalogue_shows_route_choices_and_the_poles_table_form(capsys):
     code, out, _ = run_cli(capsys, "methods", "h2_state_feedback", "--markdown")
-    assert '"auto" \\| "riccati" \\| "lmi"' in out
-    assert "| `Q` | ndarray or None | computed: Bryson's" in out
+    assert 'string, one of "auto", "riccati", "lmi"' in out   # types as written in TOML
+    assert "| `Q` | array of numbers or array of arrays of numbers (a matrix) | computed: Bryson's" in out
     code, out, _ = run_cli(capsys, "methods", "pole_placement", "--markdown")
-    assert "{values, domain}" in out and '"s" \\| "z"' in out
+    assert "{values, domain}" in out and 'string, one of "s", "z"' in out
     code, out, _ = run_cli(capsys, "methods", "kalman", "--json")
     x0 = {o["name"]: o for o in json.loads(out)["options"]}["x0"]
     assert x0["default"] == "None" and x0["default_text"] == "computed: the operating point"

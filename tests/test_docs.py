@@ -1,6 +1,8 @@
 """The Sphinx documentation builds with no warning (``make docs``), and has the pages a user
-expects: the quick start, one page per plant family and per method, the API reference and
-the notebooks.
+expects: the quick start, one page per plant family and per method (a TOML and a Python example
+each, option types in TOML words), the gain-name table, the exports with their C driver, the
+Python API, the curated API reference of ``tanksynth.__all__`` (the modules in the developers'
+section, not on the front page) and the notebooks, in pydata-sphinx-theme.
 
 The test builds without executing the notebooks (``-D nb_execution_mode=off``, they run in
 tests/test_notebooks.py); ``make docs`` executes them. Warnings are errors (``-W``), except
@@ -14,10 +16,13 @@ import os
 import re
 import subprocess
 import sys
+from html import unescape
 from pathlib import Path
 
 import pytest
 
+import tanksynth
+from tanksynth.analysis.statespace import GAIN_NAMES
 from tanksynth.methods import TABLE
 from tanksynth.plants import BUILTIN_PLANTS
 
@@ -61,7 +66,7 @@ def test_docs_build_without_warnings(built):
 
 def _text(path: Path) -> str:
     """The page's text without tags (code is split into spans by the highlighter)."""
-    return " ".join(re.sub(r"<[^>]+>", " ", path.read_text(encoding="utf-8")).split())
+    return unescape(" ".join(re.sub(r"<[^>]+>", " ", path.read_text(encoding="utf-8")).split()))
 
 
 def test_docs_have_the_expected_pages(built):
@@ -84,3 +89,46 @@ def test_docs_have_the_expected_pages(built):
     notebooks = sorted(p.stem for p in (ROOT / "notebooks").glob("*.ipynb"))
     for nb in notebooks:
         assert (html / "_generated" / "notebooks" / f"{nb}.html").is_file(), nb
+
+
+def test_docs_have_the_user_pages_of_the_readme(built):
+    """Gain-name table, exports with the C driver, the Python API: in the HTML docs."""
+    html, _ = built
+    artefacts = _text(html / "artefacts.html")
+    for names in GAIN_NAMES:
+        for name in names:
+            assert name in artefacts, name
+    export = _text(html / "export.html")
+    for needle in ("units.A", "x0", "--export law", "#include", "obs_pp_law.h", "-Werror",
+                   "_sparsity_in"):
+        assert needle in export, needle
+    python_api = _text(html / "python_api.html")
+    assert "tanksynth.load" in python_api and "to_statespace" in python_api
+
+
+def test_method_pages_have_examples_and_toml_types(built):
+    html, _ = built
+    for row in TABLE:
+        page = _text(html / "_generated" / "methods" / f"{row.name}.html")
+        assert "TOML example" in page and "[[design]]" in page and f'method = "{row.name}"' in page
+        assert "Python example" in page and "import tanksynth" in page and "load_spec" in page
+        assert "tuple of" not in page and "ndarray" not in page, row.name
+    assert "array of tables" in _text(html / "_generated" / "methods" / "lmi_placement.html")
+
+
+def test_api_reference_is_the_public_names(built):
+    """The curated page documents exactly ``tanksynth.__all__``; the ~180 modules are in the
+    developers' section, not listed on the front page."""
+    html, _ = built
+    page = (html / "_generated" / "api_reference.html").read_text(encoding="utf-8")
+    documented = set(re.findall(r'<dt class="[^"]*" id="tanksynth\.(\w+)">', page))
+    assert documented == {n for n in tanksynth.__all__ if n != "__version__"}
+    front = (html / "index.html").read_text(encoding="utf-8")
+    assert "_generated/api_reference.html" in front and "developers.html" in front
+    assert not re.search(r'href="_generated/api/tanksynth\.', front)
+
+
+def test_docs_use_the_pydata_theme(built):
+    html, _ = built
+    front = (html / "index.html").read_text(encoding="utf-8")
+    assert "pydata-sphinx-theme" in front and "alabaster" not in front

@@ -182,7 +182,7 @@ class LmiPlacementOptions(MethodOptions):
 
     Attributes
     ----------
-    region : tuple of tuple
+    region : tuple of mapping
         Required. A list of tables whose intersection is the region:
         ``{{type = "half_plane", alpha = a}}`` (Re s < -a, 1/s), ``{{type = "disk",
         center = c, radius = r}}``, ``{{type = "sector", angle_deg = t}}`` (half-angle

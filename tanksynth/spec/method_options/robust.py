@@ -166,7 +166,7 @@ def _default_Bw(plant: Plant, observer: bool) -> np.ndarray | None:
 
 
 _COMMON_DOC = """
-    region : tuple of tuple
+    region : tuple of mapping
         Required. The LMI region every vertex's eigenvalues must lie in, a
         list of tables intersected as for ``lmi_placement``: ``{{type =
         "half_plane", alpha = a}}``, ``{{type = "disk", center = c, radius =

@@ -510,7 +510,7 @@ class MultiobjectiveOptions(_StateFeedbackOptions):
 
     Attributes
     ----------
-    region : tuple of tuple
+    region : tuple of mapping
         Required. LMI region, a list of tables as for ``lmi_placement`` (e.g.
         ``[{{type = "disk", center = 0.9, radius = 0.08}}]``); one part must lie
         in the stability domain of ``time_domain``.

@@ -1,5 +1,6 @@
-"""The README's "Using an exported law" C driver compiles (gcc -std=c99 -Wall -Werror) against
-laws exported from an example's plant and prints what the ``.casadi`` Function computes.
+"""The C driver of the docs' export page (docs/export.md, "Using an exported law") compiles
+(gcc -std=c99 -Wall -Werror) against laws exported from an example's plant and prints what the
+``.casadi`` Function computes.
 
 The designs: the example seed000_pole_placement's integral state feedback (inputs x, z, y_r) and
 a pole-placement observer on the same plant (predictor form, inputs x_hat, u, y). The observer's
@@ -34,9 +35,9 @@ poles = [0.5, 0.6, 0.7]
 
 
 def _readme_driver() -> tuple[str, str]:
-    """The C driver and the gcc command of the README's subsection."""
-    text = (ROOT / "README.md").read_text(encoding="utf-8")
-    section = text.split("### Using an exported law", 1)[1].split("\n## ", 1)[0]
+    """The C driver and the gcc command of the export page's section."""
+    text = (ROOT / "docs" / "export.md").read_text(encoding="utf-8")
+    section = text.split("## Using an exported law", 1)[1].split("\n## ", 1)[0]
     driver = re.search(r"```c\n(.*?)```", section, re.S).group(1)
     command = re.search(r"```\n(gcc .*?)\n", section, re.S).group(1)
     return driver, command
