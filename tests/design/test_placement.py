@@ -154,18 +154,18 @@ def test_spec_options_are_validated():
         return METHODS[d.method].design(spec, d)
 
     with pytest.raises(SpecError, match=r"design\[0\]\.poles"):
-        run('method = "pole_placement"\npoles = ["a", 1.0, 2.0]\n')
+        run('method = "pole_placement"\ntarget = "state_feedback"\npoles = ["a", 1.0, 2.0]\n')
     with pytest.raises(SpecError, match="unknown option"):
-        run('method = "pole_placement"\npoles = [0.9, 0.9, 0.9]\nspeed = 1\n')
+        run('method = "pole_placement"\ntarget = "state_feedback"\npoles = [0.9, 0.9, 0.9]\nspeed = 1\n')
     with pytest.raises(SpecError, match=r"design\[0\]\.tracked"):
-        run('method = "pole_placement"\npoles = [0.9, 0.91, 0.92, 0.93, 0.94]\nintegral = true\n'
+        run('method = "pole_placement"\ntarget = "state_feedback"\npoles = [0.9, 0.91, 0.92, 0.93, 0.94]\nintegral = true\n'
             'tracked = ["h9"]\n')
     with pytest.raises(SpecError, match=r"design\[0\]\.region\[0\]\.type"):
-        run('method = "lmi_placement"\nregion = [{type = "ellipse"}]\n')
+        run('method = "lmi_placement"\ntarget = "observer"\nregion = [{type = "ellipse"}]\n')
     with pytest.raises(SpecError, match="stability domain"):
-        run('method = "lmi_placement"\nregion = [{type = "half_plane", alpha = 0.1}]\n')
+        run('method = "lmi_placement"\ntarget = "observer"\nregion = [{type = "half_plane", alpha = 0.1}]\n')
     with pytest.raises(SpecError, match=r"design\[0\]\.reference_gain"):
-        run('method = "pole_placement"\npoles = [0.9, 0.91, 0.92]\nreference_gain = [[1.0]]\n')
+        run('method = "pole_placement"\ntarget = "state_feedback"\npoles = [0.9, 0.91, 0.92]\nreference_gain = [[1.0]]\n')
     with pytest.raises(SpecError, match="single output"):
         run('method = "canonical_observer"\npoles = [-1.0, -2.0, -3.0]\n')
 
