@@ -151,9 +151,14 @@ def methods_markdown(level: int = 3) -> str:
     -------
     str
     """
+    from tanksynth.methods import ALIASES
+
     cat = method_catalogue()
     lines = _table(("method", "kind", "designs"),
                    [(f"`{m['name']}`", " / ".join(m["kinds"]), m["summary"]) for m in cat])
+    lines += ["", "Aliases: a spec may name these instead (the artefact records the method it ran "
+                  "and the alias, `diagnostics.method_alias`).", ""]
+    lines += _table(("alias", "runs"), [(f"`{a.name}`", a.describe()) for a in ALIASES.values()])
     lines.append("")
     body = "\n".join(lines) + "\n" + "\n".join(method_markdown(m["name"], level) for m in cat)
     return body.rstrip("\n") + "\n"
