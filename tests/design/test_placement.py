@@ -101,8 +101,8 @@ def test_seed004_canonical_form_is_exact():
 def test_seed004_both_routes_agree():
     co = canonical_observer(A004, C004, [-5, -8, -10])
     pl = place_observer(np.array(A004, dtype=float), np.array(C004, dtype=float), [-5, -8, -10])
-    np.testing.assert_allclose(pl.gain, co.gain, rtol=1e-9)
-    np.testing.assert_allclose(co.gain.ravel(), [855, 169.6666667, 41], rtol=1e-9)
+    np.testing.assert_allclose(pl.gain_matrix, co.L, rtol=1e-9)
+    np.testing.assert_allclose(co.L.ravel(), [855, 169.6666667, 41], rtol=1e-9)
 
 
 def test_seed004_printed_gamma_d_is_an_erratum():
@@ -113,7 +113,7 @@ def test_seed004_printed_gamma_d_is_an_erratum():
     _, err_printed = pole_errors([-5, -8, -10], np.linalg.eigvals(GAMMA_D_PRINTED))
     assert err_printed > 1.0
     A = np.array(A004, dtype=float)
-    np.testing.assert_allclose(A - co.gain @ np.array([[0, 0, 1.0]]), GAMMA_D_PRINTED, atol=1e-3)
+    np.testing.assert_allclose(A - co.L @ np.array([[0, 0, 1.0]]), GAMMA_D_PRINTED, atol=1e-3)
 
 
 def test_seed004_through_a_spec():
