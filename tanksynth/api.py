@@ -144,7 +144,8 @@ def spec_document(plant: Any, method: str, *, x0: Any = None, u0: Any = None, ts
     state_bound, input_bound : float
         See `plant_table` (StateSpace only).
     **options
-        The method's options, as in a ``[[design]]`` table (``region=[{"type": "disk", ...}]``,
+        The method's options, each in the units ``tanksynth methods NAME`` lists, as in a
+        ``[[design]]`` table (``region=[{"type": "disk", ...}]``,
         ``poles=[...]``, ``target="observer"``; numpy arrays and complex numbers allowed). With
         a StateSpace, the disturbance input ``Bw`` of the H2 / H-infinity methods defaults to
         its ``B`` (python-control's ``lqe(sys, QN, RN)`` takes ``G = B``).
@@ -257,13 +258,22 @@ def design(plant: Any, method: str, *, x0: Any = None, u0: Any = None, ts: float
         See `plant_table`; a StateSpace only for `LINEAR_MODEL_METHODS`.
     method : str
         A design method (``tanksynth methods``) or an alias (``"lqr"``, ``"dlqr"``, ``"lqe"``).
-    x0, u0, ts, name, title, state_bound, input_bound
-        See `spec_document`.
+    x0 : array_like or mapping, optional
+        Operating levels (state units); see `spec_document`.
+    u0 : array_like or mapping, optional
+        Operating inputs (input units); see `spec_document`.
+    ts : float, optional
+        Sampling period (s); None for a continuous-time spec.
+    name, title : str, optional
+        The design's name (default the method's) and the spec's title.
+    state_bound, input_bound : float
+        A StateSpace's region and actuator range (its state and input units; see `plant_table`).
     directory : str or Path, optional
         Where the files go (created; it must not exist or be empty); default a new temporary
         directory (kept: the `Design` reads its files).
     **options
-        The method's options, as in a ``[[design]]`` table.
+        The method's options, each in the units ``tanksynth methods NAME`` lists, as in a
+        ``[[design]]`` table.
 
     Returns
     -------
