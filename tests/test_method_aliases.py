@@ -113,3 +113,16 @@ def test_an_alias_design_is_recorded_and_verified(tmp_path, capsys):
     doc = json.loads((tmp_path / "out" / "k.json").read_text())
     assert doc["method"] == "h2_state_feedback" and doc["diagnostics"]["method_alias"] == "lqr"
     assert main(["verify", str(tmp_path / "out")]) == 0
+
+
+def test_a_spec_read_without_the_table_finds_the_alias_entry_of_an_artefact():
+    """Campaign workers parse the spec without the method table: the entry keeps ``lqr``, the
+    artefact says ``h2_state_feedback`` and records the alias; its options are still found."""
+    from tanksynth.spec import parse_spec_text as parse_without_table
+    from tanksynth.verify.common import design_options
+
+    spec = parse_without_table(HEAD + '[[design]]\nname = "k"\nmethod = "lqr"\nQ = [[1.0, 0.0, 0.0], '
+                               '[0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]\n')
+    doc = {"name": "k", "method": "h2_state_feedback", "diagnostics": {"method_alias": "lqr"}}
+    assert "Q" in design_options(doc, spec)
+    assert design_options({**doc, "diagnostics": {}}, spec) == {}
