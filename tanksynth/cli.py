@@ -5,17 +5,20 @@ Exit codes: 0 success, 1 a verification (rank) check failed, 2 bad input
 path, a result directory in use by another run or written from another spec,
 a problem too large for the memory budget), 3 a design was infeasible (no
 artefact written for it), 4 an internal error (a bug: one line on stderr
-naming a log file that holds the traceback). Library warnings never reach
-stderr: they are counted in one note on stdout.
+naming a log file that holds the traceback), 130 interrupted (SIGINT, SIGTERM
+or SIGHUP: child processes ended, nothing partial left, the lock released,
+one line ``interrupted (SIGTERM): ...`` on stderr). Library warnings never
+reach stderr: they are counted in one note on stdout.
 """
 
 from __future__ import annotations
 
 import json
 import shutil
+import signal
 import sys
 import warnings
-from contextlib import AbstractContextManager, contextmanager
+from contextlib import contextmanager
 from importlib import resources
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Callable, Iterable, Iterator
@@ -30,10 +33,12 @@ from tanksynth.messages import StageClock, law_line, print_summary
 from tanksynth.messages import design_index_note as _design_index_note
 from tanksynth.messages import note_warnings
 from tanksynth.messages import one_line as _one_line
+from tanksynth.process import EXIT_INTERRUPTED, Interrupted, interruptible
 from tanksynth.process import ignore_file_size_signal as _ignore_file_size_signal
 from tanksynth.process import internal_error_log as _internal_error_log
 from tanksynth.process import one_blas_thread as _one_blas_thread
 from tanksynth.report_worker import ReportSummary, ReportWorker, report_summary
+from tanksynth.verify.cluster import MAX_WORKERS, WORKER_TIMEOUT
 
 if TYPE_CHECKING:  # annotations only: each command imports what it needs when it runs
     import casadi
@@ -51,6 +56,20 @@ _out = Console()
 
 #: Columns of the console used for tables when stdout is not a terminal (piped, redirected).
 _PIPED_WIDTH = 200
+
+
+class _Seconds(click.FloatRange):
+    """A finite number of seconds in a range (``nan`` and ``inf`` are refused naming the option)."""
+
+    name = "seconds"
+
+    def convert(self, value: Any, param: click.Parameter | None, ctx: click.Context | None) -> Any:
+        import math
+
+        number = super().convert(value, param, ctx)
+        if not math.isfinite(number):
+            self.fail(f"{value!r} is not a finite number of seconds", param, ctx)
+        return number
 
 
 class _Fail(Exception):
@@ -197,10 +216,32 @@ def _remove_interrupted(outdir: Path) -> None:
                    + ", ".join(p.name for p in removed), markup=False, highlight=False, soft_wrap=True)
 
 
-def _locked(directory: str | Path, command: str) -> AbstractContextManager[Path]:
+@contextmanager
+def _locked(directory: str | Path, command: str) -> Iterator[Path]:
+    """Hold the directory's lock while a command writes into it; an interruption removes what
+    the command's writers staged and had not renamed yet (a report worker ended by SIGKILL, see
+    `tanksynth.report_worker`) before the lock is released."""
     from tanksynth.artefacts.atomic import directory_lock
 
-    return directory_lock(directory, command=command)
+    with directory_lock(directory, command=command) as lock:
+        try:
+            yield lock
+        except KeyboardInterrupt:
+            _remove_staged(Path(directory))
+            raise
+
+
+def _remove_staged(directory: Path) -> None:
+    """Remove staged files and build directories left in ``directory`` and its figure
+    directories by an interrupted writer (the caller holds the lock: nothing else is writing
+    there); only names of the tool's own staging (`tanksynth.artefacts.atomic.stale_temporaries`)."""
+    from tanksynth.artefacts.atomic import remove_stale, stale_temporaries
+    from tanksynth.artefacts.io import remove_interrupted_writes
+
+    remove_interrupted_writes(directory)
+    for sub in directory.iterdir():
+        if sub.is_dir() and not sub.is_symlink():
+            remove_stale(stale_temporaries(sub))
 
 
 def _design_all(spec: Spec, outdir: Path, export: tuple[str, ...]
@@ -286,7 +327,28 @@ def _derived_law(spec: Spec, design: DesignSpec, result: DesignResult) -> casadi
     return law
 
 
-@click.group(context_settings={"help_option_names": ["-h", "--help"]})
+class _Commands(click.Group):
+    """The command group; an interruption passes through as `Interrupted` (click would turn it
+    into an `Abort` after an empty line on stderr)."""
+
+    def invoke(self, ctx: click.Context) -> Any:
+        try:
+            return super().invoke(ctx)
+        except Interrupted as exc:
+            raise _Stopped(exc.signum) from None
+        except KeyboardInterrupt:
+            raise _Stopped(int(signal.SIGINT)) from None
+
+
+class _Stopped(BaseException):
+    """`Interrupted`, carried through click (which catches every `KeyboardInterrupt`)."""
+
+    def __init__(self, signum: int):
+        super().__init__(signum)
+        self.signum = signum
+
+
+@click.group(cls=_Commands, context_settings={"help_option_names": ["-h", "--help"]})
 @click.version_option(package_name="tanksynth")
 @click.option("-v", "--verbose", is_flag=True,
               help="Also print the raw text of the library warnings the note summarises.")
@@ -507,6 +569,10 @@ def _run_locked(s: Spec, spec: str | None, out: Path, pdf: bool | None) -> None:
     worker = ReportWorker.start(out, pdf) if s.designs else None
     try:
         _run_stages(s, spec, out, pdf, have_tex, clock, worker)
+    except KeyboardInterrupt:  # interrupted: the worker ends now, before the lock is released
+        if worker is not None:
+            worker.stop()
+        raise
     finally:
         if worker is not None:
             worker.cancel()
@@ -561,6 +627,44 @@ def _run_stages(s: Spec, spec: str | None, out: Path, pdf: bool, have_tex: bool,
         raise _Fail(EXIT_FAILED, "some checks fail: " + ", ".join(failed))
 
 
+#: A campaign estimated to take at least this long (s) shows its progress on stderr.
+_LONG_CAMPAIGN = 10.0
+#: Without a terminal, one progress line per this fraction of the tasks.
+_PROGRESS_STEP = 0.1
+
+
+@contextmanager
+def _campaign_progress(total: int, seconds: float) -> Iterator[Callable[[int, int], None]]:
+    """``progress(done, total)`` for a campaign, shown on stderr when it is long: a bar when stderr
+    is a terminal, else one plain line per 10 % of the tasks (with the elapsed time)."""
+    err = Console(stderr=True)
+    if seconds < _LONG_CAMPAIGN:
+        yield lambda done, n: None
+        return
+    if err.is_terminal and _live():
+        from rich.progress import (BarColumn, MofNCompleteColumn, Progress, TextColumn,
+                                   TimeElapsedColumn, TimeRemainingColumn)
+
+        with Progress(TextColumn("campaign"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
+                      TimeRemainingColumn(), console=err, transient=True) as bar:
+            task = bar.add_task("campaign", total=total)
+            yield lambda done, n: bar.update(task, completed=done, total=n)
+        return
+    import time
+
+    start = time.monotonic()
+    shown = [0]
+
+    def plain(done: int, n: int) -> None:
+        step = int(done / max(n, 1) / _PROGRESS_STEP)
+        if step > shown[0]:
+            shown[0] = step
+            click.echo(f"campaign: {done} of {n} tasks ({100 * done // max(n, 1)} %), "
+                       f"{time.monotonic() - start:.0f} s", err=True)
+
+    yield plain
+
+
 def _started(bar: Progress, task: TaskID) -> Callable[[int, int, str, str], None]:
     """``started(done, total, name, method)`` for `verify_directory`: the bar names the artefact
     being verified (its checks run inside one verdict)."""
@@ -613,13 +717,17 @@ def report(directory: str, pdf: bool) -> None:
 @click.option("--scenario", "scenarios", multiple=True,
               help="Campaign scenario (repeatable; default: every one defined for the plant).")
 @click.option("--seed", default=0, show_default=True, type=click.IntRange(min=0), help="Campaign seed.")
-@click.option("--workers", default=2, show_default=True, type=click.IntRange(min=1),
-              help="Worker processes of the local Dask cluster.")
-@click.option("--connect-timeout", default=10.0, show_default=True,
-              type=click.FloatRange(min=0.1, max=600.0),
+@click.option("--workers", default=2, show_default=True, type=click.IntRange(min=1, max=MAX_WORKERS),
+              help=f"Worker processes of the local Dask cluster (at most {MAX_WORKERS}: 4 per CPU).")
+@click.option("--connect-timeout", default=10.0, show_default=True, type=_Seconds(min=0.1, max=600.0),
               help="Seconds to wait for the Dask scheduler given with --scheduler.")
+@click.option("--worker-timeout", default=WORKER_TIMEOUT, show_default=True,
+              type=_Seconds(min=0.1, max=3600.0),
+              help="Seconds to wait while the Dask cluster has no worker (its only worker died) "
+                   "before giving up.")
 def verify(directory: str, scheduler: str | None, as_json: bool, runs: int,
-           scenarios: tuple[str, ...], seed: int, workers: int, connect_timeout: float) -> None:
+           scenarios: tuple[str, ...], seed: int, workers: int, connect_timeout: float,
+           worker_timeout: float) -> None:
     """Simulate every artefact of DIRECTORY and record the verdicts in it."""
     from tanksynth.sim.scenarios import scenario
 
@@ -627,36 +735,44 @@ def verify(directory: str, scheduler: str | None, as_json: bool, runs: int,
         scenario(name)  # unknown names are bad input (exit 2) before any work
     if not Path(directory).is_dir():
         raise SpecError("no such result directory", source=directory)
+    cluster = {"connect_timeout": connect_timeout, "worker_timeout": worker_timeout,
+               "waiting": _say_waiting}
     with _locked(directory, "verify"):
-        _verify_locked(directory, scheduler, as_json, runs, scenarios, seed, workers, connect_timeout)
+        _verify_locked(directory, scheduler, as_json, runs, scenarios, seed, workers, cluster)
+
+
+def _say_waiting(text: str) -> None:
+    """One line on stderr: the Dask cluster has no worker (`tanksynth.verify.cluster.completed`)."""
+    click.echo(text, err=True)
 
 
 def _verify_locked(directory: str, scheduler: str | None, as_json: bool, runs: int,
-                   scenarios: tuple[str, ...], seed: int, workers: int, connect_timeout: float) -> None:
+                   scenarios: tuple[str, ...], seed: int, workers: int, cluster: dict[str, Any]) -> None:
     from tanksynth.artefacts.io import to_jsonable
     from tanksynth.methods import verify_directory
 
     quiet = as_json
-    with _progress(quiet) as bar:
-        task = bar.add_task("verifying artefacts", total=None)
-        verdicts = verify_directory(directory, scheduler=scheduler,
-                                    progress=lambda d, n: bar.update(task, completed=d, total=n),
-                                    started=_started(bar, task), connect_timeout=connect_timeout)
     table_path = None
-    if runs:  # the campaign's modules only when one runs
+    if runs:  # the campaign's modules only when one runs; its estimate before any other work
         from tanksynth.methods import RUNNERS, load_directory
         from tanksynth.sim.scenarios import SCENARIOS
-        from tanksynth.verify.campaign import campaign_tasks, run_campaign
+        from tanksynth.verify.campaign import campaign_tasks, estimate_campaign, run_campaign
 
         spec, docs = load_directory(directory)
         names = list(scenarios) or [s for s in SCENARIOS if SCENARIOS[s].applies_to(spec.plant)]
         tasks = campaign_tasks(spec.text or (Path(directory) / "spec.toml").read_text(encoding="utf-8"),
                                [d for _, d in docs], names, runs, seed=seed, runners=RUNNERS)
-        with _progress(quiet) as bar:
-            task = bar.add_task("campaign", total=len(tasks))
-            table = run_campaign(tasks, scheduler=scheduler, workers=workers,
-                                 progress=lambda d, n: bar.update(task, completed=d, total=n),
-                                 connect_timeout=connect_timeout)
+        estimate = estimate_campaign(tasks, workers)  # refuses a table past the memory budget
+        click.echo(estimate.line(), err=True)
+    with _progress(quiet) as bar:
+        task = bar.add_task("verifying artefacts", total=None)
+        verdicts = verify_directory(directory, scheduler=scheduler,
+                                    progress=lambda d, n: bar.update(task, completed=d, total=n),
+                                    started=_started(bar, task), **cluster)
+    if runs:
+        with _campaign_progress(len(tasks), estimate.seconds) as progress:
+            table = run_campaign(tasks, scheduler=scheduler, workers=workers, progress=progress,
+                                 done=estimate.done, **cluster)
         table_path = table.to_csv(Path(directory) / "campaign.csv")
     if as_json:
         click.echo(json.dumps(to_jsonable({"artefacts": [{"name": v.name, "method": v.method,
@@ -682,6 +798,8 @@ def main(argv: list[str] | None = None) -> int:
     one note on stdout (none with ``--json``). A design's own `DesignWarning`
     lines go to stderr (``warning: <designs>: <text>``). A file-size limit
     (``ulimit -f``) is an error on the file being written (exit 2), not a signal.
+    SIGINT, SIGTERM and SIGHUP interrupt any command the same way (`tanksynth.process`):
+    children ended, staged files removed, the lock released, one line, exit 130.
 
     Parameters
     ----------
@@ -692,12 +810,27 @@ def main(argv: list[str] | None = None) -> int:
     _ignore_file_size_signal()
     _one_blas_thread()
     args = list(sys.argv[1:] if argv is None else argv)
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        code = _main(args)
-    note_warnings(caught, _out, quiet="--json" in args, code=code,
-                   verbose=bool(args) and args[0] in ("-v", "--verbose"))
+    with interruptible():
+        try:
+            with warnings.catch_warnings(record=True) as caught:
+                warnings.simplefilter("always")
+                code = _main(args)
+            note_warnings(caught, _out, quiet="--json" in args, code=code,
+                          verbose=bool(args) and args[0] in ("-v", "--verbose"))
+        except KeyboardInterrupt as exc:  # between commands' clean-ups (parsing, the note)
+            code = _interrupted(exc.signum if isinstance(exc, Interrupted) else int(signal.SIGINT))
     return code
+
+
+def _interrupted(signum: int) -> int:
+    """Say, on one line, that the command was interrupted; the exit code `EXIT_INTERRUPTED`."""
+    name = Interrupted(signum).signal_name
+    try:
+        click.echo(f"interrupted ({name}): stopped; child processes ended, no partial file left, "
+                   "the result directory's lock released", err=True)
+    except (OSError, ValueError):  # stderr gone with the terminal (SIGHUP)
+        pass
+    return EXIT_INTERRUPTED
 
 
 
@@ -712,7 +845,12 @@ def _main(argv: list[str]) -> int:
     except click.ClickException as exc:
         click.echo(f"error: {_one_line(exc.format_message())}", err=True)
         return EXIT_BAD_INPUT
-    except click.exceptions.Abort:
+    except _Stopped as exc:
+        return _interrupted(exc.signum)
+    except click.exceptions.Abort as exc:
+        if isinstance(exc.__cause__, KeyboardInterrupt):  # while the arguments were parsed
+            cause = exc.__cause__
+            return _interrupted(cause.signum if isinstance(cause, Interrupted) else int(signal.SIGINT))
         return EXIT_BAD_INPUT
     except _Fail as exc:
         click.echo(f"{'infeasible' if exc.code == EXIT_INFEASIBLE else 'failed'}: {_one_line(exc)}",

@@ -703,7 +703,8 @@ def design(spec: Spec, entry: DesignSpec) -> DesignResult:
 def verify_directory(directory: str | Path, scheduler: str | None = None,
                      progress: Callable[[int, int], None] | None = None,
                      connect_timeout: float = 10.0,
-                     started: Callable[[int, int, str, str], None] | None = None) -> list[Verdict]:
+                     started: Callable[[int, int, str, str], None] | None = None,
+                     **cluster: Any) -> list[Verdict]:
     """Run the verdict of every artefact of a result directory (see `tanksynth.verify.runner`).
 
     Parameters
@@ -718,11 +719,13 @@ def verify_directory(directory: str | Path, scheduler: str | None = None,
         Seconds to wait for the scheduler (s).
     started : callable, optional
         ``started(done, total, name, method)`` as an artefact's verdict starts.
+    **cluster
+        ``worker_timeout`` and ``waiting`` of `tanksynth.verify.runner.verify_directory`.
     """
     from tanksynth.verify.runner import verify_directory as _verify_directory
 
     return _verify_directory(directory, _verifiable(), scheduler=scheduler, progress=progress,
-                             connect_timeout=connect_timeout, started=started)
+                             connect_timeout=connect_timeout, started=started, **cluster)
 
 
 def load_directory(directory: str | Path) -> tuple[Spec, list[tuple[Path, dict]]]:

@@ -1,11 +1,152 @@
-"""Process set-up of a command (BLAS threads, file-size signal) and the internal-error log."""
+"""Process set-up of a command (BLAS threads, signals, child processes) and the internal-error log.
+
+Interruption (issue 31): SIGINT, SIGTERM and SIGHUP all end a command the same way. The first one
+raises `Interrupted` in the main thread (`interruptible`); later ones are ignored while the
+command cleans up, so the clean-up itself is not cut short. The clean-up is ordinary unwinding:
+child processes are ended (the report worker's group by `end_process_group`, LaTeX's group by
+the PDF build, the Dask cluster closed), staged files removed, the result directory's lock
+released; the command prints one line
+``interrupted (SIGTERM): ...`` and exits with `EXIT_INTERRUPTED`.
+
+A forked child that writes into a result directory (the report worker) calls `die_with_parent`:
+it is interrupted the same way (and unwinds the same way) when its parent dies, even by SIGKILL
+(Linux ``PR_SET_PDEATHSIG``), or asks it to end (SIGTERM).
+"""
 
 from __future__ import annotations
 
 import os
+import signal
 import sys
+import threading
+import time
+from contextlib import contextmanager
+from typing import Any, Iterator
 
-__all__ = ["one_blas_thread", "ignore_file_size_signal", "internal_error_log"]
+__all__ = ["one_blas_thread", "ignore_file_size_signal", "internal_error_log", "EXIT_INTERRUPTED",
+           "INTERRUPTING_SIGNALS", "Interrupted", "interruptible", "die_with_parent",
+           "end_process_group"]
+
+#: Exit code of a command ended by SIGINT, SIGTERM or SIGHUP (128 + SIGINT, the shell's code for
+#: Ctrl-C; one code for every interruption, the signal is named in the message).
+EXIT_INTERRUPTED = 130
+
+#: The signals that interrupt a command (those present on this platform).
+INTERRUPTING_SIGNALS: tuple[int, ...] = tuple(
+    getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, name))
+
+
+class Interrupted(KeyboardInterrupt):
+    """A command was interrupted by a signal (a `KeyboardInterrupt`, so that every handler that
+    lets Ctrl-C through lets it through too).
+
+    Parameters
+    ----------
+    signum : int
+        The signal received.
+    """
+
+    def __init__(self, signum: int = int(signal.SIGINT)):
+        self.signum = int(signum)
+        super().__init__(self.signal_name)
+
+    @property
+    def signal_name(self) -> str:
+        """The signal's name, e.g. ``SIGTERM``."""
+        try:
+            return signal.Signals(self.signum).name
+        except ValueError:
+            return f"signal {self.signum}"
+
+
+def end_process_group(pid: int, grace: float = 5.0) -> None:
+    """End the process group led by child ``pid`` and reap ``pid``: SIGTERM, then SIGKILL after
+    ``grace`` seconds if it is still there. Bounded: returns within about ``grace`` + 5 s.
+
+    Parameters
+    ----------
+    pid : int
+        A child of this process that leads its own process group.
+    grace : float
+        Seconds it gets to end its own children and exit (s).
+    """
+    for sig, wait in ((signal.SIGTERM, grace), (signal.SIGKILL, 5.0)):
+        try:
+            os.killpg(pid, sig)
+        except (ProcessLookupError, PermissionError):
+            pass
+        deadline = time.monotonic() + wait
+        while True:
+            try:
+                done, _ = os.waitpid(pid, os.WNOHANG)
+            except ChildProcessError:
+                return
+            if done:
+                return
+            if time.monotonic() > deadline:
+                break
+            time.sleep(0.02)
+
+
+def _raise_interrupted(signum: int, frame: Any) -> None:
+    # the first signal interrupts; the ones after it would cut the clean-up short: ignored
+    for sig in INTERRUPTING_SIGNALS:
+        signal.signal(sig, signal.SIG_IGN)
+    raise Interrupted(signum)
+
+
+@contextmanager
+def interruptible() -> Iterator[None]:
+    """SIGINT, SIGTERM and SIGHUP raise `Interrupted` in the main thread while this runs (the
+    previous handlers are restored after). Elsewhere than the main thread: nothing changes."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = {sig: signal.getsignal(sig) for sig in INTERRUPTING_SIGNALS}
+    for sig in INTERRUPTING_SIGNALS:
+        signal.signal(sig, _raise_interrupted)
+    try:
+        yield
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler if handler is not None else signal.SIG_DFL)
+
+
+#: ``prctl`` option: the signal a process gets when its parent dies (linux/prctl.h).
+_PR_SET_PDEATHSIG = 1
+
+
+def die_with_parent(parent: int, own_group: bool = True) -> None:
+    """In a forked child: be interrupted like a command (`Interrupted` on SIGTERM, SIGINT,
+    SIGHUP: the child unwinds, ending its own children and removing its staged files) and
+    be sent SIGTERM when ``parent`` dies (Linux ``PR_SET_PDEATHSIG``, even when the parent was
+    SIGKILLed). If ``parent`` is already gone, raises `Interrupted` at once.
+
+    Parameters
+    ----------
+    parent : int
+        The pid of the process that forked this one.
+    own_group : bool
+        Lead a process group of its own (the parent ends it with `end_process_group`; a
+        terminal's Ctrl-C then reaches the parent only, which ends it).
+    """
+    if own_group:
+        try:
+            os.setpgid(0, 0)
+        except OSError:
+            pass
+    for sig in INTERRUPTING_SIGNALS:
+        signal.signal(sig, _raise_interrupted)
+    if sys.platform.startswith("linux"):
+        import ctypes
+
+        try:
+            libc = ctypes.CDLL(None, use_errno=True)
+            libc.prctl(_PR_SET_PDEATHSIG, int(signal.SIGTERM), 0, 0, 0)
+        except (OSError, AttributeError):
+            pass
+    if os.getppid() != parent:  # the parent died before the death signal was set
+        raise Interrupted(int(signal.SIGTERM))
 
 
 def one_blas_thread() -> None:

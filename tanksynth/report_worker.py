@@ -20,17 +20,26 @@ some: the report is then written in-process), and unless
 ``TANKSYNTH_REPORT_WORKER=0``. Whatever goes wrong in the worker (it dies,
 raises, sends nothing), the parent writes the report itself, so errors
 surface exactly as without a worker.
+
+The worker leads a process group of its own and dies with its parent (issue 31): a parent that
+is interrupted ends the group (`ReportWorker.stop`: SIGTERM, then SIGKILL) and reaps it before it
+releases the directory's lock; a parent that dies without a word (SIGKILL) sends the worker
+SIGTERM all the same (`tanksynth.process.die_with_parent`). Either way the worker unwinds (its
+LaTeX group ended, its staged files removed) and writes nothing into the directory after.
 """
 
 from __future__ import annotations
 
 import os
 import pickle
+import signal
 import sys
 import threading
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Callable, Iterator
+
+from tanksynth.process import die_with_parent, end_process_group
 
 if TYPE_CHECKING:  # the report stack loads in the worker (or in write_report), not on import
     from tanksynth.reports.inputs import ReportInputs
@@ -107,8 +116,8 @@ class ReportWorker:
     """A forked process that writes the report of a result directory when told to.
 
     Use `start` (None where a worker is not usable), optionally `designed`,
-    then exactly one of `finish` (write the report, get its summary) or
-    `cancel`.
+    then exactly one of `finish` (write the report, get its summary),
+    `cancel` (let it go) or `stop` (end it now: an interruption).
 
     Parameters
     ----------
@@ -146,14 +155,20 @@ class ReportWorker:
         res_r, res_w = os.pipe()
         sys.stdout.flush()
         sys.stderr.flush()
+        parent = os.getpid()
         pid = os.fork()
         if pid == 0:  # the worker: never returns
             try:
+                die_with_parent(parent)
                 os.close(go_w)
                 os.close(res_r)
                 _serve(Path(directory), bool(pdf), go_r, res_w)
             finally:
                 os._exit(0)
+        try:
+            os.setpgid(pid, pid)  # also here: the group exists before `stop` may signal it
+        except OSError:
+            pass
         os.close(go_r)
         os.close(res_w)
         return cls(pid, go_w, res_r)
@@ -178,9 +193,12 @@ class ReportWorker:
         os.close(self._go)
         try:
             data = _read_all(self._result)
-        finally:
+        except BaseException:  # interrupted while the worker writes: end it, nothing after
             os.close(self._result)
-            self._reap()
+            end_process_group(self._pid)
+            raise
+        os.close(self._result)
+        self._reap()
         try:
             status, payload = pickle.loads(data)
         except Exception:  # noqa: BLE001 - nothing or garbage: the worker died
@@ -195,6 +213,16 @@ class ReportWorker:
         os.close(self._go)
         os.close(self._result)
         self._reap()
+
+    def stop(self) -> None:
+        """End the worker now (its process group: SIGTERM, then SIGKILL) and reap it; bounded
+        (about 10 s at most). Nothing once `finish` or `cancel` ran."""
+        if self._done:
+            return
+        self._done = True
+        os.close(self._go)
+        os.close(self._result)
+        end_process_group(self._pid)
 
     def _reap(self) -> None:
         try:
@@ -286,9 +314,11 @@ def _trace_figures_in_two(inputs: ReportInputs) -> dict[str, Any]:
         return draw_trace_figures(inputs, jobs)
     theirs, mine = jobs[0::2], jobs[1::2]  # the largest to the helper: this one renders after
     read, write = os.pipe()
+    parent = os.getpid()
     pid = os.fork()
     if pid == 0:
         try:
+            die_with_parent(parent, own_group=False)  # in the worker's group: ended with it
             os.close(read)
             _write_all(write, pickle.dumps(draw_trace_figures(inputs, theirs)))
         finally:
@@ -297,6 +327,9 @@ def _trace_figures_in_two(inputs: ReportInputs) -> dict[str, Any]:
     try:
         out = draw_trace_figures(inputs, mine)
         data = _read_all(read)
+    except BaseException:  # interrupted: the helper stops drawing too (it unwinds, see start)
+        os.kill(pid, signal.SIGTERM)
+        raise
     finally:
         os.close(read)
         os.waitpid(pid, 0)

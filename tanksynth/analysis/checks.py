@@ -10,14 +10,15 @@ import numpy.typing as npt
 
 import sympy as sp
 
-from tanksynth.analysis.symbolic import TooComplexError, jacobian, symbolic_budget
+from tanksynth.analysis.budget import TooComplexError, run_within_budget
+from tanksynth.analysis.symbolic import jacobian
 from tanksynth.analysis.linearize import equilibrium_input, linearize
 from tanksynth.plants.base import Plant
 from tanksynth.analysis.rank import (controllability_rank, nonlinear_observability,
                                      observability_determinant_zeros, observability_rank, pbh_test,
                                      symbolic_observability)
 
-__all__ = ["Check", "rank_conditions", "equilibrium_checks"]
+__all__ = ["Check", "rank_conditions", "equilibrium_checks", "symbolic_observability_check"]
 
 #: Largest state dimension for which the symbolic determinant is attempted.
 SYMBOLIC_MAX_STATES = 4
@@ -226,22 +227,44 @@ def rank_conditions(plant: Plant, x0: npt.ArrayLike, ts: float | None = None,
     else:
         F_sym, C_sym = jacobians
         try:
-            with symbolic_budget("the symbolic observability determinant"):
-                sym = symbolic_observability(F_sym, C_sym, variables=plant.x, state_names=names)
+            checks.append(run_within_budget(symbolic_observability_check, F_sym, C_sym,
+                                            tuple(plant.x), tuple(names),
+                                            what="the symbolic observability determinant"))
         except TooComplexError as exc:
             checks.append(Check("symbolic_observability", None, f"not attempted: {exc.detail}"))
-            return checks
-        if sym.identically_zero:
-            detail = ("det O is identically zero: the linearisation is unobservable for every "
-                      "parameter value and operating point"
-                      + (f"; unobservable direction in {', '.join(sym.null_direction)}"
-                         if sym.null_direction else ""))
-        elif sym.degenerate_parameters:
-            detail = "rank < n for every state when " + " or ".join(
-                "(" + ", ".join(f"{k} = {v}" for k, v in d.items()) + ")" for d in sym.degenerate_parameters)
-        else:
-            detail = "no parameter values make the linearisation unobservable everywhere"
-        if sym.factors:
-            detail += "; det O vanishes where " + " or ".join(f"{f} = 0" for f in sym.factors)
-        checks.append(Check("symbolic_observability", None, detail, sym.as_dict()))
     return checks
+
+
+def symbolic_observability_check(F_sym: sp.Matrix, C_sym: sp.Matrix, variables: tuple[sp.Symbol, ...],
+                                 state_names: tuple[str, ...]) -> Check:
+    """The ``symbolic_observability`` verdict (informative) of the Jacobians ``F``, ``C``.
+
+    The whole symbolic step (the factored determinant, its identically-zero test, the
+    degenerate parameter sets): `rank_conditions` runs it under the symbolic budget
+    (`tanksynth.analysis.budget.run_within_budget`).
+
+    Parameters
+    ----------
+    F_sym : sympy.Matrix, shape (n, n)
+        Symbolic ``df/dx`` of the smooth form.
+    C_sym : sympy.Matrix, shape (q, n)
+        Symbolic ``dh/dx``.
+    variables : tuple of sympy.Symbol
+        The states (treated as varying).
+    state_names : tuple of str
+        Their names.
+    """
+    sym = symbolic_observability(F_sym, C_sym, variables=variables, state_names=state_names)
+    if sym.identically_zero:
+        detail = ("det O is identically zero: the linearisation is unobservable for every "
+                  "parameter value and operating point"
+                  + (f"; unobservable direction in {', '.join(sym.null_direction)}"
+                     if sym.null_direction else ""))
+    elif sym.degenerate_parameters:
+        detail = "rank < n for every state when " + " or ".join(
+            "(" + ", ".join(f"{k} = {v}" for k, v in d.items()) + ")" for d in sym.degenerate_parameters)
+    else:
+        detail = "no parameter values make the linearisation unobservable everywhere"
+    if sym.factors:
+        detail += "; det O vanishes where " + " or ".join(f"{f} = 0" for f in sym.factors)
+    return Check("symbolic_observability", None, detail, sym.as_dict())

@@ -8,21 +8,17 @@ appears in the expression, which keeps the N-tank network cheap.
 
 from __future__ import annotations
 
-import os
-import signal
-import threading
-from contextlib import contextmanager
 from dataclasses import dataclass
-from typing import Iterator, Sequence
+from typing import Sequence
 
 import sympy as sp
 
-from tanksynth.errors import DimensionError, SpecError, TanksynthError
+from tanksynth.analysis.budget import SYMBOLIC_SECONDS, TooComplexError, run_within_budget
+from tanksynth.errors import DimensionError, TanksynthError
 
 __all__ = [
     "SYMBOLIC_SECONDS",
     "TooComplexError",
-    "symbolic_budget",
     "jacobian",
     "jacobian_by_form",
     "canonical_form",
@@ -33,86 +29,6 @@ __all__ = [
     "RelativeDegree",
     "relative_degree",
 ]
-
-
-#: Wall-clock budget (s) of one symbolic step (determinant, factorisation, simplification,
-#: Lie derivatives) on a user model; override with TANKSYNTH_SYMBOLIC_SECONDS.
-SYMBOLIC_SECONDS = 20.0
-
-_active = threading.local()
-
-
-class TooComplexError(SpecError):
-    """A symbolic step on the model did not finish within its budget ("too complex for
-    symbolic analysis"): exit 2, naming the plant; checks report it as not attempted.
-
-    Parameters
-    ----------
-    message : str
-        Which step did not finish and what to do (simplify the expressions, raise the budget).
-    key : str, optional
-        Dotted spec key of the offending expression, e.g. ``plant.outputs``.
-    source : str, optional
-        File the spec came from, if any.
-    """
-
-
-def _budget_seconds(seconds: float | None) -> float:
-    if seconds is not None:
-        return float(seconds)
-    try:
-        value = float(os.environ.get("TANKSYNTH_SYMBOLIC_SECONDS", SYMBOLIC_SECONDS))
-    except ValueError:
-        return SYMBOLIC_SECONDS
-    return value if 0 < value < 1e6 else SYMBOLIC_SECONDS
-
-
-@contextmanager
-def symbolic_budget(what: str, seconds: float | None = None, key: str = "plant") -> Iterator[None]:
-    """Run a symbolic step under a wall-clock budget; past it, raise `TooComplexError`.
-
-    The budget is a real-time interval timer (SIGALRM), so it works in the
-    main thread of a process (the CLI, a notebook kernel); elsewhere (a
-    worker thread) the step runs without one. Nested budgets: the outer one
-    governs.
-
-    Parameters
-    ----------
-    what : str
-        The step, for the message (``"symbolic observability"``).
-    seconds : float, optional
-        Budget in s; default `SYMBOLIC_SECONDS` (or ``TANKSYNTH_SYMBOLIC_SECONDS``).
-    key : str
-        Spec key named by the error.
-
-    Raises
-    ------
-    TooComplexError
-        The step took longer than the budget.
-    """
-    limit = _budget_seconds(seconds)
-    usable = (threading.current_thread() is threading.main_thread() and hasattr(signal, "setitimer")
-              and not getattr(_active, "on", False))
-    if usable and signal.getitimer(signal.ITIMER_REAL)[0] > 0:
-        usable = False  # someone else's timer is running: do not replace it
-    if not usable:
-        yield
-        return
-
-    def _expired(signum, frame):  # noqa: ARG001 - signal handler signature
-        raise TooComplexError(f"too complex for symbolic analysis: {what} did not finish within "
-                              f"{limit:g} s (TANKSYNTH_SYMBOLIC_SECONDS); simplify the model "
-                              "expressions", key=key)
-
-    previous = signal.signal(signal.SIGALRM, _expired)
-    _active.on = True
-    try:
-        signal.setitimer(signal.ITIMER_REAL, limit)
-        yield
-    finally:
-        signal.setitimer(signal.ITIMER_REAL, 0)
-        signal.signal(signal.SIGALRM, previous)
-        _active.on = False
 
 
 def jacobian(exprs: sp.Matrix, variables: Sequence[sp.Symbol]) -> sp.Matrix:
@@ -332,8 +248,8 @@ def relative_degree(f: sp.Matrix, h: sp.Matrix, x: Sequence[sp.Symbol],
     TooComplexError
         The Lie derivatives or their simplification exceed `SYMBOLIC_SECONDS`.
     """
-    with symbolic_budget("the relative degree (Lie derivatives, simplification)"):
-        return _relative_degree(f, h, x, u)
+    return run_within_budget(_relative_degree, f, h, tuple(x), tuple(u),
+                             what="the relative degree (Lie derivatives, simplification)")
 
 
 def _relative_degree(f: sp.Matrix, h: sp.Matrix, x: Sequence[sp.Symbol],

@@ -107,7 +107,7 @@ def stage(target: str | Path, payload: Payload) -> Path:
 #: writes there), the build directories of a law export
 #: (``.law-build-<8>.tmp``) and of a PDF (``.report-build-<8>``), and a lock being taken over
 #: (``.tanksynth.lock.stale.<pid>``).
-_STAGED_FILE = re.compile(r"\.(?P<target>.+\.(json|npz|mat|h|c|casadi|toml|csv|tex|pdf|log))"
+_STAGED_FILE = re.compile(r"\.(?P<target>.+\.(json|npz|mat|h|c|casadi|toml|csv|tex|pdf|log|png|svg))"
                           r"\.[a-z0-9_]{8}\.tmp")
 _BUILD_DIR = re.compile(r"\.law-build-[a-z0-9_]{8}\.tmp|\.report-build-[a-z0-9_]{8}")
 _STALE_LOCK = re.compile(re.escape(LOCK_NAME) + r"\.stale\.[0-9]+")

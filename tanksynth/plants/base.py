@@ -581,14 +581,24 @@ class Plant:
         Each entry is one equation ``\\dot{x}_i = f_i`` or ``y_j = h_j`` in the
         parameter symbols (values are listed separately in reports).
         """
+        exprs = [*self.f, *self.f_smooth, *self.h]
+        symbols = set().union(*(sp.sympify(e).free_symbols for e in exprs))
+        symbols |= {sp.Symbol(v.name) for v in (*self.states, *self.outputs)}
+        # sympy typesets a name ending in "scr" as \mathscr{...}, whose package the reports
+        # do not load (and their LaTeX check refuses): \mathcal is the script face they have.
+        names = {sym: sp.latex(sym).replace(r"\mathscr{", r"\mathcal{") for sym in symbols}
+
+        def tex(expr: Any) -> str:
+            return sp.latex(expr, symbol_names=names)
+
         def lhs(name: str, dot: bool) -> str:
-            sym = sp.latex(sp.Symbol(name))
+            sym = tex(sp.Symbol(name))
             return rf"\dot{{{sym}}}" if dot else sym
 
         return {
-            "general": [f"{lhs(s.name, True)} = {sp.latex(e)}" for s, e in zip(self.states, self.f)],
-            "smooth": [f"{lhs(s.name, True)} = {sp.latex(e)}" for s, e in zip(self.states, self.f_smooth)],
-            "outputs": [f"{lhs(o.name, False)} = {sp.latex(e)}" for o, e in zip(self.outputs, self.h)],
+            "general": [f"{lhs(s.name, True)} = {tex(e)}" for s, e in zip(self.states, self.f)],
+            "smooth": [f"{lhs(s.name, True)} = {tex(e)}" for s, e in zip(self.states, self.f_smooth)],
+            "outputs": [f"{lhs(o.name, False)} = {tex(e)}" for o, e in zip(self.outputs, self.h)],
         }
 
     def summary(self) -> dict[str, Any]:

@@ -19,6 +19,7 @@ from tanksynth.artefacts.io import (PLANT_SCHEMA, SCHEMA, check_npz, check_orpha
 from tanksynth.artefacts.traces import check_trace
 from tanksynth.errors import ArtefactError
 from tanksynth.reports.refused import REFUSED_FILE, read_refused
+from tanksynth.reports.trusted import check_result_latex
 from tanksynth.verify.runner import read_checks
 
 __all__ = ["ReportInputs", "read_report_inputs"]
@@ -113,7 +114,8 @@ def read_report_inputs(directory: str | Path) -> ReportInputs:
     ArtefactError
         The directory does not exist, has no ``plant.json``, has no design
         artefact, or a file of the artefact schema is malformed or fails
-        its provenance check. The message names the file.
+        its provenance check, or LaTeX in it that the report would typeset is outside the
+        math grammar of `tanksynth.reports.trusted`. The message names the file (and key).
     """
     d = Path(directory)
     if not d.is_dir():
@@ -150,6 +152,7 @@ def read_report_inputs(directory: str | Path) -> ReportInputs:
     spec_text = spec_path.read_text(encoding="utf-8", errors="replace") if spec_path.exists() else None
     raw_checks = read_checks(d)  # the same reading (and refusal) as verify and load
     checks = None if raw_checks is None else tuple(raw_checks)
+    check_result_latex(d, plant, artefacts, checks)   # LaTeX a report typesets: the grammar
     campaign = None
     campaign_path = d / "campaign.csv"
     if campaign_path.exists():

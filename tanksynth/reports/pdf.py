@@ -68,7 +68,8 @@ def _first_error(log: str) -> str:
 
 
 def _run_group(cmd: list[str], cwd: Path, env: dict, timeout: float) -> subprocess.CompletedProcess:
-    """Run a LaTeX command in its own process group; on timeout end the whole group.
+    """Run a LaTeX command in its own process group; on timeout (or an interruption: SIGINT,
+    SIGTERM, SIGHUP) end the whole group.
 
     latexmk starts pdflatex as a child: killing latexmk alone would leave pdflatex running
     after tanksynth has given up.
@@ -77,7 +78,7 @@ def _run_group(cmd: list[str], cwd: Path, env: dict, timeout: float) -> subproce
                             stderr=subprocess.PIPE, text=True, start_new_session=True)
     try:
         out, err = proc.communicate(timeout=timeout)
-    except subprocess.TimeoutExpired:
+    except BaseException:  # the timeout, or an interruption: nothing of LaTeX runs on after it
         try:
             os.killpg(proc.pid, signal.SIGKILL)
         except ProcessLookupError:

@@ -1,16 +1,30 @@
-"""Connecting to a Dask scheduler: a bounded wait and one clear error."""
+"""Dask: connecting to a scheduler (a bounded wait and one clear error) and waiting for results
+while the cluster has workers (a cluster without any gives up after ``--worker-timeout``)."""
 
 from __future__ import annotations
 
+import os
 import threading
-from typing import Any
+import time
+from typing import Any, Callable, Iterable, Iterator
 
 from tanksynth.errors import SchedulerError
 
-__all__ = ["CONNECT_TIMEOUT", "connect"]
+__all__ = ["CONNECT_TIMEOUT", "WORKER_TIMEOUT", "MAX_WORKERS", "connect", "completed"]
 
 #: Seconds to wait for a scheduler to answer before giving up (``--connect-timeout``).
 CONNECT_TIMEOUT = 10.0
+
+#: Seconds a computation waits for the cluster to have a worker again (its only worker died, or
+#: a scheduler that has none) before it gives up (``--worker-timeout``).
+WORKER_TIMEOUT = 60.0
+
+#: The most worker processes a local cluster may start (``--workers``): 4 per CPU, at least 4
+#: (each is a Python process of about 150 MB; more would only queue for the CPUs).
+MAX_WORKERS = max(4, 4 * (os.cpu_count() or 1))
+
+#: Seconds between two looks at the cluster while results are awaited.
+_POLL = 0.5
 
 
 def connect(address: str, timeout: float = CONNECT_TIMEOUT) -> Any:
@@ -52,3 +66,63 @@ def connect(address: str, timeout: float = CONNECT_TIMEOUT) -> Any:
         raise SchedulerError(f"cannot use the Dask scheduler {address!r} (waited at most "
                              f"{float(timeout):g} s): {detail}") from None
     return outcome["client"]
+
+
+def completed(client: Any, futures: Iterable[Any], *, worker_timeout: float = WORKER_TIMEOUT,
+              waiting: Callable[[str], None] | None = None) -> Iterator[Any]:
+    """The futures of ``client``, each as it completes; gives up when the cluster has had no
+    worker for ``worker_timeout`` seconds while some are pending.
+
+    Parameters
+    ----------
+    client : distributed.Client
+    futures : iterable of distributed.Future
+    worker_timeout : float
+        Seconds without any worker before giving up (s, > 0).
+    waiting : callable, optional
+        ``waiting(text)``: called once (one line) when the cluster is found without a worker,
+        saying what is awaited and for how long at most.
+
+    Yields
+    ------
+    distributed.Future
+        A finished future (done or failed).
+
+    Raises
+    ------
+    SchedulerError
+        The cluster had no worker for ``worker_timeout`` seconds; the message says how many
+        results are missing.
+    """
+    from distributed import wait
+
+    pending = set(futures)
+    total = len(pending)
+    alone_since: float | None = None
+    told = False
+    while pending:
+        try:
+            done, _ = wait(list(pending), timeout=_POLL, return_when="FIRST_COMPLETED")
+        except TimeoutError:
+            done = set()
+        for fut in done:
+            pending.discard(fut)
+            yield fut
+        if done or not pending:
+            alone_since = None
+            continue
+        if client.nthreads():
+            alone_since = None
+            continue
+        now = time.monotonic()
+        if alone_since is None:
+            alone_since = now
+        if not told and waiting is not None:
+            told = True
+            waiting(f"waiting for Dask workers: the cluster has none ({len(pending)} of {total} "
+                    f"task(s) pending); giving up after {float(worker_timeout):g} s "
+                    "(--worker-timeout)")
+        if now - alone_since > worker_timeout:
+            raise SchedulerError(f"no Dask worker for {float(worker_timeout):g} s (--worker-timeout): "
+                                 f"{len(pending)} of {total} task(s) not run; start workers for the "
+                                 "scheduler, or run without --scheduler (a local cluster)")

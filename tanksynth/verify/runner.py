@@ -30,7 +30,7 @@ from tanksynth.artefacts.jsontext import dumps
 from tanksynth.artefacts.traces import TraceLimitError, trace_path, write_trace
 from tanksynth.errors import ArtefactError, TanksynthError
 from tanksynth.spec import Spec, parse_spec_text
-from tanksynth.verify.cluster import CONNECT_TIMEOUT, connect
+from tanksynth.verify.cluster import CONNECT_TIMEOUT, WORKER_TIMEOUT, completed, connect
 from tanksynth.verify.traces import TraceRecorder
 
 __all__ = ["clear_cache", "VerdictFn", "Verdict", "verdict_for", "verdict_with_trace", "read_checks", "read_directory", "load_directory",
@@ -380,7 +380,9 @@ def verify_directory(directory: str | Path, table: Mapping[str, VerifiableMethod
                      scheduler: str | None = None,
                      progress: Callable[[int, int], None] | None = None,
                      connect_timeout: float = CONNECT_TIMEOUT,
-                     started: Callable[[int, int, str, str], None] | None = None) -> list[Verdict]:
+                     started: Callable[[int, int, str, str], None] | None = None,
+                     worker_timeout: float = WORKER_TIMEOUT,
+                     waiting: Callable[[str], None] | None = None) -> list[Verdict]:
     """Verify every artefact of a directory and record the verdicts in them.
 
     Beside each artefact ``DIR/<name>.json`` the trace of its verdict's main
@@ -406,6 +408,10 @@ def verify_directory(directory: str | Path, table: Mapping[str, VerifiableMethod
         ``started(done, total, name, method)`` as an artefact's verdict starts (in process
         only: on a cluster they run at once), so a display can name the artefact whose
         checks run.
+    worker_timeout : float
+        On a cluster: seconds to wait while it has no worker before giving up (s).
+    waiting : callable, optional
+        On a cluster: ``waiting(text)``, one line when it has no worker.
 
     Returns
     -------
@@ -415,6 +421,8 @@ def verify_directory(directory: str | Path, table: Mapping[str, VerifiableMethod
     ------
     ArtefactError
         See `load_directory`; nothing is written then.
+    SchedulerError
+        The cluster had no worker for ``worker_timeout`` seconds; nothing is written then.
     """
     spec, docs = load_directory(directory, table)
     for path, doc in docs:
@@ -432,8 +440,6 @@ def verify_directory(directory: str | Path, table: Mapping[str, VerifiableMethod
             if progress is not None:
                 progress(i + 1, total)
     else:
-        from distributed import as_completed  # here: dask stays off the in-process path
-
         text = (Path(directory) / "spec.toml").read_text(encoding="utf-8")
         source = str(Path(directory) / "spec.toml")
         with connect(scheduler, connect_timeout) as client:
@@ -444,7 +450,8 @@ def verify_directory(directory: str | Path, table: Mapping[str, VerifiableMethod
                                     pure=False,
                                     retries=2)
                 futures[fut] = path
-            for i, fut in enumerate(as_completed(futures)):
+            for i, fut in enumerate(completed(client, futures, worker_timeout=worker_timeout,
+                                              waiting=waiting)):
                 found, traces[futures[fut]] = fut.result()
                 checks[futures[fut]] = [Check(c["check"], c["passed"], c["detail"], c["data"])
                                         for c in found]

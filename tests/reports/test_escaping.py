@@ -103,18 +103,26 @@ def test_trusted_math_allow_list():
 
 @pytest.mark.slow
 @needs_latex
-def test_no_file_leaks_through_a_report(demo_dir, tmp_path):
-    """LaTeX planted in an artefact's `latex` field and in plant.json's equations is shown as text,
-    and pdflatex cannot read absolute paths anyway (openin_any = p): /etc/passwd never reaches the PDF."""
+def test_no_file_leaks_through_a_report(demo_dir, tmp_path, monkeypatch):
+    """LaTeX planted in plant.json's equations and in an artefact's `latex` field is refused,
+    naming the file and key, before LaTeX runs; let through anyway, pdflatex cannot read
+    absolute paths (openin_any = p): /etc/passwd never reaches the PDF or the log."""
+    import tanksynth.reports.trusted as trusted
+    from tanksynth.errors import ArtefactError, ReportError
+
     d = copy_dir(demo_dir, tmp_path / "inject")
     plant = json.loads((d / "plant.json").read_text(encoding="utf-8"))
     plant["equations"]["general"] = [INJECT] + list(plant["equations"]["general"])
     (d / "plant.json").write_text(json.dumps(plant), encoding="utf-8")
     art = json.loads((d / "linear_model.json").read_text(encoding="utf-8"))
     edit_json(d / "linear_model.json", latex={**art["latex"], "F": INJECT})
-    res = write_report(d, pdf=True)
-    text = subprocess.run(["pdftotext", str(res.pdf), "-"], capture_output=True, text=True,
-                          check=True).stdout
+    tex = (d / "report.tex").read_bytes()
+    with pytest.raises(ArtefactError, match=r"plant\.json: key 'equations\.general\[0\]'.*input"):
+        write_report(d, pdf=True)
+    assert (d / "report.tex").read_bytes() == tex and not (d / "report.pdf").exists()
+    monkeypatch.setattr(trusted, "latex_problem", lambda fragment: None)   # the grammar bypassed
+    with pytest.raises(ReportError):
+        write_report(d, pdf=True)
     secret = Path("/etc/passwd").read_text(encoding="utf-8").splitlines()[0]
-    assert secret and secret not in text
-    assert "input{/etc/passwd}" in text and "not typeset" in text
+    assert secret and not (d / "report.pdf").exists()
+    assert secret not in (d / "report.log").read_text(encoding="latin-1")

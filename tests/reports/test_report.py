@@ -116,10 +116,13 @@ def test_report_tex_is_atomic_and_deterministic(demo_dir, tmp_path):
 
 @pytest.mark.slow
 @needs_latex
-def test_latex_failure_is_report_error_exit_2(demo_dir, tmp_path, capsys):
+def test_latex_failure_is_report_error_exit_2(demo_dir, tmp_path, capsys, monkeypatch):
+    import tanksynth.reports.trusted as trusted
+
     d = copy_dir(demo_dir, tmp_path / "broken")
     (d / "report.pdf").write_bytes(b"%PDF stale")
     edit_json(d / "linear_model.json", latex={"F": r"\frac{1}{"})     # a design's bad fragment
+    monkeypatch.setattr(trusted, "latex_problem", lambda fragment: None)   # past the grammar
     with pytest.raises(ReportError) as info:
         write_report(d, pdf=True)
     assert info.value.log_path == d / "report.log" and (d / "report.log").exists()

@@ -49,3 +49,58 @@ def test_silent_refused_and_malformed_schedulers_are_bad_input(designed, capsys)
             assert elapsed < 60, (address, elapsed)
     finally:
         silent.close()
+
+
+def _campaign_of(designed):
+    from tanksynth.methods import RUNNERS, load_directory
+    from tanksynth.verify.campaign import campaign_tasks
+
+    spec, docs = load_directory(designed)
+    return campaign_tasks(spec.text, [d for _, d in docs][:1], ["servo"], 2, chunk=1, runners=RUNNERS)
+
+
+@pytest.mark.slow
+def test_a_campaign_whose_only_worker_died_is_given_up(designed):
+    """Issue 31 item 10: the cluster's only worker is gone before the campaign runs (deterministic:
+    it is removed and the scheduler confirms it has none); the campaign says once that it waits
+    for workers and gives up after --worker-timeout with a SchedulerError naming it."""
+    from distributed import Client, LocalCluster
+
+    from tanksynth.errors import SchedulerError
+    from tanksynth.verify.campaign import run_campaign
+
+    tasks = _campaign_of(designed)
+    said: list[str] = []
+    with LocalCluster(n_workers=1, threads_per_worker=1, processes=False,
+                      dashboard_address=None) as cluster, Client(cluster) as client:
+        cluster.scale(0)                       # the only worker goes
+        deadline = time.monotonic() + 120      # hang guard only
+        while client.nthreads() and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert not client.nthreads()
+        with pytest.raises(SchedulerError, match=r"no Dask worker for 1 s \(--worker-timeout\)"):
+            run_campaign(tasks, scheduler=cluster.scheduler_address, worker_timeout=1,
+                         waiting=said.append)
+    assert len(said) == 1 and said[0].startswith("waiting for Dask workers"), said
+
+
+@pytest.mark.slow
+def test_verify_on_a_cluster_without_workers_is_exit_2_after_the_worker_timeout(designed, capsys):
+    from distributed import Client, LocalCluster
+
+    with LocalCluster(n_workers=0, processes=False, dashboard_address=None) as cluster, \
+            Client(cluster) as client:
+        assert not client.nthreads()
+        code = main(["verify", str(designed), "--scheduler", cluster.scheduler_address,
+                     "--worker-timeout", "1"])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2, err
+    assert len(err) == 2 and err[0].startswith("waiting for Dask workers"), err
+    assert "no Dask worker for 1 s (--worker-timeout)" in err[1], err
+
+
+@pytest.mark.parametrize("value", ["nan", "inf", "-5", "0"])
+def test_a_non_finite_worker_timeout_is_bad_input(designed, capsys, value):
+    code = main(["verify", str(designed), "--worker-timeout", value])
+    err = capsys.readouterr().err
+    assert code == 2 and "--worker-timeout" in err and len(err.strip().splitlines()) == 1, err
