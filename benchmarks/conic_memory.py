@@ -56,7 +56,7 @@ def spec_text(N: int) -> str:
     x = [21.70591608, 22.54471524] * (N // 4) + [9.04293578, 5.08665138] * (N // 4)
     return (f'[plant]\nmodel = "tank_network"\nN = {N}\n[operating_point]\nx = {x}\n'
             f'u = {[4.0] * (N // 2)}\n[sampling]\nts = 1.0\n[[design]]\nname = "mo"\n'
-            'method = "multiobjective"\nregion = [{type = "disk", center = 0.9, radius = 0.08}]\n')
+            'method = "multiobjective"\ntarget = "state_feedback"\nregion = [{type = "disk", center = 0.9, radius = 0.08}]\n')
 
 
 def main() -> int:

@@ -2,7 +2,9 @@
 
 The pipeline runs one way: spec (TOML) -> plant (sympy) -> analysis -> design
 -> artefacts -> verify -> report; `tanksynth.methods` is the one table of the
-design methods. The most used names are re-exported here and load on first
+design methods. ``tanksynth.design(plant, method, x0=..., ts=..., **options)``
+designs from Python objects through the same spec validation (`tanksynth.api`)
+and returns what ``tanksynth.load`` gives; ``.verify()`` verifies it. The most used names are re-exported here and load on first
 use (``import tanksynth`` itself loads none of the numerical libraries).
 """
 
@@ -26,6 +28,7 @@ _EXPORTS = {
                      "write_report"], "tanksynth.methods"),
     "Spec": "tanksynth.spec",
     **dict.fromkeys(["load", "Design", "Results"], "tanksynth.loading"),
+    **dict.fromkeys(["spec_document", "spec_text"], "tanksynth.api"),
     **dict.fromkeys(["controllability_rank", "nonlinear_observability", "observability_rank",
                      "pbh_test", "symbolic_observability"], "tanksynth.analysis.rank"),
 }
@@ -45,6 +48,9 @@ def __getattr__(name: str) -> Any:
             version = "0+unknown"
         globals()["__version__"] = version
         return version
+    if name == "design":  # the design stage's package, callable as `tanksynth.api.design`
+        __import__("tanksynth.design")
+        return globals()["design"]
     return _lazy_getattr(name)
 
 
@@ -88,4 +94,4 @@ def clear_cache(disk: bool = False) -> dict[str, int]:
     return dropped
 
 
-__all__ = ["__version__", "clear_cache", *_EXPORTS]
+__all__ = ["__version__", "clear_cache", "design", *_EXPORTS]

@@ -421,23 +421,33 @@ def methods(name: str | None, as_json: bool, markdown: bool) -> None:
             widths = [max(len(r[i]) for r in rows + [("method", "kind", "")]) for i in (0, 1)]
             for r in [("method", "kind", "designs"), *rows]:
                 click.echo(f"{r[0]:<{widths[0]}}  {r[1]:<{widths[1]}}  {r[2]}")
-            return
-        table = Table(title=title)
-        for col in ("method", "kind", "designs"):
-            table.add_column(col, overflow="fold")
-        for row in rows:
-            table.add_row(*row)
-        _out.print(table)
+        else:
+            table = Table(title=title)
+            for col in ("method", "kind", "designs"):
+                table.add_column(col, overflow="fold")
+            for row in rows:
+                table.add_row(*row)
+            _out.print(table)
+        from tanksynth.methods import ALIASES
+
+        for each in ALIASES.values():
+            click.echo(f"{each.name}: {each.describe()}")
         return
-    from tanksynth.methods import method
+    from tanksynth.methods import ALIASES, method
 
     entry = method(name)  # SpecError (exit 2) naming the methods for an unknown name
     docs = method_options(name)
+    alias = ALIASES.get(name)
     if as_json:
         click.echo(json.dumps({"name": entry.name, "kinds": list(entry.kinds), "summary": entry.summary,
-                               "options": docs}, indent=2))
+                               "options": docs, **({"alias": name, "alias_of": entry.name,
+                                                    "alias_options": dict(alias.options)}
+                                                   if alias else {})}, indent=2))
         return
     from rich.markup import escape
+
+    if alias is not None:
+        _out.print(f"{name}: {alias.describe()}", markup=False, highlight=False, soft_wrap=True)
 
     table = Table(title=escape(f"{entry.name} ({' / '.join(entry.kinds)}): {entry.summary}"))
     for col, ratio in (("option", 2), ("type", 2), ("default", 2), ("unit", 2), ("meaning", 3)):

@@ -25,7 +25,7 @@ from tanksynth.spec.method_options.base import numpydoc_section
 __all__ = ["method_catalogue", "method_options", "methods_markdown", "method_markdown", "option_cells",
            "toml_type", "toml_literal", "toml_example", "python_example", "python_design_call", "api_reference_markdown",
            "plant_families", "plants_markdown", "plain_text", "plant_variants_markdown", "plant_markdown", "custom_plant_markdown",
-           "gain_names_markdown", "GENERATED_SECTIONS", "generated_section", "update_readme",
+           "gain_names_markdown", "GENERATED_SECTIONS", "DOC_PAGES", "generated_section", "update_readme",
            "API_SECTIONS", "write_pages", "main"]
 
 
@@ -372,9 +372,14 @@ def methods_markdown(level: int = 3) -> str:
     -------
     str
     """
+    from tanksynth.methods import ALIASES
+
     cat = method_catalogue()
     lines = _table(("method", "kind", "designs"),
                    [(f"`{m['name']}`", " / ".join(m["kinds"]), m["summary"]) for m in cat])
+    lines += ["", "Aliases: a spec may name these instead (the artefact records the method it ran "
+                  "and the alias, `diagnostics.method_alias`).", ""]
+    lines += _table(("alias", "runs"), [(f"`{a.name}`", a.describe()) for a in ALIASES.values()])
     lines.append("")
     body = "\n".join(lines) + "\n" + "\n".join(method_markdown(m["name"], level) for m in cat)
     return body.rstrip("\n") + "\n"
@@ -683,15 +688,23 @@ def generated_section(text: str, name: str) -> str:
     return match.group(1)
 
 
-def update_readme(path: str | Path, check: bool = False) -> list[str]:
+#: Pages of the documentation source (relative to the repository root) holding generated
+#: sections, and which: `main` rewrites them with the README.
+DOC_PAGES: dict[str, tuple[str, ...]] = {"docs/gain_names.md": ("gain_names",)}
+
+
+def update_readme(path: str | Path, check: bool = False,
+                  sections: Sequence[str] | None = None) -> list[str]:
     """Rewrite the generated sections of a README (or, with ``check``, only compare).
 
     Parameters
     ----------
     path : str or Path
-        The README.
+        The README (or a page of `DOC_PAGES`).
     check : bool
         Do not write; only report what differs.
+    sections : sequence of str, optional
+        The sections the file holds (default every one of `GENERATED_SECTIONS`).
 
     Returns
     -------
@@ -701,7 +714,8 @@ def update_readme(path: str | Path, check: bool = False) -> list[str]:
     path = Path(path)
     text = path.read_text(encoding="utf-8")
     stale = []
-    for name, make in GENERATED_SECTIONS.items():
+    for name in GENERATED_SECTIONS if sections is None else sections:
+        make = GENERATED_SECTIONS[name]
         current, wanted = generated_section(text, name), make()
         if current != wanted:
             stale.append(name)
@@ -762,7 +776,8 @@ def write_pages(directory: str | Path) -> list[Path]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """``python -m tanksynth.docgen [--check] [README]``: rewrite (or check) the README.
+    """``python -m tanksynth.docgen [--check] [README]``: rewrite (or check) the README and, without
+    a README argument, the pages of `DOC_PAGES` (run from the repository root).
 
     Parameters
     ----------
@@ -776,11 +791,16 @@ def main(argv: list[str] | None = None) -> int:
     """
     args = list(sys.argv[1:] if argv is None else argv)
     check = "--check" in args
-    paths = [a for a in args if a != "--check"] or ["README.md"]
-    stale = update_readme(paths[0], check=check)
-    for name in stale:
-        sys.stdout.write(f"{paths[0]}: section {name!r} {'is stale' if check else 'rewritten'}\n")
-    return 1 if check and stale else 0
+    paths = [a for a in args if a != "--check"]
+    files: list[tuple[str, Sequence[str] | None]] = [(paths[0], None)] if paths else [
+        ("README.md", None), *((page, names) for page, names in DOC_PAGES.items() if Path(page).is_file())]
+    any_stale = False
+    for path, sections in files:
+        stale = update_readme(path, check=check, sections=sections)
+        any_stale = any_stale or bool(stale)
+        for name in stale:
+            sys.stdout.write(f"{path}: section {name!r} {'is stale' if check else 'rewritten'}\n")
+    return 1 if check and any_stale else 0
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -25,7 +25,7 @@ import numpy as np
 from tanksynth.artefacts.io import read_plant_record
 from tanksynth.artefacts.model import Artefact
 from tanksynth.errors import ArtefactError
-from tanksynth.verify.runner import read_checks, read_directory
+from tanksynth.verify.runner import Verdict, read_checks, read_directory
 
 __all__ = ["Design", "Results", "load"]
 
@@ -93,6 +93,33 @@ class Design:
         record = self.plant_record or {}
         ts = record.get("ts", self.diagnostics.get("ts", self.diagnostics.get("sampling_period")))
         return None if ts is None else float(ts)
+
+    def verify(self, scheduler: str | None = None) -> Verdict:
+        """Verify this design as ``tanksynth verify`` does: simulate it on the nonlinear plant.
+
+        Runs the verdict of every artefact of its directory
+        (`tanksynth.methods.verify_directory`, which records each in its JSON, so
+        ``tanksynth.load`` shows them afterwards) and returns this design's.
+
+        Parameters
+        ----------
+        scheduler : str, optional
+            Dask scheduler address (``tcp://host:port``); default this machine.
+
+        Returns
+        -------
+        tanksynth.verify.runner.Verdict
+            ``passed`` (bool) and the ``checks`` (each with ``check``, ``passed``, ``detail``).
+
+        Raises
+        ------
+        ArtefactError
+            A file of the directory was edited, swapped or deleted after design.
+        """
+        from tanksynth.methods import verify_directory
+
+        verdicts = verify_directory(self.path.parent, scheduler=scheduler)
+        return next(v for v in verdicts if v.name == self.name)
 
     def to_statespace(self, system: str | None = None, *, vertex: int | None = None) -> Any:
         """The design's linear system as a python-control ``StateSpace``.

@@ -49,7 +49,7 @@ if TYPE_CHECKING:  # annotations only: the modules load when a row's part is fir
     from tanksynth.spec.method_options import MethodOptions
     from tanksynth.verify.runner import VerifiableMethod, Verdict, VerdictFn
 
-__all__ = ["KINDS", "FAMILIES", "Method", "home", "TABLE", "METHODS", "VERDICTS", "RUNNERS", "STATEMENTS", "ADAPTERS",
+__all__ = ["KINDS", "FAMILIES", "Method", "Alias", "ALIASES", "home", "TABLE", "METHODS", "VERDICTS", "RUNNERS", "STATEMENTS", "ADAPTERS",
            "method", "resolve", "resolve_table", "design", "load_spec", "parse_spec", "parse_spec_text",
            "load_directory", "verify_directory", "write_report"]
 
@@ -184,7 +184,9 @@ class Method:
 
         Every `DesignWarning` (operating point, actuator range, implausible
         parameters, unstable result, the method's own) is issued and listed in
-        ``diagnostics["warnings"]`` (`tanksynth.design.audit.designed`).
+        ``diagnostics["warnings"]`` (`tanksynth.design.audit.designed`); an entry
+        written with an alias (``method = "lqr"``) records it as
+        ``diagnostics["method_alias"]``.
 
         Parameters
         ----------
@@ -193,9 +195,14 @@ class Method:
         design : DesignSpec
             One of its ``[[design]]`` entries (of this method).
         """
+        from dataclasses import replace
+
         from tanksynth.design.audit import designed
 
-        return designed(self.adapter.run, spec, design)
+        result = designed(self.adapter.run, spec, design)
+        if design.alias is None:
+            return result
+        return replace(result, diagnostics={**result.diagnostics, "method_alias": design.alias})
 
 
 _PARTS = ("options", "adapter", "verdict", "statement", "campaign")
@@ -444,6 +451,72 @@ def resolve_table(table: tuple[Method, ...] | None = None) -> None:
 _check_table(TABLE)
 
 
+@dataclass(frozen=True)
+class Alias:
+    """A name a control engineer types for a method of the table (``lqr``, ``dlqr``, ``lqe``).
+
+    A spec's ``method = "<alias>"`` runs `method` with `options` set (a spec that sets one of
+    them to another value is refused); the artefact records the real method as its ``method``
+    and the alias as ``diagnostics["method_alias"]``.
+
+    Attributes
+    ----------
+    name : str
+        The alias.
+    method : str
+        The method it runs (a row of `TABLE`).
+    options : mapping
+        The options the alias fixes, in the spec's TOML form (``{"time_domain": "continuous"}``).
+    meaning : str
+        One line: the textbook (python-control) function it stands for.
+    """
+
+    name: str
+    method: str
+    options: Mapping[str, Any]
+    meaning: str
+
+    def describe(self) -> str:
+        """``"alias of h2_state_feedback with time_domain = \"continuous\": ..."`` (one line)."""
+        fixed = ", ".join(f"{k} = {_toml_value(v)}" for k, v in self.options.items())
+        return f"alias of {self.method}" + (f" with {fixed}" if fixed else "") + f": {self.meaning}"
+
+
+def _toml_value(value: Any) -> str:
+    return f'"{value}"' if isinstance(value, str) else repr(value)
+
+
+#: Textbook names of methods: alias -> `Alias` (never a method's own name).
+ALIASES: Mapping[str, Alias] = MappingProxyType({a.name: a for a in (
+    Alias("lqr", "h2_state_feedback", MappingProxyType({"time_domain": "continuous"}),
+          "continuous-time LQR gain K of u = -K x minimising the integral of x'Qx + u'Ru "
+          "(python-control lqr; Riccati route)"),
+    Alias("dlqr", "h2_state_feedback", MappingProxyType({"time_domain": "discrete"}),
+          "discrete-time LQR gain K on the ZOH model at [sampling] ts, minimising the sum of "
+          "x'Qx + u'Ru (python-control dlqr)"),
+    Alias("lqe", "h2_observer", MappingProxyType({"time_domain": "continuous"}),
+          "continuous-time steady-state Kalman (Kalman-Bucy) observer gain L "
+          "(python-control lqe with G = Bw, QN = diag(disturbance_std^2), "
+          "RN = diag(measurement_std^2))"),
+    Alias("dlqe", "h2_observer", MappingProxyType({"time_domain": "discrete"}),
+          "discrete-time steady-state Kalman gain L of the predictor x_hat+ = Ad x_hat + Bd u + "
+          "L (y - C x_hat) (python-control dlqe)"),
+)})
+
+
+def _check_aliases(aliases: Mapping[str, Alias], table: tuple[Method, ...]) -> None:
+    """Raise if an alias shadows a method or names one that does not exist (runs at import)."""
+    names = {row.name for row in table}
+    for alias in aliases.values():
+        if alias.name in names or alias.method not in names:
+            raise TypeError(f"method alias {alias.name!r}: "
+                            + ("shadows a method" if alias.name in names else
+                               f"names no method ({alias.method!r})"))
+
+
+_check_aliases(ALIASES, TABLE)
+
+
 class _View(Mapping[str, Any]):
     """A read-only map method name -> one part of its row, imported on first lookup."""
 
@@ -499,11 +572,58 @@ def _verifiable() -> Mapping[str, VerifiableMethod]:
     # cast: the rows' parts are read-only properties (imported on first read); the runner only
     # reads them, though its Protocol declares them as plain (settable) attributes
     return cast("Mapping[str, VerifiableMethod]",
-                {name: _Verifiable(row) for name, row in METHODS.items()})
+                _with_aliases({name: _Verifiable(row) for name, row in METHODS.items()}))
+
+
+class _AliasRow:
+    """What the spec parser validates an alias's ``[[design]]`` table with: the real row's
+    Options, with the alias's fixed options set (`Alias`)."""
+
+    __slots__ = ("alias", "row")
+
+    def __init__(self, alias: Alias, row: Method | _Verifiable) -> None:
+        self.alias = alias
+        self.row = row
+
+    @property
+    def name(self) -> str:
+        """The real method's name (what the `DesignSpec` records)."""
+        return self.alias.method
+
+    @property
+    def adapter(self) -> _AliasRow:  # the verify runner validates with ``row.adapter``
+        return self
+
+    @property
+    def verdict(self) -> Any:
+        return self.row.verdict
+
+    def fixed_options(self, options: Mapping[str, Any], key: str) -> dict[str, Any]:
+        """``options`` with the alias's fixed ones added; `SpecError` for a conflicting one."""
+        from tanksynth.errors import SpecError
+
+        for opt, value in self.alias.options.items():
+            if opt in options and options[opt] != value:
+                raise SpecError(f"method {self.alias.name!r} ({self.alias.describe()}) sets "
+                                f"{opt} = {_toml_value(value)}; remove {opt} or use method = "
+                                f"{self.alias.method!r}", key=f"{key}.{opt}")
+        return {**options, **self.alias.options}
+
+    def validate(self, options: Mapping[str, Any], key: str, plant: Plant,
+                 ts: float | None) -> MethodOptions:
+        """See `Method.validate`, with the alias's fixed options."""
+        validator = self.row if isinstance(self.row, Method) else self.row.adapter
+        return validator.validate(self.fixed_options(options, key), key, plant, ts)
+
+
+def _with_aliases(rows: Mapping[str, Any]) -> dict[str, Any]:
+    """``rows`` (method name -> row) and every alias validating as its method's row."""
+    return {**rows, **{a.name: _AliasRow(a, rows[a.method]) for a in ALIASES.values()}}
 
 
 def method(name: str) -> Method:
-    """The row of a method; `SpecError` (listing the methods) for an unknown name.
+    """The row of a method, or of the method an alias (`ALIASES`) runs; `SpecError` (listing the
+    methods and aliases) for an unknown name.
 
     Parameters
     ----------
@@ -512,10 +632,13 @@ def method(name: str) -> Method:
     """
     from tanksynth.errors import SpecError
 
+    if name in ALIASES:
+        return METHODS[ALIASES[name].method]
     if name not in METHODS:
         from tanksynth.spec.options import unknown_word_hint
 
-        raise SpecError(f"unknown method {name!r}" + unknown_word_hint(name, list(METHODS)))
+        raise SpecError(f"unknown method {name!r}"
+                        + unknown_word_hint(name, [*METHODS, *ALIASES]))
     return METHODS[name]
 
 
@@ -529,7 +652,7 @@ def load_spec(path: str | Path) -> Spec:
     """
     from tanksynth.spec import load_spec as _load_spec
 
-    return _load_spec(path, methods=METHODS)
+    return _load_spec(path, methods=_with_aliases(METHODS))
 
 
 def parse_spec(table: Mapping[str, Any], source: str | None = None, sha256: str = "") -> Spec:
@@ -546,7 +669,7 @@ def parse_spec(table: Mapping[str, Any], source: str | None = None, sha256: str 
     """
     from tanksynth.spec import parse_spec as _parse_spec
 
-    return _parse_spec(table, source, sha256, methods=METHODS)
+    return _parse_spec(table, source, sha256, methods=_with_aliases(METHODS))
 
 
 def parse_spec_text(data: bytes | str, source: str | None = None) -> Spec:
@@ -561,7 +684,7 @@ def parse_spec_text(data: bytes | str, source: str | None = None) -> Spec:
     """
     from tanksynth.spec import parse_spec_text as _parse_spec_text
 
-    return _parse_spec_text(data, source, methods=METHODS)
+    return _parse_spec_text(data, source, methods=_with_aliases(METHODS))
 
 
 def design(spec: Spec, entry: DesignSpec) -> DesignResult:

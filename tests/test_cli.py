@@ -252,6 +252,7 @@ THREE_DESIGNS = """
 [[design]]
 name = "a_pp"
 method = "pole_placement"
+target = "state_feedback"
 poles = [0.90, 0.91, 0.92]
 [[design]]
 name = "b_kf"
@@ -265,11 +266,11 @@ name = "c_bad"
 
 # Third design: a value only the design used to catch (two artefacts were written before).
 BAD_THIRD = {
-    "pole_count": ('method = "pole_placement"\npoles = [0.9, 0.8]\n', "design[2].poles",
+    "pole_count": ('method = "pole_placement"\ntarget = "state_feedback"\npoles = [0.9, 0.8]\n', "design[2].poles",
                    "2 poles given, expected 3"),
     "not_psd": ('method = "ekf"\nQ = [[1e-8, 2e-8, 0.0], [2e-8, 1e-8, 0.0], [0.0, 0.0, 1e-8]]\n'
                 'R = 1e-6\nP0 = 1e-3\n', "design[2].Q", "positive semidefinite"),
-    "region": ('method = "lmi_placement"\nregion = [{type = "half_plane", alpha = 0.1}]\n',
+    "region": ('method = "lmi_placement"\ntarget = "observer"\nregion = [{type = "half_plane", alpha = 0.1}]\n',
                "design[2].region", "not inside the discrete-time stability domain"),
     "typo": ('method = "ukf"\nQ = 1e-8\nR = 1e-6\nP0 = 1e-3\nsubstep = 2\n', "design[2].substep",
              "did you mean 'substeps'"),
@@ -319,7 +320,7 @@ def test_design_warnings_are_single_lines_and_recorded(tmp_path, capsys):
     """Issue 12 items 5-7: one line per problem on stderr, recorded in the artefact."""
     spec = tmp_path / "warn.toml"
     head = SEED000.read_text().split("[[design]]")[0].replace("A = 0.0154", "A = 154.0")
-    spec.write_text(head + '[[design]]\nname = "pp"\nmethod = "pole_placement"\n'
+    spec.write_text(head + '[[design]]\nname = "pp"\nmethod = "pole_placement"\ntarget = "state_feedback"\n'
                     'poles = [-0.05, -0.06, -0.07]\n')
     out_dir = tmp_path / "out"
     code, out, err = run_cli(capsys, "design", spec, "-o", out_dir)
@@ -366,7 +367,7 @@ def test_an_export_format_given_twice_is_written_once(tmp_path, capsys):
     design "has no control law to export", after the plant record was written."""
     spec = tmp_path / "s.toml"
     spec.write_text(SEED000.read_text(encoding="utf-8").replace(
-        'method = "linearize"', 'method = "pole_placement"\npoles = [0.9, 0.91, 0.92]'),
+        'method = "linearize"', 'method = "pole_placement"\ntarget = "state_feedback"\npoles = [0.9, 0.91, 0.92]'),
         encoding="utf-8")
     code, _, err = run_cli(capsys, "design", spec, "-o", tmp_path / "o", "--export", "law",
                            "--export", "h", "--export", "law", "--export", "h")

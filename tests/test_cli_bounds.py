@@ -25,7 +25,7 @@ method = "{method}"
     ("h2_state_feedback", "disturbance_std = 1e300", "design[0].disturbance_std"),
     ("hinf_observer", "measurement_std = [1e300, 1.0]", "design[0].measurement_std"),
     ("hinf_observer", "backoff = 1e308", "design[0].backoff"),
-    ("multiobjective", 'region = [{type = "disk", center = 0.9, radius = 0.08}]\nhinf_bound = 1e300',
+    ("multiobjective", 'target = "state_feedback"\nregion = [{type = "disk", center = 0.9, radius = 0.08}]\nhinf_bound = 1e300',
      "design[0].hinf_bound"),
     ("robust_state_feedback", 'region = [{type = "disk", center = 0.9, radius = 0.08}]\ngamma = 1e308',
      "design[0].gamma"),
@@ -93,7 +93,7 @@ def test_an_echoed_huge_value_is_cut_in_the_one_error_line(tmp_path, capsys):
 def test_a_region_written_as_a_list_gets_the_toml_form_in_the_error(tmp_path, capsys):
     """New-user finding: `tanksynth methods` showed the parsed tuple form, the error no example."""
     spec = tmp_path / "s.toml"
-    spec.write_text(SPEC.format(method="lmi_placement", extra='region = [["disk", 0.9, 0.08]]'))
+    spec.write_text(SPEC.format(method="lmi_placement", extra='target = "observer"\nregion = [["disk", 0.9, 0.08]]'))
     assert main(["check", str(spec), "--spec-only"]) == 2
     err = capsys.readouterr().err
     assert "design[0].region[0]" in err and '{type = "disk", center = 0.9, radius = 0.08}' in err

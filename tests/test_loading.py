@@ -31,6 +31,7 @@ ts = 1.0
 [[design]]
 name = "sf_integral"
 method = "pole_placement"
+target = "state_feedback"
 integral = true
 tracked = ["h1", "h2"]
 poles = [0.92, 0.97, 0.90, 0.95, 0.94]

@@ -184,7 +184,7 @@ def test_defaults_are_the_field_defaults():
     from tanksynth.spec.method_options import FaultDetectionOptions, KalmanOptions, PolePlacementOptions
 
     assert KalmanOptions.required() == ("Q", "R", "P0")
-    assert PolePlacementOptions.required() == ("poles",)
+    assert PolePlacementOptions.required() == ("poles", "target")
     assert FaultDetectionOptions.required() == ()
     assert FaultDetectionOptions.default("delta_bar") == 1.0
 

@@ -56,7 +56,7 @@ def _estimators(plant, u_op):
     Ad = kf.model.Ad
     from tanksynth.design.placement.canonical import place_observer
 
-    L = np.linalg.solve(Ad, place_observer(Ad, np.eye(3), [0.8, 0.85, 0.9]).gain)
+    L = np.linalg.solve(Ad, place_observer(Ad, np.eye(3), [0.8, 0.85, 0.9]).gain_matrix)
     return {
         "ckf": kf,
         "akf": AdaptiveKalmanFilter(plant, AdaptiveKalmanTuning(Q0=Q0, **common, window=20,

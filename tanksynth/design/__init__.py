@@ -19,6 +19,25 @@ level:
 
 from __future__ import annotations
 
+import sys
+import types
+from typing import Any
+
 from tanksynth.design.result import DesignMethod, DesignResult
 
 __all__ = ["DesignMethod", "DesignResult"]
+
+
+class _DesignPackage(types.ModuleType):
+    """This package, callable: ``tanksynth.design(plant, "lmi_placement", ...)`` is
+    `tanksynth.api.design` (python-control style; the package and the function share the name
+    ``tanksynth.design``, and importing a sub-package would replace a function attribute of that
+    name, so the package itself is the function)."""
+
+    def __call__(self, plant: Any, method: str, **kwargs: Any) -> Any:
+        """See `tanksynth.api.design`."""
+        __import__("tanksynth.api")  # the top layer, named at call time (not a dependency of design/)
+        return sys.modules["tanksynth.api"].design(plant, method, **kwargs)
+
+
+sys.modules[__name__].__class__ = _DesignPackage

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass, field
 from typing import Any, Callable, Mapping, TypeVar
 
@@ -12,10 +13,45 @@ from tanksynth.plants.base import Plant
 from tanksynth.spec import DesignSpec, Spec
 from tanksynth.spec.method_options.base import MethodOptions
 
-__all__ = ["DesignResult", "DesignMethod", "options_of", "rekeyed", "keyed_call"]
+__all__ = ["DesignResult", "DesignMethod", "FeedbackGain", "options_of", "rekeyed", "keyed_call"]
 
 T = TypeVar("T", bound=MethodOptions)
 R = TypeVar("R")
+
+
+class FeedbackGain:
+    """One naming rule for the gain of a linear design result, as in the artefacts: ``K`` for a
+    state feedback (``u = -K x``, m x n), ``L`` for an observer (``x_hat' = ... + L (y - C
+    x_hat)``, n x q).
+
+    Mixed into the results that design either by their ``kind`` (exact and LMI-region
+    placement, H2 / H-infinity synthesis, robust designs); they store the matrix as
+    ``gain_matrix``. The older name ``gain`` still reads it, with a `DeprecationWarning`.
+    """
+
+    kind: str
+    gain_matrix: np.ndarray
+
+    @property
+    def K(self) -> np.ndarray:
+        """The state-feedback gain (``kind == "state_feedback"``); AttributeError for an observer."""
+        if self.kind != "state_feedback":
+            raise AttributeError(f"{type(self).__name__} of an observer has L (its gain), not K")
+        return self.gain_matrix
+
+    @property
+    def L(self) -> np.ndarray:
+        """The observer gain (``kind == "observer"``); AttributeError for a state feedback."""
+        if self.kind != "observer":
+            raise AttributeError(f"{type(self).__name__} of a state feedback has K (its gain), not L")
+        return self.gain_matrix
+
+    @property
+    def gain(self) -> np.ndarray:
+        """Deprecated: ``K`` (state feedback) or ``L`` (observer)."""
+        warnings.warn(f"{type(self).__name__}.gain is deprecated: use .K (state feedback) or .L "
+                      "(observer)", DeprecationWarning, stacklevel=2)
+        return self.gain_matrix
 
 
 @dataclass(frozen=True)

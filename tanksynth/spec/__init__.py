@@ -89,6 +89,10 @@ class DesignSpec:
         The validated options with their defaults: the method's Options
         dataclass (`tanksynth.spec.method_options`), as its adapter's
         ``validate`` returned it; None when parsed without the methods.
+    alias : str or None
+        The name the spec wrote when it is an alias (`tanksynth.methods.ALIASES`, e.g.
+        ``"lqr"``): then ``method`` is the method it runs and ``options`` hold the options
+        the alias fixes; None otherwise (and when parsed without the methods).
     """
 
     name: str
@@ -96,6 +100,7 @@ class DesignSpec:
     options: Mapping[str, Any]
     key: str
     config: MethodOptions | None = None
+    alias: str | None = None
 
 
 @dataclass(frozen=True)
@@ -411,8 +416,15 @@ def _design(i: int, entry: Any, seen: dict[str, str], plant: Plant, ts: float | 
         raise SpecError(f"unknown method {method!r}" + unknown_word_hint(method, list(methods or ())),
                         key=f"{key}.method")
     options = {k: v for k, v in entry.items() if k not in ("name", "method")}
-    config = methods[method].validate(options, key, plant, ts) if methods is not None else None
-    return DesignSpec(name, method, options, key, config)
+    if methods is None:
+        return DesignSpec(name, method, options, key)
+    validator = methods[method]
+    config = validator.validate(options, key, plant, ts)
+    real = getattr(validator, "name", method)  # an alias validates as the method it runs
+    if real == method:
+        return DesignSpec(name, method, options, key, config)
+    fixed = getattr(validator, "fixed_options", lambda given, _key: given)(options, key)
+    return DesignSpec(name, real, fixed, key, config, alias=method)
 
 
 #: The ``[operating_point] trim`` values: what is solved for, and from what.

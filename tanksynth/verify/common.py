@@ -197,8 +197,11 @@ def artefact_matrix(doc: Mapping[str, Any], name: str, shape: tuple[int, int] | 
 
 
 def _design_entry(doc: Mapping[str, Any], spec: Spec) -> DesignSpec | None:
+    # a spec parsed without the method table keeps an alias as written (``method = "lqr"``);
+    # the artefact records it beside the method it ran
+    methods = {doc["method"], (doc.get("diagnostics") or {}).get("method_alias")}
     for d in getattr(spec, "designs", ()):
-        if d.name == doc["name"] and d.method == doc["method"]:
+        if d.name == doc["name"] and d.method in methods:
             return d
     return None
 

@@ -34,10 +34,12 @@ ts = 1.0
 [[design]]
 name = "sf"
 method = "pole_placement"
+target = "state_feedback"
 poles = [0.90, 0.92, 0.94]
 [[design]]
 name = "sfi"
 method = "pole_placement"
+target = "state_feedback"
 integral = true
 tracked = ["h1", "h2"]
 poles = [0.92, 0.97, 0.90, 0.95, 0.94]
@@ -264,7 +266,7 @@ def test_design_names_that_are_not_c_identifiers_export_their_law(tmp_path):
     still exported (it was an internal error), as ``<name>_law.*`` beside ``<name>.json``,
     with a C symbol made an identifier; compiled, it is u_op - K (x - x_op) with the stored K."""
     base = SPEC.split("[[design]]")[0]
-    designs = "".join(f'[[design]]\nname = "{nm}"\nmethod = "pole_placement"\n'
+    designs = "".join(f'[[design]]\nname = "{nm}"\nmethod = "pole_placement"\ntarget = "state_feedback"\n'
                       'poles = [0.90, 0.92, 0.94]\n' for nm in ("1a", "x-y", "int"))
     spec = tmp_path / "s.toml"
     spec.write_text(base + designs, encoding="utf-8")

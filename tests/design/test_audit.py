@@ -99,6 +99,7 @@ def test_pole_placement_refuses_an_unstable_request_at_parse_time():
 [[design]]
 name = "pp"
 method = "pole_placement"
+target = "state_feedback"
 poles = [1.5, 0.9, 0.8]
 """
     with pytest.raises(SpecError, match="unit circle"):

@@ -101,8 +101,8 @@ def test_seed004_canonical_form_is_exact():
 def test_seed004_both_routes_agree():
     co = canonical_observer(A004, C004, [-5, -8, -10])
     pl = place_observer(np.array(A004, dtype=float), np.array(C004, dtype=float), [-5, -8, -10])
-    np.testing.assert_allclose(pl.gain, co.gain, rtol=1e-9)
-    np.testing.assert_allclose(co.gain.ravel(), [855, 169.6666667, 41], rtol=1e-9)
+    np.testing.assert_allclose(pl.gain_matrix, co.L, rtol=1e-9)
+    np.testing.assert_allclose(co.L.ravel(), [855, 169.6666667, 41], rtol=1e-9)
 
 
 def test_seed004_printed_gamma_d_is_an_erratum():
@@ -113,7 +113,7 @@ def test_seed004_printed_gamma_d_is_an_erratum():
     _, err_printed = pole_errors([-5, -8, -10], np.linalg.eigvals(GAMMA_D_PRINTED))
     assert err_printed > 1.0
     A = np.array(A004, dtype=float)
-    np.testing.assert_allclose(A - co.gain @ np.array([[0, 0, 1.0]]), GAMMA_D_PRINTED, atol=1e-3)
+    np.testing.assert_allclose(A - co.L @ np.array([[0, 0, 1.0]]), GAMMA_D_PRINTED, atol=1e-3)
 
 
 def test_seed004_through_a_spec():
@@ -154,18 +154,18 @@ def test_spec_options_are_validated():
         return METHODS[d.method].design(spec, d)
 
     with pytest.raises(SpecError, match=r"design\[0\]\.poles"):
-        run('method = "pole_placement"\npoles = ["a", 1.0, 2.0]\n')
+        run('method = "pole_placement"\ntarget = "state_feedback"\npoles = ["a", 1.0, 2.0]\n')
     with pytest.raises(SpecError, match="unknown option"):
-        run('method = "pole_placement"\npoles = [0.9, 0.9, 0.9]\nspeed = 1\n')
+        run('method = "pole_placement"\ntarget = "state_feedback"\npoles = [0.9, 0.9, 0.9]\nspeed = 1\n')
     with pytest.raises(SpecError, match=r"design\[0\]\.tracked"):
-        run('method = "pole_placement"\npoles = [0.9, 0.91, 0.92, 0.93, 0.94]\nintegral = true\n'
+        run('method = "pole_placement"\ntarget = "state_feedback"\npoles = [0.9, 0.91, 0.92, 0.93, 0.94]\nintegral = true\n'
             'tracked = ["h9"]\n')
     with pytest.raises(SpecError, match=r"design\[0\]\.region\[0\]\.type"):
-        run('method = "lmi_placement"\nregion = [{type = "ellipse"}]\n')
+        run('method = "lmi_placement"\ntarget = "observer"\nregion = [{type = "ellipse"}]\n')
     with pytest.raises(SpecError, match="stability domain"):
-        run('method = "lmi_placement"\nregion = [{type = "half_plane", alpha = 0.1}]\n')
+        run('method = "lmi_placement"\ntarget = "observer"\nregion = [{type = "half_plane", alpha = 0.1}]\n')
     with pytest.raises(SpecError, match=r"design\[0\]\.reference_gain"):
-        run('method = "pole_placement"\npoles = [0.9, 0.91, 0.92]\nreference_gain = [[1.0]]\n')
+        run('method = "pole_placement"\ntarget = "state_feedback"\npoles = [0.9, 0.91, 0.92]\nreference_gain = [[1.0]]\n')
     with pytest.raises(SpecError, match="single output"):
         run('method = "canonical_observer"\npoles = [-1.0, -2.0, -3.0]\n')
 

@@ -24,8 +24,8 @@ def test_mimo_place_and_siso_acker():
     r1 = place_state_feedback(A, B[:, :1], poles)
     assert r1.method == "acker" and r1.max_pole_error < 1e-6
     o = place_observer(A, B.T, poles)
-    assert o.gain.shape == (4, 2)
-    _, emax = pole_errors(poles, np.linalg.eigvals(A - o.gain @ B.T))
+    assert o.gain_matrix.shape == (4, 2)
+    _, emax = pole_errors(poles, np.linalg.eigvals(A - o.gain_matrix @ B.T))
     assert emax < 1e-9
 
 
@@ -41,7 +41,7 @@ def test_place_is_python_controls_place_bit_for_bit():
             if n >= 4:  # one complex pair
                 poles[:2] = [re[0] + 1j, re[0] - 1j]
             r = place_state_feedback(A, B, poles, method="place")
-            np.testing.assert_array_equal(r.gain, control.place(A, B, poles))
+            np.testing.assert_array_equal(r.gain_matrix, control.place(A, B, poles))
 
 
 @pytest.mark.slow
@@ -118,7 +118,7 @@ def test_triple_pole_is_accepted_with_the_exact_gain():
     ref = _exact_gain_for_triple_pole(observer=False)
     assert np.allclose(ref, [3.5, 6.5, 4.5])
     r = place_state_feedback(HF_A, HF_B, [-2, -2, -2])
-    assert np.allclose(r.gain.ravel(), ref, rtol=1e-12)
+    assert np.allclose(r.gain_matrix.ravel(), ref, rtol=1e-12)
     # the naive test would refuse: the computed eigenvalues miss -2 by ~eps^(1/3)
     assert r.max_pole_error > 1e-6
     acc = r.accuracy
@@ -128,7 +128,7 @@ def test_triple_pole_is_accepted_with_the_exact_gain():
     # independent: numpy.poly of the closed loop is (s + 2)^3 = s^3 + 6 s^2 + 12 s + 8
     assert np.allclose(np.poly(HF_A - HF_B @ ref[None, :]), [1, 6, 12, 8], rtol=1e-12)
     o = place_observer(HF_A, HF_C, [-2, -2, -2])
-    assert np.allclose(o.gain.ravel(), _exact_gain_for_triple_pole(observer=True), rtol=1e-10)
+    assert np.allclose(o.gain_matrix.ravel(), _exact_gain_for_triple_pole(observer=True), rtol=1e-10)
 
 
 def test_wrong_gain_for_a_repeated_pole_is_still_refused():

@@ -20,11 +20,11 @@ def test_state_feedback_in_half_plane_and_sector():
     A, B = random_system()
     region = half_plane(0.5) & sector(np.radians(40))
     res = lmi_state_feedback(A, B, region)
-    lam = np.linalg.eigvals(A - B @ res.gain)
+    lam = np.linalg.eigvals(A - B @ res.gain_matrix)
     assert all(region.contains(z) for z in lam)
     assert all(c.passed for c in res.checks) and res.achieved_margin >= res.margin
     # P is a Lyapunov matrix of the closed loop
-    Acl = A - B @ res.gain
+    Acl = A - B @ res.gain_matrix
     assert np.max(np.linalg.eigvalsh(Acl.T @ res.P + res.P @ Acl)) < 0
 
 
@@ -34,11 +34,11 @@ def test_observer_in_a_discrete_disk():
     C = B.T
     region = disk(0.2, 0.5)
     res = lmi_observer(Ad, C, region, domain="discrete")
-    lam = np.linalg.eigvals(Ad - res.gain @ C)
+    lam = np.linalg.eigvals(Ad - res.gain_matrix @ C)
     assert res.kind == "observer" and all(region.contains(z) for z in lam)
     assert res.as_dict()["scaling"]["formulation"] == "dual (A', C')"
     # P is a Lyapunov matrix of the discrete error dynamics
-    Acl = Ad - res.gain @ C
+    Acl = Ad - res.gain_matrix @ C
     assert np.max(np.linalg.eigvalsh(Acl.T @ res.P @ Acl - res.P)) < 0
 
 
@@ -92,12 +92,12 @@ def test_fixed_mode_inside_region_is_kept():
     assert np.allclose(np.sort(np.linalg.eigvals(A - B @ Kref).real), [-5, -3, -2])
     region = half_plane(1.0)
     res = lmi_state_feedback(A, B, region, state_names=["x1", "x2", "x3"])
-    lam = np.linalg.eigvals(A - B @ res.gain)
+    lam = np.linalg.eigvals(A - B @ res.gain_matrix)
     assert all(region.contains(z) for z in lam)
     assert np.min(np.abs(lam - (-5.0))) < 1e-9                  # the fixed mode stays
     assert res.fixed_modes[0]["states"] == ["x3"]
     obs = lmi_observer(A.T, B.T, region, state_names=["x1", "x2", "x3"])
-    assert all(region.contains(z) for z in np.linalg.eigvals(A.T - obs.gain @ B.T))
+    assert all(region.contains(z) for z in np.linalg.eigvals(A.T - obs.gain_matrix @ B.T))
     # the same mode at -0.5 lies outside the region: refused, naming the mode and the state
     A[2, 2] = -0.5
     with pytest.raises(UncontrollableError, match=r"outside.*-0\.5.*x3"):
@@ -141,7 +141,7 @@ def test_active_kappa_bound_is_relaxed_then_named():
         lmi_observer(Ad, C, region, domain="discrete", kappa=1e4, kappa_max=1e4)
     # with the relaxation up to 1e8 the design is found and the tries are reported
     res = lmi_observer(Ad, C, region, domain="discrete", kappa=1e4, kappa_max=1e8)
-    assert all(region.contains(z) for z in np.linalg.eigvals(Ad - res.gain @ C))
+    assert all(region.contains(z) for z in np.linalg.eigvals(Ad - res.gain_matrix @ C))
     tries = res.scaling["kappa_tries"]
     assert tries[0]["bound_active"] and tries[0]["largest_margin_t"] < 0
     assert res.scaling["kappa"] > 1e4 and res.scaling["kappa_relaxed"]
@@ -176,7 +176,7 @@ def test_direct_clarabel_route_meets_a_hand_written_cvxpy_problem(seed):
     Bs = B / s[:, None] * su[None, :] / w
     ref = _cvxpy_largest_margin(As, Bs, region.scaled(w), 1e3)
     assert sc["largest_margin_t"] == pytest.approx(ref, rel=1e-6, abs=1e-9)
-    assert all(region.contains(z) for z in np.linalg.eigvals(A - B @ res.gain))
+    assert all(region.contains(z) for z in np.linalg.eigvals(A - B @ res.gain_matrix))
 
 
 @pytest.mark.slow
@@ -187,7 +187,7 @@ def test_scs_route_through_cvxpy_meets_the_clarabel_route():
     b = lmi_state_feedback(A, B, region, kappa=1e3, solver="SCS")
     assert b.solver == "SCS" and "phase 2" in b.status
     assert b.scaling["largest_margin_t"] == pytest.approx(a.scaling["largest_margin_t"], rel=1e-3)
-    assert all(region.contains(z) for z in np.linalg.eigvals(A - B @ b.gain))
+    assert all(region.contains(z) for z in np.linalg.eigvals(A - B @ b.gain_matrix))
 
 
 def test_boundary_distance_is_the_euclidean_distance_to_the_boundary():
@@ -207,6 +207,6 @@ def test_lmi_gain_records_the_distance_of_its_eigenvalues_to_the_region_boundary
     """Issue 30.3: a gain accepted near the boundary gets its distance to it (1/s) in its diagnostics."""
     A, B = random_system()
     res = lmi_state_feedback(A, B, half_plane(0.5))
-    lam = np.linalg.eigvals(A - B @ res.gain)
+    lam = np.linalg.eigvals(A - B @ res.gain_matrix)
     dist = res.as_dict()["min_boundary_distance"]
     assert dist == pytest.approx(float(np.min(-0.5 - lam.real)), rel=1e-9, abs=1e-12) and dist > 0

@@ -35,7 +35,7 @@ def test_scalar_polytope_gain_lies_in_the_hand_computed_interval():
     hi = np.min((a + 4) / b)
     assert (lo, hi) == pytest.approx((2.5, 2.75))
     res = robust_state_feedback(a[:, None, None], b[:, None, None], disk(-3.0, 1.0))
-    k = float(res.gain[0, 0])
+    k = float(res.gain_matrix[0, 0])
     assert lo < k < hi
     for ai, bi in zip(a, b):
         assert _in_disk(ai - bi * k, -3.0, 1.0)
@@ -81,7 +81,7 @@ def test_two_state_polytope_agrees_with_hand_built_lmi(radius):
     assert ours == hand
     if ours:
         for Ai, Bi in zip(A, B):
-            eig = np.linalg.eigvals(Ai - Bi @ res.gain)
+            eig = np.linalg.eigvals(Ai - Bi @ res.gain_matrix)
             assert np.all(np.abs(eig - 0.5) < radius)
 
 
@@ -109,7 +109,7 @@ def test_hinf_bound_holds_at_every_vertex(domain):
     res = robust_state_feedback(A, B, region, domain=domain,
                                 hinf=HinfBound(gamma, Bw, np.eye(3), np.zeros((3, 2))))
     for Ai, Bi, Wi in zip(A, B, Bw):
-        assert _hinf_sweep(Ai - Bi @ res.gain, Wi, np.eye(3), domain == "discrete") < gamma
+        assert _hinf_sweep(Ai - Bi @ res.gain_matrix, Wi, np.eye(3), domain == "discrete") < gamma
     with pytest.raises(InfeasibleDesign, match="region alone"):
         robust_state_feedback(A, B, region, domain=domain,
                               hinf=HinfBound(1e-3, Bw, np.eye(3), np.zeros((3, 2))))
@@ -121,7 +121,7 @@ def test_saturation_ellipsoid_recomputed():
     umax = np.array([2.0])
     box = np.array([0.5, 0.5])
     res = robust_state_feedback(A, B, half_plane(0.2), saturation=SaturationBound(umax, box, 2))
-    K, P = res.gain, res.P
+    K, P = res.gain_matrix, res.P
     X = np.linalg.inv(P)
     assert np.sqrt(K @ X @ K.T)[0, 0] <= umax[0] * (1 + 1e-6)  # max |K x| on x' P x <= 1
     for sg in itertools.product((-1, 1), repeat=2):
@@ -140,7 +140,7 @@ def test_observer_dual_places_every_vertex():
     C = np.repeat(np.array([[1.0, 0.0]])[None], 2, axis=0)
     res = robust_observer(A, C, intersect(half_plane(1.0), disk(-3.0, 2.5)))
     for Ai, Ci in zip(A, C):
-        eig = np.linalg.eigvals(Ai - res.gain @ Ci)
+        eig = np.linalg.eigvals(Ai - res.gain_matrix @ Ci)
         assert np.all(eig.real < -1.0) and np.all(np.abs(eig + 3.0) < 2.5)
 
 
@@ -254,6 +254,6 @@ def test_inaccurate_phase_two_never_returns_a_larger_gain_than_phase_one():
     B = np.stack([B0] * V)
     Bw = np.stack([np.eye(n)[:, :1]] * V)
     r = robust_state_feedback(A, B, half_plane(0.1), hinf=HinfBound(1e6, Bw, np.eye(n), np.zeros((n, m))))
-    assert np.linalg.norm(r.gain) < 1500.0, (np.linalg.norm(r.gain), r.status)
+    assert np.linalg.norm(r.gain_matrix) < 1500.0, (np.linalg.norm(r.gain_matrix), r.status)
     for i in range(V):   # still a certified design: every vertex in Re s < -0.1
-        assert np.max(np.linalg.eigvals(A[i] - B[i] @ r.gain).real) < -0.1
+        assert np.max(np.linalg.eigvals(A[i] - B[i] @ r.gain_matrix).real) < -0.1

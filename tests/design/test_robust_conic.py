@@ -92,7 +92,7 @@ def test_robust_state_feedback_conic_route_meets_the_cvxpy_route():
     ta, tb = a.largest_margin, b.largest_margin
     assert abs(ta - tb) <= 1e-3 * abs(tb)                        # SCS: first-order accuracy
     for i in range(3):
-        assert np.max(np.linalg.eigvals(A[i] - B[i] @ a.gain).real) < -0.5
+        assert np.max(np.linalg.eigvals(A[i] - B[i] @ a.gain_matrix).real) < -0.5
 
 
 def test_trace_and_a_feasibility_problem():

@@ -92,12 +92,12 @@ def test_loose_gamma_returns_the_design_without_it(domain):
     A, B, Bw, region = _polytope(domain)
     free = robust_state_feedback(A, B, region, domain=domain)
     # the free design's norm, measured here, is far below the smallest gamma tried
-    assert _certified(A, B, Bw, free.gain, GAMMAS[0], domain)
+    assert _certified(A, B, Bw, free.gain_matrix, GAMMAS[0], domain)
     for gamma in GAMMAS:
         res = robust_state_feedback(A, B, region, domain=domain, hinf=_bound(Bw, gamma))
         assert res.hinf["imposed"] is False
-        np.testing.assert_array_equal(res.gain, free.gain)
-        assert _certified(A, B, Bw, res.gain, gamma, domain)
+        np.testing.assert_array_equal(res.gain_matrix, free.gain_matrix)
+        assert _certified(A, B, Bw, res.gain_matrix, gamma, domain)
 
 
 @pytest.mark.parametrize("domain", ["continuous", "discrete"])
@@ -108,9 +108,9 @@ def test_imposed_bound_is_solved_at_any_gamma(domain, gamma):
     A, B, Bw, region = _polytope(domain)
     res = robust_state_feedback(A, B, region, domain=domain, hinf=_bound(Bw, gamma), _impose=True)
     assert res.hinf["imposed"] is True and res.hinf["worst_lmi_eigenvalue"] < 0
-    assert _certified(A, B, Bw, res.gain, gamma, domain)
+    assert _certified(A, B, Bw, res.gain_matrix, gamma, domain)
     for Ai, Bi in zip(A, B):
-        lam = np.linalg.eigvals(Ai - Bi @ res.gain)
+        lam = np.linalg.eigvals(Ai - Bi @ res.gain_matrix)
         assert np.all(lam.real < -0.5) if domain == "continuous" else np.all(np.abs(lam) < 0.9)
 
 
@@ -121,8 +121,8 @@ def test_binding_gamma_is_imposed_and_certified(domain, gamma):
     free = robust_state_feedback(A, B, region, domain=domain)
     res = robust_state_feedback(A, B, region, domain=domain, hinf=_bound(Bw, gamma))
     assert res.hinf["imposed"] is True
-    assert _certified(A, B, Bw, res.gain, gamma, domain)
-    assert not _certified(A, B, Bw, free.gain, gamma, domain)
+    assert _certified(A, B, Bw, res.gain_matrix, gamma, domain)
+    assert not _certified(A, B, Bw, free.gain_matrix, gamma, domain)
 
 
 def test_gamma_below_the_achievable_norm_is_refused():
@@ -136,7 +136,7 @@ def test_gamma_below_the_achievable_norm_is_refused():
     Bw = np.ones((2, 1, 1))
     Cz, Dzu = np.array([[1.0], [0.0]]), np.array([[0.0], [1.0]])
     ok = robust_state_feedback(A, B, half_plane(0.1), hinf=HinfBound(2.0, Bw, Cz, Dzu))
-    kk = float(ok.gain[0, 0])
+    kk = float(ok.gain_matrix[0, 0])
     for a in (1.0, 1.2):
         assert kk > a and np.sqrt(1 + kk ** 2) / (kk - a) < 2.0
     with pytest.raises(InfeasibleDesign, match="H-infinity bound") as err:
@@ -147,7 +147,7 @@ def test_gamma_below_the_achievable_norm_is_refused():
     # closed form sqrt(1 + k^2) / (k - a) at a = 1.2 with the gain of the unbounded design
     import re
 
-    kf = float(robust_state_feedback(A, B, half_plane(0.1)).gain[0, 0])
+    kf = float(robust_state_feedback(A, B, half_plane(0.1)).gain_matrix[0, 0])
     quoted = float(re.search(r"reaches \|\|T_zw\|\|inf = ([0-9.eE+-]+) at its worst vertex",
                              str(err.value)).group(1))
     assert str(err.value).startswith("gamma = 0.9 not met")
@@ -163,12 +163,12 @@ def test_observer_bound_over_the_range():
     free = robust_observer(A, C, region, domain="discrete")
     hb = HinfBound(1e12, Bw, np.eye(3), np.zeros((3, 0)))
     res = robust_observer(A, C, region, domain="discrete", hinf=hb)
-    np.testing.assert_array_equal(res.gain, free.gain)
+    np.testing.assert_array_equal(res.gain_matrix, free.gain_matrix)
     for gamma in GAMMAS:
         hb = HinfBound(gamma, Bw, np.eye(3), np.zeros((3, 0)))
         imp = robust_observer(A, C, region, domain="discrete", hinf=hb)
         for Ai, Ci, Wi in zip(A, C, Bw):
-            assert _hinf_below(Ai - imp.gain @ Ci, Wi, np.eye(3), gamma, True)
+            assert _hinf_below(Ai - imp.gain_matrix @ Ci, Wi, np.eye(3), gamma, True)
 
 
 # -------------------------------------------------------- the three-tank example, end to end
@@ -256,9 +256,9 @@ def test_scs_designs_certified(gamma):
     A, B, Bw, region = _polytope("continuous")
     for impose in (False, True):
         res = robust_state_feedback(A, B, region, hinf=_bound(Bw, gamma), solver="SCS", _impose=impose)
-        assert _certified(A, B, Bw, res.gain, gamma, "continuous")
+        assert _certified(A, B, Bw, res.gain_matrix, gamma, "continuous")
         for Ai, Bi in zip(A, B):
-            assert np.all(np.linalg.eigvals(Ai - Bi @ res.gain).real < -0.5)
+            assert np.all(np.linalg.eigvals(Ai - Bi @ res.gain_matrix).real < -0.5)
 
 
 def test_report_statement_says_whether_the_bound_was_imposed():

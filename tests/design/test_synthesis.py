@@ -74,11 +74,11 @@ def test_h2_state_feedback_equals_lqr(discrete):
     assert res.h2 == pytest.approx(h2_ref, rel=RTOL)
     assert res.achieved_h2[0] == pytest.approx(h2_ref, rel=RTOL)
     # the cost matrix: the closed loop's observability Gramian of z is the Riccati solution
-    Acl, Ccl = A - B @ res.gain, Cz - Dzu @ res.gain
+    Acl, Ccl = A - B @ res.gain_matrix, Cz - Dzu @ res.gain_matrix
     Wo = (sla.solve_discrete_lyapunov(Acl.T, Ccl.T @ Ccl) if discrete
           else sla.solve_continuous_lyapunov(Acl.T, -Ccl.T @ Ccl))
     assert np.linalg.norm(Wo - S) / np.linalg.norm(S) < 1e-4
-    np.testing.assert_allclose(res.gain, K_ref, rtol=1e-3, atol=1e-3 * np.abs(K_ref).max())
+    np.testing.assert_allclose(res.gain_matrix, K_ref, rtol=1e-3, atol=1e-3 * np.abs(K_ref).max())
     sysd = control.ss(Acl, Bw, Ccl, np.zeros((Ccl.shape[0], Bw.shape[1])), 1.0 if discrete else 0)
     assert control.norm(sysd, 2) == pytest.approx(h2_ref, rel=1e-5)
 
@@ -101,7 +101,7 @@ def test_h2_observer_equals_kalman(discrete):
     h2_ref = np.sqrt(np.trace(Cz @ P @ Cz.T))
     assert res.h2 == pytest.approx(h2_ref, rel=RTOL)
     assert res.achieved_h2[0] == pytest.approx(h2_ref, rel=RTOL)
-    np.testing.assert_allclose(res.gain, L_ref, rtol=1e-3, atol=1e-3 * np.abs(L_ref).max())
+    np.testing.assert_allclose(res.gain_matrix, L_ref, rtol=1e-3, atol=1e-3 * np.abs(L_ref).max())
 
 
 def _hinf_riccati_optimum(A, B, Bw, Q, R, lo, hi, rtol=1e-7):
@@ -139,7 +139,7 @@ def test_hinf_state_feedback_gamma_against_norm_and_riccati_optimum():
     Cz, Dzu = _weights(Q, R)
     res = synthesize_state_feedback(GeneralizedPlant(A, B, Bw, Cz, Dzu), objective="hinf",
                                     backoff=1e-3)
-    K = res.gain
+    K = res.gain_matrix
     sys_cl = control.ss(A - B @ K, Bw, Cz - Dzu @ K, np.zeros((Cz.shape[0], 3)))
     norm = pc_hinf(sys_cl)
     assert norm == pytest.approx(res.achieved_hinf[0], rel=1e-6)
@@ -157,7 +157,7 @@ def test_hinf_observer_norm_agrees_with_python_control(discrete):
     Cz = sla.sqrtm(Q).real
     res = synthesize_observer(A, C, Bw, Dv, Cz, domain="discrete" if discrete else "continuous",
                               dt=1.0 if discrete else None, objective="hinf", backoff=1e-3)
-    L = res.gain
+    L = res.gain_matrix
     Bcl = np.hstack([Bw, -L @ Dv])
     err = control.ss(A - L @ C, Bcl, Cz, np.zeros((3, 5)), 1.0 if discrete else 0)
     norm = pc_hinf(err)
@@ -197,12 +197,12 @@ def test_multiobjective_region_and_common_lyapunov_conservatism():
     region = disk(0.85, 0.1)           # forces faster poles than the H-infinity optimum has
     assert any(region.margin(z) <= 0 for z in free.closed_loop_eigenvalues[0])
     res = synthesize_state_feedback(P, objective="hinf", region=region, backoff=1e-3)
-    eig = np.linalg.eigvals(A - B @ res.gain)
+    eig = np.linalg.eigvals(A - B @ res.gain_matrix)
     assert all(region.margin(z) > 0 for z in eig)
     assert res.gamma >= free.gamma_optimum
     assert res.achieved_hinf[0] <= res.gamma * (1 + 1e-6)
     # the returned X certifies the region in numpy
-    M = region_lmi(region, P, res.X, res.gain @ res.X)
+    M = region_lmi(region, P, res.X, res.gain_matrix @ res.X)
     assert np.linalg.eigvalsh(M).max() < 0
     # H2 bound together with the region
     both = synthesize_state_feedback(P, objective="h2", region=region, hinf_bound=2 * res.gamma)
@@ -227,7 +227,7 @@ def test_common_lyapunov_over_vertices_meets_the_bound_at_every_vertex():
     res = synthesize_state_feedback(models, objective="hinf", region=half_plane(0.005), backoff=1e-3)
     assert len(res.achieved_hinf) == 2
     for Pm in models:
-        Acl, Bcl, Ccl = Pm.closed_loop(res.gain)
+        Acl, Bcl, Ccl = Pm.closed_loop(res.gain_matrix)
         sysm = control.ss(Acl, Bcl, Ccl, np.zeros((Ccl.shape[0], 3)))
         assert pc_hinf(sysm) \
             <= res.gamma * (1 + 1e-6)
@@ -242,7 +242,7 @@ def test_statespace_input_and_lmi_blocks_in_numpy():
     Pm = GeneralizedPlant(A, B, Bw, Cz, Dzu)
     a = synthesize_state_feedback(Pss, objective="h2")
     b = synthesize_state_feedback(Pm, objective="h2")
-    np.testing.assert_array_equal(a.gain, b.gain)
+    np.testing.assert_array_equal(a.gain_matrix, b.gain_matrix)
     # the numpy evaluation of the blocks: the LQR closed loop's Gramian with a little slack
     K, _, _ = control.lqr(A, B, Q, R)
     Acl = A - B @ K
@@ -258,16 +258,16 @@ def test_statespace_input_and_lmi_blocks_in_numpy():
     # X = T Xs T' of the scaled problem's reduced lemma (variable gamma X, mu = gamma^2); in
     # original units (w = cw ws, zs = cz z, tau = omega t) it holds for omega / cw^2 times it
     Xh = res.X * res.scaling["time_scale"] / res.scaling["disturbance_scale"] ** 2
-    M = hinf_lmis_reduced(Pm, Xh, res.gain @ Xh, res.gamma ** 2)[0]
+    M = hinf_lmis_reduced(Pm, Xh, res.gain_matrix @ Xh, res.gamma ** 2)[0]
     assert np.linalg.eigvalsh(M).max() < 0
     # and the full lemma in X = (gamma X) / gamma
-    M = hinf_lmis(Pm, Xh / res.gamma, res.gain @ Xh / res.gamma, res.gamma)[0]
+    M = hinf_lmis(Pm, Xh / res.gamma, res.gain_matrix @ Xh / res.gamma, res.gamma)[0]
     assert np.linalg.eigvalsh(M).max() < 0
     # the Riccati route's X = gamma^2 P^-1 satisfies the reduced lemma in original units with
     # equality (the central gain): largest eigenvalue zero up to rounding
     ric = synthesize_state_feedback(Pm, objective="hinf", backoff=1e-2)
     assert ric.route == "riccati"
-    M = hinf_lmis_reduced(Pm, ric.X, ric.gain @ ric.X, ric.gamma ** 2)[0]
+    M = hinf_lmis_reduced(Pm, ric.X, ric.gain_matrix @ ric.X, ric.gamma ** 2)[0]
     e = np.linalg.eigvalsh(M)
     assert e.max() <= 1e-8 * np.abs(e).max()
 
@@ -340,7 +340,7 @@ def test_riccati_and_lmi_routes_give_the_same_optimum(case):
     # each gain reaches its claim (checked here with python-control's norm)
     dt = P.dt if P.domain == "discrete" else 0
     for res in (ric, lmi):
-        Acl, Bcl, Ccl = P.closed_loop(res.gain)
+        Acl, Bcl, Ccl = P.closed_loop(res.gain_matrix)
         assert pc_hinf(control.ss(Acl, Bcl, Ccl, np.zeros((Ccl.shape[0], Bcl.shape[1])), dt)) \
             <= res.gamma * (1 + 1e-6)
     ric2 = synthesize_state_feedback(P, objective="h2")
@@ -512,7 +512,7 @@ def test_bound_just_below_the_optimum_is_refused_on_the_certificate_with_distinc
     free = synthesize_state_feedback(P, objective="hinf", region=region)
     best = free.gamma_optimum
     # independent: python-control's norm of that closed loop never exceeds the LMI optimum
-    Acl, Bcl, Ccl = P.closed_loop(free.gain)
+    Acl, Bcl, Ccl = P.closed_loop(free.gain_matrix)
     achieved = pc_hinf(control.ss(Acl, Bcl, Ccl, 0, 1.0))
     assert achieved <= best * (1 + 1e-6)
     requested = best * (1 - 1.5e-6)

@@ -21,7 +21,7 @@ from tanksynth.errors import SpecError
 
 #: One pump pair's equilibrium at 4 V (examples/tank_network_n8.toml), repeated for N = 4k tanks.
 _LOWER, _UPPER = [21.70591608, 22.54471524], [9.04293578, 5.08665138]
-_MULTIOBJECTIVE = ('[[design]]\nname = "{name}"\nmethod = "multiobjective"\n'
+_MULTIOBJECTIVE = ('[[design]]\nname = "{name}"\nmethod = "multiobjective"\ntarget = "state_feedback"\n'
                    'region = [{{type = "disk", center = 0.9, radius = 0.08}}]\n')
 
 
@@ -226,8 +226,8 @@ _DISK = 'region = [{type = "disk", center = 0.9, radius = 0.08}]\n'
 @pytest.mark.slow
 @pytest.mark.parametrize("options", [
     'method = "multiobjective"\ntarget = "observer"\n' + _DISK,
-    'method = "multiobjective"\nobjective = "h2"\nhinf_bound = 1e3\n' + _DISK,
-    'method = "multiobjective"\ntime_domain = "continuous"\n'
+    'method = "multiobjective"\ntarget = "state_feedback"\nobjective = "h2"\nhinf_bound = 1e3\n' + _DISK,
+    'method = "multiobjective"\ntarget = "state_feedback"\ntime_domain = "continuous"\n'
     'region = [{type = "half_plane", alpha = 0.001}, {type = "sector", angle_deg = 60}]\n',
     'method = "h2_observer"\nroute = "lmi"\n',
     'method = "hinf_state_feedback"\nroute = "lmi"\ntime_domain = "continuous"\n',

@@ -71,7 +71,7 @@ region = [{{type = "half_plane", alpha = 0.5}}, {{type = "disk", center = 0.3, r
 
 
 @pytest.mark.parametrize("method, extra", [("lmi_placement", 'target = "state_feedback"'),
-                                           ("multiobjective", 'time_domain = "continuous"'),
+                                           ("multiobjective", 'target = "state_feedback"\ntime_domain = "continuous"'),
                                            ("robust_state_feedback", "")])
 def test_empty_region_is_refused_at_spec_validation_naming_its_parts(method, extra):
     with pytest.raises(SpecError, match="the region is empty") as info:

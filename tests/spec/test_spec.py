@@ -410,11 +410,11 @@ def test_fuzzed_spec_text_only_raises_spec_errors(data):
 
 
 @pytest.mark.parametrize("design, match", [
-    ('method = "pole_placement"\npoles = [-0.5, -1.0, -2.0]', "look like s-plane poles"),
-    ('method = "pole_placement"\npoles = [1.5, 0.6, 0.7]', "inside the unit circle"),
-    ('method = "pole_placement"\ntime_domain = "continuous"\npoles = [0.5, 0.6, 0.7]',
+    ('method = "pole_placement"\ntarget = "state_feedback"\npoles = [-0.5, -1.0, -2.0]', "look like s-plane poles"),
+    ('method = "pole_placement"\ntarget = "state_feedback"\npoles = [1.5, 0.6, 0.7]', "inside the unit circle"),
+    ('method = "pole_placement"\ntarget = "state_feedback"\ntime_domain = "continuous"\npoles = [0.5, 0.6, 0.7]',
      "look like z-plane poles"),
-    ('method = "pole_placement"\nintegral = true\npoles = [0.5, 0.6, 0.7]',
+    ('method = "pole_placement"\ntarget = "state_feedback"\nintegral = true\npoles = [0.5, 0.6, 0.7]',
      r"expected 5 \(3 states \+ 2 integrators"),
     ('method = "ekf"\nQ = 1e-9\nR = 1e-6\nP0 = 1e-3\nsubsteps = 1000000000000', r"in \[1, 1000\]"),
     ('method = "narx"\nQ = 1e-9\nR = 1e-6\nP0 = 1e-3\nhidden = 99999999999', r"in \[1, 1000\]"),
@@ -449,7 +449,7 @@ _THREE_TANK = ('[plant]\nmodel = "three_tank"\noutputs = "all"\n[operating_point
 _BAD_DESIGNS = ('[[design]]\nname = "a"\nmethod = "pole_placment"\n'
                 '[[design]]\nname = "b"\nmethod = "linearize"\n'
                 '[[design]]\nname = "c"\nmethod = "kalman"\nbogus = 3\n'
-                '[[design]]\nname = "d"\nmethod = "pole_placement"\npoles = [0.5, 0.6]\n')
+                '[[design]]\nname = "d"\nmethod = "pole_placement"\ntarget = "state_feedback"\npoles = [0.5, 0.6]\n')
 
 
 def test_every_invalid_design_is_reported_at_once(tmp_path):
@@ -475,7 +475,7 @@ def test_one_invalid_design_keeps_its_own_error():
     """One bad table among good ones: its error unchanged (key and message), no summary."""
     text = _THREE_TANK + _BAD_DESIGNS.split("[[design]]\nname = \"c\"")[0].replace("pole_placment",
                                                                                    "linearize")
-    text += '[[design]]\nname = "d"\nmethod = "pole_placement"\npoles = [0.5, 0.6]\n'
+    text += '[[design]]\nname = "d"\nmethod = "pole_placement"\ntarget = "state_feedback"\npoles = [0.5, 0.6]\n'
     with pytest.raises(SpecError) as info:
         parse_spec_text(text)
     assert info.value.key == "design[2].poles"
@@ -525,7 +525,7 @@ def test_many_invalid_designs_stay_useful_within_the_cli_line(tmp_path, capsys):
     each distinct reason, instead of 600 characters of names and no reason."""
     from tanksynth.cli import MAX_MESSAGE, main
 
-    bad = "".join(f'[[design]]\nname = "p{i}"\nmethod = "pole_placement"\npoles = [0.5, 0.6]\n'
+    bad = "".join(f'[[design]]\nname = "p{i}"\nmethod = "pole_placement"\ntarget = "state_feedback"\npoles = [0.5, 0.6]\n'
                   for i in range(40))
     good = '[[design]]\nname = "ok"\nmethod = "linearize"\n'
     spec = tmp_path / "spec.toml"

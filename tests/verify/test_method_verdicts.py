@@ -34,6 +34,7 @@ ts = 1.0
 [[design]]
 name = "sf_integral_place"
 method = "pole_placement"
+target = "state_feedback"
 integral = true
 tracked = ["h1", "h2"]
 poles = [0.92, 0.97, 0.90, 0.95, 0.94]
@@ -49,6 +50,7 @@ region = [{type = "disk", center = 0.0, radius = 0.97}, {type = "disk", center =
 [[design]]
 name = "sf_place_continuous"
 method = "pole_placement"
+target = "state_feedback"
 time_domain = "continuous"
 poles = [-0.05, -0.06, -0.07]
 

@@ -55,12 +55,14 @@ ts = 2.0
 [[design]]
 name = "pp_s"
 method = "pole_placement"
+target = "state_feedback"
 integral = true
 tracked = ["h1", "h2"]
 poles = {values = [-0.02, -0.025, -0.03, -0.035, -0.04], domain = "s"}
 [[design]]
 name = "pp_z"
 method = "pole_placement"
+target = "state_feedback"
 integral = true
 tracked = ["h1", "h2"]
 poles = {values = [%s], domain = "z"}

@@ -437,7 +437,7 @@ def _build_luenberger(spec: Spec, design: DesignSpec, at: _OperatingPoint,
     else:
         placement = keyed_call(design, place_observer, _OPTION_OF, A=A_design, C=lin.C,
                                poles=list(o.poles))
-        L = placement.gain
+        L = placement.L
         if form == "current":
             L = np.linalg.solve(discrete_pair(lin)[0], L)   # eig((I - L C) Ad) = eig(Ad - (Ad L) C)
     tuning = keyed_call(design, LuenbergerTuning, _OPTION_OF, L=L, x0=_x0(spec, o), ts=spec.ts,

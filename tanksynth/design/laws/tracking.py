@@ -123,7 +123,7 @@ def design_integral_tracking(plant: Plant, x0: Any, poles: Any, ts: float, *,
     aug = integral_augmentation(Ad, Bd, C1, ts)
     res = place_state_feedback(aug.A, aug.B, poles, method,
                                state_names=[s.name for s in plant.states] + [f"z_{c}" for c in chosen])
-    K = res.gain
+    K = res.K
     law = integral_tracking_law(K[:, : plant.n], K[:, plant.n:], lin.x0, eq.u0, C1, ts,
                                 plant.input_limits, anti_windup=anti_windup, aw_gain=aw_gain,
                                 tracked=chosen)

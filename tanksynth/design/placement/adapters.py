@@ -73,7 +73,7 @@ def _augment(model: dict[str, np.ndarray], C1: np.ndarray, time_domain: str,
     return {"A": A, "B": B, "Br": Br}
 
 
-#: A placement route: ``(A, B or C, state names) -> result with a .gain``.
+#: A placement route: ``(A, B or C, state names) -> result`` with its gain as ``K`` or ``L`` (`FeedbackGain`).
 _GainRoute = Callable[[np.ndarray, np.ndarray, list[str]], Any]
 
 
@@ -131,7 +131,7 @@ def _solve_gain(spec: Spec, design: DesignSpec, o: LmiPlacementOptions | PolePla
     try:
         if o.target == "observer":
             res = observer(A, C, names)
-            gains = {"L": res.gain}
+            gains = {"L": res.L}
             closed = lambda G: A - G @ C  # noqa: E731
         else:
             if o.integral:
@@ -141,7 +141,7 @@ def _solve_gain(spec: Spec, design: DesignSpec, o: LmiPlacementOptions | PolePla
                 aug = _augment(model, C1, time_domain, spec)
                 Aa, Ba = aug["A"], aug["B"]
                 res = feedback(Aa, Ba, names + [f"z_{t}" for t in tracked])
-                K = res.gain
+                K = res.K
                 gains = {"K": K, "K1": K[:, :plant.n], "K2": K[:, plant.n:], "Br": aug["Br"]}
                 diagnostics["integral"] = {"tracked": tracked, "C1": C1.tolist(),
                                            "augmented_A": Aa.tolist()}
@@ -150,7 +150,7 @@ def _solve_gain(spec: Spec, design: DesignSpec, o: LmiPlacementOptions | PolePla
                 closed = lambda G: Aa - Ba @ G  # noqa: E731
             else:
                 res = feedback(A, B, names)
-                gains = {"K": res.gain}
+                gains = {"K": res.K}
                 closed = lambda G: A - B @ G  # noqa: E731
     except SpecError as exc:
         raise rekeyed(design, exc, fallback=fallback_opt) from None
@@ -266,7 +266,7 @@ def run_pole_placement(spec: Spec, design: DesignSpec) -> DesignResult:
         lambda A, C, names: place_observer(A, C, poles, method, state_names=names),
         lambda A, B, names: place_state_feedback(A, B, poles, method, state_names=names),
         fallback_opt="poles", augmented_B=True)
-    gain = res.gain
+    gain = res.gain_matrix
     diagnostics["placement"] = res.as_dict()
     if converted is not None:
         diagnostics["poles_converted"] = converted
@@ -335,7 +335,7 @@ def run_canonical_observer(spec: Spec, design: DesignSpec) -> DesignResult:
     if not co.exact:
         raise InfeasibleDesign("canonical observer: det(sI - (A - Psi C)) differs from the requested "
                                "polynomial in exact arithmetic")
-    L = co.gain
+    L = co.L
     An, Cn = np.array(A.evalf(), dtype=float), np.array(C.evalf(), dtype=float)
     pl = place_observer(An, Cn, poles, state_names=[s.name for s in plant.states])
     ach = np.linalg.eigvals(An - L @ Cn)
@@ -349,8 +349,8 @@ def run_canonical_observer(spec: Spec, design: DesignSpec) -> DesignResult:
                      "exact": co.exact, "float_gain": acc},
         "robustness": checked_robustness(An, An - L @ Cn, L, "continuous", o.allow_fragile,
                                          "the observer error matrix F - L C"),
-        "place_cross_check": {"L_place": pl.gain.tolist(),
-                              "max_abs_difference": float(np.max(np.abs(pl.gain - L))),
+        "place_cross_check": {"L_place": pl.L.tolist(),
+                              "max_abs_difference": float(np.max(np.abs(pl.L - L))),
                               "place_report": pl.as_dict()},
         "assumptions": _assumptions(spec),
     }

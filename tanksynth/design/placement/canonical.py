@@ -29,6 +29,8 @@ The LMI-region route is `tanksynth.design.placement.regions`, exact placement
 
 from __future__ import annotations
 
+import warnings
+
 from dataclasses import dataclass
 from typing import Any, Sequence
 
@@ -175,9 +177,15 @@ class CanonicalObserver:
     exact: bool
 
     @property
-    def gain(self) -> np.ndarray:
-        """``Psi`` as a float array, shape (n, 1)."""
+    def L(self) -> np.ndarray:
+        """The observer gain ``Psi`` as a float array, shape (n, 1) (`FeedbackGain`'s name)."""
         return np.array(self.Psi.evalf(17), dtype=float).reshape(-1, 1)
+
+    @property
+    def gain(self) -> np.ndarray:
+        """Deprecated: `L`."""
+        warnings.warn("CanonicalObserver.gain is deprecated: use .L", DeprecationWarning, stacklevel=2)
+        return self.L
 
     def as_dict(self) -> dict:
         """JSON-friendly form (exact values as strings)."""

@@ -42,6 +42,7 @@ from scipy.sparse.csgraph import connected_components
 # Module import (not names), so that a test may replace the rank functions.
 from tanksynth.analysis import blas as _blas
 from tanksynth.analysis import rank as _rank
+from tanksynth.design.result import FeedbackGain
 from tanksynth.design.matrices import complex_pairs, matrix_pair, real_matrix
 from tanksynth.errors import (DimensionError, InfeasibleDesign, SpecError, UncontrollableError,
                               UnobservableError)
@@ -389,13 +390,13 @@ def refuse_fragile(report: dict, what: str, option: str = "allow_fragile") -> No
 
 # -------------------------------------------------------------- exact placement
 @dataclass(frozen=True)
-class PlacementResult:
+class PlacementResult(FeedbackGain):
     """Exact pole placement with its accuracy report.
 
     Attributes
     ----------
-    gain : ndarray
-        ``K`` (m, n) or ``L`` (n, q).
+    gain_matrix : ndarray
+        Read as ``K`` / ``L`` (`FeedbackGain`; ``gain`` is deprecated): ``K`` (m, n) or ``L`` (n, q).
     kind : str
         ``"state_feedback"`` or ``"observer"``.
     method : str
@@ -418,7 +419,7 @@ class PlacementResult:
         pole tolerances for repeated poles) and its value.
     """
 
-    gain: np.ndarray
+    gain_matrix: np.ndarray
     kind: str
     method: str
     requested: np.ndarray
@@ -435,7 +436,7 @@ class PlacementResult:
                 "requested": complex_pairs(self.requested), "achieved": complex_pairs(self.achieved),
                 "max_pole_error": self.max_pole_error,
                 "eigenvector_condition": self.eigenvector_condition,
-                "gain_norm": float(np.linalg.norm(self.gain, 2)),
+                "gain_norm": float(np.linalg.norm(self.gain_matrix, 2)),
                 "accuracy": self.accuracy}
 
 

@@ -38,6 +38,7 @@ from tanksynth.analysis import rank as _rank
 from tanksynth.analysis.lmi_region import LMIRegion, check_region, variable_of
 from tanksynth.design.conic import modelling
 from tanksynth.design.lmi_checks import KAPPA_STEP, LMICheck, check_solver, kappa_active
+from tanksynth.design.result import FeedbackGain
 from tanksynth.design.matrices import complex_pairs, matrix_pair, real_matrix, symmetrized
 from tanksynth.errors import (DimensionError, InfeasibleDesign, SpecError, UncontrollableError,
                               UnobservableError)
@@ -106,13 +107,13 @@ def _refuse_outside_region(A: np.ndarray, B: np.ndarray, region: LMIRegion,
 
 # ---------------------------------------------------------------- LMI placement
 @dataclass(frozen=True)
-class LMIPlacementResult:
+class LMIPlacementResult(FeedbackGain):
     """State feedback or observer gain with eigenvalues in an LMI region.
 
     Attributes
     ----------
-    gain : ndarray
-        ``K`` (m, n) for ``A - B K`` or ``L`` (n, q) for ``A - L C``.
+    gain_matrix : ndarray
+        Read as ``K`` / ``L`` (`FeedbackGain`; ``gain`` is deprecated): ``K`` (m, n) for ``A - B K`` or ``L`` (n, q) for ``A - L C``.
     P : ndarray, shape (n, n)
         Lyapunov matrix of the closed loop (state feedback: ``X^-1``;
         observer: ``X`` of the dual problem, ``V = e' P e``).
@@ -142,7 +143,7 @@ class LMIPlacementResult:
         Uncontrollable (unobservable) modes already inside the region.
     """
 
-    gain: np.ndarray
+    gain_matrix: np.ndarray
     P: np.ndarray
     X: np.ndarray
     kind: str
@@ -170,7 +171,7 @@ class LMIPlacementResult:
                 "min_boundary_distance": float(min(self.region.boundary_distance(z)
                                                    for z in self.closed_loop_eigenvalues)),
                 "condition_P": float(np.linalg.cond(self.P)),
-                "gain_norm": float(np.linalg.norm(self.gain, 2)),
+                "gain_norm": float(np.linalg.norm(self.gain_matrix, 2)),
                 "scaling": self.scaling, "fixed_modes": list(self.fixed_modes)}
 
 
@@ -313,7 +314,7 @@ def lmi_state_feedback(A: Any, B: Any, region: LMIRegion, *, domain: str = "cont
     kind = "observer" if _dual else "state_feedback"
     P = Xo if _dual else np.linalg.inv(Xo)
     return LMIPlacementResult(
-        gain=K.T if _dual else K, P=symmetrized(P), X=Xo, kind=kind, region=region, domain=domain,
+        gain_matrix=K.T if _dual else K, P=symmetrized(P), X=Xo, kind=kind, region=region, domain=domain,
         margin=float(margin), achieved_margin=float(-eig_n.max()), solver=solver, status=status,
         solve_time=elapsed, checks=checks, closed_loop_eigenvalues=lam, region_margins=margins,
         scaling={"state_balance": s.tolist(), "input_scale": su.tolist(), "time_scale": omega,

@@ -241,7 +241,7 @@ def run_robust_state_feedback(spec: Spec, design: DesignSpec) -> DesignResult:
                                     nominal=A.shape[0] - 1 if vm.names else None)
     except SpecError as exc:
         raise rekeyed(design, exc, fallback="region") from None
-    K = res.gain
+    K = res.K
     _warn_if_stiff(A, B, K, domain, spec.ts)
     names = model_names(domain)
     gains: dict[str, np.ndarray] = {"K": K, "P": res.P, names["A"]: nom.A[0], names["B"]: nom.B[0],
@@ -329,7 +329,7 @@ def run_robust_observer(spec: Spec, design: DesignSpec) -> DesignResult:
     except SpecError as exc:
         raise rekeyed(design, exc, fallback="region") from None
     names = model_names(domain)
-    gains = {"L": res.gain, "P": res.P, names["A"]: nom.A[0], names["B"]: nom.B[0], "C": nom.C[0],
+    gains = {"L": res.L, "P": res.P, names["A"]: nom.A[0], names["B"]: nom.B[0], "C": nom.C[0],
              "x_op": np.asarray(spec.x0, dtype=float), "u_op": u0}
     diagnostics = _common_diagnostics(spec, o, vm, nom, u0, res)
     if hinf is not None:

@@ -44,6 +44,7 @@ from tanksynth.analysis.lmi_region import LMIRegion
 from tanksynth.analysis.statespace import hinf_norm
 from tanksynth.design.conic import modelling
 from tanksynth.design.lmi_checks import LMICheck
+from tanksynth.design.result import FeedbackGain
 from tanksynth.design.matrices import symmetrized
 from tanksynth.errors import DimensionError, InfeasibleDesign, SpecError
 
@@ -104,13 +105,13 @@ class SaturationBound:
 
 
 @dataclass(frozen=True)
-class RobustResult:
+class RobustResult(FeedbackGain):
     """One gain meeting the region (and bounds) at every vertex, with its evidence.
 
     Attributes
     ----------
-    gain : ndarray
-        ``K`` (m, n) for ``u = -K x`` or ``L`` (n, q).
+    gain_matrix : ndarray
+        Read as ``K`` / ``L`` (`FeedbackGain`; ``gain`` is deprecated): ``K`` (m, n) for ``u = -K x`` or ``L`` (n, q).
     P, X : ndarray, shape (n, n)
         Common Lyapunov matrix (state feedback ``P = X^-1``; observer ``P = X``).
     kind : str
@@ -136,7 +137,7 @@ class RobustResult:
     scaling : dict
     """
 
-    gain: np.ndarray
+    gain_matrix: np.ndarray
     P: np.ndarray
     X: np.ndarray
     kind: str
@@ -171,7 +172,7 @@ class RobustResult:
                                                    for e in self.vertex_eigenvalues for z in e)),
                 "checks": list(self.checks), "hinf": self.hinf, "saturation": self.saturation,
                 "condition_P": float(np.linalg.cond(self.P)),
-                "gain_norm": float(np.linalg.norm(self.gain, 2)), "scaling": self.scaling}
+                "gain_norm": float(np.linalg.norm(self.gain_matrix, 2)), "scaling": self.scaling}
 
 
 def ellipsoid_axes(P: np.ndarray, names: Sequence[str]) -> dict:
@@ -464,7 +465,7 @@ def _without_bound(A, B, region, domain, saturation, margin, kappa, solver, nomi
                                      kappa=kappa, solver=solver, nominal=nominal, _dual=dual)
     except InfeasibleDesign:
         return None, None    # the design with the bound says why (or finds the wider X range)
-    K = free.gain.T if dual else free.gain
+    K = free.gain_matrix.T if dual else free.gain_matrix
     norm = _vertex_hinf_norm(A, B, K, hinf, domain)
     Xs = free.X / np.outer(s, s)
     Ks = K * s[None, :] / su[:, None]
@@ -622,7 +623,7 @@ def _recheck(A, B, K, Xs, Xo, Ks, As, Bs, reg, region, domain, margin, tstar, so
     P = Xo if dual else np.linalg.inv(Xo)
     wv = int(np.argmin(margins_arr))
     return RobustResult(
-        gain=K.T if dual else K, P=symmetrized(P), X=Xo, kind="observer" if dual else "state_feedback",
+        gain_matrix=K.T if dual else K, P=symmetrized(P), X=Xo, kind="observer" if dual else "state_feedback",
         region=region, domain=domain, margin=float(margin), achieved_margin=float(-worst_n),
         largest_margin=float(tstar), solver=solver, status=status, solve_time=elapsed,
         vertex_eigenvalues=np.array(eigs), vertex_margins=margins_arr, worst_vertex=wv,

@@ -205,7 +205,7 @@ def _state_feedback(spec: Spec, design: DesignSpec, o: Any, method: str, objecti
             ref["relative_difference"] = abs(res.h2 - ref["h2"]) / max(ref["h2"], 1e-300)
         diag["riccati_reference"] = ref
     diag.update(extra_diagnostics or {})
-    gains = {"K": res.gain, **_model_gains(m, o.time_domain),
+    gains = {"K": res.K, **_model_gains(m, o.time_domain),
              "Cz": np.asarray(o.Cz), "Dzu": np.asarray(o.Dzu), "X": res.X}
     return DesignResult(design.name, method, spec.plant.name, gains, diag, {})
 
@@ -230,7 +230,7 @@ def _observer(spec: Spec, design: DesignSpec, o: Any, method: str, objective: st
             ref["relative_difference"] = abs(res.h2 - ref["h2"]) / max(ref["h2"], 1e-300)
         diag["riccati_reference"] = ref
     diag.update(extra_diagnostics or {})
-    gains = {"L": res.gain, **_model_gains(m, o.time_domain), "Dv": Dv,
+    gains = {"L": res.L, **_model_gains(m, o.time_domain), "Dv": Dv,
              "Cz": Cz, "X": res.X}
     return DesignResult(design.name, method, spec.plant.name, gains, diag, {})
 

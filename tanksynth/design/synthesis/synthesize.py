@@ -51,6 +51,7 @@ from tanksynth.analysis.lmi_region import LMIRegion, check_region, variable_of
 from tanksynth.analysis.statespace import h2_norm, hinf_below, hinf_norm, statespace_matrices
 from tanksynth.design.conic import modelling
 from tanksynth.design.lmi_checks import SOLVERS, LMICheck, check_solver
+from tanksynth.design.result import FeedbackGain
 from tanksynth.design.matrices import symmetrized
 from tanksynth.design.synthesis.lmis import (DOMAINS, GeneralizedPlant, generalized_plant, h2_lmis,
                                             hinf_lmis, hinf_lmis_reduced, observer_plant, region_lmi)
@@ -78,13 +79,13 @@ _CLARABEL = {"tol_gap_abs": 1e-10, "tol_gap_rel": 1e-10, "tol_feas": 1e-10, "max
 
 # ===================================================================== the solver
 @dataclass(frozen=True, eq=False)
-class SynthesisResult:
+class SynthesisResult(FeedbackGain):
     """A solved and re-checked H2 / H-infinity / region synthesis.
 
     Attributes
     ----------
-    gain : ndarray
-        ``K`` (m, n) for ``u = -K x``, or ``L`` (n, q) for an observer (``dual``).
+    gain_matrix : ndarray
+        Read as ``K`` / ``L`` (`FeedbackGain`; ``gain`` is deprecated): ``K`` (m, n) for ``u = -K x``, or ``L`` (n, q) for an observer (``dual``).
     kind : str
         ``"state_feedback"`` or ``"observer"``.
     objective : str
@@ -124,7 +125,7 @@ class SynthesisResult:
         bounds): see `synthesize_state_feedback`.
     """
 
-    gain: np.ndarray
+    gain_matrix: np.ndarray
     kind: str
     objective: str
     domain: str
@@ -167,7 +168,7 @@ class SynthesisResult:
                 "solver": self.solver, "status": self.status, "solve_time_s": self.solve_time,
                 "checks": [c.as_dict() for c in self.checks],
                 "condition_X": float(np.linalg.cond(self.X)),
-                "gain_norm": float(np.linalg.norm(self.gain, 2)), "scaling": self.scaling}
+                "gain_norm": float(np.linalg.norm(self.gain_matrix, 2)), "scaling": self.scaling}
 
 
 def _solve(lib: Any, problem: Any, solver: str) -> str:
@@ -408,7 +409,7 @@ def synthesize_state_feedback(plants: GeneralizedPlant | Sequence[GeneralizedPla
     if route == "auto":
         scaling["route_note"] = f"LMI route: the Riccati route does not apply ({why})"
     return SynthesisResult(
-        gain=K.T if dual else K, kind="observer" if dual else "state_feedback", objective=objective,
+        gain_matrix=K.T if dual else K, kind="observer" if dual else "state_feedback", objective=objective,
         domain=domain, X=symmetrized(Xo), h2=h2_claim, gamma=g_claim,
         h2_optimum=None if (objective != "h2" or opt is None) else float(np.sqrt(max(opt, 0.0)) * f2),
         gamma_optimum=None if (objective != "hinf" or opt is None) else float(opt * finf),
@@ -468,7 +469,7 @@ def _riccati_design(P: GeneralizedPlant, objective: str, backoff: float, dual: b
     info.update({"certificate_X": certificate, "backoff": backoff, "route": "riccati",
                  "formulation": "dual (A', C'), L = K'" if dual else "primal, K from the ARE"})
     return SynthesisResult(
-        gain=K.T if dual else K, kind="observer" if dual else "state_feedback", objective=objective,
+        gain_matrix=K.T if dual else K, kind="observer" if dual else "state_feedback", objective=objective,
         domain=P.domain, X=X, h2=sol.h2, gamma=sol.gamma, h2_optimum=sol.h2,
         gamma_optimum=sol.gamma_optimum, achieved_h2=tuple(a_h2), achieved_hinf=tuple(a_hinf),
         closed_loop_eigenvalues=tuple(eigs), region=None, region_margins=(), solver="scipy",

@@ -552,7 +552,9 @@ class OptionReader:
             return reader(self.options[name], self.key(name), *args, **kwargs)
         f = self.cls.__dataclass_fields__[name]
         if f.default is MISSING and f.default_factory is MISSING:
-            raise SpecError(f"missing option {name!r} for method '{self.cls.method_name}'",
+            choices = f.metadata.get("choices", ())
+            raise SpecError(f"missing option {name!r} for method '{self.cls.method_name}'"
+                            + (f"; expected one of {list(choices)}" if choices else ""),
                             key=self.key(name))
         value = self.cls.default(name)
         return reader(value, self.key(name), *args, **kwargs) if parse_default else value

@@ -99,8 +99,8 @@ def _gain_shape(setup: Mapping[str, Any], plant: Plant) -> tuple[int, int]:
 
 _GAIN_DOC = """
     target : str
-        ``"state_feedback"`` (gain ``K``, ``u = -K x``) or ``"observer"`` (gain
-        ``L``); default {target!r}.
+        Required: ``"state_feedback"`` (gain ``K``, ``u = -K x``) or ``"observer"``
+        (gain ``L``); the method designs both, so a spec says which.
     time_domain : str
         ``"discrete"`` (the ZOH model at ``[sampling] ts``; the default when the
         spec has a sampling period) or ``"continuous"`` (the default without).
@@ -129,7 +129,7 @@ class PolePlacementOptions(MethodOptions):
         s-plane poles (1/s) of a discrete design are placed at ``z = exp(p
         ts)``; ``domain = "z"`` needs a discrete design. Without it, a
         discrete design whose poles are all real and negative warns (they
-        look like s-plane poles).{_GAIN_DOC.format(target="state_feedback")}
+        look like s-plane poles).{_GAIN_DOC}
     pole_domain : str or None
         The plane the poles are written in (``"s"`` or ``"z"``), from the
         poles table; default None (the plane of ``time_domain``).
@@ -143,7 +143,7 @@ class PolePlacementOptions(MethodOptions):
     method_name: ClassVar[str] = "pole_placement"
 
     poles: tuple[complex, ...] = option(unit="1/s (continuous) or - (discrete, z-plane)")
-    target: str = option("state_feedback", unit="-", choices=TARGETS)
+    target: str = option(unit="-", choices=TARGETS)
     time_domain: str | None = option(None, unit="-",
                                      default_text=TIME_DOMAIN_TEXT, choices=TIME_DOMAINS)
     integral: bool = option(False, unit="-")
@@ -189,7 +189,7 @@ class LmiPlacementOptions(MethodOptions):
         about the negative real axis); e.g. ``region = [{{type = "disk", center =
         0.9, radius = 0.08}}]``. Parsed to ``("half_plane", alpha)``, ``("disk",
         center, radius)``, ``("sector", theta)`` (rad); one part must lie in the
-        stability domain of ``time_domain``.{_GAIN_DOC.format(target="observer")}
+        stability domain of ``time_domain``.{_GAIN_DOC}
     margin : float
         Strictness margin of the LMIs, in (0, 1); default 1e-6.
     kappa : float
@@ -208,7 +208,7 @@ class LmiPlacementOptions(MethodOptions):
     method_name: ClassVar[str] = "lmi_placement"
 
     region: tuple[tuple, ...] = option(unit="1/s (continuous) or - (discrete, z-plane)")
-    target: str = option("observer", unit="-", choices=TARGETS)
+    target: str = option(unit="-", choices=TARGETS)
     time_domain: str | None = option(None, unit="-",
                                      default_text=TIME_DOMAIN_TEXT, choices=TIME_DOMAINS)
     integral: bool = option(False, unit="-")

@@ -515,7 +515,7 @@ class MultiobjectiveOptions(_StateFeedbackOptions):
         ``[{{type = "disk", center = 0.9, radius = 0.08}}]``); one part must lie
         in the stability domain of ``time_domain``.
     target : str
-        ``"state_feedback"`` (default, gain ``K``) or ``"observer"`` (gain ``L``).
+        Required: ``"state_feedback"`` (gain ``K``) or ``"observer"`` (gain ``L``).
     objective : str
         ``"hinf"`` (default) or ``"h2"``: the norm minimised.
     h2_bound : float or None
@@ -527,7 +527,7 @@ class MultiobjectiveOptions(_StateFeedbackOptions):
 
     method_name: ClassVar[str] = "multiobjective"
     region: tuple = option(unit="1/s (continuous) or - (discrete, z-plane)")
-    target: str = option("state_feedback", unit="-", choices=SYNTHESIS_TARGETS)
+    target: str = option(unit="-", choices=SYNTHESIS_TARGETS)
     objective: str = option("hinf", unit="-", choices=SYNTHESIS_OBJECTIVES)
     h2_bound: float | None = option(None, unit="-", default_text="unset: no H2 bound")
     hinf_bound: float | None = option(None, unit="-", default_text="unset: no H-infinity bound")

@@ -20,7 +20,7 @@ C = np.array([[0.0, 0.0, 0.5]])
 def _gain_for_poles(poles, A_, C_):
     try:
         from tanksynth.design.placement.canonical import place_observer
-        return place_observer(A_, C_, poles).gain
+        return place_observer(A_, C_, poles).gain_matrix
     except ImportError:                                   # pragma: no cover
         import control
         return np.asarray(control.place(A_.T, C_.T, poles)).T
