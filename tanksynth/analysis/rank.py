@@ -19,12 +19,14 @@ from tanksynth.errors import DimensionError, SpecError
 from tanksynth.plants.base import Plant
 from tanksynth.plants.compile import compile_matrix, evaluate_points, to_casadi
 from tanksynth.analysis.blas import small_dense
+from tanksynth.analysis.budget import TooComplexError, run_within_budget
 from tanksynth.analysis.symbolic import jacobian
 # re-exported: the symbolic determinant lives in its own module (size), named from here as before
 from tanksynth.analysis.rank_symbolic import SymbolicRank, symbolic_observability
 
 __all__ = [
     "RankResult",
+    "codistribution_matrix",
     "controllability_matrix",
     "observability_matrix",
     "controllability_rank",
@@ -483,17 +485,33 @@ def nonlinear_observability(plant: Plant, points: np.ndarray | None = None, coun
                                   undefined)
 
 
-def _codistribution(plant: Plant, orders: int):
-    """Compiled ``d(L_f^k h), k < orders`` (rows stacked) and its symbolic matrix."""
-    f = plant.f_smooth_numeric
-    L = plant.h_numeric
+def codistribution_matrix(f: sp.Matrix, h: sp.Matrix, x: sp.Matrix, orders: int) -> sp.Matrix:
+    """The symbolic ``d(L_f^k h), k < orders`` (rows stacked), for the budgeted step.
+
+    Parameters
+    ----------
+    f, h : sympy.Matrix
+        The vector field (state units per s) and the outputs.
+    x : sympy.Matrix
+        The states.
+    orders : int
+        Lie derivatives used.
+    """
+    L = h
     rows: list[sp.Matrix] = []
     for k in range(orders):
-        grad = jacobian(L, plant.x)
+        grad = jacobian(L, x)
         rows.append(grad)
         if k + 1 < orders:
             L = grad * f
-    D = sp.Matrix.vstack(*rows)
+    return sp.Matrix.vstack(*rows)
+
+
+def _codistribution(plant: Plant, orders: int):
+    """Compiled ``d(L_f^k h), k < orders`` (rows stacked) and its symbolic matrix; the symbolic
+    Lie derivatives run under the symbolic budget (`TooComplexError` past it)."""
+    D = run_within_budget(codistribution_matrix, plant.f_smooth_numeric, plant.h_numeric,
+                          plant.x, orders, what="the symbolic observability codistribution")
     return compile_matrix("codist", D, [plant.x, plant.u], ["x", "u"]), D
 
 
@@ -567,7 +585,10 @@ def observability_determinant_zeros(plant: Plant, result: NonlinearObservability
         return DeterminantZeros(False, 0, np.zeros((0, n)),
                                 "the model keeps non-smooth terms on the region (hybrid switching or "
                                 "undetermined flow directions): the determinant is not analytic")
-    fn, D = _codistribution(plant, orders)
+    try:
+        fn, D = _codistribution(plant, orders)
+    except TooComplexError as exc:
+        return DeterminantZeros(False, 0, np.zeros((0, n)), exc.detail)
     if D.shape[0] != n:
         return DeterminantZeros(False, 0, np.zeros((0, n)),
                                 f"the codistribution is {D.shape[0]} x {n} (not square): no scalar "

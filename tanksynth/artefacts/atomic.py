@@ -32,7 +32,7 @@ from typing import BinaryIO, Callable, Iterator
 from tanksynth.errors import ArtefactError
 
 __all__ = ["Payload", "atomic_write", "stage", "commit", "discard", "file_mode", "directory_lock", "LOCK_NAME",
-           "staged_target", "stale_temporaries", "remove_stale"]
+           "staged_target", "stale_temporaries", "remove_stale", "build_directory", "BUILD_MARKER"]
 
 #: The lock file of a result directory.
 LOCK_NAME = ".tanksynth.lock"
@@ -111,6 +111,37 @@ _STAGED_FILE = re.compile(r"\.(?P<target>.+\.(json|npz|mat|h|c|casadi|toml|csv|t
                           r"\.[a-z0-9_]{8}\.tmp")
 _BUILD_DIR = re.compile(r"\.law-build-[a-z0-9_]{8}\.tmp|\.report-build-[a-z0-9_]{8}")
 _STALE_LOCK = re.compile(re.escape(LOCK_NAME) + r"\.stale\.[0-9]+")
+#: The file `build_directory` puts in every build directory it makes: a directory of a build
+#: name without it (a user's, e.g. ``.report-build-mydrafts``) is never removed, unless empty.
+BUILD_MARKER = ".tanksynth-build"
+
+
+def build_directory(directory: str | Path, prefix: str, suffix: str = "") -> Path:
+    """A new temporary build directory in ``directory``, marked as the tool's (`BUILD_MARKER`).
+
+    Parameters
+    ----------
+    directory : str or Path
+        Where it is made (a result directory).
+    prefix, suffix : str
+        Its name's ends (``tempfile.mkdtemp``; 8 random characters between them).
+
+    Returns
+    -------
+    Path
+        The directory; `stale_temporaries` lists it when a killed run leaves it behind.
+    """
+    path = Path(tempfile.mkdtemp(prefix=prefix, suffix=suffix, dir=directory))
+    (path / BUILD_MARKER).touch()
+    return path
+
+
+def _tool_build_dir(path: Path) -> bool:
+    """A build directory the tool made (its marker in it) or an empty one (nothing to lose)."""
+    try:
+        return os.path.isfile(path / BUILD_MARKER) or not any(path.iterdir())
+    except OSError:
+        return False
 
 
 def staged_target(path: str | Path) -> str | None:
@@ -155,7 +186,7 @@ def stale_temporaries(directory: str | Path) -> list[Path]:
         name = path.name
         if stat.S_ISREG(mode) and (_STAGED_FILE.fullmatch(name) or _STALE_LOCK.fullmatch(name)):
             out.append(path)
-        elif stat.S_ISDIR(mode) and _BUILD_DIR.fullmatch(name):
+        elif stat.S_ISDIR(mode) and _BUILD_DIR.fullmatch(name) and _tool_build_dir(path):
             out.append(path)
     return out
 

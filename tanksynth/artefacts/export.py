@@ -30,7 +30,7 @@ from typing import TYPE_CHECKING, Any, Mapping, Sequence, TypeVar
 import casadi as ca
 import numpy as np
 
-from tanksynth.artefacts.atomic import commit
+from tanksynth.artefacts.atomic import build_directory, commit
 from tanksynth.errors import ArtefactError
 from tanksynth.runtime.laws import c_identifier, rename_law
 from tanksynth.spec.method_options.base import MethodOptions
@@ -117,7 +117,7 @@ def export_law(law: ca.Function, directory: str | Path, name: str | None = None,
     # CasADi's code generator refuses an output prefix that contains
     # "<stem>.c" (a guard for its old API); such a target directory is built
     # in the system temp directory, then copied beside the targets.
-    tmpdir = Path(tempfile.mkdtemp(prefix=".law-build-", suffix=".tmp", dir=directory))
+    tmpdir = build_directory(directory, ".law-build-", ".tmp")
     build = tmpdir
     renamed: list[Path] = []
     try:

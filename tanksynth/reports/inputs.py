@@ -7,6 +7,7 @@ earlier stages wrote (see `tanksynth.artefacts.io`).
 from __future__ import annotations
 
 import csv
+import io
 import json
 from dataclasses import dataclass
 from pathlib import Path
@@ -15,7 +16,8 @@ from typing import Any, Mapping
 import numpy as np
 
 from tanksynth.artefacts.io import (PLANT_SCHEMA, SCHEMA, check_npz, check_orphan_npz,
-                                    check_plant_record, read_artefact, read_plant_record)
+                                    check_plant_record, read_artefact, read_limited,
+                                    read_plant_record)
 from tanksynth.artefacts.traces import check_trace
 from tanksynth.errors import ArtefactError
 from tanksynth.reports.refused import REFUSED_FILE, read_refused
@@ -91,9 +93,11 @@ class ReportInputs:
 
 
 def _schema_of(path: Path) -> str | None:
+    # bounded like every result file: a FIFO or /dev/zero named *.json is refused (naming it)
+    raw = read_limited(path)
     try:
-        doc = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError):
+        doc = json.loads(raw.decode("utf-8"))
+    except (UnicodeDecodeError, json.JSONDecodeError, RecursionError):
         return None
     return doc.get("schema") if isinstance(doc, dict) else None
 
@@ -149,7 +153,8 @@ def read_report_inputs(directory: str | Path) -> ReportInputs:
     check_orphan_npz(d, names)
     check_plant_record(d, [(d / doc["_file"], doc) for doc in artefacts])
     spec_path = d / "spec.toml"
-    spec_text = spec_path.read_text(encoding="utf-8", errors="replace") if spec_path.exists() else None
+    spec_text = (read_limited(spec_path).decode("utf-8", errors="replace")
+                 if spec_path.exists() else None)
     raw_checks = read_checks(d)  # the same reading (and refusal) as verify and load
     checks = None if raw_checks is None else tuple(raw_checks)
     check_result_latex(d, plant, artefacts, checks)   # LaTeX a report typesets: the grammar
@@ -157,8 +162,8 @@ def read_report_inputs(directory: str | Path) -> ReportInputs:
     campaign_path = d / "campaign.csv"
     if campaign_path.exists():
         try:
-            with campaign_path.open(newline="", encoding="utf-8") as fh:
-                campaign = tuple(dict(r) for r in csv.DictReader(fh))
+            text = read_limited(campaign_path).decode("utf-8")
+            campaign = tuple(dict(r) for r in csv.DictReader(io.StringIO(text, newline="")))
         except (OSError, UnicodeDecodeError, csv.Error) as exc:
             raise ArtefactError(f"{campaign_path}: unreadable campaign table: {exc}") from None
     return ReportInputs(d, plant, spec_text, checks, tuple(artefacts), campaign, read_refused(d))

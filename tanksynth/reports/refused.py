@@ -13,7 +13,7 @@ from pathlib import Path
 from typing import Any, Iterable, Mapping
 
 from tanksynth.artefacts.atomic import atomic_write
-from tanksynth.artefacts.io import to_jsonable
+from tanksynth.artefacts.io import read_limited, to_jsonable
 from tanksynth.errors import ArtefactError
 
 __all__ = ["REFUSED_FILE", "REFUSED_SCHEMA", "refusal", "write_refused", "read_refused"]
@@ -83,8 +83,8 @@ def read_refused(directory: str | Path) -> tuple[dict[str, Any], ...]:
     if not path.exists():
         return ()
     try:
-        doc = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        doc = json.loads(read_limited(path).decode("utf-8"))   # bounded: a FIFO must not hang
+    except (UnicodeDecodeError, json.JSONDecodeError, RecursionError) as exc:
         raise ArtefactError(f"{path}: unreadable refusal record: {exc}") from None
     if not isinstance(doc, dict) or doc.get("schema") != REFUSED_SCHEMA or \
             not isinstance(doc.get("refused"), list) or \

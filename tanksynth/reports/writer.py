@@ -12,13 +12,12 @@ no longer match ``report.tex``) and keeps the LaTeX log as
 from __future__ import annotations
 
 import shutil
-import tempfile
 import time
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable, Mapping
 
-from tanksynth.artefacts.atomic import atomic_write, commit
+from tanksynth.artefacts.atomic import atomic_write, build_directory, commit
 from tanksynth.errors import ArtefactError, ReportError
 from tanksynth.reports.context import build_context, drawn_usable, trace_figures
 from tanksynth.reports.figures import FigureFile, TraceFigure, eigenvalue_sets, pole_map
@@ -204,7 +203,7 @@ def write_report(directory: str | Path, pdf: bool = False, timeout: float = 180.
     pages = None
     latex_seconds = None
     if pdf:
-        build = Path(tempfile.mkdtemp(prefix=".report-build-", dir=d))
+        build = build_directory(d, ".report-build-")
         try:
             (build / "report.tex").write_text(tex, encoding="utf-8")
             if figdir.is_dir():

@@ -214,6 +214,7 @@ def test_an_interrupted_write_is_cleaned_and_nothing_else(tmp_path):
     (tmp_path / ".akf.npz.zz9_q0w1.tmp").write_bytes(b"partial")
     build = tmp_path / ".law-build-k2j4h5g6.tmp"
     build.mkdir()
+    (build / ".tanksynth-build").touch()           # the tool's own build directory (its marker)
     (build / "x.c").write_text("int x;")
     keep = ["notes.tmp", ".notes.tmp", ".akf.json.tmp", ".a.json.TOOLONG12.tmp", ".notes.abcdefgh.tmp",
             ".law-build-x.tmp", "other.npz"]
