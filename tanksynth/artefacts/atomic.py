@@ -79,7 +79,7 @@ def stage(target: str | Path, payload: Payload) -> Path:
     target = Path(target)
     mode = file_mode(target)
     try:
-        fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
+        fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.{STAGE_TAG}", suffix=".tmp", dir=target.parent)
     except OSError as exc:  # name the file the user asked for, not the temporary one
         raise OSError(exc.errno, exc.strerror, str(target)) from None
     try:
@@ -102,13 +102,17 @@ def stage(target: str | Path, payload: Payload) -> Path:
     return Path(tmp)
 
 
+#: Part of every staged file's name: a user's ``.notes.json.abcdefgh.tmp`` is never taken for
+#: the tool's and removed (the cleanup goes by name).
+STAGE_TAG = "tanksynth-"
+
 #: Names of what tanksynth writes to a result directory before renaming it: `stage`'s files
-#: (``.<target>.<8 characters of mkstemp>.tmp``, the target one of the kinds of file tanksynth
+#: (``.<target>.tanksynth-<8 characters of mkstemp>.tmp``, the target one of the kinds of file tanksynth
 #: writes there), the build directories of a law export
 #: (``.law-build-<8>.tmp``) and of a PDF (``.report-build-<8>``), and a lock being taken over
 #: (``.tanksynth.lock.stale.<pid>``).
 _STAGED_FILE = re.compile(r"\.(?P<target>.+\.(json|npz|mat|h|c|casadi|toml|csv|tex|pdf|log|png|svg))"
-                          r"\.[a-z0-9_]{8}\.tmp")
+                          r"\." + re.escape(STAGE_TAG) + r"[a-z0-9_]{8}\.tmp")
 _BUILD_DIR = re.compile(r"\.law-build-[a-z0-9_]{8}\.tmp|\.report-build-[a-z0-9_]{8}")
 _STALE_LOCK = re.compile(re.escape(LOCK_NAME) + r"\.stale\.[0-9]+")
 #: The file `build_directory` puts in every build directory it makes: a directory of a build
@@ -150,7 +154,7 @@ def staged_target(path: str | Path) -> str | None:
     Parameters
     ----------
     path : str or Path
-        A file name (``.<target>.<8 characters>.tmp``).
+        A file name (``.<target>.tanksynth-<8 characters>.tmp``).
     """
     match = _STAGED_FILE.fullmatch(Path(path).name)
     return None if match is None else match.group("target")

@@ -581,7 +581,7 @@ def remove_interrupted_writes(directory: str | Path) -> list[Path]:
     """Remove what a run killed mid-write left in ``directory`` (call it under `directory_lock`).
 
     `write_artefact` stages every file of an artefact, then renames them, the JSON
-    last. A kill in between leaves temporary files (``.<file>.<8 characters>.tmp``)
+    last. A kill in between leaves temporary files (``.<file>.tanksynth-<8 characters>.tmp``)
     that no rename will claim, and possibly ``<name>.npz`` with no ``<name>.json``
     (which `check_orphan_npz` refuses). Removed: every temporary file and build
     directory of the tool's own naming (`tanksynth.artefacts.atomic.stale_temporaries`),

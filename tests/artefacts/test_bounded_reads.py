@@ -209,22 +209,31 @@ def test_an_interrupted_write_is_cleaned_and_nothing_else(tmp_path):
     from tanksynth.artefacts.io import remove_interrupted_writes
 
     path = _artefact(tmp_path)
-    staged = tmp_path / ".akf.json.abcd1234.tmp"
+    staged = tmp_path / ".akf.json.tanksynth-abcd1234.tmp"
     path.rename(staged)                            # as if the JSON rename never happened
-    (tmp_path / ".akf.npz.zz9_q0w1.tmp").write_bytes(b"partial")
+    (tmp_path / ".akf.npz.tanksynth-zz9_q0w1.tmp").write_bytes(b"partial")
     build = tmp_path / ".law-build-k2j4h5g6.tmp"
     build.mkdir()
     (build / ".tanksynth-build").touch()           # the tool's own build directory (its marker)
     (build / "x.c").write_text("int x;")
     keep = ["notes.tmp", ".notes.tmp", ".akf.json.tmp", ".a.json.TOOLONG12.tmp", ".notes.abcdefgh.tmp",
-            ".law-build-x.tmp", "other.npz"]
+            ".law-build-x.tmp", "other.npz",
+            ".notes.json.abcdefgh.tmp", ".thesis.tex.abcd1234.tmp"]   # a user's, named like mkstemp's
     for name in keep:
         (tmp_path / name).write_text("mine")
-    (tmp_path / ".link.json.abcdefgh.tmp").symlink_to(tmp_path / "notes.tmp")
+    (tmp_path / ".link.json.tanksynth-abcdefgh.tmp").symlink_to(tmp_path / "notes.tmp")
     removed = remove_interrupted_writes(tmp_path)
-    assert sorted(p.name for p in removed) == sorted([staged.name, ".akf.npz.zz9_q0w1.tmp", build.name, "akf.npz"])
+    assert sorted(p.name for p in removed) == sorted([staged.name, ".akf.npz.tanksynth-zz9_q0w1.tmp", build.name, "akf.npz"])
     left = sorted(p.name for p in tmp_path.iterdir())
-    assert left == sorted(keep + [".link.json.abcdefgh.tmp"])
+    assert left == sorted(keep + [".link.json.tanksynth-abcdefgh.tmp"])
+
+
+def test_what_stage_leaves_is_what_the_cleanup_takes(tmp_path):
+    """The name `stage` gives a file is the one `stale_temporaries` recognises (and no other)."""
+    from tanksynth.artefacts.atomic import stage, stale_temporaries
+
+    staged = [stage(tmp_path / name, b"x") for name in ("a.json", "a.npz", "report.pdf", "f.png")]
+    assert sorted(stale_temporaries(tmp_path)) == sorted(staged)
 
 
 def test_an_orphan_npz_without_evidence_is_left_for_the_readers(tmp_path):
@@ -232,7 +241,7 @@ def test_an_orphan_npz_without_evidence_is_left_for_the_readers(tmp_path):
 
     path = _artefact(tmp_path)
     path.unlink()
-    (tmp_path / ".akf.json.abcd1234.tmp").write_text("{\"truncated")
+    (tmp_path / ".akf.json.tanksynth-abcd1234.tmp").write_text("{\"truncated")
     remove_interrupted_writes(tmp_path)
     assert [p.name for p in tmp_path.iterdir()] == ["akf.npz"]
 

@@ -86,8 +86,8 @@ def test_a_400_digit_gain_is_exit_2_naming_the_file_and_key(d):
 def test_the_next_design_removes_what_a_killed_write_left(d, capsys):
     """A kill between the NPZ and the JSON renames: the next design (under the lock) removes the
     staged files of the tool's naming, and only those."""
-    (d / f"{NAME}.json").rename(d / f".{NAME}.json.k1ll3d_x.tmp")
-    (d / f".{NAME}.npz.abcdefgh.tmp").write_bytes(b"partial")
+    (d / f"{NAME}.json").rename(d / f".{NAME}.json.tanksynth-k1ll3d_x.tmp")
+    (d / f".{NAME}.npz.tanksynth-abcdefgh.tmp").write_bytes(b"partial")
     (d / "notes.tmp").write_text("mine")
     assert main(["design", str(EXAMPLES / "custom_two_tank.toml"), "-o", str(d)]) == 0
     out = capsys.readouterr().out
