@@ -283,3 +283,16 @@ def test_nonlinear_atoms_bound_the_premises_of_the_quasi_lpv_split(name, options
 
     plant = builtin_plant(name, **options)
     assert quasi_lpv(plant).p <= nonlinear_atoms(plant) <= 2 * max(quasi_lpv(plant).p, 1)
+
+
+def test_lmi_placement_counts_every_kappa_retry():
+    """The kappa relaxation may solve at kappa, 100 kappa, ... up to kappa_max: each try's
+    problems are counted (breaker: N = 36 peaked 1.3x over the two-problem estimate)."""
+    from tanksynth.design.lmi_checks import KAPPA_STEP
+    from tanksynth.spec.memory import KAPPA_RETRY_STEP, kappa_tries
+
+    assert KAPPA_RETRY_STEP == KAPPA_STEP
+    assert kappa_tries(1e4, 1e4) == 1
+    assert kappa_tries(1e4, 1e8) == 3              # 1e4, 1e6, 1e8
+    assert kappa_tries(1e4, 1.5e6) == 3            # 1e4, 1e6, then the ceiling
+    assert kappa_tries(2.0, 1e300) <= 64

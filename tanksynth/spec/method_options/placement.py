@@ -15,7 +15,7 @@ import numpy as np
 from tanksynth.errors import SpecError
 from tanksynth.spec.method_options.base import (TIME_DOMAIN_TEXT, MethodOptions, OptionReader, option,
                                                  time_domain_of)
-from tanksynth.spec.memory import ConicSize, region_order
+from tanksynth.spec.memory import ConicSize, kappa_tries, region_order
 from tanksynth.spec.options import (parse_bool, parse_choice, parse_matrix, parse_names, parse_number,
                                     parse_poles, parse_region, region_is_stable)
 
@@ -243,11 +243,13 @@ class LmiPlacementOptions(MethodOptions):
 
     def conic_size(self, plant: Plant, ts: float | None) -> ConicSize:
         """Variables ``X`` (na x na, symmetric), ``Y`` (gain inputs x na), two scalars; blocks the
-        region (``order na``) and ``I <= X <= kappa I``; ``na`` counts the integrators."""
+        region (``order na``) and ``I <= X <= kappa I``; ``na`` counts the integrators; two
+        problems (phases 1 and 2) for each try of the ``kappa`` relaxation (`kappa_tries`)."""
         na = plant.n + (len(self.tracked or ()) or plant.q if self.integral else 0)
         gains = plant.q if self.target == "observer" else plant.m
         return ConicSize(variables=na * (na + 1) / 2 + gains * na + 2,
                          psd_orders=(region_order(self.region) * na, na, na), linear_rows=12,
+                         problems=2 * kappa_tries(self.kappa, self.kappa_max),
                          advice="fewer states (a smaller plant, e.g. fewer tanks N), a region of "
                                 "lower order (one disk or half-plane), or pole_placement")
 
