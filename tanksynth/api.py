@@ -120,7 +120,7 @@ def _toml_form(value: Any) -> Any:
 
 
 def spec_document(plant: Any, method: str, *, x0: Any = None, u0: Any = None, ts: float | None = None,
-                  name: str | None = None, title: str = "", state_bound: float = 1.0,
+                  y0: Any = None, trim: str | None = None, name: str | None = None, title: str = "", state_bound: float = 1.0,
                   input_bound: float = 1.0, **options: Any) -> dict[str, Any]:
     """The spec document (the parsed TOML) of one design given as Python objects.
 
@@ -135,6 +135,11 @@ def spec_document(plant: Any, method: str, *, x0: Any = None, u0: Any = None, ts
         for a StateSpace (required otherwise).
     u0 : array_like or mapping, optional
         Operating inputs (input units); checked against the equilibrium.
+    y0 : array_like or mapping, optional
+        Operating outputs (output units), with ``trim="inputs"`` only.
+    trim : {"states", "inputs"}, optional
+        ``[operating_point] trim``: ``"states"`` solves the levels from ``u0`` (``x0``, if
+        given, is the solver's start); ``"inputs"`` solves the inputs and levels from ``y0``.
     ts : float, optional
         Sampling period (s); None for a continuous-time spec.
     name : str, optional
@@ -179,6 +184,10 @@ def spec_document(plant: Any, method: str, *, x0: Any = None, u0: Any = None, ts
         op["x"] = _toml_form(x0)
     if u0 is not None:
         op["u"] = _toml_form(u0)
+    if y0 is not None:
+        op["y"] = _toml_form(y0)
+    if trim is not None:
+        op["trim"] = trim
     doc: dict[str, Any] = {"plant": table, "operating_point": op}
     if title:
         doc["title"] = title
@@ -248,7 +257,7 @@ def _same_plant(given: Any, built: Any) -> None:
 
 
 def design(plant: Any, method: str, *, x0: Any = None, u0: Any = None, ts: float | None = None,
-           name: str | None = None, directory: str | Path | None = None, title: str = "",
+           y0: Any = None, trim: str | None = None, name: str | None = None, directory: str | Path | None = None, title: str = "",
            state_bound: float = 1.0, input_bound: float = 1.0, **options: Any) -> Design:
     """Design one gain from Python objects, as ``tanksynth design`` designs a spec's entry.
 
@@ -262,6 +271,10 @@ def design(plant: Any, method: str, *, x0: Any = None, u0: Any = None, ts: float
         Operating levels (state units); see `spec_document`.
     u0 : array_like or mapping, optional
         Operating inputs (input units); see `spec_document`.
+    y0 : array_like or mapping, optional
+        Operating outputs (output units), with ``trim="inputs"``; see `spec_document`.
+    trim : {"states", "inputs"}, optional
+        Solve the operating point (``[operating_point] trim``); see `spec_document`.
     ts : float, optional
         Sampling period (s); None for a continuous-time spec.
     name, title : str, optional
@@ -295,7 +308,7 @@ def design(plant: Any, method: str, *, x0: Any = None, u0: Any = None, ts: float
     from tanksynth.artefacts.io import file_sha256, write_artefact, write_plant_record
     from tanksynth.methods import METHODS, parse_spec_text
 
-    document = spec_document(plant, method, x0=x0, u0=u0, ts=ts, name=name, title=title,
+    document = spec_document(plant, method, x0=x0, u0=u0, ts=ts, y0=y0, trim=trim, name=name, title=title,
                              state_bound=state_bound, input_bound=input_bound, **options)
     spec = parse_spec_text(spec_text(document), source="<tanksynth.design>")
     _same_plant(plant, spec.plant)

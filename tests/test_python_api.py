@@ -129,3 +129,24 @@ def test_a_refused_design_leaves_nothing(tmp_path):
                          "lmi_placement", target="state_feedback",
                          region=[{"type": "half_plane", "alpha": 0.5}], directory=tmp_path / "out")
     assert not (tmp_path / "out").exists() and list(tmp_path.iterdir()) == []
+
+
+
+def test_the_api_asks_for_a_trim_as_the_spec_does():
+    """``trim="states"`` with ``u0`` solves the levels, as ``[operating_point] trim`` does: the
+    design's operating point balances the plant's own model, f(x0, u0) = 0."""
+    import tanksynth
+    from tanksynth.api import spec_document, spec_text
+    from tanksynth.methods import parse_spec_text
+    from tanksynth.plants import three_tank
+
+    plant = three_tank(outputs="h1h2")
+    u0 = [3.5e-5, 2.0e-5]
+    doc = spec_document(plant, "lqr", u0=u0, trim="states")
+    assert doc["operating_point"] == {"u": u0, "trim": "states"}
+    spec = parse_spec_text(spec_text(doc))
+    assert spec.trim is not None
+    # level rates in m/s; the inflows alone move the levels at about 2e-3 m/s
+    assert np.max(np.abs(plant.compiled.rhs(spec.x0, np.asarray(u0)))) < 1e-12
+    d = tanksynth.design(plant, "lqr", u0=u0, trim="states")
+    assert np.asarray(d.gains["K"]).shape == (2, 3)

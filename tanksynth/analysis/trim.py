@@ -192,7 +192,8 @@ def trim_hint(plant: Plant, x: npt.ArrayLike, u: npt.ArrayLike, u_given: bool = 
 
     inputs = ", ".join(f"{q.name} = {v:.6g}{unit(q)}" for q, v in zip(plant.inputs, found.u))
     levels = ", ".join(f"{s.name} = {v:.6g}{unit(s)}" for s, v in zip(plant.states, found.x))
-    write = ('write trim = "states" in [operating_point]' if u_given else
+    write = ('write trim = "states" in [operating_point] (Python: tanksynth.design(..., '
+             'trim="states"))' if u_given else
              'write u = {' + ", ".join(f"{q.name} = {v:.6g}" for q, v in zip(plant.inputs, found.u))
              + '} and trim = "states" in [operating_point]')
     return (f"nearest equilibrium for these inputs ({inputs}): {levels}; {write} to use it "
