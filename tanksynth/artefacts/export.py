@@ -348,7 +348,8 @@ def implementation_data(diagnostics: Mapping[str, Any], plant_record: Mapping[st
         ``ts`` (s, NaN without sampling), ``x_op`` (state units), ``u_op`` (input
         units, NaN entries when unknown), and ``state_names``, ``state_units``,
         ``input_names``, ``input_units``, ``output_names``, ``output_units``
-        (lists of str, empty when unknown); ``linearization``: ``A, B, C, D`` at the
+        (lists of str, empty when unknown); ``y_op`` (output units, the outputs at
+        ``x_op``; empty when the record has no linearisation); ``linearization``: ``A, B, C, D`` at the
         operating point (`linearization_record`, from ``plant.json``; empty when the
         record has none); ``law_context``: the diagnostics `law_statement` reads.
     """
@@ -373,6 +374,9 @@ def implementation_data(diagnostics: Mapping[str, Any], plant_record: Mapping[st
     out["linearization"] = ({k: np.asarray(lin[k], dtype=float) for k in ("A", "B", "C", "D")}
                             if isinstance(lin, Mapping) and all(k in lin for k in ("A", "B", "C", "D"))
                             else {})
+    # the outputs at the operating point: the observers' laws read y - y_op
+    out["y_op"] = np.asarray(lin["y0"] if isinstance(lin, Mapping) and "y0" in lin else [],
+                             dtype=float).reshape(-1)
     out["law_context"] = {k: diagnostics.get(k)
                           for k in ("law_signature", "time_domain", "form", "integral")
                           if isinstance(diagnostics, Mapping) and k in diagnostics}
@@ -469,9 +473,9 @@ def mat_contents(gains: Mapping[str, np.ndarray], data: Mapping[str, Any]) -> di
     dict
         For ``scipy.io.savemat``: arrays as columns or matrices, names and
         units as n x 1 cell arrays of strings, ``ts`` a 1 x 1 double (s; NaN
-        in continuous time); ``x_op`` and ``u_op`` the operating point (the
-        gains of that name when the design stores them), also as ``x0`` and
-        ``u0`` (MATLAB's names); ``A, B, C, D`` the continuous linearisation
+        in continuous time); ``x_op``, ``u_op`` and ``y_op`` the operating point (the
+        gains of that name when the design stores them), also as ``x0``, ``u0`` and
+        ``y0`` (MATLAB's names); ``A, B, C, D`` the continuous linearisation
         there (when ``data`` has it); ``law`` the law as text (`law_statement`);
         ``units`` a struct giving the unit of every variable. A gain of one of
         these names keeps its value.
@@ -486,6 +490,9 @@ def mat_contents(gains: Mapping[str, np.ndarray], data: Mapping[str, Any]) -> di
     out.setdefault("u_op", column(data["u_op"]))
     out.setdefault("x0", out["x_op"])
     out.setdefault("u0", out["u_op"])
+    if np.size(data.get("y_op", ())):
+        out.setdefault("y_op", column(data["y_op"]))
+        out.setdefault("y0", out["y_op"])
     for key, value in (data.get("linearization") or {}).items():
         out.setdefault(key, np.atleast_2d(np.asarray(value, dtype=float)))
     law = law_statement(data.get("law_context") or {}, gains)
@@ -513,7 +520,7 @@ def matrix_units(data: Mapping[str, Any]) -> dict[str, str]:
     Returns
     -------
     dict of str to str
-        ``ts``, ``x_op``/``x0``, ``u_op``/``u0``, ``A``, ``B``, ``C``, ``D``, ``F``,
+        ``ts``, ``x_op``/``x0``, ``u_op``/``u0``, ``y_op``/``y0``, ``A``, ``B``, ``C``, ``D``, ``F``,
         ``Ad``, ``Bd``, ``K``, ``L`` (``"cm/(s V)"`` when every state is in cm and
         every input in V; ``"(state units)/s per (input units)"`` when mixed).
     """
@@ -524,7 +531,7 @@ def matrix_units(data: Mapping[str, Any]) -> dict[str, str]:
         wrap = (lambda t: f"({t})" if re.search(r"[ /*]", t) else t)
         return f"{wrap(num)}/{wrap(den)}"
 
-    return {"ts": "s", "x_op": s, "x0": s, "u_op": u, "u0": u, "A": "1/s", "F": "1/s",
+    return {"ts": "s", "x_op": s, "x0": s, "u_op": u, "u0": u, "y_op": y, "y0": y, "A": "1/s", "F": "1/s",
             "B": per(s, f"s {u}" if " " not in u else f"s ({u})"), "C": per(y, s), "D": per(y, u),
             "Ad": "1 (dimensionless)", "Bd": per(s, u), "K": per(u, s), "L": per(s, y),
             "state_names": "-", "input_names": "-", "output_names": "-", "law": "-"}

@@ -323,6 +323,11 @@ def test_mat_export_loads_in_matlab_terms_without_the_readme(out):
     assert "u = u_op - K (x - x_op)" in loadmat(out / "sf.mat")["law"].item()
     obs_law = loadmat(out / "obs.mat")["law"].item()
     assert "x_hat_next" in obs_law and "L (y - y_op" in obs_law
+    # every variable the law text names is in the file: y_op = h(x_op), here (h1, h2)
+    obs = loadmat(out / "obs.mat")
+    np.testing.assert_allclose(obs["y_op"].ravel(), [0.40, 0.20])
+    np.testing.assert_array_equal(obs["y0"], obs["y_op"])
+    assert obs["units"][0, 0]["y_op"].item() == "m"
     assert loadmat(out / "sf.mat")["units"][0, 0]["K"].item() == "(m^3/s)/m"
 
 
