@@ -526,7 +526,8 @@ def build_context(inputs: ReportInputs, figures: Mapping[str, FigureFile],
     title = rec.get("title") or f"Design report: {rec.get('plant', {}).get('name', '')}"
     opv = _operating_view(inputs)
     lin = [_linearization_view(a, opv) for a in inputs.by_method("linearize")]
-    designs = [design_view(a, figures.get(str(a.get("name"))), statements) for a in inputs.artefacts]
+    designs = [design_view(a, figures.get(str(a.get("name"))), statements,
+                           rec.get("plant")) for a in inputs.artefacts]
     drawn = {k: v for k, v in ((k, _as_figures(v)) for k, v in (traces or {}).items()) if v}
     designs = [dataclasses.replace(d, trace_figure=drawn[d.name][0], trace_caption=prose_latex(
         drawn[d.name][0].caption, literal=(d.name,))) if d.name in drawn else d for d in designs]

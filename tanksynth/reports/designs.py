@@ -9,7 +9,7 @@ and a bounded table of its remaining diagnostics.
 from __future__ import annotations
 
 import re
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
@@ -20,8 +20,10 @@ from tanksynth.reports.equations import split_equation, visual_length
 from tanksynth.reports.trusted import is_trusted_math, math_or_text
 from tanksynth.reports.figures import (FigureFile, TraceFigure, eigenvalue_sets,
                                        is_pole_key)
-from tanksynth.reports.latex import (Tex, escape_latex, format_eigenvalues, format_number,
-                                     gain_latex, matrix_latex, symbol_latex)
+from tanksynth.reports.gain_units import design_is_continuous, gain_unit
+from tanksynth.reports.latex import (GainDisplay, Tex, escape_latex, format_eigenvalues,
+                                     format_number, format_unit, gain_latex, matrix_latex,
+                                     symbol_latex)
 from tanksynth.reports.prose import prose_latex
 
 __all__ = ["DesignView", "design_view", "diagnostic_rows", "fragment_lines", "latex_label", "recheck_test_tex",
@@ -400,8 +402,16 @@ def _verification_view(ver: Any) -> dict | None:
     }
 
 
+def _with_unit(display: GainDisplay, unit: str | None) -> GainDisplay:
+    """``display`` with its unit typeset (none for an unknown or dimensionless unit)."""
+    if unit is None or unit == "1":
+        return display
+    return replace(display, unit=format_unit(unit))
+
+
 def design_view(art: Mapping[str, Any], figure: FigureFile | None,
-                statements: Mapping[str, Callable[[Mapping[str, Any]], Tex]]) -> DesignView:
+                statements: Mapping[str, Callable[[Mapping[str, Any]], Tex]],
+                plant: Mapping[str, Any] | None = None) -> DesignView:
     """Build the `DesignView` of one artefact (any method); ``statements`` maps a method to its
     problem statement (`tanksynth.methods.STATEMENTS`).
 
@@ -413,6 +423,8 @@ def design_view(art: Mapping[str, Any], figure: FigureFile | None,
         Its eigenvalue figure, if drawn.
     statements : mapping of str to callable
         Method name -> problem statement.
+    plant : mapping or None, optional
+        The plant record's ``plant`` table (signal units, for the units of ``K`` and ``L``).
     """
     diag = art.get("diagnostics") or {}
     method = str(art.get("method", ""))
@@ -437,7 +449,9 @@ def design_view(art: Mapping[str, Any], figure: FigureFile | None,
         eig.append((escape_latex(s.label),
                     Tex("$" + format_eigenvalues([[v.real, v.imag] for v in s.values], 5, limit=16)
                         + "$" + (r" \ ($z$)" if s.discrete else ""))))
-    gains = [gain_latex(k, v) for k, v in (art.get("gains") or {}).items()]
+    continuous = design_is_continuous(diag)
+    gains = [_with_unit(gain_latex(k, v), gain_unit(k, plant, continuous))
+             for k, v in (art.get("gains") or {}).items()]
     latex = [(symbol_latex(k), fragment_lines(symbol_latex(k), v) if is_trusted_math(v)
               else [Tex(symbol_latex(k) + " &= " + math_or_text(v)[0])])
              for k, v in (art.get("latex") or {}).items() if isinstance(v, str) and v.strip()

@@ -521,6 +521,8 @@ class GainDisplay:
         Math-mode matrix when ``full``; otherwise empty.
     summary : tuple of (str, Tex)
         Label (plain text) and math-mode value rows for large gains.
+    unit : Tex
+        The gain's unit, text mode (`format_unit`); empty when not known.
     """
 
     name: str
@@ -528,6 +530,7 @@ class GainDisplay:
     full: bool
     latex: Tex
     summary: tuple[tuple[str, Tex], ...]
+    unit: Tex = Tex("")
 
     @property
     def shape_latex(self) -> Tex:
