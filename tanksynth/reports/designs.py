@@ -339,6 +339,24 @@ def _beyond_limit(c: Mapping[str, Any]) -> bool:
     return (v > lim if rel == "<=" else v >= lim if rel == "<" else v < lim if rel == ">=" else v <= lim)
 
 
+def _value_digits(c: Mapping[str, Any]) -> int:
+    """Significant digits of a check's value: 12 past its limit; else at least 4, more until the
+    printed value and the printed limit (6 digits) compare as the true ones do (0.0397369 under
+    0.0397369x must not print as 0.03974)."""
+    if _beyond_limit(c):
+        return 12
+    value, limit = c.get("value"), c.get("limit")
+    if c.get("relation") not in _RELATION_TEX or not (is_number(value) and is_number(limit)):
+        return 4
+    v, lim = float(value), float(limit)
+    shown_limit = float(f"{lim:.6g}")
+    for digits in range(4, 13):
+        shown = float(f"{v:.{digits}g}")
+        if (shown < shown_limit) == (v < lim) and (shown > shown_limit) == (v > lim):
+            return digits
+    return 12
+
+
 def recheck_test_tex(c: Mapping[str, Any]) -> Tex:
     """The test of a re-check record as it was made: direction, limit and the tolerance given to the
     value (``<= 1 + 10^{-6}`` (tolerance)), or the bare limit for a record without its direction.
@@ -376,7 +394,7 @@ def _checks_rows(value: Any) -> list[dict[str, Tex]]:
         detail = c.get("detail")
         rows.append({
             "name": prose_latex(c["name"] if c.get("name") else words(c.get("check", ""))),
-            "value": (_m(c["value"], 12 if _beyond_limit(c) else 4) if "value" in c else Tex("--")),
+            "value": (_m(c["value"], _value_digits(c)) if "value" in c else Tex("--")),
             "limit": recheck_test_tex(c),
             "unit": prose_latex(c.get("unit", "")),
             "detail": prose_latex(detail) if isinstance(detail, str) else Tex(""),

@@ -89,3 +89,23 @@ def test_optimal_inaccurate_status_is_explained():
     assert "optimal" in note and "re-check" in note and "not" in note and "proven" in note
     art["diagnostics"]["lmi"]["status"] = "optimal"
     assert str(design_view(art, None, STATEMENTS).status_note) == ""
+
+
+def test_a_value_just_under_its_limit_never_prints_above_it():
+    """New-user pass: 0.039736887 <= 0.0397369 printed as '0.03974 <= 0.0397369' read as false.
+    The value gets the digits that make the printed numbers compare as the true ones do."""
+    def shown(tex: object) -> float:
+        text = str(tex).strip("$")
+        if r"\times" in text:          # m \times 10^{e}
+            m, e = text.split(r"\times")
+            return float(m) * 10.0 ** float(e.strip().removeprefix("10^{").removesuffix("}"))
+        return float(text)
+
+    for value, limit in ((0.039736887, 0.0397369), (0.999999, 1.0), (1.0, 1.0), (0.5, 1.0)):
+        art = {"name": "x", "method": "robust_state_feedback", "gains": {}, "diagnostics": {
+            "robust": {"checks": [{"name": "H2 norm", "value": value, "limit": limit,
+                                   "relation": "<=", "tolerance": 4e-8, "passed": True}]}}}
+        row = design_view(art, None, STATEMENTS).checks[0]
+        limit_shown = shown(str(row["limit"]).split(r"\le")[1].split("+")[0])
+        assert (shown(row["value"]) <= limit_shown) == (value <= limit), (row["value"], row["limit"])
+        assert (shown(row["value"]) == limit_shown) == (value == limit), (row["value"], row["limit"])
