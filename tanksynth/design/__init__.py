@@ -1,5 +1,9 @@
 """Design stage: gain synthesis (arrays in, result dataclasses out) and one adapter per spec method.
 
+Called as a function, ``tanksynth.design(plant, method, x0=..., u0=..., ts=..., trim=...,
+**options)`` designs one gain from Python objects and returns the `Design` ``tanksynth.load``
+gives: its parameters are documented in `tanksynth.api.design` (``help(tanksynth.api.design)``).
+
 Nothing is registered on import: `tanksynth.methods` is the one table of the spec methods. Each
 method family is a sub-package (``placement``, ``observer_lmi``, ``estimators``, ...) whose
 ``adapters`` module holds its design methods; what the families share are the modules at this
