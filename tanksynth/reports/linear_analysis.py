@@ -270,7 +270,9 @@ def _summary(loop: LinearLoop, lm: LoopMargins) -> Tex:
 def _draw(loops: Sequence[LinearLoop], directory: Path, stem: str, name: str) -> FigureFile:
     from matplotlib.figure import Figure
     cols = len(loops)
-    fig = Figure(figsize=(3.4 * cols + 0.6, 5.2))
+    # constrained layout: axis labels never drawn over a neighbour's tick labels (values of
+    # very different sizes make the tick labels of some panels wide)
+    fig = Figure(figsize=(3.4 * cols + 0.6, 5.2), layout="constrained")
     for j, loop in enumerate(loops):
         step = closed_loop_step(loop.step_A, loop.step_B, loop.step_C, loop.ts)
         ax = fig.add_subplot(2, cols, j + 1)
@@ -310,8 +312,6 @@ def _draw(loops: Sequence[LinearLoop], directory: Path, stem: str, name: str) ->
         bx.tick_params(labelsize=7)
         bx.grid(linewidth=0.3, color="0.85")
         bx.legend(fontsize=6, frameon=False)
-    fig.subplots_adjust(left=0.12 if cols == 1 else 0.08, right=0.97, top=0.94, bottom=0.09,
-                        hspace=0.45, wspace=0.3)
     directory.mkdir(parents=True, exist_ok=True)
     target = directory / f"{stem}.pdf"
     atomic_write(target, lambda fh: fig.savefig(fh, format="pdf",
