@@ -55,7 +55,7 @@ EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT, EXIT_INFEASIBLE, EXIT_INTERNAL = 0, 1, 2, 
 _out = Console()
 
 #: Columns of the console used for tables when stdout is not a terminal (piped, redirected).
-_PIPED_WIDTH = 200
+_PIPED_WIDTH = 400
 
 
 class _Seconds(click.FloatRange):
@@ -415,8 +415,11 @@ def methods(name: str | None, as_json: bool, markdown: bool) -> None:
         if as_json:
             click.echo(json.dumps(cat, indent=2))
             return
+        from tanksynth.methods import ALIASES
+
         title = "Design methods (tanksynth methods NAME: its options)"
         rows = [(m["name"], " / ".join(m["kinds"]), m["summary"]) for m in cat]
+        rows += [(each.name, "alias", each.describe()) for each in ALIASES.values()]
         if _piped():  # piped: one plain line per method (grep, less), not a wrapped table
             widths = [max(len(r[i]) for r in rows + [("method", "kind", "")]) for i in (0, 1)]
             for r in [("method", "kind", "designs"), *rows]:
@@ -428,10 +431,6 @@ def methods(name: str | None, as_json: bool, markdown: bool) -> None:
             for row in rows:
                 table.add_row(*row)
             _out.print(table)
-        from tanksynth.methods import ALIASES
-
-        for each in ALIASES.values():
-            click.echo(f"{each.name}: {each.describe()}")
         return
     from tanksynth.methods import ALIASES, method
 

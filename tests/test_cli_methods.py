@@ -289,11 +289,15 @@ def test_piped_methods_is_one_line_per_method():
     run = subprocess.run([sys.executable, "-m", "tanksynth", "methods"], capture_output=True,
                          text=True, env=env, timeout=120, check=True)
     lines = run.stdout.splitlines()
-    assert len(lines) == 1 + len(TABLE), run.stdout
+    from tanksynth.methods import ALIASES
+
+    assert len(lines) == 1 + len(TABLE) + len(ALIASES), run.stdout
     assert lines[0].split() == ["method", "kind", "designs"]
     for line, row in zip(lines[1:], TABLE):
         assert line.split()[0] == row.name and line.rstrip().endswith(row.summary), line
         assert " / ".join(row.kinds) in line
+    for line, alias in zip(lines[1 + len(TABLE):], ALIASES.values()):   # same columns
+        assert line.split()[:4] == [alias.name, "alias", "alias", "of"], line
     run = subprocess.run([sys.executable, "-m", "tanksynth", "methods", "ekf"], capture_output=True,
                          text=True, env=env, timeout=120, check=True)
     rows = [line for line in run.stdout.splitlines() if line.startswith("│")]
