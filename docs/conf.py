@@ -93,9 +93,12 @@ def _api_pages() -> None:
     for stale in api.glob("*.md"):  # a page of a module gone (or now private) from an older build
         if stale.stem not in ("index", "tanksynth", *names):
             stale.unlink()
+    # a module that is also a public name (the package; tanksynth.design, callable) is described
+    # on the API page: its module page must not index the same object twice
+    api_names = {"tanksynth", *(f"tanksynth.{n}" for n in tanksynth.__all__)}
     for name in ["tanksynth", *names]:
         text = (f"# `{name}`\n\n```{{eval-rst}}\n.. automodule:: {name}\n"
-                + ("   :no-index:\n" if name == "tanksynth" else "") + "```\n")
+                + ("   :no-index:\n" if name in api_names else "") + "```\n")
         page = api / f"{name}.md"
         if not page.is_file() or page.read_text(encoding="utf-8") != text:
             page.write_text(text, encoding="utf-8")

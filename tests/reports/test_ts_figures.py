@@ -69,5 +69,5 @@ def test_region_figure_shows_its_legend_and_labels(pdc_dir, tmp_path):
     text = " ".join(subprocess.run(["pdftotext", "-raw", str(fig.path), "-"], capture_output=True, text=True,
                                    check=True).stdout.split())
     for words in ("TS domain", "verdict trajectories", "sampled initial states", "region (projection)",
-                  "operating point x_op", "set-point runs", "h1 [m]", "h2 [m]"):
+                  "operating point x0", "set-point runs", "h1 [m]", "h2 [m]"):
         assert words in text, words

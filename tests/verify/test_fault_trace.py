@@ -51,7 +51,7 @@ def trace(run_dir) -> dict:
 def test_the_trace_names_the_check_the_signals_and_the_fault(trace, design):
     head, arr = trace["header"], trace["arrays"]
     assert head["check"] == "fault_detected" and head["check_passed"] is True
-    assert head["signal_names"] == ["|epsilon|", "threshold"]
+    assert head["signal_names"] == [r"$|\varepsilon|$", "threshold"]   # figure labels (mathtext)
     assert head["signal_units"] == ["1", "1"]          # the plant's output y is dimensionless
     assert head["signal_styles"] == ["-", "--"] and "threshold" in head["signal_title"]
     assert [e[0] for e in head["events"]] == [design["t_fault"]]
