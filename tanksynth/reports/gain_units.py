@@ -11,6 +11,8 @@ from __future__ import annotations
 
 from typing import Any, Mapping, Sequence
 
+__all__ = ["unit_ratio", "gain_unit", "design_is_continuous"]
+
 #: Gain names whose unit this module knows: name -> (numerator signals, denominator signals).
 _GAIN_SIGNALS = {"K": ("inputs", "states"), "L": ("states", "outputs")}
 _DIMENSIONLESS = ("", "1", "-")
