@@ -267,7 +267,7 @@ def law_preamble(law: ca.Function, plant_record: Mapping[str, Any] | None, state
     lines += [described(i, True) for i in range(law.n_out())]
     ts = data["ts"]
     lines.append(f" * Sampling period ts = {ts!r} s." if np.isfinite(ts)
-                 else " * Continuous time (no sampling period in the spec).")
+                 else " * Continuous time (a continuous-time design, or no sampling period in the spec).")
     if data["x_op"].size:
         lines.append(" * Operating point x_op = [" + ", ".join(repr(float(v)) for v in data["x_op"])
                      + "], u_op = [" + ", ".join(repr(float(v)) for v in data["u_op"]) + "].")
@@ -345,7 +345,7 @@ def implementation_data(diagnostics: Mapping[str, Any], plant_record: Mapping[st
     Returns
     -------
     dict
-        ``ts`` (s, NaN without sampling), ``x_op`` (state units), ``u_op`` (input
+        ``ts`` (s, NaN without sampling or for a continuous-time design), ``x_op`` (state units), ``u_op`` (input
         units, NaN entries when unknown), and ``state_names``, ``state_units``,
         ``input_names``, ``input_units``, ``output_names``, ``output_units``
         (lists of str, empty when unknown); ``y_op`` (output units, the outputs at
@@ -380,6 +380,8 @@ def implementation_data(diagnostics: Mapping[str, Any], plant_record: Mapping[st
     out["law_context"] = {k: diagnostics.get(k)
                           for k in ("law_signature", "time_domain", "form", "integral")
                           if isinstance(diagnostics, Mapping) and k in diagnostics}
+    if out["law_context"].get("time_domain") == "continuous":
+        out["ts"] = float("nan")   # a continuous-time design: the spec's period is not its own
     return out
 
 

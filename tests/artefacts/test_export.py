@@ -351,3 +351,14 @@ def test_every_exported_law_compiles_with_strict_warnings(out):
                                str(src), "-o", str(src.with_suffix(".o"))],
                               capture_output=True, text=True, timeout=120)
         assert proc.returncode == 0, f"{src.name}: {proc.stderr[:2000]}"
+
+
+def test_a_continuous_design_exports_no_sampling_period():
+    """New-user pass: an ``lqr`` (continuous time) in a spec with ``ts = 1`` exported ``ts = 1``:
+    the period of the spec is not the design's; a discrete design keeps it."""
+    from tanksynth.artefacts.export import implementation_data
+
+    record = {"ts": 1.0, "operating_point": {"x": [0.4, 0.2, 0.3], "u": [1e-5, 1e-5]}}
+    assert np.isnan(implementation_data({"time_domain": "continuous"}, record)["ts"])
+    assert implementation_data({"time_domain": "discrete"}, record)["ts"] == 1.0
+    assert implementation_data({}, record)["ts"] == 1.0
