@@ -581,8 +581,7 @@ class Plant:
         Each entry is one equation ``\\dot{x}_i = f_i`` or ``y_j = h_j`` in the
         parameter symbols (values are listed separately in reports).
         """
-        exprs = [*self.f, *self.f_smooth, *self.h]
-        symbols = set().union(*(sp.sympify(e).free_symbols for e in exprs))
+        symbols = set(self.f.free_symbols | self.f_smooth.free_symbols | self.h.free_symbols)
         symbols |= {sp.Symbol(v.name) for v in (*self.states, *self.outputs)}
         # sympy typesets a name ending in "scr" as \mathscr{...}, whose package the reports
         # do not load (and their LaTeX check refuses): \mathcal is the script face they have.

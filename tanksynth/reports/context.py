@@ -26,7 +26,7 @@ from tanksynth.reports.equations import split_equation
 from tanksynth.reports.prose import prose_latex
 from tanksynth.reports.trusted import math_or_text
 from tanksynth.reports.figure_layout import TraceCanvas
-from tanksynth.reports.figures import FigureFile, TraceFigure, time_domain_figures
+from tanksynth.reports.figures import FigureFile, TraceFigure, figure_stem, time_domain_figures
 from tanksynth.reports.inputs import ReportInputs
 from tanksynth.reports.latex import (Tex, escape_latex, expression_latex, format_eigenvalues,
                                      format_number, format_unit, gain_latex, symbol_latex)
@@ -288,11 +288,6 @@ def _campaign_view(rows: Sequence[Mapping[str, str]] | None, limit: int = 60) ->
 _FIGURE_DIR = "report-figures"
 
 
-def _trace_stem(index: int, name: str) -> str:
-    safe = "".join(c if (c.isascii() and c.isalnum()) else "-" for c in name).strip("-")[:40]
-    return f"traces-{index:02d}-{safe or 'design'}"
-
-
 def drawn_usable(drawn: Mapping[str, Any], stem: str, target: Path, kind: type[FigureFile] | type[TraceFigure],
                  none_ok: Callable[[], bool]) -> bool:
     """Whether ``drawn[stem]`` (a figure drawn ahead) can stand for the one drawn here.
@@ -360,7 +355,7 @@ def trace_jobs(inputs: ReportInputs) -> list[tuple[str, int]]:
         name = str(art.get("name", ""))
         path = trace_path(inputs.directory / f"{name}.json", name)
         if path.is_file():
-            jobs.append((path.stat().st_size, _trace_stem(i, name), i))
+            jobs.append((path.stat().st_size, figure_stem("traces", i, name), i))
     return [(stem, i) for _, stem, i in sorted(jobs, key=lambda j: (-j[0], j[2]))]
 
 
@@ -386,7 +381,7 @@ def draw_trace_figures(inputs: ReportInputs, indices: Sequence[int] | None = Non
     out: dict[str, tuple[TraceFigure, ...]] = {}
     for i in range(len(inputs.artefacts)) if indices is None else indices:
         art = inputs.artefacts[i]
-        stem = _trace_stem(i, str(art.get("name", "")))
+        stem = figure_stem("traces", i, str(art.get("name", "")))
         out[stem] = time_domain_figures(art, inputs.directory, figdir, stem, canvas=canvas)
     return out
 
@@ -422,7 +417,7 @@ def trace_figures(inputs: ReportInputs, drawn: Mapping[str, Any] | None = None
     def ahead(i: int, name: str) -> bool:
         """The figures drawn ahead for this artefact are its own (`drawn_usable` on the main
         figure; the extras this directory's existing files)."""
-        stem = _trace_stem(i, name)
+        stem = figure_stem("traces", i, name)
         if stem not in drawn:
             return False
         try:
@@ -442,7 +437,7 @@ def trace_figures(inputs: ReportInputs, drawn: Mapping[str, Any] | None = None
     out: dict[str, tuple[TraceFigure, ...]] = {}
     for i, art in enumerate(inputs.artefacts):
         name = str(art.get("name", ""))
-        stem = _trace_stem(i, name)
+        stem = figure_stem("traces", i, name)
         figs = _as_figures(fresh[stem] if stem in fresh else drawn[stem])
         if figs:
             out[name] = figs

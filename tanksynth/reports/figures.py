@@ -43,7 +43,7 @@ from tanksynth.reports.trace_lines import PanelLines
 # imports this module for its records and helpers too, and needs matplotlib only for a figure it
 # draws itself (not for those drawn ahead by `tanksynth.report_worker`).
 __all__ = ["EigenvalueSet", "eigenvalue_sets", "eigen_label", "is_pole_key", "FigureFile", "pole_map",
-           "TraceFigure", "time_domain_figure", "time_domain_figures", "ordinal"]
+           "TraceFigure", "time_domain_figure", "time_domain_figures", "ordinal", "figure_stem"]
 
 
 def ordinal(k: int) -> str:
@@ -57,6 +57,23 @@ def ordinal(k: int) -> str:
     k = int(k)
     suffix = "th" if 10 <= k % 100 <= 20 else {1: "st", 2: "nd", 3: "rd"}.get(k % 10, "th")
     return f"{k}{suffix}"
+
+
+def figure_stem(kind: str, index: int, name: str) -> str:
+    """The file stem of a figure of the ``index``-th artefact: ``<kind>-<index>-<name>``, the
+    name cut to 40 ASCII letters and digits (anything else a '-'), ``design`` when none is left.
+
+    Parameters
+    ----------
+    kind : str
+        The figure's kind (``"poles"``, ``"traces"``, ``"region"``, ``"linear"``).
+    index : int
+        The artefact's position in the report.
+    name : str
+        The artefact's name.
+    """
+    safe = "".join(c if (c.isascii() and c.isalnum()) else "-" for c in name).strip("-")[:40]
+    return f"{kind}-{index:02d}-{safe or 'design'}"
 
 
 @dataclass(frozen=True)

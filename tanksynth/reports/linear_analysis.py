@@ -35,7 +35,7 @@ from tanksynth.analysis.linear_margins import (LoopMargins, closed_loop_step, lo
                                               loop_margins)
 from tanksynth.analysis.statespace import model_names
 from tanksynth.artefacts.atomic import atomic_write
-from tanksynth.reports.figures import FigureFile
+from tanksynth.reports.figures import FigureFile, figure_stem
 from tanksynth.reports.latex import Tex, escape_latex, format_number
 from tanksynth.verify.numerics import integral_augmentation
 
@@ -376,8 +376,7 @@ def linear_analysis_views(inputs: Any) -> dict[str, LinearAnalysisView]:
     out: dict[str, LinearAnalysisView] = {}
     for i, art in enumerate(inputs.artefacts):
         name = str(art.get("name", ""))
-        safe = "".join(ch if (ch.isascii() and ch.isalnum()) else "-" for ch in name).strip("-")[:40]
-        view = linear_analysis_view(art, inputs.plant, figdir, f"linear-{i:02d}-{safe or 'design'}")
+        view = linear_analysis_view(art, inputs.plant, figdir, figure_stem("linear", i, name))
         if view is not None:
             out[name] = view
     if figdir.is_dir():

@@ -371,15 +371,7 @@ class _Parser:
                 if column > columns:
                     raise self.fail(f"more than {columns} columns in {env}")
                 self.pos += 1
-            elif ch in _TEXT_CHARS:
-                self.pos += 1
-            elif ch == "{":
-                self.text_group()
-            elif ch == "$":
-                self.pos += 1
-                self.math("$")
-                self.pos += 1
-            else:
+            elif not self.text_item(ch):
                 raise self.fail(f"the character {ch!r} in a {env} cell")
             row_start = False
         self.depth -= 1
@@ -395,22 +387,29 @@ class _Parser:
             if ch == "}":
                 self.pos += 1
                 break
-            if ch in _TEXT_CHARS:
-                self.pos += 1
-            elif ch == "{":
-                self.text_group()
-            elif ch == "$":
-                self.pos += 1
-                self.math("$")
-                self.pos += 1
-            elif ch == "\\":
+            if ch == "\\":
                 start = self.pos
                 word = self.control()
                 if not (word in _ESCAPES or word in _SPACING):
                     raise self.fail(f"\\{word} in text", start)
-            else:
+            elif not self.text_item(ch):
                 raise self.fail(f"the character {ch!r} in text")
         self.depth -= 1
+
+    def text_item(self, ch: str) -> bool:
+        """Consume the text-mode item starting with ``ch`` (a text character, a ``{ group }``
+        or ``$math$``); False, nothing consumed, for anything else."""
+        if ch in _TEXT_CHARS:
+            self.pos += 1
+        elif ch == "{":
+            self.text_group()
+        elif ch == "$":
+            self.pos += 1
+            self.math("$")
+            self.pos += 1
+        else:
+            return False
+        return True
 
 
 _UNCLOSED = {"}": "a '{' never closed (unbalanced braces)", "]": "an optional argument '[' never closed",

@@ -28,7 +28,7 @@ from tanksynth.artefacts.atomic import atomic_write
 from tanksynth.artefacts.traces import read_trace, trace_path
 from tanksynth.reports.diagnostics.takagi_sugeno import certified_region_of, ts_model_of
 from tanksynth.reports.figure_layout import draw_decorations, square_grid_layout
-from tanksynth.reports.figures import FigureFile
+from tanksynth.reports.figures import FigureFile, figure_stem
 from tanksynth.reports.latex import NOTATION
 
 # matplotlib is imported inside the functions that draw (about 0.4 s), not at the top: the report
@@ -241,8 +241,7 @@ def region_figures(inputs: Any) -> dict[str, FigureFile]:
     out: dict[str, FigureFile] = {}
     for i, art in enumerate(inputs.artefacts):
         name = str(art.get("name", ""))
-        safe = "".join(ch if (ch.isascii() and ch.isalnum()) else "-" for ch in name).strip("-")[:40]
-        fig = region_figure(art, Path(inputs.directory), figdir, f"region-{i:02d}-{safe or 'design'}")
+        fig = region_figure(art, Path(inputs.directory), figdir, figure_stem("region", i, name))
         if fig is not None:
             out[name] = fig
     if figdir.is_dir():

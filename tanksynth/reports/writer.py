@@ -20,7 +20,7 @@ from typing import Any, Callable, Mapping
 from tanksynth.artefacts.atomic import atomic_write, build_directory, commit
 from tanksynth.errors import ArtefactError, ReportError
 from tanksynth.reports.context import build_context, drawn_usable, trace_figures
-from tanksynth.reports.figures import FigureFile, TraceFigure, eigenvalue_sets, pole_map
+from tanksynth.reports.figures import FigureFile, TraceFigure, eigenvalue_sets, figure_stem, pole_map
 from tanksynth.reports.ts_figures import region_figures
 from tanksynth.reports.linear_analysis import LinearAnalysisView, linear_analysis_views
 from tanksynth.reports.inputs import ReportInputs, read_report_inputs
@@ -72,11 +72,6 @@ def _atomic_write_text(target: Path, text: str) -> None:
     atomic_write(target, text)
 
 
-def _figure_stem(index: int, name: str) -> str:
-    safe = "".join(c if (c.isascii() and c.isalnum()) else "-" for c in name).strip("-")[:40]
-    return f"poles-{index:02d}-{safe or 'design'}"
-
-
 def draw_pole_maps(inputs: ReportInputs) -> dict[str, FigureFile | None]:
     """Draw the eigenvalue map of every artefact, ahead of `write_report` (its ``drawn``).
 
@@ -93,7 +88,7 @@ def draw_pole_maps(inputs: ReportInputs) -> dict[str, FigureFile | None]:
     figdir = inputs.directory / FIGURE_DIR
     out: dict[str, FigureFile | None] = {}
     for i, art in enumerate(inputs.artefacts):
-        stem = _figure_stem(i, str(art.get("name", "")))
+        stem = figure_stem("poles", i, str(art.get("name", "")))
         out[stem] = pole_map(art, figdir, stem)
     return out
 
@@ -179,7 +174,7 @@ def write_report(directory: str | Path, pdf: bool = False, timeout: float = 180.
     drawn = drawn or {}
     figures: dict[str, FigureFile] = {}
     for i, art in enumerate(inputs.artefacts):
-        stem = _figure_stem(i, str(art.get("name", "")))
+        stem = figure_stem("poles", i, str(art.get("name", "")))
         ahead = drawn_usable(drawn, stem, figdir / f"{stem}.pdf", FigureFile,
                              lambda: not eigenvalue_sets(art))  # noqa: B023 - called right here
         fig = drawn[stem] if ahead else pole_map(art, figdir, stem)

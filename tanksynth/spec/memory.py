@@ -147,7 +147,7 @@ def nonlinear_atoms(plant: Plant) -> int:
 
     states = set(plant.x)
     found: set[object] = set()
-    todo = [sp.sympify(fi) for fi in plant.f_numeric]
+    todo: list[sp.Basic] = list(plant.f_numeric)   # sympy expressions (a Matrix's entries)
     while todo:
         expr = todo.pop()
         if not expr.free_symbols & states:
