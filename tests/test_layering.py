@@ -26,7 +26,7 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-GENERAL = ("analysis", "sim", "runtime", "design", "verify")
+GENERAL = ("analysis", "measurements", "sim", "runtime", "design", "verify")
 FORBIDDEN = re.compile(r"(?i)seed_?0\d\d|paper|printed")
 #: Methods whose first (string) argument is a dict key.
 _KEY_METHODS = {"get", "setdefault", "pop"}

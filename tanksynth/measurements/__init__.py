@@ -1,0 +1,14 @@
+"""Logged measurements of a plant: experiments read from data files, checked against the plant.
+
+An experiment is one logged run of the rig (pump inputs and sensor readings over time) in the
+plant's own signal names and units (`Experiment`). The fit (`tanksynth.design.fit`) estimates
+plant parameters from experiments; the replay (`tanksynth.verify.replay`) runs estimators and
+detectors on them. This package sits beside `tanksynth.analysis` (it needs only the plant), so
+that both stages read data the same way.
+"""
+
+from __future__ import annotations
+
+from tanksynth.measurements.experiment import Experiment
+
+__all__ = ["Experiment"]
