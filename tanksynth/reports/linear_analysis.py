@@ -39,7 +39,7 @@ from tanksynth.reports.figures import FigureFile, figure_stem
 from tanksynth.reports.latex import Tex, escape_latex, format_number
 from tanksynth.verify.numerics import integral_augmentation
 
-__all__ = ["LinearLoop", "LinearAnalysisView", "linear_loops", "linear_analysis_view",
+__all__ = ["LinearLoop", "LinearAnalysisView", "linear_loops", "step_axis_label", "linear_analysis_view",
            "linear_analysis_views"]
 
 _FIGURE_DIR = "report-figures"
@@ -67,6 +67,8 @@ class LinearLoop:
         What the step is, in words.
     ts : float or None
         Sampling time (s) of a discrete design.
+    step_units : tuple of str
+        Unit of each output drawn (the plant's output units; ``""`` where unknown).
     """
 
     kind: str
@@ -81,6 +83,7 @@ class LinearLoop:
     step_outputs: tuple[str, ...]
     step_words: str
     ts: float | None
+    step_units: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -111,6 +114,41 @@ def _names(rec: Mapping[str, Any], key: str, count: int, prefix: str) -> tuple[s
     items = (rec.get("plant") or {}).get(key) or []
     names = [str(i.get("name", "")) for i in items if isinstance(i, Mapping)]
     return tuple(names) if len(names) == count else tuple(f"{prefix}{k + 1}" for k in range(count))
+
+
+def _units(rec: Mapping[str, Any], key: str, count: int) -> tuple[str, ...]:
+    items = (rec.get("plant") or {}).get(key) or []
+    units = [str(i.get("unit", "")) for i in items if isinstance(i, Mapping)]
+    return tuple(units) if len(units) == count else ("",) * count
+
+
+def _unit_of(rec: Mapping[str, Any], name: str) -> str:
+    """The unit of a plant state or output named ``name`` (``""`` when the record has none)."""
+    for key in ("outputs", "states"):
+        for item in (rec.get("plant") or {}).get(key) or []:
+            if isinstance(item, Mapping) and item.get("name") == name:
+                return str(item.get("unit", ""))
+    return ""
+
+
+def step_axis_label(units: Sequence[str]) -> str:
+    """The y label of a step-response panel: ``response [m]`` when the outputs share a unit.
+
+    Outputs of different units name their unit in the legend instead.
+
+    Parameters
+    ----------
+    units : sequence of str
+        Unit of each output drawn (``""`` where unknown).
+
+    Returns
+    -------
+    str
+    """
+    shown = {u for u in units if u}
+    if len(shown) == 1 and len(set(units)) == 1:
+        return f"response [{shown.pop()}]"
+    return "response (units in the legend)" if shown else "response"
 
 
 def _matrix(v: Any) -> np.ndarray | None:
@@ -186,6 +224,7 @@ def linear_loops(art: Mapping[str, Any], rec: Mapping[str, Any]) -> tuple[Linear
     n, m = B.shape
     inputs = _names(rec, "inputs", m, "u")
     outputs = _names(rec, "outputs", C.shape[0], "y")
+    output_units = _units(rec, "outputs", C.shape[0])
     out: list[LinearLoop] = []
     u_op = _matrix(gains.get("u_op", (rec.get("linearization") or {}).get("u0")))
     # disturbance steps of 10 % of the operating input (a unit step of 1 m^3/s means nothing for a
@@ -197,7 +236,7 @@ def linear_loops(art: Mapping[str, Any], rec: Mapping[str, Any]) -> tuple[Linear
     K = _matrix(gains.get("K"))
     if K is not None and K.shape == (m, n):
         out.append(LinearLoop("state feedback", A, B, K, inputs, A - B @ K, B * scale, C, inputs, outputs,
-                              f"{step_words} as an input disturbance at each plant input", ts))
+                              f"{step_words} as an input disturbance at each plant input", ts, output_units))
     elif K is not None and K.shape[0] == m and K.shape[1] > n:
         found = diag.get("integral")
         integral: Mapping[str, Any] = found if isinstance(found, Mapping) else {}
@@ -215,16 +254,18 @@ def linear_loops(art: Mapping[str, Any], rec: Mapping[str, Any]) -> tuple[Linear
             tracked = [str(t) for t in integral.get("tracked") or []]
             tracked_names = tuple(tracked) if len(tracked) == C1.shape[0] else \
                 tuple(f"y{k + 1}" for k in range(C1.shape[0]))
+            tracked_units = tuple(_unit_of(rec, name) for name in tracked_names)
             out.append(LinearLoop("integral servo", Aa, Ba, K, inputs, Aa - Ba @ K, Br, Ca,
                                   tuple(f"{t} reference" for t in tracked_names)[:Br.shape[1]]
                                   if Br.shape[1] == len(tracked_names) else
                                   tuple(f"r{k + 1}" for k in range(Br.shape[1])),
-                                  tracked_names, "a unit step of each reference", ts))
+                                  tracked_names, "a unit step of each reference", ts, tracked_units))
     Lg = _matrix(gains.get("L"))
     if Lg is not None and Lg.shape == (n, C.shape[0]):
         out.append(LinearLoop("observer", A, Lg, C, outputs, A - Lg @ C, B * scale, C, inputs,
                               tuple(f"{o} error" for o in outputs),
-                              f"{step_words} as an unmeasured input disturbance at each plant input", ts))
+                              f"{step_words} as an unmeasured input disturbance at each plant input", ts,
+                              output_units))
     return tuple(out)
 
 
@@ -285,6 +326,8 @@ def _draw(loops: Sequence[LinearLoop], directory: Path, stem: str, name: str) ->
                 y = step.outputs[i, k]
                 label = (f"{loop.step_inputs[k] if k < len(loop.step_inputs) else k + 1} \u2192 "
                          f"{loop.step_outputs[i] if i < len(loop.step_outputs) else i + 1}")
+                if len({*loop.step_units}) > 1 and i < len(loop.step_units) and loop.step_units[i]:
+                    label += f" [{loop.step_units[i]}]"
                 if loop.ts is None:
                     ax.plot(step.time, y, linewidth=1.0, label=label)
                 else:
@@ -292,7 +335,7 @@ def _draw(loops: Sequence[LinearLoop], directory: Path, stem: str, name: str) ->
                 drawn += 1
         ax.set_title(f"{loop.kind}: step response", fontsize=8)
         ax.set_xlabel("time [s]", fontsize=8)
-        ax.set_ylabel("response [output units]", fontsize=8)
+        ax.set_ylabel(step_axis_label(loop.step_units), fontsize=8)
         ax.tick_params(labelsize=7)
         ax.grid(linewidth=0.3, color="0.85")
         ax.legend(fontsize=6, frameon=False)

@@ -149,3 +149,22 @@ def test_integral_servo_without_a_recorded_augmentation():
     np.testing.assert_allclose(loop.A, Aa)
     np.testing.assert_allclose(loop.step_A, Aa - np.array([[1.0], [0.0]]) @ np.array(K))
     np.testing.assert_allclose(loop.step_B, [[0.0], [2.0]])
+
+
+def test_step_response_axis_in_the_outputs_units():
+    """The step-response panel is labelled in the plant's output units (issue 30: it said
+    "[output units]"); outputs of different units name their unit in the legend instead."""
+    from tanksynth.reports.linear_analysis import step_axis_label
+
+    rec = {"plant": {"inputs": [{"name": "q1", "unit": "m^3/s"}], "outputs": [{"name": "y1", "unit": "V"}],
+                     "states": [{"name": "h1", "unit": "m"}]}}
+    sf = _artefact({"F": [[-1.0]], "B": [[1.0]], "C": [[0.5]], "K": [[4.0]]})
+    (loop,) = linear_loops(sf, rec)
+    assert loop.step_units == ("V",)
+    servo = _artefact({"Ad": [[0.9]], "Bd": [[1.0]], "C": [[1.0]], "K": [[0.5, 0.2]]}, time_domain="discrete",
+                      ts=2.0, integral={"tracked": ["h1"], "C1": [[1.0]]})
+    (loop,) = linear_loops(servo, rec)
+    assert loop.step_units == ("m",)                      # a tracked state: the state's unit
+    assert step_axis_label(("V", "V")) == "response [V]"
+    assert step_axis_label(("V", "m")) == "response (units in the legend)"
+    assert step_axis_label(("", "")) == "response"
