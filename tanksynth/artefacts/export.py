@@ -351,7 +351,9 @@ def implementation_data(diagnostics: Mapping[str, Any], plant_record: Mapping[st
         (lists of str, empty when unknown); ``y_op`` (output units, the outputs at
         ``x_op``; empty when the record has no linearisation); ``linearization``: ``A, B, C, D`` at the
         operating point (`linearization_record`, from ``plant.json``; empty when the
-        record has none); ``law_context``: the diagnostics `law_statement` reads.
+        record has none); ``law_context``: the diagnostics `law_statement` reads;
+        ``weights``: the design's cost weights ``Q``, ``R`` (an LQR-type design's
+        ``diagnostics.weights``; empty when it has none).
     """
     record = plant_record or {}
     eq = diagnostics.get("equilibrium") if isinstance(diagnostics, Mapping) else None
@@ -377,6 +379,9 @@ def implementation_data(diagnostics: Mapping[str, Any], plant_record: Mapping[st
     # the outputs at the operating point: the observers' laws read y - y_op
     out["y_op"] = np.asarray(lin["y0"] if isinstance(lin, Mapping) and "y0" in lin else [],
                              dtype=float).reshape(-1)
+    weights = diagnostics.get("weights") if isinstance(diagnostics, Mapping) else None
+    out["weights"] = ({k: np.asarray(v, dtype=float) for k, v in weights.items() if k in ("Q", "R")}
+                      if isinstance(weights, Mapping) else {})
     out["law_context"] = {k: diagnostics.get(k)
                           for k in ("law_signature", "time_domain", "form", "integral")
                           if isinstance(diagnostics, Mapping) and k in diagnostics}
@@ -478,7 +483,8 @@ def mat_contents(gains: Mapping[str, np.ndarray], data: Mapping[str, Any]) -> di
         in continuous time); ``x_op``, ``u_op`` and ``y_op`` the operating point (the
         gains of that name when the design stores them), also as ``x0``, ``u0`` and
         ``y0`` (MATLAB's names); ``A, B, C, D`` the continuous linearisation
-        there (when ``data`` has it); ``law`` the law as text (`law_statement`);
+        there (when ``data`` has it); ``Q``, ``R`` the cost weights of an LQR-type
+        design; ``law`` the law as text (`law_statement`);
         ``units`` a struct giving the unit of every variable. A gain of one of
         these names keeps its value.
     """
@@ -496,6 +502,8 @@ def mat_contents(gains: Mapping[str, np.ndarray], data: Mapping[str, Any]) -> di
         out.setdefault("y_op", column(data["y_op"]))
         out.setdefault("y0", out["y_op"])
     for key, value in (data.get("linearization") or {}).items():
+        out.setdefault(key, np.atleast_2d(np.asarray(value, dtype=float)))
+    for key, value in (data.get("weights") or {}).items():   # the LQR weights the gain minimises
         out.setdefault(key, np.atleast_2d(np.asarray(value, dtype=float)))
     law = law_statement(data.get("law_context") or {}, gains)
     if law:

@@ -362,3 +362,18 @@ def test_a_continuous_design_exports_no_sampling_period():
     assert np.isnan(implementation_data({"time_domain": "continuous"}, record)["ts"])
     assert implementation_data({"time_domain": "discrete"}, record)["ts"] == 1.0
     assert implementation_data({}, record)["ts"] == 1.0
+
+
+def test_lqr_weights_are_exported_with_the_gain():
+    """An LQR-type design's .mat holds the Q and R its gain minimises (issue 30: lqr.mat had K
+    without Q, R), so that a MATLAB user can check ``K = lqr(A, B, Q, R)`` without the artefact."""
+    from tanksynth.artefacts.export import implementation_data, mat_contents
+
+    record = {"ts": 1.0, "plant": {"states": [{"name": "h1", "unit": "m"}],
+                                   "inputs": [{"name": "q1", "unit": "m^3/s"}], "outputs": []}}
+    data = implementation_data({"weights": {"Q": [[2.0]], "R": [[3.0]]}, "equilibrium": {"x0": [0.1], "u0": [1e-5]}},
+                               record)
+    mat = mat_contents({"K": np.array([[0.5]])}, data)
+    np.testing.assert_array_equal(mat["Q"], [[2.0]])
+    np.testing.assert_array_equal(mat["R"], [[3.0]])
+    assert "Q" not in mat_contents({"K": np.array([[0.5]])}, implementation_data({}, record))
