@@ -33,7 +33,7 @@ def _plant(synthesis: Synthesis, diag: Diagnostics, observer: bool) -> str:
             r"$u = -Kx$")
 
 
-def _numbers(synthesis: Synthesis, diag: Diagnostics) -> str:
+def _numbers(synthesis: Synthesis, diag: Diagnostics, observer: bool) -> str:
     """The time domain, the bounds certified and the norms recomputed from the closed loop."""
     parts = [rf"${label} {format_number(v)}$"
              for v, label in ((synthesis.h2_bound, r"\|T_{zw}\|_2 \le"),
@@ -41,7 +41,19 @@ def _numbers(synthesis: Synthesis, diag: Diagnostics) -> str:
     parts += [rf"recomputed ${label} = {format_number(v)}$"
               for v, label in ((synthesis.achieved_h2, r"\|T_{zw}\|_2"),
                                (synthesis.achieved_hinf, r"\|T_{zw}\|_\infty")) if v is not None]
-    return domain_phrase(time_domain_of(diag)) + (": " + ", ".join(parts) if parts else "") + "."
+    return (domain_phrase(time_domain_of(diag)) + (": " + ", ".join(parts) if parts else "") + "."
+            + (_norm_units(observer) if parts else ""))
+
+
+def _norm_units(observer: bool) -> str:
+    """What the norms measure and in which units (issue 30: norms were printed without one)."""
+    noises = r"$w$ and $v$ are" if observer else r"$w$ is"
+    weights = (r"$C_z = Q^{1/2}$, $Q$ in 1/state unit$^2$" if observer else
+               r"$C_z$, $D_{zu}$ from $Q^{1/2}$ and $R^{1/2}$, $Q$ in 1/state unit$^2$, $R$ in 1/input unit$^2$")
+    return (rf" The disturbance {noises} normalised to unit intensity and $z$ is weighted, so the norms are "
+            rf"in the units of $z$ per unit of $w$: dimensionless with the default weights ({weights}); "
+            r"$\|T_{zw}\|_2$ is the RMS value of $z$ under unit-intensity white noise, "
+            r"$\|T_{zw}\|_\infty$ the largest ratio of the RMS values of $z$ and of the disturbances.")
 
 
 def _h2(synthesis: Synthesis, observer: bool) -> str:
@@ -105,7 +117,7 @@ def _synthesis(objective: Callable[[Synthesis, bool], str], observer: bool | Non
     synthesis = synthesis_of(diag)
     is_observer = synthesis.observer if observer is None else observer
     return (_plant(synthesis, diag, is_observer) + objective(synthesis, is_observer)
-            + _numbers(synthesis, diag) + closing)
+            + _numbers(synthesis, diag, is_observer) + closing)
 
 
 h2_state_feedback_statement = problem_statement("h2_state_feedback", __name__,
