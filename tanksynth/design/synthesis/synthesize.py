@@ -366,7 +366,7 @@ def synthesize_state_feedback(plants: GeneralizedPlant | Sequence[GeneralizedPla
     if not _ok(status) or X.value is None:
         raise InfeasibleDesign(_infeasible_reason(status, solver, lmis, margin, W, g, f2, finf,
                                                   h2_bound, hinf_bound, region, len(models), reduced,
-                                                  lib, domain=domain))
+                                                  lib, domain=domain)[0])
     opt = None if goal is None else float(goal.value)
     values = (X.value.copy(), Y.value.copy(), None if W is None else W.value.copy(),
               None if g is None else float(g.value))
@@ -400,8 +400,15 @@ def synthesize_state_feedback(plants: GeneralizedPlant | Sequence[GeneralizedPla
     failed = [c for c in checks if not c.passed]
     if failed:
         worst = "; ".join(f"{c.name}: {c.value:.4g} vs {c.limit:.4g}" for c in failed)
-        raise InfeasibleDesign(f"the synthesised gain fails the independent re-check ({worst}); "
-                               f"solver {solver} status {status}")
+        recheck = f"the synthesised gain fails the independent re-check ({worst}); solver {solver} status {status}"
+        if h2_bound is not None or hinf_bound is not None:
+            # a bound at the optimum can end 'optimal_inaccurate' with a gain the re-check refuses:
+            # a certificate that the bound is below the LMIs' own minimum says more than the re-check
+            reason, certified = _infeasible_reason(status, solver, lmis, margin, W, g, f2, finf, h2_bound,
+                                                   hinf_bound, region, len(models), reduced, lib, domain=domain)
+            if certified:
+                raise InfeasibleDesign(f"{reason}; {recheck}")
+        raise InfeasibleDesign(recheck)
     Xo = (sc.s[:, None] * Xs) * sc.s[None, :]
     scaling = sc.as_dict()
     scaling.update({"margin": margin, "backoff": backoff,
@@ -499,13 +506,13 @@ def distinct_digits(a: float, b: float, least: int = 6) -> tuple[str, str]:
 
 
 def _infeasible_reason(status, solver, lmis, margin, W, g, f2, finf, h2_bound, hinf_bound, region,
-                       count, reduced=False, lib=None, domain="discrete") -> str:
-    """Why the bounded LMIs have no solution: a certificate when there is one.
+                       count, reduced=False, lib=None, domain="discrete") -> tuple[str, bool]:
+    """Why the bounded LMIs have no solution, and whether a certificate says so.
 
     For each bound, the same LMIs without the bounds are solved for the smallest norm
     bound they admit; a requested bound below it is certified infeasible (said first,
     both numbers with the digits that tell them apart), the solver status of the bounded
-    problem is then only reported."""
+    problem is then only reported. Returns the text and True when a bound is certified."""
     models = f" at all {count} models with one Lyapunov matrix" if count > 1 else ""
     certified, other = [], []
     for name, var, factor, bound, sq in (("H2", W, f2, h2_bound, True),
@@ -538,8 +545,8 @@ def _infeasible_reason(status, solver, lmis, margin, W, g, f2, finf, h2_bound, h
     head = f"no state-feedback gain meets {' and '.join(what) or 'the LMIs'}{models}"
     if certified:
         return (f"{head}: " + "; ".join(certified + other)
-                + f" (the bounded problem itself ended with solver {solver} status {status})")
-    return f"{head}: solver {solver} status {status}" + ("; " + "; ".join(other) if other else "")
+                + f" (the bounded problem itself ended with solver {solver} status {status})"), True
+    return f"{head}: solver {solver} status {status}" + ("; " + "; ".join(other) if other else ""), False
 
 
 def _recheck(models, scaled, K, Xs, Ys, Wv, gv, region, reg_s, h2_claim, g_claim, margin, reduced):
