@@ -75,7 +75,7 @@ from tanksynth.artefacts.atomic import atomic_write
 from tanksynth.artefacts.io import file_sha256, read_limited, to_jsonable
 from tanksynth.artefacts.jsontext import dumps
 from tanksynth.artefacts.traces import TRACE_MAX_SAMPLES, read_trace, write_trace
-from tanksynth.errors import ArtefactError, SpecError, TanksynthError
+from tanksynth.errors import ArtefactError, DataError, SpecError, TanksynthError
 from tanksynth.measurements import Experiment
 from tanksynth.plants.base import Plant
 from tanksynth.runtime.estimators.model import DiscreteModel, discrete_model
@@ -175,23 +175,23 @@ def check_experiment(plant: Plant, experiment: Experiment, period: float, artefa
 
     Raises
     ------
-    SpecError
+    DataError
         A plant input or output the log lacks (named), a non-uniform log, or a sampling period
         other than the artefact's (both named); key ``--data``, source the file.
     """
     lacking = [name for name in _names(plant.inputs) if name not in experiment.input_names]
     lacking += [name for name in _names(plant.outputs) if name not in experiment.output_names]
     if lacking:
-        raise SpecError(f"artefact '{artefact}' needs the plant signal(s) {', '.join(lacking)}, "
+        raise DataError(f"artefact '{artefact}' needs the plant signal(s) {', '.join(lacking)}, "
                         f"which the log does not have (it has {', '.join(experiment.input_names + experiment.output_names)})",
                         key="--data", source=experiment.source)
     dt = experiment.uniform_period
     if dt is None:
-        raise SpecError("the log's samples are not equally spaced; an estimator runs at one "
+        raise DataError("the log's samples are not equally spaced; an estimator runs at one "
                         f"sampling period (artefact '{artefact}': {period:g} s)", key="--data",
                         source=experiment.source)
     if not math.isclose(dt, period, rel_tol=PERIOD_RTOL):
-        raise SpecError(f"the log is sampled every {dt:g} s, artefact '{artefact}' runs every "
+        raise DataError(f"the log is sampled every {dt:g} s, artefact '{artefact}' runs every "
                         f"{period:g} s; resample the log to {period:g} s (or design at {dt:g} s)",
                         key="--data", source=experiment.source)
 
