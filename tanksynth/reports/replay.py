@@ -38,6 +38,8 @@ def _figure(entry: Mapping[str, Any], trace: Mapping[str, Any], target: Path) ->
         return False
     names = [str(n) for n in head.get("y_names") or []][:y.shape[1]]
     names += [f"y{j + 1}" for j in range(len(names), y.shape[1])]
+    units = [str(u) for u in head.get("y_units") or []][:y.shape[1]]
+    units += [""] * (y.shape[1] - len(units))
     nis = np.asarray(arr.get("nis", np.full(t.size, np.nan)), dtype=float)
     residual = arr.get("residual")
     lower = residual is not None or bool(np.isfinite(nis).any())
@@ -47,7 +49,7 @@ def _figure(entry: Mapping[str, Any], trace: Mapping[str, Any], target: Path) ->
     for j, ax in enumerate(axes[:y.shape[1]]):
         ax.plot(t, y[:, j], ".", ms=2.0, color="0.55", label="measured")
         ax.plot(t, yp[:, j], "-", lw=1.0, color="C0", label="one-step prediction")
-        ax.set_ylabel(names[j])
+        ax.set_ylabel(f"{names[j]} ({units[j]})" if units[j] else names[j])
         ax.grid(alpha=0.3)
         if j == 0:
             ax.legend(loc="best", fontsize=7, frameon=False)

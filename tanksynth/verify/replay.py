@@ -130,6 +130,8 @@ class Replay:
         NIS per sample (NaN where not computed: no covariance, nothing observed).
     residual, threshold : ndarray, shape (N,) or None
         Detectors: residual ``max_j |y_j - h_j(x_hat)|`` and threshold (output units).
+    y_names, y_units : tuple of str
+        Names and units of the plant's outputs (the columns of ``y_pred``).
     """
 
     artefact: str
@@ -143,6 +145,8 @@ class Replay:
     nis: np.ndarray
     residual: np.ndarray | None = field(default=None)
     threshold: np.ndarray | None = field(default=None)
+    y_names: tuple[str, ...] = field(default=())
+    y_units: tuple[str, ...] = field(default=())
 
     @property
     def passed(self) -> bool | None:
@@ -342,7 +346,8 @@ def replay_estimator(doc: Mapping[str, Any], spec: Spec, run: Any, experiment: E
             checks += _nees_check(plant, experiment, X, P_all, win, summary)
     elif failure is None:
         checks += _observer_checks(plant, X, Y, nu, usable, win, summary)
-    return Replay(name, method, kind, experiment, tuple(checks), summary, X, Yp, nis)
+    return Replay(name, method, kind, experiment, tuple(checks), summary, X, Yp, nis,
+                  y_names=tuple(_names(plant.outputs)), y_units=tuple(o.unit for o in plant.outputs))
 
 
 def _covariance_checks(plant: Plant, nu: np.ndarray, S: np.ndarray, usable: np.ndarray, win: slice,
@@ -407,8 +412,9 @@ def _covariance_checks(plant: Plant, nu: np.ndarray, S: np.ndarray, usable: np.n
     unit = plant.outputs[0].unit if plant.outputs else ""
     checks.append(Check(
         "prediction_rmse", not fails,
-        f"one-step output prediction RMSE ({unit}) against the predicted innovation standard "
-        "deviation sqrt(mean S_jj) x sqrt(chi2_0.975(N)/N): " + "; ".join(rows), data))
+        f"one-step output prediction RMSE ({unit}) at most the predicted innovation standard "
+        "deviation (root of the mean innovation variance) times the root of q/N, q the 97.5 % "
+        "chi-square quantile of N degrees of freedom (N samples): " + "; ".join(rows), data))
     return checks
 
 
@@ -536,7 +542,7 @@ def replay_detector(doc: Mapping[str, Any], spec: Spec, run: Any, experiment: Ex
                "residual_max": float(r.max())}
     checks = (Check("alarms", None, detail, {"value": len(times), "times": times[:1000]}),)
     return Replay(name, method, "detector", experiment, checks, summary, X, Yp, np.full(N, np.nan),
-                  r, thr)
+                  r, thr, tuple(_names(plant.outputs)), tuple(o.unit for o in plant.outputs))
 
 
 # ----------------------------------------------------------------------------- all artefacts
@@ -624,15 +630,15 @@ def _stride(N: int) -> int:
 
 def _trace(r: Replay) -> dict:
     e = r.experiment
-    plant_outputs = list(e.output_names)
+    columns = [e.output_names.index(name) for name in r.y_names]
     s = _stride(e.samples)
     arrays: dict[str, Any] = {"t": np.asarray(e.t, float)[::s], "x": r.x_hat[::s],
-                              "y": np.asarray(e.y, float)[::s], "y_pred": r.y_pred[::s], "nis": r.nis[::s]}
+                              "y": np.asarray(e.y, float)[:, columns][::s], "y_pred": r.y_pred[::s], "nis": r.nis[::s]}
     if r.residual is not None and r.threshold is not None:
         arrays["residual"] = r.residual[::s]
         arrays["threshold"] = r.threshold[::s]
     header = {"artefact": r.artefact, "method": r.method, "kind": r.kind, "experiment": e.name,
-              "stride": s, "y_names": plant_outputs, "passed": r.passed}
+              "stride": s, "y_names": list(r.y_names), "y_units": list(r.y_units), "passed": r.passed}
     return {"header": header, "arrays": arrays}
 
 

@@ -252,3 +252,40 @@ def test_no_artefact_to_replay(result):
     _, spec, docs = result
     with pytest.raises(SpecError, match="no estimator, observer or detector"):
         replay_artefacts(spec, [], [logged(spec, samples=20)[0]], RUNNERS)
+
+
+@pytest.mark.slow
+def test_detector_alarms_with_times(tmp_path):
+    """Seed 004's residual detector: no alarm on a fault-free noise-free log from the operating
+    point, alarms from just after a leak's onset (3 s), and alarms (info, not a failure) on noise
+    its threshold (no noise margin: it decays to ~1e-13) was not designed for."""
+    from tanksynth.sim.simulate import ParameterChange, simulate
+
+    text = Path(__file__).parents[2].joinpath("examples", "seed004_fault_detection.toml").read_text()
+    head = text[:text.index("[[design]]")]
+    body = text[text.index('name = "residual_fault_detector"'):text.index("# Seed 004 eq. (30)")]
+    (tmp_path / "spec.toml").write_text(head + "[[design]]\n" + body, encoding="utf-8")
+    assert main(["design", str(tmp_path / "spec.toml"), "-o", str(tmp_path / "out")]) == 0
+    spec, docs = load_directory(tmp_path / "out")
+
+    def log(name, changes=(), std=0.0):
+        res = simulate(spec.plant, ts=0.01, steps=599, x0=spec.x0, seeds=[3], u_init=np.array([2.0]),
+                       measurement_std=std, changes=list(changes))
+        U = np.vstack([res.u[0], res.u[0][-1:]])
+        flags = np.zeros(res.y[0].shape, dtype=bool)
+        return Experiment(name, f"{name}.csv", np.array(res.t), U, np.array(res.y[0]), ("u",), ("y",),
+                          flags, flags.copy(), ((-np.inf, np.inf),))
+
+    healthy, leak, noisy = (log("healthy"), log("leak", [ParameterChange(300, {"delta_bar": 1.0})]),
+                            log("noisy", std=1e-3))
+    reps = replay_artefacts(spec, [d for _, d in docs], [healthy, leak, noisy], RUNNERS)
+    by = {r.experiment.name: r for r in reps}
+    assert all(r.kind == "detector" and r.passed is None for r in reps)
+    assert by["healthy"].summary["alarms"] == 0
+    first = by["leak"].summary["first_alarm"]
+    assert 3.0 < first <= 3.1
+    assert all(t >= first for t in by["leak"].summary["alarm_times"])
+    assert by["noisy"].summary["alarms"] > 0 and "false alarm" in by["noisy"].checks[0].detail
+    write_replay(tmp_path / "out", reps)
+    doc = read_replay(tmp_path / "out")
+    assert doc["passed"] is None and doc["replays"][1]["summary"]["first_alarm"] == first
