@@ -770,7 +770,7 @@ def _replay_locked(directory: Path, data: tuple[str, ...], as_json: bool) -> Non
     from tanksynth.verify.replay import replay_artefacts, replay_line, write_replay
 
     spec, docs = load_directory(directory)
-    experiments = read_experiments(list(data), spec.plant, getattr(spec, "data", None))
+    experiments = read_experiments(list(data), spec.plant, spec.data)
     with _stage(f"replaying {len(docs)} artefact(s) on {len(experiments)} log(s)", quiet=as_json):
         replays = replay_artefacts(spec, [d for _, d in docs], experiments, RUNNERS)
     path = write_replay(directory, replays, data)
