@@ -127,7 +127,7 @@ class Replay:
     y_pred : ndarray, shape (N, p)
         One-step output predictions of the logged outputs (output units).
     nis : ndarray, shape (N,)
-        NIS per sample (NaN where not computed: no covariance, nothing observed).
+        NIS per sample (dimensionless; NaN where not computed: no covariance, nothing observed).
     residual, threshold : ndarray, shape (N,) or None
         Detectors: residual ``max_j |y_j - h_j(x_hat)|`` and threshold (output units).
     y_names, y_units : tuple of str
@@ -724,7 +724,8 @@ def read_replay(directory: str | Path) -> dict | None:
     for entry in doc["replays"]:
         if not isinstance(entry, dict):
             raise ArtefactError(f"{path}: a replay entry is not a table")
-        trace = entry.get("trace") if isinstance(entry.get("trace"), dict) else {}
+        given = entry.get("trace")
+        trace: dict = given if isinstance(given, dict) else {}
         rel = str(trace.get("file", ""))
         target = Path(directory) / rel
         ok = rel.startswith(TRACE_DIR + "/") and ".." not in Path(rel).parts and target.is_file()
