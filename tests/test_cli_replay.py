@@ -5,6 +5,7 @@ lines, and the report's section "On measured data"."""
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -13,38 +14,12 @@ from tanksynth.cli import main
 from tanksynth.methods import load_directory
 from tanksynth.sim.simulate import simulate_inputs
 
-#: The EKF's declared sensor noise (m).
+#: The EKF's declared sensor noise (m): R = SIGMA^2 in verify/replay_spec.toml.
 SIGMA = 2e-3
 
-SPEC = f"""
-title = "replay CLI: EKF and Luenberger observer on the three-tank"
-
-[plant]
-model = "three_tank"
-outputs = "h1h2"
-
-[operating_point]
-x = {{h1 = 0.40, h2 = 0.20, h3 = 0.30}}
-
-[sampling]
-ts = 1.0
-
-[data]
-columns = {{h2 = "level2"}}
-
-[[design]]
-name = "ekf"
-method = "ekf"
-x0 = [0.40, 0.20, 0.30]
-P0 = 1e-4
-Q = 1e-10
-R = {SIGMA ** 2!r}
-
-[[design]]
-name = "obs"
-method = "luenberger"
-poles = [0.6, 0.7, 0.8]
-"""
+#: The replay tests' spec with a [data] table: h2 is logged in the column "level2".
+SPEC = ((Path(__file__).parent / "verify" / "replay_spec.toml").read_text(encoding="utf-8")
+        + '\n[data]\ncolumns = {h2 = "level2"}\n')
 
 
 def write_log(path, spec, *, noise=1.0, samples=400, seed=2, drop=None):

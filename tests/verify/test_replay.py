@@ -25,35 +25,11 @@ from tanksynth.sim.simulate import simulate_inputs
 from tanksynth.verify.replay import (REPLAY_FILE, SCHEMA, TRACE_DIR, read_replay, replay_artefacts,
                                      replay_estimator, replay_line, write_replay)
 
-#: The EKF's declared sensor noise (m): R = SIGMA^2 in the spec below.
+#: The EKF's declared sensor noise (m): R = SIGMA^2 in replay_spec.toml.
 SIGMA = 2e-3
 
-SPEC = f"""
-title = "replay tests: EKF and Luenberger observer on the three-tank, h1 and h2 measured"
-
-[plant]
-model = "three_tank"
-outputs = "h1h2"
-
-[operating_point]
-x = {{h1 = 0.40, h2 = 0.20, h3 = 0.30}}
-
-[sampling]
-ts = 1.0
-
-[[design]]
-name = "ekf"
-method = "ekf"
-x0 = [0.40, 0.20, 0.30]
-P0 = 1e-4
-Q = 1e-10
-R = {SIGMA ** 2!r}
-
-[[design]]
-name = "obs"
-method = "luenberger"
-poles = [0.6, 0.7, 0.8]
-"""
+#: The spec: an EKF with R = SIGMA^2 and a Luenberger observer on the three-tank (h1, h2).
+SPEC = (Path(__file__).parent / "replay_spec.toml").read_text(encoding="utf-8")
 
 
 @pytest.fixture(scope="module")
