@@ -114,7 +114,8 @@ def replay_figures(doc: Mapping[str, Any] | None, directory: Path, figdir: str) 
     return out
 
 
-def replay_view(doc: Mapping[str, Any] | None, figures: Mapping[int, FigureFile]) -> dict[str, Any] | None:
+def replay_view(doc: Mapping[str, Any] | None, figures: Mapping[int, FigureFile],
+                current: Mapping[str, str] | None = None) -> dict[str, Any] | None:
     """The template's view of the replay: per artefact and log, the checks and the figure.
 
     Parameters
@@ -123,12 +124,15 @@ def replay_view(doc: Mapping[str, Any] | None, figures: Mapping[int, FigureFile]
         `tanksynth.verify.replay.read_replay`'s document.
     figures : mapping of int to FigureFile
         `replay_figures`.
+    current : mapping of str to str, optional
+        Each artefact's ``provenance.content_sha256`` now: an entry recorded for other content (the
+        artefact was designed again after the replay, or is gone) is marked stale.
 
     Returns
     -------
     dict or None
         ``passed`` (Tex), ``files`` (name, samples, sha256), ``entries`` (artefact, method,
-        experiment, verdict, checks, summary line, figure, caption); None without a replay.
+        experiment, verdict, checks, figure, caption, stale); None without a replay.
     """
     if not doc:
         return None
@@ -139,12 +143,13 @@ def replay_view(doc: Mapping[str, Any] | None, figures: Mapping[int, FigureFile]
                    "detail": prose_latex(str(c.get("detail", "")))}
                   for c in e.get("checks") or [] if isinstance(c, Mapping)]
         fig = figures.get(i)
+        stale = current is not None and current.get(str(e.get("artefact"))) != e.get("artefact_sha256")
         entries.append({"artefact": str(e.get("artefact", "")), "method": str(e.get("method", "")),
                         "experiment": str(e.get("experiment", "")), "kind": str(e.get("kind", "")),
                         "verdict": Tex(_VERDICT.get(e.get("passed"), _VERDICT[None])),
                         "checks": checks, "figure": fig,
                         "caption": prose_latex(fig.caption) if fig is not None else None,
-                        "label": f"replay-{i}"})
+                        "label": f"replay-{i}", "stale": stale})
     files = [{"name": str(f.get("name", "")), "samples": f.get("samples"),
               "sha256": str(f.get("sha256") or "")[:16]}
              for f in doc.get("files") or [] if isinstance(f, Mapping)]

@@ -48,7 +48,8 @@ _NAME_RE = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]{0,63}\Z")
 RESERVED_NAMES = {"plant": "plant.json (the plant record)", "checks": "checks.json (the rank verdicts)",
                   "campaign": "campaign.json/.csv (the campaign table)",
                   "report": "report.tex/.pdf/.log (the design report)",
-                  "refused": "refused.json (the designs refused as infeasible)"}
+                  "refused": "refused.json (the designs refused as infeasible)",
+                  "replay": "replay.json and replay/ (the replay on measured data)"}
 #: Name endings that collide with files written beside another design's artefact.
 RESERVED_SUFFIXES = {".traces": "<name>.traces.npz (a verdict trace)",
                      "_law": "<name>_law.c/.h/.casadi (an exported control law)"}

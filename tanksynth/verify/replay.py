@@ -132,6 +132,9 @@ class Replay:
         Detectors: residual ``max_j |y_j - h_j(x_hat)|`` and threshold (output units).
     y_names, y_units : tuple of str
         Names and units of the plant's outputs (the columns of ``y_pred``).
+    artefact_sha256 : str
+        The artefact's ``provenance.content_sha256`` (the report marks a replay of an artefact
+        designed again since as stale).
     """
 
     artefact: str
@@ -147,6 +150,7 @@ class Replay:
     threshold: np.ndarray | None = field(default=None)
     y_names: tuple[str, ...] = field(default=())
     y_units: tuple[str, ...] = field(default=())
+    artefact_sha256: str = field(default="")
 
     @property
     def passed(self) -> bool | None:
@@ -198,6 +202,11 @@ def check_experiment(plant: Plant, experiment: Experiment, period: float, artefa
         raise DataError(f"the log is sampled every {dt:g} s, artefact '{artefact}' runs every "
                         f"{period:g} s; resample the log to {period:g} s (or design at {dt:g} s)",
                         key="--data", source=experiment.source)
+
+
+def _digest(doc: Mapping[str, Any]) -> str:
+    prov = doc.get("provenance")
+    return str(prov.get("content_sha256", "")) if isinstance(prov, Mapping) else ""
 
 
 def _names(signals: Sequence[Any]) -> list[str]:
@@ -347,7 +356,8 @@ def replay_estimator(doc: Mapping[str, Any], spec: Spec, run: Any, experiment: E
     elif failure is None:
         checks += _observer_checks(plant, X, Y, nu, usable, win, summary)
     return Replay(name, method, kind, experiment, tuple(checks), summary, X, Yp, nis,
-                  y_names=tuple(_names(plant.outputs)), y_units=tuple(o.unit for o in plant.outputs))
+                  y_names=tuple(_names(plant.outputs)), y_units=tuple(o.unit for o in plant.outputs),
+                  artefact_sha256=_digest(doc))
 
 
 def _covariance_checks(plant: Plant, nu: np.ndarray, S: np.ndarray, usable: np.ndarray, win: slice,
@@ -542,7 +552,7 @@ def replay_detector(doc: Mapping[str, Any], spec: Spec, run: Any, experiment: Ex
                "residual_max": float(r.max())}
     checks = (Check("alarms", None, detail, {"value": len(times), "times": times[:1000]}),)
     return Replay(name, method, "detector", experiment, checks, summary, X, Yp, np.full(N, np.nan),
-                  r, thr, tuple(_names(plant.outputs)), tuple(o.unit for o in plant.outputs))
+                  r, thr, tuple(_names(plant.outputs)), tuple(o.unit for o in plant.outputs), _digest(doc))
 
 
 # ----------------------------------------------------------------------------- all artefacts
@@ -644,6 +654,7 @@ def _trace(r: Replay) -> dict:
 
 def _entry(r: Replay, trace_sha: str) -> dict:
     return {"artefact": r.artefact, "method": r.method, "kind": r.kind, "experiment": r.experiment.name,
+            "artefact_sha256": r.artefact_sha256,
             "passed": r.passed, "checks": [c.as_dict() for c in r.checks], "summary": r.summary,
             "line": replay_line(r), "trace": {"file": f"{TRACE_DIR}/{r.trace_name}", "sha256": trace_sha}}
 
