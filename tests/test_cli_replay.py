@@ -64,6 +64,8 @@ def test_replay_passes_then_fails_on_ten_times_the_noise(rundir, capsys):
     assert doc["schema"] == "tanksynth.replay/1" and doc["passed"] is True
     assert [f["name"] for f in doc["files"]] == ["good"] and len(doc["files"][0]["sha256"]) == 64
     assert (out / "replay" / "ekf__good.npz").is_file()
+    assert main(["replay", str(out), "--data", str(good), "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["replays"][0]["summary"]["missing"] == 5
 
     bad = write_log(root / "bad.csv", spec, noise=10.0)
     assert main(["replay", str(out), "--data", str(bad), "--data", str(good)]) == 1
