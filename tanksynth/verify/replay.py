@@ -22,12 +22,13 @@ Per artefact and experiment:
 * for a fault detector: the residual ``max_j |y_j - h_j(x_hat)|`` of its residual observer
   against the stored threshold, and the alarms (times and count).
 
-A sample that is missing (NaN) or censored (at a sensor limit) is not a measurement: the
-estimator is fed its own prediction ``y(k|k-1)`` for that output, so its state update is the
-prediction alone there (a Kalman-type filter's covariance is still contracted as if the sample
-had been read: after a long gap ``P`` is smaller than a pure prediction's, which makes the NIS of
-the next samples pessimistic, never optimistic). Such samples count in no statistic and their
-number is reported.
+A sample that is missing (NaN) or censored (at a sensor limit) is not a measurement; the
+estimator's update skips it. The Kalman, extended Kalman and unscented filters run the same step
+with only the observed outputs in the correction
+(`tanksynth.runtime.estimators.base.KernelEstimator.step_observed`: with nothing observed the
+step is the prediction, state and covariance); the other estimators are fed their own prediction
+``y(k|k-1)`` for that output, so their correction from it is zero. Such samples count in no
+statistic and their number is reported.
 
 Checks (each explained in its own ``detail`` line; statistics start after the warm-up
 `tanksynth.sim.metrics.ESTIMATION_WARMUP` of the samples):
@@ -309,6 +310,7 @@ def replay_estimator(doc: Mapping[str, Any], spec: Spec, run: Any, experiment: E
     noise = _noise(rt)
     x0 = np.asarray(run.x_hat0 if run.x_hat0 is not None else run.x_op, dtype=float).reshape(1, n)
     stepper = rt if rt is not None else est
+    subset = bool(getattr(rt, "noise_in_parameters", False))
     stepper.reset(x0)
     X = np.empty((N, n))
     Yp = np.full((N, q), np.nan)
@@ -327,7 +329,11 @@ def replay_estimator(doc: Mapping[str, Any], spec: Spec, run: Any, experiment: E
                 Q, R = noise[0].reshape(n, n), noise[1]
                 S_all[k] = H @ (Phi @ P @ Phi.T + Q) @ H.T + R
             y = np.where(usable[k], Y[k], yp)
-            xh = np.asarray(stepper.step(y[None, :], u_prev[None, :]), dtype=float).reshape(n)
+            if subset and not usable[k].all():   # the correction of the observed outputs only
+                xh = np.asarray(rt.step_observed(y[None, :], u_prev[None, :], usable[k]), dtype=float)
+            else:
+                xh = np.asarray(stepper.step(y[None, :], u_prev[None, :]), dtype=float)
+            xh = xh.reshape(n)
             X[k] = xh
             if P_all is not None:
                 P_all[k] = np.asarray(rt.covariance, dtype=float).reshape(n, n)
