@@ -126,8 +126,9 @@ def test_custom_plant_free_parameter_and_sensor_range():
     ({"fit": "yes"}, "plant.parameters.a.fit", "true or false"),
     ({"min": None}, "plant.parameters.a.min", "search box: give min"),
     ({"min": 2e-4}, "plant.parameters.a", r"min \(0.0002\) must be smaller than max"),
-    ({"value": 2e-4}, "plant.parameters.a.value", r"must be <= 0.0001"),
-    ({"value": 1e-6}, "plant.parameters.a.value", r"must be >= 1e-05"),
+    ({"value": 2e-4}, "plant.parameters.a.value", r"above max \(0.0001\)"),
+    ({"value": 1e-6}, "plant.parameters.a.value", r"below min \(1e-05\)"),
+    ({"value": "5e-5"}, "plant.parameters.a.value", r"expected a number"),
 ])
 def test_custom_free_parameter_errors(change, key, match):
     t = copy.deepcopy(CUSTOM)
