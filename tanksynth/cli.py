@@ -743,6 +743,59 @@ def verify(directory: str, scheduler: str | None, as_json: bool, runs: int,
         _verify_locked(directory, scheduler, as_json, runs, scenarios, seed, workers, cluster)
 
 
+@cli.command()
+@click.argument("directory", type=click.Path(file_okay=False))
+@click.option("--data", "data", multiple=True, required=True, type=click.Path(dir_okay=False),
+              help="Logged experiment (.csv with a header row, .npz or .mat; repeatable), in the "
+                   "plant's signal names or mapped by the spec's [data] table.")
+@click.option("--json", "as_json", is_flag=True, help="Print JSON instead of lines.")
+def replay(directory: str, data: tuple[str, ...], as_json: bool) -> None:
+    """Run every estimator, observer and detector artefact of DIRECTORY on logged data.
+
+    Writes DIRECTORY/replay.json and the traces DIRECTORY/replay/*.npz; one line per artefact
+    and file; exit 1 when a check on the data fails (`tanksynth report DIRECTORY` then adds the
+    section "On measured data").
+    """
+    if not Path(directory).is_dir():
+        raise SpecError("no such result directory", source=directory)
+    with _locked(directory, "replay"):
+        _replay_locked(Path(directory), data, as_json)
+
+
+def _replay_locked(directory: Path, data: tuple[str, ...], as_json: bool) -> None:
+    from rich.markup import escape
+
+    from tanksynth.measurements import read_experiments
+    from tanksynth.methods import RUNNERS, load_directory
+    from tanksynth.verify.replay import replay_artefacts, replay_line, write_replay
+
+    spec, docs = load_directory(directory)
+    experiments = read_experiments(list(data), spec.plant, spec.data)
+    with _stage(f"replaying {len(docs)} artefact(s) on {len(experiments)} log(s)", quiet=as_json):
+        replays = replay_artefacts(spec, [d for _, d in docs], experiments, RUNNERS)
+    path = write_replay(directory, replays, data)
+    if as_json:
+        from tanksynth.artefacts.io import to_jsonable
+
+        click.echo(json.dumps(to_jsonable(json.loads(path.read_text(encoding="utf-8"))), indent=2))
+    else:
+        colour = {True: "green", False: "red", None: "blue"}
+        for r in replays:
+            line = replay_line(r)
+            head, _, rest = line.partition(" · ")
+            _out.print(f"[{colour[r.passed]}]{escape(head)}[/]" + (f" · {escape(rest)}" if rest else ""),
+                       highlight=False, soft_wrap=True)
+        _out.print(f"replay: {path} (traces in {path.parent / 'replay'})", markup=False, highlight=False)
+    for r in replays:
+        if r.kind == "detector" and r.summary.get("alarms"):
+            click.echo(f"warning: {r.artefact} raised {r.summary['alarms']} alarm(s) on "
+                       f"{r.experiment.name}, first at t = {r.summary['first_alarm']:g} s: a false "
+                       "alarm if that run was fault-free", err=True)
+    failed = [f"{r.artefact} on {r.experiment.name}" for r in replays if r.passed is False]
+    if failed:
+        raise _Fail(EXIT_FAILED, "some checks on measured data fail: " + ", ".join(failed))
+
+
 def _say_waiting(text: str) -> None:
     """One line on stderr: the Dask cluster has no worker (`tanksynth.verify.cluster.completed`)."""
     click.echo(text, err=True)

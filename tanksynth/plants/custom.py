@@ -16,7 +16,10 @@ Example::
     [plant.equations]
     h = "(q - a*sqrt(2*g*h))/A"
     [plant.outputs]
-    y = "h"
+    y = {expr = "h", unit = "m", min = 0.0, max = 0.95}   # min/max: the sensor range
+
+A parameter table may carry ``fit = true`` (estimated from measured data, ``tanksynth fit``):
+its ``min``/``max`` are then the closed search box and both are required.
 
 Every equation goes through the whitelist parser; nothing is evaluated.
 """
@@ -29,7 +32,8 @@ from typing import Any, Literal, Mapping, overload
 import sympy as sp
 
 from tanksynth.errors import SpecError
-from tanksynth.plants.base import Assumption, Parameter, Plant, Quantity, Region
+from tanksynth.plants.base import (Assumption, Parameter, Plant, Quantity, Region,
+                                   check_search_box)
 from tanksynth.plants.parser import parse_expression, validate_name
 
 __all__ = ["custom_plant"]
@@ -81,15 +85,21 @@ def _signal(name: str, declared: Any, key: str, need_bounds: bool) -> tuple[Quan
     desc = declared.get("description", "")
     if not isinstance(desc, str):
         raise SpecError("description must be a string", key=f"{key}.description")
-    bounds = None
-    if "min" in declared or "max" in declared or need_bounds:
-        if "min" not in declared or "max" not in declared:
-            raise SpecError("expected both 'min' and 'max' (the operating region)", key=key)
-        lo, hi = _number(declared["min"], f"{key}.min"), _number(declared["max"], f"{key}.max")
-        if not lo < hi:
-            raise SpecError(f"min ({lo}) must be smaller than max ({hi})", key=key)
-        bounds = (lo, hi)
+    bounds = _range(declared, key, "the operating region", need_bounds)
     return Quantity(name, unit, desc), bounds
+
+
+def _range(declared: Mapping[str, Any], key: str, what: str, required: bool = False
+           ) -> tuple[float, float] | None:
+    """``(min, max)`` of a signal's table (both or neither; ``required``: both), None if absent."""
+    if "min" not in declared and "max" not in declared and not required:
+        return None
+    if "min" not in declared or "max" not in declared:
+        raise SpecError(f"expected both 'min' and 'max' ({what})", key=key)
+    lo, hi = _number(declared["min"], f"{key}.min"), _number(declared["max"], f"{key}.max")
+    if not lo < hi:
+        raise SpecError(f"min ({lo}) must be smaller than max ({hi})", key=key)
+    return (lo, hi)
 
 
 def _inputs_outside_domain_free(expr: sp.Expr, inputs: set[sp.Symbol], key: str) -> None:
@@ -167,18 +177,25 @@ def custom_plant(spec: Mapping[str, Any], key: str = "plant") -> Plant:
         if isinstance(prm, (int, float)) and not isinstance(prm, bool):
             prm = {"value": prm}
         if not isinstance(prm, Mapping) or "value" not in prm:
-            raise SpecError("expected a number or a table {value, unit, min, max}", key=pkey)
-        unknown_fields = set(prm) - {"value", "unit", "min", "max", "description"}
+            raise SpecError("expected a number or a table {value, unit, min, max, fit}", key=pkey)
+        unknown_fields = set(prm) - {"value", "unit", "min", "max", "description", "fit"}
         if unknown_fields:
-            raise SpecError(f"unknown field(s) {sorted(unknown_fields)}", key=pkey)
+            raise SpecError(f"unknown field(s) {sorted(unknown_fields)}; expected value, unit, min, "
+                            "max, description, fit", key=pkey)
         unit = prm.get("unit", "1")
         if not isinstance(unit, str):
             raise SpecError("unit must be a string", key=f"{pkey}.unit")
+        fit = prm.get("fit", False)
+        if not isinstance(fit, bool):
+            raise SpecError(f"expected true or false (estimate the parameter from data), got "
+                            f"{type(fit).__name__} {fit!r}", key=f"{pkey}.fit")
         lower = _number(prm["min"], f"{pkey}.min") if "min" in prm else None
         upper = _number(prm["max"], f"{pkey}.max") if "max" in prm else None
-        proto = Parameter(nm, 0.0, unit, str(prm.get("description", "")), lower, upper)
-        params.append(Parameter(nm, proto.check(prm["value"], f"{pkey}.value"), unit,
-                                proto.description, lower, upper))
+        # a free parameter's search box is closed: the fit may end on min
+        proto = Parameter(nm, 0.0, unit, str(prm.get("description", "")), lower, upper, inclusive=fit)
+        check_search_box(nm, _number(prm["value"], f"{pkey}.value"), lower, upper, fit, pkey)
+        value = proto.check(prm["value"], f"{pkey}.value")
+        params.append(Parameter(nm, value, unit, proto.description, lower, upper, inclusive=fit))
 
     declared: dict[str, sp.Expr] = {}
     for group, items in (("states", states), ("inputs", inputs)):
@@ -210,18 +227,27 @@ def custom_plant(spec: Mapping[str, Any], key: str = "plant") -> Plant:
     for nm, out in _table(spec.get("outputs"), f"{key}.outputs").items():
         okey = f"{key}.outputs.{nm}"
         validate_name(nm, okey)
-        unit = "1"
+        unit, desc = "1", ""
+        sensor: tuple[float, float] | None = None
         if isinstance(out, Mapping):
             if "expr" not in out:
-                raise SpecError("expected an equation string or a table {expr, unit}", key=okey)
+                raise SpecError("expected an equation string or a table {expr, unit, min, max}", key=okey)
+            fields = set(out) - {"expr", "unit", "min", "max", "description"}
+            if fields:
+                raise SpecError(f"unknown field(s) {sorted(fields)}; expected expr, unit, min, max "
+                                "(the sensor range), description", key=okey)
             unit = out.get("unit", "1")
             if not isinstance(unit, str):
                 raise SpecError("unit must be a string", key=f"{okey}.unit")
+            desc = out.get("description", "")
+            if not isinstance(desc, str):
+                raise SpecError("description must be a string", key=f"{okey}.description")
+            sensor = _range(out, okey, "the sensor range")
             out = out["expr"]
         expr = parse_expression(out, declared, okey)
         if any(s in expr.free_symbols for s in (declared[i.name] for i in inputs)):
             raise SpecError("outputs may depend on states and parameters only (no feedthrough)", key=okey)
-        outputs.append(Quantity(nm, unit))
+        outputs.append(Quantity(nm, unit, desc, sensor))
         h.append(expr)
 
     orderings = []

@@ -24,6 +24,7 @@ from tanksynth.reports.diagnostics.model import linearization_of
 from tanksynth.reports.designs import design_view, latex_label
 from tanksynth.reports.equations import split_equation
 from tanksynth.reports.prose import prose_latex
+from tanksynth.reports.replay import replay_view
 from tanksynth.reports.trusted import math_or_text
 from tanksynth.reports.figure_layout import TraceCanvas
 from tanksynth.reports.figures import FigureFile, TraceFigure, figure_stem, time_domain_figures
@@ -498,7 +499,8 @@ def build_context(inputs: ReportInputs, figures: Mapping[str, FigureFile],
                   traces: Mapping[str, tuple[TraceFigure, ...] | TraceFigure | None] | None = None, *,
                   statements: Mapping[str, Callable[[Mapping[str, Any]], Tex]],
                   regions: Mapping[str, FigureFile] | None = None,
-                  linear: Mapping[str, Any] | None = None) -> dict[str, Any]:
+                  linear: Mapping[str, Any] | None = None,
+                  replay: Mapping[int, FigureFile] | None = None) -> dict[str, Any]:
     """Everything the templates need, formatted (no file is written).
 
     Parameters
@@ -516,6 +518,8 @@ def build_context(inputs: ReportInputs, figures: Mapping[str, FigureFile],
         Certified-region figures (`tanksynth.reports.ts_figures.region_figures`).
     linear : mapping of artefact name to LinearAnalysisView, optional
         Linear analysis of the verified loops (`tanksynth.reports.linear_analysis`).
+    replay : mapping of int to FigureFile, optional
+        Figures of the replay on measured data (`tanksynth.reports.replay.replay_figures`).
     """
     rec = inputs.plant
     title = rec.get("title") or f"Design report: {rec.get('plant', {}).get('name', '')}"
@@ -575,6 +579,9 @@ def build_context(inputs: ReportInputs, figures: Mapping[str, FigureFile],
         "other_designs": [d for d in designs if d.method != "linearize"],
         "verified": verified,
         "campaign": _campaign_view(inputs.campaign),
+        "replay": replay_view(inputs.replay, replay or {},
+                              {str(a.get("name")): str((a.get("provenance") or {}).get("content_sha256", ""))
+                               for a in inputs.artefacts}),
         "figures": [designs_fig for designs_fig in designs if designs_fig.figure is not None],
         "trace_figures": [d for d in designs if d.trace_figure is not None],
         "trace_extras": trace_extras,

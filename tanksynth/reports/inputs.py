@@ -22,6 +22,7 @@ from tanksynth.artefacts.traces import check_trace
 from tanksynth.errors import ArtefactError
 from tanksynth.reports.refused import REFUSED_FILE, read_refused
 from tanksynth.reports.trusted import check_result_latex
+from tanksynth.verify.replay import read_replay
 from tanksynth.verify.runner import read_checks
 
 __all__ = ["ReportInputs", "read_report_inputs"]
@@ -50,6 +51,10 @@ class ReportInputs:
     refused : tuple of dict
         Designs refused as infeasible (``refused.json``, see
         `tanksynth.reports.refused`).
+    replay : dict or None
+        ``replay.json`` of ``tanksynth replay`` (artefacts run on logged data) with each
+        entry's trace when it matches its sha256 (`tanksynth.verify.replay.read_replay`);
+        None when there is none.
     """
 
     directory: Path
@@ -59,6 +64,7 @@ class ReportInputs:
     artefacts: tuple[Mapping[str, Any], ...]
     campaign: tuple[Mapping[str, str], ...] | None = None
     refused: tuple[Mapping[str, Any], ...] = ()
+    replay: Mapping[str, Any] | None = None
 
     @property
     def plant_name(self) -> str:
@@ -166,4 +172,5 @@ def read_report_inputs(directory: str | Path) -> ReportInputs:
             campaign = tuple(dict(r) for r in csv.DictReader(io.StringIO(text, newline="")))
         except (OSError, UnicodeDecodeError, csv.Error) as exc:
             raise ArtefactError(f"{campaign_path}: unreadable campaign table: {exc}") from None
-    return ReportInputs(d, plant, spec_text, checks, tuple(artefacts), campaign, read_refused(d))
+    return ReportInputs(d, plant, spec_text, checks, tuple(artefacts), campaign, read_refused(d),
+                        read_replay(d))

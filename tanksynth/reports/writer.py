@@ -28,6 +28,7 @@ from tanksynth.reports.comparison import PaperComparison
 from tanksynth.reports.latex import Tex, environment
 from tanksynth.reports.paper import compare_with_papers
 from tanksynth.reports.pdf import compile_pdf, pdf_page_count
+from tanksynth.reports.replay import replay_figures
 
 __all__ = ["ReportResult", "render_report", "write_report", "draw_pole_maps", "FIGURE_DIR"]
 
@@ -98,7 +99,8 @@ def render_report(inputs: ReportInputs, figures: dict[str, FigureFile] | None = 
                   traces: dict[str, tuple[TraceFigure, ...]] | None = None, *,
                   statements: Mapping[str, Callable[[Mapping[str, Any]], Tex]],
                   regions: dict[str, FigureFile] | None = None,
-                  linear: dict[str, LinearAnalysisView] | None = None) -> str:
+                  linear: dict[str, LinearAnalysisView] | None = None,
+                  replay: dict[int, FigureFile] | None = None) -> str:
     """The LaTeX source of the report (no file is written).
 
     Parameters
@@ -118,11 +120,14 @@ def render_report(inputs: ReportInputs, figures: dict[str, FigureFile] | None = 
     linear : dict of artefact name to LinearAnalysisView, optional
         Linear analysis (margins, step, Bode) of the verified loops
         (`tanksynth.reports.linear_analysis.linear_analysis_views`; none when omitted).
+    replay : dict of int to FigureFile, optional
+        Figures of the replay on measured data by entry (`tanksynth.reports.replay.replay_figures`;
+        the section lists the checks without figures when omitted).
     """
     if comparisons is None:
         comparisons = compare_with_papers(inputs)
     ctx = build_context(inputs, figures or {}, comparisons, traces, statements=statements,
-                        regions=regions, linear=linear)
+                        regions=regions, linear=linear, replay=replay)
     return environment().get_template("report.tex.j2").render(**ctx)
 
 
@@ -180,16 +185,17 @@ def write_report(directory: str | Path, pdf: bool = False, timeout: float = 180.
         fig = drawn[stem] if ahead else pole_map(art, figdir, stem)
         if fig is not None:
             figures[str(art["name"])] = fig
-    if figdir.is_dir():  # figures of artefacts that are gone
-        keep = {f.path.name for f in figures.values()}
-        for stale in figdir.glob("poles-*.pdf"):
+    replay = replay_figures(inputs.replay, d, FIGURE_DIR)
+    if figdir.is_dir():  # figures of artefacts (and replays) that are gone
+        keep = {f.path.name for f in figures.values()} | {f.path.name for f in replay.values()}
+        for stale in [*figdir.glob("poles-*.pdf"), *figdir.glob("replay-*.pdf")]:
             if stale.name not in keep:
                 stale.unlink(missing_ok=True)
     traces = trace_figures(inputs, drawn)
     regions = region_figures(inputs)
     linear = linear_analysis_views(inputs)
     tex = render_report(inputs, figures, comparisons, traces, statements=statements, regions=regions,
-                        linear=linear)
+                        linear=linear, replay=replay)
     tex_path = d / "report.tex"
     pdf_path = d / "report.pdf"
     log_path = d / "report.log"
@@ -223,7 +229,7 @@ def write_report(directory: str | Path, pdf: bool = False, timeout: float = 180.
     else:
         _atomic_write_text(tex_path, tex)
     drawn_files = [f.path for f in figures.values()] + [f.path for figs in traces.values() for f in figs] \
-        + [v.figure.path for v in linear.values()]
+        + [v.figure.path for v in linear.values()] + [f.path for f in replay.values()]
     return ReportResult(tex_path, out_pdf, out_log, tuple(drawn_files),
                         comparisons, pages, time.perf_counter() - start, latex_seconds)
 

@@ -1,4 +1,5 @@
-"""Verification stage: one verdict module per method family, the runner, Dask campaigns.
+"""Verification stage: one verdict module per method family, the runner, Dask campaigns, and the
+replay of estimators, observers and detectors on logged data (`tanksynth.verify.replay`).
 
 A verdict never imports the design stage: it re-derives what it checks from
 the artefact with its own numerics and runs the estimator or law the artefact

@@ -449,6 +449,65 @@ class KernelEstimator(Estimator):
         """Number of elementary operations of the step kernel (per run)."""
         return int(self.step_kernel.n_instructions())
 
+    #: The kernel's parameter vector ends with the measurement-noise covariance ``R`` (q x q,
+    #: column-major): `step_observed` can leave outputs out of the correction.
+    noise_in_parameters: bool = False
+
+    #: ``R`` of the outputs left out by `step_observed`, relative to the largest entry of ``R``
+    #: and of the covariance (at least 1): their gain is that much smaller than any other's.
+    UNOBSERVED_VARIANCE = 1e12
+
+    def step_observed(self, y: Any, u: Any, observed: Any) -> np.ndarray:
+        """One step whose correction uses only the outputs marked observed (missing samples).
+
+        The same kernel as `step`, run with the variance of each unobserved output raised to
+        `UNOBSERVED_VARIANCE` times the largest entry of ``R`` and of the covariance (its
+        correlations zeroed): its gain vanishes (relative size 1e-12), so the correction is the
+        one of the observed outputs alone and, with none observed, the step is the prediction
+        ``x(k|k-1)``, ``P(k|k-1)``. The values of ``y`` at unobserved outputs do not matter
+        (they must be finite).
+
+        Parameters
+        ----------
+        y : array_like, shape (q,) or (M, q)
+            Measurement at ``t_k`` (output units).
+        u : array_like, shape (m,) or (M, m)
+            Input held over ``[t_{k-1}, t_k)`` (input units).
+        observed : array_like of bool, shape (q,)
+            Which outputs were measured (the same for every run of a batch).
+
+        Returns
+        -------
+        ndarray, shape (n,) or (M, n)
+            ``x_hat(k)`` (state units).
+
+        Raises
+        ------
+        TanksynthError
+            The estimator's kernel does not take ``R`` as parameters.
+        DimensionError
+            ``observed`` is not q booleans.
+        """
+        if not self.noise_in_parameters:
+            raise TanksynthError(f"{type(self).__name__} cannot leave outputs out of a step")
+        mask = np.asarray(observed, dtype=bool).reshape(-1)
+        if mask.shape != (self.q,):
+            raise DimensionError(f"observed must be {self.q} booleans, got shape {mask.shape}")
+        if mask.all():
+            return self.step(y, u)
+        q = self.q
+        nominal = self._P.copy()
+        R = nominal[-q * q:].reshape(q, q, order="F").copy()
+        scale = max(1.0, float(np.abs(R).max()), float(np.abs(self.state[:, self.n:]).max()))
+        R[~mask, :] = 0.0
+        R[:, ~mask] = 0.0
+        R[~mask, ~mask] = self.UNOBSERVED_VARIANCE * scale
+        self._P[-q * q:] = column_major(R)
+        try:
+            return self.step(y, u)
+        finally:
+            self._P[:] = nominal
+
 
 class ArrayEstimator(Estimator):
     """An estimator written in vectorised numpy over the run axis.

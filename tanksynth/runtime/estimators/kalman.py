@@ -165,6 +165,7 @@ class ExtendedKalmanFilter(KernelEstimator):
     """
 
     method = "ekf"
+    noise_in_parameters = True
     check_names = ("predicted covariance P(k|k-1)", "innovation covariance S(k)",
                    "updated covariance P(k|k)")
 

@@ -142,6 +142,7 @@ class UnscentedKalmanFilter(KernelEstimator):
     """
 
     method = "ukf"
+    noise_in_parameters = True
     check_names = ("covariance P(k-1) (sigma points)", "predicted covariance P(k|k-1)",
                    "innovation covariance Pyy(k)", "updated covariance P(k|k)")
 
