@@ -188,3 +188,31 @@ def test_data_table_errors(data, key, match):
 
 def test_data_table_not_a_table():
     error(spec_with(data=[1, 2]), "data", "expected a table")
+
+
+SPEC_TEXT = """
+[plant]
+model = "three_tank"
+[plant.parameters]
+mu13 = {value = 0.5, min = 0.2, max = 0.9, fit = true}
+[operating_point]
+x = [0.4, 0.2, 0.3]
+[data]
+limits = {h1 = [0.0, 0.55]}
+"""
+
+
+@pytest.mark.parametrize("text, key", [
+    (SPEC_TEXT.replace("fit = true", 'fit = "yes"'), "plant.parameters.mu13.fit"),
+    (SPEC_TEXT.replace("limits = {h1", "limits = {h_1"), "data.limits.h_1"),
+])
+def test_cli_check_exits_2_on_bad_free_parameter_or_data_table(tmp_path, capsys, text, key):
+    from tanksynth.cli import main
+
+    path = tmp_path / "spec.toml"
+    path.write_text(text)
+    code = main(["check", str(path)])
+    err = capsys.readouterr().err
+    assert code == 2
+    lines = err.strip("\n").splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error:") and f"key '{key}'" in lines[0], err
