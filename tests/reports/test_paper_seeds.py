@@ -150,3 +150,34 @@ def test_seed003_rows(tmp_path_factory):
         assert rows[label].verdict == AGREES, label
     cost = rows[r"expected cost $\sum_k \mathrm{tr}\,P(k|k)$ of the first window (cm$^2$)"]
     assert cost.verdict == AGREES
+
+
+def test_nearest_admissible_by_hand():
+    from tanksynth.papers import seed001 as paper001
+    from tanksynth.reports.paper_seed001 import ORDER_GAP, nearest_admissible
+
+    # every printed level is above the 0.62 m tank: the projection pushes each level as high as
+    # the box and the printed order (h3 > h1 > h2, resp. h2 > h1 > h3) with 0.05 m gaps allow
+    assert ORDER_GAP == 0.05
+    assert nearest_admissible(paper001.FIG2_X0, 0.0, 0.62) == pytest.approx([0.57, 0.52, 0.62], abs=1e-9)
+    assert nearest_admissible(paper001.FIG2_XHAT0, 0.0, 0.62) == pytest.approx([0.57, 0.62, 0.52],
+                                                                               abs=1e-9)
+    # a point inside the box with its gaps kept is its own projection
+    assert nearest_admissible([0.4, 0.2, 0.3], 0.0, 0.62) == pytest.approx([0.4, 0.2, 0.3], abs=1e-9)
+    # gap violated (h1 - h3 = 0.02 < 0.05): h1 and h3 move apart symmetrically, h2 untouched
+    assert nearest_admissible([0.40, 0.10, 0.38], 0.0, 0.62) == pytest.approx([0.415, 0.10, 0.365],
+                                                                              abs=1e-9)
+
+
+@pytest.mark.slow
+def test_seed001_fig2_rows(tmp_path_factory):
+    # exit 1: the paper's observer fails its verdicts (documented in the spec and the report)
+    rows = _rows(_run(tmp_path_factory, "seed001_ts_observer", code=1)["seed001_fig2"])
+    x0 = rows[r"initial state $x_0$ (Fig.~2)"]
+    assert x0.verdict == ERRATUM and "3 of 3 levels above" in x0.ours and "0.62" in x0.ours
+    assert rows[r"initial estimate $\hat x_0$ (Fig.~2)"].verdict == ERRATUM
+    assert rows[r"declared run: $x_0$, $\hat x_0$ (m)"].verdict == AGREES
+    # the printed design (lambda, gamma, psi = 0.506) does not converge from there (F(x_op) - L C
+    # is unstable: verdict local_error_dynamics), so the paper's claim is not reproduced
+    run = rows["Fig.~2: estimation error from the nearest admissible states"]
+    assert run.verdict == DIFFERS and "not reproduced" in run.note
