@@ -18,6 +18,7 @@ __all__ = [
     "UKF_PARAMETERS",
     "TABLE_1",
     "TABLE_2",
+    "PUMP_VOLTAGE",
     "LPH",
     "CLAIMS",
     "TIMING_ORDER",
@@ -96,10 +97,12 @@ TABLE_1: dict[str, float] = {"k1": 2.6363e-5, "k2": 2.4891e-5, "k3": 3.7984e-5, 
                              "k5": 0.0, "k6": 2.2538e-5, "k7": 0.0}
 
 #: Table 2: tank height (m), overflow height (m), tank inner diameter (m), diameter of the
-#: connecting pipes (m), rated flow of the pumps (lph) and the pump input voltage range (V).
-TABLE_2: dict[str, object] = {"tank_height": 0.60, "overflow_height": 0.55, "tank_diameter": 0.15,
-                              "pipe_diameter": 0.0125, "rated_flow_lph": 240.0,
-                              "pump_voltage": (0.0, 5.0)}
+#: connecting pipes (m) and rated flow of the pumps (lph).
+TABLE_2: dict[str, float] = {"tank_height": 0.60, "overflow_height": 0.55, "tank_diameter": 0.15,
+                             "pipe_diameter": 0.0125, "rated_flow_lph": 240.0}
+
+#: Table 2 (and Sec. 2): the pumps' input voltage range (V).
+PUMP_VOLTAGE: tuple[float, float] = (0.0, 5.0)
 
 #: One litre per hour in m^3/s (the unit of Table 2's rated flow).
 LPH: float = 1e-3 / 3600.0

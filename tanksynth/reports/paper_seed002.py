@@ -63,32 +63,32 @@ def table2_rows(parameters: Mapping[str, float]) -> tuple[PaperRow, ...]:
         rows.append(PaperRow(Tex(f"$k_{{{k[1:]}}}$ (m$^2$), Table~1"), cell_number(v),
                              cell_number(ours) if ours is not None else Tex("absent"),
                              AGREES if same else DIFFERS, Tex(""), None, v, ours))
-    d = float(t2["tank_diameter"])                                      # type: ignore[arg-type]
+    d = float(t2["tank_diameter"])
     area = parameters.get("A", math.nan)
     same = abs(area - math.pi * d ** 2 / 4) <= 1e-12 * area
     rows.append(PaperRow(Tex("tank inner diameter (m), Table~2"), cell_number(d),
                          Tex(f"$A = {format_number(area, 5)}$ m$^2$"), AGREES if same else DIFFERS,
                          Tex(r"$A = \pi d^2/4$" if same else r"$A \neq \pi d^2/4$")))
-    over = float(t2["overflow_height"])                                 # type: ignore[arg-type]
+    over = float(t2["overflow_height"])
     hmax = parameters.get("hmax", math.nan)
     rows.append(PaperRow(Tex("overflow height (m), Table~2"), cell_number(over),
                          Tex(f"$h_{{\\max}} = {format_number(hmax, 4)}$ m"),
                          AGREES if hmax == over else DIFFERS,
                          Tex("the levels' upper bound of the region")))
-    height = float(t2["tank_height"])                                   # type: ignore[arg-type]
+    height = float(t2["tank_height"])
     rows.append(PaperRow(Tex("tank height (m), Table~2"), cell_number(height),
                          Tex(f"not a parameter: levels end at the overflow "
                              f"${format_number(hmax, 4)}$ m"),
                          AGREES if hmax < height else DIFFERS,
                          Tex("consistent: the overflow lies below the tank's top" if hmax < height
                              else "the overflow is not below the tank height")))
-    rated = float(t2["rated_flow_lph"])                                 # type: ignore[arg-type]
+    rated = float(t2["rated_flow_lph"])
     qmax = parameters.get("Qmax", math.nan)
     rows.append(PaperRow(Tex("rated pump flow (lph), Table~2"), cell_number(rated),
                          Tex(f"$Q_{{\\max}} = {format_number(qmax / paper.LPH, 5)}$ lph"),
                          AGREES if abs(qmax / paper.LPH - rated) <= 1e-9 * rated else DIFFERS,
                          Tex("")))
-    pipe = float(t2["pipe_diameter"])                                   # type: ignore[arg-type]
+    pipe = float(t2["pipe_diameter"])
     a_pipe = math.pi * pipe ** 2 / 4
     ks = [parameters[k] for k in paper.TABLE_1 if parameters.get(k, 0.0) > 0]
     cd = [k / a_pipe for k in ks]
@@ -100,7 +100,7 @@ def table2_rows(parameters: Mapping[str, float]) -> tuple[PaperRow, ...]:
                          Tex(f"pipe section $a = \\pi d^2/4 = {format_number(a_pipe, 4)}$ m$^2$; the "
                              r"Table~1 coefficients $k_i = c_d a$ give discharge coefficients $c_d$ "
                              + ("in $(0, 1)$: consistent" if ok else "outside $(0, 1)$"))))
-    lo, hi = t2["pump_voltage"]                                         # type: ignore[misc]
+    lo, hi = paper.PUMP_VOLTAGE
     rows.append(PaperRow(Tex("pump input (V), Table~2"), Tex(f"${format_number(lo, 2)}$--"
                                                              f"${format_number(hi, 2)}$ V"),
                          Tex(f"flow $0$--${format_number(qmax / paper.LPH, 4)}$ lph"),
@@ -140,7 +140,7 @@ def estimators_rows(inputs: ReportInputs) -> tuple[PaperRow, ...]:
                                      ("delays", "output_delays", "output delays")):
             printed = paper.NARX_STRUCTURE[key]
             ours = st.get(ours_key)
-            rows.append(PaperRow(Tex(f"NARX {label}, Table~3"), cell_number(printed),  # type: ignore[arg-type]
+            rows.append(PaperRow(Tex(f"NARX {label}, Table~3"), cell_number(printed),
                                  cell_number(ours) if ours is not None else Tex("not recorded"),
                                  AGREES if ours == printed else DIFFERS, Tex("")))
         act = st.get("hidden_activation")

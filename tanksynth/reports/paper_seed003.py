@@ -87,10 +87,10 @@ def network_rows(inputs: ReportInputs) -> tuple[PaperRow, ...]:
     rows.append(PaperRow(Tex("gain pattern $E$ (each tank its own level)"), Tex("$I$"),
                          Tex("$I$" if eye else "other"), AGREES if eye else DIFFERS, Tex("")))
     half = paper.N // 2
-    for label, key, printed in (("lower tank area $A$ (cm$^2$)", "A", paper.TANK_AREAS),
-                                ("lower outlet area $a$ (cm$^2$)", "a", paper.OUTLET_AREAS),
-                                ("valve split $\\gamma$", "gamma", paper.VALVE_SPLITS)):
-        for parity, p in enumerate(printed):
+    for label, key, pair in (("lower tank area $A$ (cm$^2$)", "A", paper.TANK_AREAS),
+                             ("lower outlet area $a$ (cm$^2$)", "a", paper.OUTLET_AREAS),
+                             ("valve split $\\gamma$", "gamma", paper.VALVE_SPLITS)):
+        for parity, p in enumerate(pair):
             vals = [par.get(f"{key}{i}") for i in range(1 + parity, half + 1, 2)]
             ok = all(v is not None and v == p for v in vals)
             rows.append(PaperRow(Tex(label + (" (odd)" if parity == 0 else " (even)")), cell_number(p),
@@ -109,9 +109,10 @@ def network_rows(inputs: ReportInputs) -> tuple[PaperRow, ...]:
     if "finite_horizon" in designs and "one_step" in designs:
         fh = designs["finite_horizon"].get("diagnostics") or {}
         os_ = designs["one_step"].get("diagnostics") or {}
-        c_fh, c_os, c_cen = fh.get("cost"), os_.get("cost"), fh.get("centralized_cost")
-        if None not in (c_fh, c_os, c_cen):
-            ok = float(c_cen) <= float(c_fh) <= float(c_os)
+        costs = (fh.get("cost"), os_.get("cost"), fh.get("centralized_cost"))
+        if all(isinstance(c, (int, float)) for c in costs):
+            c_fh, c_os, c_cen = (float(c) for c in costs)   # type: ignore[arg-type]
+            ok = c_cen <= c_fh <= c_os
             rows.append(PaperRow(
                 Tex(r"expected cost $\sum_k \mathrm{tr}\,P(k|k)$ of the first window (cm$^2$)"),
                 Tex("centralised $\\le$ FH $\\le$ OS"),
@@ -120,9 +121,9 @@ def network_rows(inputs: ReportInputs) -> tuple[PaperRow, ...]:
                     f"centralised ${format_number(c_cen, 5)}$, FH ${format_number(c_fh, 7)}$, "
                     f"OS ${format_number(c_os, 7)}$"),
                 AGREES if ok else DIFFERS,
-                Tex(f"FH improves on OS by ${format_number(100 * (1 - float(c_fh) / float(c_os)), 3)}"
+                Tex(f"FH improves on OS by ${format_number(100 * (1 - c_fh / c_os), 3)}"
                     r"\,\%$; the decentralised gains cost "
-                    f"${format_number(100 * (float(c_fh) / float(c_cen) - 1), 3)}\\,\\%$ more than "
+                    f"${format_number(100 * (c_fh / c_cen - 1), 3)}\\,\\%$ more than "
                     "the centralised filter")))
     for key, a in designs.items():
         check = verdict_check(a, "filter_vs_open_loop")
