@@ -21,6 +21,9 @@ __all__ = [
     "L",
     "RANK_CLAIM",
     "TWO_OUTPUT_CLAIM",
+    "FIG2_X0",
+    "FIG2_XHAT0",
+    "FIG2_CLAIM",
     "symbols",
     "A_eq10",
     "O1",
@@ -30,6 +33,14 @@ __all__ = [
 
 #: Gravity as printed (m/s^2).
 G: float = 9.82
+
+#: Sec. IV (Fig. 2-3): the initial state of the multiple model as printed (no unit printed; the
+#: levels of eq. (1) are in m).
+FIG2_X0: tuple[float, float, float] = (1.8, 1.7, 5.5)
+#: Sec. IV (Fig. 2-3): the observer's initial estimate as printed.
+FIG2_XHAT0: tuple[float, float, float] = (4.8, 5.0, 2.1)
+#: Sec. IV: what the paper says of the Fig. 2 run (no number printed).
+FIG2_CLAIM: str = "a fast convergence of the state estimation error towards zero is obtained"
 
 #: Sec. IV: the weighting lambda of the premise z1 (-).
 LAMBDA: tuple[float, float, float] = (-0.7, 5.0, 17.0)

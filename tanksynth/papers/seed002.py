@@ -16,6 +16,12 @@ __all__ = [
     "METRIC_UNITS",
     "NARX_STRUCTURE",
     "UKF_PARAMETERS",
+    "TABLE_1",
+    "TABLE_2",
+    "PUMP_VOLTAGE",
+    "LPH",
+    "CLAIMS",
+    "TIMING_ORDER",
 ]
 
 #: The three controllers compared: inverse-dynamics control fed by an EKF, a UKF or an ANN
@@ -85,3 +91,31 @@ NARX_STRUCTURE: dict[str, object] = {"hidden": 5, "activation": "tanh", "output"
 
 #: Sec. 3.2: the UKF's sigma-point parameters beta and kappa (-).
 UKF_PARAMETERS: dict[str, float] = {"beta": 2.0, "kappa": 0.0}
+
+#: Table 1: discharge coefficients k1..k7 of the hand valves (m^2).
+TABLE_1: dict[str, float] = {"k1": 2.6363e-5, "k2": 2.4891e-5, "k3": 3.7984e-5, "k4": 3.4316e-5,
+                             "k5": 0.0, "k6": 2.2538e-5, "k7": 0.0}
+
+#: Table 2: tank height (m), overflow height (m), tank inner diameter (m), diameter of the
+#: connecting pipes (m) and rated flow of the pumps (lph).
+TABLE_2: dict[str, float] = {"tank_height": 0.60, "overflow_height": 0.55, "tank_diameter": 0.15,
+                             "pipe_diameter": 0.0125, "rated_flow_lph": 240.0}
+
+#: Table 2 (and Sec. 2): the pumps' input voltage range (V).
+PUMP_VOLTAGE: tuple[float, float] = (0.0, 5.0)
+
+#: One litre per hour in m^3/s (the unit of Table 2's rated flow).
+LPH: float = 1e-3 / 3600.0
+
+#: The claims of Sec. 5-6 the tables are quoted for (text).
+CLAIMS: dict[str, str] = {
+    "annc_lowest_ise": ("except in servo operation, the ISE is the lowest for ANNC "
+                        "(Sec. 6; Tables 5-8)"),
+    "annc_best_mismatch": "ANNC is best under initial-state mismatch (Table 6)",
+    "narx_correction": ("the ANN corrects the a-priori estimate better than the EKF's "
+                        "linearised correction (Sec. 6)"),
+}
+
+#: Sec. 5-6: control-signal generation time, fastest first (EKFC "nearly 1/4th that for ANNC
+#: and 1/8th that for UKFC").
+TIMING_ORDER: tuple[str, str, str] = ("EKFC", "ANNC", "UKFC")

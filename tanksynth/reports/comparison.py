@@ -36,6 +36,8 @@ __all__ = [
     "printed_precision",
     "latex_matrix_entries",
     "poly_latex",
+    "verdict_check",
+    "ratio_note",
 ]
 
 AGREES, ERRATUM, DIFFERS = "agrees", "erratum", "differs"
@@ -387,3 +389,45 @@ def poly_latex(coeffs: Sequence[float] | np.ndarray, var: str = "s") -> str:
         parts.append(("-" if c < 0 else "+") + " " + term)
     text = " ".join(parts).lstrip("+ ").strip()
     return text if not text.startswith("- ") else "-" + text[2:]
+
+
+def verdict_check(artefact: Mapping[str, Any], name: str) -> Mapping[str, Any] | None:
+    """The check ``name`` of an artefact's stored verdict (None when absent).
+
+    Parameters
+    ----------
+    artefact : mapping
+        A loaded artefact.
+    name : str
+        The check's name (``"servo_scenario"`` ...).
+    """
+    for c in (artefact.get("verification") or {}).get("checks") or ():
+        if isinstance(c, Mapping) and c.get("check") == name:
+            return c
+    return None
+
+
+def ratio_note(ours: float, printed: float, factor: float = 2.0) -> tuple[bool, str]:
+    """Whether ``ours`` is within a factor of ``printed``, and the ratio as a note.
+
+    Parameters
+    ----------
+    ours, printed : float
+        The two values (same units); ``ours`` may be inf or nan (never reached).
+    factor : float, optional
+        Largest accepted ratio either way (dimensionless).
+
+    Returns
+    -------
+    tuple of (bool, str)
+        True when ``printed / factor <= ours <= factor printed`` (both of one sign);
+        LaTeX text of the ratio ("ours / printed = ...") or why there is none.
+    """
+    if not math.isfinite(ours):
+        return False, "never reached in the simulation (paper: " + format_number(printed, 4) + ")"
+    if printed == 0:
+        return ours == 0, "printed value is 0"
+    r = ours / printed
+    ok = r > 0 and 1 / factor <= r <= factor
+    return ok, (f"ours / printed $= {format_number(r, 3)}$"
+                + ("" if ok else f" (outside the factor-{format_number(factor, 2)} band: not reproduced)"))

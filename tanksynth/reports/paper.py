@@ -16,7 +16,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from tanksynth.reports import paper_seed000, paper_seed001, paper_seed004
+from tanksynth.reports import paper_seed000, paper_seed001, paper_seed002, paper_seed003, paper_seed004
 from tanksynth.reports.comparison import (AGREES, DIFFERS, ERRATUM, PaperComparison, PaperRow,
                                           Reproduction, cell_matrix, printed_precision)
 from tanksynth.reports.diagnostics.common import references_of
@@ -47,10 +47,30 @@ REPRODUCTIONS: tuple[Reproduction, ...] = (
                  "Three-tank decoupling control law u = alpha + beta zeta",
                  "seed 000 (Widjiantoro et al.): eq. (22)-(24), Sec. IV nonlinear control input",
                  paper_seed000.law_applies, paper_seed000.law_rows),
+    Reproduction("seed000_akf", "000",
+                 "Three-tank adaptive covariance Kalman filter (AKF)",
+                 "seed 000 (Widjiantoro et al.): Sec. III eq. (29)-(38), Sec. IV initial conditions, Fig. 8",
+                 paper_seed000.akf_applies, paper_seed000.akf_rows),
     Reproduction("seed001_observability", "001",
                  "Quasi-LPV three-tank: observability with one measured level",
                  "seed 001: eq. (10) A(z), Sec. III-C O1 and det(O1), Sec. IV lambda and gamma",
                  paper_seed001.observability_applies, paper_seed001.observability_rows),
+    Reproduction("seed001_fig2", "001",
+                 "Quasi-LPV three-tank observer: the initial states of Fig. 2-3",
+                 "seed 001: Sec. IV initial conditions of the multiple model and of the observer eq. (20), Fig. 2-3",
+                 paper_seed001.fig2_applies, paper_seed001.fig2_rows),
+    Reproduction("seed002_estimators", "002",
+                 "Hybrid three-tank: plant tables and the EKF, UKF and NARX estimators",
+                 "seed 002 (Vellayikot & Vaidyan): Tables 1-3, EKF/UKF eqs. (13)-(14), NARX eqs. (44)-(45), Sec. 6",
+                 paper_seed002.estimators_applies, paper_seed002.estimators_rows),
+    Reproduction("seed002_control", "002",
+                 "Hybrid three-tank: inverse-dynamics control, servo test",
+                 "seed 002 (Vellayikot & Vaidyan): Table 4, Sec. 5.1, control law eqs. (46)-(47)",
+                 paper_seed002.control_applies, paper_seed002.control_rows),
+    Reproduction("seed003_network", "003",
+                 "40-tank network: decentralised Kalman filtering",
+                 "seed 003 (Pedroso et al.): DECENTER script NTanksNetworkEstimationOSFH (no numbered equations): constants, figures",
+                 paper_seed003.network_applies, paper_seed003.network_rows),
     Reproduction("seed004_structure", "004",
                  "Hydraulic fault model: controllability, observability, transfer function",
                  "seed 004: eqs. (13)-(14), (21a)-(21b), (23a)-(23b), (27), Sec. III",

@@ -253,7 +253,8 @@ def observer_convergence(plant: Plant, estimator: BatchEstimator, x0: np.ndarray
                          inside: Callable[[np.ndarray], bool] | None = None,
                          rule: str = "", substeps: int = 4, name: str = "observer_convergence",
                          outside: Callable[[np.ndarray], np.ndarray] | None = None,
-                         trace: TraceRecorder | None = None) -> Check:
+                         trace: TraceRecorder | None = None,
+                         start: tuple[np.ndarray, np.ndarray] | None = None) -> Check:
     """Estimation error of an observer on the nonlinear plant, started away from it.
 
     The plant starts at ``x0 + delta`` (see `PERTURBATION`) and holds the
@@ -290,6 +291,10 @@ def observer_convergence(plant: Plant, estimator: BatchEstimator, x0: np.ndarray
         as outside the observer's validity domain (e.g. the TS domain).
     trace : TraceRecorder, optional
         Records this simulation.
+    start : tuple of ndarray, optional
+        Declared ``(x_start, x_hat_start)`` (state units): the plant starts at
+        ``x_start`` and the estimate at ``x_hat_start`` instead of ``x0 + delta``
+        and ``x0``.
 
     Returns
     -------
@@ -302,13 +307,21 @@ def observer_convergence(plant: Plant, estimator: BatchEstimator, x0: np.ndarray
     if steps > MAX_STEPS:
         return Check(name, None, f"not simulated: the horizon {horizon:.3g} s needs {steps} samples "
                                  f"of {ts:.3g} s (> {MAX_STEPS})")
-    x_start, frac = perturbed_start(plant, x0, inside)
+    if start is None:
+        x_start, frac = perturbed_start(plant, x0, inside)
+        x_hat_start = np.asarray(x0, dtype=float)
+        how = f"plant from x0 + delta ({100 * frac:g} % of the region span), estimate from x0"
+    else:
+        x_start, x_hat_start = (np.asarray(v, dtype=float) for v in start)
+        how = (f"plant from the declared x_start = {np.round(x_start, 6).tolist()}, estimate from "
+               f"x_hat_start = {np.round(x_hat_start, 6).tolist()}")
     res = simulate(plant, ts=ts, steps=steps, x0=x_start, seeds=run_seeds(0, 1), estimator=estimator,
-                   x_hat0=x0, u_init=u0, substeps=substeps)
+                   x_hat0=x_hat_start, u_init=u0, substeps=substeps)
     if trace is not None:
         trace.record(res, plant, check=name, estimator=True,
-                     scenario="initial-state mismatch: plant from x0 + delta, estimate from x0, "
-                              "equilibrium input held")
+                     scenario=("initial-state mismatch: plant from x0 + delta, estimate from x0, "
+                               "equilibrium input held") if start is None else
+                     "declared initial states (x_start, x_hat_start), equilibrium input held")
     err = np.max(np.abs(res.x_hat[0] - res.x[0]), axis=1)
     e0 = float(err[0])
     tail = float(np.max(err[k_h:]))
@@ -320,14 +333,14 @@ def observer_convergence(plant: Plant, estimator: BatchEstimator, x0: np.ndarray
         where = (f"; the estimate is outside the domain at {int(out.sum())} of {out.size} samples"
                  + (f" (first at t = {float(res.t[np.argmax(out)]):.4g} s)" if out.any() else ""))
     return Check(name, ok,
-                 f"plant from x0 + delta ({100 * frac:g} % of the region span), estimate from x0, "
-                 f"equilibrium input held, nonlinear plant sampled every {ts:.4g} s: |e|_inf = "
+                 f"{how}, equilibrium input held, nonlinear plant sampled every {ts:.4g} s: |e|_inf = "
                  f"{e0:.3g} at t = 0, largest on [H, 1.2 H] = {tail:.3g} (tolerance {tol:.3g} = "
                  f"{100 * OBSERVER_TOLERANCE:g} % of |e(0)|); rule H = tau ({OBSERVER_TIME_CONSTANTS:g} "
                  f"+ ln kappa) = {factor:.3g} tau = {horizon:.4g} s with kappa = {kappa:.3g} (eigenvector "
                  f"conditioning of the error matrix), tau = {tau:.4g} s {rule}".rstrip() + where,
                  {"e0": e0, "tail_max": tail, "tolerance": tol, "horizon_s": horizon, "tau_s": tau,
-                  "kappa": kappa, "ts": ts, "x_start": x_start.tolist(), "error_inf": err.tolist()})
+                  "kappa": kappa, "ts": ts, "x_start": x_start.tolist(),
+                  "x_hat_start": x_hat_start.tolist(), "error_inf": err.tolist()})
 
 
 def luenberger_estimator(plant: Plant, L: np.ndarray, x0: np.ndarray, u0: np.ndarray, ts: float,

@@ -148,6 +148,11 @@ class TsObserverOptions(MethodOptions):
         Accept an observer error matrix ``A0 - L C`` that a relative change of
         ``A0`` smaller than 1e-6 destabilises (stability radius); default false
         (refused, exit 3).
+    x_start : ndarray or None
+        Declared initial state of the plant for an extra verdict run (state units,
+        >= 0); given with ``x_hat_start``; default None (no extra run).
+    x_hat_start : ndarray or None
+        Declared initial estimate of that run (state units, >= 0); default None.
     """
 
     method_name: ClassVar[str] = "ts_observer"
@@ -177,6 +182,9 @@ class TsObserverOptions(MethodOptions):
     solver: str = option("CLARABEL", unit="-", choices=LMI_SOLVERS)
     kappa_max: float = option(1e8, unit="-")
     allow_fragile: bool = option(False, unit="-")
+    x_start: np.ndarray | None = option(None, unit="state units", default_text="unset: no extra run")
+    x_hat_start: np.ndarray | None = option(None, unit="state units",
+                                            default_text="unset: no extra run")
 
     @classmethod
     def from_table(cls, options: Mapping[str, Any], key: str, plant: Plant,
@@ -205,6 +213,11 @@ class TsObserverOptions(MethodOptions):
         blocks = r.read("blocks", _blocks, names)
         pattern = r.read("pattern", parse_matrix, (n, q))
         _check_structure(r, blocks, pattern, names)
+        x_start = r.read("x_start", parse_vector, names=names, at_least=0.0)
+        x_hat_start = r.read("x_hat_start", parse_vector, names=names, at_least=0.0)
+        if (x_start is None) != (x_hat_start is None):
+            raise r.fail("x_start" if x_start is None else "x_hat_start",
+                         "x_start and x_hat_start are given together (state units)")
         return cls(
             weights=r.read("weights", _weights, n), psi=psi, psi_source=psi_source,
             variant=r.read("variant", parse_choice, LMI_VARIANTS),
@@ -225,7 +238,8 @@ class TsObserverOptions(MethodOptions):
             margin=r.read("margin", parse_number, above=0.0, below=1.0),
             kappa=kappa, kappa_max=kappa_max,
             solver=r.read("solver", parse_choice, LMI_SOLVERS),
-            allow_fragile=r.read("allow_fragile", parse_bool))
+            allow_fragile=r.read("allow_fragile", parse_bool),
+            x_start=x_start, x_hat_start=x_hat_start)
 
     def conic_size(self, plant: Plant, ts: float | None) -> ConicSize:
         """The observer LMI (`tanksynth.design.observer_lmi.conic_form`), from its structure.

@@ -233,7 +233,8 @@ def ts_observer_verdict(doc: Mapping[str, Any], spec: Spec, *,
     the LMI certifies ``A0 - L C`` plus a Lipschitz bound, which need not
     hold), ``rank_observability`` of ``(A0, C)`` and of every vertex, and
     ``observer_convergence`` of the multiple observer (20) on the nonlinear
-    plant.
+    plant, and ``observer_declared_start`` (the same run from the spec's
+    ``x_start`` and ``x_hat_start``) when both are given.
 
     Parameters
     ----------
@@ -316,13 +317,23 @@ def ts_observer_verdict(doc: Mapping[str, Any], spec: Spec, *,
         # has to resolve the designed decay.
         ts_sim = observer_period("continuous", spec.ts, tau)
         x0, u0 = operating_point(spec)
-        est = TSObserver(model, L, ts_sim)
-        return [observer_convergence(plant, est, x0, u0, tau, ts_sim,
-                                     conditioning=eigenvector_conditioning(A0 - L @ C),
-                                     inside=lambda x: bool(model.domain.contains(x)[0]),
-                                     outside=lambda X: ~model.domain.contains(X),
-                                     rule=f"{rule}; multiple observer (20) with the premises "
-                                          "evaluated at the estimate",
-                                     trace=trace)]
+        kappa = eigenvector_conditioning(A0 - L @ C)
+        rebuilt_model = model
+
+        def run(name: str, start: tuple[np.ndarray, np.ndarray] | None) -> Check:
+            return observer_convergence(plant, TSObserver(rebuilt_model, L, ts_sim), x0, u0, tau,
+                                        ts_sim, conditioning=kappa,
+                                        inside=lambda x: bool(rebuilt_model.domain.contains(x)[0]),
+                                        outside=lambda X: ~rebuilt_model.domain.contains(X),
+                                        rule=f"{rule}; multiple observer (20) with the premises "
+                                             "evaluated at the estimate",
+                                        trace=trace, name=name, start=start)
+
+        out = [run("observer_convergence", None)]
+        x_start, x_hat_start = option(doc, spec, "x_start"), option(doc, spec, "x_hat_start")
+        if x_start is not None and x_hat_start is not None:
+            out.append(run("observer_declared_start",
+                           (np.asarray(x_start, dtype=float), np.asarray(x_hat_start, dtype=float))))
+        return out
 
     return checks + guard("observer_convergence", sim)
