@@ -298,6 +298,10 @@ def _design_all(spec: Spec, outdir: Path, export: tuple[str, ...]
         if "law" in formats and "law" not in result.diagnostics:
             formats.remove("law")
             derived = _derived_law(spec, design, result)
+        from tanksynth.artefacts.datafiles import data_files, write_data_copies
+
+        # data files an artefact read (a fit's logs) first, under the same lock: its verdict reads them
+        write_data_copies(outdir, data_files(result.diagnostics))
         written.append(write_artefact(result, outdir, spec.sha256, export=formats,
                                       plant_record_sha256=plant_sha))
         if "law" in formats:

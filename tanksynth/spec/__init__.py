@@ -169,7 +169,10 @@ def load_spec(path: str | Path, *, methods: Mapping[str, OptionsValidator] | Non
         data = path.read_bytes()
     except OSError as exc:
         raise SpecError(f"cannot read spec: {exc.strerror}", source=str(path)) from None
-    return parse_spec_text(data, source=str(path), methods=methods)
+    from tanksynth.spec.files import reading_spec_file
+
+    with reading_spec_file(path):  # files the options name are relative to the spec file
+        return parse_spec_text(data, source=str(path), methods=methods)
 
 
 def parse_spec_text(data: bytes | str, source: str | None = None, *,
