@@ -17,6 +17,7 @@ __all__ = [
     "SpecError",
     "ParseError",
     "RegionError",
+    "DataError",
     "ArtefactError",
     "SchedulerError",
     "DimensionError",
@@ -94,6 +95,25 @@ class RegionError(SpecError):
         Dotted path of the offending key.
     source : str, optional
         File the spec came from, if any.
+    """
+
+
+class DataError(SpecError):
+    """A measured-data file (or its ``[data]`` mapping) is unusable: exit code 2.
+
+    One line naming the file, the column and the row where it applies
+    (`tanksynth.measurements.read_experiments`): lengths that differ, time not
+    strictly increasing, a column missing, all NaN or not numeric, a unit that
+    cannot be right, a file that is not a regular file or is too large.
+
+    Parameters
+    ----------
+    message : str
+        What is wrong (with the column and row) and what was expected.
+    key : str, optional
+        Dotted spec key when the ``[data]`` table is at fault (``data.columns.h1``).
+    source : str, optional
+        The data file (or spec) concerned.
     """
 
 

@@ -10,5 +10,8 @@ that both stages read data the same way.
 from __future__ import annotations
 
 from tanksynth.measurements.experiment import Experiment
+from tanksynth.measurements.files import file_sha256
+from tanksynth.measurements.read import read_experiments
+from tanksynth.spec.data_table import DataTable, parse_data_table
 
-__all__ = ["Experiment"]
+__all__ = ["Experiment", "read_experiments", "file_sha256", "DataTable", "parse_data_table"]

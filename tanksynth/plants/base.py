@@ -66,11 +66,15 @@ class Quantity:
         Its unit (e.g. ``m``, ``m^3/s``).
     description : str, optional
         One line of meaning.
+    limits : (float, float) or None, optional
+        Sensor range of an output (its unit): a logged sample at a limit is censored (the
+        true output is at or beyond it, `tanksynth.measurements`). None: no range declared.
     """
 
     name: str
     unit: str
     description: str = ""
+    limits: tuple[float, float] | None = None
 
 
 @dataclass(frozen=True)
@@ -607,7 +611,9 @@ class Plant:
             "description": self.description,
             "states": [{"name": s.name, "unit": s.unit, "description": s.description} for s in self.states],
             "inputs": [{"name": s.name, "unit": s.unit, "description": s.description} for s in self.inputs],
-            "outputs": [{"name": s.name, "unit": s.unit, "description": s.description} for s in self.outputs],
+            "outputs": [{"name": s.name, "unit": s.unit, "description": s.description,
+                         **({} if s.limits is None else {"limits": list(s.limits)})}
+                        for s in self.outputs],
             "parameters": [
                 {"name": p.name, "value": p.value, "unit": p.unit, "description": p.description,
                  **({} if p.plausible is None else {"plausible": list(p.plausible)})}
