@@ -154,9 +154,8 @@ def run_fit(spec: Spec, design: DesignSpec) -> DesignResult:
     est_paths = [resolve(p, base) for p in o.data]
     val_paths = [resolve(p, base) for p in o.validate]
     table = getattr(spec, "data", None)
-    estimation = read_experiments([str(p) for p in est_paths], plant, table, key=f"{design.key}.data")
-    validation = (read_experiments([str(p) for p in val_paths], plant, table,
-                                   key=f"{design.key}.validate") if val_paths else ())
+    estimation = read_experiments([str(p) for p in est_paths], plant, table)
+    validation = read_experiments([str(p) for p in val_paths], plant, table) if val_paths else ()
     hashes = [_sha256(p) for p in [*est_paths, *val_paths]]
     copies = copy_names([str(p) for p in [*est_paths, *val_paths]])
 
