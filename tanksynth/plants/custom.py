@@ -16,7 +16,10 @@ Example::
     [plant.equations]
     h = "(q - a*sqrt(2*g*h))/A"
     [plant.outputs]
-    y = "h"
+    y = {expr = "h", unit = "m", min = 0.0, max = 0.95}   # min/max: the sensor range
+
+A parameter table may carry ``fit = true`` (estimated from measured data, ``tanksynth fit``):
+its ``min``/``max`` are then the closed search box and both are required.
 
 Every equation goes through the whitelist parser; nothing is evaluated.
 """
@@ -167,18 +170,30 @@ def custom_plant(spec: Mapping[str, Any], key: str = "plant") -> Plant:
         if isinstance(prm, (int, float)) and not isinstance(prm, bool):
             prm = {"value": prm}
         if not isinstance(prm, Mapping) or "value" not in prm:
-            raise SpecError("expected a number or a table {value, unit, min, max}", key=pkey)
-        unknown_fields = set(prm) - {"value", "unit", "min", "max", "description"}
+            raise SpecError("expected a number or a table {value, unit, min, max, fit}", key=pkey)
+        unknown_fields = set(prm) - {"value", "unit", "min", "max", "description", "fit"}
         if unknown_fields:
-            raise SpecError(f"unknown field(s) {sorted(unknown_fields)}", key=pkey)
+            raise SpecError(f"unknown field(s) {sorted(unknown_fields)}; expected value, unit, min, "
+                            "max, description, fit", key=pkey)
         unit = prm.get("unit", "1")
         if not isinstance(unit, str):
             raise SpecError("unit must be a string", key=f"{pkey}.unit")
+        fit = prm.get("fit", False)
+        if not isinstance(fit, bool):
+            raise SpecError(f"expected true or false (estimate the parameter from data), got "
+                            f"{type(fit).__name__} {fit!r}", key=f"{pkey}.fit")
         lower = _number(prm["min"], f"{pkey}.min") if "min" in prm else None
         upper = _number(prm["max"], f"{pkey}.max") if "max" in prm else None
-        proto = Parameter(nm, 0.0, unit, str(prm.get("description", "")), lower, upper)
+        if fit and (lower is None or upper is None):
+            missing = " and ".join(b for b, v in (("min", lower), ("max", upper)) if v is None)
+            raise SpecError(f"a free parameter (fit = true) needs a search box: give {missing}",
+                            key=f"{pkey}.{'min' if lower is None else 'max'}")
+        if lower is not None and upper is not None and not lower < upper:
+            raise SpecError(f"min ({lower:g}) must be smaller than max ({upper:g})", key=pkey)
+        # a free parameter's search box is closed: the fit may end on min
+        proto = Parameter(nm, 0.0, unit, str(prm.get("description", "")), lower, upper, inclusive=fit)
         params.append(Parameter(nm, proto.check(prm["value"], f"{pkey}.value"), unit,
-                                proto.description, lower, upper))
+                                proto.description, lower, upper, inclusive=fit))
 
     declared: dict[str, sp.Expr] = {}
     for group, items in (("states", states), ("inputs", inputs)):
@@ -210,18 +225,32 @@ def custom_plant(spec: Mapping[str, Any], key: str = "plant") -> Plant:
     for nm, out in _table(spec.get("outputs"), f"{key}.outputs").items():
         okey = f"{key}.outputs.{nm}"
         validate_name(nm, okey)
-        unit = "1"
+        unit, desc, sensor = "1", "", None
         if isinstance(out, Mapping):
             if "expr" not in out:
-                raise SpecError("expected an equation string or a table {expr, unit}", key=okey)
+                raise SpecError("expected an equation string or a table {expr, unit, min, max}", key=okey)
+            extra = set(out) - {"expr", "unit", "min", "max", "description"}
+            if extra:
+                raise SpecError(f"unknown field(s) {sorted(extra)}; expected expr, unit, min, max "
+                                "(the sensor range), description", key=okey)
             unit = out.get("unit", "1")
             if not isinstance(unit, str):
                 raise SpecError("unit must be a string", key=f"{okey}.unit")
+            desc = out.get("description", "")
+            if not isinstance(desc, str):
+                raise SpecError("description must be a string", key=f"{okey}.description")
+            if "min" in out or "max" in out:
+                if "min" not in out or "max" not in out:
+                    raise SpecError("expected both 'min' and 'max' (the sensor range)", key=okey)
+                lo, hi = _number(out["min"], f"{okey}.min"), _number(out["max"], f"{okey}.max")
+                if not lo < hi:
+                    raise SpecError(f"min ({lo:g}) must be smaller than max ({hi:g})", key=okey)
+                sensor = (lo, hi)
             out = out["expr"]
         expr = parse_expression(out, declared, okey)
         if any(s in expr.free_symbols for s in (declared[i.name] for i in inputs)):
             raise SpecError("outputs may depend on states and parameters only (no feedthrough)", key=okey)
-        outputs.append(Quantity(nm, unit))
+        outputs.append(Quantity(nm, unit, desc, sensor))
         h.append(expr)
 
     orderings = []

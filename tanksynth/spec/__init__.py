@@ -22,6 +22,8 @@ import numpy as np
 from tanksynth.errors import SpecError, TanksynthError
 from tanksynth.plants import BUILTIN_PLANTS, Plant, custom_plant
 from tanksynth.plants.trim import Trim, trim, trim_outputs
+from tanksynth.spec.data_table import DataTable, parse_data_table
+from tanksynth.spec.free_parameters import FreeParameter, custom_free_parameters, split_parameters
 from tanksynth.spec.memory import memory_budget
 from tanksynth.spec.options import (parse_box, parse_number, parse_vector,
                                     unknown_word_hint)
@@ -29,8 +31,8 @@ from tanksynth.spec.options import (parse_box, parse_number, parse_vector,
 if TYPE_CHECKING:  # the Options classes load with the method table, not with the spec
     from tanksynth.spec.method_options.base import MethodOptions
 
-__all__ = ["Spec", "DesignSpec", "OptionsValidator", "load_spec", "parse_spec", "parse_spec_text",
-           "MIN_TS", "MAX_TS", "MAX_MODEL_MAGNITUDE"]
+__all__ = ["Spec", "DesignSpec", "OptionsValidator", "FreeParameter", "DataTable", "load_spec",
+           "parse_spec", "parse_spec_text", "MIN_TS", "MAX_TS", "MAX_MODEL_MAGNITUDE"]
 
 #: Sampling periods accepted (s): below MIN_TS a discrete model equals the identity in
 #: floating point; above MAX_TS no tank model is meaningful.
@@ -40,7 +42,7 @@ MIN_TS, MAX_TS = 1e-6, 1e6
 #: would overflow.
 MAX_MODEL_MAGNITUDE = 1e100
 
-_TOP_KEYS = {"title", "description", "plant", "operating_point", "sampling", "design"}
+_TOP_KEYS = {"title", "description", "plant", "operating_point", "sampling", "design", "data"}
 _NAME_RE = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]{0,63}\Z")
 #: Design names whose files would overwrite the tool's own files in a result directory.
 RESERVED_NAMES = {"plant": "plant.json (the plant record)", "checks": "checks.json (the rank verdicts)",
@@ -129,6 +131,11 @@ class Spec:
     trim : Trim or None
         The solution when ``[operating_point] trim`` asked for one (``x0`` is its
         levels; with ``trim = "inputs"``, ``given_u0`` its inputs), else None.
+    free_parameters : tuple of FreeParameter
+        The plant parameters marked ``fit = true`` (estimated from data), in spec order;
+        empty when none. `plant` holds their starting values.
+    data : DataTable or None
+        The ``[data]`` table (how data files map onto the plant's signals), None when absent.
     """
 
     plant: Plant
@@ -142,6 +149,8 @@ class Spec:
     raw: Mapping[str, Any] = field(default_factory=dict, repr=False)
     text: str = field(default="", repr=False)
     trim: Trim | None = field(default=None, repr=False)
+    free_parameters: tuple[FreeParameter, ...] = ()
+    data: DataTable | None = None
 
 
 def load_spec(path: str | Path, *, methods: Mapping[str, OptionsValidator] | None = None) -> Spec:
@@ -219,13 +228,15 @@ def _table(table: Mapping[str, Any], name: str, required: bool = True) -> Mappin
     return value
 
 
-def _build_plant(table: Mapping[str, Any]) -> Plant:
+def _build_plant(table: Mapping[str, Any]) -> tuple[Plant, tuple[FreeParameter, ...]]:
+    """The plant of a ``[plant]`` table and its free parameters (``fit = true``)."""
     model = table.get("model")
     if not isinstance(model, str):
         raise SpecError("expected a model name (string): one of "
                         + ", ".join([*BUILTIN_PLANTS, "custom"]), key="plant.model")
     if model == "custom":
-        return custom_plant(table)
+        plant = custom_plant(table)
+        return plant, custom_free_parameters(table.get("parameters", {}), plant)
     if model not in BUILTIN_PLANTS:
         raise SpecError(f"unknown plant model {model!r}"
                         + unknown_word_hint(model, [*BUILTIN_PLANTS, "custom"]), key="plant.model")
@@ -250,9 +261,7 @@ def _build_plant(table: Mapping[str, Any]) -> Plant:
         raise
     except (TanksynthError, ValueError, TypeError) as exc:
         raise SpecError(f"cannot build plant '{model}': {exc}", key="plant") from None
-    overrides = table.get("parameters", {})
-    if not isinstance(overrides, Mapping):
-        raise SpecError("expected a table of parameter values", key="plant.parameters")
+    overrides, free = split_parameters(table.get("parameters", {}), plant)
     plant = plant.with_parameters(overrides)
     region = table.get("region")
     if region is not None:
@@ -261,7 +270,7 @@ def _build_plant(table: Mapping[str, Any]) -> Plant:
         for nm, b in parse_box(region, "plant.region", names).items():
             bounds[names.index(nm)] = b
         plant = plant.with_region(bounds)
-    return plant
+    return plant, free
 
 
 def parse_spec(table: Mapping[str, Any], source: str | None = None, sha256: str = "", *,
@@ -311,7 +320,7 @@ def _parse(table: Mapping[str, Any], source: str | None, sha256: str,
     title = table.get("title", "")
     if not isinstance(title, str):
         raise SpecError("expected a string", key="title")
-    plant = _build_plant(_table(table, "plant"))
+    plant, free = _build_plant(_table(table, "plant"))
 
     x0, given_u0, trimmed = _operating_point(plant, _table(table, "operating_point"))
 
@@ -322,6 +331,8 @@ def _parse(table: Mapping[str, Any], source: str | None, sha256: str,
                         key=f"sampling.{extra[0]}")
     ts = (parse_number(sampling["ts"], "sampling.ts", at_least=MIN_TS, at_most=MAX_TS)
           if "ts" in sampling else None)
+
+    data = parse_data_table(table["data"], plant) if "data" in table else None
 
     raw_designs = table.get("design", [])
     if not isinstance(raw_designs, list):
@@ -336,7 +347,8 @@ def _parse(table: Mapping[str, Any], source: str | None, sha256: str,
             errors.append((i, exc))
     if errors:
         raise _designs_error(raw_designs, errors)
-    return Spec(plant, x0, given_u0, ts, tuple(designs), title, source, sha256, table, trim=trimmed)
+    return Spec(plant, x0, given_u0, ts, tuple(designs), title, source, sha256, table, trim=trimmed,
+                free_parameters=free, data=data)
 
 
 #: Bad ``[[design]]`` tables named one by one (index and name) in the summary of
