@@ -23,7 +23,7 @@ from tanksynth.design.result import DesignMethod, DesignResult, options_of
 from tanksynth.errors import DesignWarning, InfeasibleDesign, SpecError
 from tanksynth.measurements.scores import pooled_scores
 from tanksynth.spec import DesignSpec, Spec
-from tanksynth.spec.files import resolve
+from tanksynth.spec.context import resolve
 from tanksynth.spec.method_options.fit import FitOptions
 
 __all__ = ["run_fit", "FIT", "copy_names", "free_parameters_of"]

@@ -2,7 +2,7 @@
 true}`` in ``[plant.parameters]``) and of each experiment's initial state to logged data
 (CasADi + IPOPT, multiple shooting; `tanksynth.design.fit`).
 
-The data files are named relative to the spec file (`tanksynth.spec.files`); ``tanksynth fit
+The data files are named relative to the spec file (`tanksynth.spec.context`); ``tanksynth fit
 SPEC --data FILE...`` gives them on the command line instead.
 """
 
@@ -11,39 +11,20 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, ClassVar, Mapping
 
-from tanksynth.spec.files import parse_paths
+from tanksynth.errors import SpecError
+from tanksynth.spec.context import free_parameters_in_scope, parse_paths
 from tanksynth.spec.method_options.base import MethodOptions, OptionReader, option
 from tanksynth.spec.options import parse_choice, parse_integer, parse_number
 
 if TYPE_CHECKING:  # the plant's module loads sympy; only its type is needed here
     from tanksynth.plants.base import Plant
 
-__all__ = ["FitOptions", "FIT_MODES", "free_parameter_names"]
+__all__ = ["FitOptions", "FIT_MODES"]
 
 #: The fit's cost: output (simulation) error, or one-step-ahead prediction error (EKF).
 FIT_MODES = ("simulation", "prediction")
 #: Most starts of the multi-start search.
 MAX_STARTS = 1000
-
-
-def free_parameter_names(plant: Plant) -> tuple[str, ...]:
-    """The plant's parameters marked ``fit = true``, in order (empty when none, or when the plant
-    does not record which are free).
-
-    Parameters
-    ----------
-    plant : Plant
-        The spec's plant.
-
-    Returns
-    -------
-    tuple of str
-    """
-    names = []
-    for prm in getattr(plant, "parameters", ()):
-        if getattr(prm, "free", False) or getattr(prm, "fit", False) is True:
-            names.append(str(prm.name))
-    return tuple(names)
 
 
 @dataclass(frozen=True, eq=False)
@@ -95,6 +76,12 @@ class FitOptions(MethodOptions):
         """See `MethodOptions.from_table`; the data files must exist (paths relative to the spec
         file, checked when a spec file is read)."""
         r = OptionReader(cls, options, key, ts)
+        if free_parameters_in_scope() == ():
+            names = [p.name for p in getattr(plant, "parameters", ())]
+            example = names[0] if names else "p"
+            raise SpecError("method 'fit' needs a free parameter: mark one in [plant.parameters] as "
+                            f"{example} = {{value = <start>, min = <lower>, max = <upper>, fit = true}}",
+                            key="plant.parameters")
         return cls(data=r.read("data", parse_paths, what="data file"),
                    validate=r.read("validate", parse_paths, what="validation data file"),
                    starts=r.read("starts", parse_integer, at_least=1, at_most=MAX_STARTS),

@@ -1,4 +1,5 @@
-"""Files a spec names (data logs, a fit result), resolved against the spec file's directory.
+"""What the option readers know of the spec being parsed: its file's directory (files a spec
+names are relative to it) and its free parameters.
 
 A ``[[design]]`` option may name a file (``data = ["logs/run1.csv"]`` of ``fit``, ``fit =
 "out/fit"`` of a robust design with ``uncertain = "fit"``). Such a path is relative to the
@@ -20,9 +21,11 @@ from typing import Any, Iterator
 
 from tanksynth.errors import SpecError
 
-__all__ = ["spec_directory", "reading_spec_file", "parse_path", "parse_paths", "resolve"]
+__all__ = ["spec_directory", "reading_spec_file", "parse_path", "parse_paths", "resolve",
+           "free_parameter_scope", "free_parameters_in_scope"]
 
 _DIRECTORY: ContextVar[Path | None] = ContextVar("tanksynth_spec_directory", default=None)
+_FREE: ContextVar[tuple[str, ...] | None] = ContextVar("tanksynth_spec_free", default=None)
 #: Longest path a spec may write (characters).
 _MAX_PATH = 4096
 #: Most files one option may list.
@@ -59,6 +62,37 @@ def reading_spec_file(path: str | Path) -> Iterator[Path]:
         yield directory
     finally:
         _DIRECTORY.reset(token)
+
+
+@contextmanager
+def free_parameter_scope(names: Any) -> Iterator[None]:
+    """Within it, `free_parameters_in_scope` gives ``names`` (the spec parser sets it while it
+    validates the ``[[design]]`` tables, so that ``fit`` refuses a plant without a free one).
+
+    Parameters
+    ----------
+    names : iterable of str
+        The spec's free parameter names.
+
+    Yields
+    ------
+    None
+    """
+    token = _FREE.set(tuple(str(n) for n in names))
+    try:
+        yield
+    finally:
+        _FREE.reset(token)
+
+
+def free_parameters_in_scope() -> tuple[str, ...] | None:
+    """The free parameter names of the spec being parsed; None outside the spec parser.
+
+    Returns
+    -------
+    tuple of str or None
+    """
+    return _FREE.get()
 
 
 def resolve(path: str | Path, base: str | Path | None = None) -> Path:
