@@ -25,6 +25,8 @@ mu32 = {value = 0.5, min = 0.2, max = 0.9, fit = true}
 mu20 = {value = 0.6, min = 0.3, max = 0.9, fit = true}
 
 [operating_point]
+u = {q1 = 0.35e-4, q2 = 0.375e-4}
+trim = "states"                       # the levels these flows hold, whatever the parameters
 x = {h1 = 0.40, h2 = 0.20, h3 = 0.30}
 
 [sampling]

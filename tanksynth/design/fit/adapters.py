@@ -160,7 +160,7 @@ def run_fit(spec: Spec, design: DesignSpec) -> DesignResult:
     copies = copy_names([str(p) for p in [*est_paths, *val_paths]])
 
     result = fit_parameters(plant, free, estimation, starts=o.starts, seed=o.seed, mode=o.mode,
-                            shooting=o.shooting, level=o.level)
+                            shooting=o.shooting, level=o.level, max_iter=o.max_iter)
     if not result.converged:
         raise InfeasibleDesign(f"the fit did not converge (IPOPT status {result.status!r} after "
                                f"{result.iterations} iterations, {result.starts_tried} start(s)); "

@@ -57,6 +57,9 @@ class FitOptions(MethodOptions):
     init_samples : int
         Samples of a validation file on which its initial state is estimated (at least 2);
         default 10.
+    max_iter : int
+        IPOPT's iteration limit per start (1 to 100000); default 500. A fit that stops there
+        has not converged and is refused.
     """
 
     method_name: ClassVar[str] = "fit"
@@ -69,6 +72,7 @@ class FitOptions(MethodOptions):
     seed: int = option(0, unit="-")
     level: float = option(0.95, unit="-")
     init_samples: int = option(10, unit="samples")
+    max_iter: int = option(500, unit="-")
 
     @classmethod
     def from_table(cls, options: Mapping[str, Any], key: str, plant: Plant,
@@ -89,4 +93,5 @@ class FitOptions(MethodOptions):
                    shooting=r.read("shooting", parse_integer, at_least=1, at_most=100_000),
                    seed=r.read("seed", parse_integer, at_least=0),
                    level=r.read("level", parse_number, above=0.0, below=1.0),
-                   init_samples=r.read("init_samples", parse_integer, at_least=2, at_most=1_000_000))
+                   init_samples=r.read("init_samples", parse_integer, at_least=2, at_most=1_000_000),
+                   max_iter=r.read("max_iter", parse_integer, at_least=1, at_most=100_000))
