@@ -138,10 +138,15 @@ def read_experiment(path: str | Path, plant: Plant, table: DataTable | None = No
     return _assemble(cols, plant, table, output_ranges(plant) if ranges is None else ranges)
 
 
-def _missing(cols: ColumnFile, column: str, what: str, hint: str = "") -> DataError:
+def _missing(cols: ColumnFile, column: str, what: str, hint: str = "", *, time: bool = False
+             ) -> DataError:
     listed = ", ".join(repr(c) for c in cols.names[:12]) + (", ..." if len(cols.names) > 12 else "")
-    return DataError(f"missing column {column!r} ({what}){did_you_mean(column, cols.names)}"
-                     f"{hint}; the file has {listed}", source=cols.source)
+    close = did_you_mean(column, cols.names)
+    if not close and time:  # "t" is too short for a close match: a column that says time
+        named = [c for c in cols.names if "time" in c.lower()]
+        close = f"; did you mean {named[0]!r}?" if named else ""
+    return DataError(f"missing column {column!r} ({what}){close}{hint}; the file has {listed}",
+                     source=cols.source)
 
 
 def _finite_or_missing(cols: ColumnFile, column: str, values: np.ndarray) -> None:
@@ -184,7 +189,7 @@ def _assemble(cols: ColumnFile, plant: Plant, table: DataTable, ranges: np.ndarr
     used: dict[str, np.ndarray] = {}
     if table.time is not None:
         if table.time not in names:
-            raise _missing(cols, table.time, "time, s", ts_hint)
+            raise _missing(cols, table.time, "time, s", ts_hint, time=True)
         used[table.time] = cols.column(table.time)
     for s in plant.inputs:
         column = table.column(s.name)
