@@ -126,7 +126,9 @@ def read_fit_box(path: str | Path, key: str, plant: Plant) -> FitBox:
         raise SpecError(f"{file}: not a fit result (expected an artefact of method 'fit' written by "
                         "tanksynth fit)", key=key)
     diag = doc.get("diagnostics")
-    params = diag.get("parameters") if isinstance(diag, dict) else None
+    if not isinstance(diag, dict):
+        diag = {}
+    params = diag.get("parameters")
     if not isinstance(params, dict) or not params:
         raise SpecError(f"{file}: no diagnostics.parameters (the fitted intervals)", key=key)
     level = diag.get("level", 0.95)

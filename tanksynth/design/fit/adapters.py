@@ -187,7 +187,9 @@ def run_fit(spec: Spec, design: DesignSpec) -> DesignResult:
     ys, hats, masks, experiments = [], [], [], []
     for e, (exp, path, sha, copy) in enumerate(zip(estimation, est_paths, hashes, copies)):
         y_hat = _outputs(plant, exp, simulate_outputs(plant_fit, fitted, exp, x0[e]))
-        ys.append(exp.y), hats.append(y_hat), masks.append(exp.observed)
+        ys.append(exp.y)
+        hats.append(y_hat)
+        masks.append(exp.observed)
         r1, f1 = pooled_scores([exp.y], [y_hat], [exp.observed])
         experiments.append({"name": exp.name, "file": copy, "source": str(path), "sha256": sha,
                             "samples": exp.samples, "outputs": list(exp.output_names),
@@ -203,7 +205,9 @@ def run_fit(spec: Spec, design: DesignSpec) -> DesignResult:
         v = validate_experiment(plant_fit, fitted, exp, init_samples=o.init_samples)
         xv = np.asarray(v.x0, dtype=float).reshape(plant.n)
         y_hat = _outputs(plant, exp, simulate_outputs(plant_fit, fitted, exp, xv))
-        val_y.append(exp.y), val_hat.append(y_hat), val_mask.append(exp.observed)
+        val_y.append(exp.y)
+        val_hat.append(y_hat)
+        val_mask.append(exp.observed)
         r1, f1 = pooled_scores([exp.y], [y_hat], [exp.observed])
         val_records.append({"name": exp.name, "file": copy, "source": str(path), "sha256": sha,
                             "samples": exp.samples, "outputs": list(exp.output_names),

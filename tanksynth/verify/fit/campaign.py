@@ -103,10 +103,10 @@ class FitRun:
         fitted = plant.with_parameters(dict(zip(self.names, map(float, self.theta))))
         setup = sc.setup(fitted, self.x0, self.u0, ts=ts)
         drawn = self.draws(seeds)
-        base = dict(setup.parameters or {})
+        base: dict[str, Any] = dict(setup.parameters or {})
         outputs = []
         for values in (None, drawn):
-            params = dict(base)
+            params: dict[str, Any] = dict(base)
             if values is not None:
                 params.update({nm: values[:, j] for j, nm in enumerate(self.names)})
             res = simulate(fitted, ts=ts, steps=setup.steps, x0=setup.x0, seeds=list(seeds),
