@@ -42,7 +42,7 @@ class FitBox:
     sha256 : str
         Its sha256.
     level : float
-        The intervals' confidence level.
+        The intervals' confidence level (dimensionless).
     """
 
     box: tuple[tuple[str, float, float], ...]

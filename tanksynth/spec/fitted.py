@@ -33,7 +33,7 @@ class FittedValue:
     lower, upper : float
         Its interval (the parameter's unit).
     level : float
-        The interval's confidence level, in (0, 1).
+        The interval's confidence level, in (0, 1) (dimensionless).
     unit : str
         The parameter's unit.
     """

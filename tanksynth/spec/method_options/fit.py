@@ -53,7 +53,7 @@ class FitOptions(MethodOptions):
     seed : int
         Seed of the multi-start draws; default 0.
     level : float
-        Confidence level of the reported intervals, in (0, 1); default 0.95.
+        Confidence level of the reported intervals, in (0, 1) (dimensionless); default 0.95.
     init_samples : int
         Samples of a validation file on which its initial state is estimated (at least 2);
         default 10.

@@ -38,7 +38,7 @@ class FitRun:
     theta : ndarray, shape (k,)
         Fitted values (the parameters' units).
     covariance : ndarray, shape (k, k)
-        Their covariance.
+        Their covariance (the parameters' units squared).
     lower, upper : ndarray, shape (k,)
         The search box (draws are clipped to it).
     x0, u0 : ndarray
