@@ -235,6 +235,7 @@ def run_fit(spec: Spec, design: DesignSpec) -> DesignResult:
                        "outputs": outputs},
         "validation": {"rmse": val_rmse, "fit_percent": val_fit, "experiments": val_records,
                        "outputs": val_outputs, "init_samples": int(o.init_samples)},
+        "solver": "IPOPT (CasADi nlpsol)",
         "converged": bool(result.converged),
         "status": str(result.status),
         "iterations": int(result.iterations),

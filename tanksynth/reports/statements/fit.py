@@ -24,6 +24,42 @@ def _parameters(diag: Mapping[str, Any]) -> str:
     return ", ".join(items) if items else r"\theta"
 
 
+def _table(diag: Mapping[str, Any]) -> str:
+    """The fitted values, standard errors and intervals, and the correlation matrix (LaTeX
+    tabulars; empty when the diagnostics do not hold them)."""
+    params = diag.get("parameters")
+    if not isinstance(params, Mapping) or not params:
+        return ""
+    level = diag.get("level", 0.95)
+    pct = format_number(100 * float(level), 3) if isinstance(level, (int, float)) else "95"
+    rows = []
+    names = []
+    for name, p in params.items():
+        if not isinstance(p, Mapping):
+            continue
+        ci = p.get("ci95") if isinstance(p.get("ci95"), list) and len(p.get("ci95")) == 2 else [None, None]
+        cells = [format_number(v) if isinstance(v, (int, float)) else "--"
+                 for v in (p.get("value"), p.get("stderr"), ci[0], ci[1], p.get("start"))]
+        unit = escape_latex(p.get("unit", "")) if p.get("unit") not in (None, "", "1", "-") else "--"
+        bound = r" (at a bound)" if p.get("at_bound") is True else ""
+        rows.append(rf"\texttt{{{escape_latex(name)}}} & ${cells[0]}$ & ${cells[1]}$ & "
+                    rf"$[{cells[2]}, {cells[3]}]$ & ${cells[4]}$ & {unit}{bound} \\")
+        names.append(str(name))
+    text = (r"\par\medskip\noindent\begin{tabular}{lrrrrl}\hline parameter & value & std.\ error & "
+            rf"{pct}\,\% interval & start & unit \\ \hline " + " ".join(rows) + r" \hline\end{tabular}")
+    corr = diag.get("correlation")
+    if isinstance(corr, list) and len(corr) == len(names) and len(names) > 1 and all(
+            isinstance(r, list) and len(r) == len(names) for r in corr):
+        head = " & ".join(rf"\texttt{{{escape_latex(n)}}}" for n in names)
+        body = " ".join(
+            rf"\texttt{{{escape_latex(n)}}} & " + " & ".join(
+                f"${format_number(v, 3)}$" if isinstance(v, (int, float)) else "--" for v in r) + r" \\"
+            for n, r in zip(names, corr))
+        text += (r"\quad\begin{tabular}{l" + "r" * len(names) + r"}\hline correlation & " + head
+                 + r" \\ \hline " + body + r" \hline\end{tabular}")
+    return text + r"\par\medskip"
+
+
 def fit_statement(diag: Mapping[str, Any]) -> Tex:
     """The problem ``fit`` solves, in mathematics, from the artefact's diagnostics.
 
@@ -58,4 +94,5 @@ def fit_statement(diag: Mapping[str, Any]) -> Tex:
         r"Standard errors from the Fisher information, $\mathrm{cov}\,\hat\theta = \hat\sigma^2 "
         rf"(J^\top J)^{{-1}}$; {pct}\,\% intervals (profile likelihood where the cost is not "
         r"quadratic in $\theta$). Fit \% $= 100\,(1 - \|y - \hat y\| / \|y - \bar y\|)$; validation "
-        r"files are simulated from an initial state estimated on their first samples only.")
+        r"files are simulated from an initial state estimated on their first samples only."
+        + _table(diag))

@@ -47,6 +47,7 @@ from tanksynth.plants.base import Plant
 from tanksynth.sim.simulate import simulate_inputs
 from tanksynth.spec import Spec
 from tanksynth.verify.common import artefact_gain
+from tanksynth.verify.traces import Signal
 
 __all__ = ["RMSE_RTOL", "BOUND_TOL", "WHITENESS_LAGS", "fit_verdict", "simulated_outputs",
            "fitted_plant", "whiteness", "validation_floor", "read_fit_data"]
@@ -106,13 +107,19 @@ def simulated_outputs(plant: Plant, experiment: Experiment, x0: np.ndarray,
     ndarray, shape (N, p)
         Output units, at the experiment's sample times.
     """
+    return _simulation(plant, experiment, x0, substeps)[0]
+
+
+def _simulation(plant: Plant, experiment: Experiment, x0: np.ndarray,
+                substeps: int) -> tuple[np.ndarray, Any]:
+    """`simulated_outputs` and the `SimulationResult` behind it (None for non-uniform samples)."""
     names = [s.name for s in plant.outputs]
     cols = [names.index(nm) for nm in experiment.output_names]
     period = experiment.uniform_period
     if period is not None:
         res = simulate_inputs(plant, np.asarray(x0, float), experiment.u[:-1], period,
                               substeps=substeps)
-        return np.asarray(res.y)[0][:, cols]
+        return np.asarray(res.y)[0][:, cols], res
     out = np.empty((experiment.samples, len(cols)))  # non-uniform sampling: one interval at a time
     x = np.asarray(x0, float)
     for k in range(experiment.samples - 1):
@@ -122,7 +129,29 @@ def simulated_outputs(plant: Plant, experiment: Experiment, x0: np.ndarray,
         x = np.asarray(res.x)[0, 1]
     res = simulate_inputs(plant, x, experiment.u[-1:], 1.0, substeps=substeps)
     out[-1] = np.asarray(res.y)[0, 0, cols]
-    return out
+    return out, None
+
+
+def _record(trace: Any, res: Any, plant: Plant, experiment: Experiment, y_hat: np.ndarray, *,
+            check: str, what: str, residuals: bool = False) -> None:
+    """Keep a figure's trace: the simulated states and inputs, and per output the measured and
+    the simulated values (or the residuals)."""
+    if trace is None or res is None:
+        return
+    units = {q.name: str(q.unit) for q in plant.outputs}
+    unit = units.get(experiment.output_names[0], "") if experiment.output_names else ""
+    signals = []
+    for j, nm in enumerate(experiment.output_names):
+        y = np.where(experiment.observed[:, j], experiment.y[:, j], np.nan)
+        if residuals:
+            signals.append(Signal(f"{nm} - {nm}_sim", unit, (y - y_hat[:, j])[None, :], "-"))
+        else:
+            signals.append(Signal(f"{nm} measured", unit, y[None, :], "-"))
+            signals.append(Signal(f"{nm} simulated", unit, y_hat[:, j][None, :], "--"))
+    title = ("residuals, measured minus simulated" if residuals
+             else "measured (solid) and simulated (dashed) outputs")
+    trace.record(res, plant, scenario=f"{what} '{experiment.name}' re-simulated at the fitted values",
+                 check=check, signals=signals, signal_title=title)
 
 
 def whiteness(residual: np.ndarray, lags: int = WHITENESS_LAGS) -> tuple[float, float, int]:
@@ -235,7 +264,8 @@ def fit_verdict(doc: Mapping[str, Any], spec: Spec, trace: Any = None) -> list[C
     spec : Spec
         The validated spec of its result directory.
     trace : TraceRecorder, optional
-        Unused (the fit's figures are drawn from the copied data and the artefact).
+        Keeps the figures' simulations: measured and simulated outputs of the first estimation
+        and validation files, and the estimation residuals.
 
     Returns
     -------
@@ -257,7 +287,14 @@ def fit_verdict(doc: Mapping[str, Any], spec: Spec, trace: Any = None) -> list[C
     plant, values = fitted_plant(doc, spec)
     substeps = int(diag.get("substeps", 4))
     x0 = artefact_gain(doc, "x0").reshape(len(est), plant.n) if est else np.zeros((0, plant.n))
-    pairs = [(exp, simulated_outputs(plant, exp, x0[e], substeps)) for e, (exp, _) in enumerate(est)]
+    pairs = []
+    for e, (exp, _) in enumerate(est):
+        y_hat, res = _simulation(plant, exp, x0[e], substeps)
+        pairs.append((exp, y_hat))
+        if e == 0:
+            _record(trace, res, plant, exp, y_hat, check="rmse_reproduced", what="estimation data")
+            _record(trace, res, plant, exp, y_hat, check="residual_whiteness", what="estimation data",
+                    residuals=True)
     pooled = _pooled(pairs)
     recorded = (diag.get("estimation") or {}).get("rmse") or {}
     rows, bad = {}, []
@@ -301,7 +338,9 @@ def fit_verdict(doc: Mapping[str, Any], spec: Spec, trace: Any = None) -> list[C
         bad, rows_v = [], {}
         for exp, rec in val:
             xv = np.asarray(rec.get("x0"), dtype=float).reshape(plant.n)
-            y_hat = simulated_outputs(plant, exp, xv, substeps)
+            y_hat, res = _simulation(plant, exp, xv, substeps)
+            if not rows_v:
+                _record(trace, res, plant, exp, y_hat, check="validation_fit", what="validation data")
             fp = fit_percent(exp.y, y_hat, exp.observed)
             for j, nm in enumerate(exp.output_names):
                 mask = exp.observed[:, j]
