@@ -141,7 +141,8 @@ def run_fit(spec: Spec, design: DesignSpec) -> DesignResult:
     InfeasibleDesign
         The fit did not converge (IPOPT's status named).
     """
-    from tanksynth.design.fit.estimation import fit_parameters, simulate_outputs, validate_experiment
+    from tanksynth.design.fit.estimation import fit_parameters
+    from tanksynth.design.fit.validation import simulate_outputs, validate_experiment
     from tanksynth.measurements import read_experiments
 
     o = options_of(design, spec, FitOptions)
@@ -166,6 +167,7 @@ def run_fit(spec: Spec, design: DesignSpec) -> DesignResult:
                                f"{result.iterations} iterations, {result.starts_tried} start(s)); "
                                "widen the parameter bounds, give better start values or more "
                                "informative data")
+    substeps = int(result.substeps)
     names = tuple(str(n) for n in result.names)
     values = np.asarray(result.values, dtype=float)
     fitted = dict(zip(names, map(float, values)))
@@ -186,7 +188,7 @@ def run_fit(spec: Spec, design: DesignSpec) -> DesignResult:
     x0 = np.asarray(result.x0, dtype=float).reshape(len(estimation), plant.n)
     ys, hats, masks, experiments = [], [], [], []
     for e, (exp, path, sha, copy) in enumerate(zip(estimation, est_paths, hashes, copies)):
-        y_hat = _outputs(plant, exp, simulate_outputs(plant_fit, fitted, exp, x0[e]))
+        y_hat = _outputs(plant, exp, simulate_outputs(plant_fit, fitted, exp, x0[e], substeps=substeps))
         ys.append(exp.y)
         hats.append(y_hat)
         masks.append(exp.observed)
@@ -202,13 +204,16 @@ def run_fit(spec: Spec, design: DesignSpec) -> DesignResult:
     val_y, val_hat, val_mask = [], [], []
     for exp, path, sha, copy in zip(validation, val_paths, hashes[len(est_paths):],
                                      copies[len(est_paths):]):
-        v = validate_experiment(plant_fit, fitted, exp, init_samples=o.init_samples)
+        v = validate_experiment(plant_fit, fitted, exp, init_samples=o.init_samples,
+                                substeps=substeps)
         xv = np.asarray(v.x0, dtype=float).reshape(plant.n)
-        y_hat = _outputs(plant, exp, simulate_outputs(plant_fit, fitted, exp, xv))
+        y_hat = _outputs(plant, exp, simulate_outputs(plant_fit, fitted, exp, xv, substeps=substeps))
+        scored = exp.observed.copy()
+        scored[:o.init_samples] = False  # the samples x0 was estimated on do not score
         val_y.append(exp.y)
         val_hat.append(y_hat)
-        val_mask.append(exp.observed)
-        r1, f1 = pooled_scores([exp.y], [y_hat], [exp.observed])
+        val_mask.append(scored)
+        r1, f1 = pooled_scores([exp.y], [y_hat], [scored])
         val_records.append({"name": exp.name, "file": copy, "source": str(path), "sha256": sha,
                             "samples": exp.samples, "outputs": list(exp.output_names),
                             "x0": xv.tolist(), "rmse": _by_output(exp.output_names, r1),
@@ -229,7 +234,7 @@ def run_fit(spec: Spec, design: DesignSpec) -> DesignResult:
         "names": list(names),
         "level": float(o.level),
         "mode": o.mode,
-        "substeps": int(getattr(result, "substeps", 4) or 4),
+        "substeps": substeps,
         "estimation": {"rmse": est_rmse, "fit_percent": est_fit,
                        "whiteness": _plain(result.whiteness), "experiments": experiments,
                        "outputs": outputs},

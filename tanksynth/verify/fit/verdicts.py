@@ -22,7 +22,8 @@ integrator and clipping rule, the same RK4 substeps as the fit) and checks:
     a leak), so correlated residuals are a finding to read, not a refusal;
 ``validation_fit``
     on each validation file (simulated from the recorded initial state, estimated on its
-    first samples only), the fit % of every output is at least the floor
+    first ``init_samples`` samples only, which are left out of the score), the fit % of every
+    output is at least the floor
     ``max(0, 100 (1 - 2 rmse_est / s_val))``, ``s_val`` the RMS deviation of the validation
     output from its mean: the validation RMSE is at most twice the estimation RMSE (the model
     predicts new data about as well as it fits the old; twice allows for the short initial-state
@@ -335,15 +336,18 @@ def fit_verdict(doc: Mapping[str, Any], spec: Spec, trace: Any = None) -> list[C
                             for nm, w in white.items()), {"whiteness": white}))
 
     if val:
+        init = int((diag.get("validation") or {}).get("init_samples", 0))
         bad, rows_v = [], {}
         for exp, rec in val:
             xv = np.asarray(rec.get("x0"), dtype=float).reshape(plant.n)
             y_hat, res = _simulation(plant, exp, xv, substeps)
             if not rows_v:
                 _record(trace, res, plant, exp, y_hat, check="validation_fit", what="validation data")
-            fp = fit_percent(exp.y, y_hat, exp.observed)
+            scored = exp.observed.copy()
+            scored[:init] = False  # the samples its initial state was estimated on do not score
+            fp = fit_percent(exp.y, y_hat, scored)
             for j, nm in enumerate(exp.output_names):
-                mask = exp.observed[:, j]
+                mask = scored[:, j]
                 floor = validation_floor(float(recorded.get(nm, np.nan)), exp.y[mask, j])
                 given = (rec.get("fit_percent") or {}).get(nm)
                 rows_v[f"{exp.name}.{nm}"] = {"fit_percent": float(fp[j]), "floor": floor,
