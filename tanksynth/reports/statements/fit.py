@@ -37,7 +37,8 @@ def _table(diag: Mapping[str, Any]) -> str:
     for name, p in params.items():
         if not isinstance(p, Mapping):
             continue
-        ci = p.get("ci95") if isinstance(p.get("ci95"), list) and len(p.get("ci95")) == 2 else [None, None]
+        given = p.get("ci95")
+        ci = given if isinstance(given, list) and len(given) == 2 else [None, None]
         cells = [format_number(v) if isinstance(v, (int, float)) else "--"
                  for v in (p.get("value"), p.get("stderr"), ci[0], ci[1], p.get("start"))]
         unit = escape_latex(p.get("unit", "")) if p.get("unit") not in (None, "", "1", "-") else "--"

@@ -337,7 +337,8 @@ def fit_verdict(doc: Mapping[str, Any], spec: Spec, trace: Any = None) -> list[C
 
     if val:
         init = int((diag.get("validation") or {}).get("init_samples", 0))
-        bad, rows_v = [], {}
+        bad = []
+        rows_v: dict[str, dict[str, Any]] = {}
         for exp, rec in val:
             xv = np.asarray(rec.get("x0"), dtype=float).reshape(plant.n)
             y_hat, res = _simulation(plant, exp, xv, substeps)
