@@ -192,3 +192,49 @@ def test_non_converging_fit_exit_3(tmp_path, capsys):
     assert "refused" in out.err and len(out.err.strip().splitlines()) == 1
     assert "did not converge (IPOPT status 'Maximum_Iterations_Exceeded'" in out.out
     assert not (tmp_path / "o" / "fit.json").exists()
+
+
+@pytest.mark.slow
+def test_robust_box_from_fit_directory_equals_intervals(fitted, tmp_path):
+    from tanksynth.methods import load_spec
+
+    root, _ = fitted
+    spec_path = root / "robust.toml"
+    spec_path.write_text(spec_text(ROBUST.format(fit='fit = "out"')))
+    box = load_spec(spec_path).designs[0].config.uncertain
+    params = json.loads((root / "out" / "fit.json").read_text())["diagnostics"]["parameters"]
+    assert box == tuple((k, *v["ci95"]) for k, v in params.items())
+
+
+def test_campaign_draws_follow_the_covariance():
+    """Draws of `FitRun` have the fit's mean and covariance (sample estimates, 4000 draws)."""
+    from tanksynth.verify.fit.campaign import FitRun
+
+    cov = np.array([[4e-6, -1e-6], [-1e-6, 1e-6]])
+    run = FitRun(("a", "b"), np.array([0.5, 0.6]), cov, np.array([0.0, 0.0]), np.array([1.0, 1.0]),
+                 np.zeros(3), np.zeros(2), "")
+    d = run.draws(range(4000))
+    np.testing.assert_allclose(d.mean(axis=0), [0.5, 0.6], atol=1e-4)
+    np.testing.assert_allclose(np.cov(d.T), cov, rtol=0.1, atol=1e-7)
+    # clipped to the box
+    tight = FitRun(("a", "b"), np.array([0.5, 0.6]), cov * 1e4, np.array([0.49, 0.59]),
+                   np.array([0.51, 0.61]), np.zeros(3), np.zeros(2), "")
+    d = tight.draws(range(100))
+    assert d.min(axis=0).tolist() == [0.49, 0.59] and d.max(axis=0).tolist() == [0.51, 0.61]
+
+
+def test_fitted_text_keeps_the_rest_and_parses():
+    import tomllib
+
+    from tanksynth.spec.fitted import FittedValue, fitted_spec_text
+
+    text = spec_text(FIT_DESIGN).replace(
+        "mu20 = {value = 0.6, min = 0.3, max = 0.9, fit = true}\n",
+        "\n[plant.parameters.mu20]   # a table of its own\nvalue = 0.6\nmin = 0.3\nmax = 0.9\nfit = true\n")
+    values = {k: FittedValue(v, v - 0.01, v + 0.01, 0.95, "1") for k, v in TRUE.items()}
+    out = fitted_spec_text(text, values, "fit.json")
+    table = tomllib.loads(out)
+    assert {k: table["plant"]["parameters"][k] for k in TRUE} == TRUE
+    assert "design" not in table and table["operating_point"]["trim"] == "states"
+    assert "# the levels these flows hold" in out  # comments kept
+    assert "mu13 = 0.55  # fitted: 95 % interval [0.54, 0.56]" in out
