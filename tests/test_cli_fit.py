@@ -238,3 +238,16 @@ def test_fitted_text_keeps_the_rest_and_parses():
     assert "design" not in table and table["operating_point"]["trim"] == "states"
     assert "# the levels these flows hold" in out  # comments kept
     assert "mu13 = 0.55  # fitted: 95 % interval [0.54, 0.56]" in out
+
+
+def test_bad_data_exit_2_names_file_and_column(tmp_path, capsys):
+    write_log(tmp_path / "est.csv", seed=1, samples=20)
+    text = (tmp_path / "est.csv").read_text().replace("t,q1,q2,h1,h2", "t,q1,qq2,h1,h2", 1)
+    (tmp_path / "bad.csv").write_text(text)
+    (tmp_path / "s.toml").write_text(spec_text())
+    code, out = _run("fit", tmp_path / "s.toml", "--data", tmp_path / "bad.csv", "-o", tmp_path / "o",
+                     capsys=capsys)
+    assert code == 2
+    (line,) = out.err.strip().splitlines()
+    assert "bad.csv" in line and "q2" in line
+    assert not (tmp_path / "o" / "fit.json").exists()
