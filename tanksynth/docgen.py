@@ -550,8 +550,10 @@ def custom_plant_markdown(level: int = 3) -> str:
         f"{'#' * level} `model = \"custom\"`", "",
         "A plant written in the spec as equations, " + keys[0].lower() + keys[1:].rstrip(".") + ". "
         "States are tables `{unit, min, max, description}` (min/max: the operating region), inputs "
-        "`{unit, min, max}`, parameters `{value, unit, min, max}`, one equation `dx/dt` per "
-        "state and each output an expression (or `{expr, unit}`). Equations are read by a "
+        "`{unit, min, max}`, parameters `{value, unit, min, max, fit}` (`fit = true`: estimated "
+        "from measured data, min/max the search box), one equation `dx/dt` per state and each "
+        "output an expression (or `{expr, unit, min, max}`, min/max: the sensor range, whose "
+        "samples are censored in measured data). Equations are read by a "
         "whitelist parser (numbers, declared names, `+ - * / **`, `sqrt abs sign exp log min "
         "max`, parentheses); nothing is evaluated as Python.", "",
         "```toml", example, "```", ""])

@@ -171,6 +171,11 @@ def parse_csv(data: bytes, source: str) -> ColumnFile:
     return ColumnFile(source, tuple(header), load, line_arr)
 
 
+def _reason(exc: BaseException) -> str:
+    """A library's error message as one short line."""
+    return " ".join(str(exc).split())[:120] or type(exc).__name__
+
+
 def _vector(value: Any, name: str, source: str) -> np.ndarray:
     """A numeric vector (N,), (N, 1) or (1, N) as float (N,)."""
     arr = np.asarray(value)
@@ -212,7 +217,7 @@ def parse_npz(data: bytes, source: str) -> ColumnFile:
         with zipfile.ZipFile(io.BytesIO(data)) as zf:
             infos = zf.infolist()
     except (zipfile.BadZipFile, OSError, ValueError, EOFError) as exc:
-        raise DataError(f"not a readable .npz archive ({exc})", source=source) from None
+        raise DataError(f"not a readable .npz archive ({_reason(exc)})", source=source) from None
     unpacked = sum(i.file_size for i in infos)
     if unpacked > MAX_UNPACKED_BYTES:
         raise DataError(f"unpacks to {unpacked} bytes, more than the {MAX_UNPACKED_BYTES} a data "
@@ -220,7 +225,7 @@ def parse_npz(data: bytes, source: str) -> ColumnFile:
     try:
         archive = np.load(io.BytesIO(data), allow_pickle=False)
     except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:
-        raise DataError(f"not a readable .npz archive ({exc})", source=source) from None
+        raise DataError(f"not a readable .npz archive ({_reason(exc)})", source=source) from None
     if not hasattr(archive, "files"):
         raise DataError("a single .npy array, not an .npz archive of named columns", source=source)
     names = _check_names(list(archive.files), source, "array")
@@ -229,7 +234,7 @@ def parse_npz(data: bytes, source: str) -> ColumnFile:
         try:
             value = archive[name]
         except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:
-            raise DataError(f"column {name!r} cannot be read ({' '.join(str(exc).split())[:120]})",
+            raise DataError(f"column {name!r} cannot be read ({_reason(exc)})",
                             source=source) from None
         return _vector(value, name, source)
 
@@ -271,7 +276,7 @@ def parse_mat(data: bytes, source: str) -> ColumnFile:
         raise DataError("a MATLAB v7.3 (HDF5) file: save it with save(..., '-v7') (v4 to v7 are "
                         "read)", source=source) from None
     except errors as exc:
-        raise DataError(f"not a readable .mat file ({' '.join(str(exc).split())[:120]})",
+        raise DataError(f"not a readable .mat file ({_reason(exc)})",
                         source=source) from None
     names = _check_names([nm for nm, _, _ in listing], source, "variable")
     shapes = {nm: shape for nm, shape, _ in listing}
@@ -284,7 +289,7 @@ def parse_mat(data: bytes, source: str) -> ColumnFile:
         try:
             value = loadmat(io.BytesIO(data), variable_names=[name])[name]
         except errors as exc:
-            raise DataError(f"variable {name!r} cannot be read ({' '.join(str(exc).split())[:120]})",
+            raise DataError(f"variable {name!r} cannot be read ({_reason(exc)})",
                             source=source) from None
         return _vector(value, name, source)
 

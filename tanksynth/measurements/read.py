@@ -234,9 +234,10 @@ def _assemble(cols: ColumnFile, plant: Plant, table: DataTable, ranges: np.ndarr
             k = int(bad[0]) + 1
             raise DataError(f"time column {table.time!r} is not strictly increasing at "
                             f"{cols.where(k)} (t = {t[k]:.6g} s after {t[k - 1]:.6g} s)", source=source)
-    else:
-        assert table.ts is not None
+    elif table.ts is not None:
         t = table.ts * np.arange(count, dtype=float)
+    else:
+        raise DataError("the [data] table gives neither a time column nor a period ts", source=source)
 
     u = np.empty((count, plant.m))
     limits_in = np.asarray(plant.input_limits, dtype=float).reshape(plant.m, 2)

@@ -33,6 +33,7 @@ __all__ = [
     "Plant",
     "OptionValue",
     "exact",
+    "check_search_box",
 ]
 
 #: The value of a plant family's construction option (``N = 4``, ``parameter_set = "decenter"``).
@@ -52,6 +53,43 @@ def exact(value: float) -> sp.Rational:
     """
     frac = Fraction(repr(float(value)))
     return sp.Rational(frac.numerator, frac.denominator)
+
+
+def check_search_box(name: str, value: float, lower: float | None, upper: float | None, fit: bool,
+                     key: str) -> None:
+    """Refuse an inconsistent box of a parameter: a fit without both bounds, ``min >= max``,
+    ``value`` outside ``[min, max]``.
+
+    Parameters
+    ----------
+    name : str
+        The parameter.
+    value : float
+        Its value (the start of a fit), in its unit.
+    lower, upper : float or None
+        ``min`` and ``max`` as given (its unit).
+    fit : bool
+        ``fit = true`` (estimated from data: both bounds required).
+    key : str
+        The parameter's spec key.
+
+    Raises
+    ------
+    SpecError
+        Naming ``key`` (or its ``.min``, ``.max``, ``.value``).
+    """
+    if fit and (lower is None or upper is None):
+        absent = " and ".join(b for b, v in (("min", lower), ("max", upper)) if v is None)
+        raise SpecError(f"a free parameter (fit = true) needs a search box: give {absent}",
+                        key=f"{key}.{'min' if lower is None else 'max'}")
+    if lower is not None and upper is not None and not lower < upper:
+        raise SpecError(f"min ({lower:g}) must be smaller than max ({upper:g})", key=key)
+    if lower is not None and value < lower:
+        raise SpecError(f"value {value:g} of {name!r} is below min ({lower:g}); the value (the "
+                        "start of a fit) must lie in [min, max]", key=f"{key}.value")
+    if upper is not None and value > upper:
+        raise SpecError(f"value {value:g} of {name!r} is above max ({upper:g}); the value (the "
+                        "start of a fit) must lie in [min, max]", key=f"{key}.value")
 
 
 @dataclass(frozen=True)

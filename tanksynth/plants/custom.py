@@ -32,7 +32,8 @@ from typing import Any, Literal, Mapping, overload
 import sympy as sp
 
 from tanksynth.errors import SpecError
-from tanksynth.plants.base import Assumption, Parameter, Plant, Quantity, Region
+from tanksynth.plants.base import (Assumption, Parameter, Plant, Quantity, Region,
+                                   check_search_box)
 from tanksynth.plants.parser import parse_expression, validate_name
 
 __all__ = ["custom_plant"]
@@ -84,15 +85,21 @@ def _signal(name: str, declared: Any, key: str, need_bounds: bool) -> tuple[Quan
     desc = declared.get("description", "")
     if not isinstance(desc, str):
         raise SpecError("description must be a string", key=f"{key}.description")
-    bounds = None
-    if "min" in declared or "max" in declared or need_bounds:
-        if "min" not in declared or "max" not in declared:
-            raise SpecError("expected both 'min' and 'max' (the operating region)", key=key)
-        lo, hi = _number(declared["min"], f"{key}.min"), _number(declared["max"], f"{key}.max")
-        if not lo < hi:
-            raise SpecError(f"min ({lo}) must be smaller than max ({hi})", key=key)
-        bounds = (lo, hi)
+    bounds = _range(declared, key, "the operating region", need_bounds)
     return Quantity(name, unit, desc), bounds
+
+
+def _range(declared: Mapping[str, Any], key: str, what: str, required: bool = False
+           ) -> tuple[float, float] | None:
+    """``(min, max)`` of a signal's table (both or neither; ``required``: both), None if absent."""
+    if "min" not in declared and "max" not in declared and not required:
+        return None
+    if "min" not in declared or "max" not in declared:
+        raise SpecError(f"expected both 'min' and 'max' ({what})", key=key)
+    lo, hi = _number(declared["min"], f"{key}.min"), _number(declared["max"], f"{key}.max")
+    if not lo < hi:
+        raise SpecError(f"min ({lo}) must be smaller than max ({hi})", key=key)
+    return (lo, hi)
 
 
 def _inputs_outside_domain_free(expr: sp.Expr, inputs: set[sp.Symbol], key: str) -> None:
@@ -184,16 +191,11 @@ def custom_plant(spec: Mapping[str, Any], key: str = "plant") -> Plant:
                             f"{type(fit).__name__} {fit!r}", key=f"{pkey}.fit")
         lower = _number(prm["min"], f"{pkey}.min") if "min" in prm else None
         upper = _number(prm["max"], f"{pkey}.max") if "max" in prm else None
-        if fit and (lower is None or upper is None):
-            missing = " and ".join(b for b, v in (("min", lower), ("max", upper)) if v is None)
-            raise SpecError(f"a free parameter (fit = true) needs a search box: give {missing}",
-                            key=f"{pkey}.{'min' if lower is None else 'max'}")
-        if lower is not None and upper is not None and not lower < upper:
-            raise SpecError(f"min ({lower:g}) must be smaller than max ({upper:g})", key=pkey)
         # a free parameter's search box is closed: the fit may end on min
         proto = Parameter(nm, 0.0, unit, str(prm.get("description", "")), lower, upper, inclusive=fit)
-        params.append(Parameter(nm, proto.check(prm["value"], f"{pkey}.value"), unit,
-                                proto.description, lower, upper, inclusive=fit))
+        check_search_box(nm, _number(prm["value"], f"{pkey}.value"), lower, upper, fit, pkey)
+        value = proto.check(prm["value"], f"{pkey}.value")
+        params.append(Parameter(nm, value, unit, proto.description, lower, upper, inclusive=fit))
 
     declared: dict[str, sp.Expr] = {}
     for group, items in (("states", states), ("inputs", inputs)):
@@ -225,13 +227,14 @@ def custom_plant(spec: Mapping[str, Any], key: str = "plant") -> Plant:
     for nm, out in _table(spec.get("outputs"), f"{key}.outputs").items():
         okey = f"{key}.outputs.{nm}"
         validate_name(nm, okey)
-        unit, desc, sensor = "1", "", None
+        unit, desc = "1", ""
+        sensor: tuple[float, float] | None = None
         if isinstance(out, Mapping):
             if "expr" not in out:
                 raise SpecError("expected an equation string or a table {expr, unit, min, max}", key=okey)
-            extra = set(out) - {"expr", "unit", "min", "max", "description"}
-            if extra:
-                raise SpecError(f"unknown field(s) {sorted(extra)}; expected expr, unit, min, max "
+            fields = set(out) - {"expr", "unit", "min", "max", "description"}
+            if fields:
+                raise SpecError(f"unknown field(s) {sorted(fields)}; expected expr, unit, min, max "
                                 "(the sensor range), description", key=okey)
             unit = out.get("unit", "1")
             if not isinstance(unit, str):
@@ -239,13 +242,7 @@ def custom_plant(spec: Mapping[str, Any], key: str = "plant") -> Plant:
             desc = out.get("description", "")
             if not isinstance(desc, str):
                 raise SpecError("description must be a string", key=f"{okey}.description")
-            if "min" in out or "max" in out:
-                if "min" not in out or "max" not in out:
-                    raise SpecError("expected both 'min' and 'max' (the sensor range)", key=okey)
-                lo, hi = _number(out["min"], f"{okey}.min"), _number(out["max"], f"{okey}.max")
-                if not lo < hi:
-                    raise SpecError(f"min ({lo:g}) must be smaller than max ({hi:g})", key=okey)
-                sensor = (lo, hi)
+            sensor = _range(out, okey, "the sensor range")
             out = out["expr"]
         expr = parse_expression(out, declared, okey)
         if any(s in expr.free_symbols for s in (declared[i.name] for i in inputs)):

@@ -21,13 +21,13 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Mapping
 
 from tanksynth.errors import SpecError
+from tanksynth.plants.base import check_search_box
 from tanksynth.spec.options import parse_bool, short_repr, unknown_word_hint
 
 if TYPE_CHECKING:
     from tanksynth.plants.base import Plant
 
-__all__ = ["FreeParameter", "split_parameters", "check_box", "custom_free_parameters",
-           "PARAMETER_FIELDS"]
+__all__ = ["FreeParameter", "split_parameters", "custom_free_parameters", "PARAMETER_FIELDS"]
 
 #: Fields of a built-in plant's parameter table.
 PARAMETER_FIELDS = ("value", "min", "max", "fit")
@@ -111,43 +111,12 @@ def split_parameters(raw: Any, plant: Plant, key: str = "plant.parameters"
         fit = parse_bool(entry["fit"], f"{pkey}.fit") if "fit" in entry else False
         lower = prm.check(entry["min"], f"{pkey}.min") if "min" in entry else None
         upper = prm.check(entry["max"], f"{pkey}.max") if "max" in entry else None
-        check_box(name, value, lower, upper, fit, pkey)
+        check_search_box(name, value, lower, upper, fit, pkey)
         values[name] = value
         if fit:
             assert lower is not None and upper is not None
             free.append(FreeParameter(name, value, lower, upper, prm.unit))
     return values, tuple(free)
-
-
-def check_box(name: str, value: float, lower: float | None, upper: float | None, fit: bool,
-              key: str) -> None:
-    """Refuse an inconsistent box: ``min >= max``, ``value`` outside it, a fit without both bounds.
-
-    Parameters
-    ----------
-    name : str
-        The parameter.
-    value : float
-        Its value (the start of a fit).
-    lower, upper : float or None
-        ``min`` and ``max`` as given (checked admissible already).
-    fit : bool
-        ``fit = true``.
-    key : str
-        The parameter's spec key.
-    """
-    if fit and (lower is None or upper is None):
-        missing = " and ".join(b for b, v in (("min", lower), ("max", upper)) if v is None)
-        raise SpecError(f"a free parameter (fit = true) needs a search box: give {missing}",
-                        key=f"{key}.{'min' if lower is None else 'max'}")
-    if lower is not None and upper is not None and not lower < upper:
-        raise SpecError(f"min ({lower:g}) must be smaller than max ({upper:g})", key=key)
-    if lower is not None and value < lower:
-        raise SpecError(f"value {value:g} of {name!r} is below min ({lower:g}); the value (the "
-                        "start of a fit) must lie in [min, max]", key=f"{key}.value")
-    if upper is not None and value > upper:
-        raise SpecError(f"value {value:g} of {name!r} is above max ({upper:g}); the value (the "
-                        "start of a fit) must lie in [min, max]", key=f"{key}.value")
 
 
 def custom_free_parameters(raw: Any, plant: Plant, key: str = "plant.parameters"

@@ -330,3 +330,19 @@ def test_data_table_defaults():
     t = DataTable()
     assert t.time == "t" and t.ts is None and t.column("h1") == "h1" and t.factor("h1") == 1.0
 
+
+
+def test_row_and_column_caps(tmp_path, monkeypatch):
+    from tanksynth.measurements import formats
+
+    path = write_raw(tmp_path / "long.csv", GOOD)
+    monkeypatch.setattr(formats, "MAX_ROWS", 2)
+    with pytest.raises(DataError, match=r"long\.csv: more than the 2 rows a data file may have"):
+        read_experiments([path], PLANT)
+    np.savez(tmp_path / "long.npz", **table_values())
+    with pytest.raises(DataError, match=r"long\.npz: column '.*' has 6 rows, more than the 2"):
+        read_experiments([tmp_path / "long.npz"], PLANT)
+    monkeypatch.setattr(formats, "MAX_ROWS", 1000)
+    monkeypatch.setattr(formats, "MAX_COLUMNS", 5)
+    with pytest.raises(DataError, match=r"long\.csv: 6 columns, more than the 5 a data file may have"):
+        read_experiments([path], PLANT)

@@ -126,8 +126,9 @@ def test_custom_plant_free_parameter_and_sensor_range():
     ({"fit": "yes"}, "plant.parameters.a.fit", "true or false"),
     ({"min": None}, "plant.parameters.a.min", "search box: give min"),
     ({"min": 2e-4}, "plant.parameters.a", r"min \(0.0002\) must be smaller than max"),
-    ({"value": 2e-4}, "plant.parameters.a.value", r"must be <= 0.0001"),
-    ({"value": 1e-6}, "plant.parameters.a.value", r"must be >= 1e-05"),
+    ({"value": 2e-4}, "plant.parameters.a.value", r"above max \(0.0001\)"),
+    ({"value": 1e-6}, "plant.parameters.a.value", r"below min \(1e-05\)"),
+    ({"value": "5e-5"}, "plant.parameters.a.value", r"expected a number"),
 ])
 def test_custom_free_parameter_errors(change, key, match):
     t = copy.deepcopy(CUSTOM)
@@ -187,3 +188,31 @@ def test_data_table_errors(data, key, match):
 
 def test_data_table_not_a_table():
     error(spec_with(data=[1, 2]), "data", "expected a table")
+
+
+SPEC_TEXT = """
+[plant]
+model = "three_tank"
+[plant.parameters]
+mu13 = {value = 0.5, min = 0.2, max = 0.9, fit = true}
+[operating_point]
+x = [0.4, 0.2, 0.3]
+[data]
+limits = {h1 = [0.0, 0.55]}
+"""
+
+
+@pytest.mark.parametrize("text, key", [
+    (SPEC_TEXT.replace("fit = true", 'fit = "yes"'), "plant.parameters.mu13.fit"),
+    (SPEC_TEXT.replace("limits = {h1", "limits = {h_1"), "data.limits.h_1"),
+])
+def test_cli_check_exits_2_on_bad_free_parameter_or_data_table(tmp_path, capsys, text, key):
+    from tanksynth.cli import main
+
+    path = tmp_path / "spec.toml"
+    path.write_text(text)
+    code = main(["check", str(path)])
+    err = capsys.readouterr().err
+    assert code == 2
+    lines = err.strip("\n").splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error:") and f"key '{key}'" in lines[0], err
