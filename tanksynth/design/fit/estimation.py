@@ -80,6 +80,9 @@ class FitResult:
         Residual autocorrelation test per output (pooled over the experiments).
     sigma : dict of str to float
         Noise level of each output estimated from the residuals (output units).
+    weights : dict of str to float
+        Weight ``1 / sigma`` each output's residuals had in the kept solve (1/output unit):
+        the cost is ``sum (w_i residual)^2``.
     iterations : int
         IPOPT iterations of the kept solve.
     starts_tried : int
@@ -121,6 +124,7 @@ class FitResult:
     fit_percent: dict[str, dict[str, float]]
     whiteness: dict[str, WhitenessTest]
     sigma: dict[str, float]
+    weights: dict[str, float]
     iterations: int
     starts_tried: int
     starts_agreeing: int
@@ -476,6 +480,7 @@ def _finish(plant: Plant, model: FitModel, res: Intervals, single: _Single, solv
         unidentifiable_note=identifiable_note(model.names, fisher.null_vectors),
         rmse=rm, fit_percent=fp, whiteness=white,
         sigma={nm: float(sigma[model.output_names.index(nm)]) for nm in names},
+        weights={nm: float(w[model.output_names.index(nm)]) for nm in names},
         iterations=best["iterations"], starts_tried=tried, starts_agreeing=agreeing, cost=cost,
         status=best["status"], level=level, dof=fisher.dof, substeps=model.substeps,
         mode="simulation", experiments=tuple(d.name for d in res.data), predicted=predicted)

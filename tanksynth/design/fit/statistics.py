@@ -108,7 +108,8 @@ def fisher_covariance(jacobian: np.ndarray, residuals: np.ndarray, theta: np.nda
         A = A - Q @ (Q.T @ A)
     _, sv, Vt = np.linalg.svd(A, full_matrices=False)
     eig = (sv / sv[0]) ** 2 if sv.size and sv[0] > 0 else np.zeros(k)
-    null = Vt[eig < RANK_TOL]
+    null = Vt[eig < RANK_TOL] / col[:k]                          # back to log-parameters
+    null = null / np.linalg.norm(null, axis=1, keepdims=True) if null.size else null.reshape(0, k)
     good = eig >= RANK_TOL
     inv = (Vt[good].T / sv[good] ** 2) @ Vt[good] if np.any(good) else np.zeros((k, k))
     # back to parameter units: theta_i = scale_i / col_i * z_i
@@ -163,9 +164,11 @@ def identifiable_note(names: Sequence[str], null_vectors: np.ndarray) -> str:
         for i in involved:
             if i == ref:
                 continue
-            # theta_i^a theta_ref^b with a v_i + b v_ref = 0: a = 1, b = -v_i / v_ref
+            # theta_i^a theta_ref^b with a v_i + b v_ref = 0: a = 1, b = -v_i / v_ref, scaled to
+            # integers (a^2*b rather than a*b^1/2)
             b = -ratios[i]
-            combos.append(_monomial(names[i], Fraction(1), names[ref], b))
+            combos.append(_monomial((i, names[i], Fraction(b.denominator)),
+                                    (ref, names[ref], b * b.denominator)))
         moved = ", ".join(f"{names[i]}^{ratios[i]}" if ratios[i] != 1 else names[i] for i in involved)
         if combos:
             sentences.append(f"the data cannot separate {', '.join(names[i] for i in involved)} "
@@ -183,13 +186,16 @@ def _power(name: str, e: Fraction) -> str:
     return name if e == 1 else f"{name}^{e}"
 
 
-def _monomial(a: str, ea: Fraction, b: str, eb: Fraction) -> str:
-    """``a^ea * b^eb`` written as a product or ratio."""
+def _monomial(first: tuple[int, str, Fraction], second: tuple[int, str, Fraction]) -> str:
+    """``a^ea * b^eb`` (each ``(index, name, exponent)``) as a product (in parameter order) or
+    a ratio; ``ea > 0``."""
+    (ia, a, ea), (ib, b, eb) = first, second
     if eb == 0:
         return _power(a, ea)
     if eb < 0:
         return f"{_power(a, ea)}/{_power(b, eb)}"
-    return f"{_power(a, ea)}*{_power(b, eb)}"
+    pair = sorted([(ia, _power(a, ea)), (ib, _power(b, eb))])
+    return f"{pair[0][1]}*{pair[1][1]}"
 
 
 def t_interval(value: np.ndarray, stderr: np.ndarray, dof: int, level: float) -> np.ndarray:
