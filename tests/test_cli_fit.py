@@ -251,3 +251,20 @@ def test_bad_data_exit_2_names_file_and_column(tmp_path, capsys):
     (line,) = out.err.strip().splitlines()
     assert "bad.csv" in line and "q2" in line
     assert not (tmp_path / "o" / "fit.json").exists()
+
+
+@pytest.mark.slow
+def test_parameter_at_a_bound_warns_and_fails_the_verdict(tmp_path, capsys):
+    write_log(tmp_path / "est.csv", seed=1, samples=120)
+    text = spec_text(FIT_DESIGN.replace('validate = ["val.csv"]\n', "")).replace(
+        "mu20 = {value = 0.6, min = 0.3, max = 0.9, fit = true}",
+        "mu20 = {value = 0.6, min = 0.3, max = 0.65, fit = true}")   # the data's 0.70 is outside
+    (tmp_path / "s.toml").write_text(text)
+    code, out = _run("fit", tmp_path / "s.toml", "-o", tmp_path / "o", capsys=capsys)
+    assert code == 1, out.err
+    assert "warning: fit: fitted mu20 = 0.65 lies at a bound" in out.err
+    doc = json.loads((tmp_path / "o" / "fit.json").read_text())
+    assert doc["diagnostics"]["parameters"]["mu20"]["at_bound"] is True
+    assert any("mu20" in w for w in doc["diagnostics"]["warnings"])
+    checks = {c["check"]: c for c in doc["verification"]["checks"]}
+    assert checks["parameters_inside_bounds"]["passed"] is False
