@@ -298,6 +298,10 @@ def _design_all(spec: Spec, outdir: Path, export: tuple[str, ...]
         if "law" in formats and "law" not in result.diagnostics:
             formats.remove("law")
             derived = _derived_law(spec, design, result)
+        from tanksynth.artefacts.datafiles import data_files, write_data_copies
+
+        # data files an artefact read (a fit's logs) first, under the same lock: its verdict reads them
+        write_data_copies(outdir, data_files(result.diagnostics))
         written.append(write_artefact(result, outdir, spec.sha256, export=formats,
                                       plant_record_sha256=plant_sha))
         if "law" in formats:
@@ -696,6 +700,132 @@ def _write_report(directory: Path, pdf: bool, worker: ReportWorker | None = None
                    "the report's section 'Paper vs tool')", markup=False, highlight=False,
                    soft_wrap=True)
     return res
+
+
+def _fit_design(s: Spec, data: tuple[str, ...], validate: tuple[str, ...]) -> DesignSpec:
+    """The spec's fit design (its first one), or a default one named ``fit``, with the command
+    line's files (absolute paths) in place of its own when given."""
+    from dataclasses import replace
+
+    from tanksynth.methods import METHODS
+    from tanksynth.spec import DesignSpec
+
+    entries = [d for d in s.designs if d.method == "fit"]
+    if entries:
+        entry = entries[0]
+    else:
+        entry = DesignSpec("fit", "fit", {}, f"design[{len(s.designs)}]")
+    options = dict(entry.options)
+    if data:
+        options["data"] = [str(Path(p).resolve()) for p in data]
+    if validate:
+        options["validate"] = [str(Path(p).resolve()) for p in validate]
+    if not options.get("data"):
+        raise SpecError("no estimation data: pass --data FILE (repeatable) or give data = [...] in "
+                        "the spec's fit design", key=f"{entry.key}.data", source=s.source)
+    config = METHODS["fit"].validate(options, entry.key, s.plant, s.ts)
+    return replace(entry, options=options, config=config)
+
+
+def _fitted_toml(s: Spec, doc: dict, out: Path) -> Path:
+    """Write ``DIR/fitted.toml``: the spec with the fitted values (see `tanksynth.spec.fitted`),
+    checked to load as a spec relative to DIR."""
+    from tanksynth.artefacts.atomic import atomic_write
+    from tanksynth.methods import load_spec
+    from tanksynth.spec.fitted import FittedValue, fitted_spec_text
+
+    diag = doc["diagnostics"]
+    level = float(diag.get("level", 0.95))
+    fitted = {nm: FittedValue(float(p["value"]), float(p["ci95"][0]), float(p["ci95"][1]), level,
+                              str(p.get("unit", "")))
+              for nm, p in diag["parameters"].items()}
+    text = fitted_spec_text(s.text, fitted, f"{doc['name']}.json")
+    target = atomic_write(out / "fitted.toml", text.encode("utf-8"))
+    load_spec(target)  # it must load (relative to DIR) as a spec, or the user hears it now
+    return target
+
+
+def _print_fit(doc: dict) -> None:
+    """The fitted parameters (value, standard error, interval, unit) and the scores per output."""
+    diag = doc["diagnostics"]
+    level = 100 * float(diag.get("level", 0.95))
+    table = Table(title=f"fit {doc['name']}: {diag.get('mode', 'simulation')} error, "
+                        f"{diag.get('starts_tried', '?')} start(s), IPOPT {diag.get('status', '?')}")
+    for col in ("parameter", "value", "stderr", f"{level:g} % interval", "unit"):
+        table.add_column(col, justify="right" if col not in ("parameter", "unit") else "left")
+    for nm, p in diag["parameters"].items():
+        lo, hi = p["ci95"]
+        table.add_row(nm, f"{p['value']:.6g}", f"{p['stderr']:.3g}", f"[{lo:.6g}, {hi:.6g}]",
+                      str(p.get("unit", "")) + (" (at a bound)" if p.get("at_bound") else ""))
+    _out.print(table)
+    scores = Table(title="output error (RMSE in output units, fit % = NRMSE fit)")
+    for col in ("data", "output", "RMSE", "fit %"):
+        scores.add_column(col, justify="right" if col in ("RMSE", "fit %") else "left")
+    for part in ("estimation", "validation"):
+        block = diag.get(part) or {}
+        for nm, value in (block.get("rmse") or {}).items():
+            scores.add_row(part, nm, f"{value:.4g}", f"{block['fit_percent'].get(nm, float('nan')):.1f}")
+    _out.print(scores)
+    ident = diag.get("identifiability") or {}
+    if not ident.get("identifiable", True):
+        _out.print(f"identifiability: {ident.get('note', '')}", markup=False, highlight=False,
+                   soft_wrap=True)
+
+
+@cli.command()
+@click.argument("spec", type=click.Path(dir_okay=False))
+@click.option("--data", "data", multiple=True, type=click.Path(exists=True, dir_okay=False),
+              help="Estimation data file (.csv, .npz, .mat; repeatable); default the spec's.")
+@click.option("--validate", "validate", multiple=True, type=click.Path(exists=True, dir_okay=False),
+              help="Validation data file (repeatable); default the spec's.")
+@click.option("-o", "--output", "outdir", required=True, type=click.Path(file_okay=False),
+              help="Directory for fit.json, fitted.toml, the data copies and the report.")
+@click.option("--pdf", is_flag=True, help="Also compile DIR/report.pdf (LaTeX).")
+@click.option("--force", is_flag=True,
+              help="Replace the files of a run of ANOTHER spec found in the output directory.")
+def fit(spec: str, data: tuple[str, ...], validate: tuple[str, ...], outdir: str, pdf: bool,
+        force: bool) -> None:
+    """Fit SPEC's free parameters (fit = true) and initial states to logged data.
+
+    Writes DIR/<name>.json (the fit artefact; name "fit" unless the spec's fit design says
+    otherwise), DIR/data/ (the data files), DIR/fitted.toml (the spec with the fitted values,
+    ready for tanksynth run), the verdict and the report.
+    """
+    from dataclasses import replace
+
+    from tanksynth.artefacts.io import read_artefact
+    from tanksynth.design.fit.adapters import free_parameters_of
+    from tanksynth.methods import verify_directory
+
+    s = _load(spec)
+    free_parameters_of(s)  # none: exit 2 saying how to mark one, before anything is written
+    entry = _fit_design(s, data, validate)
+    one = replace(s, designs=(entry,))
+    out = Path(outdir)
+    clock = StageClock()
+    with _locked(out, "fit"):
+        _refuse_other_spec(s, out, force)
+        _remove_interrupted(out)
+        with clock("fit"):
+            written, infeasible, _ = _design_all(one, out, ())
+        if infeasible:
+            raise _Fail(EXIT_INFEASIBLE, _refused_summary(infeasible, 1))
+        (path,) = written
+        doc = read_artefact(path)
+        fitted = _fitted_toml(s, doc, out)
+        _print_fit(doc)
+        _out.print(f"artefact: {path}", markup=False, highlight=False, soft_wrap=True)
+        _out.print(f"fitted spec: {fitted} (tanksynth run {fitted} -o DIR2)", markup=False,
+                   highlight=False, soft_wrap=True)
+        with clock("verify"):
+            verdicts = verify_directory(out)
+        _print_checks([c for v in verdicts for c in v.checks], title="Verdict of the fit")
+        with clock("report"):
+            _write_report(out, pdf)
+    _out.print(clock.line(), markup=False, highlight=False, soft_wrap=True)
+    failed = [v.name for v in verdicts if v.passed is False]
+    if failed:
+        raise _Fail(EXIT_FAILED, "the fit's verdict fails: " + ", ".join(failed))
 
 
 @cli.command()

@@ -55,7 +55,7 @@ __all__ = ["KINDS", "FAMILIES", "Method", "Alias", "ALIASES", "home", "TABLE", "
 
 #: The method families: each is a sub-package of the same name in every stage (`home`).
 FAMILIES = ("model", "placement", "observer_lmi", "takagi_sugeno", "laws", "decentralized",
-            "estimators", "fault", "robust", "synthesis")
+            "estimators", "fault", "robust", "synthesis", "fit")
 
 #: What a design method produces.
 KINDS = ("model", "controller", "observer", "estimator", "detector")
@@ -383,6 +383,12 @@ TABLE: tuple[Method, ...] = (
          options="MultiobjectiveOptions", adapter="MULTIOBJECTIVE",
          verdict="synthesis_verdict", statement="multiobjective_statement",
          campaign="synthesis_run"),
+    _row("fit", "fit", ("model",),
+         "grey-box fit of free plant parameters and initial states to logged data (CasADi + "
+         "IPOPT, multiple shooting)",
+         options="FitOptions", adapter="FIT",
+         verdict="fit_verdict", statement="fit_statement",
+         campaign="fit_run"),
 )
 
 

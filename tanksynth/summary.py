@@ -165,6 +165,13 @@ def _key_figure(doc: _Read, state_units: Sequence[str] | None) -> str:
     if "value" in stab:
         what = "spectral radius" if stab.get("domain") == "discrete" else "max Re(pole)"
         return f"{what} {float(stab['value']):.4g}" + ("" if stab.get("domain") == "discrete" else " 1/s")
+    if "validation" in data.get("validation_fit", {}) or "rmse" in data.get("rmse_reproduced", {}):
+        fits = [float(r["fit_percent"]) for r in data.get("validation_fit", {}).get("validation", {}).values()
+                if isinstance(r, Mapping) and isinstance(r.get("fit_percent"), (int, float))]
+        params = doc.diagnostics.get("parameters") or {}
+        text = ", ".join(f"{nm} {float(p['value']):.4g}" for nm, p in params.items()
+                         if isinstance(p, Mapping) and isinstance(p.get("value"), (int, float)))
+        return (text + (f"; validation fit >= {min(fits):.1f} %" if fits else "")) or "-"
     if data.get("first_order_agreement", {}).get("relative_errors"):   # a linearisation
         return (f"first-order agreement with the nonlinear plant: relative error "
                 f"{max(float(e) for e in data['first_order_agreement']['relative_errors']):.2g}")

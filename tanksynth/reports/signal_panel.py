@@ -35,7 +35,8 @@ def _axis_label(names: list, units: list) -> str:
     shown = ", ".join(str(v) for v in names)
     same = {str(u) for u in units}
     if len(same) == 1 and units and str(units[0]):
-        return f"{shown} [{units[0]}]"
+        # many signals of one unit: the legend names them, the axis gives the unit
+        return f"{shown} [{units[0]}]" if len(shown) <= 30 else f"[{units[0]}]"
     return ", ".join(f"{n} [{u}]" if u else str(n) for n, u in zip(names, units)) or shown
 
 

@@ -179,7 +179,10 @@ def load_spec(path: str | Path, *, methods: Mapping[str, OptionsValidator] | Non
         data = path.read_bytes()
     except OSError as exc:
         raise SpecError(f"cannot read spec: {exc.strerror}", source=str(path)) from None
-    return parse_spec_text(data, source=str(path), methods=methods)
+    from tanksynth.spec.context import reading_spec_file
+
+    with reading_spec_file(path):  # files the options name are relative to the spec file
+        return parse_spec_text(data, source=str(path), methods=methods)
 
 
 def parse_spec_text(data: bytes | str, source: str | None = None, *,
@@ -338,11 +341,14 @@ def _parse(table: Mapping[str, Any], source: str | None, sha256: str,
     designs: list[DesignSpec] = []
     seen: dict[str, str] = {}
     errors: list[tuple[int, SpecError]] = []
-    for i, entry in enumerate(raw_designs):
-        try:
-            designs.append(_design(i, entry, seen, plant, ts, methods))
-        except SpecError as exc:  # every design table is checked: all bad ones are reported
-            errors.append((i, exc))
+    from tanksynth.spec.context import free_parameter_scope
+
+    with free_parameter_scope(f.name for f in free):  # the fit's options refuse a plant without
+        for i, entry in enumerate(raw_designs):
+            try:
+                designs.append(_design(i, entry, seen, plant, ts, methods))
+            except SpecError as exc:  # every design table is checked: all bad ones are reported
+                errors.append((i, exc))
     if errors:
         raise _designs_error(raw_designs, errors)
     return Spec(plant, x0, given_u0, ts, tuple(designs), title, source, sha256, table, trim=trimmed,

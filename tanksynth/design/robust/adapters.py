@@ -21,6 +21,8 @@ the diagnostics predict per vertex (``offsets``).
 from __future__ import annotations
 
 import warnings
+from dataclasses import replace
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -37,6 +39,8 @@ from tanksynth.design.robust.vertices import VertexModels, augment_integral, pol
 from tanksynth.errors import (DesignWarning, InfeasibleDesign, SpecError, UncontrollableError,
                               UnobservableError)
 from tanksynth.spec import DesignSpec, Spec
+from tanksynth.spec.context import resolve
+from tanksynth.spec.fit_box import read_fit_box
 from tanksynth.spec.method_options.robust import RobustObserverOptions, RobustStateFeedbackOptions
 
 __all__ = ["run_robust_state_feedback", "run_robust_observer", "ROBUST_STATE_FEEDBACK",
@@ -57,6 +61,22 @@ def _models(spec: Spec, design: DesignSpec, o: Any, Bw: Any) -> tuple[VertexMode
     return vm, nom, eq.u0
 
 
+def _with_fit_box(spec: Spec, design: DesignSpec, o: Any) -> Any:
+    """The options with ``uncertain = "fit"`` resolved: the box of the fit result named by ``fit``
+    (read again here when the spec was parsed from text), its source kept for the diagnostics."""
+    if design.options.get("uncertain") != "fit":
+        return o
+    if o.fit is None:
+        raise SpecError("uncertain = \"fit\" needs fit = \"PATH\": a fit result directory or its "
+                        "fit.json, relative to the spec file (tanksynth fit SPEC -o DIR writes one; "
+                        "DIR/fitted.toml names it)", key=f"{design.key}.fit", source=spec.source)
+    base = Path(spec.source).parent if spec.source and not spec.source.startswith("<") else None
+    found = read_fit_box(resolve(o.fit, base), f"{design.key}.fit", spec.plant)
+    o = replace(o, uncertain=found.box)
+    object.__setattr__(o, "_fit_source", found.source())
+    return o
+
+
 def _stack(vm: VertexModels, nom: VertexModels, name: str) -> np.ndarray:
     """Vertex matrices followed by the nominal one (when there is uncertainty)."""
     mats = getattr(vm, name)
@@ -74,6 +94,7 @@ def _common_diagnostics(spec: Spec, o: Any, vm: VertexModels, nom: VertexModels,
         "time_domain": o.time_domain, "ts": spec.ts,
         "equilibrium": {"x0": list(map(float, spec.x0)), "u0": u0.tolist()},
         "uncertain": [[nm, lo, hi] for nm, lo, hi in o.uncertain],
+        **({"uncertain_source": o.__dict__["_fit_source"]} if "_fit_source" in o.__dict__ else {}),
         "nominal_parameters": {nm: float(plant.parameter(nm).value) for nm in names},
         "vertex_models": vm.as_dict(),
         "models": {"count": len(labels), "labels": labels,
@@ -188,7 +209,7 @@ def run_robust_state_feedback(spec: Spec, design: DesignSpec) -> DesignResult:
         No gain meets the request at every vertex (with the largest
         achievable margin as the certificate), or the re-check fails.
     """
-    o = options_of(design, spec, RobustStateFeedbackOptions)
+    o = _with_fit_box(spec, design, options_of(design, spec, RobustStateFeedbackOptions))
     domain = time_domain_of(o)
     plant = spec.plant
     n, m = plant.n, plant.m
@@ -308,7 +329,7 @@ def run_robust_observer(spec: Spec, design: DesignSpec) -> DesignResult:
     InfeasibleDesign
         No gain meets the request at every vertex, or the re-check fails.
     """
-    o = options_of(design, spec, RobustObserverOptions)
+    o = _with_fit_box(spec, design, options_of(design, spec, RobustObserverOptions))
     domain = time_domain_of(o)
     plant = spec.plant
     n = plant.n

@@ -25,6 +25,7 @@ _FAMILIES = {
     "robust": ["robust_state_feedback", "robust_observer"],
     "synthesis": ["h2_state_feedback", "h2_observer", "hinf_state_feedback", "hinf_observer",
                   "multiobjective"],
+    "fit": ["fit"],
 }
 
 #: Re-exported statement -> its family's module, imported on first use (PEP 562): importing one

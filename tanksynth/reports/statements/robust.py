@@ -34,6 +34,20 @@ def _polytope(robust: Robustness) -> str:
     return text
 
 
+def _box_source(diag: Diagnostics) -> str:
+    """Where the box came from when it is a fit's intervals (``uncertain = "fit"``)."""
+    source = diag.get("uncertain_source") if hasattr(diag, "get") else None
+    if not isinstance(source, dict):
+        return ""
+    level = source.get("level")
+    pct = (rf"{format_number(100 * float(level), 3)}\,\%" if isinstance(level, (int, float))
+           else "the")
+    sha = str(source.get("sha256", ""))[:12]
+    return (rf" (the box is the {pct} confidence intervals of the parameters fitted to logged data, "
+            rf"read from \texttt{{{escape_latex(source.get('file', ''), breakable=True)}}}, sha256 "
+            rf"\texttt{{{escape_latex(sha)}}}\ldots)")
+
+
 def _channel(channel: HinfChannel | None) -> str:
     """`` (w: ...; z = ...)``: the H-infinity channel, the spec's matrices or the defaults."""
     if channel is None:
@@ -54,7 +68,7 @@ def _channel(channel: HinfChannel | None) -> str:
 
 def _certificate(robust: Robustness, diag: Diagnostics) -> str:
     """Which models, which region, which H-infinity bound: what the vertex LMIs certify."""
-    text = _polytope(robust)
+    text = _polytope(robust) + _box_source(diag)
     if robust.region:
         text += r"; here $D$: " + escape_latex(robust.region)
     text += domain_phrase(robust.domain or time_domain_of(diag))

@@ -27,6 +27,8 @@ from tanksynth.spec.method_options.base import (TIME_DOMAIN_TEXT, MethodOptions,
                                                  time_domain_of)
 from tanksynth.spec.method_options.synthesis import (DISTURBANCE_FRACTION, auto_disturbance_std,
                                                      nominal_input_matrix)
+from tanksynth.spec.context import parse_path, resolve, spec_directory
+from tanksynth.spec.fit_box import read_fit_box
 from tanksynth.spec.memory import ConicSize, region_order
 from tanksynth.spec.options import (did_you_mean, parse_bool, parse_choice, parse_integer,
                                     parse_matrix, parse_names, parse_number, parse_region,
@@ -120,6 +122,22 @@ def parse_uncertain(value: Any, key: str, plant: Plant) -> tuple[tuple[str, floa
     return tuple(out)
 
 
+def _fit_box(r: OptionReader, plant: Plant) -> tuple[tuple[str, float, float], ...]:
+    """``uncertain = "fit"``: the intervals of the fit result named by option ``fit`` (read when
+    a spec file is being read; a spec parsed from text, e.g. a result directory's copy, has the
+    box in its artefact: empty here)."""
+    if not r.given("fit"):
+        return ()  # the design refuses it, naming the option (the spec may still be fitted)
+    path = parse_path(r.options["fit"], r.key("fit"), what="fit result", directory=True)
+    if spec_directory() is None:
+        return ()
+    box = read_fit_box(resolve(path), r.key("fit"), plant).box
+    if len(box) > MAX_UNCERTAIN:
+        raise r.fail("uncertain", f"the fit has {len(box)} parameters: 2^{len(box)} vertex models; "
+                                  f"at most {MAX_UNCERTAIN} are accepted")
+    return box
+
+
 def _common(r: OptionReader, plant: Plant, ts: float | None) -> dict[str, Any]:
     """Options shared by both robust designs."""
     time_domain = r.read("time_domain", parse_choice, _TIME_DOMAINS) or time_domain_of(ts)
@@ -131,12 +149,20 @@ def _common(r: OptionReader, plant: Plant, ts: float | None) -> dict[str, Any]:
         raise r.fail("region", f"the region is not inside the {time_domain}-time stability domain "
                                "(continuous: add a half-plane alpha >= 0, a disk left of 0 or a "
                                "sector; discrete: add a disk with |center| + radius <= 1)")
-    uncertain = r.read("uncertain", parse_uncertain, plant, parse_default=True)
+    if r.given("uncertain") and r.options["uncertain"] == "fit":
+        uncertain = _fit_box(r, plant)
+    else:
+        if r.given("fit"):
+            raise r.fail("fit", "fit names the fit result whose intervals are the box: set "
+                                "uncertain = \"fit\" too")
+        uncertain = r.read("uncertain", parse_uncertain, plant, parse_default=True)
     gamma = r.read("gamma", parse_number, above=0.0, at_most=1e12) if r.given("gamma") else None
     for opt in ("Bw", "Cz", "Dzu"):
         if r.given(opt) and gamma is None:
             raise r.fail(opt, f"{opt} declares an H-infinity channel: give its bound gamma too")
-    return {"region": region, "uncertain": uncertain, "time_domain": time_domain, "gamma": gamma,
+    return {"region": region, "uncertain": uncertain, "fit": r.read("fit", parse_path, what="fit result",
+                                                                      directory=True),
+            "time_domain": time_domain, "gamma": gamma,
             "margin": r.read("margin", parse_number, above=0.0, below=1.0),
             "kappa": r.read("kappa", parse_number, above=1.0),
             "solver": r.read("solver", parse_choice, ROBUST_SOLVERS),
@@ -175,9 +201,14 @@ _COMMON_DOC = """
     uncertain : tuple of (str, float, float)
         Uncertain parameters as intervals ``(name, low, high)`` in the
         parameter's unit (spec: ``{{mu13 = [0.6, 0.75]}}``, ``{{mu20 =
-        "15%"}}`` or ``{{A = {{relative = 0.1}}}}``); default none (a nominal
+        "15%"}}`` or ``{{A = {{relative = 0.1}}}}``), or ``"fit"``: the
+        intervals of the fit result named by ``fit``; default none (a nominal
         design). The linearisation at the spec's operating levels is taken
         at all 2^k corners with each corner's own equilibrium input.
+    fit : str or None
+        With ``uncertain = "fit"``: a fit result directory (``tanksynth fit
+        ... -o DIR``) or its ``fit.json``, relative to the spec file; the box
+        is the fit's intervals of its free parameters; default None.
     time_domain : str
         ``"discrete"`` (ZOH vertex models at ``[sampling] ts``; the default
         with a sampling period) or ``"continuous"``.
@@ -249,6 +280,7 @@ class RobustStateFeedbackOptions(MethodOptions):
 
     region: tuple[tuple, ...] = option(unit="1/s (continuous) or - (discrete, z-plane)")
     uncertain: tuple[tuple[str, float, float], ...] = option((), unit="units of each parameter")
+    fit: str | None = option(None, unit="-", default_text="unset: no fit result")
     time_domain: str | None = option(None, unit="-",
                                      default_text=TIME_DOMAIN_TEXT, choices=_TIME_DOMAINS)
     integral: bool = option(False, unit="-")
@@ -324,6 +356,7 @@ class RobustObserverOptions(MethodOptions):
 
     region: tuple[tuple, ...] = option(unit="1/s (continuous) or - (discrete, z-plane)")
     uncertain: tuple[tuple[str, float, float], ...] = option((), unit="units of each parameter")
+    fit: str | None = option(None, unit="-", default_text="unset: no fit result")
     time_domain: str | None = option(None, unit="-",
                                      default_text=TIME_DOMAIN_TEXT, choices=_TIME_DOMAINS)
     gamma: float | None = option(None, unit="-", default_text="unset: no H-infinity constraint")

@@ -166,7 +166,8 @@ def box_corners(box: Sequence[Sequence[Any]]) -> np.ndarray:
 
 
 def uncertain_box(doc: Mapping[str, Any], spec: Spec) -> list[tuple[str, float, float]]:
-    """The design's uncertain parameters and their intervals (option ``uncertain``).
+    """The design's uncertain parameters and their intervals (option ``uncertain``; with
+    ``uncertain = "fit"`` the box recorded in the artefact, read from the fit file at design).
 
     Parameters
     ----------
@@ -181,7 +182,12 @@ def uncertain_box(doc: Mapping[str, Any], spec: Spec) -> list[tuple[str, float, 
         Parameter name, lower and upper bound (the parameter's units).
     """
     raw = option(doc, spec, "uncertain", ())
-    if isinstance(raw, Mapping):  # a spec read without its methods (campaign workers): as written
+    diag = doc.get("diagnostics") or {}
+    if raw == "fit" or (not raw and isinstance(diag, Mapping) and "uncertain_source" in diag):
+        # uncertain = "fit": the box the design read from the fit file (its sha256 recorded beside
+        # it); a result directory's spec copy does not read the fit file again
+        raw = diag.get("uncertain") or ()
+    elif isinstance(raw, Mapping):  # a spec read without its methods (campaign workers): as written
         raw = parse_uncertain(raw, "uncertain", spec.plant)
     return [(str(b[0]), float(b[1]), float(b[2])) for b in raw]
 

@@ -1,0 +1,526 @@
+"""Grey-box estimation: the plant's free parameters and initial states from logged experiments.
+
+`fit_parameters` minimises the simulation (output) error of the plant's sampled model
+(`tanksynth.design.fit.model`: the simulator's own RK4 step, clipping and input saturation,
+so a re-simulation with `tanksynth.sim` at the fitted values gives the fitted outputs) over
+the free parameters (scaled to [0, 1] by their box) and each experiment's initial state,
+by CasADi + IPOPT with multiple shooting (a node every ``shooting`` samples, continuity
+constraints), from several starting points (the given start, then a seeded Latin
+hypercube in the box). Each output is weighted by its noise level (estimated from the
+data, re-estimated from the residuals once). Exact samples count by their error, censored
+samples only where the model is inside the sensor limit (hinge), missing samples not at
+all. The statistics (`tanksynth.design.fit.statistics`) come from the residual Jacobian of
+the single-shooting map at the optimum.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any, Mapping, Sequence
+
+import casadi as ca
+import numpy as np
+from scipy import stats
+from scipy.stats import qmc
+
+from tanksynth.design.fit.model import FitModel, FreeParameterLike, fit_model
+from tanksynth.design.fit.problem import FitData, Intervals, fit_data, noise_guess
+from tanksynth.design.fit.statistics import (WhitenessTest, fisher_covariance, fit_percent,
+                                             identifiable_note, profile_bound, rmse, t_interval,
+                                             whiteness_test)
+from tanksynth.errors import SpecError
+from tanksynth.measurements.experiment import Experiment
+from tanksynth.plants.base import Plant
+
+__all__ = ["FitResult", "fit_parameters", "SUBSTEPS"]
+
+#: RK4 steps per sampling interval of the fit's model (the default of `tanksynth.sim.simulate`).
+SUBSTEPS = 4
+
+#: IPOPT return statuses counted as converged.
+CONVERGED = ("Solve_Succeeded", "Solved_To_Acceptable_Level")
+
+
+@dataclass(frozen=True)
+class FitResult:
+    """Outcome of `fit_parameters` (arrays read as given; values in parameter units).
+
+    Attributes
+    ----------
+    names : tuple of str
+        Free parameter names (the order of every array below).
+    units : tuple of str
+        Their units.
+    values : ndarray, shape (k,)
+        Estimates.
+    stderr : ndarray, shape (k,)
+        Standard errors (``inf`` for a parameter the data cannot determine).
+    ci95 : ndarray, shape (k, 2)
+        Confidence intervals at ``level`` (named ci95 after the default level).
+    interval_method : tuple of str
+        How each interval was found: ``"wald"`` (Student t on the Fisher information),
+        ``"profile"`` (profile likelihood: the Wald interval was asymmetric or crossed the
+        box) or ``"unidentifiable"`` (the box).
+    correlation, covariance : ndarray, shape (k, k)
+        Parameter correlation (1) and covariance (parameter units squared).
+    x0 : ndarray, shape (E, n)
+        Estimated initial state of each experiment (state units).
+    converged : bool
+        IPOPT converged for the kept optimum.
+    at_bound : tuple of str
+        Parameters at a face of their box (relative 1e-4 of the box).
+    identifiable : bool
+        Full-rank Fisher information.
+    unidentifiable_note : str
+        When not identifiable: the combination the data determine (e.g. ``mu13/A``).
+    rmse, fit_percent : dict
+        ``{experiment: {output: value}}``: RMSE (output units) and NRMSE fit (%) over the
+        exact samples.
+    whiteness : dict of str to WhitenessTest
+        Residual autocorrelation test per output (pooled over the experiments).
+    sigma : dict of str to float
+        Noise level of each output estimated from the residuals (output units).
+    weights : dict of str to float
+        Weight ``1 / sigma`` each output's residuals had in the kept solve (1/output unit):
+        the cost is ``sum (w_i residual)^2``.
+    iterations : int
+        IPOPT iterations of the kept solve.
+    starts_tried : int
+        Starting points solved.
+    starts_agreeing : int
+        Converged starts that reached the kept optimum (cost and values).
+    cost : float
+        ``sum of (residual / sigma)^2`` at the optimum (1).
+    status : str
+        IPOPT's return status of the kept solve.
+    level : float
+        Confidence level of ``ci95``.
+    dof : int
+        Residual degrees of freedom.
+    substeps : int
+        RK4 steps per sampling interval of the model (simulate with the same).
+    mode : str
+        ``"simulation"``.
+    experiments : tuple of str
+        Experiment names, the rows of ``x0``.
+    predicted : tuple of ndarray
+        Model outputs (N_e, p_e) of each experiment at the optimum (its output columns).
+    """
+
+    names: tuple[str, ...]
+    units: tuple[str, ...]
+    values: np.ndarray
+    stderr: np.ndarray
+    ci95: np.ndarray
+    interval_method: tuple[str, ...]
+    correlation: np.ndarray
+    covariance: np.ndarray
+    x0: np.ndarray
+    converged: bool
+    at_bound: tuple[str, ...]
+    identifiable: bool
+    unidentifiable_note: str
+    rmse: dict[str, dict[str, float]]
+    fit_percent: dict[str, dict[str, float]]
+    whiteness: dict[str, WhitenessTest]
+    sigma: dict[str, float]
+    weights: dict[str, float]
+    iterations: int
+    starts_tried: int
+    starts_agreeing: int
+    cost: float
+    status: str
+    level: float
+    dof: int
+    substeps: int
+    mode: str
+    experiments: tuple[str, ...]
+    predicted: tuple[np.ndarray, ...] = field(repr=False, default=())
+
+    @property
+    def parameters(self) -> dict[str, float]:
+        """``{name: value}`` of the estimates."""
+        return {nm: float(v) for nm, v in zip(self.names, self.values)}
+
+
+class _Solver:
+    """The multiple-shooting NLP, built once and solved from several points."""
+
+    def __init__(self, model: FitModel, res: Intervals, max_iter: int):
+        self.model, self.res = model, res
+        k, n = len(model.names), model.n
+        self.k, self.n = k, n
+        self.J = list(res.intervals)
+        M = sum(self.J)
+        self.M = M
+        # lifted: every interval carries its node state and its own copy of the scaled
+        # parameters (equal by constraint), so every derivative is block-sparse
+        V = ca.MX.sym("V", n + k, M)
+        s = V[n:, :]
+        theta = ca.repmat(ca.DM(model.lower), 1, M) + ca.repmat(ca.DM(model.upper - model.lower), 1, M) * s
+        nodes_sym, pos = [], 0
+        for J in self.J:
+            nodes_sym.append(V[:n, pos:pos + J])
+            pos += J
+        w = ca.MX.sym("w", model.q)
+        r, g = res.nlp(theta, nodes_sym, w)
+        if M > 1:
+            g = ca.vertcat(g, ca.vec(s[:, 1:] - s[:, :-1]))
+        self.count = max(int(sum(res.counts)), 1)
+        obj = 0.5 * ca.sumsqr(r) / self.count
+        opts = {"print_time": False, "ipopt.print_level": 0, "ipopt.sb": "yes",
+                "ipopt.max_iter": int(max_iter), "ipopt.tol": 1e-10,
+                "ipopt.acceptable_tol": 1e-7, "ipopt.acceptable_iter": 5}
+        self.solver = ca.nlpsol("fit", "ipopt", {"x": ca.vec(V), "f": obj, "g": g, "p": w}, opts)
+        lo_x = np.where(np.isfinite(model.state_lower), model.state_lower, -np.inf)
+        hi_x = np.where(np.isfinite(model.state_upper), model.state_upper, np.inf)
+        self.lbx = np.tile(np.concatenate([lo_x, np.zeros(k)]), M)
+        self.ubx = np.tile(np.concatenate([hi_x, np.ones(k)]), M)
+
+    def theta(self, s: np.ndarray) -> np.ndarray:
+        return self.model.lower + (self.model.upper - self.model.lower) * s
+
+    def scaled(self, theta: np.ndarray) -> np.ndarray:
+        return (np.asarray(theta) - self.model.lower) / (self.model.upper - self.model.lower)
+
+    def pack(self, s: np.ndarray, S: Sequence[np.ndarray]) -> np.ndarray:
+        """The NLP's vector from scaled parameters (k,) and node states (n, J_e) per experiment."""
+        nodes_all = np.hstack(list(S))
+        return np.vstack([nodes_all, np.repeat(np.asarray(s)[:, None], self.M, axis=1)]).T.ravel()
+
+    def solve(self, z0: np.ndarray, w: np.ndarray, fix: tuple[int, float] | None = None,
+              lam: np.ndarray | None = None) -> dict[str, Any]:
+        lbx, ubx = self.lbx.copy(), self.ubx.copy()
+        if fix is not None:
+            lbx[self.n + fix[0]::self.n + self.k] = fix[1]
+            ubx[self.n + fix[0]::self.n + self.k] = fix[1]
+        z0 = np.clip(z0, lbx, ubx)
+        args: dict[str, Any] = dict(x0=z0, p=w, lbx=lbx, ubx=ubx, lbg=0.0, ubg=0.0)
+        if lam is not None:
+            args["lam_g0"] = lam
+        sol = self.solver(**args)
+        st = self.solver.stats()
+        return {"z": np.asarray(sol["x"]).ravel(), "f": float(sol["f"]) * 2 * self.count,
+                "lam": np.asarray(sol["lam_g"]).ravel(), "status": str(st["return_status"]),
+                "iterations": int(st["iter_count"])}
+
+    def split(self, z: np.ndarray) -> tuple[np.ndarray, list[np.ndarray]]:
+        """Scaled parameters (k,) (the first interval's copy) and the node states (n, J) of
+        each experiment."""
+        V = z.reshape(self.M, self.n + self.k).T
+        out, pos = [], 0
+        for J in self.J:
+            out.append(V[:self.n, pos:pos + J])
+            pos += J
+        return V[self.n:, 0].copy(), out
+
+
+def _initial_nodes(model: FitModel, res: Intervals, single: "_Single", theta: np.ndarray,
+                   w: np.ndarray) -> list[np.ndarray]:
+    """Node states of a start: the model simulated at ``theta`` from a data-based initial state,
+    with every directly measured state replaced by its measurement at the node."""
+    direct = _direct_states(model)
+    out = []
+    mid = np.where(np.isfinite(model.state_lower) & np.isfinite(model.state_upper),
+                   0.5 * (model.state_lower + model.state_upper),
+                   np.where(np.isfinite(model.state_lower), model.state_lower, 0.0))
+    L = res.length
+    for e, d in enumerate(res.data):
+        x0 = mid.copy()
+        meas = _measured(d, direct)
+        for i, series in meas.items():
+            ok = np.flatnonzero(np.isfinite(series))
+            if ok.size:
+                x0[i] = series[ok[0]]
+        x0 = np.clip(x0, model.state_lower, model.state_upper)
+        S = single.nodes(theta, x0, e, w)
+        idx = np.arange(res.intervals[e]) * L
+        for i, series in meas.items():
+            vals = series[idx]
+            S[i] = np.where(np.isfinite(vals), vals, S[i])
+        out.append(np.clip(S, model.state_lower[:, None], model.state_upper[:, None]))
+    return out
+
+
+def _direct_states(model: FitModel) -> dict[int, int]:
+    """Plant output index -> state index for outputs that are a state itself (``y = x_i``)."""
+    out = {}
+    x, th = ca.SX.sym("x", model.n), ca.SX.sym("th", len(model.names))
+    y = model.output(x, th)
+    jac = ca.Function("jy", [x, th], [ca.jacobian(y, x)])
+    probe = np.linspace(0.3, 0.7, model.n)
+    A = np.asarray(jac(probe, np.zeros(len(model.names)) + 0.5))
+    yv = np.asarray(ca.Function("y", [x, th], [y])(probe, np.zeros(len(model.names)) + 0.5)).ravel()
+    for j in range(model.q):
+        nz = np.flatnonzero(np.abs(A[j]) > 0)
+        if nz.size == 1 and A[j, nz[0]] == 1.0 and yv[j] == probe[nz[0]]:
+            out[j] = int(nz[0])
+    return out
+
+
+def _measured(d: FitData, direct: Mapping[int, int]) -> dict[int, np.ndarray]:
+    """State index -> its exact measurements in ``d`` (NaN elsewhere)."""
+    out = {}
+    for j, col in enumerate(d.columns):
+        if col in direct:
+            out[direct[col]] = np.where(d.exact[:, j], d.y[:, j], np.nan)
+    return out
+
+
+class _Single:
+    """Single-shooting functions: outputs, residuals and their Jacobian (all experiments)."""
+
+    def __init__(self, model: FitModel, res: Intervals):
+        k, n, E = len(model.names), model.n, len(res.data)
+        theta, X0, w = ca.MX.sym("theta", k), ca.MX.sym("x0", n, E), ca.MX.sym("w", model.q)
+        rs, ys = [], []
+        for e in range(E):
+            r, Y = res.single(e, X0[:, e], theta, w)
+            rs.append(r)
+            ys.append(Y)
+        self.rows = np.concatenate([res.flags(e) for e in range(E)])
+        r = ca.vertcat(*rs)
+        z = ca.vertcat(theta, ca.vec(X0))
+        self.residuals = ca.Function("r", [theta, X0, w], [r])
+        self.jacobian = ca.Function("jr", [theta, X0, w], [r, ca.jacobian(r, z)])
+        self.outputs = ca.Function("y", [theta, X0], [ca.substitute(y, w, ca.DM.ones(model.q)) for y in ys])
+        x0 = ca.MX.sym("x0e", n)
+        self._nodes = {}
+        for e, J in enumerate(res.intervals):
+            acc = res.function.mapaccum(f"n{e}", J)
+            p = res.packed[e]
+            xe = acc(x0, p["U"], p["DT"], ca.repmat(theta, 1, J), p["Y"], p["A"], p["B"], p["C"],
+                     p["Z"], ca.repmat(w, 1, J))[0]
+            self._nodes[e] = ca.Function(f"nodes{e}", [theta, x0, w], [ca.horzcat(x0, xe[:, :J - 1])])
+
+    def nodes(self, theta: np.ndarray, x0: np.ndarray, e: int, w: np.ndarray) -> np.ndarray:
+        """States at the shooting nodes of experiment ``e`` (n, J) simulated from ``x0``."""
+        return np.asarray(self._nodes[e](theta, x0, w))
+
+    def predicted(self, theta: np.ndarray, X0: np.ndarray) -> list[np.ndarray]:
+        """Model outputs (N_e, q) of every experiment."""
+        outs = self.outputs(theta, X0)
+        outs = outs if isinstance(outs, (list, tuple)) else [outs]
+        return [np.asarray(Y).T for Y in outs]
+
+    def stats(self, theta: np.ndarray, X0: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Weighted residuals and their Jacobian, sample rows only."""
+        r, J = self.jacobian(theta, X0, w)
+        return np.asarray(r).ravel()[self.rows], np.asarray(J)[self.rows]
+
+    def cost(self, theta: np.ndarray, X0: np.ndarray, w: np.ndarray) -> float:
+        r = np.asarray(self.residuals(theta, X0, w)).ravel()
+        return float(r @ r)
+
+
+def fit_parameters(plant: Plant, free: Sequence[FreeParameterLike], experiments: Sequence[Experiment],
+                   *, ts_substeps: int | None = None, starts: int = 8, seed: int = 0,
+                   mode: str = "simulation", shooting: int = 20, level: float = 0.95,
+                   max_iter: int = 500) -> FitResult:
+    """Fit the free parameters and each experiment's initial state to logged experiments.
+
+    Parameters
+    ----------
+    plant : Plant
+        The plant, fixed parameters at their values.
+    free : sequence of FreeParameterLike
+        Parameters to estimate: ``name``, ``start``, ``lower``, ``upper`` (parameter unit),
+        ``unit`` (e.g. `tanksynth.spec.FreeParameter`).
+    experiments : sequence of Experiment
+        Logged runs, fitted jointly (each with its own initial state).
+    ts_substeps : int, optional
+        RK4 steps per sampling interval (default `SUBSTEPS`, the simulator's default);
+        re-simulate with the same (`FitResult.substeps`).
+    starts : int
+        Starting points (the given start, then a Latin hypercube in the box), >= 1.
+    seed : int
+        Seed of the Latin hypercube.
+    mode : str
+        ``"simulation"`` (output error). ``"prediction"`` is not available yet (refused).
+    shooting : int
+        Samples per multiple-shooting interval (>= 1).
+    level : float
+        Confidence level of the intervals, in (0, 1).
+    max_iter : int
+        IPOPT iteration limit per start.
+
+    Returns
+    -------
+    FitResult
+        ``converged`` False (with ``status``) when IPOPT did not converge: the caller decides.
+
+    Raises
+    ------
+    SpecError
+        Bad free parameters, options or data (an experiment that does not match the plant).
+    """
+    if mode != "simulation":
+        raise SpecError(f"fit mode {mode!r} is not available: only 'simulation' (output error) is "
+                        "implemented; the one-step-ahead prediction-error mode is not",
+                        key="design.mode")
+    for key, val, lo in (("starts", starts, 1), ("shooting", shooting, 1), ("max_iter", max_iter, 1)):
+        if isinstance(val, bool) or not isinstance(val, (int, np.integer)) or val < lo:
+            raise SpecError(f"{key} must be an integer >= {lo}, got {val!r}", key=f"design.{key}")
+    if not 0.0 < float(level) < 1.0:
+        raise SpecError(f"level must lie in (0, 1), got {level!r}", key="design.level")
+    if not experiments:
+        raise SpecError("no experiment to fit", key="design.data")
+    names_seen = [e.name for e in experiments]
+    if len(set(names_seen)) != len(names_seen):
+        raise SpecError(f"experiment names must be unique, got {names_seen}", key="design.data")
+    model = fit_model(plant, free, SUBSTEPS if ts_substeps is None else ts_substeps)
+    data = [fit_data(plant, e) for e in experiments]
+    for d in data:
+        if not (d.exact.any() or d.low.any() or d.high.any()):
+            raise SpecError(f"experiment {d.name}: no output sample to fit", key="design.data")
+    res = Intervals(model, data, int(shooting))
+    single = _Single(model, res)
+    solver = _Solver(model, res, int(max_iter))
+    k = len(model.names)
+    w = 1.0 / noise_guess(data, res.outputs)
+
+    # starting points: the given start, then a seeded Latin hypercube of the scaled box
+    points = [solver.scaled(model.start)]
+    if starts > 1:
+        points += list(qmc.LatinHypercube(d=k, seed=int(seed)).random(int(starts) - 1))
+    runs = []
+    for s0 in points:
+        S0 = _initial_nodes(model, res, single, solver.theta(s0), w)
+        z0 = solver.pack(s0, S0)
+        runs.append(solver.solve(z0, w))
+    ok = [r for r in runs if r["status"] in CONVERGED]
+    pool = ok or runs
+    best = min(pool, key=lambda r: r["f"] if np.isfinite(r["f"]) else np.inf)
+    # noise levels from the residuals; re-weight once when they differ from the data's guess
+    theta, X0 = _unpack(solver, best["z"])
+    sigma = _sigma(single, res, theta, X0)
+    if np.count_nonzero(res.counts) > 1 and np.max(np.abs(np.log(sigma * w))[res.counts > 0]) > np.log(1.2):
+        w = 1.0 / sigma
+        again = solver.solve(best["z"], w, lam=best["lam"])
+        if again["status"] in CONVERGED or best["status"] not in CONVERGED:
+            best = again
+            theta, X0 = _unpack(solver, best["z"])
+            sigma = _sigma(single, res, theta, X0)
+    kept = solver.split(best["z"])[0]
+    agreeing = sum(1 for r in ok if np.allclose(solver.split(r["z"])[0], kept, atol=1e-3, rtol=0.0))
+    return _finish(plant, model, res, single, solver, best, w, sigma, float(level), len(runs),
+                   agreeing)
+
+
+def _unpack(solver: _Solver, z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    s, S = solver.split(z)
+    return solver.theta(s), np.column_stack([x[:, 0] for x in S])
+
+
+def _sigma(single: _Single, res: Intervals, theta: np.ndarray, X0: np.ndarray) -> np.ndarray:
+    """Noise level per output: RMS of its unweighted residuals over the samples (floored; 1
+    for an output without data)."""
+    r = np.asarray(single.residuals(theta, X0, np.ones(res.model.q))).ravel()[single.rows]
+    flags = np.concatenate([np.asarray(res.flags(e)) for e in range(len(res.data))])
+    which = np.tile(np.arange(res.model.q), flags.size // res.model.q)[flags]
+    out = np.ones(res.model.q)
+    for i in range(res.model.q):
+        v = r[which == i]
+        if v.size:
+            out[i] = max(float(np.sqrt(np.mean(v ** 2))), 1e-12)
+    return out
+
+
+def _finish(plant: Plant, model: FitModel, res: Intervals, single: _Single, solver: _Solver,
+            best: dict[str, Any], w: np.ndarray, sigma: np.ndarray, level: float, tried: int,
+            agreeing: int) -> FitResult:
+    """Statistics at the kept optimum and the result."""
+    k = len(model.names)
+    theta, X0 = _unpack(solver, best["z"])
+    r, Jr = single.stats(theta, X0, w)
+    fisher = fisher_covariance(Jr, r, theta, k)
+    ci = t_interval(theta, fisher.stderr, fisher.dof, level)
+    methods = ["wald"] * k
+    q = float(stats.t.ppf(0.5 + level / 2.0, fisher.dof))
+    target = q * q
+    cost = float(r @ r)
+    involved = np.isinf(fisher.stderr)
+    for i in range(k):
+        if involved[i]:
+            ci[i] = (model.lower[i], model.upper[i])
+            methods[i] = "unidentifiable"
+            continue
+        half = q * fisher.stderr[i]
+        crosses = ci[i, 0] < model.lower[i] or ci[i, 1] > model.upper[i]
+        if crosses or not _quadratic(single, fisher, theta, X0, w, i, half, cost, target):
+            excess = _profile(solver, single, best, w, i, cost, fisher.sigma2)
+            lo, _ = profile_bound(excess, theta[i], -half, model.lower[i], target)
+            hi, _ = profile_bound(excess, theta[i], half, model.upper[i], target)
+            ci[i] = (lo, hi)
+            methods[i] = "profile"
+    width = model.upper - model.lower
+    at_bound = tuple(nm for nm, v, lo, hi, wd in zip(model.names, theta, model.lower, model.upper, width)
+                     if v - lo <= 1e-4 * wd or hi - v <= 1e-4 * wd)
+    full = single.predicted(theta, X0)
+    predicted = tuple(Yh[:, list(d.columns)] for d, Yh in zip(res.data, full))
+    rm: dict[str, dict[str, float]] = {}
+    fp: dict[str, dict[str, float]] = {}
+    names = [nm for nm in model.output_names if any(nm in d.output_names for d in res.data)]
+    series: dict[str, list[np.ndarray]] = {nm: [] for nm in names}
+    for d, Yh in zip(res.data, predicted):
+        rm[d.name], fp[d.name] = {}, {}
+        for j, nm in enumerate(d.output_names):
+            y = np.where(d.exact[:, j], d.y[:, j], np.nan)
+            rm[d.name][nm] = rmse(y, Yh[:, j])
+            fp[d.name][nm] = fit_percent(y, Yh[:, j])
+            series[nm].append(y - Yh[:, j])
+    white = {nm: whiteness_test(series[nm]) for nm in names}
+    units = {prm.name: prm.unit for prm in plant.parameters}
+    return FitResult(
+        names=model.names, units=tuple(units[nm] for nm in model.names), values=theta,
+        stderr=fisher.stderr, ci95=ci, interval_method=tuple(methods),
+        correlation=fisher.correlation, covariance=fisher.covariance, x0=X0.T.copy(),
+        converged=best["status"] in CONVERGED, at_bound=at_bound,
+        identifiable=fisher.identifiable,
+        unidentifiable_note=identifiable_note(model.names, fisher.null_vectors),
+        rmse=rm, fit_percent=fp, whiteness=white,
+        sigma={nm: float(sigma[model.output_names.index(nm)]) for nm in names},
+        weights={nm: float(w[model.output_names.index(nm)]) for nm in names},
+        iterations=best["iterations"], starts_tried=tried, starts_agreeing=agreeing, cost=cost,
+        status=best["status"], level=level, dof=fisher.dof, substeps=model.substeps,
+        mode="simulation", experiments=tuple(d.name for d in res.data), predicted=predicted)
+
+
+def _quadratic(single: _Single, fisher: Any, theta: np.ndarray, X0: np.ndarray, w: np.ndarray,
+               i: int, half: float, cost: float, target: float) -> bool:
+    """The cost along the linearised profile path at the Wald bounds is close to the quadratic model.
+
+    Moving ``theta_i`` by ``+-half`` and the other parameters by the conditional mean
+    (``cov[:, i] / cov[i, i]``; the initial states re-fitted by one Gauss-Newton step), the
+    excess ``(cost - optimum) / s^2`` of a model linear in the parameters is ``target``
+    exactly: within 20 % on both sides, the Wald interval stands.
+    """
+    cov = fisher.covariance
+    if not (np.isfinite(cov[i, i]) and cov[i, i] > 0):
+        return False
+    k = len(theta)
+    for sign in (-1.0, 1.0):
+        th = theta + sign * half * cov[:, i] / cov[i, i]
+        r, J = single.stats(th, X0, w)
+        Jx = J[:, k:]
+        x0 = X0
+        if Jx.shape[1]:
+            dx, *_ = np.linalg.lstsq(Jx, -r, rcond=None)
+            x0 = X0 + dx.reshape(X0.shape[1], X0.shape[0]).T
+        excess = (single.cost(th, x0, w) - cost) / fisher.sigma2
+        if not (0.8 * target <= excess <= 1.25 * target):
+            return False
+    return True
+
+
+def _profile(solver: _Solver, single: _Single, best: dict[str, Any], w: np.ndarray, i: int,
+             cost: float, sigma2: float) -> Any:
+    """``theta_i -> (profile cost - cost) / s^2``: re-optimised with ``theta_i`` fixed."""
+    lo, width = solver.model.lower[i], solver.model.upper[i] - solver.model.lower[i]
+
+    def excess(value: float) -> float:
+        sol = solver.solve(best["z"], w, fix=(i, (value - lo) / width), lam=best["lam"])
+        theta, X0 = _unpack(solver, sol["z"])
+        return (single.cost(theta, X0, w) - cost) / sigma2
+
+    return excess

@@ -1,0 +1,377 @@
+"""Statistics of a least-squares fit: Fisher information, intervals, identifiability, whiteness.
+
+All from the residual Jacobian at the optimum (Gauss-Newton Fisher information ``J^T J`` of
+residuals already divided by their noise level):
+
+* `fisher_covariance`: covariance of the parameters ``s^2 [(J^T J)^-1]`` (the initial states
+  eliminated as nuisance parameters), standard errors, correlation, and the rank test: a
+  near-singular information in log-parameters means a combination of parameters the data
+  cannot determine (`identifiable_note` names what is determined instead);
+* `t_interval` and `profile_bound`: Wald (Student t) intervals, and the profile-likelihood
+  bound found by root finding on a profile-cost callable where the Wald interval is not
+  trusted;
+* `whiteness_test`: normalised residual autocorrelation at lags 1..L against
+  ``+-1.96/sqrt(N)`` and the Ljung-Box portmanteau statistic against its chi-square quantile.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from fractions import Fraction
+from typing import Callable, Sequence
+
+import numpy as np
+from scipy import stats
+
+__all__ = ["FisherStatistics", "fisher_covariance", "identifiable_note", "t_interval",
+           "profile_bound", "WhitenessTest", "whiteness_test", "fit_percent", "rmse"]
+
+#: Relative eigenvalue of the scaled Fisher information below which a direction is not identifiable.
+RANK_TOL = 1e-8
+
+
+@dataclass(frozen=True)
+class FisherStatistics:
+    """Covariance and rank of the parameters from the Fisher information.
+
+    Attributes
+    ----------
+    covariance : ndarray, shape (k, k)
+        Parameter covariance (parameter units squared); pseudo-inverse on the identifiable
+        subspace when rank-deficient.
+    stderr : ndarray, shape (k,)
+        Standard errors (parameter units); ``inf`` for a parameter in an unidentifiable direction.
+    correlation : ndarray, shape (k, k)
+        Correlation matrix (NaN where a standard error is infinite).
+    sigma2 : float
+        Residual variance factor ``s^2 = r^T r / (N - K)`` of the weighted residuals (1).
+    dof : int
+        Degrees of freedom ``N - K`` (residuals minus all unknowns, initial states included).
+    null_vectors : ndarray, shape (d, k)
+        Unidentifiable directions in log-parameters (``d = 0`` when identifiable).
+    eigenvalues : ndarray, shape (k,)
+        Eigenvalues of the scaled Fisher information of the parameters (ascending, max 1).
+    """
+
+    covariance: np.ndarray
+    stderr: np.ndarray
+    correlation: np.ndarray
+    sigma2: float
+    dof: int
+    null_vectors: np.ndarray
+    eigenvalues: np.ndarray
+
+    @property
+    def identifiable(self) -> bool:
+        """Every parameter is determined by the data (full-rank Fisher information)."""
+        return self.null_vectors.shape[0] == 0
+
+
+def fisher_covariance(jacobian: np.ndarray, residuals: np.ndarray, theta: np.ndarray,
+                      k: int) -> FisherStatistics:
+    """Covariance, standard errors, correlation and rank from the residual Jacobian.
+
+    Parameters
+    ----------
+    jacobian : ndarray, shape (N, K)
+        d(weighted residual)/d(unknowns); the first ``k`` columns are the parameters
+        (parameter units), the others nuisance unknowns (initial states).
+    residuals : ndarray, shape (N,)
+        Weighted residuals at the optimum (1).
+    theta : ndarray, shape (k,)
+        Parameter values at the optimum (parameter units, nonzero for the log scaling).
+    k : int
+        Number of parameters.
+
+    Returns
+    -------
+    FisherStatistics
+    """
+    J = np.asarray(jacobian, dtype=float)
+    N, K = J.shape
+    dof = max(N - K, 1)
+    s2 = float(residuals @ residuals) / dof
+    scale = np.where(np.abs(theta) > 0, np.abs(theta), 1.0)       # log-parameters for the theta
+    col = np.linalg.norm(J, axis=0)
+    col[:k] = np.linalg.norm(J[:, :k] * scale, axis=0)
+    col = np.where(col > 0, col, 1.0)
+    D = np.ones(K)
+    D[:k] = scale
+    Js = J * (D / col)                                            # equilibrated columns
+    # the parameters' information with the nuisance unknowns eliminated: project J_theta on the
+    # orthogonal complement of the nuisance columns (QR), then the SVD of what is left
+    A, B = Js[:, :k], Js[:, k:]
+    if B.shape[1]:
+        Q, R = np.linalg.qr(B)
+        keep = np.abs(np.diag(R)) > 1e-12 * max(1.0, float(np.max(np.abs(np.diag(R)), initial=0.0)))
+        Q = Q[:, keep]
+        A = A - Q @ (Q.T @ A)
+    _, sv, Vt = np.linalg.svd(A, full_matrices=False)
+    eig = (sv / sv[0]) ** 2 if sv.size and sv[0] > 0 else np.zeros(k)
+    null = Vt[eig < RANK_TOL] / col[:k]                          # back to log-parameters
+    null = null / np.linalg.norm(null, axis=1, keepdims=True) if null.size else null.reshape(0, k)
+    good = eig >= RANK_TOL
+    inv = (Vt[good].T / sv[good] ** 2) @ Vt[good] if np.any(good) else np.zeros((k, k))
+    # back to parameter units: theta_i = scale_i / col_i * z_i
+    T = scale / col[:k]
+    cov = s2 * (T[:, None] * inv * T[None, :])
+    var = np.diag(cov).copy()
+    stderr = np.sqrt(np.maximum(var, 0.0))
+    if null.shape[0]:
+        involved = np.any(np.abs(null) > 1e-3, axis=0)
+        stderr[involved] = np.inf
+    with np.errstate(invalid="ignore", divide="ignore"):
+        corr = cov / np.outer(stderr, stderr)
+    corr[~np.isfinite(corr)] = np.nan
+    np.fill_diagonal(corr, np.where(np.isfinite(stderr), 1.0, np.nan))
+    eig_sorted = np.sort(eig)
+    return FisherStatistics(cov, stderr, corr, s2, dof, null, eig_sorted)
+
+
+def _exponent(v: float) -> Fraction:
+    return Fraction(v).limit_denominator(6)
+
+
+def identifiable_note(names: Sequence[str], null_vectors: np.ndarray) -> str:
+    """Say which parameter combination the data determine, from the null directions.
+
+    A null direction ``v`` in log-parameters means that scaling the parameters by
+    ``exp(c v_i)`` leaves the outputs unchanged: only combinations ``prod theta_i^w_i`` with
+    ``w . v = 0`` are determined. For one direction, the note names, for each parameter
+    involved, its ratio (or product) with a reference parameter, e.g. ``mu13/A`` when
+    ``A`` and ``mu13`` scale together, ``a*b`` when they scale inversely.
+
+    Parameters
+    ----------
+    names : sequence of str
+        Parameter names.
+    null_vectors : ndarray, shape (d, k)
+        Unidentifiable directions in log-parameters.
+
+    Returns
+    -------
+    str
+        One sentence; empty when ``d = 0``.
+    """
+    if null_vectors.shape[0] == 0:
+        return ""
+    sentences = []
+    for v in null_vectors:
+        involved = [i for i in range(len(names)) if abs(v[i]) > 1e-3]
+        ref = max(involved, key=lambda i: abs(v[i]))
+        ratios = {i: _exponent(v[i] / v[ref]) for i in involved}   # v normalised: ref = 1
+        combos = []
+        for i in involved:
+            if i == ref:
+                continue
+            # theta_i^a theta_ref^b with a v_i + b v_ref = 0: a = 1, b = -v_i / v_ref, scaled to
+            # integers (a^2*b rather than a*b^1/2)
+            b = -ratios[i]
+            combos.append(_monomial((i, names[i], Fraction(b.denominator)),
+                                    (ref, names[ref], b * b.denominator)))
+        moved = ", ".join(f"{names[i]}^{ratios[i]}" if ratios[i] != 1 else names[i] for i in involved)
+        if combos:
+            sentences.append(f"the data cannot separate {', '.join(names[i] for i in involved)} "
+                             f"(changing them together as {moved} leaves the outputs unchanged): "
+                             f"only {', '.join(combos)} {'is' if len(combos) == 1 else 'are'} "
+                             "identifiable")
+        else:
+            sentences.append(f"the data do not determine {names[ref]} (the outputs do not depend "
+                             "on it)")
+    return "; ".join(sentences)
+
+
+def _power(name: str, e: Fraction) -> str:
+    e = abs(e)
+    return name if e == 1 else f"{name}^{e}"
+
+
+def _monomial(first: tuple[int, str, Fraction], second: tuple[int, str, Fraction]) -> str:
+    """``a^ea * b^eb`` (each ``(index, name, exponent)``) as a product (in parameter order) or
+    a ratio; ``ea > 0``."""
+    (ia, a, ea), (ib, b, eb) = first, second
+    if eb == 0:
+        return _power(a, ea)
+    if eb < 0:
+        return f"{_power(a, ea)}/{_power(b, eb)}"
+    pair = sorted([(ia, _power(a, ea)), (ib, _power(b, eb))])
+    return f"{pair[0][1]}*{pair[1][1]}"
+
+
+def t_interval(value: np.ndarray, stderr: np.ndarray, dof: int, level: float) -> np.ndarray:
+    """Wald intervals ``value +- t_{(1+level)/2, dof} stderr``.
+
+    Parameters
+    ----------
+    value, stderr : ndarray, shape (k,)
+        Estimates and standard errors (parameter units).
+    dof : int
+        Degrees of freedom of the residual variance.
+    level : float
+        Confidence level in (0, 1).
+
+    Returns
+    -------
+    ndarray, shape (k, 2)
+    """
+    q = float(stats.t.ppf(0.5 + level / 2.0, dof))
+    return np.column_stack([value - q * stderr, value + q * stderr])
+
+
+def profile_bound(excess: Callable[[float], float], value: float, step: float, limit: float,
+                  target: float, tol: float = 1e-3, max_eval: int = 30) -> tuple[float, bool]:
+    """One side of a profile-likelihood interval: where the profile cost excess reaches ``target``.
+
+    Parameters
+    ----------
+    excess : callable
+        ``theta_i -> (profile cost - optimum) / s^2`` (1): the other unknowns re-optimised
+        with ``theta_i`` fixed.
+    value : float
+        The estimate (excess 0 there).
+    step : float
+        First trial offset (signed: the side searched), e.g. the Wald half-width.
+    limit : float
+        The box face on that side: the bound stops there.
+    target : float
+        Excess that defines the interval (``t^2`` or the chi-square quantile).
+    tol : float
+        Relative tolerance on the bound, as a fraction of ``|step|``.
+    max_eval : int
+        Largest number of profile evaluations.
+
+    Returns
+    -------
+    bound : float
+        The profile bound (parameter units).
+    closed : bool
+        False when the excess stays below ``target`` up to the box face (the bound is the face).
+    """
+    lo_x, lo_f = value, 0.0
+    x = value + step
+    evals = 0
+    while True:                                   # bracket: grow the step up to the face
+        if (x - limit) * np.sign(step) >= 0:
+            x = limit
+        fx = excess(x)
+        evals += 1
+        if fx >= target:
+            break
+        if x == limit or evals >= max_eval:
+            return float(x), False
+        lo_x, lo_f = x, fx
+        x = value + 2.0 * (x - value)
+    hi_x, hi_f = x, fx
+    while evals < max_eval and abs(hi_x - lo_x) > tol * abs(step):
+        # secant safeguarded by bisection, on sqrt(excess) (close to linear in theta)
+        a, b = np.sqrt(max(lo_f, 0.0)), np.sqrt(max(hi_f, 0.0))
+        frac = (np.sqrt(target) - a) / (b - a) if b > a else 0.5
+        frac = min(max(frac, 0.1), 0.9)
+        x = lo_x + frac * (hi_x - lo_x)
+        fx = excess(x)
+        evals += 1
+        if fx >= target:
+            hi_x, hi_f = x, fx
+        else:
+            lo_x, lo_f = x, fx
+    a, b = np.sqrt(max(lo_f, 0.0)), np.sqrt(max(hi_f, 0.0))
+    frac = (np.sqrt(target) - a) / (b - a) if b > a else 0.5
+    return float(lo_x + min(max(frac, 0.0), 1.0) * (hi_x - lo_x)), True
+
+
+@dataclass(frozen=True)
+class WhitenessTest:
+    """Residual whiteness of one output.
+
+    Attributes
+    ----------
+    autocorrelation : ndarray, shape (L,)
+        Normalised autocorrelation at lags 1..L (1).
+    band : float
+        ``1.96 / sqrt(N)``: the 95 % band of a white sequence (1).
+    outside : int
+        Lags whose autocorrelation lies outside the band.
+    statistic : float
+        Ljung-Box ``Q = N (N + 2) sum r_l^2 / (N - l)`` (1).
+    bound : float
+        Its 95 % chi-square quantile with L degrees of freedom (1).
+    passed : bool
+        ``statistic <= bound``.
+    samples : int
+        Residual pairs at lag 0 (N).
+    """
+
+    autocorrelation: np.ndarray
+    band: float
+    outside: int
+    statistic: float
+    bound: float
+    passed: bool
+    samples: int
+
+
+def whiteness_test(series: Sequence[np.ndarray], lags: int = 20, level: float = 0.95) -> WhitenessTest:
+    """Autocorrelation whiteness test of residual sequences (one per experiment, NaN = missing).
+
+    The autocorrelation is pooled over the experiments (lag products within an experiment
+    only, pairs with a missing sample left out), normalised by the lag-0 sum.
+
+    Parameters
+    ----------
+    series : sequence of ndarray, shape (N_e,)
+        Residuals of one output per experiment (output units), NaN where not exact.
+    lags : int
+        Largest lag L.
+    level : float
+        Level of the chi-square bound.
+
+    Returns
+    -------
+    WhitenessTest
+    """
+    parts = [np.asarray(s, dtype=float) for s in series]
+    centred = []
+    for s in parts:
+        c = s - np.nanmean(s) if np.any(np.isfinite(s)) else s
+        centred.append(np.where(np.isfinite(c), c, 0.0))
+    present = [np.isfinite(s) for s in parts]
+    n0 = int(sum(p.sum() for p in present))
+    denom = sum(float(c @ c) for c in centred)
+    L = max(1, min(int(lags), max(1, n0 // 4)))
+    acf = np.zeros(L)
+    for lag in range(1, L + 1):
+        num = sum(float(c[:-lag] @ c[lag:]) for c in centred if c.size > lag)
+        acf[lag - 1] = num / denom if denom > 0 else 0.0
+    band = 1.96 / np.sqrt(max(n0, 1))
+    q = float(n0 * (n0 + 2) * np.sum(acf ** 2 / np.maximum(n0 - np.arange(1, L + 1), 1)))
+    bound = float(stats.chi2.ppf(level, L))
+    return WhitenessTest(acf, float(band), int(np.sum(np.abs(acf) > band)), q, bound,
+                         bool(q <= bound), n0)
+
+
+def rmse(y: np.ndarray, yhat: np.ndarray) -> float:
+    """Root-mean-square error over the finite samples of ``y`` (output units).
+
+    Parameters
+    ----------
+    y, yhat : ndarray
+        Measured (NaN where not counted) and model outputs (output units).
+    """
+    ok = np.isfinite(y)
+    return float(np.sqrt(np.mean((y[ok] - yhat[ok]) ** 2))) if np.any(ok) else float("nan")
+
+
+def fit_percent(y: np.ndarray, yhat: np.ndarray) -> float:
+    """NRMSE fit ``100 (1 - ||y - yhat|| / ||y - mean y||)`` (%) over the finite samples of ``y``.
+
+    Parameters
+    ----------
+    y, yhat : ndarray
+        Measured (NaN where not counted) and model outputs (output units).
+    """
+    ok = np.isfinite(y)
+    if not np.any(ok):
+        return float("nan")
+    dev = float(np.linalg.norm(y[ok] - np.mean(y[ok])))
+    err = float(np.linalg.norm(y[ok] - yhat[ok]))
+    return 100.0 * (1.0 - err / dev) if dev > 0 else (100.0 if err == 0 else float("-inf"))

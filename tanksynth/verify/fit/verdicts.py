@@ -1,0 +1,367 @@
+"""Verdict of the ``fit`` family: the fitted model re-simulated on the copied data.
+
+The verdict never imports the design code. It reads the data files from the result directory
+(``DIR/data/``, each one's sha256 checked against the artefact), simulates the plant with the
+artefact's parameter values and initial states with `tanksynth.sim` (the toolbox's one
+integrator and clipping rule, the same RK4 substeps as the fit) and checks:
+
+``data_files``
+    every copied data file is present and unedited (sha256 as recorded);
+``converged``
+    IPOPT reported convergence;
+``rmse_reproduced``
+    the RMSE of every output on the estimation data, re-simulated, equals the recorded one
+    (relative tolerance `RMSE_RTOL`): the recorded fit is the model's, on these data;
+``parameters_inside_bounds``
+    no fitted value lies at a bound of its search box (within `BOUND_TOL` of the box width):
+    at a bound the optimum may lie outside the box and the intervals mean nothing;
+``residual_whiteness``
+    information only (never fails): the Box-Pierce statistic of the residuals'
+    autocorrelation against its chi-square 99 % bound. An output-error fit stays consistent
+    when the noise is coloured, and a lab log always has some unmodelled dynamics (an offset,
+    a leak), so correlated residuals are a finding to read, not a refusal;
+``validation_fit``
+    on each validation file (simulated from the recorded initial state, estimated on its
+    first ``init_samples`` samples only, which are left out of the score), the fit % of every
+    output is at least the floor
+    ``max(0, 100 (1 - 2 rmse_est / s_val))``, ``s_val`` the RMS deviation of the validation
+    output from its mean: the validation RMSE is at most twice the estimation RMSE (the model
+    predicts new data about as well as it fits the old; twice allows for the short initial-state
+    estimate) and in every case the model beats the data's mean; the re-simulated fit % also
+    equals the recorded one.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any, Mapping, Sequence
+
+import numpy as np
+
+from tanksynth.analysis.checks import Check
+from tanksynth.artefacts.datafiles import read_data_copy
+from tanksynth.errors import ArtefactError, TanksynthError
+from tanksynth.measurements import read_experiments
+from tanksynth.measurements.experiment import Experiment
+from tanksynth.measurements.scores import fit_percent, rmse
+from tanksynth.plants.base import Plant
+from tanksynth.sim.simulate import simulate_inputs
+from tanksynth.spec import Spec
+from tanksynth.verify.common import artefact_gain
+from tanksynth.verify.traces import Signal
+
+__all__ = ["RMSE_RTOL", "BOUND_TOL", "WHITENESS_LAGS", "fit_verdict", "simulated_outputs",
+           "fitted_plant", "whiteness", "validation_floor", "read_fit_data"]
+
+#: Relative tolerance of the re-simulated RMSE against the recorded one.
+RMSE_RTOL = 1e-6
+#: A fitted value within this fraction of its box width of a bound is at the bound.
+BOUND_TOL = 1e-6
+#: Most lags of the residual autocorrelation test.
+WHITENESS_LAGS = 20
+
+
+def fitted_plant(doc: Mapping[str, Any], spec: Spec) -> tuple[Plant, dict[str, float]]:
+    """The spec's plant with the artefact's fitted parameter values.
+
+    Parameters
+    ----------
+    doc : mapping
+        The ``fit`` artefact.
+    spec : Spec
+        The validated spec of its result directory.
+
+    Returns
+    -------
+    plant : Plant
+    values : dict of str to float
+        Parameter name -> fitted value (the parameter's unit).
+    """
+    diag = doc.get("diagnostics") or {}
+    names = diag.get("names")
+    theta = artefact_gain(doc, "theta").reshape(-1)
+    if not isinstance(names, list) or len(names) != theta.size:
+        raise ArtefactError(f"artefact '{doc['name']}': diagnostics.names does not name the "
+                            f"{theta.size} entries of theta")
+    values = {str(n): float(v) for n, v in zip(names, theta)}
+    return spec.plant.with_parameters(values), values
+
+
+def simulated_outputs(plant: Plant, experiment: Experiment, x0: np.ndarray,
+                      substeps: int) -> np.ndarray:
+    """The plant's outputs of the experiment's logged columns, simulated with `tanksynth.sim`
+    from ``x0`` under the logged inputs (held between samples).
+
+    Parameters
+    ----------
+    plant : Plant
+        With the fitted values.
+    experiment : Experiment
+        The logged run.
+    x0 : ndarray, shape (n,)
+        Initial state at the first sample (state units).
+    substeps : int
+        RK4 steps per sampling interval (the fit's).
+
+    Returns
+    -------
+    ndarray, shape (N, p)
+        Output units, at the experiment's sample times.
+    """
+    return _simulation(plant, experiment, x0, substeps)[0]
+
+
+def _simulation(plant: Plant, experiment: Experiment, x0: np.ndarray,
+                substeps: int) -> tuple[np.ndarray, Any]:
+    """`simulated_outputs` and the `SimulationResult` behind it (None for non-uniform samples)."""
+    names = [s.name for s in plant.outputs]
+    cols = [names.index(nm) for nm in experiment.output_names]
+    period = experiment.uniform_period
+    if period is not None:
+        res = simulate_inputs(plant, np.asarray(x0, float), experiment.u[:-1], period,
+                              substeps=substeps)
+        return np.asarray(res.y)[0][:, cols], res
+    out = np.empty((experiment.samples, len(cols)))  # non-uniform sampling: one interval at a time
+    x = np.asarray(x0, float)
+    for k in range(experiment.samples - 1):
+        res = simulate_inputs(plant, x, experiment.u[k:k + 1], float(experiment.t[k + 1] - experiment.t[k]),
+                              substeps=substeps)
+        out[k] = np.asarray(res.y)[0, 0, cols]
+        x = np.asarray(res.x)[0, 1]
+    res = simulate_inputs(plant, x, experiment.u[-1:], 1.0, substeps=substeps)
+    out[-1] = np.asarray(res.y)[0, 0, cols]
+    return out, None
+
+
+def _record(trace: Any, res: Any, plant: Plant, experiment: Experiment, y_hat: np.ndarray, *,
+            check: str, what: str, residuals: bool = False) -> None:
+    """Keep a figure's trace: the simulated states and inputs, and per output the measured and
+    the simulated values (or the residuals)."""
+    if trace is None or res is None:
+        return
+    units = {q.name: str(q.unit) for q in plant.outputs}
+    unit = units.get(experiment.output_names[0], "") if experiment.output_names else ""
+    signals = []
+    for j, nm in enumerate(experiment.output_names):
+        y = np.where(experiment.observed[:, j], experiment.y[:, j], np.nan)
+        if residuals:
+            signals.append(Signal(f"{nm} - {nm}_sim", unit, (y - y_hat[:, j])[None, :], "-"))
+        else:
+            signals.append(Signal(f"{nm} measured", unit, y[None, :], "-"))
+            signals.append(Signal(f"{nm} simulated", unit, y_hat[:, j][None, :], "--"))
+    title = ("residuals, measured minus simulated" if residuals
+             else "measured (solid) and simulated (dashed) outputs")
+    trace.record(res, plant, scenario=f"{what} '{experiment.name}' re-simulated at the fitted values",
+                 check=check, signals=signals, signal_title=title)
+
+
+def whiteness(residual: np.ndarray, lags: int = WHITENESS_LAGS) -> tuple[float, float, int]:
+    """Box-Pierce test of a residual sequence: ``Q = N sum_k r_k^2`` over lags 1..M against the
+    99 % quantile of chi-square with M degrees of freedom (white residuals stay below).
+
+    Parameters
+    ----------
+    residual : ndarray, shape (N,)
+        Residuals in time order (output units); NaN entries are left out.
+    lags : int
+        Most lags M (at most N / 4).
+
+    Returns
+    -------
+    statistic, bound : float
+    lags : int
+        The lags used (0 when too few samples: statistic and bound NaN).
+    """
+    from scipy.stats import chi2
+
+    e = np.asarray(residual, float)
+    e = e[np.isfinite(e)]
+    e = e - e.mean() if e.size else e
+    m = min(int(lags), e.size // 4)
+    denom = float(e @ e)
+    if m < 1 or denom <= 0:
+        return float("nan"), float("nan"), 0
+    r = np.array([float(e[:-k] @ e[k:]) / denom for k in range(1, m + 1)])
+    return float(e.size * (r @ r)), float(chi2.ppf(0.99, m)), m
+
+
+def validation_floor(rmse_est: float, y: np.ndarray) -> float:
+    """The least validation fit % the verdict accepts for one output (see the module docstring).
+
+    Parameters
+    ----------
+    rmse_est : float
+        The output's RMSE on the estimation data (output units).
+    y : ndarray
+        The output's validation samples that count (output units).
+
+    Returns
+    -------
+    float
+        Percent, at least 0.
+    """
+    spread = float(np.sqrt(np.mean((y - y.mean()) ** 2))) if y.size else 0.0
+    if not spread > 0 or not np.isfinite(rmse_est):
+        return 0.0
+    return max(0.0, 100.0 * (1.0 - 2.0 * float(rmse_est) / spread))
+
+
+def read_fit_data(doc: Mapping[str, Any], spec: Spec, part: str) -> list[tuple[Experiment, dict]]:
+    """The experiments of one part (``"estimation"`` or ``"validation"``) of a fit artefact, read
+    from the copies in the result directory (sha256 checked), with their records.
+
+    Parameters
+    ----------
+    doc : mapping
+        The ``fit`` artefact.
+    spec : Spec
+        The spec of its result directory (``spec.source`` is ``DIR/spec.toml``).
+    part : str
+        ``"estimation"`` or ``"validation"``.
+
+    Returns
+    -------
+    list of (Experiment, dict)
+
+    Raises
+    ------
+    ArtefactError
+        A copy missing or edited, a malformed record.
+    """
+    directory = Path(str(spec.source)).parent
+    diag = doc.get("diagnostics") or {}
+    records = (diag.get(part) or {}).get("experiments") or []
+    if not isinstance(records, list):
+        raise ArtefactError(f"artefact '{doc['name']}': diagnostics.{part}.experiments is not a list")
+    out = []
+    for rec in records:
+        path = read_data_copy(directory, rec.get("file"), rec.get("sha256"))
+        (exp,) = read_experiments([str(path)], spec.plant, getattr(spec, "data", None))
+        out.append((exp, rec))
+    return out
+
+
+def _close(a: float, b: float, rtol: float = RMSE_RTOL) -> bool:
+    return bool(np.isfinite(a) and np.isfinite(b) and abs(a - b) <= rtol * max(abs(a), abs(b), 1e-300))
+
+
+def _pooled(pairs: Sequence[tuple[Experiment, np.ndarray]]) -> dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]]:
+    """Output name -> (y, y_hat, mask) over the experiments that log it."""
+    out: dict[str, list] = {}
+    for exp, y_hat in pairs:
+        for j, nm in enumerate(exp.output_names):
+            out.setdefault(nm, []).append((exp.y[:, j], y_hat[:, j], exp.observed[:, j]))
+    return {nm: tuple(np.concatenate([p[i] for p in parts]) for i in range(3))  # type: ignore[misc]
+            for nm, parts in out.items()}
+
+
+def fit_verdict(doc: Mapping[str, Any], spec: Spec, trace: Any = None) -> list[Check]:
+    """Verdict of ``fit``: the checks of the module docstring.
+
+    Parameters
+    ----------
+    doc : mapping
+        The artefact (gains as arrays).
+    spec : Spec
+        The validated spec of its result directory.
+    trace : TraceRecorder, optional
+        Keeps the figures' simulations: measured and simulated outputs of the first estimation
+        and validation files, and the estimation residuals.
+
+    Returns
+    -------
+    list of Check
+    """
+    diag = doc.get("diagnostics") or {}
+    checks = []
+    try:
+        est = read_fit_data(doc, spec, "estimation")
+        val = read_fit_data(doc, spec, "validation")
+    except (ArtefactError, TanksynthError) as exc:
+        return [Check("data_files", False, f"the data the fit was made on cannot be read back: {exc}")]
+    checks.append(Check("data_files", True, f"{len(est) + len(val)} data file(s) in data/ with the "
+                        "recorded sha256"))
+    converged = diag.get("converged") is True
+    checks.append(Check("converged", converged, f"IPOPT status {diag.get('status')!r}"
+                        + ("" if converged else ": the optimum was not reached")))
+
+    plant, values = fitted_plant(doc, spec)
+    substeps = int(diag.get("substeps", 4))
+    x0 = artefact_gain(doc, "x0").reshape(len(est), plant.n) if est else np.zeros((0, plant.n))
+    pairs = []
+    for e, (exp, _) in enumerate(est):
+        y_hat, res = _simulation(plant, exp, x0[e], substeps)
+        pairs.append((exp, y_hat))
+        if e == 0:
+            _record(trace, res, plant, exp, y_hat, check="rmse_reproduced", what="estimation data")
+            _record(trace, res, plant, exp, y_hat, check="residual_whiteness", what="estimation data",
+                    residuals=True)
+    pooled = _pooled(pairs)
+    recorded = (diag.get("estimation") or {}).get("rmse") or {}
+    rows, bad = {}, []
+    for nm, (y, y_hat, mask) in pooled.items():
+        value = float(rmse(y[:, None], y_hat[:, None], mask[:, None])[0])
+        rec = recorded.get(nm)
+        rec = float(rec) if isinstance(rec, (int, float)) else float("nan")
+        rows[nm] = {"resimulated": value, "recorded": rec}
+        if not _close(value, rec):
+            bad.append(f"{nm}: {value:.10g} re-simulated vs {rec:.10g} recorded")
+    checks.append(Check("rmse_reproduced", not bad and bool(rows),
+                        ("RMSE re-simulated with tanksynth.sim at the fitted values equals the "
+                         f"recorded one (rtol {RMSE_RTOL:g}): " + ", ".join(
+                             f"{nm} {r['resimulated']:.6g}" for nm, r in rows.items()))
+                        if not bad else "re-simulated RMSE differs from the artefact's: " + "; ".join(bad),
+                        {"rmse": rows, "rtol": RMSE_RTOL}))
+
+    params = diag.get("parameters") or {}
+    at = []
+    for nm, v in values.items():
+        p = params.get(nm) or {}
+        lo, hi = float(p.get("lower", -np.inf)), float(p.get("upper", np.inf))
+        tol = BOUND_TOL * (hi - lo) if np.isfinite(hi - lo) else 0.0
+        if v <= lo + tol or v >= hi - tol:
+            at.append(f"{nm} = {v:.6g} in [{lo:g}, {hi:g}]")
+    checks.append(Check("parameters_inside_bounds", not at,
+                        "every fitted value inside its search box" if not at else
+                        "at a bound (the optimum may lie outside the box; widen min/max): " + "; ".join(at)))
+
+    white = {}
+    for nm, (y, y_hat, mask) in pooled.items():
+        q, bound, lags = whiteness(np.where(mask, y - y_hat, np.nan))
+        white[nm] = {"statistic": q, "bound": bound, "lags": lags, "white": bool(q <= bound)}
+    checks.append(Check("residual_whiteness", None,
+                        "information (an output-error fit needs no white residuals): " + ", ".join(
+                            f"{nm} Q = {w['statistic']:.3g} {'<=' if w['white'] else '>'} {w['bound']:.3g}"
+                            + ("" if w["white"] else " (correlated: unmodelled dynamics or coloured noise)")
+                            for nm, w in white.items()), {"whiteness": white}))
+
+    if val:
+        init = int((diag.get("validation") or {}).get("init_samples", 0))
+        bad = []
+        rows_v: dict[str, dict[str, Any]] = {}
+        for exp, rec in val:
+            xv = np.asarray(rec.get("x0"), dtype=float).reshape(plant.n)
+            y_hat, res = _simulation(plant, exp, xv, substeps)
+            if not rows_v:
+                _record(trace, res, plant, exp, y_hat, check="validation_fit", what="validation data")
+            scored = exp.observed.copy()
+            scored[:init] = False  # the samples its initial state was estimated on do not score
+            fp = fit_percent(exp.y, y_hat, scored)
+            for j, nm in enumerate(exp.output_names):
+                mask = scored[:, j]
+                floor = validation_floor(float(recorded.get(nm, np.nan)), exp.y[mask, j])
+                given = (rec.get("fit_percent") or {}).get(nm)
+                rows_v[f"{exp.name}.{nm}"] = {"fit_percent": float(fp[j]), "floor": floor,
+                                              "recorded": given}
+                if not fp[j] >= floor:
+                    bad.append(f"{exp.name} {nm}: {fp[j]:.2f} % < floor {floor:.2f} %")
+                elif not (isinstance(given, (int, float)) and _close(float(fp[j]), float(given), 1e-6)):
+                    bad.append(f"{exp.name} {nm}: re-simulated {fp[j]:.6g} % vs recorded {given!r}")
+        checks.append(Check("validation_fit", not bad,
+                            ("validation fit % above max(0, 100 (1 - 2 rmse_est / s_val)): " + ", ".join(
+                                f"{k} {r['fit_percent']:.1f} % >= {r['floor']:.1f} %" for k, r in rows_v.items()))
+                            if not bad else "; ".join(bad), {"validation": rows_v}))
+    else:
+        checks.append(Check("validation_fit", None, "no validation file: the model is not checked "
+                            "on data it was not fitted to"))
+    return checks

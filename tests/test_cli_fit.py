@@ -1,0 +1,270 @@
+"""``tanksynth fit`` end to end on logged data simulated from known parameters (`fit_data`):
+the artefact, the data copies, ``fitted.toml``, the verdict, bad inputs, and a robust design over
+the fitted box (``uncertain = "fit"``)."""
+
+from __future__ import annotations
+
+import json
+import shutil
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from fit_data import TRUE, spec_text, write_log  # noqa: E402
+
+from tanksynth.cli import main  # noqa: E402
+
+FIT_DESIGN = """
+[[design]]
+name = "fit"
+method = "fit"
+data = ["est.csv"]
+validate = ["val.csv"]
+starts = 1
+"""
+
+ROBUST = """
+[[design]]
+name = "rsf"
+method = "robust_state_feedback"
+uncertain = "fit"
+{fit}
+region = [{{type = "disk", center = 0.0, radius = 0.99}}]
+"""
+
+
+def _run(*args, capsys=None):
+    code = main([str(a) for a in args])
+    out = capsys.readouterr() if capsys is not None else None
+    return code, out
+
+
+@pytest.fixture(scope="module")
+def fitted(tmp_path_factory):
+    """One fit of mu13, mu32, mu20 on 200 simulated samples (shared: a fit takes seconds)."""
+    root = tmp_path_factory.mktemp("fit")
+    write_log(root / "est.csv", seed=1, samples=200)
+    write_log(root / "val.csv", seed=2, samples=200)
+    (root / "spec.toml").write_text(spec_text(FIT_DESIGN + ROBUST.format(fit="")))
+    code = main(["fit", str(root / "spec.toml"), "-o", str(root / "out")])
+    return root, code
+
+
+@pytest.mark.slow
+def test_fit_writes_artefact_data_and_fitted_spec(fitted):
+    root, code = fitted
+    out = root / "out"
+    assert code == 0
+    doc = json.loads((out / "fit.json").read_text())
+    assert set(doc["gains"]) == {"theta", "covariance", "x0"}
+    diag = doc["diagnostics"]
+    for name in TRUE:
+        p = diag["parameters"][name]
+        assert set(p) >= {"value", "stderr", "ci95", "unit", "start", "lower", "upper", "at_bound"}
+        assert abs(p["value"] - TRUE[name]) < 0.02, (name, p["value"])
+    assert set(diag["estimation"]["rmse"]) == {"h1", "h2"} == set(diag["validation"]["rmse"])
+    assert diag["converged"] is True
+    # the data copies, byte for byte, with the recorded sha256
+    import hashlib
+    for rec in diag["estimation"]["experiments"] + diag["validation"]["experiments"]:
+        copy = out / rec["file"]
+        assert copy.read_bytes() == (root / Path(rec["file"]).name).read_bytes()
+        assert hashlib.sha256(copy.read_bytes()).hexdigest() == rec["sha256"]
+    # fitted.toml: the fitted values as plain numbers, the fit design gone, the robust design
+    # pointed at fit.json; it loads as a spec
+    import tomllib
+
+    from tanksynth.methods import load_spec
+
+    table = tomllib.loads((out / "fitted.toml").read_text())
+    assert {k: table["plant"]["parameters"][k] for k in TRUE} == {
+        k: diag["parameters"][k]["value"] for k in TRUE}
+    assert [d["method"] for d in table["design"]] == ["robust_state_feedback"]
+    assert table["design"][0]["fit"] == "fit.json"
+    spec = load_spec(out / "fitted.toml")
+    assert spec.free_parameters == ()
+    assert spec.designs[0].config.uncertain == tuple(
+        (k, *diag["parameters"][k]["ci95"]) for k in diag["parameters"])
+
+
+@pytest.mark.slow
+def test_fitted_spec_runs(fitted, tmp_path, capsys):
+    root, _ = fitted
+    code, out = _run("run", root / "out" / "fitted.toml", "-o", tmp_path / "r", capsys=capsys)
+    assert code == 0, out.err
+    doc = json.loads((tmp_path / "r" / "rsf.json").read_text())
+    source = doc["diagnostics"]["uncertain_source"]
+    fit_json = root / "out" / "fit.json"
+    import hashlib
+    assert source["sha256"] == hashlib.sha256(fit_json.read_bytes()).hexdigest()
+    assert source["level"] == 0.95
+    box = json.loads(fit_json.read_text())["diagnostics"]["parameters"]
+    assert doc["diagnostics"]["uncertain"] == [[k, *v["ci95"]] for k, v in box.items()]
+
+
+@pytest.mark.slow
+def test_verdict_reproduces_and_fails_on_edits(fitted, tmp_path):
+    from tanksynth.methods import load_directory, verify_directory
+    from tanksynth.verify.fit.verdicts import fit_verdict
+
+    root, _ = fitted
+    work = tmp_path / "copy"
+    shutil.copytree(root / "out", work)
+    spec, docs = load_directory(work)
+    (doc,) = [d for _, d in docs]
+    checks = {c.name: c for c in fit_verdict(doc, spec)}
+    assert checks["rmse_reproduced"].passed and checks["data_files"].passed
+    assert checks["converged"].passed and checks["parameters_inside_bounds"].passed
+    # a changed value: the re-simulated RMSE no longer equals the recorded one
+    edited = dict(doc, gains={**doc["gains"], "theta": doc["gains"]["theta"] * np.array([1.01, 1, 1])})
+    assert {c.name: c for c in fit_verdict(edited, spec)}["rmse_reproduced"].passed is False
+    # an edited data copy: refused on its hash
+    csv = work / "data" / "est.csv"
+    csv.write_text(csv.read_text().replace("\n1,", "\n1.0,", 1))
+    (verdict,) = verify_directory(work)
+    failed = [c for c in verdict.checks if c.passed is False]
+    assert [c.name for c in failed] == ["data_files"] and "sha256" in failed[0].detail
+
+
+@pytest.mark.slow
+def test_edited_fit_json_is_refused(fitted, tmp_path, capsys):
+    root, _ = fitted
+    work = tmp_path / "copy"
+    shutil.copytree(root / "out", work)
+    doc = json.loads((work / "fit.json").read_text())
+    doc["diagnostics"]["estimation"]["rmse"]["h1"] *= 2
+    (work / "fit.json").write_text(json.dumps(doc))
+    code, out = _run("verify", work, capsys=capsys)
+    assert code == 2 and len(out.err.strip().splitlines()) == 1
+
+
+def test_no_free_parameter_exit_2(tmp_path, capsys):
+    write_log(tmp_path / "est.csv", seed=1, samples=20)
+    (tmp_path / "s.toml").write_text(spec_text(free=False))
+    code, out = _run("fit", tmp_path / "s.toml", "--data", tmp_path / "est.csv", "-o", tmp_path / "o",
+                     capsys=capsys)
+    assert code == 2
+    (line,) = out.err.strip().splitlines()
+    assert "fit = true" in line and "plant.parameters" in line
+    assert not (tmp_path / "o" / "fit.json").exists()
+
+
+def test_fit_design_without_free_parameter_refused_at_load(tmp_path, capsys):
+    (tmp_path / "s.toml").write_text(spec_text(FIT_DESIGN, free=False))
+    code, out = _run("check", tmp_path / "s.toml", "--spec-only", capsys=capsys)
+    assert code == 2 and "fit = true" in out.err and len(out.err.strip().splitlines()) == 1
+
+
+def test_missing_data_file_exit_2(tmp_path, capsys):
+    (tmp_path / "s.toml").write_text(spec_text(FIT_DESIGN))
+    code, out = _run("fit", tmp_path / "s.toml", "-o", tmp_path / "o", capsys=capsys)
+    assert code == 2
+    (line,) = out.err.strip().splitlines()
+    assert "est.csv" in line and "design[0].data[0]" in line
+    code, out = _run("fit", tmp_path / "s.toml", "--data", tmp_path / "nope.csv", "-o", tmp_path / "o",
+                     capsys=capsys)
+    assert code == 2 and "nope.csv" in out.err
+
+
+def test_robust_fit_without_path_refused_at_design(tmp_path, capsys):
+    (tmp_path / "s.toml").write_text(spec_text(ROBUST.format(fit="")))
+    code, out = _run("design", tmp_path / "s.toml", "-o", tmp_path / "o", capsys=capsys)
+    assert code == 2 and "fit = \"PATH\"" in out.err
+
+
+def test_robust_fit_bad_file_exit_2(tmp_path, capsys):
+    (tmp_path / "f.json").write_text('{"schema": "tanksynth.artefact/1", "method": "lqr"}')
+    (tmp_path / "s.toml").write_text(spec_text(ROBUST.format(fit='fit = "f.json"')))
+    code, out = _run("check", tmp_path / "s.toml", "--spec-only", capsys=capsys)
+    assert code == 2 and "f.json" in out.err and "not a fit result" in out.err
+
+
+@pytest.mark.slow
+def test_non_converging_fit_exit_3(tmp_path, capsys):
+    write_log(tmp_path / "est.csv", seed=1, samples=60)
+    (tmp_path / "s.toml").write_text(spec_text(FIT_DESIGN.replace('validate = ["val.csv"]\n', "")
+                                               + "max_iter = 1\n"))
+    code, out = _run("fit", tmp_path / "s.toml", "-o", tmp_path / "o", capsys=capsys)
+    assert code == 3, out.err
+    assert "refused" in out.err and len(out.err.strip().splitlines()) == 1
+    assert "did not converge (IPOPT status 'Maximum_Iterations_Exceeded'" in out.out
+    assert not (tmp_path / "o" / "fit.json").exists()
+
+
+@pytest.mark.slow
+def test_robust_box_from_fit_directory_equals_intervals(fitted, tmp_path):
+    from tanksynth.methods import load_spec
+
+    root, _ = fitted
+    spec_path = root / "robust.toml"
+    spec_path.write_text(spec_text(ROBUST.format(fit='fit = "out"')))
+    box = load_spec(spec_path).designs[0].config.uncertain
+    params = json.loads((root / "out" / "fit.json").read_text())["diagnostics"]["parameters"]
+    assert box == tuple((k, *v["ci95"]) for k, v in params.items())
+
+
+def test_campaign_draws_follow_the_covariance():
+    """Draws of `FitRun` have the fit's mean and covariance (sample estimates, 4000 draws)."""
+    from tanksynth.verify.fit.campaign import FitRun
+
+    cov = np.array([[4e-6, -1e-6], [-1e-6, 1e-6]])
+    run = FitRun(("a", "b"), np.array([0.5, 0.6]), cov, np.array([0.0, 0.0]), np.array([1.0, 1.0]),
+                 np.zeros(3), np.zeros(2), "")
+    d = run.draws(range(4000))
+    np.testing.assert_allclose(d.mean(axis=0), [0.5, 0.6], atol=1e-4)
+    np.testing.assert_allclose(np.cov(d.T), cov, rtol=0.1, atol=1e-7)
+    # clipped to the box
+    tight = FitRun(("a", "b"), np.array([0.5, 0.6]), cov * 1e4, np.array([0.49, 0.59]),
+                   np.array([0.51, 0.61]), np.zeros(3), np.zeros(2), "")
+    d = tight.draws(range(100))
+    assert d.min(axis=0).tolist() == [0.49, 0.59] and d.max(axis=0).tolist() == [0.51, 0.61]
+
+
+def test_fitted_text_keeps_the_rest_and_parses():
+    import tomllib
+
+    from tanksynth.spec.fitted import FittedValue, fitted_spec_text
+
+    text = spec_text(FIT_DESIGN).replace(
+        "mu20 = {value = 0.6, min = 0.3, max = 0.9, fit = true}\n",
+        "\n[plant.parameters.mu20]   # a table of its own\nvalue = 0.6\nmin = 0.3\nmax = 0.9\nfit = true\n")
+    values = {k: FittedValue(v, v - 0.01, v + 0.01, 0.95, "1") for k, v in TRUE.items()}
+    out = fitted_spec_text(text, values, "fit.json")
+    table = tomllib.loads(out)
+    assert {k: table["plant"]["parameters"][k] for k in TRUE} == TRUE
+    assert "design" not in table and table["operating_point"]["trim"] == "states"
+    assert "# the levels these flows hold" in out  # comments kept
+    assert "mu13 = 0.55  # fitted: 95 % interval [0.54, 0.56]" in out
+
+
+def test_bad_data_exit_2_names_file_and_column(tmp_path, capsys):
+    write_log(tmp_path / "est.csv", seed=1, samples=20)
+    text = (tmp_path / "est.csv").read_text().replace("t,q1,q2,h1,h2", "t,q1,qq2,h1,h2", 1)
+    (tmp_path / "bad.csv").write_text(text)
+    (tmp_path / "s.toml").write_text(spec_text())
+    code, out = _run("fit", tmp_path / "s.toml", "--data", tmp_path / "bad.csv", "-o", tmp_path / "o",
+                     capsys=capsys)
+    assert code == 2
+    (line,) = out.err.strip().splitlines()
+    assert "bad.csv" in line and "q2" in line
+    assert not (tmp_path / "o" / "fit.json").exists()
+
+
+@pytest.mark.slow
+def test_parameter_at_a_bound_warns_and_fails_the_verdict(tmp_path, capsys):
+    write_log(tmp_path / "est.csv", seed=1, samples=120)
+    text = spec_text(FIT_DESIGN.replace('validate = ["val.csv"]\n', "")).replace(
+        "mu20 = {value = 0.6, min = 0.3, max = 0.9, fit = true}",
+        "mu20 = {value = 0.6, min = 0.3, max = 0.65, fit = true}")   # the data's 0.70 is outside
+    (tmp_path / "s.toml").write_text(text)
+    code, out = _run("fit", tmp_path / "s.toml", "-o", tmp_path / "o", capsys=capsys)
+    assert code == 1, out.err
+    assert "warning: fit: fitted mu20 = 0.65 lies at a bound" in out.err
+    doc = json.loads((tmp_path / "o" / "fit.json").read_text())
+    assert doc["diagnostics"]["parameters"]["mu20"]["at_bound"] is True
+    assert any("mu20" in w for w in doc["diagnostics"]["warnings"])
+    checks = {c["check"]: c for c in doc["verification"]["checks"]}
+    assert checks["parameters_inside_bounds"]["passed"] is False
