@@ -50,8 +50,8 @@ DETECTION_SEARCH = (
     "A multiplicative fault (leak) scales q with the state at t_f (x2(2) = 0.55, 1.33, 1.06): "
     "the leak drives the residual negative, so it needs |q| > threshold + eps0(x0): the "
     "continuous crossing of x0(2) comes after that of x0(3) for every leak size (1e-3 to 1e3) "
-    "detected within 60 ms (the tool's order; with the rounded gain 169.667 and (54) the residual of x0(2) is "
-    "already 1.3e-5 relative above (54) before the fault)")
+    "detected within 60 ms (the tool's order; with the rounded gain 169.667 and (54) the "
+    "residual of x0(2) is already 1.3e-5 relative above (54) before the fault)")
 
 #: The closest combination of the search (fault, onset s, threshold, sampling s, size, the three
 #: detection times in s): none at the printed onset comes closer than 0.5 ms for x0(3).
@@ -294,7 +294,8 @@ def _detection_time_rows(art: Mapping[str, Any]) -> list[PaperRow]:
             continue
         diff = t - printed
         same = abs(diff) <= printed_precision(repr(float(printed)))
-        note = "equal to the printed digits" if same else (
+        note = ("equal to the printed digits, for the declared fault size only (see the order "
+                "row)") if same else (
             f"ours {'later' if diff > 0 else 'earlier'} by ${format_number(abs(diff) * 1e3, 3)}$~ms; "
             + size_note)
         rows.append(PaperRow(label, cell_number(printed), cell_number(t, 6),
@@ -302,7 +303,7 @@ def _detection_time_rows(art: Mapping[str, Any]) -> list[PaperRow]:
     if all(t is not None for t in ours_by_start):
         def order(times: Any) -> str:
             idx = sorted(range(len(times)), key=lambda i: -float(times[i]))
-            return " > ".join(f"$t(x_0^{{({i + 1})}})$" for i in idx)
+            return " $>$ ".join(f"$t(x_0^{{({i + 1})}})$" for i in idx)
         same = order(paper.DETECTION_TIMES) == order(ours_by_start)
         rows.append(PaperRow(Tex("order of the detection times"), Tex(order(paper.DETECTION_TIMES)),
                              Tex(order(ours_by_start)), AGREES if same else DIFFERS,
