@@ -99,6 +99,9 @@ def test_stored_search_supports_the_report(search, stored):
     assert s["additive_span_feasible_at_printed_onset"] == []
     at_onset = [r for r in stored["additive_span"] if r["t_f"] == paper.T_FAULT]
     assert len(at_onset) == 3 * 2 * 4 and not any(r["feasible"] for r in at_onset)
+    later = {(r["observer"], r["t_f"]) for r in stored["additive_span"] if r["feasible"]}
+    assert later and all(obs == "printed_gamma" and t_f in (2.005, 2.01) for obs, t_f in later)
+    assert "only with the printed Gamma_d and an onset of 2.005 or 2.01 s" in DETECTION_SEARCH
     best = s["closest"]
     for key in ("fault", "t_f", "threshold", "sampling_s"):
         assert best[key] == DETECTION_SEARCH_CLOSEST[key]
