@@ -26,7 +26,48 @@ from tanksynth.reports.inputs import ReportInputs
 from tanksynth.reports.latex import Tex, escape_latex, format_eigenvalues, format_number
 
 __all__ = ["structure_applies", "structure_rows", "detection_applies", "detection_rows",
-           "stored_detections"]
+           "stored_detections", "DETECTION_SEARCH", "DETECTION_SEARCH_CLOSEST",
+           "DETECTION_SEARCH_CLOSEST_AT_ONSET"]
+
+#: What was tried to reach the printed detection times, and why they cannot be reached
+#: (scripts/seed004_detection_search.py, closed form; its results in
+#: tests/data/seed004_detection_search.json, which a test ties to these words and numbers).
+DETECTION_SEARCH = (
+    "not reachable: searched in closed form over 5460 combinations (observer with the derived "
+    "gain, the printed gain or the printed Gamma_d; fault: step or ramp into tank 1 (actuator), "
+    "tank 2, tank 3 or the sensor, a leak of tank 1, 2 or 3, the tank 2-3 link, a sensor gain; "
+    "fault size of either sign from 1e-6 to 1e4; onset 2 or 2.01 s; threshold (54) or (55); "
+    "residual y - y_hat, the x3 error, e1, e2, e3, |e|_2 or |e|_inf; continuous crossing or "
+    "first sample on a 0.1, 0.5, 1 or 5 ms grid): none gives the three printed times to their "
+    "printed digits. Closest: the tank 2-3 link flow raised by 1.02 % from 2.01 s, (54), 0.5 ms "
+    "samples: 2.0235, 2.0105, 2.0165 s (x0(2) 4.5 ms early, and the onset is not the printed "
+    "one); at the printed onset 2 s: the leak of tank 2, size 0.589, (55), 1 ms samples: 2.023, "
+    "2.020, 2.017 s. Why: before the fault the residual is C exp(Gamma_d t)(x0 - 1/4) whatever "
+    "the input; x0(2) - 1/4 is the corner e_hat, so its residual is exactly (54), while x0(1) "
+    "and x0(3) sit at 0.27 % and 8.9 % of it near t = 2 s. An additive fault (any combination "
+    "of steps and ramps into the tanks and the sensor, levels moved by at most 10) adds the "
+    "same term q(t) to all three residuals, so a first crossing at the printed times needs "
+    "q(2.015) = (55) - (54) (or 0 with (54)) and q(2.0165) = 0.91 x threshold: a rise of 0.9 "
+    "of the threshold in 1.5 ms, then under the threshold of x0(1) until 2.0235 s. A linear "
+    "program over that whole span is infeasible at the printed onset t_f = 2 s for every "
+    "observer, threshold and sampling (1 and 5 ms grids cannot print 2.0235 or 2.0165 at all); "
+    "it is feasible only with the printed Gamma_d and an onset of 2.005 or 2.01 s, which the "
+    "paper excludes (t_f = 2 s). "
+    "A multiplicative fault (leak) scales q with the state at t_f (x2(2) = 0.55, 1.33, 1.06): "
+    "the leak drives the residual negative, so it needs |q| > threshold + eps0(x0): the "
+    "continuous crossing of x0(2) comes after that of x0(3) for every leak size (1e-3 to 1e3) "
+    "detected within 60 ms (the tool's order; with the rounded gain 169.667 and (54) the "
+    "residual of x0(2) is already 1.3e-5 relative above (54) before the fault)")
+
+#: The closest combination of the search (fault, onset s, threshold, sampling s, size, the three
+#: detection times in s).
+DETECTION_SEARCH_CLOSEST = {"fault": "link23", "t_f": 2.01, "threshold": "54", "sampling_s": 5e-4,
+                            "theta": -0.0102, "times": (2.0235, 2.0105, 2.0165)}
+
+#: The closest combination at the printed onset t_f = 2 s (the same keys).
+DETECTION_SEARCH_CLOSEST_AT_ONSET = {"fault": "leak2", "t_f": 2.0, "threshold": "55",
+                                     "sampling_s": 1e-3, "theta": 0.589,
+                                     "times": (2.023, 2.020, 2.017)}
 
 _LIN_SHAPES = {"F": (3, 3), "B": (3, 1), "C": (1, 3)}
 _FAULT_SHAPES = {"Psi": (3, 1), "Gamma_d": (3, 3)}
@@ -242,11 +283,14 @@ def _threshold_rows(art: Mapping[str, Any]) -> list[PaperRow]:
 def _detection_time_rows(art: Mapping[str, Any]) -> list[PaperRow]:
     stored = stored_detections(art)
     size = fault_size_of(art.get("diagnostics") or {})
-    size_note = (r"the fault size $\bar\delta$ is not printed; ours with $\bar\delta = "
-                 + (format_number(size) if size is not None else r"\text{?}") + "$ (declared)")
+    size_note = (r"the fault model (eq.~3) and size are not printed; ours a leak $\bar\delta = "
+                 + (format_number(size) if size is not None else r"\text{?}") + "$ (declared); "
+                 "no fault model reaches the printed times (see the order row)")
     rows = []
+    ours_by_start: list[float | None] = []
     for k, (x0, printed) in enumerate(zip(paper.INITIAL_STATES, paper.DETECTION_TIMES)):
         match = [t for x, t in stored if x.shape == (3,) and np.allclose(x, x0, rtol=0, atol=1e-9)]
+        ours_by_start.append(match[0] if match else None)
         label = Tex(f"detection time $t_d$, $x_0^{{({k + 1})}} = (" + ", ".join(
             format_number(v, 3) for v in x0) + ")$ (s)")
         if not match:
@@ -261,9 +305,18 @@ def _detection_time_rows(art: Mapping[str, Any]) -> list[PaperRow]:
             continue
         diff = t - printed
         same = abs(diff) <= printed_precision(repr(float(printed)))
-        note = "equal to the printed digits" if same else (
+        note = ("equal to the printed digits, for the declared fault size only (see the order "
+                "row)") if same else (
             f"ours {'later' if diff > 0 else 'earlier'} by ${format_number(abs(diff) * 1e3, 3)}$~ms; "
             + size_note)
         rows.append(PaperRow(label, cell_number(printed), cell_number(t, 6),
                              AGREES if same else DIFFERS, Tex(note), None, float(printed), float(t)))
+    if all(t is not None for t in ours_by_start):
+        def order(times: Any) -> str:
+            idx = sorted(range(len(times)), key=lambda i: -float(times[i]))
+            return " $>$ ".join(f"$t(x_0^{{({i + 1})}})$" for i in idx)
+        same = order(paper.DETECTION_TIMES) == order(ours_by_start)
+        rows.append(PaperRow(Tex("order of the detection times"), Tex(order(paper.DETECTION_TIMES)),
+                             Tex(order(ours_by_start)), AGREES if same else DIFFERS,
+                             escape_latex(DETECTION_SEARCH, breakable=True)))
     return rows

@@ -169,6 +169,14 @@ def test_seed004_fault_detection_rows(tmp_path):
     # only the second agrees to the printed digits (2.015 +- 5e-4); the fault size is not printed
     assert [r.verdict for r in times] == [DIFFERS, AGREES, DIFFERS]
     assert "not printed" in times[0].note and r"\bar\delta = 1" in times[0].note
+    assert "declared fault size only" in times[1].note
+    # the order row: printed t(x0(1)) > t(x0(3)) > t(x0(2)), ours t(x0(1)) > t(x0(2)) > t(x0(3)),
+    # with what was searched and why the printed times are not reachable
+    order = rows["order of the detection times"]
+    assert order.verdict == DIFFERS
+    assert order.printed.index("(3)") < order.printed.index("(2)")
+    assert order.ours.index("(2)") < order.ours.index("(3)")
+    assert "not reachable" in order.note and "infeasible" in order.note
 
 
 @pytest.mark.slow
@@ -183,7 +191,7 @@ def test_seed004_fault_detection_rows_typeset(tmp_path):
     text = subprocess.run(["pdftotext", "-layout", str(res.pdf), "-"], capture_output=True,
                           text=True, check=True).stdout
     assert "observer, threshold and detection times" in text
-    assert "2.0235" in text and "2.01698" in text and "not printed" in text
+    assert "2.0235" in text and "2.01698" in text and "not reachable" in text
 
 
 def test_seed004_detection_times_read_defensively(tmp_path):
