@@ -66,6 +66,9 @@ class PaperRow:
         1-based matrix entry, for matrix rows.
     printed_value, ours_value : float, optional
         The numbers compared, when scalar.
+    explanation : Tex, optional
+        A derivation too long for a table cell: typeset as a paragraph under the table
+        (the note then says so).
     """
 
     quantity: Tex
@@ -76,6 +79,7 @@ class PaperRow:
     entry: tuple[int, ...] | None = None
     printed_value: float | None = None
     ours_value: float | None = None
+    explanation: Tex = Tex("")
 
     @property
     def is_erratum(self) -> bool:

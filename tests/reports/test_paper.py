@@ -176,7 +176,7 @@ def test_seed004_fault_detection_rows(tmp_path):
     assert order.verdict == DIFFERS
     assert order.printed.index("(3)") < order.printed.index("(2)")
     assert order.ours.index("(2)") < order.ours.index("(3)")
-    assert "not reachable" in order.note and "infeasible" in order.note
+    assert "not reachable" in order.note and "infeasible" in order.explanation      # derivation under the table
 
 
 @pytest.mark.slow
@@ -192,6 +192,8 @@ def test_seed004_fault_detection_rows_typeset(tmp_path):
                           text=True, check=True).stdout
     assert "observer, threshold and detection times" in text
     assert "2.0235" in text and "2.01698" in text and "not reachable" in text
+    # the derivation is a paragraph under the table (it filled a page of the verdict column)
+    assert "order of the detection times." in text and "Not reachable: searched in closed form" in " ".join(text.split())
 
 
 def test_seed004_detection_times_read_defensively(tmp_path):
