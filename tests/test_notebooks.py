@@ -28,7 +28,7 @@ def _read(path: Path):
 def test_notebooks_exist():
     names = {p.stem for p in NOTEBOOKS}
     assert {"00_tutorial", "01_seed000_three_tank", "02_seed001_ts_observer", "03_seed002_hybrid",
-            "04_seed003_decentralized", "05_seed004_fault_detection"} <= names
+            "04_seed003_decentralized", "05_seed004_fault_detection", "06_fit_three_tank"} <= names
 
 
 @pytest.mark.parametrize("path", NOTEBOOKS, ids=[p.stem for p in NOTEBOOKS])
