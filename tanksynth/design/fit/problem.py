@@ -214,10 +214,6 @@ class Intervals:
                                   np.where(d.low[:, j], _censor_level(d, j, False), 0.0))
         return {"U": U, "DT": DT, "Y": Y, "A": A, "B": B, "C": C, "Z": Z}
 
-    def _args(self, e: int) -> list[np.ndarray]:
-        p = self.packed[e]
-        return [p["U"], p["DT"]], [p[nm] for nm in "YABCZ"]
-
     def nlp(self, theta: Any, S: Sequence[Any], w: Any) -> tuple[Any, Any]:
         """Weighted residuals and continuity gaps of all experiments (multiple shooting).
 
@@ -275,8 +271,18 @@ class Intervals:
         return ca.vec(r), Y[:, :self.data[e].samples]
 
     def flags(self, e: int) -> np.ndarray:
-        """Entries of the residual vector of experiment ``e`` that are samples (exact or
-        censored), in the order of `single`: (q, J L) column-major, as bool."""
+        """Entries of the residual vector of experiment ``e`` that are samples (exact or censored).
+
+        Parameters
+        ----------
+        e : int
+            Experiment index.
+
+        Returns
+        -------
+        ndarray of bool
+            One per entry of `single`'s residual vector (sample-major, outputs inside).
+        """
         p = self.packed[e]
         return ((p["A"] + p["B"] + p["C"]) > 0).T.ravel()
 
