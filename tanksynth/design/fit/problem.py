@@ -189,6 +189,13 @@ class Intervals:
             x = model.step(x, U[:, i], DT[0, i], th)
         self.function = ca.Function("interval", [s, U, DT, th, Y, A, B, C, Z, w],
                                     [x, ca.vertcat(*rs), ca.horzcat(*ys)])
+        # the same interval in the NLP's scaled parameters, with its block Jacobians
+        # d(x_end, r)/d(s, sc), theta = lower + width * sc (forward AD in SX, k + n directions)
+        sc, lo, wd = ca.SX.sym("sc", k), ca.SX.sym("lo", k), ca.SX.sym("wd", k)
+        x_end, r_all, _ = self.function(s, U, DT, lo + wd * sc, Y, A, B, C, Z, w)
+        zj = ca.vertcat(s, sc)
+        self.blocks = ca.Function("interval_blocks", [s, U, DT, sc, lo, wd, Y, A, B, C, Z, w],
+                                  [x_end, r_all, ca.jacobian(x_end, zj), ca.jacobian(r_all, zj)])
         self.outputs = tuple(o for o in model.output_names)
         self.intervals = [nodes(d.samples, L) for d in self.data]
         self.packed = [self._pack(d, J) for d, J in zip(self.data, self.intervals)]
