@@ -156,7 +156,7 @@ class _Blocks:
         n, k = model.n, len(model.names)
         self.n, self.k, self.nz = n, k, n + k
         self.M = M = sum(res.intervals)
-        self.mapped = res.blocks.map(M, "serial")
+        self.mapped = res.blocks.map(M, "thread", 2)
         cat = lambda key: np.hstack([p[key] for p in res.packed])  # noqa: E731
         self.data = {key: cat(key) for key in ("U", "DT", "Y", "A", "B", "C", "Z")}
         self.lower = np.repeat(model.lower[:, None], M, axis=1)
@@ -313,7 +313,8 @@ class _Solver:
         obj = 0.5 * ca.sumsqr(r) / self.count
         opts: dict[str, Any] = {"print_time": False, "ipopt.print_level": 0, "ipopt.sb": "yes",
                 "ipopt.max_iter": int(max_iter), "ipopt.tol": 1e-9,
-                "ipopt.acceptable_tol": 1e-6, "ipopt.acceptable_iter": 3}
+                "ipopt.acceptable_tol": 1e-6, "ipopt.acceptable_iter": 3,
+                "ipopt.mu_strategy": "adaptive"}
         z = ca.vec(V)
         # Gauss-Newton Hessian of the Lagrangian (J_r^T J_r of the residuals; the constraints'
         # and the residuals' curvature left out: exact at a zero-residual fit, positive

@@ -242,7 +242,7 @@ class Intervals:
             ``x_end(node j) - node j+1`` of every experiment.
         """
         M = sum(self.intervals)
-        fn = self.function.map(M, "serial")
+        fn = self.function.map(M, "thread", 2)
         cat = lambda key: np.hstack([p[key] for p in self.packed])  # noqa: E731
         th = theta if theta.shape[1] == M else ca.repmat(theta, 1, M)
         x_end, r, _ = fn(ca.horzcat(*S), cat("U"), cat("DT"), th, cat("Y"),
