@@ -11,6 +11,15 @@ data, re-estimated from the residuals once). Exact samples count by their error,
 samples only where the model is inside the sensor limit (hinge), missing samples not at
 all. The statistics (`tanksynth.design.fit.statistics`) come from the residual Jacobian of
 the single-shooting map at the optimum.
+
+IPOPT works on the lifted problem (each shooting interval carries its node state and its
+own copy of the scaled parameters, equal by constraint) with a Gauss-Newton Hessian: the
+gradient, the constraints' Jacobian and ``J_r^T J_r`` all come from one mapped evaluation of
+every interval's block Jacobians per iterate.
+
+Limits: the model steps over a hybrid plant's switching surface without locating it inside
+the step (the simulator locates it), so for a hybrid plant a re-simulation may differ near
+the crossings; only the simulation-error mode exists (``mode = "prediction"`` is refused).
 """
 
 from __future__ import annotations
