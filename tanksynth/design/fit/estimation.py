@@ -11,6 +11,15 @@ data, re-estimated from the residuals once). Exact samples count by their error,
 samples only where the model is inside the sensor limit (hinge), missing samples not at
 all. The statistics (`tanksynth.design.fit.statistics`) come from the residual Jacobian of
 the single-shooting map at the optimum.
+
+IPOPT works on the lifted problem (each shooting interval carries its node state and its
+own copy of the scaled parameters, equal by constraint) with a Gauss-Newton Hessian: the
+gradient, the constraints' Jacobian and ``J_r^T J_r`` all come from one mapped evaluation of
+every interval's block Jacobians per iterate.
+
+Limits: the model steps over a hybrid plant's switching surface without locating it inside
+the step (the simulator locates it), so for a hybrid plant a re-simulation may differ near
+the crossings; only the simulation-error mode exists (``mode = "prediction"`` is refused).
 """
 
 from __future__ import annotations
@@ -56,7 +65,7 @@ class FitResult:
     stderr : ndarray, shape (k,)
         Standard errors (``inf`` for a parameter the data cannot determine).
     ci95 : ndarray, shape (k, 2)
-        Confidence intervals at ``level`` (named ci95 after the default level).
+        Confidence intervals at ``level`` (parameter units; named ci95 after the default level).
     interval_method : tuple of str
         How each interval was found: ``"wald"`` (Student t on the Fisher information),
         ``"profile"`` (profile likelihood: the Wald interval was asymmetric or crossed the
@@ -94,7 +103,7 @@ class FitResult:
     status : str
         IPOPT's return status of the kept solve.
     level : float
-        Confidence level of ``ci95``.
+        Confidence level of ``ci95`` (dimensionless).
     dof : int
         Residual degrees of freedom.
     substeps : int
@@ -143,6 +152,149 @@ class FitResult:
         return {nm: float(v) for nm, v in zip(self.names, self.values)}
 
 
+class _Blocks:
+    """Block derivatives of the lifted NLP, computed once per point and shared.
+
+    Every interval's residuals and end state depend only on its own node state and parameter
+    copy: one call of the mapped `Intervals.blocks` gives all their Jacobians, from which the
+    objective's gradient, the constraints' Jacobian and the Gauss-Newton Hessian are
+    assembled (numpy, fixed sparsity patterns).
+    """
+
+    def __init__(self, model: FitModel, res: Intervals):
+        n, k = model.n, len(model.names)
+        self.n, self.k, self.nz = n, k, n + k
+        self.M = M = sum(res.intervals)
+        self.mapped = res.blocks.map(M, "thread", 2)
+        cat = lambda key: np.hstack([p[key] for p in res.packed])  # noqa: E731
+        self.data = {key: cat(key) for key in ("U", "DT", "Y", "A", "B", "C", "Z")}
+        self.lower = np.repeat(model.lower[:, None], M, axis=1)
+        self.width = np.repeat((model.upper - model.lower)[:, None], M, axis=1)
+        self.count = max(int(sum(res.counts)), 1)
+        nz, nx = self.nz, self.nz * M
+        # constraint rows: gaps of every interval that has a successor in its experiment, then
+        # the parameter copies s_{m+1} - s_m
+        self.gap_of: list[int] = []
+        pos = 0
+        for J in res.intervals:
+            self.gap_of += list(range(pos, pos + J - 1))
+            pos += J
+        rows, cols, src = [], [], []          # src >= 0: index into vec(Jx); -1: -1, -2: +1
+        row = 0
+        for m in self.gap_of:
+            for i in range(n):
+                for j in range(nz):
+                    rows.append(row + i)
+                    cols.append(m * nz + j)
+                    src.append(m * n * nz + j * n + i)      # Jx of m is (n, nz) column-major
+                rows.append(row + i)
+                cols.append((m + 1) * nz + i)
+                src.append(-1)
+            row += n
+        for m in range(M - 1):
+            for i in range(k):
+                rows += [row + i, row + i]
+                cols += [(m + 1) * nz + n + i, m * nz + n + i]
+                src += [-2, -1]
+            row += k
+        self.ng = row
+        self.jac_sp = ca.Sparsity.triplet(row, nx, rows, cols)
+        self.jac_src = np.asarray(src)[np.lexsort((rows, cols))]     # column-major order
+        hr, hc, hs = [], [], []
+        for m in range(M):
+            for j in range(nz):
+                for i in range(j + 1):
+                    hr.append(m * nz + i)
+                    hc.append(m * nz + j)
+                    hs.append(m * nz * nz + j * nz + i)
+        self.hess_sp = ca.Sparsity.triplet(nx, nx, hr, hc)
+        self.hess_src = np.asarray(hs)[np.lexsort((hr, hc))]
+        self._key: bytes | None = None
+        self._val: dict[str, np.ndarray] = {}
+
+    def at(self, z: np.ndarray, w: np.ndarray) -> dict[str, np.ndarray]:
+        """Values and block Jacobians at ``z`` (cached for the last point and weights)."""
+        key = z.tobytes() + w.tobytes()
+        if key == self._key:
+            return self._val
+        V = z.reshape(self.M, self.nz).T
+        d = self.data
+        out = self.mapped(V[:self.n], d["U"], d["DT"], V[self.n:], self.lower, self.width,
+                          d["Y"], d["A"], d["B"], d["C"], d["Z"], np.repeat(w[:, None], self.M, axis=1))
+        x_end = out[0].full()
+        r = out[1].full()                                          # (qL, M)
+        # the map's Jacobians are horizontal concatenations of (rows, nz) blocks: column m nz + j
+        Jx = out[2].full().reshape(self.n, self.nz, self.M, order="F")
+        Jr = out[3].full().reshape(r.shape[0], self.nz, self.M, order="F")
+        # 0 * inf at a clipped level (the square root's slope at 0 times the clip's 0): the
+        # derivative of the clipped branch is 0
+        Jx = np.nan_to_num(Jx, nan=0.0, posinf=0.0, neginf=0.0)
+        Jr = np.nan_to_num(Jr, nan=0.0, posinf=0.0, neginf=0.0)
+        Jx = Jx.transpose(2, 0, 1)                                 # (M, n, nz)
+        Jr = Jr.transpose(2, 0, 1)                                 # (M, qL, nz)
+        gaps = [x_end[:, m] - V[:self.n, m + 1] for m in self.gap_of]
+        eq = (V[self.n:, 1:] - V[self.n:, :-1]).T.ravel()
+        g = np.concatenate(gaps + [eq]) if gaps else eq
+        grad = np.einsum("mri,rm->mi", Jr, r).ravel() / self.count
+        H = np.einsum("mri,mrj->mij", Jr, Jr) / self.count     # (M, nz, nz)
+        jx_cm = Jx.transpose(0, 2, 1).ravel()                    # per m: (n, nz) column-major
+        self._val = {"f": np.array([0.5 * float(np.sum(r * r)) / self.count]), "g": g,
+                     "grad": grad, "jx": jx_cm, "H": H.transpose(0, 2, 1).ravel()}
+        self._key = key
+        return self._val
+
+    def jac_values(self, v: dict[str, np.ndarray]) -> np.ndarray:
+        """Nonzeros of the constraints' Jacobian (the order of ``jac_sp``)."""
+        pool = np.concatenate([v["jx"], [-1.0, 1.0]])
+        src = np.where(self.jac_src == -1, pool.size - 2, np.where(self.jac_src == -2, pool.size - 1,
+                                                                  self.jac_src))
+        return pool[src]
+
+
+class _Derivative(ca.Callback):
+    """One derivative function of the lifted NLP for IPOPT (``grad_f``, ``jac_g`` or
+    ``hess_lag``), read off the shared `_Blocks`."""
+
+    def __init__(self, kind: str, blocks: _Blocks, nx: int, q: int):
+        ca.Callback.__init__(self)
+        self.kind, self.b, self.nx, self.q = kind, blocks, nx, q
+        self.construct(f"fit_{kind}", {})
+
+    def get_n_in(self) -> int:  # noqa: D102
+        return 4 if self.kind == "hess" else 2
+
+    def get_n_out(self) -> int:  # noqa: D102
+        return 1 if self.kind == "hess" else 2
+
+    def get_name_in(self, i: int) -> str:  # noqa: D102
+        return ("x", "p", "lam_f", "lam_g")[i]
+
+    def get_name_out(self, i: int) -> str:  # noqa: D102
+        names = {"grad": ("f", "grad_f_x"), "jac": ("g", "jac_g_x"), "hess": ("triu_hess_gamma_x_x",)}
+        return names[self.kind][i]
+
+    def get_sparsity_in(self, i: int) -> ca.Sparsity:  # noqa: D102
+        return ca.Sparsity.dense((self.nx, self.q, 1, self.b.ng)[i], 1)
+
+    def get_sparsity_out(self, i: int) -> ca.Sparsity:  # noqa: D102
+        if self.kind == "hess":
+            return self.b.hess_sp
+        if self.kind == "jac":
+            return ca.Sparsity.dense(self.b.ng, 1) if i == 0 else self.b.jac_sp
+        return ca.Sparsity.dense(1, 1) if i == 0 else ca.Sparsity.dense(self.nx, 1)
+
+    def eval(self, arg: Any) -> Any:  # noqa: D102
+        z = np.asarray(arg[0], dtype=float).ravel()
+        w = np.asarray(arg[1], dtype=float).ravel()
+        v = self.b.at(z, w)
+        if self.kind == "grad":
+            return [ca.DM(v["f"]), ca.DM(v["grad"])]
+        if self.kind == "jac":
+            return [ca.DM(v["g"]), ca.DM(self.b.jac_sp, self.b.jac_values(v))]
+        lam_f = float(np.asarray(arg[2]).ravel()[0])
+        return [ca.DM(self.b.hess_sp, lam_f * v["H"][self.b.hess_src])]
+
+
 class _Solver:
     """The multiple-shooting NLP, built once and solved from several points."""
 
@@ -168,10 +320,21 @@ class _Solver:
             g = ca.vertcat(g, ca.vec(s[:, 1:] - s[:, :-1]))
         self.count = max(int(sum(res.counts)), 1)
         obj = 0.5 * ca.sumsqr(r) / self.count
-        opts = {"print_time": False, "ipopt.print_level": 0, "ipopt.sb": "yes",
-                "ipopt.max_iter": int(max_iter), "ipopt.tol": 1e-10,
-                "ipopt.acceptable_tol": 1e-7, "ipopt.acceptable_iter": 5}
-        self.solver = ca.nlpsol("fit", "ipopt", {"x": ca.vec(V), "f": obj, "g": g, "p": w}, opts)
+        opts: dict[str, Any] = {"print_time": False, "ipopt.print_level": 0, "ipopt.sb": "yes",
+                "ipopt.max_iter": int(max_iter), "ipopt.tol": 1e-9,
+                "ipopt.acceptable_tol": 1e-6, "ipopt.acceptable_iter": 3,
+                "ipopt.mu_strategy": "adaptive"}
+        z = ca.vec(V)
+        # Gauss-Newton Hessian of the Lagrangian (J_r^T J_r of the residuals; the constraints'
+        # and the residuals' curvature left out: exact at a zero-residual fit, positive
+        # semi-definite), the constraints' Jacobian and the gradient all from one evaluation
+        # of the intervals' block Jacobians per point
+        self.blocks = _Blocks(model, res)
+        nx = (n + k) * M
+        self._callbacks = [_Derivative(kind, self.blocks, nx, model.q) for kind in ("grad", "jac", "hess")]
+        opts["grad_f"], opts["jac_g"], opts["hess_lag"] = self._callbacks
+        problem: dict[str, Any] = {"x": z, "f": obj, "g": g, "p": w}
+        self.solver = ca.nlpsol("fit", "ipopt", problem, opts)
         lo_x = np.where(np.isfinite(model.state_lower), model.state_lower, -np.inf)
         hi_x = np.where(np.isfinite(model.state_upper), model.state_upper, np.inf)
         self.lbx = np.tile(np.concatenate([lo_x, np.zeros(k)]), M)
@@ -192,8 +355,7 @@ class _Solver:
               lam: np.ndarray | None = None) -> dict[str, Any]:
         lbx, ubx = self.lbx.copy(), self.ubx.copy()
         if fix is not None:
-            lbx[self.n + fix[0]::self.n + self.k] = fix[1]
-            ubx[self.n + fix[0]::self.n + self.k] = fix[1]
+            lbx[self.n + fix[0]] = ubx[self.n + fix[0]] = fix[1]   # the copies follow (equal)
         z0 = np.clip(z0, lbx, ubx)
         args: dict[str, Any] = dict(x0=z0, p=w, lbx=lbx, ubx=ubx, lbg=0.0, ubg=0.0)
         if lam is not None:
@@ -340,7 +502,7 @@ def fit_parameters(plant: Plant, free: Sequence[FreeParameterLike], experiments:
     shooting : int
         Samples per multiple-shooting interval (>= 1).
     level : float
-        Confidence level of the intervals, in (0, 1).
+        Confidence level of the intervals, in (0, 1) (dimensionless).
     max_iter : int
         IPOPT iteration limit per start.
 

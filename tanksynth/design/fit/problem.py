@@ -189,6 +189,13 @@ class Intervals:
             x = model.step(x, U[:, i], DT[0, i], th)
         self.function = ca.Function("interval", [s, U, DT, th, Y, A, B, C, Z, w],
                                     [x, ca.vertcat(*rs), ca.horzcat(*ys)])
+        # the same interval in the NLP's scaled parameters, with its block Jacobians
+        # d(x_end, r)/d(s, sc), theta = lower + width * sc (forward AD in SX, k + n directions)
+        sc, lo, wd = ca.SX.sym("sc", k), ca.SX.sym("lo", k), ca.SX.sym("wd", k)
+        x_end, r_all, _ = self.function(s, U, DT, lo + wd * sc, Y, A, B, C, Z, w)
+        zj = ca.vertcat(s, sc)
+        self.blocks = ca.Function("interval_blocks", [s, U, DT, sc, lo, wd, Y, A, B, C, Z, w],
+                                  [x_end, r_all, ca.jacobian(x_end, zj), ca.jacobian(r_all, zj)])
         self.outputs = tuple(o for o in model.output_names)
         self.intervals = [nodes(d.samples, L) for d in self.data]
         self.packed = [self._pack(d, J) for d, J in zip(self.data, self.intervals)]
@@ -214,10 +221,6 @@ class Intervals:
                                   np.where(d.low[:, j], _censor_level(d, j, False), 0.0))
         return {"U": U, "DT": DT, "Y": Y, "A": A, "B": B, "C": C, "Z": Z}
 
-    def _args(self, e: int) -> list[np.ndarray]:
-        p = self.packed[e]
-        return [p["U"], p["DT"]], [p[nm] for nm in "YABCZ"]
-
     def nlp(self, theta: Any, S: Sequence[Any], w: Any) -> tuple[Any, Any]:
         """Weighted residuals and continuity gaps of all experiments (multiple shooting).
 
@@ -239,7 +242,7 @@ class Intervals:
             ``x_end(node j) - node j+1`` of every experiment.
         """
         M = sum(self.intervals)
-        fn = self.function.map(M, "serial")
+        fn = self.function.map(M, "thread", 2)
         cat = lambda key: np.hstack([p[key] for p in self.packed])  # noqa: E731
         th = theta if theta.shape[1] == M else ca.repmat(theta, 1, M)
         x_end, r, _ = fn(ca.horzcat(*S), cat("U"), cat("DT"), th, cat("Y"),
@@ -275,8 +278,18 @@ class Intervals:
         return ca.vec(r), Y[:, :self.data[e].samples]
 
     def flags(self, e: int) -> np.ndarray:
-        """Entries of the residual vector of experiment ``e`` that are samples (exact or
-        censored), in the order of `single`: (q, J L) column-major, as bool."""
+        """Entries of the residual vector of experiment ``e`` that are samples (exact or censored).
+
+        Parameters
+        ----------
+        e : int
+            Experiment index.
+
+        Returns
+        -------
+        ndarray of bool
+            One per entry of `single`'s residual vector (sample-major, outputs inside).
+        """
         p = self.packed[e]
         return ((p["A"] + p["B"] + p["C"]) > 0).T.ravel()
 

@@ -44,13 +44,14 @@ class FisherStatistics:
     correlation : ndarray, shape (k, k)
         Correlation matrix (NaN where a standard error is infinite).
     sigma2 : float
-        Residual variance factor ``s^2 = r^T r / (N - K)`` of the weighted residuals (1).
+        Residual variance factor ``s^2 = r^T r / (N - K)`` of the weighted residuals (dimensionless).
     dof : int
         Degrees of freedom ``N - K`` (residuals minus all unknowns, initial states included).
     null_vectors : ndarray, shape (d, k)
         Unidentifiable directions in log-parameters (``d = 0`` when identifiable).
     eigenvalues : ndarray, shape (k,)
-        Eigenvalues of the scaled Fisher information of the parameters (ascending, max 1).
+        Eigenvalues of the scaled Fisher information of the parameters (ascending, max 1;
+        dimensionless).
     """
 
     covariance: np.ndarray
@@ -158,7 +159,8 @@ def identifiable_note(names: Sequence[str], null_vectors: np.ndarray) -> str:
     sentences = []
     for v in null_vectors:
         involved = [i for i in range(len(names)) if abs(v[i]) > 1e-3]
-        ref = max(involved, key=lambda i: abs(v[i]))
+        top = max(abs(v[i]) for i in involved)
+        ref = min(i for i in involved if abs(v[i]) >= (1 - 1e-3) * top)   # ties: the first
         ratios = {i: _exponent(v[i] / v[ref]) for i in involved}   # v normalised: ref = 1
         combos = []
         for i in involved:
@@ -208,7 +210,7 @@ def t_interval(value: np.ndarray, stderr: np.ndarray, dof: int, level: float) ->
     dof : int
         Degrees of freedom of the residual variance.
     level : float
-        Confidence level in (0, 1).
+        Confidence level in (0, 1) (dimensionless).
 
     Returns
     -------
@@ -323,7 +325,7 @@ def whiteness_test(series: Sequence[np.ndarray], lags: int = 20, level: float = 
     lags : int
         Largest lag L.
     level : float
-        Level of the chi-square bound.
+        Level of the chi-square bound (dimensionless).
 
     Returns
     -------

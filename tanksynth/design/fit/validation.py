@@ -144,9 +144,10 @@ def estimate_initial_state(plant: Plant, values: Mapping[str, float], experiment
     w = np.ones(model.q)
     w[list(d.columns)] = 1.0 / noise_guess([d], d.output_names)
     r, _ = res.single(0, x0, ca.MX(0, 1), ca.DM(w))
-    solver = ca.nlpsol("x0fit", "ipopt", {"x": x0, "f": 0.5 * ca.sumsqr(r)},
-                       {"print_time": False, "ipopt.print_level": 0, "ipopt.sb": "yes",
-                        "ipopt.tol": 1e-12})
+    problem: dict[str, Any] = {"x": x0, "f": 0.5 * ca.sumsqr(r)}
+    opts: dict[str, Any] = {"print_time": False, "ipopt.print_level": 0, "ipopt.sb": "yes",
+                            "ipopt.tol": 1e-12}
+    solver = ca.nlpsol("x0fit", "ipopt", problem, opts)
     lo = np.where(np.isfinite(model.state_lower), model.state_lower, -np.inf)
     hi = np.where(np.isfinite(model.state_upper), model.state_upper, np.inf)
     start = np.where(np.isfinite(lo) & np.isfinite(hi), 0.5 * (lo + hi), np.where(np.isfinite(lo), lo, 0.0))
