@@ -57,6 +57,8 @@ def draw_signals(ax: Any, t: np.ndarray, signals: np.ndarray, head: Mapping[str,
     head : mapping
         The trace header: ``signal_names``, ``signal_units``, ``signal_styles`` (matplotlib line
         styles, default solid), ``signal_title``, ``events`` (``[[t, label], ...]``, s).
+        Signals whose names begin with the same word (``h1 measured``, ``h1 simulated``)
+        are one quantity: they share a colour and differ by line style.
     further : mapping
         Line style of the runs after the first (width, dash pattern, alpha of the figure).
     label_size, title_size : float
@@ -89,8 +91,11 @@ def draw_signals(ax: Any, t: np.ndarray, signals: np.ndarray, head: Mapping[str,
     shown = np.where(sig > 0, sig, np.nan) if log else sig
     lines = PanelLines()
     several = False
+    # signals of one quantity ("h1 measured", "h1 simulated") share a colour, told apart by style
+    quantity = [name.split(" ", 1)[0] for name in names]
+    palette = {q: i for i, q in enumerate(dict.fromkeys(quantity))}
     for j in range(k):
-        color = f"C{j % 10}"
+        color = f"C{palette[quantity[j]] % 10}"
         lines.line(t, shown[0, :, j], color=color, linewidth=1.0, linestyle=styles[j], label=names[j])
         rest = sig[1:, :, j]
         if rest.size and not np.array_equal(rest, np.broadcast_to(sig[:1, :, j], rest.shape), equal_nan=True):

@@ -135,3 +135,29 @@ def test_the_seed004_report_has_the_residual_figure(tmp_path):
     sig = tr["arrays"]["signals"]
     assert seg[:, 1].max() == pytest.approx(sig[0, :, 0].max())
     assert "Check fault_detected: pass" in fig.caption and "t_f = 2 s" in fig.caption
+
+
+def test_signals_of_one_quantity_share_a_colour():
+    """Measured and simulated outputs of one quantity are drawn in one colour, told apart by the
+    line style (the fit's figure drew 'h1 measured' and 'h1 simulated' in two colours, on top of
+    each other); distinct quantities (a residual and its threshold) keep distinct colours."""
+    import matplotlib
+    from matplotlib.colors import to_rgba
+    from matplotlib.figure import Figure
+
+    from tanksynth.reports.signal_panel import draw_signals
+
+    matplotlib.use("Agg")
+    t = np.linspace(0.0, 1.0, 11)
+    sig = np.stack([np.sin(t), np.sin(t) + 0.01, np.cos(t), np.cos(t) - 0.01], axis=-1)[None]
+    head = {"signal_names": ["h1 measured", "h1 simulated", "h2 measured", "h2 simulated"],
+            "signal_units": ["m"] * 4, "signal_styles": ["-", "--", "-", "--"]}
+    ax = Figure().add_subplot()
+    lines, *_ = draw_signals(ax, t, sig, head, {}, label_size=8.0, title_size=9.0)
+    colours = {}
+    for handle, label in zip(lines.handles, lines.labels):
+        rgba = handle.get_color()
+        colours[label] = tuple(np.ravel(to_rgba(rgba[0] if np.ndim(rgba) == 2 else rgba)))
+    assert colours["h1 measured"] == colours["h1 simulated"]
+    assert colours["h2 measured"] == colours["h2 simulated"]
+    assert colours["h1 measured"] != colours["h2 measured"]
