@@ -150,3 +150,20 @@ def test_verdicts_pass_on_the_offset_plant(out):
     for name, check in (("pp", "servo_tracking"), ("it", "servo_tracking"), ("robust", "monte_carlo")):
         c = next(c for c in verdicts[name].checks if c.name == check)
         assert c.passed, (name, c.detail)
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_campaign_loop_holds_the_levels_at_their_set_points(out, name, runners):
+    """The campaign's scenarios move LEVEL set-points: the loop hands the law the outputs they
+    give (y1 = r1 + b1), so the levels, not the sensors' readings, settle on the set-points."""
+    from tanksynth.sim.scenarios import scenario
+    from tanksynth.verify.laws.campaign import closed_loop_for
+
+    spec = parse_spec_text(SPEC)
+    doc = read_artefact(out / f"{name}.json")
+    loop = closed_loop_for(doc, spec, runners[doc["method"]])
+    assert loop.tracked == (0, 1)
+    metrics = loop.evaluate(scenario("servo"), spec.plant, ts=TS, seeds=run_seeds(0, 1))
+    offsets = {k: float(np.max(np.abs(m.values))) for k, m in metrics.items() if k.startswith("offset_")}
+    assert len(offsets) == 2                         # offset_h1 (y1 is not h1) and offset_y2 (= h2)
+    assert max(offsets.values()) < 3e-4, offsets     # the 3 mm offset is not left on h1

@@ -5,7 +5,7 @@ plant with them (`tanksynth.verify.campaign`)."""
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
-from typing import Any, Mapping, Sequence
+from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
 
@@ -16,7 +16,7 @@ from tanksynth.spec import Spec
 from tanksynth.verify.common import (artefact_matrix, operating_point, option, output_at, sampling_period,
                                      time_domain)
 from tanksynth.verify.estimation import EstimatorRun
-from tanksynth.verify.laws.campaign import ClosedLoop
+from tanksynth.verify.laws.campaign import ClosedLoop, output_setpoint_law
 from tanksynth.verify.robust.models import uncertain_box
 from tanksynth.verify.robust.verdicts import robust_feedback_law
 from tanksynth.verify.simulations import luenberger_estimator
@@ -177,7 +177,10 @@ def robust_state_feedback_run(doc: Mapping[str, Any], spec: Spec) -> ClosedLoop:
     K = np.asarray(gains["K"], dtype=float).reshape(plant.m, plant.n + (len(rows) if rows else 0))
     states = tuple(int(np.argmax(np.abs(C[r]))) for r in rows) if rows is not None \
         else tuple(range(min(plant.m, plant.n)))
-    return RobustClosedLoop(robust_feedback_law(K, C, rows, x0, u0, sampling_period(spec), y0), None,
+    law: Callable = robust_feedback_law(K, C, rows, x0, u0, sampling_period(spec), y0)
+    if rows is not None and y0 is not None:   # the scenario moves state set-points: as outputs
+        law = output_setpoint_law(law, C[rows], y0, x0, states)
+    return RobustClosedLoop(law, None,
                             x0, u0, states,
                             "robust state feedback u = u0 - K (x - x0)"
                             + (" - K2 z" if rows is not None else "")
