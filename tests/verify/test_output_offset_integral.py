@@ -123,8 +123,8 @@ def test_exported_law_integrates_the_measured_output_error(out, name):
             assert np.all((np.asarray(u).ravel() > lim[:, 0]) & (np.asarray(u).ravel() < lim[:, 1]))
         np.testing.assert_allclose(np.asarray(z_next, dtype=float).ravel(), expected, rtol=1e-12, atol=1e-15)
     header = (out / f"{name}_law.h").read_text(encoding="utf-8")
-    if name != "it":
-        assert "y_r - y_op - C1 (x - x_op)" in header[:header.index("*/")]
+    statement = "y_r - y0 - C1 (x - x_op)" if name == "it" else "y_r - y_op - C1 (x - x_op)"
+    assert statement in header[:header.index("*/")]
 
 
 @pytest.mark.parametrize("name", NAMES)
