@@ -449,9 +449,11 @@ def law_statement(diagnostics: Mapping[str, Any], gains: Mapping[str, Any]) -> s
     discrete = diagnostics.get("time_domain", "discrete") == "discrete"
     if "K" in names:
         if isinstance(diagnostics.get("integral"), Mapping):
-            z = ("z_next = z + (y_r - C1 x)" if discrete else "dz/dt = y_r - C1 x")
+            e = "y_r - y_op - C1 (x - x_op)"
+            z = (f"z_next = z + ts ({e})" if discrete else f"dz/dt = {e}")
             return (f"u = u_op - K1 (x - x_op) - K2 z with K = [K1 K2], {z} (integrators of the "
-                    "tracked outputs' error), u clipped to the actuator range")
+                    "tracked outputs' error, y_op = h(x_op) the tracked outputs at the operating "
+                    "point), u clipped to the actuator range")
         return "u = u_op - K (x - x_op), u clipped to the actuator range"
     if "L" in names:
         form = diagnostics.get("form") or ("predictor" if discrete else "continuous")
@@ -674,8 +676,9 @@ def state_feedback_law(name: str, K: np.ndarray, x_op: np.ndarray, u_op: np.ndar
     x_op, u_op : ndarray
         Operating point (state and input units).
     integral : mapping, optional
-        The design's ``integral`` diagnostics (``C1``, ``augmented_A``) when
-        the gain has integral action.
+        The design's ``integral`` diagnostics (``C1``, ``augmented_A``, ``y_op``
+        the tracked outputs at ``x_op``, output units; ``C1 x_op`` when it is not
+        recorded) when the gain has integral action.
     Br : ndarray, optional
         Reference input matrix of the augmented system ((n + p) x p).
     continuous : bool
@@ -690,8 +693,9 @@ def state_feedback_law(name: str, K: np.ndarray, x_op: np.ndarray, u_op: np.ndar
     casadi.Function
         ``u = law(x)``; with integral action ``u, z_next = law(x, z, y_r)``
         (``z_dot`` in continuous time), ``u = u_op - K1 (x - x_op) - K2 z`` and
-        the integrators as designed (``z_next = z + (y_r - C1 x)`` on the ZOH
-        model; ``y_r`` the references of the tracked outputs).
+        the integrators as designed (``z_next = z + ts (y_r - y_op - C1 (x - x_op))``
+        on the ZOH model, the measured outputs' error; ``y_r`` the references of
+        the tracked outputs).
     """
     K = np.asarray(K, dtype=float)
     x_op, u_op = np.asarray(x_op, dtype=float), np.asarray(u_op, dtype=float)
@@ -706,7 +710,12 @@ def state_feedback_law(name: str, K: np.ndarray, x_op: np.ndarray, u_op: np.ndar
     z, r = ca.SX.sym("z", p), ca.SX.sym("y_r", p)
     dx = x - ca.DM(x_op)
     u = saturate_input(ca.DM(u_op) - ca.DM(K[:, :n]) @ dx - ca.DM(K[:, n:]) @ z, input_limits)
-    z_new = ca.DM(Aa[n:, :n]) @ dx + ca.DM(Aa[n:, n:]) @ z + ca.DM(Br[n:]) @ (r - ca.DM(C1 @ x_op))
+    y_op = np.asarray(integral.get("y_op", C1 @ x_op), dtype=float).reshape(-1)
+    if y_op.shape != (p,):
+        raise ArtefactError(f"diagnostics.integral.y_op has {y_op.size} values, expected {p} (one "
+                            "per tracked output)")
+    # Aa[n:, :n] = -ts C1 (discrete) or -C1: z_next = z + ts (y_r - y_op - C1 (x - x_op))
+    z_new = ca.DM(Aa[n:, :n]) @ dx + ca.DM(Aa[n:, n:]) @ z + ca.DM(Br[n:]) @ (r - ca.DM(y_op))
     out = "z_dot" if continuous else "z_next"
     return ca.Function(name, [x, z, r], [u, z_new], ["x", "z", "y_r"], ["u", out])
 
@@ -942,6 +951,13 @@ def derived_law(gains: Mapping[str, np.ndarray], diagnostics: Mapping[str, Any],
         raise ArtefactError(f"design of method {method} in discrete time needs the spec's [sampling] ts")
     if "K" in gains:
         integral = diagnostics.get("integral")
+        outputs = [s.name for s in plant.outputs]
+        if isinstance(integral, Mapping) and "y_op" not in integral and \
+                all(t in outputs for t in integral.get("tracked") or ()):
+            # an artefact from before y_op was recorded: the tracked outputs at x_op from the plant
+            rows = [outputs.index(t) for t in integral.get("tracked") or ()]
+            if len(rows) == len(integral.get("C1") or ()):
+                integral = {**integral, "y_op": _output_at(plant, x_op)[rows].tolist()}
         return state_feedback_law(name, gains["K"], x_op, u_op,
                                   integral if isinstance(integral, Mapping) else None,
                                   gains.get("Br"), continuous, plant.input_limits)

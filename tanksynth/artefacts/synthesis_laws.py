@@ -15,7 +15,8 @@ with `tanksynth.artefacts.export.export_law`):
 ``robust_state_feedback``
     ``u = u_op - K (x - x_op)`` with the nominal ``u_op``; with integral action
     ``u, z_next = law(x, z, y_r)`` (``z_dot`` in continuous time), ``u = u_op - K1
-    (x - x_op) - K2 z``, ``z_next = z + ts (y_r - C1 x)``.
+    (x - x_op) - K2 z``, ``z_next = z + ts (y_r - y_op - C1 (x - x_op))`` (the measured
+    outputs' error, ``y_op = h(x_op)`` of the tracked outputs, offsets included).
 ``ts_state_feedback``
     PDC ``u = law(x)``: ``u = u_op - sum_i mu_i(x) K_i (x - x_op)``, memberships from
     the premises' secant slopes; saturated to the pumps' range when the design
@@ -41,6 +42,7 @@ from tanksynth.analysis.linearize import linearize
 from tanksynth.artefacts.export import (observer_law, operating_point, sampling_period, saturate_input,
                                         state_feedback_law)
 from tanksynth.errors import ArtefactError
+from tanksynth.runtime.laws import tracking_error
 
 if TYPE_CHECKING:
     from tanksynth.plants.base import Plant
@@ -127,8 +129,8 @@ def _ts_gains(gains: Mapping[str, Any], plant: Plant) -> dict[str, Any]:
 # ----------------------------------------------------------------------------- builders
 def integral_feedback_law(name: str, K1: np.ndarray, K2: np.ndarray, C1: np.ndarray,
                           x_op: np.ndarray, u_op: np.ndarray, ts: float | None,
-                          input_limits: Any | None = None) -> ca.Function:
-    """State feedback with integral action on ``y1 = C1 x`` (robust design's integrators).
+                          input_limits: Any | None = None, y_op: Any | None = None) -> ca.Function:
+    """State feedback with integral action on the tracked outputs (robust design's integrators).
 
     Parameters
     ----------
@@ -139,27 +141,35 @@ def integral_feedback_law(name: str, K1: np.ndarray, K2: np.ndarray, C1: np.ndar
     K2 : ndarray, shape (m, p)
         Integrator gain (input units per output unit and second).
     C1 : ndarray, shape (p, n)
-        Rows of the tracked outputs.
+        Rows of the tracked outputs in the output map linearised at ``x_op``
+        (output units per state unit).
     x_op, u_op : ndarray
         Operating point (state units, m) and its input (input units, m^3/s).
     ts : float or None
         Sampling period (s) of a discrete design; None: continuous time.
     input_limits : array_like, shape (m, 2), optional
         Actuator range (input units) ``u`` is clipped to (the integrators are not).
+    y_op : array_like, shape (p,), optional
+        The tracked outputs at ``x_op``, ``h(x_op)`` (output units, offsets and sensor
+        gains included); None: ``C1 x_op`` (an output map linear in the state).
 
     Returns
     -------
     casadi.Function
         ``u, z_next = law(x, z, y_r)`` with ``u = u_op - K1 (x - x_op) - K2 z`` and
-        ``z_next = z + ts (y_r - C1 x)`` (``z`` in output units times s, ``y_r`` the
-        set-points of the tracked outputs); continuous time: ``z_dot = y_r - C1 x``.
+        ``z_next = z + ts (y_r - y_op - C1 (x - x_op))`` (the measured outputs'
+        error; ``z`` in output units times s, ``y_r`` the set-points of the tracked
+        outputs); continuous time: ``z_dot = y_r - y_op - C1 (x - x_op)``.
     """
     K1, K2, C1 = (np.atleast_2d(np.asarray(v, dtype=float)) for v in (K1, K2, C1))
     x_op, u_op = np.asarray(x_op, dtype=float), np.asarray(u_op, dtype=float)
     p = C1.shape[0]
+    y0 = C1 @ x_op if y_op is None else np.asarray(y_op, dtype=float).reshape(-1)
+    if y0.shape != (p,):
+        raise ArtefactError(f"y_op has {y0.size} values, expected {p} (one per tracked output)")
     x, z, r = ca.SX.sym("x", x_op.size), ca.SX.sym("z", p), ca.SX.sym("y_r", p)
     u = saturate_input(ca.DM(u_op) - ca.DM(K1) @ (x - ca.DM(x_op)) - ca.DM(K2) @ z, input_limits)
-    err = r - ca.DM(C1) @ x
+    err = tracking_error(r, x, C1, x_op, y0)
     if ts is None:
         return ca.Function(name, [x, z, r], [u, err], ["x", "z", "y_r"], ["u", "z_dot"])
     return ca.Function(name, [x, z, r], [u, z + float(ts) * err], ["x", "z", "y_r"], ["u", "z_next"])
@@ -425,14 +435,19 @@ def synthesis_law(gains: Mapping[str, Any], diagnostics: Mapping[str, Any], meth
             return state_feedback_law(name, g["K"], g["x_op"], g["u_op"], input_limits=limits)
         integral = diagnostics.get("integral")
         integ: Mapping[str, Any] = integral if isinstance(integral, Mapping) else {}
+        outputs = [s.name for s in plant.outputs]
+        tracked = list(getattr(options, "tracked", None) or integ.get("tracked")
+                       or outputs[:plant.m])
+        rows = [outputs.index(t) for t in tracked]
         C1 = integ.get("C1")
         if C1 is None:
-            outputs = [s.name for s in plant.outputs]
-            tracked = list(getattr(options, "tracked", None) or integ.get("tracked")
-                           or outputs[:plant.m])
-            C1 = g["C"][[outputs.index(t) for t in tracked]]
+            C1 = g["C"][rows]
+        y_op = integ.get("y_op")   # h(x_op) of the tracked outputs, offsets included
+        if y_op is None:
+            y_op = np.asarray(plant.compiled.output(np.asarray(g["x_op"], dtype=float)[None]),
+                              dtype=float).reshape(-1)[rows]
         return integral_feedback_law(name, g["K1"], g["K2"], np.asarray(C1, dtype=float), g["x_op"],
-                                     g["u_op"], ts, limits)
+                                     g["u_op"], ts, limits, y_op)
     x_op, u_op = operating_point(spec)
     if method == "robust_observer":
         return nominal_observer_law(name, plant, _synthesis_gains(gains, plant)["L"], x_op, u_op, ts)

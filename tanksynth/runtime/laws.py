@@ -22,7 +22,7 @@ from tanksynth.errors import ArtefactError, DimensionError, InfeasibleDesign, Sp
 from tanksynth.plants.base import Plant
 from tanksynth.plants.compile import compile_matrix
 
-__all__ = ['ANTI_WINDUP', 'IntegralTracking', 'integral_tracking_law', 'InverseDynamicsLaw', 'inverse_dynamics_law', 'law_document', 'law_from_document', 'rename_law', 'c_identifier']
+__all__ = ['ANTI_WINDUP', 'IntegralTracking', 'integral_tracking_law', 'tracking_error', 'InverseDynamicsLaw', 'inverse_dynamics_law', 'law_document', 'law_from_document', 'rename_law', 'c_identifier']
 
 
 #: Anti-windup schemes of `integral_tracking_law`.
@@ -77,6 +77,39 @@ def _saturate(u: ca.SX, limits: np.ndarray) -> ca.SX:
 
 
 
+def tracking_error(r: Any, x: Any, C1: np.ndarray, x0: np.ndarray, y0: np.ndarray) -> Any:
+    """The tracking error the integrators integrate, ``y_r - y0 - C1 (x - x0)`` (CasADi).
+
+    The measured outputs ``y = h(x)`` linearised at the operating point, offsets
+    and sensor gains included: exactly ``y_r - h(x)`` when ``h`` is affine. Formed
+    as ``y_r - C1 x - (y0 - C1 x0)``, the last term left out when it is zero (an
+    output map linear in the state without offset: the law is then ``y_r - C1 x``,
+    term for term).
+
+    Parameters
+    ----------
+    r : casadi.SX, shape (p, 1)
+        References of the tracked outputs (output units).
+    x : casadi.SX, shape (n, 1)
+        State (state units).
+    C1 : ndarray, shape (p, n)
+        Tracked rows of the linearised output map (output units per state unit).
+    x0 : ndarray, shape (n,)
+        Operating state (state units).
+    y0 : ndarray, shape (p,)
+        Tracked outputs at ``x0``, ``h(x0)`` (output units).
+
+    Returns
+    -------
+    casadi.SX, shape (p, 1)
+        The error (output units).
+    """
+    C1 = np.atleast_2d(np.asarray(C1, dtype=float))
+    d = np.asarray(y0, dtype=float).reshape(-1) - C1 @ np.asarray(x0, dtype=float).reshape(-1)
+    e = r - ca.mtimes(ca.DM(C1), x)
+    return e - ca.DM(d) if np.any(d != 0) else e
+
+
 @dataclass(frozen=True)
 class IntegralTracking:
     """Sampled linear tracking law with integral action, saturation and anti-windup.
@@ -93,7 +126,7 @@ class IntegralTracking:
     x0, u0 : ndarray
         Operating point (state units, input units).
     C1 : ndarray, shape (p, n)
-        Tracked outputs.
+        Tracked outputs, linearised at ``x0`` (output units per state unit).
     ts : float
         Sampling period (s).
     input_limits : ndarray, shape (m, 2)
@@ -104,6 +137,10 @@ class IntegralTracking:
         ``(x[n], z[p], y_r[p]) -> (u[m], z_next[p])``, absolute units
         (levels, references and inputs; deviations are formed inside).
     diagnostics : dict
+    y0 : ndarray, shape (p,), optional
+        The tracked outputs at ``x0``, ``h(x0)`` (output units, offsets and sensor
+        gains included); the integrators integrate ``y_r - y0 - C1 (x - x0)``.
+        None: ``C1 x0`` (an output map linear in the state, without offset).
     """
 
     K1: np.ndarray
@@ -118,6 +155,7 @@ class IntegralTracking:
     tracked: tuple[str, ...]
     law: ca.Function
     diagnostics: dict = field(default_factory=dict)
+    y0: np.ndarray | None = None
 
     @property
     def K(self) -> np.ndarray:
@@ -127,7 +165,8 @@ class IntegralTracking:
     def latex(self) -> dict[str, str]:
         """LaTeX of the law (report)."""
         return {"law": r"u(k) = \mathrm{sat}\big(u_0 - K_1 (x(k) - x_0) - K_2 z(k)\big),\quad "
-                       r"z(k+1) = z(k) + t_s (y_r(k) - C_1 x(k)) + K_{aw} (u(k) - v(k))",
+                       r"z(k+1) = z(k) + t_s \big(y_r(k) - y_0 - C_1 (x(k) - x_0)\big) "
+                       r"+ K_{aw} (u(k) - v(k))",
                 "K": sp.latex(sp.Matrix(self.K).evalf(6))}
 
 
@@ -135,7 +174,7 @@ class IntegralTracking:
 def integral_tracking_law(K1: Any, K2: Any, x0: Any, u0: Any, C1: Any, ts: float,
                           input_limits: Any = None, *, anti_windup: str = "back_calculation",
                           aw_gain: float = 1.0, tracked: Sequence[str] | None = None,
-                          name: str = "integral_tracking") -> IntegralTracking:
+                          name: str = "integral_tracking", y0: Any = None) -> IntegralTracking:
     """Build the sampled integral-action law (seed 000 eq. 13-16) with saturation.
 
     Parameters
@@ -150,7 +189,8 @@ def integral_tracking_law(K1: Any, K2: Any, x0: Any, u0: Any, C1: Any, ts: float
     u0 : array_like, shape (m,)
         Equilibrium input (input units).
     C1 : array_like, shape (p, n)
-        Tracked outputs ``y1 = C1 x``.
+        The tracked outputs' rows of the output map linearised at ``x0``, ``y1 ~ y0 +
+        C1 (x - x0)`` (output units per state unit).
     ts : float
         Sampling period (s, > 0).
     input_limits : array_like, shape (m, 2), optional
@@ -162,6 +202,12 @@ def integral_tracking_law(K1: Any, K2: Any, x0: Any, u0: Any, C1: Any, ts: float
         Names of the tracked outputs.
     name : str
         Name of the CasADi Function.
+    y0 : array_like, shape (p,), optional
+        The tracked outputs at ``x0``, ``h(x0)`` (output units; offsets and sensor
+        gains of the output map included). The integrators integrate the tracking
+        error of the measured outputs, ``y_r - y0 - C1 (x - x0)``, so that the loop
+        settles with the outputs, not the states, at their references. Default
+        ``C1 x0`` (an output map linear in the state, without offset).
 
     Returns
     -------
@@ -180,6 +226,7 @@ def integral_tracking_law(K1: Any, K2: Any, x0: Any, u0: Any, C1: Any, ts: float
     x0 = _vec(x0, n, "x0")
     u0 = _vec(u0, m, "u0")
     C1 = _mat(C1, (p, n), "C1")
+    y0 = C1 @ x0 if y0 is None else _vec(y0, p, "y0")
     if not (isinstance(ts, (int, float)) and np.isfinite(ts) and ts > 0):
         raise SpecError(f"sampling period must be > 0 s, got {ts!r}", key="sampling.ts")
     if anti_windup not in ANTI_WINDUP:
@@ -194,7 +241,7 @@ def integral_tracking_law(K1: Any, K2: Any, x0: Any, u0: Any, C1: Any, ts: float
     r = ca.SX.sym("y_r", p)
     v = ca.DM(u0) - ca.mtimes(ca.DM(K1), x - ca.DM(x0)) - ca.mtimes(ca.DM(K2), z)
     u = _saturate(v, limits)
-    e = r - ca.mtimes(ca.DM(C1), x)
+    e = tracking_error(r, x, C1, x0, y0)
     if anti_windup == "back_calculation":
         z_next = z + ts * e + ca.mtimes(ca.DM(Kaw), u - v)
     elif anti_windup == "clamping":
@@ -208,11 +255,12 @@ def integral_tracking_law(K1: Any, K2: Any, x0: Any, u0: Any, C1: Any, ts: float
     names = tuple(tracked) if tracked is not None else tuple(f"y{i + 1}" for i in range(p))
     diagnostics = {"anti_windup": anti_windup, "aw_gain": float(aw_gain), "ts": float(ts),
                    "input_limits": limits.tolist(), "tracked": list(names),
-                   "law": "v = u0 - K1 (x - x0) - K2 z; u = sat(v); z+ = z + ts (y_r - C1 x) "
+                   "y0": y0.tolist(),
+                   "law": "v = u0 - K1 (x - x0) - K2 z; u = sat(v); z+ = z + ts (y_r - y0 - C1 (x - x0)) "
                           + {"back_calculation": "+ Kaw (u - v), Kaw = -gamma pinv(K2)",
                              "clamping": "(frozen while any input saturates)", "none": ""}[anti_windup]}
     return IntegralTracking(K1, K2, Kaw, x0, u0, C1, float(ts), limits, anti_windup, names, law,
-                            diagnostics)
+                            diagnostics, y0)
 
 
 

@@ -409,11 +409,14 @@ class StateFeedback:
 
 @dataclass
 class IntegralStateFeedback:
-    """``u = u0 - K1 (x - x0) - K2 z``, ``z(k+1) = z(k) + ts (r(k) - C1 x(k))`` (a `ControlLaw`).
+    """``u = u0 - K1 (x - x0) - K2 z``, ``z(k+1) = z(k) + ts (r(k) - y0 - C1 (x(k) - x0))`` (a `ControlLaw`).
 
     The law of a state feedback designed on the plant augmented with the
     integral of the tracking error (`integral_augmentation`), in deviation
-    variables, one integrator state per run.
+    variables, one integrator state per run. The integrators integrate the
+    error of the measured outputs ``y = h(x)`` linearised at ``x0``, offsets and
+    sensor gains included (``y0 = h(x0)``), so the loop settles with the
+    outputs, not the states, at their references.
 
     Attributes
     ----------
@@ -427,6 +430,9 @@ class IntegralStateFeedback:
         Sampling period (s).
     z : ndarray, shape (M, p)
         Integrator states, one row per run (output units times s; set by `reset`).
+    y0 : ndarray, shape (p,), optional
+        The tracked outputs at ``x0``, ``h(x0)`` (output units); None: ``C1 x0``
+        (an output map linear in the state, without offset).
     """
 
     K1: np.ndarray
@@ -436,6 +442,7 @@ class IntegralStateFeedback:
     u0: np.ndarray
     ts: float
     z: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
+    y0: np.ndarray | None = None
 
     def reset(self, runs: int) -> None:
         """Zero the integrators of ``runs`` runs.
@@ -453,7 +460,13 @@ class IntegralStateFeedback:
         # the same numbers alone or in any campaign chunk
         u = (self.u0 - np.einsum("ij,kj->ik", x_hat - self.x0, self.K1)
              - np.einsum("ij,kj->ik", self.z, self.K2))
-        self.z = self.z + self.ts * (reference - np.einsum("ij,kj->ik", x_hat, self.C1))
+        err = reference - np.einsum("ij,kj->ik", x_hat, self.C1)
+        if self.y0 is not None:   # y_r - y0 - C1 (x - x0) = y_r - C1 x - (y0 - C1 x0)
+            d = (np.asarray(self.y0, dtype=float).reshape(-1)
+                 - np.asarray(self.C1, dtype=float) @ np.asarray(self.x0, dtype=float).reshape(-1))
+            if np.any(d != 0):
+                err = err - d
+        self.z = self.z + self.ts * err
         return u
 
 

@@ -142,8 +142,12 @@ def run_integral_tracking(spec: Spec, design: DesignSpec) -> DesignResult:
             "relative_difference": float(np.linalg.norm(diff) / np.linalg.norm(ref)),
             "note": "with several inputs the placing gain is not unique; compare poles, not digits"}
     diagnostics["law"] = law_document(rename_law(it.law, design.name))
-    diagnostics["law_signature"] = ("u, z_next = law(x, z, y_r): levels and references in m, u in "
-                                    "the input units, z the integrator state (starts at 0)")
+    diagnostics["law_signature"] = ("u, z_next = law(x, z, y_r): u = sat(u_op - K1 (x - x_op) - K2 z), "
+                                    "z_next = z + ts (y_r - y0 - C1 (x - x_op)) + the anti-windup "
+                                    "term, y0 = h(x_op) the tracked outputs at the operating point "
+                                    "(diagnostics.y0); x in the state units, y_r in the tracked "
+                                    "outputs' units, u in the input units, z the integrator state "
+                                    "(starts at 0)")
     gains = {"K": it.K, "K1": it.K1, "K2": it.K2, "Kaw": it.Kaw, "C1": it.C1, "x_op": it.x0,
              "u_op": it.u0, "input_limits": it.input_limits}
     return DesignResult(design.name, "integral_tracking", plant.name, gains, diagnostics, it.latex())

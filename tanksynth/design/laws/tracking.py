@@ -6,7 +6,12 @@ Linear tracking with integral action (seed 000 eq. 13-16)
 
         v(k)   = u0 - K1 (x(k) - x0) - K2 z(k)
         u(k)   = sat(v(k))                       pump range, e.g. 0 .. qmax
-        z(k+1) = z(k) + ts (y_r(k) - C1 x(k)) + Kaw (u(k) - v(k))
+        z(k+1) = z(k) + ts (y_r(k) - y0 - C1 (x(k) - x0)) + Kaw (u(k) - v(k))
+
+    ``y0 = h(x0)`` are the tracked outputs at the operating point (offsets and
+    sensor gains of the output map included) and ``C1`` their Jacobian: the
+    integrators integrate the error of the measured outputs, so the loop
+    settles with the outputs (not the states) at their references.
 
     ``K = [K1 K2]`` places the poles of the augmented pair (the augmentation
     and the placement are `tanksynth.design.placement.canonical`'s
@@ -118,7 +123,9 @@ def design_integral_tracking(plant: Plant, x0: Any, poles: Any, ts: float, *,
     if len(chosen) > plant.m:
         raise DimensionError(f"more tracked outputs than inputs: {len(chosen)} outputs {chosen} but "
                              f"{plant.m} inputs (seed 000 II-B needs p <= m)")
-    C1 = lin.C[[names.index(c) for c in chosen]]
+    rows = [names.index(c) for c in chosen]
+    C1 = lin.C[rows]
+    y0 = np.asarray(plant.compiled.output(np.asarray(lin.x0, dtype=float)[None]), dtype=float).reshape(-1)[rows]
     Ad, Bd = discrete_pair(lin)
     aug = integral_augmentation(Ad, Bd, C1, ts)
     res = place_state_feedback(aug.A, aug.B, poles, method,
@@ -126,13 +133,13 @@ def design_integral_tracking(plant: Plant, x0: Any, poles: Any, ts: float, *,
     K = res.K
     law = integral_tracking_law(K[:, : plant.n], K[:, plant.n:], lin.x0, eq.u0, C1, ts,
                                 plant.input_limits, anti_windup=anti_windup, aw_gain=aw_gain,
-                                tracked=chosen)
+                                tracked=chosen, y0=y0)
     diag = dict(law.diagnostics)
     diag.update({"equilibrium": eq.as_dict(), "placement": res.as_dict(),
                  "augmented_A": aug.A.tolist(), "augmented_B": aug.B.tolist(),
                  "Ad": Ad.tolist(), "Bd": Bd.tolist()})
     return IntegralTracking(law.K1, law.K2, law.Kaw, law.x0, law.u0, law.C1, law.ts,
-                            law.input_limits, law.anti_windup, law.tracked, law.law, diag)
+                            law.input_limits, law.anti_windup, law.tracked, law.law, diag, law.y0)
 
 
 # ============================================================== inverse dynamics

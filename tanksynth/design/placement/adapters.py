@@ -143,8 +143,12 @@ def _solve_gain(spec: Spec, design: DesignSpec, o: LmiPlacementOptions | PolePla
                 res = feedback(Aa, Ba, names + [f"z_{t}" for t in tracked])
                 K = res.K
                 gains = {"K": K, "K1": K[:, :plant.n], "K2": K[:, plant.n:], "Br": aug["Br"]}
+                # the tracked outputs at the operating point, h(x0) with offsets and sensor gains:
+                # the integrators integrate the measured outputs' error y_r - y_op - C1 (x - x_op)
+                y_op = np.asarray(plant.compiled.output(np.asarray(spec.x0, dtype=float)[None]),
+                                  dtype=float).reshape(-1)[[outputs.index(t) for t in tracked]]
                 diagnostics["integral"] = {"tracked": tracked, "C1": C1.tolist(),
-                                           "augmented_A": Aa.tolist()}
+                                           "y_op": y_op.tolist(), "augmented_A": Aa.tolist()}
                 if augmented_B:
                     diagnostics["integral"]["augmented_B"] = Ba.tolist()
                 closed = lambda G: Aa - Ba @ G  # noqa: E731

@@ -272,7 +272,11 @@ def run_robust_state_feedback(spec: Spec, design: DesignSpec) -> DesignResult:
         diagnostics["hinf_channel"] = _channel(design, o, hinf.Cz[:, :n], hinf.Dzu, observer=False)
     if o.integral:
         gains.update({"K1": K[:, :n], "K2": K[:, n:]})
-        diagnostics["integral"] = {"tracked": tracked, "C1": C1.tolist()}
+        # the tracked outputs at the operating point, h(x0) with offsets and sensor gains: the
+        # integrators integrate the measured outputs' error y_r - y_op - C1 (x - x_op)
+        y_op = np.asarray(plant.compiled.output(np.asarray(spec.x0, dtype=float)[None]),
+                          dtype=float).reshape(-1)[[outputs.index(t) for t in tracked]]
+        diagnostics["integral"] = {"tracked": tracked, "C1": C1.tolist(), "y_op": y_op.tolist()}
     # offsets without integral action: the law applies the nominal u0 at every vertex
     du = np.array([u0 - ui for ui in vm.u0])
     if not o.integral and vm.names:

@@ -18,8 +18,9 @@ feedback_linearization_statement = problem_statement(
 integral_tracking_statement = problem_statement(
     "integral_tracking", __name__,
     r"Sampled tracking with integral action about $(x_0, u_0)$: $u(k) = \mathrm{sat}\big(u_0 - "
-    r"K_1 (x(k) - x_0) - K_2 z(k)\big)$, $z(k+1) = z(k) + t_s (y_r(k) - C_1 x(k))$ plus "
-    r"anti-windup, with $[K_1\ K_2]$ placing the eigenvalues of the augmented pair "
+    r"K_1 (x(k) - x_0) - K_2 z(k)\big)$, $z(k+1) = z(k) + t_s \big(y_r(k) - y_0 - C_1 (x(k) - "
+    r"x_0)\big)$ (the measured outputs' error, $y_0 = h(x_0)$ with the sensors' offsets and "
+    r"gains) plus anti-windup, with $[K_1\ K_2]$ placing the eigenvalues of the augmented pair "
     r"$\left(\begin{smallmatrix} A_d & 0 \\ -t_s C_1 & I\end{smallmatrix}\right)$, "
     r"$\left(\begin{smallmatrix} B_d \\ 0\end{smallmatrix}\right)$.")
 

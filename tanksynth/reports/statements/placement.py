@@ -27,8 +27,8 @@ def _exact(diag: Diagnostics) -> str:
     text += "."
     integral = integral_of(diag)
     if integral is not None:
-        text += (r" Integral action: the model is augmented with $z(k+1) = z(k) + t_s(y_r - C_1 x)$"
-                 r" for the tracked outputs " + prose_latex(", ".join(integral.tracked))
+        text += (r" Integral action: the model is augmented with $z(k+1) = z(k) + t_s(y_r - y_0 - "
+                 r"C_1 (x - x_0))$ (the measured outputs' error, $y_0 = h(x_0)$) for the tracked outputs " + prose_latex(", ".join(integral.tracked))
                  + r", and $K = [K_1\;K_2]$ acts on $(x, z)$.")
     return text
 

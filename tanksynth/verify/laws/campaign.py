@@ -31,7 +31,8 @@ from tanksynth.sim.scenarios import Scenario, run_scenario
 from tanksynth.sim.simulate import BatchEstimator
 from tanksynth.spec import Spec
 from tanksynth.verify.batch_call import CasadiControlLaw, CasadiIntegralLaw
-from tanksynth.verify.common import operating_point, sampling_period, stored_operating_point
+from tanksynth.verify.common import (operating_point, output_at, sampling_period,
+                                     stored_operating_point)
 from tanksynth.verify.simulations import IntegralStateFeedback, StateFeedback  # noqa: F401 (re-export)
 
 __all__ = [
@@ -41,6 +42,8 @@ __all__ = [
     "InverseDynamicsLaw",
     "ArtefactLaw",
     "ArtefactIntegralLaw",
+    "OutputSetpoints",
+    "output_setpoint_law",
     "state_feedback_loop",
     "feedback_linearization_loop",
     "integral_tracking_loop",
@@ -234,6 +237,83 @@ class ArtefactIntegralLaw(ArtefactLaw):
         return self._law(np.asarray(x_hat, float), np.asarray(reference, float), t)
 
 
+@dataclass
+class OutputSetpoints:
+    """A law on the tracked OUTPUTS' set-points driven by a scenario's STATE set-points.
+
+    A campaign scenario moves the set-points of the controlled states; an integral
+    law integrates the error of the measured outputs ``y = h(x)``. The state
+    set-points ``r`` are handed to the law as the outputs they give on the model
+    linearised at the operating point, ``y_r = y0 + C1s (r - xs0)`` (exact for an
+    affine ``h``: a sensor offset or gain), so the loop holds the states at ``r``.
+
+    Attributes
+    ----------
+    law : callable
+        ``(x_hat (M, n), y_r (M, p), t) -> u (M, m)``, stateful or not.
+    y0 : ndarray, shape (p,)
+        Tracked outputs at the operating point, ``h(x0)`` (output units).
+    C1s : ndarray, shape (p, p)
+        Columns of the controlled states in the tracked rows of the linearised
+        output map (output units per state unit).
+    xs0 : ndarray, shape (p,)
+        Controlled states at the operating point (state units).
+    """
+
+    law: Callable
+    y0: np.ndarray
+    C1s: np.ndarray
+    xs0: np.ndarray
+
+    def reset(self, runs: int) -> None:
+        """Reset the wrapped law for ``runs`` runs (when it keeps a state).
+
+        Parameters
+        ----------
+        runs : int
+            Number of runs M.
+        """
+        if hasattr(self.law, "reset"):
+            self.law.reset(runs)
+
+    def __call__(self, x_hat: np.ndarray, reference: np.ndarray, t: float) -> np.ndarray:
+        """Input (M, m) from the state (M, n) and the state set-points (M, p)."""
+        yr = self.y0 + np.einsum("ij,kj->ik", np.asarray(reference, float) - self.xs0, self.C1s)
+        return self.law(x_hat, yr, t)
+
+
+def output_setpoint_law(law: Callable, C1: Any, y0: Any, x0: Any, states: Sequence[int]) -> Callable:
+    """`OutputSetpoints` around ``law``, or ``law`` itself when outputs and states coincide.
+
+    Parameters
+    ----------
+    law : callable
+        The integral law on output set-points.
+    C1 : array_like, shape (p, n)
+        Tracked rows of the output map linearised at ``x0`` (output units per state unit).
+    y0 : array_like, shape (p,)
+        Tracked outputs at ``x0`` (output units).
+    x0 : array_like, shape (n,)
+        Operating state (state units).
+    states : sequence of int
+        The controlled states (p of them), whose set-points the scenario moves.
+
+    Returns
+    -------
+    callable
+        ``law`` unchanged when ``C1s`` is the identity and ``y0`` the controlled states
+        at ``x0`` (levels measured as they are: the set-points are already the outputs'),
+        else the `OutputSetpoints` wrapper.
+    """
+    C1 = np.atleast_2d(np.asarray(C1, dtype=float))
+    y0 = np.asarray(y0, dtype=float).reshape(-1)
+    xs0 = np.asarray(x0, dtype=float).reshape(-1)[list(states)]
+    C1s = C1[:, list(states)]
+    if C1s.shape == (y0.size, y0.size) and np.array_equal(C1s, np.eye(y0.size)) and np.array_equal(y0, xs0):
+        return law
+    return OutputSetpoints(law, y0, C1s, xs0)
+
+
 def _law_of(doc: Mapping[str, Any]) -> tuple[Any, str]:
     diag = doc.get("diagnostics") or {}
     law = diag.get("law") if isinstance(diag, Mapping) else None
@@ -274,6 +354,19 @@ def _tracked(spec: Spec, doc: Mapping[str, Any]) -> tuple[int, ...]:
     return tuple(range(min(spec.plant.m, spec.plant.n)))
 
 
+def _tracked_outputs_at(spec: Spec, doc: Mapping[str, Any], x0: np.ndarray, C1: np.ndarray,
+                        states: Sequence[int]) -> np.ndarray:
+    """``h(x0)`` of the tracked outputs named in the artefact, else ``C1 x0``."""
+    diag = doc.get("diagnostics") or {}
+    integ = diag.get("integral") if isinstance(diag, Mapping) else None
+    names = (integ.get("tracked") if isinstance(integ, Mapping) else None) or \
+        (diag.get("tracked") if isinstance(diag, Mapping) else None)
+    outputs = [s.name for s in spec.plant.outputs]
+    if isinstance(names, (list, tuple)) and len(names) == C1.shape[0] and all(t in outputs for t in names):
+        return output_at(spec.plant, x0)[[outputs.index(t) for t in names]]
+    return C1 @ np.asarray(x0, dtype=float)
+
+
 def _operating_point(spec: Spec, doc: Mapping[str, Any]) -> tuple[np.ndarray, np.ndarray]:
     """The artefact's operating point, else the spec's."""
     stored = stored_operating_point(doc)
@@ -299,11 +392,16 @@ def state_feedback_loop(doc: Mapping[str, Any], spec: Spec) -> ClosedLoop:
     n = spec.plant.n
     if {"K1", "K2"} <= set(gains):
         tracked = _tracked(spec, doc)
-        C1 = np.zeros((len(tracked), n))
-        C1[range(len(tracked)), tracked] = 1.0
+        integ = (doc.get("diagnostics") or {}).get("integral") or {}
+        C1 = np.asarray(integ.get("C1") or [], dtype=float) if isinstance(integ, Mapping) else np.zeros(0)
+        if C1.shape != (len(tracked), n):
+            C1 = np.zeros((len(tracked), n))
+            C1[range(len(tracked)), tracked] = 1.0
+        # the measured outputs at x0 (offsets, sensor gains): the designed integrators' y_op
+        y0 = _tracked_outputs_at(spec, doc, x0, C1, tracked)
         law = IntegralStateFeedback(np.atleast_2d(gains["K1"]), np.atleast_2d(gains["K2"]), C1, x0,
-                                    u0, sampling_period(spec))
-        return ClosedLoop(law, None, x0, u0, tracked,
+                                    u0, sampling_period(spec), y0=y0)
+        return ClosedLoop(output_setpoint_law(law, C1, y0, x0, tracked), None, x0, u0, tracked,
                           "the artefact's state feedback K1, K2 with integral action "
                           "(u = u0 - K1 (x - x0) - K2 z), true state fed back")
     if "K" in gains:
@@ -347,8 +445,22 @@ def integral_tracking_loop(doc: Mapping[str, Any], spec: Spec) -> ClosedLoop:
     doc, spec : mapping, Spec
         The artefact and the validated spec.
     """
-    return _serialized_loop(doc, spec, ArtefactIntegralLaw(*_law_of(doc)), ("tracked", "outputs"),
+    loop = _serialized_loop(doc, spec, ArtefactIntegralLaw(*_law_of(doc)), ("tracked", "outputs"),
                             "state feedback with integral action and anti-windup")
+    gains = doc.get("gains") or {}
+    n = spec.plant.n
+    C1 = np.asarray(gains.get("C1", []), dtype=float)
+    p = len(loop.tracked)
+    if C1.size != p * n:
+        return loop
+    C1 = C1.reshape(p, n)
+    if p and not np.array_equal(np.argmax(np.abs(C1), axis=1), np.asarray(loop.tracked)):
+        # the law tracks outputs (y1 = kc h1, h1 + b1, ...) not named as states: their states
+        loop = ClosedLoop(loop.controller, None, loop.x_op, loop.u_op,
+                          tuple(int(i) for i in np.argmax(np.abs(C1), axis=1)), loop.description)
+    y0 = _tracked_outputs_at(spec, doc, loop.x_op, C1, loop.tracked)
+    return ClosedLoop(output_setpoint_law(loop.controller, C1, y0, loop.x_op, loop.tracked), None,
+                      loop.x_op, loop.u_op, loop.tracked, loop.description)
 
 
 def inverse_dynamics_loop(doc: Mapping[str, Any], spec: Spec) -> ClosedLoop:

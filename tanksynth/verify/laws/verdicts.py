@@ -81,8 +81,16 @@ def integral_tracking_verdict(doc: Mapping[str, Any], spec: Spec, *,
                         f"(tolerance {1e-9 * max(scale, 1.0):.3g})", {"residual": residual.tolist()}))
     scheme = str(option(doc, spec, "anti_windup", "back_calculation"))
     gamma = float(option(doc, spec, "aw_gain", 1.0))
+    rows = [int(np.argmax(np.abs(r))) for r in C1]
+    outputs = [s.name for s in plant.outputs]
+    states = [s.name for s in plant.states]
+    names = tracked_outputs(doc, spec)
+    out_idx = (output_rows(plant, names) if len(names) == p
+               else [outputs.index(states[i]) if states[i] in outputs else i for i in rows])
+    # the integrators integrate the measured outputs' error y_r - h(x0) - C1 (x - x0): h(x0) from the plant
+    y0 = output_at(plant, x0)[out_idx]
     built = integral_tracking_law(K1, K2, x0, u0, C1, ts, limits, anti_windup=scheme, aw_gain=gamma,
-                                  name="rebuilt")
+                                  name="rebuilt", y0=y0)
     kd = relative_difference(Kaw, built.Kaw) if np.any(built.Kaw) else float(np.max(np.abs(Kaw)))
     checks.append(Check("anti_windup_gain", bool(kd <= MODEL_TOLERANCE),
                         f"stored Kaw against the {scheme} scheme of the spec (gamma = {gamma:g}) applied "
@@ -100,7 +108,7 @@ def integral_tracking_verdict(doc: Mapping[str, Any], spec: Spec, *,
         diff = max(relative_difference(theirs[0], ours[0]), relative_difference(theirs[1], ours[1]))
         return [Check("law_matches_gains", bool(diff <= 1e-9),
                       f"serialised law (diagnostics.law) against the law built from the gains K1, K2, "
-                      f"x0, u0, C1, input_limits at {X.shape[0]} region points: relative difference "
+                      f"x0, u0, C1, h(x0), input_limits at {X.shape[0]} region points: relative difference "
                       f"{diff:.3g} (tolerance 1e-09)", {"relative_difference": diff})]
 
     checks += guard("law_matches_gains", law_match)
@@ -117,10 +125,6 @@ def integral_tracking_verdict(doc: Mapping[str, Any], spec: Spec, *,
     checks.append(stability_check(eigs, "discrete", what))
     checks.append(rank_check("rank_controllability_augmented", controllability_rank(Aa, Ba),
                               "the augmented (Aa, Ba) re-linearised at (x0, u0)"))
-    rows = [int(np.argmax(np.abs(r))) for r in C1]
-    outputs = [s.name for s in plant.outputs]
-    states = [s.name for s in plant.states]
-    out_idx = [outputs.index(states[i]) if states[i] in outputs else i for i in rows]
     tau, rule = designed_time_constant(doc, spec, eigs, "discrete", ts)
     checks += guard("servo_tracking", lambda: servo_check(plant, CasadiIntegralLaw(built.law), x0,
                                                           u0, out_idx, tau, ts, rule=rule,

@@ -12,7 +12,7 @@ from tanksynth.analysis.rank import controllability_rank, observability_rank
 from tanksynth.spec import Spec
 from tanksynth.spec.options import parse_region
 from tanksynth.verify.common import (POLE_TOLERANCE, artefact_matrix, complex_list, fmt, guard,
-                                     model_recheck, operating_point, option, output_rows,
+                                     model_recheck, operating_point, option, output_at, output_rows,
                                      rank_check, region_check, region_lmi_check, required_ts,
                                      stability_check, time_domain, tracked_outputs)
 from tanksynth.verify.numerics import integral_augmentation, pole_agreement
@@ -80,6 +80,7 @@ def _placement_common(doc: Mapping[str, Any], spec: Spec) -> dict:
         K = artefact_matrix(doc, "K", (m, n + len(rows)))
         Aa, Ba = integral_augmentation(A, B, C1, required_ts(ts) if domain == "discrete" else None)
         out.update(K=K, C1=C1, rows=rows, tracked=names, Aa=Aa, Ba=Ba, Acl=Aa - Ba @ K,
+                   y0=output_at(plant, x0)[rows],   # the measured outputs at x0, offsets included
                    what="the augmented closed loop Aa - Ba K")
     else:
         K = artefact_matrix(doc, "K", (m, n))
@@ -123,7 +124,7 @@ def _placement_simulation(doc: Mapping[str, Any], spec: Spec, c: dict,
         ts_sim = min(ts_sim, ts) if ts else ts_sim
     if c["integral"]:
         law = IntegralStateFeedback(c["K"][:, :plant.n], c["K"][:, plant.n:], c["C1"], c["x0"],
-                                    c["u0"], ts_sim)
+                                    c["u0"], ts_sim, y0=c["y0"])
         return servo_check(plant, law, c["x0"], c["u0"], c["rows"], tau, ts_sim, rule=rule,
                            trace=trace)
     return [regulation_check(plant, c["K"], c["x0"], c["u0"], tau, ts_sim,

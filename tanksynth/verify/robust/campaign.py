@@ -5,7 +5,7 @@ plant with them (`tanksynth.verify.campaign`)."""
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
-from typing import Any, Mapping, Sequence
+from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
 
@@ -13,10 +13,10 @@ from tanksynth.plants.base import Plant
 from tanksynth.sim.metrics import Metric, compute_metrics, estimation_metrics, timing_metrics
 from tanksynth.sim.scenarios import Scenario, ScenarioSetup, run_scenario
 from tanksynth.spec import Spec
-from tanksynth.verify.common import (artefact_matrix, operating_point, option, sampling_period,
+from tanksynth.verify.common import (artefact_matrix, operating_point, option, output_at, sampling_period,
                                      time_domain)
 from tanksynth.verify.estimation import EstimatorRun
-from tanksynth.verify.laws.campaign import ClosedLoop
+from tanksynth.verify.laws.campaign import ClosedLoop, output_setpoint_law
 from tanksynth.verify.robust.models import uncertain_box
 from tanksynth.verify.robust.verdicts import robust_feedback_law
 from tanksynth.verify.simulations import luenberger_estimator
@@ -167,14 +167,20 @@ def robust_state_feedback_run(doc: Mapping[str, Any], spec: Spec) -> ClosedLoop:
     x0, u0 = operating_point(spec)
     C = np.asarray(gains["C"], dtype=float).reshape(plant.q, plant.n)
     rows = None
+    y0 = None
     if "K1" in gains and "K2" in gains:
         outputs = [s.name for s in plant.outputs]
-        tracked = list(option(doc, spec, "tracked") or outputs[:plant.m])
+        integ = (doc.get("diagnostics") or {}).get("integral") or {}
+        tracked = list(option(doc, spec, "tracked") or integ.get("tracked") or outputs[:plant.m])
         rows = [outputs.index(t) for t in tracked]
+        y0 = output_at(plant, x0)[rows]   # the integrators integrate y_r - h(x0) - C1 (x - x0)
     K = np.asarray(gains["K"], dtype=float).reshape(plant.m, plant.n + (len(rows) if rows else 0))
     states = tuple(int(np.argmax(np.abs(C[r]))) for r in rows) if rows is not None \
         else tuple(range(min(plant.m, plant.n)))
-    return RobustClosedLoop(robust_feedback_law(K, C, rows, x0, u0, sampling_period(spec)), None,
+    law: Callable = robust_feedback_law(K, C, rows, x0, u0, sampling_period(spec), y0)
+    if rows is not None and y0 is not None:   # the scenario moves state set-points: as outputs
+        law = output_setpoint_law(law, C[rows], y0, x0, states)
+    return RobustClosedLoop(law, None,
                             x0, u0, states,
                             "robust state feedback u = u0 - K (x - x0)"
                             + (" - K2 z" if rows is not None else "")

@@ -45,7 +45,7 @@ from tanksynth.spec.options import parse_region
 from tanksynth.verify.robust.models import box_corners, box_samples, linear_models, uncertain_box
 from tanksynth.verify.robust.traces import PeakRecordingLaw, record_monte_carlo
 from tanksynth.verify.common import (MAX_STEPS, OBSERVER_TOLERANCE, artefact_matrix, discrete_ts,
-                                     fmt, guard, model_recheck, option, stability_check,
+                                     fmt, guard, model_recheck, option, output_at, stability_check,
                                      time_domain)
 from tanksynth.verify.numerics import integral_augmentation, region_lmi_matrix
 from tanksynth.verify.simulations import (IntegralStateFeedback, StateFeedback, designed_time_constant,
@@ -178,6 +178,7 @@ def _context(doc: Mapping[str, Any], spec: Spec, observer: bool) -> dict:
             tracked = list(option(doc, spec, "tracked") or integ.get("tracked") or outputs[:m])
             c["rows"] = [outputs.index(t) for t in tracked]
             c["tracked"] = tracked
+            c["y0"] = output_at(plant, x0)[c["rows"]]   # the measured outputs at x0, offsets included
         p = len(c["rows"]) if integral else 0
         c["K"] = artefact_matrix(doc, "K", (m, n + p))
         c["size"] = n + p
@@ -323,7 +324,8 @@ def _sim_period(c: dict, spec: Spec, loops: Sequence[np.ndarray]) -> float:
 
 
 def robust_feedback_law(K: np.ndarray, C: np.ndarray, rows: Sequence[int] | None, x0: np.ndarray,
-                        u0: np.ndarray, ts: float) -> StateFeedback | IntegralStateFeedback:
+                        u0: np.ndarray, ts: float, y0: np.ndarray | None = None
+                        ) -> StateFeedback | IntegralStateFeedback:
     """The robust state feedback as a batch control law, with integral action when it tracks.
 
     Parameters
@@ -338,19 +340,24 @@ def robust_feedback_law(K: np.ndarray, C: np.ndarray, rows: Sequence[int] | None
         Operating point (state units, m) and its input (input units, m^3/s).
     ts : float
         Sampling period of the integrators [s].
+    y0 : ndarray, shape (p,), optional
+        The tracked outputs at ``x0``, ``h(x0)`` (output units, offsets included): the
+        integrators integrate ``y_r - y0 - C1 (x - x0)``. None: ``C1 x0``.
     """
     if rows is not None:
         n = C.shape[1]
         C1 = np.zeros((len(rows), n))
         for i, r in enumerate(rows):
             C1[i] = C[r]
-        return IntegralStateFeedback(K[:, :n], K[:, n:], C1, x0, u0, ts)
+        return IntegralStateFeedback(K[:, :n], K[:, n:], C1, x0, u0, ts,
+                                     y0=None if y0 is None else np.asarray(y0, dtype=float).reshape(-1))
     return StateFeedback(K, x0, u0)
 
 
 def _law(c: dict, ts: float) -> StateFeedback | IntegralStateFeedback:
     """`robust_feedback_law` of a verdict's context."""
-    return robust_feedback_law(c["K"], c["C"], c["rows"] if c["integral"] else None, c["x0"], c["u0"], ts)
+    return robust_feedback_law(c["K"], c["C"], c["rows"] if c["integral"] else None, c["x0"], c["u0"], ts,
+                               c.get("y0"))
 
 
 def _too_stiff(c: dict, spec: Spec, ts: float, H: float, steps: int, rule: str) -> Check:
