@@ -283,7 +283,7 @@ def _threshold_rows(art: Mapping[str, Any]) -> list[PaperRow]:
 def _detection_time_rows(art: Mapping[str, Any]) -> list[PaperRow]:
     stored = stored_detections(art)
     size = fault_size_of(art.get("diagnostics") or {})
-    size_note = (r"the fault model (eq.~3) and size are not printed; ours a leak $\bar\delta = "
+    size_note = (r"the paper's fault model and fault size are not printed in our copy; ours a leak $\bar\delta = "
                  + (format_number(size) if size is not None else r"\text{?}") + "$ (declared); "
                  "no fault model reaches the printed times (see the order row)")
     rows = []
