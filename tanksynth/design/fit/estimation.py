@@ -32,7 +32,8 @@ import numpy as np
 from scipy import stats
 from scipy.stats import qmc
 
-from tanksynth.design.fit.model import FitModel, FreeParameterLike, direct_states, fit_model
+from tanksynth.design.fit.model import (FitModel, FreeParameterLike, direct_states, fit_model,
+                                        quiet_solve)
 from tanksynth.design.fit.problem import FitData, Intervals, fit_data, noise_guess
 from tanksynth.design.fit.statistics import (WhitenessTest, fisher_covariance, fit_percent,
                                              hac_covariance, identifiable_note, profile_bound,
@@ -382,7 +383,7 @@ class _Solver:
         args: dict[str, Any] = dict(x0=z0, p=w, lbx=lbx, ubx=ubx, lbg=0.0, ubg=0.0)
         if lam is not None:
             args["lam_g0"] = lam
-        sol = self.solver(**args)
+        sol = quiet_solve(self.solver, **args)
         st = self.solver.stats()
         return {"z": np.asarray(sol["x"]).ravel(), "f": float(sol["f"]) * 2 * self.count,
                 "lam": np.asarray(sol["lam_g"]).ravel(), "status": str(st["return_status"]),
@@ -559,6 +560,10 @@ def fit_parameters(plant: Plant, free: Sequence[FreeParameterLike], experiments:
         z0 = solver.pack(s0, S0)
         runs.append(solver.solve(z0, w))
     ok = [r for r in runs if r["status"] in CONVERGED]
+    if not ok and all(r["status"] == "Invalid_Number_Detected" for r in runs):
+        theta, X0 = _unpack(solver, runs[0]["z"])
+        _require_finite(model, single, theta, X0, w, "from every start (IPOPT: "
+                        "Invalid_Number_Detected)", force=True)
     pool = ok or runs
     best = min(pool, key=lambda r: r["f"] if np.isfinite(r["f"]) else np.inf)
     # noise levels from the residuals; re-weight once when they differ from the data's guess
@@ -603,14 +608,10 @@ def _finish(plant: Plant, model: FitModel, res: Intervals, single: _Single, solv
     k = len(model.names)
     theta, X0 = _unpack(solver, best["z"])
     r, Jr = single.stats(theta, X0, w)
-    if not (np.all(np.isfinite(r)) and np.all(np.isfinite(Jr)) and np.all(np.isfinite(theta))):
-        bad = sorted({model.output_names[j % model.q] for j in
-                      np.flatnonzero(~np.all(np.isfinite(np.column_stack([r, Jr])), axis=1))})
-        raise InfeasibleDesign(
-            "the model evaluates to non-finite values at the optimum (output(s) "
-            f"{', '.join(bad) or '?'} or their derivatives NaN/inf, e.g. a square root of a "
-            "negative level difference or a division by zero): write the model so that it is "
-            "finite on the whole state box (e.g. sqrt(max(h1 - h3, 0)) or a signed root)")
+    _require_finite(model, single, theta, X0, w, "at the optimum")
+    # 0 * inf at a clipped level (a square root's slope at 0 times the clip's 0): the clipped
+    # branch's derivative is 0, as in the solver's blocks
+    Jr = np.nan_to_num(Jr, nan=0.0, posinf=0.0, neginf=0.0)
     fisher = fisher_covariance(Jr, r, theta, k)
     predicted_all = single.predicted(theta, X0)
     predicted = tuple(Yh[:, list(d.columns)] for d, Yh in zip(res.data, predicted_all))
@@ -688,6 +689,22 @@ def _finish(plant: Plant, model: FitModel, res: Intervals, single: _Single, solv
         iterations=best["iterations"], starts_tried=tried, starts_agreeing=agreeing, cost=cost,
         status=best["status"], level=level, dof=fisher.dof, substeps=model.substeps,
         mode="simulation", experiments=tuple(d.name for d in res.data), predicted=predicted)
+
+
+def _require_finite(model: FitModel, single: _Single, theta: np.ndarray, X0: np.ndarray,
+                    w: np.ndarray, where: str, force: bool = False) -> None:
+    """Refuse (`InfeasibleDesign`, exit 3) a model whose residuals are not finite (or any
+    case when ``force``), naming the outputs."""
+    full = np.asarray(single.residuals(theta, X0, w)).ravel()
+    bad = ~np.isfinite(full) & single.rows
+    if not (force or np.any(bad) or not np.all(np.isfinite(theta))):
+        return
+    which = sorted({model.output_names[int(j) % model.q] for j in np.flatnonzero(bad)})
+    raise InfeasibleDesign(
+        f"the model evaluates to non-finite values {where}: {int(np.count_nonzero(bad))} "
+        "predicted sample(s) NaN/inf" + (f" (output(s) {', '.join(which)})" if which else "")
+        + ", e.g. a square root of a negative level difference or a division by zero; write the "
+        "model so that it is finite on the whole state box (e.g. sign(h1 - h3)*sqrt(abs(h1 - h3)))")
 
 
 def _quadratic(single: _Single, fisher: Any, theta: np.ndarray, X0: np.ndarray, w: np.ndarray,

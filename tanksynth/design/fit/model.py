@@ -11,6 +11,9 @@ the same step with another ``dt``.
 
 from __future__ import annotations
 
+import contextlib
+import io
+
 from dataclasses import dataclass
 from typing import Any, Protocol, Sequence
 
@@ -22,7 +25,7 @@ from tanksynth.errors import SpecError
 from tanksynth.plants.base import Plant, exact
 from tanksynth.plants.compile import rk4_step, to_casadi
 
-__all__ = ["FreeParameterLike", "FitModel", "fit_model", "direct_states"]
+__all__ = ["FreeParameterLike", "FitModel", "fit_model", "direct_states", "quiet_solve"]
 
 
 class FreeParameterLike(Protocol):
@@ -252,3 +255,27 @@ def direct_states(model: FitModel, theta: np.ndarray) -> dict[int, tuple[int, fl
         if np.isfinite(a) and np.isfinite(b) and a != 0.0:
             out[j] = (i, a, b)
     return out
+
+
+def quiet_solve(solver: Any, **args: Any) -> Any:
+    """Call a CasADi solver with its messages kept off the console.
+
+    CasADi writes its warnings (e.g. ``Inf detected for grad_f``, ``Failed to calculate
+    multipliers``) through Python's ``sys.stdout``/``sys.stderr``; the solver's status says
+    what went wrong, so the text is dropped.
+
+    Parameters
+    ----------
+    solver : casadi.Function
+        An ``nlpsol`` solver.
+    **args
+        Its arguments (``x0``, ``lbx``, ...).
+
+    Returns
+    -------
+    dict
+        The solver's outputs.
+    """
+    sink = io.StringIO()
+    with contextlib.redirect_stdout(sink), contextlib.redirect_stderr(sink):
+        return solver(**args)

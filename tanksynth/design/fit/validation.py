@@ -17,7 +17,7 @@ import casadi as ca
 import numpy as np
 
 from tanksynth.design.fit.estimation import SUBSTEPS
-from tanksynth.design.fit.model import direct_states, fit_model
+from tanksynth.design.fit.model import direct_states, fit_model, quiet_solve
 from tanksynth.design.fit.problem import Intervals, fit_data, noise_guess
 from tanksynth.design.fit.statistics import fit_percent, rmse
 from tanksynth.errors import SpecError
@@ -157,7 +157,7 @@ def estimate_initial_state(plant: Plant, values: Mapping[str, float], experiment
         if ok.size and col in direct:
             i, a, b = direct[col]
             start[i] = (d.y[ok[0], j] - b) / a
-    sol = solver(x0=np.clip(start, lo, hi), lbx=lo, ubx=hi)
+    sol = quiet_solve(solver, x0=np.clip(start, lo, hi), lbx=lo, ubx=hi)
     return np.clip(np.asarray(sol["x"]).ravel(), lo, hi)
 
 
