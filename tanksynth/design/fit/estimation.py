@@ -110,7 +110,7 @@ class FitResult:
     iterations : int
         IPOPT iterations of the kept solve.
     starts_tried : int
-        Starting points solved.
+        Starting points solved (fewer than asked when `AGREE` starts agreed early).
     starts_agreeing : int
         Converged starts that reached the kept optimum (cost and values).
     cost : float
@@ -503,7 +503,10 @@ def fit_parameters(plant: Plant, free: Sequence[FreeParameterLike], experiments:
         RK4 steps per sampling interval (default `SUBSTEPS`, the simulator's default);
         re-simulate with the same (`FitResult.substeps`).
     starts : int
-        Starting points (the given start, then a Latin hypercube in the box), >= 1.
+        Most starting points (the given start, then a Latin hypercube in the box), >= 1,
+        solved in that order; the multi-start stops early once `AGREE` (3) converged starts
+        reach the best optimum found (parameters within 1e-3 of their box, cost within 1e-6
+        relative).
     seed : int
         Seed of the Latin hypercube.
     mode : str
@@ -554,11 +557,13 @@ def fit_parameters(plant: Plant, free: Sequence[FreeParameterLike], experiments:
     points = [solver.scaled(model.start)]
     if starts > 1:
         points += list(qmc.LatinHypercube(d=k, seed=int(seed)).random(int(starts) - 1))
-    runs = []
+    runs: list[dict[str, Any]] = []
     for s0 in points:
         S0 = _initial_nodes(model, res, single, solver.theta(s0), w)
         z0 = solver.pack(s0, S0)
         runs.append(solver.solve(z0, w))
+        if _settled(solver, runs):
+            break
     ok = [r for r in runs if r["status"] in CONVERGED]
     if not ok and all(r["status"] == "Invalid_Number_Detected" for r in runs):
         theta, X0 = _unpack(solver, runs[0]["z"])
@@ -580,6 +585,23 @@ def fit_parameters(plant: Plant, free: Sequence[FreeParameterLike], experiments:
     agreeing = sum(1 for r in ok if np.allclose(solver.split(r["z"])[0], kept, atol=1e-3, rtol=0.0))
     return _finish(plant, model, res, single, solver, best, w, sigma, float(level), len(runs),
                    agreeing)
+
+
+#: Converged starts that must reach the best optimum before the multi-start stops early.
+AGREE = 3
+
+
+def _settled(solver: _Solver, runs: Sequence[dict[str, Any]]) -> bool:
+    """Early stop of the multi-start: `AGREE` converged starts reached the best optimum found
+    so far (scaled parameters within 1e-3 of the box, cost within 1e-6 relative)."""
+    ok = [r for r in runs if r["status"] in CONVERGED and np.isfinite(r["f"])]
+    if len(ok) < AGREE:
+        return False
+    best = min(ok, key=lambda r: r["f"])
+    kept = solver.split(best["z"])[0]
+    same = [r for r in ok if abs(r["f"] - best["f"]) <= 1e-6 * max(abs(best["f"]), 1e-300)
+            and np.allclose(solver.split(r["z"])[0], kept, atol=1e-3, rtol=0.0)]
+    return len(same) >= AGREE
 
 
 def _unpack(solver: _Solver, z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
