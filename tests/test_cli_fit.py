@@ -118,6 +118,12 @@ def test_verdict_reproduces_and_fails_on_edits(fitted, tmp_path):
     checks = {c.name: c for c in fit_verdict(doc, spec)}
     assert checks["rmse_reproduced"].passed and checks["data_files"].passed
     assert checks["converged"].passed and checks["parameters_inside_bounds"].passed
+    # the verdict recomputes the fit's own whiteness statistic and bound (Ljung-Box, 95 %)
+    from scipy.stats import chi2
+    recorded = doc["diagnostics"]["estimation"]["whiteness"]
+    for nm, w in checks["residual_whiteness"].data["whiteness"].items():
+        assert w["statistic"] == pytest.approx(recorded[nm]["statistic"], rel=1e-6)
+        assert w["bound"] == pytest.approx(recorded[nm]["bound"]) == pytest.approx(chi2.ppf(0.95, 20))
     # a changed value: the re-simulated RMSE no longer equals the recorded one
     edited = dict(doc, gains={**doc["gains"], "theta": doc["gains"]["theta"] * np.array([1.01, 1, 1])})
     assert {c.name: c for c in fit_verdict(edited, spec)}["rmse_reproduced"].passed is False
