@@ -84,9 +84,11 @@ class FitResult:
     covariance_note : str
         Why (the failed outputs with their Ljung-Box statistic and bound, the Bartlett lags).
     stderr_white, ci95_white, covariance_white : ndarray
-        The white-noise (Fisher) standard errors (k,), Wald intervals (k, 2) and covariance (k, k).
+        The white-noise (Fisher) standard errors (k,), Wald intervals (k, 2) (parameter units)
+        and covariance (k, k) (parameter units squared).
     stderr_hac, covariance_hac : ndarray
-        The autocorrelation-consistent standard errors (k,) and covariance (k, k).
+        The autocorrelation-consistent standard errors (k,) (parameter units) and covariance
+        (k, k) (parameter units squared).
     hac_lags : tuple of int
         Bartlett truncation lag per experiment (samples; `statistics.hac_lags`).
     converged : bool

@@ -178,7 +178,7 @@ def hac_lags(scores: np.ndarray) -> int:
     Parameters
     ----------
     scores : ndarray, shape (T, k)
-        Score contributions per sample, in time order (1).
+        Score contributions per sample, in time order (dimensionless).
 
     Returns
     -------
