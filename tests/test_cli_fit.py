@@ -118,6 +118,12 @@ def test_verdict_reproduces_and_fails_on_edits(fitted, tmp_path):
     checks = {c.name: c for c in fit_verdict(doc, spec)}
     assert checks["rmse_reproduced"].passed and checks["data_files"].passed
     assert checks["converged"].passed and checks["parameters_inside_bounds"].passed
+    # the verdict recomputes the fit's own whiteness statistic and bound (Ljung-Box, 95 %)
+    from scipy.stats import chi2
+    recorded = doc["diagnostics"]["estimation"]["whiteness"]
+    for nm, w in checks["residual_whiteness"].data["whiteness"].items():
+        assert w["statistic"] == pytest.approx(recorded[nm]["statistic"], rel=1e-6)
+        assert w["bound"] == pytest.approx(recorded[nm]["bound"]) == pytest.approx(chi2.ppf(0.95, 20))
     # a changed value: the re-simulated RMSE no longer equals the recorded one
     edited = dict(doc, gains={**doc["gains"], "theta": doc["gains"]["theta"] * np.array([1.01, 1, 1])})
     assert {c.name: c for c in fit_verdict(edited, spec)}["rmse_reproduced"].passed is False
@@ -268,3 +274,47 @@ def test_parameter_at_a_bound_warns_and_fails_the_verdict(tmp_path, capsys):
     assert any("mu20" in w for w in doc["diagnostics"]["warnings"])
     checks = {c["check"]: c for c in doc["verification"]["checks"]}
     assert checks["parameters_inside_bounds"]["passed"] is False
+
+
+# ------------------------------------------------------------- a model that is not finite, quiet CasADi
+_EXAMPLES = Path(__file__).resolve().parent.parent / "examples"
+
+
+def _leak_spec(tmp_path: Path, edit) -> Path:
+    """The leak example with its data beside it, edited by ``edit(text) -> text``."""
+    (tmp_path / "data").mkdir()
+    for name in ("three_tank_estimation.csv", "three_tank_validation.csv"):
+        shutil.copy(_EXAMPLES / "data" / name, tmp_path / "data" / name)
+    spec = tmp_path / "spec.toml"
+    spec.write_text(edit((_EXAMPLES / "three_tank_fit_leak.toml").read_text()))
+    return spec
+
+
+def test_a_model_that_evaluates_non_finite_is_refused_with_exit_3(tmp_path, capsys):
+    # y3 reads sqrt(h2 - h3): NaN wherever h3 > h2, i.e. on every logged sample (the operating
+    # point, h2 > h3, passes the spec's checks)
+    def edit(text: str) -> str:
+        text = text.replace('y3 = {expr = "h3"', 'y3 = {expr = "h3 + 0.001*sqrt(h2 - h3)"')
+        text = text.replace('trim = "states"', "").replace('orderings = ["h1 > h3", "h3 > h2"]', "")
+        text = text.replace("x = {h1 = 0.40, h2 = 0.20, h3 = 0.30}", "x = {h1 = 0.40, h2 = 0.30, h3 = 0.20}")
+        return text.replace("starts = 4", "starts = 1")
+
+    code, out = _run("fit", _leak_spec(tmp_path, edit), "-o", tmp_path / "out", capsys=capsys)
+    assert code == 3
+    said = out.out + out.err
+    assert "non-finite" in said and "output(s) y3" in said
+    assert "internal error" not in said and "LinAlgError" not in said
+    assert "CasADi" not in out.out + out.err
+
+
+def test_an_offset_output_counts_as_measuring_its_state():
+    # y2 = h2 + b2 measures h2: the initial guess reads h2 = y2 - b2
+    from tanksynth.design.fit.model import direct_states, fit_model
+    from tanksynth.methods import load_spec
+
+    spec = load_spec(_EXAMPLES / "three_tank_fit_leak.toml")
+    model = fit_model(spec.plant, spec.free_parameters)
+    assert model.names[-1] == "b2"
+    theta = np.array([0.5, 0.5, 0.675, 0.05, 0.004])
+    assert direct_states(model, theta) == {0: (0, 1.0, 0.0), 1: (1, 1.0, pytest.approx(0.004)),
+                                           2: (2, 1.0, 0.0)}

@@ -3,7 +3,9 @@
 The estimation itself is `tanksynth.design.fit.estimation.fit_parameters` (CasADi + IPOPT,
 multiple shooting, multi-start); this adapter reads the data files the design names, runs it,
 refuses a fit that did not converge (`InfeasibleDesign`, exit 3, naming IPOPT's status), warns
-(`DesignWarning`) of a parameter at a bound and of a rank-deficient information matrix, scores
+(`DesignWarning`) of a parameter at a bound, of a rank-deficient information matrix and of
+residuals that are not white (the intervals are then the autocorrelation-consistent ones,
+recorded with the white-noise ones under ``uncertainty``), scores
 the validation files and records what the verdict re-derives: the fitted values and initial
 states, and each data file's sha256 and the name of its copy in the result directory
 (``data/<file>``; the design writer copies them beside the artefact,
@@ -185,6 +187,13 @@ def run_fit(spec: Spec, design: DesignSpec) -> DesignResult:
                       "is rank deficient): " + str(result.unidentifiable_note), DesignWarning,
                       stacklevel=2)
 
+    if result.covariance_method == "hac":
+        failed = [f"{nm}, Q = {w.statistic:.4g} > {w.bound:.4g}" for nm, w in result.whiteness.items()
+                  if not w.passed]
+        warnings.warn(f"residuals not white ({'; '.join(failed)}): the model misses dynamics or "
+                      "the noise is coloured; intervals widened by the autocorrelation-consistent "
+                      "covariance; they cover noise, not model error: extend the model (see "
+                      "examples/three_tank_fit_leak.toml)", DesignWarning, stacklevel=2)
     x0 = np.asarray(result.x0, dtype=float).reshape(len(estimation), plant.n)
     ys, hats, masks, experiments = [], [], [], []
     for e, (exp, path, sha, copy) in enumerate(zip(estimation, est_paths, hashes, copies)):
@@ -249,6 +258,18 @@ def run_fit(spec: Spec, design: DesignSpec) -> DesignResult:
         "identifiability": {"identifiable": bool(result.identifiable),
                             "note": str(result.unidentifiable_note or "")},
         "correlation": np.asarray(result.correlation, dtype=float).tolist(),
+        "uncertainty": {
+            "used": str(result.covariance_method),
+            "why": str(result.covariance_note),
+            "white": {nm: {"stderr": float(result.stderr_white[i]),
+                           "ci95": [float(result.ci95_white[i, 0]), float(result.ci95_white[i, 1])]}
+                      for i, nm in enumerate(names)},
+            "hac": {"stderr": {nm: float(result.stderr_hac[i]) for i, nm in enumerate(names)},
+                    "kernel": "Bartlett (Newey-West)",
+                    "lags": [int(v) for v in result.hac_lags],
+                    "lag_rule": "Andrews AR(1) plug-in, at least floor(4 (N/100)^(2/9)), at most N/4"},
+            "interval_method": {nm: str(m) for nm, m in zip(names, result.interval_method)},
+        },
         "data_files": [{"file": c, "source": str(p), "sha256": h}
                        for c, p, h in zip(copies, [*est_paths, *val_paths], hashes)],
         "states": [s.name for s in plant.states],

@@ -32,12 +32,13 @@ import numpy as np
 from scipy import stats
 from scipy.stats import qmc
 
-from tanksynth.design.fit.model import FitModel, FreeParameterLike, fit_model
+from tanksynth.design.fit.model import (FitModel, FreeParameterLike, direct_states, fit_model,
+                                        quiet_solve)
 from tanksynth.design.fit.problem import FitData, Intervals, fit_data, noise_guess
 from tanksynth.design.fit.statistics import (WhitenessTest, fisher_covariance, fit_percent,
-                                             identifiable_note, profile_bound, rmse, t_interval,
-                                             whiteness_test)
-from tanksynth.errors import SpecError
+                                             hac_covariance, identifiable_note, profile_bound,
+                                             rmse, t_interval, whiteness_test)
+from tanksynth.errors import InfeasibleDesign, SpecError
 from tanksynth.measurements.experiment import Experiment
 from tanksynth.plants.base import Plant
 
@@ -68,12 +69,28 @@ class FitResult:
         Confidence intervals at ``level`` (parameter units; named ci95 after the default level).
     interval_method : tuple of str
         How each interval was found: ``"wald"`` (Student t on the Fisher information),
+        ``"hac"`` (Student t on the Newey-West covariance), ``"profile-hac"`` (profile with the
+        threshold scaled by the HAC-to-Fisher variance ratio),
         ``"profile"`` (profile likelihood: the Wald interval was asymmetric or crossed the
         box) or ``"unidentifiable"`` (the box).
     correlation, covariance : ndarray, shape (k, k)
         Parameter correlation (1) and covariance (parameter units squared).
     x0 : ndarray, shape (E, n)
         Estimated initial state of each experiment (state units).
+    covariance_method : str
+        Which covariance ``stderr``, ``ci95``, ``covariance`` and ``correlation`` come from:
+        ``"white"`` (Fisher information, white noise) when every output's residuals pass the
+        whiteness test, ``"hac"`` (Newey-West sandwich) when one fails.
+    covariance_note : str
+        Why (the failed outputs with their Ljung-Box statistic and bound, the Bartlett lags).
+    stderr_white, ci95_white, covariance_white : ndarray
+        The white-noise (Fisher) standard errors (k,), Wald intervals (k, 2) (parameter units)
+        and covariance (k, k) (parameter units squared).
+    stderr_hac, covariance_hac : ndarray
+        The autocorrelation-consistent standard errors (k,) (parameter units) and covariance
+        (k, k) (parameter units squared).
+    hac_lags : tuple of int
+        Bartlett truncation lag per experiment (samples; `statistics.hac_lags`).
     converged : bool
         IPOPT converged for the kept optimum.
     at_bound : tuple of str
@@ -95,7 +112,7 @@ class FitResult:
     iterations : int
         IPOPT iterations of the kept solve.
     starts_tried : int
-        Starting points solved.
+        Starting points solved (fewer than asked when `AGREE` starts agreed early).
     starts_agreeing : int
         Converged starts that reached the kept optimum (cost and values).
     cost : float
@@ -125,6 +142,14 @@ class FitResult:
     correlation: np.ndarray
     covariance: np.ndarray
     x0: np.ndarray
+    covariance_method: str
+    covariance_note: str
+    stderr_white: np.ndarray
+    ci95_white: np.ndarray
+    covariance_white: np.ndarray
+    stderr_hac: np.ndarray
+    covariance_hac: np.ndarray
+    hac_lags: tuple[int, ...]
     converged: bool
     at_bound: tuple[str, ...]
     identifiable: bool
@@ -321,7 +346,7 @@ class _Solver:
         self.count = max(int(sum(res.counts)), 1)
         obj = 0.5 * ca.sumsqr(r) / self.count
         opts: dict[str, Any] = {"print_time": False, "ipopt.print_level": 0, "ipopt.sb": "yes",
-                "ipopt.max_iter": int(max_iter), "ipopt.tol": 1e-9,
+                "show_eval_warnings": False, "ipopt.max_iter": int(max_iter), "ipopt.tol": 1e-9,
                 "ipopt.acceptable_tol": 1e-6, "ipopt.acceptable_iter": 3,
                 "ipopt.mu_strategy": "adaptive"}
         z = ca.vec(V)
@@ -360,7 +385,7 @@ class _Solver:
         args: dict[str, Any] = dict(x0=z0, p=w, lbx=lbx, ubx=ubx, lbg=0.0, ubg=0.0)
         if lam is not None:
             args["lam_g0"] = lam
-        sol = self.solver(**args)
+        sol = quiet_solve(self.solver, **args)
         st = self.solver.stats()
         return {"z": np.asarray(sol["x"]).ravel(), "f": float(sol["f"]) * 2 * self.count,
                 "lam": np.asarray(sol["lam_g"]).ravel(), "status": str(st["return_status"]),
@@ -381,7 +406,7 @@ def _initial_nodes(model: FitModel, res: Intervals, single: "_Single", theta: np
                    w: np.ndarray) -> list[np.ndarray]:
     """Node states of a start: the model simulated at ``theta`` from a data-based initial state,
     with every directly measured state replaced by its measurement at the node."""
-    direct = _direct_states(model)
+    direct = direct_states(model, theta)
     out = []
     mid = np.where(np.isfinite(model.state_lower) & np.isfinite(model.state_upper),
                    0.5 * (model.state_lower + model.state_upper),
@@ -404,28 +429,14 @@ def _initial_nodes(model: FitModel, res: Intervals, single: "_Single", theta: np
     return out
 
 
-def _direct_states(model: FitModel) -> dict[int, int]:
-    """Plant output index -> state index for outputs that are a state itself (``y = x_i``)."""
-    out = {}
-    x, th = ca.SX.sym("x", model.n), ca.SX.sym("th", len(model.names))
-    y = model.output(x, th)
-    jac = ca.Function("jy", [x, th], [ca.jacobian(y, x)])
-    probe = np.linspace(0.3, 0.7, model.n)
-    A = np.asarray(jac(probe, np.zeros(len(model.names)) + 0.5))
-    yv = np.asarray(ca.Function("y", [x, th], [y])(probe, np.zeros(len(model.names)) + 0.5)).ravel()
-    for j in range(model.q):
-        nz = np.flatnonzero(np.abs(A[j]) > 0)
-        if nz.size == 1 and A[j, nz[0]] == 1.0 and yv[j] == probe[nz[0]]:
-            out[j] = int(nz[0])
-    return out
-
-
-def _measured(d: FitData, direct: Mapping[int, int]) -> dict[int, np.ndarray]:
-    """State index -> its exact measurements in ``d`` (NaN elsewhere)."""
+def _measured(d: FitData, direct: Mapping[int, tuple[int, float, float]]) -> dict[int, np.ndarray]:
+    """State index -> the state read off its exact measurements in ``d`` (``(y - b) / a``;
+    NaN elsewhere)."""
     out = {}
     for j, col in enumerate(d.columns):
         if col in direct:
-            out[direct[col]] = np.where(d.exact[:, j], d.y[:, j], np.nan)
+            i, a, b = direct[col]
+            out[i] = np.where(d.exact[:, j], (d.y[:, j] - b) / a, np.nan)
     return out
 
 
@@ -494,7 +505,10 @@ def fit_parameters(plant: Plant, free: Sequence[FreeParameterLike], experiments:
         RK4 steps per sampling interval (default `SUBSTEPS`, the simulator's default);
         re-simulate with the same (`FitResult.substeps`).
     starts : int
-        Starting points (the given start, then a Latin hypercube in the box), >= 1.
+        Most starting points (the given start, then a Latin hypercube in the box), >= 1,
+        solved in that order; the multi-start stops early once `AGREE` (3) converged starts
+        reach the best optimum found (parameters within 1e-3 of their box, cost within 1e-6
+        relative).
     seed : int
         Seed of the Latin hypercube.
     mode : str
@@ -545,12 +559,18 @@ def fit_parameters(plant: Plant, free: Sequence[FreeParameterLike], experiments:
     points = [solver.scaled(model.start)]
     if starts > 1:
         points += list(qmc.LatinHypercube(d=k, seed=int(seed)).random(int(starts) - 1))
-    runs = []
+    runs: list[dict[str, Any]] = []
     for s0 in points:
         S0 = _initial_nodes(model, res, single, solver.theta(s0), w)
         z0 = solver.pack(s0, S0)
         runs.append(solver.solve(z0, w))
+        if _settled(solver, runs):
+            break
     ok = [r for r in runs if r["status"] in CONVERGED]
+    if not ok and all(r["status"] == "Invalid_Number_Detected" for r in runs):
+        theta, X0 = _unpack(solver, runs[0]["z"])
+        _require_finite(model, single, theta, X0, w, "from every start (IPOPT: "
+                        "Invalid_Number_Detected)", force=True)
     pool = ok or runs
     best = min(pool, key=lambda r: r["f"] if np.isfinite(r["f"]) else np.inf)
     # noise levels from the residuals; re-weight once when they differ from the data's guess
@@ -567,6 +587,23 @@ def fit_parameters(plant: Plant, free: Sequence[FreeParameterLike], experiments:
     agreeing = sum(1 for r in ok if np.allclose(solver.split(r["z"])[0], kept, atol=1e-3, rtol=0.0))
     return _finish(plant, model, res, single, solver, best, w, sigma, float(level), len(runs),
                    agreeing)
+
+
+#: Converged starts that must reach the best optimum before the multi-start stops early.
+AGREE = 3
+
+
+def _settled(solver: _Solver, runs: Sequence[dict[str, Any]]) -> bool:
+    """Early stop of the multi-start: `AGREE` converged starts reached the best optimum found
+    so far (scaled parameters within 1e-3 of the box, cost within 1e-6 relative)."""
+    ok = [r for r in runs if r["status"] in CONVERGED and np.isfinite(r["f"])]
+    if len(ok) < AGREE:
+        return False
+    best = min(ok, key=lambda r: r["f"])
+    kept = solver.split(best["z"])[0]
+    same = [r for r in ok if abs(r["f"] - best["f"]) <= 1e-6 * max(abs(best["f"]), 1e-300)
+            and np.allclose(solver.split(r["z"])[0], kept, atol=1e-3, rtol=0.0)]
+    return len(same) >= AGREE
 
 
 def _unpack(solver: _Solver, z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -595,48 +632,78 @@ def _finish(plant: Plant, model: FitModel, res: Intervals, single: _Single, solv
     k = len(model.names)
     theta, X0 = _unpack(solver, best["z"])
     r, Jr = single.stats(theta, X0, w)
+    _require_finite(model, single, theta, X0, w, "at the optimum")
+    # 0 * inf at a clipped level (a square root's slope at 0 times the clip's 0): the clipped
+    # branch's derivative is 0, as in the solver's blocks
+    Jr = np.nan_to_num(Jr, nan=0.0, posinf=0.0, neginf=0.0)
     fisher = fisher_covariance(Jr, r, theta, k)
-    ci = t_interval(theta, fisher.stderr, fisher.dof, level)
-    methods = ["wald"] * k
+    predicted_all = single.predicted(theta, X0)
+    predicted = tuple(Yh[:, list(d.columns)] for d, Yh in zip(res.data, predicted_all))
+    names = [nm for nm in model.output_names if any(nm in d.output_names for d in res.data)]
+    series: dict[str, list[np.ndarray]] = {nm: [] for nm in names}
+    for d, Yh in zip(res.data, predicted):
+        for j, nm in enumerate(d.output_names):
+            series[nm].append(np.where(d.exact[:, j], d.y[:, j], np.nan) - Yh[:, j])
+    white = {nm: whiteness_test(series[nm]) for nm in names}
+    # residuals not white: the Fisher (white-noise) covariance understates the spread; the
+    # Newey-West sandwich takes the residuals' autocorrelation into account
+    flags = [np.flatnonzero(np.asarray(res.flags(e))) for e in range(len(res.data))]
+    exp_id = np.concatenate([np.full(f.size, e) for e, f in enumerate(flags)])
+    sample = np.concatenate([f // model.q for f in flags])
+    hac = hac_covariance(Jr, r, theta, k, exp_id, sample, fisher)
+    failed = [nm for nm in names if not white[nm].passed]
+    use_hac = bool(failed)
+    stderr = hac.stderr if use_hac else fisher.stderr
+    covariance = hac.covariance if use_hac else fisher.covariance
+    correlation = hac.correlation if use_hac else fisher.correlation
+    if use_hac:
+        note = ("residuals not white (" + ", ".join(
+            f"{nm} Q = {white[nm].statistic:.3g} > {white[nm].bound:.3g}" for nm in failed)
+            + "): intervals from the autocorrelation-consistent (Newey-West) covariance, "
+            f"Bartlett lags {', '.join(map(str, hac.lags))}")
+    else:
+        note = "residuals white: intervals from the Fisher information (white noise)"
+    ci_white = t_interval(theta, fisher.stderr, fisher.dof, level)
+    ci = t_interval(theta, stderr, fisher.dof, level)
+    methods = ["hac" if use_hac else "wald"] * k
     q = float(stats.t.ppf(0.5 + level / 2.0, fisher.dof))
-    target = q * q
     cost = float(r @ r)
     involved = np.isinf(fisher.stderr)
     for i in range(k):
         if involved[i]:
-            ci[i] = (model.lower[i], model.upper[i])
+            ci[i] = ci_white[i] = (model.lower[i], model.upper[i])
             methods[i] = "unidentifiable"
             continue
-        half = q * fisher.stderr[i]
+        half = q * stderr[i]
+        # the profile's excess is in white-noise units: its threshold scales with the variance
+        # ratio, so that a quadratic cost gives the Wald (or HAC-Wald) half-width
+        target = (half / fisher.stderr[i]) ** 2 if fisher.stderr[i] > 0 else q * q
         crosses = ci[i, 0] < model.lower[i] or ci[i, 1] > model.upper[i]
         if crosses or not _quadratic(single, fisher, theta, X0, w, i, half, cost, target):
             excess = _profile(solver, single, best, w, i, cost, fisher.sigma2)
             lo, _ = profile_bound(excess, theta[i], -half, model.lower[i], target)
             hi, _ = profile_bound(excess, theta[i], half, model.upper[i], target)
             ci[i] = (lo, hi)
-            methods[i] = "profile"
+            methods[i] = "profile-hac" if use_hac else "profile"
     width = model.upper - model.lower
     at_bound = tuple(nm for nm, v, lo, hi, wd in zip(model.names, theta, model.lower, model.upper, width)
                      if v - lo <= 1e-4 * wd or hi - v <= 1e-4 * wd)
-    full = single.predicted(theta, X0)
-    predicted = tuple(Yh[:, list(d.columns)] for d, Yh in zip(res.data, full))
     rm: dict[str, dict[str, float]] = {}
     fp: dict[str, dict[str, float]] = {}
-    names = [nm for nm in model.output_names if any(nm in d.output_names for d in res.data)]
-    series: dict[str, list[np.ndarray]] = {nm: [] for nm in names}
     for d, Yh in zip(res.data, predicted):
         rm[d.name], fp[d.name] = {}, {}
         for j, nm in enumerate(d.output_names):
             y = np.where(d.exact[:, j], d.y[:, j], np.nan)
             rm[d.name][nm] = rmse(y, Yh[:, j])
             fp[d.name][nm] = fit_percent(y, Yh[:, j])
-            series[nm].append(y - Yh[:, j])
-    white = {nm: whiteness_test(series[nm]) for nm in names}
     units = {prm.name: prm.unit for prm in plant.parameters}
     return FitResult(
         names=model.names, units=tuple(units[nm] for nm in model.names), values=theta,
-        stderr=fisher.stderr, ci95=ci, interval_method=tuple(methods),
-        correlation=fisher.correlation, covariance=fisher.covariance, x0=X0.T.copy(),
+        stderr=stderr, ci95=ci, interval_method=tuple(methods),
+        correlation=correlation, covariance=covariance, x0=X0.T.copy(),
+        covariance_method="hac" if use_hac else "white", covariance_note=note,
+        stderr_white=fisher.stderr, ci95_white=ci_white, covariance_white=fisher.covariance,
+        stderr_hac=hac.stderr, covariance_hac=hac.covariance, hac_lags=hac.lags,
         converged=best["status"] in CONVERGED, at_bound=at_bound,
         identifiable=fisher.identifiable,
         unidentifiable_note=identifiable_note(model.names, fisher.null_vectors),
@@ -646,6 +713,22 @@ def _finish(plant: Plant, model: FitModel, res: Intervals, single: _Single, solv
         iterations=best["iterations"], starts_tried=tried, starts_agreeing=agreeing, cost=cost,
         status=best["status"], level=level, dof=fisher.dof, substeps=model.substeps,
         mode="simulation", experiments=tuple(d.name for d in res.data), predicted=predicted)
+
+
+def _require_finite(model: FitModel, single: _Single, theta: np.ndarray, X0: np.ndarray,
+                    w: np.ndarray, where: str, force: bool = False) -> None:
+    """Refuse (`InfeasibleDesign`, exit 3) a model whose residuals are not finite (or any
+    case when ``force``), naming the outputs."""
+    full = np.asarray(single.residuals(theta, X0, w)).ravel()
+    bad = ~np.isfinite(full) & single.rows
+    if not (force or np.any(bad) or not np.all(np.isfinite(theta))):
+        return
+    which = sorted({model.output_names[int(j) % model.q] for j in np.flatnonzero(bad)})
+    raise InfeasibleDesign(
+        f"the model evaluates to non-finite values {where}: {int(np.count_nonzero(bad))} "
+        "predicted sample(s) NaN/inf" + (f" (output(s) {', '.join(which)})" if which else "")
+        + ", e.g. a square root of a negative level difference or a division by zero; write the "
+        "model so that it is finite on the whole state box (e.g. sign(h1 - h3)*sqrt(abs(h1 - h3)))")
 
 
 def _quadratic(single: _Single, fisher: Any, theta: np.ndarray, X0: np.ndarray, w: np.ndarray,

@@ -11,6 +11,9 @@ the same step with another ``dt``.
 
 from __future__ import annotations
 
+import contextlib
+import io
+
 from dataclasses import dataclass
 from typing import Any, Protocol, Sequence
 
@@ -22,7 +25,7 @@ from tanksynth.errors import SpecError
 from tanksynth.plants.base import Plant, exact
 from tanksynth.plants.compile import rk4_step, to_casadi
 
-__all__ = ["FreeParameterLike", "FitModel", "fit_model"]
+__all__ = ["FreeParameterLike", "FitModel", "fit_model", "direct_states", "quiet_solve"]
 
 
 class FreeParameterLike(Protocol):
@@ -212,3 +215,67 @@ def fit_model(plant: Plant, free: Sequence[FreeParameterLike], substeps: int = 4
     return FitModel(names, lower, upper, start, step, output, n, m, q, substeps,
                     np.asarray(lo_x, dtype=float), np.asarray(hi_x, dtype=float),
                     tuple(o.name for o in plant.outputs))
+
+
+def direct_states(model: FitModel, theta: np.ndarray) -> dict[int, tuple[int, float, float]]:
+    """Outputs that measure one state affinely: ``y_j = a x_i + b`` (``a``, ``b`` may depend on
+    the parameters, e.g. a sensor gain ``kc*h1`` or an offset ``h2 + b2``).
+
+    An output counts when its Jacobian in the states has one nonzero entry, the same at two
+    probe states (affine in that state, independent of the others).
+
+    Parameters
+    ----------
+    model : FitModel
+        The sampled model.
+    theta : ndarray, shape (k,)
+        Parameter values at which ``a`` and ``b`` are evaluated (parameter units).
+
+    Returns
+    -------
+    dict
+        Output index -> ``(state index, a, b)``: the state is ``(y - b) / a`` (state units).
+    """
+    x = ca.SX.sym("x", model.n)
+    th = np.asarray(theta, dtype=float).ravel()
+    y = model.output(x, ca.DM(th))
+    jac = ca.Function("jy", [x], [ca.jacobian(y, x), y])
+    out: dict[int, tuple[int, float, float]] = {}
+    probes = [np.linspace(0.3, 0.7, model.n), np.linspace(0.55, 0.15, model.n)]
+    evals = [tuple(np.asarray(v, dtype=float) for v in jac(p)) for p in probes]
+    (A1, y1), (A2, _) = evals
+    for j in range(model.q):
+        nz = np.flatnonzero(np.abs(A1[j]) > 0)
+        if nz.size != 1 or not np.all(np.isfinite(A1[j])) or not np.allclose(A1[j], A2[j], rtol=1e-12,
+                                                                               atol=0.0):
+            continue
+        i = int(nz[0])
+        a = float(A1[j, i])
+        b = float(y1.ravel()[j] - a * probes[0][i])
+        if np.isfinite(a) and np.isfinite(b) and a != 0.0:
+            out[j] = (i, a, b)
+    return out
+
+
+def quiet_solve(solver: Any, **args: Any) -> Any:
+    """Call a CasADi solver with its messages kept off the console.
+
+    CasADi writes its warnings (e.g. ``Inf detected for grad_f``, ``Failed to calculate
+    multipliers``) through Python's ``sys.stdout``/``sys.stderr``; the solver's status says
+    what went wrong, so the text is dropped.
+
+    Parameters
+    ----------
+    solver : casadi.Function
+        An ``nlpsol`` solver.
+    **args
+        Its arguments (``x0``, ``lbx``, ...).
+
+    Returns
+    -------
+    dict
+        The solver's outputs.
+    """
+    sink = io.StringIO()
+    with contextlib.redirect_stdout(sink), contextlib.redirect_stderr(sink):
+        return solver(**args)

@@ -10,6 +10,9 @@ residuals already divided by their noise level):
 * `t_interval` and `profile_bound`: Wald (Student t) intervals, and the profile-likelihood
   bound found by root finding on a profile-cost callable where the Wald interval is not
   trusted;
+* `hac_covariance`: the Newey-West (Bartlett-kernel, autocorrelation-consistent) sandwich
+  covariance from the same Jacobian and the residuals, for residuals that are not white
+  (`hac_lags` chooses the truncation lag);
 * `whiteness_test`: normalised residual autocorrelation at lags 1..L against
   ``+-1.96/sqrt(N)`` and the Ljung-Box portmanteau statistic against its chi-square quantile.
 """
@@ -23,7 +26,9 @@ from typing import Callable, Sequence
 import numpy as np
 from scipy import stats
 
-__all__ = ["FisherStatistics", "fisher_covariance", "identifiable_note", "t_interval",
+from tanksynth.measurements.scores import WHITENESS_LAGS, WHITENESS_LEVEL, ljung_box
+
+__all__ = ["FisherStatistics", "fisher_covariance", "HacStatistics", "hac_covariance", "hac_lags", "identifiable_note", "t_interval",
            "profile_bound", "WhitenessTest", "whiteness_test", "fit_percent", "rmse"]
 
 #: Relative eigenvalue of the scaled Fisher information below which a direction is not identifiable.
@@ -68,6 +73,30 @@ class FisherStatistics:
         return self.null_vectors.shape[0] == 0
 
 
+def _reduced(J: np.ndarray, theta: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The parameter columns of ``J`` in equilibrated log-parameters, the nuisance columns
+    projected out: ``(A (N, k), column norms (K,), parameter scale (k,))``."""
+    K = J.shape[1]
+    if not (np.all(np.isfinite(J)) and np.all(np.isfinite(theta))):
+        raise FloatingPointError("the residual Jacobian at the optimum is not finite")
+    scale = np.where(np.abs(theta) > 0, np.abs(theta), 1.0)       # log-parameters for the theta
+    col = np.linalg.norm(J, axis=0)
+    col[:k] = np.linalg.norm(J[:, :k] * scale, axis=0)
+    col = np.where(col > 0, col, 1.0)
+    D = np.ones(K)
+    D[:k] = scale
+    Js = J * (D / col)                                            # equilibrated columns
+    # the parameters' information with the nuisance unknowns eliminated: project J_theta on the
+    # orthogonal complement of the nuisance columns (QR), then the SVD of what is left
+    A, B = Js[:, :k], Js[:, k:]
+    if B.shape[1]:
+        Q, R = np.linalg.qr(B)
+        keep = np.abs(np.diag(R)) > 1e-12 * max(1.0, float(np.max(np.abs(np.diag(R)), initial=0.0)))
+        Q = Q[:, keep]
+        A = A - Q @ (Q.T @ A)
+    return A, col, scale
+
+
 def fisher_covariance(jacobian: np.ndarray, residuals: np.ndarray, theta: np.ndarray,
                       k: int) -> FisherStatistics:
     """Covariance, standard errors, correlation and rank from the residual Jacobian.
@@ -92,21 +121,7 @@ def fisher_covariance(jacobian: np.ndarray, residuals: np.ndarray, theta: np.nda
     N, K = J.shape
     dof = max(N - K, 1)
     s2 = float(residuals @ residuals) / dof
-    scale = np.where(np.abs(theta) > 0, np.abs(theta), 1.0)       # log-parameters for the theta
-    col = np.linalg.norm(J, axis=0)
-    col[:k] = np.linalg.norm(J[:, :k] * scale, axis=0)
-    col = np.where(col > 0, col, 1.0)
-    D = np.ones(K)
-    D[:k] = scale
-    Js = J * (D / col)                                            # equilibrated columns
-    # the parameters' information with the nuisance unknowns eliminated: project J_theta on the
-    # orthogonal complement of the nuisance columns (QR), then the SVD of what is left
-    A, B = Js[:, :k], Js[:, k:]
-    if B.shape[1]:
-        Q, R = np.linalg.qr(B)
-        keep = np.abs(np.diag(R)) > 1e-12 * max(1.0, float(np.max(np.abs(np.diag(R)), initial=0.0)))
-        Q = Q[:, keep]
-        A = A - Q @ (Q.T @ A)
+    A, col, scale = _reduced(J, theta, k)
     _, sv, Vt = np.linalg.svd(A, full_matrices=False)
     eig = (sv / sv[0]) ** 2 if sv.size and sv[0] > 0 else np.zeros(k)
     null = Vt[eig < RANK_TOL] / col[:k]                          # back to log-parameters
@@ -127,6 +142,135 @@ def fisher_covariance(jacobian: np.ndarray, residuals: np.ndarray, theta: np.nda
     np.fill_diagonal(corr, np.where(np.isfinite(stderr), 1.0, np.nan))
     eig_sorted = np.sort(eig)
     return FisherStatistics(cov, stderr, corr, s2, dof, null, eig_sorted)
+
+
+@dataclass(frozen=True)
+class HacStatistics:
+    """Autocorrelation-consistent (Newey-West, Bartlett kernel) covariance of the parameters.
+
+    Attributes
+    ----------
+    covariance : ndarray, shape (k, k)
+        Sandwich covariance ``B^-1 S B^-1`` (parameter units squared), ``B = A^T A`` the
+        information and ``S`` the Bartlett-weighted long-run covariance of the scores.
+    stderr : ndarray, shape (k,)
+        Standard errors (parameter units); ``inf`` where the Fisher statistics say unidentifiable.
+    correlation : ndarray, shape (k, k)
+        Correlation matrix (1).
+    lags : tuple of int
+        Bartlett truncation lag of each experiment (samples).
+    """
+
+    covariance: np.ndarray
+    stderr: np.ndarray
+    correlation: np.ndarray
+    lags: tuple[int, ...]
+
+
+def hac_lags(scores: np.ndarray) -> int:
+    """Bartlett truncation lag of one experiment's score series (samples).
+
+    Andrews' (1991) AR(1) plug-in rule: fit ``g_t = rho_a g_{t-1} + e_t`` to each score
+    component ``a`` (``rho_a`` clipped to +-0.97), ``alpha = sum 4 rho^2 s^4 / ((1 - rho)^6
+    (1 + rho)^2) / sum s^4 / (1 - rho)^4`` and ``L = floor(1.1447 (alpha T)^(1/3))``, at
+    least the Newey-West rule ``floor(4 (T/100)^(2/9))`` and at most ``T/4``.
+
+    Parameters
+    ----------
+    scores : ndarray, shape (T, k)
+        Score contributions per sample, in time order (dimensionless).
+
+    Returns
+    -------
+    int
+    """
+    G = np.asarray(scores, dtype=float)
+    T = G.shape[0]
+    if T < 4:
+        return 0
+    floor_nw = int(np.floor(4.0 * (T / 100.0) ** (2.0 / 9.0)))
+    num = den = 0.0
+    for a in range(G.shape[1]):
+        x0, x1 = G[:-1, a], G[1:, a]
+        ss = float(x0 @ x0)
+        if ss <= 0:
+            continue
+        rho = float(np.clip((x0 @ x1) / ss, -0.97, 0.97))
+        s2 = float(np.mean((x1 - rho * x0) ** 2))
+        num += 4.0 * rho ** 2 * s2 ** 2 / ((1 - rho) ** 6 * (1 + rho) ** 2)
+        den += s2 ** 2 / (1 - rho) ** 4
+    alpha = num / den if den > 0 else 0.0
+    L = int(np.floor(1.1447 * (alpha * T) ** (1.0 / 3.0)))
+    return int(min(max(L, floor_nw), T // 4))
+
+
+def hac_covariance(jacobian: np.ndarray, residuals: np.ndarray, theta: np.ndarray, k: int,
+                   experiment: np.ndarray, sample: np.ndarray, fisher: FisherStatistics,
+                   lags: Sequence[int] | None = None) -> HacStatistics:
+    """Newey-West (Bartlett-kernel HAC) sandwich covariance of the parameters.
+
+    The scores ``g_t = sum_rows(t) a_row r_row`` (``A`` the parameter columns of the Jacobian
+    with the nuisance unknowns projected out, as in `fisher_covariance`; the rows of one
+    sample summed over the outputs) are taken per experiment, in time order, with missing
+    samples as zeros; ``S = sum_e sum_{|l| <= L_e} (1 - |l|/(L_e + 1)) Gamma_e(l)``,
+    ``Gamma_e(l) = sum_t g_t g_{t-l}^T``, and the covariance is
+    ``N/(N - K) B^+ S B^+`` (``B = A^T A``, pseudo-inverse on the identifiable subspace).
+    With ``L = 0`` and white residuals it tends to the Fisher covariance.
+
+    Parameters
+    ----------
+    jacobian : ndarray, shape (N, K)
+        d(weighted residual)/d(unknowns), parameters first (as `fisher_covariance`).
+    residuals : ndarray, shape (N,)
+        Weighted residuals at the optimum (1).
+    theta : ndarray, shape (k,)
+        Parameter values (parameter units).
+    k : int
+        Number of parameters.
+    experiment, sample : ndarray of int, shape (N,)
+        Experiment index and sample index (within the experiment) of each residual row.
+    fisher : FisherStatistics
+        The Fisher statistics of the same point (its identifiable subspace is kept).
+    lags : sequence of int, optional
+        Truncation lag per experiment (default: `hac_lags` of its scores).
+
+    Returns
+    -------
+    HacStatistics
+    """
+    J = np.asarray(jacobian, dtype=float)
+    r = np.asarray(residuals, dtype=float)
+    N, K = J.shape
+    A, col, scale = _reduced(J, theta, k)
+    _, sv, Vt = np.linalg.svd(A, full_matrices=False)
+    eig = (sv / sv[0]) ** 2 if sv.size and sv[0] > 0 else np.zeros(k)
+    good = eig >= RANK_TOL
+    inv = (Vt[good].T / sv[good] ** 2) @ Vt[good] if np.any(good) else np.zeros((k, k))
+    contrib = A * r[:, None]
+    exp_idx, smp = np.asarray(experiment, dtype=int), np.asarray(sample, dtype=int)
+    S = np.zeros((k, k))
+    used = []
+    for e_i, e in enumerate(np.unique(exp_idx)):
+        rows = exp_idx == e
+        G = np.zeros((int(smp[rows].max()) + 1, k))
+        np.add.at(G, smp[rows], contrib[rows])
+        L = hac_lags(G) if lags is None else int(lags[e_i])
+        L = max(0, min(L, G.shape[0] - 1))
+        used.append(L)
+        S += G.T @ G
+        for lag in range(1, L + 1):
+            Gam = G[lag:].T @ G[:-lag]
+            S += (1.0 - lag / (L + 1.0)) * (Gam + Gam.T)
+    T = scale / col[:k]
+    cov_z = inv @ S @ inv * (N / max(N - K, 1))
+    cov = T[:, None] * cov_z * T[None, :]
+    stderr = np.sqrt(np.maximum(np.diag(cov), 0.0))
+    stderr = np.where(np.isinf(fisher.stderr), np.inf, stderr)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        corr = cov / np.outer(stderr, stderr)
+    corr[~np.isfinite(corr)] = np.nan
+    np.fill_diagonal(corr, np.where(np.isfinite(stderr), 1.0, np.nan))
+    return HacStatistics(cov, stderr, corr, tuple(used))
 
 
 def _exponent(v: float) -> Fraction:
@@ -312,11 +456,12 @@ class WhitenessTest:
     samples: int
 
 
-def whiteness_test(series: Sequence[np.ndarray], lags: int = 20, level: float = 0.95) -> WhitenessTest:
+def whiteness_test(series: Sequence[np.ndarray], lags: int = WHITENESS_LAGS,
+                   level: float = WHITENESS_LEVEL) -> WhitenessTest:
     """Autocorrelation whiteness test of residual sequences (one per experiment, NaN = missing).
 
-    The autocorrelation is pooled over the experiments (lag products within an experiment
-    only, pairs with a missing sample left out), normalised by the lag-0 sum.
+    The Ljung-Box statistic of `tanksynth.measurements.scores.ljung_box` (pooled over the
+    experiments, 20 lags, 95 % chi-square bound: the fit verdict recomputes the same).
 
     Parameters
     ----------
@@ -331,22 +476,8 @@ def whiteness_test(series: Sequence[np.ndarray], lags: int = 20, level: float = 
     -------
     WhitenessTest
     """
-    parts = [np.asarray(s, dtype=float) for s in series]
-    centred = []
-    for s in parts:
-        c = s - np.nanmean(s) if np.any(np.isfinite(s)) else s
-        centred.append(np.where(np.isfinite(c), c, 0.0))
-    present = [np.isfinite(s) for s in parts]
-    n0 = int(sum(p.sum() for p in present))
-    denom = sum(float(c @ c) for c in centred)
-    L = max(1, min(int(lags), max(1, n0 // 4)))
-    acf = np.zeros(L)
-    for lag in range(1, L + 1):
-        num = sum(float(c[:-lag] @ c[lag:]) for c in centred if c.size > lag)
-        acf[lag - 1] = num / denom if denom > 0 else 0.0
+    acf, q, bound, _, n0 = ljung_box(series, lags, level)
     band = 1.96 / np.sqrt(max(n0, 1))
-    q = float(n0 * (n0 + 2) * np.sum(acf ** 2 / np.maximum(n0 - np.arange(1, L + 1), 1)))
-    bound = float(stats.chi2.ppf(level, L))
     return WhitenessTest(acf, float(band), int(np.sum(np.abs(acf) > band)), q, bound,
                          bool(q <= bound), n0)
 

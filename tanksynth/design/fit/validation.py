@@ -17,7 +17,7 @@ import casadi as ca
 import numpy as np
 
 from tanksynth.design.fit.estimation import SUBSTEPS
-from tanksynth.design.fit.model import fit_model
+from tanksynth.design.fit.model import direct_states, fit_model, quiet_solve
 from tanksynth.design.fit.problem import Intervals, fit_data, noise_guess
 from tanksynth.design.fit.statistics import fit_percent, rmse
 from tanksynth.errors import SpecError
@@ -146,16 +146,18 @@ def estimate_initial_state(plant: Plant, values: Mapping[str, float], experiment
     r, _ = res.single(0, x0, ca.MX(0, 1), ca.DM(w))
     problem: dict[str, Any] = {"x": x0, "f": 0.5 * ca.sumsqr(r)}
     opts: dict[str, Any] = {"print_time": False, "ipopt.print_level": 0, "ipopt.sb": "yes",
-                            "ipopt.tol": 1e-12}
+                            "ipopt.tol": 1e-12, "show_eval_warnings": False}
     solver = ca.nlpsol("x0fit", "ipopt", problem, opts)
     lo = np.where(np.isfinite(model.state_lower), model.state_lower, -np.inf)
     hi = np.where(np.isfinite(model.state_upper), model.state_upper, np.inf)
     start = np.where(np.isfinite(lo) & np.isfinite(hi), 0.5 * (lo + hi), np.where(np.isfinite(lo), lo, 0.0))
+    direct = direct_states(model, np.zeros(0))
     for j, col in enumerate(d.columns):       # a measured state starts at its first sample
         ok = np.flatnonzero(d.exact[:, j])
-        if ok.size and plant.h[col] in plant.x:
-            start[plant.x.index(plant.h[col])] = d.y[ok[0], j]
-    sol = solver(x0=np.clip(start, lo, hi), lbx=lo, ubx=hi)
+        if ok.size and col in direct:
+            i, a, b = direct[col]
+            start[i] = (d.y[ok[0], j] - b) / a
+    sol = quiet_solve(solver, x0=np.clip(start, lo, hi), lbx=lo, ubx=hi)
     return np.clip(np.asarray(sol["x"]).ravel(), lo, hi)
 
 

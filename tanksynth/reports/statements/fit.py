@@ -10,6 +10,20 @@ from tanksynth.reports.latex import Tex, escape_latex, format_number
 __all__ = ["fit_statement"]
 
 
+def _covariance_text(diag: Mapping[str, Any]) -> str:
+    """Which covariance the standard errors come from (LaTeX): the Fisher information when the
+    residuals are white, the Newey-West sandwich when they are not (``diagnostics.uncertainty``)."""
+    unc = diag.get("uncertainty") or {}
+    if unc.get("used") == "hac":
+        lags = ", ".join(str(int(v)) for v in (unc.get("hac") or {}).get("lags") or [])
+        return (r"Residuals not white (Ljung-Box, 20 lags, 95\,\%): standard errors from the "
+                r"autocorrelation-consistent Newey-West covariance $B^{-1} S B^{-1}$, $B = J^\top J$, "
+                r"$S$ the Bartlett-weighted long-run covariance of the scores (lags "
+                + escape_latex(lags) + r"); they cover coloured noise, not model error")
+    return (r"Standard errors from the Fisher information, $\mathrm{cov}\,\hat\theta = \hat\sigma^2 "
+            r"(J^\top J)^{-1}$ (residuals white: Ljung-Box, 20 lags, 95\,\%)")
+
+
 def _parameters(diag: Mapping[str, Any]) -> str:
     """``mu13 \\in [0.2, 0.9]`` for each free parameter (its search box), tolerating edits."""
     params = diag.get("parameters")
@@ -92,8 +106,8 @@ def fit_statement(diag: Mapping[str, Any]) -> Tex:
         rf"sampled model $x_{{k+1}}^{{(e)}} = F_{{t_k}}(x_k^{{(e)}}, u_k^{{(e)}}, \theta)$ "
         rf"(the toolbox's simulator: {escape_latex(step)}, inputs held and saturated, levels "
         r"clipped), by multiple shooting with CasADi and IPOPT from several starts inside the box. "
-        r"Standard errors from the Fisher information, $\mathrm{cov}\,\hat\theta = \hat\sigma^2 "
-        rf"(J^\top J)^{{-1}}$; {pct}\,\% intervals (profile likelihood where the cost is not "
+        + _covariance_text(diag)
+        + rf"; {pct}\,\% intervals (profile likelihood where the cost is not "
         r"quadratic in $\theta$). Fit \% $= 100\,(1 - \|y - \hat y\| / \|y - \bar y\|)$; validation "
         r"files are simulated from an initial state estimated on their first samples only."
         + _table(diag))

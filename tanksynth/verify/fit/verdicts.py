@@ -16,8 +16,9 @@ integrator and clipping rule, the same RK4 substeps as the fit) and checks:
     no fitted value lies at a bound of its search box (within `BOUND_TOL` of the box width):
     at a bound the optimum may lie outside the box and the intervals mean nothing;
 ``residual_whiteness``
-    information only (never fails): the Box-Pierce statistic of the residuals'
-    autocorrelation against its chi-square 99 % bound. An output-error fit stays consistent
+    information only (never fails): the Ljung-Box statistic of the residuals' autocorrelation
+    (20 lags, pooled over the estimation files) against its chi-square 95 % bound (31.4), the
+    same statistic and bound as the fit's diagnostics. An output-error fit stays consistent
     when the noise is coloured, and a lab log always has some unmodelled dynamics (an offset,
     a leak), so correlated residuals are a finding to read, not a refusal;
 ``validation_fit``
@@ -43,7 +44,8 @@ from tanksynth.artefacts.datafiles import read_data_copy
 from tanksynth.errors import ArtefactError, TanksynthError
 from tanksynth.measurements import read_experiments
 from tanksynth.measurements.experiment import Experiment
-from tanksynth.measurements.scores import fit_percent, rmse
+from tanksynth.measurements.scores import (WHITENESS_LAGS, WHITENESS_LEVEL, fit_percent,
+                                            ljung_box, rmse)
 from tanksynth.plants.base import Plant
 from tanksynth.sim.simulate import simulate_inputs
 from tanksynth.spec import Spec
@@ -57,8 +59,6 @@ __all__ = ["RMSE_RTOL", "BOUND_TOL", "WHITENESS_LAGS", "fit_verdict", "simulated
 RMSE_RTOL = 1e-6
 #: A fitted value within this fraction of its box width of a bound is at the bound.
 BOUND_TOL = 1e-6
-#: Most lags of the residual autocorrelation test.
-WHITENESS_LAGS = 20
 
 
 def fitted_plant(doc: Mapping[str, Any], spec: Spec) -> tuple[Plant, dict[str, float]]:
@@ -155,16 +155,17 @@ def _record(trace: Any, res: Any, plant: Plant, experiment: Experiment, y_hat: n
                  check=check, signals=signals, signal_title=title)
 
 
-def whiteness(residual: np.ndarray, lags: int = WHITENESS_LAGS) -> tuple[float, float, int]:
-    """Box-Pierce test of a residual sequence: ``Q = N sum_k r_k^2`` over lags 1..M against the
-    99 % quantile of chi-square with M degrees of freedom (white residuals stay below).
+def whiteness(residuals: Sequence[np.ndarray], lags: int = WHITENESS_LAGS) -> tuple[float, float, int]:
+    """Ljung-Box test of the residuals of one output, one sequence per experiment: the fit's
+    own statistic (`tanksynth.measurements.scores.ljung_box`), against the 95 % quantile of
+    chi-square with ``lags`` degrees of freedom (white residuals stay below).
 
     Parameters
     ----------
-    residual : ndarray, shape (N,)
-        Residuals in time order (output units); NaN entries are left out.
+    residuals : sequence of ndarray, shape (N_e,)
+        Residuals in time order per experiment (output units); NaN entries are left out.
     lags : int
-        Most lags M (at most N / 4).
+        Most lags L (at most N / 4).
 
     Returns
     -------
@@ -172,17 +173,8 @@ def whiteness(residual: np.ndarray, lags: int = WHITENESS_LAGS) -> tuple[float, 
     lags : int
         The lags used (0 when too few samples: statistic and bound NaN).
     """
-    from scipy.stats import chi2
-
-    e = np.asarray(residual, float)
-    e = e[np.isfinite(e)]
-    e = e - e.mean() if e.size else e
-    m = min(int(lags), e.size // 4)
-    denom = float(e @ e)
-    if m < 1 or denom <= 0:
-        return float("nan"), float("nan"), 0
-    r = np.array([float(e[:-k] @ e[k:]) / denom for k in range(1, m + 1)])
-    return float(e.size * (r @ r)), float(chi2.ppf(0.99, m)), m
+    _, q, bound, used, _ = ljung_box(residuals, lags, WHITENESS_LEVEL)
+    return q, bound, used
 
 
 def validation_floor(rmse_est: float, y: np.ndarray) -> float:
@@ -326,8 +318,13 @@ def fit_verdict(doc: Mapping[str, Any], spec: Spec, trace: Any = None) -> list[C
                         "at a bound (the optimum may lie outside the box; widen min/max): " + "; ".join(at)))
 
     white = {}
-    for nm, (y, y_hat, mask) in pooled.items():
-        q, bound, lags = whiteness(np.where(mask, y - y_hat, np.nan))
+    per_output: dict[str, list[np.ndarray]] = {}
+    for exp, y_hat in pairs:
+        for j, nm in enumerate(exp.output_names):
+            per_output.setdefault(nm, []).append(np.where(exp.observed[:, j], exp.y[:, j] - y_hat[:, j],
+                                                          np.nan))
+    for nm, series in per_output.items():
+        q, bound, lags = whiteness(series)
         white[nm] = {"statistic": q, "bound": bound, "lags": lags, "white": bool(q <= bound)}
     checks.append(Check("residual_whiteness", None,
                         "information (an output-error fit needs no white residuals): " + ", ".join(
