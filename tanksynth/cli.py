@@ -741,8 +741,31 @@ def _fitted_toml(s: Spec, doc: dict, out: Path) -> Path:
               for nm, p in diag["parameters"].items()}
     text = fitted_spec_text(s.text, fitted, f"{doc['name']}.json")
     target = atomic_write(out / "fitted.toml", text.encode("utf-8"))
-    load_spec(target)  # it must load (relative to DIR) as a spec, or the user hears it now
+    try:
+        load_spec(target)  # it must load (relative to DIR) as a spec, or the user hears it now
+    except BaseException:
+        target.unlink(missing_ok=True)  # a fitted spec that does not load is not left behind
+        raise
     return target
+
+
+def _fit_preflight(s: Spec, entry: DesignSpec, free: tuple[Any, ...]) -> None:
+    """Refuse, before the fit runs and anything is written, a spec whose fitted values cannot be
+    written into ``fitted.toml`` and estimation data a fit cannot learn from (every sample
+    missing or censored, fewer observed values than unknowns): exit 2 in seconds, not after
+    the fit."""
+    from tanksynth.measurements import read_experiments
+    from tanksynth.measurements.read import check_fit_data
+    from tanksynth.spec.context import resolve
+    from tanksynth.spec.fitted import FittedValue, fitted_spec_text
+
+    if s.text:
+        fitted_spec_text(s.text, {p.name: FittedValue(p.start, p.lower, p.upper, 0.95, p.unit)
+                                  for p in free}, f"{entry.name}.json")
+    base = Path(s.source).parent if s.source and not s.source.startswith("<") else None
+    paths = [str(resolve(p, base)) for p in entry.options.get("data", [])]
+    experiments = read_experiments(paths, s.plant, s.data)
+    check_fit_data(experiments, len(free), s.plant.n)
 
 
 def _print_fit(doc: dict) -> None:
@@ -798,8 +821,12 @@ def fit(spec: str, data: tuple[str, ...], validate: tuple[str, ...], outdir: str
     from tanksynth.methods import verify_directory
 
     s = _load(spec)
-    free_parameters_of(s)  # none: exit 2 saying how to mark one, before anything is written
+    free = free_parameters_of(s)  # none: exit 2 saying how to mark one, before anything is written
     entry = _fit_design(s, data, validate)
+    try:
+        _fit_preflight(s, entry, free)
+    except TanksynthError as exc:
+        raise _keyed(exc, entry.key, s.source) from None
     one = replace(s, designs=(entry,))
     out = Path(outdir)
     clock = StageClock()
