@@ -768,6 +768,15 @@ def _fit_preflight(s: Spec, entry: DesignSpec, free: tuple[Any, ...]) -> None:
     check_fit_data(experiments, len(free), s.plant.n)
 
 
+def _number(value: Any, spec: str) -> str:
+    """``value`` formatted with ``spec`` when it is a number or the JSON text of a non-finite
+    one (``"inf"``, ``"nan"``), else as written."""
+    try:
+        return format(float(value), spec)
+    except (TypeError, ValueError):
+        return str(value)
+
+
 def _print_fit(doc: dict) -> None:
     """The fitted parameters (value, standard error, interval, unit) and the scores per output."""
     diag = doc["diagnostics"]
@@ -778,7 +787,9 @@ def _print_fit(doc: dict) -> None:
         table.add_column(col, justify="right" if col not in ("parameter", "unit") else "left")
     for nm, p in diag["parameters"].items():
         lo, hi = p["ci95"]
-        table.add_row(nm, f"{p['value']:.6g}", f"{p['stderr']:.3g}", f"[{lo:.6g}, {hi:.6g}]",
+        # an undetermined parameter's stderr is infinite: JSON holds it as the string "inf"
+        table.add_row(nm, _number(p["value"], ".6g"), _number(p["stderr"], ".3g"),
+                      f"[{_number(lo, '.6g')}, {_number(hi, '.6g')}]",
                       str(p.get("unit", "")) + (" (at a bound)" if p.get("at_bound") else ""))
     _out.print(table)
     scores = Table(title="output error (RMSE in output units, fit % = NRMSE fit)")
@@ -787,7 +798,8 @@ def _print_fit(doc: dict) -> None:
     for part in ("estimation", "validation"):
         block = diag.get(part) or {}
         for nm, value in (block.get("rmse") or {}).items():
-            scores.add_row(part, nm, f"{value:.4g}", f"{block['fit_percent'].get(nm, float('nan')):.1f}")
+            scores.add_row(part, nm, _number(value, ".4g"),
+                           _number(block.get("fit_percent", {}).get(nm, float("nan")), ".1f"))
     _out.print(scores)
     ident = diag.get("identifiability") or {}
     if not ident.get("identifiable", True):

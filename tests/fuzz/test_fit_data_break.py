@@ -203,3 +203,18 @@ P0 = 1e-3
     assert len(traces) == 2 and all((tmp_path / "out" / t).is_file() for t in traces)
     assert sorted(p.name for p in (tmp_path / "out" / "replay").iterdir()) == \
         sorted(Path(t).name for t in traces)
+
+
+@pytest.mark.slow
+def test_a_parameter_the_outputs_do_not_depend_on_is_printed_and_named(tmp_path, capsys):
+    # hmax (the tank height) does not enter the outputs: its stderr is infinite, written "inf"
+    # in fit.json; before, printing the table raised ValueError (exit 4, no verdict, no report)
+    write_log(tmp_path / "est.csv", seed=1, samples=120)
+    spec = spec_text(FIT, free=False).replace(
+        "mu20 = 0.675\n", "mu20 = 0.675\nhmax = {value = 0.62, min = 0.5, max = 0.9, fit = true}\n", 1)
+    code, out = _fit(tmp_path, capsys, spec)
+    assert code in (0, 1), out.err
+    assert "internal error" not in out.err and "hmax" in out.err
+    row = next(line for line in out.out.splitlines() if "hmax" in line and "inf" in line)
+    assert "0.5" in row and "0.9" in row
+    assert (tmp_path / "out" / "report.tex").exists()
