@@ -741,8 +741,40 @@ def _fitted_toml(s: Spec, doc: dict, out: Path) -> Path:
               for nm, p in diag["parameters"].items()}
     text = fitted_spec_text(s.text, fitted, f"{doc['name']}.json")
     target = atomic_write(out / "fitted.toml", text.encode("utf-8"))
-    load_spec(target)  # it must load (relative to DIR) as a spec, or the user hears it now
+    try:
+        load_spec(target)  # it must load (relative to DIR) as a spec, or the user hears it now
+    except BaseException:
+        target.unlink(missing_ok=True)  # a fitted spec that does not load is not left behind
+        raise
     return target
+
+
+def _fit_preflight(s: Spec, entry: DesignSpec, free: tuple[Any, ...]) -> None:
+    """Refuse, before the fit runs and anything is written, a spec whose fitted values cannot be
+    written into ``fitted.toml`` and estimation data a fit cannot learn from (every sample
+    missing or censored, fewer observed values than unknowns): exit 2 in seconds, not after
+    the fit."""
+    from tanksynth.measurements import read_experiments
+    from tanksynth.measurements.read import check_fit_data
+    from tanksynth.spec.context import resolve
+    from tanksynth.spec.fitted import FittedValue, fitted_spec_text
+
+    if s.text:
+        fitted_spec_text(s.text, {p.name: FittedValue(p.start, p.lower, p.upper, 0.95, p.unit)
+                                  for p in free}, f"{entry.name}.json")
+    base = Path(s.source).parent if s.source and not s.source.startswith("<") else None
+    paths = [str(resolve(p, base)) for p in entry.options.get("data", [])]
+    experiments = read_experiments(paths, s.plant, s.data)
+    check_fit_data(experiments, len(free), s.plant.n)
+
+
+def _number(value: Any, spec: str) -> str:
+    """``value`` formatted with ``spec`` when it is a number or the JSON text of a non-finite
+    one (``"inf"``, ``"nan"``), else as written."""
+    try:
+        return format(float(value), spec)
+    except (TypeError, ValueError):
+        return str(value)
 
 
 def _print_fit(doc: dict) -> None:
@@ -755,7 +787,9 @@ def _print_fit(doc: dict) -> None:
         table.add_column(col, justify="right" if col not in ("parameter", "unit") else "left")
     for nm, p in diag["parameters"].items():
         lo, hi = p["ci95"]
-        table.add_row(nm, f"{p['value']:.6g}", f"{p['stderr']:.3g}", f"[{lo:.6g}, {hi:.6g}]",
+        # an undetermined parameter's stderr is infinite: JSON holds it as the string "inf"
+        table.add_row(nm, _number(p["value"], ".6g"), _number(p["stderr"], ".3g"),
+                      f"[{_number(lo, '.6g')}, {_number(hi, '.6g')}]",
                       str(p.get("unit", "")) + (" (at a bound)" if p.get("at_bound") else ""))
     _out.print(table)
     scores = Table(title="output error (RMSE in output units, fit % = NRMSE fit)")
@@ -764,7 +798,8 @@ def _print_fit(doc: dict) -> None:
     for part in ("estimation", "validation"):
         block = diag.get(part) or {}
         for nm, value in (block.get("rmse") or {}).items():
-            scores.add_row(part, nm, f"{value:.4g}", f"{block['fit_percent'].get(nm, float('nan')):.1f}")
+            scores.add_row(part, nm, _number(value, ".4g"),
+                           _number(block.get("fit_percent", {}).get(nm, float("nan")), ".1f"))
     _out.print(scores)
     ident = diag.get("identifiability") or {}
     if not ident.get("identifiable", True):
@@ -798,8 +833,12 @@ def fit(spec: str, data: tuple[str, ...], validate: tuple[str, ...], outdir: str
     from tanksynth.methods import verify_directory
 
     s = _load(spec)
-    free_parameters_of(s)  # none: exit 2 saying how to mark one, before anything is written
+    free = free_parameters_of(s)  # none: exit 2 saying how to mark one, before anything is written
     entry = _fit_design(s, data, validate)
+    try:
+        _fit_preflight(s, entry, free)
+    except TanksynthError as exc:
+        raise _keyed(exc, entry.key, s.source) from None
     one = replace(s, designs=(entry,))
     out = Path(outdir)
     clock = StageClock()

@@ -27,8 +27,9 @@ from tanksynth.spec.options import did_you_mean
 if TYPE_CHECKING:
     from tanksynth.plants.base import Plant
 
-__all__ = ["read_experiments", "read_experiment", "output_ranges", "censor",
-           "MAX_EXPERIMENTS", "LIMIT_RTOL", "OUTPUT_UNIT_FACTOR", "INPUT_UNIT_FACTOR"]
+__all__ = ["read_experiments", "read_experiment", "output_ranges", "censor", "check_fit_data",
+           "MAX_EXPERIMENTS", "LIMIT_RTOL", "OUTPUT_UNIT_FACTOR", "INPUT_UNIT_FACTOR",
+           "MIN_TIME_STEP", "MAX_TIME_STEP", "MAX_GAP_RATIO"]
 
 #: Most data files read at once.
 MAX_EXPERIMENTS = 256
@@ -40,6 +41,13 @@ OUTPUT_UNIT_FACTOR = 10.0
 #: An input column whose magnitude exceeds this many times the plant's actuator bound is in
 #: another unit (l/min or ml/s for m^3/s).
 INPUT_UNIT_FACTOR = 1000.0
+#: Shortest time step accepted (s): a shorter one means a time column not in seconds.
+MIN_TIME_STEP = 1e-9
+#: Longest time step accepted (s), the bound of ``[data] ts`` and ``[sampling] ts``.
+MAX_TIME_STEP = 1e6
+#: A time step longer than this many times the log's median step is a gap (the logger was
+#: paused): the model, held input and fixed substeps per interval, cannot bridge it.
+MAX_GAP_RATIO = 1000.0
 
 
 def _table(table: DataTable | Mapping[str, Any] | None, plant: Plant, key: str) -> DataTable:
@@ -234,6 +242,7 @@ def _assemble(cols: ColumnFile, plant: Plant, table: DataTable, ranges: np.ndarr
             k = int(bad[0]) + 1
             raise DataError(f"time column {table.time!r} is not strictly increasing at "
                             f"{cols.where(k)} (t = {t[k]:.6g} s after {t[k - 1]:.6g} s)", source=source)
+        _check_steps(cols, table.time, t, step)
     elif table.ts is not None:
         t = table.ts * np.arange(count, dtype=float)
     else:
@@ -288,6 +297,63 @@ def _assemble(cols: ColumnFile, plant: Plant, table: DataTable, ranges: np.ndarr
                       input_names=tuple(s.name for s in plant.inputs),
                       output_names=tuple(plant.outputs[j].name for j in out_index),
                       censored_low=low, censored_high=high, limits=tuple(limits), x_ref=x_ref)
+
+
+def _check_steps(cols: ColumnFile, column: str, t: np.ndarray, step: np.ndarray) -> None:
+    """Refuse a time step not in seconds (below `MIN_TIME_STEP` or above `MAX_TIME_STEP`) or
+    a gap (more than `MAX_GAP_RATIO` times the median step)."""
+    median = float(np.median(step))
+    checks = ((step < MIN_TIME_STEP, f"shorter than {MIN_TIME_STEP:g} s: the time column must be in "
+               "seconds"),
+              (step > MAX_TIME_STEP, f"longer than {MAX_TIME_STEP:g} s: the time column must be in "
+               "seconds"),
+              (step > MAX_GAP_RATIO * median, f"more than {MAX_GAP_RATIO:g}x the median step "
+               f"{median:.6g} s: a gap in the log; split the file at the gap"))
+    for bad, why in checks:
+        rows = np.flatnonzero(bad)
+        if rows.size:
+            k = int(rows[0]) + 1
+            raise DataError(f"time column {column!r}, {cols.where(k)}: step {step[k - 1]:.6g} s "
+                            f"(t = {t[k]:.6g} s after {t[k - 1]:.6g} s) is {why}", source=cols.source)
+
+
+def check_fit_data(experiments: Sequence[Experiment], parameters: int, states: int) -> None:
+    """Refuse data a fit cannot learn from, before it runs.
+
+    Every experiment needs at least one observed output value (present and not censored at a
+    sensor limit), and all of them together at least as many observed values as unknowns: the
+    ``parameters`` free parameters plus ``states`` initial states per experiment.
+
+    Parameters
+    ----------
+    experiments : sequence of Experiment
+        The estimation experiments.
+    parameters : int
+        Number of free parameters.
+    states : int
+        Number of initial states fitted per experiment (the plant's state count ``n``).
+
+    Raises
+    ------
+    DataError
+        An experiment whose every output sample is missing or censored (naming its file), or
+        fewer observed values than unknowns (both counted).
+    """
+    total = 0
+    for e in experiments:
+        observed = int(np.count_nonzero(e.observed))
+        if observed == 0:
+            censored = int(np.count_nonzero(e.censored_low | e.censored_high))
+            raise DataError(f"no output sample to fit: every one is missing or at a sensor limit "
+                            f"({censored} censored of {e.y.size}); a censored sample only says the "
+                            "output is beyond the limit", source=e.source)
+        total += observed
+    unknowns = parameters + len(experiments) * states
+    if total <= unknowns:
+        files = ", ".join(e.source for e in experiments[:3]) + (", ..." if len(experiments) > 3 else "")
+        raise DataError(f"{total} observed output value(s) for {unknowns} unknowns ({parameters} "
+                        f"free parameter(s) + {len(experiments)} x {states} initial states): the fit "
+                        f"needs more observed values than unknowns; log longer experiments ({files})")
 
 
 def censor(y: np.ndarray, limits: Sequence[tuple[float, float]]

@@ -125,6 +125,9 @@ def read_fit_box(path: str | Path, key: str, plant: Plant) -> FitBox:
             or doc.get("method") != "fit":
         raise SpecError(f"{file}: not a fit result (expected an artefact of method 'fit' written by "
                         "tanksynth fit)", key=key)
+    if doc.get("plant") != plant.name:
+        raise SpecError(f"{file}: a fit of plant {str(doc.get('plant'))[:80]!r}, not of this spec's "
+                        f"plant {plant.name!r}: its intervals are another model's", key=key)
     diag = doc.get("diagnostics")
     if not isinstance(diag, dict):
         diag = {}

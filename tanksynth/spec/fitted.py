@@ -108,6 +108,7 @@ def fitted_spec_text(text: str, fitted: Mapping[str, FittedValue], fit_file: str
     insert: dict[int, list[str]] = {}
     replace: dict[int, str] = {}
     blocks = _blocks(lines)
+    parent_lines: list[str] | None = None  # the [plant.parameters] inserted for sub-tables
     for name, array, start, end in blocks:
         if name == "plant.parameters" and not array:
             for i in range(start + 1, end):
@@ -123,8 +124,11 @@ def fitted_spec_text(text: str, fitted: Mapping[str, FittedValue], fit_file: str
             line = fitted[nm].line(nm)
             if parent:
                 insert.setdefault(parent[0][3], []).append(line)
+            elif parent_lines is None:  # one [plant.parameters] for every fitted sub-table
+                parent_lines = insert.setdefault(start, [])
+                parent_lines.extend(["[plant.parameters]", line, ""])
             else:
-                insert.setdefault(start, []).extend(["[plant.parameters]", line, ""])
+                parent_lines.insert(len(parent_lines) - 1, line)
             done.add(nm)
         elif name == "design" and array:
             body = "\n".join(lines[start + 1:end])

@@ -61,8 +61,10 @@ bounded for the report.
 
 from __future__ import annotations
 
+import hashlib
 import json
 import math
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Mapping, Sequence
@@ -86,8 +88,8 @@ from tanksynth.spec import Spec
 from tanksynth.verify.common import sampling_period
 from tanksynth.verify.fault.verdicts import ResidualObserver
 
-__all__ = ["SCHEMA", "REPLAY_FILE", "TRACE_DIR", "MAX_REPLAY_BYTES", "Replay", "replay_estimator",
-           "replay_detector", "replay_artefacts", "check_experiment", "write_replay", "read_replay",
+__all__ = ["SCHEMA", "REPLAY_FILE", "TRACE_DIR", "TRACE_STEM", "MAX_REPLAY_BYTES", "Replay",
+           "trace_stem", "replay_estimator", "replay_detector", "replay_artefacts", "check_experiment", "write_replay", "read_replay",
            "replay_line"]
 
 #: Schema of ``DIR/replay.json``.
@@ -96,6 +98,9 @@ SCHEMA = "tanksynth.replay/1"
 REPLAY_FILE = "replay.json"
 #: Sub-directory of the replay traces.
 TRACE_DIR = "replay"
+#: Longest experiment name kept as written in a trace file name (characters).
+TRACE_STEM = 64
+_PLAIN = re.compile(r"[A-Za-z0-9._-]+")
 #: Largest ``replay.json`` read (bytes).
 MAX_REPLAY_BYTES = 16 * 1024 ** 2
 #: Relative tolerance between the log's sampling period and the artefact's.
@@ -163,8 +168,32 @@ class Replay:
 
     @property
     def trace_name(self) -> str:
-        """The trace file's name in ``DIR/replay/``."""
-        return f"{self.artefact}__{self.experiment.name}.npz"
+        """The trace file's name in ``DIR/replay/``: ``<artefact>__<experiment>.npz``, the
+        experiment's name (a file stem: any characters, any length) kept when it is short and
+        plain, else shortened and made unique by a digest of it (a file name the file system
+        takes, one per experiment)."""
+        return f"{self.artefact}__{trace_stem(self.experiment.name)}.npz"
+
+
+def trace_stem(name: str) -> str:
+    """``name`` as part of a trace file name: unchanged when it is at most `TRACE_STEM` plain
+    characters (letters, digits, ``._-``, no leading dot, no ``__``), else its first plain
+    characters and 12 hex digits of its sha256.
+
+    Parameters
+    ----------
+    name : str
+        An experiment's name (its file's stem).
+
+    Returns
+    -------
+    str
+    """
+    if len(name) <= TRACE_STEM and _PLAIN.fullmatch(name) and "__" not in name \
+            and not name.startswith("."):
+        return name
+    head = re.sub(r"[^A-Za-z0-9_-]+", "_", name)[:TRACE_STEM - 13].strip("_") or "log"
+    return f"{head}-{hashlib.sha256(name.encode('utf-8', 'surrogatepass')).hexdigest()[:12]}"
 
 
 # ----------------------------------------------------------------------------- data checks
