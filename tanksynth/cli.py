@@ -736,8 +736,14 @@ def _fitted_toml(s: Spec, doc: dict, out: Path) -> Path:
 
     diag = doc["diagnostics"]
     level = float(diag.get("level", 0.95))
+    unc = diag.get("uncertainty") or {}
+    methods = unc.get("interval_method") or {}
+    # a parameter the data do not determine keeps its start value: the optimum moved it freely
     fitted = {nm: FittedValue(float(p["value"]), float(p["ci95"][0]), float(p["ci95"][1]), level,
                               str(p.get("unit", "")))
+              if methods.get(nm) != "unidentifiable" else
+              FittedValue(float(p["start"]), float(p["lower"]), float(p["upper"]), level,
+                          str(p.get("unit", "")), determined=False)
               for nm, p in diag["parameters"].items()}
     text = fitted_spec_text(s.text, fitted, f"{doc['name']}.json")
     target = atomic_write(out / "fitted.toml", text.encode("utf-8"))

@@ -318,3 +318,53 @@ def test_an_offset_output_counts_as_measuring_its_state():
     theta = np.array([0.5, 0.5, 0.675, 0.05, 0.004])
     assert direct_states(model, theta) == {0: (0, 1.0, 0.0), 1: (1, 1.0, pytest.approx(0.004)),
                                            2: (2, 1.0, 0.0)}
+
+
+@pytest.mark.slow
+def test_verdict_checks_the_parameter_table_against_the_gains(fitted, tmp_path):
+    """An edited parameter table (the artefact rehashed: the verdict is what stands between it
+    and a user) fails `parameters_consistent`: a value that is not theta's, a stderr that is not
+    the covariance's, a covariance that is not positive semidefinite, a box that is not the
+    spec's, an interval that does not hold the value (breaker finding F)."""
+    import copy
+
+    from tanksynth.methods import load_directory
+    from tanksynth.verify.fit.verdicts import consistency_check
+
+    root, _ = fitted
+    spec, docs = load_directory(root / "out")
+    (doc,) = [d for _, d in docs]
+    assert consistency_check(doc, spec).passed
+
+    def edited(change):
+        d = copy.deepcopy(doc)
+        change(d["diagnostics"]["parameters"]["mu13"], d)
+        return consistency_check(d, spec)
+
+    assert not edited(lambda p, d: p.update(value=0.8)).passed
+    assert not edited(lambda p, d: p.update(stderr=p["stderr"] / 10)).passed
+    assert not edited(lambda p, d: p.update(ci95=[-5.0, -4.0])).passed
+    assert not edited(lambda p, d: p.update(lower=0.1)).passed
+    cov = np.array(doc["gains"]["covariance"], dtype=float)
+    bad = cov.copy()
+    bad[0, 0] = -abs(bad[0, 0])
+    res = edited(lambda p, d: d.update(gains={**d["gains"], "covariance": bad}))
+    assert not res.passed and "positive semidefinite" in res.detail
+
+
+def test_fitted_spec_keeps_the_start_of_an_undetermined_parameter():
+    """A parameter the data do not determine keeps its start value in fitted.toml (the optimum
+    moves it freely along a flat cost), and the comment says so."""
+    import tomllib
+
+    from tanksynth.spec.fitted import FittedValue, fitted_spec_text
+
+    text = ('[plant]\nmodel = "three_tank"\n[plant.parameters]\n'
+            'mu13 = {value = 0.5, min = 0.2, max = 0.9, fit = true}\n'
+            'hmax = {value = 0.62, min = 0.6, max = 0.9, fit = true}\n')
+    out = fitted_spec_text(text, {"mu13": FittedValue(0.46, 0.45, 0.47, 0.95),
+                                  "hmax": FittedValue(0.62, 0.6, 0.9, 0.95, "m", determined=False)},
+                           "fit.json")
+    params = tomllib.loads(out)["plant"]["parameters"]
+    assert params == {"mu13": 0.46, "hmax": 0.62}
+    assert "not determined by the data: start value kept" in out

@@ -36,6 +36,9 @@ class FittedValue:
         The interval's confidence level, in (0, 1) (dimensionless).
     unit : str
         The parameter's unit.
+    determined : bool
+        False for a parameter the data do not determine: ``value`` is then its start value,
+        kept, and ``lower``, ``upper`` its search box.
     """
 
     value: float
@@ -43,6 +46,7 @@ class FittedValue:
     upper: float
     level: float
     unit: str = ""
+    determined: bool = True
 
     def line(self, name: str, indent: str = "") -> str:
         """``name = value  # fitted: 95 % interval [lo, hi] unit``.
@@ -55,6 +59,9 @@ class FittedValue:
             Leading whitespace.
         """
         unit = f" {self.unit}" if self.unit not in ("", "-", "1") else ""
+        if not self.determined:
+            return (f"{indent}{name} = {self.value!r}  # not determined by the data: start value kept "
+                    f"(search box [{self.lower:.6g}, {self.upper:.6g}]{unit})")
         return (f"{indent}{name} = {self.value!r}  # fitted: {100 * self.level:g} % interval "
                 f"[{self.lower:.6g}, {self.upper:.6g}]{unit}")
 

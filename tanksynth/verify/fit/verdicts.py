@@ -15,6 +15,14 @@ integrator and clipping rule, the same RK4 substeps as the fit) and checks:
 ``parameters_inside_bounds``
     no fitted value lies at a bound of its search box (within `BOUND_TOL` of the box width):
     at a bound the optimum may lie outside the box and the intervals mean nothing;
+``parameters_consistent``
+    the artefact's report of the parameters is its gains' and its spec's: the parameter names
+    and search boxes (start, min, max) are the spec's free parameters, each
+    ``parameters.<name>.value`` is the entry of ``theta``, the ``covariance`` gain is finite,
+    symmetric and positive semidefinite, each ``stderr`` is the square root of its diagonal
+    entry and each ``ci95`` is a finite interval holding the value (a parameter the data do not
+    determine: stderr ``"inf"`` and its box as interval) (an edited and rehashed
+    ``fit.json`` whose table says one thing and whose gains another fails here);
 ``residual_whiteness``
     information only (never fails): the Ljung-Box statistic of the residuals' autocorrelation
     (20 lags, pooled over the estimation files) against its chi-square 95 % bound (31.4), the
@@ -52,13 +60,89 @@ from tanksynth.spec import Spec
 from tanksynth.verify.common import artefact_gain
 from tanksynth.verify.traces import Signal
 
-__all__ = ["RMSE_RTOL", "BOUND_TOL", "WHITENESS_LAGS", "fit_verdict", "simulated_outputs",
+__all__ = ["RMSE_RTOL", "BOUND_TOL", "STDERR_RTOL", "consistency_check", "WHITENESS_LAGS", "fit_verdict", "simulated_outputs",
            "fitted_plant", "whiteness", "validation_floor", "read_fit_data"]
 
 #: Relative tolerance of the re-simulated RMSE against the recorded one.
 RMSE_RTOL = 1e-6
 #: A fitted value within this fraction of its box width of a bound is at the bound.
 BOUND_TOL = 1e-6
+
+
+#: Relative tolerance of the reported standard errors against the covariance gain's diagonal.
+STDERR_RTOL = 1e-9
+
+
+def consistency_check(doc: Mapping[str, Any], spec: Spec) -> Check:
+    """``parameters_consistent``: the reported parameters are the gains' and the spec's.
+
+    Parameters
+    ----------
+    doc : mapping
+        The ``fit`` artefact (gains as arrays).
+    spec : Spec
+        The validated spec of its result directory (its free parameters and their boxes).
+
+    Returns
+    -------
+    Check
+        Failed, naming every disagreement, when the parameter table, ``theta``, the
+        ``covariance`` gain and the spec's free parameters do not agree.
+    """
+    diag = doc.get("diagnostics") or {}
+    params = diag.get("parameters") if isinstance(diag.get("parameters"), Mapping) else {}
+    theta = artefact_gain(doc, "theta").reshape(-1)
+    cov = artefact_gain(doc, "covariance")
+    free = {fp.name: fp for fp in spec.free_parameters}
+    names = [str(n) for n in diag.get("names") or []]
+    bad = []
+    if names != list(free):
+        bad.append(f"names {names} are not the spec's free parameters {list(free)}")
+    if set(params) != set(names):
+        bad.append(f"the parameter table names {sorted(params)}, theta holds {names}")
+    k = theta.size
+    if cov.shape != (k, k) or not np.all(np.isfinite(cov)):
+        bad.append(f"covariance is not a finite {k} x {k} matrix")
+    else:
+        scale = float(np.max(np.abs(cov))) or 1.0
+        if not np.allclose(cov, cov.T, rtol=1e-12, atol=1e-15 * scale):
+            bad.append("covariance is not symmetric")
+        elif float(np.min(np.linalg.eigvalsh(0.5 * (cov + cov.T)))) < -1e-9 * scale:
+            bad.append("covariance is not positive semidefinite")
+    unc = diag.get("uncertainty") if isinstance(diag.get("uncertainty"), Mapping) else {}
+    methods = unc.get("interval_method") if isinstance(unc.get("interval_method"), Mapping) else {}
+    for i, nm in enumerate(names[:k]):
+        p = params.get(nm)
+        if not isinstance(p, Mapping):
+            continue
+        if methods.get(nm) == "unidentifiable":
+            # the data do not determine it: no standard error, the interval is the whole box
+            if p.get("stderr") != "inf" or p.get("ci95") != [p.get("lower"), p.get("upper")]:
+                bad.append(f"{nm}: undetermined by the data, but stderr {p.get('stderr')!r} and ci95 "
+                           f"{p.get('ci95')!r} are not 'inf' and its box")
+            if float(p.get("value", np.nan)) != float(theta[i]):
+                bad.append(f"{nm}: value {p.get('value')!r} is not theta[{i}] = {theta[i]!r}")
+            continue
+        value, fp = p.get("value"), free.get(nm)
+        if not isinstance(value, (int, float)) or float(value) != float(theta[i]):
+            bad.append(f"{nm}: value {value!r} is not theta[{i}] = {theta[i]!r}")
+        if fp is not None and (p.get("start"), p.get("lower"), p.get("upper")) != (fp.start, fp.lower, fp.upper):
+            bad.append(f"{nm}: box (start, min, max) = ({p.get('start')}, {p.get('lower')}, {p.get('upper')}) "
+                       f"is not the spec's ({fp.start:g}, {fp.lower:g}, {fp.upper:g})")
+        se = p.get("stderr")
+        if cov.shape == (k, k) and np.isfinite(cov[i, i]) and cov[i, i] >= 0:
+            expected = float(np.sqrt(cov[i, i]))
+            if not isinstance(se, (int, float)) or not np.isclose(float(se), expected, rtol=STDERR_RTOL,
+                                                                  atol=0.0):
+                bad.append(f"{nm}: stderr {se!r} is not sqrt(covariance[{i},{i}]) = {expected:.6g}")
+        ci = p.get("ci95")
+        if not (isinstance(ci, list) and len(ci) == 2 and all(isinstance(v, (int, float)) for v in ci)
+                and np.all(np.isfinite(ci)) and float(ci[0]) <= float(theta[i]) <= float(ci[1])):
+            bad.append(f"{nm}: ci95 {ci!r} is not a finite interval holding the value")
+    return Check("parameters_consistent", not bad,
+                 f"the parameter table of {k} parameter(s) is theta's, the covariance gain's (finite, "
+                 "symmetric, positive semidefinite, stderr its diagonal's square roots) and the "
+                 "spec's boxes" if not bad else "; ".join(bad))
 
 
 def fitted_plant(doc: Mapping[str, Any], spec: Spec) -> tuple[Plant, dict[str, float]]:
@@ -277,6 +361,7 @@ def fit_verdict(doc: Mapping[str, Any], spec: Spec, trace: Any = None) -> list[C
     checks.append(Check("converged", converged, f"IPOPT status {diag.get('status')!r}"
                         + ("" if converged else ": the optimum was not reached")))
 
+    checks.append(consistency_check(doc, spec))
     plant, values = fitted_plant(doc, spec)
     substeps = int(diag.get("substeps", 4))
     x0 = artefact_gain(doc, "x0").reshape(len(est), plant.n) if est else np.zeros((0, plant.n))
