@@ -90,7 +90,8 @@ def consistency_check(doc: Mapping[str, Any], spec: Spec) -> Check:
         ``covariance`` gain and the spec's free parameters do not agree.
     """
     diag = doc.get("diagnostics") or {}
-    params = diag.get("parameters") if isinstance(diag.get("parameters"), Mapping) else {}
+    found = diag.get("parameters")
+    params: Mapping[str, Any] = found if isinstance(found, Mapping) else {}
     theta = artefact_gain(doc, "theta").reshape(-1)
     cov = artefact_gain(doc, "covariance")
     free = {fp.name: fp for fp in spec.free_parameters}
@@ -109,8 +110,10 @@ def consistency_check(doc: Mapping[str, Any], spec: Spec) -> Check:
             bad.append("covariance is not symmetric")
         elif float(np.min(np.linalg.eigvalsh(0.5 * (cov + cov.T)))) < -1e-9 * scale:
             bad.append("covariance is not positive semidefinite")
-    unc = diag.get("uncertainty") if isinstance(diag.get("uncertainty"), Mapping) else {}
-    methods = unc.get("interval_method") if isinstance(unc.get("interval_method"), Mapping) else {}
+    found = diag.get("uncertainty")
+    unc: Mapping[str, Any] = found if isinstance(found, Mapping) else {}
+    found = unc.get("interval_method")
+    methods: Mapping[str, Any] = found if isinstance(found, Mapping) else {}
     for i, nm in enumerate(names[:k]):
         p = params.get(nm)
         if not isinstance(p, Mapping):
