@@ -227,6 +227,13 @@ def test_campaign_draws_follow_the_covariance():
                    np.array([0.51, 0.61]), np.zeros(3), np.zeros(2), "")
     d = tight.draws(range(100))
     assert d.min(axis=0).tolist() == [0.49, 0.59] and d.max(axis=0).tolist() == [0.51, 0.61]
+    # a parameter the data do not determine (its covariance entries zero) is drawn uniformly in
+    # its box, not held at its arbitrary fitted value: mean 0.5, variance 1/12 of the box squared
+    flat = FitRun(("a", "b"), np.array([0.5, 0.9]), np.diag([1e-6, 0.0]), np.array([0.0, 0.0]),
+                  np.array([1.0, 1.0]), np.zeros(3), np.zeros(2), "", np.array([False, True]))
+    d = flat.draws(range(4000))
+    assert d[:, 1].mean() == pytest.approx(0.5, abs=0.02) and d[:, 1].var() == pytest.approx(1 / 12, rel=0.1)
+    np.testing.assert_allclose(d[:, 0].std(), 1e-3, rtol=0.1)
 
 
 def test_fitted_text_keeps_the_rest_and_parses():

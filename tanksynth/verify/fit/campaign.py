@@ -44,6 +44,9 @@ class FitRun:
     x0, u0 : ndarray
         The spec's operating point (state units, input units).
     description : str
+    undetermined : ndarray of bool, shape (k,)
+        Parameters the data do not determine: drawn uniformly in their box (their covariance
+        entries say nothing).
     kind : str
         ``"model"``.
     """
@@ -56,10 +59,12 @@ class FitRun:
     x0: np.ndarray
     u0: np.ndarray
     description: str
+    undetermined: np.ndarray | None = None
     kind: str = field(default="model", init=False)
 
     def draws(self, seeds: Sequence[int]) -> np.ndarray:
-        """One parameter vector per seed, ``N(theta, covariance)`` clipped to the box.
+        """One parameter vector per seed, ``N(theta, covariance)`` clipped to the box (uniform in
+        the box for a parameter the data do not determine).
 
         Parameters
         ----------
@@ -77,6 +82,9 @@ class FitRun:
         for i, s in enumerate(seeds):
             z = np.random.default_rng([int(s), 20261207]).standard_normal(self.theta.size)
             out[i] = np.clip(self.theta + root @ z, self.lower, self.upper)
+            if self.undetermined is not None and np.any(self.undetermined):
+                uniform = np.random.default_rng([int(s), 20261208]).uniform(self.lower, self.upper)
+                out[i] = np.where(self.undetermined, uniform, out[i])
         return out
 
     def evaluate(self, sc: Scenario, plant: Plant, *, ts: float, seeds: Sequence[int],
@@ -152,6 +160,11 @@ def fit_run(doc: Mapping[str, Any], spec: Spec) -> FitRun:
     lower = np.array([float(params[n].get("lower", -np.inf)) for n in names])
     upper = np.array([float(params[n].get("upper", np.inf)) for n in names])
     x0, u0 = operating_point(spec)
+    unc = diag.get("uncertainty") if isinstance(diag.get("uncertainty"), Mapping) else None
+    methods = unc.get("interval_method") if isinstance(unc, Mapping) else None
+    undetermined = np.array([isinstance(methods, Mapping) and methods.get(n) == "unidentifiable"
+                             for n in names], dtype=bool)
     return FitRun(tuple(map(str, names)), theta, cov.reshape(k, k), lower, upper, x0, u0,
                   "the plant simulated with the free parameters drawn from the fit's covariance "
-                  "against the fitted values, same inputs and noise: the outputs' spread")
+                  "(uniform in the box where the data do not determine one) against the fitted "
+                  "values, same inputs and noise: the outputs' spread", undetermined)
