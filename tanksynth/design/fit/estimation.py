@@ -41,6 +41,7 @@ from tanksynth.design.fit.statistics import (WhitenessTest, fisher_covariance, f
 from tanksynth.errors import InfeasibleDesign, SpecError
 from tanksynth.measurements.experiment import Experiment
 from tanksynth.plants.base import Plant
+from tanksynth.process import raise_if_interrupted
 
 __all__ = ["FitResult", "fit_parameters", "SUBSTEPS"]
 
@@ -309,6 +310,9 @@ class _Derivative(ca.Callback):
         return ca.Sparsity.dense(1, 1) if i == 0 else ca.Sparsity.dense(self.nx, 1)
 
     def eval(self, arg: Any) -> Any:  # noqa: D102
+        # interrupted (the signal's exception, raised in an earlier call, was swallowed by
+        # CasADi): every evaluation fails at once, so IPOPT stops; `_Solver.solve` re-raises
+        raise_if_interrupted()
         z = np.asarray(arg[0], dtype=float).ravel()
         w = np.asarray(arg[1], dtype=float).ravel()
         v = self.b.at(z, w)
@@ -385,7 +389,10 @@ class _Solver:
         args: dict[str, Any] = dict(x0=z0, p=w, lbx=lbx, ubx=ubx, lbg=0.0, ubg=0.0)
         if lam is not None:
             args["lam_g0"] = lam
-        sol = quiet_solve(self.solver, **args)
+        try:
+            sol = quiet_solve(self.solver, **args)
+        finally:
+            raise_if_interrupted()  # IPOPT stopped on an interruption: no other start runs
         st = self.solver.stats()
         return {"z": np.asarray(sol["x"]).ravel(), "f": float(sol["f"]) * 2 * self.count,
                 "lam": np.asarray(sol["lam_g"]).ravel(), "status": str(st["return_status"]),
