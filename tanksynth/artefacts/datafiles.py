@@ -13,7 +13,7 @@ import hashlib
 import shutil
 from contextlib import contextmanager
 from pathlib import Path, PurePosixPath
-from typing import Any, Iterator, Mapping, Sequence
+from typing import Any, BinaryIO, Callable, Iterator, Mapping, Sequence
 
 from tanksynth.artefacts.atomic import commit, discard, stage
 from tanksynth.artefacts.io import read_limited
@@ -96,6 +96,14 @@ def _staged_copies(directory: str | Path, files: Sequence[Mapping[str, Any]]
     return staged
 
 
+def _copier(path: Path) -> Callable[[BinaryIO], None]:
+    """``write(fh)`` copying ``path`` into ``fh`` (a payload of `stage`)."""
+    def write(fh: BinaryIO) -> None:
+        with path.open("rb") as src:
+            shutil.copyfileobj(src, fh)
+    return write
+
+
 def _remove_if_empty(path: Path) -> None:
     try:
         path.rmdir()
@@ -174,8 +182,7 @@ def data_copies(directory: str | Path, files: Sequence[Mapping[str, Any]]) -> It
             for tmp, target in staged:
                 backup = None
                 if target.is_file():
-                    with target.open("rb") as old:
-                        backup = stage(target, lambda fh, old=old: shutil.copyfileobj(old, fh))
+                    backup = stage(target, _copier(target))
                 done.append((target, backup))
                 commit(tmp, target)
             yield [target for _, target in staged]
