@@ -25,7 +25,7 @@ from typing import Any, Iterator
 
 __all__ = ["one_blas_thread", "ignore_file_size_signal", "internal_error_log", "EXIT_INTERRUPTED",
            "INTERRUPTING_SIGNALS", "Interrupted", "interruptible", "die_with_parent",
-           "end_process_group"]
+           "end_process_group", "interruption", "raise_if_interrupted"]
 
 #: Exit code of a command ended by SIGINT, SIGTERM or SIGHUP (128 + SIGINT, the shell's code for
 #: Ctrl-C; one code for every interruption, the signal is named in the message).
@@ -88,11 +88,45 @@ def end_process_group(pid: int, grace: float = 5.0) -> None:
             time.sleep(0.02)
 
 
+#: The interruption received by this process (None: none yet); kept so that code whose
+#: exceptions a library swallows (Python callbacks called from C, e.g. IPOPT's) still sees it.
+_received: list[Interrupted] = []
+
+
 def _raise_interrupted(signum: int, frame: Any) -> None:
     # the first signal interrupts; the ones after it would cut the clean-up short: ignored
     for sig in INTERRUPTING_SIGNALS:
         signal.signal(sig, signal.SIG_IGN)
-    raise Interrupted(signum)
+    exc = Interrupted(signum)
+    _received[:] = [exc]
+    raise exc
+
+
+def interruption() -> Interrupted | None:
+    """The interruption this command received, or None.
+
+    The signal handler raises `Interrupted` wherever the main thread is; when that is a Python
+    callback called from C (CasADi catches the exceptions of a ``Callback``), the exception is
+    swallowed, but the interruption stays recorded here: long loops check it
+    (`raise_if_interrupted`) and stop.
+
+    Returns
+    -------
+    Interrupted or None
+    """
+    return _received[0] if _received else None
+
+
+def raise_if_interrupted() -> None:
+    """Raise the `Interrupted` this command received, if any (a no-op otherwise).
+
+    Raises
+    ------
+    Interrupted
+        A signal interrupted the command (`interruption`).
+    """
+    if _received:
+        raise Interrupted(_received[0].signum)
 
 
 @contextmanager
@@ -103,11 +137,13 @@ def interruptible() -> Iterator[None]:
         yield
         return
     previous = {sig: signal.getsignal(sig) for sig in INTERRUPTING_SIGNALS}
+    _received.clear()  # a new command (in the same process: tests) starts uninterrupted
     for sig in INTERRUPTING_SIGNALS:
         signal.signal(sig, _raise_interrupted)
     try:
         yield
     finally:
+        _received.clear()
         for sig, handler in previous.items():
             signal.signal(sig, handler if handler is not None else signal.SIG_DFL)
 
@@ -135,6 +171,7 @@ def die_with_parent(parent: int, own_group: bool = True) -> None:
             os.setpgid(0, 0)
         except OSError:
             pass
+    _received.clear()
     for sig in INTERRUPTING_SIGNALS:
         signal.signal(sig, _raise_interrupted)
     if sys.platform.startswith("linux"):

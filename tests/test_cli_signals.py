@@ -169,3 +169,44 @@ def test_a_non_finite_or_negative_connect_timeout_is_bad_input(tmp_path, capsys,
     err = capsys.readouterr().err
     assert code == 2, err
     assert len(err.strip().splitlines()) == 1 and "--connect-timeout" in err, err
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGINT])
+def test_a_signal_during_the_fits_ipopt_solve_stops_it(tmp_path, signum):
+    """IPOPT calls the fit's derivatives as Python callbacks and CasADi swallows their
+    exceptions: the interruption must still stop the solve and the remaining starts (exit 130,
+    one line, no fit.json, no data copies, no lock), not run the fit to its end (exit 0)."""
+    mark = uuid.uuid4().hex
+    example = ROOT / "examples" / "three_tank_fit.toml"
+    csv = (ROOT / "examples" / "data" / "three_tank_estimation.csv").read_text()
+    names = []
+    for i in range(6):     # six logs, eight starts: a fit of tens of seconds
+        (tmp_path / f"log{i}.csv").write_text(csv)
+        names.append(f"log{i}.csv")
+    text = example.read_text()
+    text = text.replace('data = ["data/three_tank_estimation.csv"]', f"data = {names!r}".replace("'", '"'))
+    text = text.replace('validate = ["data/three_tank_validation.csv"]', "").replace("starts = 4", "starts = 8")
+    spec = tmp_path / "fit.toml"
+    spec.write_text(text)
+    out = tmp_path / "out"
+    proc = _start(["fit", str(spec), "-o", str(out)], tmp_path, mark)
+    try:
+        assert proc.stdout is not None
+        for line in proc.stdout:       # the fit is being computed
+            if line.startswith("- designing"):
+                break
+        time.sleep(2.0)                # into IPOPT's iterations
+        os.kill(proc.pid, signum)
+        sent = time.monotonic()
+        _, err = proc.communicate(timeout=GUARD)
+        took = time.monotonic() - sent
+    finally:
+        proc.kill()
+        _kill_marked(mark)
+    assert proc.returncode == 130, err
+    assert len(err.strip().splitlines()) == 1 and err.startswith(
+        f"interrupted ({signal.Signals(signum).name})"), err
+    assert not (out / "fit.json").exists() and not (out / "data").exists()
+    assert _leftovers(out) == []
+    assert took < 60, f"the fit took {took:.0f} s to stop"   # hang guard (it stops within ~1 s)
