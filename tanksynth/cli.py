@@ -824,7 +824,7 @@ def _print_fit(doc: dict) -> None:
 @click.option("--validate", "validate", multiple=True, type=click.Path(exists=True, dir_okay=False),
               help="Validation data file (repeatable); default the spec's.")
 @click.option("-o", "--output", "outdir", required=True, type=click.Path(file_okay=False),
-              help="Directory for fit.json, fitted.toml, the data copies and the report.")
+              help="Directory for the fit artefact (<design name>.json), fitted.toml, the data copies and the report.")
 @click.option("--pdf", is_flag=True, help="Also compile DIR/report.pdf (LaTeX).")
 @click.option("--force", is_flag=True,
               help="Replace the files of a run of ANOTHER spec found in the output directory.")

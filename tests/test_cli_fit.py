@@ -403,3 +403,35 @@ def test_a_fit_out_of_time_is_refused_saying_so(tmp_path, capsys):
     assert code == 3, out.err
     assert "ran out of time (max_time = 1 s" in out.out, out.out
     assert not (tmp_path / "o" / "fit.json").exists() and not (tmp_path / "o" / "data").exists()
+
+
+def test_a_fit_directory_names_its_fit_artefact_whatever_the_design_is_called(tmp_path):
+    """`fit = "DIR"` finds the fit artefact of DIR: fit.json, else the one JSON whose method is
+    "fit" (a design named myfit writes myfit.json; new-user finding: only fit.json was found)."""
+    from tanksynth.errors import SpecError
+    from tanksynth.spec.fit_box import fit_file
+
+    (tmp_path / "plant.json").write_text('{"schema": "tanksynth.plant/1"}')
+    with pytest.raises(SpecError, match="no fit artefact"):
+        fit_file(tmp_path)
+    (tmp_path / "myfit.json").write_text('{"method": "fit"}')
+    (tmp_path / "ekf.json").write_text('{"method": "ekf"}')
+    assert fit_file(tmp_path) == tmp_path / "myfit.json"
+    (tmp_path / "other.json").write_text('{"method": "fit"}')
+    with pytest.raises(SpecError, match="2 fit artefacts"):
+        fit_file(tmp_path)
+    (tmp_path / "fit.json").write_text('{"method": "fit"}')
+    assert fit_file(tmp_path) == tmp_path / "fit.json"
+
+
+def test_pump_flows_logged_in_litres_per_second_are_refused(tmp_path):
+    """Inputs 200-600x the pump capacity (l/s where the plant takes m^3/s) are a unit error
+    (exit 2 naming the column), not a fit that fails to converge (new-user finding)."""
+    from tanksynth.errors import DataError
+    from tanksynth.measurements import read_experiments
+    from tanksynth.plants import builtin_plant
+
+    plant = builtin_plant("three_tank")
+    (tmp_path / "log.csv").write_text("t,q1,q2,h1,h2,h3\n0,0.025,0.03,0.3,0.1,0.2\n2,0.025,0.03,0.3,0.1,0.2\n")
+    with pytest.raises(DataError, match=r"column 'q1' \(input q1\).*10x.*expects m\^3/s"):
+        read_experiments([tmp_path / "log.csv"], plant)

@@ -39,8 +39,8 @@ LIMIT_RTOL = 1e-6
 #: range on its operating region is in another unit (cm for m, mm for m).
 OUTPUT_UNIT_FACTOR = 10.0
 #: An input column whose magnitude exceeds this many times the plant's actuator bound is in
-#: another unit (l/min or ml/s for m^3/s).
-INPUT_UNIT_FACTOR = 1000.0
+#: another unit (l/s, l/min or ml/s for m^3/s: a pump logged at 10x its capacity is no pump).
+INPUT_UNIT_FACTOR = 10.0
 #: Shortest time step accepted (s): a shorter one means a time column not in seconds.
 MIN_TIME_STEP = 1e-9
 #: Longest time step accepted (s), the bound of ``[data] ts`` and ``[sampling] ts``.

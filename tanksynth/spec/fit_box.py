@@ -23,7 +23,7 @@ from tanksynth.errors import SpecError
 if TYPE_CHECKING:  # the plant's module loads sympy; only its type is needed here
     from tanksynth.plants.base import Plant
 
-__all__ = ["FitBox", "MAX_FIT_BYTES", "fit_file", "read_fit_box"]
+__all__ = ["FitBox", "MAX_FIT_BYTES", "MAX_DIRECTORY_FILES", "fit_file", "read_fit_box"]
 
 #: Largest fit file read (bytes).
 MAX_FIT_BYTES = 32 * 1024 * 1024
@@ -55,20 +55,53 @@ class FitBox:
         return {"file": self.file, "sha256": self.sha256, "level": self.level}
 
 
-def fit_file(path: str | Path) -> Path:
-    """The fit JSON named by ``path``: the file itself, or ``fit.json`` in a directory.
+#: Most JSON files of a result directory looked at for its fit artefact.
+MAX_DIRECTORY_FILES = 64
+
+
+def fit_file(path: str | Path, key: str = "fit") -> Path:
+    """The fit JSON named by ``path``: the file itself, or the fit artefact of a directory.
+
+    In a directory, ``fit.json`` when it exists, else the one artefact whose ``method`` is
+    ``"fit"`` (a fit design named ``myfit`` writes ``myfit.json``).
 
     Parameters
     ----------
     path : str or Path
         A fit result directory or a fit artefact JSON file.
+    key : str
+        Spec key, for messages.
 
     Returns
     -------
     Path
+
+    Raises
+    ------
+    SpecError
+        A directory with no fit artefact, or with several (naming them).
     """
     p = Path(path)
-    return p / "fit.json" if p.is_dir() else p
+    if not p.is_dir():
+        return p
+    if (p / "fit.json").is_file():
+        return p / "fit.json"
+    candidates = sorted(p.glob("*.json"))[:MAX_DIRECTORY_FILES]
+    found = []
+    for file in candidates:
+        try:
+            doc = json.loads(_read(file, key))
+        except (SpecError, ValueError):
+            continue
+        if isinstance(doc, dict) and doc.get("method") == "fit":
+            found.append(file)
+    if len(found) == 1:
+        return found[0]
+    if not found:
+        raise SpecError(f"{p}: no fit artefact (a JSON file with method \"fit\") in this directory; "
+                        "name the fit's JSON file instead", key=key)
+    raise SpecError(f"{p}: {len(found)} fit artefacts ({', '.join(f.name for f in found)}); name one "
+                    "of them", key=key)
 
 
 def _read(path: Path, key: str) -> bytes:
@@ -115,7 +148,7 @@ def read_fit_box(path: str | Path, key: str, plant: Plant) -> FitBox:
         Naming the file: unreadable, too large, not JSON, not a fit artefact, a malformed or
         non-finite interval, an unknown parameter, an interval outside the admissible range.
     """
-    file = fit_file(path)
+    file = fit_file(path, key)
     raw = _read(file, key)
     try:
         doc = json.loads(raw.decode("utf-8"))

@@ -207,7 +207,7 @@ BAD_CASES = {
     "level_in_cm": ("t,q1,q2,h1\n0,1e-5,2e-5,30\n1,1e-5,2e-5,31\n",
                     r"column 'h1' \(output h1\): \|value\| 31 at row 2 \(line 3\).*10x.*expects m"),
     "flow_in_ml_per_s": ("t,q1,q2,h1\n0,10,2e-5,0.3\n1,12,2e-5,0.3\n",
-                         r"column 'q1' \(input q1\): \|value\| 12 at row 2.*1000x.*expects m\^3/s"),
+                         r"column 'q1' \(input q1\): \|value\| 12 at row 2.*10x.*expects m\^3/s"),
     "one_sample": ("t,q1,q2,h1\n0,1e-5,2e-5,0.3\n", r"1 sample\(s\); an experiment needs at least 2"),
     "header_only": ("t,q1,q2,h1\n", r"0 sample\(s\)"),
     "empty": ("", r"empty file; expected a header row"),
