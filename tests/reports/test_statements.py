@@ -98,7 +98,7 @@ CASES = {
                             "mu32": {"value": 0.52, "stderr": 2e-3, "ci95": [0.516, 0.524], "unit": "1",
                                      "start": 0.5, "lower": 0.2, "upper": 0.9, "at_bound": True}},
              "correlation": [[1.0, -0.4], [-0.4, 1.0]]},
-            [r"\mathrm{mu13} \in [0.2, 0.9]", "$E = 2$ logged experiments", "4 clipped RK4 steps",
+            [r"\mu_{13} \in [0.2, 0.9]", "$E = 2$ logged experiments", r"$\mu_{32}$ & $0.52$", "4 clipped RK4 steps",
              r"$[0.458, 0.462]$", "(at a bound)", "$-0.4$", r"(J^\top J)^{-1}"]),
 }
 

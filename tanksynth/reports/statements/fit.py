@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from typing import Any, Mapping
 
-from tanksynth.reports.latex import Tex, escape_latex, format_number
+from tanksynth.reports.latex import Tex, escape_latex, format_number, symbol_latex
 
 __all__ = ["fit_statement"]
 
@@ -33,7 +33,7 @@ def _parameters(diag: Mapping[str, Any]) -> str:
     for name, p in params.items():
         if isinstance(p, Mapping) and isinstance(p.get("lower"), (int, float)) \
                 and isinstance(p.get("upper"), (int, float)):
-            items.append(rf"\mathrm{{{escape_latex(name)}}} \in [{format_number(p['lower'])}, "
+            items.append(rf"{symbol_latex(name)} \in [{format_number(p['lower'])}, "
                          rf"{format_number(p['upper'])}]")
     return ", ".join(items) if items else r"\theta"
 
@@ -57,7 +57,7 @@ def _table(diag: Mapping[str, Any]) -> str:
                  for v in (p.get("value"), p.get("stderr"), ci[0], ci[1], p.get("start"))]
         unit = escape_latex(p.get("unit", "")) if p.get("unit") not in (None, "", "1", "-") else "--"
         bound = r" (at a bound)" if p.get("at_bound") is True else ""
-        rows.append(rf"\texttt{{{escape_latex(name)}}} & ${cells[0]}$ & ${cells[1]}$ & "
+        rows.append(rf"${symbol_latex(name)}$ & ${cells[0]}$ & ${cells[1]}$ & "
                     rf"$[{cells[2]}, {cells[3]}]$ & ${cells[4]}$ & {unit}{bound} \\")
         names.append(str(name))
     text = (r"\par\medskip\noindent\begin{tabular}{lrrrrl}\hline parameter & value & std.\ error & "
@@ -65,12 +65,14 @@ def _table(diag: Mapping[str, Any]) -> str:
     corr = diag.get("correlation")
     if isinstance(corr, list) and len(corr) == len(names) and len(names) > 1 and all(
             isinstance(r, list) and len(r) == len(names) for r in corr):
-        head = " & ".join(rf"\texttt{{{escape_latex(n)}}}" for n in names)
+        head = " & ".join(f"${symbol_latex(n)}$" for n in names)
         body = " ".join(
-            rf"\texttt{{{escape_latex(n)}}} & " + " & ".join(
+            f"${symbol_latex(n)}$ & " + " & ".join(
                 f"${format_number(v, 3)}$" if isinstance(v, (int, float)) else "--" for v in r) + r" \\"
             for n, r in zip(names, corr))
-        text += (r"\quad\begin{tabular}{l" + "r" * len(names) + r"}\hline correlation & " + head
+        # beside the parameter table while both fit the line; below it for more parameters
+        gap = r"\quad" if len(names) <= 3 else r"\par\medskip\noindent"
+        text += (gap + r"\begin{tabular}{l" + "r" * len(names) + r"}\hline correlation & " + head
                  + r" \\ \hline " + body + r" \hline\end{tabular}")
     return text + r"\par\medskip"
 
