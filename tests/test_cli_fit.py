@@ -59,7 +59,7 @@ def test_fit_writes_artefact_data_and_fitted_spec(fitted):
     out = root / "out"
     assert code == 0
     doc = json.loads((out / "fit.json").read_text())
-    assert set(doc["gains"]) == {"theta", "covariance", "x0"}
+    assert set(doc["gains"]) == {"theta", "covariance", "x_init"}
     diag = doc["diagnostics"]
     for name in TRUE:
         p = diag["parameters"][name]

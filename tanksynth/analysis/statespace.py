@@ -315,6 +315,9 @@ GAIN_NAMES: dict[tuple[str, ...], str] = {
      "training_inputs", "training_targets", "ekf_Q", "ekf_R", "ekf_P0"):
         "`narx`: network weights and biases, input/output normalisation, delays, the training set "
         "and the tuning of the EKF that produced its targets",
+    ("theta", "covariance", "x_init"): "`fit`: the fitted free parameters (the order of "
+                                        "`diagnostics.names`, their units), their covariance and "
+                                        "each experiment's fitted initial state (E x n, state units)",
     ("P",): "Lyapunov matrix, `V = x' P x` of the closed loop or `e' P e` of the observer error "
             "(`lmi_placement`, robust and Takagi-Sugeno designs)",
     ("Po",): "`ts_output_feedback`: Lyapunov matrix of the observer error",

@@ -282,7 +282,7 @@ def run_fit(spec: Spec, design: DesignSpec) -> DesignResult:
         "states": [s.name for s in plant.states],
     }
     gains = {"theta": values, "covariance": np.asarray(result.covariance, dtype=float),
-             "x0": x0}
+             "x_init": x0}
     return DesignResult(design.name, "fit", plant.name, gains, diagnostics)
 
 

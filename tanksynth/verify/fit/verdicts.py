@@ -367,7 +367,7 @@ def fit_verdict(doc: Mapping[str, Any], spec: Spec, trace: Any = None) -> list[C
     checks.append(consistency_check(doc, spec))
     plant, values = fitted_plant(doc, spec)
     substeps = int(diag.get("substeps", 4))
-    x0 = artefact_gain(doc, "x0").reshape(len(est), plant.n) if est else np.zeros((0, plant.n))
+    x0 = artefact_gain(doc, "x_init").reshape(len(est), plant.n) if est else np.zeros((0, plant.n))
     pairs = []
     for e, (exp, _) in enumerate(est):
         y_hat, res = _simulation(plant, exp, x0[e], substeps)
