@@ -43,7 +43,7 @@ def pdf_text(pdf: Path, *args: str) -> str:
 
 def body(text: str) -> str:
     """The report without its spec appendix (which is the spec, verbatim)."""
-    heads = list(re.finditer(r"^A\s+Spec\s*$", text, flags=re.M))
+    heads = list(re.finditer(r"^\f?A\s+Spec\s*$", text, flags=re.M))   # \f: the appendix may open a page
     assert heads, "no spec appendix heading"
     return text[:heads[-1].start()]
 
