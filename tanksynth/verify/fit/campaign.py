@@ -45,7 +45,7 @@ class FitRun:
         The spec's operating point (state units, input units).
     description : str
     undetermined : ndarray of bool, shape (k,)
-        Parameters the data do not determine: drawn uniformly in their box (their covariance
+        Parameters the data do not determine (flags, dimensionless): drawn uniformly in their box (their covariance
         entries say nothing).
     kind : str
         ``"model"``.
