@@ -298,12 +298,16 @@ def _design_all(spec: Spec, outdir: Path, export: tuple[str, ...]
         if "law" in formats and "law" not in result.diagnostics:
             formats.remove("law")
             derived = _derived_law(spec, design, result)
-        from tanksynth.artefacts.datafiles import data_files, write_data_copies
+        from tanksynth.artefacts.datafiles import data_copies, data_files
+        from tanksynth.artefacts.io import artefact_document
 
-        # data files an artefact read (a fit's logs) first, under the same lock: its verdict reads them
-        write_data_copies(outdir, data_files(result.diagnostics))
-        written.append(write_artefact(result, outdir, spec.sha256, export=formats,
-                                      plant_record_sha256=plant_sha))
+        # the artefact checked (non-finite gains, ...) before anything is written; the data files
+        # it read (a fit's logs) copied first, under the same lock (its verdict reads them), and
+        # put back as they were if the artefact's write fails: an earlier fit's copies survive
+        artefact_document(result, spec.sha256)
+        with data_copies(outdir, data_files(result.diagnostics)):
+            written.append(write_artefact(result, outdir, spec.sha256, export=formats,
+                                          plant_record_sha256=plant_sha))
         if "law" in formats:
             laws.append(outdir / f"{design.name}_law.casadi")
         if derived is not None:  # the law (or estimator step) built from the written gains
