@@ -36,6 +36,19 @@ Calibration (``benchmarks/conic_memory.py``, ``tests/spec/test_memory.py``):
 the interpreter's (VmHWM); `conic_bytes` gives 24, 53, 132, 297 and 596 MiB:
 an upper bound within a factor 1.3 to 1.9 (the fixed `FIXED_BYTES` weighs most
 on the small ones). N = 64 is estimated at 28 GiB (it aborted past 7.2 GB).
+
+The ``fit`` method (`tanksynth.design.fit`) grows with the logged samples: its CasADi graphs
+(the multiple-shooting NLP, the single-shooting chain of the statistics: RK4 sub-steps of the
+plant per sample), the derivative blocks and the residual Jacobian all hold a few kB per sample
+and state. `fit_bytes` = `FIT_FIXED_BYTES` + `FIT_BYTES_PER_SAMPLE_STATE` x samples x states;
+`refuse_oversized_fit` refuses a fit above the budget before its NLP is built (exit 3, naming
+the samples and what shrinks them). Calibration (peak RSS above the interpreter's with the fit
+loaded, ``examples/three_tank_fit.toml`` on one log of N samples, 3 states, 4 starts; the
+design alone, ``resource.getrusage`` before and after): N = 2000, 10000, 40000 measured 57,
+141, 351 MiB (fit 37, 95, 158 s on one core); `fit_bytes` gives 93, 211, 650 MiB (an upper
+bound: 2.4 kB per sample and state measured between 10000 and 40000, 5 kB counted, which also
+covers the 13 GB reported for a 900 000-sample log: 12.9 GiB). That log is refused at the
+default budget (up to about 136 000 samples of a three-state plant fit in 2 GiB).
 """
 
 from __future__ import annotations
@@ -54,7 +67,8 @@ if TYPE_CHECKING:
 __all__ = ["BUDGET_VARIABLE", "MEMORY_BUDGET", "MIN_BUDGET_MB", "MAX_BUDGET_MB", "memory_budget",
            "ConicSize", "conic_bytes", "conic_refusal", "refuse_oversized_conic", "region_order",
            "nonlinear_atoms",
-           "CLARABEL_BYTES_PER_ENTRY", "FIXED_BYTES"]
+           "CLARABEL_BYTES_PER_ENTRY", "FIXED_BYTES", "FIT_FIXED_BYTES",
+           "FIT_BYTES_PER_SAMPLE_STATE", "fit_bytes", "refuse_oversized_fit"]
 
 #: The environment variable that sets the memory budget of one design (MiB).
 BUDGET_VARIABLE = "TANKSYNTH_MEMORY_BUDGET_MB"
@@ -72,6 +86,13 @@ CLARABEL_BYTES_PER_ENTRY = 32.0
 
 #: Fixed memory of one conic solve (bytes): the solver's workspaces, the model's bookkeeping.
 FIXED_BYTES = 16.0 * 1024 ** 2
+
+#: Fixed memory of a fit above the interpreter's (bytes): calibrated, see the module docstring.
+FIT_FIXED_BYTES = 64.0 * 1024 ** 2
+
+#: Memory of a fit per logged sample and plant state (bytes): calibrated, see the module
+#: docstring.
+FIT_BYTES_PER_SAMPLE_STATE = 5120.0
 
 #: Order of each elementary LMI region (rows of its ``L`` and ``M`` matrices).
 _REGION_ORDER = {"half_plane": 1, "disk": 2, "sector": 2}
@@ -289,3 +310,50 @@ def refuse_oversized_conic(entry: DesignSpec, plant: Plant, ts: float | None) ->
     why = conic_refusal(entry, plant, ts)
     if why is not None:
         raise DesignTooLarge(why)
+
+
+def fit_bytes(samples: int, states: int) -> float:
+    """Estimated peak memory of a ``fit`` (bytes above the interpreter's; see the module docstring).
+
+    Parameters
+    ----------
+    samples : int
+        Logged samples of every data file the fit reads (estimation and validation).
+    states : int
+        The plant's states.
+
+    Returns
+    -------
+    float
+        Bytes.
+    """
+    return FIT_FIXED_BYTES + FIT_BYTES_PER_SAMPLE_STATE * float(samples) * float(states)
+
+
+def refuse_oversized_fit(name: str, samples: int, states: int) -> None:
+    """Raise `DesignTooLarge` (exit 3) when `fit_bytes` exceeds `memory_budget`.
+
+    Parameters
+    ----------
+    name : str
+        The design's name.
+    samples : int
+        Logged samples of every data file the fit reads.
+    states : int
+        The plant's states.
+
+    Raises
+    ------
+    DesignTooLarge
+        Before the fit's NLP is built: one line naming the design, the samples, the estimate
+        against the budget and what shrinks it.
+    """
+    need, budget = fit_bytes(samples, states), memory_budget()
+    if need <= budget:
+        return
+    most = max(int((budget - FIT_FIXED_BYTES) / (FIT_BYTES_PER_SAMPLE_STATE * max(states, 1))), 0)
+    raise DesignTooLarge(
+        f"design '{name}' (fit): {samples} logged samples x {states} states would need about "
+        f"{need / 1024 ** 3:.3g} GiB of memory, over the budget of {budget / 1024 ** 3:.3g} GiB "
+        f"({BUDGET_VARIABLE}); shrink it: decimate the logs or fit fewer or shorter files (at "
+        f"most about {most} samples in all), or raise {BUDGET_VARIABLE}")

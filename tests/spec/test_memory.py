@@ -296,3 +296,13 @@ def test_lmi_placement_counts_every_kappa_retry():
     assert kappa_tries(1e4, 1e8) == 3              # 1e4, 1e6, 1e8
     assert kappa_tries(1e4, 1.5e6) == 3            # 1e4, 1e6, then the ceiling
     assert kappa_tries(2.0, 1e300) <= 64
+
+
+@pytest.mark.parametrize("samples, measured_mib", [(2000, 57), (10000, 141), (40000, 351)])
+def test_fit_bytes_bounds_the_measured_peak(samples, measured_mib):
+    """The fit's estimate is an upper bound of the peak RSS measured on the three-tank (3 states;
+    see the module docstring), without overstating it more than about 2x."""
+    from tanksynth.spec.memory import fit_bytes
+
+    need = fit_bytes(samples, 3) / 1024 ** 2
+    assert measured_mib <= need <= 2.0 * measured_mib

@@ -26,6 +26,7 @@ from tanksynth.errors import DesignWarning, InfeasibleDesign, SpecError
 from tanksynth.measurements.scores import pooled_scores
 from tanksynth.spec import DesignSpec, Spec
 from tanksynth.spec.context import resolve
+from tanksynth.spec.memory import refuse_oversized_fit
 from tanksynth.spec.method_options.fit import FitOptions
 
 __all__ = ["run_fit", "FIT", "copy_names", "free_parameters_of"]
@@ -141,7 +142,9 @@ def run_fit(spec: Spec, design: DesignSpec) -> DesignResult:
     SpecError
         No free parameter, no data file, bad data (`DataError`, naming file, column and row).
     InfeasibleDesign
-        The fit did not converge (IPOPT's status named).
+        The fit did not converge (IPOPT's status named), or ran out of its time (``max_time``).
+    DesignTooLarge
+        The data would need more memory than the budget (`tanksynth.spec.memory.fit_bytes`).
     """
     from tanksynth.design.fit.estimation import fit_parameters
     from tanksynth.design.fit.validation import simulate_outputs, validate_experiment
@@ -159,11 +162,15 @@ def run_fit(spec: Spec, design: DesignSpec) -> DesignResult:
     table = getattr(spec, "data", None)
     estimation = read_experiments([str(p) for p in est_paths], plant, table)
     validation = read_experiments([str(p) for p in val_paths], plant, table) if val_paths else ()
+    # refused before the NLP is built when its memory would exceed the budget
+    refuse_oversized_fit(design.name, sum(len(e.t) for e in [*estimation, *validation]),
+                         len(plant.states))
     hashes = [_sha256(p) for p in [*est_paths, *val_paths]]
     copies = copy_names([str(p) for p in [*est_paths, *val_paths]])
 
     result = fit_parameters(plant, free, estimation, starts=o.starts, seed=o.seed, mode=o.mode,
-                            shooting=o.shooting, level=o.level, max_iter=o.max_iter)
+                            shooting=o.shooting, level=o.level, max_iter=o.max_iter,
+                            max_time=o.max_time)
     if not result.converged:
         raise InfeasibleDesign(f"the fit did not converge (IPOPT status {result.status!r} after "
                                f"{result.iterations} iterations, {result.starts_tried} start(s)); "

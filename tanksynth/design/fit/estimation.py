@@ -24,6 +24,7 @@ the crossings; only the simulation-error mode exists (``mode = "prediction"`` is
 
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass, field
 from typing import Any, Mapping, Sequence
 
@@ -43,13 +44,34 @@ from tanksynth.measurements.experiment import Experiment
 from tanksynth.plants.base import Plant
 from tanksynth.process import raise_if_interrupted
 
-__all__ = ["FitResult", "fit_parameters", "SUBSTEPS"]
+__all__ = ["FitResult", "fit_parameters", "SUBSTEPS", "FitOutOfTime"]
 
 #: RK4 steps per sampling interval of the fit's model (the default of `tanksynth.sim.simulate`).
 SUBSTEPS = 4
 
 #: IPOPT return statuses counted as converged.
 CONVERGED = ("Solve_Succeeded", "Solved_To_Acceptable_Level")
+
+
+class FitOutOfTime(InfeasibleDesign):
+    """The fit's solves ran past its time bound (``max_time``): refused (exit 3)."""
+
+
+class _Clock:
+    """The fit's wall-clock bound, checked in every derivative evaluation (IPOPT then stops:
+    its callbacks fail) and after every solve."""
+
+    def __init__(self, max_time: float):
+        self.max_time = float(max_time)
+        self.deadline = time.monotonic() + self.max_time
+        self.out = False
+
+    def check(self) -> None:
+        if self.out or time.monotonic() > self.deadline:
+            self.out = True
+            raise FitOutOfTime(f"the fit ran out of time (max_time = {self.max_time:g} s for all "
+                               "its solves); raise max_time, give fewer starts, or decimate the "
+                               "log / fit fewer or shorter files")
 
 
 @dataclass(frozen=True)
@@ -281,9 +303,9 @@ class _Derivative(ca.Callback):
     """One derivative function of the lifted NLP for IPOPT (``grad_f``, ``jac_g`` or
     ``hess_lag``), read off the shared `_Blocks`."""
 
-    def __init__(self, kind: str, blocks: _Blocks, nx: int, q: int):
+    def __init__(self, kind: str, blocks: _Blocks, nx: int, q: int, clock: _Clock):
         ca.Callback.__init__(self)
-        self.kind, self.b, self.nx, self.q = kind, blocks, nx, q
+        self.kind, self.b, self.nx, self.q, self.clock = kind, blocks, nx, q, clock
         self.construct(f"fit_{kind}", {})
 
     def get_n_in(self) -> int:  # noqa: D102
@@ -313,6 +335,7 @@ class _Derivative(ca.Callback):
         # interrupted (the signal's exception, raised in an earlier call, was swallowed by
         # CasADi): every evaluation fails at once, so IPOPT stops; `_Solver.solve` re-raises
         raise_if_interrupted()
+        self.clock.check()   # out of time: the same (`_Solver.solve` raises `FitOutOfTime`)
         z = np.asarray(arg[0], dtype=float).ravel()
         w = np.asarray(arg[1], dtype=float).ravel()
         v = self.b.at(z, w)
@@ -327,8 +350,8 @@ class _Derivative(ca.Callback):
 class _Solver:
     """The multiple-shooting NLP, built once and solved from several points."""
 
-    def __init__(self, model: FitModel, res: Intervals, max_iter: int):
-        self.model, self.res = model, res
+    def __init__(self, model: FitModel, res: Intervals, max_iter: int, clock: _Clock):
+        self.model, self.res, self.clock = model, res, clock
         k, n = len(model.names), model.n
         self.k, self.n = k, n
         self.J = list(res.intervals)
@@ -360,7 +383,7 @@ class _Solver:
         # of the intervals' block Jacobians per point
         self.blocks = _Blocks(model, res)
         nx = (n + k) * M
-        self._callbacks = [_Derivative(kind, self.blocks, nx, model.q) for kind in ("grad", "jac", "hess")]
+        self._callbacks = [_Derivative(kind, self.blocks, nx, model.q, clock) for kind in ("grad", "jac", "hess")]
         opts["grad_f"], opts["jac_g"], opts["hess_lag"] = self._callbacks
         problem: dict[str, Any] = {"x": z, "f": obj, "g": g, "p": w}
         self.solver = ca.nlpsol("fit", "ipopt", problem, opts)
@@ -393,6 +416,7 @@ class _Solver:
             sol = quiet_solve(self.solver, **args)
         finally:
             raise_if_interrupted()  # IPOPT stopped on an interruption: no other start runs
+        self.clock.check()
         st = self.solver.stats()
         return {"z": np.asarray(sol["x"]).ravel(), "f": float(sol["f"]) * 2 * self.count,
                 "lam": np.asarray(sol["lam_g"]).ravel(), "status": str(st["return_status"]),
@@ -496,7 +520,7 @@ class _Single:
 def fit_parameters(plant: Plant, free: Sequence[FreeParameterLike], experiments: Sequence[Experiment],
                    *, ts_substeps: int | None = None, starts: int = 8, seed: int = 0,
                    mode: str = "simulation", shooting: int = 20, level: float = 0.95,
-                   max_iter: int = 500) -> FitResult:
+                   max_iter: int = 500, max_time: float = 600.0) -> FitResult:
     """Fit the free parameters and each experiment's initial state to logged experiments.
 
     Parameters
@@ -526,6 +550,8 @@ def fit_parameters(plant: Plant, free: Sequence[FreeParameterLike], experiments:
         Confidence level of the intervals, in (0, 1) (dimensionless).
     max_iter : int
         IPOPT iteration limit per start.
+    max_time : float
+        Wall-clock time all the solves may take (s, > 0), from the NLP's construction on.
 
     Returns
     -------
@@ -536,6 +562,8 @@ def fit_parameters(plant: Plant, free: Sequence[FreeParameterLike], experiments:
     ------
     SpecError
         Bad free parameters, options or data (an experiment that does not match the plant).
+    FitOutOfTime
+        The solves ran past ``max_time``.
     """
     if mode != "simulation":
         raise SpecError(f"fit mode {mode!r} is not available: only 'simulation' (output error) is "
@@ -546,6 +574,9 @@ def fit_parameters(plant: Plant, free: Sequence[FreeParameterLike], experiments:
             raise SpecError(f"{key} must be an integer >= {lo}, got {val!r}", key=f"design.{key}")
     if not 0.0 < float(level) < 1.0:
         raise SpecError(f"level must lie in (0, 1), got {level!r}", key="design.level")
+    if not (np.isfinite(max_time) and max_time > 0):
+        raise SpecError(f"max_time must be a positive number of seconds, got {max_time!r}",
+                        key="design.max_time")
     if not experiments:
         raise SpecError("no experiment to fit", key="design.data")
     names_seen = [e.name for e in experiments]
@@ -558,7 +589,7 @@ def fit_parameters(plant: Plant, free: Sequence[FreeParameterLike], experiments:
             raise SpecError(f"experiment {d.name}: no output sample to fit", key="design.data")
     res = Intervals(model, data, int(shooting))
     single = _Single(model, res)
-    solver = _Solver(model, res, int(max_iter))
+    solver = _Solver(model, res, int(max_iter), _Clock(max_time))
     k = len(model.names)
     w = 1.0 / noise_guess(data, res.outputs)
 

@@ -61,6 +61,10 @@ class FitOptions(MethodOptions):
     max_iter : int
         IPOPT's iteration limit per start (1 to 100000); default 500. A fit that stops there
         has not converged and is refused.
+    max_time : float
+        Wall-clock time the fit's solves may take in all (s; every start and the profile
+        solves of the intervals), 1 to 1e6; default 600. A fit that runs out is refused (exit
+        3, saying so).
     """
 
     method_name: ClassVar[str] = "fit"
@@ -74,6 +78,7 @@ class FitOptions(MethodOptions):
     level: float = option(0.95, unit="-")
     init_samples: int = option(10, unit="samples")
     max_iter: int = option(500, unit="-")
+    max_time: float = option(600.0, unit="s")
 
     @classmethod
     def from_table(cls, options: Mapping[str, Any], key: str, plant: Plant,
@@ -95,4 +100,5 @@ class FitOptions(MethodOptions):
                    seed=r.read("seed", parse_integer, at_least=0),
                    level=r.read("level", parse_number, above=0.0, below=1.0),
                    init_samples=r.read("init_samples", parse_integer, at_least=2, at_most=1_000_000),
-                   max_iter=r.read("max_iter", parse_integer, at_least=1, at_most=100_000))
+                   max_iter=r.read("max_iter", parse_integer, at_least=1, at_most=100_000),
+                   max_time=r.read("max_time", parse_number, at_least=1.0, at_most=1e6))
