@@ -787,12 +787,14 @@ def _number(value: Any, spec: str) -> str:
         return str(value)
 
 
-def _print_fit(doc: dict) -> None:
-    """The fitted parameters (value, standard error, interval, unit) and the scores per output."""
+def _print_fit(doc: dict, output_units: dict[str, str]) -> None:
+    """The fitted parameters (value, standard error, interval, unit) and the scores per output
+    (RMSE in the output's unit)."""
     diag = doc["diagnostics"]
     level = 100 * float(diag.get("level", 0.95))
-    table = Table(title=f"fit {doc['name']}: {diag.get('mode', 'simulation')} error, "
-                        f"{diag.get('starts_tried', '?')} start(s), IPOPT {diag.get('status', '?')}")
+    table = Table(title=f"fit '{doc['name']}': output (simulation) error; "
+                        f"{diag.get('starts_tried', '?')} start(s) tried (the search stops once 3 "
+                        f"converged starts agree); IPOPT {diag.get('status', '?')}")
     for col in ("parameter", "value", "stderr", f"{level:g} % interval", "unit"):
         table.add_column(col, justify="right" if col not in ("parameter", "unit") else "left")
     for nm, p in diag["parameters"].items():
@@ -802,13 +804,13 @@ def _print_fit(doc: dict) -> None:
                       f"[{_number(lo, '.6g')}, {_number(hi, '.6g')}]",
                       str(p.get("unit", "")) + (" (at a bound)" if p.get("at_bound") else ""))
     _out.print(table)
-    scores = Table(title="output error (RMSE in output units, fit % = NRMSE fit)")
-    for col in ("data", "output", "RMSE", "fit %"):
+    scores = Table(title="output error (fit % = NRMSE fit, 100 (1 - |y - y_sim| / |y - mean y|))")
+    for col in ("data", "output", "RMSE", "unit", "fit %"):
         scores.add_column(col, justify="right" if col in ("RMSE", "fit %") else "left")
     for part in ("estimation", "validation"):
         block = diag.get(part) or {}
         for nm, value in (block.get("rmse") or {}).items():
-            scores.add_row(part, nm, _number(value, ".4g"),
+            scores.add_row(part, nm, _number(value, ".4g"), output_units.get(nm, ""),
                            _number(block.get("fit_percent", {}).get(nm, float("nan")), ".1f"))
     _out.print(scores)
     ident = diag.get("identifiability") or {}
@@ -862,7 +864,7 @@ def fit(spec: str, data: tuple[str, ...], validate: tuple[str, ...], outdir: str
         (path,) = written
         doc = read_artefact(path)
         fitted = _fitted_toml(s, doc, out)
-        _print_fit(doc)
+        _print_fit(doc, {q.name: str(q.unit) for q in s.plant.outputs})
         _out.print(f"artefact: {path}", markup=False, highlight=False, soft_wrap=True)
         _out.print(f"fitted spec: {fitted} (tanksynth run {fitted} -o DIR2)", markup=False,
                    highlight=False, soft_wrap=True)

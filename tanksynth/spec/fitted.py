@@ -165,7 +165,11 @@ def fitted_spec_text(text: str, fitted: Mapping[str, FittedValue], fit_file: str
         out.extend(insert.get(i, []))
         if i < len(lines) and i not in drop:
             out.append(replace.get(i, lines[i]))
-    result = "\n".join(out) + "\n"
+    # the original's comments are kept below: say first what this file is and what changed
+    header = (f"# Written by tanksynth fit: the spec below with each free parameter replaced by its "
+              f"fitted value ({fit_file});\n# the comments are the original spec's (its start values "
+              "and search boxes are gone).\n")
+    result = header + "\n".join(out) + "\n"
     try:
         tomllib.loads(result)
     except tomllib.TOMLDecodeError as exc:

@@ -92,13 +92,15 @@ CASES = {
                        [r"minimise $\operatorname{tr} W$", "ONE Lyapunov matrix", r"region $D$: \textbar{}z",
                         "observer error", "Conservatism"]),
     "fit": ({"mode": "simulation", "substeps": 4, "level": 0.95,
-             "estimation": {"experiments": [{}, {}]},
+             "estimation": {"experiments": [{}, {}], "rmse": {"h1": 0.0018}, "fit_percent": {"h1": 98.4}},
+             "validation": {"rmse": {"h1": 0.0016}, "fit_percent": {"h1": 98.3}},
+             "output_units": {"h1": "m"},
              "parameters": {"mu13": {"value": 0.46, "stderr": 1e-3, "ci95": [0.458, 0.462], "unit": "1",
                                      "start": 0.5, "lower": 0.2, "upper": 0.9},
                             "mu32": {"value": 0.52, "stderr": 2e-3, "ci95": [0.516, 0.524], "unit": "1",
                                      "start": 0.5, "lower": 0.2, "upper": 0.9, "at_bound": True}},
              "correlation": [[1.0, -0.4], [-0.4, 1.0]]},
-            [r"\mu_{13} \in [0.2, 0.9]", "$E = 2$ logged experiments", r"$\mu_{32}$ & $0.52$", "4 clipped RK4 steps",
+            [r"\mu_{13} \in [0.2, 0.9]", "$E = 2$ logged experiments", r"$\mu_{32}$ & $0.52$", r"validation & $h_{1}$ & $0.0016$ & m & $98.3$", "4 clipped RK4 steps",
              r"$[0.458, 0.462]$", "(at a bound)", "$-0.4$", r"(J^\top J)^{-1}"]),
 }
 

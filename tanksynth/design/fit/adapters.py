@@ -280,6 +280,7 @@ def run_fit(spec: Spec, design: DesignSpec) -> DesignResult:
         "data_files": [{"file": c, "source": str(p), "sha256": h}
                        for c, p, h in zip(copies, [*est_paths, *val_paths], hashes)],
         "states": [s.name for s in plant.states],
+        "output_units": {q.name: str(q.unit) for q in plant.outputs},
     }
     gains = {"theta": values, "covariance": np.asarray(result.covariance, dtype=float),
              "x_init": x0}

@@ -74,7 +74,33 @@ def _table(diag: Mapping[str, Any]) -> str:
         gap = r"\quad" if len(names) <= 3 else r"\par\medskip\noindent"
         text += (gap + r"\begin{tabular}{l" + "r" * len(names) + r"}\hline correlation & " + head
                  + r" \\ \hline " + body + r" \hline\end{tabular}")
-    return text + r"\par\medskip"
+    return text + _scores(diag) + r"\par\medskip"
+
+
+def _scores(diag: Mapping[str, Any]) -> str:
+    """RMSE (the output's unit) and fit % per output on the estimation and validation data (a
+    LaTeX tabular; empty when the diagnostics hold none)."""
+    found = diag.get("output_units")
+    units: Mapping[str, Any] = found if isinstance(found, Mapping) else {}
+    rows = []
+    for part in ("estimation", "validation"):
+        block = diag.get(part)
+        if not isinstance(block, Mapping) or not isinstance(block.get("rmse"), Mapping):
+            continue
+        given = block.get("fit_percent")
+        fits: Mapping[str, Any] = given if isinstance(given, Mapping) else {}
+        for name, value in block["rmse"].items():
+            fit = fits.get(name)
+            unit = units.get(name)
+            rows.append(rf"{part} & ${symbol_latex(name)}$ & "
+                        + (f"${format_number(value)}$" if isinstance(value, (int, float)) else "--")
+                        + " & " + (escape_latex(str(unit)) if unit not in (None, "", "1", "-") else "--")
+                        + " & " + (f"${format_number(fit, 3)}$" if isinstance(fit, (int, float)) else "--")
+                        + r" \\")
+    if not rows:
+        return ""
+    return (r"\par\medskip\noindent\begin{tabular}{llrlr}\hline data & output & RMSE & unit & fit \% \\ "
+            r"\hline " + " ".join(rows) + r" \hline\end{tabular}")
 
 
 def fit_statement(diag: Mapping[str, Any]) -> Tex:

@@ -232,7 +232,7 @@ def _record(trace: Any, res: Any, plant: Plant, experiment: Experiment, y_hat: n
     for j, nm in enumerate(experiment.output_names):
         y = np.where(experiment.observed[:, j], experiment.y[:, j], np.nan)
         if residuals:
-            signals.append(Signal(f"{nm} - {nm}_sim", unit, (y - y_hat[:, j])[None, :], "-"))
+            signals.append(Signal(f"{nm} residual", unit, (y - y_hat[:, j])[None, :], "-"))
         else:
             signals.append(Signal(f"{nm} measured", unit, y[None, :], "-"))
             signals.append(Signal(f"{nm} simulated", unit, y_hat[:, j][None, :], "--"))
