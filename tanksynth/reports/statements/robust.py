@@ -11,7 +11,7 @@ from typing import Callable
 
 from tanksynth.reports.diagnostics.common import Diagnostics, integral_of, time_domain_of
 from tanksynth.reports.diagnostics.robust import HinfChannel, Robustness, robustness_of
-from tanksynth.reports.latex import escape_latex, format_number
+from tanksynth.reports.latex import escape_latex, format_number, symbol_latex
 from tanksynth.reports.statements.common import domain_phrase, problem_statement, region_lmi_problem
 
 __all__ = ["robust_state_feedback_statement", "robust_observer_statement"]
@@ -21,16 +21,17 @@ def _polytope(robust: Robustness) -> str:
     """The models the certificate covers."""
     if not robust.uncertain:
         return " for the nominal model (no uncertain parameter)"
-    box = ", ".join(rf"{escape_latex(u.name)} \in [{format_number(u.low)}, {format_number(u.high)}]"
+    box = ", ".join(rf"{symbol_latex(u.name)} \in [{format_number(u.low)}, {format_number(u.high)}]"
                     for u in robust.uncertain)
     text = (rf" for every model of the polytope spanned by the $2^{{{len(robust.uncertain)}}}$ corners of "
             rf"the parameter box ${box}$ and the nominal model (linearised at the operating levels, "
             r"each with its own equilibrium input), with one common Lyapunov matrix")
     off = sum(1 for b in robust.balanced if b is False)
     if off:
-        text += (rf"; {off} of the {len(robust.balanced)} corner models cannot hold the operating levels "
-                 r"with any input (no equilibrium there): they are linearised at the levels with "
-                 r"the least-squares input, which leaves the level rates $f(x_0, u_0) \neq 0$")
+        text += (rf"; at {off} of the {len(robust.balanced)} corner models the operating levels are not "
+                 r"an equilibrium for any input (with fewer pumps than levels, the usual case once a "
+                 r"parameter moves): they are linearised at the levels with the least-squares input, "
+                 r"which leaves the level rates $f(x_0, u_0) \neq 0$")
     return text
 
 
