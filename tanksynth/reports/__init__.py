@@ -16,7 +16,14 @@ reads of a design's diagnostics, it reads through the named accessors of
 
 from __future__ import annotations
 
+import logging
+
 from tanksynth._lazy import lazy_exports as _lazy_exports
+
+# matplotlib logs a font fallback ("findfont: Font family ['STIXGeneral'] not found", after a
+# stale font cache) as a WARNING through logging's last-resort handler, i.e. on stderr, where
+# the CLI prints one line at most: cosmetic for a figure, so only its errors are let through.
+logging.getLogger("matplotlib").setLevel(logging.ERROR)
 
 #: Re-exported name -> its module, imported on first use (PEP 562): importing the package
 #: loads none of its modules' dependencies (issue 15).
