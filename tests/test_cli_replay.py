@@ -5,6 +5,7 @@ lines, and the report's section "On measured data"."""
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -59,7 +60,8 @@ def test_replay_passes_then_fails_on_ten_times_the_noise(rundir, capsys):
     assert main(["replay", str(out), "--data", str(good)]) == 0
     text = capsys.readouterr().out
     assert "ekf (ekf) on good: pass" in text and "obs (luenberger) on good: pass" in text
-    assert "5 samples not updated (5 missing, 0 censored values)" in text
+    assert "5 samples with outputs left out of the update (5 missing and 0 censored output values)" in text
+    assert re.search(r"RMSE h1 [0-9.e+-]+ m, h2 [0-9.e+-]+ m", text), text     # with their unit
     doc = json.loads((out / "replay.json").read_text())
     assert doc["schema"] == "tanksynth.replay/1" and doc["passed"] is True
     assert [f["name"] for f in doc["files"]] == ["good"] and len(doc["files"][0]["sha256"]) == 64

@@ -656,12 +656,15 @@ def replay_line(r: Replay) -> str:
         parts.append(f"NEES {s['nees_mean']:.3g}")
     rmse = {k: v for k, v in s.get("rmse", {}).items() if v is not None}
     if rmse:
-        parts.append("RMSE " + ", ".join(f"{k} {v:.3g}" for k, v in rmse.items()))
+        units = dict(zip(r.y_names, r.y_units))
+        parts.append("RMSE " + ", ".join(
+            f"{k} {v:.3g}" + (f" {units[k]}" if units.get(k) not in (None, "", "1", "-") else "")
+            for k, v in rmse.items()))
     if r.kind == "detector":
         parts.append(f"{s['alarms']} alarm(s)" + (f", first at {s['first_alarm']:g} s" if s["alarms"] else ""))
     if s.get("samples_not_updated"):
-        parts.append(f"{s['samples_not_updated']} samples not updated ({s['missing']} missing, "
-                     f"{s['censored']} censored values)")
+        parts.append(f"{s['samples_not_updated']} samples with outputs left out of the update "
+                     f"({s['missing']} missing and {s['censored']} censored output values)")
     failed = [c.name for c in r.checks if c.passed is False]
     if failed:
         parts.append("failed: " + ", ".join(failed))
