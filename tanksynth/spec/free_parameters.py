@@ -113,8 +113,7 @@ def split_parameters(raw: Any, plant: Plant, key: str = "plant.parameters"
         upper = prm.check(entry["max"], f"{pkey}.max") if "max" in entry else None
         check_search_box(name, value, lower, upper, fit, pkey)
         values[name] = value
-        if fit:
-            assert lower is not None and upper is not None
+        if fit and lower is not None and upper is not None:   # (check_search_box: fit has both)
             free.append(FreeParameter(name, value, lower, upper, prm.unit))
     return values, tuple(free)
 

@@ -36,11 +36,12 @@ from scipy.stats import qmc
 from tanksynth.design.fit.model import (FitModel, FreeParameterLike, direct_states, fit_model,
                                         quiet_solve)
 from tanksynth.design.fit.problem import FitData, Intervals, fit_data, noise_guess
-from tanksynth.design.fit.statistics import (WhitenessTest, fisher_covariance, fit_percent,
-                                             hac_covariance, identifiable_note, profile_bound,
-                                             rmse, t_interval, whiteness_test)
+from tanksynth.design.fit.statistics import (WhitenessTest, fisher_covariance, hac_covariance,
+                                             identifiable_note, profile_bound, t_interval,
+                                             whiteness_test)
 from tanksynth.errors import InfeasibleDesign, SpecError
 from tanksynth.measurements.experiment import Experiment
+from tanksynth.measurements.scores import fit_percent, rmse
 from tanksynth.plants.base import Plant
 from tanksynth.process import raise_if_interrupted
 
@@ -728,12 +729,10 @@ def _finish(plant: Plant, model: FitModel, res: Intervals, single: _Single, solv
                      if v - lo <= 1e-4 * wd or hi - v <= 1e-4 * wd)
     rm: dict[str, dict[str, float]] = {}
     fp: dict[str, dict[str, float]] = {}
-    for d, Yh in zip(res.data, predicted):
-        rm[d.name], fp[d.name] = {}, {}
-        for j, nm in enumerate(d.output_names):
-            y = np.where(d.exact[:, j], d.y[:, j], np.nan)
-            rm[d.name][nm] = rmse(y, Yh[:, j])
-            fp[d.name][nm] = fit_percent(y, Yh[:, j])
+    for d, Yh in zip(res.data, predicted):   # the scores the verdict recomputes (one definition)
+        r, f = rmse(d.y, Yh, d.exact), fit_percent(d.y, Yh, d.exact)
+        rm[d.name] = {nm: float(r[j]) for j, nm in enumerate(d.output_names)}
+        fp[d.name] = {nm: float(f[j]) for j, nm in enumerate(d.output_names)}
     units = {prm.name: prm.unit for prm in plant.parameters}
     return FitResult(
         names=model.names, units=tuple(units[nm] for nm in model.names), values=theta,

@@ -29,7 +29,7 @@ from scipy import stats
 from tanksynth.measurements.scores import WHITENESS_LAGS, WHITENESS_LEVEL, ljung_box
 
 __all__ = ["FisherStatistics", "fisher_covariance", "HacStatistics", "hac_covariance", "hac_lags", "identifiable_note", "t_interval",
-           "profile_bound", "WhitenessTest", "whiteness_test", "fit_percent", "rmse"]
+           "profile_bound", "WhitenessTest", "whiteness_test"]
 
 #: Relative eigenvalue of the scaled Fisher information below which a direction is not identifiable.
 RANK_TOL = 1e-8
@@ -480,31 +480,3 @@ def whiteness_test(series: Sequence[np.ndarray], lags: int = WHITENESS_LAGS,
     band = 1.96 / np.sqrt(max(n0, 1))
     return WhitenessTest(acf, float(band), int(np.sum(np.abs(acf) > band)), q, bound,
                          bool(q <= bound), n0)
-
-
-def rmse(y: np.ndarray, yhat: np.ndarray) -> float:
-    """Root-mean-square error over the finite samples of ``y`` (output units).
-
-    Parameters
-    ----------
-    y, yhat : ndarray
-        Measured (NaN where not counted) and model outputs (output units).
-    """
-    ok = np.isfinite(y)
-    return float(np.sqrt(np.mean((y[ok] - yhat[ok]) ** 2))) if np.any(ok) else float("nan")
-
-
-def fit_percent(y: np.ndarray, yhat: np.ndarray) -> float:
-    """NRMSE fit ``100 (1 - ||y - yhat|| / ||y - mean y||)`` (%) over the finite samples of ``y``.
-
-    Parameters
-    ----------
-    y, yhat : ndarray
-        Measured (NaN where not counted) and model outputs (output units).
-    """
-    ok = np.isfinite(y)
-    if not np.any(ok):
-        return float("nan")
-    dev = float(np.linalg.norm(y[ok] - np.mean(y[ok])))
-    err = float(np.linalg.norm(y[ok] - yhat[ok]))
-    return 100.0 * (1.0 - err / dev) if dev > 0 else (100.0 if err == 0 else float("-inf"))

@@ -19,7 +19,7 @@ import numpy as np
 from tanksynth.design.fit.estimation import SUBSTEPS
 from tanksynth.design.fit.model import direct_states, fit_model, quiet_solve
 from tanksynth.design.fit.problem import Intervals, fit_data, noise_guess
-from tanksynth.design.fit.statistics import fit_percent, rmse
+from tanksynth.measurements.scores import fit_percent, rmse
 from tanksynth.errors import SpecError
 from tanksynth.measurements.experiment import Experiment
 from tanksynth.plants.base import Plant
@@ -192,9 +192,8 @@ def validate_experiment(plant: Plant, values: Mapping[str, float], experiment: E
     Yh = simulate_outputs(plant, values, experiment, x0, substeps=substeps)
     d = fit_data(plant, experiment)
     skip = min(int(init_samples), d.samples - 1)
-    rm, fp = {}, {}
-    for j, nm in enumerate(d.output_names):
-        y = np.where(d.exact[:, j], d.y[:, j], np.nan)[skip:]
-        rm[nm] = rmse(y, Yh[skip:, j])
-        fp[nm] = fit_percent(y, Yh[skip:, j])
+    r = rmse(d.y[skip:], Yh[skip:], d.exact[skip:])   # the scores the verdict recomputes
+    f = fit_percent(d.y[skip:], Yh[skip:], d.exact[skip:])
+    rm = {nm: float(r[j]) for j, nm in enumerate(d.output_names)}
+    fp = {nm: float(f[j]) for j, nm in enumerate(d.output_names)}
     return ValidationResult(experiment.name, x0, skip, rm, fp, Yh)
