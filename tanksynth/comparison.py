@@ -32,7 +32,8 @@ if TYPE_CHECKING:  # the estimators load with the comparison that builds them
     from tanksynth.runtime.estimators.base import KernelEstimator
 
 __all__ = ["ESTIMATOR_KINDS", "FilterTuning", "comparison_estimators", "ComparisonRow",
-           "controller_comparison"]
+           "controller_comparison", "train_comparison_narx", "select_narx_structure",
+           "StructureCandidate"]
 
 #: Estimator kinds a comparison can build.
 ESTIMATOR_KINDS = ("ekf", "ukf", "narx")
@@ -57,6 +58,23 @@ class FilterTuning:
     narx_runs, narx_steps, narx_restarts, narx_iterations : int
         NARX training: EKF data runs and samples per run, optimiser
         restarts and iterations.
+    narx_hidden, narx_delays : int
+        NARX structure: hidden ``tanh`` neurons and output feedback delays.
+    narx_target : {"ekf", "true"}
+        Train on the EKF's estimates (the paper) or on the true states (the controlled
+        experiment).
+    narx_excitation : {"random", "designed"}
+        Training-data excitation (`tanksynth.design.estimators.narx_training.generate_ekf_data`).
+    narx_setpoint_range : tuple of float, optional
+        Set-point range of the designed excitation (state units).
+    narx_prbs_amplitude : float
+        PRBS amplitude of the designed excitation (input units).
+    narx_hold : tuple of int
+        Samples a level (random) or a set-point (designed) is held.
+    narx_seed : int
+        Seed of the training data and weights.
+    narx_time_limit : float, optional
+        Wall-clock cap of each Levenberg-Marquardt restart (s).
     """
 
     Q: float
@@ -67,6 +85,15 @@ class FilterTuning:
     narx_steps: int = 400
     narx_restarts: int = 1
     narx_iterations: int = 60
+    narx_hidden: int = 5
+    narx_delays: int = 2
+    narx_target: str = "ekf"
+    narx_excitation: str = "random"
+    narx_setpoint_range: tuple[float, float] | None = None
+    narx_prbs_amplitude: float = 0.0
+    narx_hold: tuple[int, int] = (30, 150)
+    narx_seed: int = 0
+    narx_time_limit: float | None = None
 
 
 def _factory(kind: str, plant: Plant, ts: float, x0: np.ndarray,
@@ -84,12 +111,38 @@ def _factory(kind: str, plant: Plant, ts: float, x0: np.ndarray,
     elif kind == "ukf":
         template = UnscentedKalmanFilter(plant, UKFTuning(**common))
     else:
-        from tanksynth.design.estimators.narx_training import train_narx
-
-        training = train_narx(plant, KalmanTuning(**common), runs=t.narx_runs, steps=t.narx_steps,
-                              restarts=t.narx_restarts, max_iter=t.narx_iterations, clip=True)
-        template = NARXEstimator(plant, training.tuning)
+        template = NARXEstimator(plant, train_comparison_narx(plant, ts, x0, t).tuning)
     return lambda: EstimatorAdapter(template)
+
+
+def train_comparison_narx(plant: Plant, ts: float, x0: Sequence[float] | np.ndarray,
+                          t: FilterTuning) -> Any:
+    """The NARX estimator of a comparison, trained on EKF data with the tuning's budget.
+
+    Parameters
+    ----------
+    plant : Plant
+    ts : float
+        Sampling period (s).
+    x0 : sequence of float or ndarray
+        Initial estimate (state units).
+    t : FilterTuning
+
+    Returns
+    -------
+    NARXTraining
+        `tanksynth.design.estimators.narx_training.NARXTraining` (tuning, data, diagnostics).
+    """
+    from tanksynth.design.estimators.narx_training import train_narx
+    from tanksynth.runtime.estimators.kalman import KalmanTuning
+
+    ekf = KalmanTuning(Q=t.Q * np.eye(plant.n), R=t.R * np.eye(plant.q), P0=t.P0 * np.eye(plant.n),
+                       x0=np.asarray(x0, dtype=float), ts=ts, substeps=t.substeps, clip=True)
+    return train_narx(plant, ekf, hidden=t.narx_hidden, delays=t.narx_delays, runs=t.narx_runs,
+                      steps=t.narx_steps, restarts=t.narx_restarts, max_iter=t.narx_iterations,
+                      clip=True, target=t.narx_target, excitation=t.narx_excitation,
+                      setpoint_range=t.narx_setpoint_range, prbs_amplitude=t.narx_prbs_amplitude,
+                      hold=t.narx_hold, seed=t.narx_seed, time_limit=t.narx_time_limit)
 
 
 def comparison_estimators(plant: Plant, ts: float, combinations: Mapping[str, str | None],
@@ -218,3 +271,97 @@ def controller_comparison(plant: Plant, estimators: EstimatorFactories, *, x_op:
             ours["computation_time"] = ours.get("estimator_time", 0.0) + ours.get("controller_time", 0.0)
             rows.append(ComparisonRow(name, label, ours))
     return rows
+
+
+@dataclass(frozen=True)
+class StructureCandidate:
+    """One NARX structure tried by `select_narx_structure`.
+
+    Attributes
+    ----------
+    hidden, delays : int
+        Hidden neurons and output feedback delays.
+    ise : float
+        Sum over the held-out scenarios and controlled states of the mean ISE (m^2 s for
+        levels); inf when the loop failed.
+    train_seconds : float
+        Wall-clock training time (s).
+    iterations : int
+        Levenberg-Marquardt iterations of the kept restart.
+    """
+
+    hidden: int
+    delays: int
+    ise: float
+    train_seconds: float
+    iterations: int
+
+
+def select_narx_structure(plant: Plant, ts: float, x_op: Sequence[float], tuning: FilterTuning, *,
+                          gains: Sequence[float], hidden: Sequence[int] = (3, 5, 8),
+                          delays: Sequence[int] = (1, 2),
+                          scenarios: Sequence[str] = ("servo", "regulatory"), runs: int = 2,
+                          seed: int = 101) -> tuple[FilterTuning, list[StructureCandidate]]:
+    """Choose the NARX's hidden neurons and output delays by closed-loop ISE (seed 002 Sec. 3.3).
+
+    Every (hidden, delays) pair is trained with the tuning's data and budget, then run
+    in the loop (default inverse-dynamics law) on held-out scenarios with their own seed
+    (``seed``: other noise than any comparison run with the default seed 0); the pair of
+    least total ISE is kept.
+
+    Parameters
+    ----------
+    plant : Plant
+    ts : float
+        Sampling period (s).
+    x_op : sequence of float
+        Operating levels (state units).
+    tuning : FilterTuning
+        Data, budget and everything but the structure.
+    gains : sequence of float
+        Inverse-dynamics rates ``c_i`` (1/s).
+    hidden, delays : sequence of int
+        The grid.
+    scenarios : sequence of str
+        Held-out scenarios (names in `tanksynth.sim.scenarios.SCENARIOS`).
+    runs, seed : int
+        Monte-Carlo runs per scenario and their base seed.
+
+    Returns
+    -------
+    tuning : FilterTuning
+        ``tuning`` with the chosen ``narx_hidden``, ``narx_delays``.
+    candidates : list of StructureCandidate
+        Every pair tried, in grid order.
+    """
+    import dataclasses
+    import time
+
+    from tanksynth.runtime.estimators.narx import NARXEstimator
+    from tanksynth.sim.simulate import EstimatorAdapter
+
+    out: list[StructureCandidate] = []
+    for h in hidden:
+        for d in delays:
+            t = dataclasses.replace(tuning, narx_hidden=int(h), narx_delays=int(d))
+            start = time.perf_counter()
+            try:
+                training = train_comparison_narx(plant, ts, x_op, t)
+            except TanksynthError:
+                out.append(StructureCandidate(int(h), int(d), math.inf, time.perf_counter() - start, 0))
+                continue
+            seconds = time.perf_counter() - start
+            est = NARXEstimator(plant, training.tuning)
+
+            def factory(e: NARXEstimator = est) -> BatchEstimator:
+                return EstimatorAdapter(e)
+
+            factories: EstimatorFactories = {"ANNC": (factory, "")}
+            rows = controller_comparison(plant, factories, x_op=x_op, gains=gains, ts=ts, runs=runs,
+                                         seed=seed, scenarios=scenarios)
+            total = sum(v for r in rows for k, v in r.metrics.items() if k.startswith("ise_"))
+            out.append(StructureCandidate(int(h), int(d), float(total) if math.isfinite(total)
+                                          else math.inf, seconds,
+                                          int(training.diagnostics["training"]["iterations"])))
+    best = min(out, key=lambda c: c.ise)
+    return dataclasses.replace(tuning, narx_hidden=best.hidden, narx_delays=best.delays), out

@@ -30,7 +30,13 @@ from tanksynth.runtime.estimators.kalman import ExtendedKalmanFilter, KalmanTuni
 from tanksynth.runtime.estimators.narx import NARXEstimator, NARXTuning, forward_pass, open_loop_regressors
 from tanksynth.sim.simulate import simulate_inputs
 
-__all__ = ["NARXTraining", "train_narx", "generate_ekf_data", "levenberg_marquardt", "LMResult"]
+__all__ = ["NARXTraining", "train_narx", "generate_ekf_data", "levenberg_marquardt", "LMResult",
+           "setpoint_equilibrium", "designed_excitation", "EXCITATIONS"]
+
+#: Training-data excitations: ``random`` (uniform piecewise-constant pump levels over the
+#: input range) and ``designed`` (set-point steps over a level range that straddles the
+#: threshold, each held by its equilibrium input, plus a three-level PRBS on every pump).
+EXCITATIONS = ("random", "designed")
 
 
 def _input_schedule(rng: np.random.Generator, steps: int, runs: int, ranges: np.ndarray,
@@ -46,9 +52,143 @@ def _input_schedule(rng: np.random.Generator, steps: int, runs: int, ranges: np.
     return U
 
 
+def setpoint_equilibrium(plant: Plant, levels: Any, tracked: Any = None,
+                         guess: Any = None) -> tuple[np.ndarray, np.ndarray]:
+    """Equilibrium state and input that hold the tracked states at given levels.
+
+    Solves ``f(x, u) = 0`` for the untracked states and the ``m`` inputs, the tracked
+    states fixed (``scipy.optimize.least_squares``, trust region), from ``guess``.
+
+    Parameters
+    ----------
+    plant : Plant
+    levels : array_like, shape (m,)
+        Set-points of the tracked states (state units).
+    tracked : sequence of int, optional
+        Indices of the tracked states (default the first ``m``).
+    guess : array_like, shape (n,), optional
+        Starting state (state units); default the centre of the plant's region box.
+
+    Returns
+    -------
+    x : ndarray, shape (n,)
+        Equilibrium state (state units).
+    u : ndarray, shape (m,)
+        Equilibrium input (input units).
+
+    Raises
+    ------
+    InfeasibleDesign
+        No equilibrium within ``1e-9`` (state units/s) with the input in the actuator range.
+    """
+    from scipy.optimize import least_squares
+
+    n, m = plant.n, plant.m
+    idx = list(range(m)) if tracked is None else [int(i) for i in tracked]
+    free = [i for i in range(n) if i not in idx]
+    lv = as_vector(levels, "levels", len(idx))
+    box = np.array([b for b in plant.region.bounds], dtype=float).reshape(n, 2)
+    x_guess = (box.mean(axis=1) if guess is None else as_vector(guess, "guess", n)).copy()
+    lim = plant.input_limits
+    u_guess = np.where(np.isfinite(lim).all(axis=1), lim.mean(axis=1), 0.0)
+
+    def assemble(z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        x = np.empty(n)
+        x[idx] = lv
+        x[free] = z[:len(free)]
+        return x, z[len(free):]
+
+    def res(z: np.ndarray) -> np.ndarray:
+        x, u = assemble(z)
+        return np.asarray(plant.compiled.rhs(x[None], u[None]), dtype=float)[0] * 1e3
+
+    sol = least_squares(res, np.concatenate([x_guess[free], u_guess]), method="trf",
+                        xtol=1e-14, ftol=1e-14, gtol=1e-14)
+    x, u = assemble(sol.x)
+    if not (np.max(np.abs(res(sol.x))) <= 1e-6 and np.all(u >= lim[:, 0] - 1e-12)
+            and np.all(u <= lim[:, 1] + 1e-12)):
+        raise InfeasibleDesign(f"no equilibrium holds the tracked states at {lv.tolist()} "
+                               "within the actuator range")
+    return x, u
+
+
+def designed_excitation(plant: Plant, rng: np.random.Generator, *, steps: int, runs: int,
+                        setpoint_range: Any, hold: tuple[int, int] = (60, 200),
+                        prbs_amplitude: float = 0.0, prbs_hold: tuple[int, int] = (3, 20),
+                        tracked: Any = None) -> tuple[np.ndarray, np.ndarray]:
+    """Initial states and pump sequences of the ``designed`` NARX excitation (seeded).
+
+    Every run starts at the equilibrium of a random set-point and then steps, every ``hold``
+    samples, to the equilibrium input of a new set-point drawn uniformly in
+    ``setpoint_range`` (a range straddling the pipes' threshold visits both threshold modes;
+    a set-point no input in the actuator range holds is redrawn);
+    on top of it, every pump gets a three-level PRBS ``{-a, 0, +a}`` switching after a
+    random ``prbs_hold`` samples (excitation of the dynamics around each level). Inputs are
+    clipped to the actuator range.
+
+    Parameters
+    ----------
+    plant : Plant
+    rng : numpy.random.Generator
+        The seeded generator (consumed in a fixed order).
+    steps, runs : int
+        Samples per run and runs.
+    setpoint_range : array_like, shape (2,)
+        Lowest and highest set-point of the tracked states (state units).
+    hold : (int, int)
+        Range of samples a set-point is held.
+    prbs_amplitude : float
+        PRBS amplitude ``a`` (input units).
+    prbs_hold : (int, int)
+        Range of samples a PRBS level is held.
+    tracked : sequence of int, optional
+        Tracked states (default the first ``m``).
+
+    Returns
+    -------
+    X0 : ndarray, shape (runs, n)
+        Initial states (state units).
+    U : ndarray, shape (steps, runs, m)
+        Inputs (input units).
+    """
+    lo, hi = (float(v) for v in as_vector(setpoint_range, "setpoint_range", 2))
+    if not lo < hi:
+        raise SpecError("setpoint_range must be [low, high] with low < high", key="setpoint_range")
+    m, n = plant.m, plant.n
+    lim = plant.input_limits
+    X0 = np.empty((runs, n))
+    U = np.empty((steps, runs, m))
+
+    def draw() -> tuple[np.ndarray, np.ndarray]:
+        for _ in range(100):    # set-point pairs no input can hold are redrawn
+            try:
+                return setpoint_equilibrium(plant, rng.uniform(lo, hi, m), tracked)
+            except InfeasibleDesign:
+                continue
+        raise InfeasibleDesign(f"100 set-points drawn in [{lo:g}, {hi:g}] and none can be held "
+                               "by the actuators: narrow setpoint_range")
+
+    for r in range(runs):
+        X0[r], _ = draw()
+        k = 0
+        while k < steps:
+            length = int(rng.integers(hold[0], hold[1] + 1))
+            U[k:k + length, r] = draw()[1]
+            k += length
+        for j in range(m):
+            k = 0
+            while k < steps:
+                length = int(rng.integers(prbs_hold[0], prbs_hold[1] + 1))
+                U[k:k + length, r, j] += prbs_amplitude * float(rng.integers(-1, 2))
+                k += length
+    return X0, np.clip(U, lim[:, 0], lim[:, 1])
+
+
 def generate_ekf_data(plant: Plant, ekf_tuning: KalmanTuning, *, runs: int, steps: int, seed: int,
                       input_range: Any = None, hold: tuple[int, int] = (30, 150),
-                      noise_std: Any = None, sim_substeps: int = 10) -> dict[str, np.ndarray]:
+                      noise_std: Any = None, sim_substeps: int = 10, excitation: str = "random",
+                      setpoint_range: Any = None, prbs_amplitude: float = 0.0,
+                      prbs_hold: tuple[int, int] = (3, 20)) -> dict[str, np.ndarray]:
     """Simulate the plant and run an EKF on it (seeded): the NARX training data.
 
     Parameters
@@ -71,6 +211,17 @@ def generate_ekf_data(plant: Plant, ekf_tuning: KalmanTuning, *, runs: int, step
         RK4 steps per period of the plant simulation (the toolbox's one
         integrator, `tanksynth.sim.simulate_inputs`: levels clipped by the
         plant's rule, switching surfaces located, inputs saturated).
+    excitation : {"random", "designed"}
+        ``random``: levels uniform in ``input_range`` held ``hold`` samples, initial
+        states sampled in the region; ``designed``: `designed_excitation` (set-point
+        steps in ``setpoint_range`` held ``hold`` samples, PRBS of amplitude
+        ``prbs_amplitude`` held ``prbs_hold`` samples).
+    setpoint_range : array_like, shape (2,), optional
+        Set-point range of the designed excitation (state units).
+    prbs_amplitude : float
+        PRBS amplitude of the designed excitation (input units).
+    prbs_hold : (int, int)
+        PRBS hold range of the designed excitation (samples).
 
     Returns
     -------
@@ -90,8 +241,17 @@ def generate_ekf_data(plant: Plant, ekf_tuning: KalmanTuning, *, runs: int, step
                         "are unbounded, give input_range", key="input_range")
     std = np.sqrt(np.diag(ekf_tuning.R)) if noise_std is None else as_vector(noise_std, "noise_std",
                                                                               plant.q)
-    X0 = plant.region.sample(runs, plant.x, seed=seed, margin=0.1)
-    U = _input_schedule(rng, steps, runs, ranges, hold)
+    if excitation == "designed":
+        if setpoint_range is None:
+            raise SpecError("the designed excitation needs setpoint_range", key="setpoint_range")
+        X0, U = designed_excitation(plant, rng, steps=steps, runs=runs, setpoint_range=setpoint_range,
+                                    hold=hold, prbs_amplitude=prbs_amplitude, prbs_hold=prbs_hold)
+    elif excitation == "random":
+        X0 = plant.region.sample(runs, plant.x, seed=seed, margin=0.1)
+        U = _input_schedule(rng, steps, runs, ranges, hold)
+    else:
+        raise SpecError(f"excitation must be one of {', '.join(EXCITATIONS)}, got {excitation!r}",
+                        key="excitation")
     sim = simulate_inputs(plant, X0, U, ekf_tuning.ts, substeps=sim_substeps)
     X = np.ascontiguousarray(sim.x.transpose(1, 0, 2))            # (steps + 1, runs, n)
     U = np.ascontiguousarray(sim.u.transpose(1, 0, 2))            # as applied (saturated)
@@ -178,7 +338,8 @@ class LMResult:
 def levenberg_marquardt(residual: Any, jacobian: Any, x0: np.ndarray, *, max_iter: int = 300,
                         mu: float = 1e-3, mu_dec: float = 0.1, mu_inc: float = 10.0,
                         mu_max: float = 1e10, gtol: float = 1e-9, ftol: float = 1e-12,
-                        validation: Any = None, max_fail: int = 6) -> LMResult:
+                        validation: Any = None, max_fail: int = 6,
+                        time_limit: float | None = None) -> LMResult:
     """Levenberg-Marquardt least squares, ``(J'J + mu I) dx = -J'r`` (MATLAB ``trainlm``).
 
     Parameters
@@ -203,11 +364,16 @@ def levenberg_marquardt(residual: Any, jacobian: Any, x0: np.ndarray, *, max_ite
         smallest validation error are returned and training stops after
         ``max_fail`` accepted steps without improving it (early stopping).
     max_fail : int
+    time_limit : float, optional
+        Wall-clock budget (s): stop after the iteration that exceeds it.
 
     Returns
     -------
     LMResult
     """
+    import time
+
+    start = time.perf_counter()
     x = np.asarray(x0, dtype=float).copy()
     r = residual(x)
     cost = float(r @ r)
@@ -252,6 +418,9 @@ def levenberg_marquardt(residual: Any, jacobian: Any, x0: np.ndarray, *, max_ite
         if rel < ftol:
             message, success = "relative cost decrease below ftol", True
             break
+        if time_limit is not None and time.perf_counter() - start > time_limit:
+            message = f"time limit {time_limit:g} s reached"
+            break
     if validation is None:
         best_x, best_r = x, r
     return LMResult(best_x, best_r, it, float(mu), success, message)
@@ -272,7 +441,9 @@ def train_narx(plant: Plant, ekf_tuning: KalmanTuning, *, hidden: int = 5, delay
                runs: int = 4, validation_runs: int = 1, steps: int = 600, seed: int = 0,
                input_range: Any = None, hold: tuple[int, int] = (30, 150), noise_std: Any = None,
                sim_substeps: int = 10, target: str = "ekf", restarts: int = 3,
-               max_iter: int = 300, max_fail: int = 6, clip: bool = False) -> NARXTraining:
+               max_iter: int = 300, max_fail: int = 6, clip: bool = False,
+               excitation: str = "random", setpoint_range: Any = None, prbs_amplitude: float = 0.0,
+               prbs_hold: tuple[int, int] = (3, 20), time_limit: float | None = None) -> NARXTraining:
     """Generate EKF data over the operating region and fit the NARX estimator by LM.
 
     Parameters
@@ -291,7 +462,7 @@ def train_narx(plant: Plant, ekf_tuning: KalmanTuning, *, hidden: int = 5, delay
         Samples per trajectory.
     seed : int
         Seed of the data and of the weight initialisation.
-    input_range, hold, noise_std, sim_substeps
+    input_range, hold, noise_std, sim_substeps, excitation, setpoint_range, prbs_amplitude, prbs_hold
         See `generate_ekf_data`.
     target : {"ekf", "true"}
         Fit the EKF estimates (the paper) or the simulated true states.
@@ -306,6 +477,9 @@ def train_narx(plant: Plant, ekf_tuning: KalmanTuning, *, hidden: int = 5, delay
         Early stopping: stop after this many accepted iterations without a
         better open-loop validation error (MATLAB's ``max_fail``, 6) and keep
         the best-validated weights.
+    time_limit : float, optional
+        Wall-clock budget of the Levenberg-Marquardt iterations of one restart (s); the
+        best-validated weights so far are kept when it runs out.
 
     Returns
     -------
@@ -324,7 +498,9 @@ def train_narx(plant: Plant, ekf_tuning: KalmanTuning, *, hidden: int = 5, delay
     total = positive_int(runs, "runs") + validation_runs
     data = generate_ekf_data(plant, ekf_tuning, runs=total, steps=steps, seed=seed,
                              input_range=input_range, hold=hold, noise_std=noise_std,
-                             sim_substeps=sim_substeps)
+                             sim_substeps=sim_substeps, excitation=excitation,
+                             setpoint_range=setpoint_range, prbs_amplitude=prbs_amplitude,
+                             prbs_hold=prbs_hold)
     train = {k: v[:, :runs] for k, v in data.items()}
     valid = {k: v[:, runs:] for k, v in data.items()}
     X_in, T, prior = open_loop_regressors(train, ekf_tuning.x0, delays, target)
@@ -369,7 +545,8 @@ def train_narx(plant: Plant, ekf_tuning: KalmanTuning, *, hidden: int = 5, delay
         theta0 = np.concatenate([rng.normal(0, 1 / np.sqrt(nin), hidden * nin), np.zeros(hidden),
                                  rng.normal(0, 1 / np.sqrt(hidden), n * hidden), np.zeros(n)])
         sol = levenberg_marquardt(residual, lambda t: _jacobian(t, Z, hidden, n), theta0,
-                                  max_iter=max_iter, validation=validation, max_fail=max_fail)
+                                  max_iter=max_iter, validation=validation, max_fail=max_fail,
+                                  time_limit=time_limit)
         W1, b1, W2, b2 = (np.array(a) for a in _unpack(sol.x, hidden, nin, n))
         cand = NARXTuning(W1, b1, W2, b2, in_mean, in_scale, out_mean, out_scale, x0=ekf_tuning.x0,
                           ts=ekf_tuning.ts, delays=delays, substeps=ekf_tuning.substeps, clip=clip)
@@ -405,6 +582,11 @@ def train_narx(plant: Plant, ekf_tuning: KalmanTuning, *, hidden: int = 5, delay
                      "input_range": np.asarray(plant.input_limits if input_range is None
                                                else input_range, dtype=float).tolist(),
                      "hold": list(hold), "sim_substeps": sim_substeps,
+                     "excitation": excitation,
+                     "setpoint_range": (None if setpoint_range is None
+                                        else np.asarray(setpoint_range, dtype=float).tolist()),
+                     "prbs_amplitude": float(prbs_amplitude), "prbs_hold": list(prbs_hold),
+                     "time_limit": time_limit,
                      "noise_std": (np.sqrt(np.diag(ekf_tuning.R)) if noise_std is None
                                    else np.asarray(noise_std, dtype=float)).tolist(),
                      "algorithm": "Levenberg-Marquardt on J'J + mu I (MATLAB trainlm)",
