@@ -86,9 +86,9 @@ def test_annc_rows_against_the_paper(results):
             label = [r for r in rows if r.quantity.startswith(head) and r.printed_value == printed]
             assert label and all((r.verdict == "agrees") == within for r in label)
             checked += 1
-    assert checked == 20
-    # 9 of the 20 printed ANNC values reproduced within a factor 2
-    assert 20 - len(EXPECTED_DEVIATIONS) == 9
+    assert checked == 19
+    # 8 of the 19 printed ANNC values (computation times aside) reproduced within a factor 2
+    assert 19 - len(EXPECTED_DEVIATIONS) == 8
 
 
 @pytest.mark.slow
