@@ -398,7 +398,9 @@ def _build_narx(spec: Spec, design: DesignSpec, at: _OperatingPoint, o: NarxOpti
         input_range=None if o.input_range is None else np.array(o.input_range), hold=o.hold,
         noise_std=None if o.noise_std is None else np.array(o.noise_std),
         sim_substeps=o.sim_substeps, target=o.target, restarts=o.restarts, max_iter=o.max_iter,
-        max_fail=o.max_fail, clip=ekf_tuning.clip)
+        max_fail=o.max_fail, clip=ekf_tuning.clip, excitation=o.excitation,
+        setpoint_range=None if o.setpoint_range is None else np.array(o.setpoint_range),
+        prbs_amplitude=o.prbs_amplitude, prbs_hold=o.prbs_hold)
     gains = {**training.tuning.gains(), "ekf_Q": ekf_tuning.Q, "ekf_R": ekf_tuning.R,
              "ekf_P0": ekf_tuning.P0, "training_inputs": training.inputs,
              "training_targets": training.targets}

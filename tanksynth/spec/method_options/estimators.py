@@ -405,7 +405,7 @@ class NarxOptions(KalmanOptions):
         m x 2 ``[min, max]`` of the random inputs (input units); default None:
         the actuator range.
     hold : tuple of int
-        ``(min, max)`` samples each random input is held (1 <= min <= max);
+        ``(min, max)`` samples each random input (or designed set-point) is held (1 <= min <= max);
         default (30, 150).
     noise_std : ndarray or None
         Measurement-noise standard deviation (q values, output units, >= 0);
@@ -420,6 +420,18 @@ class NarxOptions(KalmanOptions):
         Levenberg-Marquardt iterations per restart (>= 1); default 200.
     max_fail : int
         Validation failures before stopping (>= 1); default 6.
+    excitation : str
+        Training-data excitation: ``"random"`` (default: random levels in ``input_range``
+        held ``hold`` samples) or ``"designed"`` (set-point steps in ``setpoint_range`` held
+        ``hold`` samples by their equilibrium inputs, plus a three-level PRBS).
+    setpoint_range : ndarray or None
+        ``[low, high]`` of the designed excitation's set-points (state units); required
+        with ``excitation = "designed"``.
+    prbs_amplitude : float
+        Amplitude of the designed excitation's PRBS on every input (input units, >= 0);
+        default 0.
+    prbs_hold : tuple of int
+        ``(min, max)`` samples a PRBS level is held; default (3, 20).
     """
 
     method_name: ClassVar[str] = "narx"
@@ -438,6 +450,10 @@ class NarxOptions(KalmanOptions):
     restarts: int = option(3, unit="-")
     max_iter: int = option(200, unit="-")
     max_fail: int = option(6, unit="-")
+    excitation: str = option("random", unit="-", choices=("random", "designed"))
+    setpoint_range: np.ndarray | None = option(None, unit="state units")
+    prbs_amplitude: float = option(0.0, unit="input units")
+    prbs_hold: tuple[int, int] = option((3, 20), unit="samples")
 
     @classmethod
     def from_table(cls, options: Mapping[str, Any], key: str, plant: Plant,
@@ -452,7 +468,11 @@ class NarxOptions(KalmanOptions):
                    input_range=r.read("input_range", _input_range, plant.m),
                    hold=r.read("hold", _hold),
                    noise_std=r.read("noise_std", parse_vector, plant.q, at_least=0.0),
-                   target=r.read("target", parse_choice, ("ekf", "true")))
+                   target=r.read("target", parse_choice, ("ekf", "true")),
+                   excitation=r.read("excitation", parse_choice, ("random", "designed")),
+                   setpoint_range=r.read("setpoint_range", parse_vector, 2, at_least=0.0),
+                   prbs_amplitude=r.read("prbs_amplitude", parse_number, at_least=0.0),
+                   prbs_hold=r.read("prbs_hold", _hold))
 
     def memory_estimate(self, plant: Plant, ts: float | None) -> tuple[float, str]:
         """The Levenberg-Marquardt Jacobian (N n x P, built twice) with N = ``steps x runs``

@@ -14,6 +14,7 @@ import numpy as np
 from tanksynth.plants.base import Plant
 from tanksynth.runtime.estimators.kalman import ExtendedKalmanFilter, KalmanTuning
 from tanksynth.runtime.estimators.narx import NARXTuning
+from tanksynth.sim.excitation import designed_excitation
 from tanksynth.sim.simulate import simulate_inputs
 from tanksynth.spec import Spec
 from tanksynth.verify.common import artefact_gain, option
@@ -118,7 +119,8 @@ def narx_tuning(doc: Mapping[str, Any], spec: Spec, ts: float) -> NARXTuning:
 
 def fresh_ekf_data(plant: Plant, ekf_tuning: KalmanTuning, *, runs: int, steps: int, seed: int,
                    input_range: Any = None, hold: Any = (30, 150), noise_std: Any = None,
-                   sim_substeps: int = 10) -> dict[str, np.ndarray]:
+                   sim_substeps: int = 10, excitation: str = "random", setpoint_range: Any = None,
+                   prbs_amplitude: float = 0.0, prbs_hold: Any = (3, 20)) -> dict[str, np.ndarray]:
     """Fresh EKF data for the NARX verdict, drawn by the verdict itself (not by the design code).
 
     Random piecewise-constant inputs (levels uniform in ``input_range``, default the
@@ -137,6 +139,16 @@ def fresh_ekf_data(plant: Plant, ekf_tuning: KalmanTuning, *, runs: int, steps: 
         Input levels (input units, m^3/s; None: actuator range), hold lengths (samples).
     noise_std, sim_substeps : array_like (q,) or None, int
         Measurement noise standard deviation (output units, m), RK4 steps per sample.
+    excitation : {"random", "designed"}
+        ``designed``: `tanksynth.sim.excitation.designed_excitation` (set-point steps in
+        ``setpoint_range`` held ``hold`` samples, PRBS ``prbs_amplitude`` held ``prbs_hold``)
+        instead of the random levels above.
+    setpoint_range : array_like (2,) or None
+        Set-point range of the designed excitation (state units, m).
+    prbs_amplitude : float
+        PRBS amplitude of the designed excitation (input units, m^3/s).
+    prbs_hold : (int, int)
+        PRBS hold range of the designed excitation (samples).
 
     Returns
     -------
@@ -148,14 +160,20 @@ def fresh_ekf_data(plant: Plant, ekf_tuning: KalmanTuning, *, runs: int, steps: 
     ranges = np.asarray(plant.input_limits if input_range is None else input_range,
                         dtype=float).reshape(plant.m, 2)
     low, high = int(hold[0]), int(hold[1])
-    U = np.empty((steps, runs, plant.m))
-    for r in range(runs):
-        k = 0
-        while k < steps:
-            length = int(rng.integers(low, high + 1))
-            U[k:k + length, r] = rng.uniform(ranges[:, 0], ranges[:, 1])
-            k += length
-    X0 = plant.region.sample(runs, plant.x, seed=seed, margin=0.1)
+    if excitation == "designed":
+        X0, U = designed_excitation(plant, rng, steps=steps, runs=runs,
+                                    setpoint_range=setpoint_range, hold=(low, high),
+                                    prbs_amplitude=float(prbs_amplitude),
+                                    prbs_hold=(int(prbs_hold[0]), int(prbs_hold[1])))
+    else:
+        U = np.empty((steps, runs, plant.m))
+        for r in range(runs):
+            k = 0
+            while k < steps:
+                length = int(rng.integers(low, high + 1))
+                U[k:k + length, r] = rng.uniform(ranges[:, 0], ranges[:, 1])
+                k += length
+        X0 = plant.region.sample(runs, plant.x, seed=seed, margin=0.1)
     sim = simulate_inputs(plant, X0, U, ekf_tuning.ts, substeps=sim_substeps)
     X = np.ascontiguousarray(sim.x.transpose(1, 0, 2))
     U = np.ascontiguousarray(sim.u.transpose(1, 0, 2))

@@ -500,7 +500,11 @@ def narx_verdict(doc: Mapping[str, Any], spec: Spec, *,
         runs = 2
         data = fresh_ekf_data(plant, ekf, runs=runs, steps=steps, seed=seed,
                                  input_range=input_range, hold=hold, noise_std=noise,
-                                 sim_substeps=int(option(doc, spec, "sim_substeps", 10)))
+                                 sim_substeps=int(option(doc, spec, "sim_substeps", 10)),
+                                 excitation=str(option(doc, spec, "excitation", "random")),
+                                 setpoint_range=option(doc, spec, "setpoint_range"),
+                                 prbs_amplitude=float(option(doc, spec, "prbs_amplitude", 0.0)),
+                                 prbs_hold=tuple(option(doc, spec, "prbs_hold", [3, 20])))
         X_in, T = teacher_forced_inputs(data, tuning.x0, delays, target)
         mse = np.mean((predict(X_in) - T) ** 2, axis=0)
         out: list[Check] = []
