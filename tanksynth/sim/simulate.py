@@ -44,6 +44,7 @@ run, no noise): training and test data for estimators.
 
 from __future__ import annotations
 
+import os
 import time
 from dataclasses import dataclass
 from typing import Any, Callable, Mapping, Sequence
@@ -55,6 +56,7 @@ from tanksynth.plants.base import Plant
 from tanksynth.sim.inputs import (BatchEstimator, ConstantInput, ControlLaw, EstimatorAdapter,
                                   InputSequence, ParameterChange, StateJump)
 from tanksynth.sim.affine import affine_horizon
+from tanksynth.sim.closed_loop import loop_kernel, run_closed_loop
 from tanksynth.sim.integrate import Integrator, input_limits, param_arrays
 
 __all__ = [
@@ -333,6 +335,10 @@ def simulate(plant: Plant, *, ts: float, steps: int, x0: Sequence[float] | np.nd
             if estimator is not None:
                 done = _estimate(estimator, done, u_prev, timing)
             return _pack(*done, ref, seeds, ts, substeps, integ, timing, plant)
+    loop = _kernel_loop(plant, integ, controller, x, ref, w, v, params, schedule, jump_at, M,
+                        ts, int(substeps), timing) if estimator is None else None
+    if loop is not None:
+        return _pack(*loop, ref, seeds, ts, substeps, integ, timing, plant)
     affine = getattr(controller, "affine", None)
     if affine is not None and estimator is None and not noisy and not schedule and not jump_at:
         # u_k = b_k - K (x_k - x_ref): law and plant in one CasADi call over the horizon
@@ -391,6 +397,42 @@ def simulate(plant: Plant, *, ts: float, steps: int, x0: Sequence[float] | np.nd
             x = integ.clip_counted(x + w[:, k])
         u_prev = u
     return _result(X, Y, U, XH, ref, seeds, modes, ts, substeps, integ, timing, plant)
+
+
+def _kernel_loop(plant: Plant, integ: Integrator, controller: Any, x: np.ndarray, ref: np.ndarray,
+                 w: np.ndarray | None, v: np.ndarray | None, params: dict[str, Any],
+                 schedule: Mapping[int, list], jump_at: Mapping[int, np.ndarray], M: int, ts: float,
+                 substeps: int, timing: dict) -> _Runs | None:
+    """The closed loop through its compiled kernel (`tanksynth.sim.closed_loop`), or None.
+
+    For a controller offering ``loop_law(runs)`` with the true state fed back; None (nothing
+    changed, the controller's state included) when there is no kernel or a run stopped in it.
+    """
+    offer = getattr(controller, "loop_law", None)
+    if offer is None or os.environ.get("TANKSYNTH_SIM_BACKEND", "").strip().lower() == "numpy":
+        return None
+    law = offer(M)
+    if law is None:
+        return None
+    N = ref.shape[0] - 1
+    kernel = loop_kernel(integ.model, law, ref.shape[1], work=float(M) * N * substeps)
+    if kernel is None:
+        return None
+
+    def update(p: dict[str, Any], values: Mapping[str, Any]) -> None:
+        p.update({name: param_arrays(plant, values, M)[name] for name in values})
+
+    done = run_closed_loop(integ, kernel, law, x, ref, w, params,
+                           lambda p: input_limits(plant, p, M), schedule, update, jump_at, ts,
+                           substeps)
+    if done is None:
+        return None
+    X, Y, U, modes, seconds = done
+    if v is not None:   # noisy
+        Y += v
+    timing["controller"] += seconds
+    timing["calls"] = N
+    return X, Y, U, X.copy(), modes
 
 
 def _open_loop(integ: Integrator, x: np.ndarray, seq: np.ndarray, params: dict[str, Any],
