@@ -72,7 +72,9 @@ THREAD_WORK = 2e5
 _CACHE = NativeCache("loop", "tk_loop_")
 _STATUS = ["no closed-loop kernel asked for yet"]
 _SAID: set[str] = set()
-_POOL: list[ThreadPoolExecutor] = []
+#: id(law Function) -> (the Function, SHA-256 of its serialisation), the newest last.
+_IDS: dict[int, tuple[Any, str]] = {}
+_POOL: list[Any] = []          # [executor, its workers]
 
 
 @dataclass
@@ -111,7 +113,7 @@ static int tk_loop_block_{B}(long r0, long N, int S, double h, const double *x0,
         double *Z, long zM, const double *R, long rN, const double *W, long wM, long wN,
         const double *C, long cM, const double *P, long pM, const double *ULO,
         const double *UHI, long lM, const double *lo, const double *hi, double *X, long xM,
-        long xN, double *U, long uM, long uN, uint64_t *LOW, uint64_t *HIGH, long fM,
+        long xN, double *U, long uM, long uN, uint64_t *LOW, uint64_t *HIGH,
         int64_t *stop) {
     double x[NX][{B}], ub[NUA][{B}], cb[NCA][{B}], pb[NPA][{B}];
     double xj[NX], uj[NUA], zn[NZA];
@@ -163,8 +165,8 @@ static int tk_loop_block_{B}(long r0, long N, int S, double h, const double *x0,
                 if (!isfinite(x[i][j])) { stop[r] = k; return 1; }
                 out[i] = x[i][j];
             }
-            LOW[r * fM + k] = lowf[j];
-            HIGH[r * fM + k] = highf[j];
+            LOW[k] |= lowf[j];
+            HIGH[k] |= highf[j];
         }
     }
     return 0;
@@ -177,17 +179,17 @@ int tk_loop(long rb, long re, long N, int S, double h, const double *x0, long x0
             double *Z, long zM, const double *R, long rN, const double *W, long wM, long wN,
             const double *C, long cM, const double *P, long pM, const double *ULO,
             const double *UHI, long lM, const double *lo, const double *hi, double *X, long xM,
-            long xN, double *U, long uM, long uN, uint64_t *LOW, uint64_t *HIGH, long fM,
+            long xN, double *U, long uM, long uN, uint64_t *LOW, uint64_t *HIGH,
             int64_t *stop) {
     if (S < 1 || S > 63) return -1;
     long r = rb;
     for (; r + {BLOCK} <= re; r += {BLOCK})
         if (tk_loop_block_{BLOCK}(r, N, S, h, x0, x0M, Z, zM, R, rN, W, wM, wN, C, cM, P, pM,
-                                  ULO, UHI, lM, lo, hi, X, xM, xN, U, uM, uN, LOW, HIGH, fM,
+                                  ULO, UHI, lM, lo, hi, X, xM, xN, U, uM, uN, LOW, HIGH,
                                   stop)) return 1;
     for (; r < re; r++)
         if (tk_loop_block_1(r, N, S, h, x0, x0M, Z, zM, R, rN, W, wM, wN, C, cM, P, pM,
-                            ULO, UHI, lM, lo, hi, X, xM, xN, U, uM, uN, LOW, HIGH, fM,
+                            ULO, UHI, lM, lo, hi, X, xM, xN, U, uM, uN, LOW, HIGH,
                             stop)) return 1;
     return 0;
 }
@@ -241,7 +243,7 @@ def loop_source(model: Any, function: Any) -> str:
 _LP, _DP, _I = ctypes.c_long, ctypes.c_void_p, ctypes.c_int
 _ARGTYPES = (_LP, _LP, _LP, _I, ctypes.c_double, _DP, _LP, _DP, _LP, _DP, _LP, _DP, _LP, _LP,
              _DP, _LP, _DP, _LP, _DP, _DP, _LP, _DP, _DP, _DP, _LP, _LP, _DP, _LP, _LP, _DP, _DP,
-             _LP, _DP)
+             _DP)
 
 
 class LoopKernel:
@@ -310,16 +312,17 @@ class LoopKernel:
         stop : ndarray of int64, shape (M,)
             -1, or the period where the run stopped (a hybrid mode change inside
             the period, a non-finite input or state): the results are then incomplete.
-        low, high : ndarray of uint64, shape (M, N)
-            Per run and period: bit ``s`` set when RK4 step ``s`` passed the lower
-            (upper) bound before clipping, bit 63 when the process noise did.
+        low, high : ndarray of uint64, shape (N,)
+            Per period, over the runs: bit ``s`` set when RK4 step ``s`` of some run
+            passed the lower (upper) bound before clipping, bit 63 when the process
+            noise did.
         """
         M, N = x0.shape[0], R.shape[0]
         stop = np.full(M, -1, dtype=np.int64)
-        low = np.zeros((M, N), dtype=np.uint64)
-        high = np.zeros((M, N), dtype=np.uint64)
+        cuts = _cuts(M, threads)
+        flags = np.zeros((2, len(cuts) - 1, N), dtype=np.uint64)
         if M == 0 or N == 0:
-            return stop, low, high
+            return stop, flags[0, 0], flags[1, 0]
         item = 8
         x0 = np.ascontiguousarray(x0, dtype=float)
         lo = np.ascontiguousarray(lower, dtype=float)
@@ -334,6 +337,7 @@ class LoopKernel:
         if not (Zc.flags.c_contiguous and Zc.dtype == np.float64 and X.shape == (M, N, self.n)
                 and U.shape == (M, N, self.m) and C.shape[0] == P.shape[0] == M
                 and ulo.shape == uhi.shape == (M, self.m) and lo.shape == hi.shape == (self.n,)
+                and x0.shape == (M, self.n)
                 and (W is None or (W.shape == (M, N, self.n) and W.dtype == np.float64))):
             raise ValueError("closed-loop kernel: unsupported array shapes or types")
         for a in (C, P, X, U) + ((W,) if W is not None else ()):
@@ -346,17 +350,19 @@ class LoopKernel:
                 C.ctypes.data, C.strides[0] // item, P.ctypes.data, P.strides[0] // item,
                 ulo.ctypes.data, uhi.ctypes.data, self.m, lo.ctypes.data, hi.ctypes.data,
                 X.ctypes.data, X.strides[0] // item, X.strides[1] // item, U.ctypes.data,
-                U.strides[0] // item, U.strides[1] // item, low.ctypes.data, high.ctypes.data,
-                N, stop.ctypes.data)
-        cuts = _cuts(M, threads)
+                U.strides[0] // item, U.strides[1] // item)
+        tail = stop.ctypes.data
+        fl = [(flags[0, i].ctypes.data, flags[1, i].ctypes.data) for i in range(len(cuts) - 1)]
         if len(cuts) == 2:
-            status = [self._fn(cuts[0], cuts[1], N, *args)]
-        else:
-            pool = _pool(len(cuts) - 1)
-            jobs = [pool.submit(self._fn, a, b, N, *args) for a, b in zip(cuts[:-1], cuts[1:])]
-            status = [j.result() for j in jobs]
+            status = [self._fn(0, M, N, *args, *fl[0], tail)]
+        else:                        # the first block here, the others in the pool's threads
+            pool = _pool(len(cuts) - 2)
+            jobs = [pool.submit(self._fn, a, b, N, *args, *f, tail)
+                    for a, b, f in zip(cuts[1:-1], cuts[2:], fl[1:])]
+            status = [self._fn(0, cuts[1], N, *args, *fl[0], tail)] + [j.result() for j in jobs]
         if any(s < 0 for s in status):
             raise ValueError(f"closed-loop kernel refused substeps = {substeps}")
+        low, high = np.bitwise_or.reduce(flags, axis=1) if len(cuts) > 2 else flags[:, 0]
         return stop, low, high
 
 
@@ -372,8 +378,9 @@ def _cuts(M: int, threads: int) -> list[int]:
 
 
 def _pool(workers: int) -> ThreadPoolExecutor:
-    if not _POOL or _POOL[0]._max_workers < workers:
-        _POOL[:] = [ThreadPoolExecutor(max_workers=workers, thread_name_prefix="tanksynth-loop")]
+    if not _POOL or _POOL[1] < workers:
+        _POOL[:] = [ThreadPoolExecutor(max_workers=workers, thread_name_prefix="tanksynth-loop"),
+                    workers]
     return _POOL[0]
 
 
@@ -431,14 +438,16 @@ def loop_kernel(model: Any, law: LoopLaw, nr: int, work: float | None = None) ->
         _STATUS[0] = "numpy backend requested (TANKSYNTH_SIM_BACKEND=numpy)"
         return None
     fn = law.function
-    ident = model.compiled.get(("loop-id", id(fn)))
+    ident = _IDS.get(id(fn))
     if ident is None or ident[0] is not fn:
         try:
             digest = hashlib.sha256(fn.serialize().encode()).hexdigest()
         except (RuntimeError, AttributeError):
             _STATUS[0] = "the law cannot be serialised: no closed-loop kernel"
             return None
-        ident = model.compiled[("loop-id", id(fn))] = (fn, digest)
+        ident = _IDS[id(fn)] = (fn, digest)
+        while len(_IDS) > 256:                       # the oldest laws forgotten first
+            del _IDS[next(iter(_IDS))]
     key = ("loop", ident[1], nr, env)
     cached = model.compiled.get(key)
     if cached is not None:
@@ -516,11 +525,10 @@ def cache_info() -> dict[str, object]:
 
 # ----------------------------------------------------------------------------- the loop
 def _popcount(flags: np.ndarray) -> int:
-    """Set bits of the OR over the runs of every period's flags (uint64 (M, N))."""
-    if flags.size == 0:
-        return 0
-    merged = np.bitwise_or.reduce(flags, axis=0)
-    return int(np.unpackbits(merged.view(np.uint8)).sum())
+    """Set bits of the periods' flags (uint64 (N,))."""
+    if hasattr(np, "bitwise_count"):
+        return int(np.bitwise_count(flags).sum())
+    return int(np.unpackbits(flags.view(np.uint8)).sum())          # numpy < 2
 
 
 def run_closed_loop(integ: Any, kernel: LoopKernel, law: LoopLaw, x: np.ndarray, refs: np.ndarray,
