@@ -32,8 +32,9 @@ the log, logger ``tanksynth.sim``), a law that cannot be generated.
 
 Building: the same policy as the plant's kernel (`tanksynth.sim.kernel`):
 ``TANKSYNTH_SIM_BACKEND=auto`` loads a kernel already on disk and
-compiles a new one only for a simulation of at least
-`tanksynth.sim.kernel.BUILD_WORK` state-steps; ``native`` always compiles.
+compiles a new one once the simulations of the same plant and law in the
+process add up to `tanksynth.sim.kernel.BUILD_WORK` state-steps; ``native``
+always compiles.
 Cache: the native-compile cache family ``loop`` (``tk_loop_*.so`` in
 ``$TANKSYNTH_CACHE_DIR/loop``, see `tanksynth.native_cache`); `cache_info`
 and `clear_cache` as for the plant kernels.
@@ -74,6 +75,8 @@ _STATUS = ["no closed-loop kernel asked for yet"]
 _SAID: set[str] = set()
 #: id(law Function) -> (the Function, SHA-256 of its serialisation), the newest last.
 _IDS: dict[int, tuple[Any, str]] = {}
+#: State-steps of the simulations that asked for a kernel not built yet, by kernel key.
+_WORK: dict[tuple, float] = {}
 _POOL: list[Any] = []          # [executor, its workers]
 
 
@@ -414,8 +417,9 @@ def loop_kernel(model: Any, law: LoopLaw, nr: int, work: float | None = None) ->
     Built once per plant structure, law (its serialised CasADi Function) and
     compiler, kept in memory (on the plant's model) and on disk (family ``loop``).
     With ``TANKSYNTH_SIM_BACKEND=auto`` (default) a kernel on disk is always
-    loaded and a new one compiled only for a simulation of at least
-    `tanksynth.sim.kernel.BUILD_WORK` state-steps; ``native`` always compiles;
+    loaded and a new one compiled once the simulations of this plant and law in
+    this process add up to `tanksynth.sim.kernel.BUILD_WORK` state-steps (one
+    large simulation, or the tasks of a campaign); ``native`` always compiles;
     ``numpy`` never uses one. The reason for None is in `loop_status`.
 
     Parameters
@@ -453,7 +457,13 @@ def loop_kernel(model: Any, law: LoopLaw, nr: int, work: float | None = None) ->
     if cached is not None:
         _STATUS[0] = cached[1]
         return cached[0]
-    build = backend == "native" or (work is not None and work * model.n >= BUILD_WORK)
+    # the work asked for this law so far in this process: repeated small simulations of one law
+    # (campaign tasks, verdicts) add up to a build
+    total = _WORK.get(key, 0.0) + (0.0 if work is None else float(work) * model.n)
+    _WORK[key] = total
+    while len(_WORK) > 256:
+        del _WORK[next(iter(_WORK))]
+    build = backend == "native" or total >= BUILD_WORK
     kernel = _build(model, law, nr, build)
     if kernel is not None or build:
         model.compiled[key] = (kernel, _STATUS[0])
@@ -487,7 +497,7 @@ def _build(model: Any, law: LoopLaw, nr: int, build: bool) -> LoopKernel | None:
             _say(_STATUS[0], logging.WARNING)
         return None
     if lib is None:
-        _STATUS[0] = (f"closed-loop kernel not built: a small simulation (below {BUILD_WORK:.0e} "
+        _STATUS[0] = (f"closed-loop kernel not built: small simulations so far (below {BUILD_WORK:.0e} "
                       f"state-steps; TANKSYNTH_SIM_BACKEND=native to build anyway)")
         return None
     _STATUS[0] = (f"closed-loop kernel {lib.path.name}"
