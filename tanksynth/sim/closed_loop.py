@@ -313,12 +313,13 @@ class LoopKernel:
         Returns
         -------
         stop : ndarray of int64, shape (M,)
-            -1, or the period where the run stopped (a hybrid mode change inside
-            the period, a non-finite input or state): the results are then incomplete.
+            -1, or the period where the run stopped (an index, dimensionless; a hybrid
+            mode change inside the period, a non-finite input or state): the results
+            are then incomplete.
         low, high : ndarray of uint64, shape (N,)
-            Per period, over the runs: bit ``s`` set when RK4 step ``s`` of some run
-            passed the lower (upper) bound before clipping, bit 63 when the process
-            noise did.
+            Flag bits per period (dimensionless), over the runs: bit ``s`` set when RK4
+            step ``s`` of some run passed the lower (upper) bound before clipping, bit
+            63 when the process noise did.
         """
         M, N = x0.shape[0], R.shape[0]
         stop = np.full(M, -1, dtype=np.int64)
@@ -356,13 +357,15 @@ class LoopKernel:
                 U.strides[0] // item, U.strides[1] // item)
         tail = stop.ctypes.data
         fl = [(flags[0, i].ctypes.data, flags[1, i].ctypes.data) for i in range(len(cuts) - 1)]
+        def call(a: int, b: int, f: tuple[int, int]) -> int:
+            return int(self._fn(a, b, N, *args, *f, tail))
+
         if len(cuts) == 2:
-            status = [self._fn(0, M, N, *args, *fl[0], tail)]
+            status = [call(0, M, fl[0])]
         else:                        # the first block here, the others in the pool's threads
             pool = _pool(len(cuts) - 2)
-            jobs = [pool.submit(self._fn, a, b, N, *args, *f, tail)
-                    for a, b, f in zip(cuts[1:-1], cuts[2:], fl[1:])]
-            status = [self._fn(0, cuts[1], N, *args, *fl[0], tail)] + [j.result() for j in jobs]
+            jobs = [pool.submit(call, a, b, f) for a, b, f in zip(cuts[1:-1], cuts[2:], fl[1:])]
+            status = [call(0, cuts[1], fl[0])] + [j.result() for j in jobs]
         if any(s < 0 for s in status):
             raise ValueError(f"closed-loop kernel refused substeps = {substeps}")
         low, high = np.bitwise_or.reduce(flags, axis=1) if len(cuts) > 2 else flags[:, 0]
@@ -545,7 +548,7 @@ def run_closed_loop(integ: Any, kernel: LoopKernel, law: LoopLaw, x: np.ndarray,
                     W: np.ndarray | None, params: dict[str, Any], limits: Callable[[dict], tuple],
                     schedule: Mapping[int, list], update: Callable[[dict, Mapping], None],
                     jumps: Mapping[int, np.ndarray], ts: float, substeps: int,
-                    threads: int | None = None) -> tuple[np.ndarray, ...] | None:
+                    threads: int | None = None) -> tuple[Any, ...] | None:
     """The closed loop over the horizon through the kernel, or None (then the loop).
 
     Parameters
@@ -641,6 +644,10 @@ def _outputs(integ: Any, X: np.ndarray, p: Mapping[str, Any], Y: np.ndarray,
     """Outputs ``h(x)`` and mode bits of the samples X (M, L, n) into Y and modes (same numbers
     as sample by sample: elementwise, per-run parameters repeated over the samples)."""
     M, L, n = X.shape
+    index = integ.model.output_index
+    if index is not None and not integ.model.k:    # y = selected states: the same numbers
+        Y[...] = X if index == tuple(range(n)) else X[:, :, list(index)]
+        return
     flat = X.reshape(-1, n)
     rows = p
     if any(np.ndim(v) for v in p.values()):

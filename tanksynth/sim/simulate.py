@@ -299,13 +299,7 @@ def simulate(plant: Plant, *, ts: float, steps: int, x0: Sequence[float] | np.nd
     w: np.ndarray | None = None   # process noise, (M, N, n) when noisy
     v: np.ndarray | None = None   # measurement noise, (M, N + 1, q) when noisy
     if noisy:
-        w, v = np.empty((M, N, n)), np.empty((M, N + 1, q))
-        for r, s in enumerate(seeds):
-            rng = np.random.default_rng(int(s))
-            w[r] = rng.standard_normal((N, n))
-            v[r] = rng.standard_normal((N + 1, q))
-        w *= wstd
-        v *= vstd
+        w, v = _draw_noise(seeds, N, n, q, wstd, vstd)
 
     # Time-major buffers (contiguous writes per sample), returned run-major.
     X = np.empty((N + 1, M, n))
@@ -335,10 +329,10 @@ def simulate(plant: Plant, *, ts: float, steps: int, x0: Sequence[float] | np.nd
             if estimator is not None:
                 done = _estimate(estimator, done, u_prev, timing)
             return _pack(*done, ref, seeds, ts, substeps, integ, timing, plant)
-    loop = _kernel_loop(plant, integ, controller, x, ref, w, v, params, schedule, jump_at, M,
-                        ts, int(substeps), timing) if estimator is None else None
-    if loop is not None:
-        return _pack(*loop, ref, seeds, ts, substeps, integ, timing, plant)
+    compiled = _kernel_loop(plant, integ, controller, x, ref, w, v, params, schedule, jump_at, M,
+                            ts, int(substeps), timing) if estimator is None else None
+    if compiled is not None:
+        return _pack(*compiled, ref, seeds, ts, substeps, integ, timing, plant)
     affine = getattr(controller, "affine", None)
     if affine is not None and estimator is None and not noisy and not schedule and not jump_at:
         # u_k = b_k - K (x_k - x_ref): law and plant in one CasADi call over the horizon
@@ -399,6 +393,38 @@ def simulate(plant: Plant, *, ts: float, steps: int, x0: Sequence[float] | np.nd
     return _result(X, Y, U, XH, ref, seeds, modes, ts, substeps, integ, timing, plant)
 
 
+#: Runs of noise drawn per thread task (`_draw_noise`); fewer runs are drawn in one thread.
+_NOISE_BLOCK = 512
+
+
+def _draw_noise(seeds: np.ndarray, N: int, n: int, q: int, wstd: np.ndarray,
+                vstd: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Process (M, N, n) and measurement (M, N + 1, q) noise: one generator per run, process
+    draws first. Blocks of runs drawn in threads (numpy's generators release the GIL while
+    they fill): the same numbers, each run's from its own seed."""
+    M = seeds.size
+    w, v = np.empty((M, N, n)), np.empty((M, N + 1, q))
+
+    def block(a: int, b: int) -> None:
+        for r in range(a, b):
+            rng = np.random.default_rng(int(seeds[r]))
+            rng.standard_normal(out=w[r])
+            rng.standard_normal(out=v[r])
+        w[a:b] *= wstd
+        v[a:b] *= vstd
+
+    cuts = list(range(0, M, _NOISE_BLOCK)) + [M]
+    if len(cuts) <= 2:
+        block(0, M)
+    else:
+        from concurrent.futures import ThreadPoolExecutor
+
+        with ThreadPoolExecutor(max_workers=max(1, min(len(cuts) - 1, os.cpu_count() or 1))) as pool:
+            for job in [pool.submit(block, a, b) for a, b in zip(cuts[:-1], cuts[1:])]:
+                job.result()
+    return w, v
+
+
 def _kernel_loop(plant: Plant, integ: Integrator, controller: Any, x: np.ndarray, ref: np.ndarray,
                  w: np.ndarray | None, v: np.ndarray | None, params: dict[str, Any],
                  schedule: Mapping[int, list], jump_at: Mapping[int, np.ndarray], M: int, ts: float,
@@ -432,7 +458,7 @@ def _kernel_loop(plant: Plant, integ: Integrator, controller: Any, x: np.ndarray
         Y += v
     timing["controller"] += seconds
     timing["calls"] = N
-    return X, Y, U, X.copy(), modes
+    return X, Y, U, X.view(), modes      # the true state fed back: x_hat is x (read-only view)
 
 
 def _open_loop(integ: Integrator, x: np.ndarray, seq: np.ndarray, params: dict[str, Any],
