@@ -38,6 +38,12 @@ estimator is called with ``(y_k, u_{k-1})`` and returns ``x_hat_k``; the
 control law maps ``(x_hat_k, r_k, t_k)`` to ``u_k``, which is saturated and
 held over ``[t_k, t_{k+1})``. At ``k = 0``, ``u_{-1}`` is ``u_init``.
 
+Closed loops whose law describes itself as a CasADi Function (``loop_law``)
+and feeds back the true state run through one compiled kernel over the whole
+horizon (`tanksynth.sim.closed_loop`: law, saturation, plant, process noise;
+the same numbers); ``TANKSYNTH_SIM_BACKEND=numpy`` forces the period-by-period
+loop.
+
 `simulate_inputs` is the open-loop special case (a given input sequence per
 run, no noise): training and test data for estimators.
 """
@@ -112,12 +118,15 @@ class SimulationResult:
     timing : dict
         Wall-clock seconds spent in ``estimator`` and ``controller`` calls,
         ``calls`` (samples) and ``runs`` (M): the batch per-step time is
-        ``timing["controller"] / calls``.
+        ``timing["controller"] / calls``. Through the closed-loop kernel
+        (backend ``"loop"``) ``controller`` is the kernel's time: law and plant
+        together.
     plant : str
         Plant model name.
     backend : str
-        Route that integrated the periods (``"native"``: the plant's compiled C
-        kernel, ``"casadi"``, ``"numpy"``; several joined by ``+``), see
+        Route that integrated the periods (``"loop"``: the closed loop's compiled
+        kernel, law included, `tanksynth.sim.closed_loop`; ``"native"``: the plant's
+        compiled C kernel, ``"casadi"``, ``"numpy"``; several joined by ``+``), see
         `tanksynth.sim.integrate.Integrator.backends` and, when it is not
         ``"native"``, `tanksynth.sim.kernel.kernel_status` for why.
     """
