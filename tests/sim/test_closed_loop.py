@@ -218,3 +218,16 @@ def test_threads_give_the_numbers_of_one_block(loop_cache, monkeypatch):
     assert np.array_equal(many.x, one.x) and np.array_equal(many.u, one.u)
     assert (many.clipped_low, many.clipped_high) == (one.clipped_low, one.clipped_high)
     assert closed_loop._cuts(45, 2) == [0, 24, 45] and closed_loop._cuts(7, 2) == [0, 7]
+
+
+def test_a_non_finite_input_is_still_the_loops_error(loop_cache):
+    """The kernel stops at a non-finite input; the loop then names the run and sample."""
+    import casadi as ca
+
+    from tanksynth.errors import SimulationError
+
+    x, r = ca.SX.sym("x", 3), ca.SX.sym("r", 2)
+    bad = ca.Function("bad", [x, r], [ca.vertcat(ca.sqrt(0.35 - x[0]), 1e-5 + 0 * x[1])])
+    with pytest.raises(SimulationError, match="non-finite input"):
+        simulate(TANK, ts=1.0, steps=200, x0=X0 - 0.1, seeds=[0], controller=CasadiControlLaw(bad),
+                 reference=_reference(200), u_init=U0)
