@@ -178,8 +178,8 @@ def estimators_rows(inputs: ReportInputs) -> tuple[PaperRow, ...]:
     return tuple(rows)
 
 
-#: Estimator method -> the paper's controller that uses it.
-_ESTIMATOR_OF = {"ekf": "EKFC", "narx": "ANNC", "ukf": "UKFC"}
+#: The paper's controller -> the estimator method it uses.
+_ESTIMATOR_OF = {"EKFC": "ekf", "ANNC": "narx", "UKFC": "ukf"}
 
 
 def _timing_row(inputs: ReportInputs) -> PaperRow | None:
@@ -190,7 +190,7 @@ def _timing_row(inputs: ReportInputs) -> PaperRow | None:
     """
     times: dict[str, float] = {}
     machine = ""
-    for method, ctrl in _ESTIMATOR_OF.items():
+    for ctrl, method in _ESTIMATOR_OF.items():
         for art in inputs.by_method(method):
             for c in ((art.get("verification") or {}).get("checks") or ()):
                 data = c.get("data") or {}

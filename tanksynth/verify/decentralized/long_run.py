@@ -80,7 +80,7 @@ def one_step_gain(P_pred: np.ndarray, C: np.ndarray, R: np.ndarray, E: np.ndarra
     R : ndarray, shape (q, q)
         Measurement-noise covariance (squared output units).
     E : ndarray, shape (n, q)
-        0/1 pattern of the free gain entries.
+        0/1 pattern of the free gain entries (dimensionless).
 
     Returns
     -------
@@ -170,7 +170,7 @@ def long_run(plant: Plant, x0: np.ndarray, inputs: np.ndarray, ts: float, Qc: np
     P0 : ndarray, shape (n, n)
         Initial covariance (squared state units).
     E : ndarray, shape (n, q)
-        0/1 pattern of the decentralised gain.
+        0/1 pattern of the decentralised gain (dimensionless).
     relinearize_every : int
         Samples between linearisations (truth noise and each filter's model).
     seed : int
@@ -189,7 +189,7 @@ def long_run(plant: Plant, x0: np.ndarray, inputs: np.ndarray, ts: float, Qc: np
     Lr = np.linalg.cholesky(R)
     steps = inputs.shape[0]
     X, Y = np.empty((steps, n)), np.empty((steps, q))
-    Lq = np.zeros((n, n))
+    Lq: np.ndarray = np.zeros((n, n))
     for k in range(steps):
         u = inputs[k]
         if k % relinearize_every == 0:
