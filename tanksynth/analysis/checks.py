@@ -239,16 +239,17 @@ def _symbolic_check(plant: Plant, x0: np.ndarray, u0: np.ndarray, names: tuple[s
 
 
 def _smooth_system(F_sym: sp.Matrix, C_sym: sp.Matrix, x: tuple[sp.Symbol, ...], names: tuple[str, ...],
-                   point: dict, extra: tuple[sp.Symbol, ...] = ()) -> Check:
+                   point: dict, extra: tuple[sp.Symbol, ...] = (), search: bool = True) -> Check:
     """One smooth system: one determinant if ``n <= SYMBOLIC_MAX_STATES``, else one per coupled block.
 
-    ``extra``: symbols that vary with the states (square roots named as symbols).
+    ``extra``: symbols that vary with the states (square roots named as symbols); ``search``:
+    solve for the degenerate parameter sets.
     """
     n = len(x)
     if n <= SYMBOLIC_MAX_STATES:
         try:
             return run_within_budget(symbolic_observability_check, F_sym, C_sym, x + extra, names,
-                                     what="the symbolic observability determinant")
+                                     search, what="the symbolic observability determinant")
         except TooComplexError as exc:
             return Check("symbolic_observability", None, f"not attempted: {exc.detail}")
     blocks = coupled_blocks(F_sym, C_sym)
@@ -270,7 +271,7 @@ def _smooth_system(F_sym: sp.Matrix, C_sym: sp.Matrix, x: tuple[sp.Symbol, ...],
             check = Check("symbolic_observability", None, "no output sees this block", {})
         else:
             check = _smooth_system(Fb, Cb, tuple(x[j] for j in b), bn, point,
-                                   tuple(e for e in extra if Fb.has(e) or Cb.has(e)))
+                                   tuple(e for e in extra if Fb.has(e) or Cb.has(e)), search)
         data = dict(check.data)
         parts.append({"states": list(bn), "outputs": rows, "rank": r, "detail": check.detail, **data})
         if data.get("identically_zero") or not rows:
@@ -352,7 +353,7 @@ def _per_mode(plant: Plant, hybrid: HybridModes, x0: np.ndarray, u0: np.ndarray,
             F_r, C_r, roots = _roots_as_symbols(F_m, C_m)
             check = _smooth_system(F_r, C_r, tuple(plant.x), names,
                                    {**point, **{r: sp.sqrt(r.name_arg.xreplace(point)) for r in roots}},
-                                   roots)
+                                   roots, search=False)
         modes.append({"mode": list(bits), "point": pt.tolist(), "rank": r, "detail": check.detail,
                       **dict(check.data)})
         lines.append(f"mode {label} at {np.round(pt, 3).tolist()}: rank {r}/{plant.n}; {check.detail}")
@@ -366,7 +367,7 @@ def _per_mode(plant: Plant, hybrid: HybridModes, x0: np.ndarray, u0: np.ndarray,
 
 
 def symbolic_observability_check(F_sym: sp.Matrix, C_sym: sp.Matrix, variables: tuple[sp.Symbol, ...],
-                                 state_names: tuple[str, ...]) -> Check:
+                                 state_names: tuple[str, ...], search_degenerate: bool = True) -> Check:
     """The ``symbolic_observability`` verdict (informative) of the Jacobians ``F``, ``C``.
 
     The whole symbolic step (the factored determinant, its identically-zero test, the
@@ -383,13 +384,19 @@ def symbolic_observability_check(F_sym: sp.Matrix, C_sym: sp.Matrix, variables: 
         The states (treated as varying).
     state_names : tuple of str
         Their names.
+    search_degenerate : bool, optional
+        Also solve for the parameter sets that make ``O`` singular everywhere (default True;
+        the per-mode checks of a hybrid plant skip it: each mode's factors name them).
     """
-    sym = symbolic_observability(F_sym, C_sym, variables=variables, state_names=state_names)
+    sym = symbolic_observability(F_sym, C_sym, variables=variables, state_names=state_names,
+                                 search_degenerate=search_degenerate)
     if sym.identically_zero:
         detail = ("det O is identically zero: the linearisation is unobservable for every "
                   "parameter value and operating point"
                   + (f"; unobservable direction in {', '.join(sym.null_direction)}"
                      if sym.null_direction else ""))
+    elif not search_degenerate:
+        detail = "not identically zero"
     elif sym.degenerate_parameters:
         detail = "rank < n for every state when " + " or ".join(
             "(" + ", ".join(f"{k} = {v}" for k, v in d.items()) + ")" for d in sym.degenerate_parameters)
