@@ -62,7 +62,7 @@ def test_two_tank_modes_by_hand():
     h1, h2 = plant.x
     vals = {p.name: p.value for p in plant.parameters}
     chk = _symbolic(rank_conditions(plant, [0.5, 0.2], samples=200))
-    modes = {tuple(m["mode"]): m for m in chk.data["modes"]}
+    modes = {tuple(m["mode"]): m for m in chk.data["hybrid_modes"]}
     assert set(modes) == {(0,), (1,)}
     assert modes[(0,)]["rank"] == 1 and modes[(0,)]["identically_zero"]
     assert "h1" in modes[(0,)]["null_direction"]
@@ -86,7 +86,7 @@ def test_seed002_mode_000_and_111_by_hand():
     v = {p.name: p.value for p in plant.parameters}
     x_op = np.array([0.31918677, 0.3209075, 0.30968861])
     chk = _symbolic(rank_conditions(plant, x_op, ts=1.0, samples=200))
-    modes = {tuple(m["mode"]): m for m in chk.data["modes"]}
+    modes = {tuple(m["mode"]): m for m in chk.data["hybrid_modes"]}
     assert len(modes) == 8 and all(m["rank"] == 3 for m in modes.values())
     assert np.allclose(modes[(1, 1, 1)]["point"], x_op)        # the operating point's own mode
     k1, k2, k3, k4 = sp.symbols("k1 k2 k3 k4", positive=True)

@@ -363,7 +363,7 @@ def _per_mode(plant: Plant, hybrid: HybridModes, x0: np.ndarray, u0: np.ndarray,
               f"rank {plant.n} in {len(full)}/{len(modes)} modes"
               + (f" (parameters of value 0 put in: {', '.join(sorted(str(k) for k in zeros))})" if zeros else "")
               + ". " + " | ".join(lines))
-    return Check("symbolic_observability", None, detail, {"modes": modes})
+    return Check("symbolic_observability", None, detail, {"hybrid_modes": modes})
 
 
 def symbolic_observability_check(F_sym: sp.Matrix, C_sym: sp.Matrix, variables: tuple[sp.Symbol, ...],
