@@ -259,6 +259,7 @@ def _smooth_system(F_sym: sp.Matrix, C_sym: sp.Matrix, x: tuple[sp.Symbol, ...],
                      f"not attempted: n = {n} > {SYMBOLIC_MAX_STATES} states and df/dx, dh/dx couple "
                      f"{big} states in one block ({len(blocks)} block(s))")
     parts, rank, zero, factors = [], 0, [], []
+    forms: dict[str, tuple[Check, tuple[str, ...]]] = {}
     for b in blocks:
         rows = [r for r in range(C_sym.shape[0]) if any(C_sym[r, j] != 0 for j in b)]
         Fb = F_sym.extract(b, b)
@@ -267,20 +268,30 @@ def _smooth_system(F_sym: sp.Matrix, C_sym: sp.Matrix, x: tuple[sp.Symbol, ...],
         r = numeric_observability_rank(np.array(Fb.xreplace(point), dtype=float),
                                        np.array(Cb.xreplace(point), dtype=float)) if rows else 0
         rank += r
+        same_as = None
         if not rows:
             check = Check("symbolic_observability", None, "no output sees this block", {})
         else:
-            check = _smooth_system(Fb, Cb, tuple(x[j] for j in b), bn, point,
-                                   tuple(e for e in extra if Fb.has(e) or Cb.has(e)), search)
+            key = _block_form(Fb, Cb, tuple(x[j] for j in b))
+            if key in forms:       # a block of the same form: its determinant up to renaming
+                check, same_as = forms[key]
+            else:
+                check = _smooth_system(Fb, Cb, tuple(x[j] for j in b), bn, point,
+                                       tuple(e for e in extra if Fb.has(e) or Cb.has(e)), search)
+                forms[key] = (check, bn)
         data = dict(check.data)
-        parts.append({"states": list(bn), "outputs": rows, "rank": r, "detail": check.detail, **data})
+        parts.append({"states": list(bn), "outputs": rows, "rank": r, "detail": check.detail, **data,
+                      **({"same_form_as": list(same_as)} if same_as is not None else {})})
         if data.get("identically_zero") or not rows:
             zero.append(bn)
-        factors += [(bn, f) for f in data.get("factors", [])]
+        if same_as is None:
+            factors += [(bn, f) for f in data.get("factors", [])]
     sizes = sorted({len(b) for b in blocks})
     detail = (f"per coupled block: df/dx and dh/dx couple the {n} states only inside {len(blocks)} "
               f"block(s) of {'/'.join(map(str, sizes))} state(s) (the observability matrix is block "
-              f"diagonal, its rank the sum of the blocks'): rank {rank}/{n} at the operating point; ")
+              f"diagonal, its rank the sum of the blocks'): rank {rank}/{n} at the operating point; "
+              f"{len(forms)} distinct block form(s) (blocks equal up to renaming their symbols share "
+              "one determinant; factors shown for the first block of each form); ")
     if zero:
         detail += "det O identically zero in block(s) " + ", ".join("{" + ", ".join(z) + "}" for z in zero[:4])
     else:
@@ -291,6 +302,16 @@ def _smooth_system(F_sym: sp.Matrix, C_sym: sp.Matrix, x: tuple[sp.Symbol, ...],
     else:
         detail += "; no block's det O depends on the states"
     return Check("symbolic_observability", None, detail, {"blocks": parts, "rank": rank, "n": n})
+
+
+def _block_form(F: sp.Matrix, C: sp.Matrix, states: tuple[sp.Symbol, ...]) -> str:
+    """``F``, ``C`` with the block's states renamed by position and every other symbol by its
+    order among the block's symbols (sorted by name): equal strings, equal determinants up to
+    that renaming. A renaming that orders two such blocks differently only misses the cache."""
+    own = {s: sp.Symbol(f"_state{k}", **s.assumptions0) for k, s in enumerate(states)}
+    others = sorted((F.free_symbols | C.free_symbols) - set(states), key=str)
+    own.update({s: sp.Symbol(f"_other{k}", **s.assumptions0) for k, s in enumerate(others)})
+    return sp.srepr((F.xreplace(own), C.xreplace(own)))
 
 
 class _Root(sp.Symbol):
