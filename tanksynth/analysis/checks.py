@@ -13,7 +13,9 @@ import sympy as sp
 from tanksynth.analysis.budget import TooComplexError, run_within_budget
 from tanksynth.analysis.symbolic import jacobian
 from tanksynth.analysis.linearize import equilibrium_input, linearize
-from tanksynth.plants.base import Plant
+from tanksynth.analysis.rank_structured import (coupled_blocks, frozen_at, mode_cells,
+                                                numeric_observability_rank)
+from tanksynth.plants.base import HybridModes, Plant
 from tanksynth.analysis.rank import (controllability_rank, nonlinear_observability,
                                      observability_determinant_zeros, observability_rank, pbh_test,
                                      symbolic_observability)
@@ -217,27 +219,176 @@ def rank_conditions(plant: Plant, x0: npt.ArrayLike, ts: float | None = None,
         detail += (f"; {nl.undefined_points} sampled point(s) left out: a Lie derivative is not "
                    "finite there (a kink of sqrt/abs/max in the model)")
     checks.append(Check("nonlinear_observability", ok, detail, data))
-    jacobians = _analytic_jacobians(plant) if plant.n <= SYMBOLIC_MAX_STATES else None
-    if plant.n > SYMBOLIC_MAX_STATES:
-        checks.append(Check("symbolic_observability", None,
-                            f"not attempted: n = {plant.n} > {SYMBOLIC_MAX_STATES} states"))
-    elif jacobians is None:
-        checks.append(Check("symbolic_observability", None,
-                            "not attempted: the Jacobian keeps non-smooth terms on the region "
-                            "(hybrid switching or undetermined flow directions)"))
-    else:
-        F_sym, C_sym = jacobians
-        try:
-            checks.append(run_within_budget(symbolic_observability_check, F_sym, C_sym,
-                                            tuple(plant.x), tuple(names),
-                                            what="the symbolic observability determinant"))
-        except TooComplexError as exc:
-            checks.append(Check("symbolic_observability", None, f"not attempted: {exc.detail}"))
+    checks.append(_symbolic_check(plant, np.asarray(x0, dtype=float), eq.u0, tuple(names), samples, seed))
     return checks
 
 
+def _symbolic_check(plant: Plant, x0: np.ndarray, u0: np.ndarray, names: tuple[str, ...],
+                    samples: int, seed: int) -> Check:
+    """The ``symbolic_observability`` verdict: whole, per hybrid mode, or per coupled block."""
+    if plant.hybrid is not None:
+        return _per_mode(plant, plant.hybrid, x0, u0, names, samples, seed)
+    jacobians = _analytic_jacobians(plant)
+    if jacobians is None:
+        return Check("symbolic_observability", None,
+                     "not attempted: the Jacobian keeps non-smooth terms on the region "
+                     "(undetermined flow directions)")
+    F_sym, C_sym = jacobians
+    point = {**dict(zip(plant.x, x0)), **dict(zip(plant.u, u0)), **plant.parameter_values}
+    return _smooth_system(F_sym, C_sym, tuple(plant.x), names, point)
+
+
+def _smooth_system(F_sym: sp.Matrix, C_sym: sp.Matrix, x: tuple[sp.Symbol, ...], names: tuple[str, ...],
+                   point: dict, extra: tuple[sp.Symbol, ...] = (), search: bool = True) -> Check:
+    """One smooth system: one determinant if ``n <= SYMBOLIC_MAX_STATES``, else one per coupled block.
+
+    ``extra``: symbols that vary with the states (square roots named as symbols); ``search``:
+    solve for the degenerate parameter sets.
+    """
+    n = len(x)
+    if n <= SYMBOLIC_MAX_STATES:
+        try:
+            return run_within_budget(symbolic_observability_check, F_sym, C_sym, x + extra, names,
+                                     search, what="the symbolic observability determinant")
+        except TooComplexError as exc:
+            return Check("symbolic_observability", None, f"not attempted: {exc.detail}")
+    blocks = coupled_blocks(F_sym, C_sym)
+    big = max(len(b) for b in blocks)
+    if big > SYMBOLIC_MAX_STATES:
+        return Check("symbolic_observability", None,
+                     f"not attempted: n = {n} > {SYMBOLIC_MAX_STATES} states and df/dx, dh/dx couple "
+                     f"{big} states in one block ({len(blocks)} block(s))")
+    parts, rank, zero, factors = [], 0, [], []
+    forms: dict[str, tuple[Check, tuple[str, ...]]] = {}
+    for b in blocks:
+        rows = [r for r in range(C_sym.shape[0]) if any(C_sym[r, j] != 0 for j in b)]
+        Fb = F_sym.extract(b, b)
+        Cb = C_sym.extract(rows, b) if rows else sp.zeros(0, len(b))
+        bn = tuple(names[j] for j in b)
+        r = numeric_observability_rank(np.array(Fb.xreplace(point), dtype=float),
+                                       np.array(Cb.xreplace(point), dtype=float)) if rows else 0
+        rank += r
+        same_as = None
+        if not rows:
+            check = Check("symbolic_observability", None, "no output sees this block", {})
+        else:
+            key = _block_form(Fb, Cb, tuple(x[j] for j in b))
+            if key in forms:       # a block of the same form: its determinant up to renaming
+                check, same_as = forms[key]
+            else:
+                check = _smooth_system(Fb, Cb, tuple(x[j] for j in b), bn, point,
+                                       tuple(e for e in extra if Fb.has(e) or Cb.has(e)), search)
+                forms[key] = (check, bn)
+        data = dict(check.data)
+        parts.append({"states": list(bn), "outputs": rows, "rank": r, "detail": check.detail, **data,
+                      **({"same_form_as": list(same_as)} if same_as is not None else {})})
+        if data.get("identically_zero") or not rows:
+            zero.append(bn)
+        if same_as is None:
+            factors += [(bn, f) for f in data.get("factors", [])]
+    sizes = sorted({len(b) for b in blocks})
+    detail = (f"per coupled block: df/dx and dh/dx couple the {n} states only inside {len(blocks)} "
+              f"block(s) of {'/'.join(map(str, sizes))} state(s) (the observability matrix is block "
+              f"diagonal, its rank the sum of the blocks'): rank {rank}/{n} at the operating point; "
+              f"{len(forms)} distinct block form(s) (blocks equal up to renaming their symbols share "
+              "one determinant; factors shown for the first block of each form); ")
+    if zero:
+        detail += "det O identically zero in block(s) " + ", ".join("{" + ", ".join(z) + "}" for z in zero[:4])
+    else:
+        detail += "no block's det O is identically zero"
+    if factors:
+        shown = "; ".join(f"{{{', '.join(bn)}}}: {f} = 0" for bn, f in factors[:4])
+        detail += f"; det O vanishes where {shown}" + (f" (and {len(factors) - 4} more)" if len(factors) > 4 else "")
+    else:
+        detail += "; no block's det O depends on the states"
+    return Check("symbolic_observability", None, detail, {"blocks": parts, "rank": rank, "n": n})
+
+
+def _block_form(F: sp.Matrix, C: sp.Matrix, states: tuple[sp.Symbol, ...]) -> str:
+    """``F``, ``C`` with the block's states renamed by position and every other symbol by its
+    order among the block's symbols (sorted by name): equal strings, equal determinants up to
+    that renaming. A renaming that orders two such blocks differently only misses the cache."""
+    own = {s: sp.Symbol(f"_state{k}", **s.assumptions0) for k, s in enumerate(states)}
+    others = sorted((F.free_symbols | C.free_symbols) - set(states), key=str)
+    own.update({s: sp.Symbol(f"_other{k}", **s.assumptions0) for k, s in enumerate(others)})
+    return sp.srepr((F.xreplace(own), C.xreplace(own)))
+
+
+class _Root(sp.Symbol):
+    """A positive symbol standing for ``sqrt(name_arg)`` (its name prints as that root)."""
+
+    name_arg: sp.Expr
+
+
+def _roots_as_symbols(F: sp.Matrix, C: sp.Matrix) -> tuple[sp.Matrix, sp.Matrix, tuple[sp.Symbol, ...]]:
+    """Every ``sqrt(e)`` (and ``1/sqrt(e)``) of ``F``, ``C`` replaced by a positive symbol.
+
+    A Torricelli flow's derivative is ``g / sqrt(2 g dh)``: with its root as a symbol the
+    determinant is a rational function that sympy factors in milliseconds (with the roots in
+    it, a three-tank mode took over 20 s and its factors did not split).
+    """
+    roots: dict[sp.Expr, sp.Symbol] = {}
+    for M in (F, C):
+        for p in M.atoms(sp.Pow):
+            if p.exp in (sp.Rational(1, 2), sp.Rational(-1, 2)) and p.base.free_symbols:
+                base = sp.factor(p.base)
+                if base not in roots:
+                    r = _Root(f"sqrt({base})", positive=True)
+                    r.name_arg = base
+                    roots[base] = r
+
+    def sub(e: sp.Basic) -> sp.Basic:
+        if (isinstance(e, sp.Pow) and e.exp in (sp.Rational(1, 2), sp.Rational(-1, 2))
+                and e.base.free_symbols):
+            r = roots[sp.factor(e.base)]
+            return r if e.exp > 0 else 1 / r
+        return e
+
+    return (F.replace(lambda e: isinstance(e, sp.Pow), sub),
+            C.replace(lambda e: isinstance(e, sp.Pow), sub), tuple(roots.values()))
+
+
+def _per_mode(plant: Plant, hybrid: HybridModes, x0: np.ndarray, u0: np.ndarray, names: tuple[str, ...], samples: int,
+              seed: int) -> Check:
+    """Per hybrid mode: each mode's field, frozen at a point of that mode, as a smooth system."""
+    params = plant.parameter_values
+    points = plant.region.sample(max(samples, 400), plant.x, seed=seed)
+    cells = mode_cells(hybrid.switching, plant.x, params, points, prefer=x0)
+    # Parameters whose value is 0 (closed valves, outlets at the tank bottom) are put in: their
+    # terms vanish or simplify, which keeps each mode's determinant small.
+    zeros = {sym: sp.Integer(0) for sym, v in params.items() if v == 0}
+    modes, lines = [], []
+    for bits, pt in cells:
+        point = {**dict(zip(plant.x, pt)), **dict(zip(plant.u, u0)), **params}
+        label = "(" + ", ".join(f"{nm}={b}" for nm, b in zip(hybrid.names, bits)) + ")"
+        f_m = frozen_at(plant.f, point).xreplace(zeros)
+        h_m = frozen_at(plant.h, point).xreplace(zeros)
+        F_m, C_m = jacobian(f_m, plant.x), jacobian(h_m, plant.x)
+        if F_m.has(*_NONSMOOTH) or C_m.has(*_NONSMOOTH):
+            check = Check("symbolic_observability", None, "not attempted: non-smooth terms remain")
+            r = -1
+        else:
+            num = {k: v for k, v in point.items()}
+            r = numeric_observability_rank(np.array(F_m.xreplace(num), dtype=float),
+                                           np.array(C_m.xreplace(num), dtype=float))
+            F_r, C_r, roots = _roots_as_symbols(F_m, C_m)
+            check = _smooth_system(F_r, C_r, tuple(plant.x), names,
+                                   {**point, **{r: sp.sqrt(r.name_arg.xreplace(point)) for r in roots}},
+                                   roots, search=False)
+        modes.append({"mode": list(bits), "point": pt.tolist(), "rank": r, "detail": check.detail,
+                      **dict(check.data)})
+        lines.append(f"mode {label} at {np.round(pt, 3).tolist()}: rank {r}/{plant.n}; {check.detail}")
+    full = [m for m in modes if m["rank"] == plant.n]
+    detail = (f"per hybrid mode ({len(modes)} mode(s) reached by the region's points; each mode's "
+              f"field, its branches frozen at a point of the mode, as its own smooth system): "
+              f"rank {plant.n} in {len(full)}/{len(modes)} modes"
+              + (f" (parameters of value 0 put in: {', '.join(sorted(str(k) for k in zeros))})" if zeros else "")
+              + ". " + " | ".join(lines))
+    return Check("symbolic_observability", None, detail, {"hybrid_modes": modes})
+
+
 def symbolic_observability_check(F_sym: sp.Matrix, C_sym: sp.Matrix, variables: tuple[sp.Symbol, ...],
-                                 state_names: tuple[str, ...]) -> Check:
+                                 state_names: tuple[str, ...], search_degenerate: bool = True) -> Check:
     """The ``symbolic_observability`` verdict (informative) of the Jacobians ``F``, ``C``.
 
     The whole symbolic step (the factored determinant, its identically-zero test, the
@@ -254,13 +405,19 @@ def symbolic_observability_check(F_sym: sp.Matrix, C_sym: sp.Matrix, variables: 
         The states (treated as varying).
     state_names : tuple of str
         Their names.
+    search_degenerate : bool, optional
+        Also solve for the parameter sets that make ``O`` singular everywhere (default True;
+        the per-mode checks of a hybrid plant skip it: each mode's factors name them).
     """
-    sym = symbolic_observability(F_sym, C_sym, variables=variables, state_names=state_names)
+    sym = symbolic_observability(F_sym, C_sym, variables=variables, state_names=state_names,
+                                 search_degenerate=search_degenerate)
     if sym.identically_zero:
         detail = ("det O is identically zero: the linearisation is unobservable for every "
                   "parameter value and operating point"
                   + (f"; unobservable direction in {', '.join(sym.null_direction)}"
                      if sym.null_direction else ""))
+    elif not search_degenerate:
+        detail = "not identically zero"
     elif sym.degenerate_parameters:
         detail = "rank < n for every state when " + " or ".join(
             "(" + ", ".join(f"{k} = {v}" for k, v in d.items()) + ")" for d in sym.degenerate_parameters)

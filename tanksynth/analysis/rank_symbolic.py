@@ -54,7 +54,20 @@ class SymbolicRank:
     @property
     def identically_zero(self) -> bool:
         """``det O`` (every maximal minor) is zero for every parameter and variable value."""
-        return bool(sp.simplify(self.determinant) == 0)
+        det = self.determinant
+        if det == 0:
+            return True
+        # non-zero at one point: not identically zero (simplify only when that cannot tell)
+        rng = np.random.default_rng(1)
+        point = {s: sp.Rational(int(rng.integers(2, 97)), int(rng.integers(2, 97)))
+                 for s in sorted(det.free_symbols, key=str)}
+        try:
+            value = complex(sp.N(det.xreplace(point)))
+            if np.isfinite(value) and abs(value) > 1e-12:
+                return False
+        except (TypeError, ValueError, ZeroDivisionError):
+            pass
+        return bool(sp.simplify(det) == 0)
 
     def as_dict(self) -> dict:
         """JSON-friendly summary (expressions as strings)."""
@@ -68,7 +81,8 @@ class SymbolicRank:
 
 def symbolic_observability(A: sp.Matrix, C: sp.Matrix,
                            variables: Sequence[sp.Symbol] = (),
-                           state_names: Sequence[str] | None = None) -> SymbolicRank:
+                           state_names: Sequence[str] | None = None,
+                           search_degenerate: bool = True) -> SymbolicRank:
     """Factored determinant of the observability matrix and its conditions.
 
     Parameters
@@ -85,6 +99,9 @@ def symbolic_observability(A: sp.Matrix, C: sp.Matrix,
     state_names : sequence of str, optional
         Names of the columns, for the unobservable direction of an
         identically singular ``O``.
+    search_degenerate : bool, optional
+        Solve for ``degenerate_parameters`` (default True; the solve can take seconds when
+        the determinant has several parameter factors).
     """
     A, C = sp.Matrix(A), sp.Matrix(C)
     n = A.shape[0]
@@ -125,7 +142,7 @@ def symbolic_observability(A: sp.Matrix, C: sp.Matrix,
     degenerate: list[dict] = []
     params = sorted(set().union(*(mnr.free_symbols for mnr in minors)) - set(variables), key=str) \
         if minors else []
-    if minors and params:
+    if minors and params and search_degenerate:
         try:
             coeffs = sorted({c for mnr in minors
                              for c in sp.Poly(sp.fraction(sp.together(mnr))[0], *variables).coeffs()},

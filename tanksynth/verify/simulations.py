@@ -9,6 +9,8 @@ detail. Each simulation takes an optional `TraceRecorder` (keyword
 from __future__ import annotations
 
 import math
+import os
+import platform
 from dataclasses import dataclass, field
 from typing import Any, Callable, Mapping, Sequence
 
@@ -33,7 +35,7 @@ __all__ = [
     "slowest_time_constant", "fastest_rate", "eigen_time_constant", "region_time_constant",
     "designed_time_constant", "eigenvector_conditioning", "observer_period", "perturbed_start",
     "observer_convergence", "luenberger_estimator", "StateFeedback", "IntegralStateFeedback",
-    "servo_check", "regulation_check",
+    "servo_check", "regulation_check", "machine_description",
 ]
 
 
@@ -341,7 +343,28 @@ def observer_convergence(plant: Plant, estimator: BatchEstimator, x0: np.ndarray
                  f"conditioning of the error matrix), tau = {tau:.4g} s {rule}".rstrip() + where,
                  {"e0": e0, "tail_max": tail, "tolerance": tol, "horizon_s": horizon, "tau_s": tau,
                   "kappa": kappa, "ts": ts, "x_start": x_start.tolist(),
-                  "x_hat_start": x_hat_start.tolist(), "error_inf": err.tolist()})
+                  "x_hat_start": x_hat_start.tolist(), "error_inf": err.tolist(),
+                  "estimator_time_s": float(res.timing.get("estimator", 0.0))
+                  / max(int(res.timing.get("calls", 0)), 1),
+                  "machine": machine_description()})
+
+
+def machine_description() -> str:
+    """One line naming the machine a timing was measured on (CPU model, cores, Python).
+
+    Returns
+    -------
+    str
+        E.g. ``"Intel(R) Xeon(R) CPU @ 2.20GHz, 2 cores, Linux x86_64, Python 3.11.7"``.
+    """
+    cpu = ""
+    try:
+        with open("/proc/cpuinfo", encoding="utf-8") as fh:
+            cpu = next((ln.split(":", 1)[1].strip() for ln in fh if ln.startswith("model name")), "")
+    except OSError:
+        pass
+    return (f"{cpu or platform.processor() or platform.machine()}, {os.cpu_count()} cores, "
+            f"{platform.system()} {platform.machine()}, Python {platform.python_version()}")
 
 
 def luenberger_estimator(plant: Plant, L: np.ndarray, x0: np.ndarray, u0: np.ndarray, ts: float,

@@ -69,12 +69,12 @@ def test_recorder_keeps_the_main_trace_and_the_first_of_two_other_checks():
     rec = TraceRecorder()
     assert rec.extras == []
     for scenario, check in [("main", "a"), ("again a", "a"), ("first b", "b"), ("second b", "b"),
-                            ("first c", "c"), ("first d", "d")]:
+                            ("first c", "c"), ("first d", "d"), ("first e", "e"), ("first f", "f")]:
         rec.record(res, plant, scenario=scenario, check=check)
-    assert TRACE_EXTRAS == 2
+    assert TRACE_EXTRAS == 4
     assert rec.trace["header"]["scenario"] == "main"                 # the main trace is unchanged
     assert [(e["header"]["scenario"], e["header"]["check"]) for e in rec.extras] == \
-        [("first b", "b"), ("first c", "c")]                          # d: over the limit
+        [("first b", "b"), ("first c", "c"), ("first d", "d"), ("first e", "e")]   # f: over the limit
     assert "disturbance_names" not in rec.trace["header"]
 
 

@@ -96,6 +96,21 @@ class DecentralizedKalmanOptions(MethodOptions):
     relinearize_every : int
         Steps between linearisations along the predicted trajectory (>= 1);
         default 10.
+    run_steps : int
+        Samples of the verdict's long run (>= 0; default 0: none): the nonlinear plant
+        from the operating point under ``input`` (then ``input_after``), measured with
+        ``measurement_noise``, filtered by the centralised and the one-step decentralised
+        filters relinearised at their estimates every ``relinearize_every`` samples.
+    input_after : ndarray or None
+        Input of the long run from ``input_switch`` on (m values, input units); default
+        None: ``input`` throughout.
+    input_switch : float
+        Time of the long run's input change (s, >= 0); default 0.
+    run_seed : int
+        Seed of the long run's noise and initial estimate (>= 0); default 7.
+    run_x0 : ndarray or None
+        Initial state of the long run (n values, state units); default None: the operating
+        point. The estimates start at ``run_x0 + N(0, initial_covariance)``.
     """
 
     method_name: ClassVar[str] = "decentralized_kalman"
@@ -112,6 +127,11 @@ class DecentralizedKalmanOptions(MethodOptions):
     initial_covariance: float | np.ndarray = option(10.0, unit="(state units)^2")
     input: np.ndarray | None = option(None, unit="input units")
     relinearize_every: int = option(10, unit="samples")
+    run_steps: int = option(0, unit="samples")
+    input_after: np.ndarray | None = option(None, unit="input units")
+    input_switch: float = option(0.0, unit="s")
+    run_seed: int = option(7, unit="-")
+    run_x0: np.ndarray | None = option(None, unit="state units")
 
     @classmethod
     def from_table(cls, options: Mapping[str, Any], key: str, plant: Plant,
@@ -134,7 +154,12 @@ class DecentralizedKalmanOptions(MethodOptions):
             measurement_noise=r.read("measurement_noise", _noise, q, semidefinite=False),
             initial_covariance=r.read("initial_covariance", _noise, n, semidefinite=False),
             input=r.read("input", parse_vector, names=[s.name for s in plant.inputs]),
-            relinearize_every=r.read("relinearize_every", parse_integer, at_least=1))
+            relinearize_every=r.read("relinearize_every", parse_integer, at_least=1),
+            run_steps=r.read("run_steps", parse_integer, at_least=0, at_most=100_000),
+            input_after=r.read("input_after", parse_vector, names=[s.name for s in plant.inputs]),
+            input_switch=r.read("input_switch", parse_number, at_least=0.0),
+            run_seed=r.read("run_seed", parse_integer, at_least=0, at_most=2 ** 32 - 1),
+            run_x0=r.read("run_x0", parse_vector, names=[s.name for s in plant.states]))
 
     def memory_estimate(self, plant: Plant, ts: float | None) -> tuple[float, str]:
         """``window`` steps of n x n models, covariances and gains; CasADi's graph of the window

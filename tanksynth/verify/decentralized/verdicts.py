@@ -12,6 +12,7 @@ from tanksynth.plants.base import Plant
 from tanksynth.sim.integrate import Integrator, param_arrays
 from tanksynth.sim.simulate import run_seeds, simulate
 from tanksynth.spec import Spec
+from tanksynth.verify.decentralized.long_run import long_run
 from tanksynth.verify.common import (artefact_gain, artefact_matrix, discrete_ts, fmt, guard,
                                      operating_point, option)
 from tanksynth.verify.traces import TraceRecorder
@@ -113,7 +114,10 @@ def decentralized_kalman_verdict(doc: Mapping[str, Any], spec: Spec, *,
     and sample, measurement noise ``sqrt(R_ii)``, the spec's window input):
     ``filter_vs_open_loop`` (RMSE of the filter below that of the open-loop
     predictor from the same start) and ``filter_error_bounded`` (RMS error
-    over the last quarter of the window <= 3 sqrt(mean P_diag) there).
+    over the last quarter of the window <= 3 sqrt(mean P_diag) there); with the option
+    ``run_steps`` > 0, ``long_run`` (`tanksynth.verify.decentralized.long_run`: centralised and
+    one-step decentralised filters on one noisy run of that length; both below the measurement
+    RMSE).
 
     Parameters
     ----------
@@ -148,15 +152,9 @@ def decentralized_kalman_verdict(doc: Mapping[str, Any], spec: Spec, *,
     def simulate_window() -> list[Check]:
         ts = discrete_ts(spec)
         x0 = np.asarray(spec.x0, dtype=float)
-        opt_u = option(doc, spec, "input")
-        if isinstance(opt_u, list) and len(opt_u) == m:
-            u = np.asarray(opt_u, dtype=float)
-        else:
-            u = operating_point(spec)[1]
-        qn = option(doc, spec, "process_noise", 0.0)
-        qdiag = np.diag(np.asarray(qn, float)) if isinstance(qn, list) else np.full(n, float(qn))
-        rn = option(doc, spec, "measurement_noise", 1.0)
-        rdiag = np.diag(np.asarray(rn, float)) if isinstance(rn, list) else np.full(q, float(rn))
+        u = _input(option(doc, spec, "input"), m, operating_point(spec)[1])
+        qdiag = np.diag(_noise_matrix(option(doc, spec, "process_noise", 0.0), n))
+        rdiag = np.diag(_noise_matrix(option(doc, spec, "measurement_noise", 1.0), q))
         runs = 8
         rng = np.random.default_rng(11)
         chol = np.linalg.cholesky(0.5 * (P0 + P0.T))
@@ -196,4 +194,64 @@ def decentralized_kalman_verdict(doc: Mapping[str, Any], spec: Spec, *,
         ]
 
     checks += guard("filter_simulation", simulate_window)
+    steps = int(option(doc, spec, "run_steps", 0) or 0)
+    if steps > 0:
+        checks += guard("long_run", lambda: [_long_run_check(doc, spec, steps, E)])
     return checks
+
+
+def _input(value: Any, m: int, default: np.ndarray) -> np.ndarray:
+    """The spec's input option (list or array of m values), else ``default``."""
+    if value is None:
+        return np.asarray(default, dtype=float)
+    arr = np.asarray(value, dtype=float).reshape(-1)
+    return arr if arr.size == m else np.asarray(default, dtype=float)
+
+
+def _noise_matrix(value: Any, size: int, correlation: float = 0.0) -> np.ndarray:
+    """A number ``v`` (``v ((1 - rho) I + rho 1 1')``), a diagonal or a matrix, as a matrix."""
+    if isinstance(value, (list, tuple, np.ndarray)):
+        arr = np.asarray(value, dtype=float)
+        return np.diag(arr) if arr.ndim == 1 else arr
+    v = float(value)
+    return v * ((1 - correlation) * np.eye(size) + correlation * np.ones((size, size)))
+
+
+def _long_run_check(doc: Mapping[str, Any], spec: Spec, steps: int, E: np.ndarray) -> Check:
+    """``long_run``: `tanksynth.verify.decentralized.long_run.long_run` on the spec's schedule."""
+    plant = spec.plant
+    n, q, m = plant.n, plant.q, plant.m
+    ts = discrete_ts(spec)
+    u1 = _input(option(doc, spec, "input"), m, operating_point(spec)[1])
+    after = option(doc, spec, "input_after")
+    u2 = _input(after, m, u1)
+    switch = float(option(doc, spec, "input_switch", 0.0) or 0.0)
+    t = np.arange(steps) * ts
+    inputs = np.where((t < switch)[:, None] if after is not None else np.ones((steps, 1), bool), u1, u2)
+    rho = float(option(doc, spec, "process_noise_correlation", 0.0) or 0.0)
+    Qc = _noise_matrix(option(doc, spec, "process_noise", 0.0), n, rho)
+    R = _noise_matrix(option(doc, spec, "measurement_noise", 1.0), q)
+    P0 = _noise_matrix(option(doc, spec, "initial_covariance", 10.0), n)
+    relin = int(option(doc, spec, "relinearize_every", 10) or 10)
+    seed = int(option(doc, spec, "run_seed", 7))
+    start = _input(option(doc, spec, "run_x0"), n, np.asarray(spec.x0, dtype=float))
+    run = long_run(plant, start, inputs, ts, Qc, R, P0, E, relin, seed)
+    r = run.rmse
+    meas = r.get("measurement")
+    ok = bool(all(np.isfinite(v) for v in r.values())
+              and (meas is None or (r["centralized"] < meas and r["one_step"] < meas)))
+    return Check("long_run", ok,
+                 f"{steps} samples of the nonlinear plant from "
+                 + ("the operating point" if option(doc, spec, "run_x0") is None
+                    else f"x0 = {fmt(start[:2])} ...")
+                 + f" (input "
+                 f"{fmt(u1[:2])}{' ...' if m > 2 else ''}"
+                 + (f", then {fmt(u2[:2])}{' ...' if m > 2 else ''} from t = {switch:g} s" if after is not None else "")
+                 + f"; seed {seed}), filters relinearised at their estimates every {relin} samples: "
+                 f"RMSE centralised {r['centralized']:.4g}, one-step decentralised "
+                 f"{r['one_step']:.4g}"
+                 + (f", measurements {meas:.4g} (both filters must be below it)" if meas is not None else "")
+                 + f"; sum of tr P(k|k) centralised {run.trace_P['centralized']:.5g}, one-step "
+                 f"{run.trace_P['one_step']:.5g}",
+                 {"steps": steps, "rmse": r, "trace_P": run.trace_P, "seed": seed,
+                  "input_switch_s": switch, "relinearize_every": relin, "x0": start.tolist()})

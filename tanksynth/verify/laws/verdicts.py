@@ -29,7 +29,8 @@ from tanksynth.verify.numerics import integral_augmentation
 from tanksynth.verify.simulations import designed_time_constant, servo_check
 from tanksynth.verify.traces import TraceRecorder
 
-__all__ = ["integral_tracking_verdict", "feedback_linearization_verdict", "inverse_dynamics_verdict"]
+__all__ = ["integral_tracking_verdict", "feedback_linearization_verdict", "inverse_dynamics_verdict",
+           "ROBUSTNESS_SCENARIOS"]
 
 
 def _law(doc: Mapping[str, Any]) -> Any:
@@ -257,6 +258,11 @@ def feedback_linearization_verdict(doc: Mapping[str, Any], spec: Spec, *,
     return checks
 
 
+#: Informative closed-loop runs of an ``inverse_dynamics`` artefact beside its servo test (true
+#: state fed back, nominal-model law): +-10 % model mismatch, a leak and a clogged valve.
+ROBUSTNESS_SCENARIOS: tuple[str, ...] = ("uncertainty_plus", "uncertainty_minus", "leakage", "clogging")
+
+
 def inverse_dynamics_verdict(doc: Mapping[str, Any], spec: Spec, *,
                              trace: TraceRecorder | None = None) -> list[Check]:
     """Verdict of an ``inverse_dynamics`` artefact (seed 002 eq. 46-47).
@@ -266,7 +272,9 @@ def inverse_dynamics_verdict(doc: Mapping[str, Any], spec: Spec, *,
     equals `inverse_dynamics_law` built from the stored rates ``C``, and
     gives the stored ``u_op`` at ``x_op``), ``servo_scenario`` (the servo
     scenario of `tanksynth.sim.scenarios` with the law built from the gains, true state fed back: ISE
-    finite and the tracking time within the horizon).
+    finite and the tracking time within the horizon); informative (no pass/fail)
+    ``scenario_<name>`` runs of `ROBUSTNESS_SCENARIOS` that apply to the plant (ISE and steady
+    offset of the controlled states; their traces are recorded).
 
     Parameters
     ----------
@@ -337,4 +345,33 @@ def inverse_dynamics_verdict(doc: Mapping[str, Any], spec: Spec, *,
                       {"ise": ise.tolist(), "tracking_time": track.tolist(), "horizon_s": horizon})]
 
     checks += guard("servo_scenario", servo)
+
+    def robustness() -> list[Check]:
+        ts = discrete_ts(spec)
+        out = []
+        for name in ROBUSTNESS_SCENARIOS:
+            sc = scenario(name)
+            if not sc.applies_to(plant):
+                continue
+            setup = sc.setup(plant, x0, u0, tuple(idx), ts=ts)
+            res = run_scenario(setup, plant, ts=ts, seeds=run_seeds(0, 2),
+                               controller=CasadiControlLaw(built.law), substeps=4)
+            if trace is not None:
+                trace.record(res, plant, check=f"scenario_{name}",
+                             reference_names=[states[i] for i in setup.tracked],
+                             scenario=f"{name} scenario ({sc.description})")
+            met = compute_metrics(res, setup, plant)
+            ise = [float(np.mean(met[f"ise_{states[i]}"].values)) for i in idx]
+            off = [float(np.mean(met[f"offset_{states[i]}"].values)) for i in idx]
+            out.append(Check(f"scenario_{name}", None,
+                             f"{name} scenario ({sc.description}; {setup.steps} samples of {ts:g} s, "
+                             "true state fed back, 2 runs), informative: ISE "
+                             + ", ".join(f"{states[i]} {v:.4g} m^2 s" for i, v in zip(idx, ise))
+                             + "; steady offset "
+                             + ", ".join(f"{states[i]} {v:.3g} m" for i, v in zip(idx, off)),
+                             {"scenario": name, "ise": ise, "offset": off,
+                              "states": [states[i] for i in idx]}))
+        return out
+
+    checks += guard("robustness_scenarios", robustness)
     return checks

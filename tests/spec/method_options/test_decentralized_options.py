@@ -43,3 +43,20 @@ def test_huge_covariance_is_refused_on_its_key(key, value):
 def test_large_but_sane_covariance_is_accepted():
     spec = parse_spec_text(_spec(initial_covariance="1e6"))
     assert spec.designs[0].config.initial_covariance == 1e6
+
+
+@pytest.mark.parametrize("key, value", [("run_steps", "-1"), ("input_after", "[4.0]"),
+                                        ("input_switch", "-5.0"), ("run_x0", "[1.0, 2.0]"),
+                                        ("run_seed", "-3")])
+def test_long_run_options_refused_on_their_key(key, value):
+    with pytest.raises(SpecError) as info:
+        parse_spec_text(_spec(**{key: value}))
+    assert info.value.key == f"design[0].{key}"
+
+
+def test_long_run_options_read():
+    spec = parse_spec_text(_spec(run_steps="30", input_after="[3.0, 3.5]", input_switch="10.0",
+                                 run_x0="[20.0, 20.0, 20.0, 20.0]", run_seed="2"))
+    o = spec.designs[0].options
+    assert (o["run_steps"], o["input_switch"], o["run_seed"]) == (30, 10.0, 2)
+    assert list(o["input_after"]) == [3.0, 3.5] and list(o["run_x0"]) == [20.0] * 4
