@@ -394,7 +394,7 @@ def simulate(plant: Plant, *, ts: float, steps: int, x0: Sequence[float] | np.nd
         if w is not None:   # noisy (without noise the advanced state is already clipped)
             x = integ.clip_counted(x + w[:, k])
         u_prev = u
-    if later:
+    if later and estimator is not None:
         run_major = lambda a: np.ascontiguousarray(a.transpose(1, 0, 2))  # noqa: E731
         done = _estimate(estimator, (run_major(X), run_major(Y), run_major(U), XH, run_major(modes)),
                          u_first, timing)

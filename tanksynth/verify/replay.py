@@ -319,7 +319,7 @@ def _replay_horizon(rt: Any, predict: _Predictor, noise: tuple[np.ndarray, np.nd
     N, n = Y.shape[0], rt.n
     if N < 2 or (partial and not rt.noise_in_parameters):
         return None
-    U_prev = np.concatenate([U[:1], U[:-1]]) if N else U
+    U_prev = np.concatenate([U[:1], U[:-1]])
     rt.reset(x0)
     state0 = rt.state
     try:
@@ -331,7 +331,7 @@ def _replay_horizon(rt: Any, predict: _Predictor, noise: tuple[np.ndarray, np.nd
     before = np.concatenate([state0, states[:-1]])
     yp, Phi, H = predict.fn.map(N)(before[:, :n].T, U_prev.T)
     Yp = np.asarray(yp, dtype=float).T.copy()
-    if noise is None:
+    if noise is None or not isinstance(rt, CovarianceKernelEstimator):
         return X, Yp, np.full((N, rt.q, rt.q), np.nan), None
     Phi = np.asarray(Phi, dtype=float).reshape(n, N, n).transpose(1, 0, 2)
     H = np.asarray(H, dtype=float).reshape(rt.q, N, n).transpose(1, 0, 2)

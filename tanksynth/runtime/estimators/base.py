@@ -496,7 +496,8 @@ class KernelEstimator(Estimator):
         Returns
         -------
         ndarray, shape (N, s) or (N, M, s)
-            Kernel states (layout per estimator: the estimate first, then e.g. the covariance).
+            Kernel states (state units, then per estimator e.g. the covariance in squared state
+            units).
 
         Raises
         ------
@@ -662,6 +663,19 @@ class CovarianceKernelEstimator(KernelEstimator):
     """A `KernelEstimator` whose state is the estimate then its covariance ``P`` (column-major).
 
     The Kalman-type kernels (extended Kalman, unscented): ``state = [x (n), vec(P) (n n), ...]``.
+
+    Parameters
+    ----------
+    plant : Plant
+        The plant.
+    tuning : object
+        The estimator's tuning (its artefact).
+    model : DiscreteModel
+        The sampled model the kernel predicts with.
+    runs : int or None
+        Number of parallel runs (None: a single run).
+    backend : {"auto", "native", "vm"}
+        Compiled C kernel, CasADi's virtual machine, or native when a compiler works.
     """
 
     @property

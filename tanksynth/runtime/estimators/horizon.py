@@ -89,7 +89,8 @@ def observed_step(step: ca.Function, model: Any, n: int, q: int,
     n, q : int
         States and outputs.
     unobserved_variance : float
-        Relative variance of an unobserved output (`KernelEstimator.UNOBSERVED_VARIANCE`).
+        Relative variance of an unobserved output (dimensionless,
+        `KernelEstimator.UNOBSERVED_VARIANCE`).
 
     Returns
     -------
@@ -172,7 +173,7 @@ class Horizon:
         self.chunk = int(fn.size2_in(1))
         self.runs = int(runs)
         self.masked = fn.n_in() == 5
-        run_fn = fn if runs == 1 else fn.map(f"{fn.name()}_map{runs}", "serial", runs, [3], [])
+        run_fn: Any = fn if runs == 1 else fn.map(f"{fn.name()}_map{runs}", "serial", runs, [3], [])
         M, L = self.runs, self.chunk
         s, q, m, c = fn.size1_in(0), fn.size1_in(1), fn.size1_in(2), fn.size1_out(1)
         self.state = np.zeros((M, s))

@@ -22,6 +22,7 @@ deletes the files.
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import casadi as ca
 
@@ -146,7 +147,7 @@ def _c_source(fn: ca.Function, name: str) -> str:
     An SX function is renamed on SX symbols; any other (an MX function calling others, a
     horizon kernel) on MX symbols, so that its calls stay calls (no expansion to SX).
     """
-    args = fn.sx_in() if fn.is_a("SXFunction") else fn.mx_in()
+    args: Any = fn.sx_in() if fn.is_a("SXFunction") else fn.mx_in()
     renamed = ca.Function(name, args, fn.call(args), fn.name_in(), fn.name_out())
     gen = ca.CodeGenerator(f"{name}.c", {"with_header": False})
     gen.add(renamed)
