@@ -537,21 +537,22 @@ class KernelEstimator(Estimator):
         policy = horizon_backend()
         if policy == "step" or self.backend != "native":
             return None
-        shared = self._shared
-        fn = shared["horizon_fns"].get(masked)
-        if fn is None:
+        known = self._shared["horizon_fns"]
+        fn = known.get(masked)             # the library, False (failed) or "absent" (not built)
+        if fn is False:
+            return None
+        if fn is None or isinstance(fn, str):
+            build = policy == "horizon" or work >= BUILD_STEPS
+            if isinstance(fn, str) and not build:
+                return None
             step = self.step_kernel
             if masked:
                 step = observed_step(step, self.model, self.n, self.q, self.UNOBSERVED_VARIANCE)
-            build = policy == "horizon" or work >= BUILD_STEPS
             fn = native_function(horizon_function(step, CHUNK), build=build)
-            if fn is None:
-                if build:                      # failed: remembered, the estimator steps
-                    shared["horizon_fns"][masked] = False
+            if fn is None:                     # failed (remembered: the estimator steps) or absent
+                known[masked] = False if build else "absent"
                 return None
-            shared["horizon_fns"][masked] = fn
-        if fn is False:
-            return None
+            known[masked] = fn
         hz = self._horizons.get(masked)
         if hz is None:                         # buffers of this instance (its runs, its params)
             hz = self._horizons[masked] = Horizon(fn, self._M, self._P)

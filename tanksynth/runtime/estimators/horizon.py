@@ -24,7 +24,7 @@ family ``kernels``; the key is the generated source, so the step's structure
 and the chunk length). The same C code of the step as the one-step kernel, the
 same flags (no fused multiply-add): the same numbers, bit for bit on this
 machine. A library not yet on disk is built only for sequences of at least
-`BUILD_STEPS` run-steps (shorter ones step).
+`BUILD_STEPS` run-steps (shorter ones step until it is built; one on disk is always loaded).
 
 Environment (`horizon_backend`): ``TANKSYNTH_ESTIMATOR_BACKEND`` = ``auto``
 (default; as above), ``horizon`` (build whatever the length) or ``step`` (never:
@@ -47,8 +47,10 @@ __all__ = ["CHUNK", "BUILD_STEPS", "HORIZON_BACKENDS", "horizon_backend", "horiz
 #: Samples per call of a horizon kernel (the kernel's length; a sequence takes ceil(N / CHUNK)).
 CHUNK = 256
 
-#: Run-steps (samples x runs) from which a horizon library not yet on disk is compiled.
-BUILD_STEPS = 512
+#: Run-steps (samples x runs) from which ``auto`` compiles a horizon library not yet on disk (the
+#: compiler takes 0.3-2 s once per machine, stepping about 5 us per sample): shorter sequences
+#: step unless the library is already built (loaded, then, whatever the length).
+BUILD_STEPS = 20_000
 
 #: Values of ``TANKSYNTH_ESTIMATOR_BACKEND``.
 HORIZON_BACKENDS = ("auto", "horizon", "step")

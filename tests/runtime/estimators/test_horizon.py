@@ -14,7 +14,8 @@ from tanksynth.errors import CovarianceError
 from tanksynth.native_cache import find_compiler
 from tanksynth.runtime.estimators import (ExtendedKalmanFilter, KalmanTuning, NARXEstimator,
                                          NARXTuning, UKFTuning, UnscentedKalmanFilter)
-from tanksynth.runtime.estimators.horizon import CHUNK, horizon_backend
+from tanksynth.runtime.estimators.horizon import BUILD_STEPS, CHUNK, horizon_backend
+from tanksynth.runtime.estimators.kernels import cache_info, clear_cache
 from tanksynth.sim.inputs import EstimatorAdapter
 from tanksynth.sim.simulate import simulate, simulate_inputs
 
@@ -183,3 +184,28 @@ def test_open_loop_noisy_simulation_estimates_after_the_plant(monkeypatch, hybri
     np.testing.assert_array_equal(out[0].y, out[1].y)
     _agree(out[1].x_hat, out[0].x_hat)
     assert np.abs(out[1].x_hat[:, 50:] - out[1].x[:, 50:]).max() < 0.02   # it does estimate
+
+
+def test_auto_compiles_for_long_sequences_only(monkeypatch, tmp_path, tank_plant):
+    """``auto``: a short sequence steps (no compiler run), a long one builds the library, which
+    every sequence then uses; ``TANKSYNTH_SIM_BACKEND=numpy`` steps."""
+    monkeypatch.setenv("TANKSYNTH_CACHE", str(tmp_path))
+    monkeypatch.delenv("TANKSYNTH_ESTIMATOR_BACKEND", raising=False)
+    clear_cache()                                   # nothing loaded, nothing on disk
+    est = _ekf(tank_plant)
+    Y, U = _data(tank_plant, 1, samples=300)
+    est.run(Y[:, 0], U[:, 0])
+    assert est._shared["horizon_fns"][False] == "absent" and not est._horizons
+    files = cache_info()["files"]
+    Yb, Ub = _data(tank_plant, 37, samples=600)
+    assert 37 * 600 >= BUILD_STEPS
+    big = est.batch(37)
+    big.run(Yb, Ub)
+    assert cache_info()["files"] == files + 1 and big._horizons[False].runs == 37
+    est.run(Y[:, 0], U[:, 0])
+    assert est._horizons[False].runs == 1
+    monkeypatch.setenv("TANKSYNTH_SIM_BACKEND", "numpy")
+    assert horizon_backend() == "step"
+    fresh = est.batch(2)
+    fresh.run(Yb[:, :2], Ub[:, :2])
+    assert not fresh._horizons
