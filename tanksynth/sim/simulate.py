@@ -344,9 +344,11 @@ def simulate(plant: Plant, *, ts: float, steps: int, x0: Sequence[float] | np.nd
             return _pack(*_with_outputs(integ, *loop, params), ref, seeds, ts, substeps, integ,
                          timing, plant)
     refs = np.broadcast_to(ref[:, None, :], (N + 1, M, ref.shape[1]))
-    # Inputs that do not depend on the estimate (none, or a given sequence): the estimator runs
-    # after the loop over the measurements (`_estimate`: the same calls, one horizon kernel)
-    later = estimator is not None and (controller is None or sequence is not None)
+    # Inputs that do not depend on the estimate (none, a given sequence, a law whose class says
+    # ``open_loop = True``: a constant input, a scenario's schedule): the estimator runs after the
+    # loop over the measurements (`_estimate`: the same calls, through its horizon kernel)
+    later = estimator is not None and (controller is None or sequence is not None
+                                       or getattr(type(controller), "open_loop", False) is True)
     u_first = u_prev
     for k in range(N + 1):
         t_k = k * ts

@@ -209,3 +209,27 @@ def test_auto_compiles_for_long_sequences_only(monkeypatch, tmp_path, tank_plant
     fresh = est.batch(2)
     fresh.run(Yb[:, :2], Ub[:, :2])
     assert not fresh._horizons
+
+
+def test_scenario_schedule_with_noise_estimates_as_the_step_loop(monkeypatch, hybrid_plant):
+    """A noisy run under an open-loop input schedule (a scenario's law): the estimates equal one
+    `step` per sample on the recorded measurements and the inputs held before them."""
+    from tanksynth.sim.scenarios import InputSchedule
+    monkeypatch.setenv("TANKSYNTH_ESTIMATOR_BACKEND", "horizon")
+    est = _ekf(hybrid_plant)
+    law = InputSchedule((0.0, 200.0), ((90 * LPH, 80 * LPH), (60 * LPH, 100 * LPH)))
+    u0 = np.array([90 * LPH, 80 * LPH])
+    res = simulate(hybrid_plant, ts=1.0, steps=N, x0=[0.3, 0.2, 0.25], seeds=np.arange(3),
+                   controller=law, estimator=EstimatorAdapter(est), u_init=u0,
+                   x_hat0=np.tile([0.25, 0.15, 0.2], (3, 1)), measurement_std=1e-3,
+                   process_std=1e-5)
+    ref = est.batch(3)
+    monkeypatch.setenv("TANKSYNTH_ESTIMATOR_BACKEND", "step")
+    ref.reset()
+    u_prev = np.tile(u0, (3, 1))
+    for k in range(N + 1):
+        xh = ref.step(res.y[:, k], u_prev)
+        _agree(res.x_hat[:, k], xh)
+        if k < N:
+            u_prev = res.u[:, k]
+    assert np.abs(res.u[:, 250] - [60 * LPH, 100 * LPH]).max() == 0.0
