@@ -353,6 +353,12 @@ def simulate(plant: Plant, *, ts: float, steps: int, x0: Sequence[float] | np.nd
             return _pack(*_with_outputs(integ, *loop, params), ref, seeds, ts, substeps, integ,
                          timing, plant)
     refs = np.broadcast_to(ref[:, None, :], (N + 1, M, ref.shape[1]))
+    # Inputs that do not depend on the estimate (none, a given sequence, a law whose class says
+    # ``open_loop = True``: a constant input, a scenario's schedule): the estimator runs after the
+    # loop over the measurements (`_estimate`: the same calls, through its horizon kernel)
+    later = estimator is not None and (controller is None or sequence is not None
+                                       or getattr(type(controller), "open_loop", False) is True)
+    u_first = u_prev
     for k in range(N + 1):
         t_k = k * ts
         for values in schedule.get(k, ()):
@@ -370,7 +376,7 @@ def simulate(plant: Plant, *, ts: float, steps: int, x0: Sequence[float] | np.nd
         if v is not None:   # noisy
             y = y + v[:, k]
         Y[k] = y
-        if estimator is not None:
+        if estimator is not None and not later:
             t0 = time.perf_counter()
             xh = np.asarray(estimator.step(y, u_prev), dtype=float)
             timing["estimator"] += time.perf_counter() - t0
@@ -399,6 +405,11 @@ def simulate(plant: Plant, *, ts: float, steps: int, x0: Sequence[float] | np.nd
         if w is not None:   # noisy (without noise the advanced state is already clipped)
             x = integ.clip_counted(x + w[:, k])
         u_prev = u
+    if later and estimator is not None:
+        run_major = lambda a: np.ascontiguousarray(a.transpose(1, 0, 2))  # noqa: E731
+        done = _estimate(estimator, (run_major(X), run_major(Y), run_major(U), XH, run_major(modes)),
+                         u_first, timing)
+        return _pack(*done, ref, seeds, ts, substeps, integ, timing, plant)
     return _result(X, Y, U, XH, ref, seeds, modes, ts, substeps, integ, timing, plant)
 
 
