@@ -310,12 +310,6 @@ def simulate(plant: Plant, *, ts: float, steps: int, x0: Sequence[float] | np.nd
     if noisy:
         w, v = _draw_noise(seeds, N, n, q, wstd, vstd)
 
-    # Time-major buffers (contiguous writes per sample), returned run-major.
-    X = np.empty((N + 1, M, n))
-    Y = np.empty((N + 1, M, q))
-    U = np.empty((N, M, m))
-    XH = np.empty((N + 1, M, n))
-    modes = np.zeros((N + 1, M, model.k), dtype=np.int8)
     timing = {"estimator": 0.0, "controller": 0.0, "calls": 0, "runs": M}
     if estimator is not None:
         estimator.reset(xh0.copy())
@@ -339,7 +333,7 @@ def simulate(plant: Plant, *, ts: float, steps: int, x0: Sequence[float] | np.nd
                 done = _estimate(estimator, done, u_prev, timing)
             return _pack(*done, ref, seeds, ts, substeps, integ, timing, plant)
     compiled = _kernel_loop(plant, integ, controller, x, ref, w, v, params, schedule, jump_at, M,
-                            ts, int(substeps), timing) if estimator is None else None
+                            ts, int(substeps), timing, (lo, hi)) if estimator is None else None
     if compiled is not None:
         return _pack(*compiled, ref, seeds, ts, substeps, integ, timing, plant)
     affine = getattr(controller, "affine", None)
@@ -352,6 +346,12 @@ def simulate(plant: Plant, *, ts: float, steps: int, x0: Sequence[float] | np.nd
             timing["calls"] = N
             return _pack(*_with_outputs(integ, *loop, params), ref, seeds, ts, substeps, integ,
                          timing, plant)
+    # Time-major buffers (contiguous writes per sample), returned run-major.
+    X = np.empty((N + 1, M, n))
+    Y = np.empty((N + 1, M, q))
+    U = np.empty((N, M, m))
+    XH = np.empty((N + 1, M, n))
+    modes = np.zeros((N + 1, M, model.k), dtype=np.int8)
     refs = np.broadcast_to(ref[:, None, :], (N + 1, M, ref.shape[1]))
     for k in range(N + 1):
         t_k = k * ts
@@ -437,7 +437,8 @@ def _draw_noise(seeds: np.ndarray, N: int, n: int, q: int, wstd: np.ndarray,
 def _kernel_loop(plant: Plant, integ: Integrator, controller: Any, x: np.ndarray, ref: np.ndarray,
                  w: np.ndarray | None, v: np.ndarray | None, params: dict[str, Any],
                  schedule: Mapping[int, list], jump_at: Mapping[int, np.ndarray], M: int, ts: float,
-                 substeps: int, timing: dict) -> _Runs | None:
+                 substeps: int, timing: dict,
+                 limits: tuple[np.ndarray, np.ndarray] | None = None) -> _Runs | None:
     """The closed loop through its compiled kernel (`tanksynth.sim.closed_loop`), or None.
 
     For a controller offering ``loop_law(runs)`` with the true state fed back; None (nothing
@@ -459,7 +460,7 @@ def _kernel_loop(plant: Plant, integ: Integrator, controller: Any, x: np.ndarray
 
     done = run_closed_loop(integ, kernel, law, x, ref, w, params,
                            lambda p: input_limits(plant, p, M), schedule, update, jump_at, ts,
-                           substeps)
+                           substeps, first_limits=limits)
     if done is None:
         return None
     X, Y, U, modes, seconds = done
