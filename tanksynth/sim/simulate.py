@@ -192,7 +192,9 @@ def _per_run(value: Any, count: int, width: int, name: str) -> np.ndarray:
     if arr.ndim == 0:
         return np.full((count, width), float(arr))
     if arr.shape == (width,):
-        return np.broadcast_to(arr, (count, width)).copy()
+        out = np.empty((count, width))
+        out[...] = arr
+        return out
     if arr.shape == (count, width):
         return arr.copy()
     raise DimensionError(f"{name} has shape {arr.shape}: expected ({width},) or ({count}, {width})")
