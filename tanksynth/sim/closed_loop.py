@@ -599,7 +599,7 @@ def run_closed_loop(integ: Any, kernel: LoopKernel, law: LoopLaw, x: np.ndarray,
     M, n = x.shape
     N = refs.shape[0] - 1
     m = kernel.m
-    if not 1 <= int(substeps) <= MAX_LOOP_SUBSTEPS or not np.isfinite(x).all():
+    if not 1 <= int(substeps) <= MAX_LOOP_SUBSTEPS or not np.isfinite(x).all():  # (the loop reports)
         return None
     h = float(ts) / int(substeps)
     if threads is None:
@@ -636,8 +636,10 @@ def run_closed_loop(integ: Any, kernel: LoopKernel, law: LoopLaw, x: np.ndarray,
                                          int(substeps), X[:, a + 1:e + 1], U[:, a:e], threads)
             if (stop >= 0).any():
                 return None
-            low_count += _popcount(low)
-            high_count += _popcount(high)
+            if low.any():
+                low_count += _popcount(low)
+            if high.any():
+                high_count += _popcount(high)
             xk = X[:, e]
         _outputs(integ, X[:, a:b], p, Y[:, a:b], modes[:, a:b])
     seconds = time.perf_counter() - t0

@@ -306,7 +306,7 @@ def simulate(plant: Plant, *, ts: float, steps: int, x0: Sequence[float] | np.nd
 
     # Noise: one generator per run, drawn in a fixed order (process, then measurement).
     # Without noise nothing is drawn (the draws would be multiplied by zero).
-    noisy = bool(np.any(wstd != 0) or np.any(vstd != 0))
+    noisy = bool((wstd != 0).any() or (vstd != 0).any())
     w: np.ndarray | None = None   # process noise, (M, N, n) when noisy
     v: np.ndarray | None = None   # measurement noise, (M, N + 1, q) when noisy
     if noisy:
