@@ -231,3 +231,24 @@ def test_a_non_finite_input_is_still_the_loops_error(loop_cache):
     with pytest.raises(SimulationError, match="non-finite input"):
         simulate(TANK, ts=1.0, steps=200, x0=X0 - 0.1, seeds=[0], controller=CasadiControlLaw(bad),
                  reference=_reference(200), u_init=U0)
+
+
+def test_repeated_calls_follow_parameter_values_and_overflow_height(loop_cache, monkeypatch):
+    """The per-call caches (tables of scalar parameter values, the plant's state bounds, the
+    input limits handed to the kernel) follow the values: each call equals the loop's."""
+    law = _tracking_law()
+    N = 80
+    kw = dict(plant=TANK, ts=1.0, steps=N, x0=X0, seeds=[7], reference=_reference(N), u_init=U0,
+              process_std=1e-4, measurement_std=1e-3)
+    runs = []
+    for parameters in ({}, {"mu20": 0.4}, {"mu20": 0.4, "hmax": 0.45}, {"hmax": 0.45},
+                       {"mu20": 0.4}, {}):
+        fast, slow, fl, sl = _both(monkeypatch, lambda: CasadiIntegralLaw(law),
+                                   parameters=parameters, **kw)
+        _agree(fast, slow)
+        assert np.array_equal(fast.x, slow.x) and np.array_equal(fast.y, slow.y)
+        assert np.array_equal(fl.z, sl.z)
+        runs.append(fast.x)
+    assert np.array_equal(runs[0], runs[5]) and np.array_equal(runs[1], runs[4])
+    assert not np.array_equal(runs[0], runs[1]) and not np.array_equal(runs[1], runs[2])
+    assert runs[2].max() <= 0.45 < runs[1].max()      # the lower overflow height clips
