@@ -59,6 +59,10 @@ __all__ = [
 ]
 
 
+#: id(plant) -> (plant, (hmax, parameter values), lower, upper): the plant's state bounds.
+_BOUNDS: dict[int, tuple] = {}
+
+
 # ----------------------------------------------------------------------------- parameters
 def param_arrays(plant: Plant, overrides: Mapping[str, Any] | None, count: int) -> dict[str, Any]:
     """The plant's parameter values for a batch, with overrides.
@@ -192,8 +196,22 @@ class Integrator:
         work : float, optional
             See the class.
         """
-        lower, upper = bounds if bounds is not None else plant.state_bounds(
-            {k: v for k, v in (params or {}).items() if k == "hmax"})
+        if bounds is not None:
+            lower, upper = bounds
+        else:
+            hmax = (params or {}).get("hmax")
+            key = (None if hmax is None or np.ndim(hmax) else float(hmax),
+                   tuple(prm.value for prm in plant.parameters))
+            held = _BOUNDS.get(id(plant))
+            if held is not None and held[0] is plant and held[1] == key:
+                lower, upper = held[2], held[3]
+            else:
+                lower, upper = plant.state_bounds({} if hmax is None else {"hmax": hmax})
+                lower.flags.writeable = upper.flags.writeable = False
+                if key[0] is not None or hmax is None:
+                    _BOUNDS[id(plant)] = (plant, key, lower, upper)
+                    while len(_BOUNDS) > 64:
+                        del _BOUNDS[next(iter(_BOUNDS))]
         return cls(numpy_model(plant), lower, upper, event_iterations, max_splits, work)
 
     def clip(self, x: np.ndarray) -> np.ndarray:

@@ -18,6 +18,9 @@ from tanksynth.sim.kernel import NativeKernel, per_run_table
 
 __all__ = ["tables", "period", "horizon"]
 
+#: Tables of scalar parameter values kept per model (the newest).
+_TABLES_KEPT = 16
+
 
 def tables(integ: Any, p: Mapping[str, Any], count: int) -> tuple[np.ndarray, np.ndarray]:
     """Constants and parameter tables (M, .) of the kernel (cached while ``p`` holds).
@@ -30,6 +33,17 @@ def tables(integ: Any, p: Mapping[str, Any], count: int) -> tuple[np.ndarray, np
     count : int
         Number of runs M.
     """
+    model = integ.model
+    pv = model.parameter_values(p)
+    if all(type(v) is float for v in pv):   # scalar values: tables kept on the model by value
+        key = ("tables", tuple(pv), int(count))
+        hit = model.compiled.get(key)
+        if hit is None:
+            c = model.constants(pv)
+            hit = model.compiled[key] = (per_run_table(c, count), per_run_table(pv, count))
+            for old in [k for k in model.compiled if k[0] == "tables"][:-_TABLES_KEPT]:
+                del model.compiled[old]
+        return hit
     pv, c = integ._values(p)
     held, C, P = integ._tables
     if (C is None or C.shape[0] != count or len(held) != len(pv)

@@ -192,7 +192,9 @@ def _per_run(value: Any, count: int, width: int, name: str) -> np.ndarray:
     if arr.ndim == 0:
         return np.full((count, width), float(arr))
     if arr.shape == (width,):
-        return np.broadcast_to(arr, (count, width)).copy()
+        out = np.empty((count, width))
+        out[...] = arr
+        return out
     if arr.shape == (count, width):
         return arr.copy()
     raise DimensionError(f"{name} has shape {arr.shape}: expected ({width},) or ({count}, {width})")
@@ -304,18 +306,12 @@ def simulate(plant: Plant, *, ts: float, steps: int, x0: Sequence[float] | np.nd
 
     # Noise: one generator per run, drawn in a fixed order (process, then measurement).
     # Without noise nothing is drawn (the draws would be multiplied by zero).
-    noisy = bool(np.any(wstd != 0) or np.any(vstd != 0))
+    noisy = bool((wstd != 0).any() or (vstd != 0).any())
     w: np.ndarray | None = None   # process noise, (M, N, n) when noisy
     v: np.ndarray | None = None   # measurement noise, (M, N + 1, q) when noisy
     if noisy:
         w, v = _draw_noise(seeds, N, n, q, wstd, vstd)
 
-    # Time-major buffers (contiguous writes per sample), returned run-major.
-    X = np.empty((N + 1, M, n))
-    Y = np.empty((N + 1, M, q))
-    U = np.empty((N, M, m))
-    XH = np.empty((N + 1, M, n))
-    modes = np.zeros((N + 1, M, model.k), dtype=np.int8)
     timing = {"estimator": 0.0, "controller": 0.0, "calls": 0, "runs": M}
     if estimator is not None:
         estimator.reset(xh0.copy())
@@ -339,7 +335,7 @@ def simulate(plant: Plant, *, ts: float, steps: int, x0: Sequence[float] | np.nd
                 done = _estimate(estimator, done, u_prev, timing)
             return _pack(*done, ref, seeds, ts, substeps, integ, timing, plant)
     compiled = _kernel_loop(plant, integ, controller, x, ref, w, v, params, schedule, jump_at, M,
-                            ts, int(substeps), timing) if estimator is None else None
+                            ts, int(substeps), timing, (lo, hi)) if estimator is None else None
     if compiled is not None:
         return _pack(*compiled, ref, seeds, ts, substeps, integ, timing, plant)
     affine = getattr(controller, "affine", None)
@@ -352,6 +348,12 @@ def simulate(plant: Plant, *, ts: float, steps: int, x0: Sequence[float] | np.nd
             timing["calls"] = N
             return _pack(*_with_outputs(integ, *loop, params), ref, seeds, ts, substeps, integ,
                          timing, plant)
+    # Time-major buffers (contiguous writes per sample), returned run-major.
+    X = np.empty((N + 1, M, n))
+    Y = np.empty((N + 1, M, q))
+    U = np.empty((N, M, m))
+    XH = np.empty((N + 1, M, n))
+    modes = np.zeros((N + 1, M, model.k), dtype=np.int8)
     refs = np.broadcast_to(ref[:, None, :], (N + 1, M, ref.shape[1]))
     # Inputs that do not depend on the estimate (none, a given sequence, a law whose class says
     # ``open_loop = True``: a constant input, a scenario's schedule): the estimator runs after the
@@ -448,7 +450,8 @@ def _draw_noise(seeds: np.ndarray, N: int, n: int, q: int, wstd: np.ndarray,
 def _kernel_loop(plant: Plant, integ: Integrator, controller: Any, x: np.ndarray, ref: np.ndarray,
                  w: np.ndarray | None, v: np.ndarray | None, params: dict[str, Any],
                  schedule: Mapping[int, list], jump_at: Mapping[int, np.ndarray], M: int, ts: float,
-                 substeps: int, timing: dict) -> _Runs | None:
+                 substeps: int, timing: dict,
+                 limits: tuple[np.ndarray, np.ndarray] | None = None) -> _Runs | None:
     """The closed loop through its compiled kernel (`tanksynth.sim.closed_loop`), or None.
 
     For a controller offering ``loop_law(runs)`` with the true state fed back; None (nothing
@@ -470,7 +473,7 @@ def _kernel_loop(plant: Plant, integ: Integrator, controller: Any, x: np.ndarray
 
     done = run_closed_loop(integ, kernel, law, x, ref, w, params,
                            lambda p: input_limits(plant, p, M), schedule, update, jump_at, ts,
-                           substeps)
+                           substeps, first_limits=limits)
     if done is None:
         return None
     X, Y, U, modes, seconds = done

@@ -18,6 +18,7 @@ from tanksynth.runtime.laws import integral_tracking_law, inverse_dynamics_law
 from tanksynth.sim import closed_loop, kernel, tape
 from tanksynth.sim.simulate import ParameterChange, StateJump, simulate
 from tanksynth.verify.batch_call import CasadiControlLaw, CasadiIntegralLaw
+from tanksynth.verify.robust.traces import PeakRecordingLaw
 from tanksynth.verify.simulations import IntegralStateFeedback, StateFeedback
 
 TOL = 1e-12
@@ -231,3 +232,52 @@ def test_a_non_finite_input_is_still_the_loops_error(loop_cache):
     with pytest.raises(SimulationError, match="non-finite input"):
         simulate(TANK, ts=1.0, steps=200, x0=X0 - 0.1, seeds=[0], controller=CasadiControlLaw(bad),
                  reference=_reference(200), u_init=U0)
+
+
+def test_repeated_calls_follow_parameter_values_and_overflow_height(loop_cache, monkeypatch):
+    """The per-call caches (tables of scalar parameter values, the plant's state bounds, the
+    input limits handed to the kernel) follow the values: each call equals the loop's."""
+    law = _tracking_law()
+    N = 80
+    kw = dict(plant=TANK, ts=1.0, steps=N, x0=X0, seeds=[7], reference=_reference(N), u_init=U0,
+              process_std=1e-4, measurement_std=1e-3)
+    runs = []
+    for parameters in ({}, {"mu20": 0.4}, {"mu20": 0.4, "hmax": 0.45}, {"hmax": 0.45},
+                       {"mu20": 0.4}, {}):
+        fast, slow, fl, sl = _both(monkeypatch, lambda: CasadiIntegralLaw(law),
+                                   parameters=parameters, **kw)
+        _agree(fast, slow)
+        assert np.array_equal(fast.x, slow.x) and np.array_equal(fast.y, slow.y)
+        assert np.array_equal(fl.z, sl.z)
+        runs.append(fast.x)
+    assert np.array_equal(runs[0], runs[5]) and np.array_equal(runs[1], runs[4])
+    assert not np.array_equal(runs[0], runs[1]) and not np.array_equal(runs[1], runs[2])
+    assert runs[2].max() <= 0.45 < runs[1].max()      # the lower overflow height clips
+
+
+@pytest.mark.parametrize("integral", [False, True])
+def test_peak_recording_law_runs_in_the_kernel(loop_cache, monkeypatch, integral):
+    """The robust verdict's saturation check (`PeakRecordingLaw` around the robust feedback):
+    through the kernel, the peak ratio and the wrapped law's state end where the loop's do."""
+    B = linearize(TANK, X0, U0).B
+    K = 20.0 * B.T                                  # stiff enough to saturate after the step
+    umax = np.array([5e-5, 4e-5])
+    N = 90
+    starts = X0 + np.array([[0.03, -0.02, 0.01], [-0.04, 0.0, 0.02], [0.0, 0.05, -0.03]])
+
+    def make():
+        inner = (IntegralStateFeedback(K, -1e-3 * np.eye(2), np.eye(3)[:2], X0, U0, 1.0)
+                 if integral else StateFeedback(K, X0, U0))
+        return PeakRecordingLaw(inner, U0, umax)
+
+    fast, slow, fl, sl = _both(monkeypatch, make, plant=TANK, ts=1.0, steps=N, x0=starts,
+                               seeds=np.arange(3), u_init=U0, process_std=1e-4,
+                               reference=_reference(N) if integral else None)
+    _agree(fast, slow)
+    assert fl.peak.shape == (3,) and _rel(fl.peak, sl.peak) <= TOL
+    assert np.all(fl.peak > 1.0)                    # the unclipped inputs went past umax
+    # the peak is over the unclipped inputs: the clipped ones alone give less
+    clipped = np.max(np.abs(fast.u - U0) / umax, axis=(1, 2))
+    assert np.all(clipped <= fl.peak)
+    if integral:
+        assert _rel(fl.law.z, sl.law.z) <= TOL
