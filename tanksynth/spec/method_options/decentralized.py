@@ -128,10 +128,12 @@ class DecentralizedKalmanOptions(MethodOptions):
     input: np.ndarray | None = option(None, unit="input units")
     relinearize_every: int = option(10, unit="samples")
     run_steps: int = option(0, unit="samples")
-    input_after: np.ndarray | None = option(None, unit="input units")
+    input_after: np.ndarray | None = option(None, unit="input units",
+                                              default_text="unset: input throughout")
     input_switch: float = option(0.0, unit="s")
     run_seed: int = option(7, unit="-")
-    run_x0: np.ndarray | None = option(None, unit="state units")
+    run_x0: np.ndarray | None = option(None, unit="state units",
+                                         default_text="unset: the operating point")
 
     @classmethod
     def from_table(cls, options: Mapping[str, Any], key: str, plant: Plant,

@@ -451,7 +451,8 @@ class NarxOptions(KalmanOptions):
     max_iter: int = option(200, unit="-")
     max_fail: int = option(6, unit="-")
     excitation: str = option("random", unit="-", choices=("random", "designed"))
-    setpoint_range: np.ndarray | None = option(None, unit="state units")
+    setpoint_range: np.ndarray | None = option(None, unit="state units",
+                                                 default_text="unset: needed only with excitation = \"designed\"")
     prbs_amplitude: float = option(0.0, unit="input units")
     prbs_hold: tuple[int, int] = option((3, 20), unit="samples")
 
