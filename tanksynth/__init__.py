@@ -28,6 +28,8 @@ _EXPORTS = {
                      "write_report"], "tanksynth.methods"),
     "Spec": "tanksynth.spec",
     **dict.fromkeys(["load", "Design", "Results"], "tanksynth.loading"),
+    "Verdict": "tanksynth.verify.runner",
+    "Check": "tanksynth.analysis.checks",
     **dict.fromkeys(["spec_document", "spec_text"], "tanksynth.api"),
     **dict.fromkeys(["controllability_rank", "nonlinear_observability", "observability_rank",
                      "pbh_test", "symbolic_observability"], "tanksynth.analysis.rank"),

@@ -592,7 +592,8 @@ def gain_names_markdown() -> str:
 #: The sections of the curated API page: title -> the modules whose public names it lists (a
 #: name of ``tanksynth.__all__`` from another module lands in "Other").
 API_SECTIONS: dict[str, tuple[str, ...]] = {
-    "Results: load designed artefacts": ("tanksynth.loading",),
+    "Results: load designed artefacts, their verdicts": ("tanksynth.loading", "tanksynth.verify.runner",
+                                                         "tanksynth.analysis.checks"),
     "Specs: read, design, verify, report": ("tanksynth.methods", "tanksynth.spec", "tanksynth.design.result",
                                             "tanksynth.artefacts.io"),
     "Plants": ("tanksynth.plants",),

@@ -109,3 +109,14 @@ def test_api_reference_lists_every_public_name():
     documented = re.findall(r"^\.\. auto(?:function|class|exception):: tanksynth\.(\w+)$", text, re.M)
     assert sorted(documented) == sorted(public)
     assert "tanksynth.verify.runner" not in re.findall(r"auto\w+:: (\S+)", text)
+
+
+def test_api_reference_documents_the_verdict_design_verify_returns():
+    """Issue 30: `Design.verify()` returns a `Verdict` the API page did not document."""
+    text = docgen.api_reference_markdown()
+    assert ".. autoclass:: tanksynth.Verdict" in text
+    assert ".. autoclass:: tanksynth.Check" in text
+    results = text.split("## Results")[1].split("\n## ")[0]
+    assert "tanksynth.Verdict" in results and "tanksynth.Check" in results
+    from tanksynth.verify.runner import Verdict
+    assert tanksynth.Verdict is Verdict
