@@ -18,6 +18,7 @@ import numpy as np
 
 from tanksynth.artefacts.traces import trace_path
 from tanksynth.plants import BUILTIN_PLANTS
+from tanksynth.reports.check_names import check_title
 from tanksynth.reports.comparison import PaperComparison
 from tanksynth.reports.diagnostics.common import is_number
 from tanksynth.reports.diagnostics.model import linearization_of
@@ -240,7 +241,7 @@ def _check_view(c: Mapping[str, Any]) -> dict[str, Any]:
             "blocks": data.get("blocks_used"),
         }
     return {
-        "name": prose_latex(str(c.get("check", "")).replace("_", " ")),
+        "name": prose_latex(check_title(c.get("check", ""))),
         "passed": passed,
         "verdict": Tex(r"\textcolor{passgreen}{pass}" if passed is True else
                        r"\textcolor{failred}{\textbf{FAIL}}" if passed is False else

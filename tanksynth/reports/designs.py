@@ -14,6 +14,7 @@ from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
 
+from tanksynth.reports.check_names import check_title
 from tanksynth.reports.comparison import latex_matrix_entries
 from tanksynth.reports.diagnostics.common import is_number
 from tanksynth.reports.equations import split_equation, visual_length
@@ -393,7 +394,7 @@ def _checks_rows(value: Any) -> list[dict[str, Tex]]:
             continue
         detail = c.get("detail")
         rows.append({
-            "name": prose_latex(c["name"] if c.get("name") else words(c.get("check", ""))),
+            "name": prose_latex(c["name"] if c.get("name") else check_title(c.get("check", ""))),
             "value": (_m(c["value"], _value_digits(c)) if "value" in c else Tex("--")),
             "limit": recheck_test_tex(c),
             "unit": prose_latex(c.get("unit", "")),

@@ -15,6 +15,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
+from tanksynth.reports.check_names import check_title
 from tanksynth.reports.figures import FigureFile, figure_stem
 from tanksynth.reports.latex import Tex
 from tanksynth.reports.prose import prose_latex
@@ -138,7 +139,7 @@ def replay_view(doc: Mapping[str, Any] | None, figures: Mapping[int, FigureFile]
         return None
     entries = []
     for i, e in enumerate(doc.get("replays") or []):
-        checks = [{"name": prose_latex(str(c.get("check", "")).replace("_", " ")),
+        checks = [{"name": prose_latex(check_title(c.get("check", ""))),
                    "verdict": Tex(_VERDICT.get(c.get("passed"), _VERDICT[None])),
                    "detail": prose_latex(str(c.get("detail", "")))}
                   for c in e.get("checks") or [] if isinstance(c, Mapping)]
