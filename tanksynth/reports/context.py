@@ -56,14 +56,33 @@ def _equation_blocks(lines: Sequence[str] | None) -> list[list[Tex]]:
     return out
 
 
+def _fitted_parameters(inputs: ReportInputs) -> dict[str, dict[str, Any]]:
+    """The free parameters of the directory's fit artefacts: name -> ``{"value", "design"}``
+    (the fitted value, typeset, and the fit's design name); the plant record holds their start
+    values, which section 1.2 then labels as such."""
+    out: dict[str, dict[str, Any]] = {}
+    for art in inputs.artefacts:
+        diag = art.get("diagnostics")
+        table = diag.get("parameters") if art.get("method") == "fit" and isinstance(diag, Mapping) else None
+        if not isinstance(table, Mapping):
+            continue
+        for name, row in table.items():
+            if isinstance(row, Mapping) and is_number(row.get("value")):
+                out.setdefault(str(name), {"value": _m(row["value"]),
+                                           "design": escape_latex(str(art.get("name", "")))})
+    return out
+
+
 def _plant_view(inputs: ReportInputs) -> dict[str, Any]:
     rec = inputs.plant
     p = rec.get("plant", {}) or {}
     units = {s.get("name"): s.get("unit") for s in p.get("states", [])}
     units.update({s.get("name"): s.get("unit") for s in p.get("inputs", [])})
+    fitted = _fitted_parameters(inputs)
     params = [{"sym": Tex("$" + symbol_latex(q.get("name", "")) + "$"),
                "name": escape_latex(q.get("name", "")),
                "value": _m(q.get("value")),
+               "fitted": fitted.get(str(q.get("name", ""))),
                "unit": format_unit(q.get("unit")),
                "desc": prose_latex(q.get("description", ""))} for q in p.get("parameters", [])]
     region = p.get("region", {}) or {}
@@ -101,6 +120,7 @@ def _plant_view(inputs: ReportInputs) -> dict[str, Any]:
         "inputs": _signal_rows(p.get("inputs", [])),
         "outputs": _signal_rows(p.get("outputs", [])),
         "parameters": params,
+        "fitted": sorted({f["design"] for f in fitted.values()}),
         "bounds": bounds,
         "input_bounds": ubounds,
         "orderings": orderings,
