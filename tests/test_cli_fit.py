@@ -407,3 +407,18 @@ def test_pump_flows_logged_in_litres_per_second_are_refused(tmp_path):
     (tmp_path / "log.csv").write_text("t,q1,q2,h1,h2,h3\n0,0.025,0.03,0.3,0.1,0.2\n2,0.025,0.03,0.3,0.1,0.2\n")
     with pytest.raises(DataError, match=r"column 'q1' \(input q1\).*10x.*expects m\^3/s"):
         read_experiments([tmp_path / "log.csv"], plant)
+
+
+@pytest.mark.slow
+def test_report_labels_start_values_of_free_parameters(fitted):
+    """Issue 30 (new-user finding): section 1.2 listed mu13's start value 0.5 as the plant's
+    value, unlabelled, beside a fitted 0.46 in section 4."""
+    root, code = fitted
+    tex = (root / "out" / "report.tex").read_text(encoding="utf-8")
+    table = tex.split(r"\subsection{Signals and parameters}")[1].split(r"\subsection{Operating region}")[0]
+    diag = json.loads((root / "out" / "fit.json").read_text())["diagnostics"]
+    for name, row in diag["parameters"].items():
+        line = next(l for l in table.splitlines() if l.startswith("$" + {"mu13": r"\mu_{13}", "mu32": r"\mu_{32}",
+                                                                          "mu20": r"\mu_{20}"}[name]))
+        assert "(start; fitted" in line, line
+    assert "``start''" in table and "free parameter" in table
