@@ -422,3 +422,13 @@ def test_report_labels_start_values_of_free_parameters(fitted):
                                                                           "mu20": r"\mu_{20}"}[name]))
         assert "(start; fitted" in line, line
     assert "``start''" in table and "free parameter" in table
+
+
+@pytest.mark.slow
+def test_report_has_the_residual_autocorrelation_figure(fitted):
+    """Issue 30 (new-user finding): no residual ACF plot (MATLAB resid) in the fit report."""
+    root, code = fitted
+    tex = (root / "out" / "report.tex").read_text(encoding="utf-8")
+    assert "report-figures/acf-00-fit.pdf" in tex
+    assert (root / "out" / "report-figures" / "acf-00-fit.pdf").is_file()
+    assert "Residual autocorrelation of design" in tex

@@ -536,7 +536,8 @@ def build_context(inputs: ReportInputs, figures: Mapping[str, FigureFile],
     statements : mapping of method name to callable
         Problem statement of each method (`tanksynth.methods.STATEMENTS`).
     regions : mapping of artefact name to FigureFile, optional
-        Certified-region figures (`tanksynth.reports.ts_figures.region_figures`).
+        Further figure of a design: certified regions (`tanksynth.reports.ts_figures.region_figures`),
+        residual autocorrelation of fits (`tanksynth.reports.fit_figures.acf_figures`).
     linear : mapping of artefact name to LinearAnalysisView, optional
         Linear analysis of the verified loops (`tanksynth.reports.linear_analysis`).
     replay : mapping of int to FigureFile, optional

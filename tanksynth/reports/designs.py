@@ -196,7 +196,8 @@ class DesignView:
     trace_caption : Tex
         Its caption, escaped.
     region_figure : FigureFile or None
-        Certified-region figure (TS PDC designs, `tanksynth.reports.ts_figures`).
+        Further figure: the certified region (TS PDC designs, `tanksynth.reports.ts_figures`)
+        or the residual autocorrelation (fits, `tanksynth.reports.fit_figures`).
     status_note : Tex
         What a solver status short of ``optimal`` means and what the re-check then proves
         (`status_note`); empty otherwise.
