@@ -432,3 +432,21 @@ def test_report_has_the_residual_autocorrelation_figure(fitted):
     assert "report-figures/acf-00-fit.pdf" in tex
     assert (root / "out" / "report-figures" / "acf-00-fit.pdf").is_file()
     assert "Residual autocorrelation of design" in tex
+
+
+@pytest.mark.slow
+def test_a_refused_fit_leaves_the_directory_as_it_was(tmp_path, capsys):
+    """Issue 30 (new-user finding): a refused fit left plant.json, spec.toml and refused.json,
+    so the fixed spec was refused as "another spec's run" until --force."""
+    write_log(tmp_path / "est.csv", seed=1, samples=120)
+    write_log(tmp_path / "val.csv", seed=2, samples=120)
+    bad = FIT_DESIGN.replace("starts = 1", "starts = 1\nmax_iter = 1")
+    (tmp_path / "bad.toml").write_text(spec_text(bad))
+    (tmp_path / "good.toml").write_text(spec_text(FIT_DESIGN))
+    out = tmp_path / "out"
+    code, said = _run("fit", tmp_path / "bad.toml", "-o", out, capsys=capsys)
+    assert code == 3, said.err
+    assert not out.exists() or not any(out.iterdir())
+    code, said = _run("fit", tmp_path / "good.toml", "-o", out, capsys=capsys)
+    assert code == 0, said.err
+    assert "--force" not in said.out + said.err
