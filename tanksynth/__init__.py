@@ -27,7 +27,7 @@ _EXPORTS = {
     **dict.fromkeys(["load_spec", "parse_spec", "parse_spec_text", "verify_directory",
                      "write_report"], "tanksynth.methods"),
     "Spec": "tanksynth.spec",
-    **dict.fromkeys(["load", "Design", "Results"], "tanksynth.loading"),
+    **dict.fromkeys(["load", "Design", "Results", "as_complex"], "tanksynth.loading"),
     "Verdict": "tanksynth.verify.runner",
     "Check": "tanksynth.analysis.checks",
     **dict.fromkeys(["spec_document", "spec_text"], "tanksynth.api"),
