@@ -23,8 +23,8 @@ from tanksynth.reports.figures import (FigureFile, TraceFigure, eigenvalue_sets,
                                        is_pole_key)
 from tanksynth.reports.gain_units import design_is_continuous, gain_unit
 from tanksynth.reports.latex import (GainDisplay, Tex, escape_latex, format_eigenvalues,
-                                     format_number, format_unit, gain_latex, matrix_latex,
-                                     symbol_latex)
+                                     format_number, format_unit, gain_latex, gain_symbol,
+                                     matrix_latex, symbol_latex)
 from tanksynth.reports.prose import prose_latex
 
 __all__ = ["DesignView", "design_view", "diagnostic_rows", "fragment_lines", "latex_label", "recheck_test_tex",
@@ -472,8 +472,8 @@ def design_view(art: Mapping[str, Any], figure: FigureFile | None,
     continuous = design_is_continuous(diag)
     gains = [_with_unit(gain_latex(k, v), gain_unit(k, plant, continuous))
              for k, v in (art.get("gains") or {}).items()]
-    latex = [(symbol_latex(k), fragment_lines(symbol_latex(k), v) if is_trusted_math(v)
-              else [Tex(symbol_latex(k) + " &= " + math_or_text(v)[0])])
+    latex = [(gain_symbol(k), fragment_lines(gain_symbol(k), v) if is_trusted_math(v)
+              else [Tex(gain_symbol(k) + " &= " + math_or_text(v)[0])])
              for k, v in (art.get("latex") or {}).items() if isinstance(v, str) and v.strip()
              and not (k in (art.get("gains") or {}) and _is_numeric_fragment(v))]
     notes = []
