@@ -432,6 +432,8 @@ def test_report_has_the_residual_autocorrelation_figure(fitted):
     assert "report-figures/acf-00-fit.pdf" in tex
     assert (root / "out" / "report-figures" / "acf-00-fit.pdf").is_file()
     assert "Residual autocorrelation of design" in tex
+    # the residual figure's check is information, as its table row says (not "undecided")
+    assert "Check Residual whiteness: info;" in tex and "undecided" not in tex
 
 
 @pytest.mark.slow
