@@ -16,7 +16,7 @@ __all__ = ["check_title"]
 #: Words of the keys written as the report writes them.
 _WORDS = {
     "rmse": "RMSE", "zoh": "ZOH", "lmi": "LMI", "pbh": "PBH", "nis": "NIS", "nees": "NEES",
-    "ekf": "EKF", "ukf": "UKF", "h2": "H2", "hinf": "H-infinity", "ts": "Takagi-Sugeno",
+    "h2": "H2", "hinf": "H-infinity", "ts": "Takagi-Sugeno",
     "jacobian": "Jacobian", "recheck": "re-check", "setpoint": "set-point", "u0": "u0",
     "mean": "mean", "vs": "vs.", "monte": "Monte", "carlo": "Carlo", "riccati": "Riccati",
     "lyapunov": "Lyapunov", "acf": "ACF", "pdc": "PDC", "nonlinear": "nonlinear",

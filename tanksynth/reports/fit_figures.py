@@ -49,11 +49,14 @@ def residual_acf(art: Mapping[str, Any]) -> list[tuple[str, np.ndarray, float, d
     for name, rec in white.items():
         if not isinstance(rec, Mapping):
             continue
+        raw_band = rec.get("band")
+        if not isinstance(raw_band, (int, float)) or isinstance(raw_band, bool):
+            continue
         try:
             acf = np.asarray(rec.get("autocorrelation"), dtype=float).ravel()
-            band = float(rec.get("band"))
         except (TypeError, ValueError):
             continue
+        band = float(raw_band)
         if acf.size and np.all(np.isfinite(acf)) and np.isfinite(band):
             out.append((str(name), acf, band, dict(rec)))
     return out
