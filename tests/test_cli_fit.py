@@ -452,3 +452,14 @@ def test_a_refused_fit_leaves_the_directory_as_it_was(tmp_path, capsys):
     code, said = _run("fit", tmp_path / "good.toml", "-o", out, capsys=capsys)
     assert code == 0, said.err
     assert "--force" not in said.out + said.err
+
+
+@pytest.mark.slow
+def test_report_states_the_validation_floor_in_symbols(fitted):
+    """Issue 30 item 9 (raw keys in typeset text): the validation check printed
+    'rmse_est / s_val' and 'file.h1' keys."""
+    root, code = fitted
+    tex = (root / "out" / "report.tex").read_text(encoding="utf-8")
+    row = next(l for l in tex.splitlines() if "validation fit" in l and "floor" in l)
+    assert r"$e_{est}$" in row and r"$s_{val}$" in row
+    assert "rmse" not in row and r"val.h1" not in row
