@@ -341,6 +341,8 @@ def _design_keywords(spec_path: str, design: str) -> tuple[dict[str, Any], dict[
     if entry is None:
         return None
     options = {k: v for k, v in entry.items() if k not in ("name", "method")}
+    if "x0" in options:   # an estimator's initial estimate: tanksynth.design's x_hat0
+        options = {("x_hat0" if k == "x0" else k): v for k, v in options.items()}
     if any(k in _DESIGN_KEYWORDS or not k.isidentifier() or keyword.iskeyword(k) for k in options):
         return None
     kwargs: dict[str, Any] = {"name": design}

@@ -94,13 +94,14 @@ def test_method_page_has_a_toml_and_a_python_example(name, pages):
 def test_python_examples_call_the_public_design_function():
     """Issue 30: the method pages showed internals (`tanksynth.methods.design`,
     `write_artefact`) where `tanksynth.design(...)` does it; only a spec that needs more than
-    one design's tables (a fit's [data]) or an option named as a keyword of `tanksynth.design`
-    (an estimator's x0) keeps the spec-file form."""
+    one design's tables (a fit's [data]) keeps the spec-file form."""
     assert "tanksynth.design(plant, \"lmi_placement\"," in docgen.python_example("lmi_placement")
     assert "write_artefact" not in docgen.python_example("pole_placement")
     assert "load_spec" in docgen.python_example("fit")   # [data] table
-    api = [row.name for row in TABLE if "tanksynth.design(" in docgen.python_example(row.name)]
-    assert len(api) >= 19, api
+    rest = [row.name for row in TABLE if "tanksynth.design(" not in docgen.python_example(row.name)]
+    assert rest == ["fit"], rest
+    # an estimator's initial estimate (its option x0) is tanksynth.design's x_hat0
+    assert "x_hat0=[0.9, 0.55, 0.5]," in docgen.python_example("kalman")
 
 
 def test_python_example_call_form_comes_from_one_function(monkeypatch):
