@@ -120,7 +120,7 @@ def _toml_form(value: Any) -> Any:
 
 
 def spec_document(plant: Any, method: str, *, x0: Any = None, u0: Any = None, ts: float | None = None,
-                  y0: Any = None, trim: str | None = None, name: str | None = None, title: str = "", state_bound: float = 1.0,
+                  y0: Any = None, trim: str | None = None, x_hat0: Any = None, name: str | None = None, title: str = "", state_bound: float = 1.0,
                   input_bound: float = 1.0, **options: Any) -> dict[str, Any]:
     """The spec document (the parsed TOML) of one design given as Python objects.
 
@@ -142,6 +142,9 @@ def spec_document(plant: Any, method: str, *, x0: Any = None, u0: Any = None, ts
         given, is the solver's start); ``"inputs"`` solves the inputs and levels from ``y0``.
     ts : float, optional
         Sampling period (s); None for a continuous-time spec.
+    x_hat0 : array_like, optional
+        An estimator's initial estimate (state units): its option ``x0`` in a ``[[design]]``
+        table (``x0`` here is the operating point; the artefact stores it as ``x_hat0``).
     name : str, optional
         The design's name (default the method's).
     title : str
@@ -193,6 +196,8 @@ def spec_document(plant: Any, method: str, *, x0: Any = None, u0: Any = None, ts
         doc["title"] = title
     if ts is not None:
         doc["sampling"] = {"ts": _toml_form(ts)}
+    if x_hat0 is not None:   # the [[design]] option x0 (x0 here is the operating point)
+        options = {**options, "x0": x_hat0}
     doc["design"] = [{"name": method if name is None else name, "method": method,
                       **_toml_form(options)}]
     return doc
@@ -257,7 +262,7 @@ def _same_plant(given: Any, built: Any) -> None:
 
 
 def design(plant: Any, method: str, *, x0: Any = None, u0: Any = None, ts: float | None = None,
-           y0: Any = None, trim: str | None = None, name: str | None = None, directory: str | Path | None = None, title: str = "",
+           y0: Any = None, trim: str | None = None, x_hat0: Any = None, name: str | None = None, directory: str | Path | None = None, title: str = "",
            state_bound: float = 1.0, input_bound: float = 1.0, **options: Any) -> Design:
     """Design one gain from Python objects, as ``tanksynth design`` designs a spec's entry.
 
@@ -277,6 +282,9 @@ def design(plant: Any, method: str, *, x0: Any = None, u0: Any = None, ts: float
         Solve the operating point (``[operating_point] trim``); see `spec_document`.
     ts : float, optional
         Sampling period (s); None for a continuous-time spec.
+    x_hat0 : array_like, optional
+        An estimator's initial estimate (state units): the ``[[design]]`` option ``x0``; see
+        `spec_document`.
     name, title : str, optional
         The design's name (default the method's) and the spec's title.
     state_bound, input_bound : float
@@ -308,7 +316,8 @@ def design(plant: Any, method: str, *, x0: Any = None, u0: Any = None, ts: float
     from tanksynth.artefacts.io import file_sha256, write_artefact, write_plant_record
     from tanksynth.methods import METHODS, parse_spec_text
 
-    document = spec_document(plant, method, x0=x0, u0=u0, ts=ts, y0=y0, trim=trim, name=name, title=title,
+    document = spec_document(plant, method, x0=x0, u0=u0, ts=ts, y0=y0, trim=trim, x_hat0=x_hat0, name=name,
+                             title=title,
                              state_bound=state_bound, input_bound=input_bound, **options)
     spec = parse_spec_text(spec_text(document), source="<tanksynth.design>")
     _same_plant(plant, spec.plant)

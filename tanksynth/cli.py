@@ -206,6 +206,29 @@ def _refuse_other_spec(spec: Spec, outdir: Path, force: bool) -> None:
                markup=False, highlight=False, soft_wrap=True)
 
 
+#: The files a design run writes before its designs (and a refused one beside them).
+_RECORD_FILES = ("plant.json", "spec.toml", "refused.json")
+
+
+def _run_record(outdir: Path) -> dict[str, bytes | None]:
+    """The bytes of ``outdir``'s plant record, spec copy and refusal list (None: absent)."""
+    return {name: (outdir / name).read_bytes() if (outdir / name).is_file() else None
+            for name in _RECORD_FILES}
+
+
+def _restore_run_record(outdir: Path, before: dict[str, bytes | None]) -> None:
+    """Put the files of `_run_record` back as they were (a refused fit leaves no record of a
+    spec that designed nothing: rerunning a fixed spec would otherwise need ``--force``)."""
+    from tanksynth.artefacts.atomic import atomic_write
+
+    for name, data in before.items():
+        path = outdir / name
+        if data is None:
+            path.unlink(missing_ok=True)
+        elif not path.is_file() or path.read_bytes() != data:
+            atomic_write(path, data)
+
+
 def _remove_interrupted(outdir: Path) -> None:
     """Remove what a killed run left mid-write (under the lock), saying so in one line."""
     from tanksynth.artefacts.io import remove_interrupted_writes
@@ -857,9 +880,15 @@ def fit(spec: str, data: tuple[str, ...], validate: tuple[str, ...], outdir: str
     with _locked(out, "fit"):
         _refuse_other_spec(s, out, force)
         _remove_interrupted(out)
-        with clock("fit"):
-            written, infeasible, _ = _design_all(one, out, ())
-        if infeasible:
+        before = _run_record(out)
+        try:
+            with clock("fit"):
+                written, infeasible, _ = _design_all(one, out, ())
+        except Exception:   # bad data found by the fit itself: the directory as it was too
+            _restore_run_record(out, before)
+            raise
+        if infeasible:   # the directory as it was: a fixed spec reruns without --force
+            _restore_run_record(out, before)
             raise _Fail(EXIT_INFEASIBLE, _refused_summary(infeasible, 1))
         (path,) = written
         doc = read_artefact(path)

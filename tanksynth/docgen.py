@@ -296,14 +296,75 @@ def toml_example(name: str) -> str:
         "verifies and reports it:", "", "```toml", table, "```", ""])
 
 
+#: The keyword arguments of `tanksynth.design` itself: an option of the same name cannot be
+#: passed beside them (an estimator's ``x0``), so such a design keeps the spec-file form.
+_DESIGN_KEYWORDS = frozenset({"plant", "method", "x0", "u0", "ts", "y0", "trim", "name", "directory",
+                              "title", "state_bound", "input_bound"})
+
+
+def _python_literal(value: Any) -> str:
+    """A TOML value (as `tomllib` reads it) as Python source (``true`` -> ``True``)."""
+    import json
+
+    if isinstance(value, bool):
+        return repr(value)
+    if isinstance(value, str):
+        return json.dumps(value)
+    if isinstance(value, (int, float)):
+        return repr(value)
+    if isinstance(value, list):
+        return "[" + ", ".join(_python_literal(v) for v in value) + "]"
+    if isinstance(value, dict):
+        return "{" + ", ".join(f"{json.dumps(str(k))}: {_python_literal(v)}" for k, v in value.items()) + "}"
+    raise ValueError(f"no Python literal for {value!r}")
+
+
+def _design_keywords(spec_path: str, design: str) -> tuple[dict[str, Any], dict[str, Any]] | None:
+    """The [plant] table and the keyword arguments of `tanksynth.design` that design ``design``
+    of the spec file ``spec_path`` (relative to the repository root), or None when the spec
+    needs more than one design's tables (data files, other tables, an option named as one of
+    `tanksynth.design`'s own keywords)."""
+    import keyword
+    import tomllib
+
+    path = _examples_dir().parent / spec_path
+    try:
+        doc = tomllib.loads(path.read_text(encoding="utf-8"))
+    except (OSError, tomllib.TOMLDecodeError):
+        return None
+    if set(doc) - {"title", "plant", "operating_point", "sampling", "design"}:
+        return None
+    op, sampling = doc.get("operating_point", {}), doc.get("sampling", {})
+    if set(op) - {"x", "u", "y", "trim"} or set(sampling) - {"ts"}:
+        return None
+    entry = next((e for e in doc.get("design", []) if e.get("name") == design), None)
+    if entry is None:
+        return None
+    options = {k: v for k, v in entry.items() if k not in ("name", "method")}
+    if "x0" in options:   # an estimator's initial estimate: tanksynth.design's x_hat0
+        options = {("x_hat0" if k == "x0" else k): v for k, v in options.items()}
+    if any(k in _DESIGN_KEYWORDS or not k.isidentifier() or keyword.iskeyword(k) for k in options):
+        return None
+    kwargs: dict[str, Any] = {"name": design}
+    kwargs.update({f"{k}0": op[k] for k in ("x", "u", "y") if k in op})
+    if "trim" in op:
+        kwargs["trim"] = op["trim"]
+    if "ts" in sampling:
+        kwargs["ts"] = sampling["ts"]
+    return doc["plant"], {**kwargs, "method": entry["method"], **options}
+
+
 def python_design_call(spec_path: str, design: str, directory: str) -> list[str]:
     """THE call form of a design from Python on the method pages (one place to change).
 
     Lines of Python that design ``design`` of the spec file ``spec_path`` into the result
-    directory ``directory``, leaving a name ``spec`` bound. Today's form uses what the package
-    offers: `tanksynth.load_spec` and the method table's design step
-    (`tanksynth.methods.design`), written as an artefact. When a higher-level Python API
-    (``tanksynth.design(...)``) exists, this is the only function to switch.
+    directory ``directory`` and bind the name ``art`` to the `tanksynth.loading.Design` it
+    returns: the public API, ``tanksynth.design(plant, method, x0=..., u0=..., ts=...,
+    **options)``, with the spec's ``[plant]`` table, operating point, sampling period and the
+    design's options written as Python values. A spec that needs more than these tables (a fit's
+    ``[data]``) or an option named as one of ``tanksynth.design``'s keywords (an estimator's
+    ``x0``) is designed from the file instead (`tanksynth.load_spec`, the method table's design
+    step), with the same name ``art`` bound.
 
     Parameters
     ----------
@@ -312,13 +373,23 @@ def python_design_call(spec_path: str, design: str, directory: str) -> list[str]
     design : str
         The name of one ``[[design]]`` table of the spec.
     directory : str
-        The result directory to write.
+        The result directory to write (it must not exist, or be empty).
 
     Returns
     -------
     list of str
         The lines (no trailing newline).
     """
+    found = _design_keywords(spec_path, design)
+    if found is not None:
+        plant, kwargs = found
+        method = kwargs.pop("method")
+        lines = ["import tanksynth", "",
+                 f"plant = {_python_literal(plant)}  # the [plant] table of {spec_path}",
+                 f'art = tanksynth.design(plant, "{method}",']
+        lines += [f"                       {k}={_python_literal(v)}," for k, v in kwargs.items()]
+        lines.append(f'                       directory="{directory}")  # {directory}/{design}.json, .npz')
+        return lines
     return [
         "import tanksynth",
         "from tanksynth.artefacts import write_artefact, write_plant_record",
@@ -328,6 +399,7 @@ def python_design_call(spec_path: str, design: str, directory: str) -> list[str]
         f'entry = next(d for d in spec.designs if d.name == "{design}")',
         f'write_plant_record(spec, "{directory}")  # {directory}/plant.json and {directory}/spec.toml',
         f'write_artefact(design(spec, entry), "{directory}", spec.sha256)  # {directory}/{design}.json, .npz',
+        f'art = tanksynth.load("{directory}/{design}.json")',
     ]
 
 
@@ -351,9 +423,8 @@ def python_example(name: str) -> str:
     path, design, _ = found
     directory = "out"
     lines = [*python_design_call(f"examples/{path.name}", design, directory),
-             f'tanksynth.verify_directory("{directory}")  # the gain on the nonlinear plant',
-             f'art = tanksynth.load("{directory}/{design}.json")',
-             "art.gains, art.verdict  # arrays by gain name; the verdict verify recorded"]
+             "verdict = art.verify()  # the gain on the nonlinear plant, as tanksynth verify",
+             "art.gains, verdict.passed, verdict.checks  # arrays by gain name; the verdict"]
     return "\n".join([
         "## Python example", "",
         "The same design from Python, run from the repository root (the gain names: "
@@ -592,7 +663,8 @@ def gain_names_markdown() -> str:
 #: The sections of the curated API page: title -> the modules whose public names it lists (a
 #: name of ``tanksynth.__all__`` from another module lands in "Other").
 API_SECTIONS: dict[str, tuple[str, ...]] = {
-    "Results: load designed artefacts": ("tanksynth.loading",),
+    "Results: load designed artefacts, their verdicts": ("tanksynth.loading", "tanksynth.verify.runner",
+                                                         "tanksynth.analysis.checks"),
     "Specs: read, design, verify, report": ("tanksynth.methods", "tanksynth.spec", "tanksynth.design.result",
                                             "tanksynth.artefacts.io"),
     "Plants": ("tanksynth.plants",),

@@ -27,7 +27,7 @@ from tanksynth.artefacts.model import Artefact
 from tanksynth.errors import ArtefactError
 from tanksynth.verify.runner import Verdict, read_checks, read_directory
 
-__all__ = ["Design", "Results", "load"]
+__all__ = ["Design", "Results", "load", "as_complex"]
 
 @dataclass(frozen=True, eq=False)
 class Design:
@@ -293,3 +293,48 @@ def load(path: str | Path) -> Design | Results:
         raise ArtefactError(f"{path}: no such artefact or result directory")
     _, docs = read_directory(path.parent, path)
     return _design(path, docs[0][1], _plant_record(path.parent))
+
+
+def as_complex(value: Any) -> Any:
+    """Eigenvalues or poles as the artefact's JSON writes them, as a numpy complex array.
+
+    JSON has no complex numbers: ``diagnostics`` writes each eigenvalue as an ``[re, im]`` pair,
+    a list of them sorted as `numpy.sort_complex` sorts (real part, then imaginary part), a
+    real eigenvalue also as a plain number in older keys; a polytopic design writes one such
+    list per vertex model. ``[[-0.2, -0.1], [-0.2, 0.1], -0.5]`` is ``-0.2 - 0.1j, -0.2 + 0.1j,
+    -0.5``.
+
+    Parameters
+    ----------
+    value : list
+        A list of ``[re, im]`` pairs or numbers (1/s in continuous time, dimensionless in the
+        z-plane), or a list of such lists (one per model).
+
+    Returns
+    -------
+    ndarray of complex
+        Shape (n,), or (models, n) for a list of lists of equal length.
+
+    Raises
+    ------
+    ValueError
+        ``value`` is not such a list.
+    """
+    import numpy as np
+
+    def one(v: Any) -> complex:
+        if isinstance(v, (list, tuple)) and len(v) == 2 and all(
+                isinstance(x, (int, float)) and not isinstance(x, bool) for x in v):
+            return complex(float(v[0]), float(v[1]))
+        if isinstance(v, (int, float)) and not isinstance(v, bool):
+            return complex(float(v), 0.0)
+        raise ValueError(f"not an eigenvalue ([re, im] pair or number): {v!r}")
+
+    if not isinstance(value, (list, tuple)):
+        raise ValueError(f"not a list of eigenvalues: {value!r}")
+    if value and all(isinstance(v, (list, tuple)) and v and isinstance(v[0], (list, tuple)) for v in value):
+        rows = [[one(z) for z in v] for v in value]
+        if len({len(r) for r in rows}) != 1:
+            raise ValueError("the models' eigenvalue lists differ in length")
+        return np.array(rows, dtype=complex)
+    return np.array([one(v) for v in value], dtype=complex)

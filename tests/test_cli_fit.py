@@ -407,3 +407,59 @@ def test_pump_flows_logged_in_litres_per_second_are_refused(tmp_path):
     (tmp_path / "log.csv").write_text("t,q1,q2,h1,h2,h3\n0,0.025,0.03,0.3,0.1,0.2\n2,0.025,0.03,0.3,0.1,0.2\n")
     with pytest.raises(DataError, match=r"column 'q1' \(input q1\).*10x.*expects m\^3/s"):
         read_experiments([tmp_path / "log.csv"], plant)
+
+
+@pytest.mark.slow
+def test_report_labels_start_values_of_free_parameters(fitted):
+    """Issue 30 (new-user finding): section 1.2 listed mu13's start value 0.5 as the plant's
+    value, unlabelled, beside a fitted 0.46 in section 4."""
+    root, code = fitted
+    tex = (root / "out" / "report.tex").read_text(encoding="utf-8")
+    table = tex.split(r"\subsection{Signals and parameters}")[1].split(r"\subsection{Operating region}")[0]
+    diag = json.loads((root / "out" / "fit.json").read_text())["diagnostics"]
+    for name, row in diag["parameters"].items():
+        line = next(l for l in table.splitlines() if l.startswith("$" + {"mu13": r"\mu_{13}", "mu32": r"\mu_{32}",
+                                                                          "mu20": r"\mu_{20}"}[name]))
+        assert "(start; fitted" in line, line
+    assert "``start''" in table and "free parameter" in table
+
+
+@pytest.mark.slow
+def test_report_has_the_residual_autocorrelation_figure(fitted):
+    """Issue 30 (new-user finding): no residual ACF plot (MATLAB resid) in the fit report."""
+    root, code = fitted
+    tex = (root / "out" / "report.tex").read_text(encoding="utf-8")
+    assert "report-figures/acf-00-fit.pdf" in tex
+    assert (root / "out" / "report-figures" / "acf-00-fit.pdf").is_file()
+    assert "Residual autocorrelation of design" in tex
+    # the residual figure's check is information, as its table row says (not "undecided")
+    assert "Check Residual whiteness: info;" in tex and "undecided" not in tex
+
+
+@pytest.mark.slow
+def test_a_refused_fit_leaves_the_directory_as_it_was(tmp_path, capsys):
+    """Issue 30 (new-user finding): a refused fit left plant.json, spec.toml and refused.json,
+    so the fixed spec was refused as "another spec's run" until --force."""
+    write_log(tmp_path / "est.csv", seed=1, samples=120)
+    write_log(tmp_path / "val.csv", seed=2, samples=120)
+    bad = FIT_DESIGN.replace("starts = 1", "starts = 1\nmax_iter = 1")
+    (tmp_path / "bad.toml").write_text(spec_text(bad))
+    (tmp_path / "good.toml").write_text(spec_text(FIT_DESIGN))
+    out = tmp_path / "out"
+    code, said = _run("fit", tmp_path / "bad.toml", "-o", out, capsys=capsys)
+    assert code == 3, said.err
+    assert not out.exists() or not any(out.iterdir())
+    code, said = _run("fit", tmp_path / "good.toml", "-o", out, capsys=capsys)
+    assert code == 0, said.err
+    assert "--force" not in said.out + said.err
+
+
+@pytest.mark.slow
+def test_report_states_the_validation_floor_in_symbols(fitted):
+    """Issue 30 item 9 (raw keys in typeset text): the validation check printed
+    'rmse_est / s_val' and 'file.h1' keys."""
+    root, code = fitted
+    tex = (root / "out" / "report.tex").read_text(encoding="utf-8")
+    row = next(l for l in tex.splitlines() if "validation fit" in l and "floor" in l)
+    assert r"$e_{est}$" in row and r"$s_{val}$" in row
+    assert "rmse" not in row and r"val.h1" not in row

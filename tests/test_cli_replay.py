@@ -100,3 +100,33 @@ def test_a_log_lacking_a_column_is_exit_2_naming_it(rundir, capsys, drop, named)
 def test_replay_of_no_directory_is_exit_2(tmp_path, capsys):
     assert main(["replay", str(tmp_path / "nothing"), "--data", "x.csv"]) == 2
     assert "no such result directory" in capsys.readouterr().err
+
+
+@pytest.mark.slow
+def test_nis_quantile_uses_the_outputs_of_each_sample(rundir, capsys, tmp_path):
+    """Issue 30: the replay figure drew the NIS quantile for every output at samples where a
+    missing (or censored) output was left out of the update; the trace now records each sample's
+    degrees of freedom, and they add up to the band's."""
+    import shutil
+    import subprocess
+
+    root, spec = rundir
+    out = tmp_path / "out"
+    shutil.copytree(root / "out", out)
+    good = write_log(tmp_path / "good.csv", spec)
+    assert main(["replay", str(out), "--data", str(good)]) == 0
+    with np.load(out / "replay" / "ekf__good.npz", allow_pickle=False) as z:
+        dof, nis = z["nis_dof"], z["nis"]
+    assert np.all(dof[100:105] == 1)                    # h1 missing: only h2 used
+    assert np.all(dof[np.isfinite(nis)] >= 1) and np.all(dof[~np.isfinite(nis)] == 0)
+    assert set(np.unique(dof[np.isfinite(nis)])) == {1.0, 2.0}
+    doc = json.loads((out / "replay.json").read_text())
+    band = next(c for e in doc["replays"] if e["artefact"] == "ekf"
+                for c in e["checks"] if c["check"] == "nis_mean")
+    assert int(dof.sum()) == band["data"]["dof"]      # the same degrees of freedom as the band's
+    assert main(["report", str(out)]) == 0
+    capsys.readouterr()
+    if shutil.which("pdftotext"):
+        fig = next((out / "report-figures").glob("replay-*ekf*.pdf"))
+        text = subprocess.run(["pdftotext", str(fig), "-"], capture_output=True, text=True).stdout
+        assert "outputs used at each sample" in " ".join(text.split())

@@ -11,6 +11,7 @@ import re
 import tomllib
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 import tanksynth
@@ -75,11 +76,32 @@ def test_method_page_has_a_toml_and_a_python_example(name, pages):
     assert toml and python, name
     table = tomllib.loads(toml.group(1))["design"]
     assert len(table) == 1 and table[0]["method"] == name
-    spec_file = re.search(r'load_spec\("([^"]+)"\)', python.group(1)).group(1)
+    code = python.group(1)
     # the Python example designs the very table the TOML example shows
-    assert f'd.name == "{table[0]["name"]}"' in python.group(1)
+    if "tanksynth.design(" in code:   # the public API, with the spec's tables as Python values
+        assert f'tanksynth.design(plant, "{name}",' in code
+        assert f'name="{table[0]["name"]}",' in code
+        for key in table[0]:
+            if key not in ("name", "method"):
+                assert f"{key}=" in code, key
+        return
+    spec_file = re.search(r'load_spec\("([^"]+)"\)', code).group(1)
+    assert f'd.name == "{table[0]["name"]}"' in code
     spec = tanksynth.load_spec(ROOT / spec_file)
     assert [d.method for d in spec.designs if d.name == table[0]["name"]] == [name]
+
+
+def test_python_examples_call_the_public_design_function():
+    """Issue 30: the method pages showed internals (`tanksynth.methods.design`,
+    `write_artefact`) where `tanksynth.design(...)` does it; only a spec that needs more than
+    one design's tables (a fit's [data]) keeps the spec-file form."""
+    assert "tanksynth.design(plant, \"lmi_placement\"," in docgen.python_example("lmi_placement")
+    assert "write_artefact" not in docgen.python_example("pole_placement")
+    assert "load_spec" in docgen.python_example("fit")   # [data] table
+    rest = [row.name for row in TABLE if "tanksynth.design(" not in docgen.python_example(row.name)]
+    assert rest == ["fit"], rest
+    # an estimator's initial estimate (its option x0) is tanksynth.design's x_hat0
+    assert "x_hat0=[0.9, 0.55, 0.5]," in docgen.python_example("kalman")
 
 
 def test_python_example_call_form_comes_from_one_function(monkeypatch):
@@ -97,10 +119,15 @@ def test_a_python_example_runs(tmp_path, monkeypatch):
     code = code.replace('"examples/', f'"{ROOT / "examples"}/')
     monkeypatch.chdir(tmp_path)
     namespace: dict = {}
-    exec(compile(code.rsplit("\n", 2)[0], "example", "exec"), namespace)  # up to art = load(...)
-    art = namespace["art"]
+    exec(compile(code, "example", "exec"), namespace)
+    art, verdict = namespace["art"], namespace["verdict"]
     assert art.name == "integral_lmi_disk" and "K" in art.gains
-    assert art.verdict is not None
+    assert verdict.passed is True
+    # the same gain as the CLI's design of the spec file (bit for bit: same spec, same solver)
+    spec = tanksynth.load_spec(ROOT / "examples" / "seed000_pole_placement.toml")
+    from tanksynth.methods import METHODS
+    entry = next(d for d in spec.designs if d.name == "integral_lmi_disk")
+    np.testing.assert_array_equal(art.gains["K"], METHODS[entry.method].design(spec, entry).gains["K"])
 
 
 def test_api_reference_lists_every_public_name():
@@ -109,3 +136,14 @@ def test_api_reference_lists_every_public_name():
     documented = re.findall(r"^\.\. auto(?:function|class|exception):: tanksynth\.(\w+)$", text, re.M)
     assert sorted(documented) == sorted(public)
     assert "tanksynth.verify.runner" not in re.findall(r"auto\w+:: (\S+)", text)
+
+
+def test_api_reference_documents_the_verdict_design_verify_returns():
+    """Issue 30: `Design.verify()` returns a `Verdict` the API page did not document."""
+    text = docgen.api_reference_markdown()
+    assert ".. autoclass:: tanksynth.Verdict" in text
+    assert ".. autoclass:: tanksynth.Check" in text
+    results = text.split("## Results")[1].split("\n## ")[0]
+    assert "tanksynth.Verdict" in results and "tanksynth.Check" in results
+    from tanksynth.verify.runner import Verdict
+    assert tanksynth.Verdict is Verdict

@@ -338,3 +338,25 @@ def test_well_formed_checks_json_is_loaded(results, tmp_path):
     verdicts = [{"check": "observability", "passed": True, "detail": "rank 3", "data": {}}]
     (d / "checks.json").write_text(json.dumps(verdicts), encoding="utf-8")
     assert tanksynth.load(d).checks == verdicts
+
+
+def test_as_complex_reads_the_documented_json_form_of_eigenvalues():
+    """Issue 30: eigenvalues are stored as [re, im] pairs; one documented reader."""
+    import numpy as np
+
+    import tanksynth
+    from tanksynth.design.matrices import complex_pairs
+
+    z = np.array([-0.5, -0.2 + 0.1j, -0.2 - 0.1j])
+    pairs = complex_pairs(z)   # what a design writes
+    assert pairs == [[-0.5, 0.0], [-0.2, -0.1], [-0.2, 0.1]]
+    np.testing.assert_array_equal(tanksynth.as_complex(pairs), np.sort_complex(z))
+    np.testing.assert_array_equal(tanksynth.as_complex([[-0.2, -0.1], [-0.2, 0.1], -0.5]),
+                                  [-0.2 - 0.1j, -0.2 + 0.1j, -0.5])
+    per_model = tanksynth.as_complex([pairs, pairs])
+    assert per_model.shape == (2, 3)
+    import pytest
+    with pytest.raises(ValueError):
+        tanksynth.as_complex([[1.0, 2.0, 3.0]])
+    readme = (Path(tanksynth.__file__).resolve().parents[1] / "README.md").read_text(encoding="utf-8")
+    assert "[re, im]` pair" in readme and "tanksynth.as_complex" in readme

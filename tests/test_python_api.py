@@ -150,3 +150,15 @@ def test_the_api_asks_for_a_trim_as_the_spec_does():
     assert np.max(np.abs(plant.compiled.rhs(spec.x0, np.asarray(u0)))) < 1e-12
     d = tanksynth.design(plant, "lqr", u0=u0, trim="states")
     assert np.asarray(d.gains["K"]).shape == (2, 3)
+
+
+def test_an_estimators_initial_estimate_is_x_hat0(tmp_path):
+    """Issue 30: `x0` of tanksynth.design is the operating point, so an estimator's own option
+    x0 (its initial estimate) could not be given from Python; it is `x_hat0`, as stored."""
+    x_hat0 = [0.38, 0.22, 0.29]
+    k = tanksynth.design(three_tank(outputs="h1h2"), "kalman", x0=X0, ts=1.0, x_hat0=x_hat0,
+                         Q=1e-12, R=4e-6, P0=1e-4, directory=tmp_path / "kf")
+    np.testing.assert_array_equal(k.gains["x_hat0"].ravel(), x_hat0)
+    np.testing.assert_array_equal(k.gains["x_op"].ravel(), X0)
+    doc = tanksynth.spec_document("three_tank", "kalman", x0=X0, ts=1.0, x_hat0=x_hat0)
+    assert doc["design"][0]["x0"] == x_hat0 and doc["operating_point"]["x"] == X0

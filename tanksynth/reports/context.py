@@ -18,6 +18,7 @@ import numpy as np
 
 from tanksynth.artefacts.traces import trace_path
 from tanksynth.plants import BUILTIN_PLANTS
+from tanksynth.reports.check_names import check_title
 from tanksynth.reports.comparison import PaperComparison
 from tanksynth.reports.diagnostics.common import is_number
 from tanksynth.reports.diagnostics.model import linearization_of
@@ -55,14 +56,33 @@ def _equation_blocks(lines: Sequence[str] | None) -> list[list[Tex]]:
     return out
 
 
+def _fitted_parameters(inputs: ReportInputs) -> dict[str, dict[str, Any]]:
+    """The free parameters of the directory's fit artefacts: name -> ``{"value", "design"}``
+    (the fitted value, typeset, and the fit's design name); the plant record holds their start
+    values, which section 1.2 then labels as such."""
+    out: dict[str, dict[str, Any]] = {}
+    for art in inputs.artefacts:
+        diag = art.get("diagnostics")
+        table = diag.get("parameters") if art.get("method") == "fit" and isinstance(diag, Mapping) else None
+        if not isinstance(table, Mapping):
+            continue
+        for name, row in table.items():
+            if isinstance(row, Mapping) and is_number(row.get("value")):
+                out.setdefault(str(name), {"value": _m(row["value"]),
+                                           "design": escape_latex(str(art.get("name", "")))})
+    return out
+
+
 def _plant_view(inputs: ReportInputs) -> dict[str, Any]:
     rec = inputs.plant
     p = rec.get("plant", {}) or {}
     units = {s.get("name"): s.get("unit") for s in p.get("states", [])}
     units.update({s.get("name"): s.get("unit") for s in p.get("inputs", [])})
+    fitted = _fitted_parameters(inputs)
     params = [{"sym": Tex("$" + symbol_latex(q.get("name", "")) + "$"),
                "name": escape_latex(q.get("name", "")),
                "value": _m(q.get("value")),
+               "fitted": fitted.get(str(q.get("name", ""))),
                "unit": format_unit(q.get("unit")),
                "desc": prose_latex(q.get("description", ""))} for q in p.get("parameters", [])]
     region = p.get("region", {}) or {}
@@ -100,6 +120,7 @@ def _plant_view(inputs: ReportInputs) -> dict[str, Any]:
         "inputs": _signal_rows(p.get("inputs", [])),
         "outputs": _signal_rows(p.get("outputs", [])),
         "parameters": params,
+        "fitted": sorted({f["design"] for f in fitted.values()}),
         "bounds": bounds,
         "input_bounds": ubounds,
         "orderings": orderings,
@@ -240,7 +261,7 @@ def _check_view(c: Mapping[str, Any]) -> dict[str, Any]:
             "blocks": data.get("blocks_used"),
         }
     return {
-        "name": prose_latex(str(c.get("check", "")).replace("_", " ")),
+        "name": prose_latex(check_title(c.get("check", ""))),
         "passed": passed,
         "verdict": Tex(r"\textcolor{passgreen}{pass}" if passed is True else
                        r"\textcolor{failred}{\textbf{FAIL}}" if passed is False else
@@ -515,7 +536,8 @@ def build_context(inputs: ReportInputs, figures: Mapping[str, FigureFile],
     statements : mapping of method name to callable
         Problem statement of each method (`tanksynth.methods.STATEMENTS`).
     regions : mapping of artefact name to FigureFile, optional
-        Certified-region figures (`tanksynth.reports.ts_figures.region_figures`).
+        Further figure of a design: certified regions (`tanksynth.reports.ts_figures.region_figures`),
+        residual autocorrelation of fits (`tanksynth.reports.fit_figures.acf_figures`).
     linear : mapping of artefact name to LinearAnalysisView, optional
         Linear analysis of the verified loops (`tanksynth.reports.linear_analysis`).
     replay : mapping of int to FigureFile, optional

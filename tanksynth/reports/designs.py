@@ -14,6 +14,7 @@ from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
 
+from tanksynth.reports.check_names import check_title
 from tanksynth.reports.comparison import latex_matrix_entries
 from tanksynth.reports.diagnostics.common import is_number
 from tanksynth.reports.equations import split_equation, visual_length
@@ -22,8 +23,8 @@ from tanksynth.reports.figures import (FigureFile, TraceFigure, eigenvalue_sets,
                                        is_pole_key)
 from tanksynth.reports.gain_units import design_is_continuous, gain_unit
 from tanksynth.reports.latex import (GainDisplay, Tex, escape_latex, format_eigenvalues,
-                                     format_number, format_unit, gain_latex, matrix_latex,
-                                     symbol_latex)
+                                     format_number, format_unit, gain_latex, gain_symbol,
+                                     matrix_latex, symbol_latex)
 from tanksynth.reports.prose import prose_latex
 
 __all__ = ["DesignView", "design_view", "diagnostic_rows", "fragment_lines", "latex_label", "recheck_test_tex",
@@ -195,7 +196,8 @@ class DesignView:
     trace_caption : Tex
         Its caption, escaped.
     region_figure : FigureFile or None
-        Certified-region figure (TS PDC designs, `tanksynth.reports.ts_figures`).
+        Further figure: the certified region (TS PDC designs, `tanksynth.reports.ts_figures`)
+        or the residual autocorrelation (fits, `tanksynth.reports.fit_figures`).
     status_note : Tex
         What a solver status short of ``optimal`` means and what the re-check then proves
         (`status_note`); empty otherwise.
@@ -393,7 +395,7 @@ def _checks_rows(value: Any) -> list[dict[str, Tex]]:
             continue
         detail = c.get("detail")
         rows.append({
-            "name": prose_latex(c["name"] if c.get("name") else words(c.get("check", ""))),
+            "name": prose_latex(c["name"] if c.get("name") else check_title(c.get("check", ""))),
             "value": (_m(c["value"], _value_digits(c)) if "value" in c else Tex("--")),
             "limit": recheck_test_tex(c),
             "unit": prose_latex(c.get("unit", "")),
@@ -470,8 +472,8 @@ def design_view(art: Mapping[str, Any], figure: FigureFile | None,
     continuous = design_is_continuous(diag)
     gains = [_with_unit(gain_latex(k, v), gain_unit(k, plant, continuous))
              for k, v in (art.get("gains") or {}).items()]
-    latex = [(symbol_latex(k), fragment_lines(symbol_latex(k), v) if is_trusted_math(v)
-              else [Tex(symbol_latex(k) + " &= " + math_or_text(v)[0])])
+    latex = [(gain_symbol(k), fragment_lines(gain_symbol(k), v) if is_trusted_math(v)
+              else [Tex(gain_symbol(k) + " &= " + math_or_text(v)[0])])
              for k, v in (art.get("latex") or {}).items() if isinstance(v, str) and v.strip()
              and not (k in (art.get("gains") or {}) and _is_numeric_fragment(v))]
     notes = []

@@ -32,6 +32,7 @@ from scipy.linalg import expm
 
 from tanksynth.artefacts.atomic import atomic_write
 from tanksynth.artefacts.traces import read_trace, trace_path
+from tanksynth.reports.check_names import check_title
 from tanksynth.reports.diagnostics.common import LmiRegion, lmi_region_of
 from tanksynth.reports.eigen_sets import EigenvalueSet, eigen_label, eigenvalue_sets, is_pole_key
 from tanksynth.reports.figure_layout import (TraceCanvas, draw_decorations, square_panels_layout,
@@ -633,9 +634,10 @@ def _trace_figure(artefact: Mapping[str, Any], trace: Mapping[str, Any], directo
     passed = head.get("check_passed")
     verdict = head.get("verdict_passed")
     runs = int(head.get("runs", x.shape[0]))
+    check_word = _word(passed) if passed is not None else "info"   # as the check tables say
     caption = (f"{'Further v' if is_extra else 'V'}erdict simulation of design {name} "
                f"({artefact.get('method', '')}) on the nonlinear "
-               f"plant: {scenario}. Check {check}: {_word(passed)}; artefact verdict: {_word(verdict)}. "
+               f"plant: {scenario}. Check {check_title(check)}: {check_word}; artefact verdict: {_word(verdict)}. "
                f"{runs} run{'s' if runs != 1 else ''} shown"
                + (" (the upper panel: run 2 minus run 1)" if lin is not None and runs == 2 else "")
                + (f", every {ordinal(int(head['stride']))} sample" if int(head.get("stride", 1)) > 1

@@ -383,7 +383,11 @@ def notation_symbol(key: Any) -> Tex | None:
 
 
 _GREEK_NAMES = {"alpha", "beta", "gamma", "delta", "epsilon", "kappa", "lambda", "mu", "nu", "rho",
-                "sigma", "tau", "phi", "psi", "omega", "Gamma", "Delta", "Lambda", "Phi", "Psi", "Omega"}
+                "sigma", "tau", "phi", "psi", "omega", "theta", "eta", "xi", "zeta", "chi",
+                "Gamma", "Delta", "Lambda", "Phi", "Psi", "Omega", "Theta", "Sigma", "Xi"}
+
+#: Gains whose key is a description rather than a symbol: the words of the report.
+_GAIN_WORDS = {"covariance": r"\operatorname{Cov}(\hat{\theta})"}
 
 
 def gain_symbol(name: Any) -> Tex:
@@ -399,10 +403,18 @@ def gain_symbol(name: Any) -> Tex:
     notation = notation_symbol(s)
     if notation is not None:
         return notation
+    if s in _GAIN_WORDS:
+        return Tex(_GAIN_WORDS[s])
+    greek = "|".join(sorted(_GREEK_NAMES, key=len, reverse=True))
     short = re.fullmatch(r"[A-Za-z]{1,2}\d{0,2}|[A-Za-z][A-Za-z0-9]?_[A-Za-z0-9]{1,3}", s)
-    if short or s in _GREEK_NAMES or re.fullmatch(r"(%s)\d{0,2}" % "|".join(_GREEK_NAMES), s):
+    if short or s in _GREEK_NAMES or re.fullmatch(r"(%s)\d{0,2}" % greek, s) \
+            or re.fullmatch(r"(%s)_[A-Za-z0-9]{1,3}" % greek, s):
         return symbol_latex(s)
-    return Tex(r"\mathrm{" + escape_latex(s).replace(r"\_", r"\_") + "}")
+    sub = re.fullmatch(r"([A-Za-z])_([a-z]{4,12})", s)
+    if sub:   # x_init: a symbol with a word as its index
+        return Tex(f"{symbol_latex(sub.group(1))}_{{\\mathrm{{{sub.group(2)}}}}}")
+    # a longer identifier (training_inputs): its words, upright, never a raw key with underscores
+    return Tex(r"\text{" + escape_latex(s.replace("_", " ")) + "}")
 
 
 def expression_latex(text: Any) -> Tex | None:

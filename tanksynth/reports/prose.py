@@ -14,13 +14,14 @@ Anything it does not recognise is escaped as text, so any string renders.
 
 from __future__ import annotations
 
+import math
 import re
 from typing import Any
 
 from tanksynth.reports.latex import (Tex, escape_latex, format_eigenvalues, format_number,
                                      format_unit, notation_symbol, symbol_latex)
 
-__all__ = ["prose_latex", "list_latex"]
+__all__ = ["prose_latex", "list_latex", "distinct_digits"]
 
 _GREEK = ("alpha", "beta", "gamma", "delta", "epsilon", "zeta", "eta", "theta", "kappa", "lambda",
           "mu", "nu", "xi", "rho", "sigma", "tau", "phi", "varphi", "chi", "psi", "omega",
@@ -108,8 +109,32 @@ def list_latex(values: list[Any], digits: int = 4) -> Tex | None:
         pairs = [[complex(v).real, complex(v).imag] for v in values]
         return Tex(r"$[" + format_eigenvalues(pairs, digits) + "]$")
     if all(isinstance(v, float) for v in values):
+        digits = distinct_digits(values, digits)
         return Tex(r"$[" + r",\allowbreak\ ".join(format_number(v, digits) for v in values) + "]$")
     return None
+
+
+def distinct_digits(values: list[float], digits: int = 4, most: int = 12) -> int:
+    """The fewest significant digits, at least ``digits``, that print different values
+    differently (a bisection bracket ``[0.066572611, 0.066572617]`` must not read
+    ``[0.06657, 0.06657]``); at most ``most``.
+
+    Parameters
+    ----------
+    values : list of float
+        The numbers of one list (their own units).
+    digits : int, optional
+        Fewest significant digits.
+    most : int, optional
+        Most significant digits.
+    """
+    distinct = sorted({float(v) for v in values if math.isfinite(float(v))})
+    if len(distinct) < 2:
+        return digits
+    for d in range(digits, most + 1):
+        if len({f"{v:.{d}g}" for v in distinct}) == len(distinct):
+            return d
+    return most
 
 
 def _list_tex(text: str) -> Tex:

@@ -15,6 +15,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
+from tanksynth.reports.check_names import check_title
 from tanksynth.reports.figures import FigureFile, figure_stem
 from tanksynth.reports.latex import Tex
 from tanksynth.reports.prose import prose_latex
@@ -59,14 +60,26 @@ def _figure(entry: Mapping[str, Any], trace: Mapping[str, Any], target: Path) ->
             ax.plot(t, np.asarray(residual, dtype=float), "-", lw=0.8, color="C3", label="residual")
             ax.plot(t, np.asarray(arr.get("threshold"), dtype=float), "--", lw=1.0, color="k",
                     label="threshold")
-            ax.set_ylabel("max |y - h(x_hat)|")
+            ax.set_ylabel(r"$\max_j\,|y_j - h_j(\hat{x})|$")
         else:
             from scipy import stats
 
             ax.plot(t, nis, ".", ms=2.0, color="C3", label="NIS")
-            dof = max(1, y.shape[1])
-            ax.axhline(float(stats.chi2.ppf(0.95, dof)), ls="--", lw=1.0, color="k",
-                       label=f"95 % quantile, {dof} dof")
+            dofs = np.asarray(arr.get("nis_dof", np.full(t.size, np.nan)), dtype=float)
+            if dofs.shape == t.shape and np.any(dofs > 0):
+                # the quantile for the outputs actually used at each sample (a censored or
+                # missing output leaves the update: fewer degrees of freedom there)
+                used = dofs > 0
+                q = np.where(used, stats.chi2.ppf(0.95, np.where(used, dofs, 1.0)), np.nan)
+                kinds = sorted({int(d) for d in dofs[used]})
+                label = ("95 % quantile, " + f"{kinds[0]} dof" if len(kinds) == 1 else
+                         "95 % quantile for the outputs used at each sample ("
+                         + ", ".join(str(k) for k in kinds) + " dof)")
+                ax.plot(t, q, ls="--", lw=1.0, color="k", drawstyle="steps-mid", label=label)
+            else:   # a trace written before the degrees of freedom were recorded
+                dof = max(1, y.shape[1])
+                ax.axhline(float(stats.chi2.ppf(0.95, dof)), ls="--", lw=1.0, color="k",
+                           label=f"95 % quantile, {dof} dof")
             ax.set_yscale("log")
             ax.set_ylabel("NIS")
         ax.grid(alpha=0.3)
@@ -138,7 +151,7 @@ def replay_view(doc: Mapping[str, Any] | None, figures: Mapping[int, FigureFile]
         return None
     entries = []
     for i, e in enumerate(doc.get("replays") or []):
-        checks = [{"name": prose_latex(str(c.get("check", "")).replace("_", " ")),
+        checks = [{"name": prose_latex(check_title(c.get("check", ""))),
                    "verdict": Tex(_VERDICT.get(c.get("passed"), _VERDICT[None])),
                    "detail": prose_latex(str(c.get("detail", "")))}
                   for c in e.get("checks") or [] if isinstance(c, Mapping)]

@@ -21,6 +21,7 @@ from tanksynth.artefacts.atomic import atomic_write, build_directory, commit
 from tanksynth.errors import ArtefactError, ReportError
 from tanksynth.reports.context import build_context, drawn_usable, trace_figures
 from tanksynth.reports.figures import FigureFile, TraceFigure, eigenvalue_sets, figure_stem, pole_map
+from tanksynth.reports.fit_figures import acf_figures
 from tanksynth.reports.ts_figures import region_figures
 from tanksynth.reports.linear_analysis import LinearAnalysisView, linear_analysis_views
 from tanksynth.reports.inputs import ReportInputs, read_report_inputs
@@ -116,7 +117,9 @@ def render_report(inputs: ReportInputs, figures: dict[str, FigureFile] | None = 
     statements : mapping of method name to callable
         Problem statement of each design method (`tanksynth.methods.STATEMENTS`).
     regions : dict of artefact name to FigureFile, optional
-        Certified-region figures of the TS PDC designs (none when omitted).
+        Further figure of a design below its pole map: the certified region of a TS PDC
+        design, the residual autocorrelation of a fit (`tanksynth.reports.fit_figures`); none
+        when omitted.
     linear : dict of artefact name to LinearAnalysisView, optional
         Linear analysis (margins, step, Bode) of the verified loops
         (`tanksynth.reports.linear_analysis.linear_analysis_views`; none when omitted).
@@ -192,7 +195,7 @@ def write_report(directory: str | Path, pdf: bool = False, timeout: float = 180.
             if stale.name not in keep:
                 stale.unlink(missing_ok=True)
     traces = trace_figures(inputs, drawn)
-    regions = region_figures(inputs)
+    regions = {**region_figures(inputs), **acf_figures(inputs)}   # a fit has no TS region
     linear = linear_analysis_views(inputs)
     tex = render_report(inputs, figures, comparisons, traces, statements=statements, regions=regions,
                         linear=linear, replay=replay)

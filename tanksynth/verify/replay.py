@@ -728,6 +728,9 @@ def _trace(r: Replay) -> dict:
     s = _stride(e.samples)
     arrays: dict[str, Any] = {"t": np.asarray(e.t, float)[::s], "x": r.x_hat[::s],
                               "y": np.asarray(e.y, float)[:, columns][::s], "y_pred": r.y_pred[::s], "nis": r.nis[::s]}
+    if np.isfinite(r.nis).any():   # the NIS's degrees of freedom: the outputs used at each sample
+        used = np.asarray(e.observed, dtype=bool)[:, columns].sum(axis=1)
+        arrays["nis_dof"] = np.where(np.isfinite(r.nis), used, 0).astype(float)[::s]
     if r.residual is not None and r.threshold is not None:
         arrays["residual"] = r.residual[::s]
         arrays["threshold"] = r.threshold[::s]

@@ -129,12 +129,12 @@ def test_the_seed004_report_has_the_residual_figure(tmp_path):
     assert fig.path.read_bytes() == figures[0].read_bytes()      # the report's figure, drawn again
     ax = canvas.last.axes[-1]
     assert ax.get_title() == tr["header"]["signal_title"] and ax.get_yscale() == "log"
-    assert "fault at t_f = 2 s" in [t.get_text() for t in ax.get_legend().get_texts()]
+    assert "fault onset, 2 s" in [t.get_text() for t in ax.get_legend().get_texts()]   # no t_f markup
     # the panel draws the stored residual of run 1 (decimated for drawing: its extremes kept)
     seg = ax.collections[0].get_segments()[0]
     sig = tr["arrays"]["signals"]
     assert seg[:, 1].max() == pytest.approx(sig[0, :, 0].max())
-    assert "Check fault_detected: pass" in fig.caption and "t_f = 2 s" in fig.caption
+    assert "Check Fault detected: pass" in fig.caption and "t_f = 2 s" in fig.caption
 
 
 def test_signals_of_one_quantity_share_a_colour():

@@ -197,3 +197,29 @@ def test_an_edited_number_is_left_out_and_the_rest_stays():
     text = STATEMENTS["robust_state_feedback"](edited)
     assert "bounded real lemma" not in text
     assert r"margin $10^{-7}$" in text and "settles up to $0.0123$" in text
+
+
+def test_a_decay_rate_at_the_bisections_end_is_stated_as_at_most_with_the_certified_margin():
+    """Issue 30.3: the TS PDC decay rate is the bisection's end point, where the LMIs hold with
+    equality: the statement says "at most" there and gives the rate certified strictly, with
+    its margin."""
+    diag = copy.deepcopy(PDC)
+    diag["lmi"] = {"decay_rate_bracket": {"at_least": 0.0124, "margin": 3.5e-7}}
+    text = str(STATEMENTS["ts_state_feedback"](diag))
+    assert r"certified decay rate $\alpha \ge 0.0124$ 1/s" in text
+    assert r"margin $3.5 \times 10^{-7}$" in text
+    assert r"at most $\alpha = 0.0125$ 1/s" in text and "with equality" in text
+    plain = str(STATEMENTS["ts_state_feedback"](PDC))
+    assert "decay rate at most $0.0125$ 1/s" in plain
+
+
+def test_an_lmi_region_gain_gets_its_distance_to_the_region_boundary(tmp_path):
+    """Issue 30.3: an LMI-region gain 5.9e-4 inside its half-plane got no margin figure."""
+    from tanksynth.reports.designs import design_view
+
+    art = {"name": "k", "method": "lmi_placement", "gains": {},
+           "diagnostics": {"lmi": {**LMI["lmi"], "min_boundary_distance": 5.9e-4}}}
+    view = design_view(art, None, STATEMENTS, None)
+    rows = {str(k): str(v) for k, v in view.margins}
+    label = next(k for k in rows if "distance of the closed-loop eigenvalues to the region" in k)
+    assert rows[label] == "$0.00059$"

@@ -95,6 +95,10 @@ RAW = {
     "paper equation number": re.compile(r"\beq\. \d|LMI \(\d+\)"),
     "notes file": re.compile(r"notes/"),
     "unit with a lost bracket": re.compile(r"cm3 V s\)"),
+    "check key in a caption": re.compile(r"Check [a-z]+ [a-z]+"),       # "Check rmse reproduced"
+    "gain key with its underscore": re.compile(r"\b(?:Gamma d|x init|threshold_\w+) ="),
+    "time key in a legend": re.compile(r"\bt_f\b"),
+    "Python None": re.compile(r"\bis None\b"),
 }
 
 

@@ -67,9 +67,10 @@ def run_fault_detection(spec: Spec, design: DesignSpec) -> DesignResult:
             "detection_times": [r.t_detect for r in detections],
             "detections": [{"x0": r.x0.tolist(), "t_detect": r.t_detect,
                             "false_alarm_before_fault": r.false_alarm} for r in detections],
-            "notes": ["delta_bar is declared in the spec (fault size)",
-                      "detection_times[i] is None when the fault is not detected within 3 s of "
-                      "its onset from initial_states[i] under the input pieces [t_start, u...]"]}
+            "notes": ["the fault size delta_bar is the spec's (declared, not printed in the paper)",
+                      "a start from which the fault is not detected within 3 s of its onset, under "
+                      "the spec's input schedule, has no detection time (null in the artefact's "
+                      "detection times)"]}
     latex = {"threshold": sp.latex(th.expression),
              "threshold_conservative": sp.latex(th.conservative)}
     return DesignResult(design.name, "fault_detection", plant.name, gains, diag, latex)

@@ -498,6 +498,14 @@ class OptionReader:
                                 + ("neither is given)" if not given else "not both)" if len(group) == 2
                                    else f"not {_names_text(tuple(given))})"),
                                 key=f"{key}.{group[0]}")
+        fields = cls.__dataclass_fields__
+        missing = [name for name in allowed if name not in options and name in fields
+                   and fields[name].default is MISSING and fields[name].default_factory is MISSING]
+        if len(missing) > 1:   # all at once: one run tells every required option left out
+            choices = [f"{name}: one of {list(fields[name].metadata['choices'])}" for name in missing
+                       if fields[name].metadata.get("choices")]
+            raise SpecError(f"missing options {_names_text(tuple(repr(n) for n in missing))} for method '{cls.method_name}'"
+                            + (f" ({'; '.join(choices)})" if choices else ""), key=f"{key}.{missing[0]}")
         self.cls = cls
         self.options = options
         self.base = key

@@ -577,7 +577,7 @@ def _record(trace: TraceRecorder, res: Any, plant: Plant, sc: FaultScenario, r: 
                  f"start(s) {[i + 1 for i in shown]} of {setup}; the residual first exceeds the threshold "
                  f"at t_d = {td}", signal_title=r"residual $|y - h(\hat{x})|$ against its threshold",
                  signals=(Signal(r"$|\varepsilon|$", unit, r), Signal("threshold", unit, np.broadcast_to(thr, r.shape), "--")),
-                 events=[(sc.t_fault, f"fault at t_f = {sc.t_fault:g} s")])
+                 events=[(sc.t_fault, f"fault onset, {sc.t_fault:g} s")])
 
 
 def _stored_times(doc: Mapping[str, Any], starts: np.ndarray) -> list[float | None]:

@@ -443,8 +443,11 @@ def fit_verdict(doc: Mapping[str, Any], spec: Spec, trace: Any = None) -> list[C
                 elif not (isinstance(given, (int, float)) and _close(float(fp[j]), float(given), 1e-6)):
                     bad.append(f"{exp.name} {nm}: re-simulated {fp[j]:.6g} % vs recorded {given!r}")
         checks.append(Check("validation_fit", not bad,
-                            ("validation fit % above max(0, 100 (1 - 2 rmse_est / s_val)): " + ", ".join(
-                                f"{k} {r['fit_percent']:.1f} % >= {r['floor']:.1f} %" for k, r in rows_v.items()))
+                            ("validation fit % at least its floor max(0, 100 (1 - 2 e_est / s_val)), e_est the "
+                             "output's RMSE on the estimation data, s_val its RMS deviation from its "
+                             "mean on the validation file: "
+                             + ", ".join(f"{' '.join(k.rsplit('.', 1))} {r['fit_percent']:.1f} % >= "
+                                         f"{r['floor']:.1f} %" for k, r in rows_v.items()))
                             if not bad else "; ".join(bad), {"validation": rows_v}))
     else:
         checks.append(Check("validation_fit", None, "no validation file: the model is not checked "
