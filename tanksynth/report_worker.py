@@ -328,6 +328,8 @@ def _figures_in_two(inputs: ReportInputs) -> dict[str, Any]:
     if len(jobs) < 2 or threading.active_count() != 1:
         return draw_figure_jobs(inputs, jobs)
     theirs, mine = jobs[0::2], jobs[1::2]  # the largest trace to the helper: this one renders after
+    if any(kind == "linear" for kind, _ in jobs):
+        __import__("control")  # the linear analyses' python-control (~0.5 s): once, before the fork
     read, write = os.pipe()
     parent = os.getpid()
     pid = os.fork()

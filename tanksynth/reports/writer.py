@@ -24,7 +24,7 @@ from tanksynth.reports.context import (build_context, draw_trace_figures, drawn_
 from tanksynth.reports.figures import FigureFile, TraceFigure, eigenvalue_sets, figure_stem, pole_map
 from tanksynth.reports.ts_figures import REGION_METHODS, region_figure, region_figures
 from tanksynth.reports.linear_analysis import (LinearAnalysisView, linear_analysis_view,
-                                               linear_analysis_views)
+                                               linear_analysis_views, linear_loops)
 from tanksynth.reports.inputs import ReportInputs, read_report_inputs
 from tanksynth.reports.comparison import PaperComparison
 from tanksynth.reports.latex import Tex, environment
@@ -101,8 +101,9 @@ def figure_jobs(inputs: ReportInputs) -> list[tuple[str, int]]:
     """The figures of a report that need its verification, as jobs that processes can share.
 
     Time-domain figures (`tanksynth.reports.context.trace_jobs`: largest trace first),
-    then certified-region figures (TS PDC artefacts) and linear analyses (artefacts whose
-    verification passed); an artefact's job may draw nothing (no such figure).
+    then certified-region figures (TS PDC artefacts) and linear analyses (artefacts with a
+    linear loop, `tanksynth.reports.linear_analysis.linear_loops`: verified, passed); a
+    region job may draw nothing (no certificate).
 
     Parameters
     ----------
@@ -116,8 +117,7 @@ def figure_jobs(inputs: ReportInputs) -> list[tuple[str, int]]:
     arts = inputs.artefacts
     return ([("traces", i) for _, i in trace_jobs(inputs)]
             + [("region", i) for i, art in enumerate(arts) if str(art.get("method", "")) in REGION_METHODS]
-            + [("linear", i) for i, art in enumerate(arts)
-               if (art.get("verification") or {}).get("passed") is True])
+            + [("linear", i) for i, art in enumerate(arts) if linear_loops(art, inputs.plant)])
 
 
 def draw_figure_jobs(inputs: ReportInputs, jobs: list[tuple[str, int]]) -> dict[str, Any]:
