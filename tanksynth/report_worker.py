@@ -12,7 +12,10 @@ Two steps of the report are drawn ahead or in parallel (the figures are
 most of its time): told that the designs are written (`ReportWorker.designed`),
 the worker draws the eigenvalue maps while the parent verifies (they read
 only the design artefacts); told to go, it forks once more and the two
-processes draw half of the time-domain figures each, largest trace first.
+processes share the figures that need the verification (time-domain figures,
+largest trace first, then certified regions and linear analyses: every other
+job each), so that none of them is left to one process after the other's
+are done.
 
 The worker is used only where forking is safe and cheap: Linux, a process
 with no other thread running (a pytest-xdist worker or a notebook kernel has
@@ -135,7 +138,8 @@ class ReportWorker:
 
     @classmethod
     def start(cls, directory: Path, pdf: bool) -> "ReportWorker | None":
-        """Fork the worker; it imports the report stack and waits.
+        """Fork the worker (after importing the modules both processes need, `_SHARED`); it
+        imports the report stack and waits.
 
         Parameters
         ----------
@@ -151,6 +155,8 @@ class ReportWorker:
         """
         if not worker_usable():
             return None
+        for module in _SHARED:   # before the fork: imported once, not in both processes
+            __import__(module)
         go_r, go_w = os.pipe()
         res_r, res_w = os.pipe()
         sys.stdout.flush()
@@ -239,6 +245,14 @@ _REPORT_STACK = ("tanksynth.reports.writer", "tanksynth.reports.figures", "tanks
                  "matplotlib.font_manager")
 
 
+#: What the report stack imports and ``run`` imports anyway (rank checks, verification: scipy.linalg,
+#: scipy.optimize, the simulator): imported by `ReportWorker.start` before it forks, so that the
+#: two processes do not both import them (0.4-0.5 s of CPU each run, which competes with the
+#: parent's on a loaded machine; issue 29).
+_SHARED = ("tanksynth.analysis.checks", "tanksynth.verify.runner", "tanksynth.verify.common",
+           "tanksynth.sim.simulate")
+
+
 #: Messages on the "go" pipe, one line each.
 _DESIGNED, _GO = b"designed\n", b"go\n"
 
@@ -277,7 +291,7 @@ def _serve(directory: Path, pdf: bool, go: int, result: int) -> None:
             break
     else:
         return  # cancelled
-    drawn.update(_ahead(_trace_figures_in_two, directory))
+    drawn.update(_ahead(_figures_in_two, directory))
     try:
         payload: tuple[str, Any] = ("ok", report_summary(write_report(directory, pdf=pdf, drawn=drawn)))
     except BaseException as exc:  # noqa: BLE001 - reported by the parent's own attempt
@@ -305,14 +319,17 @@ def _pole_maps(inputs: ReportInputs) -> dict[str, Any]:
     return draw_pole_maps(inputs)
 
 
-def _trace_figures_in_two(inputs: ReportInputs) -> dict[str, Any]:
-    """Every time-domain figure, half of them (by trace size) drawn in a forked process."""
-    from tanksynth.reports.context import draw_trace_figures, trace_jobs
+def _figures_in_two(inputs: ReportInputs) -> dict[str, Any]:
+    """Every figure that needs the verification (time-domain, certified-region, linear analysis;
+    `tanksynth.reports.writer.figure_jobs`), every other job drawn in a forked process."""
+    from tanksynth.reports.writer import draw_figure_jobs, figure_jobs
 
-    jobs = [i for _, i in trace_jobs(inputs)]
+    jobs = figure_jobs(inputs)
     if len(jobs) < 2 or threading.active_count() != 1:
-        return draw_trace_figures(inputs, jobs)
-    theirs, mine = jobs[0::2], jobs[1::2]  # the largest to the helper: this one renders after
+        return draw_figure_jobs(inputs, jobs)
+    theirs, mine = jobs[0::2], jobs[1::2]  # the largest trace to the helper: this one renders after
+    if any(kind == "linear" for kind, _ in jobs):
+        __import__("control")  # the linear analyses' python-control (~0.5 s): once, before the fork
     read, write = os.pipe()
     parent = os.getpid()
     pid = os.fork()
@@ -320,12 +337,12 @@ def _trace_figures_in_two(inputs: ReportInputs) -> dict[str, Any]:
         try:
             die_with_parent(parent, own_group=False)  # in the worker's group: ended with it
             os.close(read)
-            _write_all(write, pickle.dumps(draw_trace_figures(inputs, theirs)))
+            _write_all(write, pickle.dumps(draw_figure_jobs(inputs, theirs)))
         finally:
             os._exit(0)
     os.close(write)
     try:
-        out = draw_trace_figures(inputs, mine)
+        out = draw_figure_jobs(inputs, mine)
         data = _read_all(read)
     except BaseException:  # interrupted: the helper stops drawing too (it unwinds, see start)
         os.kill(pid, signal.SIGTERM)

@@ -48,3 +48,15 @@ def test_importing_a_package_loads_no_numerical_library(name):
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True,
                          cwd=ROOT).stdout.strip()
     assert out == "[]", f"{name} imports {out}"
+
+
+def test_the_report_stack_does_not_load_scipy_stats():
+    """Issue 29: the report worker imports the report stack (`tanksynth.verify.replay` among it) on
+    every `tanksynth run`; scipy.stats (0.3-0.5 s of imports) loads only where a chi-square
+    quantile is computed (replay checks, the whiteness test)."""
+    code = ("import sys, tanksynth.reports.writer, tanksynth.verify.replay, "
+            "tanksynth.measurements.scores, tanksynth.report_worker\n"
+            "print('scipy.stats' in sys.modules)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True,
+                         cwd=ROOT).stdout.strip()
+    assert out == "False"

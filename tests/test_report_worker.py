@@ -119,6 +119,51 @@ def test_figures_drawn_ahead_that_do_not_fit_are_drawn_again(tmp_path):
     assert _digests(whole) == want
 
 
+#: Two TS PDC designs: a time-domain, a certified-region figure each and a linear analysis.
+REGIONS = ROOT / "examples" / "three_tank_ts_control.toml"
+
+
+@pytest.mark.slow
+def test_region_and_linear_figures_shared_by_two_processes_are_the_in_process_ones(tmp_path):
+    """Issue 29: the worker's two processes share every figure that needs the verification
+    (`figure_jobs`: time-domain, certified region, linear analysis), not the time-domain ones
+    only; `write_report(drawn=...)` takes the region figures and linear views drawn ahead as they
+    are, draws the others, and redraws entries that are not this directory's of that stem."""
+    import shutil
+
+    from tanksynth.methods import write_report
+    from tanksynth.reports.inputs import read_report_inputs
+    from tanksynth.reports.writer import draw_figure_jobs, figure_jobs
+
+    by_worker, whole = _run(tmp_path, "1", REGIONS), _run(tmp_path, "0", REGIONS)
+    want = _digests(whole)
+    assert _digests(by_worker) == want
+    assert sum(k.startswith("region-") for k in want) == 2 and any(k.startswith("linear-") for k in want)
+    ahead = tmp_path / "ahead" / "out"
+    shutil.copytree(whole, ahead)
+    shutil.rmtree(ahead / "report-figures")
+    (ahead / "report.tex").unlink()
+    inputs = read_report_inputs(ahead)
+    jobs = figure_jobs(inputs)
+    assert {kind for kind, _ in jobs} == {"traces", "region", "linear"}
+    mine = [job for job in jobs if job[0] != "traces"]
+    drawn = draw_figure_jobs(inputs, mine)
+    assert {k.split("-")[0] for k in drawn} == {"region", "linear"}
+    drawn_files = {p.name: p.stat().st_mtime_ns for p in (ahead / "report-figures").glob("*.pdf")}
+    res = write_report(ahead, drawn=drawn)
+    assert {name: (ahead / "report-figures" / name).stat().st_mtime_ns  # not drawn again
+            for name in drawn_files} == drawn_files
+    assert {p.name for p in res.figures} >= {n for n in drawn_files if n.startswith("linear-")}
+    assert _digests(ahead) == want
+    # another directory's views and figures, and a region figure under a linear stem: drawn again
+    region = sorted(k for k in drawn if k.startswith("region-"))
+    linear = sorted(k for k in drawn if k.startswith("linear-"))
+    shutil.rmtree(whole / "report-figures")
+    write_report(whole, drawn={**drawn, linear[0]: drawn[region[0]]})
+    assert _digests(whole) == want
+
+
+
 SCRIPT = """
 import os, signal, sys, threading
 from pathlib import Path
@@ -160,3 +205,26 @@ def test_worker_can_be_switched_off(monkeypatch):
 
     monkeypatch.setenv("TANKSYNTH_REPORT_WORKER", "0")
     assert worker_usable() is False
+
+
+SHARED_SCRIPT = """
+import sys
+from pathlib import Path
+from tanksynth.report_worker import ReportWorker
+shared = ("tanksynth.analysis.checks", "tanksynth.verify.runner", "scipy.optimize")
+before = [m in sys.modules for m in shared]
+w = ReportWorker.start(Path(sys.argv[1]), False)
+print(before, [m in sys.modules for m in shared], w is not None)
+w.cancel()
+"""
+
+
+@pytest.mark.slow
+def test_modules_both_processes_need_are_imported_once_before_the_fork(tmp_path):
+    """Issue 29: the report stack and the parent's rank checks and verification share scipy.linalg,
+    scipy.optimize and the simulator: the parent imports them before it forks the worker, which
+    inherits them instead of importing them a second time."""
+    proc = subprocess.run([sys.executable, "-c", SHARED_SCRIPT, str(tmp_path)], capture_output=True,
+                          text=True, timeout=300, env=dict(os.environ, TANKSYNTH_REPORT_WORKER="1"))
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.strip().splitlines()[-1] == "[False, False, False] [True, True, True] True"

@@ -11,7 +11,6 @@ from __future__ import annotations
 from typing import Sequence
 
 import numpy as np
-from scipy import stats
 
 __all__ = ["rmse", "fit_percent", "pooled_scores", "WHITENESS_LAGS", "WHITENESS_LEVEL",
            "ljung_box"]
@@ -126,6 +125,8 @@ def ljung_box(series: Sequence[np.ndarray], lags: int = WHITENESS_LAGS,
     samples : int
         ``N``.
     """
+    from scipy import stats  # deferred: scipy.stats imports in 0.3-0.5 s
+
     parts = [np.asarray(s, dtype=float).ravel() for s in series]
     centred = []
     for s in parts:

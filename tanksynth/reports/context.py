@@ -28,7 +28,8 @@ from tanksynth.reports.prose import prose_latex
 from tanksynth.reports.replay import replay_view
 from tanksynth.reports.trusted import math_or_text
 from tanksynth.reports.figure_layout import TraceCanvas
-from tanksynth.reports.figures import FigureFile, TraceFigure, figure_stem, time_domain_figures
+from tanksynth.reports.figures import (FigureFile, TraceFigure, drawn_file_is, figure_stem,
+                                       time_domain_figures)
 from tanksynth.reports.inputs import ReportInputs
 from tanksynth.reports.latex import (Tex, escape_latex, expression_latex, format_eigenvalues,
                                      format_number, format_unit, gain_latex, symbol_latex)
@@ -344,12 +345,7 @@ def drawn_usable(drawn: Mapping[str, Any], stem: str, target: Path, kind: type[F
 
 def _is_file(fig: Any, kind: type[FigureFile] | type[TraceFigure], target: Path) -> bool:
     """``fig`` is a ``kind`` whose file is ``target`` and exists."""
-    if not isinstance(fig, kind):
-        return False
-    try:
-        return Path(fig.path).resolve() == target.resolve() and target.is_file()
-    except (OSError, TypeError):
-        return False
+    return drawn_file_is(fig, target, kind)
 
 
 def _as_figures(value: Any) -> tuple[TraceFigure, ...]:

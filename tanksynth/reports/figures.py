@@ -44,7 +44,8 @@ from tanksynth.reports.trace_lines import PanelLines
 # imports this module for its records and helpers too, and needs matplotlib only for a figure it
 # draws itself (not for those drawn ahead by `tanksynth.report_worker`).
 __all__ = ["EigenvalueSet", "eigenvalue_sets", "eigen_label", "is_pole_key", "FigureFile", "pole_map",
-           "TraceFigure", "time_domain_figure", "time_domain_figures", "ordinal", "figure_stem"]
+           "TraceFigure", "time_domain_figure", "time_domain_figures", "ordinal", "figure_stem",
+           "drawn_file_is"]
 
 
 def ordinal(k: int) -> str:
@@ -305,6 +306,32 @@ class TraceFigure:
     check: str
     passed: bool | None
     estimator: bool
+
+
+
+def drawn_file_is(fig: Any, target: Path, kind: type[FigureFile] | type[TraceFigure] = FigureFile) -> bool:
+    """Whether ``fig`` (a figure drawn ahead, e.g. by another process) is a ``kind`` whose file is
+    ``target`` and exists: only then may it stand for the figure drawn here.
+
+    Parameters
+    ----------
+    fig : object
+        The figure drawn ahead (anything: a wrong type is not usable).
+    target : Path
+        ``DIR/report-figures/<stem>.pdf``.
+    kind : type
+        `FigureFile` or `TraceFigure`.
+
+    Returns
+    -------
+    bool
+    """
+    if not isinstance(fig, kind):
+        return False
+    try:
+        return Path(fig.path).resolve() == Path(target).resolve() and Path(target).is_file()
+    except (OSError, TypeError):
+        return False
 
 
 def _word(passed: Any) -> str:

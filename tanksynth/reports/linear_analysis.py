@@ -35,7 +35,7 @@ from tanksynth.analysis.linear_margins import (LoopMargins, closed_loop_step, lo
                                               loop_margins)
 from tanksynth.analysis.statespace import model_names
 from tanksynth.artefacts.atomic import atomic_write
-from tanksynth.reports.figures import FigureFile, figure_stem
+from tanksynth.reports.figures import FigureFile, drawn_file_is, figure_stem
 from tanksynth.reports.latex import Tex, escape_latex, format_number
 from tanksynth.verify.numerics import integral_augmentation
 
@@ -399,7 +399,8 @@ def linear_analysis_view(art: Mapping[str, Any], rec: Mapping[str, Any], directo
     return LinearAnalysisView(loops, margins, rows, summary, figure)
 
 
-def linear_analysis_views(inputs: Any) -> dict[str, LinearAnalysisView]:
+def linear_analysis_views(inputs: Any, drawn: Mapping[str, Any] | None = None
+                          ) -> dict[str, LinearAnalysisView]:
     """The linear analysis of every artefact of a report that has one.
 
     Figures go to ``DIR/report-figures/linear-NN-<name>.pdf``; figures of
@@ -409,6 +410,10 @@ def linear_analysis_views(inputs: Any) -> dict[str, LinearAnalysisView]:
     ----------
     inputs : ReportInputs
         The report's inputs.
+    drawn : mapping, optional
+        Views computed ahead from these inputs (file stem ``linear-NN-<name>`` ->
+        LinearAnalysisView, e.g. by another process): used when its figure is this
+        directory's file of that stem; the others are computed here.
 
     Returns
     -------
@@ -416,10 +421,14 @@ def linear_analysis_views(inputs: Any) -> dict[str, LinearAnalysisView]:
         Artefact name -> LinearAnalysisView.
     """
     figdir = Path(inputs.directory) / _FIGURE_DIR
+    drawn = drawn or {}
     out: dict[str, LinearAnalysisView] = {}
     for i, art in enumerate(inputs.artefacts):
         name = str(art.get("name", ""))
-        view = linear_analysis_view(art, inputs.plant, figdir, figure_stem("linear", i, name))
+        stem = figure_stem("linear", i, name)
+        view = drawn.get(stem)
+        if not (isinstance(view, LinearAnalysisView) and drawn_file_is(view.figure, figdir / f"{stem}.pdf")):
+            view = linear_analysis_view(art, inputs.plant, figdir, stem)
         if view is not None:
             out[name] = view
     if figdir.is_dir():

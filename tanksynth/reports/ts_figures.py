@@ -28,7 +28,7 @@ from tanksynth.artefacts.atomic import atomic_write
 from tanksynth.artefacts.traces import read_trace, trace_path
 from tanksynth.reports.diagnostics.takagi_sugeno import certified_region_of, ts_model_of
 from tanksynth.reports.figure_layout import draw_decorations, square_grid_layout
-from tanksynth.reports.figures import FigureFile, figure_stem
+from tanksynth.reports.figures import FigureFile, drawn_file_is, figure_stem
 from tanksynth.reports.latex import NOTATION
 
 # matplotlib is imported inside the functions that draw (about 0.4 s), not at the top: the report
@@ -221,7 +221,7 @@ def region_figure(art: Mapping[str, Any], artefact_dir: Path, directory: Path,
     return FigureFile(target, f"{directory.name}/{stem}.pdf", caption, ())
 
 
-def region_figures(inputs: Any) -> dict[str, FigureFile]:
+def region_figures(inputs: Any, drawn: Mapping[str, Any] | None = None) -> dict[str, FigureFile]:
     """Draw the certified-region figure of every TS PDC artefact of a report.
 
     Figures go to ``DIR/report-figures/region-NN-<name>.pdf``; figures of
@@ -231,6 +231,10 @@ def region_figures(inputs: Any) -> dict[str, FigureFile]:
     ----------
     inputs : ReportInputs
         The report's inputs (artefacts of the output directory).
+    drawn : mapping, optional
+        Figures drawn ahead from these inputs (file stem ``region-NN-<name>`` ->
+        FigureFile, e.g. by another process): used when one is this directory's
+        file of that stem; the others are drawn here.
 
     Returns
     -------
@@ -238,10 +242,14 @@ def region_figures(inputs: Any) -> dict[str, FigureFile]:
         Artefact name -> FigureFile.
     """
     figdir = Path(inputs.directory) / _FIGURE_DIR
+    drawn = drawn or {}
     out: dict[str, FigureFile] = {}
     for i, art in enumerate(inputs.artefacts):
         name = str(art.get("name", ""))
-        fig = region_figure(art, Path(inputs.directory), figdir, figure_stem("region", i, name))
+        stem = figure_stem("region", i, name)
+        fig = drawn.get(stem)
+        if not drawn_file_is(fig, figdir / f"{stem}.pdf"):
+            fig = region_figure(art, Path(inputs.directory), figdir, stem)
         if fig is not None:
             out[name] = fig
     if figdir.is_dir():

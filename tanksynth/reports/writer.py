@@ -19,11 +19,13 @@ from typing import Any, Callable, Mapping
 
 from tanksynth.artefacts.atomic import atomic_write, build_directory, commit
 from tanksynth.errors import ArtefactError, ReportError
-from tanksynth.reports.context import build_context, drawn_usable, trace_figures
+from tanksynth.reports.context import (build_context, draw_trace_figures, drawn_usable, trace_figures,
+                                       trace_jobs)
 from tanksynth.reports.figures import FigureFile, TraceFigure, eigenvalue_sets, figure_stem, pole_map
 from tanksynth.reports.fit_figures import acf_figures
-from tanksynth.reports.ts_figures import region_figures
-from tanksynth.reports.linear_analysis import LinearAnalysisView, linear_analysis_views
+from tanksynth.reports.ts_figures import REGION_METHODS, region_figure, region_figures
+from tanksynth.reports.linear_analysis import (LinearAnalysisView, linear_analysis_view,
+                                               linear_analysis_views, linear_loops)
 from tanksynth.reports.inputs import ReportInputs, read_report_inputs
 from tanksynth.reports.comparison import PaperComparison
 from tanksynth.reports.latex import Tex, environment
@@ -31,7 +33,8 @@ from tanksynth.reports.paper import compare_with_papers
 from tanksynth.reports.pdf import compile_pdf, pdf_page_count
 from tanksynth.reports.replay import replay_figures
 
-__all__ = ["ReportResult", "render_report", "write_report", "draw_pole_maps", "FIGURE_DIR"]
+__all__ = ["ReportResult", "render_report", "write_report", "draw_pole_maps", "figure_jobs",
+           "draw_figure_jobs", "FIGURE_DIR"]
 
 #: Sub-directory of DIR for the report's figures.
 FIGURE_DIR = "report-figures"
@@ -95,6 +98,61 @@ def draw_pole_maps(inputs: ReportInputs) -> dict[str, FigureFile | None]:
     return out
 
 
+def figure_jobs(inputs: ReportInputs) -> list[tuple[str, int]]:
+    """The figures of a report that need its verification, as jobs that processes can share.
+
+    Time-domain figures (`tanksynth.reports.context.trace_jobs`: largest trace first),
+    then certified-region figures (TS PDC artefacts) and linear analyses (artefacts with a
+    linear loop, `tanksynth.reports.linear_analysis.linear_loops`: verified, passed); a
+    region job may draw nothing (no certificate).
+
+    Parameters
+    ----------
+    inputs : ReportInputs
+
+    Returns
+    -------
+    list of (str, int)
+        (kind ``"traces"``, ``"region"`` or ``"linear"``, artefact index).
+    """
+    arts = inputs.artefacts
+    return ([("traces", i) for _, i in trace_jobs(inputs)]
+            + [("region", i) for i, art in enumerate(arts) if str(art.get("method", "")) in REGION_METHODS]
+            + [("linear", i) for i, art in enumerate(arts) if linear_loops(art, inputs.plant)])
+
+
+def draw_figure_jobs(inputs: ReportInputs, jobs: list[tuple[str, int]]) -> dict[str, Any]:
+    """Draw some `figure_jobs` ahead of `write_report` (its ``drawn``), e.g. in another process.
+
+    Parameters
+    ----------
+    inputs : ReportInputs
+    jobs : list of (str, int)
+        Some of ``figure_jobs(inputs)``.
+
+    Returns
+    -------
+    dict
+        File stem -> what `write_report` takes for it: the main time-domain stem -> the
+        artefact's figures (`tanksynth.reports.context.draw_trace_figures`), a region stem
+        -> FigureFile, a linear stem -> LinearAnalysisView (none for a job that draws nothing).
+    """
+    traces = [i for kind, i in jobs if kind == "traces"]
+    out: dict[str, Any] = dict(draw_trace_figures(inputs, traces)) if traces else {}
+    figdir = inputs.directory / FIGURE_DIR
+    for kind, i in jobs:
+        art = inputs.artefacts[i]
+        stem = figure_stem(kind, i, str(art.get("name", "")))
+        fig: Any = None
+        if kind == "region":
+            fig = region_figure(art, inputs.directory, figdir, stem)
+        elif kind == "linear":
+            fig = linear_analysis_view(art, inputs.plant, figdir, stem)
+        if fig is not None:
+            out[stem] = fig
+    return out
+
+
 def render_report(inputs: ReportInputs, figures: dict[str, FigureFile] | None = None,
                   comparisons: tuple[PaperComparison, ...] | None = None,
                   traces: dict[str, tuple[TraceFigure, ...]] | None = None, *,
@@ -153,8 +211,9 @@ def write_report(directory: str | Path, pdf: bool = False, timeout: float = 180.
     drawn : mapping, optional
         Figures already drawn from this directory's current files (file stem ->
         figure or None, `draw_pole_maps`; main trace stem -> tuple of figures,
-        `tanksynth.reports.context.draw_trace_figures`), e.g. by another process
-        while verification ran: used as they are when they are this directory's
+        `tanksynth.reports.context.draw_trace_figures`; region stem -> FigureFile and
+        linear stem -> LinearAnalysisView, `draw_figure_jobs`), e.g. by another process
+        while verification ran or beside this one: used as they are when they are this directory's
         files of those stems (`drawn_usable`; None only for an artefact without
         such a figure), the others are drawn here.
 
@@ -195,8 +254,8 @@ def write_report(directory: str | Path, pdf: bool = False, timeout: float = 180.
             if stale.name not in keep:
                 stale.unlink(missing_ok=True)
     traces = trace_figures(inputs, drawn)
-    regions = {**region_figures(inputs), **acf_figures(inputs)}   # a fit has no TS region
-    linear = linear_analysis_views(inputs)
+    regions = {**region_figures(inputs, drawn), **acf_figures(inputs)}   # a fit has no TS region
+    linear = linear_analysis_views(inputs, drawn)
     tex = render_report(inputs, figures, comparisons, traces, statements=statements, regions=regions,
                         linear=linear, replay=replay)
     tex_path = d / "report.tex"

@@ -71,7 +71,6 @@ from typing import Any, Callable, Mapping, Sequence
 
 import casadi as ca
 import numpy as np
-from scipy import stats
 
 from tanksynth.analysis.checks import Check
 from tanksynth.artefacts.atomic import atomic_write
@@ -342,6 +341,8 @@ def _replay_horizon(rt: Any, predict: _Predictor, noise: tuple[np.ndarray, np.nd
 
 
 def _chi2_band(dof: int) -> tuple[float, float]:
+    from scipy import stats  # deferred: scipy.stats imports in 0.3-0.5 s (the report reads replays)
+
     return float(stats.chi2.ppf(0.025, dof)), float(stats.chi2.ppf(0.975, dof))
 
 
@@ -444,6 +445,8 @@ def replay_estimator(doc: Mapping[str, Any], spec: Spec, run: Any, experiment: E
 def _covariance_checks(plant: Plant, nu: np.ndarray, S: np.ndarray, usable: np.ndarray, win: slice,
                        nis: np.ndarray, summary: dict) -> list[Check]:
     """NIS mean and exceedance, prediction RMSE against the predicted innovation spread."""
+    from scipy import stats  # deferred, see _chi2_band
+
     N = nu.shape[0]
     dofs = np.zeros(N, dtype=int)
     for k in range(win.start, N):

@@ -163,3 +163,30 @@ def test_one_state_full_pattern_is_the_scalar_kalman_filter():
         cost += Pf
         P = A[k][0, 0] ** 2 * Pf + 0.1
     assert res.cost == pytest.approx(cost, rel=1e-13)
+
+
+class _RecordsBlasThreads:
+    """An array-like ``P(1|0)`` that records the BLAS libraries' thread counts when the design
+    converts it to an array (inside its input checks)."""
+
+    def __init__(self, P):
+        self.P = P
+        self.seen = []
+
+    def __array__(self, dtype=None, copy=None):
+        from threadpoolctl import threadpool_info
+
+        self.seen.append([i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"])
+        return np.array(self.P, dtype=dtype)
+
+
+def test_finite_horizon_input_checks_run_on_one_blas_thread():
+    """Issue 29: the window's checks (eigenvalues, Cholesky factors of every n x n matrix) ran
+    outside `small_dense`, with OpenBLAS's threads: one call in five 3-20x slower at N >= 128 on
+    the loaded 2-core machine. They run on one thread now, and the result is unchanged."""
+    A, C, Q, R, E, P0 = system(6, lambda r: np.eye(6)[:3], lower_pattern(6))
+    probe = _RecordsBlasThreads(P0)
+    res = finite_horizon_gains(A, C, Q, R, E, probe, tol=1e-9, max_iter=500)
+    assert probe.seen and all(counts and set(counts) == {1} for counts in probe.seen), probe.seen
+    K_ref, cost_ref = plain_fh(A, C, Q, R, E, P0, tol=1e-9, max_iter=500)
+    assert res.cost == pytest.approx(cost_ref, rel=1e-10)

@@ -53,6 +53,7 @@ from typing import Any
 
 import numpy as np
 
+from tanksynth.analysis.blas import small_dense
 from tanksynth.design.decentralized.models import (DiscreteModel, discretize_noise,
                                                    equicorrelated_intensity, linear_model,
                                                    lower_tank_equilibrium, own_tank_pattern,
@@ -386,13 +387,14 @@ def covariance_recursion(A_seq: Any, C_seq: Any, Q_seq: Any, R_seq: Any, K_seq: 
         As `finite_horizon_gains`; ``InfeasibleDesign`` names the step whose
         ``P(k|k)`` is not positive definite.
     """
-    A, C, Q, R, _, P0 = _window(A_seq, C_seq, Q_seq, R_seq, None, P0_pred)
-    n, o = A[0].shape[0], C[0].shape[0]
-    Ks = _sequence(K_seq, "K_seq")
-    if len(Ks) != len(A):
-        raise DimensionError(f"K_seq has {len(Ks)} gains, expected T = {len(A)}")
-    K = [checked_matrix(k, f"K_seq[{i}]", (n, o)) for i, k in enumerate(Ks)]
-    return covariance_pass(A, C, Q, R, K, P0)
+    with small_dense():   # as finite_horizon_gains: the checks and the pass on one BLAS thread
+        A, C, Q, R, _, P0 = _window(A_seq, C_seq, Q_seq, R_seq, None, P0_pred)
+        n, o = A[0].shape[0], C[0].shape[0]
+        Ks = _sequence(K_seq, "K_seq")
+        if len(Ks) != len(A):
+            raise DimensionError(f"K_seq has {len(Ks)} gains, expected T = {len(A)}")
+        K = [checked_matrix(k, f"K_seq[{i}]", (n, o)) for i, k in enumerate(Ks)]
+        return covariance_pass(A, C, Q, R, K, P0)
 
 
 def finite_horizon_gains(A_seq: Any, C_seq: Any, Q_seq: Any, R_seq: Any, E: Any, P0_pred: Any, *,
@@ -480,9 +482,13 @@ def finite_horizon_gains(A_seq: Any, C_seq: Any, Q_seq: Any, R_seq: Any, E: Any,
     if isinstance(max_iter, bool) or not isinstance(max_iter, (int, np.integer)) or max_iter < 1:
         raise SpecError(f"max_iter must be an integer >= 1, got {max_iter!r}", key="max_iter")
     start = time.perf_counter()
-    A, C, Q, R, mask, P0 = _window(A_seq, C_seq, Q_seq, R_seq, E, P0_pred)
-    route = iterative_gains if method == "iterative" else ipopt_gains
-    res = route(A, C, Q, R, GainPattern(mask), P0, float(tol), int(max_iter))
+    # the input checks too (eigenvalues and Cholesky factors of every n x n matrix of the window)
+    # on one BLAS thread: outside it, OpenBLAS's threads made one call in five 3-20x slower at
+    # N = 128 and 256 on the loaded 2-core machine (issue 29)
+    with small_dense():
+        A, C, Q, R, mask, P0 = _window(A_seq, C_seq, Q_seq, R_seq, E, P0_pred)
+        route = iterative_gains if method == "iterative" else ipopt_gains
+        res = route(A, C, Q, R, GainPattern(mask), P0, float(tol), int(max_iter))
     K, traj, init, iters, converged, status = (res.K, res.trajectory, res.start, res.iterations,
                                                res.converged, res.status)
     if not converged:
