@@ -65,8 +65,14 @@ html_title = f"tanksynth {release}"
 html_theme_options = {
     "navigation_with_keys": False,
     "show_toc_level": 2,
-    "header_links_before_dropdown": 8,
-    "secondary_sidebar_items": ["page-toc"],
+    # one row of links beside the search button at 1280 px (eight wrapped to two rows)
+    "header_links_before_dropdown": 4,
+    # the method and plant pages have two or three headings: their option tables (five columns)
+    # get the outline's width instead (with it the "meaning" column was cut off at 1280 px)
+    # (the patterns do not overlap: "*" does not cross a "/", and the theme warns on two matches)
+    "secondary_sidebar_items": {"*": ["page-toc"], "_generated/*": ["page-toc"],
+                                "_generated/api/*": ["page-toc"], "_generated/notebooks/*": ["page-toc"],
+                                "_generated/methods/*": [], "_generated/plants/*": []},
     "footer_start": ["copyright"],
     "footer_end": ["sphinx-version"],
 }
@@ -74,6 +80,8 @@ html_theme_options = {
 html_sidebars = {page: [] for page in ("index", "quickstart", "artefacts", "export", "python_api",
                                        "notebooks", "developers", "_generated/api_reference")}
 html_static_path = ["_static"]
+# the user's pages rank above the developers' module reference in the search results
+html_search_scorer = str(HERE / "search_scorer.js")
 html_css_files = ["tanksynth.css"]
 
 

@@ -133,3 +133,72 @@ def test_docs_use_the_pydata_theme(built):
     html, _ = built
     front = (html / "index.html").read_text(encoding="utf-8")
     assert "pydata-sphinx-theme" in front and "alabaster" not in front
+
+
+# -- the rendered pages, in a real browser (scripts/docs_screenshots.py) ---------------------------
+
+def _screenshots_module():
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("docs_screenshots", ROOT / "scripts" / "docs_screenshots.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+@pytest.fixture(scope="module")
+def rendered(built, tmp_path_factory) -> dict[str, str]:
+    """The DOM of each page of `PAGES` after its scripts ran, and the screenshots beside them."""
+    shots = _screenshots_module()
+    if shots.find_browser() is None:
+        pytest.skip("no headless browser (chromium): the rendered pages are not checked "
+                    "(Debian: apt-get install chromium)")
+    html, _ = built
+    out = tmp_path_factory.mktemp("screenshots")
+    proc = subprocess.run([sys.executable, str(ROOT / "scripts" / "docs_screenshots.py"), str(html),
+                           "-o", str(out)], capture_output=True, text=True, timeout=900)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    for name in shots.PAGES:
+        png = (out / f"{name}.png").read_bytes()
+        assert png.startswith(b"\x89PNG") and len(png) > 20_000, name   # a page, not a blank
+    return {name: (out / f"{name}.html").read_text(encoding="utf-8") for name in shots.PAGES}
+
+
+def _visible_text(dom: str) -> str:
+    dom = re.sub(r"<(script|style)\b.*?</\1>", " ", dom, flags=re.S)
+    return unescape(" ".join(re.sub(r"<[^>]+>", " ", dom).split()))
+
+
+#: MyST or reST markup that did not render (a role, a directive fence, a link target).
+RAW_MARKUP = re.compile(r"\{(doc|py:\w+|ref|eval-rst|toctree)\}|```|:py:obj:|\]\([\w/]+\.md\)")
+
+
+def test_rendered_pages_have_navigation_and_no_raw_markup(rendered):
+    for name, dom in rendered.items():
+        assert 'class="bd-header' in dom and "bd-search" in dom, name            # top bar, search
+        assert not RAW_MARKUP.search(_visible_text(dom)), (name, RAW_MARKUP.search(_visible_text(dom)))
+    # the front page links every user page from its navigation bar
+    header = rendered["index"].split('class="bd-header', 1)[1].split("</header>", 1)[0]
+    for page in ("quickstart.html", "_generated/methods/index.html", "_generated/plants/index.html",
+                 "python_api.html", "_generated/api_reference.html"):
+        assert page in header, page
+    # a method page: the sidebar lists every method, the option table has its five columns
+    method = rendered["method"]
+    sidebar = method.split('class="bd-sidebar-primary', 1)[1].split("</div>\n  </div>", 1)[0]
+    for row in TABLE:   # the page itself is linked as "#"
+        assert f'href="{row.name}.html"' in sidebar or row.name == "lmi_placement", row.name
+    assert "lmi_placement" in sidebar
+    assert all(f">{column}</p></th>" in method or f">{column}</th>" in method
+               for column in ("option", "type", "default", "unit", "meaning"))
+    assert 'id="tanksynth.load"' in rendered["api"] and 'id="tanksynth.design"' in rendered["api"]
+
+
+def test_rendered_search_finds_the_user_pages_first(rendered):
+    """The search page fills its results in the browser: "observer" finds pages, the method
+    pages rank before the ~200 module pages of the developers' reference."""
+    results = rendered["search"].split('id="search-results"', 1)[1]
+    links = re.findall(r'<li[^>]*>\s*<a[^>]*href="([^"]+)"', results)
+    assert len(links) >= 10, links
+    first = [link.split("?")[0].split("#")[0] for link in links[:10]]
+    assert not any(link.startswith("_generated/api/") for link in first), first
+    assert "_generated/methods/ts_observer.html" in first, first
