@@ -7,7 +7,7 @@ PY     := $(VENV)/bin/python
 RUNTIME_STAMP := $(VENV)/.runtime-installed
 STAMP  := $(VENV)/.installed
 
-.PHONY: demo test test-fast fuzz bench tex clean docs bytecode
+.PHONY: demo test test-fast fuzz bench tex browser clean docs bytecode
 
 $(RUNTIME_STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -43,7 +43,17 @@ demo: $(RUNTIME_STAMP) bytecode
 # import-linter contracts (.importlinter: layers, verify never imports design, papers only
 # in reports) first, then the test suite.
 # Between them mypy type-checks the whole package ([tool.mypy] in pyproject.toml).
-test: $(STAMP) tex bytecode
+# A headless browser for the documentation's screenshot tests (tests/test_docs.py; they skip
+# without one, so a failed install only costs those two tests).
+browser:
+	@if ! command -v chromium >/dev/null && ! command -v chromium-browser >/dev/null; then \
+		SUDO=$$( [ "$$(id -u)" = 0 ] || echo sudo ); \
+		( $$SUDO apt-get update -qq && DEBIAN_FRONTEND=noninteractive $$SUDO apt-get install -y -qq \
+			--no-install-recommends chromium fonts-dejavu-core >/dev/null ) \
+			|| echo "chromium not installed: the browser tests of tests/test_docs.py skip"; \
+	fi
+
+test: $(STAMP) tex browser bytecode
 	$(VENV)/bin/lint-imports --no-logo
 	$(VENV)/bin/mypy
 	$(PY) -m pytest -n 2 -q
