@@ -564,14 +564,6 @@ def main() -> int:
         for pb, sizes in problems:
             for M in sizes:
                 rows.append(measure(pb, M, reps, args.quick, floors))
-    versions = {}
-    for pkg in ("numba", "jax", "jaxlib", "llvmlite"):
-        try:
-            from importlib import metadata
-            versions[pkg] = metadata.version(pkg)
-        except Exception:       # not installed
-            versions[pkg] = None
-    before["versions"].update(versions)
     path = write_record("closed_loop", {"reps": reps, "quick": args.quick, "substeps": SUBSTEPS,
                                         "env_backend": os.environ.get("TANKSYNTH_SIM_BACKEND"),
                                         "rows": rows, "floors": floors.rows}, before)

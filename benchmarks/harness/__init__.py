@@ -19,7 +19,7 @@ from importlib import metadata
 from pathlib import Path
 from typing import Any, Callable, Mapping
 
-__all__ = ["interleave", "summary", "ratios", "machine", "write_record", "Floors"]
+__all__ = ["interleave", "summary", "ratios", "machine", "code_version", "write_record", "Floors"]
 
 RESULTS = Path(__file__).resolve().parents[1] / "results"
 
@@ -57,14 +57,30 @@ def _version(pkg: str) -> str | None:
         return None
 
 
+def code_version() -> dict[str, Any]:
+    """The commit of the measured tree (``git rev-parse HEAD``) and whether it had local edits."""
+    import subprocess
+
+    root = Path(__file__).resolve().parents[2]
+    try:
+        head = subprocess.run(["git", "-C", str(root), "rev-parse", "--short=10", "HEAD"],
+                              capture_output=True, text=True, timeout=10).stdout.strip()
+        dirty = subprocess.run(["git", "-C", str(root), "status", "--porcelain", "--", "tanksynth"],
+                               capture_output=True, text=True, timeout=10).stdout.strip() != ""
+    except (OSError, subprocess.SubprocessError):
+        return {"commit": None, "library_edited": None}
+    return {"commit": head or None, "library_edited": dirty}
+
+
 def machine() -> dict[str, Any]:
-    """Machine, interpreter, library versions and load average."""
+    """Machine, interpreter, library versions, load average and the measured commit."""
     pkgs = ("numpy", "scipy", "sympy", "casadi", "cvxpy", "clarabel", "control", "threadpoolctl",
-            "filterpy", "tanksynth")
+            "filterpy", "tanksynth", "numba", "llvmlite", "jax", "jaxlib")
     return {"platform": platform.platform(), "processor": platform.processor() or platform.machine(),
             "cpus": os.cpu_count(), "python": platform.python_version(),
             "versions": {p: _version(p) for p in pkgs},
-            "loadavg": list(os.getloadavg()), "time": time.strftime("%Y-%m-%dT%H:%M:%S%z")}
+            "loadavg": list(os.getloadavg()), "time": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
+            **code_version()}
 
 
 def write_record(name: str, payload: Mapping[str, Any], before: Mapping[str, Any]) -> Path:
