@@ -99,12 +99,23 @@ class Floors:
     def __init__(self) -> None:
         self.rows: list[dict[str, Any]] = []
 
-    def check(self, what: str, median_ratio: float, floor: float) -> bool:
+    def check(self, what: str, median_ratio: float, floor: float, stat: str = "median",
+              strict_only: bool = False) -> bool:
+        """Record one floor: ``median_ratio`` (or the ``stat`` named) >= ``floor``.
+
+        ``strict_only``: a miss makes the benchmark exit 1 only with ``--strict`` (issue 29's
+        floors against compiled contenders, while the library's kernels are being built).
+        """
         ok = median_ratio >= floor
-        self.rows.append({"what": what, "median_ratio": median_ratio, "floor": floor, "ok": ok})
-        print(f"  floor {'ok  ' if ok else 'MISS'} {what}: median ratio {median_ratio:.2f} "
-              f"(floor {floor:g})")
+        self.rows.append({"what": what, "median_ratio": median_ratio, "stat": stat, "floor": floor,
+                          "ok": ok, "strict_only": strict_only})
+        print(f"  floor {'ok  ' if ok else 'MISS'} {what}: {stat} ratio {median_ratio:.3g} "
+              f"(floor {floor:g}){' [exit 1 only with --strict]' if strict_only and not ok else ''}")
         return ok
+
+    def blocking(self, strict: bool) -> list[dict[str, Any]]:
+        """The misses that make the benchmark exit 1 (every miss with ``strict``)."""
+        return [r for r in self.failed if strict or not r.get("strict_only")]
 
     @property
     def failed(self) -> list[dict[str, Any]]:
