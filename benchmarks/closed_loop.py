@@ -62,7 +62,8 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from harness import Floors, interleave, machine, ratios, summary, write_record  # noqa: E402
+from harness import (Floors, interleave, machine, ratios, scratch_cwd, summary,  # noqa: E402
+                     write_record)
 
 from tanksynth.plants import tank_network, three_tank  # noqa: E402
 from tanksynth.sim.scenarios import SCENARIOS  # noqa: E402
@@ -411,7 +412,8 @@ def build_casadi(pb: Problem, M: int):
         xs = clip(xs + (k2 * 2.0 + k1 + k3 * 2.0 + k4) * (h / 6.0))
     xs = clip(xs + w)
     opts = {"jit": True, "compiler": "shell", "jit_options": {"flags": ["-O2"], "verbose": False}}
-    step = ca.Function("period", [ca.vertcat(x, z), ca.vertcat(r, w)], [ca.vertcat(xs, zn)], opts)
+    with scratch_cwd():
+        step = ca.Function("period", [ca.vertcat(x, z), ca.vertcat(r, w)], [ca.vertcat(xs, zn)], opts)
     horizon = step.mapaccum("horizon", N)
     runs = horizon if M == 1 else horizon.map(M, "thread", 2)
 

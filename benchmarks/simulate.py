@@ -64,7 +64,8 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from harness import Floors, interleave, machine, ratios, summary, write_record  # noqa: E402
+from harness import (Floors, interleave, machine, ratios, scratch_cwd, summary,  # noqa: E402
+                     write_record)
 
 from tanksynth.plants import three_tank  # noqa: E402
 from tanksynth.sim import kernel, tape  # noqa: E402
@@ -147,7 +148,8 @@ def casadi_jit_horizon(step, N: int, M: int):
     """``step`` compiled with jit=True (generated C, system compiler), mapaccum over N, map over M."""
     xs, us = step.sx_in()
     opts = {"jit": True, "compiler": "shell", "jit_options": {"flags": ["-O2"], "verbose": False}}
-    fast = ca.Function("rk4_step_jit", [xs, us], [step(xs, us)[0]], opts)
+    with scratch_cwd():
+        fast = ca.Function("rk4_step_jit", [xs, us], [step(xs, us)[0]], opts)
     acc = fast.mapaccum(N)
     return acc if M == 1 else acc.map(M, "thread", 2)
 

@@ -10,6 +10,7 @@ libraries and the load average before and after.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import platform
@@ -19,7 +20,8 @@ from importlib import metadata
 from pathlib import Path
 from typing import Any, Callable, Mapping
 
-__all__ = ["interleave", "summary", "ratios", "machine", "code_version", "write_record", "Floors"]
+__all__ = ["interleave", "summary", "ratios", "machine", "code_version", "write_record", "scratch_cwd",
+           "Floors"]
 
 RESULTS = Path(__file__).resolve().parents[1] / "results"
 
@@ -91,6 +93,29 @@ def write_record(name: str, payload: Mapping[str, Any], before: Mapping[str, Any
               **payload}
     path.write_text(json.dumps(record, indent=1, default=float) + "\n")
     return path
+
+
+_SCRATCH: list[str] = []
+
+
+@contextlib.contextmanager
+def scratch_cwd():
+    """Run a block in a scratch working directory, one per process under the system temp dir.
+
+    CasADi's ``jit`` writes its C source and shared library to the current directory and
+    removes them when the Function is destroyed: the directory is left in place for that
+    (empty once they are gone), so no file lands in the work tree.
+    """
+    import tempfile
+
+    if not _SCRATCH:
+        _SCRATCH.append(tempfile.mkdtemp(prefix="tanksynth-bench-jit-"))
+    old = os.getcwd()
+    os.chdir(_SCRATCH[0])
+    try:
+        yield Path(_SCRATCH[0])
+    finally:
+        os.chdir(old)
 
 
 class Floors:
