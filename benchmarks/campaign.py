@@ -184,6 +184,8 @@ def main() -> int:
     """Run the benchmark; exit 1 on a disagreement (and on a floor miss with --strict)."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--runs", type=int, default=1000)
+    ap.add_argument("--record", default="campaign",
+                    help="name of the JSON record in benchmarks/results (default %(default)s)")
     ap.add_argument("--reps", type=int, default=3)
     ap.add_argument("--quick", action="store_true", help="200 runs, 3 reps")
     ap.add_argument("--strict", action="store_true", help="exit 1 on a floor miss")
@@ -246,16 +248,14 @@ def main() -> int:
                  0.5, strict_only=True)
     if not agree:
         floors.rows.append({"what": "metrics equal to verify's campaign.csv", "ok": False})
-    path = write_record("campaign", {"runs": R, "reps": reps, "scenario": SCENARIO,
+    path = write_record(args.record, {"runs": R, "reps": reps, "scenario": SCENARIO,
                                      "controllers": list(CONTROLLERS), "total_runs": total,
                                      "numba_compile_s": compile_s, "metrics_rel_diff": worst,
                                      "times": times, "cpu_times": cpu, "throughput": throughput,
                                      "throughput_ratio": share, "floors": floors.rows,
                                      "workers": "default"}, before)
     print(f"\nrecord: {path}")
-    if floors.failed:
-        print("FLOORS MISSED: " + "; ".join(r["what"] for r in floors.failed))
-    return 1 if floors.blocking(args.strict) else 0
+    return floors.exit_status(args.strict)
 
 
 if __name__ == "__main__":

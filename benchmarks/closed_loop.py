@@ -124,6 +124,14 @@ def three_tank_problem(workdir: Path) -> Problem:
     return Problem("three_tank", spec.plant, loop.controller, setup, ts, 1.0)
 
 
+def three_tank_constants(plant):
+    """Hand constants of the three-tank: valve coefficients k13, k32, k20 (m^0.5/s) and 1/A."""
+    prm = {q.name: float(q.value) for q in plant.parameters}
+    r2g = math.sqrt(2 * prm["g"])
+    k13, k32, k20 = (prm[k] * prm["Phi"] * r2g / prm["A"] for k in ("mu13", "mu32", "mu20"))
+    return k13, k32, k20, 1.0 / prm["A"]
+
+
 def network_constants(plant):
     """Hand constants of tank_network(N): f(h, u) = -c sqrt(h) + c_in sqrt(h[src]) + B u."""
     p = {q.name: float(q.value) for q in plant.parameters}
@@ -196,10 +204,7 @@ def build_numba(pb: Problem):
     p = C1.shape[0]
     ulo, uhi = input_range(pb)
     if pb.name == "three_tank":
-        prm = {q.name: float(q.value) for q in pb.plant.parameters}
-        r2g = math.sqrt(2 * prm["g"])
-        k13, k32, k20 = (prm[k] * prm["Phi"] * r2g / prm["A"] for k in ("mu13", "mu32", "mu20"))
-        ia = 1.0 / prm["A"]
+        k13, k32, k20, ia = three_tank_constants(pb.plant)
 
         @nb.njit(inline="always")
         def rhs(s, u, out):
@@ -267,22 +272,15 @@ def build_numba(pb: Problem):
             for i in range(n):
                 x[i] = clip(x[i] + W[k, i], i)
 
-    @nb.njit
-    def serial(X0, W):
+    def runs(X0, W):
         M = X0.shape[0]
         X = np.empty((M, N + 1, n))
-        for r in range(M):
+        for r in nb.prange(M):            # a plain range in the serial compilation
             one_run(X0[r], W[r], X[r])
         return X
 
-    @nb.njit(parallel=True)
-    def parallel(X0, W):
-        M = X0.shape[0]
-        X = np.empty((M, N + 1, n))
-        for r in nb.prange(M):
-            one_run(X0[r], W[r], X[r])
-        return X
-
+    serial = nb.njit(runs)
+    parallel = nb.njit(parallel=True)(runs)
     return serial, parallel
 
 
@@ -307,10 +305,7 @@ def build_jax(pb: Problem):
     xlo, xhi = jnp.asarray(pb.xlo), jnp.asarray(pb.xhi)
     ulo, uhi = (jnp.asarray(a) for a in input_range(pb))
     if pb.name == "three_tank":
-        prm = {q.name: float(q.value) for q in pb.plant.parameters}
-        r2g = math.sqrt(2 * prm["g"])
-        k13, k32, k20 = (prm[k] * prm["Phi"] * r2g / prm["A"] for k in ("mu13", "mu32", "mu20"))
-        ia = 1.0 / prm["A"]
+        k13, k32, k20, ia = three_tank_constants(pb.plant)
 
         def rhs(s, u):
             d13, d32 = s[0] - s[2], s[2] - s[1]
@@ -378,10 +373,7 @@ def build_casadi(pb: Problem, M: int):
                             else ca.fmax(v[i], xlo[i]) for i in range(n)])
 
     if pb.name == "three_tank":
-        prm = {q.name: float(q.value) for q in pb.plant.parameters}
-        r2g = math.sqrt(2 * prm["g"])
-        k13, k32, k20 = (prm[k] * prm["Phi"] * r2g / prm["A"] for k in ("mu13", "mu32", "mu20"))
-        ia = 1.0 / prm["A"]
+        k13, k32, k20, ia = three_tank_constants(pb.plant)
 
         def rhs(s, u):
             d13, d32 = s[0] - s[2], s[2] - s[1]
@@ -434,10 +426,7 @@ def build_numpy(pb: Problem):
     ulo, uhi = input_range(pb)
     lo, hi = pb.xlo[:, None], pb.xhi[:, None]
     if pb.name == "three_tank":
-        prm = {q.name: float(q.value) for q in pb.plant.parameters}
-        r2g = math.sqrt(2 * prm["g"])
-        k13, k32, k20 = (prm[k] * prm["Phi"] * r2g / prm["A"] for k in ("mu13", "mu32", "mu20"))
-        ia = 1.0 / prm["A"]
+        k13, k32, k20, ia = three_tank_constants(pb.plant)
 
         def rhs(s, u):
             d13, d32 = s[0] - s[2], s[2] - s[1]
@@ -543,6 +532,8 @@ def measure(pb: Problem, M: int, reps: int, quick: bool, floors: Floors) -> dict
 def main() -> int:
     """Run the benchmark; exit 1 on a disagreement (and on a floor miss with --strict)."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--record", default="closed_loop",
+                    help="name of the JSON record in benchmarks/results (default %(default)s)")
     ap.add_argument("--reps", type=int, default=5)
     ap.add_argument("--three-tank", type=int, nargs="*", default=[1, 200, 10000])
     ap.add_argument("--network", type=int, nargs="*", default=[1, 200])
@@ -565,13 +556,11 @@ def main() -> int:
         for pb, sizes in problems:
             for M in sizes:
                 rows.append(measure(pb, M, reps, args.quick, floors))
-    path = write_record("closed_loop", {"reps": reps, "quick": args.quick, "substeps": SUBSTEPS,
+    path = write_record(args.record, {"reps": reps, "quick": args.quick, "substeps": SUBSTEPS,
                                         "env_backend": os.environ.get("TANKSYNTH_SIM_BACKEND"),
                                         "rows": rows, "floors": floors.rows}, before)
     print(f"\nrecord: {path}")
-    if floors.failed:
-        print("FLOORS MISSED: " + "; ".join(r["what"] for r in floors.failed))
-    return 1 if floors.blocking(args.strict) else 0
+    return floors.exit_status(args.strict)
 
 
 if __name__ == "__main__":

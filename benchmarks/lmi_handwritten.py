@@ -181,9 +181,7 @@ def main() -> int:
     path = write_record("lmi_handwritten", {"reps": reps, "rows": rows, "floors": floors.rows},
                         before)
     print(f"\nrecord: {path}")
-    if floors.failed:
-        print("FLOORS MISSED: " + "; ".join(r["what"] for r in floors.failed))
-    return 1 if floors.blocking(args.strict) else 0
+    return floors.exit_status(args.strict)
 
 
 if __name__ == "__main__":

@@ -307,9 +307,7 @@ RENDERERS: dict[str, Callable[[dict], list[str]]] = {
     "closed_loop": closed_loop, "estimators": estimators, "campaign": campaign,
     "simulate": simulate, "lmi_handwritten": lmi_handwritten,
     "decentralized_numpy": decentralized_numpy, "run_examples": run_examples, "limits": limits,
-    "symbolic": symbolic, "conic_memory": conic_memory, "design": design,
-    "design_N16-32-64": design, "design_N128-256": design, "design_before_N16-32-64": design,
-    "figures": figures,
+    "symbolic": symbolic, "conic_memory": conic_memory, "design": design, "figures": figures,
 }
 
 
@@ -319,7 +317,9 @@ def render(name: str, results: Path = RESULTS) -> str:
     if not path.exists():
         return f"(no record: run `python benchmarks/{name.split('_N')[0]}.py`)\n"
     rec = json.loads(path.read_text())
-    lines = RENDERERS.get(name, generic)(rec)
+    # a record named after its benchmark, or with a suffix (design_N16-32-64, closed_loop_main)
+    key = next((k for k in sorted(RENDERERS, key=len, reverse=True) if name.startswith(k)), None)
+    lines = (RENDERERS[key] if key else generic)(rec)
     return "\n".join(lines + [""] + provenance(rec, name)) + "\n"
 
 

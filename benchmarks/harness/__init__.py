@@ -142,6 +142,12 @@ class Floors:
         """The misses that make the benchmark exit 1 (every miss with ``strict``)."""
         return [r for r in self.failed if strict or not r.get("strict_only")]
 
+    def exit_status(self, strict: bool = False) -> int:
+        """Print the misses; 1 when one of them is `blocking`, else 0."""
+        if self.failed:
+            print("FLOORS MISSED: " + "; ".join(r["what"] for r in self.failed))
+        return 1 if self.blocking(strict) else 0
+
     @property
     def failed(self) -> list[dict[str, Any]]:
         return [r for r in self.rows if not r["ok"]]
