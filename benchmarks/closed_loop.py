@@ -132,6 +132,15 @@ def three_tank_constants(plant):
     return k13, k32, k20, 1.0 / prm["A"]
 
 
+def three_tank_rhs(k, s, u, sign, sqrt, fabs):
+    """dh/dt of the three-tank as three expressions, with a library's sign, sqrt and abs."""
+    k13, k32, k20, ia = k
+    d13, d32 = s[0] - s[2], s[2] - s[1]
+    f13 = k13 * sign(d13) * sqrt(fabs(d13))
+    f32 = k32 * sign(d32) * sqrt(fabs(d32))
+    return u[0] * ia - f13, u[1] * ia + f32 - k20 * sqrt(s[1]), f13 - f32
+
+
 def network_constants(plant):
     """Hand constants of tank_network(N): f(h, u) = -c sqrt(h) + c_in sqrt(h[src]) + B u."""
     p = {q.name: float(q.value) for q in plant.parameters}
@@ -305,13 +314,10 @@ def build_jax(pb: Problem):
     xlo, xhi = jnp.asarray(pb.xlo), jnp.asarray(pb.xhi)
     ulo, uhi = (jnp.asarray(a) for a in input_range(pb))
     if pb.name == "three_tank":
-        k13, k32, k20, ia = three_tank_constants(pb.plant)
+        kc = three_tank_constants(pb.plant)
 
         def rhs(s, u):
-            d13, d32 = s[0] - s[2], s[2] - s[1]
-            f13 = k13 * jnp.sign(d13) * jnp.sqrt(jnp.abs(d13))
-            f32 = k32 * jnp.sign(d32) * jnp.sqrt(jnp.abs(d32))
-            return jnp.stack([u[0] * ia - f13, u[1] * ia + f32 - k20 * jnp.sqrt(s[1]), f13 - f32])
+            return jnp.stack(three_tank_rhs(kc, s, u, jnp.sign, jnp.sqrt, jnp.abs))
     else:
         c, src, cin, B = network_constants(pb.plant)
         c, cin, B = jnp.asarray(c), jnp.asarray(cin), jnp.asarray(B)
@@ -373,13 +379,10 @@ def build_casadi(pb: Problem, M: int):
                             else ca.fmax(v[i], xlo[i]) for i in range(n)])
 
     if pb.name == "three_tank":
-        k13, k32, k20, ia = three_tank_constants(pb.plant)
+        kc = three_tank_constants(pb.plant)
 
         def rhs(s, u):
-            d13, d32 = s[0] - s[2], s[2] - s[1]
-            f13 = k13 * ca.sign(d13) * ca.sqrt(ca.fabs(d13))
-            f32 = k32 * ca.sign(d32) * ca.sqrt(ca.fabs(d32))
-            return ca.vertcat(u[0] * ia - f13, u[1] * ia + f32 - k20 * ca.sqrt(s[1]), f13 - f32)
+            return ca.vertcat(*three_tank_rhs(kc, s, u, ca.sign, ca.sqrt, ca.fabs))
     else:
         c, src, cin, B = network_constants(pb.plant)
 
