@@ -480,6 +480,9 @@ def measure(pb: Problem, M: int, reps: int, quick: bool, floors: Floors) -> dict
     res = pb.tanksynth(seeds)
     first = {"tanksynth": time.perf_counter() - t0}
     ref = np.asarray(res.x)
+    # warm-up: the library may build a compiled kernel once enough work has gone through a law;
+    # the route of every warm-up call is recorded, and the one after the timed reps
+    warm = [res.backend] + [pb.tanksynth(seeds).backend for _ in range(2)]
     builders = {}
     try:
         serial, parallel = build_numba(pb)
@@ -505,10 +508,15 @@ def measure(pb: Problem, M: int, reps: int, quick: bool, floors: Floors) -> dict
         errors[name] = float(np.max(np.abs(out - ref))) * pb.unit_m
         contenders[name] = fn
     times = interleave(contenders, reps)
-    row = {"plant": pb.name, "M": M, "N": pb.N, "n": pb.plant.n, "backend": res.backend,
+    after = pb.tanksynth(seeds).backend
+    if after != warm[-1]:
+        print(f"  NOTE: tanksynth's route changed during the reps: {warm[-1]} -> {after}")
+    row = {"plant": pb.name, "M": M, "N": pb.N, "n": pb.plant.n, "backend": after,
+           "backend_warmup": warm,
            "first_call_s": first, "errors_m": errors, "times": times,
            "summary": {k: summary(v) for k, v in times.items()}, "ratios": {}}
-    print(f"\n{pb.name}, M = {M}, N = {pb.N} (tanksynth backend {res.backend}):")
+    print(f"\n{pb.name}, M = {M}, N = {pb.N} (tanksynth backend {after}; warm-up "
+          f"{' / '.join(warm)}):")
     for name, t in times.items():
         s = summary(t)
         extra = f"   max |x - tanksynth| {errors[name]:.1e} m" if name in errors else ""

@@ -115,14 +115,9 @@ def closed_loop(rec: dict) -> list[str]:
            f"{rec.get('env_backend') or 'unset'}. Times in ms, min / median; ratio = contender / "
            "tanksynth per rep, min / median (below 1: the contender is faster); largest state "
            "difference to tanksynth in m; first call (compile) in s.", ""]
-    names = []
-    for r in rec["rows"]:
-        names += [k for k in r["times"] if k not in names]
     rows = []
     for r in rec["rows"]:
-        for k in names:
-            if k not in r["times"]:
-                continue
+        for k in r["times"]:
             ratio = "-" if k == "tanksynth" else min_med(r["ratios"][k])
             err = "-" if k == "tanksynth" else num(r["errors_m"][k], 2)
             first = num(r.get("first_call_s", {}).get(k), 2)
