@@ -20,7 +20,7 @@ from importlib import metadata
 from pathlib import Path
 from typing import Any, Callable, Mapping
 
-__all__ = ["interleave", "summary", "ratios", "machine", "code_version", "write_record", "scratch_cwd",
+__all__ = ["interleave", "summary", "ratios", "machine", "code_version", "write_record", "scratch_cwd", "environ",
            "Floors"]
 
 RESULTS = Path(__file__).resolve().parents[1] / "results"
@@ -93,6 +93,21 @@ def write_record(name: str, payload: Mapping[str, Any], before: Mapping[str, Any
               **payload}
     path.write_text(json.dumps(record, indent=1, default=float) + "\n")
     return path
+
+
+@contextlib.contextmanager
+def environ(**values: str):
+    """Set environment variables for a block (e.g. force a library kernel to build now)."""
+    old = {k: os.environ.get(k) for k in values}
+    os.environ.update(values)
+    try:
+        yield
+    finally:
+        for k, v in old.items():
+            if v is None:
+                os.environ.pop(k, None)
+            else:
+                os.environ[k] = v
 
 
 _SCRATCH: list[str] = []
