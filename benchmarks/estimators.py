@@ -17,6 +17,8 @@ single run (``--steps``, default 2000)
     RK4, Joseph form, symmetrisation, Cholesky checks of both covariances, the gain by a
     Cholesky solve of S) and ``jax`` (``jit`` of a ``lax.scan``, ``vmap`` for runs), the same
     equations as the hand numpy EKF below; their compile (first call) is reported apart.
+    ``tanksynth_step``: tanksynth with ``TANKSYNTH_ESTIMATOR_BACKEND=step`` (the one-step
+    path, no horizon kernel), reported beside the default (no floor).
 batch (``--runs`` M = 200, 1,000 and 10,000 parallel runs, ``--batch-steps`` steps)
     tanksynth ``ekf.batch(M).run`` (the whole sequence) vs a hand-vectorised numpy EKF over
     (M, 3) states and (M, 3, 3) covariances: the same prediction, Joseph-form correction,
@@ -551,7 +553,15 @@ def main(argv: list[str] | None = None) -> int:
             ok = False
 
     print(f"\nsingle run, EKF ({args.steps} steps):")
-    contenders = {"tanksynth": lambda: run_ts(ekf), "FilterPy": lambda: filterpy_ekf(model, Y, U)}
+    def step_path(fn):
+        """tanksynth with TANKSYNTH_ESTIMATOR_BACKEND=step: the one-step path (no horizon kernel)."""
+        def call():
+            with environ(TANKSYNTH_ESTIMATOR_BACKEND="step"):
+                return fn()
+        return call
+
+    contenders = {"tanksynth": lambda: run_ts(ekf), "tanksynth_step": step_path(lambda: run_ts(ekf)),
+                  "FilterPy": lambda: filterpy_ekf(model, Y, U)}
     if nb_single is not None:
         contenders["numba"] = lambda: nb_single(Y, U)
     if jax_run is not None:
@@ -569,6 +579,7 @@ def main(argv: list[str] | None = None) -> int:
         a, b = tanksynth_batch(ekf, YB, UB), numpy_batch_ekf(model, YB, UB)
         diffs = {"numpy": float(np.abs(a - b).max())}
         contenders = {"tanksynth": lambda: tanksynth_batch(ekf, YB, UB),
+                      "tanksynth_step": step_path(lambda: tanksynth_batch(ekf, YB, UB)),
                       "numpy": lambda: numpy_batch_ekf(model, YB, UB)}
         if nb_batch is not None:
             diffs["numba"] = float(np.abs(a - nb_serial(YB, UB)).max())
