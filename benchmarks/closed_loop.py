@@ -29,7 +29,9 @@ min and median; above 1: tanksynth is faster):
 * ``casadi_jit``: the period (law + RK4 + clipping + noise) as an SX Function compiled with
   ``jit=True`` (the system C compiler), ``mapaccum`` over the horizon, ``map`` over the runs
   (``"thread"``, 2 threads);
-* ``numpy``: the loop over samples, vectorised over runs (one 1-D array per tank).
+* ``numpy``: the loop over samples, vectorised over runs (one 1-D array per tank);
+* ``tanksynth_numpy``: tanksynth with ``TANKSYNTH_SIM_BACKEND=numpy`` (its period-by-period
+  path, no compiled kernel), reported beside the default (no floor).
 
 Every contender gets the process noise tanksynth draws (the same seeds), precomputed
 outside its timing (it gains the draw). Their states must equal tanksynth's to 1e-12 m
@@ -507,6 +509,11 @@ def measure(pb: Problem, M: int, reps: int, quick: bool, floors: Floors) -> dict
     builders["numpy"] = lambda: (lambda f=build_numpy(pb): f(X0, W))
     contenders = {"tanksynth": ours}
     errors = {}
+    if os.environ.get("TANKSYNTH_SIM_BACKEND") is None:
+        def ours_numpy():
+            with environ(TANKSYNTH_SIM_BACKEND="numpy"):   # the library's period-by-period path
+                return pb.tanksynth(seeds).x
+        builders["tanksynth_numpy"] = lambda: ours_numpy
     for name, make in builders.items():
         t0 = time.perf_counter()
         fn = make()
