@@ -11,7 +11,7 @@ by `tanksynth.sim.simulate`.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, Mapping, Protocol, runtime_checkable
+from typing import Any, ClassVar, Mapping, Protocol, runtime_checkable
 
 import numpy as np
 
@@ -115,6 +115,9 @@ class ConstantInput:
     """
 
     u: tuple[float, ...]
+
+    #: The input never depends on the estimate: `simulate` runs an estimator after the plant.
+    open_loop: ClassVar[bool] = True
 
     def __call__(self, x_hat: np.ndarray, reference: np.ndarray, t: float) -> np.ndarray:
         """The constant input broadcast to (M, m)."""

@@ -27,7 +27,7 @@ noise levels) are our choices, listed in each scenario's ``assumptions``.
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
-from typing import Any, Callable, Mapping, Sequence
+from typing import Any, Callable, ClassVar, Mapping, Sequence
 
 import numpy as np
 import numpy.typing as npt
@@ -63,6 +63,9 @@ class InputSchedule:
 
     times: tuple[float, ...]
     values: tuple[tuple[float, ...], ...]
+
+    #: The input never depends on the estimate: `simulate` runs an estimator after the plant.
+    open_loop: ClassVar[bool] = True
 
     def __call__(self, x_hat: np.ndarray, reference: np.ndarray, t: float) -> np.ndarray:
         """The input at time ``t`` for every run, shape (M, m)."""

@@ -38,12 +38,19 @@ estimator is called with ``(y_k, u_{k-1})`` and returns ``x_hat_k``; the
 control law maps ``(x_hat_k, r_k, t_k)`` to ``u_k``, which is saturated and
 held over ``[t_k, t_{k+1})``. At ``k = 0``, ``u_{-1}`` is ``u_init``.
 
+Closed loops whose law describes itself as a CasADi Function (``loop_law``)
+and feeds back the true state run through one compiled kernel over the whole
+horizon (`tanksynth.sim.closed_loop`: law, saturation, plant, process noise;
+the same numbers); ``TANKSYNTH_SIM_BACKEND=numpy`` forces the period-by-period
+loop.
+
 `simulate_inputs` is the open-loop special case (a given input sequence per
 run, no noise): training and test data for estimators.
 """
 
 from __future__ import annotations
 
+import os
 import time
 from dataclasses import dataclass
 from typing import Any, Callable, Mapping, Sequence
@@ -55,6 +62,7 @@ from tanksynth.plants.base import Plant
 from tanksynth.sim.inputs import (BatchEstimator, ConstantInput, ControlLaw, EstimatorAdapter,
                                   InputSequence, ParameterChange, StateJump)
 from tanksynth.sim.affine import affine_horizon
+from tanksynth.sim.closed_loop import loop_kernel, run_closed_loop
 from tanksynth.sim.integrate import Integrator, input_limits, param_arrays
 
 __all__ = [
@@ -110,12 +118,15 @@ class SimulationResult:
     timing : dict
         Wall-clock seconds spent in ``estimator`` and ``controller`` calls,
         ``calls`` (samples) and ``runs`` (M): the batch per-step time is
-        ``timing["controller"] / calls``.
+        ``timing["controller"] / calls``. Through the closed-loop kernel
+        (backend ``"loop"``) ``controller`` is the kernel's time: law and plant
+        together.
     plant : str
         Plant model name.
     backend : str
-        Route that integrated the periods (``"native"``: the plant's compiled C
-        kernel, ``"casadi"``, ``"numpy"``; several joined by ``+``), see
+        Route that integrated the periods (``"loop"``: the closed loop's compiled
+        kernel, law included, `tanksynth.sim.closed_loop`; ``"native"``: the plant's
+        compiled C kernel, ``"casadi"``, ``"numpy"``; several joined by ``+``), see
         `tanksynth.sim.integrate.Integrator.backends` and, when it is not
         ``"native"``, `tanksynth.sim.kernel.kernel_status` for why.
     """
@@ -297,13 +308,7 @@ def simulate(plant: Plant, *, ts: float, steps: int, x0: Sequence[float] | np.nd
     w: np.ndarray | None = None   # process noise, (M, N, n) when noisy
     v: np.ndarray | None = None   # measurement noise, (M, N + 1, q) when noisy
     if noisy:
-        w, v = np.empty((M, N, n)), np.empty((M, N + 1, q))
-        for r, s in enumerate(seeds):
-            rng = np.random.default_rng(int(s))
-            w[r] = rng.standard_normal((N, n))
-            v[r] = rng.standard_normal((N + 1, q))
-        w *= wstd
-        v *= vstd
+        w, v = _draw_noise(seeds, N, n, q, wstd, vstd)
 
     # Time-major buffers (contiguous writes per sample), returned run-major.
     X = np.empty((N + 1, M, n))
@@ -333,6 +338,10 @@ def simulate(plant: Plant, *, ts: float, steps: int, x0: Sequence[float] | np.nd
             if estimator is not None:
                 done = _estimate(estimator, done, u_prev, timing)
             return _pack(*done, ref, seeds, ts, substeps, integ, timing, plant)
+    compiled = _kernel_loop(plant, integ, controller, x, ref, w, v, params, schedule, jump_at, M,
+                            ts, int(substeps), timing) if estimator is None else None
+    if compiled is not None:
+        return _pack(*compiled, ref, seeds, ts, substeps, integ, timing, plant)
     affine = getattr(controller, "affine", None)
     if affine is not None and estimator is None and not noisy and not schedule and not jump_at:
         # u_k = b_k - K (x_k - x_ref): law and plant in one CasADi call over the horizon
@@ -344,6 +353,12 @@ def simulate(plant: Plant, *, ts: float, steps: int, x0: Sequence[float] | np.nd
             return _pack(*_with_outputs(integ, *loop, params), ref, seeds, ts, substeps, integ,
                          timing, plant)
     refs = np.broadcast_to(ref[:, None, :], (N + 1, M, ref.shape[1]))
+    # Inputs that do not depend on the estimate (none, a given sequence, a law whose class says
+    # ``open_loop = True``: a constant input, a scenario's schedule): the estimator runs after the
+    # loop over the measurements (`_estimate`: the same calls, through its horizon kernel)
+    later = estimator is not None and (controller is None or sequence is not None
+                                       or getattr(type(controller), "open_loop", False) is True)
+    u_first = u_prev
     for k in range(N + 1):
         t_k = k * ts
         for values in schedule.get(k, ()):
@@ -361,7 +376,7 @@ def simulate(plant: Plant, *, ts: float, steps: int, x0: Sequence[float] | np.nd
         if v is not None:   # noisy
             y = y + v[:, k]
         Y[k] = y
-        if estimator is not None:
+        if estimator is not None and not later:
             t0 = time.perf_counter()
             xh = np.asarray(estimator.step(y, u_prev), dtype=float)
             timing["estimator"] += time.perf_counter() - t0
@@ -390,7 +405,80 @@ def simulate(plant: Plant, *, ts: float, steps: int, x0: Sequence[float] | np.nd
         if w is not None:   # noisy (without noise the advanced state is already clipped)
             x = integ.clip_counted(x + w[:, k])
         u_prev = u
+    if later and estimator is not None:
+        run_major = lambda a: np.ascontiguousarray(a.transpose(1, 0, 2))  # noqa: E731
+        done = _estimate(estimator, (run_major(X), run_major(Y), run_major(U), XH, run_major(modes)),
+                         u_first, timing)
+        return _pack(*done, ref, seeds, ts, substeps, integ, timing, plant)
     return _result(X, Y, U, XH, ref, seeds, modes, ts, substeps, integ, timing, plant)
+
+
+#: Runs of noise drawn per thread task (`_draw_noise`); fewer runs are drawn in one thread.
+_NOISE_BLOCK = 512
+
+
+def _draw_noise(seeds: np.ndarray, N: int, n: int, q: int, wstd: np.ndarray,
+                vstd: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Process (M, N, n) and measurement (M, N + 1, q) noise: one generator per run, process
+    draws first. Blocks of runs drawn in threads (numpy's generators release the GIL while
+    they fill): the same numbers, each run's from its own seed."""
+    M = seeds.size
+    w, v = np.empty((M, N, n)), np.empty((M, N + 1, q))
+
+    def block(a: int, b: int) -> None:
+        for r in range(a, b):
+            rng = np.random.default_rng(int(seeds[r]))
+            rng.standard_normal(out=w[r])
+            rng.standard_normal(out=v[r])
+        w[a:b] *= wstd
+        v[a:b] *= vstd
+
+    cuts = list(range(0, M, _NOISE_BLOCK)) + [M]
+    if len(cuts) <= 2:
+        block(0, M)
+    else:
+        from concurrent.futures import ThreadPoolExecutor
+
+        with ThreadPoolExecutor(max_workers=max(1, min(len(cuts) - 1, os.cpu_count() or 1))) as pool:
+            for job in [pool.submit(block, a, b) for a, b in zip(cuts[:-1], cuts[1:])]:
+                job.result()
+    return w, v
+
+
+def _kernel_loop(plant: Plant, integ: Integrator, controller: Any, x: np.ndarray, ref: np.ndarray,
+                 w: np.ndarray | None, v: np.ndarray | None, params: dict[str, Any],
+                 schedule: Mapping[int, list], jump_at: Mapping[int, np.ndarray], M: int, ts: float,
+                 substeps: int, timing: dict) -> _Runs | None:
+    """The closed loop through its compiled kernel (`tanksynth.sim.closed_loop`), or None.
+
+    For a controller offering ``loop_law(runs)`` with the true state fed back; None (nothing
+    changed, the controller's state included) when there is no kernel or a run stopped in it.
+    """
+    offer = getattr(controller, "loop_law", None)
+    if offer is None or os.environ.get("TANKSYNTH_SIM_BACKEND", "").strip().lower() == "numpy":
+        return None
+    law = offer(M)
+    if law is None:
+        return None
+    N = ref.shape[0] - 1
+    kernel = loop_kernel(integ.model, law, ref.shape[1], work=float(M) * N * substeps)
+    if kernel is None:
+        return None
+
+    def update(p: dict[str, Any], values: Mapping[str, Any]) -> None:
+        p.update({name: param_arrays(plant, values, M)[name] for name in values})
+
+    done = run_closed_loop(integ, kernel, law, x, ref, w, params,
+                           lambda p: input_limits(plant, p, M), schedule, update, jump_at, ts,
+                           substeps)
+    if done is None:
+        return None
+    X, Y, U, modes, seconds = done
+    if v is not None:   # noisy
+        Y += v
+    timing["controller"] += seconds
+    timing["calls"] = N
+    return X, Y, U, X.view(), modes      # the true state fed back: x_hat is x (read-only view)
 
 
 def _open_loop(integ: Integrator, x: np.ndarray, seq: np.ndarray, params: dict[str, Any],

@@ -15,6 +15,8 @@ from typing import Any
 
 import numpy as np
 
+from tanksynth.sim.closed_loop import LoopLaw
+
 __all__ = ["BatchCall", "mapped_call", "CasadiControlLaw", "CasadiIntegralLaw"]
 
 
@@ -152,6 +154,37 @@ class CasadiControlLaw:
         """Input (M, m) for the estimate (M, n) and the reference (M, r)."""
         return self.evaluate(x_hat, reference)[0]
 
+    def loop_law(self, runs: int) -> LoopLaw | None:
+        """The law for the closed-loop kernel (`tanksynth.sim.closed_loop`): no state of its own.
+
+        Parameters
+        ----------
+        runs : int
+            Number of runs M.
+
+        Returns
+        -------
+        LoopLaw or None
+            None when the Function does not take ``(x_hat, reference)``.
+        """
+        fn = self.function
+        if fn.n_in() != 2:
+            return None
+        wrapped = getattr(self, "_loop_fn", None)
+        if wrapped is None:
+            import casadi as ca
+
+            x = ca.SX.sym("x", fn.nnz_in(0))
+            z = ca.SX.sym("z", 0)
+            r = ca.SX.sym("r", fn.nnz_in(1))
+            try:
+                u = fn(x, r)
+            except (RuntimeError, NotImplementedError):
+                return None
+            u = u[0] if isinstance(u, (list, tuple)) else u
+            wrapped = self._loop_fn = ca.Function("law", [x, z, r], [ca.vec(u), z])
+        return LoopLaw(wrapped, np.zeros((int(runs), 0)))
+
 
 class CasadiIntegralLaw(CasadiControlLaw):
     """A stateful `ControlLaw` from ``(x, z, y_r) -> (u, z_next)`` (integral tracking).
@@ -181,3 +214,24 @@ class CasadiIntegralLaw(CasadiControlLaw):
         u, z_next = self.evaluate(x_hat, self.z, reference)[:2]
         self.z = z_next
         return u
+
+    def loop_law(self, runs: int) -> LoopLaw | None:
+        """The law for the closed-loop kernel, from the integrators' current state (after `reset`).
+
+        Parameters
+        ----------
+        runs : int
+            Number of runs M.
+
+        Returns
+        -------
+        LoopLaw or None
+            None when the state does not have one row per run.
+        """
+        if self.z.shape[0] != int(runs) or self.function.n_in() != 3:
+            return None
+
+        def commit(z: np.ndarray) -> None:
+            self.z = np.array(z, dtype=float)
+
+        return LoopLaw(self.function, np.array(self.z, dtype=float), commit)

@@ -60,8 +60,12 @@ from tanksynth.verify.cluster import CONNECT_TIMEOUT, WORKER_TIMEOUT, completed,
 from tanksynth.verify.common import sampling_period
 
 __all__ = ["CampaignRun", "Runner", "CampaignTask", "CampaignTable", "COLUMNS", "campaign_spec",
-           "clear_cache", "campaign_tasks", "run_task", "run_campaign", "CampaignEstimate",
-           "estimate_campaign", "ROW_BYTES"]
+           "clear_cache", "auto_chunk", "MIN_CHUNK", "MAX_CHUNK", "campaign_tasks", "run_task",
+           "run_campaign", "CampaignEstimate", "estimate_campaign", "ROW_BYTES"]
+
+#: Fewest and most runs per task by default (`auto_chunk`).
+MIN_CHUNK = 16
+MAX_CHUNK = 512
 
 #: Columns of the tidy campaign table (``loop`` describes what ran).
 COLUMNS = ("artefact", "method", "kind", "plant", "scenario", "run", "seed", "metric", "value", "unit",
@@ -204,8 +208,20 @@ def run_task(task: CampaignTask) -> list[dict]:
     return rows
 
 
+def auto_chunk(runs: int) -> int:
+    """Runs per task by default: blocks of at least `MIN_CHUNK` runs, about eight tasks per
+    (artefact, scenario) for load balance, at most `MAX_CHUNK` (memory of one batch).
+
+    Parameters
+    ----------
+    runs : int
+        Monte-Carlo runs per (artefact, scenario).
+    """
+    return int(max(MIN_CHUNK, min(MAX_CHUNK, -(-int(runs) // 8))))
+
+
 def campaign_tasks(spec_text: str, artefacts: Sequence[Mapping[str, Any]], scenarios: Sequence[str],
-                   runs: int, seed: int = 0, chunk: int = 16, substeps: int = 4, *,
+                   runs: int, seed: int = 0, chunk: int | None = None, substeps: int = 4, *,
                    runners: Mapping[str, Runner]) -> list[CampaignTask]:
     """Cut a campaign into tasks.
 
@@ -221,8 +237,9 @@ def campaign_tasks(spec_text: str, artefacts: Sequence[Mapping[str, Any]], scena
         Monte-Carlo runs per (artefact, scenario).
     seed : int
         Campaign seed; run ``r`` has seed ``run_seeds(seed, [r])``.
-    chunk : int
-        Runs per task (one simulation batch).
+    chunk : int, optional
+        Runs per task (one simulation batch); default `auto_chunk` (blocks of runs:
+        the closed-loop kernel runs a block in one call).
     substeps : int
         RK4 steps per sampling period.
     runners : mapping of method name to Runner
@@ -236,6 +253,7 @@ def campaign_tasks(spec_text: str, artefacts: Sequence[Mapping[str, Any]], scena
     ArtefactError
         An artefact's method has no runner.
     """
+    chunk = auto_chunk(runs) if chunk is None else chunk
     if runs < 1 or chunk < 1:
         raise SpecError(f"runs and chunk must be >= 1, got {runs}, {chunk}", key="campaign")
     plant = campaign_spec(spec_text).plant

@@ -81,6 +81,8 @@ from tanksynth.artefacts.traces import TRACE_MAX_SAMPLES, read_trace, write_trac
 from tanksynth.errors import ArtefactError, DataError, SpecError, TanksynthError
 from tanksynth.measurements import Experiment
 from tanksynth.plants.base import Plant
+from tanksynth.runtime.estimators.base import CovarianceKernelEstimator, KernelEstimator
+from tanksynth.runtime.estimators.horizon import horizon_backend
 from tanksynth.runtime.estimators.model import DiscreteModel, discrete_model
 from tanksynth.sim.metrics import warmup_samples
 from tanksynth.sim.simulate import EstimatorAdapter
@@ -298,6 +300,47 @@ def _noise(rt: Any) -> tuple[np.ndarray, np.ndarray] | None:
     return np.asarray(Q, dtype=float), np.asarray(R, dtype=float)
 
 
+def _replay_horizon(rt: Any, predict: _Predictor, noise: tuple[np.ndarray, np.ndarray] | None,
+                    x0: np.ndarray, U: np.ndarray, Y: np.ndarray, usable: np.ndarray
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None] | None:
+    """``(x_hat, y(k|k-1), S, P)`` of the replay loop through the estimator's horizon kernel.
+
+    The same numbers as stepping (`KernelEstimator.run_states`; the predictions and ``S`` from
+    the states, all samples at once). None (the caller steps) for estimators without a kernel,
+    for a log with missing or censored values when the estimator cannot leave outputs out of a
+    step (it is fed its own prediction, which depends on the estimate), on any failure (the
+    stepping loop names the step), and with ``TANKSYNTH_ESTIMATOR_BACKEND=step`` (or
+    ``TANKSYNTH_SIM_BACKEND=numpy``: the stepping loop as before horizon kernels).
+    """
+    if (horizon_backend() == "step" or not isinstance(rt, KernelEstimator) or not isinstance(rt.model, DiscreteModel)
+            or (noise is not None and not isinstance(rt, CovarianceKernelEstimator))):
+        return None
+    partial = not usable.all()
+    N, n = Y.shape[0], rt.n
+    if N < 2 or (partial and not rt.noise_in_parameters):
+        return None
+    U_prev = np.concatenate([U[:1], U[:-1]])
+    rt.reset(x0)
+    state0 = rt.state
+    try:
+        states = rt.run_states(np.where(usable, Y, 0.0)[:, None, :], U_prev[:, None, :],
+                               usable if partial else None)[:, 0]
+    except (TanksynthError, FloatingPointError, np.linalg.LinAlgError):
+        return None
+    X = np.ascontiguousarray(states[:, :n])
+    before = np.concatenate([state0, states[:-1]])
+    yp, Phi, H = predict.fn.map(N)(before[:, :n].T, U_prev.T)
+    Yp = np.asarray(yp, dtype=float).T.copy()
+    if noise is None or not isinstance(rt, CovarianceKernelEstimator):
+        return X, Yp, np.full((N, rt.q, rt.q), np.nan), None
+    Phi = np.asarray(Phi, dtype=float).reshape(n, N, n).transpose(1, 0, 2)
+    H = np.asarray(H, dtype=float).reshape(rt.q, N, n).transpose(1, 0, 2)
+    P = rt.covariance_of(before)
+    Q, R = noise[0].reshape(n, n), noise[1]
+    S = H @ (Phi @ P @ Phi.swapaxes(1, 2) + Q) @ H.swapaxes(1, 2) + R
+    return X, Yp, S, np.ascontiguousarray(rt.covariance_of(states))
+
+
 def _chi2_band(dof: int) -> tuple[float, float]:
     return float(stats.chi2.ppf(0.025, dof)), float(stats.chi2.ppf(0.975, dof))
 
@@ -340,6 +383,7 @@ def replay_estimator(doc: Mapping[str, Any], spec: Spec, run: Any, experiment: E
     x0 = np.asarray(run.x_hat0 if run.x_hat0 is not None else run.x_op, dtype=float).reshape(1, n)
     stepper = rt if rt is not None else est
     subset = bool(getattr(rt, "noise_in_parameters", False))
+    fast = _replay_horizon(rt, predict, noise, x0, U, Y, usable)
     stepper.reset(x0)
     X = np.empty((N, n))
     Yp = np.full((N, q), np.nan)
@@ -348,8 +392,10 @@ def replay_estimator(doc: Mapping[str, Any], spec: Spec, run: Any, experiment: E
     x_prev = x0[0]
     failure = None
     k = 0
+    if fast is not None:
+        X, Yp, S_all, P_all = fast
     try:
-        for k in range(N):
+        for k in range(N if fast is None else 0):
             u_prev = U[k - 1] if k else U[0]
             yp, Phi, H = predict(x_prev, u_prev)
             Yp[k] = yp

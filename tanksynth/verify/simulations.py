@@ -19,6 +19,7 @@ from tanksynth.analysis.lmi_region import region_from_parts
 from tanksynth.errors import TanksynthError
 from tanksynth.plants.base import Plant
 from tanksynth.runtime.estimators.luenberger import LuenbergerObserver, LuenbergerTuning
+from tanksynth.sim.closed_loop import LoopLaw
 from tanksynth.sim.simulate import BatchEstimator, EstimatorAdapter, run_seeds, simulate
 from tanksynth.spec import Spec
 from tanksynth.spec.options import parse_poles, parse_region
@@ -392,6 +393,32 @@ class StateFeedback:
         """Input (M, m) from the state (M, n) (each run's numbers independent of M: einsum)."""
         return self.u0 - np.einsum("ij,kj->ik", x_hat - self.x0, self.K)
 
+    def loop_law(self, runs: int) -> LoopLaw:
+        """The law for the closed-loop kernel (`tanksynth.sim.closed_loop`), no state of its own.
+
+        The products summed in ``j`` order as ``einsum`` sums them.
+
+        Parameters
+        ----------
+        runs : int
+            Number of runs M.
+        """
+        import casadi as ca
+
+        K = np.atleast_2d(np.asarray(self.K, dtype=float))
+        x0 = np.asarray(self.x0, dtype=float).reshape(-1)
+        u0 = np.asarray(self.u0, dtype=float).reshape(-1)
+        key = (K.tobytes(), K.shape, x0.tobytes(), u0.tobytes())
+        held = self.__dict__.get("_loop_fn")
+        if held is not None and held[0] == key:
+            return LoopLaw(held[1], np.zeros((int(runs), 0)))
+        x, z, r = ca.SX.sym("x", K.shape[1]), ca.SX.sym("z", 0), ca.SX.sym("r", 0)
+        d = [x[j] - x0[j] for j in range(K.shape[1])]
+        u = ca.vertcat(*[u0[i] - _dot(K[i], d) for i in range(K.shape[0])])
+        fn = ca.Function("state_feedback", [x, z, r], [u, z])
+        self.__dict__["_loop_fn"] = (key, fn)
+        return LoopLaw(fn, np.zeros((int(runs), 0)))
+
     def affine(self, steps: int, ts: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """The law as ``u_k = b_k - K (x_k - x0)``: ``(b (steps, m), K, x0)`` (`tanksynth.sim.affine`).
 
@@ -468,6 +495,63 @@ class IntegralStateFeedback:
                 err = err - d
         self.z = self.z + self.ts * err
         return u
+
+    def loop_law(self, runs: int) -> LoopLaw | None:
+        """The law for the closed-loop kernel (`tanksynth.sim.closed_loop`), from the current ``z``.
+
+        The products summed in ``j`` order as ``einsum`` sums them.
+
+        Parameters
+        ----------
+        runs : int
+            Number of runs M.
+
+        Returns
+        -------
+        LoopLaw or None
+            None when ``z`` does not have one row per run (`reset` not called).
+        """
+        import casadi as ca
+
+        K1, K2 = np.atleast_2d(self.K1).astype(float), np.atleast_2d(self.K2).astype(float)
+        C1 = np.atleast_2d(np.asarray(self.C1, dtype=float))
+        x0 = np.asarray(self.x0, dtype=float).reshape(-1)
+        u0 = np.asarray(self.u0, dtype=float).reshape(-1)
+        m, n = K1.shape
+        p = C1.shape[0]
+        if self.z.shape != (int(runs), p):
+            return None
+
+        def commit(zf: np.ndarray) -> None:
+            self.z = np.array(zf, dtype=float)
+
+        y0 = None if self.y0 is None else np.asarray(self.y0, dtype=float).reshape(-1)
+        key = tuple(a.tobytes() for a in (K1, K2, C1, x0, u0)) + (K1.shape, C1.shape, float(self.ts),
+                                                                 None if y0 is None else y0.tobytes())
+        held = self.__dict__.get("_loop_fn")
+        if held is not None and held[0] == key:
+            return LoopLaw(held[1], np.array(self.z, dtype=float), commit)
+        x, z, r = ca.SX.sym("x", n), ca.SX.sym("z", p), ca.SX.sym("r", p)
+        d = [x[j] - x0[j] for j in range(n)]
+        zs = [z[j] for j in range(p)]
+        u = ca.vertcat(*[(u0[i] - _dot(K1[i], d)) - _dot(K2[i], zs) for i in range(m)])
+        err = [r[i] - _dot(C1[i], [x[j] for j in range(n)]) for i in range(p)]
+        if y0 is not None:
+            off = y0 - C1 @ x0
+            if np.any(off != 0):
+                err = [e - off[i] for i, e in enumerate(err)]
+        z_next = ca.vertcat(*[zs[i] + self.ts * err[i] for i in range(p)])
+        fn = ca.Function("integral_state_feedback", [x, z, r], [u, z_next])
+        self.__dict__["_loop_fn"] = (key, fn)
+        return LoopLaw(fn, np.array(self.z, dtype=float), commit)
+
+
+def _dot(row: np.ndarray, terms: Sequence[Any]) -> Any:
+    """``sum_j row[j] terms[j]`` summed in ``j`` order (CasADi), as ``einsum`` sums it."""
+    acc = terms[0] * row[0]
+    for j in range(1, len(terms)):
+        acc = acc + terms[j] * row[j]
+    return acc
 
 
 def servo_check(plant: Plant, controller: Callable, x0: np.ndarray, u0: np.ndarray,

@@ -119,3 +119,33 @@ def _spec(text):
     from tanksynth.methods import parse_spec_text
 
     return parse_spec_text(text.encode("utf-8"), source="<test>")
+
+
+@pytest.mark.parametrize("method", ["integral_tracking", "feedback_linearization"])
+def test_campaign_runs_through_the_closed_loop_kernel(seed000, runners, method, tmp_path,
+                                                      monkeypatch):
+    """A task's runs through the closed-loop kernel give the loop's metrics (the plant, the
+    noise, the faults and jumps of every scenario of the plant), the computation time aside."""
+    from tanksynth.sim import closed_loop, tape
+    from tanksynth.sim.scenarios import SCENARIOS
+    from tanksynth.verify.campaign import run_task
+
+    text, docs = seed000
+    plant = _spec(text).plant
+    names = [s for s in SCENARIOS if SCENARIOS[s].applies_to(plant)]
+    tasks = campaign_tasks(text, [docs[method]], names, runs=9, chunk=9, runners=runners)
+    monkeypatch.setenv("TANKSYNTH_CACHE_DIR", str(tmp_path))
+    tape.clear_cache()
+    closed_loop.clear_cache()
+    rows = {}
+    for backend in ("native", "numpy"):
+        monkeypatch.setenv("TANKSYNTH_SIM_BACKEND", backend)
+        rows[backend] = {(r["scenario"], r["run"], r["metric"]): r["value"]
+                         for task in tasks for r in run_task(task)
+                         if r["metric"] != "controller_time"}
+    assert closed_loop.cache_info()["loaded"] >= 1           # the kernel ran
+    assert rows["native"].keys() == rows["numpy"].keys()
+    for key, value in rows["numpy"].items():
+        assert rows["native"][key] == pytest.approx(value, rel=1e-12, abs=1e-15), key
+    tape.clear_cache()
+    closed_loop.clear_cache()

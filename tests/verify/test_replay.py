@@ -265,3 +265,27 @@ def test_detector_alarms_with_times(tmp_path):
     write_replay(tmp_path / "out", reps)
     doc = read_replay(tmp_path / "out")
     assert doc["passed"] is None and doc["replays"][1]["summary"]["first_alarm"] == first
+
+
+@pytest.mark.parametrize("gaps", [False, True])
+def test_horizon_kernel_replay_equals_the_stepping_loop(result, monkeypatch, gaps):
+    """The replay through the horizon kernel (`KernelEstimator.run_states`, with the observed
+    mask where samples are missing) = the loop of one `step` / `step_observed` per sample
+    (``TANKSYNTH_ESTIMATOR_BACKEND=step``): estimates, predictions, NIS and checks."""
+    _, spec, _ = result
+    exp, _ = logged(spec, x_ref=True)
+    if gaps:
+        y = exp.y.copy()
+        y[100:105, :] = np.nan
+        y[200:210, 1] = np.nan
+        y[300:340:3, 0] = np.nan
+        exp = with_y(exp, y)
+    out = {}
+    for mode in ("step", "horizon"):
+        monkeypatch.setenv("TANKSYNTH_ESTIMATOR_BACKEND", mode)
+        out[mode] = run(result, "ekf", exp)
+    a, b = out["horizon"], out["step"]
+    for name in ("x_hat", "y_pred", "nis"):
+        np.testing.assert_allclose(getattr(a, name), getattr(b, name), rtol=1e-12, atol=0)
+    assert [(c.name, c.passed) for c in a.checks] == [(c.name, c.passed) for c in b.checks]
+    assert a.summary["rmse"] == pytest.approx(b.summary["rmse"], rel=1e-12)

@@ -26,7 +26,8 @@ _EXPORTS = {
     **dict.fromkeys(["AdaptiveKalmanFilter", "AdaptiveKalmanTuning",
                      "AdaptiveScalingKalmanFilter", "AdaptiveScalingTuning", "linear_model_for"],
                     "tanksynth.runtime.estimators.adaptive"),
-    **dict.fromkeys(["BACKENDS", "ArrayEstimator", "CovarianceError", "DiscreteModel",
+    **dict.fromkeys(["BACKENDS", "ArrayEstimator", "CovarianceError", "CovarianceKernelEstimator",
+                     "DiscreteModel",
                      "Estimator", "KernelEstimator", "discrete_model", "joseph_update",
                      "regularized_jacobian"],
                     "tanksynth.runtime.estimators.base"),
@@ -47,7 +48,7 @@ __getattr__, __dir__ = _lazy_exports(__name__, _EXPORTS)
 
 __all__ = [
     "BACKENDS", "ArrayEstimator", "CovarianceError", "DiscreteModel", "Estimator",
-    "KernelEstimator", "discrete_model", "joseph_update", "regularized_jacobian",
+    "KernelEstimator", "CovarianceKernelEstimator", "discrete_model", "joseph_update", "regularized_jacobian",
     "KalmanTuning", "KalmanFilter", "ExtendedKalmanFilter", "model_from_tuning",
     "steady_state_gain",
     "UKFTuning", "UnscentedKalmanFilter", "ukf_weights",

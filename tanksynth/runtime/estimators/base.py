@@ -50,6 +50,8 @@ import numpy as np
 from tanksynth.analysis.matrices import symmetrize
 from tanksynth.errors import CovarianceError, DimensionError, SpecError, TanksynthError
 from tanksynth.plants.base import Plant
+from tanksynth.runtime.estimators.horizon import (BUILD_STEPS, CHUNK, Horizon, horizon_backend,
+                                                  horizon_function, observed_step)
 from tanksynth.runtime.estimators.kernels import (native_function, sx_cholesky, sx_spd_inverse,
                                                   sx_symmetrize)
 from tanksynth.runtime.estimators.model import (DiscreteModel, PlantDimensions, discrete_model,
@@ -63,6 +65,7 @@ __all__ = [
     "regularized_jacobian",
     "Estimator",
     "KernelEstimator",
+    "CovarianceKernelEstimator",
     "ArrayEstimator",
     "as_matrix",
     "as_vector",
@@ -306,7 +309,7 @@ class KernelEstimator(Estimator):
                     fn, used = native, "native"
                 elif backend == "native":
                     raise TanksynthError("backend 'native' needs a working C compiler (gcc/cc)")
-            _shared = {"fn": fn, "backend": used, "sx": kernel, "maps": {}}
+            _shared = {"fn": fn, "backend": used, "sx": kernel, "maps": {}, "horizon_fns": {}}
         self._shared = _shared
         self.backend = _shared["backend"]
         fn = _shared["fn"]
@@ -339,6 +342,7 @@ class KernelEstimator(Estimator):
             fb.set_res(2, self._extra.reshape(-1).data)
             self._buffers.append((fb, ev, b))
         self._cur = 0
+        self._horizons: dict[bool, Horizon] = {}
         self._backend_request = backend
         self.reset()
 
@@ -449,6 +453,153 @@ class KernelEstimator(Estimator):
         """Number of elementary operations of the step kernel (per run)."""
         return int(self.step_kernel.n_instructions())
 
+    # -- whole sequences: horizon kernels ---------------------------------------------------
+    def run(self, Y: Any, U: Any) -> np.ndarray:
+        """Filter a whole sequence (the same numbers as `step` at each sample in turn).
+
+        Through the compiled horizon kernel (`tanksynth.runtime.estimators.horizon`) when
+        one is available, else one `step` per sample.
+
+        Parameters
+        ----------
+        Y : array_like, shape (N, q) (single) or (N, M, q) (batch)
+            Measurements (output units).
+        U : array_like, shape (N, m) (single) or (N, M, m) / (N, m) (batch)
+            Inputs held before each measurement (input units).
+
+        Returns
+        -------
+        ndarray, shape (N, n) or (N, M, n)
+            Estimates after each sample (state units).
+        """
+        X = self._run_horizon(Y, U, None, self.n)
+        if X is None:
+            return super().run(Y, U)
+        return X[:, 0] if self.runs is None else X
+
+    def run_states(self, Y: Any, U: Any, observed: Any = None) -> np.ndarray:
+        """Filter a whole sequence and return the raw kernel state after every sample.
+
+        The same numbers as `step` (or `step_observed` where ``observed`` has a False) at
+        each sample in turn, through the horizon kernel when one is available (with
+        ``observed``: single runs only, estimators whose parameters hold ``R``).
+
+        Parameters
+        ----------
+        Y : array_like, shape (N, q) (single) or (N, M, q) (batch)
+            Measurements (output units; any finite value where not observed).
+        U : array_like, shape (N, m) (single) or (N, M, m) / (N, m) (batch)
+            Inputs held before each measurement (input units).
+        observed : array_like of bool, shape (N, q), optional
+            Outputs measured at each sample (default all).
+
+        Returns
+        -------
+        ndarray, shape (N, s) or (N, M, s)
+            Kernel states (state units, then per estimator e.g. the covariance in squared state
+            units).
+
+        Raises
+        ------
+        DimensionError
+            Shapes that do not fit, non-finite values.
+        CovarianceError
+            A covariance stopped being positive definite (at the step that `step` names).
+        """
+        O = None
+        if observed is not None:
+            O = np.asarray(observed, dtype=bool)
+            if O.shape != (len(np.asarray(Y)), self.q):
+                raise DimensionError(f"observed must have shape ({len(np.asarray(Y))}, {self.q}), "
+                                     f"got {O.shape}")
+            if O.all():
+                O = None
+        states = self._run_horizon(Y, U, O, self._s)
+        if states is not None:
+            return states[:, 0].copy() if self.runs is None else states
+        Y = np.asarray(Y, dtype=float)
+        U = np.asarray(U, dtype=float)
+        if Y.ndim < 1 or U.ndim < 1 or len(Y) != len(U):
+            raise DimensionError(f"Y and U must have the same number of steps, got {Y.shape} and "
+                                 f"{U.shape}")
+        out = np.empty((len(Y), *((self._s,) if self.runs is None else (self._M, self._s))))
+        for i in range(len(Y)):
+            if O is None:
+                self.step(Y[i], U[i])
+            else:
+                self.step_observed(Y[i], U[i], O[i])
+            st = self._states[self._cur]
+            out[i] = st[0] if self.runs is None else st
+        return out
+
+    def _horizon(self, masked: bool, work: int) -> Horizon | None:
+        """The loaded horizon kernel for this estimator's runs, or None (then step)."""
+        policy = horizon_backend()
+        if policy == "step" or self.backend != "native":
+            return None
+        known = self._shared["horizon_fns"]
+        fn = known.get(masked)             # the library, False (failed) or "absent" (not built)
+        if fn is False:
+            return None
+        if fn is None or isinstance(fn, str):
+            build = policy == "horizon" or work >= BUILD_STEPS
+            if isinstance(fn, str) and not build:
+                return None
+            step = self.step_kernel
+            if masked:
+                step = observed_step(step, self.model, self.n, self.q, self.UNOBSERVED_VARIANCE)
+            fn = native_function(horizon_function(step, CHUNK), build=build)
+            if fn is None:                     # failed (remembered: the estimator steps) or absent
+                known[masked] = False if build else "absent"
+                return None
+            known[masked] = fn
+        hz = self._horizons.get(masked)
+        if hz is None:                         # buffers of this instance (its runs, its params)
+            hz = self._horizons[masked] = Horizon(fn, self._M, self._P)
+        return hz
+
+    def _run_horizon(self, Y: Any, U: Any, O: np.ndarray | None, keep: int) -> np.ndarray | None:
+        """The first ``keep`` kernel-state entries after every sample (N, M, keep) through the
+        horizon kernel, or None when it does not apply."""
+        M, q, m = self._M, self._q, self._m
+        Y = np.asarray(Y, dtype=float)
+        U = np.asarray(U, dtype=float)
+        N = len(Y) if Y.ndim else 0
+        if N < 2 or not m or len(U) != N:
+            return None
+        if self.runs is None:
+            if Y.shape != (N, q) or U.shape != (N, m):
+                return None
+            Y, U = Y[:, None, :], U[:, None, :]
+        else:
+            if Y.shape != (N, M, q) or U.shape not in ((N, M, m), (N, m)):
+                return None
+            if U.ndim == 2:
+                U = np.broadcast_to(U[:, None, :], (N, M, m))
+        if O is not None and (M != 1 or not self.noise_in_parameters):
+            return None
+        if not (np.isfinite(Y).all() and np.isfinite(U).all()):
+            return None                         # (the steps name the sample)
+        hz = self._horizon(O is not None, N * M)
+        if hz is None:
+            return None
+        out = np.empty((N, M, keep))
+        done = hz.run(self._states[self._cur], Y[:N - 1], U[:N - 1], out,
+                      None if O is None else O[:N - 1].astype(float))
+        if done:
+            self._states[self._cur][:] = hz.state
+        self.k += done
+        # the rest (the last sample, or from the chunk that failed on) through the steps: the
+        # same numbers, the extra outputs of the last step, the error naming its step
+        for i in range(done, N):
+            y, u = (Y[i, 0], U[i, 0]) if self.runs is None else (Y[i], U[i])
+            if O is not None and not O[i].all():
+                self.step_observed(y, u, O[i])
+            else:
+                self.step(y, u)
+            out[i] = self._states[self._cur][:, :keep]
+        return out
+
     #: The kernel's parameter vector ends with the measurement-noise covariance ``R`` (q x q,
     #: column-major): `step_observed` can leave outputs out of the correction.
     noise_in_parameters: bool = False
@@ -507,6 +658,49 @@ class KernelEstimator(Estimator):
             return self.step(y, u)
         finally:
             self._P[:] = nominal
+
+
+class CovarianceKernelEstimator(KernelEstimator):
+    """A `KernelEstimator` whose state is the estimate then its covariance ``P`` (column-major).
+
+    The Kalman-type kernels (extended Kalman, unscented): ``state = [x (n), vec(P) (n n), ...]``.
+
+    Parameters
+    ----------
+    plant : Plant
+        The plant.
+    tuning : object
+        The estimator's tuning (its artefact).
+    model : DiscreteModel
+        The sampled model the kernel predicts with.
+    runs : int or None
+        Number of parallel runs (None: a single run).
+    backend : {"auto", "native", "vm"}
+        Compiled C kernel, CasADi's virtual machine, or native when a compiler works.
+    """
+
+    @property
+    def covariance(self) -> np.ndarray:
+        """``P(k|k)``, shape (n, n) or (M, n, n) (state units^2, a copy)."""
+        raw = self.covariance_of(self._states[self._cur])
+        return raw[0].copy() if self.runs is None else raw.copy()
+
+    def covariance_of(self, states: np.ndarray) -> np.ndarray:
+        """``P`` held in raw kernel states (`state`, `run_states`).
+
+        Parameters
+        ----------
+        states : ndarray, shape (..., s)
+            Kernel states (state units, then squared state units).
+
+        Returns
+        -------
+        ndarray, shape (..., n, n)
+            The covariances (squared state units; a view where numpy can).
+        """
+        n = self.n
+        raw = np.asarray(states)[..., n:n + n * n]
+        return raw.reshape(*raw.shape[:-1], n, n).swapaxes(-1, -2)
 
 
 class ArrayEstimator(Estimator):

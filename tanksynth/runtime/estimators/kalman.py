@@ -28,7 +28,7 @@ import scipy.linalg as sla
 
 from tanksynth.errors import SpecError
 from tanksynth.plants.base import Plant
-from tanksynth.runtime.estimators.base import (DiscreteModel, KernelEstimator, column_major,
+from tanksynth.runtime.estimators.base import (CovarianceKernelEstimator, DiscreteModel, column_major,
                                                discrete_model)
 from tanksynth.runtime.estimators.kernels import sx_cholesky, sx_min, sx_spd_inverse, sx_symmetrize
 from tanksynth.runtime.estimators.tuning import (agree_on_states, artefact_gains, as_spd,
@@ -128,7 +128,7 @@ def model_from_tuning(plant: Plant, tuning: Any, operating_point: Any = None) ->
                           clip=getattr(tuning, "clip", False))
 
 
-class ExtendedKalmanFilter(KernelEstimator):
+class ExtendedKalmanFilter(CovarianceKernelEstimator):
     """Extended Kalman filter (Kalman filter on a linear model), Joseph form.
 
     Parameters
@@ -238,13 +238,6 @@ class ExtendedKalmanFilter(KernelEstimator):
         return out
 
     # -- views -------------------------------------------------------------------------
-    @property
-    def covariance(self) -> np.ndarray:
-        """``P(k|k)``, shape (n, n) or (M, n, n) (state units^2, a copy)."""
-        n = self.n
-        raw = self._states[self._cur][:, n:n + n * n].reshape(-1, n, n).transpose(0, 2, 1)
-        return raw[0].copy() if self.runs is None else raw.copy()
-
     @property
     def gain(self) -> np.ndarray:
         """Gain ``K(k)`` of the last step, shape (n, q) or (M, n, q)."""

@@ -22,6 +22,7 @@ deletes the files.
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import casadi as ca
 
@@ -141,26 +142,35 @@ def cache_dir() -> Path:
 
 
 def _c_source(fn: ca.Function, name: str) -> str:
-    """C source of ``fn`` renamed ``name`` (the symbol `casadi.external` looks up)."""
-    renamed = ca.Function(name, fn.sx_in(), fn.call(fn.sx_in()), fn.name_in(), fn.name_out())
+    """C source of ``fn`` renamed ``name`` (the symbol `casadi.external` looks up).
+
+    An SX function is renamed on SX symbols; any other (an MX function calling others, a
+    horizon kernel) on MX symbols, so that its calls stay calls (no expansion to SX).
+    """
+    args: Any = fn.sx_in() if fn.is_a("SXFunction") else fn.mx_in()
+    renamed = ca.Function(name, args, fn.call(args), fn.name_in(), fn.name_out())
     gen = ca.CodeGenerator(f"{name}.c", {"with_header": False})
     gen.add(renamed)
     return gen.dump()
 
 
-def native_function(fn: ca.Function) -> ca.Function | None:
+def native_function(fn: ca.Function, build: bool = True) -> ca.Function | None:
     """``fn`` compiled to native code (built once, cached on disk and in memory) and loaded.
 
     Parameters
     ----------
     fn : casadi.Function
-        An SX function (a kernel's step).
+        An SX function (a kernel's step) or an MX function of such calls (a horizon kernel,
+        `tanksynth.runtime.estimators.horizon`).
+    build : bool
+        Compile when the library is neither loaded nor on disk (else give None then).
 
     Returns
     -------
     casadi.Function or None
         The loaded library's function (same inputs and outputs, the same numbers);
-        None when no C compiler is found or the build or load fails.
+        None when no C compiler is found, the build or load fails, or (``build`` False)
+        the library was never built.
     """
     cc = find_compiler()
     if cc is None:
@@ -171,7 +181,7 @@ def native_function(fn: ca.Function) -> ca.Function | None:
         # casadi's type stubs omit __version__ (the package sets it at import)
         version = ca.__version__  # type: ignore[attr-defined]
         lib = _CACHE.library([gen.dump(), version], lambda name: _c_source(fn, name),
-                             lambda path, name: ca.external(name, str(path)), cc)
+                             lambda path, name: ca.external(name, str(path)), cc, build)
     except NativeBuildError:
         return None
     return None if lib is None else lib.handle   # (None only for build=False)

@@ -29,7 +29,7 @@ import casadi as ca
 import numpy as np
 
 from tanksynth.plants.base import Plant
-from tanksynth.runtime.estimators.base import DiscreteModel, KernelEstimator, column_major
+from tanksynth.runtime.estimators.base import CovarianceKernelEstimator, DiscreteModel, column_major
 from tanksynth.runtime.estimators.kalman import model_from_tuning
 from tanksynth.runtime.estimators.kernels import sx_cholesky, sx_min, sx_spd_inverse, sx_symmetrize
 from tanksynth.runtime.estimators.tuning import (agree_on_states, artefact_gains,
@@ -122,7 +122,7 @@ def ukf_weights(n: int, alpha: float, beta: float, kappa: float) -> tuple[np.nda
     return Wm, Wc, float(np.sqrt(n + lam))
 
 
-class UnscentedKalmanFilter(KernelEstimator):
+class UnscentedKalmanFilter(CovarianceKernelEstimator):
     """Unscented Kalman filter (seed 002 eq. 23-40).
 
     Parameters
@@ -202,13 +202,6 @@ class UnscentedKalmanFilter(KernelEstimator):
         out[:, :self.n] = X0
         out[:, self.n:] = column_major(self.tuning.P0)
         return out
-
-    @property
-    def covariance(self) -> np.ndarray:
-        """``P(k|k)``, shape (n, n) or (M, n, n) (a copy)."""
-        n = self.n
-        raw = self._states[self._cur][:, n:].reshape(-1, n, n).transpose(0, 2, 1)
-        return raw[0].copy() if self.runs is None else raw.copy()
 
     @property
     def gain(self) -> np.ndarray:

@@ -26,6 +26,7 @@ import numpy as np
 from tanksynth.errors import ArtefactError
 from tanksynth.plants.base import Plant
 from tanksynth.runtime.laws import inverse_dynamics_law, law_from_document
+from tanksynth.sim.closed_loop import LoopLaw
 from tanksynth.sim.metrics import Metric, compute_metrics
 from tanksynth.sim.scenarios import Scenario, run_scenario
 from tanksynth.sim.simulate import BatchEstimator
@@ -151,6 +152,16 @@ class InverseDynamicsLaw:
         """Input (M, m) from the estimate (M, n) and the set-points (M, m)."""
         return self._law(x_hat, reference, t)
 
+    def loop_law(self, runs: int) -> LoopLaw | None:
+        """The law for the closed-loop kernel (`tanksynth.sim.closed_loop`).
+
+        Parameters
+        ----------
+        runs : int
+            Number of runs M.
+        """
+        return self._law.loop_law(runs)
+
 
 class ArtefactLaw:
     """An artefact's serialised CasADi law as a batch `ControlLaw` (stateless).
@@ -194,6 +205,16 @@ class ArtefactLaw:
     def __call__(self, x_hat: np.ndarray, reference: np.ndarray, t: float) -> np.ndarray:
         """Input (M, m) from the state (M, n) and the reference (M, r)."""
         return self._law(np.asarray(x_hat, float), np.asarray(reference, float), t)
+
+    def loop_law(self, runs: int) -> LoopLaw | None:
+        """The law for the closed-loop kernel (`tanksynth.sim.closed_loop`).
+
+        Parameters
+        ----------
+        runs : int
+            Number of runs M.
+        """
+        return self._law.loop_law(runs)
 
 
 class ArtefactIntegralLaw(ArtefactLaw):
@@ -280,6 +301,45 @@ class OutputSetpoints:
         """Input (M, m) from the state (M, n) and the state set-points (M, p)."""
         yr = self.y0 + np.einsum("ij,kj->ik", np.asarray(reference, float) - self.xs0, self.C1s)
         return self.law(x_hat, yr, t)
+
+    def loop_law(self, runs: int) -> LoopLaw | None:
+        """The wrapped law's (`tanksynth.sim.closed_loop`) on the state set-points, or None.
+
+        Parameters
+        ----------
+        runs : int
+            Number of runs M.
+        """
+        offer = getattr(self.law, "loop_law", None)
+        inner = offer(runs) if offer is not None else None
+        if inner is None:
+            return None
+        import casadi as ca
+
+        fn = inner.function
+        C1s = np.atleast_2d(np.asarray(self.C1s, dtype=float))
+        y0 = np.asarray(self.y0, dtype=float).reshape(-1)
+        xs0 = np.asarray(self.xs0, dtype=float).reshape(-1)
+        key = (fn, C1s.tobytes(), C1s.shape, y0.tobytes(), xs0.tobytes())
+        held = self.__dict__.get("_loop_fn")
+        if held is not None and held[0][0] is fn and held[0][1:] == key[1:]:
+            return LoopLaw(held[1], inner.state, inner.commit)
+        try:
+            x, z = ca.SX.sym("x", fn.nnz_in(0)), ca.SX.sym("z", fn.nnz_in(1))
+            r = ca.SX.sym("r", C1s.shape[1])
+            d = [r[j] - xs0[j] for j in range(C1s.shape[1])]
+            yr = []
+            for i in range(C1s.shape[0]):
+                acc = d[0] * C1s[i, 0]
+                for j in range(1, len(d)):
+                    acc = acc + d[j] * C1s[i, j]
+                yr.append(y0[i] + acc)
+            outs = fn(x, z, ca.vertcat(*yr))
+            wrapped = ca.Function("output_setpoints", [x, z, r], [outs[0], outs[1]])
+        except (RuntimeError, NotImplementedError, TypeError):
+            return None
+        self.__dict__["_loop_fn"] = (key, wrapped)
+        return LoopLaw(wrapped, inner.state, inner.commit)
 
 
 def output_setpoint_law(law: Callable, C1: Any, y0: Any, x0: Any, states: Sequence[int]) -> Callable:
