@@ -69,8 +69,18 @@ test-fast: $(STAMP) bytecode
 fuzz: $(STAMP)
 	TANKSYNTH_FUZZ_SCALE=10 $(PY) -m pytest -n 2 -q tests/fuzz/test_cli_fuzz.py --hypothesis-show-statistics
 
-bench: $(STAMP) bytecode
-	@for script in benchmarks/*.py; do echo "== $$script"; $(PY) $$script || exit 1; done
+# The benchmarks against compiled contenders (numba, JAX: the `bench` extra, installed here
+# only), then the README's tables rendered from the results they wrote (benchmarks/report.py).
+BENCH_STAMP := $(VENV)/.bench-installed
+$(BENCH_STAMP): $(STAMP)
+	$(PY) -m pip install --quiet -e '.[dev,bench]'
+	touch $(BENCH_STAMP)
+
+bench: $(BENCH_STAMP) bytecode
+	@for script in benchmarks/*.py; do \
+		case $$script in benchmarks/report.py) continue;; esac; \
+		echo "== $$script"; $(PY) $$script || exit 1; done
+	$(PY) benchmarks/report.py --write
 
 # HTML documentation (Sphinx + myst-nb, pydata-sphinx-theme): quick start, plant and method pages
 # generated from the code, the API reference of tanksynth's public names (developers: every

@@ -10,6 +10,7 @@ libraries and the load average before and after.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import platform
@@ -19,7 +20,8 @@ from importlib import metadata
 from pathlib import Path
 from typing import Any, Callable, Mapping
 
-__all__ = ["interleave", "summary", "ratios", "machine", "write_record", "Floors"]
+__all__ = ["interleave", "summary", "ratios", "machine", "code_version", "write_record", "scratch_cwd", "environ",
+           "Floors"]
 
 RESULTS = Path(__file__).resolve().parents[1] / "results"
 
@@ -57,14 +59,30 @@ def _version(pkg: str) -> str | None:
         return None
 
 
+def code_version() -> dict[str, Any]:
+    """The commit of the measured tree (``git rev-parse HEAD``) and whether it had local edits."""
+    import subprocess
+
+    root = Path(__file__).resolve().parents[2]
+    try:
+        head = subprocess.run(["git", "-C", str(root), "rev-parse", "--short=10", "HEAD"],
+                              capture_output=True, text=True, timeout=10).stdout.strip()
+        dirty = subprocess.run(["git", "-C", str(root), "status", "--porcelain", "--", "tanksynth"],
+                               capture_output=True, text=True, timeout=10).stdout.strip() != ""
+    except (OSError, subprocess.SubprocessError):
+        return {"commit": None, "library_edited": None}
+    return {"commit": head or None, "library_edited": dirty}
+
+
 def machine() -> dict[str, Any]:
-    """Machine, interpreter, library versions and load average."""
+    """Machine, interpreter, library versions, load average and the measured commit."""
     pkgs = ("numpy", "scipy", "sympy", "casadi", "cvxpy", "clarabel", "control", "threadpoolctl",
-            "filterpy", "tanksynth")
+            "filterpy", "tanksynth", "numba", "llvmlite", "jax", "jaxlib")
     return {"platform": platform.platform(), "processor": platform.processor() or platform.machine(),
             "cpus": os.cpu_count(), "python": platform.python_version(),
             "versions": {p: _version(p) for p in pkgs},
-            "loadavg": list(os.getloadavg()), "time": time.strftime("%Y-%m-%dT%H:%M:%S%z")}
+            "loadavg": list(os.getloadavg()), "time": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
+            **code_version()}
 
 
 def write_record(name: str, payload: Mapping[str, Any], before: Mapping[str, Any]) -> Path:
@@ -77,18 +95,73 @@ def write_record(name: str, payload: Mapping[str, Any], before: Mapping[str, Any
     return path
 
 
+@contextlib.contextmanager
+def environ(**values: str):
+    """Set environment variables for a block (e.g. force a library kernel to build now)."""
+    old = {k: os.environ.get(k) for k in values}
+    os.environ.update(values)
+    try:
+        yield
+    finally:
+        for k, v in old.items():
+            if v is None:
+                os.environ.pop(k, None)
+            else:
+                os.environ[k] = v
+
+
+_SCRATCH: list[str] = []
+
+
+@contextlib.contextmanager
+def scratch_cwd():
+    """Run a block in a scratch working directory, one per process under the system temp dir.
+
+    CasADi's ``jit`` writes its C source and shared library to the current directory and
+    removes them when the Function is destroyed: the directory is left in place for that
+    (empty once they are gone), so no file lands in the work tree.
+    """
+    import tempfile
+
+    if not _SCRATCH:
+        _SCRATCH.append(tempfile.mkdtemp(prefix="tanksynth-bench-jit-"))
+    old = os.getcwd()
+    os.chdir(_SCRATCH[0])
+    try:
+        yield Path(_SCRATCH[0])
+    finally:
+        os.chdir(old)
+
+
 class Floors:
     """Floors checked on median ratios; `failed` lists the misses."""
 
     def __init__(self) -> None:
         self.rows: list[dict[str, Any]] = []
 
-    def check(self, what: str, median_ratio: float, floor: float) -> bool:
+    def check(self, what: str, median_ratio: float, floor: float, stat: str = "median",
+              strict_only: bool = False) -> bool:
+        """Record one floor: ``median_ratio`` (or the ``stat`` named) >= ``floor``.
+
+        ``strict_only``: a miss makes the benchmark exit 1 only with ``--strict`` (issue 29's
+        floors against compiled contenders, while the library's kernels are being built).
+        """
         ok = median_ratio >= floor
-        self.rows.append({"what": what, "median_ratio": median_ratio, "floor": floor, "ok": ok})
-        print(f"  floor {'ok  ' if ok else 'MISS'} {what}: median ratio {median_ratio:.2f} "
-              f"(floor {floor:g})")
+        self.rows.append({"what": what, "median_ratio": median_ratio, "stat": stat, "floor": floor,
+                          "ok": ok, "strict_only": strict_only})
+        print(f"  floor {'ok  ' if ok else 'MISS'} {what}: {stat} ratio {median_ratio:.3g} "
+              f"(floor {floor:g}){' [exit 1 only with --strict]' if strict_only and not ok else ''}")
         return ok
+
+    def blocking(self, strict: bool) -> list[dict[str, Any]]:
+        """The misses that make the benchmark exit 1 (every miss with ``strict``)."""
+        return [r for r in self.failed if strict or not r.get("strict_only")]
+
+    def exit_status(self, strict: bool = False) -> int:
+        """Print the misses; 1 when one of them is `blocking`, else 0."""
+        if self.failed:
+            print("FLOORS MISSED: " + "; ".join(r["what"] for r in self.failed))
+        return 1 if self.blocking(strict) else 0
 
     @property
     def failed(self) -> list[dict[str, Any]]:
