@@ -293,6 +293,19 @@ def figures(rec: dict) -> list[str]:
     return out + table(["example", "figures (this tree)", "figures (baseline)", "matplotlib import"], rows)
 
 
+def narx_training(rec: dict) -> list[str]:
+    """Seed 002's NARX: structure selection (closed-loop ISE) and the chosen network's training."""
+    chosen = rec["chosen"]
+    rows = [[str(c["hidden"]), str(c["delays"]), num(c["ise"]), num(c["train_seconds"]), str(c["iterations"])
+             + (" (chosen)" if (c["hidden"], c["delays"]) == (chosen["hidden"], chosen["delays"]) else "")]
+            for c in rec["candidates"]]
+    out = [f"Structure selection: {num(rec['selection_seconds'])} s in all; the chosen network trained "
+           f"again in {num(rec['final_training_seconds'])} s "
+           f"({rec['final_training'].get('iterations')} LM steps, stopped: "
+           f"{rec['final_training'].get('stopped')}).", ""]
+    return out + table(["neurons", "output delays", "held-out ISE (m^2 s)", "training (s)", "LM steps"], rows)
+
+
 def generic(rec: dict) -> list[str]:
     """Records without a table of their own: their floors (if any)."""
     return floors_table(rec)[3:] if rec.get("floors") else ["(no floors recorded)"]
@@ -303,6 +316,7 @@ RENDERERS: dict[str, Callable[[dict], list[str]]] = {
     "simulate": simulate, "lmi_handwritten": lmi_handwritten,
     "decentralized_numpy": decentralized_numpy, "run_examples": run_examples, "limits": limits,
     "symbolic": symbolic, "conic_memory": conic_memory, "design": design, "figures": figures,
+    "narx_training": narx_training,
 }
 
 
