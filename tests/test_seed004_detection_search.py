@@ -90,7 +90,7 @@ def test_initial_error_residuals_behind_the_statement():
     np.testing.assert_allclose(eps[1], bar54, rtol=1e-10)
     np.testing.assert_allclose(eps[0] / bar54, 0.01 / 3.75, rtol=1e-10)
     assert np.all(np.abs(eps[2] / bar54 - 0.089) < 0.001)
-    assert "0.27 %" in DETECTION_SEARCH and "8.9 %" in DETECTION_SEARCH
+    assert r"0.27~\%" in DETECTION_SEARCH and r"8.9~\%" in DETECTION_SEARCH
 
 
 def test_stored_search_supports_the_report(search, stored):
@@ -102,7 +102,7 @@ def test_stored_search_supports_the_report(search, stored):
     assert len(at_onset) == 3 * 2 * 4 and not any(r["feasible"] for r in at_onset)
     later = {(r["observer"], r["t_f"]) for r in stored["additive_span"] if r["feasible"]}
     assert later and all(obs == "printed_gamma" and t_f in (2.005, 2.01) for obs, t_f in later)
-    assert "only with the printed Gamma_d and an onset of 2.005 or 2.01 s" in DETECTION_SEARCH
+    assert r"only with the printed $\Gamma_d$ and an onset of 2.005 or 2.01 s" in DETECTION_SEARCH
     for best, said in ((s["closest"], DETECTION_SEARCH_CLOSEST),
                        (s["closest_at_printed_onset"], DETECTION_SEARCH_CLOSEST_AT_ONSET)):
         for key in ("fault", "t_f", "threshold", "sampling_s"):
@@ -115,7 +115,7 @@ def test_stored_search_supports_the_report(search, stored):
                                  best["residual"], best["threshold"], best["sampling_s"])
         np.testing.assert_allclose(again, best["times"], atol=1e-9)
         assert search.score(again) > 1.0
-    assert "raised by 1.02 %" in DETECTION_SEARCH          # link flow 1.5 (1 - theta), theta = -0.0102
+    assert r"raised by 1.02~\%" in DETECTION_SEARCH          # link flow 1.5 (1 - theta), theta = -0.0102
 
 
 def test_additive_span_infeasible_at_the_printed_onset(search):

@@ -85,7 +85,7 @@ def three_tank(outputs: str = "all") -> Plant:
             Assumption("flow directions h1 > h3 > h2 on the operating region: sgn/abs resolve and "
                        "the model is smooth there", kind="flow_direction", source="seed 000 II-A"),
             Assumption("Torricelli outflow with constant outflow coefficients; incompressible water",
-                       kind="modelling", source="seed 000 eq. (4)-(5)"),
+                       kind="modelling", source="seed 000 II-A model"),
         ),
         source="seed 000 Table I; Amira DTS200",
         options=(("outputs", outputs),),

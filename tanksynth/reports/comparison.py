@@ -100,8 +100,11 @@ class PaperComparison:
     title : str
         Plain text.
     source : str
-        Paper and equation numbers the printed values come from (plain text).
+        Paper and section the printed values come from (plain text).
     rows : tuple of PaperRow
+    intro : str, optional
+        LaTeX shown between the source line and the table (the data every row refers to,
+        such as the printed initial states); empty for none.
     """
 
     key: str
@@ -109,6 +112,7 @@ class PaperComparison:
     title: str
     source: str
     rows: tuple[PaperRow, ...]
+    intro: str = ""
 
     @property
     def errata(self) -> tuple[PaperRow, ...]:
@@ -128,6 +132,8 @@ class Reproduction:
         ``applies(inputs) -> bool``.
     compute : callable
         ``compute(inputs) -> tuple of PaperRow``.
+    intro : str, optional
+        See `PaperComparison`.
     """
 
     key: str
@@ -136,6 +142,7 @@ class Reproduction:
     source: str
     applies: Callable[[ReportInputs], bool]
     compute: Callable[[ReportInputs], tuple[PaperRow, ...]]
+    intro: str = ""
 
 
 def cell_number(x: Any, digits: int = 5) -> Tex:

@@ -41,23 +41,24 @@ __all__ = [
 REPRODUCTIONS: tuple[Reproduction, ...] = (
     Reproduction("seed000_linearisation", "000",
                  "Three-tank linearisation at y0 = (0.40, 0.20, 0.30) m",
-                 "seed 000 (Widjiantoro et al.): eq. (8) F and B, Table I, Sec. IV u0 and y0",
+                 "seed 000 (Widjiantoro et al.): the linearised model F and B, Table I, Sec. IV u0 and y0",
                  paper_seed000.linearisation_applies, paper_seed000.linearisation_rows),
     Reproduction("seed000_control_law", "000",
                  "Three-tank decoupling control law u = alpha + beta zeta",
-                 "seed 000 (Widjiantoro et al.): eq. (22)-(24), Sec. IV nonlinear control input",
+                 "seed 000 (Widjiantoro et al.): the decoupling control law, Sec. IV nonlinear control input",
                  paper_seed000.law_applies, paper_seed000.law_rows),
     Reproduction("seed000_akf", "000",
                  "Three-tank adaptive covariance Kalman filter (AKF)",
-                 "seed 000 (Widjiantoro et al.): Sec. III eq. (29)-(38), Sec. IV initial conditions, Fig. 8",
+                 "seed 000 (Widjiantoro et al.): the adaptive Kalman filter of Sec. III, Sec. IV initial conditions, Fig. 8",
                  paper_seed000.akf_applies, paper_seed000.akf_rows),
     Reproduction("seed001_observability", "001",
                  "Quasi-LPV three-tank: observability with one measured level",
-                 "seed 001: eq. (10) A(z), Sec. III-C O1 and det(O1), Sec. IV lambda and gamma",
+                 Tex(r"seed 001: the state matrix $A(z)$, Sec.~III-C $\mathcal{O}_1$ and $\det\mathcal{O}_1$, "
+                     r"Sec.~IV $\lambda$ and $\gamma$"),
                  paper_seed001.observability_applies, paper_seed001.observability_rows),
     Reproduction("seed001_fig2", "001",
                  "Quasi-LPV three-tank observer: the initial states of Fig. 2-3",
-                 "seed 001: Sec. IV initial conditions of the multiple model and of the observer eq. (20), Fig. 2-3",
+                 "seed 001: Sec. IV initial conditions of the multiple model and of the observer, Fig. 2-3",
                  paper_seed001.fig2_applies, paper_seed001.fig2_rows),
     Reproduction("seed002_estimators", "002",
                  "Hybrid three-tank: plant tables and the EKF, UKF and NARX estimators",
@@ -73,12 +74,13 @@ REPRODUCTIONS: tuple[Reproduction, ...] = (
                  paper_seed003.network_applies, paper_seed003.network_rows),
     Reproduction("seed004_structure", "004",
                  "Hydraulic fault model: controllability, observability, transfer function",
-                 "seed 004: eqs. (13)-(14), (21a)-(21b), (23a)-(23b), (27), Sec. III",
+                 "seed 004, Sec. III: controllability and observability matrices, transfer function, observer canonical form",
                  paper_seed004.structure_applies, paper_seed004.structure_rows),
     Reproduction("seed004_fault_detection", "004",
                  "Hydraulic fault model: observer, threshold and detection times",
-                 "seed 004: eqs. (27)-(29), (54), Sec. IV initial states and detection times",
-                 paper_seed004.detection_applies, paper_seed004.detection_rows),
+                 "seed 004, Sec. II-F and IV: observer gain, residual threshold, detection times",
+                 paper_seed004.detection_applies, paper_seed004.detection_rows,
+                 paper_seed004.INITIAL_STATES_TEX),
 )
 
 
@@ -167,7 +169,7 @@ def compare_with_papers(inputs: ReportInputs) -> tuple[PaperComparison, ...]:
         Seed reproductions first (registry order), then one comparison
         with the ``reference_*`` rows of all artefacts (if any).
     """
-    out = [PaperComparison(r.key, r.seed, r.title, r.source, r.compute(inputs))
+    out = [PaperComparison(r.key, r.seed, r.title, r.source, r.compute(inputs), r.intro)
            for r in REPRODUCTIONS if r.applies(inputs)]
     refs = tuple(row for a in inputs.artefacts for row in reference_rows(a))
     if refs:

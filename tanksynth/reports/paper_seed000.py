@@ -315,8 +315,9 @@ def akf_rows(inputs: ReportInputs) -> tuple[PaperRow, ...]:
     obs = (art.get("diagnostics") or {}).get("observability_at_operating_point") or {}
     rank, n = obs.get("rank"), obs.get("n")
     full = bool(obs.get("full"))
-    rows.append(PaperRow(Tex(r"$(A_d, \mathbf{H})$ observable (condition of eq.~(38))"),
-                         Tex("required"),
+    rows.append(PaperRow(Tex(r"$(A_d, \mathbf{H})$ observable"),
+                         Tex(r"$\operatorname{rank}[\mathbf{H};\,\mathbf{H}A_d;\,\mathbf{H}A_d^2] = 3$ "
+                             "required"),
                          Tex(f"rank {rank}/{n}" if rank is not None else "not recorded"),
                          AGREES if full else DIFFERS,
                          Tex("" if full else "the artefact does not record a full-rank observability")))

@@ -67,9 +67,9 @@ def observability_rows(inputs: ReportInputs) -> tuple[PaperRow, ...]:
     o_same = (O - paper.O1()).applyfunc(sp.expand) == sp.zeros(3, 3)
     rows.append(PaperRow(Tex(r"$O_1 = [C;\,CA;\,CA^2]$, $C=[1\;0\;0]$"),
                          Tex(r"rows with $(*)_1,(*)_2,(*)_3$ (Sec.~III-C)"),
-                         Tex(r"$[C;\,CA;\,CA^2]$ of eq.~(10), expanded"),
+                         Tex(r"$[C;\,CA;\,CA^2]$ with the printed $A(z)$, expanded"),
                          AGREES if o_same else ERRATUM,
-                         Tex("" if o_same else "entries differ from C A^k")))
+                         Tex("" if o_same else r"entries differ from $CA^k$")))
     printed = paper.det_O1()
     derived = sp.expand(res.determinant)
     diff = sp.expand(derived - printed)

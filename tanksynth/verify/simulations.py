@@ -316,15 +316,15 @@ def observer_convergence(plant: Plant, estimator: BatchEstimator, x0: np.ndarray
         how = f"plant from x0 + delta ({100 * frac:g} % of the region span), estimate from x0"
     else:
         x_start, x_hat_start = (np.asarray(v, dtype=float) for v in start)
-        how = (f"plant from the declared x_start = {np.round(x_start, 6).tolist()}, estimate from "
-               f"x_hat_start = {np.round(x_hat_start, 6).tolist()}")
+        how = (f"plant from the declared initial state {np.round(x_start, 6).tolist()}, estimate "
+               f"from the declared initial estimate {np.round(x_hat_start, 6).tolist()}")
     res = simulate(plant, ts=ts, steps=steps, x0=x_start, seeds=run_seeds(0, 1), estimator=estimator,
                    x_hat0=x_hat_start, u_init=u0, substeps=substeps)
     if trace is not None:
         trace.record(res, plant, check=name, estimator=True,
                      scenario=("initial-state mismatch: plant from x0 + delta, estimate from x0, "
                                "equilibrium input held") if start is None else
-                     "declared initial states (x_start, x_hat_start), equilibrium input held")
+                     "declared initial state and initial estimate, equilibrium input held")
     err = np.max(np.abs(res.x_hat[0] - res.x[0]), axis=1)
     e0 = float(err[0])
     tail = float(np.max(err[k_h:]))

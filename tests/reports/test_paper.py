@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import re
+
 import json
 
 import numpy as np
@@ -45,8 +47,10 @@ def seed000(demo_dir):
 
 
 def test_registry_is_labelled():
+    """Each reproduction says where in its paper the printed values are (a section, table or
+    script: the reader may not have the paper, so equation numbers alone are not enough)."""
     for r in REPRODUCTIONS:
-        assert r.seed and "eq" in r.source, r.key
+        assert r.seed and re.search(r"Sec\.|Table|script", r.source), r.key
 
 
 def test_printed_F_is_eq8_as_printed():
@@ -95,10 +99,12 @@ def test_seed004_structure_agrees(tmp_path, delta_bar):
     assert comp.rows and all(r.verdict == AGREES for r in comp.rows), [
         (r.quantity, r.note) for r in comp.rows if r.verdict != AGREES]
     labels = " ".join(r.quantity for r in comp.rows)
+    # each row states its equation (no equation number of the paper)
+    assert r"[B,\,AB,\,A^2B]" in labels and r"[C;\,CA;\,CA^2]" in labels and "eq." not in labels
     if delta_bar == 0.0:
-        assert "(21a)" in labels and "(23a)" in labels and "(27)" in labels
+        assert r"\Delta =" in labels and r"\bar\delta" not in labels
     else:
-        assert "(21b)" in labels and "(23b)" in labels and "(27)" not in labels
+        assert r"\Delta =" not in labels and r"\bar\delta" in labels
     assert paper004.printed_matrices(delta_bar)["QC"][1, 2] == pytest.approx(-1 - 0.5 * delta_bar)
 
 
@@ -156,12 +162,17 @@ def test_seed004_fault_detection_rows(tmp_path):
     d = design_dir(tmp_path / "fd", FAULT)
     comp = _by_key(compare_with_papers(read_report_inputs(d)))["seed004_fault_detection"]
     rows = {r.quantity: r for r in comp.rows}
-    assert rows[r"error poles $\mathrm{eig}(\Gamma_d)$ eq.~(27)"].verdict == AGREES
-    assert rows[r"observer gain $\Psi$ eq.~(29)"].verdict == AGREES      # 169.667 = 509/3 rounded
+    assert rows[r"error poles $\mathrm{eig}(\Gamma_d)$"].verdict == AGREES
+    assert rows[r"observer gain $\Psi$"].verdict == AGREES      # 169.667 = 509/3 rounded
     gamma = rows[r"$\Gamma_d = A - \Psi C$"]
-    assert gamma.verdict == ERRATUM and "instead of C" in gamma.note and "-34.32" in gamma.note
-    assert rows[r"threshold $\bar\epsilon(t)$ eq.~(54)"].verdict == AGREES
+    assert gamma.verdict == ERRATUM and "instead of $C" in gamma.note and "-34.32" in gamma.note
+    threshold = [r for r in comp.rows if r.quantity.startswith(r"threshold $\bar\epsilon(t)$")]
+    assert len(threshold) == 1 and threshold[0].verdict == AGREES
+    assert r"C\,e^{\Gamma_d t}\,\hat{e}" in threshold[0].quantity
     times = [r for r in comp.rows if r.quantity.startswith("detection time")]
+    # the initial states are column vectors above the table, not numbers in the row labels
+    assert [r.quantity for r in times] == [f"detection time $t_d$ (s) from $x_0^{{({k})}}$" for k in (1, 2, 3)]
+    assert comp.intro.count(r"\begin{bmatrix}") == 3
     assert [r.printed_value for r in times] == list(paper004.DETECTION_TIMES)
     # delta_bar = 1 (declared): the exact detection times of the design, beside the printed ones
     assert [r.ours_value for r in times] == pytest.approx(

@@ -92,7 +92,11 @@ RAW = {
     "relaxation key": re.compile(r"all_pairs"),
     "ASCII >=": re.compile(r">="),
     "ASCII |epsilon|": re.compile(r"\|epsilon\|"),
-    "paper equation number": re.compile(r"\beq\. \d|LMI \(\d+\)"),
+    "paper equation number": re.compile(r"\beqs?\.\s*\(?\d|LMI \(\d+\)|threshold \(\d+\)"),
+    "Greek key spelled out": re.compile(r"\bGamma[ _]d\b|\bPsi \["),
+    "estimate spelled out": re.compile(r"\b[xye] ?_?hat0?\b"),
+    "ASCII norm subscript": re.compile(r"\|e\|[ _]?(?:inf|2)\b"),
+    "initial state inline in a table label": re.compile(r"\bt ?d ?, ?x0\b|x0 = \(\d"),
     "notes file": re.compile(r"notes/"),
     "unit with a lost bracket": re.compile(r"cm3 V s\)"),
     "check key in a caption": re.compile(r"Check [a-z]+ [a-z]+"),       # "Check rmse reproduced"
@@ -123,3 +127,53 @@ def test_report_text_has_no_raw_keys(example, tmp_path):
         assert not hits, f"{example}: {what}: {hits[:3]}"
     if example == "quadruple_tank_sensor_gain":   # pump gains in cm^3/(V s), the bracket kept
         assert re.search(r"cm3\s*/\s*\(V\s*s\)", text), "pump-gain unit not typeset as cm^3/(V s)"
+
+
+# ------------------------------------------------------ paper-vs-tool sources (fast)
+#: The same readers' complaints, in the LaTeX the paper pages are made of.
+_RAW_TEX = {
+    "paper equation number": re.compile(r"\beqs?\.~?\s*\(?\d|LMI \(\d+\)|\((?:54|55)\)"),
+    "Greek key spelled out": re.compile(r"(?<!\\)\b(?:Gamma|Psi|epsilon)(?:_\w+)?\b"),
+    "estimate key": re.compile(r"\b[xye]_hat0?\b"),
+    "ASCII norm": re.compile(r"\|e\|_(?:inf|2)\b"),
+    "ASCII initial state": re.compile(r"\bx0\(\d\)"),
+}
+
+
+def _raw_tex_hits(tex: str) -> list[str]:
+    return [f"{what}: {tex[max(0, m.start() - 30):m.end() + 30]!r}"
+            for what, pattern in _RAW_TEX.items() for m in pattern.finditer(tex)]
+
+
+def test_seed004_search_paragraph_is_typeset():
+    """The order row's derivation names the threshold, the gain and the norms in mathematics."""
+    from tanksynth.reports.paper_seed004 import DETECTION_SEARCH
+    assert _raw_tex_hits(DETECTION_SEARCH) == []
+    assert r"$\Gamma_d$" in DETECTION_SEARCH and r"\|e\|_\infty" in DETECTION_SEARCH
+    assert r"\bar\epsilon_+(t) = \sum_i |c_i|\,e^{\lambda_i t}" in DETECTION_SEARCH
+
+
+def test_raw_tex_check_catches_the_old_wording():
+    old = ("the printed Gamma_d; threshold (54) or (55); residual y - y_hat, |e|_inf; x0(2) - 1/4; "
+           r"threshold $\bar\epsilon(t)$ eq.~(54)")
+    assert {h.split(":")[0] for h in _raw_tex_hits(old)} == set(_RAW_TEX)
+
+
+def test_seed004_initial_states_are_column_vectors_above_the_table():
+    """The printed initial states are shown once, as column vectors, not inline in row labels."""
+    from tanksynth.papers import seed004
+    from tanksynth.reports.paper_seed004 import INITIAL_STATES_TEX
+    assert INITIAL_STATES_TEX.count(r"\begin{bmatrix}") == len(seed004.INITIAL_STATES) == 3
+    for k, x in enumerate(seed004.INITIAL_STATES):
+        column = r"\begin{bmatrix}" + r" \\ ".join(f"{v:g}" for v in x) + r"\end{bmatrix}"
+        assert f"x_0^{{({k + 1})}} = " + column in INITIAL_STATES_TEX, column
+
+
+def test_paper_sources_cite_no_equation_numbers():
+    """The source line of each comparison names sections and quantities, not equation numbers
+    (seed 002's wording is kept as edited elsewhere)."""
+    from tanksynth.reports.paper import REPRODUCTIONS
+    for r in REPRODUCTIONS:
+        if r.seed != "002":
+            assert _raw_tex_hits(r.source) == [], (r.key, r.source)
+    assert any(r.intro for r in REPRODUCTIONS if r.key == "seed004_fault_detection")

@@ -56,7 +56,7 @@ pole_placement_statement = problem_statement("pole_placement", __name__, _exact)
 lmi_placement_statement = problem_statement("lmi_placement", __name__, _region)
 canonical_observer_statement = problem_statement(
     "canonical_observer", __name__,
-    r"Observer through the observer canonical form (seed 004 eqs.~(25)--(29)): "
+    r"Observer through the observer canonical form (as in seed 004): "
     r"$\Delta = \mathcal{Q}_O^{-1}\bar{\mathcal{Q}}_O$, the canonical gain $\Psi_o$ "
     r"matches $\det(sI - \Gamma)$ with the desired polynomial, $L = \Delta\Psi_o$, in "
     r"exact arithmetic; cross-checked against \texttt{place}.")

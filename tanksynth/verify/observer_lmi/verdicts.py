@@ -202,7 +202,7 @@ def _ts_model_from_artefact(doc: Mapping[str, Any], spec: Spec) -> tuple[TSModel
                     + ("and incidence agree with the record" if same else
                        f"{atoms_new} differ from the record {atoms_rec}")
                     + f"; recorded premise bounds {fmt(lower)} .. {fmt(upper)} and domain "
-                      f"({domain.description or 'box'}) used for eq. (20)",
+                      f"({domain.description or 'box'}) used for the observer (its TS model at the estimate)",
                     {"weights": W.tolist(), "atoms": atoms_new})]
     return model, checks
 
@@ -215,7 +215,7 @@ def _local_error_check(spec: Spec, L: np.ndarray, C: np.ndarray) -> Check:
     worst = float(np.max(eig.real))
     return Check("local_error_dynamics", bool(worst < 0),
                  f"eigenvalues of F(x_op) - L C (F the Jacobian of the nonlinear plant at the operating "
-                 f"point: the error dynamics of eq. (20) for small errors there, whatever A0 and psi) "
+                 f"point: the error dynamics of the TS observer for small errors there, whatever A0 and psi) "
                  f"{fmt(np.sort_complex(eig), 5)}: largest real part {worst:.4g} 1/s (must be < 0, a "
                  "necessary condition for convergence)",
                  {"eigenvalues": complex_list(eig), "max_real_part": worst})
