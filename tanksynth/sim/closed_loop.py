@@ -517,7 +517,7 @@ def _build(model: Any, law: LoopLaw, nr: int, build: bool) -> LoopKernel | None:
         return None
     try:
         lib = _CACHE.library([source, LOOP_VERSION, KERNEL_VERSION], lambda name: source,
-                             lambda path, name: ctypes.CDLL(str(path)), cc, build)
+                             _load, cc, build)
     except NativeBuildError as exc:
         _STATUS[0] = f"closed-loop kernel unavailable ({exc}); stepping period by period"
         if not exc.repeated:
@@ -530,6 +530,14 @@ def _build(model: Any, law: LoopLaw, nr: int, build: bool) -> LoopKernel | None:
     _STATUS[0] = (f"closed-loop kernel {lib.path.name}"
                   + (f", compiled in {lib.compile_seconds:.2f} s" if lib.compile_seconds else ""))
     return LoopKernel(lib.handle, model.n, model.m, p, nr, lib.compile_seconds)
+
+
+def _load(path: Any, name: str) -> ctypes.CDLL:
+    """The library at ``path``; AttributeError (a failed build for the cache, which then
+    refuses it) when it defines no ``tk_loop``: another library under the kernel's name."""
+    lib = ctypes.CDLL(str(path))
+    getattr(lib, "tk_loop")
+    return lib
 
 
 def loop_status() -> str:
