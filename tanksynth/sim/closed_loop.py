@@ -16,7 +16,10 @@ the period-by-period loop with the same law evaluated by CasADi's virtual
 machine (the same operations in the same order, no fused multiply-add;
 tested); laws written with numpy (`einsum`) may sum in another order (last
 bit). Parameter changes and state jumps cut the horizon into stretches, one
-call each, the law's state carried across.
+call each, the law's state carried across; a stretch longer than `CALL_WORK`
+is cut into several calls (the same numbers), so that Ctrl-C or SIGTERM
+interrupts a large simulation within a fraction of a second instead of after
+the whole horizon (the kernel cannot be interrupted inside a call).
 
 Runs go to the cores in blocks (threads, the kernel releases the GIL)
 when there are enough of them (`THREAD_WORK`); the same kernel serves
@@ -80,7 +83,7 @@ from tanksynth.sim.csource import BLOCK, KERNEL_VERSION, kernel_source
 from tanksynth.sim.kernel import BUILD_WORK
 
 __all__ = ["LoopLaw", "LoopKernel", "loop_kernel", "loop_status", "run_closed_loop", "cache_info",
-           "clear_cache", "LOOP_VERSION", "MAX_LOOP_SUBSTEPS", "THREAD_WORK"]
+           "clear_cache", "LOOP_VERSION", "MAX_LOOP_SUBSTEPS", "THREAD_WORK", "CALL_WORK"]
 
 _LOG = logging.getLogger("tanksynth.sim")
 
@@ -90,6 +93,10 @@ LOOP_VERSION = "1"
 MAX_LOOP_SUBSTEPS = 63
 #: Smallest work (runs x periods x RK4 steps x states) spread over several threads.
 THREAD_WORK = 2e5
+#: Most work (runs x periods x RK4 steps x states) of one kernel call (about 0.1-0.3 s): a long
+#: horizon is cut into calls of at most this much, so that a signal (Ctrl-C, SIGTERM) is acted
+#: on between two of them instead of after the whole horizon.
+CALL_WORK = 1e7
 
 _CACHE = NativeCache("loop", "tk_loop_")
 _STATUS = ["no closed-loop kernel asked for yet"]
@@ -660,17 +667,23 @@ def run_closed_loop(integ: Any, kernel: LoopKernel, law: LoopLaw, x: np.ndarray,
                 lims = limits(p)
             ulo, uhi = lims
             C, P = native.tables(integ, p, M)
-            stop, low, high = kernel.run(xk, Z, refs[a:e], None if W is None else W[:, a:e], C,
-                                         P, ulo, uhi, integ.lower, integ.upper, h,
-                                         int(substeps), X[:, a + 1:e + 1], U[:, a:e], threads)
-            if (stop >= 0).any():
-                return None
-            if low.any():
-                low_count += _popcount(low)
-            if high.any():
-                high_count += _popcount(high)
-            xk = X[:, e]
-        _outputs(integ, X[:, a:b], p, Y[:, a:b], modes[:, a:b])
+            step = max(1, int(CALL_WORK // max(1, M * int(substeps) * n)))
+            for c in range(a, e, step):     # calls of bounded work: a signal is seen between them
+                d = min(c + step, e)
+                stop, low, high = kernel.run(xk, Z, refs[c:d], None if W is None else W[:, c:d],
+                                             C, P, ulo, uhi, integ.lower, integ.upper, h,
+                                             int(substeps), X[:, c + 1:d + 1], U[:, c:d], threads)
+                if (stop >= 0).any():
+                    return None
+                if low.any():
+                    low_count += _popcount(low)
+                if high.any():
+                    high_count += _popcount(high)
+                xk = X[:, d]
+                _outputs(integ, X[:, c:d], p, Y[:, c:d], modes[:, c:d])
+        if b > e or e == a:           # the last sample, or a stretch without a period
+            f = a if e == a else e
+            _outputs(integ, X[:, f:b], p, Y[:, f:b], modes[:, f:b])
     seconds = time.perf_counter() - t0
     params.clear()
     params.update(p)
