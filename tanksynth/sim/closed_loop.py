@@ -71,7 +71,7 @@ import hashlib
 import logging
 import os
 import time
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import ThreadPoolExecutor, wait
 from dataclasses import dataclass
 from typing import Any, Callable, Mapping
 
@@ -396,7 +396,13 @@ class LoopKernel:
 
             pool = _pool(len(cuts) - 2)
             jobs = [pool.submit(call, a, b, f) for a, b, f in zip(cuts[1:-1], cuts[2:], fl[1:])]
-            status = [call(0, cuts[1], fl[0])] + [j.result() for j in jobs]
+            try:
+                status = [call(0, cuts[1], fl[0])] + [j.result() for j in jobs]
+            finally:
+                # a signal (KeyboardInterrupt) raised here while the other threads still run
+                # the kernel: wait for them (one call, bounded by CALL_WORK) before the arrays
+                # they write are freed (issue 29: a segmentation fault otherwise)
+                wait(jobs)
             low, high = np.bitwise_or.reduce(flags, axis=1)
         if any(s < 0 for s in status):
             raise ValueError(f"closed-loop kernel refused substeps = {substeps}")
