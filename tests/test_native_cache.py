@@ -121,20 +121,16 @@ def test_concurrent_builds_compile_once(tmp_path):
     assert len(list((tmp_path / "test").glob("tk_test_*.so"))) == 1
 
 
-_CUT_SHORT = r"""
-import ctypes, os, pathlib, sys
+_CUT_SHORT = """
+import ctypes
 from tanksynth.native_cache import NativeCache, find_compiler
-SOURCE = "double tk_twice(double x) { return 2.0 * x; }\n"
-def load(path, name):
-    lib = ctypes.CDLL(str(path))
-    lib.tk_twice.restype = ctypes.c_double
-    lib.tk_twice.argtypes = [ctypes.c_double]
-    return lib
 cache = NativeCache("test", "tk_test_")
-lib = cache.library(["twice"], lambda name: SOURCE, load, find_compiler())
-path, size = lib.path, lib.path.stat().st_size
-print(lib.handle.tk_twice(1.5), size, flush=True)
-"""
+lib = cache.library(["twice"], lambda name: SOURCE, lambda path, name: ctypes.CDLL(str(path)),
+                    find_compiler())
+twice = lib.handle.tk_twice
+twice.restype, twice.argtypes = ctypes.c_double, [ctypes.c_double]
+print(twice(1.5), flush=True)
+""".replace("SOURCE", repr(SOURCE))
 
 
 @needs_cc
