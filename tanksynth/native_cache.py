@@ -33,7 +33,11 @@ so a library is never used for another kernel, compiler or flag set. A build
 holds the directory's lock (``.lock``, ``flock``; at most `COMPILE_TIMEOUT`
 waited for, then built anyway), compiles in a temporary directory inside the
 cache directory and renames the library into place: concurrent processes
-build a library once, and a reader never sees half a file.
+build a library once, and a reader never sees half a file. A library on disk
+cut short by something else (a copy, a full disk: a segment the loader maps
+lies past the end of the file, which would kill the process with SIGBUS) is
+built again instead of loaded; other damaged files are refused by the loader
+(an error, remembered as a failed build).
 
 Bounds: a compiler run is stopped after `COMPILE_TIMEOUT` seconds; at most
 `MAX_LOADED` libraries per family are kept in memory (the oldest are
@@ -48,6 +52,7 @@ import hashlib
 import os
 import platform
 import shutil
+import struct
 import subprocess
 import tempfile
 import time
@@ -226,6 +231,46 @@ def _compile(source: str, cc: str, flags: Sequence[str], path: Path) -> float:
     return seconds
 
 
+def _whole_elf(path: Path) -> bool:
+    """False when ``path`` is an ELF library cut short: a segment the loader maps lies past its
+    end (the dynamic loader would map pages beyond the file and the process die of SIGBUS).
+
+    A file that is not ELF (another platform's format, or no library at all) is True: the
+    loader refuses such a file with an error, not a crash.
+    """
+    try:
+        with open(path, "rb") as f:
+            size = os.fstat(f.fileno()).st_size
+            head = f.read(64)
+            if len(head) < 52 or head[:4] != b"\x7fELF" or head[4] not in (1, 2) or head[5] not in (1, 2):
+                return True                  # not ELF, or too short to map: the loader refuses it
+            end = "<" if head[5] == 1 else ">"
+            wide = head[4] == 2
+            if wide:
+                (phoff,) = struct.unpack_from(end + "Q", head, 32)
+                phentsize, phnum = struct.unpack_from(end + "HH", head, 54)
+            else:
+                (phoff,) = struct.unpack_from(end + "I", head, 28)
+                phentsize, phnum = struct.unpack_from(end + "HH", head, 42)
+            if phoff + phentsize * phnum > size or phentsize < (56 if wide else 32):
+                return False
+            f.seek(phoff)
+            table = f.read(phentsize * phnum)
+    except OSError:
+        return True                          # (the loader says what is wrong)
+    for i in range(phnum):
+        at = i * phentsize
+        if wide:
+            (offset,) = struct.unpack_from(end + "Q", table, at + 8)
+            (filesz,) = struct.unpack_from(end + "Q", table, at + 32)
+        else:
+            (offset,) = struct.unpack_from(end + "I", table, at + 4)
+            (filesz,) = struct.unpack_from(end + "I", table, at + 16)
+        if offset + filesz > size:
+            return False
+    return True
+
+
 def _remember(table: dict, key: str, value: Any) -> None:
     """``table[key] = value``, forgetting the oldest entries beyond `MAX_LOADED`."""
     table.pop(key, None)
@@ -342,10 +387,12 @@ class NativeCache:
                        source: Callable[[str], str], load: Callable[[Path, str], Any],
                        cc: str) -> NativeLibrary:
         seconds = 0.0
-        if not path.is_file():
+        if not path.is_file() or not _whole_elf(path):
             path.parent.mkdir(parents=True, exist_ok=True)
             with _directory_lock(path.parent):
-                if not path.is_file():                      # another process may have built it
+                # another process may have built it; a library cut short (a copy or disk
+                # failure) is built again: loading it would kill the process (SIGBUS)
+                if not path.is_file() or not _whole_elf(path):
                     seconds = _compile(source(name), cc, flags, path)
                     self.compiles += 1
         return NativeLibrary(load(path, name), path, flags, seconds)

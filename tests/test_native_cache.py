@@ -119,3 +119,88 @@ def test_concurrent_builds_compile_once(tmp_path):
     assert all(p.returncode == 0 for p in procs), [o[1][-500:] for o in outs]
     assert sorted(int(o[0]) for o in outs) == [0, 1]
     assert len(list((tmp_path / "test").glob("tk_test_*.so"))) == 1
+
+
+_CUT_SHORT = """
+import ctypes
+from tanksynth.native_cache import NativeCache, find_compiler
+cache = NativeCache("test", "tk_test_")
+lib = cache.library(["twice"], lambda name: SOURCE, lambda path, name: ctypes.CDLL(str(path)),
+                    find_compiler())
+twice = lib.handle.tk_twice
+twice.restype, twice.argtypes = ctypes.c_double, [ctypes.c_double]
+print(twice(1.5), flush=True)
+""".replace("SOURCE", repr(SOURCE))
+
+
+@needs_cc
+@pytest.mark.parametrize("keep", [0.1, 0.3, 0.6])
+def test_a_library_cut_short_on_disk_is_built_again_not_loaded(tmp_path, keep):
+    """A library truncated on disk (a copy or a full disk) killed the process that loaded it
+    (SIGBUS in the dynamic loader, issue 29): it is compiled again instead."""
+    env = {**__import__("os").environ, "TANKSYNTH_CACHE_DIR": str(tmp_path)}
+    env.pop("TANKSYNTH_CC", None)
+    first = subprocess.run([sys.executable, "-c", _CUT_SHORT], env=env, capture_output=True,
+                           text=True, timeout=120)
+    assert first.returncode == 0, first.stderr
+    libs = list((tmp_path / "test").glob("tk_test_*.so"))
+    assert len(libs) == 1
+    whole = libs[0].read_bytes()
+    libs[0].write_bytes(whole[: int(len(whole) * keep)])
+    second = subprocess.run([sys.executable, "-c", _CUT_SHORT], env=env, capture_output=True,
+                            text=True, timeout=120)
+    assert second.returncode == 0, (second.returncode, second.stderr[-500:])
+    assert second.stdout.split()[0] == "3.0"
+    assert list((tmp_path / "test").glob("tk_test_*.so")) == libs
+
+
+@needs_cc
+def test_another_library_under_a_kernels_name_is_refused(tmp_path, monkeypatch):
+    """A file of the closed-loop kernel's name that defines no ``tk_loop`` (issue 29: an
+    uncaught AttributeError): refused like a failed build, the kernel built under its other
+    flag set or the loop used, with the loop's numbers."""
+    import numpy as np
+
+    from tanksynth.analysis.linearize import equilibrium_input
+    from tanksynth.plants import three_tank
+    from tanksynth.sim import closed_loop, kernel, tape
+    from tanksynth.sim.simulate import simulate
+    from tanksynth.verify.simulations import StateFeedback
+
+    monkeypatch.setenv("TANKSYNTH_CACHE_DIR", str(tmp_path))
+    monkeypatch.delenv("TANKSYNTH_CC", raising=False)
+    monkeypatch.setenv("TANKSYNTH_SIM_BACKEND", "native")
+    plant = three_tank()
+    x0 = np.array([0.40, 0.20, 0.30])
+    u0 = equilibrium_input(plant, x0).u0
+    K = np.array([[1e-3, 0.0, 0.0], [0.0, 1e-3, 0.0]])
+    kw = dict(ts=1.0, steps=20, x0=x0 + 0.02, seeds=[0], u_init=u0)
+    try:
+        for clear in (tape.clear_cache, kernel.clear_cache, closed_loop.clear_cache):
+            clear()
+        first = simulate(plant, controller=StateFeedback(K, x0, u0), **kw)
+        assert "loop" in first.backend
+        files = list((tmp_path / "loop").glob("tk_loop_*.so"))
+        for clear in (tape.clear_cache, kernel.clear_cache, closed_loop.clear_cache):
+            clear()
+        for path in files:
+            path.write_bytes(_libm_bytes())
+        again = simulate(plant, controller=StateFeedback(K, x0, u0), **kw)
+        assert np.array_equal(again.x, first.x) and np.array_equal(again.u, first.u)
+        assert "loop" in again.backend or "no tk_loop" in closed_loop.loop_status()
+    finally:
+        for clear in (tape.clear_cache, kernel.clear_cache, closed_loop.clear_cache):
+            clear()
+
+
+def _libm_bytes() -> bytes:
+    """A real shared library of another name (the C maths library)."""
+    import ctypes.util
+
+    name = ctypes.util.find_library("m")
+    for folder in ("/lib/x86_64-linux-gnu", "/usr/lib/x86_64-linux-gnu", "/lib64", "/usr/lib64",
+                   "/lib", "/usr/lib"):
+        path = __import__("pathlib").Path(folder) / (name or "libm.so.6")
+        if path.is_file():
+            return path.read_bytes()
+    pytest.skip("no libm file found")

@@ -16,7 +16,10 @@ the period-by-period loop with the same law evaluated by CasADi's virtual
 machine (the same operations in the same order, no fused multiply-add;
 tested); laws written with numpy (`einsum`) may sum in another order (last
 bit). Parameter changes and state jumps cut the horizon into stretches, one
-call each, the law's state carried across.
+call each, the law's state carried across; a stretch longer than `CALL_WORK`
+is cut into several calls (the same numbers), so that Ctrl-C or SIGTERM
+interrupts a large simulation within a fraction of a second instead of after
+the whole horizon (the kernel cannot be interrupted inside a call).
 
 Runs go to the cores in blocks (threads, the kernel releases the GIL)
 when there are enough of them (`THREAD_WORK`); the same kernel serves
@@ -68,7 +71,7 @@ import hashlib
 import logging
 import os
 import time
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import ThreadPoolExecutor, wait
 from dataclasses import dataclass
 from typing import Any, Callable, Mapping
 
@@ -80,7 +83,7 @@ from tanksynth.sim.csource import BLOCK, KERNEL_VERSION, kernel_source
 from tanksynth.sim.kernel import BUILD_WORK
 
 __all__ = ["LoopLaw", "LoopKernel", "loop_kernel", "loop_status", "run_closed_loop", "cache_info",
-           "clear_cache", "LOOP_VERSION", "MAX_LOOP_SUBSTEPS", "THREAD_WORK"]
+           "clear_cache", "LOOP_VERSION", "MAX_LOOP_SUBSTEPS", "THREAD_WORK", "CALL_WORK"]
 
 _LOG = logging.getLogger("tanksynth.sim")
 
@@ -90,6 +93,10 @@ LOOP_VERSION = "1"
 MAX_LOOP_SUBSTEPS = 63
 #: Smallest work (runs x periods x RK4 steps x states) spread over several threads.
 THREAD_WORK = 2e5
+#: Most work (runs x periods x RK4 steps x states) of one kernel call (about 0.1-0.3 s): a long
+#: horizon is cut into calls of at most this much, so that a signal (Ctrl-C, SIGTERM) is acted
+#: on between two of them instead of after the whole horizon.
+CALL_WORK = 1e7
 
 _CACHE = NativeCache("loop", "tk_loop_")
 _STATUS = ["no closed-loop kernel asked for yet"]
@@ -389,7 +396,13 @@ class LoopKernel:
 
             pool = _pool(len(cuts) - 2)
             jobs = [pool.submit(call, a, b, f) for a, b, f in zip(cuts[1:-1], cuts[2:], fl[1:])]
-            status = [call(0, cuts[1], fl[0])] + [j.result() for j in jobs]
+            try:
+                status = [call(0, cuts[1], fl[0])] + [j.result() for j in jobs]
+            finally:
+                # a signal (KeyboardInterrupt) raised here while the other threads still run
+                # the kernel: wait for them (one call, bounded by CALL_WORK) before the arrays
+                # they write are freed (issue 29: a segmentation fault otherwise)
+                wait(jobs)
             low, high = np.bitwise_or.reduce(flags, axis=1)
         if any(s < 0 for s in status):
             raise ValueError(f"closed-loop kernel refused substeps = {substeps}")
@@ -517,7 +530,7 @@ def _build(model: Any, law: LoopLaw, nr: int, build: bool) -> LoopKernel | None:
         return None
     try:
         lib = _CACHE.library([source, LOOP_VERSION, KERNEL_VERSION], lambda name: source,
-                             lambda path, name: ctypes.CDLL(str(path)), cc, build)
+                             _load, cc, build)
     except NativeBuildError as exc:
         _STATUS[0] = f"closed-loop kernel unavailable ({exc}); stepping period by period"
         if not exc.repeated:
@@ -530,6 +543,14 @@ def _build(model: Any, law: LoopLaw, nr: int, build: bool) -> LoopKernel | None:
     _STATUS[0] = (f"closed-loop kernel {lib.path.name}"
                   + (f", compiled in {lib.compile_seconds:.2f} s" if lib.compile_seconds else ""))
     return LoopKernel(lib.handle, model.n, model.m, p, nr, lib.compile_seconds)
+
+
+def _load(path: Any, name: str) -> ctypes.CDLL:
+    """The library at ``path``; AttributeError (a failed build for the cache, which then
+    refuses it) when it defines no ``tk_loop``: another library under the kernel's name."""
+    lib = ctypes.CDLL(str(path))
+    getattr(lib, "tk_loop")
+    return lib
 
 
 def loop_status() -> str:
@@ -652,17 +673,23 @@ def run_closed_loop(integ: Any, kernel: LoopKernel, law: LoopLaw, x: np.ndarray,
                 lims = limits(p)
             ulo, uhi = lims
             C, P = native.tables(integ, p, M)
-            stop, low, high = kernel.run(xk, Z, refs[a:e], None if W is None else W[:, a:e], C,
-                                         P, ulo, uhi, integ.lower, integ.upper, h,
-                                         int(substeps), X[:, a + 1:e + 1], U[:, a:e], threads)
-            if (stop >= 0).any():
-                return None
-            if low.any():
-                low_count += _popcount(low)
-            if high.any():
-                high_count += _popcount(high)
-            xk = X[:, e]
-        _outputs(integ, X[:, a:b], p, Y[:, a:b], modes[:, a:b])
+            step = max(1, int(CALL_WORK // max(1, M * int(substeps) * n)))
+            for c in range(a, e, step):     # calls of bounded work: a signal is seen between them
+                d = min(c + step, e)
+                stop, low, high = kernel.run(xk, Z, refs[c:d], None if W is None else W[:, c:d],
+                                             C, P, ulo, uhi, integ.lower, integ.upper, h,
+                                             int(substeps), X[:, c + 1:d + 1], U[:, c:d], threads)
+                if (stop >= 0).any():
+                    return None
+                if low.any():
+                    low_count += _popcount(low)
+                if high.any():
+                    high_count += _popcount(high)
+                xk = X[:, d]
+                _outputs(integ, X[:, c:d], p, Y[:, c:d], modes[:, c:d])
+        if b > e or e == a:           # the last sample, or a stretch without a period
+            f = a if e == a else e
+            _outputs(integ, X[:, f:b], p, Y[:, f:b], modes[:, f:b])
     seconds = time.perf_counter() - t0
     params.clear()
     params.update(p)
