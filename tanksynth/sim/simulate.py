@@ -77,6 +77,8 @@ __all__ = [
     "EstimatorAdapter",
     "run_seeds",
     "simulate",
+    "simulation_bytes",
+    "max_simulation_bytes",
     "simulate_inputs",
 ]
 
@@ -163,6 +165,52 @@ class SimulationResult:
         if self.modes.shape[2] == 0:
             return np.zeros(self.runs, dtype=int)
         return np.sum(np.any(np.diff(self.modes, axis=1) != 0, axis=2), axis=1)
+
+
+def simulation_bytes(plant: Plant, runs: int, steps: int) -> int:
+    """Memory a simulation's trajectories and noise take, about (bytes).
+
+    States, estimates, outputs, inputs and hybrid modes of every run and sample, the
+    process and measurement noise, and one copy of each for the result's layout.
+
+    Parameters
+    ----------
+    plant : Plant
+    runs : int
+        Number of runs M.
+    steps : int
+        Number of sampling periods N.
+
+    Returns
+    -------
+    int
+        Bytes.
+    """
+    per_sample = 8 * (3 * plant.n + 2 * plant.q + plant.m) + plant.n   # (modes: < n bytes)
+    return int(2 * runs * (steps + 1) * per_sample)
+
+
+def max_simulation_bytes() -> int:
+    """Largest `simulation_bytes` `simulate` accepts (bytes).
+
+    ``TANKSYNTH_SIM_MAX_BYTES`` if set, else half the machine's physical memory (16 GiB
+    when it cannot be read).
+
+    Returns
+    -------
+    int
+        Bytes.
+    """
+    text = os.environ.get("TANKSYNTH_SIM_MAX_BYTES", "").strip()
+    if text:
+        try:
+            return max(int(float(text)), 1)
+        except ValueError:
+            raise DimensionError(f"TANKSYNTH_SIM_MAX_BYTES must be a number of bytes, got {text!r}") from None
+    try:
+        return int(os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")) // 2
+    except (ValueError, OSError, AttributeError):
+        return 16 * 2**30
 
 
 def run_seeds(base_seed: int, runs: int | Sequence[int]) -> np.ndarray:
@@ -264,7 +312,8 @@ def simulate(plant: Plant, *, ts: float, steps: int, x0: Sequence[float] | np.nd
     Raises
     ------
     DimensionError
-        Inconsistent shapes or unknown parameter names.
+        Inconsistent shapes or unknown parameter names, or trajectories larger than
+        `max_simulation_bytes` (checked before anything is allocated).
     SimulationError
         A state became non-finite (the run and sample are named).
     """
@@ -274,6 +323,12 @@ def simulate(plant: Plant, *, ts: float, steps: int, x0: Sequence[float] | np.nd
     N = int(steps)
     if M < 1 or N < 1:
         raise DimensionError(f"need at least one run and one step, got M = {M}, N = {N}")
+    need = simulation_bytes(plant, M, N)
+    if need > max_simulation_bytes():
+        raise DimensionError(
+            f"{M} runs x {N} samples need about {need / 2**30:.1f} GiB for the trajectories "
+            f"(limit {max_simulation_bytes() / 2**30:.1f} GiB, TANKSYNTH_SIM_MAX_BYTES): simulate "
+            "the runs in blocks")
     if not (np.isfinite(ts) and ts > 0) or int(substeps) < 1:
         raise DimensionError(f"ts must be > 0 s and substeps >= 1, got {ts!r}, {substeps!r}")
     x = _per_run(x0, M, n, "x0")
