@@ -466,7 +466,7 @@ def _operating_point(plant: Plant, op: Mapping[str, Any]) -> tuple[np.ndarray, n
                         key=f"operating_point.{extra[0]}")
     states, inputs, outputs = ([s.name for s in group] for group in (plant.states, plant.inputs, plant.outputs))
     mode = op.get("trim")
-    if mode is not None and mode not in TRIM_MODES:
+    if mode is not None and (not isinstance(mode, str) or mode not in TRIM_MODES):
         raise SpecError(f"expected one of {', '.join(repr(k) for k in TRIM_MODES)} "
                         f"({'; '.join(f'{k!r}: {v}' for k, v in TRIM_MODES.items())}), got {mode!r}",
                         key="operating_point.trim")

@@ -94,6 +94,9 @@ def test_published_levels_name_the_nearest_equilibrium_and_the_spec_line():
     ('u = {u1 = 3.0, u2 = 3.0}\ny = {y1 = 6.0, y2 = 6.0}', "operating_point.y", 'trim = "inputs"'),
     ('u = {u1 = 3.0, u2 = 3.0}\ntrim = "inputs"', "operating_point.u", "remove u"),
     ('u = {u1 = 3.0, u2 = 3.0}\ntrim = "level"', "operating_point.trim", "'states'"),
+    # not a string (found by the spec fuzzer: an internal error, unhashable list)
+    ('u = {u1 = 3.0, u2 = 3.0}\ntrim = []', "operating_point.trim", "'states'"),
+    ('u = {u1 = 3.0, u2 = 3.0}\ntrim = {a = 1}', "operating_point.trim", "'states'"),
     # 9.9 V on both pumps: tank 1 would settle above the region's 20 cm
     ('u = {u1 = 9.9, u2 = 9.9}\ntrim = "states"', "operating_point.trim", "no equilibrium inside"),
     ('y = {y1 = 12.0, y2 = 12.0}\ntrim = "inputs"', "operating_point.trim", "no equilibrium inside"),
