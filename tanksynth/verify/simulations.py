@@ -11,6 +11,7 @@ from __future__ import annotations
 import math
 import os
 import platform
+import time
 from dataclasses import dataclass, field
 from typing import Any, Callable, Mapping, Sequence
 
@@ -25,7 +26,7 @@ from tanksynth.sim.closed_loop import LoopLaw
 from tanksynth.sim.simulate import BatchEstimator, EstimatorAdapter, run_seeds, simulate
 from tanksynth.spec import Spec
 from tanksynth.spec.options import parse_poles, parse_region
-from tanksynth.verify.common import (MAX_STEPS, OBSERVER_TIME_CONSTANTS, OBSERVER_TOLERANCE,
+from tanksynth.verify.common import (MAX_STEPS, NUMERIC_ERRORS, OBSERVER_TIME_CONSTANTS, OBSERVER_TOLERANCE,
                                      PERTURBATION, SERVO_TIME_CONSTANTS, SERVO_TOLERANCE,
                                      discrete_ts, fmt_signals, option, output_at, required_ts)
 from tanksynth.verify.traces import TraceRecorder
@@ -35,7 +36,7 @@ __all__ = [
     "slowest_time_constant", "fastest_rate", "eigen_time_constant", "region_time_constant",
     "designed_time_constant", "eigenvector_conditioning", "observer_period", "perturbed_start",
     "observer_convergence", "luenberger_estimator", "StateFeedback", "IntegralStateFeedback",
-    "servo_check", "regulation_check", "machine_description",
+    "servo_check", "regulation_check", "machine_description", "single_run_step_time",
 ]
 
 
@@ -347,6 +348,40 @@ def observer_convergence(plant: Plant, estimator: BatchEstimator, x0: np.ndarray
                   "estimator_time_s": float(res.timing.get("estimator", 0.0))
                   / max(int(res.timing.get("calls", 0)), 1),
                   "machine": machine_description()})
+
+
+def single_run_step_time(estimator: Any, Y: np.ndarray, U: np.ndarray, warmup: int = 5) -> float:
+    """Wall-clock time of one estimator step on one run, median over a sequence (s).
+
+    The first ``warmup`` steps (kernel loading, caches) are not counted.
+
+    Parameters
+    ----------
+    estimator : tanksynth.runtime.estimators.base.Estimator
+        A single-run estimator (its ``step(y, u)``).
+    Y : ndarray, shape (N, q)
+        Measurements (output units).
+    U : ndarray, shape (N, m)
+        Inputs held before each measurement (input units).
+    warmup : int
+        Steps run before the timing.
+
+    Returns
+    -------
+    float
+        Median step time (s); NaN when a step fails or fewer than ``warmup + 1`` samples.
+    """
+    times = []
+    try:
+        with np.errstate(all="ignore"):
+            for k in range(len(Y)):
+                t0 = time.perf_counter()
+                estimator.step(Y[k], U[k])
+                if k >= warmup:
+                    times.append(time.perf_counter() - t0)
+    except NUMERIC_ERRORS:
+        return float("nan")
+    return float(np.median(times)) if times else float("nan")
 
 
 def machine_description() -> str:

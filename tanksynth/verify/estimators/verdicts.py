@@ -34,6 +34,7 @@ from tanksynth.verify.estimators.narx import (NARX_FIT_FACTOR, steady_state_nois
                                               NARX_FRESH_DRAW, fresh_ekf_data, narx_network,
                                               narx_tuning, teacher_forced_inputs)
 from tanksynth.verify.simulations import (designed_time_constant, eigen_time_constant,
+                                          machine_description, single_run_step_time,
                                           eigenvector_conditioning, observer_convergence)
 from tanksynth.verify.traces import TraceRecorder
 
@@ -542,6 +543,7 @@ def narx_verdict(doc: Mapping[str, Any], spec: Spec, *,
                                substeps=int(option(doc, spec, "sim_substeps", 10)))
         bound = float(np.sqrt(np.mean((free.x.transpose(1, 0, 2)[1:] - truth) ** 2)))
         floor = steady_state_noise_floor(plant, spec, ekf)
+        per_step = single_run_step_time(NARXEstimator(plant, tuning), data["y"][:, 0], data["u"][:, 0])
         ok = bool(failed is None and np.all(np.isfinite(X_hat)) and rmse <= bound)
         out.append(Check("closed_loop_bounded", ok,
                          f"NARX in closed loop (own estimates fed back) on the fresh measurements: "
@@ -553,7 +555,10 @@ def narx_verdict(doc: Mapping[str, Any], spec: Spec, *,
                            f"reference: EKF RMSE {ekf_rmse:.4g} m, steady-state Kalman noise floor "
                            f"{floor:.3g} m at the operating point",
                          {"rmse": rmse, "bound": bound, "open_loop_rmse": bound,
-                          "ekf_rmse": ekf_rmse, "noise_floor": floor}))
+                          "ekf_rmse": ekf_rmse, "noise_floor": floor,
+                          # one run stepped sample by sample, as the other estimators' verdicts
+                          # time theirs (seed 002's timing order)
+                          "estimator_time_s": per_step, "machine": machine_description()}))
         return out
 
     checks += guard("one_step_fit", fresh)
