@@ -1,4 +1,4 @@
-"""A long filtering run of the nonlinear network: centralised against one-step decentralised gains.
+"""A long filtering run of the nonlinear network: centralised, one-step and finite-horizon gains.
 
 The seed 003 example runs its filters for 800 samples with a pump command that changes half
 way. A verdict cannot call the design's gain code (import-linter contract), so the filters here
@@ -9,6 +9,16 @@ are written from their definitions, independently of `tanksynth.design.decentral
 * centralised gain: ``K = P C' (C P C' + R)^-1``;
 * one-step decentralised gain under the pattern ``E``: ``tr P(k|k)`` is a sum over the rows of
   ``K``, so each row's free entries solve ``K_iS (C P C' + R)_SS = (P C')_iS`` exactly;
+* finite-horizon decentralised gains over a window of ``T`` samples (`finite_horizon_gain_sequence`):
+  ``min sum_k tr P(k|k)`` over ``K_1 .. K_T`` on ``E``, by exact block-coordinate sweeps started
+  from the one-step gains: backwards, with the cost-to-go weight ``L_T = I``,
+  ``L_k = I + M' L_{k+1} M``, ``M = (I - K_{k+1} C_{k+1}) A_k``, each ``K_k`` solves
+  ``[L_k K_k S_k]_E = [L_k P(k|k-1) C_k']_E`` (``S_k = C_k P(k|k-1) C_k' + R``, the
+  stationarity of the cost in ``K_k`` with the other gains fixed); then the covariances forward;
+  until every ``tr P(k|k)`` changes by less than ``tol`` (relative). The filter (DECENTER's
+  script) computes them window by window on models along the trajectory predicted from its
+  estimate, relinearised every relinearize_every samples, from ``P(1|0) = A P A' + Q`` of the
+  previous window's last ``P(T|T)``;
 * covariance: Joseph form ``(I - K C) P (I - K C)' + K R K'`` (valid for any gain).
 
 The truth is the nonlinear plant (the simulator's integrator and clipping), with process noise
@@ -26,7 +36,7 @@ from tanksynth.analysis.linearize import discretize_zoh
 from tanksynth.plants.base import Plant
 from tanksynth.sim.integrate import Integrator, param_arrays
 
-__all__ = ["LongRun", "long_run", "one_step_gain", "centralized_gain_of"]
+__all__ = ["LongRun", "long_run", "one_step_gain", "centralized_gain_of", "finite_horizon_gain_sequence"]
 
 
 @dataclass(frozen=True)
@@ -42,12 +52,15 @@ class LongRun:
     y : ndarray, shape (N, q)
         Measurements (output units).
     estimates : dict of str to ndarray, shape (N, n)
-        ``"centralized"`` and ``"one_step"`` estimates (state units).
+        ``"centralized"``, ``"one_step"`` and ``"finite_horizon"`` estimates (state units).
     rmse : dict of str to float
         RMSE of each estimate and of the measurements (``"measurement"``, output units, for
         ``y = h``), over every sample and state.
     trace_P : dict of str to float
-        Sum over the run of ``tr P(k|k)`` of each filter (squared state units).
+        Sum over the run of ``tr P(k|k)`` of each filter (squared state units); for the
+        finite-horizon filter that of its window models.
+    fh_windows : dict of str to int
+        ``"windows"`` solved, ``"converged"`` (met ``tol``) and ``"iterations"`` (sweeps, summed).
     """
 
     t: np.ndarray
@@ -56,6 +69,7 @@ class LongRun:
     estimates: dict[str, np.ndarray]
     rmse: dict[str, float]
     trace_P: dict[str, float]
+    fh_windows: dict[str, int]
 
 
 def _van_loan(F: np.ndarray, Qc: np.ndarray, ts: float) -> np.ndarray:
@@ -118,6 +132,87 @@ def centralized_gain_of(P_pred: np.ndarray, C: np.ndarray, R: np.ndarray) -> np.
     return np.linalg.solve(S, C @ P_pred).T
 
 
+def finite_horizon_gain_sequence(A: list[np.ndarray], C: list[np.ndarray], Q: list[np.ndarray],
+                                 R: list[np.ndarray], E: np.ndarray, P1: np.ndarray, tol: float,
+                                 max_iter: int) -> tuple[list[np.ndarray], list[np.ndarray], int, bool]:
+    """Gains ``K_1 .. K_T`` on ``E`` minimising ``sum_k tr P(k|k)`` over a window (sweeps).
+
+    Parameters
+    ----------
+    A, C, Q, R : list of ndarray, length T
+        ``A_k`` (n, n, dimensionless; maps step k to k+1), ``C_k`` (q, n), ``Q_k`` (n, n, squared
+        state units), ``R_k`` (q, q, squared output units).
+    E : ndarray, shape (n, q)
+        0/1 pattern of the free gain entries (dimensionless).
+    P1 : ndarray, shape (n, n)
+        ``P(1|0)`` (squared state units).
+    tol : float
+        Relative change of every ``tr P(k|k)`` at which the sweeps stop (dimensionless).
+    max_iter : int
+        Largest number of sweeps.
+
+    Returns
+    -------
+    K : list of ndarray, each (n, q)
+        The gains (state units per output unit), 0 off ``E``.
+    P_filt : list of ndarray, each (n, n)
+        ``P(k|k)`` under them (squared state units).
+    iterations : int
+        Sweeps done.
+    converged : bool
+        ``tol`` was met within ``max_iter`` sweeps.
+    """
+    T, n = len(A), A[0].shape[0]
+    eye = np.eye(n)
+    rows, cols = np.nonzero(np.asarray(E) != 0)
+    rr, cc = np.ix_(rows, rows), np.ix_(cols, cols)
+
+    def gain(L: np.ndarray, Pp: np.ndarray, k: int) -> np.ndarray:
+        # d/dK_k of the cost, with the other gains fixed: 2 [L (K S - P C')]_E = 0
+        S = C[k] @ Pp @ C[k].T + R[k]
+        K = np.zeros((n, C[k].shape[0]))
+        K[rows, cols] = np.linalg.solve(L[rr] * S[cc], (L @ Pp @ C[k].T)[rows, cols])
+        return K
+
+    def joseph(K: np.ndarray, k: int, Pp: np.ndarray) -> np.ndarray:
+        IKC = eye - K @ C[k]
+        P = IKC @ Pp @ IKC.T + K @ R[k] @ K.T
+        return 0.5 * (P + P.T)
+
+    K: list[np.ndarray] = []
+    P_pred: list[np.ndarray] = []
+    P_filt: list[np.ndarray] = []
+    Pp = P1
+    for k in range(T):                       # start: the one-step gains
+        P_pred.append(Pp)
+        K.append(gain(eye, Pp, k))
+        P_filt.append(joseph(K[k], k, Pp))
+        Pp = A[k] @ P_filt[k] @ A[k].T + Q[k]
+    traces = np.array([np.trace(P) for P in P_filt])
+    it, converged = 0, False
+    for it in range(1, max_iter + 1):
+        L = eye
+        for k in range(T - 1, -1, -1):      # backwards: each K_k given the later gains
+            if k < T - 1:
+                M = (eye - K[k + 1] @ C[k + 1]) @ A[k]
+                L = eye + M.T @ L @ M
+            K[k] = gain(L, P_pred[k], k)
+        Pp = P1
+        for k in range(T):                   # forwards: their covariances
+            P_pred[k] = Pp
+            P_filt[k] = joseph(K[k], k, Pp)
+            Pp = A[k] @ P_filt[k] @ A[k].T + Q[k]
+        new = np.array([np.trace(P) for P in P_filt])
+        if not np.all(np.isfinite(new)):
+            raise np.linalg.LinAlgError("finite-horizon sweeps: non-finite covariance")
+        rel = float(np.max(np.abs(new - traces) / np.abs(traces)))
+        traces = new
+        if rel < tol:
+            converged = True
+            break
+    return K, P_filt, it, converged
+
+
 def _inside(plant: Plant, x: np.ndarray) -> np.ndarray:
     """``x`` moved into the region, 1e-6 of its span inside the lower bounds: below a tank's
     bottom (an estimate can be) Torricelli's law has no derivative."""
@@ -151,8 +246,9 @@ class _Model:
 
 def long_run(plant: Plant, x0: np.ndarray, inputs: np.ndarray, ts: float, Qc: np.ndarray,
              R: np.ndarray, P0: np.ndarray, E: np.ndarray, relinearize_every: int,
-             seed: int) -> LongRun:
-    """Centralised and one-step decentralised filters on one noisy run of the nonlinear plant.
+             seed: int, window: int = 0, tol: float = 1e-6, max_iter: int = 100) -> LongRun:
+    """Centralised, one-step and finite-horizon decentralised filters on one noisy run of the
+    nonlinear plant.
 
     Parameters
     ----------
@@ -175,6 +271,12 @@ def long_run(plant: Plant, x0: np.ndarray, inputs: np.ndarray, ts: float, Qc: np
         Samples between linearisations (truth noise and each filter's model).
     seed : int
         Seed of the numpy generator (initial estimate, process and measurement noise).
+    window : int
+        Samples per finite-horizon window (>= 1); 0: no finite-horizon filter.
+    tol : float
+        Relative tolerance of the finite-horizon sweeps (dimensionless).
+    max_iter : int
+        Largest number of sweeps per window.
 
     Returns
     -------
@@ -221,7 +323,38 @@ def long_run(plant: Plant, x0: np.ndarray, inputs: np.ndarray, ts: float, Qc: np
             total += float(np.trace(P))
             out[k] = xh
         est[name], cost[name] = out, total
+    fh = {"windows": 0, "converged": 0, "iterations": 0}
+    if window > 0:
+        xh, P, out, total = xhat0.copy(), P0.copy(), np.empty((steps, n)), 0.0
+        model = None
+        for s in range(0, steps, window):
+            T = min(window, steps - s)
+            models, xs = [], xh                  # models along the trajectory predicted from xh
+            for j in range(T + 1):
+                u = inputs[min(s + j, steps - 1)]
+                if j % relinearize_every == 0:
+                    mo = _Model(plant, xs, u, ts, Qc)
+                models.append(mo)
+                xs = mo.predict(xs, u)
+            w = models[1:]
+            P1 = models[0].A @ P @ models[0].A.T + models[0].Q
+            Ks, Pf, its, conv = finite_horizon_gain_sequence(
+                [mo.A for mo in w], [mo.C for mo in w], [mo.Q for mo in w], [R] * T, E, P1, tol, max_iter)
+            fh["windows"] += 1
+            fh["converged"] += int(conv)
+            fh["iterations"] += its
+            total += float(sum(np.trace(p) for p in Pf))
+            for j in range(T):
+                k = s + j
+                u = inputs[k]
+                if model is None or k % relinearize_every == 0:   # as the other filters
+                    model = _Model(plant, xh, u, ts, Qc)
+                xp = model.predict(xh, u)
+                xh = xp + Ks[j] @ (Y[k] - model.output(xp))
+                out[k] = xh
+            P = Pf[-1]
+        est["finite_horizon"], cost["finite_horizon"] = out, total
     rmse = {k: float(np.sqrt(np.mean((v - X) ** 2))) for k, v in est.items()}
     if q == n:
         rmse["measurement"] = float(np.sqrt(np.mean((Y - X) ** 2)))
-    return LongRun(np.arange(1, steps + 1) * ts, X, Y, est, rmse, cost)
+    return LongRun(np.arange(1, steps + 1) * ts, X, Y, est, rmse, cost, fh)
