@@ -150,6 +150,10 @@ def test_seed003_rows(tmp_path_factory):
         assert rows[label].verdict == AGREES, label
     cost = rows[r"expected cost $\sum_k \mathrm{tr}\,P(k|k)$ of the first window (cm$^2$)"]
     assert cost.verdict == AGREES
+    # the 800-sample run (verdict long_run): the paper's ordering of the three filters' RMSE
+    run = rows[f"{paper003.DURATION}-sample run: RMSE centralised vs finite-horizon vs one-step (cm)"]
+    assert run.verdict == AGREES
+    assert f"{paper003.DURATION // paper003.WINDOW}/{paper003.DURATION // paper003.WINDOW} windows converged" in str(run.note)
 
 
 def test_nearest_admissible_by_hand():

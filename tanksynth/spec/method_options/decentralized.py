@@ -99,8 +99,10 @@ class DecentralizedKalmanOptions(MethodOptions):
     run_steps : int
         Samples of the verdict's long run (>= 0; default 0: none): the nonlinear plant
         from the operating point under ``input`` (then ``input_after``), measured with
-        ``measurement_noise``, filtered by the centralised and the one-step decentralised
-        filters relinearised at their estimates every ``relinearize_every`` samples.
+        ``measurement_noise``, filtered by the centralised, the one-step and the finite-horizon
+        decentralised filters relinearised at their estimates every ``relinearize_every``
+        samples (the last with gains per ``window`` samples, to ``tolerance``, at most
+        ``max_iter`` sweeps).
     input_after : ndarray or None
         Input of the long run from ``input_switch`` on (m values, input units); default
         None: ``input`` throughout.
