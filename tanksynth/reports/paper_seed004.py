@@ -33,7 +33,7 @@ __all__ = ["structure_applies", "structure_rows", "detection_applies", "detectio
 #: (scripts/seed004_detection_search.py, closed form; its results in
 #: tests/data/seed004_detection_search.json, which a test ties to these words and numbers).
 #: LaTeX: the threshold as printed is written \bar\epsilon = sum c_i exp(lambda_i t) (the table's
-#: threshold row), its every-term-positive variant \bar\epsilon_+ = sum |c_i| exp(lambda_i t).
+#: threshold row), its every-term-positive variant \bar\epsilon_+ = sum abs(c_i) exp(lambda_i t).
 DETECTION_SEARCH = (
     r"not reachable: searched in closed form over 5460 combinations (observer with the derived "
     r"gain, the printed gain or the printed $\Gamma_d$; fault: step or ramp into tank 1 (actuator), "
