@@ -38,8 +38,9 @@ test
     re-derived independently are strict xfails, which fail once the TODO is done (remove the
     marker then).
 docs
-    The README's generated sections (``python -m tanksynth.docgen``); the Sphinx pages are
-    generated from the table when the docs are built.
+    The generated sections of the documentation pages (``python -m tanksynth.docgen``:
+    ``docs/design_methods.md`` and the other pages of `tanksynth.docgen.DOC_PAGES`); the
+    Sphinx pages are generated from the table when the docs are built.
 
 Each module gets its new names in ``__all__`` and the imports they need at its top (a module
 that does not exist yet is created with a docstring and ``__all__``). A family that is not in
@@ -47,7 +48,7 @@ that does not exist yet is created with a docstring and ``__all__``). A family t
 
 Everything is checked before anything is written; the files are then written one by one
 atomically (temporary file, rename), the new tree is checked in a fresh interpreter (every
-part of the table resolves, the example loads) and the README is regenerated; if that fails,
+part of the table resolves, the example loads) and the generated pages are rewritten; if that fails,
 every file is restored.
 
 Parameters
@@ -1039,9 +1040,16 @@ def _atomic(path: Path, text: str) -> None:
     os.replace(tmp, path)
 
 
+def _generated_pages(root: Path) -> list[Path]:
+    """The documentation pages with generated sections (``python -m tanksynth.docgen`` rewrites them)."""
+    docs = root / "docs"
+    return sorted(p for p in docs.glob("*.md")
+                  if "<!-- BEGIN GENERATED" in p.read_text(encoding="utf-8")) if docs.is_dir() else []
+
+
 def _check_tree(request: Request) -> None:
     """In a fresh interpreter on the written tree: every part of the table resolves and the
-    example loads with the new method; then the README's generated sections are rewritten."""
+    example loads with the new method; then the generated documentation pages are rewritten."""
     root = request.root
     env = {**os.environ, "PYTHONDONTWRITEBYTECODE": "1",
            "PYTHONPATH": os.pathsep.join([str(root), os.environ.get("PYTHONPATH", "")])}
@@ -1050,9 +1058,8 @@ def _check_tree(request: Request) -> None:
             f"s = m.load_spec({str(example)!r}); "
             f"assert [d.method for d in s.designs] == [{request.name!r}], s.designs")
     steps = {"resolving the table and loading the example": [sys.executable, "-c", code]}
-    if (root / "README.md").is_file():
-        steps["python -m tanksynth.docgen"] = [sys.executable, "-m", "tanksynth.docgen",
-                                               str(root / "README.md")]
+    if _generated_pages(root):
+        steps["python -m tanksynth.docgen"] = [sys.executable, "-m", "tanksynth.docgen"]
     for what, step in steps.items():
         run = subprocess.run(step, cwd=root, env=env, capture_output=True, text=True)
         if run.returncode != 0:
@@ -1085,22 +1092,21 @@ def main(argv: Sequence[str] | None = None) -> int:
     except CheckFailed as exc:
         sys.stderr.write(f"{prog}: error: {exc}\n")
         return 1
-    readme = request.root / "README.md"
+    pages = _generated_pages(request.root)
     listing = [f"{'update' if e.original is not None else 'create'} {e.path.relative_to(request.root)}"
                for e in edits]
-    if readme.is_file():
-        listing.append("update README.md (python -m tanksynth.docgen)")
+    listing += [f"update {p.relative_to(request.root)} (python -m tanksynth.docgen)" for p in pages]
     if args.dry_run:
         sys.stdout.write("".join(f"would {line}\n" for line in listing))
         return 0
-    readme_text = readme.read_text(encoding="utf-8") if readme.is_file() else None
+    page_texts = {p: p.read_text(encoding="utf-8") for p in pages}
     undo = _write(edits)
     try:
         _check_tree(request)
     except BaseException as exc:
         undo()
-        if readme_text is not None:
-            _atomic(readme, readme_text)
+        for page, text in page_texts.items():
+            _atomic(page, text)
         if isinstance(exc, CheckFailed):
             sys.stderr.write(f"{prog}: error: {exc}; every file restored\n")
             return 1

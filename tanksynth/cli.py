@@ -390,7 +390,7 @@ def cli(verbose: bool) -> None:
 @cli.command()
 @click.option("--json", "as_json", is_flag=True, help="Print JSON instead of tables.")
 @click.option("--markdown", is_flag=True, help="Print the families, their options and the custom "
-                                               "plant as Markdown (the README's text).")
+                                               "plant as Markdown (docs/plant_families.md).")
 def plants(as_json: bool, markdown: bool) -> None:
     """List the plant families: their options, parameters and units, and the custom plant."""
     from tanksynth.docgen import (custom_plant_markdown, plain_text, plant_families,
@@ -432,7 +432,7 @@ def plants(as_json: bool, markdown: bool) -> None:
 @cli.command()
 @click.argument("name", required=False)
 @click.option("--json", "as_json", is_flag=True, help="Print JSON instead of tables.")
-@click.option("--markdown", is_flag=True, help="Print Markdown (the README's text).")
+@click.option("--markdown", is_flag=True, help="Print Markdown (docs/design_methods.md).")
 def methods(name: str | None, as_json: bool, markdown: bool) -> None:
     """List the design methods; with NAME, each of its options (type, default, unit, meaning)."""
     from tanksynth.docgen import (method_catalogue, method_markdown, method_options, methods_markdown,

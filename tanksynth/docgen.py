@@ -5,9 +5,10 @@ row's kinds, summary and Options dataclass, whose fields declare defaults and
 units and whose docstring says what each option means) and from the plant
 builders (`tanksynth.plants.BUILTIN_PLANTS`: signature and numpydoc
 ``Parameters``). The same text feeds ``tanksynth methods``, ``tanksynth
-plants``, the README's generated sections and the Sphinx pages.
+plants``, the generated sections of the documentation pages (`DOC_PAGES`: the one-page
+method and plant catalogues, the gain-name table) and the Sphinx pages.
 
-Run ``python -m tanksynth.docgen`` to rewrite the README's generated sections
+Run ``python -m tanksynth.docgen`` to rewrite the generated sections of `DOC_PAGES`
 (``--check`` exits 1 when they are stale instead).
 """
 
@@ -725,7 +726,7 @@ def api_reference_markdown() -> str:
     return "\n".join(lines).rstrip("\n") + "\n"
 
 
-#: The README's generated sections: marker name -> text.
+#: The generated sections of the documentation pages: marker name -> text.
 GENERATED_SECTIONS: dict[str, Callable[[], str]] = {"plants": plants_markdown,
                                                     "methods": methods_markdown,
                                                     "gain_names": gain_names_markdown}
@@ -763,32 +764,47 @@ def generated_section(text: str, name: str) -> str:
 
 
 #: Pages of the documentation source (relative to the repository root) holding generated
-#: sections, and which: `main` rewrites them with the README.
-DOC_PAGES: dict[str, tuple[str, ...]] = {"docs/gain_names.md": ("gain_names",)}
+#: sections, and which: `main` rewrites them.
+DOC_PAGES: dict[str, tuple[str, ...]] = {"docs/design_methods.md": ("methods",),
+                                         "docs/plant_families.md": ("plants",),
+                                         "docs/artefacts.md": ("gain_names",),
+                                         "docs/gain_names.md": ("gain_names",)}
 
 
 def update_readme(path: str | Path, check: bool = False,
                   sections: Sequence[str] | None = None) -> list[str]:
-    """Rewrite the generated sections of a README (or, with ``check``, only compare).
+    """Rewrite the generated sections of a page (or, with ``check``, only compare).
 
     Parameters
     ----------
     path : str or Path
-        The README (or a page of `DOC_PAGES`).
+        A page of `DOC_PAGES` (or any Markdown file with generated sections).
     check : bool
         Do not write; only report what differs.
     sections : sequence of str, optional
-        The sections the file holds (default every one of `GENERATED_SECTIONS`).
+        The sections the file holds (default every one of `GENERATED_SECTIONS` whose
+        markers it has).
 
     Returns
     -------
     list of str
         The sections that were stale (rewritten unless ``check``).
+
+    Raises
+    ------
+    SpecError
+        A section named in ``sections`` has no markers, or (``sections`` omitted) the file
+        holds none.
     """
     path = Path(path)
     text = path.read_text(encoding="utf-8")
+    if sections is None:
+        sections = [name for name in GENERATED_SECTIONS if _markers(name)[0] in text]
+        if not sections:
+            raise SpecError(f"{path}: no generated section (expected the lines "
+                            f"{_markers('NAME')[0]!r} ... {_markers('NAME')[1]!r})")
     stale = []
-    for name in GENERATED_SECTIONS if sections is None else sections:
+    for name in sections:
         make = GENERATED_SECTIONS[name]
         current, wanted = generated_section(text, name), make()
         if current != wanted:
@@ -850,8 +866,8 @@ def write_pages(directory: str | Path) -> list[Path]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """``python -m tanksynth.docgen [--check] [README]``: rewrite (or check) the README and, without
-    a README argument, the pages of `DOC_PAGES` (run from the repository root).
+    """``python -m tanksynth.docgen [--check] [FILE]``: rewrite (or check) the generated sections
+    of the pages of `DOC_PAGES` (run from the repository root) or, given, of FILE alone.
 
     Parameters
     ----------
@@ -867,7 +883,7 @@ def main(argv: list[str] | None = None) -> int:
     check = "--check" in args
     paths = [a for a in args if a != "--check"]
     files: list[tuple[str, Sequence[str] | None]] = [(paths[0], None)] if paths else [
-        ("README.md", None), *((page, names) for page, names in DOC_PAGES.items() if Path(page).is_file())]
+        (page, names) for page, names in DOC_PAGES.items() if Path(page).is_file()]
     any_stale = False
     for path, sections in files:
         stale = update_readme(path, check=check, sections=sections)

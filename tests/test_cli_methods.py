@@ -1,5 +1,5 @@
 """Discoverable options: ``tanksynth methods``, ``tanksynth plants``, ``check -o`` and the
-README's generated sections."""
+generated documentation pages (docs/design_methods.md, docs/plant_families.md)."""
 
 from __future__ import annotations
 
@@ -18,6 +18,9 @@ from tanksynth.methods import TABLE
 from tanksynth.plants import BUILTIN_PLANTS
 
 ROOT = Path(__file__).resolve().parents[1]
+METHODS_PAGE = ROOT / "docs" / "design_methods.md"
+PLANTS_PAGE = ROOT / "docs" / "plant_families.md"
+COMMANDS_PAGE = ROOT / "docs" / "commands.md"
 SEED000 = ROOT / "examples" / "seed000_three_tank.toml"
 
 
@@ -109,28 +112,41 @@ def test_custom_plant_example_of_the_guide_parses():
     assert spec.plant.n == 1 and [s.name for s in spec.plant.states] == ["h"]
 
 
-def test_readme_generated_sections_are_up_to_date():
-    stale = docgen.update_readme(ROOT / "README.md", check=True)
-    assert stale == [], f"README sections {stale} are stale: run python -m tanksynth.docgen"
-    text = (ROOT / "README.md").read_text(encoding="utf-8")
-    section = docgen.generated_section(text, "methods")
+def test_generated_doc_pages_are_up_to_date(monkeypatch):
+    monkeypatch.chdir(ROOT)
+    assert docgen.main(["--check"]) == 0   # python -m tanksynth.docgen --check, as CI runs it
+    for page, sections in docgen.DOC_PAGES.items():
+        stale = docgen.update_readme(ROOT / page, check=True, sections=sections)
+        assert stale == [], f"{page} sections {stale} are stale: run python -m tanksynth.docgen"
+    section = docgen.generated_section(METHODS_PAGE.read_text(encoding="utf-8"), "methods")
     for row in TABLE:
         assert f"### `{row.name}`" in section
         for name in row.options.option_names():
             assert f"| `{name}` |" in section, (row.name, name)
-    plants = docgen.generated_section(text, "plants")
+    plants = docgen.generated_section(PLANTS_PAGE.read_text(encoding="utf-8"), "plants")
     for name in [*BUILTIN_PLANTS, "custom"]:
         assert f'`model = "{name}"`' in plants
 
 
-def test_docgen_check_reports_a_stale_readme(tmp_path):
-    readme = tmp_path / "README.md"
-    readme.write_text((ROOT / "README.md").read_text(encoding="utf-8").replace(
+def test_the_readme_is_the_short_path():
+    """The README holds no generated section: it links the pages that do."""
+    text = (ROOT / "README.md").read_text(encoding="utf-8")
+    assert "BEGIN GENERATED" not in text
+    for page in docgen.DOC_PAGES:
+        if page != "docs/gain_names.md":
+            assert f"]({page})" in text, page
+    for link in re.findall(r"\]\((docs/[\w/]+\.md)\)", text):
+        assert (ROOT / link).is_file(), link
+
+
+def test_docgen_check_reports_a_stale_page(tmp_path):
+    readme = tmp_path / "design_methods.md"
+    readme.write_text(METHODS_PAGE.read_text(encoding="utf-8").replace(
         "| `margin` |", "| `margin_old` |", 1), encoding="utf-8")
     assert docgen.main(["--check", str(readme)]) == 1
     assert docgen.main([str(readme)]) == 0
     assert docgen.main(["--check", str(readme)]) == 0
-    assert readme.read_text(encoding="utf-8") == (ROOT / "README.md").read_text(encoding="utf-8")
+    assert readme.read_text(encoding="utf-8") == METHODS_PAGE.read_text(encoding="utf-8")
 
 
 def test_check_output_writes_checks_json(tmp_path, capsys):
@@ -160,7 +176,7 @@ EXAMPLES_BY_METHOD = _examples_by_method()
 @pytest.mark.parametrize("row", TABLE, ids=lambda r: r.name)
 def test_catalogue_row_says_what_a_none_default_is(row):
     """Every option whose default is None says what the default IS, and its type admits None."""
-    section = docgen.generated_section((ROOT / "README.md").read_text(encoding="utf-8"), "methods")
+    section = docgen.generated_section(METHODS_PAGE.read_text(encoding="utf-8"), "methods")
     for d in row.options.describe():
         if d.default != "None":
             continue
@@ -177,14 +193,14 @@ def test_catalogue_row_says_what_a_none_default_is(row):
                          ids=lambda r: r.name)
 def test_catalogue_row_lists_every_allowed_value_of_a_choice(row, capsys):
     """Each option is given a word no reader accepts: when the reader answers 'expected one of
-    [...]', every value it names must be in the README row and in ``tanksynth methods NAME``."""
+    [...]', every value it names must be in the catalogue row and in ``tanksynth methods NAME``."""
     import tomllib
 
     from tanksynth.errors import SpecError
     from tanksynth.methods import parse_spec
 
     path, index = EXAMPLES_BY_METHOD[row.name]
-    section = docgen.generated_section((ROOT / "README.md").read_text(encoding="utf-8"), "methods")
+    section = docgen.generated_section(METHODS_PAGE.read_text(encoding="utf-8"), "methods")
     rows = section.split(f"### `{row.name}`", 1)[1].split("\n### ", 1)[0]
     _, cli_out, _ = run_cli(capsys, "methods", row.name, "--markdown")
     probed = 0
@@ -241,10 +257,10 @@ def test_placement_algorithm_is_settable_from_a_spec():
     assert parse_spec_text(text).designs[0].config.algorithm == "place"
 
 
-def _readme_command_rows() -> dict[str, str]:
-    """The README's command table: command name -> its row (usage and what it does)."""
-    text = (ROOT / "README.md").read_text(encoding="utf-8")
-    section = text[text.index("## Command line"):]
+def _command_rows() -> dict[str, str]:
+    """The command table of docs/commands.md: command name -> its row (usage and what it does)."""
+    text = COMMANDS_PAGE.read_text(encoding="utf-8")
+    section = text[text.index("# Command line"):]
     rows = {}
     for line in section.splitlines():
         m = re.match(r"\| `tanksynth (\w+)[ `]", line)
@@ -253,12 +269,12 @@ def _readme_command_rows() -> dict[str, str]:
     return rows
 
 
-def test_readme_command_table_names_every_option_of_every_command():
+def test_command_table_names_every_option_of_every_command():
     """Every option ``--help`` lists (long and short forms, ``--no-`` ones included) is in the
-    README row of its command; every command has a row."""
+    docs/commands.md row of its command; every command has a row."""
     from tanksynth.cli import cli
 
-    rows = _readme_command_rows()
+    rows = _command_rows()
     assert set(rows) == set(cli.commands), (sorted(rows), sorted(cli.commands))
     missing = []
     for name, command in cli.commands.items():
@@ -270,8 +286,8 @@ def test_readme_command_table_names_every_option_of_every_command():
             if not any(opt in said for opt in param.opts):   # -o or --output, either form
                 missing.append(f"{name} {'/'.join(param.opts)}")
             missing += [f"{name} {opt}" for opt in param.secondary_opts if opt not in said]
-    assert missing == [], f"README command table lacks {missing}"
-    text = (ROOT / "README.md").read_text(encoding="utf-8")
+    assert missing == [], f"docs/commands.md command table lacks {missing}"
+    text = COMMANDS_PAGE.read_text(encoding="utf-8")
     for param in cli.params:  # the group's own options (tanksynth -v ...)
         assert any(f"`tanksynth {opt}" in text for opt in param.opts), param.opts
 

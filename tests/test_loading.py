@@ -358,5 +358,5 @@ def test_as_complex_reads_the_documented_json_form_of_eigenvalues():
     import pytest
     with pytest.raises(ValueError):
         tanksynth.as_complex([[1.0, 2.0, 3.0]])
-    readme = (Path(tanksynth.__file__).resolve().parents[1] / "README.md").read_text(encoding="utf-8")
+    readme = (Path(tanksynth.__file__).resolve().parents[1] / "docs" / "artefacts.md").read_text(encoding="utf-8")
     assert "[re, im]` pair" in readme and "tanksynth.as_complex" in readme

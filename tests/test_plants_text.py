@@ -1,5 +1,5 @@
 """Issue 30 item 11: ``tanksynth plants`` is text for a terminal, and the tank_network page (the
-README's plants section and the Sphinx page, both from `tanksynth.docgen.plant_markdown`) lists
+docs/plant_families.md and the Sphinx page, both from `tanksynth.docgen.plant_markdown`) lists
 parameter values, those of each parameter set included."""
 
 from __future__ import annotations

@@ -21,9 +21,9 @@ import pytest
 from tanksynth.methods import TABLE
 
 ROOT = Path(__file__).resolve().parents[1]
-#: What the scaffolded copy needs: the package, the examples, the script, the README it
-#: regenerates and the tests run on the result (with their configuration).
-COPIED = ("tanksynth", "examples", "scripts/add_method.py", "README.md", "pyproject.toml",
+#: What the scaffolded copy needs: the package, the examples, the script, the documentation
+#: pages it regenerates and the tests run on the result (with their configuration).
+COPIED = ("tanksynth", "examples", "scripts/add_method.py", "docs", "pyproject.toml",
           ".importlinter", "tests/test_methods.py", "tests/test_api.py", "tests/test_docstrings.py",
           "tests/docstring_exceptions.txt")
 #: The two methods scaffolded: one into an existing family (a detector with the plant of that
@@ -40,7 +40,7 @@ def _copy(tree: Path) -> Path:
         source, target = ROOT / name, tree / name
         target.parent.mkdir(parents=True, exist_ok=True)
         if source.is_dir():
-            shutil.copytree(source, target, ignore=shutil.ignore_patterns("__pycache__", "*.pyc"))
+            shutil.copytree(source, target, ignore=shutil.ignore_patterns("__pycache__", "*.pyc", "_build", "_generated"))
         else:
             shutil.copy2(source, target)
     return tree
@@ -177,10 +177,10 @@ def test_methods_command_lists_the_new_option(scaffolded):
 
 
 @pytest.mark.slow
-def test_readme_is_regenerated_and_layers_hold(scaffolded):
-    assert _run(scaffolded, "-m", "tanksynth.docgen", "--check", "README.md").returncode == 0
-    readme = (scaffolded / "README.md").read_text(encoding="utf-8")
-    assert f"### `{EXISTING[0]}`" in readme and f"### `{NEW[0]}`" in readme
+def test_doc_pages_are_regenerated_and_layers_hold(scaffolded):
+    assert _run(scaffolded, "-m", "tanksynth.docgen", "--check").returncode == 0
+    page = (scaffolded / "docs" / "design_methods.md").read_text(encoding="utf-8")
+    assert f"### `{EXISTING[0]}`" in page and f"### `{NEW[0]}`" in page
     lint = Path(sys.executable).with_name("lint-imports")
     if not lint.is_file():
         pytest.skip("import-linter is not installed beside this interpreter")

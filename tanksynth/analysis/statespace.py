@@ -15,7 +15,7 @@
     the artefact gain names of a linear model's matrices in a time domain
     (the naming rule: ``F, B, Bw`` continuous, ``Ad, Bd, Bwd`` discrete).
 `GAIN_NAMES`, `undocumented_gains`
-    the one table of every artefact gain name (README, Artefacts) and its check.
+    the one table of every artefact gain name (docs/artefacts.md) and its check.
 """
 
 from __future__ import annotations
@@ -271,7 +271,7 @@ def model_names(time_domain: str) -> dict[str, str]:
         raise ValueError(f"time_domain must be 'continuous' or 'discrete', got {time_domain!r}") from None
 
 
-#: The one naming table of the artefacts' gains, name(s) -> meaning; the README's Artefacts
+#: The one naming table of the artefacts' gains, name(s) -> meaning; the artefacts page's
 #: table is generated from it (`tanksynth.docgen`) and tests/artefacts/test_naming.py checks
 #: that every gain of every example is named here. ``<k>`` stands for an index 0, 1, ...;
 #: ``sp_<name>`` for any other name of the table.

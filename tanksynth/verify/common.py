@@ -157,7 +157,7 @@ def artefact_gain(doc: Mapping[str, Any], name: str) -> np.ndarray:
     gains = doc["gains"]
     if name not in gains:
         old = _OLD_NAMES.get(name)
-        hint = f" but {old!r}: written before gains were renamed (README); design again" \
+        hint = f" but {old!r}: written before gains were renamed (docs/artefacts.md); design again" \
             if old in gains else ""
         raise ArtefactError(f"artefact '{doc['name']}' ({doc['method']}) has no gain {name!r}{hint}")
     return np.atleast_1d(np.asarray(gains[name], dtype=float))

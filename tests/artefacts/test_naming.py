@@ -1,6 +1,6 @@
 """One naming rule for the gains of every method (issue 16), checked on every example's designs.
 
-The rule (README, Artefacts): continuous-time model ``F, B, C, Bw``; discrete-time ``Ad, Bd,
+The rule (docs/artefacts.md): continuous-time model ``F, B, C, Bw``; discrete-time ``Ad, Bd,
 C, Bwd``; operating point ``x_op, u_op``; an estimator's initial estimate ``x_hat0``. No gain
 is called ``A``, none ``x0`` or ``u0``; ``B`` appears only beside ``F`` and ``Bd`` beside
 ``Ad``; the names agree with the design's ``time_domain`` diagnostic, and the matrices behave
@@ -167,7 +167,7 @@ def test_an_artefact_with_the_old_names_is_named():
 
 @pytest.mark.slow
 def test_every_gain_name_is_in_the_table(designed):
-    """The README table (`GAIN_NAMES`) lists every gain every example's designs store."""
+    """The docs' table (`GAIN_NAMES`) lists every gain every example's designs store."""
     bad = [f"{example}/{name} ({r.method}): {undocumented_gains(list(r.gains))}"
            for (example, name), (_, r) in designed.items() if undocumented_gains(list(r.gains))]
     assert not bad, "undocumented gain names (add them to GAIN_NAMES):\n" + "\n".join(bad)
@@ -179,8 +179,8 @@ def test_the_table_check_fails_on_a_new_name():
     assert undocumented_gains(names) == ["Lambda_x0", "K_x", "sp_new", "new_gain", "x0", "A", "sp_"]
 
 
-def test_the_readme_table_is_generated_from_the_dict():
-    table = generated_section((ROOT / "README.md").read_text(encoding="utf-8"), "gain_names")
+def test_the_docs_table_is_generated_from_the_dict():
+    table = generated_section((ROOT / "docs" / "artefacts.md").read_text(encoding="utf-8"), "gain_names")
     assert table == gain_names_markdown()
     rows = [line for line in table.splitlines() if line.startswith("| `")]
     assert len(rows) == len(GAIN_NAMES)
