@@ -175,7 +175,7 @@ def toml_literal(text: str) -> str:
 
 
 def option_cells(doc: dict[str, Any]) -> tuple[str, str]:
-    """The type and default texts of one option of the catalogue (README, ``tanksynth methods``).
+    """The type and default texts of one option of the catalogue (catalogue pages, ``tanksynth methods``).
 
     The type is written as a TOML user writes the value (`toml_type`: ``string, one of "auto",
     "lmi"``, ``array of numbers``); the default says what a None or computed default IS (``computed: ...``).
@@ -648,7 +648,7 @@ def plants_markdown(level: int = 3) -> str:
 
 
 def gain_names_markdown() -> str:
-    """The README's gain-naming table, from `tanksynth.analysis.statespace.GAIN_NAMES`.
+    """The gain-naming table of the docs (artefacts page), from `tanksynth.analysis.statespace.GAIN_NAMES`.
 
     Returns
     -------
@@ -738,12 +738,12 @@ def _markers(name: str) -> tuple[str, str]:
 
 
 def generated_section(text: str, name: str) -> str:
-    """The text between the markers of section ``name`` in ``text`` (a README).
+    """The text between the markers of section ``name`` in ``text`` (a page of `DOC_PAGES`).
 
     Parameters
     ----------
     text : str
-        The README.
+        The page's text.
     name : str
         A key of `GENERATED_SECTIONS`.
 
