@@ -189,10 +189,11 @@ def test_seed004_verification_has_no_half_empty_page(tmp_path):
     """Issue 30.10: with each time-domain figure held at its place ([H]) a figure that did not fit
     after its check table went to the next page and left the page blank below the table (seed
     004: pages filled to 0.52, 0.22 and 0.23 of the text height). The figures float within
-    their subsection now (a float barrier at each subsection): every page of the verification
-    section but its last is filled to more than 0.45 of the text height (0.53 at least: a short
-    table with a figure too tall for the rest of its page still ends its page early), and each
-    figure still sits in its design's subsection."""
+    their subsection now (placed before the check table where they fit, set by a float barrier
+    at the next subsection otherwise): every page of the verification section but its last is
+    filled to more than 0.45 of the text height (0.56 at least: a short table with a figure too
+    tall for the rest of its page still ends its page early), and each figure still sits in its
+    design's subsection."""
     from tanksynth.cli import main as cli
 
     d = tmp_path / "s4"
