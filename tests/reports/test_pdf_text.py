@@ -153,3 +153,67 @@ def test_refused_design_is_in_the_body(tmp_path):
     body_text = body(pdf_text(d / "report.pdf"))
     assert "largest achievable margin" in " ".join(body_text.split())
     assert "1 refused as infeasible" in text
+
+
+#: A4 text area of the report (geometry margin 2.2 cm = 62.36 pt): the body lies between these (pt).
+_TEXT_TOP, _TEXT_BOTTOM = 62.36, 841.89 - 62.36
+_WORD = re.compile(r'<word xMin="[\d.]+" yMin="([\d.]+)" xMax="[\d.]+" yMax="([\d.]+)">([^<]*)</word>')
+
+
+def _page_fill(pdf: Path, page: int) -> float:
+    """Fraction of the text height used on ``page``: lowest word of the body (not the page
+    number below it) measured from the top of the text area, over the text height."""
+    words = [(float(y0), float(y1)) for y0, y1, _ in
+             _WORD.findall(pdf_text(pdf, "-bbox", "-f", str(page), "-l", str(page)))]
+    body_words = [y1 for y0, y1 in words if y0 < _TEXT_BOTTOM]
+    if not body_words:
+        return 0.0
+    return (max(body_words) - _TEXT_TOP) / (_TEXT_BOTTOM - _TEXT_TOP)
+
+
+def _section_pages(pdf: Path, number: str, next_number: str) -> tuple[int, int]:
+    """First page of section ``number`` and the page where section ``next_number`` opens."""
+    first = last = None
+    pages = pdf_text(pdf, "-layout").split("\f")
+    for i, text in enumerate(pages, start=1):
+        if i > 2 and first is None and re.search(rf"^{number}\s{{2,}}\S", text, flags=re.M):
+            first = i   # (page 1-2 hold the contents, which list the headings too)
+        if first is not None and re.search(rf"^{next_number}\s{{2,}}\S", text, flags=re.M):
+            last = i
+            break
+    assert first is not None and last is not None, f"no section {number} / {next_number} in {pdf}"
+    return first, last
+
+
+def test_seed004_verification_has_no_half_empty_page(tmp_path):
+    """Issue 30.10: with each time-domain figure held at its place ([H]) a figure that did not fit
+    after its check table went to the next page and left the page blank below the table (seed
+    004: pages filled to 0.52, 0.22 and 0.23 of the text height). The figures float within
+    their subsection now (placed before the check table where they fit, set by a float barrier
+    at the next subsection otherwise): every page of the verification section but its last is
+    filled to more than 0.45 of the text height (0.56 at least: a short table with a figure too
+    tall for the rest of its page still ends its page early), and each figure still sits in its
+    design's subsection."""
+    from tanksynth.cli import main as cli
+
+    d = tmp_path / "s4"
+    assert cli(["run", str(Path(__file__).resolve().parents[2] / "examples"
+                           / "seed004_fault_detection.toml"), "-o", str(d), "--pdf"]) == 0
+    pdf = d / "report.pdf"
+    first, after = _section_pages(pdf, "5", "6")
+    assert after - first >= 4   # six designs with their check tables and figures
+    fills = {p: _page_fill(pdf, p) for p in range(first, after)}
+    # the verification's last page may be short; the page where section 6 opens is not its own
+    short = {p: round(f, 2) for p, f in fills.items() if p < after - 1 and f < 0.45}
+    assert not short, f"verification pages filled to less than 0.45 of the text height: {short}"
+    # every figure of the verification after its own subsection heading, before the next one
+    text = "\f".join(pdf_text(pdf, "-layout").split("\f")[first - 1:after])
+    text = text[:re.search(r"^\f?6\s{2,}\S", text, flags=re.M).start()]
+    heads = [(m.start(), _squash(m.group(1))) for m in
+             re.finditer(r"^\f?\s{0,3}5\.\d+\s{2,}(\S.*)$", text, flags=re.M)]
+    captions = list(re.finditer(r"Figure (\d+): .*?design (.+?) \(", text, flags=re.S))
+    assert len(heads) == 6 and len(captions) >= 6
+    for m in captions:
+        before = [h for h in heads if h[0] < m.start()]
+        assert before and _squash(m.group(2)) in before[-1][1], (
+            f"figure {m.group(1)} of {m.group(2)} is not under its subsection")
