@@ -218,8 +218,8 @@ _ARGUMENT_UNITS = {"x": "{s}", "x_hat": "{s}", "x_next": "{s}", "x_hat_next": "{
                    "x_hat_dot": "{s}/s", "x_pred": "{s}", "u": "{u}", "u_applied": "{u}",
                    "y": "{y}", "y_prev": "{y}", "y_r": "references of the tracked outputs, {y1}",
                    "P": "({s})^2", "P_next": "({s})^2",
-                   "z": "integrated tracking error", "z_next": "integrated tracking error",
-                   "z_dot": "tracking error", "t": "s"}
+                   "z": "integrated tracking error, {y1} s", "z_next": "integrated tracking error, {y1} s",
+                   "z_dot": "tracking error, {y1}", "t": "s"}
 
 
 def _unit_list(names: Sequence[str], units: Sequence[str]) -> str:
@@ -517,6 +517,15 @@ def mat_contents(gains: Mapping[str, np.ndarray], data: Mapping[str, Any]) -> di
             cells[i, 0] = text
         out[key] = cells
     units = matrix_units(data)
+    K = out.get("K")
+    n = len(data.get("state_units", ()))
+    if K is not None and K.ndim == 2 and n and K.shape[1] > n:
+        # integral action, K = [K1 K2]: K2 acts on z, the integrated output error (output unit s)
+        y = _uniform_unit(data.get("output_units", ()), "output units")
+        u, x = units["u_op"], units["x_op"]
+        wrap = (lambda t: f"({t})" if re.search(r"[ /*]", t) else t)
+        units["K"] = (f"{wrap(u)}/{wrap(x)} in columns 1-{n} (on x - x_op); {wrap(u)}/({wrap(y)} s) in "
+                      f"columns {n + 1}-{K.shape[1]} (on z, the integrated output error)")
     out["units"] = {k: v for k, v in units.items() if k in out}
     return out
 

@@ -422,6 +422,15 @@ def _verification_view(ver: Any) -> dict | None:
     }
 
 
+def _columns(value: Any) -> int | None:
+    """Columns of a numeric gain matrix, None for anything else."""
+    try:
+        arr = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        return None
+    return int(arr.shape[1]) if arr.ndim == 2 else None
+
+
 def _with_unit(display: GainDisplay, unit: str | None) -> GainDisplay:
     """``display`` with its unit typeset (none for an unknown or dimensionless unit)."""
     if unit is None or unit == "1":
@@ -470,7 +479,7 @@ def design_view(art: Mapping[str, Any], figure: FigureFile | None,
                     Tex("$" + format_eigenvalues([[v.real, v.imag] for v in s.values], 5, limit=16)
                         + "$" + (r" \ ($z$)" if s.discrete else ""))))
     continuous = design_is_continuous(diag)
-    gains = [_with_unit(gain_latex(k, v), gain_unit(k, plant, continuous))
+    gains = [_with_unit(gain_latex(k, v), gain_unit(k, plant, continuous, _columns(v)))
              for k, v in (art.get("gains") or {}).items()]
     latex = [(gain_symbol(k), fragment_lines(gain_symbol(k), v) if is_trusted_math(v)
               else [Tex(gain_symbol(k) + " &= " + math_or_text(v)[0])])

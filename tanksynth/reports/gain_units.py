@@ -50,7 +50,8 @@ def unit_ratio(numerator: str, denominator: str) -> str:
     return f"{_grouped(num) if num not in _DIMENSIONLESS else '1'}/{_grouped(den)}"
 
 
-def gain_unit(name: str, plant: Mapping[str, Any] | None, continuous: bool | None) -> str | None:
+def gain_unit(name: str, plant: Mapping[str, Any] | None, continuous: bool | None,
+              columns: int | None = None) -> str | None:
     """The unit of gain ``name`` from the plant record, ``None`` when it cannot be given.
 
     Parameters
@@ -62,6 +63,9 @@ def gain_unit(name: str, plant: Mapping[str, Any] | None, continuous: bool | Non
     continuous : bool or None
         Time domain of the design: True continuous (``L`` per second), False discrete (``L``
         per sample), None unknown (no unit for ``L``).
+    columns : int, optional
+        Columns of the gain: a ``K`` with more columns than states carries integral action
+        (``[K1 K2]``, ``K2`` on the integrated output error, another unit): no single unit.
 
     Returns
     -------
@@ -73,6 +77,8 @@ def gain_unit(name: str, plant: Mapping[str, Any] | None, continuous: bool | Non
     if signals is None or not isinstance(plant, Mapping):
         return None
     if name == "L" and continuous is None:
+        return None
+    if name == "K" and columns is not None and columns != len(plant.get("states") or []):
         return None
     num = _common_unit(plant.get(signals[0]) or [])
     den = _common_unit(plant.get(signals[1]) or [])

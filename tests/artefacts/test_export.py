@@ -377,3 +377,18 @@ def test_lqr_weights_are_exported_with_the_gain():
     np.testing.assert_array_equal(mat["Q"], [[2.0]])
     np.testing.assert_array_equal(mat["R"], [[3.0]])
     assert "Q" not in mat_contents({"K": np.array([[0.5]])}, implementation_data({}, record))
+
+
+def test_integral_gain_units_name_each_block(out):
+    """Issue 30 (new-user pass): the .mat gave K = [K1 K2] one unit (input per state unit),
+    but K2 multiplies z, the integrated output error: (m^3/s)/(m s) here, by hand."""
+    from scipy.io import loadmat
+
+    mat = loadmat(out / "sfi.mat")
+    K = mat["K"]
+    assert K.shape[1] > 3
+    unit = mat["units"][0, 0]["K"].item()
+    assert unit.startswith("(m^3/s)/m in columns 1-3")
+    assert f"(m^3/s)/(m s) in columns 4-{K.shape[1]}" in unit
+    header = (out / "sfi_law.h").read_text(encoding="utf-8")
+    assert "integrated tracking error, m s" in header

@@ -48,3 +48,15 @@ def test_rendered_design_prints_the_unit_beside_K():
         '((* from "macros.tex.j2" import gain *))((( gain(g)|tex )))').render(g=k))
     assert r"\text{in $(\mathrm{m}^{3}/\mathrm{s})/\mathrm{m}$}" in tex
     assert tex.index("K") < tex.index(r"\text{in ")
+
+
+def test_integral_gain_has_no_single_unit():
+    """Issue 30 (new-user pass): ``K = [K1 K2]`` of integral action printed "in V/cm" although
+    ``K2`` acts on the integrated output error (V/(cm s) here): no unit line rather than a wrong one."""
+    table = _plant_table("three_tank")
+    assert gain_unit("K", table, None, columns=3) == "(m^3/s)/m"
+    assert gain_unit("K", table, None, columns=5) is None
+    art = {"name": "pi", "method": "pole_placement", "gains": {"K": np.ones((2, 5))},
+           "diagnostics": {"time_domain": "discrete"}}
+    view = design_view(art, None, STATEMENTS, table)
+    assert [g.unit for g in view.gains if g.name == "K"] == [""], view.gains
