@@ -62,7 +62,7 @@ from pathlib import Path
 from typing import Any, Callable, Iterator, Sequence
 
 __all__ = ["BUILD_FLAGS", "COMPILE_TIMEOUT", "MAX_LOADED", "NativeBuildError", "NativeLibrary",
-           "NativeCache", "find_compiler", "flag_sets", "cache_root"]
+           "NativeCache", "find_compiler", "flag_sets", "cache_root", "ctypes_loader"]
 
 #: Flags of every build: position-independent shared code, IEEE arithmetic as written (no
 #: contraction into fused multiply-adds, no ``errno`` from libm: ``sqrt`` stays one instruction).
@@ -119,6 +119,30 @@ class NativeLibrary:
     path: Path
     flags: tuple[str, ...]
     compile_seconds: float
+
+
+def ctypes_loader(symbol: str) -> Callable[[Path, str], Any]:
+    """A family's ``load`` for `NativeCache.library`: ``ctypes.CDLL`` of the file, refusing one
+    that defines no ``symbol`` (another library under the kernel's name) with AttributeError,
+    which the cache counts as a failed build.
+
+    Parameters
+    ----------
+    symbol : str
+        The C function every library of the family defines (e.g. ``tk_run``).
+
+    Returns
+    -------
+    callable
+        ``load(path, name) -> ctypes.CDLL``.
+    """
+    def load(path: Path, name: str) -> Any:
+        import ctypes
+
+        lib = ctypes.CDLL(str(path))
+        getattr(lib, symbol)
+        return lib
+    return load
 
 
 def find_compiler() -> str | None:

@@ -113,7 +113,7 @@ def mode_cells(switching: Sequence[sp.Expr], states: Sequence[sp.Symbol],
         ``(bits, point)`` sorted by bits; modes no point reached are absent.
     """
     pts = np.atleast_2d(np.asarray(points, dtype=float))
-    funcs = [sp.lambdify(list(states), sp.sympify(s).xreplace(dict(parameters)), "numpy")
+    funcs = [sp.lambdify(list(states), s.xreplace(dict(parameters)), "numpy")
              for s in switching]
     vals = np.column_stack([np.broadcast_to(np.asarray(fn(*pts.T), dtype=float), (len(pts),))
                             for fn in funcs]) if funcs else np.zeros((len(pts), 0))

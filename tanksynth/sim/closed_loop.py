@@ -77,7 +77,7 @@ from typing import Any, Callable, Mapping
 
 import numpy as np
 
-from tanksynth.native_cache import NativeBuildError, NativeCache, find_compiler
+from tanksynth.native_cache import NativeBuildError, NativeCache, ctypes_loader, find_compiler
 from tanksynth.sim import native
 from tanksynth.sim.csource import BLOCK, KERNEL_VERSION, kernel_source
 from tanksynth.sim.kernel import BUILD_WORK
@@ -530,7 +530,7 @@ def _build(model: Any, law: LoopLaw, nr: int, build: bool) -> LoopKernel | None:
         return None
     try:
         lib = _CACHE.library([source, LOOP_VERSION, KERNEL_VERSION], lambda name: source,
-                             _load, cc, build)
+                             ctypes_loader("tk_loop"), cc, build)
     except NativeBuildError as exc:
         _STATUS[0] = f"closed-loop kernel unavailable ({exc}); stepping period by period"
         if not exc.repeated:
@@ -543,14 +543,6 @@ def _build(model: Any, law: LoopLaw, nr: int, build: bool) -> LoopKernel | None:
     _STATUS[0] = (f"closed-loop kernel {lib.path.name}"
                   + (f", compiled in {lib.compile_seconds:.2f} s" if lib.compile_seconds else ""))
     return LoopKernel(lib.handle, model.n, model.m, p, nr, lib.compile_seconds)
-
-
-def _load(path: Any, name: str) -> ctypes.CDLL:
-    """The library at ``path``; AttributeError (a failed build for the cache, which then
-    refuses it) when it defines no ``tk_loop``: another library under the kernel's name."""
-    lib = ctypes.CDLL(str(path))
-    getattr(lib, "tk_loop")
-    return lib
 
 
 def loop_status() -> str:

@@ -47,7 +47,7 @@ from typing import Any
 
 import numpy as np
 
-from tanksynth.native_cache import NativeBuildError, NativeCache, find_compiler
+from tanksynth.native_cache import NativeBuildError, NativeCache, ctypes_loader, find_compiler
 from tanksynth.sim.csource import KERNEL_VERSION, kernel_source
 
 __all__ = ["NativeKernel", "PeriodCall", "native_kernel", "kernel_status", "cache_dir", "clear_cache",
@@ -377,7 +377,7 @@ def _native_kernel(model: Any, backend: str, cc: str | None, build: bool) -> Nat
         return None
     try:
         lib = _CACHE.library([source, KERNEL_VERSION], lambda name: source,
-                             _load, cc, build)
+                             ctypes_loader("tk_run"), cc, build)
     except NativeBuildError as exc:
         _STATUS[0] = (f"native simulation kernel unavailable ({exc}); simulating with the "
                       f"CasADi/numpy code")
@@ -391,14 +391,6 @@ def _native_kernel(model: Any, backend: str, cc: str | None, build: bool) -> Nat
     _STATUS[0] = (f"native kernel {lib.path.name} ({' '.join(lib.flags[:1] + lib.flags[6:])})"
                   + (f", compiled in {lib.compile_seconds:.2f} s" if lib.compile_seconds else ""))
     return NativeKernel(lib.handle, lib.path, model.n, model.m, lib.compile_seconds)
-
-
-def _load(path: Any, name: str) -> ctypes.CDLL:
-    """The library at ``path``; AttributeError (a failed build for the cache, which then
-    refuses it) when it defines no ``tk_run``: another library under the kernel's name."""
-    lib = ctypes.CDLL(str(path))
-    getattr(lib, "tk_run")
-    return lib
 
 
 def kernel_status() -> str:
